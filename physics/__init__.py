@@ -1,0 +1,41 @@
+"""Friction of micro linear ball bearings: the model of Olaru et al. (COMEC 2005).
+
+Pure, vectorized functions, one per equation, grouped by sub-domain:
+
+* :mod:`physics.contact` - moduli, contact load, JKR radius and pressure (eqs 3, 4, 7, 8)
+* :mod:`physics.surface` - adhesion and capillary forces (eqs 1, 2, 5, 6)
+* :mod:`physics.lubrication` - Houpert's rolling force and the pressure force (eqs 9-13)
+* :mod:`physics.moments` - hysteresis, pivoting and ball-ball moments (eqs 15-17)
+* :mod:`physics.bearing` - the ball's balance and μ, :func:`evaluate` (eqs 18-23)
+
+:data:`PARAMETERS` declares every input once (name, unit, default, range);
+:data:`OUTPUTS` every output. Everything is SI except the groove angle in degrees.
+"""
+
+from .bearing import OUTPUTS, FrictionResult, evaluate
+from .materials import MATERIALS, Material, material_parameters
+from .parameters import (
+    CONVENTIONS,
+    DEFAULT_CONVENTION,
+    PARAMETERS,
+    Parameter,
+    defaults,
+    validate,
+    validate_all,
+)
+
+__all__ = [
+    "evaluate",
+    "FrictionResult",
+    "OUTPUTS",
+    "PARAMETERS",
+    "Parameter",
+    "CONVENTIONS",
+    "DEFAULT_CONVENTION",
+    "MATERIALS",
+    "Material",
+    "material_parameters",
+    "defaults",
+    "validate",
+    "validate_all",
+]

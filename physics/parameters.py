@@ -1,0 +1,311 @@
+"""The parameter table: every input of the friction model in one place.
+
+Each :class:`Parameter` states its name, unit, default, allowed range and
+meaning. Validation (:func:`validate`), the REST API's request schemas and the
+column names of measured data are all built from :data:`PARAMETERS`, so a
+parameter is declared exactly once.
+
+Names carry their SI unit (``load_N``, ``speed_m_s``); angles are the one
+exception to SI, given in degrees (``groove_angle_deg``) because that is how a
+groove is specified, and converted to radians inside the model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "Parameter",
+    "PARAMETERS",
+    "CONVENTIONS",
+    "DEFAULT_CONVENTION",
+    "validate",
+    "validate_all",
+    "defaults",
+]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One input of the friction model.
+
+    Attributes
+    ----------
+    name : str
+        Keyword of :func:`physics.evaluate`, REST field and data column name.
+    symbol : str
+        Symbol in Olaru et al. (2005).
+    unit : str
+        SI unit (``"1"`` for dimensionless, ``"deg"`` for the groove angle).
+    description : str
+        What the parameter means, in one sentence.
+    default : float, bool or None
+        Default value; ``None`` marks a required design or operating input.
+    minimum, maximum : float or None
+        Bounds of the allowed range.
+    exclusive_minimum, exclusive_maximum : bool
+        Whether the bound itself is excluded.
+    kind : {"float", "int", "bool"}
+        Value type: integers must be whole numbers, booleans true/false.
+    """
+
+    name: str
+    symbol: str
+    unit: str
+    description: str
+    default: float | bool | None = None
+    minimum: float | None = None
+    maximum: float | None = None
+    exclusive_minimum: bool = False
+    exclusive_maximum: bool = False
+    kind: str = "float"
+
+    @property
+    def required(self) -> bool:
+        """True for design and operating inputs that have no default."""
+        return self.default is None
+
+    def range_text(self) -> str:
+        """The allowed range in words, e.g. ``"> 0"`` or ``"in (0, 90)"``."""
+        if self.kind == "bool":
+            return "true or false"
+        lo, hi = self.minimum, self.maximum
+        whole = "a whole number " if self.kind == "int" else ""
+        if lo is not None and hi is not None:
+            left = "(" if self.exclusive_minimum else "["
+            right = ")" if self.exclusive_maximum else "]"
+            return f"{whole}in {left}{lo:g}, {hi:g}{right}"
+        if lo is not None:
+            return f"{whole}{'>' if self.exclusive_minimum else '>='} {lo:g}"
+        if hi is not None:
+            return f"{whole}{'<' if self.exclusive_maximum else '<='} {hi:g}"
+        return f"{whole}finite"
+
+
+_STEEL_E_PA = 2.1e11
+_SILICON_E_PA = 1.5e11
+
+#: Every input of :func:`physics.evaluate`, keyed by name.
+PARAMETERS: dict[str, Parameter] = {
+    p.name: p
+    for p in [
+        Parameter(
+            "balls", "z", "1",
+            "Total number of balls carrying the slider (both grooves together).",
+            minimum=1, maximum=1_000_000, kind="int",
+        ),
+        Parameter(
+            "groove_angle_deg", "theta", "deg",
+            "V-groove flank angle, equal to the angle between each ball-race contact "
+            "normal and the vertical; 54.7 deg for KOH-etched (111) silicon flanks.",
+            default=54.7, minimum=0, maximum=90,
+            exclusive_minimum=True, exclusive_maximum=True,
+        ),
+        Parameter(
+            "load_N", "G", "N",
+            "Normal load on the slider: slider weight m*g plus any external load.",
+            minimum=0, maximum=1e6, exclusive_minimum=True,
+        ),
+        Parameter(
+            "speed_m_s", "V", "m/s",
+            "Slider speed relative to the stator; the balls roll at V/2.",
+            minimum=0, maximum=1e3,
+        ),
+        Parameter(
+            "ball_diameter_m", "d", "m",
+            "Ball diameter (285 um in Olaru et al. and Lin et al.).",
+            default=285e-6, minimum=0, maximum=1.0, exclusive_minimum=True,
+        ),
+        Parameter(
+            "balls_touching", "", "1",
+            "Whether neighbouring balls touch, adding the ball-ball capillary "
+            "friction moment of eq 17.",
+            default=False, kind="bool",
+        ),
+        Parameter(
+            "mu_pivot", "mu_s", "1",
+            "Sliding friction coefficient in the ball-race contact, used by the "
+            "pivoting moment (eq 16); Olaru et al. use 0.5 and 1.",
+            default=0.5, minimum=0, maximum=10,
+        ),
+        Parameter(
+            "mu_ball", "mu_b", "1",
+            "Friction coefficient between two touching balls (eq 17); Olaru et al. "
+            "use 0.5 and 1.",
+            default=0.5, minimum=0, maximum=10,
+        ),
+        Parameter(
+            "adhesion_energy_J_m2", "gamma", "J/m^2",
+            "Interfacial energy of the JKR adhesion at the ball-race contacts; 0 "
+            "turns adhesion off. 0.18 J/m^2 gives the 200-300 uN pull-off forces "
+            "that Olaru et al. quote.",
+            default=0.18, minimum=0, maximum=100,
+        ),
+        Parameter(
+            "water_surface_tension_N_m", "gamma_w", "N/m",
+            "Surface tension of the condensed water film driving the ball-ball "
+            "capillary force (0.0717 N/m at 27 degC).",
+            default=0.0717, minimum=0, maximum=10,
+        ),
+        Parameter(
+            "viscosity_Pa_s", "eta_0", "Pa*s",
+            "Dynamic viscosity of the water film at ambient pressure.",
+            default=1e-3, minimum=0, maximum=1e6,
+        ),
+        Parameter(
+            "pressure_viscosity_1_Pa", "alpha", "1/Pa",
+            "Pressure-viscosity coefficient of the water film.",
+            default=1e-8, minimum=0, maximum=1e-3, exclusive_minimum=True,
+        ),
+        Parameter(
+            "ball_youngs_modulus_Pa", "E_1", "Pa",
+            "Young's modulus of the balls (stainless steel, 2.1e11 Pa).",
+            default=_STEEL_E_PA, minimum=0, maximum=1e13, exclusive_minimum=True,
+        ),
+        Parameter(
+            "ball_poisson_ratio", "nu_1", "1",
+            "Poisson's ratio of the balls.",
+            default=0.3, minimum=0, maximum=0.5, exclusive_maximum=True,
+        ),
+        Parameter(
+            "race_youngs_modulus_Pa", "E_2", "Pa",
+            "Young's modulus of slider and stator (silicon, 1.5e11 Pa).",
+            default=_SILICON_E_PA, minimum=0, maximum=1e13, exclusive_minimum=True,
+        ),
+        Parameter(
+            "race_poisson_ratio", "nu_2", "1",
+            "Poisson's ratio of slider and stator.",
+            default=0.3, minimum=0, maximum=0.5, exclusive_maximum=True,
+        ),
+    ]
+}
+
+#: The readings of the paper's ambiguous equations (see :mod:`physics.bearing`).
+CONVENTIONS: dict[str, str] = {
+    "olaru2005": (
+        "The paper as printed: ball-ball radius 1/R* = 2(1/R1 + 1/R2) (R/4 for "
+        "equal balls) in eq 6 and the ball-ball moment counted twice per ball in "
+        "eq 21. Reproduces the paper's Figs. 5 and 6."
+    ),
+    "derjaguin": (
+        "Physically consistent reading: Derjaguin radius R* = R1 R2/(R1 + R2) "
+        "(R/2 for equal balls) and the ball-ball moment counted once per ball. "
+        "Gives the same numbers for equal balls; differs for unequal radii."
+    ),
+}
+DEFAULT_CONVENTION = "olaru2005"
+
+
+def _array_text(values: np.ndarray, mask: np.ndarray) -> str:
+    index = np.flatnonzero(mask)[0]
+    flat = np.asarray(values).reshape(-1)
+    if flat.size == 1:
+        return f"got {flat[0]!r}"
+    return f"got {flat[index]!r} at index {index}"
+
+
+def validate(name: str, value: Any) -> np.ndarray:
+    """Check one input against its :class:`Parameter` and return it as an array.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PARAMETERS`.
+    value : numeric, bool or array_like
+        The value to check, scalar or array.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``float64`` for numbers (whole numbers for ``kind == "int"``), ``bool``
+        for booleans, in the shape given.
+
+    Raises
+    ------
+    ValueError
+        Naming the parameter, its allowed range and the offending value, for
+        NaN, infinities, values out of range, fractional integers, or
+        non-numeric input.
+
+    Examples
+    --------
+    >>> validate("load_N", -1.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: load_N must be > 0 [N]; got -1.0
+    """
+    spec = PARAMETERS[name]
+    allowed = f"{spec.name} must be {spec.range_text()} [{spec.unit}]"
+    if spec.kind == "bool":
+        arr = np.asarray(value)
+        if arr.dtype != np.bool_:
+            raise ValueError(f"{allowed}; got {value!r}")
+        return arr
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{allowed}; got {value!r}") from None
+    if np.asarray(value).dtype == np.bool_:
+        raise ValueError(f"{allowed}; got a boolean {value!r}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        raise ValueError(f"{allowed} and finite; {_array_text(arr, bad)}")
+    if spec.minimum is not None:
+        bad = arr <= spec.minimum if spec.exclusive_minimum else arr < spec.minimum
+        if bad.any():
+            raise ValueError(f"{allowed}; {_array_text(arr, bad)}")
+    if spec.maximum is not None:
+        bad = arr >= spec.maximum if spec.exclusive_maximum else arr > spec.maximum
+        if bad.any():
+            raise ValueError(f"{allowed}; {_array_text(arr, bad)}")
+    if spec.kind == "int":
+        bad = arr != np.round(arr)
+        if bad.any():
+            raise ValueError(f"{allowed}; {_array_text(arr, bad)}")
+    return arr
+
+
+def defaults() -> dict[str, float | bool]:
+    """The default of every optional parameter, keyed by name."""
+    return {n: p.default for n, p in PARAMETERS.items() if p.default is not None}
+
+
+def validate_all(params: dict[str, Any]) -> dict[str, np.ndarray]:
+    """Fill defaults, reject unknown or missing names, validate every value.
+
+    Parameters
+    ----------
+    params : dict
+        Keyword inputs of :func:`physics.evaluate`.
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        Every parameter of :data:`PARAMETERS`, validated.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name, a missing required one, an invalid value, or
+        array inputs whose shapes do not broadcast together.
+    """
+    unknown = sorted(set(params) - set(PARAMETERS))
+    if unknown:
+        raise ValueError(
+            f"unknown parameter(s) {', '.join(unknown)}; "
+            f"known: {', '.join(PARAMETERS)}"
+        )
+    missing = [n for n, p in PARAMETERS.items() if p.required and n not in params]
+    if missing:
+        raise ValueError(f"missing required parameter(s): {', '.join(missing)}")
+    merged = {**defaults(), **params}
+    checked = {name: validate(name, merged[name]) for name in PARAMETERS}
+    try:
+        np.broadcast_shapes(*(a.shape for a in checked.values()))
+    except ValueError:
+        shapes = {n: a.shape for n, a in checked.items() if a.ndim}
+        raise ValueError(f"array parameters do not broadcast together: {shapes}") from None
+    return checked

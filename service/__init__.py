@@ -1,0 +1,1 @@
+"""The microbearing REST service and command line: the top of the dependency tree."""
