@@ -378,7 +378,7 @@ def evaluate(convention: str = DEFAULT_CONVENTION, **params: Any) -> FrictionRes
     >>> r = evaluate(balls=4, load_N=0.9e-3 * 9.80665, speed_m_s=0.1,
     ...              mu_pivot=1.0, adhesion_energy_J_m2=0.0)
     >>> round(float(r.mu_contact), 4)
-    0.0049
+    0.0051
     """
     if convention not in CONVENTIONS:
         raise ValueError(f"convention must be one of {', '.join(CONVENTIONS)}; got {convention!r}")

@@ -16,6 +16,7 @@ figures.
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -147,13 +148,13 @@ def plot(path, convention="olaru2005"):
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2), constrained_layout=True)
     speeds_mm_s = PAPER_SPEEDS_M_S * 1e3
-    for ax, case in zip(axes, PAPER_CASES.values()):
+    for ax, case in zip(axes, PAPER_CASES.values(), strict=True):
         curves = case_curves(case, convention=convention)
         name, values = case.varied
-        for curve, value in zip(curves, values):
+        for curve, value in zip(curves, values, strict=True):
             ax.plot(speeds_mm_s, curve, label=f"{name} = {value:g}")
         ax.axhspan(*case.reported, color="0.85", label="range reported in the paper")
-        ax.set_title(case.title, fontsize=9)
+        ax.set_title(textwrap.fill(case.title, 48), fontsize=9)
         ax.set_xlabel("slider speed [mm/s]")
         ax.set_ylabel(f"{case.output} [-]")
         ax.legend(fontsize=8)

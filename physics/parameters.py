@@ -200,11 +200,12 @@ DEFAULT_CONVENTION = "olaru2005"
 
 
 def _array_text(values: np.ndarray, mask: np.ndarray) -> str:
-    index = np.flatnonzero(mask)[0]
+    index = int(np.flatnonzero(mask)[0])
     flat = np.asarray(values).reshape(-1)
+    shown = flat[index].item()
     if flat.size == 1:
-        return f"got {flat[0]!r}"
-    return f"got {flat[index]!r} at index {index}"
+        return f"got {shown!r}"
+    return f"got {shown!r} at index {index}"
 
 
 def validate(name: str, value: Any) -> np.ndarray:
@@ -235,7 +236,7 @@ def validate(name: str, value: Any) -> np.ndarray:
     >>> validate("load_N", -1.0)
     Traceback (most recent call last):
     ...
-    ValueError: load_N must be > 0 [N]; got -1.0
+    ValueError: load_N must be in (0, 1e+06] [N]; got -1.0
     """
     spec = PARAMETERS[name]
     allowed = f"{spec.name} must be {spec.range_text()} [{spec.unit}]"

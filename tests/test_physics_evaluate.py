@@ -1,0 +1,161 @@
+"""physics.evaluate: shapes, properties of the model, and validation of its inputs."""
+
+import math
+
+import numpy as np
+import pytest
+
+import physics
+from physics import OUTPUTS, PARAMETERS, evaluate
+
+BASE = {"balls": 4, "load_N": 8.8e-3, "speed_m_s": 0.05}
+
+
+@pytest.mark.parametrize(
+    ("speed", "shape"),
+    [(0.05, ()), ([0.0, 0.05, 0.1], (3,)), (np.linspace(0, 0.1, 6).reshape(2, 3), (2, 3))],
+)
+def test_scalar_list_and_array_inputs_keep_their_shapes(speed, shape):
+    r = evaluate(**{**BASE, "speed_m_s": speed})
+    for name in OUTPUTS:
+        assert np.shape(getattr(r, name)) == shape, name
+
+
+def test_arrays_broadcast_like_numpy_and_match_pointwise_evaluation():
+    balls = np.array([3, 4, 10])[:, None]
+    load = np.array([1e-3, 1e-2])[None, :]
+    grid = evaluate(balls=balls, load_N=load, speed_m_s=0.02, balls_touching=True)
+    assert grid.mu.shape == (3, 2)
+    for i, z in enumerate([3, 4, 10]):
+        for j, g in enumerate([1e-3, 1e-2]):
+            point = evaluate(balls=z, load_N=g, speed_m_s=0.02, balls_touching=True)
+            assert grid.mu[i, j] == pytest.approx(float(point.mu), rel=1e-14)
+
+
+def test_breakdown_sums_to_mu():
+    rng = np.random.default_rng(1)
+    n = 500
+    r = evaluate(balls=rng.integers(1, 50, n), load_N=rng.uniform(1e-4, 1e-1, n),
+                 speed_m_s=rng.uniform(0, 0.3, n), groove_angle_deg=rng.uniform(5, 85, n),
+                 balls_touching=rng.random(n) < 0.5, adhesion_energy_J_m2=rng.uniform(0, 0.3, n))
+    parts = r.mu_pivoting + r.mu_hysteresis + r.mu_rolling + r.mu_ball_ball
+    np.testing.assert_allclose(parts, r.mu, rtol=1e-12)
+    assert np.all(r.mu > 0)
+
+
+def test_mu_grows_with_mu_pivot_and_mu_ball():
+    mu_s = evaluate(**BASE, mu_pivot=[0.1, 0.5, 1.0, 2.0]).mu
+    assert np.all(np.diff(mu_s) > 0)
+    mu_b = evaluate(**BASE, balls_touching=True, mu_ball=[0.1, 0.5, 1.0, 2.0]).mu
+    assert np.all(np.diff(mu_b) > 0)
+    # pivoting is linear in mu_s
+    r = evaluate(**BASE, mu_pivot=[0.5, 1.0])
+    assert r.mu_pivoting[1] == pytest.approx(2 * r.mu_pivoting[0], rel=1e-12)
+
+
+def test_adhesion_only_adds():
+    r = evaluate(**BASE, balls_touching=True, adhesion_energy_J_m2=[0.0, 0.05, 0.18, 0.3])
+    assert np.all(np.diff(r.mu) > 0)
+    assert np.all(np.diff(r.contact_load_adhesive_N) > 0)
+
+
+def test_speed_enters_only_through_the_rolling_term():
+    r = evaluate(**{**BASE, "speed_m_s": [0.0, 0.01, 0.1, 0.15]}, balls_touching=True)
+    for name in ("mu_pivoting", "mu_hysteresis", "mu_ball_ball", "contact_radius_m"):
+        values = getattr(r, name)
+        np.testing.assert_allclose(values, values[0], rtol=1e-14)
+    assert r.mu_rolling[0] == 0.0
+    # F_R grows as V^0.66
+    assert r.rolling_force_N[2] / r.rolling_force_N[1] == pytest.approx(10**0.66, rel=1e-12)
+    assert np.all(np.diff(r.mu) > 0)
+
+
+def test_balls_apart_have_no_ball_ball_term():
+    r = evaluate(**BASE, balls_touching=False)
+    assert r.mu_ball_ball == 0.0
+    assert r.capillary_force_ball_ball_N == 0.0
+
+
+def test_conventions_agree_for_equal_balls():
+    a = evaluate(**BASE, balls_touching=True, convention="olaru2005")
+    b = evaluate(**BASE, balls_touching=True, convention="derjaguin")
+    assert a.mu == pytest.approx(float(b.mu), rel=1e-14)
+    assert b.ball_ball_moment_Nm == pytest.approx(2 * float(a.ball_ball_moment_Nm), rel=1e-14)
+
+
+def test_material_presets_feed_evaluate():
+    soft = evaluate(**BASE, **physics.material_parameters("stainless_steel", "borosilicate_glass"))
+    stiff = evaluate(**BASE, **physics.material_parameters("silicon_nitride", "silicon"))
+    # a softer race gives a larger contact and a larger pivoting moment
+    assert soft.contact_radius_m > stiff.contact_radius_m
+    assert soft.mu_pivoting > stiff.mu_pivoting
+    with pytest.raises(ValueError, match="ball material"):
+        physics.material_parameters("unobtainium", "silicon")
+
+
+def test_defaults_are_the_papers_conditions():
+    d = physics.defaults()
+    assert d["ball_diameter_m"] == 285e-6
+    assert d["groove_angle_deg"] == 54.7
+    assert d["water_surface_tension_N_m"] == 0.0717
+    assert (d["viscosity_Pa_s"], d["pressure_viscosity_1_Pa"]) == (1e-3, 1e-8)
+    assert {p.name for p in PARAMETERS.values() if p.required} == {"balls", "load_N", "speed_m_s"}
+
+
+@pytest.mark.parametrize(
+    ("override", "match"),
+    [
+        ({"load_N": -1.0}, r"load_N must be in \(0, 1e\+06\] \[N\]; got -1.0"),
+        ({"load_N": 0.0}, r"load_N must be in \(0, "),
+        ({"groove_angle_deg": 90.0}, r"groove_angle_deg must be in \(0, 90\) \[deg\]"),
+        ({"groove_angle_deg": 0.0}, r"groove_angle_deg must be in \(0, 90\)"),
+        ({"balls": 0}, r"balls must be a whole number in \[1, 1e\+06\]"),
+        ({"balls": 2.5}, r"balls must be a whole number"),
+        ({"speed_m_s": math.nan}, r"speed_m_s must be .* and finite; got nan"),
+        ({"speed_m_s": [0.1, math.inf]}, r"speed_m_s .* finite; got inf at index 1"),
+        ({"load_N": "heavy"}, r"load_N must be in \(0, 1e\+06\] \[N\]; got 'heavy'"),
+        ({"load_N": True}, r"load_N .* got a boolean"),
+        ({"balls_touching": 1.0}, r"balls_touching must be true or false"),
+        ({"ball_poisson_ratio": 0.5}, r"ball_poisson_ratio must be in \[0, 0.5\)"),
+        ({"adhesion_energy_J_m2": -0.1}, r"adhesion_energy_J_m2 must be in \[0, 100\]"),
+        ({"mu_pivot": -1}, r"mu_pivot must be in \[0, 10\]"),
+        ({"colour": "red"}, r"unknown parameter\(s\) colour"),
+    ],
+)
+def test_bad_input_raises_value_error_naming_parameter_and_range(override, match):
+    with pytest.raises(ValueError, match=match):
+        evaluate(**{**BASE, **override})
+
+
+def test_missing_required_parameter_is_named():
+    with pytest.raises(ValueError, match=r"missing required parameter.*speed_m_s"):
+        evaluate(balls=4, load_N=1e-3)
+
+
+def test_shapes_that_do_not_broadcast_are_rejected():
+    with pytest.raises(ValueError, match="do not broadcast"):
+        evaluate(balls=[3, 4], load_N=[1e-3, 2e-3, 3e-3], speed_m_s=0.0)
+
+
+def test_unknown_convention_is_rejected():
+    with pytest.raises(ValueError, match="convention must be one of"):
+        evaluate(**BASE, convention="hertz")
+
+
+def test_no_nan_anywhere_on_a_wide_random_domain():
+    rng = np.random.default_rng(7)
+    n = 20_000
+    specs = [p for p in PARAMETERS.values() if p.kind == "float"]
+    params = {}
+    for p in specs:
+        lo = p.minimum if p.minimum is not None else 0.0
+        hi = min(p.maximum, 10 * (p.default or 1.0)) if p.maximum is not None else 10 * (p.default or 1.0)
+        params[p.name] = rng.uniform(lo, hi, n)
+    params["groove_angle_deg"] = rng.uniform(1, 89, n)
+    params["load_N"] = 10 ** rng.uniform(-6, 1, n)
+    params["ball_diameter_m"] = 10 ** rng.uniform(-6, -2, n)
+    params["balls"] = rng.integers(1, 100, n)
+    params["balls_touching"] = rng.random(n) < 0.5
+    r = evaluate(**params)
+    for name in OUTPUTS:
+        assert np.all(np.isfinite(getattr(r, name))), name
