@@ -37,7 +37,7 @@ __all__ = [
 
 
 def sliding_force(ball_ball_moment_Nm, pivoting_moment_Nm, hysteresis_moment_Nm,
-                  rolling_force_N, ball_diameter_m, groove_angle_rad):
+                  rolling_force_N, ball_diameter_m, cos_contact_angle, tan_contact_angle):
     r"""Sliding traction F_S at each ball-race contact, from the ball's equilibrium.
 
     Parameters
@@ -52,8 +52,8 @@ def sliding_force(ball_ball_moment_Nm, pivoting_moment_Nm, hysteresis_moment_Nm,
         F_R of one contact. [N]
     ball_diameter_m : numeric
         d. [m]
-    groove_angle_rad : numeric
-        θ. [rad]
+    cos_contact_angle, tan_contact_angle : numeric
+        cos θ and tan θ of the contact angle θ from the vertical. [1]
 
     Returns
     -------
@@ -74,12 +74,12 @@ def sliding_force(ball_ball_moment_Nm, pivoting_moment_Nm, hysteresis_moment_Nm,
 
     Examples
     --------
-    >>> float(sliding_force(0.0, 0.0, 1.0, 0.5, 2.0, 0.0))
+    >>> float(sliding_force(0.0, 0.0, 1.0, 0.5, 2.0, 1.0, 0.0))
     1.5
     """
     return (
-        ball_ball_moment_Nm / np.cos(groove_angle_rad)
-        + 2.0 * pivoting_moment_Nm * np.tan(groove_angle_rad)
+        ball_ball_moment_Nm / cos_contact_angle
+        + 2.0 * pivoting_moment_Nm * tan_contact_angle
         + 2.0 * hysteresis_moment_Nm
     ) / ball_diameter_m + rolling_force_N
 
@@ -216,7 +216,8 @@ def force_balance_residual(sliding_force_1_N, sliding_force_2_N, rolling_force_1
 def moment_balance_residual(ball_ball_moment_Nm, pivoting_moment_1_Nm, pivoting_moment_2_Nm,
                             hysteresis_moment_1_Nm, hysteresis_moment_2_Nm,
                             sliding_force_1_N, sliding_force_2_N, rolling_force_1_N,
-                            rolling_force_2_N, ball_diameter_m, groove_angle_rad):
+                            rolling_force_2_N, ball_diameter_m, cos_contact_angle,
+                            tan_contact_angle):
     r"""Residual of the ball's moment balance about its centre.
 
     Parameters
@@ -233,8 +234,8 @@ def moment_balance_residual(ball_ball_moment_Nm, pivoting_moment_1_Nm, pivoting_
         F_R at each contact. [N]
     ball_diameter_m : numeric
         d. [m]
-    groove_angle_rad : numeric
-        θ. [rad]
+    cos_contact_angle, tan_contact_angle : numeric
+        cos θ and tan θ of the contact angle θ from the vertical. [1]
 
     Returns
     -------
@@ -254,11 +255,11 @@ def moment_balance_residual(ball_ball_moment_Nm, pivoting_moment_1_Nm, pivoting_
 
     Examples
     --------
-    >>> float(moment_balance_residual(0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 1.0, 1.0, 2.0, 0.0))
+    >>> float(moment_balance_residual(0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 1.0, 1.0, 2.0, 1.0, 0.0))
     0.0
     """
-    resisting = (ball_ball_moment_Nm / np.cos(groove_angle_rad)
-                 + (pivoting_moment_1_Nm + pivoting_moment_2_Nm) * np.tan(groove_angle_rad)
+    resisting = (ball_ball_moment_Nm / cos_contact_angle
+                 + (pivoting_moment_1_Nm + pivoting_moment_2_Nm) * tan_contact_angle
                  + hysteresis_moment_1_Nm + hysteresis_moment_2_Nm)
     driving = 0.5 * ball_diameter_m * (sliding_force_1_N + sliding_force_2_N
                                        - rolling_force_1_N - rolling_force_2_N)
@@ -385,8 +386,9 @@ def evaluate(convention: str = DEFAULT_CONVENTION, **params: Any) -> FrictionRes
     p = validate_all(params)
     shape = np.broadcast_shapes(*(a.shape for a in p.values()))
 
-    theta = np.deg2rad(p["groove_angle_deg"])
-    cos_theta, tan_theta = np.cos(theta), np.tan(theta)
+    cos_theta = np.cos(np.deg2rad(p["groove_angle_deg"]))
+    # tan from cos: one transcendental pass instead of two (0 < θ < 90 deg)
+    tan_theta = np.sqrt(1.0 - np.square(cos_theta)) / cos_theta
     d = p["ball_diameter_m"]
     radius = 0.5 * d
     e_star = contact.jkr_effective_modulus(p["ball_youngs_modulus_Pa"], p["ball_poisson_ratio"],
@@ -394,7 +396,7 @@ def evaluate(convention: str = DEFAULT_CONVENTION, **params: Any) -> FrictionRes
     e_prime = contact.reduced_modulus(p["ball_youngs_modulus_Pa"], p["ball_poisson_ratio"],
                                       p["race_youngs_modulus_Pa"], p["race_poisson_ratio"])
 
-    q0 = contact.ball_race_load(p["load_N"], p["balls"], theta)
+    q0 = contact.ball_race_load(p["load_N"], p["balls"], cos_theta)
     q = contact.jkr_contact_load(q0, radius, p["adhesion_energy_J_m2"])
     a = contact.jkr_contact_radius(q, radius, e_star)
 
@@ -413,7 +415,7 @@ def evaluate(convention: str = DEFAULT_CONVENTION, **params: Any) -> FrictionRes
     # "derjaguin" once per ball; with R* twice as large the two agree for equal balls.
     m_b_per_pair = m_b if convention == "olaru2005" else 0.5 * m_b
 
-    f_s = sliding_force(m_b_per_pair, m_p, m_er, f_r, d, theta)
+    f_s = sliding_force(m_b_per_pair, m_p, m_er, f_r, d, cos_theta, tan_theta)
     f_ball = ball_race_force(f_s, f_r)
     f_total = total_friction_force(f_ball, p["balls"])
     mu = friction_coefficient(f_total, p["load_N"])

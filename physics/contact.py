@@ -94,7 +94,7 @@ def reduced_modulus(e1, nu1, e2, nu2):
     return 2.0 / _compliance(e1, nu1, e2, nu2)
 
 
-def ball_race_load(load_N, balls, groove_angle_rad):
+def ball_race_load(load_N, balls, cos_contact_angle):
     r"""Normal load Q0 on each of the four ball-race contacts of a ball.
 
     Parameters
@@ -103,8 +103,8 @@ def ball_race_load(load_N, balls, groove_angle_rad):
         Normal load G on the slider. [N]
     balls : numeric
         Number of balls z. [1]
-    groove_angle_rad : numeric
-        Contact angle θ from the vertical. [rad]
+    cos_contact_angle : numeric
+        cos θ of the contact angle θ from the vertical. [1]
 
     Returns
     -------
@@ -122,10 +122,10 @@ def ball_race_load(load_N, balls, groove_angle_rad):
 
     Examples
     --------
-    >>> round(float(ball_race_load(1.0, 4, np.pi / 3)), 6)
+    >>> float(ball_race_load(1.0, 4, 0.5))
     0.25
     """
-    return load_N / (2.0 * balls * np.cos(groove_angle_rad))
+    return load_N / (2.0 * balls * cos_contact_angle)
 
 
 def jkr_contact_load(load_N, radius_m, adhesion_energy_J_m2):

@@ -77,7 +77,7 @@ def test_eq6_unknown_convention_is_rejected():
 
 def test_eq7_ball_race_load():
     # 0.9 g slider on 4 balls at 54.7 deg: 8.826e-3 / (8 * 0.5779) = 1.909 mN
-    assert contact.ball_race_load(G, Z, THETA) == pytest.approx(Q0, rel=1e-12)
+    assert contact.ball_race_load(G, Z, math.cos(THETA)) == pytest.approx(Q0, rel=1e-12)
     assert Q0 == pytest.approx(1.909e-3, rel=1e-3)
 
 
@@ -133,18 +133,20 @@ def _contact_terms(mu_b=0.5, mu_s=1.0):
 def test_eq20_sliding_force_and_eqs18_19_balance_the_ball():
     f_r, m_er, m_p, m_b = _contact_terms()
     f_s = (m_b / math.cos(THETA) + 2 * m_p * math.tan(THETA) + 2 * m_er) / D + f_r
-    assert bearing.sliding_force(m_b, m_p, m_er, f_r, D, THETA) == pytest.approx(f_s, rel=1e-12)
+    computed = bearing.sliding_force(m_b, m_p, m_er, f_r, D, math.cos(THETA), math.tan(THETA))
+    assert computed == pytest.approx(f_s, rel=1e-12)
     # eq 18: identical contacts, F_P on the centre cancels between slider and stator
     assert bearing.force_balance_residual(f_s, f_s, f_r, f_r, 2 * f_r, 2 * f_r) == 0.0
     # eq 19: the moments about the ball centre balance with F_S from eq 20
-    residual = bearing.moment_balance_residual(m_b, m_p, m_p, m_er, m_er, f_s, f_s, f_r, f_r, D, THETA)
+    residual = bearing.moment_balance_residual(m_b, m_p, m_p, m_er, m_er, f_s, f_s, f_r, f_r, D,
+                                               math.cos(THETA), math.tan(THETA))
     assert abs(residual) < 1e-12 * (m_b + m_p + m_er)
 
 
 def test_eq21_to_23_ball_race_force_total_and_mu():
     f_r, m_er, m_p, m_b = _contact_terms()
     f_ball = (2 * m_b / math.cos(THETA) + 4 * m_p * math.tan(THETA) + 4 * m_er) / D + 4 * f_r
-    f_s = bearing.sliding_force(m_b, m_p, m_er, f_r, D, THETA)
+    f_s = bearing.sliding_force(m_b, m_p, m_er, f_r, D, math.cos(THETA), math.tan(THETA))
     assert bearing.ball_race_force(f_s, f_r) == pytest.approx(f_ball, rel=1e-12)
     assert bearing.total_friction_force(f_ball, Z) == pytest.approx(Z * f_ball, rel=1e-12)
     assert bearing.friction_coefficient(Z * f_ball, G) == pytest.approx(Z * f_ball / G, rel=1e-12)

@@ -1,0 +1,458 @@
+"""Optional effects outside the model of Olaru et al. (2005), for calibration against measurements.
+
+The model of :func:`physics.evaluate` leaves out effects a tribologist would
+suspect in a real micro bearing: menisci that grow with humidity, viscous drag
+on the slider, a constant parasitic drag, a temperature-dependent interfacial
+shear strength, running-in. Each is an :class:`Effect` with a formula, its
+fitted parameters (unit, bounds, initial guess) and the column(s) of measured
+data that drive it. :func:`apply_effect` corrects the μ of the model:
+
+>>> import numpy as np
+>>> mu = np.array([0.01, 0.01])
+>>> columns = {"load_N": np.array([0.01, 0.02])}
+>>> apply_effect(mu, "constant_drag", columns, {"drag_force_N": 1e-4}).round(4).tolist()
+[0.02, 0.015]
+
+A calibrated model is then ``apply_effect(physics.evaluate(**p).mu, ...)``
+with fitted declared parameters and one effect. ``generic_*`` effects are the
+fallback family of low-order terms in log μ for any column when no named
+effect fits.
+
+Driver columns are matched by name: a humidity column contains ``humid`` or
+``rh`` (a fraction in [0, 1), or percent when the name contains ``pct`` or
+``percent``), a temperature column ``temp``, a running-in column ``run``,
+``cycle``, ``pass``, ``stroke``, ``count``, ``time`` or ``distance``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["EffectParameter", "Effect", "EFFECTS", "apply_effect", "humidity_fraction"]
+
+
+@dataclass(frozen=True)
+class EffectParameter:
+    """One fitted parameter of an :class:`Effect`.
+
+    Attributes
+    ----------
+    name : str
+        Name with its unit (``drag_force_N``).
+    unit : str
+        SI unit, ``"1"`` for dimensionless, ``"driver"`` for the unit of the driving column.
+    description : str
+        Meaning in one sentence.
+    minimum, maximum : float
+        Bounds of the fit (may be infinite).
+    """
+
+    name: str
+    unit: str
+    description: str
+    minimum: float
+    maximum: float
+
+
+_Columns = Mapping[str, np.ndarray]
+
+
+@dataclass(frozen=True)
+class Effect:
+    """A named optional correction of μ with fitted parameters and driving columns.
+
+    Attributes
+    ----------
+    name : str
+        Key in :data:`EFFECTS`.
+    title : str
+        What the effect is, in words.
+    formula : str
+        The corrected μ in terms of the model's μ (``mu_model``), the driver and the parameters.
+    parameters : tuple of EffectParameter
+        Fitted parameters, in the order of the formula.
+    driver_description : str
+        Which column drives the effect and in what unit.
+    reference : str
+        Where the physics of the effect comes from.
+    fixed_drivers : tuple of str
+        Physics columns that always drive it (first = the main driver); empty when the driver is a
+        measured condition column chosen by name.
+    driver_keywords : tuple of str
+        Prefixes of the words of a condition column's name that make it a plausible driver; empty and
+        no ``fixed_drivers`` means any numeric column (the generic family).
+    generic : bool
+        True for the generic fallback family.
+    """
+
+    name: str
+    title: str
+    formula: str
+    parameters: tuple[EffectParameter, ...]
+    driver_description: str
+    reference: str
+    fixed_drivers: tuple[str, ...] = ()
+    driver_keywords: tuple[str, ...] = ()
+    generic: bool = False
+    correct: Callable = field(default=None, repr=False, compare=False)
+    make_constants: Callable = field(default=None, repr=False, compare=False)
+    make_initial: Callable = field(default=None, repr=False, compare=False)
+    accepts_values: Callable = field(default=None, repr=False, compare=False)
+    driver_transform: Callable = field(default=None, repr=False, compare=False)
+
+    @property
+    def parameter_names(self) -> list[str]:
+        """Names of the fitted parameters, in order."""
+        return [p.name for p in self.parameters]
+
+    def candidate_drivers(self, column_names: Iterable[str]) -> list[tuple[str, ...]]:
+        """Driver tuples this effect could use among the given columns.
+
+        Parameters
+        ----------
+        column_names : iterable of str
+            Columns of the measured data (physics parameters and conditions).
+
+        Returns
+        -------
+        list of tuple of str
+            One tuple per plausible driver choice, main driver first.
+        """
+        names = list(column_names)
+        if self.fixed_drivers:
+            return [self.fixed_drivers] if set(self.fixed_drivers) <= set(names) else []
+        if not self.driver_keywords:
+            return [(n,) for n in names]
+        return [(n,) for n in names if _name_matches(n, self.driver_keywords)]
+
+    def driver_values(self, columns: _Columns, drivers: tuple[str, ...]) -> np.ndarray:
+        """The main driver's values in the unit of the formula (humidity percent -> fraction)."""
+        x = np.asarray(columns[drivers[0]], dtype=float)
+        return x if self.driver_transform is None else self.driver_transform(drivers[0], x)
+
+    def accepts(self, columns: _Columns, drivers: tuple[str, ...]) -> bool:
+        """Whether the driver values lie in the effect's domain (e.g. humidity in (0, 1))."""
+        if self.accepts_values is None:
+            return True
+        return bool(self.accepts_values(self.driver_values(columns, drivers)))
+
+    def constants(self, columns: _Columns, drivers: tuple[str, ...]) -> dict[str, float]:
+        """Constants fixed from the data at fit time (centre and scale of a generic term).
+
+        Parameters
+        ----------
+        columns : mapping of str to array
+            The data's columns.
+        drivers : tuple of str
+            The driver columns.
+
+        Returns
+        -------
+        dict
+            Constant name -> value [unit of the driver]; empty for most named effects.
+        """
+        if self.make_constants is None:
+            return {}
+        return self.make_constants(self.driver_values(columns, drivers))
+
+    def initial(self, mu: np.ndarray, columns: _Columns, drivers: tuple[str, ...],
+                constants: Mapping[str, float]) -> list[float]:
+        """Initial guesses of the parameters from the data's scale.
+
+        Parameters
+        ----------
+        mu : numpy.ndarray
+            μ of the model without the effect. [1]
+        columns : mapping of str to array
+            The data's columns.
+        drivers : tuple of str
+            The driver columns.
+        constants : mapping
+            From :meth:`constants`.
+
+        Returns
+        -------
+        list of float
+            One value per parameter, inside its bounds.
+        """
+        x = self.driver_values(columns, drivers)
+        return list(self.make_initial(np.asarray(mu, dtype=float), x, columns, constants))
+
+    def apply(self, mu, columns: _Columns, params: Mapping[str, float],
+              drivers: tuple[str, ...] | None = None, constants: Mapping[str, float] | None = None):
+        """μ corrected by this effect.
+
+        Parameters
+        ----------
+        mu : array_like
+            μ of the model. [1]
+        columns : mapping of str to array_like
+            Driver columns and the physics inputs the formula uses (``balls`` [1], ``load_N`` [N]),
+            broadcasting with ``mu``.
+        params : mapping of str to float
+            Every parameter of :attr:`parameters`, in its unit.
+        drivers : tuple of str, optional
+            The driver columns; default :attr:`fixed_drivers` (required for the others).
+        constants : mapping, optional
+            From :meth:`constants` at fit time; required by the generic family.
+
+        Returns
+        -------
+        numpy.ndarray
+            Corrected μ. [1]
+
+        Raises
+        ------
+        ValueError
+            For a missing parameter, driver or constant, or driver values outside the effect's domain.
+        """
+        drivers = tuple(drivers or self.fixed_drivers)
+        if not drivers:
+            raise ValueError(f"effect {self.name} needs its driver column(s) in drivers")
+        missing = [n for n in self.parameter_names if n not in params]
+        if missing:
+            raise ValueError(f"effect {self.name} needs parameter(s) {', '.join(missing)}")
+        absent = [d for d in drivers if d not in columns]
+        if absent:
+            raise ValueError(f"effect {self.name} needs column(s) {', '.join(absent)}")
+        if not self.accepts(columns, drivers):
+            raise ValueError(f"{drivers[0]} is outside the domain of effect {self.name}: "
+                             f"{self.driver_description}")
+        values = [float(params[n]) for n in self.parameter_names]
+        x = self.driver_values(columns, drivers)
+        return self.correct(np.asarray(mu, dtype=float), x, columns, values, dict(constants or {}))
+
+
+def _name_matches(name: str, prefixes: tuple[str, ...]) -> bool:
+    words = [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
+    return any(w.startswith(p) or w == p for w in words for p in prefixes)
+
+
+def humidity_fraction(name: str, values) -> np.ndarray:
+    """Relative humidity as a fraction: percent when the column name says ``pct`` or ``percent``.
+
+    Parameters
+    ----------
+    name : str
+        Column name.
+    values : array_like
+        Relative humidity [1] or [%].
+
+    Returns
+    -------
+    numpy.ndarray
+        Relative humidity h. [1]
+
+    Examples
+    --------
+    >>> humidity_fraction("relative_humidity_pct", [40.0]).tolist()
+    [0.4]
+    """
+    x = np.asarray(values, dtype=float)
+    return x / 100.0 if _name_matches(name, ("pct", "percent")) else x
+
+
+def _additive_initial(basis: Callable) -> Callable:
+    # Start the added term at a tenth of the median μ: the right order of magnitude for any unit.
+    def initial(mu, x, columns, constants):
+        b = np.abs(basis(x, columns))
+        scale = np.median(b[b > 0]) if np.any(b > 0) else 1.0
+        return [0.1 * float(np.median(mu)) / scale]
+    return initial
+
+
+def _meniscus_basis(h, columns):
+    return np.asarray(columns["balls"], dtype=float) / (np.asarray(columns["load_N"], dtype=float)
+                                                         * np.log(1.0 / h))
+
+
+def _viscous_basis(v, columns):
+    return v / np.asarray(columns["load_N"], dtype=float)
+
+
+def _constant_basis(g, columns):
+    return 1.0 / g
+
+
+def _centre_scale(x):
+    scale = float(np.std(x))
+    return {"centre": float(np.mean(x)), "scale": scale if scale > 0 else 1.0}
+
+
+def _median_reference(x):
+    return {"reference": float(np.median(x))}
+
+
+def _zeros(mu, x, columns, constants):
+    return [0.0]
+
+
+_MENISCUS = Effect(
+    name="humidity_meniscus",
+    title="Capillary menisci condensed around the contacts, growing with relative humidity",
+    formula="mu = mu_model + balls * meniscus_force_N / (load_N * ln(1/h))",
+    parameters=(EffectParameter(
+        "meniscus_force_N", "N",
+        "Friction force per ball due to the menisci when ln(1/h) = 1 (h = 37 %).", 0.0, 1.0),),
+    driver_description="relative humidity h, a fraction in (0, 1) (percent if the name says pct)",
+    reference=("L. Bocquet, E. Charlaix, S. Ciliberto, J. Crassous, Nature 396, 735-737 (1998): "
+               "capillary condensation makes friction and cohesion grow as 1/ln(1/h) (Kelvin radius)."),
+    driver_keywords=("humid", "rh"),
+    correct=lambda mu, x, columns, p, c: mu + p[0] * _meniscus_basis(x, columns),
+    make_initial=_additive_initial(_meniscus_basis),
+    accepts_values=lambda h: bool(np.all((h > 0) & (h < 1))),
+    driver_transform=humidity_fraction,
+)
+
+_VISCOUS = Effect(
+    name="viscous_drag",
+    title="Viscous (Couette) drag of the liquid film or air gap under the slider, linear in speed",
+    formula="mu = mu_model + drag_coefficient_N_s_m * speed_m_s / load_N",
+    parameters=(EffectParameter(
+        "drag_coefficient_N_s_m", "N*s/m",
+        "Drag force per unit slider speed, eta A / h of a film of viscosity eta, area A, gap h.",
+        0.0, 1e3),),
+    driver_description="slider speed speed_m_s [m/s] (the drag force is divided by load_N [N])",
+    reference="Newton's law of viscosity for a Couette film, F = eta A V / h "
+              "(B.J. Hamrock, Fundamentals of Fluid Film Lubrication, 1994, ch. 4).",
+    fixed_drivers=("speed_m_s", "load_N"),
+    correct=lambda mu, x, columns, p, c: mu + p[0] * _viscous_basis(x, columns),
+    make_initial=_additive_initial(_viscous_basis),
+)
+
+_CONSTANT = Effect(
+    name="constant_drag",
+    title="Load-independent drag force on the slider (electrostatic attraction, cable or seal drag)",
+    formula="mu = mu_model + drag_force_N / load_N",
+    parameters=(EffectParameter("drag_force_N", "N",
+                                "Tangential drag force independent of load and speed.", 0.0, 1e3),),
+    driver_description="load load_N [N]",
+    reference="A constant parasitic force F0 adds F0/G to mu; electrostatic drag in MEMS sliders: "
+              "W.C. Tang, T.H. Nguyen, R.T. Howe, Sensors and Actuators 20, 25-32 (1989).",
+    fixed_drivers=("load_N",),
+    correct=lambda mu, x, columns, p, c: mu + p[0] / x,
+    make_initial=_additive_initial(_constant_basis),
+)
+
+_THERMAL = Effect(
+    name="thermal_shear_strength",
+    title="Thermally activated interfacial shear strength: friction falls as temperature rises",
+    formula="mu = mu_model * exp(-thermal_coefficient_1_K * (T - T_reference))",
+    parameters=(EffectParameter(
+        "thermal_coefficient_1_K", "1/K",
+        "Relative decrease of the shear strength per kelvin (Eyring activation).", -1.0, 1.0),),
+    driver_description="temperature T in degC or K (only differences matter); T_reference = median",
+    reference="B.J. Briscoe, D.C.B. Evans, Proc. R. Soc. A 380, 389-407 (1982): the interfacial "
+              "shear strength of molecular films falls exponentially with temperature.",
+    driver_keywords=("temp",),
+    correct=lambda mu, x, columns, p, c: mu * np.exp(-p[0] * (x - c["reference"])),
+    make_constants=_median_reference,
+    make_initial=_zeros,
+)
+
+_RUN_IN = Effect(
+    name="run_in",
+    title="Running-in: friction decays from its initial value as the contacts smooth and transfer films form",
+    formula="mu = mu_model * (1 + run_in_amplitude * exp(-n / run_in_length))",
+    parameters=(
+        EffectParameter("run_in_amplitude", "1", "Initial excess friction relative to the steady state.",
+                        -0.95, 100.0),
+        EffectParameter("run_in_length", "driver",
+                        "Decay length of the excess, in the unit of the run/cycle column.", 0.0, np.inf),
+    ),
+    driver_description="run, cycle, stroke or time count n >= 0 since the start",
+    reference="P.J. Blau, Tribology International 38, 1007-1012 (2005), 'On the nature of running-in'.",
+    driver_keywords=("run", "cycle", "pass", "stroke", "count", "time", "distance"),
+    correct=lambda mu, x, columns, p, c: mu * (1.0 + p[0] * np.exp(-x / p[1])),
+    make_initial=lambda mu, x, columns, c: [0.3, 0.2 * float(np.max(x))],
+    accepts_values=lambda x: bool(np.all(x >= 0) and np.max(x) > 0),
+)
+
+_C_BOUNDS = (-20.0, 20.0)
+_GENERIC_LINEAR = Effect(
+    name="generic_linear",
+    title="Generic log-linear term in one column",
+    formula="mu = mu_model * exp(c1 * z), z = (x - centre) / scale",
+    parameters=(EffectParameter("c1", "1", "Slope of log mu per standard deviation of x.", *_C_BOUNDS),),
+    driver_description="any numeric column x; centre and scale are its mean and standard deviation",
+    reference="Low-order polynomial in log mu: the generic fallback when no named effect fits.",
+    generic=True,
+    correct=lambda mu, x, columns, p, c: mu * np.exp(p[0] * (x - c["centre"]) / c["scale"]),
+    make_constants=_centre_scale,
+    make_initial=_zeros,
+)
+
+_GENERIC_QUADRATIC = Effect(
+    name="generic_quadratic",
+    title="Generic log-quadratic term in one column",
+    formula="mu = mu_model * exp(c1 * z + c2 * z^2), z = (x - centre) / scale",
+    parameters=(
+        EffectParameter("c1", "1", "Linear coefficient of log mu in z.", *_C_BOUNDS),
+        EffectParameter("c2", "1", "Quadratic coefficient of log mu in z.", *_C_BOUNDS),
+    ),
+    driver_description="any numeric column x; centre and scale are its mean and standard deviation",
+    reference="Low-order polynomial in log mu: the generic fallback when no named effect fits.",
+    generic=True,
+    correct=lambda mu, x, columns, p, c: mu * np.exp(
+        p[0] * (x - c["centre"]) / c["scale"] + p[1] * np.square((x - c["centre"]) / c["scale"])),
+    make_constants=_centre_scale,
+    make_initial=lambda mu, x, columns, c: [0.0, 0.0],
+)
+
+_GENERIC_POWER = Effect(
+    name="generic_power",
+    title="Generic power law in one positive column",
+    formula="mu = mu_model * (x / reference)^c1",
+    parameters=(EffectParameter("c1", "1", "Exponent of the power law.", *_C_BOUNDS),),
+    driver_description="any numeric column x > 0; reference is its median",
+    reference="Power (log-log linear) term: the generic fallback when no named effect fits.",
+    generic=True,
+    correct=lambda mu, x, columns, p, c: mu * np.power(x / c["reference"], p[0]),
+    make_constants=_median_reference,
+    make_initial=_zeros,
+    accepts_values=lambda x: bool(np.all(x > 0)),
+)
+
+#: Every optional effect, keyed by name: named physical effects first, then the generic family.
+EFFECTS: dict[str, Effect] = {e.name: e for e in [
+    _MENISCUS, _VISCOUS, _CONSTANT, _THERMAL, _RUN_IN, _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER,
+]}
+
+
+def apply_effect(mu, name: str, columns: _Columns, params: Mapping[str, float],
+                 drivers: tuple[str, ...] | None = None,
+                 constants: Mapping[str, float] | None = None) -> np.ndarray:
+    """μ of the model corrected by the effect ``name`` of :data:`EFFECTS`.
+
+    Parameters
+    ----------
+    mu : array_like
+        μ of the model, e.g. ``physics.evaluate(...).mu``. [1]
+    name : str
+        Key of :data:`EFFECTS`.
+    columns : mapping of str to array_like
+        Driver columns and the physics inputs the formula uses.
+    params : mapping of str to float
+        The effect's parameters in their units.
+    drivers : tuple of str, optional
+        Driver columns (default: the effect's fixed drivers).
+    constants : mapping, optional
+        Constants fixed at fit time (generic family).
+
+    Returns
+    -------
+    numpy.ndarray
+        Corrected μ. [1]
+
+    Raises
+    ------
+    ValueError
+        For an unknown effect or invalid inputs (see :meth:`Effect.apply`).
+    """
+    if name not in EFFECTS:
+        raise ValueError(f"effect must be one of {', '.join(EFFECTS)}; got {name!r}")
+    return EFFECTS[name].apply(mu, columns, params, drivers, constants)
