@@ -1,0 +1,1 @@
+"""Calibrate the friction model against measured data and name the effect it misses."""

@@ -1,0 +1,293 @@
+"""Measured friction data: parse CSV text or JSON rows into a checked :class:`Dataset`.
+
+Columns are physics parameter names (:data:`physics.PARAMETERS`), ``mu_measured``,
+optionally ``mu_measured_std``, and any other numeric column describing the
+conditions of each measurement (humidity, temperature, run, ...), which the
+calibration treats as candidate drivers of the residual. Physics parameters
+absent from the columns take the values fixed in the request or their defaults.
+
+Every bad cell is reported, row by row, in one :class:`DataError`; no row is
+ever dropped silently. Rows are numbered from 1, the first data row (the CSV
+header is not a row).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+import physics
+
+__all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "parse_csv", "parse_rows"]
+
+#: Column of the measured friction coefficient. [1]
+MU_MEASURED = "mu_measured"
+#: Optional column of its standard deviation (measurement noise). [1]
+MU_MEASURED_STD = "mu_measured_std"
+
+_TRUE = {"true", "1", "yes"}
+_FALSE = {"false", "0", "no"}
+_MAX_LISTED = 20
+
+
+class DataError(ValueError):
+    """Measured data with bad cells, rows or columns.
+
+    Attributes
+    ----------
+    errors : list of dict
+        One ``{"row": int | None, "column": str | None, "message": str}`` per problem; ``row`` is
+        1-based (first data row), None for a problem of a whole column or of the request.
+    """
+
+    def __init__(self, errors: list[dict[str, Any]]):
+        self.errors = errors
+        lines = [f"row {e['row']}, column {e['column']}: {e['message']}" if e["row"] is not None
+                 else f"column {e['column']}: {e['message']}" for e in errors[:_MAX_LISTED]]
+        more = f"\n... and {len(errors) - _MAX_LISTED} more" if len(errors) > _MAX_LISTED else ""
+        super().__init__(f"{len(errors)} problem(s) in the measured data:\n" + "\n".join(lines) + more)
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """Checked measurements, column by column, each column an array of ``n_points`` values.
+
+    Attributes
+    ----------
+    physics_columns : dict of str to numpy.ndarray
+        Physics parameters given per row, in their units (see :data:`physics.PARAMETERS`).
+    conditions : dict of str to numpy.ndarray
+        Other numeric columns (measurement conditions), in the data's units.
+    mu_measured : numpy.ndarray
+        Measured μ, > 0. [1]
+    mu_measured_std : numpy.ndarray or None
+        Standard deviation of each measured μ, > 0. [1]
+    fixed : dict
+        Physics parameters fixed for every row by the request (not columns), validated.
+    """
+
+    physics_columns: dict[str, np.ndarray]
+    conditions: dict[str, np.ndarray]
+    mu_measured: np.ndarray
+    mu_measured_std: np.ndarray | None
+    fixed: dict[str, float | bool]
+
+    @property
+    def n_points(self) -> int:
+        """Number of measurements."""
+        return int(self.mu_measured.size)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Every data column that may drive the residual: physics columns and conditions."""
+        return {**self.physics_columns, **self.conditions}
+
+    def inputs(self) -> dict[str, Any]:
+        """Keyword inputs of :func:`physics.evaluate`: fixed values and physics columns."""
+        return {**self.fixed, **self.physics_columns}
+
+    def subset(self, rows: np.ndarray) -> Dataset:
+        """The measurements at the given row indices (0-based)."""
+        return Dataset(
+            {k: v[rows] for k, v in self.physics_columns.items()},
+            {k: v[rows] for k, v in self.conditions.items()},
+            self.mu_measured[rows],
+            None if self.mu_measured_std is None else self.mu_measured_std[rows],
+            dict(self.fixed),
+        )
+
+
+def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None) -> Dataset:
+    """Parse measured data from CSV text with a header row.
+
+    Parameters
+    ----------
+    text : str or bytes
+        CSV (comma-separated, UTF-8) with column names in the first line.
+    fixed : mapping, optional
+        Physics parameters fixed for every row, e.g. ``{"balls": 4}``.
+
+    Returns
+    -------
+    Dataset
+
+    Raises
+    ------
+    DataError
+        Listing every bad cell, row or column.
+
+    Examples
+    --------
+    >>> d = parse_csv("load_N,speed_m_s,mu_measured\\n0.01,0.1,0.011\\n", fixed={"balls": 4})
+    >>> d.n_points, float(d.physics_columns["load_N"][0])
+    (1, 0.01)
+    """
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8-sig")
+        except UnicodeDecodeError as exc:
+            raise DataError([{"row": None, "column": None, "message": f"CSV is not UTF-8: {exc}"}]) from None
+    reader = csv.reader(io.StringIO(text.lstrip("\ufeff")))
+    lines = [line for line in reader if any(cell.strip() for cell in line)]
+    if not lines:
+        raise DataError([{"row": None, "column": None, "message": "CSV is empty; expected a header row"}])
+    header = [h.strip() for h in lines[0]]
+    errors = []
+    if len(set(header)) != len(header) or "" in header:
+        errors.append({"row": None, "column": None,
+                       "message": f"header must name every column once; got {header}"})
+        raise DataError(errors)
+    rows = []
+    for number, cells in enumerate(lines[1:], start=1):
+        if len(cells) > len(header):
+            errors.append({"row": number, "column": None,
+                           "message": f"has {len(cells)} cells but the header has {len(header)}"})
+        rows.append({name: (cells[i].strip() if i < len(cells) else "") for i, name in enumerate(header)})
+    return _build(rows, header, fixed or {}, from_text=True, errors=errors)
+
+
+def parse_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None = None) -> Dataset:
+    """Check measured data given as JSON-like rows.
+
+    Parameters
+    ----------
+    rows : sequence of mapping
+        One mapping per measurement, column name -> number (or boolean for ``balls_touching``).
+    fixed : mapping, optional
+        Physics parameters fixed for every row.
+
+    Returns
+    -------
+    Dataset
+
+    Raises
+    ------
+    DataError
+        Listing every bad cell, row or column.
+
+    Examples
+    --------
+    >>> parse_rows([{"balls": 4, "load_N": -1, "speed_m_s": 0, "mu_measured": 0.01}])
+    Traceback (most recent call last):
+    ...
+    calibrate.data.DataError: 1 problem(s) in the measured data:
+    row 1, column load_N: load_N must be > 0 [N]; got -1.0
+    """
+    errors = []
+    names: list[str] = []
+    for number, row in enumerate(rows, start=1):
+        if not isinstance(row, Mapping):
+            errors.append({"row": number, "column": None, "message": "must be an object of column: value"})
+            continue
+        names.extend(k for k in row if k not in names)
+    good_rows = [r if isinstance(r, Mapping) else {} for r in rows]
+    return _build(good_rows, names, fixed or {}, from_text=False, errors=errors)
+
+
+def _missing(value) -> bool:
+    return value is None or (isinstance(value, str) and value.strip() == "")
+
+
+def _number(value, from_text: bool) -> tuple[float | None, str | None]:
+    if isinstance(value, bool) or isinstance(value, np.bool_):
+        return None, f"expected a number; got the boolean {value!r}"
+    if isinstance(value, str):
+        if not from_text:
+            return None, f"expected a number; got the string {value!r}"
+        try:
+            number = float(value)
+        except ValueError:
+            return None, f"expected a number; got {value!r}"
+    elif isinstance(value, int | float | np.integer | np.floating):
+        number = float(value)
+    else:
+        return None, f"expected a number; got {type(value).__name__} {value!r}"
+    if not math.isfinite(number):
+        return None, f"must be finite; got {value!r}"
+    return number, None
+
+
+def _boolean(value, from_text: bool) -> tuple[bool | None, str | None]:
+    if isinstance(value, bool | np.bool_):
+        return bool(value), None
+    if from_text and isinstance(value, str) and value.strip().lower() in _TRUE | _FALSE:
+        return value.strip().lower() in _TRUE, None
+    if isinstance(value, int) and value in (0, 1):
+        return bool(value), None
+    return None, f"expected true or false; got {value!r}"
+
+
+def _range_message(spec: physics.Parameter, value: float) -> str | None:
+    try:
+        physics.validate(spec.name, value)
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
+def _build(rows, names, fixed, from_text, errors) -> Dataset:
+    n = len(rows)
+    if n == 0:
+        errors.append({"row": None, "column": None, "message": "no data rows"})
+    checked_fixed: dict[str, Any] = {}
+    for name, value in fixed.items():
+        if name not in physics.PARAMETERS:
+            errors.append({"row": None, "column": name,
+                           "message": f"fixed value of an unknown physics parameter; known: "
+                                      f"{', '.join(physics.PARAMETERS)}"})
+        elif name in names:
+            errors.append({"row": None, "column": name, "message": "both a data column and a fixed value"})
+        else:
+            try:
+                checked_fixed[name] = physics.validate(name, value).item()
+            except ValueError as exc:
+                errors.append({"row": None, "column": name, "message": f"fixed value: {exc}"})
+    if MU_MEASURED not in names:
+        errors.append({"row": None, "column": MU_MEASURED, "message": "required column is missing"})
+    for name, spec in physics.PARAMETERS.items():
+        if spec.required and name not in names and name not in fixed:
+            errors.append({"row": None, "column": name,
+                           "message": f"required physics parameter is neither a column nor fixed "
+                                      f"({spec.range_text()} [{spec.unit}])"})
+
+    physics_columns, conditions = {}, {}
+    mu = std = None
+    for name in names:
+        cells = [row.get(name) for row in rows]
+        if all(_missing(c) for c in cells):
+            errors.append({"row": None, "column": name, "message": "column has no values; fill or remove it"})
+            continue
+        spec = physics.PARAMETERS.get(name)
+        values = np.zeros(n, dtype=bool if spec is not None and spec.kind == "bool" else float)
+        for i, cell in enumerate(cells):
+            if _missing(cell):
+                errors.append({"row": i + 1, "column": name, "message": "missing value"})
+                continue
+            value, problem = (_boolean(cell, from_text) if values.dtype == bool
+                              else _number(cell, from_text))
+            if problem is None and spec is not None:
+                problem = _range_message(spec, value)
+            elif problem is None and name == MU_MEASURED and value <= 0:
+                problem = f"must be > 0 [1]; got {value!r}"
+            elif problem is None and name == MU_MEASURED_STD and value <= 0:
+                problem = f"must be > 0 [1]; got {value!r}"
+            if problem is not None:
+                errors.append({"row": i + 1, "column": name, "message": problem})
+            else:
+                values[i] = value
+        if spec is not None:
+            physics_columns[name] = values
+        elif name == MU_MEASURED:
+            mu = values
+        elif name == MU_MEASURED_STD:
+            std = values
+        else:
+            conditions[name] = values
+    if errors:
+        raise DataError(sorted(errors, key=lambda e: (e["row"] is not None, e["row"] or 0)))
+    return Dataset(physics_columns, conditions, mu, std, checked_fixed)
