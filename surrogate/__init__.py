@@ -1,0 +1,35 @@
+"""Gaussian-process surrogates of the friction model, trained on physics sweeps.
+
+* :class:`Space` (:mod:`surrogate.space`): bounded physics parameters, scales, features;
+* :func:`design`, :func:`fit_adaptive` (:mod:`surrogate.sampling`): designs of
+  experiments and variance-driven adaptive sampling;
+* :class:`GaussianProcessSurrogate` (:mod:`surrogate.model`): the estimator;
+* :func:`accuracy`, :func:`holdout_metrics` (:mod:`surrogate.metrics`): held-out figures;
+* :func:`dumps`, :func:`loads` (:mod:`surrogate.persist`): storage as JSON, no pickle;
+* :func:`sobol_indices` (:mod:`surrogate.sensitivity`): Sobol' indices on a surrogate.
+"""
+
+from .metrics import accuracy, holdout_metrics
+from .model import GaussianProcessSurrogate, SurrogatePrediction
+from .persist import dumps, from_dict, loads, to_dict
+from .sampling import AdaptiveFit, design, fit_adaptive, select_batch
+from .sensitivity import SobolIndices, sobol_indices
+from .space import Space
+
+__all__ = [
+    "Space",
+    "GaussianProcessSurrogate",
+    "SurrogatePrediction",
+    "design",
+    "select_batch",
+    "fit_adaptive",
+    "AdaptiveFit",
+    "accuracy",
+    "holdout_metrics",
+    "to_dict",
+    "from_dict",
+    "dumps",
+    "loads",
+    "SobolIndices",
+    "sobol_indices",
+]

@@ -1,0 +1,375 @@
+"""The surrogate estimator: a Gaussian process on physics-aware features of a :class:`~surrogate.Space`.
+
+The target is log μ (μ > 0 spans decades and is a near sum of power laws, so
+log μ is smooth in log inputs). Optionally a linear model of log μ in the
+features is fitted first by least squares (a "physics-informed mean": a power
+law in load per ball, tan θ, speed...) and the Gaussian process models what it
+leaves. The kernel is a constant times an anisotropic Matérn 5/2 (or RBF)
+kernel with one length scale per feature, plus a white-noise term; its
+hyperparameters maximize the log marginal likelihood (Rasmussen & Williams
+2006, Alg. 2.1 and Sect. 5.4.1, as implemented by
+:class:`sklearn.gaussian_process.GaussianProcessRegressor`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.linalg import cho_solve
+from scipy.stats import norm
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.gaussian_process import GaussianProcessRegressor
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, Matern, WhiteKernel
+from sklearn.utils.validation import check_is_fitted
+
+from .space import FEATURE_SETS, Space
+
+__all__ = ["KERNELS", "MEANS", "SurrogatePrediction", "GaussianProcessSurrogate", "build_kernel"]
+
+#: Allowed stationary kernels.
+KERNELS = ("matern52", "matern32", "rbf")
+#: Allowed prior means of the target.
+MEANS = ("linear", "constant")
+
+_LENGTH_SCALE_BOUNDS = (1e-2, 1e3)
+_AMPLITUDE_BOUNDS = (1e-4, 1e4)
+_NOISE_BOUNDS = (1e-12, 1e-1)
+
+
+def build_kernel(kind: str, n_features: int) -> Kernel:
+    """The prior covariance: amplitude × anisotropic stationary kernel + white noise.
+
+    Parameters
+    ----------
+    kind : {"matern52", "matern32", "rbf"}
+        Stationary correlation function.
+    n_features : int
+        Number of (standardized) inputs, one length scale each. [1]
+
+    Returns
+    -------
+    sklearn.gaussian_process.kernels.Kernel
+        ``ConstantKernel * (Matern | RBF) + WhiteKernel`` at initial
+        hyperparameters (unit amplitude and length scales, noise 1e-6).
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``kind``.
+    """
+    if kind not in KERNELS:
+        raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {kind!r}")
+    scales = np.ones(n_features)
+    if kind == "rbf":
+        correlation = RBF(scales, _LENGTH_SCALE_BOUNDS)
+    else:
+        correlation = Matern(scales, _LENGTH_SCALE_BOUNDS, nu=2.5 if kind == "matern52" else 1.5)
+    return ConstantKernel(1.0, _AMPLITUDE_BOUNDS) * correlation + WhiteKernel(1e-6, _NOISE_BOUNDS)
+
+
+@dataclass(frozen=True)
+class SurrogatePrediction:
+    """Prediction of μ with its interval.
+
+    Attributes
+    ----------
+    mu : numpy.ndarray
+        Predicted μ (the exponential of the predicted log μ: its median). [1]
+    mu_lower, mu_upper : numpy.ndarray
+        Bounds of the central interval at the requested level. [1]
+    outside_space : numpy.ndarray of bool
+        True where the point is outside the trained space (extrapolation).
+    log_std : numpy.ndarray
+        Predictive standard deviation of log μ (of μ for a linear target). [1]
+    """
+
+    mu: np.ndarray
+    mu_lower: np.ndarray
+    mu_upper: np.ndarray
+    outside_space: np.ndarray
+    log_std: np.ndarray
+
+
+class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
+    """Gaussian-process surrogate of the friction coefficient μ over a :class:`Space`.
+
+    Parameters
+    ----------
+    space : Space
+        The input space; ``X`` columns follow ``space.names``.
+    features : {"physics", "scaled", "raw"}, default "physics"
+        Feature set of :meth:`Space.features` fed to the Gaussian process
+        (standardized on the training data).
+    kernel : {"matern52", "matern32", "rbf"}, default "matern52"
+        Stationary kernel with one length scale per feature.
+    mean : {"linear", "constant"}, default "linear"
+        Prior mean of the target: a least-squares linear model in the
+        standardized features, or a constant (the training mean).
+    log_target : bool, default True
+        Model log μ (μ > 0) instead of μ.
+    n_restarts_optimizer : int, default 1
+        Extra random starts of the hyperparameter optimizer (each costs a
+        full optimization; keep small).
+    random_state : int or None, default None
+        Seed of the optimizer's restarts.
+    calibrate_variance : bool, default True
+        Rescale the predictive variance by the leave-one-out estimate of
+        Bachoc (2013): ``s² = mean_i (e_i² / σ_i²)`` over the closed-form
+        leave-one-out errors ``e_i`` and variances ``σ_i²``, so that
+        standardized cross-validation errors have unit variance. Maximum
+        likelihood alone is overconfident on small designs.
+
+    Attributes
+    ----------
+    gaussian_process_ : sklearn.gaussian_process.GaussianProcessRegressor
+        The fitted process on standardized features and mean residuals.
+    feature_mean_, feature_scale_ : numpy.ndarray
+        Standardization of the features (training mean and standard deviation).
+    mean_coef_ : numpy.ndarray
+        Coefficients of the prior mean ``[intercept, feature slopes...]``
+        (all zero for ``mean="constant"``; normalize_y then centres the target).
+    X_train_, y_train_ : numpy.ndarray
+        Training points (physical) and μ.
+    n_features_in_ : int
+        Number of columns of ``X`` (the space's dimension).
+    std_scale_ : float
+        Factor applied to the predictive standard deviation (1 without
+        ``calibrate_variance``). [1]
+
+    Examples
+    --------
+    >>> space = Space({"load_N": (0.001, 0.05)}, fixed={"balls": 4, "speed_m_s": 0.01})
+    >>> X = space.from_unit(np.linspace(0, 1, 8)[:, None])
+    >>> model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    >>> x = [[0.02]]
+    >>> bool(abs(model.predict(x)[0] / space.evaluate(x)[0] - 1) < 1e-3)
+    True
+    """
+
+    def __init__(self, space: Space, features: str = "physics", kernel: str = "matern52",
+                 mean: str = "linear", log_target: bool = True, n_restarts_optimizer: int = 1,
+                 random_state: int | None = None, calibrate_variance: bool = True):
+        self.space = space
+        self.features = features
+        self.kernel = kernel
+        self.mean = mean
+        self.log_target = log_target
+        self.n_restarts_optimizer = n_restarts_optimizer
+        self.random_state = random_state
+        self.calibrate_variance = calibrate_variance
+
+    def _validate_params(self) -> None:
+        if not isinstance(self.space, Space):
+            raise ValueError(f"space must be a surrogate.Space; got {type(self.space).__name__}")
+        if self.features not in FEATURE_SETS:
+            raise ValueError(f"features must be one of {', '.join(FEATURE_SETS)}; got {self.features!r}")
+        if self.kernel not in KERNELS:
+            raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {self.kernel!r}")
+        if self.mean not in MEANS:
+            raise ValueError(f"mean must be one of {', '.join(MEANS)}; got {self.mean!r}")
+        if not isinstance(self.n_restarts_optimizer, (int, np.integer)) or self.n_restarts_optimizer < 0:
+            raise ValueError(f"n_restarts_optimizer must be a whole number >= 0; "
+                             f"got {self.n_restarts_optimizer!r}")
+
+    # ------------------------------------------------------------------ internals
+    def _design_matrix(self, X: np.ndarray) -> np.ndarray:
+        Z = self.space.features(X, self.features)
+        return (Z - self.feature_mean_) / self.feature_scale_
+
+    def _prior_mean(self, Zs: np.ndarray) -> np.ndarray:
+        return self.mean_coef_[0] + Zs @ self.mean_coef_[1:]
+
+    def _target(self, y: np.ndarray) -> np.ndarray:
+        return np.log(y) if self.log_target else y
+
+    def _check_y(self, y: Any, n: int) -> np.ndarray:
+        y = np.asarray(y, dtype=float)
+        if y.shape != (n,):
+            raise ValueError(f"y must be a 1-D array of {n} values of mu (one per row of X); "
+                             f"got shape {y.shape}")
+        if not np.all(np.isfinite(y)):
+            raise ValueError("y must be finite")
+        if self.log_target and np.any(y <= 0):
+            raise ValueError("y must be > 0 for log_target=True (mu is positive); "
+                             "use log_target=False otherwise")
+        return y
+
+    # ------------------------------------------------------------------ estimator API
+    def fit(self, X: Any, y: Any) -> GaussianProcessSurrogate:
+        """Fit the prior mean and the Gaussian process to training points.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Training points in the units of ``space.names``. [parameter units]
+        y : array_like of shape (n,)
+            μ at those points. [1]
+
+        Returns
+        -------
+        GaussianProcessSurrogate
+            self, fitted.
+
+        Raises
+        ------
+        ValueError
+            For invalid parameters, shapes, non-finite or (with
+            ``log_target``) non-positive ``y``, or fewer than 2 points.
+        """
+        self._validate_params()
+        X = self.space.check_X(X)
+        y = self._check_y(y, X.shape[0])
+        if X.shape[0] < 2:
+            raise ValueError(f"X must hold at least 2 training points; got {X.shape[0]}")
+        Z = self.space.features(X, self.features)
+        self.feature_mean_ = Z.mean(axis=0)
+        scale = Z.std(axis=0)
+        # A feature constant on the training set (e.g. one value of a boolean) keeps unit scale.
+        self.feature_scale_ = np.where(scale > 0, scale, 1.0)
+        Zs = (Z - self.feature_mean_) / self.feature_scale_
+        t = self._target(y)
+        self.mean_coef_ = np.zeros(Zs.shape[1] + 1)
+        if self.mean == "linear" and X.shape[0] > Zs.shape[1] + 1:
+            H = np.column_stack([np.ones(len(Zs)), Zs])
+            self.mean_coef_ = np.linalg.lstsq(H, t, rcond=None)[0]
+        gp = GaussianProcessRegressor(build_kernel(self.kernel, Zs.shape[1]), alpha=1e-10,
+                                      normalize_y=True, n_restarts_optimizer=int(self.n_restarts_optimizer),
+                                      random_state=self.random_state)
+        with warnings.catch_warnings():
+            # Length scales of features μ does not depend on (e.g. log balls at fixed load per
+            # ball) rightly run to their upper bound; sklearn warns about every such bound.
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            gp.fit(Zs, t - self._prior_mean(Zs))
+        self.gaussian_process_ = gp
+        self.X_train_ = X
+        self.y_train_ = y
+        self.n_features_in_ = X.shape[1]
+        self.std_scale_ = 1.0
+        if self.calibrate_variance:
+            errors, variances = self._loo()
+            self.std_scale_ = float(np.sqrt(np.mean(errors**2 / variances)))
+        return self
+
+    def predict(self, X: Any, return_std: bool = False):
+        """Predicted μ at physical points.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of ``space.names``. [parameter units]
+        return_std : bool, default False
+            Also return the predictive standard deviation of the target (log μ,
+            or μ for ``log_target=False``).
+
+        Returns
+        -------
+        mu : numpy.ndarray of shape (n,)
+            Predicted μ (median of the log-normal prediction). [1]
+        std : numpy.ndarray of shape (n,), optional
+            Predictive standard deviation of the target. [1]
+        """
+        check_is_fitted(self, "gaussian_process_")
+        X = self.space.check_X(X)
+        Zs = self._design_matrix(X)
+        t, std = self.gaussian_process_.predict(Zs, return_std=True)
+        t = t + self._prior_mean(Zs)
+        std = std * self.std_scale_
+        mu = np.exp(t) if self.log_target else t
+        return (mu, std) if return_std else mu
+
+    def predict_interval(self, X: Any, level: float = 0.95) -> SurrogatePrediction:
+        """Predicted μ with a central interval and the outside-space flag.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of ``space.names``. [parameter units]
+        level : float, default 0.95
+            Probability of the central interval, in (0, 1). [1]
+
+        Returns
+        -------
+        SurrogatePrediction
+            ``mu``, ``mu_lower``, ``mu_upper`` [1], ``outside_space`` and ``log_std``.
+
+        Raises
+        ------
+        ValueError
+            If ``level`` is not in (0, 1).
+        """
+        if not 0.0 < level < 1.0:
+            raise ValueError(f"level must be in (0, 1); got {level!r}")
+        X = self.space.check_X(X)
+        return self._interval(X, ~self.space.contains(X), level)
+
+    def _interval(self, X: np.ndarray, outside: np.ndarray, level: float) -> SurrogatePrediction:
+        mu, std = self.predict(X, return_std=True)
+        half = norm.ppf(0.5 + 0.5 * level) * std
+        if self.log_target:
+            lower, upper = mu * np.exp(-half), mu * np.exp(half)
+        else:
+            lower, upper = mu - half, mu + half
+        return SurrogatePrediction(mu, lower, upper, outside, std)
+
+    def predict_points(self, points: Mapping[str, Any], level: float = 0.95) -> SurrogatePrediction:
+        """Prediction for columnar physics inputs (names of :data:`physics.PARAMETERS`).
+
+        Parameters
+        ----------
+        points : mapping of str to array_like
+            Every dimension of the space by name, broadcasting together; other
+            parameters may be given and flag points as outside the space when
+            they differ from the trained fixed values.
+        level : float, default 0.95
+            Probability of the central interval. [1]
+
+        Returns
+        -------
+        SurrogatePrediction
+            Flat arrays, one entry per broadcast point.
+        """
+        if not 0.0 < level < 1.0:
+            raise ValueError(f"level must be in (0, 1); got {level!r}")
+        check_is_fitted(self, "gaussian_process_")
+        X, outside = self.space.from_points(points)
+        return self._interval(X, outside, level)
+
+    def mu_model(self, points: Mapping[str, Any]) -> np.ndarray:
+        """μ for columnar points: the ``mu_model(points)`` seam of optimize and calibrate.
+
+        Parameters
+        ----------
+        points : mapping of str to array_like
+            As :meth:`predict_points`.
+
+        Returns
+        -------
+        numpy.ndarray
+            Predicted μ, one per broadcast point. [1]
+        """
+        return self.predict_points(points).mu
+
+    def loo_log_errors(self) -> np.ndarray:
+        """Leave-one-out errors of the target at the training points (closed form).
+
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+            ``t_i - mean_{-i}`` with the hyperparameters and prior mean held
+            fixed (Rasmussen & Williams 2006, eq. 5.12:
+            ``t_i - mean_{-i} = [K^-1 t]_i / [K^-1]_ii``), in units of log μ. [1]
+        """
+        check_is_fitted(self, "gaussian_process_")
+        return self._loo()[0]
+
+    def _loo(self) -> tuple[np.ndarray, np.ndarray]:
+        gp = self.gaussian_process_
+        K_inv_diag = np.diag(cho_solve((gp.L_, True), np.eye(gp.L_.shape[0])))
+        # alpha_ and K are in normalize_y units; scale back to the target's units.
+        y_std = float(np.ravel(gp._y_train_std)[0])
+        return gp.alpha_.reshape(-1) / K_inv_diag * y_std, y_std**2 / K_inv_diag

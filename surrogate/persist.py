@@ -1,0 +1,137 @@
+"""Persistence of fitted surrogates as plain data (JSON), never pickle.
+
+A stored surrogate holds what defines it: its space, estimator parameters,
+training points and μ, feature standardization, prior-mean coefficients,
+variance scale and the kernel's hyperparameters (``theta``, the log of its
+positive parameters, with the kernel kind that fixes its structure), plus the
+package version and physics convention it was trained with. Loading rebuilds
+the kernel with those hyperparameters and refits a
+:class:`~sklearn.gaussian_process.GaussianProcessRegressor` with
+``optimizer=None`` on the stored data: the same arithmetic as the original
+fit, hence the same predictions.
+"""
+
+from __future__ import annotations
+
+import json
+from importlib import metadata
+from typing import Any
+
+import numpy as np
+from sklearn.gaussian_process import GaussianProcessRegressor
+
+import physics
+
+from .model import GaussianProcessSurrogate, build_kernel
+from .space import Space
+
+__all__ = ["FORMAT", "package_version", "to_dict", "from_dict", "dumps", "loads"]
+
+#: Identifier and version of the stored layout.
+FORMAT = "microbearing.surrogate/1"
+
+_ESTIMATOR_PARAMS = ("features", "kernel", "mean", "log_target", "n_restarts_optimizer", "random_state",
+                     "calibrate_variance")
+
+
+def package_version() -> str:
+    """Version of the installed microbearing package ("unknown" when not installed)."""
+    try:
+        return metadata.version("microbearing")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def to_dict(model: GaussianProcessSurrogate) -> dict[str, Any]:
+    """A fitted surrogate as JSON-ready data.
+
+    Parameters
+    ----------
+    model : GaussianProcessSurrogate
+        A fitted surrogate.
+
+    Returns
+    -------
+    dict
+        Lists, numbers and strings only (floats survive JSON exactly).
+
+    Raises
+    ------
+    ValueError
+        If the model is not fitted.
+    """
+    if not hasattr(model, "gaussian_process_"):
+        raise ValueError("model must be fitted (call fit) before it is stored")
+    gp = model.gaussian_process_
+    return {
+        "format": FORMAT,
+        "package_version": package_version(),
+        "convention": model.space.convention,
+        "space": model.space.to_dict(),
+        "params": {name: getattr(model, name) for name in _ESTIMATOR_PARAMS},
+        "X_train": model.X_train_.tolist(),
+        "y_train": model.y_train_.tolist(),
+        "feature_mean": model.feature_mean_.tolist(),
+        "feature_scale": model.feature_scale_.tolist(),
+        "mean_coef": model.mean_coef_.tolist(),
+        "std_scale": model.std_scale_,
+        "gp": {"kernel": str(gp.kernel_), "theta": gp.kernel_.theta.tolist(), "alpha": gp.alpha,
+               "normalize_y": gp.normalize_y},
+    }
+
+
+def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
+    """Rebuild a fitted surrogate from :func:`to_dict` data.
+
+    Parameters
+    ----------
+    data : dict
+        Output of :func:`to_dict` (possibly through JSON).
+
+    Returns
+    -------
+    GaussianProcessSurrogate
+        A fitted surrogate predicting exactly as the stored one.
+
+    Raises
+    ------
+    ValueError
+        For another format, an unknown convention, or inconsistent arrays.
+    """
+    if data.get("format") != FORMAT:
+        raise ValueError(f"data must be a stored surrogate of format {FORMAT!r}; got {data.get('format')!r}")
+    if data.get("convention") not in physics.CONVENTIONS:
+        raise ValueError(f"convention must be one of {', '.join(physics.CONVENTIONS)}; "
+                         f"got {data.get('convention')!r}")
+    space = Space.from_dict(data["space"])
+    model = GaussianProcessSurrogate(space, **data["params"])
+    X = space.check_X(np.asarray(data["X_train"], dtype=float))
+    y = model._check_y(data["y_train"], X.shape[0])
+    model.feature_mean_ = np.asarray(data["feature_mean"], dtype=float)
+    model.feature_scale_ = np.asarray(data["feature_scale"], dtype=float)
+    model.mean_coef_ = np.asarray(data["mean_coef"], dtype=float)
+    Zs = model._design_matrix(X)
+    if model.mean_coef_.shape != (Zs.shape[1] + 1,):
+        raise ValueError(f"mean_coef must hold {Zs.shape[1] + 1} values; got {model.mean_coef_.shape}")
+    stored = data["gp"]
+    theta = np.asarray(stored["theta"], dtype=float)
+    kernel = build_kernel(model.kernel, Zs.shape[1]).clone_with_theta(theta)
+    gp = GaussianProcessRegressor(kernel, alpha=stored["alpha"], normalize_y=stored["normalize_y"],
+                                  optimizer=None)
+    gp.fit(Zs, model._target(y) - model._prior_mean(Zs))
+    model.gaussian_process_ = gp
+    model.X_train_ = X
+    model.y_train_ = y
+    model.n_features_in_ = X.shape[1]
+    model.std_scale_ = float(data["std_scale"])
+    return model
+
+
+def dumps(model: GaussianProcessSurrogate) -> str:
+    """A fitted surrogate as a JSON string (see :func:`to_dict`)."""
+    return json.dumps(to_dict(model))
+
+
+def loads(text: str) -> GaussianProcessSurrogate:
+    """Rebuild a surrogate from :func:`dumps` output (see :func:`from_dict`)."""
+    return from_dict(json.loads(text))

@@ -1,0 +1,532 @@
+"""The input space of a surrogate: named physics parameters with bounds, the rest fixed.
+
+A :class:`Space` maps three coordinate systems onto each other:
+
+* **physical** ``X[n, d]``: the values of the ``d`` free parameters in their SI
+  units (degrees for the groove angle), columns in :attr:`Space.names` order;
+  booleans as 0/1, integers as whole floats;
+* **unit** ``U[n, d]`` in ``[0, 1]^d``: where designs of experiments live. Each
+  dimension is mapped by its *scale*: ``"log"`` for positive, scale-spanning
+  inputs (load, speed, diameter...), ``"power"`` (``x**p``) for inputs whose
+  range starts at 0 (speed ``V**0.66`` because the rolling force grows as
+  ``V**0.66``; adhesion energy ``sqrt(γ)`` from the JKR load), ``"linear"``
+  otherwise. Integer dimensions are rounded and boolean ones thresholded at 0.5
+  on the way back, so a design is always physically valid;
+* **features** ``Z[n, k]``: the inputs of the Gaussian process (see
+  :meth:`Space.features`), continuous even for integer ``balls``.
+
+The physics is evaluated through :meth:`Space.evaluate` (vectorized, like the
+``Problem`` classes of SMT).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+import physics
+
+__all__ = ["SCALES", "FEATURE_SETS", "Space"]
+
+#: Allowed per-dimension scales of the unit-cube map.
+SCALES = ("log", "power", "linear")
+
+#: Allowed feature sets of :meth:`Space.features`.
+FEATURE_SETS = ("physics", "scaled", "raw")
+
+# Exponents of the "power" scale, used when a range starts at 0 so that log is undefined:
+# mu grows with the rolling force F_R ∝ V**0.66 (Houpert, eq 9), and the JKR load
+# Q = Q0 + c + sqrt(2 c Q0 + c²) with c ∝ γ varies like sqrt(γ) near γ = 0 (eq 8).
+_POWER_EXPONENTS = {"speed_m_s": 0.66, "adhesion_energy_J_m2": 0.5}
+_DEFAULT_POWER_EXPONENT = 0.5
+# A positive range spanning at least this ratio is mapped in log.
+_LOG_RATIO = 4.0
+
+
+def _as_float(name: str, value: Any) -> float:
+    """A bound as float: validated against the parameter's range; booleans as 0/1."""
+    if physics.PARAMETERS[name].kind == "bool":
+        if isinstance(value, (bool, np.bool_)) or (isinstance(value, (int, np.integer)) and value in (0, 1)):
+            return float(value)
+        raise ValueError(f"{name} bounds must be true/false (or 0/1); got {value!r}")
+    return float(physics.validate(name, value))
+
+
+class Space:
+    """Bounded physics parameters (the dimensions) and fixed values for the others.
+
+    Parameters
+    ----------
+    bounds : mapping of str to (lower, upper)
+        Free dimensions: a name of :data:`physics.PARAMETERS` and its range,
+        in that parameter's unit (e.g. ``{"load_N": (0.001, 0.05)}`` [N]).
+        Integer parameters (``balls``) need whole-number bounds; boolean ones
+        (``balls_touching``) take ``(False, True)``.
+    fixed : mapping of str to value, optional
+        Values of parameters that are not dimensions, in their units. Required
+        physics inputs (``balls``, ``load_N``, ``speed_m_s``) must be either a
+        dimension or fixed; the others default to :func:`physics.defaults`.
+    convention : str, default physics.DEFAULT_CONVENTION
+        Reading of the physics model (see :data:`physics.CONVENTIONS`).
+    scales : mapping of str to {"log", "power", "linear"}, optional
+        Overrides the automatic scale of a dimension (log for positive ranges
+        spanning a factor of 4 or more, power when the range starts at 0 for
+        speed and adhesion energy, linear otherwise).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The dimensions, in column order.
+    lower, upper : numpy.ndarray
+        Bounds per dimension, in the parameters' units.
+    kinds : tuple of str
+        ``"float"``, ``"int"`` or ``"bool"`` per dimension.
+    scale_of : dict of str to str
+        The unit-cube scale of each dimension.
+
+    Raises
+    ------
+    ValueError
+        For unknown names, empty or inverted ranges, bounds outside a
+        parameter's allowed range, a name both free and fixed, a missing
+        required parameter, or a scale that cannot apply (log of a range
+        including 0).
+
+    Examples
+    --------
+    >>> s = Space({"load_N": (0.001, 0.05), "balls": (3, 40)}, fixed={"speed_m_s": 0.01})
+    >>> s.names, s.scale_of["load_N"]
+    (('load_N', 'balls'), 'log')
+    >>> s.from_unit([[0.0, 1.0]]).tolist()
+    [[0.001, 40.0]]
+    """
+
+    def __init__(self, bounds: Mapping[str, Any], fixed: Mapping[str, Any] | None = None,
+                 convention: str = physics.DEFAULT_CONVENTION,
+                 scales: Mapping[str, str] | None = None):
+        fixed = dict(fixed or {})
+        scales = dict(scales or {})
+        if not bounds:
+            raise ValueError("bounds must name at least one parameter of physics.PARAMETERS with its range")
+        if convention not in physics.CONVENTIONS:
+            raise ValueError(f"convention must be one of {', '.join(physics.CONVENTIONS)}; "
+                             f"got {convention!r}")
+        for label, names in (("bounds", bounds), ("fixed", fixed), ("scales", scales)):
+            unknown = sorted(set(names) - set(physics.PARAMETERS))
+            if unknown:
+                raise ValueError(f"{label}: unknown parameter(s) {', '.join(unknown)}; "
+                                 f"known: {', '.join(physics.PARAMETERS)}")
+        both = sorted(set(bounds) & set(fixed))
+        if both:
+            raise ValueError(f"{', '.join(both)} cannot be both a dimension (bounds) and fixed; keep one")
+        not_free = sorted(set(scales) - set(bounds))
+        if not_free:
+            raise ValueError(f"scales given for {', '.join(not_free)}, which are not dimensions in bounds")
+        missing = [n for n, p in physics.PARAMETERS.items()
+                   if p.required and n not in bounds and n not in fixed]
+        if missing:
+            raise ValueError(f"required parameter(s) {', '.join(missing)} must be given in bounds or fixed")
+
+        self.names = tuple(bounds)
+        self.kinds = tuple(physics.PARAMETERS[n].kind for n in self.names)
+        lower, upper = [], []
+        for name in self.names:
+            try:
+                lo, hi = bounds[name]
+            except (TypeError, ValueError):
+                raise ValueError(f"bounds[{name!r}] must be a pair (lower, upper); "
+                                 f"got {bounds[name]!r}") from None
+            lo, hi = _as_float(name, lo), _as_float(name, hi)
+            if not lo < hi:
+                raise ValueError(f"bounds[{name!r}] must have lower < upper; got ({lo:g}, {hi:g}); "
+                                 f"put a single value in fixed instead")
+            lower.append(lo)
+            upper.append(hi)
+        self.lower = np.array(lower)
+        self.upper = np.array(upper)
+        self.fixed = {n: (bool(physics.validate(n, v)) if physics.PARAMETERS[n].kind == "bool"
+                          else float(physics.validate(n, v))) for n, v in fixed.items()}
+        self.convention = convention
+
+        self.scale_of = {}
+        self._exponent = np.ones(len(self.names))
+        for i, (name, kind) in enumerate(zip(self.names, self.kinds, strict=True)):
+            scale = scales.get(name, self._auto_scale(name, kind, self.lower[i], self.upper[i]))
+            if scale not in SCALES:
+                raise ValueError(f"scales[{name!r}] must be one of {', '.join(SCALES)}; got {scale!r}")
+            if kind == "bool" and scale != "linear":
+                raise ValueError(f"scales[{name!r}] must be 'linear' for a boolean dimension; got {scale!r}")
+            if scale == "log" and self.lower[i] <= 0:
+                raise ValueError(f"scales[{name!r}] = 'log' needs a lower bound > 0; got {self.lower[i]:g}; "
+                                 f"use 'power' or 'linear'")
+            if scale == "power":
+                if self.lower[i] < 0:
+                    raise ValueError(f"scales[{name!r}] = 'power' needs a lower bound >= 0")
+                self._exponent[i] = _POWER_EXPONENTS.get(name, _DEFAULT_POWER_EXPONENT)
+            self.scale_of[name] = scale
+        self._scales = dict(scales)
+
+    @staticmethod
+    def _auto_scale(name: str, kind: str, lo: float, hi: float) -> str:
+        if kind == "bool":
+            return "linear"
+        if lo > 0 and hi / lo >= _LOG_RATIO:
+            return "log"
+        if lo == 0 and name in _POWER_EXPONENTS:
+            return "power"
+        return "linear"
+
+    @property
+    def dimension(self) -> int:
+        """Number of free dimensions ``d``."""
+        return len(self.names)
+
+    def __repr__(self) -> str:
+        dims = ", ".join(f"{n}=[{lo:g}, {hi:g}]" for n, lo, hi in zip(self.names, self.lower, self.upper,
+                                                                      strict=True))
+        return f"Space({dims}; fixed={self.fixed})"
+
+    # ------------------------------------------------------------------ coordinates
+    def _forward(self, X: np.ndarray) -> np.ndarray:
+        """Physical values to the scaled (not yet normalized) coordinate of each dimension."""
+        T = np.array(X, dtype=float, copy=True)
+        for i, name in enumerate(self.names):
+            scale = self.scale_of[name]
+            if scale == "log":
+                T[:, i] = np.log(np.maximum(T[:, i], np.finfo(float).tiny))
+            elif scale == "power":
+                T[:, i] = np.power(np.maximum(T[:, i], 0.0), self._exponent[i])
+        return T
+
+    def _backward(self, T: np.ndarray) -> np.ndarray:
+        X = np.array(T, dtype=float, copy=True)
+        for i, name in enumerate(self.names):
+            scale = self.scale_of[name]
+            if scale == "log":
+                X[:, i] = np.exp(X[:, i])
+            elif scale == "power":
+                X[:, i] = np.power(np.maximum(X[:, i], 0.0), 1.0 / self._exponent[i])
+        return X
+
+    def check_X(self, X: Any) -> np.ndarray:
+        """Validate physical points as a float array of shape ``(n, d)``.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of :attr:`names`. [parameter units]
+
+        Returns
+        -------
+        numpy.ndarray of shape (n, d)
+            The points as float. [parameter units]
+
+        Raises
+        ------
+        ValueError
+            If ``X`` is not 2-D with ``d`` columns, or holds NaN or infinities.
+        """
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] != self.dimension:
+            raise ValueError(f"X must have shape (n, {self.dimension}) with columns {list(self.names)}; "
+                             f"got shape {X.shape}")
+        if not np.all(np.isfinite(X)):
+            raise ValueError("X must be finite (no NaN or infinities)")
+        return X
+
+    def to_unit(self, X: Any) -> np.ndarray:
+        """Map physical points to the unit cube of the design.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of :attr:`names`. [parameter units]
+
+        Returns
+        -------
+        numpy.ndarray of shape (n, d)
+            Coordinates, in [0, 1] for points inside the bounds. [1]
+        """
+        X = self.check_X(X)
+        lo = self._forward(self.lower[None, :])
+        hi = self._forward(self.upper[None, :])
+        return (self._forward(X) - lo) / (hi - lo)
+
+    def from_unit(self, U: Any) -> np.ndarray:
+        """Map unit-cube coordinates to valid physical points.
+
+        Integer dimensions are rounded to the nearest whole number (after the
+        scale's inverse, so a log-scaled ``balls`` stays log-uniform) and
+        boolean ones are 1 where the coordinate is >= 0.5.
+
+        Parameters
+        ----------
+        U : array_like of shape (n, d)
+            Coordinates in [0, 1]. [1]
+
+        Returns
+        -------
+        numpy.ndarray of shape (n, d)
+            Points in the units of :attr:`names`, inside the bounds. [parameter units]
+
+        Raises
+        ------
+        ValueError
+            If ``U`` has the wrong shape or leaves [0, 1].
+        """
+        U = np.asarray(U, dtype=float)
+        if U.ndim != 2 or U.shape[1] != self.dimension:
+            raise ValueError(f"U must have shape (n, {self.dimension}); got shape {U.shape}")
+        if np.any(~np.isfinite(U)) or np.any(U < 0) or np.any(U > 1):
+            raise ValueError("U must lie in the unit cube [0, 1]^d")
+        lo = self._forward(self.lower[None, :])
+        hi = self._forward(self.upper[None, :])
+        X = self._backward(lo + U * (hi - lo))
+        # The scale's round trip (exp of log) is not exact; corners must be the bounds themselves.
+        X = np.where(U <= 0.0, self.lower, np.where(U >= 1.0, self.upper, X))
+        for i, kind in enumerate(self.kinds):
+            if kind == "int":
+                X[:, i] = np.round(X[:, i])
+            elif kind == "bool":
+                X[:, i] = (U[:, i] >= 0.5).astype(float)
+        return np.clip(X, self.lower, self.upper)
+
+    def contains(self, X: Any) -> np.ndarray:
+        """Whether each physical point lies inside the bounds (and is whole/boolean where needed).
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of :attr:`names`. [parameter units]
+
+        Returns
+        -------
+        numpy.ndarray of bool, shape (n,)
+            True inside the space.
+        """
+        X = self.check_X(X)
+        inside = np.all((X >= self.lower) & (X <= self.upper), axis=1)
+        for i, kind in enumerate(self.kinds):
+            if kind in ("int", "bool"):
+                inside &= X[:, i] == np.round(X[:, i])
+        return inside
+
+    # ------------------------------------------------------------------ physics
+    def points(self, X: Any) -> dict[str, np.ndarray]:
+        """Columnar keyword inputs of :func:`physics.evaluate` for physical points.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of :attr:`names`. [parameter units]
+
+        Returns
+        -------
+        dict of str to numpy.ndarray or scalar
+            Every dimension as a column (booleans as bool) plus the fixed values.
+        """
+        X = self.check_X(X)
+        columns: dict[str, Any] = dict(self.fixed)
+        for i, (name, kind) in enumerate(zip(self.names, self.kinds, strict=True)):
+            columns[name] = X[:, i] >= 0.5 if kind == "bool" else X[:, i]
+        return columns
+
+    def evaluate(self, X: Any) -> np.ndarray:
+        """The physics' friction coefficient μ at physical points (vectorized).
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of :attr:`names`. [parameter units]
+
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+            μ from :func:`physics.evaluate` with this space's convention. [1]
+
+        Raises
+        ------
+        ValueError
+            From :func:`physics.evaluate` for physically invalid values.
+        """
+        X = self.check_X(X)
+        return np.asarray(physics.evaluate(convention=self.convention, **self.points(X)).mu, dtype=float)
+
+    def from_points(self, points: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+        """Turn columnar physics inputs into physical points and an outside-space flag.
+
+        Parameters
+        ----------
+        points : mapping of str to array_like
+            Values by parameter name, broadcasting together like
+            :func:`physics.evaluate`. Every dimension must be given; other
+            parameters may be given and are then compared with the fixed value
+            (or physics default) the space was built with.
+
+        Returns
+        -------
+        X : numpy.ndarray of shape (n, d)
+            The points. [parameter units]
+        outside_space : numpy.ndarray of bool, shape (n,)
+            True where a dimension leaves its bounds or a non-dimension
+            parameter differs from the space's fixed value: there the
+            surrogate extrapolates and its figures do not apply.
+
+        Raises
+        ------
+        ValueError
+            For unknown names, a missing dimension, invalid values or shapes
+            that do not broadcast.
+        """
+        unknown = sorted(set(points) - set(physics.PARAMETERS))
+        if unknown:
+            raise ValueError(f"points: unknown parameter(s) {', '.join(unknown)}; "
+                             f"known: {', '.join(physics.PARAMETERS)}")
+        missing = [n for n in self.names if n not in points]
+        if missing:
+            raise ValueError(f"points must give every dimension of the space; missing {', '.join(missing)}")
+        checked = {}
+        for name, value in points.items():
+            if physics.PARAMETERS[name].kind == "bool":
+                arr = np.asarray(value)
+                if arr.dtype != np.bool_ and np.all(np.isin(arr, (0, 1))):
+                    arr = arr.astype(bool)
+                checked[name] = physics.validate(name, arr)
+            else:
+                checked[name] = physics.validate(name, value)
+        try:
+            shape = np.broadcast_shapes(*(a.shape for a in checked.values()))
+        except ValueError:
+            raise ValueError("points: arrays do not broadcast together: "
+                             f"{ {n: a.shape for n, a in checked.items()} }") from None
+        flat = {n: np.broadcast_to(a, shape).reshape(-1) for n, a in checked.items()}
+        n = int(np.prod(shape)) if shape else 1
+        X = np.column_stack([flat[name].astype(float) for name in self.names]) if n else \
+            np.empty((0, self.dimension))
+        outside = ~self.contains(X)
+        reference = {**physics.defaults(), **self.fixed}
+        for name, column in flat.items():
+            if name not in self.names:
+                outside |= column.astype(float) != float(reference[name])
+        return X, outside
+
+    # ------------------------------------------------------------------ features
+    def features(self, X: Any, kind: str = "physics") -> np.ndarray:
+        """Inputs of the Gaussian process for physical points.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of :attr:`names`. [parameter units]
+        kind : {"physics", "scaled", "raw"}, default "physics"
+            ``"raw"``: the physical values themselves; ``"scaled"``: each
+            dimension on its scale (log load, log speed, ...); ``"physics"``:
+            the scaled coordinates, with two changes that follow the model:
+            when both ``load_N`` and ``balls`` are log-scaled dimensions, they
+            become log(load per ball) and log(balls) (μ depends on them almost
+            only through G/z, eq 7, so one length scale can grow long), and the
+            groove angle becomes (log tan θ, log cos θ), the factors by which θ
+            enters the pivoting and ball-ball terms (eqs 7, 20). Integer
+            dimensions stay continuous (the relaxation the GP interpolates).
+
+        Returns
+        -------
+        numpy.ndarray of shape (n, k)
+            Features (not normalized; the model standardizes them). [1]
+
+        Raises
+        ------
+        ValueError
+            For an unknown ``kind``.
+        """
+        if kind not in FEATURE_SETS:
+            raise ValueError(f"kind must be one of {', '.join(FEATURE_SETS)}; got {kind!r}")
+        X = self.check_X(X)
+        if kind == "raw":
+            return X.copy()
+        T = self._forward(X)
+        if kind == "scaled":
+            return T
+        columns = []
+        index = {name: i for i, name in enumerate(self.names)}
+        per_ball = ("load_N" in index and "balls" in index and self.scale_of["load_N"] == "log"
+                    and self.scale_of["balls"] == "log")
+        for i, name in enumerate(self.names):
+            if name == "load_N" and per_ball:
+                columns.append(T[:, i] - T[:, index["balls"]])
+            elif name == "groove_angle_deg":
+                theta = np.deg2rad(X[:, i])
+                columns.append(np.log(np.tan(theta)))
+                columns.append(np.log(np.cos(theta)))
+            else:
+                columns.append(T[:, i])
+        return np.column_stack(columns)
+
+    def feature_names(self, kind: str = "physics") -> list[str]:
+        """Names of the columns of :meth:`features` for ``kind``.
+
+        Parameters
+        ----------
+        kind : {"physics", "scaled", "raw"}, default "physics"
+            Feature set.
+
+        Returns
+        -------
+        list of str
+            One name per feature column.
+        """
+        if kind not in FEATURE_SETS:
+            raise ValueError(f"kind must be one of {', '.join(FEATURE_SETS)}; got {kind!r}")
+        if kind == "raw":
+            return list(self.names)
+        label = {"log": "log({})", "power": "{}^p", "linear": "{}"}
+        names = []
+        per_ball = ("load_N" in self.names and "balls" in self.names and self.scale_of["load_N"] == "log"
+                    and self.scale_of["balls"] == "log")
+        for name in self.names:
+            if kind == "physics" and name == "load_N" and per_ball:
+                names.append("log(load_N/balls)")
+            elif kind == "physics" and name == "groove_angle_deg":
+                names += ["log(tan(theta))", "log(cos(theta))"]
+            else:
+                names.append(label[self.scale_of[name]].format(name))
+        return names
+
+    # ------------------------------------------------------------------ data
+    def to_dict(self) -> dict[str, Any]:
+        """The space as JSON-ready data (see :meth:`from_dict`).
+
+        Returns
+        -------
+        dict
+            ``bounds``, ``fixed``, ``convention`` and ``scales``.
+        """
+        bounds = {}
+        for name, kind, lo, hi in zip(self.names, self.kinds, self.lower, self.upper, strict=True):
+            bounds[name] = [bool(lo), bool(hi)] if kind == "bool" else [float(lo), float(hi)]
+        return {"bounds": bounds, "fixed": dict(self.fixed), "convention": self.convention,
+                "scales": dict(self.scale_of)}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Space:
+        """Rebuild a space from :meth:`to_dict` data.
+
+        Parameters
+        ----------
+        data : mapping
+            Output of :meth:`to_dict`.
+
+        Returns
+        -------
+        Space
+            An equal space.
+        """
+        return cls({k: tuple(v) for k, v in data["bounds"].items()}, data.get("fixed"),
+                   data.get("convention", physics.DEFAULT_CONVENTION), data.get("scales"))
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Space) and self.to_dict() == other.to_dict()
+
+    __hash__ = None
