@@ -1,0 +1,24 @@
+"""Minimum-friction designs of micro linear ball bearings.
+
+* :mod:`optimize.problem` - :class:`DesignBounds`, :class:`Constraints`, :class:`DesignProblem`
+* :mod:`optimize.dgp` - the problem as a disciplined geometric program in cvxpy
+* :mod:`optimize.solve` - :func:`optimize_design`: enumeration of ball counts, a
+  global optimum with a certificate, :class:`InfeasibleDesignError`
+* :mod:`optimize.general` - :func:`optimize_model`: a local method for any μ model
+* :mod:`optimize.pareto` - :func:`pareto_front`: μ against load or contact pressure
+"""
+
+from .problem import Constraints, ConstraintStatus, DesignBounds, DesignProblem, constraint_report
+from .solve import BallCountResult, InfeasibleDesignError, OptimizationResult, optimize_design
+
+__all__ = [
+    "DesignBounds",
+    "Constraints",
+    "DesignProblem",
+    "ConstraintStatus",
+    "constraint_report",
+    "optimize_design",
+    "OptimizationResult",
+    "BallCountResult",
+    "InfeasibleDesignError",
+]

@@ -1,0 +1,329 @@
+r"""The minimum-friction design problem as a disciplined geometric program (DGP) in cvxpy.
+
+For a fixed ball count z every term of μ is log-log convex in the two
+continuous design variables, the tangent of the groove angle t = tan θ and the
+load G. With sec θ = (1 + t²)^½ (a posynomial raised to a positive power, so
+log-log convex) the equations of :func:`physics.evaluate` read
+
+.. math::
+
+    Q_0 &= G \sec\theta / (2 z)                       &\text{(eq 7)}\\
+    Q   &= Q_0 + c + \sqrt{2 c Q_0 + c^2},\quad c = 6\pi\gamma R   &\text{(eq 8)}\\
+    M_P &= k_P Q^{4/3},\ M_{ER} = k_{ER} Q^{1.33},\ F_R = k_R Q^{0.47}  &\text{(eqs 3, 9, 15, 16)}\\
+    \mu &= \frac{z}{G}\Big[\frac{2}{d} M_b \sec\theta + \frac{4}{d} M_P\, t
+           + \frac{4}{d} M_{ER} + 4 F_R\Big]      &\text{(eqs 20-23)}
+
+with M_b the (design-independent) ball-ball moment per contact pair. Sums,
+products, positive powers and square roots of log-log convex expressions are
+log-log convex, so μ is exactly representable (no approximation) and so are
+the limits: the peak pressure 3Q/(2πa²) = k_p Q^{1/3}, the friction force
+μ G, and the load per ball G / z. All coefficients (c, k_P, k_ER, k_R, k_p,
+M_b) are read from :func:`physics.evaluate` itself at a reference design, so
+the DGP uses the physics' own constants and conventions; only the exponents
+are restated here, and ``tests/test_optimize.py`` checks that the DGP value
+equals the physics to rounding.
+
+The groove angle is the variable t = tan θ, with θ in [θ_lo, θ_hi] becoming
+the monomial bounds tan θ_lo <= t <= tan θ_hi; θ = arctan t is monotone, so
+the box maps one to one. The ball count z is a ``cp.Parameter(pos=True)``:
+the problem is DPP, so one compiled problem is re-solved for every z, and
+problems of the same structure (the same non-zero terms and limits) are
+compiled once per process and reused, their coefficients being parameters too.
+
+Every upper limit L enters as ``value <= L (1 - SAFETY_MARGIN)`` and every lower
+limit as ``value >= L (1 + SAFETY_MARGIN)`` so that the solver's feasibility
+tolerance cannot produce a design that breaks a limit when re-evaluated with
+the exact physics; the margin (1e-7 relative) is far below any engineering
+significance and is reported in the certificate.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import cvxpy as cp
+import numpy as np
+
+import physics
+
+from .problem import DesignProblem
+
+__all__ = [
+    "SAFETY_MARGIN",
+    "Coefficients",
+    "DesignGP",
+    "coefficients",
+    "design_gp",
+    "build_design_gp",
+    "LIMIT_NAMES",
+]
+
+#: Relative tightening of every limit in the DGP (see module docstring). [1]
+SAFETY_MARGIN = 1e-7
+#: Exponent of Q in M_P = (3/8) μs Q a with a = (R Q / E*)^(1/3) (eqs 3, 16). [1]
+PIVOT_EXPONENT = 4.0 / 3.0
+#: Exponent of Q in M_ER (eq 15). [1]
+HYSTERESIS_EXPONENT = 1.33
+#: Exponent of Q (through W) in Houpert's F_R (eq 9). [1]
+ROLLING_EXPONENT = 0.47
+#: Exponent of Q in the peak pressure 3Q / (2π a²). [1]
+PRESSURE_EXPONENT = 1.0 / 3.0
+
+#: The limits a DGP may carry, besides the box bounds; each is "max" or "min".
+LIMIT_NAMES = {
+    "max_contact_pressure_Pa": "max",
+    "max_friction_force_N": "max",
+    "min_load_capacity_N": "min",
+    "max_load_per_ball_N": "max",
+}
+
+
+@dataclass(frozen=True)
+class Coefficients:
+    """Design-independent constants of the DGP, read from :func:`physics.evaluate`.
+
+    Attributes
+    ----------
+    adhesion_load_N : float
+        c = 6πγR, so that Q = Q0 + c + sqrt(2 c Q0 + c²); 0 without adhesion. [N]
+    pivoting_Nm : float
+        k_P in M_P = k_P Q^(4/3). [N*m / N^(4/3)]
+    hysteresis_Nm : float
+        k_ER in M_ER = k_ER Q^1.33. [N*m / N^1.33]
+    rolling_N : float
+        k_R in F_R = k_R Q^0.47 at the design speed. [N / N^0.47]
+    ball_ball_moment_Nm : float
+        M_b per contact pair as used in eq 20 (0 when balls do not touch). [N*m]
+    pressure_Pa : float
+        k_p in p0 = k_p Q^(1/3). [Pa / N^(1/3)]
+    ball_diameter_m : float
+        d. [m]
+    """
+
+    adhesion_load_N: float
+    pivoting_Nm: float
+    hysteresis_Nm: float
+    rolling_N: float
+    ball_ball_moment_Nm: float
+    pressure_Pa: float
+    ball_diameter_m: float
+
+
+def coefficients(problem: DesignProblem) -> Coefficients:
+    """Read the DGP's constants from the physics at a reference design.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        Fixed parameters, speed and convention.
+
+    Returns
+    -------
+    Coefficients
+        Constants such that the DGP expressions equal the physics outputs.
+
+    Notes
+    -----
+    At z = 1, θ = 45°, G = 1 N the physics gives Q, M_P, M_ER, F_R, p0 and
+    μ_ball_ball; dividing by the known powers of Q yields k_P, k_ER, k_R and
+    k_p, and M_b per pair = μ_ball_ball G cos θ d / (2 z) (from eq 20-23).
+    c is half the adhesion part of Q at Q0 = 0, i.e. twice the pull-off force
+    3πγR.
+    """
+    theta_deg, load, balls = 45.0, 1.0, 1
+    r = physics.evaluate(convention=problem.convention, **problem.physics_inputs(balls, theta_deg, load))
+    q = float(r.contact_load_adhesive_N)
+    d = float(problem.fixed["ball_diameter_m"])
+    return Coefficients(
+        adhesion_load_N=2.0 * float(r.adhesion_force_N),
+        pivoting_Nm=float(r.pivoting_moment_Nm) / q**PIVOT_EXPONENT,
+        hysteresis_Nm=float(r.hysteresis_moment_Nm) / q**HYSTERESIS_EXPONENT,
+        rolling_N=float(r.rolling_force_N) / q**ROLLING_EXPONENT,
+        ball_ball_moment_Nm=float(r.mu_ball_ball) * load * np.cos(np.deg2rad(theta_deg)) * d / (2 * balls),
+        pressure_Pa=float(r.max_contact_pressure_Pa) / q**PRESSURE_EXPONENT,
+        ball_diameter_m=d,
+    )
+
+
+@dataclass
+class DesignGP:
+    """A compiled-once DGP for one structure, with named variables, expressions and parameters.
+
+    Attributes
+    ----------
+    tan_theta, load_N : cvxpy.Variable
+        t = tan θ [1] and G [N].
+    balls : cvxpy.Parameter
+        Ball count z. [1]
+    params : dict of cvxpy.Parameter
+        Coefficients and limits by name (bounds ``tan_theta_min`` ...,
+        ``load_N_min`` ...; limits by their :data:`LIMIT_NAMES` name).
+    expressions : dict of cvxpy.Expression
+        ``sec_theta``, ``contact_load_N`` (Q0), ``contact_load_adhesive_N`` (Q),
+        ``pivoting_moment_Nm``, ``hysteresis_moment_Nm``, ``rolling_force_N``,
+        ``ball_race_force_N``, ``mu``, ``friction_force_N``,
+        ``max_contact_pressure_Pa``, ``load_per_ball_N``.
+    constraints : dict of cvxpy.Constraint
+        By name: the four box bounds and the limits present.
+    problem : cvxpy.Problem
+        Minimize μ subject to ``constraints``; DGP and DPP.
+    lock : threading.Lock
+        Hold it while assigning parameters and solving.
+    """
+
+    tan_theta: cp.Variable
+    load_N: cp.Variable
+    balls: cp.Parameter
+    params: dict[str, cp.Parameter]
+    expressions: dict[str, cp.Expression]
+    constraints: dict[str, cp.Constraint]
+    problem: cp.Problem
+    lock: threading.Lock
+
+    def assign(self, values: dict[str, float], balls: int) -> None:
+        """Set every parameter (hold :attr:`lock`).
+
+        Parameters
+        ----------
+        values : dict
+            Parameter values by name, from :func:`design_gp`. [SI units]
+        balls : int
+            Ball count z. [1]
+        """
+        for name, param in self.params.items():
+            param.value = values[name]
+        self.balls.value = balls
+
+
+_TERMS = ("adhesion_load_N", "pivoting_Nm", "rolling_N", "ball_ball_moment_Nm")
+
+
+def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bool = False) -> DesignGP:
+    """Build the DGP for a structure: which optional terms and limits are present.
+
+    Parameters
+    ----------
+    terms : frozenset of str
+        The non-zero optional coefficients among ``adhesion_load_N``,
+        ``pivoting_Nm``, ``rolling_N``, ``ball_ball_moment_Nm`` (a zero
+        coefficient cannot be a positive DGP parameter, so its term is left out). [-]
+    limits : frozenset of str
+        Names of :data:`LIMIT_NAMES` to include. [-]
+    phase_one : bool, default False
+        Build the phase-I problem instead: minimize s >= 0 with every limit
+        relaxed by the factor s (``value <= s L``, ``value >= L / s``) and the
+        box bounds kept hard. It is always feasible (the box is not empty) and
+        the limits can all be met exactly when its optimum is s <= 1. [-]
+
+    Returns
+    -------
+    DesignGP
+        Variables, parameters (unset), expressions, constraints and problem;
+        with ``phase_one`` the slack is ``expressions["slack"]``.
+
+    Raises
+    ------
+    AssertionError
+        If the problem is not DGP or not DPP (a programming error).
+    """
+    t = cp.Variable(pos=True, name="tan_theta")
+    g = cp.Variable(pos=True, name="load_N")
+    z = cp.Parameter(pos=True, name="balls")
+    names = ["hysteresis_Nm", "pressure_Pa", "ball_diameter_m", "tan_theta_min", "tan_theta_max",
+             "load_N_min", "load_N_max", *sorted(terms), *sorted(limits)]
+    p = {n: cp.Parameter(pos=True, name=n) for n in names}
+
+    sec = cp.power(1 + t**2, 0.5)
+    q0 = g * sec / (2 * z)
+    if "adhesion_load_N" in terms:
+        c = p["adhesion_load_N"]
+        q = q0 + c + cp.sqrt(2 * c * q0 + c**2)
+    else:
+        q = q0
+    m_er = p["hysteresis_Nm"] * q**HYSTERESIS_EXPONENT
+    inner = 4 * m_er / p["ball_diameter_m"]
+    e = {"sec_theta": sec, "contact_load_N": q0, "contact_load_adhesive_N": q, "hysteresis_moment_Nm": m_er}
+    if "pivoting_Nm" in terms:
+        e["pivoting_moment_Nm"] = p["pivoting_Nm"] * q**PIVOT_EXPONENT
+        inner = inner + 4 * e["pivoting_moment_Nm"] * t / p["ball_diameter_m"]
+    if "rolling_N" in terms:
+        e["rolling_force_N"] = p["rolling_N"] * q**ROLLING_EXPONENT
+        inner = inner + 4 * e["rolling_force_N"]
+    if "ball_ball_moment_Nm" in terms:
+        inner = inner + 2 * p["ball_ball_moment_Nm"] * sec / p["ball_diameter_m"]
+    e["ball_race_force_N"] = inner
+    e["friction_force_N"] = z * inner
+    e["mu"] = z * inner / g
+    e["max_contact_pressure_Pa"] = p["pressure_Pa"] * q**PRESSURE_EXPONENT
+    e["load_per_ball_N"] = g / z
+
+    k_up, k_down = 1.0 - SAFETY_MARGIN, 1.0 + SAFETY_MARGIN
+    cons = {
+        "groove_angle_deg_min": t >= p["tan_theta_min"],
+        "groove_angle_deg_max": t <= p["tan_theta_max"],
+        "load_N_min": g >= p["load_N_min"],
+        "load_N_max": g <= p["load_N_max"],
+    }
+    measured = {"max_contact_pressure_Pa": e["max_contact_pressure_Pa"],
+                "max_friction_force_N": e["friction_force_N"],
+                "max_load_per_ball_N": e["load_per_ball_N"]}
+    slack = cp.Variable(pos=True, name="slack") if phase_one else 1.0
+    for name in sorted(limits):
+        if LIMIT_NAMES[name] == "max":
+            cons[name] = measured[name] <= k_up * p[name] * slack
+        else:
+            cons[name] = g * slack >= k_down * p[name]
+    objective = e["mu"]
+    if phase_one:
+        e["slack"] = objective = slack
+    prob = cp.Problem(cp.Minimize(objective), list(cons.values()))
+    assert prob.is_dgp(dpp=True) and prob.is_dpp("dgp"), "the design problem must be DGP and DPP"
+    return DesignGP(t, g, z, p, e, cons, prob, threading.Lock())
+
+
+_CACHE: dict[tuple[frozenset[str], frozenset[str], bool], DesignGP] = {}
+_CACHE_LOCK = threading.Lock()
+
+
+def design_gp(problem: DesignProblem, limits: frozenset[str] | None = None,
+              phase_one: bool = False) -> tuple[DesignGP, dict[str, float]]:
+    """The cached DGP of a problem's structure and the parameter values of the problem.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        The design problem.
+    limits : frozenset of str, optional
+        Which of the problem's limits to include; all of them by default
+        (``groove_length_m`` restricts the ball counts, not the DGP). [-]
+    phase_one : bool, default False
+        The phase-I problem of :func:`build_design_gp` instead. [-]
+
+    Returns
+    -------
+    gp : DesignGP
+        Shared between calls: hold ``gp.lock`` around ``gp.assign`` and the solves.
+    values : dict
+        Parameter values for ``gp.assign``. [SI units]
+    """
+    coef = coefficients(problem)
+    values = {
+        "adhesion_load_N": coef.adhesion_load_N, "pivoting_Nm": coef.pivoting_Nm,
+        "hysteresis_Nm": coef.hysteresis_Nm, "rolling_N": coef.rolling_N,
+        "ball_ball_moment_Nm": coef.ball_ball_moment_Nm, "pressure_Pa": coef.pressure_Pa,
+        "ball_diameter_m": coef.ball_diameter_m,
+        "tan_theta_min": float(np.tan(np.deg2rad(problem.bounds.groove_angle_deg[0]))),
+        "tan_theta_max": float(np.tan(np.deg2rad(problem.bounds.groove_angle_deg[1]))),
+        "load_N_min": problem.bounds.load_N[0], "load_N_max": problem.bounds.load_N[1],
+        **{n: v for n, v in problem.constraints.active_limits().items() if n in LIMIT_NAMES},
+    }
+    terms = frozenset(n for n in _TERMS if values[n] > 0)
+    present = frozenset(n for n in LIMIT_NAMES if n in values)
+    limits = present if limits is None else frozenset(limits) & present
+    key = (terms, limits, phase_one)
+    with _CACHE_LOCK:
+        if key not in _CACHE:
+            _CACHE[key] = build_design_gp(terms, limits, phase_one)
+        gp = _CACHE[key]
+    return gp, {n: values[n] for n in gp.params}

@@ -1,0 +1,260 @@
+"""Tests of optimize.problem, optimize.dgp and optimize.solve against the exact physics and brute force."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+
+import physics
+from optimize import Constraints, DesignBounds, DesignProblem, InfeasibleDesignError, optimize_design
+from optimize.dgp import LIMIT_NAMES, build_design_gp, design_gp
+
+GRID = 200
+
+
+def _feasible(problem: DesignProblem, z, theta, load, r) -> np.ndarray:
+    c = problem.constraints
+    ok = np.ones(np.broadcast_shapes(np.shape(z), np.shape(theta), np.shape(load)), dtype=bool)
+    if c.max_contact_pressure_Pa is not None:
+        ok &= r.max_contact_pressure_Pa <= c.max_contact_pressure_Pa
+    if c.max_friction_force_N is not None:
+        ok &= r.friction_force_N <= c.max_friction_force_N
+    if c.min_load_capacity_N is not None:
+        ok &= load >= c.min_load_capacity_N
+    if c.max_load_per_ball_N is not None:
+        ok &= load / z <= c.max_load_per_ball_N
+    return ok
+
+
+def brute_force(problem: DesignProblem) -> tuple[float, tuple[int, float, float]]:
+    """Best feasible μ of a 200 x 200 (θ, log G) grid per ball count, refined locally by Nelder-Mead."""
+    counts = np.array(problem.ball_counts())
+    (t_lo, t_hi), (g_lo, g_hi) = problem.bounds.groove_angle_deg, problem.bounds.load_N
+    theta = np.linspace(t_lo, t_hi, GRID)
+    load = np.geomspace(g_lo, g_hi, GRID)
+    z3, t3, g3 = counts[:, None, None], theta[None, :, None], load[None, None, :]
+    r = physics.evaluate(convention=problem.convention, **problem.physics_inputs(z3, t3, g3))
+    mu = np.where(_feasible(problem, z3, t3, g3, r), r.mu, np.inf)
+    best = (np.inf, None)
+    per_count = mu.reshape(len(counts), -1).min(axis=1)
+    for k in np.argsort(per_count)[:3]:
+        if not np.isfinite(per_count[k]):
+            continue
+        i, j = np.unravel_index(np.argmin(mu[k]), mu[k].shape)
+        z = int(counts[k])
+
+        def objective(x, z=z):
+            th, g = float(x[0]), float(np.exp(x[1]))
+            rr = physics.evaluate(convention=problem.convention, **problem.physics_inputs(z, th, g))
+            return float(rr.mu) if _feasible(problem, z, th, g, rr) else 1e9
+
+        box = [(theta[max(i - 1, 0)], theta[min(i + 1, GRID - 1)]),
+               (np.log(load[max(j - 1, 0)]), np.log(load[min(j + 1, GRID - 1)]))]
+        res = minimize(objective, [theta[i], np.log(load[j])], method="Nelder-Mead", bounds=box,
+                       options={"xatol": 1e-10, "fatol": 1e-14, "maxiter": 400})
+        candidates = [(mu[k, i, j], (z, theta[i], load[j])), (res.fun, (z, res.x[0], np.exp(res.x[1])))]
+        best = min([best, *candidates], key=lambda c: c[0])
+    return best
+
+
+def random_problem(seed: int) -> DesignProblem:
+    """Random bounds, fixed parameters and limits; limits are drawn around values inside the box."""
+    rng = np.random.default_rng(seed)
+    z_lo = int(rng.integers(1, 8))
+    z_hi = z_lo + int(rng.integers(0, 14))
+    a_lo = float(rng.uniform(20, 60))
+    a_hi = min(a_lo + float(rng.uniform(2, 25)), 89.0)
+    g_lo = float(10 ** rng.uniform(-4, -2.5))
+    g_hi = g_lo * float(10 ** rng.uniform(0.5, 2.5))
+    fixed = {"mu_pivot": float(rng.uniform(0.1, 1.0)), "balls_touching": bool(rng.integers(0, 2)),
+             "adhesion_energy_J_m2": float(rng.choice([0.0, 0.05, 0.18])),
+             "ball_diameter_m": float(rng.uniform(150e-6, 500e-6))}
+    speed = float(rng.uniform(0, 0.2)) if seed % 2 else (0.01, float(rng.uniform(0.02, 0.3)))
+    bounds = DesignBounds((z_lo, z_hi), (a_lo, a_hi), (g_lo, g_hi))
+    probe = DesignProblem(bounds, speed_m_s=speed, fixed=fixed)
+    z = int(rng.integers(z_lo, z_hi + 1))
+    r = physics.evaluate(**probe.physics_inputs(z, rng.uniform(a_lo, a_hi), g_lo * (g_hi / g_lo) ** 0.7))
+    limits = {
+        "max_contact_pressure_Pa": float(r.max_contact_pressure_Pa) * rng.uniform(0.9, 1.1),
+        "max_friction_force_N": float(r.friction_force_N) * rng.uniform(0.9, 1.5),
+        "min_load_capacity_N": g_lo * (g_hi / g_lo) ** rng.uniform(0.0, 0.5),
+        "max_load_per_ball_N": float(g_hi / z) * rng.uniform(0.5, 1.5),
+        "groove_length_m": fixed["ball_diameter_m"] * (z_lo + z_hi) / 4 * rng.uniform(1.0, 1.3),
+    }
+    chosen = {k: v for k, v in limits.items() if rng.random() < 0.6}
+    return DesignProblem(bounds, speed_m_s=speed, fixed=fixed, constraints=Constraints(**chosen))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_no_feasible_grid_design_beats_the_optimizer(seed):
+    problem = random_problem(seed)
+    try:
+        result = optimize_design(problem)
+    except InfeasibleDesignError as err:
+        brute_mu, _ = brute_force(problem)
+        assert not np.isfinite(brute_mu), f"optimizer: infeasible ({err}); brute force: mu={brute_mu}"
+        return
+    brute_mu, brute_design = brute_force(problem)
+    assert brute_mu >= result.mu * (1 - 1e-4), (brute_design, result.design)
+    # the grid must come close too, or it did not search the right region
+    assert brute_mu <= result.mu * 1.05
+    assert all(c.satisfied for c in result.constraints), [c for c in result.constraints if not c.satisfied]
+    assert abs(result.relative_gap) < 1e-6
+    balls = result.design["balls"]
+    assert isinstance(balls, int) and problem.bounds.balls[0] <= balls <= problem.bounds.balls[1]
+    assert balls in problem.ball_counts()
+
+
+def test_worked_example_with_every_limit():
+    bounds = DesignBounds((4, 24), (35, 70), (0.001, 0.05))
+    problem = DesignProblem(bounds, speed_m_s=0.05, fixed={"mu_pivot": 1.0},
+                            constraints=Constraints(max_contact_pressure_Pa=6e8, max_friction_force_N=2e-4,
+                                                    min_load_capacity_N=0.004, max_load_per_ball_N=4e-3,
+                                                    groove_length_m=2.5e-3, min_ball_gap_m=20e-6))
+    result = optimize_design(problem)
+    brute_mu, _ = brute_force(problem)
+    assert result.mu <= brute_mu * (1 + 1e-4)
+    assert all(c.satisfied for c in result.constraints)
+    # 8 balls per groove need 8*285 um + 7*20 um = 2.42 mm <= 2.5 mm; 9 need 2.705 mm
+    assert max(problem.ball_counts()) == 16
+    assert [r.status for r in result.per_ball_count if r.balls > 16] == ["does not fit the groove"] * 8
+    assert result.design["groove_angle_deg"] == pytest.approx(35.0)  # every term of mu grows with theta
+    assert "global" in result.certificate.lower()
+
+
+def test_speed_range_is_designed_for_its_upper_end():
+    rng = np.random.default_rng(7)
+    z, theta, load = rng.integers(1, 30, 500), rng.uniform(10, 80, 500), 10 ** rng.uniform(-4, -1, 500)
+    speeds = np.sort(rng.uniform(0, 1, (500, 2)), axis=1)
+    low = physics.evaluate(balls=z, groove_angle_deg=theta, load_N=load, speed_m_s=speeds[:, 0])
+    high = physics.evaluate(balls=z, groove_angle_deg=theta, load_N=load, speed_m_s=speeds[:, 1])
+    assert np.all(high.mu >= low.mu) and np.all(high.friction_force_N >= low.friction_force_N)
+    bounds = DesignBounds((3, 12), (40, 60), (0.002, 0.02))
+    limits = Constraints(max_friction_force_N=1.2e-4)
+    ranged = optimize_design(DesignProblem(bounds, speed_m_s=(0.01, 0.1), constraints=limits))
+    top = optimize_design(DesignProblem(bounds, speed_m_s=0.1, constraints=limits))
+    assert ranged.speed_m_s == 0.1
+    assert ranged.mu == pytest.approx(top.mu, rel=1e-8)
+    assert "worst case" in ranged.certificate
+
+
+@pytest.mark.parametrize("convention", sorted(physics.CONVENTIONS))
+@pytest.mark.parametrize("touching, adhesion, speed",
+                         [(False, 0.18, 0.05), (True, 0.0, 0.0), (True, 0.3, 1.0)])
+def test_dgp_expressions_equal_the_physics(convention, touching, adhesion, speed):
+    problem = DesignProblem(DesignBounds((1, 50), (5, 85), (1e-5, 1.0)), speed_m_s=speed,
+                            fixed={"balls_touching": touching, "adhesion_energy_J_m2": adhesion},
+                            constraints=Constraints(max_contact_pressure_Pa=1e9, max_friction_force_N=1.0),
+                            convention=convention)
+    gp, values = design_gp(problem)
+    rng = np.random.default_rng(3)
+    for z, theta, load in zip(rng.integers(1, 50, 20), rng.uniform(5, 85, 20), 10 ** rng.uniform(-5, 0, 20),
+                              strict=True):
+        with gp.lock:
+            gp.assign(values, int(z))
+            gp.tan_theta.value, gp.load_N.value = np.tan(np.deg2rad(theta)), load
+            r = physics.evaluate(convention=convention, **problem.physics_inputs(int(z), theta, load))
+            for name in ("mu", "friction_force_N", "max_contact_pressure_Pa", "contact_load_adhesive_N"):
+                assert gp.expressions[name].value == pytest.approx(float(getattr(r, name)), rel=1e-10), name
+
+
+def test_every_structure_is_dgp_and_dpp():
+    terms = ("adhesion_load_N", "pivoting_Nm", "rolling_N", "ball_ball_moment_Nm")
+    for k in range(len(terms) + 1):
+        for chosen in itertools.combinations(terms, k):
+            for phase_one in (False, True):
+                gp = build_design_gp(frozenset(chosen), frozenset(LIMIT_NAMES), phase_one)
+                assert gp.problem.is_dgp(dpp=True) and gp.problem.is_dpp("dgp")
+                assert gp.balls.is_dgp() and not gp.problem.is_mixed_integer()
+
+
+def test_ties_have_equal_load_per_ball():
+    # mu depends on load and balls only through G/z: with the load bounds slack, counts tie
+    problem = DesignProblem(DesignBounds((4, 8), (50, 60), (1e-4, 1.0)), speed_m_s=0.01)
+    result = optimize_design(problem)
+    assert len(result.ties) == 5 and result.design["balls"] == 4
+    per_ball = np.array([t["load_per_ball_N"] for t in result.ties])
+    assert np.allclose(per_ball, per_ball[0], rtol=1e-3)
+    assert np.ptp([t["mu"] for t in result.ties]) <= 1e-6 * result.mu
+
+
+def test_conflicting_limits_are_named():
+    bounds = DesignBounds((4, 10), (40, 60), (0.001, 0.05))
+    base = DesignProblem(bounds, speed_m_s=0.05)
+    # pressure at G = 0.01 N on 10 balls at 40 deg: a limit just below it allows only G < 0.01 N
+    p_limit = float(physics.evaluate(**base.physics_inputs(10, 40.0, 0.01)).max_contact_pressure_Pa) * 0.999
+    each_alone = [Constraints(max_contact_pressure_Pa=p_limit), Constraints(min_load_capacity_N=0.01)]
+    for limits in each_alone:
+        optimize_design(DesignProblem(bounds, speed_m_s=0.05, constraints=limits))
+    both = Constraints(max_contact_pressure_Pa=p_limit, min_load_capacity_N=0.01, max_friction_force_N=1.0)
+    with pytest.raises(InfeasibleDesignError) as info:
+        optimize_design(DesignProblem(bounds, speed_m_s=0.05, constraints=both))
+    assert sorted(info.value.conflicts) == ["max_contact_pressure_Pa", "min_load_capacity_N"]
+    assert "balls_max" in info.value.binding_bounds and "groove_angle_deg_min" in info.value.binding_bounds
+    assert "max_contact_pressure_Pa" in str(info.value)
+
+    with pytest.raises(InfeasibleDesignError) as info:
+        optimize_design(replace(base, constraints=Constraints(min_load_capacity_N=1.0)))
+    assert info.value.conflicts == ["min_load_capacity_N"] and info.value.binding_bounds == ["load_N_max"]
+
+    short = Constraints(groove_length_m=3 * 285e-6)  # 4 balls need 2 per groove: fits; 7 need 4: does not
+    assert DesignProblem(bounds, speed_m_s=0.05, constraints=short).ball_counts() == [4, 5, 6]
+    with pytest.raises(InfeasibleDesignError) as info:
+        optimize_design(replace(base, constraints=Constraints(groove_length_m=400e-6)))
+    assert info.value.conflicts == ["balls", "groove_length_m"]
+
+    # max load per ball needs z >= 0.01 / 0.0015 = 6.7, the groove holds 6 at most: both are named
+    per_ball = Constraints(min_load_capacity_N=0.01, max_load_per_ball_N=0.0015, groove_length_m=3 * 285e-6)
+    with pytest.raises(InfeasibleDesignError) as info:
+        optimize_design(DesignProblem(bounds, speed_m_s=0.05, constraints=per_ball))
+    assert sorted(info.value.conflicts) == ["groove_length_m", "max_load_per_ball_N", "min_load_capacity_N"]
+
+
+def test_progress_reaches_one():
+    seen = []
+    optimize_design(DesignProblem(DesignBounds((3, 9), (40, 60), (0.001, 0.05)), speed_m_s=0.05),
+                    progress=seen.append)
+    assert len(seen) == 7 and seen == sorted(seen) and seen[-1] == 1.0
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    ({"bounds": DesignBounds((4, 8), (30, 60), (0.001, 0.01)), "speed_m_s": -1.0}, "speed_m_s"),
+    ({"bounds": DesignBounds((4, 8), (30, 60), (0.001, 0.01)), "speed_m_s": 0.1,
+      "fixed": {"load_N": 1.0}}, "fixed.load_N"),
+    ({"bounds": DesignBounds((4, 8), (30, 60), (0.001, 0.01)), "speed_m_s": 0.1,
+      "fixed": {"mu_pivot": -1.0}}, "fixed.mu_pivot"),
+    ({"bounds": DesignBounds((4, 8), (30, 60), (0.001, 0.01)), "speed_m_s": 0.1,
+      "fixed": {"colour": 1.0}}, "fixed.colour"),
+    ({"bounds": DesignBounds((4, 8), (30, 60), (0.001, 0.01)), "speed_m_s": (0.2, 0.1)}, "speed_m_s"),
+])
+def test_problem_validation_names_the_field(kwargs, field):
+    with pytest.raises(ValueError, match=field.replace(".", r"\.")):
+        DesignProblem(**kwargs)
+
+
+@pytest.mark.parametrize("args, field", [
+    (((0, 8), (30, 60), (0.001, 0.01)), "bounds.balls"),
+    (((4, 8.5), (30, 60), (0.001, 0.01)), "bounds.balls"),
+    (((9, 8), (30, 60), (0.001, 0.01)), "bounds.balls"),
+    (((4, 8), (30, 90), (0.001, 0.01)), "bounds.groove_angle_deg"),
+    (((4, 8), (30, 60), (0.0, 0.01)), "bounds.load_N"),
+    (((4, 8), (30, 60), 0.01), "bounds.load_N"),
+])
+def test_bounds_validation_names_the_field(args, field):
+    with pytest.raises(ValueError, match=field.replace(".", r"\.")):
+        DesignBounds(*args)
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    ({"max_contact_pressure_Pa": 0.0}, "max_contact_pressure_Pa"),
+    ({"groove_length_m": float("nan")}, "groove_length_m"),
+    ({"min_ball_gap_m": -1e-6}, "min_ball_gap_m"),
+    ({"max_friction_force_N": True}, "max_friction_force_N"),
+])
+def test_constraints_validation_names_the_field(kwargs, field):
+    with pytest.raises(ValueError, match=f"constraints.{field}"):
+        Constraints(**kwargs)
