@@ -1,0 +1,78 @@
+"""The ASGI application: ``service.app:app``, built by :func:`create_app`.
+
+``create_app(settings)`` wires the pieces: settings (:mod:`service.settings`), problem+json
+errors (:mod:`service.problems`), the request-body limit (:mod:`service.limits`, a 413
+problem), the SQLite store and job manager (:mod:`service.deps`, opened at startup or
+on first use) and one router per resource from :data:`ROUTERS`. See :mod:`service.routes` for
+how to add a resource.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from typing import Any
+
+from fastapi import FastAPI
+
+from . import problems
+from .deps import close_runtime, get_runtime
+from .limits import BodySizeLimitMiddleware
+from .routes import friction, jobs, meta, sweeps
+from .routes.meta import package_version
+from .schemas.base import add_raw_body_schemas
+from .settings import Settings
+
+__all__ = ["ROUTERS", "app", "create_app"]
+
+#: The routers of every resource, in the order of the OpenAPI spec. Add yours here.
+ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router]
+
+DESCRIPTION = """Friction of micro linear ball bearings for MEMS by the model of Olaru, Prisacaru,
+Ianus and Lorenz (COMEC 2005). All quantities are SI (the groove angle in degrees); every field
+states its unit in brackets. Errors are RFC 9457 problem details (application/problem+json).
+Long work answers 202 Accepted with a Location header to poll under /v1/jobs/{id}."""
+
+
+@asynccontextmanager
+async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
+    get_runtime(app)  # open the database and recover interrupted jobs before serving
+    try:
+        yield
+    finally:
+        close_runtime(app)
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """Build the service.
+
+    Parameters
+    ----------
+    settings : Settings, optional
+        Configuration; read from ``MICROBEARING_*`` environment variables when omitted.
+
+    Returns
+    -------
+    fastapi.FastAPI
+        The ASGI app. Its database opens at startup (or on first request without a lifespan).
+    """
+    settings = settings or Settings()
+    app = FastAPI(title="microbearing", version=package_version(), description=DESCRIPTION,
+                  lifespan=_lifespan)
+    app.state.settings = settings
+    app.state.runtime = None
+    problems.install(app)
+    app.add_middleware(BodySizeLimitMiddleware, max_bytes=settings.max_body_bytes)
+    for router in ROUTERS:
+        app.include_router(router)
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            app.openapi_schema = problems.rewrite_openapi(add_raw_body_schemas(FastAPI.openapi(app)))
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+    return app
+
+
+app = create_app()

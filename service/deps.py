@@ -1,0 +1,87 @@
+"""FastAPI dependencies: the settings, database and job manager of the running app.
+
+Use the annotated aliases as route parameters::
+
+    @router.get("/v1/things/{thing_id}")
+    def get_thing(thing_id: str, store: StoreDep) -> Thing: ...
+
+The database and job manager are opened on first use (or at startup under a server), so
+importing :mod:`service.app` or building an app touches no files.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Annotated
+
+from fastapi import Depends, FastAPI, Request
+
+from .jobs import JobManager
+from .settings import Settings
+from .store import Store
+
+__all__ = ["JobsDep", "Runtime", "SettingsDep", "StoreDep", "get_jobs", "get_runtime", "get_settings",
+           "get_store"]
+
+
+class Runtime:
+    """The open database and job manager of one app.
+
+    Parameters
+    ----------
+    settings : Settings
+        Configuration of the app.
+    """
+
+    def __init__(self, settings: Settings):
+        self.store = Store(settings.data_dir)
+        self.jobs = JobManager(self.store, settings.job_workers)
+
+    def close(self) -> None:
+        """Stop the jobs and close the database."""
+        self.jobs.shutdown()
+        self.store.close()
+
+
+_runtime_lock = threading.Lock()
+
+
+def get_runtime(app: FastAPI) -> Runtime:
+    """The runtime of ``app``, opened on first use."""
+    runtime = getattr(app.state, "runtime", None)
+    if runtime is None:
+        with _runtime_lock:
+            runtime = getattr(app.state, "runtime", None)
+            if runtime is None:
+                runtime = app.state.runtime = Runtime(app.state.settings)
+    return runtime
+
+
+def close_runtime(app: FastAPI) -> None:
+    """Close the runtime of ``app`` if it was opened."""
+    with _runtime_lock:
+        runtime = getattr(app.state, "runtime", None)
+        app.state.runtime = None
+    if runtime is not None:
+        runtime.close()
+
+
+def get_settings(request: Request) -> Settings:
+    """The settings of the app serving ``request``."""
+    return request.app.state.settings
+
+
+def get_store(request: Request) -> Store:
+    """The database of the app serving ``request``."""
+    return get_runtime(request.app).store
+
+
+def get_jobs(request: Request) -> JobManager:
+    """The job manager of the app serving ``request``."""
+    return get_runtime(request.app).jobs
+
+
+#: Route parameter annotations: ``settings: SettingsDep``, ``store: StoreDep``, ``jobs: JobsDep``.
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+StoreDep = Annotated[Store, Depends(get_store)]
+JobsDep = Annotated[JobManager, Depends(get_jobs)]

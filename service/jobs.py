@@ -1,0 +1,264 @@
+"""Persistent background jobs: long work answers ``202 Accepted`` and runs in a thread pool.
+
+A route submits a function taking a :class:`JobContext`; the function reports progress and
+checks for cancellation, and returns a JSON-ready dict (NumPy arrays are turned into lists)::
+
+    def run(ctx: JobContext) -> dict:
+        for i, chunk in enumerate(chunks):
+            ctx.check_cancelled()              # raises Cancelled after DELETE /v1/jobs/{id}
+            ...
+            ctx.progress((i + 1) / len(chunks))
+        return {"columns": {...}}
+
+    job = jobs.submit("sweep", request.model_dump(mode="json"), run)
+    return accepted(job)                        # 202 + Location: /v1/jobs/{id}
+
+Domain functions take ``progress: Callable[[float], None]``: pass ``ctx.progress``, which also
+checks for cancellation, so a domain loop that reports progress is cancellable without knowing
+about the service.
+
+Jobs live in SQLite (:mod:`service.store`): status queued, running, succeeded, failed or
+cancelled; progress 0..1; the result as JSON; a failure as a problem object. Each job records
+the pid and instance of the server that owns it. On startup, queued or running jobs whose owner
+is gone are marked failed with :data:`INTERRUPTED_DETAIL`, so several uvicorn workers can share
+one data folder without failing each other's live jobs. A function raising ``ValueError`` fails
+its job with a 422 problem, :class:`~service.problems.ProblemError` with its own problem, any
+other exception with a 500 problem.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+from .problems import INTERNAL_TYPE, VALIDATION_TYPE, ProblemError
+from .store import Store, to_json, utc_now
+
+__all__ = ["ACTIVE", "FINISHED", "INTERRUPTED_DETAIL", "Cancelled", "JobContext", "JobManager"]
+
+logger = logging.getLogger("microbearing.service.jobs")
+
+ACTIVE = ("queued", "running")
+FINISHED = ("succeeded", "failed", "cancelled")
+INTERRUPTED_DETAIL = "interrupted: the server stopped while the job ran"
+
+#: Job managers alive in this process; a job owned by this pid but another instance is orphaned.
+_LIVE_INSTANCES: set[str] = set()
+
+#: Seconds between progress writes and between database checks for a cancellation request.
+_PROGRESS_INTERVAL_S = 0.1
+_CANCEL_POLL_INTERVAL_S = 0.25
+
+
+class Cancelled(Exception):  # noqa: N818 - a state, not an error; the job ends "cancelled"
+    """Raised by :meth:`JobContext.check_cancelled` once the job's cancellation is requested."""
+
+
+def _pid_alive(pid: int) -> bool:
+    if os.name != "posix":
+        return True  # without a safe liveness probe, never fail another process's job
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _owner_alive(pid: int, instance: str) -> bool:
+    if pid == os.getpid():
+        return instance in _LIVE_INSTANCES
+    return _pid_alive(pid)
+
+
+class JobContext:
+    """What a running job function sees: progress reporting and cancellation.
+
+    Parameters
+    ----------
+    job_id : str
+        Identifier of the job.
+    store : Store
+        Database the job lives in.
+    cancel_event : threading.Event
+        Set when this process cancels the job.
+    """
+
+    def __init__(self, job_id: str, store: Store, cancel_event: threading.Event):
+        self.job_id = job_id
+        self._store = store
+        self._cancel_event = cancel_event
+        self._last_write = 0.0
+        self._last_poll = 0.0
+
+    def check_cancelled(self) -> None:
+        """Raise :class:`Cancelled` when cancellation was requested (by any server process)."""
+        if self._cancel_event.is_set():
+            raise Cancelled(self.job_id)
+        now = time.monotonic()
+        if now - self._last_poll >= _CANCEL_POLL_INTERVAL_S:
+            self._last_poll = now
+            row = self._store.get_job(self.job_id)
+            if row is None or row["cancel_requested"]:
+                self._cancel_event.set()
+                raise Cancelled(self.job_id)
+
+    def progress(self, fraction: float) -> None:
+        """Record progress and check for cancellation.
+
+        Parameters
+        ----------
+        fraction : float
+            Share of the work done [1], clipped to [0, 1].
+        """
+        self.check_cancelled()
+        now = time.monotonic()
+        if now - self._last_write >= _PROGRESS_INTERVAL_S:
+            self._last_write = now
+            self._store.update_job(self.job_id, only_if_status=("running",),
+                                   progress=min(max(float(fraction), 0.0), 1.0))
+
+
+class JobManager:
+    """Submits, runs, cancels and recovers jobs of one data folder.
+
+    Parameters
+    ----------
+    store : Store
+        The database.
+    workers : int
+        Threads running jobs in this process [1].
+    """
+
+    def __init__(self, store: Store, workers: int):
+        self.store = store
+        self.instance = uuid.uuid4().hex
+        self._executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="microbearing-job")
+        self._cancel_events: dict[str, threading.Event] = {}
+        self._lock = threading.Lock()
+        _LIVE_INSTANCES.add(self.instance)
+        self.recover()
+
+    def recover(self) -> list[str]:
+        """Mark failed the active jobs whose owning server is gone; returns their ids."""
+        failed = []
+        for row in self.store.jobs_with_status(*ACTIVE):
+            if not _owner_alive(row["owner_pid"], row["owner_instance"]):
+                problem = ProblemError(500, INTERRUPTED_DETAIL, title="Job interrupted", type_=INTERNAL_TYPE)
+                if self.store.update_job(row["id"], only_if_status=ACTIVE, status="failed",
+                                         error_json=to_json(problem.to_dict()), finished_at=utc_now()):
+                    failed.append(row["id"])
+        if failed:
+            logger.warning("marked %d interrupted job(s) failed: %s", len(failed), ", ".join(failed))
+        return failed
+
+    def submit(self, kind: str, request: dict[str, Any], fn: Callable[[JobContext], dict[str, Any]]
+               ) -> dict[str, Any]:
+        """Queue ``fn`` as a job and return its row.
+
+        Parameters
+        ----------
+        kind : str
+            What the job does, e.g. ``"sweep"``.
+        request : dict
+            The JSON-ready request that created it (kept for the record).
+        fn : callable
+            ``fn(ctx) -> dict``, the work; its JSON-ready result is stored.
+
+        Returns
+        -------
+        dict
+            The job row (see :meth:`get`).
+        """
+        job_id = uuid.uuid4().hex
+        self.store.insert_job(id=job_id, kind=kind, status="queued", progress=0.0,
+                              request_json=to_json(request), owner_pid=os.getpid(),
+                              owner_instance=self.instance, created_at=utc_now())
+        event = threading.Event()
+        with self._lock:
+            self._cancel_events[job_id] = event
+        self._executor.submit(self._run, job_id, fn, event)
+        return self.get(job_id)
+
+    def get(self, job_id: str) -> dict[str, Any] | None:
+        """The job row, or None for an unknown id."""
+        return self.store.get_job(job_id)
+
+    def cancel(self, job_id: str) -> dict[str, Any] | None:
+        """Request cancellation; a queued job is cancelled at once, a running one at its next check.
+
+        Returns
+        -------
+        dict or None
+            The job row after the request, or None for an unknown id.
+        """
+        if self.store.update_job(job_id, only_if_status=("queued",), status="cancelled",
+                                 cancel_requested=1, finished_at=utc_now()):
+            return self.get(job_id)
+        self.store.update_job(job_id, only_if_status=("running",), cancel_requested=1)
+        with self._lock:
+            event = self._cancel_events.get(job_id)
+        if event is not None:
+            event.set()
+        return self.get(job_id)
+
+    def shutdown(self) -> None:
+        """Stop: cancel queued work, interrupt running jobs and mark both failed as interrupted."""
+        with self._lock:
+            events = list(self._cancel_events.values())
+        for event in events:
+            event.set()
+        self._executor.shutdown(wait=True, cancel_futures=True)
+        _LIVE_INSTANCES.discard(self.instance)
+        problem = ProblemError(500, INTERRUPTED_DETAIL, title="Job interrupted", type_=INTERNAL_TYPE)
+        for row in self.store.jobs_with_status(*ACTIVE):
+            if row["owner_instance"] == self.instance:
+                self.store.update_job(row["id"], only_if_status=ACTIVE, status="failed",
+                                      error_json=to_json(problem.to_dict()), finished_at=utc_now())
+
+    def _finish(self, job_id: str, status: str, **changes: Any) -> None:
+        self.store.update_job(job_id, only_if_status=("running",), status=status, finished_at=utc_now(),
+                              **changes)
+        with self._lock:
+            self._cancel_events.pop(job_id, None)
+
+    def _run(self, job_id: str, fn: Callable[[JobContext], dict[str, Any]], event: threading.Event) -> None:
+        if event.is_set() or not self.store.update_job(job_id, only_if_status=("queued",), status="running",
+                                                       started_at=utc_now()):
+            return
+        ctx = JobContext(job_id, self.store, event)
+        try:
+            ctx.check_cancelled()
+            result = fn(ctx)
+        except Cancelled:
+            if self.store.get_job(job_id)["cancel_requested"]:
+                self._finish(job_id, "cancelled")
+            else:  # only shutdown sets the event without a request; shutdown marks the job failed
+                self._finish(job_id, "failed", error_json=to_json(ProblemError(
+                    500, INTERRUPTED_DETAIL, title="Job interrupted", type_=INTERNAL_TYPE).to_dict()))
+        except ProblemError as problem:
+            self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
+        except ValueError as exc:
+            problem = ProblemError(422, str(exc), title="Invalid job input", type_=VALIDATION_TYPE)
+            self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
+        except Exception as exc:
+            logger.exception("job %s failed", job_id)
+            problem = ProblemError(500, f"The job failed: {type(exc).__name__}: {exc}", title="Job failed",
+                                   type_=INTERNAL_TYPE)
+            self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
+        else:
+            try:
+                result_json = to_json(result)
+            except (TypeError, ValueError) as exc:
+                problem = ProblemError(500, f"The job's result is not finite JSON: {exc}", title="Job failed",
+                                       type_=INTERNAL_TYPE)
+                self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
+            else:
+                self._finish(job_id, "succeeded", progress=1.0, result_json=result_json)

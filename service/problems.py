@@ -1,0 +1,276 @@
+"""RFC 9457 problem details: every error of the API as ``application/problem+json``.
+
+Raise :class:`ProblemError` anywhere in a route (or in code a route calls) to answer with a
+problem; :func:`install` makes FastAPI turn its own errors (unknown path 404, wrong method 405
+with ``Allow``, request validation 400/422, body too large 413, unexpected exceptions 500) into
+problems too. :data:`PROBLEM_RESPONSES` documents the problem media type on a route::
+
+    @router.post("/v1/things", responses=problem_responses(404, 413))
+
+Validation problems list the offending fields in ``errors`` as JSON pointers into the request
+body (``{"pointer": "/points/load_N/3", "detail": "..."}``) or, for path and query parameters,
+by name (``{"parameter": "job_id", ...}``).
+"""
+
+from __future__ import annotations
+
+import http
+import logging
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, ConfigDict, Field
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
+
+import physics
+
+__all__ = [
+    "PROBLEM_MEDIA_TYPE",
+    "FieldError",
+    "Problem",
+    "ProblemError",
+    "ProblemResponse",
+    "install",
+    "problem_responses",
+    "validation_problem",
+]
+
+PROBLEM_MEDIA_TYPE = "application/problem+json"
+VALIDATION_TYPE = "urn:microbearing:problem:validation"
+INTERNAL_TYPE = "urn:microbearing:problem:internal"
+
+logger = logging.getLogger("microbearing.service")
+
+
+class FieldError(BaseModel):
+    """One offending field of a request."""
+
+    pointer: str | None = Field(
+        default=None, description="JSON pointer (RFC 6901) into the request body, e.g. /load_N.")
+    parameter: str | None = Field(default=None, description="Name of a path, query or header parameter.")
+    detail: str = Field(description="What is wrong and what is allowed.")
+
+
+class Problem(BaseModel):
+    """An error as RFC 9457 problem details."""
+
+    model_config = ConfigDict(extra="allow")
+
+    type: str = Field(default="about:blank", description="URI identifying the kind of problem.")
+    title: str = Field(description="Short summary of the kind of problem.")
+    status: int = Field(ge=100, le=599, description="HTTP status code.")
+    detail: str = Field(description="Explanation of this occurrence.")
+    instance: str | None = Field(default=None, description="URI of this occurrence (the request path).")
+    errors: list[FieldError] | None = Field(default=None, description="Offending fields, for validation.")
+
+
+class ProblemResponse(JSONResponse):
+    """A JSON response with the ``application/problem+json`` media type."""
+
+    media_type = PROBLEM_MEDIA_TYPE
+
+
+class ProblemError(Exception):
+    """An error that the API answers as a problem.
+
+    Parameters
+    ----------
+    status : int
+        HTTP status code [1].
+    detail : str
+        Explanation of this occurrence for the client.
+    title : str, optional
+        Summary of the kind of problem; the HTTP reason phrase by default.
+    type_ : str, optional
+        URI of the kind of problem; ``about:blank`` by default.
+    errors : list of dict, optional
+        Offending fields: ``{"pointer": "/load_N", "detail": "..."}``.
+    headers : dict, optional
+        Extra response headers.
+    """
+
+    def __init__(self, status: int, detail: str, *, title: str | None = None, type_: str = "about:blank",
+                 errors: list[dict[str, str]] | None = None, headers: dict[str, str] | None = None):
+        super().__init__(detail)
+        self.status = status
+        self.detail = detail
+        self.title = title or http.HTTPStatus(status).phrase
+        self.type = type_
+        self.errors = errors
+        self.headers = headers
+
+    def to_dict(self, instance: str | None = None) -> dict[str, Any]:
+        """The problem as a JSON-ready dict."""
+        body: dict[str, Any] = {"type": self.type, "title": self.title, "status": self.status,
+                                "detail": self.detail}
+        if instance is not None:
+            body["instance"] = instance
+        if self.errors:
+            body["errors"] = self.errors
+        return body
+
+
+def validation_problem(errors: list[dict[str, str]], status: int = 422) -> ProblemError:
+    """A validation problem listing offending fields.
+
+    Parameters
+    ----------
+    errors : list of dict
+        ``{"pointer": "/fixed/load_N", "detail": "..."}`` items.
+    status : int, default 422
+        HTTP status code [1].
+
+    Returns
+    -------
+    ProblemError
+        Ready to raise.
+    """
+    summary = "; ".join(f"{e.get('pointer', e.get('parameter', ''))}: {e['detail']}" for e in errors)
+    return ProblemError(status, f"The request is invalid: {summary}", title="Invalid request",
+                        type_=VALIDATION_TYPE, errors=errors)
+
+
+def problem_responses(*statuses: int) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI ``responses`` entries documenting problems for the given status codes.
+
+    400, 404 (no route), 405, 413, 422 and 500 can come from any route, so they are always
+    included; pass extra codes a route raises itself (e.g. 404 for an unknown id).
+    """
+    codes = sorted({400, 404, 405, 413, 422, 500, *statuses})
+    return {code: {"model": Problem, "description": http.HTTPStatus(code).phrase} for code in codes}
+
+
+def _respond(request: Request, problem: ProblemError) -> ProblemResponse:
+    return ProblemResponse(problem.to_dict(instance=request.url.path), status_code=problem.status,
+                           headers=problem.headers)
+
+
+_HTTP_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
+
+def _allowed_methods(request: Request) -> list[str]:
+    # Starlette reports only the first route matching the path; a path served by several
+    # routes (GET and DELETE /v1/jobs/{id}) must list every method in Allow.
+    return [method for method in _HTTP_METHODS
+            if any(route.matches({**request.scope, "method": method})[0] == Match.FULL
+                   for route in request.app.router.routes)]
+
+
+def _is_union_tag(part: Any) -> bool:
+    # pydantic names the member of a plain union in the location ("list[constrained-float]",
+    # "int"); field names are snake_case identifiers, so such tags are recognised by their form.
+    return isinstance(part, str) and ("[" in part or "-" in part or part in {"float", "int", "bool", "str"})
+
+
+def _pointer_parts(loc: tuple[Any, ...], document: Any) -> list[str]:
+    """The location parts that exist in the request document (plus a final missing key)."""
+    parts: list[str] = []
+    node = document
+    located = True
+    for position, part in enumerate(loc):
+        if _is_union_tag(part):
+            continue
+        last = position == len(loc) - 1
+        if located and isinstance(node, dict) and part in node:
+            node = node[part]
+        elif located and isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+            node = node[part]
+        elif located and (isinstance(node, dict | list)) and not last:
+            continue  # a discriminated union's tag ("grid"), not a key of the document
+        else:
+            located = False
+        parts.append(str(part))
+    return parts
+
+
+def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
+    by_place: dict[tuple[str, str], list[str]] = {}
+    for error in exc.errors():
+        loc = tuple(error.get("loc", ()))
+        source, rest = (loc[0], loc[1:]) if loc else ("body", ())
+        if error.get("type") in {"union_tag_invalid", "union_tag_not_found"}:
+            rest = (*rest, str(error.get("ctx", {}).get("discriminator", "")).strip("'"))
+        parts = _pointer_parts(rest, exc.body if source == "body" else None)
+        detail = error.get("msg", "invalid")
+        names = [p for p in parts if p in physics.PARAMETERS]
+        if names:
+            spec = physics.PARAMETERS[names[-1]]
+            detail = f"{detail} ({spec.name} must be {spec.range_text()} [{spec.unit}])"
+        if source == "body":
+            place = ("pointer", "".join("/" + p.replace("~", "~0").replace("/", "~1") for p in parts))
+        else:
+            place = ("parameter", parts[0] if parts else str(source))
+        by_place.setdefault(place, [])
+        if detail not in by_place[place]:
+            by_place[place].append(detail)
+    # For a union (scalar or list) a bad list element also fails the scalar branch at the
+    # field itself; the deeper pointer is the useful one.
+    pointers = [value for kind, value in by_place if kind == "pointer"]
+    return [
+        {kind: value, "detail": "; ".join(details)}
+        for (kind, value), details in by_place.items()
+        if kind != "pointer" or not any(other.startswith(value + "/") for other in pointers)
+    ]
+
+
+async def _on_problem(request: Request, exc: ProblemError) -> ProblemResponse:
+    return _respond(request, exc)
+
+
+async def _on_http_exception(request: Request, exc: StarletteHTTPException) -> ProblemResponse:
+    headers = dict(exc.headers or {})
+    status = exc.status_code
+    phrase = http.HTTPStatus(status).phrase
+    detail = exc.detail if exc.detail and exc.detail != phrase else None
+    if status == 404 and detail is None:
+        detail = f"No resource at {request.url.path}."
+    elif status == 405:
+        allowed = _allowed_methods(request)
+        headers["Allow"] = ", ".join(allowed)
+        detail = f"{request.method} is not allowed on {request.url.path}; allowed: {', '.join(allowed)}."
+    return _respond(request, ProblemError(status, detail or phrase, headers=headers or None))
+
+
+async def _on_validation_error(request: Request, exc: RequestValidationError) -> ProblemResponse:
+    if any(error.get("type") == "json_invalid" for error in exc.errors()):
+        problem = ProblemError(400, "The request body is not valid JSON.", title="Malformed JSON",
+                               type_=VALIDATION_TYPE)
+        return _respond(request, problem)
+    return _respond(request, validation_problem(_field_errors(exc)))
+
+
+async def _on_unexpected(request: Request, exc: Exception) -> ProblemResponse:
+    logger.exception("unexpected error on %s %s", request.method, request.url.path)
+    problem = ProblemError(500, "The server failed to handle the request; the error is logged.",
+                           type_=INTERNAL_TYPE)
+    return _respond(request, problem)
+
+
+def install(app: FastAPI) -> None:
+    """Answer every error of ``app`` as a problem and document problems in its OpenAPI spec."""
+    app.add_exception_handler(ProblemError, _on_problem)
+    app.add_exception_handler(StarletteHTTPException, _on_http_exception)
+    app.add_exception_handler(RequestValidationError, _on_validation_error)
+    app.add_exception_handler(Exception, _on_unexpected)
+
+
+def rewrite_openapi(spec: dict[str, Any]) -> dict[str, Any]:
+    """Give every error response of ``spec`` the problem media type and schema.
+
+    FastAPI documents error models as ``application/json`` and adds its own
+    ``HTTPValidationError``; the API answers ``application/problem+json`` with :class:`Problem`.
+    """
+    ref = {"$ref": "#/components/schemas/Problem"}
+    for path_item in spec.get("paths", {}).values():
+        for operation in path_item.values():
+            for code, response in operation.get("responses", {}).items():
+                if code.isdigit() and int(code) >= 400:
+                    response["content"] = {PROBLEM_MEDIA_TYPE: {"schema": ref}}
+                    response["description"] = http.HTTPStatus(int(code)).phrase
+    schemas = spec.get("components", {}).get("schemas", {})
+    for unused in ("HTTPValidationError", "ValidationError"):
+        schemas.pop(unused, None)
+    return spec

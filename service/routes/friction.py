@@ -1,0 +1,44 @@
+"""``/v1/friction`` (one point) and ``/v1/friction/batch`` (columns of up to millions of points)."""
+
+from __future__ import annotations
+
+import numpy as np
+from fastapi import APIRouter, Request
+from fastapi.responses import JSONResponse, Response
+from starlette.concurrency import run_in_threadpool
+
+from ..deps import SettingsDep
+from ..evaluation import column_arrays, evaluate_checked
+from ..problems import problem_responses
+from ..schemas.base import parse_json_body, raw_json_body
+from ..schemas.friction import FrictionBatchRequest, FrictionBatchResponse, FrictionRequest, FrictionResponse
+from ..tables import json_bytes
+
+__all__ = ["router"]
+
+router = APIRouter(prefix="/v1/friction", tags=["friction"])
+
+
+@router.post("", operation_id="evaluate_friction", response_model=FrictionResponse,
+             responses=problem_responses())
+async def evaluate_friction(body: FrictionRequest) -> JSONResponse:  # type: ignore[valid-type]
+    """Every output of the friction model at one design point."""
+    inputs = body.model_dump(exclude={"convention"})
+    result = evaluate_checked(inputs, None, body.convention)
+    return JSONResponse({"convention": body.convention, **{k: float(v) for k, v in result.items()}})
+
+
+def _batch(request: FrictionBatchRequest, max_points: int) -> bytes:
+    inputs, count = column_arrays(request.points.model_dump(), max_points)
+    result = evaluate_checked(inputs, request.outputs, request.convention, pointer="/points")
+    return json_bytes({name: np.broadcast_to(values, (count,)) for name, values in result.items()})
+
+
+@router.post("/batch", operation_id="evaluate_friction_batch", response_model=FrictionBatchResponse,
+             response_model_exclude_none=True, responses=problem_responses(413),
+             openapi_extra=raw_json_body(FrictionBatchRequest))
+async def evaluate_friction_batch(request: Request, settings: SettingsDep) -> Response:
+    """The chosen outputs at many points given as columns; scalars broadcast to every point."""
+    body = await parse_json_body(request, FrictionBatchRequest)
+    content = await run_in_threadpool(_batch, body, settings.max_batch_points)
+    return Response(content, media_type="application/json")

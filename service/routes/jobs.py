@@ -1,0 +1,89 @@
+"""``/v1/jobs/{id}``: status, progress, result and cancellation of background jobs."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from fastapi import APIRouter, Request
+from fastapi.responses import JSONResponse, Response
+
+from ..deps import JobsDep
+from ..jobs import FINISHED, JobManager
+from ..problems import Problem, ProblemError, problem_responses
+from ..schemas.jobs import Job
+from ..tables import CSV_MEDIA_TYPE, csv_text, wants_csv
+
+__all__ = ["accepted", "job_view", "router"]
+
+router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
+
+
+def job_view(row: dict[str, Any]) -> Job:
+    """The public view of a job row."""
+    return Job(
+        id=row["id"], kind=row["kind"], status=row["status"], progress=row["progress"],
+        cancel_requested=bool(row["cancel_requested"]), created_at=row["created_at"],
+        started_at=row["started_at"], finished_at=row["finished_at"],
+        result_url=f"/v1/jobs/{row['id']}/result" if row["status"] == "succeeded" else None,
+        error=Problem.model_validate(json.loads(row["error_json"])) if row["error_json"] else None,
+    )
+
+
+def accepted(row: dict[str, Any]) -> JSONResponse:
+    """``202 Accepted`` with the job and ``Location: /v1/jobs/{id}``."""
+    return JSONResponse(job_view(row).model_dump(mode="json"), status_code=202,
+                        headers={"Location": f"/v1/jobs/{row['id']}"})
+
+
+#: OpenAPI entry of a 202 answer, for routes that may run their work as a job.
+ACCEPTED_RESPONSE: dict[int | str, dict[str, Any]] = {
+    202: {"model": Job, "description": "Accepted: the work runs as a job; poll the Location header.",
+          "headers": {"Location": {"description": "Path of the job, /v1/jobs/{id}.",
+                                   "schema": {"type": "string"}}}},
+}
+
+
+def _job_or_404(jobs: JobManager, job_id: str) -> dict[str, Any]:
+    row = jobs.get(job_id)
+    if row is None:
+        raise ProblemError(404, f"There is no job {job_id!r}.")
+    return row
+
+
+@router.get("/{job_id}", operation_id="get_job", response_model=Job, responses=problem_responses(404))
+def get_job(job_id: str, jobs: JobsDep) -> Job:
+    """Status, progress and, once finished, the result link or the problem of a job."""
+    return job_view(_job_or_404(jobs, job_id))
+
+
+@router.delete("/{job_id}", operation_id="cancel_job", response_model=Job,
+               responses=problem_responses(404, 409))
+def cancel_job(job_id: str, jobs: JobsDep) -> Job:
+    """Cancel a job: a queued job ends at once, a running one at its next progress check."""
+    row = _job_or_404(jobs, job_id)
+    if row["status"] in FINISHED:
+        raise ProblemError(409, f"Job {job_id} has already finished ({row['status']}).")
+    return job_view(jobs.cancel(job_id))
+
+
+@router.get(
+    "/{job_id}/result", operation_id="get_job_result",
+    responses={
+        200: {"description": "The result: JSON, or its columns as CSV with Accept: text/csv.",
+              "content": {"application/json": {"schema": {"type": "object", "additionalProperties": True}},
+                          CSV_MEDIA_TYPE: {"schema": {"type": "string"}}}},
+        **problem_responses(404, 406, 409),
+    },
+)
+def get_job_result(job_id: str, request: Request, jobs: JobsDep) -> Response:
+    """The result of a succeeded job, as stored."""
+    row = _job_or_404(jobs, job_id)
+    if row["status"] != "succeeded":
+        raise ProblemError(409, f"Job {job_id} is {row['status']}; a result exists only once it succeeded.")
+    if wants_csv(request):
+        result = json.loads(row["result_json"])
+        if not isinstance(result.get("columns"), dict):
+            raise ProblemError(406, f"The result of job {job_id} is not a table; ask for application/json.")
+        return Response(csv_text(result["columns"]), media_type=CSV_MEDIA_TYPE)
+    return Response(row["result_json"], media_type="application/json")

@@ -1,0 +1,52 @@
+"""``/v1/sweeps``: grids and designs of experiments; small ones answer 200, large ones run as jobs."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body, Request
+from fastapi.responses import Response
+from starlette.concurrency import run_in_threadpool
+
+from ..deps import JobsDep, SettingsDep
+from ..jobs import JobContext
+from ..problems import problem_responses
+from ..schemas.sweeps import SweepRequest, SweepResult
+from ..sweeps import design_columns, run_sweep
+from ..tables import CSV_MEDIA_TYPE, table_response
+from .jobs import ACCEPTED_RESPONSE, accepted
+
+__all__ = ["router"]
+
+router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
+
+
+@router.post(
+    "", operation_id="create_sweep", response_model=SweepResult, status_code=200,
+    responses={
+        200: {"description": "The sweep, computed at once: JSON, or its columns as CSV (Accept: text/csv).",
+              "content": {CSV_MEDIA_TYPE: {"schema": {"type": "string"}}}},
+        **ACCEPTED_RESPONSE,
+        **problem_responses(),
+    },
+)
+async def create_sweep(
+    request: Request,
+    body: Annotated[SweepRequest, Body(description="A grid or a design of experiments, tagged by design.")],
+    settings: SettingsDep,
+    jobs: JobsDep,
+) -> Response:
+    """Evaluate the model over a grid or a Sobol / Latin hypercube design, the other inputs fixed.
+
+    Sweeps of up to MICROBEARING_SWEEP_SYNC_MAX_POINTS points answer 200 with the table; larger
+    ones answer 202 with a job whose result is at /v1/jobs/{id}/result.
+    """
+    plan = await run_in_threadpool(design_columns, body, settings.max_sweep_points)
+    if plan.count <= settings.sweep_sync_max_points:
+        document = await run_in_threadpool(run_sweep, body, plan)
+        return table_response(request, document, document["columns"])
+
+    def work(ctx: JobContext) -> dict:
+        return run_sweep(body, plan, progress=ctx.progress)
+
+    return accepted(jobs.submit("sweep", body.model_dump(mode="json"), work))

@@ -1,0 +1,184 @@
+"""Base models and the fields built from :data:`physics.PARAMETERS` and :data:`physics.OUTPUTS`.
+
+Request bodies derive from :class:`StrictModel`: unknown fields, strings or booleans for
+numbers, NaN and infinities are rejected with 422. Build physics inputs with
+:func:`parameter_fields` rather than repeating names, units or bounds::
+
+    MyRequest = pydantic.create_model(
+        "MyRequest", __base__=StrictModel,
+        **parameter_fields(optional=True),          # every physics input, all optional
+        iterations=(int, Field(ge=1, le=1000, description="Optimizer iterations [1].")),
+    )
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any, Literal, TypeVar
+
+from fastapi import Request
+from fastapi.exceptions import RequestValidationError
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError
+from starlette.concurrency import run_in_threadpool
+
+import physics
+
+__all__ = [
+    "RAW_BODY_MODELS",
+    "ConventionName",
+    "OutputName",
+    "ResponseModel",
+    "StrictModel",
+    "add_raw_body_schemas",
+    "output_fields",
+    "parameter_description",
+    "parameter_fields",
+    "parameter_type",
+    "parse_json_body",
+    "raw_json_body",
+]
+
+ModelT = TypeVar("ModelT", bound=BaseModel)
+
+
+class StrictModel(BaseModel):
+    """Base of request bodies: strict types, no unknown fields, finite numbers only."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+
+
+class ResponseModel(BaseModel):
+    """Base of response bodies."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+#: One of :data:`physics.CONVENTIONS`.
+ConventionName = Literal[tuple(physics.CONVENTIONS)]  # type: ignore[valid-type]
+#: One of :data:`physics.OUTPUTS`.
+OutputName = Literal[tuple(physics.OUTPUTS)]  # type: ignore[valid-type]
+
+
+def parameter_description(spec: physics.Parameter) -> str:
+    """Field description: meaning, unit in brackets and allowed range."""
+    default = "" if spec.required else f" Default {spec.default!r}."
+    return f"{spec.description} [{spec.unit}] Allowed: {spec.range_text()}.{default}"
+
+
+def parameter_type(spec: physics.Parameter) -> Any:
+    """The annotated scalar type of one parameter, with its bounds as schema constraints."""
+    if spec.kind == "bool":
+        return StrictBool
+    bounds: dict[str, float] = {}
+    if spec.minimum is not None:
+        bounds["gt" if spec.exclusive_minimum else "ge"] = spec.minimum
+    if spec.maximum is not None:
+        bounds["lt" if spec.exclusive_maximum else "le"] = spec.maximum
+    if spec.kind == "int":
+        return Annotated[int, Field(**{key: int(value) for key, value in bounds.items()})]
+    return Annotated[float, Field(allow_inf_nan=False, **bounds)]
+
+
+def parameter_fields(*, columns: bool = False, optional: bool = False,
+                     names: list[str] | None = None) -> dict[str, Any]:
+    """``create_model`` field definitions for physics parameters.
+
+    Parameters
+    ----------
+    columns : bool, default False
+        Accept a scalar or a list per field (columnar batches).
+    optional : bool, default False
+        Make every field optional with default None (e.g. the fixed values of a sweep);
+        otherwise required parameters are required and the others default from the table.
+    names : list of str, optional
+        Only these parameters (default: all of :data:`physics.PARAMETERS`).
+
+    Returns
+    -------
+    dict
+        ``{name: (type, FieldInfo)}``.
+    """
+    fields: dict[str, Any] = {}
+    for name in names or list(physics.PARAMETERS):
+        spec = physics.PARAMETERS[name]
+        scalar = parameter_type(spec)
+        kind = scalar | list[scalar] if columns else scalar
+        description = parameter_description(spec)
+        if columns:
+            description += " A scalar or a list; lists share one length and scalars broadcast."
+        if optional:
+            fields[name] = (kind | None, Field(default=None, description=description))
+        elif spec.required:
+            fields[name] = (kind, Field(description=description))
+        else:
+            fields[name] = (kind, Field(default=spec.default, description=description))
+    return fields
+
+
+def output_fields(*, columns: bool = False, optional: bool = False) -> dict[str, Any]:
+    """``create_model`` field definitions for the outputs of :data:`physics.OUTPUTS`.
+
+    Parameters
+    ----------
+    columns : bool, default False
+        Lists of numbers instead of numbers.
+    optional : bool, default False
+        Fields may be absent (when the client chose some outputs).
+    """
+    fields: dict[str, Any] = {}
+    for name, (unit, meaning) in physics.OUTPUTS.items():
+        kind: Any = list[float] if columns else float
+        if optional:
+            fields[name] = (kind | None, Field(default=None, description=f"{meaning} [{unit}]"))
+        else:
+            fields[name] = (kind, Field(description=f"{meaning} [{unit}]"))
+    return fields
+
+
+#: Models of request bodies that routes parse themselves (see :func:`raw_json_body`).
+RAW_BODY_MODELS: dict[str, type[BaseModel]] = {}
+
+
+def raw_json_body(model: type[BaseModel]) -> dict[str, Any]:
+    """``openapi_extra`` documenting ``model`` as the JSON body of a route that parses it itself.
+
+    Large bodies (a million points) are faster to validate straight from bytes with
+    ``model.model_validate_json`` in a worker thread than through FastAPI's ``json.loads`` on
+    the event loop; such a route takes ``request: Request``, calls :func:`parse_json_body`, and
+    passes ``openapi_extra=raw_json_body(Model)`` so the spec still shows the body.
+    """
+    RAW_BODY_MODELS[model.__name__] = model
+    return {"requestBody": {"required": True, "content": {"application/json": {
+        "schema": {"$ref": f"#/components/schemas/{model.__name__}"}}}}}
+
+
+async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
+    """Validate the raw JSON body of ``request`` as ``model`` in a worker thread.
+
+    Raises
+    ------
+    fastapi.exceptions.RequestValidationError
+        Answered as a 400 (malformed JSON) or 422 problem with JSON pointers.
+    """
+    body = await request.body()
+    try:
+        return await run_in_threadpool(model.model_validate_json, body)
+    except ValidationError as exc:
+        errors = [{**error, "loc": ("body", *error["loc"])} for error in exc.errors(include_url=False)]
+    # The parsed document lets the error handler tell field names from union tags.
+    try:
+        document = json.loads(body)
+    except ValueError:
+        document = None
+    raise RequestValidationError(errors, body=document)
+
+
+def add_raw_body_schemas(spec: dict[str, Any]) -> dict[str, Any]:
+    """Add the JSON schemas of :data:`RAW_BODY_MODELS` to the components of an OpenAPI ``spec``."""
+    schemas = spec.setdefault("components", {}).setdefault("schemas", {})
+    for name, model in sorted(RAW_BODY_MODELS.items()):
+        schema = model.model_json_schema(ref_template="#/components/schemas/{model}")
+        for def_name, definition in schema.pop("$defs", {}).items():
+            schemas.setdefault(def_name, definition)
+        schemas[name] = schema
+    return spec

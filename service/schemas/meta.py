@@ -1,0 +1,42 @@
+"""Health, version and materials."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from .base import ConventionName, ResponseModel
+
+__all__ = ["Health", "MaterialInfo", "Materials", "Version"]
+
+
+class Health(ResponseModel):
+    """Liveness of the server."""
+
+    status: Literal["ok"] = Field(description="Always ok when the server answers.")
+
+
+class Version(ResponseModel):
+    """What is running."""
+
+    name: str = Field(description="Package name.")
+    version: str = Field(description="Package version.")
+    physics_convention: ConventionName = Field(description="Default reading of the paper's ball-ball terms.")
+    conventions: dict[str, str] = Field(description="Every available convention and what it means.")
+
+
+class MaterialInfo(ResponseModel):
+    """Elastic properties of one ball or race material."""
+
+    name: str = Field(description="Key to use in requests.")
+    youngs_modulus_Pa: float = Field(description="Young's modulus [Pa].")
+    poisson_ratio: float = Field(description="Poisson's ratio [1].")
+    density_kg_m3: float = Field(description="Density [kg/m^3].")
+    source: str = Field(description="Where the values come from.")
+
+
+class Materials(ResponseModel):
+    """The material table."""
+
+    materials: list[MaterialInfo] = Field(description="Every known material.")

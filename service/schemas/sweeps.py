@@ -1,0 +1,107 @@
+"""Bodies of ``/v1/sweeps``: a full-factorial grid or a design of experiments, tagged by ``design``."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field, create_model
+
+import physics
+
+from .base import ConventionName, OutputName, ResponseModel, StrictModel, parameter_fields
+
+__all__ = ["GridAxis", "GridSweep", "LatinHypercubeSweep", "SobolSweep", "SweepRange", "SweepRequest",
+           "SweepResult"]
+
+#: Inputs a sweep can vary: every numeric parameter (booleans are set in ``fixed``).
+SWEEPABLE = [name for name, spec in physics.PARAMETERS.items() if spec.kind != "bool"]
+
+Spacing = Literal["linear", "log"]
+_SPACING = Field(default="linear", description="linear, or log (evenly spaced logarithms; needs values > 0).")
+
+
+class GridAxis(StrictModel):
+    """Evenly spaced values of one input, in its own unit; whole numbers for integer inputs."""
+
+    start: float = Field(description="First value, in the input's unit.")
+    stop: float = Field(description="Last value, in the input's unit.")
+    num: int = Field(ge=1, le=1_000_000, description="Number of values [1].")
+    spacing: Spacing = _SPACING
+
+
+class SweepRange(StrictModel):
+    """Interval of one input sampled by a design of experiments, in its own unit."""
+
+    low: float = Field(description="Lower end, in the input's unit.")
+    high: float = Field(description="Upper end, in the input's unit.")
+    spacing: Spacing = _SPACING
+
+
+def _per_input(kind: type, what: str) -> dict:
+    return {name: (kind | None, Field(default=None, description=f"{what} {name} "
+                                      f"[{physics.PARAMETERS[name].unit}]."))
+            for name in SWEEPABLE}
+
+
+GridAxes = create_model("GridAxes", __base__=StrictModel, __doc__="The varied inputs and their values.",
+                        **_per_input(GridAxis, "Values of"))
+SweepRanges = create_model("SweepRanges", __base__=StrictModel, __doc__="The varied inputs and their ranges.",
+                           **_per_input(SweepRange, "Range of"))
+SweepFixed = create_model(
+    "SweepFixed", __base__=StrictModel,
+    __doc__="Values of the inputs that are not varied; omitted optional ones take their defaults.",
+    **parameter_fields(optional=True),
+)
+
+_FIXED = Field(default_factory=SweepFixed, description="Inputs held constant.")
+_OUTPUTS = Field(default=None, min_length=1, description="Outputs to return (default: all of them).")
+_CONVENTION = Field(default=physics.DEFAULT_CONVENTION, description="Reading of the paper's ball-ball terms.")
+_POINTS = Field(ge=1, le=100_000_000, description="Number of sample points [1].")
+_SEED = Field(default=None, ge=0, le=2**63 - 1, description="Seed of the scrambling, for repeatable designs.")
+
+
+class GridSweep(StrictModel):
+    """Full-factorial grid: every combination of the axes' values."""
+
+    design: Literal["grid"] = Field(description="Design tag: grid.")
+    axes: GridAxes = Field(description="Varied inputs and their values.")  # type: ignore[valid-type]
+    fixed: SweepFixed = _FIXED  # type: ignore[valid-type]
+    outputs: list[OutputName] | None = _OUTPUTS  # type: ignore[valid-type]
+    convention: ConventionName = _CONVENTION  # type: ignore[valid-type]
+
+
+class SobolSweep(StrictModel):
+    """Scrambled Sobol' low-discrepancy sequence over the ranges (``scipy.stats.qmc.Sobol``)."""
+
+    design: Literal["sobol"] = Field(description="Design tag: sobol.")
+    ranges: SweepRanges = Field(description="Varied inputs and their ranges.")  # type: ignore[valid-type]
+    points: int = _POINTS
+    seed: int | None = _SEED
+    fixed: SweepFixed = _FIXED  # type: ignore[valid-type]
+    outputs: list[OutputName] | None = _OUTPUTS  # type: ignore[valid-type]
+    convention: ConventionName = _CONVENTION  # type: ignore[valid-type]
+
+
+class LatinHypercubeSweep(StrictModel):
+    """Latin hypercube sample over the ranges (``scipy.stats.qmc.LatinHypercube``)."""
+
+    design: Literal["latin_hypercube"] = Field(description="Design tag: latin_hypercube.")
+    ranges: SweepRanges = Field(description="Varied inputs and their ranges.")  # type: ignore[valid-type]
+    points: int = _POINTS
+    seed: int | None = _SEED
+    fixed: SweepFixed = _FIXED  # type: ignore[valid-type]
+    outputs: list[OutputName] | None = _OUTPUTS  # type: ignore[valid-type]
+    convention: ConventionName = _CONVENTION  # type: ignore[valid-type]
+
+
+SweepRequest = Annotated[GridSweep | SobolSweep | LatinHypercubeSweep, Field(discriminator="design")]
+
+
+class SweepResult(ResponseModel):
+    """The sweep as a table: the varied inputs, then the chosen outputs, one row per point."""
+
+    design: Literal["grid", "sobol", "latin_hypercube"] = Field(description="Design that made the points.")
+    count: int = Field(ge=0, description="Number of points [1].")
+    varied: list[str] = Field(description="Names of the varied inputs (the first columns).")
+    columns: dict[str, list[float]] = Field(
+        description="Column name to values: varied inputs in their units, then outputs in theirs.")
