@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
+
+from .settings import ENV_PREFIX
 
 
 def _paper(args: argparse.Namespace) -> int:
@@ -13,6 +17,16 @@ def _paper(args: argparse.Namespace) -> int:
     if args.plot:
         paper.plot(args.plot, args.convention)
         print(f"wrote {args.plot}")
+    return 0
+
+
+def _serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    if args.data_dir is not None:
+        # Every worker process builds its app from the environment.
+        os.environ[f"{ENV_PREFIX}DATA_DIR"] = str(Path(args.data_dir).expanduser().resolve())
+    uvicorn.run("service.app:app", host=args.host, port=args.port, workers=args.workers)
     return 0
 
 
@@ -27,6 +41,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="FILE.png", help="draw mu against speed as the paper's Figs. 5-6")
     p.add_argument("--convention", choices=list(physics.CONVENTIONS), default=physics.DEFAULT_CONVENTION)
     p.set_defaults(func=_paper)
+
+    s = sub.add_parser("serve", help="start the REST service (uvicorn)",
+                       description="Start the REST service; settings come from MICROBEARING_* variables.")
+    s.add_argument("--host", default="127.0.0.1", help="interface to listen on (default: %(default)s)")
+    s.add_argument("--port", type=int, default=8000, help="TCP port (default: %(default)s)")
+    s.add_argument("--data-dir", type=Path, default=None,
+                   help="SQLite folder (default: $MICROBEARING_DATA_DIR, else the user data dir)")
+    s.add_argument("--workers", type=int, default=1, help="server processes (default: 1)")
+    s.set_defaults(func=_serve)
     return parser
 
 
