@@ -1,0 +1,269 @@
+"""The calibration loop and its report: :func:`calibrate`.
+
+1. Residual of the declared model with its default parameters.
+2. Fit of the declared parameters named in ``fit_parameters`` (bounded least
+   squares on log μ); its held-out error is the **before** figure.
+3. Search for the missing effect (:func:`calibrate.discover.discover`).
+4. The chosen effect fitted jointly with the declared parameters: the
+   calibrated model (:class:`calibrate.model.CalibratedModel`); its held-out
+   error is the **after** figure.
+5. A Gaussian-process discrepancy baseline (:func:`calibrate.discrepancy.gp_discrepancy`).
+6. Plots of the residual against its driver, before and after, as PNG bytes.
+
+Every error is measured on held-out rows of the same k folds.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+import physics
+
+from .data import Dataset, parse_csv, parse_rows
+from .discover import Discovery, cross_validate_baseline, discover
+from .discrepancy import gp_discrepancy
+from .fit import fit, predict_mu, prediction_errors
+from .model import CalibratedModel
+
+__all__ = ["CalibrationReport", "calibrate", "MIN_ROWS"]
+
+#: Fewest rows a calibration accepts: k-fold CV needs a few rows per fold. [1]
+MIN_ROWS = 10
+
+
+@dataclass(frozen=True)
+class CalibrationReport:
+    """Everything a calibration found.
+
+    Attributes
+    ----------
+    n_points : int
+        Measurements used. [1]
+    fit_parameters : list of str
+        Declared parameters fitted.
+    error_default : dict
+        In-sample errors of the declared model with its default parameters (``rmse`` [1],
+        ``relative_rmse`` [1] on log μ, ``max_abs_error`` [1]).
+    fitted_declared : dict
+        ``{name: {"value", "std"}}`` of the declared-only fit (the "before" model), in their units.
+    fitted_parameters : dict
+        ``{name: {"value", "std"}}`` of the declared parameters in the calibrated model.
+    error_before, error_after : dict
+        Held-out (k-fold) errors of the fitted declared model and of the calibrated model.
+    missing_effect : dict or None
+        ``name``, ``title``, ``drivers``, ``formula``, ``parameters``, ``parameter_std``,
+        ``parameter_units``, ``reference``; None when nothing beyond noise remains.
+    discrepancy_gp : dict
+        Held-out errors and fitted kernel of the GP discrepancy baseline.
+    candidates : list of dict
+        Every candidate's cross-validated score (see :meth:`CandidateScore.summary`).
+    decision : str
+        Why the effect was chosen, or why nothing was added.
+    folds : int
+        Number of cross-validation folds. [1]
+    model : CalibratedModel
+        The calibrated model, JSON-serializable.
+    plots : dict of str to bytes
+        PNG images: ``residual_before`` and ``residual_after`` against the effect's driver, or
+        ``residual`` against every varying column when nothing was added.
+    """
+
+    n_points: int
+    fit_parameters: list[str]
+    error_default: dict[str, float]
+    fitted_declared: dict[str, dict[str, float]]
+    fitted_parameters: dict[str, dict[str, float]]
+    error_before: dict[str, float]
+    error_after: dict[str, float]
+    missing_effect: dict[str, Any] | None
+    discrepancy_gp: dict[str, Any]
+    candidates: list[dict[str, Any]]
+    decision: str
+    folds: int
+    model: CalibratedModel
+    plots: dict[str, bytes] = field(repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready result without the PNG bytes (``plots`` lists their names)."""
+        return {
+            "n_points": self.n_points,
+            "fit_parameters": list(self.fit_parameters),
+            "error_default": self.error_default,
+            "fitted_declared": self.fitted_declared,
+            "fitted_parameters": self.fitted_parameters,
+            "error_before": self.error_before,
+            "error_after": self.error_after,
+            "missing_effect": self.missing_effect,
+            "discrepancy_gp": self.discrepancy_gp,
+            "candidates": self.candidates,
+            "decision": self.decision,
+            "folds": self.folds,
+            "model": self.model.to_json(),
+            "plots": sorted(self.plots),
+        }
+
+
+def _as_dataset(data, fixed) -> Dataset:
+    if isinstance(data, Dataset):
+        if fixed:
+            raise ValueError("fixed: give fixed values when parsing the data, not with a Dataset")
+        return data
+    if isinstance(data, str | bytes):
+        return parse_csv(data, fixed)
+    return parse_rows(data, fixed)
+
+
+def _values(values: Mapping[str, float], stds: Mapping[str, float]) -> dict[str, dict[str, float]]:
+    return {n: {"value": float(values[n]), "std": float(stds[n])} for n in values}
+
+
+def _unit(name: str) -> str:
+    spec = physics.PARAMETERS.get(name)
+    return f" [{spec.unit}]" if spec is not None else ""
+
+
+def _residual_png(panels: list[tuple[str, np.ndarray]], series: list[tuple[str, np.ndarray]],
+                  title: str) -> bytes:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.6), squeeze=False,
+                             constrained_layout=True)
+    for ax, (driver, x) in zip(axes[0], panels, strict=True):
+        for label, residual in series:
+            ax.scatter(x, residual, s=8, alpha=0.6, label=label)
+        ax.axhline(0.0, color="0.3", lw=0.8)
+        ax.set_xlabel(f"{driver}{_unit(driver)}")
+        ax.set_ylabel("log(mu_measured / mu_model), held out [-]")
+        ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=90)
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any] | None = None,
+              folds: int = 5, seed: int = 0, gp_max_train: int = 300, make_plots: bool = True,
+              progress: Callable[[float], None] | None = None,
+              convention: str = physics.DEFAULT_CONVENTION) -> CalibrationReport:
+    """Calibrate the declared model on measurements, find and add the missing effect, report.
+
+    Parameters
+    ----------
+    data : Dataset, str, bytes or sequence of mapping
+        Measurements: a checked :class:`Dataset`, CSV text, or JSON-like rows.
+    fit_parameters : sequence of str
+        Declared physics parameters to fit, e.g. ``["mu_pivot", "adhesion_energy_J_m2"]``.
+    fixed : mapping, optional
+        Physics parameters fixed for every row (not with a ``Dataset``).
+    folds : int
+        Number of cross-validation folds, in [2, n_points]. [1]
+    seed : int
+        Seed of the folds and of the GP's subset.
+    gp_max_train : int
+        Training rows per fold of the GP discrepancy at most. [1]
+    make_plots : bool
+        Whether to draw the residual plots.
+    progress : callable, optional
+        Called with the fraction done, 0..1.
+    convention : str
+        See :data:`physics.CONVENTIONS`.
+
+    Returns
+    -------
+    CalibrationReport
+
+    Raises
+    ------
+    calibrate.data.DataError
+        For bad rows, cells or columns (every one listed).
+    ValueError
+        For fewer than :data:`MIN_ROWS` rows, bad ``folds`` or ``fit_parameters``.
+    """
+    report = progress or (lambda fraction: None)
+    if convention not in physics.CONVENTIONS:
+        raise ValueError(f"convention must be one of {', '.join(physics.CONVENTIONS)}; got {convention!r}")
+    dataset = _as_dataset(data, fixed)
+    if dataset.n_points < MIN_ROWS:
+        raise ValueError(f"data must have at least {MIN_ROWS} rows; got {dataset.n_points}")
+    if not 2 <= folds <= dataset.n_points // 2:
+        raise ValueError(f"folds must be in [2, {dataset.n_points // 2}] (half the rows); got {folds}")
+    report(0.0)
+
+    error_default = prediction_errors(predict_mu(dataset, {}, convention=convention), dataset.mu_measured)
+    baseline = cross_validate_baseline(dataset, fit_parameters, folds, seed, convention)
+    report(0.1)
+    discovery: Discovery = discover(dataset, fit_parameters, folds, seed, baseline=baseline,
+                                    progress=lambda f: report(0.1 + 0.6 * f), convention=convention)
+    gp = gp_discrepancy(dataset, baseline, gp_max_train, seed, progress=lambda f: report(0.7 + 0.2 * f))
+    declared = baseline.full_fit
+    error_before = prediction_errors(baseline.oof_mu, dataset.mu_measured)
+
+    chosen = discovery.chosen
+    if chosen is None:
+        final, error_after, missing = declared, error_before, None
+        effect_json = None
+    else:
+        choice = chosen.choice
+        final = fit(dataset, fit_parameters, choice, start=declared.declared, convention=convention)
+        error_after = prediction_errors(chosen.oof_mu, dataset.mu_measured)
+        spec = choice.effect
+        missing = {
+            "name": spec.name,
+            "title": spec.title,
+            "drivers": list(choice.drivers),
+            "formula": spec.formula,
+            "parameters": dict(final.effect_parameters),
+            "parameter_std": dict(final.effect_std),
+            "parameter_units": {p.name: p.unit for p in spec.parameters},
+            "constants": dict(choice.constants),
+            "reference": spec.reference,
+        }
+        effect_json = {"name": spec.name, "drivers": list(choice.drivers),
+                       "parameters": dict(final.effect_parameters), "constants": dict(choice.constants)}
+    model = CalibratedModel(dict(final.declared), dict(dataset.fixed), effect_json, convention)
+
+    plots: dict[str, bytes] = {}
+    if make_plots:
+        before = np.log(dataset.mu_measured / baseline.oof_mu)
+        columns = dataset.columns()
+        if chosen is None:
+            varying = [(n, np.asarray(v, dtype=float)) for n, v in columns.items()
+                       if np.unique(v).size > 1][:6]
+            if varying:
+                plots["residual"] = _residual_png(varying, [("declared model, fitted", before)],
+                                                  "Residual of the fitted declared model: nothing added")
+        else:
+            driver = chosen.choice.drivers[0]
+            after = np.log(dataset.mu_measured / chosen.oof_mu)
+            panel = [(driver, np.asarray(columns[driver], dtype=float))]
+            plots["residual_before"] = _residual_png(panel, [("before", before)],
+                                                     f"Before: fitted declared model against {driver}")
+            plots["residual_after"] = _residual_png(panel, [("before", before), ("after", after)],
+                                                    f"After: + {chosen.choice.name} against {driver}")
+    report(1.0)
+    return CalibrationReport(
+        n_points=dataset.n_points,
+        fit_parameters=list(declared.declared),
+        error_default=error_default,
+        fitted_declared=_values(declared.declared, declared.declared_std),
+        fitted_parameters=_values(final.declared, final.declared_std),
+        error_before=error_before,
+        error_after=error_after,
+        missing_effect=missing,
+        discrepancy_gp=gp,
+        candidates=[discovery.baseline_score.summary()] + [c.summary() for c in discovery.candidates],
+        decision=discovery.reason,
+        folds=folds,
+        model=model,
+        plots=plots,
+    )
