@@ -32,6 +32,7 @@ __all__ = [
     "OptimizationResult",
     "optimize_design",
     "find_conflicts",
+    "polish_load",
 ]
 
 #: Designs whose exact μ is within this relative distance of the best are ties. [1]
@@ -247,6 +248,73 @@ def find_conflicts(problem: DesignProblem) -> InfeasibleDesignError | None:
         f"{', '.join(binding) or 'none'} would reduce the violation)", conflicts, binding)
 
 
+def _upper_excess(problem: DesignProblem, balls, theta, load) -> tuple[np.ndarray, np.ndarray]:
+    """Largest log(value / limit) over the upper limits (-inf without any), and the exact μ."""
+    r = physics.evaluate(convention=problem.convention, **problem.physics_inputs(balls, theta, load))
+    c = problem.constraints
+    values = {"max_contact_pressure_Pa": r.max_contact_pressure_Pa,
+              "max_friction_force_N": r.friction_force_N, "max_load_per_ball_N": load / balls}
+    excess = np.full(np.shape(r.mu), -np.inf)
+    for name, value in values.items():
+        limit = getattr(c, name)
+        if limit is not None:
+            excess = np.maximum(excess, np.log(value / limit))
+    return excess, r.mu
+
+
+def polish_load(problem: DesignProblem, balls: np.ndarray, theta: np.ndarray,
+                load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Move each solver load onto the exact boundary of its binding upper limit, when that is better.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        The problem.
+    balls, theta, load : numpy.ndarray
+        Ball counts [1], groove angles [deg] and the solver's loads [N], one per count.
+
+    Returns
+    -------
+    load : numpy.ndarray
+        Polished loads. [N]
+    mu : numpy.ndarray
+        Exact μ at the polished designs. [1]
+
+    Notes
+    -----
+    Where an upper limit binds, the log-space solver tolerance (~1e-8) can
+    leave the load off the limit's boundary by far more than 1e-8 relative,
+    because the pressure grows only slowly with G while adhesion dominates Q.
+    The upper limits (pressure, friction force, load per ball) all increase
+    with G, so bisection on log G inside ±0.1 % of the solver's load finds the
+    largest load meeting all of them with the exact physics; it replaces the
+    solver's load only when it is feasible (it is by construction) and gives
+    a lower μ, so polishing can only improve a design and never breaks a
+    limit. A load within 1e-6 of the lower load limit is snapped onto it under
+    the same rule.
+    """
+    floor = max(problem.bounds.load_N[0], problem.constraints.min_load_capacity_N or 0.0)
+    ceiling = problem.bounds.load_N[1]
+    excess, mu = _upper_excess(problem, balls, theta, load)
+    feasible = (excess <= 0) & (load >= floor) & (load <= ceiling)
+    snapped = np.where(np.abs(load / floor - 1.0) <= 1e-6, floor, load)
+    low = np.clip(load * (1.0 - 1e-3), floor, ceiling)
+    high = np.clip(load * (1.0 + 1e-3), floor, ceiling)
+    bracketed = (_upper_excess(problem, balls, theta, low)[0] <= 0) & (
+        _upper_excess(problem, balls, theta, high)[0] > 0)
+    for _ in range(40):  # the bracket of width 2e-3 in log G shrinks below 1e-15
+        middle = np.sqrt(low * high)
+        ok = _upper_excess(problem, balls, theta, middle)[0] <= 0
+        low, high = np.where(ok, middle, low), np.where(ok, high, middle)
+    best_load, best_mu = np.where(feasible, load, np.nan), np.where(feasible, mu, np.inf)
+    for candidate in (np.where(bracketed, low, load), snapped):
+        c_excess, c_mu = _upper_excess(problem, balls, theta, candidate)
+        better = (c_excess <= 0) & (candidate >= floor) & (candidate <= ceiling) & (c_mu < best_mu)
+        best_load, best_mu = np.where(better, candidate, best_load), np.where(better, c_mu, best_mu)
+    keep = np.isnan(best_load)  # nothing feasible found: report the solver's point as it is
+    return np.where(keep, load, best_load), np.where(keep, mu, best_mu)
+
+
 def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: BallCountResult,
                  ties: list[dict[str, Any]]) -> str:
     counts = [r for r in rows if r.status.startswith("optimal")]
@@ -269,8 +337,9 @@ def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: Ball
         f"{infeasible or 'none'}; excluded by groove_length_m: {excluded or 'none'}.",
         f"Verification: each count's optimum re-evaluated with physics.evaluate; largest relative gap "
         f"between solver and physics {worst_gap:.2e} (the returned design: {best.relative_gap:.2e}); "
-        f"Clarabel stops at relative tolerance 1e-8, and limits were tightened by {SAFETY_MARGIN:g} relative "
-        "so the exact physics meets every limit.",
+        f"Clarabel stops at relative tolerance 1e-8; limits were tightened by {SAFETY_MARGIN:g} relative "
+        "in the DGP and each load then moved onto the exact boundary of a binding upper limit by bisection "
+        "on the physics (only when that lowers mu), so the exact physics meets every limit.",
     ]
     if inaccurate:
         parts.append(f"Counts {inaccurate} were solved only to reduced accuracy (status optimal_inaccurate); "
@@ -350,14 +419,13 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
     if not solved:
         raise find_conflicts(problem) or RuntimeError("no count solved, yet phase-I says feasible")
 
-    exact = physics.evaluate(convention=problem.convention, **problem.physics_inputs(
-        np.array([r.balls for r in solved]), np.array([r.groove_angle_deg for r in solved]),
-        np.array([r.load_N for r in solved])))
+    balls = np.array([r.balls for r in solved])
+    theta = np.array([r.groove_angle_deg for r in solved])
+    load, mu = polish_load(problem, balls, theta, np.array([r.load_N for r in solved]))
     rows_by_count = {r.balls: r for r in rows}
     for k, r in enumerate(solved):
-        mu = float(exact.mu[k])
-        rows_by_count[r.balls] = BallCountResult(r.balls, r.status, r.groove_angle_deg, r.load_N, mu,
-                                                 r.mu_solver, r.mu_solver / mu - 1.0)
+        rows_by_count[r.balls] = BallCountResult(r.balls, r.status, r.groove_angle_deg, float(load[k]),
+                                                 float(mu[k]), r.mu_solver, r.mu_solver / float(mu[k]) - 1.0)
     rows = [rows_by_count[z] for z in range(lo, hi + 1)]
     solved = [r for r in rows if r.status in _OPTIMAL]
     best_mu = min(r.mu for r in solved)

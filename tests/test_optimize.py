@@ -103,7 +103,7 @@ def test_no_feasible_grid_design_beats_the_optimizer(seed):
     # the grid must come close too, or it did not search the right region
     assert brute_mu <= result.mu * 1.05
     assert all(c.satisfied for c in result.constraints), [c for c in result.constraints if not c.satisfied]
-    assert abs(result.relative_gap) < 1e-6
+    assert abs(result.relative_gap) < 1e-4  # solver value vs exact physics at the (polished) design
     balls = result.design["balls"]
     assert isinstance(balls, int) and problem.bounds.balls[0] <= balls <= problem.bounds.balls[1]
     assert balls in problem.ball_counts()
