@@ -1,0 +1,78 @@
+"""Parsing measured data: every bad cell reported row by row, nothing dropped."""
+
+import numpy as np
+import pytest
+
+from calibrate import DataError, parse_csv, parse_rows
+
+
+def _good_row(**overrides):
+    row = {"balls": 4, "load_N": 0.009, "speed_m_s": 0.05, "relative_humidity": 0.4, "mu_measured": 0.01}
+    row.update(overrides)
+    return row
+
+
+def test_good_csv_keeps_every_row_and_splits_columns():
+    text = ("balls,load_N,speed_m_s,balls_touching,relative_humidity,mu_measured,mu_measured_std\n"
+            "4,0.009,0.05,false,0.4,0.0105,0.0002\n"
+            "6,0.012,0.10,TRUE,0.5,0.0121,0.0002\n"
+            "\n"
+            "8,0.020,0.15,0,0.6,0.0133,0.0003\n")
+    data = parse_csv(text, fixed={"mu_ball": 0.7})
+    assert data.n_points == 3
+    assert data.physics_columns["balls_touching"].tolist() == [False, True, False]
+    assert data.conditions["relative_humidity"].tolist() == [0.4, 0.5, 0.6]
+    assert data.mu_measured_std.tolist() == [0.0002, 0.0002, 0.0003]
+    assert data.fixed == {"mu_ball": 0.7}
+    assert data.inputs()["mu_ball"] == 0.7
+
+
+def test_bad_json_rows_are_reported_cell_by_cell():
+    rows = [
+        _good_row(),
+        _good_row(load_N=-1.0),                      # row 2: negative load
+        _good_row(speed_m_s=float("nan")),           # row 3: NaN
+        _good_row(balls="four"),                     # row 4: wrong type
+        _good_row(mu_measured=0.0),                  # row 5: mu <= 0
+        _good_row(balls=2.5, relative_humidity=True),  # row 6: fractional balls and a boolean condition
+        {k: v for k, v in _good_row().items() if k != "relative_humidity"},  # row 7: missing value
+    ]
+    with pytest.raises(DataError) as caught:
+        parse_rows(rows)
+    found = {(e["row"], e["column"]) for e in caught.value.errors}
+    assert found == {(2, "load_N"), (3, "speed_m_s"), (4, "balls"), (5, "mu_measured"), (6, "balls"),
+                     (6, "relative_humidity"), (7, "relative_humidity")}
+    messages = {(e["row"], e["column"]): e["message"] for e in caught.value.errors}
+    assert "load_N must be in (0, 1e+06] [N]; got -1.0" in messages[(2, "load_N")]
+    assert "string" in messages[(4, "balls")]
+    assert "row 2, column load_N" in str(caught.value)
+
+
+def test_csv_wrong_types_extra_cells_and_empty_column():
+    text = ("balls,load_N,speed_m_s,notes,mu_measured\n"
+            "4,0.009,fast,,0.01\n"
+            "4,0.009,0.1,,0.01,7\n"
+            "4,abc,0.1,,-0.01\n")
+    with pytest.raises(DataError) as caught:
+        parse_csv(text)
+    found = {(e["row"], e["column"]) for e in caught.value.errors}
+    assert found == {(1, "speed_m_s"), (2, None), (3, "load_N"), (3, "mu_measured"), (None, "notes")}
+
+
+def test_request_problems_are_reported_by_column():
+    rows = [{"balls": 4, "speed_m_s": 0.1, "mu_measured": 0.01}]
+    with pytest.raises(DataError) as caught:
+        parse_rows(rows, fixed={"balls": 6, "gremlins": 1, "mu_pivot": -1})
+    columns = {e["column"] for e in caught.value.errors}
+    assert columns == {"balls", "gremlins", "mu_pivot", "load_N"}
+    assert all(e["row"] is None for e in caught.value.errors)
+
+
+def test_values_survive_parsing_exactly():
+    rng = np.random.default_rng(3)
+    loads = rng.uniform(1e-3, 1e-1, 50)
+    text = "balls,load_N,speed_m_s,mu_measured\n" + "".join(
+        f"4,{float(g)!r},0.1,0.01\n" for g in loads)
+    data = parse_csv(text)
+    assert data.n_points == 50
+    assert data.physics_columns["load_N"].tolist() == loads.tolist()

@@ -1,0 +1,99 @@
+"""The optional effects of physics.effects against hand calculations."""
+
+import math
+
+import numpy as np
+import pytest
+
+import physics
+from physics.effects import EFFECTS, apply_effect, humidity_fraction
+
+
+def test_constant_drag_adds_force_over_load():
+    # mu = 0.01 + 1e-4 N / 0.02 N = 0.015
+    out = apply_effect(np.array([0.01]), "constant_drag", {"load_N": np.array([0.02])},
+                       {"drag_force_N": 1e-4})
+    assert out[0] == pytest.approx(0.015)
+
+
+def test_viscous_drag_is_linear_in_speed_and_zero_at_rest():
+    columns = {"speed_m_s": np.array([0.0, 0.1, 0.2]), "load_N": np.array([0.01, 0.01, 0.01])}
+    out = apply_effect(np.full(3, 0.01), "viscous_drag", columns, {"drag_coefficient_N_s_m": 1e-3})
+    # 1e-3 N s/m * 0.1 m/s / 0.01 N = 0.01
+    assert out.tolist() == pytest.approx([0.01, 0.02, 0.03])
+
+
+def test_humidity_meniscus_matches_kelvin_form_and_accepts_percent():
+    h = math.exp(-1.0)  # ln(1/h) = 1
+    columns = {"balls": 4.0, "load_N": 0.01, "relative_humidity": np.array([h])}
+    out = apply_effect(np.array([0.01]), "humidity_meniscus", columns, {"meniscus_force_N": 1e-5},
+                       drivers=("relative_humidity",))
+    assert out[0] == pytest.approx(0.01 + 4 * 1e-5 / 0.01)
+    percent = {"balls": 4.0, "load_N": 0.01, "rh_pct": np.array([100 * h])}
+    out_pct = apply_effect(np.array([0.01]), "humidity_meniscus", percent, {"meniscus_force_N": 1e-5},
+                           drivers=("rh_pct",))
+    assert out_pct[0] == pytest.approx(out[0])
+    assert humidity_fraction("relative_humidity_percent", [55.0]).tolist() == [0.55]
+
+
+def test_humidity_outside_zero_one_is_rejected():
+    columns = {"balls": 4.0, "load_N": 0.01, "relative_humidity": np.array([40.0])}
+    with pytest.raises(ValueError, match="relative_humidity"):
+        apply_effect(np.array([0.01]), "humidity_meniscus", columns, {"meniscus_force_N": 1e-5},
+                     drivers=("relative_humidity",))
+
+
+def test_thermal_and_run_in_limits():
+    temperature = {"temperature_C": np.array([25.0, 35.0])}
+    out = apply_effect(np.array([0.01, 0.01]), "thermal_shear_strength", temperature,
+                       {"thermal_coefficient_1_K": 0.02}, ("temperature_C",), {"reference": 25.0})
+    assert out.tolist() == pytest.approx([0.01, 0.01 * math.exp(-0.2)])
+    cycles = {"cycle": np.array([0.0, 1e9])}
+    out = apply_effect(np.array([0.01, 0.01]), "run_in", cycles,
+                       {"run_in_amplitude": 0.5, "run_in_length": 100.0}, ("cycle",))
+    assert out.tolist() == pytest.approx([0.015, 0.01])
+
+
+def test_generic_terms_are_neutral_at_their_reference():
+    x = {"vibration": np.array([2.0, 4.0])}
+    lin = apply_effect(np.array([1.0, 1.0]), "generic_linear", x, {"c1": 0.5}, ("vibration",),
+                       {"centre": 2.0, "scale": 2.0})
+    assert lin.tolist() == pytest.approx([1.0, math.exp(0.5)])
+    power = apply_effect(np.array([1.0, 1.0]), "generic_power", x, {"c1": 2.0}, ("vibration",),
+                         {"reference": 2.0})
+    assert power.tolist() == pytest.approx([1.0, 4.0])
+
+
+def test_drivers_are_matched_by_column_name():
+    names = ["balls", "load_N", "speed_m_s", "relative_humidity_pct", "temperature_C", "cycle", "vibration"]
+    assert EFFECTS["humidity_meniscus"].candidate_drivers(names) == [("relative_humidity_pct",)]
+    assert EFFECTS["thermal_shear_strength"].candidate_drivers(names) == [("temperature_C",)]
+    assert EFFECTS["run_in"].candidate_drivers(names) == [("cycle",)]
+    assert EFFECTS["viscous_drag"].candidate_drivers(names) == [("speed_m_s", "load_N")]
+    assert ("vibration",) in EFFECTS["generic_linear"].candidate_drivers(names)
+    named = [e for e in EFFECTS.values() if not e.generic]
+    assert not any(("vibration",) in e.candidate_drivers(names) for e in named)
+
+
+def test_composes_with_physics_evaluate():
+    r = physics.evaluate(balls=4, load_N=0.009, speed_m_s=0.05)
+    out = apply_effect(r.mu, "constant_drag", {"load_N": 0.009}, {"drag_force_N": 9e-5})
+    assert float(out) == pytest.approx(float(r.mu) + 0.01)
+
+
+def test_missing_parameter_or_driver_is_a_value_error():
+    with pytest.raises(ValueError, match="drag_force_N"):
+        apply_effect(np.array([0.01]), "constant_drag", {"load_N": 0.01}, {})
+    with pytest.raises(ValueError, match="cycle"):
+        apply_effect(np.array([0.01]), "run_in", {}, {"run_in_amplitude": 0.1, "run_in_length": 1.0},
+                     ("cycle",))
+    with pytest.raises(ValueError, match="effect must be one of"):
+        apply_effect(np.array([0.01]), "gremlins", {}, {})
+
+
+def test_every_effect_is_documented():
+    for effect in EFFECTS.values():
+        assert effect.formula.startswith("mu = ")
+        assert effect.reference and effect.title and effect.driver_description
+        for p in effect.parameters:
+            assert p.unit and p.description and p.minimum < p.maximum
