@@ -217,7 +217,7 @@ class Store:
         metadata : dict
             JSON-ready description (finite numbers only).
         arrays : dict of array_like
-            Numeric arrays (no object dtype).
+            Numeric arrays.
         name : str, optional
             Human label.
 
@@ -225,9 +225,18 @@ class Store:
         -------
         str
             The model id.
+
+        Raises
+        ------
+        ValueError
+            For object arrays, which only pickle could store.
         """
+        plain = {key: np.asarray(value) for key, value in arrays.items()}
+        pickled = sorted(key for key, value in plain.items() if value.dtype.hasobject)
+        if pickled:
+            raise ValueError(f"arrays must have numeric or string dtypes, not object: {', '.join(pickled)}")
         buffer = io.BytesIO()
-        np.savez_compressed(buffer, **{key: np.asarray(value) for key, value in arrays.items()})
+        np.savez_compressed(buffer, **plain)
         model_id = uuid.uuid4().hex
         with self.transaction() as conn:
             conn.execute(

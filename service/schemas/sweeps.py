@@ -102,6 +102,7 @@ class SweepResult(ResponseModel):
 
     design: Literal["grid", "sobol", "latin_hypercube"] = Field(description="Design that made the points.")
     count: int = Field(ge=0, description="Number of points [1].")
-    varied: list[str] = Field(description="Names of the varied inputs (the first columns).")
+    varied: list[str] = Field(description="Names of the varied inputs, in the order of the parameter table "
+                              "(the first columns; the last one varies fastest in a grid).")
     columns: dict[str, list[float]] = Field(
         description="Column name to values: varied inputs in their units, then outputs in theirs.")

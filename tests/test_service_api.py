@@ -1,0 +1,352 @@
+"""The REST API in process: friction, batch, sweeps, jobs, meta and problem+json errors."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import time
+from importlib.metadata import version
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+import physics
+from service.app import create_app
+from service.settings import Settings
+
+PROBLEM = "application/problem+json"
+JSON_HEADERS = {"content-type": "application/json"}
+POINT = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}
+
+
+def make_client(tmp_path, **overrides) -> TestClient:
+    return TestClient(create_app(Settings(data_dir=tmp_path, **overrides)))
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    settings = {"max_batch_points": 2_000_000, "sweep_sync_max_points": 1_000, "max_sweep_points": 100_000}
+    with make_client(tmp_path_factory.mktemp("api"), **settings) as test_client:
+        yield test_client
+
+
+def assert_problem(response, status: int, pointer: str | None = None) -> dict:
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"] == PROBLEM
+    problem = response.json()
+    assert problem["status"] == status
+    assert {"type", "title", "detail"} <= set(problem)
+    if pointer is not None:
+        assert pointer in [e.get("pointer") for e in problem["errors"]], problem
+    return problem
+
+
+def wait_for_job(client: TestClient, location: str, timeout_s: float = 60.0) -> dict:
+    deadline = time.monotonic() + timeout_s
+    while True:
+        job = client.get(location).json()
+        if job["status"] not in ("queued", "running") or time.monotonic() > deadline:
+            return job
+        time.sleep(0.05)
+
+
+# /v1/friction --------------------------------------------------------------------------------
+
+def test_friction_returns_the_physics_outputs_with_defaults(client):
+    response = client.post("/v1/friction", json=POINT)
+    assert response.status_code == 200
+    body = response.json()
+    expected = physics.evaluate(**POINT)
+    assert body["convention"] == physics.DEFAULT_CONVENTION
+    assert set(body) == {"convention", *physics.OUTPUTS}
+    for name in physics.OUTPUTS:
+        assert body[name] == float(getattr(expected, name)), name  # JSON keeps floats exactly
+    # Independent hand calculations of two outputs (eq 7 and eq 1) with the table defaults.
+    theta = math.radians(54.7)
+    assert body["contact_load_N"] == pytest.approx(0.01 / (2 * 4 * math.cos(theta)), rel=1e-12)
+    assert body["adhesion_force_N"] == pytest.approx(3 * math.pi * 0.18 * 285e-6 / 2, rel=1e-12)
+    parts = ("mu_pivoting", "mu_hysteresis", "mu_rolling", "mu_ball_ball")
+    assert sum(body[p] for p in parts) == pytest.approx(body["mu"], rel=1e-12)
+
+
+def test_friction_passes_optional_inputs_and_convention(client):
+    point = {**POINT, "balls_touching": True, "mu_ball": 1.0, "convention": "derjaguin"}
+    body = client.post("/v1/friction", json=point).json()
+    expected = physics.evaluate(convention="derjaguin", balls=4, load_N=0.01, speed_m_s=0.1,
+                                balls_touching=True, mu_ball=1.0)
+    assert body["convention"] == "derjaguin"
+    assert body["mu_ball_ball"] == float(expected.mu_ball_ball) > 0
+
+
+@pytest.mark.parametrize(("change", "pointer"), [
+    ({"load_N": "0.01"}, "/load_N"),              # a string for a number
+    ({"load_N": True}, "/load_N"),                # a boolean for a number
+    ({"balls": 4.5}, "/balls"),                   # a fraction for an integer
+    ({"balls_touching": 1}, "/balls_touching"),   # a number for a boolean
+    ({"load_N": 0}, "/load_N"),                   # exclusive minimum
+    ({"groove_angle_deg": 90}, "/groove_angle_deg"),
+    ({"ball_poisson_ratio": 0.5}, "/ball_poisson_ratio"),
+    ({"speed_m_s": -1e-9}, "/speed_m_s"),
+    ({"colour": "red"}, "/colour"),               # unknown field
+    ({"convention": "other"}, "/convention"),
+])
+def test_friction_rejects_bad_fields_naming_them(client, change, pointer):
+    problem = assert_problem(client.post("/v1/friction", json={**POINT, **change}), 422, pointer)
+    if pointer in ("/load_N", "/groove_angle_deg"):
+        spec = physics.PARAMETERS[pointer[1:]]
+        assert spec.range_text() in problem["detail"] and f"[{spec.unit}]" in problem["detail"]
+
+
+def test_friction_rejects_missing_required_fields(client):
+    problem = assert_problem(client.post("/v1/friction", json={"balls": 4}), 422)
+    assert {"/load_N", "/speed_m_s"} <= {e["pointer"] for e in problem["errors"]}
+
+
+@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity"])
+def test_friction_rejects_non_finite_numbers(client, token):
+    body = '{"balls": 4, "load_N": TOKEN, "speed_m_s": 0.1}'.replace("TOKEN", token)
+    response = client.post("/v1/friction", content=body, headers=JSON_HEADERS)
+    assert_problem(response, 422, "/load_N")
+
+
+def test_inputs_with_non_finite_outputs_are_422_not_500(client):
+    response = client.post("/v1/friction", json={**POINT, "ball_diameter_m": 1e-300})
+    assert "not finite" in assert_problem(response, 422)["detail"]
+
+
+def test_malformed_json_is_400(client):
+    response = client.post("/v1/friction", content=b'{"balls": 4,', headers=JSON_HEADERS)
+    assert_problem(response, 400)
+    response = client.post("/v1/friction/batch", content=b"[1,", headers=JSON_HEADERS)
+    assert_problem(response, 400)
+
+
+def test_unknown_path_is_404_and_wrong_method_405_with_allow(client):
+    assert_problem(client.get("/v1/nothing"), 404)
+    response = client.get("/v1/friction")
+    assert_problem(response, 405)
+    assert response.headers["allow"] == "POST"
+    response = client.post("/v1/jobs/abc")
+    assert_problem(response, 405)
+    assert set(response.headers["allow"].split(", ")) == {"GET", "DELETE"}
+
+
+def test_bodies_over_the_limit_are_413_declared_or_streamed(tmp_path):
+    with make_client(tmp_path, max_body_bytes=2_000) as small:
+        big = {"points": {**POINT, "load_N": [0.01] * 1_000}}
+        assert_problem(small.post("/v1/friction/batch", json=big), 413)
+
+        def chunks():  # no Content-Length: the body is counted as it streams
+            yield json.dumps(big).encode()
+
+        response = small.post("/v1/friction/batch", content=chunks(), headers=JSON_HEADERS)
+        assert_problem(response, 413)
+        assert small.post("/v1/friction", json=POINT).status_code == 200
+
+
+# /v1/friction/batch --------------------------------------------------------------------------
+
+def test_batch_broadcasts_scalars_and_matches_the_physics(client):
+    loads = [0.005, 0.01, 0.02]
+    speeds = [0.0, 0.05, 0.15]
+    request = {"points": {"balls": 18, "load_N": loads, "speed_m_s": speeds, "balls_touching": True}}
+    body = client.post("/v1/friction/batch", json=request).json()
+    expected = physics.evaluate(balls=18, load_N=np.array(loads), speed_m_s=np.array(speeds),
+                                balls_touching=True)
+    assert set(body) == set(physics.OUTPUTS)
+    for name in physics.OUTPUTS:
+        assert body[name] == getattr(expected, name).tolist(), name
+    assert body["mu_rolling"][0] == 0.0  # no rolling force at rest
+
+
+def test_batch_returns_only_the_chosen_outputs(client):
+    request = {"points": {**POINT, "speed_m_s": [0.0, 0.1]}, "outputs": ["mu", "contact_radius_m"]}
+    body = client.post("/v1/friction/batch", json=request).json()
+    assert set(body) == {"mu", "contact_radius_m"}
+    assert len(body["mu"]) == 2 and body["mu"][1] > body["mu"][0]  # mu grows with speed
+
+
+def test_batch_of_scalars_is_one_point(client):
+    body = client.post("/v1/friction/batch", json={"points": POINT, "outputs": ["mu"]}).json()
+    assert body == {"mu": [float(physics.evaluate(**POINT).mu)]}
+
+
+def test_batch_lists_of_different_lengths_name_the_field(client):
+    request = {"points": {"balls": [4, 6], "load_N": [0.01, 0.02], "speed_m_s": [0.1, 0.1, 0.1]}}
+    problem = assert_problem(client.post("/v1/friction/batch", json=request), 422, "/points/speed_m_s")
+    assert "3 values" in problem["detail"]
+
+
+def test_batch_points_to_the_bad_element(client):
+    request = {"points": {**POINT, "load_N": [0.01, 0.02, -3.0]}}
+    assert_problem(client.post("/v1/friction/batch", json=request), 422, "/points/load_N/2")
+    request = {"points": {**POINT, "load_N": [0.01, "x"]}}
+    assert_problem(client.post("/v1/friction/batch", json=request), 422, "/points/load_N/1")
+    assert_problem(client.post("/v1/friction/batch", json={"points": {**POINT, "load_N": []}}), 422,
+                   "/points/load_N")
+    assert_problem(client.post("/v1/friction/batch", json={"points": POINT, "outputs": ["mu", "nope"]}),
+                   422, "/outputs/1")
+
+
+def test_batch_over_the_point_limit_is_413(tmp_path):
+    with make_client(tmp_path, max_batch_points=10) as small:
+        request = {"points": {**POINT, "speed_m_s": [0.1] * 11}}
+        assert "limit is 10" in assert_problem(small.post("/v1/friction/batch", json=request), 413)["detail"]
+        request = {"points": {**POINT, "speed_m_s": [0.1] * 10}, "outputs": ["mu"]}
+        assert len(small.post("/v1/friction/batch", json=request).json()["mu"]) == 10
+
+
+def test_batch_of_a_million_points(client):
+    speeds = np.linspace(0.0, 0.15, 1_000_000)
+    request = {"points": {**POINT, "speed_m_s": speeds.tolist()}, "outputs": ["mu"]}
+    mu = np.array(client.post("/v1/friction/batch", json=request).json()["mu"])
+    assert mu.shape == (1_000_000,)
+    picks = np.array([0, 1, 499_999, 999_999])
+    np.testing.assert_array_equal(mu[picks], physics.evaluate(**{**POINT, "speed_m_s": speeds[picks]}).mu)
+    assert np.all(np.diff(mu) >= 0)  # mu never decreases with speed
+
+
+# /v1/sweeps ----------------------------------------------------------------------------------
+
+def test_grid_sweep_is_the_full_factorial(client):
+    request = {"design": "grid", "outputs": ["mu"], "fixed": {"load_N": 0.01},
+               "axes": {"speed_m_s": {"start": 0.0, "stop": 0.15, "num": 4},
+                        "balls": {"start": 4, "stop": 18, "num": 3}}}
+    body = client.post("/v1/sweeps", json=request).json()
+    assert body["count"] == 12 and body["varied"] == ["balls", "speed_m_s"]  # parameter-table order
+    columns = body["columns"]
+    pairs = set(zip(columns["speed_m_s"], columns["balls"], strict=True))
+    assert pairs == {(s, b) for s in np.linspace(0, 0.15, 4).tolist() for b in (4.0, 11.0, 18.0)}
+    expected = physics.evaluate(load_N=0.01, speed_m_s=np.array(columns["speed_m_s"]),
+                                balls=np.array(columns["balls"])).mu
+    assert columns["mu"] == expected.tolist()
+
+
+def test_grid_log_spacing_and_whole_numbers(client):
+    request = {"design": "grid", "outputs": ["mu"], "fixed": {"speed_m_s": 0.1},
+               "axes": {"load_N": {"start": 1e-4, "stop": 1e-2, "num": 3, "spacing": "log"},
+                        "balls": {"start": 1, "stop": 3, "num": 7}}}
+    columns = client.post("/v1/sweeps", json=request).json()["columns"]
+    assert sorted(set(columns["load_N"])) == pytest.approx([1e-4, 1e-3, 1e-2], rel=1e-12)
+    assert sorted(set(columns["balls"])) == [1.0, 2.0, 3.0]  # 7 values rounded to 3 whole numbers
+    assert len(columns["mu"]) == 9
+
+
+def test_sweep_as_csv(client):
+    request = {"design": "grid", "outputs": ["mu", "contact_load_N"], "fixed": {"balls": 4, "load_N": 0.01},
+               "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 3}}}
+    response = client.post("/v1/sweeps", json=request, headers={"accept": "text/csv"})
+    assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv")
+    rows = list(csv.reader(io.StringIO(response.text)))
+    assert rows[0] == ["speed_m_s", "mu", "contact_load_N"]
+    json_columns = client.post("/v1/sweeps", json=request).json()["columns"]
+    assert [float(r[1]) for r in rows[1:]] == json_columns["mu"]
+
+
+@pytest.mark.parametrize("design", ["sobol", "latin_hypercube"])
+def test_design_of_experiments_stays_in_range_and_repeats_with_a_seed(client, design):
+    request = {"design": design, "points": 64, "seed": 7, "outputs": ["mu"], "fixed": {"speed_m_s": 0.1},
+               "ranges": {"load_N": {"low": 1e-3, "high": 1e-2}, "balls": {"low": 3, "high": 20}}}
+    body = client.post("/v1/sweeps", json=request).json()
+    loads, balls = np.array(body["columns"]["load_N"]), np.array(body["columns"]["balls"])
+    assert body["count"] == 64 and np.all((loads >= 1e-3) & (loads <= 1e-2))
+    assert np.all(balls == np.round(balls)) and balls.min() >= 3 and balls.max() <= 20
+    assert body == client.post("/v1/sweeps", json=request).json()
+    other = client.post("/v1/sweeps", json={**request, "seed": 8}).json()
+    assert other["columns"]["load_N"] != body["columns"]["load_N"]
+
+
+def test_latin_hypercube_puts_one_point_in_each_stratum(client):
+    n = 50
+    request = {"design": "latin_hypercube", "points": n, "seed": 1, "outputs": ["mu"],
+               "fixed": {"balls": 4}, "ranges": {"load_N": {"low": 0.0, "high": 1.0},
+                                                 "speed_m_s": {"low": 0.0, "high": 0.5}}}
+    response = client.post("/v1/sweeps", json=request)
+    assert_problem(response, 422, "/ranges/load_N/low")  # load_N must be > 0
+    request["ranges"]["load_N"] = {"low": 1.0, "high": 2.0}
+    columns = client.post("/v1/sweeps", json=request).json()["columns"]
+    for name, low, high in (("load_N", 1.0, 2.0), ("speed_m_s", 0.0, 0.5)):
+        strata = np.floor((np.array(columns[name]) - low) / (high - low) * n)
+        assert sorted(strata.tolist()) == list(range(n)), name
+
+
+@pytest.mark.parametrize(("request_body", "pointer"), [
+    ({"design": "grid", "axes": {"speed_m_s": {"start": 0, "stop": 1, "num": 2}}, "fixed": {"balls": 4}},
+     "/fixed/load_N"),
+    ({"design": "grid", "axes": {"speed_m_s": {"start": 0, "stop": 1, "num": 2}},
+      "fixed": {"balls": 4, "load_N": 1, "speed_m_s": 1}}, "/fixed/speed_m_s"),
+    ({"design": "grid", "axes": {}, "fixed": {"balls": 4, "load_N": 1, "speed_m_s": 1}}, "/axes"),
+    ({"design": "grid", "axes": {"load_N": {"start": 1, "stop": 2, "num": 1000},
+                                 "speed_m_s": {"start": 0, "stop": 1, "num": 1000}}, "fixed": {"balls": 4}},
+     "/axes"),
+    ({"design": "grid", "axes": {"load_N": {"start": -1, "stop": 2, "num": 3}},
+      "fixed": {"balls": 4, "speed_m_s": 1}}, "/axes/load_N/start"),
+    ({"design": "grid", "axes": {"speed_m_s": {"start": 0, "stop": 2, "num": 3, "spacing": "log"}},
+      "fixed": {"balls": 4, "load_N": 1}}, "/axes/speed_m_s/spacing"),
+    ({"design": "sobol", "points": 8, "ranges": {"load_N": {"low": 2, "high": 1}},
+      "fixed": {"balls": 4, "speed_m_s": 1}}, "/ranges/load_N/high"),
+    ({"design": "sobol", "points": 8, "ranges": {"balls_touching": {"low": 0, "high": 1}},
+      "fixed": {"balls": 4, "load_N": 1, "speed_m_s": 1}}, "/ranges/balls_touching"),
+    ({"design": "annealing", "points": 8}, "/design"),
+    ({"points": 8}, "/design"),
+])
+def test_bad_sweeps_name_the_field(client, request_body, pointer):
+    assert_problem(client.post("/v1/sweeps", json=request_body), 422, pointer)
+
+
+# jobs ----------------------------------------------------------------------------------------
+
+def test_large_sweep_runs_as_a_job_with_json_and_csv_results(client):
+    request = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4},
+               "axes": {"load_N": {"start": 1e-3, "stop": 1e-2, "num": 50},
+                        "speed_m_s": {"start": 0.0, "stop": 0.15, "num": 40}}}
+    response = client.post("/v1/sweeps", json=request)
+    assert response.status_code == 202
+    location = response.headers["location"]
+    assert location == f"/v1/jobs/{response.json()['id']}"
+    job = wait_for_job(client, location)
+    assert job["status"] == "succeeded" and job["progress"] == 1.0 and job["error"] is None
+    result = client.get(job["result_url"]).json()
+    assert result["count"] == 2_000
+    columns = result["columns"]
+    expected = physics.evaluate(balls=4, load_N=np.array(columns["load_N"]),
+                                speed_m_s=np.array(columns["speed_m_s"])).mu
+    assert columns["mu"] == expected.tolist()
+    rows = list(csv.reader(io.StringIO(client.get(job["result_url"], headers={"accept": "text/csv"}).text)))
+    assert rows[0] == ["load_N", "speed_m_s", "mu"] and len(rows) == 2_001
+    assert_problem(client.delete(location), 409)  # finished jobs cannot be cancelled
+
+
+def test_unknown_jobs_are_404(client):
+    assert_problem(client.get("/v1/jobs/0123"), 404)
+    assert_problem(client.delete("/v1/jobs/0123"), 404)
+    assert_problem(client.get("/v1/jobs/0123/result"), 404)
+
+
+def test_a_finished_job_survives_a_restart(tmp_path):
+    settings = {"sweep_sync_max_points": 0}
+    request = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load_N": 0.01},
+               "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 5}}}
+    with make_client(tmp_path, **settings) as first:
+        location = first.post("/v1/sweeps", json=request).headers["location"]
+        job = wait_for_job(first, location)
+        result = first.get(job["result_url"]).json()
+    with make_client(tmp_path, **settings) as second:  # a new app on the same data folder
+        assert second.get(location).json() == job
+        assert second.get(job["result_url"]).json() == result
+
+
+# meta ----------------------------------------------------------------------------------------
+
+def test_health_version_and_materials(client):
+    assert client.get("/healthz").json() == {"status": "ok"}
+    body = client.get("/v1/version").json()
+    assert body["version"] == version("microbearing")
+    assert body["physics_convention"] == physics.DEFAULT_CONVENTION
+    assert set(body["conventions"]) == set(physics.CONVENTIONS)
+    materials = client.get("/v1/materials").json()["materials"]
+    assert {m["name"]: m["youngs_modulus_Pa"] for m in materials} == {
+        name: m.youngs_modulus_Pa for name, m in physics.MATERIALS.items()}

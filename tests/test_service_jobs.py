@@ -1,0 +1,195 @@
+"""Persistent jobs and stored models: lifecycle, cancellation, failures, restarts, dead owners."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from service.jobs import INTERRUPTED_DETAIL, JobContext, JobManager
+from service.store import Store, to_json, utc_now
+
+
+@pytest.fixture
+def store(tmp_path):
+    database = Store(tmp_path)
+    yield database
+    database.close()
+
+
+@pytest.fixture
+def manager(store):
+    jobs = JobManager(store, workers=2)
+    yield jobs
+    jobs.shutdown()
+
+
+def wait(manager: JobManager, job_id: str, timeout_s: float = 20.0) -> dict:
+    deadline = time.monotonic() + timeout_s
+    while (row := manager.get(job_id))["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, row
+        time.sleep(0.02)
+    return row
+
+
+def test_job_result_and_progress_are_stored(manager):
+    seen = []
+
+    def work(ctx: JobContext) -> dict:
+        for i in range(5):
+            ctx.progress((i + 1) / 5)
+            seen.append(i)
+        return {"total": sum(seen), "values": np.arange(3.0)}
+
+    job = manager.submit("sum", {"n": 5}, work)
+    assert job["status"] in ("queued", "running") and job["owner_pid"] == os.getpid()
+    row = wait(manager, job["id"])
+    assert row["status"] == "succeeded" and row["progress"] == 1.0
+    assert json.loads(row["result_json"]) == {"total": 10, "values": [0.0, 1.0, 2.0]}
+    assert json.loads(row["request_json"]) == {"n": 5}
+    assert row["started_at"] <= row["finished_at"]
+
+
+@pytest.mark.parametrize(("error", "status", "text"), [
+    (ValueError("load_N must be > 0 [N]"), 422, "load_N must be > 0"),
+    (RuntimeError("boom"), 500, "RuntimeError: boom"),
+])
+def test_failures_are_stored_as_problems(manager, error, status, text):
+    def work(ctx: JobContext) -> dict:
+        raise error
+
+    row = wait(manager, manager.submit("failing", {}, work)["id"])
+    problem = json.loads(row["error_json"])
+    assert row["status"] == "failed" and row["result_json"] is None
+    assert problem["status"] == status and text in problem["detail"]
+
+
+def test_a_result_json_cannot_hold_fails_the_job(manager):
+    row = wait(manager, manager.submit("nan", {}, lambda ctx: {"x": float("nan")})["id"])
+    assert row["status"] == "failed" and "not finite JSON" in json.loads(row["error_json"])["detail"]
+
+
+def test_cancelling_a_running_job(manager):
+    started = threading.Event()
+
+    def work(ctx: JobContext) -> dict:
+        started.set()
+        while True:
+            ctx.progress(0.5)
+            time.sleep(0.01)
+
+    job = manager.submit("forever", {}, work)
+    assert started.wait(10)
+    assert manager.cancel(job["id"])["cancel_requested"] == 1
+    row = wait(manager, job["id"])
+    assert row["status"] == "cancelled" and row["result_json"] is None
+
+
+def test_cancel_requested_by_another_server_process_is_seen(store, manager):
+    started = threading.Event()
+
+    def work(ctx: JobContext) -> dict:
+        started.set()
+        while True:
+            ctx.check_cancelled()
+            time.sleep(0.01)
+
+    job = manager.submit("forever", {}, work)
+    assert started.wait(10)
+    other = JobManager(store, workers=1)  # a second worker process sharing the database
+    try:
+        other.cancel(job["id"])
+        assert wait(manager, job["id"])["status"] == "cancelled"
+    finally:
+        other.shutdown()
+
+
+def test_cancelling_a_queued_job_is_immediate(store):
+    single = JobManager(store, workers=1)
+    release = threading.Event()
+    try:
+        blocker = single.submit("block", {}, lambda ctx: {"released": release.wait(10)})
+        queued = single.submit("never", {}, lambda ctx: {"ran": True})
+        assert single.cancel(queued["id"])["status"] == "cancelled"
+        release.set()
+        assert wait(single, blocker["id"])["status"] == "succeeded"
+        assert wait(single, queued["id"])["status"] == "cancelled"
+    finally:
+        release.set()
+        single.shutdown()
+
+
+def _insert_active(store: Store, job_id: str, pid: int, instance: str, status: str = "running") -> None:
+    store.insert_job(id=job_id, kind="sweep", status=status, progress=0.3, request_json="{}",
+                     owner_pid=pid, owner_instance=instance, created_at=utc_now())
+
+
+def _dead_pid() -> int:
+    process = subprocess.Popen([sys.executable, "-c", "pass"])
+    process.wait()
+    return process.pid
+
+
+def test_startup_fails_jobs_of_dead_processes_only(store):
+    _insert_active(store, "dead", _dead_pid(), "gone")
+    _insert_active(store, "dead-queued", _dead_pid(), "gone", status="queued")
+    _insert_active(store, "same-pid-old-instance", os.getpid(), "a previous app in this process")
+    _insert_active(store, "live-process", os.getppid(), "another worker")
+    manager = JobManager(store, workers=1)  # what a server does at startup
+    try:
+        for job_id in ("dead", "dead-queued", "same-pid-old-instance"):
+            row = store.get_job(job_id)
+            assert row["status"] == "failed", job_id
+            assert json.loads(row["error_json"])["detail"] == INTERRUPTED_DETAIL
+        assert store.get_job("live-process")["status"] == "running"
+    finally:
+        manager.shutdown()
+
+
+def test_shutdown_marks_running_jobs_interrupted(store):
+    manager = JobManager(store, workers=1)
+    started = threading.Event()
+
+    def work(ctx: JobContext) -> dict:
+        started.set()
+        while True:
+            ctx.progress(0.1)
+            time.sleep(0.01)
+
+    job = manager.submit("forever", {}, work)
+    assert started.wait(10)
+    manager.shutdown()
+    row = store.get_job(job["id"])
+    assert row["status"] == "failed" and json.loads(row["error_json"])["detail"] == INTERRUPTED_DETAIL
+
+
+def test_models_round_trip_without_pickle(store, tmp_path):
+    weights = np.arange(6.0).reshape(2, 3)
+    model_id = store.save_model("surrogate", {"inputs": ["load_N"], "r2": 0.99},
+                                {"weights": weights, "names": np.array(["a", "b"])}, name="demo")
+    reopened = Store(tmp_path)  # another connection, as after a restart
+    try:
+        stored = reopened.load_model(model_id)
+        assert stored.kind == "surrogate" and stored.name == "demo"
+        assert stored.metadata == {"inputs": ["load_N"], "r2": 0.99}
+        np.testing.assert_array_equal(stored.arrays["weights"], weights)
+        assert stored.arrays["names"].tolist() == ["a", "b"]
+        assert [m["id"] for m in reopened.list_models("surrogate")] == [model_id]
+        assert reopened.list_models("calibration") == []
+        assert reopened.delete_model(model_id) and reopened.load_model(model_id) is None
+    finally:
+        reopened.close()
+    with pytest.raises(ValueError, match="object"):
+        store.save_model("bad", {}, {"things": np.array([{"a": 1}], dtype=object)})
+    with pytest.raises(ValueError):
+        to_json({"x": float("inf")})
+
+
+def test_the_database_uses_wal(store):
+    assert store.connection().execute("PRAGMA journal_mode").fetchone()[0] == "wal"

@@ -1,0 +1,74 @@
+"""The committed OpenAPI spec: fresh, valid, and faithful to the physics tables."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from openapi_spec_validator import validate
+
+import physics
+from service.openapi import SPEC_PATH, spec_text
+
+
+@pytest.fixture(scope="module")
+def spec() -> dict:
+    return json.loads(SPEC_PATH.read_text(encoding="utf-8"))
+
+
+def test_committed_spec_is_not_stale():
+    assert SPEC_PATH.read_text(encoding="utf-8") == spec_text(), (
+        "openapi/openapi.json is stale: run `python -m service.openapi` and commit it")
+
+
+def test_spec_is_valid_openapi(spec):
+    validate(spec)
+
+
+def test_operation_ids_read_well(spec):
+    ids = {op["operationId"] for item in spec["paths"].values() for op in item.values()}
+    assert {"evaluate_friction", "evaluate_friction_batch", "create_sweep", "get_job", "cancel_job",
+            "get_job_result", "get_health", "get_version", "list_materials"} <= ids
+
+
+def test_every_error_response_is_a_problem(spec):
+    for path, item in spec["paths"].items():
+        for method, operation in item.items():
+            codes = {int(code) for code in operation["responses"] if code.isdigit()}
+            assert {404, 405, 422, 500} <= codes, (method, path)
+            for code, response in operation["responses"].items():
+                if int(code) >= 400:
+                    assert list(response["content"]) == ["application/problem+json"], (method, path, code)
+    assert "HTTPValidationError" not in spec["components"]["schemas"]
+
+
+def test_request_schema_carries_units_bounds_and_defaults_from_the_table(spec):
+    schema = spec["components"]["schemas"]["FrictionRequest"]
+    assert schema["additionalProperties"] is False
+    assert set(schema["required"]) == {n for n, p in physics.PARAMETERS.items() if p.required}
+    for name, parameter in physics.PARAMETERS.items():
+        field = schema["properties"][name]
+        assert f"[{parameter.unit}]" in field["description"], name
+        if parameter.kind == "bool":
+            assert field["type"] == "boolean"
+            continue
+        assert field["type"] == ("integer" if parameter.kind == "int" else "number"), name
+        low = "exclusiveMinimum" if parameter.exclusive_minimum else "minimum"
+        high = "exclusiveMaximum" if parameter.exclusive_maximum else "maximum"
+        assert field[low] == parameter.minimum and field[high] == parameter.maximum, name
+        if not parameter.required:
+            assert field["default"] == parameter.default, name
+
+
+def test_sweep_union_has_a_required_tag(spec):
+    body = spec["paths"]["/v1/sweeps"]["post"]["requestBody"]["content"]["application/json"]["schema"]
+    assert body["discriminator"]["propertyName"] == "design"
+    for ref in body["oneOf"]:
+        member = spec["components"]["schemas"][ref["$ref"].rsplit("/", 1)[1]]
+        assert "design" in member["required"]
+
+
+def test_every_output_is_documented_with_its_unit(spec):
+    schema = spec["components"]["schemas"]["FrictionResponse"]
+    for name, (unit, _) in physics.OUTPUTS.items():
+        assert schema["properties"][name]["description"].endswith(f"[{unit}]"), name

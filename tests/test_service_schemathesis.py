@@ -1,0 +1,49 @@
+"""Property-based tests of the whole API against its own OpenAPI spec (schemathesis).
+
+Every operation gets generated valid and invalid requests; the server must never answer 5xx
+and every response must match the spec (status code, content type, body schema, headers).
+"""
+
+from __future__ import annotations
+
+import tempfile
+
+import hypothesis
+import pytest
+import schemathesis
+from schemathesis.specs.openapi.checks import (
+    content_type_conformance,
+    response_headers_conformance,
+    response_schema_conformance,
+    status_code_conformance,
+)
+
+from service.app import create_app
+from service.deps import close_runtime
+from service.settings import Settings
+
+# Small limits so that generated requests also reach the 413 and job (202) paths quickly.
+_DATA_DIR = tempfile.TemporaryDirectory(prefix="microbearing-schemathesis-")
+APP = create_app(Settings(data_dir=_DATA_DIR.name, max_batch_points=5_000, max_sweep_points=20_000,
+                          sweep_sync_max_points=50, max_body_bytes=1_000_000))
+schema = schemathesis.openapi.from_asgi("/openapi.json", APP)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _close_app():
+    yield
+    close_runtime(APP)
+    _DATA_DIR.cleanup()
+
+
+@schema.parametrize()
+@hypothesis.settings(max_examples=25, deadline=None,
+                     suppress_health_check=list(hypothesis.HealthCheck))
+def test_api_conforms_to_its_spec(case):
+    case.call_and_validate(checks=[
+        schemathesis.checks.not_a_server_error,
+        status_code_conformance,
+        content_type_conformance,
+        response_schema_conformance,
+        response_headers_conformance,
+    ])
