@@ -303,7 +303,8 @@ def _status(name: str, value: float, limit: float, sense: str) -> ConstraintStat
 
 
 def constraint_report(problem: DesignProblem, balls: int, groove_angle_deg: float, load_N: float,
-                      result: physics.FrictionResult | None = None) -> list[ConstraintStatus]:
+                      result: physics.FrictionResult | None = None,
+                      mu: float | None = None) -> list[ConstraintStatus]:
     """Every bound and limit of a problem evaluated at one design with the exact physics.
 
     Parameters
@@ -319,6 +320,9 @@ def constraint_report(problem: DesignProblem, balls: int, groove_angle_deg: floa
     result : physics.FrictionResult, optional
         :func:`physics.evaluate` at this design and the design speed, if
         already computed.
+    mu : float, optional
+        μ of another model (a surrogate or calibrated model) at the design; the
+        friction force is then μ G instead of the physics' value. [1]
 
     Returns
     -------
@@ -341,7 +345,7 @@ def constraint_report(problem: DesignProblem, balls: int, groove_angle_deg: floa
     ]
     measured = {
         "max_contact_pressure_Pa": float(result.max_contact_pressure_Pa),
-        "max_friction_force_N": float(result.friction_force_N),
+        "max_friction_force_N": float(result.friction_force_N) if mu is None else float(mu) * float(load_N),
         "min_load_capacity_N": float(load_N),
         "max_load_per_ball_N": float(load_N) / balls,
     }

@@ -13,6 +13,7 @@ limits (a deletion filter on the phase-I problem).
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -32,7 +33,7 @@ __all__ = [
     "OptimizationResult",
     "optimize_design",
     "find_conflicts",
-    "polish_load",
+    "polish_design",
 ]
 
 #: Designs whose exact μ is within this relative distance of the best are ties. [1]
@@ -262,19 +263,21 @@ def _upper_excess(problem: DesignProblem, balls, theta, load) -> tuple[np.ndarra
     return excess, r.mu
 
 
-def polish_load(problem: DesignProblem, balls: np.ndarray, theta: np.ndarray,
-                load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Move each solver load onto the exact boundary of its binding upper limit, when that is better.
+def polish_design(problem: DesignProblem, balls: np.ndarray, theta: np.ndarray,
+                  load: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Move each solver design onto the exact boundary of its binding bounds and limits, when better.
 
     Parameters
     ----------
     problem : DesignProblem
         The problem.
     balls, theta, load : numpy.ndarray
-        Ball counts [1], groove angles [deg] and the solver's loads [N], one per count.
+        Ball counts [1], the solver's groove angles [deg] and loads [N], one per count.
 
     Returns
     -------
+    theta : numpy.ndarray
+        Polished groove angles. [deg]
     load : numpy.ndarray
         Polished loads. [N]
     mu : numpy.ndarray
@@ -282,37 +285,55 @@ def polish_load(problem: DesignProblem, balls: np.ndarray, theta: np.ndarray,
 
     Notes
     -----
-    Where an upper limit binds, the log-space solver tolerance (~1e-8) can
-    leave the load off the limit's boundary by far more than 1e-8 relative,
-    because the pressure grows only slowly with G while adhesion dominates Q.
-    The upper limits (pressure, friction force, load per ball) all increase
-    with G, so bisection on log G inside ±0.1 % of the solver's load finds the
-    largest load meeting all of them with the exact physics; it replaces the
-    solver's load only when it is feasible (it is by construction) and gives
-    a lower μ, so polishing can only improve a design and never breaks a
-    limit. A load within 1e-6 of the lower load limit is snapped onto it under
-    the same rule.
+    The solver stops within its tolerance (~1e-8 in log space) of a binding
+    bound or limit; for a limit this can mean far more than 1e-8 relative in
+    the load, because the pressure grows only slowly with G while adhesion
+    dominates Q. So: an angle or load within 1e-6 relative of a bound is
+    snapped onto it; and since every upper limit (pressure, friction force,
+    load per ball) increases with G, bisection on log G within ±0.1 % of the
+    load finds the largest load meeting all of them with the exact physics.
+    Each candidate replaces the design only when it meets every limit and
+    gives a lower μ, so polishing can only improve a design and never breaks
+    a limit.
     """
     floor = max(problem.bounds.load_N[0], problem.constraints.min_load_capacity_N or 0.0)
     ceiling = problem.bounds.load_N[1]
-    excess, mu = _upper_excess(problem, balls, theta, load)
-    feasible = (excess <= 0) & (load >= floor) & (load <= ceiling)
-    snapped = np.where(np.abs(load / floor - 1.0) <= 1e-6, floor, load)
+    angle_lo, angle_hi = problem.bounds.groove_angle_deg
+
+    def feasible(th, g):
+        excess, mu = _upper_excess(problem, balls, th, g)
+        return (excess <= 0) & (g >= floor) & (g <= ceiling) & (th >= angle_lo) & (th <= angle_hi), mu
+
+    ok, mu = feasible(theta, load)
+    best_theta, best_load = np.where(ok, theta, np.nan), np.where(ok, load, np.nan)
+    best_mu = np.where(ok, mu, np.inf)
+
+    def consider(th, g):
+        nonlocal best_theta, best_load, best_mu
+        c_ok, c_mu = feasible(th, g)
+        better = c_ok & (c_mu < best_mu)
+        best_theta, best_load = np.where(better, th, best_theta), np.where(better, g, best_load)
+        best_mu = np.where(better, c_mu, best_mu)
+
+    def snap(value, bound):
+        return np.where(np.abs(value / bound - 1.0) <= 1e-6, bound, value)
+
+    for th in (snap(theta, angle_lo), snap(theta, angle_hi)):
+        consider(th, load)
+        for g in (snap(load, floor), snap(load, ceiling)):
+            consider(th, g)
+    theta_now = np.where(np.isnan(best_theta), theta, best_theta)
     low = np.clip(load * (1.0 - 1e-3), floor, ceiling)
     high = np.clip(load * (1.0 + 1e-3), floor, ceiling)
-    bracketed = (_upper_excess(problem, balls, theta, low)[0] <= 0) & (
-        _upper_excess(problem, balls, theta, high)[0] > 0)
+    bracketed = (_upper_excess(problem, balls, theta_now, low)[0] <= 0) & (
+        _upper_excess(problem, balls, theta_now, high)[0] > 0)
     for _ in range(40):  # the bracket of width 2e-3 in log G shrinks below 1e-15
         middle = np.sqrt(low * high)
-        ok = _upper_excess(problem, balls, theta, middle)[0] <= 0
-        low, high = np.where(ok, middle, low), np.where(ok, high, middle)
-    best_load, best_mu = np.where(feasible, load, np.nan), np.where(feasible, mu, np.inf)
-    for candidate in (np.where(bracketed, low, load), snapped):
-        c_excess, c_mu = _upper_excess(problem, balls, theta, candidate)
-        better = (c_excess <= 0) & (candidate >= floor) & (candidate <= ceiling) & (c_mu < best_mu)
-        best_load, best_mu = np.where(better, candidate, best_load), np.where(better, c_mu, best_mu)
+        below = _upper_excess(problem, balls, theta_now, middle)[0] <= 0
+        low, high = np.where(below, middle, low), np.where(below, high, middle)
+    consider(theta_now, np.where(bracketed, low, load))
     keep = np.isnan(best_load)  # nothing feasible found: report the solver's point as it is
-    return np.where(keep, load, best_load), np.where(keep, mu, best_mu)
+    return (np.where(keep, theta, best_theta), np.where(keep, load, best_load), np.where(keep, mu, best_mu))
 
 
 def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: BallCountResult,
@@ -338,8 +359,9 @@ def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: Ball
         f"Verification: each count's optimum re-evaluated with physics.evaluate; largest relative gap "
         f"between solver and physics {worst_gap:.2e} (the returned design: {best.relative_gap:.2e}); "
         f"Clarabel stops at relative tolerance 1e-8; limits were tightened by {SAFETY_MARGIN:g} relative "
-        "in the DGP and each load then moved onto the exact boundary of a binding upper limit by bisection "
-        "on the physics (only when that lowers mu), so the exact physics meets every limit.",
+        "in the DGP, then each design was moved onto the exact boundary of its binding bounds and limits "
+        "(snapping, bisection on the physics; only when that lowers mu), so the exact physics meets "
+        "every limit.",
     ]
     if inaccurate:
         parts.append(f"Counts {inaccurate} were solved only to reduced accuracy (status optimal_inaccurate); "
@@ -396,7 +418,10 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
                 rows.append(BallCountResult(z, "does not fit the groove"))
             else:
                 gp.assign(values, z)
-                gp.problem.solve(gp=True, solver=_SOLVER)
+                with warnings.catch_warnings():
+                    # cvxpy warns on inaccurate solutions; the status is checked and reported instead
+                    warnings.simplefilter("ignore", UserWarning)
+                    gp.problem.solve(gp=True, solver=_SOLVER)
                 status = gp.problem.status
                 if status in _OPTIMAL:
                     # the solver may overshoot a bound by its tolerance: clip back into the box
@@ -421,10 +446,10 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
 
     balls = np.array([r.balls for r in solved])
     theta = np.array([r.groove_angle_deg for r in solved])
-    load, mu = polish_load(problem, balls, theta, np.array([r.load_N for r in solved]))
+    theta, load, mu = polish_design(problem, balls, theta, np.array([r.load_N for r in solved]))
     rows_by_count = {r.balls: r for r in rows}
     for k, r in enumerate(solved):
-        rows_by_count[r.balls] = BallCountResult(r.balls, r.status, r.groove_angle_deg, float(load[k]),
+        rows_by_count[r.balls] = BallCountResult(r.balls, r.status, float(theta[k]), float(load[k]),
                                                  float(mu[k]), r.mu_solver, r.mu_solver / float(mu[k]) - 1.0)
     rows = [rows_by_count[z] for z in range(lo, hi + 1)]
     solved = [r for r in rows if r.status in _OPTIMAL]

@@ -1,0 +1,73 @@
+"""Tests of optimize.general: sequential convex approximation on black-box μ models."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import physics
+from optimize import Constraints, DesignBounds, DesignProblem, InfeasibleDesignError, optimize_design
+from optimize.general import optimize_model, physics_model
+
+
+def _problems():
+    bounds = DesignBounds((3, 12), (35, 70), (0.0005, 0.05))
+    yield DesignProblem(bounds, speed_m_s=0.05, fixed={"mu_pivot": 1.0})
+    yield DesignProblem(bounds, speed_m_s=(0.0, 0.1), fixed={"balls_touching": True},
+                        constraints=Constraints(max_contact_pressure_Pa=5e8, max_load_per_ball_N=1e-3))
+    yield DesignProblem(bounds, speed_m_s=0.2, fixed={"adhesion_energy_J_m2": 0.0},
+                        constraints=Constraints(max_friction_force_N=1e-4, min_load_capacity_N=0.002))
+    yield DesignProblem(DesignBounds((4, 9), (40, 60), (0.01, 0.05)), speed_m_s=0.1,
+                        constraints=Constraints(groove_length_m=1.2e-3))
+
+
+@pytest.mark.parametrize("problem", list(_problems()))
+def test_physics_as_a_black_box_lands_on_the_dgp_optimum(problem):
+    certified = optimize_design(problem)
+    local = optimize_model(problem, physics_model(), model_name="physics")
+    # a local method cannot beat the global optimum (beyond rounding) and must land next to it
+    assert local.mu >= certified.mu * (1 - 1e-7)
+    assert local.mu <= certified.mu * (1 + 1e-4)
+    assert local.mu == pytest.approx(local.extra["mu_physics"], rel=1e-12)
+    assert all(c.satisfied for c in local.constraints), [c for c in local.constraints if not c.satisfied]
+    assert local.method == "sequential-convex-approximation"
+    assert "not a global proof" in local.certificate
+
+
+def test_a_non_convex_model_is_improved_from_every_start_and_verified():
+    # a ripple in log G makes several local minima per ball count
+    def rippled(points):
+        return physics.evaluate(**points).mu * (1.0 + 0.2 * np.sin(4.0 * np.log(points["load_N"])) ** 2)
+
+    problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05)
+    result = optimize_model(problem, rippled, starts=5, model_name="rippled")
+    design = result.design
+    check = rippled(problem.physics_inputs(design["balls"], design["groove_angle_deg"], design["load_N"]))
+    assert result.mu == pytest.approx(float(check), rel=1e-12)
+    # no worse than the best of a 40-point load scan at the design's angle, to the local tolerance of a grid
+    scan = np.geomspace(0.001, 0.05, 40)
+    values = rippled(problem.physics_inputs(np.arange(4, 7)[:, None], design["groove_angle_deg"], scan))
+    assert result.mu <= values.min() * (1 + 1e-9)
+    assert all(c.satisfied for c in result.constraints)
+
+
+def test_unreachable_friction_limit_is_infeasible():
+    problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05,
+                            constraints=Constraints(max_friction_force_N=1e-9))
+    with pytest.raises(InfeasibleDesignError) as info:
+        optimize_model(problem, physics_model())
+    assert "max_friction_force_N" in info.value.conflicts
+
+
+@pytest.mark.parametrize("kwargs, match",
+                         [({"starts": 0}, "starts"), ({"max_iterations": 0}, "max_iterations")])
+def test_arguments_are_checked(kwargs, match):
+    problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05)
+    with pytest.raises(ValueError, match=match):
+        optimize_model(problem, physics_model(), **kwargs)
+
+
+def test_model_returning_nonsense_is_rejected():
+    problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05)
+    with pytest.raises(ValueError, match="non-finite or non-positive"):
+        optimize_model(problem, lambda points: -np.ones(np.shape(points["load_N"])))
