@@ -40,6 +40,8 @@ def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, conventi
     ProblemError
         422 for inputs the model rejects or that drive an output out of floating-point range.
     """
+    convention = str(convention)
+    outputs = None if outputs is None else [str(name) for name in outputs]
     try:
         # Extreme but allowed inputs (a groove angle next to 90 deg) overflow; caught below.
         with np.errstate(all="ignore"):

@@ -189,7 +189,7 @@ def run_sweep(request: AnySweep, plan: SweepPlan,
         ``design``, ``count``, ``varied`` (names) and ``columns``: the varied inputs then the
         outputs, as arrays.
     """
-    outputs = request.outputs or list(physics.OUTPUTS)
+    outputs = [str(name) for name in request.outputs] if request.outputs else list(physics.OUTPUTS)
     columns: dict[str, np.ndarray] = {name: values for name, values in plan.varied.items()}
     results = {name: np.empty(plan.count) for name in outputs}
     for start in range(0, plan.count, CHUNK_POINTS):

@@ -25,7 +25,7 @@ async def evaluate_friction(body: FrictionRequest) -> JSONResponse:  # type: ign
     """Every output of the friction model at one design point."""
     inputs = body.model_dump(exclude={"convention"})
     result = evaluate_checked(inputs, None, body.convention)
-    return JSONResponse({"convention": body.convention, **{k: float(v) for k, v in result.items()}})
+    return JSONResponse({"convention": str(body.convention), **{k: float(v) for k, v in result.items()}})
 
 
 def _batch(request: FrictionBatchRequest, max_points: int) -> bytes:

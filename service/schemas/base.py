@@ -14,7 +14,8 @@ numbers, NaN and infinities are rejected with 422. Build physics inputs with
 from __future__ import annotations
 
 import json
-from typing import Annotated, Any, Literal, TypeVar
+from enum import StrEnum
+from typing import Annotated, Any, TypeVar
 
 from fastapi import Request
 from fastapi.exceptions import RequestValidationError
@@ -25,7 +26,9 @@ import physics
 
 __all__ = [
     "RAW_BODY_MODELS",
+    "Convention",
     "ConventionName",
+    "Output",
     "OutputName",
     "ResponseModel",
     "StrictModel",
@@ -53,10 +56,14 @@ class ResponseModel(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
+# Named enums (one schema component each, one enum class in a generated client). Strict models
+# only take enum instances from Python objects, so these fields validate leniently: a JSON string.
+Convention = StrEnum("Convention", {name: name for name in physics.CONVENTIONS})
+Output = StrEnum("Output", {name: name for name in physics.OUTPUTS})
 #: One of :data:`physics.CONVENTIONS`.
-ConventionName = Literal[tuple(physics.CONVENTIONS)]  # type: ignore[valid-type]
+ConventionName = Annotated[Convention, Field(strict=False)]
 #: One of :data:`physics.OUTPUTS`.
-OutputName = Literal[tuple(physics.OUTPUTS)]  # type: ignore[valid-type]
+OutputName = Annotated[Output, Field(strict=False)]
 
 
 def parameter_description(spec: physics.Parameter) -> str:

@@ -6,12 +6,20 @@ from pydantic import Field, create_model
 
 import physics
 
-from .base import ConventionName, OutputName, ResponseModel, StrictModel, output_fields, parameter_fields
+from .base import (
+    Convention,
+    ConventionName,
+    OutputName,
+    ResponseModel,
+    StrictModel,
+    output_fields,
+    parameter_fields,
+)
 
 __all__ = ["FrictionBatchPoints", "FrictionBatchRequest", "FrictionBatchResponse", "FrictionRequest",
            "FrictionResponse"]
 
-_CONVENTION = (ConventionName, Field(default=physics.DEFAULT_CONVENTION,
+_CONVENTION = (ConventionName, Field(default=Convention(physics.DEFAULT_CONVENTION),
                                      description="Reading of the paper's ambiguous ball-ball terms."))
 
 FrictionRequest = create_model(

@@ -8,7 +8,7 @@ from pydantic import Field, create_model
 
 import physics
 
-from .base import ConventionName, OutputName, ResponseModel, StrictModel, parameter_fields
+from .base import Convention, ConventionName, OutputName, ResponseModel, StrictModel, parameter_fields
 
 __all__ = ["GridAxis", "GridSweep", "LatinHypercubeSweep", "SobolSweep", "SweepRange", "SweepRequest",
            "SweepResult"]
@@ -55,7 +55,8 @@ SweepFixed = create_model(
 
 _FIXED = Field(default_factory=SweepFixed, description="Inputs held constant.")
 _OUTPUTS = Field(default=None, min_length=1, description="Outputs to return (default: all of them).")
-_CONVENTION = Field(default=physics.DEFAULT_CONVENTION, description="Reading of the paper's ball-ball terms.")
+_CONVENTION = Field(default=Convention(physics.DEFAULT_CONVENTION),
+                    description="Reading of the paper's ball-ball terms.")
 _POINTS = Field(ge=1, le=100_000_000, description="Number of sample points [1].")
 _SEED = Field(default=None, ge=0, le=2**63 - 1, description="Seed of the scrambling, for repeatable designs.")
 
