@@ -30,10 +30,10 @@ the problem is DPP, so one compiled problem is re-solved for every z, and
 problems of the same structure (the same non-zero terms and limits) are
 compiled once per process and reused, their coefficients being parameters too.
 
-Every upper limit L enters as ``value <= L (1 - SAFETY_MARGIN)`` and every lower
-limit as ``value >= L (1 + SAFETY_MARGIN)`` so that the solver's feasibility
-tolerance cannot produce a design that breaks a limit when re-evaluated with
-the exact physics; the margin (1e-7 relative) is far below any engineering
+Every upper limit L enters as ``value <= L (1 - SAFETY_MARGIN)`` so that the
+solver's feasibility tolerance cannot produce a design that breaks a limit when
+re-evaluated with the exact physics (the minimum load is a plain bound on G:
+the solver's load is clipped onto it instead); the margin (1e-7 relative) is far below any engineering
 significance and is reported in the certificate.
 """
 
@@ -258,7 +258,7 @@ def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bo
     e["max_contact_pressure_Pa"] = p["pressure_Pa"] * q**PRESSURE_EXPONENT
     e["load_per_ball_N"] = g / z
 
-    k_up, k_down = 1.0 - SAFETY_MARGIN, 1.0 + SAFETY_MARGIN
+    k_up = 1.0 - SAFETY_MARGIN
     cons = {
         "groove_angle_deg_min": t >= p["tan_theta_min"],
         "groove_angle_deg_max": t <= p["tan_theta_max"],
@@ -273,7 +273,7 @@ def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bo
         if LIMIT_NAMES[name] == "max":
             cons[name] = measured[name] <= k_up * p[name] * slack
         else:
-            cons[name] = g * slack >= k_down * p[name]
+            cons[name] = g * slack >= p[name]
     objective = e["mu"]
     if phase_one:
         e["slack"] = objective = slack

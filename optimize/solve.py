@@ -155,6 +155,21 @@ class OptimizationResult:
         }
 
 
+def _solve(gp) -> str:
+    """Solve with Clarabel, falling back to SCS when Clarabel fails numerically; the status."""
+    with warnings.catch_warnings():
+        # cvxpy warns on inaccurate solutions; the status is checked and reported instead
+        warnings.simplefilter("ignore", UserWarning)
+        try:
+            gp.problem.solve(gp=True, solver=_SOLVER)
+        except cp.SolverError:
+            try:
+                gp.problem.solve(gp=True, solver=cp.SCS, eps=1e-9, max_iters=20000)
+            except cp.SolverError:
+                return "solver_error"
+    return gp.problem.status
+
+
 def _phase_one_slack(problem: DesignProblem, limits: frozenset[str], counts: list[int]) -> tuple[float, int]:
     """Smallest phase-I slack over the counts and the count attaining it (stops at the first s <= 1)."""
     gp, values = design_gp(problem, limits, phase_one=True)
@@ -162,8 +177,7 @@ def _phase_one_slack(problem: DesignProblem, limits: frozenset[str], counts: lis
     with gp.lock:
         for z in counts:
             gp.assign(values, z)
-            gp.problem.solve(gp=True, solver=_SOLVER)
-            if gp.problem.status not in _OPTIMAL:
+            if _solve(gp) not in _OPTIMAL:
                 raise RuntimeError(f"phase-I problem for balls={z} ended with status {gp.problem.status}")
             if gp.problem.value < best[0]:
                 best = (float(gp.problem.value), z)
@@ -409,7 +423,9 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
     fitting = set(problem.ball_counts())
     lo, hi = problem.bounds.balls
     gp, values = design_gp(problem)
-    angle_box, load_box = problem.bounds.groove_angle_deg, problem.bounds.load_N
+    angle_box = problem.bounds.groove_angle_deg
+    load_box = (max(problem.bounds.load_N[0], problem.constraints.min_load_capacity_N or 0.0),
+                problem.bounds.load_N[1])
     rows: list[BallCountResult] = []
     unconfirmed: list[int] = []
     with gp.lock:
@@ -418,17 +434,14 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
                 rows.append(BallCountResult(z, "does not fit the groove"))
             else:
                 gp.assign(values, z)
-                with warnings.catch_warnings():
-                    # cvxpy warns on inaccurate solutions; the status is checked and reported instead
-                    warnings.simplefilter("ignore", UserWarning)
-                    gp.problem.solve(gp=True, solver=_SOLVER)
-                status = gp.problem.status
+                status = _solve(gp)
                 if status in _OPTIMAL:
                     # the solver may overshoot a bound by its tolerance: clip back into the box
                     theta = float(np.clip(np.degrees(np.arctan(gp.tan_theta.value)), *angle_box))
                     load = float(np.clip(gp.load_N.value, *load_box))
                     rows.append(BallCountResult(z, status, theta, load, None, float(gp.problem.value)))
-                elif status in _INFEASIBLE:
+                elif status in (*_INFEASIBLE, "solver_error"):
+                    # decided by the phase-I problem below, which is always feasible
                     rows.append(BallCountResult(z, "infeasible"))
                     unconfirmed.append(z)
                 else:
@@ -439,7 +452,8 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
     for z in unconfirmed:
         slack, _ = _phase_one_slack(problem, limits, [z]) if limits else (0.0, z)
         if slack <= 1.0:
-            raise RuntimeError(f"the solver called balls={z} infeasible; phase-I slack {slack:.6g} <= 1")
+            raise RuntimeError(f"solver failed or said infeasible for balls={z}, but phase-I slack is "
+                               f"{slack:.6g} <= 1")
     solved = [r for r in rows if r.status in _OPTIMAL]
     if not solved:
         raise find_conflicts(problem) or RuntimeError("no count solved, yet phase-I says feasible")

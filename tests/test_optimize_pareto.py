@@ -1,0 +1,51 @@
+"""Tests of optimize.pareto: epsilon-constraint fronts of μ against load and contact pressure."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import physics
+from optimize import Constraints, DesignBounds, DesignProblem, optimize_design
+from optimize.pareto import pareto_front
+
+PROBLEM = DesignProblem(DesignBounds((4, 12), (35, 70), (0.001, 0.05)), speed_m_s=0.05,
+                        fixed={"mu_pivot": 1.0}, constraints=Constraints(max_contact_pressure_Pa=1e9))
+
+
+def test_pressure_front_trades_friction_for_pressure():
+    front = pareto_front(PROBLEM, "max_contact_pressure_Pa", points=5)
+    values = np.array([p["value"] for p in front.points])
+    mus = np.array([p["mu"] for p in front.points])
+    assert len(front.points) >= 3
+    # along a front, lower pressure costs friction
+    assert np.all(np.diff(values) > 0) and np.all(np.diff(mus) < 0)
+    best = optimize_design(PROBLEM)
+    assert mus.min() == pytest.approx(best.mu, rel=1e-6)
+    for p in front.points:
+        d = p["design"]
+        r = physics.evaluate(**PROBLEM.physics_inputs(d["balls"], d["groove_angle_deg"], d["load_N"]))
+        assert float(r.max_contact_pressure_Pa) == pytest.approx(p["value"], rel=1e-12)
+        assert float(r.mu) == pytest.approx(p["mu"], rel=1e-12)
+        assert p["value"] <= p["level"] * (1 + 1e-12)
+        # no design meeting the same pressure level is better: a brute-force scan of the box
+        z, th, g = np.arange(4, 13)[:, None, None], np.linspace(35, 70, 60)[None, :, None], \
+            np.geomspace(0.001, 0.05, 120)[None, None, :]
+        scan = physics.evaluate(**PROBLEM.physics_inputs(z, th, g))
+        allowed = scan.max_contact_pressure_Pa <= p["level"]
+        assert scan.mu[allowed].min() >= p["mu"] * (1 - 1e-6)
+
+
+def test_load_front_and_png():
+    front = pareto_front(PROBLEM, "load_N", points=4)
+    loads = [p["value"] for p in front.points]
+    assert loads == sorted(loads) and max(loads) == pytest.approx(0.05)
+    png = front.to_png()
+    assert png.startswith(b"\x89PNG") and len(png) > 5000
+    assert front.to_dict()["unit"] == "N"
+
+
+@pytest.mark.parametrize("kwargs, match", [({"objective": "speed"}, "objective"), ({"points": 1}, "points")])
+def test_arguments_are_checked(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        pareto_front(PROBLEM, **kwargs)
