@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -10,7 +11,50 @@ import physics
 
 from .problems import ProblemError, validation_problem
 
-__all__ = ["column_arrays", "evaluate_checked"]
+__all__ = ["column_arrays", "evaluate_checked", "evaluate_point"]
+
+_NOT_FINITE = "outside the range where the model is numerically meaningful"
+
+
+def _evaluate(inputs: dict[str, Any], outputs: list[str] | None, convention: str,
+              pointer: str) -> dict[str, np.ndarray]:
+    try:
+        # Extreme but allowed inputs (a groove angle next to 90 deg) overflow; the callers
+        # turn non-finite outputs into 422 problems.
+        with np.errstate(all="ignore"):
+            return physics.evaluate(convention=str(convention), **inputs).to_dict(outputs)
+    except ValueError as exc:
+        name = str(exc).split(" ", 1)[0]
+        where = f"{pointer}/{name}" if name in physics.PARAMETERS else pointer
+        raise validation_problem([{"pointer": where, "detail": str(exc)}]) from None
+
+
+def evaluate_point(inputs: dict[str, Any], convention: str) -> dict[str, float]:
+    """Every output of :func:`physics.evaluate` at one point, as finite floats.
+
+    Parameters
+    ----------
+    inputs : dict
+        Scalar physics inputs by name.
+    convention : str
+        Key of :data:`physics.CONVENTIONS`.
+
+    Returns
+    -------
+    dict of float
+        Every output of :data:`physics.OUTPUTS` in its unit.
+
+    Raises
+    ------
+    ProblemError
+        422 for inputs the model rejects or that drive an output out of floating-point range.
+    """
+    values = {name: float(value) for name, value in _evaluate(inputs, None, convention, "").items()}
+    for name, value in values.items():
+        if not math.isfinite(value):
+            raise validation_problem([{"pointer": "/", "detail": f"the model output {name} is not finite: "
+                                       f"the inputs are {_NOT_FINITE}"}])
+    return values
 
 
 def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, convention: str,
@@ -40,16 +84,8 @@ def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, conventi
     ProblemError
         422 for inputs the model rejects or that drive an output out of floating-point range.
     """
-    convention = str(convention)
     outputs = None if outputs is None else [str(name) for name in outputs]
-    try:
-        # Extreme but allowed inputs (a groove angle next to 90 deg) overflow; caught below.
-        with np.errstate(all="ignore"):
-            result = physics.evaluate(convention=convention, **inputs).to_dict(outputs)
-    except ValueError as exc:
-        name = str(exc).split(" ", 1)[0]
-        where = f"{pointer}/{name}" if name in physics.PARAMETERS else pointer
-        raise validation_problem([{"pointer": where, "detail": str(exc)}]) from None
+    result = _evaluate(inputs, outputs, convention, pointer)
     for name, values in result.items():
         finite = np.isfinite(values)
         if not finite.all():
@@ -57,7 +93,7 @@ def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, conventi
             at = f" at point {index}" if np.ndim(values) else ""
             raise validation_problem([{"pointer": pointer or "/", "detail":
                                        f"the model output {name} is not finite{at}: the inputs are "
-                                       "outside the range where the model is numerically meaningful"}])
+                                       f"{_NOT_FINITE}"}])
     return result
 
 

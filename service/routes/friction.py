@@ -8,7 +8,7 @@ from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
 
 from ..deps import SettingsDep
-from ..evaluation import column_arrays, evaluate_checked
+from ..evaluation import column_arrays, evaluate_checked, evaluate_point
 from ..problems import problem_responses
 from ..schemas.base import parse_json_body, raw_json_body
 from ..schemas.friction import FrictionBatchRequest, FrictionBatchResponse, FrictionRequest, FrictionResponse
@@ -20,12 +20,13 @@ router = APIRouter(prefix="/v1/friction", tags=["friction"])
 
 
 @router.post("", operation_id="evaluate_friction", response_model=FrictionResponse,
-             responses=problem_responses())
-async def evaluate_friction(body: FrictionRequest) -> JSONResponse:  # type: ignore[valid-type]
+             responses=problem_responses(), openapi_extra=raw_json_body(FrictionRequest))
+async def evaluate_friction(request: Request) -> JSONResponse:
     """Every output of the friction model at one design point."""
+    # Parsed from the raw bytes: a single point is dominated by per-request overhead.
+    body = await parse_json_body(request, FrictionRequest)
     inputs = body.model_dump(exclude={"convention"})
-    result = evaluate_checked(inputs, None, body.convention)
-    return JSONResponse({"convention": str(body.convention), **{k: float(v) for k, v in result.items()}})
+    return JSONResponse({"convention": str(body.convention), **evaluate_point(inputs, body.convention)})
 
 
 def _batch(request: FrictionBatchRequest, max_points: int) -> bytes:

@@ -142,6 +142,9 @@ def output_fields(*, columns: bool = False, optional: bool = False) -> dict[str,
     return fields
 
 
+#: Bodies up to this size [bytes] are validated on the event loop; a thread hop costs more.
+_INLINE_BODY_BYTES = 64 * 1024
+
 #: Models of request bodies that routes parse themselves (see :func:`raw_json_body`).
 RAW_BODY_MODELS: dict[str, type[BaseModel]] = {}
 
@@ -169,6 +172,8 @@ async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
     """
     body = await request.body()
     try:
+        if len(body) <= _INLINE_BODY_BYTES:
+            return model.model_validate_json(body)
         return await run_in_threadpool(model.model_validate_json, body)
     except ValidationError as exc:
         errors = [{**error, "loc": ("body", *error["loc"])} for error in exc.errors(include_url=False)]

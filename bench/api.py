@@ -1,0 +1,126 @@
+"""Speed of the REST service, measured side by side against references in one run.
+
+Run: ``cd /work/main && .venv/bin/python -m bench.api`` (a few minutes; ``--quick`` for less). Run it as
+a module: as a script, ``bench/physics.py`` would shadow the ``physics`` package.
+
+Starts ``microbearing serve`` on a free loopback port with a temporary data folder, then:
+
+* single-point requests per second on ``POST /v1/friction`` against ``GET /healthz`` on the same
+  server, one keep-alive client, alternating rounds (target ratio >= 0.7);
+* points per second through ``POST /v1/friction/batch`` with 100,000-point requests (load and
+  speed as lists, the rest scalars) against ``physics.evaluate`` on the same arrays in this
+  process, with only ``mu`` returned and with every output. The request body is encoded once,
+  so client-side JSON encoding is not counted; the response is received but not decoded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+
+import physics
+
+REPO = Path(__file__).resolve().parent.parent
+JSON = {"content-type": "application/json"}
+POINT = {"balls": 4, "load_N": 0.008826, "speed_m_s": 0.05}
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
+    port = free_port()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "service.cli", "serve", "--port", str(port), "--data-dir", data_dir],
+        cwd=REPO, env={**os.environ}, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(f"{url}/healthz", timeout=1).status_code == 200:
+                return process, url
+        except httpx.TransportError:
+            time.sleep(0.1)
+    process.terminate()
+    raise RuntimeError("the server did not start")
+
+
+def requests_per_second(client: httpx.Client, method: str, path: str, body: bytes | None, n: int) -> float:
+    headers = JSON if body else {}
+    start = time.perf_counter()
+    for _ in range(n):
+        response = client.request(method, path, content=body, headers=headers)
+        response.raise_for_status()
+    return n / (time.perf_counter() - start)
+
+
+def single_point(client: httpx.Client, rounds: int, per_round: int) -> tuple[float, float]:
+    body = json.dumps(POINT).encode()
+    requests_per_second(client, "GET", "/healthz", None, 50)  # warm up both routes
+    requests_per_second(client, "POST", "/v1/friction", body, 50)
+    health, friction = [], []
+    for _ in range(rounds):
+        health.append(requests_per_second(client, "GET", "/healthz", None, per_round))
+        friction.append(requests_per_second(client, "POST", "/v1/friction", body, per_round))
+    return float(np.median(health)), float(np.median(friction))
+
+
+def batch(client: httpx.Client, points: int, repeats: int, outputs: list[str] | None) -> tuple[float, float]:
+    rng = np.random.default_rng(0)
+    loads = rng.uniform(1e-3, 1e-2, points)
+    speeds = rng.uniform(0.0, 0.15, points)
+    request: dict = {"points": {"balls": 4, "load_N": loads.tolist(), "speed_m_s": speeds.tolist()}}
+    if outputs:
+        request["outputs"] = outputs
+    body = json.dumps(request).encode()
+    api, local = [], []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        response = client.post("/v1/friction/batch", content=body, headers=JSON)
+        response.raise_for_status()
+        api.append(points / (time.perf_counter() - start))
+        start = time.perf_counter()
+        physics.evaluate(balls=4, load_N=loads, speed_m_s=speeds)
+        local.append(points / (time.perf_counter() - start))
+    return float(np.median(api)), float(np.median(local))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="fewer rounds")
+    args = parser.parse_args()
+    rounds, per_round, repeats = (3, 100, 2) if args.quick else (7, 300, 5)
+    with tempfile.TemporaryDirectory(prefix="microbearing-bench-") as data_dir:
+        process, url = start_server(data_dir)
+        try:
+            with httpx.Client(base_url=url, timeout=300) as client:
+                health, friction = single_point(client, rounds, per_round)
+                print(f"single point, one keep-alive client, median of {rounds} rounds x {per_round}")
+                print(f"  GET  /healthz       {health:8.0f} req/s")
+                print(f"  POST /v1/friction   {friction:8.0f} req/s")
+                print(f"  ratio friction / healthz: {friction / health:.2f}  (target >= 0.7)")
+                print(f"batch, 100,000 points per request, median of {repeats}")
+                for label, outputs in (("mu only", ["mu"]), ("all 21 outputs", None)):
+                    api, local = batch(client, 100_000, repeats, outputs)
+                    print(f"  {label:15s} API {api:12,.0f} points/s   in-process physics.evaluate "
+                          f"{local:12,.0f} points/s   ratio {api / local:.3f}")
+        finally:
+            process.terminate()
+            process.wait(timeout=30)
+
+
+if __name__ == "__main__":
+    main()
