@@ -9,12 +9,14 @@
 :class:`CalibratedModel` turns back into a ``mu_model(points)`` callable.
 """
 
-from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_csv, parse_rows
+from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_assignments, parse_csv, parse_rows
 from .model import CalibratedModel
-from .report import CalibrationReport, calibrate
+from .report import CalibrationReport, calibrate, check_request
 
 __all__ = [
     "calibrate",
+    "check_request",
+    "parse_assignments",
     "CalibrationReport",
     "CalibratedModel",
     "Dataset",

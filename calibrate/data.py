@@ -24,7 +24,8 @@ import numpy as np
 
 import physics
 
-__all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "parse_csv", "parse_rows"]
+__all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "parse_assignments", "parse_csv",
+           "parse_rows"]
 
 #: Column of the measured friction coefficient. [1]
 MU_MEASURED = "mu_measured"
@@ -189,6 +190,51 @@ def parse_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | Non
     return _build(good_rows, names, fixed or {}, from_text=False, errors=errors)
 
 
+def parse_assignments(items: Sequence[str]) -> dict[str, float | bool]:
+    """Fixed physics values from ``name=value`` strings (command line, query parameters).
+
+    Parameters
+    ----------
+    items : sequence of str
+        E.g. ``["balls=4", "balls_touching=false"]``; values in the units of :data:`physics.PARAMETERS`.
+
+    Returns
+    -------
+    dict
+        Name -> number or boolean (checked against the physics when the data are parsed).
+
+    Raises
+    ------
+    DataError
+        For an item without ``=``, an unknown name, a repeated name or a value of the wrong type.
+
+    Examples
+    --------
+    >>> parse_assignments(["balls=4", "balls_touching=true"])
+    {'balls': 4.0, 'balls_touching': True}
+    """
+    errors, values = [], {}
+    for item in items:
+        name, sep, text = (part.strip() for part in str(item).partition("="))
+        spec = physics.PARAMETERS.get(name)
+        if not sep or spec is None:
+            errors.append({"row": None, "column": name or None,
+                           "message": f"fixed value {item!r} must be name=value with a physics parameter "
+                                      f"name ({', '.join(physics.PARAMETERS)})"})
+            continue
+        if name in values:
+            errors.append({"row": None, "column": name, "message": "fixed value given twice"})
+            continue
+        value, problem = _boolean(text, True) if spec.kind == "bool" else _number(text, True)
+        if problem is not None:
+            errors.append({"row": None, "column": name, "message": f"fixed value: {problem}"})
+        else:
+            values[name] = value
+    if errors:
+        raise DataError(errors)
+    return values
+
+
 def _missing(value) -> bool:
     return value is None or (isinstance(value, str) and value.strip() == "")
 
@@ -241,7 +287,7 @@ def _build(rows, names, fixed, from_text, errors) -> Dataset:
                            "message": f"fixed value of an unknown physics parameter; known: "
                                       f"{', '.join(physics.PARAMETERS)}"})
         elif name in names:
-            errors.append({"row": None, "column": name, "message": "both a data column and a fixed value"})
+            errors.append({"row": None, "column": name, "message": "fixed value given for a data column too"})
         else:
             try:
                 checked_fixed[name] = physics.validate(name, value).item()

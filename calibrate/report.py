@@ -27,10 +27,10 @@ import physics
 from .data import Dataset, parse_csv, parse_rows
 from .discover import Discovery, cross_validate_baseline, discover
 from .discrepancy import gp_discrepancy
-from .fit import fit, predict_mu, prediction_errors
+from .fit import check_fit_parameters, fit, predict_mu, prediction_errors
 from .model import CalibratedModel
 
-__all__ = ["CalibrationReport", "calibrate", "MIN_ROWS"]
+__all__ = ["CalibrationReport", "calibrate", "check_request", "MIN_ROWS"]
 
 #: Fewest rows a calibration accepts: k-fold CV needs a few rows per fold. [1]
 MIN_ROWS = 10
@@ -107,6 +107,40 @@ class CalibrationReport:
             "plots": sorted(self.plots),
         }
 
+    def text(self) -> str:
+        """The report in a few lines of plain text, for the command line."""
+
+        def errors(e: Mapping[str, float]) -> str:
+            return (f"rmse {e['rmse']:.4g}, relative rmse (log mu) {e['relative_rmse']:.4g}, "
+                    f"max abs {e['max_abs_error']:.4g}")
+
+        def estimates(values: Mapping[str, Mapping[str, float]], units: Mapping[str, str]) -> list[str]:
+            return [f"  {n} = {v['value']:.6g} +/- {v['std']:.2g} [{units[n]}]" for n, v in values.items()]
+
+        physics_units = {n: p.unit for n, p in physics.PARAMETERS.items()}
+        lines = [f"{self.n_points} measurements, {self.folds}-fold cross-validation",
+                 f"declared model, default parameters (in-sample): {errors(self.error_default)}"]
+        if self.fitted_declared:
+            lines.append("fitted declared parameters (before):")
+            lines += estimates(self.fitted_declared, physics_units)
+        lines.append(f"before (held out): {errors(self.error_before)}")
+        effect = self.missing_effect
+        if effect is None:
+            lines.append("missing effect: none")
+        else:
+            lines.append(f"missing effect: {effect['name']} ({effect['title']}) driven by "
+                         f"{', '.join(effect['drivers'])}")
+            lines.append(f"  {effect['formula']}")
+            lines += estimates({n: {"value": effect["parameters"][n], "std": effect["parameter_std"][n]}
+                                for n in effect["parameters"]}, effect["parameter_units"])
+            if self.fitted_parameters:
+                lines.append("declared parameters of the calibrated model:")
+                lines += estimates(self.fitted_parameters, physics_units)
+        lines.append(f"after (held out):  {errors(self.error_after)}")
+        lines.append(f"GP discrepancy baseline (held out): {errors(self.discrepancy_gp['errors'])}")
+        lines.append(f"decision: {self.decision}")
+        return "\n".join(lines)
+
 
 def _as_dataset(data, fixed) -> Dataset:
     if isinstance(data, Dataset):
@@ -151,6 +185,30 @@ def _residual_png(panels: list[tuple[str, np.ndarray]], series: list[tuple[str, 
     return buffer.getvalue()
 
 
+def check_request(dataset: Dataset, fit_parameters: Sequence[str], folds: int) -> None:
+    """Check a calibration request before the work starts.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Parsed measurements.
+    fit_parameters : sequence of str
+        Declared parameters to fit.
+    folds : int
+        Number of cross-validation folds. [1]
+
+    Raises
+    ------
+    ValueError
+        Starting with the offending field (``data``, ``folds`` or ``fit_parameters``).
+    """
+    if dataset.n_points < MIN_ROWS:
+        raise ValueError(f"data must have at least {MIN_ROWS} rows; got {dataset.n_points}")
+    if not 2 <= folds <= dataset.n_points // 2:
+        raise ValueError(f"folds must be in [2, {dataset.n_points // 2}] (half the rows); got {folds}")
+    check_fit_parameters(dataset, fit_parameters)
+
+
 def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any] | None = None,
               folds: int = 5, seed: int = 0, gp_max_train: int = 300, make_plots: bool = True,
               progress: Callable[[float], None] | None = None,
@@ -193,10 +251,7 @@ def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any]
     if convention not in physics.CONVENTIONS:
         raise ValueError(f"convention must be one of {', '.join(physics.CONVENTIONS)}; got {convention!r}")
     dataset = _as_dataset(data, fixed)
-    if dataset.n_points < MIN_ROWS:
-        raise ValueError(f"data must have at least {MIN_ROWS} rows; got {dataset.n_points}")
-    if not 2 <= folds <= dataset.n_points // 2:
-        raise ValueError(f"folds must be in [2, {dataset.n_points // 2}] (half the rows); got {folds}")
+    check_request(dataset, fit_parameters, folds)
     report(0.0)
 
     error_default = prediction_errors(predict_mu(dataset, {}, convention=convention), dataset.mu_measured)

@@ -30,6 +30,39 @@ def _serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _calibrate(args: argparse.Namespace) -> int:
+    import json
+
+    from calibrate import DataError, calibrate, parse_assignments, parse_csv
+
+    try:
+        text = Path(args.data).read_bytes()
+    except OSError as exc:
+        print(f"microbearing calibrate: cannot read {args.data}: {exc}", file=sys.stderr)
+        return 2
+    fit = [name.strip() for name in (args.fit or "").split(",") if name.strip()]
+    try:
+        dataset = parse_csv(text, parse_assignments(args.fixed))
+        report = calibrate(dataset, fit, folds=args.folds)
+    except DataError as exc:
+        print(f"microbearing calibrate: {args.data}: {exc}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
+        print(f"microbearing calibrate: {exc}", file=sys.stderr)
+        return 2
+    print(report.text())
+    if args.plots:
+        folder = Path(args.plots)
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, png in report.plots.items():
+            (folder / f"{name}.png").write_bytes(png)
+            print(f"wrote {folder / f'{name}.png'}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(report.to_dict(), indent=1))
+        print(f"wrote {args.json}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand."""
     import physics
@@ -50,6 +83,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="SQLite folder (default: $MICROBEARING_DATA_DIR, else the user data dir)")
     s.add_argument("--workers", type=int, default=1, help="server processes (default: 1)")
     s.set_defaults(func=_serve)
+
+    c = sub.add_parser("calibrate", help="calibrate the model on measured CSV data, name the missing effect",
+                       description="Fit the declared parameters on log mu, search the residual for a missing "
+                                   "effect, and report the held-out error before and after.")
+    c.add_argument("data", help="CSV with physics input columns, mu_measured, optionally mu_measured_std, "
+                                "and any condition columns")
+    c.add_argument("--fit", metavar="NAME,...", help="declared parameters to fit, e.g. mu_pivot,mu_ball")
+    c.add_argument("--fixed", metavar="NAME=VALUE", nargs="+", action="extend", default=[],
+                   help="physics inputs fixed for every row, in their units (e.g. balls=4)")
+    c.add_argument("--folds", type=int, default=5, help="cross-validation folds (default: %(default)s)")
+    c.add_argument("--plots", metavar="DIR", help="write the residual plots (PNG) into DIR")
+    c.add_argument("--json", metavar="FILE", help="write the full report, with the calibrated model, as JSON")
+    c.set_defaults(func=_calibrate)
     return parser
 
 

@@ -1,0 +1,154 @@
+"""Calibrations in the service: run, store as data, view, and load as a ``mu_model`` callable.
+
+A calibration is stored once, as a model of kind ``"calibration"`` in the SQLite store: its
+report and the calibrated model as JSON metadata, its plots as PNG bytes (``uint8`` arrays).
+:func:`load_mu_model` turns ``"physics"`` or ``"calibrated:<id>"`` into a callable
+``mu_model(points) -> mu`` for /v1/friction and optimization.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+import physics
+from calibrate import CalibratedModel, CalibrationReport, Dataset, calibrate
+
+from .problems import ProblemError, validation_problem
+from .store import Store
+
+__all__ = ["KIND", "MODEL_PREFIX", "calibration_view", "load_calibration", "load_mu_model", "run_calibration",
+           "data_problem"]
+
+KIND = "calibration"
+MODEL_PREFIX = "calibrated:"
+_MODEL_REF = re.compile(r"^calibrated:([0-9a-f]{32})$")
+#: A model reference: the plain physics or a stored calibration.
+MODEL_PATTERN = r"^(physics|calibrated:[0-9a-f]{32})$"
+_MAX_LISTED_ERRORS = 200
+
+
+def data_problem(errors: list[dict[str, Any]], fixed_pointer: str | None = "/fixed",
+                 data_pointer: str | None = "/data") -> ProblemError:
+    """A 422 problem listing the row-by-row errors of :class:`calibrate.DataError`.
+
+    Parameters
+    ----------
+    errors : list of dict
+        ``{"row", "column", "message"}`` items (rows 1-based).
+    fixed_pointer : str or None
+        JSON pointer of the fixed values (None when they are not in a JSON body).
+    data_pointer : str or None
+        JSON pointer of the rows (None for a CSV body: errors then name row and column in words).
+
+    Returns
+    -------
+    ProblemError
+    """
+    items = []
+    for e in errors[:_MAX_LISTED_ERRORS]:
+        row, column = e["row"], e["column"]
+        where = f"row {row}, column {column}" if row is not None else f"column {column}"
+        if row is not None and data_pointer is not None:
+            tail = "" if column is None else "/" + column.replace("~", "~0").replace("/", "~1")
+            items.append({"pointer": f"{data_pointer}/{row - 1}{tail}", "detail": e["message"]})
+        elif (row is None and column is not None and fixed_pointer is not None
+              and e["message"].startswith("fixed")):
+            items.append({"pointer": f"{fixed_pointer}/{column}", "detail": e["message"]})
+        else:
+            items.append({"pointer": data_pointer, "detail": f"{where}: {e['message']}"}
+                         if data_pointer is not None else {"detail": f"{where}: {e['message']}"})
+    if len(errors) > _MAX_LISTED_ERRORS:
+        items.append({"detail": f"... and {len(errors) - _MAX_LISTED_ERRORS} more problems in the data"})
+    return validation_problem(items)
+
+
+def calibration_view(calibration_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:
+    """The public result of a stored calibration: its report with ids and plot URLs."""
+    report = dict(metadata["report"])
+    plots = report.pop("plots")
+    return {
+        "id": calibration_id,
+        "model_id": MODEL_PREFIX + calibration_id,
+        **report,
+        "plots": {name: f"/v1/calibrations/{calibration_id}/plots/{name}.png" for name in plots},
+    }
+
+
+def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], folds: int, convention: str,
+                    progress: Callable[[float], None] | None = None) -> dict[str, Any]:
+    """Calibrate, store the report, model and plots, and return the public result.
+
+    Parameters
+    ----------
+    store : Store
+        Where the calibration is kept.
+    dataset : calibrate.Dataset
+        Parsed measurements.
+    fit_parameters : list of str
+        Declared parameters to fit.
+    folds : int
+        Cross-validation folds. [1]
+    convention : str
+        See :data:`physics.CONVENTIONS`.
+    progress : callable, optional
+        Fraction done, 0..1 (a job's progress, which also checks cancellation).
+
+    Returns
+    -------
+    dict
+        As :func:`calibration_view`.
+    """
+    report: CalibrationReport = calibrate(dataset, fit_parameters, folds=folds, progress=progress,
+                                          convention=convention)
+    metadata = {"report": report.to_dict(), "model": report.model.to_json()}
+    arrays = {name: np.frombuffer(png, dtype=np.uint8) for name, png in report.plots.items()}
+    name = "none" if report.missing_effect is None else report.missing_effect["name"]
+    calibration_id = store.save_model(KIND, metadata, arrays, name=f"{report.n_points} points, effect {name}")
+    return calibration_view(calibration_id, metadata)
+
+
+def load_calibration(store: Store, calibration_id: str):
+    """The stored calibration, or a 404 problem."""
+    stored = store.load_model(calibration_id)
+    if stored is None or stored.kind != KIND:
+        raise ProblemError(404, f"There is no calibration {calibration_id!r}.")
+    return stored
+
+
+def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable[[Mapping[str, Any]], Any]:
+    """The ``mu_model(points)`` callable of a model reference.
+
+    Parameters
+    ----------
+    store : Store
+        Where calibrations are kept.
+    model : str
+        ``"physics"`` (the declared model with its defaults) or ``"calibrated:<id>"``.
+    pointer : str
+        JSON pointer of the reference in the request, for errors.
+
+    Returns
+    -------
+    callable
+        ``mu_model(points: dict[str, array]) -> array`` of μ [1]; a calibrated model also reads the
+        extra columns its effect needs (e.g. ``relative_humidity``).
+
+    Raises
+    ------
+    ProblemError
+        422 for a malformed reference, 404 for an unknown calibration.
+    """
+    if model == "physics":
+        return lambda points: physics.evaluate(**points).mu
+    match = _MODEL_REF.match(str(model))
+    if match is None:
+        raise validation_problem([{"pointer": pointer,
+                                   "detail": f"must be 'physics' or 'calibrated:<id>'; got {model!r}"}])
+    stored = store.load_model(match.group(1))
+    if stored is None or stored.kind != KIND:
+        raise ProblemError(404, f"There is no calibrated model {model!r}.")
+    return CalibratedModel.from_json(stored.metadata["model"])

@@ -1,0 +1,182 @@
+"""/v1/calibrations (JSON rows and CSV upload), its plots, the calibrated-model loader and the CLI."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import time
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+import physics
+from service.app import create_app
+from service.calibrations import load_mu_model
+from service.cli import main
+from service.deps import get_runtime
+from service.problems import ProblemError
+from service.settings import Settings
+
+PROBLEM = "application/problem+json"
+N_ROWS = 120
+FIT = ["mu_pivot", "adhesion_energy_J_m2"]
+
+
+def measurements(seed: int, humidity_effect: bool) -> list[dict]:
+    """Physics with mu_pivot 0.7, 2 % noise and, optionally, menisci growing with humidity."""
+    rng = np.random.default_rng(seed)
+    c = {"balls": rng.choice([4, 8, 12], N_ROWS).astype(float),
+         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), N_ROWS)),
+         "speed_m_s": rng.uniform(0.0, 0.15, N_ROWS),
+         "relative_humidity": rng.uniform(0.2, 0.8, N_ROWS),
+         "temperature_C": rng.uniform(20.0, 40.0, N_ROWS)}
+    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7).mu
+    if humidity_effect:
+        mu = mu + c["balls"] * 2e-5 / (c["load_N"] * np.log(1 / c["relative_humidity"]))
+    mu = mu * np.exp(rng.normal(0.0, 0.02, N_ROWS))
+    return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(N_ROWS)]
+
+
+def as_csv(rows: list[dict]) -> str:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    return buffer.getvalue()
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("calibrations")))) as test_client:
+        yield test_client
+
+
+def finished_result(client: TestClient, response) -> dict:
+    assert response.status_code == 202, response.text
+    location = response.headers["location"]
+    deadline = time.monotonic() + 120
+    while (job := client.get(location).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.1)
+    assert job["status"] == "succeeded", job
+    return client.get(job["result_url"]).json()
+
+
+@pytest.fixture(scope="module")
+def humidity_result(client):
+    body = {"data": measurements(1, True), "fit_parameters": FIT, "folds": 3}
+    return finished_result(client, client.post("/v1/calibrations", json=body))
+
+
+def assert_problem(response, status: int) -> dict:
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"] == PROBLEM
+    return response.json()
+
+
+def test_json_calibration_names_the_effect_and_is_stored(client, humidity_result):
+    result = humidity_result
+    assert result["n_points"] == N_ROWS
+    assert result["missing_effect"]["drivers"] == ["relative_humidity"]
+    assert result["error_after"]["relative_rmse"] <= result["error_before"]["relative_rmse"] / 3
+    assert set(result["fitted_parameters"]) == set(FIT)
+    assert result["model_id"] == f"calibrated:{result['id']}"
+    assert client.get(f"/v1/calibrations/{result['id']}").json() == result
+    for url in result["plots"].values():
+        png = client.get(url)
+        assert png.status_code == 200 and png.headers["content-type"] == "image/png"
+        assert png.content.startswith(b"\x89PNG")
+    assert_problem(client.get(f"/v1/calibrations/{result['id']}/plots/nope.png"), 404)
+    assert_problem(client.get("/v1/calibrations/0123"), 404)
+
+
+def test_calibrated_model_loads_by_id_and_predicts_like_the_report(client, humidity_result):
+    store = get_runtime(client.app).store
+    mu_model = load_mu_model(store, humidity_result["model_id"])
+    points = {"balls": np.array([4.0, 8.0]), "load_N": np.array([0.01, 0.02]),
+              "speed_m_s": np.array([0.05, 0.1]), "relative_humidity": np.array([0.3, 0.7])}
+    fitted = {k: v["value"] for k, v in humidity_result["fitted_parameters"].items()}
+    force = humidity_result["missing_effect"]["parameters"]["meniscus_force_N"]
+    by_hand = physics.evaluate(**{k: v for k, v in points.items() if k != "relative_humidity"}, **fitted).mu
+    by_hand = by_hand + points["balls"] * force / (points["load_N"] * np.log(1 / points["relative_humidity"]))
+    np.testing.assert_allclose(mu_model(points), by_hand, rtol=1e-12)
+    plain = load_mu_model(store, "physics")
+    assert plain({"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}) == physics.evaluate(
+        balls=4, load_N=0.01, speed_m_s=0.1).mu
+    with pytest.raises(ProblemError) as malformed:
+        load_mu_model(store, "calibrated:xyz")
+    assert malformed.value.status == 422
+    with pytest.raises(ProblemError) as unknown:
+        load_mu_model(store, "calibrated:" + "0" * 32)
+    assert unknown.value.status == 404
+
+
+def test_csv_upload_with_fixed_values_and_noise_alone(client):
+    rows = measurements(2, False)
+    for row in rows:
+        row.pop("balls")
+    params = [("fit_parameters", "mu_pivot"), ("fixed", "balls=8"), ("folds", "3")]
+    rows_fixed = measurements(2, False)
+    # The rows were drawn with several ball counts; recompute mu for 8 balls so that the fixed value is true.
+    rng = np.random.default_rng(5)
+    for row, original in zip(rows, rows_fixed, strict=True):
+        mu = physics.evaluate(balls=8, load_N=row["load_N"], speed_m_s=row["speed_m_s"], mu_pivot=0.7).mu
+        row["mu_measured"] = float(mu * np.exp(rng.normal(0.0, 0.02)))
+        assert row["load_N"] == original["load_N"]
+    response = client.post("/v1/calibrations/csv", params=params, content=as_csv(rows),
+                           headers={"content-type": "text/csv"})
+    result = finished_result(client, response)
+    assert result["missing_effect"] is None, result["decision"]
+    assert result["fitted_parameters"]["mu_pivot"]["value"] == pytest.approx(0.7, rel=0.05)
+    assert result["model"]["fixed"] == {"balls": 8.0}
+    assert list(result["plots"]) == ["residual"]
+
+
+def test_bad_rows_are_422_with_a_pointer_per_cell(client):
+    rows = measurements(3, False)[:20]
+    rows[1]["load_N"] = -1.0
+    rows[4]["mu_measured"] = 0.0
+    del rows[7]["speed_m_s"]
+    problem = assert_problem(client.post("/v1/calibrations", json={"data": rows}), 422)
+    pointers = {e["pointer"] for e in problem["errors"]}
+    assert pointers == {"/data/1/load_N", "/data/4/mu_measured", "/data/7/speed_m_s"}
+    csv_rows = measurements(3, False)[:20]
+    csv_rows[0]["speed_m_s"] = -0.1
+    text = as_csv(csv_rows)
+    csv_problem = assert_problem(client.post("/v1/calibrations/csv", content=text,
+                                             headers={"content-type": "text/csv"}), 422)
+    assert [e["detail"][:27] for e in csv_problem["errors"]] == ["row 1, column speed_m_s: sp"]
+
+
+@pytest.mark.parametrize(("body", "pointer"), [
+    ({"fixed": {"mu_pivot": -1}}, "/fixed/mu_pivot"),
+    ({"fixed": {"balls": 4}}, "/fixed/balls"),
+    ({"fit_parameters": ["balls"]}, "/fit_parameters/0"),
+    ({"fit_parameters": ["mu_pivot"], "fixed": {"mu_pivot": 0.5}}, "/fit_parameters"),
+    ({"folds": 11}, "/folds"),
+    ({"data_rows": 5}, "/data"),
+])
+def test_bad_requests_name_the_field(client, body, pointer):
+    rows = measurements(4, False)[:20]
+    request = {"data": rows[:body.pop("data_rows", 20)], **body}
+    problem = assert_problem(client.post("/v1/calibrations", json=request), 422)
+    assert pointer in [e.get("pointer") for e in problem["errors"]], problem
+
+
+def test_cli_prints_the_report_and_writes_plots_and_json(tmp_path, capsys):
+    data = tmp_path / "data.csv"
+    data.write_text(as_csv(measurements(1, True)))
+    code = main(["calibrate", str(data), "--fit", ",".join(FIT), "--folds", "3",
+                 "--plots", str(tmp_path / "plots"), "--json", str(tmp_path / "report.json")])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "missing effect: humidity_meniscus" in out and "driven by relative_humidity" in out
+    plots = sorted(p.name for p in (tmp_path / "plots").iterdir())
+    assert plots == ["residual_after.png", "residual_before.png"]
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["model"]["effect"]["name"] == "humidity_meniscus"
+    data.write_text("balls,load_N,speed_m_s,mu_measured\n4,-1,0.1,0.01\n")
+    assert main(["calibrate", str(data)]) == 2
+    assert "row 1, column load_N" in capsys.readouterr().err
