@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from fastapi import Request
 from fastapi.responses import Response
+
+from .store import json_bytes
 
 __all__ = ["CSV_MEDIA_TYPE", "csv_text", "json_bytes", "table_response", "wants_csv"]
 
@@ -25,25 +26,6 @@ CSV_MEDIA_TYPE = "text/csv"
 def wants_csv(request: Request) -> bool:
     """Whether the client asked for CSV (``Accept: text/csv``)."""
     return CSV_MEDIA_TYPE in request.headers.get("accept", "")
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.ndarray | np.generic):
-        return value.tolist()
-    if isinstance(value, Mapping):
-        return {key: _plain(item) for key, item in value.items()}
-    return value
-
-
-def json_bytes(document: Mapping[str, Any]) -> bytes:
-    """Compact strict JSON of a document whose leaves may be NumPy arrays.
-
-    Raises
-    ------
-    ValueError
-        For NaN or infinite numbers, which JSON cannot represent.
-    """
-    return json.dumps(_plain(document), allow_nan=False, separators=(",", ":")).encode()
 
 
 def csv_text(columns: Mapping[str, Any]) -> str:

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from service.jobs import INTERRUPTED_DETAIL, JobContext, JobManager
-from service.store import Store, to_json, utc_now
+from service.store import Store, json_bytes, to_json, utc_now
 
 
 @pytest.fixture
@@ -189,6 +189,18 @@ def test_models_round_trip_without_pickle(store, tmp_path):
         store.save_model("bad", {}, {"things": np.array([{"a": 1}], dtype=object)})
     with pytest.raises(ValueError):
         to_json({"x": float("inf")})
+
+
+def test_fast_json_is_exact_and_strict():
+    values = np.random.default_rng(0).lognormal(-5, 8, 10_000)
+    document = {"mu": values, "note": "NaN and Infinity are fine inside strings", "count": np.int64(3)}
+    decoded = json.loads(json_bytes(document))
+    assert decoded["mu"] == values.tolist() and decoded["count"] == 3 and decoded["note"] == document["note"]
+    for bad in ({"x": float("nan")}, {"x": np.array([1.0, -np.inf])}):
+        with pytest.raises(ValueError):
+            json_bytes(bad)
+    with pytest.raises(TypeError):
+        json_bytes({"x": object()})
 
 
 def test_the_database_uses_wal(store):

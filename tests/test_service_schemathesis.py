@@ -24,7 +24,7 @@ from service.settings import Settings
 
 # Small limits so that generated requests also reach the 413 and job (202) paths quickly.
 _DATA_DIR = tempfile.TemporaryDirectory(prefix="microbearing-schemathesis-")
-APP = create_app(Settings(data_dir=_DATA_DIR.name, max_batch_points=5_000, max_sweep_points=20_000,
+APP = create_app(Settings(data_dir=_DATA_DIR.name, max_batch_points=2_000, max_sweep_points=5_000,
                           sweep_sync_max_points=50, max_body_bytes=1_000_000))
 schema = schemathesis.openapi.from_asgi("/openapi.json", APP)
 
