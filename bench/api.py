@@ -112,6 +112,13 @@ def main() -> None:
                 print(f"  GET  /healthz       {health:8.0f} req/s")
                 print(f"  POST /v1/friction   {friction:8.0f} req/s")
                 print(f"  ratio friction / healthz: {friction / health:.2f}  (target >= 0.7)")
+                start = time.perf_counter()
+                for _ in range(per_round):
+                    physics.evaluate(**POINT)
+                cost_ms = (time.perf_counter() - start) / per_round * 1e3
+                extra_ms = 1e3 / friction - 1e3 / health
+                print(f"  friction costs {extra_ms:.2f} ms more per request than healthz; "
+                      f"physics.evaluate of one point in process takes {cost_ms:.2f} ms of it")
                 print(f"batch, 100,000 points per request, median of {repeats}")
                 for label, outputs in (("mu only", ["mu"]), ("all 21 outputs", None)):
                     api, local = batch(client, 100_000, repeats, outputs)
