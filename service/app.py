@@ -15,8 +15,9 @@ from typing import Any
 
 from fastapi import FastAPI
 
-from . import problems
+from . import observability, problems, security
 from .deps import close_runtime, get_runtime
+from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware
 from .routes import calibrations, friction, jobs, meta, sweeps
 from .routes.meta import package_version
@@ -62,13 +63,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.state.runtime = None
     problems.install(app)
+    # Outermost last: request ids, logs and metrics see every answer; API keys are checked
+    # before the body is read; the JSON check runs on a body the size limit has bounded.
+    app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points)
     app.add_middleware(BodySizeLimitMiddleware, max_bytes=settings.max_body_bytes)
+    security.install(app, settings)
+    observability.install(app)
     for router in ROUTERS:
         app.include_router(router)
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
-            app.openapi_schema = problems.rewrite_openapi(add_raw_body_schemas(FastAPI.openapi(app)))
+            app.openapi_schema = security.document_openapi(
+                problems.rewrite_openapi(add_raw_body_schemas(FastAPI.openapi(app))))
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]

@@ -12,16 +12,18 @@ importing :mod:`service.app` or building an app touches no files.
 from __future__ import annotations
 
 import threading
+from concurrent.futures import Executor
 from typing import Annotated
 
 from fastapi import Depends, FastAPI, Request
 
+from .executor import create_executor
 from .jobs import JobManager
 from .settings import Settings
 from .store import Store
 
-__all__ = ["JobsDep", "Runtime", "SettingsDep", "StoreDep", "get_jobs", "get_runtime", "get_settings",
-           "get_store"]
+__all__ = ["ExecutorDep", "JobsDep", "Runtime", "SettingsDep", "StoreDep", "get_executor", "get_jobs",
+           "get_runtime", "get_settings", "get_store"]
 
 
 class Runtime:
@@ -36,10 +38,12 @@ class Runtime:
     def __init__(self, settings: Settings):
         self.store = Store(settings.data_dir)
         self.jobs = JobManager(self.store, settings.job_workers)
+        self.executor = create_executor(settings)  # sweep and batch chunks (service/executor.py)
 
     def close(self) -> None:
         """Stop the jobs and close the database."""
         self.jobs.shutdown()
+        self.executor.shutdown(wait=False, cancel_futures=True)
         self.store.close()
 
 
@@ -81,7 +85,14 @@ def get_jobs(request: Request) -> JobManager:
     return get_runtime(request.app).jobs
 
 
-#: Route parameter annotations: ``settings: SettingsDep``, ``store: StoreDep``, ``jobs: JobsDep``.
+def get_executor(request: Request) -> Executor:
+    """The executor running sweep and batch chunks of the app serving ``request``."""
+    return get_runtime(request.app).executor
+
+
+#: Route parameter annotations: ``settings: SettingsDep``, ``store: StoreDep``, ``jobs: JobsDep``,
+#: ``executor: ExecutorDep``.
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 StoreDep = Annotated[Store, Depends(get_store)]
 JobsDep = Annotated[JobManager, Depends(get_jobs)]
+ExecutorDep = Annotated[Executor, Depends(get_executor)]

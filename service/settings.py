@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import platformdirs
-from pydantic import Field
+from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 __all__ = ["ENV_PREFIX", "Settings", "default_data_dir", "settings_table"]
@@ -51,6 +51,22 @@ class Settings(BaseSettings):
     job_workers: int = Field(
         default=2, ge=1, le=64,
         description="Background threads running jobs in each server process.",
+    )
+    # Reliability and scale-out (service/security.py, service/executor.py).
+    api_keys: SecretStr = Field(
+        default=SecretStr(""),
+        description="Comma-separated API keys; when set, every request except /healthz, /metrics and the "
+                    "API docs needs `Authorization: Bearer <key>` (401 otherwise). Empty: no keys needed.",
+    )
+    dask_scheduler: str | None = Field(
+        default=None,
+        description="Run sweep and batch chunks on dask.distributed: a scheduler address "
+                    "(tcp://host:8786) or `local` for an embedded LocalCluster. Unset: a local thread pool.",
+    )
+    executor_workers: int = Field(
+        default=0, ge=0, le=256,
+        description="Threads evaluating sweep and batch chunks (local pool or embedded cluster); "
+                    "0: one per CPU.",
     )
 
 

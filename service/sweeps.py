@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,7 @@ from scipy.stats import qmc
 
 import physics
 
-from .evaluation import evaluate_checked
+from .executor import evaluate_in_chunks
 from .problems import validation_problem
 from .schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep
 
@@ -171,7 +172,8 @@ def design_columns(request: AnySweep, max_points: int) -> SweepPlan:
 
 
 def run_sweep(request: AnySweep, plan: SweepPlan,
-              progress: Callable[[float], None] | None = None) -> dict[str, Any]:
+              progress: Callable[[float], None] | None = None,
+              executor: Executor | None = None) -> dict[str, Any]:
     """Evaluate a sweep chunk by chunk.
 
     Parameters
@@ -182,6 +184,8 @@ def run_sweep(request: AnySweep, plan: SweepPlan,
         Its points, from :func:`design_columns`.
     progress : callable, optional
         Called with the fraction done [1] after each chunk; may raise to stop the sweep.
+    executor : concurrent.futures.Executor, optional
+        Runs the chunks (the app's pool or dask cluster, see :mod:`service.executor`); inline when None.
 
     Returns
     -------
@@ -191,14 +195,6 @@ def run_sweep(request: AnySweep, plan: SweepPlan,
     """
     outputs = [str(name) for name in request.outputs] if request.outputs else list(physics.OUTPUTS)
     columns: dict[str, np.ndarray] = {name: values for name, values in plan.varied.items()}
-    results = {name: np.empty(plan.count) for name in outputs}
-    for start in range(0, plan.count, CHUNK_POINTS):
-        stop = min(start + CHUNK_POINTS, plan.count)
-        inputs = {**plan.fixed, **{name: values[start:stop] for name, values in plan.varied.items()}}
-        chunk = evaluate_checked(inputs, outputs, request.convention, first_index=start)
-        for name, values in chunk.items():
-            results[name][start:stop] = values
-        if progress is not None:
-            progress(stop / plan.count)
-    columns.update(results)
+    columns.update(evaluate_in_chunks(executor, {**plan.fixed, **plan.varied}, plan.count, outputs,
+                                      request.convention, progress=progress, chunk_points=CHUNK_POINTS))
     return {"design": request.design, "count": plan.count, "varied": list(plan.varied), "columns": columns}

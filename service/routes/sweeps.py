@@ -8,7 +8,7 @@ from fastapi import APIRouter, Body, Request
 from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
-from ..deps import JobsDep, SettingsDep
+from ..deps import ExecutorDep, JobsDep, SettingsDep
 from ..jobs import JobContext
 from ..problems import problem_responses
 from ..schemas.sweeps import SweepRequest, SweepResult
@@ -35,6 +35,7 @@ async def create_sweep(
     body: Annotated[SweepRequest, Body(description="A grid or a design of experiments, tagged by design.")],
     settings: SettingsDep,
     jobs: JobsDep,
+    executor: ExecutorDep,
 ) -> Response:
     """Evaluate the model over a grid or a Sobol / Latin hypercube design, the other inputs fixed.
 
@@ -43,10 +44,10 @@ async def create_sweep(
     """
     plan = await run_in_threadpool(design_columns, body, settings.max_sweep_points)
     if plan.count <= settings.sweep_sync_max_points:
-        document = await run_in_threadpool(run_sweep, body, plan)
+        document = await run_in_threadpool(run_sweep, body, plan, None, executor)
         return table_response(request, document, document["columns"])
 
     def work(ctx: JobContext) -> dict:
-        return run_sweep(body, plan, progress=ctx.progress)
+        return run_sweep(body, plan, progress=ctx.progress, executor=executor)
 
     return accepted(jobs.submit("sweep", body.model_dump(mode="json"), work))

@@ -24,6 +24,8 @@ from starlette.concurrency import run_in_threadpool
 
 import physics
 
+from ..problems import ProblemError
+
 __all__ = [
     "RAW_BODY_MODELS",
     "Convention",
@@ -159,7 +161,8 @@ def raw_json_body(model: type[BaseModel]) -> dict[str, Any]:
     """
     RAW_BODY_MODELS[model.__name__] = model
     return {"requestBody": {"required": True, "content": {"application/json": {
-        "schema": {"$ref": f"#/components/schemas/{model.__name__}"}}}}}
+        "schema": {"$ref": f"#/components/schemas/{model.__name__}"}}}},
+        "responses": {"415": {"description": "Unsupported Media Type"}}}
 
 
 async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
@@ -169,7 +172,13 @@ async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
     ------
     fastapi.exceptions.RequestValidationError
         Answered as a 400 (malformed JSON) or 422 problem with JSON pointers.
+    ProblemError
+        415 when the body is declared as something else than JSON (a missing type is read as JSON).
     """
+    media_type = request.headers.get("content-type", "application/json").split(";", 1)[0].strip().lower()
+    if media_type != "application/json" and not (media_type.startswith("application/")
+                                                 and media_type.endswith("+json")):
+        raise ProblemError(415, f"The body must be application/json, not {media_type[:100]!r}.")
     body = await request.body()
     try:
         if len(body) <= _INLINE_BODY_BYTES:

@@ -1,0 +1,173 @@
+"""API keys: with ``MICROBEARING_API_KEYS`` set, every request needs ``Authorization: Bearer <key>``.
+
+The keys are a comma-separated list (``MICROBEARING_API_KEYS=key-one,key-two``); several keys let
+an operator rotate them without downtime. When the list is empty the API is open.
+
+Which paths are protected: everything except :data:`OPEN_PATHS` (deny by default, so a router
+added later is protected without any change here). The open paths are the liveness probe
+``/healthz``, the Prometheus scrape endpoint ``/metrics`` (counts and latencies by route
+template only: no request data, no keys; expose it on a trusted network, as usual for
+Prometheus targets) and the API description (``/openapi.json``, ``/docs``, ``/redoc``), which
+holds no data either.
+
+A missing, malformed or unknown key is answered ``401`` as ``application/problem+json`` with a
+``WWW-Authenticate: Bearer`` challenge (RFC 6750), before the body is read. The presented key is
+hashed with SHA-256 and compared with :func:`hmac.compare_digest` against the hash of *every*
+configured key, without stopping at a match: the time taken depends neither on which key
+matched nor on the length of the keys. Keys are never logged; the settings hold them as a
+:class:`pydantic.SecretStr`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import logging
+from typing import Any
+
+from fastapi import FastAPI
+from starlette.types import ASGIApp, Receive, Scope, Send
+
+from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
+from .settings import Settings
+
+__all__ = ["OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "document_openapi", "install",
+           "parse_api_keys"]
+
+logger = logging.getLogger("microbearing.service.security")
+
+#: Paths answered without a key (relative to the ASGI root path).
+OPEN_PATHS = frozenset({"/healthz", "/metrics", "/openapi.json", "/docs", "/docs/oauth2-redirect", "/redoc"})
+
+#: Name of the bearer scheme in the OpenAPI spec.
+SECURITY_SCHEME_NAME = "ApiKeyBearer"
+
+AUTH_TYPE = "urn:microbearing:problem:unauthorized"
+
+
+def parse_api_keys(text: str) -> tuple[str, ...]:
+    """The keys of a comma-separated list, stripped of blanks; empty items are ignored.
+
+    Parameters
+    ----------
+    text : str
+        E.g. ``"key-one, key-two"``.
+
+    Returns
+    -------
+    tuple of str
+        The keys, in order.
+
+    Raises
+    ------
+    ValueError
+        When a key contains whitespace or a non-printable or non-ASCII character, which an
+        ``Authorization`` header could not carry.
+    """
+    keys = tuple(key.strip() for key in text.split(",") if key.strip())
+    for position, key in enumerate(keys):
+        if not all(33 <= ord(char) <= 126 for char in key):
+            raise ValueError(f"MICROBEARING_API_KEYS: key number {position + 1} must consist of printable "
+                             "ASCII characters without spaces or commas")
+    return keys
+
+
+def _digest(token: bytes) -> bytes:
+    return hashlib.sha256(token).digest()
+
+
+def _bearer_token(headers: list[tuple[bytes, bytes]]) -> bytes | None:
+    """The token of the first ``Authorization: Bearer`` header, or None."""
+    for name, value in headers:
+        if name.lower() == b"authorization":
+            scheme, _, token = value.strip().partition(b" ")
+            token = token.strip()
+            if scheme.lower() == b"bearer" and token:
+                return token
+            return None
+    return None
+
+
+class ApiKeyMiddleware:
+    """Refuse requests outside :data:`OPEN_PATHS` that lack a configured bearer key.
+
+    Parameters
+    ----------
+    app : ASGI app
+        The wrapped application.
+    keys : sequence of str
+        Accepted keys; when empty every request passes.
+    """
+
+    def __init__(self, app: ASGIApp, keys: tuple[str, ...]):
+        self.app = app
+        self._digests = tuple(_digest(key.encode("ascii")) for key in keys)
+
+    def _accepts(self, token: bytes | None) -> bool:
+        presented = _digest(token or b"")
+        matched = False
+        for expected in self._digests:  # every key, no early exit: the time reveals nothing
+            matched |= hmac.compare_digest(presented, expected)
+        return matched and token is not None
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or not self._digests:
+            await self.app(scope, receive, send)
+            return
+        path = scope["path"]
+        root_path = scope.get("root_path", "")
+        if root_path and path.startswith(root_path):
+            path = path[len(root_path):] or "/"
+        if path in OPEN_PATHS:
+            await self.app(scope, receive, send)
+            return
+        token = _bearer_token(scope["headers"])
+        if self._accepts(token):
+            await self.app(scope, receive, send)
+            return
+        if token is None:
+            detail = "This API needs a key: send the header 'Authorization: Bearer <key>'."
+            challenge = 'Bearer realm="microbearing"'
+        else:
+            detail = "The API key is not valid."
+            challenge = 'Bearer realm="microbearing", error="invalid_token"'
+        reason = "missing" if token is None else "invalid"
+        logger.warning("refused a request without a valid API key",
+                       extra={"method": scope.get("method"), "path": path[:200], "reason": reason})
+        problem = ProblemError(401, detail, type_=AUTH_TYPE, headers={"WWW-Authenticate": challenge})
+        response = ProblemResponse(problem.to_dict(instance=scope["path"]), status_code=401,
+                                   headers=problem.headers)
+        await response(scope, receive, send)
+
+
+def install(app: FastAPI, settings: Settings) -> None:
+    """Require the keys of ``settings.api_keys`` on ``app`` (no-op while there are none)."""
+    app.add_middleware(ApiKeyMiddleware, keys=parse_api_keys(settings.api_keys.get_secret_value()))
+
+
+def document_openapi(spec: dict[str, Any]) -> dict[str, Any]:
+    """Declare the bearer scheme, and a 401 problem, on every operation outside :data:`OPEN_PATHS`.
+
+    Generated clients then send ``Authorization: Bearer <key>`` (e.g. openapi-python-client's
+    ``AuthenticatedClient(base_url, token=key)``). The server asks for it only when keys are
+    configured.
+    """
+    components = spec.setdefault("components", {})
+    components.setdefault("securitySchemes", {})[SECURITY_SCHEME_NAME] = {
+        "type": "http", "scheme": "bearer",
+        "description": "An API key from MICROBEARING_API_KEYS, required when the server has keys.",
+    }
+    unauthorized = {
+        "description": "Unauthorized",
+        "headers": {"WWW-Authenticate": {"description": "The Bearer challenge (RFC 6750).",
+                                         "schema": {"type": "string"}}},
+        "content": {PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}},
+    }
+    for path, path_item in spec.get("paths", {}).items():
+        if path in OPEN_PATHS:
+            continue
+        for operation in path_item.values():
+            if isinstance(operation, dict) and "responses" in operation:
+                operation["security"] = [{SECURITY_SCHEME_NAME: []}]
+                operation["responses"]["401"] = unauthorized
+    return spec
