@@ -320,6 +320,19 @@ def test_large_sweep_runs_as_a_job_with_json_and_csv_results(client):
     assert_problem(client.delete(location), 409)  # finished jobs cannot be cancelled
 
 
+def test_cancelling_a_sweep_job_over_http(tmp_path):
+    request = {"design": "grid", "fixed": {"balls": 4},  # every output at 2 million points: seconds
+               "axes": {"load_N": {"start": 1e-3, "stop": 1e-2, "num": 2_000},
+                        "speed_m_s": {"start": 0.0, "stop": 0.15, "num": 1_000}}}
+    with make_client(tmp_path, sweep_sync_max_points=0) as test_client:
+        location = test_client.post("/v1/sweeps", json=request).headers["location"]
+        response = test_client.delete(location)
+        assert response.status_code == 200 and response.json()["cancel_requested"] is True
+        job = wait_for_job(test_client, location)
+        assert job["status"] == "cancelled" and job["result_url"] is None
+        assert_problem(test_client.get(f"{location}/result"), 409)
+
+
 def test_unknown_jobs_are_404(client):
     assert_problem(client.get("/v1/jobs/0123"), 404)
     assert_problem(client.delete("/v1/jobs/0123"), 404)

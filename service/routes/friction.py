@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from fastapi import APIRouter, Request
-from fastapi.responses import JSONResponse, Response
+from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
 from ..deps import SettingsDep
@@ -21,12 +21,13 @@ router = APIRouter(prefix="/v1/friction", tags=["friction"])
 
 @router.post("", operation_id="evaluate_friction", response_model=FrictionResponse,
              responses=problem_responses(), openapi_extra=raw_json_body(FrictionRequest))
-async def evaluate_friction(request: Request) -> JSONResponse:
+async def evaluate_friction(request: Request) -> Response:
     """Every output of the friction model at one design point."""
     # Parsed from the raw bytes: a single point is dominated by per-request overhead.
     body = await parse_json_body(request, FrictionRequest)
     inputs = body.model_dump(exclude={"convention"})
-    return JSONResponse({"convention": str(body.convention), **evaluate_point(inputs, body.convention)})
+    document = {"convention": str(body.convention), **evaluate_point(inputs, body.convention)}
+    return Response(json_bytes(document), media_type="application/json")
 
 
 def _batch(request: FrictionBatchRequest, max_points: int) -> bytes:
