@@ -41,6 +41,7 @@ import shutil
 import sys
 import time
 import uuid
+from collections.abc import Callable
 from contextvars import ContextVar
 from datetime import UTC, datetime
 from pathlib import Path
@@ -109,7 +110,7 @@ class JsonFormatter(logging.Formatter):
             "level": record.levelname,
             "logger": record.name,
             "message": record.getMessage(),
-            "request_id": getattr(record, "request_id", None) or current_request_id(),
+            "request_id": getattr(record, "request_id", None),
         }
         for key, value in vars(record).items():
             if key not in _STANDARD_ATTRIBUTES and key not in entry:
@@ -122,6 +123,16 @@ class JsonFormatter(logging.Formatter):
 _HANDLER_MARK = "_microbearing_json_handler"
 
 
+def _stamp_request_id(factory: Callable[..., logging.LogRecord]) -> Callable[..., logging.LogRecord]:
+    def make_record(*args: Any, **kwargs: Any) -> logging.LogRecord:
+        record = factory(*args, **kwargs)
+        record.request_id = current_request_id()
+        return record
+
+    make_record._microbearing_stamp = True  # type: ignore[attr-defined]
+    return make_record
+
+
 def configure_logging(level: int | str = logging.INFO) -> None:
     """Write the ``microbearing`` loggers to stderr as JSON lines (idempotent).
 
@@ -130,6 +141,9 @@ def configure_logging(level: int | str = logging.INFO) -> None:
     level : int or str, default INFO
         Lowest level written.
     """
+    # Every record made while a request is handled carries its id, whatever handler formats it.
+    if not getattr(logging.getLogRecordFactory(), "_microbearing_stamp", False):
+        logging.setLogRecordFactory(_stamp_request_id(logging.getLogRecordFactory()))
     root = logging.getLogger("microbearing")
     root.setLevel(level)
     if not any(getattr(handler, _HANDLER_MARK, False) for handler in root.handlers):

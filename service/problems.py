@@ -102,6 +102,11 @@ class ProblemError(Exception):
         self.errors = errors
         self.headers = headers
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # Pickled across a process pool or a dask cluster (service/executor.py): rebuilt from
+        # status and detail, with the other attributes restored as state.
+        return (type(self), (self.status, self.detail), dict(vars(self)))
+
     def to_dict(self, instance: str | None = None) -> dict[str, Any]:
         """The problem as a JSON-ready dict."""
         body: dict[str, Any] = {"type": self.type, "title": self.title, "status": self.status,
