@@ -70,8 +70,10 @@ class DaskExecutor(Executor):
                                        "installed: pip install 'microbearing[dask]'.") from exc
                 try:
                     if self.scheduler == "local":
+                        # The scheduler always serves HTTP (health, metrics); a free loopback port.
                         self._cluster = LocalCluster(processes=False, n_workers=1,
-                                                     threads_per_worker=self.threads, dashboard_address=None)
+                                                     threads_per_worker=self.threads,
+                                                     dashboard_address="127.0.0.1:0")
                         self._client = Client(self._cluster)
                     else:
                         self._client = Client(self.scheduler, timeout=10)
