@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-import numpy as np
+from concurrent.futures import Executor
+
 from fastapi import APIRouter, Request
 from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
-from ..deps import SettingsDep
-from ..evaluation import column_arrays, evaluate_checked, evaluate_point
+from ..deps import ExecutorDep, SettingsDep
+from ..evaluation import column_arrays, evaluate_point
+from ..executor import evaluate_in_chunks
 from ..problems import problem_responses
 from ..schemas.base import parse_json_body, raw_json_body
 from ..schemas.friction import FrictionBatchRequest, FrictionBatchResponse, FrictionRequest, FrictionResponse
@@ -30,17 +32,18 @@ async def evaluate_friction(request: Request) -> Response:
     return Response(json_bytes(document), media_type="application/json")
 
 
-def _batch(request: FrictionBatchRequest, max_points: int) -> bytes:
+def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor) -> bytes:
     inputs, count = column_arrays(request.points.model_dump(), max_points)
-    result = evaluate_checked(inputs, request.outputs, request.convention, pointer="/points")
-    return json_bytes({name: np.broadcast_to(values, (count,)) for name, values in result.items()})
+    # Chunks of points on the app's executor (thread pool or dask cluster, service/executor.py).
+    return json_bytes(evaluate_in_chunks(executor, inputs, count, request.outputs, request.convention,
+                                         pointer="/points"))
 
 
 @router.post("/batch", operation_id="evaluate_friction_batch", response_model=FrictionBatchResponse,
              response_model_exclude_none=True, responses=problem_responses(413),
              openapi_extra=raw_json_body(FrictionBatchRequest))
-async def evaluate_friction_batch(request: Request, settings: SettingsDep) -> Response:
+async def evaluate_friction_batch(request: Request, settings: SettingsDep, executor: ExecutorDep) -> Response:
     """The chosen outputs at many points given as columns; scalars broadcast to every point."""
     body = await parse_json_body(request, FrictionBatchRequest)
-    content = await run_in_threadpool(_batch, body, settings.max_batch_points)
+    content = await run_in_threadpool(_batch, body, settings.max_batch_points, executor)
     return Response(content, media_type="application/json")
