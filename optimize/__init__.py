@@ -8,6 +8,8 @@
 * :mod:`optimize.pareto` - :func:`pareto_front`: μ against load or contact pressure
 """
 
+from .general import optimize_model, physics_model
+from .pareto import PARETO_OBJECTIVES, ParetoFront, pareto_front
 from .problem import Constraints, ConstraintStatus, DesignBounds, DesignProblem, constraint_report
 from .solve import BallCountResult, InfeasibleDesignError, OptimizationResult, optimize_design
 
@@ -21,4 +23,9 @@ __all__ = [
     "OptimizationResult",
     "BallCountResult",
     "InfeasibleDesignError",
+    "optimize_model",
+    "physics_model",
+    "pareto_front",
+    "ParetoFront",
+    "PARETO_OBJECTIVES",
 ]

@@ -175,8 +175,9 @@ def _phase_one_slack(problem: DesignProblem, limits: frozenset[str], counts: lis
     gp, values = design_gp(problem, limits, phase_one=True)
     best = (np.inf, counts[0])
     with gp.lock:
+        gp.assign(values, counts[0])
         for z in counts:
-            gp.assign(values, z)
+            gp.balls.value = z  # only the ball count changes: setting a parameter costs ~0.3 ms
             if _solve(gp) not in _OPTIMAL:
                 raise RuntimeError(f"phase-I problem for balls={z} ended with status {gp.problem.status}")
             if gp.problem.value < best[0]:
@@ -429,11 +430,12 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
     rows: list[BallCountResult] = []
     unconfirmed: list[int] = []
     with gp.lock:
+        gp.assign(values, lo)
         for i, z in enumerate(range(lo, hi + 1)):
             if z not in fitting:
                 rows.append(BallCountResult(z, "does not fit the groove"))
             else:
-                gp.assign(values, z)
+                gp.balls.value = z  # only the ball count changes: setting a parameter costs ~0.3 ms
                 status = _solve(gp)
                 if status in _OPTIMAL:
                     # the solver may overshoot a bound by its tolerance: clip back into the box

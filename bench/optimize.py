@@ -1,0 +1,149 @@
+"""Benchmark of optimize: the certified DGP optimizer against brute force, side by side in one run.
+
+For each problem: ``optimize_design`` (one DGP per ball count, enumerated)
+against a brute-force search over the exact physics (a 200 x 200 grid of
+groove angle x log-spaced load for every ball count, then Nelder-Mead from the
+best grid point of the three best counts), reporting both times, their ratio
+and how much better (if at all) the brute force's μ is. Then the time of one
+request over the ball-count range 3..40 (cold: first compilation; warm: the
+compiled DPP problem re-solved), the sequential convex approximation on the
+physics as a black box, and an 8-point Pareto front.
+
+Run: ``python bench/optimize.py`` from the repository root.
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+from pathlib import Path
+
+# Run as a script, this file's folder comes first on sys.path and its name would
+# shadow the optimize package (and bench/physics.py the physics package).
+if Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
+    sys.path.pop(0)
+
+import numpy as np
+from scipy.optimize import minimize
+
+import physics
+from optimize import Constraints, DesignBounds, DesignProblem, optimize_design
+from optimize.general import optimize_model, physics_model
+from optimize.pareto import pareto_front
+
+GRID = 200
+
+
+def brute_force(problem: DesignProblem) -> float:
+    """Best feasible μ of the grid, refined by Nelder-Mead (bounded to the neighbouring cells)."""
+    c = problem.constraints
+
+    def feasible(z, theta, load, r):
+        ok = np.ones(np.shape(r.mu), dtype=bool)
+        if c.max_contact_pressure_Pa is not None:
+            ok &= r.max_contact_pressure_Pa <= c.max_contact_pressure_Pa
+        if c.max_friction_force_N is not None:
+            ok &= r.friction_force_N <= c.max_friction_force_N
+        if c.min_load_capacity_N is not None:
+            ok &= load >= c.min_load_capacity_N
+        if c.max_load_per_ball_N is not None:
+            ok &= load / z <= c.max_load_per_ball_N
+        return ok
+
+    counts = np.array(problem.ball_counts())
+    theta = np.linspace(*problem.bounds.groove_angle_deg, GRID)
+    load = np.geomspace(*problem.bounds.load_N, GRID)
+    z3, t3, g3 = counts[:, None, None], theta[None, :, None], load[None, None, :]
+    r = physics.evaluate(**problem.physics_inputs(z3, t3, g3))
+    mu = np.where(feasible(z3, t3, g3, r), r.mu, np.inf)
+    per_count = mu.reshape(len(counts), -1).min(axis=1)
+    best = float(per_count.min())
+    for k in np.argsort(per_count)[:3]:
+        if not np.isfinite(per_count[k]):
+            continue
+        i, j = np.unravel_index(np.argmin(mu[k]), mu[k].shape)
+        z = int(counts[k])
+
+        def objective(x, z=z):
+            rr = physics.evaluate(**problem.physics_inputs(z, x[0], np.exp(x[1])))
+            return float(rr.mu) if feasible(z, x[0], np.exp(x[1]), rr) else 1e9
+
+        box = [(theta[max(i - 1, 0)], theta[min(i + 1, GRID - 1)]),
+               (np.log(load[max(j - 1, 0)]), np.log(load[min(j + 1, GRID - 1)]))]
+        res = minimize(objective, [theta[i], np.log(load[j])], method="Nelder-Mead", bounds=box,
+                       options={"xatol": 1e-10, "fatol": 1e-14, "maxiter": 400})
+        best = min(best, float(res.fun))
+    return best
+
+
+def problems() -> list[tuple[str, DesignProblem]]:
+    """The issue's example and five seeded random instances with limits."""
+    out = [("issue example", DesignProblem(
+        DesignBounds((4, 24), (35, 70), (0.001, 0.05)), speed_m_s=0.05, fixed={"mu_pivot": 1.0},
+        constraints=Constraints(max_contact_pressure_Pa=1e9)))]
+    for seed in range(5):
+        rng = np.random.default_rng(100 + seed)
+        z_lo = int(rng.integers(2, 8))
+        a_lo = float(rng.uniform(25, 55))
+        g_lo = float(10 ** rng.uniform(-4, -3))
+        bounds = DesignBounds((z_lo, z_lo + int(rng.integers(6, 20))),
+                              (a_lo, a_lo + float(rng.uniform(5, 25))),
+                              (g_lo, g_lo * float(10 ** rng.uniform(1, 2.5))))
+        fixed = {"mu_pivot": float(rng.uniform(0.2, 1.0)), "balls_touching": bool(seed % 2)}
+        probe = DesignProblem(bounds, speed_m_s=(0.0, 0.1), fixed=fixed)
+        r = physics.evaluate(**probe.physics_inputs(bounds.balls[0] + 2, a_lo + 2, g_lo * 8))
+        limits = Constraints(max_contact_pressure_Pa=float(r.max_contact_pressure_Pa),
+                             groove_length_m=285e-6 * (bounds.balls[1] // 2 + 1) * 0.9)
+        out.append((f"random seed {100 + seed}",
+                    DesignProblem(bounds, speed_m_s=(0.0, 0.1), fixed=fixed, constraints=limits)))
+    return out
+
+
+def main() -> None:
+    print(f"{'problem':<18} {'counts':>6} {'optimizer':>10} {'brute force':>12} {'ratio':>7} "
+          f"{'brute better by':>16}")
+    ratios = []
+    for name, problem in problems():
+        start = time.perf_counter()
+        result = optimize_design(problem)
+        t_opt = time.perf_counter() - start
+        start = time.perf_counter()
+        brute = brute_force(problem)
+        t_brute = time.perf_counter() - start
+        ratios.append(t_brute / t_opt)
+        print(f"{name:<18} {len(problem.ball_counts()):>6} {t_opt * 1e3:>8.0f}ms {t_brute * 1e3:>10.0f}ms "
+              f"{t_brute / t_opt:>6.1f}x {max(0.0, 1 - brute / result.mu):>16.1e}")
+    print(f"brute force / optimizer time, median: {statistics.median(ratios):.1f}x")
+
+    wide = DesignProblem(DesignBounds((3, 40), (35, 70), (0.001, 0.05)), speed_m_s=(0.0, 0.05),
+                         fixed={"mu_pivot": 1.0}, constraints=Constraints(max_contact_pressure_Pa=6e8))
+    wide_touching = DesignProblem(DesignBounds((3, 40), (35, 70), (0.001, 0.05)), speed_m_s=0.05,
+                                  fixed={"balls_touching": True, "adhesion_energy_J_m2": 0.1},
+                                  constraints=Constraints(max_friction_force_N=2e-4))
+    for label, problem in (("3..40, pressure limit", wide), ("3..40, friction-force limit", wide_touching)):
+        start = time.perf_counter()
+        optimize_design(problem)
+        cold = time.perf_counter() - start
+        warm = []
+        for _ in range(5):
+            start = time.perf_counter()
+            optimize_design(problem)
+            warm.append(time.perf_counter() - start)
+        print(f"ball counts {label}: first request {cold * 1e3:.0f} ms (includes DGP compilation), "
+              f"then median {statistics.median(warm) * 1e3:.0f} ms per request (38 DPP re-solves)")
+
+    start = time.perf_counter()
+    local = optimize_model(wide, physics_model(), model_name="physics")
+    t_local = time.perf_counter() - start
+    certified = optimize_design(wide)
+    print(f"sequential convex approximation, physics as black box, 3..40 x 3 starts: {t_local * 1e3:.0f} ms, "
+          f"mu {local.mu:.8g} vs certified {certified.mu:.8g} (relative {local.mu / certified.mu - 1:+.1e})")
+    start = time.perf_counter()
+    front = pareto_front(wide, "max_contact_pressure_Pa", points=8)
+    print(f"Pareto front mu vs max_contact_pressure_Pa, 8 levels, 3..40: "
+          f"{(time.perf_counter() - start) * 1e3:.0f} ms, {len(front.points)} non-dominated points")
+
+
+if __name__ == "__main__":
+    main()
