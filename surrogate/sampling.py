@@ -253,7 +253,7 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
     seed : int or None, default 0
         Seed of designs, candidates and the optimizer's restarts.
     progress : callable, optional
-        Called with the fraction of the budget spent (0..1) after each fit.
+        Called with the fraction of the budget spent (0..1) after each round's fit.
 
     Returns
     -------
@@ -283,6 +283,9 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         raise ValueError(f"n_candidates must be >= 1; got {n_candidates!r}")
     params = dict(model_params or {})
     params.setdefault("random_state", seed)
+    # Intermediate rounds use the cheap closed-form leave-one-out calibration; the final
+    # model gets the requested one (k-fold by default, five more fits).
+    rounds = {**params, "calibrate_variance": "none" if params.get("calibrate_variance") == "none" else "loo"}
 
     X = design(space, int(initial_size), design_method, seed)
     y = space.evaluate(X)
@@ -290,7 +293,7 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
     candidates = design(space, int(n_candidates), "sobol", None if seed is None else seed + 1)
     history: list[dict[str, float]] = []
     while True:
-        model = GaussianProcessSurrogate(space, **params).fit(X, y)
+        model = GaussianProcessSurrogate(space, **rounds).fit(X, y)
         _, std = model.predict(candidates, return_std=True)
         loo = np.abs(model.loo_log_errors())
         # Relative error of μ: log μ errors as they are, μ errors over a typical μ.
@@ -321,4 +324,6 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         X = np.vstack([X, candidates[picked]])
         y = np.concatenate([y, space.evaluate(candidates[picked])])
         candidates = np.delete(candidates, picked, axis=0)
+    if rounds != params:
+        model = GaussianProcessSurrogate(space, **params).fit(X, y)
     return AdaptiveFit(model, X, y, history, stop)

@@ -1,0 +1,408 @@
+"""Tests of the surrogate package: space, designs, GP estimator, adaptive sampling, metrics,
+persistence and Sobol' indices. Reference numbers are computed independently in the tests
+(physics.evaluate, brute-force refits, closed-form indices, Monte Carlo)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.stats import norm, qmc
+from sklearn.gaussian_process import GaussianProcessRegressor
+
+import physics
+from surrogate import (
+    GaussianProcessSurrogate,
+    Space,
+    accuracy,
+    design,
+    dumps,
+    fit_adaptive,
+    holdout_metrics,
+    loads,
+    select_batch,
+    sobol_indices,
+    to_dict,
+)
+from surrogate.sampling import predicted_error_quantile
+
+TARGET_BOUNDS = {"balls": (3, 40), "groove_angle_deg": (30, 75), "load_N": (0.001, 0.05),
+                 "speed_m_s": (0.001, 0.2)}
+
+# Small spaces covering float, log, power, integer and boolean dimensions.
+SPACES = {
+    "load": Space({"load_N": (0.001, 0.05)}, fixed={"balls": 6, "speed_m_s": 0.02}),
+    "balls+speed0": Space({"balls": (3, 20), "speed_m_s": (0.0, 0.2)}, fixed={"load_N": 0.01}),
+    "angle+load": Space({"groove_angle_deg": (30, 75), "load_N": (0.001, 0.05)},
+                        fixed={"balls": 8, "speed_m_s": 0.05}),
+    "touching+mu_ball": Space({"balls_touching": (False, True), "mu_ball": (0.2, 1.0),
+                               "load_N": (0.002, 0.02)}, fixed={"balls": 5, "speed_m_s": 0.01}),
+}
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    """One fitted surrogate per small space, on a 24-point Sobol' design."""
+    models = {}
+    for key, space in SPACES.items():
+        X = design(space, 24, "sobol", seed=3)
+        models[key] = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    return models
+
+
+# ----------------------------------------------------------------------------- space
+def test_space_scales_follow_the_ranges():
+    space = Space({**TARGET_BOUNDS, "mu_pivot": (0.4, 0.6), "adhesion_energy_J_m2": (0.0, 0.3)})
+    assert space.scale_of == {"balls": "log", "groove_angle_deg": "linear", "load_N": "log",
+                              "speed_m_s": "log", "mu_pivot": "linear", "adhesion_energy_J_m2": "power"}
+    speed0 = Space({"speed_m_s": (0.0, 0.2)}, fixed={"balls": 4, "load_N": 0.01})
+    assert speed0.scale_of["speed_m_s"] == "power"
+    # speed^0.66: the middle of the unit interval is the speed whose 0.66th power is halfway.
+    assert speed0.from_unit([[0.5]])[0, 0] == pytest.approx((0.5 * 0.2**0.66) ** (1 / 0.66))
+
+
+def test_from_unit_corners_are_the_bounds_and_integers_are_whole():
+    space = Space(TARGET_BOUNDS)
+    corners = space.from_unit(np.array([[0.0] * 4, [1.0] * 4]))
+    np.testing.assert_array_equal(corners, [space.lower, space.upper])
+    X = space.from_unit(qmc.Sobol(4, rng=1).random(256))
+    assert np.all(X[:, 0] == np.round(X[:, 0]))
+    assert set(np.unique(X[:, 0])) <= set(range(3, 41))
+    assert space.contains(X).all()
+
+
+def test_log_scale_is_log_uniform():
+    space = Space({"load_N": (0.001, 0.1)}, fixed={"balls": 4, "speed_m_s": 0.01})
+    X = space.from_unit(np.linspace(0, 1, 5)[:, None])
+    np.testing.assert_allclose(X[:, 0], [1e-3, 10**-2.5, 1e-2, 10**-1.5, 1e-1], rtol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3))
+def test_unit_round_trip_on_continuous_dimensions(u):
+    space = Space({"load_N": (0.001, 0.05), "speed_m_s": (0.0, 0.2), "groove_angle_deg": (30, 75)},
+                  fixed={"balls": 4})
+    U = np.array([u])
+    np.testing.assert_allclose(space.to_unit(space.from_unit(U)), U, atol=1e-12)
+
+
+def test_boolean_dimension_is_balanced_and_maps_to_bool():
+    space = SPACES["touching+mu_ball"]
+    X = design(space, 64, seed=0)
+    assert set(np.unique(X[:, 0])) == {0.0, 1.0}
+    assert abs(X[:, 0].mean() - 0.5) <= 1 / 16
+    points = space.points(X)
+    assert points["balls_touching"].dtype == np.bool_
+    expected = physics.evaluate(balls=5, speed_m_s=0.01, balls_touching=X[:, 0] == 1, mu_ball=X[:, 1],
+                                load_N=X[:, 2]).mu
+    np.testing.assert_array_equal(space.evaluate(X), expected)
+
+
+@pytest.mark.parametrize(("bounds", "fixed", "scales", "message"), [
+    ({"bogus": (0, 1)}, {}, {}, "unknown parameter"),
+    ({"load_N": (0.05, 0.001)}, {"balls": 4, "speed_m_s": 0.1}, {}, "lower < upper"),
+    ({"groove_angle_deg": (30, 95)}, {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}, {}, "groove_angle_deg"),
+    ({"balls": (2.5, 10)}, {"load_N": 0.01, "speed_m_s": 0.1}, {}, "whole number"),
+    ({"load_N": (0.001, 0.05)}, {"load_N": 0.01, "balls": 4, "speed_m_s": 0.1}, {}, "both a dimension"),
+    ({"load_N": (0.001, 0.05)}, {"balls": 4}, {}, "speed_m_s must be given"),
+    ({"speed_m_s": (0.0, 0.2)}, {"balls": 4, "load_N": 0.01}, {"speed_m_s": "log"}, "lower bound > 0"),
+    ({"balls_touching": (False, 0.5)}, {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}, {}, "true/false"),
+    ({"load_N": 0.01}, {"balls": 4, "speed_m_s": 0.1}, {}, "pair"),
+    ({}, {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}, {}, "at least one"),
+])
+def test_space_rejects_bad_definitions(bounds, fixed, scales, message):
+    with pytest.raises(ValueError, match=message):
+        Space(bounds, fixed, scales=scales)
+
+
+def test_from_points_flags_points_outside_the_space():
+    space = Space({"load_N": (0.001, 0.05), "balls": (3, 40)}, fixed={"speed_m_s": 0.01})
+    X, outside = space.from_points({"load_N": [0.01, 0.2, 0.01, 0.01, 0.01],
+                                    "balls": [4, 4, 50, 4, 4],
+                                    "speed_m_s": [0.01, 0.01, 0.01, 0.02, 0.01],
+                                    "mu_pivot": [0.5, 0.5, 0.5, 0.5, 0.9]})
+    np.testing.assert_array_equal(outside, [False, True, True, True, True])
+    np.testing.assert_array_equal(X[:, 1], [4, 4, 50, 4, 4])
+    with pytest.raises(ValueError, match="missing balls"):
+        space.from_points({"load_N": [0.01]})
+    with pytest.raises(ValueError, match=r"load_N must be in \(0"):
+        space.from_points({"load_N": [-1.0], "balls": [4]})
+
+
+def test_physics_features_use_load_per_ball():
+    space = Space(TARGET_BOUNDS)
+    X = np.array([[4, 54.7, 0.004, 0.01], [8, 54.7, 0.008, 0.01]])
+    Z = space.features(X)
+    assert Z.shape[1] == len(space.feature_names()) == 5
+    # Same load per ball and angle: every feature but log(balls) agrees.
+    np.testing.assert_allclose(Z[0, 1:], Z[1, 1:])
+    assert space.feature_names()[3] == "log(load_N/balls)"
+    assert Space({**TARGET_BOUNDS, "adhesion_energy_J_m2": (0, 0.3)}).feature_names()[-1] == "log(Q)"
+
+
+def test_space_data_round_trip():
+    space = Space({**TARGET_BOUNDS, "balls_touching": (False, True)}, fixed={"mu_pivot": 0.7},
+                  convention="derjaguin")
+    again = Space.from_dict(json.loads(json.dumps(space.to_dict())))
+    assert again == space
+
+
+# ----------------------------------------------------------------------------- designs
+def test_latin_hypercube_has_one_point_per_stratum():
+    space = Space({"groove_angle_deg": (30, 75), "mu_pivot": (0.4, 0.6)},
+                  fixed={"balls": 4, "load_N": 0.01, "speed_m_s": 0.01})
+    U = space.to_unit(design(space, 20, "latin_hypercube", seed=2))
+    for column in U.T:
+        np.testing.assert_array_equal(np.sort(np.floor(column * 20)), np.arange(20))
+
+
+def test_design_rejects_bad_arguments():
+    space = SPACES["load"]
+    with pytest.raises(ValueError, match="n must be"):
+        design(space, 0)
+    with pytest.raises(ValueError, match="method must be one of"):
+        design(space, 4, "grid")
+
+
+# ----------------------------------------------------------------------------- model
+@pytest.mark.parametrize("key", SPACES)
+def test_model_near_interpolates_training_points(fitted, key):
+    model = fitted[key]
+    relative = np.abs(model.predict(model.X_train_) / model.y_train_ - 1)
+    # Near interpolation: the fitted noise term lets the mean miss training values slightly
+    # (more across the jump of a boolean input), far below held-out errors.
+    assert np.median(relative) < 1e-4 and relative.max() < 1e-3
+
+
+@pytest.mark.parametrize("key", SPACES)
+def test_model_held_out_error_and_interval(fitted, key):
+    model = fitted[key]
+    X = design(model.space, 256, "sobol", seed=77)
+    truth = model.space.evaluate(X)
+    p = model.predict_interval(X)
+    assert np.median(np.abs(p.mu / truth - 1)) < 2e-3
+    assert np.all((p.mu_lower < p.mu) & (p.mu < p.mu_upper))
+    # The interval is exp(log mu ± 1.96 σ).
+    np.testing.assert_allclose(np.log(p.mu_upper / p.mu), norm.ppf(0.975) * p.log_std, rtol=1e-8, atol=1e-14)
+
+
+def test_coverage_of_the_95_interval_is_in_a_band():
+    space = Space({"load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2), "groove_angle_deg": (30, 75)},
+                  fixed={"balls": 6})
+    coverages = []
+    for seed in range(3):
+        X = design(space, 40, "sobol", seed=seed)
+        model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+        coverages.append(holdout_metrics(model, n_test=512, seed=1000 + seed)["coverage_95"])
+    assert 0.8 <= np.mean(coverages) <= 1.0
+
+
+def test_predict_points_matches_predict_and_flags_outside(fitted):
+    model = fitted["balls+speed0"]
+    X = np.array([[4.0, 0.0], [12.0, 0.1], [30.0, 0.1]])
+    direct = model.predict(X)
+    p = model.predict_points({"balls": X[:, 0], "speed_m_s": X[:, 1], "load_N": 0.01})
+    np.testing.assert_array_equal(p.mu, direct)
+    np.testing.assert_array_equal(p.outside_space, [False, False, True])
+    np.testing.assert_array_equal(model.mu_model({"balls": X[:, 0], "speed_m_s": X[:, 1]}), direct)
+
+
+def test_loo_errors_match_brute_force_refits(fitted):
+    model = fitted["angle+load"]
+    gp = model.gaussian_process_
+    Zs = model._design_matrix(model.X_train_)
+    residual = np.log(model.y_train_) - model._prior_mean(Zs)
+    centre, spread = residual.mean(), residual.std()
+    normalized = (residual - centre) / spread
+    brute = []
+    for i in range(len(Zs)):
+        keep = np.arange(len(Zs)) != i
+        refit = GaussianProcessRegressor(gp.kernel_, alpha=gp.alpha, optimizer=None)
+        refit.fit(Zs[keep], normalized[keep])
+        brute.append((normalized[i] - refit.predict(Zs[i:i + 1])[0]) * spread)
+    np.testing.assert_allclose(model.loo_log_errors(), brute, rtol=1e-5, atol=1e-12)
+
+
+@pytest.mark.parametrize(("params", "y", "message"), [
+    ({"kernel": "cubic"}, None, "kernel must be one of"),
+    ({"features": "magic"}, None, "features must be one of"),
+    ({"mean": "quadratic"}, None, "mean must be one of"),
+    ({"n_restarts_optimizer": -1}, None, "n_restarts_optimizer"),
+    ({"calibrate_variance": True}, None, "calibrate_variance must be one of"),
+    ({}, -1.0, "y must be > 0"),
+    ({}, "short", "y must be a 1-D array"),
+])
+def test_model_validation_errors(params, y, message):
+    space = SPACES["load"]
+    X = design(space, 8, seed=0)
+    target = space.evaluate(X)
+    if y == "short":
+        target = target[:-1]
+    elif y is not None:
+        target = np.full(len(X), y)
+    with pytest.raises(ValueError, match=message):
+        GaussianProcessSurrogate(space, **params).fit(X, target)
+
+
+def test_model_rejects_wrong_columns(fitted):
+    with pytest.raises(ValueError, match=r"shape \(n, 2\)"):
+        fitted["angle+load"].predict(np.ones((3, 3)))
+
+
+# ----------------------------------------------------------------------------- persistence
+@pytest.mark.parametrize("key", SPACES)
+def test_persistence_round_trip_is_exact(fitted, key):
+    model = fitted[key]
+    text = dumps(model)
+    data = json.loads(text)
+    assert data["convention"] == model.space.convention and data["package_version"]
+    again = loads(text)
+    X = design(model.space, 200, "sobol", seed=5)
+    a, b = model.predict_interval(X), again.predict_interval(X)
+    np.testing.assert_allclose(b.mu, a.mu, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(b.mu_upper, a.mu_upper, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(b.log_std, a.log_std, rtol=1e-12, atol=1e-15)
+
+
+def test_persistence_rejects_other_data(fitted):
+    data = to_dict(fitted["load"])
+    with pytest.raises(ValueError, match="format"):
+        loads(json.dumps({**data, "format": "pickle"}))
+    with pytest.raises(ValueError, match="convention"):
+        loads(json.dumps({**data, "convention": "mine"}))
+    with pytest.raises(ValueError, match="fitted"):
+        to_dict(GaussianProcessSurrogate(SPACES["load"]))
+
+
+# ----------------------------------------------------------------------------- sampling
+def test_predicted_error_quantile_against_closed_form_and_monte_carlo():
+    assert predicted_error_quantile(np.array([2.0]), 0.5) == pytest.approx(2.0 * norm.ppf(0.75), rel=1e-9)
+    sigmas = np.array([0.1, 1.0, 3.0])
+    draws = np.abs(np.random.default_rng(0).normal(0, np.repeat(sigmas, 200_000)))
+    assert predicted_error_quantile(sigmas, 0.95) == pytest.approx(np.percentile(draws, 95), rel=0.01)
+
+
+def test_select_batch_by_variance_starts_at_the_largest_std(fitted):
+    model = fitted["angle+load"]
+    candidates = design(model.space, 128, "sobol", seed=11)
+    picked = select_batch(model, candidates, 5, criterion="variance")
+    _, std = model.predict(candidates, return_std=True)
+    assert picked[0] == np.argmax(std)
+    assert len(set(picked)) == 5
+    imse = select_batch(model, candidates, 5)
+    assert len(set(imse)) == 5
+
+
+def test_select_batch_conditions_on_picks():
+    space = SPACES["load"]
+    X = design(space, 6, seed=0)
+    model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    candidates = design(space, 64, seed=9)
+    picked = select_batch(model, candidates, 2, criterion="variance")
+    # Brute force: refit with the first pick added (same hyperparameters, fantasized value):
+    # its largest posterior variance is the second pick.
+    gp = model.gaussian_process_
+    Z = model._design_matrix(np.vstack([X, candidates[picked[:1]]]))
+    refit = GaussianProcessRegressor(gp.kernel_.k1, alpha=gp.kernel_.k2.noise_level + gp.alpha,
+                                     optimizer=None).fit(Z, np.zeros(len(Z)))
+    _, std = refit.predict(model._design_matrix(candidates), return_std=True)
+    assert picked[1] == np.argmax(std)
+
+
+def test_fit_adaptive_respects_budget_and_reports_progress():
+    space = Space({"load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2)}, fixed={"balls": 6})
+    fractions = []
+    fit = fit_adaptive(space, budget=22, target_relative_error=1e-12, initial_size=10, batch_size=5,
+                       n_candidates=256, progress=fractions.append)
+    assert fit.n_train == 22 and fit.stop_reason == "budget_exhausted"
+    assert [h["n_train"] for h in fit.history] == [10, 15, 20, 22]
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0
+    assert len({tuple(x) for x in fit.X}) == 22
+    np.testing.assert_array_equal(fit.y, space.evaluate(fit.X))
+
+
+def test_fit_adaptive_stops_at_the_target():
+    space = Space({"load_N": (0.001, 0.05)}, fixed={"balls": 6, "speed_m_s": 0.01})
+    fit = fit_adaptive(space, budget=40, target_relative_error=0.05, initial_size=8, n_candidates=128)
+    assert fit.stop_reason == "target_reached" and fit.n_train == 8
+    assert holdout_metrics(fit.model, n_test=256)["median_relative_error"] < 0.05
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"budget": 1}, "budget must be"),
+    ({"target_relative_error": 0}, "target_relative_error must be > 0"),
+    ({"initial_size": 50}, "initial_size must be in"),
+    ({"batch_size": 0}, "batch_size must be"),
+    ({"design_method": "grid"}, "method must be one of"),
+])
+def test_fit_adaptive_validation(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        fit_adaptive(SPACES["load"], **{"budget": 10, **kwargs})
+
+
+# ----------------------------------------------------------------------------- metrics
+def test_accuracy_by_hand():
+    m = accuracy([1.0, 2.0, 4.0, 5.0], [1.1, 2.0, 3.0, 5.0], [0.9, 2.1, 2.0, 4.0], [1.2, 2.2, 5.0, 6.0])
+    relative = [0.1, 0.0, 0.25, 0.0]
+    assert m["median_relative_error"] == pytest.approx(0.05)
+    assert m["p95_relative_error"] == pytest.approx(np.percentile(relative, 95))
+    assert m["nrmse"] == pytest.approx(np.sqrt((0.01 + 1.0) / 4) / np.std([1.0, 2.0, 4.0, 5.0]))
+    assert m["coverage_95"] == 0.75
+    with pytest.raises(ValueError, match="same length"):
+        accuracy([1.0, 2.0], [1.0], [1.0], [1.0])
+
+
+def test_holdout_metrics_never_use_training_points():
+    space = Space({"balls": (3, 6)}, fixed={"load_N": 0.01, "speed_m_s": 0.01})
+    X = np.array([[3.0], [4.0], [5.0]])
+    model = GaussianProcessSurrogate(space, mean="constant", random_state=0).fit(X, space.evaluate(X))
+    # Only balls = 6 is not a training point: the held-out set is it alone, repeated.
+    with pytest.raises(ValueError, match="fewer than 2"):
+        holdout_metrics(model, n_test=1)
+    m = holdout_metrics(model, n_test=64)
+    assert m["n_test"] == 64 - sum(design(space, 64, "sobol", 9_999)[:, 0] < 6)
+
+
+# ----------------------------------------------------------------------------- sensitivity
+UNIT_SPACE = Space({"mu_pivot": (0, 1), "mu_ball": (0, 1), "viscosity_Pa_s": (0, 1)},
+                   fixed={"balls": 4, "load_N": 0.01, "speed_m_s": 0.1})
+
+
+def test_sobol_indices_of_the_ishigami_function():
+    a, b = 7.0, 0.1
+
+    def ishigami(X):
+        x = -np.pi + 2 * np.pi * X
+        return np.sin(x[:, 0]) + a * np.sin(x[:, 1]) ** 2 + b * x[:, 2] ** 4 * np.sin(x[:, 0])
+
+    variance = a**2 / 8 + b * np.pi**4 / 5 + b**2 * np.pi**8 / 18 + 0.5
+    v1, v2, v13 = 0.5 * (1 + b * np.pi**4 / 5) ** 2, a**2 / 8, 8 * b**2 * np.pi**8 / 225
+    result = sobol_indices(ishigami, UNIT_SPACE, n=4096)
+    np.testing.assert_allclose(result.first_order, np.array([v1, v2, 0.0]) / variance, atol=0.02)
+    np.testing.assert_allclose(result.total_order, np.array([v1 + v13, v2, v13]) / variance, atol=0.02)
+
+
+def test_sobol_indices_of_an_additive_function():
+    weights = np.array([1.0, 2.0, 3.0])
+    result = sobol_indices(lambda X: X @ weights, UNIT_SPACE, n=2048)
+    expected = weights**2 / np.sum(weights**2)
+    np.testing.assert_allclose(result.first_order, expected, atol=0.01)
+    np.testing.assert_allclose(result.total_order, expected, atol=0.01)
+    assert result.to_dict()["first_order"]["mu_ball"] == pytest.approx(expected[1], abs=0.01)
+    with pytest.raises(ValueError, match="power of 2"):
+        sobol_indices(lambda X: X[:, 0], UNIT_SPACE, n=1000)
+
+
+def test_sobol_indices_of_the_friction_model_on_a_surrogate():
+    space = Space(TARGET_BOUNDS)
+    X = design(space, 64, seed=0)
+    model = GaussianProcessSurrogate(space, random_state=0, calibrate_variance="none")
+    model.fit(X, space.evaluate(X))
+    result = sobol_indices(lambda P: np.log(model.predict(P)), space, n=1024)
+    exact = sobol_indices(lambda P: np.log(space.evaluate(P)), space, n=1024)
+    np.testing.assert_allclose(result.total_order, exact.total_order, atol=0.02)
+    # Load per ball drives μ: balls and load dominate, speed least.
+    assert np.argmin(exact.total_order) == space.names.index("speed_m_s")
