@@ -74,6 +74,11 @@ def settings_table() -> str:
     """The settings as a Markdown table (variable, default, meaning) for the README."""
     rows = ["| Environment variable | Default | Meaning |", "|---|---|---|"]
     for name, field in Settings.model_fields.items():
-        default = "user data dir / microbearing" if field.default_factory else field.default
-        rows.append(f"| `{ENV_PREFIX}{name.upper()}` | `{default}` | {field.description} |")
+        if field.default_factory is not None:
+            default = "user data dir / microbearing"
+        else:
+            value = field.default
+            plain = value.get_secret_value() if isinstance(value, SecretStr) else value
+            default = "unset" if plain is None else "empty" if plain == "" else plain
+        rows.append(f"| `{ENV_PREFIX}{name.upper()}` | {default} | {field.description} |")
     return "\n".join(rows)

@@ -9,6 +9,7 @@ from openapi_spec_validator import validate
 
 import physics
 from service.openapi import SPEC_PATH, spec_text
+from service.settings import settings_table
 
 
 @pytest.fixture(scope="module")
@@ -72,3 +73,9 @@ def test_every_output_is_documented_with_its_unit(spec):
     schema = spec["components"]["schemas"]["FrictionResponse"]
     for name, (unit, _) in physics.OUTPUTS.items():
         assert schema["properties"][name]["description"].endswith(f"[{unit}]"), name
+
+
+def test_readme_settings_table_is_current():
+    readme = (SPEC_PATH.parent.parent / "README.md").read_text(encoding="utf-8")
+    assert settings_table() in readme, (
+        "the README's settings table is stale: paste service.settings.settings_table() under ### Settings")
