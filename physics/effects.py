@@ -22,6 +22,28 @@ Driver columns are matched by name: a humidity column contains ``humid`` or
 ``rh`` (a fraction in [0, 1), or percent when the name contains ``pct`` or
 ``percent``), a temperature column ``temp``, a running-in column ``run``,
 ``cycle``, ``pass``, ``stroke``, ``count``, ``time`` or ``distance``.
+
+Notes
+-----
+With μ_m the model's μ, z the balls, G the load [N], V the speed [m/s]:
+
+* ``humidity_meniscus``: μ = μ_m + z F_m / (G ln(1/h)), F_m [N]; capillary
+  condensation (Kelvin radius ∝ 1/ln(1/h)) [1]_.
+* ``viscous_drag``: μ = μ_m + c_v V / G, c_v = η A / h [N s/m]; Couette drag [2]_.
+* ``constant_drag``: μ = μ_m + F_0 / G, F_0 [N]; electrostatic or cable drag [3]_.
+* ``thermal_shear_strength``: μ = μ_m exp(-β (T - T_ref)), β [1/K], T_ref the
+  data's median; thermally activated interfacial shear strength [4]_.
+* ``run_in``: μ = μ_m (1 + A exp(-n / n_0)), A [1], n_0 [unit of n]; running-in [5]_.
+* ``generic_linear``, ``generic_quadratic``: μ = μ_m exp(c_1 z + c_2 z²),
+  z = (x - mean) / std; ``generic_power``: μ = μ_m (x / median)^c_1.
+
+References
+----------
+.. [1] L. Bocquet, E. Charlaix, S. Ciliberto, J. Crassous, Nature 396, 735-737 (1998).
+.. [2] B.J. Hamrock, Fundamentals of Fluid Film Lubrication, McGraw-Hill, 1994, ch. 4.
+.. [3] W.C. Tang, T.H. Nguyen, R.T. Howe, Sensors and Actuators 20, 25-32 (1989).
+.. [4] B.J. Briscoe, D.C.B. Evans, Proc. R. Soc. A 380, 389-407 (1982).
+.. [5] P.J. Blau, Tribology International 38, 1007-1012 (2005).
 """
 
 from __future__ import annotations
@@ -87,6 +109,17 @@ class Effect:
         no ``fixed_drivers`` means any numeric column (the generic family).
     generic : bool
         True for the generic fallback family.
+    correct : callable
+        ``correct(mu, x, columns, values, constants)``: the formula, with ``x`` the main driver in the
+        formula's unit and ``values`` the parameters in order.
+    make_constants : callable or None
+        ``make_constants(x) -> dict`` of constants fixed from the data (None: no constants).
+    make_initial : callable
+        ``make_initial(mu, x, columns, constants) -> list`` of initial parameter values.
+    accepts_values : callable or None
+        ``accepts_values(x) -> bool``: whether the driver lies in the formula's domain (None: always).
+    driver_transform : callable or None
+        ``driver_transform(name, values)``: the driver in the formula's unit (None: as given).
     """
 
     name: str
