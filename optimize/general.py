@@ -35,6 +35,7 @@ says so.
 
 from __future__ import annotations
 
+import threading
 import time
 import warnings
 from collections.abc import Callable
@@ -100,10 +101,11 @@ def _sub_problem(size: int, with_friction: bool, with_pressure: bool, with_per_b
         cons.append(y <= par["log_per_ball_cap"])
     problem = cp.Problem(cp.Minimize(objective), cons)
     assert problem.is_dcp(dpp=True)
-    return problem, dx, dy, par
+    return problem, dx, dy, par, threading.Lock()
 
 
 _SUB_CACHE: dict[tuple[int, bool, bool, bool], tuple] = {}
+_SUB_CACHE_LOCK = threading.Lock()
 
 
 def _contact_load_cap_N(problem: DesignProblem) -> float:
@@ -191,6 +193,23 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
     y_hi_start = y_cap if log_pressure_cap is None else np.minimum(y_cap, log_pressure_cap - sec_log)
     y = y_lo + f_load * (y_hi_start - y_lo)
 
+    key = (len(z), c.max_friction_force_N is not None, log_pressure_cap is not None,
+           c.max_load_per_ball_N is not None)
+    with _SUB_CACHE_LOCK:
+        if key not in _SUB_CACHE:
+            _SUB_CACHE[key] = _sub_problem(*key)
+        sub, step_x, step_y, par, lock = _SUB_CACHE[key]
+    with lock:  # the cached sub-problem's parameters are shared: one run at a time per size
+        return _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts, fractions,
+                        x, y, x_lo, x_hi, y_lo, y_cap, g_floor, log_pressure_cap, max_iterations, progress,
+                        start_time)
+
+
+def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts, fractions, x, y, x_lo, x_hi,
+             y_lo, y_cap, g_floor, log_pressure_cap, max_iterations, progress, start_time):
+    """The trust-region loop of :func:`optimize_model` and its result, holding the sub-problem's lock."""
+    c, b = problem.constraints, problem.bounds
+
     def evaluate(xs, ys):
         points = problem.physics_inputs(np.tile(z, len(xs) // len(z)), np.degrees(np.arctan(np.exp(xs))),
                                         np.exp(ys))
@@ -206,11 +225,6 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
             return log_mu
         return log_mu + PENALTY * np.maximum(0.0, log_mu + ys - log_friction_max)
 
-    key = (len(z), log_friction_max is not None, log_pressure_cap is not None,
-           c.max_load_per_ball_N is not None)
-    if key not in _SUB_CACHE:
-        _SUB_CACHE[key] = _sub_problem(*key)
-    sub, step_x, step_y, par = _SUB_CACHE[key]
     par["x_lo"].value, par["x_hi"].value, par["y_lo"].value, par["y_hi"].value = x_lo, x_hi, y_lo, y_cap
     if log_friction_max is not None:
         par["log_friction_max"].value = np.full_like(z, log_friction_max)
