@@ -134,7 +134,10 @@ def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None) -> Data
         except UnicodeDecodeError as exc:
             raise DataError([{"row": None, "column": None, "message": f"CSV is not UTF-8: {exc}"}]) from None
     reader = csv.reader(io.StringIO(text.lstrip("\ufeff")))
-    lines = [line for line in reader if any(cell.strip() for cell in line)]
+    try:
+        lines = [line for line in reader if any(cell.strip() for cell in line)]
+    except csv.Error as exc:  # e.g. a cell over the csv module's field size limit (128 KiB)
+        raise DataError([{"row": None, "column": None, "message": f"CSV cannot be read: {exc}"}]) from None
     if not lines:
         raise DataError([{"row": None, "column": None, "message": "CSV is empty; expected a header row"}])
     header = [h.strip() for h in lines[0]]

@@ -18,16 +18,15 @@ import physics
 from calibrate import CalibratedModel, CalibrationReport, Dataset, calibrate
 
 from .problems import ProblemError, validation_problem
+from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
-__all__ = ["KIND", "MODEL_PREFIX", "calibration_view", "load_calibration", "load_mu_model", "run_calibration",
-           "data_problem"]
+__all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_view", "data_problem",
+           "evaluate_point_with_model", "load_calibration", "load_mu_model", "run_calibration"]
 
 KIND = "calibration"
 MODEL_PREFIX = "calibrated:"
 _MODEL_REF = re.compile(r"^calibrated:([0-9a-f]{32})$")
-#: A model reference: the plain physics or a stored calibration.
-MODEL_PATTERN = r"^(physics|calibrated:[0-9a-f]{32})$"
 _MAX_LISTED_ERRORS = 200
 
 
@@ -117,6 +116,55 @@ def load_calibration(store: Store, calibration_id: str):
     if stored is None or stored.kind != KIND:
         raise ProblemError(404, f"There is no calibration {calibration_id!r}.")
     return stored
+
+
+def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any],
+                              conditions: Mapping[str, float] | None) -> dict[str, Any]:
+    """The /v1/friction answer of a calibrated model at one point.
+
+    Parameters
+    ----------
+    store : Store
+        Where calibrations are kept.
+    model : str
+        ``"calibrated:<id>"``.
+    given : mapping
+        Physics inputs the client gave explicitly; they override the model's fixed and fitted values.
+    conditions : mapping or None
+        Condition columns the model's effect reads (e.g. ``relative_humidity`` [1]).
+
+    Returns
+    -------
+    dict
+        ``convention`` (the model's), every physics output with the model's fitted parameters, ``mu``
+        [1] including the effect, ``mu_effect`` [1] (the effect's share of ``mu``) and ``model``.
+
+    Raises
+    ------
+    ProblemError
+        404 for an unknown model, 422 for missing or invalid conditions or non-finite outputs.
+    """
+    from .evaluation import evaluate_point
+
+    mu_model = load_mu_model(store, model)
+    conditions = dict(conditions or {})
+    clashing = sorted(set(conditions) & set(physics.PARAMETERS))
+    if clashing:
+        raise validation_problem([{"pointer": f"/conditions/{name}",
+                                   "detail": "a physics input; give it as a field of its own"}
+                                  for name in clashing])
+    inputs = {**mu_model.fixed, **mu_model.fitted, **given}
+    outputs = evaluate_point(inputs, mu_model.convention)
+    try:
+        with np.errstate(all="ignore"):
+            mu = float(np.asarray(mu_model({**given, **conditions})))
+    except ValueError as exc:
+        raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
+    if not np.isfinite(mu):
+        raise validation_problem([{"pointer": "/conditions",
+                                   "detail": "the calibrated model's mu is not finite at these conditions"}])
+    return {**outputs, "convention": mu_model.convention, "mu": mu, "mu_effect": mu - outputs["mu"],
+            "model": model}
 
 
 def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable[[Mapping[str, Any]], Any]:

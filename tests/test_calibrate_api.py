@@ -180,3 +180,26 @@ def test_cli_prints_the_report_and_writes_plots_and_json(tmp_path, capsys):
     data.write_text("balls,load_N,speed_m_s,mu_measured\n4,-1,0.1,0.01\n")
     assert main(["calibrate", str(data)]) == 2
     assert "row 1, column load_N" in capsys.readouterr().err
+
+
+def test_friction_answers_with_a_calibrated_model(client, humidity_result):
+    point = {"balls": 8, "load_N": 0.015, "speed_m_s": 0.08}
+    body = {**point, "model": humidity_result["model_id"], "conditions": {"relative_humidity": 0.6}}
+    answer = client.post("/v1/friction", json=body)
+    assert answer.status_code == 200, answer.text
+    answer = answer.json()
+    fitted = {k: v["value"] for k, v in humidity_result["fitted_parameters"].items()}
+    declared = physics.evaluate(**point, **fitted)
+    force = humidity_result["missing_effect"]["parameters"]["meniscus_force_N"]
+    effect = 8 * force / (0.015 * np.log(1 / 0.6))
+    assert answer["mu_pivoting"] == pytest.approx(float(declared.mu_pivoting), rel=1e-12)
+    assert answer["mu_effect"] == pytest.approx(effect, rel=1e-9)
+    assert answer["mu"] == pytest.approx(float(declared.mu) + effect, rel=1e-12)
+    assert answer["model"] == humidity_result["model_id"]
+    without_conditions = {**point, "model": humidity_result["model_id"]}
+    missing = assert_problem(client.post("/v1/friction", json=without_conditions), 422)
+    assert "relative_humidity" in missing["detail"]
+    assert_problem(client.post("/v1/friction", json={**point, "model": "calibrated:" + "0" * 32}), 404)
+    assert_problem(client.post("/v1/friction", json={**point, "conditions": {"relative_humidity": 0.6}}), 422)
+    plain = client.post("/v1/friction", json=point).json()
+    assert "model" not in plain and plain["mu"] == float(physics.evaluate(**point).mu)

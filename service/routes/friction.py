@@ -8,10 +8,11 @@ from fastapi import APIRouter, Request
 from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
-from ..deps import ExecutorDep, SettingsDep
+from ..calibrations import evaluate_point_with_model
+from ..deps import ExecutorDep, SettingsDep, StoreDep
 from ..evaluation import column_arrays, evaluate_point
 from ..executor import evaluate_in_chunks
-from ..problems import problem_responses
+from ..problems import problem_responses, validation_problem
 from ..schemas.base import parse_json_body, raw_json_body
 from ..schemas.friction import FrictionBatchRequest, FrictionBatchResponse, FrictionRequest, FrictionResponse
 from ..tables import json_bytes
@@ -23,11 +24,19 @@ router = APIRouter(prefix="/v1/friction", tags=["friction"])
 
 @router.post("", operation_id="evaluate_friction", response_model=FrictionResponse,
              responses=problem_responses(), openapi_extra=raw_json_body(FrictionRequest))
-async def evaluate_friction(request: Request) -> Response:
-    """Every output of the friction model at one design point."""
+async def evaluate_friction(request: Request, store: StoreDep) -> Response:
+    """Every output of the friction model, or of a calibrated model (``model``), at one design point."""
     # Parsed from the raw bytes: a single point is dominated by per-request overhead.
     body = await parse_json_body(request, FrictionRequest)
-    inputs = body.model_dump(exclude={"convention"})
+    if body.model != "physics":
+        given = body.model_dump(exclude_unset=True, exclude={"convention", "model", "conditions"})
+        document = await run_in_threadpool(evaluate_point_with_model, store, body.model, given,
+                                           body.conditions)
+        return Response(json_bytes(document), media_type="application/json")
+    if body.conditions is not None:
+        raise validation_problem([{"pointer": "/conditions",
+                                   "detail": "only a calibrated model reads conditions"}])
+    inputs = body.model_dump(exclude={"convention", "model", "conditions"})
     document = {"convention": str(body.convention), **evaluate_point(inputs, body.convention)}
     return Response(json_bytes(document), media_type="application/json")
 

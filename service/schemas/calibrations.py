@@ -11,8 +11,8 @@ import physics
 
 from .base import Convention, ConventionName, ResponseModel, StrictModel, parameter_fields
 
-__all__ = ["FITTABLE_PARAMETERS", "CalibrationFixed", "CalibrationRequest", "CalibrationResult",
-           "FittableParameterName"]
+__all__ = ["FITTABLE_PARAMETERS", "MODEL_FIELDS", "MODEL_PATTERN", "MODEL_RESPONSE_FIELDS",
+           "CalibrationFixed", "CalibrationRequest", "CalibrationResult", "FittableParameterName"]
 
 #: Declared physics parameters a calibration may fit: the optional real-valued ones.
 FITTABLE_PARAMETERS = [n for n, p in physics.PARAMETERS.items() if p.kind == "float" and not p.required]
@@ -25,6 +25,27 @@ CalibrationFixed = create_model(
     __doc__="Physics inputs fixed for every measurement (those that are not data columns).",
     **parameter_fields(optional=True),
 )
+
+#: A model reference: the plain physics or a stored calibration.
+MODEL_PATTERN = r"^(physics|calibrated:[0-9a-f]{32})$"
+
+#: Request fields choosing the model of /v1/friction, for ``create_model``.
+MODEL_FIELDS: dict[str, Any] = {
+    "model": (str, Field(default="physics", pattern=MODEL_PATTERN, description=(
+        "'physics' (the declared model) or 'calibrated:<id>' from /v1/calibrations: its fixed and fitted "
+        "parameters replace the defaults, its convention is used and its effect is added to mu."))),
+    "conditions": (dict[str, float] | None, Field(default=None, description=(
+        "Condition columns the calibrated model's effect reads, e.g. relative_humidity [1] "
+        "[unit of each column as in the calibration data]."))),
+}
+
+#: Response fields added when a calibrated model answers.
+MODEL_RESPONSE_FIELDS: dict[str, Any] = {
+    "model": (str | None, Field(default=None, description="The calibrated model used (absent for physics).")),
+    "mu_effect": (float | None, Field(default=None, description=(
+        "Share of mu due to the calibrated model's added effect [1]; the other outputs are the declared "
+        "model's with the fitted parameters (absent for physics)."))),
+}
 
 _ROW_DESCRIPTION = (
     "One measurement: physics inputs by name in their units (see /v1/meta), mu_measured [1] > 0, "

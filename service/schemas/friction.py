@@ -15,6 +15,7 @@ from .base import (
     output_fields,
     parameter_fields,
 )
+from .calibrations import MODEL_FIELDS, MODEL_RESPONSE_FIELDS
 
 __all__ = ["FrictionBatchPoints", "FrictionBatchRequest", "FrictionBatchResponse", "FrictionRequest",
            "FrictionResponse"]
@@ -25,13 +26,14 @@ _CONVENTION = (ConventionName, Field(default=Convention(physics.DEFAULT_CONVENTI
 FrictionRequest = create_model(
     "FrictionRequest", __base__=StrictModel,
     __doc__="One design point: the physics inputs by name; optional ones take their defaults.",
-    convention=_CONVENTION, **parameter_fields(),
+    convention=_CONVENTION, **parameter_fields(), **MODEL_FIELDS,
 )
 
 FrictionResponse = create_model(
     "FrictionResponse", __base__=ResponseModel,
     __doc__="Every output of the friction model for one design point.",
     convention=(ConventionName, Field(description="Convention used.")), **output_fields(),
+    **MODEL_RESPONSE_FIELDS,
 )
 
 FrictionBatchPoints = create_model(
