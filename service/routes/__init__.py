@@ -21,19 +21,25 @@ Adding a resource
    "detail": "..."}]``) for 422. Domain code raises ``ValueError``; catch it in the route and
    turn it into a 422 problem naming the field. Never let a client's input cause a 500.
 4. CPU-heavy work in a route: a plain ``def`` route, or ``await run_in_threadpool(fn, ...)``
-   in an ``async def`` one, so the event loop keeps serving.
+   in an ``async def`` one, so the event loop keeps serving. Dependencies are annotated
+   aliases from :mod:`service.deps`: ``settings: SettingsDep``, ``store: StoreDep``,
+   ``jobs: JobsDep``.
+5. Large JSON bodies (columns of a million numbers): take ``request: Request``, validate with
+   ``await parse_json_body(request, Model)`` and pass ``openapi_extra=raw_json_body(Model)``
+   (:mod:`service.schemas.base`); answer large results with
+   ``Response(service.store.json_bytes(doc), media_type="application/json")``.
 
 Running work as a job
 ---------------------
 ::
 
-    from ..deps import get_jobs
-    from ..jobs import JobContext, JobManager
+    from ..deps import JobsDep
+    from ..jobs import JobContext
     from .jobs import ACCEPTED_RESPONSE, accepted
 
     @router.post("", operation_id="create_optimization", status_code=202,
                  responses={**ACCEPTED_RESPONSE, **problem_responses()})
-    def create_optimization(body: OptimizationRequest, jobs: JobManager = Depends(get_jobs)):
+    def create_optimization(body: OptimizationRequest, jobs: JobsDep):
         def work(ctx: JobContext) -> dict:
             result = optimize.run(..., progress=ctx.progress)   # ctx.progress also checks cancel
             return {"design": ..., "mu": ...}                  # JSON-ready; arrays allowed
@@ -48,10 +54,9 @@ Storing a model
 ---------------
 ::
 
-    from ..deps import get_store
-    from ..store import Store
+    from ..deps import StoreDep
 
-    def create_surrogate(body: ..., store: Store = Depends(get_store)):
+    def create_surrogate(body: ..., store: StoreDep):
         model_id = store.save_model("surrogate", {"inputs": [...], "r2": 0.998}, {"coef": coef})
         ...
     stored = store.load_model(model_id)        # None when unknown -> ProblemError(404, ...)
