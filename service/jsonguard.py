@@ -117,11 +117,11 @@ def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH
     special = np.flatnonzero(_STRUCTURAL[data])
     kinds = data[special]
     quotes = _unescaped_quotes(body, special[kinds == _QUOTE])
-    if len(quotes) // 2 > max_items or len(special) - len(quotes) > 2 * max_items:
-        raise _too_large(f"The body holds more than {max_items} strings or arrays and objects.")
     if len(quotes) % 2:
         return  # an unterminated string: the parser answers 400
     brackets = _outside_strings(special[kinds != _QUOTE], quotes)
+    if len(quotes) // 2 > max_items or len(brackets) > 2 * max_items:
+        raise _too_large(f"The body holds more than {max_items} strings or arrays and objects.")
 
     # One pass over the brackets: depth, and which container encloses what follows each bracket.
     enclosing_after = np.empty(len(brackets), dtype=np.int64)
