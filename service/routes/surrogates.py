@@ -1,0 +1,243 @@
+"""``/v1/surrogates``: train Gaussian-process surrogates of μ (a job), predict, Sobol' indices.
+
+A surrogate is stored as a model of kind ``"surrogate"``: its public result and the fitted
+estimator as JSON data (:func:`surrogate.to_dict`: training points, hyperparameters, space,
+package version and physics convention), never pickle. :func:`load_mu_model` turns
+``"surrogate:<id>"`` into a ``mu_model(points) -> mu`` callable for other routes.
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query
+from fastapi.responses import JSONResponse, Response
+
+import surrogate
+from surrogate import GaussianProcessSurrogate, Space
+
+from ..deps import JobsDep, StoreDep
+from ..jobs import JobContext
+from ..problems import ProblemError, problem_responses, validation_problem
+from ..schemas.surrogates import (
+    PredictRequest,
+    PredictResponse,
+    SensitivityResponse,
+    SurrogateList,
+    SurrogateRequest,
+    SurrogateResult,
+)
+from ..store import Store, utc_now
+from .jobs import ACCEPTED_RESPONSE, accepted
+
+__all__ = ["KIND", "MODEL_PREFIX", "load_mu_model", "load_surrogate", "router", "train_surrogate"]
+
+router = APIRouter(prefix="/v1/surrogates", tags=["surrogates"])
+
+KIND = "surrogate"
+MODEL_PREFIX = "surrogate:"
+_MODEL_REF = re.compile(r"^surrogate:([0-9a-f]{32})$")
+_HELD_OUT_POINTS = 1024
+_HELD_OUT_SEED = 987_654_321
+_SENSITIVITY_N = (256, 65_536)
+
+# Rebuilding a surrogate refits its Gaussian process (cubic in n_train); stored surrogates never
+# change, so the last few rebuilt ones are kept by id.
+_CACHE: OrderedDict[str, GaussianProcessSurrogate] = OrderedDict()
+_CACHE_SIZE = 16
+_CACHE_LOCK = threading.Lock()
+
+
+def _space_problem(exc: ValueError) -> ProblemError:
+    text = str(exc)
+    pointer = "/fixed" if text.startswith("fixed") else "/space"
+    return validation_problem([{"pointer": pointer, "detail": text}])
+
+
+def build_space(body: SurrogateRequest) -> Space:
+    """The :class:`surrogate.Space` of a request, or a 422 problem naming the field."""
+    bounds = {name: tuple(pair) for name, pair in body.space.model_dump(exclude_none=True).items()}
+    fixed = body.fixed.model_dump(exclude_none=True)
+    try:
+        return Space(bounds, fixed, convention=str(body.convention))
+    except ValueError as exc:
+        raise _space_problem(exc) from None
+
+
+def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
+                    progress: Callable[[float], None] | None = None) -> dict[str, Any]:
+    """Train, measure on held-out physics, store, and return the public result.
+
+    Parameters
+    ----------
+    store : Store
+        Where the surrogate is kept.
+    space : surrogate.Space
+        Dimensions and fixed values.
+    body : SurrogateRequest
+        Budget, target, design, adaptivity and seed.
+    progress : callable, optional
+        Fraction done, 0..1 (a job's progress, which also checks cancellation).
+
+    Returns
+    -------
+    dict
+        The :class:`SurrogateResult` as JSON data.
+    """
+    start = time.perf_counter()
+    fit = surrogate.fit_adaptive(space, budget=body.budget, target_relative_error=body.target_relative_error,
+                                 design_method=str(body.design), adaptive=body.adaptive, seed=body.seed,
+                                 progress=None if progress is None else (lambda f: progress(0.95 * f)))
+    seconds = time.perf_counter() - start
+    metrics = surrogate.holdout_metrics(fit.model, n_test=_HELD_OUT_POINTS, seed=_HELD_OUT_SEED)
+    data = surrogate.to_dict(fit.model)
+    space_data = space.to_dict()
+    result = {
+        "space": space_data["bounds"], "fixed": space_data["fixed"], "scales": space_data["scales"],
+        "features": space.feature_names(fit.model.features), "budget": body.budget,
+        "n_train": fit.n_train, "stop_reason": fit.stop_reason, "metrics": metrics, "history": fit.history,
+        "kernel": data["gp"]["kernel"], "fit_seconds": seconds, "convention": data["convention"],
+        "package_version": data["package_version"], "created_at": utc_now(),
+    }
+    surrogate_id = store.save_model(KIND, {"result": result, "model": data}, {},
+                                    name=f"{len(space.names)}-D, {fit.n_train} evaluations")
+    if progress is not None:
+        progress(1.0)
+    return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, **result}
+
+
+def _view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:
+    return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, **metadata["result"]}
+
+
+def _stored(store: Store, surrogate_id: str):
+    stored = store.load_model(surrogate_id)
+    if stored is None or stored.kind != KIND:
+        raise ProblemError(404, f"There is no surrogate {surrogate_id!r}.")
+    return stored
+
+
+def load_surrogate(store: Store, surrogate_id: str) -> GaussianProcessSurrogate:
+    """The fitted surrogate of a stored id (rebuilt from its data), or a 404 problem."""
+    with _CACHE_LOCK:
+        if surrogate_id in _CACHE:
+            _CACHE.move_to_end(surrogate_id)
+            return _CACHE[surrogate_id]
+    model = surrogate.from_dict(_stored(store, surrogate_id).metadata["model"])
+    with _CACHE_LOCK:
+        _CACHE[surrogate_id] = model
+        while len(_CACHE) > _CACHE_SIZE:
+            _CACHE.popitem(last=False)
+    return model
+
+
+def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable[[Mapping[str, Any]], Any]:
+    """The ``mu_model(points)`` callable of a ``"surrogate:<id>"`` reference.
+
+    Parameters
+    ----------
+    store : Store
+        Where surrogates are kept.
+    model : str
+        ``"surrogate:<id>"``.
+    pointer : str
+        JSON pointer of the reference in the request, for errors.
+
+    Returns
+    -------
+    callable
+        ``mu_model(points: dict[str, array]) -> array`` of predicted μ [1], one per broadcast
+        point; points must give every dimension of the surrogate.
+
+    Raises
+    ------
+    ProblemError
+        422 for a malformed reference, 404 for an unknown surrogate.
+    """
+    match = _MODEL_REF.match(str(model))
+    if match is None:
+        raise validation_problem([{"pointer": pointer, "detail": f"must be 'surrogate:<id>'; got {model!r}"}])
+    return load_surrogate(store, match.group(1)).mu_model
+
+
+@router.post("", operation_id="create_surrogate", status_code=202,
+             responses={**ACCEPTED_RESPONSE, **problem_responses()})
+def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> JSONResponse:
+    """Train a surrogate of mu over a space of physics inputs (a job).
+
+    Starts from a space-filling design and, with ``adaptive``, adds physics evaluations where
+    the Gaussian process is least sure until ``target_relative_error`` or ``budget`` is reached.
+    The job's result is the surrogate (see ``GET /v1/surrogates/{id}``).
+    """
+    space = build_space(body)
+
+    def work(ctx: JobContext) -> dict[str, Any]:
+        return train_surrogate(store, space, body, progress=ctx.progress)
+
+    return accepted(jobs.submit("surrogate", body.model_dump(mode="json"), work))
+
+
+@router.get("", operation_id="list_surrogates", response_model=SurrogateList)
+def list_surrogates(store: StoreDep) -> JSONResponse:
+    """Every stored surrogate, newest first."""
+    rows = store.list_models(KIND)
+    return JSONResponse({"surrogates": [_view(row["id"], row["metadata"]) for row in rows]})
+
+
+@router.get("/{surrogate_id}", operation_id="get_surrogate", response_model=SurrogateResult,
+            responses=problem_responses(404))
+def get_surrogate(surrogate_id: str, store: StoreDep) -> JSONResponse:
+    """A stored surrogate: its space, training summary and held-out metrics."""
+    return JSONResponse(_view(surrogate_id, _stored(store, surrogate_id).metadata))
+
+
+@router.delete("/{surrogate_id}", operation_id="delete_surrogate", status_code=204,
+               response_class=Response, responses=problem_responses(404))
+def delete_surrogate(surrogate_id: str, store: StoreDep) -> Response:
+    """Delete a stored surrogate."""
+    _stored(store, surrogate_id)
+    store.delete_model(surrogate_id)
+    with _CACHE_LOCK:
+        _CACHE.pop(surrogate_id, None)
+    return Response(status_code=204)
+
+
+@router.post("/{surrogate_id}/predict", operation_id="predict_surrogate", response_model=PredictResponse,
+             responses=problem_responses(404))
+def predict_surrogate(surrogate_id: str, body: PredictRequest, store: StoreDep) -> JSONResponse:
+    """Predicted mu with its 95 % interval at columnar points, flagging points outside the space."""
+    model = load_surrogate(store, surrogate_id)
+    points = body.points.model_dump(exclude_none=True)
+    try:
+        prediction = model.predict_points(points)
+    except ValueError as exc:
+        raise validation_problem([{"pointer": "/points", "detail": str(exc)}]) from None
+    return JSONResponse({"mu": prediction.mu.tolist(), "mu_lower": prediction.mu_lower.tolist(),
+                         "mu_upper": prediction.mu_upper.tolist(),
+                         "outside_space": prediction.outside_space.tolist()})
+
+
+@router.get("/{surrogate_id}/sensitivity", operation_id="get_surrogate_sensitivity",
+            response_model=SensitivityResponse, responses=problem_responses(404))
+def get_surrogate_sensitivity(
+    surrogate_id: str, store: StoreDep,
+    n: Annotated[int, Query(ge=_SENSITIVITY_N[0], le=_SENSITIVITY_N[1],
+                            description="Base sample size, a power of 2 [1].")] = 4096,
+) -> JSONResponse:
+    """First-order and total Sobol' indices of mu over the space, computed on the surrogate."""
+    if n & (n - 1):
+        raise validation_problem([{"parameter": "n", "detail": f"n must be a power of 2; got {n}"}])
+    model = load_surrogate(store, surrogate_id)
+    indices = surrogate.sobol_indices(model.predict, model.space, n=n, seed=0)
+    return JSONResponse({
+        "first_order": {k: float(v) for k, v in zip(indices.names, indices.first_order, strict=True)},
+        "total_order": {k: float(v) for k, v in zip(indices.names, indices.total_order, strict=True)},
+        "n": n,
+        "distribution": "independent inputs, uniform in the design's unit cube (log-uniform on "
+                        "log-scaled dimensions, integers rounded)",
+    })

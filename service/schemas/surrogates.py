@@ -1,0 +1,148 @@
+"""Bodies of ``/v1/surrogates``: a space and a budget in, a Gaussian-process surrogate out."""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import Annotated, Any
+
+from pydantic import Field, create_model
+
+import physics
+import surrogate.sampling
+
+from .base import (
+    Convention,
+    ConventionName,
+    ResponseModel,
+    StrictModel,
+    parameter_description,
+    parameter_fields,
+    parameter_type,
+)
+
+__all__ = ["MAX_BUDGET", "DesignName", "PredictRequest", "PredictResponse", "SensitivityResponse",
+           "SurrogateList", "SurrogateMetrics", "SurrogateRequest", "SurrogateResult", "SurrogateSpace"]
+
+#: Most physics evaluations one surrogate may use: GP fitting grows as budget³.
+MAX_BUDGET = 1000
+
+Design = StrEnum("Design", {name: name for name in surrogate.sampling.DESIGNS})
+#: One of :data:`surrogate.sampling.DESIGNS`.
+DesignName = Annotated[Design, Field(strict=False)]
+
+
+def _bounds_field(name: str) -> tuple[Any, Any]:
+    spec = physics.PARAMETERS[name]
+    pair = "[false, true]" if spec.kind == "bool" else "[lower, upper] with lower < upper"
+    scalar = parameter_type(spec)
+    return (list[scalar] | None, Field(default=None, min_length=2, max_length=2,
+                                       description=f"Range as {pair}. {parameter_description(spec)}"))
+
+
+SurrogateSpace = create_model(
+    "SurrogateSpace", __base__=StrictModel,
+    __doc__="The dimensions of the surrogate: physics inputs with their ranges (at least one).",
+    **{name: _bounds_field(name) for name in physics.PARAMETERS},
+)
+
+SurrogateFixed = create_model(
+    "SurrogateFixed", __base__=StrictModel,
+    __doc__="Values of physics inputs that are not dimensions (others take their defaults).",
+    **parameter_fields(optional=True),
+)
+
+
+class SurrogateRequest(StrictModel):
+    """What to learn and how many physics evaluations it may cost."""
+
+    space: SurrogateSpace = Field(  # type: ignore[valid-type]
+        description="Dimensions and their ranges, e.g. {\"balls\": [3, 40], \"load_N\": [0.001, 0.05]}.")
+    fixed: SurrogateFixed = Field(  # type: ignore[valid-type]
+        default_factory=SurrogateFixed,
+        description="Inputs held fixed; balls, load_N and speed_m_s must be a dimension or fixed.")
+    budget: int = Field(default=100, ge=2, le=MAX_BUDGET,
+                        description="Most physics evaluations for training [1].")
+    target_relative_error: float = Field(
+        default=0.001, gt=0, le=1,
+        description="Stop adding evaluations once the estimated median relative error of mu is at most "
+                    "this and its 95th percentile at most 5 times this [1].")
+    design: DesignName = Field(  # type: ignore[valid-type]
+        default=Design("sobol"), description="Starting design of experiments.")
+    adaptive: bool = Field(default=True, description="Add evaluations where the surrogate is least "
+                                                     "sure (else spend the budget on the design).")
+    seed: int = Field(default=0, ge=0, le=2**31 - 1, description="Seed of designs and optimizer [1].")
+    convention: ConventionName = Field(  # type: ignore[valid-type]
+        default=Convention(physics.DEFAULT_CONVENTION),
+        description="Reading of the paper's ambiguous ball-ball terms.")
+
+
+class SurrogateMetrics(ResponseModel):
+    """Accuracy on held-out physics evaluations (never training points)."""
+
+    median_relative_error: float = Field(description="Median of |predicted/true mu - 1| [1].")
+    p95_relative_error: float = Field(description="95th percentile of |predicted/true mu - 1| [1].")
+    nrmse: float = Field(description="Root-mean-square error of mu over the standard deviation of mu [1].")
+    coverage_95: float = Field(description="Fraction of true mu inside the predicted 95 % interval [1].")
+    n_test: int = Field(description="Held-out points (a Sobol' design of the space) [1].")
+
+
+class SurrogateResult(ResponseModel):
+    """A trained surrogate."""
+
+    id: str = Field(description="Surrogate id.")
+    model_id: str = Field(description="Model reference for other routes: surrogate:<id>.")
+    space: dict[str, list[float | bool]] = Field(description="Dimensions and ranges [their units].")
+    fixed: dict[str, float | bool] = Field(description="Fixed inputs [their units].")
+    scales: dict[str, str] = Field(description="Scale of each dimension in the design: log, power or linear.")
+    features: list[str] = Field(description="Inputs of the Gaussian process.")
+    budget: int = Field(description="Evaluation budget requested [1].")
+    n_train: int = Field(description="Physics evaluations used for training, at most budget [1].")
+    stop_reason: str = Field(description="target_reached or budget_exhausted.")
+    metrics: SurrogateMetrics = Field(description="Held-out accuracy.")
+    history: list[dict[str, float]] = Field(
+        description="Per refit: n_train [1] and estimated / leave-one-out median and 95th-percentile "
+                    "relative errors [1].")
+    kernel: str = Field(description="Fitted kernel with its hyperparameters (standardized features).")
+    fit_seconds: float = Field(description="Training time [s].")
+    convention: str = Field(description="Physics convention trained on.")
+    package_version: str = Field(description="microbearing version trained with.")
+    created_at: str = Field(description="Creation time, ISO 8601 UTC.")
+
+
+class SurrogateList(ResponseModel):
+    """Stored surrogates, newest first."""
+
+    surrogates: list[SurrogateResult] = Field(description="Every stored surrogate.")
+
+
+PredictPoints = create_model(
+    "PredictPoints", __base__=StrictModel,
+    __doc__="Columnar points: every dimension of the surrogate; other inputs optional (a value "
+            "differing from the trained one flags the point as outside the space).",
+    **parameter_fields(columns=True, optional=True),
+)
+
+
+class PredictRequest(StrictModel):
+    """Where to predict."""
+
+    points: PredictPoints = Field(description="Columnar inputs by name.")  # type: ignore[valid-type]
+
+
+class PredictResponse(ResponseModel):
+    """Predicted mu with its 95 % interval."""
+
+    mu: list[float] = Field(description="Predicted friction coefficient [1].")
+    mu_lower: list[float] = Field(description="Lower end of the 95 % interval [1].")
+    mu_upper: list[float] = Field(description="Upper end of the 95 % interval [1].")
+    outside_space: list[bool] = Field(
+        description="True where the point leaves the trained space (the interval then does not apply).")
+
+
+class SensitivityResponse(ResponseModel):
+    """Sobol' indices of mu over the space, computed on the surrogate."""
+
+    first_order: dict[str, float] = Field(description="Variance share of each input alone [1].")
+    total_order: dict[str, float] = Field(description="Variance share involving each input [1].")
+    n: int = Field(description="Base sample size; n (d + 2) surrogate evaluations [1].")
+    distribution: str = Field(description="Input distribution the indices refer to.")

@@ -1,0 +1,145 @@
+"""/v1/surrogates: training job, listing, retrieval, prediction, sensitivity, deletion, the
+"surrogate:<id>" loader and error answers."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+import physics
+from service.app import create_app
+from service.deps import get_runtime
+from service.problems import ProblemError
+from service.routes.surrogates import load_mu_model
+from service.settings import Settings
+
+PROBLEM = "application/problem+json"
+SPACE = {"load_N": [0.001, 0.05], "speed_m_s": [0.001, 0.2], "balls": [3, 12]}
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("surrogates")))) as test_client:
+        yield test_client
+
+
+def finished(client: TestClient, response) -> tuple[dict, list[float]]:
+    assert response.status_code == 202, response.text
+    location = response.headers["location"]
+    assert location.startswith("/v1/jobs/")
+    seen = []
+    deadline = time.monotonic() + 120
+    while (job := client.get(location).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        seen.append(job.get("progress"))
+        time.sleep(0.05)
+    assert job["status"] == "succeeded", job
+    return client.get(job["result_url"]).json(), seen
+
+
+@pytest.fixture(scope="module")
+def trained(client):
+    body = {"space": SPACE, "fixed": {"groove_angle_deg": 60.0}, "budget": 30, "target_relative_error": 1e-6}
+    result, _ = finished(client, client.post("/v1/surrogates", json=body))
+    return result
+
+
+def assert_problem(response, status: int) -> dict:
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"] == PROBLEM
+    return response.json()
+
+
+def test_training_job_reports_metrics_within_budget(trained):
+    assert trained["n_train"] == 30 and trained["budget"] == 30
+    assert trained["stop_reason"] == "budget_exhausted"
+    assert trained["model_id"] == "surrogate:" + trained["id"]
+    metrics = trained["metrics"]
+    assert metrics["n_test"] > 1000 - 30 and 0 <= metrics["coverage_95"] <= 1
+    assert 0 < metrics["median_relative_error"] < 0.01
+    assert trained["fixed"] == {"groove_angle_deg": 60.0}
+    assert trained["scales"] == {"load_N": "log", "speed_m_s": "log", "balls": "log"}
+    assert trained["convention"] == physics.DEFAULT_CONVENTION and trained["package_version"]
+
+
+def test_list_get_and_predict(client, trained):
+    listed = client.get("/v1/surrogates").json()["surrogates"]
+    assert trained["id"] in [s["id"] for s in listed]
+    assert client.get(f"/v1/surrogates/{trained['id']}").json() == trained
+
+    load = [0.002, 0.01, 0.04, 0.01]
+    speed = [0.01, 0.1, 0.15, 0.5]
+    balls = [4, 6, 10, 6]
+    response = client.post(f"/v1/surrogates/{trained['id']}/predict",
+                           json={"points": {"load_N": load, "speed_m_s": speed, "balls": balls}})
+    assert response.status_code == 200, response.text
+    p = response.json()
+    truth = physics.evaluate(load_N=np.array(load), speed_m_s=np.array(speed), balls=np.array(balls),
+                             groove_angle_deg=60.0).mu
+    assert p["outside_space"] == [False, False, False, True]
+    np.testing.assert_allclose(p["mu"][:3], truth[:3], rtol=0.01)
+    assert all(lo < mu < hi for lo, mu, hi in zip(p["mu_lower"], p["mu"], p["mu_upper"], strict=True))
+    # Another groove angle than trained: outside the space.
+    other = client.post(f"/v1/surrogates/{trained['id']}/predict",
+                        json={"points": {"load_N": 0.01, "speed_m_s": 0.1, "balls": 6,
+                                         "groove_angle_deg": 50.0}})
+    assert other.json()["outside_space"] == [True]
+
+
+def test_loader_gives_a_mu_model(client, trained):
+    store = get_runtime(client.app).store
+    mu_model = load_mu_model(store, trained["model_id"])
+    points = {"load_N": np.array([0.003, 0.02]), "speed_m_s": 0.05, "balls": np.array([5, 9])}
+    truth = physics.evaluate(groove_angle_deg=60.0, **points).mu
+    np.testing.assert_allclose(mu_model(points), truth, rtol=0.01)
+    with pytest.raises(ProblemError) as missing:
+        load_mu_model(store, "surrogate:" + "0" * 32)
+    assert missing.value.status == 404
+    with pytest.raises(ProblemError) as malformed:
+        load_mu_model(store, "physics")
+    assert malformed.value.status == 422
+
+
+def test_sensitivity_ranks_load_per_ball_over_speed(client, trained):
+    response = client.get(f"/v1/surrogates/{trained['id']}/sensitivity", params={"n": 1024})
+    assert response.status_code == 200, response.text
+    indices = response.json()
+    total = indices["total_order"]
+    assert set(total) == set(SPACE)
+    assert total["load_N"] > total["speed_m_s"] and total["balls"] > total["speed_m_s"]
+    assert_problem(client.get(f"/v1/surrogates/{trained['id']}/sensitivity", params={"n": 1000}), 422)
+
+
+def test_target_stops_early_and_delete(client):
+    body = {"space": {"load_N": [0.001, 0.05]}, "fixed": {"balls": 4, "speed_m_s": 0.01}, "budget": 40,
+            "target_relative_error": 0.05, "design": "latin_hypercube"}
+    result, _ = finished(client, client.post("/v1/surrogates", json=body))
+    assert result["stop_reason"] == "target_reached" and result["n_train"] < 40
+    assert client.delete(f"/v1/surrogates/{result['id']}").status_code == 204
+    assert_problem(client.get(f"/v1/surrogates/{result['id']}"), 404)
+    assert_problem(client.delete(f"/v1/surrogates/{result['id']}"), 404)
+    predict = client.post(f"/v1/surrogates/{result['id']}/predict", json={"points": {"load_N": 0.01}})
+    assert_problem(predict, 404)
+
+
+@pytest.mark.parametrize(("body", "pointer"), [
+    ({"space": {"load_N": [0.05, 0.001]}, "fixed": {"balls": 4, "speed_m_s": 0.1}}, "/space"),
+    ({"space": {"load_N": [0.001, 0.05]}, "fixed": {"balls": 4}}, "/space"),
+    ({"space": {"load_N": [0.001, 0.05]}, "fixed": {"balls": 4, "speed_m_s": 0.1}, "budget": 1}, "/budget"),
+    ({"space": {"load_N": [0.001, 0.05, 0.1]}, "fixed": {"balls": 4, "speed_m_s": 0.1}}, "/space/load_N"),
+    ({"space": {"bogus": [0, 1]}, "fixed": {"balls": 4, "speed_m_s": 0.1}}, "/space/bogus"),
+    ({"space": {"load_N": [0.001, 0.05]}, "fixed": {"balls": 4, "speed_m_s": 0.1},
+      "target_relative_error": 0}, "/target_relative_error"),
+])
+def test_bad_requests_name_the_field(client, body, pointer):
+    problem = assert_problem(client.post("/v1/surrogates", json=body), 422)
+    assert any(error["pointer"].startswith(pointer) for error in problem["errors"]), problem
+
+
+def test_predict_without_a_dimension_is_422(client, trained):
+    problem = assert_problem(client.post(f"/v1/surrogates/{trained['id']}/predict",
+                                         json={"points": {"load_N": 0.01}}), 422)
+    assert "missing" in problem["errors"][0]["detail"]
