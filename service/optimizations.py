@@ -1,0 +1,241 @@
+"""Optimizations in the service: build the design problem from a request, pick the method, run it.
+
+``model="physics"`` is solved by :func:`optimize.optimize_design` (a certified
+global optimum); ``calibrated:<id>`` and ``surrogate:<id>`` by
+:func:`optimize.optimize_model` (a local optimum). Infeasible problems become a
+422 problem whose ``errors`` point at the conflicting limits and bounds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+import physics
+from optimize import (
+    Constraints,
+    DesignBounds,
+    DesignProblem,
+    InfeasibleDesignError,
+    ParetoFront,
+    optimize_design,
+    optimize_model,
+    pareto_front,
+)
+from optimize.problem import DESIGN_VARIABLES
+
+from .calibrations import load_mu_model
+from .problems import ProblemError, validation_problem
+from .schemas.optimizations import OptimizationRequest
+from .store import Store
+
+__all__ = ["INFEASIBLE_TYPE", "SYNC_MAX_BALL_COUNTS", "OptimizationPlan", "infeasible_problem", "pareto_png",
+           "prepare", "run"]
+
+#: Physics requests with at most this many ball counts (and no Pareto front) answer at once. [1]
+SYNC_MAX_BALL_COUNTS = 40
+INFEASIBLE_TYPE = "urn:microbearing:problem:infeasible-design"
+_BOUND_POINTERS = {"balls": "/bounds/balls", "balls_min": "/bounds/balls", "balls_max": "/bounds/balls",
+                   "groove_angle_deg_min": "/bounds/groove_angle_deg",
+                   "groove_angle_deg_max": "/bounds/groove_angle_deg",
+                   "load_N_min": "/bounds/load_N", "load_N_max": "/bounds/load_N"}
+
+
+@dataclass(frozen=True)
+class OptimizationPlan:
+    """A validated request, ready to run.
+
+    Attributes
+    ----------
+    problem : DesignProblem
+        The design problem.
+    model : str
+        The model reference of the request.
+    mu_model : callable or None
+        μ model for the local method; None for the certified physics.
+    starts : int
+        Starts per ball count of the local method. [1]
+    pareto : dict or None
+        ``{"objective", "points"}`` when a front is asked for.
+    synchronous : bool
+        Whether to answer at once rather than as a job.
+    """
+
+    problem: DesignProblem
+    model: str
+    mu_model: Callable[[Mapping[str, Any]], Any] | None
+    starts: int
+    pareto: dict[str, Any] | None
+    synchronous: bool
+
+
+def _pointer(message: str, speed_in_fixed: bool) -> str:
+    """JSON pointer of the field a domain ValueError names first (``bounds.load_N: ...``: /bounds/load_N)."""
+    head = message.split(" ", 1)[0].rstrip(":")
+    if head == "speed_m_s" and speed_in_fixed:
+        return "/fixed/speed_m_s"
+    return "/" + head.replace(".", "/") if head.split(".")[0] in (
+        "bounds", "fixed", "constraints", "speed_m_s", "convention") else ""
+
+
+def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, dict[str, Any], str]:
+    """The μ model, the physics values it was built with, and its convention."""
+    if body.model == "physics":
+        return None, {}, str(body.convention)
+    if body.model.startswith("surrogate:"):
+        try:
+            from .routes.surrogates import load_mu_model as load_surrogate  # the surrogates resource
+        except ImportError:  # a build without the surrogates resource
+            raise ProblemError(404, f"There is no surrogate {body.model!r}: this service has no "
+                                    "surrogates.") from None
+        model = load_surrogate(store, body.model)
+    else:
+        model = load_mu_model(store, body.model)
+    values = {**getattr(model, "fixed", {}), **getattr(model, "fitted", {})}
+    conditions = dict(body.conditions or {})
+    clashing = sorted(set(conditions) & set(physics.PARAMETERS))
+    if clashing:
+        raise validation_problem([{"pointer": f"/conditions/{name}", "detail": "is a physics input; give it "
+                                   "in fixed"} for name in clashing])
+    missing = [c for c in getattr(model, "required_columns", []) if c not in conditions]
+    if missing:
+        raise validation_problem([{"pointer": "/conditions", "detail": f"the model {body.model} needs "
+                                   f"{', '.join(missing)}"}])
+
+    def mu_model(points: Mapping[str, Any]) -> Any:
+        shape = np.shape(points["load_N"])
+        return model({**points, **{k: np.full(shape, v) for k, v in conditions.items()}})
+
+    return mu_model, values, getattr(model, "convention", physics.DEFAULT_CONVENTION)
+
+
+def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
+    """Validate a request into a plan.
+
+    Parameters
+    ----------
+    store : Store
+        Where calibrations (and surrogates) are kept.
+    body : OptimizationRequest
+        The request.
+
+    Returns
+    -------
+    OptimizationPlan
+
+    Raises
+    ------
+    ProblemError
+        422 naming the field for invalid combinations, 404 for an unknown model.
+    """
+    if body.pareto is not None and body.model != "physics":
+        raise validation_problem([{"pointer": "/pareto", "detail": "a Pareto front is computed for model "
+                                   "physics only"}])
+    mu_model, model_values, convention = _model(store, body)
+    fixed = body.fixed.model_dump(exclude_none=True)
+    speed_in_fixed = "speed_m_s" in fixed
+    if speed_in_fixed and body.speed_m_s is not None:
+        raise validation_problem([{"pointer": "/speed_m_s", "detail": "give speed_m_s here or in fixed, "
+                                   "not both"}])
+    speed = fixed.pop("speed_m_s", body.speed_m_s)
+    if speed is None:
+        speed = model_values.get("speed_m_s")
+    if speed is None:
+        raise validation_problem([{"pointer": "/speed_m_s", "detail": "required: a speed [m/s] or "
+                                   "[low, high], here or in fixed"}])
+    inherited = {k: v for k, v in model_values.items()
+                 if k in physics.PARAMETERS and k not in DESIGN_VARIABLES and k != "speed_m_s"}
+    b = body.bounds
+    try:
+        problem = DesignProblem(
+            DesignBounds(tuple(b.balls), tuple(b.groove_angle_deg), tuple(b.load_N)),
+            speed_m_s=tuple(speed) if isinstance(speed, list) else speed,
+            constraints=Constraints(**body.constraints.model_dump()),
+            fixed={**inherited, **fixed}, convention=convention)
+    except ValueError as exc:
+        pointer = _pointer(str(exc), speed_in_fixed)
+        raise validation_problem([{"pointer": pointer, "detail": str(exc)}]) from None
+    counts = b.balls[1] - b.balls[0] + 1
+    synchronous = mu_model is None and body.pareto is None and counts <= SYNC_MAX_BALL_COUNTS
+    pareto = body.pareto.model_dump() if body.pareto is not None else None
+    return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous)
+
+
+def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:
+    """The 422 problem of an infeasible design problem, pointing at the conflicting fields."""
+    items = []
+    for name in error.conflicts:
+        others = ", ".join(n for n in error.conflicts if n != name) or "the bounds"
+        items.append({"pointer": _BOUND_POINTERS.get(name, f"/constraints/{name}"),
+                      "detail": f"{name} conflicts with {others}"})
+    items += [{"pointer": _BOUND_POINTERS[name], "detail": f"the bound {name} takes part in the conflict"}
+              for name in error.binding_bounds if name in _BOUND_POINTERS]
+    return ProblemError(422, str(error), title="Infeasible design problem", type_=INFEASIBLE_TYPE,
+                        errors=items)
+
+
+def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
+        job_id: str | None = None) -> dict[str, Any]:
+    """Run a plan and return the JSON-ready result.
+
+    Parameters
+    ----------
+    plan : OptimizationPlan
+        From :func:`prepare`.
+    progress : callable, optional
+        Fraction done, 0..1. [1]
+    job_id : str, optional
+        The job running it, for the link to the Pareto plot.
+
+    Returns
+    -------
+    dict
+        Fields of :class:`service.schemas.optimizations.OptimizationResult`.
+
+    Raises
+    ------
+    ProblemError
+        422 when the problem is infeasible.
+    """
+    with_pareto = plan.pareto is not None
+
+    def stage(offset: float, share: float) -> Callable[[float], None] | None:
+        if progress is None:
+            return None
+        return lambda fraction: progress(offset + share * fraction)
+
+    try:
+        if plan.mu_model is None:
+            result = optimize_design(plan.problem, progress=stage(0.0, 0.2 if with_pareto else 1.0))
+        else:
+            result = optimize_model(plan.problem, plan.mu_model, starts=plan.starts, progress=stage(0.0, 1.0),
+                                    model_name=plan.model)
+        document = {**result.to_dict(), "model": plan.model}
+        if with_pareto:
+            front = pareto_front(plan.problem, plan.pareto["objective"], plan.pareto["points"],
+                                 progress=stage(0.2, 0.8))
+            document["pareto"] = {**front.to_dict(), "plot_url": None if job_id is None
+                                  else f"/v1/optimizations/{job_id}/pareto.png"}
+    except InfeasibleDesignError as error:
+        raise infeasible_problem(error) from None
+    return document
+
+
+def pareto_png(document: Mapping[str, Any]) -> bytes:
+    """The PNG plot of the Pareto front stored in an optimization result.
+
+    Parameters
+    ----------
+    document : mapping
+        A result of :func:`run` with a ``pareto`` entry.
+
+    Returns
+    -------
+    bytes
+        PNG image.
+    """
+    pareto = document["pareto"]
+    return ParetoFront(pareto["objective"], pareto["points"], pareto["infeasible_levels"]).to_png()

@@ -1,0 +1,178 @@
+"""Bodies of ``/v1/optimizations``: a minimum-friction design problem and its certified answer."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field, create_model
+
+import physics
+from optimize.problem import DESIGN_VARIABLES
+
+from .base import Convention, ConventionName, ResponseModel, StrictModel, parameter_fields
+
+__all__ = ["MODEL_PATTERN", "OptimizationRequest", "OptimizationResult"]
+
+#: ``physics`` (certified DGP), a stored surrogate or a stored calibration (local method).
+MODEL_PATTERN = r"^(physics|surrogate:[0-9a-f]{32}|calibrated:[0-9a-f]{32})$"
+
+
+def _pair(what: str) -> Field:
+    return Field(min_length=2, max_length=2, description=f"[lower, upper] {what}, both included.")
+
+
+class DesignBounds(StrictModel):
+    """Box of the three design variables."""
+
+    balls: Annotated[list[Annotated[int, Field(ge=1, le=100_000)]],
+                     _pair("total number of balls (both grooves) [1]")]
+    groove_angle_deg: Annotated[list[Annotated[float, Field(gt=0, lt=90)]],
+                                _pair("groove angle, inside (0, 90) [deg]")]
+    load_N: Annotated[list[Annotated[float, Field(gt=0, le=1e6)]], _pair("normal load on the slider [N]")]
+
+
+class DesignLimits(StrictModel):
+    """Engineering limits; omit one to switch it off."""
+
+    max_contact_pressure_Pa: float | None = Field(
+        default=None, gt=0, description="Upper limit on the peak Hertz pressure 3Q/(2 pi a^2) of a ball-race "
+        "contact (the physics output max_contact_pressure_Pa) [Pa].")
+    max_friction_force_N: float | None = Field(
+        default=None, gt=0, description="Upper limit on the friction force mu G at the worst-case speed [N].")
+    min_load_capacity_N: float | None = Field(
+        default=None, gt=0, description="The design must carry at least this load: load_N >= it [N].")
+    max_load_per_ball_N: float | None = Field(
+        default=None, gt=0, description="Upper limit on the load per ball G / balls [N].")
+    groove_length_m: float | None = Field(
+        default=None, gt=0, description="Length of each of the two grooves: the fuller one holds "
+        "n = ceil(balls/2) balls, which must fit with min_ball_gap_m between neighbours: "
+        "n d + (n - 1) gap <= groove_length_m [m].")
+    min_ball_gap_m: float = Field(
+        default=0.0, ge=0, description="Clearance between neighbouring balls in a groove; 0 lets them just "
+        "touch, > 0 keeps them apart as balls_touching=false assumes [m].")
+
+
+OptimizationFixed = create_model(
+    "OptimizationFixed", __base__=StrictModel,
+    __doc__="Physics inputs held fixed (omitted ones take their defaults, or a calibrated model's values). "
+            "speed_m_s may be given here or at the top level, not both.",
+    **parameter_fields(optional=True, names=[n for n in physics.PARAMETERS if n not in DESIGN_VARIABLES]),
+)
+
+
+class ParetoRequest(StrictModel):
+    """Ask for the Pareto front of mu against a second objective (always runs as a job)."""
+
+    objective: Literal["load_N", "max_contact_pressure_Pa"] = Field(
+        description="Second objective: load_N (load capacity, larger is better) or max_contact_pressure_Pa "
+                    "(smaller is better).")
+    points: int = Field(default=10, ge=2, le=50, description="Number of epsilon-constraint levels [1].")
+
+
+class OptimizationRequest(StrictModel):
+    """Minimize mu over integer balls, groove angle and load within bounds and limits."""
+
+    bounds: DesignBounds = Field(description="Box of the design variables.")
+    fixed: OptimizationFixed = Field(  # type: ignore[valid-type]
+        default_factory=OptimizationFixed, description="Physics inputs held fixed.")
+    speed_m_s: float | Annotated[list[Annotated[float, Field(ge=0, le=1e3)]], Field(
+        min_length=2, max_length=2)] | None = Field(
+        default=None, description="Slider speed [m/s], or [low, high] to design for the worst case (mu grows "
+        "with speed, so the high end). Required here or in fixed.")
+    constraints: DesignLimits = Field(default_factory=DesignLimits, description="Engineering limits.")
+    model: str = Field(default="physics", pattern=MODEL_PATTERN, description=(
+        "physics (a certified global optimum by geometric programming), surrogate:<id> or "
+        "calibrated:<id> (a local optimum by sequential convex approximation)."))
+    conditions: dict[str, float] | None = Field(
+        default=None, description="Extra input columns a calibrated model's effect needs (e.g. "
+        "relative_humidity), in their units.")
+    starts: int = Field(default=3, ge=1, le=9, description="Starting points per ball count of the local "
+                        "method for surrogate and calibrated models [1].")
+    convention: ConventionName = Field(  # type: ignore[valid-type]
+        default=Convention(physics.DEFAULT_CONVENTION), description="Reading of the paper's ball-ball terms.")
+    pareto: ParetoRequest | None = Field(default=None, description="Also compute a Pareto front (physics "
+                                         "model only).")
+
+
+class Design(ResponseModel):
+    """A bearing design."""
+
+    balls: int = Field(description="Total number of balls [1].")
+    groove_angle_deg: float = Field(description="Groove angle [deg].")
+    load_N: float = Field(description="Normal load on the slider [N].")
+
+
+class ConstraintStatus(ResponseModel):
+    """A bound or limit at the returned design, from the exact physics."""
+
+    name: str = Field(description="balls_min, balls_max, groove_angle_deg_min/max, load_N_min/max or a limit "
+                                  "of constraints.")
+    value: float = Field(description="The constrained quantity at the design, in the limit's unit.")
+    limit: float = Field(description="The bound or limit, in its unit.")
+    sense: Literal["<=", ">="] = Field(description="value <= limit or value >= limit.")
+    active: bool = Field(description="Whether the design sits on it (within 1e-5 relative).")
+    satisfied: bool = Field(description="Whether the exact value meets it.")
+
+
+class BallCountRow(ResponseModel):
+    """The optimum of one ball count."""
+
+    balls: int = Field(description="Ball count [1].")
+    status: str = Field(description="optimal, optimal_inaccurate, infeasible, does not fit the groove, "
+                                    "local optimum, or no feasible local optimum found.")
+    groove_angle_deg: float | None = Field(default=None, description="Optimal groove angle [deg].")
+    load_N: float | None = Field(default=None, description="Optimal load [N].")
+    mu: float | None = Field(default=None, description="mu of the model at that design [1].")
+    mu_solver: float | None = Field(default=None, description="The solver's value [1].")
+    relative_gap: float | None = Field(default=None, description="mu_solver / mu - 1 [1].")
+
+
+class Tie(ResponseModel):
+    """A design whose mu is within 1e-6 relative of the best."""
+
+    balls: int = Field(description="Ball count [1].")
+    groove_angle_deg: float = Field(description="Groove angle [deg].")
+    load_N: float = Field(description="Load [N].")
+    load_per_ball_N: float = Field(description="Load per ball [N].")
+    mu: float = Field(description="mu [1].")
+
+
+class ParetoPoint(ResponseModel):
+    """One Pareto-optimal design."""
+
+    level: float = Field(description="The epsilon level of the second objective, in its unit.")
+    mu: float = Field(description="Minimum mu at that level [1].")
+    value: float = Field(description="The second objective at the design, in its unit.")
+    design: Design = Field(description="The design.")
+
+
+class ParetoFront(ResponseModel):
+    """Pareto front of mu against a second objective."""
+
+    objective: str = Field(description="The second objective.")
+    unit: str = Field(description="Its unit.")
+    points: list[ParetoPoint] = Field(description="Non-dominated designs, by increasing value.")
+    infeasible_levels: int = Field(description="Levels no design could meet [1].")
+    plot_url: str | None = Field(default=None, description="Path of the plot as PNG.")
+
+
+class OptimizationResult(ResponseModel):
+    """The best design, checked with the exact physics, and why it is the best."""
+
+    model: str = Field(description="The model optimized.")
+    method: str = Field(description="dgp-enumeration (certified global) or sequential-convex-approximation "
+                                    "(local).")
+    design: Design = Field(description="The best design (the fewest balls among ties).")
+    mu: float = Field(description="mu of the model at the design (the exact physics for model physics) [1].")
+    mu_solver: float = Field(description="The solver's value of mu [1].")
+    relative_gap: float = Field(description="mu_solver / mu - 1 [1].")
+    mu_physics: float | None = Field(default=None, description="The exact physics at the design, for other "
+                                     "models [1].")
+    speed_m_s: float = Field(description="Speed designed for (the worst case of a range) [m/s].")
+    constraints: list[ConstraintStatus] = Field(description="Every bound and limit at the design.")
+    per_ball_count: list[BallCountRow] = Field(description="One row per ball count of the bounds.")
+    ties: list[Tie] = Field(description="Designs within 1e-6 relative of the best mu, the returned one "
+                                        "included.")
+    certificate: str = Field(description="What is proven about the design, and how.")
+    solve_time_s: float = Field(description="Time of the optimization [s].")
+    pareto: ParetoFront | None = Field(default=None, description="The Pareto front, when asked for.")

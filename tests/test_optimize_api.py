@@ -1,0 +1,143 @@
+"""POST /v1/optimizations: certified optima at once, jobs, infeasibility, Pareto plots, other models."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+
+import physics
+from calibrate import CalibratedModel
+from optimize import Constraints, DesignBounds, DesignProblem, optimize_design
+from service.app import create_app
+from service.deps import get_runtime
+from service.settings import Settings
+
+PROBLEM = "application/problem+json"
+ISSUE_EXAMPLE = {"bounds": {"balls": [4, 24], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]},
+                 "fixed": {"speed_m_s": 0.05, "mu_pivot": 1.0},
+                 "constraints": {"max_contact_pressure_Pa": 1e9}}
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("optimizations")))) as test_client:
+        yield test_client
+
+
+def finished(client: TestClient, response) -> dict:
+    assert response.status_code == 202, response.text
+    location = response.headers["location"]
+    deadline = time.monotonic() + 120
+    while (job := client.get(location).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.05)
+    assert job["status"] == "succeeded", job
+    result = client.get(job["result_url"])
+    assert result.status_code == 200
+    return {"job": job, **result.json()}
+
+
+def test_issue_example_answers_at_once_with_a_checked_optimum(client):
+    response = client.post("/v1/optimizations", json=ISSUE_EXAMPLE)
+    assert response.status_code == 200, response.text
+    body = response.json()
+    design = body["design"]
+    assert 4 <= design["balls"] <= 24 and 35 <= design["groove_angle_deg"] <= 70
+    exact = physics.evaluate(balls=design["balls"], groove_angle_deg=design["groove_angle_deg"],
+                             load_N=design["load_N"], speed_m_s=0.05, mu_pivot=1.0)
+    assert body["mu"] == pytest.approx(float(exact.mu), rel=1e-12)
+    assert float(exact.max_contact_pressure_Pa) <= 1e9
+    library = optimize_design(DesignProblem(DesignBounds((4, 24), (35, 70), (0.001, 0.05)), speed_m_s=0.05,
+                                            fixed={"mu_pivot": 1.0},
+                                            constraints=Constraints(max_contact_pressure_Pa=1e9)))
+    assert body["mu"] == pytest.approx(library.mu, rel=1e-8)
+    assert body["model"] == "physics" and body["method"] == "dgp-enumeration"
+    assert {c["name"] for c in body["constraints"]} >= {"max_contact_pressure_Pa", "load_N_max"}
+    assert all(c["satisfied"] for c in body["constraints"])
+    assert [r["balls"] for r in body["per_ball_count"]] == list(range(4, 25))
+    assert body["ties"] and "global" in body["certificate"].lower()
+
+
+def test_speed_range_at_top_level_designs_for_its_upper_end(client):
+    request = {**ISSUE_EXAMPLE, "fixed": {"mu_pivot": 1.0}, "speed_m_s": [0.01, 0.08]}
+    body = client.post("/v1/optimizations", json=request).json()
+    assert body["speed_m_s"] == 0.08 and "worst case" in body["certificate"]
+
+
+def test_infeasible_limits_answer_422_naming_them(client):
+    # the pressure of 10 balls at 40 deg under 0.01 N is the least any design carrying 0.01 N can have
+    pressure = float(physics.evaluate(balls=10, groove_angle_deg=40.0, load_N=0.01, speed_m_s=0.05)
+                     .max_contact_pressure_Pa)
+    request = {"bounds": {"balls": [4, 10], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
+               "speed_m_s": 0.05,
+               "constraints": {"max_contact_pressure_Pa": 0.999 * pressure, "min_load_capacity_N": 0.01}}
+    response = client.post("/v1/optimizations", json=request)
+    assert response.status_code == 422 and response.headers["content-type"].startswith(PROBLEM)
+    problem = response.json()
+    assert problem["type"] == "urn:microbearing:problem:infeasible-design"
+    pointers = {e["pointer"] for e in problem["errors"]}
+    assert {"/constraints/max_contact_pressure_Pa", "/constraints/min_load_capacity_N"} <= pointers
+    assert "/constraints/max_friction_force_N" not in pointers
+
+
+@pytest.mark.parametrize("change, pointer", [
+    ({"fixed": {}}, "/speed_m_s"),
+    ({"speed_m_s": 0.1}, "/speed_m_s"),
+    ({"bounds": {"balls": [9, 4], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]}}, "/bounds/balls"),
+    ({"fixed": {"speed_m_s": 0.05, "load_N": 0.01}}, "/fixed/load_N"),
+    ({"model": "newton"}, "/model"),
+    ({"constraints": {"max_contact_pressure_Pa": -1.0}}, "/constraints/max_contact_pressure_Pa"),
+    ({"model": "calibrated:" + "0" * 32, "pareto": {"objective": "load_N"}}, "/pareto"),
+])
+def test_invalid_requests_name_the_field(client, change, pointer):
+    response = client.post("/v1/optimizations", json={**ISSUE_EXAMPLE, **change})
+    assert response.status_code == 422 and response.headers["content-type"].startswith(PROBLEM)
+    assert pointer in {e.get("pointer") for e in response.json()["errors"]}, response.json()
+
+
+@pytest.mark.parametrize("model", ["calibrated:" + "a" * 32, "surrogate:" + "b" * 32])
+def test_unknown_models_are_404(client, model):
+    response = client.post("/v1/optimizations", json={**ISSUE_EXAMPLE, "model": model})
+    assert response.status_code == 404 and response.headers["content-type"].startswith(PROBLEM)
+
+
+def test_pareto_front_runs_as_a_job_with_a_png(client):
+    bounds = {"balls": [4, 8], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]}
+    pareto = {"objective": "max_contact_pressure_Pa", "points": 4}
+    request = {**ISSUE_EXAMPLE, "bounds": bounds, "pareto": pareto}
+    result = finished(client, client.post("/v1/optimizations", json=request))
+    front = result["pareto"]
+    assert front["objective"] == "max_contact_pressure_Pa" and len(front["points"]) >= 2
+    assert all(p["value"] <= 1e9 for p in front["points"])
+    assert front["plot_url"] == f"/v1/optimizations/{result['job']['id']}/pareto.png"
+    png = client.get(front["plot_url"])
+    assert png.status_code == 200 and png.headers["content-type"] == "image/png"
+    assert png.content.startswith(b"\x89PNG")
+    assert client.get("/v1/optimizations/nosuchjob/pareto.png").status_code == 404
+
+
+def test_wide_ball_count_range_runs_as_a_job(client):
+    bounds = {"balls": [3, 60], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]}
+    request = {**ISSUE_EXAMPLE, "bounds": bounds}
+    result = finished(client, client.post("/v1/optimizations", json=request))
+    assert len(result["per_ball_count"]) == 58 and all(c["satisfied"] for c in result["constraints"])
+    png = client.get(f"/v1/optimizations/{result['job']['id']}/pareto.png")
+    assert png.status_code == 404  # no front was asked for
+
+
+def test_calibrated_model_is_optimized_locally_with_its_fitted_values(client):
+    store = get_runtime(client.app).store
+    model = CalibratedModel(fitted={"mu_pivot": 0.8})
+    model_id = store.save_model("calibration", {"model": model.to_json()}, {})
+    request = {"bounds": {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
+               "speed_m_s": 0.05, "model": f"calibrated:{model_id}"}
+    result = finished(client, client.post("/v1/optimizations", json=request))
+    assert result["method"] == "sequential-convex-approximation"
+    assert "not a global proof" in result["certificate"]
+    # the calibrated model is the physics with mu_pivot 0.8: its certified optimum is the reference
+    reference = optimize_design(DesignProblem(DesignBounds((4, 8), (40, 60), (0.001, 0.05)), speed_m_s=0.05,
+                                              fixed={"mu_pivot": 0.8}))
+    assert result["mu"] == pytest.approx(reference.mu, rel=1e-4)
+    assert result["mu"] >= reference.mu * (1 - 1e-7)
