@@ -70,25 +70,28 @@ def close_runtime(app: FastAPI) -> None:
         runtime.close()
 
 
-def get_settings(request: Request) -> Settings:
+async def get_settings(request: Request) -> Settings:
     """The settings of the app serving ``request``."""
     return request.app.state.settings
 
 
-def get_store(request: Request) -> Store:
+async def get_store(request: Request) -> Store:
     """The database of the app serving ``request``."""
     return get_runtime(request.app).store
 
 
-def get_jobs(request: Request) -> JobManager:
+async def get_jobs(request: Request) -> JobManager:
     """The job manager of the app serving ``request``."""
     return get_runtime(request.app).jobs
 
 
-def get_executor(request: Request) -> Executor:
+async def get_executor(request: Request) -> Executor:
     """The executor running sweep and batch chunks of the app serving ``request``."""
     return get_runtime(request.app).executor
 
+
+# The dependencies above are coroutines although they never wait: FastAPI runs a plain function
+# dependency in a worker thread, and that hop cost more than a whole friction evaluation.
 
 #: Route parameter annotations: ``settings: SettingsDep``, ``store: StoreDep``, ``jobs: JobsDep``,
 #: ``executor: ExecutorDep``.
