@@ -76,3 +76,15 @@ def test_values_survive_parsing_exactly():
     data = parse_csv(text)
     assert data.n_points == 50
     assert data.physics_columns["load_N"].tolist() == loads.tolist()
+
+
+def test_calibrate_docstring_examples_run():
+    # The project's doctest collection covers physics/ only; the examples of calibrate/ run here.
+    import doctest
+
+    import calibrate.data
+    import calibrate.fit
+
+    for module in (calibrate.data, calibrate.fit):
+        failures, tried = doctest.testmod(module)
+        assert tried > 0 and failures == 0, module.__name__
