@@ -19,7 +19,7 @@ from . import observability, problems, security
 from .deps import close_runtime, get_runtime
 from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware
-from .routes import calibrations, friction, jobs, meta, optimizations, sweeps
+from .routes import calibrations, friction, jobs, meta, optimizations, surrogates, sweeps
 from .routes.meta import package_version
 from .schemas.base import add_raw_body_schemas
 from .settings import Settings
@@ -27,7 +27,7 @@ from .settings import Settings
 __all__ = ["ROUTERS", "app", "create_app"]
 
 #: The routers of every resource, in the order of the OpenAPI spec. Add yours here.
-ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router,
+ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, surrogates.router,
            optimizations.router]
 
 DESCRIPTION = """Friction of micro linear ball bearings for MEMS by the model of Olaru, Prisacaru,
