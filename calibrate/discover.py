@@ -217,21 +217,24 @@ def _score(dataset, choice, n_parameters, oof_mu, baseline_sq, joint) -> Candida
     return CandidateScore(choice, n_parameters, mse, float(score), z, joint, oof_mu)
 
 
-def _cv_candidate(dataset, baseline, fit_parameters, choice, joint, convention) -> np.ndarray:
+def _cv_candidate(dataset, baseline, fit_parameters, choice, joint, convention) -> np.ndarray | None:
+    """Held-out μ of every row, or None when a fold's fit predicts a non-finite or non-positive μ."""
     everything = np.arange(dataset.n_points)
     oof = np.empty(dataset.n_points)
     for test, fold_fit, fold_mu in zip(baseline.folds, baseline.fold_fits, baseline.fold_mu, strict=True):
         train = np.setdiff1d(everything, test)
-        if joint:
-            result = fit(dataset, fit_parameters, choice, rows=train, start=fold_fit.declared,
-                         convention=convention)
-            oof[test] = predict_mu(dataset, result.declared, choice, result.effect_parameters, rows=test,
-                                   convention=convention)
-        else:
-            result = fit(dataset, (), choice, rows=train, base_mu=fold_mu, convention=convention)
-            oof[test] = predict_mu(dataset, {}, choice, result.effect_parameters, rows=test,
-                                   base_mu=fold_mu, convention=convention)
-    return oof
+        with np.errstate(all="ignore"):
+            if joint:
+                result = fit(dataset, fit_parameters, choice, rows=train, start=fold_fit.declared,
+                             convention=convention)
+                oof[test] = predict_mu(dataset, result.declared, choice, result.effect_parameters, rows=test,
+                                       convention=convention)
+            else:
+                result = fit(dataset, (), choice, rows=train, base_mu=fold_mu, convention=convention)
+                oof[test] = predict_mu(dataset, {}, choice, result.effect_parameters, rows=test,
+                                       base_mu=fold_mu, convention=convention)
+    # A term extrapolated to a held-out driver value can overflow: the candidate then fails.
+    return oof if np.all(np.isfinite(oof) & (oof > 0)) else None
 
 
 def _paired_se(dataset, a: CandidateScore, b: CandidateScore) -> float:
@@ -291,8 +294,9 @@ def discover(dataset: Dataset, fit_parameters: Sequence[str] = (), folds: int = 
     screened = []
     for i, choice in enumerate(choices):
         oof = _cv_candidate(dataset, baseline, fit_parameters, choice, False, convention)
-        screened.append(_score(dataset, choice, n_declared + len(choice.effect.parameters), oof, base_sq,
-                               False))
+        if oof is not None:
+            screened.append(_score(dataset, choice, n_declared + len(choice.effect.parameters), oof, base_sq,
+                                   False))
         report(0.2 + 0.4 * (i + 1) / max(len(choices), 1))
     screened.sort(key=lambda c: c.score)
     named = [c for c in screened if not c.choice.effect.generic]
@@ -301,7 +305,8 @@ def discover(dataset: Dataset, fit_parameters: Sequence[str] = (), folds: int = 
     if n_declared:
         for i, candidate in enumerate(shortlist):
             oof = _cv_candidate(dataset, baseline, fit_parameters, candidate.choice, True, convention)
-            joint.append(_score(dataset, candidate.choice, candidate.n_parameters, oof, base_sq, True))
+            if oof is not None:
+                joint.append(_score(dataset, candidate.choice, candidate.n_parameters, oof, base_sq, True))
             report(0.6 + 0.4 * (i + 1) / len(shortlist))
     else:
         # Nothing declared to refit: the screening fit is already the joint fit.

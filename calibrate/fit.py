@@ -27,6 +27,8 @@ __all__ = ["EffectChoice", "FitResult", "fit", "predict_mu", "kfold_indices", "p
 
 # A bound that the physics excludes is approached to within this relative margin.
 _EXCLUSIVE_MARGIN = 1e-9
+# Weighted log residual standing in for a non-finite model output during the fit.
+_REJECTED_RESIDUAL = 1e3
 
 
 @dataclass(frozen=True)
@@ -232,10 +234,13 @@ def fit(dataset: Dataset, fit_parameters: Sequence[str], effect: EffectChoice | 
     n_declared = len(declared)
 
     def residual(x):
-        mu = predict_mu(dataset, dict(zip(declared, x[:n_declared], strict=True)), effect,
-                        dict(zip(effect_names, x[n_declared:], strict=True)), rows, base_mu, convention)
-        # A trial step may drive an additive term negative; a large finite residual steers back.
-        return weights * (np.log(np.maximum(mu, 1e-300)) - log_measured)
+        # A trial step may overflow an exponential term or drive an additive one negative; a large
+        # finite residual makes the optimizer reject the step.
+        with np.errstate(all="ignore"):
+            mu = predict_mu(dataset, dict(zip(declared, x[:n_declared], strict=True)), effect,
+                            dict(zip(effect_names, x[n_declared:], strict=True)), rows, base_mu, convention)
+            r = weights * (np.log(np.maximum(mu, 1e-300)) - log_measured)
+        return np.where(np.isfinite(r), r, _REJECTED_RESIDUAL)
 
     if x0.size == 0:
         r = residual(x0)
