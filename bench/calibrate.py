@@ -52,9 +52,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rows", type=int, default=10_000)
     parser.add_argument("--folds", type=int, default=5)
+    parser.add_argument("--plots", metavar="DIR", help="also write the residual plots (PNG) into DIR")
+    parser.add_argument("--csv", metavar="FILE", help="also write the synthetic data as CSV")
     args = parser.parse_args()
     fit_parameters = ["mu_pivot", "adhesion_energy_J_m2"]
     text = synthetic_csv(args.rows)
+    if args.csv:
+        Path(args.csv).write_text(text)
 
     start = time.perf_counter()
     dataset = parse_csv(text)
@@ -84,6 +88,11 @@ def main() -> None:
     gp = result.discrepancy_gp["errors"]["relative_rmse"]
     print(f"held-out relative RMSE of log mu: before {result.error_before['relative_rmse']:.4f}, "
           f"after {result.error_after['relative_rmse']:.4f}, GP {gp:.4f}")
+    if args.plots:
+        Path(args.plots).mkdir(parents=True, exist_ok=True)
+        for name, png in result.plots.items():
+            (Path(args.plots) / f"{name}.png").write_bytes(png)
+            print(f"wrote {Path(args.plots) / f'{name}.png'}")
 
 
 if __name__ == "__main__":

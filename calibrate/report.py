@@ -168,15 +168,20 @@ def _residual_png(panels: list[tuple[str, np.ndarray]], series: list[tuple[str, 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.6), squeeze=False,
-                             constrained_layout=True)
-    for ax, (driver, x) in zip(axes[0], panels, strict=True):
+    columns = min(3, len(panels))
+    rows = -(-len(panels) // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.4 * rows), squeeze=False,
+                             sharey=True, constrained_layout=True)
+    for ax, (driver, x) in zip(axes.flat, panels, strict=False):
         for label, residual in series:
             ax.scatter(x, residual, s=8, alpha=0.6, label=label)
         ax.axhline(0.0, color="0.3", lw=0.8)
         ax.set_xlabel(f"{driver}{_unit(driver)}")
-        ax.set_ylabel("log(mu_measured / mu_model), held out [-]")
         ax.grid(alpha=0.3)
+    for ax in axes.flat[len(panels):]:
+        ax.set_visible(False)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("log(mu_measured / mu_model),\nheld out [-]")
     axes[0][0].legend(fontsize=8)
     fig.suptitle(title, fontsize=10)
     buffer = io.BytesIO()
@@ -293,7 +298,7 @@ def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any]
         columns = dataset.columns()
         if chosen is None:
             varying = [(n, np.asarray(v, dtype=float)) for n, v in columns.items()
-                       if np.unique(v).size > 1][:6]
+                       if np.unique(v).size > 1][:9]
             if varying:
                 plots["residual"] = _residual_png(varying, [("declared model, fitted", before)],
                                                   "Residual of the fitted declared model: nothing added")
