@@ -26,7 +26,14 @@ def _serve(args: argparse.Namespace) -> int:
     if args.data_dir is not None:
         # Every worker process builds its app from the environment.
         os.environ[f"{ENV_PREFIX}DATA_DIR"] = str(Path(args.data_dir).expanduser().resolve())
-    uvicorn.run("service.app:app", host=args.host, port=args.port, workers=args.workers)
+    if args.workers > 1 and "PROMETHEUS_MULTIPROC_DIR" not in os.environ:
+        # Before the workers start: they sum their metrics in files (service/observability.py).
+        from .observability import prepare_multiprocess_dir
+        from .settings import Settings
+
+        prepare_multiprocess_dir(Settings().data_dir)
+    # Requests are logged as JSON lines with their request id by service/observability.py.
+    uvicorn.run("service.app:app", host=args.host, port=args.port, workers=args.workers, access_log=False)
     return 0
 
 
