@@ -155,19 +155,20 @@ class OptimizationResult:
         }
 
 
-def _solve(gp) -> str:
-    """Solve with Clarabel, falling back to SCS when Clarabel fails numerically; the status."""
+def _solve(gp) -> tuple[str, str]:
+    """Solve with Clarabel, falling back to SCS when Clarabel fails numerically: (status, solver)."""
     with warnings.catch_warnings():
         # cvxpy warns on inaccurate solutions; the status is checked and reported instead
         warnings.simplefilter("ignore", UserWarning)
         try:
             gp.problem.solve(gp=True, solver=_SOLVER)
+            return gp.problem.status, _SOLVER
         except cp.SolverError:
             try:
                 gp.problem.solve(gp=True, solver=cp.SCS, eps=1e-9, max_iters=20000)
+                return gp.problem.status, cp.SCS
             except cp.SolverError:
-                return "solver_error"
-    return gp.problem.status
+                return "solver_error", "none"
 
 
 def _phase_one_slack(problem: DesignProblem, limits: frozenset[str], counts: list[int]) -> tuple[float, int]:
@@ -178,7 +179,7 @@ def _phase_one_slack(problem: DesignProblem, limits: frozenset[str], counts: lis
         gp.assign(values, counts[0])
         for z in counts:
             gp.balls.value = z  # only the ball count changes: setting a parameter costs ~0.3 ms
-            if _solve(gp) not in _OPTIMAL:
+            if _solve(gp)[0] not in _OPTIMAL:
                 raise RuntimeError(f"phase-I problem for balls={z} ended with status {gp.problem.status}")
             if gp.problem.value < best[0]:
                 best = (float(gp.problem.value), z)
@@ -250,7 +251,7 @@ def find_conflicts(problem: DesignProblem) -> InfeasibleDesignError | None:
     gp, values = design_gp(problem, frozenset(kept), phase_one=True)
     with gp.lock:
         gp.assign(values, z)
-        gp.problem.solve(gp=True, solver=_SOLVER)
+        _solve(gp)
         theta = float(np.degrees(np.arctan(gp.tan_theta.value)))
         load = float(gp.load_N.value)
     binding = [name for name, wider in _widened(problem).items()
@@ -352,7 +353,7 @@ def polish_design(problem: DesignProblem, balls: np.ndarray, theta: np.ndarray,
 
 
 def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: BallCountResult,
-                 ties: list[dict[str, Any]]) -> str:
+                 ties: list[dict[str, Any]], fallback: list[int]) -> str:
     counts = [r for r in rows if r.status.startswith("optimal")]
     infeasible = [r.balls for r in rows if r.status == "infeasible"]
     excluded = [r.balls for r in rows if r.status == "does not fit the groove"]
@@ -378,6 +379,8 @@ def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: Ball
         "(snapping, bisection on the physics; only when that lowers mu), so the exact physics meets "
         "every limit.",
     ]
+    if fallback:
+        parts.append(f"Clarabel failed numerically for counts {fallback}, solved by SCS (eps 1e-9) instead.")
     if inaccurate:
         parts.append(f"Counts {inaccurate} were solved only to reduced accuracy (status optimal_inaccurate); "
                      "their optimality holds only to that accuracy.")
@@ -429,6 +432,7 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
                 problem.bounds.load_N[1])
     rows: list[BallCountResult] = []
     unconfirmed: list[int] = []
+    fallback: list[int] = []
     with gp.lock:
         gp.assign(values, lo)
         for i, z in enumerate(range(lo, hi + 1)):
@@ -436,7 +440,9 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
                 rows.append(BallCountResult(z, "does not fit the groove"))
             else:
                 gp.balls.value = z  # only the ball count changes: setting a parameter costs ~0.3 ms
-                status = _solve(gp)
+                status, solver = _solve(gp)
+                if solver != _SOLVER:
+                    fallback.append(z)
                 if status in _OPTIMAL:
                     # the solver may overshoot a bound by its tolerance: clip back into the box
                     theta = float(np.clip(np.degrees(np.arctan(gp.tan_theta.value)), *angle_box))
@@ -479,6 +485,6 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
         mu=best.mu, mu_solver=best.mu_solver, relative_gap=best.relative_gap,
         speed_m_s=problem.design_speed_m_s(),
         constraints=constraint_report(problem, best.balls, best.groove_angle_deg, best.load_N),
-        per_ball_count=rows, ties=ties, certificate=_certificate(problem, rows, best, ties),
+        per_ball_count=rows, ties=ties, certificate=_certificate(problem, rows, best, ties, fallback),
         solve_time_s=time.perf_counter() - start,
     )
