@@ -21,7 +21,9 @@ Jobs live in SQLite (:mod:`service.store`): status queued, running, succeeded, f
 cancelled; progress 0..1; the result as JSON; a failure as a problem object. Each job records
 the pid and instance of the server that owns it. On startup, queued or running jobs whose owner
 is gone are marked failed with :data:`INTERRUPTED_DETAIL`, so several uvicorn workers can share
-one data folder without failing each other's live jobs. A function raising ``ValueError`` fails
+one data folder without failing each other's live jobs. (Liveness is checked by pid: should an
+unrelated process have taken a dead server's pid, its jobs stay "running" until a later startup
+finds that pid gone.) A function raising ``ValueError`` fails
 its job with a 422 problem, :class:`~service.problems.ProblemError` with its own problem, any
 other exception with a 500 problem.
 """
