@@ -141,3 +141,24 @@ def test_calibrated_model_is_optimized_locally_with_its_fitted_values(client):
                                               fixed={"mu_pivot": 0.8}))
     assert result["mu"] == pytest.approx(reference.mu, rel=1e-4)
     assert result["mu"] >= reference.mu * (1 - 1e-7)
+
+
+def test_surrogate_model_is_optimized_locally_and_verified(client):
+    space = {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.002, 0.05]}
+    training = {"space": space, "fixed": {"speed_m_s": 0.05}, "budget": 40, "adaptive": False}
+    surrogate = finished(client, client.post("/v1/surrogates", json=training))
+    request = {"bounds": {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.002, 0.05]},
+               "speed_m_s": 0.05, "model": surrogate["model_id"], "starts": 2}
+    result = finished(client, client.post("/v1/optimizations", json=request))
+    assert result["method"] == "sequential-convex-approximation" and result["model"] == surrogate["model_id"]
+    design = result["design"]
+    # the reported mu is the surrogate's own prediction at the design, asked for independently
+    predicted = client.post(f"/v1/surrogates/{surrogate['id']}/predict", json={"points": {
+        "balls": design["balls"], "groove_angle_deg": design["groove_angle_deg"], "load_N": design["load_N"],
+        "speed_m_s": 0.05}}).json()
+    assert result["mu"] == pytest.approx(predicted["mu"][0], rel=1e-9)
+    exact = physics.evaluate(speed_m_s=0.05, **design).mu
+    assert result["mu_physics"] == pytest.approx(float(exact), rel=1e-12)
+    # a 40-point surrogate is not the physics: its optimum is close to, never below, the certified one
+    certified = optimize_design(DesignProblem(DesignBounds((4, 8), (40, 60), (0.002, 0.05)), speed_m_s=0.05))
+    assert certified.mu * (1 - 1e-9) <= result["mu_physics"] <= certified.mu * 1.1
