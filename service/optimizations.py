@@ -83,6 +83,9 @@ def _pointer(message: str, speed_in_fixed: bool) -> str:
 
 def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, dict[str, Any], str]:
     """The μ model, the physics values it was built with, and its convention."""
+    if body.conditions and not body.model.startswith("calibrated:"):
+        raise validation_problem([{"pointer": "/conditions", "detail": "extra input columns are read by "
+                                   "calibrated models only"}])
     if body.model == "physics":
         return None, {}, str(body.convention)
     if body.model.startswith("surrogate:"):

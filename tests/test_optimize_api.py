@@ -90,6 +90,8 @@ def test_infeasible_limits_answer_422_naming_them(client):
     ({"model": "newton"}, "/model"),
     ({"constraints": {"max_contact_pressure_Pa": -1.0}}, "/constraints/max_contact_pressure_Pa"),
     ({"model": "calibrated:" + "0" * 32, "pareto": {"objective": "load_N"}}, "/pareto"),
+    ({"conditions": {"relative_humidity": 0.5}}, "/conditions"),
+    ({"conditions": {"relative_humidity": "wet"}}, "/conditions/relative_humidity"),
 ])
 def test_invalid_requests_name_the_field(client, change, pointer):
     response = client.post("/v1/optimizations", json={**ISSUE_EXAMPLE, **change})
