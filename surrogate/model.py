@@ -121,6 +121,11 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         full optimization; keep small).
     random_state : int or None, default None
         Seed of the optimizer's restarts.
+    initial_theta : sequence of float, optional
+        Starting point of the hyperparameter optimizer: the kernel's
+        ``theta`` (log amplitude², log length scales, log noise) from an
+        earlier fit, e.g. on fewer points (adaptive sampling warm-starts each
+        round this way). Default: unit amplitude and length scales. [1]
     calibrate_variance : {"kfold", "loo", "none"}, default "kfold"
         Rescale the predictive standard deviation by ``s`` with
         ``s² = mean_i (e_i² / σ_i²)`` over cross-validation errors ``e_i``
@@ -163,7 +168,8 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
 
     def __init__(self, space: Space, features: str = "physics", kernel: str = "rbf",
                  mean: str = "linear", log_target: bool = True, n_restarts_optimizer: int = 1,
-                 random_state: int | None = None, calibrate_variance: str = "kfold"):
+                 random_state: int | None = None, initial_theta: Any = None,
+                 calibrate_variance: str = "kfold"):
         self.space = space
         self.features = features
         self.kernel = kernel
@@ -171,6 +177,7 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         self.log_target = log_target
         self.n_restarts_optimizer = n_restarts_optimizer
         self.random_state = random_state
+        self.initial_theta = initial_theta
         self.calibrate_variance = calibrate_variance
 
     def _validate_params(self) -> None:
@@ -247,7 +254,7 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         Zs = (Z - self.feature_mean_) / self.feature_scale_
         t = self._target(y)
         self.mean_coef_, self.gaussian_process_ = self._fit_process(
-            Zs, t, build_kernel(self.kernel, Zs.shape[1]), int(self.n_restarts_optimizer))
+            Zs, t, self._initial_kernel(Zs.shape[1]), int(self.n_restarts_optimizer))
         self.X_train_ = X
         self.y_train_ = y
         self.n_features_in_ = X.shape[1]
@@ -258,6 +265,17 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         elif self.calibrate_variance == "kfold" and len(t) >= 2 * _FOLDS:
             self.std_scale_ = self._kfold_scale(Zs, t)
         return self
+
+    def _initial_kernel(self, n_features: int) -> Kernel:
+        kernel = build_kernel(self.kernel, n_features)
+        if self.initial_theta is None:
+            return kernel
+        theta = np.asarray(self.initial_theta, dtype=float)
+        if theta.shape != kernel.theta.shape or not np.all(np.isfinite(theta)):
+            raise ValueError(f"initial_theta must hold {kernel.theta.size} finite log-hyperparameters "
+                             f"(amplitude, {n_features} length scales, noise); got shape {theta.shape}")
+        bounds = kernel.bounds
+        return kernel.clone_with_theta(np.clip(theta, bounds[:, 0], bounds[:, 1]))
 
     def _fit_process(self, Zs: np.ndarray, t: np.ndarray, kernel: Kernel,
                      n_restarts: int) -> tuple[np.ndarray, GaussianProcessRegressor]:

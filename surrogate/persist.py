@@ -31,7 +31,7 @@ __all__ = ["FORMAT", "package_version", "to_dict", "from_dict", "dumps", "loads"
 FORMAT = "microbearing.surrogate/1"
 
 _ESTIMATOR_PARAMS = ("features", "kernel", "mean", "log_target", "n_restarts_optimizer", "random_state",
-                     "calibrate_variance")
+                     "initial_theta", "calibrate_variance")
 
 
 def package_version() -> str:
@@ -68,7 +68,9 @@ def to_dict(model: GaussianProcessSurrogate) -> dict[str, Any]:
         "package_version": package_version(),
         "convention": model.space.convention,
         "space": model.space.to_dict(),
-        "params": {name: getattr(model, name) for name in _ESTIMATOR_PARAMS},
+        "params": {name: (np.asarray(value).tolist() if name == "initial_theta" and value is not None
+                          else value)
+                   for name, value in ((n, getattr(model, n)) for n in _ESTIMATOR_PARAMS)},
         "X_train": model.X_train_.tolist(),
         "y_train": model.y_train_.tolist(),
         "feature_mean": model.feature_mean_.tolist(),

@@ -294,6 +294,10 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
     history: list[dict[str, float]] = []
     while True:
         model = GaussianProcessSurrogate(space, **rounds).fit(X, y)
+        # Later rounds start the optimizer from this round's hyperparameters, without restarts
+        # (measured on the 4-D and 6-D benchmarks: restarts then changed nothing but the time).
+        rounds = {**rounds, "initial_theta": model.gaussian_process_.kernel_.theta.tolist(),
+                  "n_restarts_optimizer": 0}
         _, std = model.predict(candidates, return_std=True)
         loo = np.abs(model.loo_log_errors())
         # Relative error of μ: log μ errors as they are, μ errors over a typical μ.
@@ -324,6 +328,8 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         X = np.vstack([X, candidates[picked]])
         y = np.concatenate([y, space.evaluate(candidates[picked])])
         candidates = np.delete(candidates, picked, axis=0)
-    if rounds != params:
-        model = GaussianProcessSurrogate(space, **params).fit(X, y)
+    if rounds["calibrate_variance"] != params.get("calibrate_variance", "kfold"):
+        final = {**params, "initial_theta": model.gaussian_process_.kernel_.theta.tolist(),
+                 "n_restarts_optimizer": 0}
+        model = GaussianProcessSurrogate(space, **final).fit(X, y)
     return AdaptiveFit(model, X, y, history, stop)

@@ -232,6 +232,7 @@ def test_loo_errors_match_brute_force_refits(fitted):
     ({"mean": "quadratic"}, None, "mean must be one of"),
     ({"n_restarts_optimizer": -1}, None, "n_restarts_optimizer"),
     ({"calibrate_variance": True}, None, "calibrate_variance must be one of"),
+    ({"initial_theta": [0.0, 0.0]}, None, "initial_theta must hold 3"),
     ({}, -1.0, "y must be > 0"),
     ({}, "short", "y must be a 1-D array"),
 ])
@@ -322,6 +323,10 @@ def test_fit_adaptive_respects_budget_and_reports_progress():
     assert fractions == sorted(fractions) and fractions[-1] == 1.0
     assert len({tuple(x) for x in fit.X}) == 22
     np.testing.assert_array_equal(fit.y, space.evaluate(fit.X))
+    # The final model is warm-started; its starting point is stored with it.
+    assert len(fit.model.initial_theta) == 4
+    X = design(space, 50, seed=4)
+    np.testing.assert_allclose(loads(dumps(fit.model)).predict(X), fit.model.predict(X), rtol=1e-12)
 
 
 def test_fit_adaptive_stops_at_the_target():
