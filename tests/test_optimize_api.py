@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -164,3 +165,26 @@ def test_surrogate_model_is_optimized_locally_and_verified(client):
     # a 40-point surrogate is not the physics: its optimum is close to, never below, the certified one
     certified = optimize_design(DesignProblem(DesignBounds((4, 8), (40, 60), (0.002, 0.05)), speed_m_s=0.05))
     assert certified.mu * (1 - 1e-9) <= result["mu_physics"] <= certified.mu * 1.1
+
+
+def test_calibrated_model_with_an_effect_reads_its_conditions(client):
+    store = get_runtime(client.app).store
+    model = CalibratedModel(fitted={"mu_pivot": 0.6}, effect={
+        "name": "humidity_meniscus", "drivers": ["relative_humidity"],
+        "parameters": {"meniscus_force_N": 2e-5}, "constants": {}})
+    model_id = store.save_model("calibration", {"model": model.to_json()}, {})
+    request = {"bounds": {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
+               "speed_m_s": 0.05, "model": f"calibrated:{model_id}"}
+    missing = client.post("/v1/optimizations", json=request)
+    assert missing.status_code == 422 and "relative_humidity" in missing.json()["detail"]
+    result = finished(client, client.post("/v1/optimizations",
+                                          json={**request, "conditions": {"relative_humidity": 0.5}}))
+    # no point of a 5 x 60 x 200 grid of the calibrated model itself is better than the design
+    z, theta, load = np.arange(4, 9)[:, None, None], np.linspace(40, 60, 60)[None, :, None], \
+        np.geomspace(0.001, 0.05, 200)[None, None, :]
+    grid = model({"balls": z, "groove_angle_deg": theta, "load_N": load, "speed_m_s": 0.05,
+                  "relative_humidity": np.full(np.broadcast_shapes(z.shape, theta.shape, load.shape), 0.5)})
+    assert result["mu"] <= grid.min() * (1 + 1e-9)
+    design = result["design"]
+    check = model({**design, "speed_m_s": 0.05, "relative_humidity": 0.5})
+    assert result["mu"] == pytest.approx(float(np.squeeze(check)), rel=1e-12)
