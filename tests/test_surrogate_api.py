@@ -37,13 +37,15 @@ def finished(client: TestClient, response) -> tuple[dict, list[float]]:
         seen.append(job.get("progress"))
         time.sleep(0.05)
     assert job["status"] == "succeeded", job
-    return client.get(job["result_url"]).json(), seen
+    assert job["progress"] == 1.0
+    return client.get(job["result_url"]).json(), [*seen, job["progress"]]
 
 
 @pytest.fixture(scope="module")
 def trained(client):
     body = {"space": SPACE, "fixed": {"groove_angle_deg": 60.0}, "budget": 30, "target_relative_error": 1e-6}
-    result, _ = finished(client, client.post("/v1/surrogates", json=body))
+    result, progress = finished(client, client.post("/v1/surrogates", json=body))
+    assert progress == sorted(progress) and all(0 <= f <= 1 for f in progress)
     return result
 
 
