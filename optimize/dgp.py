@@ -97,6 +97,8 @@ class Coefficients:
         M_b per contact pair as used in eq 20 (0 when balls do not touch). [N*m]
     pressure_Pa : float
         k_p in p0 = k_p Q^(1/3). [Pa / N^(1/3)]
+    contact_radius_m : float
+        k_a = (R / E*)^(1/3) in a = k_a Q^(1/3) (eq 3). [m / N^(1/3)]
     ball_diameter_m : float
         d. [m]
     """
@@ -107,6 +109,7 @@ class Coefficients:
     rolling_N: float
     ball_ball_moment_Nm: float
     pressure_Pa: float
+    contact_radius_m: float
     ball_diameter_m: float
 
 
@@ -142,6 +145,7 @@ def coefficients(problem: DesignProblem) -> Coefficients:
         rolling_N=float(r.rolling_force_N) / q**ROLLING_EXPONENT,
         ball_ball_moment_Nm=float(r.mu_ball_ball) * load * np.cos(np.deg2rad(theta_deg)) * d / (2 * balls),
         pressure_Pa=float(r.max_contact_pressure_Pa) / q**PRESSURE_EXPONENT,
+        contact_radius_m=float(r.contact_radius_m) / q ** (1.0 / 3.0),
         ball_diameter_m=d,
     )
 
@@ -160,7 +164,7 @@ class DesignGP:
         Coefficients and limits by name (bounds ``tan_theta_min`` ...,
         ``load_N_min`` ...; limits by their :data:`LIMIT_NAMES` name).
     expressions : dict of cvxpy.Expression
-        ``sec_theta``, ``contact_load_N`` (Q0), ``contact_load_adhesive_N`` (Q),
+        ``sec_theta``, ``contact_load_N`` (Q0), ``contact_load_adhesive_N`` (Q), ``contact_radius_m`` (a),
         ``pivoting_moment_Nm``, ``hysteresis_moment_Nm``, ``rolling_force_N``,
         ``ball_race_force_N``, ``mu``, ``friction_force_N``,
         ``max_contact_pressure_Pa``, ``load_per_ball_N``.
@@ -230,8 +234,8 @@ def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bo
     t = cp.Variable(pos=True, name="tan_theta")
     g = cp.Variable(pos=True, name="load_N")
     z = cp.Parameter(pos=True, name="balls")
-    names = ["hysteresis_Nm", "pressure_Pa", "ball_diameter_m", "tan_theta_min", "tan_theta_max",
-             "load_N_min", "load_N_max", *sorted(terms), *sorted(limits)]
+    names = ["hysteresis_Nm", "pressure_Pa", "contact_radius_m", "ball_diameter_m", "tan_theta_min",
+             "tan_theta_max", "load_N_min", "load_N_max", *sorted(terms), *sorted(limits)]
     p = {n: cp.Parameter(pos=True, name=n) for n in names}
 
     sec = cp.power(1 + t**2, 0.5)
@@ -256,6 +260,7 @@ def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bo
     e["friction_force_N"] = z * inner
     e["mu"] = z * inner / g
     e["max_contact_pressure_Pa"] = p["pressure_Pa"] * q**PRESSURE_EXPONENT
+    e["contact_radius_m"] = p["contact_radius_m"] * q ** (1.0 / 3.0)  # reported; M_P uses k_P Q^(4/3)
     e["load_per_ball_N"] = g / z
 
     k_up = 1.0 - SAFETY_MARGIN
@@ -312,6 +317,7 @@ def design_gp(problem: DesignProblem, limits: frozenset[str] | None = None,
         "adhesion_load_N": coef.adhesion_load_N, "pivoting_Nm": coef.pivoting_Nm,
         "hysteresis_Nm": coef.hysteresis_Nm, "rolling_N": coef.rolling_N,
         "ball_ball_moment_Nm": coef.ball_ball_moment_Nm, "pressure_Pa": coef.pressure_Pa,
+        "contact_radius_m": coef.contact_radius_m,
         "ball_diameter_m": coef.ball_diameter_m,
         "tan_theta_min": float(np.tan(np.deg2rad(problem.bounds.groove_angle_deg[0]))),
         "tan_theta_max": float(np.tan(np.deg2rad(problem.bounds.groove_angle_deg[1]))),

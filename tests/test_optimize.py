@@ -158,7 +158,8 @@ def test_dgp_expressions_equal_the_physics(convention, touching, adhesion, speed
             gp.assign(values, int(z))
             gp.tan_theta.value, gp.load_N.value = np.tan(np.deg2rad(theta)), load
             r = physics.evaluate(convention=convention, **problem.physics_inputs(int(z), theta, load))
-            for name in ("mu", "friction_force_N", "max_contact_pressure_Pa", "contact_load_adhesive_N"):
+            for name in ("mu", "friction_force_N", "max_contact_pressure_Pa", "contact_load_adhesive_N",
+                         "contact_load_N", "contact_radius_m", "hysteresis_moment_Nm", "ball_race_force_N"):
                 assert gp.expressions[name].value == pytest.approx(float(getattr(r, name)), rel=1e-10), name
 
 
