@@ -48,7 +48,7 @@ import physics
 
 from .dgp import SAFETY_MARGIN, coefficients
 from .problem import DesignProblem, constraint_report
-from .solve import TIE_TOLERANCE, BallCountResult, InfeasibleDesignError, OptimizationResult
+from .solve import TIE_TOLERANCE, BallCountResult, InfeasibleDesignError, OptimizationResult, find_conflicts
 
 __all__ = ["optimize_model", "physics_model", "PENALTY"]
 
@@ -168,8 +168,7 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
     counts = [z for z in problem.ball_counts() if min(b.load_N[1], 2 * z * q0_cap / np.sqrt(1 + t_lo**2),
                                                       z * (c.max_load_per_ball_N or np.inf)) >= g_floor]
     if not counts:
-        from .solve import find_conflicts  # the conflicts of the exact limits are the DGP's
-
+        # the exact limits are the DGP's: so are their conflicts
         raise find_conflicts(problem) or InfeasibleDesignError(
             "infeasible: no ball count meets the limits", ["balls"], [])
 
