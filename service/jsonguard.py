@@ -55,6 +55,19 @@ _STRUCTURAL = np.zeros(256, dtype=bool)
 _STRUCTURAL[list(b'"[]{}')] = True
 
 
+class _DuplicateKeyError(ValueError):
+    pass
+
+
+def _unique_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
+    document = dict(pairs)
+    if len(document) != len(pairs):
+        seen: set[str] = set()
+        repeated = next(key for key, _ in pairs if key in seen or seen.add(key))
+        raise _DuplicateKeyError(f"The key {repeated[:100]!r} appears twice in one object.")
+    return document
+
+
 def _unescaped_quotes(body: bytes, quotes: np.ndarray) -> np.ndarray:
     if b"\\" not in body:
         return quotes
@@ -110,9 +123,20 @@ def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH
         400 (not UTF-8, too deep, duplicate key) or 413 (too many elements), naming the place.
     """
     try:
-        body.decode("utf-8")
+        text = body.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise _malformed(f"The request body is not valid UTF-8 (byte {exc.start}).") from None
+    containers = body.count(b"[") + body.count(b"{")
+    if (len(body) <= _INLINE_BYTES and containers <= max_depth
+            and max(body.count(b",") + 1, body.count(b'"') // 2, containers) <= max_items):
+        # Small and shallow, so no limit can be passed: only duplicate keys remain to be found,
+        # and the stdlib parser finds them faster than the scan below.
+        try:
+            json.loads(text, object_pairs_hook=_unique_keys)
+        except ValueError as exc:
+            if isinstance(exc, _DuplicateKeyError):
+                raise _malformed(str(exc)) from None
+        return
     data = np.frombuffer(body, dtype=np.uint8)
     special = np.flatnonzero(_STRUCTURAL[data])
     kinds = data[special]
