@@ -51,6 +51,17 @@ def test_a_non_convex_model_is_improved_from_every_start_and_verified():
     assert all(c.satisfied for c in result.constraints)
 
 
+def test_exact_limits_out_of_reach_name_the_same_conflict_as_the_dgp():
+    # 1e7 Pa is below the pressure of the adhesive JKR load alone (Q >= 2 c at Q0 = 0)
+    problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05,
+                            constraints=Constraints(max_contact_pressure_Pa=1e7))
+    with pytest.raises(InfeasibleDesignError) as local:
+        optimize_model(problem, physics_model())
+    with pytest.raises(InfeasibleDesignError) as certified:
+        optimize_design(problem)
+    assert local.value.conflicts == certified.value.conflicts == ["max_contact_pressure_Pa"]
+
+
 def test_unreachable_friction_limit_is_infeasible():
     problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05,
                             constraints=Constraints(max_friction_force_N=1e-9))
