@@ -23,7 +23,7 @@ import numpy as np
 
 import physics
 
-from .dgp import SAFETY_MARGIN, design_gp
+from .dgp import SAFETY_MARGIN, BallCountResolver, design_gp
 from .problem import ConstraintStatus, DesignBounds, DesignProblem, constraint_report
 
 __all__ = [
@@ -39,6 +39,8 @@ __all__ = [
 #: Designs whose exact μ is within this relative distance of the best are ties. [1]
 TIE_TOLERANCE = 1e-6
 _SOLVER = cp.CLARABEL
+#: From this many ball counts on, :class:`BallCountResolver` pays for its three compilations. [1]
+_FAST_MIN_COUNTS = 4
 _OPTIMAL = (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
 _INFEASIBLE = (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE)
 
@@ -171,21 +173,63 @@ def _solve(gp) -> tuple[str, str]:
                 return "solver_error", "none"
 
 
-def _phase_one_slack(problem: DesignProblem, limits: frozenset[str], counts: list[int]) -> tuple[float, int]:
-    """Smallest phase-I slack over the counts and the count attaining it (stops at the first s <= 1)."""
+class _CountSolver:
+    """Solves one DGP per ball count: :class:`BallCountResolver` when it applies, else cvxpy's solve.
+
+    Hold ``gp.lock`` from construction to the last solve.
+    """
+
+    def __init__(self, gp, counts: int):
+        self.gp = gp
+        self.fast = None
+        if counts >= _FAST_MIN_COUNTS:
+            try:
+                self.fast = BallCountResolver(gp)
+            except Exception:  # cvxpy internals or the program's structure differ: use the public path
+                self.fast = None
+
+    def solve(self, balls: int) -> tuple[str, str, float | None, float | None, float | None]:
+        """(status, solver, objective value, tan θ [1], load [N]) for one ball count."""
+        if self.fast is not None:
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", UserWarning)
+                    status, value, t, g = self.fast.solve(balls)
+                if status in (*_OPTIMAL, *_INFEASIBLE):
+                    return status, _SOLVER, value, t, g
+            except Exception:  # a numerical failure: retry through cvxpy, which also falls back to SCS
+                pass
+        self.gp.balls.value = balls
+        status, solver = _solve(self.gp)
+        if status not in _OPTIMAL:
+            return status, solver, None, None, None
+        return (status, solver, float(self.gp.problem.value), float(self.gp.tan_theta.value),
+                float(self.gp.load_N.value))
+
+
+def _phase_one_slacks(problem: DesignProblem, limits: frozenset[str], counts: list[int],
+                      stop_when_feasible: bool) -> dict[int, float]:
+    """Phase-I slack of each count, in order; optionally stopping at the first s <= 1."""
     gp, values = design_gp(problem, limits, phase_one=True)
-    best = (np.inf, counts[0])
+    slacks: dict[int, float] = {}
     with gp.lock:
         gp.assign(values, counts[0])
+        solver = _CountSolver(gp, len(counts))
         for z in counts:
-            gp.balls.value = z  # only the ball count changes: setting a parameter costs ~0.3 ms
-            if _solve(gp)[0] not in _OPTIMAL:
-                raise RuntimeError(f"phase-I problem for balls={z} ended with status {gp.problem.status}")
-            if gp.problem.value < best[0]:
-                best = (float(gp.problem.value), z)
-            if best[0] <= 1.0:
+            status, _, slack, _, _ = solver.solve(z)
+            if status not in _OPTIMAL:
+                raise RuntimeError(f"phase-I problem for balls={z} ended with status {status}")
+            slacks[z] = slack
+            if stop_when_feasible and slack <= 1.0:
                 break
-    return best
+    return slacks
+
+
+def _phase_one_slack(problem: DesignProblem, limits: frozenset[str], counts: list[int]) -> tuple[float, int]:
+    """Smallest phase-I slack over the counts and the count attaining it (stops at the first s <= 1)."""
+    slacks = _phase_one_slacks(problem, limits, counts, stop_when_feasible=True)
+    z = min(slacks, key=slacks.__getitem__)
+    return slacks[z], z
 
 
 def _widened(problem: DesignProblem) -> dict[str, DesignProblem]:
@@ -306,8 +350,9 @@ def polish_design(problem: DesignProblem, balls: np.ndarray, theta: np.ndarray,
     the load, because the pressure grows only slowly with G while adhesion
     dominates Q. So: an angle or load within 1e-6 relative of a bound is
     snapped onto it; and since every upper limit (pressure, friction force,
-    load per ball) increases with G, bisection on log G within ±0.1 % of the
-    load finds the largest load meeting all of them with the exact physics.
+    load per ball) increases with G, regula falsi on log G (the Illinois
+    variant, which keeps the bracket) within ±0.1 % of the load finds the
+    largest load meeting all of them with the exact physics.
     Each candidate replaces the design only when it meets every limit and
     gives a lower μ, so polishing can only improve a design and never breaks
     a limit.
@@ -315,41 +360,60 @@ def polish_design(problem: DesignProblem, balls: np.ndarray, theta: np.ndarray,
     floor = max(problem.bounds.load_N[0], problem.constraints.min_load_capacity_N or 0.0)
     ceiling = problem.bounds.load_N[1]
     angle_lo, angle_hi = problem.bounds.groove_angle_deg
-
-    def feasible(th, g):
-        excess, mu = _upper_excess(problem, balls, th, g)
-        return (excess <= 0) & (g >= floor) & (g <= ceiling) & (th >= angle_lo) & (th <= angle_hi), mu
-
-    ok, mu = feasible(theta, load)
-    best_theta, best_load = np.where(ok, theta, np.nan), np.where(ok, load, np.nan)
-    best_mu = np.where(ok, mu, np.inf)
-
-    def consider(th, g):
-        nonlocal best_theta, best_load, best_mu
-        c_ok, c_mu = feasible(th, g)
-        better = c_ok & (c_mu < best_mu)
-        best_theta, best_load = np.where(better, th, best_theta), np.where(better, g, best_load)
-        best_mu = np.where(better, c_mu, best_mu)
+    n = len(balls)
 
     def snap(value, bound):
         return np.where(np.abs(value / bound - 1.0) <= 1e-6, bound, value)
 
-    for th in (snap(theta, angle_lo), snap(theta, angle_hi)):
-        consider(th, load)
-        for g in (snap(load, floor), snap(load, ceiling)):
-            consider(th, g)
-    theta_now = np.where(np.isnan(best_theta), theta, best_theta)
-    low = np.clip(load * (1.0 - 1e-3), floor, ceiling)
-    high = np.clip(load * (1.0 + 1e-3), floor, ceiling)
-    bracketed = (_upper_excess(problem, balls, theta_now, low)[0] <= 0) & (
-        _upper_excess(problem, balls, theta_now, high)[0] > 0)
-    for _ in range(40):  # the bracket of width 2e-3 in log G shrinks below 1e-15
-        middle = np.sqrt(low * high)
-        below = _upper_excess(problem, balls, theta_now, middle)[0] <= 0
-        low, high = np.where(below, middle, low), np.where(below, high, middle)
-    consider(theta_now, np.where(bracketed, low, load))
-    keep = np.isnan(best_load)  # nothing feasible found: report the solver's point as it is
-    return (np.where(keep, theta, best_theta), np.where(keep, load, best_load), np.where(keep, mu, best_mu))
+    # the solver's design and its snapped variants, evaluated in one call of the physics
+    variants = [(th, g) for th in (theta, snap(theta, angle_lo), snap(theta, angle_hi))
+                for g in (load, snap(load, floor), snap(load, ceiling))]
+    all_theta = np.concatenate([v[0] for v in variants])
+    all_load = np.concatenate([v[1] for v in variants])
+    excess, mu_raw = _upper_excess(problem, np.tile(balls, len(variants)), all_theta, all_load)
+    ok = ((excess <= 0) & (all_load >= floor) & (all_load <= ceiling) & (all_theta >= angle_lo)
+          & (all_theta <= angle_hi)).reshape(len(variants), n)
+    mu_raw = mu_raw.reshape(len(variants), n)
+    mu_all = np.where(ok, mu_raw, np.inf)
+    pick = np.argmin(mu_all, axis=0)
+    columns = np.arange(n)
+    found = np.isfinite(mu_all[pick, columns])
+    best_theta = np.where(found, all_theta.reshape(len(variants), n)[pick, columns], theta)
+    best_load = np.where(found, all_load.reshape(len(variants), n)[pick, columns], load)
+    best_mu = mu_all[pick, columns]
+
+    # the largest load meeting every upper limit near the solver's, by regula falsi (Illinois) on log G
+    low = np.log(np.clip(load * (1.0 - 1e-3), floor, ceiling))
+    high = np.log(np.clip(load * (1.0 + 1e-3), floor, ceiling))
+    f_low = _upper_excess(problem, balls, best_theta, np.exp(low))[0]
+    f_high = _upper_excess(problem, balls, best_theta, np.exp(high))[0]
+    active = (f_low <= 0) & (f_high > 0)
+    if active.any():
+        idx = np.flatnonzero(active)
+        lo_y, hi_y, f_lo, f_hi = low[idx], high[idx], f_low[idx], f_high[idx]
+        excess_lo = f_lo.copy()  # the true excess at the feasible end (f_lo is halved by Illinois)
+        for _ in range(30):
+            width = hi_y - lo_y
+            # done when the feasible end sits on the limit to 1e-13 (log) or the bracket has closed
+            if np.all((width <= 1e-13) | (excess_lo >= -1e-13)):
+                break
+            trial = np.clip(lo_y - f_lo * width / (f_hi - f_lo), lo_y + 1e-3 * width, hi_y - 1e-3 * width)
+            f_trial = _upper_excess(problem, balls[idx], best_theta[idx], np.exp(trial))[0]
+            below = f_trial <= 0
+            # Illinois: halve the value kept at an end that did not move, so both ends converge
+            f_hi = np.where(below, 0.5 * f_hi, f_trial)
+            f_lo = np.where(below, f_trial, 0.5 * f_lo)
+            excess_lo = np.where(below, f_trial, excess_lo)
+            lo_y, hi_y = np.where(below, trial, lo_y), np.where(below, hi_y, trial)
+        candidate = np.exp(lo_y)  # the feasible end of the bracket
+        c_excess, c_mu = _upper_excess(problem, balls[idx], best_theta[idx], candidate)
+        better = (c_excess <= 0) & (candidate >= floor) & (candidate <= ceiling) & (c_mu < best_mu[idx])
+        best_load[idx] = np.where(better, candidate, best_load[idx])
+        best_mu[idx] = np.where(better, c_mu, best_mu[idx])
+        found[idx] |= better
+    # nothing feasible found: report the solver's point (variant 0) as it is
+    return (np.where(found, best_theta, theta), np.where(found, best_load, load),
+            np.where(found, best_mu, mu_raw[0]))
 
 
 def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: BallCountResult,
@@ -435,19 +499,19 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
     fallback: list[int] = []
     with gp.lock:
         gp.assign(values, lo)
+        count_solver = _CountSolver(gp, len(fitting))
         for i, z in enumerate(range(lo, hi + 1)):
             if z not in fitting:
                 rows.append(BallCountResult(z, "does not fit the groove"))
             else:
-                gp.balls.value = z  # only the ball count changes: setting a parameter costs ~0.3 ms
-                status, solver = _solve(gp)
+                status, solver, value, tan_theta, load = count_solver.solve(z)
                 if solver != _SOLVER:
                     fallback.append(z)
                 if status in _OPTIMAL:
                     # the solver may overshoot a bound by its tolerance: clip back into the box
-                    theta = float(np.clip(np.degrees(np.arctan(gp.tan_theta.value)), *angle_box))
-                    load = float(np.clip(gp.load_N.value, *load_box))
-                    rows.append(BallCountResult(z, status, theta, load, None, float(gp.problem.value)))
+                    theta = float(np.clip(np.degrees(np.arctan(tan_theta)), *angle_box))
+                    load = float(np.clip(load, *load_box))
+                    rows.append(BallCountResult(z, status, theta, load, None, value))
                 elif status in (*_INFEASIBLE, "solver_error"):
                     # decided by the phase-I problem below, which is always feasible
                     rows.append(BallCountResult(z, "infeasible"))
@@ -457,8 +521,9 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
             if progress is not None:
                 progress((i + 1) / (hi - lo + 1))
     limits = frozenset(n for n in problem.constraints.active_limits() if n != "groove_length_m")
-    for z in unconfirmed:
-        slack, _ = _phase_one_slack(problem, limits, [z]) if limits else (0.0, z)
+    confirmed = _phase_one_slacks(problem, limits, unconfirmed, stop_when_feasible=False) if (
+        limits and unconfirmed) else dict.fromkeys(unconfirmed, 0.0)
+    for z, slack in confirmed.items():
         if slack <= 1.0:
             raise RuntimeError(f"solver failed or said infeasible for balls={z}, but phase-I slack is "
                                f"{slack:.6g} <= 1")
