@@ -11,7 +11,7 @@ from scipy.optimize import minimize
 
 import physics
 from optimize import Constraints, DesignBounds, DesignProblem, InfeasibleDesignError, optimize_design
-from optimize.dgp import LIMIT_NAMES, build_design_gp, design_gp
+from optimize.dgp import LIMIT_NAMES, BallCountResolver, build_design_gp, design_gp
 
 GRID = 200
 
@@ -259,3 +259,25 @@ def test_bounds_validation_names_the_field(args, field):
 def test_constraints_validation_names_the_field(kwargs, field):
     with pytest.raises(ValueError, match=f"constraints.{field}"):
         Constraints(**kwargs)
+
+
+def test_fast_resolver_agrees_with_cvxpy_solve():
+    problem = DesignProblem(DesignBounds((3, 30), (35, 70), (0.001, 0.05)), speed_m_s=0.05,
+                            fixed={"balls_touching": True},
+                            constraints=Constraints(max_contact_pressure_Pa=6e8, max_friction_force_N=3e-4))
+    gp, values = design_gp(problem)
+    with gp.lock:
+        gp.assign(values, 3)
+        fast = BallCountResolver(gp)
+        statuses = set()
+        for z in (3, 7, 12, 30):
+            status, value, tan_theta, load = fast.solve(z)
+            gp.balls.value = z
+            gp.problem.solve(gp=True, solver="CLARABEL")
+            assert status == gp.problem.status
+            statuses.add(status)
+            if status == "optimal":
+                assert value == pytest.approx(gp.problem.value, rel=1e-7)
+                assert tan_theta == pytest.approx(gp.tan_theta.value, rel=1e-6)
+                assert load == pytest.approx(gp.load_N.value, rel=1e-5)
+    assert statuses == {"optimal", "infeasible"}  # both kinds of answer are covered
