@@ -118,7 +118,15 @@ class ProblemError(Exception):
         return body
 
 
-def validation_problem(errors: list[dict[str, str]], status: int = 422) -> ProblemError:
+#: Most offending fields listed in one problem, and in its detail: a body with a million bad
+#: values gets a bounded answer.
+MAX_LISTED_ERRORS = 100
+_SUMMARIZED_ERRORS = 10
+_EXAMINED_ERRORS = 10 * MAX_LISTED_ERRORS
+
+
+def validation_problem(errors: list[dict[str, str]], status: int = 422, total: int | None = None
+                       ) -> ProblemError:
     """A validation problem listing offending fields.
 
     Parameters
@@ -127,15 +135,22 @@ def validation_problem(errors: list[dict[str, str]], status: int = 422) -> Probl
         ``{"pointer": "/fixed/load_N", "detail": "..."}`` items.
     status : int, default 422
         HTTP status code [1].
+    total : int, optional
+        How many errors there were in all, when ``errors`` holds only the first ones [1].
 
     Returns
     -------
     ProblemError
-        Ready to raise.
+        Ready to raise; at most :data:`MAX_LISTED_ERRORS` fields are listed.
     """
-    summary = "; ".join(f"{e.get('pointer', e.get('parameter', ''))}: {e['detail']}" for e in errors)
+    total = max(total or 0, len(errors))
+    summary = "; ".join(f"{e.get('pointer', e.get('parameter', ''))}: {e['detail']}"
+                        for e in errors[:_SUMMARIZED_ERRORS])
+    if total > _SUMMARIZED_ERRORS:
+        summary += f"; and more ({total} errors in all, the first {min(len(errors), MAX_LISTED_ERRORS)} "
+        summary += "listed in errors)"
     return ProblemError(status, f"The request is invalid: {summary}", title="Invalid request",
-                        type_=VALIDATION_TYPE, errors=errors)
+                        type_=VALIDATION_TYPE, errors=errors[:MAX_LISTED_ERRORS])
 
 
 def problem_responses(*statuses: int) -> dict[int | str, dict[str, Any]]:
@@ -193,7 +208,9 @@ def _pointer_parts(loc: tuple[Any, ...], document: Any) -> list[str]:
 
 def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
     by_place: dict[tuple[str, str], list[str]] = {}
-    for error in exc.errors():
+    # Only the first errors are examined (at most MAX_LISTED_ERRORS are listed anyway): the cost
+    # of answering a body with a million bad values stays bounded.
+    for error in exc.errors()[:_EXAMINED_ERRORS]:
         loc = tuple(error.get("loc", ()))
         source, rest = (loc[0], loc[1:]) if loc else ("body", ())
         if error.get("type") in {"union_tag_invalid", "union_tag_not_found"}:
@@ -213,11 +230,14 @@ def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
             by_place[place].append(detail)
     # For a union (scalar or list) a bad list element also fails the scalar branch at the
     # field itself; the deeper pointer is the useful one.
-    pointers = [value for kind, value in by_place if kind == "pointer"]
+    # Every pointer that is a parent of another (a set, not a pairwise search: a request can
+    # carry a million bad list elements).
+    parents = {value[:i] for kind, value in by_place if kind == "pointer"
+               for i in range(len(value)) if value[i] == "/"}
     return [
         {kind: value, "detail": "; ".join(details)}
         for (kind, value), details in by_place.items()
-        if kind != "pointer" or not any(other.startswith(value + "/") for other in pointers)
+        if kind != "pointer" or value not in parents
     ]
 
 
@@ -244,7 +264,7 @@ async def _on_validation_error(request: Request, exc: RequestValidationError) ->
         problem = ProblemError(400, "The request body is not valid JSON.", title="Malformed JSON",
                                type_=VALIDATION_TYPE)
         return _respond(request, problem)
-    return _respond(request, validation_problem(_field_errors(exc)))
+    return _respond(request, validation_problem(_field_errors(exc), total=len(exc.errors())))
 
 
 async def _on_unexpected(request: Request, exc: Exception) -> ProblemResponse:

@@ -123,3 +123,21 @@ def test_a_sweep_on_a_dask_local_cluster_equals_the_local_run(tmp_path):
     expected = physics.evaluate(balls=6, load_N=load.ravel(), speed_m_s=speed.ravel())
     np.testing.assert_allclose(table["mu"], expected.mu, rtol=1e-12)
     np.testing.assert_allclose(table["mu_rolling"], expected.mu_rolling, rtol=1e-12)
+
+
+def test_a_batch_on_a_dask_local_cluster_equals_the_local_run(tmp_path):
+    count = 70_000  # two chunks
+    rng = np.random.default_rng(3)
+    body = {"points": {"balls": 7, "load_N": rng.uniform(1e-3, 0.05, count).tolist(),
+                       "speed_m_s": rng.uniform(0.0, 0.2, count).tolist()},
+            "outputs": ["mu", "contact_radius_m"]}
+    answers = {}
+    for name, extra in {"local": {}, "dask": {"dask_scheduler": "local", "executor_workers": 2}}.items():
+        with TestClient(create_app(Settings(data_dir=tmp_path / name, **extra))) as client:
+            response = client.post("/v1/friction/batch", json=body)
+            assert response.status_code == 200, response.text
+            answers[name] = response.content
+    assert answers["dask"] == answers["local"]
+    expected = physics.evaluate(balls=7, load_N=np.array(body["points"]["load_N"]),
+                                speed_m_s=np.array(body["points"]["speed_m_s"]))
+    np.testing.assert_array_equal(json.loads(answers["dask"])["mu"], expected.mu)
