@@ -130,7 +130,8 @@ def select_batch(model: GaussianProcessSurrogate, candidates: np.ndarray, size: 
       Cholesky factorization of ``C``); favours corners and edges;
     * ``"integrated_variance"``: the largest reduction of the variance summed
       over the candidates, ``Σ_i C_ij² / C_jj`` (IMSE; Sacks et al. 1989,
-      Gramacy 2020 Sect. 6.2), the candidates standing in for the space.
+      the ALC criterion of Cohn 1996, Gramacy 2020 ch. 6), the candidates
+      standing in for the space.
 
     Parameters
     ----------
@@ -146,7 +147,9 @@ def select_batch(model: GaussianProcessSurrogate, candidates: np.ndarray, size: 
     Returns
     -------
     numpy.ndarray of int, shape (<= size,)
-        Indices into ``candidates``, in pick order (fewer if no variance is left).
+        Indices into ``candidates``, in pick order; fewer (maybe none) when no
+        candidate's posterior variance exceeds 10 times the noise (fitted level
+        plus jitter).
 
     Raises
     ------
@@ -160,13 +163,16 @@ def select_batch(model: GaussianProcessSurrogate, candidates: np.ndarray, size: 
     gp = model.gaussian_process_
     latent = gp.kernel_.k1  # amplitude × correlation, without the WhiteKernel
     Zc = model._design_matrix(candidates)
-    # Posterior covariance (Rasmussen & Williams 2006, Alg. 2.1 lines 4-6): C = K** - VᵀV, V = L \ K*.
+    # Posterior covariance (Rasmussen & Williams 2006, Alg. 2.1 lines 5-6): C = K** - VᵀV, V = L \ K*.
     V = solve_triangular(gp.L_, latent(gp.X_train_, Zc), lower=True)
     C = latent(Zc) - V.T @ V
+    # A point whose latent variance is down at the noise level (e.g. a repeat of a training
+    # point) has nothing left to teach; neither has one at round-off level of the prior.
+    floor = max(10.0 * (gp.kernel_.k2.noise_level + gp.alpha), 1e-12 * float(np.max(latent.diag(Zc))))
     picked: list[int] = []
     for _ in range(size):
         variance = np.diag(C).copy()
-        usable = variance > 1e-12 * max(float(np.max(variance)), np.finfo(float).tiny)
+        usable = variance > floor
         usable[picked] = False
         if not usable.any():
             break
@@ -200,7 +206,8 @@ class AdaptiveFit:
         ``loo_p95_relative_error`` (closed-form leave-one-out, hyperparameters
         fixed).
     stop_reason : str
-        ``"target_reached"`` or ``"budget_exhausted"``.
+        ``"target_reached"``, ``"budget_exhausted"`` or ``"candidates_exhausted"``
+        (no candidate left with posterior variance, e.g. every integer point sampled).
     """
 
     model: GaussianProcessSurrogate
@@ -320,10 +327,10 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         if len(y) >= budget or not adaptive:
             stop = "budget_exhausted"
             break
-        size = min(int(batch_size), budget - len(y))
-        picked = select_batch(model, candidates, size, criterion)
+        size = min(int(batch_size), budget - len(y), len(candidates))
+        picked = select_batch(model, candidates, size, criterion) if size else np.empty(0, dtype=int)
         if len(picked) == 0:
-            stop = "budget_exhausted"
+            stop = "candidates_exhausted"
             break
         X = np.vstack([X, candidates[picked]])
         y = np.concatenate([y, space.evaluate(candidates[picked])])

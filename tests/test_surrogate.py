@@ -298,7 +298,7 @@ def test_select_batch_by_variance_starts_at_the_largest_std(fitted):
 
 
 def test_select_batch_conditions_on_picks():
-    space = SPACES["load"]
+    space = SPACES["angle+load"]
     X = design(space, 6, seed=0)
     model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
     candidates = design(space, 64, seed=9)
@@ -334,6 +334,15 @@ def test_fit_adaptive_stops_at_the_target():
     fit = fit_adaptive(space, budget=40, target_relative_error=0.05, initial_size=8, n_candidates=128)
     assert fit.stop_reason == "target_reached" and fit.n_train == 8
     assert holdout_metrics(fit.model, n_test=256)["median_relative_error"] < 0.05
+
+
+def test_fit_adaptive_stops_when_no_candidate_is_uncertain():
+    space = Space({"balls": (3, 6)}, fixed={"load_N": 0.01, "speed_m_s": 0.01})
+    fit = fit_adaptive(space, budget=30, target_relative_error=1e-12, initial_size=8, n_candidates=64)
+    # Four possible ball counts, all in the starting design: no evaluation is wasted on repeats.
+    assert set(fit.X[:, 0]) == {3, 4, 5, 6} and fit.n_train == 8
+    assert fit.stop_reason in ("target_reached", "candidates_exhausted")
+    assert len(select_batch(fit.model, np.array([[3.0], [4.0], [5.0], [6.0]]), 2)) == 0
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
