@@ -180,7 +180,7 @@ def parse_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | Non
     Traceback (most recent call last):
     ...
     calibrate.data.DataError: 1 problem(s) in the measured data:
-    row 1, column load_N: load_N must be in (0, 1e+06] [N]; got -1.0
+    row 1, column load_N: load_N must be in [1e-09, 1e+06] [N]; got -1.0
     """
     errors = []
     names: list[str] = []

@@ -449,7 +449,8 @@ def evaluate(convention: str = DEFAULT_CONVENTION, **params: Any) -> FrictionRes
         "ball_ball_moment_Nm": m_b,
         "ball_race_force_N": f_ball,
     }
+    arrays = {k: np.asarray(v, dtype=float) for k, v in values.items()}
     return FrictionResult(
-        **{k: np.broadcast_to(np.asarray(v, dtype=float), shape) for k, v in values.items()},
+        **{k: v if v.shape == shape else np.broadcast_to(v, shape) for k, v in arrays.items()},
         convention=convention,
     )

@@ -8,10 +8,16 @@ parameter is declared exactly once.
 Names carry their SI unit (``load_N``, ``speed_m_s``); angles are the one
 exception to SI, given in degrees (``groove_angle_deg``) because that is how a
 groove is specified, and converted to radians inside the model.
+
+The bounds are those of a physically meaningful micro bearing, wide enough for
+any design (a load of 1 nN to 1 MN, balls of 0.1 um to 10 cm, moduli of a soft
+polymer to beyond diamond); inside them every output is finite, which a test
+checks at every corner of the box.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -68,6 +74,20 @@ class Parameter:
         """True for design and operating inputs that have no default."""
         return self.default is None
 
+    def accepts(self, value: float) -> bool:
+        """Whether a plain Python number lies in the allowed range (scalar fast path)."""
+        if not math.isfinite(value):
+            return False
+        if self.minimum is not None and (
+            value <= self.minimum if self.exclusive_minimum else value < self.minimum
+        ):
+            return False
+        if self.maximum is not None and (
+            value >= self.maximum if self.exclusive_maximum else value > self.maximum
+        ):
+            return False
+        return self.kind != "int" or value == round(value)
+
     def range_text(self) -> str:
         """The allowed range in words, e.g. ``"> 0"`` or ``"in (0, 90)"``."""
         if self.kind == "bool":
@@ -107,7 +127,7 @@ PARAMETERS: dict[str, Parameter] = {
         Parameter(
             "load_N", "G", "N",
             "Normal load on the slider: slider weight m*g plus any external load.",
-            minimum=0, maximum=1e6, exclusive_minimum=True,
+            minimum=1e-9, maximum=1e6,
         ),
         Parameter(
             "speed_m_s", "V", "m/s",
@@ -117,7 +137,7 @@ PARAMETERS: dict[str, Parameter] = {
         Parameter(
             "ball_diameter_m", "d", "m",
             "Ball diameter (285 um in Olaru et al. and Lin et al.).",
-            default=285e-6, minimum=0, maximum=1.0, exclusive_minimum=True,
+            default=285e-6, minimum=1e-7, maximum=0.1,
         ),
         Parameter(
             "balls_touching", "", "1",
@@ -142,28 +162,28 @@ PARAMETERS: dict[str, Parameter] = {
             "Interfacial energy of the JKR adhesion at the ball-race contacts; 0 "
             "turns adhesion off. 0.18 J/m^2 gives the 200-300 uN pull-off forces "
             "that Olaru et al. quote.",
-            default=0.18, minimum=0, maximum=100,
+            default=0.18, minimum=0, maximum=10,
         ),
         Parameter(
             "water_surface_tension_N_m", "gamma_w", "N/m",
             "Surface tension of the condensed water film driving the ball-ball "
             "capillary force (0.0717 N/m at 27 degC).",
-            default=0.0717, minimum=0, maximum=10,
+            default=0.0717, minimum=0, maximum=1,
         ),
         Parameter(
             "viscosity_Pa_s", "eta_0", "Pa*s",
             "Dynamic viscosity of the water film at ambient pressure.",
-            default=1e-3, minimum=0, maximum=1e6,
+            default=1e-3, minimum=0, maximum=1e3,
         ),
         Parameter(
             "pressure_viscosity_1_Pa", "alpha", "1/Pa",
             "Pressure-viscosity coefficient of the water film.",
-            default=1e-8, minimum=0, maximum=1e-3, exclusive_minimum=True,
+            default=1e-8, minimum=1e-12, maximum=1e-6,
         ),
         Parameter(
             "ball_youngs_modulus_Pa", "E_1", "Pa",
             "Young's modulus of the balls (stainless steel, 2.1e11 Pa).",
-            default=_STEEL_E_PA, minimum=0, maximum=1e13, exclusive_minimum=True,
+            default=_STEEL_E_PA, minimum=1e6, maximum=1e13,
         ),
         Parameter(
             "ball_poisson_ratio", "nu_1", "1",
@@ -173,7 +193,7 @@ PARAMETERS: dict[str, Parameter] = {
         Parameter(
             "race_youngs_modulus_Pa", "E_2", "Pa",
             "Young's modulus of slider and stator (silicon, 1.5e11 Pa).",
-            default=_SILICON_E_PA, minimum=0, maximum=1e13, exclusive_minimum=True,
+            default=_SILICON_E_PA, minimum=1e6, maximum=1e13,
         ),
         Parameter(
             "race_poisson_ratio", "nu_2", "1",
@@ -236,9 +256,11 @@ def validate(name: str, value: Any) -> np.ndarray:
     >>> validate("load_N", -1.0)
     Traceback (most recent call last):
     ...
-    ValueError: load_N must be in (0, 1e+06] [N]; got -1.0
+    ValueError: load_N must be in [1e-09, 1e+06] [N]; got -1.0
     """
     spec = PARAMETERS[name]
+    if type(value) in (float, int) and spec.kind != "bool" and spec.accepts(value):
+        return np.asarray(value, dtype=np.float64)
     allowed = f"{spec.name} must be {spec.range_text()} [{spec.unit}]"
     if spec.kind == "bool":
         arr = np.asarray(value)

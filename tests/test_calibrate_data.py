@@ -43,7 +43,7 @@ def test_bad_json_rows_are_reported_cell_by_cell():
     assert found == {(2, "load_N"), (3, "speed_m_s"), (4, "balls"), (5, "mu_measured"), (6, "balls"),
                      (6, "relative_humidity"), (7, "relative_humidity")}
     messages = {(e["row"], e["column"]): e["message"] for e in caught.value.errors}
-    assert "load_N must be in (0, 1e+06] [N]; got -1.0" in messages[(2, "load_N")]
+    assert "load_N must be in [1e-09, 1e+06] [N]; got -1.0" in messages[(2, "load_N")]
     assert "string" in messages[(4, "balls")]
     assert "row 2, column load_N" in str(caught.value)
 

@@ -105,19 +105,20 @@ def test_defaults_are_the_papers_conditions():
 @pytest.mark.parametrize(
     ("override", "match"),
     [
-        ({"load_N": -1.0}, r"load_N must be in \(0, 1e\+06\] \[N\]; got -1.0"),
-        ({"load_N": 0.0}, r"load_N must be in \(0, "),
+        ({"load_N": -1.0}, r"load_N must be in \[1e-09, 1e\+06\] \[N\]; got -1.0"),
+        ({"load_N": 0.0}, r"load_N must be in \[1e-09, "),
+        ({"load_N": 5e-324}, r"load_N must be in \[1e-09, .*got 5e-324"),
         ({"groove_angle_deg": 90.0}, r"groove_angle_deg must be in \(0, 90\) \[deg\]"),
         ({"groove_angle_deg": 0.0}, r"groove_angle_deg must be in \(0, 90\)"),
         ({"balls": 0}, r"balls must be a whole number in \[1, 1e\+06\]"),
         ({"balls": 2.5}, r"balls must be a whole number"),
         ({"speed_m_s": math.nan}, r"speed_m_s must be .* and finite; got nan"),
         ({"speed_m_s": [0.1, math.inf]}, r"speed_m_s .* finite; got inf at index 1"),
-        ({"load_N": "heavy"}, r"load_N must be in \(0, 1e\+06\] \[N\]; got 'heavy'"),
+        ({"load_N": "heavy"}, r"load_N must be in \[1e-09, 1e\+06\] \[N\]; got 'heavy'"),
         ({"load_N": True}, r"load_N .* got a boolean"),
         ({"balls_touching": 1.0}, r"balls_touching must be true or false"),
         ({"ball_poisson_ratio": 0.5}, r"ball_poisson_ratio must be in \[0, 0.5\)"),
-        ({"adhesion_energy_J_m2": -0.1}, r"adhesion_energy_J_m2 must be in \[0, 100\]"),
+        ({"adhesion_energy_J_m2": -0.1}, r"adhesion_energy_J_m2 must be in \[0, 10\]"),
         ({"mu_pivot": -1}, r"mu_pivot must be in \[0, 10\]"),
         ({"colour": "red"}, r"unknown parameter\(s\) colour"),
     ],
@@ -140,6 +141,25 @@ def test_shapes_that_do_not_broadcast_are_rejected():
 def test_unknown_convention_is_rejected():
     with pytest.raises(ValueError, match="convention must be one of"):
         evaluate(**BASE, convention="hertz")
+
+
+def test_every_output_is_finite_at_every_corner_of_the_parameter_box():
+    # 2**16 designs: each parameter at the lowest and highest value it accepts
+    corners = {}
+    for p in PARAMETERS.values():
+        if p.kind == "bool":
+            corners[p.name] = [False, True]
+            continue
+        lo = np.nextafter(p.minimum, np.inf) if p.exclusive_minimum else p.minimum
+        hi = np.nextafter(p.maximum, -np.inf) if p.exclusive_maximum else p.maximum
+        corners[p.name] = [lo, hi]
+    grid = np.meshgrid(*[np.arange(2)] * len(corners), indexing="ij")
+    points = {n: np.asarray(v)[g.ravel()] for (n, v), g in zip(corners.items(), grid, strict=True)}
+    with np.errstate(over="raise", invalid="raise", divide="raise"):
+        r = evaluate(**points)
+    for name in OUTPUTS:
+        assert np.all(np.isfinite(getattr(r, name))), name
+        assert np.all(getattr(r, name) >= 0), name
 
 
 def test_no_nan_anywhere_on_a_wide_random_domain():

@@ -128,7 +128,7 @@ def test_from_points_flags_points_outside_the_space():
     np.testing.assert_array_equal(X[:, 1], [4, 4, 50, 4, 4])
     with pytest.raises(ValueError, match="missing balls"):
         space.from_points({"load_N": [0.01]})
-    with pytest.raises(ValueError, match=r"load_N must be in \(0"):
+    with pytest.raises(ValueError, match=r"load_N must be in \[1e-09"):
         space.from_points({"load_N": [-1.0], "balls": [4]})
 
 
