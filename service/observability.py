@@ -5,7 +5,8 @@ Request ids
     characters of ``A-Z a-z 0-9 . _ : -``), else a fresh UUID. The response echoes it in
     ``X-Request-ID`` and every log record written while the request is handled carries it
     (also from worker threads: :func:`starlette.concurrency.run_in_threadpool` copies the
-    context).
+    context). An unexpected exception's traceback is logged with the id; its 500 answer, made
+    by Starlette's outermost error middleware, does not carry the header.
 
 Logs
     :func:`configure_logging` writes the ``microbearing`` loggers as one JSON object per line
@@ -191,8 +192,10 @@ class ObservabilityMiddleware:
                 MutableHeaders(scope=message)[REQUEST_ID_HEADER] = request_id
             await send(message)
 
+        failed = True
         try:
             await self.app(scope, receive, send_with_id)
+            failed = False
         finally:
             duration_s = time.perf_counter() - started
             route = getattr(scope.get("route"), "path", None) or _UNMATCHED_ROUTE
@@ -202,7 +205,10 @@ class ObservabilityMiddleware:
             access_logger.info("%s %s %d", method, route, status, extra={
                 "method": method, "path": scope["path"][:200], "route": route, "status": status,
                 "duration_ms": round(duration_s * 1e3, 3)})
-            _request_id.reset(token)
+            if not failed:
+                # After an exception the id stays set, so that the server's error handler (outside
+                # this middleware) logs the traceback with it; the request's context ends anyway.
+                _request_id.reset(token)
 
 
 def metrics_text() -> bytes:

@@ -170,6 +170,23 @@ def test_errors_carry_the_request_id_too(open_client):
     assert response.headers["x-request-id"] == "bad-body-1"
 
 
+def test_an_unexpected_error_is_logged_with_the_request_id(tmp_path, caplog):
+    app = create_app(Settings(data_dir=tmp_path))
+
+    def fail() -> None:
+        raise RuntimeError("boom")
+
+    app.add_api_route("/v1/failing", fail)
+    caplog.set_level(logging.INFO, logger="microbearing")
+    with TestClient(app, raise_server_exceptions=False) as client:
+        response = client.get("/v1/failing", headers={"X-Request-ID": "failing-request-7"})
+    assert response.status_code == 500 and response.headers["content-type"] == PROBLEM
+    logged = [r for r in caplog.records if r.exc_info]
+    assert logged and all(r.request_id == "failing-request-7" for r in logged)
+    access = [r for r in caplog.records if r.name == "microbearing.access"]
+    assert access[-1].status == 500 and access[-1].request_id == "failing-request-7"
+
+
 # Metrics -----------------------------------------------------------------------------------------
 
 def request_count(client: TestClient, method: str, route: str, status: str) -> float:
