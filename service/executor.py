@@ -30,7 +30,7 @@ import numpy as np
 import physics
 
 from .evaluation import evaluate_checked
-from .problems import ProblemError
+from .problems import ProblemError, validation_problem
 from .settings import Settings
 
 __all__ = ["DEFAULT_CHUNK_POINTS", "DaskExecutor", "chunk_bounds", "create_executor", "evaluate_in_chunks",
@@ -226,6 +226,12 @@ def evaluate_in_chunks(executor: Executor | None, inputs: dict[str, Any], count:
     wrong = {name: len(value) for name, value in columns.items() if len(value) != count}
     if wrong:
         raise ValueError(f"inputs {sorted(wrong)} must have count={count} values, not {wrong}")
+    for name, values in columns.items():
+        # Whole columns first, so that an error names the point's index in the request, not in a chunk.
+        try:
+            physics.validate(name, values)
+        except ValueError as exc:
+            raise validation_problem([{"pointer": f"{pointer}/{name}", "detail": str(exc)}]) from None
     bounds = chunk_bounds(count, chunk_points)
     arguments = [({**shared, **{name: values[start:stop] for name, values in columns.items()}},
                   outputs, convention, pointer, start) for start, stop in bounds]

@@ -93,11 +93,12 @@ def test_chunked_evaluation_equals_the_physics_on_every_executor(dask_local):
 def test_a_bad_point_is_named_by_its_index_in_the_whole_batch(dask_local):
     count = 3_000
     inputs = {"balls": 4, "load_N": np.full(count, 0.01), "speed_m_s": 0.1}
-    inputs["load_N"][2_345] = 5e-324  # a denormal load: the model's outputs are not finite there
+    inputs["load_N"][2_345] = 5e-324  # a denormal load, below the table's minimum
     with pytest.raises(ProblemError) as caught:
         evaluate_in_chunks(dask_local, inputs, count, None, "olaru2005", pointer="/points", chunk_points=500)
     assert caught.value.status == 422
-    assert "at point 2345" in caught.value.errors[0]["detail"]
+    assert caught.value.errors[0]["pointer"] == "/points/load_N"
+    assert "index 2345" in caught.value.errors[0]["detail"]  # in the whole batch, not in its chunk
 
 
 def test_a_sweep_on_a_dask_local_cluster_equals_the_local_run(tmp_path):
