@@ -148,8 +148,7 @@ def select_batch(model: GaussianProcessSurrogate, candidates: np.ndarray, size: 
     -------
     numpy.ndarray of int, shape (<= size,)
         Indices into ``candidates``, in pick order; fewer (maybe none) when no
-        candidate's posterior variance exceeds 10 times the noise (fitted level
-        plus jitter).
+        candidate's posterior variance is above round-off (1e-12 of the prior).
 
     Raises
     ------
@@ -166,9 +165,9 @@ def select_batch(model: GaussianProcessSurrogate, candidates: np.ndarray, size: 
     # Posterior covariance (Rasmussen & Williams 2006, Alg. 2.1 lines 5-6): C = K** - VᵀV, V = L \ K*.
     V = solve_triangular(gp.L_, latent(gp.X_train_, Zc), lower=True)
     C = latent(Zc) - V.T @ V
-    # A point whose latent variance is down at the noise level (e.g. a repeat of a training
-    # point) has nothing left to teach; neither has one at round-off level of the prior.
-    floor = max(10.0 * (gp.kernel_.k2.noise_level + gp.alpha), 1e-12 * float(np.max(latent.diag(Zc))))
+    # Variance at round-off level of the prior: nothing left to learn there (e.g. a point
+    # already picked in this batch).
+    floor = 1e-12 * float(np.max(latent.diag(Zc)))
     picked: list[int] = []
     for _ in range(size):
         variance = np.diag(C).copy()
@@ -207,7 +206,7 @@ class AdaptiveFit:
         fixed).
     stop_reason : str
         ``"target_reached"``, ``"budget_exhausted"`` or ``"candidates_exhausted"``
-        (no candidate left with posterior variance, e.g. every integer point sampled).
+        (no candidate left that is not a training point, e.g. every integer point sampled).
     """
 
     model: GaussianProcessSurrogate
@@ -298,6 +297,9 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
     y = space.evaluate(X)
     # Candidates from another scramble than the design, so they are not the training points.
     candidates = design(space, int(n_candidates), "sobol", None if seed is None else seed + 1)
+    # Integer and boolean dimensions make repeats possible: never evaluate a point twice.
+    evaluated = {tuple(row) for row in X}
+    candidates = np.unique(candidates[[tuple(row) not in evaluated for row in candidates]], axis=0)
     history: list[dict[str, float]] = []
     while True:
         model = GaussianProcessSurrogate(space, **rounds).fit(X, y)
@@ -305,7 +307,9 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         # (measured on the 4-D and 6-D benchmarks: restarts then changed nothing but the time).
         rounds = {**rounds, "initial_theta": model.gaussian_process_.kernel_.theta.tolist(),
                   "n_restarts_optimizer": 0}
-        _, std = model.predict(candidates, return_std=True)
+        # Without candidates left (every point of an integer space evaluated) only the
+        # leave-one-out errors estimate the error.
+        std = model.predict(candidates, return_std=True)[1] if len(candidates) else np.zeros(1)
         loo = np.abs(model.loo_log_errors())
         # Relative error of μ: log μ errors as they are, μ errors over a typical μ.
         per_mu = 1.0 if model.log_target else 1.0 / float(np.median(np.abs(y)))

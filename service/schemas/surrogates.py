@@ -98,7 +98,7 @@ class SurrogateResult(ResponseModel):
     budget: int = Field(description="Evaluation budget requested [1].")
     n_train: int = Field(description="Physics evaluations used for training, at most budget [1].")
     stop_reason: str = Field(description="target_reached, budget_exhausted or candidates_exhausted "
-                                         "(no candidate point left with uncertainty).")
+                                         "(every candidate point already evaluated).")
     metrics: SurrogateMetrics = Field(description="Held-out accuracy.")
     history: list[dict[str, float]] = Field(
         description="Per refit: n_train [1] and estimated / leave-one-out median and 95th-percentile "
