@@ -40,8 +40,10 @@ def wait(manager: JobManager, job_id: str, timeout_s: float = 20.0) -> dict:
 
 def test_job_result_and_progress_are_stored(manager):
     seen = []
+    release = threading.Event()
 
     def work(ctx: JobContext) -> dict:
+        release.wait(10)  # hold the job until its queued/running state is checked
         for i in range(5):
             ctx.progress((i + 1) / 5)
             seen.append(i)
@@ -49,6 +51,7 @@ def test_job_result_and_progress_are_stored(manager):
 
     job = manager.submit("sum", {"n": 5}, work)
     assert job["status"] in ("queued", "running") and job["owner_pid"] == os.getpid()
+    release.set()
     row = wait(manager, job["id"])
     assert row["status"] == "succeeded" and row["progress"] == 1.0
     assert json.loads(row["result_json"]) == {"total": 10, "values": [0.0, 1.0, 2.0]}
