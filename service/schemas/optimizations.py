@@ -17,6 +17,9 @@ __all__ = ["MODEL_PATTERN", "OptimizationRequest", "OptimizationResult"]
 MODEL_PATTERN = r"^(physics|surrogate:[0-9a-f]{32}|calibrated:[0-9a-f]{32})$"
 
 
+_LOAD = physics.PARAMETERS["load_N"]
+
+
 def _pair(what: str) -> Field:
     return Field(min_length=2, max_length=2, description=f"[lower, upper] {what}, both included.")
 
@@ -28,27 +31,34 @@ class DesignBounds(StrictModel):
                      _pair("total number of balls (both grooves) [1]")]
     groove_angle_deg: Annotated[list[Annotated[float, Field(gt=0, lt=90)]],
                                 _pair("groove angle, inside (0, 90) [deg]")]
-    load_N: Annotated[list[Annotated[float, Field(gt=0, le=1e6)]], _pair("normal load on the slider [N]")]
+    load_N: Annotated[list[Annotated[float, Field(ge=_LOAD.minimum, le=_LOAD.maximum)]],
+                      _pair(f"normal load on the slider, {_LOAD.range_text()} [N]")]
 
 
 class DesignLimits(StrictModel):
     """Engineering limits; omit one to switch it off."""
 
     max_contact_pressure_Pa: float | None = Field(
-        default=None, gt=0, description="Upper limit on the peak Hertz pressure 3Q/(2 pi a^2) of a ball-race "
+        default=None, ge=1.0, le=1e13,
+        description="Upper limit on the peak Hertz pressure 3Q/(2 pi a^2) of a ball-race "
         "contact (the physics output max_contact_pressure_Pa) [Pa].")
     max_friction_force_N: float | None = Field(
-        default=None, gt=0, description="Upper limit on the friction force mu G at the worst-case speed [N].")
+        default=None, ge=1e-15, le=1e6,
+        description="Upper limit on the friction force mu G at the worst-case speed [N].")
     min_load_capacity_N: float | None = Field(
-        default=None, gt=0, description="The design must carry at least this load: load_N >= it [N].")
+        default=None, ge=_LOAD.minimum, le=_LOAD.maximum,
+        description="The design must carry at least this load: load_N >= it [N].")
     max_load_per_ball_N: float | None = Field(
-        default=None, gt=0, description="Upper limit on the load per ball G / balls [N].")
+        default=None, ge=1e-15, le=_LOAD.maximum,
+        description="Upper limit on the load per ball G / balls [N].")
     groove_length_m: float | None = Field(
-        default=None, gt=0, description="Length of each of the two grooves: the fuller one holds "
+        default=None, ge=1e-7, le=10.0,
+        description="Length of each of the two grooves: the fuller one holds "
         "n = ceil(balls/2) balls, which must fit with min_ball_gap_m between neighbours: "
         "n d + (n - 1) gap <= groove_length_m [m].")
     min_ball_gap_m: float = Field(
-        default=0.0, ge=0, description="Clearance between neighbouring balls in a groove; 0 lets them just "
+        default=0.0, ge=0, le=1.0,
+        description="Clearance between neighbouring balls in a groove; 0 lets them just "
         "touch, > 0 keeps them apart as balls_touching=false assumes [m].")
 
 
