@@ -67,7 +67,8 @@ class DesignBounds:
     balls : tuple of int
         [lower, upper] total number of balls z, whole numbers >= 1. [1]
     groove_angle_deg : tuple of float
-        [lower, upper] groove angle θ, inside (0, 90). [deg]
+        [lower, upper] groove angle θ, within the bounds of
+        ``physics.PARAMETERS["groove_angle_deg"]``. [deg]
     load_N : tuple of float
         [lower, upper] normal load G on the slider, > 0. [N]
 

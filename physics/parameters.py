@@ -10,7 +10,8 @@ exception to SI, given in degrees (``groove_angle_deg``) because that is how a
 groove is specified, and converted to radians inside the model.
 
 The bounds are those of a physically meaningful micro bearing, wide enough for
-any design (a load of 1 nN to 1 MN, balls of 0.1 um to 10 cm, moduli of a soft
+any design (a load of 1 nN to 1 MN, balls of 0.1 um to 10 cm, groove angles of
+0.01 to 89.99 deg, moduli of a soft
 polymer to beyond diamond); inside them every output is finite, which a test
 checks at every corner of the box.
 """
@@ -120,9 +121,10 @@ PARAMETERS: dict[str, Parameter] = {
         Parameter(
             "groove_angle_deg", "theta", "deg",
             "V-groove flank angle, equal to the angle between each ball-race contact "
-            "normal and the vertical; 54.7 deg for KOH-etched (111) silicon flanks.",
-            default=54.7, minimum=0, maximum=90,
-            exclusive_minimum=True, exclusive_maximum=True,
+            "normal and the vertical; 54.7 deg for KOH-etched (111) silicon flanks. "
+            "Inside (0, 90); the last 0.01 deg at either end is a flat plate or a vertical "
+            "wall that locates no ball and is refused.",
+            default=54.7, minimum=0.01, maximum=89.99,
         ),
         Parameter(
             "load_N", "G", "N",

@@ -182,7 +182,7 @@ def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> 
     return accepted(jobs.submit("surrogate", body.model_dump(mode="json"), work))
 
 
-@router.get("", operation_id="list_surrogates", response_model=SurrogateList)
+@router.get("", operation_id="list_surrogates", response_model=SurrogateList, responses=problem_responses())
 def list_surrogates(store: StoreDep) -> JSONResponse:
     """Every stored surrogate, newest first."""
     rows = store.list_models(KIND)

@@ -18,6 +18,7 @@ MODEL_PATTERN = r"^(physics|surrogate:[0-9a-f]{32}|calibrated:[0-9a-f]{32})$"
 
 
 _LOAD = physics.PARAMETERS["load_N"]
+_ANGLE = physics.PARAMETERS["groove_angle_deg"]
 
 
 def _pair(what: str) -> Field:
@@ -29,8 +30,8 @@ class DesignBounds(StrictModel):
 
     balls: Annotated[list[Annotated[int, Field(ge=1, le=100_000)]],
                      _pair("total number of balls (both grooves) [1]")]
-    groove_angle_deg: Annotated[list[Annotated[float, Field(gt=0, lt=90)]],
-                                _pair("groove angle, inside (0, 90) [deg]")]
+    groove_angle_deg: Annotated[list[Annotated[float, Field(ge=_ANGLE.minimum, le=_ANGLE.maximum)]],
+                                _pair(f"groove angle, {_ANGLE.range_text()} [deg]")]
     load_N: Annotated[list[Annotated[float, Field(ge=_LOAD.minimum, le=_LOAD.maximum)]],
                       _pair(f"normal load on the slider, {_LOAD.range_text()} [N]")]
 
