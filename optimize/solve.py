@@ -24,7 +24,7 @@ import numpy as np
 import physics
 
 from .dgp import SAFETY_MARGIN, BallCountResolver, design_gp
-from .problem import ConstraintStatus, DesignBounds, DesignProblem, constraint_report
+from .problem import DESIGN_VARIABLES, ConstraintStatus, DesignBounds, DesignProblem, constraint_report
 
 __all__ = [
     "TIE_TOLERANCE",
@@ -233,16 +233,18 @@ def _phase_one_slack(problem: DesignProblem, limits: frozenset[str], counts: lis
 
 
 def _widened(problem: DesignProblem) -> dict[str, DesignProblem]:
-    """The problem with each box bound in turn widened a little (one ball, 1 %)."""
+    """The problem with each box bound in turn widened a little (one ball, 1 %), within the physics' range."""
     b = problem.bounds
     (z_lo, z_hi), (a_lo, a_hi), (g_lo, g_hi) = b.balls, b.groove_angle_deg, b.load_N
+    z_range, a_range, g_range = (physics.PARAMETERS[n] for n in DESIGN_VARIABLES)
     boxes = {
-        "balls_min": ((max(z_lo - 1, 1), z_hi), b.groove_angle_deg, b.load_N),
-        "balls_max": ((z_lo, z_hi + 1), b.groove_angle_deg, b.load_N),
-        "groove_angle_deg_min": (b.balls, (0.99 * a_lo, a_hi), b.load_N),
-        "groove_angle_deg_max": (b.balls, (a_lo, a_hi + 0.01 * (90.0 - a_hi)), b.load_N),
-        "load_N_min": (b.balls, b.groove_angle_deg, (0.99 * g_lo, g_hi)),
-        "load_N_max": (b.balls, b.groove_angle_deg, (g_lo, 1.01 * g_hi)),
+        "balls_min": ((max(z_lo - 1, z_range.minimum), z_hi), b.groove_angle_deg, b.load_N),
+        "balls_max": ((z_lo, min(z_hi + 1, z_range.maximum)), b.groove_angle_deg, b.load_N),
+        "groove_angle_deg_min": (b.balls, (max(0.99 * a_lo, a_range.minimum), a_hi), b.load_N),
+        "groove_angle_deg_max": (b.balls, (a_lo, min(a_hi + 0.01 * (90.0 - a_hi), a_range.maximum)),
+                                 b.load_N),
+        "load_N_min": (b.balls, b.groove_angle_deg, (max(0.99 * g_lo, g_range.minimum), g_hi)),
+        "load_N_max": (b.balls, b.groove_angle_deg, (g_lo, min(1.01 * g_hi, g_range.maximum))),
     }
     return {name: replace(problem, bounds=DesignBounds(*box)) for name, box in boxes.items()
             if box != (b.balls, b.groove_angle_deg, b.load_N)}

@@ -281,3 +281,13 @@ def test_fast_resolver_agrees_with_cvxpy_solve():
                 assert tan_theta == pytest.approx(gp.tan_theta.value, rel=1e-6)
                 assert load == pytest.approx(gp.load_N.value, rel=1e-5)
     assert statuses == {"optimal", "infeasible"}  # both kinds of answer are covered
+
+
+def test_conflicts_at_the_edges_of_the_physics_range_are_named_not_crashed():
+    # bounds on the physics' own limits: the conflict analysis may not widen them past it
+    lowest = DesignBounds((1, 1), (0.01, 0.01), (1e-9, 1e-9))
+    with pytest.raises(InfeasibleDesignError) as info:
+        limits = Constraints(max_contact_pressure_Pa=1.0)
+        optimize_design(DesignProblem(lowest, speed_m_s=0.0, constraints=limits))
+    assert info.value.conflicts == ["max_contact_pressure_Pa"]
+    assert "groove_angle_deg_min" not in info.value.binding_bounds
