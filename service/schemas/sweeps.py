@@ -53,46 +53,43 @@ SweepFixed = create_model(
     **parameter_fields(optional=True),
 )
 
-_FIXED = Field(default_factory=SweepFixed, description="Inputs held constant.")
-_OUTPUTS = Field(default=None, min_length=1, description="Outputs to return (default: all of them).")
-_CONVENTION = Field(default=Convention(physics.DEFAULT_CONVENTION),
-                    description="Reading of the paper's ball-ball terms.")
-_POINTS = Field(ge=1, le=100_000_000, description="Number of sample points [1].")
-_SEED = Field(default=None, ge=0, le=2**63 - 1, description="Seed of the scrambling, for repeatable designs.")
+class _SweepBase(StrictModel):
+    """What every design shares: the fixed inputs, the outputs and the convention."""
+
+    fixed: SweepFixed = Field(  # type: ignore[valid-type]
+        default_factory=SweepFixed, description="Inputs held constant.")
+    outputs: list[OutputName] | None = Field(  # type: ignore[valid-type]
+        default=None, min_length=1, description="Outputs to return (default: all of them).")
+    convention: ConventionName = Field(  # type: ignore[valid-type]
+        default=Convention(physics.DEFAULT_CONVENTION), description="Reading of the paper's ball-ball terms.")
 
 
-class GridSweep(StrictModel):
+class _SampledSweep(_SweepBase):
+    """A design of experiments drawn from ``scipy.stats.qmc`` over the ranges."""
+
+    ranges: SweepRanges = Field(description="Varied inputs and their ranges.")  # type: ignore[valid-type]
+    points: int = Field(ge=1, le=100_000_000, description="Number of sample points [1].")
+    seed: int | None = Field(default=None, ge=0, le=2**63 - 1,
+                             description="Seed of the scrambling, for repeatable designs.")
+
+
+class GridSweep(_SweepBase):
     """Full-factorial grid: every combination of the axes' values."""
 
     design: Literal["grid"] = Field(description="Design tag: grid.")
     axes: GridAxes = Field(description="Varied inputs and their values.")  # type: ignore[valid-type]
-    fixed: SweepFixed = _FIXED  # type: ignore[valid-type]
-    outputs: list[OutputName] | None = _OUTPUTS  # type: ignore[valid-type]
-    convention: ConventionName = _CONVENTION  # type: ignore[valid-type]
 
 
-class SobolSweep(StrictModel):
+class SobolSweep(_SampledSweep):
     """Scrambled Sobol' low-discrepancy sequence over the ranges (``scipy.stats.qmc.Sobol``)."""
 
     design: Literal["sobol"] = Field(description="Design tag: sobol.")
-    ranges: SweepRanges = Field(description="Varied inputs and their ranges.")  # type: ignore[valid-type]
-    points: int = _POINTS
-    seed: int | None = _SEED
-    fixed: SweepFixed = _FIXED  # type: ignore[valid-type]
-    outputs: list[OutputName] | None = _OUTPUTS  # type: ignore[valid-type]
-    convention: ConventionName = _CONVENTION  # type: ignore[valid-type]
 
 
-class LatinHypercubeSweep(StrictModel):
+class LatinHypercubeSweep(_SampledSweep):
     """Latin hypercube sample over the ranges (``scipy.stats.qmc.LatinHypercube``)."""
 
     design: Literal["latin_hypercube"] = Field(description="Design tag: latin_hypercube.")
-    ranges: SweepRanges = Field(description="Varied inputs and their ranges.")  # type: ignore[valid-type]
-    points: int = _POINTS
-    seed: int | None = _SEED
-    fixed: SweepFixed = _FIXED  # type: ignore[valid-type]
-    outputs: list[OutputName] | None = _OUTPUTS  # type: ignore[valid-type]
-    convention: ConventionName = _CONVENTION  # type: ignore[valid-type]
 
 
 SweepRequest = Annotated[GridSweep | SobolSweep | LatinHypercubeSweep, Field(discriminator="design")]
