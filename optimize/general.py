@@ -31,6 +31,19 @@ every one of them. The result is a point where no descent step of the local
 model exists (a KKT point of the smooth model), verified by evaluating the
 model there; it is a local optimum, not a global proof, and the certificate
 says so.
+
+Worst case over a speed range
+-----------------------------
+μ of the exact physics grows with speed, so its worst case over a range is
+the upper end (see :mod:`optimize.problem`); a surrogate or calibrated model
+need not be monotone (a calibrated effect on ``speed_m_s`` may fall with
+speed). For a speed range [V_lo, V_hi], unless the model declares
+``mu_model.mu_grows_with_speed = True`` (as :func:`physics_model` does), the
+method minimizes max_V μ(x, V) over :data:`SPEED_GRID_POINTS` equally spaced
+speeds from V_lo to V_hi, both ends included, in every model evaluation of the
+iterations (the friction-force limit uses the same maximum) and in the final
+verification. The result reports the grid speed where the maximum occurs; the
+worst case holds on that grid, not proven between its points.
 """
 
 from __future__ import annotations
@@ -51,10 +64,12 @@ from .dgp import SAFETY_MARGIN, coefficients
 from .problem import DesignProblem, constraint_report
 from .solve import TIE_TOLERANCE, BallCountResult, InfeasibleDesignError, OptimizationResult, find_conflicts
 
-__all__ = ["optimize_model", "physics_model", "PENALTY"]
+__all__ = ["optimize_model", "physics_model", "speed_grid_m_s", "PENALTY", "SPEED_GRID_POINTS"]
 
 #: Exact-penalty weight of the friction-force limit in log space. [1]
 PENALTY = 100.0
+#: Equally spaced speeds, both ends included, over which a speed range's worst case is taken. [1]
+SPEED_GRID_POINTS = 9
 _STEP = 1e-5
 _MIN_RADIUS = 1e-9
 _MAX_RADIUS = 1.0
@@ -73,9 +88,65 @@ def physics_model(convention: str = physics.DEFAULT_CONVENTION) -> MuModel:
     Returns
     -------
     callable
-        ``points -> physics.evaluate(convention, **points).mu``. [1]
+        ``points -> physics.evaluate(convention, **points).mu`` [1], with the
+        attribute ``mu_grows_with_speed = True`` (μ of the physics grows with
+        speed, so a speed range is evaluated at its upper end only).
     """
-    return lambda points: physics.evaluate(convention=convention, **points).mu
+    def model(points):
+        return physics.evaluate(convention=convention, **points).mu
+
+    model.mu_grows_with_speed = True
+    return model
+
+
+def speed_grid_m_s(problem: DesignProblem, mu_model: MuModel) -> np.ndarray:
+    """The speeds over which :func:`optimize_model` takes the worst case of μ.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        Its speed or speed range.
+    mu_model : callable
+        The μ model; ``mu_model.mu_grows_with_speed = True`` declares μ
+        non-decreasing in speed.
+
+    Returns
+    -------
+    ndarray
+        The single speed, the upper end of a range for a model that declares
+        μ non-decreasing in speed, or :data:`SPEED_GRID_POINTS` equally spaced
+        speeds from the lower to the upper end of the range. [m/s]
+
+    Examples
+    --------
+    >>> from optimize import DesignBounds, DesignProblem
+    >>> p = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=(0.0, 0.08))
+    >>> speed_grid_m_s(p, lambda points: points["load_N"]).round(3).tolist()
+    [0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08]
+    >>> speed_grid_m_s(p, physics_model()).tolist()
+    [0.08]
+    """
+    speed = problem.speed_m_s
+    monotone = getattr(mu_model, "mu_grows_with_speed", False)
+    if not isinstance(speed, tuple) or monotone or speed[0] == speed[1]:
+        return np.array([problem.design_speed_m_s()])
+    return np.linspace(speed[0], speed[1], SPEED_GRID_POINTS)
+
+
+def _worst_case(problem: DesignProblem, mu_model: MuModel, model_name: str, speeds: np.ndarray, balls,
+                theta_deg, load_N) -> tuple[np.ndarray, np.ndarray]:
+    """Largest μ over the speeds for each design, and the speed where it occurs. [1], [m/s]"""
+    balls, theta_deg, load_N = np.broadcast_arrays(np.atleast_1d(balls), np.atleast_1d(theta_deg),
+                                                   np.atleast_1d(load_N))
+    n = balls.size
+    points = problem.physics_inputs(np.tile(balls, len(speeds)), np.tile(theta_deg, len(speeds)),
+                                    np.tile(load_N, len(speeds)), speed_m_s=np.repeat(speeds, n))
+    mu = np.asarray(mu_model(points), dtype=float)
+    mu = np.broadcast_to(mu, (len(speeds) * n,)).reshape(len(speeds), n)
+    if not np.all(np.isfinite(mu) & (mu > 0)):
+        raise ValueError(f"{model_name} returned a non-finite or non-positive mu")
+    worst = np.argmax(mu, axis=0)
+    return mu[worst, np.arange(n)], speeds[worst]
 
 
 def _sub_problem(size: int, with_friction: bool, with_pressure: bool, with_per_ball: bool):
@@ -145,7 +216,10 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
     -------
     OptimizationResult
         ``method="sequential-convex-approximation"``; ``mu`` is the model at
-        the design, ``extra["mu_physics"]`` the exact physics there.
+        the design (for a speed range: its maximum over the grid of
+        :func:`speed_grid_m_s`, and ``speed_m_s`` the grid speed where it
+        occurs), ``extra["mu_physics"]`` the exact physics there at the upper
+        end of the speed range.
 
     Raises
     ------
@@ -210,12 +284,11 @@ def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts,
     """The trust-region loop of :func:`optimize_model` and its result, holding the sub-problem's lock."""
     c, b = problem.constraints, problem.bounds
 
+    speeds = speed_grid_m_s(problem, mu_model)
+
     def evaluate(xs, ys):
-        points = problem.physics_inputs(np.tile(z, len(xs) // len(z)), np.degrees(np.arctan(np.exp(xs))),
-                                        np.exp(ys))
-        mu = np.asarray(mu_model(points), dtype=float)
-        if not np.all(np.isfinite(mu) & (mu > 0)):
-            raise ValueError(f"{model_name} returned a non-finite or non-positive mu")
+        mu, _ = _worst_case(problem, mu_model, model_name, speeds, np.tile(z, len(xs) // len(z)),
+                            np.degrees(np.arctan(np.exp(xs))), np.exp(ys))
         return np.log(mu)
 
     log_friction_max = np.log(c.max_friction_force_N) if c.max_friction_force_N is not None else None
@@ -275,7 +348,7 @@ def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts,
     # the log/exp round trip may cross a bound by an ulp: clip back; re-evaluate the model at what is returned
     theta = np.clip(np.degrees(np.arctan(np.exp(x))), *b.groove_angle_deg)
     load = np.clip(np.exp(y), g_floor, b.load_N[1])
-    mu = np.asarray(mu_model(problem.physics_inputs(z, theta, load)), dtype=float)
+    mu, _ = _worst_case(problem, mu_model, model_name, speeds, z, theta, load)
     meets_friction = np.ones(len(z), dtype=bool) if log_friction_max is None else (
         mu * load <= c.max_friction_force_N)
     rows_by_count: dict[int, BallCountResult] = {}
@@ -301,9 +374,10 @@ def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts,
     design_inputs = problem.physics_inputs(best.balls, best.groove_angle_deg, best.load_N)
     # Verify the design by a fresh evaluation of the model at that one point: a batch of every run
     # sums the model's terms in another order (a GP: ~1e-9 relative), and the reported mu must be
-    # what a user asking the model about this design gets.
-    verified_mu = float(np.asarray(mu_model({k: np.atleast_1d(v) for k, v in design_inputs.items()}),
-                                   dtype=float)[0])
+    # what a user asking the model about this design (at the worst speed) gets.
+    verified, worst_speed = _worst_case(problem, mu_model, model_name, speeds, best.balls,
+                                        best.groove_angle_deg, best.load_N)
+    verified_mu = float(verified[0])
     best = dataclasses.replace(best, mu=verified_mu, relative_gap=best.mu_solver / verified_mu - 1.0)
     exact = physics.evaluate(convention=problem.convention, **design_inputs)
     unconverged = int(np.count_nonzero(~done))
@@ -317,12 +391,23 @@ def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts,
         f"evaluating {model_name} there (mu = {best.mu:.6g}); the exact physics gives {float(exact.mu):.6g}. "
         f"A non-convex model may have better optima that no start reached."
     )
+    if len(speeds) > 1:
+        certificate += (
+            f" Speed range [{speeds[0]:g}, {speeds[-1]:g}] m/s: {model_name} need not grow with speed, so "
+            f"mu (and the friction force) was taken as the worst case over a grid of {len(speeds)} equally "
+            f"spaced speeds, both ends included, in every iteration and in the verification; the worst case "
+            f"of the design is at {float(worst_speed[0]):g} m/s. It holds on that grid, not proven between "
+            f"grid points.")
+    elif isinstance(problem.speed_m_s, tuple):
+        lo, hi = problem.speed_m_s
+        certificate += (f" Speed range [{lo:g}, {hi:g}] m/s: {model_name} declares mu non-decreasing in "
+                        f"speed, so the worst case is the upper end, which was optimized.")
     if len(tied) > 1:
         certificate += f" {len(tied)} counts tie within {TIE_TOLERANCE:g}; the fewest balls are returned."
     return OptimizationResult(
         design={"balls": best.balls, "groove_angle_deg": best.groove_angle_deg, "load_N": best.load_N},
         mu=best.mu, mu_solver=best.mu_solver, relative_gap=best.relative_gap,
-        speed_m_s=problem.design_speed_m_s(),
+        speed_m_s=float(worst_speed[0]),
         constraints=constraint_report(problem, best.balls, best.groove_angle_deg, best.load_N, exact,
                                       best.mu),
         per_ball_count=rows,

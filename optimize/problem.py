@@ -221,10 +221,19 @@ class DesignProblem:
         object.__setattr__(self, "fixed", {**defaults, **fixed})
 
     def design_speed_m_s(self) -> float:
-        """The speed designed for: V itself, or the upper end of the range (the worst case). [m/s]"""
+        """The speed the exact physics is designed for.
+
+        Returns
+        -------
+        float
+            V itself, or the upper end V_hi of a speed range, where μ and the
+            friction force of the exact physics are largest (see the module
+            docstring; other μ models are checked over a grid of the range by
+            :func:`optimize.optimize_model`). [m/s]
+        """
         return self.speed_m_s[1] if isinstance(self.speed_m_s, tuple) else self.speed_m_s
 
-    def physics_inputs(self, balls, groove_angle_deg, load_N) -> dict[str, Any]:
+    def physics_inputs(self, balls, groove_angle_deg, load_N, speed_m_s=None) -> dict[str, Any]:
         """Keyword inputs of :func:`physics.evaluate` for designs at the design speed.
 
         Parameters
@@ -235,13 +244,16 @@ class DesignProblem:
             Groove angle θ. [deg]
         load_N : float or array_like
             Normal load G. [N]
+        speed_m_s : float or array_like, optional
+            Speed V to use instead of :meth:`design_speed_m_s`. [m/s]
 
         Returns
         -------
         dict
-            Fixed parameters, the design speed [m/s] and the design variables.
+            Fixed parameters, the speed [m/s] and the design variables.
         """
-        return {**self.fixed, "speed_m_s": self.design_speed_m_s(), "balls": balls,
+        speed = self.design_speed_m_s() if speed_m_s is None else speed_m_s
+        return {**self.fixed, "speed_m_s": speed, "balls": balls,
                 "groove_angle_deg": groove_angle_deg, "load_N": load_N}
 
     def balls_per_groove(self, balls: int) -> int:

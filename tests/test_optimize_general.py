@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 import physics
 from optimize import Constraints, DesignBounds, DesignProblem, InfeasibleDesignError, optimize_design
-from optimize.general import optimize_model, physics_model
+from optimize.general import SPEED_GRID_POINTS, optimize_model, physics_model, speed_grid_m_s
 
 
 def _problems():
@@ -82,3 +84,35 @@ def test_model_returning_nonsense_is_rejected():
     problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05)
     with pytest.raises(ValueError, match="non-finite or non-positive"):
         optimize_model(problem, lambda points: -np.ones(np.shape(points["load_N"])))
+
+
+def test_speed_range_worst_case_of_a_model_falling_with_speed_is_its_low_end():
+    # mu of this model falls with speed for every design: the worst case over [0.01, 0.2] is 0.01 m/s
+    def slower_is_worse(points):
+        return physics.evaluate(**points).mu * (1.0 + 50.0 * (0.2 - np.asarray(points["speed_m_s"])))
+
+    bounds = DesignBounds((4, 8), (40, 60), (0.001, 0.05))
+    ranged = DesignProblem(bounds, speed_m_s=(0.01, 0.2), constraints=Constraints(max_friction_force_N=2e-3))
+    result = optimize_model(ranged, slower_is_worse, model_name="falling")
+    assert result.speed_m_s == pytest.approx(0.01, abs=1e-15)
+    d = result.design
+    at = {v: float(slower_is_worse(ranged.physics_inputs(d["balls"], d["groove_angle_deg"], d["load_N"],
+                                                         speed_m_s=v))) for v in (0.01, 0.1, 0.2)}
+    assert result.mu == pytest.approx(at[0.01], rel=1e-12)
+    assert at[0.01] > 5 * at[0.2]  # the top speed alone would understate the worst case
+    # the worst case everywhere is the low end: the same optimum as designing for 0.01 m/s alone
+    low = optimize_model(replace(ranged, speed_m_s=0.01), slower_is_worse, model_name="falling")
+    assert result.mu == pytest.approx(low.mu, rel=1e-6)
+    assert all(c.satisfied for c in result.constraints)
+    friction = next(c for c in result.constraints if c.name == "max_friction_force_N")
+    assert friction.value == pytest.approx(at[0.01] * d["load_N"], rel=1e-12)
+    assert "grid of 9 equally spaced speeds" in result.certificate and "0.01 m/s" in result.certificate
+
+
+def test_speed_grid_spans_the_range_for_models_and_is_the_top_for_the_physics():
+    problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=(0.02, 0.1))
+    grid = speed_grid_m_s(problem, lambda points: points["load_N"])
+    assert len(grid) == SPEED_GRID_POINTS == 9 and grid[0] == 0.02 and grid[-1] == 0.1
+    assert np.allclose(np.diff(grid), 0.01)
+    assert speed_grid_m_s(problem, physics_model()).tolist() == [0.1]
+    assert speed_grid_m_s(replace(problem, speed_m_s=0.05), lambda p: p["load_N"]).tolist() == [0.05]

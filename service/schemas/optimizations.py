@@ -7,6 +7,7 @@ from typing import Annotated, Literal
 from pydantic import Field, create_model
 
 import physics
+from optimize.general import SPEED_GRID_POINTS
 from optimize.problem import DESIGN_VARIABLES
 
 from .base import Convention, ConventionName, ResponseModel, StrictModel, parameter_fields
@@ -88,8 +89,10 @@ class OptimizationRequest(StrictModel):
         default_factory=OptimizationFixed, description="Physics inputs held fixed.")
     speed_m_s: float | Annotated[list[Annotated[float, Field(ge=0, le=1e3)]], Field(
         min_length=2, max_length=2)] | None = Field(
-        default=None, description="Slider speed [m/s], or [low, high] to design for the worst case (mu grows "
-        "with speed, so the high end). Required here or in fixed.")
+        default=None, description="Slider speed [m/s], or [low, high] to design for the worst case: for "
+        "model physics the high end (mu grows with speed); for a surrogate or calibrated model the largest "
+        f"mu over {SPEED_GRID_POINTS} equally spaced speeds from low to high, both ends included (the "
+        "result's speed_m_s is where it occurs; not proven between them). Required here or in fixed.")
     constraints: DesignLimits = Field(default_factory=DesignLimits, description="Engineering limits.")
     model: str = Field(default="physics", pattern=MODEL_PATTERN, description=(
         "physics (a certified global optimum by geometric programming), surrogate:<id> or "
@@ -179,7 +182,8 @@ class OptimizationResult(ResponseModel):
     relative_gap: float = Field(description="mu_solver / mu - 1 [1].")
     mu_physics: float | None = Field(default=None, description="The exact physics at the design, for other "
                                      "models [1].")
-    speed_m_s: float = Field(description="Speed designed for (the worst case of a range) [m/s].")
+    speed_m_s: float = Field(description="Speed designed for: the worst case of a range (its high end for "
+                             "model physics, the worst speed of the grid for other models) [m/s].")
     constraints: list[ConstraintStatus] = Field(description="Every bound and limit at the design.")
     per_ball_count: list[BallCountRow] = Field(description="One row per ball count of the bounds.")
     ties: list[Tie] = Field(description="Designs within 1e-6 relative of the best mu, the returned one "
