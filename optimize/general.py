@@ -73,6 +73,10 @@ SPEED_GRID_POINTS = 9
 _STEP = 1e-5
 _MIN_RADIUS = 1e-9
 _MAX_RADIUS = 1.0
+#: Status of a ball count whose best run converged (no descent step of the local model is left).
+LOCAL_OPTIMUM = "local optimum"
+#: Status of a ball count whose best run stopped at ``max_iterations`` before converging.
+ITERATION_CAP = "iteration cap reached"
 
 MuModel = Callable[[dict[str, Any]], np.ndarray]
 
@@ -357,8 +361,9 @@ def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts,
         if not meets_friction[k]:
             continue
         if zk not in rows_by_count or mu[k] < rows_by_count[zk].mu:
-            rows_by_count[zk] = BallCountResult(zk, "local optimum", float(theta[k]), float(load[k]),
-                                                float(mu[k]), float(mu[k]), 0.0)
+            # no solver value separate from the model's, hence no gap; a run stopped by the cap is no optimum
+            rows_by_count[zk] = BallCountResult(zk, LOCAL_OPTIMUM if done[k] else ITERATION_CAP,
+                                                float(theta[k]), float(load[k]), float(mu[k]))
     fitting = set(problem.ball_counts())
     rows = [rows_by_count.get(zz) or BallCountResult(
         zz, "no feasible local optimum found" if zz in fitting else "does not fit the groove")
@@ -378,11 +383,15 @@ def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts,
     verified, worst_speed = _worst_case(problem, mu_model, model_name, speeds, best.balls,
                                         best.groove_angle_deg, best.load_N)
     verified_mu = float(verified[0])
-    best = dataclasses.replace(best, mu=verified_mu, relative_gap=best.mu_solver / verified_mu - 1.0)
+    # mu_solver: the model in the batch of every run, as the method saw it
+    best = dataclasses.replace(best, mu=verified_mu, mu_solver=best.mu,
+                               relative_gap=best.mu / verified_mu - 1.0)
     exact = physics.evaluate(convention=problem.convention, **design_inputs)
     unconverged = int(np.count_nonzero(~done))
+    found = "Local optimum" if best.status == LOCAL_OPTIMUM else (
+        "Best point found, NOT a converged local optimum (its run stopped at the iteration cap),")
     certificate = (
-        f"Local optimum of {model_name} (not a global proof): sequential convex approximation in cvxpy "
+        f"{found} of {model_name} (not a global proof): sequential convex approximation in cvxpy "
         f"(local monomial fits of mu by central differences, trust region in log space, exact-penalty "
         f"friction-force limit) from {len(fractions)} starts for each of the {len(counts)} ball counts "
         f"that meet the exact limits, {iterations} iterations, {unconverged} of {len(z)} runs stopped by "

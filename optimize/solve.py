@@ -76,15 +76,20 @@ class BallCountResult:
         Ball count z. [1]
     status : str
         ``"optimal"``, ``"optimal_inaccurate"``, ``"infeasible"`` or
-        ``"does not fit the groove"``.
+        ``"does not fit the groove"``; for :func:`optimize.optimize_model`
+        ``"local optimum"``, ``"iteration cap reached"`` (the count's best run
+        stopped at ``max_iterations`` unconverged) or ``"no feasible local
+        optimum found"``.
     groove_angle_deg, load_N : float or None
         The count's optimal design. [deg], [N]
     mu : float or None
-        Exact μ from :func:`physics.evaluate` at that design. [1]
+        Exact μ from :func:`physics.evaluate` at that design (the μ model's
+        value for :func:`optimize.optimize_model`). [1]
     mu_solver : float or None
-        The solver's objective value. [1]
+        The solver's objective value; None for the local method, which has no
+        value apart from the model's. [1]
     relative_gap : float or None
-        mu_solver / mu - 1. [1]
+        mu_solver / mu - 1; None when ``mu_solver`` is. [1]
     """
 
     balls: int

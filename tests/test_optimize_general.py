@@ -116,3 +116,20 @@ def test_speed_grid_spans_the_range_for_models_and_is_the_top_for_the_physics():
     assert np.allclose(np.diff(grid), 0.01)
     assert speed_grid_m_s(problem, physics_model()).tolist() == [0.1]
     assert speed_grid_m_s(replace(problem, speed_m_s=0.05), lambda p: p["load_N"]).tolist() == [0.05]
+
+
+def test_rows_say_whether_their_run_converged_and_claim_no_gap():
+    problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05,
+                            constraints=Constraints(max_friction_force_N=1e-3))
+    capped = optimize_model(problem, physics_model(), max_iterations=1)
+    converged = optimize_model(problem, physics_model())
+    # one trust-region step from the middle of the box cannot converge; 100 do
+    assert {r.status for r in capped.per_ball_count} == {"iteration cap reached"}
+    assert "NOT a converged local optimum" in capped.certificate
+    assert {r.status for r in converged.per_ball_count} == {"local optimum"}
+    assert converged.certificate.startswith("Local optimum")
+    for result in (capped, converged):
+        assert all(r.relative_gap is None and r.mu_solver is None for r in result.per_ball_count)
+        # the returned design: the batch value against a fresh one-point evaluation, measured
+        assert result.mu_solver is not None and abs(result.relative_gap) < 1e-8
+        assert result.relative_gap == pytest.approx(result.mu_solver / result.mu - 1.0, abs=1e-15)

@@ -133,12 +133,15 @@ class BallCountRow(ResponseModel):
 
     balls: int = Field(description="Ball count [1].")
     status: str = Field(description="optimal, optimal_inaccurate, infeasible, does not fit the groove, "
-                                    "local optimum, or no feasible local optimum found.")
+                                    "local optimum, iteration cap reached (the local method's best run for "
+                                    "this count stopped unconverged), or no feasible local optimum found.")
     groove_angle_deg: float | None = Field(default=None, description="Optimal groove angle [deg].")
     load_N: float | None = Field(default=None, description="Optimal load [N].")
     mu: float | None = Field(default=None, description="mu of the model at that design [1].")
-    mu_solver: float | None = Field(default=None, description="The solver's value [1].")
-    relative_gap: float | None = Field(default=None, description="mu_solver / mu - 1 [1].")
+    mu_solver: float | None = Field(default=None, description="The solver's value [1]; null for the local "
+                                    "method (no value apart from the model's).")
+    relative_gap: float | None = Field(default=None, description="mu_solver / mu - 1 [1]; null when "
+                                       "mu_solver is.")
 
 
 class Tie(ResponseModel):
