@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import replace
 
@@ -10,7 +11,14 @@ import pytest
 from scipy.optimize import minimize
 
 import physics
-from optimize import Constraints, DesignBounds, DesignProblem, InfeasibleDesignError, optimize_design
+from optimize import (
+    Constraints,
+    DesignBounds,
+    DesignProblem,
+    InfeasibleDesignError,
+    OptimizationResult,
+    optimize_design,
+)
 from optimize.dgp import LIMIT_NAMES, BallCountResolver, build_design_gp, design_gp
 
 GRID = 200
@@ -62,10 +70,22 @@ def brute_force(problem: DesignProblem) -> tuple[float, tuple[int, float, float]
 
 
 def random_problem(seed: int) -> DesignProblem:
-    """Random bounds, fixed parameters and limits; limits are drawn around values inside the box."""
+    """Random bounds, fixed parameters and limits of one of four kinds (``seed % 4``).
+
+    mu of the physics depends on G and z only through G/z and falls with it, and it grows with θ; so
+    without limits the optimum has the fewest balls and the smallest angle. The kinds make limits bind:
+
+    0. limits drawn around a random design inside the box (each switched on with probability 0.6);
+    1. a minimum load G_min with a peak-pressure limit 1 % above that of G_min on z* balls at the
+       smallest angle: z* - 1 balls exceed it (their load per ball is larger), so the optimum has
+       z* > z_lo balls with the pressure limit active;
+    2. the same with a load-per-ball limit G_min / z* (1 + 1e-3) instead of the pressure limit;
+    3. infeasible: the pressure limit 5 % below that of G_min on all z_hi balls at the smallest angle.
+    """
     rng = np.random.default_rng(seed)
+    kind = seed % 4
     z_lo = int(rng.integers(1, 8))
-    z_hi = z_lo + int(rng.integers(0, 14))
+    z_hi = z_lo + int(rng.integers(0 if kind == 0 else 3, 14))
     a_lo = float(rng.uniform(20, 60))
     a_hi = min(a_lo + float(rng.uniform(2, 25)), 89.0)
     g_lo = float(10 ** rng.uniform(-4, -2.5))
@@ -76,27 +96,52 @@ def random_problem(seed: int) -> DesignProblem:
     speed = float(rng.uniform(0, 0.2)) if seed % 2 else (0.01, float(rng.uniform(0.02, 0.3)))
     bounds = DesignBounds((z_lo, z_hi), (a_lo, a_hi), (g_lo, g_hi))
     probe = DesignProblem(bounds, speed_m_s=speed, fixed=fixed)
-    z = int(rng.integers(z_lo, z_hi + 1))
-    r = physics.evaluate(**probe.physics_inputs(z, rng.uniform(a_lo, a_hi), g_lo * (g_hi / g_lo) ** 0.7))
-    limits = {
-        "max_contact_pressure_Pa": float(r.max_contact_pressure_Pa) * rng.uniform(0.9, 1.1),
-        "max_friction_force_N": float(r.friction_force_N) * rng.uniform(0.9, 1.5),
-        "min_load_capacity_N": g_lo * (g_hi / g_lo) ** rng.uniform(0.0, 0.5),
-        "max_load_per_ball_N": float(g_hi / z) * rng.uniform(0.5, 1.5),
-        "groove_length_m": fixed["ball_diameter_m"] * (z_lo + z_hi) / 4 * rng.uniform(1.0, 1.3),
-    }
-    chosen = {k: v for k, v in limits.items() if rng.random() < 0.6}
-    return DesignProblem(bounds, speed_m_s=speed, fixed=fixed, constraints=Constraints(**chosen))
+    if kind == 0:
+        z = int(rng.integers(z_lo, z_hi + 1))
+        r = physics.evaluate(**probe.physics_inputs(z, rng.uniform(a_lo, a_hi), g_lo * (g_hi / g_lo) ** 0.7))
+        limits = {
+            "max_contact_pressure_Pa": float(r.max_contact_pressure_Pa) * rng.uniform(0.9, 1.1),
+            "max_friction_force_N": float(r.friction_force_N) * rng.uniform(0.9, 1.5),
+            "min_load_capacity_N": g_lo * (g_hi / g_lo) ** rng.uniform(0.0, 0.5),
+            "max_load_per_ball_N": float(g_hi / z) * rng.uniform(0.5, 1.5),
+            "groove_length_m": fixed["ball_diameter_m"] * (z_lo + z_hi) / 4 * rng.uniform(1.0, 1.3),
+        }
+        chosen = {k: v for k, v in limits.items() if rng.random() < 0.6}
+        return DesignProblem(bounds, speed_m_s=speed, fixed=fixed, constraints=Constraints(**chosen))
+    g_min = g_lo * (g_hi / g_lo) ** float(rng.uniform(0.3, 0.9))
+    z_star = z_hi if kind == 3 else int(rng.integers(z_lo + 1, z_hi + 1))
+    pressure = float(physics.evaluate(**probe.physics_inputs(z_star, a_lo, g_min)).max_contact_pressure_Pa)
+    limits = {"min_load_capacity_N": g_min}
+    if kind == 1:
+        limits["max_contact_pressure_Pa"] = pressure * 1.01
+    elif kind == 2:
+        limits["max_load_per_ball_N"] = g_min / z_star * (1 + 1e-3)
+    else:
+        limits["max_contact_pressure_Pa"] = pressure * 0.95
+    if rng.random() < 0.5:  # a slack friction limit on top
+        limits["max_friction_force_N"] = float(physics.evaluate(
+            **probe.physics_inputs(z_hi, a_hi, g_hi)).friction_force_N) * 10
+    return DesignProblem(bounds, speed_m_s=speed, fixed=fixed, constraints=Constraints(**limits))
 
 
-@pytest.mark.parametrize("seed", range(6))
+SEEDS = range(12)
+
+
+@functools.cache
+def _solved(seed: int) -> OptimizationResult | InfeasibleDesignError:
+    try:
+        return optimize_design(random_problem(seed))
+    except InfeasibleDesignError as err:
+        return err
+
+
+@pytest.mark.parametrize("seed", SEEDS)
 def test_no_feasible_grid_design_beats_the_optimizer(seed):
     problem = random_problem(seed)
-    try:
-        result = optimize_design(problem)
-    except InfeasibleDesignError as err:
+    result = _solved(seed)
+    if isinstance(result, InfeasibleDesignError):
         brute_mu, _ = brute_force(problem)
-        assert not np.isfinite(brute_mu), f"optimizer: infeasible ({err}); brute force: mu={brute_mu}"
+        assert not np.isfinite(brute_mu), f"optimizer: infeasible ({result}); brute force: mu={brute_mu}"
         return
     brute_mu, brute_design = brute_force(problem)
     assert brute_mu >= result.mu * (1 - 1e-4), (brute_design, result.design)
@@ -107,6 +152,19 @@ def test_no_feasible_grid_design_beats_the_optimizer(seed):
     balls = result.design["balls"]
     assert isinstance(balls, int) and problem.bounds.balls[0] <= balls <= problem.bounds.balls[1]
     assert balls in problem.ball_counts()
+
+
+def test_random_instances_cover_binding_limits_and_infeasibility():
+    results = {seed: _solved(seed) for seed in SEEDS}
+    solved = [(seed, r) for seed, r in results.items() if isinstance(r, OptimizationResult)]
+    infeasible = [seed for seed, r in results.items() if isinstance(r, InfeasibleDesignError)]
+    above_lowest_count = [seed for seed, r in solved
+                          if r.design["balls"] > random_problem(seed).bounds.balls[0]]
+    limits = set(LIMIT_NAMES) | {"groove_length_m"}
+    active_limit = [seed for seed, r in solved if any(c.active and c.name in limits for c in r.constraints)]
+    assert len(above_lowest_count) >= 2, above_lowest_count
+    assert len(active_limit) >= 2, active_limit
+    assert len(infeasible) >= 2, infeasible
 
 
 def test_worked_example_with_every_limit():
