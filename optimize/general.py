@@ -53,6 +53,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable
+from concurrent.futures import Executor
 from typing import Any
 
 import cvxpy as cp
@@ -77,6 +78,8 @@ _MAX_RADIUS = 1.0
 LOCAL_OPTIMUM = "local optimum"
 #: Status of a ball count whose best run stopped at ``max_iterations`` before converging.
 ITERATION_CAP = "iteration cap reached"
+#: Ball counts per group of runs: the groups are solved independently (in turn, or on an executor). [1]
+GROUP_COUNTS = 16
 
 MuModel = Callable[[dict[str, Any]], np.ndarray]
 
@@ -177,10 +180,11 @@ def _sub_problem(size: int, with_friction: bool, with_pressure: bool, with_per_b
         cons.append(y <= par["log_per_ball_cap"])
     problem = cp.Problem(cp.Minimize(objective), cons)
     assert problem.is_dcp(dpp=True)
-    return problem, dx, dy, par, threading.Lock()
+    return problem, dx, dy, par
 
 
-_SUB_CACHE: dict[tuple[int, bool, bool, bool], tuple] = {}
+#: Compiled sub-problems not in use, by (size, limits): a run takes one (or compiles one) and returns it.
+_SUB_CACHE: dict[tuple[int, bool, bool, bool], list[tuple]] = {}
 _SUB_CACHE_LOCK = threading.Lock()
 
 
@@ -196,7 +200,7 @@ def _contact_load_cap_N(problem: DesignProblem) -> float:
 
 def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, max_iterations: int = 100,
                    progress: Callable[[float], None] | None = None,
-                   model_name: str = "model") -> OptimizationResult:
+                   model_name: str = "model", executor: Executor | None = None) -> OptimizationResult:
     """Minimize any μ model over the design box by sequential convex approximation (a local method).
 
     Parameters
@@ -215,6 +219,11 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
         Called with the fraction of iterations done, 0..1. [1]
     model_name : str, default "model"
         Name of the model in the certificate. [-]
+    executor : concurrent.futures.Executor, optional
+        Where the groups of :data:`GROUP_COUNTS` ball counts (each with its starts) run: a local
+        pool, a dask.distributed executor (then ``mu_model`` must be serializable and
+        ``progress`` is reported per finished group). None runs them in turn in this thread.
+        The groups are the same either way, so the result does not depend on the executor.
 
     Returns
     -------
@@ -242,7 +251,7 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
     c, b = problem.constraints, problem.bounds
     q0_cap = _contact_load_cap_N(problem)
     g_floor = max(b.load_N[0], c.min_load_capacity_N or 0.0)
-    t_lo, t_hi = np.tan(np.deg2rad(b.groove_angle_deg))
+    t_lo = np.tan(np.deg2rad(b.groove_angle_deg[0]))
     # a count is feasible for the exact limits iff its largest load at the smallest angle reaches the floor
     counts = [z for z in problem.ball_counts() if min(b.load_N[1], 2 * z * q0_cap / np.sqrt(1 + t_lo**2),
                                                       z * (c.max_load_per_ball_N or np.inf)) >= g_floor]
@@ -253,6 +262,38 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
 
     fractions = [(0.5, 0.5), (0.0, 0.9), (1.0, 0.1), (0.0, 0.1), (1.0, 0.9), (0.5, 0.0), (0.5, 1.0),
                  (0.25, 0.75), (0.75, 0.25)][:starts]
+    groups = [(problem, mu_model, model_name, counts[i:i + GROUP_COUNTS], fractions, q0_cap, g_floor,
+               max_iterations) for i in range(0, len(counts), GROUP_COUNTS)]
+    runs = _map_groups(executor, groups, progress)
+    z, x, y, done = (np.concatenate([run[k] for run in runs]) for k in range(4))
+    return _result(problem, mu_model, model_name, z, counts, fractions, x, y, done,
+                   max(run[4] for run in runs), g_floor, start_time)
+
+
+def _map_groups(executor, groups, progress):
+    """``[_solve_group(*g) for g in groups]`` in order: in turn (progress within each), or on ``executor``."""
+    if executor is None:
+        return [_solve_group(*group, progress=None if progress is None else (
+                    lambda f, k=k: progress((k + f) / len(groups))))
+                for k, group in enumerate(groups)]
+    futures = [executor.submit(_solve_group, *group) for group in groups]
+    try:
+        runs = []
+        for k, future in enumerate(futures, start=1):
+            runs.append(future.result())
+            if progress is not None:
+                progress(k / len(futures))  # may raise (a cancelled job): the groups not started are dropped
+        return runs
+    finally:
+        for future in futures:
+            future.cancel()
+
+
+def _solve_group(problem, mu_model, model_name, counts, fractions, q0_cap, g_floor, max_iterations,
+                 progress=None):
+    """The runs (every start of every count of ``counts``): ``(z, x, y, done, iterations)``."""
+    c, b = problem.constraints, problem.bounds
+    t_lo, t_hi = np.tan(np.deg2rad(b.groove_angle_deg))
     z = np.repeat(np.array(counts, dtype=float), len(fractions))
     f_theta = np.tile([f[0] for f in fractions], len(counts))
     f_load = np.tile([f[1] for f in fractions], len(counts))
@@ -273,20 +314,25 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
 
     key = (len(z), c.max_friction_force_N is not None, log_pressure_cap is not None,
            c.max_load_per_ball_N is not None)
-    with _SUB_CACHE_LOCK:
-        if key not in _SUB_CACHE:
-            _SUB_CACHE[key] = _sub_problem(*key)
-        sub, step_x, step_y, par, lock = _SUB_CACHE[key]
-    with lock:  # the cached sub-problem's parameters are shared: one run at a time per size
-        return _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts, fractions,
-                        x, y, x_lo, x_hi, y_lo, y_cap, g_floor, log_pressure_cap, max_iterations, progress,
-                        start_time)
+    with _SUB_CACHE_LOCK:  # a sub-problem's parameters belong to one run at a time: take a free one
+        free = _SUB_CACHE.setdefault(key, [])
+        compiled = free.pop() if free else None
+    if compiled is None:
+        compiled = _sub_problem(*key)
+    try:
+        sub, step_x, step_y, par = compiled
+        x, y, done, iterations = _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, x, y,
+                                          x_lo, x_hi, y_lo, y_cap, log_pressure_cap, max_iterations, progress)
+    finally:
+        with _SUB_CACHE_LOCK:
+            _SUB_CACHE[key].append(compiled)
+    return z, x, y, done, iterations
 
 
-def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts, fractions, x, y, x_lo, x_hi,
-             y_lo, y_cap, g_floor, log_pressure_cap, max_iterations, progress, start_time):
-    """The trust-region loop of :func:`optimize_model` and its result, holding the sub-problem's lock."""
-    c, b = problem.constraints, problem.bounds
+def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, x, y, x_lo, x_hi,
+             y_lo, y_cap, log_pressure_cap, max_iterations, progress):
+    """The trust-region loop of :func:`optimize_model` on a sub-problem it owns: (x, y, done, iterations)."""
+    c = problem.constraints
 
     speeds = speed_grid_m_s(problem, mu_model)
 
@@ -348,7 +394,14 @@ def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, counts,
             progress(iterations / max_iterations)
         if done.all():
             break
+    return x, y, done, iterations
 
+
+def _result(problem, mu_model, model_name, z, counts, fractions, x, y, done, iterations, g_floor, start_time):
+    """The :class:`OptimizationResult` of the runs of every group of :func:`optimize_model`."""
+    c, b = problem.constraints, problem.bounds
+    log_friction_max = np.log(c.max_friction_force_N) if c.max_friction_force_N is not None else None
+    speeds = speed_grid_m_s(problem, mu_model)
     # the log/exp round trip may cross a bound by an ulp: clip back; re-evaluate the model at what is returned
     theta = np.clip(np.degrees(np.arctan(np.exp(x))), *b.groove_angle_deg)
     load = np.clip(np.exp(y), g_floor, b.load_N[1])

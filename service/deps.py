@@ -38,7 +38,7 @@ class Runtime:
     def __init__(self, settings: Settings):
         self.store = Store(settings.data_dir)
         self.jobs = JobManager(self.store, settings.job_workers)
-        self.executor = create_executor(settings)  # sweep and batch chunks (service/executor.py)
+        self.executor = create_executor(settings)  # sweep/batch chunks, optimization groups (executor.py)
 
     def close(self) -> None:
         """Stop the jobs and close the database."""
@@ -86,7 +86,7 @@ async def get_jobs(request: Request) -> JobManager:
 
 
 async def get_executor(request: Request) -> Executor:
-    """The executor running sweep and batch chunks of the app serving ``request``."""
+    """The executor running sweep and batch chunks and optimization groups of the app serving ``request``."""
     return get_runtime(request.app).executor
 
 

@@ -2,7 +2,9 @@
 
 Sweeps and batch evaluations are cut into chunks of points and mapped over the executor of the
 running app (:func:`evaluate_in_chunks`); the results do not depend on the executor, because
-every point is evaluated independently.
+every point is evaluated independently. Multi-start optimizations of calibrated and surrogate
+models map their groups of ball counts over the same executor
+(:func:`optimize.optimize_model` with ``executor=``); the groups do not depend on it either.
 
 * Default: a :class:`~concurrent.futures.ThreadPoolExecutor` of ``MICROBEARING_EXECUTOR_WORKERS``
   threads (one per CPU when 0). NumPy releases the GIL inside the vectorized physics, so the
@@ -52,6 +54,9 @@ class DaskExecutor(Executor):
         Threads of the embedded cluster [1]; ignored for a remote scheduler.
     """
 
+    #: How long a connection to a remote scheduler is tried before the request gets a 503. [s]
+    connect_timeout_s = 10.0
+
     def __init__(self, scheduler: str, threads: int):
         self.scheduler = scheduler
         self.threads = threads
@@ -76,7 +81,7 @@ class DaskExecutor(Executor):
                                                      dashboard_address="127.0.0.1:0")
                         self._client = Client(self._cluster)
                     else:
-                        self._client = Client(self.scheduler, timeout=10)
+                        self._client = Client(self.scheduler, timeout=self.connect_timeout_s)
                 except OSError as exc:
                     raise ProblemError(503, f"The dask scheduler {self.scheduler} cannot be reached: "
                                        f"{exc}") from exc

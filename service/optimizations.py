@@ -9,10 +9,9 @@ global optimum); ``calibrated:<id>`` and ``surrogate:<id>`` by
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Any
-
-import numpy as np
 
 import physics
 from optimize import (
@@ -27,7 +26,7 @@ from optimize import (
 )
 from optimize.problem import DESIGN_VARIABLES
 
-from .calibrations import load_mu_model
+from .calibrations import load_mu_model, with_conditions
 from .problems import ProblemError, validation_problem
 from .schemas.optimizations import OptimizationRequest
 from .store import Store
@@ -98,20 +97,7 @@ def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, di
     else:
         model = load_mu_model(store, body.model)
     values = {**getattr(model, "fixed", {}), **getattr(model, "fitted", {})}
-    conditions = dict(body.conditions or {})
-    clashing = sorted(set(conditions) & set(physics.PARAMETERS))
-    if clashing:
-        raise validation_problem([{"pointer": f"/conditions/{name}", "detail": "is a physics input; give it "
-                                   "in fixed"} for name in clashing])
-    missing = [c for c in getattr(model, "required_columns", []) if c not in conditions]
-    if missing:
-        raise validation_problem([{"pointer": "/conditions", "detail": f"the model {body.model} needs "
-                                   f"{', '.join(missing)}"}])
-
-    def mu_model(points: Mapping[str, Any]) -> Any:
-        shape = np.shape(points["load_N"])
-        return model({**points, **{k: np.full(shape, v) for k, v in conditions.items()}})
-
+    mu_model = with_conditions(model, body.model, body.conditions)
     return mu_model, values, getattr(model, "convention", physics.DEFAULT_CONVENTION)
 
 
@@ -181,7 +167,7 @@ def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:
 
 
 def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
-        job_id: str | None = None) -> dict[str, Any]:
+        job_id: str | None = None, executor: Executor | None = None) -> dict[str, Any]:
     """Run a plan and return the JSON-ready result.
 
     Parameters
@@ -192,6 +178,9 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
         Fraction done, 0..1. [1]
     job_id : str, optional
         The job running it, for the link to the Pareto plot.
+    executor : concurrent.futures.Executor, optional
+        The app's executor (:mod:`service.executor`): the groups of ball counts and starts of the
+        local method run there. None runs them in this thread.
 
     Returns
     -------
@@ -215,7 +204,7 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
             result = optimize_design(plan.problem, progress=stage(0.0, 0.2 if with_pareto else 1.0))
         else:
             result = optimize_model(plan.problem, plan.mu_model, starts=plan.starts, progress=stage(0.0, 1.0),
-                                    model_name=plan.model)
+                                    model_name=plan.model, executor=executor)
         document = {**result.to_dict(), "model": plan.model}
         if with_pareto:
             front = pareto_front(plan.problem, plan.pareto["objective"], plan.pareto["points"],

@@ -60,13 +60,14 @@ class Settings(BaseSettings):
     )
     dask_scheduler: str | None = Field(
         default=None,
-        description="Run sweep and batch chunks on dask.distributed: a scheduler address "
-                    "(tcp://host:8786) or `local` for an embedded LocalCluster. Unset: a local thread pool.",
+        description="Run sweep and batch chunks and the groups of multi-start optimizations on "
+                    "dask.distributed: a scheduler address (tcp://host:8786) or `local` for an embedded "
+                    "LocalCluster. Unset: a local thread pool.",
     )
     executor_workers: int = Field(
         default=0, ge=0, le=256,
-        description="Threads evaluating sweep and batch chunks (local pool or embedded cluster); "
-                    "0: one per CPU.",
+        description="Threads running sweep and batch chunks and optimization groups (local pool or "
+                    "embedded cluster); 0: one per CPU.",
     )
 
 

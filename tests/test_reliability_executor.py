@@ -2,26 +2,36 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import pickle
+import time
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
 import physics
+from calibrate import CalibratedModel
+from optimize import DesignBounds, DesignProblem, optimize_design
+from optimize.general import GROUP_COUNTS, optimize_model, physics_model
 from service.app import create_app
+from service.deps import get_runtime
 from service.executor import DaskExecutor, chunk_bounds, evaluate_in_chunks, map_chunks
 from service.problems import ProblemError
 from service.settings import Settings
 from service.sweeps import CHUNK_POINTS
 
-pytest.importorskip("distributed")
+#: Only the tests on a dask cluster need dask.distributed (the "dask" extra); the others always run.
+needs_dask = pytest.mark.skipif(importlib.util.find_spec("distributed") is None,
+                                reason="dask.distributed is not installed")
 
 
 @pytest.fixture(scope="module")
 def dask_local():
+    pytest.importorskip("distributed")
     executor = DaskExecutor("local", threads=2)
     yield executor
     executor.shutdown()
@@ -101,6 +111,7 @@ def test_a_bad_point_is_named_by_its_index_in_the_whole_batch(dask_local):
     assert "index 2345" in caught.value.errors[0]["detail"]  # in the whole batch, not in its chunk
 
 
+@needs_dask
 def test_a_sweep_on_a_dask_local_cluster_equals_the_local_run(tmp_path):
     # 300 x 300 = 90,000 points: two chunks of the service's chunk size, answered at once (200).
     assert 300 * 300 > CHUNK_POINTS
@@ -126,6 +137,7 @@ def test_a_sweep_on_a_dask_local_cluster_equals_the_local_run(tmp_path):
     np.testing.assert_allclose(table["mu_rolling"], expected.mu_rolling, rtol=1e-12)
 
 
+@needs_dask
 def test_a_batch_on_a_dask_local_cluster_equals_the_local_run(tmp_path):
     count = 70_000  # two chunks
     rng = np.random.default_rng(3)
@@ -142,3 +154,88 @@ def test_a_batch_on_a_dask_local_cluster_equals_the_local_run(tmp_path):
     expected = physics.evaluate(balls=7, load_N=np.array(body["points"]["load_N"]),
                                 speed_m_s=np.array(body["points"]["speed_m_s"]))
     np.testing.assert_array_equal(json.loads(answers["dask"])["mu"], expected.mu)
+
+
+WIDE = DesignProblem(DesignBounds((3, 40), (40, 60), (0.001, 0.05)), speed_m_s=0.05, fixed={"mu_pivot": 0.8})
+
+
+def test_a_multi_start_optimization_on_every_executor_equals_the_in_process_run(dask_local):
+    # 38 ball counts x 2 starts: three groups of GROUP_COUNTS counts, each a task on the executor
+    assert len(WIDE.ball_counts()) > 2 * GROUP_COUNTS
+    seen = []
+    reference = optimize_model(WIDE, physics_model(), starts=2, model_name="physics")
+    with ThreadPoolExecutor(2) as pool:
+        for executor in (pool, dask_local):
+            result = optimize_model(WIDE, physics_model(), starts=2, model_name="physics", executor=executor,
+                                    progress=seen.append)
+            assert result.design == reference.design and result.mu == reference.mu
+            assert result.per_ball_count == reference.per_ball_count
+            assert result.certificate == reference.certificate
+    assert seen == pytest.approx([1 / 3, 2 / 3, 1.0] * 2)  # one report per finished group, on each executor
+    # independent check: a local method on the physics lands on the certified global optimum
+    certified = optimize_design(WIDE)
+    assert certified.mu * (1 - 1e-7) <= reference.mu <= certified.mu * (1 + 1e-4)
+
+
+class _CountingPool(ThreadPoolExecutor):
+    """A thread pool that counts the calls submitted to it."""
+
+    def __init__(self):
+        super().__init__(2)
+        self.calls = 0
+
+    def submit(self, fn, /, *args, **kwargs):
+        self.calls += 1
+        return super().submit(fn, *args, **kwargs)
+
+
+@pytest.mark.parametrize("scheduler", [None, pytest.param("local", marks=needs_dask)])
+def test_an_optimization_job_runs_its_groups_on_the_apps_executor(tmp_path, scheduler):
+    settings = Settings(data_dir=tmp_path, **({"dask_scheduler": scheduler, "executor_workers": 2}
+                                              if scheduler else {}))
+    with TestClient(create_app(settings)) as client:
+        runtime = get_runtime(client.app)
+        if scheduler is None:
+            runtime.executor.shutdown()
+            runtime.executor = _CountingPool()
+        else:
+            assert type(runtime.executor) is DaskExecutor
+        model_id = runtime.store.save_model(
+            "calibration", {"model": CalibratedModel(fitted={"mu_pivot": 0.8}).to_json()}, {})
+        request = {"bounds": {"balls": [3, 40], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
+                   "speed_m_s": 0.05, "model": f"calibrated:{model_id}", "starts": 2}
+        response = client.post("/v1/optimizations", json=request)
+        assert response.status_code == 202, response.text
+        deadline = time.monotonic() + 120
+        while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
+            assert time.monotonic() < deadline, job
+            time.sleep(0.05)
+        assert job["status"] == "succeeded", job
+        result = client.get(job["result_url"]).json()
+        if scheduler is None:
+            assert runtime.executor.calls == 3  # one task per group of ball counts
+    # the calibrated model is the physics with mu_pivot 0.8: the in-process run of the same method
+    expected = optimize_model(WIDE, physics_model(), starts=2)
+    assert result["design"] == expected.design
+    assert result["mu"] == pytest.approx(expected.mu, rel=1e-12)
+
+
+@needs_dask
+def test_an_unreachable_scheduler_is_a_documented_503_and_the_rest_of_the_api_works(tmp_path):
+    # the discard port: nothing listens there
+    settings = Settings(data_dir=tmp_path, dask_scheduler="tcp://127.0.0.1:9")
+    sweep = {"design": "grid", "axes": {"load_N": {"start": 1e-3, "stop": 0.1, "num": 5}},
+             "fixed": {"balls": 6, "speed_m_s": 0.1}}
+    batch = {"points": {"balls": 7, "load_N": [0.01, 0.02], "speed_m_s": 0.1}}
+    with TestClient(create_app(settings)) as client:
+        get_runtime(client.app).executor.connect_timeout_s = 1.0
+        for path, body in (("/v1/sweeps", sweep), ("/v1/friction/batch", batch)):
+            response = client.post(path, json=body)
+            assert response.status_code == 503, response.text
+            assert response.headers["content-type"] == "application/problem+json"
+            assert "cannot be reached" in response.json()["detail"]
+        point = {"balls": 7, "load_N": 0.01, "speed_m_s": 0.1}
+        assert client.post("/v1/friction", json=point).status_code == 200
+    spec = json.loads((Path(__file__).parents[1] / "openapi" / "openapi.json").read_text())
+    for path in ("/v1/sweeps", "/v1/friction/batch"):
+        assert "503" in spec["paths"][path]["post"]["responses"], path

@@ -49,7 +49,7 @@ def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor) -
 
 
 @router.post("/batch", operation_id="evaluate_friction_batch", response_model=FrictionBatchResponse,
-             response_model_exclude_none=True, responses=problem_responses(413),
+             response_model_exclude_none=True, responses=problem_responses(413, 503),
              openapi_extra=raw_json_body(FrictionBatchRequest))
 async def evaluate_friction_batch(request: Request, settings: SettingsDep, executor: ExecutorDep) -> Response:
     """The chosen outputs at many points given as columns; scalars broadcast to every point."""

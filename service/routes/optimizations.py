@@ -9,7 +9,7 @@ from fastapi import APIRouter, Body
 from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
-from ..deps import JobsDep, StoreDep
+from ..deps import ExecutorDep, JobsDep, StoreDep
 from ..jobs import JobContext
 from ..optimizations import pareto_png, prepare, run
 from ..problems import ProblemError, problem_responses
@@ -32,6 +32,7 @@ async def create_optimization(
     body: Annotated[OptimizationRequest, Body(description="Bounds, fixed inputs, speed, limits and model.")],
     store: StoreDep,
     jobs: JobsDep,
+    executor: ExecutorDep,
 ) -> Any:
     """Find the design (balls, groove angle, load) of least friction within bounds and limits.
 
@@ -46,7 +47,7 @@ async def create_optimization(
         return await run_in_threadpool(run, plan)
 
     def work(ctx: JobContext) -> dict:
-        return run(plan, progress=ctx.progress, job_id=ctx.job_id)
+        return run(plan, progress=ctx.progress, job_id=ctx.job_id, executor=executor)
 
     return accepted(jobs.submit(_KIND, body.model_dump(mode="json"), work))
 

@@ -27,7 +27,7 @@ router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
         200: {"description": "The sweep, computed at once: JSON, or its columns as CSV (Accept: text/csv).",
               "content": {CSV_MEDIA_TYPE: {"schema": {"type": "string"}}}},
         **ACCEPTED_RESPONSE,
-        **problem_responses(),
+        **problem_responses(503),
     },
 )
 async def create_sweep(
