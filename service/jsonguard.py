@@ -10,7 +10,10 @@ answers, as problems:
   repeats a key within one object (RFC 8259 leaves duplicates to the parser: Python keeps the
   last, others the first; refusing them removes the ambiguity);
 * 413 when one array or object holds more than ``max_items`` elements, or the body holds more
-  than ``max_items`` strings or containers.
+  than ``max_items`` strings or containers;
+* 400 for any request with more than one ``Content-Type`` header: this check and the app could
+  otherwise read different ones (Starlette reads the first), and a JSON body declared as
+  something else too would skip the check.
 
 The scan finds quotes, brackets, commas and colons with NumPy and runs Python code only per
 bracket and per object key, of which a numeric batch has a handful (a 2-million-point batch is
@@ -220,7 +223,16 @@ class JsonGuardMiddleware:
         self.max_items = max_items
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or not _is_json(dict(scope["headers"]).get(b"content-type")):
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        content_types = [value for name, value in scope["headers"] if name.lower() == b"content-type"]
+        if len(content_types) > 1:
+            problem = ProblemError(400, f"The request has {len(content_types)} Content-Type headers; "
+                                        "send one.", title="Ambiguous content type", type_=VALIDATION_TYPE)
+            await self._answer(problem, scope, receive, send)
+            return
+        if not _is_json(content_types[0] if content_types else None):
             await self.app(scope, receive, send)
             return
         chunks: list[bytes] = []

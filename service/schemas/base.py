@@ -24,7 +24,7 @@ from starlette.concurrency import run_in_threadpool
 
 import physics
 
-from ..problems import ProblemError
+from ..problems import VALIDATION_TYPE, ProblemError
 
 __all__ = [
     "RAW_BODY_MODELS",
@@ -191,6 +191,9 @@ async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
         document = json.loads(body)
     except ValueError:
         document = None
+    except RecursionError:  # nested deeper than Python's stack (normally refused by service.jsonguard)
+        raise ProblemError(400, "The request body nests arrays or objects too deeply.",
+                           title="Malformed JSON", type_=VALIDATION_TYPE) from None
     raise RequestValidationError(errors, body=document)
 
 
