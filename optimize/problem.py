@@ -107,13 +107,17 @@ class Constraints:
     max_load_per_ball_N : float, optional
         Upper limit on the load each ball carries, G / z. [N]
     groove_length_m : float, optional
-        Length of each of the two grooves. The z balls are split between them,
+        Length L of each of the two grooves. The z balls are split between them,
         so the fuller groove holds n = ceil(z/2) balls, which must fit with
-        the gap below between neighbours: n d + (n - 1) g <= groove length. [m]
+        the gap below between neighbours: n d + (n - 1) g <= L. When the
+        balls are declared apart (``balls_touching=False``, the default) and
+        g = 0, the fit is strict, n d < L, so that some positive clearance is
+        left between them (see :meth:`DesignProblem.fits_groove`). [m]
     min_ball_gap_m : float, default 0
         Clearance g between neighbouring balls in a groove for
-        ``groove_length_m``. With g = 0 neighbours may just touch; choose g > 0
-        so that they stay apart, as ``balls_touching=False`` assumes. [m]
+        ``groove_length_m``. With g = 0 and ``balls_touching=True`` neighbours
+        may just touch; with ``balls_touching=False`` they must not (strict
+        fit); choose g > 0 for a definite clearance. [m]
 
     Raises
     ------
@@ -265,11 +269,45 @@ class DesignProblem:
         n = self.balls_per_groove(balls)
         return n * float(self.fixed["ball_diameter_m"]) + (n - 1) * self.constraints.min_ball_gap_m
 
+    def fits_groove(self, balls: int) -> bool:
+        """Whether z balls fit ``groove_length_m`` (always True without it).
+
+        The fuller groove's n = ceil(z/2) balls fill n d + (n - 1) g, which
+        must not exceed the groove length L. Balls declared apart
+        (``fixed["balls_touching"]`` False) with no gap g must leave room to
+        stand apart: n d < L strictly, so that balls that would just touch do
+        not fit.
+
+        Parameters
+        ----------
+        balls : int
+            Total number of balls z. [1]
+
+        Returns
+        -------
+        bool
+            Whether they fit. [-]
+
+        Examples
+        --------
+        >>> bounds = DesignBounds((1, 20), (40, 60), (0.001, 0.05))
+        >>> apart = DesignProblem(bounds, 0.05, Constraints(groove_length_m=2e-3),
+        ...                       fixed={"ball_diameter_m": 250e-6, "balls_touching": False})
+        >>> apart.fits_groove(14), apart.fits_groove(16)  # 8 x 250 um = 2 mm would touch
+        (True, False)
+        """
+        length = self.constraints.groove_length_m
+        if length is None:
+            return True
+        fill = self.groove_fill_m(balls)
+        if self.constraints.min_ball_gap_m == 0 and not self.fixed["balls_touching"]:
+            return fill < length
+        return fill <= length
+
     def ball_counts(self) -> list[int]:
         """Every ball count of the bounds that fits ``groove_length_m`` (all of them without it). [1]"""
         lo, hi = self.bounds.balls
-        length = self.constraints.groove_length_m
-        return [z for z in range(lo, hi + 1) if length is None or self.groove_fill_m(z) <= length]
+        return [z for z in range(lo, hi + 1) if self.fits_groove(z)]
 
 
 @dataclass(frozen=True)
@@ -365,8 +403,8 @@ def constraint_report(problem: DesignProblem, balls: int, groove_angle_deg: floa
     for name, limit in c.active_limits().items():
         if name == "groove_length_m":
             fill = problem.groove_fill_m(balls)
-            report.append(ConstraintStatus(name, fill, limit, "<=", problem.groove_fill_m(balls + 1) > limit,
-                                           fill <= limit))
+            report.append(ConstraintStatus(name, fill, limit, "<=", not problem.fits_groove(balls + 1),
+                                           problem.fits_groove(balls)))
         else:
             report.append(_status(name, measured[name], limit, ">=" if name.startswith("min_") else "<="))
     return report

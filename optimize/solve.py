@@ -283,9 +283,12 @@ def find_conflicts(problem: DesignProblem) -> InfeasibleDesignError | None:
     lo, hi = problem.bounds.balls
     if not counts:
         smallest = problem.groove_fill_m(lo)
+        apart = (" and, declared not touching (balls_touching=false, min_ball_gap_m=0), must leave a "
+                 "positive clearance" if smallest <= problem.constraints.groove_length_m else "")
         return InfeasibleDesignError(
             f"no ball count in [{lo}, {hi}] fits groove_length_m={problem.constraints.groove_length_m:g} m: "
-            f"even {lo} balls need {smallest:g} m per groove", ["balls", "groove_length_m"], ["balls_min"])
+            f"even {lo} balls need {smallest:g} m per groove{apart}", ["balls", "groove_length_m"],
+            ["balls_min"])
     limits = [n for n in problem.constraints.active_limits() if n != "groove_length_m"]
     if not limits or _phase_one_slack(problem, frozenset(limits), counts)[0] <= 1.0:
         return None

@@ -260,14 +260,16 @@ def test_conflicting_limits_are_named():
         optimize_design(replace(base, constraints=Constraints(min_load_capacity_N=1.0)))
     assert info.value.conflicts == ["min_load_capacity_N"] and info.value.binding_bounds == ["load_N_max"]
 
-    short = Constraints(groove_length_m=3 * 285e-6)  # 4 balls need 2 per groove: fits; 7 need 4: does not
+    # 285 um balls, apart: 3 per groove need 855 um < 860 um; 4 need 1140 um
+    groove = 860e-6
+    short = Constraints(groove_length_m=groove)  # 4 balls need 2 per groove: fits; 7 need 4: does not
     assert DesignProblem(bounds, speed_m_s=0.05, constraints=short).ball_counts() == [4, 5, 6]
     with pytest.raises(InfeasibleDesignError) as info:
         optimize_design(replace(base, constraints=Constraints(groove_length_m=400e-6)))
     assert info.value.conflicts == ["balls", "groove_length_m"]
 
     # max load per ball needs z >= 0.01 / 0.0015 = 6.7, the groove holds 6 at most: both are named
-    per_ball = Constraints(min_load_capacity_N=0.01, max_load_per_ball_N=0.0015, groove_length_m=3 * 285e-6)
+    per_ball = Constraints(min_load_capacity_N=0.01, max_load_per_ball_N=0.0015, groove_length_m=groove)
     with pytest.raises(InfeasibleDesignError) as info:
         optimize_design(DesignProblem(bounds, speed_m_s=0.05, constraints=per_ball))
     assert sorted(info.value.conflicts) == ["groove_length_m", "max_load_per_ball_N", "min_load_capacity_N"]
@@ -349,3 +351,23 @@ def test_conflicts_at_the_edges_of_the_physics_range_are_named_not_crashed():
         optimize_design(DesignProblem(lowest, speed_m_s=0.0, constraints=limits))
     assert info.value.conflicts == ["max_contact_pressure_Pa"]
     assert "groove_angle_deg_min" not in info.value.binding_bounds
+
+
+def test_balls_declared_apart_must_not_just_touch_in_the_groove():
+    # d = 250 um, groove 2 mm: 8 balls per groove fill 8 x 0.25 = 2.0 mm exactly (touching), 7 fill 1.75 mm
+    bounds = DesignBounds((10, 20), (40, 60), (0.001, 0.05))
+    groove = Constraints(groove_length_m=2e-3)
+    common = {"ball_diameter_m": 250e-6}
+    apart = DesignProblem(bounds, 0.05, groove, fixed={**common, "balls_touching": False})
+    touching = DesignProblem(bounds, 0.05, groove, fixed={**common, "balls_touching": True})
+    assert max(apart.ball_counts()) == 14  # ceil(14/2) = 7 balls, 0.25 mm to spare
+    assert max(touching.ball_counts()) == 16  # ceil(16/2) = 8 balls may just touch
+    # a 10 um gap: 7 balls need 7 x 250 + 6 x 10 = 1810 um <= 2000; 8 need 2070 um
+    gapped = replace(apart, constraints=Constraints(groove_length_m=2e-3, min_ball_gap_m=10e-6))
+    assert max(gapped.ball_counts()) == 14
+    with pytest.raises(InfeasibleDesignError, match="positive clearance"):
+        optimize_design(replace(apart, bounds=DesignBounds((15, 20), (40, 60), (0.001, 0.05))))
+    design = optimize_design(replace(apart, bounds=DesignBounds((14, 20), (40, 60), (0.001, 0.05))))
+    fit = next(c for c in design.constraints if c.name == "groove_length_m")
+    assert design.design["balls"] == 14 and fit.satisfied and fit.active
+    assert fit.value == pytest.approx(1.75e-3)

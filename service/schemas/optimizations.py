@@ -57,11 +57,13 @@ class DesignLimits(StrictModel):
         default=None, ge=1e-7, le=10.0,
         description="Length of each of the two grooves: the fuller one holds "
         "n = ceil(balls/2) balls, which must fit with min_ball_gap_m between neighbours: "
-        "n d + (n - 1) gap <= groove_length_m [m].")
+        "n d + (n - 1) gap <= groove_length_m; with balls_touching=false and min_ball_gap_m=0 strictly "
+        "n d < groove_length_m, so that balls that would just touch do not fit [m].")
     min_ball_gap_m: float = Field(
         default=0.0, ge=0, le=1.0,
         description="Clearance between neighbouring balls in a groove; 0 lets them just "
-        "touch, > 0 keeps them apart as balls_touching=false assumes [m].")
+        "touch if balls_touching=true, and with balls_touching=false (the default) requires only some "
+        "positive clearance (strict fit); > 0 keeps them that far apart [m].")
 
 
 OptimizationFixed = create_model(
