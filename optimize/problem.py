@@ -43,18 +43,20 @@ ACTIVE_TOLERANCE = 1e-5
 DESIGN_VARIABLES = ("balls", "groove_angle_deg", "load_N")
 
 
-def _pair(name: str, value: Any) -> tuple[float, float]:
+def _pair(name: str, value: Any, field: str | None = None) -> tuple[float, float]:
+    """A validated [lower, upper] pair of parameter ``name``; errors name ``field`` (``bounds.<name>``)."""
+    field = f"bounds.{name}" if field is None else field
     try:
         lo, hi = (float(v) for v in value)
     except (TypeError, ValueError):
-        raise ValueError(f"bounds.{name} must be a pair [lower, upper]; got {value!r}") from None
+        raise ValueError(f"{field} must be a pair [lower, upper]; got {value!r}") from None
     for v in (lo, hi):
         try:
             physics.validate(name, v)
         except ValueError as err:
-            raise ValueError(f"bounds.{name}: {err}") from None
+            raise ValueError(f"{field}: {err}") from None
     if lo > hi:
-        raise ValueError(f"bounds.{name} must have lower <= upper; got [{lo:g}, {hi:g}]")
+        raise ValueError(f"{field} must have lower <= upper; got [{lo:g}, {hi:g}]")
     return lo, hi
 
 
@@ -199,7 +201,7 @@ class DesignProblem:
                              f"got {self.convention!r}")
         speed = self.speed_m_s
         if isinstance(speed, list | tuple):
-            speed = _pair("speed_m_s", speed)
+            speed = _pair("speed_m_s", speed, field="speed_m_s")
         else:
             try:
                 speed = float(physics.validate("speed_m_s", speed))

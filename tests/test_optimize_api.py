@@ -86,6 +86,7 @@ def test_infeasible_limits_answer_422_naming_them(client):
 @pytest.mark.parametrize("change, pointer", [
     ({"fixed": {}}, "/speed_m_s"),
     ({"speed_m_s": 0.1}, "/speed_m_s"),
+    ({"fixed": {}, "speed_m_s": [0.2, 0.1]}, "/speed_m_s"),
     ({"bounds": {"balls": [9, 4], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]}}, "/bounds/balls"),
     ({"fixed": {"speed_m_s": 0.05, "load_N": 0.01}}, "/fixed/load_N"),
     ({"model": "newton"}, "/model"),
