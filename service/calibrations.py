@@ -3,7 +3,8 @@
 A calibration is stored once, as a model of kind ``"calibration"`` in the SQLite store: its
 report and the calibrated model as JSON metadata, its plots as PNG bytes (``uint8`` arrays).
 :func:`load_mu_model` turns ``"physics"`` or ``"calibrated:<id>"`` into a callable
-``mu_model(points) -> mu`` for /v1/friction and optimization.
+``mu_model(points) -> mu`` for /v1/friction, optimization and surrogates; :func:`with_conditions`
+adds the condition columns a calibrated model's effect reads.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
 __all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_view", "data_problem",
-           "evaluate_point_with_model", "load_calibration", "load_mu_model", "run_calibration"]
+           "evaluate_point_with_model", "load_calibration", "load_mu_model", "run_calibration",
+           "with_conditions"]
 
 KIND = "calibration"
 MODEL_PREFIX = "calibrated:"
@@ -165,6 +167,56 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
                                    "detail": "the calibrated model's mu is not finite at these conditions"}])
     return {**outputs, "convention": mu_model.convention, "mu": mu, "mu_effect": mu - outputs["mu"],
             "model": model}
+
+
+def with_conditions(model: Callable[[Mapping[str, Any]], Any], reference: str,
+                    conditions: Mapping[str, float] | None,
+                    pointer: str = "/conditions") -> Callable[[Mapping[str, Any]], Any]:
+    """A model's ``mu_model(points)`` with constant condition columns added to every point.
+
+    Shared by every route that runs a stored model on points it generates itself
+    (optimizations, surrogates trained on a calibrated model).
+
+    Parameters
+    ----------
+    model : callable
+        ``mu_model(points) -> mu`` [1]; a :class:`calibrate.CalibratedModel` names the extra
+        columns it needs in ``required_columns``.
+    reference : str
+        The model reference of the request (``"calibrated:<id>"``), for errors.
+    conditions : mapping or None
+        Condition columns by name (e.g. ``relative_humidity`` [1]), one value each, in the
+        units of the calibration data.
+    pointer : str
+        JSON pointer of the conditions in the request, for errors.
+
+    Returns
+    -------
+    callable
+        ``mu_model(points) -> mu`` [1] reading the conditions as columns broadcast like the points.
+
+    Raises
+    ------
+    ProblemError
+        422 when a condition is a physics input or a column the model needs is missing.
+    """
+    conditions = dict(conditions or {})
+    clashing = sorted(set(conditions) & set(physics.PARAMETERS))
+    if clashing:
+        raise validation_problem([{"pointer": f"{pointer}/{name}", "detail": "is a physics input; give it "
+                                   "in fixed"} for name in clashing])
+    missing = [c for c in getattr(model, "required_columns", []) if c not in conditions]
+    if missing:
+        raise validation_problem([{"pointer": pointer, "detail": f"the model {reference} needs "
+                                   f"{', '.join(missing)}"}])
+    if not conditions:
+        return model
+
+    def mu_model(points: Mapping[str, Any]) -> Any:
+        shape = np.broadcast_shapes(*(np.shape(v) for v in points.values()))
+        return model({**points, **{k: np.full(shape, v) for k, v in conditions.items()}})
+
+    return mu_model
 
 
 def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable[[Mapping[str, Any]], Any]:

@@ -186,6 +186,18 @@ def select_batch(model: GaussianProcessSurrogate, candidates: np.ndarray, size: 
     return np.array(picked, dtype=int)
 
 
+def _distinct(X: np.ndarray, exclude: np.ndarray | None = None) -> np.ndarray:
+    """Rows of ``X`` without repeats and without rows of ``exclude``, in first-occurrence order."""
+    seen = set() if exclude is None else {tuple(row) for row in exclude}
+    keep = []
+    for i, row in enumerate(X):
+        key = tuple(row)
+        if key not in seen:
+            seen.add(key)
+            keep.append(i)
+    return X[keep]
+
+
 @dataclass
 class AdaptiveFit:
     """Result of :func:`fit_adaptive`.
@@ -206,7 +218,8 @@ class AdaptiveFit:
         fixed).
     stop_reason : str
         ``"target_reached"``, ``"budget_exhausted"`` or ``"candidates_exhausted"``
-        (no candidate left that is not a training point, e.g. every integer point sampled).
+        (no candidate left that is not a training point, e.g. every point of a space of
+        integer and boolean dimensions sampled: ``n_train`` is then below the budget).
     """
 
     model: GaussianProcessSurrogate
@@ -226,15 +239,17 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
                  design_method: str = "sobol", adaptive: bool = True,
                  criterion: str = "integrated_variance", n_candidates: int = 1024,
                  model_params: Mapping[str, Any] | None = None, seed: int | None = 0,
-                 progress: Callable[[float], None] | None = None) -> AdaptiveFit:
+                 progress: Callable[[float], None] | None = None,
+                 mu_model: Callable[[Mapping[str, Any]], Any] | None = None) -> AdaptiveFit:
     """Fit a surrogate with a space-filling start and variance-driven batches of physics runs.
 
     Parameters
     ----------
     space : Space
-        Input space; μ comes from ``space.evaluate``.
+        Input space; μ comes from ``space.evaluate(X, mu_model)``.
     budget : int, default 100
-        Most physics evaluations to use, >= 2. [1]
+        Most evaluations to use, >= 2; no point is evaluated twice, so a space with
+        fewer distinct points (integer and boolean dimensions only) uses fewer. [1]
     target_relative_error : float, default 1e-3
         Stop once the estimated median relative error of μ is at most this
         and its estimated 95th percentile at most :data:`TAIL_FACTOR` times
@@ -243,7 +258,9 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         points (σ the calibrated predictive standard deviation of log μ). [1]
     initial_size : int, optional
         Size of the starting design; default half the budget, at least
-        ``2 (d + 1)`` and at most the budget. [1]
+        ``2 (d + 1)`` and at most the budget. Repeated points of the design
+        (rounded integers and booleans) are replaced by candidates not yet
+        evaluated, as long as there are some. [1]
     batch_size : int, optional
         Points added per round; default a tenth of the budget (at least 1). [1]
     design_method : {"sobol", "latin_hypercube"}, default "sobol"
@@ -260,6 +277,9 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         Seed of designs, candidates and the optimizer's restarts.
     progress : callable, optional
         Called with the fraction of the budget spent (0..1) after each round's fit.
+    mu_model : callable, optional
+        ``mu_model(points) -> mu`` [1] to learn instead of the physics (see
+        :meth:`Space.evaluate`), e.g. a calibrated model.
 
     Returns
     -------
@@ -293,13 +313,24 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
     # model gets the requested one (k-fold by default, five more fits).
     rounds = {**params, "calibrate_variance": "none" if params.get("calibrate_variance") == "none" else "loo"}
 
-    X = design(space, int(initial_size), design_method, seed)
-    y = space.evaluate(X)
+    def evaluate(points: np.ndarray) -> np.ndarray:
+        return space.evaluate(points, mu_model)
+
+    # Integer and boolean dimensions make repeats possible: never evaluate a point twice. The
+    # design keeps its first occurrences; candidates not yet evaluated replace its repeats.
+    X = _distinct(design(space, int(initial_size), design_method, seed))
     # Candidates from another scramble than the design, so they are not the training points.
     candidates = design(space, int(n_candidates), "sobol", None if seed is None else seed + 1)
-    # Integer and boolean dimensions make repeats possible: never evaluate a point twice.
-    evaluated = {tuple(row) for row in X}
-    candidates = np.unique(candidates[[tuple(row) not in evaluated for row in candidates]], axis=0)
+    candidates = _distinct(candidates, exclude=X)
+    if len(X) < initial_size and len(candidates):
+        top_up = min(int(initial_size) - len(X), len(candidates))
+        X = np.vstack([X, candidates[:top_up]])
+        candidates = candidates[top_up:]
+    if len(X) < 2:
+        raise ValueError(f"the space has fewer than 2 distinct points ({len(X)}); a surrogate needs 2")
+    y = evaluate(X)
+    # Sorted, as before the top-up (select_batch's greedy ties then resolve the same way).
+    candidates = np.unique(candidates, axis=0) if len(candidates) else candidates
     history: list[dict[str, float]] = []
     while True:
         model = GaussianProcessSurrogate(space, **rounds).fit(X, y)
@@ -325,6 +356,10 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         # data, and pessimistic (each point is predicted from n - 1). Both must meet the target.
         median = max(median, history[-1]["loo_median_relative_error"])
         tail = max(tail, history[-1]["loo_p95_relative_error"])
+        if len(y) < budget and not len(candidates):
+            # Fewer distinct points than the budget (a finite space): every candidate was evaluated.
+            stop = "candidates_exhausted"
+            break
         if median <= target_relative_error and tail <= TAIL_FACTOR * target_relative_error:
             stop = "target_reached"
             break
@@ -337,7 +372,7 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
             stop = "candidates_exhausted"
             break
         X = np.vstack([X, candidates[picked]])
-        y = np.concatenate([y, space.evaluate(candidates[picked])])
+        y = np.concatenate([y, evaluate(candidates[picked])])
         candidates = np.delete(candidates, picked, axis=0)
     if rounds["calibrate_variance"] != params.get("calibrate_variance", "kfold"):
         final = {**params, "initial_theta": model.gaussian_process_.kernel_.theta.tolist(),

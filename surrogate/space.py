@@ -15,13 +15,15 @@ A :class:`Space` maps three coordinate systems onto each other:
 * **features** ``Z[n, k]``: the inputs of the Gaussian process (see
   :meth:`Space.features`), continuous even for integer ``balls``.
 
-The physics is evaluated through :meth:`Space.evaluate` (vectorized, like the
+The physics (or any ``mu_model(points) -> mu`` callable, such as a calibrated
+model) is evaluated through :meth:`Space.evaluate` (vectorized, like the
 ``Problem`` classes of SMT).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -314,6 +316,34 @@ class Space:
                 inside &= X[:, i] == np.round(X[:, i])
         return inside
 
+    def all_points(self, max_points: int) -> np.ndarray | None:
+        """Every point of a finite space (only integer and boolean dimensions), if there are few.
+
+        Parameters
+        ----------
+        max_points : int
+            Largest number of points to list. [1]
+
+        Returns
+        -------
+        numpy.ndarray of shape (m, d) or None
+            All ``m`` points in the units of :attr:`names` (sorted), or None when a
+            dimension is continuous or ``m > max_points``. [parameter units]
+
+        Examples
+        --------
+        >>> Space({"balls": (3, 4), "balls_touching": (False, True)},
+        ...       fixed={"load_N": 0.01, "speed_m_s": 0.01}).all_points(10).tolist()
+        [[3.0, 0.0], [3.0, 1.0], [4.0, 0.0], [4.0, 1.0]]
+        """
+        if any(kind == "float" for kind in self.kinds):
+            return None
+        counts = [int(hi - lo) + 1 for lo, hi in zip(self.lower, self.upper, strict=True)]
+        if math.prod(counts) > max_points:
+            return None
+        axes = [np.arange(lo, hi + 1.0) for lo, hi in zip(self.lower, self.upper, strict=True)]
+        return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, self.dimension)
+
     # ------------------------------------------------------------------ physics
     def points(self, X: Any) -> dict[str, np.ndarray]:
         """Columnar keyword inputs of :func:`physics.evaluate` for physical points.
@@ -334,26 +364,45 @@ class Space:
             columns[name] = X[:, i] >= 0.5 if kind == "bool" else X[:, i]
         return columns
 
-    def evaluate(self, X: Any) -> np.ndarray:
-        """The physics' friction coefficient μ at physical points (vectorized).
+    def evaluate(self, X: Any, mu_model: Callable[[Mapping[str, Any]], Any] | None = None) -> np.ndarray:
+        """The friction coefficient μ of the physics, or of another model, at physical points (vectorized).
 
         Parameters
         ----------
         X : array_like of shape (n, d)
             Points in the units of :attr:`names`. [parameter units]
+        mu_model : callable, optional
+            ``mu_model(points) -> mu`` [1] taking the columnar inputs of :meth:`points` (e.g. a
+            calibrated model, which adds its fitted parameters and effect); default
+            :func:`physics.evaluate` with this space's convention.
 
         Returns
         -------
         numpy.ndarray of shape (n,)
-            μ from :func:`physics.evaluate` with this space's convention. [1]
+            μ at each point. [1]
 
         Raises
         ------
         ValueError
-            From :func:`physics.evaluate` for physically invalid values.
+            From :func:`physics.evaluate` (or ``mu_model``) for invalid values, or when
+            ``mu_model`` does not answer one μ per point.
+
+        Examples
+        --------
+        >>> s = Space({"load_N": (0.001, 0.05)}, fixed={"balls": 4, "speed_m_s": 0.01})
+        >>> mu = s.evaluate([[0.01]])
+        >>> bool(s.evaluate([[0.01]], lambda p: 2 * physics.evaluate(**p).mu)[0] == 2 * mu[0])
+        True
         """
         X = self.check_X(X)
-        return np.asarray(physics.evaluate(convention=self.convention, **self.points(X)).mu, dtype=float)
+        if mu_model is None:
+            return np.asarray(physics.evaluate(convention=self.convention, **self.points(X)).mu, dtype=float)
+        mu = np.asarray(mu_model(self.points(X)), dtype=float)
+        try:
+            return np.broadcast_to(mu, (X.shape[0],)).copy()
+        except ValueError:
+            raise ValueError(f"mu_model must answer one mu per point ({X.shape[0]}); "
+                             f"got shape {mu.shape}") from None
 
     def from_points(self, points: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
         """Turn columnar physics inputs into physical points and an outside-space flag.

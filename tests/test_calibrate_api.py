@@ -203,3 +203,46 @@ def test_friction_answers_with_a_calibrated_model(client, humidity_result):
     assert_problem(client.post("/v1/friction", json={**point, "conditions": {"relative_humidity": 0.6}}), 422)
     plain = client.post("/v1/friction", json=point).json()
     assert "model" not in plain and plain["mu"] == float(physics.evaluate(**point).mu)
+
+
+def test_a_surrogate_learns_the_calibrated_model(client, humidity_result):
+    model_id = humidity_result["model_id"]
+    space = {"balls": [4, 12], "load_N": [0.003, 0.03], "speed_m_s": [0.01, 0.15]}
+    body = {"space": space, "budget": 60, "target_relative_error": 1e-3, "model": model_id,
+            "conditions": {"relative_humidity": 0.6}}
+    trained = finished_result(client, client.post("/v1/surrogates", json=body))
+    assert trained["model"] == model_id and trained["conditions"] == {"relative_humidity": 0.6}
+    assert client.get(f"/v1/surrogates/{trained['id']}").json() == trained
+    stated = trained["metrics"]
+    assert stated["n_test"] > 1000 and stated["median_relative_error"] < 0.01
+    # 32 points of the space (not the test design): the calibrated model's own /v1/friction answers.
+    rng = np.random.default_rng(7)
+    points = {"balls": rng.integers(4, 13, 32).tolist(),
+              "load_N": np.exp(rng.uniform(np.log(0.003), np.log(0.03), 32)).tolist(),
+              "speed_m_s": rng.uniform(0.01, 0.15, 32).tolist()}
+    predicted = client.post(f"/v1/surrogates/{trained['id']}/predict", json={"points": points})
+    assert predicted.status_code == 200, predicted.text
+    mu = np.array(predicted.json()["mu"])
+    truth = np.array([client.post("/v1/friction", json={
+        "balls": points["balls"][i], "load_N": points["load_N"][i], "speed_m_s": points["speed_m_s"][i],
+        "model": model_id, "conditions": {"relative_humidity": 0.6}}).json()["mu"] for i in range(32)])
+    error = np.abs(mu / truth - 1)
+    assert np.median(error) <= 2 * stated["median_relative_error"]
+    assert np.max(error) <= 3 * stated["p95_relative_error"]
+    # The plain physics (defaults, no humidity effect) is far from what the surrogate learned.
+    plain = physics.evaluate(**{k: np.array(v) for k, v in points.items()}).mu
+    assert np.median(np.abs(mu / plain - 1)) > 50 * stated["median_relative_error"]
+    # Errors: unknown calibration, missing condition, conditions for the physics, another convention.
+    unknown = {**body, "model": "calibrated:" + "0" * 32}
+    assert_problem(client.post("/v1/surrogates", json=unknown), 404)
+    missing = assert_problem(client.post("/v1/surrogates", json={**body, "conditions": None}), 422)
+    assert missing["errors"][0]["pointer"] == "/conditions"
+    assert "relative_humidity" in missing["errors"][0]["detail"]
+    for_physics = assert_problem(client.post("/v1/surrogates", json={**body, "model": "physics"}), 422)
+    assert for_physics["errors"][0]["pointer"] == "/conditions"
+    other = next(c for c in physics.CONVENTIONS if c != humidity_result["model"]["convention"])
+    convention = assert_problem(client.post("/v1/surrogates", json={**body, "convention": other}), 422)
+    assert convention["errors"][0]["pointer"] == "/convention"
+    saturated = {**body, "conditions": {"relative_humidity": 1.0}}  # log(1/RH) = 0: mu infinite
+    dry = assert_problem(client.post("/v1/surrogates", json=saturated), 422)
+    assert dry["errors"][0]["pointer"] == "/conditions"

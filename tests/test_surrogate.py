@@ -339,9 +339,29 @@ def test_fit_adaptive_stops_at_the_target():
 def test_fit_adaptive_stops_when_no_candidate_is_uncertain():
     space = Space({"balls": (3, 6)}, fixed={"load_N": 0.01, "speed_m_s": 0.01})
     fit = fit_adaptive(space, budget=30, target_relative_error=1e-12, initial_size=8, n_candidates=64)
-    # Four possible ball counts, all in the starting design: no evaluation is wasted on repeats.
-    assert set(fit.X[:, 0]) == {3, 4, 5, 6} and fit.n_train == 8
-    assert fit.stop_reason in ("target_reached", "candidates_exhausted")
+    # Four possible ball counts: each evaluated exactly once, although the starting design asked for 8.
+    assert sorted(fit.X[:, 0]) == [3, 4, 5, 6] and fit.n_train == 4
+    assert fit.stop_reason == "candidates_exhausted"
+    # Every point of the space is a training point: nothing is held out, and the note says so.
+    metrics = holdout_metrics(fit.model, n_test=64)
+    assert metrics["n_test"] == 0 and metrics["coverage_95"] is None
+    assert metrics["median_relative_error"] is None
+    assert metrics["note"].startswith("4 of the 4 points of the space are training points")
+    np.testing.assert_allclose(fit.model.predict(fit.X), space.evaluate(fit.X), rtol=1e-3)
+
+
+@pytest.mark.parametrize("adaptive", [True, False])
+def test_a_finite_space_is_evaluated_once_per_point(adaptive):
+    space = Space({"balls": (3, 5), "balls_touching": (False, True)},
+                  fixed={"load_N": 0.01, "speed_m_s": 0.01})
+    fit = fit_adaptive(space, budget=10, target_relative_error=1e-12, adaptive=adaptive)
+    # 3 ball counts x 2 booleans = 6 distinct points, fewer than the budget of 10.
+    assert fit.n_train == 6 and len({tuple(x) for x in fit.X}) == 6
+    assert fit.stop_reason == "candidates_exhausted"
+    np.testing.assert_array_equal(fit.y, space.evaluate(fit.X))
+    # Trained on 4 of the 6 points, the other 2 are the held-out set, each once.
+    part = GaussianProcessSurrogate(space, random_state=0).fit(fit.X[:4], fit.y[:4])
+    assert holdout_metrics(part, n_test=1024)["n_test"] == 2
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
@@ -372,11 +392,24 @@ def test_holdout_metrics_never_use_training_points():
     space = Space({"balls": (3, 6)}, fixed={"load_N": 0.01, "speed_m_s": 0.01})
     X = np.array([[3.0], [4.0], [5.0]])
     model = GaussianProcessSurrogate(space, mean="constant", random_state=0).fit(X, space.evaluate(X))
-    # Only balls = 6 is not a training point: the held-out set is it alone, repeated.
+    # A finite space is tested on each of its points that is not a training point, once: only balls = 6.
+    m = holdout_metrics(model, n_test=64)
+    assert m["n_test"] == 1 and m["median_relative_error"] is None
+    assert m["note"].startswith("3 of the 4 points of the space are training points: only 1 held-out")
+    # Sampled (space larger than n_test) and every sample a training point or balls = 6: too few.
     with pytest.raises(ValueError, match="fewer than 2"):
         holdout_metrics(model, n_test=1)
-    m = holdout_metrics(model, n_test=64)
-    assert m["n_test"] == 64 - sum(design(space, 64, "sobol", 9_999)[:, 0] < 6)
+    two = GaussianProcessSurrogate(space, mean="constant", random_state=0).fit(X[:2], space.evaluate(X[:2]))
+    held = np.array([[5.0], [6.0]])
+    p = two.predict_interval(held)
+    truth = space.evaluate(held)
+    by_hand = accuracy(truth, p.mu, p.mu_lower, p.mu_upper)
+    assert holdout_metrics(two, n_test=64) == {**by_hand, "note": None} and by_hand["n_test"] == 2
+    # A continuous space: the Sobol' test design less the training points among it.
+    load = SPACES["load"]
+    train = design(load, 16, "sobol", 9_999)[:8]
+    model = GaussianProcessSurrogate(load, random_state=0).fit(train, load.evaluate(train))
+    assert holdout_metrics(model, n_test=1024, seed=9_999)["n_test"] == 1024 - 8
 
 
 # ----------------------------------------------------------------------------- sensitivity

@@ -127,6 +127,25 @@ def test_target_stops_early_and_delete(client):
     assert_problem(predict, 404)
 
 
+@pytest.mark.parametrize(("space", "points"), [({"balls": [3, 5]}, 3),
+                                               ({"balls_touching": [False, True]}, 2)])
+def test_a_finite_space_is_learned_point_by_point(client, space, points):
+    fixed = {"load_N": 0.01, "speed_m_s": 0.05, **({} if "balls" in space else {"balls": 6})}
+    body = {"space": space, "fixed": fixed, "budget": 10}
+    result, _ = finished(client, client.post("/v1/surrogates", json=body))
+    # Each point of the space evaluated once, fewer than the budget; nothing left to hold out.
+    assert result["n_train"] == points and result["stop_reason"] == "candidates_exhausted"
+    metrics = result["metrics"]
+    assert metrics["n_test"] == 0 and metrics["coverage_95"] is None
+    assert metrics["median_relative_error"] is None
+    assert metrics["note"].startswith(f"{points} of the {points} points of the space are training points")
+    (name, (lo, hi)), = space.items()
+    values = list(range(lo, hi + 1)) if name == "balls" else [False, True]
+    response = client.post(f"/v1/surrogates/{result['id']}/predict", json={"points": {name: values}})
+    truth = physics.evaluate(**{**fixed, name: np.array(values)}).mu
+    np.testing.assert_allclose(response.json()["mu"], truth, rtol=1e-3)
+
+
 @pytest.mark.parametrize(("body", "pointer"), [
     ({"space": {"load_N": [0.05, 0.001]}, "fixed": {"balls": 4, "speed_m_s": 0.1}}, "/space"),
     ({"space": {"load_N": [0.001, 0.05]}, "fixed": {"balls": 4}}, "/space"),

@@ -2,8 +2,9 @@
 
 A surrogate is stored as a model of kind ``"surrogate"``: its public result and the fitted
 estimator as JSON data (:func:`surrogate.to_dict`: training points, hyperparameters, space,
-package version and physics convention), never pickle. :func:`load_mu_model` turns
-``"surrogate:<id>"`` into a ``mu_model(points) -> mu`` callable for other routes.
+package version and physics convention), never pickle. A surrogate learns the physics or a
+calibrated model (``"calibrated:<id>"``, resolved by :mod:`service.calibrations`). :func:`load_mu_model`
+turns ``"surrogate:<id>"`` into a ``mu_model(points) -> mu`` callable for other routes.
 """
 
 from __future__ import annotations
@@ -15,12 +16,15 @@ from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from typing import Annotated, Any
 
+import numpy as np
 from fastapi import APIRouter, Query
 from fastapi.responses import JSONResponse, Response
 
 import surrogate
 from surrogate import GaussianProcessSurrogate, Space
 
+from ..calibrations import load_mu_model as load_calibrated_model
+from ..calibrations import with_conditions
 from ..deps import JobsDep, StoreDep
 from ..jobs import JobContext
 from ..problems import ProblemError, problem_responses, validation_problem
@@ -45,6 +49,10 @@ _MODEL_REF = re.compile(r"^surrogate:([0-9a-f]{32})$")
 _HELD_OUT_POINTS = 1024
 _HELD_OUT_SEED = 987_654_321
 _SENSITIVITY_N = (256, 65_536)
+# Points on which a calibrated model is checked before its training job is accepted. [1]
+_PROBE_POINTS = 16
+
+MuModel = Callable[[Mapping[str, Any]], Any]
 
 # Rebuilding a surrogate refits its Gaussian process (cubic in n_train); stored surrogates never
 # change, so the last few rebuilt ones are kept by id.
@@ -59,19 +67,63 @@ def _space_problem(exc: ValueError) -> ProblemError:
     return validation_problem([{"pointer": pointer, "detail": text}])
 
 
-def build_space(body: SurrogateRequest) -> Space:
+def resolve_model(store: Store, body: SurrogateRequest) -> tuple[MuModel | None, str]:
+    """The model a request learns and its convention, or a 404 / 422 problem.
+
+    Parameters
+    ----------
+    store : Store
+        Where calibrations are kept.
+    body : SurrogateRequest
+        Its ``model``, ``conditions`` and ``convention``.
+
+    Returns
+    -------
+    mu_model : callable or None
+        ``mu_model(points) -> mu`` [1] of a calibrated model with the request's conditions
+        (:func:`service.calibrations.with_conditions`); None for the physics.
+    convention : str
+        The request's convention for the physics, else the calibrated model's.
+    """
+    if body.model == "physics":
+        if body.conditions:
+            raise validation_problem([{"pointer": "/conditions", "detail": "condition columns are read by "
+                                       "calibrated models only"}])
+        return None, str(body.convention)
+    calibrated = load_calibrated_model(store, body.model)
+    if "convention" in body.model_fields_set and str(body.convention) != calibrated.convention:
+        raise validation_problem([{"pointer": "/convention", "detail": f"the model {body.model} was "
+                                   f"calibrated with convention {calibrated.convention!r}; omit convention"}])
+    return with_conditions(calibrated, body.model, body.conditions), calibrated.convention
+
+
+def build_space(body: SurrogateRequest, convention: str | None = None) -> Space:
     """The :class:`surrogate.Space` of a request, or a 422 problem naming the field."""
     bounds = {name: tuple(pair) for name, pair in body.space.model_dump(exclude_none=True).items()}
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
-        return Space(bounds, fixed, convention=str(body.convention))
+        return Space(bounds, fixed, convention=str(body.convention) if convention is None else convention)
     except ValueError as exc:
         raise _space_problem(exc) from None
 
 
+def _probe(space: Space, mu_model: MuModel) -> None:
+    """422 unless the model answers a finite, positive μ on a small design of the space."""
+    X = surrogate.design(space, _PROBE_POINTS, "sobol", seed=0)
+    try:
+        with np.errstate(all="ignore"):
+            mu = space.evaluate(X, mu_model)
+    except ValueError as exc:
+        raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
+    if not np.all(np.isfinite(mu) & (mu > 0)):
+        raise validation_problem([{"pointer": "/conditions", "detail": "the calibrated model's mu is not "
+                                   "finite and positive over the space at these conditions"}])
+
+
 def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
-                    progress: Callable[[float], None] | None = None) -> dict[str, Any]:
-    """Train, measure on held-out physics, store, and return the public result.
+                    progress: Callable[[float], None] | None = None,
+                    mu_model: MuModel | None = None) -> dict[str, Any]:
+    """Train, measure on held-out evaluations of the model, store, and return the public result.
 
     Parameters
     ----------
@@ -83,6 +135,8 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
         Budget, target, design, adaptivity and seed.
     progress : callable, optional
         Fraction done, 0..1 (a job's progress, which also checks cancellation).
+    mu_model : callable, optional
+        The model to learn (:func:`resolve_model`); None for the physics.
 
     Returns
     -------
@@ -92,9 +146,11 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
     start = time.perf_counter()
     fit = surrogate.fit_adaptive(space, budget=body.budget, target_relative_error=body.target_relative_error,
                                  design_method=str(body.design), adaptive=body.adaptive, seed=body.seed,
-                                 progress=None if progress is None else (lambda f: progress(0.95 * f)))
+                                 progress=None if progress is None else (lambda f: progress(0.95 * f)),
+                                 mu_model=mu_model)
     seconds = time.perf_counter() - start
-    metrics = surrogate.holdout_metrics(fit.model, n_test=_HELD_OUT_POINTS, seed=_HELD_OUT_SEED)
+    metrics = surrogate.holdout_metrics(fit.model, n_test=_HELD_OUT_POINTS, seed=_HELD_OUT_SEED,
+                                        mu_model=mu_model)
     data = surrogate.to_dict(fit.model)
     space_data = space.to_dict()
     result = {
@@ -103,6 +159,7 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
         "n_train": fit.n_train, "stop_reason": fit.stop_reason, "metrics": metrics, "history": fit.history,
         "kernel": data["gp"]["kernel"], "fit_seconds": seconds, "convention": data["convention"],
         "package_version": data["package_version"], "created_at": utc_now(),
+        "model": body.model, "conditions": dict(body.conditions or {}),
     }
     surrogate_id = store.save_model(KIND, {"result": result, "model": data}, {},
                                     name=f"{len(space.names)}-D, {fit.n_train} evaluations")
@@ -112,7 +169,9 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
 
 
 def _view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:
-    return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, **metadata["result"]}
+    # Surrogates stored before models other than the physics could be learned lack model and conditions.
+    return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, "model": "physics", "conditions": {},
+            **metadata["result"]}
 
 
 def _stored(store: Store, surrogate_id: str):
@@ -170,14 +229,19 @@ def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable
 def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> JSONResponse:
     """Train a surrogate of mu over a space of physics inputs (a job).
 
-    Starts from a space-filling design and, with ``adaptive``, adds physics evaluations where
-    the Gaussian process is least sure until ``target_relative_error`` or ``budget`` is reached.
-    The job's result is the surrogate (see ``GET /v1/surrogates/{id}``).
+    Learns the physics, or with ``model`` a calibrated model (``conditions`` giving the extra
+    columns its effect reads). Starts from a space-filling design and, with ``adaptive``, adds
+    evaluations where the Gaussian process is least sure until ``target_relative_error`` or
+    ``budget`` is reached; no point is evaluated twice. The job's result is the surrogate (see
+    ``GET /v1/surrogates/{id}``).
     """
-    space = build_space(body)
+    mu_model, convention = resolve_model(store, body)
+    space = build_space(body, convention)
+    if mu_model is not None:
+        _probe(space, mu_model)
 
     def work(ctx: JobContext) -> dict[str, Any]:
-        return train_surrogate(store, space, body, progress=ctx.progress)
+        return train_surrogate(store, space, body, progress=ctx.progress, mu_model=mu_model)
 
     return accepted(jobs.submit("surrogate", body.model_dump(mode="json"), work))
 

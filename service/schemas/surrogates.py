@@ -19,6 +19,7 @@ from .base import (
     parameter_fields,
     parameter_type,
 )
+from .calibrations import MODEL_PATTERN
 
 __all__ = ["MAX_BUDGET", "DesignName", "PredictRequest", "PredictResponse", "SensitivityResponse",
            "SurrogateList", "SurrogateMetrics", "SurrogateRequest", "SurrogateResult", "SurrogateSpace"]
@@ -73,17 +74,32 @@ class SurrogateRequest(StrictModel):
     seed: int = Field(default=0, ge=0, le=2**31 - 1, description="Seed of designs and optimizer [1].")
     convention: ConventionName = Field(  # type: ignore[valid-type]
         default=Convention(physics.DEFAULT_CONVENTION),
-        description="Reading of the paper's ambiguous ball-ball terms.")
+        description="Reading of the paper's ambiguous ball-ball terms (a calibrated model's own "
+                    "convention applies; giving another one is an error).")
+    model: str = Field(default="physics", pattern=MODEL_PATTERN, description=(
+        "The model to learn: 'physics' (the declared model) or 'calibrated:<id>' from /v1/calibrations "
+        "(its fixed and fitted parameters replace the defaults, values in fixed override them, and its "
+        "effect is added to mu)."))
+    conditions: dict[str, float] | None = Field(default=None, description=(
+        "Condition columns a calibrated model's effect reads, one value each for the whole space, e.g. "
+        "relative_humidity [1] [unit of each column as in the calibration data]."))
 
 
 class SurrogateMetrics(ResponseModel):
-    """Accuracy on held-out physics evaluations (never training points)."""
+    """Accuracy on held-out evaluations of the model (never training points)."""
 
-    median_relative_error: float = Field(description="Median of |predicted/true mu - 1| [1].")
-    p95_relative_error: float = Field(description="95th percentile of |predicted/true mu - 1| [1].")
-    nrmse: float = Field(description="Root-mean-square error of mu over the standard deviation of mu [1].")
-    coverage_95: float = Field(description="Fraction of true mu inside the predicted 95 % interval [1].")
-    n_test: int = Field(description="Held-out points (a Sobol' design of the space) [1].")
+    median_relative_error: float | None = Field(description="Median of |predicted/true mu - 1| [1] "
+                                                            "(null when too few held-out points, see note).")
+    p95_relative_error: float | None = Field(description="95th percentile of |predicted/true mu - 1| [1].")
+    nrmse: float | None = Field(description="Root-mean-square error of mu over the standard deviation of "
+                                            "mu [1].")
+    coverage_95: float | None = Field(description="Fraction of true mu inside the predicted 95 % interval "
+                                                  "[1].")
+    n_test: int = Field(description="Held-out points: a Sobol' design of the space less the training "
+                                    "points, or for a small space of integer and boolean dimensions "
+                                    "every point of it that is not a training point [1].")
+    note: str | None = Field(default=None, description="Why the figures are null: every point of a finite "
+                                                       "space (but at most one) was a training point.")
 
 
 class SurrogateResult(ResponseModel):
@@ -96,9 +112,11 @@ class SurrogateResult(ResponseModel):
     scales: dict[str, str] = Field(description="Scale of each dimension in the design: log, power or linear.")
     features: list[str] = Field(description="Inputs of the Gaussian process.")
     budget: int = Field(description="Evaluation budget requested [1].")
-    n_train: int = Field(description="Physics evaluations used for training, at most budget [1].")
+    n_train: int = Field(description="Evaluations used for training, at most budget; no point is "
+                                     "evaluated twice [1].")
     stop_reason: str = Field(description="target_reached, budget_exhausted or candidates_exhausted "
-                                         "(every candidate point already evaluated).")
+                                         "(every candidate point already evaluated, e.g. a space of integer "
+                                         "and boolean dimensions with fewer points than the budget).")
     metrics: SurrogateMetrics = Field(description="Held-out accuracy.")
     history: list[dict[str, float]] = Field(
         description="Per refit: n_train [1] and estimated / leave-one-out median and 95th-percentile "
@@ -106,6 +124,9 @@ class SurrogateResult(ResponseModel):
     kernel: str = Field(description="Fitted kernel with its hyperparameters (standardized features).")
     fit_seconds: float = Field(description="Training time [s].")
     convention: str = Field(description="Physics convention trained on.")
+    model: str = Field(default="physics", description="The model learned: physics or calibrated:<id>.")
+    conditions: dict[str, float] = Field(default_factory=dict, description=(
+        "Condition columns of a calibrated model, as trained on [their units]."))
     package_version: str = Field(description="microbearing version trained with.")
     created_at: str = Field(description="Creation time, ISO 8601 UTC.")
 
