@@ -189,9 +189,9 @@ class JobManager:
         self._executor.submit(self._run, job_id, fn, event)
         return self.get(job_id)
 
-    def get(self, job_id: str) -> dict[str, Any] | None:
-        """The job row, or None for an unknown id."""
-        return self.store.get_job(job_id)
+    def get(self, job_id: str, with_result: bool = False) -> dict[str, Any] | None:
+        """The job row, or None for an unknown id (``request_json`` and ``result_json`` ``with_result``)."""
+        return self.store.get_job(job_id, with_result=with_result)
 
     def cancel(self, job_id: str) -> dict[str, Any] | None:
         """Request cancellation; a queued job is cancelled at once, a running one at its next check.

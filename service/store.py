@@ -51,6 +51,10 @@ CREATE TABLE IF NOT EXISTS jobs (
     finished_at TEXT
 );
 CREATE INDEX IF NOT EXISTS jobs_status ON jobs (status);
+CREATE TABLE IF NOT EXISTS job_results (
+    id TEXT PRIMARY KEY REFERENCES jobs (id),
+    result_json TEXT NOT NULL
+);
 CREATE TABLE IF NOT EXISTS models (
     id TEXT PRIMARY KEY,
     kind TEXT NOT NULL,
@@ -64,6 +68,13 @@ CREATE INDEX IF NOT EXISTS models_kind ON models (kind);
 
 _JOB_COLUMNS = ("id", "kind", "status", "progress", "request_json", "result_json", "error_json",
                 "cancel_requested", "owner_pid", "owner_instance", "created_at", "started_at", "finished_at")
+#: The columns of a job's status: all but the request and the result, which can be tens of megabytes.
+#: Results are kept in their own table, job_results: SQLite walks a large value's overflow pages to
+#: reach the columns stored after it, so a result in the jobs row slowed every status read (a
+#: database written before keeps its older results in jobs.result_json; they are still read).
+_STATUS_COLUMNS = ", ".join(c for c in _JOB_COLUMNS if c not in ("request_json", "result_json"))
+_FULL_COLUMNS = ", ".join(f"jobs.{c}" for c in _JOB_COLUMNS if c != "result_json") + (
+    ", COALESCE(job_results.result_json, jobs.result_json) AS result_json")
 
 
 def utc_now() -> str:
@@ -207,25 +218,45 @@ class Store:
         unknown = set(changes) - set(_JOB_COLUMNS)
         if unknown:
             raise ValueError(f"unknown job column(s) {sorted(unknown)}; known: {', '.join(_JOB_COLUMNS)}")
-        sets = ", ".join(f"{name} = ?" for name in changes)
+        result_json = changes.pop("result_json", None)
+        sets = ", ".join(f"{name} = ?" for name in changes) or "id = id"
         sql = f"UPDATE jobs SET {sets} WHERE id = ?"
         args: list[Any] = [*changes.values(), job_id]
         if only_if_status:
             sql += f" AND status IN ({', '.join('?' for _ in only_if_status)})"
             args.extend(only_if_status)
         with self.transaction() as conn:
-            return conn.execute(sql, args).rowcount > 0
+            changed = conn.execute(sql, args).rowcount > 0
+            if changed and result_json is not None:
+                conn.execute("INSERT OR REPLACE INTO job_results (id, result_json) VALUES (?, ?)",
+                             (job_id, result_json))
+            return changed
 
-    def get_job(self, job_id: str) -> dict[str, Any] | None:
-        """The job row as a dict, or None."""
-        row = self.connection().execute("SELECT * FROM jobs WHERE id = ?", (job_id,)).fetchone()
+    def get_job(self, job_id: str, with_result: bool = False) -> dict[str, Any] | None:
+        """The job row as a dict, or None.
+
+        Parameters
+        ----------
+        job_id : str
+            The job.
+        with_result : bool, default False
+            Also read ``request_json`` and ``result_json``; the status alone (polled often) does
+            not read them, since a large sweep's result is tens of megabytes.
+        """
+        if with_result:
+            sql = (f"SELECT {_FULL_COLUMNS} FROM jobs LEFT JOIN job_results ON job_results.id = jobs.id "
+                   "WHERE jobs.id = ?")
+        else:
+            sql = f"SELECT {_STATUS_COLUMNS} FROM jobs WHERE id = ?"
+        row = self.connection().execute(sql, (job_id,)).fetchone()
         return dict(row) if row else None
 
     def jobs_with_status(self, *statuses: str) -> list[dict[str, Any]]:
-        """Rows of every job with one of ``statuses``, oldest first."""
+        """Status columns of every job with one of ``statuses``, oldest first (no request or result)."""
         marks = ", ".join("?" for _ in statuses)
         rows = self.connection().execute(
-            f"SELECT * FROM jobs WHERE status IN ({marks}) ORDER BY created_at", statuses).fetchall()
+            f"SELECT {_STATUS_COLUMNS} FROM jobs WHERE status IN ({marks}) ORDER BY created_at",
+            statuses).fetchall()
         return [dict(row) for row in rows]
 
     # models ---------------------------------------------------------------------------------

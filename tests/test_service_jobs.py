@@ -35,7 +35,7 @@ def wait(manager: JobManager, job_id: str, timeout_s: float = 20.0) -> dict:
     while (row := manager.get(job_id))["status"] in ("queued", "running"):
         assert time.monotonic() < deadline, row
         time.sleep(0.02)
-    return row
+    return manager.get(job_id, with_result=True)
 
 
 def test_job_result_and_progress_are_stored(manager):
@@ -208,3 +208,22 @@ def test_fast_json_is_exact_and_strict():
 
 def test_the_database_uses_wal(store):
     assert store.connection().execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+
+
+def test_a_status_read_does_not_load_the_result(store, manager):
+    # a 1M-point sweep's result is tens of megabytes; polling the status must not read it
+    row = wait(manager, manager.submit("big", {"n": 1}, lambda ctx: {"values": np.zeros(1000)})["id"])
+    status = manager.get(row["id"])
+    assert "result_json" not in status and "request_json" not in status
+    assert status["status"] == "succeeded" and status["progress"] == 1.0 and status["cancel_requested"] == 0
+    assert {k: v for k, v in row.items() if k not in ("result_json", "request_json")} == status
+    assert json.loads(row["result_json"]) == {"values": [0.0] * 1000}
+    assert all("result_json" not in r for r in store.jobs_with_status("succeeded"))
+
+
+def test_a_result_stored_in_the_jobs_row_by_an_older_version_is_still_served(store):
+    store.insert_job(id="old", kind="sweep", status="succeeded", progress=1.0, request_json="{}",
+                     result_json='{"columns": {"mu": [0.1]}}', owner_pid=1, owner_instance="gone",
+                     created_at=utc_now())
+    assert json.loads(store.get_job("old", with_result=True)["result_json"]) == {"columns": {"mu": [0.1]}}
+    assert "result_json" not in store.get_job("old")

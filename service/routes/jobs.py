@@ -44,8 +44,8 @@ ACCEPTED_RESPONSE: dict[int | str, dict[str, Any]] = {
 }
 
 
-def _job_or_404(jobs: JobManager, job_id: str) -> dict[str, Any]:
-    row = jobs.get(job_id)
+def _job_or_404(jobs: JobManager, job_id: str, with_result: bool = False) -> dict[str, Any]:
+    row = jobs.get(job_id, with_result=with_result)
     if row is None:
         raise ProblemError(404, f"There is no job {job_id!r}.")
     return row
@@ -78,7 +78,7 @@ def cancel_job(job_id: str, jobs: JobsDep) -> Job:
 )
 def get_job_result(job_id: str, request: Request, jobs: JobsDep) -> Response:
     """The result of a succeeded job, as stored."""
-    row = _job_or_404(jobs, job_id)
+    row = _job_or_404(jobs, job_id, with_result=True)
     if row["status"] != "succeeded":
         raise ProblemError(409, f"Job {job_id} is {row['status']}; a result exists only once it succeeded.")
     if wants_csv(request):

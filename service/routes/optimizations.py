@@ -61,7 +61,7 @@ async def create_optimization(
 )
 def get_optimization_pareto_plot(job_id: str, jobs: JobsDep) -> Response:
     """The Pareto front of an optimization job as a PNG plot."""
-    row = jobs.get(job_id)
+    row = jobs.get(job_id, with_result=True)
     if row is None or row["kind"] != _KIND:
         raise ProblemError(404, f"There is no optimization job {job_id!r}.")
     if row["status"] != "succeeded":
