@@ -284,7 +284,10 @@ def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bo
     if phase_one:
         e["slack"] = objective = slack
     prob = cp.Problem(cp.Minimize(objective), list(cons.values()))
-    assert prob.is_dgp(dpp=True) and prob.is_dpp("dgp"), "the design problem must be DGP and DPP"
+    # an explicit check, not an assert (asserts vanish under python -O): the certificate relies on it
+    if not (prob.is_dgp(dpp=True) and prob.is_dpp("dgp")):
+        raise RuntimeError(f"the design problem for limits {sorted(limits)} (phase one: {phase_one}) "
+                           "is not DGP and DPP; the global-optimality certificate would not hold")
     return DesignGP(t, g, z, p, e, cons, prob, threading.Lock())
 
 

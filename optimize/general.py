@@ -179,7 +179,8 @@ def _sub_problem(size: int, with_friction: bool, with_pressure: bool, with_per_b
         par["log_per_ball_cap"] = cp.Parameter(size)
         cons.append(y <= par["log_per_ball_cap"])
     problem = cp.Problem(cp.Minimize(objective), cons)
-    assert problem.is_dcp(dpp=True)
+    if not problem.is_dcp(dpp=True):  # explicit, not an assert (asserts vanish under python -O)
+        raise RuntimeError("the sequential convex sub-problem is not DCP and DPP")
     return problem, dx, dy, par
 
 

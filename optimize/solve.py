@@ -440,7 +440,7 @@ def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: Ball
         f"[{problem.bounds.groove_angle_deg[0]:g}, {problem.bounds.groove_angle_deg[1]:g}] and load_N in "
         f"[{problem.bounds.load_N[0]:g}, {problem.bounds.load_N[1]:g}] under the stated limits.",
         "Proof: for each ball count the problem is a disciplined geometric program (cvxpy "
-        "is_dgp(dpp=True) and is_dpp('dgp') asserted, variables tan(theta) and load_N, the physics "
+        "is_dgp(dpp=True) and is_dpp('dgp') checked, variables tan(theta) and load_N, the physics "
         "equations exactly, no approximation), i.e. convex after the change of variables to logarithms, "
         f"so the solver's optimum is the global optimum for that count; all {hi - lo + 1} counts were "
         "enumerated (the integer is never left to the solver), so the best of them is global.",

@@ -332,7 +332,8 @@ class FrictionResult:
         return {name: getattr(self, name) for name in names}
 
 
-assert [f.name for f in fields(FrictionResult)][:-1] == list(OUTPUTS)
+if [f.name for f in fields(FrictionResult)][:-1] != list(OUTPUTS):  # explicit: asserts vanish under -O
+    raise ImportError("FrictionResult's fields must be OUTPUTS in order, then the convention")
 
 
 def evaluate(convention: str = DEFAULT_CONVENTION, **params: Any) -> FrictionResult:

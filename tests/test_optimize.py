@@ -371,3 +371,13 @@ def test_balls_declared_apart_must_not_just_touch_in_the_groove():
     fit = next(c for c in design.constraints if c.name == "groove_length_m")
     assert design.design["balls"] == 14 and fit.satisfied and fit.active
     assert fit.value == pytest.approx(1.75e-3)
+
+
+def test_a_problem_that_is_not_dgp_raises_even_under_python_O(monkeypatch):
+    # the check is explicit, not an assert, so that python -O keeps it: patch cvxpy to say "not DGP"
+    import cvxpy as cp
+
+    build = getattr(build_design_gp, "__wrapped__", build_design_gp)  # past any cache
+    monkeypatch.setattr(cp.Problem, "is_dgp", lambda self, dpp=False: False)
+    with pytest.raises(RuntimeError, match="not DGP and DPP"):
+        build(frozenset(), frozenset(LIMIT_NAMES), False)
