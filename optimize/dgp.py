@@ -84,33 +84,36 @@ LIMIT_NAMES = {
 class Coefficients:
     """Design-independent constants of the DGP, read from :func:`physics.evaluate`.
 
+    The ``*_coefficient`` fields are coefficients k of monomials k Q^n in the
+    contact load Q [N], so their unit is that of the quantity over N^n.
+
     Attributes
     ----------
     adhesion_load_N : float
         c = 6πγR, so that Q = Q0 + c + sqrt(2 c Q0 + c²); 0 without adhesion. [N]
-    pivoting_Nm : float
-        k_P in M_P = k_P Q^(4/3). [N*m / N^(4/3)]
-    hysteresis_Nm : float
-        k_ER in M_ER = k_ER Q^1.33. [N*m / N^1.33]
-    rolling_N : float
-        k_R in F_R = k_R Q^0.47 at the design speed. [N / N^0.47]
+    pivoting_coefficient : float
+        k_P in M_P = k_P Q^(4/3). [N*m / N^(4/3) = m / N^(1/3)]
+    hysteresis_coefficient : float
+        k_ER in M_ER = k_ER Q^1.33. [N*m / N^1.33 = m / N^0.33]
+    rolling_coefficient : float
+        k_R in F_R = k_R Q^0.47 at the design speed. [N / N^0.47 = N^0.53]
     ball_ball_moment_Nm : float
         M_b per contact pair as used in eq 20 (0 when balls do not touch). [N*m]
-    pressure_Pa : float
+    pressure_coefficient : float
         k_p in p0 = k_p Q^(1/3). [Pa / N^(1/3)]
-    contact_radius_m : float
+    contact_radius_coefficient : float
         k_a = (R / E*)^(1/3) in a = k_a Q^(1/3) (eq 3). [m / N^(1/3)]
     ball_diameter_m : float
         d. [m]
     """
 
     adhesion_load_N: float
-    pivoting_Nm: float
-    hysteresis_Nm: float
-    rolling_N: float
+    pivoting_coefficient: float
+    hysteresis_coefficient: float
+    rolling_coefficient: float
     ball_ball_moment_Nm: float
-    pressure_Pa: float
-    contact_radius_m: float
+    pressure_coefficient: float
+    contact_radius_coefficient: float
     ball_diameter_m: float
 
 
@@ -141,12 +144,12 @@ def coefficients(problem: DesignProblem) -> Coefficients:
     d = float(problem.fixed["ball_diameter_m"])
     return Coefficients(
         adhesion_load_N=2.0 * float(r.adhesion_force_N),
-        pivoting_Nm=float(r.pivoting_moment_Nm) / q**PIVOT_EXPONENT,
-        hysteresis_Nm=float(r.hysteresis_moment_Nm) / q**HYSTERESIS_EXPONENT,
-        rolling_N=float(r.rolling_force_N) / q**ROLLING_EXPONENT,
+        pivoting_coefficient=float(r.pivoting_moment_Nm) / q**PIVOT_EXPONENT,
+        hysteresis_coefficient=float(r.hysteresis_moment_Nm) / q**HYSTERESIS_EXPONENT,
+        rolling_coefficient=float(r.rolling_force_N) / q**ROLLING_EXPONENT,
         ball_ball_moment_Nm=float(r.mu_ball_ball) * load * np.cos(np.deg2rad(theta_deg)) * d / (2 * balls),
-        pressure_Pa=float(r.max_contact_pressure_Pa) / q**PRESSURE_EXPONENT,
-        contact_radius_m=float(r.contact_radius_m) / q ** (1.0 / 3.0),
+        pressure_coefficient=float(r.max_contact_pressure_Pa) / q**PRESSURE_EXPONENT,
+        contact_radius_coefficient=float(r.contact_radius_m) / q ** (1.0 / 3.0),
         ball_diameter_m=d,
     )
 
@@ -201,7 +204,7 @@ class DesignGP:
         self.balls.value = balls
 
 
-_TERMS = ("adhesion_load_N", "pivoting_Nm", "rolling_N", "ball_ball_moment_Nm")
+_TERMS = ("adhesion_load_N", "pivoting_coefficient", "rolling_coefficient", "ball_ball_moment_Nm")
 
 
 def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bool = False) -> DesignGP:
@@ -211,7 +214,7 @@ def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bo
     ----------
     terms : frozenset of str
         The non-zero optional coefficients among ``adhesion_load_N``,
-        ``pivoting_Nm``, ``rolling_N``, ``ball_ball_moment_Nm`` (a zero
+        ``pivoting_coefficient``, ``rolling_coefficient``, ``ball_ball_moment_Nm`` (a zero
         coefficient cannot be a positive DGP parameter, so its term is left out). [-]
     limits : frozenset of str
         Names of :data:`LIMIT_NAMES` to include. [-]
@@ -229,14 +232,15 @@ def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bo
 
     Raises
     ------
-    AssertionError
+    RuntimeError
         If the problem is not DGP or not DPP (a programming error).
     """
     t = cp.Variable(pos=True, name="tan_theta")
     g = cp.Variable(pos=True, name="load_N")
     z = cp.Parameter(pos=True, name="balls")
-    names = ["hysteresis_Nm", "pressure_Pa", "contact_radius_m", "ball_diameter_m", "tan_theta_min",
-             "tan_theta_max", "load_N_min", "load_N_max", *sorted(terms), *sorted(limits)]
+    names = ["hysteresis_coefficient", "pressure_coefficient", "contact_radius_coefficient",
+             "ball_diameter_m", "tan_theta_min", "tan_theta_max", "load_N_min", "load_N_max",
+             *sorted(terms), *sorted(limits)]
     p = {n: cp.Parameter(pos=True, name=n) for n in names}
 
     sec = cp.power(1 + t**2, 0.5)
@@ -246,22 +250,23 @@ def build_design_gp(terms: frozenset[str], limits: frozenset[str], phase_one: bo
         q = q0 + c + cp.sqrt(2 * c * q0 + c**2)
     else:
         q = q0
-    m_er = p["hysteresis_Nm"] * q**HYSTERESIS_EXPONENT
+    m_er = p["hysteresis_coefficient"] * q**HYSTERESIS_EXPONENT
     inner = 4 * m_er / p["ball_diameter_m"]
     e = {"sec_theta": sec, "contact_load_N": q0, "contact_load_adhesive_N": q, "hysteresis_moment_Nm": m_er}
-    if "pivoting_Nm" in terms:
-        e["pivoting_moment_Nm"] = p["pivoting_Nm"] * q**PIVOT_EXPONENT
+    if "pivoting_coefficient" in terms:
+        e["pivoting_moment_Nm"] = p["pivoting_coefficient"] * q**PIVOT_EXPONENT
         inner = inner + 4 * e["pivoting_moment_Nm"] * t / p["ball_diameter_m"]
-    if "rolling_N" in terms:
-        e["rolling_force_N"] = p["rolling_N"] * q**ROLLING_EXPONENT
+    if "rolling_coefficient" in terms:
+        e["rolling_force_N"] = p["rolling_coefficient"] * q**ROLLING_EXPONENT
         inner = inner + 4 * e["rolling_force_N"]
     if "ball_ball_moment_Nm" in terms:
         inner = inner + 2 * p["ball_ball_moment_Nm"] * sec / p["ball_diameter_m"]
     e["ball_race_force_N"] = inner
     e["friction_force_N"] = z * inner
     e["mu"] = z * inner / g
-    e["max_contact_pressure_Pa"] = p["pressure_Pa"] * q**PRESSURE_EXPONENT
-    e["contact_radius_m"] = p["contact_radius_m"] * q ** (1.0 / 3.0)  # reported; M_P uses k_P Q^(4/3)
+    e["max_contact_pressure_Pa"] = p["pressure_coefficient"] * q**PRESSURE_EXPONENT
+    # reported; M_P uses k_P Q^(4/3)
+    e["contact_radius_m"] = p["contact_radius_coefficient"] * q ** (1.0 / 3.0)
     e["load_per_ball_N"] = g / z
 
     k_up = 1.0 - SAFETY_MARGIN
@@ -395,10 +400,11 @@ def design_gp(problem: DesignProblem, limits: frozenset[str] | None = None,
     """
     coef = coefficients(problem)
     values = {
-        "adhesion_load_N": coef.adhesion_load_N, "pivoting_Nm": coef.pivoting_Nm,
-        "hysteresis_Nm": coef.hysteresis_Nm, "rolling_N": coef.rolling_N,
-        "ball_ball_moment_Nm": coef.ball_ball_moment_Nm, "pressure_Pa": coef.pressure_Pa,
-        "contact_radius_m": coef.contact_radius_m,
+        "adhesion_load_N": coef.adhesion_load_N, "pivoting_coefficient": coef.pivoting_coefficient,
+        "hysteresis_coefficient": coef.hysteresis_coefficient,
+        "rolling_coefficient": coef.rolling_coefficient,
+        "ball_ball_moment_Nm": coef.ball_ball_moment_Nm, "pressure_coefficient": coef.pressure_coefficient,
+        "contact_radius_coefficient": coef.contact_radius_coefficient,
         "ball_diameter_m": coef.ball_diameter_m,
         "tan_theta_min": float(np.tan(np.deg2rad(problem.bounds.groove_angle_deg[0]))),
         "tan_theta_max": float(np.tan(np.deg2rad(problem.bounds.groove_angle_deg[1]))),

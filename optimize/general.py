@@ -195,7 +195,7 @@ def _contact_load_cap_N(problem: DesignProblem) -> float:
     if limit is None:
         return np.inf
     coef = coefficients(problem)
-    q_max = (limit * (1.0 - SAFETY_MARGIN) / coef.pressure_Pa) ** 3
+    q_max = (limit * (1.0 - SAFETY_MARGIN) / coef.pressure_coefficient) ** 3
     return q_max - np.sqrt(2.0 * coef.adhesion_load_N * q_max)
 
 

@@ -405,7 +405,8 @@ def evaluate(convention: str = DEFAULT_CONVENTION, **params: Any) -> FrictionRes
     u = lubrication.speed_parameter(p["viscosity_Pa_s"], lubrication.entrainment_speed(p["speed_m_s"]),
                                     e_prime, radius)
     w = lubrication.load_parameter(q, e_prime, radius)
-    f_r = lubrication.rolling_force(e_prime, radius, 1.0, g_bar, u, w)
+    f_r = lubrication.rolling_force(e_prime, radius, 1.0, materials_parameter=g_bar, speed_parameter=u,
+                                    load_parameter=w)
 
     m_er = moments.hysteresis_moment(d, q)
     m_p = moments.pivoting_moment(p["mu_pivot"], q, a)

@@ -156,7 +156,8 @@ def load_parameter(contact_load_N, reduced_modulus_Pa, radius_x_m):
     return contact_load_N / (reduced_modulus_Pa * np.square(radius_x_m))
 
 
-def rolling_force(reduced_modulus_Pa, radius_x_m, radius_ratio, materials, speed, load):
+def rolling_force(reduced_modulus_Pa, radius_x_m, radius_ratio, materials_parameter, speed_parameter,
+                  load_parameter):
     r"""Houpert's hydrodynamic rolling force F_R of one contact.
 
     Parameters
@@ -167,12 +168,12 @@ def rolling_force(reduced_modulus_Pa, radius_x_m, radius_ratio, materials, speed
         Rx, the ball radius on a flat flank. [m]
     radius_ratio : numeric
         k = Ry / Rx, 1 for a ball on a flat. [1]
-    materials : numeric
-        Ḡ from :func:`materials_parameter`. [1]
-    speed : numeric
-        U from :func:`speed_parameter`. [1]
-    load : numeric
-        W from :func:`load_parameter`. [1]
+    materials_parameter : numeric
+        Dimensionless materials parameter Ḡ from :func:`materials_parameter`. [1]
+    speed_parameter : numeric
+        Dimensionless speed parameter U from :func:`speed_parameter`. [1]
+    load_parameter : numeric
+        Dimensionless load parameter W from :func:`load_parameter`. [1]
 
     Returns
     -------
@@ -201,9 +202,9 @@ def rolling_force(reduced_modulus_Pa, radius_x_m, radius_ratio, materials, speed
         * reduced_modulus_Pa
         * np.square(radius_x_m)
         * np.power(radius_ratio, 0.348)
-        * np.power(materials, 0.022)
-        * np.power(speed, 0.66)
-        * np.power(load, 0.47)
+        * np.power(materials_parameter, 0.022)
+        * np.power(speed_parameter, 0.66)
+        * np.power(load_parameter, 0.47)
     )
 
 

@@ -222,7 +222,7 @@ def test_dgp_expressions_equal_the_physics(convention, touching, adhesion, speed
 
 
 def test_every_structure_is_dgp_and_dpp():
-    terms = ("adhesion_load_N", "pivoting_Nm", "rolling_N", "ball_ball_moment_Nm")
+    terms = ("adhesion_load_N", "pivoting_coefficient", "rolling_coefficient", "ball_ball_moment_Nm")
     for k in range(len(terms) + 1):
         for chosen in itertools.combinations(terms, k):
             for phase_one in (False, True):

@@ -98,6 +98,9 @@ def test_eqs9_to_12_houpert_rolling_force():
     assert lubrication.speed_parameter(ETA0, V / 2, E_PRIME, R) == pytest.approx(u, rel=1e-12)
     assert lubrication.load_parameter(Q, E_PRIME, R) == pytest.approx(w, rel=1e-12)
     assert lubrication.rolling_force(E_PRIME, R, 1.0, g_bar, u, w) == pytest.approx(expected, rel=1e-12)
+    by_name = lubrication.rolling_force(reduced_modulus_Pa=E_PRIME, radius_x_m=R, radius_ratio=1.0,
+                                        materials_parameter=g_bar, speed_parameter=u, load_parameter=w)
+    assert by_name == pytest.approx(expected, rel=1e-12)
 
 
 def test_eq13_pressure_force_flat_and_curved_race():
