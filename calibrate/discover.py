@@ -176,17 +176,15 @@ def cross_validate_baseline(dataset: Dataset, fit_parameters: Sequence[str], fol
     return Baseline(test_sets, fold_fits, fold_mu, oof, full)
 
 
-def _varies(values: np.ndarray, minimum_distinct: int = 3) -> bool:
-    return np.unique(values).size >= minimum_distinct
-
-
 def candidate_choices(dataset: Dataset) -> list[EffectChoice]:
     """Every effect paired with every plausible driver of the data.
 
     Parameters
     ----------
     dataset : Dataset
-        Measurements; a main driver must take at least 3 distinct values and lie in the effect's domain.
+        Measurements; a main driver must be a numeric data column taking at least the effect's
+        ``min_levels`` distinct values (2 for a step on a two-level column such as 0/1, 3 for
+        curved forms) and lie in the effect's domain.
 
     Returns
     -------
@@ -194,13 +192,13 @@ def candidate_choices(dataset: Dataset) -> list[EffectChoice]:
         Named effects first, then the generic family.
     """
     columns = {**physics.defaults(), **dataset.inputs(), **dataset.conditions}
-    data_columns = dataset.columns()
-    varying = [n for n, v in data_columns.items() if v.dtype != bool and _varies(v)]
+    levels = {n: np.unique(v).size for n, v in dataset.columns().items() if v.dtype != bool}
+    varying = [n for n, count in levels.items() if count >= 2]
     names = varying + [n for n in columns if n not in varying]
     choices = []
     for effect in EFFECTS.values():
         for drivers in effect.candidate_drivers(names):
-            if drivers[0] in varying and effect.accepts(columns, drivers):
+            if levels.get(drivers[0], 0) >= effect.min_levels and effect.accepts(columns, drivers):
                 choices.append(EffectChoice(effect.name, drivers, effect.constants(columns, drivers)))
     return choices
 

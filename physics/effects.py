@@ -109,6 +109,10 @@ class Effect:
         no ``fixed_drivers`` means any numeric column (the generic family).
     generic : bool
         True for the generic fallback family.
+    min_levels : int
+        Fewest distinct values a main driver column must take for the effect to be tried: 3 for
+        curved forms (a two-level column cannot tell them from a step); 2 for ``generic_linear``,
+        which on a two-level column (e.g. 0/1 for uncoated/coated) is a step of log μ. [1]
     correct : callable
         ``correct(mu, x, columns, values, constants)``: the formula, with ``x`` the main driver in the
         formula's unit and ``values`` the parameters in order.
@@ -131,6 +135,7 @@ class Effect:
     fixed_drivers: tuple[str, ...] = ()
     driver_keywords: tuple[str, ...] = ()
     generic: bool = False
+    min_levels: int = 3
     correct: Callable = field(default=None, repr=False, compare=False)
     make_constants: Callable = field(default=None, repr=False, compare=False)
     make_initial: Callable = field(default=None, repr=False, compare=False)
@@ -414,6 +419,7 @@ _GENERIC_LINEAR = Effect(
     driver_description="any numeric column x; centre and scale are its mean and standard deviation",
     reference="Low-order polynomial in log mu: the generic fallback when no named effect fits.",
     generic=True,
+    min_levels=2,
     correct=lambda mu, x, columns, p, c: mu * np.exp(p[0] * (x - c["centre"]) / c["scale"]),
     make_constants=_centre_scale,
     make_initial=_zeros,

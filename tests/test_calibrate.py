@@ -1,9 +1,9 @@
 """Calibration on synthetic measurements: physics with shifted parameters, one hidden effect, noise.
 
-Every data set carries the same columns (humidity, temperature, cycle, vibration) whatever effect is
-hidden in it, and the calibration is never told which: it must name the driving column itself and cut
-the held-out error at least threefold, and add nothing when only noise is left. The hidden effects are
-written here independently of physics.effects.
+Every data set carries the same columns (humidity, temperature, cycle, vibration, a 0/1 coating flag)
+whatever effect is hidden in it, and the calibration is never told which: it must name the driving
+column itself and cut the held-out error at least threefold, and add nothing when only noise is left.
+The hidden effects are written here independently of physics.effects.
 """
 
 import functools
@@ -37,6 +37,8 @@ HIDDEN = {
     "temperature_C": ("thermal_shear_strength", lambda mu, c: mu * np.exp(-0.03 * (c["temperature_C"] - 30))),
     # no named effect: friction grows with a vibration amplitude, 8 % per micrometre
     "vibration_um": ("generic", lambda mu, c: mu * (1 + 0.08 * c["vibration_um"])),
+    # a two-level column (0 uncoated, 1 coated): the coating takes 25 % off the friction
+    "coated": ("generic", lambda mu, c: mu * np.where(c["coated"] == 1, 0.75, 1.0)),
 }
 
 
@@ -51,6 +53,8 @@ def make_rows(hidden: str | None, seed: int, with_std: bool = False) -> tuple[li
         "temperature_C": rng.uniform(20.0, 40.0, N_ROWS),
         "cycle": rng.integers(0, 5000, N_ROWS).astype(float),
         "vibration_um": rng.uniform(0.0, 10.0, N_ROWS),
+        # From a generator of its own, so that the other columns and the noise stay as they were.
+        "coated": np.random.default_rng(seed + 7919).integers(0, 2, N_ROWS).astype(float),
     }
     mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], **TRUE).mu
     if hidden is not None:
