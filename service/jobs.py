@@ -196,6 +196,8 @@ class JobManager:
     def cancel(self, job_id: str) -> dict[str, Any] | None:
         """Request cancellation; a queued job is cancelled at once, a running one at its next check.
 
+        A running job's work that returns without another check still ends the job cancelled.
+
         Returns
         -------
         dict or None
@@ -225,11 +227,14 @@ class JobManager:
                 self.store.update_job(row["id"], only_if_status=ACTIVE, status="failed",
                                       error_json=to_json(problem.to_dict()), finished_at=utc_now())
 
-    def _finish(self, job_id: str, status: str, **changes: Any) -> None:
-        self.store.update_job(job_id, only_if_status=("running",), status=status, finished_at=utc_now(),
-                              **changes)
+    def _finish(self, job_id: str, status: str, unless_cancel_requested: bool = False,
+                **changes: Any) -> bool:
+        finished = self.store.update_job(job_id, only_if_status=("running",), status=status,
+                                         finished_at=utc_now(), **changes,
+                                         unless_cancel_requested=unless_cancel_requested)
         with self._lock:
             self._cancel_events.pop(job_id, None)
+        return finished
 
     def _run(self, job_id: str, fn: Callable[[JobContext], dict[str, Any]], event: threading.Event) -> None:
         if event.is_set() or not self.store.update_job(job_id, only_if_status=("queued",), status="running",
@@ -263,4 +268,11 @@ class JobManager:
                                        type_=INTERNAL_TYPE)
                 self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
             else:
-                self._finish(job_id, "succeeded", progress=1.0, result_json=result_json)
+                self._succeed(job_id, result_json)
+
+    def _succeed(self, job_id: str, result_json: str) -> None:
+        # A cancellation requested while the work was finishing wins: DELETE answered
+        # cancel_requested true, so the job ends cancelled and its result is discarded.
+        if not self._finish(job_id, "succeeded", unless_cancel_requested=True, progress=1.0,
+                            result_json=result_json):
+            self._finish(job_id, "cancelled")

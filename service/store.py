@@ -207,8 +207,12 @@ class Store:
         with self.transaction() as conn:
             conn.execute(f"INSERT INTO jobs ({names}) VALUES ({marks})", tuple(row.values()))
 
-    def update_job(self, job_id: str, *, only_if_status: tuple[str, ...] = (), **changes: Any) -> bool:
+    def update_job(self, job_id: str, *, only_if_status: tuple[str, ...] = (),
+                   unless_cancel_requested: bool = False, **changes: Any) -> bool:
         """Change columns of a job, optionally only while it has one of ``only_if_status``.
+
+        With ``unless_cancel_requested`` the change happens only if no cancellation was requested,
+        in the same transaction (a job that finishes as it is cancelled is either one or the other).
 
         Returns
         -------
@@ -225,6 +229,8 @@ class Store:
         if only_if_status:
             sql += f" AND status IN ({', '.join('?' for _ in only_if_status)})"
             args.extend(only_if_status)
+        if unless_cancel_requested:
+            sql += " AND cancel_requested = 0"
         with self.transaction() as conn:
             changed = conn.execute(sql, args).rowcount > 0
             if changed and result_json is not None:

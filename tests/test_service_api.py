@@ -329,10 +329,16 @@ def test_cancelling_a_sweep_job_over_http(tmp_path):
                         "speed_m_s": {"start": 0.0, "stop": 0.15, "num": 1_000}}}
     with make_client(tmp_path, sweep_sync_max_points=0) as test_client:
         location = test_client.post("/v1/sweeps", json=request).headers["location"]
+        deadline = time.monotonic() + 60
+        while (job := test_client.get(location).json())["progress"] == 0:  # cancel a job under way
+            assert job["status"] in ("queued", "running") and time.monotonic() < deadline, job
+            time.sleep(0.005)
+        assert job["status"] == "running" and 0 < job["progress"] < 1, job
         response = test_client.delete(location)
-        assert response.status_code == 200 and response.json()["cancel_requested"] is True
+        assert response.status_code == 200, response.text
+        assert response.json()["cancel_requested"] is True and response.json()["status"] == "running"
         job = wait_for_job(test_client, location)
-        assert job["status"] == "cancelled" and job["result_url"] is None
+        assert job["status"] == "cancelled" and job["result_url"] is None and job["progress"] < 1
         assert_problem(test_client.get(f"{location}/result"), 409)
 
 

@@ -94,6 +94,24 @@ def test_cancelling_a_running_job(manager):
     assert row["status"] == "cancelled" and row["result_json"] is None
 
 
+def test_a_cancel_arriving_as_the_work_returns_still_cancels(manager):
+    # the work never checks again after the request: without a final check it would succeed
+    started, cancelled = threading.Event(), threading.Event()
+
+    def work(ctx: JobContext) -> dict:
+        started.set()
+        cancelled.wait(10)
+        return {"done": True}
+
+    job = manager.submit("late", {}, work)
+    assert started.wait(10)
+    assert manager.get(job["id"])["status"] == "running"
+    assert manager.cancel(job["id"])["cancel_requested"] == 1
+    cancelled.set()
+    row = wait(manager, job["id"])
+    assert row["status"] == "cancelled" and row["result_json"] is None and row["progress"] < 1.0
+
+
 def test_cancel_requested_by_another_server_process_is_seen(store, manager):
     started = threading.Event()
 

@@ -60,7 +60,12 @@ def get_job(job_id: str, jobs: JobsDep) -> Job:
 @router.delete("/{job_id}", operation_id="cancel_job", response_model=Job,
                responses=problem_responses(404, 409))
 def cancel_job(job_id: str, jobs: JobsDep) -> Job:
-    """Cancel a job: a queued job ends at once, a running one at its next progress check."""
+    """Cancel a job: a queued job ends at once, a running one at its next progress check.
+
+    A running job whose work returns after this request still ends cancelled (its result is
+    discarded): an answer with ``cancel_requested`` true always ends in ``cancelled`` (or
+    ``failed`` should the work fail). A job that has already finished answers 409.
+    """
     row = _job_or_404(jobs, job_id)
     if row["status"] in FINISHED:
         raise ProblemError(409, f"Job {job_id} has already finished ({row['status']}).")
