@@ -444,7 +444,7 @@ def evaluate(convention: str = DEFAULT_CONVENTION, **params: Any) -> FrictionRes
         "adhesion_force_N": surface.adhesion_force_ball_flat(radius, p["adhesion_energy_J_m2"]),
         "capillary_force_ball_ball_N": f_cb,
         "rolling_force_N": f_r,
-        "pressure_force_N": lubrication.pressure_force(f_r),
+        "pressure_force_N": lubrication.pressure_force(f_r, ball_radius_m=radius),
         "sliding_force_N": f_s,
         "hysteresis_moment_Nm": m_er,
         "pivoting_moment_Nm": m_p,

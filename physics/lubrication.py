@@ -208,22 +208,29 @@ def rolling_force(reduced_modulus_Pa, radius_x_m, radius_ratio, materials_parame
     )
 
 
-def pressure_force(rolling_force_N, race_radius_m=np.inf, ball_radius_m=1.0):
+def pressure_force(rolling_force_N, *, ball_radius_m, race_radius_m=np.inf):
     r"""Pressure force F_P on the ball centre from the film's pressure asymmetry.
 
     Parameters
     ----------
     rolling_force_N : numeric
         F_R. [N]
+    ball_radius_m : numeric
+        Ball radius R_b, > 0; required (keyword only), as F_P on a curved race
+        depends on it. [m]
     race_radius_m : numeric, default inf
-        Radius R_R of the race; infinite for the flat flank of a linear groove. [m]
-    ball_radius_m : numeric, default 1.0
-        Ball radius R_b. [m]
+        Radius R_R of the race, > 0; infinite for the flat flank of a linear
+        groove. [m]
 
     Returns
     -------
     numeric
         F_P. [N]
+
+    Raises
+    ------
+    ValueError
+        If ``ball_radius_m`` or ``race_radius_m`` is not > 0.
 
     Notes
     -----
@@ -236,7 +243,16 @@ def pressure_force(rolling_force_N, race_radius_m=np.inf, ball_radius_m=1.0):
 
     Examples
     --------
-    >>> float(pressure_force(1.0)), float(pressure_force(1.0, 1.0, 1.0))
-    (2.0, 1.0)
+    A 142.5 um ball on a flat flank, and on a 1 mm race:
+
+    >>> float(pressure_force(1.0, ball_radius_m=142.5e-6))
+    2.0
+    >>> round(float(pressure_force(1.0, ball_radius_m=142.5e-6, race_radius_m=1e-3)), 4)
+    1.7505
     """
-    return 2.0 * rolling_force_N / (1.0 + ball_radius_m / np.asarray(race_radius_m, dtype=float))
+    ball = np.asarray(ball_radius_m, dtype=float)
+    race = np.asarray(race_radius_m, dtype=float)
+    for name, value in (("ball_radius_m", ball), ("race_radius_m", race)):
+        if not np.all(value > 0):
+            raise ValueError(f"{name} must be > 0 [m]; got {value!r}")
+    return 2.0 * rolling_force_N / (1.0 + ball / race)

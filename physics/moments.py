@@ -25,12 +25,18 @@ def hysteresis_moment(ball_diameter_m, contact_load_N, radius_ratio=1.0):
     contact_load_N : numeric
         Normal load Q of the contact (with adhesion). [N]
     radius_ratio : numeric, default 1
-        k = Ry / Rx. [1]
+        k = Ry / Rx, in [1, inf) (the correlation's range). [1]
 
     Returns
     -------
     numeric
         M_ER. [N*m]
+
+    Raises
+    ------
+    ValueError
+        If ``radius_ratio`` is below 1 (the fractional power of k - 1 < 0
+        would be NaN).
 
     Notes
     -----
@@ -49,7 +55,10 @@ def hysteresis_moment(ball_diameter_m, contact_load_N, radius_ratio=1.0):
     >>> round(float(hysteresis_moment(2.0, 1.0)), 12)
     7.48e-07
     """
-    shape = 1.0 - 3.519e-3 * np.power(np.asarray(radius_ratio, dtype=float) - 1.0, 0.806)
+    k = np.asarray(radius_ratio, dtype=float)
+    if not np.all(k >= 1.0):
+        raise ValueError(f"radius_ratio (k = Ry / Rx) must be in [1, inf) [1]; got {radius_ratio!r}")
+    shape = 1.0 - 3.519e-3 * np.power(k - 1.0, 0.806)
     return 7.48e-7 * np.power(0.5 * ball_diameter_m, 0.33) * np.power(contact_load_N, 1.33) * shape
 
 

@@ -104,8 +104,15 @@ def test_eqs9_to_12_houpert_rolling_force():
 
 
 def test_eq13_pressure_force_flat_and_curved_race():
-    assert lubrication.pressure_force(3.0) == pytest.approx(6.0)
+    assert lubrication.pressure_force(3.0, ball_radius_m=R) == pytest.approx(6.0)
     assert lubrication.pressure_force(3.0, race_radius_m=3 * R, ball_radius_m=R) == pytest.approx(4.5)
+    # 2 F_R R_R / (R_R + R_b) = 2 * 1 mm / 1.1425 mm for a 142.5 um ball on a 1 mm race
+    assert lubrication.pressure_force(1.0, ball_radius_m=142.5e-6, race_radius_m=1e-3) == pytest.approx(
+        2e-3 / 1.1425e-3, rel=1e-12)
+    with pytest.raises(TypeError):  # no silent default ball radius, and no positional radii
+        lubrication.pressure_force(1.0, 1e-3)
+    with pytest.raises(ValueError, match="ball_radius_m"):
+        lubrication.pressure_force(1.0, ball_radius_m=0.0)
 
 
 def test_eq15_hysteresis_moment():
@@ -113,6 +120,9 @@ def test_eq15_hysteresis_moment():
     assert moments.hysteresis_moment(D, Q) == pytest.approx(expected, rel=1e-12)
     elongated = expected * (1 - 3.519e-3 * 3**0.806)
     assert moments.hysteresis_moment(D, Q, 4.0) == pytest.approx(elongated, rel=1e-12)
+    for k in (0.5, [1.0, 0.99], np.nan):  # (k - 1)^0.806 is NaN below 1: an error naming k, not a NaN
+        with pytest.raises(ValueError, match=r"radius_ratio .*\[1, inf\)"):
+            moments.hysteresis_moment(D, Q, k)
 
 
 def test_eq16_pivoting_moment():
