@@ -206,6 +206,23 @@ def _pointer_parts(loc: tuple[Any, ...], document: Any) -> list[str]:
     return parts
 
 
+def _parameter_value(parts: list[str], error: dict[str, Any]) -> Any:
+    """The physics parameter whose own value (or list element) the error is about, or None.
+
+    Its range is worth appending to the error only then: not for another field under a
+    parameter's name (a sweep axis's ``num``), nor for a bound of the schema that is not the
+    parameter's (``bounds.balls`` stops at 100,000 balls, the physics at a million).
+    """
+    names = [p for p in parts if not p.isdigit()]
+    spec = physics.PARAMETERS.get(names[-1]) if names else None
+    if spec is None:
+        return None
+    limits = [(error.get("ctx") or {}).get(key) for key in ("ge", "gt", "le", "lt")]
+    if any(limit is not None and float(limit) not in (spec.minimum, spec.maximum) for limit in limits):
+        return None
+    return spec
+
+
 def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
     by_place: dict[tuple[str, str], list[str]] = {}
     # Only the first errors are examined (at most MAX_LISTED_ERRORS are listed anyway): the cost
@@ -217,9 +234,8 @@ def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
             rest = (*rest, str(error.get("ctx", {}).get("discriminator", "")).strip("'"))
         parts = _pointer_parts(rest, exc.body if source == "body" else None)
         detail = error.get("msg", "invalid")
-        names = [p for p in parts if p in physics.PARAMETERS]
-        if names:
-            spec = physics.PARAMETERS[names[-1]]
+        spec = _parameter_value(parts, error)
+        if spec is not None:
             detail = f"{detail} ({spec.name} must be {spec.range_text()} [{spec.unit}])"
         if source == "body":
             place = ("pointer", "".join("/" + p.replace("~", "~0").replace("/", "~1") for p in parts))

@@ -372,3 +372,26 @@ def test_health_version_and_materials(client):
     materials = client.get("/v1/materials").json()["materials"]
     assert {m["name"]: m["youngs_modulus_Pa"] for m in materials} == {
         name: m.youngs_modulus_Pa for name, m in physics.MATERIALS.items()}
+
+
+@pytest.mark.parametrize(("path", "body", "pointer", "with_range"), [
+    # a field under a parameter's name that is not its value: no range of the parameter
+    ("/v1/sweeps", {"design": "grid", "axes": {"load_N": {"start": 1e-3, "stop": 0.1, "num": 0}},
+                    "fixed": {"balls": 6, "speed_m_s": 0.1}}, "/axes/load_N/num", None),
+    # the schema's own bound (100,000 balls), not the physics one (a million): no contradiction
+    ("/v1/optimizations", {"bounds": {"balls": [4, 1_000_000], "groove_angle_deg": [35, 70],
+                                      "load_N": [0.001, 0.05]}, "speed_m_s": 0.05}, "/bounds/balls/1", None),
+    # the parameter's value against its own range: the range and unit help
+    ("/v1/friction", {"balls": 4, "load_N": -1, "speed_m_s": 0.05}, "/load_N", "load_N must be in [1e-09"),
+    ("/v1/friction/batch", {"points": {"balls": 4, "load_N": [0.01, -1], "speed_m_s": 0.05}},
+     "/points/load_N/1", "[N]"),
+])
+def test_a_parameter_range_is_appended_only_to_errors_about_that_parameter(client, path, body, pointer,
+                                                                           with_range):
+    errors = assert_problem(client.post(path, json=body), 422)["errors"]
+    assert [e["pointer"] for e in errors] == [pointer]
+    detail = errors[0]["detail"]
+    if with_range is None:
+        assert " must be " not in detail and "[" not in detail, detail
+    else:
+        assert with_range in detail, detail
