@@ -60,11 +60,28 @@ def test_training_job_reports_metrics_within_budget(trained):
     assert trained["stop_reason"] == "budget_exhausted"
     assert trained["model_id"] == "surrogate:" + trained["id"]
     metrics = trained["metrics"]
-    assert metrics["n_test"] > 1000 - 30 and 0 <= metrics["coverage_95"] <= 1
+    # 1024 Sobol' points less the training points; the interval is calibrated (measured 0.938).
+    assert metrics["n_test"] > 1000 - 30 and 0.88 <= metrics["coverage_95"] <= 0.99
     assert 0 < metrics["median_relative_error"] < 0.01
     assert trained["fixed"] == {"groove_angle_deg": 60.0}
     assert trained["scales"] == {"load_N": "log", "speed_m_s": "log", "balls": "log"}
     assert trained["convention"] == physics.DEFAULT_CONVENTION and trained["package_version"]
+
+
+def test_reported_coverage_matches_fresh_physics(client, trained):
+    """The reported coverage is that of 400 random points of the space checked here against the physics."""
+    rng = np.random.default_rng(11)
+    points = {"load_N": np.exp(rng.uniform(np.log(0.001), np.log(0.05), 400)),
+              "speed_m_s": np.exp(rng.uniform(np.log(0.001), np.log(0.2), 400)),
+              "balls": rng.integers(3, 13, 400)}
+    response = client.post(f"/v1/surrogates/{trained['id']}/predict",
+                           json={"points": {k: v.tolist() for k, v in points.items()}})
+    p = response.json()
+    truth = physics.evaluate(groove_angle_deg=60.0, **points).mu
+    inside = (np.array(p["mu_lower"]) <= truth) & (truth <= np.array(p["mu_upper"]))
+    # Measured 0.943 here against 0.938 reported; the binomial standard deviation at 400 points is 0.012.
+    assert 0.88 <= inside.mean() <= 0.99
+    assert abs(inside.mean() - trained["metrics"]["coverage_95"]) <= 0.05
 
 
 def test_list_get_and_predict(client, trained):
