@@ -6,7 +6,8 @@ Pure, vectorized functions, one per equation, grouped by sub-domain:
 * :mod:`physics.surface` - adhesion and capillary forces (eqs 1, 2, 5, 6)
 * :mod:`physics.lubrication` - Houpert's rolling force and the pressure force (eqs 9-13)
 * :mod:`physics.moments` - hysteresis, pivoting and ball-ball moments (eqs 15-17)
-* :mod:`physics.bearing` - the ball's balance and μ, :func:`evaluate` (eqs 18-23)
+* :mod:`physics.bearing` - the ball's balance and μ, :func:`evaluate` (eqs 18-23), and the
+  traction of a shear stress over the contact (eq 14)
 
 :data:`PARAMETERS` declares every input once (name, unit, default, range);
 :data:`OUTPUTS` every output. Everything is SI except the groove angle in degrees.

@@ -1,10 +1,12 @@
 """The ball's equilibrium and the bearing's friction coefficient: :func:`evaluate`.
 
-Equations 7 and 18-23 of Olaru et al. (2005): each ball is held between two
+Equations 7, 14 and 18-23 of Olaru et al. (2005): each ball is held between two
 flanks of the slider and two of the stator; the sliding traction F_S at its
 contacts follows from the balance of forces (eq 18) and moments (eq 19) with
 the rolling, pressure, hysteresis, pivoting and ball-ball terms; the tangential
-force the balls exert on the slider, divided by the load, is μ.
+force the balls exert on the slider, divided by the load, is μ. Eq 14, F_S as
+the integral of the shear stress over the contact, is :func:`contact_shear_force`;
+the model never needs it, as equilibrium gives F_S.
 
 References
 ----------
@@ -28,6 +30,7 @@ __all__ = [
     "OUTPUTS",
     "evaluate",
     "sliding_force",
+    "contact_shear_force",
     "ball_race_force",
     "total_friction_force",
     "friction_coefficient",
@@ -82,6 +85,71 @@ def sliding_force(ball_ball_moment_Nm, pivoting_moment_Nm, hysteresis_moment_Nm,
         + 2.0 * pivoting_moment_Nm * tan_contact_angle
         + 2.0 * hysteresis_moment_Nm
     ) / ball_diameter_m + rolling_force_N
+
+
+#: Gauss-Legendre nodes on [0, π/2] and their weights for :func:`contact_shear_force`. [rad], [rad]
+_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(48)  # on [-1, 1]
+_PHI_NODES, _PHI_WEIGHTS = np.pi / 4 * (_NODES + 1.0), np.pi / 4 * _WEIGHTS
+
+
+def contact_shear_force(shear_stress_Pa, contact_radius_m):
+    r"""Sliding traction F_S as the integral of a shear stress τ over the circular contact (eq 14).
+
+    Parameters
+    ----------
+    shear_stress_Pa : callable or numeric
+        Axisymmetric shear stress τ in the contact: a callable
+        ``tau(r_m, contact_radius_m) -> Pa`` of the distance r from the contact
+        centre (an array with one more trailing axis than ``contact_radius_m``,
+        0 <= r <= a) and of a broadcast against it; or a number (uniform τ). [Pa]
+    contact_radius_m : numeric
+        Contact radius a, >= 0. [m]
+
+    Returns
+    -------
+    numeric
+        F_S = ∬ τ dA over the circle r <= a, shaped like ``contact_radius_m``. [N]
+
+    Raises
+    ------
+    ValueError
+        If ``contact_radius_m`` is negative or not finite.
+
+    Notes
+    -----
+    Eq 14 of [1]_, :math:`F_S = \iint_A \tau\, dA`, for an axisymmetric τ(r):
+    :math:`F_S = 2\pi \int_0^a \tau(r)\, r\, dr`. With r = a sin φ this is
+    :math:`2\pi a^2 \int_0^{\pi/2} \tau(a\sin\varphi) \sin\varphi\cos\varphi\, d\varphi`,
+    integrated by 48-point Gauss-Legendre quadrature; the substitution makes a
+    Hertz-shaped τ ∝ sqrt(1 - r²/a²), whose slope is infinite at the edge,
+    smooth, so the quadrature is exact to rounding for it and for polynomial
+    τ. The model itself does not know τ: :func:`evaluate` finds F_S from the
+    ball's equilibrium (eqs 18-20, :func:`sliding_force`); this function
+    relates a traction distribution to it.
+
+    References
+    ----------
+    .. [1] Olaru et al., COMEC 2005, eq. 14.
+
+    Examples
+    --------
+    Uniform 1 MPa over a 10 um contact gives τ π a²; a Hertz-shaped
+    τ0 sqrt(1 - r²/a²) gives (2/3) τ0 π a²:
+
+    >>> round(float(contact_shear_force(1e6, 10e-6) / (1e6 * np.pi * 1e-10)), 12)
+    1.0
+    >>> hertz = lambda r, a: 1e6 * np.sqrt(1 - (r / a) ** 2)
+    >>> round(float(contact_shear_force(hertz, 10e-6) / (1e6 * np.pi * 1e-10)), 12)
+    0.666666666667
+    """
+    a = np.asarray(contact_radius_m, dtype=float)
+    if not np.all(np.isfinite(a) & (a >= 0)):
+        raise ValueError(f"contact_radius_m must be finite and >= 0 [m]; got {contact_radius_m!r}")
+    r = a[..., None] * np.sin(_PHI_NODES)
+    tau = shear_stress_Pa(r, a[..., None]) if callable(shear_stress_Pa) else shear_stress_Pa
+    tau = np.broadcast_to(np.asarray(tau, dtype=float), r.shape)
+    return 2.0 * np.pi * np.square(a) * np.sum(tau * np.sin(_PHI_NODES) * np.cos(_PHI_NODES) * _PHI_WEIGHTS,
+                                               axis=-1)
 
 
 def ball_race_force(sliding_force_N, rolling_force_N):

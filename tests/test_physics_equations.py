@@ -185,3 +185,26 @@ def test_evaluate_matches_the_hand_calculation_end_to_end():
     assert r.mu_contact == pytest.approx(f_ball / (2 * Q0), rel=1e-12)
     assert r.mu_contact == pytest.approx(r.mu * math.cos(THETA), rel=1e-12)
     assert np.ndim(r.mu) == 0
+
+
+def test_eq14_shear_stress_integrated_over_the_contact():
+    radii = np.array([[0.0, 1e-6], [10e-6, 37e-6]])
+    tau0 = 2.5e6
+    # uniform tau: tau pi a^2
+    uniform = bearing.contact_shear_force(tau0, radii)
+    assert np.allclose(uniform, tau0 * math.pi * radii**2, rtol=1e-13, atol=0)
+    # Hertz-shaped tau0 sqrt(1 - r^2/a^2): 2 pi tau0 a^2 int_0^1 sqrt(1 - s^2) s ds = (2/3) tau0 pi a^2
+    hertz = bearing.contact_shear_force(lambda r, a: tau0 * np.sqrt(1 - (r / a) ** 2), radii[1])
+    assert np.allclose(hertz, 2 / 3 * tau0 * math.pi * radii[1] ** 2, rtol=1e-13, atol=0)
+    # linear tau0 r / a: 2 pi tau0 a^2 int_0^1 s^2 ds = (2/3) pi tau0 a^2; quadratic (r/a)^2: pi tau0 a^2 / 2
+    a = 20e-6
+    assert bearing.contact_shear_force(lambda r, aa: tau0 * r / aa, a) == pytest.approx(
+        2 / 3 * math.pi * tau0 * a**2, rel=1e-13)
+    assert bearing.contact_shear_force(lambda r, aa: tau0 * (r / aa) ** 2, a) == pytest.approx(
+        math.pi * tau0 * a**2 / 2, rel=1e-13)
+    # Coulomb shear mu_s p under the JKR-free Hertz pressure p0 sqrt(1 - r^2/a^2), p0 = 3Q/(2 pi a^2): mu_s Q
+    p0 = 3 * Q / (2 * math.pi * A**2)
+    coulomb = bearing.contact_shear_force(lambda r, aa: 0.3 * p0 * np.sqrt(1 - (r / aa) ** 2), A)
+    assert coulomb == pytest.approx(0.3 * Q, rel=1e-12)
+    with pytest.raises(ValueError, match="contact_radius_m"):
+        bearing.contact_shear_force(tau0, -1e-6)
