@@ -97,10 +97,11 @@ def case_curves(case: PaperCase, speeds_m_s=PAPER_SPEEDS_M_S, convention="olaru2
     Parameters
     ----------
     case : PaperCase
+        One of :data:`PAPER_CASES`. [-]
     speeds_m_s : array_like
         Slider speeds. [m/s]
     convention : str
-        See :data:`physics.CONVENTIONS`.
+        See :data:`physics.CONVENTIONS`. [-]
 
     Returns
     -------
@@ -115,13 +116,47 @@ def case_curves(case: PaperCase, speeds_m_s=PAPER_SPEEDS_M_S, convention="olaru2
 
 
 def case_range(case: PaperCase, convention="olaru2005") -> tuple[float, float]:
-    """Minimum and maximum of the case's output over its curves and 0-150 mm/s. [1]"""
+    """Minimum and maximum of the case's output over its curves and 0-150 mm/s.
+
+    Parameters
+    ----------
+    case : PaperCase
+        One of :data:`PAPER_CASES`; its curves are evaluated at the 151 speeds
+        of :data:`PAPER_SPEEDS_M_S`, 0 to 0.150 m/s. [-]
+    convention : str, default "olaru2005"
+        A key of :data:`physics.CONVENTIONS`. [-]
+
+    Returns
+    -------
+    tuple of float
+        (minimum, maximum) of ``case.output`` (``mu_contact`` or ``mu``),
+        comparable with ``case.reported``. [1]
+
+    Examples
+    --------
+    >>> [round(v, 3) for v in case_range(PAPER_CASES["B"])]  # the paper reports 0.25-0.55
+    [0.306, 0.566]
+    """
     curves = case_curves(case, convention=convention)
     return float(curves.min()), float(curves.max())
 
 
 def report(convention="olaru2005") -> str:
-    """A table of each case's computed range beside the paper's, as text."""
+    """A table of each case's computed range beside the paper's, as text.
+
+    Parameters
+    ----------
+    convention : str, default "olaru2005"
+        A key of :data:`physics.CONVENTIONS`. [-]
+
+    Returns
+    -------
+    str
+        One line per case of :data:`PAPER_CASES`: its title, output, the
+        computed (minimum-maximum) range of the friction coefficient over
+        0-150 mm/s and the paper's range, both [1] (dimensionless), then the
+        measured values of Lin et al. [1].
+    """
     lines = [f"{'case':<72} {'output':<11} {'computed':>17} {'paper':>15}"]
     for case in PAPER_CASES.values():
         lo, hi = case_range(case, convention)
