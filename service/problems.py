@@ -173,10 +173,14 @@ _HTTP_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 
 def _allowed_methods(request: Request) -> list[str]:
     # Starlette reports only the first route matching the path; a path served by several
-    # routes (GET and DELETE /v1/jobs/{id}) must list every method in Allow.
-    return [method for method in _HTTP_METHODS
-            if any(route.matches({**request.scope, "method": method})[0] == Match.FULL
-                   for route in request.app.router.routes)]
+    # routes (GET and DELETE /v1/jobs/{id}) must list every method in Allow. HEAD is answered
+    # wherever GET is (service.app.HeadMiddleware).
+    allowed = {method for method in _HTTP_METHODS
+               if any(route.matches({**request.scope, "method": method})[0] == Match.FULL
+                      for route in request.app.router.routes)}
+    if "GET" in allowed:
+        allowed.add("HEAD")
+    return [method for method in _HTTP_METHODS if method in allowed]
 
 
 def _is_union_tag(part: Any) -> bool:

@@ -134,7 +134,27 @@ def test_unknown_path_is_404_and_wrong_method_405_with_allow(client):
     assert response.headers["allow"] == "POST"
     response = client.post("/v1/jobs/abc")
     assert_problem(response, 405)
-    assert set(response.headers["allow"].split(", ")) == {"GET", "DELETE"}
+    assert set(response.headers["allow"].split(", ")) == {"GET", "HEAD", "DELETE"}
+    response = client.head("/v1/friction")  # no GET there: no HEAD either
+    assert response.status_code == 405 and response.headers["allow"] == "POST" and response.content == b""
+
+
+def test_head_answers_wherever_get_does_with_the_same_headers_and_no_body(client):
+    request = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load_N": 0.01},
+               "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 1_001}}}  # over the sync limit: a job
+    job_id = client.post("/v1/sweeps", json=request).json()["id"]
+    wait_for_job(client, f"/v1/jobs/{job_id}")
+    spec = client.app.openapi()
+    paths = [path.replace("{job_id}", job_id) for path, item in spec["paths"].items() if "get" in item
+             and "{" not in path.replace("{job_id}", "")] + ["/healthz", "/v1/jobs/no-such-job"]
+    assert {"/healthz", "/v1/version", f"/v1/jobs/{job_id}", f"/v1/jobs/{job_id}/result"} <= set(paths)
+    for path in paths:
+        got, head = client.get(path), client.head(path)
+        assert head.status_code == got.status_code, path
+        assert head.content == b"", path
+        assert head.headers["content-type"] == got.headers["content-type"], path
+        if path != "/metrics":  # the scrape counts itself: its length grows between the two
+            assert head.headers["content-length"] == got.headers["content-length"], path
 
 
 def test_bodies_over_the_limit_are_413_declared_or_streamed(tmp_path):
