@@ -58,6 +58,8 @@ __all__ = [
     "build_design_gp",
     "LIMIT_NAMES",
     "BallCountResolver",
+    "cached_structures",
+    "clear_cache",
 ]
 
 #: Relative tightening of every limit in the DGP (see module docstring). [1]
@@ -375,6 +377,22 @@ class BallCountResolver:
 
 _CACHE: dict[tuple[frozenset[str], frozenset[str], bool], DesignGP] = {}
 _CACHE_LOCK = threading.Lock()
+
+
+def cached_structures() -> int:
+    """How many DGP structures (terms, limits, phase I) :func:`design_gp` holds compiled. [1]"""
+    with _CACHE_LOCK:
+        return len(_CACHE)
+
+
+def clear_cache() -> None:
+    """Forget every compiled DGP, so that the next :func:`design_gp` builds and compiles anew.
+
+    For benchmarks that time a cold start; the service never needs it (a
+    structure's DGP is reused by every problem of that structure).
+    """
+    with _CACHE_LOCK:
+        _CACHE.clear()
 
 
 def design_gp(problem: DesignProblem, limits: frozenset[str] | None = None,

@@ -381,3 +381,14 @@ def test_a_problem_that_is_not_dgp_raises_even_under_python_O(monkeypatch):
     monkeypatch.setattr(cp.Problem, "is_dgp", lambda self, dpp=False: False)
     with pytest.raises(RuntimeError, match="not DGP and DPP"):
         build(frozenset(), frozenset(LIMIT_NAMES), False)
+
+
+def test_clearing_the_dgp_cache_makes_the_next_problem_compile_anew():
+    from optimize import dgp
+
+    problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05)
+    before, _ = design_gp(problem)
+    assert design_gp(problem)[0] is before and dgp.cached_structures() >= 1
+    dgp.clear_cache()
+    assert dgp.cached_structures() == 0
+    assert design_gp(problem)[0] is not before and dgp.cached_structures() == 1
