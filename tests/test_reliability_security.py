@@ -5,6 +5,8 @@ from __future__ import annotations
 import hmac
 import json
 import logging
+import re
+from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
@@ -39,12 +41,22 @@ def bearer(key: str) -> dict[str, str]:
 
 # API keys ------------------------------------------------------------------------------------
 
+SPEC = json.loads((Path(__file__).parents[1] / "openapi" / "openapi.json").read_text())
+#: Every operation of the committed spec under /v1, with the methods it declares (ids in the path).
+V1_OPERATIONS = [(method.upper(), re.sub(r"\{[^}]+\}", "0123abcd", path))
+                 for path, item in SPEC["paths"].items() if path.startswith("/v1/")
+                 for method in item if method in ("get", "post", "put", "patch", "delete")]
+
+
+def test_the_spec_lists_the_v1_operations():
+    assert len(V1_OPERATIONS) >= 15 and ("POST", "/v1/friction") in V1_OPERATIONS
+    assert ("DELETE", "/v1/jobs/0123abcd") in V1_OPERATIONS
+
+
 @pytest.mark.parametrize("method, path, body", [
-    ("GET", "/v1/version", None),
-    ("GET", "/v1/materials", None),
-    ("POST", "/v1/friction", POINT),
-    ("POST", "/v1/friction/batch", {"points": POINT}),
-    ("GET", "/v1/jobs/0123", None),
+    *[(method, path, POINT if method in ("POST", "PUT", "PATCH") else None)
+      for method, path in V1_OPERATIONS],
+    *[("HEAD", path, None) for method, path in V1_OPERATIONS if method == "GET"],
     ("GET", "/v1/no-such-resource", None),
 ])
 def test_every_v1_path_needs_a_key(keyed, method, path, body):
@@ -53,6 +65,9 @@ def test_every_v1_path_needs_a_key(keyed, method, path, body):
     assert response.headers["content-type"] == PROBLEM
     assert response.headers["www-authenticate"].startswith("Bearer")
     assert "invalid_token" not in response.headers["www-authenticate"]
+    if method == "HEAD":
+        assert response.content == b""
+        return
     problem = response.json()
     assert problem["status"] == 401 and problem["instance"] == path
 
