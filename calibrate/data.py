@@ -49,10 +49,25 @@ class DataError(ValueError):
 
     def __init__(self, errors: list[dict[str, Any]]):
         self.errors = errors
-        lines = [f"row {e['row']}, column {e['column']}: {e['message']}" if e["row"] is not None
-                 else f"column {e['column']}: {e['message']}" for e in errors[:_MAX_LISTED]]
+        lines = [self.describe(e) for e in errors[:_MAX_LISTED]]
         more = f"\n... and {len(errors) - _MAX_LISTED} more" if len(errors) > _MAX_LISTED else ""
         super().__init__(f"{len(errors)} problem(s) in the measured data:\n" + "\n".join(lines) + more)
+
+
+    @staticmethod
+    def describe(error: Mapping[str, Any]) -> str:
+        """One problem in words: ``"row 3, column load_N: ..."``, naming only what it has.
+
+        Examples
+        --------
+        >>> DataError.describe({"row": 3, "column": None, "message": "is empty"})
+        'row 3: is empty'
+        >>> DataError.describe({"row": None, "column": None, "message": "CSV is empty"})
+        'CSV is empty'
+        """
+        where = ", ".join(f"{label} {error[label]}" for label in ("row", "column")
+                          if error.get(label) is not None)
+        return f"{where}: {error['message']}" if where else str(error["message"])
 
 
 @dataclass(frozen=True)
@@ -109,7 +124,9 @@ def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None) -> Data
     Parameters
     ----------
     text : str or bytes
-        CSV (comma-separated, UTF-8) with column names in the first line.
+        CSV (comma-separated, UTF-8) with column names in the first line. Every later line
+        is a data row (row 1 is the second line); a blank one is reported as a bad row, never
+        skipped. Only the newline that ends the last line is ignored.
     fixed : mapping, optional
         Physics parameters fixed for every row, e.g. ``{"balls": 4}``.
 
@@ -135,19 +152,30 @@ def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None) -> Data
             raise DataError([{"row": None, "column": None, "message": f"CSV is not UTF-8: {exc}"}]) from None
     reader = csv.reader(io.StringIO(text.lstrip("\ufeff")))
     try:
-        lines = [line for line in reader if any(cell.strip() for cell in line)]
+        # Every line counts, blank or not, so that row numbers are data lines of the file.
+        lines = list(reader)
     except csv.Error as exc:  # e.g. a cell over the csv module's field size limit (128 KiB)
         raise DataError([{"row": None, "column": None, "message": f"CSV cannot be read: {exc}"}]) from None
-    if not lines:
+    if not any(any(cell.strip() for cell in line) for line in lines):
         raise DataError([{"row": None, "column": None, "message": "CSV is empty; expected a header row"}])
+    if not any(cell.strip() for cell in lines[0]):
+        raise DataError([{"row": None, "column": None,
+                          "message": "the first line is blank; expected the header row (column names)"}])
     header = [h.strip() for h in lines[0]]
     errors = []
     if len(set(header)) != len(header) or "" in header:
         errors.append({"row": None, "column": None,
                        "message": f"header must name every column once; got {header}"})
         raise DataError(errors)
-    rows = []
+    rows: list[Mapping[str, Any] | None] = []
     for number, cells in enumerate(lines[1:], start=1):
+        if not any(cell.strip() for cell in cells):
+            # A blank line (or only separators) is a bad row, never silently skipped; the csv
+            # module already ignores the newline that ends the last line.
+            errors.append({"row": number, "column": None,
+                           "message": "is blank (no value in any cell); remove the line or fill it"})
+            rows.append(None)
+            continue
         if len(cells) > len(header):
             errors.append({"row": number, "column": None,
                            "message": f"has {len(cells)} cells but the header has {len(header)}"})
@@ -280,6 +308,7 @@ def _range_message(spec: physics.Parameter, value: float) -> str | None:
 
 
 def _build(rows, names, fixed, from_text, errors) -> Dataset:
+    """Check every cell; a row given as None is already reported (a blank CSV line) and skipped."""
     n = len(rows)
     if n == 0:
         errors.append({"row": None, "column": None, "message": "no data rows"})
@@ -307,13 +336,15 @@ def _build(rows, names, fixed, from_text, errors) -> Dataset:
     physics_columns, conditions = {}, {}
     mu = std = None
     for name in names:
-        cells = [row.get(name) for row in rows]
+        cells = [None if row is None else row.get(name) for row in rows]
         if all(_missing(c) for c in cells):
             errors.append({"row": None, "column": name, "message": "column has no values; fill or remove it"})
             continue
         spec = physics.PARAMETERS.get(name)
         values = np.zeros(n, dtype=bool if spec is not None and spec.kind == "bool" else float)
         for i, cell in enumerate(cells):
+            if rows[i] is None:
+                continue
             if _missing(cell):
                 errors.append({"row": i + 1, "column": name, "message": "missing value"})
                 continue

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 import physics
-from calibrate import CalibratedModel, CalibrationReport, Dataset, calibrate
+from calibrate import CalibratedModel, CalibrationReport, DataError, Dataset, calibrate
 
 from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
@@ -41,30 +41,35 @@ def data_problem(errors: list[dict[str, Any]], fixed_pointer: str | None = "/fix
     errors : list of dict
         ``{"row", "column", "message"}`` items (rows 1-based).
     fixed_pointer : str or None
-        JSON pointer of the fixed values (None when they are not in a JSON body).
+        JSON pointer of the fixed values; None when they come as the query parameter ``fixed``
+        (the CSV upload), whose errors then name that parameter.
     data_pointer : str or None
-        JSON pointer of the rows (None for a CSV body: errors then name row and column in words).
+        JSON pointer of the rows; None for a CSV body: every error then points at ``/body`` (the
+        uploaded file) and its detail names the row (the data line, 1 after the header) and column.
 
     Returns
     -------
     ProblemError
     """
-    items = []
+    items: list[dict[str, str]] = []
     for e in errors[:_MAX_LISTED_ERRORS]:
-        row, column = e["row"], e["column"]
-        where = f"row {row}, column {column}" if row is not None else f"column {column}"
-        if row is not None and data_pointer is not None:
+        row, column, message = e["row"], e["column"], e["message"]
+        if row is None and column is not None and message.startswith("fixed"):
+            if fixed_pointer is None:
+                items.append({"parameter": "fixed", "detail": f"{column}: {message}"})
+            else:
+                items.append({"pointer": f"{fixed_pointer}/{column}", "detail": message})
+        elif data_pointer is None:
+            items.append({"pointer": "/body", "detail": DataError.describe(e)})
+        elif row is not None:
             tail = "" if column is None else "/" + column.replace("~", "~0").replace("/", "~1")
-            items.append({"pointer": f"{data_pointer}/{row - 1}{tail}", "detail": e["message"]})
-        elif (row is None and column is not None and fixed_pointer is not None
-              and e["message"].startswith("fixed")):
-            items.append({"pointer": f"{fixed_pointer}/{column}", "detail": e["message"]})
+            items.append({"pointer": f"{data_pointer}/{row - 1}{tail}", "detail": message})
         else:
-            items.append({"pointer": data_pointer, "detail": f"{where}: {e['message']}"}
-                         if data_pointer is not None else {"detail": f"{where}: {e['message']}"})
+            items.append({"pointer": data_pointer, "detail": DataError.describe(e)})
     if len(errors) > _MAX_LISTED_ERRORS:
-        items.append({"detail": f"... and {len(errors) - _MAX_LISTED_ERRORS} more problems in the data"})
-    return validation_problem(items)
+        items.append({"pointer": "/body" if data_pointer is None else data_pointer,
+                      "detail": f"... and {len(errors) - _MAX_LISTED_ERRORS} more problems in the data"})
+    return validation_problem(items, total=len(errors))
 
 
 def calibration_view(calibration_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:

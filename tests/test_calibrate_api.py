@@ -148,6 +148,27 @@ def test_bad_rows_are_422_with_a_pointer_per_cell(client):
     csv_problem = assert_problem(client.post("/v1/calibrations/csv", content=text,
                                              headers={"content-type": "text/csv"}), 422)
     assert [e["detail"][:27] for e in csv_problem["errors"]] == ["row 1, column speed_m_s: sp"]
+    assert [e["pointer"] for e in csv_problem["errors"]] == ["/body"]
+
+
+@pytest.mark.parametrize(("content", "params", "expected"), [
+    (b"\xff\xfeload_N\n", [], {"pointer": "/body", "detail": "CSV is not UTF-8: "}),
+    (b"", [], {"pointer": "/body", "detail": "CSV is empty; expected a header row"}),
+    (b"balls,load_N,speed_m_s,mu_measured\n4,0.01,0.1,0.01\n,,,\n4,-1,0.1,0.01\n", [],
+     {"pointer": "/body", "detail": "row 2: is blank"}),
+    (b"balls,load_N,speed_m_s,mu_measured\n4,0.01,0.1,0.01\n,,,\n4,-1,0.1,0.01\n", [],
+     {"pointer": "/body", "detail": "row 3, column load_N: load_N must be"}),
+    (b"load_N,speed_m_s\n0.01,0.1\n", [("fixed", "balls=4")],
+     {"pointer": "/body", "detail": "column mu_measured: required column is missing"}),
+    (b"balls,load_N,speed_m_s,mu_measured\n4,0.01,0.1,0.01\n", [("fixed", "balls=4")],
+     {"parameter": "fixed", "detail": "balls: fixed value given for a data column too"}),
+])
+def test_csv_problems_point_at_the_body_and_name_row_and_column(client, content, params, expected):
+    problem = assert_problem(client.post("/v1/calibrations/csv", params=params, content=content,
+                                         headers={"content-type": "text/csv"}), 422)
+    assert any(set(e) == set(expected) and all(e[k].startswith(v) for k, v in expected.items())
+               for e in problem["errors"]), problem
+    assert "None" not in problem["detail"], problem
 
 
 @pytest.mark.parametrize(("body", "pointer"), [

@@ -16,7 +16,6 @@ def test_good_csv_keeps_every_row_and_splits_columns():
     text = ("balls,load_N,speed_m_s,balls_touching,relative_humidity,mu_measured,mu_measured_std\n"
             "4,0.009,0.05,false,0.4,0.0105,0.0002\n"
             "6,0.012,0.10,TRUE,0.5,0.0121,0.0002\n"
-            "\n"
             "8,0.020,0.15,0,0.6,0.0133,0.0003\n")
     data = parse_csv(text, fixed={"mu_ball": 0.7})
     assert data.n_points == 3
@@ -57,6 +56,25 @@ def test_csv_wrong_types_extra_cells_and_empty_column():
         parse_csv(text)
     found = {(e["row"], e["column"]) for e in caught.value.errors}
     assert found == {(1, "speed_m_s"), (2, None), (3, "load_N"), (3, "mu_measured"), (None, "notes")}
+
+
+@pytest.mark.parametrize("blank", ["", ",,,", " , ,\t, "])
+def test_blank_csv_lines_are_bad_rows_and_keep_the_numbering(blank):
+    # Data line 3 is blank and data line 4 has a negative load: both named by their own line.
+    lines = ["balls,load_N,speed_m_s,mu_measured", "4,0.009,0.1,0.01", "4,0.009,0.1,0.01", blank,
+             "4,-1,0.1,0.01", "4,0.009,0.1,0.01"]
+    text = "\n".join(lines) + "\n"
+    with pytest.raises(DataError) as caught:
+        parse_csv(text)
+    assert [(e["row"], e["column"]) for e in caught.value.errors] == [(3, None), (4, "load_N")]
+    assert "row 3: is blank" in str(caught.value)
+    assert "row 4, column load_N: load_N must be" in str(caught.value)
+    # Only the newline that ends the last line is not a row; a blank line after it is.
+    good = [line.replace("-1", "0.009") for line in lines if line is not blank]
+    assert parse_csv("\n".join(good) + "\n").n_points == 4
+    with pytest.raises(DataError) as trailing:
+        parse_csv("balls,load_N,speed_m_s,mu_measured\n4,0.009,0.1,0.01\n\n")
+    assert [(e["row"], e["column"]) for e in trailing.value.errors] == [(2, None)]
 
 
 def test_request_problems_are_reported_by_column():
