@@ -189,3 +189,19 @@ def test_calibrated_model_with_an_effect_reads_its_conditions(client):
     design = result["design"]
     check = model({**design, "speed_m_s": 0.05, "relative_humidity": 0.5})
     assert result["mu"] == pytest.approx(float(np.squeeze(check)), rel=1e-12)
+
+
+def test_speed_range_of_a_calibrated_model_falling_with_speed_is_designed_for_its_worst_speed(client):
+    # a generic effect exp(-2 (V - 0.1) / 0.05) on speed: mu falls with speed, the worst case is 0.01 m/s
+    store = get_runtime(client.app).store
+    model = CalibratedModel(fitted={"mu_pivot": 0.8}, effect={
+        "name": "generic_linear", "drivers": ["speed_m_s"], "parameters": {"c1": -2.0},
+        "constants": {"centre": 0.1, "scale": 0.05}})
+    model_id = store.save_model("calibration", {"model": model.to_json()}, {})
+    request = {"bounds": {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
+               "speed_m_s": [0.01, 0.2], "model": f"calibrated:{model_id}", "starts": 1}
+    result = finished(client, client.post("/v1/optimizations", json=request))
+    assert result["speed_m_s"] == pytest.approx(0.01, abs=1e-15)
+    at = {v: float(np.squeeze(model({**result["design"], "speed_m_s": v}))) for v in (0.01, 0.2)}
+    assert result["mu"] == pytest.approx(at[0.01], rel=1e-12) and at[0.01] > 100 * at[0.2]
+    assert "grid of 9 equally spaced speeds" in result["certificate"]
