@@ -32,8 +32,12 @@ def _serve(args: argparse.Namespace) -> int:
         from .settings import Settings
 
         prepare_multiprocess_dir(Settings().data_dir)
-    # Requests are logged as JSON lines with their request id by service/observability.py.
-    uvicorn.run("service.app:app", host=args.host, port=args.port, workers=args.workers, access_log=False)
+    from .observability import uvicorn_log_config
+
+    # Requests are logged as JSON lines with their request id by service/observability.py;
+    # uvicorn's own lines (startup, shutdown, errors) are JSON too.
+    uvicorn.run("service.app:app", host=args.host, port=args.port, workers=args.workers, access_log=False,
+                log_config=uvicorn_log_config())
     return 0
 
 

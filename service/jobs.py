@@ -30,6 +30,7 @@ other exception with a 500 problem.
 
 from __future__ import annotations
 
+import contextvars
 import logging
 import os
 import threading
@@ -186,7 +187,10 @@ class JobManager:
         event = threading.Event()
         with self._lock:
             self._cancel_events[job_id] = event
-        self._executor.submit(self._run, job_id, fn, event)
+        # The job's thread runs in a copy of the submitting context: its log lines carry the
+        # id of the request that created it (service.observability).
+        self._executor.submit(contextvars.copy_context().run, self._run, job_id, fn, event)
+        logger.info("job %s (%s) queued", job_id, kind, extra={"job_id": job_id, "kind": kind})
         return self.get(job_id)
 
     def get(self, job_id: str, with_result: bool = False) -> dict[str, Any] | None:
@@ -234,6 +238,8 @@ class JobManager:
                                          unless_cancel_requested=unless_cancel_requested)
         with self._lock:
             self._cancel_events.pop(job_id, None)
+        if finished:
+            logger.info("job %s %s", job_id, status, extra={"job_id": job_id, "status": status})
         return finished
 
     def _run(self, job_id: str, fn: Callable[[JobContext], dict[str, Any]], event: threading.Event) -> None:
@@ -241,6 +247,7 @@ class JobManager:
                                                        started_at=utc_now()):
             return
         ctx = JobContext(job_id, self.store, event)
+        logger.info("job %s started", job_id, extra={"job_id": job_id})
         try:
             ctx.check_cancelled()
             result = fn(ctx)

@@ -5,8 +5,9 @@ Request ids
     characters of ``A-Z a-z 0-9 . _ : -``), else a fresh UUID. The response echoes it in
     ``X-Request-ID`` and every log record written while the request is handled carries it
     (also from worker threads: :func:`starlette.concurrency.run_in_threadpool` copies the
-    context). An unexpected exception's traceback is logged with the id; its 500 answer, made
-    by Starlette's outermost error middleware, does not carry the header.
+    context, and so does :class:`service.jobs.JobManager` for the job a request creates, whose
+    lines carry ``job_id`` too). An unexpected exception's traceback is logged with the id; its
+    500 answer, made by Starlette's outermost error middleware, does not carry the header.
 
 Logs
     :func:`configure_logging` writes the ``microbearing`` loggers as one JSON object per line
@@ -71,6 +72,7 @@ __all__ = [
     "install",
     "metrics_text",
     "prepare_multiprocess_dir",
+    "uvicorn_log_config",
 ]
 
 REQUEST_ID_HEADER = "X-Request-ID"
@@ -79,9 +81,9 @@ MULTIPROC_ENV = "PROMETHEUS_MULTIPROC_DIR"
 _VALID_REQUEST_ID = re.compile(r"[A-Za-z0-9._:-]{1,128}")
 _KNOWN_METHODS = frozenset({"GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"})
 _UNMATCHED_ROUTE = "<unmatched>"
-#: Record attributes of the stdlib that are not "extra" fields.
-_STANDARD_ATTRIBUTES = frozenset(vars(logging.LogRecord("", 0, "", 0, "", None, None))) | {"message",
-                                                                                          "asctime"}
+#: Record attributes of the stdlib that are not "extra" fields (and uvicorn's ANSI-coloured copy).
+_STANDARD_ATTRIBUTES = frozenset(vars(logging.LogRecord("", 0, "", 0, "", None, None))) | {
+    "message", "asctime", "color_message"}
 
 _request_id: ContextVar[str | None] = ContextVar("microbearing_request_id", default=None)
 
@@ -119,6 +121,27 @@ class JsonFormatter(logging.Formatter):
         if record.exc_info:
             entry["exception"] = self.formatException(record.exc_info)
         return json.dumps(entry, default=str, ensure_ascii=False)
+
+
+def uvicorn_log_config() -> dict[str, Any]:
+    """A :func:`logging.config.dictConfig` for uvicorn (``log_config=``): its own lines as JSON too.
+
+    Returns
+    -------
+    dict
+        uvicorn's loggers (startup, shutdown, errors and, when on, its access log) written to
+        stderr by :class:`JsonFormatter`, so that every line of ``microbearing serve`` is JSON.
+    """
+    return {
+        "version": 1,
+        "disable_existing_loggers": False,
+        "formatters": {"json": {"()": "service.observability.JsonFormatter"}},
+        "handlers": {"json": {"formatter": "json", "class": "logging.StreamHandler",
+                              "stream": "ext://sys.stderr"}},
+        "loggers": {"uvicorn": {"handlers": ["json"], "level": "INFO", "propagate": False},
+                    "uvicorn.error": {"level": "INFO"},
+                    "uvicorn.access": {"handlers": ["json"], "level": "INFO", "propagate": False}},
+    }
 
 
 _HANDLER_MARK = "_microbearing_json_handler"

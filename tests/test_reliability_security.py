@@ -6,6 +6,7 @@ import hmac
 import json
 import logging
 import re
+import time
 from pathlib import Path
 
 import pytest
@@ -200,6 +201,27 @@ def test_an_unexpected_error_is_logged_with_the_request_id(tmp_path, caplog):
     assert logged and all(r.request_id == "failing-request-7" for r in logged)
     access = [r for r in caplog.records if r.name == "microbearing.access"]
     assert access[-1].status == 500 and access[-1].request_id == "failing-request-7"
+
+
+def test_a_jobs_log_lines_name_the_request_that_created_it(tmp_path, caplog):
+    caplog.set_level(logging.INFO, logger="microbearing")
+    sweep = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load_N": 0.01},
+             "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 5}}}
+    with TestClient(create_app(Settings(data_dir=tmp_path, sweep_sync_max_points=0))) as client:
+        response = client.post("/v1/sweeps", json=sweep, headers={"X-Request-ID": "sweep-request-9"})
+        assert response.status_code == 202
+        job_id = response.json()["id"]
+        deadline = time.monotonic() + 30
+        while client.get(f"/v1/jobs/{job_id}").json()["status"] != "succeeded":
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+    lines = [r for r in caplog.records if getattr(r, "job_id", None) == job_id]
+    assert [r.getMessage().split()[-1] for r in lines] == ["queued", "started", "succeeded"]
+    in_job_thread = {r.threadName.startswith("microbearing-job") for r in lines}
+    assert in_job_thread == {False, True}  # queued by the request, run in a job thread
+    assert all(r.request_id == "sweep-request-9" for r in lines), [r.request_id for r in lines]
+    entry = json.loads(JsonFormatter().format(lines[-1]))
+    assert entry["request_id"] == "sweep-request-9" and entry["job_id"] == job_id
 
 
 # Metrics -----------------------------------------------------------------------------------------

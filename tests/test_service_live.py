@@ -4,6 +4,7 @@ driven by a client generated from the committed spec and by the README's curl ex
 from __future__ import annotations
 
 import importlib
+import json
 import os
 import re
 import shutil
@@ -37,9 +38,11 @@ def server(tmp_path_factory):
     port = _free_port()
     data_dir = tmp_path_factory.mktemp("live-data")
     env = {**os.environ, "MICROBEARING_SWEEP_SYNC_MAX_POINTS": "10000"}
+    log_path = tmp_path_factory.mktemp("live-log") / "server.log"
+    log = log_path.open("wb")  # a file, not a pipe nobody reads while the server runs
     process = subprocess.Popen(
         [sys.executable, "-m", "service.cli", "serve", "--port", str(port), "--data-dir", str(data_dir)],
-        cwd=REPO, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 60
     try:
@@ -50,7 +53,7 @@ def server(tmp_path_factory):
             except httpx.TransportError:
                 pass
             if process.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError(f"server did not start: {process.stderr.read().decode()[-2000:]}")
+                raise RuntimeError(f"server did not start: {log_path.read_text()[-2000:]}")
             time.sleep(0.1)
         yield url
     finally:
@@ -60,7 +63,14 @@ def server(tmp_path_factory):
         except subprocess.TimeoutExpired:
             process.kill()
             process.wait()
+        log.close()
     assert (data_dir / "microbearing.sqlite3").exists()  # the data dir given on the command line
+    # every line the server wrote is a JSON object: uvicorn's startup and shutdown lines too
+    lines = log_path.read_text().splitlines()
+    entries = [json.loads(line) for line in lines]
+    loggers = {entry["logger"] for entry in entries}
+    assert {"uvicorn.error", "microbearing.access"} <= loggers, loggers
+    assert any("Uvicorn running on" in entry["message"] for entry in entries)
 
 
 @pytest.fixture(scope="module")
