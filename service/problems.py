@@ -61,7 +61,7 @@ class Problem(BaseModel):
 
     type: str = Field(default="about:blank", description="URI identifying the kind of problem.")
     title: str = Field(description="Short summary of the kind of problem.")
-    status: int = Field(ge=100, le=599, description="HTTP status code.")
+    status: int = Field(ge=100, le=599, description="HTTP status code [1].")
     detail: str = Field(description="Explanation of this occurrence.")
     instance: str | None = Field(default=None, description="URI of this occurrence (the request path).")
     errors: list[FieldError] | None = Field(default=None, description="Offending fields, for validation.")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 from openapi_spec_validator import validate
@@ -79,3 +80,36 @@ def test_readme_settings_table_is_current():
     readme = (SPEC_PATH.parent.parent / "README.md").read_text(encoding="utf-8")
     assert settings_table() in readme, (
         "the README's settings table is stale: paste service.settings.settings_table() under ### Settings")
+
+
+def _is_numeric(schema: dict) -> bool:
+    """Whether a schema admits a number or an integer (directly, in a union, or as list items)."""
+    if schema.get("type") in ("number", "integer"):
+        return True
+    if schema.get("type") == "array" and _is_numeric(schema.get("items", {})):
+        return True
+    return any(_is_numeric(sub) for key in ("anyOf", "oneOf", "allOf") for sub in schema.get(key, []))
+
+
+def _numeric_properties(schema: dict, where: str):
+    """(place, description) of every numeric property in ``schema``, nested objects included."""
+    for name, sub in (schema.get("properties") or {}).items():
+        if _is_numeric(sub):
+            yield f"{where}.{name}", sub.get("description", "")
+        for key in ("anyOf", "oneOf", "allOf"):
+            for k, member in enumerate(sub.get(key, [])):
+                yield from _numeric_properties(member, f"{where}.{name}[{key}{k}]")
+        yield from _numeric_properties(sub, f"{where}.{name}")
+        yield from _numeric_properties(sub.get("items", {}), f"{where}.{name}[]")
+
+
+def test_every_numeric_field_states_its_unit(spec):
+    unit = re.compile(r"\[[^\]]+\]")
+    places = [place for name, schema in spec["components"]["schemas"].items()
+              for place in _numeric_properties(schema, name)]
+    places += [(f"{method} {path} {parameter['name']}", parameter.get("description", ""))
+               for path, item in spec["paths"].items() for method, operation in item.items()
+               for parameter in operation.get("parameters", []) if _is_numeric(parameter.get("schema", {}))]
+    assert len(places) > 100  # the walk reaches the fields (every physics input and output is numeric)
+    missing = [place for place, description in places if not unit.search(description)]
+    assert not missing, f"numeric fields without a [unit] in their description: {missing}"

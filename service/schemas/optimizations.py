@@ -123,8 +123,10 @@ class ConstraintStatus(ResponseModel):
 
     name: str = Field(description="balls_min, balls_max, groove_angle_deg_min/max, load_N_min/max or a limit "
                                   "of constraints.")
-    value: float = Field(description="The constrained quantity at the design, in the limit's unit.")
-    limit: float = Field(description="The bound or limit, in its unit.")
+    value: float = Field(description="The constrained quantity at the design, in the unit its name ends "
+                                     "with [1 (balls), deg, N, Pa or m].")
+    limit: float = Field(description="The bound or limit, in the unit its name ends with "
+                                     "[1 (balls), deg, N, Pa or m].")
     sense: Literal["<=", ">="] = Field(description="value <= limit or value >= limit.")
     active: bool = Field(description="Whether the design sits on it (within 1e-5 relative).")
     satisfied: bool = Field(description="Whether the exact value meets it.")
@@ -159,9 +161,11 @@ class Tie(ResponseModel):
 class ParetoPoint(ResponseModel):
     """One Pareto-optimal design."""
 
-    level: float = Field(description="The epsilon level of the second objective, in its unit.")
+    level: float = Field(description="The epsilon level of the second objective [N for load_N, Pa for "
+                                     "max_contact_pressure_Pa].")
     mu: float = Field(description="Minimum mu at that level [1].")
-    value: float = Field(description="The second objective at the design, in its unit.")
+    value: float = Field(description="The second objective at the design [N for load_N, Pa for "
+                                     "max_contact_pressure_Pa].")
     design: Design = Field(description="The design.")
 
 

@@ -23,8 +23,9 @@ _SPACING = Field(default="linear", description="linear, or log (evenly spaced lo
 class GridAxis(StrictModel):
     """Evenly spaced values of one input, in its own unit; whole numbers for integer inputs."""
 
-    start: float = Field(description="First value, in the input's unit.")
-    stop: float = Field(description="Last value, in the input's unit.")
+    start: float = Field(description="First value [the unit of the input named by the axis's key, e.g. N "
+                                     "for load_N].")
+    stop: float = Field(description="Last value [the unit of the input named by the axis's key].")
     num: int = Field(ge=1, le=1_000_000, description="Number of values [1].")
     spacing: Spacing = _SPACING
 
@@ -32,8 +33,9 @@ class GridAxis(StrictModel):
 class SweepRange(StrictModel):
     """Interval of one input sampled by a design of experiments, in its own unit."""
 
-    low: float = Field(description="Lower end, in the input's unit.")
-    high: float = Field(description="Upper end, in the input's unit.")
+    low: float = Field(description="Lower end [the unit of the input named by the range's key, e.g. N "
+                                   "for load_N].")
+    high: float = Field(description="Upper end [the unit of the input named by the range's key].")
     spacing: Spacing = _SPACING
 
 
@@ -70,7 +72,7 @@ class _SampledSweep(_SweepBase):
     ranges: SweepRanges = Field(description="Varied inputs and their ranges.")  # type: ignore[valid-type]
     points: int = Field(ge=1, le=100_000_000, description="Number of sample points [1].")
     seed: int | None = Field(default=None, ge=0, le=2**63 - 1,
-                             description="Seed of the scrambling, for repeatable designs.")
+                             description="Seed of the scrambling, for repeatable designs [1].")
 
 
 class GridSweep(_SweepBase):
