@@ -49,3 +49,15 @@ def test_load_front_and_png():
 def test_arguments_are_checked(kwargs, match):
     with pytest.raises(ValueError, match=match):
         pareto_front(PROBLEM, **kwargs)
+
+
+def test_wide_pressure_front_is_non_dominated():
+    # bench/optimize.py's front: 3..40 balls over a speed range, levels down to infeasible ones
+    wide = DesignProblem(DesignBounds((3, 40), (35, 70), (0.001, 0.05)), speed_m_s=(0.0, 0.05),
+                         fixed={"mu_pivot": 1.0}, constraints=Constraints(max_contact_pressure_Pa=6e8))
+    front = pareto_front(wide, "max_contact_pressure_Pa", points=8)
+    values = np.array([p["value"] for p in front.points])
+    mus = np.array([p["mu"] for p in front.points])
+    assert len(front.points) >= 3
+    assert np.all(np.diff(values) > 0) and np.all(np.diff(mus) < 0)
+    assert mus.min() == pytest.approx(optimize_design(wide).mu, rel=1e-6)
