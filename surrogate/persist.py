@@ -25,7 +25,7 @@ import physics
 from .model import GaussianProcessSurrogate, build_kernel
 from .space import Space
 
-__all__ = ["FORMAT", "package_version", "to_dict", "from_dict", "dumps", "loads"]
+__all__ = ["FORMAT", "package_version", "version_warning", "to_dict", "from_dict", "dumps", "loads"]
 
 #: Identifier and version of the stored layout.
 FORMAT = "microbearing.surrogate/1"
@@ -40,6 +40,33 @@ def package_version() -> str:
         return metadata.version("microbearing")
     except metadata.PackageNotFoundError:
         return "unknown"
+
+
+def version_warning(stored_version: str | None) -> str | None:
+    """Why a surrogate stored with another package version may no longer match the physics.
+
+    Parameters
+    ----------
+    stored_version : str or None
+        The ``package_version`` stored with the surrogate (None when absent).
+
+    Returns
+    -------
+    str or None
+        None when it is the running version; else a sentence naming both versions.
+
+    Examples
+    --------
+    >>> version_warning(package_version()) is None
+    True
+    >>> version_warning("0.0.0")[:44]
+    'trained with microbearing 0.0.0, running is '
+    """
+    running = package_version()
+    if stored_version == running:
+        return None
+    return (f"trained with microbearing {stored_version or 'of unknown version'}, running is {running}: "
+            f"the physics may have changed since; retrain to be sure its figures still hold")
 
 
 def to_dict(model: GaussianProcessSurrogate) -> dict[str, Any]:
@@ -93,12 +120,15 @@ def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
     Returns
     -------
     GaussianProcessSurrogate
-        A fitted surrogate predicting exactly as the stored one.
+        A fitted surrogate predicting exactly as the stored one, with ``package_version_`` (the
+        version it was trained with) and ``version_warning_`` (:func:`version_warning`: None
+        unless that differs from the running version, whose physics may differ).
 
     Raises
     ------
     ValueError
-        For another format, an unknown convention, or inconsistent arrays.
+        For another format, an unknown convention or one differing from its space's, or
+        inconsistent arrays.
     """
     if data.get("format") != FORMAT:
         raise ValueError(f"data must be a stored surrogate of format {FORMAT!r}; got {data.get('format')!r}")
@@ -106,6 +136,8 @@ def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
         raise ValueError(f"convention must be one of {', '.join(physics.CONVENTIONS)}; "
                          f"got {data.get('convention')!r}")
     space = Space.from_dict(data["space"])
+    if space.convention != data["convention"]:
+        raise ValueError(f"convention {data['convention']!r} differs from its space's {space.convention!r}")
     model = GaussianProcessSurrogate(space, **data["params"])
     X = space.check_X(np.asarray(data["X_train"], dtype=float))
     y = model._check_y(data["y_train"], X.shape[0])
@@ -126,6 +158,8 @@ def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
     model.y_train_ = y
     model.n_features_in_ = X.shape[1]
     model.std_scale_ = float(data["std_scale"])
+    model.package_version_ = data.get("package_version")
+    model.version_warning_ = version_warning(model.package_version_)
     return model
 
 

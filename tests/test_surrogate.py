@@ -283,6 +283,18 @@ def test_persistence_rejects_other_data(fitted):
         loads(json.dumps({**data, "convention": "mine"}))
     with pytest.raises(ValueError, match="fitted"):
         to_dict(GaussianProcessSurrogate(SPACES["load"]))
+    other = next(c for c in physics.CONVENTIONS if c != data["convention"])
+    with pytest.raises(ValueError, match="differs from its space"):
+        loads(json.dumps({**data, "convention": other}))
+
+
+def test_loading_flags_another_package_version(fitted):
+    data = to_dict(fitted["load"])
+    assert loads(json.dumps(data)).version_warning_ is None
+    older = loads(json.dumps({**data, "package_version": "0.0.1"}))
+    assert older.package_version_ == "0.0.1"
+    running = data["package_version"]
+    assert older.version_warning_.startswith(f"trained with microbearing 0.0.1, running is {running}")
 
 
 # ----------------------------------------------------------------------------- sampling

@@ -108,6 +108,19 @@ def test_list_get_and_predict(client, trained):
     assert other.json()["outside_space"] == [True]
 
 
+def test_a_surrogate_of_another_package_version_is_flagged(client, trained):
+    assert trained["warnings"] == []
+    store = get_runtime(client.app).store
+    stored = store.load_model(trained["id"])
+    metadata = {"result": {**stored.metadata["result"], "package_version": "0.0.1"},
+                "model": {**stored.metadata["model"], "package_version": "0.0.1"}}
+    older = client.get(f"/v1/surrogates/{store.save_model('surrogate', metadata, {})}").json()
+    assert older["package_version"] == "0.0.1"
+    running = trained["package_version"]
+    assert older["warnings"] == [f"trained with microbearing 0.0.1, running is {running}: the physics may "
+                                 "have changed since; retrain to be sure its figures still hold"]
+
+
 def test_loader_gives_a_mu_model(client, trained):
     store = get_runtime(client.app).store
     mu_model = load_mu_model(store, trained["model_id"])

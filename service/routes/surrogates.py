@@ -22,6 +22,7 @@ from fastapi.responses import JSONResponse, Response
 
 import surrogate
 from surrogate import GaussianProcessSurrogate, Space
+from surrogate.persist import version_warning
 
 from ..calibrations import load_mu_model as load_calibrated_model
 from ..calibrations import with_conditions
@@ -165,13 +166,16 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
                                     name=f"{len(space.names)}-D, {fit.n_train} evaluations")
     if progress is not None:
         progress(1.0)
-    return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, **result}
+    return _view(surrogate_id, {"result": result})
 
 
 def _view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:
+    result = metadata["result"]
+    # Compared with the running version on every view: the service may have been upgraded since.
+    warning = version_warning(result.get("package_version"))
     # Surrogates stored before models other than the physics could be learned lack model and conditions.
     return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, "model": "physics", "conditions": {},
-            **metadata["result"]}
+            **result, "warnings": [] if warning is None else [warning]}
 
 
 def _stored(store: Store, surrogate_id: str):

@@ -128,6 +128,9 @@ class SurrogateResult(ResponseModel):
     conditions: dict[str, float] = Field(default_factory=dict, description=(
         "Condition columns of a calibrated model, as trained on [their units]."))
     package_version: str = Field(description="microbearing version trained with.")
+    warnings: list[str] = Field(default_factory=list, description=(
+        "Reasons to distrust the stored figures, e.g. a package_version other than the running one "
+        "(the physics may have changed since: retrain)."))
     created_at: str = Field(description="Creation time, ISO 8601 UTC.")
 
 
