@@ -227,12 +227,7 @@ class JsonGuardMiddleware:
             await self.app(scope, receive, send)
             return
         content_types = [value for name, value in scope["headers"] if name.lower() == b"content-type"]
-        if len(content_types) > 1:
-            problem = ProblemError(400, f"The request has {len(content_types)} Content-Type headers; "
-                                        "send one.", title="Ambiguous content type", type_=VALIDATION_TYPE)
-            await self._answer(problem, scope, receive, send)
-            return
-        if not _is_json(content_types[0] if content_types else None):
+        if len(content_types) == 1 and not _is_json(content_types[0]):
             await self.app(scope, receive, send)
             return
         chunks: list[bytes] = []
@@ -246,6 +241,11 @@ class JsonGuardMiddleware:
                     break
         except HTTPException as exc:  # the body-size limit, counting a streamed body
             problem = ProblemError(exc.status_code, str(exc.detail))
+            await self._answer(problem, scope, receive, send)
+            return
+        if len(content_types) > 1:  # answered once the body is read: a client may not read before it sent all
+            problem = ProblemError(400, f"The request has {len(content_types)} Content-Type headers; "
+                                        "send one.", title="Ambiguous content type", type_=VALIDATION_TYPE)
             await self._answer(problem, scope, receive, send)
             return
         body = b"".join(chunks)

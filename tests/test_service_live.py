@@ -170,3 +170,21 @@ def test_readme_curl_examples(server, block, tmp_path):
     codes = re.findall(r"^(\d{3})$", run.stderr, flags=re.M)
     # A polling loop repeats a status, so compare the sequences without repeats.
     assert _collapse(codes) == _collapse(expected), (codes, run.stdout[-500:])
+
+
+def test_two_content_types_on_a_raw_socket_get_a_400_problem(server):
+    # 100,000 nested brackets declared twice (JSON, then text): refused whole, after the body is read
+    body = b"[" * 100_000 + b"]" * 100_000
+    host, port = server.removeprefix("http://").split(":")
+    head = (f"POST /v1/friction HTTP/1.1\r\nHost: {host}\r\nContent-Length: {len(body)}\r\n"
+            "Content-Type: application/json\r\nContent-Type: text/plain\r\nConnection: close\r\n\r\n")
+    with socket.create_connection((host, int(port)), timeout=30) as sock:
+        sock.sendall(head.encode() + body)
+        answer = b""
+        while chunk := sock.recv(65536):
+            answer += chunk
+    status_line, _, rest = answer.partition(b"\r\n")
+    headers, _, content = rest.partition(b"\r\n\r\n")
+    assert status_line.startswith(b"HTTP/1.1 400"), answer[:300]
+    assert b"content-type: application/problem+json" in headers.lower()
+    assert json.loads(content)["title"] == "Ambiguous content type"
