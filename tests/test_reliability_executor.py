@@ -159,19 +159,20 @@ def test_a_batch_on_a_dask_local_cluster_equals_the_local_run(tmp_path):
 WIDE = DesignProblem(DesignBounds((3, 40), (40, 60), (0.001, 0.05)), speed_m_s=0.05, fixed={"mu_pivot": 0.8})
 
 
-def test_a_multi_start_optimization_on_every_executor_equals_the_in_process_run(dask_local):
+@pytest.mark.parametrize("kind", ["pool", pytest.param("dask", marks=needs_dask)])
+def test_a_multi_start_optimization_on_an_executor_equals_the_in_process_run(request, kind):
     # 38 ball counts x 2 starts: three groups of GROUP_COUNTS counts, each a task on the executor
     assert len(WIDE.ball_counts()) > 2 * GROUP_COUNTS
     seen = []
     reference = optimize_model(WIDE, physics_model(), starts=2, model_name="physics")
     with ThreadPoolExecutor(2) as pool:
-        for executor in (pool, dask_local):
-            result = optimize_model(WIDE, physics_model(), starts=2, model_name="physics", executor=executor,
-                                    progress=seen.append)
-            assert result.design == reference.design and result.mu == reference.mu
-            assert result.per_ball_count == reference.per_ball_count
-            assert result.certificate == reference.certificate
-    assert seen == pytest.approx([1 / 3, 2 / 3, 1.0] * 2)  # one report per finished group, on each executor
+        executor = pool if kind == "pool" else request.getfixturevalue("dask_local")
+        result = optimize_model(WIDE, physics_model(), starts=2, model_name="physics", executor=executor,
+                                progress=seen.append)
+    assert result.design == reference.design and result.mu == reference.mu
+    assert result.per_ball_count == reference.per_ball_count
+    assert result.certificate == reference.certificate
+    assert seen == pytest.approx([1 / 3, 2 / 3, 1.0])  # one report per finished group
     # independent check: a local method on the physics lands on the certified global optimum
     certified = optimize_design(WIDE)
     assert certified.mu * (1 - 1e-7) <= reference.mu <= certified.mu * (1 + 1e-4)
