@@ -267,3 +267,20 @@ def test_a_surrogate_learns_the_calibrated_model(client, humidity_result):
     saturated = {**body, "conditions": {"relative_humidity": 1.0}}  # log(1/RH) = 0: mu infinite
     dry = assert_problem(client.post("/v1/surrogates", json=saturated), 422)
     assert dry["errors"][0]["pointer"] == "/conditions"
+
+
+def test_a_surrogate_of_a_calibration_with_fixed_values_inherits_them(client):
+    rows = [{k: v for k, v in row.items() if k != "balls"} for row in measurements(6, False)]
+    body = {"data": rows, "fixed": {"balls": 8}, "fit_parameters": ["mu_pivot"], "folds": 3}
+    calibration = finished_result(client, client.post("/v1/calibrations", json=body))
+    space = {"load_N": [0.003, 0.03], "speed_m_s": [0.01, 0.15]}
+    request = {"space": space, "budget": 20, "model": calibration["model_id"]}
+    trained = finished_result(client, client.post("/v1/surrogates", json=request))
+    assert trained["fixed"] == {"balls": 8.0}
+    point = {"load_N": 0.01, "speed_m_s": 0.1}
+    mu = client.post(f"/v1/surrogates/{trained['id']}/predict", json={"points": point}).json()["mu"][0]
+    friction = client.post("/v1/friction", json={**point, "balls": 8, "model": calibration["model_id"]})
+    assert mu == pytest.approx(friction.json()["mu"], rel=0.01)
+    # Without the calibrated model there is no ball count: the physics needs one.
+    problem = assert_problem(client.post("/v1/surrogates", json={**request, "model": "physics"}), 422)
+    assert problem["errors"][0]["pointer"] == "/space"

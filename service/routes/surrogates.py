@@ -68,7 +68,7 @@ def _space_problem(exc: ValueError) -> ProblemError:
     return validation_problem([{"pointer": pointer, "detail": text}])
 
 
-def resolve_model(store: Store, body: SurrogateRequest) -> tuple[MuModel | None, str]:
+def resolve_model(store: Store, body: SurrogateRequest) -> tuple[MuModel | None, str, dict[str, Any]]:
     """The model a request learns and its convention, or a 404 / 422 problem.
 
     Parameters
@@ -85,23 +85,33 @@ def resolve_model(store: Store, body: SurrogateRequest) -> tuple[MuModel | None,
         (:func:`service.calibrations.with_conditions`); None for the physics.
     convention : str
         The request's convention for the physics, else the calibrated model's.
+    fixed : dict
+        Physics values the calibration fixed (e.g. ``balls`` for data of one bearing), in their
+        units; empty for the physics.
     """
     if body.model == "physics":
         if body.conditions:
             raise validation_problem([{"pointer": "/conditions", "detail": "condition columns are read by "
                                        "calibrated models only"}])
-        return None, str(body.convention)
+        return None, str(body.convention), {}
     calibrated = load_calibrated_model(store, body.model)
     if "convention" in body.model_fields_set and str(body.convention) != calibrated.convention:
         raise validation_problem([{"pointer": "/convention", "detail": f"the model {body.model} was "
                                    f"calibrated with convention {calibrated.convention!r}; omit convention"}])
-    return with_conditions(calibrated, body.model, body.conditions), calibrated.convention
+    mu_model = with_conditions(calibrated, body.model, body.conditions)
+    return mu_model, calibrated.convention, dict(calibrated.fixed)
 
 
-def build_space(body: SurrogateRequest, convention: str | None = None) -> Space:
-    """The :class:`surrogate.Space` of a request, or a 422 problem naming the field."""
+def build_space(body: SurrogateRequest, convention: str | None = None,
+                defaults: Mapping[str, Any] | None = None) -> Space:
+    """The :class:`surrogate.Space` of a request, or a 422 problem naming the field.
+
+    ``defaults`` (a calibrated model's fixed values) hold the inputs that are neither a
+    dimension nor in the request's ``fixed``.
+    """
     bounds = {name: tuple(pair) for name, pair in body.space.model_dump(exclude_none=True).items()}
-    fixed = body.fixed.model_dump(exclude_none=True)
+    fixed = {**{k: v for k, v in (defaults or {}).items() if k not in bounds},
+             **body.fixed.model_dump(exclude_none=True)}
     try:
         return Space(bounds, fixed, convention=str(body.convention) if convention is None else convention)
     except ValueError as exc:
@@ -239,8 +249,8 @@ def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> 
     ``budget`` is reached; no point is evaluated twice. The job's result is the surrogate (see
     ``GET /v1/surrogates/{id}``).
     """
-    mu_model, convention = resolve_model(store, body)
-    space = build_space(body, convention)
+    mu_model, convention, defaults = resolve_model(store, body)
+    space = build_space(body, convention, defaults)
     if mu_model is not None:
         _probe(space, mu_model)
 

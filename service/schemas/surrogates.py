@@ -60,7 +60,8 @@ class SurrogateRequest(StrictModel):
         description="Dimensions and their ranges, e.g. {\"balls\": [3, 40], \"load_N\": [0.001, 0.05]}.")
     fixed: SurrogateFixed = Field(  # type: ignore[valid-type]
         default_factory=SurrogateFixed,
-        description="Inputs held fixed; balls, load_N and speed_m_s must be a dimension or fixed.")
+        description="Inputs held fixed; balls, load_N and speed_m_s must be a dimension or fixed (for a "
+                    "calibrated model, the values its calibration fixed count as fixed unless given here).")
     budget: int = Field(default=100, ge=2, le=MAX_BUDGET,
                         description="Most physics evaluations for training [1].")
     target_relative_error: float = Field(
