@@ -368,7 +368,9 @@ class BallCountResolver:
         data = {**self.data, "b": self.data["b"] + log_z * self.b_slope}
         self.inverse[-1].inverse_data[cp.settings.OFFSET] = self.offset + log_z * self.offset_slope
         raw = self.chain.solver.solve_via_data(data, False, False, {})
-        solution = self.chain.invert(raw, self.inverse)
+        # a phase-I program far from feasible has a log-objective above 709: its slack is inf, i.e. infeasible
+        with np.errstate(over="ignore"):
+            solution = self.chain.invert(raw, self.inverse)
         primal = solution.primal_vars or {}
         t, g = primal.get(self.gp.tan_theta.id), primal.get(self.gp.load_N.id)
         return (solution.status, None if solution.opt_val is None else float(solution.opt_val),

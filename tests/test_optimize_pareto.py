@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import warnings
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -61,3 +64,26 @@ def test_wide_pressure_front_is_non_dominated():
     assert len(front.points) >= 3
     assert np.all(np.diff(values) > 0) and np.all(np.diff(mus) < 0)
     assert mus.min() == pytest.approx(optimize_design(wide).mu, rel=1e-6)
+
+
+
+
+def test_counts_far_from_feasible_are_infeasible_without_warnings():
+    # At the front's tightest pressure levels the smallest counts are infeasible, their phase-I slack
+    # so large that its exponential overflows: that is inf (infeasible), not a warning on every request.
+    wide = DesignProblem(DesignBounds((3, 40), (35, 70), (0.001, 0.05)), speed_m_s=(0.0, 0.05),
+                         fixed={"mu_pivot": 1.0}, constraints=Constraints(max_contact_pressure_Pa=6e8))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        front = pareto_front(wide, "max_contact_pressure_Pa", points=8)
+    assert [str(w.message) for w in caught] == []
+    tightest = front.points[0]
+    tight = Constraints(max_contact_pressure_Pa=tightest["level"])
+    result = optimize_design(replace(wide, constraints=tight))
+    infeasible = [row.balls for row in result.per_ball_count if row.status == "infeasible"]
+    assert infeasible and max(infeasible) < result.design["balls"]
+    # brute force: no design with those counts meets the level
+    z, th, g = np.array(infeasible)[:, None, None], np.linspace(35, 70, 50)[None, :, None], \
+        np.geomspace(0.001, 0.05, 100)[None, None, :]
+    scan = physics.evaluate(**wide.physics_inputs(z, th, g))
+    assert scan.max_contact_pressure_Pa.min() > tightest["level"]
