@@ -23,7 +23,13 @@ __all__ = [
     "rolling_force",
     "pressure_force",
     "entrainment_speed",
+    "SPEED_EXPONENT",
+    "LOAD_EXPONENT",
 ]
+
+#: Exponents of the speed parameter U and the load parameter W in Houpert's rolling force (eq 9). [1]
+SPEED_EXPONENT = 0.66
+LOAD_EXPONENT = 0.47
 
 
 def materials_parameter(pressure_viscosity_1_Pa, reduced_modulus_Pa):
@@ -203,8 +209,8 @@ def rolling_force(reduced_modulus_Pa, radius_x_m, radius_ratio, materials_parame
         * np.square(radius_x_m)
         * np.power(radius_ratio, 0.348)
         * np.power(materials_parameter, 0.022)
-        * np.power(speed_parameter, 0.66)
-        * np.power(load_parameter, 0.47)
+        * np.power(speed_parameter, SPEED_EXPONENT)
+        * np.power(load_parameter, LOAD_EXPONENT)
     )
 
 

@@ -12,7 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["hysteresis_moment", "pivoting_moment", "ball_ball_moment"]
+__all__ = ["hysteresis_moment", "pivoting_moment", "ball_ball_moment", "HYSTERESIS_LOAD_EXPONENT"]
+
+#: Exponent of the contact load Q in the elastic-hysteresis moment (eq 15). [1]
+HYSTERESIS_LOAD_EXPONENT = 1.33
 
 
 def hysteresis_moment(ball_diameter_m, contact_load_N, radius_ratio=1.0):
@@ -59,7 +62,8 @@ def hysteresis_moment(ball_diameter_m, contact_load_N, radius_ratio=1.0):
     if not np.all(k >= 1.0):
         raise ValueError(f"radius_ratio (k = Ry / Rx) must be in [1, inf) [1]; got {radius_ratio!r}")
     shape = 1.0 - 3.519e-3 * np.power(k - 1.0, 0.806)
-    return 7.48e-7 * np.power(0.5 * ball_diameter_m, 0.33) * np.power(contact_load_N, 1.33) * shape
+    load_term = np.power(contact_load_N, HYSTERESIS_LOAD_EXPONENT)
+    return 7.48e-7 * np.power(0.5 * ball_diameter_m, 0.33) * load_term * shape
 
 
 def pivoting_moment(mu_pivot, contact_load_N, contact_radius_m):

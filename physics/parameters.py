@@ -230,6 +230,18 @@ def _array_text(values: np.ndarray, mask: np.ndarray) -> str:
     return f"got {shown!r} at index {index}"
 
 
+def _all_whole(values: np.ndarray, chunk: int = 65536) -> bool:
+    """Whether every value is a whole number, chunk by chunk (no array-sized temporaries)."""
+    flat = values.reshape(-1)
+    buffer = np.empty(min(chunk, flat.size))
+    for start in range(0, flat.size, chunk):
+        part = flat[start:start + chunk]
+        rounded = np.rint(part, out=buffer[:part.size])
+        if not np.array_equal(rounded, part):
+            return False
+    return True
+
+
 def validate(name: str, value: Any) -> np.ndarray:
     """Check one input against its :class:`Parameter` and return it as an array.
 
@@ -275,6 +287,10 @@ def validate(name: str, value: Any) -> np.ndarray:
         raise ValueError(f"{allowed}; got {value!r}") from None
     if np.asarray(value).dtype == np.bool_:
         raise ValueError(f"{allowed}; got a boolean {value!r}")
+    if arr.size and spec.accepts(float(arr.min())) and spec.accepts(float(arr.max())) and (
+            spec.kind != "int" or _all_whole(arr)):
+        # Fast path for large arrays: two reductions, no temporaries (min and max are NaN if any is).
+        return arr
     bad = ~np.isfinite(arr)
     if bad.any():
         raise ValueError(f"{allowed} and finite; {_array_text(arr, bad)}")

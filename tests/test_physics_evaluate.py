@@ -180,3 +180,117 @@ def test_no_nan_anywhere_on_a_wide_random_domain():
     r = evaluate(**params)
     for name in OUTPUTS:
         assert np.all(np.isfinite(getattr(r, name))), name
+
+
+def _random_inputs(n, seed):
+    """Every input varied over (most of) its allowed range."""
+    rng = np.random.default_rng(seed)
+    return {
+        "balls": rng.integers(1, 60, n), "groove_angle_deg": rng.uniform(0.01, 89.99, n),
+        "load_N": 10 ** rng.uniform(-9, 6, n), "speed_m_s": np.where(rng.random(n) < 0.1, 0.0,
+                                                                     rng.uniform(0, 1e3, n)),
+        "balls_touching": rng.random(n) < 0.5, "mu_pivot": rng.uniform(0, 10, n),
+        "mu_ball": rng.uniform(0, 10, n),
+        "adhesion_energy_J_m2": np.where(rng.random(n) < 0.1, 0.0, rng.uniform(0, 10, n)),
+        "ball_diameter_m": 10 ** rng.uniform(-7, -1, n), "water_surface_tension_N_m": rng.uniform(0, 1, n),
+        "viscosity_Pa_s": np.where(rng.random(n) < 0.1, 0.0, 10 ** rng.uniform(-5, 3, n)),
+        "pressure_viscosity_1_Pa": 10 ** rng.uniform(-12, -6, n),
+        "ball_youngs_modulus_Pa": 10 ** rng.uniform(6, 13, n), "ball_poisson_ratio": rng.uniform(0, 0.499, n),
+        "race_youngs_modulus_Pa": 10 ** rng.uniform(6, 13, n), "race_poisson_ratio": rng.uniform(0, 0.499, n),
+    }
+
+
+@pytest.mark.parametrize("convention", list(physics.CONVENTIONS))
+def test_large_inputs_agree_with_the_composition_of_the_equations(convention):
+    # Large inputs run the blocked in-place kernel; inputs of up to _SMALL_POINTS points the plain
+    # composition of the equations' functions. Several blocks and a short last one, every input varied.
+    from physics import bearing
+
+    n = 2 * bearing._BLOCK_POINTS + 1234
+    chunk = bearing._SMALL_POINTS
+    params = _random_inputs(n, seed=7)
+    whole = evaluate(convention=convention, **params)
+    for start in range(0, n, chunk):
+        part = evaluate(convention=convention, **{k: v[start:start + chunk] for k, v in params.items()})
+        for name in OUTPUTS:
+            np.testing.assert_allclose(getattr(whole, name)[start:start + chunk], getattr(part, name),
+                                       rtol=1e-12, atol=0, err_msg=name)
+
+
+def test_large_inputs_match_a_hand_composition_of_the_equation_functions():
+    from physics import contact, lubrication, moments, surface
+
+    n = 40_000
+    rng = np.random.default_rng(3)
+    z, theta = rng.integers(3, 41, n), rng.uniform(30, 75, n)
+    load, speed = 10 ** rng.uniform(-3, -1.3, n), rng.uniform(0, 0.2, n)
+    gamma, mu_s = rng.uniform(0, 0.3, n), rng.uniform(0.1, 1, n)
+    r = evaluate(balls=z, groove_angle_deg=theta, load_N=load, speed_m_s=speed, adhesion_energy_J_m2=gamma,
+                 mu_pivot=mu_s, balls_touching=True)
+    d, e1, e2, nu = 285e-6, 2.1e11, 1.5e11, 0.3
+    cos, tan = np.cos(np.radians(theta)), np.tan(np.radians(theta))
+    q0 = load / (2 * z * cos)
+    q = contact.jkr_contact_load(q0, d / 2, gamma)
+    a = contact.jkr_contact_radius(q, d / 2, contact.jkr_effective_modulus(e1, nu, e2, nu))
+    e_prime = contact.reduced_modulus(e1, nu, e2, nu)
+    f_r = lubrication.rolling_force(e_prime, d / 2, 1.0, lubrication.materials_parameter(1e-8, e_prime),
+                                    lubrication.speed_parameter(1e-3, speed / 2, e_prime, d / 2),
+                                    lubrication.load_parameter(q, e_prime, d / 2))
+    m_b = moments.ball_ball_moment(0.5, surface.capillary_force(d / 8, 0.0717), d)
+    f_s = (m_b / cos + 2 * moments.pivoting_moment(mu_s, q, a) * tan
+           + 2 * moments.hysteresis_moment(d, q)) / d + f_r
+    np.testing.assert_allclose(r.contact_load_adhesive_N, q, rtol=1e-13)
+    np.testing.assert_allclose(r.rolling_force_N, f_r, rtol=1e-13)
+    np.testing.assert_allclose(r.mu, z * 2 * (f_s + f_r) / load, rtol=1e-12)
+
+
+@pytest.mark.parametrize("n", [1, 50_000])
+def test_tan_of_small_groove_angles_is_accurate(n):
+    # tan θ = sqrt(1 - cos²) / cos loses ~1e-8 to cancellation at θ = 0.01 deg; the pivoting term
+    # carries tan θ: mu_pivoting = (2 z / G) (2 / d) M_P tan θ.
+    theta = 0.01
+    r = evaluate(balls=4, load_N=np.full(n, 8.8e-3), speed_m_s=0.05, groove_angle_deg=theta)
+    expected_tan = (r.mu_pivoting / (2 * 4 / 8.8e-3) / (2 / 285e-6) / r.pivoting_moment_Nm)
+    np.testing.assert_allclose(expected_tan, math.tan(math.radians(theta)), rtol=1e-13)
+
+
+@pytest.mark.parametrize("n", [3, 30_000])
+def test_outputs_selects_what_is_stored(n):
+    params = {**BASE, "load_N": np.linspace(1e-3, 5e-2, n)}
+    full = evaluate(**params)
+    some = evaluate(outputs=["mu", "contact_radius_m"], **params)
+    np.testing.assert_array_equal(some.mu, full.mu)
+    np.testing.assert_array_equal(some.contact_radius_m, full.contact_radius_m)
+    assert some.friction_force_N is None and some.mu_pivoting is None
+    assert list(some.to_dict()) == ["mu", "contact_radius_m"]
+    with pytest.raises(ValueError, match="friction_force_N were not computed"):
+        some.to_dict(["friction_force_N"])
+    np.testing.assert_array_equal(evaluate(outputs="mu", **params).mu, full.mu)
+    with pytest.raises(ValueError, match="outputs must be names from mu, "):
+        evaluate(outputs=["mu", "torque"], **params)
+
+
+def test_large_inputs_of_any_layout_keep_their_shapes():
+    rng = np.random.default_rng(4)
+    fortran = np.asfortranarray(rng.uniform(1e-3, 5e-2, (300, 40)))
+    reversed_speed = rng.uniform(0, 0.2, (300, 40))[:, ::-1]
+    r = evaluate(balls=np.arange(3, 43)[None, :], load_N=fortran, speed_m_s=reversed_speed)
+    assert r.mu.shape == (300, 40)
+    point = evaluate(balls=10, load_N=float(fortran[123, 7]), speed_m_s=float(reversed_speed[123, 7]))
+    assert r.mu[123, 7] == pytest.approx(float(point.mu), rel=1e-12)
+    assert r.friction_force_N[123, 7] == pytest.approx(float(point.friction_force_N), rel=1e-12)
+    assert evaluate(balls=4, load_N=np.ones((0, 3000)), speed_m_s=0.1).mu.shape == (0, 3000)
+
+
+@pytest.mark.parametrize(("name", "bad", "match"), [
+    ("load_N", np.nan, "load_N must be .* and finite; got nan at index 5000"),
+    ("load_N", -1e-3, r"load_N must be in \[1e-09, 1e\+06\] \[N\]; got -0.001 at index 5000"),
+    ("speed_m_s", np.inf, "speed_m_s .* got inf at index 5000"),
+    ("balls", 2.5, "balls must be a whole number .* got 2.5 at index 5000"),
+])
+def test_large_arrays_report_the_first_bad_value(name, bad, match):
+    values = np.full(10_000, 3.0 if name == "balls" else 1e-3)
+    values[5000] = bad
+    values[7000] = bad
+    with pytest.raises(ValueError, match=match):
+        evaluate(**{**BASE, name: values})
