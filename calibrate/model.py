@@ -76,7 +76,7 @@ class CalibratedModel:
                              f"(drivers of its effect {self.effect['name']})")
         inputs = {**self.fixed, **self.fitted,
                   **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
-        mu = physics.evaluate(convention=self.convention, **inputs).mu
+        mu = physics.evaluate(convention=self.convention, outputs=["mu"], **inputs).mu
         if self.effect is None:
             return mu
         extra = {k: np.asarray(v, dtype=float) for k, v in points.items() if k not in physics.PARAMETERS}

@@ -100,7 +100,7 @@ def physics_model(convention: str = physics.DEFAULT_CONVENTION) -> MuModel:
         speed, so a speed range is evaluated at its upper end only).
     """
     def model(points):
-        return physics.evaluate(convention=convention, **points).mu
+        return physics.evaluate(convention=convention, outputs=["mu"], **points).mu
 
     model.mu_grows_with_speed = True
     return model

@@ -248,7 +248,7 @@ def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable
         422 for a malformed reference, 404 for an unknown calibration.
     """
     if model == "physics":
-        return lambda points: physics.evaluate(**points).mu
+        return lambda points: physics.evaluate(outputs=["mu"], **points).mu
     match = _MODEL_REF.match(str(model))
     if match is None:
         raise validation_problem([{"pointer": pointer,

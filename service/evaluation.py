@@ -22,7 +22,7 @@ def _evaluate(inputs: dict[str, Any], outputs: list[str] | None, convention: str
         # Extreme but allowed inputs (a groove angle next to 90 deg) overflow; the callers
         # turn non-finite outputs into 422 problems.
         with np.errstate(all="ignore"):
-            return physics.evaluate(convention=str(convention), **inputs).to_dict(outputs)
+            return physics.evaluate(convention=str(convention), outputs=outputs, **inputs).to_dict(outputs)
     except ValueError as exc:
         name = str(exc).split(" ", 1)[0]
         where = f"{pointer}/{name}" if name in physics.PARAMETERS else pointer
