@@ -654,15 +654,16 @@ def _block(b: dict[str, Any], o: dict[str, np.ndarray], tan: np.ndarray, sec: np
     np.multiply(b["load_N"], sec, out=q0)
     np.divide(q0, b["balls"], out=q0)
     q0 *= 0.5
-    # Eq 1: pull-off force F = 3 π γ R. Eq 8: Q = Q0 + 2F + sqrt(4F Q0 + 4F²) = (sqrt(Q0 + F) + sqrt(F))².
+    # Eq 1: pull-off force F = 3 π γ R. Eq 8: Q = Q0 + 2F + sqrt(4F Q0 + 4F²) = Q0 + 2 (F + sqrt(F (Q0 + F))).
     adhesion = o["adhesion_force_N"]
     np.multiply(b["adhesion_energy_J_m2"], b["adhesion_per_gamma"], out=adhesion)
     q = o["contact_load_adhesive_N"]
-    np.add(q0, adhesion, out=q)
-    np.sqrt(q, out=q)
-    np.sqrt(adhesion, out=w1)
-    q += w1
-    np.square(q, out=q)
+    np.add(q0, adhesion, out=w1)
+    w1 *= adhesion
+    np.sqrt(w1, out=w1)
+    np.add(w1, adhesion, out=q)
+    q *= 2.0
+    q += q0
     # Eq 3: a = (R Q / E*)^(1/3); contact area π a²; peak pressure 3 Q / (2 π a²).
     a = o["contact_radius_m"]
     np.multiply(q, b["radius_over_e_star"], out=a)
