@@ -53,7 +53,6 @@ import threading
 import time
 import warnings
 from collections.abc import Callable
-from concurrent.futures import Executor
 from typing import Any
 
 import cvxpy as cp
@@ -78,6 +77,9 @@ _MAX_RADIUS = 1.0
 LOCAL_OPTIMUM = "local optimum"
 #: Status of a ball count whose best run stopped at ``max_iterations`` before converging.
 ITERATION_CAP = "iteration cap reached"
+#: ``map_calls(fn, arguments, progress) -> list``: runs ``fn(*args)`` for each of ``arguments``. [-]
+MapCalls = Callable[[Callable[..., Any], list[tuple], Callable[[float], None] | None], list]
+
 #: Ball counts per group of runs: the groups are solved independently (in turn, or on an executor). [1]
 GROUP_COUNTS = 16
 
@@ -201,7 +203,7 @@ def _contact_load_cap_N(problem: DesignProblem) -> float:
 
 def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, max_iterations: int = 100,
                    progress: Callable[[float], None] | None = None,
-                   model_name: str = "model", executor: Executor | None = None) -> OptimizationResult:
+                   model_name: str = "model", map_calls: MapCalls | None = None) -> OptimizationResult:
     """Minimize any μ model over the design box by sequential convex approximation (a local method).
 
     Parameters
@@ -220,11 +222,14 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
         Called with the fraction of iterations done, 0..1. [1]
     model_name : str, default "model"
         Name of the model in the certificate. [-]
-    executor : concurrent.futures.Executor, optional
-        Where the groups of :data:`GROUP_COUNTS` ball counts (each with its starts) run: a local
-        pool, a dask.distributed executor (then ``mu_model`` must be serializable and
-        ``progress`` is reported per finished group). None runs them in turn in this thread.
-        The groups are the same either way, so the result does not depend on the executor.
+    map_calls : callable, optional
+        ``map_calls(fn, arguments, progress) -> [fn(*args) for args in arguments]``, results in
+        order, ``progress`` called with the share of calls done: how the groups of
+        :data:`GROUP_COUNTS` ball counts (each with its starts) run, e.g. the service's
+        ``functools.partial(service.executor.map_chunks, executor)`` on a thread pool or a dask
+        cluster (then ``mu_model`` must be serializable). None runs them in turn in this thread,
+        with progress within each group. The groups are the same either way, so the result
+        does not depend on where they run.
 
     Returns
     -------
@@ -265,29 +270,15 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
                  (0.25, 0.75), (0.75, 0.25)][:starts]
     groups = [(problem, mu_model, model_name, counts[i:i + GROUP_COUNTS], fractions, q0_cap, g_floor,
                max_iterations) for i in range(0, len(counts), GROUP_COUNTS)]
-    runs = _map_groups(executor, groups, progress)
+    if map_calls is None:
+        runs = [_solve_group(*group, progress=None if progress is None else (
+                    lambda f, k=k: progress((k + f) / len(groups))))
+                for k, group in enumerate(groups)]
+    else:
+        runs = map_calls(_solve_group, groups, progress)
     z, x, y, done = (np.concatenate([run[k] for run in runs]) for k in range(4))
     return _result(problem, mu_model, model_name, z, counts, fractions, x, y, done,
                    max(run[4] for run in runs), g_floor, start_time)
-
-
-def _map_groups(executor, groups, progress):
-    """``[_solve_group(*g) for g in groups]`` in order: in turn (progress within each), or on ``executor``."""
-    if executor is None:
-        return [_solve_group(*group, progress=None if progress is None else (
-                    lambda f, k=k: progress((k + f) / len(groups))))
-                for k, group in enumerate(groups)]
-    futures = [executor.submit(_solve_group, *group) for group in groups]
-    try:
-        runs = []
-        for k, future in enumerate(futures, start=1):
-            runs.append(future.result())
-            if progress is not None:
-                progress(k / len(futures))  # may raise (a cancelled job): the groups not started are dropped
-        return runs
-    finally:
-        for future in futures:
-            future.cancel()
 
 
 def _solve_group(problem, mu_model, model_name, counts, fractions, q0_cap, g_floor, max_iterations,

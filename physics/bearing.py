@@ -17,6 +17,7 @@ References
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, fields
@@ -25,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from . import contact, lubrication, moments, surface
-from .parameters import CONVENTIONS, DEFAULT_CONVENTION, validate_all
+from .parameters import CONVENTIONS, DEFAULT_CONVENTION, checked_inputs
 
 __all__ = [
     "FrictionResult",
@@ -473,17 +474,13 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     """
     if convention not in CONVENTIONS:
         raise ValueError(f"convention must be one of {', '.join(CONVENTIONS)}; got {convention!r}")
-    p = validate_all(params)
-    shape = np.broadcast_shapes(*(a.shape for a in p.values()))
+    p = checked_inputs(params)  # scalars as Python numbers: their products fold before they meet an array
+    shapes = {v.shape for v in p.values() if isinstance(v, np.ndarray)}
+    shape = (shapes.pop() if len(shapes) == 1 else np.broadcast_shapes(*shapes)) if shapes else ()
     size = math.prod(shape)
     wanted = list(OUTPUTS) if outputs is None else _output_names(outputs)
-    # Scalar inputs as Python numbers: their products fold before they meet an array.
-    if size <= _SMALL_POINTS:
-        flat = {k: a.item() if a.ndim == 0 else a for k, a in p.items()}
-        values = _friction_terms(flat, convention)
-        return FrictionResult(**{k: _with_shape(values[k], shape) if k in wanted else None for k in OUTPUTS},
-                              convention=convention)
-    flat = {k: a.item() if a.ndim == 0 else np.broadcast_to(a, shape).reshape(-1) for k, a in p.items()}
+    flat = {k: np.broadcast_to(v, shape).reshape(-1) if isinstance(v, np.ndarray) else v
+            for k, v in p.items()}
     block_size = max(1, min(size, _BLOCK_POINTS))
     kept = np.empty((len(wanted), size))
     others = [k for k in OUTPUTS if k not in wanted]
@@ -503,13 +500,8 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
             b.update((k, v[start:stop]) for k, v in arrays.items())
             o.update((k, row[start:stop]) for k, row in zip(wanted, kept, strict=True))
             _block(b, o, *work)
-    values = dict(zip(wanted, kept.reshape(-1, *shape), strict=True))
+    values = dict(zip(wanted, kept.reshape(len(wanted), *shape), strict=True))
     return FrictionResult(**{k: values.get(k) for k in OUTPUTS}, convention=convention)
-
-
-def _with_shape(value: Any, shape: tuple[int, ...]) -> np.ndarray:
-    value = np.asarray(value, dtype=float)
-    return value if value.shape == shape else np.broadcast_to(value, shape)
 
 
 def _output_names(outputs: Iterable[str]) -> list[str]:
@@ -520,83 +512,14 @@ def _output_names(outputs: Iterable[str]) -> list[str]:
     return list(dict.fromkeys(names))
 
 
-#: Inputs of up to this many points take :func:`_friction_terms`, the plain composition of
-#: the equations' functions (fastest where numpy's per-call overhead dominates); larger ones
-#: the in-place kernel :func:`_block`, block by block.
-_SMALL_POINTS = 2048
 #: Points per block of :func:`_block`: the block's work arrays stay in the CPU's cache.
 _BLOCK_POINTS = 16384
 
 
-def _friction_terms(p: dict[str, Any], convention: str) -> dict[str, Any]:
-    """Every output of :func:`evaluate` from validated inputs of one shape (or scalars).
-
-    The equations' functions in the order of the paper; scalar factors are
-    grouped so that they are multiplied together before they meet an array.
-    """
-    # tan in one vectorized pass, cos from it (numpy's float64 cos is ~9x slower than tan).
-    tan_theta = np.tan(p["groove_angle_deg"] * (math.pi / 180.0))
-    cos_theta = 1.0 / np.sqrt(1.0 + np.square(tan_theta))
-    d = p["ball_diameter_m"]
-    radius = 0.5 * d
-    e_star = contact.jkr_effective_modulus(p["ball_youngs_modulus_Pa"], p["ball_poisson_ratio"],
-                                           p["race_youngs_modulus_Pa"], p["race_poisson_ratio"])
-    e_prime = contact.reduced_modulus(p["ball_youngs_modulus_Pa"], p["ball_poisson_ratio"],
-                                      p["race_youngs_modulus_Pa"], p["race_poisson_ratio"])
-
-    q0 = contact.ball_race_load(p["load_N"], p["balls"], cos_theta)
-    q = contact.jkr_contact_load(q0, radius, p["adhesion_energy_J_m2"])
-    a = contact.jkr_contact_radius(q, radius, e_star)
-
-    g_bar = lubrication.materials_parameter(p["pressure_viscosity_1_Pa"], e_prime)
-    u = lubrication.speed_parameter(p["viscosity_Pa_s"], lubrication.entrainment_speed(p["speed_m_s"]),
-                                    e_prime, radius)
-    w = lubrication.load_parameter(q, e_prime, radius)
-    f_r = lubrication.rolling_force(e_prime, radius, 1.0, materials_parameter=g_bar, speed_parameter=u,
-                                    load_parameter=w)
-
-    m_er = moments.hysteresis_moment(d, q)
-    m_p = moments.pivoting_moment(p["mu_pivot"], q, a)
-    r_star = surface.ball_ball_radius(radius, radius, convention)
-    f_cb_touching = surface.capillary_force(r_star, p["water_surface_tension_N_m"])
-    touching = p["balls_touching"]
-    f_cb = (f_cb_touching if touching else 0.0) if isinstance(touching, bool) else np.where(
-        touching, f_cb_touching, 0.0)
-    m_b = moments.ball_ball_moment(p["mu_ball"], f_cb, d)
-    # "olaru2005" counts M_b in both contact pairs of the ball (eq 21 as printed),
-    # "derjaguin" once per ball; with R* twice as large the two agree for equal balls.
-    m_b_per_pair = m_b if convention == "olaru2005" else 0.5 * m_b
-
-    f_s = sliding_force(m_b_per_pair, m_p, m_er, f_r, d, cos_theta, tan_theta)
-    f_ball = ball_race_force(f_s, f_r)
-    f_total = total_friction_force(f_ball, p["balls"])
-    mu = friction_coefficient(f_total, p["load_N"])
-
-    per_newton = 2.0 * p["balls"] / p["load_N"]  # z * 2(...) / G
-    per_newton_d = per_newton * (2.0 / d)
-    return {
-        "mu": mu,
-        "mu_contact": f_ball / (2.0 * q0),
-        "friction_force_N": f_total,
-        "mu_pivoting": per_newton_d * m_p * tan_theta,
-        "mu_hysteresis": per_newton_d * m_er,
-        "mu_rolling": 2.0 * per_newton * f_r,
-        "mu_ball_ball": 0.5 * per_newton_d * m_b_per_pair / cos_theta,
-        "contact_load_N": q0,
-        "contact_load_adhesive_N": q,
-        "contact_radius_m": a,
-        "contact_area_m2": contact.contact_area(a),
-        "max_contact_pressure_Pa": contact.max_contact_pressure(q, a),
-        "adhesion_force_N": surface.adhesion_force_ball_flat(radius, p["adhesion_energy_J_m2"]),
-        "capillary_force_ball_ball_N": f_cb,
-        "rolling_force_N": f_r,
-        "pressure_force_N": lubrication.pressure_force(f_r, ball_radius_m=radius),
-        "sliding_force_N": f_s,
-        "hysteresis_moment_Nm": m_er,
-        "pivoting_moment_Nm": m_p,
-        "ball_ball_moment_Nm": m_b,
-        "ball_race_force_N": f_ball,
-    }
+#: The inputs of :func:`_coefficients`: the ball, the materials and the film.
+_COEFFICIENT_INPUTS = ("ball_diameter_m", "ball_youngs_modulus_Pa", "ball_poisson_ratio",
+                       "race_youngs_modulus_Pa", "race_poisson_ratio", "viscosity_Pa_s",
+                       "pressure_viscosity_1_Pa", "water_surface_tension_N_m")
 
 
 def _coefficients(p: dict[str, Any], convention: str) -> dict[str, Any]:
@@ -606,6 +529,19 @@ def _coefficients(p: dict[str, Any], convention: str) -> dict[str, Any]:
     Power laws are split into a coefficient, taken from the equation's own
     function at unit argument, and the power of the varying quantity.
     """
+    values = tuple(p[name] for name in _COEFFICIENT_INPUTS)
+    if all(isinstance(v, float) for v in values):
+        return _scalar_coefficients(values, convention)
+    return _coefficients_of(dict(zip(_COEFFICIENT_INPUTS, values, strict=True)), convention)
+
+
+@functools.lru_cache(maxsize=64)
+def _scalar_coefficients(values: tuple[float, ...], convention: str) -> dict[str, Any]:
+    # Repeated single-point calls (the REST API's) mostly share their materials.
+    return _coefficients_of(dict(zip(_COEFFICIENT_INPUTS, values, strict=True)), convention)
+
+
+def _coefficients_of(p: dict[str, Any], convention: str) -> dict[str, Any]:
     d = p["ball_diameter_m"]
     radius = 0.5 * d
     moduli = (p["ball_youngs_modulus_Pa"], p["ball_poisson_ratio"], p["race_youngs_modulus_Pa"],

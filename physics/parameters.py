@@ -311,7 +311,11 @@ def validate(name: str, value: Any) -> np.ndarray:
 
 def defaults() -> dict[str, float | bool]:
     """The default of every optional parameter, keyed by name."""
-    return {n: p.default for n, p in PARAMETERS.items() if p.default is not None}
+    return dict(_DEFAULTS)
+
+
+_DEFAULTS = {n: p.default for n, p in PARAMETERS.items() if p.default is not None}
+_REQUIRED = frozenset(n for n, p in PARAMETERS.items() if p.default is None)
 
 
 def validate_all(params: dict[str, Any]) -> dict[str, np.ndarray]:
@@ -333,20 +337,42 @@ def validate_all(params: dict[str, Any]) -> dict[str, np.ndarray]:
         For an unknown name, a missing required one, an invalid value, or
         array inputs whose shapes do not broadcast together.
     """
-    unknown = sorted(set(params) - set(PARAMETERS))
-    if unknown:
+    return {name: np.asarray(value) for name, value in checked_inputs(params).items()}
+
+
+def checked_inputs(params: dict[str, Any]) -> dict[str, float | bool | np.ndarray]:
+    """:func:`validate_all` with scalars as Python ``float`` and ``bool`` (for speed).
+
+    The validation of :func:`physics.evaluate`: arrays come back as from
+    :func:`validate`, scalars as plain Python numbers, so that a single-point
+    evaluation stays in cheap scalar arithmetic.
+    """
+    if not params.keys() <= PARAMETERS.keys():
+        unknown = sorted(set(params) - set(PARAMETERS))
         raise ValueError(
             f"unknown parameter(s) {', '.join(unknown)}; "
             f"known: {', '.join(PARAMETERS)}"
         )
-    missing = [n for n, p in PARAMETERS.items() if p.required and n not in params]
-    if missing:
+    if not _REQUIRED <= params.keys():
+        missing = [n for n in PARAMETERS if n in _REQUIRED and n not in params]
         raise ValueError(f"missing required parameter(s): {', '.join(missing)}")
-    merged = {**defaults(), **params}
-    checked = {name: validate(name, merged[name]) for name in PARAMETERS}
-    try:
-        np.broadcast_shapes(*(a.shape for a in checked.values()))
-    except ValueError:
-        shapes = {n: a.shape for n, a in checked.items() if a.ndim}
-        raise ValueError(f"array parameters do not broadcast together: {shapes}") from None
+    merged = {**_DEFAULTS, **params}
+    checked: dict[str, float | bool | np.ndarray] = {}
+    for name, spec in PARAMETERS.items():
+        value = merged[name]
+        kind = type(value)
+        if kind is bool and spec.kind == "bool":
+            checked[name] = value
+        elif (kind is float or kind is int) and spec.kind != "bool" and spec.accepts(value):
+            checked[name] = float(value)
+        else:
+            array = validate(name, value)
+            checked[name] = array.item() if array.ndim == 0 else array
+    shapes = {a.shape for a in checked.values() if isinstance(a, np.ndarray)}
+    if len(shapes) > 1:
+        try:
+            np.broadcast_shapes(*shapes)
+        except ValueError:
+            named = {n: a.shape for n, a in checked.items() if isinstance(a, np.ndarray)}
+            raise ValueError(f"array parameters do not broadcast together: {named}") from None
     return checked

@@ -4,7 +4,8 @@ Sweeps and batch evaluations are cut into chunks of points and mapped over the e
 running app (:func:`evaluate_in_chunks`); the results do not depend on the executor, because
 every point is evaluated independently. Multi-start optimizations of calibrated and surrogate
 models map their groups of ball counts over the same executor
-(:func:`optimize.optimize_model` with ``executor=``); the groups do not depend on it either.
+(:func:`optimize.optimize_model` with ``map_calls=`` :func:`map_chunks` on the executor); the
+groups do not depend on it either.
 
 * Default: a :class:`~concurrent.futures.ThreadPoolExecutor` of ``MICROBEARING_EXECUTOR_WORKERS``
   threads (one per CPU when 0). NumPy releases the GIL inside the vectorized physics, so the

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import physics
@@ -27,6 +28,7 @@ from optimize import (
 from optimize.problem import DESIGN_VARIABLES
 
 from .calibrations import load_mu_model, with_conditions
+from .executor import map_chunks
 from .problems import ProblemError, validation_problem
 from .schemas.optimizations import OptimizationRequest
 from .store import Store
@@ -204,7 +206,8 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
             result = optimize_design(plan.problem, progress=stage(0.0, 0.2 if with_pareto else 1.0))
         else:
             result = optimize_model(plan.problem, plan.mu_model, starts=plan.starts, progress=stage(0.0, 1.0),
-                                    model_name=plan.model, executor=executor)
+                                    model_name=plan.model,
+                                    map_calls=None if executor is None else partial(map_chunks, executor))
         document = {**result.to_dict(), "model": plan.model}
         if with_pareto:
             front = pareto_front(plan.problem, plan.pareto["objective"], plan.pareto["points"],

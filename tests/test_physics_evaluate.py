@@ -200,21 +200,77 @@ def _random_inputs(n, seed):
     }
 
 
+def _composed(convention, **params):
+    """Every output by the plain composition of the equations' functions (the reference)."""
+    from physics import bearing, contact, lubrication, moments, surface
+
+    p = physics.validate_all(params)
+    theta = np.radians(p["groove_angle_deg"])
+    cos, tan = np.cos(theta), np.tan(theta)
+    d = p["ball_diameter_m"]
+    moduli = (p["ball_youngs_modulus_Pa"], p["ball_poisson_ratio"], p["race_youngs_modulus_Pa"],
+              p["race_poisson_ratio"])
+    e_prime = contact.reduced_modulus(*moduli)
+    q0 = contact.ball_race_load(p["load_N"], p["balls"], cos)
+    q = contact.jkr_contact_load(q0, d / 2, p["adhesion_energy_J_m2"])
+    a = contact.jkr_contact_radius(q, d / 2, contact.jkr_effective_modulus(*moduli))
+    f_r = lubrication.rolling_force(
+        e_prime, d / 2, 1.0, lubrication.materials_parameter(p["pressure_viscosity_1_Pa"], e_prime),
+        lubrication.speed_parameter(p["viscosity_Pa_s"], lubrication.entrainment_speed(p["speed_m_s"]),
+                                    e_prime, d / 2),
+        lubrication.load_parameter(q, e_prime, d / 2))
+    m_er, m_p = moments.hysteresis_moment(d, q), moments.pivoting_moment(p["mu_pivot"], q, a)
+    f_cb = np.where(p["balls_touching"], surface.capillary_force(
+        surface.ball_ball_radius(d / 2, d / 2, convention), p["water_surface_tension_N_m"]), 0.0)
+    m_b = moments.ball_ball_moment(p["mu_ball"], f_cb, d)
+    m_b_pair = m_b if convention == "olaru2005" else 0.5 * m_b
+    f_s = bearing.sliding_force(m_b_pair, m_p, m_er, f_r, d, cos, tan)
+    f_ball = bearing.ball_race_force(f_s, f_r)
+    f_total = bearing.total_friction_force(f_ball, p["balls"])
+    per_newton = 2 * p["balls"] / p["load_N"]
+    return {
+        "mu": bearing.friction_coefficient(f_total, p["load_N"]), "mu_contact": f_ball / (2 * q0),
+        "friction_force_N": f_total, "mu_pivoting": per_newton * 2 * m_p * tan / d,
+        "mu_hysteresis": per_newton * 2 * m_er / d, "mu_rolling": per_newton * 2 * f_r,
+        "mu_ball_ball": per_newton * m_b_pair / (cos * d), "contact_load_N": q0,
+        "contact_load_adhesive_N": q, "contact_radius_m": a, "contact_area_m2": contact.contact_area(a),
+        "max_contact_pressure_Pa": contact.max_contact_pressure(q, a),
+        "adhesion_force_N": surface.adhesion_force_ball_flat(d / 2, p["adhesion_energy_J_m2"]),
+        "capillary_force_ball_ball_N": f_cb, "rolling_force_N": f_r,
+        "pressure_force_N": lubrication.pressure_force(f_r, ball_radius_m=d / 2), "sliding_force_N": f_s,
+        "hysteresis_moment_Nm": m_er, "pivoting_moment_Nm": m_p, "ball_ball_moment_Nm": m_b,
+        "ball_race_force_N": f_ball,
+    }
+
+
 @pytest.mark.parametrize("convention", list(physics.CONVENTIONS))
-def test_large_inputs_agree_with_the_composition_of_the_equations(convention):
-    # Large inputs run the blocked in-place kernel; inputs of up to _SMALL_POINTS points the plain
-    # composition of the equations' functions. Several blocks and a short last one, every input varied.
+def test_every_output_agrees_with_the_composition_of_the_equations(convention):
+    # evaluate runs an in-place blocked kernel (power laws as exp of logs, tan instead of cos); the
+    # reference composes the equations' own functions. Several blocks and a short last one, every
+    # input varied over its whole range; angles kept >= 1 deg, where cos-based tan is still accurate.
     from physics import bearing
 
     n = 2 * bearing._BLOCK_POINTS + 1234
-    chunk = bearing._SMALL_POINTS
     params = _random_inputs(n, seed=7)
-    whole = evaluate(convention=convention, **params)
-    for start in range(0, n, chunk):
-        part = evaluate(convention=convention, **{k: v[start:start + chunk] for k, v in params.items()})
+    params["groove_angle_deg"] = np.random.default_rng(8).uniform(1, 89, n)
+    result = evaluate(convention=convention, **params)
+    with np.errstate(all="ignore"):  # 0 ** 0.66 and friends in the reference
+        reference = _composed(convention, **params)
+    for name in OUTPUTS:
+        np.testing.assert_allclose(getattr(result, name), reference[name], rtol=1e-12, atol=0, err_msg=name)
+
+
+def test_results_do_not_depend_on_how_the_points_are_batched():
+    # Every point runs the same operations whatever the size of the call: chunked or single-point
+    # calls reproduce a large call bit for bit (the service's executors rely on it).
+    params = _random_inputs(3 * 4096 + 17, seed=9)
+    whole = evaluate(**params).to_dict()
+    for start, stop in [(0, 1), (5, 6), (100, 2148), (12_000, 12_305)]:
+        part = evaluate(**{k: v[start:stop] for k, v in params.items()}).to_dict()
         for name in OUTPUTS:
-            np.testing.assert_allclose(getattr(whole, name)[start:start + chunk], getattr(part, name),
-                                       rtol=1e-12, atol=0, err_msg=name)
+            np.testing.assert_array_equal(whole[name][start:stop], part[name], err_msg=name)
+    single = evaluate(**{k: v[3].item() for k, v in params.items()})
+    assert float(single.mu) == whole["mu"][3]
 
 
 def test_large_inputs_match_a_hand_composition_of_the_equation_functions():

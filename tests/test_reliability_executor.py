@@ -7,6 +7,7 @@ import json
 import pickle
 import time
 from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -167,8 +168,8 @@ def test_a_multi_start_optimization_on_an_executor_equals_the_in_process_run(req
     reference = optimize_model(WIDE, physics_model(), starts=2, model_name="physics")
     with ThreadPoolExecutor(2) as pool:
         executor = pool if kind == "pool" else request.getfixturevalue("dask_local")
-        result = optimize_model(WIDE, physics_model(), starts=2, model_name="physics", executor=executor,
-                                progress=seen.append)
+        result = optimize_model(WIDE, physics_model(), starts=2, model_name="physics",
+                                map_calls=partial(map_chunks, executor), progress=seen.append)
     assert result.design == reference.design and result.mu == reference.mu
     assert result.per_ball_count == reference.per_ball_count
     assert result.certificate == reference.certificate
