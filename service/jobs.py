@@ -21,9 +21,10 @@ Jobs live in SQLite (:mod:`service.store`): status queued, running, succeeded, f
 cancelled; progress 0..1; the result as JSON; a failure as a problem object. Each job records
 the pid and instance of the server that owns it. On startup, queued or running jobs whose owner
 is gone are marked failed with :data:`INTERRUPTED_DETAIL`, so several uvicorn workers can share
-one data folder without failing each other's live jobs. (Liveness is checked by pid: should an
-unrelated process have taken a dead server's pid, its jobs stay "running" until a later startup
-finds that pid gone.) A function raising ``ValueError`` fails
+one data folder without failing each other's live jobs. Liveness is checked by pid and, where
+``/proc`` tells it (Linux), by the process's start time, which the instance id carries: a dead
+server's pid taken by an unrelated process does not keep its jobs "running" (elsewhere it does,
+until a later startup finds that pid gone). A function raising ``ValueError`` fails
 its job with a 422 problem, :class:`~service.problems.ProblemError` with its own problem, any
 other exception with a 500 problem.
 """
@@ -38,6 +39,7 @@ import time
 import uuid
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Any
 
 from .problems import INTERNAL_TYPE, VALIDATION_TYPE, ProblemError
@@ -75,10 +77,25 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+def _process_start(pid: int) -> str | None:
+    """Start time of process ``pid`` in clock ticks since boot (Linux), None where unknown."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    # Field 22 of proc(5); the command name (field 2) may hold spaces and parentheses.
+    fields = stat.rpartition(")")[2].split()
+    return fields[19] if len(fields) > 19 else None
+
+
 def _owner_alive(pid: int, instance: str) -> bool:
     if pid == os.getpid():
         return instance in _LIVE_INSTANCES
-    return _pid_alive(pid)
+    if not _pid_alive(pid):
+        return False
+    # Instances are "<uuid>.<start time of the owning process>": another start time is another process.
+    started = instance.partition(".")[2]
+    return not started or _process_start(pid) in (None, started)
 
 
 class JobContext:
@@ -142,7 +159,7 @@ class JobManager:
 
     def __init__(self, store: Store, workers: int):
         self.store = store
-        self.instance = uuid.uuid4().hex
+        self.instance = f"{uuid.uuid4().hex}.{_process_start(os.getpid()) or ''}"
         self._executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="microbearing-job")
         self._cancel_events: dict[str, threading.Event] = {}
         self._lock = threading.Lock()

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -169,6 +170,24 @@ def test_startup_fails_jobs_of_dead_processes_only(store):
             assert row["status"] == "failed", job_id
             assert json.loads(row["error_json"])["detail"] == INTERRUPTED_DETAIL
         assert store.get_job("live-process")["status"] == "running"
+    finally:
+        manager.shutdown()
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="process start times come from Linux /proc")
+def test_a_reused_pid_does_not_keep_a_dead_servers_jobs_running(store):
+    # The parent process is alive, but an instance id recording another start time belongs to a
+    # process that used to have its pid.
+    parent = os.getppid()
+    started = Path(f"/proc/{parent}/stat").read_text().rpartition(")")[2].split()[19]
+    _insert_active(store, "reused-pid", parent, f"{'0' * 32}.{int(started) + 1}")
+    _insert_active(store, "same-process", parent, f"{'1' * 32}.{started}")
+    manager = JobManager(store, workers=1)
+    try:
+        assert store.get_job("reused-pid")["status"] == "failed"
+        assert store.get_job("same-process")["status"] == "running"
+        own_start = Path("/proc/self/stat").read_text().rpartition(")")[2].split()[19]
+        assert manager.instance.endswith(f".{own_start}")
     finally:
         manager.shutdown()
 
