@@ -18,14 +18,50 @@ from fastapi.responses import Response
 
 from .store import json_bytes
 
-__all__ = ["CSV_MEDIA_TYPE", "csv_text", "json_bytes", "table_response", "wants_csv"]
+__all__ = ["CSV_MEDIA_TYPE", "csv_text", "json_bytes", "prefers_csv", "table_response", "wants_csv"]
 
 CSV_MEDIA_TYPE = "text/csv"
 
 
 def wants_csv(request: Request) -> bool:
-    """Whether the client asked for CSV (``Accept: text/csv``)."""
-    return CSV_MEDIA_TYPE in request.headers.get("accept", "")
+    """Whether the client asked for CSV: ``text/csv`` named in ``Accept`` with a quality above 0
+    and at least that of JSON (RFC 9110, 12.5.1); JSON otherwise, the default."""
+    return prefers_csv(request.headers.get("accept", ""))
+
+
+def prefers_csv(accept: str) -> bool:
+    """:func:`wants_csv` on the text of an ``Accept`` header.
+
+    >>> prefers_csv("text/csv"), prefers_csv("text/csv;q=0"), prefers_csv("*/*")
+    (True, False, False)
+    >>> prefers_csv("application/json;q=0.5, text/csv;q=0.8"), prefers_csv("text/*;q=0.9, application/json")
+    (True, False)
+    """
+    csv_q = json_q = None  # (specificity, quality) of the most specific range matching each
+    for item in accept.split(","):
+        media_range, *params = (part.strip() for part in item.split(";"))
+        quality = 1.0
+        for param in params:
+            key, _, value = param.partition("=")
+            if key.strip().lower() == "q":
+                try:
+                    quality = min(max(float(value), 0.0), 1.0)
+                except ValueError:
+                    quality = 0.0
+        kind, _, subtype = media_range.lower().partition("/")
+        for media_type, current in ((CSV_MEDIA_TYPE, csv_q), ("application/json", json_q)):
+            want_kind, want_subtype = media_type.split("/")
+            specificity = (2 if (kind, subtype) == (want_kind, want_subtype)
+                           else 1 if (kind, subtype) == (want_kind, "*")
+                           else 0 if (kind, subtype) == ("*", "*") else None)
+            if specificity is not None and (current is None or specificity > current[0]):
+                if media_type == CSV_MEDIA_TYPE:
+                    csv_q = (specificity, quality)
+                else:
+                    json_q = (specificity, quality)
+    if csv_q is None or csv_q[0] < 2 or csv_q[1] <= 0.0:
+        return False  # CSV only when named: */* and text/* leave the default, JSON
+    return json_q is None or csv_q[1] >= json_q[1]
 
 
 def csv_text(columns: Mapping[str, Any]) -> str:

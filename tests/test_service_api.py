@@ -269,6 +269,18 @@ def test_sweep_as_csv(client):
     assert [float(r[1]) for r in rows[1:]] == json_columns["mu"]
 
 
+@pytest.mark.parametrize(("accept", "csv_expected"), [
+    ("text/csv;q=0", False), ("text/csv;q=0.3, application/json", False), ("*/*", False),
+    ("application/json;q=0.1, text/csv", True), ("TEXT/CSV; q=0.5", True)])
+def test_sweep_format_follows_accept_qualities(client, accept, csv_expected):
+    request = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load_N": 0.01},
+               "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 2}}}
+    response = client.post("/v1/sweeps", json=request, headers={"accept": accept})
+    assert response.status_code == 200
+    media_type = response.headers["content-type"]
+    assert media_type.startswith("text/csv" if csv_expected else "application/json"), (accept, media_type)
+
+
 @pytest.mark.parametrize("design", ["sobol", "latin_hypercube"])
 def test_design_of_experiments_stays_in_range_and_repeats_with_a_seed(client, design):
     request = {"design": design, "points": 64, "seed": 7, "outputs": ["mu"], "fixed": {"speed_m_s": 0.1},
