@@ -19,6 +19,13 @@ is not already consistent with that noise (chi-square test at 1 %). Among the
 candidates that count, the one with the lowest score wins, except that a named
 physical effect whose CV error lies within one standard error of the winner's
 is preferred to a generic term (the one-standard-error rule).
+
+Choosing the best of a few dozen candidates on the same folds that score them
+makes the winner's CV error optimistic (selection bias).
+:func:`nested_cross_validate` therefore repeats the whole search inside each
+training fold (outer folds, inner folds within their training rows) and
+predicts each outer test fold with what that search chose: an honest held-out
+error of the procedure, and how often it chose the same effect.
 """
 
 from __future__ import annotations
@@ -35,8 +42,8 @@ from physics.effects import EFFECTS
 from .data import Dataset
 from .fit import EffectChoice, FitResult, fit, kfold_indices, predict_mu
 
-__all__ = ["Baseline", "CandidateScore", "Discovery", "cross_validate_baseline", "candidate_choices",
-           "discover"]
+__all__ = ["Baseline", "CandidateScore", "Discovery", "NestedValidation", "cross_validate_baseline",
+           "candidate_choices", "discover", "nested_cross_validate"]
 
 
 @dataclass(frozen=True)
@@ -343,3 +350,154 @@ def discover(dataset: Dataset, fit_parameters: Sequence[str] = (), folds: int = 
               f"score {chosen.score - base_score.score:+.1f}, z = {chosen.z_vs_baseline:.1f}")
     return Discovery(baseline, base_score, ranked, chosen, reason, noise_p)
 
+
+
+@dataclass(frozen=True)
+class NestedValidation:
+    """Outcome of :func:`nested_cross_validate`.
+
+    Attributes
+    ----------
+    oof_mu : numpy.ndarray
+        Held-out prediction of every row by the model that the whole procedure (declared fit,
+        search, fit of the chosen effect) built without the row's outer fold. [1]
+    fold_choices : list of EffectChoice or None
+        What the search chose in each outer fold (None: nothing added).
+    unpredictable : int
+        Outer folds whose chosen effect gave a non-finite or non-positive μ on their test rows
+        (extrapolated beyond the training rows); those rows are predicted by the declared model
+        fitted on the same training rows instead. [1]
+    """
+
+    oof_mu: np.ndarray = field(repr=False)
+    fold_choices: list[EffectChoice | None]
+    unpredictable: int
+
+    def stability(self, chosen: EffectChoice | None) -> dict:
+        """How often the outer folds agreed with ``chosen`` (the choice made on all rows).
+
+        Parameters
+        ----------
+        chosen : EffectChoice or None
+            The effect the search chose on all rows, or None when it added nothing.
+
+        Returns
+        -------
+        dict
+            ``folds`` [1]; ``agreeing`` [1], outer folds that chose the same effect on the same
+            drivers (or nothing, like the full data); ``same_driver`` [1], outer folds whose choice
+            has the same main driver (or that added nothing, like the full data), which counts a
+            different form of the same dependence as agreeing; ``choices``, per outer fold
+            ``{"effect", "drivers"}`` (``effect`` None for nothing added); ``summary``, the same in
+            words.
+
+        Examples
+        --------
+        >>> pick = EffectChoice("run_in", ("cycle",))
+        >>> v = NestedValidation(np.ones(3), [pick, None, EffectChoice("run_in", ("cycle",))], 0)
+        >>> v.stability(pick)["summary"]
+        '2 of 3 outer folds chose run_in on cycle, as all rows did; 1 added nothing'
+        >>> w = NestedValidation(np.ones(2), [pick, EffectChoice("generic_power", ("cycle",))], 0)
+        >>> s = w.stability(pick)
+        >>> s["agreeing"], s["same_driver"]
+        (1, 2)
+        >>> print(s["summary"].replace("; ", "\\n"))
+        1 of 2 outer folds chose run_in on cycle, as all rows did
+        1 chose generic_power on cycle
+        2 of 2 on the driver cycle
+        """
+        def key(choice: EffectChoice | None) -> tuple:
+            return () if choice is None else (choice.name, tuple(choice.drivers))
+
+        def words(k: tuple) -> str:
+            return "added nothing" if not k else f"chose {k[0]} on {', '.join(k[1])}"
+
+        keys = [key(c) for c in self.fold_choices]
+        target = key(chosen)
+        agreeing = sum(k == target for k in keys)
+        same_driver = sum(k[1][:1] == target[1][:1] if k and target else k == target for k in keys)
+        others: dict[tuple, int] = {}
+        for k in keys:
+            if k != target:
+                others[k] = others.get(k, 0) + 1
+        summary = f"{agreeing} of {len(keys)} outer folds {words(target)}, as all rows did"
+        summary += "".join(f"; {count} {words(k)}" for k, count in
+                           sorted(others.items(), key=lambda item: -item[1]))
+        if target and same_driver > agreeing:
+            summary += f"; {same_driver} of {len(keys)} on the driver {target[1][0]}"
+        if self.unpredictable:
+            summary += (f"; in {self.unpredictable} fold(s) the chosen effect could not predict the "
+                        f"held-out rows, which the declared model predicted instead")
+        return {
+            "folds": len(keys),
+            "agreeing": agreeing,
+            "same_driver": same_driver,
+            "choices": [{"effect": k[0] if k else None, "drivers": list(k[1]) if k else []} for k in keys],
+            "summary": summary,
+        }
+
+
+def nested_cross_validate(dataset: Dataset, fit_parameters: Sequence[str], baseline: Baseline, seed: int = 0,
+                          z_threshold: float = 3.0, joint_top: int = 3,
+                          progress: Callable[[float], None] | None = None,
+                          convention: str = physics.DEFAULT_CONVENTION) -> NestedValidation:
+    """Cross-validate the whole search: discovery repeated inside every training fold.
+
+    For each outer fold of ``baseline`` (the folds of :func:`cross_validate_baseline`), on the
+    outer-training rows only: :func:`discover` with as many inner folds (same seed), then the
+    chosen effect fitted jointly with the declared parameters (started from the declared fit of
+    that fold); the outer test rows are predicted by the result, or by the declared model fitted
+    on the same rows (``baseline.fold_mu``) when nothing was chosen. No row ever helps choose or
+    fit the model that predicts it, so the error of :attr:`NestedValidation.oof_mu` is free of
+    the selection bias of the winning candidate's own CV error.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Measurements.
+    fit_parameters : sequence of str
+        Declared physics parameters fitted.
+    baseline : Baseline
+        The declared model's fits on the outer folds.
+    seed : int
+        Seed of the inner folds' shuffle (the outer folds are ``baseline.folds``).
+    z_threshold, joint_top : float, int
+        As in :func:`discover`.
+    progress : callable, optional
+        Called with the fraction done, 0..1 (monotone).
+    convention : str
+        See :data:`physics.CONVENTIONS`.
+
+    Returns
+    -------
+    NestedValidation
+    """
+    report = progress or (lambda fraction: None)
+    report(0.0)
+    folds = len(baseline.folds)
+    everything = np.arange(dataset.n_points)
+    oof = np.empty(dataset.n_points)
+    choices: list[EffectChoice | None] = []
+    unpredictable = 0
+    for k, (test, fold_fit, fold_mu) in enumerate(zip(baseline.folds, baseline.fold_fits, baseline.fold_mu,
+                                                      strict=True)):
+        train = np.setdiff1d(everything, test)
+        inner = dataset.subset(train)
+        found = discover(inner, fit_parameters, folds, seed, z_threshold, joint_top,
+                         progress=lambda f, k=k: report((k + 0.95 * f) / folds), convention=convention)
+        oof[test] = fold_mu[test]
+        if found.chosen is None:
+            choices.append(None)
+        else:
+            choice = found.chosen.choice
+            choices.append(choice)
+            with np.errstate(all="ignore"):
+                result = fit(inner, fit_parameters, choice, start=fold_fit.declared, convention=convention)
+                mu = predict_mu(dataset, result.declared, choice, result.effect_parameters, rows=test,
+                                convention=convention)
+            if np.all(np.isfinite(mu) & (mu > 0)):
+                oof[test] = mu
+            else:
+                unpredictable += 1
+        report((k + 1) / folds)
+    return NestedValidation(oof, choices, unpredictable)

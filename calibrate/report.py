@@ -4,13 +4,20 @@
 2. Fit of the declared parameters named in ``fit_parameters`` (bounded least
    squares on log μ); its held-out error is the **before** figure.
 3. Search for the missing effect (:func:`calibrate.discover.discover`).
-4. The chosen effect fitted jointly with the declared parameters: the
-   calibrated model (:class:`calibrate.model.CalibratedModel`); its held-out
-   error is the **after** figure.
-5. A Gaussian-process discrepancy baseline (:func:`calibrate.discrepancy.gp_discrepancy`).
-6. Plots of the residual against its driver, before and after, as PNG bytes.
+4. Nested cross-validation of steps 2-3 and 5
+   (:func:`calibrate.discover.nested_cross_validate`): the search repeated on
+   the training rows of every fold, the effect it chose fitted there and the
+   fold's rows predicted; the error of those predictions is the **after**
+   figure, and the share of folds that chose the same effect its stability.
+5. The chosen effect fitted jointly with the declared parameters on all rows:
+   the calibrated model (:class:`calibrate.model.CalibratedModel`).
+6. A Gaussian-process discrepancy baseline (:func:`calibrate.discrepancy.gp_discrepancy`).
+7. Plots of the residual against its driver, before and after, as PNG bytes.
 
-Every error is measured on held-out rows of the same k folds.
+Every error is measured on held-out rows of the same k folds. The chosen
+effect's own CV error on those folds (``error_after_selection``) is reported
+too, but it is optimistic: the folds that measure it also chose it among a few
+dozen candidates.
 """
 
 from __future__ import annotations
@@ -25,15 +32,19 @@ import numpy as np
 import physics
 
 from .data import Dataset, parse_csv, parse_rows
-from .discover import Discovery, cross_validate_baseline, discover
+from .discover import Discovery, cross_validate_baseline, discover, nested_cross_validate
 from .discrepancy import gp_discrepancy
 from .fit import check_fit_parameters, fit, predict_mu, prediction_errors
 from .model import CalibratedModel
 
-__all__ = ["CalibrationReport", "calibrate", "check_request", "MIN_ROWS"]
+__all__ = ["CalibrationReport", "calibrate", "check_request", "MIN_ROWS", "PROGRESS_STAGES"]
 
 #: Fewest rows a calibration accepts: k-fold CV needs a few rows per fold. [1]
 MIN_ROWS = 10
+
+#: Fraction of ``progress`` reached at the end of each stage of :func:`calibrate`, in order. [1]
+PROGRESS_STAGES = {"declared fit + CV": 0.02, "effect discovery": 0.17, "nested CV": 0.75,
+                   "GP discrepancy": 0.9, "final fit, plots": 1.0}
 
 
 @dataclass(frozen=True)
@@ -53,8 +64,20 @@ class CalibrationReport:
         ``{name: {"value", "std"}}`` of the declared-only fit (the "before" model), in their units.
     fitted_parameters : dict
         ``{name: {"value", "std"}}`` of the declared parameters in the calibrated model.
-    error_before, error_after : dict
-        Held-out (k-fold) errors of the fitted declared model and of the calibrated model.
+    error_before : dict
+        Held-out (k-fold) errors of the fitted declared model.
+    error_after : dict
+        Held-out errors of the calibrated model by nested cross-validation: each fold predicted by
+        the model that the whole procedure (declared fit, effect search, fit of the chosen effect)
+        built on the other folds. Equal to ``error_before`` when no fold added an effect.
+    error_after_selection : dict
+        Held-out errors of the chosen effect on the same folds that chose it (``error_before``
+        when nothing was added): optimistic, since those folds also picked it among the
+        candidates; the gap to ``error_after`` measures that selection bias.
+    effect_stability : dict
+        How often the search on each fold's training rows chose the same effect as on all rows:
+        ``folds``, ``agreeing``, ``choices`` (per fold ``{"effect", "drivers"}``) and ``summary``
+        (see :meth:`calibrate.discover.NestedValidation.stability`).
     missing_effect : dict or None
         ``name``, ``title``, ``drivers``, ``formula``, ``parameters``, ``parameter_std``,
         ``parameter_units``, ``reference``; None when nothing beyond noise remains.
@@ -80,6 +103,8 @@ class CalibrationReport:
     fitted_parameters: dict[str, dict[str, float]]
     error_before: dict[str, float]
     error_after: dict[str, float]
+    error_after_selection: dict[str, float]
+    effect_stability: dict[str, Any]
     missing_effect: dict[str, Any] | None
     discrepancy_gp: dict[str, Any]
     candidates: list[dict[str, Any]]
@@ -98,6 +123,8 @@ class CalibrationReport:
             "fitted_parameters": self.fitted_parameters,
             "error_before": self.error_before,
             "error_after": self.error_after,
+            "error_after_selection": self.error_after_selection,
+            "effect_stability": self.effect_stability,
             "missing_effect": self.missing_effect,
             "discrepancy_gp": self.discrepancy_gp,
             "candidates": self.candidates,
@@ -136,7 +163,9 @@ class CalibrationReport:
             if self.fitted_parameters:
                 lines.append("declared parameters of the calibrated model:")
                 lines += estimates(self.fitted_parameters, physics_units)
-        lines.append(f"after (held out):  {errors(self.error_after)}")
+        lines.append(f"after (held out, nested CV):  {errors(self.error_after)}")
+        lines.append(f"  same folds that chose it (optimistic): {errors(self.error_after_selection)}")
+        lines.append(f"stability: {self.effect_stability['summary']}")
         lines.append(f"GP discrepancy baseline (held out): {errors(self.discrepancy_gp['errors'])}")
         lines.append(f"decision: {self.decision}")
         return "\n".join(lines)
@@ -217,7 +246,7 @@ def check_request(dataset: Dataset, fit_parameters: Sequence[str], folds: int) -
 def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any] | None = None,
               folds: int = 5, seed: int = 0, gp_max_train: int = 300, make_plots: bool = True,
               progress: Callable[[float], None] | None = None,
-              convention: str = physics.DEFAULT_CONVENTION) -> CalibrationReport:
+              convention: str = physics.DEFAULT_CONVENTION, z_threshold: float = 3.0) -> CalibrationReport:
     """Calibrate the declared model on measurements, find and add the missing effect, report.
 
     Parameters
@@ -231,19 +260,24 @@ def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any]
     folds : int
         Number of cross-validation folds, in [2, n_points]. [1]
     seed : int
-        Seed of the folds and of the GP's subset.
+        Seed of the folds (outer and nested inner ones) and of the GP's subset.
     gp_max_train : int
         Training rows per fold of the GP discrepancy at most. [1]
     make_plots : bool
         Whether to draw the residual plots.
     progress : callable, optional
-        Called with the fraction done, 0..1.
+        Called with the fraction done, 0..1, never decreasing (stages in :data:`PROGRESS_STAGES`).
     convention : str
         See :data:`physics.CONVENTIONS`.
+    z_threshold : float
+        Minimum paired z of a candidate's held-out improvement (see :func:`calibrate.discover.discover`). [1]
 
     Returns
     -------
     CalibrationReport
+        ``error_after`` comes from nested cross-validation (the search repeated within every
+        training fold, costing about ``folds`` more searches); ``error_after_selection`` is the
+        chosen effect's optimistic same-fold figure.
 
     Raises
     ------
@@ -258,24 +292,36 @@ def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any]
     dataset = _as_dataset(data, fixed)
     check_request(dataset, fit_parameters, folds)
     report(0.0)
+    ends = list(PROGRESS_STAGES.values())
+
+    def stage(i: int) -> Callable[[float], None]:
+        start = 0.0 if i == 0 else ends[i - 1]
+        return lambda f: report(start + (ends[i] - start) * min(max(f, 0.0), 1.0))
 
     error_default = prediction_errors(predict_mu(dataset, {}, convention=convention), dataset.mu_measured)
     baseline = cross_validate_baseline(dataset, fit_parameters, folds, seed, convention)
-    report(0.1)
-    discovery: Discovery = discover(dataset, fit_parameters, folds, seed, baseline=baseline,
-                                    progress=lambda f: report(0.1 + 0.6 * f), convention=convention)
-    gp = gp_discrepancy(dataset, baseline, gp_max_train, seed, progress=lambda f: report(0.7 + 0.2 * f))
+    stage(0)(1.0)
+    discovery: Discovery = discover(dataset, fit_parameters, folds, seed, z_threshold, baseline=baseline,
+                                    progress=stage(1), convention=convention)
+    stage(1)(1.0)
+    nested = nested_cross_validate(dataset, fit_parameters, baseline, seed, z_threshold, progress=stage(2),
+                                   convention=convention)
+    stage(2)(1.0)
+    gp = gp_discrepancy(dataset, baseline, gp_max_train, seed, progress=stage(3))
+    stage(3)(1.0)
     declared = baseline.full_fit
     error_before = prediction_errors(baseline.oof_mu, dataset.mu_measured)
+    error_after = prediction_errors(nested.oof_mu, dataset.mu_measured)
 
     chosen = discovery.chosen
+    stability = nested.stability(None if chosen is None else chosen.choice)
     if chosen is None:
-        final, error_after, missing = declared, error_before, None
+        final, error_after_selection, missing = declared, error_before, None
         effect_json = None
     else:
         choice = chosen.choice
         final = fit(dataset, fit_parameters, choice, start=declared.declared, convention=convention)
-        error_after = prediction_errors(chosen.oof_mu, dataset.mu_measured)
+        error_after_selection = prediction_errors(chosen.oof_mu, dataset.mu_measured)
         spec = choice.effect
         missing = {
             "name": spec.name,
@@ -295,20 +341,23 @@ def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any]
     plots: dict[str, bytes] = {}
     if make_plots:
         before = np.log(dataset.mu_measured / baseline.oof_mu)
+        after = np.log(dataset.mu_measured / nested.oof_mu)
         columns = dataset.columns()
         if chosen is None:
             varying = [(n, np.asarray(v, dtype=float)) for n, v in columns.items()
                        if np.unique(v).size > 1][:9]
             if varying:
-                plots["residual"] = _residual_png(varying, [("declared model, fitted", before)],
+                series = [("declared model, fitted", before)]
+                if np.any(after != before):
+                    series.append(("after (nested CV)", after))
+                plots["residual"] = _residual_png(varying, series,
                                                   "Residual of the fitted declared model: nothing added")
         else:
             driver = chosen.choice.drivers[0]
-            after = np.log(dataset.mu_measured / chosen.oof_mu)
             panel = [(driver, np.asarray(columns[driver], dtype=float))]
             plots["residual_before"] = _residual_png(panel, [("before", before)],
                                                      f"Before: fitted declared model against {driver}")
-            plots["residual_after"] = _residual_png(panel, [("before", before), ("after", after)],
+            plots["residual_after"] = _residual_png(panel, [("before", before), ("after (nested CV)", after)],
                                                     f"After: + {chosen.choice.name} against {driver}")
     report(1.0)
     return CalibrationReport(
@@ -319,6 +368,8 @@ def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any]
         fitted_parameters=_values(final.declared, final.declared_std),
         error_before=error_before,
         error_after=error_after,
+        error_after_selection=error_after_selection,
+        effect_stability=stability,
         missing_effect=missing,
         discrepancy_gp=gp,
         candidates=[discovery.baseline_score.summary()] + [c.summary() for c in discovery.candidates],

@@ -96,13 +96,40 @@ def test_values_survive_parsing_exactly():
     assert data.physics_columns["load_N"].tolist() == loads.tolist()
 
 
+def test_subset_keeps_the_chosen_rows_of_every_column_in_order():
+    text = ("balls,load_N,speed_m_s,balls_touching,relative_humidity,mu_measured,mu_measured_std\n"
+            "4,0.009,0.05,false,0.4,0.0105,0.0002\n"
+            "6,0.012,0.10,true,0.5,0.0121,0.0002\n"
+            "8,0.020,0.15,false,0.6,0.0133,0.0003\n"
+            "12,0.030,0.00,true,0.7,0.0150,0.0004\n")
+    data = parse_csv(text, fixed={"mu_ball": 0.7})
+    part = data.subset(np.array([3, 1]))
+    # The same rows parsed on their own, in that order.
+    lines = text.splitlines()
+    expected = parse_csv("\n".join([lines[0], lines[4], lines[2]]) + "\n", fixed={"mu_ball": 0.7})
+    assert part.n_points == 2
+    assert set(part.physics_columns) == set(expected.physics_columns)
+    for name, values in expected.columns().items():
+        assert part.columns()[name].tolist() == values.tolist(), name
+    assert part.mu_measured.tolist() == [0.0150, 0.0121]
+    assert part.mu_measured_std.tolist() == [0.0004, 0.0002]
+    assert part.fixed == {"mu_ball": 0.7}
+    # The original is untouched, and a subset shares no array with it.
+    assert data.n_points == 4 and data.mu_measured.tolist()[3] == 0.0150
+    part.mu_measured[0] = 1.0
+    assert data.mu_measured[3] == 0.0150
+    without_std = parse_csv("balls,load_N,speed_m_s,mu_measured\n4,0.009,0.05,0.01\n4,0.01,0.1,0.02\n")
+    assert without_std.subset(np.array([1])).mu_measured_std is None
+
+
 def test_calibrate_docstring_examples_run():
     # The project's doctest collection covers physics/ only; the examples of calibrate/ run here.
     import doctest
 
     import calibrate.data
+    import calibrate.discover
     import calibrate.fit
 
-    for module in (calibrate.data, calibrate.fit):
+    for module in (calibrate.data, calibrate.discover, calibrate.fit):
         failures, tried = doctest.testmod(module)
         assert tried > 0 and failures == 0, module.__name__
