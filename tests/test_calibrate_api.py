@@ -81,6 +81,11 @@ def test_json_calibration_names_the_effect_and_is_stored(client, humidity_result
     assert result["n_points"] == N_ROWS
     assert result["missing_effect"]["drivers"] == ["relative_humidity"]
     assert result["error_after"]["relative_rmse"] <= result["error_before"]["relative_rmse"] / 3
+    # The nested after-error and the same-fold one of the chosen effect are both reported, with the
+    # choice of every fold (3 folds here).
+    assert result["error_after_selection"]["relative_rmse"] <= result["error_before"]["relative_rmse"] / 3
+    assert result["effect_stability"]["folds"] == len(result["effect_stability"]["choices"]) == 3
+    assert all(c["drivers"][:1] == ["relative_humidity"] for c in result["effect_stability"]["choices"])
     assert set(result["fitted_parameters"]) == set(FIT)
     assert result["model_id"] == f"calibrated:{result['id']}"
     assert client.get(f"/v1/calibrations/{result['id']}").json() == result

@@ -110,6 +110,26 @@ class GPDiscrepancy(ResponseModel):
     max_train_rows: int = Field(description="Most training rows per fold [1].")
 
 
+class FoldChoice(ResponseModel):
+    """What the effect search chose on one fold's training rows."""
+
+    effect: str | None = Field(description="Effect name; null when nothing was added.")
+    drivers: list[str] = Field(description="Driving columns, main driver first (empty if nothing was added).")
+
+
+class EffectStability(ResponseModel):
+    """How often the search on each fold's training rows chose what it chose on all rows."""
+
+    folds: int = Field(description="Outer folds of the nested cross-validation [1].")
+    agreeing: int = Field(description="Folds that chose the same effect on the same drivers, or nothing "
+                                      "when nothing was added [1].")
+    same_driver: int = Field(description="Folds whose choice has the same main driver (any effect form), or "
+                                         "that added nothing when nothing was added [1].")
+    choices: list[FoldChoice] = Field(description="The choice of each fold.")
+    summary: str = Field(description="The same in words, e.g. '5 of 5 outer folds chose humidity_meniscus on "
+                                     "relative_humidity, as all rows did'.")
+
+
 class CandidateSummary(ResponseModel):
     """Cross-validated score of one candidate effect."""
 
@@ -134,7 +154,17 @@ class CalibrationResult(ResponseModel):
     fitted_declared: dict[str, Estimate] = Field(description="Declared-only fit (the 'before' model).")
     fitted_parameters: dict[str, Estimate] = Field(description="Declared parameters of the calibrated model.")
     error_before: ErrorFigures = Field(description="Held-out (k-fold) errors of the fitted declared model.")
-    error_after: ErrorFigures = Field(description="Held-out (k-fold) errors of the calibrated model.")
+    error_after: ErrorFigures = Field(description=(
+        "Held-out errors of the calibrated model by nested cross-validation: every fold predicted by the "
+        "model that the whole procedure (declared fit, effect search, fit of the chosen effect) built on "
+        "the other folds; equal to error_before when no fold added an effect."))
+    error_after_selection: ErrorFigures | None = Field(default=None, description=(
+        "Held-out errors of the chosen effect on the same folds that chose it among the candidates "
+        "(error_before when nothing was added): optimistic by the selection; null for calibrations stored "
+        "before nested cross-validation (their error_after is this figure)."))
+    effect_stability: EffectStability | None = Field(default=None, description=(
+        "How stable the effect search is across folds; null for calibrations stored before nested "
+        "cross-validation."))
     missing_effect: MissingEffect | None = Field(
         description="The added effect; null when only noise remains.")
     discrepancy_gp: GPDiscrepancy = Field(description="The GP discrepancy baseline.")
