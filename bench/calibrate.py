@@ -3,7 +3,8 @@
 Run: ``python bench/calibrate.py [--rows N] [--folds K]``. Builds CSV text of N
 synthetic measurements (physics with shifted parameters, a hidden humidity
 meniscus effect and 2 % noise), then times parsing and :func:`calibrate.calibrate`
-stage by stage, and, side by side in the same run, one least-squares fit of the
+stage by stage (:data:`calibrate.report.PROGRESS_STAGES`, the nested cross-validation
+of the effect search included), and, side by side in the same run, one least-squares fit of the
 declared model on the same rows, so the ratio calibration / one fit is
 comparable across machine loads.
 """
@@ -26,6 +27,7 @@ import numpy as np  # noqa: E402
 import physics  # noqa: E402
 from calibrate import calibrate, parse_csv  # noqa: E402
 from calibrate.fit import fit  # noqa: E402
+from calibrate.report import PROGRESS_STAGES  # noqa: E402
 
 
 def synthetic_csv(n: int, seed: int = 0) -> str:
@@ -63,12 +65,10 @@ def main() -> None:
     start = time.perf_counter()
     dataset = parse_csv(text)
     parsed = time.perf_counter()
-    stages = {}
-    last = [parsed]
+    reports: list[tuple[float, float]] = []
 
     def progress(fraction: float) -> None:
-        now = time.perf_counter()
-        stages[round(fraction, 2)] = now - last[0]
+        reports.append((fraction, time.perf_counter()))
 
     result = calibrate(dataset, fit_parameters, folds=args.folds, progress=progress)
     done = time.perf_counter()
@@ -78,16 +78,22 @@ def main() -> None:
     total = done - start
     print(f"rows: {args.rows:,}  folds: {args.folds}  fit: {', '.join(fit_parameters)}")
     print(f"parse CSV:            {parsed - start:7.2f} s")
-    print(f"declared fit + CV:    {stages[0.1]:7.2f} s")
-    print(f"effect discovery:     {stages[0.7] - stages[0.1]:7.2f} s")
-    print(f"GP, final fit, plots: {total - (parsed - start) - stages[0.7]:7.2f} s")
+    previous = parsed
+    for name, end in PROGRESS_STAGES.items():
+        # A stage ends at the first report of its end fraction (the last stage at the return).
+        finished = done if end >= 1.0 else next(t for f, t in reports if f >= end - 1e-12)
+        print(f"{name + ':':<21} {finished - previous:7.2f} s")
+        previous = finished
     print(f"total:                {total:7.2f} s  (target <= 60 s)")
     print(f"one declared fit:     {one_fit:7.2f} s  -> calibration / one fit = {total / one_fit:.0f}")
     print(f"effect found: {result.missing_effect and result.missing_effect['name']} on "
           f"{result.missing_effect and result.missing_effect['drivers']}")
+    print(f"stability: {result.effect_stability['summary']}")
     gp = result.discrepancy_gp["errors"]["relative_rmse"]
     print(f"held-out relative RMSE of log mu: before {result.error_before['relative_rmse']:.4f}, "
-          f"after {result.error_after['relative_rmse']:.4f}, GP {gp:.4f}")
+          f"after (nested CV) {result.error_after['relative_rmse']:.4f}, "
+          f"after (same folds as the selection) {result.error_after_selection['relative_rmse']:.4f}, "
+          f"GP {gp:.4f}")
     if args.plots:
         Path(args.plots).mkdir(parents=True, exist_ok=True)
         for name, png in result.plots.items():
