@@ -5,7 +5,8 @@
 (:mod:`calibrate.fit`), search the residual for a missing effect
 (:mod:`calibrate.discover`), compare with a Gaussian-process discrepancy
 (:mod:`calibrate.discrepancy`) and report the held-out error before and after
-(:mod:`calibrate.report`). The calibrated model is plain JSON data that
+(:mod:`calibrate.report`), the after-error by nested cross-validation of the
+search (:func:`calibrate.discover.nested_cross_validate`). The calibrated model is plain JSON data that
 :class:`CalibratedModel` turns back into a ``mu_model(points)`` callable.
 """
 

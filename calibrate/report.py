@@ -163,8 +163,11 @@ class CalibrationReport:
             if self.fitted_parameters:
                 lines.append("declared parameters of the calibrated model:")
                 lines += estimates(self.fitted_parameters, physics_units)
-        lines.append(f"after (held out, nested CV):  {errors(self.error_after)}")
-        lines.append(f"  same folds that chose it (optimistic): {errors(self.error_after_selection)}")
+        lines.append(f"after (held out, nested CV: the search redone within each fold): "
+                     f"{errors(self.error_after)}")
+        if effect is not None:
+            lines.append(f"after on the folds that chose the effect (optimistic): "
+                         f"{errors(self.error_after_selection)}")
         lines.append(f"stability: {self.effect_stability['summary']}")
         lines.append(f"GP discrepancy baseline (held out): {errors(self.discrepancy_gp['errors'])}")
         lines.append(f"decision: {self.decision}")

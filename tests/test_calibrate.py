@@ -171,7 +171,7 @@ def test_report_is_json_and_gp_baseline_is_reported_beside_the_effect():
     assert data["effect_stability"]["agreeing"] == FOLDS
     assert data["error_after_selection"]["relative_rmse"] < data["error_before"]["relative_rmse"] / 3
     text = result.text()
-    assert "after (held out, nested CV)" in text and f"{FOLDS} of {FOLDS} outer folds chose" in text
+    assert "after (held out, nested CV" in text and f"{FOLDS} of {FOLDS} outer folds chose" in text
     # The declared model with its default parameters is worse than once fitted.
     assert data["error_default"]["relative_rmse"] > data["error_before"]["relative_rmse"]
 
