@@ -120,8 +120,11 @@ class SurrogateResult(ResponseModel):
                                          "and boolean dimensions with fewer points than the budget).")
     metrics: SurrogateMetrics = Field(description="Held-out accuracy.")
     history: list[dict[str, float]] = Field(
-        description="Per refit: n_train [1] and estimated / leave-one-out median and 95th-percentile "
-                    "relative errors [1].")
+        description="Per refit: n_train [1]; estimated (predictive spread) and leave-one-out median and "
+                    "95th-percentile relative errors [1]; loo_median_upper_bound and loo_p95_upper_bound, "
+                    "95 % upper confidence bounds of the leave-one-out quantiles that the stop rule compares "
+                    "with the target [1] (absent while too few points bound them: 59 for the 95th "
+                    "percentile).")
     kernel: str = Field(description="Fitted kernel with its hyperparameters (standardized features).")
     fit_seconds: float = Field(description="Training time [s].")
     convention: str = Field(description="Physics convention trained on.")
