@@ -162,20 +162,24 @@ class OptimizationResult:
         }
 
 
-def _solve(gp) -> tuple[str, str]:
-    """Solve with Clarabel, falling back to SCS when Clarabel fails numerically: (status, solver)."""
-    with warnings.catch_warnings():
+def _solve(gp, solver: str = _SOLVER) -> tuple[str, str]:
+    """Solve with Clarabel (or ``solver``), falling back to SCS on a numerical failure: (status, solver)."""
+    # A phase-I program far from feasible has a log-objective above 709: cvxpy's exp of it is inf,
+    # i.e. infeasible (as in BallCountResolver.solve), not an overflow to warn about.
+    with warnings.catch_warnings(), np.errstate(over="ignore"):
         # cvxpy warns on inaccurate solutions; the status is checked and reported instead
         warnings.simplefilter("ignore", UserWarning)
-        try:
-            gp.problem.solve(gp=True, solver=_SOLVER)
-            return gp.problem.status, _SOLVER
-        except cp.SolverError:
+        if solver != cp.SCS:
             try:
-                gp.problem.solve(gp=True, solver=cp.SCS, eps=1e-9, max_iters=20000)
-                return gp.problem.status, cp.SCS
+                gp.problem.solve(gp=True, solver=solver)
+                return gp.problem.status, solver
             except cp.SolverError:
-                return "solver_error", "none"
+                pass
+        try:
+            gp.problem.solve(gp=True, solver=cp.SCS, eps=1e-9, max_iters=20000)
+            return gp.problem.status, cp.SCS
+        except cp.SolverError:
+            return "solver_error", "none"
 
 
 class _CountSolver:
@@ -426,6 +430,23 @@ def polish_design(problem: DesignProblem, balls: np.ndarray, theta: np.ndarray,
             np.where(found, best_mu, mu_raw[0]))
 
 
+def _polished(problem: DesignProblem, solved: list[BallCountResult]) -> dict[int, BallCountResult]:
+    """The solved rows after :func:`polish_design`, with the exact μ and the solver's gap, by count."""
+    balls = np.array([r.balls for r in solved])
+    theta, load, mu = polish_design(problem, balls, np.array([r.groove_angle_deg for r in solved]),
+                                    np.array([r.load_N for r in solved]))
+    return {r.balls: BallCountResult(r.balls, r.status, float(theta[k]), float(load[k]), float(mu[k]),
+                                     r.mu_solver, r.mu_solver / float(mu[k]) - 1.0)
+            for k, r in enumerate(solved)}
+
+
+def _breaks_limit(problem: DesignProblem, row: BallCountResult, rtol: float = 1e-9) -> bool:
+    """Whether the exact physics at the row's design breaks a limit by more than ``rtol`` relative."""
+    return any(
+        (c.value > c.limit * (1 + rtol) if c.sense == "<=" else c.value < c.limit * (1 - rtol))
+        for c in constraint_report(problem, row.balls, row.groove_angle_deg, row.load_N))
+
+
 def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: BallCountResult,
                  ties: list[dict[str, Any]], fallback: list[int]) -> str:
     counts = [r for r in rows if r.status.startswith("optimal")]
@@ -454,7 +475,12 @@ def _certificate(problem: DesignProblem, rows: list[BallCountResult], best: Ball
         "every limit.",
     ]
     if fallback:
-        parts.append(f"Clarabel failed numerically for counts {fallback}, solved by SCS (eps 1e-9) instead.")
+        parts.append(f"Clarabel failed numerically for counts {sorted(set(fallback))} (an error, or a design "
+                     "the exact physics found breaking a limit), solved by SCS (eps 1e-9) instead.")
+    unsolved = [r.balls for r in rows if r.status == "solver_error"]
+    if unsolved:
+        parts.append(f"Counts {unsolved}: neither Clarabel nor SCS returned a design meeting the limits; "
+                     "they are left out, so the optimum is global over the other counts only.")
     if inaccurate:
         parts.append(f"Counts {inaccurate} were solved only to reduced accuracy (status optimal_inaccurate); "
                      "their optimality holds only to that accuracy.")
@@ -541,15 +567,31 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
     if not solved:
         raise find_conflicts(problem) or RuntimeError("no count solved, yet phase-I says feasible")
 
-    balls = np.array([r.balls for r in solved])
-    theta = np.array([r.groove_angle_deg for r in solved])
-    theta, load, mu = polish_design(problem, balls, theta, np.array([r.load_N for r in solved]))
     rows_by_count = {r.balls: r for r in rows}
-    for k, r in enumerate(solved):
-        rows_by_count[r.balls] = BallCountResult(r.balls, r.status, float(theta[k]), float(load[k]),
-                                                 float(mu[k]), r.mu_solver, r.mu_solver / float(mu[k]) - 1.0)
+    rows_by_count.update(_polished(problem, solved))
+    # An interior-point solver can call a degenerate program (e.g. a limit leaving one feasible
+    # point) optimal at a design that breaks the limit: such counts are re-solved by SCS, and
+    # dropped (said in the certificate) if the exact physics still finds a limit broken.
+    broken = [r.balls for r in rows_by_count.values() if r.status in _OPTIMAL and _breaks_limit(problem, r)]
+    if broken:
+        with gp.lock:
+            for z in broken:
+                gp.assign(values, z)
+                status, _ = _solve(gp, solver=cp.SCS)
+                rows_by_count[z] = BallCountResult(z, "solver_error")
+                if status in _OPTIMAL:
+                    theta = float(np.clip(np.degrees(np.arctan(float(gp.tan_theta.value))), *angle_box))
+                    load = float(np.clip(float(gp.load_N.value), *load_box))
+                    row = _polished(problem, [BallCountResult(z, status, theta, load, None,
+                                                              float(gp.problem.value))])[z]
+                    fallback.append(z)
+                    if not _breaks_limit(problem, row):
+                        rows_by_count[z] = row
     rows = [rows_by_count[z] for z in range(lo, hi + 1)]
     solved = [r for r in rows if r.status in _OPTIMAL]
+    if not solved:
+        raise RuntimeError(f"the solvers' designs for balls={broken} break a limit and no other count is "
+                           "feasible")
     best_mu = min(r.mu for r in solved)
     tied = [r for r in solved if r.mu <= best_mu * (1.0 + tie_tolerance)]
     best = min(tied, key=lambda r: r.balls)

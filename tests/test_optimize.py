@@ -392,3 +392,31 @@ def test_clearing_the_dgp_cache_makes_the_next_problem_compile_anew():
     dgp.clear_cache()
     assert dgp.cached_structures() == 0
     assert design_gp(problem)[0] is not before and dgp.cached_structures() == 1
+
+
+def test_a_solver_design_breaking_a_limit_is_resolved_by_scs_not_returned(monkeypatch):
+    # A pressure level equal to the least pressure in the box leaves one feasible design, the corner
+    # (most balls, smallest angle, least load). Clarabel has called that degenerate program optimal at a
+    # design 7.5 % over the limit; here the count solver is made to do so for every count, and the result
+    # must still meet the limit, through SCS, and say so.
+    import optimize.solve as solve_module
+
+    box = DesignProblem(DesignBounds((4, 12), (35, 70), (0.001, 0.05)), speed_m_s=0.05,
+                        fixed={"mu_pivot": 1.0})
+    corner = physics.evaluate(**box.physics_inputs(12, 35.0, 0.001))
+    level = float(corner.max_contact_pressure_Pa)
+    problem = replace(box, constraints=Constraints(max_contact_pressure_Pa=level))
+    original = solve_module._CountSolver.solve
+
+    def wrong_but_optimal(self, balls):
+        status, solver, value, tan_theta, load = original(self, balls)
+        return ("optimal", solver, 0.05, np.tan(np.radians(53.35)), 0.0027677) if balls == 12 else (
+            status, solver, value, tan_theta, load)
+
+    monkeypatch.setattr(solve_module._CountSolver, "solve", wrong_but_optimal)
+    result = optimize_design(problem)
+    assert all(c.satisfied or c.value <= c.limit * (1 + 1e-9) for c in result.constraints)
+    assert result.design["balls"] == 12 and result.design["groove_angle_deg"] == pytest.approx(35.0)
+    assert result.design["load_N"] == pytest.approx(0.001, rel=1e-6)
+    assert result.mu == pytest.approx(float(corner.mu), rel=1e-6)
+    assert "solved by SCS" in result.certificate and "[12]" in result.certificate
