@@ -209,11 +209,22 @@ class _CountSolver:
             except Exception:  # a numerical failure: retry through cvxpy, which also falls back to SCS
                 pass
         self.gp.balls.value = balls
-        status, solver = _solve(self.gp)
-        if status not in _OPTIMAL:
-            return status, solver, None, None, None
-        return (status, solver, float(self.gp.problem.value), float(self.gp.tan_theta.value),
-                float(self.gp.load_N.value))
+        return _solve_count(self.gp)
+
+
+def _solve_count(gp, solver: str = _SOLVER) -> tuple[str, str, float | None, float | None, float | None]:
+    """:func:`_solve` at the count set in ``gp``: (status, solver, objective, tan θ [1], load [N])."""
+    status, solver = _solve(gp, solver)
+    if status not in _OPTIMAL:
+        return status, solver, None, None, None
+    return status, solver, float(gp.problem.value), float(gp.tan_theta.value), float(gp.load_N.value)
+
+
+def _solver_row(balls: int, status: str, value: float, tan_theta: float, load: float,
+                angle_box: tuple[float, float], load_box: tuple[float, float]) -> BallCountResult:
+    """A solved count's row, its design clipped back into the box (solvers overshoot by their tolerance)."""
+    theta = float(np.clip(np.degrees(np.arctan(tan_theta)), *angle_box))
+    return BallCountResult(balls, status, theta, float(np.clip(load, *load_box)), None, value)
 
 
 def _phase_one_slacks(problem: DesignProblem, limits: frozenset[str], counts: list[int],
@@ -544,10 +555,7 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
                 if solver != _SOLVER:
                     fallback.append(z)
                 if status in _OPTIMAL:
-                    # the solver may overshoot a bound by its tolerance: clip back into the box
-                    theta = float(np.clip(np.degrees(np.arctan(tan_theta)), *angle_box))
-                    load = float(np.clip(load, *load_box))
-                    rows.append(BallCountResult(z, status, theta, load, None, value))
+                    rows.append(_solver_row(z, status, value, tan_theta, load, angle_box, load_box))
                 elif status in (*_INFEASIBLE, "solver_error"):
                     # decided by the phase-I problem below, which is always feasible
                     rows.append(BallCountResult(z, "infeasible"))
@@ -577,13 +585,11 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
         with gp.lock:
             for z in broken:
                 gp.assign(values, z)
-                status, _ = _solve(gp, solver=cp.SCS)
+                status, _, value, tan_theta, load = _solve_count(gp, solver=cp.SCS)
                 rows_by_count[z] = BallCountResult(z, "solver_error")
                 if status in _OPTIMAL:
-                    theta = float(np.clip(np.degrees(np.arctan(float(gp.tan_theta.value))), *angle_box))
-                    load = float(np.clip(float(gp.load_N.value), *load_box))
-                    row = _polished(problem, [BallCountResult(z, status, theta, load, None,
-                                                              float(gp.problem.value))])[z]
+                    solver_row = _solver_row(z, status, value, tan_theta, load, angle_box, load_box)
+                    row = _polished(problem, [solver_row])[z]
                     fallback.append(z)
                     if not _breaks_limit(problem, row):
                         rows_by_count[z] = row
