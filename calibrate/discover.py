@@ -239,7 +239,12 @@ def _cv_candidate(dataset, baseline, fit_parameters, choice, joint, convention) 
                 oof[test] = predict_mu(dataset, {}, choice, result.effect_parameters, rows=test,
                                        base_mu=fold_mu, convention=convention)
     # A term extrapolated to a held-out driver value can overflow: the candidate then fails.
-    return oof if np.all(np.isfinite(oof) & (oof > 0)) else None
+    return oof if _usable(oof) else None
+
+
+def _usable(mu: np.ndarray) -> bool:
+    """Whether every predicted μ is finite and positive (its log residual exists)."""
+    return bool(np.all(np.isfinite(mu) & (mu > 0)))
 
 
 def _paired_se(dataset, a: CandidateScore, b: CandidateScore) -> float:
@@ -495,7 +500,7 @@ def nested_cross_validate(dataset: Dataset, fit_parameters: Sequence[str], basel
                 result = fit(inner, fit_parameters, choice, start=fold_fit.declared, convention=convention)
                 mu = predict_mu(dataset, result.declared, choice, result.effect_parameters, rows=test,
                                 convention=convention)
-            if np.all(np.isfinite(mu) & (mu > 0)):
+            if _usable(mu):
                 oof[test] = mu
             else:
                 unpredictable += 1
