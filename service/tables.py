@@ -37,7 +37,7 @@ def prefers_csv(accept: str) -> bool:
     >>> prefers_csv("application/json;q=0.5, text/csv;q=0.8"), prefers_csv("text/*;q=0.9, application/json")
     (True, False)
     """
-    csv_q = json_q = None  # (specificity, quality) of the most specific range matching each
+    ranges = []  # (type, subtype, quality) of each media range
     for item in accept.split(","):
         media_range, *params = (part.strip() for part in item.split(";"))
         quality = 1.0
@@ -49,16 +49,19 @@ def prefers_csv(accept: str) -> bool:
                 except ValueError:
                     quality = 0.0
         kind, _, subtype = media_range.lower().partition("/")
-        for media_type, current in ((CSV_MEDIA_TYPE, csv_q), ("application/json", json_q)):
-            want_kind, want_subtype = media_type.split("/")
-            specificity = (2 if (kind, subtype) == (want_kind, want_subtype)
-                           else 1 if (kind, subtype) == (want_kind, "*")
-                           else 0 if (kind, subtype) == ("*", "*") else None)
-            if specificity is not None and (current is None or specificity > current[0]):
-                if media_type == CSV_MEDIA_TYPE:
-                    csv_q = (specificity, quality)
-                else:
-                    json_q = (specificity, quality)
+        ranges.append((kind, subtype, quality))
+
+    def match(media_type: str) -> tuple[int, float] | None:
+        """(specificity, quality) of the most specific range matching ``media_type`` (the first of equals)."""
+        kind, subtype = media_type.split("/")
+        best = None
+        for r_kind, r_subtype, quality in ranges:
+            specificity = {(kind, subtype): 2, (kind, "*"): 1, ("*", "*"): 0}.get((r_kind, r_subtype))
+            if specificity is not None and (best is None or specificity > best[0]):
+                best = (specificity, quality)
+        return best
+
+    csv_q, json_q = match(CSV_MEDIA_TYPE), match("application/json")
     if csv_q is None or csv_q[0] < 2 or csv_q[1] <= 0.0:
         return False  # CSV only when named: */* and text/* leave the default, JSON
     return json_q is None or csv_q[1] >= json_q[1]
