@@ -478,9 +478,7 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     """
     if convention not in CONVENTIONS:
         raise ValueError(f"convention must be one of {', '.join(CONVENTIONS)}; got {convention!r}")
-    p = checked_inputs(params)  # scalars as Python numbers: their products fold before they meet an array
-    shapes = {v.shape for v in p.values() if isinstance(v, np.ndarray)}
-    shape = (shapes.pop() if len(shapes) == 1 else np.broadcast_shapes(*shapes)) if shapes else ()
+    p, shape = checked_inputs(params)  # scalars as Python numbers: their products fold before arrays
     size = math.prod(shape)
     wanted = list(OUTPUTS) if outputs is None else _output_names(outputs)
     flat = {k: np.broadcast_to(v, shape).reshape(-1) if isinstance(v, np.ndarray) else v

@@ -337,15 +337,16 @@ def validate_all(params: dict[str, Any]) -> dict[str, np.ndarray]:
         For an unknown name, a missing required one, an invalid value, or
         array inputs whose shapes do not broadcast together.
     """
-    return {name: np.asarray(value) for name, value in checked_inputs(params).items()}
+    return {name: np.asarray(value) for name, value in checked_inputs(params)[0].items()}
 
 
-def checked_inputs(params: dict[str, Any]) -> dict[str, float | bool | np.ndarray]:
-    """:func:`validate_all` with scalars as Python ``float`` and ``bool`` (for speed).
+def checked_inputs(params: dict[str, Any]) -> tuple[dict[str, float | bool | np.ndarray], tuple[int, ...]]:
+    """:func:`validate_all` with scalars as Python ``float`` and ``bool`` (for speed), and the shape.
 
     The validation of :func:`physics.evaluate`: arrays come back as from
     :func:`validate`, scalars as plain Python numbers, so that a single-point
-    evaluation stays in cheap scalar arithmetic.
+    evaluation stays in cheap scalar arithmetic; the second item is the
+    broadcast shape of the arrays (``()`` when every input is a scalar).
     """
     if not params.keys() <= PARAMETERS.keys():
         unknown = sorted(set(params) - set(PARAMETERS))
@@ -369,10 +370,10 @@ def checked_inputs(params: dict[str, Any]) -> dict[str, float | bool | np.ndarra
             array = validate(name, value)
             checked[name] = array.item() if array.ndim == 0 else array
     shapes = {a.shape for a in checked.values() if isinstance(a, np.ndarray)}
-    if len(shapes) > 1:
-        try:
-            np.broadcast_shapes(*shapes)
-        except ValueError:
-            named = {n: a.shape for n, a in checked.items() if isinstance(a, np.ndarray)}
-            raise ValueError(f"array parameters do not broadcast together: {named}") from None
-    return checked
+    if len(shapes) <= 1:
+        return checked, shapes.pop() if shapes else ()
+    try:
+        return checked, np.broadcast_shapes(*shapes)
+    except ValueError:
+        named = {n: a.shape for n, a in checked.items() if isinstance(a, np.ndarray)}
+        raise ValueError(f"array parameters do not broadcast together: {named}") from None
