@@ -4,13 +4,16 @@ Run: ``python bench/physics.py [--points N] [--repeats R]``. Prints points per
 second and the ratio of the evaluation time to one ``numpy.power`` pass over
 arrays of the same size (best of R runs each, interleaved so that both see the
 same machine load), for ``physics.evaluate`` returning all 21 outputs and
-returning μ alone (``outputs=["mu"]``: the same arithmetic, one array stored).
-Target of issue 2: ratio <= 15, goal <= 10.
+returning μ alone (``outputs=["mu"]``: the same arithmetic, one array stored),
+each on the threads a large call uses by default (the usable CPUs) and on one
+thread (``MICROBEARING_PHYSICS_THREADS=1``). Target of issue 2: ratio <= 15,
+goal <= 10.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -23,6 +26,8 @@ if Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 import numpy as np
 
 import physics
+
+THREADS = physics.bearing.THREADS_VARIABLE
 
 
 def random_design_points(n: int, seed: int = 0) -> dict[str, np.ndarray]:
@@ -48,24 +53,29 @@ def main() -> None:
     points = random_design_points(args.points)
     base = points["load_N"]
     physics.evaluate(**points)  # warm up
-    t_all, t_mu, t_pow = [], [], []
+    cases = {(outputs, threads): [] for outputs in ("all 21 outputs", "mu only") for threads in ("", "1")}
+    t_pow = []
     for _ in range(args.repeats):
-        start = time.perf_counter()
-        physics.evaluate(**points)
-        t_all.append(time.perf_counter() - start)
-        start = time.perf_counter()
-        physics.evaluate(outputs=["mu"], **points)
-        t_mu.append(time.perf_counter() - start)
+        for (outputs, threads), times in cases.items():
+            os.environ[THREADS] = threads
+            start = time.perf_counter()
+            physics.evaluate(outputs=["mu"] if outputs == "mu only" else None, **points)
+            times.append(time.perf_counter() - start)
         start = time.perf_counter()
         np.power(base, 0.47)
         t_pow.append(time.perf_counter() - start)
-    best_all, best_mu, best_pow = min(t_all), min(t_mu), min(t_pow)
-    print(f"points: {args.points:,}  (7 of 16 inputs varied per point, the rest at defaults)")
-    print(f"numpy.power pass:                   {best_pow * 1e3:8.1f} ms")
-    for label, best in (("all 21 outputs", best_all), ("mu only (outputs=['mu'])", best_mu)):
-        print(f"physics.evaluate, {label:24s} {best * 1e3:8.1f} ms  -> {args.points / best:,.0f} points/s"
-              f"  ratio {best / best_pow:.1f}")
+    os.environ.pop(THREADS)
+    best_pow = min(t_pow)
+    print(f"points: {args.points:,}  (7 of 16 inputs varied per point, the rest at defaults); "
+          f"{physics.bearing._threads()} usable CPUs")
+    print(f"numpy.power pass:                                   {best_pow * 1e3:8.1f} ms")
+    for (outputs, threads), times in cases.items():
+        label = f"{outputs}, {'one thread' if threads else 'default threads'}"
+        best = min(times)
+        print(f"physics.evaluate, {label:32s} {best * 1e3:8.1f} ms  -> {args.points / best:12,.0f} points/s"
+              f"  ratio {best / best_pow:5.1f}")
     print("target: ratio <= 15, goal <= 10")
+
 
 if __name__ == "__main__":
     main()

@@ -18,8 +18,11 @@ References
 from __future__ import annotations
 
 import functools
+import itertools
 import math
+import os
 from collections.abc import Iterable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -444,8 +447,9 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     ------
     ValueError
         For unknown or missing parameters, values out of range (naming the
-        parameter and its range), shapes that do not broadcast, or unknown
-        output names.
+        parameter and its range), shapes that do not broadcast, unknown
+        output names, or (on calls large enough for threads) a
+        ``MICROBEARING_PHYSICS_THREADS`` that is not a whole number.
 
     Notes
     -----
@@ -457,11 +461,15 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
 
     Inputs are evaluated in blocks of 16,384 points, in place, so that the
     intermediates stay in the CPU's cache and no temporary array is allocated
-    per operation (throughput: ``bench/physics.py``). The arithmetic takes tan θ
+    per operation; calls of 8 blocks or more share their blocks between
+    threads, one per usable CPU or as many as the environment variable
+    ``MICROBEARING_PHYSICS_THREADS`` says (numpy releases the GIL in its
+    loops; throughput: ``bench/physics.py``). The arithmetic takes tan θ
     directly and sec θ from it, and the power laws of eqs 9 and 15 as exp of
     logarithms; it agrees with the plain composition of the equations'
     functions to ~1e-13 (tested), and every point runs the same operations
-    whatever the size of the call, so results do not depend on batching.
+    whatever the size of the call or the number of threads, so results do not
+    depend on batching.
 
     References
     ----------
@@ -485,23 +493,20 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
             for k, v in p.items()}
     block_size = max(1, min(size, _BLOCK_POINTS))
     kept = np.empty((len(wanted), size))
-    others = [k for k in OUTPUTS if k not in wanted]
-    scratch = np.empty((len(others), block_size))  # outputs not asked for, overwritten block by block
-    all_work = np.empty((4, block_size))
-    o = dict(zip(others, scratch, strict=True))
-    work = all_work
     with np.errstate(divide="ignore"):  # log of a zero speed or viscosity: -inf, then exp(-inf) = 0
         flat.update(_coefficients(flat, convention))
-        arrays = {k: v for k, v in flat.items() if isinstance(v, np.ndarray) and v.ndim}
-        b = {k: v for k, v in flat.items() if k not in arrays}
-        for start in range(0, size, block_size):
-            stop = min(start + block_size, size)
-            if stop - start < block_size:  # the last, shorter block
-                o.update((k, row[:stop - start]) for k, row in zip(others, scratch, strict=True))
-                work = all_work[:, :stop - start]
-            b.update((k, v[start:stop]) for k, v in arrays.items())
-            o.update((k, row[start:stop]) for k, row in zip(wanted, kept, strict=True))
-            _block(b, o, *work)
+    arrays = {k: v for k, v in flat.items() if isinstance(v, np.ndarray) and v.ndim}
+    scalars = {k: v for k, v in flat.items() if k not in arrays}
+    run = functools.partial(_run_blocks, arrays, scalars, dict(zip(wanted, kept, strict=True)),
+                            [k for k in OUTPUTS if k not in wanted], block_size)
+    blocks = -(-size // block_size)
+    threads = min(_threads(), blocks // _MIN_BLOCKS_PER_THREAD) if blocks >= 2 * _MIN_BLOCKS_PER_THREAD else 1
+    if threads < 2:
+        run(0, size)
+    else:  # contiguous runs of whole blocks, one per thread; numpy releases the GIL in its loops
+        edges = [block_size * (blocks * i // threads) for i in range(threads)] + [size]
+        for future in [_pool().submit(run, lo, hi) for lo, hi in itertools.pairwise(edges)]:
+            future.result()
     values = dict(zip(wanted, kept.reshape(len(wanted), *shape), strict=True))
     return FrictionResult(**{k: values.get(k) for k in OUTPUTS}, convention=convention)
 
@@ -516,6 +521,57 @@ def _output_names(outputs: Iterable[str]) -> list[str]:
 
 #: Points per block of :func:`_block`: the block's work arrays stay in the CPU's cache.
 _BLOCK_POINTS = 16384
+#: Fewest blocks a thread is given: below 2 x 4 blocks a call runs in the caller's thread.
+_MIN_BLOCKS_PER_THREAD = 4
+#: Environment variable capping the threads of large calls (default: the usable CPUs).
+THREADS_VARIABLE = "MICROBEARING_PHYSICS_THREADS"
+
+
+def _threads() -> int:
+    """Threads for large calls: ``MICROBEARING_PHYSICS_THREADS`` if set, else the usable CPUs."""
+    value = os.environ.get(THREADS_VARIABLE, "").strip()
+    if value:
+        try:
+            return max(1, int(value))
+        except ValueError:
+            raise ValueError(f"{THREADS_VARIABLE} must be a whole number >= 1; got {value!r}") from None
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@functools.cache
+def _pool() -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(thread_name_prefix="physics")
+
+
+if hasattr(os, "register_at_fork"):  # a forked child has none of the parent's threads: a new pool
+    os.register_at_fork(after_in_child=_pool.cache_clear)
+
+
+def _run_blocks(arrays: dict[str, np.ndarray], scalars: dict[str, Any], kept: dict[str, np.ndarray],
+                others: list[str], block_size: int, lo: int, hi: int) -> None:
+    """Run :func:`_block` over points ``lo:hi``, block by block, into the rows of ``kept``.
+
+    Outputs not asked for go to scratch rows overwritten block by block; each
+    call has its own scratch and work arrays, so calls on disjoint ranges can
+    run in parallel threads.
+    """
+    b = dict(scalars)
+    scratch = np.empty((len(others), block_size))
+    all_work = np.empty((4, block_size))
+    o = dict(zip(others, scratch, strict=True))
+    work = all_work
+    with np.errstate(divide="ignore"):  # per thread: log of a zero speed or viscosity is -inf, exp(-inf) = 0
+        for start in range(lo, hi, block_size):
+            stop = min(start + block_size, hi)
+            if stop - start < block_size:  # the last, shorter block
+                o.update((k, row[:stop - start]) for k, row in zip(others, scratch, strict=True))
+                work = all_work[:, :stop - start]
+            b.update((k, v[start:stop]) for k, v in arrays.items())
+            o.update((k, row[start:stop]) for k, row in kept.items())
+            _block(b, o, *work)
 
 
 #: The inputs of :func:`_coefficients`: the ball, the materials and the film.
