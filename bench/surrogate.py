@@ -1,7 +1,9 @@
 """Accuracy, calibration and speed of the Gaussian-process surrogates, measured side by side.
 
-Run: ``.venv/bin/python -m bench.surrogate`` from the repository root (about 12 minutes on the
-shared 2-core machine; ``--quick`` skips the ablations and the larger spaces, about 2 minutes).
+Run: ``.venv/bin/python -m bench.surrogate`` from the repository root (about 1-3 minutes on the
+shared 2-core machine; ``--quick`` skips the ablations and the larger spaces;
+``--coverage-only`` runs the coverage study of the default model over 48 design
+seeds and three held-out sets, and of the larger spaces over 6 seeds).
 
 Every figure is on held-out physics evaluations (2048 scrambled Sobol' points of
 each space, a seed never used for training). Rows:
@@ -14,6 +16,10 @@ each space, a seed never used for training). Rows:
 * the baseline: a plain GP (RBF, constant mean, μ itself as target) on raw
   inputs with a Latin-hypercube design of the same budget; ratios baseline /
   ours of the median and 95th-percentile errors;
+* the target request over 16 design seeds (``--coverage-seeds``): how often
+  the 95 % interval's coverage lands in [90, 98] %, for the default model and
+  for the root-mean-square variance scale and the earlier default (RBF,
+  5-fold refits);
 * larger spaces (friction coefficients, adhesion energy, ball diameter, balls
   touching as inputs) at budgets 100 and 200.
 """
@@ -71,10 +77,93 @@ def fixed_design(space: Space, budget: int, method: str, **params) -> tuple[Gaus
     return model, time.perf_counter() - start
 
 
+def coverage_over_seeds(space: Space, X_test: np.ndarray, y_test: np.ndarray, seeds: int) -> None:
+    """The target request over many design seeds: how often the 95 % coverage lands in [90, 98] %."""
+    variants = {
+        "Matern 5/2, LOO, central scale (default)": {},
+        "Matern 5/2, LOO, rms scale": {"variance_scale": "rms"},
+        "RBF, 5-fold refits, rms scale (earlier default)": {"kernel": "rbf", "calibrate_variance": "kfold",
+                                                             "variance_scale": "rms"},
+    }
+    print(f"\nTarget request (budget 100, target 0.001) over design seeds 0-{seeds - 1}, "
+          f"same held-out points: coverage of the 95 % interval [%]\n")
+    print("| model | coverage per seed | in [90, 98] | median err. [%] | p95 err. [%] | fit [s] |")
+    print("|---|---|---|---|---|---|")
+    for label, params in variants.items():
+        scores, seconds = [], []
+        for seed in range(seeds):
+            start = time.perf_counter()
+            fit = fit_adaptive(space, budget=100, target_relative_error=1e-3, seed=seed, model_params=params)
+            seconds.append(time.perf_counter() - start)
+            scores.append(score(fit.model, X_test, y_test))
+        coverage = [100 * m["coverage_95"] for m in scores]
+        median = [100 * m["median_relative_error"] for m in scores]
+        p95 = [100 * m["p95_relative_error"] for m in scores]
+        print(f"| {label} | {' '.join(f'{c:.1f}' for c in coverage)} | "
+              f"{sum(90 <= c <= 98 for c in coverage)}/{seeds} | {min(median):.4f}-{max(median):.4f} | "
+              f"{min(p95):.3f}-{max(p95):.3f} | {min(seconds):.1f}-{max(seconds):.1f} |")
+
+
+EXTRA_TEST_SEEDS = (7, 99)
+
+
+def coverage_study(seeds: int, larger_seeds: int = 6) -> None:
+    """The default model's coverage over many design seeds and three held-out sets, then the larger spaces."""
+    space = Space(TARGET_SPACE)
+    sets = [held_out(space)] + [(X, space.evaluate(X)) for X in
+                                (design(space, N_TEST, "sobol", s) for s in EXTRA_TEST_SEEDS)]
+    names = [str(TEST_SEED), *map(str, EXTRA_TEST_SEEDS)]
+    print(f"Target request (budget 100, target 0.001), default model, design seeds 0-{seeds - 1}; "
+          f"coverage [%] on held-out sets {', '.join(names)}\n")
+    print("| seed | n_train | stop | median err. [%] | p95 err. [%] | coverage per set [%] | scale | fit [s]"
+          " |")
+    print("|---|---|---|---|---|---|---|---|")
+    coverage = []
+    for seed in range(seeds):
+        start = time.perf_counter()
+        fit = fit_adaptive(space, budget=100, target_relative_error=1e-3, seed=seed)
+        seconds = time.perf_counter() - start
+        scores = [score(fit.model, X, y) for X, y in sets]
+        coverage.append([100 * m["coverage_95"] for m in scores])
+        first = scores[0]
+        print(f"| {seed} | {fit.n_train} | {fit.stop_reason} | {100 * first['median_relative_error']:.4f} | "
+              f"{100 * first['p95_relative_error']:.4f} | {' '.join(f'{c:.1f}' for c in coverage[-1])} | "
+              f"{fit.model.std_scale_:.3f} | {seconds:.1f} |", flush=True)
+    print()
+    for k, name in enumerate(names):
+        values = [row[k] for row in coverage]
+        outside = [f"{seed} ({c:.1f})" for seed, c in enumerate(values) if not 90 <= c <= 98]
+        print(f"held-out set {name}: {sum(90 <= c <= 98 for c in values)}/{seeds} in [90, 98], "
+              f"range {min(values):.1f}-{max(values):.1f}, mean {np.mean(values):.1f}; "
+              f"outside: {', '.join(outside) or 'none'}")
+    print(f"\nLarger spaces, design seeds 0-{larger_seeds - 1}: coverage [%] of the adaptive fit, central "
+          f"(default) and rms variance scale\n")
+    print("| space | budget | central | rms |\n|---|---|---|---|")
+    for label, bounds in LARGER_SPACES.items():
+        big = Space(bounds)
+        X_t, y_t = held_out(big)
+        for budget in (100, 200):
+            cells = []
+            for rule in ("central", "rms"):
+                values = [100 * score(fit_adaptive(big, budget=budget, seed=seed,
+                                                   model_params={"variance_scale": rule}).model,
+                                      X_t, y_t)["coverage_95"] for seed in range(larger_seeds)]
+                cells.append(" ".join(f"{c:.1f}" for c in values))
+            print(f"| {label.split(' ')[0]} | {budget} | {cells[0]} | {cells[1]} |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="only the target rows and the baseline")
+    parser.add_argument("--coverage-seeds", type=int, default=None,
+                        help="design seeds of the coverage comparison (default 16; 48 with --coverage-only)")
+    parser.add_argument("--coverage-only", action="store_true",
+                        help="only the default model's coverage over many design seeds and three held-out "
+                             "sets (about 2 minutes for 48 seeds), then the larger spaces' over 6 seeds")
     args = parser.parse_args()
+    if args.coverage_only:
+        coverage_study(args.coverage_seeds or 48)
+        return
 
     space = Space(TARGET_SPACE)
     X_test, y_test = held_out(space)
@@ -102,13 +191,14 @@ def main() -> None:
 
     if not args.quick:
         ablations = {
-            "Sobol, defaults (physics features, linear mean, RBF, log mu)": {},
+            "Sobol, defaults (physics features, linear mean, Matern 5/2, log mu, LOO rms scale)": {},
             "Sobol, features: log scales only (no G/z, tan/cos theta)": {"features": "scaled"},
             "Sobol, features: raw inputs": {"features": "raw"},
             "Sobol, constant mean": {"mean": "constant"},
-            "Sobol, Matern 5/2 kernel": {"kernel": "matern52"},
+            "Sobol, RBF kernel": {"kernel": "rbf"},
             "Sobol, target mu instead of log mu": {"log_target": False},
-            "Sobol, variance calibration: closed-form LOO": {"calibrate_variance": "loo"},
+            "Sobol, variance calibration: 5-fold refits": {"calibrate_variance": "kfold"},
+            "Sobol, variance scale: central 80 % rule": {"variance_scale": "central"},
             "Sobol, no variance calibration": {"calibrate_variance": "none"},
         }
         for label, params in ablations.items():
@@ -130,6 +220,7 @@ def main() -> None:
 
     if args.quick:
         return
+    coverage_over_seeds(space, X_test, y_test, args.coverage_seeds or 16)
     for label, bounds in LARGER_SPACES.items():
         big = Space(bounds)
         X_t, y_t = held_out(big)

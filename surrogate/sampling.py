@@ -20,7 +20,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.stats import binom, norm, qmc
 
-from .model import GaussianProcessSurrogate
+from .model import DEFAULT_CALIBRATION, GaussianProcessSurrogate
 from .space import Space
 
 __all__ = ["DESIGNS", "CRITERIA", "TAIL_FACTOR", "STOP_CONFIDENCE", "predicted_error_quantile",
@@ -328,7 +328,9 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
     n_candidates : int, default 1024
         Sobol' candidates scanned for the next batch and for the error estimate. [1]
     model_params : mapping, optional
-        Keyword arguments of :class:`GaussianProcessSurrogate` (besides ``space``).
+        Keyword arguments of :class:`GaussianProcessSurrogate` (besides ``space``);
+        ``variance_scale`` defaults to ``"central"`` when ``adaptive`` (the
+        batches crowd the edges of the space, see the estimator), else ``"rms"``.
     seed : int or None, default 0
         Seed of designs, candidates and the optimizer's restarts.
     progress : callable, optional
@@ -365,8 +367,10 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         raise ValueError(f"n_candidates must be >= 1; got {n_candidates!r}")
     params = dict(model_params or {})
     params.setdefault("random_state", seed)
+    # Adaptive batches crowd the edges, where leave-one-out errors are extrapolation: a robust scale.
+    params.setdefault("variance_scale", "central" if adaptive else "rms")
     # Intermediate rounds use the cheap closed-form leave-one-out calibration; the final
-    # model gets the requested one (k-fold by default, five more fits).
+    # model gets the requested one (leave-one-out too by default; k-fold costs five more fits).
     rounds = {**params, "calibrate_variance": "none" if params.get("calibrate_variance") == "none" else "loo"}
 
     def evaluate(points: np.ndarray) -> np.ndarray:
@@ -436,7 +440,7 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         X = np.vstack([X, candidates[picked]])
         y = np.concatenate([y, evaluate(candidates[picked])])
         candidates = np.delete(candidates, picked, axis=0)
-    if rounds["calibrate_variance"] != params.get("calibrate_variance", "kfold"):
+    if rounds["calibrate_variance"] != params.get("calibrate_variance", DEFAULT_CALIBRATION):
         final = {**params, "initial_theta": model.gaussian_process_.kernel_.theta.tolist(),
                  "n_restarts_optimizer": 0}
         model = GaussianProcessSurrogate(space, **final).fit(X, y)

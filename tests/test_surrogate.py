@@ -207,10 +207,14 @@ def test_coverage_of_the_95_interval_is_in_a_band():
     assert 0.4 <= np.mean(median_z) <= 1.0
 
 
-def test_kfold_calibration_is_nominal_when_the_errors_are_known():
+@pytest.mark.parametrize("calibration", ["kfold", "loo"])
+@pytest.mark.parametrize("variance_scale", ["rms", "central"])
+def test_calibration_is_nominal_when_the_errors_are_known(calibration, variance_scale):
     # log mu drawn from a Gaussian process with an RBF kernel in the unit square: the model is well
     # specified, its standardized held-out errors are N(0, 1) up to the hyperparameters' estimation,
-    # so the calibrated 95 % interval should cover 95 % and the k-fold scale be near 1.
+    # so the calibrated 95 % interval should cover 95 % and the scale be near 1, whichever the errors
+    # (k-fold refits or closed-form leave-one-out) and the rule (for N(0, 1) errors the root mean square
+    # and the central-80 % quantile rule both give 1).
     space = Space({"load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2)}, fixed={"balls": 6})
     coverages, median_z, scales = [], [], []
     for draw in range(12):
@@ -218,17 +222,21 @@ def test_kfold_calibration_is_nominal_when_the_errors_are_known():
         U = space.to_unit(np.vstack([X, X_test]))
         K = np.exp(-0.5 * ((U[:, None, :] - U[None, :, :]) ** 2).sum(-1) / 0.3**2) + 1e-10 * np.eye(len(U))
         mu = np.exp(np.linalg.cholesky(K) @ np.random.default_rng(draw).standard_normal(len(U)))
-        model = GaussianProcessSurrogate(space, features="scaled", mean="constant", random_state=0)
+        model = GaussianProcessSurrogate(space, features="scaled", mean="constant", kernel="rbf",
+                                         calibrate_variance=calibration, variance_scale=variance_scale,
+                                         random_state=0)
         model.fit(X, mu[:60])
         p = model.predict_interval(X_test)
         coverages.append(np.mean((p.mu_lower <= mu[60:]) & (mu[60:] <= p.mu_upper)))
         median_z.append(np.median(np.abs(np.log(mu[60:] / p.mu)) / p.log_std))
         scales.append(model.std_scale_)
-    # Measured: mean coverage 0.956 (single draws 0.83-1.0: 60 points estimate the length scales
-    # loosely), mean median |z| 0.67 (0.674 for N(0, 1)), mean scale 1.10.
-    assert 0.92 <= np.mean(coverages) <= 0.98
-    assert 0.55 <= np.mean(median_z) <= 0.8
-    assert 0.85 <= np.mean(scales) <= 1.25
+    # Measured (mean coverage, mean median |z|, mean scale; single draws cover 0.82-1.0, as 60 points
+    # estimate the length scales loosely): kfold 0.956, 0.67, 1.10 (rms) and 0.959, 0.66, 1.11 (central);
+    # loo 0.925, 0.79, 0.89 for both rules (the hyperparameters held fixed: slightly overconfident).
+    # For N(0, 1) errors: 0.95, 0.674, 1.
+    assert 0.9 <= np.mean(coverages) <= 0.98
+    assert 0.55 <= np.mean(median_z) <= 0.85
+    assert 0.8 <= np.mean(scales) <= 1.25
 
 
 def test_predict_points_matches_predict_and_flags_outside(fitted):
@@ -254,7 +262,33 @@ def test_loo_errors_match_brute_force_refits(fitted):
         refit = GaussianProcessRegressor(gp.kernel_, alpha=gp.alpha, optimizer=None)
         refit.fit(Zs[keep], normalized[keep])
         brute.append((normalized[i] - refit.predict(Zs[i:i + 1])[0]) * spread)
-    np.testing.assert_allclose(model.loo_log_errors(), brute, rtol=1e-5, atol=1e-12)
+    # To 1e-5 of the largest error: the nearly noise-free Matern kernel matrix is ill-conditioned
+    # enough that the smallest errors (1e-6 of log mu) differ by ~1e-10 between the two routes.
+    brute = np.array(brute)
+    np.testing.assert_allclose(model.loo_log_errors(), brute, rtol=1e-5, atol=1e-5 * np.abs(brute).max())
+
+
+@pytest.mark.parametrize("variance_scale", ["rms", "central"])
+def test_variance_scale_follows_its_rule_on_brute_force_leave_one_out(variance_scale):
+    space = SPACES["angle+load"]
+    X = design(space, 24, "sobol", seed=3)
+    model = GaussianProcessSurrogate(space, random_state=0, variance_scale=variance_scale)
+    model.fit(X, space.evaluate(X))
+    gp = model.gaussian_process_
+    Zs = model._design_matrix(model.X_train_)
+    residual = np.log(model.y_train_) - model._prior_mean(Zs)
+    centre, spread = residual.mean(), residual.std()
+    z = []
+    for i in range(len(Zs)):  # each point predicted by the process refitted without it
+        keep = np.arange(len(Zs)) != i
+        refit = GaussianProcessRegressor(gp.kernel_, alpha=gp.alpha, optimizer=None)
+        refit.fit(Zs[keep], (residual[keep] - centre) / spread)
+        mean, std = refit.predict(Zs[i:i + 1], return_std=True)
+        z.append(((residual[i] - centre) / spread - mean[0]) / std[0])
+    z = np.abs(z)
+    # rms: s^2 = mean z^2 (Bachoc 2013); central: the 80th percentile of |z| over that of |N(0, 1)|.
+    expected = np.sqrt(np.mean(z**2)) if variance_scale == "rms" else np.quantile(z, 0.8) / 1.2815515655446004
+    assert model.std_scale_ == pytest.approx(expected, rel=1e-4)
 
 
 @pytest.mark.parametrize(("params", "y", "message"), [
@@ -263,6 +297,7 @@ def test_loo_errors_match_brute_force_refits(fitted):
     ({"mean": "quadratic"}, None, "mean must be one of"),
     ({"n_restarts_optimizer": -1}, None, "n_restarts_optimizer"),
     ({"calibrate_variance": True}, None, "calibrate_variance must be one of"),
+    ({"variance_scale": "mad"}, None, "variance_scale must be one of"),
     ({"initial_theta": [0.0, 0.0]}, None, "initial_theta must hold 3"),
     ({}, -1.0, "y must be > 0"),
     ({}, "short", "y must be a 1-D array"),
@@ -421,9 +456,10 @@ def test_quantile_upper_bound_covers_the_true_quantile_and_tightens_with_n():
 def test_the_bound_does_not_stop_where_point_estimates_would():
     # bench/surrogate.py's target request, seed 13: after the 50-point starting design the
     # leave-one-out point estimates (and the predictive spread) met the 0.1 % target, and the rule
-    # on point estimates stopped there with a held-out median error of 0.114 %.
+    # on point estimates stopped there with a held-out median error of 0.114 %. That was the RBF kernel
+    # (the default then); Matern 5/2's estimates do not meet the target at 50 points.
     space = Space(TARGET_BOUNDS)
-    fit = fit_adaptive(space, budget=100, target_relative_error=1e-3, seed=13)
+    fit = fit_adaptive(space, budget=100, target_relative_error=1e-3, seed=13, model_params={"kernel": "rbf"})
     first = fit.history[0]
     assert first["n_train"] == 50
     assert first["loo_median_relative_error"] <= 1e-3 and first["loo_p95_relative_error"] <= 5e-3
@@ -549,3 +585,16 @@ def test_sobol_indices_of_the_friction_model_on_a_surrogate():
     np.testing.assert_allclose(result.total_order, exact.total_order, atol=0.02)
     # Load per ball drives μ: balls and load dominate, speed least.
     assert np.argmin(exact.total_order) == space.names.index("speed_m_s")
+
+
+@pytest.mark.parametrize(("adaptive", "model_params", "expected"), [
+    (True, None, "central"), (False, None, "rms"), (True, {"variance_scale": "rms"}, "rms")])
+def test_fit_adaptive_scales_the_variance_robustly_for_adaptive_designs(adaptive, model_params, expected):
+    # Adaptive batches crowd the edges, where leave-one-out is extrapolation: the central rule there;
+    # a plain design gets the root mean square; an explicit choice wins.
+    space = SPACES["load"]
+    fit = fit_adaptive(space, budget=12, target_relative_error=1e-9, adaptive=adaptive,
+                       model_params=model_params)
+    assert fit.model.variance_scale == expected and fit.n_train == 12
+    errors = np.abs(fit.model.loo_log_errors())
+    assert np.all(np.isfinite(errors)) and fit.model.std_scale_ > 0
