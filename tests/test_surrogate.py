@@ -234,9 +234,9 @@ def test_calibration_is_nominal_when_the_errors_are_known(calibration, variance_
     # estimate the length scales loosely): kfold 0.956, 0.67, 1.10 (rms) and 0.959, 0.66, 1.11 (central);
     # loo 0.925, 0.79, 0.89 for both rules (the hyperparameters held fixed: slightly overconfident).
     # For N(0, 1) errors: 0.95, 0.674, 1.
-    assert 0.9 <= np.mean(coverages) <= 0.98
-    assert 0.55 <= np.mean(median_z) <= 0.85
-    assert 0.8 <= np.mean(scales) <= 1.25
+    assert 0.92 <= np.mean(coverages) <= 0.98
+    assert 0.55 <= np.mean(median_z) <= 0.8
+    assert 0.85 <= np.mean(scales) <= 1.25
 
 
 def test_predict_points_matches_predict_and_flags_outside(fitted):
@@ -249,8 +249,11 @@ def test_predict_points_matches_predict_and_flags_outside(fitted):
     np.testing.assert_array_equal(model.mu_model({"balls": X[:, 0], "speed_m_s": X[:, 1]}), direct)
 
 
-def test_loo_errors_match_brute_force_refits(fitted):
-    model = fitted["angle+load"]
+@pytest.mark.parametrize("kernel", ["rbf", "matern52"])
+def test_loo_errors_match_brute_force_refits(kernel):
+    space = SPACES["angle+load"]
+    X = design(space, 24, "sobol", seed=3)
+    model = GaussianProcessSurrogate(space, kernel=kernel, random_state=0).fit(X, space.evaluate(X))
     gp = model.gaussian_process_
     Zs = model._design_matrix(model.X_train_)
     residual = np.log(model.y_train_) - model._prior_mean(Zs)
@@ -262,10 +265,12 @@ def test_loo_errors_match_brute_force_refits(fitted):
         refit = GaussianProcessRegressor(gp.kernel_, alpha=gp.alpha, optimizer=None)
         refit.fit(Zs[keep], normalized[keep])
         brute.append((normalized[i] - refit.predict(Zs[i:i + 1])[0]) * spread)
-    # To 1e-5 of the largest error: the nearly noise-free Matern kernel matrix is ill-conditioned
-    # enough that the smallest errors (1e-6 of log mu) differ by ~1e-10 between the two routes.
+    # Matern 5/2 (the default kernel, a new case): its nearly noise-free kernel matrix is ill-conditioned
+    # enough that the smallest errors (1e-6 of log mu) differ by ~1e-10 between the two routes, so its
+    # absolute tolerance is 1e-5 of the largest error.
     brute = np.array(brute)
-    np.testing.assert_allclose(model.loo_log_errors(), brute, rtol=1e-5, atol=1e-5 * np.abs(brute).max())
+    atol = 1e-12 if kernel == "rbf" else 1e-5 * np.abs(brute).max()
+    np.testing.assert_allclose(model.loo_log_errors(), brute, rtol=1e-5, atol=atol)
 
 
 @pytest.mark.parametrize("variance_scale", ["rms", "central"])
