@@ -77,6 +77,20 @@ def fixed_design(space: Space, budget: int, method: str, **params) -> tuple[Gaus
     return model, time.perf_counter() - start
 
 
+def target_runs(space: Space, seeds: int, sets: list[tuple[np.ndarray, np.ndarray]], **params):
+    """The target request (budget 100, target 0.001) per design seed: (fit, seconds, scores on each set)."""
+    for seed in range(seeds):
+        start = time.perf_counter()
+        fit = fit_adaptive(space, budget=100, target_relative_error=1e-3, seed=seed, model_params=params)
+        seconds = time.perf_counter() - start
+        yield fit, seconds, [score(fit.model, X, y) for X, y in sets]
+
+
+def in_band(coverage: list[float]) -> int:
+    """How many coverages [%] lie in the issue's band [90, 98] %."""
+    return sum(90 <= c <= 98 for c in coverage)
+
+
 def coverage_over_seeds(space: Space, X_test: np.ndarray, y_test: np.ndarray, seeds: int) -> None:
     """The target request over many design seeds: how often the 95 % coverage lands in [90, 98] %."""
     variants = {
@@ -90,17 +104,14 @@ def coverage_over_seeds(space: Space, X_test: np.ndarray, y_test: np.ndarray, se
     print("| model | coverage per seed | in [90, 98] | median err. [%] | p95 err. [%] | fit [s] |")
     print("|---|---|---|---|---|---|")
     for label, params in variants.items():
-        scores, seconds = [], []
-        for seed in range(seeds):
-            start = time.perf_counter()
-            fit = fit_adaptive(space, budget=100, target_relative_error=1e-3, seed=seed, model_params=params)
-            seconds.append(time.perf_counter() - start)
-            scores.append(score(fit.model, X_test, y_test))
+        runs = list(target_runs(space, seeds, [(X_test, y_test)], **params))
+        seconds = [run[1] for run in runs]
+        scores = [run[2][0] for run in runs]
         coverage = [100 * m["coverage_95"] for m in scores]
         median = [100 * m["median_relative_error"] for m in scores]
         p95 = [100 * m["p95_relative_error"] for m in scores]
         print(f"| {label} | {' '.join(f'{c:.1f}' for c in coverage)} | "
-              f"{sum(90 <= c <= 98 for c in coverage)}/{seeds} | {min(median):.4f}-{max(median):.4f} | "
+              f"{in_band(coverage)}/{seeds} | {min(median):.4f}-{max(median):.4f} | "
               f"{min(p95):.3f}-{max(p95):.3f} | {min(seconds):.1f}-{max(seconds):.1f} |")
 
 
@@ -119,11 +130,7 @@ def coverage_study(seeds: int, larger_seeds: int = 6) -> None:
           " |")
     print("|---|---|---|---|---|---|---|---|")
     coverage = []
-    for seed in range(seeds):
-        start = time.perf_counter()
-        fit = fit_adaptive(space, budget=100, target_relative_error=1e-3, seed=seed)
-        seconds = time.perf_counter() - start
-        scores = [score(fit.model, X, y) for X, y in sets]
+    for seed, (fit, seconds, scores) in enumerate(target_runs(space, seeds, sets)):
         coverage.append([100 * m["coverage_95"] for m in scores])
         first = scores[0]
         print(f"| {seed} | {fit.n_train} | {fit.stop_reason} | {100 * first['median_relative_error']:.4f} | "
@@ -133,7 +140,7 @@ def coverage_study(seeds: int, larger_seeds: int = 6) -> None:
     for k, name in enumerate(names):
         values = [row[k] for row in coverage]
         outside = [f"{seed} ({c:.1f})" for seed, c in enumerate(values) if not 90 <= c <= 98]
-        print(f"held-out set {name}: {sum(90 <= c <= 98 for c in values)}/{seeds} in [90, 98], "
+        print(f"held-out set {name}: {in_band(values)}/{seeds} in [90, 98], "
               f"range {min(values):.1f}-{max(values):.1f}, mean {np.mean(values):.1f}; "
               f"outside: {', '.join(outside) or 'none'}")
     print(f"\nLarger spaces, design seeds 0-{larger_seeds - 1}: coverage [%] of the adaptive fit, central "
