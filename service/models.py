@@ -500,20 +500,21 @@ def jacobian(model: Model, points: Mapping[str, Any], wrt: Sequence[str],
         if not spec.continuous:
             raise InputError(name, None, f"{name} is a {'count' if spec.kind == 'int' else 'flag'}: "
                              "derivatives are taken with respect to continuous inputs only")
-    x0 = np.stack([np.asarray(columns[name], dtype=float) for name in wrt])  # (k, n)
+    x0 = np.stack([np.broadcast_to(np.asarray(columns[name], dtype=float), (n,)) for name in wrt])  # (k, n)
     steps, directions = zip(*(_steps(model.inputs[name], row) for name, row in zip(wrt, x0, strict=True)),
                             strict=True)
     grid = (len(outputs), len(wrt), n)
     out_index, in_index, point_index = np.indices(grid)
 
     def f(x: np.ndarray, out_i: np.ndarray, in_i: np.ndarray, point_i: np.ndarray) -> np.ndarray:
+        shape = np.broadcast_shapes(x.shape, out_i.shape, in_i.shape, point_i.shape)
         x, out_i, in_i, point_i = (a.reshape(-1) for a in np.broadcast_arrays(x, out_i, in_i, point_i))
         at = {name: value[point_i] if np.ndim(value) else value for name, value in columns.items()}
         for j, name in enumerate(wrt):
             at[name] = np.where(in_i == j, x, at[name])
         values = model.evaluate(at, outputs).values
         stacked = np.stack([np.broadcast_to(values[name], x.shape) for name in outputs])
-        return stacked[out_i.astype(int), np.arange(x.size)]
+        return stacked[out_i.astype(int), np.arange(x.size)].reshape(shape)
 
     with np.errstate(all="ignore"):
         result = derivative(f, np.broadcast_to(x0, grid), args=(out_index, in_index, point_index),
