@@ -26,6 +26,7 @@ continuous inputs.
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -112,6 +113,13 @@ class ModelInput:
         """Whether derivatives with respect to this input exist (a real number, not a count or a flag)."""
         return self.kind == "float"
 
+    def coerce(self, values: Any) -> np.ndarray:
+        """The values as an array, numbers 0 and 1 as false and true for a boolean input."""
+        arr = np.asarray(values)
+        if self.kind == "bool" and arr.dtype != np.bool_ and np.isin(arr, (0, 1)).all():
+            return arr.astype(bool)
+        return arr
+
     def check(self, values: Any) -> np.ndarray:
         """The values as an array, or :class:`InputError` naming the first offending point.
 
@@ -126,9 +134,7 @@ class ModelInput:
         numpy.ndarray
             ``float64`` (``bool`` for a boolean input), in the shape given.
         """
-        arr = np.asarray(values)
-        if self.kind == "bool" and arr.dtype != np.bool_ and np.isin(arr, (0, 1)).all():
-            arr = arr.astype(bool)
+        arr = self.coerce(values)
         if self.name in physics.PARAMETERS:
             try:
                 return physics.validate(self.name, arr)
@@ -284,8 +290,12 @@ class PhysicsModel(Model):
         self.inputs = _physics_inputs({})
 
     def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str]) -> Evaluation:
-        checked = self.check(points)
-        values = evaluate_checked(checked, list(outputs), self.convention)
+        # physics.evaluate checks its inputs itself; only a refusal is checked again, to name the point.
+        try:
+            values = evaluate_checked(dict(points), list(outputs), self.convention)
+        except ProblemError:
+            self.check(points)
+            raise
         return Evaluation(values, np.zeros(np.broadcast_shapes(*(np.shape(v) for v in values.values())),
                                            dtype=bool))
 
@@ -374,6 +384,12 @@ class SurrogateModel(Model):
         return self.estimator.mu_model(points)
 
 
+@functools.cache
+def _physics_model(convention: str) -> PhysicsModel:
+    """The physics in one convention (one instance each: it holds no state)."""
+    return PhysicsModel(convention)
+
+
 def _owned(stored: StoredModel, owner: str | None) -> bool:
     """Whether the caller ``owner`` (an API key id) may use a stored model.
 
@@ -420,7 +436,7 @@ def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Seq
         shapes = " or ".join("'physics'" if k == "physics" else f"'{k}:<id>'" for k in kinds)
         raise validation_problem([{"pointer": pointer, "detail": f"must be {shapes}; got {reference!r}"}])
     if kind == "physics":
-        return PhysicsModel(convention)
+        return _physics_model(convention)
     model_id = match.group(2)
     if kind == "surrogate":
         # The surrogates resource keeps the rebuilt estimators (a refit each) in its cache;

@@ -202,7 +202,7 @@ class Setup:
         return [len(self.outputs)] * self.points
 
     def columns(self, vectors: Sequence[Sequence[float]]) -> dict[str, Any]:
-        """The request's input vectors as checked columns of the model's inputs, with the fixed values."""
+        """The input vectors as columns of the model's inputs, with the fixed values (the model checks)."""
         if len(vectors) != self.points:
             raise ProtocolError("InvalidInput", f"input: {len(vectors)} vectors for config.points = "
                                 f"{self.points}; set config.points to the number of points")
@@ -212,9 +212,8 @@ class Setup:
                                     f"{len(self.inputs)}, one per input of config.inputs "
                                     f"({', '.join(self.inputs)})")
         table = np.asarray(vectors, dtype=np.float64).reshape(self.points, len(self.inputs))
-        columns = {**self.fixed, **{name: table[:, j] for j, name in enumerate(self.inputs)}}
-        with self.pointing():
-            return self.model.check(columns)
+        return {**self.fixed, **{name: self.model.inputs[name].coerce(table[:, j])
+                                 for j, name in enumerate(self.inputs)}}
 
     @contextmanager
     def pointing(self) -> Iterator[None]:
@@ -240,14 +239,18 @@ class Setup:
         return [n for n in self.outputs if n != FLAG_OUTPUT] or ["mu"]
 
 
-def evaluate(setup: Setup, vectors: Sequence[Sequence[float]]) -> list[list[float]]:
-    """The output vectors (``config.outputs`` per point) of the input vectors."""
+def evaluate(setup: Setup, vectors: Sequence[Sequence[float]]) -> bytes:
+    """The JSON answer of Evaluate: ``{"output": [...]}``, one vector of ``config.outputs`` per point."""
     columns = setup.columns(vectors)
     with setup.pointing():
         result = setup.model.evaluate(columns, setup.real_outputs())
     values = {**result.values, FLAG_OUTPUT: result.outside_domain.astype(float)}
     table = np.column_stack([np.broadcast_to(values[name], (setup.points,)) for name in setup.outputs])
-    return table.tolist()
+    # Written from one flat list: a Python list per point would cost ten times the model.
+    numbers = json_bytes(table.ravel().tolist())[1:-1].split(b",")
+    width = table.shape[1]
+    rows = numbers if width == 1 else [b",".join(numbers[i:i + width]) for i in range(0, len(numbers), width)]
+    return b'{"output":[[' + b"],[".join(rows) + b"]]}"
 
 
 def _jacobian_at(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int, in_wrt: int) -> np.ndarray:

@@ -304,3 +304,19 @@ def test_info_and_model_info_hold_the_protocol_fields_only(local):
     assert local.get("/umbridge/Info").json() == {"protocolVersion": 1.0, "models": ["physics"]}
     assert local.post("/umbridge/ModelInfo", json={"name": "physics"}).json() == {"support": {
         "Evaluate": True, "Gradient": True, "ApplyJacobian": True, "ApplyHessian": False}}
+
+
+def test_the_readme_examples_run_and_print_what_they_say(url, capsys):
+    """The ```python blocks of the README's UM-Bridge section, against the live server with its key."""
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    start = text.index("## UQ tools: the UM-Bridge protocol")
+    section = text[start:text.index("\n## ", start + 1)]
+    blocks = re.findall(r"```python\n(.*?)```", section, flags=re.S)
+    assert len(blocks) == 2
+    for block in blocks:
+        namespace: dict = {}
+        exec(block.replace("http://127.0.0.1:8000/umbridge", url), namespace)
+        printed = capsys.readouterr().out.splitlines()
+        assert printed == [line[2:] for line in block.splitlines() if line.startswith("# ")]
+    # The Monte Carlo spread and the first-order one from the gradient agree: the model is smooth there.
+    assert namespace["first_order"] == pytest.approx(namespace["mu"].std(), rel=0.05)

@@ -15,8 +15,10 @@ from fastapi.routing import APIRoute
 from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
 
+import physics
+
 from ..deps import SettingsDep, StoreDep
-from ..models import list_references
+from ..models import Model, list_references
 from ..problems import ProblemError
 from ..schemas.umbridge import (
     UMBridgeApplyJacobianRequest,
@@ -46,6 +48,8 @@ __all__ = ["router"]
 RequestT = TypeVar("RequestT", bound=UMBridgeRequest)
 #: Requests with at most this many input values are answered on the event loop; a thread hop costs more.
 _INLINE_VALUES = 4096
+#: Bodies up to this size [bytes] are validated on the event loop.
+_INLINE_BYTES = 64 * 1024
 
 
 class ProtocolRoute(APIRoute):
@@ -72,17 +76,28 @@ def _answer(document: dict[str, Any]) -> Response:
     return Response(json_bytes(document), media_type="application/json")
 
 
+async def _model(store: Store, name: str, convention: str = physics.DEFAULT_CONVENTION) -> Model:
+    """:func:`find_model`, in a worker thread when it reads the store."""
+    if name == "physics":
+        return find_model(store, name, convention)
+    return await run_in_threadpool(find_model, store, name, convention)
+
+
 async def _parse(request: Request, schema: type[RequestT], store: Store,
                  settings: Settings) -> tuple[RequestT, Setup]:
-    """The request and its :class:`Setup`: the model name first (an unknown model is named), then the rest."""
-    document, name = name_of(await request.body())
-    model = await run_in_threadpool(find_model, store, name)
+    """The request and its :class:`Setup`; an unknown model is named before any other invalid field."""
+    raw = await request.body()
     try:
-        body = schema.model_validate(document)
+        if len(raw) <= _INLINE_BYTES:
+            body = schema.model_validate_json(raw)
+        else:
+            body = await run_in_threadpool(schema.model_validate_json, raw)
     except ValidationError as exc:
+        _, name = name_of(raw)
+        await _model(store, name)
         raise validation_error(exc) from None
-    if model.kind == "physics" and body.config.convention is not None:
-        model = find_model(store, name, str(body.config.convention))
+    convention = physics.DEFAULT_CONVENTION if body.config.convention is None else str(body.config.convention)
+    model = await _model(store, body.name, convention)
     return body, Setup.of(model, body.config, settings.max_batch_points)
 
 
@@ -119,8 +134,10 @@ async def evaluate_model(request: Request, store: StoreDep, settings: SettingsDe
     """The output vectors of the input vectors."""
     body, setup = await _parse(request, UMBridgeEvaluateRequest, store, settings)
     if setup.points * len(setup.inputs) <= _INLINE_VALUES:
-        return _answer({"output": evaluate(setup, body.input)})
-    return _answer({"output": await run_in_threadpool(evaluate, setup, body.input)})
+        content = evaluate(setup, body.input)
+    else:
+        content = await run_in_threadpool(evaluate, setup, body.input)
+    return Response(content, media_type="application/json")
 
 
 @router.post("/Gradient")
@@ -143,5 +160,5 @@ async def apply_jacobian_of_model(request: Request, store: StoreDep, settings: S
 async def apply_hessian_of_model(request: Request, store: StoreDep) -> Response:
     """Not supported (see :data:`service.umbridge.SUPPORT`): ``UnsupportedFeature`` for a known model."""
     _, name = name_of(await request.body())
-    await run_in_threadpool(find_model, store, name)
+    await _model(store, name)
     raise ProtocolError("UnsupportedFeature", f"ApplyHessian is not supported by {name}")
