@@ -4,11 +4,7 @@ against exact ones and finite differences; errors in the protocol's form (in pro
 
 from __future__ import annotations
 
-import os
 import re
-import socket
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -20,6 +16,7 @@ import umbridge
 from fastapi.testclient import TestClient
 
 import physics
+from bench.api import start_server
 from service.app import create_app
 from service.settings import Settings
 
@@ -28,38 +25,17 @@ KEY = "uq-test-key"
 SURROGATE_SPACE = {"load_N": [0.002, 0.03], "speed_m_s": [0.01, 0.15]}
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     """Base URL of ``microbearing serve`` with an API key, on a free loopback port."""
-    port = _free_port()
-    log_path = tmp_path_factory.mktemp("umbridge-log") / "server.log"
-    with log_path.open("wb") as log:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "service.cli", "serve", "--port", str(port),
-             "--data-dir", str(tmp_path_factory.mktemp("umbridge-data"))],
-            cwd=REPO, env={**os.environ, "MICROBEARING_API_KEYS": KEY}, stdout=log, stderr=subprocess.STDOUT)
-        url = f"http://127.0.0.1:{port}"
-        try:
-            deadline = time.monotonic() + 60
-            while True:
-                try:
-                    if httpx.get(f"{url}/healthz", timeout=1).status_code == 200:
-                        break
-                except httpx.TransportError:
-                    pass
-                if process.poll() is not None or time.monotonic() > deadline:
-                    raise RuntimeError(f"server did not start: {log_path.read_text()[-2000:]}")
-                time.sleep(0.1)
-            yield url
-        finally:
-            process.terminate()
-            process.wait(timeout=20)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("MICROBEARING_API_KEYS", KEY)
+        process, url = start_server(str(tmp_path_factory.mktemp("umbridge-data")))
+    try:
+        yield url
+    finally:
+        process.terminate()
+        process.wait(timeout=20)
 
 
 @pytest.fixture(scope="module")
