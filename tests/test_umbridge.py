@@ -296,3 +296,18 @@ def test_the_readme_examples_run_and_print_what_they_say(url, capsys):
         assert printed == [line[2:] for line in block.splitlines() if line.startswith("# ")]
     # The Monte Carlo spread and the first-order one from the gradient agree: the model is smooth there.
     assert namespace["first_order"] == pytest.approx(namespace["mu"].std(), rel=0.05)
+
+
+def test_derivatives_at_the_bounds_of_a_range_step_inside_it(local):
+    """mu is affine in mu_pivot, allowed in [0, 10]: its slope at both bounds is mu_pivoting at mu_pivot 1."""
+    config = {"inputs": ["mu_pivot", "groove_angle_deg"],
+              "fixed": {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05}}
+    slope = local.post("/umbridge/Evaluate", json={
+        "name": "physics", "input": [[1.0, 54.7]], "config": {**config, "outputs": ["mu_pivoting"]}}).json()
+    for bound in (0.0, 10.0):
+        answer = local.post("/umbridge/Gradient", json={
+            "name": "physics", "input": [[bound, 54.7]], "outWrt": 0, "inWrt": 0, "sens": [1.0],
+            "config": config})
+        assert answer.status_code == 200, answer.text
+        # One-sided differences of order 8: well inside the promised 1e-6.
+        assert answer.json()["output"][0] == pytest.approx(slope["output"][0][0], rel=1e-7)
