@@ -390,14 +390,19 @@ def _physics_model(convention: str) -> PhysicsModel:
     return PhysicsModel(convention)
 
 
-def _owned(stored: StoredModel, owner: str | None) -> bool:
-    """Whether the caller ``owner`` (an API key id) may use a stored model.
+def _owned(model_owner: str | None, owner: str | None) -> bool:
+    """Whether the caller ``owner`` (an API key id) may use a model stored by ``model_owner``.
 
     The ownership hook: None (no keys, or an administrator) sees every model, and so does every
-    caller while stored models carry no owner; a model stored under a key id is the caller's only
-    when the ids match.
+    caller for a model stored without an owner (every model, until the store records owners); a
+    model stored under a key id is the caller's only when the ids match.
     """
-    return owner is None or getattr(stored, "owner", None) in (None, owner)
+    return owner is None or model_owner in (None, owner)
+
+
+def _owner_of(stored: StoredModel | Mapping[str, Any]) -> str | None:
+    """The key id a stored model (or a row of :meth:`Store.list_models`) was stored under, if recorded."""
+    return stored.get("owner") if isinstance(stored, Mapping) else getattr(stored, "owner", None)
 
 
 def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Sequence[str] = KINDS,
@@ -445,11 +450,11 @@ def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Seq
 
         if owner is not None:
             stored = store.load_model(model_id)
-            if stored is None or not _owned(stored, owner):
+            if stored is None or not _owned(_owner_of(stored), owner):
                 raise ProblemError(404, f"There is no surrogate {model_id!r}.")
         return SurrogateModel(reference, load_surrogate(store, model_id))
     stored = store.load_model(model_id)
-    if stored is None or stored.kind != _STORE_KINDS[kind] or not _owned(stored, owner):
+    if stored is None or stored.kind != _STORE_KINDS[kind] or not _owned(_owner_of(stored), owner):
         raise ProblemError(404, f"There is no calibrated model {reference!r}.")
     return CalibratedPhysicsModel(reference, CalibratedModel.from_json(stored.metadata["model"]))
 
@@ -459,8 +464,7 @@ def list_references(store: Store, owner: str | None = None) -> list[str]:
     references = ["physics"]
     for kind, store_kind in _STORE_KINDS.items():
         references += [f"{kind}:{row['id']}" for row in store.list_models(store_kind)
-                       if _owned(StoredModel(row["id"], row["kind"], row["name"], {}, {}, row["created_at"]),
-                                 owner)]
+                       if _owned(_owner_of(row), owner)]
     return references
 
 
