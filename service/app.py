@@ -17,11 +17,12 @@ from fastapi import FastAPI
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from . import observability, problems, security
+from . import observability, problems, security, umbridge
 from .deps import close_runtime, get_runtime
 from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware
 from .routes import calibrations, friction, jobs, meta, optimizations, surrogates, sweeps
+from .routes import umbridge as umbridge_routes
 from .routes.meta import package_version
 from .schemas.base import add_raw_body_schemas
 from .settings import Settings
@@ -30,7 +31,7 @@ __all__ = ["ROUTERS", "HeadMiddleware", "app", "create_app"]
 
 #: The routers of every resource, in the order of the OpenAPI spec. Add yours here.
 ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, surrogates.router,
-           optimizations.router]
+           optimizations.router, umbridge_routes.router]
 
 DESCRIPTION = """Friction of micro linear ball bearings for MEMS by the model of Olaru, Prisacaru,
 Ianus and Lorenz (COMEC 2005). All quantities are SI (the groove angle in degrees); every field
@@ -104,6 +105,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points)
     app.add_middleware(BodySizeLimitMiddleware, max_bytes=settings.max_body_bytes)
     security.install(app, settings)
+    # Problems answered on the UM-Bridge paths (a refused key, a body too large) in its error form.
+    app.add_middleware(umbridge.ProtocolErrorMiddleware)
     observability.install(app)
     for router in ROUTERS:
         app.include_router(router)

@@ -2,22 +2,23 @@
 
 A calibration is stored once, as a model of kind ``"calibration"`` in the SQLite store: its
 report and the calibrated model as JSON metadata, its plots as PNG bytes (``uint8`` arrays).
-:func:`load_mu_model` turns ``"physics"`` or ``"calibrated:<id>"`` into a callable
-``mu_model(points) -> mu`` for /v1/friction, optimization and surrogates; :func:`with_conditions`
+:func:`load_mu_model` turns ``"physics"`` or ``"calibrated:<id>"`` into a model
+(:func:`service.models.resolve`), callable as ``mu_model(points) -> mu``, for /v1/friction,
+optimization and surrogates; :func:`with_conditions`
 adds the condition columns a calibrated model's effect reads.
 """
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
 import physics
-from calibrate import CalibratedModel, CalibrationReport, DataError, Dataset, calibrate
+from calibrate import CalibrationReport, DataError, Dataset, calibrate
 
+from .models import Model, resolve
 from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
@@ -28,7 +29,6 @@ __all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_view", "data_pr
 
 KIND = "calibration"
 MODEL_PREFIX = "calibrated:"
-_MODEL_REF = re.compile(r"^calibrated:([0-9a-f]{32})$")
 _MAX_LISTED_ERRORS = 200
 
 
@@ -224,8 +224,8 @@ def with_conditions(model: Callable[[Mapping[str, Any]], Any], reference: str,
     return mu_model
 
 
-def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable[[Mapping[str, Any]], Any]:
-    """The ``mu_model(points)`` callable of a model reference.
+def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Model:
+    """The :class:`~service.models.Model` of ``"physics"`` or ``"calibrated:<id>"``.
 
     Parameters
     ----------
@@ -238,22 +238,13 @@ def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable
 
     Returns
     -------
-    callable
-        ``mu_model(points: dict[str, array]) -> array`` of μ [1]; a calibrated model also reads the
-        extra columns its effect needs (e.g. ``relative_humidity``).
+    Model
+        Callable as ``mu_model(points: dict[str, array]) -> array`` of μ [1]; a calibrated model also
+        reads the extra columns its effect needs (e.g. ``relative_humidity``).
 
     Raises
     ------
     ProblemError
         422 for a malformed reference, 404 for an unknown calibration.
     """
-    if model == "physics":
-        return lambda points: physics.evaluate(outputs=["mu"], **points).mu
-    match = _MODEL_REF.match(str(model))
-    if match is None:
-        raise validation_problem([{"pointer": pointer,
-                                   "detail": f"must be 'physics' or 'calibrated:<id>'; got {model!r}"}])
-    stored = store.load_model(match.group(1))
-    if stored is None or stored.kind != KIND:
-        raise ProblemError(404, f"There is no calibrated model {model!r}.")
-    return CalibratedModel.from_json(stored.metadata["model"])
+    return resolve(store, model, pointer, kinds=("physics", "calibrated"))

@@ -27,8 +27,9 @@ from optimize import (
 )
 from optimize.problem import DESIGN_VARIABLES
 
-from .calibrations import load_mu_model, with_conditions
+from .calibrations import with_conditions
 from .executor import map_chunks
+from .models import resolve
 from .problems import ProblemError, validation_problem
 from .schemas.optimizations import OptimizationRequest
 from .store import Store
@@ -89,18 +90,12 @@ def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, di
                                    "calibrated models only"}])
     if body.model == "physics":
         return None, {}, str(body.convention)
-    if body.model.startswith("surrogate:"):
-        try:
-            from .routes.surrogates import load_mu_model as load_surrogate  # the surrogates resource
-        except ImportError:  # a build without the surrogates resource
-            raise ProblemError(404, f"There is no surrogate {body.model!r}: this service has no "
-                                    "surrogates.") from None
-        model = load_surrogate(store, body.model)
-    else:
-        model = load_mu_model(store, body.model)
-    values = {**getattr(model, "fixed", {}), **getattr(model, "fitted", {})}
+    model = resolve(store, body.model)
+    # A calibration's fixed and fitted values are the model's own; a surrogate's fixed values
+    # only say where it was trained, and the request gives the rest.
+    values = {**model.fixed, **model.fitted} if model.kind == "calibrated" else {}
     mu_model = with_conditions(model, body.model, body.conditions)
-    return mu_model, values, getattr(model, "convention", physics.DEFAULT_CONVENTION)
+    return mu_model, values, model.convention
 
 
 def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:

@@ -10,6 +10,10 @@ template only: no request data, no keys; expose it on a trusted network, as usua
 Prometheus targets) and the API description (``/openapi.json``, ``/docs``, ``/redoc``), which
 holds no data either.
 
+On the UM-Bridge protocol's paths (:mod:`service.umbridge`) the key may also come as HTTP Basic
+credentials (the password, or the user name when there is no password), which UM-Bridge clients
+send from a URL such as ``http://umbridge:KEY@host:8000/umbridge``.
+
 A missing, malformed or unknown key is answered ``401`` as ``application/problem+json`` with a
 ``WWW-Authenticate: Bearer`` challenge (RFC 6750), before the body is read. The presented key is
 hashed with SHA-256 and compared with :func:`hmac.compare_digest` against the hash of *every*
@@ -20,6 +24,8 @@ matched nor on the length of the keys. Keys are never logged; the settings hold 
 
 from __future__ import annotations
 
+import base64
+import binascii
 import hashlib
 import hmac
 import logging
@@ -30,6 +36,7 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
 from .settings import Settings
+from .umbridge import PREFIX as UMBRIDGE_PREFIX
 
 __all__ = ["OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "document_openapi", "install",
            "parse_api_keys"]
@@ -76,14 +83,24 @@ def _digest(token: bytes) -> bytes:
     return hashlib.sha256(token).digest()
 
 
-def _bearer_token(headers: list[tuple[bytes, bytes]]) -> bytes | None:
-    """The token of the first ``Authorization: Bearer`` header, or None."""
+def _bearer_token(headers: list[tuple[bytes, bytes]], basic: bool = False) -> bytes | None:
+    """The token of the first ``Authorization: Bearer`` header, or None.
+
+    With ``basic``, ``Authorization: Basic`` credentials are read too: the key is the password, or
+    the user name when the password is empty (``http://user:KEY@host/`` or ``http://KEY@host/``).
+    """
     for name, value in headers:
         if name.lower() == b"authorization":
             scheme, _, token = value.strip().partition(b" ")
             token = token.strip()
             if scheme.lower() == b"bearer" and token:
                 return token
+            if basic and scheme.lower() == b"basic" and token:
+                try:
+                    user, _, password = base64.b64decode(token, validate=True).partition(b":")
+                except binascii.Error:
+                    return None
+                return password or user or None
             return None
     return None
 
@@ -121,7 +138,9 @@ class ApiKeyMiddleware:
         if path in OPEN_PATHS:
             await self.app(scope, receive, send)
             return
-        token = _bearer_token(scope["headers"])
+        # UM-Bridge clients cannot set headers; the requests library under the Python one sends
+        # the credentials of the URL as HTTP Basic.
+        token = _bearer_token(scope["headers"], basic=path.startswith(UMBRIDGE_PREFIX + "/"))
         if self._accepts(token):
             await self.app(scope, receive, send)
             return

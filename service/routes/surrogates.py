@@ -9,7 +9,6 @@ turns ``"surrogate:<id>"`` into a ``mu_model(points) -> mu`` callable for other 
 
 from __future__ import annotations
 
-import re
 import threading
 import time
 from collections import OrderedDict
@@ -28,6 +27,7 @@ from ..calibrations import load_mu_model as load_calibrated_model
 from ..calibrations import with_conditions
 from ..deps import JobsDep, StoreDep
 from ..jobs import JobContext
+from ..models import Model, resolve
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas.surrogates import (
     PredictRequest,
@@ -46,7 +46,6 @@ router = APIRouter(prefix="/v1/surrogates", tags=["surrogates"])
 
 KIND = "surrogate"
 MODEL_PREFIX = "surrogate:"
-_MODEL_REF = re.compile(r"^surrogate:([0-9a-f]{32})$")
 _HELD_OUT_POINTS = 1024
 _HELD_OUT_SEED = 987_654_321
 _SENSITIVITY_N = (256, 65_536)
@@ -209,8 +208,8 @@ def load_surrogate(store: Store, surrogate_id: str) -> GaussianProcessSurrogate:
     return model
 
 
-def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable[[Mapping[str, Any]], Any]:
-    """The ``mu_model(points)`` callable of a ``"surrogate:<id>"`` reference.
+def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Model:
+    """The :class:`~service.models.Model` of a ``"surrogate:<id>"`` reference.
 
     Parameters
     ----------
@@ -223,19 +222,16 @@ def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable
 
     Returns
     -------
-    callable
-        ``mu_model(points: dict[str, array]) -> array`` of predicted μ [1], one per broadcast
-        point; points must give every dimension of the surrogate.
+    Model
+        Callable as ``mu_model(points: dict[str, array]) -> array`` of predicted μ [1], one per
+        broadcast point; points must give every dimension of the surrogate.
 
     Raises
     ------
     ProblemError
         422 for a malformed reference, 404 for an unknown surrogate.
     """
-    match = _MODEL_REF.match(str(model))
-    if match is None:
-        raise validation_problem([{"pointer": pointer, "detail": f"must be 'surrogate:<id>'; got {model!r}"}])
-    return load_surrogate(store, match.group(1)).mu_model
+    return resolve(store, model, pointer, kinds=("surrogate",))
 
 
 @router.post("", operation_id="create_surrogate", status_code=202,

@@ -1,0 +1,345 @@
+"""The UM-Bridge protocol (version 1.0): every model of the service for UQ tools.
+
+UM-Bridge clients (``umbridge.HTTPModel(url, name)`` in Python, and the C++, R, Julia and MATLAB
+clients, QMCPy, PyMC and MUQ through them) call ``GET /Info``, ``POST /ModelInfo``,
+``/InputSizes``, ``/OutputSizes``, ``/Evaluate``, ``/Gradient`` and ``/ApplyJacobian`` under
+the URL they are given; the service answers under :data:`PREFIX`, so the URL is
+``http://host:8000/umbridge``. Models are named by their reference (:func:`service.models.resolve`):
+``physics``, ``calibrated:<id>``, ``surrogate:<id>``.
+
+How a model is laid out (:class:`Setup`, from the request's ``config``): each input vector is
+one point holding the varying inputs (``config.inputs``, by default the model's inputs without a
+default value) in order and in their units; the other inputs take ``config.fixed`` or their
+default. Each output vector holds ``config.outputs`` (``["mu"]`` by default) for its point.
+``config.points`` (1 by default) points make one request: ``input`` then holds that many vectors.
+Points are independent, so the Jacobian of output vector ``i`` with respect to input vector
+``j`` is zero for ``i != j``.
+
+Errors are the protocol's ``{"error": {"type", "message"}}`` (:class:`ProtocolError`), the
+message naming the field (``input[0][1] (load_N): ...``, ``config.fixed.balls: ...``); a problem
+answered by the rest of the app on these paths (401, 413, a malformed body) is rewritten into
+that form by :class:`ProtocolErrorMiddleware`.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from fastapi.responses import Response
+from pydantic import ValidationError
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+import physics
+
+from .models import InputError, Model, jacobian, resolve
+from .problems import PROBLEM_MEDIA_TYPE, ProblemError
+from .schemas.umbridge import UMBridgeConfig
+from .store import Store, json_bytes
+
+__all__ = ["FLAG_OUTPUT", "PREFIX", "PROTOCOL_VERSION", "SUPPORT", "ProtocolError", "ProtocolErrorMiddleware",
+           "Setup", "apply_jacobian", "evaluate", "find_model", "gradient", "name_of", "protocol_error",
+           "validation_error"]
+
+#: Where the protocol is served: clients are given ``http://host:port/umbridge``.
+PREFIX = "/umbridge"
+PROTOCOL_VERSION = 1.0
+#: What every model supports (second derivatives of finite differences would not be trustworthy).
+SUPPORT = {"Evaluate": True, "Gradient": True, "ApplyJacobian": True, "ApplyHessian": False}
+#: The output that flags points outside a model's domain (1) or inside (0). [1]
+FLAG_OUTPUT = "outside_domain"
+_LISTED_ERRORS = 5
+
+
+class ProtocolError(Exception):
+    """An error answered in the protocol's form, ``{"error": {"type", "message"}}``.
+
+    Parameters
+    ----------
+    type_ : str
+        ``InvalidInput``, ``ModelNotFound``, ``UnsupportedFeature`` (the protocol's), or
+        ``Unauthorized``, ``Unavailable``, ``InternalError``.
+    message : str
+        What is wrong, naming the field.
+    status : int, default 400
+        HTTP status (the protocol answers 400 to its own errors; limits keep 413, keys 401). [1]
+    """
+
+    def __init__(self, type_: str, message: str, status: int = 400):
+        super().__init__(message)
+        self.type = type_
+        self.message = message
+        self.status = status
+
+    def response(self, headers: dict[str, str] | None = None) -> Response:
+        """The error as a JSON response."""
+        return Response(json_bytes({"error": {"type": self.type, "message": self.message}}),
+                        status_code=self.status, media_type="application/json", headers=headers)
+
+
+def protocol_error(status: int, detail: str) -> ProtocolError:
+    """The protocol's form of a problem answered with ``status`` (a 404 is a model not found)."""
+    if status == 404:
+        return ProtocolError("ModelNotFound", detail)
+    if status in (400, 415, 422):
+        return ProtocolError("InvalidInput", detail)
+    kind = {401: "Unauthorized", 403: "Unauthorized", 405: "UnsupportedFeature", 413: "InvalidInput",
+            429: "Unavailable", 503: "Unavailable"}.get(status, "InternalError")
+    return ProtocolError(kind, detail, status)
+
+
+def validation_error(exc: ValidationError) -> ProtocolError:
+    """An ``InvalidInput`` error naming the fields pydantic refused (``input[3][1]``, ``config.points``)."""
+    items = []
+    for error in exc.errors(include_url=False)[:_LISTED_ERRORS]:
+        where = "".join(f"[{part}]" if isinstance(part, int) else f".{part}"
+                        for part in error["loc"]).lstrip(".")
+        items.append(f"{where or 'body'}: {error['msg']}")
+    more = exc.error_count() - len(items)
+    return ProtocolError("InvalidInput", "; ".join(items) + (f"; and {more} more" if more > 0 else ""))
+
+
+def name_of(body: bytes) -> tuple[dict[str, Any], str]:
+    """The parsed request and its model name, read before the rest so that an unknown model is named first."""
+    try:
+        document = json.loads(body)
+    except (ValueError, RecursionError):
+        raise ProtocolError("InvalidInput", "the body must be a JSON object") from None
+    if not isinstance(document, dict) or not isinstance(document.get("name"), str):
+        raise ProtocolError("InvalidInput", "name: required, a model name from /Info")
+    return document, document["name"]
+
+
+def find_model(store: Store, name: str, convention: str = physics.DEFAULT_CONVENTION) -> Model:
+    """The model of a protocol name (a reference), or ``ModelNotFound``."""
+    try:
+        return resolve(store, name, "name", convention=convention)
+    except ProblemError:  # malformed (422) or unknown (404): either way no such model
+        raise ProtocolError("ModelNotFound", f"there is no model {name[:200]!r}; /Info lists the "
+                            "models") from None
+
+
+@dataclass(frozen=True)
+class Setup:
+    """A model laid out by a request's ``config`` (see the module docstring).
+
+    Attributes
+    ----------
+    model : Model
+        The model.
+    inputs : list of str
+        The varying inputs, in the order of each input vector.
+    fixed : dict
+        Checked values of the inputs that do not vary (besides the defaults).
+    outputs : list of str
+        The outputs of each output vector.
+    points : int
+        Points per request. [1]
+    """
+
+    model: Model
+    inputs: list[str]
+    fixed: dict[str, Any]
+    outputs: list[str]
+    points: int
+
+    @classmethod
+    def of(cls, model: Model, config: UMBridgeConfig, max_points: int) -> Setup:
+        """Check ``config`` against ``model``.
+
+        Raises
+        ------
+        ProtocolError
+            ``InvalidInput`` naming the field of ``config``; 413 for more points than ``max_points``.
+        """
+        convention = config.convention
+        if convention is not None and model.kind != "physics" and str(convention) != model.convention:
+            raise ProtocolError("InvalidInput", f"config.convention: {model.reference} uses convention "
+                                f"{model.convention!r}; omit convention")
+        if config.points > max_points:
+            raise ProtocolError("InvalidInput", f"config.points: {config.points} points per request; the "
+                                f"limit is {max_points}", status=413)
+        known = ", ".join(model.inputs)
+        inputs = list(config.inputs or [n for n in model.default_inputs if n not in config.fixed])
+        for field, names in (("config.inputs", inputs), ("config.fixed", list(config.fixed))):
+            for name in names:
+                if name not in model.inputs:
+                    raise ProtocolError("InvalidInput", f"{field}: {name!r} is not an input of "
+                                        f"{model.reference}; its inputs are {known}")
+        repeated = sorted({n for n in inputs if inputs.count(n) > 1} | (set(inputs) & set(config.fixed)))
+        if repeated:
+            raise ProtocolError("InvalidInput", f"config.inputs: {', '.join(repeated)} given twice (an input "
+                                "varies, in config.inputs, or is fixed, in config.fixed)")
+        missing = [n for n in model.default_inputs if n not in inputs and n not in config.fixed]
+        if missing:
+            raise ProtocolError("InvalidInput", f"config.fixed: {model.reference} needs "
+                                f"{', '.join(missing)}: vary it in config.inputs or give it in config.fixed")
+        fixed = {}
+        for name, value in config.fixed.items():
+            try:
+                fixed[name] = model.inputs[name].check(value)
+            except InputError as exc:
+                raise ProtocolError("InvalidInput", f"config.fixed.{name}: {exc}") from None
+        available = [*model.outputs, FLAG_OUTPUT]
+        unknown = [n for n in config.outputs if n not in available]
+        if unknown or len(set(config.outputs)) < len(config.outputs):
+            raise ProtocolError("InvalidInput", f"config.outputs: each once, from {', '.join(available)}; "
+                                f"got {config.outputs}")
+        return cls(model, inputs, fixed, list(config.outputs), config.points)
+
+    @property
+    def input_sizes(self) -> list[int]:
+        """Values per input vector, one entry per point. [1]"""
+        return [len(self.inputs)] * self.points
+
+    @property
+    def output_sizes(self) -> list[int]:
+        """Values per output vector, one entry per point. [1]"""
+        return [len(self.outputs)] * self.points
+
+    def columns(self, vectors: Sequence[Sequence[float]]) -> dict[str, Any]:
+        """The input vectors as columns of the model's inputs, with the fixed values (the model checks)."""
+        if len(vectors) != self.points:
+            raise ProtocolError("InvalidInput", f"input: {len(vectors)} vectors for config.points = "
+                                f"{self.points}; set config.points to the number of points")
+        for index, vector in enumerate(vectors):
+            if len(vector) != len(self.inputs):
+                raise ProtocolError("InvalidInput", f"input[{index}]: {len(vector)} values; expected "
+                                    f"{len(self.inputs)}, one per input of config.inputs "
+                                    f"({', '.join(self.inputs)})")
+        table = np.asarray(vectors, dtype=np.float64).reshape(self.points, len(self.inputs))
+        return {**self.fixed, **{name: self.model.inputs[name].coerce(table[:, j])
+                                 for j, name in enumerate(self.inputs)}}
+
+    @contextmanager
+    def pointing(self) -> Iterator[None]:
+        """A context turning :class:`InputError` and problems into ``InvalidInput`` naming the field."""
+        try:
+            yield
+        except InputError as exc:
+            raise ProtocolError("InvalidInput", f"{self.where(exc)}: {exc}") from None
+        except ProblemError as exc:
+            raise protocol_error(exc.status, exc.detail) from None
+
+    def where(self, error: InputError) -> str:
+        """The request field of an input error: ``input[point][position] (name)`` or ``config.fixed.name``."""
+        if error.name in self.inputs:
+            point = 0 if error.index is None else error.index
+            return f"input[{point}][{self.inputs.index(error.name)}] ({error.name})"
+        if error.name in self.fixed:
+            return f"config.fixed.{error.name}"
+        return "config"
+
+    def real_outputs(self) -> list[str]:
+        """:attr:`outputs` without the domain flag (what the model computes); mu when only the flag."""
+        return [n for n in self.outputs if n != FLAG_OUTPUT] or ["mu"]
+
+
+def evaluate(setup: Setup, vectors: Sequence[Sequence[float]]) -> bytes:
+    """The JSON answer of Evaluate: ``{"output": [...]}``, one vector of ``config.outputs`` per point."""
+    columns = setup.columns(vectors)
+    with setup.pointing():
+        result = setup.model.evaluate(columns, setup.real_outputs())
+    values = {**result.values, FLAG_OUTPUT: result.outside_domain.astype(float)}
+    table = np.column_stack([np.broadcast_to(values[name], (setup.points,)) for name in setup.outputs])
+    # Written from one flat list: a Python list per point would cost ten times the model.
+    numbers = json_bytes(table.ravel().tolist())[1:-1].split(b",")
+    width = table.shape[1]
+    rows = numbers if width == 1 else [b",".join(numbers[i:i + width]) for i in range(0, len(numbers), width)]
+    return b'{"output":[[' + b"],[".join(rows) + b"]]}"
+
+
+def _jacobian_at(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int, in_wrt: int) -> np.ndarray:
+    """d output vector ``out_wrt`` / d input vector ``in_wrt``, shape (outputs, inputs)."""
+    for field, index in (("outWrt", out_wrt), ("inWrt", in_wrt)):
+        if index >= setup.points:
+            raise ProtocolError("InvalidInput", f"{field}: {index} is not the index of a vector; there are "
+                                f"{setup.points} (config.points)")
+    if FLAG_OUTPUT in setup.outputs:
+        raise ProtocolError("InvalidInput", f"config.outputs: {FLAG_OUTPUT} is a flag without a derivative; "
+                            "leave it out of Gradient and ApplyJacobian")
+    columns = setup.columns(vectors)
+    if out_wrt != in_wrt:  # points are independent
+        return np.zeros((len(setup.outputs), len(setup.inputs)))
+    point = {name: value[in_wrt] if np.ndim(value) else value for name, value in columns.items()}
+    with setup.pointing():
+        try:
+            return jacobian(setup.model, point, setup.inputs, setup.outputs)[0]
+        except InputError as exc:  # the derivative at this point: name the vector asked for
+            raise InputError(exc.name, in_wrt, str(exc)) from None
+
+
+def _checked_length(field: str, values: Sequence[float], length: int, what: str) -> np.ndarray:
+    if len(values) != length:
+        raise ProtocolError("InvalidInput", f"{field}: {len(values)} values; expected {length}, "
+                            f"one per {what}")
+    return np.asarray(values, dtype=np.float64)
+
+
+def gradient(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int, in_wrt: int,
+             sens: Sequence[float]) -> list[float]:
+    """``sens`` times the Jacobian of output vector ``out_wrt`` with respect to input vector ``in_wrt``."""
+    weights = _checked_length("sens", sens, len(setup.outputs), "output of config.outputs")
+    return (weights @ _jacobian_at(setup, vectors, out_wrt, in_wrt)).tolist()
+
+
+def apply_jacobian(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int, in_wrt: int,
+                   vec: Sequence[float]) -> list[float]:
+    """The Jacobian of output vector ``out_wrt`` with respect to input vector ``in_wrt``, times ``vec``."""
+    direction = _checked_length("vec", vec, len(setup.inputs), "input of config.inputs")
+    return (_jacobian_at(setup, vectors, out_wrt, in_wrt) @ direction).tolist()
+
+
+class ProtocolErrorMiddleware:
+    """Rewrite problems answered on the protocol's paths (401, 413, a malformed body) into its error form.
+
+    The rest of the app answers such requests before they reach a protocol route, as RFC 9457
+    problems; a UM-Bridge client reads ``{"error": {"type", "message"}}``. The status and the other
+    headers (``WWW-Authenticate``, ``X-Request-ID``) are kept.
+
+    Parameters
+    ----------
+    app : ASGI app
+        The wrapped application.
+    """
+
+    def __init__(self, app: ASGIApp):
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or not scope["path"].startswith(PREFIX + "/"):
+            await self.app(scope, receive, send)
+            return
+        start: Message | None = None
+        chunks: list[bytes] = []
+
+        async def rewrite(message: Message) -> None:
+            nonlocal start
+            if message["type"] == "http.response.start":
+                headers = dict(message.get("headers", []))
+                if headers.get(b"content-type", b"").split(b";")[0] == PROBLEM_MEDIA_TYPE.encode():
+                    start = message
+                    return
+            elif start is not None and message["type"] == "http.response.body":
+                chunks.append(message.get("body", b""))
+                if message.get("more_body", False):
+                    return
+                status = start["status"]
+                detail = str(json.loads(b"".join(chunks)).get("detail", ""))
+                # Here a 404 or 405 is a path or method the protocol does not have, not a model.
+                kind = "UnsupportedFeature" if status in (404, 405) else protocol_error(status, detail).type
+                body = json_bytes({"error": {"type": kind, "message": detail}})
+                headers = [(k, v) for k, v in start.get("headers", [])
+                           if k.lower() not in (b"content-type", b"content-length")]
+                headers += [(b"content-type", b"application/json"),
+                            (b"content-length", str(len(body)).encode())]
+                await send({**start, "headers": headers})
+                await send({"type": "http.response.body", "body": body})
+                return
+            await send(message)
+
+        await self.app(scope, receive, rewrite)
