@@ -9,6 +9,7 @@ how to add a resource.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
@@ -18,7 +19,7 @@ from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from . import observability, problems, security
-from .deps import close_runtime, get_runtime
+from .deps import DataFolderError, close_runtime, get_runtime
 from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware
 from .routes import calibrations, friction, jobs, meta, optimizations, surrogates, sweeps
@@ -27,6 +28,8 @@ from .schemas.base import add_raw_body_schemas
 from .settings import Settings
 
 __all__ = ["ROUTERS", "HeadMiddleware", "app", "create_app"]
+
+logger = logging.getLogger("microbearing.service")
 
 #: The routers of every resource, in the order of the OpenAPI spec. Add yours here.
 ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, surrogates.router,
@@ -71,7 +74,12 @@ class HeadMiddleware:
 
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    get_runtime(app)  # open the database and recover interrupted jobs before serving
+    try:
+        get_runtime(app)  # open the database and recover interrupted jobs before serving
+    except DataFolderError as exc:
+        # One clear line before the server's traceback; the server then exits non-zero.
+        logger.critical("%s", exc)
+        raise
     try:
         yield
     finally:
