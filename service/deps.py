@@ -11,6 +11,7 @@ importing :mod:`service.app` or building an app touches no files.
 
 from __future__ import annotations
 
+import os
 import sqlite3
 import threading
 from concurrent.futures import Executor
@@ -70,6 +71,8 @@ def open_store(data_dir: Path) -> Store:
         return Store(data_dir)
     except StorageError as exc:
         cause = exc.cause
+        if Path(data_dir).is_dir() and not os.access(data_dir, os.W_OK):  # SQLite says only "cannot open"
+            cause = f"the folder is read-only or not writable ({cause})"
     except sqlite3.DatabaseError as exc:  # not a database, or a database newer or damaged beyond reading
         cause = f"{database} is not a usable SQLite database ({exc})"
     except OSError as exc:  # the folder cannot be created or is a file
