@@ -117,11 +117,8 @@ class AcceptMiddleware:
         if accept.strip() in self._PASS:
             await self.app(scope, receive, send)
             return
-        path = scope["path"]
-        root_path = scope.get("root_path", "")
-        if root_path and path.startswith(root_path):
-            path = path[len(root_path):] or "/"
-        types = self.offered(scope["app"], path, "GET" if scope["method"] == "HEAD" else scope["method"])
+        method = "GET" if scope["method"] == "HEAD" else scope["method"]
+        types = self.offered(scope["app"], security.app_path(scope), method)
         text = accept.decode("latin-1")
         if not types or accepts_any(text, types):
             await self.app(scope, receive, send)

@@ -38,8 +38,8 @@ from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
 from .settings import Settings
 from .store import REQUESTER, Requester
 
-__all__ = ["OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "document_openapi", "install", "key_id",
-           "parse_api_keys"]
+__all__ = ["OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "app_path", "document_openapi",
+           "install", "key_id", "parse_api_keys"]
 
 logger = logging.getLogger("microbearing.service.security")
 
@@ -78,6 +78,15 @@ def parse_api_keys(text: str) -> tuple[str, ...]:
             raise ValueError(f"MICROBEARING_API_KEYS: key number {position + 1} must consist of printable "
                              "ASCII characters without spaces or commas")
     return keys
+
+
+def app_path(scope: Scope) -> str:
+    """The request's path relative to the ASGI root path (the app's own routes start there)."""
+    path = scope["path"]
+    root_path = scope.get("root_path", "")
+    if root_path and path.startswith(root_path):
+        path = path[len(root_path):] or "/"
+    return path
 
 
 def _digest(token: bytes) -> bytes:
@@ -138,10 +147,7 @@ class ApiKeyMiddleware:
         if scope["type"] != "http" or not self._digests:
             await self.app(scope, receive, send)
             return
-        path = scope["path"]
-        root_path = scope.get("root_path", "")
-        if root_path and path.startswith(root_path):
-            path = path[len(root_path):] or "/"
+        path = app_path(scope)
         if path in OPEN_PATHS:
             await self.app(scope, receive, send)
             return

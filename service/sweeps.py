@@ -201,14 +201,7 @@ def check_result_size(request: AnySweep, count: int, max_result_bytes: int) -> N
 
 
 def design_columns(request: AnySweep, max_points: int) -> SweepPlan:
-    """The points of a sweep request.
-
-    Parameters
-    ----------
-    request : GridSweep, SobolSweep or LatinHypercubeSweep
-        The validated request.
-    max_points : int
-        Most points allowed [1].
+    """The points of a sweep request (arguments as :func:`design_size`).
 
     Returns
     -------

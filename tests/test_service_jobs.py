@@ -284,25 +284,25 @@ def test_a_full_server_refuses_jobs_with_503_and_a_key_past_its_share_with_429(s
             release.wait(20)
             return {}
 
-        alpha, beta = Requester("alpha", False), Requester("beta", False)
-        token = REQUESTER.set(alpha)
-        try:
-            first = [jobs.submit("hold", {}, hold)["id"] for _ in range(2)]
-            with pytest.raises(ProblemError) as refused:
-                jobs.submit("hold", {}, hold)
-            assert refused.value.status == 429 and int(refused.value.headers["Retry-After"]) > 0
-            assert "MICROBEARING_MAX_ACTIVE_JOBS_PER_KEY=2" in refused.value.detail
-        finally:
-            REQUESTER.reset(token)
-        token = REQUESTER.set(beta)
-        try:
-            jobs.submit("hold", {}, hold)  # another key still has room
-            with pytest.raises(ProblemError) as full:
-                jobs.submit("hold", {}, hold)
-            assert full.value.status == 503 and int(full.value.headers["Retry-After"]) > 0
-            assert "MICROBEARING_MAX_ACTIVE_JOBS=3" in full.value.detail
-        finally:
-            REQUESTER.reset(token)
+        def submit_as(key_id: str, count: int) -> tuple[list[str], ProblemError | None]:
+            """Submit ``count`` jobs as a key; the ids accepted and the first refusal."""
+            token = REQUESTER.set(Requester(key_id, sees_all=False))
+            ids = []
+            try:
+                for _ in range(count):
+                    ids.append(jobs.submit("hold", {}, hold)["id"])
+            except ProblemError as refusal:
+                return ids, refusal
+            finally:
+                REQUESTER.reset(token)
+            return ids, None
+
+        first, refused = submit_as("alpha", 3)
+        assert len(first) == 2 and refused.status == 429 and int(refused.headers["Retry-After"]) > 0
+        assert "MICROBEARING_MAX_ACTIVE_JOBS_PER_KEY=2" in refused.detail
+        other, full = submit_as("beta", 2)  # another key still has room, until the server is full
+        assert len(other) == 1 and full.status == 503 and int(full.headers["Retry-After"]) > 0
+        assert "MICROBEARING_MAX_ACTIVE_JOBS=3" in full.detail
         assert jobs.active_count() == 3
         # Cancelling a queued job frees its place at once; finished jobs free theirs.
         queued = [job_id for job_id in first if jobs.get(job_id)["status"] == "queued"]
