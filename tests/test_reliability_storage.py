@@ -131,3 +131,33 @@ def test_the_server_exits_non_zero_on_a_bad_data_folder(tmp_path):
     assert critical, output
     message = json.loads(critical[0])["message"]
     assert str(data_dir) in message and "MICROBEARING_DATA_DIR" in message, message
+
+
+def test_readiness_reports_free_space_and_refused_writes_in_process(tmp_path, monkeypatch):
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+    from service.deps import get_runtime
+    from service.settings import Settings
+    from service.store import StorageError
+
+    settings = Settings(data_dir=tmp_path, min_free_bytes=2**62, sweep_sync_max_points=0)
+    with TestClient(create_app(settings)) as client:
+        short = client.get("/readyz")
+        assert short.status_code == 503 and "MICROBEARING_MIN_FREE_BYTES" in short.json()["detail"]
+        assert client.get("/healthz").status_code == 200
+    with TestClient(create_app(Settings(data_dir=tmp_path, sweep_sync_max_points=0))) as client:
+        ready = client.get("/readyz").json()
+        assert ready["status"] == "ready" and ready["free_bytes"] > 0 and ready["active_jobs"] == 0
+        store = get_runtime(client.app).store
+
+        def read_only(*args, **kwargs):
+            raise StorageError("the database is read-only", store.path)
+
+        monkeypatch.setattr(store, "transaction", read_only)
+        not_ready = client.get("/readyz")
+        assert not_ready.status_code == 503 and "read-only" in not_ready.json()["detail"]
+        refused = client.post("/v1/sweeps", json=sweep(20_000))  # a job must be recorded: refused
+        assert refused.status_code == 503 and refused.headers["content-type"] == "application/problem+json"
+        assert "read-only" in refused.json()["detail"] and int(refused.headers["retry-after"]) > 0
+        assert get_runtime(client.app).jobs.active_count() == 0  # its place was given back

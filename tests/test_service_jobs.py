@@ -408,6 +408,13 @@ def test_a_full_database_fails_the_job_with_the_reason_at_error(tmp_path, caplog
                    for record in caplog.records if record.levelname == "ERROR")
         small = jobs.submit("small", {}, lambda ctx: {"ok": 1})  # the store still takes small writes
         assert wait(jobs, small["id"])["status"] == "succeeded"
+        # A model too large for the disk, saved by a job (a surrogate or a calibration): the same.
+        rng = np.random.default_rng(0)
+        weights = {"w": rng.random(100_000)}  # 0.8 MB, incompressible
+        model = jobs.submit("model", {}, lambda ctx: {"id": store.save_model("m", {}, weights)})
+        problem = json.loads(wait(jobs, model["id"])["error_json"])
+        assert problem["status"] == 507 and "the disk is full" in problem["detail"]
+        assert store.list_models("m") == []
     finally:
         jobs.shutdown()
         store.close()
