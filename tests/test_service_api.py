@@ -270,12 +270,15 @@ def test_sweep_as_csv(client):
 
 
 @pytest.mark.parametrize(("accept", "csv_expected"), [
-    ("text/csv;q=0", False), ("text/csv;q=0.3, application/json", False), ("*/*", False),
+    ("text/csv;q=0", None), ("text/csv;q=0.3, application/json", False), ("*/*", False),
     ("application/json;q=0.1, text/csv", True), ("TEXT/CSV; q=0.5", True)])
 def test_sweep_format_follows_accept_qualities(client, accept, csv_expected):
     request = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load_N": 0.01},
                "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 2}}}
     response = client.post("/v1/sweeps", json=request, headers={"accept": accept})
+    if csv_expected is None:  # neither CSV nor JSON acceptable
+        assert_problem(response, 406)
+        return
     assert response.status_code == 200
     media_type = response.headers["content-type"]
     assert media_type.startswith("text/csv" if csv_expected else "application/json"), (accept, media_type)
