@@ -332,10 +332,10 @@ class JobManager:
         event = threading.Event()
         with self._lock:
             self._cancel_events[job_id] = event
+        logger.info("job %s (%s) queued", job_id, kind, extra={"job_id": job_id, "kind": kind})
         # The job's thread runs in a copy of the submitting context: its log lines carry the
         # id of the request that created it (service.observability).
         self._executor.submit(contextvars.copy_context().run, self._run, job_id, fn, event)
-        logger.info("job %s (%s) queued", job_id, kind, extra={"job_id": job_id, "kind": kind})
         return self.get(job_id)
 
     def get(self, job_id: str, with_result: bool = False) -> dict[str, Any] | None:
@@ -403,8 +403,8 @@ class JobManager:
         except StorageError as exc:
             if status != "failed" or "result_json" in changes:
                 # Most often the result itself did not fit: fail the job with the reason (a small write).
-                logger.error("job %s: its result could not be stored: %s", job_id, exc.detail,
-                             extra={"job_id": job_id})
+                logger.error("job %s: its final state (%s) could not be stored: %s", job_id, status,
+                             exc.detail, extra={"job_id": job_id})
                 return self._finish(job_id, "failed", error_json=to_json(exc.to_dict()))
             # Not even the failure can be written: keep it in memory, the housekeeping thread retries.
             logger.error("job %s: cannot store its failure either (%s); kept in memory until the store "
