@@ -108,7 +108,8 @@ class BodySizeLimitMiddleware:
             else:
                 problem = ProblemError(400, "Content-Length must be a whole number of bytes.",
                                        headers={"Connection": "close"})
-        elif encoding not in (b"identity", b""):
+        elif encoding not in (b"identity", b"") and (declared not in (None, b"0")
+                                                     or b"transfer-encoding" in headers):  # a body is coming
             coding = encoding.decode("latin-1")[:50]
             problem = ProblemError(415, f"Content-Encoding {coding!r} is not supported; send the body "
                                         "uncompressed.", title="Unsupported Media Type",
