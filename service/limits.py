@@ -120,7 +120,9 @@ class BodySizeLimitMiddleware:
             await response(scope, receive, send)
             return
         received = 0
-        complete = False
+        # Without a declared body (GET, Content-Length 0) the server answers the first read at once:
+        # no timer, which costs more than the rest of this middleware.
+        complete = declared in (None, b"0") and b"transfer-encoding" not in headers
         deadline: float | None = None
 
         async def counted_receive() -> Message:
