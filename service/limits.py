@@ -19,6 +19,7 @@ Finally, :func:`check_rows` is the one place that refuses a table with more rows
 from __future__ import annotations
 
 import asyncio
+from typing import Any
 
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -73,6 +74,38 @@ def csv_data_rows(text: bytes) -> int:
     """
     lines = text.count(b"\n") + (bool(text) and not text.endswith(b"\n"))
     return max(lines - 1, 0)
+
+
+class _Resume:
+    """Await the rest of a coroutine that :func:`receive_within` started and that is waiting on ``future``."""
+
+    def __init__(self, coroutine: Any, future: Any):
+        self.coroutine = coroutine
+        self.future = future
+
+    def __await__(self) -> Any:
+        try:
+            yield self.future  # the task waits for the client's bytes, then resumes the coroutine
+        except BaseException as exc:  # cancelled by the deadline: the coroutine ends with it
+            self.coroutine.throw(exc)
+            raise
+        return (yield from self.coroutine.__await__())
+
+
+async def receive_within(receive: Receive, deadline: float) -> Message:
+    """``await receive()``, failing with :class:`TimeoutError` past ``deadline`` (event-loop time).
+
+    A message already there (the common case: a small body arrives with its headers) is returned
+    without a timer, which would cost more than the rest of the request's body handling; only a
+    read that has to wait for the client runs under :func:`asyncio.timeout_at`.
+    """
+    coroutine = receive()
+    try:
+        future = coroutine.send(None)  # runs the read up to its first wait, if it has to wait
+    except StopIteration as done:
+        return done.value
+    async with asyncio.timeout_at(deadline):
+        return await _Resume(coroutine, future)
 
 
 class BodySizeLimitMiddleware:
@@ -134,8 +167,7 @@ class BodySizeLimitMiddleware:
                 if deadline is None:
                     deadline = loop.time() + self.timeout_s
                 try:
-                    async with asyncio.timeout_at(deadline):  # a timer, not a task: cheap for small bodies
-                        message = await receive()
+                    message = await receive_within(receive, deadline)
                 except TimeoutError:
                     raise BodyTimeout(self.timeout_s) from None
             if message["type"] == "http.request":
