@@ -9,6 +9,8 @@ how to add a resource.
 
 from __future__ import annotations
 
+import logging
+import re
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
@@ -18,16 +20,20 @@ from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from . import observability, problems, security, umbridge
-from .deps import close_runtime, get_runtime
+from .deps import DataFolderError, close_runtime, get_runtime
 from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware
+from .problems import ProblemError
 from .routes import calibrations, friction, jobs, meta, optimizations, surrogates, sweeps
 from .routes import umbridge as umbridge_routes
 from .routes.meta import package_version
 from .schemas.base import add_raw_body_schemas
 from .settings import Settings
+from .tables import accepts_any
 
-__all__ = ["ROUTERS", "HeadMiddleware", "app", "create_app"]
+__all__ = ["ROUTERS", "AcceptMiddleware", "HeadMiddleware", "app", "create_app"]
+
+logger = logging.getLogger("microbearing.service")
 
 #: The routers of every resource, in the order of the OpenAPI spec. Add yours here.
 ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, surrogates.router,
@@ -70,9 +76,68 @@ class HeadMiddleware:
         await self.app({**scope, "method": "GET"}, receive, without_body)
 
 
+class AcceptMiddleware:
+    """Answer ``406 Not Acceptable`` when ``Accept`` admits none of the media types a route produces.
+
+    A route's media types are those of its 2xx answers in the OpenAPI spec (``application/json``,
+    ``text/csv`` for tables, ``image/png`` for plots), read once; the request's path is matched
+    against the spec's path templates. Paths outside the spec (the API docs, metrics) and answers
+    without content (204) are not checked; an absent, ``*/*`` or ``application/json`` Accept passes
+    without any lookup. The 406 is a problem listing what the route offers.
+
+    Parameters
+    ----------
+    app : ASGI app
+        The wrapped application.
+    """
+
+    _PASS = frozenset({b"", b"*/*", b"application/json"})
+
+    def __init__(self, app: ASGIApp):
+        self.app = app
+        self._offered: list[tuple[re.Pattern[str], str, list[str]]] | None = None
+
+    def offered(self, app: FastAPI, path: str, method: str) -> list[str]:
+        """Media types of the 2xx answers of the spec's operation at ``path`` (empty when none)."""
+        if self._offered is None:
+            offered = []
+            for template, item in app.openapi()["paths"].items():
+                pattern = re.compile("^" + re.sub(r"\\\{[^/]+?\\\}", "[^/]+", re.escape(template)) + "$")
+                for verb, operation in item.items():
+                    types = {media for code, answer in operation.get("responses", {}).items()
+                             if code.startswith("2") for media in answer.get("content", {})}
+                    if types:
+                        offered.append((pattern, verb.upper(), sorted(types)))
+            self._offered = offered
+        matching = (types for pattern, verb, types in self._offered if verb == method and pattern.match(path))
+        return next(matching, [])
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        accept = next((value for name, value in scope["headers"] if name == b"accept"), b"") \
+            if scope["type"] == "http" else b""
+        if accept.strip() in self._PASS:
+            await self.app(scope, receive, send)
+            return
+        method = "GET" if scope["method"] == "HEAD" else scope["method"]
+        types = self.offered(scope["app"], security.app_path(scope), method)
+        text = accept.decode("latin-1")
+        if not types or accepts_any(text, types):
+            await self.app(scope, receive, send)
+            return
+        problem = ProblemError(406, f"The Accept header {text[:200]!r} admits none of the media types of "
+                                    f"this resource: {', '.join(types)}.", title="Not Acceptable")
+        await problems.ProblemResponse(problem.to_dict(instance=scope["path"]), status_code=406)(
+            scope, receive, send)
+
+
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    get_runtime(app)  # open the database and recover interrupted jobs before serving
+    try:
+        get_runtime(app)  # open the database and recover interrupted jobs before serving
+    except DataFolderError as exc:
+        # One clear line before the server's traceback; the server then exits non-zero.
+        logger.critical("%s", exc)
+        raise
     try:
         yield
     finally:
@@ -102,8 +167,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # before the body is read; the JSON check runs on a body the size limit has bounded; HEAD
     # becomes GET innermost, so logs, metrics and the key check see the method sent.
     app.add_middleware(HeadMiddleware)
+    app.add_middleware(AcceptMiddleware)
     app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points)
-    app.add_middleware(BodySizeLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.add_middleware(BodySizeLimitMiddleware, max_bytes=settings.max_body_bytes,
+                       timeout_s=settings.body_timeout_s)
     security.install(app, settings)
     # Problems answered on the UM-Bridge paths (a refused key, a body too large) in its error form.
     app.add_middleware(umbridge.ProtocolErrorMiddleware)

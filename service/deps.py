@@ -11,8 +11,11 @@ importing :mod:`service.app` or building an app touches no files.
 
 from __future__ import annotations
 
+import os
+import sqlite3
 import threading
 from concurrent.futures import Executor
+from pathlib import Path
 from typing import Annotated
 
 from fastapi import Depends, FastAPI, Request
@@ -20,10 +23,10 @@ from fastapi import Depends, FastAPI, Request
 from .executor import create_executor
 from .jobs import JobManager
 from .settings import Settings
-from .store import Store
+from .store import DATABASE_NAME, StorageError, Store
 
-__all__ = ["ExecutorDep", "JobsDep", "Runtime", "SettingsDep", "StoreDep", "get_executor", "get_jobs",
-           "get_runtime", "get_settings", "get_store"]
+__all__ = ["DataFolderError", "ExecutorDep", "JobsDep", "Runtime", "SettingsDep", "StoreDep", "get_executor",
+           "get_jobs", "get_runtime", "get_settings", "get_store", "open_store"]
 
 
 class Runtime:
@@ -36,8 +39,12 @@ class Runtime:
     """
 
     def __init__(self, settings: Settings):
-        self.store = Store(settings.data_dir)
-        self.jobs = JobManager(self.store, settings.job_workers)
+        self.settings = settings
+        self.store = open_store(settings.data_dir)
+        self.jobs = JobManager(self.store, settings.job_workers, max_active=settings.max_active_jobs,
+                               max_active_per_key=settings.max_active_jobs_per_key,
+                               max_result_bytes=settings.max_result_bytes,
+                               retention_s=settings.job_retention_s)
         self.executor = create_executor(settings)  # sweep/batch chunks, optimization groups (executor.py)
 
     def close(self) -> None:
@@ -45,6 +52,35 @@ class Runtime:
         self.jobs.shutdown()
         self.executor.shutdown(wait=False, cancel_futures=True)
         self.store.close()
+
+
+class DataFolderError(RuntimeError):
+    """The data folder cannot hold the database; the message names the path and what to do."""
+
+
+def open_store(data_dir: Path) -> Store:
+    """The store of ``data_dir``, or a :class:`DataFolderError` naming the path and the fix.
+
+    Parameters
+    ----------
+    data_dir : pathlib.Path
+        The data folder (``MICROBEARING_DATA_DIR``).
+    """
+    database = Path(data_dir) / DATABASE_NAME
+    try:
+        return Store(data_dir)
+    except StorageError as exc:
+        cause = exc.cause
+        if Path(data_dir).is_dir() and not os.access(data_dir, os.W_OK):  # SQLite says only "cannot open"
+            cause = f"the folder is read-only or not writable ({cause})"
+    except sqlite3.DatabaseError as exc:  # not a database, or a database newer or damaged beyond reading
+        cause = f"{database} is not a usable SQLite database ({exc})"
+    except OSError as exc:  # the folder cannot be created or is a file
+        cause = f"the folder {data_dir} cannot be used ({exc.strerror or exc})"
+    raise DataFolderError(
+        f"microbearing cannot open its data folder {data_dir}: {cause}. Point MICROBEARING_DATA_DIR (or "
+        f"--data-dir) at a writable folder with free space, or move {database} away (`sqlite3 <file> "
+        ".recover` rebuilds what it can of a damaged one).")
 
 
 _runtime_lock = threading.Lock()

@@ -239,8 +239,8 @@ class JsonGuardMiddleware:
                 chunks.append(message.get("body", b""))
                 if not message.get("more_body", False):
                     break
-        except HTTPException as exc:  # the body-size limit, counting a streamed body
-            problem = ProblemError(exc.status_code, str(exc.detail))
+        except HTTPException as exc:  # the body's size or time limit (service.limits)
+            problem = ProblemError(exc.status_code, str(exc.detail), headers=exc.headers)
             await self._answer(problem, scope, receive, send)
             return
         if len(content_types) > 1:  # answered once the body is read: a client may not read before it sent all
@@ -271,5 +271,6 @@ class JsonGuardMiddleware:
 
     @staticmethod
     async def _answer(problem: ProblemError, scope: Scope, receive: Receive, send: Send) -> None:
-        response = ProblemResponse(problem.to_dict(instance=scope.get("path")), status_code=problem.status)
+        response = ProblemResponse(problem.to_dict(instance=scope.get("path")), status_code=problem.status,
+                                   headers=problem.headers)
         await response(scope, receive, send)

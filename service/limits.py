@@ -1,20 +1,32 @@
-"""Request-body size limit as pure ASGI middleware, answering 413 as a problem.
+"""Request-body limits as pure ASGI middleware: size (413), arrival time (408), content coding (415).
 
-Starlette's own limit (FastAPI's ``max_body_size``) answers a declared oversize body with a
+Starlette's own size limit (FastAPI's ``max_body_size``) answers a declared oversize body with a
 plain-text 413; this one keeps every error ``application/problem+json``. A declared
 ``Content-Length`` above the limit is refused before anything is read; a body without one
 (chunked) is counted as it streams, and the route reading it gets an HTTP 413 exception that
 the problem handlers answer.
+
+A body must arrive whole within ``timeout_s`` of the first read: a client that sends its body
+slowly, or never finishes it, gets 408 and the connection is closed, instead of holding it for as
+long as it likes. A body sent with a ``Content-Encoding`` other than ``identity`` (gzip, deflate,
+br) gets 415 with ``Accept-Encoding: identity``: the service reads plain bodies only, and a
+compressed one would otherwise be read as malformed text.
+
+Finally, :func:`check_rows` is the one place that refuses a table with more rows than allowed (413);
+:func:`csv_data_rows` counts the rows of a CSV body before it is parsed.
 """
 
 from __future__ import annotations
+
+import asyncio
+from typing import Any
 
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from .problems import ProblemError, ProblemResponse
 
-__all__ = ["BodySizeLimitMiddleware"]
+__all__ = ["BodySizeLimitMiddleware", "BodyTimeout", "BodyTooLarge", "check_rows", "csv_data_rows"]
 
 
 class BodyTooLarge(HTTPException):
@@ -24,8 +36,80 @@ class BodyTooLarge(HTTPException):
         super().__init__(413, f"The request body exceeds the limit of {max_bytes} bytes.")
 
 
+class BodyTimeout(HTTPException):
+    """The body did not arrive within the time limit; the connection is closed after the answer."""
+
+    def __init__(self, timeout_s: float):
+        super().__init__(408, f"The request body did not arrive within {timeout_s:g} s "
+                              "(MICROBEARING_BODY_TIMEOUT_S).", headers={"Connection": "close"})
+
+
+def check_rows(rows: int, limit: int, what: str = "The data") -> None:
+    """Refuse a table of more than ``limit`` rows with a 413 problem naming the limit.
+
+    Parameters
+    ----------
+    rows : int
+        Rows received [1].
+    limit : int
+        Most rows accepted [1] (``MICROBEARING_MAX_CALIBRATION_ROWS``).
+    what : str
+        What the rows are, for the message.
+
+    Raises
+    ------
+    ProblemError
+        413 when ``rows > limit``.
+    """
+    if rows > limit:
+        raise ProblemError(413, f"{what} has {rows} rows; the limit is {limit} "
+                                "(MICROBEARING_MAX_CALIBRATION_ROWS).", title="Too many rows")
+
+
+def csv_data_rows(text: bytes) -> int:
+    r"""Data rows of a CSV body with a header row, counted by line breaks without parsing it.
+
+    >>> csv_data_rows(b"a,b\n1,2\n3,4\n"), csv_data_rows(b"a,b\r\n1,2\r\n3,4"), csv_data_rows(b"a,b")
+    (2, 2, 0)
+    """
+    lines = text.count(b"\n") + (bool(text) and not text.endswith(b"\n"))
+    return max(lines - 1, 0)
+
+
+class _Resume:
+    """Await the rest of a coroutine that :func:`receive_within` started and that is waiting on ``future``."""
+
+    def __init__(self, coroutine: Any, future: Any):
+        self.coroutine = coroutine
+        self.future = future
+
+    def __await__(self) -> Any:
+        try:
+            yield self.future  # the task waits for the client's bytes, then resumes the coroutine
+        except BaseException as exc:  # cancelled by the deadline: the coroutine ends with it
+            self.coroutine.throw(exc)
+            raise
+        return (yield from self.coroutine.__await__())
+
+
+async def receive_within(receive: Receive, deadline: float) -> Message:
+    """``await receive()``, failing with :class:`TimeoutError` past ``deadline`` (event-loop time).
+
+    A message already there (the common case: a small body arrives with its headers) is returned
+    without a timer, which would cost more than the rest of the request's body handling; only a
+    read that has to wait for the client runs under :func:`asyncio.timeout_at`.
+    """
+    coroutine = receive()
+    try:
+        future = coroutine.send(None)  # runs the read up to its first wait, if it has to wait
+    except StopIteration as done:
+        return done.value
+    async with asyncio.timeout_at(deadline):
+        return await _Resume(coroutine, future)
+
+
 class BodySizeLimitMiddleware:
-    """Refuse request bodies larger than ``max_bytes`` with ``413 Content Too Large``.
+    """Refuse bodies larger than ``max_bytes`` (413), slower than ``timeout_s`` (408) or encoded (415).
 
     Parameters
     ----------
@@ -33,36 +117,64 @@ class BodySizeLimitMiddleware:
         The wrapped application.
     max_bytes : int
         Largest accepted body [bytes].
+    timeout_s : float, optional
+        Time allowed for the whole body to arrive, from the first read [s]; unlimited when None.
     """
 
-    def __init__(self, app: ASGIApp, max_bytes: int):
+    def __init__(self, app: ASGIApp, max_bytes: int, timeout_s: float | None = None):
         self.app = app
         self.max_bytes = max_bytes
+        self.timeout_s = timeout_s
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        declared = dict(scope["headers"]).get(b"content-length")
+        headers = dict(scope["headers"])
+        declared = headers.get(b"content-length")
+        encoding = headers.get(b"content-encoding", b"identity").strip().lower()
+        problem = None
         if declared is not None and (not declared.isdigit() or int(declared) > self.max_bytes):
             if declared.isdigit():
-                status, detail = 413, f"The body has {int(declared)} bytes; the limit is {self.max_bytes}."
+                problem = ProblemError(413, f"The body has {int(declared)} bytes; the limit is "
+                                            f"{self.max_bytes}.", headers={"Connection": "close"})
             else:
-                status, detail = 400, "Content-Length must be a whole number of bytes."
-            problem = ProblemError(status, detail)
-            response = ProblemResponse(problem.to_dict(instance=scope.get("path")), status_code=status,
+                problem = ProblemError(400, "Content-Length must be a whole number of bytes.",
                                        headers={"Connection": "close"})
+        elif encoding not in (b"identity", b"") and (declared not in (None, b"0")
+                                                     or b"transfer-encoding" in headers):  # a body is coming
+            coding = encoding.decode("latin-1")[:50]
+            problem = ProblemError(415, f"Content-Encoding {coding!r} is not supported; send the body "
+                                        "uncompressed.", title="Unsupported Media Type",
+                                   headers={"Accept-Encoding": "identity", "Connection": "close"})
+        if problem is not None:
+            response = ProblemResponse(problem.to_dict(instance=scope.get("path")),
+                                       status_code=problem.status, headers=problem.headers)
             await response(scope, receive, send)
             return
         received = 0
+        # Without a declared body (GET, Content-Length 0) the server answers the first read at once:
+        # no timer, which costs more than the rest of this middleware.
+        complete = declared in (None, b"0") and b"transfer-encoding" not in headers
+        deadline: float | None = None
 
         async def counted_receive() -> Message:
-            nonlocal received
-            message = await receive()
+            nonlocal received, complete, deadline
+            if complete or self.timeout_s is None:  # after the body only a disconnect is awaited: no limit
+                message = await receive()
+            else:
+                loop = asyncio.get_running_loop()
+                if deadline is None:
+                    deadline = loop.time() + self.timeout_s
+                try:
+                    message = await receive_within(receive, deadline)
+                except TimeoutError:
+                    raise BodyTimeout(self.timeout_s) from None
             if message["type"] == "http.request":
                 received += len(message.get("body", b""))
                 if received > self.max_bytes:
                     raise BodyTooLarge(self.max_bytes)
+                complete = not message.get("more_body", False)
             return message
 
         await self.app(scope, counted_receive, send)

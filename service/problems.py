@@ -34,6 +34,7 @@ __all__ = [
     "ProblemError",
     "ProblemResponse",
     "install",
+    "truncated",
     "problem_responses",
     "validation_problem",
 ]
@@ -108,14 +109,32 @@ class ProblemError(Exception):
         return (type(self), (self.status, self.detail), dict(vars(self)))
 
     def to_dict(self, instance: str | None = None) -> dict[str, Any]:
-        """The problem as a JSON-ready dict."""
+        """The problem as a JSON-ready dict, its texts cut to bounded lengths (see :func:`truncated`)."""
         body: dict[str, Any] = {"type": self.type, "title": self.title, "status": self.status,
-                                "detail": self.detail}
+                                "detail": truncated(self.detail, MAX_DETAIL_CHARS)}
         if instance is not None:
-            body["instance"] = instance
+            body["instance"] = truncated(instance, MAX_FIELD_CHARS)
         if self.errors:
-            body["errors"] = self.errors
+            body["errors"] = [{key: truncated(value, MAX_FIELD_CHARS) if isinstance(value, str) else value
+                               for key, value in error.items()} for error in self.errors]
         return body
+
+
+#: Longest ``detail`` of a problem, and longest pointer, parameter or detail of one field error
+#: [characters]: a problem echoes parts of the request (a key, a value), which can be megabytes.
+MAX_DETAIL_CHARS = 4000
+MAX_FIELD_CHARS = 500
+
+
+def truncated(text: str, limit: int) -> str:
+    """``text``, or its first characters and a note of how many were left out.
+
+    >>> truncated("abcdef", 10), truncated("a" * 30, 20)
+    ('abcdef', 'aaaaaaaaaaaaaaaaaaaa... (10 more characters)')
+    """
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text) - limit} more characters)"
 
 
 #: Most offending fields listed in one problem, and in its detail: a body with a million bad

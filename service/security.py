@@ -8,7 +8,13 @@ added later is protected without any change here). The open paths are the livene
 ``/healthz``, the Prometheus scrape endpoint ``/metrics`` (counts and latencies by route
 template only: no request data, no keys; expose it on a trusted network, as usual for
 Prometheus targets) and the API description (``/openapi.json``, ``/docs``, ``/redoc``), which
-holds no data either.
+holds no data either; the readiness probe ``/readyz`` is open too.
+
+Ownership: a request with a valid key runs with :data:`service.store.REQUESTER` set to that key's
+id (the first 16 hex digits of its SHA-256; the key itself is never stored), so the jobs,
+surrogates and calibrations it creates belong to the key, and it sees only those (others get
+404). ``MICROBEARING_ADMIN_API_KEY`` is accepted too and sees everything. Without keys every
+request sees every row, as before keys existed.
 
 On the UM-Bridge protocol's paths (:mod:`service.umbridge`) the key may also come as HTTP Basic
 credentials (the password, or the user name when there is no password), which UM-Bridge clients
@@ -36,15 +42,17 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
 from .settings import Settings
+from .store import REQUESTER, Requester
 from .umbridge import PREFIX as UMBRIDGE_PREFIX
 
-__all__ = ["OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "document_openapi", "install",
-           "parse_api_keys"]
+__all__ = ["OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "app_path", "document_openapi",
+           "install", "key_id", "parse_api_keys"]
 
 logger = logging.getLogger("microbearing.service.security")
 
 #: Paths answered without a key (relative to the ASGI root path).
-OPEN_PATHS = frozenset({"/healthz", "/metrics", "/openapi.json", "/docs", "/docs/oauth2-redirect", "/redoc"})
+OPEN_PATHS = frozenset({"/healthz", "/readyz", "/metrics", "/openapi.json", "/docs", "/docs/oauth2-redirect",
+                        "/redoc"})
 
 #: Name of the bearer scheme in the OpenAPI spec.
 SECURITY_SCHEME_NAME = "ApiKeyBearer"
@@ -79,8 +87,26 @@ def parse_api_keys(text: str) -> tuple[str, ...]:
     return keys
 
 
+def app_path(scope: Scope) -> str:
+    """The request's path relative to the ASGI root path (the app's own routes start there)."""
+    path = scope["path"]
+    root_path = scope.get("root_path", "")
+    if root_path and path.startswith(root_path):
+        path = path[len(root_path):] or "/"
+    return path
+
+
 def _digest(token: bytes) -> bytes:
     return hashlib.sha256(token).digest()
+
+
+def key_id(key: str) -> str:
+    """The id under which a key owns rows: the first 16 hex digits of its SHA-256.
+
+    >>> key_id("alpha-key-0123456789") == key_id("alpha-key-0123456789") != key_id("beta-key")
+    True
+    """
+    return _digest(key.encode("ascii")).hex()[:16]
 
 
 def _bearer_token(headers: list[tuple[bytes, bytes]], basic: bool = False) -> bytes | None:
@@ -113,36 +139,45 @@ class ApiKeyMiddleware:
     app : ASGI app
         The wrapped application.
     keys : sequence of str
-        Accepted keys; when empty every request passes.
+        Accepted keys; when empty (and no admin key) every request passes.
+    admin_key : str, optional
+        A key that sees every key's rows.
     """
 
-    def __init__(self, app: ASGIApp, keys: tuple[str, ...]):
+    def __init__(self, app: ASGIApp, keys: tuple[str, ...], admin_key: str = ""):
         self.app = app
-        self._digests = tuple(_digest(key.encode("ascii")) for key in keys)
+        self._digests = tuple(_digest(key.encode("ascii")) for key in (*keys, *filter(None, [admin_key])))
+        self._admin = len(self._digests) - 1 if admin_key else -1
 
-    def _accepts(self, token: bytes | None) -> bool:
+    def _requester(self, token: bytes | None) -> Requester | None:
+        """Who presents ``token``, or None when it is no configured key."""
         presented = _digest(token or b"")
-        matched = False
-        for expected in self._digests:  # every key, no early exit: the time reveals nothing
-            matched |= hmac.compare_digest(presented, expected)
-        return matched and token is not None
+        matched = -1
+        for index, expected in enumerate(self._digests):  # every key, no early exit: the time reveals nothing
+            if hmac.compare_digest(presented, expected):
+                matched = index
+        if matched < 0 or token is None:
+            return None
+        return Requester(key_id=presented.hex()[:16], sees_all=matched == self._admin)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http" or not self._digests:
             await self.app(scope, receive, send)
             return
-        path = scope["path"]
-        root_path = scope.get("root_path", "")
-        if root_path and path.startswith(root_path):
-            path = path[len(root_path):] or "/"
+        path = app_path(scope)
         if path in OPEN_PATHS:
             await self.app(scope, receive, send)
             return
         # UM-Bridge clients cannot set headers; the requests library under the Python one sends
         # the credentials of the URL as HTTP Basic.
         token = _bearer_token(scope["headers"], basic=path.startswith(UMBRIDGE_PREFIX + "/"))
-        if self._accepts(token):
-            await self.app(scope, receive, send)
+        requester = self._requester(token)
+        if requester is not None:
+            reset = REQUESTER.set(requester)
+            try:
+                await self.app(scope, receive, send)
+            finally:
+                REQUESTER.reset(reset)
             return
         if token is None:
             detail = "This API needs a key: send the header 'Authorization: Bearer <key>'."
@@ -160,8 +195,12 @@ class ApiKeyMiddleware:
 
 
 def install(app: FastAPI, settings: Settings) -> None:
-    """Require the keys of ``settings.api_keys`` on ``app`` (no-op while there are none)."""
-    app.add_middleware(ApiKeyMiddleware, keys=parse_api_keys(settings.api_keys.get_secret_value()))
+    """Require the keys of ``settings.api_keys`` or the admin key on ``app`` (no-op while there are none)."""
+    admin = parse_api_keys(settings.admin_api_key.get_secret_value())
+    if len(admin) > 1:
+        raise ValueError("MICROBEARING_ADMIN_API_KEY must hold one key")
+    app.add_middleware(ApiKeyMiddleware, keys=parse_api_keys(settings.api_keys.get_secret_value()),
+                       admin_key=admin[0] if admin else "")
 
 
 def document_openapi(spec: dict[str, Any]) -> dict[str, Any]:

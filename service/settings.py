@@ -52,11 +52,49 @@ class Settings(BaseSettings):
         default=2, ge=1, le=64,
         description="Background threads running jobs in each server process.",
     )
+    # Admission control, retention and storage (service/jobs.py, service/store.py).
+    max_active_jobs: int = Field(
+        default=64, ge=1,
+        description="Most queued and running jobs in one server process; a job request past it gets 503 "
+                    "with Retry-After. A queued job holds only its request (designs are built as it starts).",
+    )
+    max_active_jobs_per_key: int = Field(
+        default=16, ge=1,
+        description="Most queued and running jobs of one API key in one server process; past it 429 with "
+                    "Retry-After. Applies only when MICROBEARING_API_KEYS is set.",
+    )
+    max_result_bytes: int = Field(
+        default=128 * 2**20, ge=1024,
+        description="Largest stored result of one job [bytes] (its JSON); a sweep predicted to exceed it "
+                    "gets 413, a job whose result does fails with a 413 problem.",
+    )
+    job_retention_s: float = Field(
+        default=7 * 24 * 3600.0, gt=0,
+        description="Finished jobs and their results are deleted this long after they finished [s] "
+                    "(7 days). Stored surrogates and calibrations do not expire.",
+    )
+    min_free_bytes: int = Field(
+        default=64 * 2**20, ge=0,
+        description="GET /readyz answers 503 when the data folder's file system has less free space [bytes].",
+    )
+    max_calibration_rows: int = Field(
+        default=20_000, ge=1,
+        description="Most data rows of one calibration (JSON or CSV); more get 413.",
+    )
+    body_timeout_s: float = Field(
+        default=60.0, gt=0,
+        description="Time allowed to receive a whole request body [s]; a slower body gets 408.",
+    )
     # Reliability and scale-out (service/security.py, service/executor.py).
     api_keys: SecretStr = Field(
         default=SecretStr(""),
         description="Comma-separated API keys; when set, every request except /healthz, /metrics and the "
                     "API docs needs `Authorization: Bearer <key>` (401 otherwise). Empty: no keys needed.",
+    )
+    admin_api_key: SecretStr = Field(
+        default=SecretStr(""),
+        description="An API key that sees, cancels and deletes the jobs, surrogates and calibrations of "
+                    "every key (other keys see only their own). Empty: no admin key.",
     )
     dask_scheduler: str | None = Field(
         default=None,

@@ -11,12 +11,28 @@ Stored models (surrogates, calibrations, ...)::
     model_id = store.save_model("surrogate", {"inputs": [...], "score": 0.99},
                                 {"weights": w, "bias": b})
     stored = store.load_model(model_id)      # StoredModel(id, kind, name, metadata, arrays, created_at)
+
+Ownership: every job and model row records the id of the API key that created it (``owner_key``,
+see :mod:`service.security`; never the key). The reads and deletions a client can reach
+(:meth:`Store.get_job`, :meth:`Store.delete_job`, :meth:`Store.load_model`,
+:meth:`Store.list_models`, :meth:`Store.delete_model`) see only the rows of the
+:data:`REQUESTER` of the current context, which the API-key middleware sets per request (a job's
+thread runs in a copy of its request's context, so what a job stores belongs to its key). The
+default requester, used without keys, by the admin key and by the server's own housekeeping,
+sees every row. Rows without an owner (written before keys were configured) are seen by all.
+
+Storage faults: a write the disk cannot take (full, read-only, I/O error) raises
+:class:`StorageError`, a problem (507 for a full disk, 503 otherwise) naming the cause.
 """
 
 from __future__ import annotations
 
+import contextvars
+import errno
 import io
 import json
+import logging
+import shutil
 import sqlite3
 import threading
 import uuid
@@ -30,7 +46,12 @@ from typing import Any
 import numpy as np
 import pydantic_core
 
-__all__ = ["DATABASE_NAME", "Store", "StoredModel", "json_bytes", "to_json", "utc_now"]
+from .problems import ProblemError
+
+__all__ = ["DATABASE_NAME", "REQUESTER", "Requester", "StorageError", "Store", "StoredModel", "json_bytes",
+           "to_json", "utc_now"]
+
+logger = logging.getLogger("microbearing.service.store")
 
 DATABASE_NAME = "microbearing.sqlite3"
 
@@ -46,6 +67,7 @@ CREATE TABLE IF NOT EXISTS jobs (
     cancel_requested INTEGER NOT NULL DEFAULT 0,
     owner_pid INTEGER NOT NULL,
     owner_instance TEXT NOT NULL,
+    owner_key TEXT,
     created_at TEXT NOT NULL,
     started_at TEXT,
     finished_at TEXT
@@ -61,13 +83,24 @@ CREATE TABLE IF NOT EXISTS models (
     name TEXT NOT NULL,
     metadata_json TEXT NOT NULL,
     arrays_npz BLOB NOT NULL,
+    owner_key TEXT,
     created_at TEXT NOT NULL
 );
 CREATE INDEX IF NOT EXISTS models_kind ON models (kind);
+CREATE TABLE IF NOT EXISTS write_probe (
+    id INTEGER PRIMARY KEY,
+    written_at TEXT NOT NULL
+);
 """
+#: Columns added since the first release, with their declaration: databases written before get them
+#: by ALTER TABLE at open (NULL owner: visible to every key).
+_ADDED_COLUMNS = {"jobs": {"owner_key": "TEXT"}, "models": {"owner_key": "TEXT"}}
+#: Index on a column that older databases gain by ALTER TABLE, so it is created after the migration.
+_LATE_SCHEMA = "CREATE INDEX IF NOT EXISTS jobs_finished ON jobs (status, finished_at)"
 
 _JOB_COLUMNS = ("id", "kind", "status", "progress", "request_json", "result_json", "error_json",
-                "cancel_requested", "owner_pid", "owner_instance", "created_at", "started_at", "finished_at")
+                "cancel_requested", "owner_pid", "owner_instance", "owner_key", "created_at", "started_at",
+                "finished_at")
 #: The columns of a job's status: all but the request and the result, which can be tens of megabytes.
 #: Results are kept in their own table, job_results: SQLite walks a large value's overflow pages to
 #: reach the columns stored after it, so a result in the jobs row slowed every status read (a
@@ -75,6 +108,85 @@ _JOB_COLUMNS = ("id", "kind", "status", "progress", "request_json", "result_json
 _STATUS_COLUMNS = ", ".join(c for c in _JOB_COLUMNS if c not in ("request_json", "result_json"))
 _FULL_COLUMNS = ", ".join(f"jobs.{c}" for c in _JOB_COLUMNS if c != "result_json") + (
     ", COALESCE(job_results.result_json, jobs.result_json) AS result_json")
+
+
+@dataclass(frozen=True)
+class Requester:
+    """Who is asking, for the ownership of rows.
+
+    Attributes
+    ----------
+    key_id : str or None
+        Id of the API key (recorded as the owner of new rows); None without keys.
+    sees_all : bool
+        Whether every row is visible (no keys configured, the admin key, the server itself).
+    """
+
+    key_id: str | None = None
+    sees_all: bool = True
+
+
+#: Who sees every row: requests without keys, and the server's own housekeeping.
+EVERYONE = Requester()
+#: The requester of the current context; set per request by :mod:`service.security`.
+REQUESTER: contextvars.ContextVar[Requester] = contextvars.ContextVar("microbearing_requester",
+                                                                     default=EVERYONE)
+
+STORAGE_TYPE = "urn:microbearing:problem:storage"
+
+#: SQLite's primary result codes of a storage fault (https://sqlite.org/rescode.html).
+_SQLITE_READONLY, _SQLITE_IOERR, _SQLITE_CORRUPT, _SQLITE_FULL, _SQLITE_CANTOPEN = 8, 10, 11, 13, 14
+
+
+class StorageError(ProblemError):
+    """The data folder cannot take a write: 507 for a full disk, 503 otherwise, with ``Retry-After``.
+
+    Parameters
+    ----------
+    cause : str
+        What failed, e.g. ``"the disk is full"``.
+    path : pathlib.Path
+        The database file.
+    status : int
+        507 or 503.
+    """
+
+    def __init__(self, cause: str, path: Path, status: int = 503):
+        super().__init__(status, f"The service cannot store data: {cause} ({path}). Free space or fix the "
+                                 "data folder; the request can be repeated then.",
+                         title="Storage unavailable", type_=STORAGE_TYPE, headers={"Retry-After": "60"})
+        self.cause = cause
+        self.path = path
+
+    @classmethod
+    def classify(cls, exc: BaseException, path: Path) -> StorageError | None:
+        """The storage fault ``exc`` stands for, or None when it is something else.
+
+        Parameters
+        ----------
+        exc : BaseException
+            An exception raised by sqlite3 or the file system.
+        path : pathlib.Path
+            The database file, for the message.
+        """
+        if isinstance(exc, StorageError):
+            return exc
+        if isinstance(exc, sqlite3.Error):
+            code = (getattr(exc, "sqlite_errorcode", None) or 0) & 0xFF
+            causes = {_SQLITE_FULL: ("the disk is full", 507),
+                      _SQLITE_READONLY: ("the database is read-only", 503),
+                      _SQLITE_IOERR: (f"an I/O error ({exc})", 503),
+                      _SQLITE_CANTOPEN: (f"the database cannot be opened ({exc})", 503),
+                      _SQLITE_CORRUPT: (f"the database is corrupt ({exc})", 503)}
+            if code in causes:
+                cause, status = causes[code]
+                return cls(cause, path, status)
+        if isinstance(exc, OSError) and exc.errno is not None:
+            if exc.errno == errno.ENOSPC:
+                return cls("the disk is full", path, 507)
+            if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO):
+                return cls(f"{exc.strerror or exc}", path, 503)
+        return None
 
 
 def utc_now() -> str:
@@ -163,6 +275,12 @@ class Store:
         with self.transaction() as conn:
             for statement in filter(str.strip, _SCHEMA.split(";")):
                 conn.execute(statement)
+            for table, columns in _ADDED_COLUMNS.items():
+                present = {row["name"] for row in conn.execute(f"PRAGMA table_info({table})")}
+                for name, declaration in columns.items():
+                    if name not in present:
+                        conn.execute(f"ALTER TABLE {table} ADD COLUMN {name} {declaration}")
+            conn.execute(_LATE_SCHEMA)
 
     def connection(self) -> sqlite3.Connection:
         """This thread's connection (autocommit; use :meth:`transaction` to write)."""
@@ -180,15 +298,59 @@ class Store:
 
     @contextmanager
     def transaction(self) -> Iterator[sqlite3.Connection]:
-        """A write transaction: committed on success, rolled back on an exception."""
-        conn = self.connection()
-        conn.execute("BEGIN IMMEDIATE")
+        """A write transaction: committed on success, rolled back on an exception.
+
+        Raises
+        ------
+        StorageError
+            When the disk is full, the database read-only or the file system fails.
+        """
         try:
-            yield conn
-        except BaseException:
-            conn.execute("ROLLBACK")
-            raise
-        conn.execute("COMMIT")
+            conn = self.connection()
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield conn
+            except BaseException:
+                if conn.in_transaction:  # SQLite may already have rolled back after a full disk
+                    conn.execute("ROLLBACK")
+                raise
+            conn.execute("COMMIT")
+        except (sqlite3.Error, OSError) as exc:
+            fault = StorageError.classify(exc, self.path)
+            if fault is None:
+                raise
+            raise fault from exc
+
+    def check_writable(self, min_free_bytes: int = 0) -> str | None:
+        """Why the store cannot take writes now, or None when it can.
+
+        Writes one row of a probe table (a real write: a read-only file or a full disk fails
+        it) and compares the free space of the data folder's file system with ``min_free_bytes``.
+
+        Parameters
+        ----------
+        min_free_bytes : int, default 0
+            Least free space [bytes].
+
+        Returns
+        -------
+        str or None
+            The reason, e.g. ``"the disk is full"``, or None.
+        """
+        try:
+            free = shutil.disk_usage(self.data_dir).free
+        except OSError as exc:
+            return f"the data folder {self.data_dir} cannot be read: {exc.strerror or exc}"
+        if free < min_free_bytes:
+            return (f"only {free} bytes are free in {self.data_dir}; at least {min_free_bytes} are needed "
+                    "(MICROBEARING_MIN_FREE_BYTES)")
+        try:
+            with self.transaction() as conn:
+                conn.execute("INSERT OR REPLACE INTO write_probe (id, written_at) VALUES (1, ?)",
+                             (utc_now(),))
+        except StorageError as exc:
+            return exc.cause
+        return None
 
     def close(self) -> None:
         """Close every connection opened by this store."""
@@ -198,10 +360,20 @@ class Store:
             self._connections.clear()
         self._local = threading.local()
 
+    @staticmethod
+    def _visible(table: str = "") -> tuple[str, tuple[str, ...]]:
+        """SQL condition (`` AND ...``) and argument keeping the rows the requester may see."""
+        requester = REQUESTER.get()
+        if requester.sees_all:
+            return "", ()
+        prefix = f"{table}." if table else ""
+        return f" AND ({prefix}owner_key IS NULL OR {prefix}owner_key = ?)", (requester.key_id or "",)
+
     # jobs -----------------------------------------------------------------------------------
 
     def insert_job(self, **row: Any) -> None:
-        """Insert a job row (column names as keywords)."""
+        """Insert a job row (column names as keywords); its owner is the current requester's key."""
+        row = {**row, "owner_key": REQUESTER.get().key_id}
         names = ", ".join(row)
         marks = ", ".join("?" for _ in row)
         with self.transaction() as conn:
@@ -250,12 +422,43 @@ class Store:
             not read them, since a large sweep's result is tens of megabytes.
         """
         if with_result:
+            visible, args = self._visible("jobs")
             sql = (f"SELECT {_FULL_COLUMNS} FROM jobs LEFT JOIN job_results ON job_results.id = jobs.id "
-                   "WHERE jobs.id = ?")
+                   f"WHERE jobs.id = ?{visible}")
         else:
-            sql = f"SELECT {_STATUS_COLUMNS} FROM jobs WHERE id = ?"
-        row = self.connection().execute(sql, (job_id,)).fetchone()
+            visible, args = self._visible()
+            sql = f"SELECT {_STATUS_COLUMNS} FROM jobs WHERE id = ?{visible}"
+        row = self.connection().execute(sql, (job_id, *args)).fetchone()
         return dict(row) if row else None
+
+    def delete_job(self, job_id: str, statuses: tuple[str, ...]) -> bool:
+        """Delete a job the requester sees, and its result, if it has one of ``statuses``.
+
+        Returns
+        -------
+        bool
+            Whether it was deleted.
+        """
+        visible, args = self._visible()
+        marks = ", ".join("?" for _ in statuses)
+        with self.transaction() as conn:
+            deleted = conn.execute(f"DELETE FROM jobs WHERE id = ? AND status IN ({marks}){visible}",
+                                   (job_id, *statuses, *args)).rowcount > 0
+            if deleted:
+                conn.execute("DELETE FROM job_results WHERE id = ?", (job_id,))
+            return deleted
+
+    def delete_jobs_finished_before(self, statuses: tuple[str, ...], before: str) -> int:
+        """Delete every job with one of ``statuses`` that finished before ``before`` (ISO 8601 UTC).
+
+        Housekeeping: ignores the requester. Returns how many were deleted.
+        """
+        marks = ", ".join("?" for _ in statuses)
+        where = f"status IN ({marks}) AND finished_at < ?"
+        with self.transaction() as conn:
+            conn.execute(f"DELETE FROM job_results WHERE id IN (SELECT id FROM jobs WHERE {where})",
+                         (*statuses, before))
+            return conn.execute(f"DELETE FROM jobs WHERE {where}", (*statuses, before)).rowcount
 
     def jobs_with_status(self, *statuses: str) -> list[dict[str, Any]]:
         """Status columns of every job with one of ``statuses``, oldest first (no request or result)."""
@@ -301,14 +504,23 @@ class Store:
         model_id = uuid.uuid4().hex
         with self.transaction() as conn:
             conn.execute(
-                "INSERT INTO models (id, kind, name, metadata_json, arrays_npz, created_at) "
-                "VALUES (?, ?, ?, ?, ?, ?)",
-                (model_id, kind, name, to_json(metadata), buffer.getvalue(), utc_now()))
+                "INSERT INTO models (id, kind, name, metadata_json, arrays_npz, owner_key, created_at) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (model_id, kind, name, to_json(metadata), buffer.getvalue(), REQUESTER.get().key_id,
+                 utc_now()))
         return model_id
 
+    def has_model(self, model_id: str, kind: str) -> bool:
+        """Whether a model of ``kind`` with this id exists and the requester sees it."""
+        visible, args = self._visible()
+        return self.connection().execute(f"SELECT 1 FROM models WHERE id = ? AND kind = ?{visible}",
+                                         (model_id, kind, *args)).fetchone() is not None
+
     def load_model(self, model_id: str) -> StoredModel | None:
-        """The stored model, or None when there is no such id."""
-        row = self.connection().execute("SELECT * FROM models WHERE id = ?", (model_id,)).fetchone()
+        """The stored model, or None when there is no such id (or the requester does not see it)."""
+        visible, args = self._visible()
+        row = self.connection().execute(f"SELECT * FROM models WHERE id = ?{visible}",
+                                        (model_id, *args)).fetchone()
         if row is None:
             return None
         with np.load(io.BytesIO(row["arrays_npz"]), allow_pickle=False) as npz:
@@ -317,17 +529,18 @@ class Store:
                            row["created_at"])
 
     def list_models(self, kind: str | None = None) -> list[dict[str, Any]]:
-        """Id, kind, name, metadata and creation time of stored models, newest first."""
-        sql = "SELECT id, kind, name, metadata_json, created_at FROM models"
-        args: tuple[str, ...] = ()
+        """Id, kind, name, metadata and creation time of the models the requester sees, newest first."""
+        visible, args = self._visible()
+        sql = f"SELECT id, kind, name, metadata_json, created_at FROM models WHERE 1 = 1{visible}"
         if kind is not None:
-            sql += " WHERE kind = ?"
-            args = (kind,)
+            sql += " AND kind = ?"
+            args = (*args, kind)
         rows = self.connection().execute(sql + " ORDER BY created_at DESC", args).fetchall()
         return [{"id": r["id"], "kind": r["kind"], "name": r["name"],
                  "metadata": json.loads(r["metadata_json"]), "created_at": r["created_at"]} for r in rows]
 
     def delete_model(self, model_id: str) -> bool:
-        """Delete a stored model; returns whether it existed."""
+        """Delete a stored model the requester sees; returns whether it existed."""
+        visible, args = self._visible()
         with self.transaction() as conn:
-            return conn.execute("DELETE FROM models WHERE id = ?", (model_id,)).rowcount > 0
+            return conn.execute(f"DELETE FROM models WHERE id = ?{visible}", (model_id, *args)).rowcount > 0

@@ -1,8 +1,11 @@
 """Sweeps: points of a full-factorial grid or of a design of experiments, evaluated in chunks.
 
-:func:`design_columns` turns a validated sweep request into input columns (422 problems name
-the offending field by JSON pointer); :func:`run_sweep` evaluates them chunk by chunk,
-reporting progress so that a sweep run as a job can be followed and cancelled.
+:func:`design_size` checks a sweep request and counts its points without building them (422
+problems name the offending field by JSON pointer; :func:`check_result_size` answers 413 for a
+result predicted past the size limit); :func:`design_columns` builds its input columns;
+:func:`run_sweep` evaluates them chunk by chunk, reporting progress so that a sweep run as a job
+can be followed and cancelled. A sweep job builds its columns when it starts: a queued job holds
+only its request.
 """
 
 from __future__ import annotations
@@ -18,15 +21,19 @@ from scipy.stats import qmc
 import physics
 
 from .executor import evaluate_in_chunks
-from .problems import validation_problem
+from .problems import ProblemError, validation_problem
 from .schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep
 
-__all__ = ["CHUNK_POINTS", "SweepPlan", "design_columns", "run_sweep"]
+__all__ = ["CHUNK_POINTS", "SweepPlan", "check_result_size", "design_columns", "design_size", "run_sweep"]
 
 #: Points evaluated per chunk: bounds memory and sets how often progress is reported.
 CHUNK_POINTS = 65_536
 
 AnySweep = GridSweep | SobolSweep | LatinHypercubeSweep
+
+#: Fewest bytes one number takes in a result's JSON (a double's shortest form is mostly 18-22
+#: characters and a comma): a design predicted past the result limit with it surely is past it.
+_JSON_BYTES_PER_VALUE = 16
 
 
 class SweepPlan:
@@ -79,10 +86,8 @@ def _grid_axes(request: GridSweep, errors: list[dict[str, str]]) -> dict[str, np
     return axes
 
 
-def _sampled(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[str, str]]
-             ) -> dict[str, np.ndarray]:
-    ranges = request.ranges.model_dump(exclude_none=True)
-    for name, span in ranges.items():
+def _check_ranges(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[str, str]]) -> None:
+    for name, span in request.ranges.model_dump(exclude_none=True).items():
         pointer = f"/ranges/{name}"
         _check_value(name, span["low"], f"{pointer}/low", errors)
         _check_value(name, span["high"], f"{pointer}/high", errors)
@@ -90,8 +95,10 @@ def _sampled(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[str, s
             errors.append({"pointer": f"{pointer}/high", "detail": "high must be >= low"})
         if span["spacing"] == "log" and span["low"] <= 0:
             errors.append({"pointer": f"{pointer}/spacing", "detail": "log spacing needs low > 0"})
-    if errors or not ranges:
-        return {}
+
+
+def _sampled(request: SobolSweep | LatinHypercubeSweep) -> dict[str, np.ndarray]:
+    ranges = request.ranges.model_dump(exclude_none=True)
     sampler_class = qmc.Sobol if request.design == "sobol" else qmc.LatinHypercube
     # scipy >= 1.15 names the generator "rng"; older releases call it "seed".
     key = "rng" if "rng" in inspect.signature(sampler_class).parameters else "seed"
@@ -112,8 +119,8 @@ def _sampled(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[str, s
     return columns
 
 
-def design_columns(request: AnySweep, max_points: int) -> SweepPlan:
-    """The points of a sweep request.
+def design_size(request: AnySweep, max_points: int) -> int:
+    """Check a sweep request and count its points, without building them.
 
     Parameters
     ----------
@@ -124,8 +131,8 @@ def design_columns(request: AnySweep, max_points: int) -> SweepPlan:
 
     Returns
     -------
-    SweepPlan
-        Varied columns, fixed values and the number of points.
+    int
+        Number of points [1] that :func:`design_columns` builds.
 
     Raises
     ------
@@ -156,19 +163,64 @@ def design_columns(request: AnySweep, max_points: int) -> SweepPlan:
         errors.append({"pointer": where, "detail": f"the design has {count} points; at most {max_points}"})
     if errors:
         raise validation_problem(errors)
-
     if request.design == "grid":
-        axes = _grid_axes(request, errors)
-        if errors:
-            raise validation_problem(errors)
+        # Axes of whole numbers lose repeated values: the count is that of the distinct ones.
+        count = int(np.prod([len(values) for values in _grid_axes(request, errors).values()]))
+    else:
+        _check_ranges(request, errors)
+    if errors:
+        raise validation_problem(errors)
+    return count
+
+
+def check_result_size(request: AnySweep, count: int, max_result_bytes: int) -> None:
+    """413 when a sweep's result is predicted to exceed ``max_result_bytes`` of JSON.
+
+    Parameters
+    ----------
+    request : GridSweep, SobolSweep or LatinHypercubeSweep
+        Its outputs and varied inputs.
+    count : int
+        Number of points [1], from :func:`design_size`.
+    max_result_bytes : int
+        Largest stored result [bytes].
+
+    Raises
+    ------
+    ProblemError
+        413 naming the limit.
+    """
+    varied = request.axes if request.design == "grid" else request.ranges
+    columns = len(request.outputs or physics.OUTPUTS) + len(varied.model_dump(exclude_none=True))
+    predicted = count * columns * _JSON_BYTES_PER_VALUE
+    if predicted > max_result_bytes:
+        raise ProblemError(413, f"The result of {count} points x {columns} columns would take at least "
+                                f"{predicted} bytes of JSON, more than the limit of {max_result_bytes} "
+                                "(MICROBEARING_MAX_RESULT_BYTES); ask for fewer points or outputs.",
+                           title="Result too large")
+
+
+def design_columns(request: AnySweep, max_points: int) -> SweepPlan:
+    """The points of a sweep request (arguments as :func:`design_size`).
+
+    Returns
+    -------
+    SweepPlan
+        Varied columns, fixed values and the number of points.
+
+    Raises
+    ------
+    ProblemError
+        422 naming every offending field by JSON pointer (see :func:`design_size`).
+    """
+    count = design_size(request, max_points)
+    if request.design == "grid":
+        axes = _grid_axes(request, [])
         grids = np.meshgrid(*axes.values(), indexing="ij")
         varied = {name: grid.reshape(-1) for name, grid in zip(axes, grids, strict=True)}
     else:
-        varied = _sampled(request, errors)
-        if errors:
-            raise validation_problem(errors)
-    count = len(next(iter(varied.values())))
-    return SweepPlan(varied, fixed, count)
+        varied = _sampled(request)
+    return SweepPlan(varied, request.fixed.model_dump(exclude_none=True), count)
 
 
 def run_sweep(request: AnySweep, plan: SweepPlan,

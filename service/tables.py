@@ -18,7 +18,8 @@ from fastapi.responses import Response
 
 from .store import json_bytes
 
-__all__ = ["CSV_MEDIA_TYPE", "csv_text", "json_bytes", "prefers_csv", "table_response", "wants_csv"]
+__all__ = ["CSV_MEDIA_TYPE", "accepts_any", "best_match", "csv_text", "json_bytes", "media_ranges",
+           "prefers_csv", "table_response", "wants_csv"]
 
 CSV_MEDIA_TYPE = "text/csv"
 
@@ -37,7 +38,16 @@ def prefers_csv(accept: str) -> bool:
     >>> prefers_csv("application/json;q=0.5, text/csv;q=0.8"), prefers_csv("text/*;q=0.9, application/json")
     (True, False)
     """
-    ranges = []  # (type, subtype, quality) of each media range
+    ranges = media_ranges(accept)
+    csv_q, json_q = best_match(ranges, CSV_MEDIA_TYPE), best_match(ranges, "application/json")
+    if csv_q is None or csv_q[0] < 2 or csv_q[1] <= 0.0:
+        return False  # CSV only when named: */* and text/* leave the default, JSON
+    return json_q is None or csv_q[1] >= json_q[1]
+
+
+def media_ranges(accept: str) -> list[tuple[str, str, float]]:
+    """(type, subtype, quality) of each media range of an ``Accept`` header, lower case."""
+    ranges = []
     for item in accept.split(","):
         media_range, *params = (part.strip() for part in item.split(";"))
         quality = 1.0
@@ -50,21 +60,33 @@ def prefers_csv(accept: str) -> bool:
                     quality = 0.0
         kind, _, subtype = media_range.lower().partition("/")
         ranges.append((kind, subtype, quality))
+    return ranges
 
-    def match(media_type: str) -> tuple[int, float] | None:
-        """(specificity, quality) of the most specific range matching ``media_type`` (the first of equals)."""
-        kind, subtype = media_type.split("/")
-        best = None
-        for r_kind, r_subtype, quality in ranges:
-            specificity = {(kind, subtype): 2, (kind, "*"): 1, ("*", "*"): 0}.get((r_kind, r_subtype))
-            if specificity is not None and (best is None or specificity > best[0]):
-                best = (specificity, quality)
-        return best
 
-    csv_q, json_q = match(CSV_MEDIA_TYPE), match("application/json")
-    if csv_q is None or csv_q[0] < 2 or csv_q[1] <= 0.0:
-        return False  # CSV only when named: */* and text/* leave the default, JSON
-    return json_q is None or csv_q[1] >= json_q[1]
+def best_match(ranges: list[tuple[str, str, float]], media_type: str) -> tuple[int, float] | None:
+    """(specificity, quality) of the most specific range matching ``media_type`` (the first of equals)."""
+    kind, subtype = media_type.split("/")
+    best = None
+    for r_kind, r_subtype, quality in ranges:
+        specificity = {(kind, subtype): 2, (kind, "*"): 1, ("*", "*"): 0}.get((r_kind, r_subtype))
+        if specificity is not None and (best is None or specificity > best[0]):
+            best = (specificity, quality)
+    return best
+
+
+def accepts_any(accept: str, offered: list[str]) -> bool:
+    """Whether an ``Accept`` header admits one of the ``offered`` media types (RFC 9110, 12.5.1).
+
+    >>> accepts_any("image/png", ["application/json"]), accepts_any("text/*", ["text/csv"])
+    (False, True)
+    >>> accepts_any("application/json;q=0, */*", ["application/json"]), accepts_any("", ["application/json"])
+    (False, True)
+    """
+    if not accept.strip():
+        return True
+    ranges = media_ranges(accept)
+    matches = (best_match(ranges, media_type) for media_type in offered)
+    return any(match is not None and match[1] > 0 for match in matches)
 
 
 def csv_text(columns: Mapping[str, Any]) -> str:

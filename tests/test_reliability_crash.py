@@ -12,86 +12,23 @@ import hashlib
 import json
 import os
 import signal
-import socket
 import sqlite3
 import subprocess
 import sys
 import textwrap
 import time
-from pathlib import Path
 
-import httpx
 import pytest
+from live_server import REPO, Server, wait_for
 
 from service.jobs import INTERRUPTED_DETAIL
 from service.store import DATABASE_NAME, Store
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="SIGKILL and process groups are POSIX")
 
-REPO = Path(__file__).resolve().parent.parent
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-class Server:
-    """``uvicorn service.app:app`` in a subprocess on a loopback port and a given data folder."""
-
-    def __init__(self, data_dir: Path, log: Path):
-        self.port = free_port()
-        env = {**os.environ, "MICROBEARING_DATA_DIR": str(data_dir),
-               "MICROBEARING_SWEEP_SYNC_MAX_POINTS": "0",  # every sweep is a job
-               "MICROBEARING_MAX_SWEEP_POINTS": "4000000", "MICROBEARING_JOB_WORKERS": "2",
-               "MICROBEARING_EXECUTOR_WORKERS": "1"}
-        env.pop("PROMETHEUS_MULTIPROC_DIR", None)
-        self.log = log.open("ab")
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "uvicorn", "service.app:app", "--host", "127.0.0.1",
-             "--port", str(self.port), "--no-access-log"],
-            cwd=REPO, env=env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
-        self.client = httpx.Client(base_url=f"http://127.0.0.1:{self.port}", timeout=30.0)
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                if self.client.get("/healthz").status_code == 200:
-                    return
-            except httpx.TransportError:
-                pass
-            if self.process.poll() is not None or time.monotonic() > deadline:
-                self.stop()
-                raise RuntimeError(f"the server did not start; see {log}")
-            time.sleep(0.1)
-
-    def kill(self) -> None:
-        """SIGKILL: no shutdown handler runs, exactly as in a power cut of the process."""
-        os.killpg(self.process.pid, signal.SIGKILL)
-        self.process.wait(timeout=30)
-        self.client.close()
-        self.log.close()
-
-    def stop(self) -> None:
-        if self.process.poll() is None:
-            os.killpg(self.process.pid, signal.SIGTERM)
-            try:
-                self.process.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.process.pid, signal.SIGKILL)
-                self.process.wait(timeout=30)
-        self.client.close()
-        self.log.close()
-
-
-def wait_for(server: Server, location: str, statuses: tuple[str, ...], timeout_s: float = 120.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while True:
-        job = server.client.get(location).json()
-        if job["status"] in statuses:
-            return job
-        assert time.monotonic() < deadline, f"{location} stayed {job['status']}"
-        time.sleep(0.05)
+SERVER_SETTINGS = {"sweep_sync_max_points": "0",  # every sweep is a job
+                   "max_sweep_points": "4000000", "max_result_bytes": str(2**31), "job_workers": "2",
+                   "executor_workers": "1"}
 
 
 def small_sweep(num: int) -> dict:
@@ -114,7 +51,7 @@ LONG_SURROGATE = {"space": {"load_N": [1e-4, 0.1], "speed_m_s": [0.0, 0.2], "bal
 def test_sigkill_during_jobs_loses_nothing(tmp_path):
     data_dir = tmp_path / "data"
     log = tmp_path / "server.log"
-    server = Server(data_dir, log)
+    server = Server(data_dir, log, **SERVER_SETTINGS)
     try:
         done = {}
         for num in (5, 7):
@@ -144,7 +81,7 @@ def test_sigkill_during_jobs_loses_nothing(tmp_path):
     server.kill()
 
     database = data_dir / DATABASE_NAME
-    restarted = Server(data_dir, log)
+    restarted = Server(data_dir, log, **SERVER_SETTINGS)
     try:
         for location in (long_training.headers["location"], big_sweep.headers["location"]):
             job = restarted.client.get(location).json()

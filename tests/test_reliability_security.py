@@ -113,9 +113,9 @@ def test_every_key_is_compared_even_after_a_match(monkeypatch):
 
     monkeypatch.setattr(security.hmac, "compare_digest", counting)
     middleware = security.ApiKeyMiddleware(app=None, keys=KEYS)
-    assert middleware._accepts(KEYS[0].encode())
-    assert not middleware._accepts(b"short")
-    assert not middleware._accepts(None)
+    assert middleware._requester(KEYS[0].encode()).key_id == security.key_id(KEYS[0])
+    assert middleware._requester(b"short") is None
+    assert middleware._requester(None) is None
     # Three keys, three comparisons each time, always of equal-length digests.
     assert len(compared) == 9
     assert {pair for pair in compared} == {(32, 32)}

@@ -270,12 +270,15 @@ def test_sweep_as_csv(client):
 
 
 @pytest.mark.parametrize(("accept", "csv_expected"), [
-    ("text/csv;q=0", False), ("text/csv;q=0.3, application/json", False), ("*/*", False),
+    ("text/csv;q=0", None), ("text/csv;q=0.3, application/json", False), ("*/*", False),
     ("application/json;q=0.1, text/csv", True), ("TEXT/CSV; q=0.5", True)])
 def test_sweep_format_follows_accept_qualities(client, accept, csv_expected):
     request = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load_N": 0.01},
                "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 2}}}
     response = client.post("/v1/sweeps", json=request, headers={"accept": accept})
+    if csv_expected is None:  # neither CSV nor JSON acceptable
+        assert_problem(response, 406)
+        return
     assert response.status_code == 200
     media_type = response.headers["content-type"]
     assert media_type.startswith("text/csv" if csv_expected else "application/json"), (accept, media_type)
@@ -342,6 +345,7 @@ def test_large_sweep_runs_as_a_job_with_json_and_csv_results(client):
     assert response.status_code == 202
     location = response.headers["location"]
     assert location == f"/v1/jobs/{response.json()['id']}"
+    assert int(response.headers["retry-after"]) >= 1
     job = wait_for_job(client, location)
     assert job["status"] == "succeeded" and job["progress"] == 1.0 and job["error"] is None
     result = client.get(job["result_url"]).json()
@@ -352,14 +356,18 @@ def test_large_sweep_runs_as_a_job_with_json_and_csv_results(client):
     assert columns["mu"] == expected.tolist()
     rows = list(csv.reader(io.StringIO(client.get(job["result_url"], headers={"accept": "text/csv"}).text)))
     assert rows[0] == ["load_N", "speed_m_s", "mu"] and len(rows) == 2_001
-    assert_problem(client.delete(location), 409)  # finished jobs cannot be cancelled
+    deleted = client.delete(location)  # a finished job is deleted with its result
+    assert deleted.status_code == 204 and deleted.content == b""
+    assert_problem(client.get(location), 404)
+    assert_problem(client.get(job["result_url"]), 404)
+    assert_problem(client.delete(location), 404)
 
 
 def test_cancelling_a_sweep_job_over_http(tmp_path):
     request = {"design": "grid", "fixed": {"balls": 4},  # every output at 2 million points: seconds
                "axes": {"load_N": {"start": 1e-3, "stop": 1e-2, "num": 2_000},
                         "speed_m_s": {"start": 0.0, "stop": 0.15, "num": 1_000}}}
-    with make_client(tmp_path, sweep_sync_max_points=0) as test_client:
+    with make_client(tmp_path, sweep_sync_max_points=0, max_result_bytes=2**31) as test_client:
         location = test_client.post("/v1/sweeps", json=request).headers["location"]
         deadline = time.monotonic() + 60
         while (job := test_client.get(location).json())["progress"] == 0:  # cancel a job under way

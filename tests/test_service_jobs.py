@@ -264,3 +264,208 @@ def test_a_result_stored_in_the_jobs_row_by_an_older_version_is_still_served(sto
                      created_at=utc_now())
     assert json.loads(store.get_job("old", with_result=True)["result_json"]) == {"columns": {"mu": [0.1]}}
     assert "result_json" not in store.get_job("old")
+
+
+# admission, retention, result size, storage faults -------------------------------------------
+
+def blocked_manager(store: Store, **limits) -> tuple[JobManager, threading.Event]:
+    """A manager of one worker whose jobs wait for the returned event."""
+    release = threading.Event()
+    return JobManager(store, workers=1, **limits), release
+
+
+def test_a_full_server_refuses_jobs_with_503_and_a_key_past_its_share_with_429(store):
+    from service.problems import ProblemError
+    from service.store import REQUESTER, Requester
+
+    jobs, release = blocked_manager(store, max_active=3, max_active_per_key=2)
+    try:
+        def hold(ctx: JobContext) -> dict:
+            release.wait(20)
+            return {}
+
+        def submit_as(key_id: str, count: int) -> tuple[list[str], ProblemError | None]:
+            """Submit ``count`` jobs as a key; the ids accepted and the first refusal."""
+            token = REQUESTER.set(Requester(key_id, sees_all=False))
+            ids = []
+            try:
+                for _ in range(count):
+                    ids.append(jobs.submit("hold", {}, hold)["id"])
+            except ProblemError as refusal:
+                return ids, refusal
+            finally:
+                REQUESTER.reset(token)
+            return ids, None
+
+        first, refused = submit_as("alpha", 3)
+        assert len(first) == 2 and refused.status == 429 and int(refused.headers["Retry-After"]) > 0
+        assert "MICROBEARING_MAX_ACTIVE_JOBS_PER_KEY=2" in refused.detail
+        other, full = submit_as("beta", 2)  # another key still has room, until the server is full
+        assert len(other) == 1 and full.status == 503 and int(full.headers["Retry-After"]) > 0
+        assert "MICROBEARING_MAX_ACTIVE_JOBS=3" in full.detail
+        assert jobs.active_count() == 3
+        # Cancelling a queued job frees its place at once; finished jobs free theirs.
+        queued = [job_id for job_id in first if jobs.get(job_id)["status"] == "queued"]
+        jobs.cancel(queued[0])
+        assert jobs.active_count() == 2
+        release.set()
+        for job_id in first:
+            wait(jobs, job_id)
+        deadline = time.monotonic() + 20
+        while jobs.active_count():
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        assert store.jobs_with_status("queued", "running") == []
+    finally:
+        release.set()
+        jobs.shutdown()
+
+
+def test_a_result_past_the_size_limit_fails_the_job_with_413(store):
+    jobs = JobManager(store, workers=1, max_result_bytes=10_000)
+    try:
+        small = jobs.submit("small", {}, lambda ctx: {"values": [0.5] * 100})
+        large = jobs.submit("large", {}, lambda ctx: {"values": [0.5] * 10_000})  # 40 kB of JSON
+        assert wait(jobs, small["id"])["status"] == "succeeded"
+        row = wait(jobs, large["id"])
+        problem = json.loads(row["error_json"])
+        assert row["status"] == "failed" and row["result_json"] is None
+        assert problem["status"] == 413 and "MICROBEARING_MAX_RESULT_BYTES" in problem["detail"]
+        assert str(len(json_bytes({"values": [0.5] * 10_000}))) in problem["detail"]
+    finally:
+        jobs.shutdown()
+
+
+def insert_finished(store: Store, job_id: str, finished_at: str, status: str = "succeeded") -> None:
+    store.insert_job(id=job_id, kind="sweep", status=status, progress=1.0, request_json="{}",
+                     owner_pid=os.getpid(), owner_instance="old", created_at=finished_at,
+                     finished_at=finished_at)
+    store.update_job(job_id, result_json='{"columns": {}}')
+
+
+def test_finished_jobs_expire_after_the_retention_and_active_ones_never(store):
+    insert_finished(store, "old", "2020-01-01T00:00:00.000Z")
+    insert_finished(store, "old-failed", "2020-01-01T00:00:00.000Z", status="failed")
+    insert_finished(store, "recent", utc_now())
+    store.insert_job(id="stuck", kind="sweep", status="running", progress=0.5, request_json="{}",
+                     owner_pid=os.getpid(), owner_instance="x", created_at="2020-01-01T00:00:00.000Z")
+    jobs = JobManager(store, workers=1, retention_s=3600.0)  # purges at start
+    try:
+        assert store.get_job("old") is None and store.get_job("old-failed") is None
+        assert store.get_job("recent", with_result=True)["result_json"] == '{"columns": {}}'
+        count = store.connection().execute("SELECT COUNT(*) FROM job_results WHERE id LIKE 'old%'")
+        assert count.fetchone()[0] == 0  # results go with their jobs
+        assert store.get_job("stuck")["status"] == "failed"  # recovered as interrupted, kept: just finished
+    finally:
+        jobs.shutdown()
+    short = JobManager(store, workers=1, retention_s=0.3)  # the housekeeping thread purges while it runs
+    try:
+        job = short.submit("quick", {}, lambda ctx: {"ok": True})
+        assert wait(short, job["id"])["status"] == "succeeded"
+        deadline = time.monotonic() + 30
+        while short.get(job["id"]) is not None:
+            assert time.monotonic() < deadline, "the finished job did not expire"
+            time.sleep(0.05)
+    finally:
+        short.shutdown()
+
+
+def test_deleting_a_job_needs_it_finished(manager, store):
+    release = threading.Event()
+    job = manager.submit("hold", {}, lambda ctx: release.wait(20) and {})
+    assert not manager.delete(job["id"])  # active: cancel it instead
+    release.set()
+    wait(manager, job["id"])
+    assert manager.delete(job["id"]) and manager.get(job["id"]) is None
+
+
+class LimitedStore(Store):
+    """A store whose database cannot grow past ``max_pages`` pages: SQLite's own "disk full"."""
+
+    max_pages = 0
+
+    def connection(self):
+        conn = getattr(self._local, "conn", None)
+        fresh = super().connection()
+        if conn is None and self.max_pages:
+            fresh.execute(f"PRAGMA max_page_count = {self.max_pages}")
+        return fresh
+
+
+def test_a_full_database_fails_the_job_with_the_reason_at_error(tmp_path, caplog):
+    store = LimitedStore(tmp_path)
+    store.max_pages = store.connection().execute("PRAGMA page_count").fetchone()[0] + 8
+    jobs = JobManager(store, workers=1)
+    try:
+        with caplog.at_level("ERROR", logger="microbearing.service.jobs"):
+            job = jobs.submit("big", {}, lambda ctx: {"values": np.arange(100_000.0)})  # ~1 MB > 8 pages
+            row = wait(jobs, job["id"])
+        problem = json.loads(row["error_json"])
+        assert row["status"] == "failed" and row["result_json"] is None
+        assert problem["status"] == 507 and "the disk is full" in problem["detail"]
+        assert str(store.path) in problem["detail"]
+        assert any(job["id"] in record.getMessage() and "disk is full" in record.getMessage()
+                   for record in caplog.records if record.levelname == "ERROR")
+        small = jobs.submit("small", {}, lambda ctx: {"ok": 1})  # the store still takes small writes
+        assert wait(jobs, small["id"])["status"] == "succeeded"
+        # A model too large for the disk, saved by a job (a surrogate or a calibration): the same.
+        rng = np.random.default_rng(0)
+        weights = {"w": rng.random(100_000)}  # 0.8 MB, incompressible
+        model = jobs.submit("model", {}, lambda ctx: {"id": store.save_model("m", {}, weights)})
+        problem = json.loads(wait(jobs, model["id"])["error_json"])
+        assert problem["status"] == 507 and "the disk is full" in problem["detail"]
+        assert store.list_models("m") == []
+    finally:
+        jobs.shutdown()
+        store.close()
+
+
+def test_a_store_refusing_every_write_still_ends_the_job(store, monkeypatch, caplog):
+    from service.store import StorageError
+
+    jobs = JobManager(store, workers=1)
+    release = threading.Event()
+    original = store.update_job
+    try:
+        job = jobs.submit("hold", {}, lambda ctx: release.wait(20) and {"ok": 1})
+        deadline = time.monotonic() + 20
+        while jobs.get(job["id"])["status"] != "running":
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+
+        def read_only(*args, **kwargs):
+            raise StorageError("the database is read-only", store.path)
+
+        monkeypatch.setattr(store, "update_job", read_only)
+        with caplog.at_level("ERROR", logger="microbearing.service.jobs"):
+            release.set()
+            deadline = time.monotonic() + 20
+            while (row := jobs.get(job["id"]))["status"] == "running":
+                assert time.monotonic() < deadline, "the job stayed running"
+                time.sleep(0.01)
+        assert row["status"] == "failed" and "read-only" in json.loads(row["error_json"])["detail"]
+        assert store.get_job(job["id"])["status"] == "running"  # not stored yet: shown from memory
+        assert any(record.levelname == "ERROR" for record in caplog.records)
+        monkeypatch.setattr(store, "update_job", original)  # the disk takes writes again
+        deadline = time.monotonic() + 30
+        while store.get_job(job["id"])["status"] != "failed":
+            assert time.monotonic() < deadline, "the final state was never written"
+            time.sleep(0.05)
+    finally:
+        release.set()
+        jobs.shutdown()
+
+
+def test_an_adaptive_fit_reports_progress_in_proportion_to_its_fitting_work():
+    from surrogate import Space, fit_adaptive
+
+    space = Space({"load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2)}, fixed={"balls": 6})
+    fractions = []
+    fit = fit_adaptive(space, budget=22, target_relative_error=1e-12, initial_size=10, batch_size=5,
+                       n_candidates=256, progress=fractions.append)
+    sizes = [h["n_train"] for h in fit.history]
+    assert sizes == [10, 15, 20, 22]
+    # A fit on n points costs about n^3: by hand, 10^3 / (10^3 + 15^3 + 20^3 + 22^3) after the first.
+    total = 10**3 + 15**3 + 20**3 + 22**3
+    expected = [10**3 / total, (10**3 + 15**3) / total, (10**3 + 15**3 + 20**3) / total, 1.0]
+    assert fractions == pytest.approx(expected, rel=1e-12)

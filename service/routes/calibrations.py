@@ -12,8 +12,9 @@ import physics
 from calibrate import DataError, Dataset, check_request, parse_assignments, parse_csv, parse_rows
 
 from ..calibrations import calibration_view, data_problem, load_calibration, run_calibration
-from ..deps import JobsDep, StoreDep
+from ..deps import JobsDep, SettingsDep, StoreDep
 from ..jobs import JobContext, JobManager
+from ..limits import check_rows, csv_data_rows
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas.base import Convention, ConventionName
 from ..schemas.calibrations import CalibrationRequest, CalibrationResult, FittableParameterName
@@ -51,11 +52,14 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
 
 @router.post("", operation_id="create_calibration", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
-def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep) -> JSONResponse:
+def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep,
+                       settings: SettingsDep) -> JSONResponse:
     """Calibrate on JSON rows: fit the named parameters, find the missing effect, report (a job).
 
-    The job's result is the calibration report (see ``GET /v1/calibrations/{id}``).
+    The job's result is the calibration report (see ``GET /v1/calibrations/{id}``). More than
+    MICROBEARING_MAX_CALIBRATION_ROWS rows get 413.
     """
+    check_rows(len(body.data), settings.max_calibration_rows, "/data")
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
         dataset = parse_rows(body.data, fixed)
@@ -71,7 +75,7 @@ def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep)
 @router.post("/csv", operation_id="create_calibration_from_csv", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()}, openapi_extra=_CSV_BODY)
 async def create_calibration_from_csv(
-    request: Request, store: StoreDep, jobs: JobsDep,
+    request: Request, store: StoreDep, jobs: JobsDep, settings: SettingsDep,
     fit_parameters: Annotated[list[FittableParameterName], Query(  # type: ignore[valid-type]
         description="Declared parameters to fit (repeat the parameter for several).")] = [],  # noqa: B006
     fixed: Annotated[list[str], Query(
@@ -82,6 +86,7 @@ async def create_calibration_from_csv(
 ) -> JSONResponse:
     """Calibrate on an uploaded CSV file (``Content-Type: text/csv``), as ``POST /v1/calibrations``."""
     text = await request.body()
+    check_rows(csv_data_rows(text), settings.max_calibration_rows, "The CSV body")  # before parsing it
     try:
         fixed_values = parse_assignments(fixed)
     except DataError as exc:

@@ -1,4 +1,9 @@
-"""``/v1/jobs/{id}``: status, progress, result and cancellation of background jobs."""
+"""``/v1/jobs/{id}``: status, progress, result, cancellation and deletion of background jobs.
+
+Finished jobs and their results are deleted ``MICROBEARING_JOB_RETENTION_S`` after they finished
+(7 days by default), or at once by ``DELETE /v1/jobs/{id}``; with API keys, a job is seen only by
+the key that created it (and the admin key), others get 404.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +14,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep
-from ..jobs import FINISHED, JobManager
+from ..jobs import FINISHED, POLL_AFTER_S, RETRY_AFTER_S, JobManager
 from ..problems import Problem, ProblemError, problem_responses
 from ..schemas.jobs import Job
 from ..tables import CSV_MEDIA_TYPE, csv_text, wants_csv
@@ -31,16 +36,27 @@ def job_view(row: dict[str, Any]) -> Job:
 
 
 def accepted(row: dict[str, Any]) -> JSONResponse:
-    """``202 Accepted`` with the job and ``Location: /v1/jobs/{id}``."""
+    """``202 Accepted`` with the job, ``Location: /v1/jobs/{id}`` and ``Retry-After`` (when to poll)."""
     return JSONResponse(job_view(row).model_dump(mode="json"), status_code=202,
-                        headers={"Location": f"/v1/jobs/{row['id']}"})
+                        headers={"Location": f"/v1/jobs/{row['id']}", "Retry-After": str(POLL_AFTER_S)})
 
 
-#: OpenAPI entry of a 202 answer, for routes that may run their work as a job.
+_RETRY_AFTER_HEADER = {"description": "Seconds to wait before trying again.", "schema": {"type": "integer"}}
+
+#: OpenAPI entries of a 202 answer and of the refusals of a full queue, for routes that may run
+#: their work as a job.
 ACCEPTED_RESPONSE: dict[int | str, dict[str, Any]] = {
     202: {"model": Job, "description": "Accepted: the work runs as a job; poll the Location header.",
           "headers": {"Location": {"description": "Path of the job, /v1/jobs/{id}.",
-                                   "schema": {"type": "string"}}}},
+                                   "schema": {"type": "string"}},
+                      "Retry-After": {"description": "Seconds to wait before polling the job.",
+                                      "schema": {"type": "integer"}}}},
+    429: {"model": Problem, "description": f"Too many queued or running jobs of this API key; retry after "
+                                          f"Retry-After (about {RETRY_AFTER_S} s).",
+          "headers": {"Retry-After": _RETRY_AFTER_HEADER}},
+    503: {"model": Problem, "description": "The server holds its limit of queued or running jobs, or cannot "
+                                          "store data; retry after Retry-After.",
+          "headers": {"Retry-After": _RETRY_AFTER_HEADER}},
 }
 
 
@@ -58,17 +74,25 @@ def get_job(job_id: str, jobs: JobsDep) -> Job:
 
 
 @router.delete("/{job_id}", operation_id="cancel_job", response_model=Job,
-               responses=problem_responses(404, 409))
-def cancel_job(job_id: str, jobs: JobsDep) -> Job:
-    """Cancel a job: a queued job ends at once, a running one at its next progress check.
+               responses={204: {"description": "The finished job and its result were deleted."},
+                          **problem_responses(404, 409)})
+def cancel_job(job_id: str, jobs: JobsDep) -> Any:
+    """Cancel a queued or running job (200 with the job), or delete a finished one (204).
 
-    A running job whose work returns after this request still ends cancelled (its result is
-    discarded): an answer with ``cancel_requested`` true always ends in ``cancelled`` (or
-    ``failed`` should the work fail). A job that has already finished answers 409.
+    A queued job ends at once, a running one at its next progress check. A running job whose
+    work returns after this request still ends cancelled (its result is discarded): an answer
+    with ``cancel_requested`` true always ends in ``cancelled`` (or ``failed`` should the work
+    fail). A finished job (succeeded, failed or cancelled) is deleted with its result; the
+    job's id then answers 404. Finished jobs are also deleted MICROBEARING_JOB_RETENTION_S after
+    they finished.
     """
     row = _job_or_404(jobs, job_id)
     if row["status"] in FINISHED:
-        raise ProblemError(409, f"Job {job_id} has already finished ({row['status']}).")
+        if not jobs.delete(job_id):
+            _job_or_404(jobs, job_id)  # deleted by another request meanwhile: 404
+            raise ProblemError(409, f"Job {job_id} cannot be deleted yet: its final state is not stored "
+                                    "(the data folder refuses writes).")
+        return Response(status_code=204)
     return job_view(jobs.cancel(job_id))
 
 

@@ -1,15 +1,17 @@
-"""``/healthz``, ``/v1/version`` and ``/v1/materials``."""
+"""``/healthz``, ``/readyz``, ``/v1/version`` and ``/v1/materials``."""
 
 from __future__ import annotations
 
+import shutil
 from importlib.metadata import PackageNotFoundError, version
 
 from fastapi import APIRouter
 
 import physics
 
-from ..problems import problem_responses
-from ..schemas.meta import Health, MaterialInfo, Materials, Version
+from ..deps import JobsDep, SettingsDep, StoreDep
+from ..problems import ProblemError, problem_responses
+from ..schemas.meta import Health, MaterialInfo, Materials, Readiness, Version
 
 __all__ = ["package_version", "router"]
 
@@ -28,6 +30,21 @@ def package_version() -> str:
 async def get_health() -> Health:
     """Liveness: answers ok whenever the server runs."""
     return Health(status="ok")
+
+
+@router.get("/readyz", operation_id="get_readiness", response_model=Readiness,
+            responses=problem_responses(503))
+def get_readiness(store: StoreDep, jobs: JobsDep, settings: SettingsDep) -> Readiness:
+    """Readiness: 200 when the database takes a write and the disk has MICROBEARING_MIN_FREE_BYTES free.
+
+    503 otherwise, naming the cause (disk full, read-only database, too little free space); take
+    the server out of a load balancer's rotation then. Liveness is ``/healthz``.
+    """
+    reason = store.check_writable(settings.min_free_bytes)
+    if reason is not None:
+        raise ProblemError(503, f"Not ready: {reason}.", title="Not ready", headers={"Retry-After": "30"})
+    return Readiness(status="ready", free_bytes=shutil.disk_usage(store.data_dir).free,
+                     active_jobs=jobs.active_count())
 
 
 @router.get("/v1/version", operation_id="get_version", response_model=Version, responses=problem_responses())

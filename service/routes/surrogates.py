@@ -196,6 +196,8 @@ def _stored(store: Store, surrogate_id: str):
 
 def load_surrogate(store: Store, surrogate_id: str) -> GaussianProcessSurrogate:
     """The fitted surrogate of a stored id (rebuilt from its data), or a 404 problem."""
+    if not store.has_model(surrogate_id, KIND):  # the cache holds every key's surrogates: check ownership
+        raise ProblemError(404, f"There is no surrogate {surrogate_id!r}.")
     with _CACHE_LOCK:
         if surrogate_id in _CACHE:
             _CACHE.move_to_end(surrogate_id)

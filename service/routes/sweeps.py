@@ -12,7 +12,7 @@ from ..deps import ExecutorDep, JobsDep, SettingsDep
 from ..jobs import JobContext
 from ..problems import problem_responses
 from ..schemas.sweeps import SweepRequest, SweepResult
-from ..sweeps import design_columns, run_sweep
+from ..sweeps import check_result_size, design_columns, design_size, run_sweep
 from ..tables import CSV_MEDIA_TYPE, table_response
 from .jobs import ACCEPTED_RESPONSE, accepted
 
@@ -40,14 +40,18 @@ async def create_sweep(
     """Evaluate the model over a grid or a Sobol / Latin hypercube design, the other inputs fixed.
 
     Sweeps of up to MICROBEARING_SWEEP_SYNC_MAX_POINTS points answer 200 with the table; larger
-    ones answer 202 with a job whose result is at /v1/jobs/{id}/result.
+    ones answer 202 with a job whose result is at /v1/jobs/{id}/result (the job builds the
+    design when it starts). A result predicted past MICROBEARING_MAX_RESULT_BYTES answers 413.
     """
-    plan = await run_in_threadpool(design_columns, body, settings.max_sweep_points)
-    if plan.count <= settings.sweep_sync_max_points:
+    count = await run_in_threadpool(design_size, body, settings.max_sweep_points)
+    check_result_size(body, count, settings.max_result_bytes)
+    if count <= settings.sweep_sync_max_points:
+        plan = await run_in_threadpool(design_columns, body, settings.max_sweep_points)
         document = await run_in_threadpool(run_sweep, body, plan, None, executor)
         return table_response(request, document, document["columns"])
 
     def work(ctx: JobContext) -> dict:
+        plan = design_columns(body, settings.max_sweep_points)
         return run_sweep(body, plan, progress=ctx.progress, executor=executor)
 
     return accepted(jobs.submit("sweep", body.model_dump(mode="json"), work))

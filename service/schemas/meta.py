@@ -17,6 +17,14 @@ class Health(ResponseModel):
     status: Literal["ok"] = Field(description="Always ok when the server answers.")
 
 
+class Readiness(ResponseModel):
+    """Readiness of the server: its database takes writes and its disk has room."""
+
+    status: Literal["ready"] = Field(description="ready when the server can accept work.")
+    free_bytes: int = Field(description="Free space of the data folder's file system [bytes].")
+    active_jobs: int = Field(description="Queued and running jobs of the answering server process [1].")
+
+
 class Version(ResponseModel):
     """What is running."""
 

@@ -1,0 +1,101 @@
+"""Limits on every input: calibration rows, echoed input in errors, content coding, Accept, result size."""
+
+from __future__ import annotations
+
+import pytest
+from fastapi.testclient import TestClient
+
+from service.app import create_app
+from service.settings import Settings
+
+PROBLEM = "application/problem+json"
+POINT = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}
+ROW = {"balls": 4.0, "load_N": 0.01, "speed_m_s": -0.1, "mu_measured": 0.02}  # a bad speed: 422 if read
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    settings = Settings(data_dir=tmp_path_factory.mktemp("limits"), max_calibration_rows=5,
+                        max_result_bytes=1_000_000, sweep_sync_max_points=0)
+    with TestClient(create_app(settings)) as test_client:
+        yield test_client
+
+
+def problem(response, status: int) -> dict:
+    assert response.status_code == status, response.text[:500]
+    assert response.headers["content-type"] == PROBLEM
+    body = response.json()
+    assert body["status"] == status
+    return body
+
+
+def csv_body(rows: int, final_newline: bool = True) -> bytes:
+    lines = ["balls,load_N,speed_m_s,mu_measured", *["4,0.01,-0.1,0.02"] * rows]
+    return ("\n".join(lines) + ("\n" if final_newline else "")).encode()
+
+
+@pytest.mark.parametrize("rows, status", [(5, 422), (6, 413), (1000, 413)])
+def test_calibration_rows_past_the_limit_get_413_in_json_and_csv(client, rows, status):
+    csv = {"content-type": "text/csv"}
+    answers = [client.post("/v1/calibrations", json={"data": [ROW] * rows}),
+               client.post("/v1/calibrations/csv", content=csv_body(rows), headers=csv),
+               client.post("/v1/calibrations/csv", content=csv_body(rows, final_newline=False), headers=csv)]
+    for response in answers:
+        body = problem(response, status)  # at the limit the rows are read (and the bad speed found)
+        if status == 413:
+            assert f"has {rows} rows; the limit is 5 (MICROBEARING_MAX_CALIBRATION_ROWS)" in body["detail"]
+
+
+def test_an_echoed_key_of_a_megabyte_gets_a_bounded_error(client):
+    key = "k" * 1_000_000
+    body = ('{"balls": 4, "load_N": 0.01, "speed_m_s": 0.1, "' + key + '": 1}').encode()
+    response = client.post("/v1/friction", content=body, headers={"content-type": "application/json"})
+    answer = problem(response, 422)
+    assert len(response.content) < 10_000
+    pointer = answer["errors"][0]["pointer"]
+    assert pointer.startswith("/kkkk") and pointer.endswith("more characters)")
+    assert "more characters)" in answer["detail"]
+
+
+@pytest.mark.parametrize("encoding", ["gzip", "deflate", "br", "GZIP"])
+@pytest.mark.parametrize("path", ["/v1/friction", "/v1/sweeps", "/v1/calibrations/csv"])
+def test_a_compressed_body_gets_415(client, path, encoding):
+    response = client.post(path, content=b"\x1f\x8b\x08\x00" + bytes(64),
+                           headers={"content-type": "application/json", "content-encoding": encoding})
+    answer = problem(response, 415)
+    assert response.headers["accept-encoding"] == "identity" and "Content-Encoding" in answer["detail"]
+    identity = client.post("/v1/friction", json=POINT, headers={"content-encoding": "identity"})
+    assert identity.status_code == 200
+
+
+@pytest.mark.parametrize("accept, status", [
+    ("image/png", 406), ("text/csv", 406), ("application/json;q=0, text/html", 406), ("text/*", 406),
+    ("application/json", 200), ("*/*", 200), ("application/*", 200), ("text/html, */*;q=0.1", 200),
+    ("APPLICATION/JSON", 200),
+])
+def test_an_accept_the_route_cannot_satisfy_gets_406(client, accept, status):
+    response = client.post("/v1/friction", json=POINT, headers={"accept": accept})
+    if status == 406:
+        answer = problem(response, 406)
+        assert "application/json" in answer["detail"]
+    else:
+        assert response.status_code == 200 and response.headers["content-type"] == "application/json"
+
+
+def test_routes_with_several_media_types_accept_each(client):
+    sweep = {"design": "grid", "axes": {"load_N": {"start": 1e-3, "stop": 0.05, "num": 3}},
+             "fixed": {"balls": 4, "speed_m_s": 0.05}, "outputs": ["mu"]}
+    assert client.post("/v1/sweeps", json=sweep, headers={"accept": "text/csv"}).status_code == 202
+    problem(client.post("/v1/sweeps", json=sweep, headers={"accept": "image/png"}), 406)
+    plot = client.get("/v1/calibrations/0123/plots/residual.png", headers={"accept": "image/png"})
+    assert plot.status_code == 404
+    assert client.get("/metrics", headers={"accept": "text/plain"}).status_code == 200  # outside the spec
+
+
+def test_a_sweep_whose_result_would_pass_the_size_limit_gets_413(client):
+    sweep = {"design": "sobol", "points": 100_000, "outputs": ["mu"],
+             "ranges": {"load_N": {"low": 1e-3, "high": 0.05}}, "fixed": {"balls": 4, "speed_m_s": 0.05}}
+    answer = problem(client.post("/v1/sweeps", json=sweep), 413)
+    assert "MICROBEARING_MAX_RESULT_BYTES" in answer["detail"] and "1000000" in answer["detail"]
+    sweep["points"] = 10_000  # about 400 kB: accepted
+    assert client.post("/v1/sweeps", json=sweep).status_code == 202
