@@ -40,7 +40,7 @@ from calibrate import CalibratedModel
 
 from .evaluation import evaluate_checked
 from .problems import ProblemError, validation_problem
-from .store import Store, StoredModel
+from .store import Store
 
 __all__ = ["KINDS", "CalibratedPhysicsModel", "Evaluation", "InputError", "Model", "ModelInput",
            "PhysicsModel", "SurrogateModel", "jacobian", "list_references", "resolve"]
@@ -390,23 +390,8 @@ def _physics_model(convention: str) -> PhysicsModel:
     return PhysicsModel(convention)
 
 
-def _owned(model_owner: str | None, owner: str | None) -> bool:
-    """Whether the caller ``owner`` (an API key id) may use a model stored by ``model_owner``.
-
-    The ownership hook: None (no keys, or an administrator) sees every model, and so does every
-    caller for a model stored without an owner (every model, until the store records owners); a
-    model stored under a key id is the caller's only when the ids match.
-    """
-    return owner is None or model_owner in (None, owner)
-
-
-def _owner_of(stored: StoredModel | Mapping[str, Any]) -> str | None:
-    """The key id a stored model (or a row of :meth:`Store.list_models`) was stored under, if recorded."""
-    return stored.get("owner") if isinstance(stored, Mapping) else getattr(stored, "owner", None)
-
-
 def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Sequence[str] = KINDS,
-            convention: str = physics.DEFAULT_CONVENTION, owner: str | None = None) -> Model:
+            convention: str = physics.DEFAULT_CONVENTION) -> Model:
     """The :class:`Model` of a reference.
 
     Parameters
@@ -421,9 +406,6 @@ def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Seq
         The kinds of :data:`KINDS` the caller accepts.
     convention : str
         Convention of the physics (a stored model has its own).
-    owner : str or None
-        The caller's API key id: a stored model owned by another key is answered 404, as if
-        absent. None checks nothing.
 
     Returns
     -------
@@ -444,27 +426,25 @@ def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Seq
         return _physics_model(convention)
     model_id = match.group(2)
     if kind == "surrogate":
-        # The surrogates resource keeps the rebuilt estimators (a refit each) in its cache;
-        # without an owner to check, a cached surrogate is answered without reading the store.
+        # The surrogates resource keeps the rebuilt estimators (a refit each) in its cache; it
+        # checks that the requesting key may see the surrogate before answering from it.
         from .routes.surrogates import load_surrogate
 
-        if owner is not None:
-            stored = store.load_model(model_id)
-            if stored is None or not _owned(_owner_of(stored), owner):
-                raise ProblemError(404, f"There is no surrogate {model_id!r}.")
         return SurrogateModel(reference, load_surrogate(store, model_id))
     stored = store.load_model(model_id)
-    if stored is None or stored.kind != _STORE_KINDS[kind] or not _owned(_owner_of(stored), owner):
+    if stored is None or stored.kind != _STORE_KINDS[kind]:
         raise ProblemError(404, f"There is no calibrated model {reference!r}.")
     return CalibratedPhysicsModel(reference, CalibratedModel.from_json(stored.metadata["model"]))
 
 
-def list_references(store: Store, owner: str | None = None) -> list[str]:
-    """Every model reference the caller may use: ``physics``, then stored models, newest first."""
+def list_references(store: Store) -> list[str]:
+    """Every model reference the caller may use: ``physics``, then stored models, newest first.
+
+    The store answers only the rows the requesting API key may see (:data:`service.store.REQUESTER`).
+    """
     references = ["physics"]
     for kind, store_kind in _STORE_KINDS.items():
-        references += [f"{kind}:{row['id']}" for row in store.list_models(store_kind)
-                       if _owned(_owner_of(row), owner)]
+        references += [f"{kind}:{row['id']}" for row in store.list_models(store_kind)]
     return references
 
 

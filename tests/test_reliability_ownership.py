@@ -113,3 +113,18 @@ def test_without_keys_everything_is_shared(tmp_path):
         location = open_client.post("/v1/sweeps", json=SWEEP).headers["location"]
         assert finished(open_client, location, "")["status"] == "succeeded"
         assert get_runtime(open_client.app).store.get_job(location.rsplit("/", 1)[1])["owner_key"] is None
+
+
+def test_the_umbridge_protocol_shows_a_key_only_its_own_models(client):
+    response = client.post("/v1/surrogates", json=SURROGATE, headers=bearer(ALPHA))
+    assert response.status_code == 202, response.text
+    job = finished(client, response.headers["location"], ALPHA)
+    assert job["status"] == "succeeded", job
+    name = f"surrogate:{client.get(job['result_url'], headers=bearer(ALPHA)).json()['id']}"
+    models = {key: client.get("/umbridge/Info", headers=bearer(key)).json()["models"] for key in (ALPHA, BETA)}
+    assert name in models[ALPHA] and name not in models[BETA] and "physics" in models[BETA]
+    request = {"name": name, "input": [[5, 50.0, 0.01]], "config": {}}  # balls, groove angle, load
+    answered = client.post("/umbridge/Evaluate", json=request, headers=bearer(ALPHA))
+    assert answered.status_code == 200, answered.text
+    refused = client.post("/umbridge/Evaluate", json=request, headers=bearer(BETA))
+    assert refused.json()["error"]["type"] == "ModelNotFound", refused.text
