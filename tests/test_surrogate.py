@@ -567,6 +567,11 @@ def test_sobol_indices_of_the_ishigami_function():
     result = sobol_indices(ishigami, UNIT_SPACE, n=4096)
     np.testing.assert_allclose(result.first_order, np.array([v1, v2, 0.0]) / variance, atol=0.02)
     np.testing.assert_allclose(result.total_order, np.array([v1 + v13, v2, v13]) / variance, atol=0.02)
+    # The bootstrap intervals hold the analytic indices and are narrow at n = 4096.
+    for estimate, exact in ((result.first_order_interval, np.array([v1, v2, 0.0]) / variance),
+                            (result.total_order_interval, np.array([v1 + v13, v2, v13]) / variance)):
+        assert np.all((estimate[:, 0] <= exact + 1e-3) & (exact - 1e-3 <= estimate[:, 1]))
+        assert np.all(estimate[:, 1] - estimate[:, 0] < 0.1)
 
 
 def test_sobol_indices_of_an_additive_function():

@@ -142,7 +142,26 @@ def test_sensitivity_ranks_load_per_ball_over_speed(client, trained):
     total = indices["total_order"]
     assert set(total) == set(SPACE)
     assert total["load_N"] > total["speed_m_s"] and total["balls"] > total["speed_m_s"]
+    # Each index lies in its bootstrap interval, and the dominant inputs' intervals stay clear of speed's.
+    assert indices["confidence_level"] == 0.95
+    for kind in ("first_order", "total_order"):
+        for name, (low, high) in indices[f"{kind}_interval"].items():
+            assert low <= indices[kind][name] <= high
+    assert indices["total_order_interval"]["load_N"][0] > indices["total_order_interval"]["speed_m_s"][1]
     assert_problem(client.get(f"/v1/surrogates/{trained['id']}/sensitivity", params={"n": 1000}), 422)
+
+
+def test_sensitivity_of_a_one_input_surrogate(client):
+    # scipy's estimator fails for one input (it answered 500); one input explains all the variance.
+    body = {"space": {"load_N": [0.001, 0.05]}, "fixed": {"balls": 4, "speed_m_s": 0.01}, "budget": 8,
+            "adaptive": False}
+    result, _ = finished(client, client.post("/v1/surrogates", json=body))
+    response = client.get(f"/v1/surrogates/{result['id']}/sensitivity", params={"n": 1024})
+    assert response.status_code == 200, response.text
+    indices = response.json()
+    for kind in ("first_order", "total_order"):
+        low, high = indices[f"{kind}_interval"]["load_N"]
+        assert low <= 1.0 <= high and abs(indices[kind]["load_N"] - 1.0) < 0.1
 
 
 def test_target_stops_early_and_delete(client):

@@ -307,15 +307,19 @@ def get_surrogate_sensitivity(
     n: Annotated[int, Query(ge=_SENSITIVITY_N[0], le=_SENSITIVITY_N[1],
                             description="Base sample size, a power of 2 [1].")] = 4096,
 ) -> JSONResponse:
-    """First-order and total Sobol' indices of mu over the space, computed on the surrogate."""
+    """First-order and total Sobol' indices of mu over the space, computed on the surrogate.
+
+    Each index comes with its 95 % bootstrap confidence interval (the sampling error of the
+    estimator on the surrogate, not the surrogate's own error).
+    """
     if n & (n - 1):
         raise validation_problem([{"parameter": "n", "detail": f"n must be a power of 2; got {n}"}])
     model = load_surrogate(store, surrogate_id)
-    indices = surrogate.sobol_indices(model.predict, model.space, n=n, seed=0)
+    indices = surrogate.sobol_indices(model.predict, model.space, n=n, seed=0).to_dict()
     return JSONResponse({
-        "first_order": {k: float(v) for k, v in zip(indices.names, indices.first_order, strict=True)},
-        "total_order": {k: float(v) for k, v in zip(indices.names, indices.total_order, strict=True)},
-        "n": n,
+        **{key: indices[key] for key in ("first_order", "total_order", "first_order_interval",
+                                         "total_order_interval")},
+        "confidence_level": 0.95, "n": n,
         "distribution": "independent inputs, uniform in the design's unit cube (log-uniform on "
                         "log-scaled dimensions, integers rounded)",
     })

@@ -173,5 +173,11 @@ class SensitivityResponse(ResponseModel):
 
     first_order: dict[str, float] = Field(description="Variance share of each input alone [1].")
     total_order: dict[str, float] = Field(description="Variance share involving each input [1].")
+    first_order_interval: dict[str, list[float]] = Field(description=(
+        "95 % bootstrap confidence interval [low, high] of each first-order index (scipy's "
+        "sobol_indices(...).bootstrap(), 999 resamples of the evaluations) [1]."))
+    total_order_interval: dict[str, list[float]] = Field(description=(
+        "95 % bootstrap confidence interval [low, high] of each total index [1]."))
+    confidence_level: float = Field(description="Confidence level of the intervals [1].")
     n: int = Field(description="Base sample size; n (d + 2) surrogate evaluations [1].")
     distribution: str = Field(description="Input distribution the indices refer to.")
