@@ -21,6 +21,7 @@ from fastapi import APIRouter, Query
 from fastapi.responses import JSONResponse, Response
 
 import surrogate
+from optimize import physics_model
 from surrogate import GaussianProcessSurrogate, Space
 from surrogate.persist import version_warning
 
@@ -40,7 +41,8 @@ from ..schemas.surrogates import (
 from ..store import Store, utc_now
 from .jobs import ACCEPTED_RESPONSE, accepted
 
-__all__ = ["KIND", "MODEL_PREFIX", "load_mu_model", "load_surrogate", "router", "train_surrogate"]
+__all__ = ["KIND", "MODEL_PREFIX", "load_mu_model", "load_source_model", "load_surrogate", "router",
+           "train_surrogate"]
 
 router = APIRouter(prefix="/v1/surrogates", tags=["surrogates"])
 
@@ -232,10 +234,55 @@ def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Callable
     ProblemError
         422 for a malformed reference, 404 for an unknown surrogate.
     """
+    fitted = load_surrogate(store, _surrogate_id(model, pointer))
+
+    def mu_model(points: Mapping[str, Any]) -> Any:
+        return fitted.mu_model(points)
+
+    # The values it was trained at: other routes evaluate the physics (limits, verification) there too.
+    mu_model.fixed = dict(fitted.space.fixed)
+    mu_model.convention = fitted.space.convention
+    return mu_model
+
+
+def _surrogate_id(model: str, pointer: str) -> str:
     match = _MODEL_REF.match(str(model))
     if match is None:
         raise validation_problem([{"pointer": pointer, "detail": f"must be 'surrogate:<id>'; got {model!r}"}])
-    return load_surrogate(store, match.group(1)).mu_model
+    return match.group(1)
+
+
+def load_source_model(store: Store, model: str, pointer: str = "/model") -> tuple[MuModel, str]:
+    """The model a ``"surrogate:<id>"`` stands for, to verify what is found on the surrogate.
+
+    Parameters
+    ----------
+    store : Store
+        Where surrogates and calibrations are kept.
+    model : str
+        ``"surrogate:<id>"``.
+    pointer : str
+        JSON pointer of the reference in the request, for errors.
+
+    Returns
+    -------
+    mu_model : callable
+        ``points -> mu`` [1] of the physics (the surrogate's convention) or of the calibrated model
+        it learned, with the conditions it was trained at.
+    name : str
+        ``"physics"`` or ``"calibrated:<id>"``.
+
+    Raises
+    ------
+    ProblemError
+        422 for a malformed reference; 404 for an unknown surrogate, or when the calibrated model
+        it learned has been deleted.
+    """
+    result = _stored(store, _surrogate_id(model, pointer)).metadata["result"]
+    source = result.get("model", "physics")
+    if source == "physics":
+        return physics_model(result["convention"]), source
+    return with_conditions(load_calibrated_model(store, source), source, result.get("conditions")), source
 
 
 @router.post("", operation_id="create_surrogate", status_code=202,
