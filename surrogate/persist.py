@@ -31,7 +31,8 @@ __all__ = ["FORMAT", "package_version", "version_warning", "to_dict", "from_dict
 FORMAT = "microbearing.surrogate/1"
 
 _ESTIMATOR_PARAMS = ("features", "kernel", "mean", "log_target", "n_restarts_optimizer", "random_state",
-                     "initial_theta", "calibrate_variance", "variance_scale")
+                     "initial_theta", "calibrate_variance", "variance_scale",
+                     "optimize_hyperparameters")
 
 
 def package_version() -> str:

@@ -304,6 +304,7 @@ def test_variance_scale_follows_its_rule_on_brute_force_leave_one_out(variance_s
     ({"calibrate_variance": True}, None, "calibrate_variance must be one of"),
     ({"variance_scale": "mad"}, None, "variance_scale must be one of"),
     ({"initial_theta": [0.0, 0.0]}, None, "initial_theta must hold 3"),
+    ({"optimize_hyperparameters": False}, None, "needs initial_theta"),
     ({}, -1.0, "y must be > 0"),
     ({}, "short", "y must be a 1-D array"),
 ])
@@ -608,3 +609,19 @@ def test_fit_adaptive_scales_the_variance_robustly_for_adaptive_designs(adaptive
     assert fit.model.variance_scale == expected and fit.n_train == 12
     errors = np.abs(fit.model.loo_log_errors())
     assert np.all(np.isfinite(errors)) and fit.model.std_scale_ > 0
+
+
+def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is_optimized():
+    space = SPACES["load"]
+    X = design(space, 12, seed=0)
+    optimized = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    theta = optimized.gaussian_process_.kernel_.theta + np.array([0.0, 0.3, 0.0])  # a longer length scale
+    kept = GaussianProcessSurrogate(space, initial_theta=theta.tolist(), optimize_hyperparameters=False)
+    np.testing.assert_array_equal(kept.fit(X, space.evaluate(X)).gaussian_process_.kernel_.theta, theta)
+    # rounds may keep earlier hyperparameters; the returned model maximizes the likelihood on every point
+    fit = fit_adaptive(space, budget=16, initial_size=8, batch_size=2, seed=0)
+    assert fit.model.optimize_hyperparameters
+    gp = fit.model.gaussian_process_
+    refit = GaussianProcessSurrogate(space, initial_theta=gp.kernel_.theta.tolist(), n_restarts_optimizer=0)
+    refit.fit(fit.X, fit.y)
+    assert gp.log_marginal_likelihood_value_ >= refit.gaussian_process_.log_marginal_likelihood_value_ - 1e-6

@@ -13,7 +13,7 @@ import physics
 from service.app import create_app
 from service.deps import get_runtime
 from service.problems import ProblemError
-from service.routes.surrogates import load_mu_model
+from service.routes.surrogates import load_mu_model, quality_warnings
 from service.settings import Settings
 
 PROBLEM = "application/problem+json"
@@ -108,8 +108,38 @@ def test_list_get_and_predict(client, trained):
     assert other.json()["outside_space"] == [True]
 
 
+def test_a_surrogate_short_of_its_target_warns_in_its_view_and_every_prediction(client, trained):
+    # 30 evaluations cannot reach a median error of 1e-6: the held-out figures say so
+    metrics = trained["metrics"]
+    assert metrics["median_relative_error"] > 1e-6 and metrics["coverage_95"] >= 0.9
+    [warning] = trained["warnings"]
+    assert f"median {metrics['median_relative_error']:.3g}" in warning and "budget ran out first" in warning
+    points = {"load_N": [0.01, 0.01], "speed_m_s": [0.1, 0.5], "balls": 6}
+    prediction = client.post(f"/v1/surrogates/{trained['id']}/predict", json={"points": points}).json()
+    assert prediction["warnings"] == [warning, "1 of 2 points lie outside the trained space: their intervals "
+                                               "do not apply"]
+
+
+@pytest.mark.parametrize(("coverage", "median", "stop", "expected"), [
+    (0.90, 1e-3, "target_reached", []),
+    (0.899, 1e-3, "target_reached", ["the 95 % intervals covered 89.9 %"]),
+    (0.95, 1.1e-3, "target_reached", ["held-out relative error of mu: median 0.0011"]),
+    (0.5, 1.1e-3, "budget_exhausted", ["the 95 % intervals covered 50.0 %", "held-out relative error"]),
+])
+def test_quality_warnings_name_each_shortfall(coverage, median, stop, expected):
+    metrics = {"coverage_95": coverage, "median_relative_error": median, "p95_relative_error": 0.0,
+               "n_test": 1000}
+    result = {"metrics": metrics, "target_relative_error": 1e-3, "stop_reason": stop}
+    warnings = quality_warnings(result)
+    assert len(warnings) == len(expected)
+    assert all(text.startswith(start) for text, start in zip(warnings, expected, strict=True))
+    # a surrogate stored before the target was recorded is judged on its coverage alone
+    del result["target_relative_error"]
+    assert len(quality_warnings(result)) == (coverage < 0.9)
+
+
 def test_a_surrogate_of_another_package_version_is_flagged(client, trained):
-    assert trained["warnings"] == []
+    quality = trained["warnings"]  # its held-out error is short of its target (test above)
     store = get_runtime(client.app).store
     stored = store.load_model(trained["id"])
     metadata = {"result": {**stored.metadata["result"], "package_version": "0.0.1"},
@@ -117,8 +147,8 @@ def test_a_surrogate_of_another_package_version_is_flagged(client, trained):
     older = client.get(f"/v1/surrogates/{store.save_model('surrogate', metadata, {})}").json()
     assert older["package_version"] == "0.0.1"
     running = trained["package_version"]
-    assert older["warnings"] == [f"trained with microbearing 0.0.1, running is {running}: the physics may "
-                                 "have changed since; retrain to be sure its figures still hold"]
+    assert older["warnings"] == [*quality, f"trained with microbearing 0.0.1, running is {running}: the "
+                                 "physics may have changed since; retrain to be sure its figures still hold"]
 
 
 def test_loader_gives_a_mu_model(client, trained):

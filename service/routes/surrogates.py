@@ -41,8 +41,8 @@ from ..schemas.surrogates import (
 from ..store import Store, utc_now
 from .jobs import ACCEPTED_RESPONSE, accepted
 
-__all__ = ["KIND", "MODEL_PREFIX", "load_mu_model", "load_source_model", "load_surrogate", "router",
-           "train_surrogate"]
+__all__ = ["KIND", "MIN_COVERAGE", "MODEL_PREFIX", "load_mu_model", "load_source_model", "load_surrogate",
+           "quality_warnings", "router", "train_surrogate"]
 
 router = APIRouter(prefix="/v1/surrogates", tags=["surrogates"])
 
@@ -50,6 +50,8 @@ KIND = "surrogate"
 MODEL_PREFIX = "surrogate:"
 _MODEL_REF = re.compile(r"^surrogate:([0-9a-f]{32})$")
 _HELD_OUT_POINTS = 1024
+#: Least held-out coverage of the 95 % interval that a surrogate keeps without a warning. [1]
+MIN_COVERAGE = 0.90
 _HELD_OUT_SEED = 987_654_321
 _SENSITIVITY_N = (256, 65_536)
 # Points on which a calibrated model is checked before its training job is accepted. [1]
@@ -173,6 +175,7 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
         "kernel": data["gp"]["kernel"], "fit_seconds": seconds, "convention": data["convention"],
         "package_version": data["package_version"], "created_at": utc_now(),
         "model": body.model, "conditions": dict(body.conditions or {}),
+        "target_relative_error": body.target_relative_error,
     }
     surrogate_id = store.save_model(KIND, {"result": result, "model": data}, {},
                                     name=f"{len(space.names)}-D, {fit.n_train} evaluations")
@@ -181,13 +184,58 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
     return _view(surrogate_id, {"result": result})
 
 
+def quality_warnings(result: Mapping[str, Any]) -> list[str]:
+    """Where a surrogate's own held-out figures fall short of what it promises.
+
+    Parameters
+    ----------
+    result : mapping
+        A stored surrogate's public result: ``metrics`` (held-out), ``stop_reason`` and, when
+        stored, ``target_relative_error``.
+
+    Returns
+    -------
+    list of str
+        One sentence per shortfall: a held-out coverage of the 95 % interval below
+        :data:`MIN_COVERAGE`, or a held-out median (95th-percentile) relative error above the
+        target (:data:`surrogate.sampling.TAIL_FACTOR` times it); empty when none.
+
+    Examples
+    --------
+    >>> quality_warnings({"metrics": {"coverage_95": 0.85, "median_relative_error": 1e-4,
+    ...                               "p95_relative_error": 1e-3, "n_test": 1000},
+    ...                   "target_relative_error": 1e-3, "stop_reason": "budget_exhausted"})[0][:57]
+    'the 95 % intervals covered 85.0 % of 1000 held-out points'
+    """
+    metrics, warnings = result["metrics"], []
+    coverage = metrics.get("coverage_95")
+    if coverage is not None and coverage < MIN_COVERAGE:
+        warnings.append(f"the 95 % intervals covered {100 * coverage:.1f} % of {metrics['n_test']} held-out "
+                        f"points (below {100 * MIN_COVERAGE:.0f} %): they are too narrow here; widen them "
+                        f"or retrain with a larger budget")
+    target = result.get("target_relative_error")
+    median, tail = metrics.get("median_relative_error"), metrics.get("p95_relative_error")
+    if target is not None and median is not None and (
+            median > target or tail > surrogate.sampling.TAIL_FACTOR * target):
+        why = ("although the stop rule judged it reached" if result.get("stop_reason") == "target_reached"
+               else "the budget ran out first")
+        warnings.append(f"held-out relative error of mu: median {median:.3g}, 95th percentile {tail:.3g}, "
+                        f"short of the target {target:g} (median) and {surrogate.sampling.TAIL_FACTOR:g} x "
+                        f"it (95th percentile): {why}")
+    return warnings
+
+
+def _warnings(result: Mapping[str, Any]) -> list[str]:
+    # Compared with the running version on every view: the service may have been upgraded since.
+    version = version_warning(result.get("package_version"))
+    return quality_warnings(result) + ([] if version is None else [version])
+
+
 def _view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:
     result = metadata["result"]
-    # Compared with the running version on every view: the service may have been upgraded since.
-    warning = version_warning(result.get("package_version"))
     # Surrogates stored before models other than the physics could be learned lack model and conditions.
     return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, "model": "physics", "conditions": {},
-            **result, "warnings": [] if warning is None else [warning]}
+            **result, "warnings": _warnings(result)}
 
 
 def _stored(store: Store, surrogate_id: str):
@@ -336,15 +384,21 @@ def delete_surrogate(surrogate_id: str, store: StoreDep) -> Response:
              responses=problem_responses(404))
 def predict_surrogate(surrogate_id: str, body: PredictRequest, store: StoreDep) -> JSONResponse:
     """Predicted mu with its 95 % interval at columnar points, flagging points outside the space."""
+    result = _stored(store, surrogate_id).metadata["result"]
     model = load_surrogate(store, surrogate_id)
     points = body.points.model_dump(exclude_none=True)
     try:
         prediction = model.predict_points(points)
     except ValueError as exc:
         raise validation_problem([{"pointer": "/points", "detail": str(exc)}]) from None
+    outside = int(np.count_nonzero(prediction.outside_space))
+    extrapolated = [] if not outside else [
+        f"{outside} of {prediction.outside_space.size} points lie outside the trained space: their "
+        f"intervals do not apply"]
     return JSONResponse({"mu": prediction.mu.tolist(), "mu_lower": prediction.mu_lower.tolist(),
                          "mu_upper": prediction.mu_upper.tolist(),
-                         "outside_space": prediction.outside_space.tolist()})
+                         "outside_space": prediction.outside_space.tolist(),
+                         "warnings": _warnings(result) + extrapolated})
 
 
 @router.get("/{surrogate_id}/sensitivity", operation_id="get_surrogate_sensitivity",

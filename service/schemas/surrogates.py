@@ -132,9 +132,14 @@ class SurrogateResult(ResponseModel):
     conditions: dict[str, float] = Field(default_factory=dict, description=(
         "Condition columns of a calibrated model, as trained on [their units]."))
     package_version: str = Field(description="microbearing version trained with.")
+    target_relative_error: float | None = Field(default=None, description=(
+        "The target median relative error of mu the training aimed at (null for surrogates stored before "
+        "it was recorded) [1]."))
     warnings: list[str] = Field(default_factory=list, description=(
-        "Reasons to distrust the stored figures, e.g. a package_version other than the running one "
-        "(the physics may have changed since: retrain)."))
+        "Where the surrogate falls short of what it promises, measured on its held-out points: coverage "
+        "of the 95 % interval below 90 %, median (95th-percentile) relative error above the target (5 "
+        "times it); and other reasons to distrust the stored figures, e.g. a package_version other than "
+        "the running one (the physics may have changed since: retrain). Empty when none."))
     created_at: str = Field(description="Creation time, ISO 8601 UTC.")
 
 
@@ -166,6 +171,10 @@ class PredictResponse(ResponseModel):
     mu_upper: list[float] = Field(description="Upper end of the 95 % interval [1].")
     outside_space: list[bool] = Field(
         description="True where the point leaves the trained space (the interval then does not apply).")
+    warnings: list[str] = Field(default_factory=list, description=(
+        "The surrogate's own warnings (see GET /v1/surrogates/{id}: held-out coverage or error short of "
+        "what it promises, another package version) and a count of the points outside the space; empty "
+        "when none."))
 
 
 class SensitivityResponse(ResponseModel):
