@@ -335,8 +335,9 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         Sobol' candidates scanned for the next batch and for the error estimate. [1]
     model_params : mapping, optional
         Keyword arguments of :class:`GaussianProcessSurrogate` (besides ``space``);
-        ``variance_scale`` defaults to ``"central"`` when ``adaptive`` (the
-        batches crowd the edges of the space, see the estimator), else ``"rms"``.
+        ``calibration_rows`` defaults to the size of the starting design when
+        ``adaptive`` (the batches crowd the edges of the space, see the
+        estimator), else every row.
     seed : int or None, default 0
         Seed of designs, candidates and the optimizer's restarts.
     progress : callable, optional
@@ -373,11 +374,8 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         raise ValueError(f"n_candidates must be >= 1; got {n_candidates!r}")
     params = dict(model_params or {})
     params.setdefault("random_state", seed)
-    # Adaptive batches crowd the edges, where leave-one-out errors are extrapolation: a robust scale.
-    params.setdefault("variance_scale", "central" if adaptive else "rms")
     # Intermediate rounds use the cheap closed-form leave-one-out calibration; the final
-    # model gets the requested one (leave-one-out too by default; k-fold costs five more fits).
-    rounds = {**params, "calibrate_variance": "none" if params.get("calibrate_variance") == "none" else "loo"}
+    # model gets the requested one (k-fold refits cost five more fits).
 
     def evaluate(points: np.ndarray) -> np.ndarray:
         return space.evaluate(points, mu_model)
@@ -395,6 +393,11 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
     if len(X) < 2:
         raise ValueError(f"the space has fewer than 2 distinct points ({len(X)}); a surrogate needs 2")
     y = evaluate(X)
+    if adaptive:
+        # The starting design is spread like the points predicted; the batches crowd the edges, where
+        # leaving a point out is extrapolation: only the design's errors set the variance scale.
+        params.setdefault("calibration_rows", len(X))
+    rounds = {**params, "calibrate_variance": "none" if params.get("calibrate_variance") == "none" else "loo"}
     # Sorted, as before the top-up (select_batch's greedy ties then resolve the same way).
     candidates = np.unique(candidates, axis=0) if len(candidates) else candidates
     history: list[dict[str, float]] = []

@@ -66,6 +66,9 @@ def test_training_job_reports_metrics_within_budget(trained):
     assert trained["fixed"] == {"groove_angle_deg": 60.0}
     assert trained["scales"] == {"load_N": "log", "speed_m_s": "log", "balls": "log"}
     assert trained["convention"] == physics.DEFAULT_CONVENTION and trained["package_version"]
+    # 30 evaluations of 3 features (10 per feature): leave-one-out on the 15-point starting design
+    assert (trained["variance_calibration"], trained["calibration_points"]) == ("loo", 15)
+    assert trained["std_scale"] > 0
 
 
 def test_reported_coverage_matches_fresh_physics(client, trained):

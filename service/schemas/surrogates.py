@@ -132,6 +132,16 @@ class SurrogateResult(ResponseModel):
     conditions: dict[str, float] = Field(default_factory=dict, description=(
         "Condition columns of a calibrated model, as trained on [their units]."))
     package_version: str = Field(description="microbearing version trained with.")
+    variance_calibration: str | None = Field(default=None, description=(
+        "How the 95 % intervals were calibrated on the training evaluations: kfold (5 folds, the "
+        "Gaussian process refitted without each; below 10 evaluations per feature) or loo (closed-form "
+        "leave-one-out errors at the space-filling starting design); null for surrogates stored before "
+        "it was recorded."))
+    std_scale: float | None = Field(default=None, description=(
+        "Factor applied to the Gaussian process's own standard deviation of log mu: the root mean square "
+        "of the standardized cross-validation errors [1]."))
+    calibration_points: int | None = Field(default=None, description=(
+        "Training evaluations whose cross-validation errors set std_scale [1]."))
     target_relative_error: float | None = Field(default=None, description=(
         "The target median relative error of mu the training aimed at (null for surrogates stored before "
         "it was recorded) [1]."))
