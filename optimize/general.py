@@ -32,6 +32,17 @@ model exists (a KKT point of the smooth model), verified by evaluating the
 model there; it is a local optimum, not a global proof, and the certificate
 says so.
 
+Verification by the source model
+--------------------------------
+A surrogate stands for another model (the physics, or a calibrated model). Given
+that ``source_model``, the design found on the surrogate is evaluated by it: μ and
+the friction force under both models are reported, every limit is judged by the
+source's value (the others do not depend on μ and are exact), and when the source
+breaks ``max_friction_force_N`` the problem is re-solved with that limit tightened
+by the ratio of the two friction forces and a margin of :data:`RESOLVE_MARGIN`, at
+most :data:`MAX_RESOLVES` times; a design still breaking it is returned marked
+violating (``satisfied=False``, said in the certificate), never satisfied.
+
 Worst case over a speed range
 -----------------------------
 μ of the exact physics grows with speed, so its worst case over a range is
