@@ -197,39 +197,6 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         points predicted, when later rows were chosen where the process is
         least sure (adaptive batches crowd the edges, where leaving one out
         is extrapolation). Default: every row. [1]
-    optimize_hyperparameters : bool, default True
-        Maximize the marginal likelihood; False keeps ``initial_theta`` as it is
-        (adaptive sampling does so in rounds where the design has grown little).
-    calibrate_variance : {"loo", "kfold", "none"}, default "loo"
-        Rescale the predictive standard deviation by a factor ``s`` measured on
-        standardized cross-validation errors ``z_i = e_i / σ_i`` (errors
-        ``e_i`` of the target at training points left out, ``σ_i`` their
-        predicted standard deviations; see ``variance_scale``). ``"loo"``:
-        closed-form leave-one-out errors with the hyperparameters held fixed
-        (Rasmussen & Williams 2006, eqs. 5.10-5.12; no extra fit);
-        ``"kfold"``: 5 folds, each with its prior mean and hyperparameters
-        refitted (5 more fits, warm-started); ``"none"``: ``s = 1``, the
-        process's own variance (maximum likelihood alone is overconfident or
-        needlessly wide on small designs).
-    variance_scale : {"rms", "central"}, default "rms"
-        How ``s`` follows from the ``z_i``. ``"rms"``: ``s² = mean(z²)``, the
-        cross-validation variance estimate of Bachoc (2013), right when the
-        training points are spread like the points predicted (space-filling
-        designs). ``"central"``: ``s = q_0.8(|z|) / 1.2816``, the scale at
-        which the central 80 % of the ``z_i`` match a standard normal (1.2816
-        is its 90th percentile), unmoved by the largest 20 %. Adaptive designs
-        crowd points at the edges of the space, where leaving one out is
-        extrapolation and a few ``z_i`` are far larger than at points inside;
-        :func:`surrogate.fit_adaptive` uses ``"central"`` for them. Measured
-        with the Matérn 5/2 kernel and ``"loo"`` on ``bench/surrogate.py``'s
-        4-D space, coverage of the 95 % interval on 2048 held-out points in
-        [90, 98] %: adaptive designs of 100 points (design seeds 0-47),
-        ``"central"`` 45 of 48, ``"rms"`` 32 of 48 (Voronoi-volume weighted
-        ``"rms"`` 40); plain Sobol' designs of 100 points (seeds 0-11),
-        ``"rms"`` 11 of 12 (mean 95.8 %), ``"central"`` 7 of 12 (mean 91.2 %).
-        The earlier default, RBF with k-fold ``"rms"``, reached 8 of 16 adaptive
-        designs: its calibration changes by up to 2x when 10 % of a design is
-        left out, Matérn 5/2's far less.
 
     Attributes
     ----------
