@@ -31,6 +31,7 @@ each space, a seed never used for training). Rows:
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -203,6 +204,18 @@ def coverage_distribution(per_dimension: int, seeds: int, budgets: tuple[int, ..
         print(f"fit time at budget {budget}: median {np.median(times):.1f} s, max {max(times):.1f} s")
 
 
+def fit_times(seeds: int) -> None:
+    """Wall and CPU time of the REST defaults at budget 300 on the issue's spaces (CPU time is what a
+    busy shared machine does not inflate)."""
+    print("| space | seed | n_train | wall [s] | CPU [s] | load average |\n|---|---|---|---|---|---|")
+    for label, (bounds, fixed) in ISSUE_SPACES.items():
+        for seed in range(seeds):
+            wall, cpu = time.perf_counter(), time.process_time()
+            fit = fit_adaptive(Space(bounds, fixed), budget=300, target_relative_error=1e-3, seed=seed)
+            print(f"| {label} | {seed} | {fit.n_train} | {time.perf_counter() - wall:.1f} | "
+                  f"{time.process_time() - cpu:.1f} | {os.getloadavg()[0]:.1f} |", flush=True)
+
+
 def smt_comparison(seeds: int) -> None:
     """REST defaults against SMT's KRG (Matérn 5/2, log inputs, log mu) on a Sobol' design, side by side."""
     try:
@@ -257,6 +270,8 @@ def main() -> None:
     parser.add_argument("--budgets", default=",".join(map(str, COVERAGE_BUDGETS)),
                         help="budgets of --coverage-only, comma-separated")
     parser.add_argument("--smt", action="store_true", help="only the comparison with SMT's Kriging")
+    parser.add_argument("--fit-time", action="store_true",
+                        help="only the wall and CPU time of the REST defaults at budget 300")
     args = parser.parse_args()
     if args.coverage_only:
         coverage_distribution(args.spaces_per_dimension, args.coverage_seeds or 2,
@@ -264,6 +279,9 @@ def main() -> None:
         return
     if args.smt:
         smt_comparison(args.coverage_seeds or 3)
+        return
+    if args.fit_time:
+        fit_times(args.coverage_seeds or 2)
         return
 
     space = Space(TARGET_SPACE)
