@@ -177,8 +177,8 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
         "model": body.model, "conditions": dict(body.conditions or {}),
         "target_relative_error": body.target_relative_error,
         "variance_calibration": fit.model.variance_calibration_, "std_scale": fit.model.std_scale_,
-        "calibration_points": fit.n_train if fit.model.variance_calibration_ == "kfold" else min(
-            fit.n_train, fit.model.calibration_rows or fit.n_train),
+        "calibration_points": {"kfold": fit.n_train, "none": None}.get(
+            fit.model.variance_calibration_, min(fit.n_train, fit.model.calibration_rows or fit.n_train)),
     }
     surrogate_id = store.save_model(KIND, {"result": result, "model": data}, {},
                                     name=f"{len(space.names)}-D, {fit.n_train} evaluations")
