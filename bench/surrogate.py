@@ -216,7 +216,8 @@ def fit_times(seeds: int) -> None:
                   f"{time.process_time() - cpu:.1f} | {os.getloadavg()[0]:.1f} |", flush=True)
 
 
-def smt_comparison(seeds: int) -> None:
+def smt_comparison(seeds: int, budgets: tuple[int, ...] = (100, 300),
+                   inputs: tuple[int, ...] = (4, 5, 6)) -> None:
     """REST defaults against SMT's KRG (Matérn 5/2, log inputs, log mu) on a Sobol' design, side by side."""
     try:
         from smt.surrogate_models import KRG
@@ -230,8 +231,10 @@ def smt_comparison(seeds: int) -> None:
           "|---|---|---|---|---|---|---|---|---|---|---|---|")
     for label, (bounds, fixed) in ISSUE_SPACES.items():
         space = Space(bounds, fixed)
+        if space.dimension not in inputs:
+            continue
         X_test, y_test = held_out(space)
-        for budget in (100, 300):
+        for budget in budgets:
             ratios = []
             for seed in range(seeds):
                 start = time.perf_counter()
@@ -270,6 +273,8 @@ def main() -> None:
     parser.add_argument("--budgets", default=",".join(map(str, COVERAGE_BUDGETS)),
                         help="budgets of --coverage-only, comma-separated")
     parser.add_argument("--smt", action="store_true", help="only the comparison with SMT's Kriging")
+    parser.add_argument("--smt-budgets", default="100,300", help="budgets of --smt, comma-separated")
+    parser.add_argument("--smt-inputs", default="4,5,6", help="numbers of inputs of the --smt spaces")
     parser.add_argument("--fit-time", action="store_true",
                         help="only the wall and CPU time of the REST defaults at budget 300")
     args = parser.parse_args()
@@ -278,7 +283,8 @@ def main() -> None:
                               tuple(int(b) for b in args.budgets.split(",")))
         return
     if args.smt:
-        smt_comparison(args.coverage_seeds or 3)
+        smt_comparison(args.coverage_seeds or 3, tuple(int(b) for b in args.smt_budgets.split(",")),
+                       tuple(int(d) for d in args.smt_inputs.split(",")))
         return
     if args.fit_time:
         fit_times(args.coverage_seeds or 2)
