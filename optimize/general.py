@@ -285,8 +285,8 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
     start_time = time.perf_counter()
     solved = problem
     limit = problem.constraints.max_friction_force_N
-    # progress: each (re-)solve fills the next share of the bar
-    share = 1.0 / (MAX_RESOLVES + 1)
+    # progress: one solve fills the bar; with a source to verify by, each (re-)solve fills the next share
+    share = 1.0 if source_model is None else 1.0 / (MAX_RESOLVES + 1)
     for resolves in range(MAX_RESOLVES + 1):
         try:
             result = _optimize_once(solved, mu_model, starts, max_iterations, None if progress is None else (
