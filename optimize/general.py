@@ -32,6 +32,17 @@ model exists (a KKT point of the smooth model), verified by evaluating the
 model there; it is a local optimum, not a global proof, and the certificate
 says so.
 
+Verification by the source model
+--------------------------------
+A surrogate stands for another model (the physics, or a calibrated model). Given
+that ``source_model``, the design found on the surrogate is evaluated by it: μ and
+the friction force under both models are reported, every limit is judged by the
+source's value (the others do not depend on μ and are exact), and when the source
+breaks ``max_friction_force_N`` the problem is re-solved with that limit tightened
+by the ratio of the two friction forces and a margin of :data:`RESOLVE_MARGIN`, at
+most :data:`MAX_RESOLVES` times; a design still breaking it is returned marked
+violating (``satisfied=False``, said in the certificate), never satisfied.
+
 Worst case over a speed range
 -----------------------------
 μ of the exact physics grows with speed, so its worst case over a range is
@@ -64,7 +75,8 @@ from .dgp import SAFETY_MARGIN, coefficients
 from .problem import DesignProblem, constraint_report
 from .solve import TIE_TOLERANCE, BallCountResult, InfeasibleDesignError, OptimizationResult, find_conflicts
 
-__all__ = ["optimize_model", "physics_model", "speed_grid_m_s", "PENALTY", "SPEED_GRID_POINTS"]
+__all__ = ["optimize_model", "check_exact_limits", "verify_design", "physics_model", "speed_grid_m_s",
+           "PENALTY", "SPEED_GRID_POINTS", "MAX_RESOLVES", "RESOLVE_MARGIN"]
 
 #: Exact-penalty weight of the friction-force limit in log space. [1]
 PENALTY = 100.0
@@ -79,6 +91,11 @@ LOCAL_OPTIMUM = "local optimum"
 ITERATION_CAP = "iteration cap reached"
 #: ``map_calls(fn, arguments, progress) -> list``: runs ``fn(*args)`` for each of ``arguments``. [-]
 MapCalls = Callable[[Callable[..., Any], list[tuple], Callable[[float], None] | None], list]
+
+#: Most re-solves with a tightened friction-force limit when the source model breaks it. [1]
+MAX_RESOLVES = 3
+#: Relative margin by which a re-solve tightens the friction-force limit beyond the models' ratio. [1]
+RESOLVE_MARGIN = 1e-3
 
 #: Ball counts per group of runs: the groups are solved independently (in turn, or on an executor). [1]
 GROUP_COUNTS = 16
@@ -203,7 +220,8 @@ def _contact_load_cap_N(problem: DesignProblem) -> float:
 
 def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, max_iterations: int = 100,
                    progress: Callable[[float], None] | None = None,
-                   model_name: str = "model", map_calls: MapCalls | None = None) -> OptimizationResult:
+                   model_name: str = "model", map_calls: MapCalls | None = None,
+                   source_model: MuModel | None = None, source_name: str = "physics") -> OptimizationResult:
     """Minimize any μ model over the design box by sequential convex approximation (a local method).
 
     Parameters
@@ -230,6 +248,16 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
         cluster (then ``mu_model`` must be serializable). None runs them in turn in this thread,
         with progress within each group. The groups are the same either way, so the result
         does not depend on where they run.
+    source_model : callable, optional
+        The model ``mu_model`` stands for (a surrogate's physics or calibrated model), same
+        signature. The returned design is verified by it: μ and the friction force are
+        evaluated by both models, the limits are judged by the source, and a design whose
+        friction force breaks ``max_friction_force_N`` under the source is re-solved with the
+        limit tightened by the ratio of the two models' forces less :data:`RESOLVE_MARGIN`, at
+        most :data:`MAX_RESOLVES` times; one still breaking it is returned with
+        ``satisfied=False`` and said so. None: ``mu_model`` is its own source (no verification).
+    source_name : str, default "physics"
+        Name of ``source_model`` in the report. [-]
 
     Returns
     -------
@@ -238,13 +266,14 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
         the design (for a speed range: its maximum over the grid of
         :func:`speed_grid_m_s`, and ``speed_m_s`` the grid speed where it
         occurs), ``extra["mu_physics"]`` the exact physics there at the upper
-        end of the speed range.
+        end of the speed range; with a ``source_model``, ``extra["verification"]``
+        (:func:`verify_design`) and constraints judged by the source.
 
     Raises
     ------
     InfeasibleDesignError
-        When no ball count admits a design meeting the exact limits, or no
-        iterate meets the friction-force limit under the model.
+        When no ball count admits a design meeting the exact limits (:func:`check_exact_limits`),
+        or no iterate meets the friction-force limit under the model.
     ValueError
         For ``starts`` outside 1..9 or ``max_iterations`` < 1, or a model
         returning non-finite or non-positive μ.
@@ -254,6 +283,55 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
     if max_iterations < 1:
         raise ValueError(f"max_iterations must be >= 1; got {max_iterations!r}")
     start_time = time.perf_counter()
+    solved = problem
+    limit = problem.constraints.max_friction_force_N
+    # progress: one solve fills the bar; with a source to verify by, each (re-)solve fills the next share
+    share = 1.0 if source_model is None else 1.0 / (MAX_RESOLVES + 1)
+    for resolves in range(MAX_RESOLVES + 1):
+        try:
+            result = _optimize_once(solved, mu_model, starts, max_iterations, None if progress is None else (
+                lambda f, k=resolves: progress(min(1.0, (k + f) * share))), model_name, map_calls)
+        except InfeasibleDesignError:
+            if resolves == 0:
+                raise
+            break  # the tightened limit is out of reach: report the last design, violating
+        if source_model is None:
+            return dataclasses.replace(result, solve_time_s=time.perf_counter() - start_time)
+        report = verify_design(problem, result, mu_model, model_name, source_model, source_name)
+        report["resolves"] = resolves
+        verified = (result, report)
+        if report["satisfied"] or limit is None:
+            break
+        # the source's force exceeds the model's at the design: ask the model for that much less
+        current = solved.constraints.max_friction_force_N
+        tightened = current * min(1.0, 1.0 / report["friction_force_ratio"]) * (1.0 - RESOLVE_MARGIN)
+        solved = dataclasses.replace(solved, constraints=dataclasses.replace(
+            solved.constraints, max_friction_force_N=tightened))
+    result, report = verified
+    if progress is not None:
+        progress(1.0)
+    return _with_verification(problem, result, report, time.perf_counter() - start_time)
+
+
+def check_exact_limits(problem: DesignProblem) -> list[int]:
+    """The ball counts that admit a design meeting the limits that do not depend on the μ model.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        Bounds, pressure, load-per-ball, minimum-load and groove-length limits.
+
+    Returns
+    -------
+    list of int
+        Ball counts whose largest load at the smallest angle reaches the load floor. [1]
+
+    Raises
+    ------
+    InfeasibleDesignError
+        When there is none, naming the same conflicting limits as the certified optimizer
+        (:func:`optimize.solve.find_conflicts`): detectable before any evaluation of a model.
+    """
     c, b = problem.constraints, problem.bounds
     q0_cap = _contact_load_cap_N(problem)
     g_floor = max(b.load_N[0], c.min_load_capacity_N or 0.0)
@@ -265,6 +343,18 @@ def optimize_model(problem: DesignProblem, mu_model: MuModel, starts: int = 3, m
         # the exact limits are the DGP's: so are their conflicts
         raise find_conflicts(problem) or InfeasibleDesignError(
             "infeasible: no ball count meets the limits", ["balls"], [])
+    return counts
+
+
+def _optimize_once(problem: DesignProblem, mu_model: MuModel, starts: int, max_iterations: int,
+                   progress: Callable[[float], None] | None, model_name: str,
+                   map_calls: MapCalls | None) -> OptimizationResult:
+    """One run of the method of :func:`optimize_model` on ``problem`` (no verification by a source)."""
+    start_time = time.perf_counter()
+    c, b = problem.constraints, problem.bounds
+    q0_cap = _contact_load_cap_N(problem)
+    g_floor = max(b.load_N[0], c.min_load_capacity_N or 0.0)
+    counts = check_exact_limits(problem)
 
     fractions = [(0.5, 0.5), (0.0, 0.9), (1.0, 0.1), (0.0, 0.1), (1.0, 0.9), (0.5, 0.0), (0.5, 1.0),
                  (0.25, 0.75), (0.75, 0.25)][:starts]
@@ -463,10 +553,78 @@ def _result(problem, mu_model, model_name, z, counts, fractions, x, y, done, ite
         mu=best.mu, mu_solver=best.mu_solver, relative_gap=best.relative_gap,
         speed_m_s=float(worst_speed[0]),
         constraints=constraint_report(problem, best.balls, best.groove_angle_deg, best.load_N, exact,
-                                      best.mu),
+                                      best.mu, model_name),
         per_ball_count=rows,
         ties=[{"balls": r.balls, "groove_angle_deg": r.groove_angle_deg, "load_N": r.load_N,
                "load_per_ball_N": r.load_N / r.balls, "mu": r.mu} for r in tied],
         certificate=certificate, solve_time_s=time.perf_counter() - start_time,
         method="sequential-convex-approximation", extra={"mu_physics": float(exact.mu)},
     )
+
+
+def verify_design(problem: DesignProblem, result: OptimizationResult, mu_model: MuModel, model_name: str,
+                  source_model: MuModel, source_name: str) -> dict[str, Any]:
+    """Check a design found on ``mu_model`` (a surrogate) with the model it stands for.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        The problem as asked (its limits, not tightened ones).
+    result : OptimizationResult
+        The design found on ``mu_model``; its ``mu`` is the model's worst case over the speeds.
+    mu_model, source_model : callable
+        The optimized model and its source, ``points -> mu`` [1].
+    model_name, source_name : str
+        Their names. [-]
+
+    Returns
+    -------
+    dict
+        ``source_model``, ``mu_model`` and ``mu_source`` (each model's worst case over its speed
+        grid, :func:`speed_grid_m_s`) [1], ``speed_m_s_source`` (where the source's occurs) [m/s],
+        ``relative_difference`` (mu_model / mu_source - 1) [1], ``friction_force_N_model`` and
+        ``friction_force_N_source`` [N], ``friction_force_ratio`` (source over model) [1],
+        ``constraints`` (every bound and limit judged by the source, with the optimized model's
+        value beside it), ``violated`` (names of the limits the source breaks) and ``satisfied``.
+    """
+    design = result.design
+    balls, theta, load = design["balls"], design["groove_angle_deg"], design["load_N"]
+    mu_source, speed = _worst_case(problem, source_model, source_name, speed_grid_m_s(problem, source_model),
+                                   balls, theta, load)
+    mu_source = float(mu_source[0])
+    exact = physics.evaluate(convention=problem.convention, **problem.physics_inputs(balls, theta, load))
+    model_force, source_force = result.mu * load, mu_source * load
+    constraints = [
+        dataclasses.replace(c, value_model=model_force) if c.name == "max_friction_force_N"
+        else dataclasses.replace(c, value_model=c.value)
+        for c in constraint_report(problem, balls, theta, load, exact, mu_source, source_name)]
+    violated = [c.name for c in constraints if not c.satisfied]
+    return {"source_model": source_name, "model": model_name, "mu_model": float(result.mu),
+            "mu_source": mu_source, "speed_m_s_source": float(speed[0]),
+            "relative_difference": float(result.mu / mu_source - 1.0),
+            "friction_force_N_model": float(model_force), "friction_force_N_source": float(source_force),
+            "friction_force_ratio": float(source_force / model_force),
+            "constraints": constraints, "violated": violated, "satisfied": not violated}
+
+
+def _with_verification(problem: DesignProblem, result: OptimizationResult, report: dict[str, Any],
+                       seconds: float) -> OptimizationResult:
+    """``result`` with the limits judged by the source model and the verification in its certificate."""
+    source, model = report["source_model"], report["model"]
+    text = (f" Verified by {source}, the model {model} stands for: mu = {report['mu_source']:.6g} there "
+            f"against {report['mu_model']:.6g} from {model} (relative difference "
+            f"{report['relative_difference']:+.3g}); every limit is judged by {source}'s values, "
+            f"{model}'s beside them.")
+    limit = problem.constraints.max_friction_force_N
+    if report["resolves"]:
+        text += (f" {source} broke max_friction_force_N={limit:g} N at the first design, so the problem "
+                 f"was re-solved {report['resolves']} time(s) with that limit tightened by the ratio of "
+                 f"the two models' friction forces and a margin of {RESOLVE_MARGIN:g}.")
+    if report["violated"]:
+        text += (f" VIOLATING: under {source} the design breaks {', '.join(report['violated'])}; no "
+                 f"design meeting every limit under {source} was found.")
+    public = {key: value for key, value in report.items() if key != "constraints"}
+    return dataclasses.replace(
+        result, constraints=report["constraints"], certificate=result.certificate + text,
+        solve_time_s=seconds, extra={**result.extra, "mu_source": report["mu_source"],
+                                     "source_model": source, "verification": public})

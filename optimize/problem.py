@@ -25,6 +25,7 @@ V_hi; ``tests/test_optimize.py`` checks the monotonicity on the exact physics.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -333,7 +334,14 @@ class ConstraintStatus:
         relative for continuous quantities, equal for the ball-count bounds,
         and for ``groove_length_m`` when one more ball would not fit.
     satisfied : bool
-        Whether the exact value meets the limit (no tolerance).
+        Whether ``value`` meets the limit (no tolerance).
+    decided_by : str
+        The model whose value decided ``satisfied``: ``"physics"`` for the bounds and the limits
+        that do not depend on μ, else the model judging μ (a surrogate's source model when the
+        design was verified).
+    value_model : float or None
+        The quantity under the model that was optimized, when that is not the one that decided
+        (a surrogate: its friction force μ G; the exact limits repeat ``value``). [unit of the quantity]
     """
 
     name: str
@@ -342,11 +350,14 @@ class ConstraintStatus:
     sense: str
     active: bool
     satisfied: bool
+    decided_by: str = "physics"
+    value_model: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready fields."""
         return {"name": self.name, "value": self.value, "limit": self.limit, "sense": self.sense,
-                "active": self.active, "satisfied": self.satisfied}
+                "active": self.active, "satisfied": self.satisfied, "decided_by": self.decided_by,
+                "value_model": self.value_model}
 
 
 def _status(name: str, value: float, limit: float, sense: str) -> ConstraintStatus:
@@ -357,7 +368,7 @@ def _status(name: str, value: float, limit: float, sense: str) -> ConstraintStat
 
 def constraint_report(problem: DesignProblem, balls: int, groove_angle_deg: float, load_N: float,
                       result: physics.FrictionResult | None = None,
-                      mu: float | None = None) -> list[ConstraintStatus]:
+                      mu: float | None = None, mu_name: str = "physics") -> list[ConstraintStatus]:
     """Every bound and limit of a problem evaluated at one design with the exact physics.
 
     Parameters
@@ -376,6 +387,8 @@ def constraint_report(problem: DesignProblem, balls: int, groove_angle_deg: floa
     mu : float, optional
         μ of another model (a surrogate or calibrated model) at the design; the
         friction force is then μ G instead of the physics' value. [1]
+    mu_name : str, default "physics"
+        Name of the model ``mu`` comes from (the friction force's ``decided_by``). [-]
 
     Returns
     -------
@@ -408,5 +421,8 @@ def constraint_report(problem: DesignProblem, balls: int, groove_angle_deg: floa
             report.append(ConstraintStatus(name, fill, limit, "<=", not problem.fits_groove(balls + 1),
                                            problem.fits_groove(balls)))
         else:
-            report.append(_status(name, measured[name], limit, ">=" if name.startswith("min_") else "<="))
+            status = _status(name, measured[name], limit, ">=" if name.startswith("min_") else "<=")
+            if name == "max_friction_force_N" and mu is not None:
+                status = dataclasses.replace(status, decided_by=mu_name)
+            report.append(status)
     return report

@@ -609,5 +609,5 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
         speed_m_s=problem.design_speed_m_s(),
         constraints=constraint_report(problem, best.balls, best.groove_angle_deg, best.load_N),
         per_ball_count=rows, ties=ties, certificate=_certificate(problem, rows, best, ties, fallback),
-        solve_time_s=time.perf_counter() - start,
+        solve_time_s=time.perf_counter() - start, extra={"mu_physics": best.mu},
     )

@@ -2,8 +2,11 @@
 
 ``model="physics"`` is solved by :func:`optimize.optimize_design` (a certified
 global optimum); ``calibrated:<id>`` and ``surrogate:<id>`` by
-:func:`optimize.optimize_model` (a local optimum). Infeasible problems become a
-422 problem whose ``errors`` point at the conflicting limits and bounds.
+:func:`optimize.optimize_model` (a local optimum), a surrogate's design verified by
+the model it stands for. Infeasible problems become a 422 problem whose ``errors``
+point at the conflicting limits and bounds: at once on every model when the limits
+that do not depend on μ conflict, else (a friction-force limit no design of a
+surrogate or calibrated model meets) as the job's problem.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from optimize import (
     optimize_model,
     pareto_front,
 )
+from optimize.general import check_exact_limits
 from optimize.problem import DESIGN_VARIABLES
 
 from .calibrations import with_conditions
@@ -64,6 +68,11 @@ class OptimizationPlan:
         ``{"objective", "points"}`` when a front is asked for.
     synchronous : bool
         Whether to answer at once rather than as a job.
+    source_model : callable or None
+        For a surrogate, the model it stands for (physics or calibrated), which verifies the
+        design found on it; None otherwise.
+    source_name : str or None
+        Its name (``"physics"`` or ``"calibrated:<id>"``).
     """
 
     problem: DesignProblem
@@ -72,6 +81,8 @@ class OptimizationPlan:
     starts: int
     pareto: dict[str, Any] | None
     synchronous: bool
+    source_model: Callable[[Mapping[str, Any]], Any] | None = None
+    source_name: str | None = None
 
 
 def _pointer(message: str, speed_in_fixed: bool) -> str:
@@ -91,9 +102,9 @@ def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, di
     if body.model == "physics":
         return None, {}, str(body.convention)
     model = resolve(store, body.model)
-    # A calibration's fixed and fitted values are the model's own; a surrogate's fixed values
-    # only say where it was trained, and the request gives the rest.
-    values = {**model.fixed, **model.fitted} if model.kind == "calibrated" else {}
+    # The values the model holds (a calibration's fixed and fitted ones, the ones a surrogate was
+    # trained at): the physics checks of limits and of the optimum run there too.
+    values = {**model.fixed, **model.fitted}
     mu_model = with_conditions(model, body.model, body.conditions)
     return mu_model, values, model.convention
 
@@ -144,10 +155,21 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     except ValueError as exc:
         pointer = _pointer(str(exc), speed_in_fixed)
         raise validation_problem([{"pointer": pointer, "detail": str(exc)}]) from None
+    try:
+        # Conflicts of the limits that do not depend on the model answer 422 at once on every model.
+        check_exact_limits(problem)
+    except InfeasibleDesignError as error:
+        raise infeasible_problem(error) from None
+    source_model, source_name = None, None
+    if body.model.startswith("surrogate:"):
+        from .routes.surrogates import load_source_model  # imported above with the surrogate itself
+
+        source_model, source_name = load_source_model(store, body.model)
     counts = b.balls[1] - b.balls[0] + 1
     synchronous = mu_model is None and body.pareto is None and counts <= SYNC_MAX_BALL_COUNTS
     pareto = body.pareto.model_dump() if body.pareto is not None else None
-    return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous)
+    return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous, source_model,
+                            source_name)
 
 
 def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:
@@ -202,7 +224,8 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
         else:
             result = optimize_model(plan.problem, plan.mu_model, starts=plan.starts, progress=stage(0.0, 1.0),
                                     model_name=plan.model,
-                                    map_calls=None if executor is None else partial(map_chunks, executor))
+                                    map_calls=None if executor is None else partial(map_chunks, executor),
+                                    source_model=plan.source_model, source_name=plan.source_name or "physics")
         document = {**result.to_dict(), "model": plan.model}
         if with_pareto:
             front = pareto_front(plan.problem, plan.pareto["objective"], plan.pareto["points"],

@@ -28,10 +28,12 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, Matern, WhiteKernel
 from sklearn.utils.validation import check_is_fitted
+from threadpoolctl import threadpool_limits
 
 from .space import FEATURE_SETS, Space
 
 __all__ = ["KERNELS", "MEANS", "CALIBRATIONS", "VARIANCE_SCALES", "DEFAULT_KERNEL",
+           "KFOLD_BELOW_POINTS_PER_FEATURE",
            "DEFAULT_CALIBRATION", "SurrogatePrediction", "GaussianProcessSurrogate", "build_kernel"]
 
 #: Allowed stationary kernels.
@@ -39,16 +41,29 @@ KERNELS = ("rbf", "matern52", "matern32")
 #: Allowed prior means of the target.
 MEANS = ("linear", "constant")
 #: Allowed variance calibrations.
-CALIBRATIONS = ("loo", "kfold", "none")
+CALIBRATIONS = ("auto", "loo", "kfold", "none")
 #: Allowed rules from standardized cross-validation errors to the variance scale.
 VARIANCE_SCALES = ("rms", "central")
 #: The default kernel and variance calibration.
-DEFAULT_KERNEL, DEFAULT_CALIBRATION = "matern52", "loo"
+DEFAULT_KERNEL, DEFAULT_CALIBRATION = "matern52", "auto"
 _FOLDS = 5
+#: ``calibrate_variance="auto"`` refits the hyperparameters per fold (k-fold) below this many
+#: training points per feature, and uses closed-form leave-one-out errors from there on. [1]
+KFOLD_BELOW_POINTS_PER_FEATURE = 10
 
 _LENGTH_SCALE_BOUNDS = (1e-2, 1e3)
 _AMPLITUDE_BOUNDS = (1e-4, 1e4)
 _NOISE_BOUNDS = (1e-12, 1e-1)
+
+
+def one_blas_thread() -> threadpool_limits:
+    """Keep BLAS calls in the calling thread (a context manager).
+
+    The matrices of a surrogate (at most a thousand rows) gain nothing from BLAS threads, and on
+    a machine whose cores are busy (a server's other jobs) they lose: a 300 x 300 Cholesky
+    factorization measured 14 ms with two OpenBLAS threads against 2 ms with one.
+    """
+    return threadpool_limits(1, user_api="blas")
 
 
 def build_kernel(kind: str, n_features: int) -> Kernel:
@@ -143,7 +158,10 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         ``theta`` (log amplitude², log length scales, log noise) from an
         earlier fit, e.g. on fewer points (adaptive sampling warm-starts each
         round this way). Default: unit amplitude and length scales. [1]
-    calibrate_variance : {"loo", "kfold", "none"}, default "loo"
+    optimize_hyperparameters : bool, default True
+        Maximize the marginal likelihood; False keeps ``initial_theta`` as it is
+        (adaptive sampling does so in rounds where the design has grown little).
+    calibrate_variance : {"auto", "loo", "kfold", "none"}, default "auto"
         Rescale the predictive standard deviation by a factor ``s`` measured on
         standardized cross-validation errors ``z_i = e_i / σ_i`` (errors
         ``e_i`` of the target at training points left out, ``σ_i`` their
@@ -151,28 +169,34 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         closed-form leave-one-out errors with the hyperparameters held fixed
         (Rasmussen & Williams 2006, eqs. 5.10-5.12; no extra fit);
         ``"kfold"``: 5 folds, each with its prior mean and hyperparameters
-        refitted (5 more fits, warm-started); ``"none"``: ``s = 1``, the
-        process's own variance (maximum likelihood alone is overconfident or
-        needlessly wide on small designs).
+        refitted (5 more fits, warm-started), so that no point judges
+        hyperparameters it helped choose; ``"auto"``: ``"kfold"`` below
+        :data:`KFOLD_BELOW_POINTS_PER_FEATURE` training points per feature,
+        ``"loo"`` from there on; ``"none"``: ``s = 1``, the process's own
+        variance (maximum likelihood alone is overconfident or needlessly wide
+        on small designs). Measured by ``bench/surrogate.py --coverage-only``
+        (spaces of 1 to 7 inputs, budgets 50 to 400, REST defaults): with few
+        points per feature, leave-one-out at fixed hyperparameters is
+        optimistic (the hyperparameters were fitted with the point left out:
+        below 10 points per feature 82 % of the fits covered under 90 %),
+        k-fold refits much less so; with more, leave-one-out on the
+        space-filling rows lands in [90, 98] % for about 9 fits in 10 and
+        k-fold refits (fitted on 80 % of the points) are too wide.
     variance_scale : {"rms", "central"}, default "rms"
         How ``s`` follows from the ``z_i``. ``"rms"``: ``s² = mean(z²)``, the
         cross-validation variance estimate of Bachoc (2013), right when the
-        training points are spread like the points predicted (space-filling
-        designs). ``"central"``: ``s = q_0.8(|z|) / 1.2816``, the scale at
-        which the central 80 % of the ``z_i`` match a standard normal (1.2816
-        is its 90th percentile), unmoved by the largest 20 %. Adaptive designs
-        crowd points at the edges of the space, where leaving one out is
-        extrapolation and a few ``z_i`` are far larger than at points inside;
-        :func:`surrogate.fit_adaptive` uses ``"central"`` for them. Measured
-        with the Matérn 5/2 kernel and ``"loo"`` on ``bench/surrogate.py``'s
-        4-D space, coverage of the 95 % interval on 2048 held-out points in
-        [90, 98] %: adaptive designs of 100 points (design seeds 0-47),
-        ``"central"`` 45 of 48, ``"rms"`` 32 of 48 (Voronoi-volume weighted
-        ``"rms"`` 40); plain Sobol' designs of 100 points (seeds 0-11),
-        ``"rms"`` 11 of 12 (mean 95.8 %), ``"central"`` 7 of 12 (mean 91.2 %).
-        The earlier default, RBF with k-fold ``"rms"``, reached 8 of 16 adaptive
-        designs: its calibration changes by up to 2x when 10 % of a design is
-        left out, Matérn 5/2's far less.
+        points it is taken over are spread like the points predicted (a
+        space-filling design: see ``calibration_rows``). ``"central"``:
+        ``s = q_0.8(|z|) / 1.2816``, the scale at which the central 80 % of
+        the ``z_i`` match a standard normal (1.2816 is its 90th percentile),
+        unmoved by the largest 20 % (it under-covered heavy-tailed errors of
+        5- and 6-input spaces: 56-88 % at budget 100).
+    calibration_rows : int, optional
+        Only the leave-one-out errors of the first ``calibration_rows`` rows of
+        ``X`` set ``s``: the rows of a space-filling design, spread like the
+        points predicted, when later rows were chosen where the process is
+        least sure (adaptive batches crowd the edges, where leaving one out
+        is extrapolation). Default: every row. [1]
 
     Attributes
     ----------
@@ -190,6 +214,8 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
     std_scale_ : float
         Factor applied to the predictive standard deviation (1 for
         ``calibrate_variance="none"``). [1]
+    variance_calibration_ : str
+        The calibration applied: ``"loo"``, ``"kfold"`` or ``"none"`` (what ``"auto"`` chose).
 
     Examples
     --------
@@ -204,7 +230,8 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
     def __init__(self, space: Space, features: str = "physics", kernel: str = DEFAULT_KERNEL,
                  mean: str = "linear", log_target: bool = True, n_restarts_optimizer: int = 1,
                  random_state: int | None = None, initial_theta: Any = None,
-                 calibrate_variance: str = DEFAULT_CALIBRATION, variance_scale: str = "rms"):
+                 calibrate_variance: str = DEFAULT_CALIBRATION, variance_scale: str = "rms",
+                 optimize_hyperparameters: bool = True, calibration_rows: int | None = None):
         self.space = space
         self.features = features
         self.kernel = kernel
@@ -215,6 +242,8 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         self.initial_theta = initial_theta
         self.calibrate_variance = calibrate_variance
         self.variance_scale = variance_scale
+        self.optimize_hyperparameters = optimize_hyperparameters
+        self.calibration_rows = calibration_rows
 
     def _validate_params(self) -> None:
         if not isinstance(self.space, Space):
@@ -231,6 +260,13 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         if self.variance_scale not in VARIANCE_SCALES:
             raise ValueError(f"variance_scale must be one of {', '.join(VARIANCE_SCALES)}; "
                              f"got {self.variance_scale!r}")
+        if self.calibration_rows is not None and (
+                not isinstance(self.calibration_rows, (int, np.integer)) or self.calibration_rows < 2):
+            raise ValueError(f"calibration_rows must be a whole number >= 2 or None; "
+                             f"got {self.calibration_rows!r}")
+        if self.initial_theta is None and not self.optimize_hyperparameters:
+            raise ValueError("optimize_hyperparameters=False needs initial_theta "
+                             "(the hyperparameters to keep)")
         if not isinstance(self.n_restarts_optimizer, (int, np.integer)) or self.n_restarts_optimizer < 0:
             raise ValueError(f"n_restarts_optimizer must be a whole number >= 0; "
                              f"got {self.n_restarts_optimizer!r}")
@@ -298,10 +334,14 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         self.y_train_ = y
         self.n_features_in_ = X.shape[1]
         self.std_scale_ = 1.0
-        if self.calibrate_variance == "loo":
+        self.variance_calibration_ = self.calibrate_variance
+        if self.calibrate_variance == "auto":
+            few = len(t) < KFOLD_BELOW_POINTS_PER_FEATURE * Zs.shape[1]
+            self.variance_calibration_ = "kfold" if few and len(t) >= 2 * _FOLDS else "loo"
+        if self.variance_calibration_ == "loo":
             errors, variances = self._loo()
-            self.std_scale_ = self._scale(errors / np.sqrt(variances))
-        elif self.calibrate_variance == "kfold" and len(t) >= 2 * _FOLDS:
+            self.std_scale_ = self._scale((errors / np.sqrt(variances))[:self.calibration_rows])
+        elif self.variance_calibration_ == "kfold" and len(t) >= 2 * _FOLDS:
             self.std_scale_ = self._scale(self._kfold_errors(Zs, t))
         return self
 
@@ -324,8 +364,9 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
             H = np.column_stack([np.ones(len(Zs)), Zs])
             coef = np.linalg.lstsq(H, t, rcond=None)[0]
         gp = GaussianProcessRegressor(kernel, alpha=1e-10, normalize_y=True, n_restarts_optimizer=n_restarts,
-                                      random_state=self.random_state)
-        with warnings.catch_warnings():
+                                      random_state=self.random_state,
+                                      optimizer="fmin_l_bfgs_b" if self.optimize_hyperparameters else None)
+        with warnings.catch_warnings(), one_blas_thread():
             # Length scales of features μ does not depend on (e.g. log balls at fixed load per
             # ball) rightly run to their upper bound; sklearn warns about every such bound.
             warnings.simplefilter("ignore", ConvergenceWarning)

@@ -31,7 +31,8 @@ __all__ = ["FORMAT", "package_version", "version_warning", "to_dict", "from_dict
 FORMAT = "microbearing.surrogate/1"
 
 _ESTIMATOR_PARAMS = ("features", "kernel", "mean", "log_target", "n_restarts_optimizer", "random_state",
-                     "initial_theta", "calibrate_variance", "variance_scale")
+                     "initial_theta", "calibrate_variance", "variance_scale",
+                     "optimize_hyperparameters", "calibration_rows")
 
 
 def package_version() -> str:
@@ -104,6 +105,7 @@ def to_dict(model: GaussianProcessSurrogate) -> dict[str, Any]:
         "feature_scale": model.feature_scale_.tolist(),
         "mean_coef": model.mean_coef_.tolist(),
         "std_scale": model.std_scale_,
+        "variance_calibration": model.variance_calibration_,
         "gp": {"kernel": str(gp.kernel_), "theta": gp.kernel_.theta.tolist(), "alpha": gp.alpha,
                "normalize_y": gp.normalize_y},
     }
@@ -158,6 +160,8 @@ def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
     model.y_train_ = y
     model.n_features_in_ = X.shape[1]
     model.std_scale_ = float(data["std_scale"])
+    # Stored before "auto" existed: the calibration was the one requested.
+    model.variance_calibration_ = data.get("variance_calibration", model.calibrate_variance)
     model.package_version_ = data.get("package_version")
     model.version_warning_ = version_warning(model.package_version_)
     return model

@@ -4,11 +4,14 @@ Inputs are independent and uniform in the space's unit cube (log-uniform on
 log-scaled dimensions, the distribution of the designs); the indices come from
 :func:`scipy.stats.sobol_indices` (Saltelli et al. 2010 estimator for
 first-order indices, Jansen 1999 for total ones), costing ``n (d + 2)``
-evaluations of the model, cheap on a surrogate.
+evaluations of the model, cheap on a surrogate. Their 95 % confidence intervals come from
+scipy's bootstrap of those evaluations (``sobol_indices(...).bootstrap()``, percentile
+intervals over resampled rows; no new evaluations).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -17,7 +20,10 @@ from scipy import stats
 
 from .space import Space
 
-__all__ = ["SobolIndices", "sobol_indices"]
+__all__ = ["BOOTSTRAP_RESAMPLES", "SobolIndices", "sobol_indices"]
+
+#: Bootstrap resamples of the evaluations behind each confidence interval. [1]
+BOOTSTRAP_RESAMPLES = 999
 
 
 @dataclass(frozen=True)
@@ -34,18 +40,27 @@ class SobolIndices:
         Share involving each input, interactions included. [1]
     n : int
         Base sample size (a power of 2). [1]
+    first_order_interval, total_order_interval : numpy.ndarray of shape (d, 2)
+        95 % bootstrap confidence interval (low, high) of each index. [1]
     """
 
     names: tuple[str, ...]
     first_order: np.ndarray
     total_order: np.ndarray
     n: int
+    first_order_interval: np.ndarray
+    total_order_interval: np.ndarray
 
     def to_dict(self) -> dict[str, object]:
-        """The indices as JSON-ready data keyed by dimension name."""
-        return {"names": list(self.names), "n": self.n,
-                "first_order": dict(zip(self.names, map(float, self.first_order), strict=True)),
-                "total_order": dict(zip(self.names, map(float, self.total_order), strict=True))}
+        """The indices and their intervals as JSON-ready data keyed by dimension name."""
+        def by_name(values: np.ndarray) -> dict[str, object]:
+            return {name: np.asarray(value, dtype=float).tolist()
+                    for name, value in zip(self.names, values, strict=True)}
+
+        return {"names": list(self.names), "n": self.n, "first_order": by_name(self.first_order),
+                "total_order": by_name(self.total_order),
+                "first_order_interval": by_name(self.first_order_interval),
+                "total_order_interval": by_name(self.total_order_interval)}
 
 
 def sobol_indices(func: Callable[[np.ndarray], np.ndarray], space: Space, n: int = 4096,
@@ -68,7 +83,8 @@ def sobol_indices(func: Callable[[np.ndarray], np.ndarray], space: Space, n: int
     Returns
     -------
     SobolIndices
-        First-order and total indices per dimension.
+        First-order and total indices per dimension, with 95 % bootstrap intervals
+        (:data:`BOOTSTRAP_RESAMPLES` resamples).
 
     Raises
     ------
@@ -78,11 +94,31 @@ def sobol_indices(func: Callable[[np.ndarray], np.ndarray], space: Space, n: int
     if not isinstance(n, (int, np.integer)) or n < 16 or n & (n - 1):
         raise ValueError(f"n must be a power of 2 >= 16 (Sobol' balance); got {n!r}")
 
-    def on_unit_cube(U: np.ndarray) -> np.ndarray:
-        # scipy passes samples as (d, m); the space maps them to valid physical points.
-        return np.asarray(func(space.from_unit(np.clip(U.T, 0.0, 1.0))), dtype=float)
+    d = space.dimension
+    # scipy's estimator fails for a single input (it indexes a scalar): one input is then studied
+    # beside an inert one that the function ignores, whose indices are dropped.
+    sampled = max(d, 2)
 
-    result = stats.sobol_indices(func=on_unit_cube, n=int(n), dists=[stats.uniform()] * space.dimension,
-                                 rng=seed)
-    return SobolIndices(space.names, np.asarray(result.first_order, dtype=float).reshape(-1),
-                        np.asarray(result.total_order, dtype=float).reshape(-1), int(n))
+    def on_unit_cube(U: np.ndarray) -> np.ndarray:
+        # scipy passes samples as (sampled, m); the space maps them to valid physical points.
+        return np.asarray(func(space.from_unit(np.clip(U[:d].T, 0.0, 1.0))), dtype=float)
+
+    result = stats.sobol_indices(func=on_unit_cube, n=int(n), dists=[stats.uniform()] * sampled, rng=seed)
+    with warnings.catch_warnings():
+        # An index that no resample changes (the inert input, an input the function ignores) has no
+        # BCa interval: scipy warns and answers NaN, replaced below by the index itself.
+        warnings.simplefilter("ignore", RuntimeWarning)
+        warnings.simplefilter("ignore", stats.DegenerateDataWarning)
+        boot = result.bootstrap(confidence_level=0.95, n_resamples=BOOTSTRAP_RESAMPLES)
+
+    def kept(values) -> np.ndarray:
+        return np.asarray(values, dtype=float).reshape(-1)[:d]
+
+    def interval(estimate, value) -> np.ndarray:
+        ci = estimate.confidence_interval
+        bounds = np.column_stack([kept(ci.low), kept(ci.high)])
+        return np.where(np.isfinite(bounds), bounds, kept(value)[:, None])
+
+    return SobolIndices(space.names, kept(result.first_order), kept(result.total_order), int(n),
+                        interval(boot.first_order, result.first_order),
+                        interval(boot.total_order, result.total_order))

@@ -241,11 +241,12 @@ def test_a_surrogate_learns_the_calibrated_model(client, humidity_result):
     assert client.get(f"/v1/surrogates/{trained['id']}").json() == trained
     stated = trained["metrics"]
     assert stated["n_test"] > 1000 and stated["median_relative_error"] < 0.01
-    # 32 points of the space (not the test design): the calibrated model's own /v1/friction answers.
+    # 32 points of the space (not the test design), drawn as the held-out design is (log-uniform load
+    # and speed, the space's scales): the calibrated model's own /v1/friction answers.
     rng = np.random.default_rng(7)
     points = {"balls": rng.integers(4, 13, 32).tolist(),
               "load_N": np.exp(rng.uniform(np.log(0.003), np.log(0.03), 32)).tolist(),
-              "speed_m_s": rng.uniform(0.01, 0.15, 32).tolist()}
+              "speed_m_s": np.exp(rng.uniform(np.log(0.01), np.log(0.15), 32)).tolist()}
     predicted = client.post(f"/v1/surrogates/{trained['id']}/predict", json={"points": points})
     assert predicted.status_code == 200, predicted.text
     mu = np.array(predicted.json()["mu"])

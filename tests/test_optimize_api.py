@@ -13,6 +13,7 @@ from calibrate import CalibratedModel
 from optimize import Constraints, DesignBounds, DesignProblem, optimize_design
 from service.app import create_app
 from service.deps import get_runtime
+from service.optimizations import INFEASIBLE_TYPE
 from service.settings import Settings
 
 PROBLEM = "application/problem+json"
@@ -49,6 +50,7 @@ def test_issue_example_answers_at_once_with_a_checked_optimum(client):
     exact = physics.evaluate(balls=design["balls"], groove_angle_deg=design["groove_angle_deg"],
                              load_N=design["load_N"], speed_m_s=0.05, mu_pivot=1.0)
     assert body["mu"] == pytest.approx(float(exact.mu), rel=1e-12)
+    assert body["mu_physics"] == body["mu"]  # the physics is its own exact model
     assert float(exact.max_contact_pressure_Pa) <= 1e9
     library = optimize_design(DesignProblem(DesignBounds((4, 24), (35, 70), (0.001, 0.05)), speed_m_s=0.05,
                                             fixed={"mu_pivot": 1.0},
@@ -166,6 +168,39 @@ def test_surrogate_model_is_optimized_locally_and_verified(client):
     # a 40-point surrogate is not the physics: its optimum is close to, never below, the certified one
     certified = optimize_design(DesignProblem(DesignBounds((4, 8), (40, 60), (0.002, 0.05)), speed_m_s=0.05))
     assert certified.mu * (1 - 1e-9) <= result["mu_physics"] <= certified.mu * 1.1
+    # verified by the source (the physics): both values of mu, and the limits judged by the physics
+    assert result["source_model"] == "physics" and result["mu_source"] == result["mu_physics"]
+    report = result["verification"]
+    assert report["mu_model"] == result["mu"] and report["mu_source"] == result["mu_source"]
+    assert report["relative_difference"] == pytest.approx(result["mu"] / result["mu_source"] - 1, rel=1e-12)
+    assert report["satisfied"] and all(c["satisfied"] and c["decided_by"] == "physics"
+                                       for c in result["constraints"])
+    # an infeasible problem answers as on the physics: 422 at once, naming the same limit
+    infeasible = {**request, "constraints": {"max_contact_pressure_Pa": 1e6}}
+    on_physics = client.post("/v1/optimizations", json={**infeasible, "model": "physics"})
+    on_surrogate = client.post("/v1/optimizations", json=infeasible)
+    assert on_physics.status_code == on_surrogate.status_code == 422
+    assert on_surrogate.json()["type"] == on_physics.json()["type"] == INFEASIBLE_TYPE
+    assert on_surrogate.json()["errors"] == on_physics.json()["errors"]
+
+
+def test_a_surrogate_design_is_judged_by_the_physics_on_a_binding_friction_limit(client):
+    space = {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.002, 0.05]}
+    training = {"space": space, "fixed": {"speed_m_s": 0.05, "mu_pivot": 0.8}, "budget": 12,
+                "adaptive": False}
+    surrogate = finished(client, client.post("/v1/surrogates", json=training))
+    request = {"bounds": space, "speed_m_s": 0.05, "model": surrogate["model_id"], "starts": 1,
+               "constraints": {"max_friction_force_N": 1e-4}}
+    result = finished(client, client.post("/v1/optimizations", json=request))
+    design = result["design"]
+    # the physics at the surrogate's training values (mu_pivot 0.8, inherited by the problem)
+    exact = float(physics.evaluate(speed_m_s=0.05, mu_pivot=0.8, **design).mu)
+    friction = next(c for c in result["constraints"] if c["name"] == "max_friction_force_N")
+    assert friction["decided_by"] == "physics"
+    assert friction["value"] == pytest.approx(exact * design["load_N"], rel=1e-12)
+    assert friction["value_model"] == pytest.approx(result["mu"] * design["load_N"], rel=1e-12)
+    # satisfied is the physics' verdict, never the surrogate's
+    assert friction["satisfied"] == (friction["value"] <= 1e-4) == result["verification"]["satisfied"]
 
 
 def test_calibrated_model_with_an_effect_reads_its_conditions(client):

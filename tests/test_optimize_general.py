@@ -133,3 +133,54 @@ def test_rows_say_whether_their_run_converged_and_claim_no_gap():
         # the returned design: the batch value against a fresh one-point evaluation, measured
         assert result.mu_solver is not None and abs(result.relative_gap) < 1e-8
         assert result.relative_gap == pytest.approx(result.mu_solver / result.mu - 1.0, abs=1e-15)
+
+
+def _under_predicting(factor):
+    """A stand-in surrogate: the physics scaled by ``factor`` (< 1 under-predicts friction)."""
+    return lambda points: factor * physics.evaluate(**points).mu
+
+
+def _physics_mu(problem, design):
+    inputs = problem.physics_inputs(design["balls"], design["groove_angle_deg"], design["load_N"])
+    return float(physics.evaluate(**inputs).mu)
+
+
+def test_a_surrogate_design_breaking_a_limit_under_its_source_is_re_solved_with_a_margin():
+    problem = DesignProblem(DesignBounds((4, 8), (40, 60), (0.002, 0.05)), speed_m_s=0.05,
+                            constraints=Constraints(max_friction_force_N=1e-4))
+    trusting = optimize_model(problem, _under_predicting(0.97), model_name="low")
+    # on its own the low model puts the force on the limit, where the physics (3 % more) breaks it
+    first = next(c for c in trusting.constraints if c.name == "max_friction_force_N")
+    d = trusting.design
+    exact = _physics_mu(problem, d)
+    assert first.value == pytest.approx(1e-4, rel=1e-3) and exact * d["load_N"] > 1e-4
+    verified = optimize_model(problem, _under_predicting(0.97), model_name="low",
+                              source_model=physics_model())
+    d = verified.design
+    exact = _physics_mu(problem, d)
+    report = verified.extra["verification"]
+    assert report["satisfied"] and report["resolves"] >= 1 and report["violated"] == []
+    assert verified.extra["mu_source"] == pytest.approx(exact, rel=1e-12) == verified.extra["mu_physics"]
+    assert verified.mu == pytest.approx(0.97 * exact, rel=1e-9)
+    friction = next(c for c in verified.constraints if c.name == "max_friction_force_N")
+    # both values: the physics decides (and meets the limit), the surrogate's beside it
+    assert friction.decided_by == "physics" and friction.satisfied
+    assert friction.value == pytest.approx(exact * d["load_N"], rel=1e-12) and friction.value <= 1e-4
+    assert friction.value_model == pytest.approx(0.97 * exact * d["load_N"], rel=1e-9)
+    assert "re-solved" in verified.certificate and "VIOLATING" not in verified.certificate
+
+
+def test_a_surrogate_design_no_re_solve_can_fix_is_reported_violating():
+    problem = DesignProblem(DesignBounds((4, 8), (40, 60), (0.002, 0.05)), speed_m_s=0.05)
+    # the least physics friction force in the box, at the smallest load, by brute force over counts and angles
+    grid = problem.physics_inputs(np.arange(4, 9)[:, None, None], np.linspace(40, 60, 21)[None, :, None],
+                                  np.full((1, 1, 1), 0.002))
+    least = float(np.min(physics.evaluate(**grid).mu * 0.002))
+    # a model at half the physics meets a limit of 0.7 times that force; the physics cannot
+    tight = replace(problem, constraints=Constraints(max_friction_force_N=0.7 * least))
+    result = optimize_model(tight, _under_predicting(0.5), model_name="half", source_model=physics_model())
+    report = result.extra["verification"]
+    assert not report["satisfied"] and report["violated"] == ["max_friction_force_N"]
+    friction = next(c for c in result.constraints if c.name == "max_friction_force_N")
+    assert not friction.satisfied and friction.value > 0.7 * least >= friction.value_model
+    assert "VIOLATING" in result.certificate

@@ -121,7 +121,8 @@ def test_the_umbridge_protocol_shows_a_key_only_its_own_models(client):
     job = finished(client, response.headers["location"], ALPHA)
     assert job["status"] == "succeeded", job
     name = f"surrogate:{client.get(job['result_url'], headers=bearer(ALPHA)).json()['id']}"
-    models = {key: client.get("/umbridge/Info", headers=bearer(key)).json()["models"] for key in (ALPHA, BETA)}
+    models = {key: client.get("/umbridge/Info", headers=bearer(key)).json()["models"]
+              for key in (ALPHA, BETA)}
     assert name in models[ALPHA] and name not in models[BETA] and "physics" in models[BETA]
     request = {"name": name, "input": [[5, 50.0, 0.01]], "config": {}}  # balls, groove angle, load
     answered = client.post("/umbridge/Evaluate", json=request, headers=bearer(ALPHA))

@@ -273,11 +273,12 @@ def test_loo_errors_match_brute_force_refits(kernel):
     np.testing.assert_allclose(model.loo_log_errors(), brute, rtol=1e-5, atol=atol)
 
 
-@pytest.mark.parametrize("variance_scale", ["rms", "central"])
-def test_variance_scale_follows_its_rule_on_brute_force_leave_one_out(variance_scale):
+@pytest.mark.parametrize(("variance_scale", "rows"), [("rms", None), ("central", None), ("rms", 16)])
+def test_variance_scale_follows_its_rule_on_brute_force_leave_one_out(variance_scale, rows):
     space = SPACES["angle+load"]
     X = design(space, 24, "sobol", seed=3)
-    model = GaussianProcessSurrogate(space, random_state=0, variance_scale=variance_scale)
+    model = GaussianProcessSurrogate(space, random_state=0, variance_scale=variance_scale,
+                                     calibrate_variance="loo", calibration_rows=rows)
     model.fit(X, space.evaluate(X))
     gp = model.gaussian_process_
     Zs = model._design_matrix(model.X_train_)
@@ -290,13 +291,24 @@ def test_variance_scale_follows_its_rule_on_brute_force_leave_one_out(variance_s
         refit.fit(Zs[keep], (residual[keep] - centre) / spread)
         mean, std = refit.predict(Zs[i:i + 1], return_std=True)
         z.append(((residual[i] - centre) / spread - mean[0]) / std[0])
-    z = np.abs(z)
+    z = np.abs(z)[:rows]  # only the first rows (a space-filling design) when calibration_rows is given
     # rms: s^2 = mean z^2 (Bachoc 2013); central: the 80th percentile of |z| over that of |N(0, 1)|.
     expected = np.sqrt(np.mean(z**2)) if variance_scale == "rms" else np.quantile(z, 0.8) / 1.2815515655446004
     assert model.std_scale_ == pytest.approx(expected, rel=1e-4)
 
 
+@pytest.mark.parametrize(("n", "expected"), [(29, "kfold"), (30, "loo")])
+def test_auto_calibration_refits_folds_below_ten_points_per_feature(n, expected):
+    space = SPACES["angle+load"]  # 3 features: log(load per ball), log tan, log cos of the angle
+    X = design(space, n, "sobol", seed=3)
+    model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    assert model.variance_calibration_ == expected
+    same = GaussianProcessSurrogate(space, random_state=0, calibrate_variance=expected)
+    assert model.std_scale_ == same.fit(X, space.evaluate(X)).std_scale_
+
+
 @pytest.mark.parametrize(("params", "y", "message"), [
+    ({"calibration_rows": 1}, None, "calibration_rows must be"),
     ({"kernel": "cubic"}, None, "kernel must be one of"),
     ({"features": "magic"}, None, "features must be one of"),
     ({"mean": "quadratic"}, None, "mean must be one of"),
@@ -304,6 +316,7 @@ def test_variance_scale_follows_its_rule_on_brute_force_leave_one_out(variance_s
     ({"calibrate_variance": True}, None, "calibrate_variance must be one of"),
     ({"variance_scale": "mad"}, None, "variance_scale must be one of"),
     ({"initial_theta": [0.0, 0.0]}, None, "initial_theta must hold 3"),
+    ({"optimize_hyperparameters": False}, None, "needs initial_theta"),
     ({}, -1.0, "y must be > 0"),
     ({}, "short", "y must be a 1-D array"),
 ])
@@ -337,6 +350,22 @@ def test_persistence_round_trip_is_exact(fitted, key):
     np.testing.assert_allclose(b.mu, a.mu, rtol=1e-12, atol=0)
     np.testing.assert_allclose(b.mu_upper, a.mu_upper, rtol=1e-12, atol=0)
     np.testing.assert_allclose(b.log_std, a.log_std, rtol=1e-12, atol=1e-15)
+
+
+def test_a_surrogate_stored_before_the_auto_calibration_loads_as_stored(fitted):
+    # The stored layout of earlier versions: no optimize_hyperparameters, calibration_rows or
+    # variance_calibration, and "loo" requested by name.
+    model = fitted["load"]
+    data = to_dict(model)
+    old = {**data, "params": {k: v for k, v in data["params"].items()
+                              if k not in ("optimize_hyperparameters", "calibration_rows")}}
+    old["params"]["calibrate_variance"] = "loo"
+    del old["variance_calibration"]
+    again = loads(json.dumps(old))
+    assert again.variance_calibration_ == "loo" and again.std_scale_ == model.std_scale_
+    X = design(model.space, 50, "sobol", seed=5)
+    np.testing.assert_allclose(again.predict_interval(X).mu_upper, model.predict_interval(X).mu_upper,
+                               rtol=1e-12, atol=0)
 
 
 def test_persistence_rejects_other_data(fitted):
@@ -567,6 +596,11 @@ def test_sobol_indices_of_the_ishigami_function():
     result = sobol_indices(ishigami, UNIT_SPACE, n=4096)
     np.testing.assert_allclose(result.first_order, np.array([v1, v2, 0.0]) / variance, atol=0.02)
     np.testing.assert_allclose(result.total_order, np.array([v1 + v13, v2, v13]) / variance, atol=0.02)
+    # The bootstrap intervals hold the analytic indices and are narrow at n = 4096.
+    for estimate, exact in ((result.first_order_interval, np.array([v1, v2, 0.0]) / variance),
+                            (result.total_order_interval, np.array([v1 + v13, v2, v13]) / variance)):
+        assert np.all((estimate[:, 0] <= exact + 1e-3) & (exact - 1e-3 <= estimate[:, 1]))
+        assert np.all(estimate[:, 1] - estimate[:, 0] < 0.1)
 
 
 def test_sobol_indices_of_an_additive_function():
@@ -593,13 +627,30 @@ def test_sobol_indices_of_the_friction_model_on_a_surrogate():
 
 
 @pytest.mark.parametrize(("adaptive", "model_params", "expected"), [
-    (True, None, "central"), (False, None, "rms"), (True, {"variance_scale": "rms"}, "rms")])
-def test_fit_adaptive_scales_the_variance_robustly_for_adaptive_designs(adaptive, model_params, expected):
-    # Adaptive batches crowd the edges, where leave-one-out is extrapolation: the central rule there;
-    # a plain design gets the root mean square; an explicit choice wins.
+    (True, None, 8), (False, None, None), (True, {"calibration_rows": 10}, 10)])
+def test_fit_adaptive_calibrates_on_the_space_filling_design(adaptive, model_params, expected):
+    # Adaptive batches crowd the edges, where leave-one-out is extrapolation: only the starting design
+    # (8 of 16 points here) sets the variance scale; a plain design uses every point; an explicit choice wins.
+    space = SPACES["angle+load"]
+    fit = fit_adaptive(space, budget=16, initial_size=8, batch_size=4, target_relative_error=1e-9,
+                       adaptive=adaptive, model_params={"calibrate_variance": "loo", **(model_params or {})})
+    assert fit.model.calibration_rows == expected and fit.n_train == 16
+    errors, variances = fit.model._loo()
+    z = (errors / np.sqrt(variances))[:expected]
+    assert fit.model.std_scale_ == pytest.approx(np.sqrt(np.mean(z**2)), rel=1e-12)
+
+
+def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is_optimized():
     space = SPACES["load"]
-    fit = fit_adaptive(space, budget=12, target_relative_error=1e-9, adaptive=adaptive,
-                       model_params=model_params)
-    assert fit.model.variance_scale == expected and fit.n_train == 12
-    errors = np.abs(fit.model.loo_log_errors())
-    assert np.all(np.isfinite(errors)) and fit.model.std_scale_ > 0
+    X = design(space, 12, seed=0)
+    optimized = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    theta = optimized.gaussian_process_.kernel_.theta + np.array([0.0, 0.3, 0.0])  # a longer length scale
+    kept = GaussianProcessSurrogate(space, initial_theta=theta.tolist(), optimize_hyperparameters=False)
+    np.testing.assert_array_equal(kept.fit(X, space.evaluate(X)).gaussian_process_.kernel_.theta, theta)
+    # rounds may keep earlier hyperparameters; the returned model maximizes the likelihood on every point
+    fit = fit_adaptive(space, budget=16, initial_size=8, batch_size=2, seed=0)
+    assert fit.model.optimize_hyperparameters
+    gp = fit.model.gaussian_process_
+    refit = GaussianProcessSurrogate(space, initial_theta=gp.kernel_.theta.tolist(), n_restarts_optimizer=0)
+    refit.fit(fit.X, fit.y)
+    assert gp.log_marginal_likelihood_value_ >= refit.gaussian_process_.log_marginal_likelihood_value_ - 1e-6

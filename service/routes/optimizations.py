@@ -40,7 +40,11 @@ async def create_optimization(
     count, all counts enumerated, re-checked with the exact physics). Physics problems of at most
     40 ball counts without a Pareto front answer 200; others (surrogate or calibrated models,
     Pareto fronts, wider ranges) answer 202 with a job whose result has the same fields. An
-    infeasible problem answers 422 with ``errors`` pointing at the conflicting limits.
+    infeasible problem answers 422 with ``errors`` pointing at the conflicting limits: at once on
+    every model when the limits that do not depend on mu conflict (pressure, load per ball,
+    minimum load, groove length, bounds), else as the job's problem (a friction-force limit that
+    no design of a surrogate or calibrated model meets). A design found on a surrogate is verified
+    by the model the surrogate stands for (see ``verification``).
     """
     plan = await run_in_threadpool(prepare, store, body)
     if plan.synchronous:

@@ -20,6 +20,7 @@ from fastapi import APIRouter, Query
 from fastapi.responses import JSONResponse, Response
 
 import surrogate
+from optimize import physics_model
 from surrogate import GaussianProcessSurrogate, Space
 from surrogate.persist import version_warning
 
@@ -40,13 +41,16 @@ from ..schemas.surrogates import (
 from ..store import Store, utc_now
 from .jobs import ACCEPTED_RESPONSE, accepted
 
-__all__ = ["KIND", "MODEL_PREFIX", "load_mu_model", "load_surrogate", "router", "train_surrogate"]
+__all__ = ["KIND", "MIN_COVERAGE", "MODEL_PREFIX", "load_mu_model", "load_source_model", "load_surrogate",
+           "quality_warnings", "router", "train_surrogate"]
 
 router = APIRouter(prefix="/v1/surrogates", tags=["surrogates"])
 
 KIND = "surrogate"
 MODEL_PREFIX = "surrogate:"
 _HELD_OUT_POINTS = 1024
+#: Least held-out coverage of the 95 % interval that a surrogate keeps without a warning. [1]
+MIN_COVERAGE = 0.90
 _HELD_OUT_SEED = 987_654_321
 _SENSITIVITY_N = (256, 65_536)
 # Points on which a calibrated model is checked before its training job is accepted. [1]
@@ -170,6 +174,10 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
         "kernel": data["gp"]["kernel"], "fit_seconds": seconds, "convention": data["convention"],
         "package_version": data["package_version"], "created_at": utc_now(),
         "model": body.model, "conditions": dict(body.conditions or {}),
+        "target_relative_error": body.target_relative_error,
+        "variance_calibration": fit.model.variance_calibration_, "std_scale": fit.model.std_scale_,
+        "calibration_points": {"kfold": fit.n_train, "none": None}.get(
+            fit.model.variance_calibration_, min(fit.n_train, fit.model.calibration_rows or fit.n_train)),
     }
     surrogate_id = store.save_model(KIND, {"result": result, "model": data}, {},
                                     name=f"{len(space.names)}-D, {fit.n_train} evaluations")
@@ -178,13 +186,58 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
     return _view(surrogate_id, {"result": result})
 
 
+def quality_warnings(result: Mapping[str, Any]) -> list[str]:
+    """Where a surrogate's own held-out figures fall short of what it promises.
+
+    Parameters
+    ----------
+    result : mapping
+        A stored surrogate's public result: ``metrics`` (held-out), ``stop_reason`` and, when
+        stored, ``target_relative_error``.
+
+    Returns
+    -------
+    list of str
+        One sentence per shortfall: a held-out coverage of the 95 % interval below
+        :data:`MIN_COVERAGE`, or a held-out median (95th-percentile) relative error above the
+        target (:data:`surrogate.sampling.TAIL_FACTOR` times it); empty when none.
+
+    Examples
+    --------
+    >>> quality_warnings({"metrics": {"coverage_95": 0.85, "median_relative_error": 1e-4,
+    ...                               "p95_relative_error": 1e-3, "n_test": 1000},
+    ...                   "target_relative_error": 1e-3, "stop_reason": "budget_exhausted"})[0][:57]
+    'the 95 % intervals covered 85.0 % of 1000 held-out points'
+    """
+    metrics, warnings = result["metrics"], []
+    coverage = metrics.get("coverage_95")
+    if coverage is not None and coverage < MIN_COVERAGE:
+        warnings.append(f"the 95 % intervals covered {100 * coverage:.1f} % of {metrics['n_test']} held-out "
+                        f"points (below {100 * MIN_COVERAGE:.0f} %): they are too narrow here; widen them "
+                        f"or retrain with a larger budget")
+    target = result.get("target_relative_error")
+    median, tail = metrics.get("median_relative_error"), metrics.get("p95_relative_error")
+    if target is not None and median is not None and (
+            median > target or tail > surrogate.sampling.TAIL_FACTOR * target):
+        why = ("although the stop rule judged it reached" if result.get("stop_reason") == "target_reached"
+               else "the budget ran out first")
+        warnings.append(f"held-out relative error of mu: median {median:.3g}, 95th percentile {tail:.3g}, "
+                        f"short of the target {target:g} (median) and {surrogate.sampling.TAIL_FACTOR:g} x "
+                        f"it (95th percentile): {why}")
+    return warnings
+
+
+def _warnings(result: Mapping[str, Any]) -> list[str]:
+    # Compared with the running version on every view: the service may have been upgraded since.
+    version = version_warning(result.get("package_version"))
+    return quality_warnings(result) + ([] if version is None else [version])
+
+
 def _view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:
     result = metadata["result"]
-    # Compared with the running version on every view: the service may have been upgraded since.
-    warning = version_warning(result.get("package_version"))
     # Surrogates stored before models other than the physics could be learned lack model and conditions.
     return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, "model": "physics", "conditions": {},
-            **result, "warnings": [] if warning is None else [warning]}
+            **result, "warnings": _warnings(result)}
 
 
 def _stored(store: Store, surrogate_id: str):
@@ -234,6 +287,40 @@ def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Model:
         422 for a malformed reference, 404 for an unknown surrogate.
     """
     return resolve(store, model, pointer, kinds=("surrogate",))
+
+
+def load_source_model(store: Store, model: str, pointer: str = "/model") -> tuple[MuModel, str]:
+    """The model a ``"surrogate:<id>"`` stands for, to verify what is found on the surrogate.
+
+    Parameters
+    ----------
+    store : Store
+        Where surrogates and calibrations are kept.
+    model : str
+        ``"surrogate:<id>"``.
+    pointer : str
+        JSON pointer of the reference in the request, for errors.
+
+    Returns
+    -------
+    mu_model : callable
+        ``points -> mu`` [1] of the physics (the surrogate's convention) or of the calibrated model
+        it learned, with the conditions it was trained at.
+    name : str
+        ``"physics"`` or ``"calibrated:<id>"``.
+
+    Raises
+    ------
+    ProblemError
+        422 for a malformed reference; 404 for an unknown surrogate, or when the calibrated model
+        it learned has been deleted.
+    """
+    surrogate = resolve(store, model, pointer, kinds=("surrogate",))
+    result = _stored(store, surrogate.reference.removeprefix(MODEL_PREFIX)).metadata["result"]
+    source = result.get("model", "physics")
+    if source == "physics":
+        return physics_model(result["convention"]), source
+    return with_conditions(load_calibrated_model(store, source), source, result.get("conditions")), source
 
 
 @router.post("", operation_id="create_surrogate", status_code=202,
@@ -287,15 +374,21 @@ def delete_surrogate(surrogate_id: str, store: StoreDep) -> Response:
              responses=problem_responses(404))
 def predict_surrogate(surrogate_id: str, body: PredictRequest, store: StoreDep) -> JSONResponse:
     """Predicted mu with its 95 % interval at columnar points, flagging points outside the space."""
+    result = _stored(store, surrogate_id).metadata["result"]
     model = load_surrogate(store, surrogate_id)
     points = body.points.model_dump(exclude_none=True)
     try:
         prediction = model.predict_points(points)
     except ValueError as exc:
         raise validation_problem([{"pointer": "/points", "detail": str(exc)}]) from None
+    outside = int(np.count_nonzero(prediction.outside_space))
+    extrapolated = [] if not outside else [
+        f"{outside} of {prediction.outside_space.size} points lie outside the trained space: their "
+        f"intervals do not apply"]
     return JSONResponse({"mu": prediction.mu.tolist(), "mu_lower": prediction.mu_lower.tolist(),
                          "mu_upper": prediction.mu_upper.tolist(),
-                         "outside_space": prediction.outside_space.tolist()})
+                         "outside_space": prediction.outside_space.tolist(),
+                         "warnings": _warnings(result) + extrapolated})
 
 
 @router.get("/{surrogate_id}/sensitivity", operation_id="get_surrogate_sensitivity",
@@ -305,15 +398,19 @@ def get_surrogate_sensitivity(
     n: Annotated[int, Query(ge=_SENSITIVITY_N[0], le=_SENSITIVITY_N[1],
                             description="Base sample size, a power of 2 [1].")] = 4096,
 ) -> JSONResponse:
-    """First-order and total Sobol' indices of mu over the space, computed on the surrogate."""
+    """First-order and total Sobol' indices of mu over the space, computed on the surrogate.
+
+    Each index comes with its 95 % bootstrap confidence interval (the sampling error of the
+    estimator on the surrogate, not the surrogate's own error).
+    """
     if n & (n - 1):
         raise validation_problem([{"parameter": "n", "detail": f"n must be a power of 2; got {n}"}])
     model = load_surrogate(store, surrogate_id)
-    indices = surrogate.sobol_indices(model.predict, model.space, n=n, seed=0)
+    indices = surrogate.sobol_indices(model.predict, model.space, n=n, seed=0).to_dict()
     return JSONResponse({
-        "first_order": {k: float(v) for k, v in zip(indices.names, indices.first_order, strict=True)},
-        "total_order": {k: float(v) for k, v in zip(indices.names, indices.total_order, strict=True)},
-        "n": n,
+        **{key: indices[key] for key in ("first_order", "total_order", "first_order_interval",
+                                         "total_order_interval")},
+        "confidence_level": 0.95, "n": n,
         "distribution": "independent inputs, uniform in the design's unit cube (log-uniform on "
                         "log-scaled dimensions, integers rounded)",
     })

@@ -129,7 +129,14 @@ class ConstraintStatus(ResponseModel):
                                      "[1 (balls), deg, N, Pa or m].")
     sense: Literal["<=", ">="] = Field(description="value <= limit or value >= limit.")
     active: bool = Field(description="Whether the design sits on it (within 1e-5 relative).")
-    satisfied: bool = Field(description="Whether the exact value meets it.")
+    satisfied: bool = Field(description="Whether value meets it.")
+    decided_by: str = Field(default="physics", description=(
+        "The model whose value decided satisfied: physics for the bounds and the limits that do not "
+        "depend on mu; for max_friction_force_N the model judging mu (a surrogate's source model, "
+        "physics or calibrated:<id>, when the design was verified; else the model optimized)."))
+    value_model: float | None = Field(default=None, description=(
+        "For a surrogate, the quantity under the surrogate (its friction force mu G; the other limits "
+        "repeat value), in the unit its name ends with [1 (balls), deg, N, Pa or m]; null otherwise."))
 
 
 class BallCountRow(ResponseModel):
@@ -179,6 +186,24 @@ class ParetoFront(ResponseModel):
     plot_url: str | None = Field(default=None, description="Path of the plot as PNG.")
 
 
+class Verification(ResponseModel):
+    """A design found on a surrogate, checked by the model it stands for."""
+
+    source_model: str = Field(description="physics or calibrated:<id>.")
+    model: str = Field(description="The surrogate optimized (surrogate:<id>).")
+    mu_model: float = Field(description="mu of the surrogate at the design [1].")
+    mu_source: float = Field(description="mu of the source model at the design [1].")
+    speed_m_s_source: float = Field(description="Speed of the source's worst case [m/s].")
+    relative_difference: float = Field(description="mu_model / mu_source - 1 [1].")
+    friction_force_N_model: float = Field(description="Friction force mu G under the surrogate [N].")
+    friction_force_N_source: float = Field(description="Friction force mu G under the source model [N].")
+    friction_force_ratio: float = Field(description="friction_force_N_source / friction_force_N_model [1].")
+    violated: list[str] = Field(description="Limits the source model breaks at the design (empty when none).")
+    satisfied: bool = Field(description="Whether the source model meets every limit at the design.")
+    resolves: int = Field(description="Re-solves with max_friction_force_N tightened by the ratio of the two "
+                                      "friction forces (and a 1e-3 margin) after the source broke it [1].")
+
+
 class OptimizationResult(ResponseModel):
     """The best design, checked with the exact physics, and why it is the best."""
 
@@ -189,8 +214,15 @@ class OptimizationResult(ResponseModel):
     mu: float = Field(description="mu of the model at the design (the exact physics for model physics) [1].")
     mu_solver: float = Field(description="The solver's value of mu [1].")
     relative_gap: float = Field(description="mu_solver / mu - 1 [1].")
-    mu_physics: float | None = Field(default=None, description="The exact physics at the design, for other "
-                                     "models [1].")
+    mu_physics: float | None = Field(default=None, description="The exact physics at the design (equal to mu "
+                                     "for model physics) [1].")
+    source_model: str | None = Field(default=None, description=(
+        "For a surrogate: the model it stands for (physics or calibrated:<id>), which verified the design "
+        "and judged every limit; null otherwise."))
+    mu_source: float | None = Field(default=None, description=(
+        "For a surrogate: mu of its source model at the design (worst case over the speeds) [1]."))
+    verification: Verification | None = Field(default=None, description=(
+        "For a surrogate: the design checked by its source model."))
     speed_m_s: float = Field(description="Speed designed for: the worst case of a range (its high end for "
                              "model physics, the worst speed of the grid for other models) [m/s].")
     constraints: list[ConstraintStatus] = Field(description="Every bound and limit at the design.")

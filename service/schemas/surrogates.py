@@ -132,9 +132,24 @@ class SurrogateResult(ResponseModel):
     conditions: dict[str, float] = Field(default_factory=dict, description=(
         "Condition columns of a calibrated model, as trained on [their units]."))
     package_version: str = Field(description="microbearing version trained with.")
+    variance_calibration: str | None = Field(default=None, description=(
+        "How the 95 % intervals were calibrated on the training evaluations: kfold (5 folds, the "
+        "Gaussian process refitted without each; below 10 evaluations per feature) or loo (closed-form "
+        "leave-one-out errors at the space-filling starting design); null for surrogates stored before "
+        "it was recorded."))
+    std_scale: float | None = Field(default=None, description=(
+        "Factor applied to the Gaussian process's own standard deviation of log mu: the root mean square "
+        "of the standardized cross-validation errors [1]."))
+    calibration_points: int | None = Field(default=None, description=(
+        "Training evaluations whose cross-validation errors set std_scale [1]."))
+    target_relative_error: float | None = Field(default=None, description=(
+        "The target median relative error of mu the training aimed at (null for surrogates stored before "
+        "it was recorded) [1]."))
     warnings: list[str] = Field(default_factory=list, description=(
-        "Reasons to distrust the stored figures, e.g. a package_version other than the running one "
-        "(the physics may have changed since: retrain)."))
+        "Where the surrogate falls short of what it promises, measured on its held-out points: coverage "
+        "of the 95 % interval below 90 %, median (95th-percentile) relative error above the target (5 "
+        "times it); and other reasons to distrust the stored figures, e.g. a package_version other than "
+        "the running one (the physics may have changed since: retrain). Empty when none."))
     created_at: str = Field(description="Creation time, ISO 8601 UTC.")
 
 
@@ -166,6 +181,10 @@ class PredictResponse(ResponseModel):
     mu_upper: list[float] = Field(description="Upper end of the 95 % interval [1].")
     outside_space: list[bool] = Field(
         description="True where the point leaves the trained space (the interval then does not apply).")
+    warnings: list[str] = Field(default_factory=list, description=(
+        "The surrogate's own warnings (see GET /v1/surrogates/{id}: held-out coverage or error short of "
+        "what it promises, another package version) and a count of the points outside the space; empty "
+        "when none."))
 
 
 class SensitivityResponse(ResponseModel):
@@ -173,5 +192,11 @@ class SensitivityResponse(ResponseModel):
 
     first_order: dict[str, float] = Field(description="Variance share of each input alone [1].")
     total_order: dict[str, float] = Field(description="Variance share involving each input [1].")
+    first_order_interval: dict[str, list[float]] = Field(description=(
+        "95 % bootstrap confidence interval [low, high] of each first-order index (scipy's "
+        "sobol_indices(...).bootstrap(), 999 resamples of the evaluations) [1]."))
+    total_order_interval: dict[str, list[float]] = Field(description=(
+        "95 % bootstrap confidence interval [low, high] of each total index [1]."))
+    confidence_level: float = Field(description="Confidence level of the intervals [1].")
     n: int = Field(description="Base sample size; n (d + 2) surrogate evaluations [1].")
     distribution: str = Field(description="Input distribution the indices refer to.")
