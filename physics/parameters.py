@@ -144,7 +144,8 @@ PARAMETERS: dict[str, Parameter] = {
         Parameter(
             "balls_touching", "", "1",
             "Whether neighbouring balls touch, adding the ball-ball capillary "
-            "friction moment of eq 17.",
+            "friction moment of eq 17. A single ball (balls = 1) has no neighbour: "
+            "it gets no ball-ball force or moment either way.",
             default=False, kind="bool",
         ),
         Parameter(
@@ -230,6 +231,26 @@ def _array_text(values: np.ndarray, mask: np.ndarray) -> str:
     return f"got {shown!r} at index {index}"
 
 
+def _short_repr(value: Any, limit: int = 80) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}..."
+
+
+def _not_of_kind_text(given: np.ndarray, kind: str) -> str:
+    """'got X (a str, not a number) at index i' for the first element of ``given`` that is not ``kind``."""
+    flat = given.reshape(-1)
+    if given.dtype == object:
+        boolean = kind == "a boolean"
+        index = next((i for i, item in enumerate(flat)
+                      if isinstance(item, bool) != boolean or not isinstance(item, int | float)), 0)
+    else:
+        index = 0
+    item = flat[index] if flat.size else given
+    item = item.item() if isinstance(item, np.generic | np.ndarray) else item
+    what = "None (no value)" if item is None else f"{_short_repr(item)} ({type(item).__name__}, not {kind})"
+    return f"got {what}" + (f" at index {index}" if given.ndim else "")
+
+
 def _all_whole(values: np.ndarray, chunk: int = 65536) -> bool:
     """Whether every value is a whole number, chunk by chunk (no array-sized temporaries)."""
     flat = values.reshape(-1)
@@ -276,17 +297,21 @@ def validate(name: str, value: Any) -> np.ndarray:
     if type(value) in (float, int) and spec.kind != "bool" and spec.accepts(value):
         return np.asarray(value, dtype=np.float64)
     allowed = f"{spec.name} must be {spec.range_text()} [{spec.unit}]"
-    if spec.kind == "bool":
-        arr = np.asarray(value)
-        if arr.dtype != np.bool_:
-            raise ValueError(f"{allowed}; got {value!r}")
-        return arr
+    if value is None:
+        raise ValueError(f"{allowed}; got None (no value)")
     try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{allowed}; got {value!r}") from None
-    if np.asarray(value).dtype == np.bool_:
-        raise ValueError(f"{allowed}; got a boolean {value!r}")
+        given = np.asarray(value)
+    except (TypeError, ValueError):  # ragged nesting
+        raise ValueError(f"{allowed}; got {_short_repr(value)}") from None
+    if spec.kind == "bool":
+        if given.dtype != np.bool_:
+            raise ValueError(f"{allowed}; {_not_of_kind_text(given, 'a boolean')}")
+        return given
+    if given.dtype == np.bool_:
+        raise ValueError(f"{allowed}; got a boolean {_short_repr(value)}")
+    if given.dtype.kind not in "iuf":  # strings, None among numbers, complex: never read as numbers
+        raise ValueError(f"{allowed}; {_not_of_kind_text(given, 'a number')}")
+    arr = given.astype(np.float64, copy=False)
     if arr.size and spec.accepts(float(arr.min())) and spec.accepts(float(arr.max())) and (
             spec.kind != "int" or _all_whole(arr)):
         # Fast path for large arrays: two reductions, no temporaries (min and max are NaN if any is).
@@ -316,6 +341,8 @@ def defaults() -> dict[str, float | bool]:
 
 _DEFAULTS = {n: p.default for n, p in PARAMETERS.items() if p.default is not None}
 _REQUIRED = frozenset(n for n, p in PARAMETERS.items() if p.default is None)
+#: The defaults, validated once: Python floats and bools, as :func:`checked_inputs` returns scalars.
+_CHECKED_DEFAULTS = {n: validate(n, v).item() for n, v in _DEFAULTS.items()}
 
 
 def validate_all(params: dict[str, Any]) -> dict[str, np.ndarray]:
@@ -357,10 +384,9 @@ def checked_inputs(params: dict[str, Any]) -> tuple[dict[str, float | bool | np.
     if not _REQUIRED <= params.keys():
         missing = [n for n in PARAMETERS if n in _REQUIRED and n not in params]
         raise ValueError(f"missing required parameter(s): {', '.join(missing)}")
-    merged = {**_DEFAULTS, **params}
-    checked: dict[str, float | bool | np.ndarray] = {}
-    for name, spec in PARAMETERS.items():
-        value = merged[name]
+    checked: dict[str, float | bool | np.ndarray] = dict(_CHECKED_DEFAULTS)
+    for name, value in params.items():
+        spec = PARAMETERS[name]
         kind = type(value)
         if kind is bool and spec.kind == "bool":
             checked[name] = value
