@@ -20,6 +20,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+import operator
 import os
 from collections.abc import Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -442,7 +443,7 @@ class FrictionResult:
     def to_dict(self, outputs=None) -> dict[str, np.ndarray]:
         """The outputs as a dict of arrays: those named, or every one computed."""
         if outputs is None:
-            return {name: getattr(self, name) for name in OUTPUTS if getattr(self, name) is not None}
+            return {name: value for name in OUTPUTS if (value := getattr(self, name)) is not None}
         values = {name: getattr(self, name) for name in _output_names(outputs)}
         missing = [name for name, value in values.items() if value is None]
         if missing:
@@ -639,6 +640,9 @@ _COEFFICIENT_INPUTS = ("ball_diameter_m", "ball_youngs_modulus_Pa", "ball_poisso
                        "pressure_viscosity_1_Pa", "water_surface_tension_N_m")
 
 
+_coefficient_inputs = operator.itemgetter(*_COEFFICIENT_INPUTS)
+
+
 def _coefficients(p: dict[str, Any], convention: str) -> dict[str, Any]:
     """Factors of :func:`_kernel` that depend on the ball, the materials and the film only.
 
@@ -646,8 +650,8 @@ def _coefficients(p: dict[str, Any], convention: str) -> dict[str, Any]:
     Power laws are split into a coefficient, taken from the equation's own
     function at unit argument, and the power of the varying quantity.
     """
-    values = tuple(p[name] for name in _COEFFICIENT_INPUTS)
-    if all(isinstance(v, float) for v in values):
+    values = _coefficient_inputs(p)
+    if all(type(v) is float for v in values):
         return _scalar_coefficients(values, convention)
     return _coefficients_of(dict(zip(_COEFFICIENT_INPUTS, values, strict=True)), convention)
 

@@ -18,7 +18,9 @@ checks at every corner of the box.
 
 from __future__ import annotations
 
+import functools
 import math
+import sys
 from dataclasses import dataclass
 from typing import Any
 
@@ -75,19 +77,23 @@ class Parameter:
         """True for design and operating inputs that have no default."""
         return self.default is None
 
+    @functools.cached_property
+    def closed_range(self) -> tuple[float, float]:
+        """The allowed range as closed finite bounds: an excluded bound moved to the next float."""
+        if self.kind == "bool":
+            return math.inf, -math.inf  # no number is a boolean
+        low = -sys.float_info.max if self.minimum is None else float(self.minimum)
+        high = sys.float_info.max if self.maximum is None else float(self.maximum)
+        return (math.nextafter(low, math.inf) if self.exclusive_minimum else low,
+                math.nextafter(high, -math.inf) if self.exclusive_maximum else high)
+
     def accepts(self, value: float) -> bool:
-        """Whether a plain Python number lies in the allowed range (scalar fast path)."""
-        if not math.isfinite(value):
-            return False
-        if self.minimum is not None and (
-            value <= self.minimum if self.exclusive_minimum else value < self.minimum
-        ):
-            return False
-        if self.maximum is not None and (
-            value >= self.maximum if self.exclusive_maximum else value > self.maximum
-        ):
-            return False
-        return self.kind != "int" or value == round(value)
+        """Whether a plain Python number lies in the allowed range (scalar fast path).
+
+        NaN and infinities fail the comparison with the finite bounds.
+        """
+        low, high = self.closed_range
+        return low <= value <= high and (self.kind != "int" or value == round(value))
 
     def range_text(self) -> str:
         """The allowed range in words, e.g. ``"> 0"`` or ``"in (0, 90)"``."""
@@ -385,17 +391,19 @@ def checked_inputs(params: dict[str, Any]) -> tuple[dict[str, float | bool | np.
         missing = [n for n in PARAMETERS if n in _REQUIRED and n not in params]
         raise ValueError(f"missing required parameter(s): {', '.join(missing)}")
     checked: dict[str, float | bool | np.ndarray] = dict(_CHECKED_DEFAULTS)
+    shapes: set[tuple[int, ...]] = set()
     for name, value in params.items():
         spec = PARAMETERS[name]
         kind = type(value)
         if kind is bool and spec.kind == "bool":
             checked[name] = value
-        elif (kind is float or kind is int) and spec.kind != "bool" and spec.accepts(value):
+        elif (kind is float or kind is int) and spec.accepts(value):  # a boolean parameter accepts no number
             checked[name] = float(value)
         else:
             array = validate(name, value)
             checked[name] = array.item() if array.ndim == 0 else array
-    shapes = {a.shape for a in checked.values() if isinstance(a, np.ndarray)}
+            if array.ndim:
+                shapes.add(array.shape)
     if len(shapes) <= 1:
         return checked, shapes.pop() if shapes else ()
     try:
