@@ -530,7 +530,7 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     _no_lone_ball_touching(p)
     if not shape:  # one point: the same operations on Python floats, without numpy's per-call overhead
         p.update(_coefficients(p, convention))
-        values = _kernel(p, _NO_BUFFERS, None, None, None, None, _PointOps)
+        values = _kernel(p, _NO_BUFFERS, None, None, None, None, _PointOps, not _EXTRAS.isdisjoint(wanted))
         return FrictionResult._of_point(values, wanted, convention)
     size = math.prod(shape)
     flat = {k: np.broadcast_to(v, shape).reshape(-1) if isinstance(v, np.ndarray) else v
@@ -553,6 +553,10 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     values = dict(zip(wanted, kept.reshape(len(wanted), *shape), strict=True))
     return FrictionResult(**{k: values.get(k) for k in OUTPUTS}, convention=convention)
 
+
+#: Outputs that no other output needs: :func:`_kernel` skips them when none is asked for.
+_EXTRAS = frozenset({"contact_area_m2", "max_contact_pressure_Pa", "pressure_force_N", "mu_contact",
+                     "mu_pivoting", "mu_hysteresis", "mu_rolling", "mu_ball_ball"})
 
 #: The output buffers of a one-point :func:`_kernel` call: none, it returns Python floats.
 _NO_BUFFERS = dict.fromkeys(OUTPUTS)
@@ -619,6 +623,7 @@ def _run_blocks(arrays: dict[str, np.ndarray], scalars: dict[str, Any], kept: di
     run in parallel threads.
     """
     b = dict(scalars)
+    extras = not _EXTRAS.isdisjoint(kept)
     scratch = np.empty((len(others), block_size))
     all_work = np.empty((4, block_size))
     o = dict(zip(others, scratch, strict=True))
@@ -631,7 +636,7 @@ def _run_blocks(arrays: dict[str, np.ndarray], scalars: dict[str, Any], kept: di
                 work = all_work[:, :stop - start]
             b.update((k, v[start:stop]) for k, v in arrays.items())
             o.update((k, row[start:stop]) for k, row in kept.items())
-            _kernel(b, o, *work)
+            _kernel(b, o, *work, _ArrayOps, extras)
 
 
 #: The inputs of :func:`_coefficients`: the ball, the materials and the film.
@@ -751,7 +756,7 @@ def _log_or_minus_infinity(value):
 
 
 def _kernel(b: dict[str, Any], o: dict[str, Any], tan: Any, sec: Any, w1: Any, w2: Any,
-            f: type = _ArrayOps) -> dict[str, Any]:
+            f: type = _ArrayOps, extras: bool = True) -> dict[str, Any]:
     """Every output of one block (or one point) by the operations ``f``.
 
     With :class:`_ArrayOps`, ``b`` holds the inputs and :func:`_coefficients` of
@@ -760,7 +765,9 @@ def _kernel(b: dict[str, Any], o: dict[str, Any], tan: Any, sec: Any, w1: Any, w
     allocated here, as on large inputs fresh memory costs more than the
     arithmetic. With :class:`_PointOps`, ``b`` holds Python floats and the
     buffers are ignored. Both run the same operations in the same order and
-    return the outputs by name.
+    return the outputs by name. ``extras=False`` leaves out the outputs of
+    :data:`_EXTRAS`, which no other output needs (their rows are then not
+    written).
     """
     multiply, add, divide, square, sqrt = f.multiply, f.add, f.divide, f.square, f.sqrt
     # Groove geometry: tan in one vectorized pass (numpy's float64 cos is ~9x slower), sec from it.
@@ -774,18 +781,14 @@ def _kernel(b: dict[str, Any], o: dict[str, Any], tan: Any, sec: Any, w1: Any, w
     w1 = sqrt(multiply(add(q0, adhesion, w1), adhesion, w1), w1)
     q = add(w1, adhesion, o["contact_load_adhesive_N"])
     q = add(multiply(q, 2.0, q), q0, q)
-    # Eq 3: a = (R Q / E*)^(1/3); contact area π a²; peak pressure 3 Q / (2 π a²).
+    # Eq 3: a = (R Q / E*)^(1/3).
     a = f.cbrt(multiply(q, b["radius_over_e_star"], o["contact_radius_m"]), o["contact_radius_m"])
-    area = multiply(square(a, o["contact_area_m2"]), np.pi, o["contact_area_m2"])
-    pressure = divide(q, area, o["max_contact_pressure_Pa"])
-    pressure = multiply(pressure, 1.5, pressure)
     # Eq 9: F_R = coefficient V^0.66 Q^0.47, and eq 15: M_ER = coefficient Q^1.33, as exponentials
     # of logarithms (a power costs a log and an exp; log Q serves both; V = 0 gives exp(-inf) = 0).
     log_q = f.log(q, w1)
     log_speed = multiply(f.log(b["speed_m_s"], w2), lubrication.SPEED_EXPONENT, w2)
     f_r = multiply(log_q, lubrication.LOAD_EXPONENT, o["rolling_force_N"])
     f_r = f.exp(add(add(f_r, log_speed, f_r), b["log_rolling"], f_r), f_r)
-    pressure_force = multiply(f_r, b["pressure_per_rolling"], o["pressure_force_N"])  # eq 13
     m_er = multiply(log_q, moments.HYSTERESIS_LOAD_EXPONENT, o["hysteresis_moment_Nm"])
     m_er = f.exp(add(m_er, b["log_hysteresis"], m_er), m_er)
     # Eqs 16-17: pivoting (3/8) μs Q a and ball-ball μb F_cb d moments.
@@ -803,25 +806,31 @@ def _kernel(b: dict[str, Any], o: dict[str, Any], tan: Any, sec: Any, w1: Any, w
     mu_hysteresis = multiply(m_er, b["two_over_d"], o["mu_hysteresis"])
     f_s = add(mu_ball_ball, mu_pivoting, o["sliding_force_N"])
     f_s = add(add(f_s, mu_hysteresis, f_s), f_r, f_s)
-    mu_rolling = multiply(f_r, 2.0, o["mu_rolling"])
-    # Eqs 21-23: F_ballrace = 2 (F_S + F_R), F_total = z F_ballrace, μ = F_total / G;
-    # per contact F_ballrace / (2 Q0) = μ cos θ.
+    # Eqs 21-23: F_ballrace = 2 (F_S + F_R), F_total = z F_ballrace, μ = F_total / G.
     ball_race = add(f_s, f_r, o["ball_race_force_N"])
     ball_race = multiply(ball_race, 2.0, ball_race)
     total = multiply(ball_race, b["balls"], o["friction_force_N"])
     mu = divide(total, b["load_N"], o["mu"])
-    mu_contact = divide(mu, sec, o["mu_contact"])
+    values = {
+        "mu": mu, "friction_force_N": total, "contact_load_N": q0, "contact_load_adhesive_N": q,
+        "contact_radius_m": a, "adhesion_force_N": adhesion, "capillary_force_ball_ball_N": capillary,
+        "rolling_force_N": f_r, "sliding_force_N": f_s, "hysteresis_moment_Nm": m_er,
+        "pivoting_moment_Nm": m_p, "ball_ball_moment_Nm": m_b, "ball_race_force_N": ball_race,
+    }
+    if not extras:
+        return values
+    # What nothing above needs. Contact area π a² and peak pressure 3 Q / (2 π a²) (eq 3), F_P (eq 13),
+    # the per-contact F_ballrace / (2 Q0) = μ cos θ, and the breakdown of μ: each term of F_S times 2 z / G.
+    area = multiply(square(a, o["contact_area_m2"]), np.pi, o["contact_area_m2"])
+    pressure = divide(q, area, o["max_contact_pressure_Pa"])
     per_newton = multiply(divide(b["balls"], b["load_N"], w2), 2.0, w2)
+    mu_rolling = multiply(f_r, 2.0, o["mu_rolling"])
     return {
-        "mu": mu, "mu_contact": mu_contact, "friction_force_N": total,
+        **values, "contact_area_m2": area, "max_contact_pressure_Pa": multiply(pressure, 1.5, pressure),
+        "pressure_force_N": multiply(f_r, b["pressure_per_rolling"], o["pressure_force_N"]),
+        "mu_contact": divide(mu, sec, o["mu_contact"]),
         "mu_pivoting": multiply(mu_pivoting, per_newton, mu_pivoting),
         "mu_hysteresis": multiply(mu_hysteresis, per_newton, mu_hysteresis),
         "mu_rolling": multiply(mu_rolling, per_newton, mu_rolling),
         "mu_ball_ball": multiply(mu_ball_ball, per_newton, mu_ball_ball),
-        "contact_load_N": q0, "contact_load_adhesive_N": q, "contact_radius_m": a, "contact_area_m2": area,
-        "max_contact_pressure_Pa": pressure, "adhesion_force_N": adhesion,
-        "capillary_force_ball_ball_N": capillary,
-        "rolling_force_N": f_r, "pressure_force_N": pressure_force, "sliding_force_N": f_s,
-        "hysteresis_moment_Nm": m_er, "pivoting_moment_Nm": m_p, "ball_ball_moment_Nm": m_b,
-        "ball_race_force_N": ball_race,
     }

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from test_physics_evaluate import _random_inputs
 
 import physics
 from physics import OUTPUTS, bearing, evaluate
@@ -90,8 +91,6 @@ def test_max_contact_pressure_is_the_hertz_peak_of_the_adhesive_load():
 def test_one_point_reproduces_its_value_in_an_array_bit_for_bit(convention):
     # A one-point call runs the kernel on Python floats; an array call runs numpy's loops. Every
     # input varied over (most of) its range, zero speeds, viscosities and adhesion included.
-    from test_physics_evaluate import _random_inputs
-
     n = 1500
     params = _random_inputs(n, seed=21)
     whole = evaluate(convention=convention, **params).to_dict()
@@ -100,3 +99,17 @@ def test_one_point_reproduces_its_value_in_an_array_bit_for_bit(convention):
         for name in OUTPUTS:
             value = getattr(point, name)
             assert isinstance(value, np.float64) and value == whole[name][i], (i, name)
+
+
+@pytest.mark.parametrize("n", [None, 3 * bearing._BLOCK_POINTS + 5])
+def test_outputs_that_skip_the_extras_keep_their_bits(n):
+    # Asking only for outputs that others need (mu, forces, moments) skips the rest of the kernel;
+    # what is returned is what a call with every output returns. n None: one scalar point.
+    params = _random_inputs(1 if n is None else n, seed=23)
+    if n is None:
+        params = {k: v[0].item() for k, v in params.items()}
+    core = ["mu", "friction_force_N", "contact_radius_m", "sliding_force_N", "ball_ball_moment_Nm"]
+    some, full = evaluate(outputs=core, **params), evaluate(**params)
+    for name in core:
+        np.testing.assert_array_equal(getattr(some, name), getattr(full, name), err_msg=name)
+    assert some.mu_contact is None and some.max_contact_pressure_Pa is None
