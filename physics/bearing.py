@@ -384,7 +384,7 @@ OUTPUTS: dict[str, tuple[str, str]] = {
                                 "is not Hertzian: it turns tensile at the edge)."),
     "adhesion_force_N": ("N", "JKR pull-off force 3 pi gamma R of a ball on a flank (eq 1)."),
     "capillary_force_ball_ball_N": ("N", "Capillary force between touching balls, 4 pi gamma_w R* "
-                                    "(eqs 5-6); 0 when balls do not touch or there is a single ball."),
+                                    "(eqs 5-6); 0 when balls do not touch."),
     "rolling_force_N": ("N", "Houpert hydrodynamic rolling force F_R of one contact (eq 9)."),
     "pressure_force_N": ("N", "Pressure force F_P = 2 F_R on the ball centre (eq 13)."),
     "sliding_force_N": ("N", "Sliding traction F_S of one contact from the ball balance (eq 20)."),
@@ -497,8 +497,7 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     -----
     Per contact: Q0 (eq 7), Q (eq 8), a (eq 3), F_R with E', Rx = R, k = 1,
     v = V/2 (eqs 9-12), F_P = 2 F_R (eq 13), M_ER (eq 15) and M_P (eq 16) with
-    Q; per ball M_b (eq 17) with F_cb from eqs 5-6 when balls touch (never for
-    ``balls=1``: a single ball has no neighbour). Then F_S
+    Q; per ball M_b (eq 17) with F_cb from eqs 5-6 when balls touch. Then F_S
     (eq 20), F_ballrace (eq 21), F_total (eq 22) and μ (eq 23). Speed enters
     only through F_R.
 
@@ -533,7 +532,6 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     _checked_convention(convention)
     p, shape = checked_inputs(params)  # scalars as Python numbers: their products fold before arrays
     wanted = list(OUTPUTS) if outputs is None else _output_names(outputs)
-    _no_lone_ball_touching(p)
     if not shape:  # one point: the same operations on Python floats, without numpy's per-call overhead
         p.update(_coefficients(p, convention))
         values = _kernel(p, _NO_BUFFERS, None, None, None, None, _PointOps, not _EXTRAS.isdisjoint(wanted))
@@ -566,19 +564,6 @@ _EXTRAS = frozenset({"contact_area_m2", "max_contact_pressure_Pa", "pressure_for
 
 #: The output buffers of a one-point :func:`_kernel` call: none, it returns Python floats.
 _NO_BUFFERS = dict.fromkeys(OUTPUTS)
-
-
-def _no_lone_ball_touching(p: dict[str, Any]) -> None:
-    """A single ball has no neighbour: ``balls_touching`` is false wherever ``balls`` is 1, in place.
-
-    So one ball gets no ball-ball capillary force and no ball-ball moment (eqs 5-6,
-    17), whatever ``balls_touching`` says; only the points with ``balls == 1`` change.
-    """
-    touching, balls = p["balls_touching"], p["balls"]
-    if isinstance(touching, bool) and isinstance(balls, float):
-        p["balls_touching"] = touching and balls != 1.0
-    elif np.any(touching) and np.min(balls) == 1.0:
-        p["balls_touching"] = np.logical_and(touching, np.not_equal(balls, 1.0))
 
 
 def _output_names(outputs: Iterable[str]) -> list[str]:

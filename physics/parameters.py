@@ -150,8 +150,7 @@ PARAMETERS: dict[str, Parameter] = {
         Parameter(
             "balls_touching", "", "1",
             "Whether neighbouring balls touch, adding the ball-ball capillary "
-            "friction moment of eq 17. A single ball (balls = 1) has no neighbour: "
-            "it gets no ball-ball force or moment either way.",
+            "friction moment of eq 17.",
             default=False, kind="bool",
         ),
         Parameter(

@@ -38,21 +38,6 @@ def test_none_for_an_optional_parameter_is_refused_too():
         evaluate(**BASE, balls_touching=None)
 
 
-def test_a_single_ball_has_no_neighbour_and_no_ball_ball_moment():
-    lone = {**BASE, "balls": 1}
-    touching, apart = evaluate(**lone, balls_touching=True), evaluate(**lone, balls_touching=False)
-    assert touching.ball_ball_moment_Nm == 0.0 and touching.capillary_force_ball_ball_N == 0.0
-    assert touching.mu_ball_ball == 0.0
-    assert touching.to_dict() == pytest.approx(apart.to_dict(), rel=0, abs=0)
-    # in arrays only the single balls change; two balls touching keep their moment
-    row = evaluate(**{**BASE, "balls": [1.0, 2.0, 1.0]}, balls_touching=[True, True, False])
-    np.testing.assert_array_equal(row.mu_ball_ball == 0, [True, False, True])
-    assert row.mu[0] == touching.mu
-    assert row.mu[1] == evaluate(**{**BASE, "balls": 2}, balls_touching=True).mu
-    large = evaluate(**{**BASE, "balls": np.tile([1.0, 2.0], 40_000)}, balls_touching=True)
-    assert np.all(large.ball_ball_moment_Nm[0::2] == 0) and np.all(large.ball_ball_moment_Nm[1::2] > 0)
-
-
 @pytest.mark.parametrize("convention", list(physics.CONVENTIONS))
 def test_evaluate_balances_the_ball_in_its_own_convention(convention):
     # The conventions differ in the share of M_b in one contact pair's balance (eq 19): the outputs
