@@ -26,8 +26,8 @@ router = APIRouter(prefix="/v1/friction", tags=["friction"])
              responses=problem_responses(), openapi_extra=raw_json_body(FrictionRequest))
 async def evaluate_friction(request: Request) -> Response:
     """Every output of the friction model, or of a calibrated model (``model``), at one design point."""
-    # Parsed from the raw bytes, and the store looked up only for a calibrated model: a single
-    # point is dominated by per-request overhead (a dependency costs as much as the physics).
+    # Parsed from the raw bytes, and the store looked up only for a calibrated model (no dependency
+    # to resolve for a physics point): a single point is dominated by per-request overhead.
     body = await parse_json_body(request, FrictionRequest)
     if body.model != "physics":
         given = body.model_dump(exclude_unset=True, exclude={"convention", "model", "conditions"})
