@@ -6,11 +6,14 @@ a module: as a script, ``bench/physics.py`` would shadow the ``physics`` package
 Starts ``microbearing serve`` on a free loopback port with a temporary data folder, then:
 
 * single-point requests per second on ``POST /v1/friction`` against ``GET /healthz`` on the same
-  server, one keep-alive client alternating the two, request by request (target ratio >= 0.7);
+  server, one keep-alive client alternating the two, request by request (target ratio >= 0.85,
+  issue 17); min / median / max over the rounds;
 * points per second through ``POST /v1/friction/batch`` with 100,000-point requests (load and
   speed as lists, the rest scalars) against ``physics.evaluate`` on the same arrays in this
   process, with only ``mu`` returned and with every output. The request body is encoded once,
   so client-side JSON encoding is not counted; the response is received but not decoded.
+
+The machine's CPU count and load average are printed before and after.
 """
 
 from __future__ import annotations
@@ -58,8 +61,8 @@ def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
     raise RuntimeError("the server did not start")
 
 
-def single_point(client: httpx.Client, rounds: int, per_round: int) -> tuple[float, float]:
-    """Requests per second of /healthz and /v1/friction, sent alternately so both see the same load."""
+def single_point(client: httpx.Client, rounds: int, per_round: int) -> tuple[list[float], list[float]]:
+    """Requests per second of /healthz and /v1/friction per round, sent alternately (the same load)."""
     body = json.dumps(POINT).encode()
     health, friction = [], []
     for round_index in range(rounds + 1):  # the first round warms up
@@ -74,7 +77,7 @@ def single_point(client: httpx.Client, rounds: int, per_round: int) -> tuple[flo
         if round_index:
             health.append(per_round / spent["health"])
             friction.append(per_round / spent["friction"])
-    return float(np.median(health)), float(np.median(friction))
+    return health, friction
 
 
 def batch(client: httpx.Client, points: int, repeats: int, outputs: list[str] | None) -> tuple[float, float]:
@@ -102,23 +105,27 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="fewer rounds")
     args = parser.parse_args()
     rounds, per_round, repeats = (3, 100, 2) if args.quick else (7, 300, 5)
+    print(f"before: {machine()}")
     with tempfile.TemporaryDirectory(prefix="microbearing-bench-") as data_dir:
         process, url = start_server(data_dir)
         try:
             with httpx.Client(base_url=url, timeout=300) as client:
                 health, friction = single_point(client, rounds, per_round)
-                print(f"single point, one keep-alive client alternating the two, median of {rounds} rounds"
-                      f" x {per_round}")
-                print(f"  GET  /healthz       {health:8.0f} req/s")
-                print(f"  POST /v1/friction   {friction:8.0f} req/s")
-                print(f"  ratio friction / healthz: {friction / health:.2f}  (target >= 0.7)")
-                start = time.perf_counter()
-                for _ in range(per_round):
-                    physics.evaluate(**POINT)
-                cost_ms = (time.perf_counter() - start) / per_round * 1e3
-                extra_ms = 1e3 / friction - 1e3 / health
-                print(f"  friction costs {extra_ms:.2f} ms more per request than healthz; "
-                      f"physics.evaluate of one point in process takes {cost_ms:.2f} ms of it")
+                ratios = [f / h for f, h in zip(friction, health, strict=True)]
+                extra = [1e3 / f - 1e3 / h for f, h in zip(friction, health, strict=True)]
+                print(f"single point, one keep-alive client alternating the two, {rounds} rounds x "
+                      f"{per_round}; min / median / max")
+                print(f"  GET  /healthz       {spread(health, 0)} req/s")
+                print(f"  POST /v1/friction   {spread(friction, 0)} req/s")
+                print(f"  ratio friction / healthz, per round: {spread(ratios, 2)}  (target >= 0.85)")
+                costs = []
+                for _ in range(rounds):
+                    start = time.perf_counter()
+                    for _ in range(per_round):
+                        physics.evaluate(**POINT)
+                    costs.append((time.perf_counter() - start) / per_round * 1e3)
+                print(f"  friction costs {spread(extra, 3)} ms more per request than healthz; "
+                      f"physics.evaluate of one point in process takes {spread(costs, 3)} ms of it")
                 print(f"batch, 100,000 points per request, median of {repeats}")
                 for label, outputs in (("mu only", ["mu"]), ("all 21 outputs", None)):
                     api, local = batch(client, 100_000, repeats, outputs)
@@ -127,6 +134,17 @@ def main() -> None:
         finally:
             process.terminate()
             process.wait(timeout=30)
+    print(f"after:  {machine()}")
+
+
+def machine() -> str:
+    """CPU count and the 1, 5 and 15 minute load averages."""
+    return f"{os.cpu_count()} CPUs, load average {', '.join(f'{v:.2f}' for v in os.getloadavg())}"
+
+
+def spread(values: list[float], digits: int) -> str:
+    """'min / median / max' of ``values``."""
+    return " / ".join(f"{v:.{digits}f}" for v in (min(values), float(np.median(values)), max(values)))
 
 
 if __name__ == "__main__":

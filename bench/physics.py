@@ -1,21 +1,37 @@
-"""Throughput of physics.evaluate against one numpy.power pass, measured side by side.
+"""Throughput of physics.evaluate against one numpy.power pass, and the cost of one point, side by side.
 
-Run: ``python bench/physics.py [--points N] [--repeats R]``. Prints points per
-second and the ratio of the evaluation time to one ``numpy.power`` pass over
-arrays of the same size (best of R runs each, interleaved so that both see the
-same machine load), for ``physics.evaluate`` returning all 21 outputs and
-returning μ alone (``outputs=["mu"]``: the same arithmetic, one array stored),
-each on the threads a large call uses by default (the usable CPUs) and on one
-thread (``MICROBEARING_PHYSICS_THREADS=1``). Target of issue 2: ratio <= 15,
-goal <= 10.
+Run: ``python bench/physics.py [--points N] [--repeats R]`` (about 20 s with the defaults).
+
+Large calls: each repeat times, interleaved so that every case sees the same machine load,
+one ``numpy.power`` pass over N points and ``physics.evaluate`` on N random design points
+returning all 21 outputs and μ alone (``outputs=["mu"]``: the same arithmetic, one array
+stored), each on the threads a large call uses by default (the usable CPUs) and on one
+thread (``MICROBEARING_PHYSICS_THREADS=1``). Printed per case: min / median / max of the
+time over the repeats, of its ratio to the same repeat's ``numpy.power`` pass, and of the
+CPU time the process spent per wall-clock second ("cores busy": near 2 when both cores
+work); then the speed-up from the extra threads, one-thread time over default time, per
+repeat, beside that of a perfectly parallel reference (the ``numpy.power`` pass split in two
+halves on two threads): when the reference is well below 2, the machine did not give the
+process a second core, and no code can use it. Targets of issue 17: μ alone <= 8x, all
+outputs <= 12x, speed-up >= 1.6.
+
+One point: each repeat times a batch of ``physics.evaluate`` calls of one scalar point
+(every input checked against the parameter table) and a batch of one-element numpy ufunc
+calls, in wall-clock and in process CPU time (which preemption by other work does not
+inflate). Target: <= 25 us per point.
+
+The machine's CPU count and load average are printed before and after: a figure measured
+while other work ran says so.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 # Run as a script, this file's folder comes first on sys.path and its name would
@@ -28,6 +44,7 @@ import numpy as np
 import physics
 
 THREADS = physics.bearing.THREADS_VARIABLE
+POINT = {"balls": 4, "load_N": 0.008826, "speed_m_s": 0.05}
 
 
 def random_design_points(n: int, seed: int = 0) -> dict[str, np.ndarray]:
@@ -44,37 +61,90 @@ def random_design_points(n: int, seed: int = 0) -> dict[str, np.ndarray]:
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--points", type=int, default=1_000_000)
-    parser.add_argument("--repeats", type=int, default=7)
-    args = parser.parse_args()
+def machine() -> str:
+    """CPU count and the 1, 5 and 15 minute load averages."""
+    load = ", ".join(f"{value:.2f}" for value in os.getloadavg())
+    return f"{os.cpu_count()} CPUs ({physics.bearing._threads()} usable), load average {load}"
 
-    points = random_design_points(args.points)
-    base = points["load_N"]
-    physics.evaluate(**points)  # warm up
-    cases = {(outputs, threads): [] for outputs in ("all 21 outputs", "mu only") for threads in ("", "1")}
-    t_pow = []
-    for _ in range(args.repeats):
+
+def spread(values: list[float], scale: float = 1.0, digits: int = 1) -> str:
+    """'min / median / max' of ``values`` times ``scale``."""
+    summary = (min(values), statistics.median(values), max(values))
+    return " / ".join(f"{v * scale:.{digits}f}" for v in summary)
+
+
+def timed(call) -> tuple[float, float]:
+    """Wall-clock and process CPU seconds of ``call()``."""
+    cpu, start = time.process_time(), time.perf_counter()
+    call()
+    return time.perf_counter() - start, time.process_time() - cpu
+
+
+def large_calls(points: int, repeats: int) -> None:
+    inputs = random_design_points(points)
+    base = inputs["load_N"]
+    cases = {(outputs, threads): {"wall": [], "cores": []}
+             for outputs in ("all 21 outputs", "mu only") for threads in ("", "1")}
+    power, power_split = [], []
+    halves = np.array_split(base, 2)
+    pool = ThreadPoolExecutor(2)
+    physics.evaluate(**inputs)  # warm up: pool threads, caches
+    for _ in range(repeats):
+        power.append(timed(lambda: np.power(base, 0.47))[0])
+        power_split.append(timed(lambda: list(pool.map(lambda half: np.power(half, 0.47), halves)))[0])
         for (outputs, threads), times in cases.items():
             os.environ[THREADS] = threads
-            start = time.perf_counter()
-            physics.evaluate(outputs=["mu"] if outputs == "mu only" else None, **points)
-            times.append(time.perf_counter() - start)
-        start = time.perf_counter()
-        np.power(base, 0.47)
-        t_pow.append(time.perf_counter() - start)
+            wanted = ["mu"] if outputs == "mu only" else None
+            wall, cpu = timed(lambda wanted=wanted: physics.evaluate(outputs=wanted, **inputs))
+            times["wall"].append(wall)
+            times["cores"].append(cpu / wall)
     os.environ.pop(THREADS)
-    best_pow = min(t_pow)
-    print(f"points: {args.points:,}  (7 of 16 inputs varied per point, the rest at defaults); "
-          f"{physics.bearing._threads()} usable CPUs")
-    print(f"numpy.power pass:                                   {best_pow * 1e3:8.1f} ms")
+    print(f"large calls: {points:,} points (7 of 16 inputs varied per point), {repeats} repeats; "
+          "min / median / max")
+    print(f"  numpy.power pass                        {spread(power, 1e3):>22s} ms")
     for (outputs, threads), times in cases.items():
         label = f"{outputs}, {'one thread' if threads else 'default threads'}"
-        best = min(times)
-        print(f"physics.evaluate, {label:32s} {best * 1e3:8.1f} ms  -> {args.points / best:12,.0f} points/s"
-              f"  ratio {best / best_pow:5.1f}")
-    print("target: ratio <= 15, goal <= 10")
+        ratios = [t / p for t, p in zip(times["wall"], power, strict=True)]
+        print(f"  evaluate, {label:30s}{spread(times['wall'], 1e3):>22s} ms   ratio {spread(ratios):>18s}"
+              f"   cores busy {spread(times['cores'], digits=2)}")
+    reference = [one / split for one, split in zip(power, power_split, strict=True)]
+    print(f"  speed-up of numpy.power split over two threads (reference) {spread(reference, digits=2)}")
+    for outputs in ("all 21 outputs", "mu only"):
+        speedup = [one / default for one, default in
+                   zip(cases[(outputs, "1")]["wall"], cases[(outputs, "")]["wall"], strict=True)]
+        print(f"  speed-up from the default threads, {outputs:15s} {spread(speedup, digits=2)}")
+    print("  targets (issue 17): mu only ratio <= 8, all 21 outputs <= 12, speed-up >= 1.6")
+
+
+def single_points(repeats: int, calls: int = 2000) -> None:
+    one = np.ones(1)
+    cases = {"physics.evaluate": lambda: physics.evaluate(**POINT), "numpy.add of 1-element arrays":
+             lambda: np.add(one, one)}
+    wall = {label: [] for label in cases}
+    cpu = {label: [] for label in cases}
+    physics.evaluate(**POINT)
+    for _ in range(repeats):
+        for label, call in cases.items():
+            spent = timed(lambda call=call: [call() for _ in range(calls)])
+            wall[label].append(spent[0] / calls)
+            cpu[label].append(spent[1] / calls)
+    print(f"one point ({POINT}, every input checked), {repeats} repeats of {calls} calls; min / median / max "
+          "per call (CPU time: what preemption by other work does not inflate)")
+    for label in cases:
+        print(f"  {label:30s} wall {spread(wall[label], 1e6, 2):>22s} us   "
+              f"CPU {spread(cpu[label], 1e6, 2):>22s} us")
+    print("  target: physics.evaluate <= 25 us")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--points", type=int, default=1_000_000)
+    parser.add_argument("--repeats", type=int, default=15)
+    args = parser.parse_args()
+    print(f"before: {machine()}")
+    large_calls(args.points, args.repeats)
+    single_points(args.repeats)
+    print(f"after:  {machine()}")
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+import operator
 import os
 from collections.abc import Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -291,7 +292,7 @@ def moment_balance_residual(ball_ball_moment_Nm, pivoting_moment_1_Nm, pivoting_
                             hysteresis_moment_1_Nm, hysteresis_moment_2_Nm,
                             sliding_force_1_N, sliding_force_2_N, rolling_force_1_N,
                             rolling_force_2_N, ball_diameter_m, cos_contact_angle,
-                            tan_contact_angle):
+                            tan_contact_angle, convention=DEFAULT_CONVENTION):
     r"""Residual of the ball's moment balance about its centre.
 
     Parameters
@@ -310,18 +311,29 @@ def moment_balance_residual(ball_ball_moment_Nm, pivoting_moment_1_Nm, pivoting_
         d. [m]
     cos_contact_angle, tan_contact_angle : numeric
         cos θ and tan θ of the contact angle θ from the vertical. [1]
+    convention : {"olaru2005", "derjaguin"}, default "olaru2005"
+        The reading of the ball-ball term, as in :func:`evaluate`: ``"olaru2005"``
+        takes M_b whole in this balance of one contact pair (eq 19 as printed),
+        ``"derjaguin"`` half of it (the ball's M_b counted once over its two pairs).
 
     Returns
     -------
     numeric
         Left side minus right side of eq 19, zero in equilibrium. [N*m]
 
+    Raises
+    ------
+    ValueError
+        For an unknown ``convention``.
+
     Notes
     -----
-    Eq 19 of [1]_:
+    Eq 19 of [1]_, with s = 1 (``"olaru2005"``) or 1/2 (``"derjaguin"``):
 
-    .. math:: \frac{M_b}{\cos\theta} + (M_{P1} + M_{P2})\tan\theta + M_{ER1} + M_{ER2}
+    .. math:: \frac{s M_b}{\cos\theta} + (M_{P1} + M_{P2})\tan\theta + M_{ER1} + M_{ER2}
               = \frac{d}{2}(F_{S1} + F_{S2} - F_{R1} - F_{R2})
+
+    The outputs of :func:`evaluate` satisfy it in the convention they were computed in.
 
     References
     ----------
@@ -332,12 +344,24 @@ def moment_balance_residual(ball_ball_moment_Nm, pivoting_moment_1_Nm, pivoting_
     >>> float(moment_balance_residual(0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 1.0, 1.0, 2.0, 1.0, 0.0))
     0.0
     """
-    resisting = (ball_ball_moment_Nm / cos_contact_angle
+    resisting = (_PAIR_SHARE[_checked_convention(convention)] * ball_ball_moment_Nm / cos_contact_angle
                  + (pivoting_moment_1_Nm + pivoting_moment_2_Nm) * tan_contact_angle
                  + hysteresis_moment_1_Nm + hysteresis_moment_2_Nm)
     driving = 0.5 * ball_diameter_m * (sliding_force_1_N + sliding_force_2_N
                                        - rolling_force_1_N - rolling_force_2_N)
     return resisting - driving
+
+
+#: Share of a ball's ball-ball moment M_b in the balance of one of its contact pairs, by convention:
+#: "olaru2005" counts M_b in both pairs (eq 21 as printed), "derjaguin" once per ball; with R*
+#: twice as large (eq 6) the two agree for equal balls.
+_PAIR_SHARE = {"olaru2005": 1.0, "derjaguin": 0.5}
+
+
+def _checked_convention(convention: str) -> str:
+    if convention not in CONVENTIONS:
+        raise ValueError(f"convention must be one of {', '.join(CONVENTIONS)}; got {convention!r}")
+    return convention
 
 
 #: Every output of :func:`evaluate`: name -> (unit, description).
@@ -354,7 +378,10 @@ OUTPUTS: dict[str, tuple[str, str]] = {
     "contact_load_adhesive_N": ("N", "JKR apparent load Q = Q0 plus adhesion (eq 8)."),
     "contact_radius_m": ("m", "JKR contact radius a (eq 3)."),
     "contact_area_m2": ("m^2", "Contact area pi a^2 (eq 3)."),
-    "max_contact_pressure_Pa": ("Pa", "Peak Hertz pressure 3Q / (2 pi a^2) at a ball-race contact."),
+    "max_contact_pressure_Pa": ("Pa", "Peak pressure 3Q / (2 pi a^2) at a ball-race contact: the Hertz "
+                                "peak of the adhesion-enhanced JKR load Q (eq 8) over the JKR contact "
+                                "radius a (eq 3), not the applied load Q0 (the JKR distribution itself "
+                                "is not Hertzian: it turns tensile at the edge)."),
     "adhesion_force_N": ("N", "JKR pull-off force 3 pi gamma R of a ball on a flank (eq 1)."),
     "capillary_force_ball_ball_N": ("N", "Capillary force between touching balls, 4 pi gamma_w R* "
                                     "(eqs 5-6); 0 when balls do not touch."),
@@ -400,10 +427,23 @@ class FrictionResult:
     ball_race_force_N: np.ndarray | None
     convention: str = DEFAULT_CONVENTION
 
+    @classmethod
+    def _of_point(cls, values: dict[str, float], wanted: list[str], convention: str) -> FrictionResult:
+        """The result of one point from the kernel's floats, as ``numpy.float64`` like an array's items.
+
+        Filled through the instance's ``__dict__``: the frozen dataclass's ``__init__`` sets its 22
+        fields one ``object.__setattr__`` call at a time, which would cost a third of the point.
+        """
+        result = object.__new__(cls)
+        result.__dict__.update(dict.fromkeys(OUTPUTS), convention=convention)
+        floats = np.fromiter([values[k] for k in wanted], np.float64, len(wanted))
+        result.__dict__.update(zip(wanted, floats, strict=True))
+        return result
+
     def to_dict(self, outputs=None) -> dict[str, np.ndarray]:
         """The outputs as a dict of arrays: those named, or every one computed."""
         if outputs is None:
-            return {name: getattr(self, name) for name in OUTPUTS if getattr(self, name) is not None}
+            return {name: value for name in OUTPUTS if (value := getattr(self, name)) is not None}
         values = {name: getattr(self, name) for name in _output_names(outputs)}
         missing = [name for name, value in values.items() if value is None]
         if missing:
@@ -427,10 +467,12 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
         :data:`physics.CONVENTIONS`.
     outputs : iterable of str, optional
         Names from :data:`OUTPUTS` to return; by default all. The others are
-        ``None`` in the result. Every output is computed anyway (they are each
-        other's intermediates), but only those asked for are stored: on large
+        ``None`` in the result. Most outputs are each other's intermediates and
+        are computed anyway, but only those asked for are stored (on large
         inputs, writing 21 arrays to fresh memory costs as much as the
-        arithmetic (``outputs=["mu"]`` is about 1.6x faster on 10^6 points).
+        arithmetic); the area, peak pressure, F_P, mu_contact and the breakdown
+        of μ, which nothing else needs, are computed only when one of them is
+        asked for.
     **params : numeric, bool or array_like
         The inputs of :data:`physics.PARAMETERS` by name: ``balls`` [1],
         ``load_N`` [N] and ``speed_m_s`` [m/s] are required, the rest have
@@ -469,7 +511,10 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     logarithms; it agrees with the plain composition of the equations'
     functions to ~1e-13 (tested), and every point runs the same operations
     whatever the size of the call or the number of threads, so results do not
-    depend on batching.
+    depend on batching. A call whose inputs are all scalars runs the same
+    operations on Python floats (numpy's tan, cbrt, log and exp), after the
+    same checks, without numpy's per-call overhead, and returns
+    ``numpy.float64`` values equal bit for bit to the same point inside an array.
 
     References
     ----------
@@ -484,17 +529,19 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     >>> round(float(r.mu_contact), 4)
     0.0051
     """
-    if convention not in CONVENTIONS:
-        raise ValueError(f"convention must be one of {', '.join(CONVENTIONS)}; got {convention!r}")
+    _checked_convention(convention)
     p, shape = checked_inputs(params)  # scalars as Python numbers: their products fold before arrays
-    size = math.prod(shape)
     wanted = list(OUTPUTS) if outputs is None else _output_names(outputs)
+    if not shape:  # one point: the same operations on Python floats, without numpy's per-call overhead
+        p.update(_coefficients(p, convention))
+        values = _kernel(p, _NO_BUFFERS, None, None, None, None, _PointOps, not _EXTRAS.isdisjoint(wanted))
+        return FrictionResult._of_point(values, wanted, convention)
+    size = math.prod(shape)
     flat = {k: np.broadcast_to(v, shape).reshape(-1) if isinstance(v, np.ndarray) else v
             for k, v in p.items()}
     block_size = max(1, min(size, _BLOCK_POINTS))
     kept = np.empty((len(wanted), size))
-    with np.errstate(divide="ignore"):  # log of a zero speed or viscosity: -inf, then exp(-inf) = 0
-        flat.update(_coefficients(flat, convention))
+    flat.update(_coefficients(flat, convention))
     arrays = {k: v for k, v in flat.items() if isinstance(v, np.ndarray) and v.ndim}
     scalars = {k: v for k, v in flat.items() if k not in arrays}
     run = functools.partial(_run_blocks, arrays, scalars, dict(zip(wanted, kept, strict=True)),
@@ -511,6 +558,14 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     return FrictionResult(**{k: values.get(k) for k in OUTPUTS}, convention=convention)
 
 
+#: Outputs that no other output needs: :func:`_kernel` skips them when none is asked for.
+_EXTRAS = frozenset({"contact_area_m2", "max_contact_pressure_Pa", "pressure_force_N", "mu_contact",
+                     "mu_pivoting", "mu_hysteresis", "mu_rolling", "mu_ball_ball"})
+
+#: The output buffers of a one-point :func:`_kernel` call: none, it returns Python floats.
+_NO_BUFFERS = dict.fromkeys(OUTPUTS)
+
+
 def _output_names(outputs: Iterable[str]) -> list[str]:
     names = [outputs] if isinstance(outputs, str) else list(outputs)
     unknown = [n for n in names if n not in OUTPUTS]
@@ -519,7 +574,7 @@ def _output_names(outputs: Iterable[str]) -> list[str]:
     return list(dict.fromkeys(names))
 
 
-#: Points per block of :func:`_block`: the block's work arrays stay in the CPU's cache.
+#: Points per block of :func:`_kernel`: the block's work arrays stay in the CPU's cache.
 _BLOCK_POINTS = 16384
 #: Fewest blocks a thread is given: below 2 x 4 blocks a call runs in the caller's thread.
 _MIN_BLOCKS_PER_THREAD = 4
@@ -552,13 +607,14 @@ if hasattr(os, "register_at_fork"):  # a forked child has none of the parent's t
 
 def _run_blocks(arrays: dict[str, np.ndarray], scalars: dict[str, Any], kept: dict[str, np.ndarray],
                 others: list[str], block_size: int, lo: int, hi: int) -> None:
-    """Run :func:`_block` over points ``lo:hi``, block by block, into the rows of ``kept``.
+    """Run :func:`_kernel` over points ``lo:hi``, block by block, into the rows of ``kept``.
 
     Outputs not asked for go to scratch rows overwritten block by block; each
     call has its own scratch and work arrays, so calls on disjoint ranges can
     run in parallel threads.
     """
     b = dict(scalars)
+    extras = not _EXTRAS.isdisjoint(kept)
     scratch = np.empty((len(others), block_size))
     all_work = np.empty((4, block_size))
     o = dict(zip(others, scratch, strict=True))
@@ -571,7 +627,7 @@ def _run_blocks(arrays: dict[str, np.ndarray], scalars: dict[str, Any], kept: di
                 work = all_work[:, :stop - start]
             b.update((k, v[start:stop]) for k, v in arrays.items())
             o.update((k, row[start:stop]) for k, row in kept.items())
-            _block(b, o, *work)
+            _kernel(b, o, *work, _ArrayOps, extras)
 
 
 #: The inputs of :func:`_coefficients`: the ball, the materials and the film.
@@ -580,23 +636,28 @@ _COEFFICIENT_INPUTS = ("ball_diameter_m", "ball_youngs_modulus_Pa", "ball_poisso
                        "pressure_viscosity_1_Pa", "water_surface_tension_N_m")
 
 
+_coefficient_inputs = operator.itemgetter(*_COEFFICIENT_INPUTS)
+
+
 def _coefficients(p: dict[str, Any], convention: str) -> dict[str, Any]:
-    """Factors of :func:`_block` that depend on the ball, the materials and the film only.
+    """Factors of :func:`_kernel` that depend on the ball, the materials and the film only.
 
     Scalars unless one of those inputs varies; then arrays of the inputs' length.
     Power laws are split into a coefficient, taken from the equation's own
     function at unit argument, and the power of the varying quantity.
     """
-    values = tuple(p[name] for name in _COEFFICIENT_INPUTS)
-    if all(isinstance(v, float) for v in values):
+    values = _coefficient_inputs(p)
+    if all(type(v) is float for v in values):
         return _scalar_coefficients(values, convention)
     return _coefficients_of(dict(zip(_COEFFICIENT_INPUTS, values, strict=True)), convention)
 
 
 @functools.lru_cache(maxsize=64)
 def _scalar_coefficients(values: tuple[float, ...], convention: str) -> dict[str, Any]:
-    # Repeated single-point calls (the REST API's) mostly share their materials.
-    return _coefficients_of(dict(zip(_COEFFICIENT_INPUTS, values, strict=True)), convention)
+    # Repeated single-point calls (the REST API's) mostly share their materials; Python floats
+    # keep the one-point kernel in Python's own arithmetic.
+    coefficients = _coefficients_of(dict(zip(_COEFFICIENT_INPUTS, values, strict=True)), convention)
+    return {name: float(value) for name, value in coefficients.items()}
 
 
 def _coefficients_of(p: dict[str, Any], convention: str) -> dict[str, Any]:
@@ -611,104 +672,156 @@ def _coefficients_of(p: dict[str, Any], convention: str) -> dict[str, Any]:
         e_prime, radius, 1.0, lubrication.materials_parameter(p["pressure_viscosity_1_Pa"], e_prime),
         lubrication.speed_parameter(p["viscosity_Pa_s"], lubrication.entrainment_speed(1.0), e_prime, radius),
         lubrication.load_parameter(1.0, e_prime, radius))
-    # "olaru2005" counts M_b in both contact pairs of the ball (eq 21 as printed),
-    # "derjaguin" once per ball; with R* twice as large the two agree for equal balls.
-    pair_share = 1.0 if convention == "olaru2005" else 0.5
     return {
         "adhesion_per_gamma": surface.adhesion_force_ball_flat(radius, 1.0),  # eq 1 per J/m²
         "radius_over_e_star": radius / e_star,  # eq 3
-        "log_rolling": np.log(rolling),
+        "log_rolling": _log_or_minus_infinity(rolling),
         "log_hysteresis": np.log(moments.hysteresis_moment(d, 1.0)),  # eq 15 at Q = 1 N
         "pressure_per_rolling": lubrication.pressure_force(1.0, ball_radius_m=radius),  # eq 13
         "pivot": moments.pivoting_moment(1.0, 1.0, 1.0),  # eq 16 per unit μs, N, m
         "capillary": surface.capillary_force(surface.ball_ball_radius(radius, radius, convention),
                                              p["water_surface_tension_N_m"]),  # eqs 5-6
         "ball_ball": moments.ball_ball_moment(1.0, 1.0, d),  # eq 17 per unit μb and N
-        "pair_share_over_d": pair_share / d,
+        "pair_share_over_d": _PAIR_SHARE[convention] / d,
         "two_over_d": 2.0 / d,
     }
 
 
-def _block(b: dict[str, Any], o: dict[str, np.ndarray], tan: np.ndarray, sec: np.ndarray,
-           w1: np.ndarray, w2: np.ndarray) -> None:
-    """Every output of one block into the rows ``o``, in place, with four work arrays.
+class _ArrayOps:
+    """The operations of :func:`_kernel` on a block of arrays: numpy's ufuncs, each into ``out``."""
 
-    ``b`` holds the inputs and :func:`_coefficients` of the block (arrays of
-    the block's length or scalars). No array is allocated here: on large inputs
-    fresh memory costs more than the arithmetic.
+    multiply, add, divide, square, sqrt = np.multiply, np.add, np.divide, np.square, np.sqrt
+    tan, cbrt, log, exp = np.tan, np.cbrt, np.log, np.exp
+
+
+class _PointOps:
+    """The operations of :func:`_kernel` on Python floats (one point; ``out`` is ignored).
+
+    +, *, / and sqrt are correctly rounded in IEEE arithmetic, so they give the bits of
+    numpy's loops; tan, cbrt, log and exp are numpy's own functions. One point therefore
+    gets exactly the result it gets inside a large array (tested), at a fraction of the
+    cost of numpy's per-call overhead on one-element arrays.
     """
+
+    @staticmethod
+    def multiply(x, y, out):
+        return x * y
+
+    @staticmethod
+    def add(x, y, out):
+        return x + y
+
+    @staticmethod
+    def divide(x, y, out):
+        return x / y
+
+    @staticmethod
+    def square(x, out):
+        return x * x
+
+    @staticmethod
+    def sqrt(x, out):
+        return math.sqrt(x)
+
+    @staticmethod
+    def tan(x, out):
+        return float(np.tan(x))
+
+    @staticmethod
+    def cbrt(x, out):
+        return float(np.cbrt(x))
+
+    @staticmethod
+    def log(x, out):  # log 0 = -inf as in the array path, where the divide warning is silenced
+        return float(np.log(x)) if x else -math.inf
+
+    @staticmethod
+    def exp(x, out):
+        return float(np.exp(x))
+
+
+def _log_or_minus_infinity(value):
+    """log of a coefficient that is 0 for a zero viscosity: -inf, so that exp(-inf) = 0 in :func:`_kernel`."""
+    with np.errstate(divide="ignore"):
+        return np.log(value)
+
+
+def _kernel(b: dict[str, Any], o: dict[str, Any], tan: Any, sec: Any, w1: Any, w2: Any,
+            f: type = _ArrayOps, extras: bool = True) -> dict[str, Any]:
+    """Every output of one block (or one point) by the operations ``f``.
+
+    With :class:`_ArrayOps`, ``b`` holds the inputs and :func:`_coefficients` of
+    a block (arrays of the block's length or scalars), and every output is
+    written in place into its row of ``o``, with four work arrays: no array is
+    allocated here, as on large inputs fresh memory costs more than the
+    arithmetic. With :class:`_PointOps`, ``b`` holds Python floats and the
+    buffers are ignored. Both run the same operations in the same order and
+    return the outputs by name. ``extras=False`` leaves out the outputs of
+    :data:`_EXTRAS`, which no other output needs (their rows are then not
+    written).
+    """
+    multiply, add, divide, square, sqrt = f.multiply, f.add, f.divide, f.square, f.sqrt
     # Groove geometry: tan in one vectorized pass (numpy's float64 cos is ~9x slower), sec from it.
-    np.multiply(b["groove_angle_deg"], np.pi / 180.0, out=tan)
-    np.tan(tan, out=tan)
-    np.square(tan, out=sec)
-    sec += 1.0
-    np.sqrt(sec, out=sec)
+    tan = f.tan(multiply(b["groove_angle_deg"], np.pi / 180.0, tan), tan)
+    sec = sqrt(add(square(tan, sec), 1.0, sec), sec)
     # Eq 7: Q0 = G / (2 z cos θ).
-    q0 = o["contact_load_N"]
-    np.multiply(b["load_N"], sec, out=q0)
-    np.divide(q0, b["balls"], out=q0)
-    q0 *= 0.5
+    q0 = multiply(b["load_N"], sec, o["contact_load_N"])
+    q0 = multiply(divide(q0, b["balls"], q0), 0.5, q0)
     # Eq 1: pull-off force F = 3 π γ R. Eq 8: Q = Q0 + 2F + sqrt(4F Q0 + 4F²) = Q0 + 2 (F + sqrt(F (Q0 + F))).
-    adhesion = o["adhesion_force_N"]
-    np.multiply(b["adhesion_energy_J_m2"], b["adhesion_per_gamma"], out=adhesion)
-    q = o["contact_load_adhesive_N"]
-    np.add(q0, adhesion, out=w1)
-    w1 *= adhesion
-    np.sqrt(w1, out=w1)
-    np.add(w1, adhesion, out=q)
-    q *= 2.0
-    q += q0
-    # Eq 3: a = (R Q / E*)^(1/3); contact area π a²; peak pressure 3 Q / (2 π a²).
-    a = o["contact_radius_m"]
-    np.multiply(q, b["radius_over_e_star"], out=a)
-    np.cbrt(a, out=a)
-    np.square(a, out=o["contact_area_m2"])
-    o["contact_area_m2"] *= np.pi
-    np.divide(q, o["contact_area_m2"], out=o["max_contact_pressure_Pa"])
-    o["max_contact_pressure_Pa"] *= 1.5
+    adhesion = multiply(b["adhesion_energy_J_m2"], b["adhesion_per_gamma"], o["adhesion_force_N"])
+    w1 = sqrt(multiply(add(q0, adhesion, w1), adhesion, w1), w1)
+    q = add(w1, adhesion, o["contact_load_adhesive_N"])
+    q = add(multiply(q, 2.0, q), q0, q)
+    # Eq 3: a = (R Q / E*)^(1/3).
+    a = f.cbrt(multiply(q, b["radius_over_e_star"], o["contact_radius_m"]), o["contact_radius_m"])
     # Eq 9: F_R = coefficient V^0.66 Q^0.47, and eq 15: M_ER = coefficient Q^1.33, as exponentials
     # of logarithms (a power costs a log and an exp; log Q serves both; V = 0 gives exp(-inf) = 0).
-    np.log(q, out=w1)
-    f_r = o["rolling_force_N"]
-    np.log(b["speed_m_s"], out=w2)
-    w2 *= lubrication.SPEED_EXPONENT
-    np.multiply(w1, lubrication.LOAD_EXPONENT, out=f_r)
-    f_r += w2
-    f_r += b["log_rolling"]
-    np.exp(f_r, out=f_r)
-    np.multiply(f_r, b["pressure_per_rolling"], out=o["pressure_force_N"])  # eq 13
-    m_er = o["hysteresis_moment_Nm"]
-    np.multiply(w1, moments.HYSTERESIS_LOAD_EXPONENT, out=m_er)
-    m_er += b["log_hysteresis"]
-    np.exp(m_er, out=m_er)
+    log_q = f.log(q, w1)
+    log_speed = multiply(f.log(b["speed_m_s"], w2), lubrication.SPEED_EXPONENT, w2)
+    f_r = multiply(log_q, lubrication.LOAD_EXPONENT, o["rolling_force_N"])
+    f_r = f.exp(add(add(f_r, log_speed, f_r), b["log_rolling"], f_r), f_r)
+    m_er = multiply(log_q, moments.HYSTERESIS_LOAD_EXPONENT, o["hysteresis_moment_Nm"])
+    m_er = f.exp(add(m_er, b["log_hysteresis"], m_er), m_er)
     # Eqs 16-17: pivoting (3/8) μs Q a and ball-ball μb F_cb d moments.
-    m_p = o["pivoting_moment_Nm"]
-    np.multiply(q, a, out=m_p)
-    m_p *= b["mu_pivot"]
-    m_p *= b["pivot"]
-    np.multiply(b["balls_touching"], b["capillary"], out=o["capillary_force_ball_ball_N"])
-    np.multiply(o["capillary_force_ball_ball_N"], b["mu_ball"], out=o["ball_ball_moment_Nm"])
-    o["ball_ball_moment_Nm"] *= b["ball_ball"]
+    m_p = multiply(q, a, o["pivoting_moment_Nm"])
+    m_p = multiply(multiply(m_p, b["mu_pivot"], m_p), b["pivot"], m_p)
+    capillary = multiply(b["balls_touching"], b["capillary"], o["capillary_force_ball_ball_N"])
+    m_b = multiply(capillary, b["mu_ball"], o["ball_ball_moment_Nm"])
+    m_b = multiply(m_b, b["ball_ball"], m_b)
     # Eq 20 term by term, F_S = M_b / (d cos θ) + 2 M_P tan θ / d + 2 M_ER / d + F_R; each
     # term, times 2 z / G below, is one part of the breakdown of μ.
-    np.multiply(o["ball_ball_moment_Nm"], sec, out=o["mu_ball_ball"])
-    o["mu_ball_ball"] *= b["pair_share_over_d"]
-    np.multiply(m_p, tan, out=o["mu_pivoting"])
-    o["mu_pivoting"] *= b["two_over_d"]
-    np.multiply(m_er, b["two_over_d"], out=o["mu_hysteresis"])
-    f_s = o["sliding_force_N"]
-    np.add(o["mu_ball_ball"], o["mu_pivoting"], out=f_s)
-    f_s += o["mu_hysteresis"]
-    f_s += f_r
-    np.multiply(f_r, 2.0, out=o["mu_rolling"])
-    # Eqs 21-23: F_ballrace = 2 (F_S + F_R), F_total = z F_ballrace, μ = F_total / G;
-    # per contact F_ballrace / (2 Q0) = μ cos θ.
-    np.add(f_s, f_r, out=o["ball_race_force_N"])
-    o["ball_race_force_N"] *= 2.0
-    np.multiply(o["ball_race_force_N"], b["balls"], out=o["friction_force_N"])
-    np.divide(o["friction_force_N"], b["load_N"], out=o["mu"])
-    np.divide(o["mu"], sec, out=o["mu_contact"])
-    np.divide(b["balls"], b["load_N"], out=w2)
-    w2 *= 2.0
-    for name in ("mu_pivoting", "mu_hysteresis", "mu_rolling", "mu_ball_ball"):
-        o[name] *= w2
+    mu_ball_ball = multiply(m_b, sec, o["mu_ball_ball"])
+    mu_ball_ball = multiply(mu_ball_ball, b["pair_share_over_d"], mu_ball_ball)
+    mu_pivoting = multiply(m_p, tan, o["mu_pivoting"])
+    mu_pivoting = multiply(mu_pivoting, b["two_over_d"], mu_pivoting)
+    mu_hysteresis = multiply(m_er, b["two_over_d"], o["mu_hysteresis"])
+    f_s = add(mu_ball_ball, mu_pivoting, o["sliding_force_N"])
+    f_s = add(add(f_s, mu_hysteresis, f_s), f_r, f_s)
+    # Eqs 21-23: F_ballrace = 2 (F_S + F_R), F_total = z F_ballrace, μ = F_total / G.
+    ball_race = add(f_s, f_r, o["ball_race_force_N"])
+    ball_race = multiply(ball_race, 2.0, ball_race)
+    total = multiply(ball_race, b["balls"], o["friction_force_N"])
+    mu = divide(total, b["load_N"], o["mu"])
+    values = {
+        "mu": mu, "friction_force_N": total, "contact_load_N": q0, "contact_load_adhesive_N": q,
+        "contact_radius_m": a, "adhesion_force_N": adhesion, "capillary_force_ball_ball_N": capillary,
+        "rolling_force_N": f_r, "sliding_force_N": f_s, "hysteresis_moment_Nm": m_er,
+        "pivoting_moment_Nm": m_p, "ball_ball_moment_Nm": m_b, "ball_race_force_N": ball_race,
+    }
+    if not extras:
+        return values
+    # What nothing above needs. Contact area π a² and peak pressure 3 Q / (2 π a²) (eq 3), F_P (eq 13),
+    # the per-contact F_ballrace / (2 Q0) = μ cos θ, and the breakdown of μ: each term of F_S times 2 z / G.
+    area = multiply(square(a, o["contact_area_m2"]), np.pi, o["contact_area_m2"])
+    pressure = divide(q, area, o["max_contact_pressure_Pa"])
+    per_newton = multiply(divide(b["balls"], b["load_N"], w2), 2.0, w2)
+    mu_rolling = multiply(f_r, 2.0, o["mu_rolling"])
+    return {
+        **values, "contact_area_m2": area, "max_contact_pressure_Pa": multiply(pressure, 1.5, pressure),
+        "pressure_force_N": multiply(f_r, b["pressure_per_rolling"], o["pressure_force_N"]),
+        "mu_contact": divide(mu, sec, o["mu_contact"]),
+        "mu_pivoting": multiply(mu_pivoting, per_newton, mu_pivoting),
+        "mu_hysteresis": multiply(mu_hysteresis, per_newton, mu_hysteresis),
+        "mu_rolling": multiply(mu_rolling, per_newton, mu_rolling),
+        "mu_ball_ball": multiply(mu_ball_ball, per_newton, mu_ball_ball),
+    }

@@ -18,7 +18,9 @@ checks at every corner of the box.
 
 from __future__ import annotations
 
+import functools
 import math
+import sys
 from dataclasses import dataclass
 from typing import Any
 
@@ -75,19 +77,23 @@ class Parameter:
         """True for design and operating inputs that have no default."""
         return self.default is None
 
+    @functools.cached_property
+    def closed_range(self) -> tuple[float, float]:
+        """The allowed range as closed finite bounds: an excluded bound moved to the next float."""
+        if self.kind == "bool":
+            return math.inf, -math.inf  # no number is a boolean
+        low = -sys.float_info.max if self.minimum is None else float(self.minimum)
+        high = sys.float_info.max if self.maximum is None else float(self.maximum)
+        return (math.nextafter(low, math.inf) if self.exclusive_minimum else low,
+                math.nextafter(high, -math.inf) if self.exclusive_maximum else high)
+
     def accepts(self, value: float) -> bool:
-        """Whether a plain Python number lies in the allowed range (scalar fast path)."""
-        if not math.isfinite(value):
-            return False
-        if self.minimum is not None and (
-            value <= self.minimum if self.exclusive_minimum else value < self.minimum
-        ):
-            return False
-        if self.maximum is not None and (
-            value >= self.maximum if self.exclusive_maximum else value > self.maximum
-        ):
-            return False
-        return self.kind != "int" or value == round(value)
+        """Whether a plain Python number lies in the allowed range (scalar fast path).
+
+        NaN and infinities fail the comparison with the finite bounds.
+        """
+        low, high = self.closed_range
+        return low <= value <= high and (self.kind != "int" or value == round(value))
 
     def range_text(self) -> str:
         """The allowed range in words, e.g. ``"> 0"`` or ``"in (0, 90)"``."""
@@ -230,6 +236,26 @@ def _array_text(values: np.ndarray, mask: np.ndarray) -> str:
     return f"got {shown!r} at index {index}"
 
 
+def _short_repr(value: Any, limit: int = 80) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}..."
+
+
+def _not_of_kind_text(given: np.ndarray, kind: str) -> str:
+    """'got X (a str, not a number) at index i' for the first element of ``given`` that is not ``kind``."""
+    flat = given.reshape(-1)
+    if given.dtype == object:
+        boolean = kind == "a boolean"
+        index = next((i for i, item in enumerate(flat)
+                      if isinstance(item, bool) != boolean or not isinstance(item, int | float)), 0)
+    else:
+        index = 0
+    item = flat[index] if flat.size else given
+    item = item.item() if isinstance(item, np.generic | np.ndarray) else item
+    what = "None (no value)" if item is None else f"{_short_repr(item)} ({type(item).__name__}, not {kind})"
+    return f"got {what}" + (f" at index {index}" if given.ndim else "")
+
+
 def _all_whole(values: np.ndarray, chunk: int = 65536) -> bool:
     """Whether every value is a whole number, chunk by chunk (no array-sized temporaries)."""
     flat = values.reshape(-1)
@@ -276,17 +302,21 @@ def validate(name: str, value: Any) -> np.ndarray:
     if type(value) in (float, int) and spec.kind != "bool" and spec.accepts(value):
         return np.asarray(value, dtype=np.float64)
     allowed = f"{spec.name} must be {spec.range_text()} [{spec.unit}]"
-    if spec.kind == "bool":
-        arr = np.asarray(value)
-        if arr.dtype != np.bool_:
-            raise ValueError(f"{allowed}; got {value!r}")
-        return arr
+    if value is None:
+        raise ValueError(f"{allowed}; got None (no value)")
     try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{allowed}; got {value!r}") from None
-    if np.asarray(value).dtype == np.bool_:
-        raise ValueError(f"{allowed}; got a boolean {value!r}")
+        given = np.asarray(value)
+    except (TypeError, ValueError):  # ragged nesting
+        raise ValueError(f"{allowed}; got {_short_repr(value)}") from None
+    if spec.kind == "bool":
+        if given.dtype != np.bool_:
+            raise ValueError(f"{allowed}; {_not_of_kind_text(given, 'a boolean')}")
+        return given
+    if given.dtype == np.bool_:
+        raise ValueError(f"{allowed}; got a boolean {_short_repr(value)}")
+    if given.dtype.kind not in "iuf":  # strings, None among numbers, complex: never read as numbers
+        raise ValueError(f"{allowed}; {_not_of_kind_text(given, 'a number')}")
+    arr = given.astype(np.float64, copy=False)
     if arr.size and spec.accepts(float(arr.min())) and spec.accepts(float(arr.max())) and (
             spec.kind != "int" or _all_whole(arr)):
         # Fast path for large arrays: two reductions, no temporaries (min and max are NaN if any is).
@@ -316,6 +346,8 @@ def defaults() -> dict[str, float | bool]:
 
 _DEFAULTS = {n: p.default for n, p in PARAMETERS.items() if p.default is not None}
 _REQUIRED = frozenset(n for n, p in PARAMETERS.items() if p.default is None)
+#: The defaults, validated once: Python floats and bools, as :func:`checked_inputs` returns scalars.
+_CHECKED_DEFAULTS = {n: validate(n, v).item() for n, v in _DEFAULTS.items()}
 
 
 def validate_all(params: dict[str, Any]) -> dict[str, np.ndarray]:
@@ -357,19 +389,20 @@ def checked_inputs(params: dict[str, Any]) -> tuple[dict[str, float | bool | np.
     if not _REQUIRED <= params.keys():
         missing = [n for n in PARAMETERS if n in _REQUIRED and n not in params]
         raise ValueError(f"missing required parameter(s): {', '.join(missing)}")
-    merged = {**_DEFAULTS, **params}
-    checked: dict[str, float | bool | np.ndarray] = {}
-    for name, spec in PARAMETERS.items():
-        value = merged[name]
+    checked: dict[str, float | bool | np.ndarray] = dict(_CHECKED_DEFAULTS)
+    shapes: set[tuple[int, ...]] = set()
+    for name, value in params.items():
+        spec = PARAMETERS[name]
         kind = type(value)
         if kind is bool and spec.kind == "bool":
             checked[name] = value
-        elif (kind is float or kind is int) and spec.kind != "bool" and spec.accepts(value):
+        elif (kind is float or kind is int) and spec.accepts(value):  # a boolean parameter accepts no number
             checked[name] = float(value)
         else:
             array = validate(name, value)
             checked[name] = array.item() if array.ndim == 0 else array
-    shapes = {a.shape for a in checked.values() if isinstance(a, np.ndarray)}
+            if array.ndim:
+                shapes.add(array.shape)
     if len(shapes) <= 1:
         return checked, shapes.pop() if shapes else ()
     try:

@@ -9,7 +9,7 @@ from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
 from ..calibrations import evaluate_point_with_model
-from ..deps import ExecutorDep, SettingsDep, StoreDep
+from ..deps import ExecutorDep, SettingsDep, get_store
 from ..evaluation import column_arrays, evaluate_point
 from ..executor import evaluate_in_chunks
 from ..problems import problem_responses, validation_problem
@@ -24,14 +24,15 @@ router = APIRouter(prefix="/v1/friction", tags=["friction"])
 
 @router.post("", operation_id="evaluate_friction", response_model=FrictionResponse,
              responses=problem_responses(), openapi_extra=raw_json_body(FrictionRequest))
-async def evaluate_friction(request: Request, store: StoreDep) -> Response:
+async def evaluate_friction(request: Request) -> Response:
     """Every output of the friction model, or of a calibrated model (``model``), at one design point."""
-    # Parsed from the raw bytes: a single point is dominated by per-request overhead.
+    # Parsed from the raw bytes, and the store looked up only for a calibrated model (no dependency
+    # to resolve for a physics point): a single point is dominated by per-request overhead.
     body = await parse_json_body(request, FrictionRequest)
     if body.model != "physics":
         given = body.model_dump(exclude_unset=True, exclude={"convention", "model", "conditions"})
-        document = await run_in_threadpool(evaluate_point_with_model, store, body.model, given,
-                                           body.conditions)
+        document = await run_in_threadpool(evaluate_point_with_model, await get_store(request), body.model,
+                                           given, body.conditions)
         return Response(json_bytes(document), media_type="application/json")
     if body.conditions is not None:
         raise validation_problem([{"pointer": "/conditions",
