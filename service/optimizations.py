@@ -27,7 +27,7 @@ from optimize import (
 )
 from optimize.problem import DESIGN_VARIABLES
 
-from .calibrations import load_mu_model, with_conditions
+from .calibrations import interval_at, load_mu_model, with_conditions
 from .executor import map_chunks
 from .problems import ProblemError, validation_problem
 from .schemas.optimizations import OptimizationRequest
@@ -63,6 +63,9 @@ class OptimizationPlan:
         ``{"objective", "points"}`` when a front is asked for.
     synchronous : bool
         Whether to answer at once rather than as a job.
+    interval : callable or None
+        For a calibrated model, the 95 % interval and domain check at a design point
+        (:func:`service.calibrations.interval_at`).
     """
 
     problem: DesignProblem
@@ -71,6 +74,7 @@ class OptimizationPlan:
     starts: int
     pareto: dict[str, Any] | None
     synchronous: bool
+    interval: Callable[[Mapping[str, Any]], dict[str, Any]] | None = None
 
 
 def _pointer(message: str, speed_in_fixed: bool) -> str:
@@ -82,13 +86,14 @@ def _pointer(message: str, speed_in_fixed: bool) -> str:
         "bounds", "fixed", "constraints", "speed_m_s", "convention") else ""
 
 
-def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, dict[str, Any], str]:
-    """The μ model, the physics values it was built with, and its convention."""
+def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, dict[str, Any], str,
+                                                              Callable | None]:
+    """The μ model, the physics values it was built with, its convention and its interval at a point."""
     if body.conditions and not body.model.startswith("calibrated:"):
         raise validation_problem([{"pointer": "/conditions", "detail": "extra input columns are read by "
                                    "calibrated models only"}])
     if body.model == "physics":
-        return None, {}, str(body.convention)
+        return None, {}, str(body.convention), None
     if body.model.startswith("surrogate:"):
         try:
             from .routes.surrogates import load_mu_model as load_surrogate  # the surrogates resource
@@ -100,7 +105,8 @@ def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, di
         model = load_mu_model(store, body.model)
     values = {**getattr(model, "fixed", {}), **getattr(model, "fitted", {})}
     mu_model = with_conditions(model, body.model, body.conditions)
-    return mu_model, values, getattr(model, "convention", physics.DEFAULT_CONVENTION)
+    return (mu_model, values, getattr(model, "convention", physics.DEFAULT_CONVENTION),
+            interval_at(model, body.conditions))
 
 
 def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
@@ -125,7 +131,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     if body.pareto is not None and body.model != "physics":
         raise validation_problem([{"pointer": "/pareto", "detail": "a Pareto front is computed for model "
                                    "physics only"}])
-    mu_model, model_values, convention = _model(store, body)
+    mu_model, model_values, convention, interval = _model(store, body)
     fixed = body.fixed.model_dump(exclude_none=True)
     speed_in_fixed = "speed_m_s" in fixed
     if speed_in_fixed and body.speed_m_s is not None:
@@ -152,7 +158,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     counts = b.balls[1] - b.balls[0] + 1
     synchronous = mu_model is None and body.pareto is None and counts <= SYNC_MAX_BALL_COUNTS
     pareto = body.pareto.model_dump() if body.pareto is not None else None
-    return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous)
+    return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous, interval)
 
 
 def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:
@@ -209,6 +215,10 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
                                     model_name=plan.model,
                                     map_calls=None if executor is None else partial(map_chunks, executor))
         document = {**result.to_dict(), "model": plan.model}
+        if plan.interval is not None:
+            # A calibrated model says how sure it is at the optimum, and whether the optimum lies in its data.
+            design = {**plan.problem.fixed, **document["design"], "speed_m_s": document["speed_m_s"]}
+            document.update(plan.interval(design))
         if with_pareto:
             front = pareto_front(plan.problem, plan.pareto["objective"], plan.pareto["points"],
                                  progress=stage(0.2, 0.8))
