@@ -150,7 +150,7 @@ def run_case(mechanisms, noise, outliers, declared, seed, folds):
     }
 
 
-def suite(seeds: int, clean_seeds: int, folds: int, part: str) -> None:
+def suite(seeds: int, clean_seeds: int, folds: int, part: str, cases: slice = slice(None)) -> None:
     print(
         f"synthetic suite: 200 rows, {folds}-fold nested CV, fit {', '.join(FIT)}; coverage on 400 fresh rows"
     )
@@ -171,7 +171,8 @@ def suite(seeds: int, clean_seeds: int, folds: int, part: str) -> None:
             flush=True,
         )
 
-    for name, (mechanisms, noise, outliers, declared) in CASES.items() if part != "clean" else ():
+    chosen = list(CASES.items())[cases] if part != "clean" else []
+    for name, (mechanisms, noise, outliers, declared) in chosen:
         records = [run_case(mechanisms, noise, outliers, declared, seed, folds) for seed in range(seeds)]
         extra = ""
         wrong = [r["terms"] for r in records if not r["right"]]
@@ -186,12 +187,13 @@ def suite(seeds: int, clean_seeds: int, folds: int, part: str) -> None:
     if part == "effects":
         return
     false = 0
-    for name, noise in CLEAN.items():
+    for name, noise in list(CLEAN.items())[cases]:
         records = [run_case([], noise, 0.0, None, 100 + seed, folds) for seed in range(clean_seeds)]
         found = [r["terms"] for r in records if r["terms"]]
         false += len(found)
         line(name, records, f"  false discoveries: {len(found)}{' ' + str(found) if found else ''}")
-    print(f"false discoveries on clean data: {false} in {clean_seeds * len(CLEAN)} runs (target 0)")
+    runs = clean_seeds * len(list(CLEAN)[cases])
+    print(f"false discoveries on clean data: {false} in {runs} runs (target 0)")
 
 
 def synthetic_csv(n: int, seed: int = 0) -> str:
@@ -245,12 +247,15 @@ def main() -> None:
     parser.add_argument("--clean-seeds", type=int, default=20, help="seeds per clean case (two cases)")
     parser.add_argument("--part", choices=["all", "effects", "clean"], default="all",
                         help="run only the cases with effects, or only the clean ones")
+    parser.add_argument("--cases", default=":", help="a Python slice of the part's cases, e.g. 0:5")
     parser.add_argument("--rows", type=int, default=10_000)
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--plots", metavar="DIR", help="also write the timing run's plots (PNG) into DIR")
     args = parser.parse_args()
     if args.suite:
-        suite(args.seeds, args.clean_seeds, args.folds, args.part)
+        start, _, stop = args.cases.partition(":")
+        suite(args.seeds, args.clean_seeds, args.folds, args.part,
+              slice(int(start) if start else None, int(stop) if stop else None))
     else:
         timing(args.rows, args.folds, args.plots)
 

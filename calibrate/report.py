@@ -35,7 +35,7 @@ import physics
 
 from .data import Dataset, parse_csv, parse_rows
 from .discrepancy import gp_discrepancy
-from .fit import check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors, robust_scale
+from .fit import check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
 from .model import CalibratedModel
 from .plots import calibration_plots
 from .select import (
@@ -411,8 +411,11 @@ def calibrate(
         "excluded_rows": int(outliers["count"]),
     }
     # A new measurement scatters around the model as the held-out rows of the nested cross-validation
-    # did: noise, what the terms leave, and the refit's own uncertainty (robust to the outliers).
-    noise_std_log = robust_scale(np.log(measured / nested.oof_mu))
+    # did: noise, what the terms leave, and the refit's own uncertainty. RMS over the rows that are not
+    # outliers (a median-based scale would be robust too, but it scatters twice as much from one data
+    # set to the next).
+    held_out = np.log(measured / nested.oof_mu)[inliers]
+    noise_std_log = float(np.sqrt(np.mean(np.square(held_out))))
     model = CalibratedModel.from_fit(
         final.declared,
         dataset.fixed,

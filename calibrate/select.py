@@ -134,6 +134,9 @@ class CandidateScore:
         Held-out prediction of every row (in-sample for a screening score). [1]
     values : list of float
         The term's parameters fitted by the screening (where a joint refit starts).
+    shifts : dict of str to float
+        Relative shifts (log scale) of the declared parameters the screening fitted with the term;
+        a joint refit starts from them, not from the declared values that were bent to mimic it.
     """
 
     term: Term | None
@@ -144,6 +147,7 @@ class CandidateScore:
     joint: bool
     oof_mu: np.ndarray = field(repr=False)
     values: list[float] = field(default_factory=list)
+    shifts: dict[str, float] = field(default_factory=dict)
 
     def summary(self, dataset: Dataset) -> dict:
         """JSON-ready: term, kind, drivers, parameters, CV RMSE of log μ, score and z."""
@@ -354,7 +358,7 @@ def _screen(dataset, fit_parameters, current: ModelCV, term, base, scale, curren
     score = _score(
         dataset, term, _n_parameters(fit_parameters, (*current.terms, term)), mu, current_loss, scale, False
     )
-    return replace(score, values=list(result.term_values[0]))
+    return replace(score, values=list(result.term_values[0]), shifts=dict(result.declared))
 
 
 def _screen_exactly(
@@ -368,7 +372,7 @@ def _screen_exactly(
                 dataset,
                 fit_parameters,
                 terms,
-                start=current.full.declared,
+                start=_shifted(current.full.declared, screened.shifts),
                 start_terms=[*current.full.term_values, screened.values],
                 scale=scale,
                 precise=False,
@@ -380,7 +384,15 @@ def _screen_exactly(
     if not _usable(mu):
         return None
     score = _score(dataset, screened.term, screened.n_parameters, mu, current_loss, scale, False)
-    return replace(score, values=list(result.term_values[-1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shifts = {n: float(np.log(v / current.full.declared[n])) for n, v in result.declared.items()}
+    return replace(score, values=list(result.term_values[-1]),
+                   shifts={n: d if np.isfinite(d) else 0.0 for n, d in shifts.items()})
+
+
+def _shifted(declared: dict[str, float], shifts: dict[str, float]) -> dict[str, float]:
+    """Declared values shifted by relative amounts (log scale)."""
+    return {n: v * float(np.exp(shifts.get(n, 0.0))) for n, v in declared.items()}
 
 
 def _cv_candidate(dataset, fit_parameters, current: ModelCV, screened: CandidateScore, scale, convention):
@@ -397,7 +409,7 @@ def _cv_candidate(dataset, fit_parameters, current: ModelCV, screened: Candidate
                     fit_parameters,
                     terms,
                     rows=train,
-                    start=fold_fit.declared,
+                    start=_shifted(fold_fit.declared, screened.shifts),
                     start_terms=[*fold_fit.term_values, screened.values],
                     scale=scale,
                     precise=False,
@@ -464,6 +476,7 @@ def _search_step(
                 replace(
                     _score(dataset, candidate.term, candidate.n_parameters, oof, current_loss, scale, True),
                     values=candidate.values,
+                    shifts=candidate.shifts,
                 )
             )
         progress(0.3 + 0.7 * (i + 1) / len(shortlist))

@@ -491,7 +491,9 @@ _VISCOUS_POWER = Effect(
         EffectParameter("drag_force_N", "N", "Drag force at the reference speed (the data's median "
                         "non-zero speed).", 0.0, 1e3),
         EffectParameter("speed_exponent", "1", "Exponent of speed: 1 for Couette drag, about 0.67 for an "
-                        "elastohydrodynamic film.", 0.05, 3.0),
+                        "elastohydrodynamic film; at least 0.3, below which it would pose as a "
+                        "constant drag.",
+                        0.3, 3.0),
     ),
     driver_description="slider speed speed_m_s [m/s] >= 0, not all zero (the force is divided by load_N [N])",
     reference=("B.J. Hamrock, D. Dowson, ASME J. Lubr. Technol. 99, 264-276 (1977): film thickness, and "
