@@ -106,14 +106,11 @@ def _effect_png(dataset: Dataset, model: CalibratedModel, k: int, outliers: np.n
         ax.scatter(x[outliers], partial[outliers], marker="x", color="red", s=30, label="outliers")
     ax.plot(grid, curve, color="black", lw=1.2, label="fitted term (others at their medians)")
     if prediction.mu_lower is not None:
-        ax.fill_between(
-            grid,
-            np.log(prediction.mu_lower / base),
-            np.log(prediction.mu_upper / base),
-            color="0.5",
-            alpha=0.25,
-            label="95 % band of a new measurement",
-        )
+        # Edges drawn over the points: with thousands of rows the shaded band alone is hidden.
+        lower, upper = np.log(prediction.mu_lower / base), np.log(prediction.mu_upper / base)
+        ax.fill_between(grid, lower, upper, color="0.5", alpha=0.25, label="95 % band of a new measurement")
+        for edge in (lower, upper):
+            ax.plot(grid, edge, color="black", lw=0.8, ls="--", zorder=3)
     ax.set_xlabel(f"{driver}{_unit(driver)}")
     ax.set_ylabel("log(mu / mu without the term) [-]")
     ax.set_xlim(grid[0] - 0.02 * (grid[-1] - grid[0]), grid[-1] + 0.02 * (grid[-1] - grid[0]))
