@@ -1,17 +1,19 @@
-"""Calibrate the friction model against measured data and name the effect it misses.
+"""Calibrate the friction model against measured data and name the effects it misses.
 
-:func:`calibrate` runs the whole loop: parse and check the measurements
-(:mod:`calibrate.data`), fit the declared parameters on log μ
-(:mod:`calibrate.fit`), search the residual for a missing effect
-(:mod:`calibrate.discover`), compare with a Gaussian-process discrepancy
-(:mod:`calibrate.discrepancy`) and report the held-out error before and after
-(:mod:`calibrate.report`), the after-error by nested cross-validation of the
-search (:func:`calibrate.discover.nested_cross_validate`). The calibrated model is plain JSON data that
-:class:`CalibratedModel` turns back into a ``mu_model(points)`` callable.
+:func:`calibrate` runs a one-direction pipeline, one module a step: parse and
+check the measurements (:mod:`calibrate.data`); propose candidate terms, named
+effects and drifts of the model's own parameters (:mod:`calibrate.candidates`);
+fit robustly on log μ (:mod:`calibrate.fit`); choose terms by forward selection
+and judge the whole procedure by nested cross-validation (:mod:`calibrate.select`);
+say how sure the result is (:mod:`calibrate.uncertainty`); draw it
+(:mod:`calibrate.plots`); report (:mod:`calibrate.report`). The calibrated model
+is plain JSON data that :class:`CalibratedModel` turns back into a callable
+whose :meth:`CalibratedModel.predict` gives μ with its 95 % interval and a
+domain check.
 """
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_assignments, parse_csv, parse_rows
-from .model import CalibratedModel
+from .model import CalibratedModel, Prediction
 from .report import CalibrationReport, calibrate, check_request
 
 __all__ = [
@@ -20,6 +22,7 @@ __all__ = [
     "parse_assignments",
     "CalibrationReport",
     "CalibratedModel",
+    "Prediction",
     "Dataset",
     "DataError",
     "parse_csv",

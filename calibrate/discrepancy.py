@@ -24,8 +24,8 @@ from collections.abc import Callable
 import numpy as np
 
 from .data import Dataset
-from .discover import Baseline
 from .fit import prediction_errors
+from .select import ModelCV
 
 __all__ = ["gp_discrepancy"]
 
@@ -40,7 +40,7 @@ def _features(dataset: Dataset) -> tuple[list[str], np.ndarray]:
     return names, (np.column_stack(columns) if columns else np.zeros((dataset.n_points, 0)))
 
 
-def gp_discrepancy(dataset: Dataset, baseline: Baseline, max_train: int = 300, seed: int = 0,
+def gp_discrepancy(dataset: Dataset, baseline: ModelCV, max_train: int = 300, seed: int = 0,
                    progress: Callable[[float], None] | None = None) -> dict:
     """Cross-validated error of the declared model plus a GP discrepancy on log μ.
 
@@ -48,7 +48,7 @@ def gp_discrepancy(dataset: Dataset, baseline: Baseline, max_train: int = 300, s
     ----------
     dataset : Dataset
         Measurements.
-    baseline : Baseline
+    baseline : ModelCV
         Declared model fitted per fold (its folds are reused).
     max_train : int
         At most this many training rows per fold (a random subset), to bound the GP's cubic cost. [1]

@@ -1,12 +1,19 @@
-"""Bounded least squares on log μ of the declared model, optionally with one added effect.
+"""Step 3 of the pipeline: robust bounded least squares on log μ of the declared model plus terms.
 
 The residual of a measurement is ``log(mu_model) - log(mu_measured)``, divided
 by the standard deviation of ``log(mu_measured)`` (``mu_measured_std /
 mu_measured``) when the data give it. :func:`fit` adjusts the declared physics
 parameters named in ``fit_parameters`` (bounds from :data:`physics.PARAMETERS`)
-jointly with the parameters of an :class:`EffectChoice`, and reports their
-standard deviations from the Jacobian: covariance = s² (JᵀJ)⁻¹ with
-s² = Σ r² / (n - p).
+jointly with the parameters of the terms (:mod:`calibrate.candidates`).
+
+The loss is Huber's with the threshold 1.345 ``scale`` (95 % efficient on
+Gaussian noise), ``scale`` a robust standard deviation of the residual
+(:func:`robust_scale`): a gross outlier pulls with a bounded force instead of
+its square, so a few percent of them neither bias the parameters nor hide an
+effect. The covariance of the estimates is the sandwich of the M-estimator,
+A⁻¹ B A⁻¹ · n / (n - p), with A = Σ ψ'(r) JᵀJ and B = Σ ψ(r)² JᵀJ: it stays
+consistent when the residual's spread varies from row to row, where the
+classical s² (JᵀJ)⁻¹ does not.
 """
 
 from __future__ import annotations
@@ -18,72 +25,94 @@ import numpy as np
 from scipy.optimize import least_squares
 
 import physics
-from physics.effects import EFFECTS, Effect
 
+from .candidates import FrozenBase, Term, mu_of
 from .data import Dataset
 
-__all__ = ["EffectChoice", "FitResult", "fit", "predict_mu", "kfold_indices", "prediction_errors",
-           "check_fit_parameters"]
+__all__ = [
+    "FitResult",
+    "HUBER_K",
+    "check_fit_parameters",
+    "fit",
+    "huber_loss",
+    "kfold_indices",
+    "predict_mu",
+    "prediction_errors",
+    "robust_scale",
+    "weighted_log_residual",
+]
 
+#: Huber threshold in robust standard deviations: 95 % efficiency on Gaussian residuals. [1]
+HUBER_K = 1.345
 # A bound that the physics excludes is approached to within this relative margin.
 _EXCLUSIVE_MARGIN = 1e-9
 # Weighted log residual standing in for a non-finite model output during the fit.
 _REJECTED_RESIDUAL = 1e3
-
-
-@dataclass(frozen=True)
-class EffectChoice:
-    """An effect of :data:`physics.effects.EFFECTS` bound to its driver columns.
-
-    Attributes
-    ----------
-    name : str
-        Effect name.
-    drivers : tuple of str
-        Driving columns, main driver first.
-    constants : dict
-        Constants fixed from the whole data set (centre and scale of a generic term).
-    """
-
-    name: str
-    drivers: tuple[str, ...]
-    constants: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def effect(self) -> Effect:
-        """The :class:`physics.effects.Effect`."""
-        return EFFECTS[self.name]
+# Relative step of the finite-difference Jacobian used by the sandwich covariance.
+_JACOBIAN_STEP = 1e-6
+# Largest relative shift (log scale) of a declared parameter in a first-order screening fit.
+_MAX_SHIFT = 2.0
+# Tolerances of a fit: tight for the reported ones, loose for ranking candidates.
+_TOLERANCE = {True: 1e-8, False: 1e-4}
 
 
 @dataclass(frozen=True)
 class FitResult:
-    """Fitted values of the declared parameters and of the effect's.
+    """Fitted declared parameters and term parameters, with their sandwich covariance.
 
     Attributes
     ----------
     declared : dict of str to float
         Fitted physics parameters, in their units.
-    declared_std : dict of str to float
-        Their standard deviations, same units.
-    effect : EffectChoice or None
-        The effect fitted with them.
-    effect_parameters : dict of str to float
-        Its fitted parameters, in their units.
-    effect_std : dict of str to float
-        Their standard deviations.
-    rms_residual : float
-        Root mean square of the (weighted) log residual at the optimum. [1]
+    terms : tuple of Term
+        The terms fitted with them, in order.
+    term_values : list of list of float
+        Each term's fitted parameters, in the order of its ``parameter_names``.
+    names : list of str
+        Labels of every fitted value in covariance order: declared names, then ``"<term label>:
+        <parameter>"``.
+    values : numpy.ndarray
+        Every fitted value in that order.
+    covariance : numpy.ndarray
+        Sandwich covariance of ``values``.
+    scale : float
+        Robust standard deviation of the (weighted) log residual the Huber loss used. [1]
+    residual : numpy.ndarray
+        Weighted log residual ``log(mu_model / mu_measured)`` of the fitted rows. [1]
+    at_bound : list of str
+        Names (as in ``names``) of the values that ended on a bound.
     success : bool
         Whether the optimizer reported convergence.
     """
 
     declared: dict[str, float]
-    declared_std: dict[str, float]
-    effect: EffectChoice | None
-    effect_parameters: dict[str, float]
-    effect_std: dict[str, float]
-    rms_residual: float
+    terms: tuple[Term, ...]
+    term_values: list[list[float]]
+    names: list[str]
+    values: np.ndarray = field(repr=False)
+    covariance: np.ndarray = field(repr=False)
+    scale: float
+    residual: np.ndarray = field(repr=False)
+    at_bound: list[str]
     success: bool
+
+    @property
+    def std(self) -> np.ndarray:
+        """Standard deviation of every value, in ``names`` order."""
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+    @property
+    def declared_std(self) -> dict[str, float]:
+        """Standard deviation of each declared parameter, in its unit."""
+        return dict(zip(self.declared, self.std[: len(self.declared)].tolist(), strict=False))
+
+    def term_std(self) -> list[list[float]]:
+        """Standard deviations of each term's parameters, like :attr:`term_values`."""
+        out, i = [], len(self.declared)
+        for values in self.term_values:
+            out.append(self.std[i : i + len(values)].tolist())
+            i += len(values)
+        return out
 
 
 def check_fit_parameters(dataset: Dataset, fit_parameters: Sequence[str]) -> list[str]:
@@ -128,15 +157,16 @@ def _bounds(name: str) -> tuple[float, float]:
     return lo, hi
 
 
-def _rows_of(values, rows):
-    arr = np.asarray(values)
-    return arr if rows is None or arr.ndim == 0 else arr[rows]
-
-
-def predict_mu(dataset: Dataset, declared: Mapping[str, float], effect: EffectChoice | None = None,
-               effect_parameters: Mapping[str, float] | None = None, rows=None,
-               base_mu: np.ndarray | None = None, convention: str = physics.DEFAULT_CONVENTION) -> np.ndarray:
-    """μ of the declared model (with ``declared`` values) and the effect at the data's rows.
+def predict_mu(
+    dataset: Dataset,
+    declared: Mapping[str, float],
+    terms: Sequence[Term] = (),
+    term_values: Sequence[Sequence[float]] = (),
+    rows=None,
+    base: FrozenBase | None = None,
+    convention: str = physics.DEFAULT_CONVENTION,
+) -> np.ndarray:
+    """μ of the declared model (with ``declared`` values) and terms at the data's rows.
 
     Parameters
     ----------
@@ -144,14 +174,15 @@ def predict_mu(dataset: Dataset, declared: Mapping[str, float], effect: EffectCh
         Inputs per row.
     declared : mapping of str to float
         Values of fitted physics parameters, in their units.
-    effect : EffectChoice, optional
-        Effect to add.
-    effect_parameters : mapping, optional
-        Its parameters.
+    terms : sequence of Term
+        Terms to add, in order.
+    term_values : sequence of sequence of float
+        Their parameters.
     rows : array of int, optional
         Row indices (default: all).
-    base_mu : numpy.ndarray, optional
-        μ of the physics at every row, used instead of evaluating it (``declared`` is then ignored). [1]
+    base : FrozenBase, optional
+        The frozen current model at every row, used instead of the physics (``declared`` is then
+        ignored).
     convention : str
         See :data:`physics.CONVENTIONS`.
 
@@ -160,44 +191,85 @@ def predict_mu(dataset: Dataset, declared: Mapping[str, float], effect: EffectCh
     numpy.ndarray
         μ per selected row. [1]
     """
-    inputs = {k: _rows_of(v, rows) for k, v in dataset.inputs().items()}
-    if base_mu is None:
-        mu = physics.evaluate(convention=convention, **inputs, **declared).mu
-    else:
-        mu = _rows_of(base_mu, rows)
-    if effect is None:
-        return np.asarray(mu, dtype=float)
-    columns = {**physics.defaults(), **inputs, **declared,
-               **{k: _rows_of(v, rows) for k, v in dataset.conditions.items()}}
-    return effect.effect.apply(mu, columns, effect_parameters or {}, effect.drivers, effect.constants)
+    return mu_of(
+        {**dataset.inputs(), **declared}, dataset.conditions, terms, term_values, base, rows, convention
+    )
 
 
-def _log_weights(dataset: Dataset, rows) -> np.ndarray:
+def weighted_log_residual(dataset: Dataset, mu: np.ndarray, rows=None) -> np.ndarray:
+    """``log(mu / mu_measured)``, over the log noise ``mu_measured_std / mu_measured`` when given. [1]"""
+    measured = dataset.mu_measured if rows is None else dataset.mu_measured[rows]
+    r = np.log(np.maximum(mu, 1e-300)) - np.log(measured)
     if dataset.mu_measured_std is None:
-        return np.ones_like(_rows_of(dataset.mu_measured, rows))
-    return _rows_of(dataset.mu_measured / dataset.mu_measured_std, rows)
+        return r
+    std = dataset.mu_measured_std if rows is None else dataset.mu_measured_std[rows]
+    return r * measured / std
 
 
-def fit(dataset: Dataset, fit_parameters: Sequence[str], effect: EffectChoice | None = None, rows=None,
-        start: Mapping[str, float] | None = None, base_mu: np.ndarray | None = None,
-        convention: str = physics.DEFAULT_CONVENTION) -> FitResult:
-    """Fit the declared parameters and the effect's by bounded least squares on log μ.
+def robust_scale(residual) -> float:
+    """Robust standard deviation: 1.4826 × the median absolute deviation from the median.
+
+    Examples
+    --------
+    >>> round(robust_scale([-1.0, 0.0, 1.0, 100.0]), 4)
+    1.4826
+    """
+    r = np.asarray(residual, dtype=float)
+    return float(1.4826 * np.median(np.abs(r - np.median(r)))) if r.size else 0.0
+
+
+def huber_loss(residual, scale: float) -> np.ndarray:
+    """Huber's loss of each residual, threshold :data:`HUBER_K` ``scale``: r² inside, 2k|r| - k² outside.
+
+    Examples
+    --------
+    >>> huber_loss([0.5, 3.0], 1.0).round(4).tolist()
+    [0.25, 6.261]
+    """
+    r = np.abs(np.asarray(residual, dtype=float))
+    k = HUBER_K * scale
+    return np.where(r <= k, r * r, 2.0 * k * r - k * k)
+
+
+def fit(
+    dataset: Dataset,
+    fit_parameters: Sequence[str],
+    terms: Sequence[Term] = (),
+    rows=None,
+    start: Mapping[str, float] | None = None,
+    start_terms: Sequence[Sequence[float]] | None = None,
+    base: FrozenBase | None = None,
+    scale: float | None = None,
+    precise: bool = True,
+    convention: str = physics.DEFAULT_CONVENTION,
+) -> FitResult:
+    """Fit the declared parameters and the terms' by robust bounded least squares on log μ.
 
     Parameters
     ----------
     dataset : Dataset
         Measurements.
     fit_parameters : sequence of str
-        Physics parameters to fit (see :func:`check_fit_parameters`); ignored with ``base_mu``.
-    effect : EffectChoice, optional
-        Effect fitted jointly.
+        Physics parameters to fit (see :func:`check_fit_parameters`); ignored with ``base``, whose
+        ``declared`` parameters are shifted to first order instead (``declared`` of the result then
+        holds their relative shifts, log scale).
+    terms : sequence of Term
+        Terms fitted jointly (with ``base``: only the new terms, the base holds the others).
     rows : array of int, optional
         Training rows (default: all).
     start : mapping, optional
-        Initial values of any fitted parameter, declared or effect (default: the physics default and
-        the effect's data-based initial guess).
-    base_mu : numpy.ndarray, optional
-        Frozen μ of the physics at every row: only the effect's parameters are fitted. [1]
+        Initial declared values (default: the physics defaults).
+    start_terms : sequence of sequence of float, optional
+        Initial values of the first terms (e.g. the previous step's fit); the others start from
+        their data-based guess.
+    base : FrozenBase, optional
+        Frozen current model at every row: only the terms' parameters are fitted.
+    scale : float, optional
+        Robust standard deviation of the weighted log residual for the Huber loss; by default it is
+        estimated from the residual at the start, the fit run, re-estimated and the fit refined.
+    precise : bool
+        Whether to fit to tight tolerances and compute the sandwich covariance (False: a looser fit
+        without covariance, enough to rank candidates; ``covariance`` is then all NaN).
     convention : str
         See :data:`physics.CONVENTIONS`.
 
@@ -208,57 +280,123 @@ def fit(dataset: Dataset, fit_parameters: Sequence[str], effect: EffectChoice | 
     Raises
     ------
     ValueError
-        For parameters that cannot be fitted or an effect whose driver values are outside its domain.
+        For parameters that cannot be fitted.
     """
-    declared = [] if base_mu is not None else check_fit_parameters(dataset, fit_parameters)
-    start = dict(start or {})
-    x0 = [float(start.get(n, physics.PARAMETERS[n].default)) for n in declared]
-    bounds = [_bounds(n) for n in declared]
-    effect_names: list[str] = []
-    if effect is not None:
-        spec = effect.effect
-        effect_names = spec.parameter_names
+    if base is None:
+        declared = check_fit_parameters(dataset, fit_parameters)
+        start = dict(start or {})
+        x0 = [float(start.get(n, dataset.fixed.get(n, physics.PARAMETERS[n].default))) for n in declared]
+        bounds = [_bounds(n) for n in declared]
+    else:
+        declared = list(base.declared)
+        x0, bounds = [0.0] * len(declared), [(-_MAX_SHIFT, _MAX_SHIFT)] * len(declared)
+    names = list(declared)
+    sizes = []
+    start_terms = list(start_terms or [])
+    if terms:
+        mu0 = (
+            base.mu
+            if base is not None
+            else predict_mu(
+                dataset,
+                dict(zip(declared, x0, strict=True)),
+                terms[: len(start_terms)],
+                start_terms,
+                convention=convention,
+            )
+        )
         columns = {**physics.defaults(), **dataset.inputs(), **dataset.conditions}
-        if not spec.accepts(columns, effect.drivers):
-            raise ValueError(f"{effect.drivers[0]} is outside the domain of effect {effect.name}")
-        mu0 = predict_mu(dataset, dict(zip(declared, x0, strict=True)), base_mu=base_mu,
-                         convention=convention)
-        guesses = spec.initial(mu0, columns, effect.drivers, effect.constants)
-        x0 += [float(start.get(n, g)) for n, g in zip(effect_names, guesses, strict=True)]
-        bounds += [(p.minimum, p.maximum) for p in spec.parameters]
+        for i, term in enumerate(terms):
+            guess = start_terms[i] if i < len(start_terms) else term.initial(mu0, columns)
+            x0 += [float(g) for g in guess]
+            bounds += term.bounds()
+            names += [f"{term.label}: {n}" for n in term.parameter_names]
+            sizes.append(len(term.parameter_names))
     lo = np.array([b[0] for b in bounds], dtype=float)
     hi = np.array([b[1] for b in bounds], dtype=float)
     x0 = np.clip(np.array(x0, dtype=float), lo, hi)
-    log_measured = np.log(_rows_of(dataset.mu_measured, rows))
-    weights = _log_weights(dataset, rows)
     n_declared = len(declared)
+
+    def split(x):
+        values, i = [], n_declared
+        for size in sizes:
+            values.append(list(x[i : i + size]))
+            i += size
+        return dict(zip(declared, x[:n_declared], strict=True)), values
 
     def residual(x):
         # A trial step may overflow an exponential term or drive an additive one negative; a large
         # finite residual makes the optimizer reject the step.
         with np.errstate(all="ignore"):
-            mu = predict_mu(dataset, dict(zip(declared, x[:n_declared], strict=True)), effect,
-                            dict(zip(effect_names, x[n_declared:], strict=True)), rows, base_mu, convention)
-            r = weights * (np.log(np.maximum(mu, 1e-300)) - log_measured)
+            values, term_values = split(x)
+            try:
+                if base is None:
+                    mu = predict_mu(dataset, values, terms, term_values, rows, convention=convention)
+                else:
+                    mu = predict_mu(
+                        dataset, {}, terms, term_values, rows, base.shifted(list(values.values())), convention
+                    )
+            except ValueError:  # a trial drift outside a physics input's range
+                return np.full(np.size(dataset.mu_measured if rows is None else rows), _REJECTED_RESIDUAL)
+            r = weighted_log_residual(dataset, mu, rows)
         return np.where(np.isfinite(r), r, _REJECTED_RESIDUAL)
 
+    r = residual(x0)
     if x0.size == 0:
-        r = residual(x0)
-        return FitResult({}, {}, None, {}, {}, float(np.sqrt(np.mean(r * r))), True)
-    result = least_squares(residual, x0, bounds=(lo, hi), x_scale="jac", method="trf")
-    r, jac = result.fun, result.jac
-    dof = max(r.size - x0.size, 1)
-    s2 = float(r @ r) / dof
-    cov = s2 * np.linalg.pinv(jac.T @ jac)
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    names = declared + effect_names
-    values = dict(zip(names, result.x.tolist(), strict=True))
-    stds = dict(zip(names, std.tolist(), strict=True))
+        s = scale if scale is not None else max(robust_scale(r), 1e-12)
+        return FitResult({}, (), [], [], x0, np.zeros((0, 0)), s, r, [], True)
+    passes = [scale] if scale is not None else [None, None]
+    x = x0
+    for given in passes:
+        s = given if given is not None else max(robust_scale(r), 1e-12)
+        tol = _TOLERANCE[precise]
+        result = least_squares(
+            residual,
+            x,
+            bounds=(lo, hi),
+            x_scale="jac",
+            method="trf",
+            loss="huber",
+            f_scale=HUBER_K * s,
+            ftol=tol,
+            xtol=tol,
+        )
+        x, r = result.x, result.fun
+    cov = _sandwich(residual, x, r, lo, hi, HUBER_K * s) if precise else np.full((x.size, x.size), np.nan)
+    values, term_values = split(x)
+    # On a bound within a millionth of the value's own scale (its start when it ends near zero).
+    scale_of = 1e-6 * np.maximum(np.abs(x), np.abs(x0))
+    on_bound = (np.abs(x - lo) <= scale_of) | (np.abs(hi - x) <= scale_of)
     return FitResult(
-        {n: values[n] for n in declared}, {n: stds[n] for n in declared}, effect,
-        {n: values[n] for n in effect_names}, {n: stds[n] for n in effect_names},
-        float(np.sqrt(np.mean(r * r))), bool(result.success),
+        values,
+        tuple(terms),
+        term_values,
+        names,
+        x,
+        cov,
+        s,
+        r,
+        [n for n, b in zip(names, on_bound, strict=True) if b],
+        bool(result.success),
     )
+
+
+def _sandwich(residual, x, r, lo, hi, k) -> np.ndarray:
+    """Sandwich covariance of the Huber M-estimator from a finite-difference Jacobian at ``x``."""
+    jac = np.empty((r.size, x.size))
+    for j in range(x.size):
+        step = _JACOBIAN_STEP * max(abs(x[j]), 1e-300) if x[j] != 0 else _JACOBIAN_STEP
+        if x[j] + step > hi[j]:
+            step = -step
+        shifted = x.copy()
+        shifted[j] = np.clip(x[j] + step, lo[j], hi[j])
+        jac[:, j] = (residual(shifted) - r) / (shifted[j] - x[j])
+    inside = np.abs(r) <= k
+    psi = np.clip(r, -k, k)
+    bread = np.linalg.pinv(jac[inside].T @ jac[inside])
+    meat = (jac * psi[:, None]).T @ (jac * psi[:, None])
+    dof = max(r.size - x.size, 1)
+    return bread @ meat @ bread * (r.size / dof)
 
 
 def kfold_indices(n_points: int, folds: int, seed: int = 0) -> list[np.ndarray]:

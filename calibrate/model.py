@@ -1,30 +1,67 @@
-"""A calibrated model as plain JSON data, rebuilt into a ``mu_model(points)`` callable (no pickle).
+"""A calibrated model as plain JSON data, rebuilt into a callable with intervals and a domain (no pickle).
 
 The model is the physics of :func:`physics.evaluate` with the values fixed by
-the calibration request, the fitted declared parameters, and at most one effect
-of :data:`physics.effects.EFFECTS` with its fitted parameters, driver columns
-and constants.
+the calibration request, the fitted declared parameters and the terms chosen by
+forward selection (:mod:`calibrate.candidates`), with what
+:meth:`CalibratedModel.predict` needs to say how sure it is and where it holds:
+the covariance of the fitted values, the scatter of a new measurement around
+the model, and the range of every column of the data it was fitted on.
+
+Models stored before version 2 (one effect, no covariance, no domain) still
+load; they answer μ without an interval and without a domain check.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 import physics
-from physics.effects import EFFECTS
 
-__all__ = ["CalibratedModel"]
+from .candidates import Term, mu_of, term_from_json
 
-FORMAT_VERSION = 1
+__all__ = ["CalibratedModel", "Prediction", "FORMAT_VERSION"]
+
+FORMAT_VERSION = 2
+# Relative step of the finite-difference gradient of log mu in the fitted values.
+_GRADIENT_STEP = 1e-6
+# Relative slack of the domain's bounds (rounding of the data). [1]
+_DOMAIN_SLACK = 1e-9
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """μ of a calibrated model with its 95 % interval and domain check, per point.
+
+    Attributes
+    ----------
+    mu : numpy.ndarray
+        Predicted μ. [1]
+    mu_lower, mu_upper : numpy.ndarray or None
+        Bounds of the 95 % prediction interval of a new measurement [1]: parameter uncertainty,
+        what the terms leave unexplained and the measurement noise (None for a model stored before
+        intervals existed).
+    in_domain : numpy.ndarray or None
+        Whether each point lies within the ranges of the data the model was fitted on (None for a
+        model stored before domains existed).
+    warnings : list of str
+        One sentence per column outside the domain, naming the column, the value(s) and the range.
+    """
+
+    mu: np.ndarray
+    mu_lower: np.ndarray | None
+    mu_upper: np.ndarray | None
+    in_domain: np.ndarray | None
+    warnings: list[str] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
 class CalibratedModel:
-    """Physics + fitted declared parameters + one optional effect.
+    """Physics + fitted declared parameters + terms, with covariance, scatter and domain.
 
     Attributes
     ----------
@@ -32,23 +69,59 @@ class CalibratedModel:
         Fitted physics parameters, in their units.
     fixed : dict
         Physics parameters fixed by the calibration request.
-    effect : dict or None
-        ``{"name", "drivers", "parameters", "constants"}`` of the added effect.
+    terms : list of tuple of (Term, list of float)
+        The chosen terms with their fitted values, in order.
     convention : str
         See :data:`physics.CONVENTIONS`.
+    covariance : numpy.ndarray or None
+        Covariance of the fitted values: declared (in ``fitted`` order), then each term's.
+    noise_std_log : float or None
+        Standard deviation of log μ of a new measurement around the model (held-out scatter by
+        nested cross-validation, robust). [1]
+    domain : dict of str to list of float, or None
+        ``[min, max]`` of every column of the data (physics inputs in their units, conditions in the
+        data's units).
+    conditions : list of str
+        Condition columns of the data (the only non-physics keys a point may give).
     """
 
     fitted: dict[str, float] = field(default_factory=dict)
     fixed: dict[str, Any] = field(default_factory=dict)
-    effect: dict[str, Any] | None = None
+    terms: list[tuple[Term, list[float]]] = field(default_factory=list)
     convention: str = physics.DEFAULT_CONVENTION
+    covariance: np.ndarray | None = field(default=None, repr=False)
+    noise_std_log: float | None = None
+    domain: dict[str, list[float]] | None = None
+    conditions: list[str] = field(default_factory=list)
 
     @property
     def required_columns(self) -> list[str]:
-        """Columns a point must give besides the physics inputs: the effect's drivers not in physics."""
-        if self.effect is None:
-            return []
-        return [d for d in self.effect["drivers"] if d not in physics.PARAMETERS]
+        """Columns a point must give besides the physics inputs: the terms' drivers not in physics."""
+        needed = [d for term, _ in self.terms for d in term.drivers if d not in physics.PARAMETERS]
+        return list(dict.fromkeys(needed))
+
+    def check_columns(self, names) -> None:
+        """Raise ValueError naming a column that is neither a physics input nor a known condition,
+        or a condition the terms need that is missing."""
+        if self.domain is not None:
+            unknown = [n for n in names if n not in physics.PARAMETERS and n not in self.conditions]
+            if unknown:
+                known = ", ".join(self.conditions) or "none"
+                raise ValueError(
+                    f"unknown condition column(s) {', '.join(map(repr, unknown))}; the calibration "
+                    f"data had the conditions: {known}"
+                )
+        missing = [c for c in self.required_columns if c not in names]
+        if missing:
+            labels = ", ".join(t.label for t, _ in self.terms if set(t.drivers) & set(missing))
+            raise ValueError(
+                f"the calibrated model needs condition column(s) {', '.join(missing)} (drivers of {labels})"
+            )
+
+    def _mu(self, points: Mapping[str, Any], fitted: Mapping[str, float], values) -> np.ndarray:
+        inputs = {**self.fixed, **fitted, **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
+        conditions = {k: np.asarray(v, dtype=float) for k, v in points.items() if k not in physics.PARAMETERS}
+        return mu_of(inputs, conditions, [t for t, _ in self.terms], values, convention=self.convention)
 
     def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
         """μ at columnar points.
@@ -57,8 +130,7 @@ class CalibratedModel:
         ----------
         points : mapping of str to array_like
             Physics inputs by name (broadcasting like :func:`physics.evaluate`; values given here
-            override fixed and fitted ones) and the effect's extra driver columns; other keys are
-            ignored.
+            override fixed and fitted ones) and the condition columns the terms read.
 
         Returns
         -------
@@ -68,21 +140,104 @@ class CalibratedModel:
         Raises
         ------
         ValueError
-            For invalid physics inputs or a missing effect driver column.
+            For invalid physics inputs, an unknown condition column or a missing one the terms need.
         """
-        missing = [c for c in self.required_columns if c not in points]
-        if missing:
-            raise ValueError(f"the calibrated model needs column(s) {', '.join(missing)} "
-                             f"(drivers of its effect {self.effect['name']})")
-        inputs = {**self.fixed, **self.fitted,
-                  **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
-        mu = physics.evaluate(convention=self.convention, outputs=["mu"], **inputs).mu
-        if self.effect is None:
-            return mu
-        extra = {k: np.asarray(v, dtype=float) for k, v in points.items() if k not in physics.PARAMETERS}
-        columns = {**physics.defaults(), **inputs, **extra}
-        return EFFECTS[self.effect["name"]].apply(mu, columns, self.effect["parameters"],
-                                                  tuple(self.effect["drivers"]), self.effect["constants"])
+        self.check_columns(points)
+        return self._mu(points, self.fitted, [v for _, v in self.terms])
+
+    def predict(self, points: Mapping[str, Any], level: float = 0.95) -> Prediction:
+        """μ with its prediction interval and a domain check, at columnar points.
+
+        This is the calibrated model's one prediction interface: arrays of inputs and conditions
+        in, μ, its bounds and where it holds out.
+
+        Parameters
+        ----------
+        points : mapping of str to array_like
+            As for :meth:`__call__`.
+        level : float
+            Probability that a new measurement falls inside [mu_lower, mu_upper]; 0.95 by default. [1]
+
+        Returns
+        -------
+        Prediction
+            μ [1], the bounds [1] (log-normal: μ exp(± z σ), σ² the parameter variance of log μ at
+            the point plus :attr:`noise_std_log`²), the domain flag per point and the warnings.
+
+        Raises
+        ------
+        ValueError
+            As :meth:`__call__`.
+        """
+        self.check_columns(points)
+        values = [list(v) for _, v in self.terms]
+        mu = np.asarray(self._mu(points, self.fitted, values), dtype=float)
+        in_domain, warnings = self.domain_check(points)
+        if self.covariance is None or self.noise_std_log is None:
+            return Prediction(mu, None, None, in_domain, warnings)
+        flat = list(self.fitted.values()) + [x for v in values for x in v]
+        gradient = np.zeros((len(flat), *mu.shape))
+        with np.errstate(all="ignore"):
+            for j, x in enumerate(flat):
+                step = _GRADIENT_STEP * (abs(x) if x != 0 else 1.0)
+                shifted = list(flat)
+                shifted[j] = x + step
+                fitted = dict(zip(self.fitted, shifted[: len(self.fitted)], strict=True))
+                rest, term_values = shifted[len(self.fitted) :], []
+                for v in values:
+                    term_values.append(rest[: len(v)])
+                    rest = rest[len(v) :]
+                try:
+                    gradient[j] = (np.log(self._mu(points, fitted, term_values)) - np.log(mu)) / step
+                except ValueError:  # the step left a physics input's range: that direction is not varied
+                    gradient[j] = 0.0
+        gradient = np.where(np.isfinite(gradient), gradient, 0.0)
+        variance = np.einsum("i...,ij,j...->...", gradient, self.covariance, gradient)
+        sigma = np.sqrt(np.clip(variance, 0.0, None) + self.noise_std_log**2)
+        z = float(stats.norm.isf((1.0 - level) / 2.0))
+        return Prediction(mu, mu * np.exp(-z * sigma), mu * np.exp(z * sigma), in_domain, warnings)
+
+    def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
+        """Whether each point lies within the data's ranges, and a warning per column outside.
+
+        A physics input that was not a data column is inside only at the value the calibration used
+        (fixed, fitted or default).
+
+        Returns
+        -------
+        tuple
+            Boolean array broadcast like the points (None without a stored domain), list of str.
+        """
+        if self.domain is None:
+            return None, []
+        shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
+        inside = np.ones(shape, dtype=bool)
+        warnings = []
+        for name, given in points.items():
+            value = np.broadcast_to(np.asarray(given, dtype=float), shape)
+            unit = f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""
+            if name in self.domain:
+                lo, hi = self.domain[name]
+                slack = _DOMAIN_SLACK * max(abs(lo), abs(hi), 1e-300)
+                ok = (value >= lo - slack) & (value <= hi + slack)
+                where = f"outside the calibration data's range [{lo:.6g}, {hi:.6g}]{unit}"
+            elif name in physics.PARAMETERS:
+                used = self.fitted.get(name, self.fixed.get(name, physics.PARAMETERS[name].default))
+                if used is None:  # a required input the model never had a value for: nothing to compare
+                    continue
+                used = float(used)
+                ok = np.isclose(value, used, rtol=1e-9, atol=0.0)
+                where = f"not the value the calibration used, {used:.6g}{unit}"
+            else:
+                continue
+            if not np.all(ok):
+                bad = value[~ok]
+                shown = ", ".join(f"{x:.6g}" for x in np.unique(bad)[:3]) + (
+                    ", ..." if np.unique(bad).size > 3 else ""
+                )
+                warnings.append(f"{name} = {shown}{unit} is {where}: an extrapolation ({bad.size} point(s))")
+            inside &= ok
+        return inside, warnings
 
     def to_json(self) -> dict[str, Any]:
         """The model as JSON-ready data (numbers, strings, lists, dicts)."""
@@ -91,22 +246,21 @@ class CalibratedModel:
             "convention": self.convention,
             "fixed": dict(self.fixed),
             "fitted": {k: float(v) for k, v in self.fitted.items()},
-            "effect": None if self.effect is None else {
-                "name": self.effect["name"],
-                "drivers": list(self.effect["drivers"]),
-                "parameters": {k: float(v) for k, v in self.effect["parameters"].items()},
-                "constants": {k: float(v) for k, v in self.effect["constants"].items()},
-            },
+            "terms": [term.to_json(values) for term, values in self.terms],
+            "covariance": None if self.covariance is None else np.asarray(self.covariance).tolist(),
+            "noise_std_log": self.noise_std_log,
+            "domain": self.domain,
+            "conditions": list(self.conditions),
         }
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> CalibratedModel:
-        """Rebuild a model from :meth:`to_json` data, validating every part.
+        """Rebuild a model from :meth:`to_json` data (or a version 1 model), validating every part.
 
         Parameters
         ----------
         data : mapping
-            As written by :meth:`to_json`.
+            As written by :meth:`to_json`, or by version 1 (``effect`` instead of ``terms``).
 
         Returns
         -------
@@ -115,32 +269,73 @@ class CalibratedModel:
         Raises
         ------
         ValueError
-            For an unknown format version, convention, parameter or effect.
+            For an unknown format version, convention, parameter, effect or law, or a covariance
+            of the wrong size.
         """
-        if data.get("format_version") != FORMAT_VERSION:
-            raise ValueError(f"format_version must be {FORMAT_VERSION}; got {data.get('format_version')!r}")
+        version = data.get("format_version")
+        if version not in (1, FORMAT_VERSION):
+            raise ValueError(f"format_version must be 1 or {FORMAT_VERSION}; got {version!r}")
         convention = data.get("convention", physics.DEFAULT_CONVENTION)
         if convention not in physics.CONVENTIONS:
-            raise ValueError(f"convention must be one of {', '.join(physics.CONVENTIONS)}; "
-                             f"got {convention!r}")
+            raise ValueError(
+                f"convention must be one of {', '.join(physics.CONVENTIONS)}; got {convention!r}"
+            )
         values = {}
         for part in ("fixed", "fitted"):
             for name, value in dict(data.get(part, {})).items():
                 if name not in physics.PARAMETERS:
                     raise ValueError(f"{part}: unknown physics parameter {name!r}")
                 values[name] = physics.validate(name, value).item()
-        effect = data.get("effect")
-        if effect is not None:
-            spec = EFFECTS.get(effect.get("name"))
-            if spec is None:
-                raise ValueError(f"effect name must be one of {', '.join(EFFECTS)}; "
-                                 f"got {effect.get('name')!r}")
-            missing = [n for n in spec.parameter_names if n not in effect.get("parameters", {})]
-            if missing or not effect.get("drivers"):
-                raise ValueError(f"effect {spec.name} needs drivers and parameters {spec.parameter_names}")
-            effect = {"name": spec.name, "drivers": [str(d) for d in effect["drivers"]],
-                      "parameters": {n: float(effect["parameters"][n]) for n in spec.parameter_names},
-                      "constants": {k: float(v) for k, v in dict(effect.get("constants", {})).items()}}
         fixed = {k: values[k] for k in dict(data.get("fixed", {}))}
         fitted = {k: values[k] for k in dict(data.get("fitted", {}))}
-        return cls(fitted, fixed, effect, convention)
+        if version == 1:
+            effect = data.get("effect")
+            terms = [] if effect is None else [term_from_json({**effect, "kind": "effect"})]
+            return cls(fitted, fixed, terms, convention)
+        terms = [term_from_json(t) for t in data.get("terms", [])]
+        covariance = data.get("covariance")
+        if covariance is not None:
+            covariance = np.asarray(covariance, dtype=float)
+            size = len(fitted) + sum(len(v) for _, v in terms)
+            if covariance.shape != (size, size):
+                raise ValueError(f"covariance must be {size} x {size}; got {covariance.shape}")
+        noise = data.get("noise_std_log")
+        domain = data.get("domain")
+        if domain is not None:
+            domain = {str(k): [float(v[0]), float(v[1])] for k, v in dict(domain).items()}
+        return cls(
+            fitted,
+            fixed,
+            terms,
+            convention,
+            covariance,
+            None if noise is None else float(noise),
+            domain,
+            [str(c) for c in data.get("conditions", [])],
+        )
+
+    @classmethod
+    def from_fit(
+        cls,
+        fitted: Mapping[str, float],
+        fixed: Mapping[str, Any],
+        terms: Sequence[Term],
+        term_values: Sequence[Sequence[float]],
+        convention: str,
+        covariance: np.ndarray,
+        noise_std_log: float,
+        columns: Mapping[str, np.ndarray],
+        conditions: Sequence[str],
+    ) -> CalibratedModel:
+        """A model from a fit, with the domain taken from the data's columns."""
+        domain = {name: [float(np.min(v)), float(np.max(v))] for name, v in columns.items()}
+        return cls(
+            dict(fitted),
+            dict(fixed),
+            [(t, list(map(float, v))) for t, v in zip(terms, term_values, strict=True)],
+            convention,
+            np.asarray(covariance, dtype=float),
+            float(noise_std_log),
+            domain,
+            list(conditions),
+        )

@@ -1,28 +1,30 @@
-"""The calibration loop and its report: :func:`calibrate`.
+"""Step 7, the end of the pipeline: :func:`calibrate` runs every step once, in order, and reports.
 
-1. Residual of the declared model with its default parameters.
-2. Fit of the declared parameters named in ``fit_parameters`` (bounded least
-   squares on log μ); its held-out error is the **before** figure.
-3. Search for the missing effect (:func:`calibrate.discover.discover`).
-4. Nested cross-validation of steps 2-3 and 5
-   (:func:`calibrate.discover.nested_cross_validate`): the search repeated on
-   the training rows of every fold, the effect it chose fitted there and the
-   fold's rows predicted; the error of those predictions is the **after**
-   figure, and the share of folds that chose the same effect its stability.
-5. The chosen effect fitted jointly with the declared parameters on all rows:
-   the calibrated model (:class:`calibrate.model.CalibratedModel`).
-6. A Gaussian-process discrepancy baseline (:func:`calibrate.discrepancy.gp_discrepancy`).
-7. Plots of the residual against its driver, before and after, as PNG bytes.
+One data set flows one way, each step a function of the previous step's result:
 
-Every error is measured on held-out rows of the same k folds. The chosen
-effect's own CV error on those folds (``error_after_selection``) is reported
-too, but it is optimistic: the folds that measure it also chose it among a few
-dozen candidates.
+1. data (:mod:`calibrate.data`): parse and check every cell;
+2. candidate terms (:mod:`calibrate.candidates`): named effects, parameter drifts, generic terms;
+3. robust fit (:mod:`calibrate.fit`): the declared parameters on log μ with Huber's loss; its
+   held-out error on k folds is the **before** figure;
+4. forward selection (:mod:`calibrate.select`): terms added one at a time while cross-validation
+   shows more than noise; then the whole selection repeated inside every fold (nested
+   cross-validation), whose held-out error is the **after** figure;
+5. uncertainty (:mod:`calibrate.uncertainty`): the final fit's sandwich covariance, outliers,
+   the chi-square test against a declared noise, parameters that moved or sit on a bound; the
+   calibrated model (:class:`calibrate.model.CalibratedModel`) with its 95 % prediction intervals
+   and domain;
+6. plots (:mod:`calibrate.plots`);
+
+and, beside them, a Gaussian-process discrepancy baseline (:mod:`calibrate.discrepancy`).
+
+``error_before`` and ``error_after`` are plain errors of μ on held-out rows of the same k folds,
+defined as before this pipeline; ``robust_errors`` gives them again without the outlier rows. The
+chosen terms' own CV error on the folds that chose them (``error_after_selection``) is optimistic:
+those folds also picked them among many candidates.
 """
 
 from __future__ import annotations
 
-import io
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -32,10 +34,20 @@ import numpy as np
 import physics
 
 from .data import Dataset, parse_csv, parse_rows
-from .discover import Discovery, cross_validate_baseline, discover, nested_cross_validate
 from .discrepancy import gp_discrepancy
-from .fit import check_fit_parameters, fit, predict_mu, prediction_errors
+from .fit import check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
 from .model import CalibratedModel
+from .plots import calibration_plots
+from .select import (
+    FAMILY_ALPHA,
+    MAX_SEARCH_ROWS,
+    MAX_TERMS,
+    REPORTED_CANDIDATES,
+    cross_validate,
+    forward_select,
+    nested_cross_validate,
+)
+from .uncertainty import find_outliers, noise_report, parameter_warnings
 
 __all__ = ["CalibrationReport", "calibrate", "check_request", "MIN_ROWS", "PROGRESS_STAGES"]
 
@@ -43,8 +55,15 @@ __all__ = ["CalibrationReport", "calibrate", "check_request", "MIN_ROWS", "PROGR
 MIN_ROWS = 10
 
 #: Fraction of ``progress`` reached at the end of each stage of :func:`calibrate`, in order. [1]
-PROGRESS_STAGES = {"declared fit + CV": 0.02, "effect discovery": 0.17, "nested CV": 0.75,
-                   "GP discrepancy": 0.9, "final fit, plots": 1.0}
+PROGRESS_STAGES = {
+    "declared fit + CV": 0.02,
+    "forward selection": 0.17,
+    "nested CV": 0.8,
+    "GP discrepancy": 0.9,
+    "final fit, intervals, plots": 1.0,
+}
+# A GP discrepancy this much better (held out) than the calibrated model means something is left.
+_GP_BETTER = 0.9
 
 
 @dataclass(frozen=True)
@@ -63,37 +82,52 @@ class CalibrationReport:
     fitted_declared : dict
         ``{name: {"value", "std"}}`` of the declared-only fit (the "before" model), in their units.
     fitted_parameters : dict
-        ``{name: {"value", "std"}}`` of the declared parameters in the calibrated model.
+        ``{name: {"value", "std"}}`` of the declared parameters in the calibrated model (``std``
+        from the sandwich covariance).
     error_before : dict
         Held-out (k-fold) errors of the fitted declared model.
     error_after : dict
         Held-out errors of the calibrated model by nested cross-validation: each fold predicted by
-        the model that the whole procedure (declared fit, effect search, fit of the chosen effect)
-        built on the other folds. Equal to ``error_before`` when no fold added an effect.
+        the model that the whole procedure (declared fit, forward selection, fit of the chosen
+        terms) built on the other folds. Equal to ``error_before`` when no fold added a term.
     error_after_selection : dict
-        Held-out errors of the chosen effect on the same folds that chose it (``error_before``
-        when nothing was added): optimistic, since those folds also picked it among the
-        candidates; the gap to ``error_after`` measures that selection bias.
+        Held-out errors of the chosen terms on the folds of the selection, over the rows it searched
+        (all rows up to :data:`calibrate.select.MAX_SEARCH_ROWS`; ``error_before`` when nothing was
+        added): optimistic, since the selection saw those folds.
+    robust_errors : dict
+        ``before`` and ``after`` as above without the outlier rows, and ``excluded_rows`` [1].
     effect_stability : dict
-        How often the search on each fold's training rows chose the same effect as on all rows:
-        ``folds``, ``agreeing``, ``choices`` (per fold ``{"effect", "drivers"}``) and ``summary``
-        (see :meth:`calibrate.discover.NestedValidation.stability`).
+        How often the selection on each fold's training rows chose the same terms as on all rows
+        (see :meth:`calibrate.select.NestedValidation.stability`).
     missing_effect : dict or None
-        ``name``, ``title``, ``drivers``, ``formula``, ``parameters``, ``parameter_std``,
-        ``parameter_units``, ``reference``; None when nothing beyond noise remains.
+        The first term added (see ``effects``); None when nothing beyond noise remains.
+    effects : list of dict
+        Every term added, in order: ``kind`` (``effect`` or ``drift``), ``name``, ``label``,
+        ``title``, ``drivers``, ``formula``, ``parameters``, ``parameter_std``, ``parameter_units``,
+        ``constants``, ``reference`` (a drift also ``parameter`` and ``law``).
+    steps : list of dict
+        Forward selection step by step: ``added`` (label or None for the step that stopped),
+        ``errors`` (held-out errors on the search rows after the step), ``z``, ``z_needed``,
+        ``candidates`` (the best scores of the step) and ``reason``.
+    outliers : dict
+        ``count``, ``threshold``, ``rows`` (row, mu_measured, mu_predicted, standardized_residual)
+        and ``summary`` (see :func:`calibrate.uncertainty.find_outliers`).
+    noise : dict or None
+        Chi-square test against ``mu_measured_std`` (:func:`calibrate.uncertainty.noise_report`).
+    warnings : list of str
+        Parameters that moved beyond their interval or sit on a bound, a GP that does better.
     discrepancy_gp : dict
         Held-out errors and fitted kernel of the GP discrepancy baseline.
     candidates : list of dict
-        Every candidate's cross-validated score (see :meth:`CandidateScore.summary`).
+        The first step's candidates' cross-validated scores, the declared model first.
     decision : str
-        Why the effect was chosen, or why nothing was added.
+        What was added, step by step, and why the selection stopped.
     folds : int
         Number of cross-validation folds. [1]
     model : CalibratedModel
         The calibrated model, JSON-serializable.
     plots : dict of str to bytes
-        PNG images: ``residual_before`` and ``residual_after`` against the effect's driver, or
-        ``residual`` against every varying column when nothing was added.
+        PNG images (see :mod:`calibrate.plots`).
     """
 
     n_points: int
@@ -104,8 +138,14 @@ class CalibrationReport:
     error_before: dict[str, float]
     error_after: dict[str, float]
     error_after_selection: dict[str, float]
+    robust_errors: dict[str, Any]
     effect_stability: dict[str, Any]
     missing_effect: dict[str, Any] | None
+    effects: list[dict[str, Any]]
+    steps: list[dict[str, Any]]
+    outliers: dict[str, Any]
+    noise: dict[str, Any] | None
+    warnings: list[str]
     discrepancy_gp: dict[str, Any]
     candidates: list[dict[str, Any]]
     decision: str
@@ -124,8 +164,14 @@ class CalibrationReport:
             "error_before": self.error_before,
             "error_after": self.error_after,
             "error_after_selection": self.error_after_selection,
+            "robust_errors": self.robust_errors,
             "effect_stability": self.effect_stability,
             "missing_effect": self.missing_effect,
+            "effects": self.effects,
+            "steps": self.steps,
+            "outliers": {k: v for k, v in self.outliers.items() if k != "mask"},
+            "noise": self.noise,
+            "warnings": list(self.warnings),
             "discrepancy_gp": self.discrepancy_gp,
             "candidates": self.candidates,
             "decision": self.decision,
@@ -138,38 +184,61 @@ class CalibrationReport:
         """The report in a few lines of plain text, for the command line."""
 
         def errors(e: Mapping[str, float]) -> str:
-            return (f"rmse {e['rmse']:.4g}, relative rmse (log mu) {e['relative_rmse']:.4g}, "
-                    f"max abs {e['max_abs_error']:.4g}")
+            return (
+                f"rmse {e['rmse']:.4g}, relative rmse (log mu) {e['relative_rmse']:.4g}, "
+                f"max abs {e['max_abs_error']:.4g}"
+            )
 
         def estimates(values: Mapping[str, Mapping[str, float]], units: Mapping[str, str]) -> list[str]:
             return [f"  {n} = {v['value']:.6g} +/- {v['std']:.2g} [{units[n]}]" for n, v in values.items()]
 
         physics_units = {n: p.unit for n, p in physics.PARAMETERS.items()}
-        lines = [f"{self.n_points} measurements, {self.folds}-fold cross-validation",
-                 f"declared model, default parameters (in-sample): {errors(self.error_default)}"]
+        lines = [
+            f"{self.n_points} measurements, {self.folds}-fold cross-validation",
+            f"declared model, default parameters (in-sample): {errors(self.error_default)}",
+        ]
         if self.fitted_declared:
             lines.append("fitted declared parameters (before):")
             lines += estimates(self.fitted_declared, physics_units)
         lines.append(f"before (held out): {errors(self.error_before)}")
-        effect = self.missing_effect
-        if effect is None:
+        if not self.effects:
             lines.append("missing effect: none")
-        else:
-            lines.append(f"missing effect: {effect['name']} ({effect['title']}) driven by "
-                         f"{', '.join(effect['drivers'])}")
+        for k, effect in enumerate(self.effects):
+            step = self.steps[k]
+            lines.append(
+                f"{'missing effect' if k == 0 else 'then'}: {effect['name']} ({effect['title']}) driven "
+                f"by {', '.join(effect['drivers'])}; after this step (CV, search rows): "
+                f"relative rmse {step['errors']['relative_rmse']:.4g}"
+            )
             lines.append(f"  {effect['formula']}")
-            lines += estimates({n: {"value": effect["parameters"][n], "std": effect["parameter_std"][n]}
-                                for n in effect["parameters"]}, effect["parameter_units"])
-            if self.fitted_parameters:
-                lines.append("declared parameters of the calibrated model:")
-                lines += estimates(self.fitted_parameters, physics_units)
-        lines.append(f"after (held out, nested CV: the search redone within each fold): "
-                     f"{errors(self.error_after)}")
-        if effect is not None:
-            lines.append(f"after on the folds that chose the effect (optimistic): "
-                         f"{errors(self.error_after_selection)}")
+            lines += estimates(
+                {
+                    n: {"value": effect["parameters"][n], "std": effect["parameter_std"][n]}
+                    for n in effect["parameters"]
+                },
+                effect["parameter_units"],
+            )
+        if self.effects and self.fitted_parameters:
+            lines.append("declared parameters of the calibrated model (sandwich std):")
+            lines += estimates(self.fitted_parameters, physics_units)
+        lines.append(
+            f"after (held out, nested CV: the selection redone within each fold): {errors(self.error_after)}"
+        )
+        if self.effects:
+            lines.append(
+                f"after on the folds that chose the terms (optimistic): {errors(self.error_after_selection)}"
+            )
+        robust = self.robust_errors
+        lines.append(
+            f"without the {robust['excluded_rows']} outlier row(s): before relative rmse "
+            f"{robust['before']['relative_rmse']:.4g}, after {robust['after']['relative_rmse']:.4g}"
+        )
+        lines.append(f"outliers: {self.outliers['summary']}")
+        if self.noise is not None:
+            lines.append(f"noise: {self.noise['statement']}")
         lines.append(f"stability: {self.effect_stability['summary']}")
         lines.append(f"GP discrepancy baseline (held out): {errors(self.discrepancy_gp['errors'])}")
+        lines += [f"warning: {w}" for w in self.warnings]
         lines.append(f"decision: {self.decision}")
         return "\n".join(lines)
 
@@ -186,40 +255,6 @@ def _as_dataset(data, fixed) -> Dataset:
 
 def _values(values: Mapping[str, float], stds: Mapping[str, float]) -> dict[str, dict[str, float]]:
     return {n: {"value": float(values[n]), "std": float(stds[n])} for n in values}
-
-
-def _unit(name: str) -> str:
-    spec = physics.PARAMETERS.get(name)
-    return f" [{spec.unit}]" if spec is not None else ""
-
-
-def _residual_png(panels: list[tuple[str, np.ndarray]], series: list[tuple[str, np.ndarray]],
-                  title: str) -> bytes:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    columns = min(3, len(panels))
-    rows = -(-len(panels) // columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.4 * rows), squeeze=False,
-                             sharey=True, constrained_layout=True)
-    for ax, (driver, x) in zip(axes.flat, panels, strict=False):
-        for label, residual in series:
-            ax.scatter(x, residual, s=8, alpha=0.6, label=label)
-        ax.axhline(0.0, color="0.3", lw=0.8)
-        ax.set_xlabel(f"{driver}{_unit(driver)}")
-        ax.grid(alpha=0.3)
-    for ax in axes.flat[len(panels):]:
-        ax.set_visible(False)
-    for ax in axes[:, 0]:
-        ax.set_ylabel("log(mu_measured / mu_model),\nheld out [-]")
-    axes[0][0].legend(fontsize=8)
-    fig.suptitle(title, fontsize=10)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=90)
-    plt.close(fig)
-    return buffer.getvalue()
 
 
 def check_request(dataset: Dataset, fit_parameters: Sequence[str], folds: int) -> None:
@@ -243,14 +278,46 @@ def check_request(dataset: Dataset, fit_parameters: Sequence[str], folds: int) -
         raise ValueError(f"data must have at least {MIN_ROWS} rows; got {dataset.n_points}")
     if not 2 <= folds <= dataset.n_points // 2:
         raise ValueError(f"folds must be in [2, {dataset.n_points // 2}] (half the rows); got {folds}")
-    check_fit_parameters(dataset, fit_parameters)
+    names = check_fit_parameters(dataset, fit_parameters)
+    needed = rows_needed(len(names), folds)
+    if dataset.n_points < needed:
+        raise ValueError(
+            f"data must have at least {needed} rows for {folds}-fold nested cross-validation with "
+            f"{len(names)} fitted parameter(s) and up to {MAX_TERMS} terms; got {dataset.n_points}"
+        )
 
 
-def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any] | None = None,
-              folds: int = 5, seed: int = 0, gp_max_train: int = 300, make_plots: bool = True,
-              progress: Callable[[float], None] | None = None,
-              convention: str = physics.DEFAULT_CONVENTION, z_threshold: float = 3.0) -> CalibrationReport:
-    """Calibrate the declared model on measurements, find and add the missing effect, report.
+def rows_needed(n_fit_parameters: int, folds: int) -> int:
+    """Fewest rows for nested cross-validation: every inner training set two rows more than the fitted
+    values of the largest model (declared + :data:`MAX_TERMS` two-parameter terms), every inner test
+    fold at least two rows.
+
+    Examples
+    --------
+    >>> rows_needed(2, 5)
+    16
+    """
+    keep = (1.0 - 1.0 / folds) ** 2
+    return max(MIN_ROWS, int(np.ceil((n_fit_parameters + 2 * MAX_TERMS + 2) / keep)),
+               int(np.ceil(2 * folds / (1.0 - 1.0 / folds))))
+
+
+def calibrate(
+    data,
+    fit_parameters: Sequence[str] = (),
+    fixed: Mapping[str, Any] | None = None,
+    folds: int = 5,
+    seed: int = 0,
+    gp_max_train: int = 300,
+    make_plots: bool = True,
+    progress: Callable[[float], None] | None = None,
+    convention: str = physics.DEFAULT_CONVENTION,
+    z_threshold: float = 3.0,
+    max_terms: int = MAX_TERMS,
+    max_search_rows: int = MAX_SEARCH_ROWS,
+    family_alpha: float | None = FAMILY_ALPHA,
+) -> CalibrationReport:
+    """Calibrate the declared model on measurements, add the terms it misses, report.
 
     Parameters
     ----------
@@ -261,39 +328,44 @@ def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any]
     fixed : mapping, optional
         Physics parameters fixed for every row (not with a ``Dataset``).
     folds : int
-        Number of cross-validation folds, in [2, n_points]. [1]
+        Number of cross-validation folds, in [2, n_points / 2]. [1]
     seed : int
-        Seed of the folds (outer and nested inner ones) and of the GP's subset.
+        Seed of the folds (outer and nested inner ones), of the search subset and of the GP's subset.
     gp_max_train : int
         Training rows per fold of the GP discrepancy at most. [1]
     make_plots : bool
-        Whether to draw the residual plots.
+        Whether to draw the plots.
     progress : callable, optional
         Called with the fraction done, 0..1, never decreasing (stages in :data:`PROGRESS_STAGES`).
     convention : str
         See :data:`physics.CONVENTIONS`.
     z_threshold : float
-        Minimum paired z of a candidate's held-out improvement (see :func:`calibrate.discover.discover`). [1]
+        Least paired z of a candidate's held-out improvement (see :mod:`calibrate.select`). [1]
+    max_terms : int
+        Most terms forward selection adds. [1]
+    max_search_rows : int
+        Rows the selection searches on at most (a random subset). [1]
+    family_alpha : float or None
+        Chance per selection step that any candidate passes on noise alone; None: ``z_threshold``
+        alone decides (see :mod:`calibrate.select`). [1]
 
     Returns
     -------
     CalibrationReport
-        ``error_after`` comes from nested cross-validation (the search repeated within every
-        training fold, costing about ``folds`` more searches); ``error_after_selection`` is the
-        chosen effect's optimistic same-fold figure.
 
     Raises
     ------
     calibrate.data.DataError
         For bad rows, cells or columns (every one listed).
     ValueError
-        For fewer than :data:`MIN_ROWS` rows, bad ``folds`` or ``fit_parameters``.
+        For too few rows, bad ``folds`` or ``fit_parameters``.
     """
     report = progress or (lambda fraction: None)
     if convention not in physics.CONVENTIONS:
         raise ValueError(f"convention must be one of {', '.join(physics.CONVENTIONS)}; got {convention!r}")
     dataset = _as_dataset(data, fixed)
     check_request(dataset, fit_parameters, folds)
+    fit_parameters = check_fit_parameters(dataset, fit_parameters)
     report(0.0)
     ends = list(PROGRESS_STAGES.values())
 
@@ -301,82 +373,118 @@ def calibrate(data, fit_parameters: Sequence[str] = (), fixed: Mapping[str, Any]
         start = 0.0 if i == 0 else ends[i - 1]
         return lambda f: report(start + (ends[i] - start) * min(max(f, 0.0), 1.0))
 
-    error_default = prediction_errors(predict_mu(dataset, {}, convention=convention), dataset.mu_measured)
-    baseline = cross_validate_baseline(dataset, fit_parameters, folds, seed, convention)
+    measured = dataset.mu_measured
+    error_default = prediction_errors(predict_mu(dataset, {}, convention=convention), measured)
+    outer = kfold_indices(dataset.n_points, folds, seed)
+    baseline = cross_validate(dataset, fit_parameters, (), outer, convention=convention)
     stage(0)(1.0)
-    discovery: Discovery = discover(dataset, fit_parameters, folds, seed, z_threshold, baseline=baseline,
-                                    progress=stage(1), convention=convention)
+    options = {
+        "z_threshold": z_threshold,
+        "max_terms": max_terms,
+        "max_rows": max_search_rows,
+        "convention": convention,
+        "family_alpha": family_alpha,
+    }
+    selection = forward_select(dataset, fit_parameters, folds, seed, progress=stage(1), **options)
     stage(1)(1.0)
-    nested = nested_cross_validate(dataset, fit_parameters, baseline, seed, z_threshold, progress=stage(2),
-                                   convention=convention)
+    nested = nested_cross_validate(dataset, fit_parameters, baseline, seed, progress=stage(2), **options)
     stage(2)(1.0)
     gp = gp_discrepancy(dataset, baseline, gp_max_train, seed, progress=stage(3))
     stage(3)(1.0)
-    declared = baseline.full_fit
-    error_before = prediction_errors(baseline.oof_mu, dataset.mu_measured)
-    error_after = prediction_errors(nested.oof_mu, dataset.mu_measured)
 
-    chosen = discovery.chosen
-    stability = nested.stability(None if chosen is None else chosen.choice)
-    if chosen is None:
-        final, error_after_selection, missing = declared, error_before, None
-        effect_json = None
+    terms = selection.terms
+    error_before = prediction_errors(baseline.oof_mu, measured)
+    if terms:
+        final = fit(dataset, fit_parameters, terms, start=selection.model.full.declared,
+                    start_terms=selection.model.full.term_values, convention=convention)
+        error_after_selection = prediction_errors(selection.model.oof_mu, measured[selection.rows])
     else:
-        choice = chosen.choice
-        final = fit(dataset, fit_parameters, choice, start=declared.declared, convention=convention)
-        error_after_selection = prediction_errors(chosen.oof_mu, dataset.mu_measured)
-        spec = choice.effect
-        missing = {
-            "name": spec.name,
-            "title": spec.title,
-            "drivers": list(choice.drivers),
-            "formula": spec.formula,
-            "parameters": dict(final.effect_parameters),
-            "parameter_std": dict(final.effect_std),
-            "parameter_units": {p.name: p.unit for p in spec.parameters},
-            "constants": dict(choice.constants),
-            "reference": spec.reference,
+        final, error_after_selection = baseline.full, error_before
+    mu_before = predict_mu(dataset, baseline.full.declared, convention=convention)
+    mu_after = predict_mu(dataset, final.declared, terms, final.term_values, convention=convention)
+    outliers = find_outliers(dataset, mu_after, final.residual, final.scale)
+    inliers = ~outliers["mask"]
+    error_after = prediction_errors(nested.oof_mu, measured)
+    robust_errors = {
+        "before": prediction_errors(baseline.oof_mu[inliers], measured[inliers]),
+        "after": prediction_errors(nested.oof_mu[inliers], measured[inliers]),
+        "excluded_rows": int(outliers["count"]),
+    }
+    # A new measurement scatters around the model as the held-out rows of the nested cross-validation
+    # did: noise, what the terms leave, and the refit's own uncertainty. RMS over the rows that are not
+    # outliers (a median-based scale would be robust too, but it scatters twice as much from one data
+    # set to the next).
+    held_out = np.log(measured / nested.oof_mu)[inliers]
+    noise_std_log = float(np.sqrt(np.mean(np.square(held_out))))
+    model = CalibratedModel.from_fit(
+        final.declared,
+        dataset.fixed,
+        terms,
+        final.term_values,
+        convention,
+        final.covariance,
+        noise_std_log,
+        dataset.columns(),
+        list(dataset.conditions),
+    )
+    effects = [
+        term.describe(values, std)
+        for term, values, std in zip(terms, final.term_values, final.term_std(), strict=True)
+    ]
+    searched = dataset.subset(selection.rows)
+    steps = [
+        {
+            "added": None if step.chosen is None else step.chosen.term.label,
+            "errors": prediction_errors(
+                (step.current if step.chosen is None else step.chosen).oof_mu, searched.mu_measured
+            ),
+            "z": None if step.chosen is None else step.chosen.z,
+            "z_needed": step.z_needed,
+            "candidates": [c.summary(searched) for c in [step.current, *step.ranked[:REPORTED_CANDIDATES]]],
+            "reason": step.reason,
         }
-        effect_json = {"name": spec.name, "drivers": list(choice.drivers),
-                       "parameters": dict(final.effect_parameters), "constants": dict(choice.constants)}
-    model = CalibratedModel(dict(final.declared), dict(dataset.fixed), effect_json, convention)
-
+        for step in selection.steps
+    ]
+    warnings = parameter_warnings(baseline.full, final)
+    if gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
+        warnings.append(
+            f"a Gaussian-process discrepancy predicts held-out rows better than the calibrated model "
+            f"(relative rmse {gp['errors']['relative_rmse']:.3g} vs {error_after['relative_rmse']:.3g}): "
+            f"something remains that no candidate term names"
+        )
+    noise = noise_report(dataset, mu_after, len(final.names), inliers)
     plots: dict[str, bytes] = {}
     if make_plots:
-        before = np.log(dataset.mu_measured / baseline.oof_mu)
-        after = np.log(dataset.mu_measured / nested.oof_mu)
-        columns = dataset.columns()
-        if chosen is None:
-            varying = [(n, np.asarray(v, dtype=float)) for n, v in columns.items()
-                       if np.unique(v).size > 1][:9]
-            if varying:
-                series = [("declared model, fitted", before)]
-                if np.any(after != before):
-                    series.append(("after (nested CV)", after))
-                plots["residual"] = _residual_png(varying, series,
-                                                  "Residual of the fitted declared model: nothing added")
-        else:
-            driver = chosen.choice.drivers[0]
-            panel = [(driver, np.asarray(columns[driver], dtype=float))]
-            plots["residual_before"] = _residual_png(panel, [("before", before)],
-                                                     f"Before: fitted declared model against {driver}")
-            plots["residual_after"] = _residual_png(panel, [("before", before), ("after (nested CV)", after)],
-                                                    f"After: + {chosen.choice.name} against {driver}")
+        plots = calibration_plots(
+            dataset,
+            model,
+            mu_before,
+            mu_after,
+            outliers["mask"],
+            {"before": error_before, "after": error_after, "robust": robust_errors},
+            [t.label for t in terms],
+        )
     report(1.0)
     return CalibrationReport(
         n_points=dataset.n_points,
-        fit_parameters=list(declared.declared),
+        fit_parameters=list(fit_parameters),
         error_default=error_default,
-        fitted_declared=_values(declared.declared, declared.declared_std),
+        fitted_declared=_values(baseline.full.declared, baseline.full.declared_std),
         fitted_parameters=_values(final.declared, final.declared_std),
         error_before=error_before,
         error_after=error_after,
         error_after_selection=error_after_selection,
-        effect_stability=stability,
-        missing_effect=missing,
+        robust_errors=robust_errors,
+        effect_stability=nested.stability(terms),
+        missing_effect=effects[0] if effects else None,
+        effects=effects,
+        steps=steps,
+        outliers=outliers,
+        noise=noise,
+        warnings=warnings,
         discrepancy_gp=gp,
-        candidates=[discovery.baseline_score.summary()] + [c.summary() for c in discovery.candidates],
-        decision=discovery.reason,
+        candidates=steps[0]["candidates"] if steps else [],
+        decision=selection.reason,
         folds=folds,
         model=model,
         plots=plots,

@@ -54,7 +54,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["EffectParameter", "Effect", "EFFECTS", "apply_effect", "humidity_fraction"]
+__all__ = ["EffectParameter", "Effect", "EFFECTS", "DriftLaw", "DRIFT_LAWS", "DRIFT_PARAMETERS",
+           "apply_effect",
+           "humidity_fraction", "temperature_kelvin"]
 
 
 @dataclass(frozen=True)
@@ -456,9 +458,58 @@ _GENERIC_POWER = Effect(
     accepts_values=lambda x: bool(np.all(x > 0)),
 )
 
+def _positive_speed_reference(v):
+    moving = v[v > 0]
+    return {"reference": float(np.median(moving)) if moving.size else 1.0}
+
+
+_BREAKAWAY = Effect(
+    name="stribeck_breakaway",
+    title="Low-speed breakaway (Stribeck) rise: static friction in excess of the rolling model, decaying "
+          "with speed",
+    formula="mu = mu_model + breakaway_excess * exp(-speed_m_s / breakaway_speed_m_s)",
+    parameters=(
+        EffectParameter("breakaway_excess", "1", "Excess friction coefficient at rest (breakaway).", 0.0,
+                        10.0),
+        EffectParameter("breakaway_speed_m_s", "m/s", "Stribeck speed over which the excess decays by 1/e.",
+                        1e-9, 1e3),
+    ),
+    driver_description="slider speed speed_m_s [m/s], at least three distinct values",
+    reference=("R. Stribeck, Z. VDI 46, 1341-1348 (1902); the exponential form of B. Armstrong-Helouvry, "
+               "P. Dupont, C. Canudas de Wit, Automatica 30(7), 1083-1138 (1994)."),
+    fixed_drivers=("speed_m_s",),
+    correct=lambda mu, x, columns, p, c: mu + p[0] * np.exp(-x / p[1]),
+    make_initial=lambda mu, x, columns, c: [0.3 * float(np.median(mu)), max(0.2 * float(np.max(x)), 1e-6)],
+)
+
+_VISCOUS_POWER = Effect(
+    name="viscous_power_law",
+    title="Viscous drag growing as a power of speed (film thickness and shear of an elastohydrodynamic "
+          "or squeezed film)",
+    formula="mu = mu_model + drag_force_N * (speed_m_s / reference)^speed_exponent / load_N",
+    parameters=(
+        EffectParameter("drag_force_N", "N", "Drag force at the reference speed (the data's median "
+                        "non-zero speed).", 0.0, 1e3),
+        EffectParameter("speed_exponent", "1", "Exponent of speed: 1 for Couette drag, about 0.67 for an "
+                        "elastohydrodynamic film; at least 0.3, below which it would pose as a "
+                        "constant drag.",
+                        0.3, 3.0),
+    ),
+    driver_description="slider speed speed_m_s [m/s] >= 0, not all zero (the force is divided by load_N [N])",
+    reference=("B.J. Hamrock, D. Dowson, ASME J. Lubr. Technol. 99, 264-276 (1977): film thickness, and "
+               "with it viscous rolling resistance, grows as a power (about 0.67) of speed."),
+    fixed_drivers=("speed_m_s", "load_N"),
+    correct=lambda mu, x, columns, p, c: mu + p[0] * np.power(x / c["reference"], p[1])
+    / np.asarray(columns["load_N"], dtype=float),
+    make_constants=_positive_speed_reference,
+    make_initial=lambda mu, x, columns, c: [0.1 * float(np.median(mu * np.asarray(columns["load_N"]))), 1.0],
+    accepts_values=lambda v: bool(np.all(v >= 0) and np.any(v > 0)),
+)
+
 #: Every optional effect, keyed by name: named physical effects first, then the generic family.
 EFFECTS: dict[str, Effect] = {e.name: e for e in [
-    _MENISCUS, _VISCOUS, _CONSTANT, _THERMAL, _RUN_IN, _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER,
+    _MENISCUS, _VISCOUS, _CONSTANT, _THERMAL, _RUN_IN, _BREAKAWAY, _VISCOUS_POWER,
+    _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER,
 ]}
 
 
@@ -495,3 +546,199 @@ def apply_effect(mu, name: str, columns: _Columns, params: Mapping[str, float],
     if name not in EFFECTS:
         raise ValueError(f"effect must be one of {', '.join(EFFECTS)}; got {name!r}")
     return EFFECTS[name].apply(mu, columns, params, drivers, constants)
+
+
+#: Universal gas constant [J/(mol K)].
+GAS_CONSTANT_J_MOL_K = 8.314462618
+# Range of a linear drift's factor p(x) / p_ref over the data. [1]
+_DRIFT_FACTOR_MIN, _DRIFT_FACTOR_MAX = 0.1, 10.0
+
+
+def temperature_kelvin(name: str, values) -> np.ndarray:
+    """Temperature in kelvin: the column is in kelvin when its name says ``k`` or ``kelvin``, else degC.
+
+    Parameters
+    ----------
+    name : str
+        Column name, e.g. ``temperature_C`` or ``temperature_K``.
+    values : array_like
+        Temperature [degC] or [K].
+
+    Returns
+    -------
+    numpy.ndarray
+        Absolute temperature. [K]
+
+    Examples
+    --------
+    >>> temperature_kelvin("temperature_C", [25.0]).tolist(), temperature_kelvin("temp_K", [300.0]).tolist()
+    ([298.15], [300.0])
+    """
+    x = np.asarray(values, dtype=float)
+    kelvin = _name_matches(name, ("k", "kelvin")) and not _name_matches(name, ("c", "degc"))
+    return x if kelvin else x + 273.15
+
+
+def _kelvin_radius_term(h):
+    return 1.0 / np.log(1.0 / h)
+
+
+@dataclass(frozen=True)
+class DriftLaw:
+    """How a declared physics parameter p varies with a condition column x: p(x) = p_ref * factor(x).
+
+    ``p_ref`` is the parameter's value in the declared model (fitted or fixed) and ``factor`` is 1 at
+    the reference condition ``x_ref`` (the data's median), so the law adds only its coefficient.
+
+    Attributes
+    ----------
+    name : str
+        Key in :data:`DRIFT_LAWS`.
+    title : str
+        The law in words.
+    formula : str
+        ``p(x) = p_ref * ...``.
+    coefficient : EffectParameter
+        The fitted coefficient (bounds narrowed by :meth:`bounds`).
+    driver_keywords : tuple of str
+        Prefixes of a condition column's name that the law applies to; empty for any column.
+    driver_description : str
+        Which column drives it and in what unit.
+    reference : str
+        Where the law comes from.
+    min_levels : int
+        Fewest distinct values the driver must take. [1]
+    variable : callable
+        ``variable(name, values)``: the driver as the law's variable (kelvin, 1/ln(1/h), or as given).
+    shape : str
+        ``"linear"``: factor = 1 + c (v - v_ref), kept within [0.1, 10] over the data by :meth:`bounds`;
+        ``"arrhenius"``: factor = exp(c / R (1/v - 1/v_ref)).
+    positive_variable : bool
+        Whether the law's variable must be > 0 (absolute temperature, 1/ln(1/h) for h in (0, 1)).
+    """
+
+    name: str
+    title: str
+    formula: str
+    coefficient: EffectParameter
+    driver_keywords: tuple[str, ...]
+    driver_description: str
+    reference: str
+    min_levels: int
+    variable: Callable = field(repr=False, compare=False)
+    shape: str = "linear"
+    positive_variable: bool = False
+
+    def matches(self, name: str) -> bool:
+        """Whether a condition column of this name may drive the law (:attr:`driver_keywords`)."""
+        return not self.driver_keywords or _name_matches(name, self.driver_keywords)
+
+    def accepts(self, name: str, values) -> bool:
+        """Whether the column's values lie in the law's domain (humidity in (0, 1), T > 0 K)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = self.variable(name, values)
+        return bool(np.all(np.isfinite(v)) and (not self.positive_variable or np.all(v > 0)))
+
+    def constants(self, name: str, values) -> dict[str, float]:
+        """``reference``, ``minimum``, ``maximum`` of the law's variable over the data [its unit]."""
+        v = self.variable(name, values)
+        return {"reference": float(np.median(v)), "minimum": float(np.min(v)), "maximum": float(np.max(v))}
+
+    def bounds(self, constants: Mapping[str, float]) -> tuple[float, float]:
+        """Bounds of the coefficient: a linear factor stays within [0.1, 10] over the data's range.
+
+        A parameter that would have to change more than tenfold across the data is not drifting: some
+        other mechanism is at work, and the bound keeps the law from posing as it.
+        """
+        lo, hi = self.coefficient.minimum, self.coefficient.maximum
+        if self.shape == "linear":
+            ref, v_min, v_max = constants["reference"], constants["minimum"], constants["maximum"]
+            if v_max > ref:
+                lo, hi = max(lo, (_DRIFT_FACTOR_MIN - 1) / (v_max - ref)), min(hi, (_DRIFT_FACTOR_MAX - 1)
+                                                                              / (v_max - ref))
+            if ref > v_min:
+                lo, hi = max(lo, (1 - _DRIFT_FACTOR_MAX) / (ref - v_min)), min(hi, (1 - _DRIFT_FACTOR_MIN)
+                                                                              / (ref - v_min))
+        return lo, hi
+
+    def factor(self, name: str, values, coefficient: float, constants: Mapping[str, float]) -> np.ndarray:
+        """p(x) / p_ref at the column's values.
+
+        Parameters
+        ----------
+        name : str
+            Driver column name (fixes its unit).
+        values : array_like
+            Driver values, in the column's unit.
+        coefficient : float
+            The law's coefficient, in :attr:`coefficient`'s unit.
+        constants : mapping
+            From :meth:`constants` at fit time.
+
+        Returns
+        -------
+        numpy.ndarray
+            Factor, 1 at the reference condition. [1]
+
+        Examples
+        --------
+        >>> law = DRIFT_LAWS["arrhenius"]
+        >>> c = law.constants("temperature_C", [20.0, 25.0, 30.0])
+        >>> round(float(law.factor("temperature_C", 35.0, 16e3, c)), 4)  # exp(16e3/R (1/308.15 - 1/298.15))
+        0.811
+        """
+        v = self.variable(name, values)
+        if self.shape == "arrhenius":
+            return np.exp(coefficient / GAS_CONSTANT_J_MOL_K * (1.0 / v - 1.0 / constants["reference"]))
+        return 1.0 + coefficient * (v - constants["reference"])
+
+
+#: Laws by which a declared parameter may drift with a condition column.
+DRIFT_LAWS: dict[str, DriftLaw] = {law.name: law for law in [
+    DriftLaw(
+        name="linear", title="Linear in the condition",
+        formula="p(x) = p_ref * (1 + slope * (x - x_ref))",
+        coefficient=EffectParameter("slope", "1/driver", "Relative change of the parameter per unit of x.",
+                                    -np.inf, np.inf),
+        driver_keywords=(), driver_description="any condition column x; x_ref = its median",
+        reference="First-order (Taylor) dependence on a condition, e.g. a coating flag (0/1) or a "
+                  "coating thickness changing a friction coefficient.",
+        min_levels=2, variable=lambda name, x: np.asarray(x, dtype=float)),
+    DriftLaw(
+        name="arrhenius", title="Arrhenius (thermally activated) in temperature",
+        formula="p(T) = p_ref * exp(activation_energy / R * (1/T - 1/T_ref)), T in K",
+        coefficient=EffectParameter(
+            "activation_energy_J_mol", "J/mol",
+            "Activation energy; > 0 when the parameter falls as temperature rises (viscosity).", -2e5, 2e5),
+        driver_keywords=("temp",), driver_description="temperature, degC (or K if the name says K); "
+                                                      "T_ref = median",
+        reference="Andrade-Eyring law of liquid viscosity, eta = A exp(E_a / (R T)) (E.N. da C. Andrade, "
+                  "Nature 125, 309-310 (1930)); 16-17 kJ/mol for water near 25 degC.",
+        min_levels=3, variable=temperature_kelvin, shape="arrhenius", positive_variable=True),
+    DriftLaw(
+        name="kelvin", title="Kelvin-type in relative humidity: proportional to the Kelvin radius",
+        formula="p(h) = p_ref * (1 + kelvin_coefficient * (1/ln(1/h) - 1/ln(1/h_ref)))",
+        coefficient=EffectParameter(
+            "kelvin_coefficient", "1",
+            "Relative change of the parameter per unit of 1/ln(1/h) (the Kelvin radius over its value "
+            "at h = 1/e).", -np.inf, np.inf),
+        driver_keywords=("humid", "rh"),
+        driver_description="relative humidity h in (0, 1) (percent if the name says pct); h_ref = median",
+        reference="Kelvin equation, r_K = gamma V_m / (R T ln(1/h)): capillary adhesion grows with the "
+                  "meniscus radius (J.N. Israelachvili, Intermolecular and Surface Forces, 3rd ed., 2011, "
+                  "ch. 17).",
+        min_levels=3, variable=lambda name, x: _kelvin_radius_term(humidity_fraction(name, x)),
+        positive_variable=True),
+]}
+
+#: Declared physics parameters that may drift with a condition, with why a tribologist would suspect it.
+DRIFT_PARAMETERS: dict[str, str] = {
+    "viscosity_Pa_s": "the water film's viscosity falls as temperature rises",
+    "pressure_viscosity_1_Pa": "the pressure-viscosity coefficient falls as temperature rises",
+    "adhesion_energy_J_m2": "adhesion (capillary bridges, surface films) grows with humidity",
+    "water_surface_tension_N_m": "surface tension of water falls with temperature",
+    "mu_pivot": "the ball-race sliding coefficient depends on coating, humidity and temperature",
+    "mu_ball": "the ball-ball sliding coefficient depends on coating, humidity and temperature",
+    "ball_youngs_modulus_Pa": "the balls' modulus depends on material and temperature",
+    "race_youngs_modulus_Pa": "the races' modulus depends on material, coating and temperature",
+}

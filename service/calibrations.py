@@ -16,15 +16,17 @@ from typing import Any
 import numpy as np
 
 import physics
-from calibrate import CalibrationReport, DataError, Dataset, calibrate
+from calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 
-from .models import Model, resolve
+from .models import CalibratedPhysicsModel, Model, resolve
 from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
 __all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_view", "data_problem",
-           "evaluate_point_with_model", "load_calibration", "load_mu_model", "run_calibration",
+           "evaluate_point_with_model", "interval_at", "load_calibration", "load_mu_model",
+           "prediction_fields",
+           "run_calibration",
            "with_conditions"]
 
 KIND = "calibration"
@@ -112,7 +114,7 @@ def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], f
                                           convention=convention)
     metadata = {"report": report.to_dict(), "model": report.model.to_json()}
     arrays = {name: np.frombuffer(png, dtype=np.uint8) for name, png in report.plots.items()}
-    name = "none" if report.missing_effect is None else report.missing_effect["name"]
+    name = " + ".join(e["name"] for e in report.effects) or "none"
     calibration_id = store.save_model(KIND, metadata, arrays, name=f"{report.n_points} points, effect {name}")
     return calibration_view(calibration_id, metadata)
 
@@ -123,6 +125,64 @@ def load_calibration(store: Store, calibration_id: str):
     if stored is None or stored.kind != KIND:
         raise ProblemError(404, f"There is no calibration {calibration_id!r}.")
     return stored
+
+
+def _condition_problems(model: Any, conditions: Mapping[str, Any], pointer: str) -> None:
+    """422 naming every condition that is a physics input, or a column the calibration never saw."""
+    items = [{"pointer": f"{pointer}/{name}", "detail": "is a physics input; give it as a field of its own"}
+             for name in sorted(set(conditions) & set(physics.PARAMETERS))]
+    known = getattr(model, "conditions", None)
+    if getattr(model, "domain", None) is not None:
+        items += [{"pointer": f"{pointer}/{name}",
+                   "detail": f"unknown condition column; the calibration data had: "
+                             f"{', '.join(known) or 'none'}"}
+                  for name in sorted(set(conditions) - set(physics.PARAMETERS) - set(known))]
+    if items:
+        raise validation_problem(items)
+
+
+def prediction_fields(prediction: Prediction) -> dict[str, Any]:
+    """The interval and domain fields of one point's :class:`calibrate.Prediction`, JSON-ready.
+
+    Returns
+    -------
+    dict
+        ``mu_lower``, ``mu_upper`` [1] (None for a model stored before intervals), ``in_domain``
+        (None likewise) and ``domain_warnings`` (list of str).
+    """
+    def number(value):
+        return None if value is None else float(np.asarray(value))
+
+    return {"mu_lower": number(prediction.mu_lower), "mu_upper": number(prediction.mu_upper),
+            "in_domain": None if prediction.in_domain is None else bool(np.all(prediction.in_domain)),
+            "domain_warnings": list(prediction.warnings)}
+
+
+def interval_at(model: Any,
+                conditions: Mapping[str, float] | None) -> Callable[[Mapping[str, Any]], dict] | None:
+    """For a calibrated model, a function of one design point giving :func:`prediction_fields` there.
+
+    Parameters
+    ----------
+    model : Model
+        A resolved model (:func:`service.models.resolve`); only a calibrated one has these fields.
+    conditions : mapping or None
+        Its condition columns, one value each (as given to :func:`with_conditions`).
+
+    Returns
+    -------
+    callable or None
+        ``fields(point) -> dict`` (``mu_lower``, ``mu_upper``, ``in_domain``, ``domain_warnings``) for a
+        point of physics inputs; None for other models.
+    """
+    if not isinstance(model, CalibratedPhysicsModel):
+        return None
+
+    def fields(point: Mapping[str, Any]) -> dict[str, Any]:
+        with np.errstate(all="ignore"):
+            return prediction_fields(model.predict({**point, **dict(conditions or {})}))
+
+    return fields
 
 
 def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any],
@@ -138,40 +198,40 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
     given : mapping
         Physics inputs the client gave explicitly; they override the model's fixed and fitted values.
     conditions : mapping or None
-        Condition columns the model's effect reads (e.g. ``relative_humidity`` [1]).
+        Condition columns the model's terms read (e.g. ``relative_humidity`` [1]).
 
     Returns
     -------
     dict
         ``convention`` (the model's), every physics output with the model's fitted parameters, ``mu``
-        [1] including the effect, ``mu_effect`` [1] (the effect's share of ``mu``) and ``model``.
+        [1] including the terms, ``mu_effect`` [1] (the terms' share of ``mu``), ``mu_lower`` and
+        ``mu_upper`` [1] (95 % prediction interval of a measurement), ``in_domain``,
+        ``domain_warnings`` and ``model``.
 
     Raises
     ------
     ProblemError
-        404 for an unknown model, 422 for missing or invalid conditions or non-finite outputs.
+        404 for an unknown model, 422 naming an unknown, missing or invalid condition, or for
+        non-finite outputs.
     """
     from .evaluation import evaluate_point
 
     mu_model = load_mu_model(store, model)
     conditions = dict(conditions or {})
-    clashing = sorted(set(conditions) & set(physics.PARAMETERS))
-    if clashing:
-        raise validation_problem([{"pointer": f"/conditions/{name}",
-                                   "detail": "a physics input; give it as a field of its own"}
-                                  for name in clashing])
+    _condition_problems(mu_model, conditions, "/conditions")
     inputs = {**mu_model.fixed, **mu_model.fitted, **given}
     outputs = evaluate_point(inputs, mu_model.convention)
     try:
         with np.errstate(all="ignore"):
-            mu = float(np.asarray(mu_model({**given, **conditions})))
+            prediction = mu_model.predict({**given, **conditions})
     except ValueError as exc:
         raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
+    mu = float(np.asarray(prediction.mu))
     if not np.isfinite(mu):
         raise validation_problem([{"pointer": "/conditions",
                                    "detail": "the calibrated model's mu is not finite at these conditions"}])
     return {**outputs, "convention": mu_model.convention, "mu": mu, "mu_effect": mu - outputs["mu"],
-            "model": model}
+            **prediction_fields(prediction), "model": model}
 
 
 def with_conditions(model: Callable[[Mapping[str, Any]], Any], reference: str,
@@ -203,13 +263,11 @@ def with_conditions(model: Callable[[Mapping[str, Any]], Any], reference: str,
     Raises
     ------
     ProblemError
-        422 when a condition is a physics input or a column the model needs is missing.
+        422 when a condition is a physics input or unknown to the calibration, or a column the model
+        needs is missing.
     """
     conditions = dict(conditions or {})
-    clashing = sorted(set(conditions) & set(physics.PARAMETERS))
-    if clashing:
-        raise validation_problem([{"pointer": f"{pointer}/{name}", "detail": "is a physics input; give it "
-                                   "in fixed"} for name in clashing])
+    _condition_problems(model, conditions, pointer)
     missing = [c for c in getattr(model, "required_columns", []) if c not in conditions]
     if missing:
         raise validation_problem([{"pointer": pointer, "detail": f"the model {reference} needs "

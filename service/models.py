@@ -16,7 +16,8 @@ A :class:`Model` states
 - the outputs it answers (:attr:`Model.outputs`), μ with its 95 % interval (``mu_lower``,
   ``mu_upper`` [1]) where the model has one (:attr:`Model.has_interval`);
 - its domain: :meth:`Model.evaluate` flags the points where its figures do not hold
-  (``outside_domain``: a surrogate outside its trained space).
+  (``outside_domain``: a surrogate outside its trained space, a calibrated model outside the
+  range of its data).
 
 It is also the ``mu_model(points) -> mu`` callable that :mod:`optimize` and :mod:`surrogate`
 take, and it keeps the attributes their callers read (``convention``, ``fixed``, ``fitted``,
@@ -36,7 +37,7 @@ import numpy as np
 from scipy.differentiate import derivative
 
 import physics
-from calibrate import CalibratedModel
+from calibrate import CalibratedModel, Prediction
 
 from .evaluation import evaluate_checked
 from .problems import ProblemError, validation_problem
@@ -304,10 +305,12 @@ class PhysicsModel(Model):
 
 
 class CalibratedPhysicsModel(Model):
-    """A stored calibration: the physics with fitted parameters and an optional added effect.
+    """A stored calibration: the physics with fitted parameters and the terms calibration added.
 
     Its outputs are the physics outputs with the fitted parameters, except ``mu``, which includes
-    the effect, and ``mu_effect`` [1], the effect's share of ``mu``.
+    the added terms; ``mu_effect`` [1], the terms' share of ``mu``; and ``mu_lower``, ``mu_upper`` [1],
+    the 95 % prediction interval of a measurement (:meth:`calibrate.CalibratedModel.predict`; NaN for
+    a model stored before intervals). ``outside_domain`` flags points outside the calibration data.
 
     Parameters
     ----------
@@ -318,7 +321,8 @@ class CalibratedPhysicsModel(Model):
     """
 
     kind = "calibrated"
-    outputs = (*physics.OUTPUTS, "mu_effect")
+    outputs = (*physics.OUTPUTS, "mu_effect", "mu_lower", "mu_upper")
+    has_interval = True
 
     def __init__(self, reference: str, calibrated: CalibratedModel):
         self.reference = reference
@@ -326,23 +330,36 @@ class CalibratedPhysicsModel(Model):
         self.convention = calibrated.convention
         self.fixed, self.fitted = dict(calibrated.fixed), dict(calibrated.fitted)
         self.required_columns = calibrated.required_columns
+        # The condition columns of the calibration data and the range of every column it was fitted
+        # on (None for a model stored before domains were kept).
+        self.conditions, self.domain = calibrated.conditions, calibrated.domain
         self.inputs = _physics_inputs({**self.fixed, **self.fitted})
         self.inputs.update({name: ModelInput(name, "as in the calibration data", "A condition column "
-                                             "the calibrated model's effect reads.")
+                                             "the calibrated model's terms read.")
                             for name in self.required_columns})
+
+    def predict(self, points: Mapping[str, Any]) -> Prediction:
+        """μ with its 95 % interval and the domain check: :meth:`calibrate.CalibratedModel.predict`."""
+        return self.calibrated.predict(points)
 
     def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str]) -> Evaluation:
         checked = self.check(points)
         given = {k: v for k, v in checked.items() if k in physics.PARAMETERS}
         base = evaluate_checked({**self.fixed, **self.fitted, **given}, None, self.convention)
         with np.errstate(all="ignore"):
-            mu = np.asarray(self.calibrated(checked), dtype=float)
+            prediction = self.calibrated.predict(checked)
+        mu = np.asarray(prediction.mu, dtype=float)
         if not np.isfinite(mu).all():
             raise validation_problem([{"pointer": "/conditions", "detail": "the calibrated model's mu is not "
                                        "finite at these conditions"}])
-        values = {**base, "mu": mu, "mu_effect": mu - base["mu"]}
+        no_interval = np.full(mu.shape, np.nan)
+        values = {**base, "mu": mu, "mu_effect": mu - base["mu"],
+                  "mu_lower": no_interval if prediction.mu_lower is None else prediction.mu_lower,
+                  "mu_upper": no_interval if prediction.mu_upper is None else prediction.mu_upper}
         shape = np.broadcast_shapes(*(np.shape(v) for v in values.values()))
-        return Evaluation({name: values[name] for name in outputs}, np.zeros(shape, dtype=bool))
+        inside = np.ones(shape, dtype=bool) if prediction.in_domain is None else prediction.in_domain
+        return Evaluation({name: values[name] for name in outputs},
+                          ~np.broadcast_to(np.asarray(inside, dtype=bool), shape))
 
     def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
         return self.calibrated(points)

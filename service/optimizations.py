@@ -31,7 +31,7 @@ from optimize import (
 from optimize.general import check_exact_limits
 from optimize.problem import DESIGN_VARIABLES
 
-from .calibrations import with_conditions
+from .calibrations import interval_at, with_conditions
 from .executor import map_chunks
 from .models import resolve
 from .problems import ProblemError, validation_problem
@@ -73,6 +73,9 @@ class OptimizationPlan:
         design found on it; None otherwise.
     source_name : str or None
         Its name (``"physics"`` or ``"calibrated:<id>"``).
+    interval : callable or None
+        For a calibrated model, the 95 % interval and domain check at a design point
+        (:func:`service.calibrations.interval_at`).
     """
 
     problem: DesignProblem
@@ -83,6 +86,7 @@ class OptimizationPlan:
     synchronous: bool
     source_model: Callable[[Mapping[str, Any]], Any] | None = None
     source_name: str | None = None
+    interval: Callable[[Mapping[str, Any]], dict[str, Any]] | None = None
 
 
 def _pointer(message: str, speed_in_fixed: bool) -> str:
@@ -94,19 +98,20 @@ def _pointer(message: str, speed_in_fixed: bool) -> str:
         "bounds", "fixed", "constraints", "speed_m_s", "convention") else ""
 
 
-def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, dict[str, Any], str]:
-    """The μ model, the physics values it was built with, and its convention."""
+def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, dict[str, Any], str,
+                                                              Callable | None]:
+    """The μ model, the physics values it was built with, its convention and its interval at a point."""
     if body.conditions and not body.model.startswith("calibrated:"):
         raise validation_problem([{"pointer": "/conditions", "detail": "extra input columns are read by "
                                    "calibrated models only"}])
     if body.model == "physics":
-        return None, {}, str(body.convention)
+        return None, {}, str(body.convention), None
     model = resolve(store, body.model)
     # The values the model holds (a calibration's fixed and fitted ones, the ones a surrogate was
     # trained at): the physics checks of limits and of the optimum run there too.
     values = {**model.fixed, **model.fitted}
     mu_model = with_conditions(model, body.model, body.conditions)
-    return mu_model, values, model.convention
+    return mu_model, values, model.convention, interval_at(model, body.conditions)
 
 
 def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
@@ -131,7 +136,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     if body.pareto is not None and body.model != "physics":
         raise validation_problem([{"pointer": "/pareto", "detail": "a Pareto front is computed for model "
                                    "physics only"}])
-    mu_model, model_values, convention = _model(store, body)
+    mu_model, model_values, convention, interval = _model(store, body)
     fixed = body.fixed.model_dump(exclude_none=True)
     speed_in_fixed = "speed_m_s" in fixed
     if speed_in_fixed and body.speed_m_s is not None:
@@ -169,7 +174,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     synchronous = mu_model is None and body.pareto is None and counts <= SYNC_MAX_BALL_COUNTS
     pareto = body.pareto.model_dump() if body.pareto is not None else None
     return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous, source_model,
-                            source_name)
+                            source_name, interval)
 
 
 def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:
@@ -227,6 +232,10 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
                                     map_calls=None if executor is None else partial(map_chunks, executor),
                                     source_model=plan.source_model, source_name=plan.source_name or "physics")
         document = {**result.to_dict(), "model": plan.model}
+        if plan.interval is not None:
+            # A calibrated model says how sure it is at the optimum, and whether the optimum lies in its data.
+            design = {**plan.problem.fixed, **document["design"], "speed_m_s": document["speed_m_s"]}
+            document.update(plan.interval(design))
         if with_pareto:
             front = pareto_front(plan.problem, plan.pareto["objective"], plan.pareto["points"],
                                  progress=stage(0.2, 0.8))

@@ -42,9 +42,14 @@ HIDDEN = {
 }
 
 
-def make_rows(hidden: str | None, seed: int, with_std: bool = False,
-              n_rows: int = N_ROWS) -> tuple[list[dict], dict]:
-    """Rows of measurements and the columns they were drawn from."""
+def make_rows(hidden: str | None, seed: int, with_std: bool = False, n_rows: int = N_ROWS,
+              noise: float = NOISE_LOG_STD, outliers: float = 0.0, also: str | None = None,
+              declared_std: float | None = None) -> tuple[list[dict], dict]:
+    """Rows of measurements and the columns they were drawn from.
+
+    ``also`` hides a second effect; ``outliers`` is the fraction of rows whose mu is multiplied by 5;
+    ``declared_std`` the relative mu_measured_std written in the rows (default: the true noise).
+    """
     rng = np.random.default_rng(seed)
     c = {
         "balls": rng.choice([4, 6, 8, 12], n_rows).astype(float),
@@ -57,63 +62,89 @@ def make_rows(hidden: str | None, seed: int, with_std: bool = False,
         # From a generator of its own, so that the other columns and the noise stay as they were.
         "coated": np.random.default_rng(seed + 7919).integers(0, 2, n_rows).astype(float),
     }
-    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], **TRUE).mu
-    if hidden is not None:
-        mu = HIDDEN[hidden][1](mu, c)
-    measured = mu * np.exp(rng.normal(0.0, NOISE_LOG_STD, n_rows))
+    mu = true_mu(hidden, c)
+    if also is not None:
+        mu = HIDDEN[also][1](mu, c)
+    measured = mu * np.exp(rng.normal(0.0, noise, n_rows))
+    if outliers:
+        picked = np.random.default_rng(seed + 31).choice(n_rows, round(outliers * n_rows), replace=False)
+        measured[picked] *= 5.0
     rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(measured[i])}
             for i in range(n_rows)]
     if with_std:
         for row in rows:
-            row["mu_measured_std"] = NOISE_LOG_STD * row["mu_measured"]
+            row["mu_measured_std"] = (declared_std or noise) * row["mu_measured"]
     return rows, c
 
 
+def true_mu(hidden: str | None, c: dict) -> np.ndarray:
+    """The true mu of the data: the physics with TRUE parameters and the hidden effect."""
+    if hidden in DRIFTS:
+        return DRIFTS[hidden][1](c)
+    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], **TRUE).mu
+    return mu if hidden is None else HIDDEN[hidden][1](mu, c)
+
+
+# name -> ((parameter, driver) a calibration must name, true mu): a declared parameter drifting with a
+# condition, acting through the physics.
+DRIFTS = {
+    # The pivoting coefficient of coated races is 40 % lower.
+    "coating_mu_pivot": (("mu_pivot", "coated"), lambda c: physics.evaluate(
+        balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], adhesion_energy_J_m2=TRUE[
+            "adhesion_energy_J_m2"], mu_pivot=TRUE["mu_pivot"] * np.where(c["coated"] == 1, 0.6, 1.0)).mu),
+    # Adhesion grows with the Kelvin radius: gamma = 0.05 J/m^2 * (1 + 1.5 / ln(1/h)).
+    "humid_adhesion": (("adhesion_energy_J_m2", "relative_humidity"), lambda c: physics.evaluate(
+        balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=TRUE["mu_pivot"],
+        adhesion_energy_J_m2=0.05 * (1 + 1.5 / np.log(1 / c["relative_humidity"]))).mu),
+}
+
+
 @functools.cache
-def calibrated(hidden: str | None, seed: int, with_std: bool = False):
-    rows, columns = make_rows(hidden, seed, with_std)
+def calibrated(hidden: str | None, seed: int, with_std: bool = False, **options):
+    rows, columns = make_rows(hidden, seed, with_std, **options)
     fractions = []
-    result = calibrate(rows, FIT, folds=FOLDS, progress=fractions.append)
+    result = calibrate(rows, FIT, folds=FOLDS, progress=fractions.append,
+                       make_plots=hidden == "relative_humidity")
     return result, rows, columns, fractions
 
 
-@pytest.mark.parametrize("driver", list(HIDDEN))
+def labels(result) -> list[str]:
+    return [e["label"] for e in result.effects]
+
+
+# The hidden effects checked here (the others, and several seeds each, run in bench/calibrate.py).
+CHECKED = ["relative_humidity", "cycle", "vibration_um"]
+
+
+@pytest.mark.parametrize("driver", CHECKED)
 def test_hidden_effect_is_found_on_its_driver_and_cuts_the_error_threefold(driver):
     result, *_ = calibrated(driver, seed=list(HIDDEN).index(driver) + 10)
     expected, _ = HIDDEN[driver]
+    assert len(result.effects) == 1, result.decision
     effect = result.missing_effect
-    assert effect is not None, result.decision
     assert effect["drivers"][0] == driver, result.decision
     if expected == "generic":
-        assert effect["name"].startswith("generic_"), result.decision
+        # A dependence no catalogue effect has: a generic term, or a drift of mu_pivot (which carries
+        # most of mu here, so that it scales mu alike); the report names the rival as equally good.
+        assert effect["name"].startswith("generic_") or effect["kind"] == "drift", result.decision
+        if effect["kind"] == "drift":
+            assert "as good within one standard error: generic_" in result.decision
     else:
         assert effect["name"] == expected, result.decision
     for metric in ("rmse", "relative_rmse", "max_abs_error"):
         assert result.error_after[metric] <= result.error_before[metric] / 3, (metric, result.decision)
-    # A strong effect is found again on every fold's training rows: the nested error (the whole search
-    # repeated per fold) is close to the chosen effect's same-fold error, selection costs little.
+    # Held out, the calibrated model is within 1.3 times the noise, and cannot beat it by much.
+    assert 0.7 * NOISE_LOG_STD < result.error_after["relative_rmse"] < 1.3 * NOISE_LOG_STD
     stability = result.effect_stability
-    choices = stability["choices"]
-    assert stability["folds"] == len(choices) == FOLDS
-    assert all(c["drivers"][0] == driver for c in choices), stability["summary"]
-    assert stability["same_driver"] == FOLDS
-    assert stability["agreeing"] == sum(c == {"effect": effect["name"], "drivers": effect["drivers"]}
-                                        for c in choices)
-    if driver == "temperature_C":
-        # Over 20-40 degC, mu exp(-k (T - 30)) and the generic mu exp(c1 (T - mean) / std) differ only by
-        # where the correction is 1: one fold may take the generic form, always on the temperature.
-        assert stability["agreeing"] >= FOLDS - 1, stability["summary"]
-    else:
+    assert stability["folds"] == len(stability["choices"]) == FOLDS
+    assert all(c["drivers"][0] == driver for c in stability["choices"]), stability["summary"]
+    if expected != "generic":
         assert stability["agreeing"] == FOLDS, stability["summary"]
-        assert stability["summary"].startswith(f"{FOLDS} of {FOLDS} outer folds chose {effect['name']} on "
-                                               f"{driver}")
     nested, same_folds = result.error_after["relative_rmse"], result.error_after_selection["relative_rmse"]
     assert abs(nested / same_folds - 1) < 0.05, (nested, same_folds)
-    # Held out, the calibrated model cannot beat the measurement noise by much.
-    assert result.error_after["relative_rmse"] > 0.7 * NOISE_LOG_STD
     assert set(effect["parameters"]) == set(effect["parameter_std"])
-    assert set(result.plots) == {"residual_before", "residual_after"}
-    assert all(png.startswith(b"\x89PNG") for png in result.plots.values())
+    assert result.outliers["count"] <= 1  # 5 % chance of one false flag per clean data set, by design
+    assert [s["added"] for s in result.steps] == [effect["label"], None]
 
 
 def test_shifted_parameters_are_recovered_within_their_uncertainty():
@@ -122,28 +153,86 @@ def test_shifted_parameters_are_recovered_within_their_uncertainty():
         fitted = result.fitted_parameters[name]
         assert 0 < fitted["std"] < 0.1 * true_value
         assert abs(fitted["value"] - true_value) < 4 * fitted["std"], (name, fitted)
-    # The declared model alone is biased: it bends its parameters to mimic the menisci.
+    # The declared model alone is biased: it bends its parameters to mimic the menisci, and the report
+    # says so.
     assert abs(result.fitted_declared["mu_pivot"]["value"] - TRUE["mu_pivot"]) > 0.05
+    assert any(w.startswith("mu_pivot moved from") for w in result.warnings), result.warnings
+
+
+@pytest.mark.parametrize("name", ["humid_adhesion"])
+def test_a_drifting_parameter_is_named_with_its_driver(name):
+    result, *_ = calibrated(name, seed=21)
+    (parameter, driver), _ = DRIFTS[name]
+    assert result.effects, result.decision
+    first = result.effects[0]
+    assert first["kind"] == "drift" and (first["parameter"], first["drivers"]) == (parameter, [driver]), \
+        result.decision
+    assert result.error_after["relative_rmse"] < 1.3 * NOISE_LOG_STD, result.decision
+    assert first["reference"] and first["formula"].startswith(f"{parameter}(")
+
+
+def test_two_effects_are_both_found():
+    # Menisci growing with humidity and a constant drag: forward selection adds both, in either order.
+    result, *_ = calibrated("relative_humidity", seed=12, also="load_N")
+    names = {e["name"] for e in result.effects}
+    assert names == {"humidity_meniscus", "constant_drag"}, result.decision
+    assert [s["added"] for s in result.steps[:2]] == labels(result)
+    assert result.steps[1]["errors"]["relative_rmse"] < result.steps[0]["errors"]["relative_rmse"]
+    assert result.error_after["relative_rmse"] < 1.3 * NOISE_LOG_STD
+    for name, true_value in TRUE.items():
+        fitted = result.fitted_parameters[name]
+        assert abs(fitted["value"] - true_value) < 4 * fitted["std"], (name, fitted)
+
+
+def test_gross_outliers_are_reported_and_do_not_hide_the_effect():
+    result, *_ = calibrated("relative_humidity", seed=13, outliers=0.05)
+    assert result.missing_effect and result.missing_effect["name"] == "humidity_meniscus", result.decision
+    picked = np.random.default_rng(13 + 31).choice(N_ROWS, 10, replace=False)
+    flagged = {r["row"] for r in result.outliers["rows"]}
+    assert set((picked + 1).tolist()) <= flagged, (sorted(picked + 1), sorted(flagged))
+    assert result.outliers["count"] <= 12
+    assert all(r["standardized_residual"] > result.outliers["threshold"] for r in result.outliers["rows"]
+               if r["row"] - 1 in picked)
+    assert f"{result.outliers['count']} of {N_ROWS} rows" in result.outliers["summary"]
+    # The robust after-error (outliers left out) is at the noise; the plain one carries the outliers.
+    assert result.robust_errors["after"]["relative_rmse"] < 1.3 * NOISE_LOG_STD
+    assert result.error_after["relative_rmse"] > 3 * result.robust_errors["after"]["relative_rmse"]
+    for name, true_value in TRUE.items():
+        fitted = result.fitted_parameters[name]
+        assert abs(fitted["value"] - true_value) < 4 * fitted["std"], (name, fitted)
 
 
 @pytest.mark.parametrize("with_std", [False, True])
 def test_noise_alone_adds_nothing(with_std):
     result, *_ = calibrated(None, seed=3, with_std=with_std)
-    assert result.missing_effect is None, result.decision
+    assert result.missing_effect is None and result.effects == [], result.decision
     assert result.error_after == result.error_before == result.error_after_selection
     assert result.effect_stability["agreeing"] == FOLDS, result.effect_stability["summary"]
-    assert result.effect_stability["choices"] == [{"effect": None, "drivers": []}] * FOLDS
-    assert result.model.effect is None
+    assert result.effect_stability["choices"] == [{"effect": None, "drivers": [], "terms": []}] * FOLDS
+    assert result.model.terms == []
     assert "nothing added" in result.decision
-    assert set(result.plots) == {"residual"}
     for name, true_value in TRUE.items():
         assert result.fitted_parameters[name]["value"] == pytest.approx(true_value, rel=0.05)
+    if with_std:
+        assert 0.01 < result.noise["chi2_p_value"] < 0.99, result.noise
+        assert "consistent with the declared noise" in result.noise["statement"]
+    else:
+        assert result.noise is None
+
+
+def test_scatter_above_the_declared_noise_is_said():
+    # 11 % actual scatter, 3 % declared: nothing to find, but the report must not call it noise.
+    result, *_ = calibrated(None, seed=4, with_std=True, noise=0.11, declared_std=0.03)
+    assert result.noise["chi2_p_value"] < 1e-6
+    assert result.noise["statement"].startswith("unexplained scatter: 1")
+    assert "% vs 3 % declared" in result.noise["statement"]
+    assert 0.09 < result.noise["unexplained_scatter"] < 0.13
 
 
 def test_calibrated_model_round_trips_as_json_and_predicts_like_its_formula():
     result, _, columns, _ = calibrated("relative_humidity", seed=10)
     model = CalibratedModel.from_json(json.loads(json.dumps(result.model.to_json())))
-    points = {k: v[:20] for k, v in columns.items()}
+    points = {k: columns[k][:20] for k in ("balls", "load_N", "speed_m_s", "relative_humidity")}
     fitted = {k: v["value"] for k, v in result.fitted_parameters.items()}
     force = result.missing_effect["parameters"]["meniscus_force_N"]
     by_hand = physics.evaluate(balls=points["balls"], load_N=points["load_N"], speed_m_s=points["speed_m_s"],
@@ -154,6 +243,44 @@ def test_calibrated_model_round_trips_as_json_and_predicts_like_its_formula():
     without = {k: v for k, v in points.items() if k != "relative_humidity"}
     with pytest.raises(ValueError, match="relative_humidity"):
         model(without)
+    with pytest.raises(ValueError, match="'humidity'"):
+        model({**points, "humidity": 0.5})
+
+
+def test_prediction_intervals_cover_fresh_measurements_and_the_domain_is_checked():
+    result, *_ = calibrated("relative_humidity", seed=10)
+    # Fresh measurements of the same bearing: 95 % intervals should hold about 95 % of them.
+    fresh_rows, fresh = make_rows("relative_humidity", seed=99, n_rows=400)
+    points = {k: fresh[k] for k in ("balls", "load_N", "speed_m_s", "relative_humidity", "temperature_C")}
+    prediction = result.model.predict(points)
+    measured = np.array([r["mu_measured"] for r in fresh_rows])
+    inside = (prediction.mu_lower <= measured) & (measured <= prediction.mu_upper)
+    assert 0.9 <= inside.mean() <= 0.99, inside.mean()
+    # Fresh draws from the same ranges: only the few beyond the extremes of the calibration data are flagged.
+    assert 0.95 < prediction.in_domain.mean() < 1
+    # Outside the data: flagged per point, and the warning names the column and the range.
+    outside = result.model.predict({"balls": 4, "load_N": 0.01, "speed_m_s": 0.05,
+                                    "relative_humidity": np.array([0.5, 0.95]), "temperature_C": 30.0})
+    assert outside.in_domain.tolist() == [True, False]
+    assert len(outside.warnings) == 1 and outside.warnings[0].startswith("relative_humidity = 0.95")
+    assert "range [0.2" in outside.warnings[0]
+    # An interval widens where the data say less: far in load it is wider than at the data's centre.
+    near = result.model.predict({"balls": 8, "load_N": 0.01, "speed_m_s": 0.08, "relative_humidity": 0.5})
+    far = result.model.predict({"balls": 8, "load_N": 1.0, "speed_m_s": 0.08, "relative_humidity": 0.5})
+    assert (far.mu_upper / far.mu_lower) > (near.mu_upper / near.mu_lower)
+    assert not far.in_domain and "load_N" in far.warnings[0]
+
+
+def test_a_version_1_model_still_loads_without_intervals():
+    stored = {"format_version": 1, "convention": "olaru2005", "fixed": {}, "fitted": {"mu_pivot": 0.7},
+              "effect": {"name": "constant_drag", "drivers": ["load_N"], "parameters": {"drag_force_N": 1e-4},
+                         "constants": {}}}
+    model = CalibratedModel.from_json(stored)
+    point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1, "anything": 1.0}
+    expected = physics.evaluate(balls=4, load_N=0.01, speed_m_s=0.1, mu_pivot=0.7).mu + 1e-4 / 0.01
+    prediction = model.predict(point)
+    assert float(prediction.mu) == pytest.approx(float(expected), rel=1e-12)
+    assert prediction.mu_lower is None and prediction.in_domain is None
 
 
 def test_report_is_json_and_gp_baseline_is_reported_beside_the_effect():
@@ -170,10 +297,14 @@ def test_report_is_json_and_gp_baseline_is_reported_beside_the_effect():
     assert max(b - a for a, b in itertools.pairwise(fractions)) < 0.1
     assert data["effect_stability"]["agreeing"] == FOLDS
     assert data["error_after_selection"]["relative_rmse"] < data["error_before"]["relative_rmse"] / 3
+    assert data["model"]["domain"]["relative_humidity"][0] == min(r["relative_humidity"] for r in rows)
     text = result.text()
     assert "after (held out, nested CV" in text and f"{FOLDS} of {FOLDS} outer folds chose" in text
+    assert "outliers: no outliers" in text
     # The declared model with its default parameters is worse than once fitted.
     assert data["error_default"]["relative_rmse"] > data["error_before"]["relative_rmse"]
+    assert set(result.plots) == {"effect_1", "residuals", "measured_vs_predicted"}
+    assert all(png.startswith(b"\x89PNG") for png in result.plots.values())
 
 
 def test_bad_requests_are_value_errors():
@@ -184,21 +315,21 @@ def test_bad_requests_are_value_errors():
         calibrate(rows, FIT, folds=1)
     with pytest.raises(ValueError, match="at least"):
         calibrate(rows[:5], FIT, folds=2)
+    # Enough rows for a plain 5-fold CV, not for the nested one: the message says how many.
+    with pytest.raises(ValueError, match=r"at least 16 rows for 5-fold nested cross-validation"):
+        calibrate(rows[:12], FIT, folds=5)
 
 
-# Seeds whose noise-only data fool the search (lowered to z > 0) into adding a spurious effect.
-FOOLED_SEEDS = [0, 4, 7, 8]
-
-
-@pytest.mark.parametrize("seed", FOOLED_SEEDS)
-def test_nested_error_exposes_the_selection_bias_of_a_spurious_effect(seed):
-    # Noise only, 60 rows and 12 extra columns of pure noise: a few dozen candidates, one of which fits
-    # the noise of the folds that chose it best.
+def test_nested_error_exposes_the_selection_bias_of_a_spurious_effect():
+    # Noise only, 60 rows and 12 extra columns of pure noise, and the search lowered to z > 0 with no
+    # family-wise correction: one of many candidates fits the noise of the folds that chose it best.
+    seed = 0
     rows, columns = make_rows(None, seed, n_rows=60)
     rng = np.random.default_rng(1000 + seed)
     for row in rows:
         row.update({f"noise_{j}": float(rng.uniform(0.0, 1.0)) for j in range(12)})
-    result = calibrate(rows, FIT, folds=FOLDS, z_threshold=0.0, make_plots=False)
+    result = calibrate(rows, FIT, folds=FOLDS, z_threshold=0.0, family_alpha=None, make_plots=False,
+                       max_terms=1)
     assert result.missing_effect is not None, result.decision
     # The error of the true model, computed here without the calibration: the noise drawn.
     truth = physics.evaluate(balls=columns["balls"], load_N=columns["load_N"], speed_m_s=columns["speed_m_s"],
@@ -208,5 +339,4 @@ def test_nested_error_exposes_the_selection_bias_of_a_spurious_effect(seed):
     nested = result.error_after["relative_rmse"]
     # The same-fold figure flatters the winner below even the true model's error; the nested one does not.
     assert same_folds < true_error < nested / 0.97, (same_folds, true_error, nested)
-    assert nested > same_folds
     assert result.effect_stability["agreeing"] < FOLDS, result.effect_stability["summary"]

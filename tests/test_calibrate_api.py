@@ -80,6 +80,8 @@ def test_json_calibration_names_the_effect_and_is_stored(client, humidity_result
     result = humidity_result
     assert result["n_points"] == N_ROWS
     assert result["missing_effect"]["drivers"] == ["relative_humidity"]
+    assert [e["label"] for e in result["effects"]] == [result["missing_effect"]["label"]]
+    assert result["outliers"]["count"] == 0 and result["noise"] is None
     assert result["error_after"]["relative_rmse"] <= result["error_before"]["relative_rmse"] / 3
     # The nested after-error and the same-fold one of the chosen effect are both reported, with the
     # choice of every fold (3 folds here).
@@ -136,7 +138,7 @@ def test_csv_upload_with_fixed_values_and_noise_alone(client):
     assert result["missing_effect"] is None, result["decision"]
     assert result["fitted_parameters"]["mu_pivot"]["value"] == pytest.approx(0.7, rel=0.05)
     assert result["model"]["fixed"] == {"balls": 8.0}
-    assert list(result["plots"]) == ["residual"]
+    assert sorted(result["plots"]) == ["measured_vs_predicted", "residuals"]
 
 
 def test_bad_rows_are_422_with_a_pointer_per_cell(client):
@@ -200,9 +202,9 @@ def test_cli_prints_the_report_and_writes_plots_and_json(tmp_path, capsys):
     assert code == 0
     assert "missing effect: humidity_meniscus" in out and "driven by relative_humidity" in out
     plots = sorted(p.name for p in (tmp_path / "plots").iterdir())
-    assert plots == ["residual_after.png", "residual_before.png"]
+    assert plots == ["effect_1.png", "measured_vs_predicted.png", "residuals.png"]
     report = json.loads((tmp_path / "report.json").read_text())
-    assert report["model"]["effect"]["name"] == "humidity_meniscus"
+    assert report["model"]["terms"][0]["name"] == "humidity_meniscus"
     data.write_text("balls,load_N,speed_m_s,mu_measured\n4,-1,0.1,0.01\n")
     assert main(["calibrate", str(data)]) == 2
     assert "row 1, column load_N" in capsys.readouterr().err
@@ -222,6 +224,21 @@ def test_friction_answers_with_a_calibrated_model(client, humidity_result):
     assert answer["mu_effect"] == pytest.approx(effect, rel=1e-9)
     assert answer["mu"] == pytest.approx(float(declared.mu) + effect, rel=1e-12)
     assert answer["model"] == humidity_result["model_id"]
+    # A 95 % interval around mu, inside the data's ranges.
+    assert answer["mu_lower"] < answer["mu"] < answer["mu_upper"] < 1.2 * answer["mu"]
+    assert answer["in_domain"] is True and answer["domain_warnings"] == []
+    # Far outside the data: answered, but flagged, naming the column and its range.
+    wet = client.post("/v1/friction", json={**body, "conditions": {"relative_humidity": 0.97}}).json()
+    assert wet["in_domain"] is False
+    warning = wet["domain_warnings"][0]
+    assert warning.startswith("relative_humidity = 0.97") and "range [0.2" in warning
+    heavy = client.post("/v1/friction", json={**body, "load_N": 0.5}).json()
+    assert heavy["in_domain"] is False and heavy["domain_warnings"][0].startswith("load_N = 0.5 [N]")
+    assert heavy["mu_upper"] / heavy["mu_lower"] > answer["mu_upper"] / answer["mu_lower"]
+    # An unknown condition key, or a missing one the effect needs, is a 422 naming it.
+    unknown = assert_problem(client.post("/v1/friction", json={**body, "conditions": {
+        "relative_humidity": 0.6, "humidity_typo": 0.5}}), 422)
+    assert unknown["errors"][0]["pointer"] == "/conditions/humidity_typo"
     without_conditions = {**point, "model": humidity_result["model_id"]}
     missing = assert_problem(client.post("/v1/friction", json=without_conditions), 422)
     assert "relative_humidity" in missing["detail"]
@@ -290,3 +307,32 @@ def test_a_surrogate_of_a_calibration_with_fixed_values_inherits_them(client):
     # Without the calibrated model there is no ball count: the physics needs one.
     problem = assert_problem(client.post("/v1/surrogates", json={**request, "model": "physics"}), 422)
     assert problem["errors"][0]["pointer"] == "/space"
+
+
+def test_a_calibration_stored_before_intervals_still_loads_and_answers(client):
+    # The report and model as version 1 stored them: one effect, no covariance, no domain, old plot names.
+    errors = {"rmse": 0.001, "relative_rmse": 0.02, "max_abs_error": 0.004}
+    model = {"format_version": 1, "convention": "olaru2005", "fixed": {}, "fitted": {"mu_pivot": 0.7},
+             "effect": {"name": "constant_drag", "drivers": ["load_N"], "parameters": {"drag_force_N": 1e-4},
+                        "constants": {}}}
+    report = {"n_points": 120, "fit_parameters": ["mu_pivot"], "error_default": errors,
+              "fitted_declared": {"mu_pivot": {"value": 0.6, "std": 0.01}},
+              "fitted_parameters": {"mu_pivot": {"value": 0.7, "std": 0.01}}, "error_before": errors,
+              "error_after": errors, "missing_effect": None, "discrepancy_gp": {
+                  "errors": errors, "features": [], "length_scales": {}, "noise_std_log": None,
+                  "max_train_rows": 300}, "candidates": [], "decision": "nothing added", "folds": 3,
+              "model": model, "plots": ["residual"]}
+    store = get_runtime(client.app).store
+    old_id = store.save_model("calibration", {"report": report, "model": model},
+                              {"residual": np.frombuffer(b"\x89PNG old", dtype=np.uint8)})
+    shown = client.get(f"/v1/calibrations/{old_id}")
+    assert shown.status_code == 200 and shown.json()["plots"] == {
+        "residual": f"/v1/calibrations/{old_id}/plots/residual.png"}
+    assert client.get(f"/v1/calibrations/{old_id}/plots/residual.png").content == b"\x89PNG old"
+    answer = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 0.1,
+                                                "model": f"calibrated:{old_id}"})
+    assert answer.status_code == 200, answer.text
+    answer = answer.json()
+    expected = float(physics.evaluate(balls=4, load_N=0.01, speed_m_s=0.1, mu_pivot=0.7).mu) + 1e-4 / 0.01
+    assert answer["mu"] == pytest.approx(expected, rel=1e-12)
+    assert answer["mu_lower"] is None and answer["in_domain"] is None and answer["domain_warnings"] == []

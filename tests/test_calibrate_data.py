@@ -127,9 +127,9 @@ def test_calibrate_docstring_examples_run():
     import doctest
 
     import calibrate.data
-    import calibrate.discover
     import calibrate.fit
+    import calibrate.select
 
-    for module in (calibrate.data, calibrate.discover, calibrate.fit):
+    for module in (calibrate.data, calibrate.select, calibrate.fit):
         failures, tried = doctest.testmod(module)
         assert tried > 0 and failures == 0, module.__name__

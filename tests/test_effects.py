@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import physics
-from physics.effects import EFFECTS, apply_effect, humidity_fraction
+from physics.effects import DRIFT_LAWS, DRIFT_PARAMETERS, EFFECTS, apply_effect, humidity_fraction
 
 
 def test_constant_drag_adds_force_over_load():
@@ -97,3 +97,43 @@ def test_every_effect_is_documented():
         assert effect.reference and effect.title and effect.driver_description
         for p in effect.parameters:
             assert p.unit and p.description and p.minimum < p.maximum
+
+
+def test_stribeck_breakaway_decays_from_its_excess_at_rest():
+    columns = {"speed_m_s": np.array([0.0, 0.01, 1.0])}
+    out = apply_effect(np.full(3, 0.01), "stribeck_breakaway", columns,
+                       {"breakaway_excess": 0.02, "breakaway_speed_m_s": 0.01})
+    assert out.tolist() == pytest.approx([0.03, 0.01 + 0.02 / math.e, 0.01 + 0.02 * math.exp(-100)])
+
+
+def test_viscous_power_law_scales_with_a_power_of_speed():
+    columns = {"speed_m_s": np.array([0.05, 0.2]), "load_N": np.array([0.01, 0.01])}
+    constants = EFFECTS["viscous_power_law"].constants(columns, ("speed_m_s", "load_N"))
+    assert constants == {"reference": pytest.approx(0.125)}
+    out = apply_effect(np.zeros(2), "viscous_power_law", columns,
+                       {"drag_force_N": 1e-4, "speed_exponent": 0.5}, ("speed_m_s", "load_N"),
+                       {"reference": 0.05})
+    # 1e-4 N (V / 0.05)^0.5 / 0.01 N: 0.01 at the reference, twice that at four times the speed
+    assert out.tolist() == pytest.approx([0.01, 0.02])
+
+
+def test_drift_laws_against_hand_calculations():
+    linear = DRIFT_LAWS["linear"]
+    c = linear.constants("coated", [0.0, 0.0, 1.0])
+    assert c == {"reference": 0.0, "minimum": 0.0, "maximum": 1.0}
+    assert linear.factor("coated", np.array([0.0, 1.0]), -0.4, c).tolist() == pytest.approx([1.0, 0.6])
+    # A linear factor stays within [0.1, 10] over the data: slope in [-0.9, 9] per unit here.
+    assert linear.bounds(c) == pytest.approx((-0.9, 9.0))
+    kelvin = DRIFT_LAWS["kelvin"]
+    c = kelvin.constants("relative_humidity_pct", [20.0, math.exp(-1) * 100, 80.0])
+    assert c["reference"] == pytest.approx(1.0)  # 1/ln(1/h) at h = 1/e
+    h = 0.5
+    assert float(kelvin.factor("relative_humidity_pct", 100 * h, 0.3, c)) == pytest.approx(
+        1 + 0.3 * (1 / math.log(1 / h) - 1))
+    arrhenius = DRIFT_LAWS["arrhenius"]
+    c = arrhenius.constants("temperature_K", [290.0, 300.0, 310.0])
+    assert float(arrhenius.factor("temperature_K", 310.0, 16e3, c)) == pytest.approx(
+        math.exp(16e3 / 8.314462618 * (1 / 310 - 1 / 300)))
+    assert arrhenius.matches("temperature_C") and not arrhenius.matches("cycle")
+    assert kelvin.accepts("rh", [0.2, 0.8]) and not kelvin.accepts("rh", [0.2, 1.0])
+    assert set(DRIFT_PARAMETERS) <= set(physics.PARAMETERS)

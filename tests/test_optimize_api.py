@@ -10,6 +10,7 @@ from fastapi.testclient import TestClient
 
 import physics
 from calibrate import CalibratedModel
+from calibrate.candidates import EffectTerm
 from optimize import Constraints, DesignBounds, DesignProblem, optimize_design
 from service.app import create_app
 from service.deps import get_runtime
@@ -205,9 +206,13 @@ def test_a_surrogate_design_is_judged_by_the_physics_on_a_binding_friction_limit
 
 def test_calibrated_model_with_an_effect_reads_its_conditions(client):
     store = get_runtime(client.app).store
-    model = CalibratedModel(fitted={"mu_pivot": 0.6}, effect={
-        "name": "humidity_meniscus", "drivers": ["relative_humidity"],
-        "parameters": {"meniscus_force_N": 2e-5}, "constants": {}})
+    # Fitted on loads up to 0.01 N only, with a covariance and a scatter: the answer gives an interval and
+    # says whether the optimum lies in the data.
+    model = CalibratedModel(fitted={"mu_pivot": 0.6},
+                            terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5])],
+                            covariance=np.diag([1e-4, 1e-12]), noise_std_log=0.02,
+                            domain={"load_N": [0.001, 0.01], "relative_humidity": [0.2, 0.8]},
+                            conditions=["relative_humidity"])
     model_id = store.save_model("calibration", {"model": model.to_json()}, {})
     request = {"bounds": {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
                "speed_m_s": 0.05, "model": f"calibrated:{model_id}"}
@@ -224,14 +229,17 @@ def test_calibrated_model_with_an_effect_reads_its_conditions(client):
     design = result["design"]
     check = model({**design, "speed_m_s": 0.05, "relative_humidity": 0.5})
     assert result["mu"] == pytest.approx(float(np.squeeze(check)), rel=1e-12)
+    assert result["mu_lower"] < result["mu"] < result["mu_upper"]
+    # mu falls with load here: the optimum lies beyond the loads of the data, and the result says so.
+    assert design["load_N"] > 0.01 and result["in_domain"] is False
+    assert any(w.startswith("load_N = ") and "range [0.001, 0.01]" in w for w in result["domain_warnings"])
 
 
 def test_speed_range_of_a_calibrated_model_falling_with_speed_is_designed_for_its_worst_speed(client):
     # a generic effect exp(-2 (V - 0.1) / 0.05) on speed: mu falls with speed, the worst case is 0.01 m/s
     store = get_runtime(client.app).store
-    model = CalibratedModel(fitted={"mu_pivot": 0.8}, effect={
-        "name": "generic_linear", "drivers": ["speed_m_s"], "parameters": {"c1": -2.0},
-        "constants": {"centre": 0.1, "scale": 0.05}})
+    model = CalibratedModel(fitted={"mu_pivot": 0.8}, terms=[
+        (EffectTerm("generic_linear", ("speed_m_s",), {"centre": 0.1, "scale": 0.05}), [-2.0])])
     model_id = store.save_model("calibration", {"model": model.to_json()}, {})
     request = {"bounds": {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
                "speed_m_s": [0.01, 0.2], "model": f"calibrated:{model_id}", "starts": 1}

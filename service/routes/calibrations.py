@@ -54,7 +54,7 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
 def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep,
                        settings: SettingsDep) -> JSONResponse:
-    """Calibrate on JSON rows: fit the named parameters, find the missing effect, report (a job).
+    """Calibrate on JSON rows: fit the named parameters, add the terms the data need, report (a job).
 
     The job's result is the calibration report (see ``GET /v1/calibrations/{id}``). More than
     MICROBEARING_MAX_CALIBRATION_ROWS rows get 413.
@@ -117,7 +117,8 @@ def get_calibration(calibration_id: str, store: StoreDep) -> JSONResponse:
                              "content": {"image/png": {"schema": {"type": "string", "format": "binary"}}}},
                        **problem_responses(404)})
 def get_calibration_plot(calibration_id: str, plot_name: str, store: StoreDep) -> Response:
-    """A residual plot of a calibration: ``residual_before``, ``residual_after`` or ``residual``."""
+    """A plot of a calibration: ``effect_<k>``, ``residuals``, ``measured_vs_predicted`` (older calibrations:
+    ``residual_before``, ``residual_after`` or ``residual``)."""
     stored = load_calibration(store, calibration_id)
     if plot_name not in stored.arrays:
         raise ProblemError(404, f"Calibration {calibration_id} has no plot {plot_name!r}; it has "

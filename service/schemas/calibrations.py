@@ -35,16 +35,29 @@ MODEL_FIELDS: dict[str, Any] = {
         "'physics' (the declared model) or 'calibrated:<id>' from /v1/calibrations: its fixed and fitted "
         "parameters replace the defaults, its convention is used and its effect is added to mu."))),
     "conditions": (dict[str, float] | None, Field(default=None, description=(
-        "Condition columns the calibrated model's effect reads, e.g. relative_humidity [1] "
-        "[unit of each column as in the calibration data]."))),
+        "Condition columns of the calibration data, e.g. relative_humidity [1] [unit of each column as in "
+        "the calibration data]; those the calibrated model's terms read are required, a column the "
+        "calibration never saw is refused (422 naming it)."))),
 }
 
 #: Response fields added when a calibrated model answers.
 MODEL_RESPONSE_FIELDS: dict[str, Any] = {
     "model": (str | None, Field(default=None, description="The calibrated model used (absent for physics).")),
     "mu_effect": (float | None, Field(default=None, description=(
-        "Share of mu due to the calibrated model's added effect [1]; the other outputs are the declared "
+        "Share of mu due to the calibrated model's added terms [1]; the other outputs are the declared "
         "model's with the fitted parameters (absent for physics)."))),
+    "mu_lower": (float | None, Field(default=None, description=(
+        "Lower bound of the 95 % prediction interval of a measurement of mu at this point [1]: parameter "
+        "uncertainty, what the calibrated terms leave unexplained and the noise (absent for physics and for "
+        "models calibrated before intervals existed)."))),
+    "mu_upper": (float | None, Field(default=None, description=(
+        "Upper bound of the same 95 % prediction interval [1]."))),
+    "in_domain": (bool | None, Field(default=None, description=(
+        "Whether the point lies within the range of every column of the calibration data (false: the "
+        "answer is an extrapolation; domain_warnings says where)."))),
+    "domain_warnings": (list[str] | None, Field(default=None, description=(
+        "One sentence per input or condition outside the calibration data, naming the column, the value "
+        "and the range."))),
 }
 
 _ROW_DESCRIPTION = (
@@ -85,9 +98,15 @@ class Estimate(ResponseModel):
 
 
 class MissingEffect(ResponseModel):
-    """The effect added to the model."""
+    """A term added to the model: an effect, or a declared parameter drifting with a condition."""
 
-    name: str = Field(description="Effect name (physics.effects.EFFECTS).")
+    kind: str | None = Field(default=None, description="'effect' or 'drift' (null for calibrations stored "
+                                                       "before drifts existed: an effect).")
+    label: str | None = Field(default=None, description="The term in a few words.")
+    parameter: str | None = Field(default=None, description="The drifting physics parameter (drift only).")
+    law: str | None = Field(default=None, description="The drift law: linear, arrhenius or kelvin (drift "
+                                                      "only).")
+    name: str = Field(description="Effect name (physics.effects.EFFECTS), or parameter~law for a drift.")
     title: str = Field(description="What the effect is.")
     drivers: list[str] = Field(description="Driving columns, main driver first.")
     formula: str = Field(description="Corrected mu in terms of the declared model's mu_model.")
@@ -115,6 +134,7 @@ class FoldChoice(ResponseModel):
 
     effect: str | None = Field(description="Effect name; null when nothing was added.")
     drivers: list[str] = Field(description="Driving columns, main driver first (empty if nothing was added).")
+    terms: list[str] | None = Field(default=None, description="Every term the fold added, in order.")
 
 
 class EffectStability(ResponseModel):
@@ -131,9 +151,14 @@ class EffectStability(ResponseModel):
 
 
 class CandidateSummary(ResponseModel):
-    """Cross-validated score of one candidate effect."""
+    """Score of one candidate term (cross-validated for a joint refit, in-sample for a screening)."""
 
-    effect: str | None = Field(description="Effect name; null for the declared model alone.")
+    effect: str | None = Field(description="Effect name (parameter~law for a drift); null for the current "
+                                           "model.")
+    kind: str | None = Field(default=None, description="'effect' or 'drift'; null for the current model.")
+    label: str | None = Field(default=None, description="The candidate in a few words.")
+    cv_robust_loss: float | None = Field(default=None, description="Mean Huber loss of the (weighted) log "
+                                                                    "residual [1].")
     drivers: list[str] = Field(description="Driving columns.")
     n_parameters: int = Field(description="Fitted parameters, declared and effect's [1].")
     cv_rmse_log: float = Field(description="Held-out RMS of the (weighted) log residual [1].")
@@ -141,6 +166,55 @@ class CandidateSummary(ResponseModel):
     z_vs_declared: float = Field(
         description="Paired z of the held-out improvement over the declared model [1].")
     joint_refit: bool = Field(description="Refitted jointly with the declared parameters (else screened).")
+
+
+class OutlierRow(ResponseModel):
+    """A measurement the robust fit treats as a gross outlier."""
+
+    row: int = Field(description="Data row, 1 = the first row after the header [1].")
+    mu_measured: float = Field(description="Measured mu [1].")
+    mu_predicted: float = Field(description="The calibrated model's mu [1].")
+    standardized_residual: float = Field(description="log(measured / predicted) in robust standard "
+                                                     "deviations; "
+                                                     "> 0 when measured above the model [1].")
+
+
+class Outliers(ResponseModel):
+    """Rows down-weighted as gross outliers."""
+
+    count: int = Field(description="Outlier rows [1].")
+    threshold: float = Field(description="Standardized residual beyond which a row is an outlier [1].")
+    rows: list[OutlierRow] = Field(description="The outliers, largest first (at most 200 listed).")
+    summary: str = Field(description="The same in words.")
+
+
+class NoiseTest(ResponseModel):
+    """The final model's residual against the declared mu_measured_std."""
+
+    chi2_p_value: float = Field(description="Chi-square p-value of the standardized residual (outliers left "
+                                            "out) [1].")
+    declared_noise: float = Field(description="Median declared relative noise of mu [1].")
+    unexplained_scatter: float = Field(description="Relative scatter of mu the model leaves [1].")
+    statement: str = Field(description="The comparison in words.")
+
+
+class SelectionStep(ResponseModel):
+    """One step of forward selection."""
+
+    added: str | None = Field(description="The term added; null for the step that stopped the search.")
+    errors: ErrorFigures = Field(description="Held-out errors after the step, on the rows searched.")
+    z: float | None = Field(description="Paired z of the added term's improvement [1].")
+    z_needed: float = Field(description="Paired z a candidate had to exceed [1].")
+    candidates: list[CandidateSummary] = Field(description="The current model, then the best candidates.")
+    reason: str = Field(description="Why the term was added or the search stopped.")
+
+
+class RobustErrors(ResponseModel):
+    """Held-out errors without the outlier rows."""
+
+    before: ErrorFigures = Field(description="As error_before, outliers left out.")
+    after: ErrorFigures = Field(description="As error_after, outliers left out.")
+    excluded_rows: int = Field(description="Outlier rows left out [1].")
 
 
 class CalibrationResult(ResponseModel):
@@ -166,10 +240,22 @@ class CalibrationResult(ResponseModel):
         "How stable the effect search is across folds; null for calibrations stored before nested "
         "cross-validation."))
     missing_effect: MissingEffect | None = Field(
-        description="The added effect; null when only noise remains.")
+        description="The first term added; null when only noise remains.")
+    effects: list[MissingEffect] | None = Field(default=None, description=(
+        "Every term added by forward selection, in order (null for calibrations stored before it)."))
+    steps: list[SelectionStep] | None = Field(default=None, description="Forward selection step by step.")
+    robust_errors: RobustErrors | None = Field(default=None, description="Held-out errors without outliers.")
+    outliers: Outliers | None = Field(default=None, description="Rows treated as gross outliers.")
+    noise: NoiseTest | None = Field(default=None, description=(
+        "Chi-square test against mu_measured_std; null without that column."))
+    warnings: list[str] | None = Field(default=None, description=(
+        "Declared parameters that moved beyond their interval when terms were added or sit on a bound, and a "
+        "GP discrepancy that predicts better than the terms."))
     discrepancy_gp: GPDiscrepancy = Field(description="The GP discrepancy baseline.")
     candidates: list[CandidateSummary] = Field(description="Every candidate's score, declared model first.")
     decision: str = Field(description="Why the effect was chosen or nothing was added.")
     folds: int = Field(description="Cross-validation folds [1].")
     model: dict[str, Any] = Field(description="The calibrated model as JSON data.")
-    plots: dict[str, str] = Field(description="Residual plots: name -> URL of the PNG.")
+    plots: dict[str, str] = Field(description=(
+        "Plots: name -> URL of the PNG (effect_<k>: the k-th term against its driver with its 95 % band; "
+        "residuals: against every input, before and after; measured_vs_predicted)."))

@@ -232,3 +232,13 @@ class OptimizationResult(ResponseModel):
     certificate: str = Field(description="What is proven about the design, and how.")
     solve_time_s: float = Field(description="Time of the optimization [s].")
     pareto: ParetoFront | None = Field(default=None, description="The Pareto front, when asked for.")
+    mu_lower: float | None = Field(default=None, description=(
+        "For a calibrated model: lower bound of the 95 % prediction interval of mu at the design [1]."))
+    mu_upper: float | None = Field(default=None, description=(
+        "For a calibrated model: upper bound of the 95 % prediction interval of mu at the design [1]."))
+    in_domain: bool | None = Field(default=None, description=(
+        "For a calibrated model: whether the optimum lies within the ranges of the calibration data (false: "
+        "it is an extrapolation, see domain_warnings)."))
+    domain_warnings: list[str] | None = Field(default=None, description=(
+        "For a calibrated model: one sentence per input outside the calibration data at the optimum, naming "
+        "the column, the value and the range."))

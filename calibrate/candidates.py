@@ -1,0 +1,426 @@
+"""Step 2 of the pipeline: the terms a calibration may add, and :func:`mu_of`, a model with them.
+
+A **term** is one candidate explanation of what the declared model misses:
+
+* an :class:`EffectTerm`, an effect of :data:`physics.effects.EFFECTS` (a named
+  correction of μ such as ``humidity_meniscus`` or ``stribeck_breakaway``, or a
+  generic low-order term) bound to its driver columns;
+* a :class:`DriftTerm`, a declared physics parameter that drifts with a
+  condition column by a law of :data:`physics.effects.DRIFT_LAWS` (linear,
+  Arrhenius in temperature, Kelvin-type in humidity). It acts through
+  :func:`physics.evaluate`, so a viscosity that falls with temperature moves
+  only the terms of μ that depend on viscosity.
+
+:func:`candidate_terms` proposes every term that fits the data's columns;
+:func:`mu_of` evaluates declared values plus terms (drifts change the inputs of
+the physics, effects then correct its μ, in order). Screening uses a frozen
+base (:class:`FrozenBase`): μ of the current model and its sensitivity to each
+drifting parameter, so that a drift is screened by its first-order effect on
+log μ without re-running the physics.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+import physics
+from physics.effects import DRIFT_LAWS, DRIFT_PARAMETERS, EFFECTS, DriftLaw, Effect
+
+from .data import Dataset
+
+__all__ = [
+    "DriftTerm",
+    "EffectTerm",
+    "FrozenBase",
+    "Term",
+    "candidate_terms",
+    "drifted_inputs",
+    "mu_of",
+    "term_from_json",
+]
+
+
+@dataclass(frozen=True)
+class EffectTerm:
+    """An effect of :data:`physics.effects.EFFECTS` bound to its driver columns.
+
+    Attributes
+    ----------
+    name : str
+        Effect name.
+    drivers : tuple of str
+        Driving columns, main driver first.
+    constants : dict
+        Constants fixed from the whole data set (centre and scale of a generic term, a reference).
+    """
+
+    name: str
+    drivers: tuple[str, ...]
+    constants: dict[str, float] = field(default_factory=dict)
+
+    kind = "effect"
+
+    @property
+    def effect(self) -> Effect:
+        """The :class:`physics.effects.Effect`."""
+        return EFFECTS[self.name]
+
+    @property
+    def label(self) -> str:
+        """The term in a few words, e.g. ``humidity_meniscus on relative_humidity``."""
+        return f"{self.name} on {', '.join(self.drivers)}"
+
+    @property
+    def generic(self) -> bool:
+        """Whether it is a generic fallback term rather than a named mechanism."""
+        return self.effect.generic
+
+    @property
+    def parameter_names(self) -> list[str]:
+        """Names of the fitted parameters, with their units."""
+        return self.effect.parameter_names
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Unit of each fitted parameter."""
+        return {p.name: p.unit for p in self.effect.parameters}
+
+    def bounds(self) -> list[tuple[float, float]]:
+        """Bounds of each fitted parameter."""
+        return [(p.minimum, p.maximum) for p in self.effect.parameters]
+
+    def initial(self, mu: np.ndarray, columns: Mapping[str, Any]) -> list[float]:
+        """Initial values from the data's scale (see :meth:`physics.effects.Effect.initial`)."""
+        return self.effect.initial(mu, columns, self.drivers, self.constants)
+
+    def describe(self, values: Sequence[float], std: Sequence[float]) -> dict[str, Any]:
+        """JSON-ready description with fitted values and standard deviations."""
+        spec = self.effect
+        return {
+            "kind": self.kind,
+            "name": spec.name,
+            "label": self.label,
+            "title": spec.title,
+            "drivers": list(self.drivers),
+            "formula": spec.formula,
+            "parameters": dict(zip(spec.parameter_names, map(float, values), strict=True)),
+            "parameter_std": dict(zip(spec.parameter_names, map(float, std), strict=True)),
+            "parameter_units": self.units,
+            "constants": dict(self.constants),
+            "reference": spec.reference,
+        }
+
+    def to_json(self, values: Sequence[float]) -> dict[str, Any]:
+        """The term with its fitted values, as stored in a calibrated model."""
+        return {
+            "kind": self.kind,
+            "name": self.name,
+            "drivers": list(self.drivers),
+            "parameters": dict(zip(self.parameter_names, map(float, values), strict=True)),
+            "constants": {k: float(v) for k, v in self.constants.items()},
+        }
+
+
+@dataclass(frozen=True)
+class DriftTerm:
+    """A declared physics parameter drifting with a condition column by a law of :data:`DRIFT_LAWS`.
+
+    Attributes
+    ----------
+    parameter : str
+        Name in :data:`physics.PARAMETERS`.
+    law : str
+        Key of :data:`physics.effects.DRIFT_LAWS`.
+    driver : str
+        Condition column.
+    constants : dict
+        Reference, minimum and maximum of the law's variable over the data.
+    """
+
+    parameter: str
+    law: str
+    driver: str
+    constants: dict[str, float] = field(default_factory=dict)
+
+    kind = "drift"
+    generic = False
+
+    @property
+    def spec(self) -> DriftLaw:
+        """The :class:`physics.effects.DriftLaw`."""
+        return DRIFT_LAWS[self.law]
+
+    @property
+    def name(self) -> str:
+        """A name for tables: ``mu_pivot~linear``."""
+        return f"{self.parameter}~{self.law}"
+
+    @property
+    def drivers(self) -> tuple[str, ...]:
+        """The driver column, as a one-element tuple like :attr:`EffectTerm.drivers`."""
+        return (self.driver,)
+
+    @property
+    def label(self) -> str:
+        """The term in a few words, e.g. ``viscosity_Pa_s drifts with temperature_C (arrhenius)``."""
+        return f"{self.parameter} drifts with {self.driver} ({self.law})"
+
+    @property
+    def parameter_names(self) -> list[str]:
+        """The law's coefficient name."""
+        return [self.spec.coefficient.name]
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Unit of the coefficient (``1/driver``: per unit of the driver column)."""
+        return {self.spec.coefficient.name: self.spec.coefficient.unit}
+
+    def bounds(self) -> list[tuple[float, float]]:
+        """Bounds of the coefficient (see :meth:`physics.effects.DriftLaw.bounds`)."""
+        return [self.spec.bounds(self.constants)]
+
+    def initial(self, mu: np.ndarray, columns: Mapping[str, Any]) -> list[float]:
+        """No drift to start with."""
+        return [0.0]
+
+    def factor(self, columns: Mapping[str, Any], coefficient: float) -> np.ndarray:
+        """Parameter value over its reference value at each row. [1]"""
+        return self.spec.factor(self.driver, columns[self.driver], coefficient, self.constants)
+
+    def describe(self, values: Sequence[float], std: Sequence[float]) -> dict[str, Any]:
+        """JSON-ready description with the fitted coefficient and its standard deviation."""
+        spec, name = self.spec, self.spec.coefficient.name
+        unit = physics.PARAMETERS[self.parameter].unit
+        return {
+            "kind": self.kind,
+            "name": self.name,
+            "label": self.label,
+            "title": f"{self.parameter} [{unit}] varies with {self.driver}: {spec.title}",
+            "drivers": [self.driver],
+            "parameter": self.parameter,
+            "law": self.law,
+            "formula": spec.formula.replace("p(", f"{self.parameter}(").replace(
+                "p_ref", f"{self.parameter}_ref"
+            ),
+            "parameters": {name: float(values[0])},
+            "parameter_std": {name: float(std[0])},
+            "parameter_units": self.units,
+            "constants": dict(self.constants),
+            "reference": f"{DRIFT_PARAMETERS[self.parameter]}; {spec.reference}",
+        }
+
+    def to_json(self, values: Sequence[float]) -> dict[str, Any]:
+        """The term with its fitted coefficient, as stored in a calibrated model."""
+        return {
+            "kind": self.kind,
+            "parameter": self.parameter,
+            "law": self.law,
+            "driver": self.driver,
+            "parameters": {self.spec.coefficient.name: float(values[0])},
+            "constants": {k: float(v) for k, v in self.constants.items()},
+        }
+
+
+Term = EffectTerm | DriftTerm
+
+
+def term_from_json(data: Mapping[str, Any]) -> tuple[Term, list[float]]:
+    """A term and its values from :meth:`EffectTerm.to_json` or :meth:`DriftTerm.to_json` data.
+
+    Raises
+    ------
+    ValueError
+        For an unknown effect, law or parameter, or missing values.
+    """
+    constants = {k: float(v) for k, v in dict(data.get("constants", {})).items()}
+    values = dict(data.get("parameters", {}))
+    if data.get("kind", "effect") == "drift":
+        if data.get("law") not in DRIFT_LAWS or data.get("parameter") not in DRIFT_PARAMETERS:
+            raise ValueError(
+                f"drift term needs a law in {', '.join(DRIFT_LAWS)} and a parameter in "
+                f"{', '.join(DRIFT_PARAMETERS)}; got {data.get('law')!r}, {data.get('parameter')!r}"
+            )
+        if not data.get("driver") or {"reference", "minimum", "maximum"} - set(constants):
+            raise ValueError("drift term needs a driver and constants reference, minimum, maximum")
+        term: Term = DriftTerm(str(data["parameter"]), str(data["law"]), str(data["driver"]), constants)
+    else:
+        if data.get("name") not in EFFECTS:
+            raise ValueError(f"effect name must be one of {', '.join(EFFECTS)}; got {data.get('name')!r}")
+        if not data.get("drivers"):
+            raise ValueError(f"effect {data['name']} needs its drivers")
+        term = EffectTerm(str(data["name"]), tuple(str(d) for d in data["drivers"]), constants)
+    missing = [n for n in term.parameter_names if n not in values]
+    if missing:
+        raise ValueError(f"{term.label} needs parameter(s) {', '.join(missing)}")
+    return term, [float(values[n]) for n in term.parameter_names]
+
+
+@dataclass(frozen=True)
+class FrozenBase:
+    """The current model frozen at every row, for screening a new term without re-running the physics.
+
+    Attributes
+    ----------
+    mu : numpy.ndarray
+        μ of the current model. [1]
+    sensitivity : dict of str to numpy.ndarray
+        ∂ log μ / ∂ log p of the current model for each parameter p that a drift may move or the
+        screening may shift. [1]
+    declared : tuple of str
+        Fitted declared parameters whose relative shifts a screening fit adjusts to first order
+        (μ_base · exp(Σ s_p δ_p)), so that a candidate is screened as if the declared parameters were
+        refitted with it.
+    """
+
+    mu: np.ndarray = field(repr=False)
+    sensitivity: dict[str, np.ndarray] = field(repr=False)
+    declared: tuple[str, ...] = ()
+
+    def shifted(self, shifts) -> FrozenBase:
+        """The base with the declared parameters shifted by relative amounts ``shifts`` (log scale, in
+        :attr:`declared` order), to first order."""
+        if not self.declared:
+            return self
+        log_factor = sum(self.sensitivity[n] * d for n, d in zip(self.declared, shifts, strict=True))
+        return FrozenBase(self.mu * np.exp(log_factor), self.sensitivity, ())
+
+
+def _rows(values, rows):
+    arr = np.asarray(values)
+    return arr if rows is None or arr.ndim == 0 else arr[rows]
+
+
+def drifted_inputs(
+    inputs: Mapping[str, Any],
+    conditions: Mapping[str, Any],
+    terms: Sequence[Term],
+    values: Sequence[Sequence[float]],
+) -> dict[str, Any]:
+    """Physics inputs with every drift term applied (other terms ignored).
+
+    A law extrapolated past a parameter's physical bound stops at it.
+    """
+    out = dict(inputs)
+    for term, v in zip(terms, values, strict=True):
+        if term.kind == "drift":
+            spec = physics.PARAMETERS[term.parameter]
+            base = np.asarray(out.get(term.parameter, spec.default), dtype=float)
+            drifted = base * term.factor(conditions, v[0])
+            lo = -np.inf if spec.minimum is None else spec.minimum
+            hi = np.inf if spec.maximum is None else spec.maximum
+            out[term.parameter] = np.clip(drifted, lo, np.nextafter(hi, lo) if spec.exclusive_maximum else hi)
+    return out
+
+
+def mu_of(
+    inputs: Mapping[str, Any],
+    conditions: Mapping[str, Any],
+    terms: Sequence[Term] = (),
+    values: Sequence[Sequence[float]] = (),
+    base: FrozenBase | None = None,
+    rows=None,
+    convention: str = physics.DEFAULT_CONVENTION,
+) -> np.ndarray:
+    """μ of the physics with declared values and terms.
+
+    Parameters
+    ----------
+    inputs : mapping
+        Physics inputs (fixed values, physics columns and fitted declared values), broadcasting.
+    conditions : mapping
+        Condition columns the terms read.
+    terms : sequence of Term
+        Terms applied in order: drifts change the physics inputs, effects then correct μ.
+    values : sequence of sequence of float
+        Each term's parameter values, in order.
+    base : FrozenBase, optional
+        Instead of the physics, the frozen current model: drifts act to first order,
+        μ_base · factor^sensitivity, effects as usual.
+    rows : array of int, optional
+        Row indices of ``inputs``, ``conditions`` and ``base`` to evaluate (default all).
+    convention : str
+        See :data:`physics.CONVENTIONS`.
+
+    Returns
+    -------
+    numpy.ndarray
+        μ. [1]
+    """
+    inputs = {k: _rows(v, rows) for k, v in inputs.items()}
+    conditions = {k: _rows(v, rows) for k, v in conditions.items()}
+    if base is None:
+        physics_inputs = drifted_inputs(inputs, conditions, terms, values)
+        mu = physics.evaluate(convention=convention, outputs=["mu"], **physics_inputs).mu
+    else:
+        physics_inputs = inputs
+        mu = _rows(base.mu, rows)
+        for term, v in zip(terms, values, strict=True):
+            if term.kind == "drift":
+                mu = mu * np.power(
+                    term.factor(conditions, v[0]), _rows(base.sensitivity[term.parameter], rows)
+                )
+    effects = [(t, v) for t, v in zip(terms, values, strict=True) if t.kind == "effect"]
+    if not effects:
+        return np.asarray(mu, dtype=float)
+    columns = {**physics.defaults(), **physics_inputs, **conditions}
+    for term, v in effects:
+        mu = term.effect.apply(
+            mu, columns, dict(zip(term.parameter_names, v, strict=True)), term.drivers, term.constants
+        )
+    return np.asarray(mu, dtype=float)
+
+
+def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = ()) -> list[Term]:
+    """Every term that fits the data's columns and is not already chosen.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Measurements; a main driver must take at least the effect's or law's ``min_levels`` distinct
+        values and lie in its domain. A drift is proposed for every parameter of
+        :data:`physics.effects.DRIFT_PARAMETERS` that is not a data column, on every condition column
+        its law accepts.
+    chosen : sequence of Term
+        Terms already in the model: the same effect, or the same parameter on the same driver, is
+        not proposed again.
+
+    Returns
+    -------
+    list of Term
+        Named effects, then drifts, then the generic family.
+    """
+    columns = {**physics.defaults(), **dataset.inputs(), **dataset.conditions}
+    levels = {n: np.unique(v).size for n, v in dataset.columns().items() if v.dtype != bool}
+    varying = [n for n, count in levels.items() if count >= 2]
+    names = varying + [n for n in columns if n not in varying]
+    taken_effects = {t.name for t in chosen if t.kind == "effect"}
+    taken_drifts = {(t.parameter, t.driver) for t in chosen if t.kind == "drift"}
+    named, generic = [], []
+    for effect in EFFECTS.values():
+        if effect.name in taken_effects:
+            continue
+        for drivers in effect.candidate_drivers(names):
+            if levels.get(drivers[0], 0) >= effect.min_levels and effect.accepts(columns, drivers):
+                term = EffectTerm(effect.name, drivers, effect.constants(columns, drivers))
+                (generic if effect.generic else named).append(term)
+    drifts = []
+    for parameter in DRIFT_PARAMETERS:
+        if parameter in dataset.physics_columns:
+            continue
+        for driver, values in dataset.conditions.items():
+            if (parameter, driver) in taken_drifts:
+                continue
+            for law in DRIFT_LAWS.values():
+                if law.name == "linear" and DRIFT_LAWS["arrhenius"].matches(driver):
+                    continue  # over a test's range of temperature a linear drift is the Arrhenius law
+                if (
+                    law.matches(driver)
+                    and levels.get(driver, 0) >= law.min_levels
+                    and law.accepts(driver, values)
+                ):
+                    drifts.append(DriftTerm(parameter, law.name, driver, law.constants(driver, values)))
+    return named + drifts + generic
