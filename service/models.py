@@ -2,7 +2,7 @@
 
 A model reference is ``"physics"``, ``"calibrated:<id>"`` (a stored calibration,
 :mod:`service.calibrations`) or ``"surrogate:<id>"`` (a stored surrogate,
-:mod:`service.routes.surrogates`). :func:`resolve` turns a reference into a :class:`Model`,
+:mod:`service.surrogates`). :func:`resolve` turns a reference into a :class:`Model`,
 and it is the only place that does: /v1/friction with a calibrated model, /v1/optimizations,
 surrogate training on a calibrated model and the UM-Bridge protocol (:mod:`service.umbridge`)
 all get their model here.
@@ -426,9 +426,10 @@ def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Seq
         return _physics_model(convention)
     model_id = match.group(2)
     if kind == "surrogate":
-        # The surrogates resource keeps the rebuilt estimators (a refit each) in its cache; it
-        # checks that the requesting key may see the surrogate before answering from it.
-        from .routes.surrogates import load_surrogate
+        # service.surrogates keeps the rebuilt estimators (a refit each) in its cache; it checks
+        # that the requesting key may see the surrogate before answering from it. It resolves
+        # the models surrogates learn here, hence the import at call time.
+        from .surrogates import load_surrogate
 
         return SurrogateModel(reference, load_surrogate(store, model_id))
     stored = store.load_model(model_id)
