@@ -354,9 +354,9 @@ def sensitivity(store: Store, surrogate_id: str, n: int) -> dict[str, Any]:
     Parameters
     ----------
     store : Store
-        Where surrogates are kept.
+        Holds the surrogate (rebuilt through :func:`load_surrogate`).
     surrogate_id : str
-        The surrogate.
+        Its id.
     n : int
         Base sample size, a power of 2 within :data:`SENSITIVITY_N`. [1]
 
