@@ -12,7 +12,7 @@ groups do not depend on it either.
   threads run in parallel.
 * ``MICROBEARING_DASK_SCHEDULER=tcp://host:8786``: the chunks run on that dask.distributed
   cluster (``pip install 'microbearing[dask]'``; the workers need microbearing installed too,
-  since tasks name functions of :mod:`service.evaluation`).
+  since tasks name functions and models of :mod:`service`).
 * ``MICROBEARING_DASK_SCHEDULER=local``: an embedded :class:`distributed.LocalCluster` in the
   server process (threads, no extra processes), mostly to try the dask path.
 
@@ -30,9 +30,7 @@ from typing import Any
 
 import numpy as np
 
-import physics
-
-from .evaluation import evaluate_checked
+from .models import InputError, Model
 from .problems import ProblemError, validation_problem
 from .settings import Settings
 
@@ -192,24 +190,30 @@ def map_chunks(executor: Executor | None, fn: Callable[..., Any], arguments: Ite
             future.cancel()  # no-op for finished calls; frees the pool after an error
 
 
+def _evaluate_chunk(model: Model, points: dict[str, Any], outputs: list[str], pointer: str,
+                    first_index: int) -> dict[str, np.ndarray]:
+    """The outputs of a model on one chunk of points (the task :func:`evaluate_in_chunks` maps)."""
+    return model.evaluate(points, outputs, pointer=pointer, first_index=first_index).values
+
+
 def evaluate_in_chunks(executor: Executor | None, inputs: dict[str, Any], count: int,
-                       outputs: list[str] | None, convention: str, pointer: str = "",
+                       outputs: list[str] | None, model: Model, pointer: str = "",
                        progress: Callable[[float], None] | None = None,
                        chunk_points: int = DEFAULT_CHUNK_POINTS) -> dict[str, np.ndarray]:
-    """:func:`service.evaluation.evaluate_checked` over ``count`` points, chunk by chunk on ``executor``.
+    """:meth:`service.models.Model.evaluate` over ``count`` points, chunk by chunk on ``executor``.
 
     Parameters
     ----------
     executor : concurrent.futures.Executor or None
         Where the chunks run (None: inline).
     inputs : dict
-        Physics inputs: 1-D arrays of ``count`` values, or scalars shared by every point.
+        Inputs of the model: 1-D arrays of ``count`` values, or scalars shared by every point.
     count : int
         Number of points [1].
     outputs : list of str or None
-        Outputs to compute (all when None).
-    convention : str
-        Key of :data:`physics.CONVENTIONS`.
+        Outputs to compute (all of the model's when None).
+    model : Model
+        The model (:func:`service.models.physics_in` for the physics in one convention).
     pointer : str, default ""
         JSON pointer of the inputs in the request body, for error messages.
     progress : callable, optional
@@ -235,14 +239,14 @@ def evaluate_in_chunks(executor: Executor | None, inputs: dict[str, Any], count:
     for name, values in columns.items():
         # Whole columns first, so that an error names the point's index in the request, not in a chunk.
         try:
-            physics.validate(name, values)
-        except ValueError as exc:
+            model.inputs[name].check(values)
+        except InputError as exc:
             raise validation_problem([{"pointer": f"{pointer}/{name}", "detail": str(exc)}]) from None
     bounds = chunk_bounds(count, chunk_points)
-    arguments = [({**shared, **{name: values[start:stop] for name, values in columns.items()}},
-                  outputs, convention, pointer, start) for start, stop in bounds]
-    chunks = map_chunks(executor, evaluate_checked, arguments, progress)
-    names = [str(name) for name in outputs] if outputs else list(physics.OUTPUTS)
+    names = [str(name) for name in outputs] if outputs else list(model.outputs)
+    arguments = [(model, {**shared, **{name: values[start:stop] for name, values in columns.items()}},
+                  names, pointer, start) for start, stop in bounds]
+    chunks = map_chunks(executor, _evaluate_chunk, arguments, progress)
     if not chunks:
         return {name: np.empty(0) for name in names}
     return {name: np.concatenate([np.broadcast_to(np.asarray(chunk[name], dtype=float), (stop - start,))

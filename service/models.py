@@ -2,10 +2,13 @@
 
 A model reference is ``"physics"``, ``"calibrated:<id>"`` (a stored calibration,
 :mod:`service.calibrations`) or ``"surrogate:<id>"`` (a stored surrogate,
-:mod:`service.routes.surrogates`). :func:`resolve` turns a reference into a :class:`Model`,
+:mod:`service.surrogates`). :func:`resolve` turns a reference into a :class:`Model`,
 and it is the only place that does: /v1/friction with a calibrated model, /v1/optimizations,
 surrogate training on a calibrated model and the UM-Bridge protocol (:mod:`service.umbridge`)
-all get their model here.
+all get their model here; /v1/friction/batch and sweeps, which evaluate the physics only, take
+its model from :func:`physics_in` and evaluate it chunk by chunk
+(:func:`service.executor.evaluate_in_chunks`). A single physics point of /v1/friction calls
+:func:`service.evaluation.evaluate_point` directly: it is dominated by per-request overhead.
 
 A :class:`Model` states
 
@@ -44,7 +47,7 @@ from .problems import ProblemError, validation_problem
 from .store import Store
 
 __all__ = ["KINDS", "CalibratedPhysicsModel", "Evaluation", "InputError", "Model", "ModelInput",
-           "PhysicsModel", "SurrogateModel", "jacobian", "list_references", "resolve"]
+           "PhysicsModel", "SurrogateModel", "jacobian", "list_references", "physics_in", "resolve"]
 
 #: Kinds of model, as the references name them: ``physics``, ``calibrated:<id>``, ``surrogate:<id>``.
 KINDS = ("physics", "calibrated", "surrogate")
@@ -250,7 +253,8 @@ class Model:
             raise InputError(missing[0], None, f"{self.reference} needs {', '.join(missing)}")
         return {name: self.inputs[name].check(value) for name, value in points.items()}
 
-    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str]) -> Evaluation:
+    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
+                 first_index: int = 0) -> Evaluation:
         """The outputs at columnar points (checked with :meth:`check` first).
 
         Parameters
@@ -259,6 +263,11 @@ class Model:
             Inputs by name, broadcasting together; inputs not given take their default.
         outputs : sequence of str
             Names from :attr:`outputs`.
+        pointer : str, default ""
+            JSON pointer of the points in the request body, for the problems a physics
+            evaluation raises.
+        first_index : int, default 0
+            Index of the first point in the whole request [1] (a chunk's offset), for those problems.
 
         Returns
         -------
@@ -290,10 +299,11 @@ class PhysicsModel(Model):
         self.fixed, self.fitted, self.required_columns = {}, {}, []
         self.inputs = _physics_inputs({})
 
-    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str]) -> Evaluation:
+    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
+                 first_index: int = 0) -> Evaluation:
         # physics.evaluate checks its inputs itself; only a refusal is checked again, to name the point.
         try:
-            values = evaluate_checked(dict(points), list(outputs), self.convention)
+            values = evaluate_checked(dict(points), list(outputs), self.convention, pointer, first_index)
         except ProblemError:
             self.check(points)
             raise
@@ -342,10 +352,12 @@ class CalibratedPhysicsModel(Model):
         """μ with its 95 % interval and the domain check: :meth:`calibrate.CalibratedModel.predict`."""
         return self.calibrated.predict(points)
 
-    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str]) -> Evaluation:
+    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
+                 first_index: int = 0) -> Evaluation:
         checked = self.check(points)
         given = {k: v for k, v in checked.items() if k in physics.PARAMETERS}
-        base = evaluate_checked({**self.fixed, **self.fitted, **given}, None, self.convention)
+        base = evaluate_checked({**self.fixed, **self.fitted, **given}, None, self.convention, pointer,
+                                first_index)
         with np.errstate(all="ignore"):
             prediction = self.calibrated.predict(checked)
         mu = np.asarray(prediction.mu, dtype=float)
@@ -393,7 +405,9 @@ class SurrogateModel(Model):
                                                                           strict=True)}
         self.inputs = _physics_inputs(self.fixed, domains, required=space.names)
 
-    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str]) -> Evaluation:
+    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
+                 first_index: int = 0) -> Evaluation:
+        # A prediction is finite wherever its inputs are valid: no problem to point at.
         prediction = self.estimator.predict_points(self.check(points))
         return Evaluation({name: getattr(prediction, name) for name in outputs}, prediction.outside_space)
 
@@ -402,9 +416,22 @@ class SurrogateModel(Model):
 
 
 @functools.cache
-def _physics_model(convention: str) -> PhysicsModel:
-    """The physics in one convention (one instance each: it holds no state)."""
-    return PhysicsModel(convention)
+def physics_in(convention: str = physics.DEFAULT_CONVENTION) -> PhysicsModel:
+    """The physics in one convention (one instance each: it holds no state).
+
+    What :func:`resolve` answers for ``"physics"``, without a store: batches and sweeps, which
+    evaluate only the physics, take it from here.
+
+    Parameters
+    ----------
+    convention : str
+        Key of :data:`physics.CONVENTIONS`.
+
+    Returns
+    -------
+    PhysicsModel
+    """
+    return PhysicsModel(str(convention))
 
 
 def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Sequence[str] = KINDS,
@@ -440,12 +467,13 @@ def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Seq
         shapes = " or ".join("'physics'" if k == "physics" else f"'{k}:<id>'" for k in kinds)
         raise validation_problem([{"pointer": pointer, "detail": f"must be {shapes}; got {reference!r}"}])
     if kind == "physics":
-        return _physics_model(convention)
+        return physics_in(str(convention))
     model_id = match.group(2)
     if kind == "surrogate":
-        # The surrogates resource keeps the rebuilt estimators (a refit each) in its cache; it
-        # checks that the requesting key may see the surrogate before answering from it.
-        from .routes.surrogates import load_surrogate
+        # service.surrogates keeps the rebuilt estimators (a refit each) in its cache; it checks
+        # that the requesting key may see the surrogate before answering from it. It resolves
+        # the models surrogates learn here, hence the import at call time.
+        from .surrogates import load_surrogate
 
         return SurrogateModel(reference, load_surrogate(store, model_id))
     stored = store.load_model(model_id)

@@ -37,6 +37,7 @@ from .models import resolve
 from .problems import ProblemError, validation_problem
 from .schemas.optimizations import OptimizationRequest
 from .store import Store
+from .surrogates import load_source_model
 
 __all__ = ["INFEASIBLE_TYPE", "SYNC_MAX_BALL_COUNTS", "OptimizationPlan", "infeasible_problem", "pareto_png",
            "prepare", "run"]
@@ -167,8 +168,6 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
         raise infeasible_problem(error) from None
     source_model, source_name = None, None
     if body.model.startswith("surrogate:"):
-        from .routes.surrogates import load_source_model  # imported above with the surrogate itself
-
         source_model, source_name = load_source_model(store, body.model)
     counts = b.balls[1] - b.balls[0] + 1
     synchronous = mu_model is None and body.pareto is None and counts <= SYNC_MAX_BALL_COUNTS

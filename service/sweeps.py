@@ -21,6 +21,7 @@ from scipy.stats import qmc
 import physics
 
 from .executor import evaluate_in_chunks
+from .models import physics_in
 from .problems import ProblemError, validation_problem
 from .schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep
 
@@ -245,8 +246,8 @@ def run_sweep(request: AnySweep, plan: SweepPlan,
         ``design``, ``count``, ``varied`` (names) and ``columns``: the varied inputs then the
         outputs, as arrays.
     """
-    outputs = [str(name) for name in request.outputs] if request.outputs else list(physics.OUTPUTS)
     columns: dict[str, np.ndarray] = {name: values for name, values in plan.varied.items()}
-    columns.update(evaluate_in_chunks(executor, {**plan.fixed, **plan.varied}, plan.count, outputs,
-                                      request.convention, progress=progress, chunk_points=CHUNK_POINTS))
+    columns.update(evaluate_in_chunks(executor, {**plan.fixed, **plan.varied}, plan.count, request.outputs,
+                                      physics_in(request.convention), progress=progress,
+                                      chunk_points=CHUNK_POINTS))
     return {"design": request.design, "count": plan.count, "varied": list(plan.varied), "columns": columns}

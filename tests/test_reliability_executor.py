@@ -21,6 +21,7 @@ from optimize.general import GROUP_COUNTS, optimize_model, physics_model
 from service.app import create_app
 from service.deps import get_runtime
 from service.executor import DaskExecutor, chunk_bounds, evaluate_in_chunks, map_chunks
+from service.models import physics_in
 from service.problems import ProblemError
 from service.settings import Settings
 from service.sweeps import CHUNK_POINTS
@@ -94,8 +95,8 @@ def test_chunked_evaluation_equals_the_physics_on_every_executor(dask_local):
     expected = physics.evaluate(**inputs)
     with ThreadPoolExecutor(2) as pool:
         for executor in (None, pool, dask_local):
-            result = evaluate_in_chunks(executor, inputs, count, ["mu", "contact_load_N"], "olaru2005",
-                                        chunk_points=997)
+            result = evaluate_in_chunks(executor, inputs, count, ["mu", "contact_load_N"],
+                                        physics_in("olaru2005"), chunk_points=997)
             assert set(result) == {"mu", "contact_load_N"}
             np.testing.assert_array_equal(result["mu"], expected.mu)
             np.testing.assert_array_equal(result["contact_load_N"], expected.contact_load_N)
@@ -106,7 +107,8 @@ def test_a_bad_point_is_named_by_its_index_in_the_whole_batch(dask_local):
     inputs = {"balls": 4, "load_N": np.full(count, 0.01), "speed_m_s": 0.1}
     inputs["load_N"][2_345] = 5e-324  # a denormal load, below the table's minimum
     with pytest.raises(ProblemError) as caught:
-        evaluate_in_chunks(dask_local, inputs, count, None, "olaru2005", pointer="/points", chunk_points=500)
+        evaluate_in_chunks(dask_local, inputs, count, None, physics_in("olaru2005"), pointer="/points",
+                           chunk_points=500)
     assert caught.value.status == 422
     assert caught.value.errors[0]["pointer"] == "/points/load_N"
     assert "index 2345" in caught.value.errors[0]["detail"]  # in the whole batch, not in its chunk

@@ -12,9 +12,10 @@ from fastapi.testclient import TestClient
 import physics
 from service.app import create_app
 from service.deps import get_runtime
+from service.models import resolve
 from service.problems import ProblemError
-from service.routes.surrogates import load_mu_model, quality_warnings
 from service.settings import Settings
+from service.surrogates import quality_warnings
 
 PROBLEM = "application/problem+json"
 SPACE = {"load_N": [0.001, 0.05], "speed_m_s": [0.001, 0.2], "balls": [3, 12]}
@@ -156,15 +157,15 @@ def test_a_surrogate_of_another_package_version_is_flagged(client, trained):
 
 def test_loader_gives_a_mu_model(client, trained):
     store = get_runtime(client.app).store
-    mu_model = load_mu_model(store, trained["model_id"])
+    mu_model = resolve(store, trained["model_id"], kinds=("surrogate",))
     points = {"load_N": np.array([0.003, 0.02]), "speed_m_s": 0.05, "balls": np.array([5, 9])}
     truth = physics.evaluate(groove_angle_deg=60.0, **points).mu
     np.testing.assert_allclose(mu_model(points), truth, rtol=0.01)
     with pytest.raises(ProblemError) as missing:
-        load_mu_model(store, "surrogate:" + "0" * 32)
+        resolve(store, "surrogate:" + "0" * 32, kinds=("surrogate",))
     assert missing.value.status == 404
     with pytest.raises(ProblemError) as malformed:
-        load_mu_model(store, "physics")
+        resolve(store, "physics", kinds=("surrogate",))
     assert malformed.value.status == 422
 
 

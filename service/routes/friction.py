@@ -12,6 +12,7 @@ from ..calibrations import evaluate_point_with_model
 from ..deps import ExecutorDep, SettingsDep, get_store
 from ..evaluation import column_arrays, evaluate_point
 from ..executor import evaluate_in_chunks
+from ..models import physics_in
 from ..problems import problem_responses, validation_problem
 from ..schemas.base import parse_json_body, raw_json_body
 from ..schemas.friction import FrictionBatchRequest, FrictionBatchResponse, FrictionRequest, FrictionResponse
@@ -45,8 +46,8 @@ async def evaluate_friction(request: Request) -> Response:
 def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor) -> bytes:
     inputs, count = column_arrays(request.points.model_dump(), max_points)
     # Chunks of points on the app's executor (thread pool or dask cluster, service/executor.py).
-    return json_bytes(evaluate_in_chunks(executor, inputs, count, request.outputs, request.convention,
-                                         pointer="/points"))
+    return json_bytes(evaluate_in_chunks(executor, inputs, count, request.outputs,
+                                         physics_in(request.convention), pointer="/points"))
 
 
 @router.post("/batch", operation_id="evaluate_friction_batch", response_model=FrictionBatchResponse,

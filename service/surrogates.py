@@ -1,0 +1,416 @@
+"""Surrogates in the service: train (a job), store as data, view, predict, Sobol' indices, load.
+
+A surrogate is stored as a model of kind ``"surrogate"``: its public result and the fitted
+estimator as JSON data (:func:`surrogate.to_dict`: training points, hyperparameters, space,
+package version and physics convention), never pickle. A surrogate learns the physics or a
+calibrated model (``"calibrated:<id>"``, resolved by :func:`service.models.resolve`).
+:func:`load_surrogate` rebuilds the estimator of a stored id (kept in a small cache), from which
+:func:`service.models.resolve` makes the :class:`~service.models.SurrogateModel` of a
+``"surrogate:<id>"`` reference; :func:`load_source_model` gives the model a surrogate stands for.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+import surrogate
+from optimize import physics_model
+from surrogate import GaussianProcessSurrogate, Space
+from surrogate.persist import version_warning
+
+from .calibrations import with_conditions
+from .models import resolve
+from .problems import ProblemError, validation_problem
+from .schemas.surrogates import SurrogateRequest
+from .store import Store, StoredModel, utc_now
+
+__all__ = ["KIND", "MIN_COVERAGE", "MODEL_PREFIX", "SENSITIVITY_N", "delete_stored",
+           "load_source_model", "load_stored", "load_surrogate", "predict", "prepare_training",
+           "quality_warnings", "sensitivity", "surrogate_view", "surrogate_views", "train_surrogate"]
+
+KIND = "surrogate"
+MODEL_PREFIX = "surrogate:"
+_HELD_OUT_POINTS = 1024
+#: Least held-out coverage of the 95 % interval that a surrogate keeps without a warning. [1]
+MIN_COVERAGE = 0.90
+_HELD_OUT_SEED = 987_654_321
+#: Least and most base sample size of the Sobol' indices (powers of 2). [1]
+SENSITIVITY_N = (256, 65_536)
+# Points on which a calibrated model is checked before its training job is accepted. [1]
+_PROBE_POINTS = 16
+
+MuModel = Callable[[Mapping[str, Any]], Any]
+
+# Rebuilding a surrogate refits its Gaussian process (cubic in n_train); stored surrogates never
+# change, so the last few rebuilt ones are kept by id.
+_CACHE: OrderedDict[str, GaussianProcessSurrogate] = OrderedDict()
+_CACHE_SIZE = 16
+_CACHE_LOCK = threading.Lock()
+
+
+def _space_problem(exc: ValueError) -> ProblemError:
+    text = str(exc)
+    pointer = "/fixed" if text.startswith("fixed") else "/space"
+    return validation_problem([{"pointer": pointer, "detail": text}])
+
+
+def _learned_model(store: Store, body: SurrogateRequest) -> tuple[MuModel | None, str, dict[str, Any]]:
+    """The model a request learns and its convention, or a 404 / 422 problem.
+
+    Parameters
+    ----------
+    store : Store
+        Where calibrations are kept.
+    body : SurrogateRequest
+        Its ``model``, ``conditions`` and ``convention``.
+
+    Returns
+    -------
+    mu_model : callable or None
+        ``mu_model(points) -> mu`` [1] of a calibrated model with the request's conditions
+        (:func:`service.calibrations.with_conditions`); None for the physics.
+    convention : str
+        The request's convention for the physics, else the calibrated model's.
+    fixed : dict
+        Physics values the calibration fixed (e.g. ``balls`` for data of one bearing), in their
+        units; empty for the physics.
+    """
+    if body.model == "physics":
+        if body.conditions:
+            raise validation_problem([{"pointer": "/conditions", "detail": "condition columns are read by "
+                                       "calibrated models only"}])
+        return None, str(body.convention), {}
+    calibrated = resolve(store, body.model, kinds=("physics", "calibrated"))
+    if "convention" in body.model_fields_set and str(body.convention) != calibrated.convention:
+        raise validation_problem([{"pointer": "/convention", "detail": f"the model {body.model} was "
+                                   f"calibrated with convention {calibrated.convention!r}; omit convention"}])
+    mu_model = with_conditions(calibrated, body.model, body.conditions)
+    return mu_model, calibrated.convention, dict(calibrated.fixed)
+
+
+def _build_space(body: SurrogateRequest, convention: str, defaults: Mapping[str, Any]) -> Space:
+    """The :class:`surrogate.Space` of a request, or a 422 problem naming the field.
+
+    ``defaults`` (a calibrated model's fixed values) hold the inputs that are neither a
+    dimension nor in the request's ``fixed``.
+    """
+    bounds = {name: tuple(pair) for name, pair in body.space.model_dump(exclude_none=True).items()}
+    fixed = {**{k: v for k, v in defaults.items() if k not in bounds},
+             **body.fixed.model_dump(exclude_none=True)}
+    try:
+        return Space(bounds, fixed, convention=convention)
+    except ValueError as exc:
+        raise _space_problem(exc) from None
+
+
+def _probe(space: Space, mu_model: MuModel) -> None:
+    """422 unless the model answers a finite, positive μ on a small design of the space."""
+    X = surrogate.design(space, _PROBE_POINTS, "sobol", seed=0)
+    try:
+        with np.errstate(all="ignore"):
+            mu = space.evaluate(X, mu_model)
+    except ValueError as exc:
+        raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
+    if not np.all(np.isfinite(mu) & (mu > 0)):
+        raise validation_problem([{"pointer": "/conditions", "detail": "the calibrated model's mu is not "
+                                   "finite and positive over the space at these conditions"}])
+
+
+def prepare_training(store: Store, body: SurrogateRequest) -> tuple[Space, MuModel | None]:
+    """Check a training request before its job is accepted.
+
+    Parameters
+    ----------
+    store : Store
+        Where calibrations are kept.
+    body : SurrogateRequest
+        The request.
+
+    Returns
+    -------
+    space : surrogate.Space
+        Dimensions and fixed values (a calibrated model's fixed values where the request sets none).
+    mu_model : callable or None
+        ``mu_model(points) -> mu`` [1] of the calibrated model to learn, with the request's
+        conditions, checked finite and positive on a small design of the space; None for the physics.
+
+    Raises
+    ------
+    ProblemError
+        404 for an unknown calibrated model; 422 naming the field for a bad space, fixed value,
+        convention or condition.
+    """
+    mu_model, convention, defaults = _learned_model(store, body)
+    space = _build_space(body, convention, defaults)
+    if mu_model is not None:
+        _probe(space, mu_model)
+    return space, mu_model
+
+
+def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
+                    progress: Callable[[float], None] | None = None,
+                    mu_model: MuModel | None = None) -> dict[str, Any]:
+    """Train, measure on held-out evaluations of the model, store, and return the public result.
+
+    Parameters
+    ----------
+    store : Store
+        Where the surrogate is kept.
+    space : surrogate.Space
+        Dimensions and fixed values.
+    body : SurrogateRequest
+        Budget, target, design, adaptivity and seed.
+    progress : callable, optional
+        Fraction done, 0..1 (a job's progress, which also checks cancellation).
+    mu_model : callable, optional
+        The model to learn (:func:`prepare_training`); None for the physics.
+
+    Returns
+    -------
+    dict
+        The :class:`~service.schemas.surrogates.SurrogateResult` as JSON data.
+    """
+    start = time.perf_counter()
+    fit = surrogate.fit_adaptive(space, budget=body.budget, target_relative_error=body.target_relative_error,
+                                 design_method=str(body.design), adaptive=body.adaptive, seed=body.seed,
+                                 progress=None if progress is None else (lambda f: progress(0.95 * f)),
+                                 mu_model=mu_model)
+    seconds = time.perf_counter() - start
+    metrics = surrogate.holdout_metrics(fit.model, n_test=_HELD_OUT_POINTS, seed=_HELD_OUT_SEED,
+                                        mu_model=mu_model)
+    data = surrogate.to_dict(fit.model)
+    space_data = space.to_dict()
+    result = {
+        "space": space_data["bounds"], "fixed": space_data["fixed"], "scales": space_data["scales"],
+        "features": space.feature_names(fit.model.features), "budget": body.budget,
+        "n_train": fit.n_train, "stop_reason": fit.stop_reason, "metrics": metrics, "history": fit.history,
+        "kernel": data["gp"]["kernel"], "fit_seconds": seconds, "convention": data["convention"],
+        "package_version": data["package_version"], "created_at": utc_now(),
+        "model": body.model, "conditions": dict(body.conditions or {}),
+        "target_relative_error": body.target_relative_error,
+        "variance_calibration": fit.model.variance_calibration_, "std_scale": fit.model.std_scale_,
+        "calibration_points": {"kfold": fit.n_train, "none": None}.get(
+            fit.model.variance_calibration_, min(fit.n_train, fit.model.calibration_rows or fit.n_train)),
+    }
+    surrogate_id = store.save_model(KIND, {"result": result, "model": data}, {},
+                                    name=f"{len(space.names)}-D, {fit.n_train} evaluations")
+    if progress is not None:
+        progress(1.0)
+    return surrogate_view(surrogate_id, {"result": result})
+
+
+def quality_warnings(result: Mapping[str, Any]) -> list[str]:
+    """Where a surrogate's own held-out figures fall short of what it promises.
+
+    Parameters
+    ----------
+    result : mapping
+        A stored surrogate's public result: ``metrics`` (held-out), ``stop_reason`` and, when
+        stored, ``target_relative_error``.
+
+    Returns
+    -------
+    list of str
+        One sentence per shortfall: a held-out coverage of the 95 % interval below
+        :data:`MIN_COVERAGE`, or a held-out median (95th-percentile) relative error above the
+        target (:data:`surrogate.sampling.TAIL_FACTOR` times it); empty when none.
+
+    Examples
+    --------
+    >>> quality_warnings({"metrics": {"coverage_95": 0.85, "median_relative_error": 1e-4,
+    ...                               "p95_relative_error": 1e-3, "n_test": 1000},
+    ...                   "target_relative_error": 1e-3, "stop_reason": "budget_exhausted"})[0][:57]
+    'the 95 % intervals covered 85.0 % of 1000 held-out points'
+    """
+    metrics, warnings = result["metrics"], []
+    coverage = metrics.get("coverage_95")
+    if coverage is not None and coverage < MIN_COVERAGE:
+        warnings.append(f"the 95 % intervals covered {100 * coverage:.1f} % of {metrics['n_test']} held-out "
+                        f"points (below {100 * MIN_COVERAGE:.0f} %): they are too narrow here; widen them "
+                        f"or retrain with a larger budget")
+    target = result.get("target_relative_error")
+    median, tail = metrics.get("median_relative_error"), metrics.get("p95_relative_error")
+    if target is not None and median is not None and (
+            median > target or tail > surrogate.sampling.TAIL_FACTOR * target):
+        why = ("although the stop rule judged it reached" if result.get("stop_reason") == "target_reached"
+               else "the budget ran out first")
+        warnings.append(f"held-out relative error of mu: median {median:.3g}, 95th percentile {tail:.3g}, "
+                        f"short of the target {target:g} (median) and {surrogate.sampling.TAIL_FACTOR:g} x "
+                        f"it (95th percentile): {why}")
+    return warnings
+
+
+def _warnings(result: Mapping[str, Any]) -> list[str]:
+    # Compared with the running version on every view: the service may have been upgraded since.
+    version = version_warning(result.get("package_version"))
+    return quality_warnings(result) + ([] if version is None else [version])
+
+
+def surrogate_view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:
+    """The public view of a stored surrogate (its result, reference and warnings), JSON-ready.
+
+    Parameters
+    ----------
+    surrogate_id : str
+        Its id.
+    metadata : mapping
+        Its stored metadata (``result``).
+
+    Returns
+    -------
+    dict
+        The :class:`~service.schemas.surrogates.SurrogateResult` as JSON data.
+    """
+    result = metadata["result"]
+    # Surrogates stored before models other than the physics could be learned lack model and conditions.
+    return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, "model": "physics", "conditions": {},
+            **result, "warnings": _warnings(result)}
+
+
+def surrogate_views(store: Store) -> list[dict[str, Any]]:
+    """The view (:func:`surrogate_view`) of every stored surrogate the caller may see, newest first."""
+    return [surrogate_view(row["id"], row["metadata"]) for row in store.list_models(KIND)]
+
+
+def load_stored(store: Store, surrogate_id: str) -> StoredModel:
+    """The stored surrogate of an id, or a 404 problem."""
+    stored = store.load_model(surrogate_id)
+    if stored is None or stored.kind != KIND:
+        raise ProblemError(404, f"There is no surrogate {surrogate_id!r}.")
+    return stored
+
+
+def delete_stored(store: Store, surrogate_id: str) -> None:
+    """Delete a stored surrogate and its rebuilt estimator, or a 404 problem."""
+    load_stored(store, surrogate_id)
+    store.delete_model(surrogate_id)
+    with _CACHE_LOCK:
+        _CACHE.pop(surrogate_id, None)
+
+
+def load_surrogate(store: Store, surrogate_id: str) -> GaussianProcessSurrogate:
+    """The fitted surrogate of a stored id (rebuilt from its data), or a 404 problem."""
+    if not store.has_model(surrogate_id, KIND):  # the cache holds every key's surrogates: check ownership
+        raise ProblemError(404, f"There is no surrogate {surrogate_id!r}.")
+    with _CACHE_LOCK:
+        if surrogate_id in _CACHE:
+            _CACHE.move_to_end(surrogate_id)
+            return _CACHE[surrogate_id]
+    model = surrogate.from_dict(load_stored(store, surrogate_id).metadata["model"])
+    with _CACHE_LOCK:
+        _CACHE[surrogate_id] = model
+        while len(_CACHE) > _CACHE_SIZE:
+            _CACHE.popitem(last=False)
+    return model
+
+
+def predict(store: Store, surrogate_id: str, points: Mapping[str, Any]) -> dict[str, Any]:
+    """Predicted μ with its 95 % interval at columnar points, flagging points outside the space.
+
+    Parameters
+    ----------
+    store : Store
+        Where surrogates are kept.
+    surrogate_id : str
+        The surrogate.
+    points : mapping of str to float or list of float
+        Every dimension of the surrogate, in its unit; scalars broadcast.
+
+    Returns
+    -------
+    dict
+        The :class:`~service.schemas.surrogates.PredictResponse` as JSON data: ``mu``,
+        ``mu_lower``, ``mu_upper`` [1], ``outside_space`` and ``warnings``.
+
+    Raises
+    ------
+    ProblemError
+        404 for an unknown surrogate, 422 (``/points``) for points it cannot read.
+    """
+    result = load_stored(store, surrogate_id).metadata["result"]
+    model = load_surrogate(store, surrogate_id)
+    try:
+        prediction = model.predict_points(points)
+    except ValueError as exc:
+        raise validation_problem([{"pointer": "/points", "detail": str(exc)}]) from None
+    outside = int(np.count_nonzero(prediction.outside_space))
+    extrapolated = [] if not outside else [
+        f"{outside} of {prediction.outside_space.size} points lie outside the trained space: their "
+        f"intervals do not apply"]
+    return {"mu": prediction.mu.tolist(), "mu_lower": prediction.mu_lower.tolist(),
+            "mu_upper": prediction.mu_upper.tolist(), "outside_space": prediction.outside_space.tolist(),
+            "warnings": _warnings(result) + extrapolated}
+
+
+def sensitivity(store: Store, surrogate_id: str, n: int) -> dict[str, Any]:
+    """First-order and total Sobol' indices of μ over a surrogate's space, with 95 % intervals.
+
+    Parameters
+    ----------
+    store : Store
+        Holds the surrogate (rebuilt through :func:`load_surrogate`).
+    surrogate_id : str
+        Its id.
+    n : int
+        Base sample size, a power of 2 within :data:`SENSITIVITY_N`. [1]
+
+    Returns
+    -------
+    dict
+        The :class:`~service.schemas.surrogates.SensitivityResponse` as JSON data.
+
+    Raises
+    ------
+    ProblemError
+        404 for an unknown surrogate.
+    """
+    model = load_surrogate(store, surrogate_id)
+    indices = surrogate.sobol_indices(model.predict, model.space, n=n, seed=0).to_dict()
+    return {
+        **{key: indices[key] for key in ("first_order", "total_order", "first_order_interval",
+                                         "total_order_interval")},
+        "confidence_level": 0.95, "n": n,
+        "distribution": "independent inputs, uniform in the design's unit cube (log-uniform on "
+                        "log-scaled dimensions, integers rounded)",
+    }
+
+
+def load_source_model(store: Store, model: str, pointer: str = "/model") -> tuple[MuModel, str]:
+    """The model a ``"surrogate:<id>"`` stands for, to verify what is found on the surrogate.
+
+    Parameters
+    ----------
+    store : Store
+        Where surrogates and calibrations are kept.
+    model : str
+        ``"surrogate:<id>"``.
+    pointer : str
+        JSON pointer of the reference in the request, for errors.
+
+    Returns
+    -------
+    mu_model : callable
+        ``points -> mu`` [1] of the physics (the surrogate's convention) or of the calibrated model
+        it learned, with the conditions it was trained at.
+    name : str
+        ``"physics"`` or ``"calibrated:<id>"``.
+
+    Raises
+    ------
+    ProblemError
+        422 for a malformed reference; 404 for an unknown surrogate, or when the calibrated model
+        it learned has been deleted.
+    """
+    learned = resolve(store, model, pointer, kinds=("surrogate",))
+    result = load_stored(store, learned.reference.removeprefix(MODEL_PREFIX)).metadata["result"]
+    source = result.get("model", "physics")
+    if source == "physics":
+        return physics_model(result["convention"]), source
+    return with_conditions(resolve(store, source, kinds=("physics", "calibrated")), source,
+                           result.get("conditions")), source
