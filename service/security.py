@@ -7,8 +7,8 @@ Which paths are protected: everything except :data:`OPEN_PATHS` (deny by default
 added later is protected without any change here). The open paths are the liveness probe
 ``/healthz``, the Prometheus scrape endpoint ``/metrics`` (counts and latencies by route
 template only: no request data, no keys; expose it on a trusted network, as usual for
-Prometheus targets) and the API description (``/openapi.json``, ``/docs``, ``/redoc``), which
-holds no data either.
+Prometheus targets) and the API description (``/openapi.json``, ``/docs``, ``/redoc`` and their
+assets under ``/docs/assets``), which holds no data either.
 
 A missing, malformed or unknown key is answered ``401`` as ``application/problem+json`` with a
 ``WWW-Authenticate: Bearer`` challenge (RFC 6750), before the body is read. The presented key is
@@ -31,13 +31,18 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
 from .settings import Settings
 
-__all__ = ["OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "document_openapi", "install",
+__all__ = ["DOCS_ASSETS_PATH", "OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "document_openapi", "install",
            "parse_api_keys"]
 
 logger = logging.getLogger("microbearing.service.security")
 
+#: Where the Swagger UI and ReDoc assets are served from the package (no CDN; see service.app).
+DOCS_ASSETS_PATH = "/docs/assets"
+_DOCS_ASSETS = ("swagger-ui-bundle.js", "swagger-ui.css", "redoc.standalone.js", "favicon.png")
+
 #: Paths answered without a key (relative to the ASGI root path).
-OPEN_PATHS = frozenset({"/healthz", "/metrics", "/openapi.json", "/docs", "/docs/oauth2-redirect", "/redoc"})
+OPEN_PATHS = frozenset({"/healthz", "/metrics", "/openapi.json", "/docs", "/docs/oauth2-redirect", "/redoc",
+                        *(f"{DOCS_ASSETS_PATH}/{name}" for name in _DOCS_ASSETS)})
 
 #: Name of the bearer scheme in the OpenAPI spec.
 SECURITY_SCHEME_NAME = "ApiKeyBearer"
