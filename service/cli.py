@@ -57,7 +57,8 @@ def _serve(args: argparse.Namespace) -> int:
 
     # Requests are logged as JSON lines with their request id by service/observability.py;
     # uvicorn's own lines (startup, shutdown, errors) are JSON too.
-    uvicorn.run("service.app:app", host=args.host, port=args.port, workers=args.workers, access_log=False,
+    uvicorn.run("service.app:app",
+                host=args.host, port=args.port, workers=args.workers, access_log=False,
                 log_config=uvicorn_log_config())
     return 0
 

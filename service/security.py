@@ -31,8 +31,8 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
 from .settings import Settings
 
-__all__ = ["DOCS_ASSETS_PATH", "OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "document_openapi", "install",
-           "parse_api_keys"]
+__all__ = ["DOCS_ASSETS_PATH", "OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "document_openapi",
+           "install", "parse_api_keys"]
 
 logger = logging.getLogger("microbearing.service.security")
 
