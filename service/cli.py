@@ -305,6 +305,18 @@ def _optimize(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _json_command(sub: Any, name: str, func: Callable[[argparse.Namespace], int], *, help: str,
+                  description: str, examples: list[str]) -> argparse.ArgumentParser:
+    """A subcommand reading a JSON request file and writing its result, with examples in its help."""
+    command = sub.add_parser(name, help=help, description=description,
+                             formatter_class=argparse.RawDescriptionHelpFormatter,
+                             epilog="examples:\n" + "".join(f"  {line}\n" for line in examples))
+    command.add_argument("request", help="JSON request file ('-': stdin)")
+    command.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
+    command.set_defaults(func=func)
+    return command
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand."""
     import physics
@@ -334,40 +346,31 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
     e.set_defaults(func=_evaluate)
 
-    w = sub.add_parser(
-        "sweep", help="a grid or design of experiments from a JSON request (as POST /v1/sweeps)",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    w = _json_command(
+        sub, "sweep", _sweep, help="a grid or design of experiments from a JSON request (as POST /v1/sweeps)",
         description="Run the sweep described by a JSON file in the schema of POST /v1/sweeps; write its "
                     "result (JSON, the schema SweepResult) or its table as CSV.",
-        epilog="examples:\n"
-               "  echo '{\"design\": \"grid\", \"fixed\": {\"load_N\": 0.0088}, \"outputs\": [\"mu\"],\n"
-               "        \"axes\": {\"balls\": {\"start\": 4, \"stop\": 12, \"num\": 3},\n"
-               "                 \"speed_m_s\": {\"start\": 0, \"stop\": 0.15, \"num\": 4}}}' > grid.json\n"
-               "  microbearing sweep grid.json -o grid.csv\n"
-               "  microbearing sweep grid.json --format json > grid.json.out")
-    w.add_argument("request", help="JSON request file ('-': stdin)")
+        examples=['echo \'{"design": "grid", "fixed": {"load_N": 0.0088}, "outputs": ["mu"],',
+                  '      "axes": {"balls": {"start": 4, "stop": 12, "num": 3},',
+                  '               "speed_m_s": {"start": 0, "stop": 0.15, "num": 4}}}\' > grid.json',
+                  "microbearing sweep grid.json -o grid.csv",
+                  "microbearing sweep grid.json --format json > grid.json.out"])
     w.add_argument("--format", choices=["json", "csv"], help="output format (default: csv for a .csv output "
                                                                "file, else json)")
-    w.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
-    w.set_defaults(func=_sweep)
 
-    o = sub.add_parser(
-        "optimize", help="the least-friction design from a JSON request (as POST /v1/optimizations)",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    o = _json_command(
+        sub, "optimize", _optimize,
+        help="the least-friction design from a JSON request (as POST /v1/optimizations)",
         description="Solve the design problem of a JSON file in the schema of POST /v1/optimizations and "
                     "write the result as JSON (the schema OptimizationResult). Exit code 3 when no design "
                     "meets the limits (the message names the conflicting ones).",
-        epilog="examples:\n"
-               "  echo '{\"bounds\": {\"balls\": [4, 24], \"groove_angle_deg\": [35, 70], "
-               "\"load_N\": [0.001, 0.05]},\n"
-               "        \"fixed\": {\"speed_m_s\": 0.05}, \"constraints\": "
-               "{\"max_contact_pressure_Pa\": 1e9}}' > problem.json\n"
-               "  microbearing optimize problem.json -o best.json\n"
-               "  microbearing optimize front.json --plot front.png   # a request with \"pareto\"")
-    o.add_argument("request", help="JSON request file ('-': stdin)")
-    o.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
+        examples=['echo \'{"bounds": {"balls": [4, 24], "groove_angle_deg": [35, 70], '
+                  '"load_N": [0.001, 0.05]},',
+                  '      "fixed": {"speed_m_s": 0.05}, "constraints": {"max_contact_pressure_Pa": 1e9}}\' '
+                  "> problem.json",
+                  "microbearing optimize problem.json -o best.json",
+                  'microbearing optimize front.json --plot front.png   # a request with "pareto"'])
     o.add_argument("--plot", metavar="FILE.png", help="draw the Pareto front (requests with \"pareto\")")
-    o.set_defaults(func=_optimize)
 
     p = sub.add_parser("paper", help="reproduce the numerical cases of Olaru et al. (2005)")
     p.add_argument("--plot", metavar="FILE.png", help="draw mu against speed as the paper's Figs. 5-6")
