@@ -47,7 +47,8 @@ def free_port() -> int:
 def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
     port = free_port()
     process = subprocess.Popen(
-        [sys.executable, "-m", "service.cli", "serve", "--port", str(port), "--data-dir", data_dir],
+        [sys.executable, "-m", "service.cli", "serve",
+         "--port", str(port), "--data-dir", data_dir],
         cwd=REPO, env={**os.environ}, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 60

@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
+import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -35,6 +36,9 @@ __all__ = ["PARETO_OBJECTIVES", "ParetoFront", "pareto_front"]
 
 #: Second objectives: name -> (unit, True when larger is better).
 PARETO_OBJECTIVES = {"load_N": ("N", True), "max_contact_pressure_Pa": ("Pa", False)}
+#: How the plot shows each objective: axis name, the unit a designer reads, factor from SI.
+_PLOT_UNITS = {"load_N": ("load capacity G", "mN", 1e3),
+               "max_contact_pressure_Pa": ("peak contact pressure", "MPa", 1e-6)}
 
 
 @dataclass(frozen=True)
@@ -63,25 +67,55 @@ class ParetoFront:
                 "points": [dict(p) for p in self.points], "infeasible_levels": self.infeasible_levels}
 
     def to_png(self) -> bytes:
-        """The front as a PNG image (μ against the second objective, ball counts annotated)."""
-        fig = Figure(figsize=(6.0, 4.2), dpi=100)
+        """The front as a PNG image drawn for a bearing designer.
+
+        The upper panel shows μ against the second objective in the units a designer reads
+        (contact pressure in MPa, load in mN), one marker and colour per ball count z with a
+        key; the lower panel shows the design along the front: the load carried [mN] (for
+        the pressure front) and the groove angle [deg]. Saved with a tight bounding box, so
+        no label is cut at the edges.
+        """
+        if not self.points:
+            raise ValueError("the front has no points to plot")
+        name, unit, scale = _PLOT_UNITS[self.objective]
+        larger_better = PARETO_OBJECTIVES[self.objective][1]
+        x = np.array([p["value"] for p in self.points]) * scale
+        mu = np.array([p["mu"] for p in self.points])
+        balls = np.array([p["design"]["balls"] for p in self.points])
+        load_mN = np.array([p["design"]["load_N"] for p in self.points]) * 1e3
+        angle = np.array([p["design"]["groove_angle_deg"] for p in self.points])
+
+        fig = Figure(figsize=(7.0, 6.2), dpi=100, layout="constrained")
         FigureCanvasAgg(fig)
-        ax = fig.add_subplot()
-        x = [p["value"] for p in self.points]
-        y = [p["mu"] for p in self.points]
-        ax.plot(x, y, "o-", color="tab:blue")
-        for p in self.points:
-            ax.annotate(f"z={p['design']['balls']}", (p["value"], p["mu"]), textcoords="offset points",
-                        xytext=(4, 4), fontsize=7)
-        unit, larger_better = PARETO_OBJECTIVES[self.objective]
-        ax.set_xscale("log")
-        ax.set_xlabel(f"{self.objective} [{unit}] ({'larger' if larger_better else 'smaller'} is better)")
-        ax.set_ylabel("mu [1]")
-        ax.set_title(f"Pareto front: mu against {self.objective}", fontsize=10)
-        ax.grid(True, which="both", alpha=0.3)
-        fig.tight_layout()
+        top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+        top.plot(x, mu, "-", color="0.6", zorder=1)
+        markers = "osD^vP*Xhp<>"
+        colours = matplotlib.colormaps["tab10"]
+        for k, z in enumerate(np.unique(balls)):
+            at = balls == z
+            top.scatter(x[at], mu[at], marker=markers[k % len(markers)], color=colours(k % 10), s=45,
+                        zorder=2, label=f"z = {z} balls")
+        top.legend(title="ball count z (both grooves)", fontsize=8, title_fontsize=8, loc="best")
+        top.set_ylabel("friction coefficient μ [-]")
+        better = "higher" if larger_better else "lower"
+        top.set_title(f"Pareto front: least friction against {name} ({better} is better)", fontsize=10)
+        top.grid(True, alpha=0.3)
+
+        if self.objective == "load_N":
+            bottom.plot(x, angle, "s-", color="tab:green")
+            bottom.set_ylabel("groove angle θ [deg]", color="tab:green")
+        else:
+            bottom.plot(x, load_mN, "o-", color="tab:purple")
+            bottom.set_ylabel("load carried G [mN]", color="tab:purple")
+            twin = bottom.twinx()
+            twin.plot(x, angle, "s--", color="tab:green")
+            twin.set_ylabel("groove angle θ [deg]", color="tab:green")
+        bottom.set_xlabel(f"{name} [{unit}]")
+        bottom.grid(True, alpha=0.3)
+        if x.max() > 20 * x.min():
+            top.set_xscale("log")
         buffer = io.BytesIO()
-        fig.savefig(buffer, format="png")
+        fig.savefig(buffer, format="png", bbox_inches="tight", pad_inches=0.15)
         return buffer.getvalue()
 
 

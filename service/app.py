@@ -16,6 +16,7 @@ from contextlib import asynccontextmanager
 from typing import Any
 
 from fastapi import FastAPI
+from fastapi_offline import FastAPIOffline
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -158,8 +159,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         The ASGI app. Its database opens at startup (or on first request without a lifespan).
     """
     settings = settings or Settings()
-    app = FastAPI(title="microbearing", version=package_version(), description=DESCRIPTION,
-                  lifespan=_lifespan)
+    # /docs and /redoc load Swagger UI and ReDoc from the assets fastapi-offline ships, not from a CDN,
+    # so they work on an isolated network.
+    app = FastAPIOffline(title="microbearing", version=package_version(), description=DESCRIPTION,
+                         lifespan=_lifespan, static_url=security.DOCS_ASSETS_PATH)
     app.state.settings = settings
     app.state.runtime = None
     problems.install(app)

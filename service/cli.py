@@ -1,13 +1,34 @@
-"""The ``microbearing`` command line."""
+"""The ``microbearing`` command line: evaluate, sweep and optimize from a shell, serve the API,
+reproduce the paper, calibrate on measurements.
+
+Exit codes: 0 success; 1 an unexpected failure; 2 invalid arguments or input (the message names the
+field); 3 an infeasible design problem (no design meets the limits); 4 a file that cannot be read or
+written.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 from .settings import ENV_PREFIX
+
+#: Exit codes of the command line (see the module docstring).
+EXIT_OK, EXIT_FAILURE, EXIT_INVALID, EXIT_INFEASIBLE, EXIT_FILE = 0, 1, 2, 3, 4
+
+
+class CommandError(Exception):
+    """A failure the command reports in one line on stderr, with its exit code."""
+
+    def __init__(self, message: str, code: int):
+        super().__init__(message)
+        self.code = code
 
 
 def _paper(args: argparse.Namespace) -> int:
@@ -36,21 +57,20 @@ def _serve(args: argparse.Namespace) -> int:
 
     # Requests are logged as JSON lines with their request id by service/observability.py;
     # uvicorn's own lines (startup, shutdown, errors) are JSON too.
-    uvicorn.run("service.app:app", host=args.host, port=args.port, workers=args.workers, access_log=False,
+    uvicorn.run("service.app:app",
+                host=args.host, port=args.port, workers=args.workers, access_log=False,
                 log_config=uvicorn_log_config())
     return 0
 
 
 def _calibrate(args: argparse.Namespace) -> int:
-    import json
-
     from calibrate import DataError, calibrate, parse_assignments, parse_csv
 
     try:
         text = Path(args.data).read_bytes()
     except OSError as exc:
         print(f"microbearing calibrate: cannot read {args.data}: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_FILE
     fit = [name.strip() for name in (args.fit or "").split(",") if name.strip()]
     try:
         dataset = parse_csv(text, parse_assignments(args.fixed))
@@ -74,12 +94,284 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _read(path: str) -> bytes:
+    """The bytes of ``path`` ("-": standard input)."""
+    try:
+        return sys.stdin.buffer.read() if path == "-" else Path(path).read_bytes()
+    except OSError as exc:
+        raise CommandError(f"cannot read {path}: {exc.strerror or exc}", EXIT_FILE) from None
+
+
+def _write(path: str | None, text: str) -> None:
+    """Write ``text`` to ``path`` (None or "-": standard output)."""
+    if path in (None, "-"):
+        sys.stdout.write(text)
+        return
+    try:
+        Path(path).write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise CommandError(f"cannot write {path}: {exc.strerror or exc}", EXIT_FILE) from None
+
+
+def _problem_error(problem: Any) -> CommandError:
+    """A service :class:`~service.problems.ProblemError` as a command error naming the fields."""
+    from .optimizations import INFEASIBLE_TYPE
+
+    lines = [problem.detail] + [f"  {item.get('pointer') or item.get('parameter')}: {item['detail']}"
+                                for item in problem.errors or [] if item["detail"] not in problem.detail]
+    code = EXIT_INFEASIBLE if problem.type == INFEASIBLE_TYPE else (
+        EXIT_INVALID if 400 <= problem.status < 500 else EXIT_FAILURE)
+    return CommandError("\n".join(lines), code)
+
+
+def _request(path: str, model: Any) -> Any:
+    """The JSON request in ``path``, validated as ``model`` (a pydantic model or type adapter)."""
+    from pydantic import TypeAdapter, ValidationError
+
+    from .problems import body_problem
+
+    text = _read(path)
+    try:
+        document = json.loads(text)
+    except ValueError as exc:
+        raise CommandError(f"{path} is not JSON: {exc}", EXIT_INVALID) from None
+    try:
+        return TypeAdapter(model).validate_python(document)
+    except ValidationError as exc:
+        raise _problem_error(body_problem(exc, document)) from None
+
+
+@contextmanager
+def _progress_bar(description: str) -> Iterator[Callable[[float], None]]:
+    """A progress callback (fraction done, 0..1) drawing a bar on stderr when it is a terminal."""
+    from tqdm import tqdm
+
+    with tqdm(total=1000, desc=description, unit="‰", disable=None, file=sys.stderr,
+              bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}") as bar:
+        def update(fraction: float) -> None:
+            bar.update(max(0, round(1000 * fraction) - bar.n))
+
+        yield update
+
+
+def _assignments(items: list[str]) -> dict[str, Any]:
+    """``NAME=VALUE`` physics inputs, parsed in their kinds (whole numbers, numbers, true/false)."""
+    import physics
+
+    values: dict[str, Any] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        spec = physics.PARAMETERS.get(name.strip())
+        if not sep or spec is None:
+            raise CommandError(f"{item!r}: expected NAME=VALUE with NAME one of "
+                               f"{', '.join(physics.PARAMETERS)}", EXIT_INVALID)
+        values[spec.name] = _value(spec, text.strip(), name)
+    return values
+
+
+def _value(spec: Any, text: str, where: str) -> Any:
+    """One value of a physics input from text."""
+    try:
+        if spec.kind == "bool":
+            if text.lower() not in ("true", "false", "1", "0"):
+                raise ValueError
+            return text.lower() in ("true", "1")
+        return int(text) if spec.kind == "int" else float(text)
+    except ValueError:
+        kind = {"bool": "true or false", "int": "a whole number"}.get(spec.kind, "a number")
+        raise CommandError(f"{where}: {text!r} is not {kind} [{spec.unit}]", EXIT_INVALID) from None
+
+
+def _csv_points(path: str) -> tuple[dict[str, Any], int]:
+    """The columns of a CSV file of physics inputs (a header row of input names, one row per point)."""
+    import csv
+    import io
+
+    import numpy as np
+
+    import physics
+
+    text = _read(path).decode("utf-8-sig", errors="replace")
+    rows = list(csv.reader(io.StringIO(text)))
+    if len(rows) < 2:
+        raise CommandError(f"{path}: expected a header row of input names and at least one row", EXIT_INVALID)
+    header = [name.strip() for name in rows[0]]
+    unknown = [name for name in header if name not in physics.PARAMETERS]
+    if unknown or len(set(header)) != len(header):
+        raise CommandError(f"{path}: columns must be distinct physics inputs "
+                           f"({', '.join(physics.PARAMETERS)}); got "
+                           f"{', '.join(unknown) or 'a repeated column'}", EXIT_INVALID)
+    columns: dict[str, list[Any]] = {name: [] for name in header}
+    for line, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise CommandError(f"{path}:{line}: {len(row)} values for {len(header)} columns", EXIT_INVALID)
+        for name, text in zip(header, row, strict=True):
+            columns[name].append(_value(physics.PARAMETERS[name], text.strip(), f"{path}:{line}:{name}"))
+    return {name: np.asarray(values) for name, values in columns.items()}, len(rows) - 1
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    import physics
+
+    from .evaluation import evaluate_point
+    from .executor import evaluate_in_chunks
+    from .models import physics_in
+    from .problems import ProblemError
+    from .store import to_json
+    from .tables import csv_text
+
+    outputs = [name.strip() for name in (args.outputs or "").split(",") if name.strip()] or None
+    wrong = [name for name in outputs or [] if name not in physics.OUTPUTS]
+    if wrong:
+        raise CommandError(f"--outputs: unknown {', '.join(wrong)}; one of {', '.join(physics.OUTPUTS)}",
+                           EXIT_INVALID)
+    fixed = _assignments(args.inputs)
+    try:
+        if args.csv is None:
+            point = evaluate_point({**_defaults(fixed), **fixed}, args.convention)
+            chosen = {name: point[name] for name in outputs or point}
+            _write(args.output, to_json({"convention": args.convention, **chosen}) + "\n")
+            return EXIT_OK
+        columns, count = _csv_points(args.csv)
+        clash = sorted(set(columns) & set(fixed))
+        if clash:
+            raise CommandError(f"{', '.join(clash)} given both as a column and NAME=VALUE", EXIT_INVALID)
+        with _progress_bar(f"evaluate {count} points") as progress:
+            results = evaluate_in_chunks(None, {**fixed, **columns}, count, outputs,
+                                         physics_in(args.convention), progress=progress)
+    except ProblemError as problem:
+        raise _problem_error(problem) from None
+    _write(args.output, csv_text({**columns, **results}))
+    return EXIT_OK
+
+
+def _defaults(given: dict[str, Any]) -> dict[str, Any]:
+    """Every physics input left out of ``given`` at its default (required ones are an error)."""
+    import physics
+
+    missing = [n for n, p in physics.PARAMETERS.items() if p.required and n not in given]
+    if missing:
+        raise CommandError(f"required inputs missing: {', '.join(f'{n}=VALUE' for n in missing)}",
+                           EXIT_INVALID)
+    return {n: p.default for n, p in physics.PARAMETERS.items() if not p.required}
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from .problems import ProblemError
+    from .schemas.sweeps import SweepRequest
+    from .settings import Settings
+    from .store import to_json
+    from .sweeps import design_columns, run_sweep
+    from .tables import csv_text
+
+    request = _request(args.request, SweepRequest)
+    try:
+        plan = design_columns(request, Settings().max_sweep_points)
+        with _progress_bar(f"sweep of {plan.count} points") as progress:
+            document = run_sweep(request, plan, progress=progress)
+    except ProblemError as problem:
+        raise _problem_error(problem) from None
+    as_csv = args.format == "csv" or (args.format is None and str(args.output or "").endswith(".csv"))
+    _write(args.output, csv_text(document["columns"]) if as_csv else to_json(document) + "\n")
+    return EXIT_OK
+
+
+def _optimize(args: argparse.Namespace) -> int:
+    from .optimizations import pareto_png, prepare, run
+    from .problems import ProblemError
+    from .schemas.optimizations import OptimizationRequest
+    from .settings import Settings
+    from .store import Store, to_json
+
+    request = _request(args.request, OptimizationRequest)
+    if args.plot and request.pareto is None:
+        raise CommandError("--plot draws a Pareto front: add \"pareto\" to the request", EXIT_INVALID)
+    # Calibrated and surrogate models are read from the server's data folder.
+    store = Store(Settings().data_dir) if request.model != "physics" else None
+    try:
+        plan = prepare(store, request)
+        with _progress_bar("optimize") as progress:
+            document = run(plan, progress=progress)
+    except ProblemError as problem:
+        raise _problem_error(problem) from None
+    finally:
+        if store is not None:
+            store.close()
+    _write(args.output, to_json(document) + "\n")
+    if args.plot:
+        try:
+            Path(args.plot).write_bytes(pareto_png(document))
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.plot}: {exc.strerror or exc}", EXIT_FILE) from None
+    return EXIT_OK
+
+
+def _json_command(sub: Any, name: str, func: Callable[[argparse.Namespace], int], *, help: str,
+                  description: str, examples: list[str]) -> argparse.ArgumentParser:
+    """A subcommand reading a JSON request file and writing its result, with examples in its help."""
+    command = sub.add_parser(name, help=help, description=description,
+                             formatter_class=argparse.RawDescriptionHelpFormatter,
+                             epilog="examples:\n" + "".join(f"  {line}\n" for line in examples))
+    command.add_argument("request", help="JSON request file ('-': stdin)")
+    command.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
+    command.set_defaults(func=func)
+    return command
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand."""
     import physics
 
-    parser = argparse.ArgumentParser(prog="microbearing", description=__doc__)
+    from .routes.meta import package_version
+
+    parser = argparse.ArgumentParser(prog="microbearing", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
+    conventions = list(physics.CONVENTIONS)
+
+    e = sub.add_parser(
+        "evaluate", help="friction of one design point, or of every row of a CSV file (to CSV)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Evaluate the friction model. With NAME=VALUE inputs only: one point, printed as the "
+                    "JSON of POST /v1/friction. With --csv: every row of the file (a header of input names), "
+                    "written as CSV with the inputs then the outputs; NAME=VALUE inputs apply to every row.",
+        epilog="examples:\n"
+               "  microbearing evaluate balls=4 load_N=0.008826 speed_m_s=0.05 mu_pivot=1\n"
+               "  microbearing evaluate balls=4 load_N=0.0088 speed_m_s=0.05 --outputs mu,mu_contact\n"
+               "  microbearing evaluate --csv points.csv balls=4 --outputs mu -o friction.csv")
+    e.add_argument("inputs", nargs="*", metavar="NAME=VALUE", help="physics inputs in their units")
+    e.add_argument("--csv", metavar="FILE", help="CSV of points, one column per input ('-': stdin)")
+    e.add_argument("--outputs", metavar="NAME,...", help="outputs to give (default: all)")
+    e.add_argument("--convention", choices=conventions, default=physics.DEFAULT_CONVENTION)
+    e.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
+    e.set_defaults(func=_evaluate)
+
+    w = _json_command(
+        sub, "sweep", _sweep, help="a grid or design of experiments from a JSON request (as POST /v1/sweeps)",
+        description="Run the sweep described by a JSON file in the schema of POST /v1/sweeps; write its "
+                    "result (JSON, the schema SweepResult) or its table as CSV.",
+        examples=['echo \'{"design": "grid", "fixed": {"load_N": 0.0088}, "outputs": ["mu"],',
+                  '      "axes": {"balls": {"start": 4, "stop": 12, "num": 3},',
+                  '               "speed_m_s": {"start": 0, "stop": 0.15, "num": 4}}}\' > grid.json',
+                  "microbearing sweep grid.json -o grid.csv",
+                  "microbearing sweep grid.json --format json > grid.json.out"])
+    w.add_argument("--format", choices=["json", "csv"], help="output format (default: csv for a .csv output "
+                                                               "file, else json)")
+
+    o = _json_command(
+        sub, "optimize", _optimize,
+        help="the least-friction design from a JSON request (as POST /v1/optimizations)",
+        description="Solve the design problem of a JSON file in the schema of POST /v1/optimizations and "
+                    "write the result as JSON (the schema OptimizationResult). Exit code 3 when no design "
+                    "meets the limits (the message names the conflicting ones).",
+        examples=['echo \'{"bounds": {"balls": [4, 24], "groove_angle_deg": [35, 70], '
+                  '"load_N": [0.001, 0.05]},',
+                  '      "fixed": {"speed_m_s": 0.05}, "constraints": {"max_contact_pressure_Pa": 1e9}}\' '
+                  "> problem.json",
+                  "microbearing optimize problem.json -o best.json",
+                  'microbearing optimize front.json --plot front.png   # a request with "pareto"'])
+    o.add_argument("--plot", metavar="FILE.png", help="draw the Pareto front (requests with \"pareto\")")
 
     p = sub.add_parser("paper", help="reproduce the numerical cases of Olaru et al. (2005)")
     p.add_argument("--plot", metavar="FILE.png", help="draw mu against speed as the paper's Figs. 5-6")
@@ -111,9 +403,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``microbearing`` console script."""
+    """Entry point of the ``microbearing`` console script; returns the exit code."""
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        return args.func(args)
+    except CommandError as error:
+        print(f"microbearing {args.command}: {error}", file=sys.stderr)
+        return error.code
 
 
 if __name__ == "__main__":

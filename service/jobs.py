@@ -332,9 +332,9 @@ class JobManager:
         event = threading.Event()
         with self._lock:
             self._cancel_events[job_id] = event
+        # Logged before the job's thread can log "started". That thread runs in a copy of the
+        # submitting context: its log lines carry the id of the request that created it.
         logger.info("job %s (%s) queued", job_id, kind, extra={"job_id": job_id, "kind": kind})
-        # The job's thread runs in a copy of the submitting context: its log lines carry the
-        # id of the request that created it (service.observability).
         self._executor.submit(contextvars.copy_context().run, self._run, job_id, fn, event)
         return self.get(job_id)
 

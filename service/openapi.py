@@ -1,4 +1,6 @@
-"""Write the OpenAPI spec of the service to ``openapi/openapi.json``: ``python -m service.openapi``.
+"""Write the OpenAPI spec of the service to ``openapi/openapi.json``.
+
+Run ``python -m service.openapi``.
 
 The file is committed; generated clients and the tests use it, and a test fails when it
 differs from what the code produces (run this command after changing a route or a schema).

@@ -21,7 +21,7 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
@@ -33,6 +33,7 @@ __all__ = [
     "Problem",
     "ProblemError",
     "ProblemResponse",
+    "body_problem",
     "install",
     "truncated",
     "problem_responses",
@@ -278,6 +279,20 @@ def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
         for (kind, value), details in by_place.items()
         if kind != "pointer" or value not in parents
     ]
+
+
+def body_problem(exc: ValidationError, document: Any) -> ProblemError:
+    """The 422 problem of a request body that failed validation outside a route (the CLI's JSON files).
+
+    Parameters
+    ----------
+    exc : pydantic.ValidationError
+        The error of ``Model.model_validate(document)``.
+    document : Any
+        The parsed JSON document, to tell field names from union tags.
+    """
+    errors = [{**error, "loc": ("body", *error["loc"])} for error in exc.errors(include_url=False)]
+    return validation_problem(_field_errors(RequestValidationError(errors, body=document)), total=len(errors))
 
 
 async def _on_problem(request: Request, exc: ProblemError) -> ProblemResponse:

@@ -7,8 +7,8 @@ Which paths are protected: everything except :data:`OPEN_PATHS` (deny by default
 added later is protected without any change here). The open paths are the liveness probe
 ``/healthz``, the Prometheus scrape endpoint ``/metrics`` (counts and latencies by route
 template only: no request data, no keys; expose it on a trusted network, as usual for
-Prometheus targets) and the API description (``/openapi.json``, ``/docs``, ``/redoc``), which
-holds no data either; the readiness probe ``/readyz`` is open too.
+Prometheus targets) and the API description (``/openapi.json``, ``/docs``, ``/redoc`` and their
+assets under ``/docs/assets``), which holds no data either; the readiness probe ``/readyz`` is open too.
 
 Ownership: a request with a valid key runs with :data:`service.store.REQUESTER` set to that key's
 id (the first 16 hex digits of its SHA-256; the key itself is never stored), so the jobs,
@@ -45,14 +45,18 @@ from .settings import Settings
 from .store import REQUESTER, Requester
 from .umbridge import PREFIX as UMBRIDGE_PREFIX
 
-__all__ = ["OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "app_path", "document_openapi",
-           "install", "key_id", "parse_api_keys"]
+__all__ = ["DOCS_ASSETS_PATH", "OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "app_path",
+           "document_openapi", "install", "key_id", "parse_api_keys"]
 
 logger = logging.getLogger("microbearing.service.security")
 
+#: Where the Swagger UI and ReDoc assets are served from the package (no CDN; see service.app).
+DOCS_ASSETS_PATH = "/docs/assets"
+_DOCS_ASSETS = ("swagger-ui-bundle.js", "swagger-ui.css", "redoc.standalone.js", "favicon.png")
+
 #: Paths answered without a key (relative to the ASGI root path).
 OPEN_PATHS = frozenset({"/healthz", "/readyz", "/metrics", "/openapi.json", "/docs", "/docs/oauth2-redirect",
-                        "/redoc"})
+                        "/redoc", *(f"{DOCS_ASSETS_PATH}/{name}" for name in _DOCS_ASSETS)})
 
 #: Name of the bearer scheme in the OpenAPI spec.
 SECURITY_SCHEME_NAME = "ApiKeyBearer"

@@ -64,6 +64,7 @@ def _check_value(name: str, value: float, pointer: str, errors: list[dict[str, s
 
 
 def _spaced(low: float, high: float, fractions: np.ndarray, spacing: str) -> np.ndarray:
+    """``low`` to ``high`` at ``fractions`` of the way, evenly or in even logarithms."""
     if spacing == "log":
         return np.exp(np.log(low) + fractions * (np.log(high) - np.log(low)))
     return low + fractions * (high - low)
@@ -82,9 +83,23 @@ def _grid_axes(request: GridSweep, errors: list[dict[str, str]]) -> dict[str, np
         fractions = np.linspace(0.0, 1.0, axis["num"])
         values = _spaced(axis["start"], axis["stop"], fractions, axis["spacing"])
         if physics.PARAMETERS[name].kind == "int":
-            values = np.unique(np.round(values))
-        axes[name] = values
+            axes[name] = np.unique(np.round(values)).astype(np.int64)
+        else:
+            axes[name] = np.clip(_clean_decimals(values), min(axis["start"], axis["stop"]),
+                                 max(axis["start"], axis["stop"]))
     return axes
+
+
+def _clean_decimals(values: np.ndarray) -> np.ndarray:
+    """``values`` rounded to 15 significant digits, so grid values read as typed.
+
+    ``0.15 * 1/3`` is 0.049999999999999996 in binary; 15 digits (all that a double
+    carries exactly in decimal) give back 0.05 and change a value by at most 5e-15 of itself.
+
+    >>> _clean_decimals(0.0 + np.linspace(0.0, 1.0, 4) * 0.15).tolist()
+    [0.0, 0.05, 0.1, 0.15]
+    """
+    return np.char.mod("%.15g", values).astype(np.float64)
 
 
 def _check_ranges(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[str, str]]) -> None:
@@ -114,7 +129,7 @@ def _sampled(request: SobolSweep | LatinHypercubeSweep) -> dict[str, np.ndarray]
         low, high = span["low"], span["high"]
         if physics.PARAMETERS[name].kind == "int":
             # Each whole number in [low, high] gets an equal share of the unit interval.
-            columns[name] = np.minimum(np.floor(low + unit[:, j] * (high - low + 1)), high)
+            columns[name] = np.minimum(np.floor(low + unit[:, j] * (high - low + 1)), high).astype(np.int64)
         else:
             columns[name] = _spaced(low, high, unit[:, j], span["spacing"])
     return columns

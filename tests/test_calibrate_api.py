@@ -61,7 +61,9 @@ def finished_result(client: TestClient, response) -> dict:
         assert time.monotonic() < deadline, job
         time.sleep(0.1)
     assert job["status"] == "succeeded", job
-    return client.get(job["result_url"]).json()
+    result = client.get(job["result_url"]).json()
+    assert result.pop("kind") == job["kind"]  # the job's kind tags its result
+    return result
 
 
 @pytest.fixture(scope="module")

@@ -242,7 +242,9 @@ def test_grid_sweep_is_the_full_factorial(client):
     assert body["count"] == 12 and body["varied"] == ["balls", "speed_m_s"]  # parameter-table order
     columns = body["columns"]
     pairs = set(zip(columns["speed_m_s"], columns["balls"], strict=True))
-    assert pairs == {(s, b) for s in np.linspace(0, 0.15, 4).tolist() for b in (4.0, 11.0, 18.0)}
+    # grid values read as typed (0.05, not 0.15 / 3 = 0.049999999999999996), ball counts as integers
+    assert pairs == {(s, b) for s in (0.0, 0.05, 0.1, 0.15) for b in (4, 11, 18)}
+    assert all(type(b) is int for b in columns["balls"])
     expected = physics.evaluate(load_N=0.01, speed_m_s=np.array(columns["speed_m_s"]),
                                 balls=np.array(columns["balls"])).mu
     assert columns["mu"] == expected.tolist()
@@ -254,7 +256,7 @@ def test_grid_log_spacing_and_whole_numbers(client):
                         "balls": {"start": 1, "stop": 3, "num": 7}}}
     columns = client.post("/v1/sweeps", json=request).json()["columns"]
     assert sorted(set(columns["load_N"])) == pytest.approx([1e-4, 1e-3, 1e-2], rel=1e-12)
-    assert sorted(set(columns["balls"])) == [1.0, 2.0, 3.0]  # 7 values rounded to 3 whole numbers
+    assert sorted(set(columns["balls"])) == [1, 2, 3]  # 7 values rounded to 3 whole numbers
     assert len(columns["mu"]) == 9
 
 
@@ -267,6 +269,15 @@ def test_sweep_as_csv(client):
     assert rows[0] == ["speed_m_s", "mu", "contact_load_N"]
     json_columns = client.post("/v1/sweeps", json=request).json()["columns"]
     assert [float(r[1]) for r in rows[1:]] == json_columns["mu"]
+    assert [r[0] for r in rows[1:]] == ["0.0", "0.05", "0.1"]  # not 0.1 * 1/2 = 0.05000000000000001
+
+
+def test_sweep_csv_prints_ball_counts_as_integers(client):
+    request = {"design": "sobol", "points": 4, "seed": 3, "outputs": ["mu"], "fixed": {"load_N": 0.01},
+               "ranges": {"balls": {"low": 3, "high": 30}, "speed_m_s": {"low": 0.0, "high": 0.1}}}
+    rows = list(csv.reader(io.StringIO(client.post("/v1/sweeps", json=request,
+                                                   headers={"accept": "text/csv"}).text)))
+    assert rows[0][0] == "balls" and all(r[0].isdigit() for r in rows[1:]), rows
 
 
 @pytest.mark.parametrize(("accept", "csv_expected"), [

@@ -113,3 +113,53 @@ def test_every_numeric_field_states_its_unit(spec):
     assert len(places) > 100  # the walk reaches the fields (every physics input and output is numeric)
     missing = [place for place, description in places if not unit.search(description)]
     assert not missing, f"numeric fields without a [unit] in their description: {missing}"
+
+
+def test_schema_names_and_titles_are_unique_after_the_generators_folding(spec):
+    # openapi-python-client names a model class by the schema's key, pascal-cased, and an attribute by the
+    # property name, snake-cased: two schemas (or two fields of one) that fold alike lose one of them.
+    from openapi_python_client.strings import ClassName, PythonIdentifier
+
+    schemas = spec["components"]["schemas"]
+    titles = [schema.get("title", name) for name, schema in schemas.items()]
+    assert len(set(titles)) == len(titles), sorted(t for t in titles if titles.count(t) > 1)
+    assert all(schema.get("title", name) == name for name, schema in schemas.items()), (
+        "a schema key differs from its title (pydantic splits a model into -Input/-Output when two "
+        "share a name)")
+    classes = [ClassName(name, "") for name in schemas]
+    assert len(set(classes)) == len(classes), sorted(c for c in classes if classes.count(c) > 1)
+    for name, schema in schemas.items():
+        fields = [PythonIdentifier(field, "") for field in schema.get("properties", {})]
+        assert len(set(fields)) == len(fields), (name, fields)
+
+
+def test_readme_explains_every_folded_unit_suffix(spec):
+    # Generated clients fold load_N to load_n and ball_ball_moment_Nm to ball_ball_moment_nm: the README's
+    # table says what each folded unit suffix means, so _nm is not read as nanometres.
+    from openapi_python_client.strings import PythonIdentifier
+
+    names = {field for schema in spec["components"]["schemas"].values()
+             for field in schema.get("properties", {})}
+    suffixes = set()
+    for name in names:
+        folded = PythonIdentifier(name, "")
+        if folded != name and not folded.endswith("_"):
+            stem = name.rstrip("_")
+            unit_start = next(i for i, c in enumerate(stem)
+                              if c.isupper() or (c.isdigit() and stem[i - 1] == "_"))
+            suffixes.add(PythonIdentifier(name[unit_start:], ""))
+    readme = (SPEC_PATH.parent.parent / "README.md").read_text(encoding="utf-8")
+    missing = sorted(s for s in suffixes if f"| `_{s}` |" not in readme)
+    assert suffixes and not missing, f"README's table of folded unit suffixes lacks {missing}"
+
+
+def test_every_job_kind_has_a_typed_result():
+    from service.schemas.jobs import JOB_RESULTS
+
+    root = SPEC_PATH.parent.parent / "service"
+    kinds = set()
+    for path in root.rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        kinds |= set(re.findall(r"jobs\.submit\(\s*\"(\w+)\"", text))
+        kinds |= set(re.findall(r"^_KIND = \"(\w+)\"", text, flags=re.M))
+    assert "sweep" in kinds and kinds <= set(JOB_RESULTS), sorted(kinds - set(JOB_RESULTS))

@@ -27,10 +27,14 @@ router = APIRouter(prefix="/v1/calibrations", tags=["calibrations"])
 
 _DEFAULT_CONVENTION = Convention(physics.DEFAULT_CONVENTION)
 
-_CSV_BODY = {"requestBody": {"required": True, "content": {"text/csv": {"schema": {
-    "type": "string",
-    "description": "CSV with a header row: physics input columns, mu_measured [1], optionally "
-                   "mu_measured_std [1], and any other numeric condition columns."}}}}}
+_CSV_TEXT = ("CSV with a header row: physics input columns, mu_measured [1], optionally mu_measured_std [1], "
+             "and any other numeric condition columns.")
+# The body is read as CSV whatever its declared type; application/octet-stream is listed too because
+# generated clients (openapi-python-client) send raw bytes that way and have no text bodies.
+_CSV_BODY = {"requestBody": {"required": True, "content": {
+    "text/csv": {"schema": {"type": "string", "description": _CSV_TEXT}},
+    "application/octet-stream": {"schema": {"type": "string", "format": "binary",
+                                            "description": _CSV_TEXT}}}}}
 
 
 def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool) -> None:
@@ -84,7 +88,8 @@ async def create_calibration_from_csv(
     convention: Annotated[ConventionName, Query(  # type: ignore[valid-type]
         description="Reading of the paper's ambiguous ball-ball terms.")] = _DEFAULT_CONVENTION,
 ) -> JSONResponse:
-    """Calibrate on an uploaded CSV file (``Content-Type: text/csv``), as ``POST /v1/calibrations``."""
+    """Calibrate on an uploaded CSV file (``Content-Type: text/csv`` or ``application/octet-stream``),
+    as ``POST /v1/calibrations``."""
     text = await request.body()
     check_rows(csv_data_rows(text), settings.max_calibration_rows, "The CSV body")  # before parsing it
     try:

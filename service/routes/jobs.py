@@ -16,7 +16,7 @@ from fastapi.responses import JSONResponse, Response
 from ..deps import JobsDep
 from ..jobs import FINISHED, POLL_AFTER_S, RETRY_AFTER_S, JobManager
 from ..problems import Problem, ProblemError, problem_responses
-from ..schemas.jobs import Job
+from ..schemas.jobs import Job, JobResult
 from ..tables import CSV_MEDIA_TYPE, csv_text, wants_csv
 
 __all__ = ["accepted", "job_view", "router"]
@@ -99,9 +99,10 @@ def cancel_job(job_id: str, jobs: JobsDep) -> Any:
 @router.get(
     "/{job_id}/result", operation_id="get_job_result",
     responses={
-        200: {"description": "The result: JSON, or its columns as CSV with Accept: text/csv.",
-              "content": {"application/json": {"schema": {"type": "object", "additionalProperties": True}},
-                          CSV_MEDIA_TYPE: {"schema": {"type": "string"}}}},
+        200: {"model": JobResult,
+              "description": "The result, tagged with the job's kind: JSON, or its columns as CSV with "
+                             "Accept: text/csv (sweeps).",
+              "content": {CSV_MEDIA_TYPE: {"schema": {"type": "string"}}}},
         **problem_responses(404, 406, 409),
     },
 )
@@ -115,4 +116,15 @@ def get_job_result(job_id: str, request: Request, jobs: JobsDep) -> Response:
         if not isinstance(result.get("columns"), dict):
             raise ProblemError(406, f"The result of job {job_id} is not a table; ask for application/json.")
         return Response(csv_text(result["columns"]), media_type=CSV_MEDIA_TYPE)
-    return Response(row["result_json"], media_type="application/json")
+    return Response(_tagged(row["kind"], row["result_json"]), media_type="application/json")
+
+
+def _tagged(kind: str, result_json: str) -> bytes:
+    """The stored JSON object of a result with ``"kind"`` first, without parsing it (a sweep may be large).
+
+    >>> _tagged("sweep", '{"count": 0}'), _tagged("sweep", '{}')
+    (b'{"kind":"sweep","count": 0}', b'{"kind":"sweep"}')
+    """
+    body = result_json.strip()[1:].lstrip()
+    head = '{"kind":' + json.dumps(kind)
+    return (head + ("}" if body == "}" else "," + body)).encode()

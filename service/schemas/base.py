@@ -29,6 +29,7 @@ from ..problems import VALIDATION_TYPE, ProblemError
 __all__ = [
     "RAW_BODY_MODELS",
     "Convention",
+    "DateTimeText",
     "ConventionName",
     "Output",
     "OutputName",
@@ -66,6 +67,11 @@ Output = StrEnum("Output", {name: name for name in physics.OUTPUTS})
 ConventionName = Annotated[Convention, Field(strict=False)]
 #: One of :data:`physics.OUTPUTS`.
 OutputName = Annotated[Output, Field(strict=False)]
+
+
+#: An ISO 8601 / RFC 3339 UTC timestamp as the store writes it ("2026-01-31T12:00:00.000Z"); typed
+#: ``format: date-time`` in the spec so generated clients parse it into a datetime.
+DateTimeText = Annotated[str, Field(json_schema_extra={"format": "date-time"})]
 
 
 def parameter_description(spec: physics.Parameter) -> str:

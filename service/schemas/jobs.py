@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field
 
 from ..problems import Problem
-from .base import ResponseModel
+from .base import DateTimeText, ResponseModel
+from .calibrations import CalibrationResult
+from .optimizations import OptimizationResult
+from .surrogates import SurrogateResult
+from .sweeps import SweepResult
 
-__all__ = ["Job", "JobStatus"]
+__all__ = ["JOB_RESULTS", "Job", "JobResult", "JobStatus"]
 
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 
@@ -22,9 +26,43 @@ class Job(ResponseModel):
     status: JobStatus = Field(description="queued, running, succeeded, failed or cancelled.")
     progress: float = Field(ge=0, le=1, description="Share of the work done [1].")
     cancel_requested: bool = Field(description="Whether DELETE /v1/jobs/{id} asked the job to stop.")
-    created_at: str = Field(description="When the job was submitted (ISO 8601, UTC).")
-    started_at: str | None = Field(default=None, description="When it started running (ISO 8601, UTC).")
-    finished_at: str | None = Field(default=None, description="When it ended (ISO 8601, UTC).")
+    created_at: DateTimeText = Field(description="When the job was submitted (ISO 8601, UTC).")
+    started_at: DateTimeText | None = Field(default=None,
+                                            description="When it started running (ISO 8601, UTC).")
+    finished_at: DateTimeText | None = Field(default=None, description="When it ended (ISO 8601, UTC).")
     result_url: str | None = Field(
         default=None, description="Path of the result once succeeded (JSON, or CSV with Accept: text/csv).")
     error: Problem | None = Field(default=None, description="Why the job failed, as a problem.")
+
+
+class SweepJobResult(SweepResult):
+    """The result of a sweep job: the table of ``POST /v1/sweeps``, tagged with the job kind."""
+
+    kind: Literal["sweep"] = Field(description="Kind of the job that made the result: sweep.")
+
+
+class OptimizationJobResult(OptimizationResult):
+    """The result of an optimization job: as ``POST /v1/optimizations`` answers at once."""
+
+    kind: Literal["optimization"] = Field(description="Kind of the job that made the result: optimization.")
+
+
+class CalibrationJobResult(CalibrationResult):
+    """The result of a calibration job: the report of ``GET /v1/calibrations/{id}``."""
+
+    kind: Literal["calibration"] = Field(description="Kind of the job that made the result: calibration.")
+
+
+class SurrogateJobResult(SurrogateResult):
+    """The result of a surrogate job: the surrogate of ``GET /v1/surrogates/{id}``."""
+
+    kind: Literal["surrogate"] = Field(description="Kind of the job that made the result: surrogate.")
+
+
+#: Result model of every job kind (the kind given to ``JobManager.submit``); add a kind here.
+JOB_RESULTS = {"sweep": SweepJobResult, "optimization": OptimizationJobResult,
+               "calibration": CalibrationJobResult, "surrogate": SurrogateJobResult}
+
+#: The JSON result of ``GET /v1/jobs/{id}/result``, told apart by ``kind`` (the job's kind).
+JobResult = Annotated[SweepJobResult | OptimizationJobResult | CalibrationJobResult | SurrogateJobResult,
+                      Field(discriminator="kind")]

@@ -110,8 +110,8 @@ class OptimizationRequest(StrictModel):
                                          "model only).")
 
 
-class Design(ResponseModel):
-    """A bearing design."""
+class BearingDesign(ResponseModel):
+    """A bearing design: ball count, groove angle and load."""
 
     balls: int = Field(description="Total number of balls [1].")
     groove_angle_deg: float = Field(description="Groove angle [deg].")
@@ -173,7 +173,7 @@ class ParetoPoint(ResponseModel):
     mu: float = Field(description="Minimum mu at that level [1].")
     value: float = Field(description="The second objective at the design [N for load_N, Pa for "
                                      "max_contact_pressure_Pa].")
-    design: Design = Field(description="The design.")
+    design: BearingDesign = Field(description="The design.")
 
 
 class ParetoFront(ResponseModel):
@@ -210,7 +210,7 @@ class OptimizationResult(ResponseModel):
     model: str = Field(description="The model optimized.")
     method: str = Field(description="dgp-enumeration (certified global) or sequential-convex-approximation "
                                     "(local).")
-    design: Design = Field(description="The best design (the fewest balls among ties).")
+    design: BearingDesign = Field(description="The best design (the fewest balls among ties).")
     mu: float = Field(description="mu of the model at the design (the exact physics for model physics) [1].")
     mu_solver: float = Field(description="The solver's value of mu [1].")
     relative_gap: float = Field(description="mu_solver / mu - 1 [1].")

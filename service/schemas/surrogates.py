@@ -13,6 +13,7 @@ import surrogate.sampling
 from .base import (
     Convention,
     ConventionName,
+    DateTimeText,
     ResponseModel,
     StrictModel,
     parameter_description,
@@ -21,15 +22,17 @@ from .base import (
 )
 from .calibrations import MODEL_PATTERN
 
-__all__ = ["MAX_BUDGET", "DesignName", "PredictRequest", "PredictResponse", "SensitivityResponse",
+__all__ = ["MAX_BUDGET", "SamplingDesignName", "PredictRequest", "PredictResponse", "SensitivityResponse",
            "SurrogateList", "SurrogateMetrics", "SurrogateRequest", "SurrogateResult", "SurrogateSpace"]
 
 #: Most physics evaluations one surrogate may use: GP fitting grows as budget³.
 MAX_BUDGET = 1000
 
-Design = StrEnum("Design", {name: name for name in surrogate.sampling.DESIGNS})
+# Named SamplingDesign, not Design: a generated client has one namespace of models, and the bearing
+# design of an optimization result is BearingDesign.
+SamplingDesign = StrEnum("SamplingDesign", {name: name for name in surrogate.sampling.DESIGNS})
 #: One of :data:`surrogate.sampling.DESIGNS`.
-DesignName = Annotated[Design, Field(strict=False)]
+SamplingDesignName = Annotated[SamplingDesign, Field(strict=False)]
 
 
 def _bounds_field(name: str) -> tuple[Any, Any]:
@@ -68,8 +71,8 @@ class SurrogateRequest(StrictModel):
         default=0.001, gt=0, le=1,
         description="Stop adding evaluations once the estimated median relative error of mu is at most "
                     "this and its 95th percentile at most 5 times this [1].")
-    design: DesignName = Field(  # type: ignore[valid-type]
-        default=Design("sobol"), description="Starting design of experiments.")
+    design: SamplingDesignName = Field(  # type: ignore[valid-type]
+        default=SamplingDesign("sobol"), description="Starting design of experiments.")
     adaptive: bool = Field(default=True, description="Add evaluations where the surrogate is least "
                                                      "sure (else spend the budget on the design).")
     seed: int = Field(default=0, ge=0, le=2**31 - 1, description="Seed of designs and optimizer [1].")
@@ -150,7 +153,7 @@ class SurrogateResult(ResponseModel):
         "of the 95 % interval below 90 %, median (95th-percentile) relative error above the target (5 "
         "times it); and other reasons to distrust the stored figures, e.g. a package_version other than "
         "the running one (the physics may have changed since: retrain). Empty when none."))
-    created_at: str = Field(description="Creation time, ISO 8601 UTC.")
+    created_at: DateTimeText = Field(description="Creation time, ISO 8601 UTC.")
 
 
 class SurrogateList(ResponseModel):

@@ -1,0 +1,115 @@
+"""The ``microbearing`` command line: evaluate, sweep and optimize, their outputs and exit codes."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+
+import numpy as np
+import pytest
+
+import physics
+from service.cli import EXIT_FILE, EXIT_INFEASIBLE, EXIT_INVALID, main
+from service.routes.meta import package_version
+from service.schemas.optimizations import OptimizationResult
+from service.schemas.sweeps import SweepResult
+
+PROBLEM = {"bounds": {"balls": [4, 8], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]},
+           "fixed": {"speed_m_s": 0.05, "mu_pivot": 1.0}, "constraints": {"max_contact_pressure_Pa": 1e9}}
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out.strip() == f"microbearing {package_version()}"
+
+
+@pytest.mark.parametrize("command", ["evaluate", "sweep", "optimize"])
+def test_help_shows_examples(capsys, command):
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    text = capsys.readouterr().out
+    assert "examples:" in text and f"\n  microbearing {command} " in text.split("examples:")[1]
+
+
+def test_evaluate_one_point_is_the_physics(capsys):
+    code, out, _ = run(capsys, "evaluate", "balls=4", "load_N=0.008826", "speed_m_s=0.05", "mu_pivot=1",
+                       "--outputs", "mu,max_contact_pressure_Pa")
+    exact = physics.evaluate(balls=4, load_N=0.008826, speed_m_s=0.05, mu_pivot=1.0)
+    assert code == 0 and json.loads(out) == {"convention": "olaru2005", "mu": float(exact.mu),
+                                             "max_contact_pressure_Pa": float(exact.max_contact_pressure_Pa)}
+
+
+def test_evaluate_a_csv_of_points(capsys, tmp_path):
+    points = tmp_path / "points.csv"
+    points.write_text("load_N,speed_m_s,balls\n0.001,0.05,4\n0.01,0.1,6\n0.02,0,18\n")
+    code, _, _ = run(capsys, "evaluate", "--csv", str(points), "mu_pivot=0.8", "--outputs", "mu",
+                     "-o", str(tmp_path / "out.csv"))
+    rows = list(csv.reader(io.StringIO((tmp_path / "out.csv").read_text())))
+    exact = physics.evaluate(load_N=np.array([0.001, 0.01, 0.02]), speed_m_s=np.array([0.05, 0.1, 0.0]),
+                             balls=np.array([4, 6, 18]), mu_pivot=0.8).mu
+    assert code == 0 and rows[0] == ["load_N", "speed_m_s", "balls", "mu"]
+    assert [r[2] for r in rows[1:]] == ["4", "6", "18"]
+    assert [float(r[3]) for r in rows[1:]] == exact.tolist()
+
+
+@pytest.mark.parametrize(("argv", "code", "message"), [
+    (["evaluate", "balls=4", "load_N=-1", "speed_m_s=0.1"], EXIT_INVALID, "load_N"),
+    (["evaluate", "balls=4", "speed_m_s=0.1"], EXIT_INVALID, "load_N=VALUE"),
+    (["evaluate", "balls=four", "load_N=1", "speed_m_s=0.1"], EXIT_INVALID, "balls"),
+    (["evaluate", "bogus=1"], EXIT_INVALID, "bogus"),
+    (["evaluate", "--csv", "/no/such/file.csv"], EXIT_FILE, "cannot read"),
+    (["sweep", "/no/such/request.json"], EXIT_FILE, "cannot read"),
+])
+def test_errors_have_meaningful_exit_codes(capsys, argv, code, message):
+    got, _, err = run(capsys, *argv)
+    assert got == code and message in err, err
+
+
+def test_sweep_writes_the_api_table(capsys, tmp_path):
+    request = {"design": "grid", "fixed": {"load_N": 0.0088}, "outputs": ["mu"],
+               "axes": {"balls": {"start": 4, "stop": 12, "num": 3},
+                        "speed_m_s": {"start": 0, "stop": 0.15, "num": 4}}}
+    (tmp_path / "grid.json").write_text(json.dumps(request))
+    code, out, _ = run(capsys, "sweep", str(tmp_path / "grid.json"))
+    result = SweepResult.model_validate_json(out)  # the schema of POST /v1/sweeps
+    assert code == 0 and result.count == 12
+    assert run(capsys, "sweep", str(tmp_path / "grid.json"), "-o", str(tmp_path / "grid.csv"))[0] == 0
+    rows = list(csv.reader(io.StringIO((tmp_path / "grid.csv").read_text())))
+    assert rows[0] == ["balls", "speed_m_s", "mu"]
+    assert [r[:2] for r in rows[1:5]] == [["4", "0.0"], ["4", "0.05"], ["4", "0.1"], ["4", "0.15"]]
+    bad = {**request, "axes": {"balls": {"start": 4, "stop": 12, "num": 0}}}
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    code, _, err = run(capsys, "sweep", str(tmp_path / "bad.json"))
+    assert code == EXIT_INVALID and "/axes/balls/num" in err
+
+
+def test_optimize_reads_and_writes_the_api_schemas(capsys, tmp_path):
+    (tmp_path / "problem.json").write_text(json.dumps(PROBLEM))
+    code, out, _ = run(capsys, "optimize", str(tmp_path / "problem.json"))
+    result = OptimizationResult.model_validate_json(out)
+    design = result.design
+    exact = physics.evaluate(balls=design.balls, groove_angle_deg=design.groove_angle_deg,
+                             load_N=design.load_N, speed_m_s=0.05, mu_pivot=1.0)
+    assert code == 0 and result.mu == float(exact.mu)
+    assert float(exact.max_contact_pressure_Pa) <= 1e9 * (1 + 1e-9)
+
+
+def test_optimize_infeasible_and_pareto_plot(capsys, tmp_path):
+    infeasible = {**PROBLEM, "constraints": {"max_contact_pressure_Pa": 1e6}}
+    (tmp_path / "infeasible.json").write_text(json.dumps(infeasible))
+    code, _, err = run(capsys, "optimize", str(tmp_path / "infeasible.json"))
+    assert code == EXIT_INFEASIBLE and "/constraints/max_contact_pressure_Pa" in err
+    front = {**PROBLEM, "pareto": {"objective": "max_contact_pressure_Pa", "points": 3}}
+    (tmp_path / "front.json").write_text(json.dumps(front))
+    code, out, _ = run(capsys, "optimize", str(tmp_path / "front.json"),
+                       "--plot", str(tmp_path / "front.png"))
+    assert code == 0 and len(json.loads(out)["pareto"]["points"]) >= 2
+    assert (tmp_path / "front.png").read_bytes().startswith(b"\x89PNG")
