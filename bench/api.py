@@ -31,7 +31,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 
-import physics
+from microbearing import physics
 
 REPO = Path(__file__).resolve().parent.parent
 JSON = {"content-type": "application/json"}
@@ -47,7 +47,7 @@ def free_port() -> int:
 def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
     port = free_port()
     process = subprocess.Popen(
-        [sys.executable, "-m", "service.cli", "serve",
+        [sys.executable, "-m", "microbearing.service.cli", "serve",
          "--port", str(port), "--data-dir", data_dir],
         cwd=REPO, env={**os.environ}, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     url = f"http://127.0.0.1:{port}"

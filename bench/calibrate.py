@@ -33,10 +33,10 @@ if Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 
 import numpy as np  # noqa: E402
 
-import physics  # noqa: E402
-from calibrate import calibrate, parse_csv  # noqa: E402
-from calibrate.fit import fit  # noqa: E402
-from calibrate.report import PROGRESS_STAGES  # noqa: E402
+from microbearing import physics  # noqa: E402
+from microbearing.calibrate import calibrate, parse_csv  # noqa: E402
+from microbearing.calibrate.fit import fit  # noqa: E402
+from microbearing.calibrate.report import PROGRESS_STAGES  # noqa: E402
 
 FIT = ["mu_pivot", "adhesion_energy_J_m2"]
 TRUE = {"mu_pivot": 0.7, "adhesion_energy_J_m2": 0.12}

@@ -19,9 +19,9 @@ import sys
 import tempfile
 import time
 
-from service.app import create_app
-from service.deps import get_runtime
-from service.settings import Settings
+from microbearing.service.app import create_app
+from microbearing.service.deps import get_runtime
+from microbearing.service.settings import Settings
 
 BODY = json.dumps({"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}).encode()
 

@@ -47,7 +47,7 @@ def start_server(workers: int, data_dir: str) -> tuple[subprocess.Popen, str]:
     env = {key: value for key, value in os.environ.items()
            if key != "PROMETHEUS_MULTIPROC_DIR" and not key.startswith("MICROBEARING_")}
     process = subprocess.Popen(
-        [sys.executable, "-m", "service.cli", "serve",
+        [sys.executable, "-m", "microbearing.service.cli", "serve",
          "--host", "127.0.0.1", "--port", str(port), "--workers", str(workers), "--data-dir", data_dir],
         cwd=REPO, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     url = f"http://127.0.0.1:{port}"

@@ -28,10 +28,10 @@ if Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 import numpy as np
 from scipy.optimize import minimize
 
-import physics
-from optimize import Constraints, DesignBounds, DesignProblem, dgp, optimize_design
-from optimize.general import optimize_model, physics_model
-from optimize.pareto import pareto_front
+from microbearing import physics
+from microbearing.optimize import Constraints, DesignBounds, DesignProblem, dgp, optimize_design
+from microbearing.optimize.general import optimize_model, physics_model
+from microbearing.optimize.pareto import pareto_front
 
 GRID = 200
 

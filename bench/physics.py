@@ -41,7 +41,7 @@ if Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 
 import numpy as np
 
-import physics
+from microbearing import physics
 
 THREADS = physics.bearing.THREADS_VARIABLE
 POINT = {"balls": 4, "load_N": 0.008826, "speed_m_s": 0.05}

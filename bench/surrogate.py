@@ -36,7 +36,14 @@ import time
 
 import numpy as np
 
-from surrogate import GaussianProcessSurrogate, Space, accuracy, design, fit_adaptive, holdout_metrics
+from microbearing.surrogate import (
+    GaussianProcessSurrogate,
+    Space,
+    accuracy,
+    design,
+    fit_adaptive,
+    holdout_metrics,
+)
 
 TARGET_SPACE = {"balls": (3, 40), "groove_angle_deg": (30, 75), "load_N": (0.001, 0.05),
                 "speed_m_s": (0.001, 0.2)}

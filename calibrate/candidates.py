@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-import physics
-from physics.effects import DRIFT_LAWS, DRIFT_PARAMETERS, EFFECTS, DriftLaw, Effect
+from microbearing import physics
+from microbearing.physics.effects import DRIFT_LAWS, DRIFT_PARAMETERS, EFFECTS, DriftLaw, Effect
 
 from .data import Dataset
 

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-import physics
+from microbearing import physics
 
 __all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "parse_assignments", "parse_csv",
            "parse_rows"]
@@ -207,7 +207,7 @@ def parse_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | Non
     >>> parse_rows([{"balls": 4, "load_N": -1, "speed_m_s": 0, "mu_measured": 0.01}])
     Traceback (most recent call last):
     ...
-    calibrate.data.DataError: 1 problem(s) in the measured data:
+    microbearing.calibrate.data.DataError: 1 problem(s) in the measured data:
     row 1, column load_N: load_N must be in [1e-09, 1e+06] [N]; got -1.0
     """
     errors = []

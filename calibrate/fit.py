@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-import physics
+from microbearing import physics
 
 from .candidates import FrozenBase, Term, mu_of
 from .data import Dataset

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-import physics
+from microbearing import physics
 
 from .candidates import Term, mu_of, term_from_json
 

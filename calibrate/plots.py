@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-import physics
+from microbearing import physics
 
 from .data import Dataset
 from .model import CalibratedModel

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-import physics
+from microbearing import physics
 
 from .data import Dataset, parse_csv, parse_rows
 from .discrepancy import gp_discrepancy

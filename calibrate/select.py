@@ -47,7 +47,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
-import physics
+from microbearing import physics
 
 from .candidates import FrozenBase, Term, candidate_terms, mu_of
 from .data import Dataset
@@ -702,7 +702,7 @@ class NestedValidation:
 
         Examples
         --------
-        >>> from calibrate.candidates import EffectTerm
+        >>> from microbearing.calibrate.candidates import EffectTerm
         >>> pick = EffectTerm("run_in", ("cycle",))
         >>> v = NestedValidation(np.ones(3), [(pick,), (), (EffectTerm("run_in", ("cycle",)),)], 0)
         >>> v.stability([pick])["summary"]

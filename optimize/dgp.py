@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-import physics
+from microbearing import physics
 
 from .problem import DesignProblem
 

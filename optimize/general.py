@@ -69,7 +69,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
-import physics
+from microbearing import physics
 
 from .dgp import SAFETY_MARGIN, coefficients
 from .problem import DesignProblem, constraint_report
@@ -145,7 +145,7 @@ def speed_grid_m_s(problem: DesignProblem, mu_model: MuModel) -> np.ndarray:
 
     Examples
     --------
-    >>> from optimize import DesignBounds, DesignProblem
+    >>> from microbearing.optimize import DesignBounds, DesignProblem
     >>> p = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=(0.0, 0.08))
     >>> speed_grid_m_s(p, lambda points: points["load_N"]).round(3).tolist()
     [0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08]

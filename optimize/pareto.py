@@ -27,7 +27,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-import physics
+from microbearing import physics
 
 from .problem import DesignProblem
 from .solve import TIE_TOLERANCE, InfeasibleDesignError, optimize_design

@@ -31,8 +31,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-import physics
-from physics import DEFAULT_CONVENTION, PARAMETERS
+from microbearing import physics
+from microbearing.physics import DEFAULT_CONVENTION, PARAMETERS
 
 __all__ = ["DESIGN_VARIABLES", "ACTIVE_TOLERANCE", "DesignBounds", "Constraints", "DesignProblem",
            "ConstraintStatus", "constraint_report"]

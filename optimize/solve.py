@@ -21,7 +21,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
-import physics
+from microbearing import physics
 
 from .dgp import SAFETY_MARGIN, BallCountResolver, design_gp
 from .problem import DESIGN_VARIABLES, ConstraintStatus, DesignBounds, DesignProblem, constraint_report

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-import physics
-from calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
+from microbearing import physics
+from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 
 from .models import CalibratedPhysicsModel, Model, resolve
 from .problems import ProblemError, validation_problem

@@ -32,7 +32,7 @@ class CommandError(Exception):
 
 
 def _paper(args: argparse.Namespace) -> int:
-    from physics import paper
+    from microbearing.physics import paper
 
     print(paper.report(args.convention))
     if args.plot:
@@ -57,14 +57,14 @@ def _serve(args: argparse.Namespace) -> int:
 
     # Requests are logged as JSON lines with their request id by service/observability.py;
     # uvicorn's own lines (startup, shutdown, errors) are JSON too.
-    uvicorn.run("service.app:app",
+    uvicorn.run("microbearing.service.app:app",
                 host=args.host, port=args.port, workers=args.workers, access_log=False,
                 log_config=uvicorn_log_config())
     return 0
 
 
 def _calibrate(args: argparse.Namespace) -> int:
-    from calibrate import DataError, calibrate, parse_assignments, parse_csv
+    from microbearing.calibrate import DataError, calibrate, parse_assignments, parse_csv
 
     try:
         text = Path(args.data).read_bytes()
@@ -156,7 +156,7 @@ def _progress_bar(description: str) -> Iterator[Callable[[float], None]]:
 
 def _assignments(items: list[str]) -> dict[str, Any]:
     """``NAME=VALUE`` physics inputs, parsed in their kinds (whole numbers, numbers, true/false)."""
-    import physics
+    from microbearing import physics
 
     values: dict[str, Any] = {}
     for item in items:
@@ -189,7 +189,7 @@ def _csv_points(path: str) -> tuple[dict[str, Any], int]:
 
     import numpy as np
 
-    import physics
+    from microbearing import physics
 
     text = _read(path).decode("utf-8-sig", errors="replace")
     rows = list(csv.reader(io.StringIO(text)))
@@ -211,7 +211,7 @@ def _csv_points(path: str) -> tuple[dict[str, Any], int]:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    import physics
+    from microbearing import physics
 
     from .evaluation import evaluate_point
     from .executor import evaluate_in_chunks
@@ -247,7 +247,7 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 def _defaults(given: dict[str, Any]) -> dict[str, Any]:
     """Every physics input left out of ``given`` at its default (required ones are an error)."""
-    import physics
+    from microbearing import physics
 
     missing = [n for n, p in physics.PARAMETERS.items() if p.required and n not in given]
     if missing:
@@ -320,7 +320,7 @@ def _json_command(sub: Any, name: str, func: Callable[[argparse.Namespace], int]
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand."""
-    import physics
+    from microbearing import physics
 
     from .routes.meta import package_version
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-import physics
+from microbearing import physics
 
 from .problems import ProblemError, validation_problem
 

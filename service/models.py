@@ -39,8 +39,8 @@ from typing import Any
 import numpy as np
 from scipy.differentiate import derivative
 
-import physics
-from calibrate import CalibratedModel, Prediction
+from microbearing import physics
+from microbearing.calibrate import CalibratedModel, Prediction
 
 from .evaluation import evaluate_checked
 from .problems import ProblemError, validation_problem

@@ -135,7 +135,7 @@ def uvicorn_log_config() -> dict[str, Any]:
     return {
         "version": 1,
         "disable_existing_loggers": False,
-        "formatters": {"json": {"()": "service.observability.JsonFormatter"}},
+        "formatters": {"json": {"()": "microbearing.service.observability.JsonFormatter"}},
         "handlers": {"json": {"formatter": "json", "class": "logging.StreamHandler",
                               "stream": "ext://sys.stderr"}},
         "loggers": {"uvicorn": {"handlers": ["json"], "level": "INFO", "propagate": False},

@@ -1,6 +1,6 @@
 """Write the OpenAPI spec of the service to ``openapi/openapi.json``.
 
-Run ``python -m service.openapi``.
+Run ``python -m microbearing.service.openapi``.
 
 The file is committed; generated clients and the tests use it, and a test fails when it
 differs from what the code produces (run this command after changing a route or a schema).
@@ -29,7 +29,7 @@ def spec_text() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Write (or with ``--check`` verify) the spec file; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="python -m service.openapi", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m microbearing.service.openapi", description=__doc__)
     parser.add_argument("--output", type=Path, default=SPEC_PATH, help="file to write (default: %(default)s)")
     parser.add_argument("--check", action="store_true", help="exit 1 if the file is stale instead of writing")
     args = parser.parse_args(argv)
@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.check:
         current = args.output.read_text(encoding="utf-8") if args.output.exists() else ""
         if current != text:
-            print(f"{args.output} is stale; run: python -m service.openapi", file=sys.stderr)
+            print(f"{args.output} is stale; run: python -m microbearing.service.openapi", file=sys.stderr)
             return 1
         return 0
     args.output.parent.mkdir(parents=True, exist_ok=True)

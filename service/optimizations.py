@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
-import physics
-from optimize import (
+from microbearing import physics
+from microbearing.optimize import (
     Constraints,
     DesignBounds,
     DesignProblem,
@@ -28,8 +28,8 @@ from optimize import (
     optimize_model,
     pareto_front,
 )
-from optimize.general import check_exact_limits
-from optimize.problem import DESIGN_VARIABLES
+from microbearing.optimize.general import check_exact_limits
+from microbearing.optimize.problem import DESIGN_VARIABLES
 
 from .calibrations import interval_at, with_conditions
 from .executor import map_chunks

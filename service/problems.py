@@ -25,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
-import physics
+from microbearing import physics
 
 __all__ = [
     "PROBLEM_MEDIA_TYPE",

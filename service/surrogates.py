@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-import surrogate
-from optimize import physics_model
-from surrogate import GaussianProcessSurrogate, Space
-from surrogate.persist import version_warning
+from microbearing import surrogate
+from microbearing.optimize import physics_model
+from microbearing.surrogate import GaussianProcessSurrogate, Space
+from microbearing.surrogate.persist import version_warning
 
 from .calibrations import with_conditions
 from .models import resolve

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from scipy.stats import qmc
 
-import physics
+from microbearing import physics
 
 from .executor import evaluate_in_chunks
 from .models import physics_in

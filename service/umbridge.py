@@ -34,7 +34,7 @@ from fastapi.responses import Response
 from pydantic import ValidationError
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-import physics
+from microbearing import physics
 
 from .models import InputError, Model, jacobian, resolve
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError

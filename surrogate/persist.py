@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from sklearn.gaussian_process import GaussianProcessRegressor
 
-import physics
+from microbearing import physics
 
 from .model import GaussianProcessSurrogate, build_kernel
 from .space import Space

@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-import physics
-import physics.contact
+import microbearing.physics.contact  # noqa: F401  (loads the submodule)
+from microbearing import physics
 
 __all__ = ["SCALES", "FEATURE_SETS", "Space"]
 

@@ -46,7 +46,7 @@ class Server:
         env.pop("PROMETHEUS_MULTIPROC_DIR", None)
         self.log = log.open("ab")
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "uvicorn", "service.app:app", "--host", "127.0.0.1",
+            [sys.executable, "-m", "uvicorn", "microbearing.service.app:app", "--host", "127.0.0.1",
              "--port", str(self.port), "--no-access-log"],
             cwd=REPO, env=env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
         self.url = f"http://127.0.0.1:{self.port}"

@@ -13,8 +13,8 @@ import json
 import numpy as np
 import pytest
 
-import physics
-from calibrate import CalibratedModel, calibrate, parse_rows
+from microbearing import physics
+from microbearing.calibrate import CalibratedModel, calibrate, parse_rows
 
 N_ROWS = 200
 FOLDS = 4

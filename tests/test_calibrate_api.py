@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-import physics
-from service.app import create_app
-from service.calibrations import load_mu_model
-from service.cli import main
-from service.deps import get_runtime
-from service.problems import ProblemError
-from service.settings import Settings
+from microbearing import physics
+from microbearing.service.app import create_app
+from microbearing.service.calibrations import load_mu_model
+from microbearing.service.cli import main
+from microbearing.service.deps import get_runtime
+from microbearing.service.problems import ProblemError
+from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 N_ROWS = 120

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from calibrate import DataError, parse_csv, parse_rows
+from microbearing.calibrate import DataError, parse_csv, parse_rows
 
 
 def _good_row(**overrides):
@@ -126,9 +126,10 @@ def test_calibrate_docstring_examples_run():
     # The project's doctest collection covers physics/ only; the examples of calibrate/ run here.
     import doctest
 
-    import calibrate.data
-    import calibrate.fit
-    import calibrate.select
+    import microbearing.calibrate.data
+    import microbearing.calibrate.fit
+    import microbearing.calibrate.select  # noqa: F401  (loads the submodule)
+    from microbearing import calibrate
 
     for module in (calibrate.data, calibrate.select, calibrate.fit):
         failures, tried = doctest.testmod(module)

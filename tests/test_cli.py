@@ -9,11 +9,11 @@ import json
 import numpy as np
 import pytest
 
-import physics
-from service.cli import EXIT_FILE, EXIT_INFEASIBLE, EXIT_INVALID, main
-from service.routes.meta import package_version
-from service.schemas.optimizations import OptimizationResult
-from service.schemas.sweeps import SweepResult
+from microbearing import physics
+from microbearing.service.cli import EXIT_FILE, EXIT_INFEASIBLE, EXIT_INVALID, main
+from microbearing.service.routes.meta import package_version
+from microbearing.service.schemas.optimizations import OptimizationResult
+from microbearing.service.schemas.sweeps import SweepResult
 
 PROBLEM = {"bounds": {"balls": [4, 8], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]},
            "fixed": {"speed_m_s": 0.05, "mu_pivot": 1.0}, "constraints": {"max_contact_pressure_Pa": 1e9}}

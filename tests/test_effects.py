@@ -5,8 +5,14 @@ import math
 import numpy as np
 import pytest
 
-import physics
-from physics.effects import DRIFT_LAWS, DRIFT_PARAMETERS, EFFECTS, apply_effect, humidity_fraction
+from microbearing import physics
+from microbearing.physics.effects import (
+    DRIFT_LAWS,
+    DRIFT_PARAMETERS,
+    EFFECTS,
+    apply_effect,
+    humidity_fraction,
+)
 
 
 def test_constant_drag_adds_force_over_load():

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-import physics
-from optimize import (
+from microbearing import physics
+from microbearing.optimize import (
     Constraints,
     DesignBounds,
     DesignProblem,
@@ -19,7 +19,7 @@ from optimize import (
     OptimizationResult,
     optimize_design,
 )
-from optimize.dgp import LIMIT_NAMES, BallCountResolver, build_design_gp, design_gp
+from microbearing.optimize.dgp import LIMIT_NAMES, BallCountResolver, build_design_gp, design_gp
 
 GRID = 200
 
@@ -384,7 +384,7 @@ def test_a_problem_that_is_not_dgp_raises_even_under_python_O(monkeypatch):
 
 
 def test_clearing_the_dgp_cache_makes_the_next_problem_compile_anew():
-    from optimize import dgp
+    from microbearing.optimize import dgp
 
     problem = DesignProblem(DesignBounds((4, 6), (40, 60), (0.001, 0.05)), speed_m_s=0.05)
     before, _ = design_gp(problem)
@@ -399,7 +399,7 @@ def test_a_solver_design_breaking_a_limit_is_resolved_by_scs_not_returned(monkey
     # (most balls, smallest angle, least load). Clarabel has called that degenerate program optimal at a
     # design 7.5 % over the limit; here the count solver is made to do so for every count, and the result
     # must still meet the limit, through SCS, and say so.
-    import optimize.solve as solve_module
+    import microbearing.optimize.solve as solve_module
 
     box = DesignProblem(DesignBounds((4, 12), (35, 70), (0.001, 0.05)), speed_m_s=0.05,
                         fixed={"mu_pivot": 1.0})

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-import physics
-from calibrate import CalibratedModel
-from calibrate.candidates import EffectTerm
-from optimize import Constraints, DesignBounds, DesignProblem, optimize_design
-from service.app import create_app
-from service.deps import get_runtime
-from service.optimizations import INFEASIBLE_TYPE
-from service.settings import Settings
+from microbearing import physics
+from microbearing.calibrate import CalibratedModel
+from microbearing.calibrate.candidates import EffectTerm
+from microbearing.optimize import Constraints, DesignBounds, DesignProblem, optimize_design
+from microbearing.service.app import create_app
+from microbearing.service.deps import get_runtime
+from microbearing.service.optimizations import INFEASIBLE_TYPE
+from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 ISSUE_EXAMPLE = {"bounds": {"balls": [4, 24], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]},

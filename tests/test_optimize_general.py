@@ -7,9 +7,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-import physics
-from optimize import Constraints, DesignBounds, DesignProblem, InfeasibleDesignError, optimize_design
-from optimize.general import SPEED_GRID_POINTS, optimize_model, physics_model, speed_grid_m_s
+from microbearing import physics
+from microbearing.optimize import (
+    Constraints,
+    DesignBounds,
+    DesignProblem,
+    InfeasibleDesignError,
+    optimize_design,
+)
+from microbearing.optimize.general import SPEED_GRID_POINTS, optimize_model, physics_model, speed_grid_m_s
 
 
 def _problems():

@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-import physics
-from optimize import Constraints, DesignBounds, DesignProblem, optimize_design
-from optimize.pareto import pareto_front
+from microbearing import physics
+from microbearing.optimize import Constraints, DesignBounds, DesignProblem, optimize_design
+from microbearing.optimize.pareto import pareto_front
 
 PROBLEM = DesignProblem(DesignBounds((4, 12), (35, 70), (0.001, 0.05)), speed_m_s=0.05,
                         fixed={"mu_pivot": 1.0}, constraints=Constraints(max_contact_pressure_Pa=1e9))

@@ -11,8 +11,8 @@ range must cover at least 80 % of the printed range.
 
 import pytest
 
-from physics import paper
-from service.cli import main
+from microbearing.physics import paper
+from microbearing.service.cli import main
 
 TOLERANCE = 0.25
 
@@ -30,7 +30,7 @@ def test_computed_range_matches_the_reported_range(name, convention):
 
 
 def test_case_a_is_mostly_pivoting_and_case_b_mostly_ball_ball():
-    from physics import evaluate
+    from microbearing.physics import evaluate
 
     a = evaluate(**paper.PAPER_CASES["A_adhesion"].params, mu_pivot=1.0, speed_m_s=0.075)
     assert a.mu_pivoting / a.mu > 0.9

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from physics import bearing, contact, lubrication, moments, surface
+from microbearing.physics import bearing, contact, lubrication, moments, surface
 
 D = 285e-6
 R = D / 2
@@ -166,7 +166,7 @@ def test_eq21_to_23_ball_race_force_total_and_mu():
 
 
 def test_evaluate_matches_the_hand_calculation_end_to_end():
-    from physics import evaluate
+    from microbearing.physics import evaluate
 
     f_r, m_er, m_p, m_b = _contact_terms(mu_b=0.5, mu_s=1.0)
     f_ball = (2 * m_b / math.cos(THETA) + 4 * m_p * math.tan(THETA) + 4 * m_er) / D + 4 * f_r

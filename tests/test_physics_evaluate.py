@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-import physics
-from physics import OUTPUTS, PARAMETERS, evaluate
+from microbearing import physics
+from microbearing.physics import OUTPUTS, PARAMETERS, evaluate
 
 BASE = {"balls": 4, "load_N": 8.8e-3, "speed_m_s": 0.05}
 
@@ -202,7 +202,7 @@ def _random_inputs(n, seed):
 
 def _composed(convention, **params):
     """Every output by the plain composition of the equations' functions (the reference)."""
-    from physics import bearing, contact, lubrication, moments, surface
+    from microbearing.physics import bearing, contact, lubrication, moments, surface
 
     p = physics.validate_all(params)
     theta = np.radians(p["groove_angle_deg"])
@@ -248,7 +248,7 @@ def test_every_output_agrees_with_the_composition_of_the_equations(convention):
     # evaluate runs an in-place blocked kernel (power laws as exp of logs, tan instead of cos); the
     # reference composes the equations' own functions. Several blocks and a short last one, every
     # input varied over its whole range; angles kept >= 1 deg, where cos-based tan is still accurate.
-    from physics import bearing
+    from microbearing.physics import bearing
 
     n = 2 * bearing._BLOCK_POINTS + 1234
     params = _random_inputs(n, seed=7)
@@ -278,7 +278,7 @@ def test_threaded_calls_reproduce_a_single_thread_bit_for_bit(monkeypatch, threa
     # Large calls split their blocks into contiguous runs, one per thread; every point still runs the
     # same operations, so the result cannot depend on the thread count. 9 blocks and a short tenth: the
     # runs are uneven for 3 threads, and outputs not asked for use each thread's own scratch rows.
-    from physics import bearing
+    from microbearing.physics import bearing
 
     params = _random_inputs(9 * bearing._BLOCK_POINTS + 77, seed=11)
     wanted = ["mu", "contact_radius_m", "friction_force_N"]
@@ -297,7 +297,7 @@ def test_threaded_calls_reproduce_a_single_thread_bit_for_bit(monkeypatch, threa
 
 @pytest.mark.parametrize("value", ["two", "1.5"])
 def test_a_bad_thread_count_in_the_environment_is_named(monkeypatch, value):
-    from physics import bearing
+    from microbearing.physics import bearing
 
     monkeypatch.setenv(bearing.THREADS_VARIABLE, value)
     with pytest.raises(ValueError, match=bearing.THREADS_VARIABLE):
@@ -305,7 +305,7 @@ def test_a_bad_thread_count_in_the_environment_is_named(monkeypatch, value):
 
 
 def test_large_inputs_match_a_hand_composition_of_the_equation_functions():
-    from physics import contact, lubrication, moments, surface
+    from microbearing.physics import contact, lubrication, moments, surface
 
     n = 40_000
     rng = np.random.default_rng(3)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from test_physics_evaluate import _random_inputs
 
-import physics
-from physics import OUTPUTS, bearing, evaluate
+from microbearing import physics
+from microbearing.physics import OUTPUTS, bearing, evaluate
 
 BASE = {"balls": 4, "load_N": 8.8e-3, "speed_m_s": 0.05}
 

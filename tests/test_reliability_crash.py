@@ -21,8 +21,8 @@ import time
 import pytest
 from live_server import REPO, Server, wait_for
 
-from service.jobs import INTERRUPTED_DETAIL
-from service.store import DATABASE_NAME, Store
+from microbearing.service.jobs import INTERRUPTED_DETAIL
+from microbearing.service.store import DATABASE_NAME, Store
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="SIGKILL and process groups are POSIX")
 
@@ -112,7 +112,7 @@ def test_sigkill_during_jobs_loses_nothing(tmp_path):
 WRITER = textwrap.dedent("""
     import hashlib, json, sys
     import numpy as np
-    from service.store import Store
+    from microbearing.service.store import Store
 
     store = Store(sys.argv[1])
     rng = np.random.default_rng(0)

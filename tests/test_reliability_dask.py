@@ -22,11 +22,11 @@ import pytest
 from fastapi.testclient import TestClient
 from live_server import REPO, Server, free_port, wait_for
 
-import physics
-from calibrate import CalibratedModel
-from service.app import create_app
-from service.settings import Settings
-from service.store import Store
+from microbearing import physics
+from microbearing.calibrate import CalibratedModel
+from microbearing.service.app import create_app
+from microbearing.service.settings import Settings
+from microbearing.service.store import Store
 
 DASK = shutil.which("dask", path=str(Path(sys.executable).parent)) or shutil.which("dask")
 pytestmark = [pytest.mark.skipif(os.name != "posix", reason="process groups are POSIX"),

@@ -14,17 +14,17 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-import physics
-from calibrate import CalibratedModel
-from optimize import DesignBounds, DesignProblem, optimize_design
-from optimize.general import GROUP_COUNTS, optimize_model, physics_model
-from service.app import create_app
-from service.deps import get_runtime
-from service.executor import DaskExecutor, chunk_bounds, evaluate_in_chunks, map_chunks
-from service.models import physics_in
-from service.problems import ProblemError
-from service.settings import Settings
-from service.sweeps import CHUNK_POINTS
+from microbearing import physics
+from microbearing.calibrate import CalibratedModel
+from microbearing.optimize import DesignBounds, DesignProblem, optimize_design
+from microbearing.optimize.general import GROUP_COUNTS, optimize_model, physics_model
+from microbearing.service.app import create_app
+from microbearing.service.deps import get_runtime
+from microbearing.service.executor import DaskExecutor, chunk_bounds, evaluate_in_chunks, map_chunks
+from microbearing.service.models import physics_in
+from microbearing.service.problems import ProblemError
+from microbearing.service.settings import Settings
+from microbearing.service.sweeps import CHUNK_POINTS
 
 #: Only the tests on a dask cluster need dask.distributed (the "dask" extra); the others always run.
 needs_dask = pytest.mark.skipif(importlib.util.find_spec("distributed") is None,

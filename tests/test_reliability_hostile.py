@@ -13,11 +13,11 @@ import re
 import pytest
 from fastapi.testclient import TestClient
 
-import physics
-from service.app import create_app
-from service.jsonguard import MAX_DEPTH, check_json_structure
-from service.problems import ProblemError
-from service.settings import Settings
+from microbearing import physics
+from microbearing.service.app import create_app
+from microbearing.service.jsonguard import MAX_DEPTH, check_json_structure
+from microbearing.service.problems import ProblemError
+from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 JSON = {"content-type": "application/json"}
@@ -122,8 +122,8 @@ def test_the_body_parser_answers_nesting_beyond_the_stack_with_a_400_problem():
 
     from starlette.requests import Request
 
-    from service.schemas.base import parse_json_body
-    from service.schemas.friction import FrictionRequest
+    from microbearing.service.schemas.base import parse_json_body
+    from microbearing.service.schemas.friction import FrictionRequest
 
     body = b"[" * 100_000 + b"]" * 100_000
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 from fastapi.testclient import TestClient
 
-from service.app import create_app
-from service.settings import Settings
+from microbearing.service.app import create_app
+from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 POINT = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}

@@ -7,11 +7,11 @@ import time
 import pytest
 from fastapi.testclient import TestClient
 
-from service.app import create_app
-from service.deps import get_runtime
-from service.security import key_id
-from service.settings import Settings
-from service.store import REQUESTER, Requester
+from microbearing.service.app import create_app
+from microbearing.service.deps import get_runtime
+from microbearing.service.security import key_id
+from microbearing.service.settings import Settings
+from microbearing.service.store import REQUESTER, Requester
 
 ALPHA, BETA, ADMIN = "alpha-key-0123456789", "beta-key-9876543210", "admin-key-5555555555"
 SWEEP = {"design": "grid", "axes": {"load_N": {"start": 1e-3, "stop": 0.05, "num": 20}},

@@ -13,10 +13,10 @@ import pytest
 from fastapi.testclient import TestClient
 from prometheus_client.parser import text_string_to_metric_families
 
-from service import security
-from service.app import create_app
-from service.observability import JsonFormatter
-from service.settings import Settings
+from microbearing.service import security
+from microbearing.service.app import create_app
+from microbearing.service.observability import JsonFormatter
+from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 KEYS = ("alpha-key-0123456789", "beta-key-9876543210", "gamma-key-5555555555")

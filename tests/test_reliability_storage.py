@@ -19,8 +19,8 @@ from pathlib import Path
 import pytest
 from live_server import REPO, Server, free_port, wait_for
 
-from service.deps import DataFolderError, open_store
-from service.store import DATABASE_NAME
+from microbearing.service.deps import DataFolderError, open_store
+from microbearing.service.store import DATABASE_NAME
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="process groups are POSIX")
 
@@ -122,7 +122,7 @@ def test_the_server_exits_non_zero_on_a_bad_data_folder(tmp_path):
     env = {**os.environ, "MICROBEARING_DATA_DIR": str(data_dir)}
     env.pop("PROMETHEUS_MULTIPROC_DIR", None)
     process = subprocess.run(
-        [sys.executable, "-m", "uvicorn", "service.app:app", "--host", "127.0.0.1", "--port",
+        [sys.executable, "-m", "uvicorn", "microbearing.service.app:app", "--host", "127.0.0.1", "--port",
          str(free_port())],
         cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
     output = process.stdout + process.stderr
@@ -136,10 +136,10 @@ def test_the_server_exits_non_zero_on_a_bad_data_folder(tmp_path):
 def test_readiness_reports_free_space_and_refused_writes_in_process(tmp_path, monkeypatch):
     from fastapi.testclient import TestClient
 
-    from service.app import create_app
-    from service.deps import get_runtime
-    from service.settings import Settings
-    from service.store import StorageError
+    from microbearing.service.app import create_app
+    from microbearing.service.deps import get_runtime
+    from microbearing.service.settings import Settings
+    from microbearing.service.store import StorageError
 
     settings = Settings(data_dir=tmp_path, min_free_bytes=2**62, sweep_sync_max_points=0)
     with TestClient(create_app(settings)) as client:

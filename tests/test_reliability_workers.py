@@ -41,7 +41,7 @@ def test_two_workers_share_metrics_and_keys(tmp_path):
     env.pop("PROMETHEUS_MULTIPROC_DIR", None)
     log = (tmp_path / "server.log").open("wb")
     process = subprocess.Popen(
-        [sys.executable, "-m", "service.cli", "serve", "--workers", "2", "--port", str(port),
+        [sys.executable, "-m", "microbearing.service.cli", "serve", "--workers", "2", "--port", str(port),
          "--data-dir", str(tmp_path / "data")],
         cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     try:

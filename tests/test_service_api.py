@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-import physics
-from service.app import create_app
-from service.settings import Settings
+from microbearing import physics
+from microbearing.service.app import create_app
+from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 JSON_HEADERS = {"content-type": "application/json"}

@@ -28,8 +28,8 @@ import httpx
 import pytest
 from test_service_live import server  # noqa: F401  (the live server fixture)
 
-import physics
-from service.openapi import SPEC_PATH
+from microbearing import physics
+from microbearing.service.openapi import SPEC_PATH
 
 #: Operations the generator warns about, with the reason each warning is acceptable.
 GENERATOR_WARNINGS = {

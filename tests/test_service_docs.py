@@ -12,9 +12,9 @@ import pytest
 from fastapi.testclient import TestClient
 from test_service_live import server  # noqa: F401  (the live server fixture)
 
-from service.app import create_app
-from service.openapi import SPEC_PATH
-from service.security import OPEN_PATHS
+from microbearing.service.app import create_app
+from microbearing.service.openapi import SPEC_PATH
+from microbearing.service.security import OPEN_PATHS
 
 SPEC = json.loads(SPEC_PATH.read_text(encoding="utf-8"))
 CHROMIUM = next((shutil.which(name) for name in ("chromium", "chromium-browser") if shutil.which(name)), None)

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from service.jobs import INTERRUPTED_DETAIL, JobContext, JobManager
-from service.store import Store, json_bytes, to_json, utc_now
+from microbearing.service.jobs import INTERRUPTED_DETAIL, JobContext, JobManager
+from microbearing.service.store import Store, json_bytes, to_json, utc_now
 
 
 @pytest.fixture
@@ -275,8 +275,8 @@ def blocked_manager(store: Store, **limits) -> tuple[JobManager, threading.Event
 
 
 def test_a_full_server_refuses_jobs_with_503_and_a_key_past_its_share_with_429(store):
-    from service.problems import ProblemError
-    from service.store import REQUESTER, Requester
+    from microbearing.service.problems import ProblemError
+    from microbearing.service.store import REQUESTER, Requester
 
     jobs, release = blocked_manager(store, max_active=3, max_active_per_key=2)
     try:
@@ -421,7 +421,7 @@ def test_a_full_database_fails_the_job_with_the_reason_at_error(tmp_path, caplog
 
 
 def test_a_store_refusing_every_write_still_ends_the_job(store, monkeypatch, caplog):
-    from service.store import StorageError
+    from microbearing.service.store import StorageError
 
     jobs = JobManager(store, workers=1)
     release = threading.Event()
@@ -457,7 +457,7 @@ def test_a_store_refusing_every_write_still_ends_the_job(store, monkeypatch, cap
 
 
 def test_an_adaptive_fit_reports_progress_in_proportion_to_its_fitting_work():
-    from surrogate import Space, fit_adaptive
+    from microbearing.surrogate import Space, fit_adaptive
 
     space = Space({"load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2)}, fixed={"balls": 6})
     fractions = []

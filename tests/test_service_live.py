@@ -37,7 +37,7 @@ def server(tmp_path_factory):
     log_path = tmp_path_factory.mktemp("live-log") / "server.log"
     log = log_path.open("wb")  # a file, not a pipe nobody reads while the server runs
     process = subprocess.Popen(
-        [sys.executable, "-m", "service.cli", "serve",
+        [sys.executable, "-m", "microbearing.service.cli", "serve",
          "--port", str(port), "--data-dir", str(data_dir)],
         cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"

@@ -8,9 +8,9 @@ import re
 import pytest
 from openapi_spec_validator import validate
 
-import physics
-from service.openapi import SPEC_PATH, spec_text
-from service.settings import settings_table
+from microbearing import physics
+from microbearing.service.openapi import SPEC_PATH, spec_text
+from microbearing.service.settings import settings_table
 
 
 @pytest.fixture(scope="module")
@@ -20,7 +20,7 @@ def spec() -> dict:
 
 def test_committed_spec_is_not_stale():
     assert SPEC_PATH.read_text(encoding="utf-8") == spec_text(), (
-        "openapi/openapi.json is stale: run `python -m service.openapi` and commit it")
+        "openapi/openapi.json is stale: run `python -m microbearing.service.openapi` and commit it")
 
 
 def test_spec_is_valid_openapi(spec):
@@ -154,7 +154,7 @@ def test_readme_explains_every_folded_unit_suffix(spec):
 
 
 def test_every_job_kind_has_a_typed_result():
-    from service.schemas.jobs import JOB_RESULTS
+    from microbearing.service.schemas.jobs import JOB_RESULTS
 
     root = SPEC_PATH.parent.parent / "service"
     kinds = set()

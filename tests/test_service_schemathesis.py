@@ -19,9 +19,9 @@ from schemathesis.specs.openapi.checks import (
     status_code_conformance,
 )
 
-from service.app import create_app
-from service.deps import close_runtime
-from service.settings import Settings
+from microbearing.service.app import create_app
+from microbearing.service.deps import close_runtime
+from microbearing.service.settings import Settings
 
 # Small limits so that generated requests also reach the 413 and job (202) paths quickly.
 _DATA_DIR = tempfile.TemporaryDirectory(prefix="microbearing-schemathesis-")

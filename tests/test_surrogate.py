@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 from scipy.stats import binom, norm, qmc
 from sklearn.gaussian_process import GaussianProcessRegressor
 
-import physics
-from surrogate import (
+from microbearing import physics
+from microbearing.surrogate import (
     GaussianProcessSurrogate,
     Space,
     accuracy,
@@ -27,7 +27,7 @@ from surrogate import (
     sobol_indices,
     to_dict,
 )
-from surrogate.sampling import predicted_error_quantile, quantile_upper_bound
+from microbearing.surrogate.sampling import predicted_error_quantile, quantile_upper_bound
 
 TARGET_BOUNDS = {"balls": (3, 40), "groove_angle_deg": (30, 75), "load_N": (0.001, 0.05),
                  "speed_m_s": (0.001, 0.2)}

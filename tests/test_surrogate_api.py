@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-import physics
-from service.app import create_app
-from service.deps import get_runtime
-from service.models import resolve
-from service.problems import ProblemError
-from service.settings import Settings
-from service.surrogates import quality_warnings
+from microbearing import physics
+from microbearing.service.app import create_app
+from microbearing.service.deps import get_runtime
+from microbearing.service.models import resolve
+from microbearing.service.problems import ProblemError
+from microbearing.service.settings import Settings
+from microbearing.service.surrogates import quality_warnings
 
 PROBLEM = "application/problem+json"
 SPACE = {"load_N": [0.001, 0.05], "speed_m_s": [0.001, 0.2], "balls": [3, 12]}

@@ -15,10 +15,10 @@ import requests
 import umbridge
 from fastapi.testclient import TestClient
 
-import physics
 from bench.api import start_server
-from service.app import create_app
-from service.settings import Settings
+from microbearing import physics
+from microbearing.service.app import create_app
+from microbearing.service.settings import Settings
 
 REPO = Path(__file__).resolve().parent.parent
 KEY = "uq-test-key"

@@ -14,7 +14,7 @@ Adding a resource
    client (``create_surrogate``, ``get_surrogate``) and
    ``responses=problem_responses(<extra codes>)`` so its errors are documented as
    ``application/problem+json``. Register it by adding ``<resource>.router`` to
-   :data:`service.app.ROUTERS`, then run ``python -m service.openapi`` and commit
+   :data:`service.app.ROUTERS`, then run ``python -m microbearing.service.openapi`` and commit
    ``openapi/openapi.json`` (a test fails while the spec is stale).
 3. Errors: raise :class:`service.problems.ProblemError` (``ProblemError(404, "There is no
    surrogate 'x'.")``) or :func:`service.problems.validation_problem` (``[{"pointer": "/fixed/load_N",

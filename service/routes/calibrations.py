@@ -8,8 +8,8 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
 
-import physics
-from calibrate import DataError, Dataset, check_request, parse_assignments, parse_csv, parse_rows
+from microbearing import physics
+from microbearing.calibrate import DataError, Dataset, check_request, parse_assignments, parse_csv, parse_rows
 
 from ..calibrations import calibration_view, data_problem, load_calibration, run_calibration
 from ..deps import JobsDep, SettingsDep, StoreDep

@@ -7,7 +7,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 from fastapi import APIRouter
 
-import physics
+from microbearing import physics
 
 from ..deps import JobsDep, SettingsDep, StoreDep
 from ..problems import ProblemError, problem_responses

@@ -15,7 +15,7 @@ from fastapi.routing import APIRoute
 from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
 
-import physics
+from microbearing import physics
 
 from ..deps import SettingsDep, StoreDep
 from ..models import Model, list_references

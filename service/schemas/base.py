@@ -22,7 +22,7 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError
 from starlette.concurrency import run_in_threadpool
 
-import physics
+from microbearing import physics
 
 from ..problems import VALIDATION_TYPE, ProblemError
 

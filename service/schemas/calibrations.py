@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 from pydantic import Field, create_model
 
-import physics
+from microbearing import physics
 
 from .base import Convention, ConventionName, ResponseModel, StrictModel, parameter_fields
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field, create_model
 
-import physics
+from microbearing import physics
 
 from .base import (
     Convention,

@@ -6,9 +6,9 @@ from typing import Annotated, Literal
 
 from pydantic import Field, create_model
 
-import physics
-from optimize.general import SPEED_GRID_POINTS
-from optimize.problem import DESIGN_VARIABLES
+from microbearing import physics
+from microbearing.optimize.general import SPEED_GRID_POINTS
+from microbearing.optimize.problem import DESIGN_VARIABLES
 
 from .base import Convention, ConventionName, ResponseModel, StrictModel, parameter_fields
 

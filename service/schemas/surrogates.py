@@ -7,8 +7,8 @@ from typing import Annotated, Any
 
 from pydantic import Field, create_model
 
-import physics
-import surrogate.sampling
+import microbearing.surrogate.sampling  # noqa: F401  (loads the submodule)
+from microbearing import physics, surrogate
 
 from .base import (
     Convention,

@@ -6,7 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, create_model
 
-import physics
+from microbearing import physics
 
 from .base import Convention, ConventionName, OutputName, ResponseModel, StrictModel, parameter_fields
 
