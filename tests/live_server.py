@@ -25,6 +25,36 @@ def free_port() -> int:
         return sock.getsockname()[1]
 
 
+def wait_healthy(url: str, process: subprocess.Popen, log: Path, timeout_s: float = 90.0) -> None:
+    """Poll ``url/healthz`` until it answers 200.
+
+    Raises
+    ------
+    RuntimeError
+        With the end of the server's ``log`` when ``process`` exits or ``timeout_s`` [s] pass first.
+    """
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            if httpx.get(f"{url}/healthz", timeout=1).status_code == 200:
+                return
+        except httpx.TransportError:
+            pass
+        if process.poll() is not None or time.monotonic() > deadline:
+            raise RuntimeError(f"the server did not start: {log.read_text(errors='replace')[-2000:]}")
+        time.sleep(0.1)
+
+
+def terminate(process: subprocess.Popen) -> None:
+    """SIGTERM to a server process, SIGKILL if it has not ended 20 s later."""
+    process.terminate()
+    try:
+        process.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+
+
 class Server:
     """``uvicorn service.app:app`` on a loopback port and a given data folder, in its own process group.
 
@@ -51,17 +81,11 @@ class Server:
             cwd=REPO, env=env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
         self.url = f"http://127.0.0.1:{self.port}"
         self.client = httpx.Client(base_url=self.url, timeout=60.0)
-        deadline = time.monotonic() + 90
-        while True:
-            try:
-                if self.client.get("/healthz").status_code == 200:
-                    return
-            except httpx.TransportError:
-                pass
-            if self.process.poll() is not None or time.monotonic() > deadline:
-                self.stop()
-                raise RuntimeError(f"the server did not start; see {log}")
-            time.sleep(0.1)
+        try:
+            wait_healthy(self.url, self.process, log)
+        except RuntimeError:
+            self.stop()
+            raise
 
     def kill(self) -> None:
         """SIGKILL: no shutdown handler runs, exactly as in a power cut of the process."""

@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import os
 import re
-import socket
 import subprocess
 import sys
 import sysconfig
-import time
 import tomllib
 import zipfile
 from pathlib import Path
 
 import httpx
+from live_server import free_port, terminate, wait_healthy
 
 import microbearing
 
@@ -66,12 +65,6 @@ def _stub_surrogate_wheel(folder: Path) -> Path:
     return wheel
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 def test_wheel_in_a_fresh_venv_beside_a_package_named_surrogate(tmp_path):
     dist = tmp_path / "dist"
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(dist), str(REPO)],
@@ -107,33 +100,19 @@ def test_wheel_in_a_fresh_venv_beside_a_package_named_surrogate(tmp_path):
         capture_output=True, text=True, cwd=tmp_path, env=env, timeout=120)
     assert check.returncode == 0, check.stderr
 
-    port = _free_port()
+    port = free_port()
     log = (tmp_path / "server.log").open("wb")
     server = subprocess.Popen([str(python), "-m", "microbearing", "serve", "--port", str(port),
                                "--data-dir", str(tmp_path / "data")],
                               cwd=tmp_path, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                if httpx.get(f"{url}/healthz", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            assert server.poll() is None and time.monotonic() < deadline, (
-                (tmp_path / "server.log").read_text())
-            time.sleep(0.2)
+        wait_healthy(url, server, tmp_path / "server.log", timeout_s=60)
         point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}
         answer = httpx.post(f"{url}/v1/friction", json=point, timeout=30)
         assert answer.status_code == 200 and answer.json()["mu"] > 0
         assert httpx.get(f"{url}/v1/surrogates", timeout=30).status_code == 200
         assert httpx.get(f"{url}/docs/assets/swagger-ui-bundle.js", timeout=30).status_code == 200
     finally:
-        server.terminate()
-        try:
-            server.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.wait()
+        terminate(server)
         log.close()

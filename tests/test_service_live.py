@@ -10,11 +10,10 @@ import shutil
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
-import httpx
 import pytest
+from live_server import free_port, terminate, wait_healthy
 
 REPO = Path(__file__).resolve().parent.parent
 README = REPO / "README.md"
@@ -22,16 +21,10 @@ README_EXAMPLES_HEADING = "### REST API examples"
 README_URL = "http://127.0.0.1:8000"
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     """Base URL of a server run by ``microbearing serve`` on a free loopback port and a tmp data dir."""
-    port = _free_port()
+    port = free_port()
     data_dir = tmp_path_factory.mktemp("live-data")
     env = {**os.environ, "MICROBEARING_SWEEP_SYNC_MAX_POINTS": "10000"}
     log_path = tmp_path_factory.mktemp("live-log") / "server.log"
@@ -41,25 +34,11 @@ def server(tmp_path_factory):
          "--port", str(port), "--data-dir", str(data_dir)],
         cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 60
     try:
-        while True:
-            try:
-                if httpx.get(f"{url}/healthz", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            if process.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError(f"server did not start: {log_path.read_text()[-2000:]}")
-            time.sleep(0.1)
+        wait_healthy(url, process, log_path, timeout_s=60)
         yield url
     finally:
-        process.terminate()
-        try:
-            process.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        terminate(process)
         log.close()
     assert (data_dir / "microbearing.sqlite3").exists()  # the data dir given on the command line
     # every line the server wrote is a JSON object: uvicorn's startup and shutdown lines too
