@@ -217,6 +217,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     from .executor import evaluate_in_chunks
     from .models import physics_in
     from .problems import ProblemError
+    from .schemas.base import with_folding_safe_names
     from .store import to_json
     from .tables import csv_text
 
@@ -230,7 +231,8 @@ def _evaluate(args: argparse.Namespace) -> int:
         if args.csv is None:
             point = evaluate_point({**_defaults(fixed), **fixed}, args.convention)
             chosen = {name: point[name] for name in outputs or point}
-            _write(args.output, to_json({"convention": args.convention, **chosen}) + "\n")
+            document = with_folding_safe_names({"convention": args.convention, **chosen})
+            _write(args.output, to_json(document) + "\n")
             return EXIT_OK
         columns, count = _csv_points(args.csv)
         clash = sorted(set(columns) & set(fixed))

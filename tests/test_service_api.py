@@ -15,6 +15,7 @@ from fastapi.testclient import TestClient
 
 from microbearing import physics
 from microbearing.service.app import create_app
+from microbearing.service.schemas.base import FOLDING_SAFE_NAMES
 from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
@@ -61,9 +62,11 @@ def test_friction_returns_the_physics_outputs_with_defaults(client):
     body = response.json()
     expected = physics.evaluate(**POINT)
     assert body["convention"] == physics.DEFAULT_CONVENTION
-    assert set(body) == {"convention", *physics.OUTPUTS}
+    assert set(body) == {"convention", *physics.OUTPUTS, *FOLDING_SAFE_NAMES.values()}
     for name in physics.OUTPUTS:
         assert body[name] == float(getattr(expected, name)), name  # JSON keeps floats exactly
+    for name, alias in FOLDING_SAFE_NAMES.items():
+        assert body[alias] == body[name], alias
     # Independent hand calculations of two outputs (eq 7 and eq 1) with the table defaults.
     theta = math.radians(54.7)
     assert body["contact_load_N"] == pytest.approx(0.01 / (2 * 4 * math.cos(theta)), rel=1e-12)
@@ -179,9 +182,10 @@ def test_batch_broadcasts_scalars_and_matches_the_physics(client):
     body = client.post("/v1/friction/batch", json=request).json()
     expected = physics.evaluate(balls=18, load_N=np.array(loads), speed_m_s=np.array(speeds),
                                 balls_touching=True)
-    assert set(body) == set(physics.OUTPUTS)
+    assert set(body) == {*physics.OUTPUTS, *FOLDING_SAFE_NAMES.values()}
     for name in physics.OUTPUTS:
         assert body[name] == getattr(expected, name).tolist(), name
+    assert body["pivoting_moment_newton_metre"] == body["pivoting_moment_Nm"]
     assert body["mu_rolling"][0] == 0.0  # no rolling force at rest
 
 

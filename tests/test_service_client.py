@@ -228,7 +228,11 @@ def _(s: Session) -> None:
     # The generator folds names to snake case: load_N is the attribute load_n (README, "Generated clients").
     body = s.models.FrictionRequest(balls=4, load_n=0.01, speed_m_s=0.1)
     one = typed(s.call("evaluate_friction", body=body), "FrictionResponse")
-    assert one.mu == float(physics.evaluate(balls=4, load_N=0.01, speed_m_s=0.1).mu)
+    exact = physics.evaluate(balls=4, load_N=0.01, speed_m_s=0.1)
+    assert one.mu == float(exact.mu)
+    # _Nm folds to _nm (nanometres): the moments also come under names that survive folding.
+    assert one.pivoting_moment_newton_metre == one.pivoting_moment_nm == float(exact.pivoting_moment_Nm) > 0
+    assert one.ball_ball_moment_newton_metre == float(exact.ball_ball_moment_Nm)
     problem = typed(s.call("evaluate_friction", body=s.models.FrictionRequest(balls=4, load_n=-1.0,
                                                                              speed_m_s=0.1)),
                     "Problem", status=422)
@@ -242,6 +246,12 @@ def _(s: Session) -> None:
                                             "outputs": ["mu"]})
     batch = typed(s.call("evaluate_friction_batch", body=body), "FrictionBatchResponse")
     assert batch.mu == physics.evaluate(balls=4, load_N=0.01, speed_m_s=speeds).mu.tolist()
+    assert type(batch.hysteresis_moment_newton_metre).__name__ == "Unset"  # not asked for, under no name
+    body = s.model("FrictionBatchRequest", {"points": {"balls": 4, "load_N": 0.01, "speed_m_s": speeds},
+                                            "outputs": ["hysteresis_moment_Nm"]})
+    moments = typed(s.call("evaluate_friction_batch", body=body), "FrictionBatchResponse")
+    exact = physics.evaluate(balls=4, load_N=0.01, speed_m_s=speeds).hysteresis_moment_Nm.tolist()
+    assert moments.hysteresis_moment_newton_metre == moments.hysteresis_moment_nm == exact
 
 
 @drives("create_sweep")

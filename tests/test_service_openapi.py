@@ -153,6 +153,37 @@ def test_readme_explains_every_folded_unit_suffix(spec):
     assert suffixes and not missing, f"README's table of folded unit suffixes lacks {missing}"
 
 
+def _unit_suffix(name: str) -> str:
+    """The unit part of a field name: from its first capital, or from a digit after "_" (``_1_Pa``)."""
+    stem = name.rstrip("_")
+    return name[next(i for i, c in enumerate(stem) if c.isupper() or (c.isdigit() and stem[i - 1] == "_")):]
+
+
+def test_no_generated_name_reads_as_another_unit(spec):
+    # Folding turns a unit symbol into another when the lower-case letters spell a prefixed unit:
+    # _Nm (newton metre) becomes _nm (nanometre). Every such field must stand beside an alias that
+    # survives folding unchanged and carries the same meaning (README, "Field names in generated clients").
+    from openapi_python_client.strings import PythonIdentifier
+
+    from microbearing.service.schemas.base import FOLDING_SAFE_NAMES
+
+    prefixes, units = "pnumcdkMG", ["m", "g", "s", "N", "Pa", "J", "W", "Hz", "K"]
+    symbols = {prefix + unit for prefix in prefixes for unit in units}
+    folded_symbols = {symbol.lower() for symbol in symbols}
+    misread = []
+    for schema_name, schema in spec["components"]["schemas"].items():
+        fields = schema.get("properties", {})
+        for name in fields:
+            if not any(c.isupper() for c in name):
+                continue  # no case to lose
+            cased = _unit_suffix(name).strip("_").split("_")
+            if any(token.lower() in folded_symbols and token not in symbols for token in cased):
+                alias = FOLDING_SAFE_NAMES.get(name)
+                if alias is None or alias not in fields or PythonIdentifier(alias, "") != alias:
+                    misread.append(f"{schema_name}.{name}")
+    assert FOLDING_SAFE_NAMES and not misread, f"fields whose generated name reads as another unit: {misread}"
+
+
 def test_every_job_kind_has_a_typed_result():
     from microbearing.service.schemas.jobs import JOB_RESULTS
 

@@ -14,7 +14,7 @@ from ..evaluation import column_arrays, evaluate_point
 from ..executor import evaluate_in_chunks
 from ..models import physics_in
 from ..problems import problem_responses, validation_problem
-from ..schemas.base import parse_json_body, raw_json_body
+from ..schemas.base import parse_json_body, raw_json_body, with_folding_safe_names
 from ..schemas.friction import FrictionBatchRequest, FrictionBatchResponse, FrictionRequest, FrictionResponse
 from ..tables import json_bytes
 
@@ -34,20 +34,20 @@ async def evaluate_friction(request: Request) -> Response:
         given = body.model_dump(exclude_unset=True, exclude={"convention", "model", "conditions"})
         document = await run_in_threadpool(evaluate_point_with_model, await get_store(request), body.model,
                                            given, body.conditions)
-        return Response(json_bytes(document), media_type="application/json")
+        return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
     if body.conditions is not None:
         raise validation_problem([{"pointer": "/conditions",
                                    "detail": "only a calibrated model reads conditions"}])
     inputs = body.model_dump(exclude={"convention", "model", "conditions"})
     document = {"convention": str(body.convention), **evaluate_point(inputs, body.convention)}
-    return Response(json_bytes(document), media_type="application/json")
+    return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
 
 
 def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor) -> bytes:
     inputs, count = column_arrays(request.points.model_dump(), max_points)
     # Chunks of points on the app's executor (thread pool or dask cluster, service/executor.py).
-    return json_bytes(evaluate_in_chunks(executor, inputs, count, request.outputs,
-                                         physics_in(request.convention), pointer="/points"))
+    return json_bytes(with_folding_safe_names(evaluate_in_chunks(
+        executor, inputs, count, request.outputs, physics_in(request.convention), pointer="/points")))
 
 
 @router.post("/batch", operation_id="evaluate_friction_batch", response_model=FrictionBatchResponse,

@@ -35,7 +35,9 @@ __all__ = [
     "OutputName",
     "ResponseModel",
     "StrictModel",
+    "FOLDING_SAFE_NAMES",
     "add_raw_body_schemas",
+    "with_folding_safe_names",
     "output_fields",
     "parameter_description",
     "parameter_fields",
@@ -130,8 +132,34 @@ def parameter_fields(*, columns: bool = False, optional: bool = False,
     return fields
 
 
+#: Unit suffixes whose letters mean another unit once a client generator folds them to lower case
+#: (``_Nm``, newton metre, would read as ``_nm``, nanometre), with the spelling that survives folding.
+_FOLDING_SAFE_SUFFIXES = {"_Nm": "_newton_metre"}
+
+#: Outputs answered under a second, folding-safe name: ``{physics name: alias}``. The answer carries
+#: both with the same value; a generated client reads the alias (``pivoting_moment_newton_metre``).
+FOLDING_SAFE_NAMES = {
+    name: name[: -len(suffix)] + safe
+    for name in physics.OUTPUTS for suffix, safe in _FOLDING_SAFE_SUFFIXES.items() if name.endswith(suffix)
+}
+
+
+def with_folding_safe_names(document: dict[str, Any]) -> dict[str, Any]:
+    """``document`` (outputs by physics name) with the alias of :data:`FOLDING_SAFE_NAMES` beside each
+    output it holds, the same value under both names; changes ``document`` in place and returns it.
+
+    >>> with_folding_safe_names({"mu": 0.1, "pivoting_moment_Nm": 2e-9})
+    {'mu': 0.1, 'pivoting_moment_Nm': 2e-09, 'pivoting_moment_newton_metre': 2e-09}
+    """
+    for name, alias in FOLDING_SAFE_NAMES.items():
+        if name in document:
+            document[alias] = document[name]
+    return document
+
+
 def output_fields(*, columns: bool = False, optional: bool = False) -> dict[str, Any]:
-    """``create_model`` field definitions for the outputs of :data:`physics.OUTPUTS`.
+    """``create_model`` field definitions for the outputs of :data:`physics.OUTPUTS`, and the
+    folding-safe aliases of :data:`FOLDING_SAFE_NAMES`.
 
     Parameters
     ----------
@@ -141,12 +169,18 @@ def output_fields(*, columns: bool = False, optional: bool = False) -> dict[str,
         Fields may be absent (when the client chose some outputs).
     """
     fields: dict[str, Any] = {}
+    kind: Any = list[float] if columns else float
     for name, (unit, meaning) in physics.OUTPUTS.items():
-        kind: Any = list[float] if columns else float
-        if optional:
-            fields[name] = (kind | None, Field(default=None, description=f"{meaning} [{unit}]"))
-        else:
-            fields[name] = (kind, Field(description=f"{meaning} [{unit}]"))
+        descriptions = {name: f"{meaning} [{unit}]"}
+        if name in FOLDING_SAFE_NAMES:
+            descriptions[FOLDING_SAFE_NAMES[name]] = (
+                f"{meaning} [{unit}]; the value of {name}, under a name that keeps its unit when a "
+                "client generator folds case")
+        for field, description in descriptions.items():
+            if optional:
+                fields[field] = (kind | None, Field(default=None, description=description))
+            else:
+                fields[field] = (kind, Field(description=description))
     return fields
 
 
