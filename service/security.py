@@ -41,9 +41,9 @@ from fastapi import FastAPI
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
+from .schemas.umbridge import PREFIX as UMBRIDGE_PREFIX
 from .settings import Settings
 from .store import REQUESTER, Requester
-from .umbridge import PREFIX as UMBRIDGE_PREFIX
 
 __all__ = ["DOCS_ASSETS_PATH", "OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "app_path",
            "document_openapi", "install", "key_id", "parse_api_keys"]

@@ -38,15 +38,14 @@ from microbearing import physics
 
 from .models import InputError, Model, jacobian, resolve
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError
-from .schemas.umbridge import UMBridgeConfig
+from .schemas.umbridge import PREFIX, UMBridgeConfig
+from .security import app_path
 from .store import Store, json_bytes
 
 __all__ = ["FLAG_OUTPUT", "PREFIX", "PROTOCOL_VERSION", "SUPPORT", "ProtocolError", "ProtocolErrorMiddleware",
            "Setup", "apply_jacobian", "evaluate", "find_model", "gradient", "name_of", "protocol_error",
            "validation_error"]
 
-#: Where the protocol is served: clients are given ``http://host:port/umbridge``.
-PREFIX = "/umbridge"
 PROTOCOL_VERSION = 1.0
 #: What every model supports (second derivatives of finite differences would not be trustworthy).
 SUPPORT = {"Evaluate": True, "Gradient": True, "ApplyJacobian": True, "ApplyHessian": False}
@@ -311,7 +310,7 @@ class ProtocolErrorMiddleware:
         self.app = app
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or not scope["path"].startswith(PREFIX + "/"):
+        if scope["type"] != "http" or not app_path(scope).startswith(PREFIX + "/"):
             await self.app(scope, receive, send)
             return
         start: Message | None = None

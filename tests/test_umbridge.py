@@ -311,3 +311,14 @@ def test_derivatives_at_the_bounds_of_a_range_step_inside_it(local):
         assert answer.status_code == 200, answer.text
         # One-sided differences of order 8: well inside the promised 1e-6.
         assert answer.json()["output"][0] == pytest.approx(slope["output"][0][0], rel=1e-7)
+
+
+def test_errors_keep_the_protocol_form_behind_a_proxy_prefix(tmp_path):
+    # Served under a root path (uvicorn --root-path /api behind a proxy), the app's own paths start
+    # after the prefix; the 404 of an unknown route still reaches a UM-Bridge client in its form.
+    settings = Settings(data_dir=tmp_path)
+    with TestClient(create_app(settings), root_path="/api") as client:
+        assert client.get("/api/umbridge/Info").json()["models"] == ["physics"]
+        response = client.post("/api/umbridge/Nope", json=POINT)
+    assert response.status_code == 404
+    assert response.json()["error"]["type"] == "UnsupportedFeature"

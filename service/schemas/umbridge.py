@@ -11,7 +11,10 @@ from pydantic import Field
 
 from .base import ConventionName, StrictModel
 
-__all__ = ["UMBridgeApplyJacobianRequest", "UMBridgeConfig", "UMBridgeEvaluateRequest",
+#: Where the protocol is served: clients are given ``http://host:port/umbridge``.
+PREFIX = "/umbridge"
+
+__all__ = ["PREFIX", "UMBridgeApplyJacobianRequest", "UMBridgeConfig", "UMBridgeEvaluateRequest",
            "UMBridgeGradientRequest", "UMBridgeRequest"]
 
 
