@@ -203,3 +203,25 @@ def test_the_point_limit_holds_for_condition_lists(data_dir, calibration):
         assert len(small.post("/v1/friction/batch", json=request).json()["mu"]) == 12
         request["conditions"]["relative_humidity"] = [0.5] * 13
         assert "limit" in assert_problem(small.post("/v1/friction/batch", json=request), 413)["detail"]
+
+
+def test_a_batch_of_several_chunks_answers_each_point_as_alone(client, calibration):
+    """Chunks of 65,536 points: the points either side of a chunk boundary, and one warning for the batch."""
+    count = 66_000
+    load_N = np.linspace(0.005, 0.04, count)  # the upper end lies above the data's loads
+    humidity = np.linspace(0.3, 0.7, count)
+    request = {"points": {"balls": 4, "load_N": load_N.tolist(), "speed_m_s": 0.05},
+               "model": calibration["model_id"], "conditions": {"relative_humidity": humidity.tolist()},
+               "outputs": ["mu"]}
+    batch = client.post("/v1/friction/batch", json=request).json()
+    picked = [0, 65_535, 65_536, count - 1]
+    alone = client.post("/v1/friction/batch", json={
+        **request, "points": {"balls": 4, "load_N": load_N[picked].tolist(), "speed_m_s": 0.05},
+        "conditions": {"relative_humidity": humidity[picked].tolist()}}).json()
+    for name in ("mu", "mu_lower", "mu_upper"):
+        np.testing.assert_allclose([batch[name][i] for i in picked], alone[name], rtol=1e-12)
+    assert [batch["in_domain"][i] for i in picked] == alone["in_domain"]
+    outside = count - sum(batch["in_domain"])
+    low, high = calibration["model"]["domain"]["load_N"]
+    assert outside == np.count_nonzero((load_N < low) | (load_N > high)) > 0
+    assert len(batch["domain_warnings"]) == 1 and f"({outside} point(s))" in batch["domain_warnings"][0]
