@@ -4,7 +4,8 @@ Run: ``.venv/bin/python -m bench.calibrated_batch`` (about a minute; ``--points`
 
 In process (FastAPI's TestClient, a temporary data folder): calibrates a model on 60 synthetic
 measurements (physics with mu_pivot 0.7 and menisci growing with relative humidity, 2 % noise,
-mu_pivot fitted), then times, in one run and alternating over the repeats,
+mu_pivot fitted; tests/test_service_calibrated_batch.py uses the same model), then times, in one
+run and alternating over the repeats,
 
 * ``POST /v1/friction/batch`` of N points (load, speed and humidity as lists) on the physics and on
   the calibrated model, with ``mu`` only (the calibrated answer adds mu_effect, mu_lower, mu_upper,
@@ -39,25 +40,31 @@ LOOP_SAMPLE = 200
 
 
 def measurements(seed: int) -> list[dict]:
-    """Synthetic tribometer rows: mu_pivot 0.7, a humidity meniscus term, 2 % log-normal noise."""
+    """Synthetic tribometer rows: mu_pivot 0.7, a humidity meniscus term, 2 % log-normal noise, and a
+    temperature column no term reads."""
     rng = np.random.default_rng(seed)
     c = {"balls": rng.choice([4, 8], N_ROWS).astype(float),
          "load_N": np.exp(rng.uniform(np.log(5e-3), np.log(3e-2), N_ROWS)),
          "speed_m_s": rng.uniform(0.01, 0.15, N_ROWS),
-         "relative_humidity": rng.uniform(0.2, 0.8, N_ROWS)}
+         "relative_humidity": rng.uniform(0.2, 0.8, N_ROWS),
+         "temperature_C": rng.uniform(20.0, 40.0, N_ROWS)}
     mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7).mu
     mu = (mu + c["balls"] * 2e-5 / (c["load_N"] * np.log(1 / c["relative_humidity"]))) * np.exp(
         rng.normal(0.0, 0.02, N_ROWS))
     return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(N_ROWS)]
 
 
-def calibrated_model(client: TestClient) -> str:
+def calibration(client: TestClient, timeout_s: float = 300.0) -> dict:
+    """The result of calibrating mu_pivot on :func:`measurements` (seed 3, 3 folds) through the API."""
     response = client.post("/v1/calibrations", json={"data": measurements(3), "fit_parameters": ["mu_pivot"],
                                                      "folds": 3})
+    assert response.status_code == 202, response.text
+    deadline = time.monotonic() + timeout_s
     while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
         time.sleep(0.1)
     assert job["status"] == "succeeded", job
-    return client.get(job["result_url"]).json()["model_id"]
+    return client.get(job["result_url"]).json()
 
 
 def timed(call) -> float:
@@ -78,7 +85,7 @@ def main() -> None:
     speed_m_s = rng.uniform(0.01, 0.15, n).tolist()
     humidity = rng.uniform(0.2, 0.8, n).tolist()
     with tempfile.TemporaryDirectory() as folder, TestClient(create_app(Settings(data_dir=folder))) as client:
-        model = calibrated_model(client)
+        model = calibration(client)["model_id"]
         points = {"balls": 4, "load_N": load_N, "speed_m_s": speed_m_s}
         requests = {
             "physics, mu": {"points": points, "outputs": ["mu"]},

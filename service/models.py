@@ -3,12 +3,13 @@
 A model reference is ``"physics"``, ``"calibrated:<id>"`` (a stored calibration,
 :mod:`service.calibrations`) or ``"surrogate:<id>"`` (a stored surrogate,
 :mod:`service.surrogates`). :func:`resolve` turns a reference into a :class:`Model`,
-and it is the only place that does: /v1/friction with a calibrated model, /v1/optimizations,
-surrogate training on a calibrated model and the UM-Bridge protocol (:mod:`service.umbridge`)
-all get their model here; /v1/friction/batch and sweeps, which evaluate the physics only, take
-its model from :func:`physics_in` and evaluate it chunk by chunk
-(:func:`service.executor.evaluate_in_chunks`). A single physics point of /v1/friction calls
-:func:`service.evaluation.evaluate_point` directly: it is dominated by per-request overhead.
+and it is the only place that does: /v1/friction and /v1/friction/batch with a calibrated model,
+/v1/optimizations, surrogate training on a calibrated model and the UM-Bridge protocol
+(:mod:`service.umbridge`) all get their model here; a physics batch and sweeps, which evaluate
+the physics only, take its model from :func:`physics_in`. Batches and sweeps evaluate their model
+chunk by chunk (:func:`service.executor.evaluate_in_chunks`). A single physics point of
+/v1/friction calls :func:`service.evaluation.evaluate_point` directly: it is dominated by
+per-request overhead.
 
 A :class:`Model` states
 

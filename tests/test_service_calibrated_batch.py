@@ -2,33 +2,17 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from bench.calibrated_batch import calibration as calibrate_through_the_api
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel
 from microbearing.service.app import create_app
 from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
-N_ROWS = 60
-
-
-def measurements(seed: int) -> list[dict]:
-    """Physics with mu_pivot 0.7, menisci growing with humidity, 2 % noise; temperature is read by nothing."""
-    rng = np.random.default_rng(seed)
-    c = {"balls": rng.choice([4, 8], N_ROWS).astype(float),
-         "load_N": np.exp(rng.uniform(np.log(5e-3), np.log(3e-2), N_ROWS)),
-         "speed_m_s": rng.uniform(0.01, 0.15, N_ROWS),
-         "relative_humidity": rng.uniform(0.2, 0.8, N_ROWS),
-         "temperature_C": rng.uniform(20.0, 40.0, N_ROWS)}
-    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7).mu
-    mu = mu + c["balls"] * 2e-5 / (c["load_N"] * np.log(1 / c["relative_humidity"]))
-    mu = mu * np.exp(rng.normal(0.0, 0.02, N_ROWS))
-    return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(N_ROWS)]
 
 
 @pytest.fixture(scope="module")
@@ -44,16 +28,10 @@ def client(data_dir):
 
 @pytest.fixture(scope="module")
 def calibration(client) -> dict:
-    body = {"data": measurements(3), "fit_parameters": ["mu_pivot"], "folds": 3}
-    response = client.post("/v1/calibrations", json=body)
-    assert response.status_code == 202, response.text
-    deadline = time.monotonic() + 300
-    while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.1)
-    assert job["status"] == "succeeded", job
-    result = client.get(job["result_url"]).json()
+    """A model of menisci growing with relative humidity; its data also has a temperature no term reads."""
+    result = calibrate_through_the_api(client)
     assert CalibratedModel.from_json(result["model"]).required_columns == ["relative_humidity"], result
+    assert "temperature_C" in result["model"]["conditions"]
     return result
 
 
