@@ -268,9 +268,9 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
         evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs)
     except InputError as exc:
         raise _input_problem(exc, "") from None
-    fields = _model_fields(mu_model, evaluation.values, evaluation.outside_domain, evaluation.warnings)
-    return {**{name: float(value) for name, value in evaluation.values.items()},
-            "convention": mu_model.convention, **fields,
+    values = {name: float(value) for name, value in evaluation.values.items()}
+    fields = _model_fields(mu_model, values, evaluation.outside_domain, evaluation.warnings)
+    return {**values, "convention": mu_model.convention, **fields,
             "in_domain": None if fields["in_domain"] is None else bool(fields["in_domain"])}
 
 
@@ -346,8 +346,8 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
     with np.errstate(all="ignore"):
         inside, warnings = mu_model.calibrated.domain_check(everything)
     outside = None if inside is None else ~np.broadcast_to(inside, (count,))
-    fields = _model_fields(mu_model, values, outside, warnings)
-    return {**values, **{name: value for name, value in fields.items() if value is not None}}
+    answer = {**values, **_model_fields(mu_model, values, outside, warnings)}
+    return {name: value for name, value in answer.items() if value is not None}
 
 
 def with_conditions(model: Model, conditions: Mapping[str, float] | None,

@@ -10,6 +10,7 @@ from bench.calibrated_batch import calibration as calibrate_through_the_api
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel
 from microbearing.service.app import create_app
+from microbearing.service.deps import get_runtime
 from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
@@ -203,3 +204,20 @@ def test_a_batch_of_several_chunks_answers_each_point_as_alone(client, calibrati
     low, high = calibration["model"]["domain"]["load_N"]
     assert outside == np.count_nonzero((load_N < low) | (load_N > high)) > 0
     assert len(batch["domain_warnings"]) == 1 and f"({outside} point(s))" in batch["domain_warnings"][0]
+
+
+def test_a_model_stored_without_interval_or_domain_answers_mu_alone(client):
+    """A calibrated model saved before intervals and domains: mu, and neither bounds nor a domain flag."""
+    plain = CalibratedModel(fitted={"mu_pivot": 0.7})
+    assert plain.covariance is None and plain.domain is None
+    store = get_runtime(client.app).store
+    stored = store.save_model("calibration", {"model": plain.to_json()}, {}, name="old")
+    points = {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}
+    batch = client.post("/v1/friction/batch", json={"points": points, "model": f"calibrated:{stored}"}).json()
+    assert batch["mu"] == physics.evaluate(balls=4, load_N=np.array([0.01, 0.02]), speed_m_s=0.05,
+                                           mu_pivot=0.7).mu.tolist()
+    assert batch["mu_effect"] == [0.0, 0.0] and batch["domain_warnings"] == []
+    assert not {"mu_lower", "mu_upper", "in_domain"} & set(batch)
+    single = client.post("/v1/friction", json={"balls": 4, "load_N": 0.02, "speed_m_s": 0.05,
+                                               "model": f"calibrated:{stored}"}).json()
+    assert single["mu"] == batch["mu"][1] and single["mu_lower"] is None and single["in_domain"] is None
