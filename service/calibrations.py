@@ -4,13 +4,16 @@ A calibration is stored once, as a model of kind ``"calibration"`` in the SQLite
 report and the calibrated model as JSON metadata, its plots as PNG bytes (``uint8`` arrays).
 :func:`load_mu_model` turns ``"physics"`` or ``"calibrated:<id>"`` into a model
 (:func:`service.models.resolve`), callable as ``mu_model(points) -> mu``, for /v1/friction,
-optimization and surrogates; :func:`with_conditions`
-adds the condition columns a calibrated model's effect reads.
+optimization and surrogates; :func:`check_conditions` refuses conditions a model cannot read,
+:func:`with_conditions` adds the condition columns a calibrated model's effect reads, and
+:func:`evaluate_point_with_model` and :func:`evaluate_batch_with_model` answer /v1/friction and
+/v1/friction/batch through :meth:`~service.models.CalibratedPhysicsModel.evaluate`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
@@ -18,16 +21,16 @@ import numpy as np
 from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 
-from .models import CalibratedPhysicsModel, Model, resolve
+from .evaluation import column_arrays
+from .executor import evaluate_in_chunks
+from .models import CalibratedPhysicsModel, InputError, Model, resolve
 from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
-__all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_view", "data_problem",
-           "evaluate_point_with_model", "interval_at", "load_calibration", "load_mu_model",
-           "prediction_fields",
-           "run_calibration",
-           "with_conditions"]
+__all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_view", "check_conditions", "data_problem",
+           "evaluate_batch_with_model", "evaluate_point_with_model", "interval_at", "load_calibration",
+           "load_mu_model", "prediction_fields", "run_calibration", "with_conditions"]
 
 KIND = "calibration"
 MODEL_PREFIX = "calibrated:"
@@ -127,16 +130,38 @@ def load_calibration(store: Store, calibration_id: str):
     return stored
 
 
-def _condition_problems(model: Any, conditions: Mapping[str, Any], pointer: str) -> None:
-    """422 naming every condition that is a physics input, or a column the calibration never saw."""
+def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str = "/conditions") -> None:
+    """Refuse conditions a model cannot read, and a calibrated model's missing ones.
+
+    Parameters
+    ----------
+    model : Model
+        A resolved model (:func:`service.models.resolve`); only a calibrated one reads conditions.
+    conditions : mapping
+        Condition columns by name (values are not looked at).
+    pointer : str
+        JSON pointer of the conditions in the request.
+
+    Raises
+    ------
+    ProblemError
+        422 naming every condition that is a physics input (``<pointer>/<name>``), or a column the
+        calibration data did not have (its names listed); else 422 at ``pointer`` naming the columns
+        the model's terms read and were not given.
+    """
     items = [{"pointer": f"{pointer}/{name}", "detail": "is a physics input; give it as a field of its own"}
              for name in sorted(set(conditions) & set(physics.PARAMETERS))]
-    known = getattr(model, "conditions", None)
-    if getattr(model, "domain", None) is not None:
-        items += [{"pointer": f"{pointer}/{name}",
-                   "detail": f"unknown condition column; the calibration data had: "
-                             f"{', '.join(known) or 'none'}"}
-                  for name in sorted(set(conditions) - set(physics.PARAMETERS) - set(known))]
+    if isinstance(model, CalibratedPhysicsModel):
+        if model.domain is not None:
+            items += [{"pointer": f"{pointer}/{name}",
+                       "detail": f"unknown condition column; the calibration data had: "
+                                 f"{', '.join(model.conditions) or 'none'}"}
+                      for name in sorted(set(conditions) - set(physics.PARAMETERS) - set(model.conditions))]
+        if not items:
+            try:
+                model.calibrated.check_columns(list(conditions))
+            except ValueError as exc:
+                items.append({"pointer": pointer, "detail": str(exc)})
     if items:
         raise validation_problem(items)
 
@@ -185,9 +210,31 @@ def interval_at(model: Any,
     return fields
 
 
+def _input_problem(error: InputError, pointer: str) -> ProblemError:
+    """The 422 problem of an input a calibrated model refuses: a physics input under ``pointer``, a
+    condition under ``/conditions``."""
+    where = f"{pointer}/{error.name}" if error.name in physics.PARAMETERS else f"/conditions/{error.name}"
+    return validation_problem([{"pointer": where, "detail": str(error)}])
+
+
+def _model_fields(model: CalibratedPhysicsModel, values: Mapping[str, Any], outside: Any,
+                  warnings: list[str]) -> dict[str, Any]:
+    """What a calibrated model adds to an answer: its reference, interval bounds and domain.
+
+    ``mu_lower`` and ``mu_upper`` [1] are None for a model stored before intervals (NaN from
+    :meth:`CalibratedPhysicsModel.evaluate`), ``in_domain`` None for one stored before domains;
+    arrays stay arrays (one value per point).
+    """
+    bounds = {name: values[name] for name in ("mu_lower", "mu_upper") if name in values}
+    if any(np.isnan(value).any() for value in bounds.values()):
+        bounds = dict.fromkeys(bounds)
+    return {**bounds, "in_domain": None if model.domain is None else ~np.asarray(outside, dtype=bool),
+            "domain_warnings": list(warnings), "model": model.reference}
+
+
 def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any],
                               conditions: Mapping[str, float] | None) -> dict[str, Any]:
-    """The /v1/friction answer of a calibrated model at one point.
+    """The /v1/friction answer of a calibrated model at one point (:meth:`CalibratedPhysicsModel.evaluate`).
 
     Parameters
     ----------
@@ -214,28 +261,96 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
         404 for an unknown model, 422 naming an unknown, missing or invalid condition, or for
         non-finite outputs.
     """
-    from .evaluation import evaluate_point
-
     mu_model = load_mu_model(store, model)
     conditions = dict(conditions or {})
-    _condition_problems(mu_model, conditions, "/conditions")
-    inputs = {**mu_model.fixed, **mu_model.fitted, **given}
-    outputs = evaluate_point(inputs, mu_model.convention)
+    check_conditions(mu_model, conditions)
     try:
-        with np.errstate(all="ignore"):
-            prediction = mu_model.predict({**given, **conditions})
-    except ValueError as exc:
-        raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
-    mu = float(np.asarray(prediction.mu))
-    if not np.isfinite(mu):
-        raise validation_problem([{"pointer": "/conditions",
-                                   "detail": "the calibrated model's mu is not finite at these conditions"}])
-    return {**outputs, "convention": mu_model.convention, "mu": mu, "mu_effect": mu - outputs["mu"],
-            **prediction_fields(prediction), "model": model}
+        evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs)
+    except InputError as exc:
+        raise _input_problem(exc, "") from None
+    values = {name: float(value) for name, value in evaluation.values.items()}
+    fields = _model_fields(mu_model, values, evaluation.outside_domain, evaluation.warnings)
+    return {**values, "convention": mu_model.convention, **fields,
+            "in_domain": None if fields["in_domain"] is None else bool(fields["in_domain"])}
 
 
-def with_conditions(model: Callable[[Mapping[str, Any]], Any], reference: str,
-                    conditions: Mapping[str, float] | None,
+def evaluate_batch_with_model(store: Store, executor: Executor | None, model: str, points: Mapping[str, Any],
+                              conditions: Mapping[str, Any] | None, outputs: list[str] | None,
+                              convention: str | None, max_points: int) -> dict[str, Any]:
+    """The /v1/friction/batch answer of a calibrated model: columns in, columns out, chunk by chunk.
+
+    The points run through :meth:`CalibratedPhysicsModel.evaluate` (the answer of /v1/friction too)
+    on the executor's chunks, each chunk in one vectorized call; the domain is checked once over the
+    whole batch, so that each warning counts the batch's points outside.
+
+    Parameters
+    ----------
+    store : Store
+        Where calibrations are kept.
+    executor : concurrent.futures.Executor or None
+        Where the chunks run (None: inline).
+    model : str
+        ``"calibrated:<id>"``.
+    points : mapping
+        Physics inputs the client gave, by name: scalars or lists (they override the model's fixed
+        and fitted values).
+    conditions : mapping or None
+        Condition columns by name (e.g. ``relative_humidity`` [1]): a scalar for every point or a list
+        of one value per point.
+    outputs : list of str or None
+        Physics outputs wanted (all when None); ``mu_effect``, ``mu_lower`` and ``mu_upper`` [1] come
+        with ``mu``.
+    convention : str or None
+        The convention the request named, None when it named none.
+    max_points : int
+        Most points allowed [1].
+
+    Returns
+    -------
+    dict
+        The outputs as arrays of one value per point, ``model``, ``in_domain`` (bool per point; absent
+        for a model stored before domains) and ``domain_warnings`` (one sentence per column outside
+        the data: the column, values, range and the number of points).
+
+    Raises
+    ------
+    ProblemError
+        404 for an unknown model; 413 above ``max_points``; 422 naming the field: a convention other
+        than the model's, an unknown, missing or invalid condition, lists of different lengths, or a
+        point where an output is not finite.
+    """
+    mu_model = load_mu_model(store, model)
+    if convention is not None and convention != mu_model.convention:
+        raise validation_problem([{"pointer": "/convention", "detail": f"the model {model} was calibrated "
+                                   f"with convention {mu_model.convention!r}; omit convention"}])
+    conditions = dict(conditions or {})
+    check_conditions(mu_model, conditions)
+    inputs, count = column_arrays(dict(points), max_points)
+    columns, condition_count = column_arrays(conditions, max_points, "/conditions")
+    listed = [name for name, value in conditions.items() if isinstance(value, list)]
+    if listed and count != condition_count and any(isinstance(value, list) for value in points.values()):
+        raise validation_problem([{"pointer": f"/conditions/{name}", "detail": f"has {condition_count} "
+                                   f"values but the points have {count}; lists must share one length"}
+                                  for name in listed])
+    count = max(count, condition_count)
+    everything = {**inputs, **columns}
+    names = [str(name) for name in outputs] if outputs else list(physics.OUTPUTS)
+    if "mu" in names:
+        names += ["mu_effect", "mu_lower", "mu_upper"]
+    # The conditions the terms do not read matter to the domain only, checked below on the whole batch.
+    read = {name: value for name, value in everything.items() if name in mu_model.inputs}
+    try:
+        values = evaluate_in_chunks(executor, read, count, names, mu_model, pointer="/points")
+    except InputError as exc:
+        raise _input_problem(exc, "/points") from None
+    with np.errstate(all="ignore"):
+        inside, warnings = mu_model.calibrated.domain_check(everything)
+    outside = None if inside is None else ~np.broadcast_to(inside, (count,))
+    answer = {**values, **_model_fields(mu_model, values, outside, warnings)}
+    return {name: value for name, value in answer.items() if value is not None}
+
+
+def with_conditions(model: Model, conditions: Mapping[str, float] | None,
                     pointer: str = "/conditions") -> Callable[[Mapping[str, Any]], Any]:
     """A model's ``mu_model(points)`` with constant condition columns added to every point.
 
@@ -244,11 +359,9 @@ def with_conditions(model: Callable[[Mapping[str, Any]], Any], reference: str,
 
     Parameters
     ----------
-    model : callable
-        ``mu_model(points) -> mu`` [1]; a :class:`calibrate.CalibratedModel` names the extra
-        columns it needs in ``required_columns``.
-    reference : str
-        The model reference of the request (``"calibrated:<id>"``), for errors.
+    model : Model
+        A resolved model (:func:`service.models.resolve`); a calibrated one names the extra columns
+        it needs in ``required_columns``.
     conditions : mapping or None
         Condition columns by name (e.g. ``relative_humidity`` [1]), one value each, in the
         units of the calibration data.
@@ -264,14 +377,10 @@ def with_conditions(model: Callable[[Mapping[str, Any]], Any], reference: str,
     ------
     ProblemError
         422 when a condition is a physics input or unknown to the calibration, or a column the model
-        needs is missing.
+        needs is missing (:func:`check_conditions`).
     """
     conditions = dict(conditions or {})
-    _condition_problems(model, conditions, pointer)
-    missing = [c for c in getattr(model, "required_columns", []) if c not in conditions]
-    if missing:
-        raise validation_problem([{"pointer": pointer, "detail": f"the model {reference} needs "
-                                   f"{', '.join(missing)}"}])
+    check_conditions(model, conditions, pointer)
     if not conditions:
         return model
 

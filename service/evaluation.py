@@ -14,6 +14,8 @@ from .problems import ProblemError, validation_problem
 __all__ = ["column_arrays", "evaluate_checked", "evaluate_point"]
 
 _NOT_FINITE = "outside the range where the model is numerically meaningful"
+# Columns read as booleans; every other column (a physics number, a calibrated model's condition) is float.
+_BOOLEAN_INPUTS = frozenset(name for name, spec in physics.PARAMETERS.items() if spec.kind == "bool")
 
 
 def _evaluate(inputs: dict[str, Any], outputs: list[str] | None, convention: str,
@@ -104,7 +106,7 @@ def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/poin
     Parameters
     ----------
     points : dict
-        Input name to scalar or list.
+        Input name (a physics input or a calibrated model's condition column) to scalar or list.
     max_points : int
         Most points allowed [1].
     pointer : str, default "/points"
@@ -139,7 +141,7 @@ def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/poin
     if count > max_points:
         raise ProblemError(413, f"The request has {count} points; the limit is {max_points} per request.")
     inputs = {
-        name: np.asarray(value, dtype=bool if physics.PARAMETERS[name].kind == "bool" else np.float64)
+        name: np.asarray(value, dtype=bool if name in _BOOLEAN_INPUTS else np.float64)
         if isinstance(value, list) else value
         for name, value in points.items()
     }

@@ -3,12 +3,13 @@
 A model reference is ``"physics"``, ``"calibrated:<id>"`` (a stored calibration,
 :mod:`service.calibrations`) or ``"surrogate:<id>"`` (a stored surrogate,
 :mod:`service.surrogates`). :func:`resolve` turns a reference into a :class:`Model`,
-and it is the only place that does: /v1/friction with a calibrated model, /v1/optimizations,
-surrogate training on a calibrated model and the UM-Bridge protocol (:mod:`service.umbridge`)
-all get their model here; /v1/friction/batch and sweeps, which evaluate the physics only, take
-its model from :func:`physics_in` and evaluate it chunk by chunk
-(:func:`service.executor.evaluate_in_chunks`). A single physics point of /v1/friction calls
-:func:`service.evaluation.evaluate_point` directly: it is dominated by per-request overhead.
+and it is the only place that does: /v1/friction and /v1/friction/batch with a calibrated model,
+/v1/optimizations, surrogate training on a calibrated model and the UM-Bridge protocol
+(:mod:`service.umbridge`) all get their model here; a physics batch and sweeps, which evaluate
+the physics only, take its model from :func:`physics_in`. Batches and sweeps evaluate their model
+chunk by chunk (:func:`service.executor.evaluate_in_chunks`). A single physics point of
+/v1/friction calls :func:`service.evaluation.evaluate_point` directly: it is dominated by
+per-request overhead.
 
 A :class:`Model` states
 
@@ -33,7 +34,7 @@ from __future__ import annotations
 import functools
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -174,10 +175,14 @@ class Evaluation:
         The outputs asked for, in their units, one value per point.
     outside_domain : numpy.ndarray of bool
         True where the model's figures do not hold (a surrogate outside its trained space).
+    warnings : list of str
+        One sentence per input or condition outside a calibrated model's data, naming the column,
+        the values and the range (empty for other models).
     """
 
     values: dict[str, np.ndarray]
     outside_domain: np.ndarray
+    warnings: list[str] = field(default_factory=list)
 
 
 def _physics_inputs(values: Mapping[str, Any], domains: Mapping[str, tuple[float, float]] | None = None,
@@ -347,6 +352,11 @@ class CalibratedPhysicsModel(Model):
         self.inputs.update({name: ModelInput(name, "as in the calibration data", "A condition column "
                                              "the calibrated model's terms read.")
                             for name in self.required_columns})
+        # The other condition columns of the data: a point may give them, and they are checked against
+        # the data's range only (they are no input: nothing the model computes depends on them).
+        self.unread_conditions = {name: ModelInput(name, "as in the calibration data", "A condition column "
+                                                   "of the calibration data the terms do not read.")
+                                  for name in self.conditions if name not in self.inputs}
 
     def predict(self, points: Mapping[str, Any]) -> Prediction:
         """μ with its 95 % interval and the domain check: :meth:`calibrate.CalibratedModel.predict`."""
@@ -354,16 +364,32 @@ class CalibratedPhysicsModel(Model):
 
     def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
                  first_index: int = 0) -> Evaluation:
-        checked = self.check(points)
+        """As :meth:`Model.evaluate`; the answer of a calibrated model wherever it is asked.
+
+        ``points`` may also give the condition columns the terms do not read
+        (:attr:`unread_conditions`): they enter the domain check only. The physics outputs other than
+        ``mu`` are computed only when asked for; the warnings name every column outside the data.
+        A condition outside the law of a term, or a non-finite μ, is a 422 problem at ``/conditions``
+        (the latter naming the point's index for columns).
+        """
+        unread = {name: self.unread_conditions[name].check(value) for name, value in points.items()
+                  if name in self.unread_conditions}
+        checked = self.check({name: value for name, value in points.items() if name not in unread})
         given = {k: v for k, v in checked.items() if k in physics.PARAMETERS}
-        base = evaluate_checked({**self.fixed, **self.fitted, **given}, None, self.convention, pointer,
+        wanted = list(dict.fromkeys(["mu", *(name for name in outputs if name in physics.OUTPUTS)]))
+        base = evaluate_checked({**self.fixed, **self.fitted, **given}, wanted, self.convention, pointer,
                                 first_index)
-        with np.errstate(all="ignore"):
-            prediction = self.calibrated.predict(checked)
+        try:
+            with np.errstate(all="ignore"):
+                prediction = self.calibrated.predict({**checked, **unread})
+        except ValueError as exc:  # a condition outside the law of a term (relative humidity 1)
+            raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
         mu = np.asarray(prediction.mu, dtype=float)
-        if not np.isfinite(mu).all():
+        finite = np.isfinite(mu)
+        if not finite.all():
+            at = f" (point {first_index + int(np.flatnonzero(~finite.reshape(-1))[0])})" if mu.ndim else ""
             raise validation_problem([{"pointer": "/conditions", "detail": "the calibrated model's mu is not "
-                                       "finite at these conditions"}])
+                                       f"finite at these conditions{at}"}])
         no_interval = np.full(mu.shape, np.nan)
         values = {**base, "mu": mu, "mu_effect": mu - base["mu"],
                   "mu_lower": no_interval if prediction.mu_lower is None else prediction.mu_lower,
@@ -371,7 +397,7 @@ class CalibratedPhysicsModel(Model):
         shape = np.broadcast_shapes(*(np.shape(v) for v in values.values()))
         inside = np.ones(shape, dtype=bool) if prediction.in_domain is None else prediction.in_domain
         return Evaluation({name: values[name] for name in outputs},
-                          ~np.broadcast_to(np.asarray(inside, dtype=bool), shape))
+                          ~np.broadcast_to(np.asarray(inside, dtype=bool), shape), list(prediction.warnings))
 
     def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
         return self.calibrated(points)

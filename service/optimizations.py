@@ -111,7 +111,7 @@ def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, di
     # The values the model holds (a calibration's fixed and fitted ones, the ones a surrogate was
     # trained at): the physics checks of limits and of the optimum run there too.
     values = {**model.fixed, **model.fitted}
-    mu_model = with_conditions(model, body.model, body.conditions)
+    mu_model = with_conditions(model, body.conditions)
     return mu_model, values, model.convention, interval_at(model, body.conditions)
 
 

@@ -90,7 +90,7 @@ def _learned_model(store: Store, body: SurrogateRequest) -> tuple[MuModel | None
     if "convention" in body.model_fields_set and str(body.convention) != calibrated.convention:
         raise validation_problem([{"pointer": "/convention", "detail": f"the model {body.model} was "
                                    f"calibrated with convention {calibrated.convention!r}; omit convention"}])
-    mu_model = with_conditions(calibrated, body.model, body.conditions)
+    mu_model = with_conditions(calibrated, body.conditions)
     return mu_model, calibrated.convention, dict(calibrated.fixed)
 
 
@@ -412,5 +412,5 @@ def load_source_model(store: Store, model: str, pointer: str = "/model") -> tupl
     source = result.get("model", "physics")
     if source == "physics":
         return physics_model(result["convention"]), source
-    return with_conditions(resolve(store, source, kinds=("physics", "calibrated")), source,
+    return with_conditions(resolve(store, source, kinds=("physics", "calibrated")),
                            result.get("conditions")), source

@@ -8,14 +8,15 @@ from fastapi import APIRouter, Request
 from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
-from ..calibrations import evaluate_point_with_model
-from ..deps import ExecutorDep, SettingsDep, get_store
+from ..calibrations import evaluate_batch_with_model, evaluate_point_with_model
+from ..deps import ExecutorDep, SettingsDep, StoreDep, get_store
 from ..evaluation import column_arrays, evaluate_point
 from ..executor import evaluate_in_chunks
 from ..models import physics_in
 from ..problems import problem_responses, validation_problem
 from ..schemas.base import parse_json_body, raw_json_body, with_folding_safe_names
 from ..schemas.friction import FrictionBatchRequest, FrictionBatchResponse, FrictionRequest, FrictionResponse
+from ..store import Store
 from ..tables import json_bytes
 
 __all__ = ["router"]
@@ -43,7 +44,15 @@ async def evaluate_friction(request: Request) -> Response:
     return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
 
 
-def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor) -> bytes:
+def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor, store: Store) -> bytes:
+    if request.model != "physics":
+        return json_bytes(with_folding_safe_names(evaluate_batch_with_model(
+            store, executor, request.model, request.points.model_dump(exclude_unset=True), request.conditions,
+            request.outputs, str(request.convention) if "convention" in request.model_fields_set else None,
+            max_points)))
+    if request.conditions is not None:
+        raise validation_problem([{"pointer": "/conditions",
+                                   "detail": "only a calibrated model reads conditions"}])
     inputs, count = column_arrays(request.points.model_dump(), max_points)
     # Chunks of points on the app's executor (thread pool or dask cluster, service/executor.py).
     return json_bytes(with_folding_safe_names(evaluate_in_chunks(
@@ -51,10 +60,16 @@ def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor) -
 
 
 @router.post("/batch", operation_id="evaluate_friction_batch", response_model=FrictionBatchResponse,
-             response_model_exclude_none=True, responses=problem_responses(413, 503),
+             response_model_exclude_none=True, responses=problem_responses(404, 413, 503),
              openapi_extra=raw_json_body(FrictionBatchRequest))
-async def evaluate_friction_batch(request: Request, settings: SettingsDep, executor: ExecutorDep) -> Response:
-    """The chosen outputs at many points given as columns; scalars broadcast to every point."""
+async def evaluate_friction_batch(request: Request, settings: SettingsDep, executor: ExecutorDep,
+                                  store: StoreDep) -> Response:
+    """The chosen outputs at many points given as columns; scalars broadcast to every point.
+
+    With a calibrated model (``model``), its condition columns (``conditions``) and, beside ``mu``,
+    ``mu_effect``, the 95 % interval ``mu_lower``/``mu_upper`` and ``in_domain`` per point, with the
+    batch's ``domain_warnings``.
+    """
     body = await parse_json_body(request, FrictionBatchRequest)
-    content = await run_in_threadpool(_batch, body, settings.max_batch_points, executor)
+    content = await run_in_threadpool(_batch, body, settings.max_batch_points, executor, store)
     return Response(content, media_type="application/json")

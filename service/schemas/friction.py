@@ -48,12 +48,37 @@ class FrictionBatchRequest(StrictModel):
 
     points: FrictionBatchPoints = Field(description="The inputs, column by column.")  # type: ignore[valid-type]
     outputs: list[OutputName] | None = Field(  # type: ignore[valid-type]
-        default=None, min_length=1, description="Outputs to return (default: all of them).")
-    convention: ConventionName = _CONVENTION[1]  # type: ignore[valid-type]
+        default=None, min_length=1, description=(
+            "Outputs to return (default: all of them); with a calibrated model, mu brings mu_effect, "
+            "mu_lower and mu_upper [1]."))
+    convention: ConventionName = Field(  # type: ignore[valid-type]
+        default=Convention(physics.DEFAULT_CONVENTION), description=(
+            "Reading of the paper's ambiguous ball-ball terms; a calibrated model uses its own (naming "
+            "another is a 422)."))
+    model: str = MODEL_FIELDS["model"][1]
+    conditions: dict[str, float | list[float]] | None = Field(default=None, description=(
+        "Condition columns of the calibration data for a calibrated model, e.g. relative_humidity [1] "
+        "[unit of each column as in the calibration data]: a number for every point or a list of one "
+        "value per point (lists share the points' length). Those the model's terms read are required; "
+        "a column the calibration never saw is refused (422 naming it)."))
 
+
+_LIST_OF_POINTS = " One value per point, in the order of the points."
 
 FrictionBatchResponse = create_model(
     "FrictionBatchResponse", __base__=ResponseModel,
     __doc__="The chosen outputs as columns, one value per point, in the order of the points.",
     **output_fields(columns=True, optional=True),
+    model=MODEL_RESPONSE_FIELDS["model"],
+    **{name: (list[float] | None, Field(default=None, description=MODEL_RESPONSE_FIELDS[name][1].description
+                                        + _LIST_OF_POINTS))
+       for name in ("mu_effect", "mu_lower", "mu_upper")},
+    in_domain=(list[bool] | None, Field(default=None, description=(
+        "Whether each point lies within the range of every column of the calibration data (false: an "
+        "extrapolation; domain_warnings says where). Absent for physics and for models calibrated "
+        "before domains existed." + _LIST_OF_POINTS))),
+    domain_warnings=(list[str] | None, Field(default=None, description=(
+        "One sentence per input or condition outside the calibration data over the whole batch, naming "
+        "the column, its values there (in the column's unit), the range and the number of points "
+        "outside (absent for physics)."))),
 )
