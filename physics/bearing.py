@@ -42,6 +42,8 @@ __all__ = [
     "total_friction_force",
     "friction_coefficient",
     "force_balance_residual",
+    "MIN_BALLS_TOUCHING",
+    "ball_ball_contact",
     "moment_balance_residual",
 ]
 
@@ -352,6 +354,48 @@ def moment_balance_residual(ball_ball_moment_Nm, pivoting_moment_1_Nm, pivoting_
     return resisting - driving
 
 
+#: Fewest balls that can touch a neighbour: ``balls`` counts every ball of both grooves, and a single
+#: ball has no neighbour, so below two balls ``balls_touching`` adds no ball-ball force or moment. [1]
+MIN_BALLS_TOUCHING = 2
+
+
+def ball_ball_contact(balls_touching, balls):
+    r"""Whether the balls touch a neighbour: ``balls_touching`` and at least two balls.
+
+    Parameters
+    ----------
+    balls_touching : bool or array_like of bool
+        Whether neighbouring balls are declared touching. [1]
+    balls : numeric
+        Total number of balls z of both grooves. [1]
+
+    Returns
+    -------
+    bool or numpy.ndarray of bool
+        True where the ball-ball capillary force (eqs 5-6) and moment (eq 17)
+        act. [1]
+
+    Notes
+    -----
+    The model gives every ball the same ball-ball moment M_b (eq 21 of [1]_; the
+    paper's case B, 9 touching balls per groove, counts the balls at the ends of
+    a row like the others). A single ball has no neighbour, so with z = 1 there
+    is no M_b whatever ``balls_touching`` says; with z >= 2 the flag states that
+    the balls are arranged to touch.
+
+    References
+    ----------
+    .. [1] Olaru et al., COMEC 2005, eqs. 17, 21.
+
+    Examples
+    --------
+    >>> ball_ball_contact(True, 1), ball_ball_contact(True, 2)
+    (False, True)
+    """
+    touching = np.logical_and(balls_touching, np.greater_equal(balls, MIN_BALLS_TOUCHING))
+    return touching.item() if touching.ndim == 0 else touching
+
+
 #: Share of a ball's ball-ball moment M_b in the balance of one of its contact pairs, by convention:
 #: "olaru2005" counts M_b in both pairs (eq 21 as printed), "derjaguin" once per ball; with R*
 #: twice as large (eq 6) the two agree for equal balls.
@@ -384,7 +428,7 @@ OUTPUTS: dict[str, tuple[str, str]] = {
                                 "is not Hertzian: it turns tensile at the edge)."),
     "adhesion_force_N": ("N", "JKR pull-off force 3 pi gamma R of a ball on a flank (eq 1)."),
     "capillary_force_ball_ball_N": ("N", "Capillary force between touching balls, 4 pi gamma_w R* "
-                                    "(eqs 5-6); 0 when balls do not touch."),
+                                    "(eqs 5-6); 0 when balls do not touch or balls = 1."),
     "rolling_force_N": ("N", "Houpert hydrodynamic rolling force F_R of one contact (eq 9)."),
     "pressure_force_N": ("N", "Pressure force F_P = 2 F_R on the ball centre (eq 13)."),
     "sliding_force_N": ("N", "Sliding traction F_S of one contact from the ball balance (eq 20)."),
@@ -497,7 +541,9 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     -----
     Per contact: Q0 (eq 7), Q (eq 8), a (eq 3), F_R with E', Rx = R, k = 1,
     v = V/2 (eqs 9-12), F_P = 2 F_R (eq 13), M_ER (eq 15) and M_P (eq 16) with
-    Q; per ball M_b (eq 17) with F_cb from eqs 5-6 when balls touch. Then F_S
+    Q; per ball M_b (eq 17) with F_cb from eqs 5-6 when balls touch and there
+    are at least two of them (:func:`ball_ball_contact`; ``balls`` counts the
+    balls of both grooves, and one ball has no neighbour). Then F_S
     (eq 20), F_ballrace (eq 21), F_total (eq 22) and μ (eq 23). Speed enters
     only through F_R.
 
@@ -692,6 +738,7 @@ class _ArrayOps:
 
     multiply, add, divide, square, sqrt = np.multiply, np.add, np.divide, np.square, np.sqrt
     tan, cbrt, log, exp = np.tan, np.cbrt, np.log, np.exp
+    at_least = np.greater_equal  # into a float row: 1.0 or 0.0
 
 
 class _PointOps:
@@ -722,6 +769,10 @@ class _PointOps:
     @staticmethod
     def sqrt(x, out):
         return math.sqrt(x)
+
+    @staticmethod
+    def at_least(x, y, out):
+        return 1.0 if x >= y else 0.0
 
     @staticmethod
     def tan(x, out):
@@ -785,7 +836,9 @@ def _kernel(b: dict[str, Any], o: dict[str, Any], tan: Any, sec: Any, w1: Any, w
     # Eqs 16-17: pivoting (3/8) μs Q a and ball-ball μb F_cb d moments.
     m_p = multiply(q, a, o["pivoting_moment_Nm"])
     m_p = multiply(multiply(m_p, b["mu_pivot"], m_p), b["pivot"], m_p)
-    capillary = multiply(b["balls_touching"], b["capillary"], o["capillary_force_ball_ball_N"])
+    # A ball touches a neighbour only when balls touch and there are at least two of them.
+    capillary = f.at_least(b["balls"], MIN_BALLS_TOUCHING, o["capillary_force_ball_ball_N"])
+    capillary = multiply(multiply(capillary, b["balls_touching"], capillary), b["capillary"], capillary)
     m_b = multiply(capillary, b["mu_ball"], o["ball_ball_moment_Nm"])
     m_b = multiply(m_b, b["ball_ball"], m_b)
     # Eq 20 term by term, F_S = M_b / (d cos θ) + 2 M_P tan θ / d + 2 M_ER / d + F_R; each
