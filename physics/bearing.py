@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from . import contact, lubrication, moments, surface
+from . import compiled, contact, lubrication, moments, surface
 from .parameters import CONVENTIONS, DEFAULT_CONVENTION, checked_inputs
 
 __all__ = [
@@ -535,7 +535,9 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
         For unknown or missing parameters, values out of range (naming the
         parameter and its range), shapes that do not broadcast, unknown
         output names, or (on calls large enough for threads) a
-        ``MICROBEARING_PHYSICS_THREADS`` that is not a whole number.
+        ``MICROBEARING_PHYSICS_THREADS`` that is not a whole number or a
+        ``MICROBEARING_PHYSICS_KERNEL`` other than numpy or numba (numba when
+        it is not installed).
 
     Notes
     -----
@@ -552,7 +554,12 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     per operation; calls of 8 blocks or more share their blocks between
     threads, one per usable CPU or as many as the environment variable
     ``MICROBEARING_PHYSICS_THREADS`` says (numpy releases the GIL in its
-    loops; throughput: ``bench/physics.py``). The arithmetic takes tan θ
+    loops; throughput: ``bench/physics.py``). Where numba is installed
+    (``pip install microbearing[fast]``) such large calls run the same
+    operations compiled (:mod:`physics.compiled`), which hold the GIL only
+    once per thread; ``MICROBEARING_PHYSICS_KERNEL=numpy`` declines it. The
+    two kernels agree to 1e-12 relative (tested), bit for bit where numpy and
+    numba use the same C library's tan, cbrt, log and exp. The arithmetic takes tan θ
     directly and sec θ from it, and the power laws of eqs 9 and 15 as exp of
     logarithms; it agrees with the plain composition of the equations'
     functions to ~1e-13 (tested), and every point runs the same operations
@@ -593,10 +600,13 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     run = functools.partial(_run_blocks, arrays, scalars, dict(zip(wanted, kept, strict=True)),
                             [k for k in OUTPUTS if k not in wanted], block_size)
     blocks = -(-size // block_size)
-    threads = min(_threads(), blocks // _MIN_BLOCKS_PER_THREAD) if blocks >= 2 * _MIN_BLOCKS_PER_THREAD else 1
+    large = blocks >= 2 * _MIN_BLOCKS_PER_THREAD
+    threads = min(_threads(), blocks // _MIN_BLOCKS_PER_THREAD) if large else 1
+    if large and _compiled_kernel():
+        run = _compiled_run(flat, kept, wanted, size)
     if threads < 2:
         run(0, size)
-    else:  # contiguous runs of whole blocks, one per thread; numpy releases the GIL in its loops
+    else:  # contiguous runs of whole blocks, one per thread; numpy and numba release the GIL in their loops
         edges = [block_size * (blocks * i // threads) for i in range(threads)] + [size]
         for future in [_pool().submit(run, lo, hi) for lo, hi in itertools.pairwise(edges)]:
             future.result()
@@ -649,6 +659,29 @@ def _pool() -> ThreadPoolExecutor:
 
 if hasattr(os, "register_at_fork"):  # a forked child has none of the parent's threads: a new pool
     os.register_at_fork(after_in_child=_pool.cache_clear)
+
+
+#: Environment variable choosing the kernel of large calls: ``numpy`` or ``numba`` (the default when
+#: numba is installed, ``pip install microbearing[fast]``).
+KERNEL_VARIABLE = "MICROBEARING_PHYSICS_KERNEL"
+
+
+def _compiled_kernel() -> bool:
+    """Whether large calls run :mod:`physics.compiled`: numba installed and not declined."""
+    value = os.environ.get(KERNEL_VARIABLE, "").strip().lower()
+    if value not in ("", "numpy", "numba"):
+        raise ValueError(f"{KERNEL_VARIABLE} must be numpy or numba; got {value!r}")
+    if value == "numba" and not compiled.AVAILABLE:
+        raise ValueError(f"{KERNEL_VARIABLE}=numba needs numba: pip install microbearing[fast]")
+    return compiled.AVAILABLE and value != "numpy"
+
+
+def _compiled_run(flat: dict[str, Any], kept: np.ndarray, wanted: list[str], size: int):
+    """``run(lo, hi)`` of :func:`physics.compiled.points` over the call's inputs, into ``kept``."""
+    inputs = {name: np.broadcast_to(np.asarray(flat[name], dtype=np.float64), (size,))
+              for name in compiled.INPUTS}
+    positions = np.array([list(OUTPUTS).index(name) for name in wanted], dtype=np.int64)
+    return compiled.points(inputs, kept, positions, not _EXTRAS.isdisjoint(wanted), float(MIN_BALLS_TOUCHING))
 
 
 def _run_blocks(arrays: dict[str, np.ndarray], scalars: dict[str, Any], kept: dict[str, np.ndarray],
