@@ -518,7 +518,8 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
         of μ, which nothing else needs, are computed only when one of them is
         asked for.
     **params : numeric, bool or array_like
-        The inputs of :data:`physics.PARAMETERS` by name: ``balls`` [1],
+        The inputs of :data:`physics.PARAMETERS` by name: ``balls`` [1] (every
+        ball of both grooves: the paper's case B, 9 per groove, is 18),
         ``load_N`` [N] and ``speed_m_s`` [m/s] are required, the rest have
         defaults (stainless-steel balls of 285 um on silicon at 54.7 deg, water
         film, γ = 0.18 J/m²). Scalars and arrays broadcast together.
