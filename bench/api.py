@@ -7,7 +7,9 @@ Starts ``microbearing serve`` on a free loopback port with a temporary data fold
 
 * single-point requests per second on ``POST /v1/friction`` against ``GET /healthz`` on the same
   server, one keep-alive client alternating the two, request by request (target ratio >= 0.85,
-  issue 17); min / median / max over the rounds;
+  issue 17); min / median / max over the rounds; then, per round, the CPU time per request of
+  the server process and the client together (Linux ``/proc``), which other work on a shared
+  machine does not inflate the way it inflates wall-clock time;
 * points per second through ``POST /v1/friction/batch`` with 100,000-point requests (load and
   speed as lists, the rest scalars) against ``physics.evaluate`` on the same arrays in this
   process, with only ``mu`` returned and with every output. The request body is encoded once,
@@ -62,23 +64,43 @@ def start_server(data_dir: str) -> tuple[subprocess.Popen, str]:
     raise RuntimeError("the server did not start")
 
 
-def single_point(client: httpx.Client, rounds: int, per_round: int) -> tuple[list[float], list[float]]:
-    """Requests per second of /healthz and /v1/friction per round, sent alternately (the same load)."""
+def cpu_seconds(pid: int) -> float:
+    """CPU time (user + system) a process has used so far, from ``/proc`` (Linux). [s]"""
+    with open(f"/proc/{pid}/stat") as stat:
+        fields = stat.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def single_point(client: httpx.Client, rounds: int, per_round: int,
+                 server_pid: int) -> tuple[list[float], list[float], dict[str, list[float]]]:
+    """Requests per second of /healthz and /v1/friction per round, sent alternately (the same load).
+
+    Also the CPU time per request of the server process and of this client, per endpoint and
+    round, in blocks of requests of one kind (preemption by other work does not inflate it).
+    """
     body = json.dumps(POINT).encode()
     health, friction = [], []
+    cpu: dict[str, list[float]] = {"health": [], "friction": []}
+    calls = {"health": lambda: client.get("/healthz").raise_for_status(),
+             "friction": lambda: client.post("/v1/friction", content=body, headers=JSON).raise_for_status()}
     for round_index in range(rounds + 1):  # the first round warms up
         spent = {"health": 0.0, "friction": 0.0}
         for _ in range(per_round):
             start = time.perf_counter()
-            client.get("/healthz").raise_for_status()
+            calls["health"]()
             middle = time.perf_counter()
-            client.post("/v1/friction", content=body, headers=JSON).raise_for_status()
+            calls["friction"]()
             spent["health"] += middle - start
             spent["friction"] += time.perf_counter() - middle
         if round_index:
             health.append(per_round / spent["health"])
             friction.append(per_round / spent["friction"])
-    return health, friction
+            for name, call in calls.items():
+                server, own = cpu_seconds(server_pid), time.process_time()
+                for _ in range(per_round):
+                    call()
+                cpu[name].append((cpu_seconds(server_pid) - server + time.process_time() - own) / per_round)
+    return health, friction, cpu
 
 
 def batch(client: httpx.Client, points: int, repeats: int, outputs: list[str] | None) -> tuple[float, float]:
@@ -111,14 +133,19 @@ def main() -> None:
         process, url = start_server(data_dir)
         try:
             with httpx.Client(base_url=url, timeout=300) as client:
-                health, friction = single_point(client, rounds, per_round)
+                health, friction, cpu = single_point(client, rounds, per_round, process.pid)
                 ratios = [f / h for f, h in zip(friction, health, strict=True)]
+                cpu_ratios = [h / f for h, f in zip(cpu["health"], cpu["friction"], strict=True)]
                 extra = [1e3 / f - 1e3 / h for f, h in zip(friction, health, strict=True)]
                 print(f"single point, one keep-alive client alternating the two, {rounds} rounds x "
                       f"{per_round}; min / median / max")
                 print(f"  GET  /healthz       {spread(health, 0)} req/s")
                 print(f"  POST /v1/friction   {spread(friction, 0)} req/s")
                 print(f"  ratio friction / healthz, per round: {spread(ratios, 2)}  (target >= 0.85)")
+                print(f"  CPU time per request, server and client together: healthz "
+                      f"{spread([c * 1e3 for c in cpu['health']], 3)} ms, friction "
+                      f"{spread([c * 1e3 for c in cpu['friction']], 3)} ms; ratio healthz / friction "
+                      f"{spread(cpu_ratios, 2)} (what the req/s ratio is on a machine with cores to spare)")
                 costs = []
                 for _ in range(rounds):
                     start = time.perf_counter()

@@ -44,6 +44,7 @@ import numpy as np
 from microbearing import physics
 
 THREADS = physics.bearing.THREADS_VARIABLE
+KERNEL = physics.bearing.KERNEL_VARIABLE
 POINT = {"balls": 4, "load_N": 0.008826, "speed_m_s": 0.05}
 
 
@@ -80,40 +81,61 @@ def timed(call) -> tuple[float, float]:
     return time.perf_counter() - start, time.process_time() - cpu
 
 
-def large_calls(points: int, repeats: int) -> None:
+def kernels(blocks: list[int]) -> list[tuple[str, str, int]]:
+    """(label, kernel, block points) of each kernel: numpy at each block size, then numba if installed."""
+    numpy_kernels = [(f"numpy {size // 1024}k blocks", "numpy", size) for size in blocks]
+    numba_kernel = [("numba", "numba", physics.bearing._BLOCK_POINTS)] if physics.compiled.AVAILABLE else []
+    return numpy_kernels + numba_kernel
+
+
+def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
     inputs = random_design_points(points)
     base = inputs["load_N"]
-    cases = {(outputs, threads): {"wall": [], "cores": []}
+    chosen = kernels(blocks)
+    cases = {(label, outputs, threads): {"wall": [], "cores": []} for label, _, _ in chosen
              for outputs in ("all 21 outputs", "mu only") for threads in ("", "1")}
     power, power_split = [], []
     halves = np.array_split(base, 2)
     pool = ThreadPoolExecutor(2)
-    physics.evaluate(**inputs)  # warm up: pool threads, caches
+    default_block = physics.bearing._BLOCK_POINTS
+    for _, kernel, size in chosen:  # warm up: pool threads, caches, numba's compilation
+        os.environ[KERNEL], physics.bearing._BLOCK_POINTS = kernel, size
+        physics.evaluate(**inputs)
     for _ in range(repeats):
         power.append(timed(lambda: np.power(base, 0.47))[0])
         power_split.append(timed(lambda: list(pool.map(lambda half: np.power(half, 0.47), halves)))[0])
-        for (outputs, threads), times in cases.items():
-            os.environ[THREADS] = threads
-            wanted = ["mu"] if outputs == "mu only" else None
-            wall, cpu = timed(lambda wanted=wanted: physics.evaluate(outputs=wanted, **inputs))
-            times["wall"].append(wall)
-            times["cores"].append(cpu / wall)
+        for label, kernel, size in chosen:
+            # the block size is a private constant of the kernel: set here to compare sizes in one run
+            os.environ[KERNEL], physics.bearing._BLOCK_POINTS = kernel, size
+            for outputs in ("all 21 outputs", "mu only"):
+                for threads in ("", "1"):
+                    os.environ[THREADS] = threads
+                    wanted = ["mu"] if outputs == "mu only" else None
+                    wall, cpu = timed(lambda wanted=wanted: physics.evaluate(outputs=wanted, **inputs))
+                    cases[(label, outputs, threads)]["wall"].append(wall)
+                    cases[(label, outputs, threads)]["cores"].append(cpu / wall)
     os.environ.pop(THREADS)
+    os.environ.pop(KERNEL)
+    physics.bearing._BLOCK_POINTS = default_block
     print(f"large calls: {points:,} points (7 of 16 inputs varied per point), {repeats} repeats; "
           "min / median / max")
-    print(f"  numpy.power pass                        {spread(power, 1e3):>22s} ms")
-    for (outputs, threads), times in cases.items():
-        label = f"{outputs}, {'one thread' if threads else 'default threads'}"
+    print(f"  numpy.power pass                                    {spread(power, 1e3):>22s} ms")
+    for (label, outputs, threads), times in cases.items():
+        case = f"{label}, {outputs}, {'one thread' if threads else 'default threads'}"
         ratios = [t / p for t, p in zip(times["wall"], power, strict=True)]
-        print(f"  evaluate, {label:30s}{spread(times['wall'], 1e3):>22s} ms   ratio {spread(ratios):>18s}"
+        print(f"  {case:50s}{spread(times['wall'], 1e3):>22s} ms   ratio {spread(ratios):>18s}"
               f"   cores busy {spread(times['cores'], digits=2)}")
     reference = [one / split for one, split in zip(power, power_split, strict=True)]
-    print(f"  speed-up of numpy.power split over two threads (reference) {spread(reference, digits=2)}")
-    for outputs in ("all 21 outputs", "mu only"):
-        speedup = [one / default for one, default in
-                   zip(cases[(outputs, "1")]["wall"], cases[(outputs, "")]["wall"], strict=True)]
-        print(f"  speed-up from the default threads, {outputs:15s} {spread(speedup, digits=2)}")
+    print(f"  speed-up of numpy.power split over two threads (reference)     {spread(reference, digits=2)}")
+    for label, _, _ in chosen:
+        for outputs in ("all 21 outputs", "mu only"):
+            one, default = cases[(label, outputs, "1")]["wall"], cases[(label, outputs, "")]["wall"]
+            speedup = [a / b for a, b in zip(one, default, strict=True)]
+            print(f"  speed-up from the default threads, {label + ', ' + outputs:40s} "
+                  f"{spread(speedup, digits=2)}")
     print("  targets (issue 17): mu only ratio <= 8, all 21 outputs <= 12, speed-up >= 1.6")
+    if not physics.compiled.AVAILABLE:
+        print("  numba is not installed (pip install microbearing[fast]): the numba kernel was not measured")
 
 
 def single_points(repeats: int, calls: int = 2000) -> None:
@@ -140,9 +162,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--points", type=int, default=1_000_000)
     parser.add_argument("--repeats", type=int, default=15)
+    parser.add_argument("--blocks", default=str(physics.bearing._BLOCK_POINTS),
+                        help="comma-separated block sizes (points) of the numpy kernel to compare, e.g. "
+                             "4096,16384,65536")
     args = parser.parse_args()
     print(f"before: {machine()}")
-    large_calls(args.points, args.repeats)
+    large_calls(args.points, args.repeats, [int(size) for size in args.blocks.split(",")])
     single_points(args.repeats)
     print(f"after:  {machine()}")
 

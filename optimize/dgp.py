@@ -13,7 +13,8 @@ log-log convex) the equations of :func:`physics.evaluate` read
     \mu &= \frac{z}{G}\Big[\frac{2}{d} M_b \sec\theta + \frac{4}{d} M_P\, t
            + \frac{4}{d} M_{ER} + 4 F_R\Big]      &\text{(eqs 20-23)}
 
-with M_b the (design-independent) ball-ball moment per contact pair. Sums,
+with M_b the (design-independent) ball-ball moment per contact pair, absent
+for z = 1 (a single ball has no neighbour: that count gets its own structure). Sums,
 products, positive powers and square roots of log-log convex expressions are
 log-log convex, so μ is exactly representable (no approximation) and so are
 the limits: the peak pressure 3Q/(2πa²) = k_p Q^{1/3}, the friction force
@@ -100,7 +101,8 @@ class Coefficients:
     rolling_coefficient : float
         k_R in F_R = k_R Q^0.47 at the design speed. [N / N^0.47 = N^0.53]
     ball_ball_moment_Nm : float
-        M_b per contact pair as used in eq 20 (0 when balls do not touch). [N*m]
+        M_b per contact pair as used in eq 20 (0 when balls do not touch), for two
+        balls or more (one ball has none). [N*m]
     pressure_coefficient : float
         k_p in p0 = k_p Q^(1/3). [Pa / N^(1/3)]
     contact_radius_coefficient : float
@@ -134,14 +136,18 @@ def coefficients(problem: DesignProblem) -> Coefficients:
 
     Notes
     -----
-    At z = 1, θ = 45°, G = 1 N the physics gives Q, M_P, M_ER, F_R, p0 and
-    μ_ball_ball; dividing by the known powers of Q yields k_P, k_ER, k_R and
-    k_p, and M_b per pair = μ_ball_ball G cos θ d / (2 z) (from eq 20-23).
-    c is half the adhesion part of Q at Q0 = 0, i.e. twice the pull-off force
-    3πγR.
+    At z = 1, θ = 45°, G = 1 N the physics gives Q, M_P, M_ER, F_R and p0;
+    dividing by the known powers of Q yields k_P, k_ER, k_R and k_p. c is half
+    the adhesion part of Q at Q0 = 0, i.e. twice the pull-off force 3πγR. A
+    single ball has no neighbour, so M_b per pair = μ_ball_ball G cos θ d / (2 z)
+    (from eqs 20-23) is read at the fewest balls that may touch, z = 2
+    (:data:`physics.bearing.MIN_BALLS_TOUCHING`); :func:`design_gp` leaves it out
+    below.
     """
-    theta_deg, load, balls = 45.0, 1.0, 1
-    r = physics.evaluate(convention=problem.convention, **problem.physics_inputs(balls, theta_deg, load))
+    theta_deg, load, balls = 45.0, 1.0, physics.bearing.MIN_BALLS_TOUCHING
+    r = physics.evaluate(convention=problem.convention, **problem.physics_inputs(1, theta_deg, load))
+    pair = physics.evaluate(convention=problem.convention, outputs=["mu_ball_ball"],
+                            **problem.physics_inputs(balls, theta_deg, load))
     q = float(r.contact_load_adhesive_N)
     d = float(problem.fixed["ball_diameter_m"])
     return Coefficients(
@@ -149,7 +155,7 @@ def coefficients(problem: DesignProblem) -> Coefficients:
         pivoting_coefficient=float(r.pivoting_moment_Nm) / q**PIVOT_EXPONENT,
         hysteresis_coefficient=float(r.hysteresis_moment_Nm) / q**HYSTERESIS_EXPONENT,
         rolling_coefficient=float(r.rolling_force_N) / q**ROLLING_EXPONENT,
-        ball_ball_moment_Nm=float(r.mu_ball_ball) * load * np.cos(np.deg2rad(theta_deg)) * d / (2 * balls),
+        ball_ball_moment_Nm=float(pair.mu_ball_ball) * load * np.cos(np.deg2rad(theta_deg)) * d / (2 * balls),
         pressure_coefficient=float(r.max_contact_pressure_Pa) / q**PRESSURE_EXPONENT,
         contact_radius_coefficient=float(r.contact_radius_m) / q ** (1.0 / 3.0),
         ball_diameter_m=d,
@@ -398,7 +404,7 @@ def clear_cache() -> None:
 
 
 def design_gp(problem: DesignProblem, limits: frozenset[str] | None = None,
-              phase_one: bool = False) -> tuple[DesignGP, dict[str, float]]:
+              phase_one: bool = False, balls: int | None = None) -> tuple[DesignGP, dict[str, float]]:
     """The cached DGP of a problem's structure and the parameter values of the problem.
 
     Parameters
@@ -410,6 +416,11 @@ def design_gp(problem: DesignProblem, limits: frozenset[str] | None = None,
         (``groove_length_m`` restricts the ball counts, not the DGP). [-]
     phase_one : bool, default False
         The phase-I problem of :func:`build_design_gp` instead. [-]
+    balls : int, optional
+        The ball count z to be solved. The structure depends on it: below
+        :data:`physics.bearing.MIN_BALLS_TOUCHING` a ball has no neighbour and the
+        ball-ball term is left out (as the physics leaves it out). None: the
+        structure of two or more balls. [1]
 
     Returns
     -------
@@ -431,7 +442,8 @@ def design_gp(problem: DesignProblem, limits: frozenset[str] | None = None,
         "load_N_min": problem.bounds.load_N[0], "load_N_max": problem.bounds.load_N[1],
         **{n: v for n, v in problem.constraints.active_limits().items() if n in LIMIT_NAMES},
     }
-    terms = frozenset(n for n in _TERMS if values[n] > 0)
+    alone = balls is not None and not physics.bearing.ball_ball_contact(True, balls)
+    terms = frozenset(n for n in _TERMS if values[n] > 0 and not (alone and n == "ball_ball_moment_Nm"))
     present = frozenset(n for n in LIMIT_NAMES if n in values)
     limits = present if limits is None else frozenset(limits) & present
     key = (terms, limits, phase_one)

@@ -12,6 +12,7 @@ limits (a deletion filter on the phase-I problem).
 
 from __future__ import annotations
 
+import itertools
 import time
 import warnings
 from collections.abc import Callable
@@ -220,6 +221,39 @@ def _solve_count(gp, solver: str = _SOLVER) -> tuple[str, str, float | None, flo
     return status, solver, float(gp.problem.value), float(gp.tan_theta.value), float(gp.load_N.value)
 
 
+def _by_structure(problem: DesignProblem, counts: list[int], limits: frozenset[str] | None = None,
+                  phase_one: bool = False) -> list[tuple[Any, dict[str, float], list[int]]]:
+    """The counts in order, in runs that share one DGP structure: ``(gp, values, run)`` per run.
+
+    A single ball has no neighbour, so its DGP has no ball-ball term (:func:`design_gp`);
+    every other count shares one structure.
+    """
+    runs = itertools.groupby(counts, key=lambda z: physics.bearing.ball_ball_contact(True, z))
+    return [(*design_gp(problem, limits, phase_one, balls=run[0]), run) for run in (list(g) for _, g in runs)]
+
+
+def _solve_counts(problem: DesignProblem, counts: list[int], limits: frozenset[str] | None = None,
+                  phase_one: bool = False, done: Callable[[int], None] | None = None,
+                  stop: Callable[[tuple], bool] | None = None) -> dict[int, tuple]:
+    """:meth:`_CountSolver.solve` of each count in order, one structure at a time, by count.
+
+    ``done(n)`` is called with the number of counts solved after each; ``stop(answer)`` True
+    ends the solves early.
+    """
+    answers: dict[int, tuple] = {}
+    for gp, values, run in _by_structure(problem, counts, limits, phase_one):
+        with gp.lock:
+            gp.assign(values, run[0])
+            solver = _CountSolver(gp, len(run))
+            for z in run:
+                answers[z] = solver.solve(z)
+                if done is not None:
+                    done(len(answers))
+                if stop is not None and stop(answers[z]):
+                    return answers
+    return answers
+
+
 def _solver_row(balls: int, status: str, value: float, tan_theta: float, load: float,
                 angle_box: tuple[float, float], load_box: tuple[float, float]) -> BallCountResult:
     """A solved count's row, its design clipped back into the box (solvers overshoot by their tolerance)."""
@@ -230,19 +264,14 @@ def _solver_row(balls: int, status: str, value: float, tan_theta: float, load: f
 def _phase_one_slacks(problem: DesignProblem, limits: frozenset[str], counts: list[int],
                       stop_when_feasible: bool) -> dict[int, float]:
     """Phase-I slack of each count, in order; optionally stopping at the first s <= 1."""
-    gp, values = design_gp(problem, limits, phase_one=True)
-    slacks: dict[int, float] = {}
-    with gp.lock:
-        gp.assign(values, counts[0])
-        solver = _CountSolver(gp, len(counts))
-        for z in counts:
-            status, _, slack, _, _ = solver.solve(z)
-            if status not in _OPTIMAL:
-                raise RuntimeError(f"phase-I problem for balls={z} ended with status {status}")
-            slacks[z] = slack
-            if stop_when_feasible and slack <= 1.0:
-                break
-    return slacks
+    def feasible(answer: tuple) -> bool:
+        return stop_when_feasible and answer[0] in _OPTIMAL and answer[2] <= 1.0
+
+    answers = _solve_counts(problem, counts, limits, phase_one=True, stop=feasible)
+    for z, (status, *_) in answers.items():
+        if status not in _OPTIMAL:
+            raise RuntimeError(f"phase-I problem for balls={z} ended with status {status}")
+    return {z: answer[2] for z, answer in answers.items()}
 
 
 def _phase_one_slack(problem: DesignProblem, limits: frozenset[str], counts: list[int]) -> tuple[float, int]:
@@ -317,7 +346,7 @@ def find_conflicts(problem: DesignProblem) -> InfeasibleDesignError | None:
     if len(counts) < len(all_counts) and _phase_one_slack(problem, frozenset(kept), all_counts)[0] <= 1.0:
         conflicts.append("groove_length_m")
     slack, z = _phase_one_slack(problem, frozenset(kept), counts)
-    gp, values = design_gp(problem, frozenset(kept), phase_one=True)
+    gp, values = design_gp(problem, frozenset(kept), phase_one=True, balls=z)
     with gp.lock:
         gp.assign(values, z)
         _solve(gp)
@@ -537,33 +566,30 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
     start = time.perf_counter()
     fitting = set(problem.ball_counts())
     lo, hi = problem.bounds.balls
-    gp, values = design_gp(problem)
     angle_box = problem.bounds.groove_angle_deg
     load_box = (max(problem.bounds.load_N[0], problem.constraints.min_load_capacity_N or 0.0),
                 problem.bounds.load_N[1])
     rows: list[BallCountResult] = []
     unconfirmed: list[int] = []
     fallback: list[int] = []
-    with gp.lock:
-        gp.assign(values, lo)
-        count_solver = _CountSolver(gp, len(fitting))
-        for i, z in enumerate(range(lo, hi + 1)):
-            if z not in fitting:
-                rows.append(BallCountResult(z, "does not fit the groove"))
-            else:
-                status, solver, value, tan_theta, load = count_solver.solve(z)
-                if solver != _SOLVER:
-                    fallback.append(z)
-                if status in _OPTIMAL:
-                    rows.append(_solver_row(z, status, value, tan_theta, load, angle_box, load_box))
-                elif status in (*_INFEASIBLE, "solver_error"):
-                    # decided by the phase-I problem below, which is always feasible
-                    rows.append(BallCountResult(z, "infeasible"))
-                    unconfirmed.append(z)
-                else:
-                    raise RuntimeError(f"the DGP for balls={z} ended with status {status!r}")
-            if progress is not None:
-                progress((i + 1) / (hi - lo + 1))
+    counts = sorted(fitting)
+    answers = _solve_counts(problem, counts, done=None if progress is None else (
+        lambda solved: progress(solved / len(counts))))
+    for z in range(lo, hi + 1):
+        if z not in fitting:
+            rows.append(BallCountResult(z, "does not fit the groove"))
+            continue
+        status, solver, value, tan_theta, load = answers[z]
+        if solver != _SOLVER:
+            fallback.append(z)
+        if status in _OPTIMAL:
+            rows.append(_solver_row(z, status, value, tan_theta, load, angle_box, load_box))
+        elif status in (*_INFEASIBLE, "solver_error"):
+            # decided by the phase-I problem below, which is always feasible
+            rows.append(BallCountResult(z, "infeasible"))
+            unconfirmed.append(z)
+        else:
+            raise RuntimeError(f"the DGP for balls={z} ended with status {status!r}")
     limits = frozenset(n for n in problem.constraints.active_limits() if n != "groove_length_m")
     confirmed = _phase_one_slacks(problem, limits, unconfirmed, stop_when_feasible=False) if (
         limits and unconfirmed) else dict.fromkeys(unconfirmed, 0.0)
@@ -581,18 +607,18 @@ def optimize_design(problem: DesignProblem, progress: Callable[[float], None] | 
     # point) optimal at a design that breaks the limit: such counts are re-solved by SCS, and
     # dropped (said in the certificate) if the exact physics still finds a limit broken.
     broken = [r.balls for r in rows_by_count.values() if r.status in _OPTIMAL and _breaks_limit(problem, r)]
-    if broken:
+    for z in broken:
+        gp, values = design_gp(problem, balls=z)
         with gp.lock:
-            for z in broken:
-                gp.assign(values, z)
-                status, _, value, tan_theta, load = _solve_count(gp, solver=cp.SCS)
-                rows_by_count[z] = BallCountResult(z, "solver_error")
-                if status in _OPTIMAL:
-                    solver_row = _solver_row(z, status, value, tan_theta, load, angle_box, load_box)
-                    row = _polished(problem, [solver_row])[z]
-                    fallback.append(z)
-                    if not _breaks_limit(problem, row):
-                        rows_by_count[z] = row
+            gp.assign(values, z)
+            status, _, value, tan_theta, load = _solve_count(gp, solver=cp.SCS)
+        rows_by_count[z] = BallCountResult(z, "solver_error")
+        if status in _OPTIMAL:
+            solver_row = _solver_row(z, status, value, tan_theta, load, angle_box, load_box)
+            row = _polished(problem, [solver_row])[z]
+            fallback.append(z)
+            if not _breaks_limit(problem, row):
+                rows_by_count[z] = row
     rows = [rows_by_count[z] for z in range(lo, hi + 1)]
     solved = [r for r in rows if r.status in _OPTIMAL]
     if not solved:

@@ -8,6 +8,7 @@ Pure, vectorized functions, one per equation, grouped by sub-domain:
 * :mod:`physics.moments` - hysteresis, pivoting and ball-ball moments (eqs 15-17)
 * :mod:`physics.bearing` - the ball's balance and μ, :func:`evaluate` (eqs 18-23), and the
   traction of a shear stress over the contact (eq 14)
+* :mod:`physics.compiled` - the same kernel compiled by numba for large calls (optional extra ``fast``)
 
 :data:`PARAMETERS` declares every input once (name, unit, default, range);
 :data:`OUTPUTS` every output. Everything is SI except the groove angle in degrees.

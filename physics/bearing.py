@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from . import contact, lubrication, moments, surface
+from . import compiled, contact, lubrication, moments, surface
 from .parameters import CONVENTIONS, DEFAULT_CONVENTION, checked_inputs
 
 __all__ = [
@@ -42,6 +42,8 @@ __all__ = [
     "total_friction_force",
     "friction_coefficient",
     "force_balance_residual",
+    "MIN_BALLS_TOUCHING",
+    "ball_ball_contact",
     "moment_balance_residual",
 ]
 
@@ -352,6 +354,48 @@ def moment_balance_residual(ball_ball_moment_Nm, pivoting_moment_1_Nm, pivoting_
     return resisting - driving
 
 
+#: Fewest balls that can touch a neighbour: ``balls`` counts every ball of both grooves, and a single
+#: ball has no neighbour, so below two balls ``balls_touching`` adds no ball-ball force or moment. [1]
+MIN_BALLS_TOUCHING = 2
+
+
+def ball_ball_contact(balls_touching, balls):
+    r"""Whether the balls touch a neighbour: ``balls_touching`` and at least two balls.
+
+    Parameters
+    ----------
+    balls_touching : bool or array_like of bool
+        Whether neighbouring balls are declared touching. [1]
+    balls : numeric
+        Total number of balls z of both grooves. [1]
+
+    Returns
+    -------
+    bool or numpy.ndarray of bool
+        True where the ball-ball capillary force (eqs 5-6) and moment (eq 17)
+        act. [1]
+
+    Notes
+    -----
+    The model gives every ball the same ball-ball moment M_b (eq 21 of [1]_; the
+    paper's case B, 9 touching balls per groove, counts the balls at the ends of
+    a row like the others). A single ball has no neighbour, so with z = 1 there
+    is no M_b whatever ``balls_touching`` says; with z >= 2 the flag states that
+    the balls are arranged to touch.
+
+    References
+    ----------
+    .. [1] Olaru et al., COMEC 2005, eqs. 17, 21.
+
+    Examples
+    --------
+    >>> ball_ball_contact(True, 1), ball_ball_contact(True, 2)
+    (False, True)
+    """
+    touching = np.logical_and(balls_touching, np.greater_equal(balls, MIN_BALLS_TOUCHING))
+    return touching.item() if touching.ndim == 0 else touching
+
+
 #: Share of a ball's ball-ball moment M_b in the balance of one of its contact pairs, by convention:
 #: "olaru2005" counts M_b in both pairs (eq 21 as printed), "derjaguin" once per ball; with R*
 #: twice as large (eq 6) the two agree for equal balls.
@@ -384,7 +428,7 @@ OUTPUTS: dict[str, tuple[str, str]] = {
                                 "is not Hertzian: it turns tensile at the edge)."),
     "adhesion_force_N": ("N", "JKR pull-off force 3 pi gamma R of a ball on a flank (eq 1)."),
     "capillary_force_ball_ball_N": ("N", "Capillary force between touching balls, 4 pi gamma_w R* "
-                                    "(eqs 5-6); 0 when balls do not touch."),
+                                    "(eqs 5-6); 0 when balls do not touch or balls = 1."),
     "rolling_force_N": ("N", "Houpert hydrodynamic rolling force F_R of one contact (eq 9)."),
     "pressure_force_N": ("N", "Pressure force F_P = 2 F_R on the ball centre (eq 13)."),
     "sliding_force_N": ("N", "Sliding traction F_S of one contact from the ball balance (eq 20)."),
@@ -474,7 +518,8 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
         of μ, which nothing else needs, are computed only when one of them is
         asked for.
     **params : numeric, bool or array_like
-        The inputs of :data:`physics.PARAMETERS` by name: ``balls`` [1],
+        The inputs of :data:`physics.PARAMETERS` by name: ``balls`` [1] (every
+        ball of both grooves: the paper's case B, 9 per groove, is 18),
         ``load_N`` [N] and ``speed_m_s`` [m/s] are required, the rest have
         defaults (stainless-steel balls of 285 um on silicon at 54.7 deg, water
         film, γ = 0.18 J/m²). Scalars and arrays broadcast together.
@@ -491,13 +536,17 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
         For unknown or missing parameters, values out of range (naming the
         parameter and its range), shapes that do not broadcast, unknown
         output names, or (on calls large enough for threads) a
-        ``MICROBEARING_PHYSICS_THREADS`` that is not a whole number.
+        ``MICROBEARING_PHYSICS_THREADS`` that is not a whole number or a
+        ``MICROBEARING_PHYSICS_KERNEL`` other than numpy or numba (numba when
+        it is not installed).
 
     Notes
     -----
     Per contact: Q0 (eq 7), Q (eq 8), a (eq 3), F_R with E', Rx = R, k = 1,
     v = V/2 (eqs 9-12), F_P = 2 F_R (eq 13), M_ER (eq 15) and M_P (eq 16) with
-    Q; per ball M_b (eq 17) with F_cb from eqs 5-6 when balls touch. Then F_S
+    Q; per ball M_b (eq 17) with F_cb from eqs 5-6 when balls touch and there
+    are at least two of them (:func:`ball_ball_contact`; ``balls`` counts the
+    balls of both grooves, and one ball has no neighbour). Then F_S
     (eq 20), F_ballrace (eq 21), F_total (eq 22) and μ (eq 23). Speed enters
     only through F_R.
 
@@ -506,7 +555,12 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     per operation; calls of 8 blocks or more share their blocks between
     threads, one per usable CPU or as many as the environment variable
     ``MICROBEARING_PHYSICS_THREADS`` says (numpy releases the GIL in its
-    loops; throughput: ``bench/physics.py``). The arithmetic takes tan θ
+    loops; throughput: ``bench/physics.py``). Where numba is installed
+    (``pip install microbearing[fast]``) such large calls run the same
+    operations compiled (:mod:`physics.compiled`), which hold the GIL only
+    once per thread; ``MICROBEARING_PHYSICS_KERNEL=numpy`` declines it. The
+    two kernels agree to 1e-12 relative (tested), bit for bit where numpy and
+    numba use the same C library's tan, cbrt, log and exp. The arithmetic takes tan θ
     directly and sec θ from it, and the power laws of eqs 9 and 15 as exp of
     logarithms; it agrees with the plain composition of the equations'
     functions to ~1e-13 (tested), and every point runs the same operations
@@ -547,10 +601,13 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     run = functools.partial(_run_blocks, arrays, scalars, dict(zip(wanted, kept, strict=True)),
                             [k for k in OUTPUTS if k not in wanted], block_size)
     blocks = -(-size // block_size)
-    threads = min(_threads(), blocks // _MIN_BLOCKS_PER_THREAD) if blocks >= 2 * _MIN_BLOCKS_PER_THREAD else 1
+    large = blocks >= 2 * _MIN_BLOCKS_PER_THREAD
+    threads = min(_threads(), blocks // _MIN_BLOCKS_PER_THREAD) if large else 1
+    if large and _compiled_kernel():
+        run = _compiled_run(flat, kept, wanted, size)
     if threads < 2:
         run(0, size)
-    else:  # contiguous runs of whole blocks, one per thread; numpy releases the GIL in its loops
+    else:  # contiguous runs of whole blocks, one per thread; numpy and numba release the GIL in their loops
         edges = [block_size * (blocks * i // threads) for i in range(threads)] + [size]
         for future in [_pool().submit(run, lo, hi) for lo, hi in itertools.pairwise(edges)]:
             future.result()
@@ -603,6 +660,29 @@ def _pool() -> ThreadPoolExecutor:
 
 if hasattr(os, "register_at_fork"):  # a forked child has none of the parent's threads: a new pool
     os.register_at_fork(after_in_child=_pool.cache_clear)
+
+
+#: Environment variable choosing the kernel of large calls: ``numpy`` or ``numba`` (the default when
+#: numba is installed, ``pip install microbearing[fast]``).
+KERNEL_VARIABLE = "MICROBEARING_PHYSICS_KERNEL"
+
+
+def _compiled_kernel() -> bool:
+    """Whether large calls run :mod:`physics.compiled`: numba installed and not declined."""
+    value = os.environ.get(KERNEL_VARIABLE, "").strip().lower()
+    if value not in ("", "numpy", "numba"):
+        raise ValueError(f"{KERNEL_VARIABLE} must be numpy or numba; got {value!r}")
+    if value == "numba" and not compiled.AVAILABLE:
+        raise ValueError(f"{KERNEL_VARIABLE}=numba needs numba: pip install microbearing[fast]")
+    return compiled.AVAILABLE and value != "numpy"
+
+
+def _compiled_run(flat: dict[str, Any], kept: np.ndarray, wanted: list[str], size: int):
+    """``run(lo, hi)`` of :func:`physics.compiled.points` over the call's inputs, into ``kept``."""
+    inputs = {name: np.broadcast_to(np.asarray(flat[name], dtype=np.float64), (size,))
+              for name in compiled.INPUTS}
+    positions = np.array([list(OUTPUTS).index(name) for name in wanted], dtype=np.int64)
+    return compiled.points(inputs, kept, positions, not _EXTRAS.isdisjoint(wanted), float(MIN_BALLS_TOUCHING))
 
 
 def _run_blocks(arrays: dict[str, np.ndarray], scalars: dict[str, Any], kept: dict[str, np.ndarray],
@@ -692,6 +772,7 @@ class _ArrayOps:
 
     multiply, add, divide, square, sqrt = np.multiply, np.add, np.divide, np.square, np.sqrt
     tan, cbrt, log, exp = np.tan, np.cbrt, np.log, np.exp
+    at_least = np.greater_equal  # into a float row: 1.0 or 0.0
 
 
 class _PointOps:
@@ -722,6 +803,10 @@ class _PointOps:
     @staticmethod
     def sqrt(x, out):
         return math.sqrt(x)
+
+    @staticmethod
+    def at_least(x, y, out):
+        return 1.0 if x >= y else 0.0
 
     @staticmethod
     def tan(x, out):
@@ -785,7 +870,9 @@ def _kernel(b: dict[str, Any], o: dict[str, Any], tan: Any, sec: Any, w1: Any, w
     # Eqs 16-17: pivoting (3/8) μs Q a and ball-ball μb F_cb d moments.
     m_p = multiply(q, a, o["pivoting_moment_Nm"])
     m_p = multiply(multiply(m_p, b["mu_pivot"], m_p), b["pivot"], m_p)
-    capillary = multiply(b["balls_touching"], b["capillary"], o["capillary_force_ball_ball_N"])
+    # A ball touches a neighbour only when balls touch and there are at least two of them.
+    capillary = f.at_least(b["balls"], MIN_BALLS_TOUCHING, o["capillary_force_ball_ball_N"])
+    capillary = multiply(multiply(capillary, b["balls_touching"], capillary), b["capillary"], capillary)
     m_b = multiply(capillary, b["mu_ball"], o["ball_ball_moment_Nm"])
     m_b = multiply(m_b, b["ball_ball"], m_b)
     # Eq 20 term by term, F_S = M_b / (d cos θ) + 2 M_P tan θ / d + 2 M_ER / d + F_R; each

@@ -121,7 +121,8 @@ PARAMETERS: dict[str, Parameter] = {
     for p in [
         Parameter(
             "balls", "z", "1",
-            "Total number of balls carrying the slider (both grooves together).",
+            "Total number of balls carrying the slider, both grooves together (the paper's "
+            "case B, 9 balls per groove, is balls=18); each ball carries load_N / balls.",
             minimum=1, maximum=1_000_000, kind="int",
         ),
         Parameter(
@@ -150,7 +151,8 @@ PARAMETERS: dict[str, Parameter] = {
         Parameter(
             "balls_touching", "", "1",
             "Whether neighbouring balls touch, adding the ball-ball capillary "
-            "friction moment of eq 17.",
+            "friction moment of eq 17 to every ball; a single ball (balls=1) has no "
+            "neighbour, so there it adds nothing.",
             default=False, kind="bool",
         ),
         Parameter(

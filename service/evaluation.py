@@ -19,12 +19,12 @@ _BOOLEAN_INPUTS = frozenset(name for name, spec in physics.PARAMETERS.items() if
 
 
 def _evaluate(inputs: dict[str, Any], outputs: list[str] | None, convention: str,
-              pointer: str) -> dict[str, np.ndarray]:
+              pointer: str) -> physics.FrictionResult:
     try:
         # Extreme but allowed inputs (a groove angle next to 90 deg) overflow; the callers
         # turn non-finite outputs into 422 problems.
         with np.errstate(all="ignore"):
-            return physics.evaluate(convention=str(convention), outputs=outputs, **inputs).to_dict(outputs)
+            return physics.evaluate(convention=str(convention), outputs=outputs, **inputs)
     except ValueError as exc:
         name = str(exc).split(" ", 1)[0]
         where = f"{pointer}/{name}" if name in physics.PARAMETERS else pointer
@@ -51,11 +51,12 @@ def evaluate_point(inputs: dict[str, Any], convention: str) -> dict[str, float]:
     ProblemError
         422 for inputs the model rejects or that drive an output out of floating-point range.
     """
-    values = {name: float(value) for name, value in _evaluate(inputs, None, convention, "").items()}
-    for name, value in values.items():
-        if not math.isfinite(value):
-            raise validation_problem([{"pointer": "/", "detail": f"the model output {name} is not finite: "
-                                       f"the inputs are {_NOT_FINITE}"}])
+    result = _evaluate(inputs, None, convention, "")
+    values = {name: float(getattr(result, name)) for name in physics.OUTPUTS}
+    if not all(map(math.isfinite, values.values())):
+        name = next(name for name, value in values.items() if not math.isfinite(value))
+        raise validation_problem([{"pointer": "/", "detail": f"the model output {name} is not finite: "
+                                   f"the inputs are {_NOT_FINITE}"}])
     return values
 
 
@@ -87,7 +88,7 @@ def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, conventi
         422 for inputs the model rejects or that drive an output out of floating-point range.
     """
     outputs = None if outputs is None else [str(name) for name in outputs]
-    result = _evaluate(inputs, outputs, convention, pointer)
+    result = _evaluate(inputs, outputs, convention, pointer).to_dict(outputs)
     for name, values in result.items():
         finite = np.isfinite(values)
         if not finite.all():

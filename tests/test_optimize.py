@@ -208,10 +208,10 @@ def test_dgp_expressions_equal_the_physics(convention, touching, adhesion, speed
                             fixed={"balls_touching": touching, "adhesion_energy_J_m2": adhesion},
                             constraints=Constraints(max_contact_pressure_Pa=1e9, max_friction_force_N=1.0),
                             convention=convention)
-    gp, values = design_gp(problem)
     rng = np.random.default_rng(3)
-    for z, theta, load in zip(rng.integers(1, 50, 20), rng.uniform(5, 85, 20), 10 ** rng.uniform(-5, 0, 20),
-                              strict=True):
+    counts = [1, *rng.integers(1, 50, 19)]  # a single ball (no neighbour, no ball-ball term) included
+    for z, theta, load in zip(counts, rng.uniform(5, 85, 20), 10 ** rng.uniform(-5, 0, 20), strict=True):
+        gp, values = design_gp(problem, balls=int(z))
         with gp.lock:
             gp.assign(values, int(z))
             gp.tan_theta.value, gp.load_N.value = np.tan(np.deg2rad(theta)), load
@@ -219,6 +219,21 @@ def test_dgp_expressions_equal_the_physics(convention, touching, adhesion, speed
             for name in ("mu", "friction_force_N", "max_contact_pressure_Pa", "contact_load_adhesive_N",
                          "contact_load_N", "contact_radius_m", "hysteresis_moment_Nm", "ball_race_force_N"):
                 assert gp.expressions[name].value == pytest.approx(float(getattr(r, name)), rel=1e-10), name
+
+
+@pytest.mark.parametrize("limits", [{}, {"min_load_capacity_N": 1e-2, "max_load_per_ball_N": 4e-3}])
+def test_a_single_ball_is_optimized_without_a_ball_ball_moment(limits):
+    # One ball has no neighbour, so touching balls add nothing at balls=1 and the least friction per
+    # unit load is there, unless a per-ball limit forbids it. The DGP of each count must equal the
+    # physics at its optimum (the proof's premise) and no grid design may beat the optimizer.
+    problem = DesignProblem(DesignBounds((1, 5), (40, 70), (1e-3, 2e-2)), speed_m_s=0.05,
+                            fixed={"balls_touching": True, "mu_ball": 1.0}, constraints=Constraints(**limits))
+    result = optimize_design(problem)
+    assert all(abs(row.relative_gap) < 1e-6 for row in result.per_ball_count if row.mu is not None)
+    brute_mu, brute_design = brute_force(problem)
+    assert result.mu * (1 - 1e-4) <= brute_mu <= result.mu * 1.05, (brute_design, result.design)
+    assert (result.design["balls"] == 1) == (not limits)
+    assert all(c.satisfied for c in result.constraints)
 
 
 def test_every_structure_is_dgp_and_dpp():

@@ -220,7 +220,8 @@ def _composed(convention, **params):
                                     e_prime, d / 2),
         lubrication.load_parameter(q, e_prime, d / 2))
     m_er, m_p = moments.hysteresis_moment(d, q), moments.pivoting_moment(p["mu_pivot"], q, a)
-    f_cb = np.where(p["balls_touching"], surface.capillary_force(
+    # one ball (balls counts both grooves) has no neighbour to touch
+    f_cb = np.where(p["balls_touching"] & (p["balls"] > 1), surface.capillary_force(
         surface.ball_ball_radius(d / 2, d / 2, convention), p["water_surface_tension_N_m"]), 0.0)
     m_b = moments.ball_ball_moment(p["mu_ball"], f_cb, d)
     m_b_pair = m_b if convention == "olaru2005" else 0.5 * m_b

@@ -73,6 +73,28 @@ def test_max_contact_pressure_is_the_hertz_peak_of_the_adhesive_load():
 
 
 @pytest.mark.parametrize("convention", list(physics.CONVENTIONS))
+def test_a_single_ball_has_no_neighbour_so_touching_adds_nothing(convention):
+    # balls counts the balls of both grooves; one ball has nothing to touch, two have eq 17's M_b
+    varied = {"load_N": [1e-4, 8.8e-3, 0.3], "speed_m_s": [0.0, 0.05, 0.15], "mu_ball": [0.5, 1.0, 2.0]}
+    for params in ({"balls": 1, "load_N": 8.8e-3, "speed_m_s": 0.05, "mu_ball": 1.0}, {"balls": 1, **varied}):
+        touching = evaluate(convention=convention, **params, balls_touching=True).to_dict()
+        apart = evaluate(convention=convention, **params, balls_touching=False).to_dict()
+        for name in OUTPUTS:
+            np.testing.assert_array_equal(touching[name], apart[name], err_msg=name)
+        assert np.all(touching["ball_ball_moment_Nm"] == 0) and np.all(touching["mu_ball_ball"] == 0)
+    # in one array with larger counts: only balls=1 loses the moment
+    mixed = evaluate(convention=convention, balls=[1, 2, 1, 18], load_N=4e-3, speed_m_s=0.05,
+                     balls_touching=[True, True, False, True], mu_ball=1.0)
+    # eq 17 by hand at balls >= 2: M_b = μb 4 π γ_w R* d, R* = R/4 (olaru2005) or R/2 (derjaguin)
+    radius = 285e-6 / 2 / (4 if convention == "olaru2005" else 2)
+    by_hand = 1.0 * 4 * math.pi * 0.0717 * radius * 285e-6
+    np.testing.assert_allclose(mixed.ball_ball_moment_Nm, [0.0, by_hand, 0.0, by_hand], rtol=1e-14, atol=0)
+    assert bearing.ball_ball_contact(True, 1) is False and bearing.ball_ball_contact(True, 2) is True
+    contact = bearing.ball_ball_contact([True, True, False], [1, 2, 2])
+    np.testing.assert_array_equal(contact, [False, True, False])
+
+
+@pytest.mark.parametrize("convention", list(physics.CONVENTIONS))
 def test_one_point_reproduces_its_value_in_an_array_bit_for_bit(convention):
     # A one-point call runs the kernel on Python floats; an array call runs numpy's loops. Every
     # input varied over (most of) its range, zero speeds, viscosities and adhesion included.

@@ -343,3 +343,19 @@ def test_a_million_bad_values_get_a_bounded_answer(client):
                                                              "/points/load_N/2"]
     assert "200001 errors in all" in problem["detail"] and len(response.content) < 50_000
     assert_healthy(client)
+
+
+@pytest.mark.parametrize(("body", "repeated"), [
+    (b'{"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}', None),
+    (b'{"a:b": 1, "a": "b", "b": "a", "": 2}', None),  # a colon in a key, keys written as values
+    (b'{"a" : 1,"a"\n:2}', "a"),  # whitespace around the colon
+    (b'{"a": 1, "\\u0061": 2}', "a"),  # the same key written with an escape
+    (b'{"a": {"b": 1, "b": 2}}', "b"),  # nested: not one flat object
+])
+def test_duplicate_keys_of_one_flat_object_are_found_without_the_parser_too(body, repeated):
+    # one flat object without escapes (a single point's body) is checked by its strings before a colon
+    if repeated is None:
+        check_json_structure(body, 1000)
+        return
+    with pytest.raises(ProblemError, match=f"The key '{repeated}' appears twice in one object"):
+        check_json_structure(body, 1000)

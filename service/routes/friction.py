@@ -39,7 +39,9 @@ async def evaluate_friction(request: Request) -> Response:
     if body.conditions is not None:
         raise validation_problem([{"pointer": "/conditions",
                                    "detail": "only a calibrated model reads conditions"}])
-    inputs = body.model_dump(exclude={"convention", "model", "conditions"})
+    # Only the inputs sent: the physics fills the same defaults (both come from its parameter table)
+    # and checks each value it is given, so a field left out need not be checked again.
+    inputs = body.model_dump(exclude_unset=True, exclude={"convention", "model", "conditions"})
     document = {"convention": str(body.convention), **evaluate_point(inputs, body.convention)}
     return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
 
