@@ -5,6 +5,8 @@ shared 2-core machine; ``--quick`` skips the ablations and the larger spaces).
 ``--coverage-only`` runs the coverage study: the REST defaults (adaptive, target 0.001, Sobol'
 start) on the issue's 4-, 5- and 6-input spaces and on random spaces of 1 to 7 inputs, at budgets
 50 to 400, over design seeds, each on 1024 held-out Sobol' points (about 15-30 minutes).
+``--scale-diagnostics`` prints, per fit of the REST defaults, the variance scale each
+cross-validation rule estimates against the one the held-out points ask for (why coverage misses).
 ``--smt`` compares the REST defaults with SMT's Kriging (``pip install smt``; Matérn 5/2, log
 inputs, log μ, Sobol' design of the same budget) on the 4-, 5- and 6-input spaces at budgets
 100 and 300, side by side.
