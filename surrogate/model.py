@@ -506,8 +506,14 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         return self._loo()[0]
 
     def _loo(self) -> tuple[np.ndarray, np.ndarray]:
-        gp = self.gaussian_process_
-        K_inv_diag = np.diag(cho_solve((gp.L_, True), np.eye(gp.L_.shape[0])))
-        # alpha_ and K are in normalize_y units; scale back to the target's units.
-        y_std = float(np.ravel(gp._y_train_std)[0])
-        return gp.alpha_.reshape(-1) / K_inv_diag * y_std, y_std**2 / K_inv_diag
+        # Kept with the process it belongs to: the calibration and adaptive sampling both need it,
+        # and each computation inverts the n x n covariance.
+        cached = getattr(self, "_loo_cache", None)
+        if cached is None or cached[0] is not self.gaussian_process_:
+            gp = self.gaussian_process_
+            K_inv_diag = np.diag(cho_solve((gp.L_, True), np.eye(gp.L_.shape[0])))
+            # alpha_ and K are in normalize_y units; scale back to the target's units.
+            y_std = float(np.ravel(gp._y_train_std)[0])
+            errors, variances = gp.alpha_.reshape(-1) / K_inv_diag * y_std, y_std**2 / K_inv_diag
+            self._loo_cache = cached = (gp, (errors, variances))
+        return cached[1]

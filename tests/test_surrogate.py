@@ -654,3 +654,12 @@ def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is
     refit = GaussianProcessSurrogate(space, initial_theta=gp.kernel_.theta.tolist(), n_restarts_optimizer=0)
     refit.fit(fit.X, fit.y)
     assert gp.log_marginal_likelihood_value_ >= refit.gaussian_process_.log_marginal_likelihood_value_ - 1e-6
+    # The round that spends the budget optimizes; when the final calibration differs from the rounds'
+    # (k-fold below 10 points per feature: 24 points of 3 features), only the calibration is redone.
+    space = SPACES["angle+load"]
+    fit = fit_adaptive(space, budget=24, initial_size=12, batch_size=6, seed=0)
+    assert (fit.model.calibrate_variance, fit.model.variance_calibration_) == ("auto", "kfold")
+    gp = fit.model.gaussian_process_
+    refit = GaussianProcessSurrogate(space, initial_theta=gp.kernel_.theta.tolist(), n_restarts_optimizer=0)
+    refit.fit(fit.X, fit.y)
+    assert gp.log_marginal_likelihood_value_ >= refit.gaussian_process_.log_marginal_likelihood_value_ - 1e-6
