@@ -7,7 +7,7 @@ start) on the issue's 4-, 5- and 6-input spaces and on random spaces of 1 to 7 i
 50 to 400, over design seeds, each on 1024 held-out Sobol' points (about 15-30 minutes).
 ``--scale-diagnostics`` prints, per fit of the REST defaults, the variance scale each
 cross-validation rule estimates against the one the held-out points ask for (why coverage misses).
-``--smt`` compares the REST defaults with SMT's Kriging (``pip install smt``; Matérn 5/2, log
+``--smt`` compares the REST defaults with SMT's Kriging (``pip install -e ".[bench]"``; Matérn 5/2, log
 inputs, log μ, Sobol' design of the same budget) on the 4-, 5- and 6-input spaces at budgets
 100 and 300, side by side.
 
@@ -272,7 +272,7 @@ def smt_comparison(seeds: int, budgets: tuple[int, ...] = (100, 300),
     try:
         from smt.surrogate_models import KRG
     except ImportError:
-        raise SystemExit("--smt needs SMT: pip install smt") from None
+        raise SystemExit("--smt needs SMT: pip install -e \".[bench]\" (or pip install smt)") from None
     print(f"REST defaults against SMT KRG (corr=matern52, inputs in the space's log/power scale, target "
           f"log mu) on a Sobol' design of the same budget; {N_TEST} held-out Sobol' points; design seeds "
           f"0-{seeds - 1}; ratio = SMT / ours (> 1: ours more accurate)\n")
