@@ -41,7 +41,7 @@ error of the procedure, and how often it chose the same terms.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -225,7 +225,8 @@ def cross_validate(
     terms: Sequence[Term],
     folds: list[np.ndarray],
     scale: float | None = None,
-    start: FitResult | None = None,
+    start: Mapping[str, float] | None = None,
+    start_terms: Sequence[Sequence[float]] | None = None,
     precise: bool = True,
     convention: str = physics.DEFAULT_CONVENTION,
 ) -> ModelCV:
@@ -244,8 +245,10 @@ def cross_validate(
     scale : float, optional
         Robust scale for the Huber loss (default: estimated by the fit on all rows, then used by
         every fold).
-    start : FitResult, optional
-        Fit to start from (its declared values and the values of its terms, which come first).
+    start : mapping of str to float, optional
+        Declared values to start from (default: the physics defaults).
+    start_terms : sequence of sequence of float, optional
+        Values of the first terms to start from (the others start from their data-based guess).
     precise : bool
         Whether the fits are precise (see :func:`calibrate.fit.fit`) or only good enough to rank.
     convention : str
@@ -255,13 +258,11 @@ def cross_validate(
     -------
     ModelCV
     """
-    start_declared = None if start is None else start.declared
-    start_terms = None if start is None else start.term_values
     full = fit(
         dataset,
         fit_parameters,
         terms,
-        start=start_declared,
+        start=start,
         start_terms=start_terms,
         scale=scale,
         precise=precise,
@@ -643,17 +644,21 @@ def forward_select(
         if step.chosen is None:
             reason = step.reason
             break
+        # The scale is estimated afresh for the model with the new term, and the model is refitted
+        # at it on every fold: the next step's candidates are fitted at that scale, and a current
+        # model left at the previous, wider scale (where gross outliers pull almost as in least
+        # squares) would make any refit at the new scale look like an improvement.
         current = cross_validate(
             data,
             fit_parameters,
             (*current.terms, step.chosen.term),
             fold_rows,
-            scale,
-            start=current.full,
+            start=_shifted(current.full.declared, step.chosen.shifts),
+            start_terms=[*current.full.term_values, step.chosen.values],
             precise=False,
             convention=convention,
         )
-        scale = max(robust_scale(current.full.residual), 1e-12)
+        scale = current.full.scale
     else:
         reason = f"stopped at {max_terms} terms (the most forward selection adds)"
     report(1.0)
