@@ -23,7 +23,13 @@ on both
   on noise alone at :data:`FAMILY_ALPHA` (one-sided Bonferroni, Φ⁻¹(1 - α/m)),
 
 and, when ``mu_measured_std`` is given, only while the current model's residual is
-not consistent with that noise (chi-square test at 1 %). Among the candidates
+not consistent with that noise (chi-square test at 1 %).
+
+The paired test takes its spread from the differences themselves, so that a few
+gross outliers cannot pass for an effect; the price is that an effect carried by
+m rows alone (a breakaway rise below a Stribeck speed that few rows reach) cannot
+reach a z above about √m, however large it is on them: it is found only when
+about z² rows (13 for z = 3.6) show it. Among the candidates
 that count, the lowest score wins, except that a named mechanism whose loss lies
 within one standard error of the winner's is preferred to a generic term (a
 catalogue effect first, then the parameter drift that needs the smallest change
