@@ -89,10 +89,10 @@ class GPCorrection:
         self.scale = np.asarray(state["scale"], dtype=float)
         self.length = np.asarray(state["length_scale"], dtype=float)
         self.amplitude, self.noise = float(state["amplitude"]), float(state["noise"])
-        self.x = np.asarray(state["x"], dtype=float).reshape(-1, len(self.features))
+        self.x = np.asarray(state["x"], dtype=float)
         y = np.asarray(state["y"], dtype=float)
         sizes = {self.centre.size, self.scale.size, self.length.size, len(self.features)}
-        if len(sizes) != 1 or y.size != self.x.shape[0] or y.size < 2:
+        if len(sizes) != 1 or self.x.ndim != 2 or self.x.shape != (y.size, len(self.features)) or y.size < 2:
             raise ValueError("discrepancy: features, centre, scale, length_scale and the columns of x must "
                              "have one size, and y one value per row of x (at least two)")
         if not (np.all(self.scale > 0) and np.all(self.length > 0) and self.amplitude > 0 and self.noise > 0):

@@ -309,6 +309,29 @@ def test_a_gp_on_what_the_terms_leave_joins_the_model_and_widens_its_intervals()
         model({k: v for k, v in fresh.items() if k != "vibration_um"})
 
 
+def test_the_stored_gp_predicts_as_scikit_learn_does():
+    # The model's own GP prediction (numpy, from JSON data) against scikit-learn's with the same kernel.
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+
+    rng = np.random.default_rng(5)
+    x, y = rng.uniform(-2, 2, (40, 2)), rng.normal(0.1, 0.05, 40)
+    kernel = ConstantKernel(0.7, "fixed") * RBF([0.8, 3.0], "fixed") + WhiteKernel(0.05, "fixed")
+    reference = GaussianProcessRegressor(kernel, normalize_y=True, optimizer=None).fit(x, y)
+    state = {"features": ["a", "b"], "centre": [1.0, -1.0], "scale": [2.0, 0.5], "length_scale": [0.8, 3.0],
+             "amplitude": 0.7, "noise": 0.05, "x": x.tolist(), "y": y.tolist()}
+    gp = CalibratedModel.from_json({"format_version": 2, "discrepancy": state}).discrepancy
+    new = rng.uniform(-3, 3, (7, 2))
+    mean, variance = gp({"a": 1.0 + 2.0 * new[:, 0], "b": -1.0 + 0.5 * new[:, 1]}, (7,))
+    expected_mean, expected_std = reference.predict(new, return_std=True)
+    np.testing.assert_allclose(mean, expected_mean, rtol=1e-9)
+    # scikit-learn's std includes the white noise; the stored GP's variance is the discrepancy's own.
+    np.testing.assert_allclose(variance + 0.05 * np.var(y), expected_std**2, rtol=1e-9)
+    without_y = {k: v for k, v in state.items() if k != "y"}
+    with pytest.raises(ValueError, match="discrepancy: missing y"):
+        CalibratedModel.from_json({"format_version": 2, "discrepancy": without_y})
+
+
 def test_a_version_1_model_still_loads_without_intervals():
     stored = {"format_version": 1, "convention": "olaru2005", "fixed": {}, "fitted": {"mu_pivot": 0.7},
               "effect": {"name": "constant_drag", "drivers": ["load_N"], "parameters": {"drag_force_N": 1e-4},
