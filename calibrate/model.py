@@ -5,7 +5,11 @@ the calibration request, the fitted declared parameters and the terms chosen by
 forward selection (:mod:`calibrate.candidates`), with what
 :meth:`CalibratedModel.predict` needs to say how sure it is and where it holds:
 the covariance of the fitted values, the scatter of a new measurement around
-the model, and the range of every column of the data it was fitted on.
+the model, and the range of every column of the data it was fitted on. When
+nested cross-validation showed that a Gaussian process on what the terms leave
+predicts better (:func:`calibrate.discrepancy.residual_gp`), the model also
+holds that GP (:class:`GPCorrection`): its mean corrects log μ and its
+predictive variance widens the interval where the data say little.
 
 Models stored before version 2 (one effect, no covariance, no domain) still
 load; they answer μ without an interval and without a domain check.
@@ -18,13 +22,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import stats
+from scipy import linalg, stats
 
 from microbearing import physics
 
 from .candidates import Term, mu_of, term_from_json
 
-__all__ = ["CalibratedModel", "Prediction", "FORMAT_VERSION"]
+__all__ = ["CalibratedModel", "GPCorrection", "Prediction", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 2
 # Relative step of the finite-difference gradient of log mu in the fitted values.
@@ -59,6 +63,62 @@ class Prediction:
     warnings: list[str] = field(default_factory=list)
 
 
+class GPCorrection:
+    """A Gaussian-process discrepancy of log μ, rebuilt from the data of
+    :func:`calibrate.discrepancy.gp_state` (standard GP prediction, Rasmussen & Williams eq. 2.25-2.26).
+
+    Parameters
+    ----------
+    state : mapping
+        ``features``, ``centre``, ``scale``, ``length_scale``, ``amplitude``, ``noise``, ``x``, ``y``.
+
+    Raises
+    ------
+    ValueError
+        For inconsistent sizes or non-positive hyperparameters.
+    """
+
+    def __init__(self, state: Mapping[str, Any]):
+        keys = ("features", "centre", "scale", "length_scale", "amplitude", "noise", "x", "y")
+        missing = [k for k in keys if k not in state]
+        if missing:
+            raise ValueError(f"discrepancy: missing {', '.join(missing)}")
+        self.state = {k: state[k] for k in keys}
+        self.features = [str(f) for f in state["features"]]
+        self.centre = np.asarray(state["centre"], dtype=float)
+        self.scale = np.asarray(state["scale"], dtype=float)
+        self.length = np.asarray(state["length_scale"], dtype=float)
+        self.amplitude, self.noise = float(state["amplitude"]), float(state["noise"])
+        self.x = np.asarray(state["x"], dtype=float)
+        y = np.asarray(state["y"], dtype=float)
+        sizes = {self.centre.size, self.scale.size, self.length.size, len(self.features)}
+        if len(sizes) != 1 or self.x.ndim != 2 or self.x.shape != (y.size, len(self.features)) or y.size < 2:
+            raise ValueError("discrepancy: features, centre, scale, length_scale and the columns of x must "
+                             "have one size, and y one value per row of x (at least two)")
+        if not (np.all(self.scale > 0) and np.all(self.length > 0) and self.amplitude > 0 and self.noise > 0):
+            raise ValueError("discrepancy: scale, length_scale, amplitude and noise must be positive")
+        self.y_mean, self.y_std = float(np.mean(y)), float(np.std(y)) or 1.0
+        gram = self._kernel(self.x) + self.noise * np.eye(y.size)
+        self.factor = linalg.cho_factor(gram, lower=True)
+        self.alpha = linalg.cho_solve(self.factor, (y - self.y_mean) / self.y_std)
+
+    def _kernel(self, x: np.ndarray) -> np.ndarray:
+        d = (x[:, None, :] - self.x[None, :, :]) / self.length
+        return self.amplitude * np.exp(-0.5 * np.sum(d * d, axis=-1))
+
+    def __call__(self, columns: Mapping[str, Any], shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and latent variance of the discrepancy of log μ at columnar points [1], shaped ``shape``."""
+        x = np.column_stack([
+            ((np.broadcast_to(np.asarray(columns[f], dtype=float), shape) - c) / s).ravel()
+            for f, c, s in zip(self.features, self.centre, self.scale, strict=True)
+        ]) if self.features else np.zeros((int(np.prod(shape)), 0))
+        k = self._kernel(x)
+        mean = self.y_mean + self.y_std * (k @ self.alpha)
+        v = linalg.solve_triangular(self.factor[0], k.T, lower=True)
+        variance = self.y_std**2 * np.clip(self.amplitude - np.sum(v * v, axis=0), 0.0, None)
+        return mean.reshape(shape), variance.reshape(shape)
+
+
 @dataclass(frozen=True)
 class CalibratedModel:
     """Physics + fitted declared parameters + terms, with covariance, scatter and domain.
@@ -83,6 +143,9 @@ class CalibratedModel:
         data's units).
     conditions : list of str
         Condition columns of the data (the only non-physics keys a point may give).
+    discrepancy : GPCorrection or None
+        Gaussian-process discrepancy of log μ on what the terms leave, when nested cross-validation
+        showed that it helps; its columns are then needed by a prediction.
     """
 
     fitted: dict[str, float] = field(default_factory=dict)
@@ -93,11 +156,15 @@ class CalibratedModel:
     noise_std_log: float | None = None
     domain: dict[str, list[float]] | None = None
     conditions: list[str] = field(default_factory=list)
+    discrepancy: GPCorrection | None = field(default=None, repr=False)
 
     @property
     def required_columns(self) -> list[str]:
-        """Columns a point must give besides the physics inputs: the terms' drivers not in physics."""
+        """Columns a point must give besides the physics inputs: the terms' drivers and the GP
+        discrepancy's columns that are not physics inputs."""
         needed = [d for term, _ in self.terms for d in term.drivers if d not in physics.PARAMETERS]
+        if self.discrepancy is not None:
+            needed += [f for f in self.discrepancy.features if f not in physics.PARAMETERS]
         return list(dict.fromkeys(needed))
 
     def check_columns(self, names) -> None:
@@ -113,15 +180,25 @@ class CalibratedModel:
                 )
         missing = [c for c in self.required_columns if c not in names]
         if missing:
-            labels = ", ".join(t.label for t, _ in self.terms if set(t.drivers) & set(missing))
+            users = [t.label for t, _ in self.terms if set(t.drivers) & set(missing)]
+            if self.discrepancy is not None and set(self.discrepancy.features) & set(missing):
+                users.append("the Gaussian-process discrepancy")
             raise ValueError(
-                f"the calibrated model needs condition column(s) {', '.join(missing)} (drivers of {labels})"
+                f"the calibrated model needs condition column(s) {', '.join(missing)} (used by "
+                f"{', '.join(users)})"
             )
 
     def _mu(self, points: Mapping[str, Any], fitted: Mapping[str, float], values) -> np.ndarray:
         inputs = {**self.fixed, **fitted, **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
         conditions = {k: np.asarray(v, dtype=float) for k, v in points.items() if k not in physics.PARAMETERS}
         return mu_of(inputs, conditions, [t for t, _ in self.terms], values, convention=self.convention)
+
+    def _discrepancy(self, points: Mapping[str, Any], shape) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and variance of the GP discrepancy of log μ (zeros without one) [1]."""
+        if self.discrepancy is None:
+            return np.zeros(shape), np.zeros(shape)
+        columns = {**physics.defaults(), **self.fixed, **self.fitted, **points}
+        return self.discrepancy(columns, shape)
 
     def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
         """μ at columnar points.
@@ -143,7 +220,8 @@ class CalibratedModel:
             For invalid physics inputs, an unknown condition column or a missing one the terms need.
         """
         self.check_columns(points)
-        return self._mu(points, self.fitted, [v for _, v in self.terms])
+        mu = np.asarray(self._mu(points, self.fitted, [v for _, v in self.terms]), dtype=float)
+        return mu * np.exp(self._discrepancy(points, mu.shape)[0])
 
     def predict(self, points: Mapping[str, Any], level: float = 0.95) -> Prediction:
         """μ with its prediction interval and a domain check, at columnar points.
@@ -162,7 +240,8 @@ class CalibratedModel:
         -------
         Prediction
             μ [1], the bounds [1] (log-normal: μ exp(± z σ), σ² the parameter variance of log μ at
-            the point plus :attr:`noise_std_log`²), the domain flag per point and the warnings.
+            the point, plus the GP discrepancy's predictive variance there when the model has one,
+            plus :attr:`noise_std_log`²), the domain flag per point and the warnings.
 
         Raises
         ------
@@ -172,9 +251,10 @@ class CalibratedModel:
         self.check_columns(points)
         values = [list(v) for _, v in self.terms]
         mu = np.asarray(self._mu(points, self.fitted, values), dtype=float)
+        shift, discrepancy_variance = self._discrepancy(points, mu.shape)
         in_domain, warnings = self.domain_check(points)
         if self.covariance is None or self.noise_std_log is None:
-            return Prediction(mu, None, None, in_domain, warnings)
+            return Prediction(mu * np.exp(shift), None, None, in_domain, warnings)
         flat = list(self.fitted.values()) + [x for v in values for x in v]
         gradient = np.zeros((len(flat), *mu.shape))
         with np.errstate(all="ignore"):
@@ -193,8 +273,9 @@ class CalibratedModel:
                     gradient[j] = 0.0
         gradient = np.where(np.isfinite(gradient), gradient, 0.0)
         variance = np.einsum("i...,ij,j...->...", gradient, self.covariance, gradient)
-        sigma = np.sqrt(np.clip(variance, 0.0, None) + self.noise_std_log**2)
+        sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + self.noise_std_log**2)
         z = float(stats.norm.isf((1.0 - level) / 2.0))
+        mu = mu * np.exp(shift)
         return Prediction(mu, mu * np.exp(-z * sigma), mu * np.exp(z * sigma), in_domain, warnings)
 
     def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
@@ -251,6 +332,7 @@ class CalibratedModel:
             "noise_std_log": self.noise_std_log,
             "domain": self.domain,
             "conditions": list(self.conditions),
+            "discrepancy": None if self.discrepancy is None else self.discrepancy.state,
         }
 
     @classmethod
@@ -303,6 +385,7 @@ class CalibratedModel:
         domain = data.get("domain")
         if domain is not None:
             domain = {str(k): [float(v[0]), float(v[1])] for k, v in dict(domain).items()}
+        discrepancy = data.get("discrepancy")
         return cls(
             fitted,
             fixed,
@@ -312,6 +395,7 @@ class CalibratedModel:
             None if noise is None else float(noise),
             domain,
             [str(c) for c in data.get("conditions", [])],
+            None if discrepancy is None else GPCorrection(discrepancy),
         )
 
     @classmethod
@@ -326,8 +410,10 @@ class CalibratedModel:
         noise_std_log: float,
         columns: Mapping[str, np.ndarray],
         conditions: Sequence[str],
+        discrepancy: Mapping[str, Any] | None = None,
     ) -> CalibratedModel:
-        """A model from a fit, with the domain taken from the data's columns."""
+        """A model from a fit, with the domain taken from the data's columns (and a GP discrepancy's
+        data from :func:`calibrate.discrepancy.gp_state`)."""
         domain = {name: [float(np.min(v)), float(np.max(v))] for name, v in columns.items()}
         return cls(
             dict(fitted),
@@ -338,4 +424,5 @@ class CalibratedModel:
             float(noise_std_log),
             domain,
             list(conditions),
+            None if discrepancy is None else GPCorrection(discrepancy),
         )

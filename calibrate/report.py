@@ -34,7 +34,7 @@ import numpy as np
 from microbearing import physics
 
 from .data import Dataset, parse_csv, parse_rows
-from .discrepancy import gp_discrepancy
+from .discrepancy import gp_discrepancy, residual_gp
 from .fit import check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
 from .model import CalibratedModel
 from .plots import calibration_plots
@@ -117,7 +117,11 @@ class CalibrationReport:
     warnings : list of str
         Parameters that moved beyond their interval or sit on a bound, a GP that does better.
     discrepancy_gp : dict
-        Held-out errors and fitted kernel of the GP discrepancy baseline.
+        Held-out errors and fitted kernel of the GP discrepancy baseline (on the declared model);
+        and, for a GP on what the calibrated model's terms leave (:func:`calibrate.discrepancy.residual_gp`),
+        ``calibrated_errors`` and ``calibrated_errors_without`` (nested held-out errors over the rows
+        that are not outliers, with and without it), ``calibrated_z`` [1] (paired z of the decrease of
+        the squared log error) and ``in_model`` (whether it is part of the calibrated model).
     candidates : list of dict
         The first step's candidates' cross-validated scores, the declared model first.
     decision : str
@@ -410,12 +414,21 @@ def calibrate(
         "after": prediction_errors(nested.oof_mu[inliers], measured[inliers]),
         "excluded_rows": int(outliers["count"]),
     }
-    # A new measurement scatters around the model as the held-out rows of the nested cross-validation
-    # did: noise, what the terms leave, and the refit's own uncertainty. RMS over the rows that are not
-    # outliers (a median-based scale would be robust too, but it scatters twice as much from one data
-    # set to the next).
-    held_out = np.log(measured / nested.oof_mu)[inliers]
-    noise_std_log = float(np.sqrt(np.mean(np.square(held_out))))
+    # What the terms leave: a GP on the residual of each outer fold's own model, judged on its held-out
+    # rows; part of the model only when it beats the terms alone there.
+    leftover = residual_gp(dataset, outer, nested.fold_mu, mu_after, inliers, gp_max_train, seed)
+    gp_state = leftover["gp"]
+    if gp_state is None:
+        # A new measurement scatters around the model as the held-out rows of the nested
+        # cross-validation did: noise, what the terms leave, and the refit's own uncertainty. RMS over
+        # the rows that are not outliers (a median-based scale would be robust too, but it scatters
+        # twice as much from one data set to the next).
+        noise_variance = float(np.mean(np.square(np.log(measured / nested.oof_mu)[inliers])))
+    else:
+        # What the terms leave is the GP's, with its own predictive variance at each point; the
+        # noise is its white-noise part (Kennedy-O'Hagan), not the held-out scatter, which holds both.
+        noise_variance = gp_state["noise"] * float(np.var(gp_state["y"]))
+    noise_std_log = float(np.sqrt(noise_variance))
     model = CalibratedModel.from_fit(
         final.declared,
         dataset.fixed,
@@ -426,7 +439,15 @@ def calibrate(
         noise_std_log,
         dataset.columns(),
         list(dataset.conditions),
+        gp_state,
     )
+    gp = {
+        **gp,
+        "calibrated_errors": leftover["errors"],
+        "calibrated_errors_without": leftover["errors_without"],
+        "calibrated_z": leftover["z"],
+        "in_model": leftover["helps"],
+    }
     effects = [
         term.describe(values, std)
         for term, values, std in zip(terms, final.term_values, final.term_std(), strict=True)
@@ -451,6 +472,13 @@ def calibrate(
             f"a Gaussian-process discrepancy predicts held-out rows better than the calibrated model "
             f"(relative rmse {gp['errors']['relative_rmse']:.3g} vs {error_after['relative_rmse']:.3g}): "
             f"something remains that no candidate term names"
+        )
+    if leftover["helps"]:
+        warnings.append(
+            f"a Gaussian-process discrepancy on what the terms leave predicts held-out rows better "
+            f"(nested CV, outliers left out: relative rmse {leftover['errors']['relative_rmse']:.3g} vs "
+            f"{leftover['errors_without']['relative_rmse']:.3g}, z = {leftover['z']:.1f}): it is part of the "
+            f"calibrated model, whose mean it corrects and whose intervals it widens where it is unsure"
         )
     noise = noise_report(dataset, mu_after, len(final.names), inliers)
     plots: dict[str, bytes] = {}

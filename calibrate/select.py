@@ -23,12 +23,19 @@ on both
   on noise alone at :data:`FAMILY_ALPHA` (one-sided Bonferroni, Φ⁻¹(1 - α/m)),
 
 and, when ``mu_measured_std`` is given, only while the current model's residual is
-not consistent with that noise (chi-square test at 1 %). Among the candidates
+not consistent with that noise (chi-square test at 1 %).
+
+The paired test takes its spread from the differences themselves, so that a few
+gross outliers cannot pass for an effect; the price is that an effect carried by
+m rows alone (a breakaway rise below a Stribeck speed that few rows reach) cannot
+reach a z above about √m, however large it is on them: it is found only when
+about z² rows (13 for z = 3.6) show it. Among the candidates
 that count, the lowest score wins, except that a named mechanism whose loss lies
 within one standard error of the winner's is preferred to a generic term (a
 catalogue effect first, then the parameter drift that needs the smallest change
 of its parameter over the data). The shortlist of joint refits holds the best
-screened candidates overall, among catalogue effects and among drifts. The
+screened candidates overall, among catalogue effects and among drifts, and every
+named one that screens within one standard error of the best. The
 winner is added, everything refitted, and the search repeated on the remaining
 candidates until none counts or :data:`MAX_TERMS` are in.
 
@@ -41,7 +48,7 @@ error of the procedure, and how often it chose the same terms.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -51,7 +58,7 @@ from microbearing import physics
 
 from .candidates import FrozenBase, Term, candidate_terms, mu_of
 from .data import Dataset
-from .fit import FitResult, fit, huber_loss, kfold_indices, predict_mu, robust_scale, weighted_log_residual
+from .fit import FitResult, fit, huber_loss, kfold_indices, predict_mu, weighted_log_residual
 
 __all__ = [
     "FAMILY_ALPHA",
@@ -225,7 +232,8 @@ def cross_validate(
     terms: Sequence[Term],
     folds: list[np.ndarray],
     scale: float | None = None,
-    start: FitResult | None = None,
+    start: Mapping[str, float] | None = None,
+    start_terms: Sequence[Sequence[float]] | None = None,
     precise: bool = True,
     convention: str = physics.DEFAULT_CONVENTION,
 ) -> ModelCV:
@@ -244,8 +252,10 @@ def cross_validate(
     scale : float, optional
         Robust scale for the Huber loss (default: estimated by the fit on all rows, then used by
         every fold).
-    start : FitResult, optional
-        Fit to start from (its declared values and the values of its terms, which come first).
+    start : mapping of str to float, optional
+        Declared values to start from (default: the physics defaults).
+    start_terms : sequence of sequence of float, optional
+        Values of the first terms to start from (the others start from their data-based guess).
     precise : bool
         Whether the fits are precise (see :func:`calibrate.fit.fit`) or only good enough to rank.
     convention : str
@@ -255,13 +265,11 @@ def cross_validate(
     -------
     ModelCV
     """
-    start_declared = None if start is None else start.declared
-    start_terms = None if start is None else start.term_values
     full = fit(
         dataset,
         fit_parameters,
         terms,
-        start=start_declared,
+        start=start,
         start_terms=start_terms,
         scale=scale,
         precise=precise,
@@ -465,8 +473,24 @@ def _search_step(
     screened = sorted((exact.get(id(c), c) for c in screened), key=lambda c: c.score)
     effects = [c for c in screened if c.term.kind == "effect" and not c.term.generic]
     drifts = [c for c in screened if c.term.kind == "drift"]
+    # Named terms that screen as well as the best, within one standard error, are refitted jointly too,
+    # so that the preference among equals below can act on all of them: near-duplicates (the ball and
+    # the race modulus, which enter the physics only through the effective modulus) would otherwise
+    # fill the shortlist and leave out an equal that asks less of its parameter.
+    # Only when the best passes the paired test in sample (with nothing that strong on screening, the
+    # extra refits would be spent on a step that is not going to add anything).
+    z_needed = (
+        z_threshold
+        if family_alpha is None
+        else max(z_threshold, float(stats.norm.isf(family_alpha / max(len(screened), 1))))
+    )
+    equals = [
+        c
+        for c in screened[1:]
+        if screened[0].z > z_needed and not c.term.generic and _within_one_se(c.loss, screened[0].loss)
+    ][: 2 * joint_top]
     shortlist = list(
-        {id(c): c for c in screened[:joint_top] + effects[:joint_top] + drifts[:joint_top]}.values()
+        {id(c): c for c in screened[:joint_top] + effects[:joint_top] + drifts[:joint_top] + equals}.values()
     )
     joint = []
     for i, candidate in enumerate(shortlist):
@@ -483,11 +507,6 @@ def _search_step(
     joint.sort(key=lambda c: c.score)
     finalists = {id(c.term) for c in joint}
     ranked = joint + [c for c in screened if id(c.term) not in finalists]
-    z_needed = (
-        z_threshold
-        if family_alpha is None
-        else max(z_threshold, float(stats.norm.isf(family_alpha / max(len(screened), 1))))
-    )
     significant = [c for c in joint if c.score < current_score.score and c.z > z_needed]
     if not significant:
         best = joint[0] if joint else None
@@ -510,9 +529,7 @@ def _search_step(
     close_named = [
         c
         for c in significant
-        if not c.term.generic
-        and np.mean(c.loss) - np.mean(best.loss)
-        <= np.std(c.loss - best.loss, ddof=1) / np.sqrt(dataset.n_points)
+        if not c.term.generic and _within_one_se(c.loss, best.loss)
     ]
     # Among named terms that fit equally well, a catalogue effect comes first, then the drift that asks
     # least of its parameter (the smallest change over the data), then the lowest score.
@@ -531,9 +548,7 @@ def _search_step(
     rival = [
         c.term.label
         for c in significant
-        if c is not chosen
-        and np.mean(c.loss) - np.mean(chosen.loss)
-        <= np.std(c.loss - chosen.loss, ddof=1) / np.sqrt(dataset.n_points)
+        if c is not chosen and _within_one_se(c.loss, chosen.loss)
     ]
     reason = (
         f"{kind} {chosen.term.label}: CV RMSE of log mu "
@@ -543,6 +558,13 @@ def _search_step(
     if rival:
         reason += f"; as good within one standard error: {', '.join(rival[:3])}"
     return Step(current_score, ranked, chosen, z_needed, reason)
+
+
+def _within_one_se(loss: np.ndarray, reference: np.ndarray) -> bool:
+    """Whether a mean per-row loss exceeds the reference's by at most one standard error of the paired
+    difference."""
+    difference = loss - reference
+    return bool(np.mean(difference) <= np.std(difference, ddof=1) / np.sqrt(difference.size))
 
 
 def _drift_change(dataset: Dataset, candidate: CandidateScore) -> float:
@@ -643,17 +665,21 @@ def forward_select(
         if step.chosen is None:
             reason = step.reason
             break
+        # The scale is estimated afresh for the model with the new term, and the model is refitted
+        # at it on every fold: the next step's candidates are fitted at that scale, and a current
+        # model left at the previous, wider scale (where gross outliers pull almost as in least
+        # squares) would make any refit at the new scale look like an improvement.
         current = cross_validate(
             data,
             fit_parameters,
             (*current.terms, step.chosen.term),
             fold_rows,
-            scale,
-            start=current.full,
+            start=_shifted(current.full.declared, step.chosen.shifts),
+            start_terms=[*current.full.term_values, step.chosen.values],
             precise=False,
             convention=convention,
         )
-        scale = max(robust_scale(current.full.residual), 1e-12)
+        scale = current.full.scale
     else:
         reason = f"stopped at {max_terms} terms (the most forward selection adds)"
     report(1.0)
@@ -677,11 +703,14 @@ class NestedValidation:
         Outer folds whose chosen terms gave a non-finite or non-positive μ on their test rows
         (extrapolated beyond the training rows); those rows are predicted by the declared model
         fitted on the same training rows instead. [1]
+    fold_mu : list of numpy.ndarray
+        μ at every row of each outer fold's model (the one that predicted its test rows). [1]
     """
 
     oof_mu: np.ndarray = field(repr=False)
     fold_terms: list[tuple[Term, ...]]
     unpredictable: int
+    fold_mu: list[np.ndarray] = field(default_factory=list, repr=False)
 
     def stability(self, chosen: Sequence[Term]) -> dict:
         """How often the outer folds agreed with ``chosen`` (the terms chosen on all rows).
@@ -806,6 +835,7 @@ def nested_cross_validate(
     everything = np.arange(dataset.n_points)
     oof = np.empty(dataset.n_points)
     chosen: list[tuple[Term, ...]] = []
+    models_mu: list[np.ndarray] = []
     unpredictable = 0
     for k, (test, fold_mu) in enumerate(zip(baseline.folds, baseline.fold_mu, strict=True)):
         train = np.setdiff1d(everything, test)
@@ -825,6 +855,7 @@ def nested_cross_validate(
         )
         oof[test] = fold_mu[test]
         chosen.append(selection.terms)
+        model_mu = fold_mu
         if selection.terms:
             with np.errstate(all="ignore"):
                 try:
@@ -838,18 +869,15 @@ def nested_cross_validate(
                         convention=convention,
                     )
                     mu = predict_mu(
-                        dataset,
-                        result.declared,
-                        selection.terms,
-                        result.term_values,
-                        rows=test,
-                        convention=convention,
+                        dataset, result.declared, selection.terms, result.term_values, convention=convention
                     )
                 except ValueError:  # a held-out driver outside a term's domain
-                    mu = np.full(test.size, np.nan)
+                    mu = np.full(dataset.n_points, np.nan)
             if _usable(mu):
-                oof[test] = mu
+                oof[test] = mu[test]
+                model_mu = mu
             else:
                 unpredictable += 1
+        models_mu.append(model_mu)
         report((k + 1) / folds)
-    return NestedValidation(oof, chosen, unpredictable)
+    return NestedValidation(oof, chosen, unpredictable, models_mu)

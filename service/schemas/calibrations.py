@@ -127,6 +127,16 @@ class GPDiscrepancy(ResponseModel):
                     "short = relevant.")
     noise_std_log: float | None = Field(description="Fitted noise standard deviation of log mu [1].")
     max_train_rows: int = Field(description="Most training rows per fold [1].")
+    calibrated_errors: ErrorFigures | None = Field(default=None, description=(
+        "Held-out errors (nested CV, outliers left out) of the calibrated model corrected by a GP on what "
+        "its terms leave; null for calibrations stored before it."))
+    calibrated_errors_without: ErrorFigures | None = Field(default=None, description=(
+        "The same rows' held-out errors of the calibrated model without that GP."))
+    calibrated_z: float | None = Field(default=None, description=(
+        "Paired z of the decrease of the squared held-out log error by that GP [1]."))
+    in_model: bool | None = Field(default=None, description=(
+        "Whether that GP is part of the calibrated model (it beat the terms alone held out, one-sided "
+        "1 % test): its mean then corrects mu and its predictive std widens mu_lower/mu_upper."))
 
 
 class FoldChoice(ResponseModel):
