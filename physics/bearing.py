@@ -555,12 +555,14 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     per operation; calls of 8 blocks or more share their blocks between
     threads, one per usable CPU or as many as the environment variable
     ``MICROBEARING_PHYSICS_THREADS`` says (numpy releases the GIL in its
-    loops; throughput: ``bench/physics.py``). Where numba is installed
-    (``pip install microbearing[fast]``) such large calls run the same
-    operations compiled (:mod:`physics.compiled`), which hold the GIL only
-    once per thread; ``MICROBEARING_PHYSICS_KERNEL=numpy`` declines it. The
-    two kernels agree to 1e-12 relative (tested), bit for bit where numpy and
-    numba use the same C library's tan, cbrt, log and exp. The arithmetic takes tan θ
+    loops; throughput: ``bench/physics.py``). With numba installed
+    (``pip install microbearing[fast]``), ``MICROBEARING_PHYSICS_KERNEL=numba``
+    runs such large calls through the same operations compiled
+    (:mod:`physics.compiled`), which hold the GIL only once per thread: it
+    scales better over threads but was no faster overall on the 2-core
+    machine of bench/RESULTS.md, so numpy is the default. The two kernels
+    agree to 1e-12 relative (tested), bit for bit where numpy and numba use
+    the same C library's tan, cbrt, log and exp. The arithmetic takes tan θ
     directly and sec θ from it, and the power laws of eqs 9 and 15 as exp of
     logarithms; it agrees with the plain composition of the equations'
     functions to ~1e-13 (tested), and every point runs the same operations
@@ -662,19 +664,19 @@ if hasattr(os, "register_at_fork"):  # a forked child has none of the parent's t
     os.register_at_fork(after_in_child=_pool.cache_clear)
 
 
-#: Environment variable choosing the kernel of large calls: ``numpy`` or ``numba`` (the default when
-#: numba is installed, ``pip install microbearing[fast]``).
+#: Environment variable choosing the kernel of large calls: ``numpy`` (the default) or ``numba``
+#: (``pip install microbearing[fast]``).
 KERNEL_VARIABLE = "MICROBEARING_PHYSICS_KERNEL"
 
 
 def _compiled_kernel() -> bool:
-    """Whether large calls run :mod:`physics.compiled`: numba installed and not declined."""
+    """Whether large calls run :mod:`physics.compiled`: asked for (numba installed)."""
     value = os.environ.get(KERNEL_VARIABLE, "").strip().lower()
     if value not in ("", "numpy", "numba"):
         raise ValueError(f"{KERNEL_VARIABLE} must be numpy or numba; got {value!r}")
     if value == "numba" and not compiled.AVAILABLE:
         raise ValueError(f"{KERNEL_VARIABLE}=numba needs numba: pip install microbearing[fast]")
-    return compiled.AVAILABLE and value != "numpy"
+    return value == "numba"
 
 
 def _compiled_run(flat: dict[str, Any], kept: np.ndarray, wanted: list[str], size: int):

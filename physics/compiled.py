@@ -6,8 +6,10 @@ order, in one compiled loop that keeps every intermediate in registers and
 releases the GIL, so that the threads of a large call share no memory traffic
 but their inputs and outputs. numpy's and the C library's tan, cbrt, log and exp
 may differ in the last bit, so the two kernels agree to ~1e-15 relative, not
-bit for bit (tested to 1e-12); the numpy kernel stays the reference, and the
-one that runs where numba is not installed.
+bit for bit (tested to 1e-12); the numpy kernel stays the reference and the
+default. This one runs when ``MICROBEARING_PHYSICS_KERNEL=numba``: it spreads
+better over threads, but on the 2-core machine of bench/RESULTS.md one thread of
+it is slower than one of numpy, and two threads were no faster overall.
 
 References
 ----------
