@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import stats
 
 from microbearing import physics
 
@@ -65,7 +65,7 @@ class Prediction:
 
 class GPCorrection:
     """A Gaussian-process discrepancy of log μ, rebuilt from the data of
-    :func:`calibrate.discrepancy.gp_state` (standard GP prediction, Rasmussen & Williams eq. 2.25-2.26).
+    :func:`calibrate.discrepancy.gp_state` as scikit-learn's regressor with those hyperparameters fixed.
 
     Parameters
     ----------
@@ -97,26 +97,27 @@ class GPCorrection:
                              "have one size, and y one value per row of x (at least two)")
         if not (np.all(self.scale > 0) and np.all(self.length > 0) and self.amplitude > 0 and self.noise > 0):
             raise ValueError("discrepancy: scale, length_scale, amplitude and noise must be positive")
-        self.y_mean, self.y_std = float(np.mean(y)), float(np.std(y)) or 1.0
-        gram = self._kernel(self.x) + self.noise * np.eye(y.size)
-        self.factor = linalg.cho_factor(gram, lower=True)
-        self.alpha = linalg.cho_solve(self.factor, (y - self.y_mean) / self.y_std)
+        # scikit-learn's regressor with the stored, fixed hyperparameters (optimizer=None: fitting only
+        # factors the covariance of the stored data). The white noise enters as ``alpha``, on the training
+        # rows only, so predictions give the latent variance: the discrepancy's own. With no relevant
+        # column, one constant column gives the same covariance (the amplitude between any two points).
+        # Imported here: scikit-learn takes seconds to import, and most models have no GP.
+        from sklearn.gaussian_process import GaussianProcessRegressor
+        from sklearn.gaussian_process.kernels import RBF, ConstantKernel
 
-    def _kernel(self, x: np.ndarray) -> np.ndarray:
-        d = (x[:, None, :] - self.x[None, :, :]) / self.length
-        return self.amplitude * np.exp(-0.5 * np.sum(d * d, axis=-1))
+        length = self.length if self.features else np.ones(1)
+        kernel = ConstantKernel(self.amplitude, "fixed") * RBF(length, "fixed")
+        self.gp = GaussianProcessRegressor(kernel, alpha=self.noise, normalize_y=True, optimizer=None)
+        self.gp.fit(self.x if self.features else np.zeros((y.size, 1)), y)
 
     def __call__(self, columns: Mapping[str, Any], shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Mean and latent variance of the discrepancy of log μ at columnar points [1], shaped ``shape``."""
         x = np.column_stack([
             ((np.broadcast_to(np.asarray(columns[f], dtype=float), shape) - c) / s).ravel()
             for f, c, s in zip(self.features, self.centre, self.scale, strict=True)
-        ]) if self.features else np.zeros((int(np.prod(shape)), 0))
-        k = self._kernel(x)
-        mean = self.y_mean + self.y_std * (k @ self.alpha)
-        v = linalg.solve_triangular(self.factor[0], k.T, lower=True)
-        variance = self.y_std**2 * np.clip(self.amplitude - np.sum(v * v, axis=0), 0.0, None)
-        return mean.reshape(shape), variance.reshape(shape)
+        ]) if self.features else np.zeros((int(np.prod(shape)), 1))
+        mean, std = self.gp.predict(x, return_std=True)
+        return mean.reshape(shape), np.square(std).reshape(shape)
 
 
 @dataclass(frozen=True)
