@@ -36,14 +36,19 @@ async def evaluate_friction(request: Request) -> Response:
         document = await run_in_threadpool(evaluate_point_with_model, await get_store(request), body.model,
                                            given, body.conditions)
         return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
-    if body.conditions is not None:
-        raise validation_problem([{"pointer": "/conditions",
-                                   "detail": "only a calibrated model reads conditions"}])
+    _refuse_conditions(body.conditions)
     # Only the inputs sent: the physics fills the same defaults (both come from its parameter table)
     # and checks each value it is given, so a field left out need not be checked again.
     inputs = body.model_dump(exclude_unset=True, exclude={"convention", "model", "conditions"})
     document = {"convention": str(body.convention), **evaluate_point(inputs, body.convention)}
     return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
+
+
+def _refuse_conditions(conditions: object) -> None:
+    """422 at ``/conditions`` when a physics request gives conditions: only a calibrated model reads them."""
+    if conditions is not None:
+        raise validation_problem([{"pointer": "/conditions",
+                                   "detail": "only a calibrated model reads conditions"}])
 
 
 def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor, store: Store) -> bytes:
@@ -52,9 +57,7 @@ def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor, s
             store, executor, request.model, request.points.model_dump(exclude_unset=True), request.conditions,
             request.outputs, str(request.convention) if "convention" in request.model_fields_set else None,
             max_points)))
-    if request.conditions is not None:
-        raise validation_problem([{"pointer": "/conditions",
-                                   "detail": "only a calibrated model reads conditions"}])
+    _refuse_conditions(request.conditions)
     inputs, count = column_arrays(request.points.model_dump(), max_points)
     # Chunks of points on the app's executor (thread pool or dask cluster, service/executor.py).
     return json_bytes(with_folding_safe_names(evaluate_in_chunks(
