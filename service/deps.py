@@ -40,7 +40,7 @@ class Runtime:
 
     def __init__(self, settings: Settings):
         self.settings = settings
-        self.store = open_store(settings.data_dir)
+        self.store = open_store(settings.data_dir, settings.model_cache_size)
         self.jobs = JobManager(self.store, settings.job_workers, max_active=settings.max_active_jobs,
                                max_active_per_key=settings.max_active_jobs_per_key,
                                max_result_bytes=settings.max_result_bytes,
@@ -58,17 +58,19 @@ class DataFolderError(RuntimeError):
     """The data folder cannot hold the database; the message names the path and what to do."""
 
 
-def open_store(data_dir: Path) -> Store:
+def open_store(data_dir: Path, rebuilt_models: int = 16) -> Store:
     """The store of ``data_dir``, or a :class:`DataFolderError` naming the path and the fix.
 
     Parameters
     ----------
     data_dir : pathlib.Path
         The data folder (``MICROBEARING_DATA_DIR``).
+    rebuilt_models : int
+        Rebuilt models the store keeps (``MICROBEARING_MODEL_CACHE_SIZE``, :meth:`Store.rebuilt`).
     """
     database = Path(data_dir) / DATABASE_NAME
     try:
-        return Store(data_dir)
+        return Store(data_dir, rebuilt_models)
     except StorageError as exc:
         cause = exc.cause
         if Path(data_dir).is_dir() and not os.access(data_dir, os.W_OK):  # SQLite says only "cannot open"

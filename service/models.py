@@ -502,10 +502,11 @@ def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Seq
         from .surrogates import load_surrogate
 
         return SurrogateModel(reference, load_surrogate(store, model_id))
-    stored = store.load_model(model_id)
-    if stored is None or stored.kind != _STORE_KINDS[kind]:
+    model = store.rebuilt(model_id, _STORE_KINDS[kind], lambda stored: CalibratedPhysicsModel(
+        reference, CalibratedModel.from_json(stored.metadata["model"])))
+    if model is None:
         raise ProblemError(404, f"There is no calibrated model {reference!r}.")
-    return CalibratedPhysicsModel(reference, CalibratedModel.from_json(stored.metadata["model"]))
+    return model
 
 
 def list_references(store: Store) -> list[str]:

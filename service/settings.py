@@ -81,6 +81,11 @@ class Settings(BaseSettings):
         default=20_000, ge=1,
         description="Most data rows of one calibration (JSON or CSV); more get 413.",
     )
+    model_cache_size: int = Field(
+        default=16, ge=0, le=1024,
+        description="Calibrated models and surrogates kept rebuilt in memory (the most recently used), so "
+                    "that one point per request does not rebuild its model each time; 0 keeps none.",
+    )
     body_timeout_s: float = Field(
         default=60.0, gt=0,
         description="Time allowed to receive a whole request body [s]; a slower body gets 408.",

@@ -11,6 +11,7 @@ Stored models (surrogates, calibrations, ...)::
     model_id = store.save_model("surrogate", {"inputs": [...], "score": 0.99},
                                 {"weights": w, "bias": b})
     stored = store.load_model(model_id)      # StoredModel(id, kind, name, metadata, arrays, created_at)
+    model = store.rebuilt(model_id, "surrogate", rebuild)   # rebuild(stored), kept for the next call
 
 Ownership: every job and model row records the id of the API key that created it (``owner_key``,
 see :mod:`service.security`; never the key). The reads and deletions a client can reach
@@ -36,7 +37,8 @@ import shutil
 import sqlite3
 import threading
 import uuid
-from collections.abc import Iterator
+from collections import OrderedDict
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -263,10 +265,15 @@ class Store:
     ----------
     data_dir : pathlib.Path
         Folder of the database file; created when missing.
+    rebuilt_models : int
+        How many objects rebuilt from stored models :meth:`rebuilt` keeps (the most recently
+        used); 0 keeps none.
     """
 
-    def __init__(self, data_dir: Path):
+    def __init__(self, data_dir: Path, rebuilt_models: int = 16):
         self.data_dir = Path(data_dir)
+        self._rebuilt: OrderedDict[str, Any] = OrderedDict()
+        self._rebuilt_size = int(rebuilt_models)
         self.data_dir.mkdir(parents=True, exist_ok=True)
         self.path = self.data_dir / DATABASE_NAME
         self._local = threading.local()
@@ -528,6 +535,46 @@ class Store:
         return StoredModel(row["id"], row["kind"], row["name"], json.loads(row["metadata_json"]), arrays,
                            row["created_at"])
 
+    def rebuilt(self, model_id: str, kind: str, rebuild: Callable[[StoredModel], Any]) -> Any | None:
+        """The object ``rebuild(stored)`` makes of a stored model of ``kind``, kept for the next call.
+
+        Rebuilding a model from its row (JSON, ``.npz`` arrays, refitting a GP's factors) costs
+        milliseconds; a client sending one point per request would pay it every time. The
+        :data:`REQUESTER`'s right to see the row is checked on every call (an indexed lookup), so
+        a kept object never answers another key, nor a model deleted since (by this or another
+        process).
+
+        Parameters
+        ----------
+        model_id : str
+            Identifier.
+        kind : str
+            The stored kind, e.g. ``"surrogate"`` or ``"calibration"``.
+        rebuild : callable
+            Makes the object of a :class:`StoredModel`; stored models never change, so neither
+            does the object.
+
+        Returns
+        -------
+        object or None
+            None when there is no such model of that kind the requester sees.
+        """
+        if not self.has_model(model_id, kind):
+            return None
+        with self._lock:
+            if model_id in self._rebuilt:
+                self._rebuilt.move_to_end(model_id)
+                return self._rebuilt[model_id]
+        stored = self.load_model(model_id)
+        if stored is None:  # deleted since the check above
+            return None
+        model = rebuild(stored)
+        with self._lock:
+            self._rebuilt[model_id] = model
+            while len(self._rebuilt) > self._rebuilt_size:
+                self._rebuilt.popitem(last=False)
+        return model
+
     def list_models(self, kind: str | None = None) -> list[dict[str, Any]]:
         """Id, kind, name, metadata and creation time of the models the requester sees, newest first."""
         visible, args = self._visible()
@@ -543,4 +590,8 @@ class Store:
         """Delete a stored model the requester sees; returns whether it existed."""
         visible, args = self._visible()
         with self.transaction() as conn:
-            return conn.execute(f"DELETE FROM models WHERE id = ?{visible}", (model_id, *args)).rowcount > 0
+            deleted = conn.execute(f"DELETE FROM models WHERE id = ?{visible}", (model_id, *args)).rowcount
+        if deleted:
+            with self._lock:
+                self._rebuilt.pop(model_id, None)
+        return deleted > 0

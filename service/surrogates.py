@@ -4,16 +4,15 @@ A surrogate is stored as a model of kind ``"surrogate"``: its public result and 
 estimator as JSON data (:func:`surrogate.to_dict`: training points, hyperparameters, space,
 package version and physics convention), never pickle. A surrogate learns the physics or a
 calibrated model (``"calibrated:<id>"``, resolved by :func:`service.models.resolve`).
-:func:`load_surrogate` rebuilds the estimator of a stored id (kept in a small cache), from which
+:func:`load_surrogate` rebuilds the estimator of a stored id (a refit of its Gaussian process, cubic
+in n_train; the store keeps the last few, :meth:`service.store.Store.rebuilt`), from which
 :func:`service.models.resolve` makes the :class:`~service.models.SurrogateModel` of a
 ``"surrogate:<id>"`` reference; :func:`load_source_model` gives the model a surrogate stands for.
 """
 
 from __future__ import annotations
 
-import threading
 import time
-from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -46,12 +45,6 @@ SENSITIVITY_N = (256, 65_536)
 _PROBE_POINTS = 16
 
 MuModel = Callable[[Mapping[str, Any]], Any]
-
-# Rebuilding a surrogate refits its Gaussian process (cubic in n_train); stored surrogates never
-# change, so the last few rebuilt ones are kept by id.
-_CACHE: OrderedDict[str, GaussianProcessSurrogate] = OrderedDict()
-_CACHE_SIZE = 16
-_CACHE_LOCK = threading.Lock()
 
 
 def _space_problem(exc: ValueError) -> ProblemError:
@@ -287,26 +280,16 @@ def load_stored(store: Store, surrogate_id: str) -> StoredModel:
 
 
 def delete_stored(store: Store, surrogate_id: str) -> None:
-    """Delete a stored surrogate and its rebuilt estimator, or a 404 problem."""
+    """Delete a stored surrogate (and its rebuilt estimator), or a 404 problem."""
     load_stored(store, surrogate_id)
     store.delete_model(surrogate_id)
-    with _CACHE_LOCK:
-        _CACHE.pop(surrogate_id, None)
 
 
 def load_surrogate(store: Store, surrogate_id: str) -> GaussianProcessSurrogate:
-    """The fitted surrogate of a stored id (rebuilt from its data), or a 404 problem."""
-    if not store.has_model(surrogate_id, KIND):  # the cache holds every key's surrogates: check ownership
+    """The fitted surrogate of a stored id (rebuilt from its data, kept by the store), or a 404 problem."""
+    model = store.rebuilt(surrogate_id, KIND, lambda stored: surrogate.from_dict(stored.metadata["model"]))
+    if model is None:
         raise ProblemError(404, f"There is no surrogate {surrogate_id!r}.")
-    with _CACHE_LOCK:
-        if surrogate_id in _CACHE:
-            _CACHE.move_to_end(surrogate_id)
-            return _CACHE[surrogate_id]
-    model = surrogate.from_dict(load_stored(store, surrogate_id).metadata["model"])
-    with _CACHE_LOCK:
-        _CACHE[surrogate_id] = model
-        while len(_CACHE) > _CACHE_SIZE:
-            _CACHE.popitem(last=False)
     return model
 
 

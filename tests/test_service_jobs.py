@@ -469,3 +469,44 @@ def test_an_adaptive_fit_reports_progress_in_proportion_to_its_fitting_work():
     total = 10**3 + 15**3 + 20**3 + 22**3
     expected = [10**3 / total, (10**3 + 15**3) / total, (10**3 + 15**3 + 20**3) / total, 1.0]
     assert fractions == pytest.approx(expected, rel=1e-12)
+
+
+def test_the_store_rebuilds_a_model_once_for_its_owner_and_forgets_it_when_deleted(tmp_path):
+    from microbearing.service.store import REQUESTER, Requester
+
+    store = Store(tmp_path, rebuilt_models=2)
+    builds = []
+
+    def rebuild(stored):
+        builds.append(stored.id)
+        return {"weights": stored.arrays["w"].tolist()}
+
+    def as_key(key_id, call):
+        token = REQUESTER.set(Requester(key_id, sees_all=False))
+        try:
+            return call()
+        finally:
+            REQUESTER.reset(token)
+
+    try:
+        ids = [as_key("alpha", lambda i=i: store.save_model("toy", {}, {"w": np.array([i])}))
+               for i in range(3)]
+        first = as_key("alpha", lambda: store.rebuilt(ids[0], "toy", rebuild))
+        assert first == {"weights": [0]}
+        assert as_key("alpha", lambda: store.rebuilt(ids[0], "toy", rebuild)) is first  # kept, not rebuilt
+        assert builds == [ids[0]]
+        # Kept or not, another key does not see alpha's model, nor does anyone see it under another kind.
+        assert as_key("beta", lambda: store.rebuilt(ids[0], "toy", rebuild)) is None
+        assert store.rebuilt(ids[0], "other", rebuild) is None
+        # Two are kept: rebuilding the second and third pushes the first out.
+        for model_id in ids[1:]:
+            store.rebuilt(model_id, "toy", rebuild)
+        store.rebuilt(ids[0], "toy", rebuild)
+        assert builds == [ids[0], ids[1], ids[2], ids[0]]
+        # Deleted through any store on the folder (another process's, say), it is gone from this one too.
+        other = Store(tmp_path)
+        assert other.delete_model(ids[0])
+        other.close()
+        assert store.rebuilt(ids[0], "toy", rebuild) is None
+    finally:
+        store.close()
