@@ -232,8 +232,18 @@ def _model_fields(model: CalibratedPhysicsModel, values: Mapping[str, Any], outs
             "domain_warnings": list(warnings), "model": model.reference}
 
 
+def _load_in_convention(store: Store, model: str, convention: str | None) -> Model:
+    """The calibrated model, or a 422 at ``/convention`` when the request names another convention."""
+    mu_model = load_mu_model(store, model)
+    if convention is not None and convention != mu_model.convention:
+        raise validation_problem([{"pointer": "/convention", "detail": f"the model {model} was calibrated "
+                                   f"with convention {mu_model.convention!r}; omit convention"}])
+    return mu_model
+
+
 def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any],
-                              conditions: Mapping[str, float] | None) -> dict[str, Any]:
+                              conditions: Mapping[str, float] | None,
+                              convention: str | None) -> dict[str, Any]:
     """The /v1/friction answer of a calibrated model at one point (:meth:`CalibratedPhysicsModel.evaluate`).
 
     Parameters
@@ -246,6 +256,8 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
         Physics inputs the client gave explicitly; they override the model's fixed and fitted values.
     conditions : mapping or None
         Condition columns the model's terms read (e.g. ``relative_humidity`` [1]).
+    convention : str or None
+        The convention the request named, None when it named none.
 
     Returns
     -------
@@ -258,10 +270,10 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
     Raises
     ------
     ProblemError
-        404 for an unknown model, 422 naming an unknown, missing or invalid condition, or for
-        non-finite outputs.
+        404 for an unknown model, 422 naming a convention other than the model's, an unknown,
+        missing or invalid condition, or for non-finite outputs.
     """
-    mu_model = load_mu_model(store, model)
+    mu_model = _load_in_convention(store, model, convention)
     conditions = dict(conditions or {})
     check_conditions(mu_model, conditions)
     try:
@@ -319,10 +331,7 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
         than the model's, an unknown, missing or invalid condition, lists of different lengths, or a
         point where an output is not finite.
     """
-    mu_model = load_mu_model(store, model)
-    if convention is not None and convention != mu_model.convention:
-        raise validation_problem([{"pointer": "/convention", "detail": f"the model {model} was calibrated "
-                                   f"with convention {mu_model.convention!r}; omit convention"}])
+    mu_model = _load_in_convention(store, model, convention)
     conditions = dict(conditions or {})
     check_conditions(mu_model, conditions)
     inputs, count = column_arrays(dict(points), max_points)

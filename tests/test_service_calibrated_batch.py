@@ -222,3 +222,37 @@ def test_a_model_stored_without_interval_or_domain_answers_mu_alone(client):
     single = client.post("/v1/friction", json={"balls": 4, "load_N": 0.02, "speed_m_s": 0.05,
                                                "model": f"calibrated:{stored}"}).json()
     assert single["mu"] == batch["mu"][1] and single["mu_lower"] is None and single["in_domain"] is None
+
+
+def test_the_single_point_refuses_another_convention_as_the_batch_does(client, calibration):
+    used = calibration["model"]["convention"]
+    other = next(c for c in physics.CONVENTIONS if c != used)
+    point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "model": calibration["model_id"],
+             "conditions": {"relative_humidity": 0.5}}
+    refused = client.post("/v1/friction", json={**point, "convention": other})
+    problem = assert_problem(refused, 422, "/convention")
+    assert used in problem["errors"][0]["detail"]
+    answer = client.post("/v1/friction", json={**point, "convention": used})
+    assert answer.status_code == 200 and answer.json()["convention"] == used
+    assert answer.json() == client.post("/v1/friction", json=point).json()
+
+
+@pytest.mark.parametrize(("cache_size", "rebuilds"), [(16, 1), (0, 4)])
+def test_a_calibrated_model_is_rebuilt_once_for_many_single_points(data_dir, calibration, monkeypatch,
+                                                                    cache_size, rebuilds):
+    built = []
+    from_json = CalibratedModel.from_json.__func__
+
+    def counted(cls, document):
+        built.append(1)
+        return from_json(cls, document)
+
+    monkeypatch.setattr(CalibratedModel, "from_json", classmethod(counted))
+    point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "model": calibration["model_id"],
+             "conditions": {"relative_humidity": 0.5}}
+    # A fresh app on the same data folder: nothing rebuilt yet.
+    with TestClient(create_app(Settings(data_dir=data_dir, model_cache_size=cache_size))) as fresh:
+        answers = [fresh.post("/v1/friction", json={**point, "load_N": load}).json()
+                   for load in (0.01, 0.012, 0.014, 0.01)]
+    assert len(built) == rebuilds
+    assert answers[0] == answers[3] and answers[0]["mu"] != answers[1]["mu"]

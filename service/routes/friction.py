@@ -33,8 +33,9 @@ async def evaluate_friction(request: Request) -> Response:
     body = await parse_json_body(request, FrictionRequest)
     if body.model != "physics":
         given = body.model_dump(exclude_unset=True, exclude={"convention", "model", "conditions"})
+        convention = str(body.convention) if "convention" in body.model_fields_set else None
         document = await run_in_threadpool(evaluate_point_with_model, await get_store(request), body.model,
-                                           given, body.conditions)
+                                           given, body.conditions, convention)
         return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
     _refuse_conditions(body.conditions)
     # Only the inputs sent: the physics fills the same defaults (both come from its parameter table)

@@ -20,8 +20,10 @@ from .calibrations import MODEL_FIELDS, MODEL_RESPONSE_FIELDS
 __all__ = ["FrictionBatchPoints", "FrictionBatchRequest", "FrictionBatchResponse", "FrictionRequest",
            "FrictionResponse"]
 
-_CONVENTION = (ConventionName, Field(default=Convention(physics.DEFAULT_CONVENTION),
-                                     description="Reading of the paper's ambiguous ball-ball terms."))
+_CONVENTION = (ConventionName, Field(
+    default=Convention(physics.DEFAULT_CONVENTION),
+    description="Reading of the paper's ambiguous ball-ball terms; a calibrated model uses its own (naming "
+                "another is a 422)."))
 
 FrictionRequest = create_model(
     "FrictionRequest", __base__=StrictModel,
