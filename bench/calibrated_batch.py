@@ -13,6 +13,9 @@ run and alternating over the repeats,
 * the same N points as N single-point ``POST /v1/friction`` requests on the calibrated model,
   extrapolated from the first 200, and as N calls of ``CalibratedPhysicsModel.evaluate`` on one
   point each (the Python loop a batch avoids), extrapolated likewise;
+* single-point requests on the calibrated model by an app that keeps its rebuilt model
+  (``MICROBEARING_MODEL_CACHE_SIZE``, default 16) and by one that keeps none (0, a reload and
+  rebuild per request, as before the setting), alternating in blocks on the same data folder;
 * how many times ``physics.evaluate`` runs for one calibrated batch.
 
 Times are medians over the repeats [s]; the machine's CPU count and load average are printed.
@@ -115,10 +118,10 @@ def main() -> None:
         finally:
             physics.evaluate = evaluate
 
-        def singles():
+        def singles(app_client: TestClient = client):
             for i in range(LOOP_SAMPLE):
                 point = {"balls": 4, "load_N": load_N[i], "speed_m_s": speed_m_s[i]}
-                response = client.post("/v1/friction", json={
+                response = app_client.post("/v1/friction", json={
                     **point, "model": model, "conditions": {"relative_humidity": humidity[i]}})
                 assert response.status_code == 200, response.text
 
@@ -131,6 +134,11 @@ def main() -> None:
 
         per_single = timed(singles) / LOOP_SAMPLE
         per_loop = timed(loop) / LOOP_SAMPLE
+        with TestClient(create_app(Settings(data_dir=folder, model_cache_size=0))) as rebuilding:
+            kept, rebuilt = [], []
+            for _ in range(args.repeats):
+                kept.append(timed(singles) / LOOP_SAMPLE)
+                rebuilt.append(timed(lambda: singles(rebuilding)) / LOOP_SAMPLE)
     print(f"\n{n} points per batch, median of {args.repeats} [s]:")
     for name, values in times.items():
         print(f"  POST /v1/friction/batch, {name:<36} {statistics.median(values):8.3f}")
@@ -142,6 +150,10 @@ def main() -> None:
           f"  ({per_single * n / calibrated:.0f}x the batch)")
     print(f"  {n} CalibratedPhysicsModel.evaluate calls of one point, from {LOOP_SAMPLE}: {per_loop * n:8.3f}"
           f"  ({per_loop * n / calibrated:.0f}x the batch)")
+    print(f"one calibrated POST /v1/friction, median of {args.repeats} blocks of {LOOP_SAMPLE} [ms]: "
+          f"model kept "
+          f"{statistics.median(kept) * 1e3:.2f}, rebuilt per request {statistics.median(rebuilt) * 1e3:.2f} "
+          f"(ratio {statistics.median(rebuilt) / statistics.median(kept):.1f})")
     print(f"load average {os.getloadavg()}")
 
 
