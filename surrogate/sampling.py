@@ -25,7 +25,7 @@ from .model import DEFAULT_CALIBRATION, GaussianProcessSurrogate
 from .space import Space
 
 __all__ = ["DESIGNS", "CRITERIA", "TAIL_FACTOR", "REOPTIMIZE_GROWTH", "STOP_CONFIDENCE",
-           "predicted_error_quantile", "quantile_upper_bound", "design", "select_batch", "AdaptiveFit",
+           "CALIBRATION_DESIGN_SIZE", "ADAPTIVE_SHARE", "default_initial_size", "predicted_error_quantile", "quantile_upper_bound", "design", "select_batch", "AdaptiveFit",
            "fit_adaptive"]
 
 #: Allowed space-filling designs.
@@ -42,6 +42,14 @@ REOPTIMIZE_GROWTH = 1.5
 #: Confidence of the upper bounds on the leave-one-out error quantiles that the stop rule of
 #: :func:`fit_adaptive` compares with its target.
 STOP_CONFIDENCE = 0.95
+#: The default starting design holds this many points when the budget allows (see
+#: :func:`default_initial_size`): its leave-one-out errors are what sets the variance scale, and the
+#: root mean square of n such errors is uncertain by about sqrt((κ - 1) / 4n) (κ their kurtosis, 6-12
+#: measured): 14-21 % at 64 against 22-33 % at 25, half of a budget of 50. A power of 2, where a
+#: Sobol' prefix is balanced.
+CALIBRATION_DESIGN_SIZE = 64
+#: Share of the budget the default starting design always leaves to adaptive batches. [1]
+ADAPTIVE_SHARE = 0.2
 
 
 def predicted_error_quantile(std: np.ndarray, q: float) -> float:
@@ -292,6 +300,25 @@ class AdaptiveFit:
         return len(self.y)
 
 
+def default_initial_size(budget: int, dimension: int) -> int:
+    """Size of the starting design of :func:`fit_adaptive` when none is given [1].
+
+    Half the budget, or :data:`CALIBRATION_DESIGN_SIZE` points when that is more and still leaves
+    :data:`ADAPTIVE_SHARE` of the budget to adaptive batches; at least ``2 (d + 1)`` and at most the
+    budget. Small budgets thus start with more space-filling points: the variance scale of the
+    intervals is measured on them (measured by ``bench/surrogate.py --coverage-only`` on random
+    spaces of 2 to 7 inputs: at budgets 50 and 100 the 95 % intervals of 70 of 96 fits covered
+    90-98 % of held-out points with this size, against 59 of 96 with half the budget).
+
+    >>> default_initial_size(50, 4), default_initial_size(100, 4), default_initial_size(300, 4)
+    (40, 64, 150)
+    >>> default_initial_size(6, 4)
+    6
+    """
+    adaptive = math.ceil(ADAPTIVE_SHARE * budget)
+    return min(budget, max(2 * (dimension + 1), budget // 2, min(CALIBRATION_DESIGN_SIZE, budget - adaptive)))
+
+
 def fit_work_share(n_train: int, initial_size: int, batch_size: int, budget: int) -> float:
     """Share of an adaptive fit's work done once the process is fitted on ``n_train`` points [1].
 
@@ -333,8 +360,8 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         :func:`predicted_error_quantile` over ``n_candidates`` Sobol' points
         (σ the calibrated predictive standard deviation of log μ). [1]
     initial_size : int, optional
-        Size of the starting design; default half the budget, at least
-        ``2 (d + 1)`` and at most the budget. Repeated points of the design
+        Size of the starting design; default :func:`default_initial_size`
+        (half the budget, more at small budgets). Repeated points of the design
         (rounded integers and booleans) are replaced by candidates not yet
         evaluated, as long as there are some. [1]
     batch_size : int, optional
@@ -375,7 +402,7 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
     if not (isinstance(target_relative_error, (int, float)) and target_relative_error > 0):
         raise ValueError(f"target_relative_error must be > 0; got {target_relative_error!r}")
     if initial_size is None:
-        initial_size = min(budget, max(2 * (space.dimension + 1), budget // 2))
+        initial_size = default_initial_size(budget, space.dimension)
     if not adaptive:
         initial_size = budget
     if not 2 <= initial_size <= budget:
