@@ -647,16 +647,16 @@ def test_fit_adaptive_calibrates_on_the_space_filling_design(adaptive, model_par
 
 
 @pytest.mark.parametrize(("budget", "dimension", "starting"), [
-    (20, 1, 16), (50, 4, 40), (60, 4, 40), (79, 7, 40), (100, 4, 50), (300, 4, 150), (20, 9, 20)])
+    (20, 1, 10), (49, 4, 24), (50, 4, 40), (79, 7, 40), (100, 4, 50), (300, 4, 150), (20, 9, 20)])
 def test_small_budgets_start_with_enough_space_filling_points_to_calibrate(budget, dimension, starting):
-    # The starting design's leave-one-out errors set the variance scale: up to 40 of them while a fifth
-    # of the budget is left to adaptive batches, never fewer than half the budget or 2 (d + 1) points.
+    # The starting design's errors set the variance scale: 40 of them when a fifth of the budget is
+    # still left to adaptive batches, else half the budget; never fewer than 2 (d + 1) points.
     assert default_initial_size(budget, dimension) == starting
 
 
 def test_fit_adaptive_starts_with_the_default_design_and_calibrates_on_it():
-    fit = fit_adaptive(SPACES["load"], budget=20, target_relative_error=1e-12, seed=0)
-    assert fit.history[0]["n_train"] == 16 and fit.model.calibration_rows == 16 and fit.n_train == 20
+    fit = fit_adaptive(SPACES["load"], budget=50, target_relative_error=1e-12, seed=0)
+    assert fit.history[0]["n_train"] == 40 and fit.model.calibration_rows == 40
 
 
 def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is_optimized():
