@@ -305,13 +305,13 @@ def default_initial_size(budget: int, dimension: int) -> int:
     :data:`CALIBRATION_DESIGN_SIZE` points when that still leaves :data:`ADAPTIVE_SHARE` of the
     budget to adaptive batches and is more than half the budget (budgets 50-79), else half the
     budget; at least ``2 (d + 1)`` and at most the budget. The variance scale of the intervals is
-    measured on the starting design (``bench/surrogate.py --coverage-only``, budget 50, 4 design
-    seeds: 95 % intervals covering 90-98 % of held-out points in 30 of 48 fits on random spaces of
-    2 to 7 inputs and in 21 of 36 on the bench's own spaces, against 23 and 18 with half the
-    budget). Not beyond: at budget 100, 64 starting points measured no better on the bench's spaces
-    (24 of 36 against 29) and less accurate on the 6-input space (95th-percentile error up to
-    1.25x, under the 1.5x margin over SMT's Kriging the issue asks for); at budget 30, 24 starting
-    points measured no better either (26 of 56 against 27).
+    measured on the starting design (``bench/surrogate.py --coverage-only`` at budget 50, 4 design
+    seeds: 95 % intervals covering 90-98 % of held-out points in 33 of 56 fits on random spaces of
+    1 to 7 inputs drawn with other seeds than the bench's, and in 21 of 36 on the bench's own
+    spaces, against 26 and 18 with half the budget). Not beyond: at budget 100, 64 starting points
+    measured no better on the bench's spaces (24 of 36 against 29) and less accurate on the 6-input
+    space (95th-percentile error up to 1.25x, under the 1.5x margin over SMT's Kriging the issue
+    asks for); at budget 30, 24 starting points measured no better either (26 of 56 against 27).
 
     >>> default_initial_size(49, 4), default_initial_size(50, 4), default_initial_size(80, 4)
     (24, 40, 40)
@@ -365,7 +365,7 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         (σ the calibrated predictive standard deviation of log μ). [1]
     initial_size : int, optional
         Size of the starting design; default :func:`default_initial_size`
-        (half the budget, more at small budgets). Repeated points of the design
+        (half the budget; 40 points at budgets 50-79). Repeated points of the design
         (rounded integers and booleans) are replaced by candidates not yet
         evaluated, as long as there are some. [1]
     batch_size : int, optional
