@@ -153,7 +153,11 @@ HELD_OUT = 1024
 COVERAGE_BUDGETS = (50, 100, 200, 300, 400)
 
 
-def random_spaces(per_dimension: int, seed: int = 2026):
+#: Seed of the bench's own random spaces.
+SPACE_SEED = 2026
+
+
+def random_spaces(per_dimension: int, seed: int = SPACE_SEED):
     """``per_dimension`` random spaces of each of 1 to 7 inputs: (label, bounds, fixed)."""
     rng = np.random.default_rng(seed)
     for d in range(1, 8):
@@ -171,12 +175,16 @@ def rest_default_fit(space: Space, budget: int, seed: int):
     return fit, seconds, holdout_metrics(fit.model, n_test=HELD_OUT, seed=TEST_SEED)
 
 
-def coverage_distribution(per_dimension: int, seeds: int, budgets: tuple[int, ...]) -> None:
-    """Coverage of the 95 % interval with the REST defaults over spaces x budgets x design seeds."""
+def coverage_distribution(per_dimension: int, seeds: int, budgets: tuple[int, ...],
+                          space_seed: int = SPACE_SEED, first_seed: int = 0) -> None:
+    """Coverage of the 95 % interval with the REST defaults over spaces x budgets x design seeds (the
+    issue's spaces only with the bench's own random spaces, ``space_seed`` :data:`SPACE_SEED`)."""
     spaces = [(label, bounds, fixed) for label, (bounds, fixed) in ISSUE_SPACES.items()]
-    spaces += list(random_spaces(per_dimension))
-    print(f"REST defaults (adaptive, target 0.001, Sobol' start) on {len(spaces)} spaces x budgets "
-          f"{', '.join(map(str, budgets))} x design seeds 0-{seeds - 1}; coverage of the 95 % interval on "
+    spaces = spaces if space_seed == SPACE_SEED else []
+    spaces += list(random_spaces(per_dimension, space_seed))
+    print(f"REST defaults (adaptive, target 0.001, Sobol' start) on {len(spaces)} spaces (random ones drawn "
+          f"with seed {space_seed}) x budgets {', '.join(map(str, budgets))} x design seeds "
+          f"{first_seed}-{first_seed + seeds - 1}; coverage of the 95 % interval on "
           f"{HELD_OUT} held-out Sobol' points (training points left out)\n")
     print("| space | inputs | budget | n_train | calibration | coverage per seed [%] | median err. [%] | "
           "fit [s] |\n|---|---|---|---|---|---|---|---|")
@@ -184,7 +192,7 @@ def coverage_distribution(per_dimension: int, seeds: int, budgets: tuple[int, ..
     for label, bounds, fixed in spaces:
         space = Space(bounds, fixed)
         for budget in budgets:
-            runs = [rest_default_fit(space, budget, seed) for seed in range(seeds)]
+            runs = [rest_default_fit(space, budget, seed) for seed in range(first_seed, first_seed + seeds)]
             for fit, seconds, m in runs:
                 if m["coverage_95"] is not None:
                     rows.append((space.dimension, budget, 100 * m["coverage_95"], seconds, fit.n_train))
@@ -320,6 +328,10 @@ def main() -> None:
                              "inputs, budgets and design seeds")
     parser.add_argument("--spaces-per-dimension", type=int, default=3,
                         help="random spaces of each number of inputs in --coverage-only (default 3)")
+    parser.add_argument("--space-seed", type=int, default=SPACE_SEED,
+                        help="seed of the random spaces of --coverage-only (default 2026: the bench's own "
+                             "set, with the issue's spaces; another seed draws other spaces only)")
+    parser.add_argument("--first-seed", type=int, default=0, help="first design seed of --coverage-only")
     parser.add_argument("--budgets", default=",".join(map(str, COVERAGE_BUDGETS)),
                         help="budgets of --coverage-only, comma-separated")
     parser.add_argument("--smt", action="store_true", help="only the comparison with SMT's Kriging")
@@ -332,8 +344,9 @@ def main() -> None:
                         help="only the wall and CPU time of the REST defaults at budget 300")
     args = parser.parse_args()
     if args.coverage_only:
-        coverage_distribution(args.spaces_per_dimension, args.coverage_seeds or 2,
-                              tuple(int(b) for b in args.budgets.split(",")))
+        budgets = tuple(int(b) for b in args.budgets.split(","))
+        coverage_distribution(args.spaces_per_dimension, args.coverage_seeds or 2, budgets, args.space_seed,
+                              args.first_seed)
         return
     if args.scale_diagnostics:
         scale_diagnostics(args.spaces_per_dimension, args.coverage_seeds or 1,
