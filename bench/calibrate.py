@@ -1,8 +1,7 @@
 """Calibration: a synthetic suite of hidden effects (discovery, error, coverage) and a 10,000-row timing.
 
-Run: ``python bench/calibrate.py --suite [--seeds N] [--clean-seeds M] [--distinct-clean-seeds]`` for the
-suite, and
-``python bench/calibrate.py --rows 10000`` for the timing (target of issue 6: within 60 s).
+Run: ``python bench/calibrate.py --suite [--seeds N] [--clean-seeds M] [--distinct-clean-seeds]`` for
+the suite, and ``python bench/calibrate.py --rows 10000`` for the timing (target of issue 6: within 60 s).
 
 The suite draws measurements from the physics (mu_pivot 0.7, adhesion 0.12 J/m^2 instead of the
 defaults 0.5 and 0.18) with the hidden effects of each case, written here independently of
