@@ -88,9 +88,11 @@ __all__ = [
 MAX_TERMS = 3
 #: Chance, per step, that any candidate passes the paired test on noise alone. [1]
 FAMILY_ALPHA = 0.01
-#: Random sign flips that estimate the family-wise threshold (:func:`max_t_threshold`); at α = 0.01
-#: about 40 of them lie beyond the quantile. [1]
-SIGN_FLIPS = 4000
+#: Random sign flips that estimate the family-wise threshold (:func:`max_t_threshold`): at α = 0.01,
+#: 100 of them lie beyond it, and its Monte Carlo standard error is about 0.03 in z. [1]
+SIGN_FLIPS = 10_000
+# Sign flips drawn at a time (bounds the memory: chunk x rows signs).
+_FLIP_CHUNK = 1000
 #: The search runs on at most this many rows (a random subset); the chosen terms are then fitted
 #: on all rows. A few thousand rows name an effect as surely as ten thousand, at a fraction of the cost. [1]
 MAX_SEARCH_ROWS = 1000
@@ -361,10 +363,12 @@ def max_t_threshold(differences: np.ndarray, alpha: float, flips: int = SIGN_FLI
 
     Examples
     --------
-    >>> rng = np.random.default_rng(1)
-    >>> one = rng.normal(size=(400, 1))
-    >>> round(max_t_threshold(np.repeat(one, 30, axis=1), 0.01), 1)  # thirty copies: one test, 2.33
-    2.3
+    Thirty copies of one candidate are one test (Φ⁻¹(0.99) = 2.33, within the Monte Carlo error):
+
+    >>> one = np.random.default_rng(1).normal(size=(400, 1))
+    >>> thirty = max_t_threshold(np.repeat(one, 30, axis=1), 0.01)
+    >>> bool(np.isclose(thirty, max_t_threshold(one, 0.01))), round(thirty, 1)
+    (True, 2.4)
     """
     d = np.asarray(differences, dtype=float)
     n = d.shape[0]
@@ -372,14 +376,17 @@ def max_t_threshold(differences: np.ndarray, alpha: float, flips: int = SIGN_FLI
     squares = np.sum(np.square(centred), axis=0)
     rng = np.random.default_rng(seed)
     largest = np.empty(flips)
-    for start in range(0, flips, 500):
-        signs = rng.choice([-1.0, 1.0], size=(min(500, flips - start), n))
-        mean = signs @ centred / n
+    for start in range(0, flips, _FLIP_CHUNK):
+        count = min(_FLIP_CHUNK, flips - start)
+        # One random bit a row, 1 for the sign +1 and 0 for -1: as every centred column sums to zero,
+        # sum(sign d) = 2 sum(bit d).
+        bits = np.unpackbits(rng.integers(0, 256, (count, (n + 7) // 8), dtype=np.uint8), axis=1, count=n)
+        mean = 2.0 * (bits.astype(float) @ centred) / n
         # Flipping signs keeps every row's square: only the mean moves in the paired variance.
         variance = np.maximum(squares - n * np.square(mean), 0.0) / (n - 1)
         with np.errstate(divide="ignore", invalid="ignore"):
             z = np.where(variance > 0, mean / np.sqrt(variance / n), 0.0)
-        largest[start : start + len(signs)] = z.max(axis=1)
+        largest[start : start + count] = z.max(axis=1)
     return float(np.quantile(largest, 1.0 - alpha))
 
 
