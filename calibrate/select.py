@@ -35,7 +35,7 @@ m candidates (Φ⁻¹(1 - α/m), 3.58 for 60), which holds whatever their depend
 is tight only for independent ones: they are drifts of the same few parameters and
 forms over the same columns, so their paired z's move together, and the max-T
 threshold, which reads their correlation from the screening's per-row gains, is
-lower at the same family-wise error (3.25-3.5 for the 59 candidates of the
+lower at the same family-wise error (3.26-3.47 for the 59 candidates of the
 benchmark's 160-200-row data sets). Among the candidates that count, the lowest
 score wins, except that a named mechanism whose loss lies within one standard
 error of the winner's is preferred to a generic term (a
