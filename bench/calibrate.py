@@ -1,7 +1,9 @@
 """Calibration: a synthetic suite of hidden effects (discovery, error, coverage) and a 10,000-row timing.
 
-Run: ``python bench/calibrate.py --suite [--seeds N] [--clean-seeds M]`` for the suite, and
-``python bench/calibrate.py --rows 10000`` for the timing (target of issue 6: within 60 s).
+Run: ``python bench/calibrate.py --suite [--seeds N] [--clean-seeds M] [--distinct-clean-seeds]`` for
+the suite, ``python bench/calibrate.py --suite --part null [--null-seeds K]`` for the family-wise error
+of one selection step on data with nothing to find, and ``python bench/calibrate.py --rows 10000`` for
+the timing (target of issue 6: within 60 s).
 
 The suite draws measurements from the physics (mu_pivot 0.7, adhesion 0.12 J/m^2 instead of the
 defaults 0.5 and 0.18) with the hidden effects of each case, written here independently of
@@ -32,11 +34,13 @@ if Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
     sys.path[0] = str(_REPO)
 
 import numpy as np  # noqa: E402
+from scipy import stats  # noqa: E402
 
 from microbearing import physics  # noqa: E402
-from microbearing.calibrate import calibrate, parse_csv  # noqa: E402
+from microbearing.calibrate import calibrate, parse_csv, parse_rows  # noqa: E402
 from microbearing.calibrate.fit import fit  # noqa: E402
 from microbearing.calibrate.report import PROGRESS_STAGES  # noqa: E402
+from microbearing.calibrate.select import FAMILY_ALPHA, forward_select  # noqa: E402
 
 FIT = ["mu_pivot", "adhesion_energy_J_m2"]
 TRUE = {"mu_pivot": 0.7, "adhesion_energy_J_m2": 0.12}
@@ -101,6 +105,11 @@ CASES = {
     "7 % outliers (x5): meniscus + drag": (["meniscus", "constant_drag"], 0.02, (0.07, 5.0), None),
 }
 CLEAN = {"clean, 1 % noise": 0.01, "clean, 3 % noise": 0.03}
+# Data with nothing to find for the family-wise error of one selection step: name -> (noise log std,
+# (outlier fraction, factor on mu)); seeds from 1000 (the suite's clean cases use 100-139).
+NULL = {"null, 2 % noise": (0.02, (0.0, 1.0)), "null, 2 % noise, 5 % outliers (x5)": (0.02, (0.05, 5.0))}
+# The selection's least paired z (forward_select's default), below the family-wise thresholds.
+Z_THRESHOLD = 3.0
 
 
 def measurements(mechanisms, noise, outliers, declared, seed, n=200):
@@ -155,7 +164,14 @@ def run_case(mechanisms, noise, outliers, declared, seed, folds):
     }
 
 
-def suite(seeds: int, clean_seeds: int, folds: int, part: str, cases: slice = slice(None)) -> None:
+def suite(
+    seeds: int,
+    clean_seeds: int,
+    folds: int,
+    part: str,
+    cases: slice = slice(None),
+    distinct_clean: bool = False,
+) -> None:
     print(
         f"synthetic suite: 200 rows, {folds}-fold nested CV, fit {', '.join(FIT)}; coverage on 400 fresh rows"
     )
@@ -192,13 +208,39 @@ def suite(seeds: int, clean_seeds: int, folds: int, part: str, cases: slice = sl
     if part == "effects":
         return
     false = 0
-    for name, noise in list(CLEAN.items())[cases]:
-        records = [run_case([], noise, (0.0, 1.0), None, 100 + seed, folds) for seed in range(clean_seeds)]
+    for level, (name, noise) in list(enumerate(CLEAN.items()))[cases]:
+        # By default every noise level draws the same seeds (the same data, the noise scaled); distinct
+        # seeds make the levels independent data sets.
+        first = 100 + (level * clean_seeds if distinct_clean else 0)
+        records = [run_case([], noise, (0.0, 1.0), None, first + seed, folds) for seed in range(clean_seeds)]
         found = [r["terms"] for r in records if r["terms"]]
         false += len(found)
         line(name, records, f"  false discoveries: {len(found)}{' ' + str(found) if found else ''}")
     runs = clean_seeds * len(list(CLEAN)[cases])
     print(f"false discoveries on clean data: {false} in {runs} runs (target 0)")
+
+
+def family_error(null_seeds: int, folds: int) -> None:
+    """First selection step on data with nothing to find: its best held-out paired z against the
+    max-T threshold it used and against the Bonferroni bound over the same candidates."""
+    print(f"family-wise error: first selection step on 200 rows, {folds} folds, fit {', '.join(FIT)}")
+    print(f"{'case':36s} {'runs':>4s} {'z > max-T':>9s} {'z > Bonferroni':>14s} "
+          f"{'best z 50/90/99 % (max)':>25s} {'max-T mean [min, max]':>22s} {'Bonferroni':>10s}")
+    for level, (name, (noise, outliers)) in enumerate(NULL.items()):
+        best, needed, bonferroni = [], [], []
+        for seed in range(1000 * (level + 1), 1000 * (level + 1) + null_seeds):
+            rows, _, _ = measurements([], noise, outliers, None, seed)
+            step = forward_select(parse_rows(rows), FIT, folds, seed, Z_THRESHOLD, max_terms=1).steps[0]
+            best.append(max(c.z for c in step.ranked if c.joint))
+            needed.append(step.z_needed)
+            bonferroni.append(max(Z_THRESHOLD, float(stats.norm.isf(FAMILY_ALPHA / len(step.ranked)))))
+        best, needed, bonferroni = map(np.asarray, (best, needed, bonferroni))
+        quantiles = "/".join(f"{q:.2f}" for q in np.quantile(best, [0.5, 0.9, 0.99]))
+        passed = int(np.sum(best > needed))
+        passed_bonferroni = int(np.sum(best > bonferroni))
+        print(f"{name:36s} {len(best):4d} {passed:9d} {passed_bonferroni:14d} {quantiles:>18s} "
+              f"({best.max():.2f}) {needed.mean():9.2f} [{needed.min():.2f}, {needed.max():.2f}] "
+              f"{bonferroni.mean():10.2f}", flush=True)
 
 
 def synthetic_csv(n: int, seed: int = 0) -> str:
@@ -250,17 +292,23 @@ def main() -> None:
     parser.add_argument("--suite", action="store_true", help="run the synthetic suite instead of the timing")
     parser.add_argument("--seeds", type=int, default=5, help="seeds per case of the suite")
     parser.add_argument("--clean-seeds", type=int, default=20, help="seeds per clean case (two cases)")
-    parser.add_argument("--part", choices=["all", "effects", "clean"], default="all",
-                        help="run only the cases with effects, or only the clean ones")
+    parser.add_argument("--distinct-clean-seeds", action="store_true",
+                        help="give each clean noise level its own seeds (independent data sets)")
+    parser.add_argument("--part", choices=["all", "effects", "clean", "null"], default="all",
+                        help="run only the cases with effects, or only the clean ones; or (null) the "
+                             "family-wise error of one selection step on data with nothing to find")
+    parser.add_argument("--null-seeds", type=int, default=100, help="data sets per null case (--part null)")
     parser.add_argument("--cases", default=":", help="a Python slice of the part's cases, e.g. 0:5")
     parser.add_argument("--rows", type=int, default=10_000)
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--plots", metavar="DIR", help="also write the timing run's plots (PNG) into DIR")
     args = parser.parse_args()
-    if args.suite:
+    if args.suite and args.part == "null":
+        family_error(args.null_seeds, args.folds)
+    elif args.suite:
         start, _, stop = args.cases.partition(":")
         suite(args.seeds, args.clean_seeds, args.folds, args.part,
-              slice(int(start) if start else None, int(stop) if stop else None))
+              slice(int(start) if start else None, int(stop) if stop else None), args.distinct_clean_seeds)
     else:
         timing(args.rows, args.folds, args.plots)
 
