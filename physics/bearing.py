@@ -476,12 +476,13 @@ class FrictionResult:
         """The result of one point from the kernel's floats, as ``numpy.float64`` like an array's items.
 
         Filled through the instance's ``__dict__``: the frozen dataclass's ``__init__`` sets its 22
-        fields one ``object.__setattr__`` call at a time, which would cost a third of the point.
+        fields one ``object.__setattr__`` call at a time, which would cost a third of the point. Each
+        float becomes a ``numpy.float64`` by itself (exact): a one-point array and its items would
+        cost twice as much.
         """
         result = object.__new__(cls)
         result.__dict__.update(dict.fromkeys(OUTPUTS), convention=convention)
-        floats = np.fromiter([values[k] for k in wanted], np.float64, len(wanted))
-        result.__dict__.update(zip(wanted, floats, strict=True))
+        result.__dict__.update(zip(wanted, map(np.float64, map(values.__getitem__, wanted)), strict=True))
         return result
 
     def to_dict(self, outputs=None) -> dict[str, np.ndarray]:
