@@ -16,7 +16,8 @@ process a second core, and no code can use it. Targets of issue 17: μ alone <= 
 outputs <= 12x, speed-up >= 1.6.
 
 One point: each repeat times a batch of ``physics.evaluate`` calls of one scalar point
-(every input checked against the parameter table) and a batch of one-element numpy ufunc
+(every input checked against the parameter table), the same of ``physics.evaluate_point`` (the
+same point as Python floats, what ``/v1/friction`` calls) and a batch of one-element numpy ufunc
 calls, in wall-clock and in process CPU time (which preemption by other work does not
 inflate). Target: <= 25 us per point.
 
@@ -140,8 +141,9 @@ def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
 
 def single_points(repeats: int, calls: int = 2000) -> None:
     one = np.ones(1)
-    cases = {"physics.evaluate": lambda: physics.evaluate(**POINT), "numpy.add of 1-element arrays":
-             lambda: np.add(one, one)}
+    cases = {"physics.evaluate": lambda: physics.evaluate(**POINT),
+             "physics.evaluate_point": lambda: physics.evaluate_point(**POINT),
+             "numpy.add of 1-element arrays": lambda: np.add(one, one)}
     wall = {label: [] for label in cases}
     cpu = {label: [] for label in cases}
     physics.evaluate(**POINT)

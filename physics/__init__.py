@@ -6,7 +6,8 @@ Pure, vectorized functions, one per equation, grouped by sub-domain:
 * :mod:`physics.surface` - adhesion and capillary forces (eqs 1, 2, 5, 6)
 * :mod:`physics.lubrication` - Houpert's rolling force and the pressure force (eqs 9-13)
 * :mod:`physics.moments` - hysteresis, pivoting and ball-ball moments (eqs 15-17)
-* :mod:`physics.bearing` - the ball's balance and μ, :func:`evaluate` (eqs 18-23), and the
+* :mod:`physics.bearing` - the ball's balance and μ, :func:`evaluate` (eqs 18-23) and
+  :func:`evaluate_point` (one point as Python floats), and the
   traction of a shear stress over the contact (eq 14)
 * :mod:`physics.compiled` - the same kernel compiled by numba for large calls (optional extra ``fast``)
 
@@ -14,7 +15,7 @@ Pure, vectorized functions, one per equation, grouped by sub-domain:
 :data:`OUTPUTS` every output. Everything is SI except the groove angle in degrees.
 """
 
-from .bearing import OUTPUTS, FrictionResult, evaluate
+from .bearing import OUTPUTS, FrictionResult, evaluate, evaluate_point
 from .materials import MATERIALS, Material, material_parameters
 from .parameters import (
     CONVENTIONS,
@@ -28,6 +29,7 @@ from .parameters import (
 
 __all__ = [
     "evaluate",
+    "evaluate_point",
     "FrictionResult",
     "OUTPUTS",
     "PARAMETERS",

@@ -36,6 +36,7 @@ __all__ = [
     "FrictionResult",
     "OUTPUTS",
     "evaluate",
+    "evaluate_point",
     "sliding_force",
     "contact_shear_force",
     "ball_race_force",
@@ -476,12 +477,13 @@ class FrictionResult:
         """The result of one point from the kernel's floats, as ``numpy.float64`` like an array's items.
 
         Filled through the instance's ``__dict__``: the frozen dataclass's ``__init__`` sets its 22
-        fields one ``object.__setattr__`` call at a time, which would cost a third of the point.
+        fields one ``object.__setattr__`` call at a time, which would cost a third of the point. Each
+        float becomes a ``numpy.float64`` by itself (exact): a one-point array and its items would
+        cost twice as much.
         """
         result = object.__new__(cls)
         result.__dict__.update(dict.fromkeys(OUTPUTS), convention=convention)
-        floats = np.fromiter([values[k] for k in wanted], np.float64, len(wanted))
-        result.__dict__.update(zip(wanted, floats, strict=True))
+        result.__dict__.update(zip(wanted, map(np.float64, map(values.__getitem__, wanted)), strict=True))
         return result
 
     def to_dict(self, outputs=None) -> dict[str, np.ndarray]:
@@ -589,8 +591,7 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     p, shape = checked_inputs(params)  # scalars as Python numbers: their products fold before arrays
     wanted = list(OUTPUTS) if outputs is None else _output_names(outputs)
     if not shape:  # one point: the same operations on Python floats, without numpy's per-call overhead
-        p.update(_coefficients(p, convention))
-        values = _kernel(p, _NO_BUFFERS, None, None, None, None, _PointOps, not _EXTRAS.isdisjoint(wanted))
+        values = _point(p, convention, not _EXTRAS.isdisjoint(wanted))
         return FrictionResult._of_point(values, wanted, convention)
     size = math.prod(shape)
     flat = {k: np.broadcast_to(v, shape).reshape(-1) if isinstance(v, np.ndarray) else v
@@ -615,6 +616,53 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
             future.result()
     values = dict(zip(wanted, kept.reshape(len(wanted), *shape), strict=True))
     return FrictionResult(**{k: values.get(k) for k in OUTPUTS}, convention=convention)
+
+
+def evaluate_point(convention: str = DEFAULT_CONVENTION, **params: Any) -> dict[str, float]:
+    """Every output of :func:`evaluate` at one point, as Python floats by name (in :data:`OUTPUTS` order).
+
+    The same checks and operations as :func:`evaluate` with scalar inputs, whose outputs are
+    these floats as ``numpy.float64``: for callers of one point at a time (the REST API's
+    ``/v1/friction``), to whom building those scalars and a :class:`FrictionResult` would cost
+    half as much again as the point itself.
+
+    Parameters
+    ----------
+    convention : {"olaru2005", "derjaguin"}, default "olaru2005"
+        As in :func:`evaluate`.
+    **params : float, int or bool
+        Scalar inputs of :data:`physics.PARAMETERS` by name, as in :func:`evaluate`.
+
+    Returns
+    -------
+    dict of float
+        Every output of :data:`OUTPUTS` in its unit.
+
+    Raises
+    ------
+    ValueError
+        As :func:`evaluate` does, and for an input that is an array (naming it).
+
+    Examples
+    --------
+    >>> point = evaluate_point(balls=4, load_N=0.9e-3 * 9.80665, speed_m_s=0.1)
+    >>> type(point["mu"]).__name__, point["mu"] == float(evaluate(balls=4, load_N=0.9e-3 * 9.80665,
+    ...                                                           speed_m_s=0.1).mu)
+    ('float', True)
+    """
+    _checked_convention(convention)
+    p, shape = checked_inputs(params)
+    if shape:
+        arrays = [name for name, value in p.items() if isinstance(value, np.ndarray)]
+        raise ValueError(f"{arrays[0]} must be a scalar for evaluate_point; use evaluate for arrays")
+    values = _point(p, convention, True)
+    return {name: values[name] for name in OUTPUTS}
+
+
+def _point(p: dict[str, Any], convention: str, extras: bool) -> dict[str, float]:
+    """The outputs of one checked point (Python numbers) by :func:`_kernel` on floats."""
+    p.update(_coefficients(p, convention))
+    return _kernel(p, _NO_BUFFERS, None, None, None, None, _PointOps, extras)
 
 
 #: Outputs that no other output needs: :func:`_kernel` skips them when none is asked for.

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -18,13 +19,14 @@ _NOT_FINITE = "outside the range where the model is numerically meaningful"
 _BOOLEAN_INPUTS = frozenset(name for name, spec in physics.PARAMETERS.items() if spec.kind == "bool")
 
 
-def _evaluate(inputs: dict[str, Any], outputs: list[str] | None, convention: str,
-              pointer: str) -> physics.FrictionResult:
+def _evaluate(function: Callable[..., Any], inputs: dict[str, Any], convention: str, pointer: str,
+              **options: Any) -> Any:
+    """``function(convention=..., **options, **inputs)`` (a physics evaluation), errors as problems."""
     try:
         # Extreme but allowed inputs (a groove angle next to 90 deg) overflow; the callers
         # turn non-finite outputs into 422 problems.
         with np.errstate(all="ignore"):
-            return physics.evaluate(convention=str(convention), outputs=outputs, **inputs)
+            return function(convention=str(convention), **options, **inputs)
     except ValueError as exc:
         name = str(exc).split(" ", 1)[0]
         where = f"{pointer}/{name}" if name in physics.PARAMETERS else pointer
@@ -32,7 +34,7 @@ def _evaluate(inputs: dict[str, Any], outputs: list[str] | None, convention: str
 
 
 def evaluate_point(inputs: dict[str, Any], convention: str) -> dict[str, float]:
-    """Every output of :func:`physics.evaluate` at one point, as finite floats.
+    """Every output of :func:`physics.evaluate_point` at one point, as finite floats.
 
     Parameters
     ----------
@@ -51,8 +53,7 @@ def evaluate_point(inputs: dict[str, Any], convention: str) -> dict[str, float]:
     ProblemError
         422 for inputs the model rejects or that drive an output out of floating-point range.
     """
-    result = _evaluate(inputs, None, convention, "")
-    values = {name: float(getattr(result, name)) for name in physics.OUTPUTS}
+    values = _evaluate(physics.evaluate_point, inputs, convention, "")
     if not all(map(math.isfinite, values.values())):
         name = next(name for name, value in values.items() if not math.isfinite(value))
         raise validation_problem([{"pointer": "/", "detail": f"the model output {name} is not finite: "
@@ -88,7 +89,7 @@ def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, conventi
         422 for inputs the model rejects or that drive an output out of floating-point range.
     """
     outputs = None if outputs is None else [str(name) for name in outputs]
-    result = _evaluate(inputs, outputs, convention, pointer).to_dict(outputs)
+    result = _evaluate(physics.evaluate, inputs, convention, pointer, outputs=outputs).to_dict(outputs)
     for name, values in result.items():
         finite = np.isfinite(values)
         if not finite.all():

@@ -35,7 +35,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from .problems import VALIDATION_TYPE, ProblemError, ProblemResponse
 
-__all__ = ["MAX_DEPTH", "JsonGuardMiddleware", "check_json_structure"]
+__all__ = ["MAX_DEPTH", "JsonGuardMiddleware", "check_json_structure", "is_json_media_type"]
 
 #: Deepest nesting of arrays and objects accepted [1]; the API's own bodies nest at most 4 deep.
 MAX_DEPTH = 64
@@ -142,7 +142,7 @@ def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH
         # escapes (a single point's body) needs no parser: its keys are its strings before a colon,
         # compared as written.
         if containers == 1 and b"\\" not in body:
-            keys = [match[1] for match in _STRING.finditer(text) if match[2]]
+            keys = [string for string, colon in _STRING.findall(text) if colon]
             if len(set(keys)) == len(keys):
                 return
         try:
@@ -208,7 +208,14 @@ def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH
         keys.add(key)
 
 
-def _is_json(content_type: bytes | None) -> bool:
+def is_json_media_type(content_type: bytes | None) -> bool:
+    """Whether a ``Content-Type`` value declares JSON (``application/json`` or ``application/*+json``);
+    a missing one (None) counts as JSON, as FastAPI reads such a body as JSON.
+
+    >>> [is_json_media_type(v) for v in (b"application/json; charset=utf-8", b"application/problem+json",
+    ...                                  b"text/csv", None)]
+    [True, True, False, True]
+    """
     if content_type is None:
         return True
     media = content_type.split(b";", 1)[0].strip().lower()
@@ -238,7 +245,7 @@ class JsonGuardMiddleware:
             await self.app(scope, receive, send)
             return
         content_types = [value for name, value in scope["headers"] if name.lower() == b"content-type"]
-        if len(content_types) == 1 and not _is_json(content_types[0]):
+        if len(content_types) == 1 and not is_json_media_type(content_types[0]):
             await self.app(scope, receive, send)
             return
         chunks: list[bytes] = []

@@ -98,14 +98,38 @@ def test_a_single_ball_has_no_neighbour_so_touching_adds_nothing(convention):
 def test_one_point_reproduces_its_value_in_an_array_bit_for_bit(convention):
     # A one-point call runs the kernel on Python floats; an array call runs numpy's loops. Every
     # input varied over (most of) its range, zero speeds, viscosities and adhesion included.
+    # evaluate_point answers the same point as Python floats, every output in OUTPUTS order.
     n = 1500
     params = _random_inputs(n, seed=21)
     whole = evaluate(convention=convention, **params).to_dict()
     for i in range(n):
-        point = evaluate(convention=convention, **{k: v[i].item() for k, v in params.items()})
+        inputs = {k: v[i].item() for k, v in params.items()}
+        point = evaluate(convention=convention, **inputs)
+        floats = physics.evaluate_point(convention=convention, **inputs)
+        assert list(floats) == list(OUTPUTS)
         for name in OUTPUTS:
             value = getattr(point, name)
             assert isinstance(value, np.float64) and value == whole[name][i], (i, name)
+            assert type(floats[name]) is float and floats[name] == whole[name][i], (i, name)
+
+
+def test_evaluate_point_refuses_what_evaluate_refuses_and_arrays():
+    # The same checks as evaluate, by the same messages; an array input is named.
+    cases = [{"balls": 4, "load_N": -1e-3, "speed_m_s": 0.1},
+             {"balls": "4", "load_N": 1e-3, "speed_m_s": 0.1}, {"balls": 4, "load_N": None, "speed_m_s": 0.1},
+             {"balls": 4, "speed_m_s": 0.1},
+             {"balls": 4, "load_N": 1e-3, "speed_m_s": 0.1, "colour": 1.0},
+             {"balls": 4, "load_N": 1e-3, "speed_m_s": float("nan")}]
+    for case in cases:
+        with pytest.raises(ValueError) as by_evaluate:
+            evaluate(**case)
+        with pytest.raises(ValueError) as by_point:
+            physics.evaluate_point(**case)
+        assert str(by_point.value) == str(by_evaluate.value), case
+    with pytest.raises(ValueError, match="convention"):
+        physics.evaluate_point(convention="nonsense", balls=4, load_N=1e-3, speed_m_s=0.1)
+    with pytest.raises(ValueError, match=r"^speed_m_s must be a scalar"):
+        physics.evaluate_point(balls=4, load_N=1e-3, speed_m_s=[0.1, 0.2])
 
 
 @pytest.mark.parametrize("n", [None, 3 * bearing._BLOCK_POINTS + 5])

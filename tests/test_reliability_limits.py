@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import pytest
 from fastapi.testclient import TestClient
 
@@ -66,6 +68,26 @@ def test_a_compressed_body_gets_415(client, path, encoding):
     assert response.headers["accept-encoding"] == "identity" and "Content-Encoding" in answer["detail"]
     identity = client.post("/v1/friction", json=POINT, headers={"content-encoding": "identity"})
     assert identity.status_code == 200
+
+
+@pytest.mark.parametrize("content_type, status", [
+    ("text/plain", 415), ("application/x-www-form-urlencoded", 415), ("TEXT/CSV; charset=utf-8", 415),
+    ("application/json", 200), ("Application/JSON; charset=utf-8", 200), ("application/vnd.point+json", 200),
+    (None, 200),  # no type: read as JSON
+])
+@pytest.mark.parametrize("path", ["/v1/friction", "/v1/friction/batch"])
+def test_a_body_declared_as_something_else_than_json_gets_415(client, path, content_type, status):
+    # The JSON body of a route that parses its own body, declared by its Content-Type header.
+    body = {"points": POINT} if path.endswith("batch") else POINT
+    headers = {} if content_type is None else {"content-type": content_type}
+    response = client.post(path, content=json.dumps(body).encode(), headers=headers)
+    if status == 415:
+        media_type = content_type.split(";")[0].lower()
+        assert f"not {media_type!r}" in problem(response, 415)["detail"]
+    else:
+        assert response.status_code == 200, response.text[:300]
+        mu = response.json()["mu"]
+        assert (mu if path.endswith("batch") else [mu])[0] > 0
 
 
 @pytest.mark.parametrize("accept, status", [

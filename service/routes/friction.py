@@ -8,6 +8,8 @@ from fastapi import APIRouter, Request
 from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
+from microbearing import physics
+
 from ..calibrations import evaluate_batch_with_model, evaluate_point_with_model
 from ..deps import ExecutorDep, SettingsDep, StoreDep, get_store
 from ..evaluation import column_arrays, evaluate_point
@@ -31,17 +33,17 @@ async def evaluate_friction(request: Request) -> Response:
     # Parsed from the raw bytes, and the store looked up only for a calibrated model (no dependency
     # to resolve for a physics point): a single point is dominated by per-request overhead.
     body = await parse_json_body(request, FrictionRequest)
+    # Only the inputs sent: the physics fills the same defaults (both come from its parameter table)
+    # and checks each value it is given, so a field left out need not be checked again.
+    sent = body.model_fields_set
+    given = {name: getattr(body, name) for name in physics.PARAMETERS if name in sent}
     if body.model != "physics":
-        given = body.model_dump(exclude_unset=True, exclude={"convention", "model", "conditions"})
-        convention = str(body.convention) if "convention" in body.model_fields_set else None
+        convention = str(body.convention) if "convention" in sent else None
         document = await run_in_threadpool(evaluate_point_with_model, await get_store(request), body.model,
                                            given, body.conditions, convention)
         return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
     _refuse_conditions(body.conditions)
-    # Only the inputs sent: the physics fills the same defaults (both come from its parameter table)
-    # and checks each value it is given, so a field left out need not be checked again.
-    inputs = body.model_dump(exclude_unset=True, exclude={"convention", "model", "conditions"})
-    document = {"convention": str(body.convention), **evaluate_point(inputs, body.convention)}
+    document = {"convention": str(body.convention), **evaluate_point(given, body.convention)}
     return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
 
 

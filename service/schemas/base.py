@@ -21,9 +21,11 @@ from fastapi import Request
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError
 from starlette.concurrency import run_in_threadpool
+from starlette.requests import ClientDisconnect
 
 from microbearing import physics
 
+from ..jsonguard import is_json_media_type
 from ..problems import VALIDATION_TYPE, ProblemError
 
 __all__ = [
@@ -206,7 +208,7 @@ def raw_json_body(model: type[BaseModel]) -> dict[str, Any]:
 
 
 async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
-    """Validate the raw JSON body of ``request`` as ``model`` in a worker thread.
+    """Validate the raw JSON body of ``request`` as ``model`` (in a worker thread when large).
 
     Raises
     ------
@@ -215,11 +217,12 @@ async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
     ProblemError
         415 when the body is declared as something else than JSON (a missing type is read as JSON).
     """
-    media_type = request.headers.get("content-type", "application/json").split(";", 1)[0].strip().lower()
-    if media_type != "application/json" and not (media_type.startswith("application/")
-                                                 and media_type.endswith("+json")):
+    headers = request.scope["headers"]
+    content_type = next((value for name, value in headers if name.lower() == b"content-type"), None)
+    if not is_json_media_type(content_type):
+        media_type = content_type.split(b";", 1)[0].strip().lower().decode("latin-1")
         raise ProblemError(415, f"The body must be application/json, not {media_type[:100]!r}.")
-    body = await request.body()
+    body = await _read_body(request)
     try:
         if len(body) <= _INLINE_BODY_BYTES:
             return model.model_validate_json(body)
@@ -235,6 +238,22 @@ async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
         raise ProblemError(400, "The request body nests arrays or objects too deeply.",
                            title="Malformed JSON", type_=VALIDATION_TYPE) from None
     raise RequestValidationError(errors, body=document)
+
+
+async def _read_body(request: Request) -> bytes:
+    """The whole body, read as ``await request.body()`` reads it but without its async generator.
+
+    The generator costs more than validating a single point's body, which
+    :class:`service.jsonguard.JsonGuardMiddleware` has already joined into one message.
+    """
+    chunks = []
+    while True:
+        message = await request.receive()
+        if message["type"] != "http.request":
+            raise ClientDisconnect()
+        chunks.append(message.get("body", b""))
+        if not message.get("more_body", False):
+            return b"".join(chunks)
 
 
 def add_raw_body_schemas(spec: dict[str, Any]) -> dict[str, Any]:
