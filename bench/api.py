@@ -10,6 +10,10 @@ Starts ``microbearing serve`` on a free loopback port with a temporary data fold
   issue 17); min / median / max over the rounds; then, per round, the CPU time per request of
   the server process and the client together (Linux ``/proc``), which other work on a shared
   machine does not inflate the way it inflates wall-clock time;
+* the same alternation from a raw keep-alive socket sending pre-encoded HTTP/1.1 requests and
+  reading each answer by its Content-Length, as a load generator (wrk, ab) does: httpx spends more
+  of the client's own time on a POST than on a GET, which the first figure counts against
+  ``/v1/friction`` although the server does none of it;
 * points per second through ``POST /v1/friction/batch`` with 100,000-point requests (load and
   speed as lists, the rest scalars) against ``physics.evaluate`` on the same arrays in this
   process, with only ``mu`` returned and with every output. The request body is encoded once,
@@ -103,6 +107,63 @@ def single_point(client: httpx.Client, rounds: int, per_round: int,
     return health, friction, cpu
 
 
+class RawClient:
+    """A keep-alive HTTP/1.1 connection sending pre-encoded requests; the same client work for any of them."""
+
+    def __init__(self, url: str):
+        host, port = url.removeprefix("http://").split(":")
+        self.host = f"{host}:{port}"
+        self.sock = socket.create_connection((host, int(port)))
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.buffer = b""
+
+    def encode(self, method: str, path: str, body: bytes = b"") -> bytes:
+        """The request's bytes, built once."""
+        headers = f"{method} {path} HTTP/1.1\r\nHost: {self.host}\r\n"
+        if body:
+            headers += f"Content-Type: application/json\r\nContent-Length: {len(body)}\r\n"
+        return (headers + "\r\n").encode() + body
+
+    def send(self, request: bytes) -> None:
+        """Send one request and read its whole answer; a status other than 200 raises."""
+        self.sock.sendall(request)
+        while (end := self.buffer.find(b"\r\n\r\n")) < 0:
+            self.buffer += self.sock.recv(65536)
+        head, self.buffer = self.buffer[:end], self.buffer[end + 4:]
+        if not head.startswith(b"HTTP/1.1 200"):
+            raise RuntimeError(head.decode(errors="replace"))
+        length = int(next(line.split(b":", 1)[1] for line in head.split(b"\r\n")
+                          if line.lower().startswith(b"content-length:")))
+        while len(self.buffer) < length:
+            self.buffer += self.sock.recv(65536)
+        self.buffer = self.buffer[length:]
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def raw_single_point(url: str, rounds: int, per_round: int) -> tuple[list[float], list[float]]:
+    """Requests per second of /healthz and /v1/friction per round from :class:`RawClient`, alternating."""
+    client = RawClient(url)
+    requests = {"health": client.encode("GET", "/healthz"),
+                "friction": client.encode("POST", "/v1/friction", json.dumps(POINT).encode())}
+    health, friction = [], []
+    try:
+        for round_index in range(rounds + 1):  # the first round warms up
+            spent = {"health": 0.0, "friction": 0.0}
+            for _ in range(per_round):
+                for name, request in requests.items():
+                    start = time.perf_counter()
+                    client.send(request)
+                    spent[name] += time.perf_counter() - start
+            if round_index:
+                health.append(per_round / spent["health"])
+                friction.append(per_round / spent["friction"])
+    finally:
+        client.close()
+    return health, friction
+
+
 def batch(client: httpx.Client, points: int, repeats: int, outputs: list[str] | None) -> tuple[float, float]:
     rng = np.random.default_rng(0)
     loads = rng.uniform(1e-3, 1e-2, points)
@@ -154,6 +215,13 @@ def main() -> None:
                     costs.append((time.perf_counter() - start) / per_round * 1e3)
                 print(f"  friction costs {spread(extra, 3)} ms more per request than healthz; "
                       f"physics.evaluate of one point in process takes {spread(costs, 3)} ms of it")
+                raw_health, raw_friction = raw_single_point(url, rounds, per_round)
+                raw_ratios = [f / h for f, h in zip(raw_friction, raw_health, strict=True)]
+                print(f"single point, a raw keep-alive socket sending pre-encoded requests (the same client "
+                      f"work for both), {rounds} rounds x {per_round}; min / median / max")
+                print(f"  GET  /healthz       {spread(raw_health, 0)} req/s")
+                print(f"  POST /v1/friction   {spread(raw_friction, 0)} req/s")
+                print(f"  ratio friction / healthz, per round: {spread(raw_ratios, 2)}  (target >= 0.85)")
                 print(f"batch, 100,000 points per request, median of {repeats}")
                 for label, outputs in (("mu only", ["mu"]), ("all 21 outputs", None)):
                     api, local = batch(client, 100_000, repeats, outputs)
