@@ -14,7 +14,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from microbearing import physics
-from microbearing.service.app import create_app
+from microbearing.service.app import PlainRoute, create_app
 from microbearing.service.schemas.base import FOLDING_SAFE_NAMES
 from microbearing.service.settings import Settings
 
@@ -140,6 +140,44 @@ def test_unknown_path_is_404_and_wrong_method_405_with_allow(client):
     assert set(response.headers["allow"].split(", ")) == {"GET", "HEAD", "DELETE"}
     response = client.head("/v1/friction")  # no GET there: no HEAD either
     assert response.status_code == 405 and response.headers["allow"] == "POST" and response.content == b""
+
+
+def test_the_plain_route_answers_what_fastapis_route_answers(tmp_path, caplog):
+    """/v1/friction is served by Starlette's plain route ahead of FastAPI's: the same answers and logs."""
+    served = create_app(Settings(data_dir=tmp_path / "plain"))
+    assert [route.path for route in served.router.routes if isinstance(route, PlainRoute)] == ["/v1/friction"]
+    reference = create_app(Settings(data_dir=tmp_path / "fastapi"))
+    routes = reference.router.routes
+    routes[:] = [route for route in routes if not isinstance(route, PlainRoute)]
+    assert not any(isinstance(route, PlainRoute) for route in reference.router.routes)
+    requests = [("POST", {"json": POINT}),
+                ("POST", {"json": {**POINT, "groove_angle_deg": 60.0, "convention": "derjaguin"}}),
+                ("POST", {"json": {**POINT, "balls": "4"}}),  # wrong type
+                ("POST", {"json": {**POINT, "load_N": -1.0, "unknown_N": 1.0}}),
+                ("POST", {"json": {**POINT, "model": "calibrated:" + "0" * 32}}),  # no such calibration
+                ("POST", {"json": {**POINT, "conditions": {"humidity": 0.5}}}),
+                ("POST", {"content": b'{"balls": 4,', "headers": JSON_HEADERS}),
+                ("POST", {"content": b"balls=4", "headers": {"content-type": "text/plain"}}),
+                ("POST", {"json": POINT, "headers": {"accept": "text/csv"}}),
+                ("GET", {}), ("HEAD", {}), ("DELETE", {})]
+    answers, logged = {}, {}
+    for name, app in (("plain", served), ("fastapi", reference)):
+        with TestClient(app) as test_client, caplog.at_level("INFO", logger="microbearing.access"):
+            caplog.clear()
+            answers[name] = [test_client.request(method, "/v1/friction", **kwargs)
+                             for method, kwargs in requests]
+            logged[name] = [(r.method, r.route, r.status) for r in caplog.records
+                            if r.name == "microbearing.access"]
+    statuses = [response.status_code for response in answers["plain"]]
+    assert statuses == [200, 200, 422, 422, 404, 422, 400, 415, 406, 405, 405, 405]
+    for plain, fastapi in zip(answers["plain"], answers["fastapi"], strict=True):
+        assert plain.status_code == fastapi.status_code
+        assert plain.content == fastapi.content
+        assert {k: v for k, v in plain.headers.items() if k != "x-request-id"} == \
+            {k: v for k, v in fastapi.headers.items() if k != "x-request-id"}
+    # Logs and metrics carry the same labels: the route template where it matched.
+    assert logged["plain"] == logged["fastapi"]
+    assert [route for _, route, _ in logged["plain"]][:2] == ["/v1/friction", "/v1/friction"]
 
 
 def test_head_answers_wherever_get_does_with_the_same_headers_and_no_body(client):
