@@ -11,9 +11,10 @@ time over the repeats, of its ratio to the same repeat's ``numpy.power`` pass, a
 CPU time the process spent per wall-clock second ("cores busy": near 2 when both cores
 work); then the speed-up from the extra threads, one-thread time over default time, per
 repeat, beside that of a perfectly parallel reference (the ``numpy.power`` pass split in two
-halves on two threads): when the reference is well below 2, the machine did not give the
-process a second core, and no code can use it. Targets of issue 17: μ alone <= 8x, all
-outputs <= 12x, speed-up >= 1.6.
+halves on two threads) and of two processes against one running pure-Python arithmetic (no
+shared memory, no GIL: what the machine gives two independent workers): when these references are
+well below 2, the machine did not give the process a second core, and no code can use it.
+Targets of issue 17: μ alone <= 8x, all outputs <= 12x, speed-up >= 1.6.
 
 One point: each repeat times a batch of ``physics.evaluate`` calls of one scalar point
 (every input checked against the parameter table), the same of ``physics.evaluate_point`` (the
@@ -32,7 +33,7 @@ import os
 import statistics
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 
 # Run as a script, this file's folder comes first on sys.path and its name would
@@ -89,7 +90,28 @@ def kernels(blocks: list[int]) -> list[tuple[str, str, int]]:
     return numpy_kernels + numba_kernel
 
 
+def _spin(n: int) -> float:
+    """Pure-Python arithmetic: one core's work with no memory traffic and no shared state."""
+    total = 0.0
+    for i in range(n):
+        total += i * 0.5
+    return total
+
+
+def process_reference(repeats: int, n: int = 2_000_000) -> list[float]:
+    """Per repeat, the throughput of two processes running :func:`_spin` over that of one [1]."""
+    ratios = []
+    with ProcessPoolExecutor(2) as pool:
+        list(pool.map(_spin, [1000, 1000]))  # start both workers
+        for _ in range(repeats):
+            one = timed(lambda: pool.submit(_spin, n).result())[0]
+            two = timed(lambda: list(pool.map(_spin, [n, n])))[0]
+            ratios.append(2.0 * one / two)
+    return ratios
+
+
 def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
+    processes = process_reference(repeats)  # before this process starts threads, which fork would copy
     inputs = random_design_points(points)
     base = inputs["load_N"]
     chosen = kernels(blocks)
@@ -128,6 +150,7 @@ def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
               f"   cores busy {spread(times['cores'], digits=2)}")
     reference = [one / split for one, split in zip(power, power_split, strict=True)]
     print(f"  speed-up of numpy.power split over two threads (reference)     {spread(reference, digits=2)}")
+    print(f"  two processes of pure-Python arithmetic over one (reference)   {spread(processes, digits=2)}")
     for label, _, _ in chosen:
         for outputs in ("all 21 outputs", "mu only"):
             one, default = cases[(label, outputs, "1")]["wall"], cases[(label, outputs, "")]["wall"]
