@@ -19,6 +19,7 @@ from typing import Any
 from fastapi import FastAPI
 from fastapi.routing import APIRoute, APIRouter
 from fastapi_offline import FastAPIOffline
+from starlette.requests import Request
 from starlette.responses import Response
 from starlette.routing import Match, Route
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -173,14 +174,18 @@ def plain_routes(routers: list[APIRouter]) -> list[PlainRoute]:
     plain = []
     for router in routers:
         for route in router.routes:
-            if not isinstance(route, APIRoute):
+            # Exactly FastAPI's route class (a subclass may handle requests its own way, as the
+            # UM-Bridge routes do), no dependency (the router's own included), one parameter: the request.
+            if type(route) is not APIRoute or route.dependant.dependencies:
                 continue
-            needs = route.dependant
-            fastapi_work = (needs.dependencies or needs.path_params or needs.query_params
-                            or needs.header_params or needs.cookie_params or needs.body_params
-                            or not needs.request_param_name)
-            answer = inspect.signature(route.endpoint, eval_str=True).return_annotation
-            if not fastapi_work and inspect.isclass(answer) and issubclass(answer, Response):
+            try:
+                signature = inspect.signature(route.endpoint, eval_str=True)
+            except NameError:  # an annotation its module cannot resolve: left to FastAPI
+                continue
+            takes = [parameter.annotation for parameter in signature.parameters.values()]
+            answer = signature.return_annotation
+            if (len(takes) == 1 and inspect.isclass(takes[0]) and issubclass(takes[0], Request)
+                    and inspect.isclass(answer) and issubclass(answer, Response)):
                 plain.append(PlainRoute(route.path, route.endpoint, methods=list(route.methods),
                                         name=route.name))
     return plain

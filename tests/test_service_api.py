@@ -11,10 +11,13 @@ from importlib.metadata import version
 
 import numpy as np
 import pytest
+from fastapi import APIRouter, Depends, Request
+from fastapi.responses import Response
+from fastapi.routing import APIRoute
 from fastapi.testclient import TestClient
 
 from microbearing import physics
-from microbearing.service.app import PlainRoute, create_app
+from microbearing.service.app import PlainRoute, create_app, plain_routes
 from microbearing.service.schemas.base import FOLDING_SAFE_NAMES
 from microbearing.service.settings import Settings
 
@@ -178,6 +181,36 @@ def test_the_plain_route_answers_what_fastapis_route_answers(tmp_path, caplog):
     # Logs and metrics carry the same labels: the route template where it matched.
     assert logged["plain"] == logged["fastapi"]
     assert [route for _, route, _ in logged["plain"]][:2] == ["/v1/friction", "/v1/friction"]
+
+
+def test_only_routes_that_need_nothing_of_fastapi_are_served_plain():
+    class OwnHandling(APIRoute):
+        pass
+
+    router, custom = APIRouter(prefix="/t"), APIRouter(prefix="/c", route_class=OwnHandling)
+
+    @router.post("/plain")
+    async def plain(request: Request) -> Response:
+        return Response(b"{}")
+
+    @router.post("/dependency")
+    async def dependency(request: Request, settings: str = Depends(lambda: "x")) -> Response:
+        return Response(b"{}")
+
+    @router.get("/item/{item_id}")
+    async def path_parameter(request: Request, item_id: str) -> Response:
+        return Response(b"{}")
+
+    @router.get("/model")
+    async def returns_a_model(request: Request) -> dict:
+        return {}
+
+    @custom.post("/own")
+    async def own_handling(request: Request) -> Response:
+        return Response(b"{}")
+
+    routes = plain_routes([router, custom])
+    assert [(route.path, route.methods, route.name) for route in routes] == [("/t/plain", {"POST"}, "plain")]
 
 
 def test_head_answers_wherever_get_does_with_the_same_headers_and_no_body(client):
