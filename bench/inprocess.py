@@ -15,6 +15,12 @@ the physics of the point, writing the answer, and FastAPI's part after it; each 
 ``N`` requests [µs], the figure least disturbed by other work on the machine::
 
     <venv>/bin/python -m bench.inprocess 3000 --stages
+
+With ``--routes R`` it alternates R times between the app as served and the same app without its
+plain routes (``service.app.PlainRoute``: ``POST /v1/friction`` then goes through FastAPI's route),
+and prints the medians of each side by side::
+
+    <venv>/bin/python -m bench.inprocess 3000 --routes 5
 """
 
 from __future__ import annotations
@@ -29,7 +35,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from microbearing.service.app import create_app
+from microbearing.service.app import PlainRoute, create_app
 from microbearing.service.deps import get_runtime
 from microbearing.service.routes import friction
 from microbearing.service.settings import Settings
@@ -62,10 +68,18 @@ async def call(app, method: str, path: str, payload: bytes) -> None:
     await app(scope, receive, send)
 
 
-async def measure(count: int) -> dict[str, float]:
-    """Median time per request [µs] of each route."""
+def build_app(plain: bool = True):
+    """The service in a temporary data folder; ``plain=False`` drops its plain routes (FastAPI's serve)."""
     app = create_app(Settings(data_dir=tempfile.mkdtemp(prefix="microbearing-inprocess-")))
+    if not plain:
+        app.router.routes[:] = [route for route in app.router.routes if not isinstance(route, PlainRoute)]
     get_runtime(app)
+    return app
+
+
+async def measure(count: int, plain: bool = True) -> dict[str, float]:
+    """Median time per request [µs] of each route."""
+    app = build_app(plain)
     for _ in range(200):
         await call(app, "POST", "/v1/friction", BODY)
         await call(app, "GET", "/healthz", b"")
@@ -121,8 +135,7 @@ async def stages(count: int) -> dict[str, dict[str, float]]:
     marks: dict[str, float] = {}
     for attribute, label in _ROUTE_STAGES.items():
         setattr(friction, attribute, _timed(getattr(friction, attribute), label, marks))
-    app = create_app(Settings(data_dir=tempfile.mkdtemp(prefix="microbearing-inprocess-")))
-    get_runtime(app)
+    app = build_app()
     layers = [app.build_middleware_stack()]
     while not isinstance(layers[-1], type(app.router)):  # each middleware wraps the next in .app
         layers.append(layers[-1].app)
@@ -170,13 +183,33 @@ def print_stages(count: int) -> None:
             print(f"{name:58s} {'':8s} {value:9.1f}")
 
 
+def compare_routes(count: int, rounds: int) -> None:
+    """Medians per round [µs] with the plain routes (as served) and with FastAPI's routes, alternating."""
+    rows = {True: [], False: []}
+    for _ in range(rounds):
+        for plain in (True, False):
+            rows[plain].append(asyncio.run(measure(count, plain)))
+    print(f"median per request [us] over {count} requests, {rounds} rounds alternating; min / median / max")
+    for plain, label in ((True, "plain route (as served)"), (False, "FastAPI's route")):
+        columns = {name: [row[name] for row in rows[plain]] for name in ("friction", "healthz")}
+        columns["excess"] = [row["friction"] - row["healthz"] for row in rows[plain]]
+        for name, values in columns.items():
+            spread = f"{min(values):7.1f} / {statistics.median(values):7.1f} / {max(values):7.1f}"
+            print(f"  {label:24s} {name:9s} {spread}" + ("  (friction less healthz, per round)"
+                                                          if name == "excess" else ""))
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("count", nargs="?", type=int, default=1500, help="requests of each route")
     parser.add_argument("--stages", action="store_true", help="where the time goes, layer by layer")
+    parser.add_argument("--routes", type=int, default=0, metavar="ROUNDS",
+                        help="alternate ROUNDS times between the app as served and FastAPI's routes only")
     args = parser.parse_args()
     logging.disable(logging.CRITICAL)  # the access log would time the log handler
     if args.stages:
         print_stages(args.count)
+    elif args.routes:
+        compare_routes(args.count, args.routes)
     else:
         print(json.dumps(asyncio.run(measure(args.count))))
