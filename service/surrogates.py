@@ -173,7 +173,7 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
     fit = surrogate.fit_adaptive(space, budget=body.budget, target_relative_error=body.target_relative_error,
                                  design_method=str(body.design), adaptive=body.adaptive, seed=body.seed,
                                  progress=None if progress is None else (lambda f: progress(0.95 * f)),
-                                 mu_model=mu_model)
+                                 mu_model=mu_model, validation_points=body.validation_points)
     seconds = time.perf_counter() - start
     metrics = surrogate.holdout_metrics(fit.model, n_test=_HELD_OUT_POINTS, seed=_HELD_OUT_SEED,
                                         mu_model=mu_model)
@@ -188,8 +188,7 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
         "model": body.model, "conditions": dict(body.conditions or {}),
         "target_relative_error": body.target_relative_error,
         "variance_calibration": fit.model.variance_calibration_, "std_scale": fit.model.std_scale_,
-        "calibration_points": {"kfold": fit.n_train, "none": None}.get(
-            fit.model.variance_calibration_, min(fit.n_train, fit.model.calibration_rows or fit.n_train)),
+        "calibration_points": fit.model.calibration_points_, "validation_points": fit.validation_points,
     }
     surrogate_id = store.save_model(KIND, {"result": result, "model": data}, {},
                                     name=f"{len(space.names)}-D, {fit.n_train} evaluations")

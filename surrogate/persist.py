@@ -106,6 +106,7 @@ def to_dict(model: GaussianProcessSurrogate) -> dict[str, Any]:
         "mean_coef": model.mean_coef_.tolist(),
         "std_scale": model.std_scale_,
         "variance_calibration": model.variance_calibration_,
+        "calibration_points": model.calibration_points_,
         "gp": {"kernel": str(gp.kernel_), "theta": gp.kernel_.theta.tolist(), "alpha": gp.alpha,
                "normalize_y": gp.normalize_y},
     }
@@ -162,6 +163,7 @@ def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
     model.std_scale_ = float(data["std_scale"])
     # Stored before "auto" existed: the calibration was the one requested.
     model.variance_calibration_ = data.get("variance_calibration", model.calibrate_variance)
+    model.calibration_points_ = data.get("calibration_points")  # absent before it was recorded
     model.package_version_ = data.get("package_version")
     model.version_warning_ = version_warning(model.package_version_)
     return model

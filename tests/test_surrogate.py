@@ -639,8 +639,9 @@ def test_fit_adaptive_calibrates_on_the_space_filling_design(adaptive, model_par
     # (8 of 16 points here) sets the variance scale; a plain design uses every point; an explicit choice wins.
     space = SPACES["angle+load"]
     fit = fit_adaptive(space, budget=16, initial_size=8, batch_size=4, target_relative_error=1e-9,
-                       adaptive=adaptive, model_params={"calibrate_variance": "loo", **(model_params or {})})
-    assert fit.model.calibration_rows == expected and fit.n_train == 16
+                       adaptive=adaptive, model_params={"calibrate_variance": "loo", **(model_params or {})},
+                       validation_points=0)
+    assert fit.model.calibration_rows == expected and fit.n_train == 16 and fit.validation_points == 0
     errors, variances = fit.model._loo()
     z = (errors / np.sqrt(variances))[:expected]
     assert fit.model.std_scale_ == pytest.approx(np.sqrt(np.mean(z**2)), rel=1e-12)
@@ -657,6 +658,61 @@ def test_small_budgets_start_with_enough_space_filling_points_to_calibrate(budge
 def test_fit_adaptive_starts_with_the_default_design_and_calibrates_on_it():
     fit = fit_adaptive(SPACES["load"], budget=50, target_relative_error=1e-12, seed=0)
     assert fit.history[0]["n_train"] == 40 and fit.model.calibration_rows == 40
+
+
+def test_calibrate_sets_the_split_conformal_quantile_of_the_validation_errors():
+    space = SPACES["angle+load"]
+    X = design(space, 20, seed=0)
+    model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    X_valid = design(space, 99, seed=5)
+    y_valid = space.evaluate(X_valid)
+    model.calibrate(X_valid, y_valid)
+    assert (model.variance_calibration_, model.calibration_points_) == ("validation", 99)
+    # The 95 % interval holds exactly k = ceil(0.95 x 100) = 95 of the 99 validation points: the
+    # k-th smallest standardized error sits on its edge (ties have probability 0).
+    prediction = model.predict_interval(X_valid)
+    inside = (prediction.mu_lower <= y_valid * (1 + 1e-12)) & (y_valid <= prediction.mu_upper * (1 + 1e-12))
+    assert inside.sum() == 95
+    # Whatever the process's own scale, the same conformal quantile: refitting with another calibration
+    # and calibrating again gives the same factor.
+    other = GaussianProcessSurrogate(space, random_state=0, calibrate_variance="none")
+    other.fit(X, space.evaluate(X))
+    assert other.calibrate(X_valid, y_valid).std_scale_ == pytest.approx(model.std_scale_, rel=1e-12)
+    # Kept through JSON.
+    restored = loads(dumps(model))
+    assert (restored.std_scale_, restored.variance_calibration_, restored.calibration_points_) == \
+        (model.std_scale_, "validation", 99)
+
+
+def test_calibrate_refuses_training_points_and_too_few_points():
+    space = SPACES["angle+load"]
+    X = design(space, 20, seed=0)
+    model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    with pytest.raises(ValueError, match="must not be training points"):
+        model.calibrate(X, space.evaluate(X))
+    few = design(space, 18, seed=3)
+    with pytest.raises(ValueError, match="at least 19 validation points"):
+        model.calibrate(few, space.evaluate(few))
+
+
+def test_fit_adaptive_calibrates_on_validation_points_beyond_the_budget():
+    space = SPACES["angle+load"]
+    fit = fit_adaptive(space, budget=24, seed=0, validation_points=200)
+    assert fit.n_train == 24 and fit.validation_points == 200
+    assert (fit.model.variance_calibration_, fit.model.calibration_points_) == ("validation", 200)
+    # Coverage of fresh points (another scramble) is that of a split-conformal interval on 200 points:
+    # Beta(191, 10) has 99 % of its mass in [0.91, 0.985].
+    X_test = design(space, 2048, seed=123_456)
+    y_test = space.evaluate(X_test)
+    prediction = fit.model.predict_interval(X_test)
+    coverage = np.mean((prediction.mu_lower <= y_test) & (y_test <= prediction.mu_upper))
+    assert 0.91 <= coverage <= 0.985
+    # A space of integer and boolean dimensions only keeps cross-validation (its points are finitely many).
+    finite = Space({"balls": (3, 40), "balls_touching": (False, True)},
+                   fixed={"load_N": 0.01, "speed_m_s": 0.01})
+    assert fit_adaptive(finite, budget=20, seed=0).validation_points == 0
+    with pytest.raises(ValueError, match="validation_points"):
+        fit_adaptive(space, budget=24, validation_points=-1)
 
 
 def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is_optimized():
@@ -676,7 +732,7 @@ def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is
     # The round that spends the budget optimizes; when the final calibration differs from the rounds'
     # (k-fold below 10 points per feature: 24 points of 3 features), only the calibration is redone.
     space = SPACES["angle+load"]
-    fit = fit_adaptive(space, budget=24, initial_size=12, batch_size=6, seed=0)
+    fit = fit_adaptive(space, budget=24, initial_size=12, batch_size=6, seed=0, validation_points=0)
     assert (fit.model.calibrate_variance, fit.model.variance_calibration_) == ("auto", "kfold")
     gp = fit.model.gaussian_process_
     refit = GaussianProcessSurrogate(space, initial_theta=gp.kernel_.theta.tolist(), n_restarts_optimizer=0)

@@ -69,9 +69,20 @@ def test_training_job_reports_metrics_within_budget(trained):
     assert trained["fixed"] == {"groove_angle_deg": 60.0}
     assert trained["scales"] == {"load_N": "log", "speed_m_s": "log", "balls": "log"}
     assert trained["convention"] == physics.DEFAULT_CONVENTION and trained["package_version"]
+    # Calibrated on 512 validation evaluations beyond the budget, none of them a training point.
+    assert (trained["variance_calibration"], trained["calibration_points"]) == ("validation", 512)
+    assert trained["validation_points"] == 512 and trained["std_scale"] > 0
+    # Split conformal at 95 % on 512 points: the held-out coverage is Beta(488, 25), 95.1 +- 0.95 %.
+    assert 0.92 <= metrics["coverage_95"] <= 0.98
+
+
+def test_validation_points_zero_calibrates_on_the_training_evaluations(client):
+    body = {"space": SPACE, "fixed": {"groove_angle_deg": 60.0}, "budget": 30, "target_relative_error": 1e-6,
+            "validation_points": 0}
+    result, _ = finished(client, client.post("/v1/surrogates", json=body))
     # 30 evaluations of 3 features (10 per feature): leave-one-out on the 15-point starting design
-    assert (trained["variance_calibration"], trained["calibration_points"]) == ("loo", 15)
-    assert trained["std_scale"] > 0
+    assert (result["variance_calibration"], result["calibration_points"]) == ("loo", 15)
+    assert result["validation_points"] == 0 and result["n_train"] == 30
 
 
 def test_reported_coverage_matches_fresh_physics(client, trained):

@@ -22,11 +22,14 @@ from .base import (
 )
 from .calibrations import MODEL_PATTERN
 
-__all__ = ["MAX_BUDGET", "SamplingDesignName", "PredictRequest", "PredictResponse", "SensitivityResponse",
-           "SurrogateList", "SurrogateMetrics", "SurrogateRequest", "SurrogateResult", "SurrogateSpace"]
+__all__ = ["MAX_BUDGET", "MAX_VALIDATION_POINTS", "SamplingDesignName", "PredictRequest", "PredictResponse",
+           "SensitivityResponse", "SurrogateList", "SurrogateMetrics", "SurrogateRequest", "SurrogateResult",
+           "SurrogateSpace"]
 
 #: Most physics evaluations one surrogate may use: GP fitting grows as budget³.
 MAX_BUDGET = 1000
+#: Most validation evaluations one surrogate may ask for (each costs one evaluation and one prediction).
+MAX_VALIDATION_POINTS = 4096
 
 # Named SamplingDesign, not Design: a generated client has one namespace of models, and the bearing
 # design of an optimization result is BearingDesign.
@@ -76,6 +79,13 @@ class SurrogateRequest(StrictModel):
     adaptive: bool = Field(default=True, description="Add evaluations where the surrogate is least "
                                                      "sure (else spend the budget on the design).")
     seed: int = Field(default=0, ge=0, le=2**31 - 1, description="Seed of designs and optimizer [1].")
+    validation_points: int = Field(
+        default=surrogate.sampling.VALIDATION_POINTS, ge=0, le=MAX_VALIDATION_POINTS,
+        description="Evaluations of the model beyond the budget, at a space-filling design never trained "
+                    "on, that calibrate the 95 % intervals by split conformal prediction (they then cover "
+                    "95 +- 1 % of new points); 0 calibrates them by cross-validation of the training "
+                    "evaluations instead (no extra evaluation, much less reliable below 100 evaluations). "
+                    "Spaces of integer and boolean dimensions only are always cross-validated [1].")
     convention: ConventionName = Field(  # type: ignore[valid-type]
         default=Convention(physics.DEFAULT_CONVENTION),
         description="Reading of the paper's ambiguous ball-ball terms (a calibrated model's own "
@@ -136,15 +146,21 @@ class SurrogateResult(ResponseModel):
         "Condition columns of a calibrated model, as trained on [their units]."))
     package_version: str = Field(description="microbearing version trained with.")
     variance_calibration: str | None = Field(default=None, description=(
-        "How the 95 % intervals were calibrated on the training evaluations: kfold (5 folds, the "
-        "Gaussian process refitted without each; below 10 evaluations per feature) or loo (closed-form "
+        "How the 95 % intervals were calibrated: validation (split conformal on validation_points "
+        "evaluations never trained on), or on the training evaluations: kfold (5 folds, the Gaussian "
+        "process refitted without each; below 10 evaluations per feature) or loo (closed-form "
         "leave-one-out errors at the space-filling starting design); null for surrogates stored before "
         "it was recorded."))
     std_scale: float | None = Field(default=None, description=(
-        "Factor applied to the Gaussian process's own standard deviation of log mu: the root mean square "
-        "of the standardized cross-validation errors [1]."))
+        "Factor applied to the Gaussian process's own standard deviation of log mu: for validation, the "
+        "split-conformal 95 % quantile of the standardized validation errors over 1.96; else the root mean "
+        "square of the standardized cross-validation errors [1]."))
     calibration_points: int | None = Field(default=None, description=(
-        "Training evaluations whose cross-validation errors set std_scale [1]."))
+        "Evaluations whose standardized errors set std_scale: the validation points, or the training "
+        "evaluations cross-validated [1]."))
+    validation_points: int = Field(default=0, description=(
+        "Evaluations of the model beyond the budget, never trained on, that calibrated the intervals (0: "
+        "none; cross-validation did) [1]."))
     target_relative_error: float | None = Field(default=None, description=(
         "The target median relative error of mu the training aimed at (null for surrogates stored before "
         "it was recorded) [1]."))
