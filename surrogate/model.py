@@ -186,7 +186,11 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         below 10 points per feature 82 % of the fits covered under 90 %),
         k-fold refits much less so; with more, leave-one-out on the
         space-filling rows lands in [90, 98] % for about 9 fits in 10 and
-        k-fold refits (fitted on 80 % of the points) are too wide.
+        k-fold refits (fitted on 80 % of the points) are too wide. Where the
+        learned model can be evaluated more, :meth:`calibrate` on validation points
+        never trained on does much better, and :func:`surrogate.fit_adaptive` (the REST
+        API's) does so by default: every one of 128 fits in [90, 98] % at budgets 50
+        and 100.
     variance_scale : {"rms", "central"}, default "rms"
         How ``s`` follows from the ``z_i``. ``"rms"``: ``s² = mean(z²)``, the
         cross-validation variance estimate of Bachoc (2013), right when the
