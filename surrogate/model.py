@@ -34,7 +34,7 @@ from threadpoolctl import threadpool_limits
 from .space import FEATURE_SETS, Space
 
 __all__ = ["KERNELS", "MEANS", "CALIBRATIONS", "VARIANCE_SCALES", "DEFAULT_KERNEL",
-           "KFOLD_BELOW_POINTS_PER_FEATURE", "MIN_VALIDATION_POINTS",
+           "KFOLD_BELOW_POINTS_PER_FEATURE", "MIN_VALIDATION_POINTS", "RELATIVE_RESOLUTION",
            "DEFAULT_CALIBRATION", "SurrogatePrediction", "GaussianProcessSurrogate", "build_kernel"]
 
 #: Allowed stationary kernels.
@@ -120,6 +120,10 @@ class SurrogatePrediction:
     outside_space: np.ndarray
     log_std: np.ndarray
 
+
+#: Narrowest half-width of an interval, relative to μ: float64 evaluations of μ (the physics' own
+#: operations, the process's prediction) agree to a few 1e-15, not beyond. [1]
+RELATIVE_RESOLUTION = 1e-12
 
 #: Fewest validation points of :meth:`GaussianProcessSurrogate.calibrate`: the split-conformal 95 %
 #: quantile is the ceil(0.95 (n + 1))-th smallest of n standardized errors, which exists from n = 19.
@@ -511,10 +515,14 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
 
     def _interval(self, X: np.ndarray, outside: np.ndarray, level: float) -> SurrogatePrediction:
         mu, std = self.predict(X, return_std=True)
+        # Never narrower than float64 evaluation of μ can be trusted: where μ does not depend on an
+        # input, the process reproduces it to the last bit at some points and not at others.
         half = norm.ppf(0.5 + 0.5 * level) * std
         if self.log_target:
+            half = np.maximum(half, RELATIVE_RESOLUTION)
             lower, upper = mu * np.exp(-half), mu * np.exp(half)
         else:
+            half = np.maximum(half, RELATIVE_RESOLUTION * np.abs(mu))
             lower, upper = mu - half, mu + half
         return SurrogatePrediction(mu, lower, upper, outside, std)
 

@@ -715,6 +715,17 @@ def test_fit_adaptive_calibrates_on_validation_points_beyond_the_budget():
         fit_adaptive(space, budget=24, validation_points=-1)
 
 
+def test_an_input_mu_ignores_gets_intervals_no_narrower_than_float64_resolution():
+    # Without touching balls, mu_ball has no effect: mu is one constant, which the process reproduces to
+    # the last bit at some points and not at others; the interval still holds it everywhere.
+    space = Space({"mu_ball": (0.05, 0.5)}, fixed={"balls": 4, "load_N": 0.01, "speed_m_s": 0.01})
+    fit = fit_adaptive(space, budget=20, seed=0)
+    metrics = holdout_metrics(fit.model, n_test=512, seed=7)
+    assert metrics["median_relative_error"] < 1e-13 and metrics["coverage_95"] == 1.0
+    prediction = fit.model.predict_interval(design(space, 8, seed=9))
+    np.testing.assert_allclose(prediction.mu_upper / prediction.mu, np.exp(1e-12), rtol=1e-15)
+
+
 def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is_optimized():
     space = SPACES["load"]
     X = design(space, 12, seed=0)
