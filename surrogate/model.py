@@ -193,8 +193,8 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         k-fold refits (fitted on 80 % of the points) are too wide. Where the
         learned model can be evaluated more, :meth:`calibrate` on validation points
         never trained on does much better, and :func:`surrogate.fit_adaptive` (the REST
-        API's) does so by default: every one of 128 fits in [90, 98] % at budgets 50
-        and 100.
+        API's) does so by default: every one of 184 fits in [90, 98] % at budgets 50
+        and 100 (``bench/surrogate.py --coverage-only``, three sets of spaces).
     variance_scale : {"rms", "central"}, default "rms"
         How ``s`` follows from the ``z_i``. ``"rms"``: ``s² = mean(z²)``, the
         cross-validation variance estimate of Bachoc (2013), right when the
