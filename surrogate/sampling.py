@@ -527,7 +527,7 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
                  "n_restarts_optimizer": 0}
         model = GaussianProcessSurrogate(space, **final).fit(X, y)
     validated = 0
-    if validation_points and any(kind == "float" for kind in space.kinds):
+    if validation_points and not space.finite:
         rng = np.random.default_rng(None if seed is None else [seed, _VALIDATION_STREAM])
         X_valid = _distinct(design(space, int(validation_points), "sobol", rng), exclude=X)
         if len(X_valid) >= MIN_VALIDATION_POINTS:

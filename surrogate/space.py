@@ -186,6 +186,11 @@ class Space:
         """Number of free dimensions ``d``."""
         return len(self.names)
 
+    @property
+    def finite(self) -> bool:
+        """Whether the space has finitely many points: only integer and boolean dimensions."""
+        return all(kind != "float" for kind in self.kinds)
+
     def __repr__(self) -> str:
         dims = ", ".join(f"{n}=[{lo:g}, {hi:g}]" for n, lo, hi in zip(self.names, self.lower, self.upper,
                                                                       strict=True))
@@ -336,7 +341,7 @@ class Space:
         ...       fixed={"load_N": 0.01, "speed_m_s": 0.01}).all_points(10).tolist()
         [[3.0, 0.0], [3.0, 1.0], [4.0, 0.0], [4.0, 1.0]]
         """
-        if any(kind == "float" for kind in self.kinds):
+        if not self.finite:
             return None
         counts = [int(hi - lo) + 1 for lo, hi in zip(self.lower, self.upper, strict=True)]
         if math.prod(counts) > max_points:
