@@ -294,8 +294,6 @@ class AdaptiveFit:
         ``"target_reached"``, ``"budget_exhausted"`` or ``"candidates_exhausted"``
         (no candidate left that is not a training point, e.g. every point of a space of
         integer and boolean dimensions sampled: ``n_train`` is then below the budget).
-    validation_points : int
-        Evaluations beyond the budget that set the variance scale (0: cross-validation set it). [1]
     """
 
     model: GaussianProcessSurrogate
@@ -303,12 +301,16 @@ class AdaptiveFit:
     y: np.ndarray
     history: list[dict[str, float]] = field(default_factory=list)
     stop_reason: str = ""
-    validation_points: int = 0
 
     @property
     def n_train(self) -> int:
         """Number of physics evaluations used. [1]"""
         return len(self.y)
+
+    @property
+    def validation_points(self) -> int:
+        """Evaluations beyond the budget that set the variance scale (0: cross-validation set it). [1]"""
+        return self.model.calibration_points_ if self.model.variance_calibration_ == "validation" else 0
 
 
 def default_initial_size(budget: int, dimension: int) -> int:
@@ -526,11 +528,9 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         final = {**params, "initial_theta": model.gaussian_process_.kernel_.theta.tolist(),
                  "n_restarts_optimizer": 0}
         model = GaussianProcessSurrogate(space, **final).fit(X, y)
-    validated = 0
     if validation_points and not space.finite:
         rng = np.random.default_rng(None if seed is None else [seed, _VALIDATION_STREAM])
         X_valid = _distinct(design(space, int(validation_points), "sobol", rng), exclude=X)
         if len(X_valid) >= MIN_VALIDATION_POINTS:
             model.calibrate(X_valid, evaluate(X_valid))
-            validated = len(X_valid)
-    return AdaptiveFit(model, X, y, history, stop, validated)
+    return AdaptiveFit(model, X, y, history, stop)
