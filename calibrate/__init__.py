@@ -15,6 +15,7 @@ domain check.
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_assignments, parse_csv, parse_rows
 from .model import CalibratedModel, Prediction
 from .report import CalibrationReport, calibrate, check_request
+from .tabular import Intake, read_csv, read_rows
 
 __all__ = [
     "calibrate",
@@ -27,6 +28,9 @@ __all__ = [
     "DataError",
     "parse_csv",
     "parse_rows",
+    "Intake",
+    "read_csv",
+    "read_rows",
     "MU_MEASURED",
     "MU_MEASURED_STD",
 ]

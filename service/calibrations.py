@@ -90,7 +90,8 @@ def calibration_view(calibration_id: str, metadata: Mapping[str, Any]) -> dict[s
 
 
 def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], folds: int, convention: str,
-                    progress: Callable[[float], None] | None = None) -> dict[str, Any]:
+                    progress: Callable[[float], None] | None = None,
+                    intake: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Calibrate, store the report, model and plots, and return the public result.
 
     Parameters
@@ -107,6 +108,8 @@ def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], f
         See :data:`physics.CONVENTIONS`.
     progress : callable, optional
         Fraction done, 0..1 (a job's progress, which also checks cancellation).
+    intake : mapping, optional
+        How the data were read (:meth:`calibrate.Intake.to_dict`), kept in the report as ``intake``.
 
     Returns
     -------
@@ -115,7 +118,8 @@ def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], f
     """
     report: CalibrationReport = calibrate(dataset, fit_parameters, folds=folds, progress=progress,
                                           convention=convention)
-    metadata = {"report": report.to_dict(), "model": report.model.to_json()}
+    metadata = {"report": {**report.to_dict(), "intake": None if intake is None else dict(intake)},
+                "model": report.model.to_json()}
     arrays = {name: np.frombuffer(png, dtype=np.uint8) for name, png in report.plots.items()}
     name = " + ".join(e["name"] for e in report.effects) or "none"
     calibration_id = store.save_model(KIND, metadata, arrays, name=f"{report.n_points} points, effect {name}")

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
 
 from microbearing import physics
-from microbearing.calibrate import DataError, Dataset, check_request, parse_assignments, parse_csv, parse_rows
+from microbearing.calibrate import DataError, Dataset, check_request, parse_assignments, read_csv, read_rows
+from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names
 
 from ..calibrations import calibration_view, data_problem, load_calibration, run_calibration
 from ..deps import JobsDep, SettingsDep, StoreDep
@@ -25,14 +26,24 @@ __all__ = ["router"]
 
 router = APIRouter(prefix="/v1/calibrations", tags=["calibrations"])
 
+Separator = Literal["auto", "comma", "semicolon", "tab"]
+Decimal = Literal["auto", "point", "comma"]
+assert set(Separator.__args__) == {"auto", *SEPARATORS} and set(Decimal.__args__) == {"auto", *DECIMALS}
+
 _DEFAULT_CONVENTION = Convention(physics.DEFAULT_CONVENTION)
 
 _CSV_TEXT = ("CSV with a header row: physics input columns, mu_measured [1], optionally mu_measured_std [1], "
-             "and any other numeric condition columns.")
+             "and any other numeric condition columns. Separated by comma, semicolon or tab (detected, or "
+             "stated by the query parameter separator); decimal point or, with semicolon or tab, decimal "
+             "comma (detected, or stated by decimal); UTF-8 with or without BOM; blank lines and empty "
+             "columns at the end are ignored. Column names may carry units, converted to SI: "
+             + accepted_names() + ".")
+_CSV_EXAMPLE = ("balls;load [mN];speed [mm/s];relative humidity [%];mu_measured\r\n"
+                "4;13,2;70;38;0,01448\r\n4;4,4;92;65;0,02287\r\n4;4,4;113;63;0,02302\r\n")
 # The body is read as CSV whatever its declared type; application/octet-stream is listed too because
 # generated clients (openapi-python-client) send raw bytes that way and have no text bodies.
 _CSV_BODY = {"requestBody": {"required": True, "content": {
-    "text/csv": {"schema": {"type": "string", "description": _CSV_TEXT}},
+    "text/csv": {"schema": {"type": "string", "description": _CSV_TEXT}, "example": _CSV_EXAMPLE},
     "application/octet-stream": {"schema": {"type": "string", "format": "binary",
                                             "description": _CSV_TEXT}}}}}
 
@@ -47,9 +58,10 @@ def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool)
 
 
 def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_parameters: list[str],
-            folds: int, convention: str) -> JSONResponse:
+            folds: int, convention: str, intake: dict) -> JSONResponse:
     def work(ctx: JobContext) -> dict:
-        return run_calibration(store, dataset, fit_parameters, folds, convention, progress=ctx.progress)
+        return run_calibration(store, dataset, fit_parameters, folds, convention, progress=ctx.progress,
+                               intake=intake)
 
     return accepted(jobs.submit("calibration", record, work))
 
@@ -66,14 +78,16 @@ def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep,
     check_rows(len(body.data), settings.max_calibration_rows, "/data")
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
-        dataset = parse_rows(body.data, fixed)
+        dataset, intake = read_rows(body.data, fixed)
     except DataError as exc:
         raise data_problem(exc.errors) from None
     fit_parameters = [str(name) for name in body.fit_parameters]
     _check(dataset, fit_parameters, body.folds, query=False)
     record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()), "fixed": fixed,
-              "fit_parameters": fit_parameters, "folds": body.folds, "convention": str(body.convention)}
-    return _submit(jobs, store, record, dataset, fit_parameters, body.folds, str(body.convention))
+              "fit_parameters": fit_parameters, "folds": body.folds, "convention": str(body.convention),
+              "intake": intake.to_dict()}
+    return _submit(jobs, store, record, dataset, fit_parameters, body.folds, str(body.convention),
+                   intake.to_dict())
 
 
 @router.post("/csv", operation_id="create_calibration_from_csv", status_code=202,
@@ -87,9 +101,21 @@ async def create_calibration_from_csv(
     folds: Annotated[int, Query(ge=2, le=20, description="Cross-validation folds [1].")] = 5,
     convention: Annotated[ConventionName, Query(  # type: ignore[valid-type]
         description="Reading of the paper's ambiguous ball-ball terms.")] = _DEFAULT_CONVENTION,
+    separator: Annotated[Separator, Query(
+        description="Column separator: auto (detected among comma, semicolon and tab), comma, semicolon "
+                    "or tab.")] = "auto",
+    decimal: Annotated[Decimal, Query(
+        description="Decimal mark: auto (a comma when numbers use one and none a point), point or "
+                    "comma.")] = "auto",
 ) -> JSONResponse:
     """Calibrate on an uploaded CSV file (``Content-Type: text/csv`` or ``application/octet-stream``),
-    as ``POST /v1/calibrations``."""
+    as ``POST /v1/calibrations``.
+
+    Spreadsheet exports are read as saved: the separator and decimal mark are detected (or stated),
+    a BOM, CRLF line ends, blank lines and empty columns at the end are ignored, and units in the
+    header (``speed [mm/s]``, ``load (mN)``, ``speed_mm_s``, ``relative humidity [%]``) are converted
+    to SI. The report's ``intake`` says which dialect was used and how each column was read.
+    """
     text = await request.body()
     check_rows(csv_data_rows(text), settings.max_calibration_rows, "The CSV body")  # before parsing it
     try:
@@ -98,14 +124,17 @@ async def create_calibration_from_csv(
         raise validation_problem([{"parameter": "fixed", "detail": f"{e['column']}: {e['message']}"}
                                   for e in exc.errors]) from None
     try:
-        dataset = await run_in_threadpool(parse_csv, text, fixed_values)
+        dataset, intake = await run_in_threadpool(
+            read_csv, text, fixed_values, None if separator == "auto" else separator,
+            None if decimal == "auto" else decimal)
     except DataError as exc:
         raise data_problem(exc.errors, fixed_pointer=None, data_pointer=None) from None
     names = [str(name) for name in fit_parameters]
     _check(dataset, names, folds, query=True)
     record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()), "fixed": fixed_values,
-              "fit_parameters": names, "folds": folds, "convention": str(convention)}
-    return _submit(jobs, store, record, dataset, names, folds, str(convention))
+              "fit_parameters": names, "folds": folds, "convention": str(convention),
+              "intake": intake.to_dict()}
+    return _submit(jobs, store, record, dataset, names, folds, str(convention), intake.to_dict())
 
 
 @router.get("/{calibration_id}", operation_id="get_calibration", response_model=CalibrationResult,

@@ -1,4 +1,4 @@
-"""``/healthz``, ``/readyz``, ``/v1/version`` and ``/v1/materials``."""
+"""``/healthz``, ``/readyz``, ``/v1/version``, ``/v1/materials`` and ``/v1/parameters``."""
 
 from __future__ import annotations
 
@@ -8,10 +8,20 @@ from importlib.metadata import PackageNotFoundError, version
 from fastapi import APIRouter
 
 from microbearing import physics
+from microbearing.calibrate.tabular import accepted_names
 
 from ..deps import JobsDep, SettingsDep, StoreDep
 from ..problems import ProblemError, problem_responses
-from ..schemas.meta import Health, MaterialInfo, Materials, Readiness, Version
+from ..schemas.meta import (
+    Health,
+    MaterialInfo,
+    Materials,
+    OutputInfo,
+    ParameterInfo,
+    Parameters,
+    Readiness,
+    Version,
+)
 
 __all__ = ["package_version", "router"]
 
@@ -63,3 +73,20 @@ async def list_materials() -> Materials:
                      density_kg_m3=m.density_kg_m3, source=m.source)
         for m in physics.MATERIALS.values()
     ])
+
+
+@router.get("/v1/parameters", operation_id="list_parameters", response_model=Parameters,
+            responses=problem_responses())
+async def list_parameters() -> Parameters:
+    """Every physics input with its unit, default and allowed range, every output with its unit, and
+    the column names measured data may use (units in the header are converted to SI)."""
+    return Parameters(
+        parameters=[ParameterInfo(name=p.name, unit=p.unit, kind=p.kind, required=p.required,
+                                  default=p.default, minimum=p.minimum, maximum=p.maximum,
+                                  exclusive_minimum=p.exclusive_minimum,
+                                  exclusive_maximum=p.exclusive_maximum, symbol=p.symbol,
+                                  description=p.description)
+                    for p in physics.PARAMETERS.values()],
+        outputs=[OutputInfo(name=name, unit=unit, description=text)
+                 for name, (unit, text) in physics.OUTPUTS.items()],
+        data_columns=accepted_names())

@@ -61,9 +61,12 @@ MODEL_RESPONSE_FIELDS: dict[str, Any] = {
 }
 
 _ROW_DESCRIPTION = (
-    "One measurement: physics inputs by name in their units (see /v1/meta), mu_measured [1] > 0, "
-    "optionally mu_measured_std [1] > 0, and any other numeric columns describing the conditions "
-    "(e.g. relative_humidity [1], temperature_C [degC], cycle [1]); every row gives the same columns."
+    "One measurement: physics inputs by name in their units (see /v1/parameters), or with another unit in "
+    "the name, converted to SI (speed [mm/s], load (mN), load [g] for a slider mass, speed_mm_s, "
+    "ball_diameter [um]), mu_measured [1] > 0, optionally mu_measured_std [1] > 0, and any other numeric "
+    "columns describing the conditions (e.g. relative_humidity [1], temperature_C [degC], cycle [1]; with a "
+    "unit in brackets converted to SI: relative_humidity [%] -> relative_humidity [1], temperature [degC] -> "
+    "temperature_K); every row gives the same columns."
 )
 
 
@@ -227,6 +230,23 @@ class RobustErrors(ResponseModel):
     excluded_rows: int = Field(description="Outlier rows left out [1].")
 
 
+class Intake(ResponseModel):
+    """How the measured data were read: the dialect of a CSV file and every column's unit conversion."""
+
+    format: str = Field(description="'csv' (POST /v1/calibrations/csv) or 'json' (rows).")
+    separator: str | None = Field(default=None, description="comma, semicolon or tab (null for JSON).")
+    decimal: str | None = Field(default=None, description="Decimal mark: point or comma (null for JSON).")
+    detected: list[str] = Field(description="Which of separator and decimal were detected; the others were "
+                                            "stated by query parameters.")
+    encoding: str | None = Field(default=None, description="UTF-8, or UTF-8 with BOM (null for JSON).")
+    line_endings: str | None = Field(default=None, description="LF, CRLF or CR (null for JSON).")
+    ignored: list[str] = Field(description="What was ignored, e.g. '2 blank lines at the end', '1 empty "
+                                           "column at the end'.")
+    conversions: list[str] = Field(description="Each unit conversion in words, e.g. 'speed [mm/s] read as "
+                                               "speed_m_s / 1000'.")
+    columns: dict[str, str] = Field(description="Every column as sent -> its name in the data (SI).")
+
+
 class CalibrationResult(ResponseModel):
     """The calibration report."""
 
@@ -266,6 +286,9 @@ class CalibrationResult(ResponseModel):
     decision: str = Field(description="Why the effect was chosen or nothing was added.")
     folds: int = Field(description="Cross-validation folds [1].")
     model: dict[str, Any] = Field(description="The calibrated model as JSON data.")
+    intake: Intake | None = Field(default=None, description=(
+        "How the data were read: separator, decimal mark, what was ignored, unit conversions (null for "
+        "calibrations stored before it)."))
     plots: dict[str, str] = Field(description=(
         "Plots: name -> URL of the PNG (effect_<k>: the k-th term against its driver with its 95 % band; "
         "residuals: against every input, before and after; measured_vs_predicted)."))
