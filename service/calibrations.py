@@ -28,7 +28,8 @@ from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
-__all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_view", "check_conditions", "data_problem",
+__all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summaries", "calibration_view",
+           "check_conditions", "data_problem", "delete_calibration",
            "evaluate_batch_with_model", "evaluate_point_with_model", "interval_at", "load_calibration",
            "load_mu_model", "prediction_fields", "run_calibration", "with_conditions"]
 
@@ -124,6 +125,37 @@ def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], f
     name = " + ".join(e["name"] for e in report.effects) or "none"
     calibration_id = store.save_model(KIND, metadata, arrays, name=f"{report.n_points} points, effect {name}")
     return calibration_view(calibration_id, metadata)
+
+
+def calibration_summaries(store: Store) -> list[dict[str, Any]]:
+    """Every stored calibration the caller sees, newest first, as :class:`CalibrationSummary` data."""
+    out = []
+    for row in store.list_models(KIND):
+        report = row["metadata"]["report"]
+        model = row["metadata"].get("model", {})
+        effects = report.get("effects")
+        if effects is None:  # stored before forward selection: at most one effect
+            effects = [] if report.get("missing_effect") is None else [report["missing_effect"]]
+        domain = model.get("domain") or {}
+        out.append({"id": row["id"], "model_id": MODEL_PREFIX + row["id"], "name": row["name"],
+                    "created_at": row["created_at"], "n_points": report["n_points"],
+                    "fit_parameters": list(report["fit_parameters"]),
+                    "effects": [e["name"] for e in effects], "error_before": report["error_before"],
+                    "error_after": report["error_after"],
+                    "columns": sorted(domain) if isinstance(domain, dict) else [],
+                    "url": f"/v1/calibrations/{row['id']}"})
+    return out
+
+
+def delete_calibration(store: Store, calibration_id: str) -> None:
+    """Delete a stored calibration (report, model, plots), or a 404 problem.
+
+    Surrogates trained on it keep their predictions; optimizing one then answers 404 naming the
+    calibration, since the model it stands for is gone.
+    """
+    load_calibration(store, calibration_id)
+    if not store.delete_model(calibration_id):
+        raise ProblemError(404, f"There is no calibration {calibration_id!r}.")
 
 
 def load_calibration(store: Store, calibration_id: str):

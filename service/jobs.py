@@ -349,6 +349,15 @@ class JobManager:
                 row.update(self._unwritten.get(job_id, {}))
         return row
 
+    def list(self, kinds: tuple[str, ...] = (), statuses: tuple[str, ...] = (), limit: int = 20,
+             before: tuple[str, str] | None = None) -> list[dict[str, Any]]:
+        """The requester's jobs, newest first (:meth:`Store.list_jobs`), shown as :meth:`get` shows them."""
+        rows = self.store.list_jobs(kinds, statuses, limit, before)
+        with self._lock:
+            for row in rows:
+                row.update(self._unwritten.get(row["id"], {}))
+        return rows
+
     def delete(self, job_id: str) -> bool:
         """Delete a finished job and its result; returns whether it was deleted."""
         return self.store.delete_job(job_id, FINISHED)

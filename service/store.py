@@ -467,6 +467,38 @@ class Store:
                          (*statuses, before))
             return conn.execute(f"DELETE FROM jobs WHERE {where}", (*statuses, before)).rowcount
 
+    def list_jobs(self, kinds: tuple[str, ...] = (), statuses: tuple[str, ...] = (), limit: int = 20,
+                  before: tuple[str, str] | None = None) -> list[dict[str, Any]]:
+        """Status columns of the jobs the requester sees, newest first, filtered and paginated.
+
+        Parameters
+        ----------
+        kinds, statuses : tuple of str
+            Keep jobs of one of these kinds / statuses (empty: any).
+        limit : int
+            Most rows returned [1].
+        before : (str, str), optional
+            ``(created_at, id)`` of the last row of the previous page: rows after it in the order.
+
+        Returns
+        -------
+        list of dict
+            Job rows without request and result.
+        """
+        visible, args = self._visible()
+        sql = f"SELECT {_STATUS_COLUMNS} FROM jobs WHERE 1 = 1{visible}"
+        arguments: list[Any] = list(args)
+        for column, values in (("kind", kinds), ("status", statuses)):
+            if values:
+                sql += f" AND {column} IN ({', '.join('?' for _ in values)})"
+                arguments.extend(values)
+        if before is not None:
+            sql += " AND (created_at < ? OR (created_at = ? AND id < ?))"
+            arguments.extend((before[0], before[0], before[1]))
+        sql += " ORDER BY created_at DESC, id DESC LIMIT ?"
+        arguments.append(int(limit))
+        return [dict(row) for row in self.connection().execute(sql, arguments).fetchall()]
+
     def jobs_with_status(self, *statuses: str) -> list[dict[str, Any]]:
         """Status columns of every job with one of ``statuses``, oldest first (no request or result)."""
         marks = ", ".join("?" for _ in statuses)

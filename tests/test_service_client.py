@@ -223,6 +223,20 @@ def _(s: Session) -> None:
     assert {m.name for m in materials} == set(physics.MATERIALS)
 
 
+@drives("list_parameters")
+def _(s: Session) -> None:
+    table = typed(s.call("list_parameters"), "Parameters")
+    assert [p.name for p in table.parameters] == list(physics.PARAMETERS)
+    assert {o.name for o in table.outputs} == set(physics.OUTPUTS) and "speed [mm/s]" in table.data_columns
+
+
+@drives("list_jobs")
+def _(s: Session) -> None:
+    job = s.once("sweep_job", lambda: _sweep_job(s))
+    listed = typed(s.call("list_jobs", kind=[s.models.ListJobsKindItem("sweep")], limit=100), "JobList")
+    assert job.id in {j.id for j in listed.jobs} and {j.kind for j in listed.jobs} == {"sweep"}
+
+
 @drives("evaluate_friction")
 def _(s: Session) -> None:
     # The generator folds names to snake case: load_N is the attribute load_n (README, "Generated clients").
@@ -360,6 +374,21 @@ def _(s: Session) -> None:
     made = s.once("calibration", lambda: _calibration(s))
     got = typed(s.call("get_calibration", calibration_id=made.id), "CalibrationResult")
     assert got.model_id == made.model_id
+
+
+@drives("list_calibrations")
+def _(s: Session) -> None:
+    made = s.once("calibration", lambda: _calibration(s))
+    listed = typed(s.call("list_calibrations"), "CalibrationList")
+    assert made.id in {c.id for c in listed.calibrations}
+
+
+@drives("delete_calibration")
+def _(s: Session) -> None:
+    body = s.model("CalibrationRequest", {"data": _calibration_rows(), "folds": 3})
+    made = s.job_result(s.call("create_calibration", body=body), "CalibrationJobResult")
+    assert s.call("delete_calibration", calibration_id=made.id).status_code == 204  # no body to parse
+    assert typed(s.call("get_calibration", calibration_id=made.id), "Problem", status=404).status == 404
 
 
 @drives("get_calibration_plot")

@@ -12,13 +12,25 @@ from microbearing import physics
 from microbearing.calibrate import DataError, Dataset, check_request, parse_assignments, read_csv, read_rows
 from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names
 
-from ..calibrations import calibration_view, data_problem, load_calibration, run_calibration
+from ..calibrations import (
+    calibration_summaries,
+    calibration_view,
+    data_problem,
+    delete_calibration,
+    load_calibration,
+    run_calibration,
+)
 from ..deps import JobsDep, SettingsDep, StoreDep
 from ..jobs import JobContext, JobManager
 from ..limits import check_rows, csv_data_rows
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas.base import Convention, ConventionName
-from ..schemas.calibrations import CalibrationRequest, CalibrationResult, FittableParameterName
+from ..schemas.calibrations import (
+    CalibrationList,
+    CalibrationRequest,
+    CalibrationResult,
+    FittableParameterName,
+)
 from ..store import Store
 from .jobs import ACCEPTED_RESPONSE, accepted
 
@@ -135,6 +147,26 @@ async def create_calibration_from_csv(
               "fit_parameters": names, "folds": folds, "convention": str(convention),
               "intake": intake.to_dict()}
     return _submit(jobs, store, record, dataset, names, folds, str(convention), intake.to_dict())
+
+
+@router.get("", operation_id="list_calibrations", response_model=CalibrationList,
+            responses=problem_responses())
+def list_calibrations(store: StoreDep) -> JSONResponse:
+    """Every stored calibration the caller sees (with API keys: its key's, or all for the admin key),
+    newest first, summarized; ``url`` gives the full report."""
+    return JSONResponse({"calibrations": calibration_summaries(store)})
+
+
+@router.delete("/{calibration_id}", operation_id="delete_calibration", status_code=204,
+               response_class=Response, responses=problem_responses(404))
+def delete_calibration_route(calibration_id: str, store: StoreDep) -> Response:
+    """Delete a stored calibration: its report, model and plots (the key that created it, or the admin key).
+
+    The model ``calibrated:<id>`` is then gone from every list, from UM-Bridge and from every request
+    that names it (404).
+    """
+    delete_calibration(store, calibration_id)
+    return Response(status_code=204)
 
 
 @router.get("/{calibration_id}", operation_id="get_calibration", response_model=CalibrationResult,

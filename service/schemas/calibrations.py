@@ -9,10 +9,11 @@ from pydantic import Field, create_model
 
 from microbearing import physics
 
-from .base import Convention, ConventionName, ResponseModel, StrictModel, parameter_fields
+from .base import Convention, ConventionName, DateTimeText, ResponseModel, StrictModel, parameter_fields
 
 __all__ = ["FITTABLE_PARAMETERS", "MODEL_FIELDS", "MODEL_PATTERN", "MODEL_RESPONSE_FIELDS",
-           "CalibrationFixed", "CalibrationRequest", "CalibrationResult", "FittableParameterName"]
+           "CalibrationFixed", "CalibrationList", "CalibrationRequest", "CalibrationResult",
+           "CalibrationSummary", "FittableParameterName"]
 
 #: Declared physics parameters a calibration may fit: the optional real-valued ones.
 FITTABLE_PARAMETERS = [n for n, p in physics.PARAMETERS.items() if p.kind == "float" and not p.required]
@@ -292,3 +293,25 @@ class CalibrationResult(ResponseModel):
     plots: dict[str, str] = Field(description=(
         "Plots: name -> URL of the PNG (effect_<k>: the k-th term against its driver with its 95 % band; "
         "residuals: against every input, before and after; measured_vs_predicted)."))
+
+
+class CalibrationSummary(ResponseModel):
+    """A stored calibration in a list: what it is and where its report is."""
+
+    id: str = Field(description="Calibration id.")
+    model_id: str = Field(description="Model id for /v1/friction and optimization: calibrated:<id>.")
+    name: str = Field(description="A label: the number of points and the terms added.")
+    created_at: DateTimeText = Field(description="When it was stored (ISO 8601, UTC).")
+    n_points: int = Field(description="Measurements used [1].")
+    fit_parameters: list[str] = Field(description="Declared parameters fitted.")
+    effects: list[str] = Field(description="Names of the terms added, in order (empty: none).")
+    error_before: ErrorFigures = Field(description="Held-out errors of the fitted declared model.")
+    error_after: ErrorFigures = Field(description="Held-out errors of the calibrated model (nested CV).")
+    columns: list[str] = Field(description="Columns of the data (SI names): physics inputs and conditions.")
+    url: str = Field(description="Path of the full report, /v1/calibrations/{id}.")
+
+
+class CalibrationList(ResponseModel):
+    """Stored calibrations the caller sees, newest first."""
+
+    calibrations: list[CalibrationSummary] = Field(description="Every stored calibration.")

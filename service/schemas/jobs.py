@@ -13,9 +13,10 @@ from .optimizations import OptimizationResult
 from .surrogates import SurrogateResult
 from .sweeps import SweepResult
 
-__all__ = ["JOB_RESULTS", "Job", "JobResult", "JobStatus"]
+__all__ = ["JOB_RESULTS", "Job", "JobKind", "JobList", "JobResult", "JobStatus"]
 
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+JobKind = Literal["sweep", "optimization", "calibration", "surrogate"]
 
 
 class Job(ResponseModel):
@@ -66,3 +67,11 @@ JOB_RESULTS = {"sweep": SweepJobResult, "optimization": OptimizationJobResult,
 #: The JSON result of ``GET /v1/jobs/{id}/result``, told apart by ``kind`` (the job's kind).
 JobResult = Annotated[SweepJobResult | OptimizationJobResult | CalibrationJobResult | SurrogateJobResult,
                       Field(discriminator="kind")]
+
+
+class JobList(ResponseModel):
+    """A page of the caller's jobs, newest first."""
+
+    jobs: list[Job] = Field(description="The jobs of this page (at most limit).")
+    next_url: str | None = Field(default=None, description=(
+        "Path of the next page (same filters, page_token set); null on the last page."))
