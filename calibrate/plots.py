@@ -7,7 +7,9 @@
 * ``residuals``: the calibrated model's residual against every varying input,
   the declared model's (before) in grey behind it.
 * ``measured_vs_predicted``: measured against predicted μ on log axes, before
-  and after, with the 1:1 line.
+  and after, with the 1:1 line; its ticks are chosen for the data's range
+  (:func:`log_ticks`: decades over a wide range, 1-2-5 or every digit over a
+  narrow one, plain numbers below that), so both axes are labelled at any range.
 
 Every plot writes the held-out errors before and after on itself and marks the
 outliers (red crosses).
@@ -16,6 +18,7 @@ outliers (red crosses).
 from __future__ import annotations
 
 import io
+import textwrap
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -26,7 +29,7 @@ from microbearing import physics
 from .data import Dataset
 from .model import CalibratedModel
 
-__all__ = ["calibration_plots"]
+__all__ = ["calibration_figures", "calibration_plots", "log_ticks", "tick_texts"]
 
 _GRID = 120
 
@@ -48,6 +51,69 @@ def _unit(name: str) -> str:
         if len(words) > 1 and words[-1] == suffix:
             return f" [{unit}]"
     return " [1, as in the data]"
+
+
+def log_ticks(low: float, high: float, least: int = 3) -> list[float]:
+    """Tick positions for a log axis over [low, high] with at least ``least`` ticks inside.
+
+    Decades when the range holds ``least`` of them, else 1-2-5 steps, else every digit
+    (1, 2, ..., 9 x 10^k), else evenly spaced round numbers: a log axis over less than a
+    decade keeps numbered ticks.
+
+    Examples
+    --------
+    >>> log_ticks(1e-4, 1.0)
+    [0.0001, 0.001, 0.01, 0.1, 1.0]
+    >>> log_ticks(0.004, 0.03)
+    [0.005, 0.01, 0.02]
+    >>> log_ticks(0.0112, 0.0125)
+    [0.0112, 0.0116, 0.012, 0.0124]
+    """
+    if not (0 < low < high):
+        raise ValueError(f"log_ticks needs 0 < low < high; got {low!r}, {high!r}")
+    for subs in ((1,), (1, 2, 5), tuple(range(1, 10))):
+        decades = range(int(np.floor(np.log10(low))), int(np.ceil(np.log10(high))) + 1)
+        ticks = [float(f"{m}e{e}") for e in decades for m in subs]
+        inside = [t for t in ticks if low <= t <= high]
+        if len(inside) >= least:
+            return inside
+    from matplotlib.ticker import MaxNLocator
+
+    for bins in range(least + 1, 4 * least + 1):
+        values = MaxNLocator(nbins=bins, steps=[1, 2, 2.5, 4, 5, 10]).tick_values(low, high)
+        inside = [float(f"{v:.6g}") for v in values if low <= v <= high]
+        if len(inside) >= least:
+            break
+    return inside
+
+
+def tick_texts(ticks: Sequence[float]) -> list[str]:
+    """Labels of ticks: the fewest significant digits (3 or more) that write every tick exactly.
+
+    >>> tick_texts([19.025, 19.05, 19.075, 19.1]), tick_texts([0.001, 0.01])
+    (['19.025', '19.05', '19.075', '19.1'], ['0.001', '0.01'])
+    """
+    for digits in range(3, 16):
+        texts = [f"{t:.{digits}g}" for t in ticks]
+        if all(abs(float(text) - t) <= 1e-9 * abs(t) for text, t in zip(texts, ticks, strict=True)):
+            return texts
+    return [repr(float(t)) for t in ticks]
+
+
+def _label_log_axes(ax, low: float, high: float) -> None:
+    """Log x and y axes over [low, high] (padded 5 %), ticked by :func:`log_ticks`, every tick numbered."""
+    from matplotlib.ticker import FixedFormatter, FixedLocator, NullFormatter, NullLocator
+
+    pad = (high / low) ** 0.05 if high > low else 1.1
+    low, high = low / pad, high * pad
+    ticks = log_ticks(low, high)
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(FixedLocator(ticks))
+        axis.set_major_formatter(FixedFormatter(tick_texts(ticks)))
+        axis.set_minor_locator(NullLocator())
+        axis.set_minor_formatter(NullFormatter())
+    ax.set_xlim(low, high)
+    ax.set_ylim(low, high)
 
 
 def _pyplot():
@@ -78,7 +144,7 @@ def _errors_text(errors: Mapping[str, Any]) -> str:
     return text
 
 
-def _effect_png(dataset: Dataset, model: CalibratedModel, k: int, outliers: np.ndarray, errors) -> bytes:
+def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: np.ndarray, errors):
     plt = _pyplot()
     term, _ = model.terms[k]
     driver = term.drivers[0]
@@ -116,13 +182,14 @@ def _effect_png(dataset: Dataset, model: CalibratedModel, k: int, outliers: np.n
     ax.set_xlim(grid[0] - 0.02 * (grid[-1] - grid[0]), grid[-1] + 0.02 * (grid[-1] - grid[0]))
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    ax.set_title(f"Term {k + 1}: {term.label}\n{_errors_text(errors)}", fontsize=9)
-    return _png(fig)
+    ax.set_title(f"Term {k + 1}: {term.label}\n" + "\n".join(textwrap.wrap(_errors_text(errors), 80)),
+                 fontsize=9)
+    return fig
 
 
-def _residuals_png(
+def _residuals_figure(
     dataset: Dataset, before: np.ndarray, after: np.ndarray, outliers: np.ndarray, errors, title: str
-) -> bytes:
+):
     plt = _pyplot()
     varying = [
         (n, np.asarray(v, dtype=float)) for n, v in dataset.columns().items() if np.unique(v).size > 1
@@ -153,12 +220,12 @@ def _residuals_png(
         ax.set_ylabel("log(mu_measured / mu_model) [-]")
     axes[0][0].legend(fontsize=7)
     fig.suptitle(f"{title}\n{_errors_text(errors)}", fontsize=10)
-    return _png(fig)
+    return fig
 
 
-def _measured_png(
+def _measured_figure(
     dataset: Dataset, mu_before: np.ndarray, mu_after: np.ndarray, outliers: np.ndarray, errors
-) -> bytes:
+):
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(5.2, 5.0), constrained_layout=True)
     measured = dataset.mu_measured
@@ -171,19 +238,22 @@ def _measured_png(
     ax.plot([lo, hi], [lo, hi], color="black", lw=0.8, label="measured = predicted")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    from matplotlib.ticker import NullFormatter
-
-    for axis in (ax.xaxis, ax.yaxis):
-        axis.set_minor_formatter(NullFormatter())
+    _label_log_axes(ax, lo, hi)
     ax.set_xlabel("predicted mu [-]")
     ax.set_ylabel("measured mu [-]")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
-    ax.set_title(f"Measured against predicted\n{_errors_text(errors)}", fontsize=9)
-    return _png(fig)
+    ax.set_title("Measured against predicted\n" + "\n".join(textwrap.wrap(_errors_text(errors), 66)),
+                 fontsize=9)
+    return fig
 
 
-def calibration_plots(
+def calibration_plots(*args, **kwargs) -> dict[str, bytes]:
+    """Every figure of the report as PNG bytes by name (arguments of :func:`calibration_figures`)."""
+    return {name: _png(fig) for name, fig in calibration_figures(*args, **kwargs).items()}
+
+
+def calibration_figures(
     dataset: Dataset,
     model: CalibratedModel,
     mu_before: np.ndarray,
@@ -214,18 +284,19 @@ def calibration_plots(
 
     Returns
     -------
-    dict of str to bytes
-        PNG images by name.
+    dict of str to matplotlib.figure.Figure
+        The figures by name (the caller closes them; :func:`calibration_plots` saves them as PNG).
     """
     plots = {
-        f"effect_{k + 1}": _effect_png(dataset, model, k, outliers, errors) for k in range(len(model.terms))
+        f"effect_{k + 1}": _effect_figure(dataset, model, k, outliers, errors)
+        for k in range(len(model.terms))
     }
     title = (
         ("Residuals after " + " + ".join(labels))
         if labels
         else "Residuals: nothing added to the declared model"
     )
-    plots["residuals"] = _residuals_png(
+    plots["residuals"] = _residuals_figure(
         dataset,
         np.log(dataset.mu_measured / mu_before),
         np.log(dataset.mu_measured / mu_after),
@@ -233,5 +304,12 @@ def calibration_plots(
         errors,
         title,
     )
-    plots["measured_vs_predicted"] = _measured_png(dataset, mu_before, mu_after, outliers, errors)
+    plots["measured_vs_predicted"] = _measured_figure(dataset, mu_before, mu_after, outliers, errors)
+    from matplotlib.ticker import ScalarFormatter
+
+    for fig in plots.values():
+        for ax in fig.axes:
+            for axis in (ax.xaxis, ax.yaxis):
+                if axis.get_scale() == "linear":  # plain numbers, no offset over a narrow range
+                    axis.set_major_formatter(ScalarFormatter(useOffset=False))
     return plots

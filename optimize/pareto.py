@@ -26,6 +26,7 @@ import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter, ScalarFormatter
 
 from microbearing import physics
 
@@ -67,13 +68,21 @@ class ParetoFront:
                 "points": [dict(p) for p in self.points], "infeasible_levels": self.infeasible_levels}
 
     def to_png(self) -> bytes:
-        """The front as a PNG image drawn for a bearing designer.
+        """The front as a PNG image drawn for a bearing designer (:meth:`figure`), saved with a tight
+        bounding box, so no label is cut at the edges."""
+        buffer = io.BytesIO()
+        self.figure().savefig(buffer, format="png", bbox_inches="tight", pad_inches=0.15)
+        return buffer.getvalue()
+
+    def figure(self) -> Figure:
+        """The front drawn for a bearing designer, as a matplotlib figure.
 
         The upper panel shows μ against the second objective in the units a designer reads
         (contact pressure in MPa, load in mN), one marker and colour per ball count z with a
-        key; the lower panel shows the design along the front: the load carried [mN] (for
-        the pressure front) and the groove angle [deg]. Saved with a tight bounding box, so
-        no label is cut at the edges.
+        key; the panels below show the design along the front, each quantity in a panel of its
+        own so that none hides another (a constant one is a flat, labelled line): the load
+        carried [mN] (for the pressure front) and the groove angle [deg]. A second objective
+        spanning more than 20x is on a log axis ticked at 1-2-5 steps (at least three labels).
         """
         if not self.points:
             raise ValueError("the front has no points to plot")
@@ -85,9 +94,12 @@ class ParetoFront:
         load_mN = np.array([p["design"]["load_N"] for p in self.points]) * 1e3
         angle = np.array([p["design"]["groove_angle_deg"] for p in self.points])
 
-        fig = Figure(figsize=(7.0, 6.2), dpi=100, layout="constrained")
+        pressure = self.objective != "load_N"
+        fig = Figure(figsize=(7.0, 7.4 if pressure else 6.2), dpi=100, layout="constrained")
         FigureCanvasAgg(fig)
-        top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+        panels = fig.subplots(3 if pressure else 2, 1, sharex=True,
+                              height_ratios=(3, 1.5, 1.5) if pressure else (3, 2))
+        top, bottom = panels[0], panels[-1]
         top.plot(x, mu, "-", color="0.6", zorder=1)
         markers = "osD^vP*Xhp<>"
         colours = matplotlib.colormaps["tab10"]
@@ -101,22 +113,24 @@ class ParetoFront:
         top.set_title(f"Pareto front: least friction against {name} ({better} is better)", fontsize=10)
         top.grid(True, alpha=0.3)
 
-        if self.objective == "load_N":
-            bottom.plot(x, angle, "s-", color="tab:green")
-            bottom.set_ylabel("groove angle θ [deg]", color="tab:green")
-        else:
-            bottom.plot(x, load_mN, "o-", color="tab:purple")
-            bottom.set_ylabel("load carried G [mN]", color="tab:purple")
-            twin = bottom.twinx()
-            twin.plot(x, angle, "s--", color="tab:green")
-            twin.set_ylabel("groove angle θ [deg]", color="tab:green")
+        if pressure:
+            panels[1].plot(x, load_mN, "o-", color="tab:purple")
+            panels[1].set_ylabel("load carried\nG [mN]", color="tab:purple")
+        bottom.plot(x, angle, "s-", color="tab:green")
+        bottom.set_ylabel("groove angle\nθ [deg]", color="tab:green")
+        for panel in panels:
+            panel.grid(True, alpha=0.3)
+            # plain numbers, no offset: a narrow range reads "0.0112", not "0.0002 + 1.1e-2"
+            panel.yaxis.set_major_formatter(ScalarFormatter(useOffset=False))
         bottom.set_xlabel(f"{name} [{unit}]")
-        bottom.grid(True, alpha=0.3)
         if x.max() > 20 * x.min():
             top.set_xscale("log")
-        buffer = io.BytesIO()
-        fig.savefig(buffer, format="png", bbox_inches="tight", pad_inches=0.15)
-        return buffer.getvalue()
+            bottom.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+            bottom.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:.3g}"))
+            bottom.xaxis.set_minor_formatter(NullFormatter())
+        else:
+            bottom.xaxis.set_major_formatter(ScalarFormatter(useOffset=False))
+        return fig
 
 
 def _value(problem: DesignProblem, objective: str, design: dict[str, Any]) -> float:

@@ -19,14 +19,14 @@ from microbearing.service.app import create_app
 from microbearing.service.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
-_PATH = re.compile(r"(?<![A-Za-z_.$/])/(?:v1|umbridge)(?:/[A-Za-z0-9_{}<>.:-]+)*|(?<![A-Za-z_.$/])/(?:healthz|readyz|metrics|"
-                   r"docs|redoc|openapi\.json)\b")
+_PATH = re.compile(r"(?<![A-Za-z_.$/])/(?:v1|umbridge)(?:/[A-Za-z0-9_{}<>.:-]+)*"
+                   r"|(?<![A-Za-z_.$/])/(?:healthz|readyz|metrics|docs|redoc|openapi\.json)\b")
 
 
 def named_paths(text: str) -> set[str]:
     """Paths named in a text, trailing punctuation and query strings dropped.
 
-    >>> sorted(named_paths("see /v1/jobs/{id}. or GET /v1/parameters, http://h:8000/umbridge/Info and $JOB/x"))
+    >>> sorted(named_paths("see /v1/jobs/{id}. or /v1/parameters, http://h:8000/umbridge/Info and $JOB/x"))
     ['/umbridge/Info', '/v1/jobs/{id}', '/v1/parameters']
     """
     return {match.rstrip(".,:;") for match in _PATH.findall(text)}
