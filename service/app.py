@@ -194,11 +194,13 @@ def plain_routes(routers: list[APIRouter]) -> list[PlainRoute]:
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     try:
-        get_runtime(app)  # open the database and recover interrupted jobs before serving
+        runtime = get_runtime(app)  # open the database and recover interrupted jobs before serving
     except DataFolderError as exc:
         # One clear line before the server's traceback; the server then exits non-zero.
         logger.critical("%s", exc)
         raise
+    logger.info("data folder %s (database %s)", runtime.store.data_dir, runtime.store.path,
+                extra={"data_dir": str(runtime.store.data_dir)})
     try:
         yield
     finally:

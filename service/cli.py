@@ -1,5 +1,9 @@
 """The ``microbearing`` command line: evaluate, sweep and optimize from a shell, serve the API,
-reproduce the paper, calibrate on measurements.
+reproduce the paper, calibrate on measurements, train and query surrogates.
+
+Stored models (surrogates, calibrations) live in the data folder of the server
+(``--data-dir``, else ``$MICROBEARING_DATA_DIR``, else the user data folder); a command that only
+reads them never creates that folder or its database.
 
 Exit codes: 0 success; 1 an unexpected failure; 2 invalid arguments or input (the message names the
 field); 3 an infeasible design problem (no design meets the limits); 4 a file that cannot be read or
@@ -64,7 +68,7 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 def _calibrate(args: argparse.Namespace) -> int:
-    from microbearing.calibrate import DataError, calibrate, parse_assignments, parse_csv
+    from microbearing.calibrate import DataError, calibrate, parse_assignments, read_csv
 
     try:
         text = Path(args.data).read_bytes()
@@ -73,7 +77,8 @@ def _calibrate(args: argparse.Namespace) -> int:
         return EXIT_FILE
     fit = [name.strip() for name in (args.fit or "").split(",") if name.strip()]
     try:
-        dataset = parse_csv(text, parse_assignments(args.fixed))
+        dataset, intake = read_csv(text, parse_assignments(args.fixed), args.separator, args.decimal)
+        print(f"{args.data}: {intake.summary()}", file=sys.stderr)
         report = calibrate(dataset, fit, folds=args.folds)
     except DataError as exc:
         print(f"microbearing calibrate: {args.data}: {exc}", file=sys.stderr)
@@ -89,7 +94,7 @@ def _calibrate(args: argparse.Namespace) -> int:
             (folder / f"{name}.png").write_bytes(png)
             print(f"wrote {folder / f'{name}.png'}")
     if args.json:
-        Path(args.json).write_text(json.dumps(report.to_dict(), indent=1))
+        Path(args.json).write_text(json.dumps({**report.to_dict(), "intake": intake.to_dict()}, indent=1))
         print(f"wrote {args.json}")
     return 0
 
@@ -113,11 +118,16 @@ def _write(path: str | None, text: str) -> None:
         raise CommandError(f"cannot write {path}: {exc.strerror or exc}", EXIT_FILE) from None
 
 
-def _problem_error(problem: Any) -> CommandError:
-    """A service :class:`~service.problems.ProblemError` as a command error naming the fields."""
+def _problem_error(problem: Any, data_dir: Path | None = None) -> CommandError:
+    """A service :class:`~service.problems.ProblemError` as a command error naming the fields (and, for
+    something not found, the data folder it was looked for in)."""
     from .optimizations import INFEASIBLE_TYPE
 
-    lines = [problem.detail] + [f"  {item.get('pointer') or item.get('parameter')}: {item['detail']}"
+    detail = problem.detail
+    if problem.status == 404 and data_dir is not None:
+        detail += (f" (looked in the data folder {data_dir}; --data-dir or MICROBEARING_DATA_DIR names "
+                   "another)")
+    lines = [detail] + [f"  {item.get('pointer') or item.get('parameter')}: {item['detail']}"
                                 for item in problem.errors or [] if item["detail"] not in problem.detail]
     code = EXIT_INFEASIBLE if problem.type == INFEASIBLE_TYPE else (
         EXIT_INVALID if 400 <= problem.status < 500 else EXIT_FAILURE)
@@ -243,7 +253,11 @@ def _evaluate(args: argparse.Namespace) -> int:
                                          physics_in(args.convention), progress=progress)
     except ProblemError as problem:
         raise _problem_error(problem) from None
-    _write(args.output, csv_text({**columns, **results}))
+    import numpy as np
+
+    # every input the rows were evaluated at: the file's columns, then the NAME=VALUE ones
+    given = {name: np.full(count, value) for name, value in fixed.items()}
+    _write(args.output, csv_text({**columns, **given, **results}))
     return EXIT_OK
 
 
@@ -264,7 +278,7 @@ def _sweep(args: argparse.Namespace) -> int:
     from .settings import Settings
     from .store import to_json
     from .sweeps import design_columns, run_sweep
-    from .tables import csv_text
+    from .tables import csv_text, sweep_table
 
     request = _request(args.request, SweepRequest)
     try:
@@ -274,28 +288,47 @@ def _sweep(args: argparse.Namespace) -> int:
     except ProblemError as problem:
         raise _problem_error(problem) from None
     as_csv = args.format == "csv" or (args.format is None and str(args.output or "").endswith(".csv"))
-    _write(args.output, csv_text(document["columns"]) if as_csv else to_json(document) + "\n")
+    _write(args.output, csv_text(sweep_table(document)) if as_csv else to_json(document) + "\n")
     return EXIT_OK
+
+
+def _data_dir(args: argparse.Namespace) -> Path:
+    """The data folder of stored models: --data-dir, else the server's setting."""
+    from .settings import Settings
+
+    given = getattr(args, "data_dir", None)
+    return Path(given).expanduser().resolve() if given is not None else Path(Settings().data_dir)
+
+
+def _open_store(args: argparse.Namespace, write: bool = False) -> Any:
+    """The store of the data folder; for a read, an error naming the folder when it has no database
+    (the folder and database are never created by a read)."""
+    from .store import DATABASE_NAME, Store
+
+    folder = _data_dir(args)
+    if not write and not (folder / DATABASE_NAME).is_file():
+        raise CommandError(f"no stored models: the data folder {folder} has no database {DATABASE_NAME} "
+                           "(--data-dir or MICROBEARING_DATA_DIR names the server's folder)", EXIT_INVALID)
+    return Store(folder)
 
 
 def _optimize(args: argparse.Namespace) -> int:
     from .optimizations import pareto_png, prepare, run
     from .problems import ProblemError
     from .schemas.optimizations import OptimizationRequest
-    from .settings import Settings
-    from .store import Store, to_json
+    from .store import to_json
 
     request = _request(args.request, OptimizationRequest)
     if args.plot and request.pareto is None:
         raise CommandError("--plot draws a Pareto front: add \"pareto\" to the request", EXIT_INVALID)
     # Calibrated and surrogate models are read from the server's data folder.
-    store = Store(Settings().data_dir) if request.model != "physics" else None
+    store = _open_store(args) if request.model != "physics" else None
     try:
         plan = prepare(store, request)
         with _progress_bar("optimize") as progress:
             document = run(plan, progress=progress)
     except ProblemError as problem:
-        raise _problem_error(problem) from None
+        raise _problem_error(problem, _data_dir(args)) from None
     finally:
         if store is not None:
             store.close()
@@ -305,6 +338,81 @@ def _optimize(args: argparse.Namespace) -> int:
             Path(args.plot).write_bytes(pareto_png(document))
         except OSError as exc:
             raise CommandError(f"cannot write {args.plot}: {exc.strerror or exc}", EXIT_FILE) from None
+    return EXIT_OK
+
+
+def _surrogate_train(args: argparse.Namespace) -> int:
+    from .problems import ProblemError
+    from .schemas.surrogates import SurrogateRequest
+    from .store import to_json
+    from .surrogates import prepare_training, train_surrogate
+
+    request = _request(args.request, SurrogateRequest)
+    store = _open_store(args, write=request.model == "physics")
+    try:
+        space, mu_model = prepare_training(store, request)
+        with _progress_bar(f"train a surrogate on up to {request.budget} evaluations") as progress:
+            document = train_surrogate(store, space, request, progress=progress, mu_model=mu_model)
+    except ProblemError as problem:
+        raise _problem_error(problem, _data_dir(args)) from None
+    finally:
+        store.close()
+    _write(args.output, to_json(document) + "\n")
+    print(f"stored {document['model_id']} in {_data_dir(args)}", file=sys.stderr)
+    return EXIT_OK
+
+
+def _columns(items: list[str]) -> dict[str, Any]:
+    """``NAME=VALUE[,VALUE...]`` physics inputs as columns (one value broadcasts)."""
+    from microbearing import physics
+
+    columns: dict[str, Any] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        spec = physics.PARAMETERS.get(name.strip())
+        if not sep or spec is None:
+            raise CommandError(f"{item!r}: expected NAME=VALUE[,VALUE...] with NAME one of "
+                               f"{', '.join(physics.PARAMETERS)}", EXIT_INVALID)
+        values = [_value(spec, part.strip(), name) for part in text.split(",")]
+        columns[spec.name] = values[0] if len(values) == 1 else values
+    return columns
+
+
+def _surrogate_predict(args: argparse.Namespace) -> int:
+    from .problems import ProblemError
+    from .store import to_json
+    from .surrogates import predict
+
+    identifier = args.id.removeprefix("surrogate:")
+    points = _columns(args.inputs)
+    store = _open_store(args)
+    try:
+        document = predict(store, identifier, points)
+    except ProblemError as problem:
+        raise _problem_error(problem, _data_dir(args)) from None
+    finally:
+        store.close()
+    _write(args.output, to_json(document) + "\n")
+    return EXIT_OK
+
+
+def _surrogate_list(args: argparse.Namespace) -> int:
+    from .store import to_json
+    from .surrogates import surrogate_views
+
+    store = _open_store(args)
+    try:
+        views = surrogate_views(store)
+    finally:
+        store.close()
+    if args.json:
+        _write(args.output, to_json({"surrogates": views}) + "\n")
+        return EXIT_OK
+    lines = [f"{len(views)} surrogate(s) in {_data_dir(args)}"]
+    for view in views:
+        space = ", ".join(f"{name} [{low:g}, {high:g}]" for name, (low, high) in view["space"].items())
+        lines.append(f"{view['model_id']}  {view['created_at']}  {view['n_train']} evaluations  {space}")
+    _write(args.output, "\n".join(lines) + "\n")
     return EXIT_OK
 
 
@@ -375,13 +483,25 @@ def build_parser() -> argparse.ArgumentParser:
                   'microbearing optimize front.json --plot front.png   # a request with "pareto"'])
     o.add_argument("--plot", metavar="FILE.png", help="draw the Pareto front (requests with \"pareto\")")
 
-    p = sub.add_parser("paper", help="reproduce the numerical cases of Olaru et al. (2005)")
+    p = sub.add_parser("paper", help="reproduce the numerical cases of Olaru et al. (2005)",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Print the paper's cases A and B computed beside its published values.",
+                       epilog="examples:\n"
+                              "  microbearing paper\n"
+                              "  microbearing paper --plot paper.png        # Figs. 5-6 redrawn\n"
+                              "  microbearing paper --convention derjaguin")
     p.add_argument("--plot", metavar="FILE.png", help="draw mu against speed as the paper's Figs. 5-6")
     p.add_argument("--convention", choices=list(physics.CONVENTIONS), default=physics.DEFAULT_CONVENTION)
     p.set_defaults(func=_paper)
 
     s = sub.add_parser("serve", help="start the REST service (uvicorn)",
-                       description="Start the REST service; settings come from MICROBEARING_* variables.")
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Start the REST service; settings come from MICROBEARING_* variables. "
+                                   "The start log names the data folder (jobs and stored models).",
+                       epilog="examples:\n"
+                              "  microbearing serve                          # http://127.0.0.1:8000/docs\n"
+                              "  microbearing serve --data-dir ./data --port 8080\n"
+                              "  MICROBEARING_API_KEYS=secret microbearing serve --host 0.0.0.0 --workers 2")
     s.add_argument("--host", default="127.0.0.1", help="interface to listen on (default: %(default)s)")
     s.add_argument("--port", type=int, default=8000, help="TCP port (default: %(default)s)")
     s.add_argument("--data-dir", type=Path, default=None,
@@ -390,10 +510,23 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=_serve)
 
     c = sub.add_parser("calibrate", help="calibrate the model on measured CSV data, name the missing effect",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Fit the declared parameters on log mu, search the residual for a missing "
-                                   "effect, and report the held-out error before and after.")
+                                   "effect, and report the held-out error before and after. The CSV may be a "
+                                   "spreadsheet export (comma, semicolon or tab; decimal comma; units in the "
+                                   "header such as 'speed [mm/s]', converted to SI); how it was read is "
+                                   "printed on stderr.",
+                       epilog="examples:\n"
+                              "  microbearing calibrate measured.csv --fit mu_pivot --plots plots/\n"
+                              "  microbearing calibrate export.csv --fixed balls=4 "
+                              "--fit mu_pivot,adhesion_energy_J_m2\n"
+                              "  microbearing calibrate export.csv --separator semicolon --decimal comma "
+                              "--json report.json")
     c.add_argument("data", help="CSV with physics input columns, mu_measured, optionally mu_measured_std, "
                                 "and any condition columns")
+    c.add_argument("--separator", choices=["comma", "semicolon", "tab"], help="column separator (default: "
+                                                                            "detected)")
+    c.add_argument("--decimal", choices=["point", "comma"], help="decimal mark (default: detected)")
     c.add_argument("--fit", metavar="NAME,...", help="declared parameters to fit, e.g. mu_pivot,mu_ball")
     c.add_argument("--fixed", metavar="NAME=VALUE", nargs="+", action="extend", default=[],
                    help="physics inputs fixed for every row, in their units (e.g. balls=4)")
@@ -401,6 +534,58 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--plots", metavar="DIR", help="write the residual plots (PNG) into DIR")
     c.add_argument("--json", metavar="FILE", help="write the full report, with the calibrated model, as JSON")
     c.set_defaults(func=_calibrate)
+
+    g = sub.add_parser("surrogate",
+                       help="train, query and list Gaussian-process surrogates (as /v1/surrogates)",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Surrogates stored in the server's data folder: train one from a JSON "
+                                   "request (the schema of POST /v1/surrogates), predict with it, list them.",
+                       epilog="examples:\n"
+                              "  microbearing surrogate train request.json -o surrogate.json\n"
+                              "  microbearing surrogate predict surrogate:<id> load_N=0.002,0.02 "
+                              "speed_m_s=0.05\n"
+                              "  microbearing surrogate list --data-dir ./data")
+    actions = g.add_subparsers(dest="action", required=True)
+
+    def data_dir_option(command: argparse.ArgumentParser) -> None:
+        command.add_argument("--data-dir", type=Path, default=None,
+                             help="data folder of stored models (default: $MICROBEARING_DATA_DIR, else the "
+                                  "user data dir)")
+
+    t = _json_command(
+        actions, "train", _surrogate_train, help="train a surrogate and store it (prints its JSON)",
+        description="Train the surrogate described by a JSON file in the schema of POST /v1/surrogates and "
+                    "store it in the data folder; write its description (the schema SurrogateResult).",
+        examples=['echo \'{"space": {"load_N": [0.001, 0.05], "speed_m_s": [0.001, 0.2]}, '
+                  '"fixed": {"balls": 4}, "budget": 30}\' > request.json',
+                  "microbearing surrogate train request.json -o surrogate.json"])
+    data_dir_option(t)
+    r = actions.add_parser("predict", help="predict mu with its 95 %% interval at points",
+                           formatter_class=argparse.RawDescriptionHelpFormatter,
+                           description="Predict mu, its 95 % interval and whether each point lies inside "
+                                       "the trained space (the answer of POST /v1/surrogates/{id}/predict).",
+                           epilog="examples:\n"
+                                  "  microbearing surrogate predict surrogate:<id> load_N=0.002,0.02 "
+                                  "speed_m_s=0.05\n"
+                                  "  microbearing surrogate predict <id> load_N=0.01 speed_m_s=0.1 "
+                                  "-o mu.json")
+    r.add_argument("id", help="the surrogate: surrogate:<id> or <id>")
+    r.add_argument("inputs", nargs="+", metavar="NAME=VALUE[,VALUE...]",
+                   help="every dimension of the surrogate, in its unit; one value broadcasts")
+    r.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
+    data_dir_option(r)
+    r.set_defaults(func=_surrogate_predict)
+    li = actions.add_parser("list", help="list the stored surrogates",
+                            formatter_class=argparse.RawDescriptionHelpFormatter,
+                            description="List the surrogates of the data folder, newest first.",
+                            epilog="examples:\n"
+                                   "  microbearing surrogate list\n"
+                                   "  microbearing surrogate list --json -o surrogates.json")
+    li.add_argument("--json", action="store_true", help="the full descriptions as JSON (GET /v1/surrogates)")
+    li.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
+    data_dir_option(li)
+    li.set_defaults(func=_surrogate_list)
+    data_dir_option(o)
     return parser
 
 

@@ -45,8 +45,8 @@ from .schemas.umbridge import PREFIX as UMBRIDGE_PREFIX
 from .settings import Settings
 from .store import REQUESTER, Requester
 
-__all__ = ["DOCS_ASSETS_PATH", "OPEN_PATHS", "SECURITY_SCHEME_NAME", "ApiKeyMiddleware", "app_path",
-           "document_openapi", "install", "key_id", "parse_api_keys"]
+__all__ = ["ANONYMOUS", "DOCS_ASSETS_PATH", "OPEN_PATHS", "SECURITY_SCHEME_NAME", "UMBRIDGE_METADATA_PATHS",
+           "ApiKeyMiddleware", "app_path", "document_openapi", "install", "key_id", "parse_api_keys"]
 
 logger = logging.getLogger("microbearing.service.security")
 
@@ -57,6 +57,14 @@ _DOCS_ASSETS = ("swagger-ui-bundle.js", "swagger-ui.css", "redoc.standalone.js",
 #: Paths answered without a key (relative to the ASGI root path).
 OPEN_PATHS = frozenset({"/healthz", "/readyz", "/metrics", "/openapi.json", "/docs", "/docs/oauth2-redirect",
                         "/redoc", *(f"{DOCS_ASSETS_PATH}/{name}" for name in _DOCS_ASSETS)})
+
+#: UM-Bridge paths a client calls before it evaluates (models, support, sizes). Without a valid key
+#: they answer for the plain physics only (never a stored model), so that the stock clients reach
+#: Evaluate and show its 401 in the protocol's error form instead of failing on a missing field.
+UMBRIDGE_METADATA_PATHS = frozenset(f"{UMBRIDGE_PREFIX}/{name}"
+                                    for name in ("Info", "ModelInfo", "InputSizes", "OutputSizes"))
+#: Who asks for UM-Bridge metadata without a valid key: sees the physics only.
+ANONYMOUS = Requester(key_id="anonymous", sees_all=False)
 
 #: Name of the bearer scheme in the OpenAPI spec.
 SECURITY_SCHEME_NAME = "ApiKeyBearer"
@@ -176,6 +184,8 @@ class ApiKeyMiddleware:
         # the credentials of the URL as HTTP Basic.
         token = _bearer_token(scope["headers"], basic=path.startswith(UMBRIDGE_PREFIX + "/"))
         requester = self._requester(token)
+        if requester is None and path in UMBRIDGE_METADATA_PATHS:
+            requester = ANONYMOUS
         if requester is not None:
             reset = REQUESTER.set(requester)
             try:
@@ -183,7 +193,11 @@ class ApiKeyMiddleware:
             finally:
                 REQUESTER.reset(reset)
             return
-        if token is None:
+        if token is None and path.startswith(UMBRIDGE_PREFIX + "/"):
+            detail = ("This API needs a key: put it in the URL as the password, "
+                      "http://umbridge:<key>@host:port/umbridge (or send 'Authorization: Bearer <key>').")
+            challenge = 'Bearer realm="microbearing"'
+        elif token is None:
             detail = "This API needs a key: send the header 'Authorization: Bearer <key>'."
             challenge = 'Bearer realm="microbearing"'
         else:

@@ -258,11 +258,13 @@ def run_sweep(request: AnySweep, plan: SweepPlan,
     Returns
     -------
     dict
-        ``design``, ``count``, ``varied`` (names) and ``columns``: the varied inputs then the
-        outputs, as arrays.
+        ``design``, ``count``, ``varied`` (names), ``fixed`` (the request's fixed inputs, name ->
+        value in its unit) and ``columns``: the varied inputs then the outputs, as arrays
+        (:func:`service.tables.sweep_table` adds the fixed inputs as columns for CSV).
     """
     columns: dict[str, np.ndarray] = {name: values for name, values in plan.varied.items()}
     columns.update(evaluate_in_chunks(executor, {**plan.fixed, **plan.varied}, plan.count, request.outputs,
                                       physics_in(request.convention), progress=progress,
                                       chunk_points=CHUNK_POINTS))
-    return {"design": request.design, "count": plan.count, "varied": list(plan.varied), "columns": columns}
+    return {"design": request.design, "count": plan.count, "varied": list(plan.varied),
+            "fixed": dict(plan.fixed), "columns": columns}

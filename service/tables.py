@@ -19,7 +19,7 @@ from fastapi.responses import Response
 from .store import json_bytes
 
 __all__ = ["CSV_MEDIA_TYPE", "accepts_any", "best_match", "csv_text", "json_bytes", "media_ranges",
-           "prefers_csv", "table_response", "wants_csv"]
+           "prefers_csv", "sweep_table", "table_response", "wants_csv"]
 
 CSV_MEDIA_TYPE = "text/csv"
 
@@ -98,6 +98,27 @@ def csv_text(columns: Mapping[str, Any]) -> str:
     writer.writerow(names)
     writer.writerows(zip(*lists, strict=True))
     return buffer.getvalue()
+
+
+def sweep_table(document: Mapping[str, Any]) -> dict[str, Any]:
+    """The columns of a table result with its fixed inputs as columns: varied inputs, fixed ones, outputs.
+
+    A result without ``fixed`` (or ``varied``) gives its ``columns`` as they are.
+
+    >>> sweep_table({"count": 2, "varied": ["speed_m_s"], "fixed": {"load_N": 0.01},
+    ...              "columns": {"speed_m_s": [0.0, 0.1], "mu": [0.01, 0.02]}})
+    {'speed_m_s': [0.0, 0.1], 'load_N': [0.01, 0.01], 'mu': [0.01, 0.02]}
+    """
+    columns = document["columns"]
+    fixed = document.get("fixed") or {}
+    varied = document.get("varied") or []
+    if not fixed:
+        return dict(columns)
+    count = int(document.get("count", len(next(iter(columns.values()), []))))
+    table = {name: columns[name] for name in varied if name in columns}
+    table.update({name: [value] * count for name, value in fixed.items() if name not in columns})
+    table.update({name: values for name, values in columns.items() if name not in table})
+    return table
 
 
 def table_response(request: Request, document: Mapping[str, Any], columns: Mapping[str, Any],

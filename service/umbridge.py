@@ -13,7 +13,9 @@ default value) in order and in their units; the other inputs take ``config.fixed
 default. Each output vector holds ``config.outputs`` (``["mu"]`` by default) for its point.
 ``config.points`` (1 by default) points make one request: ``input`` then holds that many vectors.
 Points are independent, so the Jacobian of output vector ``i`` with respect to input vector
-``j`` is zero for ``i != j``.
+``j`` is zero for ``i != j``. Derivatives are taken with respect to the continuous inputs; a count
+or flag among ``config.inputs`` (``balls``, ``balls_touching``) is held, its column of the Jacobian
+zero, so the physics' default inputs (balls, load, speed) differentiate without a config.
 
 Errors are the protocol's ``{"error": {"type", "message"}}`` (:class:`ProtocolError`), the
 message naming the field (``input[0][1] (load_N): ...``, ``config.fixed.balls: ...``); a problem
@@ -265,11 +267,19 @@ def _jacobian_at(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int,
     if out_wrt != in_wrt:  # points are independent
         return np.zeros((len(setup.outputs), len(setup.inputs)))
     point = {name: value[in_wrt] if np.ndim(value) else value for name, value in columns.items()}
+    # Counts and flags are held: their columns stay zero.
+    continuous = [j for j, name in enumerate(setup.inputs) if setup.model.inputs[name].continuous]
+    matrix = np.zeros((len(setup.outputs), len(setup.inputs)))
     with setup.pointing():
+        if not continuous:
+            setup.model.check(point)  # the point is still checked
+            return matrix
         try:
-            return jacobian(setup.model, point, setup.inputs, setup.outputs)[0]
+            matrix[:, continuous] = jacobian(setup.model, point, [setup.inputs[j] for j in continuous],
+                                             setup.outputs)[0]
         except InputError as exc:  # the derivative at this point: name the vector asked for
             raise InputError(exc.name, in_wrt, str(exc)) from None
+    return matrix
 
 
 def _checked_length(field: str, values: Sequence[float], length: int, what: str) -> np.ndarray:

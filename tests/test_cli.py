@@ -55,9 +55,10 @@ def test_evaluate_a_csv_of_points(capsys, tmp_path):
     rows = list(csv.reader(io.StringIO((tmp_path / "out.csv").read_text())))
     exact = physics.evaluate(load_N=np.array([0.001, 0.01, 0.02]), speed_m_s=np.array([0.05, 0.1, 0.0]),
                              balls=np.array([4, 6, 18]), mu_pivot=0.8).mu
-    assert code == 0 and rows[0] == ["load_N", "speed_m_s", "balls", "mu"]
-    assert [r[2] for r in rows[1:]] == ["4", "6", "18"]
-    assert [float(r[3]) for r in rows[1:]] == exact.tolist()
+    # the fixed mu_pivot is a column too (issue 28: outputs carry their inputs)
+    assert code == 0 and rows[0] == ["load_N", "speed_m_s", "balls", "mu_pivot", "mu"]
+    assert [r[2] for r in rows[1:]] == ["4", "6", "18"] and {r[3] for r in rows[1:]} == {"0.8"}
+    assert [float(r[4]) for r in rows[1:]] == exact.tolist()
 
 
 @pytest.mark.parametrize(("argv", "code", "message"), [
@@ -83,7 +84,8 @@ def test_sweep_writes_the_api_table(capsys, tmp_path):
     assert code == 0 and result.count == 12
     assert run(capsys, "sweep", str(tmp_path / "grid.json"), "-o", str(tmp_path / "grid.csv"))[0] == 0
     rows = list(csv.reader(io.StringIO((tmp_path / "grid.csv").read_text())))
-    assert rows[0] == ["balls", "speed_m_s", "mu"]
+    assert rows[0] == ["balls", "speed_m_s", "load_N", "mu"]  # the fixed load too (issue 28)
+    assert {r[2] for r in rows[1:]} == {"0.0088"}
     assert [r[:2] for r in rows[1:5]] == [["4", "0.0"], ["4", "0.05"], ["4", "0.1"], ["4", "0.15"]]
     bad = {**request, "axes": {"balls": {"start": 4, "stop": 12, "num": 0}}}
     (tmp_path / "bad.json").write_text(json.dumps(bad))

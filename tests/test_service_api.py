@@ -341,9 +341,11 @@ def test_sweep_as_csv(client):
     response = client.post("/v1/sweeps", json=request, headers={"accept": "text/csv"})
     assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv")
     rows = list(csv.reader(io.StringIO(response.text)))
-    assert rows[0] == ["speed_m_s", "mu", "contact_load_N"]
+    # the fixed inputs after the varied ones (issue 28: a table carries its inputs)
+    assert rows[0] == ["speed_m_s", "balls", "load_N", "mu", "contact_load_N"]
+    assert {(r[1], r[2]) for r in rows[1:]} == {("4", "0.01")}
     json_columns = client.post("/v1/sweeps", json=request).json()["columns"]
-    assert [float(r[1]) for r in rows[1:]] == json_columns["mu"]
+    assert [float(r[3]) for r in rows[1:]] == json_columns["mu"]
     assert [r[0] for r in rows[1:]] == ["0.0", "0.05", "0.1"]  # not 0.1 * 1/2 = 0.05000000000000001
 
 
@@ -441,7 +443,8 @@ def test_large_sweep_runs_as_a_job_with_json_and_csv_results(client):
                                 speed_m_s=np.array(columns["speed_m_s"])).mu
     assert columns["mu"] == expected.tolist()
     rows = list(csv.reader(io.StringIO(client.get(job["result_url"], headers={"accept": "text/csv"}).text)))
-    assert rows[0] == ["load_N", "speed_m_s", "mu"] and len(rows) == 2_001
+    assert rows[0] == ["load_N", "speed_m_s", "balls", "mu"] and len(rows) == 2_001  # with the fixed balls
+    assert {r[2] for r in rows[1:]} == {"4"}
     deleted = client.delete(location)  # a finished job is deleted with its result
     assert deleted.status_code == 204 and deleted.content == b""
     assert_problem(client.get(location), 404)

@@ -19,7 +19,7 @@ from ..deps import JobsDep
 from ..jobs import FINISHED, POLL_AFTER_S, RETRY_AFTER_S, JobManager
 from ..problems import Problem, ProblemError, problem_responses, validation_problem
 from ..schemas.jobs import JOB_RESULTS, Job, JobKind, JobList, JobResult, JobStatus
-from ..tables import CSV_MEDIA_TYPE, csv_text, wants_csv
+from ..tables import CSV_MEDIA_TYPE, csv_text, sweep_table, wants_csv
 
 __all__ = ["accepted", "job_view", "router"]
 
@@ -154,7 +154,7 @@ def get_job_result(job_id: str, request: Request, jobs: JobsDep) -> Response:
         result = json.loads(row["result_json"])
         if not isinstance(result.get("columns"), dict):
             raise ProblemError(406, f"The result of job {job_id} is not a table; ask for application/json.")
-        return Response(csv_text(result["columns"]), media_type=CSV_MEDIA_TYPE)
+        return Response(csv_text(sweep_table(result)), media_type=CSV_MEDIA_TYPE)
     return Response(_tagged(row["kind"], row["result_json"]), media_type="application/json")
 
 

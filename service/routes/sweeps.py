@@ -13,7 +13,7 @@ from ..jobs import JobContext
 from ..problems import problem_responses
 from ..schemas.sweeps import SweepRequest, SweepResult
 from ..sweeps import check_result_size, design_columns, design_size, run_sweep
-from ..tables import CSV_MEDIA_TYPE, table_response
+from ..tables import CSV_MEDIA_TYPE, sweep_table, table_response
 from .jobs import ACCEPTED_RESPONSE, accepted
 
 __all__ = ["router"]
@@ -48,7 +48,7 @@ async def create_sweep(
     if count <= settings.sweep_sync_max_points:
         plan = await run_in_threadpool(design_columns, body, settings.max_sweep_points)
         document = await run_in_threadpool(run_sweep, body, plan, None, executor)
-        return table_response(request, document, document["columns"])
+        return table_response(request, document, sweep_table(document))
 
     def work(ctx: JobContext) -> dict:
         plan = design_columns(body, settings.max_sweep_points)

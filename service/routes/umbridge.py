@@ -26,8 +26,9 @@ from ..schemas.umbridge import (
     UMBridgeGradientRequest,
     UMBridgeRequest,
 )
+from ..security import ANONYMOUS
 from ..settings import Settings
-from ..store import Store, json_bytes
+from ..store import REQUESTER, Store, json_bytes
 from ..umbridge import (
     PREFIX,
     PROTOCOL_VERSION,
@@ -77,7 +78,10 @@ def _answer(document: dict[str, Any]) -> Response:
 
 
 async def _model(store: Store, name: str, convention: str = physics.DEFAULT_CONVENTION) -> Model:
-    """:func:`find_model`, in a worker thread when it reads the store."""
+    """:func:`find_model`, in a worker thread when it reads the store; without a key, the physics only."""
+    if REQUESTER.get() is ANONYMOUS and name != "physics":
+        raise ProtocolError("Unauthorized", "This model needs a key: put it in the URL as the password, "
+                            "http://umbridge:<key>@host:port/umbridge.", status=401)
     if name == "physics":
         return find_model(store, name, convention)
     return await run_in_threadpool(find_model, store, name, convention)
@@ -104,6 +108,8 @@ async def _parse(request: Request, schema: type[RequestT], store: Store,
 @router.get("/Info")
 async def info(store: StoreDep) -> Response:
     """The protocol version and every model's name."""
+    if REQUESTER.get() is ANONYMOUS:  # without a key: the physics only, never a stored model
+        return _answer({"protocolVersion": PROTOCOL_VERSION, "models": ["physics"]})
     models = await run_in_threadpool(list_references, store)
     return _answer({"protocolVersion": PROTOCOL_VERSION, "models": models})
 

@@ -104,5 +104,8 @@ class SweepResult(ResponseModel):
     count: int = Field(ge=0, description="Number of points [1].")
     varied: list[str] = Field(description="Names of the varied inputs, in the order of the parameter table "
                               "(the first columns; the last one varies fastest in a grid).")
+    fixed: dict[str, float | bool] | None = Field(default=None, description=(
+        "The inputs the request fixed, name -> value in its unit (the CSV form of the table has them as "
+        "columns after the varied inputs; null for results stored before it)."))
     columns: dict[str, list[float]] = Field(
         description="Column name to values: varied inputs in their units, then outputs in theirs.")
