@@ -18,6 +18,8 @@ from live_server import free_port, terminate, wait_healthy
 REPO = Path(__file__).resolve().parent.parent
 README = REPO / "README.md"
 README_EXAMPLES_HEADING = "### REST API examples"
+#: The quickstart's blocks run too (issue 28: a designer follows them as written).
+README_QUICKSTART_HEADING = "## Quickstart"
 README_URL = "http://127.0.0.1:8000"
 
 
@@ -50,13 +52,16 @@ def server(tmp_path_factory):
 
 
 def readme_blocks() -> list[str]:
-    """The ```bash blocks of the README section of curl examples."""
+    """The ```bash blocks of the README's quickstart and of its section of curl examples."""
     text = README.read_text(encoding="utf-8")
-    start = text.index(README_EXAMPLES_HEADING)
-    end = text.find("\n## ", start)
-    section = text[start:] if end < 0 else text[start:end]
-    blocks = re.findall(r"```bash\n(.*?)```", section, flags=re.S)
-    assert blocks, "no bash blocks under the README examples heading"
+    blocks = []
+    for heading in (README_QUICKSTART_HEADING, README_EXAMPLES_HEADING):
+        start = text.index(heading)
+        end = text.find("\n## ", start + 1)
+        section = text[start:] if end < 0 else text[start:end]
+        found = re.findall(r"```bash\n(.*?)```", section, flags=re.S)
+        assert found, f"no bash blocks under the README heading {heading!r}"
+        blocks += found
     return blocks
 
 
