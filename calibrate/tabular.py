@@ -368,15 +368,23 @@ def _columns(names: Sequence[str]) -> list[Column]:
 
 
 def _check_required(columns: Sequence[Column], fixed: Mapping[str, Any]) -> None:
-    """A required physics input missing while a column looks like it: one error naming that column."""
+    """A required physics input missing: one error naming the column that looks like it, or the columns
+    read as conditions, with the accepted names."""
     names = {c.name for c in columns}
     errors = []
+    conditions = [c.sent for c in columns if c.name not in physics.PARAMETERS
+                  and c.name not in (MU_MEASURED, MU_MEASURED_STD)]
     for base, name in _physics_bases().items():
         spec = physics.PARAMETERS[name]
         if not spec.required or name in names or name in fixed:
             continue
-        for c in columns:
-            if c.sent.strip().lower().startswith(base) and c.name != name:
+        alike = [c for c in columns if c.sent.strip().lower().startswith(base) and c.name != name]
+        if not alike and conditions:
+            errors.append({"row": None, "column": None,
+                           "message": f"the required {name} [{spec.unit}] is neither a column nor fixed; the "
+                                      f"columns {', '.join(repr(c) for c in conditions)} were read as "
+                                      f"conditions. Accepted names: {accepted_names()}"})
+        for c in alike:
                 errors.append({"row": None, "column": c.sent,
                                "message": f"column {c.sent!r} is read as the condition {c.name!r}, so "
                                           f"the required {name} [{spec.unit}] is missing: name it {name} or "

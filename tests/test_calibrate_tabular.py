@@ -161,6 +161,14 @@ def test_a_required_input_under_another_name_is_named_as_sent():
     assert [(e["column"], "speed_m_s" in e["message"]) for e in bad.value.errors] == [("speed_rpm", True)]
 
 
+def test_a_missing_required_input_names_the_columns_read_as_conditions():
+    with pytest.raises(DataError) as bad:
+        read_csv("balls,load_N,sped_mm_s,mu_measured\n4,0.01,1,0.01\n")
+    assert len(bad.value.errors) == 1
+    message = bad.value.errors[0]["message"]
+    assert "speed_m_s" in message and "'sped_mm_s'" in message and "speed [mm/s]" in message
+
+
 def test_two_columns_read_as_one_name_are_refused():
     with pytest.raises(DataError) as bad:
         read_csv("balls,load_N,speed_m_s,speed [mm/s],mu_measured\n4,0.01,0.1,100,0.01\n")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Annotated, Any
 
-from pydantic import Field, create_model
+from pydantic import ConfigDict, Field, create_model
 
 from microbearing import physics
 
@@ -72,7 +72,22 @@ _ROW_DESCRIPTION = (
 
 
 class CalibrationRequest(StrictModel):
-    """Measured data and what to fit."""
+    """Measured data and what to fit.
+
+    Column names may carry units, converted to SI (``speed [mm/s]``, ``load (mN)``, ``speed_mm_s``,
+    ``load [g]`` for a slider mass, ``relative humidity [%]``); the report's ``intake`` lists each
+    conversion.
+    """
+
+    model_config = ConfigDict(**StrictModel.model_config, json_schema_extra={"examples": [{
+        "data": [
+            {"balls": 4, "load [mN]": 13.2, "speed [mm/s]": 70, "relative humidity [%]": 38,
+             "mu_measured": 0.01448},
+            {"balls": 4, "load [mN]": 4.4, "speed [mm/s]": 92, "relative humidity [%]": 65,
+             "mu_measured": 0.02287},
+            {"balls": 4, "load [mN]": 4.4, "speed [mm/s]": 113, "relative humidity [%]": 63,
+             "mu_measured": 0.02302}],
+        "fit_parameters": ["mu_pivot"], "folds": 5}]})
 
     data: list[dict[str, float | bool]] = Field(min_length=1, description=_ROW_DESCRIPTION)
     fit_parameters: list[FittableParameterName] = Field(  # type: ignore[valid-type]
