@@ -108,8 +108,8 @@ class Column:
         0.05
         """
         if self.divisor is not None:
-            return value / self.divisor
-        return value * self.scale + self.offset
+            return float(value) / self.divisor
+        return float(value) * float(self.scale) + float(self.offset)
 
 
 @dataclass
@@ -204,6 +204,12 @@ def _unit(text: str):
     return _registry().Unit(cleaned)
 
 
+# What reading a unit text may raise: pint's errors (undefined units, bad syntax, dimensionality,
+# offset arithmetic) derive from several built-in exceptions, and its tokenizer raises others; any
+# of them means the text is no unit here.
+_UNIT_ERRORS = (Exception,)
+
+
 def _same(unit, target: str) -> bool:
     """Whether ``unit`` is the unit ``target`` (not merely convertible to it)."""
     try:
@@ -292,8 +298,6 @@ def read_column(sent: str) -> Column:
     >>> read_column("relative humidity [%]").reading
     'relative humidity [%] read as relative_humidity / 100'
     """
-    import pint
-
     text = sent.strip()
     bases = _physics_bases()
     match = _BRACKETS.match(text)
@@ -302,7 +306,7 @@ def read_column(sent: str) -> Column:
         unit_text = match.group("square") if match.group("square") is not None else match.group("round")
         try:
             unit = _unit(unit_text)
-        except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError):
+        except _UNIT_ERRORS:
             raise DataError([{"row": None, "column": sent,
                               "message": f"the unit {unit_text!r} is not known; accepted names: "
                                          f"{accepted_names()}"}]) from None
@@ -342,7 +346,7 @@ def read_column(sent: str) -> Column:
                 try:
                     unit = _unit(unit_text)
                     return _physics_column(sent, bases[base], unit)
-                except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError, DataError):
+                except (*_UNIT_ERRORS, DataError):
                     continue
     return Column(sent, text)
 
@@ -549,6 +553,9 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
         return parse_csv(_write(header, body), fixed), intake
     intake.columns = columns
     _check_required(columns, fixed or {})
+    if (sep == "," and decimal == "point" and not dropped and not trimmed
+            and all(c.name == c.sent and not c.reading for c in columns)):
+        return parse_csv("\n".join(lines) + "\n", fixed), intake  # plain CSV: the parser reads it as is
     converted = [[_cell(c, columns[i] if i < len(columns) else None, decimal) for i, c in enumerate(r)]
                  for r in body]
     return parse_csv(_write([c.name for c in columns], converted), fixed), intake
