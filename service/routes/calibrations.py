@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
+import numpy as np
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
@@ -13,7 +14,7 @@ from microbearing.calibrate import DataError, Dataset, check_request, parse_assi
 
 from ..calibrations import calibration_view, data_problem, load_calibration, run_calibration
 from ..deps import JobsDep, SettingsDep, StoreDep
-from ..jobs import JobContext, JobManager
+from ..jobs import JobContext, JobManager, register_kind
 from ..limits import check_rows, csv_data_rows
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas.base import Convention, ConventionName
@@ -46,12 +47,43 @@ def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool)
                                   else {"pointer": f"/{field}", "detail": str(exc)}]) from None
 
 
-def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_parameters: list[str],
-            folds: int, convention: str) -> JSONResponse:
+def _work(store: Store, dataset: Dataset, fit_parameters: list[str], folds: int, convention: str) -> Any:
     def work(ctx: JobContext) -> dict:
         return run_calibration(store, dataset, fit_parameters, folds, convention, progress=ctx.progress)
 
-    return accepted(jobs.submit("calibration", record, work))
+    return work
+
+
+def _columns(columns: dict[str, np.ndarray]) -> dict[str, list]:
+    return {name: values.tolist() for name, values in columns.items()}
+
+
+def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
+    """The work of a calibration from its stored inputs: the checked measurements, column by column."""
+    std = inputs["mu_measured_std"]
+    dataset = Dataset({name: np.asarray(values) for name, values in inputs["physics_columns"].items()},
+                      {name: np.asarray(values) for name, values in inputs["conditions"].items()},
+                      np.asarray(inputs["mu_measured"], dtype=float),
+                      None if std is None else np.asarray(std, dtype=float), dict(inputs["fixed"]))
+    return _work(runtime.store, dataset, inputs["fit_parameters"], inputs["folds"], inputs["convention"])
+
+
+# The parsed data are stored with the job (bounded by the row and column limits); the calibration is
+# stored in one transaction at the end, so an interrupted run leaves nothing.
+register_kind("calibration", _stored_work,
+              rule="its checked data are stored with it; the calibration is stored in one transaction at the "
+                   "end: an interrupted run leaves nothing")
+
+
+def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_parameters: list[str],
+            folds: int, convention: str) -> JSONResponse:
+    std = dataset.mu_measured_std
+    inputs = {"physics_columns": _columns(dataset.physics_columns),
+              "conditions": _columns(dataset.conditions), "mu_measured": dataset.mu_measured.tolist(),
+              "mu_measured_std": None if std is None else std.tolist(), "fixed": dataset.fixed,
+              "fit_parameters": fit_parameters, "folds": folds, "convention": convention}
+    return accepted(jobs.submit("calibration", record,
+                                _work(store, dataset, fit_parameters, folds, convention), inputs=inputs))
 
 
 @router.post("", operation_id="create_calibration", status_code=202,
