@@ -94,6 +94,11 @@ class Settings(BaseSettings):
         default=20_000, ge=1,
         description="Most data rows of one calibration (JSON or CSV); more get 413.",
     )
+    max_calibration_columns: int = Field(
+        default=64, ge=1, le=10_000,
+        description="Most columns of one calibration's data (JSON keys over all rows, or the CSV header's "
+                    "columns); more get 413 before the data are parsed.",
+    )
     model_cache_size: int = Field(
         default=16, ge=0, le=1024,
         description="Calibrated models and surrogates kept rebuilt in memory (the most recently used), so "

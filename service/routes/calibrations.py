@@ -15,7 +15,7 @@ from microbearing.calibrate import DataError, Dataset, check_request, parse_assi
 from ..calibrations import calibration_view, data_problem, load_calibration, run_calibration
 from ..deps import JobsDep, SettingsDep, StoreDep
 from ..jobs import JobContext, JobManager, register_kind
-from ..limits import check_rows, csv_data_rows
+from ..limits import check_columns, check_rows, csv_data_rows, csv_header_columns
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas.base import Convention, ConventionName
 from ..schemas.calibrations import CalibrationRequest, CalibrationResult, FittableParameterName
@@ -93,9 +93,10 @@ def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep,
     """Calibrate on JSON rows: fit the named parameters, add the terms the data need, report (a job).
 
     The job's result is the calibration report (see ``GET /v1/calibrations/{id}``). More than
-    MICROBEARING_MAX_CALIBRATION_ROWS rows get 413.
+    MICROBEARING_MAX_CALIBRATION_ROWS rows or MICROBEARING_MAX_CALIBRATION_COLUMNS columns get 413.
     """
     check_rows(len(body.data), settings.max_calibration_rows, "/data")
+    check_columns(len(set().union(*body.data)), settings.max_calibration_columns, "/data")
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
         dataset = parse_rows(body.data, fixed)
@@ -124,6 +125,7 @@ async def create_calibration_from_csv(
     as ``POST /v1/calibrations``."""
     text = await request.body()
     check_rows(csv_data_rows(text), settings.max_calibration_rows, "The CSV body")  # before parsing it
+    check_columns(csv_header_columns(text), settings.max_calibration_columns, "The CSV body's header")
     try:
         fixed_values = parse_assignments(fixed)
     except DataError as exc:

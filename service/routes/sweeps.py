@@ -62,10 +62,11 @@ async def create_sweep(
 
     Sweeps of up to MICROBEARING_SWEEP_SYNC_MAX_POINTS points answer 200 with the table; larger
     ones answer 202 with a job whose result is at /v1/jobs/{id}/result (the job builds the
-    design when it starts). A result predicted past MICROBEARING_MAX_RESULT_BYTES answers 413.
+    design when it starts). A result that could exceed MICROBEARING_MAX_RESULT_BYTES answers 413 (its size
+    is bounded before any point is computed: an accepted sweep never fails for its size).
     """
     count = await run_in_threadpool(design_size, body, settings.max_sweep_points)
-    check_result_size(body, count, settings.max_result_bytes)
+    await run_in_threadpool(check_result_size, body, count, settings.max_result_bytes)
     if count <= settings.sweep_sync_max_points:
         plan = await run_in_threadpool(design_columns, body, settings.max_sweep_points)
         document = await run_in_threadpool(run_sweep, body, plan, None, executor)
