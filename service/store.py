@@ -480,9 +480,11 @@ class Store:
         if kinds:
             condition += f" OR (replayable = 1 AND kind IN ({', '.join('?' for _ in kinds)}))"
             args.extend(kinds)
+        select = f"SELECT id FROM jobs WHERE status = 'queued' AND ({condition}) ORDER BY created_at LIMIT 1"
+        if self.connection().execute(select, args).fetchone() is None:
+            return None  # a read: an idle process polling does not take the write lock
         with self.transaction() as conn:
-            row = conn.execute(f"SELECT id FROM jobs WHERE status = 'queued' AND ({condition}) "
-                               "ORDER BY created_at LIMIT 1", args).fetchone()
+            row = conn.execute(select, args).fetchone()  # again under the lock: another process may have won
             if row is None:
                 return None
             conn.execute("UPDATE jobs SET status = 'running', started_at = ?, owner_pid = ?, "
