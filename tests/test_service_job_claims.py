@@ -7,6 +7,8 @@ database is all they share. Kinds registered here rebuild their work from the st
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
 import threading
@@ -190,3 +192,21 @@ def test_a_shutdown_waits_for_a_job_that_ends_within_the_grace_period(tmp_path):
     row = store.get_job(job["id"])
     assert row["status"] == "succeeded" and row["attempts"] == 1
     store.close()
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/stat"), reason="process states come from Linux /proc")
+def test_a_killed_process_not_yet_reaped_counts_as_gone():
+    from microbearing.service.jobs import _owner_alive
+
+    process = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        assert _owner_alive(process.pid, "another server")
+        os.kill(process.pid, signal.SIGKILL)
+        deadline = time.monotonic() + 10
+        while _owner_alive(process.pid, "another server"):  # a zombie until waited for: still gone
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        assert process.poll() is not None  # reaped only now
+    finally:
+        process.kill()
+        process.wait()
