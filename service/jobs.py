@@ -10,7 +10,8 @@ checks for cancellation, and returns a JSON-ready dict (NumPy arrays are turned 
             ctx.progress((i + 1) / len(chunks))
         return {"columns": {...}}
 
-    job = jobs.submit("sweep", request.model_dump(mode="json"), run)
+    request = body.model_dump(mode="json")
+    job = jobs.submit("sweep", request, run, inputs=request)
     return accepted(job)                        # 202 + Location: /v1/jobs/{id}
 
 Domain functions take ``progress: Callable[[float], None]``: pass ``ctx.progress``, which also
@@ -18,22 +19,33 @@ checks for cancellation, so a domain loop that reports progress is cancellable w
 about the service.
 
 Jobs live in SQLite (:mod:`service.store`): status queued, running, succeeded, failed or
-cancelled; progress 0..1; the result as JSON; a failure as a problem object. Each job records
-the pid and instance of the server that owns it. On startup, queued or running jobs whose owner
-is gone are marked failed with :data:`INTERRUPTED_DETAIL`, so several uvicorn workers can share
-one data folder without failing each other's live jobs. Liveness is checked by pid and, where
-``/proc`` tells it (Linux), by the process's start time, which the instance id carries: a dead
-server's pid taken by an unrelated process does not keep its jobs "running" (elsewhere it does,
-until a later startup finds that pid gone). A function raising ``ValueError`` fails
-its job with a 422 problem, :class:`~service.problems.ProblemError` with its own problem, any
-other exception with a 500 problem.
+cancelled; progress 0..1; the result as JSON; a failure as a problem object. A function raising
+``ValueError`` fails its job with a 422 problem, :class:`~service.problems.ProblemError` with its
+own problem, any other exception with a 500 problem.
 
-Bounds: a server process holds at most ``max_active`` queued and running jobs, and at most
-``max_active_per_key`` of one API key; :meth:`JobManager.submit` refuses more with a 503 (server
-full) or 429 (this key) problem carrying ``Retry-After``. A queued job holds only its request and
-the closure that will build its work: routes build large designs inside ``fn``, when the job
-starts, so a full queue costs kilobytes, not gigabytes. A result larger than ``max_result_bytes``
-(its JSON) fails the job with a 413 problem.
+Several processes, one truth. Every server process sharing a data folder runs a
+:class:`JobManager`; the database is all they share. A job submitted with ``inputs`` of a kind
+declared by :func:`register_kind` is stored whole: any process can rebuild its work, so it stays
+queued across any restart and is run by whichever process claims it first (one write
+transaction: never two). A claim is a lease of ``lease_s`` renewed every third of it by the
+claiming process (its heartbeat, which also passes on cancellations requested through other
+processes). A running job whose lease lapsed, or whose process is gone (pid, start time and
+zombie state, where ``/proc`` tells them), is re-queued by another process or by the next start,
+once (:data:`MAX_ATTEMPTS` runs), or failed with the reason, by its kind's rule (:class:`JobKind`);
+writes of the run that lost its claim are refused (they name its ``lease_token``). Work submitted
+without inputs (library use, tests) runs only in the process that holds it, and is failed as
+interrupted when that process is gone.
+
+Shutdown stops claiming, lets running jobs finish for ``shutdown_grace_s``, then interrupts the
+rest at their next progress check and re-queues them without counting the run (queued jobs stay
+queued).
+
+Bounds: a data folder holds at most ``max_active`` queued and running jobs, and at most
+``max_active_per_key`` of one API key, counted in the transaction that inserts a job;
+:meth:`JobManager.submit` refuses more with a 503 (server full) or 429 (this key) problem carrying
+``Retry-After``. A queued job holds only its request and the closure that will build its work:
+routes build large designs inside ``fn``, when the job starts, so a full queue costs kilobytes, not
+gigabytes. A result larger than ``max_result_bytes`` (its JSON) fails the job with a 413 problem.
 
 Storage faults: when the store cannot take a write (disk full, read-only; see
 :class:`~service.store.StorageError`), the job fails with a problem naming the cause, logged at
@@ -358,8 +370,8 @@ class JobManager:
             elif not kind.requeue:
                 detail = f"{INTERRUPTED_DETAIL} ({why}); a {row['kind']} job is not re-run: {kind.rule}"
             else:
-                detail = (f"{INTERRUPTED_DETAIL} ({why}), for the {row['attempts']}th time: it is not "
-                          "re-queued again (it may be what stops the server)")
+                detail = (f"{INTERRUPTED_DETAIL} ({why}); its {row['attempts']} runs were all interrupted, "
+                          "so it is not re-queued again (it may be what stops the server)")
             changes = {"status": "failed", "finished_at": utc_now(),
                        "error_json": to_json(_interrupted(detail).to_dict())}
             outcome = "failed"
