@@ -4,8 +4,9 @@ Run: ``.venv/bin/python -m bench.restarts`` (a few minutes).
 
 * Restart: ``microbearing serve`` with one job thread, a long surrogate training running and five
   sweeps queued behind it; the server is stopped (SIGTERM, grace period 2 s; or SIGKILL) and
-  started again on the same folder. Counted: how many of the five queued sweeps succeed after the
-  restart, what became of the training, and how long the SIGTERM took.
+  started again on the same folder, with two job threads (the training, queued first, takes one).
+  Counted: how many of the five queued sweeps succeed after the restart, what became of the
+  training, and how long the SIGTERM took.
 * Admission over processes: ``microbearing serve --workers 2`` with one API key whose limit is 16;
   40 long jobs submitted over fresh connections (spread over both workers). Counted: how many are
   admitted (202) and how many refused (429); then all are cancelled and the time until every one
@@ -95,7 +96,7 @@ def restart(how: signal.Signals) -> str:
         stopped_s = time.monotonic() - began
         with sqlite3.connect(folder / DATABASE_NAME) as conn:
             stored = Counter(conn.execute("SELECT status FROM jobs").fetchall())
-        process, url = serve(folder, **settings)
+        process, url = serve(folder, **{**settings, "job_workers": "2"})  # the training takes one thread
         try:
             ends = Counter(wait(url, i, ("succeeded", "failed", "cancelled")) for i in sweeps)
             again = wait(url, training, ("running", "failed"))
