@@ -648,9 +648,8 @@ class JobManager:
             context.run(REQUESTER.set, Requester(row["owner_key"], bool(row["owner_sees_all"])
                                                  or row["owner_key"] is None))
             make = lambda: kind.build(inputs, self.services)  # noqa: E731
-        attempt = f" (run {row['attempts']})" if row["attempts"] > 1 else ""
-        logger.info("job %s claimed%s", row["id"], attempt, extra={"job_id": row["id"]})
-        self._executor.submit(context.run, self._run, row["id"], token, make, event)
+        run = f" (run {row['attempts']})" if row["attempts"] > 1 else ""
+        self._executor.submit(context.run, self._run, row["id"], token, make, event, run)
         return True
 
     # running --------------------------------------------------------------------------------
@@ -679,18 +678,18 @@ class JobManager:
         return finished
 
     def _run(self, job_id: str, token: str, make: Callable[[], Callable[[JobContext], dict[str, Any]]],
-             event: threading.Event) -> None:
+             event: threading.Event, run: str = "") -> None:
         try:
-            self._run_job(job_id, token, make, event)
+            self._run_job(job_id, token, make, event, run)
         finally:
             with self._lock:
                 self._running.pop(job_id, None)
             self._wake.set()  # a worker is free
 
     def _run_job(self, job_id: str, token: str, make: Callable[[], Callable[[JobContext], dict[str, Any]]],
-                 event: threading.Event) -> None:
+                 event: threading.Event, run: str = "") -> None:
         ctx = JobContext(job_id, self.store, event, token)
-        logger.info("job %s started", job_id, extra={"job_id": job_id})
+        logger.info("job %s%s started", job_id, run, extra={"job_id": job_id})
         try:
             ctx.check_cancelled()
             result = make()(ctx)
