@@ -567,15 +567,17 @@ class JobManager:
             events = [event for _, event in self._running.values()]
         for event in events:
             event.set()
+        # Re-queued now, before waiting for the work to reach its next progress check: a process
+        # manager that kills the process meanwhile loses nothing, and the run's late writes are refused.
+        self._requeue_own_running()
         self._executor.shutdown(wait=True, cancel_futures=True)
         self._housekeeper.join()
         _LIVE_INSTANCES.discard(self.instance)
-        for row in self.store.jobs_with_status(*ACTIVE):
+        self._requeue_own_running()
+        for row in self.store.jobs_with_status("queued"):
             if row["owner_instance"] != self.instance:
                 continue
-            if row["status"] == "running":
-                self._interrupt(row, "the server stopped", graceful=True)
-            elif not row["replayable"]:
+            if not row["replayable"]:
                 try:
                     self.store.update_job(row["id"], only_if_status=("queued",), status="failed",
                                           error_json=to_json(_interrupted(NOT_STORED_DETAIL).to_dict()),
@@ -584,6 +586,16 @@ class JobManager:
                     logger.error("job %s: cannot record its interruption: %s", row["id"], exc.detail)
         with self._lock:
             self._local.clear()
+
+    def _requeue_own_running(self) -> None:
+        try:
+            rows = self.store.jobs_with_status("running")
+        except StorageError as exc:
+            logger.error("cannot read the running jobs to re-queue them: %s", exc.detail)
+            return
+        for row in rows:
+            if row["owner_instance"] == self.instance:
+                self._interrupt(row, "the server stopped", graceful=True)
 
     # dispatching ----------------------------------------------------------------------------
 

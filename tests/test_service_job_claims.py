@@ -210,3 +210,33 @@ def test_a_killed_process_not_yet_reaped_counts_as_gone():
     finally:
         process.kill()
         process.wait()
+
+
+def test_shutdown_re_queues_before_the_work_reaches_its_next_check(tmp_path):
+    store = Store(tmp_path)
+    manager = JobManager(store, workers=1, services="first")
+    started, release = threading.Event(), threading.Event()
+
+    def deaf(ctx: JobContext) -> dict:  # a long step that checks nothing (a model fit)
+        started.set()
+        release.wait(30)
+        ctx.progress(0.5)
+        return {"square": -1, "how": "too late"}
+
+    job = manager.submit("square", {"n": 3}, deaf, inputs={"n": 3})
+    assert started.wait(10)
+    stopping = threading.Thread(target=manager.shutdown, kwargs={"grace_s": 0.0})
+    stopping.start()
+    try:
+        deadline = time.monotonic() + 10
+        while store.get_job(job["id"])["status"] != "queued":  # a kill now would lose nothing
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        assert stopping.is_alive()  # still waiting for the work
+    finally:
+        release.set()
+        stopping.join(30)
+    row = store.get_job(job["id"], with_result=True)
+    # Its late end wrote nothing.
+    assert (row["status"], row["attempts"], row["result_json"]) == ("queued", 0, None)
+    store.close()
