@@ -337,7 +337,9 @@ class JobManager:
                                              finished_at=utc_now()):
                         changed.append(row["id"])
                 continue
-            if mine and row["id"] in self._running:
+            with self._lock:  # ours and running, or ended with a final state not written yet
+                held = mine and (row["id"] in self._running or row["id"] in self._unwritten)
+            if held:
                 continue
             lapsed = row["lease_expires"] is not None and row["lease_expires"] < now
             if lapsed or not _owner_alive(row["owner_pid"], row["owner_instance"]):
@@ -354,6 +356,8 @@ class JobManager:
         """
         condition: dict[str, Any] = {"only_if_status": ("running",), "only_if_token": row["lease_token"]}
         kind = JOB_KINDS.get(row["kind"])
+        if row["replayable"] and kind is None:
+            return False  # a kind this process does not know (not a server): left to one that does
         if row["cancel_requested"]:
             changes: dict[str, Any] = {"status": "cancelled", "finished_at": utc_now()}
             outcome = "cancelled"
