@@ -51,7 +51,7 @@ Storage faults: when the store cannot take a write (disk full, read-only; see
 :class:`~service.store.StorageError`), the job fails with a problem naming the cause, logged at
 ERROR. If even that failure cannot be written, the job's final state is kept in memory (its
 status reads ``failed`` at once) and written by the housekeeping thread once the disk takes writes
-again; a restart marks such jobs failed as interrupted. The same thread deletes finished jobs and
+again; a restart before that treats them as any interrupted run. The same thread deletes finished jobs and
 their results ``retention_s`` after they finished.
 """
 

@@ -240,3 +240,27 @@ def test_shutdown_re_queues_before_the_work_reaches_its_next_check(tmp_path):
     # Its late end wrote nothing.
     assert (row["status"], row["attempts"], row["result_json"]) == ("queued", 0, None)
     store.close()
+
+
+def test_a_run_that_lost_its_claim_writes_no_progress_and_stops(tmp_path):
+    from microbearing.service.jobs import Cancelled
+
+    store = Store(tmp_path)
+    try:
+        store.admit_job({"id": "j", "kind": "square", "status": "queued", "progress": 0.0,
+                         "request_json": "{}", "owner_pid": os.getpid(), "owner_instance": "me",
+                         "created_at": utc_now()},
+                        inputs_json='{"n": 1}')
+        first = store.claim_job("me", os.getpid(), ("square",), time.time() + 60, "first-claim")
+        assert first["id"] == "j" and first["lease_token"] == "first-claim"
+        store.update_job("j", status="queued")  # its lease lapsed and it was queued again ...
+        assert store.claim_job("other", 1, ("square",), time.time() + 60, "second-claim")["id"] == "j"
+        old = JobContext("j", store, threading.Event(), "first-claim")  # ... and claimed by another
+        old._last_poll = -1e9
+        with pytest.raises(Cancelled):
+            old.progress(0.9)
+        assert not store.update_job("j", only_if_token="first-claim", progress=0.9)
+        row = store.get_job("j")
+        assert (row["progress"], row["lease_token"], row["attempts"]) == (0.0, "second-claim", 2)
+    finally:
+        store.close()
