@@ -41,11 +41,13 @@ class Runtime:
     def __init__(self, settings: Settings):
         self.settings = settings
         self.store = open_store(settings.data_dir, settings.model_cache_size)
+        self.executor = create_executor(settings)  # sweep/batch chunks, optimization groups (executor.py)
+        # Last: its dispatcher may start a stored job at once, whose work uses the store and executor.
         self.jobs = JobManager(self.store, settings.job_workers, max_active=settings.max_active_jobs,
                                max_active_per_key=settings.max_active_jobs_per_key,
                                max_result_bytes=settings.max_result_bytes,
-                               retention_s=settings.job_retention_s)
-        self.executor = create_executor(settings)  # sweep/batch chunks, optimization groups (executor.py)
+                               retention_s=settings.job_retention_s, services=self,
+                               lease_s=settings.job_lease_s, shutdown_grace_s=settings.shutdown_grace_s)
 
     def close(self) -> None:
         """Stop the jobs and close the database."""

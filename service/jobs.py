@@ -10,7 +10,8 @@ checks for cancellation, and returns a JSON-ready dict (NumPy arrays are turned 
             ctx.progress((i + 1) / len(chunks))
         return {"columns": {...}}
 
-    job = jobs.submit("sweep", request.model_dump(mode="json"), run)
+    request = body.model_dump(mode="json")
+    job = jobs.submit("sweep", request, run, inputs=request)
     return accepted(job)                        # 202 + Location: /v1/jobs/{id}
 
 Domain functions take ``progress: Callable[[float], None]``: pass ``ctx.progress``, which also
@@ -18,34 +19,46 @@ checks for cancellation, so a domain loop that reports progress is cancellable w
 about the service.
 
 Jobs live in SQLite (:mod:`service.store`): status queued, running, succeeded, failed or
-cancelled; progress 0..1; the result as JSON; a failure as a problem object. Each job records
-the pid and instance of the server that owns it. On startup, queued or running jobs whose owner
-is gone are marked failed with :data:`INTERRUPTED_DETAIL`, so several uvicorn workers can share
-one data folder without failing each other's live jobs. Liveness is checked by pid and, where
-``/proc`` tells it (Linux), by the process's start time, which the instance id carries: a dead
-server's pid taken by an unrelated process does not keep its jobs "running" (elsewhere it does,
-until a later startup finds that pid gone). A function raising ``ValueError`` fails
-its job with a 422 problem, :class:`~service.problems.ProblemError` with its own problem, any
-other exception with a 500 problem.
+cancelled; progress 0..1; the result as JSON; a failure as a problem object. A function raising
+``ValueError`` fails its job with a 422 problem, :class:`~service.problems.ProblemError` with its
+own problem, any other exception with a 500 problem.
 
-Bounds: a server process holds at most ``max_active`` queued and running jobs, and at most
-``max_active_per_key`` of one API key; :meth:`JobManager.submit` refuses more with a 503 (server
-full) or 429 (this key) problem carrying ``Retry-After``. A queued job holds only its request and
-the closure that will build its work: routes build large designs inside ``fn``, when the job
-starts, so a full queue costs kilobytes, not gigabytes. A result larger than ``max_result_bytes``
-(its JSON) fails the job with a 413 problem.
+Several processes, one truth. Every server process sharing a data folder runs a
+:class:`JobManager`; the database is all they share. A job submitted with ``inputs`` of a kind
+declared by :func:`register_kind` is stored whole: any process can rebuild its work, so it stays
+queued across any restart and is run by whichever process claims it first (one write
+transaction: never two). A claim is a lease of ``lease_s`` renewed every third of it by the
+claiming process (its heartbeat, which also passes on cancellations requested through other
+processes). A running job whose lease lapsed, or whose process is gone (pid, start time and
+zombie state, where ``/proc`` tells them), is re-queued by another process or by the next start,
+once (:data:`MAX_ATTEMPTS` runs), or failed with the reason, by its kind's rule (:class:`JobKind`);
+writes of the run that lost its claim are refused (they name its ``lease_token``). Work submitted
+without inputs (library use, tests) runs only in the process that holds it, and is failed as
+interrupted when that process is gone.
+
+Shutdown stops claiming, lets running jobs finish for ``shutdown_grace_s``, then interrupts the
+rest at their next progress check and re-queues them without counting the run (queued jobs stay
+queued).
+
+Bounds: a data folder holds at most ``max_active`` queued and running jobs, and at most
+``max_active_per_key`` of one API key, counted in the transaction that inserts a job;
+:meth:`JobManager.submit` refuses more with a 503 (server full) or 429 (this key) problem carrying
+``Retry-After``. A queued job holds only its request and the closure that will build its work:
+routes build large designs inside ``fn``, when the job starts, so a full queue costs kilobytes, not
+gigabytes. A result larger than ``max_result_bytes`` (its JSON) fails the job with a 413 problem.
 
 Storage faults: when the store cannot take a write (disk full, read-only; see
 :class:`~service.store.StorageError`), the job fails with a problem naming the cause, logged at
 ERROR. If even that failure cannot be written, the job's final state is kept in memory (its
 status reads ``failed`` at once) and written by the housekeeping thread once the disk takes writes
-again; a restart marks such jobs failed as interrupted. The same thread deletes finished jobs and
+again; a restart before that treats them as any interrupted run. The same thread deletes finished jobs and
 their results ``retention_s`` after they finished.
 """
 
 from __future__ import annotations
 
 import contextvars
+import json
 import logging
 import os
 import threading
@@ -53,21 +66,25 @@ import time
 import uuid
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
 from .problems import INTERNAL_TYPE, VALIDATION_TYPE, ProblemError
-from .store import REQUESTER, StorageError, Store, json_bytes, to_json, utc_now
+from .store import REQUESTER, Requester, StorageError, Store, json_bytes, to_json, utc_now
 
-__all__ = ["ACTIVE", "FINISHED", "INTERRUPTED_DETAIL", "POLL_AFTER_S", "RETRY_AFTER_S", "Cancelled",
-           "JobContext", "JobManager"]
+__all__ = ["ACTIVE", "FINISHED", "INTERRUPTED_DETAIL", "JOB_KINDS", "MAX_ATTEMPTS", "NOT_STORED_DETAIL",
+           "POLL_AFTER_S", "RETRY_AFTER_S", "Cancelled", "JobContext", "JobKind", "JobManager",
+           "register_kind"]
 
 logger = logging.getLogger("microbearing.service.jobs")
 
 ACTIVE = ("queued", "running")
 FINISHED = ("succeeded", "failed", "cancelled")
 INTERRUPTED_DETAIL = "interrupted: the server stopped while the job ran"
+NOT_STORED_DETAIL = ("interrupted: the server process holding this queued job stopped, and its work was not "
+                     "stored (only jobs submitted with their inputs outlive their process)")
 
 #: Job managers alive in this process; a job owned by this pid but another instance is orphaned.
 _LIVE_INSTANCES: set[str] = set()
@@ -75,6 +92,8 @@ _LIVE_INSTANCES: set[str] = set()
 #: Seconds between progress writes and between database checks for a cancellation request.
 _PROGRESS_INTERVAL_S = 0.1
 _CANCEL_POLL_INTERVAL_S = 0.25
+#: Longest pause of the dispatcher [s]: jobs queued or re-queued by another process are claimed this soon.
+_CLAIM_POLL_INTERVAL_S = 0.5
 
 #: ``Retry-After`` of a refused job request [s]: about the time a queued job waits for a worker.
 RETRY_AFTER_S = 5
@@ -98,7 +117,12 @@ def _pid_alive(pid: int) -> bool:
         return False
     except PermissionError:
         return True
-    return True
+    # A killed process that its parent has not reaped yet (a zombie) still answers signal 0.
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except (OSError, IndexError):
+        return True
+    return state not in ("Z", "X")
 
 
 def _process_start(pid: int) -> str | None:
@@ -122,6 +146,10 @@ def _owner_alive(pid: int, instance: str) -> bool:
     return not started or _process_start(pid) in (None, started)
 
 
+def _interrupted(detail: str) -> ProblemError:
+    return ProblemError(500, detail, title="Job interrupted", type_=INTERNAL_TYPE)
+
+
 class JobContext:
     """What a running job function sees: progress reporting and cancellation.
 
@@ -133,12 +161,17 @@ class JobContext:
         Database the job lives in.
     cancel_event : threading.Event
         Set when this process cancels the job.
+    lease_token : str, optional
+        The claim this run holds (:meth:`Store.claim_job`): a run whose claim was taken over
+        stops as cancelled and writes nothing.
     """
 
-    def __init__(self, job_id: str, store: Store, cancel_event: threading.Event):
+    def __init__(self, job_id: str, store: Store, cancel_event: threading.Event,
+                 lease_token: str | None = None):
         self.job_id = job_id
         self._store = store
         self._cancel_event = cancel_event
+        self._token = lease_token
         self._last_write = 0.0
         self._last_poll = 0.0
 
@@ -150,7 +183,7 @@ class JobContext:
         if now - self._last_poll >= _CANCEL_POLL_INTERVAL_S:
             self._last_poll = now
             row = self._store.get_job(self.job_id)
-            if row is None or row["cancel_requested"]:
+            if row is None or row["cancel_requested"] or (self._token and row["lease_token"] != self._token):
                 self._cancel_event.set()
                 raise Cancelled(self.job_id)
 
@@ -166,12 +199,62 @@ class JobContext:
         now = time.monotonic()
         if now - self._last_write >= _PROGRESS_INTERVAL_S:
             self._last_write = now
-            self._store.update_job(self.job_id, only_if_status=("running",),
+            self._store.update_job(self.job_id, only_if_status=("running",), only_if_token=self._token,
                                    progress=min(max(float(fraction), 0.0), 1.0))
 
 
+@dataclass(frozen=True)
+class JobKind:
+    """How a process runs a job of one kind from its stored inputs, and what an interruption does to it.
+
+    Attributes
+    ----------
+    name : str
+        The job's ``kind``, e.g. ``"sweep"``.
+    build : callable
+        ``build(inputs, services) -> fn``: the work of a job from the JSON inputs stored at submit
+        and the running app's services (its ``store``, ``settings`` and ``executor``). Called in the
+        job's thread, under the key that submitted the job; raising fails the job as ``fn`` would.
+    requeue : bool
+        Whether a run interrupted by the loss of its process (SIGKILL, a crash, a lapsed lease) is
+        queued again (once: a second interruption fails the job) or failed at once.
+    rule : str
+        Why, for the documentation (README, "Jobs across restarts and processes").
+    """
+
+    name: str
+    build: Callable[[dict[str, Any], Any], Callable[[JobContext], dict[str, Any]]]
+    requeue: bool = True
+    rule: str = ""
+
+
+#: Kinds whose work any process can rebuild from stored inputs; filled by :func:`register_kind`.
+JOB_KINDS: dict[str, JobKind] = {}
+
+#: Runs of a job: a re-queued job that is interrupted again fails (it may be what kills the server).
+MAX_ATTEMPTS = 2
+
+
+def register_kind(name: str, build: Callable[[dict[str, Any], Any], Callable[[JobContext], dict[str, Any]]],
+                  *, requeue: bool = True, rule: str = "") -> None:
+    """Declare how to run a job of ``name`` from its stored inputs (see :class:`JobKind`).
+
+    A route submitting such a job passes ``inputs=`` to :meth:`JobManager.submit`: the job then
+    survives restarts and can be run by any process sharing the data folder.
+    """
+    JOB_KINDS[name] = JobKind(name, build, requeue, rule)
+
+
 class JobManager:
-    """Submits, runs, cancels and recovers jobs of one data folder.
+    """Submits, claims, runs, cancels and recovers the jobs of one data folder.
+
+    Every process sharing the folder runs one manager; the database is the one truth between them.
+    Admission counts the active jobs of the whole folder in the transaction that inserts a job. A
+    dispatcher thread claims queued jobs (:meth:`Store.claim_job`) while a worker thread is free,
+    each with a lease of ``lease_s`` renewed every ``lease_s / 3`` (the heartbeat, which also
+    passes on cancellations requested through any process). The same thread finds the running
+    jobs whose lease lapsed, or whose process is gone (pid and start time, on this host), and
+    re-queues or fails them by their kind's rule (:class:`JobKind`).
 
     Parameters
     ----------
@@ -180,51 +263,133 @@ class JobManager:
     workers : int
         Threads running jobs in this process [1].
     max_active : int, optional
-        Most queued and running jobs of this process [1]; unbounded when None.
+        Most queued and running jobs of the data folder (all processes) [1]; unbounded when None.
     max_active_per_key : int, optional
-        Most queued and running jobs of one API key in this process [1]; unbounded when None.
+        Most queued and running jobs of one API key (all processes) [1]; unbounded when None.
     max_result_bytes : int, optional
         Largest result JSON [bytes]; unbounded when None.
     retention_s : float, optional
         Finished jobs are deleted this long after they finished [s]; kept forever when None.
+    services : object, optional
+        What :attr:`JobKind.build` receives (the app's runtime); without it this process runs
+        only the jobs it submitted.
+    lease_s : float, default 15
+        Lease of a claimed job [s]: another process re-queues a job whose owner has not renewed
+        it for this long.
+    shutdown_grace_s : float, default 0
+        :meth:`shutdown` lets running jobs finish for this long [s] before interrupting them.
     """
 
     def __init__(self, store: Store, workers: int, max_active: int | None = None,
                  max_active_per_key: int | None = None, max_result_bytes: int | None = None,
-                 retention_s: float | None = None):
+                 retention_s: float | None = None, services: Any = None, lease_s: float = 15.0,
+                 shutdown_grace_s: float = 0.0):
         self.store = store
         self.instance = f"{uuid.uuid4().hex}.{_process_start(os.getpid()) or ''}"
+        self.workers = int(workers)
         self.max_active = max_active
         self.max_active_per_key = max_active_per_key
         self.max_result_bytes = max_result_bytes
         self.retention_s = retention_s
+        self.services = services
+        self.lease_s = float(lease_s)
+        self.heartbeat_s = self.lease_s / 3
+        self.shutdown_grace_s = float(shutdown_grace_s)
         self._executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="microbearing-job")
-        self._cancel_events: dict[str, threading.Event] = {}
-        #: Owner key of every queued or running job of this process (None without keys).
-        self._active: dict[str, str | None] = {}
+        #: Work submitted here and not claimed yet: job id -> (fn, context of the submitting request).
+        self._local: dict[str, tuple[Callable[[JobContext], dict[str, Any]], contextvars.Context]] = {}
+        #: Jobs this process runs: job id -> (lease token, cancel event).
+        self._running: dict[str, tuple[str, threading.Event]] = {}
         #: Final states that the store could not take: written by the housekeeping thread.
         self._unwritten: dict[str, dict[str, Any]] = {}
         self._lock = threading.Lock()
         self._stopping = threading.Event()
+        self._interrupting = threading.Event()
+        self._wake = threading.Event()
         _LIVE_INSTANCES.add(self.instance)
         self.recover()
         self.purge_expired()
         self._housekeeper = threading.Thread(target=self._housekeeping, name="microbearing-jobs-housekeeping",
                                              daemon=True)
         self._housekeeper.start()
+        self._dispatcher = threading.Thread(target=self._dispatch, name="microbearing-jobs-dispatch",
+                                            daemon=True)
+        self._dispatcher.start()
+
+    def _kinds(self) -> tuple[str, ...]:
+        return tuple(sorted(JOB_KINDS)) if self.services is not None else ()
 
     def recover(self) -> list[str]:
-        """Mark failed the active jobs whose owning server is gone; returns their ids."""
-        failed = []
+        """Re-queue or fail the running jobs whose lease lapsed or whose process is gone; returns their ids.
+
+        Also fails the queued jobs whose work was never stored (submitted without ``inputs``) when the
+        process holding it is gone. Runs at start and at every heartbeat.
+        """
+        changed = []
+        now = time.time()
         for row in self.store.jobs_with_status(*ACTIVE):
-            if not _owner_alive(row["owner_pid"], row["owner_instance"]):
-                problem = ProblemError(500, INTERRUPTED_DETAIL, title="Job interrupted", type_=INTERNAL_TYPE)
-                if self.store.update_job(row["id"], only_if_status=ACTIVE, status="failed",
-                                         error_json=to_json(problem.to_dict()), finished_at=utc_now()):
-                    failed.append(row["id"])
-        if failed:
-            logger.warning("marked %d interrupted job(s) failed: %s", len(failed), ", ".join(failed))
-        return failed
+            mine = row["owner_instance"] == self.instance
+            if row["status"] == "queued":
+                if not row["replayable"] and not mine and not _owner_alive(row["owner_pid"],
+                                                                           row["owner_instance"]):
+                    if self.store.update_job(row["id"], only_if_status=("queued",), status="failed",
+                                             error_json=to_json(_interrupted(NOT_STORED_DETAIL).to_dict()),
+                                             finished_at=utc_now()):
+                        changed.append(row["id"])
+                continue
+            with self._lock:  # ours and running, or ended with a final state not written yet
+                held = mine and (row["id"] in self._running or row["id"] in self._unwritten)
+            if held:
+                continue
+            lapsed = row["lease_expires"] is not None and row["lease_expires"] < now
+            if lapsed or not _owner_alive(row["owner_pid"], row["owner_instance"]):
+                why = "its lease lapsed" if lapsed else "its server process is gone"
+                if self._interrupt(row, why, graceful=False):
+                    changed.append(row["id"])
+        return changed
+
+    def _interrupt(self, row: dict[str, Any], why: str, graceful: bool) -> bool:
+        """End a run that lost its process: cancelled, re-queued or failed; whether the row changed.
+
+        A graceful stop (shutdown) re-queues every replayable job without counting the run; a lost
+        process re-queues a job of a kind with ``requeue`` once (:data:`MAX_ATTEMPTS` runs).
+        """
+        condition: dict[str, Any] = {"only_if_status": ("running",), "only_if_token": row["lease_token"]}
+        kind = JOB_KINDS.get(row["kind"])
+        if row["replayable"] and kind is None:
+            return False  # a kind this process does not know (not a server): left to one that does
+        if row["cancel_requested"]:
+            changes: dict[str, Any] = {"status": "cancelled", "finished_at": utc_now()}
+            outcome = "cancelled"
+        elif row["replayable"] and kind is not None and (graceful or (kind.requeue
+                                                                       and row["attempts"] < MAX_ATTEMPTS)):
+            changes = {"status": "queued", "progress": 0.0, "started_at": None, "lease_token": None,
+                       "lease_expires": None}
+            if graceful:
+                changes["attempts"] = max(row["attempts"] - 1, 0)
+            outcome = "re-queued"
+        else:
+            if not row["replayable"] or kind is None:
+                detail = INTERRUPTED_DETAIL
+            elif not kind.requeue:
+                detail = f"{INTERRUPTED_DETAIL} ({why}); a {row['kind']} job is not re-run: {kind.rule}"
+            else:
+                detail = (f"{INTERRUPTED_DETAIL} ({why}); its {row['attempts']} runs were all interrupted, "
+                          "so it is not re-queued again (it may be what stops the server)")
+            changes = {"status": "failed", "finished_at": utc_now(),
+                       "error_json": to_json(_interrupted(detail).to_dict())}
+            outcome = "failed"
+        try:
+            done = self.store.update_job(row["id"], **condition, **changes)
+        except StorageError as exc:  # the next heartbeat (or start) tries again
+            logger.error("job %s: cannot record its interruption: %s", row["id"], exc.detail)
+            return False
+        if done:
+            logger.warning("job %s (%s) %s: %s", row["id"], row["kind"], outcome, why,
+                           extra={"job_id": row["id"], "status": changes["status"]})
+            if changes["status"] == "queued":
+                self._wake.set()
+        return done
 
     def purge_expired(self) -> int:
         """Delete the finished jobs (and results) older than the retention; returns how many."""
@@ -263,39 +428,12 @@ class JobManager:
             logger.info("job %s: its final state %s is stored now", job_id, changes["status"],
                         extra={"job_id": job_id})
 
-    def _admit(self, job_id: str) -> None:
-        """Reserve a place for a new job of the current requester, or raise a 503 / 429 problem."""
-        owner = REQUESTER.get().key_id
-        retry = {"Retry-After": str(RETRY_AFTER_S)}
-        with self._lock:
-            if self.max_active is not None and len(self._active) >= self.max_active:
-                logger.warning("refused a job: %d jobs queued or running (MICROBEARING_MAX_ACTIVE_JOBS)",
-                               len(self._active))
-                raise ProblemError(503, f"The server holds {len(self._active)} queued or running jobs, "
-                                        f"its limit (MICROBEARING_MAX_ACTIVE_JOBS={self.max_active}); "
-                                        "retry later.", title="Server busy", headers=retry)
-            if owner is not None and self.max_active_per_key is not None:
-                mine = sum(1 for key in self._active.values() if key == owner)
-                if mine >= self.max_active_per_key:
-                    raise ProblemError(429, f"This API key has {mine} queued or running jobs, its limit "
-                                            "(MICROBEARING_MAX_ACTIVE_JOBS_PER_KEY="
-                                            f"{self.max_active_per_key}); wait for one to finish or cancel "
-                                            "one.",
-                                       title="Too many jobs", headers=retry)
-            self._active[job_id] = owner
-
-    def _release(self, job_id: str) -> None:
-        with self._lock:
-            self._active.pop(job_id, None)
-            self._cancel_events.pop(job_id, None)
-
     def active_count(self) -> int:
-        """Queued and running jobs of this process [1]."""
-        with self._lock:
-            return len(self._active)
+        """Queued and running jobs of the data folder, every process's [1]."""
+        return self.store.count_active_jobs()
 
-    def submit(self, kind: str, request: dict[str, Any], fn: Callable[[JobContext], dict[str, Any]]
-               ) -> dict[str, Any]:
+    def submit(self, kind: str, request: dict[str, Any], fn: Callable[[JobContext], dict[str, Any]],
+               inputs: dict[str, Any] | None = None) -> dict[str, Any]:
         """Queue ``fn`` as a job and return its row.
 
         Parameters
@@ -307,6 +445,11 @@ class JobManager:
         fn : callable
             ``fn(ctx) -> dict``, the work; its JSON-ready result is stored. Build large inputs
             (designs) inside it: a queued job should hold no more than its request.
+        inputs : dict, optional
+            JSON-ready inputs from which :attr:`JobKind.build` of ``kind`` rebuilds ``fn`` (see
+            :func:`register_kind`). With them the job is stored whole: it stays queued across
+            restarts and any process sharing the folder may run it. Without them only this process
+            can, and a restart fails it.
 
         Returns
         -------
@@ -316,27 +459,50 @@ class JobManager:
         Raises
         ------
         ProblemError
-            503 when this process holds ``max_active`` jobs, 429 when the requester's key holds
+            503 when the data folder holds ``max_active`` jobs, 429 when the requester's key holds
             ``max_active_per_key``, both with ``Retry-After``; a storage problem when the job
             cannot be recorded.
         """
+        if self._stopping.is_set():
+            raise ProblemError(503, "The server is shutting down and takes no new jobs; retry on another "
+                                    "server process.", title="Server shutting down",
+                               headers={"Retry-After": str(RETRY_AFTER_S)})
         job_id = uuid.uuid4().hex
-        self._admit(job_id)
+        replayable = inputs is not None and kind in JOB_KINDS
+        per_key = self.max_active_per_key if REQUESTER.get().key_id is not None else None
+        with self._lock:  # before the row exists, so that the dispatcher finds the work once it does
+            self._local[job_id] = (fn, contextvars.copy_context())
         try:
-            self.store.insert_job(id=job_id, kind=kind, status="queued", progress=0.0,
-                                  request_json=to_json(request), owner_pid=os.getpid(),
-                                  owner_instance=self.instance, created_at=utc_now())
+            refused = self.store.admit_job(
+                {"id": job_id, "kind": kind, "status": "queued", "progress": 0.0,
+                 "request_json": to_json(request), "owner_pid": os.getpid(), "owner_instance": self.instance,
+                 "created_at": utc_now()},
+                inputs_json=to_json(inputs) if replayable else None, max_active=self.max_active,
+                max_active_per_key=per_key)
         except BaseException:
-            self._release(job_id)
+            with self._lock:
+                self._local.pop(job_id, None)
             raise
-        event = threading.Event()
-        with self._lock:
-            self._cancel_events[job_id] = event
+        if refused is not None:
+            with self._lock:
+                self._local.pop(job_id, None)
+            self._refuse(*refused)
         # Logged before the job's thread can log "started". That thread runs in a copy of the
         # submitting context: its log lines carry the id of the request that created it.
         logger.info("job %s (%s) queued", job_id, kind, extra={"job_id": job_id, "kind": kind})
-        self._executor.submit(contextvars.copy_context().run, self._run, job_id, fn, event)
+        self._wake.set()
         return self.get(job_id)
+
+    def _refuse(self, limit: str, count: int) -> None:
+        retry = {"Retry-After": str(RETRY_AFTER_S)}
+        if limit == "server":
+            logger.warning("refused a job: %d jobs queued or running (MICROBEARING_MAX_ACTIVE_JOBS)", count)
+            raise ProblemError(503, f"The server holds {count} queued or running jobs, its limit "
+                                    f"(MICROBEARING_MAX_ACTIVE_JOBS={self.max_active}); retry later.",
+                               title="Server busy", headers=retry)
+        raise ProblemError(429, f"This API key has {count} queued or running jobs, its limit "
+                                f"(MICROBEARING_MAX_ACTIVE_JOBS_PER_KEY={self.max_active_per_key}); wait for "
+                                "one to finish or cancel one.", title="Too many jobs", headers=retry)
 
     def get(self, job_id: str, with_result: bool = False) -> dict[str, Any] | None:
         """The job row, or None for an unknown id (``request_json`` and ``result_json`` ``with_result``).
@@ -365,56 +531,167 @@ class JobManager:
     def cancel(self, job_id: str) -> dict[str, Any] | None:
         """Request cancellation; a queued job is cancelled at once, a running one at its next check.
 
-        A running job's work that returns without another check still ends the job cancelled.
+        Works from any process sharing the data folder: a queued job's place is freed at once (the
+        limits count the database), and the process running a job sees the request at its next
+        progress report or heartbeat. A running job's work that returns without another check still
+        ends the job cancelled.
 
         Returns
         -------
         dict or None
-            The job row after the request, or None for an unknown id.
+            The job row after the request, or None for an unknown id (or one deleted meanwhile).
         """
         if self.store.update_job(job_id, only_if_status=("queued",), status="cancelled",
                                  cancel_requested=1, finished_at=utc_now()):
-            self._release(job_id)
+            with self._lock:
+                self._local.pop(job_id, None)
             return self.get(job_id)
         self.store.update_job(job_id, only_if_status=("running",), cancel_requested=1)
         with self._lock:
-            event = self._cancel_events.get(job_id)
-        if event is not None:
-            event.set()
+            running = self._running.get(job_id)
+        if running is not None:
+            running[1].set()
         return self.get(job_id)
 
-    def shutdown(self) -> None:
-        """Stop: cancel queued work, interrupt running jobs and mark both failed as interrupted."""
+    def shutdown(self, grace_s: float | None = None) -> None:
+        """Stop: take no more jobs, let running ones finish for a grace period, then re-queue the rest.
+
+        Queued jobs stay queued (for the next start, or another process). Running jobs still
+        running after ``grace_s`` (default: ``shutdown_grace_s``) are interrupted and re-queued
+        when their inputs are stored, without counting the run (:meth:`_interrupt`); the others
+        are failed as interrupted, and so is the queued work that only this process held.
+
+        Parameters
+        ----------
+        grace_s : float, optional
+            Time running jobs may take to finish [s].
+        """
         self._stopping.set()
+        self._wake.set()
+        self._dispatcher.join()
+        deadline = time.monotonic() + (self.shutdown_grace_s if grace_s is None else grace_s)
+        while time.monotonic() < deadline:
+            with self._lock:
+                if not self._running:
+                    break
+            time.sleep(0.02)
+        self._interrupting.set()
         with self._lock:
-            events = list(self._cancel_events.values())
+            events = [event for _, event in self._running.values()]
         for event in events:
             event.set()
+        # Re-queued now, before waiting for the work to reach its next progress check: a process
+        # manager that kills the process meanwhile loses nothing, and the run's late writes are refused.
+        self._requeue_own_running()
         self._executor.shutdown(wait=True, cancel_futures=True)
         self._housekeeper.join()
         _LIVE_INSTANCES.discard(self.instance)
-        problem = ProblemError(500, INTERRUPTED_DETAIL, title="Job interrupted", type_=INTERNAL_TYPE)
-        for row in self.store.jobs_with_status(*ACTIVE):
-            if row["owner_instance"] == self.instance:
+        self._requeue_own_running()
+        for row in self.store.jobs_with_status("queued"):
+            if row["owner_instance"] != self.instance:
+                continue
+            if not row["replayable"]:
                 try:
-                    self.store.update_job(row["id"], only_if_status=ACTIVE, status="failed",
-                                          error_json=to_json(problem.to_dict()), finished_at=utc_now())
+                    self.store.update_job(row["id"], only_if_status=("queued",), status="failed",
+                                          error_json=to_json(_interrupted(NOT_STORED_DETAIL).to_dict()),
+                                          finished_at=utc_now())
                 except StorageError as exc:  # the next start marks it failed as interrupted
                     logger.error("job %s: cannot record its interruption: %s", row["id"], exc.detail)
+        with self._lock:
+            self._local.clear()
 
-    def _finish(self, job_id: str, status: str, unless_cancel_requested: bool = False,
+    def _requeue_own_running(self) -> None:
+        try:
+            rows = self.store.jobs_with_status("running")
+        except StorageError as exc:
+            logger.error("cannot read the running jobs to re-queue them: %s", exc.detail)
+            return
+        for row in rows:
+            if row["owner_instance"] == self.instance:
+                self._interrupt(row, "the server stopped", graceful=True)
+
+    # dispatching ----------------------------------------------------------------------------
+
+    def _dispatch(self) -> None:
+        next_beat = time.monotonic() + self.heartbeat_s
+        while not self._stopping.is_set():
+            try:
+                if time.monotonic() >= next_beat:
+                    next_beat = time.monotonic() + self.heartbeat_s
+                    self._heartbeat()
+                    self.recover()
+                while not self._stopping.is_set() and self._claim_one():
+                    pass
+            except StorageError as exc:  # the disk refuses writes: try again at the next round
+                logger.error("job dispatch: %s", exc.detail)
+            except Exception:  # never let the dispatcher die: no job would run again in this process
+                logger.exception("job dispatch failed; retrying")
+            self._wake.wait(max(min(next_beat - time.monotonic(), _CLAIM_POLL_INTERVAL_S), 0.0))
+            self._wake.clear()
+
+    def _heartbeat(self) -> None:
+        """Renew the leases of this process's running jobs, pass on cancellations, drop claimed work."""
+        with self._lock:
+            running = dict(self._running)
+            local = list(self._local)
+        held = self.store.renew_leases([token for token, _ in running.values()], time.time() + self.lease_s)
+        for job_id, (token, event) in running.items():
+            if token not in held:  # another process took the job after our lease lapsed: stop the work
+                logger.warning("job %s: this process lost its lease; stopping its run", job_id,
+                               extra={"job_id": job_id})
+                event.set()
+            elif held[token]:
+                event.set()
+        gone = [job_id for job_id, status in self.store.job_statuses(local).items() if status != "queued"]
+        gone += sorted(set(local) - set(self.store.job_statuses(local)))
+        with self._lock:
+            for job_id in gone:
+                if job_id not in self._running:
+                    self._local.pop(job_id, None)
+
+    def _claim_one(self) -> bool:
+        """Claim and start one queued job if a worker is free; whether one was started."""
+        with self._lock:
+            if len(self._running) >= self.workers:
+                return False
+        token = uuid.uuid4().hex
+        row = self.store.claim_job(self.instance, os.getpid(), self._kinds(), time.time() + self.lease_s,
+                                   token)
+        if row is None:
+            return False
+        event = threading.Event()
+        with self._lock:
+            self._running[row["id"]] = (token, event)
+            local = self._local.pop(row["id"], None)
+        if local is not None:
+            fn, context = local
+            make: Callable[[], Callable[[JobContext], dict[str, Any]]] = lambda: fn  # noqa: E731
+        else:
+            kind = JOB_KINDS[row["kind"]]
+            inputs = json.loads(row["inputs_json"])
+            context = contextvars.Context()
+            context.run(REQUESTER.set, Requester(row["owner_key"], bool(row["owner_sees_all"])
+                                                 or row["owner_key"] is None))
+            make = lambda: kind.build(inputs, self.services)  # noqa: E731
+        run = f" (run {row['attempts']})" if row["attempts"] > 1 else ""
+        self._executor.submit(context.run, self._run, row["id"], token, make, event, run)
+        return True
+
+    # running --------------------------------------------------------------------------------
+
+    def _finish(self, job_id: str, token: str, status: str, unless_cancel_requested: bool = False,
                 **changes: Any) -> bool:
         finished_at = utc_now()
         try:
             finished = self.store.update_job(job_id, only_if_status=("running",), status=status,
-                                             finished_at=finished_at, **changes,
+                                             finished_at=finished_at, **changes, only_if_token=token,
                                              unless_cancel_requested=unless_cancel_requested)
         except StorageError as exc:
             if status != "failed" or "result_json" in changes:
                 # Most often the result itself did not fit: fail the job with the reason (a small write).
                 logger.error("job %s: its final state (%s) could not be stored: %s", job_id, status,
                              exc.detail, extra={"job_id": job_id})
-                return self._finish(job_id, "failed", error_json=to_json(exc.to_dict()))
+                return self._finish(job_id, token, "failed", error_json=to_json(exc.to_dict()))
             # Not even the failure can be written: keep it in memory, the housekeeping thread retries.
             logger.error("job %s: cannot store its failure either (%s); kept in memory until the store "
                          "takes writes", job_id, exc.detail, extra={"job_id": job_id})
@@ -425,56 +702,53 @@ class JobManager:
             logger.info("job %s %s", job_id, status, extra={"job_id": job_id, "status": status})
         return finished
 
-    def _run(self, job_id: str, fn: Callable[[JobContext], dict[str, Any]], event: threading.Event) -> None:
+    def _run(self, job_id: str, token: str, make: Callable[[], Callable[[JobContext], dict[str, Any]]],
+             event: threading.Event, run: str = "") -> None:
         try:
-            self._run_job(job_id, fn, event)
+            self._run_job(job_id, token, make, event, run)
         finally:
-            self._release(job_id)
-
-    def _run_job(self, job_id: str, fn: Callable[[JobContext], dict[str, Any]],
-                 event: threading.Event) -> None:
-        try:
-            started = not event.is_set() and self.store.update_job(
-                job_id, only_if_status=("queued",), status="running", started_at=utc_now())
-        except StorageError as exc:
-            logger.error("job %s could not start: %s", job_id, exc.detail, extra={"job_id": job_id})
             with self._lock:
-                self._unwritten[job_id] = {"status": "failed", "finished_at": utc_now(),
-                                           "error_json": to_json(exc.to_dict())}
-            return
-        if not started:
-            return
-        ctx = JobContext(job_id, self.store, event)
-        logger.info("job %s started", job_id, extra={"job_id": job_id})
+                self._running.pop(job_id, None)
+            self._wake.set()  # a worker is free
+
+    def _run_job(self, job_id: str, token: str, make: Callable[[], Callable[[JobContext], dict[str, Any]]],
+                 event: threading.Event, run: str = "") -> None:
+        ctx = JobContext(job_id, self.store, event, token)
+        logger.info("job %s%s started", job_id, run, extra={"job_id": job_id})
         try:
             ctx.check_cancelled()
-            result = fn(ctx)
+            result = make()(ctx)
         except Cancelled:
-            if self.store.get_job(job_id)["cancel_requested"]:
-                self._finish(job_id, "cancelled")
-            else:  # only shutdown sets the event without a request; shutdown marks the job failed
-                self._finish(job_id, "failed", error_json=to_json(ProblemError(
-                    500, INTERRUPTED_DETAIL, title="Job interrupted", type_=INTERNAL_TYPE).to_dict()))
+            row = self.store.get_job(job_id)
+            if row is None or row["lease_token"] != token:
+                return  # deleted, or taken by another process after our lease lapsed: not ours to write
+            if row["cancel_requested"]:
+                self._finish(job_id, token, "cancelled")
+            elif self._interrupting.is_set():  # shutdown: re-queued (or failed) by its rule
+                self._interrupt(row, "the server stopped", graceful=True)
+            else:
+                self._finish(job_id, token, "failed",
+                             error_json=to_json(_interrupted(INTERRUPTED_DETAIL).to_dict()))
         except StorageError as fault:
             logger.error("job %s failed: %s", job_id, fault.detail, extra={"job_id": job_id})
-            self._finish(job_id, "failed", error_json=to_json(fault.to_dict()))
+            self._finish(job_id, token, "failed", error_json=to_json(fault.to_dict()))
         except ProblemError as problem:
-            self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
+            self._finish(job_id, token, "failed", error_json=to_json(problem.to_dict()))
         except ValueError as exc:
             problem = ProblemError(422, str(exc), title="Invalid job input", type_=VALIDATION_TYPE)
-            self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
+            self._finish(job_id, token, "failed", error_json=to_json(problem.to_dict()))
         except Exception as exc:
             logger.exception("job %s failed", job_id)
             problem = ProblemError(500, f"The job failed: {type(exc).__name__}: {exc}", title="Job failed",
                                    type_=INTERNAL_TYPE)
-            self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
+            self._finish(job_id, token, "failed", error_json=to_json(problem.to_dict()))
         else:
             try:
                 encoded = json_bytes(result)
             except (TypeError, ValueError) as exc:
                 problem = ProblemError(500, f"The job's result is not finite JSON: {exc}", title="Job failed",
                                        type_=INTERNAL_TYPE)
-                self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
+                self._finish(job_id, token, "failed", error_json=to_json(problem.to_dict()))
                 return
             del result
             if self.max_result_bytes is not None and len(encoded) > self.max_result_bytes:
@@ -483,13 +757,13 @@ class JobManager:
                                             "(MICROBEARING_MAX_RESULT_BYTES); ask for fewer points or "
                                             "outputs.",
                                        title="Result too large")
-                self._finish(job_id, "failed", error_json=to_json(problem.to_dict()))
+                self._finish(job_id, token, "failed", error_json=to_json(problem.to_dict()))
                 return
-            self._succeed(job_id, encoded.decode())
+            self._succeed(job_id, token, encoded.decode())
 
-    def _succeed(self, job_id: str, result_json: str) -> None:
+    def _succeed(self, job_id: str, token: str, result_json: str) -> None:
         # A cancellation requested while the work was finishing wins: DELETE answered
         # cancel_requested true, so the job ends cancelled and its result is discarded.
-        if not self._finish(job_id, "succeeded", unless_cancel_requested=True, progress=1.0,
+        if not self._finish(job_id, token, "succeeded", unless_cancel_requested=True, progress=1.0,
                             result_json=result_json):
-            self._finish(job_id, "cancelled")
+            self._finish(job_id, token, "cancelled")

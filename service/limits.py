@@ -19,6 +19,7 @@ Finally, :func:`check_rows` is the one place that refuses a table with more rows
 from __future__ import annotations
 
 import asyncio
+import csv
 from typing import Any
 
 from starlette.exceptions import HTTPException
@@ -26,7 +27,8 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from .problems import ProblemError, ProblemResponse
 
-__all__ = ["BodySizeLimitMiddleware", "BodyTimeout", "BodyTooLarge", "check_rows", "csv_data_rows"]
+__all__ = ["BodySizeLimitMiddleware", "BodyTimeout", "BodyTooLarge", "check_columns", "check_rows",
+           "csv_data_rows", "csv_header_columns"]
 
 
 class BodyTooLarge(HTTPException):
@@ -64,6 +66,46 @@ def check_rows(rows: int, limit: int, what: str = "The data") -> None:
     if rows > limit:
         raise ProblemError(413, f"{what} has {rows} rows; the limit is {limit} "
                                 "(MICROBEARING_MAX_CALIBRATION_ROWS).", title="Too many rows")
+
+
+def check_columns(columns: int, limit: int, what: str = "The data") -> None:
+    """Refuse a table of more than ``limit`` columns with a 413 problem naming the limit.
+
+    Parameters
+    ----------
+    columns : int
+        Columns received [1].
+    limit : int
+        Most columns accepted [1] (``MICROBEARING_MAX_CALIBRATION_COLUMNS``).
+    what : str
+        What the table is, for the message.
+
+    Raises
+    ------
+    ProblemError
+        413 when ``columns > limit``.
+    """
+    if columns > limit:
+        raise ProblemError(413, f"{what} has {columns} columns; the limit is {limit} "
+                                "(MICROBEARING_MAX_CALIBRATION_COLUMNS).", title="Too many columns")
+
+
+def csv_header_columns(text: bytes) -> int:
+    r"""Columns of a CSV body's header row, read without parsing the rest.
+
+    A header the csv module refuses (a field of more than 128 kB) is counted by its commas; the
+    parser answers it with a 422 problem.
+
+    >>> csv_header_columns(b"a,b,c\n1,2,3\n"), csv_header_columns(b'"x,y",b\r\n1,2'), csv_header_columns(b"")
+    (3, 2, 0)
+    """
+    header = text.split(b"\n", 1)[0].rstrip(b"\r")
+    if not header:
+        return 0
+    try:
+        return len(next(csv.reader([header.decode("utf-8", errors="replace")])))
+    except csv.Error:  # a field past the csv module's limit (128 kB): count the separators instead
+        return header.count(b",") + 1
 
 
 def csv_data_rows(text: bytes) -> int:

@@ -55,13 +55,26 @@ class Settings(BaseSettings):
     # Admission control, retention and storage (service/jobs.py, service/store.py).
     max_active_jobs: int = Field(
         default=64, ge=1,
-        description="Most queued and running jobs in one server process; a job request past it gets 503 "
-                    "with Retry-After. A queued job holds only its request (designs are built as it starts).",
+        description="Most queued and running jobs of the data folder, counted over every server process "
+                    "sharing it; a job request past it gets 503 with Retry-After. A queued job holds only "
+                    "its request (designs are built as it starts).",
     )
     max_active_jobs_per_key: int = Field(
         default=16, ge=1,
-        description="Most queued and running jobs of one API key in one server process; past it 429 with "
-                    "Retry-After. Applies only when MICROBEARING_API_KEYS is set.",
+        description="Most queued and running jobs of one API key, counted over every server process sharing "
+                    "the data folder; past it 429 with Retry-After. Applies only when MICROBEARING_API_KEYS "
+                    "is set.",
+    )
+    job_lease_s: float = Field(
+        default=15.0, ge=1.0, le=3600.0,
+        description="Lease of a running job [s], renewed by its server process every third of it: a job "
+                    "whose process stopped renewing it is re-queued (or failed, see the README) by another "
+                    "process within 4/3 of this; on one host a dead process's jobs within a third of it.",
+    )
+    shutdown_grace_s: float = Field(
+        default=10.0, ge=0.0, le=3600.0,
+        description="On SIGTERM, running jobs may finish for this long [s]; those still running are then "
+                    "stopped and re-queued (queued jobs stay queued for the next start or another process).",
     )
     max_result_bytes: int = Field(
         default=128 * 2**20, ge=1024,
@@ -80,6 +93,11 @@ class Settings(BaseSettings):
     max_calibration_rows: int = Field(
         default=20_000, ge=1,
         description="Most data rows of one calibration (JSON or CSV); more get 413.",
+    )
+    max_calibration_columns: int = Field(
+        default=64, ge=1, le=10_000,
+        description="Most columns of one calibration's data (JSON keys over all rows, or the CSV header's "
+                    "columns); more get 413 before the data are parsed.",
     )
     model_cache_size: int = Field(
         default=16, ge=0, le=1024,

@@ -79,6 +79,10 @@ CREATE TABLE IF NOT EXISTS job_results (
     id TEXT PRIMARY KEY REFERENCES jobs (id),
     result_json TEXT NOT NULL
 );
+CREATE TABLE IF NOT EXISTS job_inputs (
+    id TEXT PRIMARY KEY REFERENCES jobs (id),
+    inputs_json TEXT NOT NULL
+);
 CREATE TABLE IF NOT EXISTS models (
     id TEXT PRIMARY KEY,
     kind TEXT NOT NULL,
@@ -96,13 +100,17 @@ CREATE TABLE IF NOT EXISTS write_probe (
 """
 #: Columns added since the first release, with their declaration: databases written before get them
 #: by ALTER TABLE at open (NULL owner: visible to every key).
-_ADDED_COLUMNS = {"jobs": {"owner_key": "TEXT"}, "models": {"owner_key": "TEXT"}}
+_ADDED_COLUMNS = {"jobs": {"owner_key": "TEXT", "owner_sees_all": "INTEGER NOT NULL DEFAULT 0",
+                           "replayable": "INTEGER NOT NULL DEFAULT 0",
+                           "attempts": "INTEGER NOT NULL DEFAULT 0", "lease_token": "TEXT",
+                           "lease_expires": "REAL"},
+                  "models": {"owner_key": "TEXT"}}
 #: Index on a column that older databases gain by ALTER TABLE, so it is created after the migration.
 _LATE_SCHEMA = "CREATE INDEX IF NOT EXISTS jobs_finished ON jobs (status, finished_at)"
 
 _JOB_COLUMNS = ("id", "kind", "status", "progress", "request_json", "result_json", "error_json",
                 "cancel_requested", "owner_pid", "owner_instance", "owner_key", "created_at", "started_at",
-                "finished_at")
+                "finished_at", "owner_sees_all", "replayable", "attempts", "lease_token", "lease_expires")
 #: The columns of a job's status: all but the request and the result, which can be tens of megabytes.
 #: Results are kept in their own table, job_results: SQLite walks a large value's overflow pages to
 #: reach the columns stored after it, so a result in the jobs row slowed every status read (a
@@ -380,18 +388,151 @@ class Store:
 
     def insert_job(self, **row: Any) -> None:
         """Insert a job row (column names as keywords); its owner is the current requester's key."""
-        row = {**row, "owner_key": REQUESTER.get().key_id}
+        with self.transaction() as conn:
+            self._insert_job(conn, row)
+
+    @staticmethod
+    def _insert_job(conn: sqlite3.Connection, row: dict[str, Any]) -> None:
+        requester = REQUESTER.get()
+        row = {**row, "owner_key": requester.key_id, "owner_sees_all": int(requester.sees_all)}
         names = ", ".join(row)
         marks = ", ".join("?" for _ in row)
+        conn.execute(f"INSERT INTO jobs ({names}) VALUES ({marks})", tuple(row.values()))
+
+    # claiming, leases and admission (several processes share one database) -------------------
+
+    def admit_job(self, row: dict[str, Any], inputs_json: str | None = None, max_active: int | None = None,
+                  max_active_per_key: int | None = None) -> tuple[str, int] | None:
+        """Insert a queued job unless the folder's limits of active jobs are reached, in one transaction.
+
+        The counts are read and the row written under SQLite's write lock (``BEGIN IMMEDIATE``), so
+        the limits hold across every process sharing the data folder.
+
+        Parameters
+        ----------
+        row : dict
+            The job's columns (as :meth:`insert_job`).
+        inputs_json : str, optional
+            What any process needs to run the job again (see :meth:`claim_job`); the job is
+            ``replayable`` when given.
+        max_active : int, optional
+            Most queued and running jobs in the database [1].
+        max_active_per_key : int, optional
+            Most queued and running jobs of the current requester's key [1] (when it has one).
+
+        Returns
+        -------
+        tuple of (str, int) or None
+            None when admitted; else ``("server", n)`` or ``("key", n)``: which limit was reached
+            and how many active jobs it counts.
+        """
+        key_id = REQUESTER.get().key_id
         with self.transaction() as conn:
-            conn.execute(f"INSERT INTO jobs ({names}) VALUES ({marks})", tuple(row.values()))
+            if max_active is not None:
+                active = conn.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running')"
+                                      ).fetchone()[0]
+                if active >= max_active:
+                    return "server", active
+            if max_active_per_key is not None and key_id is not None:
+                mine = conn.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running') "
+                                    "AND owner_key = ?", (key_id,)).fetchone()[0]
+                if mine >= max_active_per_key:
+                    return "key", mine
+            self._insert_job(conn, {**row, "replayable": int(inputs_json is not None)})
+            if inputs_json is not None:
+                conn.execute("INSERT INTO job_inputs (id, inputs_json) VALUES (?, ?)",
+                             (row["id"], inputs_json))
+        return None
+
+    def count_active_jobs(self) -> int:
+        """Queued and running jobs in the database, of every process [1]."""
+        return self.connection().execute(
+            "SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running')").fetchone()[0]
+
+    def claim_job(self, instance: str, pid: int, kinds: tuple[str, ...], lease_expires: float,
+                  token: str) -> dict[str, Any] | None:
+        """Take the oldest queued job this process can run and mark it running, leased to it.
+
+        A process can run the jobs it queued itself (it holds their work in memory) and the
+        ``replayable`` jobs of ``kinds`` (their inputs are stored). The selection and the update
+        are one write transaction: two processes never claim the same job.
+
+        Parameters
+        ----------
+        instance, pid : str, int
+            The claiming job manager and its process.
+        kinds : tuple of str
+            Kinds whose work this process can rebuild from stored inputs.
+        lease_expires : float
+            Unix time [s] until which the claim holds unless renewed (:meth:`renew_leases`).
+        token : str
+            Identifies this claim; writes of the running job name it (``update_job(only_if_token=...)``),
+            so a claim that lapsed cannot overwrite the job's next run.
+
+        Returns
+        -------
+        dict or None
+            The job's status columns and ``inputs_json`` (None for work held in memory), or None
+            when there is nothing to claim.
+        """
+        condition = "owner_instance = ?"
+        args: list[Any] = [instance]
+        if kinds:
+            condition += f" OR (replayable = 1 AND kind IN ({', '.join('?' for _ in kinds)}))"
+            args.extend(kinds)
+        select = f"SELECT id FROM jobs WHERE status = 'queued' AND ({condition}) ORDER BY created_at LIMIT 1"
+        if self.connection().execute(select, args).fetchone() is None:
+            return None  # a read: an idle process polling does not take the write lock
+        with self.transaction() as conn:
+            row = conn.execute(select, args).fetchone()  # again under the lock: another process may have won
+            if row is None:
+                return None
+            conn.execute("UPDATE jobs SET status = 'running', started_at = ?, owner_pid = ?, "
+                         "owner_instance = ?, lease_token = ?, lease_expires = ?, attempts = attempts + 1 "
+                         "WHERE id = ?",
+                         (utc_now(), pid, instance, token, lease_expires, row["id"]))
+            claimed = dict(conn.execute(f"SELECT {_STATUS_COLUMNS} FROM jobs WHERE id = ?",
+                                        (row["id"],)).fetchone())
+            inputs = conn.execute("SELECT inputs_json FROM job_inputs WHERE id = ?", (row["id"],)).fetchone()
+        claimed["inputs_json"] = inputs["inputs_json"] if inputs else None
+        return claimed
+
+    def renew_leases(self, tokens: list[str], lease_expires: float) -> dict[str, bool]:
+        """Extend the leases of the running jobs claimed under ``tokens``; the heartbeat of a process.
+
+        Returns
+        -------
+        dict
+            For each token still holding its running job: whether a cancellation was requested.
+            A token missing from it has lost its job (the lease lapsed and another process took it).
+        """
+        if not tokens:
+            return {}
+        marks = ", ".join("?" for _ in tokens)
+        with self.transaction() as conn:
+            conn.execute(f"UPDATE jobs SET lease_expires = ? WHERE status = 'running' "
+                         f"AND lease_token IN ({marks})", (lease_expires, *tokens))
+            rows = conn.execute(f"SELECT lease_token, cancel_requested FROM jobs WHERE status = 'running' "
+                                f"AND lease_token IN ({marks})", tokens).fetchall()
+        return {row["lease_token"]: bool(row["cancel_requested"]) for row in rows}
+
+    def job_statuses(self, job_ids: list[str]) -> dict[str, str]:
+        """Status of each of ``job_ids`` that still exists (housekeeping: ignores the requester)."""
+        if not job_ids:
+            return {}
+        marks = ", ".join("?" for _ in job_ids)
+        rows = self.connection().execute(f"SELECT id, status FROM jobs WHERE id IN ({marks})", job_ids)
+        return {row["id"]: row["status"] for row in rows}
 
     def update_job(self, job_id: str, *, only_if_status: tuple[str, ...] = (),
-                   unless_cancel_requested: bool = False, **changes: Any) -> bool:
+                   unless_cancel_requested: bool = False, only_if_token: str | None = None,
+                   **changes: Any) -> bool:
         """Change columns of a job, optionally only while it has one of ``only_if_status``.
 
         With ``unless_cancel_requested`` the change happens only if no cancellation was requested,
         in the same transaction (a job that finishes as it is cancelled is either one or the other).
+        With ``only_if_token`` it happens only while the job is held by that claim (its ``lease_token``,
+        see :meth:`claim_job`).
 
         Returns
         -------
@@ -410,6 +551,9 @@ class Store:
             args.extend(only_if_status)
         if unless_cancel_requested:
             sql += " AND cancel_requested = 0"
+        if only_if_token is not None:
+            sql += " AND lease_token = ?"
+            args.append(only_if_token)
         with self.transaction() as conn:
             changed = conn.execute(sql, args).rowcount > 0
             if changed and result_json is not None:
@@ -453,6 +597,7 @@ class Store:
                                    (job_id, *statuses, *args)).rowcount > 0
             if deleted:
                 conn.execute("DELETE FROM job_results WHERE id = ?", (job_id,))
+                conn.execute("DELETE FROM job_inputs WHERE id = ?", (job_id,))
             return deleted
 
     def delete_jobs_finished_before(self, statuses: tuple[str, ...], before: str) -> int:
@@ -463,8 +608,9 @@ class Store:
         marks = ", ".join("?" for _ in statuses)
         where = f"status IN ({marks}) AND finished_at < ?"
         with self.transaction() as conn:
-            conn.execute(f"DELETE FROM job_results WHERE id IN (SELECT id FROM jobs WHERE {where})",
-                         (*statuses, before))
+            for table in ("job_results", "job_inputs"):
+                conn.execute(f"DELETE FROM {table} WHERE id IN (SELECT id FROM jobs WHERE {where})",
+                             (*statuses, before))
             return conn.execute(f"DELETE FROM jobs WHERE {where}", (*statuses, before)).rowcount
 
     def list_jobs(self, kinds: tuple[str, ...] = (), statuses: tuple[str, ...] = (), limit: int = 20,

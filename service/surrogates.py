@@ -279,9 +279,12 @@ def load_stored(store: Store, surrogate_id: str) -> StoredModel:
 
 
 def delete_stored(store: Store, surrogate_id: str) -> None:
-    """Delete a stored surrogate (and its rebuilt estimator), or a 404 problem."""
-    load_stored(store, surrogate_id)
-    store.delete_model(surrogate_id)
+    """Delete a stored surrogate (and its rebuilt estimator), or a 404 problem.
+
+    Of concurrent deletions of one surrogate, one deletes it and the others answer 404.
+    """
+    if not store.has_model(surrogate_id, KIND) or not store.delete_model(surrogate_id):
+        raise ProblemError(404, f"There is no surrogate {surrogate_id!r}.")
 
 
 def load_surrogate(store: Store, surrogate_id: str) -> GaussianProcessSurrogate:

@@ -2,7 +2,8 @@
 
 :func:`design_size` checks a sweep request and counts its points without building them (422
 problems name the offending field by JSON pointer; :func:`check_result_size` answers 413 for a
-result predicted past the size limit); :func:`design_columns` builds its input columns;
+result that could exceed the size limit, bounded before any point is computed);
+:func:`design_columns` builds its input columns;
 :func:`run_sweep` evaluates them chunk by chunk, reporting progress so that a sweep run as a job
 can be followed and cancelled. A sweep job builds its columns when it starts: a queued job holds
 only its request.
@@ -24,17 +25,19 @@ from .executor import evaluate_in_chunks
 from .models import physics_in
 from .problems import ProblemError, validation_problem
 from .schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep
+from .store import json_bytes
 
-__all__ = ["CHUNK_POINTS", "SweepPlan", "check_result_size", "design_columns", "design_size", "run_sweep"]
+__all__ = ["CHUNK_POINTS", "MAX_NUMBER_BYTES", "SweepPlan", "check_result_size", "design_columns",
+           "design_size", "result_bytes_bound", "run_sweep"]
 
 #: Points evaluated per chunk: bounds memory and sets how often progress is reported.
 CHUNK_POINTS = 65_536
 
 AnySweep = GridSweep | SobolSweep | LatinHypercubeSweep
 
-#: Fewest bytes one number takes in a result's JSON (a double's shortest form is mostly 18-22
-#: characters and a comma): a design predicted past the result limit with it surely is past it.
-_JSON_BYTES_PER_VALUE = 16
+#: Longest JSON text of a float64 in a result (the shortest round-trip form :func:`json_bytes` writes):
+#: a sign, 17 significant digits, a point and a three-digit exponent, as in -2.2250738585072014e-308.
+MAX_NUMBER_BYTES = 24
 
 
 class SweepPlan:
@@ -189,8 +192,53 @@ def design_size(request: AnySweep, max_points: int) -> int:
     return count
 
 
+def result_bytes_bound(request: AnySweep, count: int) -> int:
+    """The most bytes the JSON of a sweep's result can take, computed before any point is.
+
+    Exact but for the digits of values not known before they are computed: the document's
+    structure (keys, brackets, separators), the design, the count and the names are counted
+    byte for byte, and so are the varied inputs of a grid (each axis's values, as written, times
+    the times they repeat). An output value, and an input of a Sobol or Latin hypercube design,
+    is counted at the longest form of a double (:data:`MAX_NUMBER_BYTES`); the result is never
+    longer, and shorter by what those values' digits fall short of it.
+
+    Parameters
+    ----------
+    request : GridSweep, SobolSweep or LatinHypercubeSweep
+        The validated request.
+    count : int
+        Number of points [1], from :func:`design_size`.
+
+    Returns
+    -------
+    int
+        Upper bound of ``len(json_bytes(run_sweep(...)))`` [bytes].
+    """
+    outputs = list(request.outputs or physics.OUTPUTS)
+    if request.design == "grid":
+        axes = _grid_axes(request, [])
+        varied = list(axes)
+    else:
+        axes = {}
+        varied = list(request.ranges.model_dump(exclude_none=True))
+    columns = [*varied, *outputs]
+    skeleton = {"design": request.design, "count": count, "varied": varied,
+                "columns": {name: [] for name in columns}}
+    size = len(json_bytes(skeleton)) + len(columns) * max(count - 1, 0)  # the commas between values
+    for name in varied:
+        if name in axes:
+            values = axes[name]
+            digits = len(json_bytes(values)) - 2 - max(values.size - 1, 0)  # without brackets and commas
+            size += digits * (count // max(values.size, 1))
+        else:
+            size += count * MAX_NUMBER_BYTES
+    return size + len(outputs) * count * MAX_NUMBER_BYTES
+
+
 def check_result_size(request: AnySweep, count: int, max_result_bytes: int) -> None:
-    """413 when a sweep's result is predicted to exceed ``max_result_bytes`` of JSON.
+    """413 when a sweep's result could exceed ``max_result_bytes`` of JSON (:func:`result_bytes_bound`).
+
+    A sweep accepted here never fails for its size once computed.
 
     Parameters
     ----------
@@ -206,14 +254,12 @@ def check_result_size(request: AnySweep, count: int, max_result_bytes: int) -> N
     ProblemError
         413 naming the limit.
     """
-    varied = request.axes if request.design == "grid" else request.ranges
-    columns = len(request.outputs or physics.OUTPUTS) + len(varied.model_dump(exclude_none=True))
-    predicted = count * columns * _JSON_BYTES_PER_VALUE
-    if predicted > max_result_bytes:
-        raise ProblemError(413, f"The result of {count} points x {columns} columns would take at least "
-                                f"{predicted} bytes of JSON, more than the limit of {max_result_bytes} "
-                                "(MICROBEARING_MAX_RESULT_BYTES); ask for fewer points or outputs.",
-                           title="Result too large")
+    bound = result_bytes_bound(request, count)
+    if bound > max_result_bytes:
+        raise ProblemError(413, f"The result of {count} points could take up to {bound} bytes of JSON (every "
+                                f"value not known in advance counted at {MAX_NUMBER_BYTES} characters), more "
+                                f"than the limit of {max_result_bytes} (MICROBEARING_MAX_RESULT_BYTES); ask "
+                                "for fewer points or outputs.", title="Result too large")
 
 
 def design_columns(request: AnySweep, max_points: int) -> SweepPlan:

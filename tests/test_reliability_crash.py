@@ -1,9 +1,10 @@
 """Crashes: SIGKILL a real server during a sweep job and a surrogate training, restart it, lose nothing.
 
-After the restart on the same data folder: no job is left queued or running (the interrupted
-ones are failed with a reason), SQLite's integrity check passes, the journal is WAL, no
-half-written model is listed, and every result completed before the crash is still there,
-byte for byte. A second test kills a process in the middle of writing models to the store.
+After the restart on the same data folder the interrupted jobs run again (their inputs are
+stored; the run is counted), and a job interrupted a second time is failed with the reason.
+SQLite's integrity check passes, the journal is WAL, no half-written model is listed, and every
+result completed before the crash is still there, byte for byte. A second test kills a process
+in the middle of writing models to the store.
 """
 
 from __future__ import annotations
@@ -48,6 +49,12 @@ LONG_SURROGATE = {"space": {"load_N": [1e-4, 0.1], "speed_m_s": [0.0, 0.2], "bal
                   "fixed": {}, "budget": 1000, "target_relative_error": 1e-6, "adaptive": True}
 
 
+def attempts(database, job_id: str) -> int:
+    """How many runs of the job were started (claims), read from the database."""
+    with sqlite3.connect(database) as conn:
+        return conn.execute("SELECT attempts FROM jobs WHERE id = ?", (job_id,)).fetchone()[0]
+
+
 def test_sigkill_during_jobs_loses_nothing(tmp_path):
     data_dir = tmp_path / "data"
     log = tmp_path / "server.log"
@@ -83,11 +90,23 @@ def test_sigkill_during_jobs_loses_nothing(tmp_path):
     database = data_dir / DATABASE_NAME
     restarted = Server(data_dir, log, **SERVER_SETTINGS)
     try:
-        for location in (long_training.headers["location"], big_sweep.headers["location"]):
-            job = restarted.client.get(location).json()
-            assert job["status"] == "failed", job
-            assert job["error"]["detail"] == INTERRUPTED_DETAIL and job["finished_at"]
-        assert restarted.client.get(f"/v1/jobs/{sweep_job['id']}/result").status_code == 409
+        # Both interrupted jobs run again from their stored requests, as their second run.
+        rerun = wait_for(restarted, big_sweep.headers["location"], ("succeeded", "failed"), timeout_s=300)
+        assert rerun["status"] == "succeeded", rerun
+        assert attempts(database, sweep_job["id"]) == 2
+        assert restarted.client.get(f"/v1/jobs/{sweep_job['id']}").json()["progress"] == 1.0
+        training = wait_for(restarted, long_training.headers["location"], ("running",))
+        assert attempts(database, training["id"]) == 2
+    except BaseException:
+        restarted.stop()
+        raise
+    restarted.kill()  # the second interruption of the training: it is not re-queued again
+    restarted = Server(data_dir, log, **SERVER_SETTINGS)
+    try:
+        job = restarted.client.get(long_training.headers["location"]).json()
+        assert job["status"] == "failed" and job["finished_at"], job
+        assert job["error"]["detail"].startswith(INTERRUPTED_DETAIL)
+        assert "not re-queued again" in job["error"]["detail"]
         for job_id, content in done.items():
             assert restarted.client.get(f"/v1/jobs/{job_id}").json()["status"] == "succeeded"
             assert restarted.client.get(f"/v1/jobs/{job_id}/result").content == content

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from microbearing.service.jobs import INTERRUPTED_DETAIL, JobContext, JobManager
+from microbearing.service.jobs import INTERRUPTED_DETAIL, NOT_STORED_DETAIL, JobContext, JobManager
 from microbearing.service.store import Store, json_bytes, to_json, utc_now
 
 
@@ -168,7 +168,9 @@ def test_startup_fails_jobs_of_dead_processes_only(store):
         for job_id in ("dead", "dead-queued", "same-pid-old-instance"):
             row = store.get_job(job_id)
             assert row["status"] == "failed", job_id
-            assert json.loads(row["error_json"])["detail"] == INTERRUPTED_DETAIL
+            # Their inputs were not stored (no kind and inputs): they cannot run again.
+            expected = NOT_STORED_DETAIL if job_id == "dead-queued" else INTERRUPTED_DETAIL
+            assert json.loads(row["error_json"])["detail"] == expected
         assert store.get_job("live-process")["status"] == "running"
     finally:
         manager.shutdown()

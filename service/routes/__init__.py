@@ -48,6 +48,19 @@ Running work as a job
             return {"design": ..., "mu": ...}                  # JSON-ready; arrays allowed
         return accepted(jobs.submit("optimization", body.model_dump(mode="json"), work))
 
+Pass the job's inputs and declare how any process rebuilds its work from them, so that the job
+survives restarts and can run in any server process sharing the data folder (see
+:mod:`service.jobs`; work submitted without ``inputs`` is failed by a restart)::
+
+    def _stored_work(inputs: dict, runtime) -> Callable[[JobContext], dict]:
+        body = OptimizationRequest.model_validate_json(json.dumps(inputs))
+        return lambda ctx: optimize.run(..., progress=ctx.progress)
+
+    register_kind("optimization", _stored_work, rule="...")       # at import, once
+    ...
+    request = body.model_dump(mode="json")
+    return accepted(jobs.submit("optimization", request, work, inputs=request))
+
 The client polls ``GET /v1/jobs/{id}`` (status, progress, ``result_url`` or ``error``) and
 fetches ``GET /v1/jobs/{id}/result``; ``DELETE /v1/jobs/{id}`` cancels. A result holding a table
 under ``"columns"`` (name -> list) is also served as CSV (``Accept: text/csv``). Raising

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
+import numpy as np
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
@@ -21,8 +22,8 @@ from ..calibrations import (
     run_calibration,
 )
 from ..deps import JobsDep, SettingsDep, StoreDep
-from ..jobs import JobContext, JobManager
-from ..limits import check_rows, csv_data_rows
+from ..jobs import JobContext, JobManager, register_kind
+from ..limits import check_columns, check_rows, csv_data_rows, csv_header_columns
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas.base import Convention, ConventionName
 from ..schemas.calibrations import (
@@ -69,13 +70,46 @@ def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool)
                                   else {"pointer": f"/{field}", "detail": str(exc)}]) from None
 
 
-def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_parameters: list[str],
-            folds: int, convention: str, intake: dict) -> JSONResponse:
+def _work(store: Store, dataset: Dataset, fit_parameters: list[str], folds: int, convention: str,
+          intake: dict) -> Any:
     def work(ctx: JobContext) -> dict:
         return run_calibration(store, dataset, fit_parameters, folds, convention, progress=ctx.progress,
                                intake=intake)
 
-    return accepted(jobs.submit("calibration", record, work))
+    return work
+
+
+def _columns(columns: dict[str, np.ndarray]) -> dict[str, list]:
+    return {name: values.tolist() for name, values in columns.items()}
+
+
+def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
+    """The work of a calibration from its stored inputs: the checked measurements, column by column."""
+    std = inputs["mu_measured_std"]
+    dataset = Dataset({name: np.asarray(values) for name, values in inputs["physics_columns"].items()},
+                      {name: np.asarray(values) for name, values in inputs["conditions"].items()},
+                      np.asarray(inputs["mu_measured"], dtype=float),
+                      None if std is None else np.asarray(std, dtype=float), dict(inputs["fixed"]))
+    return _work(runtime.store, dataset, inputs["fit_parameters"], inputs["folds"], inputs["convention"],
+                 inputs.get("intake") or {})
+
+
+# The parsed data are stored with the job (bounded by the row and column limits); the calibration is
+# stored in one transaction at the end, so an interrupted run leaves nothing.
+register_kind("calibration", _stored_work,
+              rule="its checked data are stored with it; the calibration is stored in one transaction at the "
+                   "end: an interrupted run leaves nothing")
+
+
+def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_parameters: list[str],
+            folds: int, convention: str, intake: dict) -> JSONResponse:
+    std = dataset.mu_measured_std
+    inputs = {"physics_columns": _columns(dataset.physics_columns),
+              "conditions": _columns(dataset.conditions), "mu_measured": dataset.mu_measured.tolist(),
+              "mu_measured_std": None if std is None else std.tolist(), "fixed": dataset.fixed,
+              "fit_parameters": fit_parameters, "folds": folds, "convention": convention, "intake": intake}
+    return accepted(jobs.submit("calibration", record,
+                                _work(store, dataset, fit_parameters, folds, convention, intake), inputs=inputs))
 
 
 @router.post("", operation_id="create_calibration", status_code=202,
@@ -85,9 +119,10 @@ def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep,
     """Calibrate on JSON rows: fit the named parameters, add the terms the data need, report (a job).
 
     The job's result is the calibration report (see ``GET /v1/calibrations/{id}``). More than
-    MICROBEARING_MAX_CALIBRATION_ROWS rows get 413.
+    MICROBEARING_MAX_CALIBRATION_ROWS rows or MICROBEARING_MAX_CALIBRATION_COLUMNS columns get 413.
     """
     check_rows(len(body.data), settings.max_calibration_rows, "/data")
+    check_columns(len(set().union(*body.data)), settings.max_calibration_columns, "/data")
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
         dataset, intake = read_rows(body.data, fixed)
@@ -130,6 +165,7 @@ async def create_calibration_from_csv(
     """
     text = await request.body()
     check_rows(csv_data_rows(text), settings.max_calibration_rows, "The CSV body")  # before parsing it
+    check_columns(csv_header_columns(text), settings.max_calibration_columns, "The CSV body's header")
     try:
         fixed_values = parse_assignments(fixed)
     except DataError as exc:

@@ -132,7 +132,10 @@ def cancel_job(job_id: str, jobs: JobsDep) -> Any:
             raise ProblemError(409, f"Job {job_id} cannot be deleted yet: its final state is not stored "
                                     "(the data folder refuses writes).")
         return Response(status_code=204)
-    return job_view(jobs.cancel(job_id))
+    row = jobs.cancel(job_id)
+    if row is None:  # finished and deleted by a concurrent request since it was read
+        raise ProblemError(404, f"There is no job {job_id!r}.")
+    return job_view(row)
 
 
 @router.get(

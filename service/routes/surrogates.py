@@ -11,7 +11,7 @@ from fastapi import APIRouter, Query
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep, StoreDep
-from ..jobs import JobContext
+from ..jobs import JobContext, register_kind
 from ..problems import problem_responses, validation_problem
 from ..schemas.surrogates import (
     PredictRequest,
@@ -21,6 +21,7 @@ from ..schemas.surrogates import (
     SurrogateRequest,
     SurrogateResult,
 )
+from ..store import json_bytes
 from ..surrogates import (
     SENSITIVITY_N,
     delete_stored,
@@ -39,6 +40,21 @@ __all__ = ["router"]
 router = APIRouter(prefix="/v1/surrogates", tags=["surrogates"])
 
 
+def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
+    body = SurrogateRequest.model_validate_json(json_bytes(inputs))
+    space, mu_model = prepare_training(runtime.store, body)
+
+    def work(ctx: JobContext) -> dict[str, Any]:
+        return train_surrogate(runtime.store, space, body, progress=ctx.progress, mu_model=mu_model)
+
+    return work
+
+
+# The surrogate is stored in one transaction at the end of the run: an interrupted run stores nothing.
+register_kind("surrogate", _stored_work,
+              rule="the model is stored in one transaction at the end: an interrupted run leaves nothing")
+
+
 @router.post("", operation_id="create_surrogate", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
 def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> JSONResponse:
@@ -55,7 +71,8 @@ def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> 
     def work(ctx: JobContext) -> dict[str, Any]:
         return train_surrogate(store, space, body, progress=ctx.progress, mu_model=mu_model)
 
-    return accepted(jobs.submit("surrogate", body.model_dump(mode="json"), work))
+    request = body.model_dump(mode="json")
+    return accepted(jobs.submit("surrogate", request, work, inputs=request))
 
 
 @router.get("", operation_id="list_surrogates", response_model=SurrogateList, responses=problem_responses())

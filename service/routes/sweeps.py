@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from concurrent.futures import Executor
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Request
 from fastapi.responses import Response
+from pydantic import TypeAdapter
 from starlette.concurrency import run_in_threadpool
 
 from ..deps import ExecutorDep, JobsDep, SettingsDep
-from ..jobs import JobContext
+from ..jobs import JobContext, register_kind
 from ..problems import problem_responses
-from ..schemas.sweeps import SweepRequest, SweepResult
+from ..schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep, SweepRequest, SweepResult
+from ..settings import Settings
+from ..store import json_bytes
 from ..sweeps import check_result_size, design_columns, design_size, run_sweep
 from ..tables import CSV_MEDIA_TYPE, sweep_table, table_response
 from .jobs import ACCEPTED_RESPONSE, accepted
@@ -19,6 +23,23 @@ from .jobs import ACCEPTED_RESPONSE, accepted
 __all__ = ["router"]
 
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
+
+_REQUEST: TypeAdapter[GridSweep | SobolSweep | LatinHypercubeSweep] = TypeAdapter(SweepRequest)
+
+
+def _work(body: GridSweep | SobolSweep | LatinHypercubeSweep, settings: Settings, executor: Executor
+          ) -> Any:
+    def work(ctx: JobContext) -> dict:
+        plan = design_columns(body, settings.max_sweep_points)
+        return run_sweep(body, plan, progress=ctx.progress, executor=executor)
+
+    return work
+
+
+# The request is all a sweep needs: deterministic, it stores nothing but its result.
+register_kind("sweep", lambda inputs, runtime: _work(_REQUEST.validate_json(json_bytes(inputs)),
+                                                      runtime.settings, runtime.executor),
+              rule="deterministic; the request is stored and the result is written once, at the end")
 
 
 @router.post(
@@ -41,17 +62,15 @@ async def create_sweep(
 
     Sweeps of up to MICROBEARING_SWEEP_SYNC_MAX_POINTS points answer 200 with the table; larger
     ones answer 202 with a job whose result is at /v1/jobs/{id}/result (the job builds the
-    design when it starts). A result predicted past MICROBEARING_MAX_RESULT_BYTES answers 413.
+    design when it starts). A result that could exceed MICROBEARING_MAX_RESULT_BYTES answers 413 (its size
+    is bounded before any point is computed: an accepted sweep never fails for its size).
     """
     count = await run_in_threadpool(design_size, body, settings.max_sweep_points)
-    check_result_size(body, count, settings.max_result_bytes)
+    await run_in_threadpool(check_result_size, body, count, settings.max_result_bytes)
     if count <= settings.sweep_sync_max_points:
         plan = await run_in_threadpool(design_columns, body, settings.max_sweep_points)
         document = await run_in_threadpool(run_sweep, body, plan, None, executor)
         return table_response(request, document, sweep_table(document))
 
-    def work(ctx: JobContext) -> dict:
-        plan = design_columns(body, settings.max_sweep_points)
-        return run_sweep(body, plan, progress=ctx.progress, executor=executor)
-
-    return accepted(jobs.submit("sweep", body.model_dump(mode="json"), work))
+    request = body.model_dump(mode="json")
+    return accepted(jobs.submit("sweep", request, _work(body, settings, executor), inputs=request))

@@ -22,7 +22,8 @@ class Readiness(ResponseModel):
 
     status: Literal["ready"] = Field(description="ready when the server can accept work.")
     free_bytes: int = Field(description="Free space of the data folder's file system [bytes].")
-    active_jobs: int = Field(description="Queued and running jobs of the answering server process [1].")
+    active_jobs: int = Field(description="Queued and running jobs of the data folder, every server process "
+                                         "sharing it [1].")
 
 
 class Version(ResponseModel):
