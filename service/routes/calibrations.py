@@ -108,8 +108,8 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
               "conditions": _columns(dataset.conditions), "mu_measured": dataset.mu_measured.tolist(),
               "mu_measured_std": None if std is None else std.tolist(), "fixed": dataset.fixed,
               "fit_parameters": fit_parameters, "folds": folds, "convention": convention, "intake": intake}
-    return accepted(jobs.submit("calibration", record,
-                                _work(store, dataset, fit_parameters, folds, convention, intake), inputs=inputs))
+    work = _work(store, dataset, fit_parameters, folds, convention, intake)
+    return accepted(jobs.submit("calibration", record, work, inputs=inputs))
 
 
 @router.post("", operation_id="create_calibration", status_code=202,
