@@ -196,8 +196,8 @@ def result_bytes_bound(request: AnySweep, count: int) -> int:
     """The most bytes the JSON of a sweep's result can take, computed before any point is.
 
     Exact but for the digits of values not known before they are computed: the document's
-    structure (keys, brackets, separators), the design, the count and the names are counted
-    byte for byte, and so are the varied inputs of a grid (each axis's values, as written, times
+    structure (keys, brackets, separators), the design, the count, the fixed inputs and the names are
+    counted byte for byte, and so are the varied inputs of a grid (each axis's values, as written, times
     the times they repeat). An output value, and an input of a Sobol or Latin hypercube design,
     is counted at the longest form of a double (:data:`MAX_NUMBER_BYTES`); the result is never
     longer, and shorter by what those values' digits fall short of it.
@@ -223,7 +223,7 @@ def result_bytes_bound(request: AnySweep, count: int) -> int:
         varied = list(request.ranges.model_dump(exclude_none=True))
     columns = [*varied, *outputs]
     skeleton = {"design": request.design, "count": count, "varied": varied,
-                "columns": {name: [] for name in columns}}
+                "fixed": request.fixed.model_dump(exclude_none=True), "columns": {name: [] for name in columns}}
     size = len(json_bytes(skeleton)) + len(columns) * max(count - 1, 0)  # the commas between values
     for name in varied:
         if name in axes:
