@@ -23,7 +23,7 @@ from microbearing.calibrate import CalibrationReport, DataError, Dataset, Predic
 
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
-from .models import CalibratedPhysicsModel, InputError, Model, resolve
+from .models import CalibratedPhysicsModel, InputError, Model, problems, resolve
 from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
@@ -277,7 +277,8 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
     conditions = dict(conditions or {})
     check_conditions(mu_model, conditions)
     try:
-        evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs)
+        with problems():
+            evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs)
     except InputError as exc:
         raise _input_problem(exc, "") from None
     values = {name: float(value) for name, value in evaluation.values.items()}
