@@ -1,0 +1,788 @@
+r"""Designs that hold over an operating envelope, on any model, with what is proven about them.
+
+A designer knows the bearing will run over a range of speeds and conditions (a calibrated model's
+relative humidity, temperature, ...) and that the groove angle is made to a tolerance. An
+:class:`Envelope` states them; :func:`optimize_robust` finds the design whose **worst case** of the
+objective over the envelope (``mu``, or ``mu_upper``: the 95 % upper bound of a calibrated or
+surrogate model) is lowest, with every limit holding over the whole envelope, and says what is
+proven: the worst case at the returned design and where it occurs, a certified lower bound on the
+best achievable worst case and the gap between them, and the price of robustness (the nominal
+optimum at the envelope's centre beside the robust one, each with its worst case).
+
+The physics: a proof by geometric programming
+---------------------------------------------
+For a fixed ball count every term of the physics' μ is a posynomial, with positive coefficients and
+exponents, in t = tan θ and in the speed V (:mod:`optimize.dgp`; V enters only through Houpert's
+rolling force, k V^0.66), and so are the peak pressure and the friction force μ G. Hence μ, the
+pressure and the friction force are non-decreasing in θ on (0°, 90°) and in V, and the physics reads
+no condition column: over an envelope of speeds [V_lo, V_hi] and an angle made to θ ± δ, the worst
+case of every one of them is at (θ + δ, V_hi), one vertex. Minimizing the worst case over nominal
+angles θ in [θ_lo, θ_hi] is therefore minimizing μ at θ' = θ + δ over [θ_lo + δ, θ_hi + δ] and V_hi:
+the geometric program of :func:`optimize.optimize_design` on a shifted box, solved for every ball
+count (the global optimum per count, all counts enumerated). The certified lower bound is the least,
+over the counts, of the dual objective of each count's conic program (weak duality; limits taken
+exactly, without the solver's safety margin), less the solver's tolerance; the upper bound is the
+exact physics' worst case at the returned design. ``tests/test_optimize_robust.py`` checks the
+monotonicity on the exact physics and the optimum against brute force.
+
+:func:`robust_gp` is the same argument for any geometric program whose constants are uncertain
+within a box: a posynomial is log-log convex in its positive constants too, so its maximum over a
+box of them is at one of the box's vertices, and the worst case over the box of a maximum of
+posynomials is a geometric program over the vertices (a robust GP; the cantilever beam of Dakota's
+examples is checked with it).
+
+Other models: an outer approximation, said to be unproven
+---------------------------------------------------------
+A calibrated model or a surrogate need not be monotone or log-log convex in speed and conditions
+(a Stribeck term falls with speed, a quadratic term in humidity may peak inside the range), and no
+bound on its derivatives is known, so no rigorous bound over a box exists for it here. The method
+is a cutting-plane (outer-approximation) loop: the local method of :func:`optimize.optimize_model`
+minimizes the largest objective over a finite set of envelope points (its vertices and centre to
+begin with); at the design found, the worst case over the whole envelope is searched (a grid of
+every axis, then a bounded quasi-Newton ascent from the best grid points); a point worse than the set
+by more than :data:`ENVELOPE_RTOL` relative is added and the design re-optimized, at most
+:data:`MAX_ROUNDS` times. The result says ``proven: false`` with the best bound found: the worst case
+found at the returned design (a value the design reaches, so the robust optimum is no better than
+the model's value there only if the design search is global, which it is not), and no certified
+lower bound.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import time
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import cvxpy as cp
+import numpy as np
+from scipy import optimize as sciopt
+
+from microbearing import physics
+from microbearing.physics.model import Model
+
+from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
+from .general import optimize_model
+from .problem import DESIGN_VARIABLES, DesignBounds, DesignProblem, constraint_report
+from .solve import OptimizationResult, optimize_design
+
+__all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE_NAMES", "Envelope",
+           "RobustGPResult", "RobustResult", "dual_bound", "optimize_robust", "robust_gp",
+           "worst_case_search"]
+
+#: The objectives a design may minimize the worst case of.
+OBJECTIVES = ("mu", "mu_upper")
+#: Design variables a tolerance may be given for (the angle: μ is monotone in it, see the module docstring).
+TOLERANCE_NAMES = ("groove_angle_deg",)
+#: Relative gap between the certified lower bound and the worst case that counts as closed. [1]
+GAP_TARGET = 1e-6
+#: A searched worst case above the optimized set's by more than this (relative) adds a point. [1]
+ENVELOPE_RTOL = 1e-6
+#: Most rounds of the cutting-plane loop for models other than the physics. [1]
+MAX_ROUNDS = 6
+#: Clarabel's stopping tolerances (gap and feasibility, its defaults), taken off the dual bound. [1]
+_SOLVER_TOL = 1e-8
+_ANGLE = physics.PARAMETERS["groove_angle_deg"]
+_SPEED = physics.PARAMETERS["speed_m_s"]
+
+
+def _range(field_name: str, value: Any, minimum: float | None = None) -> tuple[float, float]:
+    """A [low, high] pair (a number is a range of one point), finite and ordered, or a ValueError."""
+    if isinstance(value, list | tuple):
+        if len(value) != 2:
+            raise ValueError(f"{field_name} must be a number or a pair [low, high]; got {value!r}")
+        lo, hi = value
+    else:
+        lo = hi = value
+    try:
+        lo, hi = float(lo), float(hi)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field_name} must be a number or a pair [low, high]; got {value!r}") from None
+    if isinstance(value, bool) or not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ValueError(f"{field_name} must hold finite numbers; got {value!r}")
+    if lo > hi:
+        raise ValueError(f"{field_name} must have low <= high; got [{lo:g}, {hi:g}]")
+    if minimum is not None and lo < minimum:
+        raise ValueError(f"{field_name} must be >= {minimum:g}; got {lo:g}")
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """Where a design must hold: ranges of speed and conditions, tolerances of design variables.
+
+    Parameters
+    ----------
+    speed_m_s : float or tuple of float
+        Slider speed, or [low, high]. [m/s]
+    conditions : mapping of str to float or tuple of float, optional
+        Condition columns a calibrated model reads (e.g. ``relative_humidity`` [fraction or as in the
+        calibration data], ``temperature_C`` [degC]): a value or [low, high], in the data's unit.
+    tolerances : mapping of str to float, optional
+        Half-widths δ of design variables made to a tolerance: the design must hold anywhere within
+        nominal ± δ. Only ``groove_angle_deg`` [deg].
+
+    Raises
+    ------
+    ValueError
+        Naming the field (``speed_m_s``, ``conditions.<name>``, ``tolerances.<name>``).
+    """
+
+    speed_m_s: float | tuple[float, float]
+    conditions: Mapping[str, Any] = field(default_factory=dict)
+    tolerances: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        lo, hi = _range("speed_m_s", self.speed_m_s)
+        for v in (lo, hi):
+            try:
+                physics.validate("speed_m_s", v)
+            except ValueError as exc:
+                raise ValueError(f"speed_m_s: {exc}") from None
+        object.__setattr__(self, "speed_m_s", (lo, hi))
+        object.__setattr__(self, "conditions", {str(name): _range(f"conditions.{name}", value)
+                                                for name, value in dict(self.conditions).items()})
+        tolerances = {}
+        for name, value in dict(self.tolerances).items():
+            if name not in TOLERANCE_NAMES:
+                raise ValueError(f"tolerances.{name}: a tolerance is taken on {', '.join(TOLERANCE_NAMES)} "
+                                 "only")
+            if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                    math.isfinite(value) and 0 <= value <= 10):
+                raise ValueError(f"tolerances.{name} must be a number in [0, 10] [deg]; got {value!r}")
+            tolerances[name] = float(value)
+        object.__setattr__(self, "tolerances", tolerances)
+
+    @property
+    def angle_tolerance_deg(self) -> float:
+        """δ of the groove angle (0 without a tolerance). [deg]"""
+        return self.tolerances.get("groove_angle_deg", 0.0)
+
+    def axes(self) -> dict[str, tuple[float, float]]:
+        """Every dimension of the envelope that is a range: ``speed_m_s``, the conditions, and
+        ``groove_angle_offset_deg`` (the offset from the nominal angle, [-δ, δ]). [their units]"""
+        axes = {}
+        if self.speed_m_s[0] < self.speed_m_s[1]:
+            axes["speed_m_s"] = self.speed_m_s
+        axes.update({f"conditions.{n}": r for n, r in self.conditions.items() if r[0] < r[1]})
+        if self.angle_tolerance_deg > 0:
+            axes["groove_angle_offset_deg"] = (-self.angle_tolerance_deg, self.angle_tolerance_deg)
+        return axes
+
+    def centre(self) -> dict[str, Any]:
+        """The envelope's centre: ``speed_m_s`` [m/s] and ``conditions`` (midpoints), no angle offset."""
+        return {"speed_m_s": 0.5 * sum(self.speed_m_s),
+                "conditions": {n: 0.5 * (lo + hi) for n, (lo, hi) in self.conditions.items()}}
+
+    def point(self, values: Mapping[str, float]) -> dict[str, Any]:
+        """A point of the envelope from axis values (the other dimensions at their single value)."""
+        conditions = {n: float(values.get(f"conditions.{n}", lo)) for n, (lo, _) in self.conditions.items()}
+        return {"speed_m_s": float(values.get("speed_m_s", self.speed_m_s[0])), "conditions": conditions,
+                "groove_angle_offset_deg": float(values.get("groove_angle_offset_deg", 0.0))}
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready fields: ranges as [low, high]."""
+        return {"speed_m_s": list(self.speed_m_s),
+                "conditions": {n: list(r) for n, r in self.conditions.items()},
+                "tolerances": dict(self.tolerances)}
+
+
+# --------------------------------------------------------------------------------------------------
+# Certified bounds of geometric programs
+
+
+def dual_bound(problem: cp.Problem) -> tuple[str, float, float]:
+    """Solve a DGP with Clarabel and return (status, primal value, certified lower bound).
+
+    The lower bound is the dual objective of the conic program (weak duality), less Clarabel's
+    stopping tolerance (1e-8 absolute and relative, in the logarithm of the objective).
+
+    Parameters
+    ----------
+    problem : cvxpy.Problem
+        A disciplined geometric program (minimization); parameters already assigned.
+
+    Returns
+    -------
+    status : str
+        Clarabel's status (``"Solved"``, ``"AlmostSolved"``, ``"PrimalInfeasible"``, ...).
+    value : float
+        The primal objective (NaN unless solved). [unit of the objective]
+    lower_bound : float
+        The certified lower bound (NaN unless solved; +inf when proven infeasible). [unit of the objective]
+    """
+    data, chain, _ = problem.get_problem_data(cp.CLARABEL, gp=True)
+    offset = float(data["param_prob"].apply_parameters()[1])
+    raw = chain.solver.solve_via_data(data, False, False, {})
+    status = str(raw.status)
+    if status == "PrimalInfeasible":
+        return status, math.nan, math.inf
+    if status not in ("Solved", "AlmostSolved"):
+        return status, math.nan, math.nan
+    primal, dual = float(raw.obj_val) + offset, float(raw.obj_val_dual) + offset
+    slack = _SOLVER_TOL * (1.0 + abs(dual))
+    return status, math.exp(primal), math.exp(min(dual, primal) - slack)
+
+
+@dataclass(frozen=True)
+class RobustGPResult:
+    """The optimum of a robust geometric program and its certificate.
+
+    Attributes
+    ----------
+    value : float
+        The worst case over the box of the objective at the optimum. [unit of the objective]
+    lower_bound : float
+        Certified lower bound on the best achievable worst case (:func:`dual_bound`). [same unit]
+    relative_gap : float
+        (value - lower_bound) / value. [1]
+    variables : dict of str to float
+        The optimal variables. [their units]
+    worst_vertex : dict of str to float
+        The vertex of the box where the objective is largest at the optimum. [their units]
+    vertices : int
+        Vertices of the box enumerated. [1]
+    """
+
+    value: float
+    lower_bound: float
+    relative_gap: float
+    variables: dict[str, float]
+    worst_vertex: dict[str, float]
+    vertices: int
+
+
+def robust_gp(variables: Mapping[str, cp.Variable],
+              objective: Callable[[Mapping[str, float]], cp.Expression],
+              constraints: Callable[[Mapping[str, float]], Sequence[cp.Constraint]],
+              box: Mapping[str, tuple[float, float]]) -> RobustGPResult:
+    """Minimize the worst case over a box of positive constants, subject to constraints at all of them.
+
+    Every expression must be a posynomial (log-log convex) in the variables and the constants alike,
+    so that its maximum over the box is at a vertex (see the module docstring): the program is
+    min s subject to objective(v) <= s and constraints(v) for every vertex v, still a geometric
+    program, solved once with a certified lower bound.
+
+    Parameters
+    ----------
+    variables : mapping of str to cvxpy.Variable
+        Positive variables (``pos=True``) by name.
+    objective : callable
+        The objective at the constants ``{name: value}`` of a vertex.
+    constraints : callable
+        The constraints at the constants of a vertex.
+    box : mapping of str to (float, float)
+        [low, high] of each uncertain constant, both > 0. [their units]
+
+    Returns
+    -------
+    RobustGPResult
+
+    Raises
+    ------
+    ValueError
+        For an empty or non-positive box, a program that is not a DGP, or no solution.
+    """
+    names = list(box)
+    for name in names:
+        lo, hi = box[name]
+        if not 0 < lo <= hi:
+            raise ValueError(f"box.{name} must be 0 < low <= high; got [{lo:g}, {hi:g}]")
+    corners = itertools.product(*(box[n] for n in names))
+    vertices = [dict(zip(names, corner, strict=True)) for corner in corners]
+    bound = cp.Variable(pos=True, name="worst_case")
+    cons = [objective(v) <= bound for v in vertices]
+    for v in vertices:
+        cons += list(constraints(v))
+    program = cp.Problem(cp.Minimize(bound), cons)
+    if not program.is_dgp():
+        raise ValueError("the robust program is not a disciplined geometric program")
+    status, _, lower = dual_bound(program)
+    if status not in ("Solved", "AlmostSolved"):
+        raise ValueError(f"the robust geometric program has no solution (Clarabel: {status})")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        program.solve(gp=True, solver=cp.CLARABEL)
+    values = {name: float(var.value) for name, var in variables.items()}
+    # The worst case at the optimum, from the objective itself at each vertex.
+    at = [float(objective(v).value) for v in vertices]
+    worst = int(np.argmax(at))
+    value = at[worst]
+    lower = min(lower, value)
+    return RobustGPResult(value, lower, (value - lower) / value, values, vertices[worst], len(vertices))
+
+
+# --------------------------------------------------------------------------------------------------
+# Worst case over an envelope
+
+
+def _objective_values(model: Model | None, objective: str, columns: dict[str, Any],
+                      convention: str) -> np.ndarray:
+    """The objective at columnar points: the physics' μ, a model's μ or its ``mu_upper``. [1]"""
+    with np.errstate(all="ignore"):
+        if model is None:
+            return physics.evaluate(convention=convention, outputs=["mu"], **columns).mu
+        if objective == "mu":
+            return np.asarray(model(columns), dtype=float)
+        predict = getattr(model, "predict", None)
+        if predict is not None:  # a calibrated model: its prediction, without the physics' other outputs
+            return np.asarray(predict(columns).mu_upper, dtype=float)
+        return np.asarray(model.evaluate(columns, [objective]).values[objective], dtype=float)
+
+
+def _columns(problem: DesignProblem, envelope: Envelope, design: Mapping[str, Any],
+             points: Sequence[Mapping[str, Any]], angle_shift: float) -> dict[str, Any]:
+    """Columns of every (design, envelope point) pair, designs varying fastest.
+
+    ``design`` holds arrays of n designs (the angle being the optimizer's θ' = θ + ``angle_shift``);
+    ``points`` are m envelope points; the result has m n values per column.
+    """
+    n = int(np.size(design["balls"]))
+    m = len(points)
+    offsets = np.repeat([p["groove_angle_offset_deg"] for p in points], n)
+    theta = np.tile(np.broadcast_to(design["groove_angle_deg"], (n,)), m) - angle_shift + offsets
+    cols = problem.physics_inputs(np.tile(np.broadcast_to(design["balls"], (n,)), m), theta,
+                                  np.tile(np.broadcast_to(design["load_N"], (n,)), m),
+                                  speed_m_s=np.repeat([p["speed_m_s"] for p in points], n))
+    for name in envelope.conditions:
+        cols[name] = np.repeat([p["conditions"][name] for p in points], n)
+    return cols
+
+
+def worst_case_search(evaluate: Callable[[list[dict[str, Any]]], np.ndarray], envelope: Envelope,
+                      levels: int | None = None, polish: int = 3) -> tuple[float, dict[str, Any], int]:
+    """The largest value of a function over the envelope: a grid of every axis, then local ascent.
+
+    Parameters
+    ----------
+    evaluate : callable
+        Values at a list of envelope points (:meth:`Envelope.point`). [1]
+    envelope : Envelope
+        The envelope.
+    levels : int, optional
+        Grid levels per axis (both ends included); by default 9 for up to 2 axes, 5 for 3-4, 3 above.
+    polish : int, default 3
+        Best grid points from which a bounded quasi-Newton ascent (L-BFGS-B) starts. [1]
+
+    Returns
+    -------
+    value : float
+        The largest value found. [1]
+    point : dict
+        Where it occurs (:meth:`Envelope.point`).
+    evaluations : int
+        Points evaluated. [1]
+    """
+    axes = envelope.axes()
+    names = list(axes)
+    if not names:
+        point = envelope.point({})
+        return float(evaluate([point])[0]), point, 1
+    k = len(names)
+    levels = levels or (9 if k <= 2 else 5 if k <= 4 else 3)
+    grid = np.array(list(itertools.product(np.linspace(0.0, 1.0, levels), repeat=k)))
+    lo = np.array([axes[n][0] for n in names])
+    span = np.array([axes[n][1] - axes[n][0] for n in names])
+
+    def points_of(unit: np.ndarray) -> list[dict[str, Any]]:
+        return [envelope.point(dict(zip(names, lo + span * u, strict=True))) for u in unit]
+
+    values = np.asarray(evaluate(points_of(grid)), dtype=float)
+    count = len(grid)
+    best = int(np.nanargmax(values))
+    best_value, best_unit = float(values[best]), grid[best]
+    for start in np.argsort(-np.nan_to_num(values, nan=-np.inf))[:polish]:
+        def negative(u: np.ndarray) -> float:
+            return -float(evaluate(points_of(u[None, :]))[0])
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            found = sciopt.minimize(negative, grid[start], method="L-BFGS-B", bounds=[(0.0, 1.0)] * k,
+                                    options={"maxiter": 50})
+        count += int(found.nfev)
+        if np.isfinite(found.fun) and -found.fun > best_value:
+            best_value, best_unit = float(-found.fun), np.clip(found.x, 0.0, 1.0)
+    return best_value, points_of(best_unit[None, :])[0], count
+
+
+def _vertices_and_centre(envelope: Envelope) -> list[dict[str, Any]]:
+    axes = envelope.axes()
+    names = list(axes)
+    corners = [dict(zip(names, c, strict=True)) for c in itertools.product(*(axes[n] for n in names))]
+    centre = {n: 0.5 * (lo + hi) for n, (lo, hi) in axes.items()}
+    return [envelope.point(c) for c in [centre, *corners]]
+
+
+# --------------------------------------------------------------------------------------------------
+# The robust optimization
+
+
+@dataclass(frozen=True)
+class RobustResult:
+    """The robust design, its worst case, what is proven and the price of robustness.
+
+    Attributes
+    ----------
+    result : OptimizationResult
+        The design (nominal groove angle), with ``mu`` the worst case of the objective over the
+        envelope, its constraint report (the limits at their worst over the envelope) and per-count table.
+    objective : str
+        ``"mu"`` or ``"mu_upper"``.
+    envelope : Envelope
+        The envelope designed for.
+    worst_case : dict
+        ``{objective: value [1], "speed_m_s" [m/s], "groove_angle_deg" [deg] (the angle made),
+        "conditions": {...}}``: where the worst case occurs at the returned design.
+    proof : dict
+        ``proven`` (bool), ``method``, ``lower_bound`` [1] (certified, or None), ``upper_bound`` [1]
+        (the worst case at the design), ``relative_gap`` [1] (or None), ``gap_target`` [1],
+        ``statement``.
+    price_of_robustness : dict
+        ``nominal`` and ``robust``: each a design with its objective at the envelope's centre and its
+        worst case over the envelope; ``ratio`` [1], the nominal design's worst case over the robust one's.
+    """
+
+    result: OptimizationResult
+    objective: str
+    envelope: Envelope
+    worst_case: dict[str, Any]
+    proof: dict[str, Any]
+    price_of_robustness: dict[str, Any]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready nested dict: the fields of :meth:`OptimizationResult.to_dict` and the robust ones."""
+        return {**self.result.to_dict(), "objective": self.objective, "envelope": self.envelope.to_dict(),
+                "worst_case": dict(self.worst_case), "proof": dict(self.proof),
+                "price_of_robustness": dict(self.price_of_robustness)}
+
+
+def _shifted(problem: DesignProblem, delta: float, speed: float) -> DesignProblem:
+    """The problem in θ' = θ + δ at one speed: the angle box moved by δ (errors name the field)."""
+    lo, hi = problem.bounds.groove_angle_deg
+    if lo - delta <= _ANGLE.minimum or hi + delta >= _ANGLE.maximum:
+        raise ValueError("tolerances.groove_angle_deg: the angles made, "
+                         f"[{lo - delta:g}, {hi + delta:g}] deg, "
+                         f"must stay within the physics' range {_ANGLE.range_text()}")
+    bounds = DesignBounds(problem.bounds.balls, (lo + delta, hi + delta), problem.bounds.load_N)
+    return DesignProblem(bounds, speed, problem.constraints, problem.fixed, problem.convention)
+
+
+def _unshift(result: OptimizationResult, delta: float,
+             extra: dict[str, Any] | None = None) -> OptimizationResult:
+    """The result with every angle moved back from θ' to the nominal θ = θ' - δ."""
+    if delta == 0 and not extra:
+        return result
+    design = {**result.design, "groove_angle_deg": result.design["groove_angle_deg"] - delta}
+    rows = [dataclasses.replace(r, groove_angle_deg=None if r.groove_angle_deg is None
+                                else r.groove_angle_deg - delta) for r in result.per_ball_count]
+    ties = [{**t, "groove_angle_deg": t["groove_angle_deg"] - delta} for t in result.ties]
+    constraints = [dataclasses.replace(c, value=c.value - delta, limit=c.limit - delta)
+                   if c.name.startswith("groove_angle_deg") else c for c in result.constraints]
+    return dataclasses.replace(result, design=design, per_ball_count=rows, ties=ties, constraints=constraints,
+                               extra={**result.extra, **(extra or {})})
+
+
+def _physics_lower_bound(problem: DesignProblem,
+                         result: OptimizationResult) -> tuple[float | None, list[int]]:
+    """The least certified lower bound over the ball counts, with the limits exact (no safety margin).
+
+    Returns the bound [1] (None when a count could not be bounded) and the counts that could not.
+    """
+    bounds, unbounded = [], []
+    for row in result.per_ball_count:
+        if row.status in ("does not fit the groove", "infeasible"):
+            continue  # no design of this count (the infeasible ones proven by phase I)
+        gp, values = design_gp(problem, balls=row.balls)
+        relaxed = {n: (v / (1.0 - SAFETY_MARGIN) if LIMIT_NAMES.get(n) == "max" else v)
+                   for n, v in values.items()}
+        with gp.lock:
+            gp.assign(relaxed, row.balls)
+            _, _, lower = dual_bound(gp.problem)
+        if math.isnan(lower):
+            unbounded.append(row.balls)
+        else:
+            bounds.append(lower)
+    return (min(bounds) if bounds and not unbounded else None), unbounded
+
+
+def _check_model(model: Model | None, envelope: Envelope, objective: str) -> None:
+    if objective not in OBJECTIVES:
+        raise ValueError(f"objective must be one of {', '.join(OBJECTIVES)}; got {objective!r}")
+    if model is None or model.kind == "physics":
+        if objective != "mu":
+            raise ValueError("objective: mu_upper is the 95 % upper bound of a calibrated or surrogate "
+                             "model; "
+                             "the physics has no interval")
+        if envelope.conditions:
+            raise ValueError("conditions: condition columns are read by calibrated models only")
+        return
+    if objective == "mu_upper" and not model.has_interval:
+        raise ValueError(f"objective: {model.reference} has no interval")
+    required = list(model.required_columns)
+    missing = [n for n in required if n not in envelope.conditions]
+    if missing:
+        raise ValueError(f"conditions.{missing[0]}: {model.reference} reads {', '.join(required)}; give each "
+                         "a value or a range [low, high]")
+    known = set(required) | set(getattr(model, "unread_conditions", {}))
+    unknown = [n for n in envelope.conditions if n not in known]
+    if unknown:
+        raise ValueError(f"conditions.{unknown[0]} is not a condition of {model.reference}; its "
+                         "conditions are "
+                         f"{', '.join(sorted(known)) or 'none'}")
+
+
+def _with_model_values(problem: DesignProblem, model: Model | None) -> DesignProblem:
+    """The problem with the values the model holds (a calibration's fixed and fitted ones) in ``fixed``."""
+    if model is None:
+        return problem
+    held = {k: v for k, v in {**model.fixed, **model.fitted}.items()
+            if k in physics.PARAMETERS and k not in DESIGN_VARIABLES and k != "speed_m_s"}
+    if not held:
+        return problem
+    return DesignProblem(problem.bounds, problem.speed_m_s, problem.constraints, {**problem.fixed, **held},
+                         model.convention)
+
+
+def _evaluator(problem: DesignProblem, envelope: Envelope, model: Model | None, objective: str,
+               design: Mapping[str, Any], shift: float) -> Callable[[list[dict[str, Any]]], np.ndarray]:
+    def evaluate(points: list[dict[str, Any]]) -> np.ndarray:
+        # The model's own values come with the problem (``_with_model_values``); a point outside a term's
+        # law (humidity 1) is no worst case the model can say anything about.
+        return _objective_values(model, objective, _columns(problem, envelope, design, points, shift),
+                                 problem.convention)
+    return evaluate
+
+
+def _worst_case_dict(objective: str, value: float, point: Mapping[str, Any],
+                     nominal_deg: float) -> dict[str, Any]:
+    return {objective: float(value), "speed_m_s": float(point["speed_m_s"]),
+            "groove_angle_deg": float(nominal_deg + point["groove_angle_offset_deg"]),
+            "conditions": {n: float(v) for n, v in point["conditions"].items()}}
+
+
+def _design_of(result: OptimizationResult) -> dict[str, Any]:
+    return {k: result.design[k] for k in ("balls", "groove_angle_deg", "load_N")}
+
+
+def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | None = None,
+                    objective: str = "mu", starts: int = 3, max_rounds: int = MAX_ROUNDS,
+                    progress: Callable[[float], None] | None = None,
+                    map_calls: Callable | None = None) -> RobustResult:
+    """The design whose worst case of the objective over the envelope is lowest, with its proof.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        Bounds (nominal groove angle), limits and fixed values; its speed is replaced by the
+        envelope's. For a model, the values the model holds (fixed, fitted) take precedence.
+    envelope : Envelope
+        Speeds, conditions and tolerances the design must hold over.
+    model : physics.model.Model, optional
+        The model; None (or a :class:`physics.model.PhysicsModel`) for the physics.
+    objective : {"mu", "mu_upper"}, default "mu"
+        μ, or the 95 % upper bound of a calibrated or surrogate model. [1]
+    starts : int, default 3
+        Starts per ball count of the local method (models other than the physics). [1]
+    max_rounds : int, default :data:`MAX_ROUNDS`
+        Most cutting-plane rounds (models other than the physics). [1]
+    progress : callable, optional
+        Called with the fraction done, 0..1. [1]
+    map_calls : callable, optional
+        Passed to :func:`optimize.optimize_model` (groups of ball counts on an executor).
+
+    Returns
+    -------
+    RobustResult
+
+    Raises
+    ------
+    ValueError
+        Naming the field: an objective the model has no value for, missing or unknown conditions,
+        a tolerance taking the angle out of the physics' range.
+    InfeasibleDesignError
+        When no design meets the limits over the envelope.
+    """
+    _check_model(model, envelope, objective)
+    if model is not None and model.kind == "physics":
+        problem = DesignProblem(problem.bounds, problem.speed_m_s, problem.constraints, problem.fixed,
+                                model.convention)
+        model = None
+    problem = _with_model_values(problem, model)
+    if model is None:
+        return _robust_physics(problem, envelope, progress)
+    return _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls)
+
+
+def _robust_physics(problem: DesignProblem, envelope: Envelope,
+                    progress: Callable[[float], None] | None) -> RobustResult:
+    start = time.perf_counter()
+    delta = envelope.angle_tolerance_deg
+    v_hi = envelope.speed_m_s[1]
+    shifted = _shifted(problem, delta, v_hi)
+    solved = optimize_design(shifted, progress=None if progress is None else (lambda f: progress(0.6 * f)))
+    lower, unbounded = _physics_lower_bound(shifted, solved)
+    design = _design_of(solved)
+    theta = design["groove_angle_deg"] - delta
+    # Where the worst case occurs, and a check of the vertex argument on the exact physics: no other
+    # vertex or the centre is worse.
+    evaluate = _evaluator(problem, envelope, None, "mu", design, delta)
+    vertices = _vertices_and_centre(envelope)
+    at = evaluate(vertices)
+    worst = vertices[int(np.argmax(at))]
+    predicted = envelope.point({"speed_m_s": v_hi, "groove_angle_offset_deg": delta})
+    value = float(evaluate([predicted])[0])
+    gap = None if lower is None else max(0.0, (value - lower) / value)
+    proven = lower is not None and gap <= GAP_TARGET
+    statement = (
+        "The physics' mu, peak pressure and friction force are posynomials in tan(theta) and in the speed "
+        "with "
+        "positive coefficients (the rolling force ~ V^0.66 is the only speed term), so over the envelope "
+        f"their worst case is at the angle made high (nominal + {delta:g} deg) and the highest speed "
+        f"{v_hi:g} m/s; the physics reads no condition column. The robust problem is the geometric program "
+        f"of every ball count on the angle box moved by {delta:g} deg at {v_hi:g} m/s, solved per count; "
+        f"certified lower bound {lower if lower is not None else float('nan'):.10g} (least dual objective "
+        f"over the counts, limits exact, less Clarabel's 1e-8 tolerance), worst case at the design "
+        f"{value:.10g} (exact physics), relative gap {gap if gap is not None else float('nan'):.2e} "
+        f"(target {GAP_TARGET:g}). The {len(vertices)} vertices and centre of the envelope checked on the "
+        f"exact physics: largest {float(np.max(at)):.10g}.")
+    if unbounded:
+        statement += f" Counts {unbounded} could not be bounded by the solver: no certified bound."
+    if lower is not None and gap > GAP_TARGET:
+        statement += " The gap is above the target: the optimum is proven only to that gap."
+    proof = {"proven": bool(proven), "method": "robust-gp-vertex", "lower_bound": lower, "upper_bound": value,
+             "relative_gap": gap, "gap_target": GAP_TARGET, "statement": statement}
+    if float(np.max(at)) > value * (1 + 1e-12):
+        proof["proven"] = False
+        proof["statement"] += (f" But a vertex or the centre gave {float(np.max(at)):.10g} > the predicted "
+                               "worst case: the monotonicity argument failed here, nothing is proven.")
+        value = float(np.max(at))
+        predicted = worst
+    worst_case = _worst_case_dict("mu", value, predicted, theta)
+    # Price of robustness: the nominal optimum at the envelope's centre and its worst case.
+    centre_speed = envelope.centre()["speed_m_s"]
+    nominal = optimize_design(DesignProblem(problem.bounds, centre_speed, problem.constraints, problem.fixed,
+                                            problem.convention))
+    nominal_design = _design_of(nominal)
+    nominal_eval = _evaluator(problem, envelope, None, "mu", nominal_design, 0.0)
+    nominal_worst = float(nominal_eval([predicted | {"groove_angle_offset_deg": delta}])[0])
+    nominal_limits = constraint_report(shifted, nominal_design["balls"],
+                                       nominal_design["groove_angle_deg"] + delta,
+                                       nominal_design["load_N"])
+    robust_centre = float(_evaluator(problem, envelope, None, "mu", design, delta)(
+        [envelope.point({"speed_m_s": centre_speed})])[0])
+    price = _price(nominal_design, nominal.mu, nominal_worst,
+                   all(c.satisfied for c in nominal_limits if not c.name.startswith("groove_angle_deg")),
+                   {**design, "groove_angle_deg": theta}, robust_centre, value)
+    certificate = (solved.certificate + " Envelope: " + statement)
+    result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
+                                          speed_m_s=v_hi, solve_time_s=time.perf_counter() - start), delta)
+    if progress is not None:
+        progress(1.0)
+    return RobustResult(result, "mu", envelope, worst_case, proof, price)
+
+
+def _price(nominal_design: dict[str, Any], nominal_centre: float, nominal_worst: float, nominal_holds: bool,
+           robust_design: dict[str, Any], robust_centre: float, robust_worst: float) -> dict[str, Any]:
+    return {
+        "nominal": {"design": dict(nominal_design), "at_centre": float(nominal_centre),
+                    "worst_case": float(nominal_worst), "limits_hold_over_envelope": bool(nominal_holds)},
+        "robust": {"design": dict(robust_design), "at_centre": float(robust_centre),
+                   "worst_case": float(robust_worst), "limits_hold_over_envelope": True},
+        "ratio": float(nominal_worst / robust_worst),
+    }
+
+
+class _SetModel:
+    """The worst case of the objective over a finite set of envelope points, as optimize_model's μ model."""
+
+    def __init__(self, problem: DesignProblem, envelope: Envelope, model: Model, objective: str,
+                 points: list[dict[str, Any]], shift: float):
+        self.problem, self.envelope, self.model, self.objective = problem, envelope, model, objective
+        self.points, self.shift = points, shift
+
+    def __call__(self, columns: Mapping[str, Any]) -> np.ndarray:
+        design = {k: np.atleast_1d(np.asarray(columns[k], dtype=float)) for k in DESIGN_VARIABLES}
+        n = max(np.size(v) for v in design.values())
+        design = {k: np.broadcast_to(v, (n,)) for k, v in design.items()}
+        values = _objective_values(self.model, self.objective,
+                                   _columns(self.problem, self.envelope, design, self.points, self.shift),
+                                   self.problem.convention)
+        return np.max(np.asarray(values, dtype=float).reshape(len(self.points), n), axis=0)
+
+
+def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, objective: str, starts: int,
+                  max_rounds: int, progress: Callable[[float], None] | None,
+                  map_calls: Callable | None) -> RobustResult:
+    start = time.perf_counter()
+    delta = envelope.angle_tolerance_deg
+    v_hi = envelope.speed_m_s[1]
+    # Limits that do not depend on the model (the peak pressure) are worst at the angle made high: the
+    # optimizer works in θ' = θ + δ, and the model is asked at θ' - δ + offset.
+    shifted = _shifted(problem, delta, v_hi)
+    points = _vertices_and_centre(envelope)
+    rounds, history = 0, []
+    solved = None
+    value, where = math.nan, None
+    for rounds in range(1, max_rounds + 1):
+        set_model = _SetModel(shifted, envelope, model, objective, points, delta)
+        fraction = 0.8 * (rounds - 1) / max_rounds
+        solved = optimize_model(shifted, set_model, starts=starts, model_name=model.reference,
+                                progress=None if progress is None else (
+                                    lambda f, a=fraction: progress(a + 0.8 * f / max_rounds)),
+                                map_calls=map_calls)
+        design = _design_of(solved)
+        on_set = float(set_model({k: np.array([v]) for k, v in design.items()})[0])
+        value, where, _ = worst_case_search(_evaluator(shifted, envelope, model, objective, design, delta),
+                                            envelope)
+        history.append({"round": rounds, "points": len(points), "on_set": on_set, "searched": value})
+        if value <= on_set * (1 + ENVELOPE_RTOL):
+            value = max(value, on_set)
+            break
+        points = [*points, where]
+    design = _design_of(solved)
+    theta = design["groove_angle_deg"] - delta
+    statement = (
+        f"No proof: {model.reference} is not known to be monotone or log-log convex in the speed, the "
+        "conditions and the angle, and no bound on its derivatives is known, so its worst case over a box "
+        "cannot be bounded rigorously. Method: outer approximation in "
+        f"{rounds} round(s) - the local method minimized the largest {objective} over "
+        f"{len(points)} envelope points (vertices, centre and the worst points found), and at each design "
+        "the whole envelope was searched (a grid of every axis, then L-BFGS-B ascent from the 3 best grid "
+        f"points); the last search found {value:.10g}, within {ENVELOPE_RTOL:g} of the optimized set. Best "
+        "bound found: the worst case at the design as searched (upper_bound); the design search is local, "
+        "so no certified lower bound on the best achievable worst case exists.")
+    proof = {"proven": False, "method": "outer-approximation-local", "lower_bound": None,
+             "upper_bound": value,
+             "relative_gap": None, "gap_target": GAP_TARGET, "statement": statement, "rounds": history}
+    worst_case = _worst_case_dict(objective, value, where, theta)
+    # Price of robustness: the nominal optimum at the envelope's centre (no tolerance) and its worst case.
+    centre = envelope.centre()
+    centre_envelope = Envelope(centre["speed_m_s"], centre["conditions"])
+    nominal_problem = DesignProblem(problem.bounds, centre["speed_m_s"], problem.constraints, problem.fixed,
+                                    problem.convention)
+    nominal = optimize_model(nominal_problem,
+                             _SetModel(nominal_problem, centre_envelope, model, objective,
+                                       [centre_envelope.point({})], 0.0),
+                             starts=starts, model_name=model.reference, map_calls=map_calls)
+    nominal_design = _design_of(nominal)
+    nominal_worst, _, _ = worst_case_search(
+        _evaluator(problem, envelope, model, objective, nominal_design, 0.0), envelope)
+    limits = constraint_report(shifted, nominal_design["balls"], nominal_design["groove_angle_deg"] + delta,
+                               nominal_design["load_N"], mu=nominal_worst if objective == "mu" else None)
+    robust_centre = float(_evaluator(problem, envelope, model, objective, design, delta)(
+        [envelope.point({"speed_m_s": centre["speed_m_s"],
+                         **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})])[0])
+    price = _price(nominal_design, float(nominal.mu), nominal_worst,
+                   all(c.satisfied for c in limits if not c.name.startswith("groove_angle_deg")),
+                   {**design, "groove_angle_deg": theta}, robust_centre, value)
+    certificate = f"Local optimum of the worst case over the envelope, not proven. {statement}"
+    result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
+                                          speed_m_s=float(where["speed_m_s"]),
+                                          method="outer-approximation-local",
+                                          solve_time_s=time.perf_counter() - start), delta)
+    if progress is not None:
+        progress(1.0)
+    return RobustResult(result, objective, envelope, worst_case, proof, price)
