@@ -326,6 +326,10 @@ def _objective_values(model: Model | None, objective: str, columns: dict[str, An
     with np.errstate(all="ignore"):
         if model is None:
             return physics.evaluate(convention=convention, outputs=["mu"], **columns).mu
+        # The values a model holds are its own: given as columns, a calibrated model would read a fitted
+        # value as known and leave its uncertainty out of the interval.
+        held = {*model.fixed, *model.fitted}
+        columns = {name: value for name, value in columns.items() if name not in held}
         if objective == "mu":
             return np.asarray(model(columns), dtype=float)
         predict = getattr(model, "predict", None)
