@@ -221,9 +221,9 @@ def test_a_worst_case_inside_the_envelope_is_found_and_designed_for():
 
 def test_refusals_name_the_field():
     problem = DesignProblem(DesignBounds((3, 4), (45, 60), (0.002, 0.02)), 0.05)
-    with pytest.raises(ValueError, match="^objective: mu_upper"):
+    with pytest.raises(ValueError, match=r"^objective: mu_upper"):
         optimize_robust(problem, Envelope(SPEEDS), objective="mu_upper")
-    with pytest.raises(ValueError, match="^conditions: "):
+    with pytest.raises(ValueError, match=r"^conditions: "):
         optimize_robust(problem, Envelope(SPEEDS, {"relative_humidity": (0.3, 0.7)}))
     with pytest.raises(ValueError, match=r"^conditions\.relative_humidity: "):
         optimize_robust(problem, Envelope(SPEEDS), _meniscus_model())
