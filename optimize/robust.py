@@ -71,7 +71,8 @@ from .problem import DESIGN_VARIABLES, DesignBounds, DesignProblem, constraint_r
 from .solve import OptimizationResult, optimize_design
 
 __all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE_NAMES", "Envelope",
-           "RobustGPResult", "RobustResult", "dual_bound", "optimize_robust", "robust_gp",
+           "RobustGPResult", "RobustResult", "check_model", "dual_bound", "optimize_robust", "robust_gp",
+           "shifted_problem",
            "worst_case_search"]
 
 #: The objectives a design may minimize the worst case of.
@@ -463,8 +464,14 @@ class RobustResult:
                 "price_of_robustness": dict(self.price_of_robustness)}
 
 
-def _shifted(problem: DesignProblem, delta: float, speed: float) -> DesignProblem:
-    """The problem in θ' = θ + δ at one speed: the angle box moved by δ (errors name the field)."""
+def shifted_problem(problem: DesignProblem, delta: float, speed: float) -> DesignProblem:
+    """The problem in θ' = θ + δ at one speed [m/s]: the angle box moved by δ [deg].
+
+    Raises
+    ------
+    ValueError
+        ``tolerances.groove_angle_deg: ...`` when the angles made leave the physics' range.
+    """
     lo, hi = problem.bounds.groove_angle_deg
     if lo - delta <= _ANGLE.minimum or hi + delta >= _ANGLE.maximum:
         raise ValueError("tolerances.groove_angle_deg: the angles made, "
@@ -512,7 +519,15 @@ def _physics_lower_bound(problem: DesignProblem,
     return (min(bounds) if bounds and not unbounded else None), unbounded
 
 
-def _check_model(model: Model | None, envelope: Envelope, objective: str) -> None:
+def check_model(model: Model | None, envelope: Envelope, objective: str) -> None:
+    """Refuse what a model cannot be asked over an envelope (the checks :func:`optimize_robust` makes first).
+
+    Raises
+    ------
+    ValueError
+        Naming the field: ``objective`` (mu_upper without an interval), ``conditions`` (a condition for
+        the physics, a missing or unknown one for a calibrated model).
+    """
     if objective not in OBJECTIVES:
         raise ValueError(f"objective must be one of {', '.join(OBJECTIVES)}; got {objective!r}")
     if model is None or model.kind == "physics":
@@ -609,7 +624,7 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     InfeasibleDesignError
         When no design meets the limits over the envelope.
     """
-    _check_model(model, envelope, objective)
+    check_model(model, envelope, objective)
     if model is not None and model.kind == "physics":
         problem = DesignProblem(problem.bounds, problem.speed_m_s, problem.constraints, problem.fixed,
                                 model.convention)
@@ -625,7 +640,7 @@ def _robust_physics(problem: DesignProblem, envelope: Envelope,
     start = time.perf_counter()
     delta = envelope.angle_tolerance_deg
     v_hi = envelope.speed_m_s[1]
-    shifted = _shifted(problem, delta, v_hi)
+    shifted = shifted_problem(problem, delta, v_hi)
     solved = optimize_design(shifted, progress=None if progress is None else (lambda f: progress(0.6 * f)))
     lower, unbounded = _physics_lower_bound(shifted, solved)
     design = _design_of(solved)
@@ -725,7 +740,7 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     v_hi = envelope.speed_m_s[1]
     # Limits that do not depend on the model (the peak pressure) are worst at the angle made high: the
     # optimizer works in θ' = θ + δ, and the model is asked at θ' - δ + offset.
-    shifted = _shifted(problem, delta, v_hi)
+    shifted = shifted_problem(problem, delta, v_hi)
     points = _vertices_and_centre(envelope)
     rounds, history = 0, []
     solved = None

@@ -1,0 +1,152 @@
+"""POST /v1/optimizations over an operating envelope: the designer's request on a calibrated model, the
+physics' proof, payloads given in fixed.load_N, and the refusals."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from microbearing import physics
+from microbearing.calibrate.model_view import CalibratedPhysicsModel
+from microbearing.optimize import Constraints, DesignBounds, DesignProblem
+from microbearing.optimize.robust import Envelope, optimize_robust
+from microbearing.service.app import create_app
+from microbearing.service.deps import get_runtime
+from microbearing.service.models import resolve
+from microbearing.service.settings import Settings
+
+PHYSICS = {"bounds": {"balls": [3, 12], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
+           "speed_m_s": [0.01, 0.1], "tolerances": {"groove_angle_deg": 0.5},
+           "constraints": {"max_contact_pressure_Pa": 6e8}}
+
+
+def humidity_rows(seed: int = 7, n: int = 60) -> list[dict[str, float]]:
+    """Synthetic measurements: the physics with mu_pivot 0.6 plus capillary menisci growing with humidity
+    (a meniscus force of 2e-5 N per ball at ln(1/h) = 1), 2 % log-normal scatter."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for _ in range(n):
+        load = rng.choice([0.0044, 0.0088, 0.0132])
+        speed, humidity = rng.uniform(0.01, 0.15), rng.uniform(0.25, 0.75)
+        mu = float(physics.evaluate(balls=4, load_N=load, speed_m_s=speed, mu_pivot=0.6).mu)
+        mu += 4 * 2e-5 / (load * np.log(1 / humidity))
+        rows.append({"balls": 4.0, "load_N": float(load), "speed_m_s": round(speed, 3),
+                     "relative_humidity": round(humidity, 2),
+                     "mu_measured": mu * np.exp(rng.normal(0, 0.02))})
+    return rows
+
+
+def finished(client: TestClient, response) -> dict:
+    assert response.status_code == 202, response.text
+    location = response.headers["location"]
+    deadline = time.monotonic() + 300
+    while (job := client.get(location).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.05)
+    assert job["status"] == "succeeded", job
+    return client.get(job["result_url"]).json()
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("robust")))) as test_client:
+        yield test_client
+
+
+@pytest.fixture(scope="module")
+def calibrated(client) -> str:
+    result = finished(client, client.post("/v1/calibrations", json={"data": humidity_rows(),
+                                                                     "fit_parameters": ["mu_pivot"]}))
+    return result["model_id"].removeprefix("calibrated:")
+
+
+def test_physics_over_an_envelope_answers_at_once_with_its_proof(client):
+    response = client.post("/v1/optimizations", json=PHYSICS)
+    assert response.status_code == 200, response.text
+    body = response.json()
+    library = optimize_robust(DesignProblem(DesignBounds((3, 12), (40, 60), (0.001, 0.05)), 0.05,
+                                            constraints=Constraints(max_contact_pressure_Pa=6e8)),
+                              Envelope((0.01, 0.1), tolerances={"groove_angle_deg": 0.5}))
+    assert body["design"] == pytest.approx(library.result.design, rel=1e-9)
+    design, worst = body["design"], body["worst_case"]
+    exact = physics.evaluate(balls=design["balls"], groove_angle_deg=design["groove_angle_deg"] + 0.5,
+                             load_N=design["load_N"], speed_m_s=0.1)
+    assert worst["mu"] == pytest.approx(float(exact.mu), rel=1e-12) == body["mu"]
+    assert worst["speed_m_s"] == 0.1
+    assert worst["groove_angle_deg"] == pytest.approx(design["groove_angle_deg"] + 0.5)
+    assert float(exact.max_contact_pressure_Pa) <= 6e8 * (1 + 1e-9)
+    proof = body["proof"]
+    assert proof["proven"] and proof["method"] == "robust-gp-vertex" and proof["relative_gap"] <= 1e-6
+    assert proof["lower_bound"] <= worst["mu"]
+    assert body["objective"] == "mu" and body["envelope"]["tolerances"] == {"groove_angle_deg": 0.5}
+    assert set(body["price_of_robustness"]) == {"nominal", "robust", "ratio"}
+
+
+def test_the_designers_request_on_a_calibrated_model(client, calibrated):
+    # "the design whose friction stays lowest, at 95 % confidence, over 10-100 mm/s and 30-70 % RH with the
+    # groove angle +- 0.5 deg"
+    request = {"model": f"calibrated:{calibrated}", "objective": "mu_upper",
+               "bounds": {"balls": [3, 12], "groove_angle_deg": [40, 60], "load_N": [0.004, 0.0132]},
+               "speed_m_s": [0.01, 0.1], "conditions": {"relative_humidity": [0.3, 0.7]},
+               "tolerances": {"groove_angle_deg": 0.5}, "starts": 2}
+    body = finished(client, client.post("/v1/optimizations", json=request))
+    worst, design = body["worst_case"], body["design"]
+    model = resolve(get_runtime(client.app).store, f"calibrated:{calibrated}")
+    assert isinstance(model, CalibratedPhysicsModel)
+    # The reported worst case is the model's own mu_upper there, and no point of a grid over the envelope
+    # at the design is worse.
+    at = model.predict({"balls": design["balls"], "load_N": design["load_N"],
+                        "groove_angle_deg": worst["groove_angle_deg"], "speed_m_s": worst["speed_m_s"],
+                        **worst["conditions"]})
+    assert worst["mu_upper"] == pytest.approx(float(np.squeeze(at.mu_upper)), rel=1e-9) == body["mu"]
+    speeds, humidity, offsets = np.meshgrid(np.linspace(0.01, 0.1, 7), np.linspace(0.3, 0.7, 7),
+                                            np.linspace(-0.5, 0.5, 5), indexing="ij")
+    grid = model.predict({"balls": design["balls"], "load_N": design["load_N"], "speed_m_s": speeds,
+                          "groove_angle_deg": design["groove_angle_deg"] + offsets,
+                          "relative_humidity": humidity})
+    assert grid.mu_upper.max() <= worst["mu_upper"] * (1 + 1e-9)
+    # friction grows with humidity (the menisci): the worst case is at 70 % RH
+    assert worst["conditions"]["relative_humidity"] == pytest.approx(0.7)
+    assert body["proof"]["proven"] is False and body["proof"]["upper_bound"] == worst["mu_upper"]
+    assert body["mu_lower"] < body["mu_upper"] == pytest.approx(worst["mu_upper"], rel=1e-9)
+    assert body["price_of_robustness"]["robust"]["worst_case"] == worst["mu_upper"]
+
+
+def test_a_payload_is_given_in_fixed(client):
+    body = client.post("/v1/optimizations", json={"bounds": {"balls": [3, 8], "groove_angle_deg": [40, 60]},
+                                                  "fixed": {"load_N": 0.0196}, "speed_m_s": 0.05}).json()
+    assert body["design"]["load_N"] == 0.0196
+    for z in range(3, 9):  # the physics at that load: no count and angle of a fine grid does better
+        mu = physics.evaluate(balls=z, groove_angle_deg=np.linspace(40, 60, 201), load_N=0.0196,
+                              speed_m_s=0.05).mu
+        assert body["mu"] <= mu.min() * (1 + 1e-9)
+
+
+@pytest.mark.parametrize(("change", "pointer"), [
+    ({"conditions": {"relative_humidity": [0.3, 0.7]}}, "/conditions"),
+    ({"objective": "mu_upper"}, "/objective"),
+    ({"bounds": {"balls": [3, 4], "groove_angle_deg": [40, 89.8], "load_N": [0.001, 0.05]}},
+     "/tolerances/groove_angle_deg"),
+    ({"fixed": {"load_N": 0.0196}}, "/fixed/load_N"),
+    ({"bounds": {"balls": [3, 4], "groove_angle_deg": [40, 60]}}, "/bounds/load_N"),
+    ({"pareto": {"objective": "load_N"}}, "/pareto"),
+    ({"tolerances": {"groove_angle_deg": 11}}, "/tolerances/groove_angle_deg"),
+])
+def test_refusals_name_the_field(client, change, pointer):
+    response = client.post("/v1/optimizations", json={**PHYSICS, **change})
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"].startswith("application/problem+json")
+    assert pointer in [e["pointer"] for e in response.json()["errors"]], response.json()
+
+
+def test_calibrated_conditions_are_named_when_missing_or_unknown(client, calibrated):
+    request = {**PHYSICS, "model": f"calibrated:{calibrated}"}
+    missing = client.post("/v1/optimizations", json=request)
+    assert missing.status_code == 422 and "relative_humidity" in missing.json()["detail"]
+    conditions = {"relative_humidity": [0.3, 0.7], "temperature_C": [20, 60]}
+    unknown = client.post("/v1/optimizations", json={**request, "conditions": conditions})
+    assert unknown.status_code == 422
+    assert any(e["pointer"].startswith("/conditions/temperature_C") for e in unknown.json()["errors"])
