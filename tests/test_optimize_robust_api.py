@@ -3,6 +3,7 @@ physics' proof, payloads given in fixed.load_N, and the refusals."""
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
@@ -150,3 +151,36 @@ def test_calibrated_conditions_are_named_when_missing_or_unknown(client, calibra
     unknown = client.post("/v1/optimizations", json={**request, "conditions": conditions})
     assert unknown.status_code == 422
     assert any(e["pointer"].startswith("/conditions/temperature_C") for e in unknown.json()["errors"])
+
+
+def test_the_command_line_answers_the_designers_request(capsys, tmp_path, monkeypatch):
+    # A calibrated model stored in the data folder the command reads (MICROBEARING_DATA_DIR).
+    from microbearing.calibrate import CalibratedModel
+    from microbearing.calibrate.candidates import EffectTerm
+    from microbearing.service.cli import main
+    from microbearing.service.schemas.optimizations import OptimizationResult
+    from microbearing.service.store import Store
+
+    model = CalibratedModel(fitted={"mu_pivot": 0.6},
+                            terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5])],
+                            covariance=np.diag([1e-4, 1e-12]), noise_std_log=0.02,
+                            domain={"load_N": [0.001, 0.05], "relative_humidity": [0.2, 0.8]},
+                            conditions=["relative_humidity"])
+    store = Store(tmp_path / "data")
+    model_id = store.save_model("calibration", {"model": model.to_json()}, {})
+    store.close()
+    monkeypatch.setenv("MICROBEARING_DATA_DIR", str(tmp_path / "data"))
+    request = tmp_path / "designer.json"
+    request.write_text(json.dumps({
+        "model": f"calibrated:{model_id}", "objective": "mu_upper",
+        "bounds": {"balls": [3, 6], "groove_angle_deg": [40, 60], "load_N": [0.004, 0.0132]},
+        "speed_m_s": [0.01, 0.1], "conditions": {"relative_humidity": [0.3, 0.7]},
+        "tolerances": {"groove_angle_deg": 0.5}, "starts": 1}))
+    assert main(["optimize", str(request), "-o", str(tmp_path / "best.json")]) == 0
+    document = json.loads((tmp_path / "best.json").read_text())
+    OptimizationResult.model_validate(document)
+    envelope = Envelope((0.01, 0.1), {"relative_humidity": (0.3, 0.7)}, {"groove_angle_deg": 0.5})
+    library = optimize_robust(DesignProblem(DesignBounds((3, 6), (40, 60), (0.004, 0.0132)), 0.05), envelope,
+                              CalibratedPhysicsModel("calibrated:x", model), objective="mu_upper", starts=1)
+    assert document["worst_case"]["mu_upper"] == pytest.approx(library.worst_case["mu_upper"], rel=1e-9)
+    assert document["design"] == pytest.approx(library.result.design, rel=1e-9)
