@@ -68,7 +68,7 @@ from microbearing.physics.model import Model
 from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
 from .general import optimize_model
 from .problem import DESIGN_VARIABLES, DesignBounds, DesignProblem, constraint_report
-from .solve import OptimizationResult, optimize_design
+from .solve import BallCountResult, OptimizationResult, optimize_design
 
 __all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE_NAMES", "Envelope",
            "RobustGPResult", "RobustResult", "check_model", "dual_bound", "optimize_robust", "robust_gp",
@@ -632,7 +632,14 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     problem = _with_model_values(problem, model)
     if model is None:
         return _robust_physics(problem, envelope, progress)
-    return _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls)
+    reason = "the objective is mu_upper, whose interval is not log-log convex"
+    if objective == "mu":
+        proven = _robust_calibrated_gp(problem, envelope, model, progress)
+        if isinstance(proven, RobustResult):
+            return proven
+        reason = proven
+    return _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
+                         reason)
 
 
 def _robust_physics(problem: DesignProblem, envelope: Envelope,
@@ -734,7 +741,7 @@ class _SetModel:
 
 def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, objective: str, starts: int,
                   max_rounds: int, progress: Callable[[float], None] | None,
-                  map_calls: Callable | None) -> RobustResult:
+                  map_calls: Callable | None, reason: str = "") -> RobustResult:
     start = time.perf_counter()
     delta = envelope.angle_tolerance_deg
     v_hi = envelope.speed_m_s[1]
@@ -765,8 +772,8 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     theta = design["groove_angle_deg"] - delta
     statement = (
         f"No proof: {model.reference} is not known to be monotone or log-log convex in the speed, the "
-        "conditions and the angle, and no bound on its derivatives is known, so its worst case over a box "
-        "cannot be bounded rigorously. Method: outer approximation in "
+        f"conditions and the angle ({reason or 'not a calibrated model'}), and no bound on its derivatives "
+        "is known, so its worst case over a box cannot be bounded rigorously. Method: outer approximation in "
         f"{rounds} round(s) - the local method minimized the largest {objective} over "
         f"{len(points)} envelope points (vertices, centre and the worst points found), and at each design "
         "the whole envelope was searched (a grid of every axis, then L-BFGS-B ascent from the 3 best grid "
@@ -805,3 +812,272 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     if progress is not None:
         progress(1.0)
     return RobustResult(result, objective, envelope, worst_case, proof, price)
+
+
+# --------------------------------------------------------------------------------------------------
+# Calibrated models whose terms keep the problem a geometric program
+
+
+def _sign(x: float) -> int:
+    return (x > 0) - (x < 0)
+
+
+#: Direction of μ in an effect's main driver, from its formula (physics.effects) and its parameters'
+#: signs: +1 non-decreasing, -1 non-increasing, 0 independent. Effects not listed (a quadratic, a law
+#: added later) are not known to be monotone: a model using one is not proven.
+_DIRECTIONS: dict[str, Callable[[Sequence[float]], int]] = {
+    "humidity_meniscus": lambda v: _sign(v[0]),       # + p / ln(1/h), 1/ln(1/h) grows on (0, 1)
+    "viscous_drag": lambda v: _sign(v[0]),            # + p V / G
+    "viscous_power_law": lambda v: _sign(v[0]),       # + p (V / V0)^e / G, e >= 0.3
+    "constant_drag": lambda v: 0,                     # + p / G: its driver is the load, a design variable
+    "thermal_shear_strength": lambda v: -_sign(v[0]),  # x exp(-p (T - T0))
+    "run_in": lambda v: -_sign(v[0]),                 # x (1 + a exp(-n / L)), L > 0
+    "stribeck_breakaway": lambda v: -_sign(v[0]),     # + a exp(-V / V0), a >= 0
+    "generic_linear": lambda v: _sign(v[0]),          # x exp(c (x - centre) / scale), scale > 0
+    "generic_power": lambda v: _sign(v[0]),           # x (x / reference)^c, x > 0
+}
+#: Reference designs (balls [1], load [N]) at which a term's monomial form in the design is read, and
+#: the one at which it is checked.
+_PROBES = ((1.0, 1.0), (2.0, 1.0), (1.0, 2.0), (3.0, 0.37))
+
+
+@dataclass(frozen=True)
+class _Monomial:
+    """A term at the envelope's worst vertex: ``kind`` "add" (μ + k z^a G^b) or "mul" (μ k z^a G^b)."""
+
+    kind: str
+    coefficient: float
+    balls_exponent: float
+    load_exponent: float
+
+
+def _term_structure(model: Model,
+                    envelope: Envelope) -> tuple[dict[str, Any] | None, list[_Monomial], str]:
+    """The worst vertex and each term as a monomial in the design there, or None and why not.
+
+    The worst vertex follows from the directions of :data:`_DIRECTIONS` (and the physics' μ, which
+    grows with speed and angle); each term's form in (balls, load) is read at three designs and
+    checked at a fourth, so a term whose form the table does not describe is refused, not guessed.
+    """
+    calibrated = getattr(model, "calibrated", None)
+    if calibrated is None:
+        return None, [], f"{model.reference} is not a calibrated model"
+    if getattr(calibrated, "discrepancy", None) is not None:
+        return None, [], "its Gaussian-process discrepancy is not log-log convex"
+    directions: dict[str, set[int]] = {"speed_m_s": {1}}
+    terms = []
+    for term, values in calibrated.terms:
+        name = getattr(term, "name", None)
+        if getattr(term, "kind", None) != "effect" or name not in _DIRECTIONS:
+            return None, [], f"its term {getattr(term, 'label', term)!r} is not one known to be monotone"
+        driver = term.drivers[0]
+        if driver == "groove_angle_deg" or (driver not in ("speed_m_s", "load_N", "balls")
+                                            and driver not in envelope.conditions):
+            return None, [], f"its term {term.label} is driven by {driver}"
+        if driver not in ("load_N", "balls"):
+            directions.setdefault(driver, set()).add(_DIRECTIONS[name](values))
+        terms.append((term, values))
+    worst: dict[str, float] = {}
+    for axis, signs in directions.items():
+        signs.discard(0)
+        if len(signs) > 1:
+            return None, [], f"mu rises and falls with {axis} (terms of opposite directions)"
+        rising = not signs or signs == {1}
+        lo, hi = envelope.speed_m_s if axis == "speed_m_s" else envelope.conditions[axis]
+        worst[axis] = hi if rising else lo
+    conditions = {n: worst.get(n, lo) for n, (lo, _) in envelope.conditions.items()}
+    vertex = {"speed_m_s": worst["speed_m_s"], "conditions": conditions,
+              "groove_angle_offset_deg": envelope.angle_tolerance_deg}
+    monomials = []
+    z = np.array([p[0] for p in _PROBES])
+    g = np.array([p[1] for p in _PROBES])
+    columns = {"balls": z, "load_N": g, "speed_m_s": np.full(z.shape, vertex["speed_m_s"]),
+               **{n: np.full(z.shape, v) for n, v in conditions.items()}}
+    for term, values in terms:
+        effect = term.effect
+        params = dict(zip(effect.parameter_names, values, strict=True))
+        with np.errstate(all="ignore"):
+            try:
+                at = [effect.apply(np.full(z.shape, m), columns, params, term.drivers, term.constants)
+                      for m in (0.0, 0.7, 1.0)]
+            except ValueError as exc:
+                return None, [], str(exc)
+        added = at[0]
+        if np.allclose(at[1], 0.7 + added, rtol=1e-12, atol=0.0) and np.all(added >= 0):
+            kind, amount = "add", added
+        elif np.allclose(at[1], 0.7 * at[2], rtol=1e-12, atol=0.0) and np.all(at[2] > 0):
+            kind, amount = "mul", at[2]
+        else:
+            return None, [], f"its term {term.label} is neither a positive addition nor a positive factor"
+        if kind == "add" and np.all(amount == 0):
+            continue
+        if not np.all(amount > 0):
+            return None, [], f"its term {term.label} vanishes at some designs only"
+        a = float(np.log2(amount[1] / amount[0]))
+        b = float(np.log2(amount[2] / amount[0]))
+        k = float(amount[0])
+        if not math.isclose(k * 3.0**a * 0.37**b, float(amount[3]), rel_tol=1e-9):
+            return None, [], f"its term {term.label} is not a monomial in balls and load_N"
+        monomials.append(_Monomial(kind, k, a, b))
+    return vertex, monomials, ""
+
+
+def _compose(gp, monomials: list[_Monomial]):
+    """The calibrated μ as a DGP expression of the physics' one and the terms, in their order."""
+    mu = gp.expressions["mu"]
+    for m in monomials:
+        piece = m.coefficient
+        if m.balls_exponent:
+            piece = piece * gp.balls**m.balls_exponent
+        if m.load_exponent:
+            piece = piece * gp.load_N**m.load_exponent
+        mu = mu + piece if m.kind == "add" else mu * piece
+    return mu
+
+
+def _calibrated_counts(problem: DesignProblem, monomials: list[_Monomial]) -> dict[int, tuple]:
+    """Every ball count's DGP optimum of the calibrated μ: (status, value, tan θ, load, lower bound)."""
+    limits = frozenset(n for n in problem.constraints.active_limits() if n in LIMIT_NAMES)
+    force = problem.constraints.max_friction_force_N
+    programs: dict[int, tuple] = {}
+    answers = {}
+    for z in problem.ball_counts():
+        gp, values = design_gp(problem, limits=limits - {"max_friction_force_N"}, balls=z)
+        if id(gp) not in programs:
+            mu = _compose(gp, monomials)
+            cons = [c for name, c in gp.constraints.items() if name != "max_friction_force_N"]
+            limit = cp.Parameter(pos=True, name="friction_limit")
+            if force is not None:
+                cons.append(mu * gp.load_N <= limit)
+            programs[id(gp)] = (cp.Problem(cp.Minimize(mu), cons), limit)
+        program, limit = programs[id(gp)]
+        relaxed = {n: (v / (1.0 - SAFETY_MARGIN) if LIMIT_NAMES.get(n) == "max" else v)
+                   for n, v in values.items()}
+        with gp.lock:
+            gp.assign(values, z)
+            limit.value = (force or 1.0) * (1.0 - SAFETY_MARGIN)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)
+                try:
+                    program.solve(gp=True, solver=cp.CLARABEL)
+                    status = program.status
+                except cp.SolverError:
+                    status = "solver_error"
+            solved = status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
+            value = float(program.value) if solved else math.nan
+            t = float(gp.tan_theta.value) if solved else math.nan
+            g = float(gp.load_N.value) if solved else math.nan
+            gp.assign(relaxed, z)
+            limit.value = force or 1.0
+            _, _, lower = dual_bound(program)
+        answers[z] = (status, value, t, g, lower)
+    return answers
+
+
+def _robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Model,
+                          progress: Callable[[float], None] | None) -> RobustResult | str:
+    """The robust design of a calibrated model whose terms keep the problem a GP, proven; else why not."""
+    start = time.perf_counter()
+    vertex, monomials, reason = _term_structure(model, envelope)
+    if vertex is None:
+        return reason
+    delta = envelope.angle_tolerance_deg
+    shifted = shifted_problem(problem, delta, vertex["speed_m_s"])
+    answers = _calibrated_counts(shifted, monomials)
+    solved = {z: a for z, a in answers.items() if a[0] in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)}
+    if not solved:
+        return "no ball count has a solution of the geometric program"
+    box_angle, box_load = shifted.bounds.groove_angle_deg, shifted.bounds.load_N
+    counts = sorted(solved)
+    theta_p = np.clip(np.degrees(np.arctan([solved[z][2] for z in counts])), *box_angle)
+    load = np.clip([solved[z][3] for z in counts], *box_load)
+    designs = {"balls": np.array(counts, dtype=float), "groove_angle_deg": theta_p, "load_N": load}
+    exact = _objective_values(model, "mu", _columns(problem, envelope, designs, [vertex], delta),
+                              problem.convention)
+    best_index = int(np.argmin(exact))
+    z_best = counts[best_index]
+    design = {"balls": z_best, "groove_angle_deg": float(theta_p[best_index]),
+              "load_N": float(load[best_index])}
+    value = float(exact[best_index])
+    mu_solver = solved[z_best][1]
+    mismatch = max(abs(solved[z][1] / float(exact[k]) - 1) for k, z in enumerate(counts))
+    if mismatch > 1e-6:
+        return (f"the geometric program and the model differ by {mismatch:.1e} relative at the counts' "
+                "optima (a term the translation does not capture)")
+    bounds = [a[4] for a in answers.values()]
+    lower = None if any(math.isnan(b) for b in bounds) else min(min(bounds), value)
+    gap = None if lower is None else max(0.0, (value - lower) / value)
+    # Cross-check of the vertex argument at the design: a search of the whole envelope finds nothing worse.
+    searched, where, _ = worst_case_search(_evaluator(problem, envelope, model, "mu", design, delta),
+                                           envelope)
+    proven = lower is not None and gap <= GAP_TARGET and searched <= value * (1 + 1e-9)
+    rows = [BallCountResult(z, "does not fit the groove") for z in range(shifted.bounds.balls[0],
+                                                                         shifted.bounds.balls[1] + 1)
+            if z not in answers]
+    rows += [BallCountResult(z, answers[z][0] if z not in solved else solved[z][0])
+             if z not in solved else
+             BallCountResult(z, solved[z][0], float(theta_p[counts.index(z)]), float(load[counts.index(z)]),
+                             float(exact[counts.index(z)]), solved[z][1],
+                             solved[z][1] / float(exact[counts.index(z)]) - 1.0)
+             for z in answers]
+    rows.sort(key=lambda r: r.balls)
+    directions = ", ".join(f"{n} at {v:g}" for n, v in vertex["conditions"].items()) or "no condition"
+    statement = (
+        f"{model.reference}: the physics with its fitted values and {len(monomials)} term(s), each a "
+        "positive "
+        "monomial in balls and load_N added to mu or multiplying it (read at three designs, checked at a "
+        "fourth), driven by the speed or a condition through a formula monotone in it (physics.effects; "
+        "the directions from the fitted parameters' signs), so mu is a posynomial in tan(theta) and load_N "
+        "for every ball count and its worst case over the envelope is one vertex: the angle made high "
+        f"(+{delta:g} deg), speed {vertex['speed_m_s']:g} m/s, {directions}. The robust problem is then the "
+        "geometric program of every ball count at that vertex; certified lower bound "
+        f"{lower if lower is not None else float('nan'):.10g} (least dual objective over the counts, limits "
+        f"exact, less Clarabel's tolerance), worst case at the design {value:.10g} (the model itself), "
+        f"relative gap {gap if gap is not None else float('nan'):.2e} (target {GAP_TARGET:g}); solver and "
+        f"model agree to {mismatch:.1e} at every count's optimum. A search of the whole envelope at the "
+        "design "
+        f"(grid and L-BFGS-B) found {searched:.10g}.")
+    if searched > value * (1 + 1e-9):
+        statement += (" That is above the vertex's value: the monotonicity argument failed here, nothing is "
+                      "proven.")
+    proof = {"proven": bool(proven), "method": "robust-gp-vertex", "lower_bound": lower, "upper_bound": value,
+             "relative_gap": gap, "gap_target": GAP_TARGET, "statement": statement}
+    worst_point = vertex if searched <= value * (1 + 1e-9) else where
+    worst_case = _worst_case_dict("mu", max(value, searched), worst_point, design["groove_angle_deg"] - delta)
+    # Price of robustness: the same program at the envelope's centre, no tolerance.
+    centre = envelope.centre()
+    centre_envelope = Envelope(centre["speed_m_s"], centre["conditions"])
+    nominal = _robust_calibrated_gp(problem, centre_envelope, model, None) if envelope.axes() else None
+    if isinstance(nominal, RobustResult):
+        nominal_design = _design_of(nominal.result)
+        nominal_worst = float(_evaluator(problem, envelope, model, "mu", nominal_design, 0.0)(
+            [{**vertex, "groove_angle_offset_deg": delta}])[0])
+        nominal_centre = float(nominal.worst_case["mu"])
+        limits = constraint_report(shifted, nominal_design["balls"],
+                                   nominal_design["groove_angle_deg"] + delta, nominal_design["load_N"],
+                                   mu=nominal_worst)
+        nominal_holds = all(c.satisfied for c in limits if not c.name.startswith("groove_angle_deg"))
+    else:
+        nominal_design, nominal_worst, nominal_centre, nominal_holds = (
+            {**design, "groove_angle_deg": design["groove_angle_deg"] - delta}, value, value, True)
+    robust_centre = float(_evaluator(problem, envelope, model, "mu", design, delta)(
+        [envelope.point({"speed_m_s": centre["speed_m_s"],
+                         **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})])[0])
+    price = _price(nominal_design, nominal_centre, nominal_worst, nominal_holds,
+                   {**design, "groove_angle_deg": design["groove_angle_deg"] - delta}, robust_centre, value)
+    best_mu = value
+    ties = [{"balls": r.balls, "groove_angle_deg": r.groove_angle_deg, "load_N": r.load_N,
+             "load_per_ball_N": r.load_N / r.balls, "mu": r.mu}
+            for r in rows if r.mu is not None and r.mu <= best_mu * (1 + 1e-6)]
+    certificate = ("Global optimum of the worst case of mu over the envelope, by geometric programming per "
+                   f"ball count (all {len(rows)} counts enumerated). {statement}")
+    result = OptimizationResult(
+        design=design, mu=value, mu_solver=mu_solver, relative_gap=mu_solver / value - 1.0,
+        speed_m_s=float(vertex["speed_m_s"]),
+        constraints=constraint_report(shifted, z_best, design["groove_angle_deg"], design["load_N"],
+                                      mu=value, mu_name=model.reference),
+        per_ball_count=rows, ties=ties, certificate=certificate, solve_time_s=time.perf_counter() - start,
+        method="robust-gp-vertex")
+    if progress is not None:
+        progress(1.0)
+    return RobustResult(_unshift(result, delta), "mu", envelope, worst_case, proof, price)

@@ -198,8 +198,14 @@ def test_calibrated_model_robust_design_against_brute_force(objective):
     theta, load = np.meshgrid(np.linspace(45, 60, 16), np.geomspace(0.002, 0.02, 31), indexing="ij")
     best_grid = min(float(worst(z, theta, load).min()) for z in (3, 4, 5))
     assert robust.worst_case[objective] <= best_grid * (1 + 1e-6)
-    assert robust.proof["proven"] is False and robust.proof["lower_bound"] is None
-    assert "No proof" in robust.proof["statement"]
+    if objective == "mu":
+        # The physics plus a positive monomial in balls / load_N growing with humidity: a GP at one vertex.
+        proof = robust.proof
+        assert proof["proven"] and proof["method"] == "robust-gp-vertex" and proof["relative_gap"] <= 1e-6
+        assert proof["lower_bound"] <= best_grid and proof["lower_bound"] <= robust.worst_case["mu"]
+    else:  # the interval's width is no posynomial: said to be unproven
+        assert robust.proof["proven"] is False and robust.proof["lower_bound"] is None
+        assert "No proof" in robust.proof["statement"] and "mu_upper" in robust.proof["statement"]
     # Friction grows with humidity (the menisci) and speed, and with the angle: the far corner.
     assert robust.worst_case["conditions"]["relative_humidity"] == pytest.approx(0.7)
     assert robust.worst_case["speed_m_s"] == pytest.approx(0.1)
@@ -237,3 +243,43 @@ def test_refusals_name_the_field():
     edge = DesignProblem(DesignBounds((3, 4), (45, 89.9), (0.002, 0.02)), 0.05)
     with pytest.raises(ValueError, match=r"^tolerances\.groove_angle_deg"):
         optimize_robust(edge, Envelope(SPEEDS, tolerances={"groove_angle_deg": 0.5}))
+
+
+def test_calibrated_gp_proof_on_the_four_dimensional_envelope_against_brute_force():
+    # menisci growing with humidity, shear strength falling with temperature (so the worst case is cold),
+    # a viscous drag growing with speed, and the angle made to +- 0.5 deg
+    model = CalibratedPhysicsModel("calibrated:four", CalibratedModel(
+        fitted={"mu_pivot": 0.6},
+        terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
+               (EffectTerm("thermal_shear_strength", ("temperature_C",), {"reference": 40.0}), [0.004]),
+               (EffectTerm("viscous_drag", ("speed_m_s", "load_N")), [1e-3])],
+        conditions=["relative_humidity", "temperature_C"]))
+    limit = 6e8
+    problem = DesignProblem(DesignBounds((3, 5), (45, 60), (0.002, 0.02)), 0.05,
+                            Constraints(max_contact_pressure_Pa=limit))
+    envelope = Envelope(SPEEDS, {"relative_humidity": (0.3, 0.7), "temperature_C": (20.0, 60.0)},
+                        {"groove_angle_deg": DELTA})
+    robust = optimize_robust(problem, envelope, model)
+    proof = robust.proof
+    assert proof["proven"] and proof["relative_gap"] <= 1e-6
+    assert robust.worst_case["conditions"] == {"relative_humidity": 0.7, "temperature_C": 20.0}
+    assert robust.worst_case["speed_m_s"] == SPEEDS[1]
+    # Brute force: designs on a grid, each at 3^4 envelope points; limits judged by the exact physics.
+    z, theta, load = (a.reshape(-1, 1) for a in np.meshgrid(np.arange(3, 6), np.linspace(45, 60, 16),
+                                                            np.geomspace(0.002, 0.02, 41), indexing="ij"))
+    env = np.array(list(itertools.product(np.linspace(*SPEEDS, 3), (0.3, 0.5, 0.7), (20.0, 40.0, 60.0),
+                                          (-DELTA, 0.0, DELTA)))).T
+    columns = {"balls": z, "groove_angle_deg": theta + env[3], "load_N": load, "speed_m_s": env[0],
+               "relative_humidity": env[1], "temperature_C": env[2]}
+    worst = model(columns).max(axis=1)
+    pressure = physics.evaluate(balls=z[:, 0], groove_angle_deg=theta[:, 0] + DELTA, load_N=load[:, 0],
+                                speed_m_s=0.1, mu_pivot=0.6).max_contact_pressure_Pa
+    feasible = pressure <= limit
+    assert feasible.any() and not feasible.all()
+    assert worst[feasible].min() >= robust.worst_case["mu"] * (1 - 1e-9)
+    assert proof["lower_bound"] <= worst[feasible].min()
+    design = robust.result.design
+    at = {"balls": design["balls"], "groove_angle_deg": design["groove_angle_deg"] + env[3],
+          "load_N": design["load_N"], "speed_m_s": env[0], "relative_humidity": env[1],
+          "temperature_C": env[2]}
+    assert model(at).max() == pytest.approx(robust.worst_case["mu"], rel=1e-12)
