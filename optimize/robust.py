@@ -68,7 +68,7 @@ from microbearing.physics.model import Model
 from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
 from .general import optimize_model
 from .problem import DESIGN_VARIABLES, DesignBounds, DesignProblem, constraint_report
-from .solve import BallCountResult, OptimizationResult, optimize_design
+from .solve import TIE_TOLERANCE, BallCountResult, OptimizationResult, optimize_design, polish_design
 
 __all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE_NAMES", "Envelope",
            "RobustGPResult", "RobustResult", "check_model", "dual_bound", "optimize_robust", "robust_gp",
@@ -991,10 +991,22 @@ def _robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Mod
     counts = sorted(solved)
     theta_p = np.clip(np.degrees(np.arctan([solved[z][2] for z in counts])), *box_angle)
     load = np.clip([solved[z][3] for z in counts], *box_load)
-    designs = {"balls": np.array(counts, dtype=float), "groove_angle_deg": theta_p, "load_N": load}
-    exact = _objective_values(model, "mu", _columns(problem, envelope, designs, [vertex], delta),
-                              problem.convention)
-    best_index = int(np.argmin(exact))
+    def exact_at(theta: np.ndarray, load: np.ndarray) -> np.ndarray:
+        designs = {"balls": np.array(counts, dtype=float), "groove_angle_deg": theta, "load_N": load}
+        return _objective_values(model, "mu", _columns(problem, envelope, designs, [vertex], delta),
+                                 problem.convention)
+
+    exact = exact_at(theta_p, load)
+    if shifted.constraints.max_friction_force_N is None:
+        # The solver stops within its tolerance of a binding limit: moved onto the exact boundary with the
+        # physics (optimize.solve.polish_design), kept only where the model's mu is lower there.
+        theta_q, load_q, _ = polish_design(shifted, np.array(counts), theta_p, load)
+        polished = exact_at(theta_q, load_q)
+        better = polished < exact
+        theta_p, load = np.where(better, theta_q, theta_p), np.where(better, load_q, load)
+        exact = np.where(better, polished, exact)
+    # The fewest balls among the designs within 1e-6 of the best (mu depends on the load per ball).
+    best_index = min(np.flatnonzero(exact <= exact.min() * (1 + TIE_TOLERANCE)), key=lambda k: counts[k])
     z_best = counts[best_index]
     design = {"balls": z_best, "groove_angle_deg": float(theta_p[best_index]),
               "load_N": float(load[best_index])}
@@ -1068,7 +1080,7 @@ def _robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Mod
     best_mu = value
     ties = [{"balls": r.balls, "groove_angle_deg": r.groove_angle_deg, "load_N": r.load_N,
              "load_per_ball_N": r.load_N / r.balls, "mu": r.mu}
-            for r in rows if r.mu is not None and r.mu <= best_mu * (1 + 1e-6)]
+            for r in rows if r.mu is not None and r.mu <= best_mu * (1 + TIE_TOLERANCE)]
     certificate = ("Global optimum of the worst case of mu over the envelope, by geometric programming per "
                    f"ball count (all {len(rows)} counts enumerated). {statement}")
     result = OptimizationResult(
