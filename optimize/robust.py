@@ -61,6 +61,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 from scipy import optimize as sciopt
+from scipy import stats
 
 from microbearing import physics
 from microbearing.physics.model import Model
@@ -633,13 +634,41 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     if model is None:
         return _robust_physics(problem, envelope, progress)
     reason = "the objective is mu_upper, whose interval is not log-log convex"
+    proven = _robust_calibrated_gp(problem, envelope, model, None if objective != "mu" else progress)
     if objective == "mu":
-        proven = _robust_calibrated_gp(problem, envelope, model, progress)
         if isinstance(proven, RobustResult):
             return proven
         reason = proven
-    return _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
-                         reason)
+    result = _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
+                           reason)
+    noise = getattr(getattr(model, "calibrated", None), "noise_std_log", None)
+    if objective == "mu_upper" and isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
+        result = _with_interval_bound(result, proven, float(noise))
+    return result
+
+
+def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_std_log: float) -> RobustResult:
+    """A mu_upper result with the certified lower bound that the proven mu problem gives.
+
+    A calibrated model's upper bound is mu exp(z sigma) with sigma^2 = g'Cg + noise^2 >= noise^2 (C positive
+    semi-definite, no discrepancy), so every design's worst mu_upper is at least exp(z noise) times its worst
+    mu, hence at least exp(z noise) times the certified lower bound of the mu problem (whose friction limit on
+    mu is a relaxation of the one on mu_upper).
+    """
+    z = float(stats.norm.isf(0.025))
+    lower = min(mu_result.proof["lower_bound"] * math.exp(z * noise_std_log), result.proof["upper_bound"])
+    upper = result.proof["upper_bound"]
+    gap = (upper - lower) / upper
+    statement = (f" Certified lower bound {lower:.10g}: mu_upper >= mu exp(1.96 x {noise_std_log:.4g}) "
+                 "(the interval is at least the measurement scatter) and the worst mu over the envelope is "
+                 f"proven at least {mu_result.proof['lower_bound']:.10g} (geometric programming, as for "
+                 f"objective mu); relative gap to the worst case found {gap:.2e}: the parameters' share of "
+                 "the interval. Not proven, since the worst case at the design is searched, not bounded.")
+    proof = {**result.proof, "lower_bound": lower, "relative_gap": gap,
+             "statement": result.proof["statement"] + statement}
+    certificate = result.result.certificate + statement
+    return dataclasses.replace(result, proof=proof,
+                               result=dataclasses.replace(result.result, certificate=certificate))
 
 
 def _robust_physics(problem: DesignProblem, envelope: Envelope,
