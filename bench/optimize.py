@@ -212,6 +212,9 @@ def robust() -> None:
                          f"{proof['relative_gap']:.1e} (lower bound {proof['lower_bound']:.8g})")
         else:
             certified = f"no proof (outer approximation, {len(proof['rounds'])} round(s))"
+            if proof["lower_bound"] is not None:
+                certified += (f", certified lower bound {proof['lower_bound']:.8g}, gap "
+                              f"{proof['relative_gap']:.1e}")
         print(f"  {label}, {objective}: {statistics.median(times):.2f} s per call (min {min(times):.2f}); "
               f"worst case {worst:.8g}, {certified}; fresh search over {count} points: "
               f"{fresh:.8g} ({fresh / worst - 1:+.1e}); design {design['balls']} balls, "

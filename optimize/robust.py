@@ -634,7 +634,8 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     if model is None:
         return _robust_physics(problem, envelope, progress)
     reason = "the objective is mu_upper, whose interval is not log-log convex"
-    proven = _robust_calibrated_gp(problem, envelope, model, None if objective != "mu" else progress)
+    proven = (_robust_calibrated_gp(problem, envelope, model, progress) if objective == "mu" else
+              _robust_calibrated_gp(problem, envelope, model, None, bound_only=True))
     if objective == "mu":
         if isinstance(proven, RobustResult):
             return proven
@@ -821,7 +822,7 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     nominal = optimize_model(nominal_problem,
                              _SetModel(nominal_problem, centre_envelope, model, objective,
                                        [centre_envelope.point({})], 0.0),
-                             starts=starts, model_name=model.reference, map_calls=map_calls)
+                             starts=1, model_name=model.reference, map_calls=map_calls)
     nominal_design = _design_of(nominal)
     nominal_worst, _, _ = worst_case_search(
         _evaluator(problem, envelope, model, objective, nominal_design, 0.0), envelope)
@@ -1004,8 +1005,13 @@ def _calibrated_counts(problem: DesignProblem, monomials: list[_Monomial]) -> di
 
 
 def _robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Model,
-                          progress: Callable[[float], None] | None) -> RobustResult | str:
-    """The robust design of a calibrated model whose terms keep the problem a GP, proven; else why not."""
+                          progress: Callable[[float], None] | None,
+                          bound_only: bool = False) -> RobustResult | str:
+    """The robust design of a calibrated model whose terms keep the problem a GP, proven; else why not.
+
+    ``bound_only``: only the design and its certified bound are wanted (no envelope search, no price of
+    robustness: their fields repeat the design's own values).
+    """
     start = time.perf_counter()
     vertex, monomials, reason = _term_structure(model, envelope)
     if vertex is None:
@@ -1049,8 +1055,8 @@ def _robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Mod
     lower = None if any(math.isnan(b) for b in bounds) else min(min(bounds), value)
     gap = None if lower is None else max(0.0, (value - lower) / value)
     # Cross-check of the vertex argument at the design: a search of the whole envelope finds nothing worse.
-    searched, where, _ = worst_case_search(_evaluator(problem, envelope, model, "mu", design, delta),
-                                           envelope)
+    searched, where = (value, vertex) if bound_only else worst_case_search(
+        _evaluator(problem, envelope, model, "mu", design, delta), envelope)[:2]
     proven = lower is not None and gap <= GAP_TARGET and searched <= value * (1 + 1e-9)
     rows = [BallCountResult(z, "does not fit the groove") for z in range(shifted.bounds.balls[0],
                                                                          shifted.bounds.balls[1] + 1)
@@ -1088,7 +1094,8 @@ def _robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Mod
     # Price of robustness: the same program at the envelope's centre, no tolerance.
     centre = envelope.centre()
     centre_envelope = Envelope(centre["speed_m_s"], centre["conditions"])
-    nominal = _robust_calibrated_gp(problem, centre_envelope, model, None) if envelope.axes() else None
+    nominal = (_robust_calibrated_gp(problem, centre_envelope, model, None, bound_only=True)
+               if envelope.axes() and not bound_only else None)
     if isinstance(nominal, RobustResult):
         nominal_design = _design_of(nominal.result)
         nominal_worst = float(_evaluator(problem, envelope, model, "mu", nominal_design, 0.0)(
