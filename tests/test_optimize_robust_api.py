@@ -187,3 +187,28 @@ def test_the_command_line_answers_the_designers_request(capsys, tmp_path, monkey
                               CalibratedPhysicsModel("calibrated:x", model), objective="mu_upper", starts=1)
     assert document["worst_case"]["mu_upper"] == pytest.approx(library.worst_case["mu_upper"], rel=1e-9)
     assert document["design"] == pytest.approx(library.result.design, rel=1e-9)
+
+
+def test_the_readme_example_gives_the_figures_it_shows():
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("## Designs that hold over an operating envelope"):]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    namespace: dict = {}
+    exec(compile(code, "README.md", "exec"), namespace)  # the README's own example
+    robust = namespace["robust"]
+    assert robust.result.design["balls"] == 4
+    assert robust.result.design["groove_angle_deg"] == pytest.approx(45.5)
+    assert robust.result.design["load_N"] == pytest.approx(0.013054, rel=1e-4)
+    assert robust.worst_case["mu_upper"] == pytest.approx(0.026271, rel=1e-4)
+    assert robust.worst_case["conditions"] == {"relative_humidity": 0.7}
+    assert robust.proof["lower_bound"] == pytest.approx(0.026262, rel=1e-4)
+    assert robust.proof["relative_gap"] == pytest.approx(3.4e-4, rel=0.05) and not robust.proof["proven"]
+    nominal = robust.price_of_robustness["nominal"]
+    assert nominal["worst_case"] == pytest.approx(0.026103, rel=1e-4)
+    assert not nominal["limits_hold_over_envelope"]
+    assert 1 - robust.result.design["load_N"] / nominal["design"]["load_N"] == pytest.approx(0.009, abs=5e-4)
+    proven = namespace["optimize_robust"](namespace["problem"], namespace["envelope"], namespace["model"])
+    assert proven.proof["proven"] and proven.worst_case["mu"] == pytest.approx(0.025198, rel=1e-4)
+    assert proven.proof["relative_gap"] < 1e-6
