@@ -288,3 +288,28 @@ def test_calibrated_gp_proof_on_the_four_dimensional_envelope_against_brute_forc
           "load_N": design["load_N"], "speed_m_s": env[0], "relative_humidity": env[1],
           "temperature_C": env[2]}
     assert model(at).max() == pytest.approx(robust.worst_case["mu"], rel=1e-12)
+
+
+def test_a_surrogate_of_the_physics_gives_the_physics_robust_design_to_its_accuracy():
+    from scipy.stats import qmc
+
+    from microbearing.surrogate import GaussianProcessSurrogate, Space
+    from microbearing.surrogate.model_view import SurrogateModel
+
+    space = Space({"balls": (3, 8), "groove_angle_deg": (40, 61), "load_N": (0.002, 0.02),
+                   "speed_m_s": (0.0, 0.12)})
+    X = space.from_unit(qmc.Sobol(4, seed=0).random(128))
+    model = SurrogateModel("surrogate:physics", GaussianProcessSurrogate(space, random_state=0).fit(
+        X, space.evaluate(X)))
+    problem = DesignProblem(DesignBounds((3, 8), (45, 60), (0.002, 0.02)), 0.05)
+    envelope = Envelope(SPEEDS, tolerances={"groove_angle_deg": DELTA})
+    robust = optimize_robust(problem, envelope, model)
+    truth = optimize_robust(problem, envelope)  # the physics, proven
+    design = robust.result.design
+    exact = physics.evaluate(balls=design["balls"], groove_angle_deg=design["groove_angle_deg"] + DELTA,
+                             load_N=design["load_N"], speed_m_s=SPEEDS[1])
+    # The surrogate's design, judged by the physics at its worst case, is within the surrogate's error of
+    # the proven optimum; the surrogate's own worst case is within that error of the physics there.
+    assert float(exact.mu) <= truth.worst_case["mu"] * (1 + 1e-3)
+    assert robust.worst_case["mu"] == pytest.approx(float(exact.mu), rel=1e-3)
+    assert robust.proof["proven"] is False and "not a calibrated model" in robust.proof["statement"]
