@@ -35,9 +35,9 @@ class DesignBounds(StrictModel):
                                 _pair(f"groove angle, {_ANGLE.range_text()} [deg]")]
     load_N: Annotated[list[Annotated[float, Field(ge=_LOAD.minimum, le=_LOAD.maximum)]] | None,
                       Field(default=None, min_length=2, max_length=2, description=(
-                          f"[lower, upper] normal load on the slider, {_LOAD.range_text()}, both included "
-                          "[N]; "
-                          "or give a payload in fixed.load_N instead (a given load, not a range)."))] = None
+                          f"[lower, upper] normal load on the slider, {_LOAD.range_text()}, both "
+                          "included [N]; or give a payload in fixed.load_N instead (a given load, not a "
+                          "range)."))] = None
 
 
 class DesignLimits(StrictModel):
@@ -82,9 +82,9 @@ class DesignTolerances(StrictModel):
     """Manufacturing tolerances: the design must hold anywhere within nominal +- the tolerance."""
 
     groove_angle_deg: float | None = Field(
-        default=None, ge=0.0, le=10.0, description="Half-width of the groove angle's tolerance: the angle "
-                                                   "made "
-        "lies anywhere in nominal +- this [deg].")
+        default=None, ge=0.0, le=10.0,
+        description="Half-width of the groove angle's tolerance: the angle made lies anywhere in nominal +- "
+                    "this [deg].")
 
 
 #: A condition's value or its [low, high] range (the envelope), in the calibration data's unit.
@@ -110,29 +110,29 @@ class OptimizationRequest(StrictModel):
     speed_m_s: float | Annotated[list[Annotated[float, Field(ge=0, le=1e3)]], Field(
         min_length=2, max_length=2)] | None = Field(
         default=None, description="Slider speed [m/s], or [low, high] to design for the worst case over "
-        "the range (the operating envelope, with the condition ranges and tolerances): for model physics "
-        "the high end, proven (mu grows with speed); for a calibrated model the worst case searched over the "
-        "whole envelope (the result's worst_case says where it occurs); for a surrogate without other ranges "
-        f"or tolerances the largest mu over {SPEED_GRID_POINTS} equally spaced speeds, both ends included. "
-        "Required here or in fixed.")
+        "the range (the operating envelope, with the condition ranges and tolerances; the result's "
+        "worst_case says where it occurs and proof what is proven): for model physics the high end, proven "
+        "(mu grows with speed); for a calibrated model its worst end when its terms are monotone, else the "
+        "worst case searched over the whole envelope; for a surrogate without other ranges or tolerances "
+        f"the largest mu over {SPEED_GRID_POINTS} equally spaced speeds, both ends included. Required here "
+        "or in fixed.")
     constraints: DesignLimits = Field(default_factory=DesignLimits, description="Engineering limits.")
     model: str = Field(default="physics", pattern=MODEL_PATTERN, description=(
         "physics (a certified global optimum by geometric programming), surrogate:<id> or "
-        "calibrated:<id> (a local optimum by sequential convex approximation)."))
+        "calibrated:<id> (a local optimum by sequential convex approximation; over an envelope, proven by "
+        "geometric programming when the calibrated model's terms allow, see proof)."))
     conditions: dict[str, ConditionRange] | None = Field(
         default=None, description="Condition columns a calibrated model's terms read (e.g. "
-                                  "relative_humidity, "
-        "temperature_C), in the calibration data's units: a value, or [low, high] to design for the worst "
+        "relative_humidity, temperature_C), in the calibration data's units: a value, or [low, high] to design for the worst "
         "case over the range (the operating envelope).",
         examples=[{"relative_humidity": [0.3, 0.7], "temperature_C": [20, 60]}])
     tolerances: DesignTolerances | None = Field(
         default=None, description="Tolerances of design variables: the design must hold (objective and "
         "limits) anywhere within nominal +- each.")
     objective: Literal["mu", "mu_upper"] = Field(
-        default="mu", description="What the design minimizes the worst case of over the envelope: mu [1], or "
-        "mu_upper [1], the 95 % upper bound of a calibrated or surrogate model's prediction (a friction "
-        "limit "
-        "to guarantee).")
+        default="mu", description="What the design minimizes the worst case of over the envelope: mu [1], "
+        "or mu_upper [1], the 95 % upper bound of a calibrated or surrogate model's prediction (a friction "
+        "limit to guarantee).")
     starts: int = Field(default=3, ge=1, le=9, description="Starting points per ball count of the local "
                         "method for surrogate and calibrated models [1].")
     convention: ConventionName = Field(  # type: ignore[valid-type]
@@ -239,9 +239,10 @@ class Envelope(ResponseModel):
     """The operating envelope of a robust design."""
 
     speed_m_s: list[float] = Field(description="[low, high] slider speed [m/s].")
-    conditions: dict[str, list[float]] = Field(description="[low, high] of each condition column, in the "
-                                                           "calibration data's unit.")
-    tolerances: dict[str, float] = Field(description="Half-width of each tolerance (groove_angle_deg [deg]).")
+    conditions: dict[str, list[float]] = Field(
+        description="[low, high] of each condition column, in the calibration data's unit.")
+    tolerances: dict[str, float] = Field(
+        description="Half-width of each tolerance (groove_angle_deg [deg]).")
 
 
 class WorstCase(ResponseModel):
@@ -251,14 +252,14 @@ class WorstCase(ResponseModel):
     mu_upper: float | None = Field(default=None, description=(
         "The worst 95 % upper bound over the envelope (objective mu_upper) [1]."))
     speed_m_s: float = Field(description="Speed where it occurs [m/s].")
-    groove_angle_deg: float = Field(description="The angle made (nominal + offset within the tolerance) "
-                                                "where "
-                                                "it occurs [deg].")
-    conditions: dict[str, float] = Field(description="Condition values where it occurs, in the data's units.")
+    groove_angle_deg: float = Field(
+        description="The angle made (nominal + offset within the tolerance) where it occurs [deg].")
+    conditions: dict[str, float] = Field(
+        description="Condition values where it occurs, in the calibration data's units.")
 
 
 class OuterRound(ResponseModel):
-    """One round of the outer approximation (models other than the physics)."""
+    """One round of the outer approximation (models without a proof)."""
 
     round: int = Field(description="Round number [1].")
     points: int = Field(description="Envelope points the design was optimized over [1].")
@@ -270,17 +271,14 @@ class Proof(ResponseModel):
     """What is proven about a robust design."""
 
     proven: bool = Field(description="Whether the worst case is proven optimal to the gap target.")
-    method: str = Field(description="robust-gp-vertex (the physics: geometric programming at the envelope's "
-                                    "worst vertex, proven monotone) or outer-approximation-local (other "
-                                    "models: "
-                                    "no proof).")
-    lower_bound: float | None = Field(description="Certified lower bound on the best achievable worst case "
-                                                  "[1]; "
-                                                  "null when none could be certified.")
+    method: str = Field(description=(
+        "robust-gp-vertex (the physics, or a calibrated model whose terms are monotone positive monomials: "
+        "geometric programming at the envelope's worst vertex) or outer-approximation-local (no proof)."))
+    lower_bound: float | None = Field(description=(
+        "Certified lower bound on the best achievable worst case [1]; null when none could be certified."))
     upper_bound: float = Field(description="The worst case at the returned design [1].")
-    relative_gap: float | None = Field(description="(upper_bound - lower_bound) / upper_bound [1]; null "
-                                                   "without "
-                                                   "a lower bound.")
+    relative_gap: float | None = Field(description=(
+        "(upper_bound - lower_bound) / upper_bound [1]; null without a lower bound."))
     gap_target: float = Field(description="The relative gap aimed at [1].")
     statement: str = Field(description="The argument, in words.")
     rounds: list[OuterRound] | None = Field(default=None, description="The outer approximation's rounds.")
@@ -300,17 +298,18 @@ class PriceOfRobustness(ResponseModel):
 
     nominal: PricedDesign = Field(description="The optimum at the envelope's centre, without tolerances.")
     robust: PricedDesign = Field(description="The robust optimum.")
-    ratio: float = Field(description="nominal worst case / robust worst case [1] (below 1 only when the "
-                                     "nominal "
-                                     "design breaks a limit over the envelope).")
+    ratio: float = Field(description=(
+        "nominal worst case / robust worst case [1] (below 1 only when the nominal design breaks a limit "
+        "somewhere in the envelope)."))
 
 
 class OptimizationResult(ResponseModel):
     """The best design, checked with the exact physics, and why it is the best."""
 
     model: str = Field(description="The model optimized.")
-    method: str = Field(description="dgp-enumeration (certified global) or sequential-convex-approximation "
-                                    "(local).")
+    method: str = Field(description="dgp-enumeration (certified global), sequential-convex-approximation "
+                                    "(local), or for an envelope robust-gp-vertex (proven) or "
+                                    "outer-approximation-local (not proven).")
     design: BearingDesign = Field(description="The best design (the fewest balls among ties).")
     mu: float = Field(description="mu of the model at the design (the exact physics for model physics) [1].")
     mu_solver: float = Field(description="The solver's value of mu [1].")
@@ -354,5 +353,4 @@ class OptimizationResult(ResponseModel):
         "the gap."))
     price_of_robustness: PriceOfRobustness | None = Field(default=None, description=(
         "With an envelope: the nominal optimum (at the envelope's centre) beside the robust one, each with "
-        "its "
-        "worst case."))
+        "its worst case."))
