@@ -123,8 +123,8 @@ class OptimizationRequest(StrictModel):
         "geometric programming when the calibrated model's terms allow, see proof)."))
     conditions: dict[str, ConditionRange] | None = Field(
         default=None, description="Condition columns a calibrated model's terms read (e.g. "
-        "relative_humidity, temperature_C), in the calibration data's units: a value, or [low, high] to design for the worst "
-        "case over the range (the operating envelope).",
+        "relative_humidity, temperature_C), in the calibration data's units: a value, or [low, high] to "
+        "design for the worst case over the range (the operating envelope).",
         examples=[{"relative_humidity": [0.3, 0.7], "temperature_C": [20, 60]}])
     tolerances: DesignTolerances | None = Field(
         default=None, description="Tolerances of design variables: the design must hold (objective and "
