@@ -401,17 +401,26 @@ def worst_case_search(evaluate: Callable[[list[dict[str, Any]]], np.ndarray], en
     count = len(grid)
     best = int(np.nanargmax(values))
     best_value, best_unit = float(values[best]), grid[best]
+    step = 1e-7
+    calls = 0
+
+    def negative(u: np.ndarray) -> tuple[float, np.ndarray]:
+        # The value and a forward-difference gradient (backward at the upper edge) in one call of the model.
+        nonlocal calls
+        sign = np.where(u + step <= 1.0, 1.0, -1.0)
+        at = np.vstack([u, u + np.diag(sign * step)])
+        f = -np.asarray(evaluate(points_of(at)), dtype=float)
+        calls += len(at)
+        return float(f[0]), (f[1:] - f[0]) / (sign * step)
+
     for start in np.argsort(-np.nan_to_num(values, nan=-np.inf))[:polish]:
-        def negative(u: np.ndarray) -> float:
-            return -float(evaluate(points_of(u[None, :]))[0])
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")
-            found = sciopt.minimize(negative, grid[start], method="L-BFGS-B", bounds=[(0.0, 1.0)] * k,
-                                    options={"maxiter": 50})
-        count += int(found.nfev)
+            found = sciopt.minimize(negative, grid[start], jac=True, method="L-BFGS-B",
+                                    bounds=[(0.0, 1.0)] * k, options={"maxiter": 50})
         if np.isfinite(found.fun) and -found.fun > best_value:
             best_value, best_unit = float(-found.fun), np.clip(found.x, 0.0, 1.0)
-    return best_value, points_of(best_unit[None, :])[0], count
+    return best_value, points_of(best_unit[None, :])[0], count + calls
 
 
 def _vertices_and_centre(envelope: Envelope) -> list[dict[str, Any]]:
@@ -640,8 +649,11 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
         if isinstance(proven, RobustResult):
             return proven
         reason = proven
+    # Where mu is proven worst is where its upper bound is likely worst too: the outer approximation starts
+    # from that vertex alone (the search adds any other point that is worse).
+    vertex = _term_structure(model, envelope)[0] if isinstance(proven, RobustResult) else None
     result = _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
-                           reason)
+                           reason, None if vertex is None else [vertex])
     noise = getattr(getattr(model, "calibrated", None), "noise_std_log", None)
     if objective == "mu_upper" and isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
         result = _with_interval_bound(result, proven, float(noise))
@@ -771,14 +783,15 @@ class _SetModel:
 
 def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, objective: str, starts: int,
                   max_rounds: int, progress: Callable[[float], None] | None,
-                  map_calls: Callable | None, reason: str = "") -> RobustResult:
+                  map_calls: Callable | None, reason: str = "",
+                  initial_points: list[dict[str, Any]] | None = None) -> RobustResult:
     start = time.perf_counter()
     delta = envelope.angle_tolerance_deg
     v_hi = envelope.speed_m_s[1]
     # Limits that do not depend on the model (the peak pressure) are worst at the angle made high: the
     # optimizer works in θ' = θ + δ, and the model is asked at θ' - δ + offset.
     shifted = shifted_problem(problem, delta, v_hi)
-    points = _vertices_and_centre(envelope)
+    points = initial_points or _vertices_and_centre(envelope)
     rounds, history = 0, []
     solved = None
     value, where = math.nan, None
@@ -800,16 +813,17 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         points = [*points, where]
     design = _design_of(solved)
     theta = design["groove_angle_deg"] - delta
+    start_set = "the vertex where mu is proven worst" if initial_points else "vertices and centre"
     statement = (
         f"No proof: {model.reference} is not known to be monotone or log-log convex in the speed, the "
         f"conditions and the angle ({reason or 'not a calibrated model'}), and no bound on its derivatives "
         "is known, so its worst case over a box cannot be bounded rigorously. Method: outer approximation in "
-        f"{rounds} round(s) - the local method minimized the largest {objective} over "
-        f"{len(points)} envelope points (vertices, centre and the worst points found), and at each design "
-        "the whole envelope was searched (a grid of every axis, then L-BFGS-B ascent from the 3 best grid "
-        f"points); the last search found {value:.10g}, within {ENVELOPE_RTOL:g} of the optimized set. Best "
-        "bound found: the worst case at the design as searched (upper_bound); the design search is local, "
-        "so no certified lower bound on the best achievable worst case exists.")
+        f"{rounds} round(s) - the local method minimized the largest {objective} over {len(points)} envelope "
+        f"point(s) ({start_set}, then the worst points found), and at each design the whole envelope was "
+        "searched (a grid of every axis, then L-BFGS-B ascent from the 3 best grid points); the last search "
+        f"found {value:.10g}, within {ENVELOPE_RTOL:g} of the optimized set. Best bound found: the worst "
+        "case at the design as searched (upper_bound); the design search is local, so no certified lower "
+        "bound on the best achievable worst case exists.")
     proof = {"proven": False, "method": "outer-approximation-local", "lower_bound": None,
              "upper_bound": value,
              "relative_gap": None, "gap_target": GAP_TARGET, "statement": statement, "rounds": history}
