@@ -313,3 +313,46 @@ def test_a_surrogate_of_the_physics_gives_the_physics_robust_design_to_its_accur
     assert float(exact.mu) <= truth.worst_case["mu"] * (1 + 1e-3)
     assert robust.worst_case["mu"] == pytest.approx(float(exact.mu), rel=1e-3)
     assert robust.proof["proven"] is False and "not a calibrated model" in robust.proof["statement"]
+
+
+def test_physics_friction_force_limit_holds_over_the_envelope_against_brute_force():
+    # A friction-force limit mu G (worst at the high speed and the angle made high, as mu) with a minimum
+    # load: the optimum sits on the limit at its worst corner.
+    force = 1.3e-4
+    problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.05)), 0.05,
+                            Constraints(max_friction_force_N=force, min_load_capacity_N=0.01))
+    robust = optimize_robust(problem, Envelope(SPEEDS, tolerances={"groove_angle_deg": DELTA}))
+    z, theta, load = (a.reshape(-1) for a in np.meshgrid(np.arange(3, 7), np.linspace(45, 60, 31),
+                                                         np.geomspace(0.01, 0.05, 81), indexing="ij"))
+    mu, friction = np.full(z.size, -np.inf), np.full(z.size, -np.inf)
+    for offset, speed in itertools.product(np.linspace(-DELTA, DELTA, 3), np.linspace(*SPEEDS, 3)):
+        r = physics.evaluate(balls=z, groove_angle_deg=theta + offset, load_N=load, speed_m_s=speed)
+        mu, friction = np.maximum(mu, r.mu), np.maximum(friction, r.friction_force_N)
+    feasible = friction <= force
+    assert feasible.any() and not feasible.all()
+    assert mu[feasible].min() >= robust.worst_case["mu"] * (1 - 1e-9)
+    design = robust.result.design
+    worst = physics.evaluate(balls=design["balls"], groove_angle_deg=design["groove_angle_deg"] + DELTA,
+                             load_N=design["load_N"], speed_m_s=SPEEDS[1])
+    assert float(worst.friction_force_N) <= force * (1 + 1e-9)
+    assert robust.proof["proven"] and robust.proof["lower_bound"] <= mu[feasible].min()
+
+
+def test_calibrated_friction_force_limit_is_judged_by_the_model_over_the_envelope():
+    model = _meniscus_model()
+    force = 2.5e-4
+    problem = DesignProblem(DesignBounds((3, 5), (45, 60), (0.002, 0.05)), 0.05,
+                            Constraints(max_friction_force_N=force, min_load_capacity_N=0.01))
+    envelope = Envelope(SPEEDS, {"relative_humidity": (0.3, 0.7)}, {"groove_angle_deg": DELTA})
+    robust = optimize_robust(problem, envelope, model)
+    assert robust.proof["proven"] and robust.proof["method"] == "robust-gp-vertex"
+    z, theta, load = (a.reshape(-1, 1) for a in np.meshgrid(np.arange(3, 6), np.linspace(45, 60, 31),
+                                                            np.geomspace(0.01, 0.05, 81), indexing="ij"))
+    env = np.array(list(itertools.product(np.linspace(*SPEEDS, 3), (0.3, 0.5, 0.7), (-DELTA, 0.0, DELTA)))).T
+    mu = model({"balls": z, "groove_angle_deg": theta + env[2], "load_N": load, "speed_m_s": env[0],
+                "relative_humidity": env[1]}).max(axis=1)
+    feasible = mu * load[:, 0] <= force
+    assert feasible.any() and not feasible.all()
+    assert mu[feasible].min() >= robust.worst_case["mu"] * (1 - 1e-9)
+    assert robust.worst_case["mu"] * robust.result.design["load_N"] <= force * (1 + 1e-9)
+    assert robust.proof["lower_bound"] <= mu[feasible].min()
