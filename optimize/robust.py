@@ -31,20 +31,31 @@ box of them is at one of the box's vertices, and the worst case over the box of 
 posynomials is a geometric program over the vertices (a robust GP; the cantilever beam of Dakota's
 examples is checked with it).
 
+Calibrated models whose terms keep it a geometric program
+---------------------------------------------------------
+A calibrated model is the physics with fitted values and terms applied in order. When every term is
+a positive monomial in balls and load (read at three designs, checked at a fourth) added to μ or
+multiplying it, driven by the speed or a condition through a formula monotone in it (the directions
+of :data:`_DIRECTIONS`, from each effect's formula and its fitted parameter's sign), and the model
+has no Gaussian-process discrepancy and no drift of a physics parameter, μ is a posynomial in tan θ
+and G for every ball count, monotone in every envelope axis: its worst case is one vertex, and the
+robust problem one GP per ball count, proven as for the physics (objective ``mu``).
+
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
-A calibrated model or a surrogate need not be monotone or log-log convex in speed and conditions
-(a Stribeck term falls with speed, a quadratic term in humidity may peak inside the range), and no
-bound on its derivatives is known, so no rigorous bound over a box exists for it here. The method
-is a cutting-plane (outer-approximation) loop: the local method of :func:`optimize.optimize_model`
-minimizes the largest objective over a finite set of envelope points (its vertices and centre to
-begin with); at the design found, the worst case over the whole envelope is searched (a grid of
-every axis, then a bounded quasi-Newton ascent from the best grid points); a point worse than the set
-by more than :data:`ENVELOPE_RTOL` relative is added and the design re-optimized, at most
-:data:`MAX_ROUNDS` times. The result says ``proven: false`` with the best bound found: the worst case
-found at the returned design (a value the design reaches, so the robust optimum is no better than
-the model's value there only if the design search is global, which it is not), and no certified
-lower bound.
+A surrogate, a term that is not monotone (a quadratic in humidity may peak inside the range; a
+Stribeck term falls with speed while rolling grows), a GP discrepancy or the width of a 95 %
+interval have no known bound on their derivatives, so no rigorous bound over a box exists for them
+here. The method is a cutting-plane (outer-approximation) loop: the local method of
+:func:`optimize.optimize_model` minimizes the largest objective over a finite set of envelope points
+(its vertices and centre, or the vertex where μ is proven worst, to begin with); at the design
+found, the worst case over the whole envelope is searched (a grid of every axis, then a bounded
+quasi-Newton ascent from the best grid points); a point worse than the set by more than
+:data:`ENVELOPE_RTOL` relative is added and the design re-optimized, at most :data:`MAX_ROUNDS`
+times. The result says ``proven: false`` with the best bound found: the worst case found at the
+returned design, and a certified lower bound only for ``mu_upper`` of a calibrated model whose ``mu``
+problem is a GP (mu_upper >= μ exp(1.96 σ_noise), so that factor times the proven bound of the ``mu``
+problem; the gap is then the share of the parameters' uncertainty in the interval).
 """
 
 from __future__ import annotations
