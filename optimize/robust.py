@@ -80,7 +80,14 @@ from microbearing.physics.model import Model
 from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
 from .general import optimize_model
 from .problem import DESIGN_VARIABLES, DesignBounds, DesignProblem, constraint_report
-from .solve import TIE_TOLERANCE, BallCountResult, OptimizationResult, optimize_design, polish_design
+from .solve import (
+    TIE_TOLERANCE,
+    BallCountResult,
+    InfeasibleDesignError,
+    OptimizationResult,
+    optimize_design,
+    polish_design,
+)
 
 __all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE_NAMES", "Envelope",
            "RobustGPResult", "RobustResult", "check_model", "dual_bound", "optimize_robust", "robust_gp",
@@ -844,19 +851,26 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     centre_envelope = Envelope(centre["speed_m_s"], centre["conditions"])
     nominal_problem = DesignProblem(problem.bounds, centre["speed_m_s"], problem.constraints, problem.fixed,
                                     problem.convention)
-    nominal = optimize_model(nominal_problem,
-                             _SetModel(nominal_problem, centre_envelope, model, objective,
-                                       [centre_envelope.point({})], 0.0),
-                             starts=1, model_name=model.reference, map_calls=map_calls)
+    try:
+        nominal = optimize_model(nominal_problem,
+                                 _SetModel(nominal_problem, centre_envelope, model, objective,
+                                           [centre_envelope.point({})], 0.0),
+                                 starts=1, model_name=model.reference, map_calls=map_calls)
+    except InfeasibleDesignError:  # the local method found no design meeting the limits at the centre
+        nominal = solved
     nominal_design = _design_of(nominal)
+    if nominal is solved:
+        nominal_design["groove_angle_deg"] -= delta
     nominal_worst, _, _ = worst_case_search(
         _evaluator(problem, envelope, model, objective, nominal_design, 0.0), envelope)
     limits = constraint_report(shifted, nominal_design["balls"], nominal_design["groove_angle_deg"] + delta,
-                               nominal_design["load_N"], mu=nominal_worst if objective == "mu" else None)
-    robust_centre = float(_evaluator(problem, envelope, model, objective, design, delta)(
-        [envelope.point({"speed_m_s": centre["speed_m_s"],
-                         **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})])[0])
-    price = _price(nominal_design, float(nominal.mu), nominal_worst,
+                               nominal_design["load_N"], mu=nominal_worst)
+    centre_point = envelope.point({"speed_m_s": centre["speed_m_s"],
+                                   **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})
+    robust_centre = float(_evaluator(problem, envelope, model, objective, design, delta)([centre_point])[0])
+    nominal_centre = float(_evaluator(problem, envelope, model, objective, nominal_design, 0.0)(
+        [centre_point])[0])
+    price = _price(nominal_design, nominal_centre, nominal_worst,
                    all(c.satisfied for c in limits if not c.name.startswith("groove_angle_deg")),
                    {**design, "groove_angle_deg": theta}, robust_centre, value)
     certificate = f"Local optimum of the worst case over the envelope, not proven. {statement}"

@@ -211,6 +211,11 @@ def test_calibrated_model_robust_design_against_brute_force(objective):
         # the parameters' uncertainty in the interval (mu_pivot known to 1.7 % here)
         assert proof["lower_bound"] <= best_grid and proof["lower_bound"] <= robust.worst_case["mu_upper"]
         assert 0 < proof["relative_gap"] < 0.05
+    # The price of robustness: the nominal design's objective at the envelope's centre, by the model itself.
+    nominal = robust.price_of_robustness["nominal"]
+    centre = model.predict({**nominal["design"], "speed_m_s": 0.055, "relative_humidity": 0.5})
+    assert nominal["at_centre"] == pytest.approx(float(np.squeeze(getattr(centre, objective))), rel=1e-9)
+    assert robust.price_of_robustness["robust"]["worst_case"] <= nominal["worst_case"] * (1 + 1e-6)
     # Friction grows with humidity (the menisci) and speed, and with the angle: the far corner.
     assert robust.worst_case["conditions"]["relative_humidity"] == pytest.approx(0.7)
     assert robust.worst_case["speed_m_s"] == pytest.approx(0.1)
