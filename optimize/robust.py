@@ -91,7 +91,7 @@ from .solve import (
 
 __all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE_NAMES", "Envelope",
            "RobustGPResult", "RobustResult", "check_model", "dual_bound", "optimize_robust", "robust_gp",
-           "shifted_problem",
+           "shifted_problem", "worst_case_of",
            "worst_case_search"]
 
 #: The objectives a design may minimize the worst case of.
@@ -439,6 +439,41 @@ def worst_case_search(evaluate: Callable[[list[dict[str, Any]]], np.ndarray], en
         if np.isfinite(found.fun) and -found.fun > best_value:
             best_value, best_unit = float(-found.fun), np.clip(found.x, 0.0, 1.0)
     return best_value, points_of(best_unit[None, :])[0], count + calls
+
+
+def worst_case_of(mu_model: Callable[[Mapping[str, Any]], Any], problem: DesignProblem, envelope: Envelope,
+                  design: Mapping[str, Any]) -> tuple[float, dict[str, Any]]:
+    """The largest value of any ``mu_model(points)`` callable over the envelope at a design, as searched.
+
+    What verifies a surrogate's robust design by the model it stands for (:func:`worst_case_search`;
+    not a bound).
+
+    Parameters
+    ----------
+    mu_model : callable
+        ``points -> mu`` [1] over columnar physics inputs and condition columns.
+    problem : DesignProblem
+        Its fixed values and convention.
+    envelope : Envelope
+        The envelope.
+    design : mapping
+        ``balls`` [1], ``groove_angle_deg`` (nominal) [deg], ``load_N`` [N].
+
+    Returns
+    -------
+    value : float
+        The largest value found. [1]
+    point : dict
+        Where (:meth:`Envelope.point`).
+    """
+    design = {k: np.array([float(design[k])]) for k in DESIGN_VARIABLES}
+
+    def evaluate(points: list[dict[str, Any]]) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            return np.asarray(mu_model(_columns(problem, envelope, design, points, 0.0)), dtype=float)
+
+    value, point, _ = worst_case_search(evaluate, envelope)
+    return value, point
 
 
 def _vertices_and_centre(envelope: Envelope) -> list[dict[str, Any]]:

@@ -33,7 +33,13 @@ from microbearing.optimize import (
 )
 from microbearing.optimize.general import check_exact_limits
 from microbearing.optimize.problem import DESIGN_VARIABLES
-from microbearing.optimize.robust import Envelope, check_model, optimize_robust, shifted_problem
+from microbearing.optimize.robust import (
+    Envelope,
+    check_model,
+    optimize_robust,
+    shifted_problem,
+    worst_case_of,
+)
 from microbearing.physics.model import Model
 
 from .calibrations import interval_at, with_conditions
@@ -236,7 +242,6 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
             shifted_problem(problem, envelope.angle_tolerance_deg, envelope.speed_m_s[1])
         except ValueError as exc:
             raise validation_problem([{"pointer": _field_pointer(exc), "detail": str(exc)}]) from None
-        source_model = source_name = None
     return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous, source_model,
                             source_name, interval, envelope, body.objective, resolved)
 
@@ -324,6 +329,8 @@ def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None
     except ValueError as exc:  # a condition outside a term's law
         raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
     document = {**robust.to_dict(), "model": plan.model}
+    if plan.source_model is not None:
+        document.update(_verified_over_envelope(plan, robust))
     if plan.interval is not None:
         # How sure the calibrated model is, and whether its data cover it, where the worst case occurs.
         worst = robust.worst_case
@@ -331,6 +338,24 @@ def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None
                  "groove_angle_deg": worst["groove_angle_deg"]}
         document.update(interval_at(plan.resolved, worst["conditions"])(point))
     return document
+
+
+def _verified_over_envelope(plan: OptimizationPlan, robust: Any) -> dict[str, Any]:
+    """A surrogate's robust design judged by the model it stands for: each one's worst mu over the envelope
+    (searched), and the friction-force limit by the source's."""
+    design = robust.result.design
+    mu_model, _ = worst_case_of(plan.resolved, plan.problem, plan.envelope, design)
+    mu_source, where = worst_case_of(plan.source_model, plan.problem, plan.envelope, design)
+    load = float(design["load_N"])
+    limit = plan.problem.constraints.max_friction_force_N
+    violated = ["max_friction_force_N"] if limit is not None and mu_source * load > limit else []
+    verification = {
+        "source_model": plan.source_name, "model": plan.model, "mu_model": mu_model, "mu_source": mu_source,
+        "speed_m_s_source": float(where["speed_m_s"]), "relative_difference": mu_model / mu_source - 1.0,
+        "friction_force_N_model": mu_model * load, "friction_force_N_source": mu_source * load,
+        "friction_force_ratio": mu_source / mu_model, "violated": violated, "satisfied": not violated,
+        "resolves": 0}
+    return {"source_model": plan.source_name, "mu_source": mu_source, "verification": verification}
 
 
 def pareto_png(document: Mapping[str, Any]) -> bytes:

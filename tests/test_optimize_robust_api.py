@@ -212,3 +212,22 @@ def test_the_readme_example_gives_the_figures_it_shows():
     proven = namespace["optimize_robust"](namespace["problem"], namespace["envelope"], namespace["model"])
     assert proven.proof["proven"] and proven.worst_case["mu"] == pytest.approx(0.025198, rel=1e-4)
     assert proven.proof["relative_gap"] < 1e-6
+
+
+def test_a_surrogates_envelope_design_is_verified_by_the_physics_it_stands_for(client):
+    space = {"balls": [4, 8], "groove_angle_deg": [40, 61], "load_N": [0.002, 0.05]}
+    training = {"space": space, "fixed": {"speed_m_s": 0.05}, "budget": 40, "adaptive": False}
+    surrogate = finished(client, client.post("/v1/surrogates", json=training))
+    request = {"bounds": {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.002, 0.05]},
+               "speed_m_s": 0.05, "tolerances": {"groove_angle_deg": 0.5}, "model": surrogate["model_id"],
+               "starts": 1}
+    result = finished(client, client.post("/v1/optimizations", json=request))
+    design, verification = result["design"], result["verification"]
+    exact = physics.evaluate(balls=design["balls"], groove_angle_deg=design["groove_angle_deg"] + 0.5,
+                             load_N=design["load_N"], speed_m_s=0.05)
+    # the physics' worst case is at the angle made high (it grows with the angle): found by the search
+    assert verification["mu_source"] == pytest.approx(float(exact.mu), rel=1e-12) == result["mu_source"]
+    assert verification["source_model"] == "physics" == result["source_model"]
+    assert verification["mu_model"] == pytest.approx(result["worst_case"]["mu"], rel=1e-9)
+    assert abs(verification["relative_difference"]) < 0.05 and verification["satisfied"]
+    assert result["proof"]["proven"] is False
