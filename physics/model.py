@@ -3,7 +3,7 @@
 A :class:`Model` is the physics (:class:`PhysicsModel`, here), a calibrated model
 (:class:`calibrate.model_view.CalibratedPhysicsModel`) or a surrogate
 (:class:`surrogate.model_view.SurrogateModel`); the service only resolves references
-(``"physics"``, ``"calibrated:<id>"``, ``"surrogate:<id>"``) to them (:mod:`service.models`), and
+(``"physics"``, ``"calibrated:<id>"``, ``"surrogate:<id>"``) to them, and
 :mod:`optimize` uses them without the service. A model states
 
 - its inputs (:class:`ModelInput`: name, unit, allowed range, and the value taken when a
@@ -376,8 +376,8 @@ class PhysicsModel(Model):
 def physics_in(convention: str = DEFAULT_CONVENTION) -> PhysicsModel:
     """The physics in one convention (one instance each: it holds no state).
 
-    What :func:`service.models.resolve` answers for ``"physics"``; batches, sweeps and the
-    optimizer, which evaluate only the physics, take it from here.
+    What a reference ``"physics"`` resolves to; batches, sweeps and the optimizer, which evaluate
+    only the physics, take it from here.
 
     Parameters
     ----------
