@@ -318,6 +318,15 @@ def test_a_surrogate_of_the_physics_gives_the_physics_robust_design_to_its_accur
     assert float(exact.mu) <= truth.worst_case["mu"] * (1 + 1e-3)
     assert robust.worst_case["mu"] == pytest.approx(float(exact.mu), rel=1e-3)
     assert robust.proof["proven"] is False and "not a calibrated model" in robust.proof["statement"]
+    # Its 95 % upper bound, designed for: the worst mu_upper at that design is the surrogate's own, above mu.
+    upper = optimize_robust(problem, envelope, model, objective="mu_upper")
+    d = upper.result.design
+    at = model.evaluate({"balls": d["balls"], "groove_angle_deg": upper.worst_case["groove_angle_deg"],
+                         "load_N": d["load_N"], "speed_m_s": upper.worst_case["speed_m_s"]},
+                        ["mu", "mu_upper"])
+    assert upper.worst_case["mu_upper"] == pytest.approx(float(np.squeeze(at.values["mu_upper"])), rel=1e-9)
+    assert upper.worst_case["mu_upper"] > float(np.squeeze(at.values["mu"]))
+    assert upper.proof["lower_bound"] is None and upper.proof["proven"] is False
 
 
 def test_physics_friction_force_limit_holds_over_the_envelope_against_brute_force():
