@@ -612,8 +612,7 @@ def check_model(model: Model | None, envelope: Envelope, objective: str) -> None
     unknown = [n for n in envelope.conditions if n not in known]
     if unknown:
         raise ValueError(f"conditions.{unknown[0]} is not a condition of {model.reference}; its "
-                         "conditions are "
-                         f"{', '.join(sorted(known)) or 'none'}")
+                         f"conditions are {', '.join(sorted(known)) or 'none'}")
 
 
 def _with_model_values(problem: DesignProblem, model: Model | None) -> DesignProblem:
@@ -622,7 +621,7 @@ def _with_model_values(problem: DesignProblem, model: Model | None) -> DesignPro
         return problem
     held = {k: v for k, v in {**model.fixed, **model.fitted}.items()
             if k in physics.PARAMETERS and k not in DESIGN_VARIABLES and k != "speed_m_s"}
-    if not held:
+    if not held and problem.convention == model.convention:
         return problem
     return DesignProblem(problem.bounds, problem.speed_m_s, problem.constraints, {**problem.fixed, **held},
                          model.convention)
@@ -631,8 +630,6 @@ def _with_model_values(problem: DesignProblem, model: Model | None) -> DesignPro
 def _evaluator(problem: DesignProblem, envelope: Envelope, model: Model | None, objective: str,
                design: Mapping[str, Any], shift: float) -> Callable[[list[dict[str, Any]]], np.ndarray]:
     def evaluate(points: list[dict[str, Any]]) -> np.ndarray:
-        # The model's own values come with the problem (``_with_model_values``); a point outside a term's
-        # law (humidity 1) is no worst case the model can say anything about.
         return _objective_values(model, objective, _columns(problem, envelope, design, points, shift),
                                  problem.convention)
     return evaluate
