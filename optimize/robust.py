@@ -649,7 +649,7 @@ def _design_of(result: OptimizationResult) -> dict[str, Any]:
 def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | None = None,
                     objective: str = "mu", starts: int = 3, max_rounds: int = MAX_ROUNDS,
                     progress: Callable[[float], None] | None = None,
-                    map_calls: Callable | None = None) -> RobustResult:
+                    map_calls: Callable | None = None, time_limit_s: float = math.inf) -> RobustResult:
     """The design whose worst case of the objective over the envelope is lowest, with its proof.
 
     Parameters
@@ -671,6 +671,9 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
         Called with the fraction done, 0..1. [1]
     map_calls : callable, optional
         Passed to :func:`optimize.optimize_model` (groups of ball counts on an executor).
+    time_limit_s : float, default inf
+        No new round of the outer approximation starts after this much time; the result then says
+        so, with the worst case found. [s]
 
     Returns
     -------
@@ -703,7 +706,7 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     # from that vertex alone (the search adds any other point that is worse).
     vertex = _term_structure(model, envelope)[0] if isinstance(proven, RobustResult) else None
     result = _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
-                           reason, None if vertex is None else [vertex])
+                           reason, None if vertex is None else [vertex], time_limit_s)
     noise = getattr(getattr(model, "calibrated", None), "noise_std_log", None)
     if objective == "mu_upper" and isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
         result = _with_interval_bound(result, proven, float(noise))
@@ -834,7 +837,8 @@ class _SetModel:
 def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, objective: str, starts: int,
                   max_rounds: int, progress: Callable[[float], None] | None,
                   map_calls: Callable | None, reason: str = "",
-                  initial_points: list[dict[str, Any]] | None = None) -> RobustResult:
+                  initial_points: list[dict[str, Any]] | None = None,
+                  time_limit_s: float = math.inf) -> RobustResult:
     start = time.perf_counter()
     delta = envelope.angle_tolerance_deg
     v_hi = envelope.speed_m_s[1]
@@ -842,7 +846,7 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     # optimizer works in θ' = θ + δ, and the model is asked at θ' - δ + offset.
     shifted = shifted_problem(problem, delta, v_hi)
     points = initial_points or _vertices_and_centre(envelope)
-    rounds, history = 0, []
+    rounds, history, converged, timed_out = 0, [], False, False
     solved = None
     value, where = math.nan, None
     for rounds in range(1, max_rounds + 1):
@@ -858,10 +862,19 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
                                             envelope)
         history.append({"round": rounds, "points": len(points), "on_set": on_set, "searched": value})
         if value <= on_set * (1 + ENVELOPE_RTOL):
-            value = max(value, on_set)
+            value, converged = max(value, on_set), True
+            break
+        if time.perf_counter() - start > time_limit_s:
+            timed_out = True
             break
         points = [*points, where]
     design = _design_of(solved)
+    if converged:
+        ending = f"the last search found {value:.10g}, within {ENVELOPE_RTOL:g} of the optimized set"
+    else:
+        when = f"at the time limit of {time_limit_s:g} s after" if timed_out else "after"
+        ending = (f"stopped {when} {rounds} round(s) with the last search {value:.10g} above the optimized "
+                  f"set's {history[-1]['on_set']:.10g}: the design is not the best for the worst case found")
     theta = design["groove_angle_deg"] - delta
     start_set = "the vertex where mu is proven worst" if initial_points else "vertices and centre"
     statement = (
@@ -870,8 +883,8 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         "is known, so its worst case over a box cannot be bounded rigorously. Method: outer approximation in "
         f"{rounds} round(s) - the local method minimized the largest {objective} over {len(points)} envelope "
         f"point(s) ({start_set}, then the worst points found), and at each design the whole envelope was "
-        "searched (a grid of every axis, then L-BFGS-B ascent from the 3 best grid points); the last search "
-        f"found {value:.10g}, within {ENVELOPE_RTOL:g} of the optimized set. Best bound found: the worst "
+        f"searched (a grid of every axis, then L-BFGS-B ascent from the 3 best grid points); {ending}. "
+        "Best bound found: the worst "
         "case at the design as searched (upper_bound); the design search is local, so no certified lower "
         "bound on the best achievable worst case exists.")
     proof = {"proven": False, "method": "outer-approximation-local", "lower_bound": None,

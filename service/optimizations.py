@@ -95,6 +95,8 @@ class OptimizationPlan:
         ``"mu"`` or ``"mu_upper"`` (robust designs).
     resolved : Model or None
         The model a robust design runs on (None for the physics).
+    time_limit_s : float
+        No new round of a robust design's outer approximation after this time. [s]
     """
 
     problem: DesignProblem
@@ -109,6 +111,7 @@ class OptimizationPlan:
     envelope: Envelope | None = None
     objective: str = "mu"
     resolved: Model | None = None
+    time_limit_s: float = 60.0
 
 
 def _pointer(message: str, speed_in_fixed: bool) -> str:
@@ -243,7 +246,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
         except ValueError as exc:
             raise validation_problem([{"pointer": _field_pointer(exc), "detail": str(exc)}]) from None
     return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous, source_model,
-                            source_name, interval, envelope, body.objective, resolved)
+                            source_name, interval, envelope, body.objective, resolved, body.time_limit_s)
 
 
 def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:
@@ -323,7 +326,8 @@ def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None
     try:
         robust = optimize_robust(plan.problem, plan.envelope, plan.resolved, objective=plan.objective,
                                  starts=plan.starts, progress=progress,
-                                 map_calls=None if executor is None else partial(map_chunks, executor))
+                                 map_calls=None if executor is None else partial(map_chunks, executor),
+                                 time_limit_s=plan.time_limit_s)
     except InfeasibleDesignError as error:
         raise infeasible_problem(error) from None
     except ValueError as exc:  # a condition outside a term's law

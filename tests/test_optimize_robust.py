@@ -370,3 +370,20 @@ def test_calibrated_friction_force_limit_is_judged_by_the_model_over_the_envelop
     assert mu[feasible].min() >= robust.worst_case["mu"] * (1 - 1e-9)
     assert robust.worst_case["mu"] * robust.result.design["load_N"] <= force * (1 + 1e-9)
     assert robust.proof["lower_bound"] <= mu[feasible].min()
+
+
+def test_an_outer_approximation_cut_short_says_so():
+    # The interior peak of test_a_worst_case_inside_the_envelope_is_found_and_designed_for needs a second
+    # round; one round, or a time limit already spent, stops before it and the result says so.
+    term = EffectTerm("generic_quadratic", ("relative_humidity",), {"centre": 0.5, "scale": 0.1})
+    model = CalibratedPhysicsModel("calibrated:peak", CalibratedModel(
+        fitted={"mu_pivot": 0.6}, terms=[(term, [0.0, -3.0])], conditions=["relative_humidity"]))
+    problem = DesignProblem(DesignBounds((3, 4), (45, 60), (0.002, 0.02)), 0.05)
+    envelope = Envelope(SPEEDS, {"relative_humidity": (0.3, 0.7)})
+    for options in ({"max_rounds": 1}, {"time_limit_s": 0.0}):
+        robust = optimize_robust(problem, envelope, model, starts=1, **options)
+        assert len(robust.proof["rounds"]) == 1 and "stopped" in robust.proof["statement"]
+        assert ("time limit" in robust.proof["statement"]) == ("time_limit_s" in options)
+        # the worst case reported is the one found (the peak), not the optimized set's
+        assert robust.worst_case["conditions"]["relative_humidity"] == pytest.approx(0.5, abs=1e-3)
+        assert robust.worst_case["mu"] > robust.proof["rounds"][0]["on_set"]

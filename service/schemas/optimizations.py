@@ -135,6 +135,9 @@ class OptimizationRequest(StrictModel):
         "limit to guarantee).")
     starts: int = Field(default=3, ge=1, le=9, description="Starting points per ball count of the local "
                         "method for surrogate and calibrated models [1].")
+    time_limit_s: float = Field(default=60.0, gt=0.0, le=3600.0, description=(
+        "Over an envelope, for a model without a proof: no new round of the outer approximation starts "
+        "after this time; the result then says so, with the worst case found [s]."))
     convention: ConventionName = Field(  # type: ignore[valid-type]
         default=Convention(physics.DEFAULT_CONVENTION), description="Reading of the paper's ball-ball terms.")
     pareto: ParetoRequest | None = Field(default=None, description="Also compute a Pareto front (physics "
