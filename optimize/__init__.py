@@ -6,11 +6,14 @@
   global optimum with a certificate, :class:`InfeasibleDesignError`
 * :mod:`optimize.general` - :func:`optimize_model`: a local method for any μ model
 * :mod:`optimize.pareto` - :func:`pareto_front`: μ against load or contact pressure
+* :mod:`optimize.robust` - :func:`optimize_robust`: the worst case over an operating :class:`Envelope`
+  (speed and condition ranges, angle tolerance), with its proof and the price of robustness
 """
 
 from .general import optimize_model, physics_model
 from .pareto import PARETO_OBJECTIVES, ParetoFront, pareto_front
 from .problem import Constraints, ConstraintStatus, DesignBounds, DesignProblem, constraint_report
+from .robust import Envelope, RobustResult, optimize_robust
 from .solve import BallCountResult, InfeasibleDesignError, OptimizationResult, optimize_design
 
 __all__ = [
@@ -28,4 +31,7 @@ __all__ = [
     "pareto_front",
     "ParetoFront",
     "PARETO_OBJECTIVES",
+    "Envelope",
+    "RobustResult",
+    "optimize_robust",
 ]

@@ -23,7 +23,7 @@ from microbearing.calibrate import CalibrationReport, DataError, Dataset, Predic
 
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
-from .models import CalibratedPhysicsModel, InputError, Model, resolve
+from .models import CalibratedPhysicsModel, InputError, Model, problems, resolve
 from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
@@ -239,7 +239,12 @@ def interval_at(model: Any,
     if not isinstance(model, CalibratedPhysicsModel):
         return None
 
+    held = {*model.fixed, *model.fitted}
+
     def fields(point: Mapping[str, Any]) -> dict[str, Any]:
+        # The model's own values are left to it: given as columns, a fitted value would be read as known
+        # and its uncertainty left out of the interval.
+        point = {name: value for name, value in point.items() if name not in held}
         with np.errstate(all="ignore"):
             return prediction_fields(model.predict({**point, **dict(conditions or {})}))
 
@@ -313,7 +318,8 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
     conditions = dict(conditions or {})
     check_conditions(mu_model, conditions)
     try:
-        evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs)
+        with problems():
+            evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs)
     except InputError as exc:
         raise _input_problem(exc, "") from None
     values = {name: float(value) for name, value in evaluation.values.items()}

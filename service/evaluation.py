@@ -9,12 +9,12 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
+from microbearing.physics.model import NOT_FINITE, ModelError, evaluate_finite
 
 from .problems import ProblemError, validation_problem
 
 __all__ = ["column_arrays", "evaluate_checked", "evaluate_point"]
 
-_NOT_FINITE = "outside the range where the model is numerically meaningful"
 # Columns read as booleans; every other column (a physics number, a calibrated model's condition) is float.
 _BOOLEAN_INPUTS = frozenset(name for name, spec in physics.PARAMETERS.items() if spec.kind == "bool")
 
@@ -57,13 +57,13 @@ def evaluate_point(inputs: dict[str, Any], convention: str) -> dict[str, float]:
     if not all(map(math.isfinite, values.values())):
         name = next(name for name, value in values.items() if not math.isfinite(value))
         raise validation_problem([{"pointer": "/", "detail": f"the model output {name} is not finite: "
-                                   f"the inputs are {_NOT_FINITE}"}])
+                                   f"the inputs are {NOT_FINITE}"}])
     return values
 
 
 def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, convention: str,
                      pointer: str = "", first_index: int = 0) -> dict[str, np.ndarray]:
-    """Run :func:`physics.evaluate` and insist on finite outputs.
+    """:func:`physics.model.evaluate_finite`, its errors as problems.
 
     Parameters
     ----------
@@ -88,17 +88,10 @@ def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, conventi
     ProblemError
         422 for inputs the model rejects or that drive an output out of floating-point range.
     """
-    outputs = None if outputs is None else [str(name) for name in outputs]
-    result = _evaluate(physics.evaluate, inputs, convention, pointer, outputs=outputs).to_dict(outputs)
-    for name, values in result.items():
-        finite = np.isfinite(values)
-        if not finite.all():
-            index = first_index + int(np.flatnonzero(~finite.reshape(-1))[0])
-            at = f" at point {index}" if np.ndim(values) else ""
-            raise validation_problem([{"pointer": pointer or "/", "detail":
-                                       f"the model output {name} is not finite{at}: the inputs are "
-                                       f"{_NOT_FINITE}"}])
-    return result
+    try:
+        return evaluate_finite(inputs, outputs, convention, pointer, first_index)
+    except ModelError as exc:
+        raise validation_problem(exc.errors) from None
 
 
 def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/points"

@@ -30,7 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from .models import InputError, Model
+from microbearing.physics.model import InputError, Model, ModelError
+
 from .problems import ProblemError, validation_problem
 from .settings import Settings
 
@@ -193,7 +194,10 @@ def map_chunks(executor: Executor | None, fn: Callable[..., Any], arguments: Ite
 def _evaluate_chunk(model: Model, points: dict[str, Any], outputs: list[str], pointer: str,
                     first_index: int) -> dict[str, np.ndarray]:
     """The outputs of a model on one chunk of points (the task :func:`evaluate_in_chunks` maps)."""
-    return model.evaluate(points, outputs, pointer=pointer, first_index=first_index).values
+    try:
+        return model.evaluate(points, outputs, pointer=pointer, first_index=first_index).values
+    except ModelError as exc:
+        raise validation_problem(exc.errors) from None
 
 
 def evaluate_in_chunks(executor: Executor | None, inputs: dict[str, Any], count: int,

@@ -1,4 +1,4 @@
-"""What a model is: the physics, a calibrated model or a surrogate, behind one interface.
+"""Model references resolved to models: the service's only part in what a model is.
 
 A model reference is ``"physics"``, ``"calibrated:<id>"`` (a stored calibration,
 :mod:`service.calibrations`) or ``"surrogate:<id>"`` (a stored surrogate,
@@ -11,456 +11,54 @@ chunk by chunk (:func:`service.executor.evaluate_in_chunks`). A single physics p
 /v1/friction calls :func:`service.evaluation.evaluate_point` directly: it is dominated by
 per-request overhead.
 
-A :class:`Model` states
-
-- its inputs (:class:`ModelInput`: name, unit, allowed range, and the value taken when a
-  point does not give it: the physics default, or the value the model fixed or fitted),
-  then the condition columns it reads (a calibrated model's effect drivers, e.g.
-  ``relative_humidity``);
-- the outputs it answers (:attr:`Model.outputs`), μ with its 95 % interval (``mu_lower``,
-  ``mu_upper`` [1]) where the model has one (:attr:`Model.has_interval`);
-- its domain: :meth:`Model.evaluate` flags the points where its figures do not hold
-  (``outside_domain``: a surrogate outside its trained space, a calibrated model outside the
-  range of its data).
-
-It is also the ``mu_model(points) -> mu`` callable that :mod:`optimize` and :mod:`surrogate`
-take, and it keeps the attributes their callers read (``convention``, ``fixed``, ``fitted``,
-``required_columns``). :func:`jacobian` differentiates any model's outputs with respect to its
-continuous inputs.
+What a model is (:class:`Model`, :class:`ModelInput`, :func:`jacobian`, ...) lives under the library,
+in :mod:`physics.model`, :mod:`calibrate.model_view` and :mod:`surrogate.model_view`; it is re-exported
+here. A model raises :class:`ModelError` for inputs that leave no finite answer; :func:`problems`
+turns it into the 422 problem the API answers.
 """
 
 from __future__ import annotations
 
-import functools
 import re
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 
-import numpy as np
-from scipy.differentiate import derivative
+from microbearing import physics, surrogate
+from microbearing.calibrate import CalibratedModel
+from microbearing.calibrate.model_view import CalibratedPhysicsModel
+from microbearing.physics.model import (
+    Evaluation,
+    InputError,
+    Model,
+    ModelError,
+    ModelInput,
+    PhysicsModel,
+    jacobian,
+    physics_in,
+)
+from microbearing.surrogate.model_view import SurrogateModel
 
-from microbearing import physics
-from microbearing.calibrate import CalibratedModel, Prediction
-
-from .evaluation import evaluate_checked
 from .problems import ProblemError, validation_problem
 from .store import Store
 
-__all__ = ["KINDS", "CalibratedPhysicsModel", "Evaluation", "InputError", "Model", "ModelInput",
-           "PhysicsModel", "SurrogateModel", "jacobian", "list_references", "physics_in", "resolve"]
+__all__ = ["KINDS", "CalibratedPhysicsModel", "Evaluation", "InputError", "Model", "ModelError",
+           "ModelInput", "PhysicsModel", "SurrogateModel", "jacobian", "list_references", "physics_in",
+           "problems", "resolve"]
 
 #: Kinds of model, as the references name them: ``physics``, ``calibrated:<id>``, ``surrogate:<id>``.
 KINDS = ("physics", "calibrated", "surrogate")
 #: Store kind of each stored model kind (what :meth:`Store.save_model` was given).
 _STORE_KINDS = {"calibrated": "calibration", "surrogate": "surrogate"}
 _REFERENCE = re.compile(r"^(calibrated|surrogate):([0-9a-f]{32})$")
-#: First finite-difference step of a derivative, relative to the input's value. [1]
-_RELATIVE_STEP = 1e-2
-#: First step where an input is zero, in the input's unit.
-_ZERO_STEP = 1e-6
 
 
-class InputError(ValueError):
-    """An input value a model refuses.
-
-    Parameters
-    ----------
-    name : str
-        The input.
-    index : int or None
-        The first offending point (0-based), None for a single value.
-    message : str
-        What is wrong, naming the allowed range.
-    """
-
-    def __init__(self, name: str, index: int | None, message: str):
-        super().__init__(message)
-        self.name = name
-        self.index = index
-
-
-@dataclass(frozen=True)
-class ModelInput:
-    """One input of a model.
-
-    Attributes
-    ----------
-    name : str
-        Keyword and column name (a :data:`physics.PARAMETERS` name or a condition column).
-    unit : str
-        Its unit (``"1"`` for dimensionless).
-    description : str
-        What it is.
-    kind : {"float", "int", "bool"}
-        Value type.
-    minimum, maximum : float or None
-        The allowed range (None: unbounded).
-    default : float, bool or None
-        The value a point takes when it does not give this input (the physics default or the
-        value the model fixed or fitted); None when the input is required.
-    domain : tuple of float or None
-        Where the model's figures hold, when narrower than the allowed range (a surrogate's
-        trained bounds); None otherwise.
-    """
-
-    name: str
-    unit: str
-    description: str
-    kind: str = "float"
-    minimum: float | None = None
-    maximum: float | None = None
-    default: float | bool | None = None
-    domain: tuple[float, float] | None = None
-
-    @property
-    def continuous(self) -> bool:
-        """Whether derivatives with respect to this input exist (a real number, not a count or a flag)."""
-        return self.kind == "float"
-
-    def coerce(self, values: Any) -> np.ndarray:
-        """The values as an array, numbers 0 and 1 as false and true for a boolean input."""
-        arr = np.asarray(values)
-        if self.kind == "bool" and arr.dtype != np.bool_ and np.isin(arr, (0, 1)).all():
-            return arr.astype(bool)
-        return arr
-
-    def check(self, values: Any) -> np.ndarray:
-        """The values as an array, or :class:`InputError` naming the first offending point.
-
-        Parameters
-        ----------
-        values : scalar or array_like
-            Values of this input, in its unit; numbers 0 and 1 are read as false and true for a
-            boolean input, whole floats as counts for an integer one.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``float64`` (``bool`` for a boolean input), in the shape given.
-        """
-        arr = self.coerce(values)
-        if self.name in physics.PARAMETERS:
-            try:
-                return physics.validate(self.name, arr)
-            except ValueError as exc:
-                raise InputError(self.name, _first_bad(self.name, arr), str(exc)) from None
-        arr = np.asarray(arr, dtype=np.float64)
-        finite = np.isfinite(arr)
-        if not finite.all():
-            index = int(np.flatnonzero(~finite.reshape(-1))[0]) if arr.ndim else None
-            raise InputError(self.name, index, f"{self.name} must be a finite number [{self.unit}]")
-        return arr
-
-
-def _first_bad(name: str, arr: np.ndarray) -> int | None:
-    """Index of the first value :func:`physics.validate` refuses (only on the error path)."""
-    if not arr.ndim:
-        return None
-    for index, value in enumerate(arr.reshape(-1)):
-        try:
-            physics.validate(name, value.item() if hasattr(value, "item") else value)
-        except ValueError:
-            return index
-    return None
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """Outputs of a model at columnar points.
-
-    Attributes
-    ----------
-    values : dict of str to numpy.ndarray
-        The outputs asked for, in their units, one value per point.
-    outside_domain : numpy.ndarray of bool
-        True where the model's figures do not hold (a surrogate outside its trained space).
-    warnings : list of str
-        One sentence per input or condition outside a calibrated model's data, naming the column,
-        the values and the range (empty for other models).
-    """
-
-    values: dict[str, np.ndarray]
-    outside_domain: np.ndarray
-    warnings: list[str] = field(default_factory=list)
-
-
-def _physics_inputs(values: Mapping[str, Any], domains: Mapping[str, tuple[float, float]] | None = None,
-                    required: Sequence[str] = ()) -> dict[str, ModelInput]:
-    """The :class:`ModelInput` of every physics parameter, with defaults taken from ``values``."""
-    inputs = {}
-    for name, spec in physics.PARAMETERS.items():
-        default = None if name in required else values.get(name, spec.default)
-        inputs[name] = ModelInput(name, spec.unit, spec.description, spec.kind, spec.minimum, spec.maximum,
-                                  default, (domains or {}).get(name))
-    return inputs
-
-
-class Model:
-    """A model of μ: the physics, a calibrated model or a surrogate (see the module docstring).
-
-    Subclasses set the attributes and implement :meth:`evaluate` and :meth:`__call__`.
-
-    Attributes
-    ----------
-    reference : str
-        ``"physics"``, ``"calibrated:<id>"`` or ``"surrogate:<id>"``.
-    kind : str
-        One of :data:`KINDS`.
-    convention : str
-        Reading of the physics (:data:`physics.CONVENTIONS`).
-    fixed : dict
-        Physics inputs the model holds at a value (a calibration's fixed values, a surrogate's).
-    fitted : dict
-        Physics inputs a calibration fitted (empty for other models).
-    required_columns : list of str
-        Condition columns a point must give besides the physics inputs.
-    inputs : dict of str to ModelInput
-        Every input the model reads: the physics parameters in table order, then the conditions.
-    outputs : tuple of str
-        Output names :meth:`evaluate` answers.
-    has_interval : bool
-        Whether ``mu_lower`` and ``mu_upper`` (95 %) are among the outputs.
-    derivative_rtol : float
-        Relative accuracy a derivative of :func:`jacobian` must reach (scipy's error estimate). [1]
-    """
-
-    reference: str
-    kind: str
-    convention: str
-    fixed: dict[str, Any]
-    fitted: dict[str, float]
-    required_columns: list[str]
-    inputs: dict[str, ModelInput]
-    outputs: tuple[str, ...]
-    has_interval: bool = False
-    derivative_rtol: float = 1e-6
-
-    @property
-    def default_inputs(self) -> list[str]:
-        """The inputs a point must give: those with no default."""
-        return [name for name, spec in self.inputs.items() if spec.default is None]
-
-    def check(self, points: Mapping[str, Any]) -> dict[str, Any]:
-        """Checked columns: every given input through :meth:`ModelInput.check`, the rest filled in.
-
-        Raises
-        ------
-        InputError
-            For an unknown input, an invalid value or a missing required input.
-        """
-        unknown = [name for name in points if name not in self.inputs]
-        if unknown:
-            raise InputError(unknown[0], None, f"{unknown[0]} is not an input of {self.reference}; its "
-                             f"inputs are {', '.join(self.inputs)}")
-        missing = [name for name in self.default_inputs if name not in points]
-        if missing:
-            raise InputError(missing[0], None, f"{self.reference} needs {', '.join(missing)}")
-        return {name: self.inputs[name].check(value) for name, value in points.items()}
-
-    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
-                 first_index: int = 0) -> Evaluation:
-        """The outputs at columnar points (checked with :meth:`check` first).
-
-        Parameters
-        ----------
-        points : mapping of str to array_like
-            Inputs by name, broadcasting together; inputs not given take their default.
-        outputs : sequence of str
-            Names from :attr:`outputs`.
-        pointer : str, default ""
-            JSON pointer of the points in the request body, for the problems a physics
-            evaluation raises.
-        first_index : int, default 0
-            Index of the first point in the whole request [1] (a chunk's offset), for those problems.
-
-        Returns
-        -------
-        Evaluation
-
-        Raises
-        ------
-        InputError
-            For invalid inputs.
-        ProblemError
-            422 when an output is not finite.
-        """
-        raise NotImplementedError
-
-    def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
-        """μ [1] at columnar points: the ``mu_model(points)`` seam of optimize and surrogate."""
-        raise NotImplementedError
-
-
-class PhysicsModel(Model):
-    """The declared friction model, :func:`physics.evaluate`, in one convention."""
-
-    kind = "physics"
-    outputs = tuple(physics.OUTPUTS)
-
-    def __init__(self, convention: str = physics.DEFAULT_CONVENTION):
-        self.reference = "physics"
-        self.convention = str(convention)
-        self.fixed, self.fitted, self.required_columns = {}, {}, []
-        self.inputs = _physics_inputs({})
-
-    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
-                 first_index: int = 0) -> Evaluation:
-        # physics.evaluate checks its inputs itself; only a refusal is checked again, to name the point.
-        try:
-            values = evaluate_checked(dict(points), list(outputs), self.convention, pointer, first_index)
-        except ProblemError:
-            self.check(points)
-            raise
-        return Evaluation(values, np.zeros(np.broadcast_shapes(*(np.shape(v) for v in values.values())),
-                                           dtype=bool))
-
-    def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
-        return physics.evaluate(convention=self.convention, outputs=["mu"], **points).mu
-
-
-class CalibratedPhysicsModel(Model):
-    """A stored calibration: the physics with fitted parameters and the terms calibration added.
-
-    Its outputs are the physics outputs with the fitted parameters, except ``mu``, which includes
-    the added terms; ``mu_effect`` [1], the terms' share of ``mu``; and ``mu_lower``, ``mu_upper`` [1],
-    the 95 % prediction interval of a measurement (:meth:`calibrate.CalibratedModel.predict`; NaN for
-    a model stored before intervals). ``outside_domain`` flags points outside the calibration data.
-
-    Parameters
-    ----------
-    reference : str
-        ``"calibrated:<id>"``.
-    calibrated : calibrate.CalibratedModel
-        The stored model.
-    """
-
-    kind = "calibrated"
-    outputs = (*physics.OUTPUTS, "mu_effect", "mu_lower", "mu_upper")
-    has_interval = True
-
-    def __init__(self, reference: str, calibrated: CalibratedModel):
-        self.reference = reference
-        self.calibrated = calibrated
-        self.convention = calibrated.convention
-        self.fixed, self.fitted = dict(calibrated.fixed), dict(calibrated.fitted)
-        self.required_columns = calibrated.required_columns
-        # The condition columns of the calibration data and the range of every column it was fitted
-        # on (None for a model stored before domains were kept).
-        self.conditions, self.domain = calibrated.conditions, calibrated.domain
-        self.inputs = _physics_inputs({**self.fixed, **self.fitted})
-        self.inputs.update({name: ModelInput(name, "as in the calibration data", "A condition column "
-                                             "the calibrated model's terms read.")
-                            for name in self.required_columns})
-        # The other condition columns of the data: a point may give them, and they are checked against
-        # the data's range only (they are no input: nothing the model computes depends on them).
-        self.unread_conditions = {name: ModelInput(name, "as in the calibration data", "A condition column "
-                                                   "of the calibration data the terms do not read.")
-                                  for name in self.conditions if name not in self.inputs}
-
-    def predict(self, points: Mapping[str, Any]) -> Prediction:
-        """μ with its 95 % interval and the domain check: :meth:`calibrate.CalibratedModel.predict`."""
-        return self.calibrated.predict(points)
-
-    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
-                 first_index: int = 0) -> Evaluation:
-        """As :meth:`Model.evaluate`; the answer of a calibrated model wherever it is asked.
-
-        ``points`` may also give the condition columns the terms do not read
-        (:attr:`unread_conditions`): they enter the domain check only. The physics outputs other than
-        ``mu`` are computed only when asked for; the warnings name every column outside the data.
-        A condition outside the law of a term, or a non-finite μ, is a 422 problem at ``/conditions``
-        (the latter naming the point's index for columns).
-        """
-        unread = {name: self.unread_conditions[name].check(value) for name, value in points.items()
-                  if name in self.unread_conditions}
-        checked = self.check({name: value for name, value in points.items() if name not in unread})
-        given = {k: v for k, v in checked.items() if k in physics.PARAMETERS}
-        wanted = list(dict.fromkeys(["mu", *(name for name in outputs if name in physics.OUTPUTS)]))
-        base = evaluate_checked({**self.fixed, **self.fitted, **given}, wanted, self.convention, pointer,
-                                first_index)
-        try:
-            with np.errstate(all="ignore"):
-                prediction = self.calibrated.predict({**checked, **unread})
-        except ValueError as exc:  # a condition outside the law of a term (relative humidity 1)
-            raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
-        mu = np.asarray(prediction.mu, dtype=float)
-        finite = np.isfinite(mu)
-        if not finite.all():
-            at = f" (point {first_index + int(np.flatnonzero(~finite.reshape(-1))[0])})" if mu.ndim else ""
-            raise validation_problem([{"pointer": "/conditions", "detail": "the calibrated model's mu is not "
-                                       f"finite at these conditions{at}"}])
-        no_interval = np.full(mu.shape, np.nan)
-        values = {**base, "mu": mu, "mu_effect": mu - base["mu"],
-                  "mu_lower": no_interval if prediction.mu_lower is None else prediction.mu_lower,
-                  "mu_upper": no_interval if prediction.mu_upper is None else prediction.mu_upper}
-        shape = np.broadcast_shapes(*(np.shape(v) for v in values.values()))
-        inside = np.ones(shape, dtype=bool) if prediction.in_domain is None else prediction.in_domain
-        return Evaluation({name: values[name] for name in outputs},
-                          ~np.broadcast_to(np.asarray(inside, dtype=bool), shape), list(prediction.warnings))
-
-    def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
-        return self.calibrated(points)
-
-
-class SurrogateModel(Model):
-    """A stored Gaussian-process surrogate of μ with its 95 % interval and trained space.
-
-    Parameters
-    ----------
-    reference : str
-        ``"surrogate:<id>"``.
-    estimator : surrogate.GaussianProcessSurrogate
-        The fitted surrogate.
-    """
-
-    kind = "surrogate"
-    outputs = ("mu", "mu_lower", "mu_upper")
-    has_interval = True
-    # The Gaussian process's mean carries the rounding of its linear solve (~1e-11 relative), and its
-    # standard deviation, which sets mu_lower and mu_upper, that of k(x, x) - v'v, a difference of
-    # nearly equal numbers: ~1e-6 relative, and not the same for a point alone as among others in one
-    # call. Finite differences amplify that to ~1e-4 of the bounds' derivatives; the surrogate's own
-    # error (~1e-3 of mu) is far larger.
-    derivative_rtol = 1e-3
-
-    def __init__(self, reference: str, estimator: Any):
-        space = estimator.space
-        self.reference = reference
-        self.estimator = estimator
-        self.convention = space.convention
-        self.fixed, self.fitted, self.required_columns = dict(space.fixed), {}, []
-        domains = {name: (float(lo), float(hi)) for name, lo, hi in zip(space.names, space.lower, space.upper,
-                                                                          strict=True)}
-        self.inputs = _physics_inputs(self.fixed, domains, required=space.names)
-
-    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
-                 first_index: int = 0) -> Evaluation:
-        # A prediction is finite wherever its inputs are valid: no problem to point at.
-        prediction = self.estimator.predict_points(self.check(points))
-        return Evaluation({name: getattr(prediction, name) for name in outputs}, prediction.outside_space)
-
-    def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
-        return self.estimator.mu_model(points)
-
-
-@functools.cache
-def physics_in(convention: str = physics.DEFAULT_CONVENTION) -> PhysicsModel:
-    """The physics in one convention (one instance each: it holds no state).
-
-    What :func:`resolve` answers for ``"physics"``, without a store: batches and sweeps, which
-    evaluate only the physics, take it from here.
-
-    Parameters
-    ----------
-    convention : str
-        Key of :data:`physics.CONVENTIONS`.
-
-    Returns
-    -------
-    PhysicsModel
-    """
-    return PhysicsModel(str(convention))
+@contextmanager
+def problems() -> Iterator[None]:
+    """A context turning a model's :class:`ModelError` into the 422 problem naming its fields."""
+    try:
+        yield
+    except ModelError as exc:
+        raise validation_problem(exc.errors) from None
 
 
 def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Sequence[str] = KINDS,
@@ -499,12 +97,13 @@ def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Seq
         return physics_in(str(convention))
     model_id = match.group(2)
     if kind == "surrogate":
-        # service.surrogates keeps the rebuilt estimators (a refit each) in its cache; it checks
-        # that the requesting key may see the surrogate before answering from it. It resolves
-        # the models surrogates learn here, hence the import at call time.
-        from .surrogates import load_surrogate
-
-        return SurrogateModel(reference, load_surrogate(store, model_id))
+        # The store rebuilds an estimator once (a refit) and keeps it, after checking that the
+        # requesting key may see it; service.surrogates reads the same cache.
+        estimator = store.rebuilt(model_id, _STORE_KINDS[kind],
+                                  lambda stored: surrogate.from_dict(stored.metadata["model"]))
+        if estimator is None:
+            raise ProblemError(404, f"There is no surrogate {model_id!r}.")
+        return SurrogateModel(reference, estimator)
     model = store.rebuilt(model_id, _STORE_KINDS[kind], lambda stored: CalibratedPhysicsModel(
         reference, CalibratedModel.from_json(stored.metadata["model"])))
     if model is None:
@@ -521,92 +120,3 @@ def list_references(store: Store) -> list[str]:
     for kind, store_kind in _STORE_KINDS.items():
         references += [f"{kind}:{row['id']}" for row in store.list_models(store_kind)]
     return references
-
-
-def _steps(spec: ModelInput, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """First step and direction of :func:`scipy.differentiate.derivative` inside an input's range.
-
-    Central differences reach one step either side; where a bound is closer, the steps go
-    one-sided toward the interior, at most half-way to the other bound.
-    """
-    step = np.where(x != 0, _RELATIVE_STEP * np.abs(x), _ZERO_STEP)
-    below = np.inf if spec.minimum is None else x - spec.minimum
-    above = np.inf if spec.maximum is None else spec.maximum - x
-    central = (below > step) & (above > step)
-    direction = np.where(central, 0, np.where(above >= below, 1, -1))
-    room = np.where(direction > 0, above, below)
-    step = np.where(central, step, np.minimum(step, 0.5 * room))
-    return step, direction
-
-
-def jacobian(model: Model, points: Mapping[str, Any], wrt: Sequence[str],
-             outputs: Sequence[str]) -> np.ndarray:
-    """Derivatives of outputs with respect to continuous inputs, at each of ``n`` points.
-
-    By :func:`scipy.differentiate.derivative` (finite differences of order 8 with Richardson
-    extrapolation and an error estimate), all points, inputs and outputs in one vectorized
-    call of the model per iteration, steps kept inside each input's allowed range.
-
-    Parameters
-    ----------
-    model : Model
-        The model.
-    points : mapping of str to array_like
-        Inputs by name: arrays of length ``n`` or scalars.
-    wrt : sequence of str
-        Continuous inputs to differentiate with respect to; each must be in ``points``.
-    outputs : sequence of str
-        Outputs to differentiate.
-
-    Returns
-    -------
-    numpy.ndarray of shape (n, len(outputs), len(wrt))
-        d output / d input, in output unit per input unit.
-
-    Raises
-    ------
-    InputError
-        For an input that is not continuous, or where the derivative does not reach
-        ``model.derivative_rtol`` (no derivative at a bound or a kink, e.g. d mu / d speed at
-        speed 0).
-    """
-    checked = model.check(points)
-    n = int(np.prod(np.broadcast_shapes(*(np.shape(v) for v in checked.values()))))
-    columns = {name: np.broadcast_to(value, (n,)) if np.ndim(value) else value
-               for name, value in checked.items()}
-    for name in wrt:
-        spec = model.inputs[name]
-        if not spec.continuous:
-            raise InputError(name, None, f"{name} is a {'count' if spec.kind == 'int' else 'flag'}: "
-                             "derivatives are taken with respect to continuous inputs only")
-    x0 = np.stack([np.broadcast_to(np.asarray(columns[name], dtype=float), (n,)) for name in wrt])  # (k, n)
-    steps, directions = zip(*(_steps(model.inputs[name], row) for name, row in zip(wrt, x0, strict=True)),
-                            strict=True)
-    grid = (len(outputs), len(wrt), n)
-    out_index, in_index, point_index = np.indices(grid)
-
-    def f(x: np.ndarray, out_i: np.ndarray, in_i: np.ndarray, point_i: np.ndarray) -> np.ndarray:
-        shape = np.broadcast_shapes(x.shape, out_i.shape, in_i.shape, point_i.shape)
-        x, out_i, in_i, point_i = (a.reshape(-1) for a in np.broadcast_arrays(x, out_i, in_i, point_i))
-        at = {name: value[point_i] if np.ndim(value) else value for name, value in columns.items()}
-        for j, name in enumerate(wrt):
-            at[name] = np.where(in_i == j, x, at[name])
-        values = model.evaluate(at, outputs).values
-        stacked = np.stack([np.broadcast_to(values[name], x.shape) for name in outputs])
-        return stacked[out_i.astype(int), np.arange(x.size)].reshape(shape)
-
-    x = np.broadcast_to(x0, grid)
-    first_step = np.broadcast_to(np.stack(steps), grid)
-    with np.errstate(all="ignore"):
-        result = derivative(f, x, args=(out_index, in_index, point_index), initial_step=first_step,
-                            step_direction=np.broadcast_to(np.stack(directions), grid))
-        # An output that does not depend on an input has a derivative of zero up to rounding: the
-        # error is judged against the output's own scale per unit of the input too.
-        scale = np.abs(f(x, out_index, in_index, point_index)) / np.maximum(np.abs(x), first_step)
-    accurate = np.isfinite(result.df) & (result.error <= model.derivative_rtol * (np.abs(result.df) + scale))
-    if not accurate.all():
-        _, j, i = (int(a[0]) for a in np.nonzero(~accurate))
-        raise InputError(wrt[j], i, f"the derivative with respect to {wrt[j]} at {wrt[j]} = {x0[j, i]:g} "
-                         f"[{model.inputs[wrt[j]].unit}] cannot be computed to {model.derivative_rtol:g} "
-                         "relative accuracy (no derivative there, e.g. at a bound of its range)")
-    return np.moveaxis(result.df, -1, 0)

@@ -3,7 +3,10 @@
 ``model="physics"`` is solved by :func:`optimize.optimize_design` (a certified
 global optimum); ``calibrated:<id>`` and ``surrogate:<id>`` by
 :func:`optimize.optimize_model` (a local optimum), a surrogate's design verified by
-the model it stands for. Infeasible problems become a 422 problem whose ``errors``
+the model it stands for. A request with an operating envelope (a speed or condition range, a
+tolerance, or the objective ``mu_upper``) is solved by :func:`optimize.robust.optimize_robust`
+(the worst case over the envelope, with its proof), except a surrogate's speed range alone, which
+keeps the local method and its verification. Infeasible problems become a 422 problem whose ``errors``
 point at the conflicting limits and bounds: at once on every model when the limits
 that do not depend on μ conflict, else (a friction-force limit no design of a
 surrogate or calibrated model meets) as the job's problem.
@@ -30,6 +33,14 @@ from microbearing.optimize import (
 )
 from microbearing.optimize.general import check_exact_limits
 from microbearing.optimize.problem import DESIGN_VARIABLES
+from microbearing.optimize.robust import (
+    Envelope,
+    check_model,
+    optimize_robust,
+    shifted_problem,
+    worst_case_of,
+)
+from microbearing.physics.model import Model
 
 from .calibrations import interval_at, with_conditions
 from .executor import map_chunks
@@ -77,6 +88,15 @@ class OptimizationPlan:
     interval : callable or None
         For a calibrated model, the 95 % interval and domain check at a design point
         (:func:`service.calibrations.interval_at`).
+    envelope : Envelope or None
+        The operating envelope of a robust design (:func:`optimize.robust.optimize_robust`); None for
+        a design at one point.
+    objective : str
+        ``"mu"`` or ``"mu_upper"`` (robust designs).
+    resolved : Model or None
+        The model a robust design runs on (None for the physics).
+    time_limit_s : float
+        No new round of a robust design's outer approximation after this time. [s]
     """
 
     problem: DesignProblem
@@ -88,6 +108,10 @@ class OptimizationPlan:
     source_model: Callable[[Mapping[str, Any]], Any] | None = None
     source_name: str | None = None
     interval: Callable[[Mapping[str, Any]], dict[str, Any]] | None = None
+    envelope: Envelope | None = None
+    objective: str = "mu"
+    resolved: Model | None = None
+    time_limit_s: float = 60.0
 
 
 def _pointer(message: str, speed_in_fixed: bool) -> str:
@@ -111,8 +135,32 @@ def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, di
     # The values the model holds (a calibration's fixed and fitted ones, the ones a surrogate was
     # trained at): the physics checks of limits and of the optimum run there too.
     values = {**model.fixed, **model.fitted}
-    mu_model = with_conditions(model, body.conditions)
-    return mu_model, values, model.convention, interval_at(model, body.conditions)
+    # A range is checked by name here; its values are taken apart by the envelope.
+    points = {name: value[0] if isinstance(value, list) else value
+              for name, value in (body.conditions or {}).items()}
+    mu_model = with_conditions(model, points or body.conditions)
+    return mu_model, values, model.convention, interval_at(model, points or body.conditions)
+
+
+def _is_robust(body: OptimizationRequest, speed: Any) -> bool:
+    """Whether a request asks for a design over an envelope (ranges, tolerances, or mu_upper)."""
+    ranges = any(isinstance(v, list) for v in (body.conditions or {}).values())
+    tolerance = body.tolerances is not None and body.tolerances.groove_angle_deg is not None
+    speed_range = isinstance(speed, list | tuple) and not body.model.startswith("surrogate:")
+    return ranges or tolerance or body.objective != "mu" or speed_range
+
+
+def _envelope(body: OptimizationRequest, speed: Any) -> Envelope:
+    tolerances = {} if body.tolerances is None else body.tolerances.model_dump(exclude_none=True)
+    try:
+        return Envelope(tuple(speed) if isinstance(speed, list) else speed, body.conditions or {}, tolerances)
+    except ValueError as exc:
+        raise validation_problem([{"pointer": _field_pointer(exc), "detail": str(exc)}]) from None
+
+
+def _field_pointer(error: ValueError) -> str:
+    """JSON pointer of the field an envelope error names first (``conditions.x: ...``: /conditions/x)."""
+    return "/" + str(error).split(" ", 1)[0].rstrip(":").replace(".", "/")
 
 
 def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
@@ -139,6 +187,15 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
                                    "physics only"}])
     mu_model, model_values, convention, interval = _model(store, body)
     fixed = body.fixed.model_dump(exclude_none=True)
+    # A payload is a given, not a range: fixed.load_N is the load's bounds [G, G].
+    load = fixed.pop("load_N", None)
+    if load is not None and body.bounds.load_N is not None:
+        raise validation_problem([{"pointer": "/fixed/load_N", "detail": "give load_N in bounds (a range) or "
+                                   "in fixed (a payload), not both"}])
+    if load is None and body.bounds.load_N is None:
+        raise validation_problem([{"pointer": "/bounds/load_N",
+                                   "detail": "required: [lower, upper] [N], or a payload in fixed.load_N"}])
+    load_bounds = (load, load) if load is not None else tuple(body.bounds.load_N)
     speed_in_fixed = "speed_m_s" in fixed
     if speed_in_fixed and body.speed_m_s is not None:
         raise validation_problem([{"pointer": "/speed_m_s", "detail": "give speed_m_s here or in fixed, "
@@ -154,12 +211,14 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     b = body.bounds
     try:
         problem = DesignProblem(
-            DesignBounds(tuple(b.balls), tuple(b.groove_angle_deg), tuple(b.load_N)),
+            DesignBounds(tuple(b.balls), tuple(b.groove_angle_deg), load_bounds),
             speed_m_s=tuple(speed) if isinstance(speed, list) else speed,
             constraints=Constraints(**body.constraints.model_dump()),
             fixed={**inherited, **fixed}, convention=convention)
     except ValueError as exc:
         pointer = _pointer(str(exc), speed_in_fixed)
+        if load is not None and pointer == "/bounds/load_N":
+            pointer = "/fixed/load_N"
         raise validation_problem([{"pointer": pointer, "detail": str(exc)}]) from None
     try:
         # Conflicts of the limits that do not depend on the model answer 422 at once on every model.
@@ -172,8 +231,22 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     counts = b.balls[1] - b.balls[0] + 1
     synchronous = mu_model is None and body.pareto is None and counts <= SYNC_MAX_BALL_COUNTS
     pareto = body.pareto.model_dump() if body.pareto is not None else None
+    envelope, resolved = None, None
+    # A Pareto front over a speed range alone keeps its proven high end; other envelopes have no front.
+    if body.pareto is not None and _is_robust(body, None):
+        raise validation_problem([{"pointer": "/pareto", "detail": "a Pareto front is computed at one "
+                                   "point or over a speed range, not over condition ranges, tolerances or "
+                                   "mu_upper"}])
+    if body.pareto is None and _is_robust(body, speed):
+        envelope = _envelope(body, speed)
+        resolved = None if body.model == "physics" else resolve(store, body.model)
+        try:
+            check_model(resolved, envelope, body.objective)
+            shifted_problem(problem, envelope.angle_tolerance_deg, envelope.speed_m_s[1])
+        except ValueError as exc:
+            raise validation_problem([{"pointer": _field_pointer(exc), "detail": str(exc)}]) from None
     return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous, source_model,
-                            source_name, interval)
+                            source_name, interval, envelope, body.objective, resolved, body.time_limit_s)
 
 
 def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:
@@ -222,6 +295,8 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
             return None
         return lambda fraction: progress(offset + share * fraction)
 
+    if plan.envelope is not None:
+        return _run_robust(plan, progress, executor)
     try:
         if plan.mu_model is None:
             result = optimize_design(plan.problem, progress=stage(0.0, 0.2 if with_pareto else 1.0))
@@ -243,6 +318,48 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
     except InfeasibleDesignError as error:
         raise infeasible_problem(error) from None
     return document
+
+
+def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None,
+                executor: Executor | None) -> dict[str, Any]:
+    """A design over the plan's envelope (:func:`optimize.robust.optimize_robust`), JSON-ready."""
+    try:
+        robust = optimize_robust(plan.problem, plan.envelope, plan.resolved, objective=plan.objective,
+                                 starts=plan.starts, progress=progress,
+                                 map_calls=None if executor is None else partial(map_chunks, executor),
+                                 time_limit_s=plan.time_limit_s)
+    except InfeasibleDesignError as error:
+        raise infeasible_problem(error) from None
+    except ValueError as exc:  # a condition outside a term's law
+        raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
+    document = {**robust.to_dict(), "model": plan.model}
+    if plan.source_model is not None:
+        document.update(_verified_over_envelope(plan, robust))
+    if plan.interval is not None:
+        # How sure the calibrated model is, and whether its data cover it, where the worst case occurs.
+        worst = robust.worst_case
+        point = {**plan.problem.fixed, **document["design"], "speed_m_s": worst["speed_m_s"],
+                 "groove_angle_deg": worst["groove_angle_deg"]}
+        document.update(interval_at(plan.resolved, worst["conditions"])(point))
+    return document
+
+
+def _verified_over_envelope(plan: OptimizationPlan, robust: Any) -> dict[str, Any]:
+    """A surrogate's robust design judged by the model it stands for: each one's worst mu over the envelope
+    (searched), and the friction-force limit by the source's."""
+    design = robust.result.design
+    mu_model, _ = worst_case_of(plan.resolved, plan.problem, plan.envelope, design)
+    mu_source, where = worst_case_of(plan.source_model, plan.problem, plan.envelope, design)
+    load = float(design["load_N"])
+    limit = plan.problem.constraints.max_friction_force_N
+    violated = ["max_friction_force_N"] if limit is not None and mu_source * load > limit else []
+    verification = {
+        "source_model": plan.source_name, "model": plan.model, "mu_model": mu_model, "mu_source": mu_source,
+        "speed_m_s_source": float(where["speed_m_s"]), "relative_difference": mu_model / mu_source - 1.0,
+        "friction_force_N_model": mu_model * load, "friction_force_N_source": mu_source * load,
+        "friction_force_ratio": mu_source / mu_model, "violated": violated, "satisfied": not violated,
+        "resolves": 0}
+    return {"source_model": plan.source_name, "mu_source": mu_source, "verification": verification}
 
 
 def pareto_png(document: Mapping[str, Any]) -> bytes:

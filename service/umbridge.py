@@ -38,8 +38,8 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from microbearing import physics
 
-from .models import InputError, Model, jacobian, resolve
-from .problems import PROBLEM_MEDIA_TYPE, ProblemError
+from .models import InputError, Model, ModelError, jacobian, resolve
+from .problems import PROBLEM_MEDIA_TYPE, ProblemError, validation_problem
 from .schemas.umbridge import PREFIX, UMBridgeConfig
 from .security import app_path
 from .store import Store, json_bytes
@@ -225,6 +225,9 @@ class Setup:
             raise ProtocolError("InvalidInput", f"{self.where(exc)}: {exc}") from None
         except ProblemError as exc:
             raise protocol_error(exc.status, exc.detail) from None
+        except ModelError as exc:
+            problem = validation_problem(exc.errors)
+            raise protocol_error(problem.status, problem.detail) from None
 
     def where(self, error: InputError) -> str:
         """The request field of an input error: ``input[point][position] (name)`` or ``config.fixed.name``."""

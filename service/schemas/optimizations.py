@@ -33,8 +33,11 @@ class DesignBounds(StrictModel):
                      _pair("total number of balls (both grooves) [1]")]
     groove_angle_deg: Annotated[list[Annotated[float, Field(ge=_ANGLE.minimum, le=_ANGLE.maximum)]],
                                 _pair(f"groove angle, {_ANGLE.range_text()} [deg]")]
-    load_N: Annotated[list[Annotated[float, Field(ge=_LOAD.minimum, le=_LOAD.maximum)]],
-                      _pair(f"normal load on the slider, {_LOAD.range_text()} [N]")]
+    load_N: Annotated[list[Annotated[float, Field(ge=_LOAD.minimum, le=_LOAD.maximum)]] | None,
+                      Field(default=None, min_length=2, max_length=2, description=(
+                          f"[lower, upper] normal load on the slider, {_LOAD.range_text()}, both "
+                          "included [N]; or give a payload in fixed.load_N instead (a given load, not a "
+                          "range)."))] = None
 
 
 class DesignLimits(StrictModel):
@@ -70,8 +73,23 @@ OptimizationFixed = create_model(
     "OptimizationFixed", __base__=StrictModel,
     __doc__="Physics inputs held fixed (omitted ones take their defaults, or a calibrated model's values). "
             "speed_m_s may be given here or at the top level, not both.",
-    **parameter_fields(optional=True, names=[n for n in physics.PARAMETERS if n not in DESIGN_VARIABLES]),
+    **parameter_fields(optional=True, names=[n for n in physics.PARAMETERS
+                                             if n not in DESIGN_VARIABLES or n == "load_N"]),
 )
+
+
+class DesignTolerances(StrictModel):
+    """Manufacturing tolerances: the design must hold anywhere within nominal +- the tolerance."""
+
+    groove_angle_deg: float | None = Field(
+        default=None, ge=0.0, le=10.0,
+        description="Half-width of the groove angle's tolerance: the angle made lies anywhere in nominal +- "
+                    "this [deg].")
+
+
+#: A condition's value or its [low, high] range (the envelope), in the calibration data's unit.
+ConditionRange = float | Annotated[list[float], Field(min_length=2, max_length=2)]
+
 
 
 class ParetoRequest(StrictModel):
@@ -91,19 +109,35 @@ class OptimizationRequest(StrictModel):
         default_factory=OptimizationFixed, description="Physics inputs held fixed.")
     speed_m_s: float | Annotated[list[Annotated[float, Field(ge=0, le=1e3)]], Field(
         min_length=2, max_length=2)] | None = Field(
-        default=None, description="Slider speed [m/s], or [low, high] to design for the worst case: for "
-        "model physics the high end (mu grows with speed); for a surrogate or calibrated model the largest "
-        f"mu over {SPEED_GRID_POINTS} equally spaced speeds from low to high, both ends included (the "
-        "result's speed_m_s is where it occurs; not proven between them). Required here or in fixed.")
+        default=None, description="Slider speed [m/s], or [low, high] to design for the worst case over "
+        "the range (the operating envelope, with the condition ranges and tolerances; the result's "
+        "worst_case says where it occurs and proof what is proven): for model physics the high end, proven "
+        "(mu grows with speed); for a calibrated model its worst end when its terms are monotone, else the "
+        "worst case searched over the whole envelope; for a surrogate without other ranges or tolerances "
+        f"the largest mu over {SPEED_GRID_POINTS} equally spaced speeds, both ends included. Required here "
+        "or in fixed.")
     constraints: DesignLimits = Field(default_factory=DesignLimits, description="Engineering limits.")
     model: str = Field(default="physics", pattern=MODEL_PATTERN, description=(
         "physics (a certified global optimum by geometric programming), surrogate:<id> or "
-        "calibrated:<id> (a local optimum by sequential convex approximation)."))
-    conditions: dict[str, float] | None = Field(
-        default=None, description="Extra input columns a calibrated model's effect needs (e.g. "
-        "relative_humidity), in their units.")
+        "calibrated:<id> (a local optimum by sequential convex approximation; over an envelope, proven by "
+        "geometric programming when the calibrated model's terms allow, see proof)."))
+    conditions: dict[str, ConditionRange] | None = Field(
+        default=None, description="Condition columns a calibrated model's terms read (e.g. "
+        "relative_humidity, temperature_C), in the calibration data's units: a value, or [low, high] to "
+        "design for the worst case over the range (the operating envelope).",
+        examples=[{"relative_humidity": [0.3, 0.7], "temperature_C": [20, 60]}])
+    tolerances: DesignTolerances | None = Field(
+        default=None, description="Tolerances of design variables: the design must hold (objective and "
+        "limits) anywhere within nominal +- each.")
+    objective: Literal["mu", "mu_upper"] = Field(
+        default="mu", description="What the design minimizes the worst case of over the envelope: mu [1], "
+        "or mu_upper [1], the 95 % upper bound of a calibrated or surrogate model's prediction (a friction "
+        "limit to guarantee).")
     starts: int = Field(default=3, ge=1, le=9, description="Starting points per ball count of the local "
                         "method for surrogate and calibrated models [1].")
+    time_limit_s: float = Field(default=60.0, gt=0.0, le=3600.0, description=(
+        "Over an envelope, for a model without a proof: no new round of the outer approximation starts "
+        "after this time; the result then says so, with the worst case found [s]."))
     convention: ConventionName = Field(  # type: ignore[valid-type]
         default=Convention(physics.DEFAULT_CONVENTION), description="Reading of the paper's ball-ball terms.")
     pareto: ParetoRequest | None = Field(default=None, description="Also compute a Pareto front (physics "
@@ -204,12 +238,81 @@ class Verification(ResponseModel):
                                       "friction forces (and a 1e-3 margin) after the source broke it [1].")
 
 
+class Envelope(ResponseModel):
+    """The operating envelope of a robust design."""
+
+    speed_m_s: list[float] = Field(description="[low, high] slider speed [m/s].")
+    conditions: dict[str, list[float]] = Field(
+        description="[low, high] of each condition column, in the calibration data's unit.")
+    tolerances: dict[str, float] = Field(
+        description="Half-width of each tolerance (groove_angle_deg [deg]).")
+
+
+class WorstCase(ResponseModel):
+    """The worst case of the objective over the envelope at the returned design."""
+
+    mu: float | None = Field(default=None, description="The worst mu over the envelope (objective mu) [1].")
+    mu_upper: float | None = Field(default=None, description=(
+        "The worst 95 % upper bound over the envelope (objective mu_upper) [1]."))
+    speed_m_s: float = Field(description="Speed where it occurs [m/s].")
+    groove_angle_deg: float = Field(
+        description="The angle made (nominal + offset within the tolerance) where it occurs [deg].")
+    conditions: dict[str, float] = Field(
+        description="Condition values where it occurs, in the calibration data's units.")
+
+
+class OuterRound(ResponseModel):
+    """One round of the outer approximation (models without a proof)."""
+
+    round: int = Field(description="Round number [1].")
+    points: int = Field(description="Envelope points the design was optimized over [1].")
+    on_set: float = Field(description="The largest objective over those points at the round's design [1].")
+    searched: float = Field(description="The largest objective found over the whole envelope there [1].")
+
+
+class Proof(ResponseModel):
+    """What is proven about a robust design."""
+
+    proven: bool = Field(description="Whether the worst case is proven optimal to the gap target.")
+    method: str = Field(description=(
+        "robust-gp-vertex (the physics, or a calibrated model whose terms are monotone positive monomials: "
+        "geometric programming at the envelope's worst vertex) or outer-approximation-local (no proof)."))
+    lower_bound: float | None = Field(description=(
+        "Certified lower bound on the best achievable worst case [1]; null when none could be certified."))
+    upper_bound: float = Field(description="The worst case at the returned design [1].")
+    relative_gap: float | None = Field(description=(
+        "(upper_bound - lower_bound) / upper_bound [1]; null without a lower bound."))
+    gap_target: float = Field(description="The relative gap aimed at [1].")
+    statement: str = Field(description="The argument, in words.")
+    rounds: list[OuterRound] | None = Field(default=None, description="The outer approximation's rounds.")
+
+
+class PricedDesign(ResponseModel):
+    """A design with its objective at the envelope's centre and over the envelope."""
+
+    design: BearingDesign = Field(description="The design (nominal groove angle).")
+    at_centre: float = Field(description="The objective at the envelope's centre [1].")
+    worst_case: float = Field(description="The objective's worst case over the envelope [1].")
+    limits_hold_over_envelope: bool = Field(description="Whether every limit holds over the whole envelope.")
+
+
+class PriceOfRobustness(ResponseModel):
+    """The nominal optimum beside the robust one."""
+
+    nominal: PricedDesign = Field(description="The optimum at the envelope's centre, without tolerances.")
+    robust: PricedDesign = Field(description="The robust optimum.")
+    ratio: float = Field(description=(
+        "nominal worst case / robust worst case [1] (below 1 only when the nominal design breaks a limit "
+        "somewhere in the envelope)."))
+
+
 class OptimizationResult(ResponseModel):
     """The best design, checked with the exact physics, and why it is the best."""
 
     model: str = Field(description="The model optimized.")
-    method: str = Field(description="dgp-enumeration (certified global) or sequential-convex-approximation "
-                                    "(local).")
+    method: str = Field(description="dgp-enumeration (certified global), sequential-convex-approximation "
+                                    "(local), or for an envelope robust-gp-vertex (proven) or "
+                                    "outer-approximation-local (not proven).")
     design: BearingDesign = Field(description="The best design (the fewest balls among ties).")
     mu: float = Field(description="mu of the model at the design (the exact physics for model physics) [1].")
     mu_solver: float = Field(description="The solver's value of mu [1].")
@@ -242,3 +345,15 @@ class OptimizationResult(ResponseModel):
     domain_warnings: list[str] | None = Field(default=None, description=(
         "For a calibrated model: one sentence per input outside the calibration data at the optimum, naming "
         "the column, the value and the range."))
+    objective: Literal["mu", "mu_upper"] | None = Field(default=None, description=(
+        "With an operating envelope: the objective whose worst case the design minimizes (mu is then that "
+        "worst case) [1]."))
+    envelope: Envelope | None = Field(default=None, description="The operating envelope designed for.")
+    worst_case: WorstCase | None = Field(default=None, description=(
+        "With an envelope: the worst case of the objective at the returned design and where it occurs."))
+    proof: Proof | None = Field(default=None, description=(
+        "With an envelope: what is proven, the certified lower bound on the best achievable worst case and "
+        "the gap."))
+    price_of_robustness: PriceOfRobustness | None = Field(default=None, description=(
+        "With an envelope: the nominal optimum (at the envelope's centre) beside the robust one, each with "
+        "its worst case."))

@@ -1,0 +1,111 @@
+"""A calibrated model as a :class:`physics.model.Model`: μ with its 95 % interval, its domain, derivatives.
+
+:class:`CalibratedPhysicsModel` wraps a :class:`calibrate.CalibratedModel` (the physics with fitted
+parameters and the terms calibration added) in the interface every layer uses: the service answers
+it for ``"calibrated:<id>"``, the optimizer takes it directly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from microbearing import physics
+from microbearing.physics.model import (
+    Evaluation,
+    Model,
+    ModelError,
+    ModelInput,
+    evaluate_finite,
+    physics_inputs,
+)
+
+from .model import CalibratedModel, Prediction
+
+__all__ = ["CalibratedPhysicsModel"]
+
+
+class CalibratedPhysicsModel(Model):
+    """A stored calibration: the physics with fitted parameters and the terms calibration added.
+
+    Its outputs are the physics outputs with the fitted parameters, except ``mu``, which includes
+    the added terms; ``mu_effect`` [1], the terms' share of ``mu``; and ``mu_lower``, ``mu_upper`` [1],
+    the 95 % prediction interval of a measurement (:meth:`calibrate.CalibratedModel.predict`; NaN for
+    a model stored before intervals). ``outside_domain`` flags points outside the calibration data.
+
+    Parameters
+    ----------
+    reference : str
+        ``"calibrated:<id>"``.
+    calibrated : calibrate.CalibratedModel
+        The stored model.
+    """
+
+    kind = "calibrated"
+    outputs = (*physics.OUTPUTS, "mu_effect", "mu_lower", "mu_upper")
+    has_interval = True
+
+    def __init__(self, reference: str, calibrated: CalibratedModel):
+        self.reference = reference
+        self.calibrated = calibrated
+        self.convention = calibrated.convention
+        self.fixed, self.fitted = dict(calibrated.fixed), dict(calibrated.fitted)
+        self.required_columns = calibrated.required_columns
+        # The condition columns of the calibration data and the range of every column it was fitted
+        # on (None for a model stored before domains were kept).
+        self.conditions, self.domain = calibrated.conditions, calibrated.domain
+        self.inputs = physics_inputs({**self.fixed, **self.fitted})
+        self.inputs.update({name: ModelInput(name, "as in the calibration data", "A condition column "
+                                             "the calibrated model's terms read.")
+                            for name in self.required_columns})
+        # The other condition columns of the data: a point may give them, and they are checked against
+        # the data's range only (they are no input: nothing the model computes depends on them).
+        self.unread_conditions = {name: ModelInput(name, "as in the calibration data", "A condition column "
+                                                   "of the calibration data the terms do not read.")
+                                  for name in self.conditions if name not in self.inputs}
+
+    def predict(self, points: Mapping[str, Any]) -> Prediction:
+        """μ with its 95 % interval and the domain check: :meth:`calibrate.CalibratedModel.predict`."""
+        return self.calibrated.predict(points)
+
+    def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
+                 first_index: int = 0) -> Evaluation:
+        """As :meth:`Model.evaluate`; the answer of a calibrated model wherever it is asked.
+
+        ``points`` may also give the condition columns the terms do not read
+        (:attr:`unread_conditions`): they enter the domain check only. The physics outputs other than
+        ``mu`` are computed only when asked for; the warnings name every column outside the data.
+        A condition outside the law of a term, or a non-finite μ, is a :class:`ModelError` at ``/conditions``
+        (the latter naming the point's index for columns).
+        """
+        unread = {name: self.unread_conditions[name].check(value) for name, value in points.items()
+                  if name in self.unread_conditions}
+        checked = self.check({name: value for name, value in points.items() if name not in unread})
+        given = {k: v for k, v in checked.items() if k in physics.PARAMETERS}
+        wanted = list(dict.fromkeys(["mu", *(name for name in outputs if name in physics.OUTPUTS)]))
+        base = evaluate_finite({**self.fixed, **self.fitted, **given}, wanted, self.convention, pointer,
+                                first_index)
+        try:
+            with np.errstate(all="ignore"):
+                prediction = self.calibrated.predict({**checked, **unread})
+        except ValueError as exc:  # a condition outside the law of a term (relative humidity 1)
+            raise ModelError([{"pointer": "/conditions", "detail": str(exc)}]) from None
+        mu = np.asarray(prediction.mu, dtype=float)
+        finite = np.isfinite(mu)
+        if not finite.all():
+            at = f" (point {first_index + int(np.flatnonzero(~finite.reshape(-1))[0])})" if mu.ndim else ""
+            raise ModelError([{"pointer": "/conditions", "detail": "the calibrated model's mu is not "
+                               f"finite at these conditions{at}"}])
+        no_interval = np.full(mu.shape, np.nan)
+        values = {**base, "mu": mu, "mu_effect": mu - base["mu"],
+                  "mu_lower": no_interval if prediction.mu_lower is None else prediction.mu_lower,
+                  "mu_upper": no_interval if prediction.mu_upper is None else prediction.mu_upper}
+        shape = np.broadcast_shapes(*(np.shape(v) for v in values.values()))
+        inside = np.ones(shape, dtype=bool) if prediction.in_domain is None else prediction.in_domain
+        return Evaluation({name: values[name] for name in outputs},
+                          ~np.broadcast_to(np.asarray(inside, dtype=bool), shape), list(prediction.warnings))
+
+    def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
+        return self.calibrated(points)

@@ -1,0 +1,1215 @@
+r"""Designs that hold over an operating envelope, on any model, with what is proven about them.
+
+A designer knows the bearing will run over a range of speeds and conditions (a calibrated model's
+relative humidity, temperature, ...) and that the groove angle is made to a tolerance. An
+:class:`Envelope` states them; :func:`optimize_robust` finds the design whose **worst case** of the
+objective over the envelope (``mu``, or ``mu_upper``: the 95 % upper bound of a calibrated or
+surrogate model) is lowest, with every limit holding over the whole envelope, and says what is
+proven: the worst case at the returned design and where it occurs, a certified lower bound on the
+best achievable worst case and the gap between them, and the price of robustness (the nominal
+optimum at the envelope's centre beside the robust one, each with its worst case).
+
+The physics: a proof by geometric programming
+---------------------------------------------
+For a fixed ball count every term of the physics' μ is a posynomial, with positive coefficients and
+exponents, in t = tan θ and in the speed V (:mod:`optimize.dgp`; V enters only through Houpert's
+rolling force, k V^0.66), and so are the peak pressure and the friction force μ G. Hence μ, the
+pressure and the friction force are non-decreasing in θ on (0°, 90°) and in V, and the physics reads
+no condition column: over an envelope of speeds [V_lo, V_hi] and an angle made to θ ± δ, the worst
+case of every one of them is at (θ + δ, V_hi), one vertex. Minimizing the worst case over nominal
+angles θ in [θ_lo, θ_hi] is therefore minimizing μ at θ' = θ + δ over [θ_lo + δ, θ_hi + δ] and V_hi:
+the geometric program of :func:`optimize.optimize_design` on a shifted box, solved for every ball
+count (the global optimum per count, all counts enumerated). The certified lower bound is the least,
+over the counts, of the dual objective of each count's conic program (weak duality; limits taken
+exactly, without the solver's safety margin), less the solver's tolerance; the upper bound is the
+exact physics' worst case at the returned design. ``tests/test_optimize_robust.py`` checks the
+monotonicity on the exact physics and the optimum against brute force.
+
+:func:`robust_gp` is the same argument for any geometric program whose constants are uncertain
+within a box: a posynomial is log-log convex in its positive constants too, so its maximum over a
+box of them is at one of the box's vertices, and the worst case over the box of a maximum of
+posynomials is a geometric program over the vertices (a robust GP; the cantilever beam of Dakota's
+examples is checked with it).
+
+Calibrated models whose terms keep it a geometric program
+---------------------------------------------------------
+A calibrated model is the physics with fitted values and terms applied in order. When every term is
+a positive monomial in balls and load (read at three designs, checked at a fourth) added to μ or
+multiplying it, driven by the speed or a condition through a formula monotone in it (the directions
+of :data:`_DIRECTIONS`, from each effect's formula and its fitted parameter's sign), and the model
+has no Gaussian-process discrepancy and no drift of a physics parameter, μ is a posynomial in tan θ
+and G for every ball count, monotone in every envelope axis: its worst case is one vertex, and the
+robust problem one GP per ball count, proven as for the physics (objective ``mu``).
+
+Other models: an outer approximation, said to be unproven
+---------------------------------------------------------
+A surrogate, a term that is not monotone (a quadratic in humidity may peak inside the range; a
+Stribeck term falls with speed while rolling grows), a GP discrepancy or the width of a 95 %
+interval have no known bound on their derivatives, so no rigorous bound over a box exists for them
+here. The method is a cutting-plane (outer-approximation) loop: the local method of
+:func:`optimize.optimize_model` minimizes the largest objective over a finite set of envelope points
+(its vertices and centre, or the vertex where μ is proven worst, to begin with); at the design
+found, the worst case over the whole envelope is searched (a grid of every axis, then a bounded
+quasi-Newton ascent from the best grid points); a point worse than the set by more than
+:data:`ENVELOPE_RTOL` relative is added and the design re-optimized, at most :data:`MAX_ROUNDS`
+times. The result says ``proven: false`` with the best bound found: the worst case found at the
+returned design, and a certified lower bound only for ``mu_upper`` of a calibrated model whose ``mu``
+problem is a GP (mu_upper >= μ exp(1.96 σ_noise), so that factor times the proven bound of the ``mu``
+problem; the gap is then the share of the parameters' uncertainty in the interval).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import time
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import cvxpy as cp
+import numpy as np
+from scipy import optimize as sciopt
+from scipy import stats
+
+from microbearing import physics
+from microbearing.physics.model import Model
+
+from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
+from .general import optimize_model
+from .problem import DESIGN_VARIABLES, DesignBounds, DesignProblem, constraint_report
+from .solve import (
+    TIE_TOLERANCE,
+    BallCountResult,
+    InfeasibleDesignError,
+    OptimizationResult,
+    optimize_design,
+    polish_design,
+)
+
+__all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE_NAMES", "Envelope",
+           "RobustGPResult", "RobustResult", "check_model", "dual_bound", "optimize_robust", "robust_gp",
+           "shifted_problem", "worst_case_of",
+           "worst_case_search"]
+
+#: The objectives a design may minimize the worst case of.
+OBJECTIVES = ("mu", "mu_upper")
+#: Design variables a tolerance may be given for (the angle: μ is monotone in it, see the module docstring).
+TOLERANCE_NAMES = ("groove_angle_deg",)
+#: Relative gap between the certified lower bound and the worst case that counts as closed. [1]
+GAP_TARGET = 1e-6
+#: A searched worst case above the optimized set's by more than this (relative) adds a point. [1]
+ENVELOPE_RTOL = 1e-6
+#: Most rounds of the cutting-plane loop for models other than the physics. [1]
+MAX_ROUNDS = 6
+#: Clarabel's stopping tolerances (gap and feasibility, its defaults), taken off the dual bound. [1]
+_SOLVER_TOL = 1e-8
+_ANGLE = physics.PARAMETERS["groove_angle_deg"]
+_SPEED = physics.PARAMETERS["speed_m_s"]
+
+
+def _range(field_name: str, value: Any, minimum: float | None = None) -> tuple[float, float]:
+    """A [low, high] pair (a number is a range of one point), finite and ordered, or a ValueError."""
+    if isinstance(value, list | tuple):
+        if len(value) != 2:
+            raise ValueError(f"{field_name} must be a number or a pair [low, high]; got {value!r}")
+        lo, hi = value
+    else:
+        lo = hi = value
+    try:
+        lo, hi = float(lo), float(hi)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field_name} must be a number or a pair [low, high]; got {value!r}") from None
+    if isinstance(value, bool) or not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ValueError(f"{field_name} must hold finite numbers; got {value!r}")
+    if lo > hi:
+        raise ValueError(f"{field_name} must have low <= high; got [{lo:g}, {hi:g}]")
+    if minimum is not None and lo < minimum:
+        raise ValueError(f"{field_name} must be >= {minimum:g}; got {lo:g}")
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """Where a design must hold: ranges of speed and conditions, tolerances of design variables.
+
+    Parameters
+    ----------
+    speed_m_s : float or tuple of float
+        Slider speed, or [low, high]. [m/s]
+    conditions : mapping of str to float or tuple of float, optional
+        Condition columns a calibrated model reads (e.g. ``relative_humidity`` [fraction or as in the
+        calibration data], ``temperature_C`` [degC]): a value or [low, high], in the data's unit.
+    tolerances : mapping of str to float, optional
+        Half-widths δ of design variables made to a tolerance: the design must hold anywhere within
+        nominal ± δ. Only ``groove_angle_deg`` [deg].
+
+    Raises
+    ------
+    ValueError
+        Naming the field (``speed_m_s``, ``conditions.<name>``, ``tolerances.<name>``).
+    """
+
+    speed_m_s: float | tuple[float, float]
+    conditions: Mapping[str, Any] = field(default_factory=dict)
+    tolerances: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        lo, hi = _range("speed_m_s", self.speed_m_s)
+        for v in (lo, hi):
+            try:
+                physics.validate("speed_m_s", v)
+            except ValueError as exc:
+                raise ValueError(f"speed_m_s: {exc}") from None
+        object.__setattr__(self, "speed_m_s", (lo, hi))
+        object.__setattr__(self, "conditions", {str(name): _range(f"conditions.{name}", value)
+                                                for name, value in dict(self.conditions).items()})
+        tolerances = {}
+        for name, value in dict(self.tolerances).items():
+            if name not in TOLERANCE_NAMES:
+                raise ValueError(f"tolerances.{name}: a tolerance is taken on {', '.join(TOLERANCE_NAMES)} "
+                                 "only")
+            if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                    math.isfinite(value) and 0 <= value <= 10):
+                raise ValueError(f"tolerances.{name} must be a number in [0, 10] [deg]; got {value!r}")
+            tolerances[name] = float(value)
+        object.__setattr__(self, "tolerances", tolerances)
+
+    @property
+    def angle_tolerance_deg(self) -> float:
+        """δ of the groove angle (0 without a tolerance). [deg]"""
+        return self.tolerances.get("groove_angle_deg", 0.0)
+
+    def axes(self) -> dict[str, tuple[float, float]]:
+        """Every dimension of the envelope that is a range: ``speed_m_s``, the conditions, and
+        ``groove_angle_offset_deg`` (the offset from the nominal angle, [-δ, δ]). [their units]"""
+        axes = {}
+        if self.speed_m_s[0] < self.speed_m_s[1]:
+            axes["speed_m_s"] = self.speed_m_s
+        axes.update({f"conditions.{n}": r for n, r in self.conditions.items() if r[0] < r[1]})
+        if self.angle_tolerance_deg > 0:
+            axes["groove_angle_offset_deg"] = (-self.angle_tolerance_deg, self.angle_tolerance_deg)
+        return axes
+
+    def centre(self) -> dict[str, Any]:
+        """The envelope's centre: ``speed_m_s`` [m/s] and ``conditions`` (midpoints), no angle offset."""
+        return {"speed_m_s": 0.5 * sum(self.speed_m_s),
+                "conditions": {n: 0.5 * (lo + hi) for n, (lo, hi) in self.conditions.items()}}
+
+    def point(self, values: Mapping[str, float]) -> dict[str, Any]:
+        """A point of the envelope from axis values (the other dimensions at their single value)."""
+        conditions = {n: float(values.get(f"conditions.{n}", lo)) for n, (lo, _) in self.conditions.items()}
+        return {"speed_m_s": float(values.get("speed_m_s", self.speed_m_s[0])), "conditions": conditions,
+                "groove_angle_offset_deg": float(values.get("groove_angle_offset_deg", 0.0))}
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready fields: ranges as [low, high]."""
+        return {"speed_m_s": list(self.speed_m_s),
+                "conditions": {n: list(r) for n, r in self.conditions.items()},
+                "tolerances": dict(self.tolerances)}
+
+
+# --------------------------------------------------------------------------------------------------
+# Certified bounds of geometric programs
+
+
+def dual_bound(problem: cp.Problem) -> tuple[str, float, float]:
+    """Solve a DGP with Clarabel and return (status, primal value, certified lower bound).
+
+    The lower bound is the dual objective of the conic program (weak duality), less Clarabel's
+    stopping tolerance (1e-8 absolute and relative, in the logarithm of the objective).
+
+    Parameters
+    ----------
+    problem : cvxpy.Problem
+        A disciplined geometric program (minimization); parameters already assigned.
+
+    Returns
+    -------
+    status : str
+        Clarabel's status (``"Solved"``, ``"AlmostSolved"``, ``"PrimalInfeasible"``, ...).
+    value : float
+        The primal objective (NaN unless solved). [unit of the objective]
+    lower_bound : float
+        The certified lower bound (NaN unless solved; +inf when proven infeasible). [unit of the objective]
+    """
+    data, chain, _ = problem.get_problem_data(cp.CLARABEL, gp=True)
+    offset = float(data["param_prob"].apply_parameters()[1])
+    raw = chain.solver.solve_via_data(data, False, False, {})
+    status = str(raw.status)
+    if status == "PrimalInfeasible":
+        return status, math.nan, math.inf
+    if status not in ("Solved", "AlmostSolved"):
+        return status, math.nan, math.nan
+    primal, dual = float(raw.obj_val) + offset, float(raw.obj_val_dual) + offset
+    slack = _SOLVER_TOL * (1.0 + abs(dual))
+    return status, math.exp(primal), math.exp(min(dual, primal) - slack)
+
+
+@dataclass(frozen=True)
+class RobustGPResult:
+    """The optimum of a robust geometric program and its certificate.
+
+    Attributes
+    ----------
+    value : float
+        The worst case over the box of the objective at the optimum. [unit of the objective]
+    lower_bound : float
+        Certified lower bound on the best achievable worst case (:func:`dual_bound`). [same unit]
+    relative_gap : float
+        (value - lower_bound) / value. [1]
+    variables : dict of str to float
+        The optimal variables. [their units]
+    worst_vertex : dict of str to float
+        The vertex of the box where the objective is largest at the optimum. [their units]
+    vertices : int
+        Vertices of the box enumerated. [1]
+    """
+
+    value: float
+    lower_bound: float
+    relative_gap: float
+    variables: dict[str, float]
+    worst_vertex: dict[str, float]
+    vertices: int
+
+
+def robust_gp(variables: Mapping[str, cp.Variable],
+              objective: Callable[[Mapping[str, float]], cp.Expression],
+              constraints: Callable[[Mapping[str, float]], Sequence[cp.Constraint]],
+              box: Mapping[str, tuple[float, float]]) -> RobustGPResult:
+    """Minimize the worst case over a box of positive constants, subject to constraints at all of them.
+
+    Every expression must be a posynomial (log-log convex) in the variables and the constants alike,
+    so that its maximum over the box is at a vertex (see the module docstring): the program is
+    min s subject to objective(v) <= s and constraints(v) for every vertex v, still a geometric
+    program, solved once with a certified lower bound.
+
+    Parameters
+    ----------
+    variables : mapping of str to cvxpy.Variable
+        Positive variables (``pos=True``) by name.
+    objective : callable
+        The objective at the constants ``{name: value}`` of a vertex.
+    constraints : callable
+        The constraints at the constants of a vertex.
+    box : mapping of str to (float, float)
+        [low, high] of each uncertain constant, both > 0. [their units]
+
+    Returns
+    -------
+    RobustGPResult
+
+    Raises
+    ------
+    ValueError
+        For an empty or non-positive box, a program that is not a DGP, or no solution.
+    """
+    names = list(box)
+    for name in names:
+        lo, hi = box[name]
+        if not 0 < lo <= hi:
+            raise ValueError(f"box.{name} must be 0 < low <= high; got [{lo:g}, {hi:g}]")
+    corners = itertools.product(*(box[n] for n in names))
+    vertices = [dict(zip(names, corner, strict=True)) for corner in corners]
+    bound = cp.Variable(pos=True, name="worst_case")
+    cons = [objective(v) <= bound for v in vertices]
+    for v in vertices:
+        cons += list(constraints(v))
+    program = cp.Problem(cp.Minimize(bound), cons)
+    if not program.is_dgp():
+        raise ValueError("the robust program is not a disciplined geometric program")
+    status, _, lower = dual_bound(program)
+    if status not in ("Solved", "AlmostSolved"):
+        raise ValueError(f"the robust geometric program has no solution (Clarabel: {status})")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        program.solve(gp=True, solver=cp.CLARABEL)
+    values = {name: float(var.value) for name, var in variables.items()}
+    # The worst case at the optimum, from the objective itself at each vertex.
+    at = [float(objective(v).value) for v in vertices]
+    worst = int(np.argmax(at))
+    value = at[worst]
+    lower = min(lower, value)
+    return RobustGPResult(value, lower, (value - lower) / value, values, vertices[worst], len(vertices))
+
+
+# --------------------------------------------------------------------------------------------------
+# Worst case over an envelope
+
+
+def _objective_values(model: Model | None, objective: str, columns: dict[str, Any],
+                      convention: str) -> np.ndarray:
+    """The objective at columnar points: the physics' μ, a model's μ or its ``mu_upper``. [1]"""
+    with np.errstate(all="ignore"):
+        if model is None:
+            return physics.evaluate(convention=convention, outputs=["mu"], **columns).mu
+        # The values a model holds are its own: given as columns, a calibrated model would read a fitted
+        # value as known and leave its uncertainty out of the interval.
+        held = {*model.fixed, *model.fitted}
+        columns = {name: value for name, value in columns.items() if name not in held}
+        if objective == "mu":
+            return np.asarray(model(columns), dtype=float)
+        predict = getattr(model, "predict", None)
+        if predict is not None:  # a calibrated model: its prediction, without the physics' other outputs
+            return np.asarray(predict(columns).mu_upper, dtype=float)
+        return np.asarray(model.evaluate(columns, [objective]).values[objective], dtype=float)
+
+
+def _columns(problem: DesignProblem, envelope: Envelope, design: Mapping[str, Any],
+             points: Sequence[Mapping[str, Any]], angle_shift: float) -> dict[str, Any]:
+    """Columns of every (design, envelope point) pair, designs varying fastest.
+
+    ``design`` holds arrays of n designs (the angle being the optimizer's θ' = θ + ``angle_shift``);
+    ``points`` are m envelope points; the result has m n values per column.
+    """
+    n = int(np.size(design["balls"]))
+    m = len(points)
+    offsets = np.repeat([p["groove_angle_offset_deg"] for p in points], n)
+    theta = np.tile(np.broadcast_to(design["groove_angle_deg"], (n,)), m) - angle_shift + offsets
+    cols = problem.physics_inputs(np.tile(np.broadcast_to(design["balls"], (n,)), m), theta,
+                                  np.tile(np.broadcast_to(design["load_N"], (n,)), m),
+                                  speed_m_s=np.repeat([p["speed_m_s"] for p in points], n))
+    for name in envelope.conditions:
+        cols[name] = np.repeat([p["conditions"][name] for p in points], n)
+    return cols
+
+
+def worst_case_search(evaluate: Callable[[list[dict[str, Any]]], np.ndarray], envelope: Envelope,
+                      levels: int | None = None, polish: int = 3) -> tuple[float, dict[str, Any], int]:
+    """The largest value of a function over the envelope: a grid of every axis, then local ascent.
+
+    Parameters
+    ----------
+    evaluate : callable
+        Values at a list of envelope points (:meth:`Envelope.point`). [1]
+    envelope : Envelope
+        The envelope.
+    levels : int, optional
+        Grid levels per axis (both ends included); by default 9 for up to 2 axes, 5 for 3-4, 3 above.
+    polish : int, default 3
+        Best grid points from which a bounded quasi-Newton ascent (L-BFGS-B) starts. [1]
+
+    Returns
+    -------
+    value : float
+        The largest value found. [1]
+    point : dict
+        Where it occurs (:meth:`Envelope.point`).
+    evaluations : int
+        Points evaluated. [1]
+    """
+    axes = envelope.axes()
+    names = list(axes)
+    if not names:
+        point = envelope.point({})
+        return float(evaluate([point])[0]), point, 1
+    k = len(names)
+    levels = levels or (9 if k <= 2 else 5 if k <= 4 else 3)
+    grid = np.array(list(itertools.product(np.linspace(0.0, 1.0, levels), repeat=k)))
+    lo = np.array([axes[n][0] for n in names])
+    span = np.array([axes[n][1] - axes[n][0] for n in names])
+
+    def points_of(unit: np.ndarray) -> list[dict[str, Any]]:
+        return [envelope.point(dict(zip(names, lo + span * u, strict=True))) for u in unit]
+
+    values = np.asarray(evaluate(points_of(grid)), dtype=float)
+    count = len(grid)
+    best = int(np.nanargmax(values))
+    best_value, best_unit = float(values[best]), grid[best]
+    step = 1e-7
+    calls = 0
+
+    def negative(u: np.ndarray) -> tuple[float, np.ndarray]:
+        # The value and a forward-difference gradient (backward at the upper edge) in one call of the model.
+        nonlocal calls
+        sign = np.where(u + step <= 1.0, 1.0, -1.0)
+        at = np.vstack([u, u + np.diag(sign * step)])
+        f = -np.asarray(evaluate(points_of(at)), dtype=float)
+        calls += len(at)
+        return float(f[0]), (f[1:] - f[0]) / (sign * step)
+
+    for start in np.argsort(-np.nan_to_num(values, nan=-np.inf))[:polish]:
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            found = sciopt.minimize(negative, grid[start], jac=True, method="L-BFGS-B",
+                                    bounds=[(0.0, 1.0)] * k, options={"maxiter": 50})
+        if np.isfinite(found.fun) and -found.fun > best_value:
+            best_value, best_unit = float(-found.fun), np.clip(found.x, 0.0, 1.0)
+    return best_value, points_of(best_unit[None, :])[0], count + calls
+
+
+def worst_case_of(mu_model: Callable[[Mapping[str, Any]], Any], problem: DesignProblem, envelope: Envelope,
+                  design: Mapping[str, Any]) -> tuple[float, dict[str, Any]]:
+    """The largest value of any ``mu_model(points)`` callable over the envelope at a design, as searched.
+
+    What verifies a surrogate's robust design by the model it stands for (:func:`worst_case_search`;
+    not a bound).
+
+    Parameters
+    ----------
+    mu_model : callable
+        ``points -> mu`` [1] over columnar physics inputs and condition columns.
+    problem : DesignProblem
+        Its fixed values and convention.
+    envelope : Envelope
+        The envelope.
+    design : mapping
+        ``balls`` [1], ``groove_angle_deg`` (nominal) [deg], ``load_N`` [N].
+
+    Returns
+    -------
+    value : float
+        The largest value found. [1]
+    point : dict
+        Where (:meth:`Envelope.point`).
+    """
+    design = {k: np.array([float(design[k])]) for k in DESIGN_VARIABLES}
+
+    def evaluate(points: list[dict[str, Any]]) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            return np.asarray(mu_model(_columns(problem, envelope, design, points, 0.0)), dtype=float)
+
+    value, point, _ = worst_case_search(evaluate, envelope)
+    return value, point
+
+
+def _vertices_and_centre(envelope: Envelope) -> list[dict[str, Any]]:
+    axes = envelope.axes()
+    names = list(axes)
+    corners = [dict(zip(names, c, strict=True)) for c in itertools.product(*(axes[n] for n in names))]
+    centre = {n: 0.5 * (lo + hi) for n, (lo, hi) in axes.items()}
+    return [envelope.point(c) for c in [centre, *corners]]
+
+
+# --------------------------------------------------------------------------------------------------
+# The robust optimization
+
+
+@dataclass(frozen=True)
+class RobustResult:
+    """The robust design, its worst case, what is proven and the price of robustness.
+
+    Attributes
+    ----------
+    result : OptimizationResult
+        The design (nominal groove angle), with ``mu`` the worst case of the objective over the
+        envelope, its constraint report (the limits at their worst over the envelope) and per-count table.
+    objective : str
+        ``"mu"`` or ``"mu_upper"``.
+    envelope : Envelope
+        The envelope designed for.
+    worst_case : dict
+        ``{objective: value [1], "speed_m_s" [m/s], "groove_angle_deg" [deg] (the angle made),
+        "conditions": {...}}``: where the worst case occurs at the returned design.
+    proof : dict
+        ``proven`` (bool), ``method``, ``lower_bound`` [1] (certified, or None), ``upper_bound`` [1]
+        (the worst case at the design), ``relative_gap`` [1] (or None), ``gap_target`` [1],
+        ``statement``.
+    price_of_robustness : dict
+        ``nominal`` and ``robust``: each a design with its objective at the envelope's centre and its
+        worst case over the envelope; ``ratio`` [1], the nominal design's worst case over the robust one's.
+    """
+
+    result: OptimizationResult
+    objective: str
+    envelope: Envelope
+    worst_case: dict[str, Any]
+    proof: dict[str, Any]
+    price_of_robustness: dict[str, Any]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready nested dict: the fields of :meth:`OptimizationResult.to_dict` and the robust ones."""
+        return {**self.result.to_dict(), "objective": self.objective, "envelope": self.envelope.to_dict(),
+                "worst_case": dict(self.worst_case), "proof": dict(self.proof),
+                "price_of_robustness": dict(self.price_of_robustness)}
+
+
+def shifted_problem(problem: DesignProblem, delta: float, speed: float) -> DesignProblem:
+    """The problem in θ' = θ + δ at one speed [m/s]: the angle box moved by δ [deg].
+
+    Raises
+    ------
+    ValueError
+        ``tolerances.groove_angle_deg: ...`` when the angles made leave the physics' range.
+    """
+    lo, hi = problem.bounds.groove_angle_deg
+    if lo - delta <= _ANGLE.minimum or hi + delta >= _ANGLE.maximum:
+        raise ValueError("tolerances.groove_angle_deg: the angles made, "
+                         f"[{lo - delta:g}, {hi + delta:g}] deg, "
+                         f"must stay within the physics' range {_ANGLE.range_text()}")
+    bounds = DesignBounds(problem.bounds.balls, (lo + delta, hi + delta), problem.bounds.load_N)
+    return DesignProblem(bounds, speed, problem.constraints, problem.fixed, problem.convention)
+
+
+def _unshift(result: OptimizationResult, delta: float,
+             extra: dict[str, Any] | None = None) -> OptimizationResult:
+    """The result with every angle moved back from θ' to the nominal θ = θ' - δ."""
+    if delta == 0 and not extra:
+        return result
+    design = {**result.design, "groove_angle_deg": result.design["groove_angle_deg"] - delta}
+    rows = [dataclasses.replace(r, groove_angle_deg=None if r.groove_angle_deg is None
+                                else r.groove_angle_deg - delta) for r in result.per_ball_count]
+    ties = [{**t, "groove_angle_deg": t["groove_angle_deg"] - delta} for t in result.ties]
+    constraints = [dataclasses.replace(c, value=c.value - delta, limit=c.limit - delta)
+                   if c.name.startswith("groove_angle_deg") else c for c in result.constraints]
+    return dataclasses.replace(result, design=design, per_ball_count=rows, ties=ties, constraints=constraints,
+                               extra={**result.extra, **(extra or {})})
+
+
+def _physics_lower_bound(problem: DesignProblem,
+                         result: OptimizationResult) -> tuple[float | None, list[int]]:
+    """The least certified lower bound over the ball counts, with the limits exact (no safety margin).
+
+    Returns the bound [1] (None when a count could not be bounded) and the counts that could not.
+    """
+    bounds, unbounded = [], []
+    for row in result.per_ball_count:
+        if row.status in ("does not fit the groove", "infeasible"):
+            continue  # no design of this count (the infeasible ones proven by phase I)
+        gp, values = design_gp(problem, balls=row.balls)
+        relaxed = {n: (v / (1.0 - SAFETY_MARGIN) if LIMIT_NAMES.get(n) == "max" else v)
+                   for n, v in values.items()}
+        with gp.lock:
+            gp.assign(relaxed, row.balls)
+            _, _, lower = dual_bound(gp.problem)
+        if math.isnan(lower):
+            unbounded.append(row.balls)
+        else:
+            bounds.append(lower)
+    return (min(bounds) if bounds and not unbounded else None), unbounded
+
+
+def check_model(model: Model | None, envelope: Envelope, objective: str) -> None:
+    """Refuse what a model cannot be asked over an envelope (the checks :func:`optimize_robust` makes first).
+
+    Raises
+    ------
+    ValueError
+        Naming the field: ``objective`` (mu_upper without an interval), ``conditions`` (a condition for
+        the physics, a missing or unknown one for a calibrated model).
+    """
+    if objective not in OBJECTIVES:
+        raise ValueError(f"objective must be one of {', '.join(OBJECTIVES)}; got {objective!r}")
+    if model is None or model.kind == "physics":
+        if objective != "mu":
+            raise ValueError("objective: mu_upper is the 95 % upper bound of a calibrated or surrogate "
+                             "model; "
+                             "the physics has no interval")
+        if envelope.conditions:
+            raise ValueError("conditions: condition columns are read by calibrated models only")
+        return
+    if objective == "mu_upper" and not model.has_interval:
+        raise ValueError(f"objective: {model.reference} has no interval")
+    required = list(model.required_columns)
+    missing = [n for n in required if n not in envelope.conditions]
+    if missing:
+        raise ValueError(f"conditions.{missing[0]}: {model.reference} reads {', '.join(required)}; give each "
+                         "a value or a range [low, high]")
+    known = set(required) | set(getattr(model, "unread_conditions", {}))
+    unknown = [n for n in envelope.conditions if n not in known]
+    if unknown:
+        raise ValueError(f"conditions.{unknown[0]} is not a condition of {model.reference}; its "
+                         f"conditions are {', '.join(sorted(known)) or 'none'}")
+
+
+def _with_model_values(problem: DesignProblem, model: Model | None) -> DesignProblem:
+    """The problem with the values the model holds (a calibration's fixed and fitted ones) in ``fixed``."""
+    if model is None:
+        return problem
+    held = {k: v for k, v in {**model.fixed, **model.fitted}.items()
+            if k in physics.PARAMETERS and k not in DESIGN_VARIABLES and k != "speed_m_s"}
+    if not held and problem.convention == model.convention:
+        return problem
+    return DesignProblem(problem.bounds, problem.speed_m_s, problem.constraints, {**problem.fixed, **held},
+                         model.convention)
+
+
+def _evaluator(problem: DesignProblem, envelope: Envelope, model: Model | None, objective: str,
+               design: Mapping[str, Any], shift: float) -> Callable[[list[dict[str, Any]]], np.ndarray]:
+    def evaluate(points: list[dict[str, Any]]) -> np.ndarray:
+        return _objective_values(model, objective, _columns(problem, envelope, design, points, shift),
+                                 problem.convention)
+    return evaluate
+
+
+def _worst_case_dict(objective: str, value: float, point: Mapping[str, Any],
+                     nominal_deg: float) -> dict[str, Any]:
+    return {objective: float(value), "speed_m_s": float(point["speed_m_s"]),
+            "groove_angle_deg": float(nominal_deg + point["groove_angle_offset_deg"]),
+            "conditions": {n: float(v) for n, v in point["conditions"].items()}}
+
+
+def _design_of(result: OptimizationResult) -> dict[str, Any]:
+    return {k: result.design[k] for k in ("balls", "groove_angle_deg", "load_N")}
+
+
+def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | None = None,
+                    objective: str = "mu", starts: int = 3, max_rounds: int = MAX_ROUNDS,
+                    progress: Callable[[float], None] | None = None,
+                    map_calls: Callable | None = None, time_limit_s: float = math.inf) -> RobustResult:
+    """The design whose worst case of the objective over the envelope is lowest, with its proof.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        Bounds (nominal groove angle), limits and fixed values; its speed is replaced by the
+        envelope's. For a model, the values the model holds (fixed, fitted) take precedence.
+    envelope : Envelope
+        Speeds, conditions and tolerances the design must hold over.
+    model : physics.model.Model, optional
+        The model; None (or a :class:`physics.model.PhysicsModel`) for the physics.
+    objective : {"mu", "mu_upper"}, default "mu"
+        μ, or the 95 % upper bound of a calibrated or surrogate model. [1]
+    starts : int, default 3
+        Starts per ball count of the local method (models other than the physics). [1]
+    max_rounds : int, default :data:`MAX_ROUNDS`
+        Most cutting-plane rounds (models other than the physics). [1]
+    progress : callable, optional
+        Called with the fraction done, 0..1. [1]
+    map_calls : callable, optional
+        Passed to :func:`optimize.optimize_model` (groups of ball counts on an executor).
+    time_limit_s : float, default inf
+        No new round of the outer approximation starts after this much time; the result then says
+        so, with the worst case found. [s]
+
+    Returns
+    -------
+    RobustResult
+
+    Raises
+    ------
+    ValueError
+        Naming the field: an objective the model has no value for, missing or unknown conditions,
+        a tolerance taking the angle out of the physics' range.
+    InfeasibleDesignError
+        When no design meets the limits over the envelope.
+    """
+    check_model(model, envelope, objective)
+    if model is not None and model.kind == "physics":
+        problem = DesignProblem(problem.bounds, problem.speed_m_s, problem.constraints, problem.fixed,
+                                model.convention)
+        model = None
+    problem = _with_model_values(problem, model)
+    if model is None:
+        return _robust_physics(problem, envelope, progress)
+    reason = "the objective is mu_upper, whose interval is not log-log convex"
+    proven = (_robust_calibrated_gp(problem, envelope, model, progress) if objective == "mu" else
+              _robust_calibrated_gp(problem, envelope, model, None, bound_only=True))
+    if objective == "mu":
+        if isinstance(proven, RobustResult):
+            return proven
+        reason = proven
+    # Where mu is proven worst is where its upper bound is likely worst too: the outer approximation starts
+    # from that vertex alone (the search adds any other point that is worse).
+    vertex = _term_structure(model, envelope)[0] if isinstance(proven, RobustResult) else None
+    result = _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
+                           reason, None if vertex is None else [vertex], time_limit_s)
+    noise = getattr(getattr(model, "calibrated", None), "noise_std_log", None)
+    if objective == "mu_upper" and isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
+        result = _with_interval_bound(result, proven, float(noise))
+    return result
+
+
+def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_std_log: float) -> RobustResult:
+    """A mu_upper result with the certified lower bound that the proven mu problem gives.
+
+    A calibrated model's upper bound is mu exp(z sigma) with sigma^2 = g'Cg + noise^2 >= noise^2 (C positive
+    semi-definite, no discrepancy), so every design's worst mu_upper is at least exp(z noise) times its worst
+    mu, hence at least exp(z noise) times the certified lower bound of the mu problem (whose friction limit on
+    mu is a relaxation of the one on mu_upper).
+    """
+    z = float(stats.norm.isf(0.025))
+    lower = min(mu_result.proof["lower_bound"] * math.exp(z * noise_std_log), result.proof["upper_bound"])
+    upper = result.proof["upper_bound"]
+    gap = (upper - lower) / upper
+    statement = (f" Certified lower bound {lower:.10g}: mu_upper >= mu exp(1.96 x {noise_std_log:.4g}) "
+                 "(the interval is at least the measurement scatter) and the worst mu over the envelope is "
+                 f"proven at least {mu_result.proof['lower_bound']:.10g} (geometric programming, as for "
+                 f"objective mu); relative gap to the worst case found {gap:.2e}: the parameters' share of "
+                 "the interval. Not proven, since the worst case at the design is searched, not bounded.")
+    proof = {**result.proof, "lower_bound": lower, "relative_gap": gap,
+             "statement": result.proof["statement"] + statement}
+    certificate = result.result.certificate + statement
+    return dataclasses.replace(result, proof=proof,
+                               result=dataclasses.replace(result.result, certificate=certificate))
+
+
+def _robust_physics(problem: DesignProblem, envelope: Envelope,
+                    progress: Callable[[float], None] | None) -> RobustResult:
+    start = time.perf_counter()
+    delta = envelope.angle_tolerance_deg
+    v_hi = envelope.speed_m_s[1]
+    shifted = shifted_problem(problem, delta, v_hi)
+    solved = optimize_design(shifted, progress=None if progress is None else (lambda f: progress(0.6 * f)))
+    lower, unbounded = _physics_lower_bound(shifted, solved)
+    design = _design_of(solved)
+    theta = design["groove_angle_deg"] - delta
+    # Where the worst case occurs, and a check of the vertex argument on the exact physics: no other
+    # vertex or the centre is worse.
+    evaluate = _evaluator(problem, envelope, None, "mu", design, delta)
+    vertices = _vertices_and_centre(envelope)
+    at = evaluate(vertices)
+    worst = vertices[int(np.argmax(at))]
+    predicted = envelope.point({"speed_m_s": v_hi, "groove_angle_offset_deg": delta})
+    value = float(evaluate([predicted])[0])
+    gap = None if lower is None else max(0.0, (value - lower) / value)
+    proven = lower is not None and gap <= GAP_TARGET
+    statement = (
+        "The physics' mu, peak pressure and friction force are posynomials in tan(theta) and in the speed "
+        "with "
+        "positive coefficients (the rolling force ~ V^0.66 is the only speed term), so over the envelope "
+        f"their worst case is at the angle made high (nominal + {delta:g} deg) and the highest speed "
+        f"{v_hi:g} m/s; the physics reads no condition column. The robust problem is the geometric program "
+        f"of every ball count on the angle box moved by {delta:g} deg at {v_hi:g} m/s, solved per count; "
+        f"certified lower bound {lower if lower is not None else float('nan'):.10g} (least dual objective "
+        f"over the counts, limits exact, less Clarabel's 1e-8 tolerance), worst case at the design "
+        f"{value:.10g} (exact physics), relative gap {gap if gap is not None else float('nan'):.2e} "
+        f"(target {GAP_TARGET:g}). The {len(vertices)} vertices and centre of the envelope checked on the "
+        f"exact physics: largest {float(np.max(at)):.10g}.")
+    if unbounded:
+        statement += f" Counts {unbounded} could not be bounded by the solver: no certified bound."
+    if lower is not None and gap > GAP_TARGET:
+        statement += " The gap is above the target: the optimum is proven only to that gap."
+    proof = {"proven": bool(proven), "method": "robust-gp-vertex", "lower_bound": lower, "upper_bound": value,
+             "relative_gap": gap, "gap_target": GAP_TARGET, "statement": statement}
+    if float(np.max(at)) > value * (1 + 1e-12):
+        proof["proven"] = False
+        proof["statement"] += (f" But a vertex or the centre gave {float(np.max(at)):.10g} > the predicted "
+                               "worst case: the monotonicity argument failed here, nothing is proven.")
+        value = float(np.max(at))
+        predicted = worst
+    worst_case = _worst_case_dict("mu", value, predicted, theta)
+    # Price of robustness: the nominal optimum at the envelope's centre and its worst case.
+    centre_speed = envelope.centre()["speed_m_s"]
+    nominal = optimize_design(DesignProblem(problem.bounds, centre_speed, problem.constraints, problem.fixed,
+                                            problem.convention))
+    nominal_design = _design_of(nominal)
+    nominal_eval = _evaluator(problem, envelope, None, "mu", nominal_design, 0.0)
+    nominal_worst = float(nominal_eval([predicted | {"groove_angle_offset_deg": delta}])[0])
+    nominal_limits = constraint_report(shifted, nominal_design["balls"],
+                                       nominal_design["groove_angle_deg"] + delta,
+                                       nominal_design["load_N"])
+    robust_centre = float(_evaluator(problem, envelope, None, "mu", design, delta)(
+        [envelope.point({"speed_m_s": centre_speed})])[0])
+    price = _price(nominal_design, nominal.mu, nominal_worst,
+                   all(c.satisfied for c in nominal_limits if not c.name.startswith("groove_angle_deg")),
+                   {**design, "groove_angle_deg": theta}, robust_centre, value)
+    certificate = (solved.certificate + " Envelope: " + statement)
+    result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
+                                          speed_m_s=v_hi, solve_time_s=time.perf_counter() - start), delta)
+    if progress is not None:
+        progress(1.0)
+    return RobustResult(result, "mu", envelope, worst_case, proof, price)
+
+
+def _price(nominal_design: dict[str, Any], nominal_centre: float, nominal_worst: float, nominal_holds: bool,
+           robust_design: dict[str, Any], robust_centre: float, robust_worst: float) -> dict[str, Any]:
+    return {
+        "nominal": {"design": dict(nominal_design), "at_centre": float(nominal_centre),
+                    "worst_case": float(nominal_worst), "limits_hold_over_envelope": bool(nominal_holds)},
+        "robust": {"design": dict(robust_design), "at_centre": float(robust_centre),
+                   "worst_case": float(robust_worst), "limits_hold_over_envelope": True},
+        "ratio": float(nominal_worst / robust_worst),
+    }
+
+
+class _SetModel:
+    """The worst case of the objective over a finite set of envelope points, as optimize_model's μ model."""
+
+    def __init__(self, problem: DesignProblem, envelope: Envelope, model: Model, objective: str,
+                 points: list[dict[str, Any]], shift: float):
+        self.problem, self.envelope, self.model, self.objective = problem, envelope, model, objective
+        self.points, self.shift = points, shift
+
+    def __call__(self, columns: Mapping[str, Any]) -> np.ndarray:
+        design = {k: np.atleast_1d(np.asarray(columns[k], dtype=float)) for k in DESIGN_VARIABLES}
+        n = max(np.size(v) for v in design.values())
+        design = {k: np.broadcast_to(v, (n,)) for k, v in design.items()}
+        values = _objective_values(self.model, self.objective,
+                                   _columns(self.problem, self.envelope, design, self.points, self.shift),
+                                   self.problem.convention)
+        return np.max(np.asarray(values, dtype=float).reshape(len(self.points), n), axis=0)
+
+
+def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, objective: str, starts: int,
+                  max_rounds: int, progress: Callable[[float], None] | None,
+                  map_calls: Callable | None, reason: str = "",
+                  initial_points: list[dict[str, Any]] | None = None,
+                  time_limit_s: float = math.inf) -> RobustResult:
+    start = time.perf_counter()
+    delta = envelope.angle_tolerance_deg
+    v_hi = envelope.speed_m_s[1]
+    # Limits that do not depend on the model (the peak pressure) are worst at the angle made high: the
+    # optimizer works in θ' = θ + δ, and the model is asked at θ' - δ + offset.
+    shifted = shifted_problem(problem, delta, v_hi)
+    points = initial_points or _vertices_and_centre(envelope)
+    rounds, history, converged, timed_out = 0, [], False, False
+    solved = None
+    value, where = math.nan, None
+    for rounds in range(1, max_rounds + 1):
+        set_model = _SetModel(shifted, envelope, model, objective, points, delta)
+        fraction = 0.8 * (rounds - 1) / max_rounds
+        solved = optimize_model(shifted, set_model, starts=starts, model_name=model.reference,
+                                progress=None if progress is None else (
+                                    lambda f, a=fraction: progress(a + 0.8 * f / max_rounds)),
+                                map_calls=map_calls)
+        design = _design_of(solved)
+        on_set = float(set_model({k: np.array([v]) for k, v in design.items()})[0])
+        value, where, _ = worst_case_search(_evaluator(shifted, envelope, model, objective, design, delta),
+                                            envelope)
+        history.append({"round": rounds, "points": len(points), "on_set": on_set, "searched": value})
+        if value <= on_set * (1 + ENVELOPE_RTOL):
+            value, converged = max(value, on_set), True
+            break
+        if time.perf_counter() - start > time_limit_s:
+            timed_out = True
+            break
+        points = [*points, where]
+    design = _design_of(solved)
+    if converged:
+        ending = f"the last search found {value:.10g}, within {ENVELOPE_RTOL:g} of the optimized set"
+    else:
+        when = f"at the time limit of {time_limit_s:g} s after" if timed_out else "after"
+        ending = (f"stopped {when} {rounds} round(s) with the last search {value:.10g} above the optimized "
+                  f"set's {history[-1]['on_set']:.10g}: the design is not the best for the worst case found")
+    theta = design["groove_angle_deg"] - delta
+    start_set = "the vertex where mu is proven worst" if initial_points else "vertices and centre"
+    statement = (
+        f"No proof: {model.reference} is not known to be monotone or log-log convex in the speed, the "
+        f"conditions and the angle ({reason or 'not a calibrated model'}), and no bound on its derivatives "
+        "is known, so its worst case over a box cannot be bounded rigorously. Method: outer approximation in "
+        f"{rounds} round(s) - the local method minimized the largest {objective} over {len(points)} envelope "
+        f"point(s) ({start_set}, then the worst points found), and at each design the whole envelope was "
+        f"searched (a grid of every axis, then L-BFGS-B ascent from the 3 best grid points); {ending}. "
+        "Best bound found: the worst "
+        "case at the design as searched (upper_bound); the design search is local, so no certified lower "
+        "bound on the best achievable worst case exists.")
+    proof = {"proven": False, "method": "outer-approximation-local", "lower_bound": None,
+             "upper_bound": value,
+             "relative_gap": None, "gap_target": GAP_TARGET, "statement": statement, "rounds": history}
+    worst_case = _worst_case_dict(objective, value, where, theta)
+    # Price of robustness: the nominal optimum at the envelope's centre (no tolerance) and its worst case.
+    centre = envelope.centre()
+    centre_envelope = Envelope(centre["speed_m_s"], centre["conditions"])
+    nominal_problem = DesignProblem(problem.bounds, centre["speed_m_s"], problem.constraints, problem.fixed,
+                                    problem.convention)
+    try:
+        nominal = optimize_model(nominal_problem,
+                                 _SetModel(nominal_problem, centre_envelope, model, objective,
+                                           [centre_envelope.point({})], 0.0),
+                                 starts=1, model_name=model.reference, map_calls=map_calls)
+    except InfeasibleDesignError:  # the local method found no design meeting the limits at the centre
+        nominal = solved
+    nominal_design = _design_of(nominal)
+    if nominal is solved:
+        nominal_design["groove_angle_deg"] -= delta
+    nominal_worst, _, _ = worst_case_search(
+        _evaluator(problem, envelope, model, objective, nominal_design, 0.0), envelope)
+    limits = constraint_report(shifted, nominal_design["balls"], nominal_design["groove_angle_deg"] + delta,
+                               nominal_design["load_N"], mu=nominal_worst)
+    centre_point = envelope.point({"speed_m_s": centre["speed_m_s"],
+                                   **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})
+    robust_centre = float(_evaluator(problem, envelope, model, objective, design, delta)([centre_point])[0])
+    nominal_centre = float(_evaluator(problem, envelope, model, objective, nominal_design, 0.0)(
+        [centre_point])[0])
+    price = _price(nominal_design, nominal_centre, nominal_worst,
+                   all(c.satisfied for c in limits if not c.name.startswith("groove_angle_deg")),
+                   {**design, "groove_angle_deg": theta}, robust_centre, value)
+    certificate = f"Local optimum of the worst case over the envelope, not proven. {statement}"
+    result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
+                                          speed_m_s=float(where["speed_m_s"]),
+                                          method="outer-approximation-local",
+                                          solve_time_s=time.perf_counter() - start), delta)
+    if progress is not None:
+        progress(1.0)
+    return RobustResult(result, objective, envelope, worst_case, proof, price)
+
+
+# --------------------------------------------------------------------------------------------------
+# Calibrated models whose terms keep the problem a geometric program
+
+
+def _sign(x: float) -> int:
+    return (x > 0) - (x < 0)
+
+
+#: Direction of μ in an effect's main driver, from its formula (physics.effects) and its parameters'
+#: signs: +1 non-decreasing, -1 non-increasing, 0 independent. Effects not listed (a quadratic, a law
+#: added later) are not known to be monotone: a model using one is not proven.
+_DIRECTIONS: dict[str, Callable[[Sequence[float]], int]] = {
+    "humidity_meniscus": lambda v: _sign(v[0]),       # + p / ln(1/h), 1/ln(1/h) grows on (0, 1)
+    "viscous_drag": lambda v: _sign(v[0]),            # + p V / G
+    "viscous_power_law": lambda v: _sign(v[0]),       # + p (V / V0)^e / G, e >= 0.3
+    "constant_drag": lambda v: 0,                     # + p / G: its driver is the load, a design variable
+    "thermal_shear_strength": lambda v: -_sign(v[0]),  # x exp(-p (T - T0))
+    "run_in": lambda v: -_sign(v[0]),                 # x (1 + a exp(-n / L)), L > 0
+    "stribeck_breakaway": lambda v: -_sign(v[0]),     # + a exp(-V / V0), a >= 0
+    "generic_linear": lambda v: _sign(v[0]),          # x exp(c (x - centre) / scale), scale > 0
+    "generic_power": lambda v: _sign(v[0]),           # x (x / reference)^c, x > 0
+}
+#: Reference designs (balls [1], load [N]) at which a term's monomial form in the design is read, and
+#: the one at which it is checked.
+_PROBES = ((1.0, 1.0), (2.0, 1.0), (1.0, 2.0), (3.0, 0.37))
+
+
+@dataclass(frozen=True)
+class _Monomial:
+    """A term at the envelope's worst vertex: ``kind`` "add" (μ + k z^a G^b) or "mul" (μ k z^a G^b)."""
+
+    kind: str
+    coefficient: float
+    balls_exponent: float
+    load_exponent: float
+
+
+def _term_structure(model: Model,
+                    envelope: Envelope) -> tuple[dict[str, Any] | None, list[_Monomial], str]:
+    """The worst vertex and each term as a monomial in the design there, or None and why not.
+
+    The worst vertex follows from the directions of :data:`_DIRECTIONS` (and the physics' μ, which
+    grows with speed and angle); each term's form in (balls, load) is read at three designs and
+    checked at a fourth, so a term whose form the table does not describe is refused, not guessed.
+    """
+    calibrated = getattr(model, "calibrated", None)
+    if calibrated is None:
+        return None, [], f"{model.reference} is not a calibrated model"
+    if getattr(calibrated, "discrepancy", None) is not None:
+        return None, [], "its Gaussian-process discrepancy is not log-log convex"
+    directions: dict[str, set[int]] = {"speed_m_s": {1}}
+    terms = []
+    for term, values in calibrated.terms:
+        name = getattr(term, "name", None)
+        if getattr(term, "kind", None) != "effect" or name not in _DIRECTIONS:
+            return None, [], f"its term {getattr(term, 'label', term)!r} is not one known to be monotone"
+        driver = term.drivers[0]
+        if driver == "groove_angle_deg" or (driver not in ("speed_m_s", "load_N", "balls")
+                                            and driver not in envelope.conditions):
+            return None, [], f"its term {term.label} is driven by {driver}"
+        if driver not in ("load_N", "balls"):
+            directions.setdefault(driver, set()).add(_DIRECTIONS[name](values))
+        terms.append((term, values))
+    worst: dict[str, float] = {}
+    for axis, signs in directions.items():
+        signs.discard(0)
+        if len(signs) > 1:
+            return None, [], f"mu rises and falls with {axis} (terms of opposite directions)"
+        rising = not signs or signs == {1}
+        lo, hi = envelope.speed_m_s if axis == "speed_m_s" else envelope.conditions[axis]
+        worst[axis] = hi if rising else lo
+    conditions = {n: worst.get(n, lo) for n, (lo, _) in envelope.conditions.items()}
+    vertex = {"speed_m_s": worst["speed_m_s"], "conditions": conditions,
+              "groove_angle_offset_deg": envelope.angle_tolerance_deg}
+    monomials = []
+    z = np.array([p[0] for p in _PROBES])
+    g = np.array([p[1] for p in _PROBES])
+    columns = {"balls": z, "load_N": g, "speed_m_s": np.full(z.shape, vertex["speed_m_s"]),
+               **{n: np.full(z.shape, v) for n, v in conditions.items()}}
+    for term, values in terms:
+        effect = term.effect
+        params = dict(zip(effect.parameter_names, values, strict=True))
+        with np.errstate(all="ignore"):
+            try:
+                at = [effect.apply(np.full(z.shape, m), columns, params, term.drivers, term.constants)
+                      for m in (0.0, 0.7, 1.0)]
+            except ValueError as exc:
+                return None, [], str(exc)
+        added = at[0]
+        if np.allclose(at[1], 0.7 + added, rtol=1e-12, atol=0.0) and np.all(added >= 0):
+            kind, amount = "add", added
+        elif np.allclose(at[1], 0.7 * at[2], rtol=1e-12, atol=0.0) and np.all(at[2] > 0):
+            kind, amount = "mul", at[2]
+        else:
+            return None, [], f"its term {term.label} is neither a positive addition nor a positive factor"
+        if kind == "add" and np.all(amount == 0):
+            continue
+        if not np.all(amount > 0):
+            return None, [], f"its term {term.label} vanishes at some designs only"
+        a = float(np.log2(amount[1] / amount[0]))
+        b = float(np.log2(amount[2] / amount[0]))
+        k = float(amount[0])
+        if not math.isclose(k * 3.0**a * 0.37**b, float(amount[3]), rel_tol=1e-9):
+            return None, [], f"its term {term.label} is not a monomial in balls and load_N"
+        monomials.append(_Monomial(kind, k, a, b))
+    return vertex, monomials, ""
+
+
+def _compose(gp, monomials: list[_Monomial]):
+    """The calibrated μ as a DGP expression of the physics' one and the terms, in their order."""
+    mu = gp.expressions["mu"]
+    for m in monomials:
+        piece = m.coefficient
+        if m.balls_exponent:
+            piece = piece * gp.balls**m.balls_exponent
+        if m.load_exponent:
+            piece = piece * gp.load_N**m.load_exponent
+        mu = mu + piece if m.kind == "add" else mu * piece
+    return mu
+
+
+def _calibrated_counts(problem: DesignProblem, monomials: list[_Monomial]) -> dict[int, tuple]:
+    """Every ball count's DGP optimum of the calibrated μ: (status, value, tan θ, load, lower bound)."""
+    limits = frozenset(n for n in problem.constraints.active_limits() if n in LIMIT_NAMES)
+    force = problem.constraints.max_friction_force_N
+    programs: dict[int, tuple] = {}
+    answers = {}
+    for z in problem.ball_counts():
+        gp, values = design_gp(problem, limits=limits - {"max_friction_force_N"}, balls=z)
+        if id(gp) not in programs:
+            mu = _compose(gp, monomials)
+            cons = [c for name, c in gp.constraints.items() if name != "max_friction_force_N"]
+            limit = cp.Parameter(pos=True, name="friction_limit")
+            if force is not None:
+                cons.append(mu * gp.load_N <= limit)
+            programs[id(gp)] = (cp.Problem(cp.Minimize(mu), cons), limit)
+        program, limit = programs[id(gp)]
+        relaxed = {n: (v / (1.0 - SAFETY_MARGIN) if LIMIT_NAMES.get(n) == "max" else v)
+                   for n, v in values.items()}
+        with gp.lock:
+            gp.assign(values, z)
+            limit.value = (force or 1.0) * (1.0 - SAFETY_MARGIN)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)
+                try:
+                    program.solve(gp=True, solver=cp.CLARABEL)
+                    status = program.status
+                except cp.SolverError:
+                    status = "solver_error"
+            solved = status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
+            value = float(program.value) if solved else math.nan
+            t = float(gp.tan_theta.value) if solved else math.nan
+            g = float(gp.load_N.value) if solved else math.nan
+            gp.assign(relaxed, z)
+            limit.value = force or 1.0
+            _, _, lower = dual_bound(program)
+        answers[z] = (status, value, t, g, lower)
+    return answers
+
+
+def _robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Model,
+                          progress: Callable[[float], None] | None,
+                          bound_only: bool = False) -> RobustResult | str:
+    """The robust design of a calibrated model whose terms keep the problem a GP, proven; else why not.
+
+    ``bound_only``: only the design and its certified bound are wanted (no envelope search, no price of
+    robustness: their fields repeat the design's own values).
+    """
+    start = time.perf_counter()
+    vertex, monomials, reason = _term_structure(model, envelope)
+    if vertex is None:
+        return reason
+    delta = envelope.angle_tolerance_deg
+    shifted = shifted_problem(problem, delta, vertex["speed_m_s"])
+    answers = _calibrated_counts(shifted, monomials)
+    solved = {z: a for z, a in answers.items() if a[0] in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)}
+    if not solved:
+        return "no ball count has a solution of the geometric program"
+    box_angle, box_load = shifted.bounds.groove_angle_deg, shifted.bounds.load_N
+    counts = sorted(solved)
+    theta_p = np.clip(np.degrees(np.arctan([solved[z][2] for z in counts])), *box_angle)
+    load = np.clip([solved[z][3] for z in counts], *box_load)
+    def exact_at(theta: np.ndarray, load: np.ndarray) -> np.ndarray:
+        designs = {"balls": np.array(counts, dtype=float), "groove_angle_deg": theta, "load_N": load}
+        return _objective_values(model, "mu", _columns(problem, envelope, designs, [vertex], delta),
+                                 problem.convention)
+
+    exact = exact_at(theta_p, load)
+    if shifted.constraints.max_friction_force_N is None:
+        # The solver stops within its tolerance of a binding limit: moved onto the exact boundary with the
+        # physics (optimize.solve.polish_design), kept only where the model's mu is lower there.
+        theta_q, load_q, _ = polish_design(shifted, np.array(counts), theta_p, load)
+        polished = exact_at(theta_q, load_q)
+        better = polished < exact
+        theta_p, load = np.where(better, theta_q, theta_p), np.where(better, load_q, load)
+        exact = np.where(better, polished, exact)
+    # The fewest balls among the designs within 1e-6 of the best (mu depends on the load per ball).
+    best_index = min(np.flatnonzero(exact <= exact.min() * (1 + TIE_TOLERANCE)), key=lambda k: counts[k])
+    z_best = counts[best_index]
+    design = {"balls": z_best, "groove_angle_deg": float(theta_p[best_index]),
+              "load_N": float(load[best_index])}
+    value = float(exact[best_index])
+    mu_solver = solved[z_best][1]
+    mismatch = max(abs(solved[z][1] / float(exact[k]) - 1) for k, z in enumerate(counts))
+    if mismatch > 1e-6:
+        return (f"the geometric program and the model differ by {mismatch:.1e} relative at the counts' "
+                "optima (a term the translation does not capture)")
+    bounds = [a[4] for a in answers.values()]
+    lower = None if any(math.isnan(b) for b in bounds) else min(min(bounds), value)
+    gap = None if lower is None else max(0.0, (value - lower) / value)
+    # Cross-check of the vertex argument at the design: a search of the whole envelope finds nothing worse.
+    searched, where = (value, vertex) if bound_only else worst_case_search(
+        _evaluator(problem, envelope, model, "mu", design, delta), envelope)[:2]
+    proven = lower is not None and gap <= GAP_TARGET and searched <= value * (1 + 1e-9)
+    rows = [BallCountResult(z, "does not fit the groove") for z in range(shifted.bounds.balls[0],
+                                                                         shifted.bounds.balls[1] + 1)
+            if z not in answers]
+    rows += [BallCountResult(z, answers[z][0] if z not in solved else solved[z][0])
+             if z not in solved else
+             BallCountResult(z, solved[z][0], float(theta_p[counts.index(z)]), float(load[counts.index(z)]),
+                             float(exact[counts.index(z)]), solved[z][1],
+                             solved[z][1] / float(exact[counts.index(z)]) - 1.0)
+             for z in answers]
+    rows.sort(key=lambda r: r.balls)
+    directions = ", ".join(f"{n} at {v:g}" for n, v in vertex["conditions"].items()) or "no condition"
+    statement = (
+        f"{model.reference}: the physics with its fitted values and {len(monomials)} term(s), each a "
+        "positive "
+        "monomial in balls and load_N added to mu or multiplying it (read at three designs, checked at a "
+        "fourth), driven by the speed or a condition through a formula monotone in it (physics.effects; "
+        "the directions from the fitted parameters' signs), so mu is a posynomial in tan(theta) and load_N "
+        "for every ball count and its worst case over the envelope is one vertex: the angle made high "
+        f"(+{delta:g} deg), speed {vertex['speed_m_s']:g} m/s, {directions}. The robust problem is then the "
+        "geometric program of every ball count at that vertex; certified lower bound "
+        f"{lower if lower is not None else float('nan'):.10g} (least dual objective over the counts, limits "
+        f"exact, less Clarabel's tolerance), worst case at the design {value:.10g} (the model itself), "
+        f"relative gap {gap if gap is not None else float('nan'):.2e} (target {GAP_TARGET:g}); solver and "
+        f"model agree to {mismatch:.1e} at every count's optimum. A search of the whole envelope at the "
+        "design "
+        f"(grid and L-BFGS-B) found {searched:.10g}.")
+    if searched > value * (1 + 1e-9):
+        statement += (" That is above the vertex's value: the monotonicity argument failed here, nothing is "
+                      "proven.")
+    proof = {"proven": bool(proven), "method": "robust-gp-vertex", "lower_bound": lower, "upper_bound": value,
+             "relative_gap": gap, "gap_target": GAP_TARGET, "statement": statement}
+    worst_point = vertex if searched <= value * (1 + 1e-9) else where
+    worst_case = _worst_case_dict("mu", max(value, searched), worst_point, design["groove_angle_deg"] - delta)
+    # Price of robustness: the same program at the envelope's centre, no tolerance.
+    centre = envelope.centre()
+    centre_envelope = Envelope(centre["speed_m_s"], centre["conditions"])
+    nominal = (_robust_calibrated_gp(problem, centre_envelope, model, None, bound_only=True)
+               if envelope.axes() and not bound_only else None)
+    if isinstance(nominal, RobustResult):
+        nominal_design = _design_of(nominal.result)
+        nominal_worst = float(_evaluator(problem, envelope, model, "mu", nominal_design, 0.0)(
+            [{**vertex, "groove_angle_offset_deg": delta}])[0])
+        nominal_centre = float(nominal.worst_case["mu"])
+        limits = constraint_report(shifted, nominal_design["balls"],
+                                   nominal_design["groove_angle_deg"] + delta, nominal_design["load_N"],
+                                   mu=nominal_worst)
+        nominal_holds = all(c.satisfied for c in limits if not c.name.startswith("groove_angle_deg"))
+    else:
+        nominal_design, nominal_worst, nominal_centre, nominal_holds = (
+            {**design, "groove_angle_deg": design["groove_angle_deg"] - delta}, value, value, True)
+    robust_centre = float(_evaluator(problem, envelope, model, "mu", design, delta)(
+        [envelope.point({"speed_m_s": centre["speed_m_s"],
+                         **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})])[0])
+    price = _price(nominal_design, nominal_centre, nominal_worst, nominal_holds,
+                   {**design, "groove_angle_deg": design["groove_angle_deg"] - delta}, robust_centre, value)
+    best_mu = value
+    ties = [{"balls": r.balls, "groove_angle_deg": r.groove_angle_deg, "load_N": r.load_N,
+             "load_per_ball_N": r.load_N / r.balls, "mu": r.mu}
+            for r in rows if r.mu is not None and r.mu <= best_mu * (1 + TIE_TOLERANCE)]
+    certificate = ("Global optimum of the worst case of mu over the envelope, by geometric programming per "
+                   f"ball count (all {len(rows)} counts enumerated). {statement}")
+    result = OptimizationResult(
+        design=design, mu=value, mu_solver=mu_solver, relative_gap=mu_solver / value - 1.0,
+        speed_m_s=float(vertex["speed_m_s"]),
+        constraints=constraint_report(shifted, z_best, design["groove_angle_deg"], design["load_N"],
+                                      mu=value, mu_name=model.reference),
+        per_ball_count=rows, ties=ties, certificate=certificate, solve_time_s=time.perf_counter() - start,
+        method="robust-gp-vertex")
+    if progress is not None:
+        progress(1.0)
+    return RobustResult(_unshift(result, delta), "mu", envelope, worst_case, proof, price)
