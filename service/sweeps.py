@@ -223,7 +223,8 @@ def result_bytes_bound(request: AnySweep, count: int) -> int:
         varied = list(request.ranges.model_dump(exclude_none=True))
     columns = [*varied, *outputs]
     skeleton = {"design": request.design, "count": count, "varied": varied,
-                "fixed": request.fixed.model_dump(exclude_none=True), "columns": {name: [] for name in columns}}
+                "fixed": request.fixed.model_dump(exclude_none=True),
+                "columns": {name: [] for name in columns}}
     size = len(json_bytes(skeleton)) + len(columns) * max(count - 1, 0)  # the commas between values
     for name in varied:
         if name in axes:
