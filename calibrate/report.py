@@ -37,6 +37,7 @@ from .data import Dataset, parse_csv, parse_rows
 from .discrepancy import gp_discrepancy, residual_gp
 from .fit import check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
 from .model import CalibratedModel
+from .plausibility import check_plausible
 from .plots import calibration_plots
 from .select import (
     FAMILY_ALPHA,
@@ -275,9 +276,12 @@ def check_request(dataset: Dataset, fit_parameters: Sequence[str], folds: int) -
 
     Raises
     ------
+    calibrate.data.DataError
+        For implausible values (:func:`calibrate.plausibility.check_plausible`), naming each column.
     ValueError
         Starting with the offending field (``data``, ``folds`` or ``fit_parameters``).
     """
+    check_plausible(dataset)
     if dataset.n_points < MIN_ROWS:
         raise ValueError(f"data must have at least {MIN_ROWS} rows; got {dataset.n_points}")
     if not 2 <= folds <= dataset.n_points // 2:
@@ -466,7 +470,7 @@ def calibrate(
         }
         for step in selection.steps
     ]
-    warnings = parameter_warnings(baseline.full, final)
+    warnings = check_plausible(dataset) + parameter_warnings(baseline.full, final)
     if gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
         warnings.append(
             f"a Gaussian-process discrepancy predicts held-out rows better than the calibrated model "
