@@ -537,7 +537,7 @@ def _search_step(
     n_current = _n_parameters(fit_parameters, current.terms)
     current_loss = huber_loss(weighted_log_residual(dataset, current.oof_mu), scale)
     current_score = _score(dataset, None, n_current, current.oof_mu, current_loss, scale, True)
-    candidates = candidate_terms(dataset, current.terms)
+    candidates = candidate_terms(dataset, current.terms, fit_parameters)
     drifting = sorted({t.parameter for t in candidates if t.kind == "drift"})
     base = _frozen_base(dataset, fit_parameters, current, drifting, convention)
     # A drift of a parameter the model's μ does not depend on (e.g. mu_ball without touching balls)
