@@ -46,6 +46,8 @@ CLOSE_MARGIN = 1.0
 #: a close call too, however high the threshold: on few rows the threshold is out of reach of a real
 #: effect's z (about 2.3-2.5 for a run-in on 24 rows, against 3.6 needed). [1]
 CLOSE_Z = 2.0
+# Where a term acts most: its effect there is at least this share of its largest. [1]
+_HALF = 0.5
 # Share of the rows, those where the two models differ most, whose driver range says where they differ.
 _TOP_SHARE = 0.25
 
@@ -70,8 +72,9 @@ def _where(dataset: Dataset, term: Term, mu_with: np.ndarray, mu_without: np.nda
 
     With both models as callables (and the scatter of a measurement), the driver is scanned over the
     data's range and as much again on either side (:func:`calibrate.rivals.where_they_part`): ``range``
-    spans the values where they differ by more than two standard deviations of a measurement (the
-    largest difference's place when nowhere). Without them, ``range`` is the driver's range over the
+    spans the values where they differ by more than two standard deviations of a measurement and by
+    at least half their largest difference (the largest difference's place when nowhere). Without
+    them, ``range`` is the driver's range over the
     quarter of the rows where the two held-out predictions differ most.
     """
     driver = term.drivers[0]
@@ -81,7 +84,7 @@ def _where(dataset: Dataset, term: Term, mu_with: np.ndarray, mu_without: np.nda
     x = np.asarray(columns[driver], dtype=float)
     data_range = [float(x.min()), float(x.max())]
     if with_term is not None and without_term is not None and noise_std_log:
-        part = where_they_part(without_term, with_term, dataset, driver, noise_std_log)
+        part = where_they_part(without_term, with_term, dataset, driver, noise_std_log, _HALF)
         if part["differ"]:
             return {"driver": driver, "range": [min(r[0] for r in part["differ"]),
                                                 max(r[1] for r in part["differ"])], "data_range": data_range}

@@ -169,7 +169,7 @@ def fit_rivals(
 
 
 def where_they_part(
-    model: Any, rival: Any, dataset: Dataset, driver: str, noise_std_log: float
+    model: Any, rival: Any, dataset: Dataset, driver: str, noise_std_log: float, share: float = 0.0
 ) -> dict[str, Any]:
     """Over which values of ``driver`` two calibrated models differ by more than a measurement's scatter.
 
@@ -188,6 +188,9 @@ def where_they_part(
         A data column.
     noise_std_log : float
         Scatter of log μ of one measurement. [1]
+    share : float
+        With a positive share, ``differ`` keeps only the values where the difference is also at least
+        this share of the largest one (where they differ most). [1]
 
     Returns
     -------
@@ -216,8 +219,9 @@ def where_they_part(
         ratio = ratio[np.isfinite(ratio)]
         if ratio.size:
             difference[i] = float(np.median(ratio))
-    differ = _runs(grid, difference > 2.0 * noise_std_log)
     known = np.isfinite(difference)
+    largest = float(np.max(difference[known])) if known.any() else 0.0
+    differ = _runs(grid, difference > max(2.0 * noise_std_log, share * largest))
     at = float(grid[known][np.argmax(difference[known])]) if known.any() else None
     return {
         "driver": driver,

@@ -267,3 +267,104 @@ def test_a_gp_that_only_fills_what_some_folds_missed_does_not_join_a_correct_mod
     # (its intervals, from the nested held-out scatter, are wide here: the two folds that missed the term
     # inflate it; the GP's white noise would have hidden that)
     assert covered(prediction, measured) >= 0.9
+
+
+# --- item 6: a drift with its level --------------------------------------------------------------------
+
+GAS_CONSTANT = 8.314462618
+
+
+def viscous_rows(seed: int, n: int, activation_J_mol: float = 26e3, level_Pa_s: float = 1e-2):
+    """A water film ten times as viscous as the default, thinning with temperature (Arrhenius, reference
+    40 degC), 2 % noise; only mu_pivot (0.7) is declared."""
+    rng = np.random.default_rng(seed)
+    c = {"balls": rng.choice([4, 6, 8, 12], n).astype(float),
+         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+         "speed_m_s": rng.uniform(0.0, 0.15, n), "temperature_C": rng.uniform(20.0, 60.0, n),
+         "relative_humidity": rng.uniform(0.2, 0.8, n)}
+    kelvin = c["temperature_C"] + 273.15
+    eta = level_Pa_s * np.exp(activation_J_mol / GAS_CONSTANT * (1 / kelvin - 1 / 313.15))
+    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7,
+                          viscosity_Pa_s=eta).mu * np.exp(rng.normal(0.0, 0.02, n))
+    return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(n)]
+
+
+def test_a_viscosity_drift_fits_its_level_and_the_activation_energy_comes_out_near_truth():
+    rows = viscous_rows(0, 150)
+    result = calibrate(rows, ["mu_pivot"], folds=4, make_plots=False)
+    (drift,) = result.effects  # no spurious second term
+    assert drift["label"] == "viscosity_Pa_s drifts with temperature_C (arrhenius)" and drift["level_fitted"]
+    values, std = drift["parameters"], drift["parameter_std"]
+    # the level at the data's median temperature, against the truth there (hand: 1e-2 exp(E/R (1/T - 1/T40)))
+    t_ref = drift["constants"]["reference"]
+    level = 1e-2 * np.exp(26e3 / GAS_CONSTANT * (1 / t_ref - 1 / 313.15))
+    assert values["viscosity_Pa_s_ref"] == pytest.approx(level, rel=0.1)
+    assert abs(values["viscosity_Pa_s_ref"] - level) < 3 * std["viscosity_Pa_s_ref"] + 0.02 * level
+    assert values["activation_energy_J_mol"] == pytest.approx(26e3, rel=0.15)
+    assert abs(values["activation_energy_J_mol"] - 26e3) < 3 * std["activation_energy_J_mol"] + 1e3
+    assert result.fitted_parameters["mu_pivot"]["value"] == pytest.approx(0.7, rel=0.03)
+    assert drift["parameter_units"]["viscosity_Pa_s_ref"] == "Pa*s"
+    # the stored model predicts like the physics with the fitted level and law (hand check at one point)
+    model = CalibratedModel.from_json(result.model.to_json())
+    point = {"balls": 8, "load_N": 0.01, "speed_m_s": 0.1, "temperature_C": 55.0, "relative_humidity": 0.5}
+    eta = values["viscosity_Pa_s_ref"] * np.exp(values["activation_energy_J_mol"] / GAS_CONSTANT
+                                                * (1 / 328.15 - 1 / t_ref))
+    expected = physics.evaluate(balls=8, load_N=0.01, speed_m_s=0.1, viscosity_Pa_s=eta,
+                                mu_pivot=result.fitted_parameters["mu_pivot"]["value"]).mu
+    assert float(model(point)) == pytest.approx(float(expected), rel=1e-9)
+
+
+def test_a_level_drift_screened_to_first_order_matches_the_physics():
+    from microbearing.calibrate.candidates import DriftTerm, FrozenBase, mu_of, term_from_json
+
+    term = DriftTerm("viscosity_Pa_s", "linear", "run", {"reference": 1.0, "minimum": 0.0, "maximum": 2.0},
+                     level=True)
+    assert term.parameter_names == ["slope", "viscosity_Pa_s_ref"]
+    assert term_from_json(term.to_json([0.1, 2e-3])) == (term, [0.1, 2e-3])
+    inputs = {"balls": 4.0, "load_N": 0.01, "speed_m_s": np.array([0.05, 0.1])}
+    conditions = {"run": np.array([0.5, 1.5])}
+    mu0 = physics.evaluate(**inputs).mu
+    step = 1e-6
+    s = np.log(physics.evaluate(**inputs, viscosity_Pa_s=1e-3 * (1 + step)).mu / mu0) / np.log1p(step)
+    base = FrozenBase(mu0, {"viscosity_Pa_s": s})
+    values = [[0.02, 1.01e-3]]  # a small change: first order holds
+    exact = mu_of(inputs, conditions, [term], values)
+    hand = physics.evaluate(**inputs, viscosity_Pa_s=1.01e-3 * (1 + 0.02 * (conditions["run"] - 1.0))).mu
+    np.testing.assert_allclose(exact, hand, rtol=1e-12)
+    np.testing.assert_allclose(mu_of(inputs, conditions, [term], values, base=base), exact, rtol=1e-3)
+
+
+# --- item 7: what the data cannot decide ---------------------------------------------------------------
+
+def run_in_rows(seed: int, n: int):
+    """Friction twice as high at the start, decaying over 800 cycles (2 % noise), with the usual columns."""
+    rng = np.random.default_rng(seed)
+    c = {"balls": rng.choice([4, 6, 8, 12], n).astype(float),
+         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+         "speed_m_s": rng.uniform(0.0, 0.15, n), "temperature_C": rng.uniform(20.0, 40.0, n),
+         "cycle": rng.integers(0, 5000, n).astype(float)}
+    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7).mu
+    mu = mu * (1 + np.exp(-c["cycle"] / 800)) * np.exp(rng.normal(0.0, 0.02, n))
+    return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(n)]
+
+
+def test_a_run_in_too_few_rows_can_show_is_said_with_where_more_rows_would_settle_it():
+    # 24 rows: the run-in lowers the score but its paired z (~2.3-3.2) cannot reach the ~3.6 needed
+    result = calibrate(run_in_rows(1, 24), ["mu_pivot"], make_plots=False)
+    assert result.effects == []
+    (item,) = [u for u in result.undecided if u["kind"] == "near_threshold"]
+    assert item["terms"] == ["run_in on cycle"]
+    assert 2.0 <= item["z"] < item["z_needed"]
+    # z grows as sqrt(n): n (z_needed / z)^2 rows (hand calculation from the item's own figures)
+    assert item["rows_to_settle"] == int(np.ceil(24 * (item["z_needed"] / item["z"]) ** 2)) > 24
+    # where: the first cycles, where the true run-in (1/e over 800 cycles) acts, not the whole test
+    lo, hi = item["where"]["range"]
+    assert item["where"]["driver"] == "cycle" and hi < 1200 and hi < item["where"]["data_range"][1] / 3
+    assert "cannot decide on run_in on cycle" in item["statement"] and "rows" in item["statement"]
+    assert any(line.startswith("undecided: the data cannot decide") for line in result.text().splitlines())
+
+
+def test_clean_data_leave_nothing_undecided():
+    rows = lab_rows(120, 11, temperature_C=np.random.default_rng(11).uniform(20.0, 40.0, 120))
+    result = calibrate(rows, ["mu_pivot"], make_plots=False)
+    assert result.effects == [] and result.undecided == [] and result.rivals == []
