@@ -358,7 +358,7 @@ def test_a_run_in_too_few_rows_can_show_is_said_with_where_more_rows_would_settl
     # z grows as sqrt(n): n (z_needed / z)^2 rows (hand calculation from the item's own figures)
     assert item["rows_to_settle"] == int(np.ceil(24 * (item["z_needed"] / item["z"]) ** 2)) > 24
     # where: the first cycles, where the true run-in (1/e over 800 cycles) acts, not the whole test
-    lo, hi = item["where"]["range"]
+    _, hi = item["where"]["range"]
     assert item["where"]["driver"] == "cycle" and hi < 1200 and hi < item["where"]["data_range"][1] / 3
     assert "cannot decide on run_in on cycle" in item["statement"] and "rows" in item["statement"]
     assert any(line.startswith("undecided: the data cannot decide") for line in result.text().splitlines())
