@@ -9,7 +9,10 @@ the model, and the range of every column of the data it was fitted on. When
 nested cross-validation showed that a Gaussian process on what the terms leave
 predicts better (:func:`calibrate.discrepancy.residual_gp`), the model also
 holds that GP (:class:`GPCorrection`): its mean corrects log μ and its
-predictive variance widens the interval where the data say little.
+predictive variance widens the interval where the data say little. Terms that
+fit the data about as well as the chosen ones (:mod:`calibrate.rivals`) are
+kept as :class:`RivalModel`: the interval is the envelope of the model's and
+theirs, so that it holds their disagreement where they part ways off the data.
 
 Models stored before version 2 (one effect, no covariance, no domain) still
 load; they answer μ without an interval and without a domain check.
