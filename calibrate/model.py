@@ -314,6 +314,11 @@ class CalibratedModel:
             As :meth:`__call__`.
         """
         self.check_columns(points)
+        # A point that gives a fitted parameter at its fitted value, one number (an optimization's
+        # design carries the model's values), does not override it: its uncertainty stays in the
+        # interval, and a rival keeps its own value.
+        points = {name: value for name, value in points.items() if not (
+            name in self.fitted and np.ndim(value) == 0 and float(value) == self.fitted[name])}
         values = [list(v) for _, v in self.terms]
         mu = np.asarray(self._mu(points, self.fitted, values), dtype=float)
         shift, discrepancy_variance = self._discrepancy(points, mu.shape)

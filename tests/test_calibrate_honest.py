@@ -368,3 +368,44 @@ def test_clean_data_leave_nothing_undecided():
     rows = lab_rows(120, 11, temperature_C=np.random.default_rng(11).uniform(20.0, 40.0, 120))
     result = calibrate(rows, ["mu_pivot"], make_plots=False)
     assert result.effects == [] and result.undecided == [] and result.rivals == []
+
+
+def test_an_optimization_with_a_calibrated_model_answers_the_rivals_envelope(client):
+    from microbearing.calibrate.candidates import EffectTerm
+    from microbearing.calibrate.model import RivalModel
+    from microbearing.service.deps import get_runtime
+
+    meniscus = EffectTerm("humidity_meniscus", ("relative_humidity",))
+    # a rival that puts twice the meniscus force on the same data (hand-made: its own covariance)
+    rival = RivalModel("humidity_meniscus twice", {"mu_pivot": 0.55}, [(meniscus, [4e-5])],
+                       np.diag([1e-4, 1e-12]), 1.5)
+    model = CalibratedModel(fitted={"mu_pivot": 0.6}, terms=[(meniscus, [2e-5])],
+                            covariance=np.diag([1e-4, 1e-12]), noise_std_log=0.02,
+                            domain={"load_N": [0.001, 0.05], "relative_humidity": [0.2, 0.8]},
+                            conditions=["relative_humidity"], rivals=[rival])
+    assert CalibratedModel.from_json(model.to_json()).rivals[0].to_json() == rival.to_json()
+    model_id = get_runtime(client.app).store.save_model("calibration", {"model": model.to_json()}, {})
+    request = {"bounds": {"balls": [4, 8], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
+               "speed_m_s": 0.05, "model": f"calibrated:{model_id}", "conditions": {"relative_humidity": 0.5},
+               "starts": 1}
+    response = client.post("/v1/optimizations", json=request)
+    assert response.status_code == 202, response.text
+    deadline = time.monotonic() + 300
+    while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.2)
+    assert job["status"] == "succeeded", job
+    result = client.get(job["result_url"]).json()
+    point = {**result["design"], "speed_m_s": 0.05, "relative_humidity": 0.5}
+    # the design as the service passes it carries the model's fitted mu_pivot: the rival keeps its own
+    assert model.predict({**point, "mu_pivot": 0.6}).mu_upper == pytest.approx(model.predict(point).mu_upper)
+    expected = model.predict(point)
+    alone = dataclasses.replace(model, rivals=[]).predict(point)
+    rival_alone = model.rival_models()[0].predict(point)
+    assert result["mu_upper"] == pytest.approx(float(expected.mu_upper), rel=1e-9)
+    assert result["mu_lower"] == pytest.approx(float(expected.mu_lower), rel=1e-9)
+    # the envelope by hand: the wider of the model's own interval and the rival's
+    envelope = (min(float(alone.mu_lower), float(rival_alone.mu_lower)),
+                max(float(alone.mu_upper), float(rival_alone.mu_upper)))
+    assert (result["mu_lower"], result["mu_upper"]) == pytest.approx(envelope, rel=1e-9)
+    assert float(rival_alone.mu_upper) > float(alone.mu_upper)  # the rival's larger meniscus widens it
