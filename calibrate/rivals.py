@@ -49,6 +49,8 @@ RIVAL_SE = 2.0
 MAX_RIVALS = 3
 # Values of a driver scanned by where_they_part: the data's range and as much again on either side.
 _SCAN_POINTS = 61
+# Rows whose median difference where_they_part takes at most (evenly spread over the data). [1]
+_SCAN_ROWS = 500
 
 
 @dataclass(frozen=True)
@@ -173,7 +175,8 @@ def where_they_part(
 ) -> dict[str, Any]:
     """Over which values of ``driver`` two calibrated models differ by more than a measurement's scatter.
 
-    Every data row is predicted by both models with the driver set, in turn, to each of
+    Every data row (at most :data:`_SCAN_ROWS`, evenly spread) is predicted by both models with the
+    driver set, in turn, to each of
     :data:`_SCAN_POINTS` values spanning the data's range and as much again on either side (values
     where either model cannot predict are skipped); at each value the median over the rows of
     ``|log(mu_rival / mu_model)|`` is compared with ``2 noise_std_log``.
@@ -203,6 +206,10 @@ def where_they_part(
     columns = dataset.columns()
     values = np.asarray(columns[driver], dtype=float)
     lo, hi = float(values.min()), float(values.max())
+    if values.size > _SCAN_ROWS:  # a median over evenly spread rows: as telling, at a bounded cost
+        rows = np.linspace(0, values.size - 1, _SCAN_ROWS).astype(int)
+        columns = {k: np.asarray(v)[rows] for k, v in columns.items()}
+        values = values[rows]
     span = hi - lo if hi > lo else max(abs(hi), 1.0)
     grid = np.linspace(lo - span, hi + span, _SCAN_POINTS)
     if driver in physics.PARAMETERS and physics.PARAMETERS[driver].minimum is not None:

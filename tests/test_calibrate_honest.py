@@ -181,6 +181,8 @@ def test_rival_laws_hold_their_disagreement_at_80_rh_and_leave_the_data_alone(ke
     (part,) = rival["where"]
     assert any(lo > 0.5 and hi >= 0.79 for lo, hi in part["differ"]), part
     assert not any(lo < 0.45 < hi for lo, hi in part["differ"]), part
+    # the same rival is listed among what the data cannot decide
+    assert [u["terms"] for u in kelvin_result["undecided"] if u["kind"] == "rivals"] == [[rival["label"]]]
     model = CalibratedModel.from_json(kelvin_result["model"])
     alone = dataclasses.replace(model, rivals=[])
     _, fresh, measured = humidity_rows(0, fresh_rh=0.8)
