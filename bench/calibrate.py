@@ -287,6 +287,190 @@ def timing(n_rows: int, folds: int, plots: str | None) -> None:
             print(f"wrote {Path(plots) / f'{name}.png'}")
 
 
+# --- issue 24, items 4-8: honest answers off the data, unit slips, drift levels, undecided data, GP ------
+
+GAS_CONSTANT = 8.314462618
+
+
+def _kelvin_adhesion(h):
+    return 0.05 * (1 + 1.5 / np.log(1 / h))
+
+
+def humidity_law_data(law: str, seed: int, n: int = 200, rh=(0.2, 0.5), fresh_rh: float = 0.8):
+    """Adhesion drifting with humidity by the Kelvin law, or by the linear law through the same values at
+    20 and 50 % RH; data at 20-50 % RH, 3 % noise; 400 fresh rows at ``fresh_rh`` and 400 inside."""
+    rng = np.random.default_rng(seed)
+    c = _columns(rng, n + 800)
+    c["relative_humidity"] = np.concatenate([rng.uniform(*rh, n), np.full(400, fresh_rh),
+                                             rng.uniform(*rh, 400)])
+    h = c["relative_humidity"]
+    if law == "kelvin":
+        adhesion = _kelvin_adhesion(h)
+    else:
+        low, high = _kelvin_adhesion(rh[0]), _kelvin_adhesion(rh[1])
+        adhesion = low + (high - low) * (h - rh[0]) / (rh[1] - rh[0])
+    mu = _physics(c, adhesion_energy_J_m2=adhesion) * np.exp(rng.normal(0.0, 0.03, h.size))
+    rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(n)]
+    outside = {k: v[n:n + 400] for k, v in c.items()}
+    inside = {k: v[n + 400:] for k, v in c.items()}
+    return rows, (outside, mu[n:n + 400]), (inside, mu[n + 400:])
+
+
+def _coverage(prediction, measured) -> float:
+    return float(np.mean((prediction.mu_lower <= measured) & (measured <= prediction.mu_upper)))
+
+
+def honest_extrapolation(seeds: int) -> None:
+    """Item 4: coverage of 95 % intervals at 80 % RH (data 20-50 %) whichever law is true, with and
+    without the rivals, and the width inside the data."""
+    import dataclasses
+
+    print("extrapolated condition: adhesion drifting with humidity, data 20-50 % RH (200 rows, 3 % noise), "
+          "400 fresh rows at 80 % RH and 400 inside; fit mu_pivot, adhesion")
+    print(f"{'true law':10s} {'seed':>4s} {'named':>8s} {'rivals':>6s} {'cover 80 %':>10s} {'(alone)':>8s} "
+          f"{'cover inside':>12s} {'width inside / alone':>20s} {'time s':>6s}")
+    for law in ("kelvin", "linear"):
+        cover, alone_cover, inside_cover, ratios = [], [], [], []
+        for seed in range(seeds):
+            rows, (outside, m_out), (inside, m_in) = humidity_law_data(law, 300 + seed)
+            start = time.perf_counter()
+            result = calibrate(rows, FIT, make_plots=False, seed=seed)
+            seconds = time.perf_counter() - start
+            alone = dataclasses.replace(result.model, rivals=[])
+            p_in, a_in = result.model.predict(inside), alone.predict(inside)
+            cover.append(_coverage(result.model.predict(outside), m_out))
+            alone_cover.append(_coverage(alone.predict(outside), m_out))
+            inside_cover.append(_coverage(p_in, m_in))
+            ratios.append(float(np.median(np.log(p_in.mu_upper / p_in.mu_lower)
+                                          / np.log(a_in.mu_upper / a_in.mu_lower))))
+            named = ",".join(e.get("law", e["name"]) for e in result.effects) or "none"
+            print(f"{law:10s} {seed:4d} {named:>8s} {len(result.rivals):6d} {cover[-1]:10.3f} "
+                  f"{alone_cover[-1]:8.3f} {inside_cover[-1]:12.3f} {ratios[-1]:20.3f} {seconds:6.1f}",
+                  flush=True)
+        print(f"{law:10s} mean {'':8s} {'':6s} {np.mean(cover):10.3f} {np.mean(alone_cover):8.3f} "
+              f"{np.mean(inside_cover):12.3f} {np.mean(ratios):20.3f}  (cover 80 % min {min(cover):.3f})")
+
+
+def honest_unit_slips(seeds: int) -> None:
+    """Item 5: unit slips refused before any fitting, naming the column; a fitted parameter on its bound."""
+    from microbearing.calibrate import DataError
+
+    slips = {"speed in mm/s": ("speed_m_s", 1e3), "load in mN": ("load_N", 1e3),
+             "humidity in percent": ("relative_humidity", 1e2),
+             "temperature in K under _C": ("temperature_C", None)}
+    print("unit slips (200 rows of the suite's clean data with one column in the wrong unit):")
+    for name, (column, factor) in slips.items():
+        refused, named = 0, 0
+        for seed in range(seeds):
+            rows, _, _ = measurements([], 0.02, (0.0, 1.0), None, 700 + seed)
+            for row in rows:
+                row[column] = row[column] + 273.15 if factor is None else row[column] * factor
+            try:
+                calibrate(rows, FIT, make_plots=False, max_terms=0)
+            except DataError as exc:
+                refused += 1
+                named += any(e["column"] == column for e in exc.errors)
+                message = exc.errors[0]["message"]
+        print(f"  {name:28s} refused {refused}/{seeds}, column named {named}/{seeds}: {message}")
+    finished, on_bound = 0, 0
+    for seed in range(seeds):
+        rng = np.random.default_rng(800 + seed)
+        c = _columns(rng, 60)
+        mu = 4 * _physics(c, mu_pivot=10.0) * np.exp(rng.normal(0.0, 0.02, 60))
+        rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(60)]
+        result = calibrate(rows, ["mu_pivot"], make_plots=False, seed=seed)
+        finished += 1
+        on_bound += any(w.startswith("mu_pivot ended on a bound") for w in result.warnings)
+    print(f"  mu 4x what mu_pivot = 10 gives (60 rows): {finished}/{seeds} calibrations finished, "
+          f"{on_bound}/{seeds} report mu_pivot on its bound")
+
+
+def honest_drift_level(seeds: int) -> None:
+    """Item 6: viscosity ten times the default thinning with temperature (26 kJ/mol), mu_pivot fitted."""
+    print("drift with its level: viscosity 1e-2 Pa s at 40 degC, Arrhenius 26 kJ/mol, 20-60 degC, 200 rows, "
+          "2 % noise, fit mu_pivot only")
+    print(f"{'seed':>4s} {'terms':60s} {'E_a kJ/mol (std)':>18s} {'level/true':>10s} {'after/noise':>11s} "
+          f"{'truth err/noise':>15s}")
+    for seed in range(seeds):
+        rng = np.random.default_rng(900 + seed)
+        c = _columns(rng, 600)
+        c["temperature_C"] = rng.uniform(20.0, 60.0, 600)
+        eta = 1e-2 * np.exp(26e3 / GAS_CONSTANT * (1 / (c["temperature_C"] + 273.15) - 1 / 313.15))
+        true_mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"],
+                                   mu_pivot=0.7, viscosity_Pa_s=eta).mu
+        mu = true_mu * np.exp(rng.normal(0.0, 0.02, 600))
+        rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(200)]
+        result = calibrate(rows, ["mu_pivot"], make_plots=False, seed=seed)
+        fresh = {k: v[200:] for k, v in c.items()}
+        truth_error = float(np.sqrt(np.mean(np.log(result.model(fresh) / true_mu[200:]) ** 2)))
+        drift = [e for e in result.effects if e["name"] == "viscosity_Pa_s~arrhenius"]
+        if drift:
+            e = drift[0]
+            t_ref = e["constants"]["reference"]
+            level = 1e-2 * np.exp(26e3 / GAS_CONSTANT * (1 / t_ref - 1 / 313.15))
+            ea = (f"{e['parameters']['activation_energy_J_mol'] / 1e3:.1f} "
+                  f"({e['parameter_std']['activation_energy_J_mol'] / 1e3:.1f})")
+            ratio = f"{e['parameters'].get('viscosity_Pa_s_ref', float('nan')) / level:.3f}"
+        else:
+            ea, ratio = "-", "-"
+        print(f"{seed:4d} {' + '.join(x['label'] for x in result.effects):60s} {ea:>18s} {ratio:>10s} "
+              f"{result.error_after['relative_rmse'] / 0.02:11.2f} {truth_error / 0.02:15.2f}", flush=True)
+
+
+def run_in_rows(seed: int, n: int):
+    rng = np.random.default_rng(seed)
+    c = _columns(rng, n)
+    mu = MECHANISMS["run_in"][1](c, _physics(c)) * np.exp(rng.normal(0.0, 0.02, n))
+    return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(n)]
+
+
+def honest_undecided(seeds: int, clean_seeds: int) -> None:
+    """Item 7: a run-in in 24 rows (found, said undecided with where, or silent); clean data (false alarms);
+    item 8: the GP in the model."""
+    print("undecided: run-in (x2 at the start, 1/e over 800 cycles) in 24 rows, 2 % noise, fit mu_pivot, "
+          "adhesion")
+    found = said = silent = 0
+    for seed in range(seeds):
+        result = calibrate(run_in_rows(1000 + seed, 24), FIT, make_plots=False, seed=seed)
+        named = [e["name"] for e in result.effects]
+        near = [u for u in result.undecided
+                if u["kind"] == "near_threshold" and "run_in on cycle" in u["terms"]]
+        if "run_in" in named:
+            found += 1
+            barely = any(u["kind"] == "barely_chosen" for u in result.undecided)
+            what = "found" + (" (barely: said)" if barely else "")
+        elif near:
+            said += 1
+            u = near[0]
+            what = (f"said: z {u['z']:.2f} < {u['z_needed']:.2f}, ~{u['rows_to_settle']} rows, "
+                    f"where {u['where']['range']}")
+        else:
+            silent += 1
+            what = f"silent; terms {named}"
+        print(f"  seed {seed}: {what}", flush=True)
+    print(f"  run-in found {found}/{seeds}, not found but said undecided {said}/{seeds}, "
+          f"silent {silent}/{seeds}")
+    alarms, gp_in = [], 0
+    for seed in range(clean_seeds):
+        rows, _, _ = measurements([], 0.02, (0.0, 1.0), None, 1100 + seed)
+        result = calibrate(rows, FIT, make_plots=False, seed=seed)
+        alarms += [(seed, u["kind"], u["terms"]) for u in result.undecided]
+        gp_in += bool(result.discrepancy_gp["in_model"])
+        if result.effects:
+            alarms.append((seed, "false discovery", [e["label"] for e in result.effects]))
+    print(f"  clean data (200 rows, 2 % noise): {len(alarms)} undecided item(s) or terms in {clean_seeds} "
+          f"runs {alarms}; GP in the model {gp_in}/{clean_seeds}")
+
+
+def honest(seeds: int, clean_seeds: int, which: str) -> None:
+    parts = {"extrapolation": lambda: honest_extrapolation(seeds), "slips": lambda: honest_unit_slips(seeds),
+             "level": lambda: honest_drift_level(seeds),
+             "undecided": lambda: honest_undecided(seeds, clean_seeds)}
+    for name, run in parts.items():
+        if which in ("all", name):
+            run()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--suite", action="store_true", help="run the synthetic suite instead of the timing")
@@ -294,6 +478,8 @@ def main() -> None:
     parser.add_argument("--clean-seeds", type=int, default=20, help="seeds per clean case (two cases)")
     parser.add_argument("--distinct-clean-seeds", action="store_true",
                         help="give each clean noise level its own seeds (independent data sets)")
+    parser.add_argument("--honest", choices=["all", "extrapolation", "slips", "level", "undecided"],
+                        help="issue 24 items 4-8 instead (--seeds per case, --clean-seeds clean runs)")
     parser.add_argument("--part", choices=["all", "effects", "clean", "null"], default="all",
                         help="run only the cases with effects, or only the clean ones; or (null) the "
                              "family-wise error of one selection step on data with nothing to find")
@@ -303,7 +489,9 @@ def main() -> None:
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--plots", metavar="DIR", help="also write the timing run's plots (PNG) into DIR")
     args = parser.parse_args()
-    if args.suite and args.part == "null":
+    if args.honest:
+        honest(args.seeds, args.clean_seeds, args.honest)
+    elif args.suite and args.part == "null":
         family_error(args.null_seeds, args.folds)
     elif args.suite:
         start, _, stop = args.cases.partition(":")

@@ -5,8 +5,12 @@ check the measurements (:mod:`calibrate.data`); propose candidate terms, named
 effects and drifts of the model's own parameters (:mod:`calibrate.candidates`);
 fit robustly on log μ (:mod:`calibrate.fit`); choose terms by forward selection
 and judge the whole procedure by nested cross-validation (:mod:`calibrate.select`);
-say how sure the result is (:mod:`calibrate.uncertainty`); draw it
-(:mod:`calibrate.plots`); report (:mod:`calibrate.report`). The calibrated model
+say how sure the result is (:mod:`calibrate.uncertainty`), what rival terms
+that fit about as well would predict off the data (:mod:`calibrate.rivals`) and
+what the data cannot decide (:mod:`calibrate.decidability`); draw it
+(:mod:`calibrate.plots`); report (:mod:`calibrate.report`). Before any fitting,
+values a micro bearing cannot see (unit slips) are refused
+(:mod:`calibrate.plausibility`). The calibrated model
 is plain JSON data that :class:`CalibratedModel` turns back into a callable
 whose :meth:`CalibratedModel.predict` gives μ with its 95 % interval and a
 domain check.

@@ -33,6 +33,7 @@ from microbearing.physics.effects import DRIFT_LAWS, DRIFT_PARAMETERS, EFFECTS, 
 from .data import Dataset
 
 __all__ = [
+    "LEVEL_RANGE",
     "DriftTerm",
     "EffectTerm",
     "FrozenBase",
@@ -42,6 +43,10 @@ __all__ = [
     "mu_of",
     "term_from_json",
 ]
+
+
+#: A drift's fitted level stays within this factor of the parameter's default, either way. [1]
+LEVEL_RANGE = 1e3
 
 
 @dataclass(frozen=True)
@@ -139,12 +144,19 @@ class DriftTerm:
         Condition column.
     constants : dict
         Reference, minimum and maximum of the law's variable over the data.
+    level : bool
+        Whether the parameter's level at the reference condition, ``<parameter>_ref`` in its unit, is
+        fitted with the law's coefficient: a parameter that is neither fitted nor fixed nor a data
+        column would otherwise drift from its default, and the coefficient would bend to make up for
+        a wrong level (an activation energy twice its value when the film is ten times more viscous
+        than the default).
     """
 
     parameter: str
     law: str
     driver: str
     constants: dict[str, float] = field(default_factory=dict)
+    level: bool = False
 
     kind = "drift"
     generic = False
@@ -170,22 +182,44 @@ class DriftTerm:
         return f"{self.parameter} drifts with {self.driver} ({self.law})"
 
     @property
+    def level_name(self) -> str:
+        """Name of the fitted level, ``<parameter>_ref`` (fitted only when :attr:`level`)."""
+        return f"{self.parameter}_ref"
+
+    @property
     def parameter_names(self) -> list[str]:
-        """The law's coefficient name."""
-        return [self.spec.coefficient.name]
+        """The law's coefficient name, and the level's when it is fitted."""
+        return [self.spec.coefficient.name] + ([self.level_name] if self.level else [])
 
     @property
     def units(self) -> dict[str, str]:
-        """Unit of the coefficient (``1/driver``: per unit of the driver column)."""
-        return {self.spec.coefficient.name: self.spec.coefficient.unit}
+        """Unit of the coefficient (``1/driver``: per unit of the driver column) and of the level."""
+        units = {self.spec.coefficient.name: self.spec.coefficient.unit}
+        if self.level:
+            units[self.level_name] = physics.PARAMETERS[self.parameter].unit
+        return units
 
     def bounds(self) -> list[tuple[float, float]]:
-        """Bounds of the coefficient (see :meth:`physics.effects.DriftLaw.bounds`)."""
-        return [self.spec.bounds(self.constants)]
+        """Bounds of the coefficient (see :meth:`physics.effects.DriftLaw.bounds`) and of the level: within
+        :data:`LEVEL_RANGE` of the default either way, inside the parameter's own range."""
+        out = [self.spec.bounds(self.constants)]
+        if self.level:
+            spec = physics.PARAMETERS[self.parameter]
+            default = float(spec.default)
+            lo, hi = default / LEVEL_RANGE, default * LEVEL_RANGE
+            if spec.minimum is not None:
+                lo = max(lo, float(spec.minimum))
+            if spec.maximum is not None:
+                hi = min(hi, float(spec.maximum) * (1 - 1e-9))
+            out.append((lo, hi))
+        return out
 
     def initial(self, mu: np.ndarray, columns: Mapping[str, Any]) -> list[float]:
-        """No drift to start with."""
-        return [0.0]
+        """No drift to start with (and the level at the parameter's current value)."""
+        if not self.level:
+            return [0.0]
+        current = columns.get(self.parameter, physics.PARAMETERS[self.parameter].default)
+        return [0.0, float(np.asarray(current))]
 
     def factor(self, columns: Mapping[str, Any], coefficient: float) -> np.ndarray:
         """Parameter value over its reference value at each row. [1]"""
@@ -193,7 +227,7 @@ class DriftTerm:
 
     def describe(self, values: Sequence[float], std: Sequence[float]) -> dict[str, Any]:
         """JSON-ready description with the fitted coefficient and its standard deviation."""
-        spec, name = self.spec, self.spec.coefficient.name
+        spec = self.spec
         unit = physics.PARAMETERS[self.parameter].unit
         return {
             "kind": self.kind,
@@ -206,22 +240,24 @@ class DriftTerm:
             "formula": spec.formula.replace("p(", f"{self.parameter}(").replace(
                 "p_ref", f"{self.parameter}_ref"
             ),
-            "parameters": {name: float(values[0])},
-            "parameter_std": {name: float(std[0])},
+            "parameters": dict(zip(self.parameter_names, map(float, values), strict=True)),
+            "parameter_std": dict(zip(self.parameter_names, map(float, std), strict=True)),
             "parameter_units": self.units,
             "constants": dict(self.constants),
             "reference": f"{DRIFT_PARAMETERS[self.parameter]}; {spec.reference}",
+            "level_fitted": self.level,
         }
 
     def to_json(self, values: Sequence[float]) -> dict[str, Any]:
-        """The term with its fitted coefficient, as stored in a calibrated model."""
+        """The term with its fitted coefficient (and level), as stored in a calibrated model."""
         return {
             "kind": self.kind,
             "parameter": self.parameter,
             "law": self.law,
             "driver": self.driver,
-            "parameters": {self.spec.coefficient.name: float(values[0])},
+            "parameters": dict(zip(self.parameter_names, map(float, values), strict=True)),
             "constants": {k: float(v) for k, v in self.constants.items()},
+            **({"level": True} if self.level else {}),
         }
 
 
@@ -246,7 +282,8 @@ def term_from_json(data: Mapping[str, Any]) -> tuple[Term, list[float]]:
             )
         if not data.get("driver") or {"reference", "minimum", "maximum"} - set(constants):
             raise ValueError("drift term needs a driver and constants reference, minimum, maximum")
-        term: Term = DriftTerm(str(data["parameter"]), str(data["law"]), str(data["driver"]), constants)
+        term: Term = DriftTerm(str(data["parameter"]), str(data["law"]), str(data["driver"]), constants,
+                               bool(data.get("level", False)))
     else:
         if data.get("name") not in EFFECTS:
             raise ValueError(f"effect name must be one of {', '.join(EFFECTS)}; got {data.get('name')!r}")
@@ -308,7 +345,7 @@ def drifted_inputs(
     for term, v in zip(terms, values, strict=True):
         if term.kind == "drift":
             spec = physics.PARAMETERS[term.parameter]
-            base = np.asarray(out.get(term.parameter, spec.default), dtype=float)
+            base = np.asarray(v[1] if term.level else out.get(term.parameter, spec.default), dtype=float)
             drifted = base * term.factor(conditions, v[0])
             lo = -np.inf if spec.minimum is None else spec.minimum
             hi = np.inf if spec.maximum is None else spec.maximum
@@ -360,9 +397,11 @@ def mu_of(
         mu = _rows(base.mu, rows)
         for term, v in zip(terms, values, strict=True):
             if term.kind == "drift":
-                mu = mu * np.power(
-                    term.factor(conditions, v[0]), _rows(base.sensitivity[term.parameter], rows)
-                )
+                factor = term.factor(conditions, v[0])
+                if term.level:  # the level moves from the value the base was computed at
+                    now = inputs.get(term.parameter, physics.PARAMETERS[term.parameter].default)
+                    factor = factor * (v[1] / np.asarray(now, dtype=float))
+                mu = mu * np.power(factor, _rows(base.sensitivity[term.parameter], rows))
     effects = [(t, v) for t, v in zip(terms, values, strict=True) if t.kind == "effect"]
     if not effects:
         return np.asarray(mu, dtype=float)
@@ -374,7 +413,7 @@ def mu_of(
     return np.asarray(mu, dtype=float)
 
 
-def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = ()) -> list[Term]:
+def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Sequence[str] = ()) -> list[Term]:
     """Every term that fits the data's columns and is not already chosen.
 
     Parameters
@@ -387,6 +426,9 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = ()) -> list[Term]
     chosen : sequence of Term
         Terms already in the model: the same effect, or the same parameter on the same driver, is
         not proposed again.
+    fitted : sequence of str
+        Declared parameters fitted. A drift of a parameter that is neither fitted nor fixed, nor
+        drifting already, fits its level too (:attr:`DriftTerm.level`).
 
     Returns
     -------
@@ -408,9 +450,11 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = ()) -> list[Term]
                 term = EffectTerm(effect.name, drivers, effect.constants(columns, drivers))
                 (generic if effect.generic else named).append(term)
     drifts = []
+    drifting = {t.parameter for t in chosen if t.kind == "drift"}
     for parameter in DRIFT_PARAMETERS:
         if parameter in dataset.physics_columns:
             continue
+        level = parameter not in fitted and parameter not in dataset.fixed and parameter not in drifting
         for driver, values in dataset.conditions.items():
             if (parameter, driver) in taken_drifts:
                 continue
@@ -422,5 +466,7 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = ()) -> list[Term]
                     and levels.get(driver, 0) >= law.min_levels
                     and law.accepts(driver, values)
                 ):
-                    drifts.append(DriftTerm(parameter, law.name, driver, law.constants(driver, values)))
+                    drifts.append(
+                        DriftTerm(parameter, law.name, driver, law.constants(driver, values), level)
+                    )
     return named + drifts + generic

@@ -9,7 +9,10 @@ the model, and the range of every column of the data it was fitted on. When
 nested cross-validation showed that a Gaussian process on what the terms leave
 predicts better (:func:`calibrate.discrepancy.residual_gp`), the model also
 holds that GP (:class:`GPCorrection`): its mean corrects log μ and its
-predictive variance widens the interval where the data say little.
+predictive variance widens the interval where the data say little. Terms that
+fit the data about as well as the chosen ones (:mod:`calibrate.rivals`) are
+kept as :class:`RivalModel`: the interval is the envelope of the model's and
+theirs, so that it holds their disagreement where they part ways off the data.
 
 Models stored before version 2 (one effect, no covariance, no domain) still
 load; they answer μ without an interval and without a domain check.
@@ -18,7 +21,7 @@ load; they answer μ without an interval and without a domain check.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -28,7 +31,7 @@ from microbearing import physics
 
 from .candidates import Term, mu_of, term_from_json
 
-__all__ = ["CalibratedModel", "GPCorrection", "Prediction", "FORMAT_VERSION"]
+__all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 2
 # Relative step of the finite-difference gradient of log mu in the fitted values.
@@ -121,6 +124,60 @@ class GPCorrection:
 
 
 @dataclass(frozen=True)
+class RivalModel:
+    """A rival of the calibrated model: its terms with one replaced by a term that fits the data about as
+    well (:mod:`calibrate.rivals`), refitted, with its own covariance.
+
+    Attributes
+    ----------
+    label : str
+        ``"<rival term> instead of <chosen term>"``.
+    fitted : dict of str to float
+        Its fitted physics parameters, in their units.
+    terms : list of tuple of (Term, list of float)
+        Its terms with their fitted values.
+    covariance : numpy.ndarray
+        Covariance of its fitted values (declared, then each term's).
+    gap_se : float
+        How much worse it scored held out than the chosen term, in standard errors. [1]
+    """
+
+    label: str
+    fitted: dict[str, float]
+    terms: list[tuple[Term, list[float]]]
+    covariance: np.ndarray = field(repr=False)
+    gap_se: float = 0.0
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready data, as read by :meth:`from_json`."""
+        return {"label": self.label, "gap_se": float(self.gap_se),
+                "fitted": {k: float(v) for k, v in self.fitted.items()},
+                "terms": [t.to_json(v) for t, v in self.terms],
+                "covariance": np.asarray(self.covariance, dtype=float).tolist()}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> RivalModel:
+        """Rebuild and validate (unknown parameters, effects or laws, a covariance of the wrong size).
+
+        Raises
+        ------
+        ValueError
+            For invalid data.
+        """
+        fitted = {}
+        for name, value in dict(data.get("fitted", {})).items():
+            if name not in physics.PARAMETERS:
+                raise ValueError(f"rivals: unknown physics parameter {name!r}")
+            fitted[name] = physics.validate(name, value).item()
+        terms = [term_from_json(t) for t in data.get("terms", [])]
+        covariance = np.asarray(data.get("covariance", []), dtype=float)
+        size = len(fitted) + sum(len(v) for _, v in terms)
+        if covariance.shape != (size, size):
+            raise ValueError(f"rivals: covariance must be {size} x {size}; got {covariance.shape}")
+        return cls(str(data.get("label", "")), fitted, terms, covariance, float(data.get("gap_se", 0.0)))
+
+
+@dataclass(frozen=True)
 class CalibratedModel:
     """Physics + fitted declared parameters + terms, with covariance, scatter and domain.
 
@@ -147,6 +204,9 @@ class CalibratedModel:
     discrepancy : GPCorrection or None
         Gaussian-process discrepancy of log μ on what the terms leave, when nested cross-validation
         showed that it helps; its columns are then needed by a prediction.
+    rivals : list of RivalModel
+        Models whose terms fit the data about as well (:mod:`calibrate.rivals`): the 95 % interval is
+        the envelope of this model's and theirs, so that it holds their disagreement off the data.
     """
 
     fitted: dict[str, float] = field(default_factory=dict)
@@ -158,12 +218,14 @@ class CalibratedModel:
     domain: dict[str, list[float]] | None = None
     conditions: list[str] = field(default_factory=list)
     discrepancy: GPCorrection | None = field(default=None, repr=False)
+    rivals: list[RivalModel] = field(default_factory=list, repr=False)
 
     @property
     def required_columns(self) -> list[str]:
-        """Columns a point must give besides the physics inputs: the terms' drivers and the GP
-        discrepancy's columns that are not physics inputs."""
-        needed = [d for term, _ in self.terms for d in term.drivers if d not in physics.PARAMETERS]
+        """Columns a point must give besides the physics inputs: the terms' drivers, the rivals' and
+        the GP discrepancy's columns that are not physics inputs."""
+        terms = [term for term, _ in self.terms] + [term for rival in self.rivals for term, _ in rival.terms]
+        needed = [d for term in terms for d in term.drivers if d not in physics.PARAMETERS]
         if self.discrepancy is not None:
             needed += [f for f in self.discrepancy.features if f not in physics.PARAMETERS]
         return list(dict.fromkeys(needed))
@@ -182,6 +244,8 @@ class CalibratedModel:
         missing = [c for c in self.required_columns if c not in names]
         if missing:
             users = [t.label for t, _ in self.terms if set(t.drivers) & set(missing)]
+            users += [f"the rival {r.label}" for r in self.rivals
+                      if any(set(t.drivers) & set(missing) for t, _ in r.terms)]
             if self.discrepancy is not None and set(self.discrepancy.features) & set(missing):
                 users.append("the Gaussian-process discrepancy")
             raise ValueError(
@@ -250,6 +314,11 @@ class CalibratedModel:
             As :meth:`__call__`.
         """
         self.check_columns(points)
+        # A point that gives a fitted parameter at its fitted value, one number (an optimization's
+        # design carries the model's values), does not override it: its uncertainty stays in the
+        # interval, and a rival keeps its own value.
+        points = {name: value for name, value in points.items() if not (
+            name in self.fitted and np.ndim(value) == 0 and float(value) == self.fitted[name])}
         values = [list(v) for _, v in self.terms]
         mu = np.asarray(self._mu(points, self.fitted, values), dtype=float)
         shift, discrepancy_variance = self._discrepancy(points, mu.shape)
@@ -277,7 +346,23 @@ class CalibratedModel:
         sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + self.noise_std_log**2)
         z = float(stats.norm.isf((1.0 - level) / 2.0))
         mu = mu * np.exp(shift)
-        return Prediction(mu, mu * np.exp(-z * sigma), mu * np.exp(z * sigma), in_domain, warnings)
+        lower, upper = mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
+        for rival in self.rival_models():
+            # The envelope of the rivals' intervals (calibrate.rivals); a rival that cannot predict a
+            # point (a driver outside its law) leaves it to the others.
+            try:
+                other = rival.predict(points, level)
+            except ValueError:
+                continue
+            ok = np.isfinite(other.mu_lower) & np.isfinite(other.mu_upper) & (other.mu_lower > 0)
+            lower = np.where(ok, np.minimum(lower, other.mu_lower), lower)
+            upper = np.where(ok, np.maximum(upper, other.mu_upper), upper)
+        return Prediction(mu, lower, upper, in_domain, warnings)
+
+    def rival_models(self) -> list[CalibratedModel]:
+        """Each rival as a model of its own (same fixed values, scatter and discrepancy; no domain)."""
+        return [replace(self, fitted=dict(r.fitted), terms=list(r.terms), covariance=r.covariance,
+                        domain=None, rivals=[]) for r in self.rivals]
 
     def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
         """Whether each point lies within the data's ranges, and a warning per column outside.
@@ -334,6 +419,7 @@ class CalibratedModel:
             "domain": self.domain,
             "conditions": list(self.conditions),
             "discrepancy": None if self.discrepancy is None else self.discrepancy.state,
+            "rivals": [r.to_json() for r in self.rivals],
         }
 
     @classmethod
@@ -397,6 +483,7 @@ class CalibratedModel:
             domain,
             [str(c) for c in data.get("conditions", [])],
             None if discrepancy is None else GPCorrection(discrepancy),
+            [RivalModel.from_json(r) for r in data.get("rivals") or []],
         )
 
     @classmethod

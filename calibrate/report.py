@@ -26,7 +26,7 @@ those folds also picked them among many candidates.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -34,10 +34,13 @@ import numpy as np
 from microbearing import physics
 
 from .data import Dataset, parse_csv, parse_rows
+from .decidability import undecided
 from .discrepancy import gp_discrepancy, residual_gp
 from .fit import check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
-from .model import CalibratedModel
+from .model import CalibratedModel, RivalModel
+from .plausibility import check_plausible
 from .plots import calibration_plots
+from .rivals import describe_rival, fit_rivals, rival_json, where_they_part
 from .select import (
     FAMILY_ALPHA,
     MAX_SEARCH_ROWS,
@@ -121,7 +124,9 @@ class CalibrationReport:
         and, for a GP on what the calibrated model's terms leave (:func:`calibrate.discrepancy.residual_gp`),
         ``calibrated_errors`` and ``calibrated_errors_without`` (nested held-out errors over the rows
         that are not outliers, with and without it), ``calibrated_z`` [1] (paired z of the decrease of
-        the squared log error) and ``in_model`` (whether it is part of the calibrated model).
+        the squared log error), ``chosen_terms_z`` [1] (the same test on the chosen terms refitted on
+        each outer fold, run when the first passes) and ``in_model`` (whether it is part of the
+        calibrated model: both tests passed).
     candidates : list of dict
         The first step's candidates' cross-validated scores, the declared model first.
     decision : str
@@ -132,6 +137,14 @@ class CalibrationReport:
         The calibrated model, JSON-serializable.
     plots : dict of str to bytes
         PNG images (see :mod:`calibrate.plots`).
+    rivals : list of dict
+        Terms that fit the data about as well as a chosen one (:mod:`calibrate.rivals`), kept in the
+        model's intervals: ``label``, ``gap_se`` [1], ``where`` (per driver scanned, see
+        :func:`calibrate.rivals.where_they_part`) and ``statement`` in words.
+    undecided : list of dict
+        What the data leave open (a candidate just short of the threshold, a term added barely,
+        rivals) with roughly where and how many more rows would settle it
+        (:func:`calibrate.decidability.undecided`).
     """
 
     n_points: int
@@ -156,6 +169,8 @@ class CalibrationReport:
     folds: int
     model: CalibratedModel
     plots: dict[str, bytes] = field(repr=False)
+    rivals: list[dict[str, Any]] = field(default_factory=list)
+    undecided: list[dict[str, Any]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result without the PNG bytes (``plots`` lists their names)."""
@@ -182,6 +197,8 @@ class CalibrationReport:
             "folds": self.folds,
             "model": self.model.to_json(),
             "plots": sorted(self.plots),
+            "rivals": list(self.rivals),
+            "undecided": list(self.undecided),
         }
 
     def text(self) -> str:
@@ -242,6 +259,7 @@ class CalibrationReport:
             lines.append(f"noise: {self.noise['statement']}")
         lines.append(f"stability: {self.effect_stability['summary']}")
         lines.append(f"GP discrepancy baseline (held out): {errors(self.discrepancy_gp['errors'])}")
+        lines += [f"undecided: {u['statement']}" for u in self.undecided]
         lines += [f"warning: {w}" for w in self.warnings]
         lines.append(f"decision: {self.decision}")
         return "\n".join(lines)
@@ -275,9 +293,12 @@ def check_request(dataset: Dataset, fit_parameters: Sequence[str], folds: int) -
 
     Raises
     ------
+    calibrate.data.DataError
+        For implausible values (:func:`calibrate.plausibility.check_plausible`), naming each column.
     ValueError
         Starting with the offending field (``data``, ``folds`` or ``fit_parameters``).
     """
+    check_plausible(dataset)
     if dataset.n_points < MIN_ROWS:
         raise ValueError(f"data must have at least {MIN_ROWS} rows; got {dataset.n_points}")
     if not 2 <= folds <= dataset.n_points // 2:
@@ -417,6 +438,8 @@ def calibrate(
     # What the terms leave: a GP on the residual of each outer fold's own model, judged on its held-out
     # rows; part of the model only when it beats the terms alone there.
     leftover = residual_gp(dataset, outer, nested.fold_mu, mu_after, inliers, gp_max_train, seed)
+    leftover = _confirm_gp(dataset, fit_parameters, terms, final, baseline, outer, leftover, mu_after,
+                           inliers, gp_max_train, seed, convention)
     gp_state = leftover["gp"]
     if gp_state is None:
         # A new measurement scatters around the model as the held-out rows of the nested
@@ -441,11 +464,17 @@ def calibrate(
         list(dataset.conditions),
         gp_state,
     )
+    rivals = fit_rivals(dataset, fit_parameters, selection, final, convention) if terms else []
+    if rivals:
+        model = replace(model, rivals=[RivalModel.from_json(rival_json(r)) for r in rivals])
+    rival_words = _rival_words(dataset, model, rivals)
+    stability = nested.stability(terms)
     gp = {
         **gp,
         "calibrated_errors": leftover["errors"],
         "calibrated_errors_without": leftover["errors_without"],
         "calibrated_z": leftover["z"],
+        "chosen_terms_z": leftover["chosen_terms_z"],
         "in_model": leftover["helps"],
     }
     effects = [
@@ -466,7 +495,7 @@ def calibrate(
         }
         for step in selection.steps
     ]
-    warnings = parameter_warnings(baseline.full, final)
+    warnings = check_plausible(dataset) + parameter_warnings(baseline.full, final)
     if gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
         warnings.append(
             f"a Gaussian-process discrepancy predicts held-out rows better than the calibrated model "
@@ -503,7 +532,7 @@ def calibrate(
         error_after=error_after,
         error_after_selection=error_after_selection,
         robust_errors=robust_errors,
-        effect_stability=nested.stability(terms),
+        effect_stability=stability,
         missing_effect=effects[0] if effects else None,
         effects=effects,
         steps=steps,
@@ -516,4 +545,46 @@ def calibrate(
         folds=folds,
         model=model,
         plots=plots,
+        rivals=rival_words,
+        undecided=undecided(dataset, selection, stability, rival_words, fit_parameters, model.noise_std_log,
+                            convention),
     )
+
+
+def _confirm_gp(dataset, fit_parameters, terms, final, baseline, outer, leftover, mu_after, inliers,
+                gp_max_train, seed, convention) -> dict[str, Any]:
+    """A GP that helped the nested folds' models joins only if it helps the chosen model too.
+
+    Nested cross-validation judges the GP on the residual of each outer fold's own selection; a fold
+    whose selection missed a term the data need leaves a residual the GP takes up, and the GP would
+    then join a model (fitted on all rows, with that term) it does not help: its mean bends a correct
+    model toward noise and its white noise replaces the held-out scatter in the intervals. So the
+    same GP test is run again on the held-out residual of the chosen terms refitted on each outer
+    fold's training rows (the declared model's folds when nothing was chosen), and the GP joins only
+    when it passes both. ``chosen_terms_z`` [1] is that second test's paired z (None when the first
+    did not pass).
+    """
+    if not leftover["helps"]:
+        return {**leftover, "chosen_terms_z": None}
+    if terms:
+        chosen = cross_validate(dataset, fit_parameters, terms, outer, scale=final.scale,
+                                start=final.declared, start_terms=final.term_values, precise=False,
+                                convention=convention)
+    else:
+        chosen = baseline
+    again = residual_gp(dataset, outer, chosen.fold_mu, mu_after, inliers, gp_max_train, seed)
+    if again["helps"]:
+        return {**leftover, "chosen_terms_z": again["z"]}
+    return {**leftover, "helps": False, "gp": None, "chosen_terms_z": again["z"]}
+
+
+def _rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
+    """Each rival with where it parts from the model (over its driver, and the replaced term's)."""
+    out = []
+    for rival, alternative in zip(rivals, model.rival_models(), strict=True):
+        drivers = dict.fromkeys([rival.term.drivers[0], rival.replaces.drivers[0]])
+        where = [where_they_part(model, alternative, dataset, d, model.noise_std_log) for d in drivers]
+        part = max(where, key=lambda w: w["largest_difference_log"] or 0.0)
+        out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,
+                    "statement": describe_rival(rival, part)})
+    return out

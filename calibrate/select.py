@@ -416,14 +416,29 @@ def _frozen_base(dataset, fit_parameters, current: ModelCV, parameters, conventi
     inputs = {**physics.defaults(), **dataset.inputs(), **full.declared}
     sensitivity = {}
     for name in dict.fromkeys([*fit_parameters, *parameters]):
-        bumped = {**inputs, name: np.asarray(inputs[name], dtype=float) * (1 + _SENSITIVITY_STEP)}
+        value = np.asarray(inputs[name], dtype=float)
+        factor = _bump_factor(name, value)
+        bumped = {**inputs, name: value * factor}
         with np.errstate(all="ignore"):
             mu_bumped = mu_of(
                 bumped, dataset.conditions, current.terms, full.term_values, convention=convention
             )
-            s = np.log(mu_bumped / mu) / np.log1p(_SENSITIVITY_STEP)
+            s = np.log(mu_bumped / mu) / np.log(factor)
         sensitivity[name] = np.where(np.isfinite(s), s, 0.0)
     return FrozenBase(mu, sensitivity, tuple(fit_parameters))
+
+
+def _bump_factor(name: str, value: np.ndarray) -> float:
+    """Relative step of a sensitivity d log mu / d log p: up by :data:`_SENSITIVITY_STEP`, or down when a
+    value on (or within a step of) the top of its range would leave it (a fitted parameter on its bound
+    is an answer, not an error). [1]"""
+    spec = physics.PARAMETERS[name]
+    up = 1.0 + _SENSITIVITY_STEP
+    if spec.maximum is None or value.size == 0:
+        return up
+    top = float(np.max(value)) * up
+    inside = top < spec.maximum if spec.exclusive_maximum else top <= spec.maximum
+    return up if inside else 1.0 - _SENSITIVITY_STEP
 
 
 def _screen(dataset, fit_parameters, current: ModelCV, term, base, scale, current_loss):
@@ -522,7 +537,7 @@ def _search_step(
     n_current = _n_parameters(fit_parameters, current.terms)
     current_loss = huber_loss(weighted_log_residual(dataset, current.oof_mu), scale)
     current_score = _score(dataset, None, n_current, current.oof_mu, current_loss, scale, True)
-    candidates = candidate_terms(dataset, current.terms)
+    candidates = candidate_terms(dataset, current.terms, fit_parameters)
     drifting = sorted({t.parameter for t in candidates if t.kind == "drift"})
     base = _frozen_base(dataset, fit_parameters, current, drifting, convention)
     # A drift of a parameter the model's μ does not depend on (e.g. mu_ball without touching balls)

@@ -64,6 +64,8 @@ _CSV_BODY = {"requestBody": {"required": True, "content": {
 def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool) -> None:
     try:
         check_request(dataset, fit_parameters, folds)
+    except DataError as exc:  # implausible values (calibrate.plausibility), one item per column
+        raise data_problem(exc.errors, data_pointer=None if query else "/data") from None
     except ValueError as exc:
         field = str(exc).split(" ", 1)[0].rstrip(":")
         raise validation_problem([{"parameter": field, "detail": str(exc)} if query and field != "data"

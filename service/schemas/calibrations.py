@@ -134,6 +134,10 @@ class MissingEffect(ResponseModel):
     parameter_units: dict[str, str] = Field(description="Unit of each parameter.")
     constants: dict[str, float] = Field(description="Constants fixed from the data [unit of the driver].")
     reference: str = Field(description="Source of the effect's physics.")
+    level_fitted: bool | None = Field(default=None, description=(
+        "Drift only: whether the parameter's level at the reference condition (<parameter>_ref, in its "
+        "unit) was fitted with the law's coefficient, as it is for a parameter neither fitted nor fixed "
+        "(null for other terms and for calibrations stored before levels were fitted)."))
 
 
 class GPDiscrepancy(ResponseModel):
@@ -155,7 +159,11 @@ class GPDiscrepancy(ResponseModel):
         "Paired z of the decrease of the squared held-out log error by that GP [1]."))
     in_model: bool | None = Field(default=None, description=(
         "Whether that GP is part of the calibrated model (it beat the terms alone held out, one-sided "
-        "1 % test): its mean then corrects mu and its predictive std widens mu_lower/mu_upper."))
+        "1 % test, both in nested CV and on the chosen terms refitted on each fold): its mean then "
+        "corrects mu and its predictive std widens mu_lower/mu_upper."))
+    chosen_terms_z: float | None = Field(default=None, description=(
+        "Paired z of that GP's gain on the held-out rows of the chosen terms refitted on each outer fold "
+        "[1]; null when the nested test did not pass (or for calibrations stored before this test)."))
 
 
 class FoldChoice(ResponseModel):
@@ -263,6 +271,49 @@ class Intake(ResponseModel):
     columns: dict[str, str] = Field(description="Every column as sent -> its name in the data (SI).")
 
 
+class RivalPart(ResponseModel):
+    """Where a rival and the calibrated model differ, over one driver."""
+
+    driver: str = Field(description="The data column scanned (in the data's units).")
+    data_range: list[float] = Field(description="[min, max] of the column in the data [unit of the column].")
+    differ: list[list[float]] = Field(description=(
+        "[lo, hi] runs of the column's values [unit of the column] (scanned over the data's range and as "
+        "much again on either side) where the two differ by more than two standard deviations of a "
+        "measurement's log mu."))
+    largest_difference_log: float | None = Field(description=(
+        "Largest median |log(mu_rival / mu_model)| scanned [1]."))
+    at: float | None = Field(description="Where it is largest [unit of the column].")
+
+
+class Rival(ResponseModel):
+    """A term that fits the data about as well as a chosen one, kept in the model's intervals."""
+
+    label: str = Field(description="'<rival term> instead of <chosen term>'.")
+    gap_se: float = Field(description=(
+        "Its mean held-out loss minus the chosen term's, in standard errors of the paired difference [1]."))
+    where: list[RivalPart] = Field(description="Where it parts from the calibrated model, per driver.")
+    statement: str = Field(description="The same in words.")
+
+
+class Undecided(ResponseModel):
+    """Something the data leave open, and roughly where more rows would settle it."""
+
+    kind: str = Field(description=(
+        "near_threshold (a candidate just short of the selection's threshold), barely_chosen (a term added "
+        "just above it, or by few outer folds) or rivals (terms that fit about as well and part ways)."))
+    terms: list[str] = Field(description="The terms concerned.")
+    z: float | None = Field(default=None, description="Held-out paired z of the term [1].")
+    z_needed: float | None = Field(default=None, description="The step's threshold [1].")
+    rows_now: int = Field(description="Rows the selection searched [1].")
+    rows_to_settle: int | None = Field(default=None, description=(
+        "Rows drawn like these that would carry z over the threshold, n (z_needed / z)^2 [1]; fewer if "
+        "placed where the term acts."))
+    where: Any = Field(default=None, description=(
+        "Where new rows would tell the answers apart: {driver, range, data_range} [unit of the driver], "
+        "or for rivals the list of their RivalPart scans."))
+    statement: str = Field(description="The same in words.")
+
+
 class CalibrationResult(ResponseModel):
     """The calibration report."""
 
@@ -308,6 +359,13 @@ class CalibrationResult(ResponseModel):
     plots: dict[str, str] = Field(description=(
         "Plots: name -> URL of the PNG (effect_<k>: the k-th term against its driver with its 95 % band; "
         "residuals: against every input, before and after; measured_vs_predicted)."))
+    rivals: list[Rival] | None = Field(default=None, description=(
+        "Terms that fit the data about as well as a chosen one (within two standard errors of held-out "
+        "loss): the 95 % intervals of /v1/friction, /v1/friction/batch and optimizations hold the envelope "
+        "of the model's and the rivals' intervals; null for calibrations stored before rivals."))
+    undecided: list[Undecided] | None = Field(default=None, description=(
+        "What the data cannot decide (a candidate close to the threshold, a term added barely, rivals) "
+        "and roughly where more rows would settle it; null for calibrations stored before."))
 
 
 class CalibrationSummary(ResponseModel):

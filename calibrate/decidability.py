@@ -1,0 +1,224 @@
+"""Say when the data cannot decide, and roughly where more rows would settle it.
+
+A selection step adds a term when its held-out paired z exceeds the step's threshold
+(:mod:`calibrate.select`); on data with nothing to find the best candidate's z stays below about 2.2
+in 99 % of data sets of 200 rows (bench/RESULTS.md, ``--part null``). A candidate whose z falls just
+short of the threshold, or a term that passed just above it, is therefore a question the data
+leave open, not a verdict. :func:`undecided` lists, for the report and for planning the next
+experiments:
+
+* ``near_threshold``: the best candidate of the step that stopped, when its z lies within
+  :data:`CLOSE_MARGIN` below the threshold, or above :data:`CLOSE_Z` while it lowers the selection's
+  score (on few rows the threshold is out of a real effect's reach);
+* ``barely_chosen``: a term added with z within :data:`CLOSE_MARGIN` above the threshold, or chosen by
+  fewer than half of the outer folds of the nested cross-validation;
+* ``rivals``: terms that fit about as well as a chosen one and part ways somewhere
+  (:mod:`calibrate.rivals`).
+
+Each item says where new rows would tell the answers apart: the range of the term's main driver over
+the quarter of the rows where the candidate and the model without it differ most (held out), and,
+for rivals, the driver values where they differ by more than a measurement's scatter. The paired z
+of an effect that is there grows as √n, so about ``n (z_needed / z)²`` rows drawn like these would
+carry it over the threshold (:func:`rows_to_settle`); fewer if they are placed where it acts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from microbearing import physics as _physics
+
+from .candidates import Term, mu_of
+from .data import Dataset
+from .fit import fit
+from .rivals import where_they_part
+from .select import CandidateScore, Selection
+
+__all__ = ["CLOSE_MARGIN", "CLOSE_Z", "rows_to_settle", "undecided"]
+
+#: A z within this much of the step's threshold (below for a candidate left out, above for a term
+#: added) is a close call. [1]
+CLOSE_MARGIN = 1.0
+#: A candidate that lowers the selection's score (its BIC-like criterion) with a paired z at least this is
+#: a close call too, however high the threshold: on few rows the threshold is out of reach of a real
+#: effect's z (about 2.3-2.5 for a run-in on 24 rows, against 3.6 needed). [1]
+CLOSE_Z = 2.0
+# Where a term acts most: its effect there is at least this share of its largest. [1]
+_HALF = 0.5
+# Share of the rows, those where the two models differ most, whose driver range says where they differ.
+_TOP_SHARE = 0.25
+
+
+def rows_to_settle(n_rows: int, z: float, z_needed: float) -> int | None:
+    """Rows drawn like the present ones that would carry a paired z of ``z`` on ``n_rows`` rows to
+    ``z_needed`` (z grows as √n): ``ceil(n_rows (z_needed / z)²)``; None for z <= 0.
+
+    Examples
+    --------
+    >>> rows_to_settle(24, 2.4, 3.4)
+    49
+    """
+    if z <= 0:
+        return None
+    return int(np.ceil(n_rows * (z_needed / z) ** 2))
+
+
+def _where(dataset: Dataset, term: Term, mu_with: np.ndarray, mu_without: np.ndarray,
+           with_term=None, without_term=None, noise_std_log: float | None = None) -> dict[str, Any]:
+    """Where the model with the term and the one without differ most along the term's main driver.
+
+    With both models as callables (and the scatter of a measurement), the driver is scanned over the
+    data's range and as much again on either side (:func:`calibrate.rivals.where_they_part`): ``range``
+    spans the values where they differ by more than two standard deviations of a measurement and by
+    at least half their largest difference (the largest difference's place when nowhere). Without
+    them, ``range`` is the driver's range over the
+    quarter of the rows where the two held-out predictions differ most.
+    """
+    driver = term.drivers[0]
+    columns = dataset.columns()
+    if driver not in columns:
+        return {"driver": driver, "range": None, "data_range": None}
+    x = np.asarray(columns[driver], dtype=float)
+    data_range = [float(x.min()), float(x.max())]
+    if with_term is not None and without_term is not None and noise_std_log:
+        part = where_they_part(without_term, with_term, dataset, driver, noise_std_log, _HALF)
+        if part["differ"]:
+            return {"driver": driver, "range": [min(r[0] for r in part["differ"]),
+                                                max(r[1] for r in part["differ"])], "data_range": data_range}
+        if part["at"] is not None:
+            return {"driver": driver, "range": [part["at"], part["at"]], "data_range": data_range}
+    difference = np.abs(np.log(mu_with / mu_without))
+    count = max(int(np.ceil(_TOP_SHARE * x.size)), 1)
+    top = np.argsort(-difference)[:count]
+    return {"driver": driver, "range": [float(x[top].min()), float(x[top].max())], "data_range": data_range}
+
+
+def _span(where: Mapping[str, Any]) -> str:
+    if where["range"] is None:
+        return ""
+    lo, hi = where["range"]
+    dlo, dhi = where["data_range"]
+    at = f"{lo:.3g}" if lo == hi else f"{lo:.3g} to {hi:.3g}"
+    return f"{where['driver']} {at} (data: {dlo:.3g} to {dhi:.3g})"
+
+
+def _models(dataset: Dataset, fit_parameters, current_terms, current_values, term: Term, start, convention):
+    """The model with and without ``term`` (refitted on the rows), as callables of columnar points."""
+    names = _physics.PARAMETERS
+
+    def model(declared, terms, values):
+        def mu(points):
+            inputs = {**dataset.fixed, **declared, **{k: v for k, v in points.items() if k in names}}
+            conditions = {k: v for k, v in points.items() if k not in names}
+            return mu_of(inputs, conditions, terms, values, convention=convention)
+        return mu
+
+    with np.errstate(all="ignore"):
+        try:
+            without = fit(dataset, fit_parameters, current_terms, start=start, start_terms=current_values,
+                          precise=False, convention=convention)
+            terms = (*current_terms, term)
+            withit = fit(dataset, fit_parameters, terms, start=without.declared,
+                         start_terms=without.term_values, precise=False, convention=convention)
+        except ValueError:
+            return None, None
+    return (model(withit.declared, terms, withit.term_values),
+            model(without.declared, tuple(current_terms), without.term_values))
+
+
+def undecided(
+    dataset: Dataset,
+    selection: Selection,
+    stability: Mapping[str, Any] | None = None,
+    rivals: Sequence[Mapping[str, Any]] = (),
+    fit_parameters: Sequence[str] = (),
+    noise_std_log: float | None = None,
+    convention: str = _physics.DEFAULT_CONVENTION,
+) -> list[dict[str, Any]]:
+    """What the data leave undecided, with where more rows would settle it.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The calibration data (all rows).
+    selection : Selection
+        The forward selection on (a subset of) them; its steps' scores are over ``selection.rows``.
+    stability : mapping, optional
+        :meth:`calibrate.select.NestedValidation.stability` of the chosen terms.
+    rivals : sequence of mapping
+        The report's rivals (``label``, ``where``, ``statement``; see :mod:`calibrate.rivals`).
+    fit_parameters : sequence of str
+        Declared parameters fitted (to refit a candidate left out, and scan where it would act).
+    noise_std_log : float, optional
+        Scatter of log μ of a measurement [1]; with it, where a term acts is scanned beyond the data.
+    convention : str
+        See :data:`physics.CONVENTIONS`.
+
+    Returns
+    -------
+    list of dict
+        ``kind`` (``near_threshold``, ``barely_chosen`` or ``rivals``), ``terms`` (labels), ``z`` and
+        ``z_needed`` [1] (None for rivals), ``rows_now`` [1], ``rows_to_settle`` [1] (rows drawn like
+        these that would carry z over the threshold, None when it does not apply), ``where``
+        (``driver``, ``range`` and ``data_range`` in the driver's unit, or the rivals' scan) and
+        ``statement`` in words.
+    """
+    searched = dataset if selection.rows.size == dataset.n_points else dataset.subset(selection.rows)
+    n = searched.n_points
+    found: list[dict[str, Any]] = []
+    for step in selection.steps:
+        if step.chosen is None:
+            low = step.z_needed - CLOSE_MARGIN
+            close = [c for c in step.ranked if c.joint and c.z <= step.z_needed and (
+                c.z >= low or (c.z >= CLOSE_Z and c.score < step.current.score))]
+            if close:
+                best = max(close, key=lambda c: c.z)
+                model = selection.model.full
+                pair = _models(searched, fit_parameters, selection.terms, model.term_values, best.term,
+                               model.declared, convention)
+                where = _where(searched, best.term, best.oof_mu, step.current.oof_mu, *pair, noise_std_log)
+                found.append(_near(best, step.z_needed, n, where))
+            continue
+        chosen = step.chosen
+        if chosen.z <= step.z_needed + CLOSE_MARGIN:
+            where = _where(searched, chosen.term, chosen.oof_mu, step.current.oof_mu)
+            settle = rows_to_settle(n, chosen.z, step.z_needed + CLOSE_MARGIN)
+            found.append({
+                "kind": "barely_chosen", "terms": [chosen.term.label], "z": float(chosen.z),
+                "z_needed": float(step.z_needed), "rows_now": n, "rows_to_settle": settle, "where": where,
+                "statement": (f"{chosen.term.label} was added, but barely (held-out z = {chosen.z:.2f} "
+                              f"against {step.z_needed:.2f} needed): about {settle} rows drawn like these "
+                              f"would make it clear, fewer if placed at {_span(where)}, where it acts most"),
+            })
+    if stability and selection.terms:
+        folds, agreeing = int(stability.get("folds", 0)), int(stability.get("same_driver", 0))
+        if folds and 2 * agreeing < folds:
+            labels = [t.label for t in selection.terms]
+            found.append({
+                "kind": "barely_chosen", "terms": labels, "z": None, "z_needed": None, "rows_now": n,
+                "rows_to_settle": None, "where": None,
+                "statement": (f"only {agreeing} of {folds} outer folds chose the same driver(s) as all rows "
+                              f"did ({', '.join(labels)}): the choice rests on a few rows, and more rows "
+                              f"would settle it"),
+            })
+    for rival in rivals:
+        found.append({
+            "kind": "rivals", "terms": [rival["label"]], "z": None, "z_needed": None, "rows_now": n,
+            "rows_to_settle": None, "where": list(rival.get("where", [])), "statement": rival["statement"],
+        })
+    return found
+
+
+def _near(best: CandidateScore, z_needed: float, n: int, where: Mapping[str, Any]) -> dict[str, Any]:
+    settle = rows_to_settle(n, best.z, z_needed)
+    return {
+        "kind": "near_threshold", "terms": [best.term.label], "z": float(best.z),
+        "z_needed": float(z_needed), "rows_now": n, "rows_to_settle": settle, "where": where,
+        "statement": (f"the data cannot decide on {best.term.label}: held-out z = {best.z:.2f}, just short "
+                      f"of the {z_needed:.2f} needed (on data with nothing to find the best candidate stays "
+                      f"below about 2.2 in 99 % of cases); about {settle} rows drawn like these (now {n}) "
+                      f"would settle it, fewer if placed at {_span(where)}, where it would act most"),
+    }

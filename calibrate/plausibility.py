@@ -1,0 +1,200 @@
+"""Before any fitting: values a micro ball bearing cannot see, and the unit slips that produce them.
+
+:func:`plausibility_findings` reads the parsed measurements (SI values, column by column) and
+returns what looks wrong, each finding naming the column, the range of its values, the likely cause
+and whether it is an ``error`` (the calibration is refused: a 422 in the service, naming the column)
+or a ``warning`` (the calibration runs and the report says it). :func:`check_plausible` raises the
+errors as one :class:`calibrate.data.DataError` and returns the warnings.
+
+The rules (documented here, and nowhere else decided):
+
+======================  ===============================================  ==========  ==================
+column                  rule                                             severity    likely cause
+======================  ===============================================  ==========  ==================
+``speed_m_s``           largest value above 10 m/s                       error       mm/s (or mm/min)
+``load_N``              largest value above 1 N                          error       mN (or gram-force)
+``ball_diameter_m``     largest value above 1 cm                         error       mm (or um)
+humidity (fraction)     a value above 1 or below 0                       error       percent
+humidity (percent)      a value above 100 or below 0                     error       not percent
+temperature (degC)      a value below -273.15 degC                       error       impossible
+temperature (degC)      a value above 200 degC                           error       kelvin
+temperature (K)         a value below 150 K                              error       degC
+``mu_measured``         a value above 1                                  warning     percent, or a force
+``mu_measured_std``     larger than ``mu_measured`` on some row          warning     percent of mu
+======================  ===============================================  ==========  ==================
+
+The bounds are those of the micro linear ball bearings this library models (Olaru et al. 2005:
+balls of a few tenths of a millimetre, loads of millinewtons, speeds of 0 to 150 mm/s), with a
+margin of about two orders of magnitude: a value beyond them is not a bold design but a different
+machine, or a unit slip. Humidity and temperature columns are recognised by name as in
+:mod:`physics.effects` (``humid``/``rh``, ``pct``/``percent`` for percent; ``temp``, ``k``/``kelvin``
+for kelvin). The physics' own validation still applies to every physics column first (a negative
+load is refused by :func:`calibrate.data.parse_rows`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from microbearing import physics
+from microbearing.physics.effects import _name_matches
+
+from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset
+
+__all__ = ["LIMITS", "Finding", "check_plausible", "plausibility_findings"]
+
+#: Largest value of a physics column a micro ball bearing plausibly sees, with the likely unit slip and
+#: its factor to SI. [unit of the column]
+LIMITS: dict[str, tuple[float, str, float]] = {
+    "speed_m_s": (10.0, "mm/s", 1e-3),
+    "load_N": (1.0, "mN", 1e-3),
+    "ball_diameter_m": (1e-2, "mm", 1e-3),
+}
+#: Largest measured friction coefficient before a warning. [1]
+MU_WARNING = 1.0
+# A temperature column in degC above this looks like kelvin; one in kelvin below the other like degC.
+_CELSIUS_MAX, _KELVIN_MIN = 200.0, 150.0
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One implausible column.
+
+    Attributes
+    ----------
+    column : str
+        The column's name.
+    severity : {"error", "warning"}
+        Whether the calibration is refused.
+    message : str
+        The values' range, the rule and the likely cause, in words.
+    """
+
+    column: str
+    severity: str
+    message: str
+
+
+def _span(values: np.ndarray) -> str:
+    return f"{float(np.min(values)):.4g} to {float(np.max(values)):.4g}"
+
+
+def _physics_column(name: str, values: np.ndarray) -> Finding | None:
+    limit, slip, factor = LIMITS[name]
+    if float(np.max(values)) <= limit:
+        return None
+    unit = physics.PARAMETERS[name].unit
+    scaled = values * factor
+    cause = (f"values look like {slip} (times {factor:g}: {_span(scaled)} {unit})"
+             if float(np.max(scaled)) <= limit else "check the unit of the column")
+    return Finding(name, "error", f"{name} runs {_span(values)} {unit}, beyond the {limit:g} {unit} a micro "
+                                  f"ball bearing sees: {cause}")
+
+
+def _humidity(name: str, values: np.ndarray) -> Finding | None:
+    percent = _name_matches(name, ("pct", "percent"))
+    top = 100.0 if percent else 1.0
+    if float(np.min(values)) >= 0.0 and float(np.max(values)) <= top:
+        return None
+    if percent:
+        cause = "relative humidity in percent lies in [0, 100]"
+    elif float(np.min(values)) >= 0.0 and float(np.max(values)) <= 100.0:
+        cause = (f"values look like percent: give fractions (divide by 100) or name the column "
+                 f"{name}_pct")
+    else:
+        cause = "relative humidity is a fraction in [0, 1]"
+    return Finding(name, "error", f"{name} runs {_span(values)} [{'%' if percent else '1'}]: {cause}")
+
+
+def _temperature(name: str, values: np.ndarray) -> Finding | None:
+    kelvin = _name_matches(name, ("k", "kelvin")) and not _name_matches(name, ("c", "degc"))
+    lo, hi = float(np.min(values)), float(np.max(values))
+    if kelvin and lo < _KELVIN_MIN:
+        return Finding(name, "error", f"{name} runs {_span(values)} K, below {_KELVIN_MIN:g} K: values look "
+                                      f"like degC (name the column temperature_C)")
+    if not kelvin and lo < -273.15:
+        return Finding(name, "error", f"{name} runs {_span(values)} degC, below absolute zero (-273.15 "
+                                      f"degC): check the unit")
+    if not kelvin and hi > _CELSIUS_MAX:
+        return Finding(name, "error", f"{name} runs {_span(values)} degC, above {_CELSIUS_MAX:g} degC: "
+                                      f"values look like kelvin (name the column temperature_K)")
+    return None
+
+
+def plausibility_findings(dataset: Dataset) -> list[Finding]:
+    """Every implausible column of parsed measurements, by the rules of this module.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Parsed measurements (physics columns in SI units, conditions in the data's units).
+
+    Returns
+    -------
+    list of Finding
+        Errors and warnings, in column order.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate import parse_rows
+    >>> rows = [{"balls": 4, "load_N": 0.01, "speed_m_s": v, "mu_measured": 0.01} for v in (5.0, 300.0)]
+    >>> print(plausibility_findings(parse_rows(rows))[0].message)  # doctest: +NORMALIZE_WHITESPACE
+    speed_m_s runs 5 to 300 m/s, beyond the 10 m/s a micro ball bearing sees: values look like mm/s
+    (times 0.001: 0.005 to 0.3 m/s)
+    """
+    found: list[Finding] = []
+    columns: Mapping[str, np.ndarray] = dataset.columns()
+    for name, values in columns.items():
+        if values.dtype == bool or values.size == 0:
+            continue
+        finding = None
+        if name in LIMITS:
+            finding = _physics_column(name, values)
+        elif name not in physics.PARAMETERS and _name_matches(name, ("humid", "rh")):
+            finding = _humidity(name, values)
+        elif name not in physics.PARAMETERS and _name_matches(name, ("temp",)):
+            finding = _temperature(name, values)
+        if finding is not None:
+            found.append(finding)
+    mu = dataset.mu_measured
+    if mu.size and float(np.max(mu)) > MU_WARNING:
+        count = int(np.sum(mu > MU_WARNING))
+        found.append(Finding(MU_MEASURED, "warning",
+                             f"{MU_MEASURED} runs {_span(mu)}, above {MU_WARNING:g} on {count} row(s): a "
+                             f"rolling micro bearing's friction coefficient is far below 1; is it in "
+                             f"percent, or a force?"))
+    std = dataset.mu_measured_std
+    if std is not None and np.any(std > mu):
+        count = int(np.sum(std > mu))
+        found.append(Finding(MU_MEASURED_STD, "warning",
+                             f"{MU_MEASURED_STD} exceeds {MU_MEASURED} on {count} row(s): is it a percentage "
+                             f"of mu rather than a standard deviation [1]?"))
+    return found
+
+
+def check_plausible(dataset: Dataset) -> list[str]:
+    """Refuse implausible measurements, before any fitting; return the warnings.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Parsed measurements.
+
+    Returns
+    -------
+    list of str
+        The warnings of :func:`plausibility_findings`, each starting with its column's name.
+
+    Raises
+    ------
+    calibrate.data.DataError
+        One ``{"row": None, "column", "message"}`` item per column in error.
+    """
+    found = plausibility_findings(dataset)
+    errors = [{"row": None, "column": f.column, "message": f.message} for f in found if f.severity == "error"]
+    if errors:
+        raise DataError(errors)
+    return [f.message for f in found if f.severity == "warning"]

@@ -1,0 +1,278 @@
+"""Rival explanations: terms that fit the data about as well as the chosen ones, kept for where they differ.
+
+Forward selection (:mod:`calibrate.select`) adds one term a step, and among named terms that fit
+equally well it prefers one by a rule (a catalogue effect first, then the drift that asks least of
+its parameter). On the data the rivals it passed over predict about the same; off the data they may
+not: adhesion that grows with humidity by a linear law and by the Kelvin law agree within the noise
+from 20 to 50 % RH and part by a factor of almost two at 80 %. An interval that holds only the chosen
+law's parameter uncertainty is then confidently wrong whenever the other law is the true one.
+
+A **rival** of a step is a candidate refitted jointly in that step (held out on the same folds) that
+
+* counts on its own (it beats the model before the step by the selection's own rules: a lower score
+  and a paired z above the step's threshold), and
+* is not worse than the chosen term by more than :data:`RIVAL_SE` standard errors of the paired
+  per-row difference of their held-out losses: the data cannot reject it.
+
+:func:`fit_rivals` refits the final model with the step's term replaced by each rival (all rows, its
+own covariance), at most :data:`MAX_RIVALS` of them, closest first. The calibrated model stores them
+(JSON) and :meth:`calibrate.model.CalibratedModel.predict` answers the *envelope* of the chosen
+model's 95 % interval and every rival's: inside the data, where they agree, the interval barely
+widens; where they part ways, it holds both (a conservative form of model averaging: no weights
+to estimate from data that cannot tell the rivals apart). :func:`where_they_part` says over which
+values of the rival's driver the two differ by more than the scatter of a measurement: where new
+rows would tell them apart.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from microbearing import physics
+
+from .candidates import Term
+from .data import Dataset
+from .fit import FitResult, fit, predict_mu
+from .select import CandidateScore, Selection
+
+__all__ = ["MAX_RIVALS", "RIVAL_SE", "Rival", "describe_rival", "fit_rivals", "rival_json", "rival_scores",
+           "where_they_part"]
+
+#: A rival's mean held-out loss exceeds the chosen term's by at most this many standard errors of the
+#: paired difference (one-sided, about a 2 % test: what the data cannot reject). [1]
+RIVAL_SE = 2.0
+#: Rivals kept per calibrated model at most (closest first). [1]
+MAX_RIVALS = 3
+# Values of a driver scanned by where_they_part: the data's range and as much again on either side.
+_SCAN_POINTS = 61
+# Rows whose median difference where_they_part takes at most (evenly spread over the data). [1]
+_SCAN_ROWS = 500
+
+
+@dataclass(frozen=True)
+class Rival:
+    """The final model with one step's term replaced by a rival, fitted on all rows.
+
+    Attributes
+    ----------
+    step : int
+        0-based selection step whose chosen term the rival replaces.
+    term : Term
+        The rival term.
+    replaces : Term
+        The chosen term it replaces.
+    gap_se : float
+        Mean held-out loss of the rival minus the chosen term's, in standard errors of the paired
+        difference (<= :data:`RIVAL_SE`; negative when the rival scored better but was passed over by
+        the preference among equals). [1]
+    fit : FitResult
+        The refit: declared parameters and every term, with the sandwich covariance.
+    """
+
+    step: int
+    term: Term
+    replaces: Term
+    gap_se: float
+    fit: FitResult
+
+    @property
+    def label(self) -> str:
+        """``"<rival> instead of <chosen>"``."""
+        return f"{self.term.label} instead of {self.replaces.label}"
+
+
+def _gap_se(candidate: CandidateScore, chosen: CandidateScore) -> float:
+    difference = candidate.loss - chosen.loss
+    spread = float(np.std(difference, ddof=1)) / np.sqrt(difference.size) if difference.size > 1 else 0.0
+    mean = float(np.mean(difference))
+    return mean / spread if spread > 0 else (0.0 if mean == 0 else np.inf * np.sign(mean))
+
+
+def rival_scores(selection: Selection) -> list[tuple[int, CandidateScore, float]]:
+    """Every rival of every step that added a term: ``(step, candidate, gap_se)``, closest first.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.select import Selection
+    >>> rival_scores(Selection((), [], None, 1.0, np.arange(3)))
+    []
+    """
+    found = []
+    for k, step in enumerate(selection.steps):
+        chosen = step.chosen
+        if chosen is None:
+            continue
+        for candidate in step.ranked:
+            if not candidate.joint or candidate is chosen or candidate.term == chosen.term:
+                continue
+            if candidate.score >= step.current.score or candidate.z <= step.z_needed:
+                continue
+            gap = _gap_se(candidate, chosen)
+            if gap <= RIVAL_SE:
+                found.append((k, candidate, gap))
+    return sorted(found, key=lambda item: item[2])
+
+
+def fit_rivals(
+    dataset: Dataset,
+    fit_parameters: Sequence[str],
+    selection: Selection,
+    final: FitResult,
+    convention: str = physics.DEFAULT_CONVENTION,
+    max_rivals: int = MAX_RIVALS,
+) -> list[Rival]:
+    """The final model refitted with each rival in place of the term it rivals (see the module).
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Measurements (all rows).
+    fit_parameters : sequence of str
+        Declared parameters fitted.
+    selection : Selection
+        The forward selection that chose the final terms.
+    final : FitResult
+        The final fit of the chosen terms on all rows (where each rival's refit starts).
+    convention : str
+        See :data:`physics.CONVENTIONS`.
+    max_rivals : int
+        Rivals fitted at most. [1]
+
+    Returns
+    -------
+    list of Rival
+        Closest first; a rival whose refit cannot predict every row (a driver outside its law) is
+        left out.
+    """
+    rivals: list[Rival] = []
+    terms = list(selection.terms)
+    for k, candidate, gap in rival_scores(selection):
+        if len(rivals) >= max_rivals:
+            break
+        replaced = [*terms[:k], candidate.term, *terms[k + 1:]]
+        if len({t.label for t in replaced}) < len(replaced):  # the rival is already another step's term
+            continue
+        start_terms = [*final.term_values[:k], candidate.values, *final.term_values[k + 1:]]
+        with np.errstate(all="ignore"):
+            try:
+                result = fit(dataset, fit_parameters, replaced, start=final.declared,
+                             start_terms=start_terms, convention=convention)
+                mu = predict_mu(dataset, result.declared, replaced, result.term_values, convention=convention)
+            except ValueError:
+                continue
+        if not np.all(np.isfinite(mu) & (mu > 0)):
+            continue
+        rivals.append(Rival(k, candidate.term, terms[k], float(gap), result))
+    return rivals
+
+
+def where_they_part(
+    model: Any, rival: Any, dataset: Dataset, driver: str, noise_std_log: float, share: float = 0.0
+) -> dict[str, Any]:
+    """Over which values of ``driver`` two calibrated models differ by more than a measurement's scatter.
+
+    Every data row (at most :data:`_SCAN_ROWS`, evenly spread) is predicted by both models with the
+    driver set, in turn, to each of
+    :data:`_SCAN_POINTS` values spanning the data's range and as much again on either side (values
+    where either model cannot predict are skipped); at each value the median over the rows of
+    ``|log(mu_rival / mu_model)|`` is compared with ``2 noise_std_log``.
+
+    Parameters
+    ----------
+    model, rival : calibrate.model.CalibratedModel
+        The two models.
+    dataset : Dataset
+        The calibration data.
+    driver : str
+        A data column.
+    noise_std_log : float
+        Scatter of log μ of one measurement. [1]
+    share : float
+        With a positive share, ``differ`` keeps only the values where the difference is also at least
+        this share of the largest one (where they differ most). [1]
+
+    Returns
+    -------
+    dict
+        ``driver``; ``data_range`` [min, max]; ``differ`` (list of [lo, hi] runs of scanned values where
+        they differ by more than two noise standard deviations, in the driver's unit);
+        ``largest_difference_log`` [1] (the largest median |log ratio| scanned) and where
+        (``at``).
+    """
+    columns = dataset.columns()
+    values = np.asarray(columns[driver], dtype=float)
+    lo, hi = float(values.min()), float(values.max())
+    if values.size > _SCAN_ROWS:  # a median over evenly spread rows: as telling, at a bounded cost
+        rows = np.linspace(0, values.size - 1, _SCAN_ROWS).astype(int)
+        columns = {k: np.asarray(v)[rows] for k, v in columns.items()}
+        values = values[rows]
+    span = hi - lo if hi > lo else max(abs(hi), 1.0)
+    grid = np.linspace(lo - span, hi + span, _SCAN_POINTS)
+    if driver in physics.PARAMETERS and physics.PARAMETERS[driver].minimum is not None:
+        grid = grid[grid >= physics.PARAMETERS[driver].minimum]
+    difference = np.full(grid.size, np.nan)
+    for i, x in enumerate(grid):
+        points = {**columns, driver: np.full(values.size, x)}
+        with np.errstate(all="ignore"):
+            try:
+                a, b = np.asarray(model(points), dtype=float), np.asarray(rival(points), dtype=float)
+            except ValueError:
+                continue
+        ratio = np.abs(np.log(b / a))
+        ratio = ratio[np.isfinite(ratio)]
+        if ratio.size:
+            difference[i] = float(np.median(ratio))
+    known = np.isfinite(difference)
+    largest = float(np.max(difference[known])) if known.any() else 0.0
+    differ = _runs(grid, difference > max(2.0 * noise_std_log, share * largest))
+    at = float(grid[known][np.argmax(difference[known])]) if known.any() else None
+    return {
+        "driver": driver,
+        "data_range": [lo, hi],
+        "differ": differ,
+        "largest_difference_log": float(np.max(difference[known])) if known.any() else None,
+        "at": at,
+    }
+
+
+def _runs(grid: np.ndarray, flag: np.ndarray) -> list[list[float]]:
+    """[first, last] grid values of every run of True in ``flag``."""
+    runs, start = [], None
+    for i, on in enumerate(flag):
+        if on and start is None:
+            start = i
+        if start is not None and (not on or i == flag.size - 1):
+            end = i if on else i - 1
+            runs.append([float(grid[start]), float(grid[end])])
+            start = None
+    return runs
+
+
+def rival_json(rival: Rival) -> dict[str, Any]:
+    """A rival as stored in a calibrated model (:class:`calibrate.model.RivalModel`)."""
+    return {
+        "label": rival.label,
+        "gap_se": rival.gap_se,
+        "fitted": {k: float(v) for k, v in rival.fit.declared.items()},
+        "terms": [t.to_json(v) for t, v in zip(rival.fit.terms, rival.fit.term_values, strict=True)],
+        "covariance": np.asarray(rival.fit.covariance, dtype=float).tolist(),
+    }
+
+
+def describe_rival(rival: Rival, part: Mapping[str, Any]) -> str:
+    """The rival and where it parts from the chosen model (:func:`where_they_part`), in words."""
+    lo, hi = part["data_range"]
+    where = ", ".join(f"{a:.3g} to {b:.3g}" for a, b in part["differ"])
+    text = (f"{rival.term.label} fits the data about as well as {rival.replaces.label} "
+            f"({rival.gap_se:+.1f} standard errors of held-out loss)")
+    if part["differ"]:
+        text += (f"; they differ by more than the scatter of a measurement at {part['driver']} {where} "
+                 f"(data: {lo:.3g} to {hi:.3g}): the 95 % intervals there hold both, and rows there "
+                 f"would tell them apart")
+    else:
+        text += f"; they agree within the scatter of a measurement over {part['driver']} scanned"
+    return text
