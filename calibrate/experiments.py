@@ -45,6 +45,7 @@ __all__ = [
     "MAX_CANDIDATES",
     "MAX_RIVALS",
     "candidate_points",
+    "check_request",
     "first_experiments",
     "next_experiments",
     "plan_png",
@@ -119,6 +120,8 @@ def check_space(space: Mapping[str, Any], conditions: Sequence[str], field_name:
             values = list(spec)
             if not values:
                 raise ValueError(f"{where}: give at least one value")
+            if any(isinstance(v, bool) or not np.isfinite(float(v)) for v in values):
+                raise ValueError(f"{where}: values must be finite numbers")
             if name == "balls" and any(float(v) != int(v) for v in values):
                 raise ValueError(f"{where}: ball counts must be whole numbers")
         if name in physics.PARAMETERS:
@@ -205,6 +208,13 @@ class CalibratedResponse:
         for term, _ in self.model.terms:
             names += [f"{term.label}: {n}" for n in term.parameter_names]
         return names
+
+    @property
+    def parameter_units(self) -> list[str]:
+        units = [physics.PARAMETERS[n].unit for n in self.model.fitted]
+        for term, _ in self.model.terms:
+            units += [term.units[n] for n in term.parameter_names]
+        return units
 
     @property
     def parameter_values(self) -> list[float]:
@@ -403,8 +413,8 @@ def _runs(response: CalibratedResponse, candidates, design: Design) -> tuple[lis
         conditions = {k: _tidy(v[i]) for k, v in full.items() if k not in physics.PARAMETERS}
         run = {"balls": int(inputs.pop("balls")), "load_N": _tidy(inputs.pop("load_N")),
                "speed_m_s": _tidy(inputs.pop("speed_m_s")),
-               **{k: (bool(v) if physics.PARAMETERS[k].kind == "bool" else _tidy(v))
-                  for k, v in inputs.items()},
+               "inputs": {k: (bool(v) if physics.PARAMETERS[k].kind == "bool" else _tidy(v))
+                          for k, v in inputs.items()},
                "conditions": conditions, "mu": float(np.ravel(prediction.mu)[i]),
                "in_domain": bool(inside[i])}
         if prediction.mu_lower is not None:
@@ -423,10 +433,11 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
     now = None if prior is None else np.linalg.pinv(prior, hermitian=True)
     out: dict[str, Any] = {}
     out["parameters"] = [
-        {"name": n, "value": v,
+        {"name": n, "value": v, "unit": u,
          "std_now": None if now is None else float(np.sqrt(max(now[j, j], 0.0))),
          "std_after": float(np.sqrt(max(covariance_after[j, j], 0.0)))}
-        for j, (n, v) in enumerate(zip(names, response.parameter_values, strict=True))]
+        for j, (n, v, u) in enumerate(zip(names, response.parameter_values, response.parameter_units,
+                                          strict=True))]
     if envelope is not None:
         full = response.points(envelope)
         mu = np.ravel(response.model(full))
@@ -498,7 +509,15 @@ def _plot_data(response: CalibratedResponse, runs_columns, data: Mapping[str, np
             reference = np.log(np.ravel(response.model(points)))
             return max(float(np.ptp(np.log(np.ravel(rival(points))) - reference)) for _, rival in rivals)
 
-        first = max(space, key=difference)
+        # The columns that drive the terms where the rivals differ from the model come first.
+        own = {t.label: t for t, _ in response.model.terms}
+        drivers: list[str] = []
+        for _, rival in rivals:
+            theirs = {t.label: t for t, _ in rival.terms}
+            for label in set(own) ^ set(theirs):
+                drivers += [d for d in (own.get(label) or theirs[label]).drivers if d in space]
+        first = (max(set(drivers), key=lambda d: (drivers.count(d), difference(d))) if drivers
+                 else max(space, key=difference))
         varying = [first, *[n for n in varying if n != first]]
     axes = varying[:2]
     plot: dict[str, Any] = {"axes": axes, "runs": {a: np.asarray(runs_columns[a], dtype=float).tolist()
@@ -611,12 +630,23 @@ def next_experiments(
     if goal == "discriminate" and not rivals:
         raise DesignError("goal discriminate: the calibration left no rival model within reach of the one "
                           "it chose; use goal parameters or predict")
-    response = _response(model, space, fixed, envelope, planned)
+    response = check_request(model, space, fixed, envelope, planned)
     return _propose(response, space, runs, goal, envelope, list(rivals) if goal == "discriminate" else [],
                     planned, seed, data, progress)
 
 
-def _response(model: CalibratedModel, space, fixed, envelope, planned) -> CalibratedResponse:
+def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mapping[str, Any] | None = None,
+                  envelope: Mapping[str, Any] | None = None,
+                  planned: Sequence[Mapping[str, float]] | None = None) -> CalibratedResponse:
+    """Check a proposal's request against a model before any work; the model as a design model.
+
+    Raises
+    ------
+    ValueError
+        Starting with the offending field (``space.<column>``, ``envelope.<column>``,
+        ``fixed.<name>``, ``planned.<i>``): an unknown column, a bad range or value, a column the
+        model reads that is neither in the space nor fixed.
+    """
     check_space(space, model.conditions)
     if envelope is not None:
         check_space(envelope, model.conditions, "envelope")
@@ -701,7 +731,7 @@ def first_experiments(
         fitted[name] = float(physics.validate(name, value))
     fixed = {k: v for k, v in dict(fixed or {}).items() if k not in fitted}
     model = CalibratedModel(fitted, {}, [], convention, None, float(noise_std_log), None, [])
-    response = _response(model, space, fixed, envelope, planned)
+    response = check_request(model, space, fixed, envelope, planned)
     return _propose(response, space, runs, goal, envelope, [], planned, seed, None, progress)
 
 

@@ -11,7 +11,7 @@ from starlette.concurrency import run_in_threadpool
 from microbearing import physics
 from microbearing.calibrate import DataError, Dataset, check_request, parse_assignments, parse_csv, parse_rows
 
-from ..calibrations import calibration_view, data_problem, load_calibration, run_calibration
+from ..calibrations import DATA_PREFIX, calibration_view, data_problem, load_calibration, run_calibration
 from ..deps import JobsDep, SettingsDep, StoreDep
 from ..jobs import JobContext, JobManager
 from ..limits import check_rows, csv_data_rows
@@ -125,7 +125,8 @@ def get_calibration_plot(calibration_id: str, plot_name: str, store: StoreDep) -
     """A plot of a calibration: ``effect_<k>``, ``residuals``, ``measured_vs_predicted`` (older calibrations:
     ``residual_before``, ``residual_after`` or ``residual``)."""
     stored = load_calibration(store, calibration_id)
-    if plot_name not in stored.arrays:
+    plots = sorted(name for name in stored.arrays if not name.startswith(DATA_PREFIX))
+    if plot_name not in plots:
         raise ProblemError(404, f"Calibration {calibration_id} has no plot {plot_name!r}; it has "
-                                f"{', '.join(sorted(stored.arrays)) or 'none'}.")
+                                f"{', '.join(plots) or 'none'}.")
     return Response(stored.arrays[plot_name].tobytes(), media_type="image/png")
