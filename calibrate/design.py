@@ -475,8 +475,11 @@ def plan(
     if goal != "discriminate":
         if p == 0:
             raise DesignError("the model has no parameters to design for")
+        # Judged on the correlation form of the information: parameters in units of very different
+        # size (a drift's coefficient beside a friction coefficient) must not look singular.
         total = fixed + b.T @ b
-        eigen, vectors = np.linalg.eigh((total + total.T) / 2)
+        diagonal = np.sqrt(np.clip(np.diag(total), 1e-300, None))
+        eigen, vectors = np.linalg.eigh((total + total.T) / 2 / np.outer(diagonal, diagonal))
         if eigen[0] <= _SINGULAR * max(eigen[-1], 1e-300):
             worst = vectors[:, 0]
             names = [f"{c:+.2f} {name}" for c, name in zip(worst, model.parameter_names, strict=True)

@@ -405,7 +405,7 @@ def _runs(response: CalibratedResponse, candidates, design: Design) -> tuple[lis
     chosen = {k: np.asarray(v)[rows] for k, v in candidates.items()}
     full = response.points(chosen)
     prediction = response.model.predict(full)
-    inside = (np.ones(rows.size, dtype=bool) if prediction.in_domain is None
+    inside = (None if prediction.in_domain is None
               else np.broadcast_to(prediction.in_domain, (rows.size,)))
     runs = []
     for i in range(rows.size):
@@ -416,7 +416,7 @@ def _runs(response: CalibratedResponse, candidates, design: Design) -> tuple[lis
                "inputs": {k: (bool(v) if physics.PARAMETERS[k].kind == "bool" else _tidy(v))
                           for k, v in inputs.items()},
                "conditions": conditions, "mu": float(np.ravel(prediction.mu)[i]),
-               "in_domain": bool(inside[i])}
+               "in_domain": None if inside is None else bool(inside[i])}
         if prediction.mu_lower is not None:
             run["mu_lower"] = float(np.ravel(prediction.mu_lower)[i])
             run["mu_upper"] = float(np.ravel(prediction.mu_upper)[i])

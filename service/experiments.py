@@ -50,8 +50,10 @@ def _space(columns: Mapping[str, Any] | None) -> dict[str, Any] | None:
     return {k: (v.model_dump() if hasattr(v, "model_dump") else list(v)) for k, v in columns.items()}
 
 
-def _document(plan: ExperimentPlan, model: str, job_id: str) -> dict[str, Any]:
-    return {**plan.to_dict(), "model": model, "plot_url": f"/v1/experiments/{job_id}/plot.png"}
+def _document(plan: ExperimentPlan, model: str, job_id: str | None) -> dict[str, Any]:
+    """The result: the plan, the model, and the plot's URL when it ran as a job (None from the CLI)."""
+    url = None if job_id is None else f"/v1/experiments/{job_id}/plot.png"
+    return {**plan.to_dict(), "model": model, "plot_url": url}
 
 
 def next_experiments_job(store: Store, calibration_id: str, body: NextExperimentsRequest

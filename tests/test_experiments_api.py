@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
@@ -10,6 +11,7 @@ from fastapi.testclient import TestClient
 
 from microbearing import physics
 from microbearing.service.app import create_app
+from microbearing.service.cli import main
 from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
@@ -30,8 +32,13 @@ def kelvin_rows(seed: int = 3, n: int = 150) -> list[dict]:
 
 
 @pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("experiments")))) as test_client:
+def data_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("experiments")
+
+
+@pytest.fixture(scope="module")
+def client(data_dir):
+    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
         yield test_client
 
 
@@ -142,3 +149,25 @@ def test_unknown_calibration_and_plot_are_404(client):
     answer = problem(client.post("/v1/experiments", json={"runs": 5, "space": SPACE, "goal": "discriminate",
                                                           "fit_parameters": ["mu_pivot"]}), 422)
     assert answer["errors"][0]["pointer"] == "/goal"
+
+
+def test_cli_first_design_and_next_runs_of_a_stored_calibration(client, calibration_id, data_dir, tmp_path,
+                                                                 monkeypatch):
+    first = tmp_path / "first.json"
+    first.write_text(json.dumps({"runs": 6, "fit_parameters": ["mu_pivot"],
+                                 "space": {"balls": [4, 8], "load_N": {"low": 1e-3, "high": 3e-2},
+                                           "speed_m_s": [0.05]}}))
+    assert main(["experiments", str(first), "-o", str(tmp_path / "first-runs.json")]) == 0
+    document = json.loads((tmp_path / "first-runs.json").read_text())
+    assert len(document["runs"]) == 6 and document["plot_url"] is None
+    assert all(run["in_domain"] is None for run in document["runs"])  # no calibration, no domain
+    monkeypatch.setenv("MICROBEARING_DATA_DIR", str(data_dir))
+    request = tmp_path / "next.json"
+    request.write_text(json.dumps({"runs": 6, "goal": "discriminate", "space": SPACE}))
+    code = main(["experiments", str(request), "--calibration", f"calibrated:{calibration_id}",
+                 "-o", str(tmp_path / "runs.json"), "--plot", str(tmp_path / "runs.png")])
+    assert code == 0
+    assert len(json.loads((tmp_path / "runs.json").read_text())["runs"]) == 6
+    assert (tmp_path / "runs.png").read_bytes()[:4] == b"\x89PNG"
+    request.write_text(json.dumps({"runs": 6, "space": {**SPACE, "temperature_C": [20.0]}}))
+    assert main(["experiments", str(request), "--calibration", calibration_id]) == 2

@@ -110,8 +110,9 @@ class ProposedRun(ResponseModel):
     mu_lower: float | None = Field(default=None, description="Lower end of its 95 % prediction interval "
                                                              "[1] (absent before a calibration).")
     mu_upper: float | None = Field(default=None, description="Upper end of the same interval [1].")
-    in_domain: bool = Field(description="Whether the run lies within the range of the calibration data "
-                                        "(false: the model extrapolates there; that is often the point).")
+    in_domain: bool | None = Field(default=None, description=(
+        "Whether the run lies within the range of the calibration data (false: the model extrapolates "
+        "there, which is often the point; absent before a calibration)."))
 
 
 class ParameterFigures(ResponseModel):
