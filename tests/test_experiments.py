@@ -132,3 +132,22 @@ def test_bad_requests_name_the_field(humid):
                          "parameters")
     with pytest.raises(DesignError, match="goal must be parameters or predict"):
         first_experiments(["mu_pivot"], SPACE, 5, "discriminate")
+
+
+def test_the_readme_loop_runs_and_prints_what_it_says(tmp_path, monkeypatch, capsys):
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("## Which measurements to take next"):text.index("## The command line")]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    printed = section.split("prints\n\n```\n", 1)[1].split("```", 1)[0].strip().splitlines()
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "README.md", "exec"), {})
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == len(printed)
+    assert lines[0] == printed[0] and lines[3] == printed[3]  # nothing named first; the Kelvin law after
+    assert lines[1].startswith(printed[1][:22])  # the bound
+    assert lines[-1] == printed[-1]  # the truth
+    after = float(lines[-2].split("mu = ")[1].split(",")[0])
+    assert after == pytest.approx(float(printed[-1].split("mu = ")[1]), rel=0.02)
+    assert (tmp_path / "next-runs.png").read_bytes()[:4] == b"\x89PNG"
