@@ -550,6 +550,17 @@ def _propose(response: CalibratedResponse, space, runs: int, goal: str, envelope
         missing = [n for n in space if n not in envelope]
         if missing:
             raise DesignError(f"envelope: give the columns of the space too ({', '.join(missing)})")
+    for field_name, points in (("space", candidates), ("envelope", envelope)):
+        if points is None:
+            continue
+        with np.errstate(all="ignore"):
+            mu = np.ravel(response.model(response.points(points)))
+        bad = ~(np.isfinite(mu) & (mu > 0))
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            example = ", ".join(f"{n} = {float(np.asarray(v)[k]):.6g}" for n, v in points.items())
+            raise ValueError(f"{field_name}: the model has no finite mu at {int(bad.sum())} of its points "
+                             f"(e.g. {example}); narrow the ranges")
     planned_columns = None
     if planned:
         planned_columns = {k: np.array([row[k] for row in planned], dtype=float) for k in space}

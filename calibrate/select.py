@@ -416,12 +416,20 @@ def _frozen_base(dataset, fit_parameters, current: ModelCV, parameters, conventi
     inputs = {**physics.defaults(), **dataset.inputs(), **full.declared}
     sensitivity = {}
     for name in dict.fromkeys([*fit_parameters, *parameters]):
-        bumped = {**inputs, name: np.asarray(inputs[name], dtype=float) * (1 + _SENSITIVITY_STEP)}
+        # Bumped up, or down where up leaves the parameter's range (a fit at its bound, a drift on it).
+        for step in (_SENSITIVITY_STEP, -_SENSITIVITY_STEP):
+            bumped = {**inputs, name: np.asarray(inputs[name], dtype=float) * (1 + step)}
+            try:
+                with np.errstate(all="ignore"):
+                    mu_bumped = mu_of(
+                        bumped, dataset.conditions, current.terms, full.term_values, convention=convention
+                    )
+                break
+            except ValueError:
+                if step < 0:
+                    raise
         with np.errstate(all="ignore"):
-            mu_bumped = mu_of(
-                bumped, dataset.conditions, current.terms, full.term_values, convention=convention
-            )
-            s = np.log(mu_bumped / mu) / np.log1p(_SENSITIVITY_STEP)
+            s = np.log(mu_bumped / mu) / np.log1p(step)
         sensitivity[name] = np.where(np.isfinite(s), s, 0.0)
     return FrozenBase(mu, sensitivity, tuple(fit_parameters))
 
