@@ -151,3 +151,27 @@ def test_the_readme_loop_runs_and_prints_what_it_says(tmp_path, monkeypatch, cap
     after = float(lines[-2].split("mu = ")[1].split(",")[0])
     assert after == pytest.approx(float(printed[-1].split("mu = ")[1]), rel=0.02)
     assert (tmp_path / "next-runs.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_frozen_base_sensitivity_of_a_parameter_fitted_at_its_upper_bound():
+    # A recalibration of the bench crashed here: adhesion fitted at its bound 10 J/m^2, bumped up, left
+    # its range. The bump now goes down there; the sensitivity matches a one-sided difference made here.
+    from microbearing.calibrate.fit import FitResult
+    from microbearing.calibrate.select import ModelCV, _frozen_base
+
+    rows = [{"balls": 4.0, "load_N": load, "speed_m_s": 0.05, "mu_measured": 0.02}
+            for load in (0.003, 0.01, 0.03)]
+    dataset = parse_rows(rows)
+    top = physics.PARAMETERS["adhesion_energy_J_m2"].maximum
+    full = FitResult({"adhesion_energy_J_m2": top}, (), [], ["adhesion_energy_J_m2"], np.array([top]),
+                     np.eye(1), 0.02, np.zeros(3), ["adhesion_energy_J_m2"], True)
+    current = ModelCV((), [], [], [], np.full(3, 0.02), full)
+    base = _frozen_base(dataset, ["adhesion_energy_J_m2"], current, [], physics.DEFAULT_CONVENTION)
+
+    def mu(gamma):
+        return physics.evaluate(balls=4, load_N=np.array([0.003, 0.01, 0.03]), speed_m_s=0.05,
+                                adhesion_energy_J_m2=gamma).mu
+
+    expected = np.log(mu(top * (1 - 1e-4)) / mu(top)) / np.log1p(-1e-4)
+    assert np.allclose(base.sensitivity["adhesion_energy_J_m2"], expected, rtol=1e-9)
+    assert np.all(expected > 0)
