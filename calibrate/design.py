@@ -17,6 +17,8 @@ runs by exchanges, and bounds how far the runs can be from the best design on th
   b_xᵀ M⁻¹ b_x).
 * ``predict`` (I-optimal): minimize tr(L M(w)⁻¹), L the mean of c cᵀ over the envelope's sensitivities
   c (cvxpy's ``matrix_frac``). Bound: efficiency Φ*/Φ ≥ Φ / (tr(M⁻¹LM⁻¹A/N) + max_x b_xᵀ M⁻¹LM⁻¹ b_x).
+  With rivals, Φ sums the same over the model and each rival (model-robust), and so do the bound's
+  terms.
 * ``discriminate`` (T-optimal, Atkinson and Fedorov 1975): maximize min_k Δ_k(w), Δ_k(w) = min_δ Σ w_i
   (d_ki − J_ki δ)² / σ_i² + (prior of rival k), d_k the reference's response less rival k's and J_k
   rival k's sensitivities (linearized rivals). Each Δ_k is the Schur complement of a matrix linear in
@@ -209,12 +211,18 @@ class _Problem:
     b: np.ndarray  # (n, p) sensitivities / sigma, rescaled
     fixed: np.ndarray  # (p, p) prior + planned information / runs, rescaled
     envelope: np.ndarray | None = None  # (p, p) L, rescaled
+    # predict with rivals: each rival's (b, fixed, L), rescaled; the criterion sums tr(L M⁻¹) over all.
+    hedges: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
     rival_rows: list[np.ndarray] = field(default_factory=list)  # each (n, q_k + 1): [J / sigma, d / sigma]
     rival_fixed: list[np.ndarray] = field(default_factory=list)  # each (q_k + 1, q_k + 1), per run
     scale: np.ndarray | None = None  # parameter scaling: b = (g / sigma) * scale
 
     def information(self, w: np.ndarray) -> np.ndarray:
         return self.fixed + (self.b * w[:, None]).T @ self.b
+
+    def predict_terms(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """(b, fixed, L) of every model whose envelope variance the predict criterion sums."""
+        return [(self.b, self.fixed, self.envelope), *self.hedges]
 
     def rival_matrix(self, k: int, w: np.ndarray) -> np.ndarray:
         a = self.rival_rows[k]
@@ -234,13 +242,16 @@ def _value(problem: _Problem, w: np.ndarray) -> float:
     """The criterion at weights w (per run), larger is better: log det, −tr(L M⁻¹), or min Δ_k."""
     if problem.goal == "discriminate":
         return min(_schur_last(problem.rival_matrix(k, w))[0] for k in range(len(problem.rival_rows)))
-    m = problem.information(w)
-    sign, logdet = np.linalg.slogdet(m)
-    if sign <= 0:
-        return -np.inf
-    if problem.goal == "parameters":
-        return float(logdet)
-    return -float(np.trace(np.linalg.solve(m, problem.envelope)))
+    if problem.goal == "predict":
+        total = 0.0
+        for b, fixed, envelope in problem.predict_terms():
+            m = fixed + (b * w[:, None]).T @ b
+            if np.linalg.slogdet(m)[0] <= 0:
+                return -np.inf
+            total += float(np.trace(np.linalg.solve(m, envelope)))
+        return -total
+    sign, logdet = np.linalg.slogdet(problem.information(w))
+    return float(logdet) if sign > 0 else -np.inf
 
 
 def _efficiency(problem: _Problem, better: float, worse: float) -> float:
@@ -278,17 +289,21 @@ def _sensitivity_and_bound(problem: _Problem, w: np.ndarray) -> tuple[np.ndarray
         bound = float(result.fun) if solved else float(np.max(np.array(offset)[:, None] + psi_matrix))
         lam = result.x[:k_count] if solved else np.full(k_count, 1.0 / k_count)
         return lam @ psi_matrix, float(np.clip(worst / bound, 0.0, 1.0))
-    m = problem.information(w)
-    inverse = np.linalg.inv(m)
     if problem.goal == "parameters":
+        inverse = np.linalg.inv(problem.information(w))
         d = np.einsum("ij,jk,ik->i", problem.b, inverse, problem.b)
         upper = float(np.trace(inverse @ problem.fixed) + d.max())
         return d, float(np.clip(problem.b.shape[1] / upper, 0.0, 1.0))
-    weighted = inverse @ problem.envelope @ inverse
-    phi = np.einsum("ij,jk,ik->i", problem.b, weighted, problem.b)
-    value = float(np.trace(problem.envelope @ inverse))
-    upper = float(np.trace(weighted @ problem.fixed) + phi.max())
-    return phi, float(np.clip(value / upper, 0.0, 1.0))
+    # predict: Φ = Σ_m tr(L_m M_m⁻¹) is convex and each term homogeneous of degree −1 in M_m, so
+    # Φ(w*) ≥ Φ(w)² / (Σ_m tr(M_m⁻¹ L_m M_m⁻¹ A_m) + max_x Σ_m φ_m(x)) (see the module).
+    phi, value, offset = 0.0, 0.0, 0.0
+    for b, fixed, envelope in problem.predict_terms():
+        inverse = np.linalg.inv(fixed + (b * w[:, None]).T @ b)
+        weighted = inverse @ envelope @ inverse
+        phi = phi + np.einsum("ij,jk,ik->i", b, weighted, b)
+        value += float(np.trace(envelope @ inverse))
+        offset += float(np.trace(weighted @ fixed))
+    return phi, float(np.clip(value / (offset + phi.max()), 0.0, 1.0))
 
 
 # ---------------------------------------------------------------------------------------------- solving
@@ -307,9 +322,12 @@ def _solve(problem: _Problem) -> tuple[np.ndarray, str]:
     if problem.goal == "parameters":
         objective = cp.Maximize(cp.log_det(affine(problem.fixed, problem.b)))
     elif problem.goal == "predict":
-        eigen, vectors = np.linalg.eigh(problem.envelope)
-        root = vectors * np.sqrt(np.clip(eigen, 0.0, None))
-        objective = cp.Minimize(cp.matrix_frac(root, affine(problem.fixed, problem.b)))
+        terms = []
+        for b, fixed, envelope in problem.predict_terms():
+            eigen, vectors = np.linalg.eigh(envelope)
+            root = vectors * np.sqrt(np.clip(eigen, 0.0, None))
+            terms.append(cp.matrix_frac(root, affine(fixed, b)))
+        objective = cp.Minimize(cp.sum(terms))
     else:
         t = cp.Variable()
         for rows, fixed in zip(problem.rival_rows, problem.rival_fixed, strict=True):
@@ -435,7 +453,9 @@ def plan(
         ``predict``: the points where the model will be used (their mean prediction variance is
         minimized).
     rivals : sequence of DesignModel
-        ``discriminate``: the rival models; each is linearized at its parameters.
+        ``discriminate``: the rival models; each is linearized at its parameters. ``predict``: optional;
+        the criterion then sums the envelope variance of the model and of every rival (model-robust
+        I-optimality, after Läuter 1974), so that the runs also serve the rivals' predictions.
     planned : mapping of str to numpy.ndarray, optional
         Runs already planned (columns like ``candidates``): their information counts as taken.
     polish : bool
@@ -497,6 +517,24 @@ def plan(
             raise DesignError("goal predict needs an envelope: the points where the model will be used")
         c = np.asarray(model.sensitivities(envelope), dtype=float).reshape(-1, p) * scale
         problem.envelope = c.T @ c / c.shape[0]
+        for rival in rivals:  # model-robust: the rivals' envelope variances count too
+            g_r = np.asarray(rival.sensitivities(candidates), dtype=float).reshape(n, -1) / sigma[:, None]
+            prior_r = rival.prior_information()
+            q = g_r.shape[1]
+            fixed_r = np.zeros((q, q)) if prior_r is None else np.asarray(prior_r, dtype=float).copy()
+            if planned_b.shape[0]:
+                planned_sigma = np.asarray(model.scatter_sd(planned), dtype=float)
+                planned_r = np.asarray(rival.sensitivities(planned), dtype=float).reshape(-1, q)
+                planned_r = planned_r / planned_sigma[:, None]
+                fixed_r = fixed_r + planned_r.T @ planned_r
+            scale_r = 1.0 / np.maximum(np.sqrt(np.mean(np.square(g_r), axis=0)), 1e-300)
+            total = fixed_r + g_r.T @ g_r
+            diagonal = np.sqrt(np.clip(np.diag(total), 1e-300, None))
+            if q == 0 or np.linalg.eigvalsh(total / np.outer(diagonal, diagonal))[0] <= _SINGULAR:
+                continue  # a rival the space cannot identify has no finite envelope variance to hedge
+            c_r = np.asarray(rival.sensitivities(envelope), dtype=float).reshape(-1, q) * scale_r
+            problem.hedges.append((g_r * scale_r, fixed_r * np.outer(scale_r, scale_r) / runs,
+                                   c_r.T @ c_r / c_r.shape[0]))
     if goal == "discriminate":
         if not rivals:
             raise DesignError("goal discriminate needs at least one rival model")

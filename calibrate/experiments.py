@@ -615,7 +615,8 @@ def next_experiments(
     planned : sequence of mapping, optional
         Runs already planned (one value per column of ``space``).
     rivals : sequence of (str, CalibratedModel)
-        ``discriminate``: the rivals (:func:`rival_models`).
+        ``discriminate``: the rivals (:func:`rival_models`). ``predict``: optional; the runs then shrink
+        the envelope variance of the model and of the rivals together (model-robust).
     data : mapping of str to numpy.ndarray, optional
         The data taken (columns), drawn under the proposed runs.
     seed : int
@@ -642,7 +643,7 @@ def next_experiments(
         raise DesignError("goal discriminate: the calibration left no rival model within reach of the one "
                           "it chose; use goal parameters or predict")
     response = check_request(model, space, fixed, envelope, planned)
-    return _propose(response, space, runs, goal, envelope, list(rivals) if goal == "discriminate" else [],
+    return _propose(response, space, runs, goal, envelope, list(rivals) if goal != "parameters" else [],
                     planned, seed, data, progress)
 
 

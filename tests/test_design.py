@@ -149,3 +149,19 @@ def test_unidentifiable_parameters_are_named():
         plan(quadratic_1d(), {"x": x}, 5, "best")
     with pytest.raises(DesignError, match="envelope"):
         plan(quadratic_1d(), {"x": x}, 5, "predict")
+
+
+def test_model_robust_i_optimal_with_an_identical_rival_is_the_plain_design():
+    # Summing the envelope variance of two identical models doubles it: the same optimum, bound 1.
+    x = np.linspace(-1, 1, 101)
+    envelope = {"x": np.linspace(0.5, 1.0, 51)}
+    plain = plan(quadratic_1d(), {"x": x}, 30, "predict", envelope=envelope)
+    robust = plan(quadratic_1d(), {"x": x}, 30, "predict", envelope=envelope, rivals=[quadratic_1d()])
+    assert np.allclose(plain.weights, robust.weights, atol=2e-3)
+    assert robust.continuous_efficiency_lower_bound == pytest.approx(1.0, abs=1e-3)
+    # A cubic rival pulls runs toward where the cubic's envelope variance is learnt.
+    cubic = FunctionModel(["1", "x", "x^2", "x^3"],
+                          lambda p: np.column_stack([np.ones_like(p["x"]), p["x"], p["x"] ** 2, p["x"] ** 3]))
+    hedged = plan(quadratic_1d(), {"x": x}, 30, "predict", envelope=envelope, rivals=[cubic])
+    assert np.count_nonzero(hedged.weights > 1e-3) >= 4  # a cubic needs four support points
+    assert hedged.continuous_efficiency_lower_bound > 0.99
