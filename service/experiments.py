@@ -90,8 +90,12 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
                 "the calibration left no rival model within reach of the one it chose (no other named "
                 "candidate passed its test, none came near the threshold); use goal parameters or predict")}])
 
+    # predict hedges over the rivals too when there are any (model-robust: bench/RESULTS.md, issue 26).
+    hedged = body.goal == "predict" and dataset is not None and bool(
+        rival_terms(report, dataset, [t for t, _ in model.terms]))
+
     def work(ctx) -> dict[str, Any]:
-        rivals = rival_models(report, dataset, model) if body.goal == "discriminate" else []
+        rivals = rival_models(report, dataset, model) if body.goal == "discriminate" or hedged else []
         ctx.progress(0.2)
         try:
             plan = next_experiments(model, space, body.runs, body.goal, envelope=envelope, fixed=body.fixed,

@@ -72,7 +72,9 @@ class NextExperimentsRequest(_ExperimentsRequest):
         default="discriminate",
         description="discriminate: tell apart the laws and effects the calibration could not separate "
                     "(T-optimal); parameters: shrink the fitted parameters' covariance (D-optimal); "
-                    "predict: shrink the 95 % interval over the envelope (I-optimal).")
+                    "predict: shrink the 95 % interval over the envelope (I-optimal; summed over the "
+                    "calibrated model and its rivals when it has any, so that the runs also serve the laws "
+                    "the data could not yet tell apart).")
 
 
 class FirstExperimentsRequest(_ExperimentsRequest):
