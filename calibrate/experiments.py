@@ -13,7 +13,8 @@ Two functions are the points where the calibration's scatter model and its rival
 
 * :meth:`CalibratedResponse.scatter_sd`: the standard deviation of one measurement of log μ at each
   run; today the calibration's one held-out scatter, ``noise_std_log``, the same everywhere.
-* :func:`rival_models`: the models the data could not tell apart from the calibrated one; today
+* :func:`rival_models`: the models the data could not tell apart from the calibrated one (told apart
+  by ``discriminate``, hedged over by ``predict`` when given); today
   rebuilt from the report's selection steps: every named candidate that passed the step's
   family-wise test as well as the term chosen (in its place), and the best named candidate of the
   step that stopped when its z reached half the threshold (added to the model), each refitted on
