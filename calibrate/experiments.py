@@ -50,6 +50,7 @@ __all__ = [
     "check_request",
     "first_experiments",
     "next_experiments",
+    "physics_model",
     "plan_png",
     "rival_models",
     "space_points",
@@ -688,6 +689,37 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
     return CalibratedResponse(model, fixed)
 
 
+def physics_model(fit_parameters: Sequence[str], noise_std_log: float,
+                  guess: Mapping[str, float] | None = None, fixed: Mapping[str, Any] | None = None,
+                  convention: str = physics.DEFAULT_CONVENTION) -> tuple[CalibratedModel, dict[str, Any]]:
+    """The declared physics before a calibration as a model of :func:`first_experiments`: the fitted
+    parameters at ``guess`` (or ``fixed``, or the defaults), no covariance, the expected scatter; and the
+    fixed values that are not fitted.
+
+    Raises
+    ------
+    ValueError
+        Naming ``fit_parameters``, ``guess.<name>`` or ``noise_std_log``.
+    """
+    if not (np.isfinite(noise_std_log) and noise_std_log > 0):
+        raise ValueError(f"noise_std_log: must be positive; got {noise_std_log}")
+    guess, fixed = dict(guess or {}), dict(fixed or {})
+    fitted = {}
+    for name in fit_parameters:
+        spec = physics.PARAMETERS.get(name)
+        if spec is None or spec.kind == "bool":
+            raise ValueError(f"fit_parameters: {name!r} is not a numeric physics parameter")
+        value = guess.get(name, fixed.get(name, spec.default))
+        if value is None:
+            raise ValueError(f"guess.{name}: give a value (the parameter has no default)")
+        try:
+            fitted[name] = float(physics.validate(name, value))
+        except ValueError as exc:
+            raise ValueError(f"guess.{name}: {exc}") from None
+    model = CalibratedModel(fitted, {}, [], convention, None, float(noise_std_log), None, [])
+    return model, {k: v for k, v in fixed.items() if k not in fitted}
+
+
 def first_experiments(
     fit_parameters: Sequence[str],
     space: Mapping[str, Any],
@@ -730,20 +762,7 @@ def first_experiments(
         raise DesignError(f"goal must be parameters or predict before a calibration; got {goal!r}")
     if not fit_parameters:
         raise DesignError("fit_parameters: name at least one declared parameter to design for")
-    if not (np.isfinite(noise_std_log) and noise_std_log > 0):
-        raise ValueError(f"noise_std_log must be positive; got {noise_std_log}")
-    guess = dict(guess or {})
-    fitted = {}
-    for name in fit_parameters:
-        spec = physics.PARAMETERS.get(name)
-        if spec is None or spec.kind == "bool":
-            raise ValueError(f"fit_parameters: {name!r} is not a numeric physics parameter")
-        value = guess.get(name, dict(fixed or {}).get(name, spec.default))
-        if value is None:
-            raise ValueError(f"guess.{name}: give a value (the parameter has no default)")
-        fitted[name] = float(physics.validate(name, value))
-    fixed = {k: v for k, v in dict(fixed or {}).items() if k not in fitted}
-    model = CalibratedModel(fitted, {}, [], convention, None, float(noise_std_log), None, [])
+    model, fixed = physics_model(fit_parameters, noise_std_log, guess, fixed, convention)
     response = check_request(model, space, fixed, envelope, planned)
     return _propose(response, space, runs, goal, envelope, [], planned, seed, None, progress)
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from microbearing import physics
 from microbearing.calibrate import CalibratedModel
 from microbearing.calibrate.design import DesignError
 from microbearing.calibrate.experiments import (
@@ -20,6 +19,7 @@ from microbearing.calibrate.experiments import (
     check_request,
     first_experiments,
     next_experiments,
+    physics_model,
     plan_png,
     rival_models,
     rival_terms,
@@ -34,6 +34,8 @@ __all__ = ["JOB_KIND", "first_experiments_job", "next_experiments_job", "plan_pn
 
 #: Kind of the jobs that propose runs (their results at /v1/jobs/{id}/result).
 JOB_KIND = "experiments"
+
+
 def _field_problem(exc: ValueError) -> ProblemError:
     """A 422 naming the field a ValueError of calibrate.experiments starts with (``space.load_N: ...``)."""
     message = str(exc)
@@ -80,22 +82,20 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     if body.goal == "predict" and envelope is None:
         raise validation_problem([{"pointer": "/envelope", "detail": "goal predict needs an envelope"}])
     dataset = stored_dataset(stored.arrays, model.fixed)
+    has_rivals = dataset is not None and bool(rival_terms(report, dataset, [t for t, _ in model.terms]))
     if body.goal == "discriminate":
         if dataset is None:
             raise validation_problem([{"pointer": "/goal", "detail": (
                 "this calibration was stored before calibrations kept their data, so its rivals cannot be "
                 "refitted; calibrate again, or use goal parameters or predict")}])
-        if not rival_terms(report, dataset, [t for t, _ in model.terms]):
+        if not has_rivals:
             raise validation_problem([{"pointer": "/goal", "detail": (
                 "the calibration left no rival model within reach of the one it chose (no other named "
                 "candidate passed its test, none came near the threshold); use goal parameters or predict")}])
 
     # predict hedges over the rivals too when there are any (model-robust: bench/RESULTS.md, issue 26).
-    hedged = body.goal == "predict" and dataset is not None and bool(
-        rival_terms(report, dataset, [t for t, _ in model.terms]))
-
     def work(ctx) -> dict[str, Any]:
-        rivals = rival_models(report, dataset, model) if body.goal == "discriminate" or hedged else []
+        rivals = rival_models(report, dataset, model) if body.goal != "parameters" and has_rivals else []
         ctx.progress(0.2)
         try:
             plan = next_experiments(model, space, body.runs, body.goal, envelope=envelope, fixed=body.fixed,
@@ -128,7 +128,9 @@ def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict
         raise validation_problem([{"pointer": "/envelope", "detail": "goal predict needs an envelope"}])
 
     try:  # the request's checks, at once (the solve comes in the job)
-        _check_first(fit_parameters, space, body)
+        model, fixed = physics_model(fit_parameters, body.noise_std_log, body.guess, body.fixed,
+                                     str(body.convention))
+        check_request(model, space, fixed, envelope, body.planned)
     except ValueError as exc:
         raise _field_problem(exc) from None
 
@@ -143,16 +145,4 @@ def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict
 
     return work
 
-
-def _check_first(fit_parameters, space, body: FirstExperimentsRequest) -> None:
-    fitted = {}
-    for name in fit_parameters:
-        value = (body.guess or {}).get(name, physics.PARAMETERS[name].default)
-        try:
-            fitted[name] = float(physics.validate(name, value))
-        except ValueError as exc:
-            raise ValueError(f"guess.{name}: {exc}") from None
-    model = CalibratedModel(fitted, {}, [], str(body.convention), None, body.noise_std_log, None, [])
-    fixed = {k: v for k, v in (body.fixed or {}).items() if k not in fitted}
-    check_request(model, space, fixed, _space(body.envelope), body.planned)
 
