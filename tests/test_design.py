@@ -165,3 +165,24 @@ def test_model_robust_i_optimal_with_an_identical_rival_is_the_plain_design():
     hedged = plan(quadratic_1d(), {"x": x}, 30, "predict", envelope=envelope, rivals=[cubic])
     assert np.count_nonzero(hedged.weights > 1e-3) >= 4  # a cubic needs four support points
     assert hedged.continuous_efficiency_lower_bound > 0.99
+
+
+def test_planned_runs_count_as_information_taken():
+    # Quadratic on [-1, 1], D-optimal: a third of the runs at -1, 0, 1. With 12 runs already planned at
+    # 0, the 12 new runs all go to the ends: the best of every split of 24 runs that keeps the planned 12
+    # at 0, found here by enumeration.
+    x = np.linspace(-1, 1, 41)
+    design = plan(quadratic_1d(), {"x": x}, 12, "parameters", planned={"x": np.zeros(12)})
+    assert design.counts[x == -1.0].item() + design.counts[x == 1.0].item() == 12
+    f = quadratic_1d().sensitivities
+
+    def logdet(left, middle, right):
+        points = np.array([-1.0] * left + [0.0] * middle + [1.0] * right)
+        m = f({"x": points}).T @ f({"x": points})
+        return np.linalg.slogdet(m)[1]
+
+    best = max(((a, 24 - a - b, b) for a in range(1, 12) for b in range(1, 12) if 24 - a - b >= 12),
+               key=lambda split: logdet(*split))
+    got = (design.counts[x == -1.0].item(), 12, design.counts[x == 1.0].item())
+    assert logdet(*got) == pytest.approx(logdet(*best), abs=1e-9)
+    assert design.criterion == pytest.approx(logdet(*got), rel=1e-9)
