@@ -498,13 +498,25 @@ def _plot_data(response: CalibratedResponse, runs_columns, data: Mapping[str, np
     rivals) each model's μ along the first, the others at the runs' medians.
 
     With rivals the first column is the one along which they differ most from the calibrated model;
-    otherwise columns are ranked by the share of their range the runs span."""
+    otherwise columns are ranked by the share of their range the runs span plus twice the share of the
+    runs outside the data's range (runs beyond the data are what a reader must see)."""
     def spread(name: str) -> float:
         low, high = _span(space[name])
         values = np.asarray(runs_columns[name], dtype=float)
         return float(np.ptp(values) / (high - low)) if high > low else 0.0
 
-    varying = sorted(space, key=lambda n: -spread(n))
+    def beyond(name: str) -> float:
+        """Share of the runs outside the data's range on the column by more than a tenth of the space's
+        range (where the runs teach most)."""
+        if data is None or name not in data or not len(data[name]):
+            return 0.0
+        values = np.asarray(runs_columns[name], dtype=float)
+        column = np.asarray(data[name], dtype=float)
+        low, high = _span(space[name])
+        margin = 0.1 * (high - low)
+        return float(np.mean((values < column.min() - margin) | (values > column.max() + margin)))
+
+    varying = sorted(space, key=lambda n: -(spread(n) + 2.0 * beyond(n)))
     if rivals:
         def difference(name: str) -> float:
             _x, _others, points = _curve_points(response, runs_columns, space, name)
@@ -574,6 +586,8 @@ def _propose(response: CalibratedResponse, space, runs: int, goal: str, envelope
     rows, chosen, warnings = _runs(response, candidates, design)
     expected = _expected(goal, response, design, chosen, envelope, rivals if goal == "discriminate" else [])
     plot = _plot_data(response, chosen, data, space, rivals if goal == "discriminate" else [])
+    if envelope_space is not None:  # where the model will be used, on the plot's axes
+        plot["envelope"] = {a: list(_span(envelope_space[a])) for a in plot["axes"] if a in envelope_space}
     if design.efficiency_lower_bound < 0.5:
         warnings.append(f"the runs are proven only {design.efficiency_lower_bound:.2f} efficient: few runs "
                         f"cannot carry the continuous design; more runs round better")
@@ -786,6 +800,7 @@ def plan_png(document: Mapping[str, Any]) -> bytes:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
 
     plot = document["plot"]
     axes_names = list(plot["axes"])
@@ -810,9 +825,22 @@ def plan_png(document: Mapping[str, Any]) -> bytes:
             if count > 1:
                 ax.annotate(f"x{count}", (px, py), textcoords="offset points", xytext=(6, 6), fontsize=8,
                             color="red")
+        box = plot.get("envelope") or {}
+        if x_name in box:
+            (x0, x1) = box[x_name]
+            (y0, y1) = box[y_name] if y_name in box else ax.get_ylim()
+            # A single value is drawn as a thin band, 2 % of the axis.
+            (xa, xb), (ya, yb) = ax.get_xlim(), ax.get_ylim()
+            if x1 - x0 < 0.02 * (xb - xa):
+                x0, x1 = (x0 + x1) / 2 - 0.01 * (xb - xa), (x0 + x1) / 2 + 0.01 * (xb - xa)
+            if y1 - y0 < 0.02 * (yb - ya):
+                y0, y1 = (y0 + y1) / 2 - 0.01 * (yb - ya), (y0 + y1) / 2 + 0.01 * (yb - ya)
+            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=(0.12, 0.47, 0.71, 0.2),
+                                   edgecolor="tab:blue", linewidth=1.5,
+                                   label="envelope (where the model is used)"))
         ax.set_xlabel(_axis_label(x_name))
         ax.set_ylabel(_axis_label(y_name) if y_name else "")
-        ax.legend(loc="best", fontsize=8)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=8)
     ax.set_title(f"goal {document['goal']}: efficiency >= {document['efficiency_lower_bound']:.3f}")
     if curves:
         right = panels[0][1]

@@ -176,6 +176,9 @@ class PlanPlot(ResponseModel):
     data: dict[str, list[float]] = Field(description="The calibration data on those columns (at most 2000 "
                                                      "rows), in their units.")
     curves: list[PlotCurve] = Field(description="discriminate: each model's mu along the first axis.")
+    envelope: dict[str, list[float]] | None = Field(default=None, description=(
+        "The envelope's [low, high] on the plot's axes, in their units (when one was given) [unit of each "
+        "column]."))
     others: dict[str, float] | None = Field(default=None, description=(
         "Values of the other columns along the curves (the runs' medians), in their units."))
 
