@@ -29,7 +29,7 @@ from .deps import DataFolderError, close_runtime, get_runtime
 from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware
 from .problems import ProblemError
-from .routes import calibrations, friction, jobs, meta, optimizations, surrogates, sweeps
+from .routes import calibrations, experiments, friction, jobs, meta, optimizations, surrogates, sweeps
 from .routes import umbridge as umbridge_routes
 from .routes.meta import package_version
 from .schemas.base import add_raw_body_schemas
@@ -42,8 +42,8 @@ __all__ = ["ROUTERS", "AcceptMiddleware", "HeadMiddleware", "PlainRoute", "app",
 logger = logging.getLogger("microbearing.service")
 
 #: The routers of every resource, in the order of the OpenAPI spec. Add yours here.
-ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, surrogates.router,
-           optimizations.router, umbridge_routes.router]
+ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, experiments.router,
+           surrogates.router, optimizations.router, umbridge_routes.router]
 
 DESCRIPTION = """Friction of micro linear ball bearings for MEMS by the model of Olaru, Prisacaru,
 Ianus and Lorenz (COMEC 2005). All quantities are SI (the groove angle in degrees); every field

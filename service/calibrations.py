@@ -20,6 +20,7 @@ import numpy as np
 
 from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
+from microbearing.calibrate.data import MU_MEASURED, MU_MEASURED_STD
 
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
@@ -28,13 +29,15 @@ from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
-__all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summaries", "calibration_view",
-           "check_conditions", "data_problem", "delete_calibration",
+__all__ = ["DATA_PREFIX", "KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summaries",
+           "calibration_view", "check_conditions", "data_arrays", "data_problem", "delete_calibration",
            "evaluate_batch_with_model", "evaluate_point_with_model", "interval_at", "load_calibration",
-           "load_mu_model", "prediction_fields", "run_calibration", "with_conditions"]
+           "load_mu_model", "prediction_fields", "run_calibration", "stored_dataset", "with_conditions"]
 
 KIND = "calibration"
 MODEL_PREFIX = "calibrated:"
+#: Prefix of a stored calibration's data columns among its arrays (the others are its plots).
+DATA_PREFIX = "data."
 _MAX_LISTED_ERRORS = 200
 
 
@@ -90,6 +93,35 @@ def calibration_view(calibration_id: str, metadata: Mapping[str, Any]) -> dict[s
     }
 
 
+def data_arrays(dataset: Dataset) -> dict[str, np.ndarray]:
+    """A calibration's data as arrays to store beside its plots (``data.<column>``)."""
+    arrays = {DATA_PREFIX + name: np.asarray(v) for name, v in dataset.physics_columns.items()}
+    arrays |= {DATA_PREFIX + "condition." + name: np.asarray(v, dtype=float)
+               for name, v in dataset.conditions.items()}
+    arrays[DATA_PREFIX + MU_MEASURED] = np.asarray(dataset.mu_measured, dtype=float)
+    if dataset.mu_measured_std is not None:
+        arrays[DATA_PREFIX + MU_MEASURED_STD] = np.asarray(dataset.mu_measured_std, dtype=float)
+    return arrays
+
+
+def stored_dataset(arrays: Mapping[str, np.ndarray], fixed: Mapping[str, Any]) -> Dataset | None:
+    """The calibration's data from its stored arrays, or None for a calibration stored before data were."""
+    if DATA_PREFIX + MU_MEASURED not in arrays:
+        return None
+    physics_columns, conditions = {}, {}
+    for key, value in arrays.items():
+        if not key.startswith(DATA_PREFIX) or key[len(DATA_PREFIX):] in (MU_MEASURED, MU_MEASURED_STD):
+            continue
+        name = key[len(DATA_PREFIX):]
+        if name.startswith("condition."):
+            conditions[name[len("condition."):]] = np.asarray(value, dtype=float)
+        else:
+            physics_columns[name] = np.asarray(value)
+    std = arrays.get(DATA_PREFIX + MU_MEASURED_STD)
+    return Dataset(physics_columns, conditions, np.asarray(arrays[DATA_PREFIX + MU_MEASURED], dtype=float),
+                   None if std is None else np.asarray(std, dtype=float), dict(fixed))
+
+
 def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], folds: int, convention: str,
                     progress: Callable[[float], None] | None = None,
                     intake: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -122,6 +154,8 @@ def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], f
     metadata = {"report": {**report.to_dict(), "intake": None if intake is None else dict(intake)},
                 "model": report.model.to_json()}
     arrays = {name: np.frombuffer(png, dtype=np.uint8) for name, png in report.plots.items()}
+    # The data stay beside the plots: proposing the next runs refits the rivals on them and draws them.
+    arrays |= data_arrays(dataset)
     name = " + ".join(e["name"] for e in report.effects) or "none"
     calibration_id = store.save_model(KIND, metadata, arrays, name=f"{report.n_points} points, effect {name}")
     return calibration_view(calibration_id, metadata)

@@ -416,6 +416,36 @@ def _surrogate_list(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _experiments(args: argparse.Namespace) -> int:
+    from types import SimpleNamespace
+
+    from .experiments import first_experiments_job, next_experiments_job, plan_png
+    from .problems import ProblemError
+    from .schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
+    from .store import to_json
+
+    request = _request(args.request, NextExperimentsRequest if args.calibration else FirstExperimentsRequest)
+    # A calibration is read from the server's data folder, as optimize reads calibrated models.
+    store = _open_store(args) if args.calibration else None
+    try:
+        work = (next_experiments_job(store, args.calibration.removeprefix("calibrated:"), request)
+                if store is not None else first_experiments_job(request))
+        with _progress_bar("experiments") as progress:
+            document = work(SimpleNamespace(progress=progress, job_id=None))
+    except ProblemError as problem:
+        raise _problem_error(problem, _data_dir(args) if store is not None else None) from None
+    finally:
+        if store is not None:
+            store.close()
+    _write(args.output, to_json(document) + "\n")
+    if args.plot:
+        try:
+            Path(args.plot).write_bytes(plan_png(document))
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.plot}: {exc.strerror or exc}", EXIT_FILE) from None
+    return EXIT_OK
+
+
 def _json_command(sub: Any, name: str, func: Callable[[argparse.Namespace], int], *, help: str,
                   description: str, examples: list[str]) -> argparse.ArgumentParser:
     """A subcommand reading a JSON request file and writing its result, with examples in its help."""
@@ -482,6 +512,26 @@ def build_parser() -> argparse.ArgumentParser:
                   "microbearing optimize problem.json -o best.json",
                   'microbearing optimize front.json --plot front.png   # a request with "pareto"'])
     o.add_argument("--plot", metavar="FILE.png", help="draw the Pareto front (requests with \"pareto\")")
+
+    x = _json_command(
+        sub, "experiments", _experiments,
+        help="which measurements to take next, with an optimality bound (as POST /v1/experiments, or "
+             "/v1/calibrations/{id}/next-experiments with --calibration)",
+        description="Propose runs from a JSON request and write the result as JSON (the schema "
+                    "ExperimentsResult). Without --calibration: a first design on the declared physics "
+                    "(the schema FirstExperimentsRequest); with it: the next runs for a calibration stored "
+                    "in the server's data folder (NextExperimentsRequest; goal discriminate, parameters or "
+                    "predict).",
+        examples=['echo \'{"runs": 12, "goal": "discriminate", "space": {"balls": {"low": 4, "high": 8},',
+                  '      "load_N": {"low": 0.003, "high": 0.03, "spacing": "log"}, "speed_m_s": [0.05],',
+                  '      "relative_humidity": {"low": 0.2, "high": 0.9}}}\' > next.json',
+                  "microbearing experiments next.json --calibration calibrated:<id> -o runs.json "
+                  "--plot runs.png",
+                  'echo \'{"runs": 8, "fit_parameters": ["mu_pivot"], "space": {"balls": [4, 8],',
+                  '      "load_N": {"low": 0.001, "high": 0.03}, "speed_m_s": [0.05]}}\' > first.json',
+                  "microbearing experiments first.json -o first-runs.json"])
+    x.add_argument("--calibration", metavar="ID", help="a stored calibration (its id or calibrated:<id>)")
+    x.add_argument("--plot", metavar="FILE.png", help="draw the runs over the data taken (and the rivals)")
 
     p = sub.add_parser("paper", help="reproduce the numerical cases of Olaru et al. (2005)",
                        formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -14,6 +14,7 @@ from microbearing.calibrate import DataError, Dataset, check_request, parse_assi
 from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names
 
 from ..calibrations import (
+    DATA_PREFIX,
     calibration_summaries,
     calibration_view,
     data_problem,
@@ -224,7 +225,8 @@ def get_calibration_plot(calibration_id: str, plot_name: str, store: StoreDep) -
     """A plot of a calibration: ``effect_<k>``, ``residuals``, ``measured_vs_predicted`` (older calibrations:
     ``residual_before``, ``residual_after`` or ``residual``)."""
     stored = load_calibration(store, calibration_id)
-    if plot_name not in stored.arrays:
+    plots = sorted(name for name in stored.arrays if not name.startswith(DATA_PREFIX))
+    if plot_name not in plots:
         raise ProblemError(404, f"Calibration {calibration_id} has no plot {plot_name!r}; it has "
-                                f"{', '.join(sorted(stored.arrays)) or 'none'}.")
+                                f"{', '.join(plots) or 'none'}.")
     return Response(stored.arrays[plot_name].tobytes(), media_type="image/png")
