@@ -70,6 +70,9 @@ _POLISH_MOVES = 200
 _POLISH_TARGETS = 24
 # An information matrix whose smallest eigenvalue is below this share of its largest is singular. [1]
 _SINGULAR = 1e-10
+#: A rival parameter whose sensitivity over the candidates is below this share of its largest one moves
+#: none of them (left out of the T-criterion) [1].
+_NEGLIGIBLE_SENSITIVITY = 1e-9
 
 
 class DesignError(ValueError):
@@ -542,12 +545,17 @@ def plan(
             rows = _rival_arrays(model, rival, candidates, sigma)
             q = rows.shape[1] - 1
             spread = np.sqrt(np.mean(np.square(rows[:, :q]), axis=0))
-            rival_scale = np.append(1.0 / np.maximum(spread, 1e-300), 1.0)
             fixed_k = _rival_prior(rival, q)
             if planned_b.shape[0]:
                 planned_sigma = np.asarray(model.scatter_sd(planned), dtype=float)
                 planned_rows = _rival_arrays(model, rival, planned, planned_sigma)
                 fixed_k = fixed_k + planned_rows.T @ planned_rows
+            # A rival parameter no candidate point moves cannot bring the rival closer to the model
+            # anywhere the lab can measure: its column is left out (its scale would be unbounded).
+            largest = max(float(np.max(spread, initial=0.0)), 1e-300)
+            keep = np.append(spread > _NEGLIGIBLE_SENSITIVITY * largest, True)
+            rows, fixed_k, spread = rows[:, keep], fixed_k[np.ix_(keep, keep)], spread[keep[:-1]]
+            rival_scale = np.append(1.0 / spread, 1.0)
             problem.rival_rows.append(rows * rival_scale)
             problem.rival_fixed.append(fixed_k * np.outer(rival_scale, rival_scale) / runs)
         # One common scale of the differences keeps t near 1 for the solver.
