@@ -107,6 +107,12 @@ class Settings(BaseSettings):
                     "dask.distributed: a scheduler address (tcp://host:8786) or `local` for an embedded "
                     "LocalCluster. Unset: a local thread pool.",
     )
+    dask_fault_timeout_s: float = Field(
+        default=30.0, gt=0, le=3600,
+        description="How long a dask scheduler may stay unreachable, or without workers, before the batch "
+                    "or job waiting on it fails with 503 naming the scheduler [s]; chunks it dropped are "
+                    "submitted again when it is back within this time.",
+    )
     executor_workers: int = Field(
         default=0, ge=0, le=256,
         description="Threads running sweep and batch chunks and optimization groups (local pool or "
