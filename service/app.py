@@ -24,7 +24,7 @@ from starlette.responses import Response
 from starlette.routing import Match, Route
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from . import observability, problems, security, umbridge
+from . import connections, observability, problems, security, umbridge
 from .deps import DataFolderError, close_runtime, get_runtime
 from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware
@@ -193,6 +193,9 @@ def plain_routes(routers: list[APIRouter]) -> list[PlainRoute]:
 
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
+    # Descriptors for connections up to the hard limit; repeated OS errors logged once a second.
+    connections.raise_fd_limit()
+    connections.install_repeat_filter()
     try:
         get_runtime(app)  # open the database and recover interrupted jobs before serving
     except DataFolderError as exc:
@@ -237,6 +240,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     security.install(app, settings)
     # Problems answered on the UM-Bridge paths (a refused key, a body too large) in its error form.
     app.add_middleware(umbridge.ProtocolErrorMiddleware)
+    # Requests in progress past the limit get 503 before any work (inside the logs and metrics).
+    app.add_middleware(connections.ConcurrencyLimitMiddleware, max_requests=settings.max_concurrent_requests)
     observability.install(app)
     for router in ROUTERS:
         app.include_router(router)

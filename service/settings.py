@@ -90,6 +90,35 @@ class Settings(BaseSettings):
         default=60.0, gt=0,
         description="Time allowed to receive a whole request body [s]; a slower body gets 408.",
     )
+    # Connections (service/connections.py; the header limits and the connection cap apply under
+    # `microbearing serve`, whose uvicorn runs connections.BoundedHttpProtocol).
+    header_timeout_s: float = Field(
+        default=10.0, gt=0, le=3600,
+        description="Time allowed for a request line and its headers [s], from the connection's opening or "
+                    "the previous answer; a connection that has not sent them by then is closed.",
+    )
+    max_header_bytes: int = Field(
+        default=32 * 2**10, ge=1024, le=2**24,
+        description="Largest request line and headers [bytes]; larger ones get 431 and the connection is "
+                    "closed.",
+    )
+    max_connections: int = Field(
+        default=10_000, ge=1,
+        description="Most open connections of one server process [1], lowered to the open-file limit less "
+                    "MICROBEARING_FD_RESERVE; a connection past it closes the oldest one still waiting for "
+                    "its request head.",
+    )
+    fd_reserve: int = Field(
+        default=512, ge=64,
+        description="File descriptors kept free of client connections [1], for the database, logs, the dask "
+                    "client and connections accepted in a burst (the listen backlog is a quarter of it). The "
+                    "open-file soft limit is raised to the hard limit at start.",
+    )
+    max_concurrent_requests: int = Field(
+        default=256, ge=1,
+        description="Most requests in progress in one server process [1]; past it 503 with Retry-After "
+                    "(/healthz and /readyz always answer).",
+    )
     # Reliability and scale-out (service/security.py, service/executor.py).
     api_keys: SecretStr = Field(
         default=SecretStr(""),
