@@ -27,7 +27,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from . import connections, observability, problems, security, umbridge
 from .deps import DataFolderError, close_runtime, get_runtime
 from .jsonguard import JsonGuardMiddleware
-from .limits import BodySizeLimitMiddleware
+from .limits import BodySizeLimitMiddleware, HeavyRequestMiddleware
 from .problems import ProblemError
 from .routes import calibrations, friction, jobs, meta, optimizations, surrogates, sweeps
 from .routes import umbridge as umbridge_routes
@@ -235,6 +235,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(HeadMiddleware)
     app.add_middleware(AcceptMiddleware)
     app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points)
+    # A large body waits for its turn, and holds a place of the job admission control, before it is read.
+    app.add_middleware(HeavyRequestMiddleware, max_requests=settings.max_heavy_requests,
+                       wait_s=settings.heavy_request_wait_s,
+                       admit=lambda scope: get_runtime(scope["app"]).jobs.admit_request("request"))
     app.add_middleware(BodySizeLimitMiddleware, max_bytes=settings.max_body_bytes,
                        timeout_s=settings.body_timeout_s)
     security.install(app, settings)

@@ -46,7 +46,7 @@ from .problems import ProblemError, validation_problem
 from .settings import Settings
 
 __all__ = ["DEFAULT_CHUNK_POINTS", "WAIT_TICK_S", "DaskExecutor", "chunk_bounds", "create_executor",
-           "evaluate_in_chunks", "map_chunks"]
+           "evaluate_chunks", "evaluate_in_chunks", "map_chunks"]
 
 #: Points per chunk: bounds the memory of one task and sets how often progress is reported.
 DEFAULT_CHUNK_POINTS = 65_536
@@ -338,6 +338,35 @@ def _evaluate_chunk(model: Model, points: dict[str, Any], outputs: list[str], po
     return model.evaluate(points, outputs, pointer=pointer, first_index=first_index).values
 
 
+def evaluate_chunks(executor: Executor | None, inputs: dict[str, Any], count: int,
+                    outputs: list[str] | None, model: Model, pointer: str = "",
+                    progress: Callable[[float], None] | None = None,
+                    chunk_points: int = DEFAULT_CHUNK_POINTS
+                    ) -> tuple[list[str], list[tuple[int, int]], list[dict[str, np.ndarray]]]:
+    """:func:`evaluate_in_chunks` without joining the chunks: the output names, chunk bounds and chunks.
+
+    A chunk's output may be a scalar (broadcast to its points). A caller that writes the outputs
+    chunk by chunk (the streamed batch answer, :func:`service.tables.json_column_pieces`) needs no
+    second copy of them. Parameters and errors as :func:`evaluate_in_chunks`.
+    """
+    columns = {name: value for name, value in inputs.items() if np.ndim(value) == 1}
+    shared = {name: value for name, value in inputs.items() if np.ndim(value) != 1}
+    wrong = {name: len(value) for name, value in columns.items() if len(value) != count}
+    if wrong:
+        raise ValueError(f"inputs {sorted(wrong)} must have count={count} values, not {wrong}")
+    for name, values in columns.items():
+        # Whole columns first, so that an error names the point's index in the request, not in a chunk.
+        try:
+            model.inputs[name].check(values)
+        except InputError as exc:
+            raise validation_problem([{"pointer": f"{pointer}/{name}", "detail": str(exc)}]) from None
+    bounds = chunk_bounds(count, chunk_points)
+    names = [str(name) for name in outputs] if outputs else list(model.outputs)
+    arguments = [(model, {**shared, **{name: values[start:stop] for name, values in columns.items()}},
+                  names, pointer, start) for start, stop in bounds]
+    return names, bounds, map_chunks(executor, _evaluate_chunk, arguments, progress)
+
+
 def evaluate_in_chunks(executor: Executor | None, inputs: dict[str, Any], count: int,
                        outputs: list[str] | None, model: Model, pointer: str = "",
                        progress: Callable[[float], None] | None = None,
@@ -373,22 +402,8 @@ def evaluate_in_chunks(executor: Executor | None, inputs: dict[str, Any], count:
     ProblemError
         422 for inputs the model rejects or non-finite outputs (naming the point's index).
     """
-    columns = {name: value for name, value in inputs.items() if np.ndim(value) == 1}
-    shared = {name: value for name, value in inputs.items() if np.ndim(value) != 1}
-    wrong = {name: len(value) for name, value in columns.items() if len(value) != count}
-    if wrong:
-        raise ValueError(f"inputs {sorted(wrong)} must have count={count} values, not {wrong}")
-    for name, values in columns.items():
-        # Whole columns first, so that an error names the point's index in the request, not in a chunk.
-        try:
-            model.inputs[name].check(values)
-        except InputError as exc:
-            raise validation_problem([{"pointer": f"{pointer}/{name}", "detail": str(exc)}]) from None
-    bounds = chunk_bounds(count, chunk_points)
-    names = [str(name) for name in outputs] if outputs else list(model.outputs)
-    arguments = [(model, {**shared, **{name: values[start:stop] for name, values in columns.items()}},
-                  names, pointer, start) for start, stop in bounds]
-    chunks = map_chunks(executor, _evaluate_chunk, arguments, progress)
+    names, bounds, chunks = evaluate_chunks(executor, inputs, count, outputs, model, pointer, progress,
+                                            chunk_points)
     if not chunks:
         return {name: np.empty(0) for name in names}
     return {name: np.concatenate([np.broadcast_to(np.asarray(chunk[name], dtype=float), (stop - start,))

@@ -289,6 +289,26 @@ class JobManager:
             self._active.pop(job_id, None)
             self._cancel_events.pop(job_id, None)
 
+    def admit_request(self, kind: str) -> Callable[[], None]:
+        """Hold a place of this admission control for work done in a request, not a job (a heavy batch).
+
+        The place counts toward ``max_active`` and ``max_active_per_key`` as a job does, so heavy
+        requests and jobs share one bound and a key's heavy requests count toward its limit.
+
+        Returns
+        -------
+        callable
+            Frees the place; call it once, when the work (and its streamed answer) is done.
+
+        Raises
+        ------
+        ProblemError
+            503 or 429 with ``Retry-After``, as :meth:`submit`.
+        """
+        token = f"{kind}-{uuid.uuid4().hex}"
+        self._admit(token)
+        return lambda: self._release(token)
+
     def active_count(self) -> int:
         """Queued and running jobs of this process [1]."""
         with self._lock:

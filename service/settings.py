@@ -44,6 +44,18 @@ class Settings(BaseSettings):
         default=2_000_000, ge=1,
         description="Most points in one sweep; larger designs get 422.",
     )
+    max_heavy_requests: int = Field(
+        default=2, ge=1, le=64,
+        description="Most requests with a body over 1 MiB (or of undeclared size) in progress in one server "
+                    "process; more wait for their turn before their body is read. Each also holds a place "
+                    "of MICROBEARING_MAX_ACTIVE_JOBS (and ..._PER_KEY). A 2e6-point batch with every output "
+                    "takes about 0.5 GB: this bounds the memory of large requests.",
+    )
+    heavy_request_wait_s: float = Field(
+        default=30.0, ge=0, le=600,
+        description="How long a request with a body over 1 MiB waits for its turn [s]; then 503 with "
+                    "Retry-After.",
+    )
     sweep_sync_max_points: int = Field(
         default=10_000, ge=0,
         description="Sweeps of at most this many points answer 200 at once; larger ones run as jobs (202).",
