@@ -2,12 +2,17 @@
 
 Every operation gets generated valid and invalid requests; the server must never answer 5xx
 and every response must match the spec (status code, content type, body schema, headers).
+The stateful phase then chains requests through the spec's links (a 202 to its job's routes, a
+job's result to the stored surrogate or calibration, the surrogate list to each surrogate's
+routes) under the same checks, and prints which operations it reached with which statuses.
 """
 
 from __future__ import annotations
 
+import collections
 import os
 import tempfile
+from typing import ClassVar
 
 import hypothesis
 import pytest
@@ -53,3 +58,33 @@ def test_api_conforms_to_its_spec(case):
         response_schema_conformance,
         response_headers_conformance,
     ])
+
+
+CHECKS = [schemathesis.checks.not_a_server_error, status_code_conformance, content_type_conformance,
+          response_schema_conformance, response_headers_conformance]
+
+
+class LinkedRequests(schema.as_state_machine()):
+    """Sequences of requests along the spec's links, checked as single requests are."""
+
+    reached: ClassVar[collections.Counter] = collections.Counter()
+
+    def after_call(self, response, case):
+        super().after_call(response, case)
+        LinkedRequests.reached[(case.operation.label, response.status_code)] += 1
+
+    def validate_response(self, response, case, additional_checks=None, **kwargs):
+        case.validate_response(response, checks=CHECKS, transport_kwargs=kwargs or None)
+
+
+def test_linked_requests_conform_to_the_spec():
+    links = sum(len(answer.get("links", {})) for item in APP.openapi()["paths"].values()
+                for operation in item.values() for answer in operation.get("responses", {}).values())
+    assert links >= 27  # 202 -> job routes, job -> result -> stored models, list -> surrogate routes
+    LinkedRequests.TestCase.settings = hypothesis.settings(
+        max_examples=MAX_EXAMPLES, stateful_step_count=8, deadline=None, derandomize=DERANDOMIZE,
+        suppress_health_check=list(hypothesis.HealthCheck), phases=[hypothesis.Phase.generate])
+    LinkedRequests.TestCase().runTest()
+    print("stateful phase reached:", dict(sorted(LinkedRequests.reached.items())))
+    assert LinkedRequests.reached
+

@@ -58,7 +58,15 @@ def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> 
     return accepted(jobs.submit("surrogate", body.model_dump(mode="json"), work))
 
 
-@router.get("", operation_id="list_surrogates", response_model=SurrogateList, responses=problem_responses())
+@router.get("", operation_id="list_surrogates", response_model=SurrogateList, responses={
+    200: {"description": "Every stored surrogate.", "links": {
+        name: {"operationId": operation, "parameters": {"surrogate_id": "$response.body#/surrogates/0/id"},
+               "description": f"{what} of the first surrogate listed."}
+        for name, operation, what in (("GetSurrogate", "get_surrogate", "The stored surrogate"),
+                                      ("PredictSurrogate", "predict_surrogate", "Predictions"),
+                                      ("GetSurrogateSensitivity", "get_surrogate_sensitivity", "Sensitivity"),
+                                      ("DeleteSurrogate", "delete_surrogate", "Deletion"))}},
+    **problem_responses()})
 def list_surrogates(store: StoreDep) -> JSONResponse:
     """Every stored surrogate, newest first."""
     return JSONResponse({"surrogates": surrogate_views(store)})
