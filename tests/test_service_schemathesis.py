@@ -12,11 +12,13 @@ from __future__ import annotations
 import collections
 import os
 import tempfile
+import time
 from typing import ClassVar
 
 import hypothesis
 import pytest
 import schemathesis
+from fastapi.testclient import TestClient
 from schemathesis.specs.openapi.checks import (
     content_type_conformance,
     response_headers_conformance,
@@ -87,4 +89,24 @@ def test_linked_requests_conform_to_the_spec():
     LinkedRequests.TestCase().runTest()
     print("stateful phase reached:", dict(sorted(LinkedRequests.reached.items())))
     assert LinkedRequests.reached
+
+
+def test_every_request_example_of_the_spec_is_accepted():
+    examples = [(verb.upper(), path, example) for path, item in APP.openapi()["paths"].items()
+                for verb, operation in item.items()
+                for example in operation.get("requestBody", {}).get("content", {}).get("application/json", {})
+                .get("schema", {}).get("examples", [])]
+    assert {path for _, path, _ in examples} >= {"/v1/sweeps", "/v1/optimizations", "/v1/surrogates",
+                                                 "/v1/calibrations"}
+    with TestClient(APP) as client:
+        for verb, path, example in examples:
+            answer = client.request(verb, path, json=example)
+            assert answer.status_code in (200, 202), (path, answer.text)
+            if answer.status_code == 202:
+                deadline = time.monotonic() + 120
+                location = answer.headers["location"]
+                while (job := client.get(location).json())["status"] in ("queued", "running"):
+                    assert time.monotonic() < deadline, job
+                    time.sleep(0.05)
+                assert job["status"] == "succeeded", (path, job)
 

@@ -13,6 +13,7 @@ from ..deps import ExecutorDep, JobsDep, StoreDep
 from ..jobs import JobContext
 from ..optimizations import pareto_png, prepare, run
 from ..problems import ProblemError, problem_responses
+from ..schemas import examples
 from ..schemas.optimizations import OptimizationRequest, OptimizationResult
 from .jobs import ACCEPTED_RESPONSE, accepted
 
@@ -29,7 +30,8 @@ _KIND = "optimization"
                **problem_responses(404)},
 )
 async def create_optimization(
-    body: Annotated[OptimizationRequest, Body(description="Bounds, fixed inputs, speed, limits and model.")],
+    body: Annotated[OptimizationRequest, Body(description="Bounds, fixed inputs, speed, limits and model.",
+                                              examples=[examples.OPTIMIZATION])],
     store: StoreDep,
     jobs: JobsDep,
     executor: ExecutorDep,

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Body, Query
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep, StoreDep
 from ..jobs import JobContext
 from ..problems import problem_responses, validation_problem
+from ..schemas import examples
 from ..schemas.surrogates import (
     PredictRequest,
     PredictResponse,
@@ -41,7 +42,8 @@ router = APIRouter(prefix="/v1/surrogates", tags=["surrogates"])
 
 @router.post("", operation_id="create_surrogate", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
-def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> JSONResponse:
+def create_surrogate(body: Annotated[SurrogateRequest, Body(examples=[examples.SURROGATE])], store: StoreDep,
+                     jobs: JobsDep) -> JSONResponse:
     """Train a surrogate of mu over a space of physics inputs (a job).
 
     Learns the physics, or with ``model`` a calibrated model (``conditions`` giving the extra

@@ -11,6 +11,7 @@ from starlette.concurrency import run_in_threadpool
 from ..deps import ExecutorDep, JobsDep, SettingsDep
 from ..jobs import JobContext
 from ..problems import problem_responses
+from ..schemas import examples
 from ..schemas.sweeps import SweepRequest, SweepResult
 from ..sweeps import check_result_size, design_columns, design_size, run_sweep
 from ..tables import CSV_MEDIA_TYPE, table_response
@@ -32,7 +33,8 @@ router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 )
 async def create_sweep(
     request: Request,
-    body: Annotated[SweepRequest, Body(description="A grid or a design of experiments, tagged by design.")],
+    body: Annotated[SweepRequest, Body(description="A grid or a design of experiments, tagged by design.",
+                                       examples=[examples.SWEEP])],
     settings: SettingsDep,
     jobs: JobsDep,
     executor: ExecutorDep,
