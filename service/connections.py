@@ -251,8 +251,10 @@ class BoundedHttpProtocol(HttpToolsProtocol):
 
     def on_response_complete(self) -> None:
         super().on_response_complete()
-        if not self.transport.is_closing():
-            self._await_head()  # the next request's head, on this kept-alive connection
+        # The next request's head, on this kept-alive connection; unless a pipelined request's head
+        # came already (its cycle is the current one, still unanswered).
+        if not self.transport.is_closing() and (self.cycle is None or self.cycle.response_complete):
+            self._await_head()
 
 
 class ConcurrencyLimitMiddleware:
