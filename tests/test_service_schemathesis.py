@@ -110,3 +110,25 @@ def test_every_request_example_of_the_spec_is_accepted():
                     time.sleep(0.05)
                 assert job["status"] == "succeeded", (path, job)
 
+
+
+SOBOL = {"design": "sobol", "points": 60, "outputs": ["mu"], "fixed": {"balls": 4, "speed_m_s": 0.05},
+         "ranges": {"load_N": {"low": 0.001, "high": 0.05}}}
+
+
+@pytest.mark.parametrize(("path", "body", "field"), [
+    ("/v1/sweeps", {**SOBOL, "seed": 2}, "seed"),
+    ("/v1/sweeps", SOBOL, "points"),
+    ("/v1/friction", {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05}, "balls"),
+])
+def test_integers_written_with_a_fraction_are_integers_as_the_spec_says(path, body, field):
+    # JSON Schema's "integer" is any number without a fraction: 2.0 is one, 2.5 and "2" are not.
+    with TestClient(APP) as client:
+        plain = client.post(path, json=body)
+        written = client.post(path, json={**body, field: float(body[field])})
+        fraction = client.post(path, json={**body, field: body[field] + 0.5})
+        text = client.post(path, json={**body, field: str(body[field])})
+    assert plain.status_code in (200, 202) and written.status_code == plain.status_code, written.text
+    if plain.status_code == 200:
+        assert written.content == plain.content
+    assert fraction.status_code == 422 and text.status_code == 422
