@@ -57,13 +57,19 @@ def _serve(args: argparse.Namespace) -> int:
         from .settings import Settings
 
         prepare_multiprocess_dir(Settings().data_dir)
-    from .observability import uvicorn_log_config
-
     # Requests are logged as JSON lines with their request id by service/observability.py;
     # uvicorn's own lines (startup, shutdown, errors) are JSON too.
+    # Connections bounded (service/connections.py): header time and size limits, a connection cap
+    # within the open-file limit; the limit is raised first, for the workers to inherit.
+    from .connections import accept_backlog, raise_fd_limit
+    from .observability import uvicorn_log_config
+    from .settings import Settings
+
+    raise_fd_limit()
     uvicorn.run("microbearing.service.app:app",
                 host=args.host, port=args.port, workers=args.workers, access_log=False,
-                log_config=uvicorn_log_config())
+                log_config=uvicorn_log_config(), http="microbearing.service.connections:BoundedHttpProtocol",
+                backlog=accept_backlog(Settings()))
     return 0
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Body, Query, Request
 from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
 
@@ -26,6 +26,7 @@ from ..deps import JobsDep, SettingsDep, StoreDep
 from ..jobs import JobContext, JobManager, register_kind
 from ..limits import check_columns, check_rows, csv_data_rows, csv_header_columns
 from ..problems import ProblemError, problem_responses, validation_problem
+from ..schemas import examples
 from ..schemas.base import Convention, ConventionName
 from ..schemas.calibrations import (
     CalibrationList,
@@ -117,7 +118,8 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
 
 @router.post("", operation_id="create_calibration", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
-def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep,
+def create_calibration(body: Annotated[CalibrationRequest, Body(examples=[examples.CALIBRATION])],
+                       store: StoreDep, jobs: JobsDep,
                        settings: SettingsDep) -> JSONResponse:
     """Calibrate on JSON rows: fit the named parameters, add the terms the data need, report (a job).
 

@@ -9,7 +9,15 @@ from pydantic import ConfigDict, Field, create_model
 
 from microbearing import physics
 
-from .base import Convention, ConventionName, DateTimeText, ResponseModel, StrictModel, parameter_fields
+from .base import (
+    Convention,
+    ConventionName,
+    DateTimeText,
+    ResponseModel,
+    StrictModel,
+    WholeNumber,
+    parameter_fields,
+)
 
 __all__ = ["FITTABLE_PARAMETERS", "MODEL_FIELDS", "MODEL_PATTERN", "MODEL_RESPONSE_FIELDS",
            "CalibrationFixed", "CalibrationList", "CalibrationRequest", "CalibrationResult",
@@ -95,7 +103,7 @@ class CalibrationRequest(StrictModel):
         description="Declared physics parameters to fit, e.g. mu_pivot, adhesion_energy_J_m2.")
     fixed: CalibrationFixed = Field(  # type: ignore[valid-type]
         default_factory=CalibrationFixed, description="Physics inputs fixed for every row.")
-    folds: int = Field(default=5, ge=2, le=20, description="Cross-validation folds [1].")
+    folds: WholeNumber = Field(default=5, ge=2, le=20, description="Cross-validation folds [1].")
     convention: ConventionName = Field(  # type: ignore[valid-type]
         default=Convention(physics.DEFAULT_CONVENTION),
         description="Reading of the paper's ambiguous ball-ball terms.")
