@@ -1,0 +1,288 @@
+"""Scatter that depends on the conditions: a model of the spread of log μ around the calibrated model.
+
+Friction scatters more in some regions than in others (stick-slip at low speed, a rough run-in). The
+scatter model gives the standard deviation of log μ of a new measurement as a function of one input,
+chosen by cross-validation among
+
+* ``constant``: one spread everywhere (the model of every calibration before this one);
+* ``step``: one spread below a split of one column and another above (a regression stump; the split
+  among the column's 10-90 % quantiles maximizes the likelihood on the training rows);
+* ``loglinear``: log of the spread linear in the column (or in its log, for a positive column spanning
+  more than a decade), clipped to the column's range in the data.
+
+Every candidate is fitted by Gaussian maximum likelihood of the held-out log residuals of the nested
+cross-validation (so the spread holds the refit's uncertainty too), with rows beyond
+:func:`calibrate.uncertainty.outlier_threshold` of the local spread left out (twice refitted), and
+scored on k folds by the held-out negative log-likelihood, each row's square capped at that threshold
+(gross outliers count like a few rows). A non-constant model is chosen only when it beats the
+constant one by a paired z above the Bonferroni bound at 1 % over all candidates: on data with one
+spread everywhere the scatter model stays constant.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import optimize, stats
+
+from microbearing import physics
+
+from .fit import kfold_indices
+from .uncertainty import outlier_threshold
+
+__all__ = ["ScatterModel", "fit_scatter", "SCATTER_ALPHA"]
+
+#: Chance that a non-constant scatter model is chosen on data with one spread everywhere. [1]
+SCATTER_ALPHA = 0.01
+# Split candidates of a step: these quantiles of the column.
+_SPLITS = np.linspace(0.1, 0.9, 17)
+# Fewest rows on either side of a step's split. [1]
+_MIN_SIDE = 8
+
+
+def _transform(values: np.ndarray) -> str:
+    v = np.asarray(values, dtype=float)
+    return "log" if np.all(v > 0) and np.max(v) > 10.0 * np.min(v) else "linear"
+
+
+@dataclass(frozen=True)
+class ScatterModel:
+    """Standard deviation of log μ as a function of one input.
+
+    Attributes
+    ----------
+    kind : str
+        ``constant``, ``step`` or ``loglinear``.
+    column : str or None
+        The input it depends on (None for ``constant``).
+    coefficients : list of float
+        ``constant``: [log sd]; ``step``: [log sd below, log sd above]; ``loglinear``: [a, b] with
+        log sd = a + b t, t the standardized (log) column. [1]
+    split : float or None
+        A step's split, in the column's unit.
+    transform : str
+        ``log`` or ``linear``: how the column enters ``loglinear``.
+    centre, scale : float
+        Standardization of the (log) column for ``loglinear``.
+    range : list of float
+        The column's range in the data ([min, max], its unit); t is clipped to it.
+    cv : dict
+        Held-out negative log-likelihood of the constant and the chosen model per row [1], the paired
+        z [1] and the z needed [1].
+    """
+
+    kind: str = "constant"
+    column: str | None = None
+    coefficients: list[float] = field(default_factory=lambda: [0.0])
+    split: float | None = None
+    transform: str = "linear"
+    centre: float = 0.0
+    scale: float = 1.0
+    range: list[float] = field(default_factory=list)
+    cv: dict[str, float] = field(default_factory=dict)
+
+    def std_log(self, columns: Mapping[str, Any], shape: tuple[int, ...] = ()) -> np.ndarray:
+        """Standard deviation of log μ at points [1], broadcast to ``shape``.
+
+        Raises
+        ------
+        KeyError
+            When the column it depends on is missing.
+        """
+        if self.kind == "constant":
+            return np.full(shape, float(np.exp(self.coefficients[0])))
+        x = np.broadcast_to(np.asarray(columns[self.column], dtype=float), shape)
+        if self.kind == "step":
+            below, above = self.coefficients
+            return np.exp(np.where(x < self.split, below, above))
+        lo, hi = self.range
+        x = np.clip(x, lo, hi)
+        t = ((np.log(x) if self.transform == "log" else x) - self.centre) / self.scale
+        a, b = self.coefficients
+        return np.exp(a + b * t)
+
+    def summary(self) -> str:
+        """The scatter model in words, e.g. ``scatter 10 % below speed_m_s = 0.02 [m/s], 1.5 % above``."""
+        unit = f" [{physics.PARAMETERS[self.column].unit}]" if self.column in physics.PARAMETERS else ""
+        tested = ""
+        if self.cv:
+            tested = (f" (chosen by cross-validation: held-out z = {self.cv['z']:.1f} against one spread "
+                      f"everywhere, {self.cv['z_needed']:.2f} needed)")
+        if self.kind == "constant":
+            if self.cv:
+                tested = (f" (no input-dependent scatter model beat it in cross-validation: best z = "
+                          f"{self.cv['z']:.1f}, {self.cv['z_needed']:.2f} needed)")
+            return f"scatter {_pct(self.coefficients[0])} everywhere{tested}"
+        if self.kind == "step":
+            below, above = self.coefficients
+            return (f"scatter {_pct(below)} below {self.column} = {self.split:.4g}{unit}, {_pct(above)} "
+                    f"above{tested}")
+        lo, hi = self.range
+        at = self.std_log({self.column: np.array([lo, hi])}, (2,))
+        return (f"scatter {100 * at[0]:.3g} % at {self.column} = {lo:.4g}{unit} to {100 * at[1]:.3g} % at "
+                f"{hi:.4g}{unit}, log-linear in {'log ' if self.transform == 'log' else ''}{self.column}"
+                f"{tested}")
+
+    def scaled(self, factor: float) -> ScatterModel:
+        """The same shape with every spread multiplied by ``factor`` (> 0). [1]"""
+        shift = float(np.log(factor))
+        coefficients = ([c + shift for c in self.coefficients] if self.kind != "loglinear"
+                        else [self.coefficients[0] + shift, self.coefficients[1]])
+        return ScatterModel(self.kind, self.column, coefficients, self.split, self.transform, self.centre,
+                            self.scale, self.range, self.cv)
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready data."""
+        return {"kind": self.kind, "column": self.column, "coefficients": list(map(float, self.coefficients)),
+                "split": self.split, "transform": self.transform, "centre": self.centre, "scale": self.scale,
+                "range": list(map(float, self.range)), "cv": dict(self.cv)}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ScatterModel:
+        """Rebuild from :meth:`to_json` data.
+
+        Raises
+        ------
+        ValueError
+            For an unknown kind or the wrong number of coefficients.
+        """
+        kind = str(data["kind"])
+        sizes = {"constant": 1, "step": 2, "loglinear": 2}
+        coefficients = [float(c) for c in data["coefficients"]]
+        if kind not in sizes or len(coefficients) != sizes[kind]:
+            raise ValueError(f"scatter: kind must be one of {', '.join(sizes)} with its coefficients; "
+                             f"got {kind!r}")
+        split = data.get("split")
+        return cls(kind, data.get("column"), coefficients, None if split is None else float(split),
+                   str(data.get("transform", "linear")), float(data.get("centre", 0.0)),
+                   float(data.get("scale", 1.0)), [float(v) for v in data.get("range", [])],
+                   {str(k): float(v) for k, v in dict(data.get("cv", {})).items()})
+
+
+def _pct(log_sd: float) -> str:
+    return f"{100 * float(np.exp(log_sd)):.3g} %"
+
+
+def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray, threshold: float
+             ) -> ScatterModel | None:
+    """Maximum-likelihood fit of one candidate on rows r (and column values x), outliers trimmed."""
+    keep = np.ones(r.size, dtype=bool)
+    model: ScatterModel | None = None
+    for _ in range(3):
+        rk = r[keep]
+        if kind == "constant":
+            model = ScatterModel("constant", None, [0.5 * float(np.log(max(np.mean(rk * rk), 1e-24)))])
+        elif kind == "step":
+            xk = x[keep]
+            best = None
+            for split in np.unique(np.quantile(x, _SPLITS)):
+                below = xk < split
+                if below.sum() < _MIN_SIDE or (~below).sum() < _MIN_SIDE:
+                    continue
+                v = np.array([max(np.mean(rk[below] ** 2), 1e-24), max(np.mean(rk[~below] ** 2), 1e-24)])
+                nll = 0.5 * (below.sum() * np.log(v[0]) + (~below).sum() * np.log(v[1]))
+                if best is None or nll < best[0]:
+                    best = (nll, float(split), 0.5 * np.log(v))
+            if best is None:
+                return None
+            model = ScatterModel("step", column, [float(best[2][0]), float(best[2][1])], best[1],
+                                 range=[float(np.min(x)), float(np.max(x))])
+        else:
+            transform = _transform(x)
+            tx = np.log(x) if transform == "log" else x
+            centre, scale = float(np.mean(tx)), float(np.std(tx))
+            if scale <= 0:
+                return None
+            t = ((tx - centre) / scale)[keep]
+
+            def nll(p, t=t, rk=rk):
+                log_v = 2.0 * (p[0] + p[1] * t)
+                return 0.5 * float(np.sum(log_v + rk * rk * np.exp(-log_v)))
+
+            start = [0.5 * float(np.log(max(np.mean(rk * rk), 1e-24))), 0.0]
+            p = optimize.minimize(nll, start, method="Nelder-Mead",
+                                  options={"xatol": 1e-6, "fatol": 1e-8, "maxiter": 2000}).x
+            model = ScatterModel("loglinear", column, [float(p[0]), float(p[1])], None, transform, centre,
+                                 scale, [float(np.min(x)), float(np.max(x))])
+        sd = model.std_log({column: x} if column else {}, r.shape)
+        new_keep = np.abs(r / sd) <= threshold
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    return model
+
+
+def _held_out_loss(model: ScatterModel, column: str | None, x: np.ndarray | None, r: np.ndarray,
+                   threshold: float) -> np.ndarray:
+    sd = model.std_log({column: x} if column else {}, r.shape)
+    z2 = np.minimum((r / sd) ** 2, threshold**2)
+    return np.log(sd) + 0.5 * z2
+
+
+def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: int = 5, seed: int = 0,
+                alpha: float = SCATTER_ALPHA) -> ScatterModel:
+    """Choose and fit the scatter model by cross-validation.
+
+    Parameters
+    ----------
+    columns : mapping of str to numpy.ndarray
+        Inputs that vary in the data (physics columns and numeric conditions), one value per row.
+    residual : numpy.ndarray
+        Held-out ``log(mu_measured / mu_predicted)`` of every row (nested cross-validation). [1]
+    folds : int
+        Folds of the choice. [1]
+    seed : int
+        Seed of the folds.
+    alpha : float
+        Chance of choosing a non-constant model when the spread is the same everywhere. [1]
+
+    Returns
+    -------
+    ScatterModel
+        With ``cv``: the held-out losses and the paired z of the chosen model against the constant one.
+    """
+    r = np.asarray(residual, dtype=float)
+    n = r.size
+    threshold = outlier_threshold(n)
+    varying = {k: np.asarray(v, dtype=float) for k, v in columns.items()
+               if np.unique(np.asarray(v, dtype=float)).size > 1}
+    candidates = [("constant", None)] + [(kind, c) for c in varying for kind in ("step", "loglinear")]
+    needed = float(stats.norm.isf(alpha / max(len(candidates) - 1, 1)))
+    test_rows = kfold_indices(n, min(folds, n), seed)
+    losses: dict[tuple[str, str | None], np.ndarray] = {}
+    for kind, column in candidates:
+        x = varying.get(column) if column else None
+        loss = np.empty(n)
+        ok = True
+        for test in test_rows:
+            train = np.setdiff1d(np.arange(n), test)
+            model = _fit_one(kind, column, None if x is None else x[train], r[train], threshold)
+            if model is None:
+                ok = False
+                break
+            loss[test] = _held_out_loss(model, column, None if x is None else x[test], r[test], threshold)
+        if ok:
+            losses[(kind, column)] = loss
+    constant = losses[("constant", None)]
+
+    def z_of(loss: np.ndarray) -> float:
+        d = constant - loss
+        spread = float(np.std(d, ddof=1))
+        return float(np.mean(d) / (spread / np.sqrt(n))) if spread > 0 else 0.0
+
+    scored = {key: z_of(loss) for key, loss in losses.items() if key[0] != "constant"}
+    best = max(scored, key=lambda key: float(np.mean(constant - losses[key])), default=None)
+    best_z = scored[best] if best is not None else 0.0
+    cv = {"loss_constant": float(np.mean(constant)), "z": best_z, "z_needed": needed}
+    if best is None or best_z <= needed:
+        model = _fit_one("constant", None, None, r, threshold)
+        return ScatterModel(model.kind, None, model.coefficients,
+                            cv={**cv, "loss_chosen": cv["loss_constant"]})
+    kind, column = best
+    model = _fit_one(kind, column, varying[column], r, threshold)
+    return ScatterModel(model.kind, model.column, model.coefficients, model.split, model.transform,
+                        model.centre, model.scale, model.range,
+                        {**cv, "loss_chosen": float(np.mean(losses[best]))})
