@@ -168,6 +168,11 @@ class CalibratedModel:
         one ``noise_std_log`` everywhere).
     cloud : DataCloud or None
         The data's rows in scaled inputs, for the joint-cloud domain check.
+    domain_rows : int or None
+        Rows of the data the domain was taken from [1]; with it, a column's range is widened by twice
+        the mean spacing of its values, 2 (max - min) / (rows - 1), at each end (a new point drawn like
+        the data lies beyond a sample's extreme with chance 1/(rows + 1) per column and end: a box of the
+        exact extremes flags several per cent of ordinary points when there are several columns).
     """
 
     fitted: dict[str, float] = field(default_factory=dict)
@@ -182,6 +187,7 @@ class CalibratedModel:
     groups: list[GroupEffect] = field(default_factory=list)
     scatter: ScatterModel | None = None
     cloud: DataCloud | None = field(default=None, repr=False)
+    domain_rows: int | None = None
 
     @property
     def factors(self) -> list[str]:
@@ -400,6 +406,8 @@ class CalibratedModel:
             if name in self.domain:
                 lo, hi = self.domain[name]
                 slack = _DOMAIN_SLACK * max(abs(lo), abs(hi), 1e-300)
+                if self.domain_rows is not None and self.domain_rows > 1:
+                    slack += 2.0 * (hi - lo) / (self.domain_rows - 1)
                 ok = (value >= lo - slack) & (value <= hi + slack)
                 where = f"outside the calibration data's range [{lo:.6g}, {hi:.6g}]{unit}"
             elif name in physics.PARAMETERS:
@@ -452,6 +460,7 @@ class CalibratedModel:
             "groups": [g.to_json() for g in self.groups],
             "scatter": None if self.scatter is None else self.scatter.to_json(),
             "cloud": None if self.cloud is None else self.cloud.to_json(),
+            "domain_rows": self.domain_rows,
         }
 
     @classmethod
@@ -518,6 +527,7 @@ class CalibratedModel:
             [GroupEffect.from_json(g) for g in data.get("groups") or []],
             None if data.get("scatter") is None else ScatterModel.from_json(data["scatter"]),
             None if data.get("cloud") is None else DataCloud.from_json(data["cloud"]),
+            None if data.get("domain_rows") is None else int(data["domain_rows"]),
         )
 
     @classmethod
@@ -541,6 +551,7 @@ class CalibratedModel:
         data from :func:`calibrate.discrepancy.gp_state`, group effects, a scatter model and the data
         cloud when given)."""
         domain = {name: [float(np.min(v)), float(np.max(v))] for name, v in columns.items()}
+        rows = len(next(iter(columns.values()))) if columns else None
         return cls(
             dict(fitted),
             dict(fixed),
@@ -554,4 +565,5 @@ class CalibratedModel:
             list(groups),
             scatter,
             cloud,
+            rows if cloud is not None else None,
         )

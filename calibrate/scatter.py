@@ -6,7 +6,8 @@ chosen by cross-validation among
 
 * ``constant``: one spread everywhere (the model of every calibration before this one);
 * ``step``: one spread below a split of one column and another above (a regression stump; the split
-  among the column's 10-90 % quantiles maximizes the likelihood on the training rows);
+  among the column's 2-98 % quantiles, at least 8 rows either side, maximizes the likelihood on the
+  training rows);
 * ``loglinear``: log of the spread linear in the column (or in its log, for a positive column spanning
   more than a decade), clipped to the column's range in the data.
 
@@ -37,10 +38,12 @@ __all__ = ["ScatterModel", "fit_scatter", "SCATTER_ALPHA"]
 
 #: Chance that a non-constant scatter model is chosen on data with one spread everywhere. [1]
 SCATTER_ALPHA = 0.01
-# Split candidates of a step: these quantiles of the column.
-_SPLITS = np.linspace(0.1, 0.9, 17)
+# Split candidates of a step: these quantiles of the column (every row's value, up to 200 of them).
+_SPLITS = np.linspace(0.02, 0.98, 200)
 # Fewest rows on either side of a step's split. [1]
 _MIN_SIDE = 8
+# Half the chi-square 95 % point with one degree of freedom: a split's profile likelihood interval.
+_PROFILE_DROP = float(stats.chi2.ppf(0.95, 1) / 2.0)
 
 
 def _transform(values: np.ndarray) -> str:
@@ -63,6 +66,10 @@ class ScatterModel:
         log sd = a + b t, t the standardized (log) column. [1]
     split : float or None
         A step's split, in the column's unit.
+    band : list of float
+        A step's 95 % likelihood interval of the split ([low, high], the column's unit: the splits whose
+        profile log-likelihood lies within 1.92 of the best); between them the larger spread holds, so
+        that an uncertain split does not give the quiet side's narrow interval to rows of the noisy one.
     transform : str
         ``log`` or ``linear``: how the column enters ``loglinear``.
     centre, scale : float
@@ -83,6 +90,7 @@ class ScatterModel:
     scale: float = 1.0
     range: list[float] = field(default_factory=list)
     cv: dict[str, float] = field(default_factory=dict)
+    band: list[float] = field(default_factory=list)
 
     def std_log(self, columns: Mapping[str, Any], shape: tuple[int, ...] = ()) -> np.ndarray:
         """Standard deviation of log μ at points [1], broadcast to ``shape``.
@@ -97,7 +105,8 @@ class ScatterModel:
         x = np.broadcast_to(np.asarray(columns[self.column], dtype=float), shape)
         if self.kind == "step":
             below, above = self.coefficients
-            return np.exp(np.where(x < self.split, below, above))
+            lo, hi = self.band or [self.split, self.split]
+            return np.exp(np.where(x < lo, below, np.where(x >= hi, above, max(below, above))))
         lo, hi = self.range
         x = np.clip(x, lo, hi)
         t = ((np.log(x) if self.transform == "log" else x) - self.centre) / self.scale
@@ -118,8 +127,10 @@ class ScatterModel:
             return f"scatter {_pct(self.coefficients[0])} everywhere{tested}"
         if self.kind == "step":
             below, above = self.coefficients
+            lo, hi = self.band or [self.split, self.split]
             return (f"scatter {_pct(below)} below {self.column} = {self.split:.4g}{unit}, {_pct(above)} "
-                    f"above{tested}")
+                    f"above (the change lies between {lo:.4g} and {hi:.4g}{unit}, 95 % likelihood interval; "
+                    f"the larger scatter is used there){tested}")
         lo, hi = self.range
         at = self.std_log({self.column: np.array([lo, hi])}, (2,))
         return (f"scatter {100 * at[0]:.3g} % at {self.column} = {lo:.4g}{unit} to {100 * at[1]:.3g} % at "
@@ -132,13 +143,14 @@ class ScatterModel:
         coefficients = ([c + shift for c in self.coefficients] if self.kind != "loglinear"
                         else [self.coefficients[0] + shift, self.coefficients[1]])
         return ScatterModel(self.kind, self.column, coefficients, self.split, self.transform, self.centre,
-                            self.scale, self.range, self.cv)
+                            self.scale, self.range, self.cv, self.band)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""
         return {"kind": self.kind, "column": self.column, "coefficients": list(map(float, self.coefficients)),
                 "split": self.split, "transform": self.transform, "centre": self.centre, "scale": self.scale,
-                "range": list(map(float, self.range)), "cv": dict(self.cv)}
+                "range": list(map(float, self.range)), "cv": dict(self.cv),
+                "band": list(map(float, self.band))}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> ScatterModel:
@@ -159,7 +171,8 @@ class ScatterModel:
         return cls(kind, data.get("column"), coefficients, None if split is None else float(split),
                    str(data.get("transform", "linear")), float(data.get("centre", 0.0)),
                    float(data.get("scale", 1.0)), [float(v) for v in data.get("range", [])],
-                   {str(k): float(v) for k, v in dict(data.get("cv", {})).items()})
+                   {str(k): float(v) for k, v in dict(data.get("cv", {})).items()},
+                   [float(v) for v in data.get("band", [])])
 
 
 def _pct(log_sd: float) -> str:
@@ -177,19 +190,20 @@ def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray,
             model = ScatterModel("constant", None, [0.5 * float(np.log(max(np.mean(rk * rk), 1e-24)))])
         elif kind == "step":
             xk = x[keep]
-            best = None
+            profile = []
             for split in np.unique(np.quantile(x, _SPLITS)):
                 below = xk < split
                 if below.sum() < _MIN_SIDE or (~below).sum() < _MIN_SIDE:
                     continue
                 v = np.array([max(np.mean(rk[below] ** 2), 1e-24), max(np.mean(rk[~below] ** 2), 1e-24)])
                 nll = 0.5 * (below.sum() * np.log(v[0]) + (~below).sum() * np.log(v[1]))
-                if best is None or nll < best[0]:
-                    best = (nll, float(split), 0.5 * np.log(v))
-            if best is None:
+                profile.append((nll, float(split), 0.5 * np.log(v)))
+            if not profile:
                 return None
+            best = min(profile, key=lambda item: item[0])
+            near = [split for nll, split, _ in profile if nll <= best[0] + _PROFILE_DROP]
             model = ScatterModel("step", column, [float(best[2][0]), float(best[2][1])], best[1],
-                                 range=[float(np.min(x)), float(np.max(x))])
+                                 range=[float(np.min(x)), float(np.max(x))], band=[min(near), max(near)])
         else:
             transform = _transform(x)
             tx = np.log(x) if transform == "log" else x
@@ -285,4 +299,4 @@ def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: 
     model = _fit_one(kind, column, varying[column], r, threshold)
     return ScatterModel(model.kind, model.column, model.coefficients, model.split, model.transform,
                         model.centre, model.scale, model.range,
-                        {**cv, "loss_chosen": float(np.mean(losses[best]))})
+                        {**cv, "loss_chosen": float(np.mean(losses[best]))}, model.band)

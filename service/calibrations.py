@@ -152,11 +152,16 @@ def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str =
     items = [{"pointer": f"{pointer}/{name}", "detail": "is a physics input; give it as a field of its own"}
              for name in sorted(set(conditions) & set(physics.PARAMETERS))]
     if isinstance(model, CalibratedPhysicsModel):
+        factors = model.calibrated.factors
+        items += [{"pointer": f"{pointer}/{name}", "detail": "must be a number or a list of numbers: only a "
+                   f"factor column ({', '.join(factors) or 'none'}) takes labels"}
+                  for name, value in conditions.items() if name not in factors and _has_text(value)]
         if model.domain is not None:
             items += [{"pointer": f"{pointer}/{name}",
                        "detail": f"unknown condition column; the calibration data had: "
-                                 f"{', '.join(model.conditions) or 'none'}"}
-                      for name in sorted(set(conditions) - set(physics.PARAMETERS) - set(model.conditions))]
+                                 f"{', '.join([*model.conditions, *factors]) or 'none'}"}
+                      for name in sorted(set(conditions) - set(physics.PARAMETERS) - set(model.conditions)
+                                         - set(factors))]
         if not items:
             try:
                 model.calibrated.check_columns(list(conditions))
@@ -164,6 +169,10 @@ def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str =
                 items.append({"pointer": pointer, "detail": str(exc)})
     if items:
         raise validation_problem(items)
+
+
+def _has_text(value: Any) -> bool:
+    return isinstance(value, str) or (isinstance(value, list) and any(isinstance(v, str) for v in value))
 
 
 def prediction_fields(prediction: Prediction) -> dict[str, Any]:
@@ -347,7 +356,8 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
     if "mu" in names:
         names += ["mu_effect", "mu_lower", "mu_upper"]
     # The conditions the terms do not read matter to the domain only, checked below on the whole batch.
-    read = {name: value for name, value in everything.items() if name in mu_model.inputs}
+    # The data cloud of the domain (and so the interval's widening) reads them too.
+    read = {name: value for name, value in everything.items() if name in mu_model.column_checks}
     try:
         values = evaluate_in_chunks(executor, read, count, names, mu_model, pointer="/points")
     except InputError as exc:

@@ -28,7 +28,7 @@ router = APIRouter(prefix="/v1/calibrations", tags=["calibrations"])
 _DEFAULT_CONVENTION = Convention(physics.DEFAULT_CONVENTION)
 
 _CSV_TEXT = ("CSV with a header row: physics input columns, mu_measured [1], optionally mu_measured_std [1], "
-             "and any other numeric condition columns.")
+             "and any other condition columns: numbers, or labels (a factor, e.g. specimen S1, S2, ...).")
 # The body is read as CSV whatever its declared type; application/octet-stream is listed too because
 # generated clients (openapi-python-client) send raw bytes that way and have no text bodies.
 _CSV_BODY = {"requestBody": {"required": True, "content": {
@@ -66,12 +66,13 @@ def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep,
     check_rows(len(body.data), settings.max_calibration_rows, "/data")
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
-        dataset = parse_rows(body.data, fixed)
+        dataset = parse_rows(body.data, fixed, body.factors)
     except DataError as exc:
         raise data_problem(exc.errors) from None
     fit_parameters = [str(name) for name in body.fit_parameters]
     _check(dataset, fit_parameters, body.folds, query=False)
-    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()), "fixed": fixed,
+    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()),
+              "factors": sorted(dataset.factors), "fixed": fixed,
               "fit_parameters": fit_parameters, "folds": body.folds, "convention": str(body.convention)}
     return _submit(jobs, store, record, dataset, fit_parameters, body.folds, str(body.convention))
 
@@ -85,6 +86,9 @@ async def create_calibration_from_csv(
     fixed: Annotated[list[str], Query(
         description="Physics inputs fixed for every row, as name=value in their units (repeatable).")] = [],  # noqa: B006
     folds: Annotated[int, Query(ge=2, le=20, description="Cross-validation folds [1].")] = 5,
+    factors: Annotated[list[str], Query(max_length=20, description=(
+        "Condition columns to read as group labels even when they hold numbers (repeatable); a column "
+        "with no number in it is a factor anyway."))] = [],  # noqa: B006
     convention: Annotated[ConventionName, Query(  # type: ignore[valid-type]
         description="Reading of the paper's ambiguous ball-ball terms.")] = _DEFAULT_CONVENTION,
 ) -> JSONResponse:
@@ -98,12 +102,13 @@ async def create_calibration_from_csv(
         raise validation_problem([{"parameter": "fixed", "detail": f"{e['column']}: {e['message']}"}
                                   for e in exc.errors]) from None
     try:
-        dataset = await run_in_threadpool(parse_csv, text, fixed_values)
+        dataset = await run_in_threadpool(parse_csv, text, fixed_values, factors)
     except DataError as exc:
         raise data_problem(exc.errors, fixed_pointer=None, data_pointer=None) from None
     names = [str(name) for name in fit_parameters]
     _check(dataset, names, folds, query=True)
-    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()), "fixed": fixed_values,
+    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()),
+              "factors": sorted(dataset.factors), "fixed": fixed_values,
               "fit_parameters": names, "folds": folds, "convention": str(convention)}
     return _submit(jobs, store, record, dataset, names, folds, str(convention))
 

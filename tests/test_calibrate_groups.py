@@ -1,0 +1,206 @@
+"""Issue 24, items 1-3: factor columns and the spread between groups, scatter that depends on the inputs,
+the data cloud and columns that move together. Checked against the generating truth, hand-computed
+estimators and brute force."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from microbearing import physics
+from microbearing.calibrate import DataError, calibrate, parse_csv, parse_rows
+from microbearing.calibrate.domain import DataCloud, confounded_pairs
+from microbearing.calibrate.groups import fit_group_effect
+from microbearing.calibrate.scatter import fit_scatter
+
+TRUE_PIVOT = 0.7
+
+
+def _columns(rng, n):
+    return {"balls": rng.choice([4, 6, 8], n).astype(float),
+            "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+            "speed_m_s": rng.uniform(0.005, 0.15, n)}
+
+
+def _mu(c, **values):
+    return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"],
+                            **{"mu_pivot": TRUE_PIVOT, **values}).mu
+
+
+def builds(seed, groups=8, rows=25, spread=0.15, noise=0.02, coded=False):
+    """Rows of several builds, each with its own mu_pivot, and the true levels."""
+    rng = np.random.default_rng(seed)
+    level = TRUE_PIVOT * np.exp(rng.normal(0.0, spread, groups))
+    data = []
+    for g in range(groups):
+        c = _columns(rng, rows)
+        mu = _mu(c, mu_pivot=level[g]) * np.exp(rng.normal(0.0, noise, rows))
+        data += [{k: float(v[i]) for k, v in c.items()} | {"specimen": g + 1 if coded else f"S{g + 1}",
+                                                          "mu_measured": float(mu[i])} for i in range(rows)]
+    return data, level
+
+
+# ---------------------------------------------------------------------------------------------- parsing
+
+
+def test_a_column_of_labels_is_a_factor_and_integer_codes_only_when_declared():
+    text = ("balls,load_N,speed_m_s,specimen,batch,mu_measured\n"
+            "4,0.01,0.05,S1,1,0.011\n4,0.01,0.06,S2,2,0.012\n4,0.01,0.07,S1,2,0.013\n")
+    data = parse_csv(text)
+    assert list(data.factors) == ["specimen"] and data.factors["specimen"].tolist() == ["S1", "S2", "S1"]
+    assert "specimen" not in data.conditions and data.conditions["batch"].tolist() == [1.0, 2.0, 2.0]
+    declared = parse_csv(text, factors=["batch"])
+    assert declared.factors["batch"].tolist() == ["1", "2", "2"] and "batch" not in declared.conditions
+    # JSON rows: numbers and strings of a declared factor give the same labels as CSV text; subsets keep them.
+    rows = [{"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "batch": b, "mu_measured": 0.01}
+            for b in (1, 2.0, "2")]
+    subset = parse_rows(rows, factors=["batch"]).subset(np.array([2, 0]))
+    assert subset.factors["batch"].tolist() == ["2", "1"]
+
+
+def test_a_condition_column_with_numbers_and_labels_names_each_label_and_the_way_out():
+    text = "balls,load_N,speed_m_s,specimen,mu_measured\n4,0.01,0.05,1,0.011\n4,0.01,0.06,S2,0.012\n"
+    with pytest.raises(DataError) as caught:
+        parse_csv(text)
+    assert [(e["row"], e["column"]) for e in caught.value.errors] == [(2, "specimen")]
+    assert "declare specimen in factors" in caught.value.errors[0]["message"]
+    with pytest.raises(DataError) as unknown:
+        parse_csv(text, factors=["operator", "load_N"])
+    assert {e["column"] for e in unknown.value.errors} >= {"operator", "load_N"}
+
+
+# --------------------------------------------------------------------------------------------- groups
+
+
+def test_the_spread_between_groups_is_the_one_way_anova_estimate_on_balanced_data():
+    """REML of a balanced one-way random-effects model is the ANOVA estimator (MSB - MSW) / n when that is
+    positive; its within-group variance is MSW. Computed here by hand."""
+    rng = np.random.default_rng(5)
+    groups, rows = 7, 12
+    labels = np.repeat([f"G{g}" for g in range(groups)], rows)
+    y = np.repeat(rng.normal(0.0, 0.1, groups), rows) + rng.normal(0.0, 0.03, groups * rows)
+    effect = fit_group_effect("specimen", labels, y, {})
+    means = y.reshape(groups, rows).mean(axis=1)
+    msb = rows * np.sum((means - y.mean()) ** 2) / (groups - 1)
+    msw = np.sum((y.reshape(groups, rows) - means[:, None]) ** 2) / (groups * (rows - 1))
+    assert effect.parameter == "mu"
+    assert effect.spread_log == pytest.approx(np.sqrt((msb - msw) / rows), rel=1e-3)
+    assert effect.noise_log == pytest.approx(np.sqrt(msw), rel=1e-3)
+    # Each group's level is its mean shrunk toward the overall mean by tau^2 / (tau^2 + sigma^2 / n).
+    shrink = effect.spread_log**2 / (effect.spread_log**2 + msw / rows)
+    for g, mean in enumerate(means):
+        assert effect.levels[f"G{g}"][0] == pytest.approx(shrink * (mean - y.mean()), abs=1e-4)
+    lo, hi = effect.spread_interval
+    assert lo < effect.spread_log < hi
+    # A new group's variance: tau^2 (1 + 1/G), with Student's t of G - 1 degrees of freedom for z.
+    t, z = stats.t.isf(0.025, groups - 1), stats.norm.isf(0.025)
+    expected = effect.spread_log**2 * (1 + 1 / groups) * (t / z) ** 2
+    assert effect.new_group_variance() == pytest.approx(expected)
+
+
+@pytest.fixture(scope="module")
+def grouped():
+    data, level = builds(11)
+    return calibrate(data, ["mu_pivot"], make_plots=False, seed=11), level
+
+
+def test_builds_of_one_bearing_give_their_spread_and_intervals_that_cover_known_and_new_builds(grouped):
+    result, level = grouped
+    assert result.effects == [], result.decision  # a group is no continuous driver: nothing to add
+    (group,) = result.groups
+    assert group["factor"] == "specimen" and group["parameter"] in ("mu_pivot", "mu")
+    # The spread's interval holds this draw's spread of log mu_pivot between the builds (the truth it saw).
+    lo, hi = np.log1p(group["spread_interval_relative"])
+    assert lo < np.std(np.log(level), ddof=1) < hi
+    assert "varies between the 8 groups of specimen" in group["summary"]
+    # Each build's level follows its true mu_pivot.
+    shifts = [group["levels"][f"S{g + 1}"]["relative_shift"] for g in range(level.size)]
+    assert np.corrcoef(shifts, np.log(level))[0, 1] > 0.95
+    rng = np.random.default_rng(111)
+    model = result.model
+    known = []
+    for g in range(level.size):
+        c = _columns(rng, 200)
+        measured = _mu(c, mu_pivot=level[g]) * np.exp(rng.normal(0.0, 0.02, 200))
+        p = model.predict({**c, "specimen": np.full(200, f"S{g + 1}")})
+        known.append(np.mean((p.mu_lower <= measured) & (measured <= p.mu_upper)))
+    assert 0.9 <= np.mean(known) <= 0.99 and min(known) >= 0.8, known
+    # New builds (drawn from the same population): their measurements, with no label or a new one.
+    covered, widths = [], []
+    for _ in range(60):
+        c = _columns(rng, 50)
+        pivot = TRUE_PIVOT * np.exp(rng.normal(0.0, 0.15))
+        measured = _mu(c, mu_pivot=pivot) * np.exp(rng.normal(0.0, 0.02, 50))
+        p = model.predict(c)
+        assert np.array_equal(p.mu_upper, model.predict({**c, "specimen": "S99"}).mu_upper)
+        covered.append(np.mean((p.mu_lower <= measured) & (measured <= p.mu_upper)))
+        widths.append(np.median(np.log(p.mu_upper / p.mu_lower)))
+    assert 0.9 <= np.mean(covered) <= 1.0, np.mean(covered)
+    # A known build's interval is far narrower than a new one's: it knows the build's level.
+    one = model.predict({**{k: v[:1] for k, v in c.items()}, "specimen": "S1"})
+    assert np.log(one.mu_upper / one.mu_lower)[0] < 0.5 * np.median(widths)
+
+
+# -------------------------------------------------------------------------------------------- scatter
+
+
+def test_scatter_model_finds_a_step_in_speed_and_stays_constant_on_one_spread():
+    rng = np.random.default_rng(3)
+    n = 400
+    speed = rng.uniform(0.001, 0.15, n)
+    other = rng.uniform(0.2, 0.8, n)
+    residual = rng.normal(0.0, 1.0, n) * np.where(speed < 0.02, 0.10, 0.015)
+    model = fit_scatter({"speed_m_s": speed, "relative_humidity": other}, residual)
+    assert model.kind == "step" and model.column == "speed_m_s"
+    assert 0.012 <= model.split <= 0.03
+    below, above = np.exp(model.coefficients)
+    assert below == pytest.approx(0.10, rel=0.3) and above == pytest.approx(0.015, rel=0.15)
+    assert model.summary().startswith("scatter ") and "below speed_m_s = " in model.summary()
+    for seed in range(4):
+        flat = np.random.default_rng(100 + seed)
+        plain = fit_scatter({"speed_m_s": flat.uniform(0.001, 0.15, 200),
+                             "relative_humidity": flat.uniform(0.2, 0.8, 200)}, flat.normal(0.0, 0.03, 200))
+        assert plain.kind == "constant", plain.summary()
+        assert np.exp(plain.coefficients[0]) == pytest.approx(0.03, rel=0.15)
+
+
+# ---------------------------------------------------------------------------------------- the cloud
+
+
+def test_the_cloud_threshold_is_the_conformal_quantile_of_leave_one_out_distances():
+    rng = np.random.default_rng(8)
+    n = 300
+    speed = rng.uniform(0.005, 0.15, n)
+    temperature = 25 + 50 * (speed - 0.005) / 0.145 + rng.normal(0.0, 1.0, n)
+    cloud = DataCloud.from_columns({"speed_m_s": speed, "temperature_C": temperature})
+    # Brute force: standardized columns (the speed, positive over more than a decade, by its log), the
+    # 5th-nearest other row of every row, and its ceil(0.98 (n + 1))-th smallest.
+    log_speed = np.log(speed)
+    x = np.column_stack([(log_speed - log_speed.mean()) / log_speed.std(),
+                         (temperature - temperature.mean()) / temperature.std()])
+    distances = np.sqrt(((x[:, None, :] - x[None, :, :]) ** 2).sum(axis=2))
+    own = np.sort(distances, axis=1)[:, 5]
+    threshold = np.sort(own)[int(np.ceil(0.98 * (n + 1))) - 1]
+    point = {"speed_m_s": np.array([0.08]), "temperature_C": np.array([52.0])}
+    ratio, _ = cloud.score(point, (1,))
+    scaled = np.array([(np.log(0.08) - log_speed.mean()) / log_speed.std(),
+                       (52.0 - temperature.mean()) / temperature.std()])
+    fifth = np.sort(np.sqrt(((x - scaled) ** 2).sum(axis=1)))[4]
+    assert ratio[0] == pytest.approx(fifth / threshold, rel=1e-5)
+    # Points drawn like the data: about 2 % flagged. The corner the data never visited: far outside.
+    fresh_speed = rng.uniform(0.005, 0.15, 4000)
+    fresh = {"speed_m_s": fresh_speed, "temperature_C": 25 + 50 * (fresh_speed - 0.005) / 0.145
+             + rng.normal(0.0, 1.0, 4000)}
+    flagged = float(np.mean(cloud.score(fresh, (4000,))[0] > 1))
+    assert flagged <= 0.05, flagged
+    corner, _ = cloud.score({"speed_m_s": np.array([0.01]), "temperature_C": np.array([70.0])}, (1,))
+    assert corner[0] > 3
+    pairs = confounded_pairs({"speed_m_s": speed, "temperature_C": temperature,
+                              "relative_humidity": rng.uniform(size=n)})
+    assert [p["columns"] for p in pairs] == [["speed_m_s", "temperature_C"]]
+    # What would separate them: the empty corners, slow and hot, fast and cold.
+    assert "cannot be told" in pairs[0]["summary"]
+    words = pairs[0]["summary"]
+    assert f"speed_m_s near {speed.min():.4g} [m/s] and temperature_C near {temperature.max():.4g}" in words
+    assert f"speed_m_s near {speed.max():.4g} [m/s] and temperature_C near {temperature.min():.4g}" in words
