@@ -204,3 +204,84 @@ def test_the_cloud_threshold_is_the_conformal_quantile_of_leave_one_out_distance
     words = pairs[0]["summary"]
     assert f"speed_m_s near {speed.min():.4g} [m/s] and temperature_C near {temperature.max():.4g}" in words
     assert f"speed_m_s near {speed.max():.4g} [m/s] and temperature_C near {temperature.min():.4g}" in words
+
+
+# ----------------------------------------------------------------------------------- through the API
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    from fastapi.testclient import TestClient
+
+    from microbearing.service.app import create_app
+    from microbearing.service.settings import Settings
+
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("groups")))) as test_client:
+        yield test_client
+
+
+def _finished(client, response) -> dict:
+    import time
+
+    assert response.status_code == 202, response.text
+    location = response.headers["location"]
+    deadline = time.monotonic() + 180
+    while (job := client.get(location).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.2)
+    assert job["status"] == "succeeded", job
+    return client.get(job["result_url"]).json()
+
+
+def test_labels_and_declared_codes_calibrate_through_the_api_and_name_groups_in_predictions(client):
+    data, level = builds(21, groups=6, rows=20)
+    body = {"data": data, "fit_parameters": ["mu_pivot"], "folds": 3}
+    result = _finished(client, client.post("/v1/calibrations", json=body))
+    (group,) = result["groups"]
+    assert group["factor"] == "specimen" and sorted(group["levels"]) == [f"S{g}" for g in range(1, 7)]
+    assert result["model"]["groups"][0]["factor"] == "specimen"
+    assert "specimen" not in result["model"]["domain"]
+    # The same data as integer codes in CSV, declared a factor: the same groups, labelled 1..6.
+    coded, _ = builds(21, groups=6, rows=20, coded=True)
+    header = list(coded[0])
+    text = "\n".join([",".join(header)] + [",".join(str(row[k]) for k in header) for row in coded]) + "\n"
+    csv_result = _finished(client, client.post("/v1/calibrations/csv", content=text,
+                                               params=[("fit_parameters", "mu_pivot"), ("folds", "3"),
+                                                       ("factors", "specimen")],
+                                               headers={"content-type": "text/csv"}))
+    assert sorted(csv_result["groups"][0]["levels"]) == [str(g) for g in range(1, 7)]
+    assert csv_result["groups"][0]["spread_relative"] == pytest.approx(group["spread_relative"], rel=1e-6)
+    # Undeclared, the codes are a number column: no group, a condition.
+    plain = _finished(client, client.post("/v1/calibrations/csv", content=text,
+                                          params=[("fit_parameters", "mu_pivot"), ("folds", "3")],
+                                          headers={"content-type": "text/csv"}))
+    assert plain["groups"] == [] and "specimen" in plain["model"]["conditions"]
+    # /v1/friction: the build with the highest mu_pivot is predicted above a new one, its interval narrower.
+    model = result["model_id"]
+    point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "model": model}
+    top = f"S{int(np.argmax(level)) + 1}"
+    known = client.post("/v1/friction", json={**point, "conditions": {"specimen": top}}).json()
+    new = client.post("/v1/friction", json=point).json()
+    assert known["mu"] > new["mu"] and known["in_domain"] and new["in_domain"]
+    assert known["mu_upper"] / known["mu_lower"] < new["mu_upper"] / new["mu_lower"]
+    # The batch gives the same answers, a label per point (a new label: the new-build answer).
+    batch = client.post("/v1/friction/batch", json={
+        "points": {"balls": 4, "load_N": [0.01, 0.01], "speed_m_s": 0.05}, "model": model,
+        "conditions": {"specimen": [top, "S42"]}, "outputs": ["mu"]}).json()
+    assert batch["mu"] == pytest.approx([known["mu"], new["mu"]], rel=1e-12)
+    assert batch["mu_upper"] == pytest.approx([known["mu_upper"], new["mu_upper"]], rel=1e-12)
+    # A label given to a number column is a 422 naming it.
+    wrong = client.post("/v1/friction", json={**point, "conditions": {"specimen": "S1", "balls_x": "a"}})
+    assert wrong.status_code == 422
+    assert "/conditions/balls_x" in [e.get("pointer") for e in wrong.json()["errors"]]
+
+
+def test_a_mixed_label_column_is_a_422_naming_each_label(client):
+    data, _ = builds(22, groups=3, rows=8)
+    for row in data[:5]:
+        row["specimen"] = 7
+    response = client.post("/v1/calibrations", json={"data": data})
+    assert response.status_code == 422
+    pointers = [e["pointer"] for e in response.json()["errors"]]
+    assert len(pointers) == len(data) - 5 and pointers[0] == "/data/5/specimen"
+    assert "declare specimen in factors" in response.json()["errors"][0]["detail"]
