@@ -5,10 +5,12 @@ part of the calibration (declared parameters and terms) is the population's; wha
 ``r = log(mu_measured / mu_model)``, is read as a random effect of the group on one declared
 parameter ``p``,
 
-    r_i = b0 + s_i b_g + e_i,   b_g ~ N(0, tau^2),   e_i ~ N(0, sigma^2),
+    r_i = s_i (b0 + b_g) + e_i,   b_g ~ N(0, tau^2),   e_i ~ N(0, sigma^2),
 
 with ``s_i = d log mu / d log p`` at row i (``p = "mu"``: a factor on μ itself, ``s = 1``), so that
-``tau`` is the standard deviation of ``log p`` from one group to the next. It is fitted by REML
+``tau`` is the standard deviation of ``log p`` from one group to the next and ``b0`` the mean shift of
+``log p`` the groups' weighting leaves (a fixed slope on the same ``s``: an intercept beside a random
+slope on a nearly constant ``s`` would trade off against it and inflate ``tau``). It is fitted by REML
 (statsmodels' :class:`~statsmodels.regression.mixed_linear_model.MixedLM`, one variance component,
 the random slope ``s``), for every fitted parameter and for μ itself; the parameter whose random
 effect gives the highest restricted likelihood carries the spread. The 95 % interval of ``tau`` is
@@ -59,7 +61,7 @@ class GroupEffect:
     spread_interval : tuple of float
         95 % profile-likelihood interval of ``tau``. [1]
     offset_log : float
-        ``b0``: mean of what the fixed part leaves, log μ. [1]
+        ``b0``: mean shift of log of the parameter that the fixed part leaves. [1]
     levels : dict of str to list of float
         Per group label: ``[b_g, var(b_g | data), rows]`` (log of the parameter [1], its variance [1],
         measurements [1]).
@@ -107,7 +109,7 @@ class GroupEffect:
         Returns
         -------
         tuple of numpy.ndarray
-            ``offset + s b_g`` [1], its variance [1] (a new group: the between-group spread), known (bool).
+            ``s (b0 + b_g)`` [1], its variance [1] (a new group: the between-group spread), known (bool).
         """
         s = np.asarray(sensitivity, dtype=float)
         if labels is None:
@@ -123,7 +125,7 @@ class GroupEffect:
                               ).reshape(s.shape)
             variance = np.array([self.levels[x][1] if x in self.levels else self.new_group_variance(level)
                                  for x in text.ravel()]).reshape(s.shape)
-        return self.offset_log + s * effect, s * s * variance, known
+        return s * (self.offset_log + effect), s * s * variance, known
 
     def summary(self) -> str:
         """The spread in words."""
@@ -176,7 +178,7 @@ def _percent(log_std: float) -> str:
 def _mixed(residual: np.ndarray, labels: np.ndarray, s: np.ndarray):
     from statsmodels.regression.mixed_linear_model import MixedLM  # imported here: slow, rarely needed
 
-    model = MixedLM(residual, np.ones((residual.size, 1)), groups=labels, exog_re=s[:, None])
+    model = MixedLM(residual, s[:, None], groups=labels, exog_re=s[:, None])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = model.fit(reml=True)
@@ -264,7 +266,7 @@ def fit_group_effect(factor: str, labels: np.ndarray, residual: np.ndarray,
         at = g == label
         precision = float(np.sum(s[at] ** 2)) / sigma2 + (1.0 / tau2 if tau2 > 0 else np.inf)
         variance = 0.0 if not np.isfinite(precision) else 1.0 / precision
-        effect = variance * float(np.sum(s[at] * (y[at] - offset))) / sigma2
+        effect = variance * float(np.sum(s[at] * (y[at] - offset * s[at]))) / sigma2
         levels[str(label)] = [effect, variance, float(at.sum())]
     return GroupEffect(
         factor,
