@@ -15,9 +15,17 @@ Every candidate is fitted by Gaussian maximum likelihood of the held-out log res
 cross-validation (so the spread holds the refit's uncertainty too), with rows beyond
 :func:`calibrate.uncertainty.outlier_threshold` of the local spread left out (twice refitted), and
 scored on k folds by the held-out negative log-likelihood, each row's square capped at that threshold
-(gross outliers count like a few rows). A non-constant model is chosen only when it beats the
-constant one by a paired z above the Bonferroni bound at 1 % over all candidates: on data with one
-spread everywhere the scatter model stays constant.
+(gross outliers count like a few rows); the best of them is the form.
+
+Whether the scatter depends on the inputs at all is a **permutation test** (:func:`permutation_p`):
+the statistic is the largest, over every column, of the step's likelihood ratio at its best split
+and of the score statistic of a log-linear trend, on the residuals winsorized at the outlier threshold
+of their robust scale; its null distribution comes from the same statistic on randomly permuted
+residuals (under the null the residuals are exchangeable across rows, outliers and all). A
+non-constant model is chosen only when p <= :data:`SCATTER_ALPHA` and it beats the constant one held
+out: on data with one spread everywhere the scatter model stays constant with chance 1 - alpha. (A
+paired z of the held-out losses has little power here: the scatter of a few rows carries the signal,
+the many others only noise.)
 """
 
 from __future__ import annotations
@@ -34,10 +42,14 @@ from microbearing import physics
 from .fit import kfold_indices
 from .uncertainty import outlier_threshold
 
-__all__ = ["ScatterModel", "fit_scatter", "SCATTER_ALPHA"]
+__all__ = ["PERMUTATIONS", "SCATTER_ALPHA", "ScatterModel", "fit_scatter", "permutation_p"]
 
 #: Chance that a non-constant scatter model is chosen on data with one spread everywhere. [1]
 SCATTER_ALPHA = 0.01
+#: Random permutations of the test. [1]
+PERMUTATIONS = 1000
+#: Rows the permutation test uses at most (a random subset of larger data). [1]
+MAX_TEST_ROWS = 2000
 # Split candidates of a step: these quantiles of the column (every row's value, up to 200 of them).
 _SPLITS = np.linspace(0.02, 0.98, 200)
 # Fewest rows on either side of a step's split. [1]
@@ -118,12 +130,12 @@ class ScatterModel:
         unit = f" [{physics.PARAMETERS[self.column].unit}]" if self.column in physics.PARAMETERS else ""
         tested = ""
         if self.cv:
-            tested = (f" (chosen by cross-validation: held-out z = {self.cv['z']:.1f} against one spread "
-                      f"everywhere, {self.cv['z_needed']:.2f} needed)")
+            tested = (f" (permutation p = {self.cv['p_value']:.3g} that the scatter is the same everywhere; "
+                      f"the form chosen by cross-validation)")
         if self.kind == "constant":
             if self.cv:
-                tested = (f" (no input-dependent scatter model beat it in cross-validation: best z = "
-                          f"{self.cv['z']:.1f}, {self.cv['z_needed']:.2f} needed)")
+                tested = (f" (that the scatter depends on no input is not rejected: permutation p = "
+                          f"{self.cv['p_value']:.3g}, {self.cv['alpha']:.2g} needed)")
             return f"scatter {_pct(self.coefficients[0])} everywhere{tested}"
         if self.kind == "step":
             below, above = self.coefficients
@@ -264,7 +276,6 @@ def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: 
     varying = {k: np.asarray(v, dtype=float) for k, v in columns.items()
                if np.unique(np.asarray(v, dtype=float)).size > 1}
     candidates = [("constant", None)] + [(kind, c) for c in varying for kind in ("step", "loglinear")]
-    needed = float(stats.norm.isf(alpha / max(len(candidates) - 1, 1)))
     test_rows = kfold_indices(n, min(folds, n), seed)
     losses: dict[tuple[str, str | None], np.ndarray] = {}
     for kind, column in candidates:
@@ -282,16 +293,11 @@ def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: 
             losses[(kind, column)] = loss
     constant = losses[("constant", None)]
 
-    def z_of(loss: np.ndarray) -> float:
-        d = constant - loss
-        spread = float(np.std(d, ddof=1))
-        return float(np.mean(d) / (spread / np.sqrt(n))) if spread > 0 else 0.0
-
-    scored = {key: z_of(loss) for key, loss in losses.items() if key[0] != "constant"}
-    best = max(scored, key=lambda key: float(np.mean(constant - losses[key])), default=None)
-    best_z = scored[best] if best is not None else 0.0
-    cv = {"loss_constant": float(np.mean(constant)), "z": best_z, "z_needed": needed}
-    if best is None or best_z <= needed:
+    gains = {key: float(np.mean(constant - loss)) for key, loss in losses.items() if key[0] != "constant"}
+    best = max(gains, key=lambda key: gains[key], default=None)
+    p_value = permutation_p(varying, r, seed) if varying else 1.0
+    cv = {"loss_constant": float(np.mean(constant)), "p_value": p_value, "alpha": alpha}
+    if best is None or p_value > alpha or gains[best] <= 0:
         model = _fit_one("constant", None, None, r, threshold)
         return ScatterModel(model.kind, None, model.coefficients,
                             cv={**cv, "loss_chosen": cv["loss_constant"]})
@@ -300,3 +306,75 @@ def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: 
     return ScatterModel(model.kind, model.column, model.coefficients, model.split, model.transform,
                         model.centre, model.scale, model.range,
                         {**cv, "loss_chosen": float(np.mean(losses[best]))}, model.band)
+
+
+def _statistics(w2: np.ndarray, orders: list[np.ndarray], splits: list[np.ndarray],
+                trends: list[np.ndarray]) -> np.ndarray:
+    """Largest step likelihood ratio and trend score statistic over the columns, per row of ``w2``
+    (shape (draws, rows): squared winsorized residuals, each draw a permutation). [1]"""
+    draws, n = w2.shape
+    total = w2.sum(axis=1)
+    best = np.zeros(draws)
+    k = np.arange(1, n)
+    for order, valid in zip(orders, splits, strict=True):
+        below = np.cumsum(w2[:, order], axis=1)[:, :-1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = (n * np.log(total / n)[:, None] - k * np.log(below / k)
+                     - (n - k) * np.log((total[:, None] - below) / (n - k)))
+        best = np.maximum(best, np.max(np.where(valid[None, :], np.nan_to_num(ratio, nan=0.0), 0.0), axis=1))
+    centred = w2 - w2.mean(axis=1, keepdims=True)
+    spread = np.sqrt(np.sum(centred**2, axis=1))
+    for t in trends:
+        # Koenker's studentized score statistic of a log-linear trend in t: n R^2 of w2 on t.
+        correlation = centred @ t / np.maximum(spread * np.sqrt(np.sum(t * t)), 1e-300)
+        best = np.maximum(best, n * correlation**2)
+    return best
+
+
+def permutation_p(columns: Mapping[str, np.ndarray], residual: np.ndarray, seed: int = 0,
+                  permutations: int = PERMUTATIONS) -> float:
+    """Permutation p-value that the scatter of ``residual`` depends on no column (see the module's text).
+
+    Parameters
+    ----------
+    columns : mapping of str to numpy.ndarray
+        Columns that vary, one value per row.
+    residual : numpy.ndarray
+        Log residuals. [1]
+    seed : int
+        Seed of the permutations (and of the subset of larger data).
+    permutations : int
+        Random permutations. [1]
+
+    Returns
+    -------
+    float
+        ``(1 + #{permuted statistic >= observed}) / (1 + permutations)``. [1]
+    """
+    r = np.asarray(residual, dtype=float)
+    rng = np.random.default_rng(seed)
+    rows = np.arange(r.size) if r.size <= MAX_TEST_ROWS else np.sort(rng.choice(r.size, MAX_TEST_ROWS,
+                                                                                 replace=False))
+    r = r[rows]
+    n = r.size
+    scale = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    if scale <= 0:
+        return 1.0
+    w2 = np.square(np.clip(r, -outlier_threshold(n) * scale, outlier_threshold(n) * scale) / scale)
+    orders, splits, trends = [], [], []
+    for values in columns.values():
+        x = np.asarray(values, dtype=float)[rows]
+        order = np.argsort(x, kind="stable")
+        ordered = x[order]
+        k = np.arange(1, n)
+        splits.append((ordered[1:] > ordered[:-1]) & (k >= _MIN_SIDE) & (n - k >= _MIN_SIDE))
+        orders.append(order)
+        t = np.log(x) if _transform(x) == "log" else x
+        trends.append(t - t.mean())
+    observed = _statistics(w2[None, :], orders, splits, trends)[0]
+    exceed = 0
+    for start in range(0, permutations, 250):
+        draws = min(250, permutations - start)
+        shuffled = w2[np.argsort(rng.random((draws, n)), axis=1)]
+        exceed += int(np.sum(_statistics(shuffled, orders, splits, trends) >= observed - 1e-12))
+    return (1 + exceed) / (1 + permutations)
