@@ -38,6 +38,7 @@ from scipy import stats
 from microbearing import physics
 
 from .candidates import Term, mu_of, term_from_json
+from .data import factor_label
 from .domain import DataCloud
 from .groups import GroupEffect
 from .scatter import ScatterModel
@@ -370,6 +371,20 @@ class CalibratedModel:
             shift, variance = shift + a, variance + b
         return shift, variance
 
+    def _label_warnings(self, points: Mapping[str, Any]) -> list[str]:
+        """A sentence per factor column given labels that are not groups of the data (new groups)."""
+        out = []
+        for group in self.groups:
+            if group.factor in points:
+                labels = np.unique(np.vectorize(factor_label, otypes=[object])(
+                    np.asarray(points[group.factor], dtype=object).ravel()))
+                new = [str(x) for x in labels if x not in group.levels]
+                if new:
+                    shown = ", ".join(new[:3]) + (", ..." if len(new) > 3 else "")
+                    out.append(f"{group.factor} = {shown} is not a group of the calibration data: predicted "
+                               f"as a new group, whose interval carries the spread between groups")
+        return out
+
     def cloud_ratio(self, points: Mapping[str, Any], shape=None) -> np.ndarray:
         """Distance of each point to the data cloud over the cloud's threshold (> 1: outside) [1]; zeros
         without a cloud. Physics columns a point does not give take the model's values."""
@@ -396,10 +411,10 @@ class CalibratedModel:
         """
         if self.domain is None:
             return None, []
+        warnings = self._label_warnings(points)
         points = {k: v for k, v in points.items() if k not in self.factors}
         shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
         inside = np.ones(shape, dtype=bool)
-        warnings = []
         for name, given in points.items():
             value = np.broadcast_to(np.asarray(given, dtype=float), shape)
             unit = f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""

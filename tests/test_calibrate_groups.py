@@ -277,6 +277,9 @@ def test_labels_and_declared_codes_calibrate_through_the_api_and_name_groups_in_
         "conditions": {"specimen": [top, "S42"]}, "outputs": ["mu"]}).json()
     assert batch["mu"] == pytest.approx([known["mu"], new["mu"]], rel=1e-12)
     assert batch["mu_upper"] == pytest.approx([known["mu_upper"], new["mu_upper"]], rel=1e-12)
+    assert batch["in_domain"] == [True, True]
+    assert batch["domain_warnings"] == ["specimen = S42 is not a group of the calibration data: predicted as "
+                                        "a new group, whose interval carries the spread between groups"]
     # A label given to a number column is a 422 naming it.
     wrong = client.post("/v1/friction", json={**point, "conditions": {"specimen": "S1", "balls_x": "a"}})
     assert wrong.status_code == 422
