@@ -349,22 +349,25 @@ class CalibratedModel:
                      level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
         """Shift of log μ by the groups' levels and its variance at the points [1] (see :attr:`groups`).
 
-        ``gradient`` holds d log μ / d (fitted value) at the points (None: computed here for the
-        parameters the groups act on)."""
+        ``gradient`` is not used (the sensitivity is taken where the parameter acts, which may be a
+        value the point gives)."""
         shift, variance = np.zeros(shape), np.zeros(shape)
-        names = list(self.fitted)
         for group in self.groups:
             if group.parameter == "mu" or group.parameter not in self.fitted:
                 s = np.ones(shape)
-            elif gradient is not None:
-                s = gradient[names.index(group.parameter)] * self.fitted[group.parameter]
             else:
-                value = self.fitted[group.parameter]
-                step = _GRADIENT_STEP * max(abs(value), 1e-12)
+                # d log mu / d log p at the points, by a finite difference of p where it acts: a point may
+                # give p itself (an optimizer passes the model's fitted values as inputs).
+                name = group.parameter
+                value = np.asarray(points.get(name, self.fitted[name]), dtype=float)
+                step = _GRADIENT_STEP * np.maximum(np.abs(value), 1e-12)
+                values = [v for _, v in self.terms]
                 with np.errstate(all="ignore"):
-                    base = np.log(self._mu(points, self.fitted, [v for _, v in self.terms]))
-                    moved = np.log(self._mu(points, {**self.fitted, group.parameter: value + step},
-                                            [v for _, v in self.terms]))
+                    base = np.log(self._mu(points, self.fitted, values))
+                    if name in points:
+                        moved = np.log(self._mu({**points, name: value + step}, self.fitted, values))
+                    else:
+                        moved = np.log(self._mu(points, {**self.fitted, name: value + step}, values))
                 s = np.where(np.isfinite(moved - base), (moved - base) / step * value, 1.0)
             s = np.broadcast_to(s, shape)
             a, b, _ = group.shift(labels.get(group.factor), s, level)

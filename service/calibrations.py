@@ -213,8 +213,12 @@ def interval_at(model: Any,
         return None
 
     def fields(point: Mapping[str, Any]) -> dict[str, Any]:
+        # A fitted parameter the point gives at its fitted value (an optimizer passes the model's values)
+        # is left to the model, so that the interval keeps that parameter's uncertainty.
+        own = {k: v for k, v in point.items()
+               if not (k in model.fitted and np.all(np.asarray(v) == model.fitted[k]))}
         with np.errstate(all="ignore"):
-            return prediction_fields(model.predict({**point, **dict(conditions or {})}))
+            return prediction_fields(model.predict({**own, **dict(conditions or {})}))
 
     return fields
 

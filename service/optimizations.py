@@ -103,8 +103,12 @@ def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, di
                                                               Callable | None]:
     """The μ model, the physics values it was built with, its convention and its interval at a point."""
     if body.conditions and not body.model.startswith("calibrated:"):
+        # A label (text) is a group of a calibrated model's factor column; named where it stands.
         raise validation_problem([{"pointer": "/conditions", "detail": "extra input columns are read by "
-                                   "calibrated models only"}])
+                                   "calibrated models only"}]
+                                 + [{"pointer": f"/conditions/{name}", "detail": "must be a number (a label "
+                                     "is read by a calibrated model's factor column only)"}
+                                    for name, value in body.conditions.items() if isinstance(value, str)])
     if body.model == "physics":
         return None, {}, str(body.convention), None
     model = resolve(store, body.model)

@@ -280,6 +280,16 @@ def test_labels_and_declared_codes_calibrate_through_the_api_and_name_groups_in_
     assert batch["in_domain"] == [True, True]
     assert batch["domain_warnings"] == ["specimen = S42 is not a group of the calibration data: predicted as "
                                         "a new group, whose interval carries the spread between groups"]
+    # An optimization with the calibrated model, for the known build and for a new one.
+    answers = []
+    for conditions in ({"specimen": top}, {}):
+        response = client.post("/v1/optimizations", json={
+            "bounds": {"balls": [4, 6], "groove_angle_deg": [45, 60], "load_N": [0.005, 0.02]},
+            "fixed": {"speed_m_s": 0.05}, "constraints": {"max_contact_pressure_Pa": 1e9}, "model": model,
+            "conditions": conditions, "starts": 1})
+        answers.append(_finished(client, response))  # a calibrated model's optimization is a job
+    spans = [a["mu_upper"] / a["mu_lower"] for a in answers]
+    assert spans[0] < spans[1], spans
     # A label given to a number column is a 422 naming it.
     wrong = client.post("/v1/friction", json={**point, "conditions": {"specimen": "S1", "balls_x": "a"}})
     assert wrong.status_code == 422

@@ -99,9 +99,10 @@ class OptimizationRequest(StrictModel):
     model: str = Field(default="physics", pattern=MODEL_PATTERN, description=(
         "physics (a certified global optimum by geometric programming), surrogate:<id> or "
         "calibrated:<id> (a local optimum by sequential convex approximation)."))
-    conditions: dict[str, float] | None = Field(
+    conditions: dict[str, float | str] | None = Field(
         default=None, description="Extra input columns a calibrated model's effect needs (e.g. "
-        "relative_humidity), in their units.")
+        "relative_humidity), in their units; a factor column takes a group label (e.g. specimen: S3; "
+        "without one the design is judged for a new group, the spread between groups in its interval).")
     starts: int = Field(default=3, ge=1, le=9, description="Starting points per ball count of the local "
                         "method for surrogate and calibrated models [1].")
     convention: ConventionName = Field(  # type: ignore[valid-type]
