@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import stats
 
 from microbearing import physics
 
@@ -48,8 +48,9 @@ __all__ = ["PERMUTATIONS", "SCATTER_ALPHA", "ScatterModel", "fit_scatter", "perm
 SCATTER_ALPHA = 0.01
 #: Random permutations of the test. [1]
 PERMUTATIONS = 1000
-#: Rows the permutation test uses at most (a random subset of larger data). [1]
-MAX_TEST_ROWS = 2000
+#: Rows the choice of the scatter model (cross-validation, permutation test) uses at most (a random subset
+#: of larger data, as the selection of terms searches 1,000 rows). [1]
+MAX_TEST_ROWS = 1000
 # Split candidates of a step: these quantiles of the column (every row's value, up to 200 of them).
 _SPLITS = np.linspace(0.02, 0.98, 200)
 # Fewest rows on either side of a step's split. [1]
@@ -224,13 +225,7 @@ def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray,
                 return None
             t = ((tx - centre) / scale)[keep]
 
-            def nll(p, t=t, rk=rk):
-                log_v = 2.0 * (p[0] + p[1] * t)
-                return 0.5 * float(np.sum(log_v + rk * rk * np.exp(-log_v)))
-
-            start = [0.5 * float(np.log(max(np.mean(rk * rk), 1e-24))), 0.0]
-            p = optimize.minimize(nll, start, method="Nelder-Mead",
-                                  options={"xatol": 1e-6, "fatol": 1e-8, "maxiter": 2000}).x
+            p = _loglinear(t, rk * rk)
             model = ScatterModel("loglinear", column, [float(p[0]), float(p[1])], None, transform, centre,
                                  scale, [float(np.min(x)), float(np.max(x))])
         sd = model.std_log({column: x} if column else {}, r.shape)
@@ -239,6 +234,36 @@ def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray,
             break
         keep = new_keep
     return model
+
+
+def _loglinear(t: np.ndarray, r2: np.ndarray) -> np.ndarray:
+    """Maximum-likelihood [a, b] of log sd = a + b t for zero-mean Gaussian residuals with squares ``r2``:
+    Fisher scoring of the gamma GLM of ``r2`` with log link (unit weights), halving a step that does not
+    lower the negative log-likelihood."""
+    design = np.column_stack([np.ones_like(t), t])
+    gram = np.linalg.pinv(design.T @ design)
+    eta = np.full(t.shape, float(np.log(max(np.mean(r2), 1e-300))))
+
+    def nll(eta):
+        return float(np.sum(eta + r2 * np.exp(-eta)))
+
+    beta = np.array([eta[0], 0.0])
+    current = nll(eta)
+    for _ in range(50):
+        step = gram @ (design.T @ (r2 * np.exp(-eta) - 1.0))
+        for _ in range(20):
+            trial = beta + step
+            value = nll(design @ trial)
+            if value <= current:
+                break
+            step = step / 2
+        else:
+            break
+        converged = abs(current - value) <= 1e-10 * max(abs(current), 1.0)
+        beta, current, eta = trial, value, design @ trial
+        if converged:
+            break
+    return beta / 2.0  # log variance -> log sd
 
 
 def _held_out_loss(model: ScatterModel, column: str | None, x: np.ndarray | None, r: np.ndarray,
@@ -251,6 +276,9 @@ def _held_out_loss(model: ScatterModel, column: str | None, x: np.ndarray | None
 def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: int = 5, seed: int = 0,
                 alpha: float = SCATTER_ALPHA) -> ScatterModel:
     """Choose and fit the scatter model by cross-validation.
+
+    The choice (cross-validation and permutation test) runs on at most :data:`MAX_TEST_ROWS` rows, a
+    random subset of larger data; the chosen model is then fitted on every row.
 
     Parameters
     ----------
@@ -270,11 +298,16 @@ def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: 
     ScatterModel
         With ``cv``: the held-out losses and the paired z of the chosen model against the constant one.
     """
-    r = np.asarray(residual, dtype=float)
+    everything = np.asarray(residual, dtype=float)
+    all_columns = {k: np.asarray(v, dtype=float) for k, v in columns.items()
+                   if np.unique(np.asarray(v, dtype=float)).size > 1}
+    # The choice runs on at most MAX_TEST_ROWS rows (a random subset); the chosen model is fitted on all.
+    chosen_rows = (np.arange(everything.size) if everything.size <= MAX_TEST_ROWS else
+                   np.sort(np.random.default_rng(seed).choice(everything.size, MAX_TEST_ROWS, replace=False)))
+    r = everything[chosen_rows]
     n = r.size
     threshold = outlier_threshold(n)
-    varying = {k: np.asarray(v, dtype=float) for k, v in columns.items()
-               if np.unique(np.asarray(v, dtype=float)).size > 1}
+    varying = {k: v[chosen_rows] for k, v in all_columns.items()}
     candidates = [("constant", None)] + [(kind, c) for c in varying for kind in ("step", "loglinear")]
     test_rows = kfold_indices(n, min(folds, n), seed)
     losses: dict[tuple[str, str | None], np.ndarray] = {}
@@ -297,6 +330,7 @@ def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: 
     best = max(gains, key=lambda key: gains[key], default=None)
     p_value = permutation_p(varying, r, seed) if varying else 1.0
     cv = {"loss_constant": float(np.mean(constant)), "p_value": p_value, "alpha": alpha}
+    r, varying, threshold = everything, all_columns, outlier_threshold(everything.size)
     if best is None or p_value > alpha or gains[best] <= 0:
         model = _fit_one("constant", None, None, r, threshold)
         return ScatterModel(model.kind, None, model.coefficients,
