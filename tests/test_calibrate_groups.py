@@ -137,6 +137,17 @@ def test_builds_of_one_bearing_give_their_spread_and_intervals_that_cover_known_
         covered.append(np.mean((p.mu_lower <= measured) & (measured <= p.mu_upper)))
         widths.append(np.median(np.log(p.mu_upper / p.mu_lower)))
     assert 0.9 <= np.mean(covered) <= 1.0, np.mean(covered)
+    # Stored as JSON and read back, the model answers the same.
+    import json
+
+    from microbearing.calibrate import CalibratedModel
+
+    again = CalibratedModel.from_json(json.loads(json.dumps(model.to_json())))
+    for labels in (np.full(50, "S2"), None):
+        points = {**c, **({} if labels is None else {"specimen": labels})}
+        for name in ("mu", "mu_lower", "mu_upper", "in_domain"):
+            np.testing.assert_array_equal(getattr(again.predict(points), name),
+                                          getattr(model.predict(points), name))
     # A known build's interval is far narrower than a new one's: it knows the build's level.
     one = model.predict({**{k: v[:1] for k, v in c.items()}, "specimen": "S1"})
     assert np.log(one.mu_upper / one.mu_lower)[0] < 0.5 * np.median(widths)
