@@ -294,6 +294,7 @@ def describe_groups(effects: Sequence[GroupEffect]) -> list[dict[str, Any]]:
             "within_group_scatter_relative": float(np.expm1(e.noise_log)),
             "levels": {k: {"relative_shift": float(np.expm1(v[0])), "std_log": float(np.sqrt(v[1])),
                            "rows": int(v[2])} for k, v in e.levels.items()},
+            "restricted_log_likelihoods": dict(e.likelihoods),
             "summary": e.summary(),
         })
     return out

@@ -139,7 +139,8 @@ class CalibrationReport:
         Per factor column (:mod:`calibrate.groups`): ``factor``, ``parameter`` (that varies between
         groups, or ``mu``), ``groups`` [1], ``spread_relative`` [1] and its 95 % interval
         ``spread_interval_relative`` [1], ``within_group_scatter_relative`` [1], ``levels`` (per label:
-        ``relative_shift`` [1], ``std_log`` [1], ``rows`` [1]) and ``summary`` in words.
+        ``relative_shift`` [1], ``std_log`` [1], ``rows`` [1]), ``restricted_log_likelihoods`` [1] of the
+        random effect on each candidate parameter (the highest carries the spread) and ``summary`` in words.
     scatter : dict
         The scatter model (:mod:`calibrate.scatter`) as data, with ``summary`` in words.
     confounding : list of str

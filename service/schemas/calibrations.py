@@ -277,7 +277,9 @@ class CalibrationResult(ResponseModel):
     groups: list[dict[str, Any]] | None = Field(default=None, description=(
         "Per factor column: the declared parameter (or mu) that varies between groups, spread_relative [1] "
         "(standard deviation of its log) with its 95 % profile-likelihood interval spread_interval_relative "
-        "[1], within_group_scatter_relative [1], each group's relative_shift [1], and summary in words."))
+        "[1], within_group_scatter_relative [1], each group's relative_shift [1], the restricted "
+        "log-likelihood [1] of the random effect on each candidate parameter (the highest carries the "
+        "spread), and summary in words."))
     scatter: dict[str, Any] | None = Field(default=None, description=(
         "The scatter model of a new measurement (kind constant, step or loglinear in one column, chosen by "
         "cross-validation), with summary in words, e.g. 'scatter 10 % below speed_m_s = 0.02 [m/s], 1.5 % "
