@@ -36,10 +36,13 @@ from scipy import stats
 
 from .data import factor_label
 
-__all__ = ["GroupEffect", "fit_group_effect", "MIN_GROUPS"]
+__all__ = ["MAX_GROUPS", "MIN_GROUPS", "GroupEffect", "describe_groups", "fit_group_effect", "why_not_fitted"]
 
 #: Fewest groups whose spread a calibration estimates. [1]
 MIN_GROUPS = 2
+#: Most groups a factor may have (REML fits loop over the groups); a factor with more, or with fewer
+#: than two rows a group on average, is reported and not fitted. [1]
+MAX_GROUPS = 500
 # Profile-likelihood grid: points below and above the estimate of tau^2, and how far above it reaches.
 _PROFILE_LOW, _PROFILE_HIGH, _PROFILE_REACH = 15, 30, 40.0
 # Half the chi-square 95 % point with one degree of freedom.
@@ -213,6 +216,19 @@ def _profile_interval(result, residual: np.ndarray, s: np.ndarray) -> tuple[floa
     if values[0] > 1e-3 * c and first == 0:  # the grid stopped above zero while still inside
         lo = 0.0
     return float(np.sqrt(max(lo, 0.0))), float(np.sqrt(hi))
+
+
+def why_not_fitted(labels: np.ndarray) -> str | None:
+    """Why a factor's spread is not fitted (too few or too many groups, or about one row a group), or None."""
+    groups = np.unique(np.asarray(labels).astype(str)).size
+    if groups < MIN_GROUPS:
+        return f"one group only ({groups} label): there is no spread between groups to fit"
+    if groups > MAX_GROUPS:
+        return f"{groups} groups, more than {MAX_GROUPS}: the spread between them is not fitted"
+    if 2 * groups > np.size(labels):
+        return (f"{groups} groups in {np.size(labels)} rows (fewer than two rows a group): a group's level "
+                f"cannot be told from the noise, and the spread between groups is not fitted")
+    return None
 
 
 def fit_group_effect(factor: str, labels: np.ndarray, residual: np.ndarray,

@@ -37,7 +37,7 @@ from .data import Dataset, parse_csv, parse_rows
 from .discrepancy import gp_discrepancy, residual_gp
 from .domain import DataCloud, confounded_pairs, confounding_words
 from .fit import check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
-from .groups import describe_groups, fit_group_effect
+from .groups import describe_groups, fit_group_effect, why_not_fitted
 from .model import CalibratedModel
 from .plots import calibration_plots
 from .scatter import fit_scatter
@@ -580,7 +580,9 @@ def calibrate(
         folds=folds,
         model=model,
         plots=plots,
-        groups=describe_groups(group_effects),
+        groups=describe_groups(group_effects) + [
+            {"factor": name, "summary": f"{name}: {why_not_fitted(labels)}"}
+            for name, labels in dataset.factors.items() if why_not_fitted(labels)],
         scatter={**scatter.to_json(), "summary": scatter.summary()},
         confounding=confounding,
         domain=_domain_words(cloud),
@@ -606,7 +608,8 @@ def _group_effects(dataset: Dataset, final, terms, mu_after: np.ndarray, inliers
     effects = []
     residual = np.log(dataset.mu_measured / mu_after)
     for factor, labels in dataset.factors.items():
-        effect = fit_group_effect(factor, labels, residual - shift, sensitivities, inliers)
+        effect = None if why_not_fitted(labels) else fit_group_effect(factor, labels, residual - shift,
+                                                                     sensitivities, inliers)
         if effect is None:
             continue
         s = np.ones(dataset.n_points) if effect.parameter == "mu" else sensitivities[effect.parameter]

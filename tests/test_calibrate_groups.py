@@ -371,3 +371,12 @@ def test_speed_and_temperature_that_move_together_are_named_and_the_empty_corner
     assert any("far from the calibration data's rows" in w for w in far.warnings)
     widths = [np.median(np.log(p.mu_upper / p.mu_lower)) for p in (far, near)]
     assert widths[0] > 1.5 * widths[1], widths
+
+
+def test_a_label_per_row_is_reported_and_not_fitted():
+    from microbearing.calibrate.groups import why_not_fitted
+
+    assert why_not_fitted(np.array(["a", "a", "b", "b"])) is None
+    assert "fewer than two rows a group" in why_not_fitted(np.array(["a", "b", "c", "c"]))
+    assert "one group only" in why_not_fitted(np.array(["a", "a"]))
+    assert "more than 500" in why_not_fitted(np.arange(1200).astype(str).repeat(2))
