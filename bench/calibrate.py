@@ -431,11 +431,14 @@ def lab_suite(seeds: int, cases: slice) -> None:
                     print(f"    said: {r['summary']}")
 
 
-def synthetic_csv(n: int, seed: int = 0) -> str:
-    """CSV text of n measurements with a hidden humidity effect and 2 % log-normal noise."""
+def synthetic_csv(n: int, seed: int = 0, groups: int = 0) -> str:
+    """CSV text of n measurements with a hidden humidity effect and 2 % log-normal noise; with ``groups``, a
+    factor column ``specimen`` of that many labels drawn at random (no effect of its own)."""
     rows, _, _ = measurements(["meniscus"], 0.02, (0.0, 1.0), None, seed, n)
-    lines = [",".join(rows[0])]
-    lines += [",".join(f"{v:.9g}" for v in row.values()) for row in rows]
+    lines = [",".join(rows[0]) + (",specimen" if groups else "")]
+    labels = np.random.default_rng(seed + 1).integers(1, groups + 1, n) if groups else None
+    lines += [",".join(f"{v:.9g}" for v in row.values()) + (f",B{labels[i]}" if groups else "")
+              for i, row in enumerate(rows)]
     return "\n".join(lines) + "\n"
 
 
@@ -462,8 +465,8 @@ def _timed_parts() -> dict[str, float]:
     return spent
 
 
-def timing(n_rows: int, folds: int, plots: str | None) -> None:
-    text = synthetic_csv(n_rows)
+def timing(n_rows: int, folds: int, plots: str | None, groups: int = 0) -> None:
+    text = synthetic_csv(n_rows, groups=groups)
     spent = _timed_parts()
     start = time.perf_counter()
     dataset = parse_csv(text)
@@ -474,7 +477,8 @@ def timing(n_rows: int, folds: int, plots: str | None) -> None:
     fit(dataset, FIT)
     one_fit = time.perf_counter() - done
     total = done - start
-    print(f"rows: {n_rows:,}  folds: {folds}  fit: {', '.join(FIT)}")
+    print(f"rows: {n_rows:,}  folds: {folds}  fit: {', '.join(FIT)}"
+          + (f"  factor: specimen, {groups} labels" if groups else ""))
     print(f"parse CSV:                    {parsed - start:7.2f} s")
     previous = parsed
     for name, end in PROGRESS_STAGES.items():
@@ -517,6 +521,8 @@ def main() -> None:
     parser.add_argument("--rows", type=int, default=10_000)
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--plots", metavar="DIR", help="also write the timing run's plots (PNG) into DIR")
+    parser.add_argument("--groups", type=int, default=0,
+                        help="timing: add a factor column of this many labels (its spread is fitted)")
     args = parser.parse_args()
     if args.suite and args.part == "null":
         family_error(args.null_seeds, args.folds)
@@ -528,7 +534,7 @@ def main() -> None:
         suite(args.seeds, args.clean_seeds, args.folds, args.part,
               slice(int(start) if start else None, int(stop) if stop else None), args.distinct_clean_seeds)
     else:
-        timing(args.rows, args.folds, args.plots)
+        timing(args.rows, args.folds, args.plots, args.groups)
 
 
 if __name__ == "__main__":
