@@ -493,6 +493,8 @@ def timing(n_rows: int, folds: int, plots: str | None, groups: int = 0) -> None:
     print(f"one declared fit:             {one_fit:7.2f} s  -> calibration / one fit = {total / one_fit:.0f}")
     print(f"terms: {[e['label'] for e in result.effects]}")
     print(f"stability: {result.effect_stability['summary']}")
+    for group in result.groups:
+        print(f"groups: {group['summary']}")
     print(
         f"held-out relative RMSE of log mu: before {result.error_before['relative_rmse']:.4f}, "
         f"after (nested CV) {result.error_after['relative_rmse']:.4f}, "
