@@ -267,7 +267,7 @@ class CalibratedModel:
         mu = np.asarray(self._mu(points, self.fitted, [v for _, v in self.terms]), dtype=float)
         mu = mu * np.exp(self._discrepancy(points, mu.shape)[0])
         if self.groups:
-            mu = mu * np.exp(self._group_terms(points, labels, mu.shape, None)[0])
+            mu = mu * np.exp(self._group_terms(points, labels, mu.shape)[0])
         return mu
 
     def predict(self, points: Mapping[str, Any], level: float = 0.95) -> Prediction:
@@ -324,7 +324,7 @@ class CalibratedModel:
                     gradient[j] = 0.0
         gradient = np.where(np.isfinite(gradient), gradient, 0.0)
         variance = np.einsum("i...,ij,j...->...", gradient, self.covariance, gradient)
-        group_shift, group_variance = self._group_terms(points, labels, mu.shape, gradient, level)
+        group_shift, group_variance = self._group_terms(points, labels, mu.shape, level)
         sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + group_variance
                         + self._noise_variance(points, mu.shape))
         sigma = sigma * np.maximum(self.cloud_ratio(points, mu.shape), 1.0)
@@ -345,12 +345,11 @@ class CalibratedModel:
                 return np.square(self.scatter.std_log(columns, shape))
         return np.full(shape, float(self.noise_std_log or 0.0) ** 2)
 
-    def _group_terms(self, points: Mapping[str, Any], labels: Mapping[str, Any], shape, gradient,
+    def _group_terms(self, points: Mapping[str, Any], labels: Mapping[str, Any], shape,
                      level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
-        """Shift of log μ by the groups' levels and its variance at the points [1] (see :attr:`groups`).
-
-        ``gradient`` is not used (the sensitivity is taken where the parameter acts, which may be a
-        value the point gives)."""
+        """Shift of log μ by the groups' levels and its variance at the points [1] (see :attr:`groups`);
+        the sensitivity to a group's parameter is taken where the parameter acts, which may be a value
+        the point gives."""
         shift, variance = np.zeros(shape), np.zeros(shape)
         for group in self.groups:
             if group.parameter == "mu" or group.parameter not in self.fitted:
