@@ -531,6 +531,7 @@ def calibrate(
     warnings = parameter_warnings(baseline.full, final)
     confounding = confounding_words(confounded_pairs(varying), [t.drivers[0] for t in terms])
     confounding += _rival_drivers(selection)
+    warnings += _code_columns(dataset)
     if gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
         warnings.append(
             f"a Gaussian-process discrepancy predicts held-out rows better than the calibrated model "
@@ -616,6 +617,21 @@ def _group_effects(dataset: Dataset, final, terms, mu_after: np.ndarray, inliers
         shift = shift + effect.shift(labels, s)[0]
         effects.append(effect)
     return effects, shift
+
+
+def _code_columns(dataset: Dataset) -> list[str]:
+    """A sentence per condition column that looks like integer codes of groups (the values 1..k or 0..k-1,
+    3 <= k <= 20) and was not declared a factor: read as a number, it is a smooth driver."""
+    words = []
+    for name, values in dataset.conditions.items():
+        distinct = np.unique(values)
+        if 3 <= distinct.size <= 20 and np.all(distinct == np.round(distinct)) and (
+                distinct[0] in (0.0, 1.0) and distinct[-1] - distinct[0] == distinct.size - 1):
+            words.append(
+                f"{name} holds the whole numbers {distinct[0]:.0f}..{distinct[-1]:.0f}: if they label groups "
+                f"(specimens, builds, batches), declare {name} a factor (factors) so that the spread between "
+                f"groups is fitted instead of a smooth effect of the number")
+    return words
 
 
 def _rival_drivers(selection) -> list[str]:

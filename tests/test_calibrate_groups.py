@@ -274,6 +274,9 @@ def test_labels_and_declared_codes_calibrate_through_the_api_and_name_groups_in_
                                           params=[("fit_parameters", "mu_pivot"), ("folds", "3")],
                                           headers={"content-type": "text/csv"}))
     assert plain["groups"] == [] and "specimen" in plain["model"]["conditions"]
+    hint = "specimen holds the whole numbers 1..6: if they label groups"
+    assert any(w.startswith(hint) for w in plain["warnings"])
+    assert not any("whole numbers" in w for w in csv_result["warnings"])
     # /v1/friction: the build with the highest mu_pivot is predicted above a new one, its interval narrower.
     model = result["model_id"]
     point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "model": model}
