@@ -326,7 +326,7 @@ class CalibratedModel:
         variance = np.einsum("i...,ij,j...->...", gradient, self.covariance, gradient)
         group_shift, group_variance = self._group_terms(points, labels, mu.shape, level)
         sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + group_variance
-                        + self._noise_variance(points, mu.shape))
+                        + self._noise_variance(points, mu.shape, level))
         sigma = sigma * np.maximum(self.cloud_ratio(points, mu.shape), 1.0)
         z = float(stats.norm.isf((1.0 - level) / 2.0))
         mu = mu * np.exp(shift + group_shift)
@@ -336,13 +336,15 @@ class CalibratedModel:
         """Every column a point has: its own, else the model's fixed, fitted or default value."""
         return {**physics.defaults(), **self.fixed, **self.fitted, **points}
 
-    def _noise_variance(self, points: Mapping[str, Any], shape) -> np.ndarray:
-        """Variance of log μ of a new measurement around the model at the points [1]: the scatter model's,
-        or ``noise_std_log``² (also where the scatter model's column is not given)."""
+    def _noise_variance(self, points: Mapping[str, Any], shape, level: float = 0.95) -> np.ndarray:
+        """Variance of log μ of a new measurement around the model at the points [1]: the scatter model's
+        (a step's side scaled by Student's t of its rows, :meth:`ScatterModel.quantile_factor`), or
+        ``noise_std_log``² (also where the scatter model's column is not given)."""
         if self.scatter is not None and self.scatter.kind != "constant":
             columns = self._columns_at(points)
             if self.scatter.column in columns:
-                return np.square(self.scatter.std_log(columns, shape))
+                return np.square(self.scatter.std_log(columns, shape)
+                                 * self.scatter.quantile_factor(columns, shape, level))
         return np.full(shape, float(self.noise_std_log or 0.0) ** 2)
 
     def _group_terms(self, points: Mapping[str, Any], labels: Mapping[str, Any], shape,

@@ -104,6 +104,20 @@ class ScatterModel:
     range: list[float] = field(default_factory=list)
     cv: dict[str, float] = field(default_factory=dict)
     band: list[float] = field(default_factory=list)
+    rows: list[float] = field(default_factory=list)
+
+    def quantile_factor(self, columns: Mapping[str, Any], shape: tuple[int, ...] = (), level: float = 0.95
+                        ) -> np.ndarray:
+        """``t_{k-1} / z`` at points [1]: a step's spread on each side rests on the k rows there, so the
+        interval of a new measurement takes Student's t quantile of k - 1 degrees of freedom (1 without a
+        step or row counts)."""
+        if self.kind != "step" or len(self.rows) != 2:
+            return np.ones(shape)
+        z = float(stats.norm.isf((1.0 - level) / 2.0))
+        below, above = (float(stats.t.isf((1.0 - level) / 2.0, max(k - 1.0, 1.0))) / z for k in self.rows)
+        x = np.broadcast_to(np.asarray(columns[self.column], dtype=float), shape)
+        lo, hi = self.band or [self.split, self.split]
+        return np.where(x < lo, below, np.where(x >= hi, above, max(below, above)))
 
     def std_log(self, columns: Mapping[str, Any], shape: tuple[int, ...] = ()) -> np.ndarray:
         """Standard deviation of log μ at points [1], broadcast to ``shape``.
@@ -156,14 +170,14 @@ class ScatterModel:
         coefficients = ([c + shift for c in self.coefficients] if self.kind != "loglinear"
                         else [self.coefficients[0] + shift, self.coefficients[1]])
         return ScatterModel(self.kind, self.column, coefficients, self.split, self.transform, self.centre,
-                            self.scale, self.range, self.cv, self.band)
+                            self.scale, self.range, self.cv, self.band, self.rows)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""
         return {"kind": self.kind, "column": self.column, "coefficients": list(map(float, self.coefficients)),
                 "split": self.split, "transform": self.transform, "centre": self.centre, "scale": self.scale,
                 "range": list(map(float, self.range)), "cv": dict(self.cv),
-                "band": list(map(float, self.band))}
+                "band": list(map(float, self.band)), "rows": list(map(float, self.rows))}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> ScatterModel:
@@ -185,7 +199,7 @@ class ScatterModel:
                    str(data.get("transform", "linear")), float(data.get("centre", 0.0)),
                    float(data.get("scale", 1.0)), [float(v) for v in data.get("range", [])],
                    {str(k): float(v) for k, v in dict(data.get("cv", {})).items()},
-                   [float(v) for v in data.get("band", [])])
+                   [float(v) for v in data.get("band", [])], [float(v) for v in data.get("rows", [])])
 
 
 def _pct(log_sd: float) -> str:
@@ -210,13 +224,15 @@ def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray,
                     continue
                 v = np.array([max(np.mean(rk[below] ** 2), 1e-24), max(np.mean(rk[~below] ** 2), 1e-24)])
                 nll = 0.5 * (below.sum() * np.log(v[0]) + (~below).sum() * np.log(v[1]))
-                profile.append((nll, float(split), 0.5 * np.log(v)))
+                sides = [float(below.sum()), float((~below).sum())]
+                profile.append((nll, float(split), 0.5 * np.log(v), sides))
             if not profile:
                 return None
             best = min(profile, key=lambda item: item[0])
-            near = [split for nll, split, _ in profile if nll <= best[0] + _PROFILE_DROP]
+            near = [split for nll, split, _, _ in profile if nll <= best[0] + _PROFILE_DROP]
             model = ScatterModel("step", column, [float(best[2][0]), float(best[2][1])], best[1],
-                                 range=[float(np.min(x)), float(np.max(x))], band=[min(near), max(near)])
+                                 range=[float(np.min(x)), float(np.max(x))], band=[min(near), max(near)],
+                                 rows=best[3])
         else:
             transform = _transform(x)
             tx = np.log(x) if transform == "log" else x
@@ -339,7 +355,7 @@ def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: 
     model = _fit_one(kind, column, varying[column], r, threshold)
     return ScatterModel(model.kind, model.column, model.coefficients, model.split, model.transform,
                         model.centre, model.scale, model.range,
-                        {**cv, "loss_chosen": float(np.mean(losses[best]))}, model.band)
+                        {**cv, "loss_chosen": float(np.mean(losses[best]))}, model.band, model.rows)
 
 
 def _statistics(w2: np.ndarray, orders: list[np.ndarray], splits: list[np.ndarray],
