@@ -83,7 +83,8 @@ def _calibrate(args: argparse.Namespace) -> int:
         return EXIT_FILE
     fit = [name.strip() for name in (args.fit or "").split(",") if name.strip()]
     try:
-        dataset, intake = read_csv(text, parse_assignments(args.fixed), args.separator, args.decimal)
+        factors = [name.strip() for name in (args.factors or "").split(",") if name.strip()]
+        dataset, intake = read_csv(text, parse_assignments(args.fixed), args.separator, args.decimal, factors)
         print(f"{args.data}: {intake.summary()}", file=sys.stderr)
         report = calibrate(dataset, fit, folds=args.folds)
     except DataError as exc:
@@ -587,6 +588,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--fixed", metavar="NAME=VALUE", nargs="+", action="extend", default=[],
                    help="physics inputs fixed for every row, in their units (e.g. balls=4)")
     c.add_argument("--folds", type=int, default=5, help="cross-validation folds (default: %(default)s)")
+    c.add_argument("--factors", metavar="NAME,...",
+                   help="condition columns of integer codes to read as group labels (a column of text labels "
+                        "is one anyway)")
     c.add_argument("--plots", metavar="DIR", help="write the residual plots (PNG) into DIR")
     c.add_argument("--json", metavar="FILE", help="write the full report, with the calibrated model, as JSON")
     c.set_defaults(func=_calibrate)

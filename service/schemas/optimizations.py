@@ -130,10 +130,12 @@ class OptimizationRequest(StrictModel):
         "physics (a certified global optimum by geometric programming), surrogate:<id> or "
         "calibrated:<id> (a local optimum by sequential convex approximation; over an envelope, proven by "
         "geometric programming when the calibrated model's terms allow, see proof)."))
-    conditions: dict[str, ConditionRange] | None = Field(
+    conditions: dict[str, ConditionRange | str] | None = Field(
         default=None, description="Condition columns a calibrated model's terms read (e.g. "
         "relative_humidity, temperature_C), in the calibration data's units: a value, or [low, high] to "
-        "design for the worst case over the range (the operating envelope).",
+        "design for the worst case over the range (the operating envelope); a factor column takes a group "
+        "label (e.g. specimen: S3) in a point design; without one the design is judged for a new group, "
+        "the spread between groups in its interval.",
         examples=[{"relative_humidity": [0.3, 0.7], "temperature_C": [20, 60]}])
     tolerances: DesignTolerances | None = Field(
         default=None, description="Tolerances of design variables: the design must hold (objective and "
