@@ -159,7 +159,8 @@ def _envelope(body: OptimizationRequest, speed: Any) -> Envelope:
     if labels:
         raise validation_problem([{"pointer": f"/conditions/{name}", "detail": "a group label is taken by a "
                                    "design at one point only; over an operating envelope the design holds "
-                                   "for a new group (the spread between groups is in its interval): leave it out"}
+                                   "for a new group (the spread between groups is in its interval): leave "
+                                   "it out"}
                                   for name in labels])
     tolerances = {} if body.tolerances is None else body.tolerances.model_dump(exclude_none=True)
     try:
