@@ -535,12 +535,22 @@ def plan(
                 planned_r = np.asarray(rival.sensitivities(planned), dtype=float).reshape(-1, q)
                 planned_r = planned_r / planned_sigma[:, None]
                 fixed_r = fixed_r + planned_r.T @ planned_r
-            scale_r = 1.0 / np.maximum(np.sqrt(np.mean(np.square(g_r), axis=0)), 1e-300)
+            c_r = np.asarray(rival.sensitivities(envelope), dtype=float).reshape(-1, q)
+            # The criterion is invariant to a rescaling of the parameters; each is scaled by what it moves
+            # (the candidates, the envelope, or its prior information) so that the solver sees numbers
+            # near 1, and one that moves nothing and has no information is left out (it cannot matter).
+            reference = np.maximum.reduce([np.sqrt(np.mean(np.square(g_r), axis=0)),
+                                           np.sqrt(np.mean(np.square(c_r), axis=0)),
+                                           np.sqrt(np.clip(np.diag(fixed_r), 0.0, None) / runs)])
+            used = reference > 0
+            g_r, c_r, fixed_r = g_r[:, used], c_r[:, used], fixed_r[np.ix_(used, used)]
+            q = int(used.sum())
+            scale_r = 1.0 / reference[used]
             total = fixed_r + g_r.T @ g_r
             diagonal = np.sqrt(np.clip(np.diag(total), 1e-300, None))
             if q == 0 or np.linalg.eigvalsh(total / np.outer(diagonal, diagonal))[0] <= _SINGULAR:
                 continue  # a rival the space cannot identify has no finite envelope variance to hedge
-            c_r = np.asarray(rival.sensitivities(envelope), dtype=float).reshape(-1, q) * scale_r
+            c_r = c_r * scale_r
             problem.hedges.append((g_r * scale_r, fixed_r * np.outer(scale_r, scale_r) / runs,
                                    c_r.T @ c_r / c_r.shape[0]))
     if goal == "discriminate":
