@@ -263,10 +263,17 @@ class CalibratedResponse:
     def scatter_sd(self, points):
         """Standard deviation of one measurement of log μ at each point [1].
 
-        Where the calibration's input-dependent scatter model plugs in; today its one held-out scatter,
-        ``noise_std_log``, at every point.
+        The calibration's scatter model where it depends on an input (:mod:`calibrate.scatter`: a step or
+        a log-linear trend in one column, e.g. 10 % below 20 mm/s and 1.5 % above), so that runs where
+        measurements scatter less weigh more; else its one held-out scatter, ``noise_std_log``.
         """
         count = max((np.size(v) for v in points.values()), default=1)
+        scatter = getattr(self.model, "scatter", None)
+        if scatter is not None and scatter.kind != "constant":
+            columns = self.model._columns_at(points)
+            if scatter.column in columns:
+                return np.broadcast_to(np.asarray(scatter.std_log(columns, (count,)), dtype=float),
+                                       (count,)).copy()
         return np.full(count, float(self.model.noise_std_log))
 
     def prior_information(self):
