@@ -42,7 +42,10 @@ def test_numba_stores_only_the_outputs_asked_for(monkeypatch):
     assert fast.mu_contact is None and fast.max_contact_pressure_Pa is None
     for name in wanted:
         np.testing.assert_allclose(getattr(fast, name), getattr(reference, name), rtol=1e-12, atol=0)
-    assert fast.mu[0] == evaluate(balls=1, load_N=8.8e-3, speed_m_s=0.05, balls_touching=False).mu
+    # the compiled kernel agrees with the single-point path to the rounding of its own instruction
+    # choices (1 ulp seen on some processors), as with every output above
+    single = evaluate(balls=1, load_N=8.8e-3, speed_m_s=0.05, balls_touching=False).mu
+    np.testing.assert_allclose(fast.mu[0], single, rtol=1e-12, atol=0)
 
 
 def test_without_numba_large_calls_run_numpy(monkeypatch):

@@ -27,7 +27,7 @@ MAX_SPACE_VALUES = 200
 class SpaceRange(StrictModel):
     """A continuous range a lab can set (for ``balls``: every whole count in it)."""
 
-    low: float = Field(description="Lowest value [unit of the column: physics inputs as in /v1/meta, "
+    low: float = Field(description="Lowest value [unit of the column: physics inputs as in /v1/parameters, "
                                    "conditions as in the calibration data].")
     high: float = Field(description="Highest value, >= low [unit of the column].")
     spacing: Literal["linear", "log"] = Field(
@@ -106,7 +106,7 @@ class ProposedRun(ResponseModel):
     load_N: float = Field(description="Normal load on the slider [N].")
     speed_m_s: float = Field(description="Sliding speed [m/s].")
     inputs: dict[str, float | bool] = Field(
-        description="Other physics inputs of the space and of fixed, in their units (see /v1/meta).")
+        description="Other physics inputs of the space and of fixed, in their units (see /v1/parameters).")
     conditions: dict[str, float] = Field(description="Condition columns, in the calibration data's units.")
     mu: float = Field(description="mu the model predicts for the run [1].")
     mu_lower: float | None = Field(default=None, description="Lower end of its 95 % prediction interval "
