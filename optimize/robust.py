@@ -41,6 +41,19 @@ has no Gaussian-process discrepancy and no drift of a physics parameter, μ is a
 and G for every ball count, monotone in every envelope axis: its worst case is one vertex, and the
 robust problem one GP per ball count, proven as for the physics (objective ``mu``).
 
+Calibrated models with other effect terms (objective ``mu``): an outer approximation, certified
+-----------------------------------------------------------------------------------------------
+A term that is not monotone (a log-quadratic in temperature may peak inside the range) or falls where
+the physics rises (a Stribeck term in speed) leaves no single worst vertex, but still a rigorous bound:
+at a design, μ over any box of the envelope is at most the composition of the physics' maximum (its
+highest angle and speed) and each term's maximum over its driver's interval
+(:mod:`optimize.envelope_bound`), and branch and bound brackets the worst case to 1e-7. The design
+comes from the outer approximation below, with that bracket in place of the search; the certified
+lower bound on the best achievable worst case is the largest, over the worst points found, of the
+least μ over the designs at that point (there every term is a positive monomial in balls and load,
+so a geometric program per ball count, bounded by its dual). A gap within :data:`GAP_TARGET` is a
+proof; otherwise both bounds are stated and the result says it is not proven.
+
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
 A surrogate, a term that is not monotone (a quadratic in humidity may peak inside the range; a
@@ -78,6 +91,7 @@ from microbearing import physics
 from microbearing.physics.model import Model
 
 from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
+from .envelope_bound import CertifiedMax, certified_max, term_pieces
 from .general import optimize_model
 from .problem import DESIGN_VARIABLES, DesignBounds, DesignProblem, constraint_report
 from .solve import (
@@ -834,6 +848,83 @@ class _SetModel:
         return np.max(np.asarray(values, dtype=float).reshape(len(self.points), n), axis=0)
 
 
+def _certified_search(problem: DesignProblem, envelope: Envelope, model: Model, pieces: list,
+                      design: Mapping[str, Any], shift: float) -> CertifiedMax:
+    """The worst μ over the envelope at a design (angle θ' = θ + ``shift``), bracketed by branch and bound."""
+    balls, load = float(design["balls"]), float(design["load_N"])
+    theta = float(design["groove_angle_deg"]) - shift
+
+    def physics_mu(offset: np.ndarray, speed: np.ndarray) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            return physics.evaluate(convention=problem.convention, outputs=["mu"],
+                                    **problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed)).mu
+
+    return certified_max(pieces, physics_mu, _evaluator(problem, envelope, model, "mu", design, shift),
+                         envelope, {"balls": balls, "load_N": load})
+
+
+def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str, Any]) -> float:
+    """A certified lower bound [1] of the least μ over the designs at one envelope point (NaN: none).
+
+    At a fixed point every effect term is a positive monomial in balls and load_N (read and checked,
+    :func:`_monomials_at`), so the calibrated μ there is a posynomial and its minimum over the designs, with
+    the limits at that point, a geometric program per ball count (the dual bound of each, the least of them).
+    The limits at one point are a relaxation of the limits over the envelope, and the worst case of any
+    design is at least its μ at the point: the bound holds for the best achievable worst case.
+    """
+    terms = model.calibrated.terms
+    monomials, _ = _monomials_at([t for t, _ in terms], [v for _, v in terms], point)
+    if monomials is None:
+        return math.nan
+    try:
+        at_point = shifted_problem(problem, float(point["groove_angle_offset_deg"]),
+                                   float(point["speed_m_s"]))
+    except ValueError:
+        return math.nan
+    bounds = [answer[4] for answer in _calibrated_counts(at_point, monomials).values()]
+    return math.nan if not bounds or any(math.isnan(b) for b in bounds) else float(min(bounds))
+
+
+def _certified_proof(problem: DesignProblem, model: Model, bracket: CertifiedMax,
+                     points: list[dict[str, Any]], history: list[dict[str, Any]], rounds: int,
+                     ending: str) -> tuple[dict[str, Any], float]:
+    """The proof of a design whose worst μ is bracketed: the bracket, and the best lower bound at the points.
+
+    ``problem`` is in the nominal angle (the points carry their offsets). Returns the proof and the worst case
+    found at the design [1].
+    """
+    bounds = [_point_lower_bound(problem, model, p) for p in points]
+    known = [b for b in bounds if not math.isnan(b)]
+    upper = bracket.upper_bound
+    lower = min(max(known), upper) if known else None
+    gap = None if lower is None else max(0.0, (upper - lower) / upper)
+    proven = bool(gap is not None and gap <= GAP_TARGET)
+    statement = (
+        f"{model.reference}: the physics with its fitted values and its effect terms, each added to mu or "
+        "multiplying it and each a function of one driver; the physics' mu is non-decreasing in the angle "
+        "made and the speed (a posynomial), each term monotone in its driver or log-quadratic (its maximum "
+        "over an interval at an end or at its stationary point), so over any box of the envelope mu is at "
+        "most the composition of those maxima. Branch and bound over the envelope at the design "
+        f"({bracket.boxes} boxes{'' if bracket.complete else ', stopped at the box limit'}) brackets the "
+        "worst "
+        f"case: found {bracket.value:.10g}, certified at most {upper:.10g} (relative "
+        f"{bracket.relative_gap:.1e}). The design came from the outer approximation in {rounds} round(s) "
+        f"({ending}). Certified lower bound on the best achievable worst case "
+        f"{lower if lower is not None else float('nan'):.10g}: at {len(points)} envelope point(s) (the worst "
+        "one at the design first) mu is a posynomial in tan(theta) and load_N for every ball count (each "
+        "term "
+        "a positive monomial there, read and checked), and the least dual objective of those geometric "
+        "programs bounds every design's mu at that point; the largest such bound is taken. Relative gap "
+        f"{gap if gap is not None else float('nan'):.2e} (target {GAP_TARGET:g})")
+    statement += (": proven." if proven else
+                  ": not proven (the gap is above the target: the best bound found is stated).")
+    proof = {"proven": proven, "method": "outer-approximation-certified", "lower_bound": lower,
+             "upper_bound": upper, "relative_gap": gap, "gap_target": GAP_TARGET, "statement": statement,
+             "rounds": history, "worst_case_boxes": bracket.boxes,
+             "worst_case_relative_gap": bracket.relative_gap}
+    return proof, bracket.value
+
+
 def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, objective: str, starts: int,
                   max_rounds: int, progress: Callable[[float], None] | None,
                   map_calls: Callable | None, reason: str = "",
@@ -846,6 +937,11 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     # optimizer works in θ' = θ + δ, and the model is asked at θ' - δ + offset.
     shifted = shifted_problem(problem, delta, v_hi)
     points = initial_points or _vertices_and_centre(envelope)
+    initial_count = len(points)
+    # mu of a calibrated model whose terms are all bounded over a box: the worst case at each design is
+    # certified by branch and bound (optimize.envelope_bound), not searched.
+    pieces = term_pieces(model)[0] if objective == "mu" else None
+    bracket = None
     rounds, history, converged, timed_out = 0, [], False, False
     solved = None
     value, where = math.nan, None
@@ -858,8 +954,12 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
                                 map_calls=map_calls)
         design = _design_of(solved)
         on_set = float(set_model({k: np.array([v]) for k, v in design.items()})[0])
-        value, where, _ = worst_case_search(_evaluator(shifted, envelope, model, objective, design, delta),
-                                            envelope)
+        if pieces is not None:
+            bracket = _certified_search(shifted, envelope, model, pieces, design, delta)
+            value, where = bracket.value, bracket.point
+        else:
+            evaluate = _evaluator(shifted, envelope, model, objective, design, delta)
+            value, where, _ = worst_case_search(evaluate, envelope)
         history.append({"round": rounds, "points": len(points), "on_set": on_set, "searched": value})
         if value <= on_set * (1 + ENVELOPE_RTOL):
             value, converged = max(value, on_set), True
@@ -890,6 +990,10 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     proof = {"proven": False, "method": "outer-approximation-local", "lower_bound": None,
              "upper_bound": value,
              "relative_gap": None, "gap_target": GAP_TARGET, "statement": statement, "rounds": history}
+    if bracket is not None:
+        proof, value = _certified_proof(problem, model, bracket, [where, *points[initial_count:]], history,
+                                        rounds, ending)
+        statement = proof["statement"]
     worst_case = _worst_case_dict(objective, value, where, theta)
     # Price of robustness: the nominal optimum at the envelope's centre (no tolerance) and its worst case.
     centre = envelope.centre()
@@ -918,10 +1022,11 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     price = _price(nominal_design, nominal_centre, nominal_worst,
                    all(c.satisfied for c in limits if not c.name.startswith("groove_angle_deg")),
                    {**design, "groove_angle_deg": theta}, robust_centre, value)
-    certificate = f"Local optimum of the worst case over the envelope, not proven. {statement}"
+    certificate = (f"{'Proven' if proof['proven'] else 'Local'} optimum of the worst case over the envelope"
+                   f"{'' if proof['proven'] else ', not proven'}. {statement}")
     result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
                                           speed_m_s=float(where["speed_m_s"]),
-                                          method="outer-approximation-local",
+                                          method=proof["method"],
                                           solve_time_s=time.perf_counter() - start), delta)
     if progress is not None:
         progress(1.0)
@@ -1002,12 +1107,24 @@ def _term_structure(model: Model,
     conditions = {n: worst.get(n, lo) for n, (lo, _) in envelope.conditions.items()}
     vertex = {"speed_m_s": worst["speed_m_s"], "conditions": conditions,
               "groove_angle_offset_deg": envelope.angle_tolerance_deg}
+    monomials, reason = _monomials_at([t for t, _ in terms], [v for _, v in terms], vertex)
+    return (vertex if monomials is not None else None), monomials or [], reason
+
+
+def _monomials_at(terms: Sequence[Any], term_values: Sequence[Sequence[float]],
+                  point: Mapping[str, Any]) -> tuple[list[_Monomial] | None, str]:
+    """Each effect term at one envelope point as a positive monomial in (balls, load_N), or None and why.
+
+    Read at three designs and checked at a fourth (:data:`_PROBES`): a term the reading does not fit
+    is refused, not guessed.
+    """
     monomials = []
+    conditions = point["conditions"]
     z = np.array([p[0] for p in _PROBES])
     g = np.array([p[1] for p in _PROBES])
-    columns = {"balls": z, "load_N": g, "speed_m_s": np.full(z.shape, vertex["speed_m_s"]),
+    columns = {"balls": z, "load_N": g, "speed_m_s": np.full(z.shape, point["speed_m_s"]),
                **{n: np.full(z.shape, v) for n, v in conditions.items()}}
-    for term, values in terms:
+    for term, values in zip(terms, term_values, strict=True):
         effect = term.effect
         params = dict(zip(effect.parameter_names, values, strict=True))
         with np.errstate(all="ignore"):
@@ -1015,25 +1132,25 @@ def _term_structure(model: Model,
                 at = [effect.apply(np.full(z.shape, m), columns, params, term.drivers, term.constants)
                       for m in (0.0, 0.7, 1.0)]
             except ValueError as exc:
-                return None, [], str(exc)
+                return None, str(exc)
         added = at[0]
         if np.allclose(at[1], 0.7 + added, rtol=1e-12, atol=0.0) and np.all(added >= 0):
             kind, amount = "add", added
         elif np.allclose(at[1], 0.7 * at[2], rtol=1e-12, atol=0.0) and np.all(at[2] > 0):
             kind, amount = "mul", at[2]
         else:
-            return None, [], f"its term {term.label} is neither a positive addition nor a positive factor"
+            return None, f"its term {term.label} is neither a positive addition nor a positive factor"
         if kind == "add" and np.all(amount == 0):
             continue
         if not np.all(amount > 0):
-            return None, [], f"its term {term.label} vanishes at some designs only"
+            return None, f"its term {term.label} vanishes at some designs only"
         a = float(np.log2(amount[1] / amount[0]))
         b = float(np.log2(amount[2] / amount[0]))
         k = float(amount[0])
         if not math.isclose(k * 3.0**a * 0.37**b, float(amount[3]), rel_tol=1e-9):
-            return None, [], f"its term {term.label} is not a monomial in balls and load_N"
+            return None, f"its term {term.label} is not a monomial in balls and load_N"
         monomials.append(_Monomial(kind, k, a, b))
-    return vertex, monomials, ""
+    return monomials, ""
 
 
 def _compose(gp, monomials: list[_Monomial]):

@@ -1,0 +1,115 @@
+"""The certified worst case over an envelope (optimize.envelope_bound) against brute force, same model."""
+
+import itertools
+import types
+
+import numpy as np
+import pytest
+
+from microbearing import physics
+from microbearing.calibrate.candidates import EffectTerm
+from microbearing.calibrate.model import CalibratedModel
+from microbearing.calibrate.model_view import CalibratedPhysicsModel
+from microbearing.optimize import robust
+from microbearing.optimize.envelope_bound import certified_max, term_pieces
+from microbearing.optimize.problem import Constraints, DesignBounds, DesignProblem
+
+# A log-quadratic temperature term peaking inside the envelope (at 40 + 0.2 x 10 / (2 x 0.3) C, by hand) and
+# a Stribeck term falling with speed while the physics rises with it: the worst case is at no vertex.
+C1, C2, CENTRE, SCALE = 0.2, -0.3, 40.0, 10.0
+PEAK_C = CENTRE - C1 * SCALE / (2 * C2)
+
+
+def _model() -> CalibratedPhysicsModel:
+    calibrated = CalibratedModel(
+        fitted={"mu_pivot": 0.6},
+        terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
+               (EffectTerm("generic_quadratic", ("temperature_C",), {"centre": CENTRE, "scale": SCALE}),
+                [C1, C2]),
+               (EffectTerm("stribeck_breakaway", ("speed_m_s",)), [0.01, 0.02])],
+        covariance=np.diag([1e-4, 1e-12, 1e-4, 1e-4, 1e-6, 1e-8]), noise_std_log=0.02,
+        conditions=["relative_humidity", "temperature_C"])
+    return CalibratedPhysicsModel("calibrated:test", calibrated)
+
+
+ENVELOPE = robust.Envelope((0.01, 0.1), {"relative_humidity": (0.3, 0.7), "temperature_C": (20.0, 60.0)},
+                           {"groove_angle_deg": 0.5})
+
+
+def _grid_points(levels: int, extra=()):
+    axes = ENVELOPE.axes()
+    names = list(axes)
+    values = [np.unique(np.r_[np.linspace(*axes[n], levels), [e for a, e in extra if a == n]]) for n in names]
+    return [ENVELOPE.point(dict(zip(names, c, strict=True))) for c in itertools.product(*values)]
+
+
+def _bracket(problem, model, design):
+    pieces, reason = term_pieces(model)
+    assert pieces is not None, reason
+
+    def physics_mu(offset, speed):
+        return physics.evaluate(convention=problem.convention, outputs=["mu"], **problem.physics_inputs(
+            design["balls"], design["groove_angle_deg"] + offset, design["load_N"], speed_m_s=speed)).mu
+
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu", design, 0.0)
+    return certified_max(pieces, physics_mu, evaluate, ENVELOPE, design), evaluate
+
+
+def test_certified_worst_case_brackets_brute_force_inside_the_envelope():
+    model = _model()
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    design = {"balls": 5.0, "groove_angle_deg": 45.0, "load_N": 0.01}
+    bracket, evaluate = _bracket(problem, model, design)
+    # The maximum is inside the envelope in temperature, at the quadratic's peak: no vertex reaches it.
+    assert bracket.point["conditions"]["temperature_C"] == pytest.approx(PEAK_C, rel=1e-9)
+    vertices = _grid_points(2)
+    assert max(evaluate(vertices)) < bracket.value * (1 - 1e-3)
+    # Brute force, a grid of 11 levels per axis with the peak temperature added: never above the certified
+    # bound, and its maximum within the bracket's tolerance of the value found.
+    brute = evaluate(_grid_points(11, extra=[("conditions.temperature_C", PEAK_C)]))
+    assert brute.max() <= bracket.upper_bound
+    assert brute.max() == pytest.approx(bracket.value, rel=1e-6)
+    assert bracket.upper_bound <= bracket.value * (1 + 1e-6)
+    # The value found is the model's own.
+    assert float(evaluate([bracket.point])[0]) == pytest.approx(bracket.value, rel=1e-12)
+
+
+def test_robust_mu_with_non_monotone_terms_is_proven_and_no_grid_design_beats_the_bound():
+    model = _model()
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu")
+    proof = result.proof
+    assert proof["method"] == "outer-approximation-certified"
+    assert proof["proven"], proof["statement"]
+    assert proof["relative_gap"] <= robust.GAP_TARGET
+    assert proof["lower_bound"] <= result.worst_case["mu"] <= proof["upper_bound"]
+    held = robust._with_model_values(problem, model)
+    # The worst case at the design against brute force through the same model.
+    design = dict(result.result.design)
+    evaluate = robust._evaluator(held, ENVELOPE, model, "mu", design, 0.0)
+    brute = evaluate(_grid_points(9, extra=[("conditions.temperature_C", PEAK_C)]))
+    assert brute.max() <= proof["upper_bound"]
+    assert brute.max() == pytest.approx(result.worst_case["mu"], rel=1e-6)
+    # No design of a grid over the design box beats the certified lower bound: each one's mu at the worst
+    # point found is already at least the bound.
+    where = robust.Envelope.point(ENVELOPE, {"speed_m_s": result.worst_case["speed_m_s"],
+                                             "groove_angle_offset_deg": 0.5,
+                                             **{f"conditions.{n}": v
+                                                for n, v in result.worst_case["conditions"].items()}})
+    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    at_worst = robust._objective_values(model, "mu", robust._columns(held, ENVELOPE, designs, [where], 0.0),
+                                        held.convention)
+    assert at_worst.min() >= proof["lower_bound"] * (1 - 1e-9)
+
+
+def test_structures_without_a_bound_say_why():
+    gp = types.SimpleNamespace(reference="calibrated:gp",
+                               calibrated=types.SimpleNamespace(discrepancy=object(), terms=[]))
+    assert term_pieces(gp)[0] is None and "Gaussian-process" in term_pieces(gp)[1]
+    drift = types.SimpleNamespace(kind="drift", label="mu_pivot linear in temperature_C")
+    calibrated = types.SimpleNamespace(discrepancy=None, terms=[(drift, [1.0])])
+    drifting = types.SimpleNamespace(reference="calibrated:d", calibrated=calibrated)
+    assert term_pieces(drifting)[0] is None and "drifts" in term_pieces(drifting)[1]
