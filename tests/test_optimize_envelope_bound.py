@@ -11,7 +11,7 @@ from microbearing.calibrate.candidates import EffectTerm
 from microbearing.calibrate.model import CalibratedModel
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
 from microbearing.optimize import robust
-from microbearing.optimize.envelope_bound import certified_max, term_pieces
+from microbearing.optimize.envelope_bound import certified_max, mu_box_bound, term_pieces
 from microbearing.optimize.problem import Constraints, DesignBounds, DesignProblem
 
 # A log-quadratic temperature term peaking inside the envelope (at 40 + 0.2 x 10 / (2 x 0.3) C, by hand) and
@@ -52,7 +52,7 @@ def _bracket(problem, model, design):
             design["balls"], design["groove_angle_deg"] + offset, design["load_N"], speed_m_s=speed)).mu
 
     evaluate = robust._evaluator(problem, ENVELOPE, model, "mu", design, 0.0)
-    return certified_max(pieces, physics_mu, evaluate, ENVELOPE, design), evaluate
+    return certified_max(mu_box_bound(pieces, physics_mu, ENVELOPE, design), evaluate, ENVELOPE), evaluate
 
 
 def test_certified_worst_case_brackets_brute_force_inside_the_envelope():
@@ -113,3 +113,54 @@ def test_structures_without_a_bound_say_why():
     calibrated = types.SimpleNamespace(discrepancy=None, terms=[(drift, [1.0])])
     drifting = types.SimpleNamespace(reference="calibrated:d", calibrated=calibrated)
     assert term_pieces(drifting)[0] is None and "drifts" in term_pieces(drifting)[1]
+
+
+def _interval_model() -> CalibratedPhysicsModel:
+    """Fitted mu_pivot, menisci, the log-quadratic temperature term and a viscous drag, all uncertain."""
+    calibrated = CalibratedModel(
+        fitted={"mu_pivot": 0.6},
+        terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
+               (EffectTerm("generic_quadratic", ("temperature_C",), {"centre": CENTRE, "scale": SCALE}),
+                [C1, C2]),
+               (EffectTerm("viscous_drag", ("speed_m_s", "load_N")), [1e-5])],
+        covariance=np.diag([1e-4, 1e-12, 1e-4, 1e-4, 1e-12]), noise_std_log=0.02,
+        conditions=["relative_humidity", "temperature_C"])
+    return CalibratedPhysicsModel("calibrated:interval", calibrated)
+
+
+def test_certified_mu_upper_bounds_brute_force_where_the_interval_peaks_inside():
+    model = _interval_model()
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
+    proof = result.proof
+    assert proof["method"] == "outer-approximation-certified" and proof["proven"] is False
+    held = robust._with_model_values(problem, model)
+    evaluate = robust._evaluator(held, ENVELOPE, model, "mu_upper", dict(result.result.design), 0.0)
+    # The interval widens away from the quadratic's centre: mu_upper peaks inside the temperature range, near
+    # (not at) mu's peak; brute force on a grid refined around it never exceeds the certified bound.
+    peak_c = result.worst_case["conditions"]["temperature_C"]
+    assert 20.0 < peak_c < 60.0
+    brute = evaluate(_grid_points(9, extra=[("conditions.temperature_C", t)
+                                            for t in np.linspace(peak_c - 1, peak_c + 1, 41)]))
+    assert brute.max() <= proof["upper_bound"]
+    assert proof["upper_bound"] <= result.worst_case["mu_upper"] * (1 + 1e-5)
+    assert brute.max() == pytest.approx(result.worst_case["mu_upper"], rel=1e-5)
+    # The lower bound: every design's mu_upper at the worst point is at least exp(1.96 x noise) times the
+    # certified least mu there; no design of a grid beats it, and the gap is the parameters' share (< 10 %).
+    assert 0 < proof["relative_gap"] < 0.1
+    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
+                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
+    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    columns = robust._columns(held, ENVELOPE, designs, [where], 0.0)
+    at_worst = robust._objective_values(model, "mu_upper", columns, held.convention)
+    assert at_worst.min() >= proof["lower_bound"]
+
+
+def test_a_value_without_a_bound_leaves_mu_upper_searched():
+    model = _model()  # the Stribeck speed's effect on mu has no closed-form bound over a box here
+    problem = DesignProblem(DesignBounds((3, 5), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", max_rounds=2)
+    assert result.proof["method"] == "outer-approximation-local" and result.proof["proven"] is False
+    assert "No proof" in result.proof["statement"]
