@@ -1057,8 +1057,8 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
             f"at most {bracket.upper_bound:.10g} (relative {bracket.relative_gap:.1e}). The design came from "
             f"the outer approximation in {rounds} round(s) ({ending}).")
         # Every design's mu_upper at the worst point is at least exp(z noise) times its mu there (the interval
-        # is at least the scatter), and its mu there at least the dual bound of the geometric programs. Started
-        # from mu's proven worst vertex, that bound is already known (optimize_robust adds it).
+        # is at least the scatter), and its mu there at least the dual bound of the geometric programs.
+        # Started from mu's proven worst vertex, that bound is already known (optimize_robust adds it).
         at_worst = _point_lower_bound(problem, model, where) if initial_points is None else math.nan
         lower = None
         if not math.isnan(at_worst):
