@@ -113,9 +113,8 @@ from .solve import (
 )
 
 __all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE_NAMES", "Envelope",
-           "RobustGPResult", "RobustResult", "check_model", "dual_bound", "optimize_robust", "robust_gp",
-           "shifted_problem", "worst_case_of",
-           "worst_case_search"]
+           "RobustGPResult", "RobustResult", "certified_worst_case_of", "check_model", "dual_bound",
+           "optimize_robust", "robust_gp", "shifted_problem", "worst_case_of", "worst_case_search"]
 
 #: The objectives a design may minimize the worst case of.
 OBJECTIVES = ("mu", "mu_upper")
@@ -497,6 +496,51 @@ def worst_case_of(mu_model: Callable[[Mapping[str, Any]], Any], problem: DesignP
 
     value, point, _ = worst_case_search(evaluate, envelope)
     return value, point
+
+
+def certified_worst_case_of(mu_model: Callable[[Mapping[str, Any]], Any], problem: DesignProblem,
+                            envelope: Envelope,
+                            design: Mapping[str, Any]) -> tuple[float, dict[str, Any], bool]:
+    """The largest μ of a ``mu_model(points)`` callable over the envelope at a design, certified if it can be.
+
+    The physics (a callable of :func:`optimize.general.physics_model`, which carries ``physics_convention``)
+    grows with the angle made and the speed (its posynomial form, module docstring), and reads no
+    condition: its worst case is exactly its value at the angle made high and the highest speed. Any other
+    callable is searched (:func:`worst_case_of`), not bounded.
+
+    Parameters
+    ----------
+    mu_model : callable
+        ``points -> mu`` [1].
+    problem : DesignProblem
+        Its fixed values and convention.
+    envelope : Envelope
+        The envelope.
+    design : mapping
+        ``balls`` [1], ``groove_angle_deg`` (nominal) [deg], ``load_N`` [N].
+
+    Returns
+    -------
+    value : float
+        The worst case (exact for the physics; the largest found otherwise). [1]
+    point : dict
+        Where (:meth:`Envelope.point`).
+    certified : bool
+        Whether ``value`` is the proven maximum.
+    """
+    searched, where = worst_case_of(mu_model, problem, envelope, design)
+    if getattr(mu_model, "physics_convention", None) is None or envelope.conditions:
+        return searched, where, False
+    vertex = envelope.point({"speed_m_s": envelope.speed_m_s[1],
+                             "groove_angle_offset_deg": envelope.angle_tolerance_deg})
+    columns = _columns(problem, envelope, {k: np.array([float(design[k])]) for k in DESIGN_VARIABLES},
+                       [vertex], 0.0)
+    with np.errstate(all="ignore"):
+        value = float(np.asarray(mu_model(columns), dtype=float)[0])
+    # The search at the design is a check of the argument: nothing it finds may be above the vertex.
+    if searched > value * (1 + 1e-12):
+        return searched, where, False
+    return value, vertex, True
 
 
 def _vertices_and_centre(envelope: Envelope) -> list[dict[str, Any]]:

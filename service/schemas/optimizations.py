@@ -236,6 +236,10 @@ class Verification(ResponseModel):
     satisfied: bool = Field(description="Whether the source model meets every limit at the design.")
     resolves: int = Field(description="Re-solves with max_friction_force_N tightened by the ratio of the two "
                                       "friction forces (and a 1e-3 margin) after the source broke it [1].")
+    mu_source_certified: bool | None = Field(default=None, description=(
+        "Over an envelope: whether mu_source is the source's proven worst case (the physics grows with the "
+        "angle made and the speed: exact at the envelope's worst vertex) rather than the largest found by a "
+        "search; null for a design at one speed."))
 
 
 class Envelope(ResponseModel):
