@@ -53,7 +53,9 @@ _INTERVAL_ROUNDING = 1e-9
 #: Most boxes branched before the bound found so far is returned as it stands. [1]
 MAX_BOXES = 20000
 #: Boxes split per vectorized step. [1]
-_BATCH = 64
+_BATCH = 256
+#: Children per step (those of largest bound) at which the function itself is evaluated. [1]
+_EVALUATED = 16
 
 #: How each effect of physics.effects enters μ ("add": μ + a(x), "mul": μ m(x)), and whether it is monotone
 #: in its main driver (True) or log-quadratic (False: an end or the stationary point).
@@ -377,7 +379,12 @@ def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np
         child_lo, child_hi = np.vstack([lo, right_lo]), np.vstack([left_hi, hi])
         upper, peak = bound(child_lo, child_hi)
         count += len(child_lo)
-        rows = np.vstack([0.5 * (child_lo + child_hi), peak])
+        # The model itself is asked only in the boxes of largest bound (where a larger value may be).
+        n = len(child_lo)
+        top = np.argsort(-upper)[:_EVALUATED]
+        layers = len(peak) // n
+        rows = np.vstack([0.5 * (child_lo[top] + child_hi[top]),
+                          *(peak[layer * n + top] for layer in range(layers))])
         values = evaluated(rows)
         found = int(np.argmax(values))
         if values[found] > best_value:

@@ -797,7 +797,8 @@ def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_st
     statement = (f" Certified lower bound {lower:.10g}: mu_upper >= mu exp(1.96 x {noise_std_log:.4g}) "
                  "(the interval is at least the measurement scatter) and the worst mu over the envelope is "
                  f"proven at least {mu_result.proof['lower_bound']:.10g} (geometric programming, as for "
-                 f"objective mu); relative gap to the worst case found {gap:.2e}: the parameters' share of "
+                 f"objective mu); relative gap to the worst case's upper bound {gap:.2e}: the parameters' "
+                 "share of "
                  f"the interval. {'Not proven: the gap is above the target.' if gap > GAP_TARGET else ''}")
     proof = {**result.proof, "lower_bound": lower, "relative_gap": gap,
              "statement": result.proof["statement"] + statement}
