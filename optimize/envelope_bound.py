@@ -563,12 +563,21 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
             g_lo.append(np.where(ok, np.log1p(np.where(ok, ratio_lo, 0.0)) / h, -np.inf))
             g_hi.append(np.where(ok, np.log1p(np.where(ok, ratio_hi, 0.0)) / h, np.inf))
 
+        def adds_after(k: int) -> bool:
+            return any(piece.kind == "add" for piece in s.pieces[k + 1:])
+
         for name, value in s.fitted.items():
             h = s.step * (abs(value) if value != 0 else 1.0)
             output = LINEAR_DECLARED[name]
             basis_lo, basis_hi = phys[output][:n] / value, phys[output][n:] / value
-            p_lo, p_hi = after(-1)
-            r_lo, r_hi = _times_positive(h * basis_lo, h * basis_hi, p_lo / mu_hi, p_hi / safe_lo)
+            if adds_after(-1):
+                p_lo, p_hi = after(-1)
+                r_lo, r_hi = _times_positive(h * basis_lo, h * basis_hi, p_lo / mu_hi, p_hi / safe_lo)
+            else:  # mu = physics x the factors: D / mu = h x output / (p physics), the factors cancel
+                phys_lo = phys["mu"][:n]
+                ok = phys_lo > 0
+                r_lo = np.where(ok, h * basis_lo / phys["mu"][n:], -np.inf)
+                r_hi = np.where(ok, h * basis_hi / np.where(ok, phys_lo, 1.0), np.inf)
             gradient(r_lo, r_hi, h)
         for k, piece in enumerate(s.pieces):
             p_lo, p_hi = after(k)
@@ -594,8 +603,11 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
                         stepped = dataclasses.replace(piece, values=unit).at(x, columns)
                         phi = np.log(stepped / piece.at(x, columns))
                     f_lo, f_hi = np.expm1(h * np.min(phi, axis=1)), np.expm1(h * np.max(phi, axis=1))
-                    q_lo = levels_lo[k + 1] * p_lo / mu_hi
-                    q_hi = levels_hi[k + 1] * p_hi / safe_lo
+                    if adds_after(k):
+                        q_lo = levels_lo[k + 1] * p_lo / mu_hi
+                        q_hi = levels_hi[k + 1] * p_hi / safe_lo
+                    else:  # mu = (mu after this piece) x the factors after it: Q = 1 exactly
+                        q_lo = q_hi = np.ones(n)
                     positive = (q_lo > 0) & np.isfinite(q_hi)
                     r_lo, r_hi = _times_positive(f_lo, f_hi, np.where(positive, q_lo, 1.0),
                                                  np.where(positive, q_hi, 1.0))

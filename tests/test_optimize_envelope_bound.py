@@ -1,5 +1,6 @@
 """The certified worst case over an envelope (optimize.envelope_bound) against brute force, same model."""
 
+import dataclasses
 import itertools
 import types
 
@@ -11,7 +12,7 @@ from microbearing.calibrate.candidates import EffectTerm
 from microbearing.calibrate.model import CalibratedModel
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
 from microbearing.optimize import robust
-from microbearing.optimize.envelope_bound import certified_max, mu_box_bound, term_pieces
+from microbearing.optimize.envelope_bound import certified_max, interval_structures, mu_box_bound, term_pieces
 from microbearing.optimize.problem import Constraints, DesignBounds, DesignProblem
 
 # A log-quadratic temperature term peaking inside the envelope (at 40 + 0.2 x 10 / (2 x 0.3) C, by hand) and
@@ -164,3 +165,29 @@ def test_a_value_without_a_bound_leaves_mu_upper_searched():
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", max_rounds=2)
     assert result.proof["method"] == "outer-approximation-local" and result.proof["proven"] is False
     assert "No proof" in result.proof["statement"]
+
+
+def test_certified_mu_upper_holds_the_rivals_envelope():
+    # A rival law of humidity (log-linear instead of the Kelvin menisci) whose interval is wider at high
+    # humidity: mu_upper is the envelope of both, and the certified bound must hold it.
+    from microbearing.calibrate.model import RivalModel
+
+    rival = RivalModel("generic_linear on relative_humidity instead of humidity_meniscus", {"mu_pivot": 0.7},
+                       [(EffectTerm("generic_linear", ("relative_humidity",), {"centre": 0.5, "scale": 0.1}),
+                         [1.5])], np.diag([1e-3, 1e-2]))
+    base = _interval_model().calibrated
+    model = CalibratedPhysicsModel("calibrated:rivals", dataclasses.replace(base, rivals=[rival]))
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    structures, reason = interval_structures(model)
+    assert structures is not None and len(structures) == 2, reason
+    design = {"balls": 4.0, "groove_angle_deg": 50.0, "load_N": 0.005}
+    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    brute = evaluate(_grid_points(7, extra=[("conditions.temperature_C", PEAK_C)]))
+    assert brute.max() <= bracket.upper_bound <= bracket.value * (1 + 1e-5)
+    assert brute.max() == pytest.approx(bracket.value, rel=1e-4)
+    # the rival decides the worst case here: without it mu_upper is lower there
+    alone = CalibratedPhysicsModel("calibrated:alone", base)
+    without = robust._evaluator(problem, ENVELOPE, alone, "mu_upper", design, 0.0)([bracket.point])[0]
+    assert without < bracket.value
