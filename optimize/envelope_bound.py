@@ -39,8 +39,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["BOUND_RTOL", "INTERVAL_RTOL", "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES", "CertifiedMax",
-           "IntervalStructure", "Piece", "certified_max", "interval_structures", "mu_box_bound",
+__all__ = ["BOUND_RTOL", "INTERVAL_RTOL", "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
+           "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max", "interval_structures", "mu_box_bound",
            "mu_upper_box_bound", "term_pieces"]
 
 #: Relative distance between the certified upper bound and the value found at which branching stops. [1]
@@ -116,6 +116,29 @@ class Piece:
         return self.term.constants["centre"] - c1 * self.term.constants["scale"] / (2.0 * c2)
 
 
+#: The parts of a calibrated model the bounds here account for; a model with any other part set (a later
+#: addition: group effects, a scatter that depends on the inputs) is not bounded: said, not guessed.
+_BOUNDED_PARTS = frozenset({"fitted", "fixed", "terms", "convention", "covariance", "noise_std_log", "domain",
+                            "conditions", "discrepancy", "rivals"})
+
+
+def _unbounded_part(calibrated: Any) -> str | None:
+    """The first part of a calibrated model that is set and that the bounds do not know, or None."""
+    for part in dataclasses.fields(calibrated) if dataclasses.is_dataclass(calibrated) else ():
+        if part.name in _BOUNDED_PARTS:
+            continue
+        default = (part.default_factory() if part.default_factory is not dataclasses.MISSING
+                   else part.default)
+        value = getattr(calibrated, part.name)
+        if value is not default and not (isinstance(value, type(default)) and value == default):
+            return part.name
+    return None
+
+
+class BoundFailedError(ValueError):
+    """A box bound below the model's own value at a point inside the box: the bound's premise fails."""
+
+
 def term_pieces(model: Any) -> tuple[list[Piece] | None, str]:
     """The pieces of a calibrated model's μ, or None and why no bound is known for it.
 
@@ -135,6 +158,9 @@ def term_pieces(model: Any) -> tuple[list[Piece] | None, str]:
         return None, f"{model.reference} is not a calibrated model"
     if getattr(calibrated, "discrepancy", None) is not None:
         return None, "its Gaussian-process discrepancy has no bound over a box here"
+    unknown = _unbounded_part(calibrated)
+    if unknown is not None:
+        return None, f"its {unknown} has no bound over a box here"
     pieces = []
     for term, values in calibrated.terms:
         label = getattr(term, "label", term)
@@ -336,6 +362,12 @@ def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np
     Returns
     -------
     CertifiedMax
+
+    Raises
+    ------
+    BoundFailedError
+        When the function exceeds a box's bound at a point of the box (checked at every point evaluated):
+        the bound's premise does not hold for this model, and nothing is certified.
     """
     start = time.perf_counter()
     boxes = _Boxes(envelope, {"balls": 0.0, "load_N": 0.0})
@@ -353,6 +385,8 @@ def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np
     corners = np.array(list(itertools.product(*zip(root_lo, root_hi, strict=True))), dtype=float)
     rows = np.vstack([corners, 0.5 * (root_lo + root_hi)[None, :], peak]) if names else np.zeros((1, 0))
     values = evaluated(rows)
+    if np.any(values > float(upper[0]) * (1.0 + 1e-9)):
+        raise BoundFailedError("the model's value above the envelope's bound")
     best_index = int(np.argmax(values))
     best_value, best_row = float(values[best_index]), rows[best_index]
     if not names:
@@ -386,6 +420,11 @@ def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np
         rows = np.vstack([0.5 * (child_lo[top] + child_hi[top]),
                           *(peak[layer * n + top] for layer in range(layers))])
         values = evaluated(rows)
+        # Every evaluated point lies in its box: a value above the box's bound means the bound is wrong.
+        owner = np.tile(upper[top], len(rows) // len(top))
+        if np.any(values > owner * (1.0 + 1e-9)):
+            excess = float(np.max(values - owner))
+            raise BoundFailedError(f"the model's value {excess:.3g} above a box's bound")
         found = int(np.argmax(values))
         if values[found] > best_value:
             best_value, best_row = float(values[found]), rows[found]

@@ -94,6 +94,7 @@ from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
 from .envelope_bound import (
     INTERVAL_RTOL,
     LINEAR_DECLARED,
+    BoundFailedError,
     CertifiedMax,
     certified_max,
     interval_structures,
@@ -1050,9 +1051,13 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         design = _design_of(solved)
         on_set = float(set_model({k: np.array([v]) for k, v in design.items()})[0])
         if certify is not None:
-            bracket = certify(shifted, design, delta)
-            value, where = bracket.value, bracket.point
-        else:
+            try:
+                bracket = certify(shifted, design, delta)
+                value, where = bracket.value, bracket.point
+            except BoundFailedError as exc:  # the model breaks the bound's premise: searched, and said so
+                certify, bracket = None, None
+                reason = f"its bound over a box failed a check ({exc})"
+        if certify is None:
             evaluate = _evaluator(shifted, envelope, model, objective, design, delta)
             value, where, _ = worst_case_search(evaluate, envelope)
         history.append({"round": rounds, "points": len(points), "on_set": on_set, "searched": value})

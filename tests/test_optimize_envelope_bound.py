@@ -191,3 +191,34 @@ def test_certified_mu_upper_holds_the_rivals_envelope():
     alone = CalibratedPhysicsModel("calibrated:alone", base)
     without = robust._evaluator(problem, ENVELOPE, alone, "mu_upper", design, 0.0)([bracket.point])[0]
     assert without < bracket.value
+
+
+def test_a_bound_whose_premise_fails_is_caught_and_the_search_takes_over():
+    # A box bound that ignores the physics (zero) is below the model everywhere: the check at the points
+    # evaluated raises (optimize_robust then falls back to the searched outer approximation, unproven).
+    from microbearing.optimize.envelope_bound import BoundFailedError
+
+    def wrong(lo, hi):
+        return np.zeros(len(lo)), hi
+
+    model = _model()
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu", {"balls": 4.0, "groove_angle_deg": 50.0,
+                                                                  "load_N": 0.005}, 0.0)
+    with pytest.raises(BoundFailedError):
+        certified_max(wrong, evaluate, ENVELOPE)
+
+
+def test_a_part_the_bounds_do_not_know_is_refused():
+    @dataclasses.dataclass(frozen=True)
+    class Later:  # a calibrated model with a part added later (say, a scatter that depends on the inputs)
+        terms: list = dataclasses.field(default_factory=list)
+        discrepancy: object = None
+        scatter_model: object = None
+
+    plain = types.SimpleNamespace(reference="calibrated:later", calibrated=Later())
+    assert term_pieces(plain)[0] == []
+    later = types.SimpleNamespace(reference="calibrated:later",
+                                  calibrated=Later(scatter_model={"slope": 1.0}))
+    assert term_pieces(later)[0] is None and "scatter_model" in term_pieces(later)[1]
