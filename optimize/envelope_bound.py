@@ -40,8 +40,8 @@ from typing import Any
 import numpy as np
 
 __all__ = ["BOUND_RTOL", "INTERVAL_RTOL", "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
-           "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max", "interval_structures", "mu_box_bound",
-           "mu_upper_box_bound", "term_pieces"]
+           "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max",
+           "interval_structures", "mu_box_bound", "mu_upper_box_bound", "term_pieces"]
 
 #: Relative distance between the certified upper bound and the value found at which branching stops. [1]
 BOUND_RTOL = 1e-7
