@@ -21,8 +21,14 @@ The bound is exact where every piece peaks at the same point (a vertex, or the s
 lone quadratic), and otherwise over-estimates by at most the pieces' variation across the box. Branch
 and bound (the box of largest bound split in half along its widest axis, relative to the envelope)
 narrows it until the largest bound left is within ``rtol`` of the largest value of the model itself
-found (at every box's centre and at the point where its pieces peak): the true maximum lies between
-the two, a certificate, not a search. A term drifting a physics parameter, a Gaussian-process
+found (at the centre and the point where the pieces peak of the boxes of largest bound): the true
+maximum lies between the two, a certificate, not a search.
+
+The 95 % upper bound, μ exp(z σ) with σ² = g'Cg + noise² (g the finite-difference gradient of log μ in
+the fitted values, C their covariance), is bounded the same way by interval arithmetic on that closed
+form (:func:`mu_upper_box_bound`), for the model and each rival whose envelope it takes. Every value
+the model itself gives at a point of a box is checked against the box's bound
+(:class:`BoundFailedError`), so a model the premises do not fit is caught where it shows. A term drifting a physics parameter, a Gaussian-process
 discrepancy or an effect not in :data:`_PIECES` have no such bound here: :func:`term_pieces` says why.
 """
 
