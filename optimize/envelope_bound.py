@@ -28,8 +28,9 @@ The 95 % upper bound, μ exp(z σ) with σ² = g'Cg + noise² (g the finite-diff
 the fitted values, C their covariance), is bounded the same way by interval arithmetic on that closed
 form (:func:`mu_upper_box_bound`), for the model and each rival whose envelope it takes. Every value
 the model itself gives at a point of a box is checked against the box's bound
-(:class:`BoundFailedError`), so a model the premises do not fit is caught where it shows. A term drifting a physics parameter, a Gaussian-process
-discrepancy or an effect not in :data:`_PIECES` have no such bound here: :func:`term_pieces` says why.
+(:class:`BoundFailedError`), so a model the premises do not fit is caught where it shows. A term
+drifting a physics parameter, a Gaussian-process discrepancy or an effect not in :data:`_PIECES` have
+no such bound here: :func:`term_pieces` says why.
 """
 
 from __future__ import annotations
