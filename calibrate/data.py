@@ -6,6 +6,13 @@ conditions of each measurement (humidity, temperature, run, ...), which the
 calibration treats as candidate drivers of the residual. Physics parameters
 absent from the columns take the values fixed in the request or their defaults.
 
+A **factor** is a condition column of labels: specimens, builds, batches, operators. A condition
+column none of whose cells is a number is one (``S1``, ``S2``, ...); a column of integer codes is
+one when the request declares it (``factors``). A factor is never a continuous driver of the
+residual: the calibration fits how much the model varies from one group to the next
+(:mod:`calibrate.groups`). A condition column with numbers in some cells and labels in others is
+an error on each label, which says how to declare the column a factor.
+
 Every bad cell is reported, row by row, in one :class:`DataError`; no row is
 ever dropped silently. Rows are numbered from 1, the first data row (the CSV
 header is not a row).
@@ -17,15 +24,15 @@ import csv
 import io
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from microbearing import physics
 
-__all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "parse_assignments", "parse_csv",
-           "parse_rows"]
+__all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "factor_label", "parse_assignments",
+           "parse_csv", "parse_rows"]
 
 #: Column of the measured friction coefficient. [1]
 MU_MEASURED = "mu_measured"
@@ -86,6 +93,8 @@ class Dataset:
         Standard deviation of each measured μ, > 0. [1]
     fixed : dict
         Physics parameters fixed for every row by the request (not columns), validated.
+    factors : dict of str to numpy.ndarray
+        Factor columns (group labels as strings, e.g. specimens), one label per row.
     """
 
     physics_columns: dict[str, np.ndarray]
@@ -93,6 +102,7 @@ class Dataset:
     mu_measured: np.ndarray
     mu_measured_std: np.ndarray | None
     fixed: dict[str, float | bool]
+    factors: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def n_points(self) -> int:
@@ -115,10 +125,12 @@ class Dataset:
             self.mu_measured[rows],
             None if self.mu_measured_std is None else self.mu_measured_std[rows],
             dict(self.fixed),
+            {k: v[rows] for k, v in self.factors.items()},
         )
 
 
-def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None) -> Dataset:
+def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None,
+              factors: Sequence[str] = ()) -> Dataset:
     """Parse measured data from CSV text with a header row.
 
     Parameters
@@ -129,6 +141,9 @@ def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None) -> Data
         skipped. Only the newline that ends the last line is ignored.
     fixed : mapping, optional
         Physics parameters fixed for every row, e.g. ``{"balls": 4}``.
+    factors : sequence of str
+        Condition columns to read as group labels even when they hold numbers (integer codes of
+        specimens, builds, batches); a column with no number in it is a factor anyway.
 
     Returns
     -------
@@ -180,18 +195,22 @@ def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None) -> Data
             errors.append({"row": number, "column": None,
                            "message": f"has {len(cells)} cells but the header has {len(header)}"})
         rows.append({name: (cells[i].strip() if i < len(cells) else "") for i, name in enumerate(header)})
-    return _build(rows, header, fixed or {}, from_text=True, errors=errors)
+    return _build(rows, header, fixed or {}, from_text=True, errors=errors, factors=factors)
 
 
-def parse_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None = None) -> Dataset:
+def parse_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None = None,
+               factors: Sequence[str] = ()) -> Dataset:
     """Check measured data given as JSON-like rows.
 
     Parameters
     ----------
     rows : sequence of mapping
-        One mapping per measurement, column name -> number (or boolean for ``balls_touching``).
+        One mapping per measurement, column name -> number (or boolean for ``balls_touching``; or a
+        label string in a factor column).
     fixed : mapping, optional
         Physics parameters fixed for every row.
+    factors : sequence of str
+        Condition columns to read as group labels even when they hold numbers (as :func:`parse_csv`).
 
     Returns
     -------
@@ -218,7 +237,7 @@ def parse_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | Non
             continue
         names.extend(k for k in row if k not in names)
     good_rows = [r if isinstance(r, Mapping) else {} for r in rows]
-    return _build(good_rows, names, fixed or {}, from_text=False, errors=errors)
+    return _build(good_rows, names, fixed or {}, from_text=False, errors=errors, factors=factors)
 
 
 def parse_assignments(items: Sequence[str]) -> dict[str, float | bool]:
@@ -266,6 +285,26 @@ def parse_assignments(items: Sequence[str]) -> dict[str, float | bool]:
     return values
 
 
+def factor_label(value: Any) -> str:
+    """A group label as text: integer-valued numbers without a decimal point, strings stripped.
+
+    The same label whether it came from CSV text, a JSON number or a JSON string.
+
+    Examples
+    --------
+    >>> factor_label(3), factor_label(3.0), factor_label(" 3 "), factor_label("S1"), factor_label(2.5)
+    ('3', '3', '3', 'S1', '2.5')
+    """
+    if isinstance(value, bool | np.bool_):
+        return str(bool(value)).lower()
+    if isinstance(value, str):
+        text = value.strip()
+        number, problem = _number(text, True)
+        return text if problem is not None else factor_label(number)
+    number = float(value)
+    return str(int(number)) if number.is_integer() else repr(number)
+
+
 def _missing(value) -> bool:
     return value is None or (isinstance(value, str) and value.strip() == "")
 
@@ -274,12 +313,10 @@ def _number(value, from_text: bool) -> tuple[float | None, str | None]:
     if isinstance(value, bool) or isinstance(value, np.bool_):
         return None, f"expected a number; got the boolean {value!r}"
     if isinstance(value, str):
-        if not from_text:
-            return None, f"expected a number; got the string {value!r}"
         try:
             number = float(value)
         except ValueError:
-            return None, f"expected a number; got {value!r}"
+            return None, f"expected a number; got {'the string ' if not from_text else ''}{value!r}"
     elif isinstance(value, int | float | np.integer | np.floating):
         number = float(value)
     else:
@@ -307,9 +344,28 @@ def _range_message(spec: physics.Parameter, value: float) -> str | None:
     return None
 
 
-def _build(rows, names, fixed, from_text, errors) -> Dataset:
+def _is_factor(name: str, cells: Sequence[Any], declared: Sequence[str]) -> bool:
+    """A condition column read as labels: declared a factor, or without a number in any cell."""
+    if name in physics.PARAMETERS or name in (MU_MEASURED, MU_MEASURED_STD):
+        return False
+    if name in declared:
+        return True
+    given = [c for c in cells if not _missing(c)]
+    return bool(given) and all(_number(c, True)[1] is not None for c in given)
+
+
+def _build(rows, names, fixed, from_text, errors, factors=()) -> Dataset:
     """Check every cell; a row given as None is already reported (a blank CSV line) and skipped."""
     n = len(rows)
+    factors = list(dict.fromkeys(str(f) for f in factors))
+    for name in factors:
+        if name not in names:
+            errors.append({"row": None, "column": name,
+                           "message": "declared a factor but the data have no such column"})
+        elif name in physics.PARAMETERS or name in (MU_MEASURED, MU_MEASURED_STD):
+            errors.append({"row": None, "column": name,
+                           "message": "declared a factor but it is a physics input or mu_measured; only a "
+                                      "condition column can be a factor"})
     if n == 0:
         errors.append({"row": None, "column": None, "message": "no data rows"})
     checked_fixed: dict[str, Any] = {}
@@ -333,12 +389,27 @@ def _build(rows, names, fixed, from_text, errors) -> Dataset:
                            "message": f"required physics parameter is neither a column nor fixed "
                                       f"({spec.range_text()} [{spec.unit}])"})
 
-    physics_columns, conditions = {}, {}
+    physics_columns, conditions, labels = {}, {}, {}
     mu = std = None
     for name in names:
         cells = [None if row is None else row.get(name) for row in rows]
         if all(_missing(c) for c in cells):
             errors.append({"row": None, "column": name, "message": "column has no values; fill or remove it"})
+            continue
+        if _is_factor(name, cells, factors):
+            column = np.empty(n, dtype=object)
+            for i, cell in enumerate(cells):
+                if rows[i] is None:
+                    continue
+                if _missing(cell):
+                    errors.append({"row": i + 1, "column": name,
+                                   "message": "missing label of a factor column"})
+                elif isinstance(cell, Mapping | list):
+                    errors.append({"row": i + 1, "column": name,
+                                   "message": f"expected a label (text or number); got {cell!r}"})
+                else:
+                    column[i] = factor_label(cell)
+            labels[name] = column.astype(str)
             continue
         spec = physics.PARAMETERS.get(name)
         values = np.zeros(n, dtype=bool if spec is not None and spec.kind == "bool" else float)
@@ -357,6 +428,10 @@ def _build(rows, names, fixed, from_text, errors) -> Dataset:
             elif problem is None and name == MU_MEASURED_STD and value <= 0:
                 problem = f"must be > 0 [1]; got {value!r}"
             if problem is not None:
+                condition = spec is None and name not in (MU_MEASURED, MU_MEASURED_STD)
+                if condition and "expected a number" in problem:
+                    problem += (f" (a condition column of labels is a factor: give every row a label, or "
+                                f"declare {name} in factors)")
                 errors.append({"row": i + 1, "column": name, "message": problem})
             else:
                 values[i] = value
@@ -370,4 +445,4 @@ def _build(rows, names, fixed, from_text, errors) -> Dataset:
             conditions[name] = values
     if errors:
         raise DataError(sorted(errors, key=lambda e: (e["row"] is not None, e["row"] or 0)))
-    return Dataset(physics_columns, conditions, mu, std, checked_fixed)
+    return Dataset(physics_columns, conditions, mu, std, checked_fixed, labels)

@@ -16,6 +16,17 @@ theirs, so that it holds their disagreement where they part ways off the data.
 
 Models stored before version 2 (one effect, no covariance, no domain) still
 load; they answer μ without an interval and without a domain check.
+
+Three optional parts make the interval follow the data (models without them answer as before):
+
+* ``groups`` (:class:`calibrate.groups.GroupEffect`): a factor column's random effect. A point naming
+  a known group (its label under the factor's name) is moved by that group's level; a new label, or
+  none, carries the spread between groups in its interval.
+* ``scatter`` (:class:`calibrate.scatter.ScatterModel`): the measurement scatter as a function of one
+  input, in place of the one ``noise_std_log`` everywhere.
+* ``cloud`` (:class:`calibrate.domain.DataCloud`): the joint cloud of the data's rows. A point far
+  from every row is out of the domain even inside every column's range, and its interval's log
+  half-width grows with the distance.
 """
 
 from __future__ import annotations
@@ -30,6 +41,10 @@ from scipy import stats
 from microbearing import physics
 
 from .candidates import Term, mu_of, term_from_json
+from .data import factor_label
+from .domain import DataCloud
+from .groups import GroupEffect
+from .scatter import ScatterModel
 
 __all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMAT_VERSION"]
 
@@ -207,6 +222,18 @@ class CalibratedModel:
     rivals : list of RivalModel
         Models whose terms fit the data about as well (:mod:`calibrate.rivals`): the 95 % interval is
         the envelope of this model's and theirs, so that it holds their disagreement off the data.
+    groups : list of GroupEffect
+        Random effects of the data's factor columns (group labels); a point may name its group.
+    scatter : ScatterModel or None
+        Standard deviation of log μ of a new measurement as a function of an input [1] (None: the
+        one ``noise_std_log`` everywhere).
+    cloud : DataCloud or None
+        The data's rows in scaled inputs, for the joint-cloud domain check.
+    domain_rows : int or None
+        Rows of the data the domain was taken from [1]; with it, a column's range is widened by twice
+        the mean spacing of its values, 2 (max - min) / (rows - 1), at each end (a new point drawn like
+        the data lies beyond a sample's extreme with chance 1/(rows + 1) per column and end: a box of the
+        exact extremes flags several per cent of ordinary points when there are several columns).
     """
 
     fitted: dict[str, float] = field(default_factory=dict)
@@ -218,10 +245,24 @@ class CalibratedModel:
     domain: dict[str, list[float]] | None = None
     conditions: list[str] = field(default_factory=list)
     discrepancy: GPCorrection | None = field(default=None, repr=False)
+    groups: list[GroupEffect] = field(default_factory=list)
+    scatter: ScatterModel | None = None
+    cloud: DataCloud | None = field(default=None, repr=False)
+    domain_rows: int | None = None
     rivals: list[RivalModel] = field(default_factory=list, repr=False)
     #: Relative step of the finite-difference gradient of log μ in each fitted value (the interval's
     #: parameter share; absolute for a value of 0), for callers that bound the interval. [1]
     gradient_step: ClassVar[float] = _GRADIENT_STEP
+
+    @property
+    def factors(self) -> list[str]:
+        """Factor columns (group labels) a point may give."""
+        return [g.factor for g in self.groups]
+
+    def split_factors(self, points: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+        """The points' numeric columns, and their factor columns (group labels)."""
+        labels = {k: v for k, v in points.items() if k in self.factors}
+        return {k: v for k, v in points.items() if k not in labels}, labels
 
     @property
     def required_columns(self) -> list[str]:
@@ -237,7 +278,8 @@ class CalibratedModel:
         """Raise ValueError naming a column that is neither a physics input nor a known condition,
         or a condition the terms need that is missing."""
         if self.domain is not None:
-            unknown = [n for n in names if n not in physics.PARAMETERS and n not in self.conditions]
+            unknown = [n for n in names if n not in physics.PARAMETERS and n not in self.conditions
+                       and n not in self.factors]
             if unknown:
                 known = ", ".join(self.conditions) or "none"
                 raise ValueError(
@@ -288,8 +330,12 @@ class CalibratedModel:
             For invalid physics inputs, an unknown condition column or a missing one the terms need.
         """
         self.check_columns(points)
+        points, labels = self.split_factors(points)
         mu = np.asarray(self._mu(points, self.fitted, [v for _, v in self.terms]), dtype=float)
-        return mu * np.exp(self._discrepancy(points, mu.shape)[0])
+        mu = mu * np.exp(self._discrepancy(points, mu.shape)[0])
+        if self.groups:
+            mu = mu * np.exp(self._group_terms(points, labels, mu.shape)[0])
+        return mu
 
     def predict(self, points: Mapping[str, Any], level: float = 0.95) -> Prediction:
         """μ with its prediction interval and a domain check, at columnar points.
@@ -309,7 +355,10 @@ class CalibratedModel:
         Prediction
             μ [1], the bounds [1] (log-normal: μ exp(± z σ), σ² the parameter variance of log μ at
             the point, plus the GP discrepancy's predictive variance there when the model has one,
-            plus :attr:`noise_std_log`²), the domain flag per point and the warnings.
+            plus the group's (a known group's level, or the spread between groups for a new one),
+            plus the scatter² at the point (:attr:`scatter`, else :attr:`noise_std_log`²); σ times the
+            distance ratio beyond the data cloud where it exceeds 1), the domain flag per point and
+            the warnings.
 
         Raises
         ------
@@ -322,6 +371,7 @@ class CalibratedModel:
         # interval, and a rival keeps its own value.
         points = {name: value for name, value in points.items() if not (
             name in self.fitted and np.ndim(value) == 0 and float(value) == self.fitted[name])}
+        points, labels = self.split_factors(points)
         values = [list(v) for _, v in self.terms]
         mu = np.asarray(self._mu(points, self.fitted, values), dtype=float)
         shift, discrepancy_variance = self._discrepancy(points, mu.shape)
@@ -346,15 +396,18 @@ class CalibratedModel:
                     gradient[j] = 0.0
         gradient = np.where(np.isfinite(gradient), gradient, 0.0)
         variance = np.einsum("i...,ij,j...->...", gradient, self.covariance, gradient)
-        sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + self.noise_std_log**2)
+        group_shift, group_variance = self._group_terms(points, labels, mu.shape, level)
+        sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + group_variance
+                        + self._noise_variance(points, mu.shape, level))
+        sigma = sigma * np.maximum(self.cloud_ratio(points, mu.shape), 1.0)
         z = float(stats.norm.isf((1.0 - level) / 2.0))
-        mu = mu * np.exp(shift)
+        mu = mu * np.exp(shift + group_shift)
         lower, upper = mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
         for rival in self.rival_models():
             # The envelope of the rivals' intervals (calibrate.rivals); a rival that cannot predict a
             # point (a driver outside its law) leaves it to the others.
             try:
-                other = rival.predict(points, level)
+                other = rival.predict({**points, **labels}, level)
             except ValueError:
                 continue
             ok = np.isfinite(other.mu_lower) & np.isfinite(other.mu_upper) & (other.mu_lower > 0)
@@ -363,9 +416,80 @@ class CalibratedModel:
         return Prediction(mu, lower, upper, in_domain, warnings)
 
     def rival_models(self) -> list[CalibratedModel]:
-        """Each rival as a model of its own (same fixed values, scatter and discrepancy; no domain)."""
+        """Each rival as a model of its own (same fixed values, scatter, groups, data cloud and
+        discrepancy; no column box)."""
         return [replace(self, fitted=dict(r.fitted), terms=list(r.terms), covariance=r.covariance,
                         domain=None, rivals=[]) for r in self.rivals]
+
+    def _columns_at(self, points: Mapping[str, Any]) -> dict[str, Any]:
+        """Every column a point has: its own, else the model's fixed, fitted or default value."""
+        return {**physics.defaults(), **self.fixed, **self.fitted, **points}
+
+    def _noise_variance(self, points: Mapping[str, Any], shape, level: float = 0.95) -> np.ndarray:
+        """Variance of log μ of a new measurement around the model at the points [1]: the scatter model's
+        (a step's side scaled by Student's t of its rows, :meth:`ScatterModel.quantile_factor`), or
+        ``noise_std_log``² (also where the scatter model's column is not given)."""
+        if self.scatter is not None and self.scatter.kind != "constant":
+            columns = self._columns_at(points)
+            if self.scatter.column in columns:
+                return np.square(self.scatter.std_log(columns, shape)
+                                 * self.scatter.quantile_factor(columns, shape, level))
+        return np.full(shape, float(self.noise_std_log or 0.0) ** 2)
+
+    def _group_terms(self, points: Mapping[str, Any], labels: Mapping[str, Any], shape,
+                     level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+        """Shift of log μ by the groups' levels and its variance at the points [1] (see :attr:`groups`);
+        the sensitivity to a group's parameter is taken where the parameter acts, which may be a value
+        the point gives."""
+        shift, variance = np.zeros(shape), np.zeros(shape)
+        for group in self.groups:
+            if group.parameter == "mu" or group.parameter not in self.fitted:
+                s = np.ones(shape)
+            else:
+                # d log mu / d log p at the points, by a finite difference of p where it acts: a point may
+                # give p itself (an optimizer passes the model's fitted values as inputs).
+                name = group.parameter
+                value = np.asarray(points.get(name, self.fitted[name]), dtype=float)
+                step = _GRADIENT_STEP * np.maximum(np.abs(value), 1e-12)
+                values = [v for _, v in self.terms]
+                with np.errstate(all="ignore"):
+                    base = np.log(self._mu(points, self.fitted, values))
+                    if name in points:
+                        moved = np.log(self._mu({**points, name: value + step}, self.fitted, values))
+                    else:
+                        moved = np.log(self._mu(points, {**self.fitted, name: value + step}, values))
+                s = np.where(np.isfinite(moved - base), (moved - base) / step * value, 1.0)
+            s = np.broadcast_to(s, shape)
+            a, b, _ = group.shift(labels.get(group.factor), s, level)
+            shift, variance = shift + a, variance + b
+        return shift, variance
+
+    def _label_warnings(self, points: Mapping[str, Any]) -> list[str]:
+        """A sentence per factor column given labels that are not groups of the data (new groups)."""
+        out = []
+        for group in self.groups:
+            if group.factor in points:
+                labels = np.unique(np.vectorize(factor_label, otypes=[object])(
+                    np.asarray(points[group.factor], dtype=object).ravel()))
+                new = [str(x) for x in labels if x not in group.levels]
+                if new:
+                    shown = ", ".join(new[:3]) + (", ..." if len(new) > 3 else "")
+                    out.append(f"{group.factor} = {shown} is not a group of the calibration data: predicted "
+                               f"as a new group, whose interval carries the spread between groups")
+        return out
+
+    def cloud_ratio(self, points: Mapping[str, Any], shape=None) -> np.ndarray:
+        """Distance of each point to the data cloud over the cloud's threshold (> 1: outside) [1]; zeros
+        without a cloud. Physics columns a point does not give take the model's values."""
+        points = {k: v for k, v in points.items() if k not in self.factors}
+        if shape is None:
+            shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
+        if self.cloud is None:
+            return np.zeros(shape)
+        columns = {k: v for k, v in self._columns_at(points).items()
+                   if k in points or k in physics.PARAMETERS}
+        ratio, _ = self.cloud.score(columns, shape)
+        return ratio
 
     def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
         """Whether each point lies within the data's ranges, and a warning per column outside.
@@ -380,15 +504,18 @@ class CalibratedModel:
         """
         if self.domain is None:
             return None, []
+        warnings = self._label_warnings(points)
+        points = {k: v for k, v in points.items() if k not in self.factors}
         shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
         inside = np.ones(shape, dtype=bool)
-        warnings = []
         for name, given in points.items():
             value = np.broadcast_to(np.asarray(given, dtype=float), shape)
             unit = f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""
             if name in self.domain:
                 lo, hi = self.domain[name]
                 slack = _DOMAIN_SLACK * max(abs(lo), abs(hi), 1e-300)
+                if self.domain_rows is not None and self.domain_rows > 1:
+                    slack += 2.0 * (hi - lo) / (self.domain_rows - 1)
                 ok = (value >= lo - slack) & (value <= hi + slack)
                 where = f"outside the calibration data's range [{lo:.6g}, {hi:.6g}]{unit}"
             elif name in physics.PARAMETERS:
@@ -407,6 +534,22 @@ class CalibratedModel:
                 )
                 warnings.append(f"{name} = {shown}{unit} is {where}: an extrapolation ({bad.size} point(s))")
             inside &= ok
+        if self.cloud is not None:
+            ratio = self.cloud_ratio(points, shape)
+            far = inside & (ratio > 1.0)
+            if np.any(far):
+                at = np.unravel_index(int(np.argmax(np.where(far, ratio, -np.inf))), shape) if shape else ()
+                named = [c for c in self.cloud.columns if c in points or c in physics.PARAMETERS]
+                columns = self._columns_at(points)
+                example = ", ".join(
+                    f"{c} = {float(np.broadcast_to(np.asarray(columns[c], dtype=float), shape)[at]):.4g}"
+                    for c in named)
+                warnings.append(
+                    f"{int(np.sum(far))} point(s) lie within every column's range but far from the "
+                    f"calibration data's rows (distance to the data up to {float(np.max(ratio[far])):.2g} "
+                    f"times what {100 * (1 - self.cloud.alpha):.0f} % of points like the data have; "
+                    f"farthest: {example}): an extrapolation, and the interval is widened by that ratio")
+            inside &= ratio <= 1.0
         return inside, warnings
 
     def to_json(self) -> dict[str, Any]:
@@ -422,6 +565,10 @@ class CalibratedModel:
             "domain": self.domain,
             "conditions": list(self.conditions),
             "discrepancy": None if self.discrepancy is None else self.discrepancy.state,
+            "groups": [g.to_json() for g in self.groups],
+            "scatter": None if self.scatter is None else self.scatter.to_json(),
+            "cloud": None if self.cloud is None else self.cloud.to_json(),
+            "domain_rows": self.domain_rows,
             "rivals": [r.to_json() for r in self.rivals],
         }
 
@@ -486,6 +633,10 @@ class CalibratedModel:
             domain,
             [str(c) for c in data.get("conditions", [])],
             None if discrepancy is None else GPCorrection(discrepancy),
+            [GroupEffect.from_json(g) for g in data.get("groups") or []],
+            None if data.get("scatter") is None else ScatterModel.from_json(data["scatter"]),
+            None if data.get("cloud") is None else DataCloud.from_json(data["cloud"]),
+            None if data.get("domain_rows") is None else int(data["domain_rows"]),
             [RivalModel.from_json(r) for r in data.get("rivals") or []],
         )
 
@@ -502,10 +653,15 @@ class CalibratedModel:
         columns: Mapping[str, np.ndarray],
         conditions: Sequence[str],
         discrepancy: Mapping[str, Any] | None = None,
+        groups: Sequence[GroupEffect] = (),
+        scatter: ScatterModel | None = None,
+        cloud: DataCloud | None = None,
     ) -> CalibratedModel:
         """A model from a fit, with the domain taken from the data's columns (and a GP discrepancy's
-        data from :func:`calibrate.discrepancy.gp_state`)."""
+        data from :func:`calibrate.discrepancy.gp_state`, group effects, a scatter model and the data
+        cloud when given)."""
         domain = {name: [float(np.min(v)), float(np.max(v))] for name, v in columns.items()}
+        rows = len(next(iter(columns.values()))) if columns else None
         return cls(
             dict(fitted),
             dict(fixed),
@@ -516,4 +672,8 @@ class CalibratedModel:
             domain,
             list(conditions),
             None if discrepancy is None else GPCorrection(discrepancy),
+            list(groups),
+            scatter,
+            cloud,
+            rows if cloud is not None else None,
         )

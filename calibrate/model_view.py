@@ -60,11 +60,18 @@ class CalibratedPhysicsModel(Model):
         self.inputs.update({name: ModelInput(name, "as in the calibration data", "A condition column "
                                              "the calibrated model's terms read.")
                             for name in self.required_columns})
+        # The factor columns (group labels): a known label moves mu to its group's level; a new one, or
+        # none, carries the spread between groups in the interval.
+        self.inputs.update({name: ModelInput(name, "label", "A group label of a factor column of the "
+                                             "calibration data (e.g. a specimen).", "label", default="")
+                            for name in calibrated.factors})
         # The other condition columns of the data: a point may give them, and they are checked against
         # the data's range only (they are no input: nothing the model computes depends on them).
         self.unread_conditions = {name: ModelInput(name, "as in the calibration data", "A condition column "
                                                    "of the calibration data the terms do not read.")
                                   for name in self.conditions if name not in self.inputs}
+        # Every column a point may give, for checks of whole columns (service.executor.evaluate_chunks).
+        self.column_checks = {**self.inputs, **self.unread_conditions}
 
     def predict(self, points: Mapping[str, Any]) -> Prediction:
         """μ with its 95 % interval and the domain check: :meth:`calibrate.CalibratedModel.predict`."""

@@ -36,11 +36,14 @@ from microbearing import physics
 from .data import Dataset, parse_csv, parse_rows
 from .decidability import undecided
 from .discrepancy import gp_discrepancy, residual_gp
+from .domain import DataCloud, confounded_pairs, confounding_words
 from .fit import check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
+from .groups import describe_groups, fit_group_effect, why_not_fitted
 from .model import CalibratedModel, RivalModel
 from .plausibility import check_plausible
 from .plots import calibration_plots
 from .rivals import describe_rival, fit_rivals, rival_json, where_they_part
+from .scatter import fit_scatter
 from .select import (
     FAMILY_ALPHA,
     MAX_SEARCH_ROWS,
@@ -145,6 +148,19 @@ class CalibrationReport:
         What the data leave open (a candidate just short of the threshold, a term added barely,
         rivals) with roughly where and how many more rows would settle it
         (:func:`calibrate.decidability.undecided`).
+    groups : list of dict
+        Per factor column (:mod:`calibrate.groups`): ``factor``, ``parameter`` (that varies between
+        groups, or ``mu``), ``groups`` [1], ``spread_relative`` [1] and its 95 % interval
+        ``spread_interval_relative`` [1], ``within_group_scatter_relative`` [1], ``levels`` (per label:
+        ``relative_shift`` [1], ``std_log`` [1], ``rows`` [1]), ``restricted_log_likelihoods`` [1] of the
+        random effect on each candidate parameter (the highest carries the spread) and ``summary`` in words.
+    scatter : dict
+        The scatter model (:mod:`calibrate.scatter`) as data, with ``summary`` in words.
+    confounding : list of str
+        Columns that move together and chosen terms whose driver may stand for another
+        (:mod:`calibrate.domain`).
+    domain : dict
+        ``columns`` of the data cloud, ``alpha`` [1] and ``summary`` of the domain rule in words.
     """
 
     n_points: int
@@ -171,6 +187,10 @@ class CalibrationReport:
     plots: dict[str, bytes] = field(repr=False)
     rivals: list[dict[str, Any]] = field(default_factory=list)
     undecided: list[dict[str, Any]] = field(default_factory=list)
+    groups: list[dict[str, Any]] = field(default_factory=list)
+    scatter: dict[str, Any] = field(default_factory=dict)
+    confounding: list[str] = field(default_factory=list)
+    domain: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result without the PNG bytes (``plots`` lists their names)."""
@@ -199,6 +219,10 @@ class CalibrationReport:
             "plots": sorted(self.plots),
             "rivals": list(self.rivals),
             "undecided": list(self.undecided),
+            "groups": self.groups,
+            "scatter": self.scatter,
+            "confounding": list(self.confounding),
+            "domain": self.domain,
         }
 
     def text(self) -> str:
@@ -260,6 +284,12 @@ class CalibrationReport:
         lines.append(f"stability: {self.effect_stability['summary']}")
         lines.append(f"GP discrepancy baseline (held out): {errors(self.discrepancy_gp['errors'])}")
         lines += [f"undecided: {u['statement']}" for u in self.undecided]
+        lines += [f"groups: {g['summary']}" for g in self.groups]
+        if self.scatter:
+            lines.append(f"scatter: {self.scatter['summary']}")
+        lines += [f"confounding: {c}" for c in self.confounding]
+        if self.domain:
+            lines.append(f"domain: {self.domain['summary']}")
         lines += [f"warning: {w}" for w in self.warnings]
         lines.append(f"decision: {self.decision}")
         return "\n".join(lines)
@@ -429,6 +459,28 @@ def calibrate(
     mu_after = predict_mu(dataset, final.declared, terms, final.term_values, convention=convention)
     outliers = find_outliers(dataset, mu_after, final.residual, final.scale)
     inliers = ~outliers["mask"]
+    # Groups: the spread of a declared parameter (or of mu) between the labels of each factor column,
+    # on what the fixed model leaves (calibrate.groups); the held-out residual then loses each row's
+    # group level before it measures the scatter of a new measurement.
+    group_effects, group_shift = _group_effects(dataset, final, terms, mu_after, inliers, convention)
+    held_out = np.log(measured / nested.oof_mu) - group_shift
+    # Scatter that depends on the inputs (calibrate.scatter), chosen by cross-validation on the
+    # held-out residual; when it is not one spread everywhere, the model is refitted with each row
+    # weighted by its local scatter (unless the data declare mu_measured_std, which weighs them
+    # already), and outliers are judged against the local scatter.
+    varying = {k: v for k, v in dataset.columns().items() if v.dtype != bool and np.unique(v).size > 1}
+    scatter = fit_scatter(varying, held_out, folds, seed)
+    if scatter.kind != "constant":
+        local = scatter.std_log(varying, measured.shape)
+        if dataset.mu_measured_std is None:
+            weighted = replace(dataset, mu_measured_std=measured * local / float(np.median(local)))
+            final = fit(weighted, fit_parameters, terms, start=final.declared, start_terms=final.term_values,
+                        convention=convention)
+            mu_after = predict_mu(dataset, final.declared, terms, final.term_values, convention=convention)
+            outliers = find_outliers(dataset, mu_after, final.residual, final.scale)
+        else:
+            outliers = find_outliers(dataset, mu_after, np.log(mu_after / measured) / local, 1.0)
+        inliers = ~outliers["mask"]
     error_after = prediction_errors(nested.oof_mu, measured)
     robust_errors = {
         "before": prediction_errors(baseline.oof_mu[inliers], measured[inliers]),
@@ -446,12 +498,19 @@ def calibrate(
         # cross-validation did: noise, what the terms leave, and the refit's own uncertainty. RMS over
         # the rows that are not outliers (a median-based scale would be robust too, but it scatters
         # twice as much from one data set to the next).
-        noise_variance = float(np.mean(np.square(np.log(measured / nested.oof_mu)[inliers])))
+        noise_variance = float(np.mean(np.square(held_out[inliers])))
     else:
         # What the terms leave is the GP's, with its own predictive variance at each point; the
         # noise is its white-noise part (Kennedy-O'Hagan), not the held-out scatter, which holds both.
         noise_variance = gp_state["noise"] * float(np.var(gp_state["y"]))
     noise_std_log = float(np.sqrt(noise_variance))
+    if scatter.kind != "constant":
+        # The scatter model's shape at the level of noise_std_log (RMS over the rows that are not outliers).
+        rms = float(np.sqrt(np.mean(np.square(scatter.std_log(varying, measured.shape)[inliers]))))
+        scatter = scatter.scaled(noise_std_log / rms)
+    else:
+        scatter = scatter.scaled(noise_std_log / float(np.exp(scatter.coefficients[0])))
+    cloud = DataCloud.from_columns(varying, seed)
     model = CalibratedModel.from_fit(
         final.declared,
         dataset.fixed,
@@ -463,6 +522,9 @@ def calibrate(
         dataset.columns(),
         list(dataset.conditions),
         gp_state,
+        group_effects,
+        scatter,
+        cloud,
     )
     rivals = fit_rivals(dataset, fit_parameters, selection, final, convention) if terms else []
     if rivals:
@@ -496,6 +558,9 @@ def calibrate(
         for step in selection.steps
     ]
     warnings = check_plausible(dataset) + parameter_warnings(baseline.full, final)
+    confounding = confounding_words(confounded_pairs(varying), [t.drivers[0] for t in terms])
+    confounding += _rival_drivers(selection)
+    warnings += _code_columns(dataset)
     if gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
         warnings.append(
             f"a Gaussian-process discrepancy predicts held-out rows better than the calibrated model "
@@ -548,6 +613,12 @@ def calibrate(
         rivals=rival_words,
         undecided=undecided(dataset, selection, stability, rival_words, fit_parameters, model.noise_std_log,
                             convention),
+        groups=describe_groups(group_effects) + [
+            {"factor": name, "summary": f"{name}: {why_not_fitted(labels)}"}
+            for name, labels in dataset.factors.items() if why_not_fitted(labels)],
+        scatter={**scatter.to_json(), "summary": scatter.summary()},
+        confounding=confounding,
+        domain=_domain_words(cloud),
     )
 
 
@@ -588,3 +659,82 @@ def _rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[
         out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,
                     "statement": describe_rival(rival, part)})
     return out
+
+
+def _group_effects(dataset: Dataset, final, terms, mu_after: np.ndarray, inliers: np.ndarray,
+                   convention: str) -> tuple[list, np.ndarray]:
+    """Random effects of every factor column (in turn, each on what the previous ones leave) and the
+    shift of log mu they give every row. [1]"""
+    shift = np.zeros(dataset.n_points)
+    if not dataset.factors:
+        return [], shift
+    sensitivities = {}
+    for name, value in final.declared.items():
+        step = 1e-4
+        with np.errstate(all="ignore"):
+            moved = predict_mu(dataset, {**final.declared, name: value * (1 + step)}, terms,
+                               final.term_values, convention=convention)
+        s = np.log(moved / mu_after) / np.log1p(step)
+        if np.all(np.isfinite(s)):
+            sensitivities[name] = s
+    effects = []
+    residual = np.log(dataset.mu_measured / mu_after)
+    for factor, labels in dataset.factors.items():
+        effect = None if why_not_fitted(labels) else fit_group_effect(factor, labels, residual - shift,
+                                                                     sensitivities, inliers)
+        if effect is None:
+            continue
+        s = np.ones(dataset.n_points) if effect.parameter == "mu" else sensitivities[effect.parameter]
+        shift = shift + effect.shift(labels, s)[0]
+        effects.append(effect)
+    return effects, shift
+
+
+def _code_columns(dataset: Dataset) -> list[str]:
+    """A sentence per condition column that looks like integer codes of groups (the values 1..k or 0..k-1,
+    3 <= k <= 20) and was not declared a factor: read as a number, it is a smooth driver."""
+    words = []
+    for name, values in dataset.conditions.items():
+        distinct = np.unique(values)
+        if 3 <= distinct.size <= 20 and np.all(distinct == np.round(distinct)) and (
+                distinct[0] in (0.0, 1.0) and distinct[-1] - distinct[0] == distinct.size - 1):
+            words.append(
+                f"{name} holds the whole numbers {distinct[0]:.0f}..{distinct[-1]:.0f}: if they label groups "
+                f"(specimens, builds, batches), declare {name} a factor (factors) so that the spread between "
+                f"groups is fitted instead of a smooth effect of the number")
+    return words
+
+
+def _rival_drivers(selection) -> list[str]:
+    """Steps where a term on another driver fitted as well (within one standard error): the data cannot
+    tell those drivers apart."""
+    from .select import _within_one_se
+
+    words = []
+    for step in selection.steps:
+        if step.chosen is None:
+            continue
+        main = step.chosen.term.drivers[0]
+        rivals = [c for c in step.ranked if c.joint and c is not step.chosen and c.z > step.z_needed
+                  and c.term.drivers[0] != main and _within_one_se(c.loss, step.chosen.loss)]
+        others = list(dict.fromkeys(c.term.drivers[0] for c in rivals))
+        if others:
+            words.append(
+                f"{step.chosen.term.label} was chosen, but terms on {', '.join(others)} fitted as well "
+                f"within one standard error: the data cannot tell {main} from {', '.join(others)} as the "
+                f"driver")
+    return words
+
+
+def _domain_words(cloud: DataCloud | None) -> dict[str, Any]:
+    """The domain rule in words."""
+    if cloud is None:
+        return {"columns": [], "alpha": None, "summary": (
+            "a point is in the domain when every input and condition lies within its range in the data "
+            "(fewer than two columns vary, so the ranges are the data's shape)")}
+    return {"columns": list(cloud.columns), "alpha": cloud.alpha, "summary": (
+        f"a point is in the domain when every input and condition lies within its range in the data and "
+        f"the point lies within the joint cloud of the rows in {', '.join(cloud.columns)} (scaled distance "
+        f"to the 5th nearest row no more than {100 * (1 - cloud.alpha):.0f} % of the rows' own: about "
+        f"{100 * cloud.alpha:.0f} % of new points drawn like the data fall outside); beyond it the "
+        f"interval widens in proportion to the distance")}

@@ -446,7 +446,7 @@ def _strip_trailing_empty(rows: list[list[str]], header: list[str]
 
 
 def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separator: str | None = None,
-             decimal: str | None = None) -> tuple[Dataset, Intake]:
+             decimal: str | None = None, factors: Sequence[str] = ()) -> tuple[Dataset, Intake]:
     """Read measured data from a CSV file as spreadsheets export it.
 
     Parameters
@@ -460,6 +460,9 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
     decimal : str, optional
         ``"point"`` or ``"comma"``; detected when None (a comma when numeric cells have one and none a
         point).
+    factors : sequence of str, optional
+        Condition columns of whole-number codes to read as group labels (as
+        :func:`calibrate.data.parse_csv`).
 
     Returns
     -------
@@ -550,15 +553,16 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
     intake.decimal = decimal
     columns = _columns([h.strip() for h in header]) if all(h.strip() for h in header) else None
     if columns is None:  # an unnamed column: the parser's header error says so
-        return parse_csv(_write(header, body), fixed), intake
+        return parse_csv(_write(header, body), fixed, factors), intake
     intake.columns = columns
     _check_required(columns, fixed or {})
     if (sep == "," and decimal == "point" and not dropped and not trimmed
             and all(c.name == c.sent and not c.reading for c in columns)):
-        return parse_csv("\n".join(lines) + "\n", fixed), intake  # plain CSV: the parser reads it as is
+        # plain CSV: the parser reads it as is
+        return parse_csv("\n".join(lines) + "\n", fixed, factors), intake
     converted = [[_cell(c, columns[i] if i < len(columns) else None, decimal) for i, c in enumerate(r)]
                  for r in body]
-    return parse_csv(_write([c.name for c in columns], converted), fixed), intake
+    return parse_csv(_write([c.name for c in columns], converted), fixed, factors), intake
 
 
 def _cell(text: str, column: Column | None, decimal: str) -> str:
@@ -582,8 +586,8 @@ def _write(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     return out.getvalue()
 
 
-def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None = None
-              ) -> tuple[Dataset, Intake]:
+def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None = None,
+              factors: Sequence[str] = ()) -> tuple[Dataset, Intake]:
     """Check measured data given as JSON rows whose keys may carry units (as :func:`read_csv`'s header).
 
     Parameters
@@ -592,6 +596,9 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
         One mapping per measurement, column name (e.g. ``"speed [mm/s]"``) -> number.
     fixed : mapping, optional
         Physics inputs fixed for every row, in their units.
+    factors : sequence of str, optional
+        Condition columns of whole-number codes to read as group labels (as
+        :func:`calibrate.data.parse_rows`).
 
     Returns
     -------
@@ -629,4 +636,4 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
                 value = column.convert(float(value))
             out[column.name] = value
         converted.append(out)
-    return parse_rows(converted, fixed), Intake("json", columns=columns)
+    return parse_rows(converted, fixed, factors), Intake("json", columns=columns)

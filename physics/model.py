@@ -145,7 +145,7 @@ class ModelInput:
         Its unit (``"1"`` for dimensionless).
     description : str
         What it is.
-    kind : {"float", "int", "bool"}
+    kind : {"float", "int", "bool", "label"}
         Value type.
     minimum, maximum : float or None
         The allowed range (None: unbounded).
@@ -192,6 +192,8 @@ class ModelInput:
         numpy.ndarray
             ``float64`` (``bool`` for a boolean input), in the shape given.
         """
+        if self.kind == "label":  # a factor column's group labels (calibrate.groups): text, any value
+            return np.asarray(values, dtype=object).astype(str)
         arr = self.coerce(values)
         if self.name in PARAMETERS:
             try:

@@ -24,12 +24,12 @@ from starlette.responses import Response
 from starlette.routing import Match, Route
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from . import observability, problems, security, umbridge
+from . import connections, observability, problems, security, umbridge
 from .deps import DataFolderError, close_runtime, get_runtime
 from .jsonguard import JsonGuardMiddleware
-from .limits import BodySizeLimitMiddleware
+from .limits import BodySizeLimitMiddleware, HeavyRequestMiddleware
 from .problems import ProblemError
-from .routes import calibrations, friction, jobs, meta, optimizations, surrogates, sweeps
+from .routes import calibrations, experiments, friction, jobs, meta, optimizations, surrogates, sweeps
 from .routes import umbridge as umbridge_routes
 from .routes.meta import package_version
 from .schemas.base import add_raw_body_schemas
@@ -42,8 +42,8 @@ __all__ = ["ROUTERS", "AcceptMiddleware", "HeadMiddleware", "PlainRoute", "app",
 logger = logging.getLogger("microbearing.service")
 
 #: The routers of every resource, in the order of the OpenAPI spec. Add yours here.
-ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, surrogates.router,
-           optimizations.router, umbridge_routes.router]
+ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, experiments.router,
+           surrogates.router, optimizations.router, umbridge_routes.router]
 
 DESCRIPTION = """Friction of micro linear ball bearings for MEMS by the model of Olaru, Prisacaru,
 Ianus and Lorenz (COMEC 2005). All quantities are SI (the groove angle in degrees); every field
@@ -193,6 +193,9 @@ def plain_routes(routers: list[APIRouter]) -> list[PlainRoute]:
 
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
+    # Descriptors for connections up to the hard limit; repeated OS errors logged once a second.
+    connections.raise_fd_limit()
+    connections.install_repeat_filter()
     try:
         runtime = get_runtime(app)  # open the database and recover interrupted jobs before serving
     except DataFolderError as exc:
@@ -234,11 +237,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(HeadMiddleware)
     app.add_middleware(AcceptMiddleware)
     app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points)
+    # A large body waits for its turn, and holds a place of the job admission control, before it is read.
+    app.add_middleware(HeavyRequestMiddleware, max_requests=settings.max_heavy_requests,
+                       wait_s=settings.heavy_request_wait_s,
+                       admit=lambda scope: get_runtime(scope["app"]).jobs.admit_request("request"))
     app.add_middleware(BodySizeLimitMiddleware, max_bytes=settings.max_body_bytes,
                        timeout_s=settings.body_timeout_s)
     security.install(app, settings)
     # Problems answered on the UM-Bridge paths (a refused key, a body too large) in its error form.
     app.add_middleware(umbridge.ProtocolErrorMiddleware)
+    # Requests in progress past the limit get 503 before any work (inside the logs and metrics).
+    app.add_middleware(connections.ConcurrencyLimitMiddleware, max_requests=settings.max_concurrent_requests)
     observability.install(app)
     for router in ROUTERS:
         app.include_router(router)

@@ -20,6 +20,7 @@ import numpy as np
 
 from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
+from microbearing.calibrate.data import MU_MEASURED, MU_MEASURED_STD
 
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
@@ -28,13 +29,15 @@ from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
-__all__ = ["KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summaries", "calibration_view",
-           "check_conditions", "data_problem", "delete_calibration",
+__all__ = ["DATA_PREFIX", "KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summaries",
+           "calibration_view", "check_conditions", "data_arrays", "data_problem", "delete_calibration",
            "evaluate_batch_with_model", "evaluate_point_with_model", "interval_at", "load_calibration",
-           "load_mu_model", "prediction_fields", "run_calibration", "with_conditions"]
+           "load_mu_model", "prediction_fields", "run_calibration", "stored_dataset", "with_conditions"]
 
 KIND = "calibration"
 MODEL_PREFIX = "calibrated:"
+#: Prefix of a stored calibration's data columns among its arrays (the others are its plots).
+DATA_PREFIX = "data."
 _MAX_LISTED_ERRORS = 200
 
 
@@ -90,6 +93,39 @@ def calibration_view(calibration_id: str, metadata: Mapping[str, Any]) -> dict[s
     }
 
 
+def data_arrays(dataset: Dataset) -> dict[str, np.ndarray]:
+    """A calibration's data as arrays to store beside its plots (``data.<column>``)."""
+    arrays = {DATA_PREFIX + name: np.asarray(v) for name, v in dataset.physics_columns.items()}
+    arrays |= {DATA_PREFIX + "condition." + name: np.asarray(v, dtype=float)
+               for name, v in dataset.conditions.items()}
+    arrays |= {DATA_PREFIX + "factor." + name: np.asarray(v, dtype=str)
+               for name, v in dataset.factors.items()}
+    arrays[DATA_PREFIX + MU_MEASURED] = np.asarray(dataset.mu_measured, dtype=float)
+    if dataset.mu_measured_std is not None:
+        arrays[DATA_PREFIX + MU_MEASURED_STD] = np.asarray(dataset.mu_measured_std, dtype=float)
+    return arrays
+
+
+def stored_dataset(arrays: Mapping[str, np.ndarray], fixed: Mapping[str, Any]) -> Dataset | None:
+    """The calibration's data from its stored arrays, or None for a calibration stored before data were."""
+    if DATA_PREFIX + MU_MEASURED not in arrays:
+        return None
+    physics_columns, conditions, factors = {}, {}, {}
+    for key, value in arrays.items():
+        if not key.startswith(DATA_PREFIX) or key[len(DATA_PREFIX):] in (MU_MEASURED, MU_MEASURED_STD):
+            continue
+        name = key[len(DATA_PREFIX):]
+        if name.startswith("condition."):
+            conditions[name[len("condition."):]] = np.asarray(value, dtype=float)
+        elif name.startswith("factor."):
+            factors[name[len("factor."):]] = np.asarray(value, dtype=str)
+        else:
+            physics_columns[name] = np.asarray(value)
+    std = arrays.get(DATA_PREFIX + MU_MEASURED_STD)
+    return Dataset(physics_columns, conditions, np.asarray(arrays[DATA_PREFIX + MU_MEASURED], dtype=float),
+                   None if std is None else np.asarray(std, dtype=float), dict(fixed), factors)
+
+
 def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], folds: int, convention: str,
                     progress: Callable[[float], None] | None = None,
                     intake: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -122,6 +158,8 @@ def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], f
     metadata = {"report": {**report.to_dict(), "intake": None if intake is None else dict(intake)},
                 "model": report.model.to_json()}
     arrays = {name: np.frombuffer(png, dtype=np.uint8) for name, png in report.plots.items()}
+    # The data stay beside the plots: proposing the next runs refits the rivals on them and draws them.
+    arrays |= data_arrays(dataset)
     name = " + ".join(e["name"] for e in report.effects) or "none"
     calibration_id = store.save_model(KIND, metadata, arrays, name=f"{report.n_points} points, effect {name}")
     return calibration_view(calibration_id, metadata)
@@ -188,11 +226,16 @@ def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str =
     items = [{"pointer": f"{pointer}/{name}", "detail": "is a physics input; give it as a field of its own"}
              for name in sorted(set(conditions) & set(physics.PARAMETERS))]
     if isinstance(model, CalibratedPhysicsModel):
+        factors = model.calibrated.factors
+        items += [{"pointer": f"{pointer}/{name}", "detail": "must be a number or a list of numbers: only a "
+                   f"factor column ({', '.join(factors) or 'none'}) takes labels"}
+                  for name, value in conditions.items() if name not in factors and _has_text(value)]
         if model.domain is not None:
             items += [{"pointer": f"{pointer}/{name}",
                        "detail": f"unknown condition column; the calibration data had: "
-                                 f"{', '.join(model.conditions) or 'none'}"}
-                      for name in sorted(set(conditions) - set(physics.PARAMETERS) - set(model.conditions))]
+                                 f"{', '.join([*model.conditions, *factors]) or 'none'}"}
+                      for name in sorted(set(conditions) - set(physics.PARAMETERS) - set(model.conditions)
+                                         - set(factors))]
         if not items:
             try:
                 model.calibrated.check_columns(list(conditions))
@@ -200,6 +243,10 @@ def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str =
                 items.append({"pointer": pointer, "detail": str(exc)})
     if items:
         raise validation_problem(items)
+
+
+def _has_text(value: Any) -> bool:
+    return isinstance(value, str) or (isinstance(value, list) and any(isinstance(v, str) for v in value))
 
 
 def prediction_fields(prediction: Prediction) -> dict[str, Any]:
@@ -389,7 +436,8 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
     if "mu" in names:
         names += ["mu_effect", "mu_lower", "mu_upper"]
     # The conditions the terms do not read matter to the domain only, checked below on the whole batch.
-    read = {name: value for name, value in everything.items() if name in mu_model.inputs}
+    # The data cloud of the domain (and so the interval's widening) reads them too.
+    read = {name: value for name, value in everything.items() if name in mu_model.column_checks}
     try:
         values = evaluate_in_chunks(executor, read, count, names, mu_model, pointer="/points")
     except InputError as exc:

@@ -57,13 +57,19 @@ def _serve(args: argparse.Namespace) -> int:
         from .settings import Settings
 
         prepare_multiprocess_dir(Settings().data_dir)
-    from .observability import uvicorn_log_config
-
     # Requests are logged as JSON lines with their request id by service/observability.py;
     # uvicorn's own lines (startup, shutdown, errors) are JSON too.
+    # Connections bounded (service/connections.py): header time and size limits, a connection cap
+    # within the open-file limit; the limit is raised first, for the workers to inherit.
+    from .connections import accept_backlog, raise_fd_limit
+    from .observability import uvicorn_log_config
+    from .settings import Settings
+
+    raise_fd_limit()
     uvicorn.run("microbearing.service.app:app",
                 host=args.host, port=args.port, workers=args.workers, access_log=False,
-                log_config=uvicorn_log_config())
+                log_config=uvicorn_log_config(), http="microbearing.service.connections:BoundedHttpProtocol",
+                backlog=accept_backlog(Settings()))
     return 0
 
 
@@ -77,7 +83,8 @@ def _calibrate(args: argparse.Namespace) -> int:
         return EXIT_FILE
     fit = [name.strip() for name in (args.fit or "").split(",") if name.strip()]
     try:
-        dataset, intake = read_csv(text, parse_assignments(args.fixed), args.separator, args.decimal)
+        factors = [name.strip() for name in (args.factors or "").split(",") if name.strip()]
+        dataset, intake = read_csv(text, parse_assignments(args.fixed), args.separator, args.decimal, factors)
         print(f"{args.data}: {intake.summary()}", file=sys.stderr)
         report = calibrate(dataset, fit, folds=args.folds)
     except DataError as exc:
@@ -416,6 +423,36 @@ def _surrogate_list(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _experiments(args: argparse.Namespace) -> int:
+    from types import SimpleNamespace
+
+    from .experiments import first_experiments_job, next_experiments_job, plan_png
+    from .problems import ProblemError
+    from .schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
+    from .store import to_json
+
+    request = _request(args.request, NextExperimentsRequest if args.calibration else FirstExperimentsRequest)
+    # A calibration is read from the server's data folder, as optimize reads calibrated models.
+    store = _open_store(args) if args.calibration else None
+    try:
+        work = (next_experiments_job(store, args.calibration.removeprefix("calibrated:"), request)
+                if store is not None else first_experiments_job(request))
+        with _progress_bar("experiments") as progress:
+            document = work(SimpleNamespace(progress=progress, job_id=None))
+    except ProblemError as problem:
+        raise _problem_error(problem, _data_dir(args) if store is not None else None) from None
+    finally:
+        if store is not None:
+            store.close()
+    _write(args.output, to_json(document) + "\n")
+    if args.plot:
+        try:
+            Path(args.plot).write_bytes(plan_png(document))
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.plot}: {exc.strerror or exc}", EXIT_FILE) from None
+    return EXIT_OK
+
+
 def _json_command(sub: Any, name: str, func: Callable[[argparse.Namespace], int], *, help: str,
                   description: str, examples: list[str]) -> argparse.ArgumentParser:
     """A subcommand reading a JSON request file and writing its result, with examples in its help."""
@@ -483,6 +520,26 @@ def build_parser() -> argparse.ArgumentParser:
                   'microbearing optimize front.json --plot front.png   # a request with "pareto"'])
     o.add_argument("--plot", metavar="FILE.png", help="draw the Pareto front (requests with \"pareto\")")
 
+    x = _json_command(
+        sub, "experiments", _experiments,
+        help="which measurements to take next, with an optimality bound (as POST /v1/experiments, or "
+             "/v1/calibrations/{id}/next-experiments with --calibration)",
+        description="Propose runs from a JSON request and write the result as JSON (the schema "
+                    "ExperimentsResult). Without --calibration: a first design on the declared physics "
+                    "(the schema FirstExperimentsRequest); with it: the next runs for a calibration stored "
+                    "in the server's data folder (NextExperimentsRequest; goal discriminate, parameters or "
+                    "predict).",
+        examples=['echo \'{"runs": 12, "goal": "discriminate", "space": {"balls": {"low": 4, "high": 8},',
+                  '      "load_N": {"low": 0.003, "high": 0.03, "spacing": "log"}, "speed_m_s": [0.05],',
+                  '      "relative_humidity": {"low": 0.2, "high": 0.9}}}\' > next.json',
+                  "microbearing experiments next.json --calibration calibrated:<id> -o runs.json "
+                  "--plot runs.png",
+                  'echo \'{"runs": 8, "fit_parameters": ["mu_pivot"], "space": {"balls": [4, 8],',
+                  '      "load_N": {"low": 0.001, "high": 0.03}, "speed_m_s": [0.05]}}\' > first.json',
+                  "microbearing experiments first.json -o first-runs.json"])
+    x.add_argument("--calibration", metavar="ID", help="a stored calibration (its id or calibrated:<id>)")
+    x.add_argument("--plot", metavar="FILE.png", help="draw the runs over the data taken (and the rivals)")
+
     p = sub.add_parser("paper", help="reproduce the numerical cases of Olaru et al. (2005)",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Print the paper's cases A and B computed beside its published values.",
@@ -531,6 +588,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--fixed", metavar="NAME=VALUE", nargs="+", action="extend", default=[],
                    help="physics inputs fixed for every row, in their units (e.g. balls=4)")
     c.add_argument("--folds", type=int, default=5, help="cross-validation folds (default: %(default)s)")
+    c.add_argument("--factors", metavar="NAME,...",
+                   help="condition columns of integer codes to read as group labels (a column of text labels "
+                        "is one anyway)")
     c.add_argument("--plots", metavar="DIR", help="write the residual plots (PNG) into DIR")
     c.add_argument("--json", metavar="FILE", help="write the full report, with the calibrated model, as JSON")
     c.set_defaults(func=_calibrate)

@@ -136,7 +136,8 @@ def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/poin
     if count > max_points:
         raise ProblemError(413, f"The request has {count} points; the limit is {max_points} per request.")
     inputs = {
-        name: np.asarray(value, dtype=bool if name in _BOOLEAN_INPUTS else np.float64)
+        name: (np.asarray([str(v) for v in value]) if any(isinstance(v, str) for v in value)
+               else np.asarray(value, dtype=bool if name in _BOOLEAN_INPUTS else np.float64))
         if isinstance(value, list) else value
         for name, value in points.items()
     }

@@ -303,6 +303,7 @@ class JobManager:
         #: Final states that the store could not take: written by the housekeeping thread.
         self._unwritten: dict[str, dict[str, Any]] = {}
         self._lock = threading.Lock()
+        self._requests: dict[str, str | None] = {}  # heavy requests' places (admit_request): token -> key
         self._stopping = threading.Event()
         self._interrupting = threading.Event()
         self._wake = threading.Event()
@@ -428,6 +429,53 @@ class JobManager:
             logger.info("job %s: its final state %s is stored now", job_id, changes["status"],
                         extra={"job_id": job_id})
 
+    def _held(self, owner: str | None) -> tuple[int, int]:
+        """Places held in this process by heavy requests (:meth:`admit_request`): all, and ``owner``'s."""
+        with self._lock:
+            held = list(self._requests.values())
+        return len(held), sum(1 for key in held if owner is not None and key == owner)
+
+    def admit_request(self, kind: str) -> Callable[[], None]:
+        """Hold a place of this admission control for work done in a request, not a job (a heavy batch).
+
+        The place counts toward ``max_active`` and ``max_active_per_key`` as a job does: the jobs of
+        the data folder (every process) and the heavy requests this process is serving share one
+        bound, and a key's heavy requests count toward its limit. (Heavy requests of other processes
+        are bounded by their own ``MICROBEARING_MAX_HEAVY_REQUESTS``.)
+
+        Returns
+        -------
+        callable
+            Frees the place; call it once, when the work (and its streamed answer) is done.
+
+        Raises
+        ------
+        ProblemError
+            503 or 429 with ``Retry-After``, as :meth:`submit`.
+        """
+        owner = REQUESTER.get().key_id
+        token = f"{kind}-{uuid.uuid4().hex}"
+        with self._lock:  # reserved first, so that two requests checking at once both count it
+            self._requests[token] = owner
+        try:
+            held, mine = self._held(owner)
+            if self.max_active is not None:
+                active = self.store.count_active_jobs() + held
+                if active > self.max_active:
+                    self._refuse("server", active - 1)
+            if owner is not None and self.max_active_per_key is not None:
+                active = self.store.count_active_jobs(owner) + mine
+                if active > self.max_active_per_key:
+                    self._refuse("key", active - 1)
+        except BaseException:
+            self._release_request(token)
+            raise
+        return lambda: self._release_request(token)
+
+    def _release_request(self, token: str) -> None:
+        with self._lock:
+            self._requests.pop(token, None)
+
     def active_count(self) -> int:
         """Queued and running jobs of the data folder, every process's [1]."""
         return self.store.count_active_jobs()
@@ -469,7 +517,9 @@ class JobManager:
                                headers={"Retry-After": str(RETRY_AFTER_S)})
         job_id = uuid.uuid4().hex
         replayable = inputs is not None and kind in JOB_KINDS
-        per_key = self.max_active_per_key if REQUESTER.get().key_id is not None else None
+        owner = REQUESTER.get().key_id
+        per_key = self.max_active_per_key if owner is not None else None
+        held, mine = self._held(owner)  # heavy requests served here hold places too
         with self._lock:  # before the row exists, so that the dispatcher finds the work once it does
             self._local[job_id] = (fn, contextvars.copy_context())
         try:
@@ -477,8 +527,9 @@ class JobManager:
                 {"id": job_id, "kind": kind, "status": "queued", "progress": 0.0,
                  "request_json": to_json(request), "owner_pid": os.getpid(), "owner_instance": self.instance,
                  "created_at": utc_now()},
-                inputs_json=to_json(inputs) if replayable else None, max_active=self.max_active,
-                max_active_per_key=per_key)
+                inputs_json=to_json(inputs) if replayable else None,
+                max_active=None if self.max_active is None else max(self.max_active - held, 0),
+                max_active_per_key=None if per_key is None else max(per_key - mine, 0))
         except BaseException:
             with self._lock:
                 self._local.pop(job_id, None)
@@ -486,7 +537,8 @@ class JobManager:
         if refused is not None:
             with self._lock:
                 self._local.pop(job_id, None)
-            self._refuse(*refused)
+            limit, count = refused
+            self._refuse(limit, count + (held if limit == "server" else mine))
         # Logged before the job's thread can log "started". That thread runs in a copy of the
         # submitting context: its log lines carry the id of the request that created it.
         logger.info("job %s (%s) queued", job_id, kind, extra={"job_id": job_id, "kind": kind})

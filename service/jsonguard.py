@@ -267,6 +267,7 @@ class JsonGuardMiddleware:
             await self._answer(problem, scope, receive, send)
             return
         body = b"".join(chunks)
+        del chunks  # the pieces: only the joined body is kept
         if body:
             try:
                 if len(body) <= _INLINE_BYTES:
@@ -276,13 +277,13 @@ class JsonGuardMiddleware:
             except ProblemError as problem:
                 await self._answer(problem, scope, receive, send)
                 return
-        replayed = False
+        # Handed to the app once and not kept here: the app may free a large body once it is parsed.
+        pending = [body]
+        del body
 
         async def replay() -> Message:
-            nonlocal replayed
-            if not replayed:
-                replayed = True
-                return {"type": "http.request", "body": body, "more_body": False}
+            if pending:
+                return {"type": "http.request", "body": pending.pop(), "more_body": False}
             return await receive()
 
         await self.app(scope, replay, send)

@@ -12,6 +12,10 @@ long as it likes. A body sent with a ``Content-Encoding`` other than ``identity`
 br) gets 415 with ``Accept-Encoding: identity``: the service reads plain bodies only, and a
 compressed one would otherwise be read as malformed text.
 
+:class:`HeavyRequestMiddleware` bounds the memory of requests with large bodies: at most
+``MICROBEARING_MAX_HEAVY_REQUESTS`` of them are in progress at once (from before their body is read
+until their answer is sent, streamed or not); the others wait for a turn, then get 503.
+
 Finally, :func:`check_rows` is the one place that refuses a table with more rows than allowed (413);
 :func:`csv_data_rows` counts the rows of a CSV body before it is parsed.
 """
@@ -20,6 +24,9 @@ from __future__ import annotations
 
 import asyncio
 import csv
+import threading
+import time
+from collections.abc import Callable
 from typing import Any
 
 from starlette.exceptions import HTTPException
@@ -27,8 +34,11 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from .problems import ProblemError, ProblemResponse
 
-__all__ = ["BodySizeLimitMiddleware", "BodyTimeout", "BodyTooLarge", "check_columns", "check_rows",
-           "csv_data_rows", "csv_header_columns"]
+__all__ = ["HEAVY_BODY_BYTES", "BodySizeLimitMiddleware", "BodyTimeout", "BodyTooLarge",
+           "HeavyRequestMiddleware", "check_columns", "check_rows", "csv_data_rows", "csv_header_columns"]
+
+#: A request whose body is declared larger than this, or not declared (chunked), is heavy [bytes].
+HEAVY_BODY_BYTES = 2**20
 
 
 class BodyTooLarge(HTTPException):
@@ -220,3 +230,88 @@ class BodySizeLimitMiddleware:
             return message
 
         await self.app(scope, counted_receive, send)
+
+
+class HeavyRequestMiddleware:
+    """At most ``max_requests`` requests with a body over :data:`HEAVY_BODY_BYTES` in progress at once.
+
+    A heavy request (a body declared over 1 MiB, or of undeclared size) waits for a turn before
+    its body is read, up to ``wait_s``, then gets 503 with ``Retry-After``. With its turn it also
+    takes a place of the job admission control (``admit``, which may refuse with 503 or 429, as
+    for a job), so heavy requests and jobs share one bound. Turn and place are held until the
+    answer is sent, a streamed one included, or the client leaves. Other requests pass at once.
+
+    Parameters
+    ----------
+    app : ASGI app
+        The wrapped application.
+    max_requests : int
+        Heavy requests in progress at once [1] (``MICROBEARING_MAX_HEAVY_REQUESTS``).
+    wait_s : float
+        Longest wait for a turn [s] (``MICROBEARING_HEAVY_REQUEST_WAIT_S``).
+    admit : callable, optional
+        ``admit(scope)`` takes an admission place and returns what frees it, or raises a
+        :class:`~service.problems.ProblemError` (see :meth:`service.jobs.JobManager.admit_request`).
+    """
+
+    #: How often a waiting request looks for a free turn [s].
+    poll_s = 0.05
+
+    def __init__(self, app: ASGIApp, max_requests: int, wait_s: float,
+                 admit: Callable[[Scope], Callable[[], None]] | None = None):
+        self.app = app
+        self.max_requests = max_requests
+        self.wait_s = wait_s
+        self.admit = admit
+        self.turns = threading.BoundedSemaphore(max_requests)  # shared by the threads of a TestClient too
+
+    @staticmethod
+    def heavy(scope: Scope) -> bool:
+        """Whether the request's body is declared over :data:`HEAVY_BODY_BYTES`, or chunked."""
+        declared = None
+        chunked = False
+        for name, value in scope["headers"]:
+            if name == b"content-length":
+                declared = value
+            elif name == b"transfer-encoding":
+                chunked = True
+        if declared is not None:
+            return not declared.isdigit() or int(declared) > HEAVY_BODY_BYTES
+        return chunked
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or not self.heavy(scope):
+            await self.app(scope, receive, send)
+            return
+        deadline = time.monotonic() + self.wait_s
+        while not self.turns.acquire(blocking=False):
+            if time.monotonic() >= deadline:
+                problem = ProblemError(
+                    503, f"{self.max_requests} requests with bodies over {HEAVY_BODY_BYTES} bytes are in "
+                         "progress (MICROBEARING_MAX_HEAVY_REQUESTS) and none finished within "
+                         f"{self.wait_s:g} s (MICROBEARING_HEAVY_REQUEST_WAIT_S); retry later.",
+                    title="Server busy", headers={"Retry-After": "5", "Connection": "close"})
+                await self._answer(problem, scope, receive, send)
+                return
+            await asyncio.sleep(self.poll_s)
+        try:
+            try:
+                release = self.admit(scope) if self.admit is not None else None
+            except ProblemError as problem:
+                problem.headers = {**(problem.headers or {}), "Connection": "close"}
+                await self._answer(problem, scope, receive, send)
+                return
+            try:
+                await self.app(scope, receive, send)
+            finally:
+                if release is not None:
+                    release()
+        finally:
+            self.turns.release()
+
+    @staticmethod
+    async def _answer(problem: ProblemError, scope: Scope, receive: Receive, send: Send) -> None:
+        response = ProblemResponse(problem.to_dict(instance=scope.get("path")), status_code=problem.status,
+                                   headers=problem.headers)
+        await response(scope, receive, send)
+

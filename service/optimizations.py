@@ -128,8 +128,12 @@ def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, di
                                                               Callable | None]:
     """The μ model, the physics values it was built with, its convention and its interval at a point."""
     if body.conditions and not body.model.startswith("calibrated:"):
+        # A label (text) is a group of a calibrated model's factor column; named where it stands.
         raise validation_problem([{"pointer": "/conditions", "detail": "extra input columns are read by "
-                                   "calibrated models only"}])
+                                   "calibrated models only"}]
+                                 + [{"pointer": f"/conditions/{name}", "detail": "must be a number (a label "
+                                     "is read by a calibrated model's factor column only)"}
+                                    for name, value in body.conditions.items() if isinstance(value, str)])
     if body.model == "physics":
         return None, {}, str(body.convention), None
     model = resolve(store, body.model)
@@ -152,6 +156,13 @@ def _is_robust(body: OptimizationRequest, speed: Any) -> bool:
 
 
 def _envelope(body: OptimizationRequest, speed: Any) -> Envelope:
+    labels = [name for name, value in (body.conditions or {}).items() if isinstance(value, str)]
+    if labels:
+        raise validation_problem([{"pointer": f"/conditions/{name}", "detail": "a group label is taken by a "
+                                   "design at one point only; over an operating envelope the design holds "
+                                   "for a new group (the spread between groups is in its interval): leave "
+                                   "it out"}
+                                  for name in labels])
     tolerances = {} if body.tolerances is None else body.tolerances.model_dump(exclude_none=True)
     try:
         return Envelope(tuple(speed) if isinstance(speed, list) else speed, body.conditions or {}, tolerances)

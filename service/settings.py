@@ -44,6 +44,18 @@ class Settings(BaseSettings):
         default=2_000_000, ge=1,
         description="Most points in one sweep; larger designs get 422.",
     )
+    max_heavy_requests: int = Field(
+        default=2, ge=1, le=64,
+        description="Most requests with a body over 1 MiB (or of undeclared size) in progress in one server "
+                    "process; more wait for their turn before their body is read. Each also holds a place "
+                    "of MICROBEARING_MAX_ACTIVE_JOBS (and ..._PER_KEY). A 2e6-point batch with every output "
+                    "takes about 0.5 GB: this bounds the memory of large requests.",
+    )
+    heavy_request_wait_s: float = Field(
+        default=30.0, ge=0, le=600,
+        description="How long a request with a body over 1 MiB waits for its turn [s]; then 503 with "
+                    "Retry-After.",
+    )
     sweep_sync_max_points: int = Field(
         default=10_000, ge=0,
         description="Sweeps of at most this many points answer 200 at once; larger ones run as jobs (202).",
@@ -108,6 +120,35 @@ class Settings(BaseSettings):
         default=60.0, gt=0,
         description="Time allowed to receive a whole request body [s]; a slower body gets 408.",
     )
+    # Connections (service/connections.py; the header limits and the connection cap apply under
+    # `microbearing serve`, whose uvicorn runs connections.BoundedHttpProtocol).
+    header_timeout_s: float = Field(
+        default=10.0, gt=0, le=3600,
+        description="Time allowed for a request line and its headers [s], from the connection's opening or "
+                    "the previous answer; a connection that has not sent them by then is closed.",
+    )
+    max_header_bytes: int = Field(
+        default=32 * 2**10, ge=1024, le=2**24,
+        description="Largest request line and headers [bytes]; larger ones get 431 and the connection is "
+                    "closed.",
+    )
+    max_connections: int = Field(
+        default=10_000, ge=1,
+        description="Most open connections of one server process [1], lowered to the open-file limit less "
+                    "MICROBEARING_FD_RESERVE; a connection past it closes the oldest one still waiting for "
+                    "its request head.",
+    )
+    fd_reserve: int = Field(
+        default=512, ge=64,
+        description="File descriptors kept free of client connections [1], for the database, logs, the dask "
+                    "client and connections accepted in a burst (the listen backlog is a quarter of it). The "
+                    "open-file soft limit is raised to the hard limit at start.",
+    )
+    max_concurrent_requests: int = Field(
+        default=256, ge=1,
+        description="Most requests in progress in one server process [1]; past it 503 with Retry-After "
+                    "(/healthz and /readyz always answer).",
+    )
     # Reliability and scale-out (service/security.py, service/executor.py).
     api_keys: SecretStr = Field(
         default=SecretStr(""),
@@ -124,6 +165,12 @@ class Settings(BaseSettings):
         description="Run sweep and batch chunks and the groups of multi-start optimizations on "
                     "dask.distributed: a scheduler address (tcp://host:8786) or `local` for an embedded "
                     "LocalCluster. Unset: a local thread pool.",
+    )
+    dask_fault_timeout_s: float = Field(
+        default=30.0, gt=0, le=3600,
+        description="How long a dask scheduler may stay unreachable, or without workers, before the batch "
+                    "or job waiting on it fails with 503 naming the scheduler [s]; chunks it dropped are "
+                    "submitted again when it is back within this time.",
     )
     executor_workers: int = Field(
         default=0, ge=0, le=256,

@@ -444,10 +444,14 @@ class Store:
                              (row["id"], inputs_json))
         return None
 
-    def count_active_jobs(self) -> int:
-        """Queued and running jobs in the database, of every process [1]."""
+    def count_active_jobs(self, key_id: str | None = None) -> int:
+        """Queued and running jobs in the database, of every process [1]; only ``key_id``'s when given."""
+        if key_id is None:
+            return self.connection().execute(
+                "SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running')").fetchone()[0]
         return self.connection().execute(
-            "SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running')").fetchone()[0]
+            "SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running') AND owner_key = ?",
+            (key_id,)).fetchone()[0]
 
     def claim_job(self, instance: str, pid: int, kinds: tuple[str, ...], lease_expires: float,
                   token: str) -> dict[str, Any] | None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -18,8 +18,8 @@ from fastapi.responses import Response
 
 from .store import json_bytes
 
-__all__ = ["CSV_MEDIA_TYPE", "accepts_any", "best_match", "csv_text", "json_bytes", "media_ranges",
-           "prefers_csv", "sweep_table", "table_response", "wants_csv"]
+__all__ = ["CSV_MEDIA_TYPE", "accepts_any", "best_match", "csv_text", "json_bytes", "json_column_pieces",
+           "media_ranges", "prefers_csv", "sweep_table", "table_response", "wants_csv"]
 
 CSV_MEDIA_TYPE = "text/csv"
 
@@ -127,3 +127,53 @@ def table_response(request: Request, document: Mapping[str, Any], columns: Mappi
     if wants_csv(request):
         return Response(csv_text(columns), status_code=status_code, media_type=CSV_MEDIA_TYPE)
     return Response(json_bytes(document), status_code=status_code, media_type="application/json")
+
+
+def json_column_pieces(columns: Sequence[tuple[str, str]], bounds: Sequence[tuple[int, int]],
+                       chunks: list[dict[str, Any]]) -> Iterator[bytes]:
+    """The JSON object of columns given chunk by chunk, in pieces of one chunk of one column.
+
+    The pieces joined are the bytes :func:`json_bytes` writes for the joined columns (the same
+    numbers, digits and separators), but no more than one chunk of one column is encoded at a
+    time, and a chunk's output is dropped once its last column is written: a streamed answer of
+    millions of points costs the outputs' arrays, not their JSON as well.
+
+    Parameters
+    ----------
+    columns : sequence of (str, str)
+        ``(key in the answer, output name in the chunks)``, in the answer's order; an output may
+        appear under several keys (an alias).
+    bounds : sequence of (int, int)
+        ``(start, stop)`` of each chunk [points].
+    chunks : list of dict
+        Each chunk's outputs, an array of its points or a scalar shared by them; emptied as written.
+
+    Yields
+    ------
+    bytes
+        Pieces of one JSON object.
+
+    Raises
+    ------
+    ValueError
+        For a NaN or infinite number (callers check outputs before streaming, see
+        :func:`service.executor.evaluate_chunks`).
+    """
+    uses: dict[str, int] = {}
+    for _, name in columns:
+        uses[name] = uses.get(name, 0) + 1
+    yield b"{"
+    for index, (key, name) in enumerate(columns):
+        yield (b"]," if index else b"") + json_bytes(key) + b":["
+        for position, (chunk, (start, stop)) in enumerate(zip(chunks, bounds, strict=True)):
+            values = np.broadcast_to(np.asarray(chunk[name], dtype=float), (stop - start,))
+            text = json_bytes(values)
+            if b"NaN" in text or b"Infinity" in text:
+                raise ValueError(f"{name} has a value JSON cannot represent")
+            yield (b"," if position else b"") + text[1:-1]
+        uses[name] -= 1
+        if not uses[name]:
+            for chunk in chunks:
+                chunk.pop(name, None)
+    yield b"]}" if columns else b"}"
+

@@ -40,6 +40,8 @@ GENERATOR_WARNINGS = {
         "an image/png answer has no model; the generated sync_detailed() returns its bytes in .content"),
     "GET /v1/optimizations/{job_id}/pareto.png": (
         "an image/png answer has no model; the generated sync_detailed() returns its bytes in .content"),
+    "GET /v1/experiments/{job_id}/plot.png": (
+        "an image/png answer has no model; the generated sync_detailed() returns its bytes in .content"),
 }
 
 #: Operations of the spec that are not driven here, with the reason.
@@ -417,6 +419,40 @@ def _(s: Session) -> None:
 def _(s: Session) -> None:
     job = s.once("pareto_job", lambda: _pareto_job(s))
     plot = s.call("get_optimization_pareto_plot", job_id=job.id)
+    assert plot.status_code == 200 and plot.content.startswith(b"\x89PNG")
+
+
+def _experiments_job(s: Session) -> Any:
+    made = s.once("calibration", lambda: _calibration(s))
+    body = s.model("NextExperimentsRequest", {
+        "runs": 6, "goal": "parameters",
+        "space": {"balls": [4], "load_N": {"low": 0.0044, "high": 0.0132, "spacing": "log"},
+                  "speed_m_s": {"low": 0.01, "high": 0.15}, "relative_humidity": [0.25, 0.5, 0.7]}})
+    job = s.finished_job(s.call("create_next_experiments", calibration_id=made.id, body=body))
+    result = typed(s.call("get_job_result", job_id=job.id), "ExperimentsJobResult")
+    assert len(result.runs) == 6 and all(isinstance(run.balls, int) for run in result.runs)
+    assert 0 <= result.efficiency_lower_bound <= 1
+    return job
+
+
+@drives("create_next_experiments")
+def _(s: Session) -> None:
+    s.once("experiments_job", lambda: _experiments_job(s))
+
+
+@drives("create_first_experiments")
+def _(s: Session) -> None:
+    body = s.model("FirstExperimentsRequest", {
+        "runs": 4, "fit_parameters": ["mu_pivot"],
+        "space": {"balls": [4, 8], "load_N": {"low": 0.001, "high": 0.03}, "speed_m_s": [0.05]}})
+    result = s.job_result(s.call("create_first_experiments", body=body), "ExperimentsJobResult")
+    assert result.model == "physics" and len(result.runs) == 4
+
+
+@drives("get_experiments_plot")
+def _(s: Session) -> None:
+    job = s.once("experiments_job", lambda: _experiments_job(s))
+    plot = s.call("get_experiments_plot", job_id=job.id)
     assert plot.status_code == 200 and plot.content.startswith(b"\x89PNG")
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Body, Query, Request
 from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
 
@@ -14,6 +14,7 @@ from microbearing.calibrate import DataError, Dataset, check_request, parse_assi
 from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names
 
 from ..calibrations import (
+    DATA_PREFIX,
     calibration_summaries,
     calibration_view,
     data_problem,
@@ -25,6 +26,7 @@ from ..deps import JobsDep, SettingsDep, StoreDep
 from ..jobs import JobContext, JobManager, register_kind
 from ..limits import check_columns, check_rows, csv_data_rows, csv_header_columns
 from ..problems import ProblemError, problem_responses, validation_problem
+from ..schemas import examples
 from ..schemas.base import Convention, ConventionName
 from ..schemas.calibrations import (
     CalibrationList,
@@ -46,7 +48,8 @@ assert set(Separator.__args__) == {"auto", *SEPARATORS} and set(Decimal.__args__
 _DEFAULT_CONVENTION = Convention(physics.DEFAULT_CONVENTION)
 
 _CSV_TEXT = ("CSV with a header row: physics input columns, mu_measured [1], optionally mu_measured_std [1], "
-             "and any other numeric condition columns. Separated by comma, semicolon or tab (detected, or "
+             "and any other condition columns: numbers, or labels (a factor, e.g. specimen S1, S2, ...). "
+             "Separated by comma, semicolon or tab (detected, or "
              "stated by the query parameter separator); decimal point or, with semicolon or tab, decimal "
              "comma (detected, or stated by decimal); UTF-8 with or without BOM; blank lines and empty "
              "columns at the end are ignored. Column names may carry units, converted to SI: "
@@ -91,7 +94,9 @@ def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
     dataset = Dataset({name: np.asarray(values) for name, values in inputs["physics_columns"].items()},
                       {name: np.asarray(values) for name, values in inputs["conditions"].items()},
                       np.asarray(inputs["mu_measured"], dtype=float),
-                      None if std is None else np.asarray(std, dtype=float), dict(inputs["fixed"]))
+                      None if std is None else np.asarray(std, dtype=float), dict(inputs["fixed"]),
+                      {name: np.asarray(labels, dtype=str)
+                       for name, labels in (inputs.get("factors") or {}).items()})
     return _work(runtime.store, dataset, inputs["fit_parameters"], inputs["folds"], inputs["convention"],
                  inputs.get("intake") or {})
 
@@ -109,6 +114,7 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
     inputs = {"physics_columns": _columns(dataset.physics_columns),
               "conditions": _columns(dataset.conditions), "mu_measured": dataset.mu_measured.tolist(),
               "mu_measured_std": None if std is None else std.tolist(), "fixed": dataset.fixed,
+              "factors": _columns(dataset.factors),
               "fit_parameters": fit_parameters, "folds": folds, "convention": convention, "intake": intake}
     work = _work(store, dataset, fit_parameters, folds, convention, intake)
     return accepted(jobs.submit("calibration", record, work, inputs=inputs))
@@ -116,7 +122,8 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
 
 @router.post("", operation_id="create_calibration", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
-def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep,
+def create_calibration(body: Annotated[CalibrationRequest, Body(examples=[examples.CALIBRATION])],
+                       store: StoreDep, jobs: JobsDep,
                        settings: SettingsDep) -> JSONResponse:
     """Calibrate on JSON rows: fit the named parameters, add the terms the data need, report (a job).
 
@@ -127,12 +134,13 @@ def create_calibration(body: CalibrationRequest, store: StoreDep, jobs: JobsDep,
     check_columns(len(set().union(*body.data)), settings.max_calibration_columns, "/data")
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
-        dataset, intake = read_rows(body.data, fixed)
+        dataset, intake = read_rows(body.data, fixed, body.factors)
     except DataError as exc:
         raise data_problem(exc.errors) from None
     fit_parameters = [str(name) for name in body.fit_parameters]
     _check(dataset, fit_parameters, body.folds, query=False)
-    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()), "fixed": fixed,
+    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()),
+              "factors": sorted(dataset.factors), "fixed": fixed,
               "fit_parameters": fit_parameters, "folds": body.folds, "convention": str(body.convention),
               "intake": intake.to_dict()}
     return _submit(jobs, store, record, dataset, fit_parameters, body.folds, str(body.convention),
@@ -148,6 +156,9 @@ async def create_calibration_from_csv(
     fixed: Annotated[list[str], Query(
         description="Physics inputs fixed for every row, as name=value in their units (repeatable).")] = [],  # noqa: B006
     folds: Annotated[int, Query(ge=2, le=20, description="Cross-validation folds [1].")] = 5,
+    factors: Annotated[list[str], Query(max_length=20, description=(
+        "Condition columns to read as group labels even when they hold numbers (repeatable); a column "
+        "with no number in it is a factor anyway."))] = [],  # noqa: B006
     convention: Annotated[ConventionName, Query(  # type: ignore[valid-type]
         description="Reading of the paper's ambiguous ball-ball terms.")] = _DEFAULT_CONVENTION,
     separator: Annotated[Separator, Query(
@@ -176,12 +187,13 @@ async def create_calibration_from_csv(
     try:
         dataset, intake = await run_in_threadpool(
             read_csv, text, fixed_values, None if separator == "auto" else separator,
-            None if decimal == "auto" else decimal)
+            None if decimal == "auto" else decimal, factors)
     except DataError as exc:
         raise data_problem(exc.errors, fixed_pointer=None, data_pointer=None) from None
     names = [str(name) for name in fit_parameters]
     _check(dataset, names, folds, query=True)
-    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()), "fixed": fixed_values,
+    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()),
+              "factors": sorted(dataset.factors), "fixed": fixed_values,
               "fit_parameters": names, "folds": folds, "convention": str(convention),
               "intake": intake.to_dict()}
     return _submit(jobs, store, record, dataset, names, folds, str(convention), intake.to_dict())
@@ -224,7 +236,8 @@ def get_calibration_plot(calibration_id: str, plot_name: str, store: StoreDep) -
     """A plot of a calibration: ``effect_<k>``, ``residuals``, ``measured_vs_predicted`` (older calibrations:
     ``residual_before``, ``residual_after`` or ``residual``)."""
     stored = load_calibration(store, calibration_id)
-    if plot_name not in stored.arrays:
+    plots = sorted(name for name in stored.arrays if not name.startswith(DATA_PREFIX))
+    if plot_name not in plots:
         raise ProblemError(404, f"Calibration {calibration_id} has no plot {plot_name!r}; it has "
-                                f"{', '.join(sorted(stored.arrays)) or 'none'}.")
+                                f"{', '.join(plots) or 'none'}.")
     return Response(stored.arrays[plot_name].tobytes(), media_type="image/png")

@@ -1,25 +1,35 @@
-"""``/v1/friction`` (one point) and ``/v1/friction/batch`` (columns of up to millions of points)."""
+"""``/v1/friction`` (one point) and ``/v1/friction/batch`` (columns of up to millions of points).
+
+Memory of large batches: a request body over 1 MiB waits for its turn and holds a place of the
+job admission control (:class:`service.limits.HeavyRequestMiddleware`). A physics batch's answer is
+streamed chunk by chunk of each column (:func:`service.tables.json_column_pieces`), so it costs its
+output arrays and, while they are parsed, its input lists, never its JSON: at 2e6 points with all
+21 outputs the server's peak grew by about 0.5 GB, against 2.9 GB when the answer was built whole
+(``bench/batch_memory.py``).
+"""
 
 from __future__ import annotations
 
+from collections.abc import AsyncIterator, Iterator
 from concurrent.futures import Executor
+from typing import Any
 
 from fastapi import APIRouter, Request
-from fastapi.responses import Response
-from starlette.concurrency import run_in_threadpool
+from fastapi.responses import Response, StreamingResponse
+from starlette.concurrency import iterate_in_threadpool, run_in_threadpool
 
 from microbearing import physics
 
 from ..calibrations import evaluate_batch_with_model, evaluate_point_with_model
 from ..deps import ExecutorDep, SettingsDep, StoreDep, get_store
 from ..evaluation import column_arrays, evaluate_point
-from ..executor import evaluate_in_chunks
+from ..executor import DEFAULT_CHUNK_POINTS, evaluate_chunks
 from ..models import physics_in
 from ..problems import problem_responses, validation_problem
-from ..schemas.base import parse_json_body, raw_json_body, with_folding_safe_names
+from ..schemas.base import FOLDING_SAFE_NAMES, parse_json_body, raw_json_body, with_folding_safe_names
 from ..schemas.friction import FrictionBatchRequest, FrictionBatchResponse, FrictionRequest, FrictionResponse
 from ..store import Store
-from ..tables import json_bytes
+from ..tables import json_bytes, json_column_pieces
 
 __all__ = ["router"]
 
@@ -54,21 +64,39 @@ def _refuse_conditions(conditions: object) -> None:
                                    "detail": "only a calibrated model reads conditions"}])
 
 
-def _batch(request: FrictionBatchRequest, max_points: int, executor: Executor, store: Store) -> bytes:
-    if request.model != "physics":
-        return json_bytes(with_folding_safe_names(evaluate_batch_with_model(
-            store, executor, request.model, request.points.model_dump(exclude_unset=True), request.conditions,
-            request.outputs, str(request.convention) if "convention" in request.model_fields_set else None,
-            max_points)))
+def _model_batch(request: FrictionBatchRequest, max_points: int, executor: Executor, store: Store) -> bytes:
+    return json_bytes(with_folding_safe_names(evaluate_batch_with_model(
+        store, executor, request.model, request.points.model_dump(exclude_unset=True), request.conditions,
+        request.outputs, str(request.convention) if "convention" in request.model_fields_set else None,
+        max_points)))
+
+
+def _physics_inputs(request: FrictionBatchRequest, max_points: int) -> tuple[dict[str, Any], int]:
+    """The input columns as arrays, and the point count (the parsed request can be freed then)."""
     _refuse_conditions(request.conditions)
-    inputs, count = column_arrays(request.points.model_dump(), max_points)
+    return column_arrays(request.points.model_dump(), max_points)
+
+
+def _physics_batch(inputs: dict[str, Any], count: int, outputs: list[str] | None, convention: str,
+                   executor: Executor) -> Iterator[bytes]:
+    """Compute every chunk (errors raise here, before the answer starts); return the answer's pieces."""
     # Chunks of points on the app's executor (thread pool or dask cluster, service/executor.py).
-    return json_bytes(with_folding_safe_names(evaluate_in_chunks(
-        executor, inputs, count, request.outputs, physics_in(request.convention), pointer="/points")))
+    names, bounds, chunks = evaluate_chunks(executor, inputs, count, outputs, physics_in(convention),
+                                            pointer="/points")
+    inputs.clear()
+    columns = [(name, name) for name in names]
+    columns += [(alias, name) for name, alias in FOLDING_SAFE_NAMES.items() if name in names]
+    return json_column_pieces(columns, bounds, chunks)
+
+
+async def _streamed(pieces: Iterator[bytes]) -> AsyncIterator[bytes]:
+    """The pieces, each encoded in a worker thread."""
+    async for piece in iterate_in_threadpool(pieces):
+        yield piece
 
 
 @router.post("/batch", operation_id="evaluate_friction_batch", response_model=FrictionBatchResponse,
-             response_model_exclude_none=True, responses=problem_responses(404, 413, 503),
+             response_model_exclude_none=True, responses=problem_responses(404, 413, 429, 503),
              openapi_extra=raw_json_body(FrictionBatchRequest))
 async def evaluate_friction_batch(request: Request, settings: SettingsDep, executor: ExecutorDep,
                                   store: StoreDep) -> Response:
@@ -77,7 +105,22 @@ async def evaluate_friction_batch(request: Request, settings: SettingsDep, execu
     With a calibrated model (``model``), its condition columns (``conditions``) and, beside ``mu``,
     ``mu_effect``, the 95 % interval ``mu_lower``/``mu_upper`` and ``in_domain`` per point, with the
     batch's ``domain_warnings``.
+
+    A body over 1 MiB waits for one of MICROBEARING_MAX_HEAVY_REQUESTS turns (503 with Retry-After
+    after MICROBEARING_HEAVY_REQUEST_WAIT_S) and counts toward the job limits while it runs (503
+    past MICROBEARING_MAX_ACTIVE_JOBS, 429 past MICROBEARING_MAX_ACTIVE_JOBS_PER_KEY). An answer
+    of more than 65,536 physics points is streamed (chunked transfer coding), so its memory does
+    not grow with its JSON.
     """
     body = await parse_json_body(request, FrictionBatchRequest)
-    content = await run_in_threadpool(_batch, body, settings.max_batch_points, executor, store)
-    return Response(content, media_type="application/json")
+    if body.model != "physics":
+        content = await run_in_threadpool(_model_batch, body, settings.max_batch_points, executor, store)
+        return Response(content, media_type="application/json")
+    inputs, count = await run_in_threadpool(_physics_inputs, body, settings.max_batch_points)
+    outputs, convention = body.outputs, str(body.convention)
+    del body  # the parsed lists of numbers: the arrays of the inputs are all that is needed now
+    pieces = await run_in_threadpool(_physics_batch, inputs, count, outputs, convention, executor)
+    del inputs
+    if count <= DEFAULT_CHUNK_POINTS:  # one chunk: one piece, with its length
+        return Response(b"".join(pieces), media_type="application/json")
+    return StreamingResponse(_streamed(pieces), media_type="application/json")

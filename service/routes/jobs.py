@@ -43,12 +43,33 @@ def accepted(row: dict[str, Any]) -> JSONResponse:
                         headers={"Location": f"/v1/jobs/{row['id']}", "Retry-After": str(POLL_AFTER_S)})
 
 
+def _job_links(pointer: str) -> dict[str, dict[str, Any]]:
+    """OpenAPI links from an answer holding a job's id at ``pointer`` to the job's routes."""
+    return {name: {"operationId": operation, "parameters": {"job_id": f"$response.body#{pointer}"},
+                   "description": f"{what} of this job."}
+            for name, operation, what in (("GetJob", "get_job", "Status"), ("GetJobResult", "get_job_result",
+                                                                             "Result"),
+                                          ("CancelJob", "cancel_job", "Cancellation or deletion"))}
+
+
+#: Links from an answer with a stored model's id at ``/id`` (a job's result) to the model's routes.
+MODEL_LINKS = {
+    name: {"operationId": operation, "parameters": {parameter: "$response.body#/id"},
+           "description": f"{what} (when the result is a surrogate's or a calibration's)."}
+    for name, operation, parameter, what in (
+        ("GetSurrogate", "get_surrogate", "surrogate_id", "The stored surrogate"),
+        ("PredictSurrogate", "predict_surrogate", "surrogate_id", "Predictions of the surrogate"),
+        ("GetSurrogateSensitivity", "get_surrogate_sensitivity", "surrogate_id", "Its sensitivity"),
+        ("DeleteSurrogate", "delete_surrogate", "surrogate_id", "Deletion of the surrogate"),
+        ("GetCalibration", "get_calibration", "calibration_id", "The stored calibration"))}
+
 _RETRY_AFTER_HEADER = {"description": "Seconds to wait before trying again.", "schema": {"type": "integer"}}
 
 #: OpenAPI entries of a 202 answer and of the refusals of a full queue, for routes that may run
 #: their work as a job.
 ACCEPTED_RESPONSE: dict[int | str, dict[str, Any]] = {
     202: {"model": Job, "description": "Accepted: the work runs as a job; poll the Location header.",
+          "links": _job_links("/id"),
           "headers": {"Location": {"description": "Path of the job, /v1/jobs/{id}.",
                                    "schema": {"type": "string"}},
                       "Retry-After": {"description": "Seconds to wait before polling the job.",
@@ -106,7 +127,9 @@ def list_jobs(
     return JobList(jobs=[job_view(row) for row in page], next_url=next_url)
 
 
-@router.get("/{job_id}", operation_id="get_job", response_model=Job, responses=problem_responses(404))
+@router.get("/{job_id}", operation_id="get_job", response_model=Job,
+            responses={200: {"description": "The job.", "links": _job_links("/id")},
+                       **problem_responses(404)})
 def get_job(job_id: str, jobs: JobsDep) -> Job:
     """Status, progress and, once finished, the result link or the problem of a job."""
     return job_view(_job_or_404(jobs, job_id))
@@ -144,6 +167,7 @@ def cancel_job(job_id: str, jobs: JobsDep) -> Any:
         200: {"model": JobResult,
               "description": "The result, tagged with the job's kind: JSON, or its columns as CSV with "
                              "Accept: text/csv (sweeps).",
+              "links": MODEL_LINKS,
               "content": {CSV_MEDIA_TYPE: {"schema": {"type": "string"}}}},
         **problem_responses(404, 406, 409),
     },

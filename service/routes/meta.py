@@ -10,7 +10,7 @@ from fastapi import APIRouter
 from microbearing import physics
 from microbearing.calibrate.tabular import accepted_names
 
-from ..deps import JobsDep, SettingsDep, StoreDep
+from ..deps import ExecutorDep, JobsDep, SettingsDep, StoreDep
 from ..problems import ProblemError, problem_responses
 from ..schemas.meta import (
     Health,
@@ -44,13 +44,20 @@ async def get_health() -> Health:
 
 @router.get("/readyz", operation_id="get_readiness", response_model=Readiness,
             responses=problem_responses(503))
-def get_readiness(store: StoreDep, jobs: JobsDep, settings: SettingsDep) -> Readiness:
+def get_readiness(store: StoreDep, jobs: JobsDep, settings: SettingsDep, executor: ExecutorDep) -> Readiness:
     """Readiness: 200 when the database takes a write and the disk has MICROBEARING_MIN_FREE_BYTES free.
 
-    503 otherwise, naming the cause (disk full, read-only database, too little free space); take
-    the server out of a load balancer's rotation then. Liveness is ``/healthz``.
+    With MICROBEARING_DASK_SCHEDULER set to a scheduler's address, the scheduler must also be
+    reachable (connecting again if the connection was lost) and have a worker.
+
+    503 otherwise, naming the cause (disk full, read-only database, too little free space, the
+    dask scheduler unreachable or without workers); take the server out of a load balancer's
+    rotation then. Liveness is ``/healthz``.
     """
     reason = store.check_writable(settings.min_free_bytes)
+    fault = getattr(executor, "fault", None)
+    if reason is None and fault is not None and (cluster := fault()) is not None:
+        reason = f"the dask scheduler {settings.dask_scheduler} {cluster.rstrip('.')}"
     if reason is not None:
         raise ProblemError(503, f"Not ready: {reason}.", title="Not ready", headers={"Retry-After": "30"})
     return Readiness(status="ready", free_bytes=shutil.disk_usage(store.data_dir).free,

@@ -13,6 +13,7 @@ from ..deps import ExecutorDep, JobsDep, StoreDep
 from ..jobs import JobContext, register_kind
 from ..optimizations import pareto_png, prepare, run
 from ..problems import ProblemError, problem_responses
+from ..schemas import examples
 from ..schemas.optimizations import OptimizationRequest, OptimizationResult
 from .jobs import ACCEPTED_RESPONSE, accepted
 
@@ -43,7 +44,8 @@ register_kind(_KIND, _stored_work,
                **problem_responses(404)},
 )
 async def create_optimization(
-    body: Annotated[OptimizationRequest, Body(description="Bounds, fixed inputs, speed, limits and model.")],
+    body: Annotated[OptimizationRequest, Body(description="Bounds, fixed inputs, speed, limits and model.",
+                                              examples=[examples.OPTIMIZATION])],
     store: StoreDep,
     jobs: JobsDep,
     executor: ExecutorDep,

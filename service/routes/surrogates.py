@@ -7,12 +7,13 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Body, Query
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep, StoreDep
 from ..jobs import JobContext, register_kind
 from ..problems import problem_responses, validation_problem
+from ..schemas import examples
 from ..schemas.surrogates import (
     PredictRequest,
     PredictResponse,
@@ -57,7 +58,8 @@ register_kind("surrogate", _stored_work,
 
 @router.post("", operation_id="create_surrogate", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
-def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> JSONResponse:
+def create_surrogate(body: Annotated[SurrogateRequest, Body(examples=[examples.SURROGATE])], store: StoreDep,
+                     jobs: JobsDep) -> JSONResponse:
     """Train a surrogate of mu over a space of physics inputs (a job).
 
     Learns the physics, or with ``model`` a calibrated model (``conditions`` giving the extra
@@ -75,7 +77,15 @@ def create_surrogate(body: SurrogateRequest, store: StoreDep, jobs: JobsDep) -> 
     return accepted(jobs.submit("surrogate", request, work, inputs=request))
 
 
-@router.get("", operation_id="list_surrogates", response_model=SurrogateList, responses=problem_responses())
+@router.get("", operation_id="list_surrogates", response_model=SurrogateList, responses={
+    200: {"description": "Every stored surrogate.", "links": {
+        name: {"operationId": operation, "parameters": {"surrogate_id": "$response.body#/surrogates/0/id"},
+               "description": f"{what} of the first surrogate listed."}
+        for name, operation, what in (("GetSurrogate", "get_surrogate", "The stored surrogate"),
+                                      ("PredictSurrogate", "predict_surrogate", "Predictions"),
+                                      ("GetSurrogateSensitivity", "get_surrogate_sensitivity", "Sensitivity"),
+                                      ("DeleteSurrogate", "delete_surrogate", "Deletion"))}},
+    **problem_responses()})
 def list_surrogates(store: StoreDep) -> JSONResponse:
     """Every stored surrogate, newest first."""
     return JSONResponse({"surrogates": surrogate_views(store)})

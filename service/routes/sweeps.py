@@ -13,6 +13,7 @@ from starlette.concurrency import run_in_threadpool
 from ..deps import ExecutorDep, JobsDep, SettingsDep
 from ..jobs import JobContext, register_kind
 from ..problems import problem_responses
+from ..schemas import examples
 from ..schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep, SweepRequest, SweepResult
 from ..settings import Settings
 from ..store import json_bytes
@@ -53,7 +54,8 @@ register_kind("sweep", lambda inputs, runtime: _work(_REQUEST.validate_json(json
 )
 async def create_sweep(
     request: Request,
-    body: Annotated[SweepRequest, Body(description="A grid or a design of experiments, tagged by design.")],
+    body: Annotated[SweepRequest, Body(description="A grid or a design of experiments, tagged by design.",
+                                       examples=[examples.SWEEP])],
     settings: SettingsDep,
     jobs: JobsDep,
     executor: ExecutorDep,

@@ -7,7 +7,7 @@ numbers, NaN and infinities are rejected with 422. Build physics inputs with
     MyRequest = pydantic.create_model(
         "MyRequest", __base__=StrictModel,
         **parameter_fields(optional=True),          # every physics input, all optional
-        iterations=(int, Field(ge=1, le=1000, description="Optimizer iterations [1].")),
+        iterations=(WholeNumber, Field(ge=1, le=1000, description="Optimizer iterations [1].")),
     )
 """
 
@@ -19,7 +19,7 @@ from typing import Annotated, Any, TypeVar
 
 from fastapi import Request
 from fastapi.exceptions import RequestValidationError
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, ValidationError
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect
 
@@ -84,8 +84,23 @@ def parameter_description(spec: physics.Parameter) -> str:
     return f"{spec.description} [{spec.unit}] Allowed: {spec.range_text()}.{default}"
 
 
-def parameter_type(spec: physics.Parameter) -> Any:
-    """The annotated scalar type of one parameter, with its bounds as schema constraints."""
+def whole_number(value: Any) -> Any:
+    """A JSON number without a fraction written with one (``2.0``), as the integer it is."""
+    return int(value) if type(value) is float and value.is_integer() else value
+
+
+#: ``int`` of a request field: a whole number written with a fraction (``2.0``) is taken, since JSON
+#: Schema's ``integer`` (what the spec says) includes it; ``2.5``, strings and booleans stay refused.
+WholeNumber = Annotated[int, BeforeValidator(whole_number)]
+
+
+def parameter_type(spec: physics.Parameter, element: bool = False) -> Any:
+    """The annotated scalar type of one parameter, with its bounds as schema constraints.
+
+    A whole-number parameter takes ``2.0`` (:data:`WholeNumber`), except as an ``element`` of a
+    column, which may hold millions of values and is checked by the physics (a column of ``4.0``
+    is refused there).
+    """
     if spec.kind == "bool":
         return StrictBool
     bounds: dict[str, float] = {}
@@ -94,7 +109,10 @@ def parameter_type(spec: physics.Parameter) -> Any:
     if spec.maximum is not None:
         bounds["lt" if spec.exclusive_maximum else "le"] = spec.maximum
     if spec.kind == "int":
-        return Annotated[int, Field(**{key: int(value) for key, value in bounds.items()})]
+        whole_bounds = Field(**{key: int(value) for key, value in bounds.items()})
+        if element:
+            return Annotated[int, whole_bounds]
+        return Annotated[int, whole_bounds, BeforeValidator(whole_number)]
     return Annotated[float, Field(allow_inf_nan=False, **bounds)]
 
 
@@ -121,7 +139,7 @@ def parameter_fields(*, columns: bool = False, optional: bool = False,
     for name in names or list(physics.PARAMETERS):
         spec = physics.PARAMETERS[name]
         scalar = parameter_type(spec)
-        kind = scalar | list[scalar] if columns else scalar
+        kind = scalar | list[parameter_type(spec, element=True)] if columns else scalar
         description = parameter_description(spec)
         if columns:
             description += " A scalar or a list; lists share one length and scalars broadcast."

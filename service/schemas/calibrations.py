@@ -9,7 +9,15 @@ from pydantic import ConfigDict, Field, create_model
 
 from microbearing import physics
 
-from .base import Convention, ConventionName, DateTimeText, ResponseModel, StrictModel, parameter_fields
+from .base import (
+    Convention,
+    ConventionName,
+    DateTimeText,
+    ResponseModel,
+    StrictModel,
+    WholeNumber,
+    parameter_fields,
+)
 
 __all__ = ["FITTABLE_PARAMETERS", "MODEL_FIELDS", "MODEL_PATTERN", "MODEL_RESPONSE_FIELDS",
            "CalibrationFixed", "CalibrationList", "CalibrationRequest", "CalibrationResult",
@@ -35,10 +43,12 @@ MODEL_FIELDS: dict[str, Any] = {
     "model": (str, Field(default="physics", pattern=MODEL_PATTERN, description=(
         "'physics' (the declared model) or 'calibrated:<id>' from /v1/calibrations: its fixed and fitted "
         "parameters replace the defaults, its convention is used and its effect is added to mu."))),
-    "conditions": (dict[str, float] | None, Field(default=None, description=(
+    "conditions": (dict[str, float | str] | None, Field(default=None, description=(
         "Condition columns of the calibration data, e.g. relative_humidity [1] [unit of each column as in "
         "the calibration data]; those the calibrated model's terms read are required, a column the "
-        "calibration never saw is refused (422 naming it)."))),
+        "calibration never saw is refused (422 naming it). A factor column takes a group label (e.g. "
+        "\"specimen\": \"S3\"): a known group is predicted at its own level, a new label (or none) "
+        "carries the spread between groups in the interval."))),
 }
 
 #: Response fields added when a calibrated model answers.
@@ -54,8 +64,9 @@ MODEL_RESPONSE_FIELDS: dict[str, Any] = {
     "mu_upper": (float | None, Field(default=None, description=(
         "Upper bound of the same 95 % prediction interval [1]."))),
     "in_domain": (bool | None, Field(default=None, description=(
-        "Whether the point lies within the range of every column of the calibration data (false: the "
-        "answer is an extrapolation; domain_warnings says where)."))),
+        "Whether the point lies within the range of every column of the calibration data and within the "
+        "joint cloud of its rows (false: the answer is an extrapolation, and the interval is widened; "
+        "domain_warnings says where)."))),
     "domain_warnings": (list[str] | None, Field(default=None, description=(
         "One sentence per input or condition outside the calibration data, naming the column, the value "
         "and the range."))),
@@ -67,7 +78,8 @@ _ROW_DESCRIPTION = (
     "ball_diameter [um]), mu_measured [1] > 0, optionally mu_measured_std [1] > 0, and any other numeric "
     "columns describing the conditions (e.g. relative_humidity [1], temperature_C [degC], cycle [1]; with a "
     "unit in brackets converted to SI: relative_humidity [%] -> relative_humidity [1], temperature [degC] -> "
-    "temperature_K); every row gives the same columns."
+    "temperature_K); every row gives the same columns. A column of text labels (e.g. specimen: S1, S2, ...) "
+    "is a factor: its groups' spread is fitted as a random effect."
 )
 
 
@@ -89,13 +101,16 @@ class CalibrationRequest(StrictModel):
              "mu_measured": 0.02302}],
         "fit_parameters": ["mu_pivot"], "folds": 5}]})
 
-    data: list[dict[str, float | bool]] = Field(min_length=1, description=_ROW_DESCRIPTION)
+    data: list[dict[str, float | bool | str]] = Field(min_length=1, description=_ROW_DESCRIPTION)
+    factors: list[str] = Field(default_factory=list, max_length=20, description=(
+        "Condition columns to read as group labels (factors) even when they hold numbers, e.g. integer "
+        "codes of specimens; a column with no number in it is a factor anyway."))
     fit_parameters: list[FittableParameterName] = Field(  # type: ignore[valid-type]
         default_factory=list, max_length=len(FITTABLE_PARAMETERS),
         description="Declared physics parameters to fit, e.g. mu_pivot, adhesion_energy_J_m2.")
     fixed: CalibrationFixed = Field(  # type: ignore[valid-type]
         default_factory=CalibrationFixed, description="Physics inputs fixed for every row.")
-    folds: int = Field(default=5, ge=2, le=20, description="Cross-validation folds [1].")
+    folds: WholeNumber = Field(default=5, ge=2, le=20, description="Cross-validation folds [1].")
     convention: ConventionName = Field(  # type: ignore[valid-type]
         default=Convention(physics.DEFAULT_CONVENTION),
         description="Reading of the paper's ambiguous ball-ball terms.")
@@ -356,6 +371,22 @@ class CalibrationResult(ResponseModel):
     intake: Intake | None = Field(default=None, description=(
         "How the data were read: separator, decimal mark, what was ignored, unit conversions (null for "
         "calibrations stored before it)."))
+    groups: list[dict[str, Any]] | None = Field(default=None, description=(
+        "Per factor column: the declared parameter (or mu) that varies between groups, spread_relative [1] "
+        "(standard deviation of its log) with its 95 % profile-likelihood interval spread_interval_relative "
+        "[1], within_group_scatter_relative [1], each group's relative_shift [1], the restricted "
+        "log-likelihood [1] of the random effect on each candidate parameter (the highest carries the "
+        "spread), and summary in words."))
+    scatter: dict[str, Any] | None = Field(default=None, description=(
+        "The scatter model of a new measurement (kind constant, step or loglinear in one column, chosen by "
+        "cross-validation), with summary in words, e.g. 'scatter 10 % below speed_m_s = 0.02 [m/s], 1.5 % "
+        "above'."))
+    confounding: list[str] | None = Field(default=None, description=(
+        "Columns that move together in the data (their effects cannot be told apart) and what would "
+        "separate them; chosen terms whose driver may stand for another."))
+    domain: dict[str, Any] | None = Field(default=None, description=(
+        "The domain rule: columns of the data cloud, alpha [1] (share of points like the data flagged) and "
+        "summary in words."))
     plots: dict[str, str] = Field(description=(
         "Plots: name -> URL of the PNG (effect_<k>: the k-th term against its driver with its 95 % band; "
         "residuals: against every input, before and after; measured_vs_predicted)."))

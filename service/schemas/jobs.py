@@ -9,6 +9,7 @@ from pydantic import Field
 from ..problems import Problem
 from .base import DateTimeText, ResponseModel
 from .calibrations import CalibrationResult
+from .experiments import ExperimentsResult
 from .optimizations import OptimizationResult
 from .surrogates import SurrogateResult
 from .sweeps import SweepResult
@@ -16,7 +17,7 @@ from .sweeps import SweepResult
 __all__ = ["JOB_RESULTS", "Job", "JobKind", "JobList", "JobResult", "JobStatus"]
 
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
-JobKind = Literal["sweep", "optimization", "calibration", "surrogate"]
+JobKind = Literal["sweep", "optimization", "calibration", "surrogate", "experiments"]
 
 
 class Job(ResponseModel):
@@ -60,13 +61,21 @@ class SurrogateJobResult(SurrogateResult):
     kind: Literal["surrogate"] = Field(description="Kind of the job that made the result: surrogate.")
 
 
+class ExperimentsJobResult(ExperimentsResult):
+    """The result of a job proposing runs (``/v1/calibrations/{id}/next-experiments`` or
+    ``/v1/experiments``)."""
+
+    kind: Literal["experiments"] = Field(description="Kind of the job that made the result: experiments.")
+
+
 #: Result model of every job kind (the kind given to ``JobManager.submit``); add a kind here.
 JOB_RESULTS = {"sweep": SweepJobResult, "optimization": OptimizationJobResult,
-               "calibration": CalibrationJobResult, "surrogate": SurrogateJobResult}
+               "calibration": CalibrationJobResult, "surrogate": SurrogateJobResult,
+               "experiments": ExperimentsJobResult}
 
 #: The JSON result of ``GET /v1/jobs/{id}/result``, told apart by ``kind`` (the job's kind).
-JobResult = Annotated[SweepJobResult | OptimizationJobResult | CalibrationJobResult | SurrogateJobResult,
-                      Field(discriminator="kind")]
+JobResult = Annotated[SweepJobResult | OptimizationJobResult | CalibrationJobResult | SurrogateJobResult
+                      | ExperimentsJobResult, Field(discriminator="kind")]
 
 
 class JobList(ResponseModel):

@@ -4,13 +4,21 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, create_model
+from pydantic import BeforeValidator, Field, create_model
 
 from microbearing import physics
 from microbearing.optimize.general import SPEED_GRID_POINTS
 from microbearing.optimize.problem import DESIGN_VARIABLES
 
-from .base import Convention, ConventionName, ResponseModel, StrictModel, parameter_fields
+from .base import (
+    Convention,
+    ConventionName,
+    ResponseModel,
+    StrictModel,
+    WholeNumber,
+    parameter_fields,
+    whole_number,
+)
 
 __all__ = ["MODEL_PATTERN", "OptimizationRequest", "OptimizationResult"]
 
@@ -29,7 +37,7 @@ def _pair(what: str) -> Field:
 class DesignBounds(StrictModel):
     """Box of the three design variables."""
 
-    balls: Annotated[list[Annotated[int, Field(ge=1, le=100_000)]],
+    balls: Annotated[list[Annotated[int, Field(ge=1, le=100_000), BeforeValidator(whole_number)]],
                      _pair("total number of balls (both grooves) [1]")]
     groove_angle_deg: Annotated[list[Annotated[float, Field(ge=_ANGLE.minimum, le=_ANGLE.maximum)]],
                                 _pair(f"groove angle, {_ANGLE.range_text()} [deg]")]
@@ -98,7 +106,8 @@ class ParetoRequest(StrictModel):
     objective: Literal["load_N", "max_contact_pressure_Pa"] = Field(
         description="Second objective: load_N (load capacity, larger is better) or max_contact_pressure_Pa "
                     "(smaller is better).")
-    points: int = Field(default=10, ge=2, le=50, description="Number of epsilon-constraint levels [1].")
+    points: WholeNumber = Field(default=10, ge=2, le=50,
+                                description="Number of epsilon-constraint levels [1].")
 
 
 class OptimizationRequest(StrictModel):
@@ -121,10 +130,12 @@ class OptimizationRequest(StrictModel):
         "physics (a certified global optimum by geometric programming), surrogate:<id> or "
         "calibrated:<id> (a local optimum by sequential convex approximation; over an envelope, proven by "
         "geometric programming when the calibrated model's terms allow, see proof)."))
-    conditions: dict[str, ConditionRange] | None = Field(
+    conditions: dict[str, ConditionRange | str] | None = Field(
         default=None, description="Condition columns a calibrated model's terms read (e.g. "
         "relative_humidity, temperature_C), in the calibration data's units: a value, or [low, high] to "
-        "design for the worst case over the range (the operating envelope).",
+        "design for the worst case over the range (the operating envelope); a factor column takes a group "
+        "label (e.g. specimen: S3) in a point design; without one the design is judged for a new group, "
+        "the spread between groups in its interval.",
         examples=[{"relative_humidity": [0.3, 0.7], "temperature_C": [20, 60]}])
     tolerances: DesignTolerances | None = Field(
         default=None, description="Tolerances of design variables: the design must hold (objective and "
@@ -133,8 +144,8 @@ class OptimizationRequest(StrictModel):
         default="mu", description="What the design minimizes the worst case of over the envelope: mu [1], "
         "or mu_upper [1], the 95 % upper bound of a calibrated or surrogate model's prediction (a friction "
         "limit to guarantee).")
-    starts: int = Field(default=3, ge=1, le=9, description="Starting points per ball count of the local "
-                        "method for surrogate and calibrated models [1].")
+    starts: WholeNumber = Field(default=3, ge=1, le=9, description="Starting points per ball count of the "
+                                "local method for surrogate and calibrated models [1].")
     time_limit_s: float = Field(default=60.0, gt=0.0, le=3600.0, description=(
         "Over an envelope, for a model without a proof: no new round of the outer approximation starts "
         "after this time; the result then says so, with the worst case found [s]."))

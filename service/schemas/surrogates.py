@@ -16,6 +16,7 @@ from .base import (
     DateTimeText,
     ResponseModel,
     StrictModel,
+    WholeNumber,
     parameter_description,
     parameter_fields,
     parameter_type,
@@ -68,7 +69,7 @@ class SurrogateRequest(StrictModel):
         default_factory=SurrogateFixed,
         description="Inputs held fixed; balls, load_N and speed_m_s must be a dimension or fixed (for a "
                     "calibrated model, the values its calibration fixed count as fixed unless given here).")
-    budget: int = Field(default=100, ge=2, le=MAX_BUDGET,
+    budget: WholeNumber = Field(default=100, ge=2, le=MAX_BUDGET,
                         description="Most physics evaluations for training [1].")
     target_relative_error: float = Field(
         default=0.001, gt=0, le=1,
@@ -78,8 +79,8 @@ class SurrogateRequest(StrictModel):
         default=SamplingDesign("sobol"), description="Starting design of experiments.")
     adaptive: bool = Field(default=True, description="Add evaluations where the surrogate is least "
                                                      "sure (else spend the budget on the design).")
-    seed: int = Field(default=0, ge=0, le=2**31 - 1, description="Seed of designs and optimizer [1].")
-    validation_points: int = Field(
+    seed: WholeNumber = Field(default=0, ge=0, le=2**31 - 1, description="Seed of designs and optimizer [1].")
+    validation_points: WholeNumber = Field(
         default=surrogate.sampling.VALIDATION_POINTS, ge=0, le=MAX_VALIDATION_POINTS,
         description="Evaluations of the model beyond the budget, at a space-filling design never trained "
                     "on, that calibrate the 95 % intervals by split conformal prediction (they then cover "

@@ -4,11 +4,20 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, create_model
+from pydantic import BeforeValidator, Field, create_model
 
 from microbearing import physics
 
-from .base import Convention, ConventionName, OutputName, ResponseModel, StrictModel, parameter_fields
+from .base import (
+    Convention,
+    ConventionName,
+    OutputName,
+    ResponseModel,
+    StrictModel,
+    WholeNumber,
+    parameter_fields,
+    whole_number,
+)
 
 __all__ = ["GridAxis", "GridSweep", "LatinHypercubeSweep", "SobolSweep", "SweepRange", "SweepRequest",
            "SweepResult"]
@@ -26,7 +35,7 @@ class GridAxis(StrictModel):
     start: float = Field(description="First value [the unit of the input named by the axis's key, e.g. N "
                                      "for load_N].")
     stop: float = Field(description="Last value [the unit of the input named by the axis's key].")
-    num: int = Field(ge=1, le=1_000_000, description="Number of values [1].")
+    num: WholeNumber = Field(ge=1, le=1_000_000, description="Number of values [1].")
     spacing: Spacing = _SPACING
 
 
@@ -70,9 +79,9 @@ class _SampledSweep(_SweepBase):
     """A design of experiments drawn from ``scipy.stats.qmc`` over the ranges."""
 
     ranges: SweepRanges = Field(description="Varied inputs and their ranges.")  # type: ignore[valid-type]
-    points: int = Field(ge=1, le=100_000_000, description="Number of sample points [1].")
-    seed: int | None = Field(default=None, ge=0, le=2**63 - 1,
-                             description="Seed of the scrambling, for repeatable designs [1].")
+    points: WholeNumber = Field(ge=1, le=100_000_000, description="Number of sample points [1].")
+    seed: Annotated[int, Field(ge=0, le=2**63 - 1), BeforeValidator(whole_number)] | None = Field(
+        default=None, description="Seed of the scrambling, for repeatable designs [1].")
 
 
 class GridSweep(_SweepBase):

@@ -1,0 +1,231 @@
+"""Next experiments: do the proposed runs teach a calibration more than random or space-filling ones?
+
+Run: ``python bench/experiments.py --seeds 4 --runs 20`` for the simulation, ``python bench/experiments.py
+--timing`` for the time of proposals of 100 runs over a 5-column space (target of issue 26: <= 10 s).
+
+The simulation hides a truth of its own (written here, independently of physics.effects) in the
+physics: adhesion drifting with humidity by a Kelvin law, the same by a linear law, or water menisci
+growing as 1/ln(1/h). A lab first measures a poor data set (40 rows at 20-40 % RH, 3 % noise) and
+calibrates (``mu_pivot`` and ``adhesion_energy_J_m2`` fitted); then it takes N more runs, measured
+from the truth with the same noise, and calibrates again on all rows. The N runs are:
+
+* ``discriminate``: proposed by :func:`calibrate.experiments.next_experiments` to tell the rivals apart
+  (``parameters`` when the first calibration left no rival; counted in the table);
+* ``predict``: proposed to shrink the 95 % interval over the envelope (6 balls, 5-20 mN, 0.05 m/s,
+  70-85 % RH: where the lab will use the model, outside the first data);
+* ``predict+rivals``: the same, model-robust: the envelope variance of the model and of its rivals;
+* ``random``: uniform over the same space (ball counts uniform among the whole counts);
+* ``space-filling``: a scrambled Sobol' design over the same space.
+
+Per strategy: how often the recalibration names the hidden mechanism exactly (effect and driver, or
+drifting parameter, driver and law), the truth error over the envelope (RMS of log(mu / mu_true) on
+200 envelope points) and the mean half-width of the 95 % prediction interval there relative to mu.
+Ratios to ``random`` are geometric means over the cases and seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from pathlib import Path
+
+_REPO = Path(__file__).resolve().parent.parent
+if Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
+    sys.path[0] = str(_REPO)
+
+import numpy as np  # noqa: E402
+from scipy.stats import qmc  # noqa: E402
+
+from microbearing import physics  # noqa: E402
+from microbearing.calibrate import calibrate, parse_rows  # noqa: E402
+from microbearing.calibrate.experiments import next_experiments, rival_models  # noqa: E402
+
+FIT = ["mu_pivot", "adhesion_energy_J_m2"]
+NOISE = 0.03
+FIRST_ROWS = 40
+# The first data's humidity range (fraction): narrow, as a lab's first campaign at room conditions.
+FIRST_HUMIDITY = (0.2, 0.4)
+SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
+         "speed_m_s": {"low": 0.0, "high": 0.15}, "relative_humidity": {"low": 0.2, "high": 0.9}}
+ENVELOPE = {"balls": [6], "load_N": {"low": 5e-3, "high": 2e-2}, "speed_m_s": [0.05],
+            "relative_humidity": {"low": 0.7, "high": 0.85}}
+
+
+def _mu(c, **values):
+    return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"],
+                            **{"mu_pivot": 0.7, "adhesion_energy_J_m2": 0.12, **values}).mu
+
+
+# truth -> (the label a calibration must name, mu of the columns)
+TRUTHS = {
+    "adhesion, Kelvin law in humidity": (
+        "adhesion_energy_J_m2 drifts with relative_humidity (kelvin)",
+        lambda c: _mu(c, adhesion_energy_J_m2=0.05 * (1 + 1.5 / np.log(1 / c["relative_humidity"])))),
+    "adhesion, linear law in humidity": (
+        "adhesion_energy_J_m2 drifts with relative_humidity (linear)",
+        lambda c: _mu(c, adhesion_energy_J_m2=0.04 + 0.25 * c["relative_humidity"])),
+    "water menisci, 1/ln(1/h)": (
+        "humidity_meniscus on relative_humidity",
+        lambda c: _mu(c) + c["balls"] * 2e-5 / (c["load_N"] * np.log(1 / c["relative_humidity"]))),
+}
+
+
+def first_data(rng, n):
+    return {"balls": rng.choice([4, 6, 8], n).astype(float),
+            "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+            "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(*FIRST_HUMIDITY, n)}
+
+
+def _scaled(unit: np.ndarray) -> dict[str, np.ndarray]:
+    """Points of SPACE from points of the unit cube (columns in SPACE's order)."""
+    out = {}
+    for j, (name, spec) in enumerate(SPACE.items()):
+        low, high = spec["low"], spec["high"]
+        if name == "balls":
+            out[name] = np.floor(low + unit[:, j] * (high - low + 1)).clip(low, high)
+        elif spec.get("spacing") == "log":
+            out[name] = np.exp(np.log(low) + unit[:, j] * (np.log(high) - np.log(low)))
+        else:
+            out[name] = low + unit[:, j] * (high - low)
+    return out
+
+
+def random_runs(rng, n):
+    return _scaled(rng.random((n, len(SPACE))))
+
+
+def space_filling_runs(seed, n):
+    """The first n points of a scrambled Sobol' sequence (n need not be a power of two)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return _scaled(qmc.Sobol(len(SPACE), scramble=True, seed=seed).random(n))
+
+
+def measure(truth, columns, rng):
+    mu = truth(columns) * np.exp(rng.normal(0.0, NOISE, columns["balls"].size))
+    return [{k: float(v[i]) for k, v in columns.items()} | {"mu_measured": float(mu[i])}
+            for i in range(mu.size)]
+
+
+def envelope_points(rng, n=200):
+    return {"balls": np.full(n, 6.0), "load_N": rng.uniform(5e-3, 2e-2, n), "speed_m_s": np.full(n, 0.05),
+            "relative_humidity": rng.uniform(0.7, 0.85, n)}
+
+
+def judge(report, truth_label, truth, points):
+    prediction = report.model.predict(points)
+    error = float(np.sqrt(np.mean(np.log(prediction.mu / truth(points)) ** 2)))
+    width = float(np.mean((prediction.mu_upper - prediction.mu_lower) / 2 / prediction.mu))
+    named = [e["label"] for e in report.effects]
+    return {"right": named == [truth_label], "error": error, "width": width, "named": named}
+
+
+def run_case(name, seed, runs):
+    truth_label, truth = TRUTHS[name]
+    rng = np.random.default_rng(seed)
+    rows = measure(truth, first_data(rng, FIRST_ROWS), rng)
+    dataset = parse_rows(rows)
+    first = calibrate(dataset, FIT, make_plots=False, seed=seed)
+    points = envelope_points(np.random.default_rng(10_000 + seed))
+    records = {"first": judge(first, truth_label, truth, points)}
+    rivals = rival_models(first.to_dict(), dataset, first.model)
+    strategies = {}
+    goal = "discriminate" if rivals else "parameters"
+    strategies["discriminate"] = next_experiments(first.model, SPACE, runs, goal, envelope=ENVELOPE,
+                                                  rivals=rivals, seed=seed)
+    strategies["predict"] = next_experiments(first.model, SPACE, runs, "predict", envelope=ENVELOPE,
+                                             seed=seed)
+    new = {k: {c: np.array([_flat(r)[c] for r in plan.to_dict()["runs"]], dtype=float) for c in SPACE}
+           for k, plan in strategies.items()}
+    new["random"] = random_runs(np.random.default_rng(20_000 + seed), runs)
+    new["space-filling"] = space_filling_runs(seed, runs)
+    # Last, so that the noise drawn for the strategies above does not depend on it.
+    robust = next_experiments(first.model, SPACE, runs, "predict", envelope=ENVELOPE, rivals=rivals,
+                              seed=seed)
+    new["predict+rivals"] = {c: np.array([_flat(r)[c] for r in robust.to_dict()["runs"]], dtype=float)
+                             for c in SPACE}
+    measure_rng = np.random.default_rng(30_000 + seed)
+    for strategy, columns in new.items():
+        more = parse_rows(rows + measure(truth, columns, measure_rng))
+        again = calibrate(more, FIT, make_plots=False, seed=seed)
+        records[strategy] = judge(again, truth_label, truth, points)
+    records["discriminate"]["goal"] = goal
+    records["first"]["rivals"] = [label for label, _ in rivals]
+    return records
+
+
+def _flat(run):
+    return {"balls": run["balls"], "load_N": run["load_N"], "speed_m_s": run["speed_m_s"],
+            **run["conditions"]}
+
+
+def simulation(seeds: int, runs: int) -> None:
+    strategies = ["first", "discriminate", "predict", "predict+rivals", "random", "space-filling"]
+    table = {s: [] for s in strategies}
+    no_rival = 0
+    start = time.perf_counter()
+    for name in TRUTHS:
+        for seed in range(seeds):
+            records = run_case(name, seed, runs)
+            no_rival += records["discriminate"]["goal"] != "discriminate"
+            for s in strategies:
+                table[s].append(records[s])
+            print(f"{name}, seed {seed}: " + "; ".join(
+                f"{s} {'right' if records[s]['right'] else 'wrong'} err {records[s]['error']:.4f} "
+                f"hw {records[s]['width']:.4f}" for s in strategies), flush=True)
+    low, high = FIRST_HUMIDITY
+    print(f"\n{len(table['first'])} data sets ({len(TRUTHS)} truths x {seeds} seeds), {runs} new runs each, "
+          f"{FIRST_ROWS} first rows at {low:.0%}-{high:.0%} RH, noise {NOISE:.0%}; {no_rival} first "
+          f"calibration(s) left no rival (discriminate fell back to parameters); "
+          f"{time.perf_counter() - start:.0f} s")
+    print(f"{'strategy':<16}{'right mechanism':>17}{'truth error (RMS log)':>23}{'ratio to random':>17}"
+          f"{'95 % half-width':>17}{'ratio to random':>17}")
+    errors_random = np.array([r["error"] for r in table["random"]])
+    widths_random = np.array([r["width"] for r in table["random"]])
+    for s in strategies:
+        errors = np.array([r["error"] for r in table[s]])
+        widths = np.array([r["width"] for r in table[s]])
+        right = sum(r["right"] for r in table[s])
+        ratio = float(np.exp(np.mean(np.log(errors / errors_random))))
+        width_ratio = float(np.exp(np.mean(np.log(widths / widths_random))))
+        print(f"{s:<16}{right:>11}/{len(errors):<5}{np.exp(np.mean(np.log(errors))):>23.4f}{ratio:>17.2f}"
+              f"{np.exp(np.mean(np.log(widths))):>17.4f}{width_ratio:>17.2f}")
+
+
+def timing() -> None:
+    name = "adhesion, Kelvin law in humidity"
+    rng = np.random.default_rng(0)
+    rows = measure(TRUTHS[name][1], first_data(rng, 150), rng)
+    dataset = parse_rows(rows)
+    report = calibrate(dataset, FIT, make_plots=False)
+    space = {**SPACE, "balls": {"low": 4, "high": 12}, "groove_angle_deg": {"low": 45.0, "high": 65.0}}
+    envelope = {**ENVELOPE, "groove_angle_deg": [54.7]}
+    start = time.perf_counter()
+    rivals = rival_models(report.to_dict(), dataset, report.model)
+    print(f"rivals refitted: {len(rivals)} in {time.perf_counter() - start:.2f} s")
+    for goal in ("discriminate", "parameters", "predict"):
+        start = time.perf_counter()
+        plan = next_experiments(report.model, space, 100, goal, envelope=envelope, rivals=rivals)
+        seconds = time.perf_counter() - start
+        d = plan.to_dict()
+        print(f"{goal:<13} 100 runs over 5 columns: {seconds:.2f} s, efficiency >= "
+              f"{d['efficiency_lower_bound']:.4f} (continuous {d['continuous_efficiency_lower_bound']:.4f}), "
+              f"{d['support_points']} settings")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--seeds", type=int, default=4)
+    parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--timing", action="store_true")
+    args = parser.parse_args()
+    if args.timing:
+        timing()
+    else:
+        simulation(args.seeds, args.runs)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,230 @@
+"""Where the data are: the joint cloud of the calibration rows, and columns that move together.
+
+**The data cloud.** A box per column calls a point "inside" when each of its values lies in its
+column's range, even far from every row (10 mm/s at 70 degC when the lab heated up as it sped up).
+:class:`DataCloud` keeps the rows in scaled inputs (each varying column standardized, a positive
+column spanning more than a decade by its log) and scores a point by its distance to its k-th nearest
+row (k = 5). The threshold is split-conformal: the ``ceil((1 - alpha)(n + 1))``-th smallest of the
+rows' own leave-one-out scores, so that a new point drawn like the data is flagged with chance about
+``alpha`` (:data:`CLOUD_ALPHA`, 2 %) whatever the data's shape. A point given only some of the columns is
+scored in those columns alone, against the threshold of the same columns. Beyond the threshold, the
+prediction interval's log half-width is multiplied by the ratio of the score to the threshold (the
+interval widens in proportion to the distance from the data; a documented rule, not a fitted one).
+
+**Confounding.** :func:`confounded_pairs` names every pair of varying columns whose ranks move
+together (|Spearman rho| >= :data:`CONFOUNDED_RHO`): whatever one of them seems to do, the other
+could be doing, and only rows where they part would tell.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import stats
+from scipy.spatial import cKDTree
+
+from microbearing import physics
+
+__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "DataCloud", "confounded_pairs", "confounding_words"]
+
+#: Chance that a new point drawn like the data is flagged outside the cloud. [1]
+CLOUD_ALPHA = 0.02
+#: Rank correlation beyond which two columns are said to move together. [1]
+CONFOUNDED_RHO = 0.9
+#: Rows the cloud keeps at most (a random subset of larger data). [1]
+MAX_CLOUD_ROWS = 2000
+# Neighbours of the score. [1]
+_K = 5
+
+
+def _transform(values: np.ndarray) -> str:
+    return "log" if np.all(values > 0) and np.max(values) > 10.0 * np.min(values) else "linear"
+
+
+@dataclass
+class DataCloud:
+    """The calibration rows in scaled inputs, with a conformal threshold of the k-NN distance.
+
+    Attributes
+    ----------
+    columns : list of str
+        The varying numeric columns (physics inputs and conditions).
+    transforms : list of str
+        ``log`` or ``linear`` per column.
+    centre, scale : list of float
+        Standardization of each (log) column.
+    rows : numpy.ndarray
+        The (subset of) rows in scaled inputs, shape (m, len(columns)).
+    alpha : float
+        See :data:`CLOUD_ALPHA`. [1]
+    """
+
+    columns: list[str]
+    transforms: list[str]
+    centre: list[float]
+    scale: list[float]
+    rows: np.ndarray = field(repr=False)
+    alpha: float = CLOUD_ALPHA
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def from_columns(cls, columns: Mapping[str, np.ndarray], seed: int = 0,
+                     alpha: float = CLOUD_ALPHA) -> DataCloud | None:
+        """The cloud of the data's varying columns (None with fewer than two varying columns or
+        too few rows: the per-column ranges say everything)."""
+        names, transforms, centre, scale, scaled = [], [], [], [], []
+        for name, values in columns.items():
+            v = np.asarray(values, dtype=float)
+            if np.unique(v).size < 2:
+                continue
+            transform = _transform(v)
+            t = np.log(v) if transform == "log" else v
+            names.append(name)
+            transforms.append(transform)
+            centre.append(float(np.mean(t)))
+            scale.append(float(np.std(t)))
+            scaled.append((t - centre[-1]) / scale[-1])
+        if len(names) < 2 or len(scaled[0]) < 2 * _K + 2:
+            return None
+        # Six decimals of a standardized column, as stored: the model answers the same before and after JSON.
+        rows = np.round(np.column_stack(scaled), 6)
+        if rows.shape[0] > MAX_CLOUD_ROWS:
+            keep = np.sort(np.random.default_rng(seed).choice(rows.shape[0], MAX_CLOUD_ROWS, replace=False))
+            rows = rows[keep]
+        return cls(names, transforms, centre, scale, rows, alpha)
+
+    def _space(self, given: Sequence[str]) -> tuple[list[int], cKDTree, float]:
+        """Column indices, tree and threshold of the subspace of the given columns."""
+        key = tuple(given)
+        if key not in self._cache:
+            index = [self.columns.index(c) for c in given]
+            sub = self.rows[:, index]
+            tree = cKDTree(sub)
+            k = min(_K, sub.shape[0] - 1)
+            own = tree.query(sub, k=k + 1)[0][:, -1]  # the k-th neighbour other than the row itself
+            n = own.size
+            rank = min(math.ceil((1.0 - self.alpha) * (n + 1)), n)
+            self._cache[key] = (index, tree, float(np.sort(own)[rank - 1]), k)
+        index, tree, threshold, _ = self._cache[key]
+        return index, tree, threshold
+
+    def score(self, points: Mapping[str, Any], shape: tuple[int, ...]) -> tuple[np.ndarray, list[str]]:
+        """Distance to the k-th nearest row over the threshold at each point (> 1: outside), and the
+        columns it was measured in (those the points give). [1]"""
+        given = [c for c in self.columns if c in points]
+        if len(given) < 2:
+            return np.zeros(shape), given
+        index, tree, threshold = self._space(given)
+        k = self._cache[tuple(given)][3]
+        x = np.column_stack([
+            ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
+            / self.scale[i]
+            for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float), shape).ravel())
+                         for i in index)
+        ])
+        distance = tree.query(x, k=k)[0]
+        distance = distance[:, -1] if distance.ndim == 2 else distance
+        return (distance / max(threshold, 1e-12)).reshape(shape), given
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready data."""
+        return {"columns": list(self.columns), "transforms": list(self.transforms),
+                "centre": list(self.centre),
+                "scale": list(self.scale), "rows": np.round(self.rows, 6).tolist(), "alpha": self.alpha}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> DataCloud:
+        """Rebuild from :meth:`to_json` data.
+
+        Raises
+        ------
+        ValueError
+            For inconsistent sizes.
+        """
+        columns = [str(c) for c in data["columns"]]
+        rows = np.asarray(data["rows"], dtype=float)
+        parts = [data["transforms"], data["centre"], data["scale"]]
+        if rows.ndim != 2 or rows.shape[1] != len(columns) or any(len(p) != len(columns) for p in parts):
+            raise ValueError("cloud: rows, transforms, centre and scale must have one entry per column")
+        return cls(columns, [str(t) for t in data["transforms"]], [float(c) for c in data["centre"]],
+                   [float(s) for s in data["scale"]], rows, float(data.get("alpha", CLOUD_ALPHA)))
+
+
+def confounded_pairs(columns: Mapping[str, np.ndarray], rho: float = CONFOUNDED_RHO) -> list[dict[str, Any]]:
+    """Pairs of varying columns whose ranks move together.
+
+    Parameters
+    ----------
+    columns : mapping of str to numpy.ndarray
+        Numeric data columns.
+    rho : float
+        Least |Spearman rank correlation| reported. [1]
+
+    Returns
+    -------
+    list of dict
+        ``columns`` (the two names), ``rank_correlation`` [1], ``summary`` in words (what would
+        separate them).
+
+    Examples
+    --------
+    >>> x = np.arange(20.0)
+    >>> [p["columns"] for p in confounded_pairs({"speed_m_s": x, "temperature_C": 20 + x ** 1.1, "h": x % 3})]
+    [['speed_m_s', 'temperature_C']]
+    """
+    varying = {k: np.asarray(v, dtype=float) for k, v in columns.items() if np.unique(v).size > 2}
+    names = list(varying)
+    out = []
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            r = float(stats.spearmanr(varying[a], varying[b])[0])
+            if np.isfinite(r) and abs(r) >= rho:
+                out.append({"columns": [a, b], "rank_correlation": r,
+                            "summary": _pair_words(a, b, r, varying)})
+    return out
+
+
+def _unit(name: str) -> str:
+    return f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""
+
+
+def _pair_words(a: str, b: str, r: float, varying: Mapping[str, np.ndarray]) -> str:
+    lo_a, hi_a = np.min(varying[a]), np.max(varying[a])
+    lo_b, hi_b = np.min(varying[b]), np.max(varying[b])
+    together = "rise together" if r > 0 else "move oppositely"
+    # The corners the data leave empty: where one is high while the other is low (or both, for r < 0).
+    far_b = (hi_b, lo_b) if r > 0 else (lo_b, hi_b)
+    return (
+        f"{a} and {b} {together} in the data (rank correlation {r:.3f}): an effect of one cannot be told "
+        f"from an effect of the other, and a term on either may stand for both. Measurements with {a} near "
+        f"{lo_a:.4g}{_unit(a)} and {b} near {far_b[0]:.4g}{_unit(b)}, or {a} near {hi_a:.4g}{_unit(a)} and "
+        f"{b} near {far_b[1]:.4g}{_unit(b)} (one varied while the other is held) would separate them"
+    )
+
+
+def confounding_words(pairs: Sequence[Mapping[str, Any]], drivers: Sequence[str]) -> list[str]:
+    """One sentence per confounded pair, and per chosen driver that is half of one.
+
+    Parameters
+    ----------
+    pairs : sequence of dict
+        From :func:`confounded_pairs`.
+    drivers : sequence of str
+        Main driver of every term the calibration added.
+
+    Returns
+    -------
+    list of str
+    """
+    words = [p["summary"] for p in pairs]
+    for driver in dict.fromkeys(drivers):
+        for p in pairs:
+            if driver in p["columns"]:
+                other = next(c for c in p["columns"] if c != driver)
+                words.append(f"the term driven by {driver} may be an effect of {other} instead (they move "
+                             f"together in the data, rank correlation {p['rank_correlation']:.3f})")
+    return words

@@ -1,0 +1,868 @@
+"""Which measurements to take next on the friction model: :mod:`calibrate.design` on a calibration.
+
+:func:`next_experiments` proposes runs for a calibrated model (:class:`calibrate.CalibratedModel`),
+:func:`first_experiments` for the declared physics before any calibration (its declared parameters
+only). Both build a candidate set of the lab's ``space`` (:func:`candidate_points`: a grid of every
+continuous column's ends and middle levels with every allowed value and integer ball count, plus a
+scrambled Sobol' set), hand the model to :func:`calibrate.design.plan` through
+:class:`CalibratedResponse` (the response is log μ, the parameters the fitted values, the
+information of the data taken the inverse of their covariance) and say what the runs are expected to
+do in friction units.
+
+Two functions are the points where the calibration's scatter model and its rival laws plug in:
+
+* :meth:`CalibratedResponse.scatter_sd`: the standard deviation of one measurement of log μ at each
+  run; today the calibration's one held-out scatter, ``noise_std_log``, the same everywhere.
+* :func:`rival_models`: the models the data could not tell apart from the calibrated one (told apart
+  by ``discriminate``, hedged over by ``predict`` when given); today
+  rebuilt from the report's selection steps: every named candidate that passed the step's
+  family-wise test as well as the term chosen (in its place), and the best named candidate of the
+  step that stopped when its z reached half the threshold (added to the model), each refitted on
+  the calibration's data.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import stats
+from scipy.stats import qmc
+
+from microbearing import physics
+from microbearing.physics.effects import EFFECTS
+
+from .candidates import Term, candidate_terms
+from .data import Dataset
+from .design import GOALS, Design, DesignError, plan
+from .fit import fit
+from .model import CalibratedModel
+
+__all__ = [
+    "CalibratedResponse",
+    "ExperimentPlan",
+    "MAX_CANDIDATES",
+    "MAX_RIVALS",
+    "candidate_points",
+    "check_request",
+    "first_experiments",
+    "next_experiments",
+    "physics_model",
+    "plan_png",
+    "rival_models",
+    "space_points",
+]
+
+#: Candidate points of a design at most (grid and Sobol' set together). [1]
+MAX_CANDIDATES = 3000
+#: Rival models a discrimination design tells apart from the calibrated one at most. [1]
+MAX_RIVALS = 3
+# Levels of each continuous column on the candidate grid (ends and middle), fewer when many columns. [1]
+_GRID_LEVELS = (5, 5, 5, 3, 3)
+# Ball counts on the candidate grid at most (evenly spread over an integer range, ends included). [1]
+_MAX_BALL_LEVELS = 12
+# Scrambled Sobol' points added to the grid (a power of two). [1]
+_SOBOL_POINTS = 256
+# Points of the envelope at most. [1]
+_ENVELOPE_POINTS = 512
+# Relative step of the finite-difference sensitivities of log μ (as CalibratedModel.predict). [1]
+_GRADIENT_STEP = 1e-6
+# The stopping step's best candidate is a rival when its z reaches this share of the threshold. [1]
+_NEAR_THRESHOLD = 0.5
+_Z95 = float(stats.norm.isf(0.025))
+
+
+# ------------------------------------------------------------------------------------------------ space
+def _levels(name: str, spec: Any, levels: int) -> np.ndarray:
+    """The values of one column of a space: a list as given, a range at ``levels`` levels."""
+    if not isinstance(spec, Mapping):
+        return np.asarray(list(spec), dtype=float)
+    low, high = float(spec["low"]), float(spec["high"])
+    if name == "balls":
+        values = np.arange(int(np.ceil(low)), int(np.floor(high)) + 1)
+        if values.size > _MAX_BALL_LEVELS:
+            values = np.unique(np.round(np.linspace(values[0], values[-1], _MAX_BALL_LEVELS)).astype(int))
+        return values.astype(float)
+    return _spaced(low, high, np.linspace(0.0, 1.0, levels), spec.get("spacing", "linear"))
+
+
+def _spaced(low: float, high: float, fractions: np.ndarray, spacing: str) -> np.ndarray:
+    if spacing == "log":
+        return np.exp(np.log(low) + fractions * (np.log(high) - np.log(low)))
+    return low + fractions * (high - low)
+
+
+def check_space(space: Mapping[str, Any], conditions: Sequence[str], field_name: str = "space") -> None:
+    """Refuse a space column that is neither a physics input nor a known condition, or a bad range.
+
+    Raises
+    ------
+    ValueError
+        Starting with ``<field_name>.<column>``: an unknown column, ``low`` > ``high``, a log spacing
+        of a range that is not positive, an empty list, a ball range without a whole number, or a
+        value outside the physics input's range.
+    """
+    for name, spec in space.items():
+        where = f"{field_name}.{name}"
+        if name not in physics.PARAMETERS and name not in conditions:
+            known = ", ".join(conditions) or "none"
+            raise ValueError(f"{where}: not a physics input nor a condition column of the data ({known})")
+        if isinstance(spec, Mapping):
+            low, high = float(spec["low"]), float(spec["high"])
+            if not low <= high:
+                raise ValueError(f"{where}: low must not exceed high; got {low:g} > {high:g}")
+            if spec.get("spacing", "linear") == "log" and low <= 0:
+                raise ValueError(f"{where}: log spacing needs low > 0")
+            if name == "balls" and int(np.floor(high)) < int(np.ceil(low)):
+                raise ValueError(f"{where}: the range holds no whole number of balls")
+            values = [low, high]
+        else:
+            values = list(spec)
+            if not values:
+                raise ValueError(f"{where}: give at least one value")
+            if any(isinstance(v, bool) or not np.isfinite(float(v)) for v in values):
+                raise ValueError(f"{where}: values must be finite numbers")
+            if name == "balls" and any(float(v) != int(v) for v in values):
+                raise ValueError(f"{where}: ball counts must be whole numbers")
+        if name in physics.PARAMETERS:
+            for value in values:
+                try:
+                    physics.validate(name, value)
+                except ValueError as exc:
+                    raise ValueError(f"{where}: {exc}") from None
+
+
+def space_points(space: Mapping[str, Any], max_points: int = MAX_CANDIDATES, seed: int = 0,
+                 sobol_points: int = _SOBOL_POINTS) -> dict[str, np.ndarray]:
+    """Points covering a space: its grid (every allowed value and ball count, each continuous range at
+    its ends and middle levels), thinned at random past ``max_points``, plus a scrambled Sobol' set.
+
+    Parameters
+    ----------
+    space : mapping
+        Column -> ``{"low", "high", "spacing"}`` (a range; ``balls``: every whole count in it) or a
+        list of allowed values, in the column's unit.
+    max_points : int
+        Points at most. [1]
+    seed : int
+        Seed of the thinning and of the Sobol' scramble.
+    sobol_points : int
+        Sobol' points added when the space has a continuous range. [1]
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        One column per name of ``space``, one value per point.
+    """
+    names = list(space)
+    continuous = [n for n in names if isinstance(space[n], Mapping) and n != "balls"]
+    levels = _GRID_LEVELS[min(len(continuous), len(_GRID_LEVELS) - 1)] if continuous else 1
+    axes = [_levels(n, space[n], levels) for n in names]
+    rng = np.random.default_rng(seed)
+    grid_size = math.prod(a.size for a in axes) if axes else 0  # exact: 200 values on 12 columns is 4e27
+    extra = sobol_points if continuous else 0
+    keep = max(max_points - extra, 1)
+    if grid_size <= keep:
+        mesh = np.meshgrid(*axes, indexing="ij")
+        columns = {n: m.ravel() for n, m in zip(names, mesh, strict=True)}
+    else:  # grid points drawn at random, each column's level independently, duplicates dropped
+        index = np.unique(np.column_stack([rng.integers(0, a.size, keep) for a in axes]), axis=0)
+        columns = {n: a[index[:, j]] for j, (n, a) in enumerate(zip(names, axes, strict=True))}
+    if extra:
+        sample = qmc.Sobol(len(continuous), scramble=True, seed=seed).random(extra)
+        added = {n: _spaced(float(space[n]["low"]), float(space[n]["high"]), sample[:, j],
+                            space[n].get("spacing", "linear")) for j, n in enumerate(continuous)}
+        for n, a in zip(names, axes, strict=True):
+            if n not in added:
+                added[n] = a[rng.integers(0, a.size, extra)]
+        columns = {n: np.concatenate([columns[n], added[n]]) for n in names}
+    return columns
+
+
+def candidate_points(space: Mapping[str, Any], seed: int = 0) -> dict[str, np.ndarray]:
+    """The candidate points of a design over ``space`` (:func:`space_points`, at most
+    :data:`MAX_CANDIDATES`)."""
+    return space_points(space, MAX_CANDIDATES, seed)
+
+
+# ------------------------------------------------------------------------------------------------ model
+@dataclass
+class CalibratedResponse:
+    """A calibrated model as a :class:`calibrate.design.DesignModel`: log μ and its sensitivities.
+
+    Attributes
+    ----------
+    model : CalibratedModel
+        The model (a physics model before calibration: fitted declared values, no terms).
+    fixed : mapping
+        Inputs and conditions held at one value in every run (in their units).
+    """
+
+    model: CalibratedModel
+    fixed: Mapping[str, Any]
+
+    @property
+    def parameter_names(self) -> list[str]:
+        names = list(self.model.fitted)
+        for term, _ in self.model.terms:
+            names += [f"{term.label}: {n}" for n in term.parameter_names]
+        return names
+
+    @property
+    def parameter_units(self) -> list[str]:
+        units = [physics.PARAMETERS[n].unit for n in self.model.fitted]
+        for term, _ in self.model.terms:
+            units += [term.units[n] for n in term.parameter_names]
+        return units
+
+    @property
+    def parameter_values(self) -> list[float]:
+        return [*map(float, self.model.fitted.values()), *(x for _, v in self.model.terms for x in v)]
+
+    def points(self, points: Mapping[str, Any]) -> dict[str, np.ndarray]:
+        count = max((np.size(v) for v in points.values()), default=1)
+        return {**{k: np.full(count, v) for k, v in self.fixed.items()},
+                **{k: np.asarray(v) for k, v in points.items()}}
+
+    def _log_mu(self, points, flat: Sequence[float]) -> np.ndarray:
+        n_fitted = len(self.model.fitted)
+        fitted = dict(zip(self.model.fitted, flat[:n_fitted], strict=True))
+        rest, values = list(flat[n_fitted:]), []
+        for _, v in self.model.terms:
+            values.append(rest[: len(v)])
+            rest = rest[len(v):]
+        return np.log(self.model._mu(points, fitted, values))
+
+    def response(self, points):
+        """log μ at the points [1] (with the GP discrepancy's mean when the model has one)."""
+        full = self.points(points)
+        self.model.check_columns(full)
+        return np.log(self.model(full))
+
+    def sensitivities(self, points):
+        """d log μ / d parameter at the points, by forward differences (parameters in their units)."""
+        full = self.points(points)
+        flat = self.parameter_values
+        base = self._log_mu(full, flat)
+        gradient = np.zeros((base.size, len(flat)))
+        with np.errstate(all="ignore"):
+            for j, x in enumerate(flat):
+                step = _GRADIENT_STEP * (abs(x) if x != 0 else 1.0)
+                shifted = list(flat)
+                shifted[j] = x + step
+                try:
+                    gradient[:, j] = ((self._log_mu(full, shifted) - base) / step).ravel()
+                except ValueError:  # the step left the input's range: move the other way
+                    shifted[j] = x - step
+                    gradient[:, j] = ((base - self._log_mu(full, shifted)) / step).ravel()
+        return np.where(np.isfinite(gradient), gradient, 0.0)
+
+    def scatter_sd(self, points):
+        """Standard deviation of one measurement of log μ at each point [1].
+
+        The calibration's scatter model where it depends on an input (:mod:`calibrate.scatter`: a step or
+        a log-linear trend in one column, e.g. 10 % below 20 mm/s and 1.5 % above), so that runs where
+        measurements scatter less weigh more; else its one held-out scatter, ``noise_std_log``.
+        """
+        count = max((np.size(v) for v in points.values()), default=1)
+        scatter = getattr(self.model, "scatter", None)
+        if scatter is not None and scatter.kind != "constant":
+            columns = self.model._columns_at(points)
+            if scatter.column in columns:
+                return np.broadcast_to(np.asarray(scatter.std_log(columns, (count,)), dtype=float),
+                                       (count,)).copy()
+        return np.full(count, float(self.model.noise_std_log))
+
+    def prior_information(self):
+        """The information of the data taken on the parameters: the inverse of their covariance (None
+        for a model without one: a first design)."""
+        if self.model.covariance is None:
+            return None
+        covariance = np.asarray(self.model.covariance, dtype=float)
+        covariance = np.where(np.isfinite(covariance), covariance, 0.0)
+        return np.linalg.pinv((covariance + covariance.T) / 2, hermitian=True)
+
+
+# ----------------------------------------------------------------------------------------------- rivals
+def _find_term(dataset: Dataset, chosen: Sequence[Term], label: str) -> Term | None:
+    return next((t for t in candidate_terms(dataset, chosen) if t.label == label), None)
+
+
+def _named(candidate: Mapping[str, Any]) -> bool:
+    effect = EFFECTS.get(candidate.get("effect") or "")
+    return candidate.get("kind") == "drift" or (effect is not None and not effect.generic)
+
+
+def rival_terms(report: Mapping[str, Any], dataset: Dataset, terms: Sequence[Term]
+                ) -> list[tuple[str, list[Term]]]:
+    """The terms of each rival of a calibration, read from its selection steps (see the module).
+
+    Parameters
+    ----------
+    report : mapping
+        The calibration report (:meth:`calibrate.CalibrationReport.to_dict`): ``steps``.
+    dataset : Dataset
+        The calibration's data (the candidate terms are rebuilt on it).
+    terms : sequence of Term
+        The calibrated model's terms, in order.
+
+    Returns
+    -------
+    list of (str, list of Term)
+        Each rival's description and its terms, best scored first.
+    """
+    found: list[tuple[float, str, list[Term]]] = []
+    for k, step in enumerate(report.get("steps", [])):
+        prefix = list(terms[:k])
+        for candidate in step.get("candidates", [])[1:]:
+            if (not candidate.get("joint_refit") or not _named(candidate)
+                    or candidate["label"] == step["added"]):
+                continue
+            z = float(candidate["z_vs_declared"])
+            if step["added"] is not None and z > float(step["z_needed"]) and k < len(terms):
+                term = _find_term(dataset, prefix, candidate["label"])
+                if term is not None:
+                    found.append((candidate["score"], f"{candidate['label']} in place of {terms[k].label}",
+                                  [*prefix, term, *terms[k + 1:]]))
+            elif step["added"] is None and z >= _NEAR_THRESHOLD * float(step["z_needed"]):
+                term = _find_term(dataset, list(terms), candidate["label"])
+                if term is not None:
+                    found.append((candidate["score"], f"{candidate['label']} added (z = {z:.2f}, threshold "
+                                  f"{float(step['z_needed']):.2f})", [*terms, term]))
+    found.sort(key=lambda item: item[0])
+    unique: dict[str, tuple[str, list[Term]]] = {}
+    for _, label, rival in found:
+        unique.setdefault(label, (label, rival))
+    return list(unique.values())
+
+
+def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedModel,
+                 max_rivals: int = MAX_RIVALS) -> list[tuple[str, CalibratedModel]]:
+    """The models a calibration could not tell apart from its own, each refitted on its data.
+
+    Where the calibration's rivals within one standard error plug in; today from
+    :func:`rival_terms`.
+
+    Parameters
+    ----------
+    report : mapping
+        The calibration report (``steps``, ``fit_parameters``).
+    dataset : Dataset
+        The calibration's data.
+    model : CalibratedModel
+        The calibrated model (its convention, scatter and conditions carry over).
+    max_rivals : int
+        Rivals at most, best scored first. [1]
+
+    Returns
+    -------
+    list of (str, CalibratedModel)
+    """
+    rivals = []
+    fit_parameters = list(report.get("fit_parameters", model.fitted))
+    for label, terms in rival_terms(report, dataset, [t for t, _ in model.terms])[:max_rivals]:
+        result = fit(dataset, fit_parameters, terms, start=model.fitted, convention=model.convention)
+        rivals.append((label, CalibratedModel.from_fit(
+            result.declared, dataset.fixed, terms, result.term_values, model.convention, result.covariance,
+            float(model.noise_std_log), dataset.columns(), list(dataset.conditions))))
+    return rivals
+
+
+# ------------------------------------------------------------------------------------------------- plan
+@dataclass(frozen=True)
+class ExperimentPlan:
+    """Proposed runs and what they are expected to do, JSON-ready through :meth:`to_dict`."""
+
+    design: Design
+    runs: list[dict[str, Any]]
+    expected: dict[str, Any]
+    plot: dict[str, Any]
+    warnings: list[str]
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self.design
+        return {
+            "goal": d.goal,
+            "runs": self.runs,
+            "criterion": d.criterion,
+            "efficiency_lower_bound": d.efficiency_lower_bound,
+            "continuous_efficiency_lower_bound": d.continuous_efficiency_lower_bound,
+            "rounding_efficiency": d.rounding_efficiency,
+            "support_points": int(np.count_nonzero(d.counts)),
+            "solver": d.solver,
+            **self.expected,
+            "plot": self.plot,
+            "warnings": list(self.warnings),
+        }
+
+
+def _half_width(mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Half the width of the 95 % log-normal interval μ exp(±1.96 σ) [1]."""
+    return mu * np.sinh(_Z95 * sigma)
+
+
+def _tidy(value) -> float:
+    """A set-point as a lab would type it: 12 significant digits (0.9, not 0.8999999999999999)."""
+    return float(f"{float(value):.12g}")
+
+
+def _runs(response: CalibratedResponse, candidates, design: Design) -> tuple[list[dict], dict, list[str]]:
+    rows = design.runs
+    chosen = {k: np.asarray(v)[rows] for k, v in candidates.items()}
+    full = response.points(chosen)
+    prediction = response.model.predict(full)
+    inside = (None if prediction.in_domain is None
+              else np.broadcast_to(prediction.in_domain, (rows.size,)))
+    runs = []
+    for i in range(rows.size):
+        inputs = {k: v[i] for k, v in full.items() if k in physics.PARAMETERS}
+        conditions = {k: _tidy(v[i]) for k, v in full.items() if k not in physics.PARAMETERS}
+        run = {"balls": int(inputs.pop("balls")), "load_N": _tidy(inputs.pop("load_N")),
+               "speed_m_s": _tidy(inputs.pop("speed_m_s")),
+               "inputs": {k: (bool(v) if physics.PARAMETERS[k].kind == "bool" else _tidy(v))
+                          for k, v in inputs.items()},
+               "conditions": conditions, "mu": float(np.ravel(prediction.mu)[i]),
+               "in_domain": None if inside is None else bool(inside[i])}
+        if prediction.mu_lower is not None:
+            run["mu_lower"] = float(np.ravel(prediction.mu_lower)[i])
+            run["mu_upper"] = float(np.ravel(prediction.mu_upper)[i])
+        runs.append(run)
+    return runs, chosen, list(prediction.warnings)
+
+
+def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, envelope,
+              rivals: Sequence[tuple[str, CalibratedModel]]) -> dict[str, Any]:
+    names = response.parameter_names
+    information_after = design.information_after
+    covariance_after = np.linalg.pinv(information_after, hermitian=True)
+    prior = response.prior_information()
+    now = None if prior is None else np.linalg.pinv(prior, hermitian=True)
+    out: dict[str, Any] = {}
+    out["parameters"] = [
+        {"name": n, "value": v, "unit": u,
+         "std_now": None if now is None else float(np.sqrt(max(now[j, j], 0.0))),
+         "std_after": float(np.sqrt(max(covariance_after[j, j], 0.0)))}
+        for j, (n, v, u) in enumerate(zip(names, response.parameter_values, response.parameter_units,
+                                          strict=True))]
+    if envelope is not None:
+        full = response.points(envelope)
+        mu = np.ravel(response.model(full))
+        g = response.sensitivities(envelope)
+        noise = np.square(response.scatter_sd(envelope))
+        var_after = np.einsum("ij,jk,ik->i", g, covariance_after, g)
+        after = _half_width(mu, np.sqrt(var_after + noise))
+        mean_after = _half_width(mu, np.sqrt(var_after))
+        entry: dict[str, Any] = {"points": int(mu.size),
+                                 "half_width_after": {"mean": float(after.mean()), "max": float(after.max())},
+                                 "mean_half_width_after": {"mean": float(mean_after.mean()),
+                                                           "max": float(mean_after.max())}}
+        if now is not None:
+            var_now = np.einsum("ij,jk,ik->i", g, now, g)
+            before = _half_width(mu, np.sqrt(var_now + noise))
+            mean_before = _half_width(mu, np.sqrt(var_now))
+            entry["half_width_now"] = {"mean": float(before.mean()), "max": float(before.max())}
+            entry["mean_half_width_now"] = {"mean": float(mean_before.mean()),
+                                            "max": float(mean_before.max())}
+        out["envelope"] = entry
+    if rivals:
+        full = response.points(chosen)
+        mu_reference = np.ravel(response.model(full))
+        listed = []
+        for (label, rival), separation in zip(rivals, design.rival_separation, strict=True):
+            mu_rival = np.ravel(rival(full))
+            listed.append({"label": label, "terms": [t.label for t, _ in rival.terms],
+                           "expected_chi2_separation": float(separation),
+                           "max_relative_difference": float(np.max(np.abs(mu_rival / mu_reference - 1.0))),
+                           "mu_at_runs": mu_rival.tolist()})
+        out["rivals"] = listed
+        out["mu_reference_at_runs"] = mu_reference.tolist()
+    return out
+
+
+def _span(spec: Any) -> tuple[float, float]:
+    if isinstance(spec, Mapping):
+        return float(spec["low"]), float(spec["high"])
+    return float(min(spec)), float(max(spec))
+
+
+def _curve_points(response: CalibratedResponse, runs_columns, space, x_name: str):
+    low, high = _span(space[x_name])
+    x = np.linspace(low, high, 60)
+    if x_name == "balls":
+        x = np.unique(np.round(x))
+    others = {n: np.full(x.size, np.median(runs_columns[n])) for n in space if n != x_name}
+    if "balls" in others:
+        others["balls"] = np.round(others["balls"])
+    return x, others, response.points({**others, x_name: x})
+
+
+def _plot_data(response: CalibratedResponse, runs_columns, data: Mapping[str, np.ndarray] | None,
+               space: Mapping[str, Any], rivals, max_data: int = 2000) -> dict[str, Any]:
+    """What the plot draws: two columns of the space, the runs and the data taken on them, and (with
+    rivals) each model's μ along the first, the others at the runs' medians.
+
+    With rivals the first column is the one along which they differ most from the calibrated model;
+    otherwise columns are ranked by the share of their range the runs span plus twice the share of the
+    runs outside the data's range (runs beyond the data are what a reader must see)."""
+    def spread(name: str) -> float:
+        low, high = _span(space[name])
+        values = np.asarray(runs_columns[name], dtype=float)
+        return float(np.ptp(values) / (high - low)) if high > low else 0.0
+
+    def beyond(name: str) -> float:
+        """Share of the runs outside the data's range on the column by more than a tenth of the space's
+        range (where the runs teach most)."""
+        if data is None or name not in data or not len(data[name]):
+            return 0.0
+        values = np.asarray(runs_columns[name], dtype=float)
+        column = np.asarray(data[name], dtype=float)
+        low, high = _span(space[name])
+        margin = 0.1 * (high - low)
+        return float(np.mean((values < column.min() - margin) | (values > column.max() + margin)))
+
+    varying = sorted(space, key=lambda n: -(spread(n) + 2.0 * beyond(n)))
+    if rivals:
+        def difference(name: str) -> float:
+            _x, _others, points = _curve_points(response, runs_columns, space, name)
+            reference = np.log(np.ravel(response.model(points)))
+            return max(float(np.ptp(np.log(np.ravel(rival(points))) - reference)) for _, rival in rivals)
+
+        # The columns that drive the terms where the rivals differ from the model come first.
+        own = {t.label: t for t, _ in response.model.terms}
+        drivers: list[str] = []
+        for _, rival in rivals:
+            theirs = {t.label: t for t, _ in rival.terms}
+            for label in set(own) ^ set(theirs):
+                drivers += [d for d in (own.get(label) or theirs[label]).drivers if d in space]
+        first = (max(set(drivers), key=lambda d: (drivers.count(d), difference(d))) if drivers
+                 else max(space, key=difference))
+        varying = [first, *[n for n in varying if n != first]]
+    axes = varying[:2]
+    plot: dict[str, Any] = {"axes": axes, "runs": {a: np.asarray(runs_columns[a], dtype=float).tolist()
+                                                    for a in axes}}
+    if data is not None:
+        count = len(next(iter(data.values()))) if data else 0
+        take = np.linspace(0, count - 1, min(count, max_data)).astype(int) if count else np.zeros(0, int)
+        plot["data"] = {a: np.asarray(data[a], dtype=float)[take].tolist() for a in axes if a in data}
+    else:
+        plot["data"] = {}
+    curves = []
+    if rivals and axes:
+        x, others, points = _curve_points(response, runs_columns, space, axes[0])
+        curves.append({"label": "calibrated model", "x": x.tolist(),
+                       "mu": np.ravel(response.model(points)).tolist()})
+        for label, rival in rivals:
+            curves.append({"label": label, "x": x.tolist(), "mu": np.ravel(rival(points)).tolist()})
+        plot["others"] = {n: float(v[0]) for n, v in others.items()}
+    plot["curves"] = curves
+    return plot
+
+
+def _propose(response: CalibratedResponse, space, runs: int, goal: str, envelope_space, rivals,
+             planned, seed: int, data, progress) -> ExperimentPlan:
+    report = progress or (lambda fraction: None)
+    candidates = candidate_points(space, seed)
+    envelope = None
+    if envelope_space is not None:
+        envelope = space_points(envelope_space, _ENVELOPE_POINTS, seed, sobol_points=64)
+        missing = [n for n in space if n not in envelope]
+        if missing:
+            raise DesignError(f"envelope: give the columns of the space too ({', '.join(missing)})")
+    for field_name, points in (("space", candidates), ("envelope", envelope)):
+        if points is None:
+            continue
+        with np.errstate(all="ignore"):
+            mu = np.ravel(response.model(response.points(points)))
+        bad = ~(np.isfinite(mu) & (mu > 0))
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            example = ", ".join(f"{n} = {float(np.asarray(v)[k]):.6g}" for n, v in points.items())
+            raise ValueError(f"{field_name}: the model has no finite mu at {int(bad.sum())} of its points "
+                             f"(e.g. {example}); narrow the ranges")
+    planned_columns = None
+    if planned:
+        planned_columns = {k: np.array([row[k] for row in planned], dtype=float) for k in space}
+    report(0.2)
+    rival_responses = [CalibratedResponse(m, response.fixed) for _, m in rivals]
+    design = plan(response, candidates, runs, goal, envelope=envelope, rivals=rival_responses,
+                  planned=planned_columns)
+    report(0.8)
+    rows, chosen, warnings = _runs(response, candidates, design)
+    expected = _expected(goal, response, design, chosen, envelope, rivals if goal == "discriminate" else [])
+    plot = _plot_data(response, chosen, data, space, rivals if goal == "discriminate" else [])
+    if envelope_space is not None:  # where the model will be used, on the plot's axes
+        plot["envelope"] = {a: list(_span(envelope_space[a])) for a in plot["axes"] if a in envelope_space}
+    if design.efficiency_lower_bound < 0.5:
+        warnings.append(f"the runs are proven only {design.efficiency_lower_bound:.2f} efficient: few runs "
+                        f"cannot carry the continuous design; more runs round better")
+    report(1.0)
+    return ExperimentPlan(design, rows, expected, plot, warnings)
+
+
+def next_experiments(
+    model: CalibratedModel,
+    space: Mapping[str, Any],
+    runs: int,
+    goal: str = "discriminate",
+    envelope: Mapping[str, Any] | None = None,
+    fixed: Mapping[str, Any] | None = None,
+    planned: Sequence[Mapping[str, float]] | None = None,
+    rivals: Sequence[tuple[str, CalibratedModel]] = (),
+    data: Mapping[str, np.ndarray] | None = None,
+    seed: int = 0,
+    progress: Callable[[float], None] | None = None,
+) -> ExperimentPlan:
+    """The next ``runs`` measurements for a calibrated model, with an optimality bound.
+
+    Parameters
+    ----------
+    model : CalibratedModel
+        The calibrated model (a model with covariance and scatter).
+    space : mapping
+        What the lab can set, per column (physics inputs such as ``balls``, ``load_N`` [N],
+        ``speed_m_s`` [m/s], and the calibration's condition columns in its units): a range
+        ``{"low", "high", "spacing"}`` or a list of allowed values (:func:`space_points`).
+    runs : int
+        Runs to propose, 1-500. [1]
+    goal : str
+        ``discriminate`` (tell the rivals apart), ``parameters`` (D-optimal) or ``predict`` (I-optimal
+        over ``envelope``).
+    envelope : mapping, optional
+        Where the model will be used, like ``space`` (``predict``; with another goal, the intervals
+        there are reported too).
+    fixed : mapping, optional
+        Inputs and conditions at one value in every run.
+    planned : sequence of mapping, optional
+        Runs already planned (one value per column of ``space``).
+    rivals : sequence of (str, CalibratedModel)
+        ``discriminate``: the rivals (:func:`rival_models`). ``predict``: optional; the runs then shrink
+        the envelope variance of the model and of the rivals together (model-robust).
+    data : mapping of str to numpy.ndarray, optional
+        The data taken (columns), drawn under the proposed runs.
+    seed : int
+        Seed of the candidate set.
+    progress : callable, optional
+        Fraction done, 0..1.
+
+    Returns
+    -------
+    ExperimentPlan
+
+    Raises
+    ------
+    calibrate.design.DesignError
+        For an unknown goal, a missing envelope or rivals, or parameters the space cannot identify.
+    ValueError
+        For an invalid space, fixed value or planned run (naming the field).
+    """
+    if goal not in GOALS:
+        raise DesignError(f"goal must be one of {', '.join(GOALS)}; got {goal!r}")
+    if model.covariance is None or model.noise_std_log is None:
+        raise DesignError("the calibrated model has no covariance or scatter (stored before version 2)")
+    if goal == "discriminate" and not rivals:
+        raise DesignError("goal discriminate: the calibration left no rival model within reach of the one "
+                          "it chose; use goal parameters or predict")
+    response = check_request(model, space, fixed, envelope, planned)
+    return _propose(response, space, runs, goal, envelope, list(rivals) if goal != "parameters" else [],
+                    planned, seed, data, progress)
+
+
+def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mapping[str, Any] | None = None,
+                  envelope: Mapping[str, Any] | None = None,
+                  planned: Sequence[Mapping[str, float]] | None = None) -> CalibratedResponse:
+    """Check a proposal's request against a model before any work; the model as a design model.
+
+    Raises
+    ------
+    ValueError
+        Starting with the offending field (``space.<column>``, ``envelope.<column>``,
+        ``fixed.<name>``, ``planned.<i>``): an unknown column, a bad range or value, a column the
+        model reads that is neither in the space nor fixed.
+    """
+    check_space(space, model.conditions)
+    if envelope is not None:
+        check_space(envelope, model.conditions, "envelope")
+    fixed = dict(fixed or {})
+    for name, value in fixed.items():
+        if name in space:
+            raise ValueError(f"fixed.{name}: also a column of the space; give it in one of them")
+        if name in physics.PARAMETERS:
+            try:
+                physics.validate(name, value)
+            except ValueError as exc:
+                raise ValueError(f"fixed.{name}: {exc}") from None
+        elif name not in model.conditions:
+            raise ValueError(f"fixed.{name}: not a physics input nor a condition column of the data "
+                             f"({', '.join(model.conditions) or 'none'})")
+    required = ["balls", "load_N", "speed_m_s", *model.required_columns]
+    missing = [n for n in required if n not in space and n not in fixed
+               and not (n in physics.PARAMETERS and (n in model.fixed or physics.PARAMETERS[n].default
+                                                     is not None))]
+    if missing:
+        raise ValueError(f"space: give {', '.join(missing)} in the space or in fixed (the model reads them)")
+    for i, row in enumerate(planned or []):
+        absent = [n for n in space if n not in row]
+        if absent:
+            raise ValueError(f"planned.{i}: give {', '.join(absent)} (the columns of the space)")
+    return CalibratedResponse(model, fixed)
+
+
+def physics_model(fit_parameters: Sequence[str], noise_std_log: float,
+                  guess: Mapping[str, float] | None = None, fixed: Mapping[str, Any] | None = None,
+                  convention: str = physics.DEFAULT_CONVENTION) -> tuple[CalibratedModel, dict[str, Any]]:
+    """The declared physics before a calibration as a model of :func:`first_experiments`: the fitted
+    parameters at ``guess`` (or ``fixed``, or the defaults), no covariance, the expected scatter; and the
+    fixed values that are not fitted.
+
+    Raises
+    ------
+    ValueError
+        Naming ``fit_parameters``, ``guess.<name>`` or ``noise_std_log``.
+    """
+    if not (np.isfinite(noise_std_log) and noise_std_log > 0):
+        raise ValueError(f"noise_std_log: must be positive; got {noise_std_log}")
+    guess, fixed = dict(guess or {}), dict(fixed or {})
+    fitted = {}
+    for name in fit_parameters:
+        spec = physics.PARAMETERS.get(name)
+        if spec is None or spec.kind == "bool":
+            raise ValueError(f"fit_parameters: {name!r} is not a numeric physics parameter")
+        value = guess.get(name, fixed.get(name, spec.default))
+        if value is None:
+            raise ValueError(f"guess.{name}: give a value (the parameter has no default)")
+        try:
+            fitted[name] = float(physics.validate(name, value))
+        except ValueError as exc:
+            raise ValueError(f"guess.{name}: {exc}") from None
+    model = CalibratedModel(fitted, {}, [], convention, None, float(noise_std_log), None, [])
+    return model, {k: v for k, v in fixed.items() if k not in fitted}
+
+
+def first_experiments(
+    fit_parameters: Sequence[str],
+    space: Mapping[str, Any],
+    runs: int,
+    goal: str = "parameters",
+    noise_std_log: float = 0.05,
+    guess: Mapping[str, float] | None = None,
+    envelope: Mapping[str, Any] | None = None,
+    fixed: Mapping[str, Any] | None = None,
+    planned: Sequence[Mapping[str, float]] | None = None,
+    convention: str = physics.DEFAULT_CONVENTION,
+    seed: int = 0,
+    progress: Callable[[float], None] | None = None,
+) -> ExperimentPlan:
+    """A first design on the declared physics, before any calibration: its declared parameters only.
+
+    Parameters
+    ----------
+    fit_parameters : sequence of str
+        Declared physics parameters the data will fit (e.g. ``mu_pivot`` [1]).
+    space, runs, envelope, fixed, planned, seed, progress
+        As :func:`next_experiments`.
+    goal : str
+        ``parameters`` or ``predict`` (nothing to discriminate before a calibration).
+    noise_std_log : float
+        Expected standard deviation of one measurement of log μ (the relative scatter) [1].
+    guess : mapping, optional
+        Values of the fitted parameters the sensitivities are taken at (default: the physics'
+        defaults), in their units.
+    convention : str
+        See :data:`physics.CONVENTIONS`.
+
+    Returns
+    -------
+    ExperimentPlan
+        Without figures "now" (no data taken): the parameters' standard deviations and the intervals
+        after the runs.
+    """
+    if goal not in ("parameters", "predict"):
+        raise DesignError(f"goal must be parameters or predict before a calibration; got {goal!r}")
+    if not fit_parameters:
+        raise DesignError("fit_parameters: name at least one declared parameter to design for")
+    model, fixed = physics_model(fit_parameters, noise_std_log, guess, fixed, convention)
+    response = check_request(model, space, fixed, envelope, planned)
+    return _propose(response, space, runs, goal, envelope, [], planned, seed, None, progress)
+
+
+def _axis_label(name: str) -> str:
+    spec = physics.PARAMETERS.get(name)
+    return f"{name} [{spec.unit}]" if spec is not None else f"{name} [as in the data]"
+
+
+def plan_png(document: Mapping[str, Any]) -> bytes:
+    """The plot of a proposal (:meth:`ExperimentPlan.to_dict`) as PNG bytes.
+
+    Left: the proposed runs (red, the area grows with the replicates) over the data taken (grey) on
+    the two columns of the space that vary most in the runs. Right, for ``discriminate``: μ of the
+    calibrated model and of each rival along the first column, the others at the runs' medians, with
+    the runs' values of that column marked.
+    """
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    plot = document["plot"]
+    axes_names = list(plot["axes"])
+    curves = plot.get("curves") or []
+    figure, panels = plt.subplots(1, 2 if curves else 1, figsize=(11 if curves else 6, 4.5), squeeze=False)
+    ax = panels[0][0]
+    x_name = axes_names[0] if axes_names else None
+    y_name = axes_names[1] if len(axes_names) > 1 else None
+    runs = plot["runs"]
+    data = plot.get("data") or {}
+    if x_name is not None:
+        xs = np.asarray(runs[x_name], dtype=float)
+        ys = np.asarray(runs[y_name], dtype=float) if y_name else np.zeros_like(xs)
+        if x_name in data and (y_name is None or y_name in data):
+            dx = np.asarray(data[x_name], dtype=float)
+            dy = np.asarray(data[y_name], dtype=float) if y_name else np.zeros_like(dx)
+            ax.scatter(dx, dy, s=10, c="0.6", label=f"data taken ({dx.size})")
+        pairs, counts = np.unique(np.column_stack([xs, ys]), axis=0, return_counts=True)
+        ax.scatter(pairs[:, 0], pairs[:, 1], s=30 + 25 * counts, facecolors="none", edgecolors="red",
+                   linewidths=2, label=f"proposed runs ({xs.size}, {pairs.shape[0]} settings)")
+        for (px, py), count in zip(pairs, counts, strict=True):
+            if count > 1:
+                ax.annotate(f"x{count}", (px, py), textcoords="offset points", xytext=(6, 6), fontsize=8,
+                            color="red")
+        box = plot.get("envelope") or {}
+        if x_name in box:
+            (x0, x1) = box[x_name]
+            (y0, y1) = box[y_name] if y_name in box else ax.get_ylim()
+            # A single value is drawn as a thin band, 2 % of the axis.
+            (xa, xb), (ya, yb) = ax.get_xlim(), ax.get_ylim()
+            if x1 - x0 < 0.02 * (xb - xa):
+                x0, x1 = (x0 + x1) / 2 - 0.01 * (xb - xa), (x0 + x1) / 2 + 0.01 * (xb - xa)
+            if y1 - y0 < 0.02 * (yb - ya):
+                y0, y1 = (y0 + y1) / 2 - 0.01 * (yb - ya), (y0 + y1) / 2 + 0.01 * (yb - ya)
+            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=(0.12, 0.47, 0.71, 0.2),
+                                   edgecolor="tab:blue", linewidth=1.5,
+                                   label="envelope (where the model is used)"))
+        ax.set_xlabel(_axis_label(x_name))
+        ax.set_ylabel(_axis_label(y_name) if y_name else "")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=8)
+    ax.set_title(f"goal {document['goal']}: efficiency >= {document['efficiency_lower_bound']:.3f}")
+    if curves:
+        right = panels[0][1]
+        for k, curve in enumerate(curves):
+            right.plot(curve["x"], curve["mu"], lw=2.5 if k == 0 else 1.5, ls="-" if k == 0 else "--",
+                       label=curve["label"][:60])
+        for value in np.unique(np.asarray(runs[x_name], dtype=float)):
+            right.axvline(value, color="red", alpha=0.3, lw=1)
+        right.set_xlabel(_axis_label(x_name))
+        right.set_ylabel("mu [1]")
+        others = ", ".join(f"{k} = {v:.3g}" for k, v in (plot.get("others") or {}).items())
+        right.set_title(f"rivals' predictions ({others})", fontsize=8)
+        right.legend(loc="best", fontsize=7)
+    figure.tight_layout()
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=90)
+    plt.close(figure)
+    return buffer.getvalue()

@@ -1,0 +1,316 @@
+"""Groups of measurements (specimens, builds, batches, operators): how much the model varies between them.
+
+A factor column (:attr:`calibrate.data.Dataset.factors`) labels each row with its group. The fixed
+part of the calibration (declared parameters and terms) is the population's; what it leaves,
+``r = log(mu_measured / mu_model)``, is read as a random effect of the group on one declared
+parameter ``p``,
+
+    r_i = s_i (b0 + b_g) + e_i,   b_g ~ N(0, tau^2),   e_i ~ N(0, sigma^2),
+
+with ``s_i = d log mu / d log p`` at row i (``p = "mu"``: a factor on μ itself, ``s = 1``), so that
+``tau`` is the standard deviation of ``log p`` from one group to the next and ``b0`` the mean shift of
+``log p`` the groups' weighting leaves (a fixed slope on the same ``s``: an intercept beside a random
+slope on a nearly constant ``s`` would trade off against it and inflate ``tau``). It is fitted by REML
+(statsmodels' :class:`~statsmodels.regression.mixed_linear_model.MixedLM`, one variance component,
+the random slope ``s``), for every fitted parameter and for μ itself; the parameter whose random
+effect gives the highest restricted likelihood carries the spread. The 95 % interval of ``tau`` is
+the profile restricted likelihood's (the values within 1.92 of its maximum, half the chi-square 95 %
+point with one degree of freedom).
+
+A prediction for a **known group** moves log μ by ``s b_g`` (the group's best linear unbiased
+prediction) and adds its conditional variance ``s^2 var(b_g | data)``; for a **new group** (a label
+not in the data, or none) it adds the between-group spread ``s^2 tau^2 (1 + 1/G)`` scaled by
+``(t_{G-1} / z)^2``: Student's t with G - 1 degrees of freedom, because ``tau`` itself is estimated
+from G groups only (with a known ``tau`` this is the normal interval).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from .data import factor_label
+
+__all__ = ["MAX_GROUPS", "MIN_GROUPS", "GroupEffect", "describe_groups", "fit_group_effect", "why_not_fitted"]
+
+#: Fewest groups whose spread a calibration estimates. [1]
+MIN_GROUPS = 2
+#: Most groups a factor may have (REML fits loop over the groups); a factor with more, or with fewer
+#: than two rows a group on average, is reported and not fitted. [1]
+MAX_GROUPS = 500
+# Profile-likelihood grid: points below and above the estimate of tau^2, and how far above it reaches.
+_PROFILE_LOW, _PROFILE_HIGH, _PROFILE_REACH = 15, 30, 40.0
+# Half the chi-square 95 % point with one degree of freedom.
+_PROFILE_DROP = float(stats.chi2.ppf(0.95, 1) / 2.0)
+
+
+@dataclass(frozen=True)
+class GroupEffect:
+    """The random effect of one factor column on one declared parameter (or on μ).
+
+    Attributes
+    ----------
+    factor : str
+        The factor column.
+    parameter : str
+        The declared parameter that varies between groups, or ``"mu"`` (μ itself).
+    spread_log : float
+        ``tau``: standard deviation of log of the parameter between groups. [1]
+    spread_interval : tuple of float
+        95 % profile-likelihood interval of ``tau``. [1]
+    offset_log : float
+        ``b0``: mean shift of log of the parameter that the fixed part leaves. [1]
+    levels : dict of str to list of float
+        Per group label: ``[b_g, var(b_g | data), rows]`` (log of the parameter [1], its variance [1],
+        measurements [1]).
+    noise_log : float
+        ``sigma``: scatter of log μ within a group (REML). [1]
+    likelihoods : dict of str to float
+        Restricted log-likelihood of the random effect on each candidate parameter. [1]
+    """
+
+    factor: str
+    parameter: str
+    spread_log: float
+    spread_interval: tuple[float, float]
+    offset_log: float
+    levels: dict[str, list[float]] = field(default_factory=dict)
+    noise_log: float = 0.0
+    likelihoods: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def n_groups(self) -> int:
+        """Groups in the data. [1]"""
+        return len(self.levels)
+
+    def new_group_variance(self, level: float = 0.95) -> float:
+        """Variance of log of the parameter for a group not in the data, on the normal scale of ``level``:
+        ``tau^2 (1 + 1/G) (t_{G-1} / z)^2``. [1]"""
+        g = max(self.n_groups, 2)
+        z = float(stats.norm.isf((1.0 - level) / 2.0))
+        t = float(stats.t.isf((1.0 - level) / 2.0, g - 1))
+        return self.spread_log**2 * (1.0 + 1.0 / g) * (t / z) ** 2
+
+    def shift(self, labels: Any, sensitivity: np.ndarray, level: float = 0.95
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Shift of log μ, its variance, and whether the group is known, at points.
+
+        Parameters
+        ----------
+        labels : array_like or None
+            Group label of each point (None: no label, a new group).
+        sensitivity : numpy.ndarray
+            ``d log mu / d log p`` at each point (ones for ``"mu"``). [1]
+        level : float
+            Level of the interval the variance is for. [1]
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``s (b0 + b_g)`` [1], its variance [1] (a new group: the between-group spread), known (bool).
+        """
+        s = np.asarray(sensitivity, dtype=float)
+        if labels is None:
+            known = np.zeros(s.shape, dtype=bool)
+            effect = np.zeros(s.shape)
+            variance = np.full(s.shape, self.new_group_variance(level))
+        else:
+            given = np.broadcast_to(np.asarray(labels, dtype=object), s.shape)
+            text = np.vectorize(factor_label, otypes=[object])(given) if given.size else given
+            known = np.vectorize(lambda x: x in self.levels, otypes=[bool])(text) if text.size else \
+                np.zeros(s.shape, dtype=bool)
+            effect = np.array([self.levels[x][0] if x in self.levels else 0.0 for x in text.ravel()]
+                              ).reshape(s.shape)
+            variance = np.array([self.levels[x][1] if x in self.levels else self.new_group_variance(level)
+                                 for x in text.ravel()]).reshape(s.shape)
+        return s * (self.offset_log + effect), s * s * variance, known
+
+    def summary(self) -> str:
+        """The spread in words."""
+        lo, hi = self.spread_interval
+        what = "mu" if self.parameter == "mu" else self.parameter
+        largest = max(self.levels.items(), key=lambda item: abs(item[1][0]))
+        return (
+            f"{what} varies between the {self.n_groups} groups of {self.factor} by "
+            f"{_percent(self.spread_log)} (standard deviation of its log; 95 % interval "
+            f"{_percent(lo)}-{_percent(hi)}); within a group the scatter is {_percent(self.noise_log)}. "
+            f"A known {self.factor} is predicted with its own level (largest: {largest[0]}, "
+            f"{100 * np.expm1(largest[1][0]):+.1f} %); a new or unnamed one carries the spread between groups"
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready data."""
+        return {
+            "factor": self.factor,
+            "parameter": self.parameter,
+            "spread_log": self.spread_log,
+            "spread_interval": list(self.spread_interval),
+            "offset_log": self.offset_log,
+            "levels": {k: list(map(float, v)) for k, v in self.levels.items()},
+            "noise_log": self.noise_log,
+            "likelihoods": dict(self.likelihoods),
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> GroupEffect:
+        """Rebuild from :meth:`to_json` data.
+
+        Raises
+        ------
+        ValueError
+            For a negative spread or a level without its three numbers.
+        """
+        levels = {str(k): [float(x) for x in v] for k, v in dict(data["levels"]).items()}
+        if any(len(v) != 3 for v in levels.values()) or float(data["spread_log"]) < 0:
+            raise ValueError("groups: each level needs [effect, variance, rows] and the spread must be >= 0")
+        lo, hi = (float(x) for x in data["spread_interval"])
+        return cls(str(data["factor"]), str(data["parameter"]), float(data["spread_log"]), (lo, hi),
+                   float(data["offset_log"]), levels, float(data.get("noise_log", 0.0)),
+                   {str(k): float(v) for k, v in dict(data.get("likelihoods", {})).items()})
+
+
+def _percent(log_std: float) -> str:
+    return f"{100 * np.expm1(log_std):.3g} %"
+
+
+def _mixed(residual: np.ndarray, labels: np.ndarray, s: np.ndarray):
+    from statsmodels.regression.mixed_linear_model import MixedLM  # imported here: slow, rarely needed
+
+    model = MixedLM(residual, s[:, None], groups=labels, exog_re=s[:, None])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = model.fit(reml=True)
+    return model, result
+
+
+def _profile_interval(result, residual: np.ndarray, s: np.ndarray) -> tuple[float, float]:
+    """95 % profile restricted-likelihood interval of tau (linear interpolation on the grid). [1]"""
+    c = max(float(np.asarray(result.cov_re)[0, 0]), 0.0)
+    reach = max(_PROFILE_REACH * c, 10.0 * float(np.var(residual)) / max(float(np.mean(s * s)), 1e-12))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            grid = result.profile_re(0, "re", num_low=_PROFILE_LOW, dist_low=0.999 * c,
+                                     num_high=_PROFILE_HIGH, dist_high=reach)
+        except (np.linalg.LinAlgError, ValueError):
+            return 0.0, float("inf")
+    values, llf = grid[:, 0], grid[:, 1]
+    order = np.argsort(values)
+    values, llf = values[order], llf[order]
+    best = max(float(result.llf), float(np.max(llf)))
+    inside = llf >= best - _PROFILE_DROP
+
+    def crossing(i: int, j: int) -> float:
+        # Between grid points i (inside) and j (outside): where the profile crosses the cut.
+        a, b = llf[i] - (best - _PROFILE_DROP), llf[j] - (best - _PROFILE_DROP)
+        return float(values[i] + (values[j] - values[i]) * a / (a - b)) if a != b else float(values[i])
+
+    first, last = int(np.argmax(inside)), len(inside) - 1 - int(np.argmax(inside[::-1]))
+    lo = values[0] if first == 0 else crossing(first, first - 1)
+    hi = float("inf") if last == len(values) - 1 else crossing(last, last + 1)
+    if values[0] > 1e-3 * c and first == 0:  # the grid stopped above zero while still inside
+        lo = 0.0
+    return float(np.sqrt(max(lo, 0.0))), float(np.sqrt(hi))
+
+
+def why_not_fitted(labels: np.ndarray) -> str | None:
+    """Why a factor's spread is not fitted (too few or too many groups, or about one row a group), or None."""
+    groups = np.unique(np.asarray(labels).astype(str)).size
+    if groups < MIN_GROUPS:
+        return f"one group only ({groups} label): there is no spread between groups to fit"
+    if groups > MAX_GROUPS:
+        return f"{groups} groups, more than {MAX_GROUPS}: the spread between them is not fitted"
+    if 2 * groups > np.size(labels):
+        return (f"{groups} groups in {np.size(labels)} rows (fewer than two rows a group): a group's level "
+                f"cannot be told from the noise, and the spread between groups is not fitted")
+    return None
+
+
+def fit_group_effect(factor: str, labels: np.ndarray, residual: np.ndarray,
+                     sensitivities: Mapping[str, np.ndarray], rows: np.ndarray | None = None
+                     ) -> GroupEffect | None:
+    """Fit the between-group spread of one factor on what the fixed model leaves.
+
+    Parameters
+    ----------
+    factor : str
+        The factor column's name.
+    labels : numpy.ndarray
+        Its label at every row (strings).
+    residual : numpy.ndarray
+        ``log(mu_measured / mu_model)`` at every row. [1]
+    sensitivities : mapping of str to numpy.ndarray
+        ``d log mu / d log p`` at every row for each fitted declared parameter ``p`` [1]; μ itself
+        (ones) is always a candidate.
+    rows : numpy.ndarray of bool, optional
+        Rows to fit on (e.g. not outliers); all by default.
+
+    Returns
+    -------
+    GroupEffect or None
+        None with fewer than :data:`MIN_GROUPS` groups among the rows.
+    """
+    use = np.ones(residual.size, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
+    y, g = np.asarray(residual, dtype=float)[use], np.asarray(labels).astype(str)[use]
+    if np.unique(g).size < MIN_GROUPS:
+        return None
+    candidates = {"mu": np.ones(residual.size), **{k: np.asarray(v, dtype=float) for k, v in
+                                                    sensitivities.items()}}
+    fits: dict[str, Any] = {}
+    for name, s in candidates.items():
+        if not np.all(np.isfinite(s[use])) or np.max(np.abs(s[use])) < 1e-6:
+            continue
+        try:
+            fits[name] = _mixed(y, g, s[use])
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+    if not fits:
+        return None
+    best = max(fits, key=lambda name: float(fits[name][1].llf))
+    _, result = fits[best]
+    s = candidates[best][use]
+    tau2 = max(float(np.asarray(result.cov_re)[0, 0]), 0.0)
+    sigma2 = float(result.scale)
+    offset = float(np.asarray(result.fe_params)[0])
+    levels: dict[str, list[float]] = {}
+    for label in np.unique(g):
+        at = g == label
+        precision = float(np.sum(s[at] ** 2)) / sigma2 + (1.0 / tau2 if tau2 > 0 else np.inf)
+        variance = 0.0 if not np.isfinite(precision) else 1.0 / precision
+        effect = variance * float(np.sum(s[at] * (y[at] - offset * s[at]))) / sigma2
+        levels[str(label)] = [effect, variance, float(at.sum())]
+    return GroupEffect(
+        factor,
+        best,
+        float(np.sqrt(tau2)),
+        _profile_interval(result, y, s),
+        offset,
+        levels,
+        float(np.sqrt(sigma2)),
+        {name: float(r.llf) for name, (_, r) in fits.items()},
+    )
+
+
+def describe_groups(effects: Sequence[GroupEffect]) -> list[dict[str, Any]]:
+    """JSON-ready report entries: the fitted numbers and the sentence of each group effect."""
+    out = []
+    for e in effects:
+        lo, hi = e.spread_interval
+        out.append({
+            "factor": e.factor,
+            "parameter": e.parameter,
+            "groups": e.n_groups,
+            "spread_relative": float(np.expm1(e.spread_log)),
+            "spread_interval_relative": [float(np.expm1(lo)), float(np.expm1(hi))],
+            "within_group_scatter_relative": float(np.expm1(e.noise_log)),
+            "levels": {k: {"relative_shift": float(np.expm1(v[0])), "std_log": float(np.sqrt(v[1])),
+                           "rows": int(v[2])} for k, v in e.levels.items()},
+            "restricted_log_likelihoods": dict(e.likelihoods),
+            "summary": e.summary(),
+        })
+    return out

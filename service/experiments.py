@@ -1,0 +1,148 @@
+"""Which measurements to take next, in the service: :mod:`calibrate.experiments` on a stored calibration.
+
+:func:`next_experiments_job` checks a request against the stored calibration at once (422 naming the
+field) and returns the job's work: rebuild the calibrated model and its data (stored beside the
+report since this feature; older calibrations have no data, so no rivals and nothing drawn under the
+runs), refit the rivals, propose. :func:`first_experiments_job` does the same on the declared physics.
+The result's plot is drawn from the stored result when asked (:func:`plan_png`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from microbearing.calibrate import CalibratedModel
+from microbearing.calibrate.design import DesignError
+from microbearing.calibrate.experiments import (
+    ExperimentPlan,
+    check_request,
+    first_experiments,
+    next_experiments,
+    physics_model,
+    plan_png,
+    rival_models,
+    rival_terms,
+)
+
+from .calibrations import MODEL_PREFIX, load_calibration, stored_dataset
+from .problems import ProblemError, validation_problem
+from .schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
+from .store import Store
+
+__all__ = ["JOB_KIND", "first_experiments_job", "next_experiments_job", "plan_png"]
+
+#: Kind of the jobs that propose runs (their results at /v1/jobs/{id}/result).
+JOB_KIND = "experiments"
+
+
+def _field_problem(exc: ValueError) -> ProblemError:
+    """A 422 naming the field a ValueError of calibrate.experiments starts with (``space.load_N: ...``)."""
+    message = str(exc)
+    head = message.split(":", 1)[0] if ":" in message else ""
+    if head and " " not in head:
+        return validation_problem([{"pointer": "/" + head.replace(".", "/"), "detail": message}])
+    field = "goal" if "goal" in message else "space"
+    return validation_problem([{"pointer": f"/{field}", "detail": message}])
+
+
+def _space(columns: Mapping[str, Any] | None) -> dict[str, Any] | None:
+    if columns is None:
+        return None
+    return {k: (v.model_dump() if hasattr(v, "model_dump") else list(v)) for k, v in columns.items()}
+
+
+def _document(plan: ExperimentPlan, model: str, job_id: str | None) -> dict[str, Any]:
+    """The result: the plan, the model, and the plot's URL when it ran as a job (None from the CLI)."""
+    url = None if job_id is None else f"/v1/experiments/{job_id}/plot.png"
+    return {**plan.to_dict(), "model": model, "plot_url": url}
+
+
+def next_experiments_job(store: Store, calibration_id: str, body: NextExperimentsRequest
+                         ) -> Callable[[Any], dict[str, Any]]:
+    """Check a request for the next runs of a stored calibration; the job's work.
+
+    Raises
+    ------
+    ProblemError
+        404 for an unknown calibration; 422 naming the field for an invalid space, fixed value or
+        planned run, or ``goal: discriminate`` on a calibration with no rival (or stored before its
+        data were).
+    """
+    stored = load_calibration(store, calibration_id)
+    model = CalibratedModel.from_json(stored.metadata["model"])
+    report = stored.metadata["report"]
+    space, envelope = _space(body.space), _space(body.envelope)
+    try:
+        check_request(model, space, body.fixed, envelope, body.planned)
+        if model.covariance is None or model.noise_std_log is None:
+            raise DesignError("the calibration was stored before models had a covariance; calibrate again")
+    except ValueError as exc:
+        raise _field_problem(exc) from None
+    if body.goal == "predict" and envelope is None:
+        raise validation_problem([{"pointer": "/envelope", "detail": "goal predict needs an envelope"}])
+    dataset = stored_dataset(stored.arrays, model.fixed)
+    has_rivals = dataset is not None and bool(rival_terms(report, dataset, [t for t, _ in model.terms]))
+    if body.goal == "discriminate":
+        if dataset is None:
+            raise validation_problem([{"pointer": "/goal", "detail": (
+                "this calibration was stored before calibrations kept their data, so its rivals cannot be "
+                "refitted; calibrate again, or use goal parameters or predict")}])
+        if not has_rivals:
+            raise validation_problem([{"pointer": "/goal", "detail": (
+                "the calibration left no rival model within reach of the one it chose (no other named "
+                "candidate passed its test, none came near the threshold); use goal parameters or predict")}])
+
+    # predict hedges over the rivals too when there are any (model-robust: bench/RESULTS.md, issue 26).
+    def work(ctx) -> dict[str, Any]:
+        rivals = rival_models(report, dataset, model) if body.goal != "parameters" and has_rivals else []
+        ctx.progress(0.2)
+        try:
+            plan = next_experiments(model, space, body.runs, body.goal, envelope=envelope, fixed=body.fixed,
+                                    planned=body.planned, rivals=rivals,
+                                    data=None if dataset is None else dataset.columns(), seed=body.seed,
+                                    progress=lambda f: ctx.progress(0.2 + 0.8 * f))
+        except ValueError as exc:
+            raise _field_problem(exc) from None
+        document = _document(plan, MODEL_PREFIX + calibration_id, ctx.job_id)
+        return {**document, "calibration_id": calibration_id}
+
+    return work
+
+
+def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict[str, Any]]:
+    """Check a request for a first design on the physics; the job's work.
+
+    Raises
+    ------
+    ProblemError
+        422 naming the field.
+    """
+    space, envelope = _space(body.space), _space(body.envelope)
+    fit_parameters = [str(p) for p in body.fit_parameters]
+    unknown = [k for k in (body.guess or {}) if k not in fit_parameters]
+    if unknown:
+        raise validation_problem([{"pointer": f"/guess/{k}", "detail": "not one of fit_parameters"}
+                                  for k in unknown])
+    if body.goal == "predict" and envelope is None:
+        raise validation_problem([{"pointer": "/envelope", "detail": "goal predict needs an envelope"}])
+
+    try:  # the request's checks, at once (the solve comes in the job)
+        model, fixed = physics_model(fit_parameters, body.noise_std_log, body.guess, body.fixed,
+                                     str(body.convention))
+        check_request(model, space, fixed, envelope, body.planned)
+    except ValueError as exc:
+        raise _field_problem(exc) from None
+
+    def work(ctx) -> dict[str, Any]:
+        try:
+            plan = first_experiments(fit_parameters, space, body.runs, body.goal, body.noise_std_log,
+                                     body.guess, envelope, body.fixed, body.planned, str(body.convention),
+                                     body.seed, ctx.progress)
+        except ValueError as exc:
+            raise _field_problem(exc) from None
+        return {**_document(plan, "physics", ctx.job_id), "calibration_id": None}
+
+    return work
+
+

@@ -1,0 +1,83 @@
+"""Which measurements to take next: ``POST /v1/calibrations/{id}/next-experiments``, ``POST /v1/experiments``
+(jobs), and the plot of a proposal."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse, Response
+
+from ..deps import JobsDep, StoreDep
+from ..experiments import JOB_KIND, first_experiments_job, next_experiments_job, plan_png
+from ..jobs import register_kind
+from ..problems import ProblemError, problem_responses
+from ..schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
+from .jobs import ACCEPTED_RESPONSE, accepted
+
+__all__ = ["router"]
+
+router = APIRouter(tags=["experiments"])
+
+
+def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
+    """The work of a proposal from its stored request (and calibration id, for the next runs)."""
+    request = dict(inputs)
+    calibration_id = request.pop("calibration_id", None)
+    if calibration_id is None:
+        return first_experiments_job(FirstExperimentsRequest.model_validate_json(json.dumps(request)))
+    return next_experiments_job(runtime.store, calibration_id,
+                                NextExperimentsRequest.model_validate_json(json.dumps(request)))
+
+
+# Rebuilt from the request; a calibration deleted meanwhile fails the new run with 404.
+register_kind(JOB_KIND, _stored_work,
+              rule="the request is stored and the result is written once, at the end")
+
+
+@router.post("/v1/calibrations/{calibration_id}/next-experiments", operation_id="create_next_experiments",
+             status_code=202, responses={**ACCEPTED_RESPONSE, **problem_responses(404)})
+def create_next_experiments(calibration_id: str, body: NextExperimentsRequest, store: StoreDep,
+                            jobs: JobsDep) -> JSONResponse:
+    """Propose the next runs for a calibration, with an optimality bound (a job).
+
+    The job's result (``ExperimentsJobResult``) lists the runs (integer ball counts, inside the space,
+    replicates allowed), the criterion, ``efficiency_lower_bound`` (how far the runs can be from the
+    best design over the candidate points, rounding included) and what the runs are expected to do:
+    the parameters' standard deviations now and after, the 95 % interval over the envelope now and
+    after, the rivals and how far apart the runs set them (``discriminate``); the plot at
+    ``plot_url``. A space, fixed value or planned run the calibration cannot read is a 422 naming it.
+    """
+    work = next_experiments_job(store, calibration_id, body)
+    request = {"calibration_id": calibration_id, **body.model_dump(mode="json")}
+    return accepted(jobs.submit(JOB_KIND, request, work, inputs=request))
+
+
+@router.post("/v1/experiments", operation_id="create_first_experiments", status_code=202,
+             responses={**ACCEPTED_RESPONSE, **problem_responses()})
+def create_first_experiments(body: FirstExperimentsRequest, jobs: JobsDep) -> JSONResponse:
+    """Propose a first set of runs on the declared physics, before any calibration (a job).
+
+    The same operation as ``/v1/calibrations/{id}/next-experiments`` with the declared parameters to fit
+    (``fit_parameters``) at their defaults or ``guess`` and an expected relative scatter
+    (``noise_std_log``); goals ``parameters`` and ``predict``.
+    """
+    request = body.model_dump(mode="json")
+    return accepted(jobs.submit(JOB_KIND, request, first_experiments_job(body), inputs=request))
+
+
+@router.get("/v1/experiments/{job_id}/plot.png", operation_id="get_experiments_plot", response_class=Response,
+            responses={200: {"description": "The proposed runs over the data taken (and the rivals' "
+                                            "predictions for discriminate) as a PNG image.",
+                             "content": {"image/png": {"schema": {"type": "string", "format": "binary"}}}},
+                       **problem_responses(404, 409)})
+def get_experiments_plot(job_id: str, jobs: JobsDep) -> Response:
+    """The plot of a proposal: the runs over the data taken, with the rivals' predictions."""
+    row = jobs.get(job_id, with_result=True)
+    if row is None or row["kind"] != JOB_KIND:
+        raise ProblemError(404, f"There is no experiments job {job_id!r}.")
+    if row["status"] != "succeeded":
+        raise ProblemError(409, f"Experiments job {job_id} is {row['status']}; the plot exists once it "
+                                "succeeded.")
+    return Response(plan_png(json.loads(row["result_json"])), media_type="image/png")

@@ -1,0 +1,218 @@
+"""Bodies of ``/v1/calibrations/{id}/next-experiments`` and ``/v1/experiments``: the runs to measure next."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from microbearing import physics
+
+from .base import Convention, ConventionName, ResponseModel, StrictModel
+from .calibrations import FittableParameterName
+
+__all__ = ["MAX_PLANNED_RUNS", "MAX_RUNS", "MAX_SPACE_COLUMNS", "MAX_SPACE_VALUES", "ExperimentsResult",
+           "FirstExperimentsRequest", "NextExperimentsRequest", "SpaceRange"]
+
+#: Runs one proposal may ask for at most. [1]
+MAX_RUNS = 500
+#: Runs already planned that a request may list at most. [1]
+MAX_PLANNED_RUNS = 500
+#: Columns of a space (or envelope) at most. [1]
+MAX_SPACE_COLUMNS = 12
+#: Allowed values of one column given as a list at most. [1]
+MAX_SPACE_VALUES = 200
+
+
+class SpaceRange(StrictModel):
+    """A continuous range a lab can set (for ``balls``: every whole count in it)."""
+
+    low: float = Field(description="Lowest value [unit of the column: physics inputs as in /v1/meta, "
+                                   "conditions as in the calibration data].")
+    high: float = Field(description="Highest value, >= low [unit of the column].")
+    spacing: Literal["linear", "log"] = Field(
+        default="linear", description="How the candidate grid spreads over the range: evenly, or evenly in "
+                                      "logarithms (low > 0).")
+
+
+SpaceColumn = Annotated[
+    SpaceRange | Annotated[list[float], Field(min_length=1, max_length=MAX_SPACE_VALUES)],
+    Field(description="A range {low, high, spacing} or a list of the allowed values (e.g. humidity "
+                      "set-points, a mask set's groove angles [deg]), in the column's unit."),
+]
+
+_SPACE = ("What the lab can set, per column: balls (a range of whole counts or a list), load_N [N], "
+          "speed_m_s [m/s], any other physics input in its unit, and the calibration's condition columns "
+          "(e.g. relative_humidity, in the calibration data's unit). balls, load_N and speed_m_s and the "
+          "columns the model reads must be in the space or in fixed.")
+_ENVELOPE = ("Where the model will be used, like space (ranges or lists per column, the space's columns "
+             "all given): goal predict shrinks the 95 % interval of mu over it; with another goal the "
+             "interval there before and after is reported too.")
+_FIXED = ("Inputs held at one value in every run: physics inputs in their units (e.g. groove_angle_deg "
+          "[deg]) and condition columns in the calibration data's units.")
+_PLANNED = ("Runs already planned, one object per run with a value for every column of the space: their "
+            "information counts as taken.")
+
+
+class _ExperimentsRequest(StrictModel):
+    runs: int = Field(ge=1, le=MAX_RUNS, description="How many measurements to propose [1].")
+    space: dict[str, SpaceColumn] = Field(min_length=1, max_length=MAX_SPACE_COLUMNS, description=_SPACE)
+    envelope: dict[str, SpaceColumn] | None = Field(default=None, max_length=MAX_SPACE_COLUMNS,
+                                                    description=_ENVELOPE)
+    fixed: dict[str, float | bool] | None = Field(default=None, max_length=64, description=_FIXED)
+    planned: list[dict[str, float]] | None = Field(default=None, max_length=MAX_PLANNED_RUNS,
+                                                   description=_PLANNED)
+    seed: int = Field(default=0, ge=0, le=2**31 - 1, description="Seed of the candidate set [1].")
+
+
+class NextExperimentsRequest(_ExperimentsRequest):
+    """The next measurements for a calibrated model."""
+
+    goal: Literal["discriminate", "parameters", "predict"] = Field(
+        default="discriminate",
+        description="discriminate: tell apart the laws and effects the calibration could not separate "
+                    "(T-optimal); parameters: shrink the fitted parameters' covariance (D-optimal); "
+                    "predict: shrink the 95 % interval over the envelope (I-optimal; summed over the "
+                    "calibrated model and its rivals when it has any, so that the runs also serve the laws "
+                    "the data could not yet tell apart).")
+
+
+class FirstExperimentsRequest(_ExperimentsRequest):
+    """A first design on the declared physics, before any calibration."""
+
+    goal: Literal["parameters", "predict"] = Field(
+        default="parameters",
+        description="parameters: D-optimal for the declared parameters to fit; predict: I-optimal over "
+                    "the envelope.")
+    fit_parameters: list[FittableParameterName] = Field(  # type: ignore[valid-type]
+        min_length=1, max_length=len(physics.PARAMETERS),
+        description="Declared parameters the measurements will fit, e.g. mu_pivot [1].")
+    guess: dict[str, float] | None = Field(
+        default=None, description="Values of the fitted parameters where their effect is linearized, in "
+                                  "their units (default: the physics defaults).")
+    noise_std_log: float = Field(
+        default=0.05, gt=0, le=5,
+        description="Expected standard deviation of one measurement of log mu, i.e. the relative scatter "
+                    "of mu [1].")
+    convention: ConventionName = Field(  # type: ignore[valid-type]
+        default=Convention(physics.DEFAULT_CONVENTION),
+        description="Reading of the paper's ambiguous ball-ball terms.")
+
+
+class ProposedRun(ResponseModel):
+    """One measurement to take."""
+
+    balls: int = Field(description="Number of balls [1].")
+    load_N: float = Field(description="Normal load on the slider [N].")
+    speed_m_s: float = Field(description="Sliding speed [m/s].")
+    inputs: dict[str, float | bool] = Field(
+        description="Other physics inputs of the space and of fixed, in their units (see /v1/meta).")
+    conditions: dict[str, float] = Field(description="Condition columns, in the calibration data's units.")
+    mu: float = Field(description="mu the model predicts for the run [1].")
+    mu_lower: float | None = Field(default=None, description="Lower end of its 95 % prediction interval "
+                                                             "[1] (absent before a calibration).")
+    mu_upper: float | None = Field(default=None, description="Upper end of the same interval [1].")
+    in_domain: bool | None = Field(default=None, description=(
+        "Whether the run lies within the range of the calibration data (false: the model extrapolates "
+        "there, which is often the point; absent before a calibration)."))
+
+
+class ParameterFigures(ResponseModel):
+    """A fitted parameter's standard deviation now and expected after the runs."""
+
+    name: str = Field(description="The parameter (declared name, or '<term>: <parameter>').")
+    value: float = Field(description="Its value [unit]: in the unit given by unit.")
+    unit: str = Field(description="The parameter's unit.")
+    std_now: float | None = Field(description="Standard deviation now [unit] (absent before a calibration).")
+    std_after: float = Field(description="Expected standard deviation after the runs, linearized [unit].")
+
+
+class HalfWidth(ResponseModel):
+    """Half-widths of 95 % intervals of mu over the envelope."""
+
+    mean: float = Field(description="Mean over the envelope's points [1].")
+    max: float = Field(description="Largest over the envelope's points [1].")
+
+
+class EnvelopeFigures(ResponseModel):
+    """The 95 % interval of mu over the envelope, now and expected after the runs."""
+
+    points: int = Field(description="Points of the envelope the figures average [1].")
+    half_width_now: HalfWidth | None = Field(default=None, description=(
+        "Half-width of the 95 % prediction interval of a measurement (parameters + scatter) now [1]."))
+    half_width_after: HalfWidth = Field(description="The same after the runs [1] (the scatter stays).")
+    mean_half_width_now: HalfWidth | None = Field(default=None, description=(
+        "Half-width of the 95 % interval of the model's mean (parameters only) now [1]."))
+    mean_half_width_after: HalfWidth = Field(description="The same after the runs [1].")
+
+
+class RivalFigures(ResponseModel):
+    """A rival model and how far apart the runs set it from the calibrated model."""
+
+    label: str = Field(description="What the rival changes.")
+    terms: list[str] = Field(description="The rival's terms.")
+    expected_chi2_separation: float = Field(description=(
+        "Expected increase of the rival's chi-square (sum of squared standardized residuals of log mu) "
+        "when the runs are measured and the calibrated model is right, the rival refitted to first order "
+        "[1]; about 9 or more separates them at 3 standard deviations."))
+    max_relative_difference: float = Field(description="Largest |mu_rival / mu - 1| at the runs [1].")
+    mu_at_runs: list[float] = Field(description="The rival's mu at each run [1].")
+
+
+class PlotCurve(ResponseModel):
+    """One model's mu along the plot's first axis."""
+
+    label: str = Field(description="The model.")
+    x: list[float] = Field(description="Values of the first axis [unit of that column].")
+    mu: list[float] = Field(description="mu there [1].")
+
+
+class PlanPlot(ResponseModel):
+    """What the plot draws (also at plot_url as PNG)."""
+
+    axes: list[str] = Field(description="The two columns of the space drawn (first: along which rivals "
+                                        "differ most, for discriminate).")
+    runs: dict[str, list[float]] = Field(description="The runs on those columns, in their units.")
+    data: dict[str, list[float]] = Field(description="The calibration data on those columns (at most 2000 "
+                                                     "rows), in their units.")
+    curves: list[PlotCurve] = Field(description="discriminate: each model's mu along the first axis.")
+    envelope: dict[str, list[float]] | None = Field(default=None, description=(
+        "The envelope's [low, high] on the plot's axes, in their units (when one was given) [unit of each "
+        "column]."))
+    others: dict[str, float] | None = Field(default=None, description=(
+        "Values of the other columns along the curves (the runs' medians), in their units."))
+
+
+class ExperimentsResult(ResponseModel):
+    """The proposed runs, the proof of how good they are, and what they are expected to do."""
+
+    goal: str = Field(description="discriminate, parameters or predict.")
+    model: str = Field(description="'calibrated:<id>' or 'physics'.")
+    calibration_id: str | None = Field(default=None, description="The calibration (absent for a first "
+                                                                 "design on the physics).")
+    runs: list[ProposedRun] = Field(description="The runs, replicates repeated, integer ball counts, "
+                                                "inside the space.")
+    criterion: float = Field(description=(
+        "The criterion of the runs with the data taken: parameters, log det of the information "
+        "[log of the parameters' units^-2]; predict, mean variance of log mu over the envelope [1]; "
+        "discriminate, the smallest expected_chi2_separation of the rivals [1]."))
+    efficiency_lower_bound: float = Field(ge=0, le=1, description=(
+        "The runs' efficiency under the criterion against the best possible design over the candidate "
+        "points is at least this [1] (equivalence-theorem bound at the whole runs, rounding included; "
+        "D: (det ratio)^(1/p), I: variance ratio, T: separation ratio)."))
+    continuous_efficiency_lower_bound: float = Field(ge=0, le=1, description=(
+        "The Kiefer-Wolfowitz bound of the solver's continuous design [1]."))
+    rounding_efficiency: float = Field(ge=0, description=(
+        "The whole runs' criterion relative to the continuous design's, in the efficiency's scale [1]."))
+    support_points: int = Field(description="Distinct settings among the runs [1].")
+    solver: str = Field(description="The cvxpy solver and its status.")
+    parameters: list[ParameterFigures] = Field(description="Each fitted parameter's standard deviation now "
+                                                           "and after.")
+    envelope: EnvelopeFigures | None = Field(default=None, description="The interval over the envelope "
+                                                                       "(when one was given).")
+    rivals: list[RivalFigures] | None = Field(default=None, description="discriminate: the rivals.")
+    mu_reference_at_runs: list[float] | None = Field(default=None, description=(
+        "discriminate: the calibrated model's mu at each run [1]."))
+    plot: PlanPlot = Field(description="The plot's data.")
+    plot_url: str | None = Field(default=None, description="The plot as PNG.")
+    warnings: list[str] = Field(description="Runs outside the calibration data, a weak bound, ...")

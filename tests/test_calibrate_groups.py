@@ -1,0 +1,385 @@
+"""Issue 24, items 1-3: factor columns and the spread between groups, scatter that depends on the inputs,
+the data cloud and columns that move together. Checked against the generating truth, hand-computed
+estimators and brute force."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from microbearing import physics
+from microbearing.calibrate import DataError, calibrate, parse_csv, parse_rows
+from microbearing.calibrate.domain import DataCloud, confounded_pairs
+from microbearing.calibrate.groups import fit_group_effect
+from microbearing.calibrate.scatter import fit_scatter
+
+TRUE_PIVOT = 0.7
+
+
+def _columns(rng, n):
+    return {"balls": rng.choice([4, 6, 8], n).astype(float),
+            "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+            "speed_m_s": rng.uniform(0.005, 0.15, n)}
+
+
+def _mu(c, **values):
+    return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"],
+                            **{"mu_pivot": TRUE_PIVOT, **values}).mu
+
+
+def builds(seed, groups=8, rows=25, spread=0.15, noise=0.02, coded=False):
+    """Rows of several builds, each with its own mu_pivot, and the true levels."""
+    rng = np.random.default_rng(seed)
+    level = TRUE_PIVOT * np.exp(rng.normal(0.0, spread, groups))
+    data = []
+    for g in range(groups):
+        c = _columns(rng, rows)
+        mu = _mu(c, mu_pivot=level[g]) * np.exp(rng.normal(0.0, noise, rows))
+        data += [{k: float(v[i]) for k, v in c.items()} | {"specimen": g + 1 if coded else f"S{g + 1}",
+                                                          "mu_measured": float(mu[i])} for i in range(rows)]
+    return data, level
+
+
+# ---------------------------------------------------------------------------------------------- parsing
+
+
+def test_a_column_of_labels_is_a_factor_and_integer_codes_only_when_declared():
+    text = ("balls,load_N,speed_m_s,specimen,batch,mu_measured\n"
+            "4,0.01,0.05,S1,1,0.011\n4,0.01,0.06,S2,2,0.012\n4,0.01,0.07,S1,2,0.013\n")
+    data = parse_csv(text)
+    assert list(data.factors) == ["specimen"] and data.factors["specimen"].tolist() == ["S1", "S2", "S1"]
+    assert "specimen" not in data.conditions and data.conditions["batch"].tolist() == [1.0, 2.0, 2.0]
+    declared = parse_csv(text, factors=["batch"])
+    assert declared.factors["batch"].tolist() == ["1", "2", "2"] and "batch" not in declared.conditions
+    # JSON rows: numbers and strings of a declared factor give the same labels as CSV text; subsets keep them.
+    rows = [{"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "batch": b, "mu_measured": 0.01}
+            for b in (1, 2.0, "2")]
+    subset = parse_rows(rows, factors=["batch"]).subset(np.array([2, 0]))
+    assert subset.factors["batch"].tolist() == ["2", "1"]
+
+
+def test_a_condition_column_with_numbers_and_labels_names_each_label_and_the_way_out():
+    text = "balls,load_N,speed_m_s,specimen,mu_measured\n4,0.01,0.05,1,0.011\n4,0.01,0.06,S2,0.012\n"
+    with pytest.raises(DataError) as caught:
+        parse_csv(text)
+    assert [(e["row"], e["column"]) for e in caught.value.errors] == [(2, "specimen")]
+    assert "declare specimen in factors" in caught.value.errors[0]["message"]
+    with pytest.raises(DataError) as unknown:
+        parse_csv(text, factors=["operator", "load_N"])
+    assert {e["column"] for e in unknown.value.errors} >= {"operator", "load_N"}
+
+
+# --------------------------------------------------------------------------------------------- groups
+
+
+def test_the_spread_between_groups_is_the_one_way_anova_estimate_on_balanced_data():
+    """REML of a balanced one-way random-effects model is the ANOVA estimator (MSB - MSW) / n when that is
+    positive; its within-group variance is MSW. Computed here by hand."""
+    rng = np.random.default_rng(5)
+    groups, rows = 7, 12
+    labels = np.repeat([f"G{g}" for g in range(groups)], rows)
+    y = np.repeat(rng.normal(0.0, 0.1, groups), rows) + rng.normal(0.0, 0.03, groups * rows)
+    effect = fit_group_effect("specimen", labels, y, {})
+    means = y.reshape(groups, rows).mean(axis=1)
+    msb = rows * np.sum((means - y.mean()) ** 2) / (groups - 1)
+    msw = np.sum((y.reshape(groups, rows) - means[:, None]) ** 2) / (groups * (rows - 1))
+    assert effect.parameter == "mu"
+    assert effect.spread_log == pytest.approx(np.sqrt((msb - msw) / rows), rel=1e-3)
+    assert effect.noise_log == pytest.approx(np.sqrt(msw), rel=1e-3)
+    # Each group's level is its mean shrunk toward the overall mean by tau^2 / (tau^2 + sigma^2 / n).
+    shrink = effect.spread_log**2 / (effect.spread_log**2 + msw / rows)
+    for g, mean in enumerate(means):
+        assert effect.levels[f"G{g}"][0] == pytest.approx(shrink * (mean - y.mean()), abs=1e-4)
+    lo, hi = effect.spread_interval
+    assert lo < effect.spread_log < hi
+    # A new group's variance: tau^2 (1 + 1/G), with Student's t of G - 1 degrees of freedom for z.
+    t, z = stats.t.isf(0.025, groups - 1), stats.norm.isf(0.025)
+    expected = effect.spread_log**2 * (1 + 1 / groups) * (t / z) ** 2
+    assert effect.new_group_variance() == pytest.approx(expected)
+
+
+@pytest.fixture(scope="module")
+def grouped():
+    data, level = builds(11)
+    return calibrate(data, ["mu_pivot"], make_plots=False, seed=11), level
+
+
+def test_builds_of_one_bearing_give_their_spread_and_intervals_that_cover_known_and_new_builds(grouped):
+    result, level = grouped
+    assert result.effects == [], result.decision  # a group is no continuous driver: nothing to add
+    (group,) = result.groups
+    assert group["factor"] == "specimen" and group["parameter"] in ("mu_pivot", "mu")
+    # The spread's interval holds this draw's spread of log mu_pivot between the builds (the truth it saw).
+    lo, hi = np.log1p(group["spread_interval_relative"])
+    assert lo < np.std(np.log(level), ddof=1) < hi
+    assert "varies between the 8 groups of specimen" in group["summary"]
+    # Each build's level follows its true mu_pivot.
+    shifts = [group["levels"][f"S{g + 1}"]["relative_shift"] for g in range(level.size)]
+    assert np.corrcoef(shifts, np.log(level))[0, 1] > 0.95
+    rng = np.random.default_rng(111)
+    model = result.model
+    known = []
+    for g in range(level.size):
+        c = _columns(rng, 200)
+        measured = _mu(c, mu_pivot=level[g]) * np.exp(rng.normal(0.0, 0.02, 200))
+        p = model.predict({**c, "specimen": np.full(200, f"S{g + 1}")})
+        known.append(np.mean((p.mu_lower <= measured) & (measured <= p.mu_upper)))
+    assert 0.9 <= np.mean(known) <= 0.99 and min(known) >= 0.8, known
+    # New builds (drawn from the same population): their measurements, with no label or a new one.
+    covered, widths = [], []
+    for _ in range(60):
+        c = _columns(rng, 50)
+        pivot = TRUE_PIVOT * np.exp(rng.normal(0.0, 0.15))
+        measured = _mu(c, mu_pivot=pivot) * np.exp(rng.normal(0.0, 0.02, 50))
+        p = model.predict(c)
+        assert np.array_equal(p.mu_upper, model.predict({**c, "specimen": "S99"}).mu_upper)
+        covered.append(np.mean((p.mu_lower <= measured) & (measured <= p.mu_upper)))
+        widths.append(np.median(np.log(p.mu_upper / p.mu_lower)))
+    assert 0.9 <= np.mean(covered) <= 1.0, np.mean(covered)
+    # Stored as JSON and read back, the model answers the same.
+    import json
+
+    from microbearing.calibrate import CalibratedModel
+
+    again = CalibratedModel.from_json(json.loads(json.dumps(model.to_json())))
+    for labels in (np.full(50, "S2"), None):
+        points = {**c, **({} if labels is None else {"specimen": labels})}
+        for name in ("mu", "mu_lower", "mu_upper", "in_domain"):
+            np.testing.assert_array_equal(getattr(again.predict(points), name),
+                                          getattr(model.predict(points), name))
+    # A known build's interval is far narrower than a new one's: it knows the build's level.
+    one = model.predict({**{k: v[:1] for k, v in c.items()}, "specimen": "S1"})
+    assert np.log(one.mu_upper / one.mu_lower)[0] < 0.5 * np.median(widths)
+
+
+# -------------------------------------------------------------------------------------------- scatter
+
+
+def test_scatter_model_finds_a_step_in_speed_and_stays_constant_on_one_spread():
+    rng = np.random.default_rng(3)
+    n = 400
+    speed = rng.uniform(0.001, 0.15, n)
+    other = rng.uniform(0.2, 0.8, n)
+    residual = rng.normal(0.0, 1.0, n) * np.where(speed < 0.02, 0.10, 0.015)
+    model = fit_scatter({"speed_m_s": speed, "relative_humidity": other}, residual)
+    assert model.kind == "step" and model.column == "speed_m_s"
+    assert 0.012 <= model.split <= 0.03
+    below, above = np.exp(model.coefficients)
+    assert below == pytest.approx(0.10, rel=0.3) and above == pytest.approx(0.015, rel=0.15)
+    assert model.summary().startswith("scatter ") and "below speed_m_s = " in model.summary()
+    # One spread everywhere: a non-constant model is chosen with chance 1 % per data set (the permutation
+    # test's level), so at most 2 of 30 (binomial: a 0.3 % chance of 3 or more); the spread is 3 %.
+    chosen = 0
+    for seed in range(30):
+        flat = np.random.default_rng(100 + seed)
+        plain = fit_scatter({"speed_m_s": flat.uniform(0.001, 0.15, 200),
+                             "relative_humidity": flat.uniform(0.2, 0.8, 200)}, flat.normal(0.0, 0.03, 200),
+                            seed=seed)
+        chosen += plain.kind != "constant"
+        if plain.kind == "constant":
+            assert np.exp(plain.coefficients[0]) == pytest.approx(0.03, rel=0.15)
+            assert "permutation p = " in plain.summary()
+    assert chosen <= 2, chosen
+
+
+# ---------------------------------------------------------------------------------------- the cloud
+
+
+def test_the_cloud_threshold_is_the_conformal_quantile_of_leave_one_out_distances():
+    rng = np.random.default_rng(8)
+    n = 300
+    speed = rng.uniform(0.005, 0.15, n)
+    temperature = 25 + 50 * (speed - 0.005) / 0.145 + rng.normal(0.0, 1.0, n)
+    cloud = DataCloud.from_columns({"speed_m_s": speed, "temperature_C": temperature})
+    # Brute force: standardized columns (the speed, positive over more than a decade, by its log), the
+    # 5th-nearest other row of every row, and its ceil(0.98 (n + 1))-th smallest.
+    log_speed = np.log(speed)
+    x = np.column_stack([(log_speed - log_speed.mean()) / log_speed.std(),
+                         (temperature - temperature.mean()) / temperature.std()])
+    distances = np.sqrt(((x[:, None, :] - x[None, :, :]) ** 2).sum(axis=2))
+    own = np.sort(distances, axis=1)[:, 5]
+    threshold = np.sort(own)[int(np.ceil(0.98 * (n + 1))) - 1]
+    point = {"speed_m_s": np.array([0.08]), "temperature_C": np.array([52.0])}
+    ratio, _ = cloud.score(point, (1,))
+    scaled = np.array([(np.log(0.08) - log_speed.mean()) / log_speed.std(),
+                       (52.0 - temperature.mean()) / temperature.std()])
+    fifth = np.sort(np.sqrt(((x - scaled) ** 2).sum(axis=1)))[4]
+    assert ratio[0] == pytest.approx(fifth / threshold, rel=1e-5)
+    # Points drawn like the data: about 2 % flagged. The corner the data never visited: far outside.
+    fresh_speed = rng.uniform(0.005, 0.15, 4000)
+    fresh = {"speed_m_s": fresh_speed, "temperature_C": 25 + 50 * (fresh_speed - 0.005) / 0.145
+             + rng.normal(0.0, 1.0, 4000)}
+    flagged = float(np.mean(cloud.score(fresh, (4000,))[0] > 1))
+    assert flagged <= 0.05, flagged
+    corner, _ = cloud.score({"speed_m_s": np.array([0.01]), "temperature_C": np.array([70.0])}, (1,))
+    assert corner[0] > 3
+    pairs = confounded_pairs({"speed_m_s": speed, "temperature_C": temperature,
+                              "relative_humidity": rng.uniform(size=n)})
+    assert [p["columns"] for p in pairs] == [["speed_m_s", "temperature_C"]]
+    # What would separate them: the empty corners, slow and hot, fast and cold.
+    assert "cannot be told" in pairs[0]["summary"]
+    words = pairs[0]["summary"]
+    assert f"speed_m_s near {speed.min():.4g} [m/s] and temperature_C near {temperature.max():.4g}" in words
+    assert f"speed_m_s near {speed.max():.4g} [m/s] and temperature_C near {temperature.min():.4g}" in words
+
+
+# ----------------------------------------------------------------------------------- through the API
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    from fastapi.testclient import TestClient
+
+    from microbearing.service.app import create_app
+    from microbearing.service.settings import Settings
+
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("groups")))) as test_client:
+        yield test_client
+
+
+def _finished(client, response) -> dict:
+    import time
+
+    assert response.status_code == 202, response.text
+    location = response.headers["location"]
+    deadline = time.monotonic() + 180
+    while (job := client.get(location).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.2)
+    assert job["status"] == "succeeded", job
+    return client.get(job["result_url"]).json()
+
+
+def test_labels_and_declared_codes_calibrate_through_the_api_and_name_groups_in_predictions(client):
+    data, level = builds(21, groups=6, rows=20)
+    body = {"data": data, "fit_parameters": ["mu_pivot"], "folds": 3}
+    result = _finished(client, client.post("/v1/calibrations", json=body))
+    (group,) = result["groups"]
+    assert group["factor"] == "specimen" and sorted(group["levels"]) == [f"S{g}" for g in range(1, 7)]
+    assert result["model"]["groups"][0]["factor"] == "specimen"
+    assert "specimen" not in result["model"]["domain"]
+    # The same data as integer codes in CSV, declared a factor: the same groups, labelled 1..6.
+    coded, _ = builds(21, groups=6, rows=20, coded=True)
+    header = list(coded[0])
+    text = "\n".join([",".join(header)] + [",".join(str(row[k]) for k in header) for row in coded]) + "\n"
+    csv_result = _finished(client, client.post("/v1/calibrations/csv", content=text,
+                                               params=[("fit_parameters", "mu_pivot"), ("folds", "3"),
+                                                       ("factors", "specimen")],
+                                               headers={"content-type": "text/csv"}))
+    assert sorted(csv_result["groups"][0]["levels"]) == [str(g) for g in range(1, 7)]
+    assert csv_result["groups"][0]["spread_relative"] == pytest.approx(group["spread_relative"], rel=1e-6)
+    # Undeclared, the codes are a number column: no group, a condition.
+    plain = _finished(client, client.post("/v1/calibrations/csv", content=text,
+                                          params=[("fit_parameters", "mu_pivot"), ("folds", "3")],
+                                          headers={"content-type": "text/csv"}))
+    assert plain["groups"] == [] and "specimen" in plain["model"]["conditions"]
+    hint = "specimen holds the whole numbers 1..6: if they label groups"
+    assert any(w.startswith(hint) for w in plain["warnings"])
+    assert not any("whole numbers" in w for w in csv_result["warnings"])
+    # /v1/friction: the build with the highest mu_pivot is predicted above a new one, its interval narrower.
+    model = result["model_id"]
+    point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "model": model}
+    top = f"S{int(np.argmax(level)) + 1}"
+    known = client.post("/v1/friction", json={**point, "conditions": {"specimen": top}}).json()
+    new = client.post("/v1/friction", json=point).json()
+    assert known["mu"] > new["mu"] and known["in_domain"] and new["in_domain"]
+    assert known["mu_upper"] / known["mu_lower"] < new["mu_upper"] / new["mu_lower"]
+    # The batch gives the same answers, a label per point (a new label: the new-build answer).
+    batch = client.post("/v1/friction/batch", json={
+        "points": {"balls": 4, "load_N": [0.01, 0.01], "speed_m_s": 0.05}, "model": model,
+        "conditions": {"specimen": [top, "S42"]}, "outputs": ["mu"]}).json()
+    assert batch["mu"] == pytest.approx([known["mu"], new["mu"]], rel=1e-12)
+    assert batch["mu_upper"] == pytest.approx([known["mu_upper"], new["mu_upper"]], rel=1e-12)
+    assert batch["in_domain"] == [True, True]
+    assert batch["domain_warnings"] == ["specimen = S42 is not a group of the calibration data: predicted as "
+                                        "a new group, whose interval carries the spread between groups"]
+    # An optimization with the calibrated model, for the known build and for a new one.
+    answers = []
+    for conditions in ({"specimen": top}, {}):
+        response = client.post("/v1/optimizations", json={
+            "bounds": {"balls": [4, 6], "groove_angle_deg": [45, 60], "load_N": [0.005, 0.02]},
+            "fixed": {"speed_m_s": 0.05}, "constraints": {"max_contact_pressure_Pa": 1e9}, "model": model,
+            "conditions": conditions, "starts": 1})
+        answers.append(_finished(client, response))  # a calibrated model's optimization is a job
+    spans = [a["mu_upper"] / a["mu_lower"] for a in answers]
+    assert spans[0] < spans[1], spans
+    # A label given to a number column is a 422 naming it.
+    wrong = client.post("/v1/friction", json={**point, "conditions": {"specimen": "S1", "balls_x": "a"}})
+    assert wrong.status_code == 422
+    assert "/conditions/balls_x" in [e.get("pointer") for e in wrong.json()["errors"]]
+
+
+def test_a_mixed_label_column_is_a_422_naming_each_label(client):
+    data, _ = builds(22, groups=3, rows=8)
+    for row in data[:5]:
+        row["specimen"] = 7
+    response = client.post("/v1/calibrations", json={"data": data})
+    assert response.status_code == 422
+    pointers = [e["pointer"] for e in response.json()["errors"]]
+    assert len(pointers) == len(data) - 5 and pointers[0] == "/data/5/specimen"
+    assert "declare specimen in factors" in response.json()["errors"][0]["detail"]
+
+
+# ------------------------------------------------------------------------ whole calibrations, fresh draws
+
+
+def _rows(c, measured, n):
+    return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(measured[i])} for i in range(n)]
+
+
+def test_scatter_ten_percent_below_20_mm_s_gives_intervals_that_cover_each_region():
+    rng = np.random.default_rng(2420)
+    n, fresh = 200, 3000
+    c = {**_columns(rng, n + fresh), "relative_humidity": rng.uniform(0.2, 0.6, n + fresh)}
+    c["speed_m_s"] = rng.uniform(0.001, 0.15, n + fresh)
+    spread = np.where(c["speed_m_s"] < 0.02, 0.10, 0.015)
+    measured = _mu(c) * np.exp(rng.normal(0.0, 1.0, n + fresh) * spread)
+    result = calibrate(_rows(c, measured, n), ["mu_pivot"], make_plots=False, seed=1)
+    assert result.scatter["kind"] == "step" and result.scatter["column"] == "speed_m_s", result.scatter
+    assert 0.01 <= result.scatter["split"] <= 0.03
+    # Low-speed rows scatter, they are no gross outliers.
+    assert result.outliers["count"] <= 2, result.outliers["summary"]
+    p = result.model.predict({k: v[n:] for k, v in c.items()})
+    inside = (p.mu_lower <= measured[n:]) & (measured[n:] <= p.mu_upper)
+    low = c["speed_m_s"][n:] < 0.02
+    assert 0.85 <= inside[low].mean() <= 1.0 and 0.9 <= inside[~low].mean() <= 0.99, (inside[low].mean(),
+                                                                                      inside[~low].mean())
+    width = np.log(p.mu_upper / p.mu_lower)
+    assert np.median(width[low]) > 3 * np.median(width[~low])
+
+
+def test_speed_and_temperature_that_move_together_are_named_and_the_empty_corner_is_out_of_the_domain():
+    rng = np.random.default_rng(2440)
+
+    def draw(m, speed=None, temperature=None):
+        c = _columns(rng, m)
+        if speed is not None:
+            c["speed_m_s"] = np.full(m, speed)
+        c["temperature_C"] = (25 + 50 * (c["speed_m_s"] - 0.005) / 0.145 + rng.normal(0.0, 1.0, m)
+                              if temperature is None else np.full(m, temperature))
+        viscosity = 0.01 * np.exp(26e3 / 8.314 * (1 / (c["temperature_C"] + 273.15) - 1 / 298.15))
+        return c, _mu(c, viscosity_Pa_s=viscosity) * np.exp(rng.normal(0.0, 0.03, m))
+
+    c, measured = draw(200)
+    result = calibrate(_rows(c, measured, 200), ["mu_pivot"], make_plots=False, seed=2)
+    words = " ".join(result.confounding)
+    assert "speed_m_s and temperature_C rise together" in words and "would separate them" in words
+    like, _ = draw(2000)
+    assert 1 - result.model.predict(like).in_domain.mean() <= 0.05
+    corner, _ = draw(50, speed=0.01, temperature=70.0)
+    on_data, _ = draw(50, speed=0.01)
+    far, near = result.model.predict(corner), result.model.predict(on_data)
+    assert not far.in_domain.any() and near.in_domain.mean() > 0.9
+    assert any("far from the calibration data's rows" in w for w in far.warnings)
+    widths = [np.median(np.log(p.mu_upper / p.mu_lower)) for p in (far, near)]
+    assert widths[0] > 1.5 * widths[1], widths
+
+
+def test_a_label_per_row_is_reported_and_not_fitted():
+    from microbearing.calibrate.groups import why_not_fitted
+
+    assert why_not_fitted(np.array(["a", "a", "b", "b"])) is None
+    assert "fewer than two rows a group" in why_not_fitted(np.array(["a", "b", "c", "c"]))
+    assert "one group only" in why_not_fitted(np.array(["a", "a"]))
+    assert "more than 500" in why_not_fitted(np.arange(1200).astype(str).repeat(2))

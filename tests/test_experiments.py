@@ -1,0 +1,180 @@
+"""calibrate.experiments: the next runs for the friction model, rivals, first designs, the plot."""
+
+import numpy as np
+import pytest
+
+from microbearing import physics
+from microbearing.calibrate import calibrate, parse_rows
+from microbearing.calibrate.design import DesignError
+from microbearing.calibrate.experiments import (
+    candidate_points,
+    first_experiments,
+    next_experiments,
+    plan_png,
+    rival_models,
+)
+
+SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
+         "speed_m_s": {"low": 0.0, "high": 0.15}, "relative_humidity": {"low": 0.2, "high": 0.9}}
+
+
+def kelvin_truth(c):
+    """Adhesion growing with humidity by a Kelvin law (written here, not taken from physics.effects)."""
+    return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7,
+                            adhesion_energy_J_m2=0.05 * (1 + 1.5 / np.log(1 / c["relative_humidity"]))).mu
+
+
+@pytest.fixture(scope="module")
+def humid():
+    rng = np.random.default_rng(3)
+    n = 150
+    c = {"balls": rng.choice([4, 6, 8], n).astype(float),
+         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+         "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.5, n)}
+    mu = kelvin_truth(c) * np.exp(rng.normal(0, 0.02, n))
+    dataset = parse_rows([{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])}
+                          for i in range(n)])
+    report = calibrate(dataset, ["mu_pivot", "adhesion_energy_J_m2"], make_plots=False)
+    return dataset, report
+
+
+def test_candidates_hold_every_ball_count_and_the_ends_of_every_range():
+    points = candidate_points(SPACE)
+    assert set(np.unique(points["balls"]).tolist()) == {4.0, 5.0, 6.0, 7.0, 8.0}
+    for name in ("load_N", "speed_m_s", "relative_humidity"):
+        assert points[name].min() == pytest.approx(SPACE[name]["low"])
+        assert points[name].max() == pytest.approx(SPACE[name]["high"])
+    assert np.unique(points["relative_humidity"]).size > 5  # the Sobol' set fills between the levels
+
+
+def test_the_rivals_of_a_kelvin_drift_include_the_linear_law(humid):
+    dataset, report = humid
+    rivals = rival_models(report.to_dict(), dataset, report.model)
+    labels = [label for label, _ in rivals]
+    assert any("(linear)" in label for label in labels), labels
+    for _, rival in rivals:  # each rival is refitted: it predicts the data about as well as the model
+        mu = rival(dataset.columns())
+        assert np.sqrt(np.mean(np.log(mu / dataset.mu_measured) ** 2)) < 0.1
+
+
+def test_discriminate_goes_where_the_rivals_part(humid):
+    dataset, report = humid
+    rivals = rival_models(report.to_dict(), dataset, report.model)
+    proposal = next_experiments(report.model, SPACE, 20, "discriminate", rivals=rivals,
+                                data=dataset.columns())
+    result = proposal.to_dict()
+    assert len(result["runs"]) == 20
+    for run in result["runs"]:
+        assert isinstance(run["balls"], int) and 4 <= run["balls"] <= 8
+        assert 3e-3 * (1 - 1e-9) <= run["load_N"] <= 3e-2 * (1 + 1e-9)
+        assert 0.2 <= run["conditions"]["relative_humidity"] <= 0.9
+    humidity = np.array([r["conditions"]["relative_humidity"] for r in result["runs"]])
+    assert np.mean(humidity > 0.5) >= 0.5  # beyond the data (20-50 % RH), where the laws part
+    assert 0.0 <= result["efficiency_lower_bound"] <= 1.0 and result["efficiency_lower_bound"] > 0.8
+    # The expected separation is the rival's weighted least-squares misfit at the runs, recomputed
+    # here from its predictions alone (linearized: a rival may shift its parameters).
+    for rival in result["rivals"]:
+        log_ratio = np.log(np.array(rival["mu_at_runs"]) / np.array(result["mu_reference_at_runs"]))
+        unrefitted = float(np.sum((log_ratio / report.model.noise_std_log) ** 2))
+        assert 0.0 < rival["expected_chi2_separation"] <= unrefitted * 1.001
+    assert result["plot"]["axes"][0] == "relative_humidity"
+    png = plan_png(result)
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_parameters_and_predict_shrink_what_they_target(humid):
+    _dataset, report = humid
+    envelope = {"balls": [6], "load_N": {"low": 0.005, "high": 0.02}, "speed_m_s": [0.05],
+                "relative_humidity": {"low": 0.7, "high": 0.85}}
+    d = next_experiments(report.model, SPACE, 20, "parameters", envelope=envelope).to_dict()
+    for p in d["parameters"]:
+        assert p["std_after"] <= p["std_now"] * (1 + 1e-9)
+    i = next_experiments(report.model, SPACE, 20, "predict", envelope=envelope).to_dict()
+    assert i["envelope"]["mean_half_width_after"]["mean"] < 0.8 * i["envelope"]["mean_half_width_now"]["mean"]
+    # I-optimal runs narrow the envelope's interval at least as much as the D-optimal ones.
+    after = i["envelope"]["mean_half_width_after"]["mean"]
+    assert after <= d["envelope"]["mean_half_width_after"]["mean"] * 1.001
+    assert not any(r["in_domain"] for r in i["runs"] if r["conditions"]["relative_humidity"] > 0.5 + 1e-9)
+
+
+def test_first_design_of_one_parameter_puts_every_run_where_it_moves_mu_most():
+    # D-optimal for one parameter: all runs where |d log mu / d mu_pivot| is largest, checked by a
+    # central difference of the physics at every candidate.
+    space = {"balls": {"low": 4, "high": 12}, "load_N": {"low": 1e-3, "high": 3e-2, "spacing": "log"},
+             "speed_m_s": {"low": 0.0, "high": 0.15}}
+    result = first_experiments(["mu_pivot"], space, 6, "parameters", noise_std_log=0.03).to_dict()
+    points = candidate_points(space)
+
+    def log_mu(value):
+        return np.log(physics.evaluate(balls=points["balls"], load_N=points["load_N"],
+                                       speed_m_s=points["speed_m_s"], mu_pivot=value).mu)
+
+    sensitivity = np.abs(log_mu(0.5 + 1e-4) - log_mu(0.5 - 1e-4)) / 2e-4
+    best = np.argmax(sensitivity)
+    for run in result["runs"]:
+        assert run["balls"] == int(points["balls"][best])
+        assert run["load_N"] == pytest.approx(points["load_N"][best], rel=1e-9)
+    std = result["parameters"][0]["std_after"]
+    assert std == pytest.approx(0.03 / np.sqrt(6) / sensitivity[best], rel=1e-3)
+    assert result["parameters"][0]["std_now"] is None
+
+
+def test_bad_requests_name_the_field(humid):
+    _dataset, report = humid
+    with pytest.raises(ValueError, match=r"space\.temperature_C"):
+        next_experiments(report.model, {**SPACE, "temperature_C": [20, 30]}, 5, "parameters")
+    with pytest.raises(ValueError, match=r"space\.load_N"):
+        next_experiments(report.model, {**SPACE, "load_N": {"low": -1, "high": 1}}, 5, "parameters")
+    with pytest.raises(DesignError, match="rival"):
+        next_experiments(report.model, SPACE, 5, "discriminate")
+    with pytest.raises(ValueError, match="relative_humidity"):
+        next_experiments(report.model, {k: v for k, v in SPACE.items() if k != "relative_humidity"}, 5,
+                         "parameters")
+    with pytest.raises(DesignError, match="goal must be parameters or predict"):
+        first_experiments(["mu_pivot"], SPACE, 5, "discriminate")
+
+
+def test_the_readme_loop_runs_and_prints_what_it_says(tmp_path, monkeypatch, capsys):
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("## Which measurements to take next"):text.index("## The command line")]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    printed = section.split("prints\n\n```\n", 1)[1].split("```", 1)[0].strip().splitlines()
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "README.md", "exec"), {})
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == len(printed)
+    assert lines[0] == printed[0] and lines[3] == printed[3]  # nothing named first; the Kelvin law after
+    assert lines[1].startswith(printed[1][:22])  # the bound
+    assert lines[-1] == printed[-1]  # the truth
+    after = float(lines[-2].split("mu = ")[1].split(",")[0])
+    truth = float(printed[-1].split("mu = ")[1])
+    assert after == pytest.approx(truth, rel=0.05)
+    low, high = (float(x) for x in lines[-2].split("[")[1].split("]")[0].split(","))
+    assert low <= truth <= high  # the recalibrated interval holds the truth off the first data
+    assert (tmp_path / "next-runs.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_frozen_base_sensitivity_of_a_parameter_fitted_at_its_upper_bound():
+    # A recalibration of the bench crashed here: adhesion fitted at its bound 10 J/m^2, bumped up, left
+    # its range. The bump now goes down there; the sensitivity matches a one-sided difference made here.
+    from microbearing.calibrate.fit import FitResult
+    from microbearing.calibrate.select import ModelCV, _frozen_base
+
+    rows = [{"balls": 4.0, "load_N": load, "speed_m_s": 0.05, "mu_measured": 0.02}
+            for load in (0.003, 0.01, 0.03)]
+    dataset = parse_rows(rows)
+    top = physics.PARAMETERS["adhesion_energy_J_m2"].maximum
+    full = FitResult({"adhesion_energy_J_m2": top}, (), [], ["adhesion_energy_J_m2"], np.array([top]),
+                     np.eye(1), 0.02, np.zeros(3), ["adhesion_energy_J_m2"], True)
+    current = ModelCV((), [], [], [], np.full(3, 0.02), full)
+    base = _frozen_base(dataset, ["adhesion_energy_J_m2"], current, [], physics.DEFAULT_CONVENTION)
+
+    def mu(gamma):
+        return physics.evaluate(balls=4, load_N=np.array([0.003, 0.01, 0.03]), speed_m_s=0.05,
+                                adhesion_energy_J_m2=gamma).mu
+
+    expected = np.log(mu(top * (1 - 1e-4)) / mu(top)) / np.log1p(-1e-4)
+    assert np.allclose(base.sensitivity["adhesion_energy_J_m2"], expected, rtol=1e-9)
+    assert np.all(expected > 0)

@@ -1,0 +1,173 @@
+"""/v1/calibrations/{id}/next-experiments and /v1/experiments: jobs, results, plot and problems."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from microbearing import physics
+from microbearing.service.app import create_app
+from microbearing.service.cli import main
+from microbearing.service.settings import Settings
+
+PROBLEM = "application/problem+json"
+SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
+         "speed_m_s": {"low": 0.0, "high": 0.15}, "relative_humidity": [0.2, 0.35, 0.5, 0.65, 0.8, 0.9]}
+
+
+def kelvin_rows(seed: int = 3, n: int = 150) -> list[dict]:
+    """Adhesion growing with humidity by a Kelvin law, measured at 20-50 % RH with 2 % noise."""
+    rng = np.random.default_rng(seed)
+    c = {"balls": rng.choice([4, 6, 8], n).astype(float),
+         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+         "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.5, n)}
+    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7,
+                          adhesion_energy_J_m2=0.05 * (1 + 1.5 / np.log(1 / c["relative_humidity"]))).mu
+    mu = mu * np.exp(rng.normal(0, 0.02, n))
+    return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(n)]
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("experiments")
+
+
+@pytest.fixture(scope="module")
+def client(data_dir):
+    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
+        yield test_client
+
+
+def finished(client: TestClient, response) -> dict:
+    assert response.status_code == 202, response.text
+    job = response.json()
+    location = response.headers["location"]
+    deadline = time.monotonic() + 120
+    while (job := client.get(location).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.1)
+    assert job["status"] == "succeeded", job
+    result = client.get(job["result_url"]).json()
+    assert result.pop("kind") == "experiments"
+    return result
+
+
+def problem(response, status: int) -> dict:
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"] == PROBLEM
+    return response.json()
+
+
+@pytest.fixture(scope="module")
+def calibration_id(client):
+    body = {"data": kelvin_rows(), "fit_parameters": ["mu_pivot", "adhesion_energy_J_m2"]}
+    return _calibrate(client, body)
+
+
+def _calibrate(client, body) -> str:
+    response = client.post("/v1/calibrations", json=body)
+    assert response.status_code == 202, response.text
+    location = response.headers["location"]
+    deadline = time.monotonic() + 180
+    while (job := client.get(location).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.2)
+    assert job["status"] == "succeeded", job
+    return client.get(job["result_url"]).json()["id"]
+
+
+def test_discriminate_proposes_runs_where_the_humidity_laws_part(client, calibration_id):
+    response = client.post(f"/v1/calibrations/{calibration_id}/next-experiments",
+                           json={"runs": 12, "goal": "discriminate", "space": SPACE})
+    result = finished(client, response)
+    assert result["model"] == f"calibrated:{calibration_id}" and result["goal"] == "discriminate"
+    assert len(result["runs"]) == 12
+    for run in result["runs"]:
+        assert isinstance(run["balls"], int) and 4 <= run["balls"] <= 8
+        assert run["conditions"]["relative_humidity"] in SPACE["relative_humidity"]
+        assert run["mu_lower"] < run["mu"] < run["mu_upper"]
+    assert 0.8 < result["efficiency_lower_bound"] <= 1.0
+    assert any("(linear)" in rival["label"] for rival in result["rivals"])
+    assert all(rival["expected_chi2_separation"] > 0 for rival in result["rivals"])
+    assert result["plot"]["axes"][0] == "relative_humidity", result["plot"]
+    assert len(result["plot"]["data"]["relative_humidity"]) == 150  # the data taken
+    png = client.get(result["plot_url"])
+    assert png.status_code == 200 and png.headers["content-type"] == "image/png"
+    assert png.content[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_predict_narrows_the_interval_over_the_envelope(client, calibration_id):
+    envelope = {"balls": [6], "load_N": {"low": 0.005, "high": 0.02}, "speed_m_s": [0.05],
+                "relative_humidity": {"low": 0.7, "high": 0.85}}
+    result = finished(client, client.post(f"/v1/calibrations/{calibration_id}/next-experiments",
+                                          json={"runs": 10, "goal": "predict", "space": SPACE,
+                                                "envelope": envelope}))
+    figures = result["envelope"]
+    assert figures["mean_half_width_after"]["mean"] < figures["mean_half_width_now"]["mean"]
+    assert figures["half_width_after"]["mean"] <= figures["half_width_now"]["mean"]
+    assert any(not run["in_domain"] for run in result["runs"])  # 70-85 % RH lies beyond the data
+
+
+def test_first_design_on_the_physics(client):
+    space = {"balls": [4, 8, 12], "load_N": {"low": 1e-3, "high": 3e-2, "spacing": "log"},
+             "speed_m_s": {"low": 0.0, "high": 0.15}}
+    body = {"runs": 8, "space": space,
+            "fit_parameters": ["mu_pivot", "adhesion_energy_J_m2"], "noise_std_log": 0.03,
+            "fixed": {"groove_angle_deg": 54.7}}
+    result = finished(client, client.post("/v1/experiments", json=body))
+    assert result["model"] == "physics" and result["calibration_id"] is None
+    assert len(result["runs"]) == 8
+    assert all(run["inputs"]["groove_angle_deg"] == 54.7 for run in result["runs"])
+    assert [p["name"] for p in result["parameters"]] == ["mu_pivot", "adhesion_energy_J_m2"]
+    assert all(p["std_now"] is None and p["std_after"] > 0 for p in result["parameters"])
+    assert result["efficiency_lower_bound"] > 0.8
+
+
+@pytest.mark.parametrize(("body", "pointer"), [
+    ({"runs": 5, "space": {**SPACE, "temperature_C": [20, 30]}}, "/space/temperature_C"),
+    ({"runs": 5, "space": {**SPACE, "load_N": {"low": -1.0, "high": 1.0}}}, "/space/load_N"),
+    ({"runs": 5, "goal": "predict", "space": SPACE}, "/envelope"),
+    ({"runs": 0, "space": SPACE}, "/runs"),
+    ({"runs": 501, "space": SPACE}, "/runs"),
+    ({"runs": 5, "space": {k: v for k, v in SPACE.items() if k != "relative_humidity"}}, "/space"),
+    ({"runs": 5, "space": SPACE, "fixed": {"mu_pivot": -1.0}}, "/fixed/mu_pivot"),
+    ({"runs": 5, "space": SPACE, "planned": [{"balls": 4}]}, "/planned/0"),
+])
+def test_bad_requests_are_problems_naming_the_field(client, calibration_id, body, pointer):
+    answer = problem(client.post(f"/v1/calibrations/{calibration_id}/next-experiments", json=body), 422)
+    assert pointer in [e["pointer"] for e in answer["errors"]], answer
+
+
+def test_unknown_calibration_and_plot_are_404(client):
+    unknown = f"/v1/calibrations/{'0' * 32}/next-experiments"
+    problem(client.post(unknown, json={"runs": 5, "space": SPACE}), 404)
+    problem(client.get("/v1/experiments/nope/plot.png"), 404)
+    answer = problem(client.post("/v1/experiments", json={"runs": 5, "space": SPACE, "goal": "discriminate",
+                                                          "fit_parameters": ["mu_pivot"]}), 422)
+    assert answer["errors"][0]["pointer"] == "/goal"
+
+
+def test_cli_first_design_and_next_runs_of_a_stored_calibration(client, calibration_id, data_dir, tmp_path,
+                                                                 monkeypatch):
+    first = tmp_path / "first.json"
+    first.write_text(json.dumps({"runs": 6, "fit_parameters": ["mu_pivot"],
+                                 "space": {"balls": [4, 8], "load_N": {"low": 1e-3, "high": 3e-2},
+                                           "speed_m_s": [0.05]}}))
+    assert main(["experiments", str(first), "-o", str(tmp_path / "first-runs.json")]) == 0
+    document = json.loads((tmp_path / "first-runs.json").read_text())
+    assert len(document["runs"]) == 6 and document["plot_url"] is None
+    assert all(run["in_domain"] is None for run in document["runs"])  # no calibration, no domain
+    monkeypatch.setenv("MICROBEARING_DATA_DIR", str(data_dir))
+    request = tmp_path / "next.json"
+    request.write_text(json.dumps({"runs": 6, "goal": "discriminate", "space": SPACE}))
+    code = main(["experiments", str(request), "--calibration", f"calibrated:{calibration_id}",
+                 "-o", str(tmp_path / "runs.json"), "--plot", str(tmp_path / "runs.png")])
+    assert code == 0
+    assert len(json.loads((tmp_path / "runs.json").read_text())["runs"]) == 6
+    assert (tmp_path / "runs.png").read_bytes()[:4] == b"\x89PNG"
+    request.write_text(json.dumps({"runs": 6, "space": {**SPACE, "temperature_C": [20.0]}}))
+    assert main(["experiments", str(request), "--calibration", calibration_id]) == 2
