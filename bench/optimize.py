@@ -225,7 +225,7 @@ def robust() -> None:
     # method before the branch and bound), which is what mu_upper used.
     certifier = robust_opt._certifier
     for label, mu_model, objective, envelope in cases[2:5:2]:
-        robust_opt._certifier = lambda *args: None
+        robust_opt._certifier = lambda *args: (None, "switched off")
         try:
             times = []
             for _ in range(3):

@@ -123,20 +123,30 @@ class Piece:
         return self.term.constants["centre"] - c1 * self.term.constants["scale"] / (2.0 * c2)
 
 
-#: The parts of a calibrated model the bounds here account for; a model with any other part set (a later
-#: addition: group effects, a scatter that depends on the inputs) is not bounded: said, not guessed.
+#: The parts of a calibrated model the bounds here account for (``domain_rows`` only moves the domain
+#: flag); a model with any other part set (group effects, whose shift follows a parameter's sensitivity)
+#: is not bounded: said, not guessed.
 _BOUNDED_PARTS = frozenset({"fitted", "fixed", "terms", "convention", "covariance", "noise_std_log", "domain",
-                            "conditions", "discrepancy", "rivals"})
+                            "conditions", "discrepancy", "rivals", "domain_rows"})
 
 
-def _unbounded_part(calibrated: Any) -> str | None:
-    """The first part of a calibrated model that is set and that the bounds do not know, or None."""
+def _unbounded_part(calibrated: Any, interval: bool = False) -> str | None:
+    """The first part of a calibrated model that is set and that the bounds do not know, or None.
+
+    A scatter model of one spread everywhere is the ``noise_std_log`` the interval bounds use; one that
+    depends on an input is not bounded. The data cloud widens only the interval beyond the data: it
+    does not move μ, and it is not bounded for ``mu_upper`` (``interval``).
+    """
     for part in dataclasses.fields(calibrated) if dataclasses.is_dataclass(calibrated) else ():
         if part.name in _BOUNDED_PARTS:
             continue
+        value = getattr(calibrated, part.name)
+        if part.name == "scatter" and (value is None or getattr(value, "kind", None) == "constant"):
+            continue
+        if part.name == "cloud" and not interval:
+            continue
         default = (part.default_factory() if part.default_factory is not dataclasses.MISSING
                    else part.default)
-        value = getattr(calibrated, part.name)
         if value is not default and not (isinstance(value, type(default)) and value == default):
             return part.name
     return None
@@ -146,13 +156,15 @@ class BoundFailedError(ValueError):
     """A box bound below the model's own value at a point inside the box: the bound's premise fails."""
 
 
-def term_pieces(model: Any) -> tuple[list[Piece] | None, str]:
+def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None, str]:
     """The pieces of a calibrated model's μ, or None and why no bound is known for it.
 
     Parameters
     ----------
     model : physics.model.Model
         A calibrated model (``model.calibrated``).
+    interval : bool
+        For bounds of its 95 % interval (``mu_upper``), which its data cloud widens off the data.
 
     Returns
     -------
@@ -165,7 +177,7 @@ def term_pieces(model: Any) -> tuple[list[Piece] | None, str]:
         return None, f"{model.reference} is not a calibrated model"
     if getattr(calibrated, "discrepancy", None) is not None:
         return None, "its Gaussian-process discrepancy has no bound over a box here"
-    unknown = _unbounded_part(calibrated)
+    unknown = _unbounded_part(calibrated, interval)
     if unknown is not None:
         return None, f"its {unknown} has no bound over a box here"
     pieces = []
@@ -497,7 +509,7 @@ class IntervalStructure:
 
 def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str]:
     """The structures of a calibrated model's ``mu_upper`` (itself and each rival), or None and why not."""
-    pieces, reason = term_pieces(model)
+    pieces, reason = term_pieces(model, interval=True)
     if pieces is None:
         return None, reason
     calibrated = model.calibrated
@@ -508,7 +520,7 @@ def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str
     out = []
     for index, each in enumerate(models):
         label = "its rival" if index else "it"
-        pieces_of, reason = term_pieces(_Holder(model.reference, each))
+        pieces_of, reason = term_pieces(_Holder(model.reference, each), interval=True)
         if pieces_of is None:
             return None, f"{label}: {reason}"
         unknown = [n for n in each.fitted if n not in LINEAR_DECLARED]

@@ -905,20 +905,20 @@ class _SetModel:
         return np.max(np.asarray(values, dtype=float).reshape(len(self.points), n), axis=0)
 
 
-def _certifier(envelope: Envelope, model: Model,
-               objective: str) -> Callable[[DesignProblem, Mapping[str, Any], float], CertifiedMax] | None:
-    """What brackets the worst objective at a design (problem, design in θ', shift); None: no bound."""
+def _certifier(envelope: Envelope, model: Model, objective: str
+               ) -> tuple[Callable[[DesignProblem, Mapping[str, Any], float], CertifiedMax] | None, str]:
+    """What brackets the worst objective at a design (problem, design in θ', shift), or None and why not."""
     if objective == "mu":
-        pieces = term_pieces(model)[0]
+        pieces, why = term_pieces(model)
         if pieces is None:
-            return None
-        return lambda problem, design, shift: _certified_search(problem, envelope, model, pieces, design,
-                                                                shift)
-    structures = interval_structures(model)[0]
+            return None, why
+        return (lambda problem, design, shift: _certified_search(problem, envelope, model, pieces, design,
+                                                                 shift)), ""
+    structures, why = interval_structures(model)
     if structures is None:
-        return None
-    return lambda problem, design, shift: _certified_upper_search(problem, envelope, model, structures,
-                                                                  design, shift)
+        return None, why
+    return (lambda problem, design, shift: _certified_upper_search(problem, envelope, model, structures,
+                                                                   design, shift)), ""
 
 
 def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: Model, structures: list,
@@ -1036,7 +1036,9 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     initial_count = len(points)
     # mu of a calibrated model whose terms are all bounded over a box: the worst case at each design is
     # certified by branch and bound (optimize.envelope_bound), not searched.
-    certify = _certifier(envelope, model, objective)
+    certify, why = _certifier(envelope, model, objective)
+    if certify is None and why:
+        reason = f"{reason}; nor is its worst case at a design bounded: {why}" if reason else why
     bracket = None
     rounds, history, converged, timed_out = 0, [], False, False
     solved = None
