@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy import stats
@@ -250,6 +250,9 @@ class CalibratedModel:
     cloud: DataCloud | None = field(default=None, repr=False)
     domain_rows: int | None = None
     rivals: list[RivalModel] = field(default_factory=list, repr=False)
+    #: Relative step of the finite-difference gradient of log μ in each fitted value (the interval's
+    #: parameter share; absolute for a value of 0), for callers that bound the interval. [1]
+    gradient_step: ClassVar[float] = _GRADIENT_STEP
 
     @property
     def factors(self) -> list[str]:

@@ -116,12 +116,15 @@ def physics_model(convention: str = physics.DEFAULT_CONVENTION) -> MuModel:
     callable
         ``points -> physics.evaluate(convention, **points).mu`` [1], with the
         attribute ``mu_grows_with_speed = True`` (μ of the physics grows with
-        speed, so a speed range is evaluated at its upper end only).
+        speed, so a speed range is evaluated at its upper end only) and
+        ``physics_convention`` (it is the physics: μ also grows with the angle,
+        :mod:`optimize.robust`).
     """
     def model(points):
         return physics.evaluate(convention=convention, outputs=["mu"], **points).mu
 
     model.mu_grows_with_speed = True
+    model.physics_convention = convention
     return model
 
 

@@ -41,6 +41,19 @@ has no Gaussian-process discrepancy and no drift of a physics parameter, μ is a
 and G for every ball count, monotone in every envelope axis: its worst case is one vertex, and the
 robust problem one GP per ball count, proven as for the physics (objective ``mu``).
 
+Calibrated models with other effect terms (objective ``mu``): an outer approximation, certified
+-----------------------------------------------------------------------------------------------
+A term that is not monotone (a log-quadratic in temperature may peak inside the range) or falls where
+the physics rises (a Stribeck term in speed) leaves no single worst vertex, but still a rigorous bound:
+at a design, μ over any box of the envelope is at most the composition of the physics' maximum (its
+highest angle and speed) and each term's maximum over its driver's interval
+(:mod:`optimize.envelope_bound`), and branch and bound brackets the worst case to 1e-7. The design
+comes from the outer approximation below, with that bracket in place of the search; the certified
+lower bound on the best achievable worst case is the largest, over the worst points found, of the
+least μ over the designs at that point (there every term is a positive monomial in balls and load,
+so a geometric program per ball count, bounded by its dual). A gap within :data:`GAP_TARGET` is a
+proof; otherwise both bounds are stated and the result says it is not proven.
+
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
 A surrogate, a term that is not monotone (a quadratic in humidity may peak inside the range; a
@@ -78,6 +91,17 @@ from microbearing import physics
 from microbearing.physics.model import Model
 
 from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
+from .envelope_bound import (
+    INTERVAL_RTOL,
+    LINEAR_DECLARED,
+    BoundFailedError,
+    CertifiedMax,
+    certified_max,
+    interval_structures,
+    mu_box_bound,
+    mu_upper_box_bound,
+    term_pieces,
+)
 from .general import optimize_model
 from .problem import DESIGN_VARIABLES, DesignBounds, DesignProblem, constraint_report
 from .solve import (
@@ -90,9 +114,8 @@ from .solve import (
 )
 
 __all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE_NAMES", "Envelope",
-           "RobustGPResult", "RobustResult", "check_model", "dual_bound", "optimize_robust", "robust_gp",
-           "shifted_problem", "worst_case_of",
-           "worst_case_search"]
+           "RobustGPResult", "RobustResult", "certified_worst_case_of", "check_model", "dual_bound",
+           "optimize_robust", "robust_gp", "shifted_problem", "worst_case_of", "worst_case_search"]
 
 #: The objectives a design may minimize the worst case of.
 OBJECTIVES = ("mu", "mu_upper")
@@ -476,6 +499,51 @@ def worst_case_of(mu_model: Callable[[Mapping[str, Any]], Any], problem: DesignP
     return value, point
 
 
+def certified_worst_case_of(mu_model: Callable[[Mapping[str, Any]], Any], problem: DesignProblem,
+                            envelope: Envelope,
+                            design: Mapping[str, Any]) -> tuple[float, dict[str, Any], bool]:
+    """The largest μ of a ``mu_model(points)`` callable over the envelope at a design, certified if it can be.
+
+    The physics (a callable of :func:`optimize.general.physics_model`, which carries ``physics_convention``)
+    grows with the angle made and the speed (its posynomial form, module docstring), and reads no
+    condition: its worst case is exactly its value at the angle made high and the highest speed. Any other
+    callable is searched (:func:`worst_case_of`), not bounded.
+
+    Parameters
+    ----------
+    mu_model : callable
+        ``points -> mu`` [1].
+    problem : DesignProblem
+        Its fixed values and convention.
+    envelope : Envelope
+        The envelope.
+    design : mapping
+        ``balls`` [1], ``groove_angle_deg`` (nominal) [deg], ``load_N`` [N].
+
+    Returns
+    -------
+    value : float
+        The worst case (exact for the physics; the largest found otherwise). [1]
+    point : dict
+        Where (:meth:`Envelope.point`).
+    certified : bool
+        Whether ``value`` is the proven maximum.
+    """
+    searched, where = worst_case_of(mu_model, problem, envelope, design)
+    if getattr(mu_model, "physics_convention", None) is None or envelope.conditions:
+        return searched, where, False
+    vertex = envelope.point({"speed_m_s": envelope.speed_m_s[1],
+                             "groove_angle_offset_deg": envelope.angle_tolerance_deg})
+    columns = _columns(problem, envelope, {k: np.array([float(design[k])]) for k in DESIGN_VARIABLES},
+                       [vertex], 0.0)
+    with np.errstate(all="ignore"):
+        value = float(np.asarray(mu_model(columns), dtype=float)[0])
+    # The search at the design is a check of the argument: nothing it finds may be above the vertex.
+    if searched > value * (1 + 1e-12):
+        return searched, where, False
+    return value, vertex, True
+
+
 def _vertices_and_centre(envelope: Envelope) -> list[dict[str, Any]]:
     axes = envelope.axes()
     names = list(axes)
@@ -506,7 +574,8 @@ class RobustResult:
         "conditions": {...}}``: where the worst case occurs at the returned design.
     proof : dict
         ``proven`` (bool), ``method``, ``lower_bound`` [1] (certified, or None), ``upper_bound`` [1]
-        (the worst case at the design), ``relative_gap`` [1] (or None), ``gap_target`` [1],
+        (the worst case at the design: exact, certified by branch and bound, or as searched when the
+        method says no bound), ``relative_gap`` [1] (or None), ``gap_target`` [1],
         ``statement``.
     price_of_robustness : dict
         ``nominal`` and ``robust``: each a design with its objective at the envelope's centre and its
@@ -722,14 +791,16 @@ def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_st
     mu is a relaxation of the one on mu_upper).
     """
     z = float(stats.norm.isf(0.025))
-    lower = min(mu_result.proof["lower_bound"] * math.exp(z * noise_std_log), result.proof["upper_bound"])
     upper = result.proof["upper_bound"]
+    lower = min(max(mu_result.proof["lower_bound"] * math.exp(z * noise_std_log),
+                    result.proof["lower_bound"] or 0.0), upper)
     gap = (upper - lower) / upper
     statement = (f" Certified lower bound {lower:.10g}: mu_upper >= mu exp(1.96 x {noise_std_log:.4g}) "
                  "(the interval is at least the measurement scatter) and the worst mu over the envelope is "
                  f"proven at least {mu_result.proof['lower_bound']:.10g} (geometric programming, as for "
-                 f"objective mu); relative gap to the worst case found {gap:.2e}: the parameters' share of "
-                 "the interval. Not proven, since the worst case at the design is searched, not bounded.")
+                 f"objective mu); relative gap to the worst case's upper bound {gap:.2e}: the parameters' "
+                 "share of "
+                 f"the interval. {'Not proven: the gap is above the target.' if gap > GAP_TARGET else ''}")
     proof = {**result.proof, "lower_bound": lower, "relative_gap": gap,
              "statement": result.proof["statement"] + statement}
     certificate = result.result.certificate + statement
@@ -834,6 +905,122 @@ class _SetModel:
         return np.max(np.asarray(values, dtype=float).reshape(len(self.points), n), axis=0)
 
 
+def _certifier(envelope: Envelope, model: Model, objective: str
+               ) -> tuple[Callable[[DesignProblem, Mapping[str, Any], float], CertifiedMax] | None, str]:
+    """What brackets the worst objective at a design (problem, design in θ', shift), or None and why not."""
+    if objective == "mu":
+        pieces, why = term_pieces(model)
+        if pieces is None:
+            return None, why
+        return (lambda problem, design, shift: _certified_search(problem, envelope, model, pieces, design,
+                                                                 shift)), ""
+    structures, why = interval_structures(model)
+    if structures is None:
+        return None, why
+    return (lambda problem, design, shift: _certified_upper_search(problem, envelope, model, structures,
+                                                                   design, shift)), ""
+
+
+def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: Model, structures: list,
+                            design: Mapping[str, Any], shift: float) -> CertifiedMax:
+    """The worst mu_upper over the envelope at a design (angle θ' = θ + ``shift``), bracketed."""
+    balls, load = float(design["balls"]), float(design["load_N"])
+    theta = float(design["groove_angle_deg"]) - shift
+    calibrated = model.calibrated
+    outputs = ["mu", *LINEAR_DECLARED.values()]
+
+    def physics_fn(offset: np.ndarray, speed: np.ndarray,
+                   fitted: Mapping[str, float]) -> dict[str, np.ndarray]:
+        columns = problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed)
+        inputs = {k: v for k, v in columns.items() if k not in calibrated.fitted}
+        with np.errstate(all="ignore"):
+            result = physics.evaluate(convention=problem.convention, outputs=outputs,
+                                      **{**inputs, **calibrated.fixed, **fitted})
+        return {name: np.asarray(getattr(result, name), dtype=float) for name in outputs}
+
+    bound = mu_upper_box_bound(structures, physics_fn, envelope, {"balls": balls, "load_N": load},
+                               float(stats.norm.isf(0.025)))
+    return certified_max(bound, _evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
+                         rtol=INTERVAL_RTOL)
+
+
+def _certified_search(problem: DesignProblem, envelope: Envelope, model: Model, pieces: list,
+                      design: Mapping[str, Any], shift: float) -> CertifiedMax:
+    """The worst μ over the envelope at a design (angle θ' = θ + ``shift``), bracketed by branch and bound."""
+    balls, load = float(design["balls"]), float(design["load_N"])
+    theta = float(design["groove_angle_deg"]) - shift
+
+    def physics_mu(offset: np.ndarray, speed: np.ndarray) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            return physics.evaluate(convention=problem.convention, outputs=["mu"],
+                                    **problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed)).mu
+
+    return certified_max(mu_box_bound(pieces, physics_mu, envelope, {"balls": balls, "load_N": load}),
+                         _evaluator(problem, envelope, model, "mu", design, shift), envelope)
+
+
+def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str, Any]) -> float:
+    """A certified lower bound [1] of the least μ over the designs at one envelope point (NaN: none).
+
+    At a fixed point every effect term is a positive monomial in balls and load_N (read and checked,
+    :func:`_monomials_at`), so the calibrated μ there is a posynomial and its minimum over the designs, with
+    the limits at that point, a geometric program per ball count (the dual bound of each, the least of them).
+    The limits at one point are a relaxation of the limits over the envelope, and the worst case of any
+    design is at least its μ at the point: the bound holds for the best achievable worst case.
+    """
+    terms = model.calibrated.terms
+    monomials, _ = _monomials_at([t for t, _ in terms], [v for _, v in terms], point)
+    if monomials is None:
+        return math.nan
+    try:
+        at_point = shifted_problem(problem, float(point["groove_angle_offset_deg"]),
+                                   float(point["speed_m_s"]))
+    except ValueError:
+        return math.nan
+    bounds = [answer[4] for answer in _calibrated_counts(at_point, monomials).values()]
+    return math.nan if not bounds or any(math.isnan(b) for b in bounds) else float(min(bounds))
+
+
+def _certified_proof(problem: DesignProblem, model: Model, bracket: CertifiedMax,
+                     points: list[dict[str, Any]], history: list[dict[str, Any]], rounds: int,
+                     ending: str) -> tuple[dict[str, Any], float]:
+    """The proof of a design whose worst μ is bracketed: the bracket, and the best lower bound at the points.
+
+    ``problem`` is in the nominal angle (the points carry their offsets). Returns the proof and the worst case
+    found at the design [1].
+    """
+    bounds = [_point_lower_bound(problem, model, p) for p in points]
+    known = [b for b in bounds if not math.isnan(b)]
+    upper = bracket.upper_bound
+    lower = min(max(known), upper) if known else None
+    gap = None if lower is None else max(0.0, (upper - lower) / upper)
+    proven = bool(gap is not None and gap <= GAP_TARGET)
+    statement = (
+        f"{model.reference}: the physics with its fitted values and its effect terms, each added to mu or "
+        "multiplying it and each a function of one driver; the physics' mu is non-decreasing in the angle "
+        "made and the speed (a posynomial), each term monotone in its driver or log-quadratic (its maximum "
+        "over an interval at an end or at its stationary point), so over any box of the envelope mu is at "
+        "most the composition of those maxima. Branch and bound over the envelope at the design "
+        f"({bracket.boxes} boxes{'' if bracket.complete else ', stopped at the box limit'}) brackets the "
+        "worst "
+        f"case: found {bracket.value:.10g}, certified at most {upper:.10g} (relative "
+        f"{bracket.relative_gap:.1e}). The design came from the outer approximation in {rounds} round(s) "
+        f"({ending}). Certified lower bound on the best achievable worst case "
+        f"{lower if lower is not None else float('nan'):.10g}: at {len(points)} envelope point(s) (the worst "
+        "one at the design first) mu is a posynomial in tan(theta) and load_N for every ball count (each "
+        "term "
+        "a positive monomial there, read and checked), and the least dual objective of those geometric "
+        "programs bounds every design's mu at that point; the largest such bound is taken. Relative gap "
+        f"{gap if gap is not None else float('nan'):.2e} (target {GAP_TARGET:g})")
+    statement += (": proven." if proven else
+                  ": not proven (the gap is above the target: the best bound found is stated).")
+    proof = {"proven": proven, "method": "outer-approximation-certified", "lower_bound": lower,
+             "upper_bound": upper, "relative_gap": gap, "gap_target": GAP_TARGET, "statement": statement,
+             "rounds": history, "worst_case_boxes": bracket.boxes,
+             "worst_case_relative_gap": bracket.relative_gap}
+    return proof, bracket.value
+
+
 def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, objective: str, starts: int,
                   max_rounds: int, progress: Callable[[float], None] | None,
                   map_calls: Callable | None, reason: str = "",
@@ -846,6 +1033,13 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     # optimizer works in θ' = θ + δ, and the model is asked at θ' - δ + offset.
     shifted = shifted_problem(problem, delta, v_hi)
     points = initial_points or _vertices_and_centre(envelope)
+    initial_count = len(points)
+    # mu of a calibrated model whose terms are all bounded over a box: the worst case at each design is
+    # certified by branch and bound (optimize.envelope_bound), not searched.
+    certify, why = _certifier(envelope, model, objective)
+    if certify is None and why:
+        reason = f"{reason}; nor is its worst case at a design bounded: {why}" if reason else why
+    bracket = None
     rounds, history, converged, timed_out = 0, [], False, False
     solved = None
     value, where = math.nan, None
@@ -858,8 +1052,16 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
                                 map_calls=map_calls)
         design = _design_of(solved)
         on_set = float(set_model({k: np.array([v]) for k, v in design.items()})[0])
-        value, where, _ = worst_case_search(_evaluator(shifted, envelope, model, objective, design, delta),
-                                            envelope)
+        if certify is not None:
+            try:
+                bracket = certify(shifted, design, delta)
+                value, where = bracket.value, bracket.point
+            except BoundFailedError as exc:  # the model breaks the bound's premise: searched, and said so
+                certify, bracket = None, None
+                reason = f"its bound over a box failed a check ({exc})"
+        if certify is None:
+            evaluate = _evaluator(shifted, envelope, model, objective, design, delta)
+            value, where, _ = worst_case_search(evaluate, envelope)
         history.append({"round": rounds, "points": len(points), "on_set": on_set, "searched": value})
         if value <= on_set * (1 + ENVELOPE_RTOL):
             value, converged = max(value, on_set), True
@@ -890,6 +1092,39 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     proof = {"proven": False, "method": "outer-approximation-local", "lower_bound": None,
              "upper_bound": value,
              "relative_gap": None, "gap_target": GAP_TARGET, "statement": statement, "rounds": history}
+    if bracket is not None and objective == "mu":
+        proof, value = _certified_proof(problem, model, bracket, [where, *points[initial_count:]], history,
+                                        rounds, ending)
+        statement = proof["statement"]
+    elif bracket is not None:
+        statement = (
+            f"{model.reference}: the worst mu_upper over the envelope at the design is certified by branch "
+            "and bound: over any box, the physics' mu and its pivoting share lie between the box's lowest "
+            "and highest corner (posynomials), each term between its exact extremes, the composed mu and "
+            "each fitted value's finite-difference gradient of log mu by interval arithmetic in closed form, "
+            "the parameter variance g'Cg at most its largest value over the box of gradients (a vertex: "
+            f"convex), for the model and each rival ({bracket.boxes} boxes"
+            f"{'' if bracket.complete else ', stopped at the box limit'}): found {bracket.value:.10g}, "
+            "certified "
+            f"at most {bracket.upper_bound:.10g} (relative {bracket.relative_gap:.1e}). The design came from "
+            f"the outer approximation in {rounds} round(s) ({ending}).")
+        # Every design's mu_upper at the worst point is at least exp(z noise) times its mu there (the interval
+        # is at least the scatter), and its mu there at least the dual bound of the geometric programs.
+        # Started from mu's proven worst vertex, that bound is already known (optimize_robust adds it).
+        at_worst = _point_lower_bound(problem, model, where) if initial_points is None else math.nan
+        lower = None
+        if not math.isnan(at_worst):
+            scatter = math.exp(float(stats.norm.isf(0.025)) * model.calibrated.noise_std_log)
+            lower = min(at_worst * scatter, bracket.upper_bound)
+            statement += (f" Certified lower bound {lower:.10g}: mu at the worst point is at least "
+                          f"{at_worst:.10g} for every design (geometric programs per ball count there, as "
+                          "for objective mu) and mu_upper >= mu exp(1.96 x "
+                          f"{model.calibrated.noise_std_log:.4g}).")
+        gap = None if lower is None else (bracket.upper_bound - lower) / bracket.upper_bound
+        proof = {"proven": False, "method": "outer-approximation-certified", "lower_bound": lower,
+                 "upper_bound": bracket.upper_bound, "relative_gap": gap, "gap_target": GAP_TARGET,
+                 "statement": statement, "rounds": history, "worst_case_boxes": bracket.boxes,
+                 "worst_case_relative_gap": bracket.relative_gap}
     worst_case = _worst_case_dict(objective, value, where, theta)
     # Price of robustness: the nominal optimum at the envelope's centre (no tolerance) and its worst case.
     centre = envelope.centre()
@@ -918,10 +1153,11 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     price = _price(nominal_design, nominal_centre, nominal_worst,
                    all(c.satisfied for c in limits if not c.name.startswith("groove_angle_deg")),
                    {**design, "groove_angle_deg": theta}, robust_centre, value)
-    certificate = f"Local optimum of the worst case over the envelope, not proven. {statement}"
+    certificate = (f"{'Proven' if proof['proven'] else 'Local'} optimum of the worst case over the envelope"
+                   f"{'' if proof['proven'] else ', not proven'}. {statement}")
     result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
                                           speed_m_s=float(where["speed_m_s"]),
-                                          method="outer-approximation-local",
+                                          method=proof["method"],
                                           solve_time_s=time.perf_counter() - start), delta)
     if progress is not None:
         progress(1.0)
@@ -1002,12 +1238,24 @@ def _term_structure(model: Model,
     conditions = {n: worst.get(n, lo) for n, (lo, _) in envelope.conditions.items()}
     vertex = {"speed_m_s": worst["speed_m_s"], "conditions": conditions,
               "groove_angle_offset_deg": envelope.angle_tolerance_deg}
+    monomials, reason = _monomials_at([t for t, _ in terms], [v for _, v in terms], vertex)
+    return (vertex if monomials is not None else None), monomials or [], reason
+
+
+def _monomials_at(terms: Sequence[Any], term_values: Sequence[Sequence[float]],
+                  point: Mapping[str, Any]) -> tuple[list[_Monomial] | None, str]:
+    """Each effect term at one envelope point as a positive monomial in (balls, load_N), or None and why.
+
+    Read at three designs and checked at a fourth (:data:`_PROBES`): a term the reading does not fit
+    is refused, not guessed.
+    """
     monomials = []
+    conditions = point["conditions"]
     z = np.array([p[0] for p in _PROBES])
     g = np.array([p[1] for p in _PROBES])
-    columns = {"balls": z, "load_N": g, "speed_m_s": np.full(z.shape, vertex["speed_m_s"]),
+    columns = {"balls": z, "load_N": g, "speed_m_s": np.full(z.shape, point["speed_m_s"]),
                **{n: np.full(z.shape, v) for n, v in conditions.items()}}
-    for term, values in terms:
+    for term, values in zip(terms, term_values, strict=True):
         effect = term.effect
         params = dict(zip(effect.parameter_names, values, strict=True))
         with np.errstate(all="ignore"):
@@ -1015,25 +1263,25 @@ def _term_structure(model: Model,
                 at = [effect.apply(np.full(z.shape, m), columns, params, term.drivers, term.constants)
                       for m in (0.0, 0.7, 1.0)]
             except ValueError as exc:
-                return None, [], str(exc)
+                return None, str(exc)
         added = at[0]
         if np.allclose(at[1], 0.7 + added, rtol=1e-12, atol=0.0) and np.all(added >= 0):
             kind, amount = "add", added
         elif np.allclose(at[1], 0.7 * at[2], rtol=1e-12, atol=0.0) and np.all(at[2] > 0):
             kind, amount = "mul", at[2]
         else:
-            return None, [], f"its term {term.label} is neither a positive addition nor a positive factor"
+            return None, f"its term {term.label} is neither a positive addition nor a positive factor"
         if kind == "add" and np.all(amount == 0):
             continue
         if not np.all(amount > 0):
-            return None, [], f"its term {term.label} vanishes at some designs only"
+            return None, f"its term {term.label} vanishes at some designs only"
         a = float(np.log2(amount[1] / amount[0]))
         b = float(np.log2(amount[2] / amount[0]))
         k = float(amount[0])
         if not math.isclose(k * 3.0**a * 0.37**b, float(amount[3]), rel_tol=1e-9):
-            return None, [], f"its term {term.label} is not a monomial in balls and load_N"
+            return None, f"its term {term.label} is not a monomial in balls and load_N"
         monomials.append(_Monomial(kind, k, a, b))
-    return vertex, monomials, ""
+    return monomials, ""
 
 
 def _compose(gp, monomials: list[_Monomial]):

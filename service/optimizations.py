@@ -5,11 +5,11 @@ global optimum); ``calibrated:<id>`` and ``surrogate:<id>`` by
 :func:`optimize.optimize_model` (a local optimum), a surrogate's design verified by
 the model it stands for. A request with an operating envelope (a speed or condition range, a
 tolerance, or the objective ``mu_upper``) is solved by :func:`optimize.robust.optimize_robust`
-(the worst case over the envelope, with its proof), except a surrogate's speed range alone, which
-keeps the local method and its verification. Infeasible problems become a 422 problem whose ``errors``
-point at the conflicting limits and bounds: at once on every model when the limits
-that do not depend on μ conflict, else (a friction-force limit no design of a
-surrogate or calibrated model meets) as the job's problem.
+(the worst case over the envelope, with its proof), a surrogate's design verified over the envelope
+by the model it stands for (the physics' worst case there exact, at the envelope's worst vertex).
+Infeasible problems become a 422 problem whose ``errors`` point at the conflicting limits and
+bounds: at once on every model when the limits that do not depend on μ conflict, else (a
+friction-force limit no design of a surrogate or calibrated model meets) as the job's problem.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ from microbearing.optimize.general import check_exact_limits
 from microbearing.optimize.problem import DESIGN_VARIABLES
 from microbearing.optimize.robust import (
     Envelope,
+    certified_worst_case_of,
     check_model,
     optimize_robust,
     shifted_problem,
@@ -150,7 +151,7 @@ def _is_robust(body: OptimizationRequest, speed: Any) -> bool:
     """Whether a request asks for a design over an envelope (ranges, tolerances, or mu_upper)."""
     ranges = any(isinstance(v, list) for v in (body.conditions or {}).values())
     tolerance = body.tolerances is not None and body.tolerances.groove_angle_deg is not None
-    speed_range = isinstance(speed, list | tuple) and not body.model.startswith("surrogate:")
+    speed_range = isinstance(speed, list | tuple)
     return ranges or tolerance or body.objective != "mu" or speed_range
 
 
@@ -357,10 +358,12 @@ def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None
 
 def _verified_over_envelope(plan: OptimizationPlan, robust: Any) -> dict[str, Any]:
     """A surrogate's robust design judged by the model it stands for: each one's worst mu over the envelope
-    (searched), and the friction-force limit by the source's."""
+    (the surrogate's searched, the physics' exact at the worst vertex), and the friction-force limit by the
+    source's."""
     design = robust.result.design
     mu_model, _ = worst_case_of(plan.resolved, plan.problem, plan.envelope, design)
-    mu_source, where = worst_case_of(plan.source_model, plan.problem, plan.envelope, design)
+    mu_source, where, certified = certified_worst_case_of(plan.source_model, plan.problem, plan.envelope,
+                                                          design)
     load = float(design["load_N"])
     limit = plan.problem.constraints.max_friction_force_N
     violated = ["max_friction_force_N"] if limit is not None and mu_source * load > limit else []
@@ -369,7 +372,7 @@ def _verified_over_envelope(plan: OptimizationPlan, robust: Any) -> dict[str, An
         "speed_m_s_source": float(where["speed_m_s"]), "relative_difference": mu_model / mu_source - 1.0,
         "friction_force_N_model": mu_model * load, "friction_force_N_source": mu_source * load,
         "friction_force_ratio": mu_source / mu_model, "violated": violated, "satisfied": not violated,
-        "resolves": 0}
+        "resolves": 0, "mu_source_certified": certified}
     return {"source_model": plan.source_name, "mu_source": mu_source, "verification": verification}
 
 

@@ -247,6 +247,10 @@ class Verification(ResponseModel):
     satisfied: bool = Field(description="Whether the source model meets every limit at the design.")
     resolves: int = Field(description="Re-solves with max_friction_force_N tightened by the ratio of the two "
                                       "friction forces (and a 1e-3 margin) after the source broke it [1].")
+    mu_source_certified: bool | None = Field(default=None, description=(
+        "Over an envelope: whether mu_source is the source's proven worst case (the physics grows with the "
+        "angle made and the speed: exact at the envelope's worst vertex) rather than the largest found by a "
+        "search; null for a design at one speed."))
 
 
 class Envelope(ResponseModel):
@@ -287,15 +291,26 @@ class Proof(ResponseModel):
     proven: bool = Field(description="Whether the worst case is proven optimal to the gap target.")
     method: str = Field(description=(
         "robust-gp-vertex (the physics, or a calibrated model whose terms are monotone positive monomials: "
-        "geometric programming at the envelope's worst vertex) or outer-approximation-local (no proof)."))
+        "geometric programming at the envelope's worst vertex), outer-approximation-certified (a calibrated "
+        "model with other effect terms: the design by the outer approximation, its worst case certified by "
+        "branch and bound; for mu, a lower bound from geometric programs at the worst points) or "
+        "outer-approximation-local (no bound: the worst case searched)."))
     lower_bound: float | None = Field(description=(
         "Certified lower bound on the best achievable worst case [1]; null when none could be certified."))
-    upper_bound: float = Field(description="The worst case at the returned design [1].")
+    upper_bound: float = Field(description=(
+        "The worst case at the returned design [1]: exact, or certified by branch and bound "
+        "(outer-approximation-certified), or as searched (outer-approximation-local)."))
     relative_gap: float | None = Field(description=(
         "(upper_bound - lower_bound) / upper_bound [1]; null without a lower bound."))
     gap_target: float = Field(description="The relative gap aimed at [1].")
     statement: str = Field(description="The argument, in words.")
     rounds: list[OuterRound] | None = Field(default=None, description="The outer approximation's rounds.")
+    worst_case_boxes: int | None = Field(default=None, description=(
+        "Boxes of the envelope the branch and bound bounded at the design [1] "
+        "(outer-approximation-certified)."))
+    worst_case_relative_gap: float | None = Field(default=None, description=(
+        "(upper_bound - the worst case found) / upper_bound at the design [1] "
+        "(outer-approximation-certified)."))
 
 
 class PricedDesign(ResponseModel):

@@ -1,0 +1,689 @@
+r"""A certified upper bound of a calibrated model's μ over an envelope at one design, by branch and bound.
+
+At a fixed design (balls z, load G, nominal angle θ) a calibrated model's μ over the envelope is the
+physics' μ, with the model's fitted values, followed by its effect terms in order, each either *added*
+(μ + a(x)) or *multiplying* (μ m(x), m > 0), each a function of one driver x (the speed or a condition;
+the design's balls and load are fixed). Both forms are non-decreasing in μ and in their own piece, so
+over a box of the envelope
+
+    μ(x) <= compose(μ_phys^max(box), a^max(box), m^max(box), ...)
+
+with each maximum exact:
+
+* the physics' μ is a posynomial with positive coefficients in tan θ and the speed
+  (:mod:`optimize.dgp`), so its maximum over a box is at the box's highest angle made and speed;
+* every effect of :data:`_PIECES` is monotone in its driver (its formula in :mod:`physics.effects`)
+  except ``generic_quadratic``, exp(c1 z + c2 z²), whose maximum over an interval is at an end or at the
+  stationary point z = -c1 / (2 c2); so each piece's maximum over the box's driver interval is the
+  largest of its values at the interval's ends (and that point when inside).
+
+The bound is exact where every piece peaks at the same point (a vertex, or the stationary point of a
+lone quadratic), and otherwise over-estimates by at most the pieces' variation across the box. Branch
+and bound (the box of largest bound split in half along its widest axis, relative to the envelope)
+narrows it until the largest bound left is within ``rtol`` of the largest value of the model itself
+found (at the centre and the point where the pieces peak of the boxes of largest bound): the true
+maximum lies between the two, a certificate, not a search.
+
+The 95 % upper bound, μ exp(z σ) with σ² = g'Cg + noise² (g the finite-difference gradient of log μ in
+the fitted values, C their covariance), is bounded the same way by interval arithmetic on that closed
+form (:func:`mu_upper_box_bound`), for the model and each rival whose envelope it takes. Every value
+the model itself gives at a point of a box is checked against the box's bound
+(:class:`BoundFailedError`), so a model the premises do not fit is caught where it shows. A term
+drifting a physics parameter, a Gaussian-process discrepancy or an effect not in :data:`_PIECES` have
+no such bound here: :func:`term_pieces` says why.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import heapq
+import itertools
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["BOUND_RTOL", "INTERVAL_RTOL", "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
+           "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max",
+           "interval_structures", "mu_box_bound", "mu_upper_box_bound", "term_pieces"]
+
+#: Relative distance between the certified upper bound and the value found at which branching stops. [1]
+BOUND_RTOL = 1e-7
+#: Relative allowance for rounding added to every box's bound (floating-point composition). [1]
+_ROUNDING = 1e-12
+#: Relative allowance for rounding in the interval's bound: the finite-difference gradient's rounding,
+#: about 1e-16 / 1e-6 in g, is far below it. [1]
+_INTERVAL_ROUNDING = 1e-9
+#: Most boxes branched before the bound found so far is returned as it stands. [1]
+MAX_BOXES = 20000
+#: Boxes split per vectorized step. [1]
+_BATCH = 256
+#: Children per step (those of largest bound) at which the function itself is evaluated. [1]
+_EVALUATED = 16
+
+#: How each effect of physics.effects enters μ ("add": μ + a(x), "mul": μ m(x)), and whether it is monotone
+#: in its main driver (True) or log-quadratic (False: an end or the stationary point).
+_PIECES: dict[str, tuple[str, bool]] = {
+    "humidity_meniscus": ("add", True),     # + p z / (G ln(1/h))
+    "viscous_drag": ("add", True),          # + p V / G
+    "constant_drag": ("add", True),         # + p / G (driver: the load, fixed at a design)
+    "stribeck_breakaway": ("add", True),    # + a exp(-V / V0)
+    "viscous_power_law": ("add", True),     # + p (V / V0)^e / G, e >= 0.3
+    "thermal_shear_strength": ("mul", True),  # x exp(-p (T - T0))
+    "run_in": ("mul", True),                # x (1 + a exp(-n / L)), a > -1
+    "generic_linear": ("mul", True),        # x exp(c (x - centre) / scale)
+    "generic_power": ("mul", True),         # x (x / reference)^c
+    "generic_quadratic": ("mul", False),    # x exp(c1 z + c2 z^2), z = (x - centre) / scale
+}
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One effect term of a calibrated model as it enters μ at a design.
+
+    Attributes
+    ----------
+    term : calibrate.candidates.EffectTerm
+        The term.
+    values : list of float
+        Its fitted values.
+    kind : {"add", "mul"}
+        μ + a(x) or μ m(x).
+    monotone : bool
+        Whether the piece is monotone in its driver (else log-quadratic).
+    """
+
+    term: Any
+    values: list[float]
+    kind: str
+    monotone: bool
+
+    @property
+    def driver(self) -> str:
+        """The main driver column."""
+        return self.term.drivers[0]
+
+    def at(self, x: np.ndarray, columns: Mapping[str, Any]) -> np.ndarray:
+        """a(x) or m(x) [1] at driver values ``x``, other columns as given."""
+        effect = self.term.effect
+        params = dict(zip(effect.parameter_names, self.values, strict=True))
+        base = 0.0 if self.kind == "add" else 1.0
+        with np.errstate(all="ignore"):
+            return np.asarray(effect.apply(np.full(np.shape(x), base), {**columns, self.driver: x}, params,
+                                           self.term.drivers, self.term.constants), dtype=float)
+
+    def stationary(self) -> float | None:
+        """The driver value where a log-quadratic piece is stationary (None: monotone, or linear)."""
+        if self.monotone or self.values[1] == 0:
+            return None
+        c1, c2 = self.values
+        return self.term.constants["centre"] - c1 * self.term.constants["scale"] / (2.0 * c2)
+
+
+#: The parts of a calibrated model the bounds here account for (``domain_rows`` only moves the domain
+#: flag); a model with any other part set (group effects, whose shift follows a parameter's sensitivity)
+#: is not bounded: said, not guessed.
+_BOUNDED_PARTS = frozenset({"fitted", "fixed", "terms", "convention", "covariance", "noise_std_log", "domain",
+                            "conditions", "discrepancy", "rivals", "domain_rows"})
+
+
+def _unbounded_part(calibrated: Any, interval: bool = False) -> str | None:
+    """The first part of a calibrated model that is set and that the bounds do not know, or None.
+
+    A scatter model of one spread everywhere is the ``noise_std_log`` the interval bounds use; one that
+    depends on an input is not bounded. The data cloud widens only the interval beyond the data: it
+    does not move μ, and it is not bounded for ``mu_upper`` (``interval``).
+    """
+    for part in dataclasses.fields(calibrated) if dataclasses.is_dataclass(calibrated) else ():
+        if part.name in _BOUNDED_PARTS:
+            continue
+        value = getattr(calibrated, part.name)
+        if part.name == "scatter" and (value is None or getattr(value, "kind", None) == "constant"):
+            continue
+        if part.name == "cloud" and not interval:
+            continue
+        default = (part.default_factory() if part.default_factory is not dataclasses.MISSING
+                   else part.default)
+        if value is not default and not (isinstance(value, type(default)) and value == default):
+            return part.name
+    return None
+
+
+class BoundFailedError(ValueError):
+    """A box bound below the model's own value at a point inside the box: the bound's premise fails."""
+
+
+def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None, str]:
+    """The pieces of a calibrated model's μ, or None and why no bound is known for it.
+
+    Parameters
+    ----------
+    model : physics.model.Model
+        A calibrated model (``model.calibrated``).
+    interval : bool
+        For bounds of its 95 % interval (``mu_upper``), which its data cloud widens off the data.
+
+    Returns
+    -------
+    pieces : list of Piece or None
+    reason : str
+        Empty when pieces are returned.
+    """
+    calibrated = getattr(model, "calibrated", None)
+    if calibrated is None:
+        return None, f"{model.reference} is not a calibrated model"
+    if getattr(calibrated, "discrepancy", None) is not None:
+        return None, "its Gaussian-process discrepancy has no bound over a box here"
+    unknown = _unbounded_part(calibrated, interval)
+    if unknown is not None:
+        return None, f"its {unknown} has no bound over a box here"
+    pieces = []
+    for term, values in calibrated.terms:
+        label = getattr(term, "label", term)
+        if getattr(term, "kind", None) != "effect":
+            return None, (f"its term {label!r} drifts a physics parameter: the physics' monotonicity is not "
+                          "proven")
+        if term.name not in _PIECES:
+            return None, f"its term {label!r} has no known bound over an interval"
+        if term.drivers[0] == "groove_angle_deg":
+            return None, f"its term {label!r} is driven by the groove angle"
+        kind, monotone = _PIECES[term.name]
+        pieces.append(Piece(term, list(map(float, values)), kind, monotone))
+    return pieces, ""
+
+
+@dataclass(frozen=True)
+class CertifiedMax:
+    """The maximum of μ over an envelope at a design, bracketed.
+
+    Attributes
+    ----------
+    value : float
+        The largest μ found, the model's own value at ``point``: a lower bound of the maximum. [1]
+    upper_bound : float
+        Certified upper bound of the maximum. [1]
+    point : dict
+        Where ``value`` occurs (:meth:`optimize.robust.Envelope.point`).
+    boxes : int
+        Boxes bounded. [1]
+    complete : bool
+        Whether the bracket closed to ``rtol`` (False: stopped at the box or time limit).
+    """
+
+    value: float
+    upper_bound: float
+    point: dict[str, Any]
+    boxes: int
+    complete: bool
+
+    @property
+    def relative_gap(self) -> float:
+        """(upper_bound - value) / upper_bound. [1]"""
+        return max(0.0, (self.upper_bound - self.value) / self.upper_bound)
+
+
+class _Boxes:
+    """The envelope's axes and what every box bound needs from them."""
+
+    def __init__(self, envelope: Any, design: Mapping[str, float]):
+        axes = envelope.axes()
+        self.envelope = envelope
+        self.names = list(axes)
+        self.root_lo = np.array([axes[n][0] for n in self.names], dtype=float)
+        self.root_hi = np.array([axes[n][1] for n in self.names], dtype=float)
+        self.span = np.where(self.root_hi > self.root_lo, self.root_hi - self.root_lo, 1.0)
+        self.fixed_point = envelope.point({})
+        self.speed = self.names.index("speed_m_s") if "speed_m_s" in self.names else None
+        self.angle = (self.names.index("groove_angle_offset_deg") if "groove_angle_offset_deg" in self.names
+                      else None)
+        self.balls, self.load = float(design["balls"]), float(design["load_N"])
+
+    def physics_corner(self, corner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(angle offset [deg], speed [m/s]) of each box's corner: the physics' extreme there."""
+        n = len(corner)
+        speed = corner[:, self.speed] if self.speed is not None else np.full(n, self.fixed_point["speed_m_s"])
+        offset = corner[:, self.angle] if self.angle is not None else np.zeros(n)
+        return offset, speed
+
+    def driver_interval(self, driver: str, lo: np.ndarray,
+                        hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, int | None]:
+        """The interval of a piece's driver over each box, and its axis (None: one value)."""
+        axis = "speed_m_s" if driver == "speed_m_s" else f"conditions.{driver}"
+        if axis in self.names:
+            j = self.names.index(axis)
+            return lo[:, j], hi[:, j], j
+        if driver == "speed_m_s":
+            value = self.fixed_point["speed_m_s"]
+        elif driver == "load_N":
+            value = self.load
+        elif driver == "balls":
+            value = self.balls
+        else:
+            value = self.fixed_point["conditions"][driver]
+        return np.full(len(lo), value), np.full(len(lo), value), None
+
+    def columns(self, n: int, speed: np.ndarray, width: int) -> dict[str, np.ndarray]:
+        """Columns of the pieces at ``width`` driver values per box (the driver's own column replaced)."""
+        return {"balls": np.full((n, width), self.balls), "load_N": np.full((n, width), self.load),
+                "speed_m_s": np.broadcast_to(speed[:, None], (n, width)),
+                **{c: np.full((n, width), v) for c, v in self.fixed_point["conditions"].items()}}
+
+
+def _candidates(piece: Piece, boxes: _Boxes, lo: np.ndarray, hi: np.ndarray,
+                extra: float | None = None) -> tuple[np.ndarray, int | None]:
+    """Driver values at which a piece (or a function of its driver of the same shape) takes its extremes
+    over each box: the ends, the stationary point of a log-quadratic and ``extra`` when inside."""
+    a, b, j = boxes.driver_interval(piece.driver, lo, hi)
+    stationary = piece.stationary() if extra is None else extra
+    third = a if stationary is None else np.clip(stationary, a, b)
+    return np.column_stack([a, b, third]), j
+
+
+def _pieces_range(pieces: list[Piece], boxes: _Boxes, lo: np.ndarray, hi: np.ndarray,
+                  speed: np.ndarray, peak: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each piece's exact [min, max] over each box (NaN-free or +-inf); the driver value of its maximum is
+    written into ``peak`` for condition axes."""
+    n = len(lo)
+    out = []
+    for piece in pieces:
+        x, j = _candidates(piece, boxes, lo, hi)
+        values = piece.at(x, boxes.columns(n, speed, 3))
+        if not np.all(np.isfinite(values)):
+            out.append((np.full(n, -np.inf), np.full(n, np.inf)))
+            continue
+        best = np.argmax(values, axis=1)
+        if peak is not None and j is not None and j not in (boxes.speed, boxes.angle):
+            peak[:, j] = x[np.arange(n), best]
+        out.append((np.min(values, axis=1), values[np.arange(n), best]))
+    return out
+
+
+def _compose_upper(physics_upper: np.ndarray, pieces: list[Piece],
+                   ranges: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """An upper bound of the composed μ from the physics' and each piece's maximum (module docstring)."""
+    upper = physics_upper
+    for piece, (low, top) in zip(pieces, ranges, strict=True):
+        if piece.kind == "add":
+            upper = upper + top
+        else:
+            # mu m <= U max(m) for 0 < m and mu <= U with U >= 0 (a negative U gives no bound).
+            upper = np.where((low > 0) & (upper >= 0), upper * top, np.inf)
+    return upper
+
+
+def mu_box_bound(pieces: list[Piece], physics_mu: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                 envelope: Any, design: Mapping[str, float]) -> Callable:
+    """The box bound of a calibrated model's μ at a design, for :func:`certified_max`.
+
+    Parameters
+    ----------
+    pieces : list of Piece
+        From :func:`term_pieces`.
+    physics_mu : callable
+        ``(angle_offset_deg, speed_m_s) -> μ`` [1] of the physics with the model's values at the design.
+    envelope : optimize.robust.Envelope
+        The envelope.
+    design : mapping
+        ``balls`` [1] and ``load_N`` [N].
+
+    Returns
+    -------
+    callable
+        ``(lo, hi) -> (upper bounds [1], points to evaluate)`` over boxes given by their corners.
+    """
+    boxes = _Boxes(envelope, design)
+
+    def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        offset_hi, speed_hi = boxes.physics_corner(hi)
+        peak = hi.copy()
+        ranges = _pieces_range(pieces, boxes, lo, hi, speed_hi, peak)
+        upper = _compose_upper(np.asarray(physics_mu(offset_hi, speed_hi), dtype=float), pieces, ranges)
+        return upper * (1.0 + _ROUNDING), _with_low_speed(boxes, lo, peak)
+
+    return bound
+
+
+def _with_low_speed(boxes: _Boxes, lo: np.ndarray, peak: np.ndarray) -> np.ndarray:
+    if boxes.speed is None:
+        return peak
+    # A term falling with speed may outweigh the physics: both ends of the speed tried.
+    low_speed = peak.copy()
+    low_speed[:, boxes.speed] = lo[:, boxes.speed]
+    return np.vstack([peak, low_speed])
+
+
+def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+                  evaluate: Callable[[list[dict[str, Any]]], np.ndarray], envelope: Any,
+                  rtol: float = BOUND_RTOL, max_boxes: int = MAX_BOXES,
+                  time_limit_s: float = math.inf) -> CertifiedMax:
+    """Bracket the maximum of a function over the envelope by branch and bound (module docstring).
+
+    Parameters
+    ----------
+    bound : callable
+        ``(lo, hi) -> (upper, rows)``: a valid upper bound of the function over each box (corners ``lo``,
+        ``hi`` of shape (n, axes)), and axis values of points worth evaluating (:func:`mu_box_bound`,
+        :func:`mu_upper_box_bound`).
+    evaluate : callable
+        The function itself [1] at a list of envelope points (:meth:`Envelope.point`).
+    envelope : optimize.robust.Envelope
+        The envelope.
+    rtol : float, default :data:`BOUND_RTOL`
+        Relative gap at which branching stops. [1]
+    max_boxes : int, default :data:`MAX_BOXES`
+        Most boxes bounded. [1]
+    time_limit_s : float, default inf
+        No new batch of boxes after this long. [s]
+
+    Returns
+    -------
+    CertifiedMax
+
+    Raises
+    ------
+    BoundFailedError
+        When the function exceeds a box's bound at a point of the box (checked at every point evaluated):
+        the bound's premise does not hold for this model, and nothing is certified.
+    """
+    start = time.perf_counter()
+    boxes = _Boxes(envelope, {"balls": 0.0, "load_N": 0.0})
+    names, root_lo, root_hi, span = boxes.names, boxes.root_lo, boxes.root_hi, boxes.span
+
+    def points_of(rows: np.ndarray) -> list[dict[str, Any]]:
+        return [envelope.point(dict(zip(names, row, strict=True))) for row in rows]
+
+    def evaluated(rows: np.ndarray) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            values = np.asarray(evaluate(points_of(rows)), dtype=float)
+        return np.where(np.isfinite(values), values, -np.inf)
+
+    upper, peak = bound(root_lo[None, :], root_hi[None, :])
+    corners = np.array(list(itertools.product(*zip(root_lo, root_hi, strict=True))), dtype=float)
+    rows = np.vstack([corners, 0.5 * (root_lo + root_hi)[None, :], peak]) if names else np.zeros((1, 0))
+    values = evaluated(rows)
+    if np.any(values > float(upper[0]) * (1.0 + 1e-9)):
+        raise BoundFailedError("the model's value above the envelope's bound")
+    best_index = int(np.argmax(values))
+    best_value, best_row = float(values[best_index]), rows[best_index]
+    if not names:
+        return CertifiedMax(best_value, max(best_value, float(upper[0])), points_of(best_row[None, :])[0], 1,
+                            True)
+    heap: list[tuple[float, int, np.ndarray, np.ndarray]] = [(-float(upper[0]), 0, root_lo, root_hi)]
+    counter, pruned_max, count = 1, -math.inf, 1
+    complete = True
+    while heap:
+        if -heap[0][0] <= best_value * (1.0 + rtol):
+            break
+        if count >= max_boxes or time.perf_counter() - start > time_limit_s:
+            complete = False
+            break
+        batch = [heapq.heappop(heap) for _ in range(min(_BATCH, len(heap)))]
+        lo = np.array([b[2] for b in batch])
+        hi = np.array([b[3] for b in batch])
+        index = np.arange(len(lo))
+        axis = np.argmax((hi - lo) / span, axis=1)
+        middle = 0.5 * (lo[index, axis] + hi[index, axis])
+        left_hi, right_lo = hi.copy(), lo.copy()
+        left_hi[index, axis] = middle
+        right_lo[index, axis] = middle
+        child_lo, child_hi = np.vstack([lo, right_lo]), np.vstack([left_hi, hi])
+        upper, peak = bound(child_lo, child_hi)
+        count += len(child_lo)
+        # The model itself is asked only in the boxes of largest bound (where a larger value may be).
+        n = len(child_lo)
+        top = np.argsort(-upper)[:_EVALUATED]
+        layers = len(peak) // n
+        rows = np.vstack([0.5 * (child_lo[top] + child_hi[top]),
+                          *(peak[layer * n + top] for layer in range(layers))])
+        values = evaluated(rows)
+        # Every evaluated point lies in its box: a value above the box's bound means the bound is wrong.
+        owner = np.tile(upper[top], len(rows) // len(top))
+        if np.any(values > owner * (1.0 + 1e-9)):
+            excess = float(np.max(values - owner))
+            raise BoundFailedError(f"the model's value {excess:.3g} above a box's bound")
+        found = int(np.argmax(values))
+        if values[found] > best_value:
+            best_value, best_row = float(values[found]), rows[found]
+        for u, lo_i, hi_i in zip(upper, child_lo, child_hi, strict=True):
+            if u > best_value * (1.0 + rtol):
+                heapq.heappush(heap, (-float(u), counter, lo_i, hi_i))
+                counter += 1
+            else:
+                pruned_max = max(pruned_max, float(u))
+    left = -heap[0][0] if heap else -math.inf
+    certified = max(best_value, pruned_max, left)
+    return CertifiedMax(best_value, certified, points_of(best_row[None, :])[0], count, complete)
+
+
+# --------------------------------------------------------------------------------------------------
+# The 95 % upper bound: μ exp(z σ), σ² = g'Cg + noise², g the gradient of log μ in the fitted values
+
+#: Fitted physics parameters whose share of μ is one physics output linear in them:
+#: μ(p + h) - μ(p) = h × output / p (the pivoting moment is μ_s Q a, eq 16), that output a summand of the
+#: physics' posynomial, so non-decreasing in the angle and the speed.
+LINEAR_DECLARED = {"mu_pivot": "mu_pivoting"}
+#: How a term's fitted value (effect, index) changes μ: "scale", an added piece linear in it
+#: (a(p + h) - a(p) = h × basis, basis monotone in the driver); "log", a factor whose logarithm is linear
+#: in it (m(p + h) / m(p) = exp(h φ), φ monotone in the driver); "log_square", the same with φ = z², least at
+#: the centre. Values not listed (a Stribeck speed, an exponent of speed, a run-in) have no bound here.
+_VALUE_FORMS: dict[tuple[str, int], str] = {
+    ("humidity_meniscus", 0): "scale", ("viscous_drag", 0): "scale", ("constant_drag", 0): "scale",
+    ("stribeck_breakaway", 0): "scale", ("viscous_power_law", 0): "scale",
+    ("thermal_shear_strength", 0): "log", ("generic_linear", 0): "log", ("generic_power", 0): "log",
+    ("generic_quadratic", 0): "log", ("generic_quadratic", 1): "log_square",
+}
+#: Relative gap at which branching stops for mu_upper: its bound over a box tightens only linearly with the
+#: box, and its certified lower bound over designs is far looser (the parameters' share). [1]
+INTERVAL_RTOL = 1e-5
+#: Most fitted values per model (the box of gradients has 2^n vertices). [1]
+MAX_VALUES = 10
+
+
+@dataclass(frozen=True)
+class IntervalStructure:
+    """One model whose interval enters ``mu_upper``: the calibrated model itself or a rival.
+
+    Attributes
+    ----------
+    fitted : dict of str to float
+        Its fitted physics parameters (each in :data:`LINEAR_DECLARED`).
+    pieces : list of Piece
+        Its effect terms.
+    covariance : numpy.ndarray
+        Covariance of its fitted values (declared, then each term's).
+    noise_std_log : float
+        Scatter of log μ of a new measurement. [1]
+    step : float
+        Relative finite-difference step of its gradient. [1]
+    """
+
+    fitted: dict[str, float]
+    pieces: list[Piece]
+    covariance: np.ndarray
+    noise_std_log: float
+    step: float
+
+
+def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str]:
+    """The structures of a calibrated model's ``mu_upper`` (itself and each rival), or None and why not."""
+    pieces, reason = term_pieces(model, interval=True)
+    if pieces is None:
+        return None, reason
+    calibrated = model.calibrated
+    if calibrated.covariance is None or calibrated.noise_std_log is None:
+        return None, "it has no interval"
+    step = float(getattr(calibrated, "gradient_step", math.nan))
+    models = [calibrated, *calibrated.rival_models()]
+    out = []
+    for index, each in enumerate(models):
+        label = "its rival" if index else "it"
+        pieces_of, reason = term_pieces(_Holder(model.reference, each), interval=True)
+        if pieces_of is None:
+            return None, f"{label}: {reason}"
+        unknown = [n for n in each.fitted if n not in LINEAR_DECLARED]
+        if unknown:
+            return None, f"{label} fits {unknown[0]}, whose effect on mu has no bound over a box here"
+        for piece in pieces_of:
+            for i, name in enumerate(piece.term.parameter_names):
+                if (piece.term.name, i) not in _VALUE_FORMS:
+                    return None, (f"{label}: the fitted {name} of {piece.term.label} changes mu in a way "
+                                  "with no bound over a box here")
+        size = len(each.fitted) + sum(len(p.values) for p in pieces_of)
+        if size > MAX_VALUES:
+            return None, f"{label} has {size} fitted values (at most {MAX_VALUES} are bounded)"
+        out.append(IntervalStructure(dict(each.fitted), pieces_of, np.asarray(each.covariance, dtype=float),
+                                     float(each.noise_std_log), step))
+    return out, ""
+
+
+@dataclass(frozen=True)
+class _Holder:
+    reference: str
+    calibrated: Any
+
+
+def _times_positive(low: np.ndarray, high: np.ndarray, pos_low: np.ndarray,
+                    pos_high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[low, high] × [pos_low, pos_high] with 0 < pos_low <= pos_high (interval arithmetic)."""
+    return (np.where(low >= 0, low * pos_low, low * pos_high),
+            np.where(high >= 0, high * pos_high, high * pos_low))
+
+
+def mu_upper_box_bound(structures: list[IntervalStructure],
+                       physics_fn: Callable[[np.ndarray, np.ndarray, Mapping[str, float]],
+                                            dict[str, np.ndarray]],
+                       envelope: Any, design: Mapping[str, float], z: float) -> Callable:
+    """The box bound of a calibrated model's ``mu_upper`` at a design, for :func:`certified_max`.
+
+    Over a box every quantity of each structure gets an interval: the physics' μ and each linear output
+    between the box's lowest and highest corner (posynomials), each piece's exact range, the composed μ
+    by interval arithmetic (add and multiply of positive intervals); each fitted value's finite-difference
+    gradient of log μ, log1p(D / μ) / h, with D = μ(p + h) - μ(p) in closed form (``h`` × the physics
+    output / p, ``h`` × the piece's basis, or the composed μ up to that factor × expm1(h φ)) times the
+    product of the factors after it; the largest g'Cg over the box of gradients (a convex function: at one
+    of its vertices); so mu_upper <= max over the structures of max(μ) exp(z sqrt(max g'Cg + noise²)).
+
+    Parameters
+    ----------
+    structures : list of IntervalStructure
+        From :func:`interval_structures`.
+    physics_fn : callable
+        ``(angle_offset_deg, speed_m_s, fitted) -> {"mu": ..., <output>: ...}`` [1] of the physics at the
+        design with those fitted values, for the outputs of :data:`LINEAR_DECLARED`.
+    envelope : optimize.robust.Envelope
+        The envelope.
+    design : mapping
+        ``balls`` [1] and ``load_N`` [N].
+    z : float
+        The normal quantile of the interval (1.96 for 95 %). [1]
+
+    Returns
+    -------
+    callable
+        ``(lo, hi) -> (upper bounds [1], points to evaluate)``.
+    """
+    boxes = _Boxes(envelope, design)
+
+    def one(s: IntervalStructure, lo: np.ndarray, hi: np.ndarray, peak: np.ndarray) -> np.ndarray:
+        n = len(lo)
+        offset_lo, speed_lo = boxes.physics_corner(lo)
+        offset_hi, speed_hi = boxes.physics_corner(hi)
+        phys = physics_fn(np.r_[offset_lo, offset_hi], np.r_[speed_lo, speed_hi], s.fitted)
+        levels_lo, levels_hi = [phys["mu"][:n]], [phys["mu"][n:]]
+        ranges = _pieces_range(s.pieces, boxes, lo, hi, speed_hi, peak)
+        for piece, (low, top) in zip(s.pieces, ranges, strict=True):
+            if piece.kind == "add":
+                levels_lo.append(levels_lo[-1] + low)
+                levels_hi.append(levels_hi[-1] + top)
+            else:
+                ok = (low > 0) & (levels_lo[-1] >= 0)
+                levels_lo.append(np.where(ok, levels_lo[-1] * low, -np.inf))
+                levels_hi.append(np.where(ok, levels_hi[-1] * top, np.inf))
+        mu_lo, mu_hi = levels_lo[-1], levels_hi[-1]
+        usable = (mu_lo > 0) & np.isfinite(mu_hi)
+        safe_lo = np.where(usable, mu_lo, 1.0)
+
+        def after(k: int) -> tuple[np.ndarray, np.ndarray]:
+            """The product of the factors after piece k (k = -1: after the physics)."""
+            p_lo, p_hi = np.ones(n), np.ones(n)
+            for piece, (low, top) in list(zip(s.pieces, ranges, strict=True))[k + 1:]:
+                if piece.kind == "mul":
+                    p_lo, p_hi = p_lo * low, p_hi * top
+            return p_lo, p_hi
+
+        g_lo, g_hi = [], []
+
+        def gradient(ratio_lo: np.ndarray, ratio_hi: np.ndarray, h: float) -> None:
+            ok = ratio_lo > -1
+            g_lo.append(np.where(ok, np.log1p(np.where(ok, ratio_lo, 0.0)) / h, -np.inf))
+            g_hi.append(np.where(ok, np.log1p(np.where(ok, ratio_hi, 0.0)) / h, np.inf))
+
+        def adds_after(k: int) -> bool:
+            return any(piece.kind == "add" for piece in s.pieces[k + 1:])
+
+        for name, value in s.fitted.items():
+            h = s.step * (abs(value) if value != 0 else 1.0)
+            output = LINEAR_DECLARED[name]
+            basis_lo, basis_hi = phys[output][:n] / value, phys[output][n:] / value
+            if adds_after(-1):
+                p_lo, p_hi = after(-1)
+                r_lo, r_hi = _times_positive(h * basis_lo, h * basis_hi, p_lo / mu_hi, p_hi / safe_lo)
+            else:  # mu = physics x the factors: D / mu = h x output / (p physics), the factors cancel
+                phys_lo = phys["mu"][:n]
+                ok = phys_lo > 0
+                r_lo = np.where(ok, h * basis_lo / phys["mu"][n:], -np.inf)
+                r_hi = np.where(ok, h * basis_hi / np.where(ok, phys_lo, 1.0), np.inf)
+            gradient(r_lo, r_hi, h)
+        for k, piece in enumerate(s.pieces):
+            p_lo, p_hi = after(k)
+            for i, value in enumerate(piece.values):
+                h = s.step * (abs(value) if value != 0 else 1.0)
+                form = _VALUE_FORMS[(piece.term.name, i)]
+                unit = list(piece.values)
+                if form == "scale":
+                    unit[i] = 1.0
+                    x, _ = _candidates(piece, boxes, lo, hi)
+                    basis = dataclasses.replace(piece, values=unit).at(x[:, :2],
+                                                                       boxes.columns(n, speed_hi, 2))
+                    b_lo, b_hi = np.min(basis, axis=1), np.max(basis, axis=1)
+                    r_lo, r_hi = _times_positive(h * b_lo, h * b_hi, p_lo / mu_hi, p_hi / safe_lo)
+                else:
+                    unit[i] = value + 1.0
+                    centre = piece.term.constants.get("centre") if form == "log_square" else None
+                    x, _ = _candidates(piece, boxes, lo, hi, extra=centre if centre is not None else None)
+                    if form == "log":
+                        x = x[:, :2]
+                    columns = boxes.columns(n, speed_hi, x.shape[1])
+                    with np.errstate(all="ignore"):
+                        stepped = dataclasses.replace(piece, values=unit).at(x, columns)
+                        phi = np.log(stepped / piece.at(x, columns))
+                    f_lo, f_hi = np.expm1(h * np.min(phi, axis=1)), np.expm1(h * np.max(phi, axis=1))
+                    if adds_after(k):
+                        q_lo = levels_lo[k + 1] * p_lo / mu_hi
+                        q_hi = levels_hi[k + 1] * p_hi / safe_lo
+                    else:  # mu = (mu after this piece) x the factors after it: Q = 1 exactly
+                        q_lo = q_hi = np.ones(n)
+                    positive = (q_lo > 0) & np.isfinite(q_hi)
+                    r_lo, r_hi = _times_positive(f_lo, f_hi, np.where(positive, q_lo, 1.0),
+                                                 np.where(positive, q_hi, 1.0))
+                    r_lo, r_hi = np.where(positive, r_lo, -np.inf), np.where(positive, r_hi, np.inf)
+                gradient(r_lo, r_hi, h)
+        g_low, g_high = np.column_stack(g_lo), np.column_stack(g_hi)
+        finite = np.all(np.isfinite(g_low) & np.isfinite(g_high), axis=1) & usable
+        g_low, g_high = np.where(finite[:, None], g_low, 0.0), np.where(finite[:, None], g_high, 0.0)
+        corners = np.array(list(itertools.product((0, 1), repeat=g_low.shape[1])), dtype=bool)
+        vertices = np.where(corners[None, :, :], g_high[:, None, :], g_low[:, None, :])
+        quadratic = np.einsum("nvi,ij,nvj->nv", vertices, s.covariance, vertices).max(axis=1)
+        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2)
+        return np.where(finite, mu_hi * np.exp(z * sigma), np.inf)
+
+    def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        peak = hi.copy()
+        with np.errstate(all="ignore"):
+            upper = np.max([one(s, lo, hi, peak) for s in structures], axis=0)
+        return upper * (1.0 + _INTERVAL_ROUNDING), _with_low_speed(boxes, lo, peak)
+
+    return bound

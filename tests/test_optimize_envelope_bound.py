@@ -1,0 +1,224 @@
+"""The certified worst case over an envelope (optimize.envelope_bound) against brute force, same model."""
+
+import dataclasses
+import itertools
+import types
+
+import numpy as np
+import pytest
+
+from microbearing import physics
+from microbearing.calibrate.candidates import EffectTerm
+from microbearing.calibrate.model import CalibratedModel
+from microbearing.calibrate.model_view import CalibratedPhysicsModel
+from microbearing.optimize import robust
+from microbearing.optimize.envelope_bound import certified_max, interval_structures, mu_box_bound, term_pieces
+from microbearing.optimize.problem import Constraints, DesignBounds, DesignProblem
+
+# A log-quadratic temperature term peaking inside the envelope (at 40 + 0.2 x 10 / (2 x 0.3) C, by hand) and
+# a Stribeck term falling with speed while the physics rises with it: the worst case is at no vertex.
+C1, C2, CENTRE, SCALE = 0.2, -0.3, 40.0, 10.0
+PEAK_C = CENTRE - C1 * SCALE / (2 * C2)
+
+
+def _model() -> CalibratedPhysicsModel:
+    calibrated = CalibratedModel(
+        fitted={"mu_pivot": 0.6},
+        terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
+               (EffectTerm("generic_quadratic", ("temperature_C",), {"centre": CENTRE, "scale": SCALE}),
+                [C1, C2]),
+               (EffectTerm("stribeck_breakaway", ("speed_m_s",)), [0.01, 0.02])],
+        covariance=np.diag([1e-4, 1e-12, 1e-4, 1e-4, 1e-6, 1e-8]), noise_std_log=0.02,
+        conditions=["relative_humidity", "temperature_C"])
+    return CalibratedPhysicsModel("calibrated:test", calibrated)
+
+
+ENVELOPE = robust.Envelope((0.01, 0.1), {"relative_humidity": (0.3, 0.7), "temperature_C": (20.0, 60.0)},
+                           {"groove_angle_deg": 0.5})
+
+
+def _grid_points(levels: int, extra=()):
+    axes = ENVELOPE.axes()
+    names = list(axes)
+    values = [np.unique(np.r_[np.linspace(*axes[n], levels), [e for a, e in extra if a == n]]) for n in names]
+    return [ENVELOPE.point(dict(zip(names, c, strict=True))) for c in itertools.product(*values)]
+
+
+def _bracket(problem, model, design):
+    pieces, reason = term_pieces(model)
+    assert pieces is not None, reason
+
+    def physics_mu(offset, speed):
+        return physics.evaluate(convention=problem.convention, outputs=["mu"], **problem.physics_inputs(
+            design["balls"], design["groove_angle_deg"] + offset, design["load_N"], speed_m_s=speed)).mu
+
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu", design, 0.0)
+    return certified_max(mu_box_bound(pieces, physics_mu, ENVELOPE, design), evaluate, ENVELOPE), evaluate
+
+
+def test_certified_worst_case_brackets_brute_force_inside_the_envelope():
+    model = _model()
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    design = {"balls": 5.0, "groove_angle_deg": 45.0, "load_N": 0.01}
+    bracket, evaluate = _bracket(problem, model, design)
+    # The maximum is inside the envelope in temperature, at the quadratic's peak: no vertex reaches it.
+    assert bracket.point["conditions"]["temperature_C"] == pytest.approx(PEAK_C, rel=1e-9)
+    vertices = _grid_points(2)
+    assert max(evaluate(vertices)) < bracket.value * (1 - 1e-3)
+    # Brute force, a grid of 11 levels per axis with the peak temperature added: never above the certified
+    # bound, and its maximum within the bracket's tolerance of the value found.
+    brute = evaluate(_grid_points(11, extra=[("conditions.temperature_C", PEAK_C)]))
+    assert brute.max() <= bracket.upper_bound
+    assert brute.max() == pytest.approx(bracket.value, rel=1e-6)
+    assert bracket.upper_bound <= bracket.value * (1 + 1e-6)
+    # The value found is the model's own.
+    assert float(evaluate([bracket.point])[0]) == pytest.approx(bracket.value, rel=1e-12)
+
+
+def test_robust_mu_with_non_monotone_terms_is_proven_and_no_grid_design_beats_the_bound():
+    model = _model()
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu")
+    proof = result.proof
+    assert proof["method"] == "outer-approximation-certified"
+    assert proof["proven"], proof["statement"]
+    assert proof["relative_gap"] <= robust.GAP_TARGET
+    assert proof["lower_bound"] <= result.worst_case["mu"] <= proof["upper_bound"]
+    held = robust._with_model_values(problem, model)
+    # The worst case at the design against brute force through the same model.
+    design = dict(result.result.design)
+    evaluate = robust._evaluator(held, ENVELOPE, model, "mu", design, 0.0)
+    brute = evaluate(_grid_points(9, extra=[("conditions.temperature_C", PEAK_C)]))
+    assert brute.max() <= proof["upper_bound"]
+    assert brute.max() == pytest.approx(result.worst_case["mu"], rel=1e-6)
+    # No design of a grid over the design box beats the certified lower bound: each one's mu at the worst
+    # point found is already at least the bound.
+    where = robust.Envelope.point(ENVELOPE, {"speed_m_s": result.worst_case["speed_m_s"],
+                                             "groove_angle_offset_deg": 0.5,
+                                             **{f"conditions.{n}": v
+                                                for n, v in result.worst_case["conditions"].items()}})
+    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    at_worst = robust._objective_values(model, "mu", robust._columns(held, ENVELOPE, designs, [where], 0.0),
+                                        held.convention)
+    assert at_worst.min() >= proof["lower_bound"] * (1 - 1e-9)
+
+
+def test_structures_without_a_bound_say_why():
+    gp = types.SimpleNamespace(reference="calibrated:gp",
+                               calibrated=types.SimpleNamespace(discrepancy=object(), terms=[]))
+    assert term_pieces(gp)[0] is None and "Gaussian-process" in term_pieces(gp)[1]
+    drift = types.SimpleNamespace(kind="drift", label="mu_pivot linear in temperature_C")
+    calibrated = types.SimpleNamespace(discrepancy=None, terms=[(drift, [1.0])])
+    drifting = types.SimpleNamespace(reference="calibrated:d", calibrated=calibrated)
+    assert term_pieces(drifting)[0] is None and "drifts" in term_pieces(drifting)[1]
+
+
+def _interval_model() -> CalibratedPhysicsModel:
+    """Fitted mu_pivot, menisci, the log-quadratic temperature term and a viscous drag, all uncertain."""
+    calibrated = CalibratedModel(
+        fitted={"mu_pivot": 0.6},
+        terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
+               (EffectTerm("generic_quadratic", ("temperature_C",), {"centre": CENTRE, "scale": SCALE}),
+                [C1, C2]),
+               (EffectTerm("viscous_drag", ("speed_m_s", "load_N")), [1e-5])],
+        covariance=np.diag([1e-4, 1e-12, 1e-4, 1e-4, 1e-12]), noise_std_log=0.02,
+        conditions=["relative_humidity", "temperature_C"])
+    return CalibratedPhysicsModel("calibrated:interval", calibrated)
+
+
+def test_certified_mu_upper_bounds_brute_force_where_the_interval_peaks_inside():
+    model = _interval_model()
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
+    proof = result.proof
+    assert proof["method"] == "outer-approximation-certified" and proof["proven"] is False
+    held = robust._with_model_values(problem, model)
+    evaluate = robust._evaluator(held, ENVELOPE, model, "mu_upper", dict(result.result.design), 0.0)
+    # The interval widens away from the quadratic's centre: mu_upper peaks inside the temperature range, near
+    # (not at) mu's peak; brute force on a grid refined around it never exceeds the certified bound.
+    peak_c = result.worst_case["conditions"]["temperature_C"]
+    assert 20.0 < peak_c < 60.0
+    brute = evaluate(_grid_points(9, extra=[("conditions.temperature_C", t)
+                                            for t in np.linspace(peak_c - 1, peak_c + 1, 41)]))
+    assert brute.max() <= proof["upper_bound"]
+    assert proof["upper_bound"] <= result.worst_case["mu_upper"] * (1 + 1e-5)
+    assert brute.max() == pytest.approx(result.worst_case["mu_upper"], rel=1e-5)
+    # The lower bound: every design's mu_upper at the worst point is at least exp(1.96 x noise) times the
+    # certified least mu there; no design of a grid beats it, and the gap is the parameters' share (< 10 %).
+    assert 0 < proof["relative_gap"] < 0.1
+    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
+                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
+    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    columns = robust._columns(held, ENVELOPE, designs, [where], 0.0)
+    at_worst = robust._objective_values(model, "mu_upper", columns, held.convention)
+    assert at_worst.min() >= proof["lower_bound"]
+
+
+def test_a_value_without_a_bound_leaves_mu_upper_searched():
+    model = _model()  # the Stribeck speed's effect on mu has no closed-form bound over a box here
+    problem = DesignProblem(DesignBounds((3, 5), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", max_rounds=2)
+    assert result.proof["method"] == "outer-approximation-local" and result.proof["proven"] is False
+    assert "No proof" in result.proof["statement"]
+
+
+def test_certified_mu_upper_holds_the_rivals_envelope():
+    # A rival law of humidity (log-linear instead of the Kelvin menisci) whose interval is wider at high
+    # humidity: mu_upper is the envelope of both, and the certified bound must hold it.
+    from microbearing.calibrate.model import RivalModel
+
+    rival = RivalModel("generic_linear on relative_humidity instead of humidity_meniscus", {"mu_pivot": 0.7},
+                       [(EffectTerm("generic_linear", ("relative_humidity",), {"centre": 0.5, "scale": 0.1}),
+                         [1.5])], np.diag([1e-3, 1e-2]))
+    base = _interval_model().calibrated
+    model = CalibratedPhysicsModel("calibrated:rivals", dataclasses.replace(base, rivals=[rival]))
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    structures, reason = interval_structures(model)
+    assert structures is not None and len(structures) == 2, reason
+    design = {"balls": 4.0, "groove_angle_deg": 50.0, "load_N": 0.005}
+    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    brute = evaluate(_grid_points(7, extra=[("conditions.temperature_C", PEAK_C)]))
+    assert brute.max() <= bracket.upper_bound <= bracket.value * (1 + 1e-5)
+    assert brute.max() == pytest.approx(bracket.value, rel=1e-4)
+    # the rival decides the worst case here: without it mu_upper is lower there
+    alone = CalibratedPhysicsModel("calibrated:alone", base)
+    without = robust._evaluator(problem, ENVELOPE, alone, "mu_upper", design, 0.0)([bracket.point])[0]
+    assert without < bracket.value
+
+
+def test_a_bound_whose_premise_fails_is_caught_and_the_search_takes_over():
+    # A box bound that ignores the physics (zero) is below the model everywhere: the check at the points
+    # evaluated raises (optimize_robust then falls back to the searched outer approximation, unproven).
+    from microbearing.optimize.envelope_bound import BoundFailedError
+
+    def wrong(lo, hi):
+        return np.zeros(len(lo)), hi
+
+    model = _model()
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu", {"balls": 4.0, "groove_angle_deg": 50.0,
+                                                                  "load_N": 0.005}, 0.0)
+    with pytest.raises(BoundFailedError):
+        certified_max(wrong, evaluate, ENVELOPE)
+
+
+def test_a_part_the_bounds_do_not_know_is_refused():
+    @dataclasses.dataclass(frozen=True)
+    class Later:  # a calibrated model with a part added later (say, a scatter that depends on the inputs)
+        terms: list = dataclasses.field(default_factory=list)
+        discrepancy: object = None
+        scatter_model: object = None
+
+    plain = types.SimpleNamespace(reference="calibrated:later", calibrated=Later())
+    assert term_pieces(plain)[0] == []
+    later = types.SimpleNamespace(reference="calibrated:later",
+                                  calibrated=Later(scatter_model={"slope": 1.0}))
+    assert term_pieces(later)[0] is None and "scatter_model" in term_pieces(later)[1]
