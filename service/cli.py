@@ -171,19 +171,27 @@ def _progress_bar(description: str) -> Iterator[Callable[[float], None]]:
         yield update
 
 
-def _assignments(items: list[str]) -> dict[str, Any]:
-    """``NAME=VALUE`` physics inputs, parsed in their kinds (whole numbers, numbers, true/false)."""
+def _named_values(items: list[str], lists: bool = False) -> dict[str, list[Any]]:
+    """``NAME=VALUE`` (``NAME=VALUE[,VALUE...]`` with ``lists``) physics inputs, each value parsed in its
+    kind (whole numbers, numbers, true/false)."""
     from microbearing import physics
 
-    values: dict[str, Any] = {}
+    form = "NAME=VALUE[,VALUE...]" if lists else "NAME=VALUE"
+    values: dict[str, list[Any]] = {}
     for item in items:
         name, sep, text = item.partition("=")
         spec = physics.PARAMETERS.get(name.strip())
         if not sep or spec is None:
-            raise CommandError(f"{item!r}: expected NAME=VALUE with NAME one of "
+            raise CommandError(f"{item!r}: expected {form} with NAME one of "
                                f"{', '.join(physics.PARAMETERS)}", EXIT_INVALID)
-        values[spec.name] = _value(spec, text.strip(), name)
+        parts = text.split(",") if lists else [text]
+        values[spec.name] = [_value(spec, part.strip(), name) for part in parts]
     return values
+
+
+def _assignments(items: list[str]) -> dict[str, Any]:
+    """``NAME=VALUE`` physics inputs, parsed in their kinds (whole numbers, numbers, true/false)."""
+    return {name: values[0] for name, values in _named_values(items).items()}
 
 
 def _value(spec: Any, text: str, where: str) -> Any:
@@ -371,18 +379,8 @@ def _surrogate_train(args: argparse.Namespace) -> int:
 
 def _columns(items: list[str]) -> dict[str, Any]:
     """``NAME=VALUE[,VALUE...]`` physics inputs as columns (one value broadcasts)."""
-    from microbearing import physics
-
-    columns: dict[str, Any] = {}
-    for item in items:
-        name, sep, text = item.partition("=")
-        spec = physics.PARAMETERS.get(name.strip())
-        if not sep or spec is None:
-            raise CommandError(f"{item!r}: expected NAME=VALUE[,VALUE...] with NAME one of "
-                               f"{', '.join(physics.PARAMETERS)}", EXIT_INVALID)
-        values = [_value(spec, part.strip(), name) for part in text.split(",")]
-        columns[spec.name] = values[0] if len(values) == 1 else values
-    return columns
+    return {name: values[0] if len(values) == 1 else values
+            for name, values in _named_values(items, lists=True).items()}
 
 
 def _surrogate_predict(args: argparse.Namespace) -> int:
