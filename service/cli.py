@@ -125,6 +125,14 @@ def _write(path: str | None, text: str) -> None:
         raise CommandError(f"cannot write {path}: {exc.strerror or exc}", EXIT_FILE) from None
 
 
+def _write_png(path: str, image: bytes) -> None:
+    """Write a PNG image to the file ``path``."""
+    try:
+        Path(path).write_bytes(image)
+    except OSError as exc:
+        raise CommandError(f"cannot write {path}: {exc.strerror or exc}", EXIT_FILE) from None
+
+
 def _problem_error(problem: Any, data_dir: Path | None = None) -> CommandError:
     """A service :class:`~service.problems.ProblemError` as a command error naming the fields (and, for
     something not found, the data folder it was looked for in)."""
@@ -349,10 +357,7 @@ def _optimize(args: argparse.Namespace) -> int:
             store.close()
     _write(args.output, to_json(document) + "\n")
     if args.plot:
-        try:
-            Path(args.plot).write_bytes(pareto_png(document))
-        except OSError as exc:
-            raise CommandError(f"cannot write {args.plot}: {exc.strerror or exc}", EXIT_FILE) from None
+        _write_png(args.plot, pareto_png(document))
     return EXIT_OK
 
 
@@ -444,10 +449,7 @@ def _experiments(args: argparse.Namespace) -> int:
             store.close()
     _write(args.output, to_json(document) + "\n")
     if args.plot:
-        try:
-            Path(args.plot).write_bytes(plan_png(document))
-        except OSError as exc:
-            raise CommandError(f"cannot write {args.plot}: {exc.strerror or exc}", EXIT_FILE) from None
+        _write_png(args.plot, plan_png(document))
     return EXIT_OK
 
 
