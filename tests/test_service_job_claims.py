@@ -86,15 +86,19 @@ def test_each_stored_job_runs_exactly_once_among_four_processes(tmp_path):
 def test_a_lapsed_lease_is_taken_over_and_the_old_run_writes_nothing(tmp_path):
     first_store, second_store = Store(tmp_path), Store(tmp_path)
     first = JobManager(first_store, workers=1, services="first", lease_s=60.0)
-    release = threading.Event()
+    release, inside = threading.Event(), threading.Event()
     second = None
     try:
         def held(ctx: JobContext) -> dict:
+            inside.set()
             release.wait(30)
             return {"square": -1, "how": "the stalled first run"}
 
         job = first.submit("square", {"n": 3}, held, inputs={"n": 3})
-        wait(first, job["id"], ("running",))
+        # Wait for the work itself, not only the claim: a run that has not passed its first
+        # cancellation check yet would see the takeover, stop, and free the first process's worker,
+        # which may then claim the re-queued job itself (correct, but not the case tested here).
+        assert inside.wait(30)
         # The first process stops renewing (as if stalled): its lease lapses.
         first_store.connection().execute("UPDATE jobs SET lease_expires = 0 WHERE id = ?", (job["id"],))
         second = JobManager(second_store, workers=1, services="second", lease_s=60.0)  # recovers at start
