@@ -325,9 +325,20 @@ def _data_dir(args: argparse.Namespace) -> Path:
 
 def _open_store(args: argparse.Namespace, write: bool = False) -> Any:
     """The store of the data folder; for a read, an error naming the folder when it has no database
-    (the folder and database are never created by a read)."""
+    (the folder and database are never created by a read). With MICROBEARING_DATABASE_URL and no
+    --data-dir: the server's PostgreSQL database."""
+    from .settings import Settings
     from .store import DATABASE_NAME, Store
 
+    if getattr(args, "data_dir", None) is None:
+        settings = Settings()
+        if settings.database_url.get_secret_value():
+            from .deps import DataFolderError, open_database
+
+            try:
+                return open_database(settings)
+            except DataFolderError as exc:
+                raise CommandError(str(exc), EXIT_FAILURE) from None
     folder = _data_dir(args)
     if not write and not (folder / DATABASE_NAME).is_file():
         raise CommandError(f"no stored models: the data folder {folder} has no database {DATABASE_NAME} "

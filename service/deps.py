@@ -26,7 +26,7 @@ from .settings import Settings
 from .store import DATABASE_NAME, StorageError, Store
 
 __all__ = ["DataFolderError", "ExecutorDep", "JobsDep", "Runtime", "SettingsDep", "StoreDep", "get_executor",
-           "get_jobs", "get_runtime", "get_settings", "get_store", "open_store"]
+           "get_jobs", "get_runtime", "get_settings", "get_store", "open_database", "open_store"]
 
 
 class Runtime:
@@ -40,7 +40,7 @@ class Runtime:
 
     def __init__(self, settings: Settings):
         self.settings = settings
-        self.store = open_store(settings.data_dir, settings.model_cache_size)
+        self.store = open_database(settings)
         self.executor = create_executor(settings)  # sweep/batch chunks, optimization groups (executor.py)
         # Last: its dispatcher may start a stored job at once, whose work uses the store and executor.
         self.jobs = JobManager(self.store, settings.job_workers, max_active=settings.max_active_jobs,
@@ -57,7 +57,36 @@ class Runtime:
 
 
 class DataFolderError(RuntimeError):
-    """The data folder cannot hold the database; the message names the path and what to do."""
+    """The database cannot be opened (data folder or PostgreSQL); the message names it and what to do."""
+
+
+def open_database(settings: Settings) -> Store:
+    """The store the settings name: PostgreSQL with ``MICROBEARING_DATABASE_URL``, else SQLite (data folder).
+
+    Raises
+    ------
+    DataFolderError
+        Naming the database and the fix: the driver is missing, the server cannot be reached, or
+        the data folder cannot hold the SQLite database (:func:`open_store`).
+    """
+    url = settings.database_url.get_secret_value()
+    if not url:
+        return open_store(settings.data_dir, settings.model_cache_size)
+    try:
+        from .store_postgres import PostgresStore
+    except ImportError as exc:
+        raise DataFolderError(
+            f"MICROBEARING_DATABASE_URL names a PostgreSQL database, but its driver is not installed "
+            f"({exc}): pip install 'microbearing[postgres]' (psycopg 3 and psycopg-pool), or unset "
+            "MICROBEARING_DATABASE_URL to use SQLite in the data folder.") from None
+    try:
+        return PostgresStore(url, settings.data_dir, settings.model_cache_size,
+                             pool_size=settings.database_pool_size, timeout_s=settings.database_timeout_s)
+    except StorageError as exc:
+        raise DataFolderError(
+            f"microbearing cannot open its PostgreSQL database {exc.path}: {exc.cause}. Check that the "
+            "server runs and accepts this user (MICROBEARING_DATABASE_URL), and "
+            "MICROBEARING_DATABASE_TIMEOUT_S.") from None
 
 
 def open_store(data_dir: Path, rebuilt_models: int = 16) -> Store:

@@ -18,7 +18,7 @@ Domain functions take ``progress: Callable[[float], None]``: pass ``ctx.progress
 checks for cancellation, so a domain loop that reports progress is cancellable without knowing
 about the service.
 
-Jobs live in SQLite (:mod:`service.store`): status queued, running, succeeded, failed or
+Jobs live in the database (SQLite or PostgreSQL, :mod:`service.store`): status queued, running, succeeded, failed or
 cancelled; progress 0..1; the result as JSON; a failure as a problem object. A function raising
 ``ValueError`` fails its job with a 422 problem, :class:`~service.problems.ProblemError` with its
 own problem, any other exception with a 500 problem.
@@ -30,7 +30,7 @@ queued across any restart and is run by whichever process claims it first (one w
 transaction: never two). A claim is a lease of ``lease_s`` renewed every third of it by the
 claiming process (its heartbeat, which also passes on cancellations requested through other
 processes). A running job whose lease lapsed, or whose process is gone (pid, start time and
-zombie state, where ``/proc`` tells them), is re-queued by another process or by the next start,
+zombie state, where ``/proc`` tells them, for a process of the same host), is re-queued by another process or by the next start,
 once (:data:`MAX_ATTEMPTS` runs), or failed with the reason, by its kind's rule (:class:`JobKind`);
 writes of the run that lost its claim are refused (they name its ``lease_token``). Work submitted
 without inputs (library use, tests) runs only in the process that holds it, and is failed as
@@ -58,9 +58,11 @@ their results ``retention_s`` after they finished.
 from __future__ import annotations
 
 import contextvars
+import hashlib
 import json
 import logging
 import os
+import socket
 import threading
 import time
 import uuid
@@ -136,13 +138,29 @@ def _process_start(pid: int) -> str | None:
     return fields[19] if len(fields) > 19 else None
 
 
+def _host_id() -> str:
+    """This host (and pid namespace): a hash of the host name and the boot id (Linux), no dots."""
+    try:
+        boot = Path("/proc/sys/kernel/random/boot_id").read_text().strip()
+    except OSError:
+        boot = ""
+    return hashlib.sha256(f"{socket.gethostname()}\n{boot}".encode()).hexdigest()[:16]
+
+
+#: This host, in the job managers' instances: a pid is checked only on the host it belongs to.
+_HOST = _host_id()
+
+
 def _owner_alive(pid: int, instance: str) -> bool:
+    # Instances are "<uuid>.<start time of the owning process>.<host>" (older ones lack the host).
+    _, started, host = (instance.split(".") + ["", ""])[:3]
+    if host and host != _HOST:
+        return True  # another host's process (a shared PostgreSQL database): only its lease tells
     if pid == os.getpid():
         return instance in _LIVE_INSTANCES
     if not _pid_alive(pid):
         return False
-    # Instances are "<uuid>.<start time of the owning process>": another start time is another process.
-    started = instance.partition(".")[2]
+    # Another start time is another process.
     return not started or _process_start(pid) in (None, started)
 
 
@@ -253,7 +271,7 @@ class JobManager:
     dispatcher thread claims queued jobs (:meth:`Store.claim_job`) while a worker thread is free,
     each with a lease of ``lease_s`` renewed every ``lease_s / 3`` (the heartbeat, which also
     passes on cancellations requested through any process). The same thread finds the running
-    jobs whose lease lapsed, or whose process is gone (pid and start time, on this host), and
+    jobs whose lease lapsed, or whose process is gone (pid and start time, for a process of this host), and
     re-queues or fails them by their kind's rule (:class:`JobKind`).
 
     Parameters
@@ -285,7 +303,7 @@ class JobManager:
                  retention_s: float | None = None, services: Any = None, lease_s: float = 15.0,
                  shutdown_grace_s: float = 0.0):
         self.store = store
-        self.instance = f"{uuid.uuid4().hex}.{_process_start(os.getpid()) or ''}"
+        self.instance = f"{uuid.uuid4().hex}.{_process_start(os.getpid()) or ''}.{_HOST}"
         self.workers = int(workers)
         self.max_active = max_active
         self.max_active_per_key = max_active_per_key

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import platformdirs
-from pydantic import Field, SecretStr
+from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 __all__ = ["ENV_PREFIX", "Settings", "default_data_dir", "settings_table"]
@@ -31,6 +31,22 @@ class Settings(BaseSettings):
     data_dir: Path = Field(
         default_factory=default_data_dir,
         description="Folder holding the SQLite database of jobs and stored models.",
+    )
+    database_url: SecretStr = Field(
+        default=SecretStr(""),
+        description="PostgreSQL database of jobs and stored models (postgresql://user:password@host:5432/"
+                    "name), shared by server processes on several hosts; needs the postgres extra (pip "
+                    "install 'microbearing[postgres]'). Empty: SQLite in MICROBEARING_DATA_DIR (one host).",
+    )
+    database_pool_size: int = Field(
+        default=8, ge=1, le=256,
+        description="Most connections one server process opens to the PostgreSQL database [1] (with "
+                    "MICROBEARING_DATABASE_URL).",
+    )
+    database_timeout_s: float = Field(
+        default=10.0, gt=0, le=600,
+        description="How long a request or job waits to open a PostgreSQL connection, or for a free one of "
+                    "the pool [s]; then 503 naming the database (with MICROBEARING_DATABASE_URL).",
     )
     max_body_bytes: int = Field(
         default=256 * 2**20, ge=1024,
@@ -177,6 +193,15 @@ class Settings(BaseSettings):
         description="Threads running sweep and batch chunks and optimization groups (local pool or "
                     "embedded cluster); 0: one per CPU.",
     )
+
+    @field_validator("database_url")
+    @classmethod
+    def _postgresql_url(cls, value: SecretStr) -> SecretStr:
+        url = value.get_secret_value().strip()
+        if url and not url.startswith(("postgresql://", "postgres://")):
+            raise ValueError("MICROBEARING_DATABASE_URL must be a PostgreSQL URL, postgresql://user:password@"
+                             "host:5432/name, or empty for SQLite in MICROBEARING_DATA_DIR")
+        return SecretStr(url)
 
 
 def settings_table() -> str:

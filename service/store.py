@@ -1,8 +1,11 @@
-"""Persistence in one SQLite file under the data folder: jobs and stored models.
+"""Persistence of jobs and stored models: one SQLite file under the data folder, or PostgreSQL.
 
-SQLite in WAL mode lets several server processes (uvicorn workers) share the folder: readers
-never block the writer. Each thread gets its own connection (sqlite3 connections are not
-shared across threads); every write is one ``BEGIN IMMEDIATE`` transaction. Data is stored as
+:class:`Store` is the interface and the SQL both backends share; ``Store(data_dir)`` opens the
+default, SQLite (:class:`SqliteStore`). SQLite in WAL mode lets several server processes (uvicorn
+workers) of one host share the folder: readers never block the writer. Each thread gets its own
+connection (sqlite3 connections are not shared across threads); every write is one ``BEGIN
+IMMEDIATE`` transaction. Several hosts share one PostgreSQL database instead
+(:class:`service.store_postgres.PostgresStore`, chosen by ``MICROBEARING_DATABASE_URL``). Data is stored as
 JSON text and NumPy ``.npz`` bytes loaded with ``allow_pickle=False``, never as pickles, so a
 stored row cannot run code when it is read.
 
@@ -50,8 +53,8 @@ import pydantic_core
 
 from .problems import ProblemError
 
-__all__ = ["DATABASE_NAME", "REQUESTER", "Requester", "StorageError", "Store", "StoredModel", "json_bytes",
-           "to_json", "utc_now"]
+__all__ = ["DATABASE_NAME", "REQUESTER", "Requester", "SqliteStore", "StorageError", "Store", "StoredModel",
+           "json_bytes", "to_json", "utc_now"]
 
 logger = logging.getLogger("microbearing.service.store")
 
@@ -155,13 +158,13 @@ class StorageError(ProblemError):
     ----------
     cause : str
         What failed, e.g. ``"the disk is full"``.
-    path : pathlib.Path
-        The database file.
+    path : pathlib.Path or str
+        The database file (or the PostgreSQL URL without its password).
     status : int
         507 or 503.
     """
 
-    def __init__(self, cause: str, path: Path, status: int = 503):
+    def __init__(self, cause: str, path: Path | str, status: int = 503):
         super().__init__(status, f"The service cannot store data: {cause} ({path}). Free space or fix the "
                                  "data folder; the request can be repeated then.",
                          title="Storage unavailable", type_=STORAGE_TYPE, headers={"Retry-After": "60"})
@@ -169,7 +172,7 @@ class StorageError(ProblemError):
         self.path = path
 
     @classmethod
-    def classify(cls, exc: BaseException, path: Path) -> StorageError | None:
+    def classify(cls, exc: BaseException, path: Path | str) -> StorageError | None:
         """The storage fault ``exc`` stands for, or None when it is something else.
 
         Parameters
@@ -267,113 +270,76 @@ class StoredModel:
 
 
 class Store:
-    """The SQLite database of one data folder.
+    """Jobs and stored models in one SQL database: the interface every backend shares.
 
-    Parameters
+    ``Store(data_dir)`` opens the SQLite database of a data folder (a :class:`SqliteStore`, as
+    ``pathlib.Path(...)`` gives a ``PosixPath``); :class:`service.store_postgres.PostgresStore` keeps the
+    same tables in a PostgreSQL database shared by several hosts. The job and model methods below
+    are written once, in the SQL both understand (``?`` placeholders, ``ON CONFLICT`` upserts); a
+    backend provides the connections (:meth:`transaction`, :meth:`_reading`) and the few statements
+    that differ (:meth:`_lock_admission`, :attr:`_CLAIM_LOCK`).
+
+    Attributes
     ----------
+    path : pathlib.Path or str
+        Where the data is, for messages: the SQLite file, or the PostgreSQL URL without its password.
     data_dir : pathlib.Path
-        Folder of the database file; created when missing.
-    rebuilt_models : int
-        How many objects rebuilt from stored models :meth:`rebuilt` keeps (the most recently
-        used); 0 keeps none.
+        The data folder (SQLite: the database's folder).
     """
 
-    def __init__(self, data_dir: Path, rebuilt_models: int = 16):
-        self.data_dir = Path(data_dir)
+    path: Path | str
+    data_dir: Path
+    #: Appended to the SELECT of :meth:`claim_job` inside its write transaction.
+    _CLAIM_LOCK = ""
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> Store:
+        return super().__new__(SqliteStore if cls is Store else cls)
+
+    def _init_cache(self, rebuilt_models: int) -> None:
         self._rebuilt: OrderedDict[str, Any] = OrderedDict()
         self._rebuilt_size = int(rebuilt_models)
-        self.data_dir.mkdir(parents=True, exist_ok=True)
-        self.path = self.data_dir / DATABASE_NAME
-        self._local = threading.local()
-        self._connections: list[sqlite3.Connection] = []
         self._lock = threading.Lock()
-        with self.transaction() as conn:
-            for statement in filter(str.strip, _SCHEMA.split(";")):
-                conn.execute(statement)
-            for table, columns in _ADDED_COLUMNS.items():
-                present = {row["name"] for row in conn.execute(f"PRAGMA table_info({table})")}
-                for name, declaration in columns.items():
-                    if name not in present:
-                        conn.execute(f"ALTER TABLE {table} ADD COLUMN {name} {declaration}")
-            conn.execute(_LATE_SCHEMA)
-
-    def connection(self) -> sqlite3.Connection:
-        """This thread's connection (autocommit; use :meth:`transaction` to write)."""
-        conn = getattr(self._local, "conn", None)
-        if conn is None:
-            conn = sqlite3.connect(self.path, isolation_level=None, timeout=30.0, check_same_thread=False)
-            conn.row_factory = sqlite3.Row
-            conn.execute("PRAGMA journal_mode=WAL")
-            conn.execute("PRAGMA synchronous=NORMAL")
-            conn.execute("PRAGMA busy_timeout=30000")
-            self._local.conn = conn
-            with self._lock:
-                self._connections.append(conn)
-        return conn
 
     @contextmanager
-    def transaction(self) -> Iterator[sqlite3.Connection]:
-        """A write transaction: committed on success, rolled back on an exception.
+    def transaction(self) -> Iterator[Any]:
+        """A write transaction yielding a connection (``execute(sql, args)``, ``?`` placeholders).
+
+        Committed on success, rolled back on an exception.
 
         Raises
         ------
         StorageError
-            When the disk is full, the database read-only or the file system fails.
+            When the database cannot take the write (full disk, read-only, unreachable server).
         """
-        try:
-            conn = self.connection()
-            conn.execute("BEGIN IMMEDIATE")
-            try:
-                yield conn
-            except BaseException:
-                if conn.in_transaction:  # SQLite may already have rolled back after a full disk
-                    conn.execute("ROLLBACK")
-                raise
-            conn.execute("COMMIT")
-        except (sqlite3.Error, OSError) as exc:
-            fault = StorageError.classify(exc, self.path)
-            if fault is None:
-                raise
-            raise fault from exc
+        raise NotImplementedError
+        yield
+
+    @contextmanager
+    def _reading(self) -> Iterator[Any]:
+        """A connection for reads outside a transaction (rows fetched inside the ``with``)."""
+        raise NotImplementedError
+        yield
+
+    def _lock_admission(self, conn: Any) -> None:
+        """Serialize :meth:`admit_job`'s count and insert with other processes (in ``conn``'s transaction)."""
 
     def check_writable(self, min_free_bytes: int = 0) -> str | None:
-        """Why the store cannot take writes now, or None when it can.
-
-        Writes one row of a probe table (a real write: a read-only file or a full disk fails
-        it) and compares the free space of the data folder's file system with ``min_free_bytes``.
-
-        Parameters
-        ----------
-        min_free_bytes : int, default 0
-            Least free space [bytes].
-
-        Returns
-        -------
-        str or None
-            The reason, e.g. ``"the disk is full"``, or None.
-        """
-        try:
-            free = shutil.disk_usage(self.data_dir).free
-        except OSError as exc:
-            return f"the data folder {self.data_dir} cannot be read: {exc.strerror or exc}"
-        if free < min_free_bytes:
-            return (f"only {free} bytes are free in {self.data_dir}; at least {min_free_bytes} are needed "
-                    "(MICROBEARING_MIN_FREE_BYTES)")
-        try:
-            with self.transaction() as conn:
-                conn.execute("INSERT OR REPLACE INTO write_probe (id, written_at) VALUES (1, ?)",
-                             (utc_now(),))
-        except StorageError as exc:
-            return exc.cause
-        return None
+        """Why the store cannot take writes now, or None when it can (``/readyz``)."""
+        raise NotImplementedError
 
     def close(self) -> None:
         """Close every connection opened by this store."""
-        with self._lock:
-            for conn in self._connections:
-                conn.close()
-            self._connections.clear()
-        self._local = threading.local()
+        raise NotImplementedError
+
+    def _probe_write(self) -> str | None:
+        """Write one row of the probe table: None, or why the database refused it."""
+        try:
+            with self.transaction() as conn:
+                conn.execute("INSERT INTO write_probe (id, written_at) VALUES (1, ?) "
+                             "ON CONFLICT (id) DO UPDATE SET written_at = excluded.written_at", (utc_now(),))
+        except StorageError as exc:
+            return exc.cause
+        return None
 
     @staticmethod
     def _visible(table: str = "") -> tuple[str, tuple[str, ...]]:
@@ -392,7 +358,7 @@ class Store:
             self._insert_job(conn, row)
 
     @staticmethod
-    def _insert_job(conn: sqlite3.Connection, row: dict[str, Any]) -> None:
+    def _insert_job(conn: Any, row: dict[str, Any]) -> None:
         requester = REQUESTER.get()
         row = {**row, "owner_key": requester.key_id, "owner_sees_all": int(requester.sees_all)}
         names = ", ".join(row)
@@ -405,8 +371,9 @@ class Store:
                   max_active_per_key: int | None = None) -> tuple[str, int] | None:
         """Insert a queued job unless the folder's limits of active jobs are reached, in one transaction.
 
-        The counts are read and the row written under SQLite's write lock (``BEGIN IMMEDIATE``), so
-        the limits hold across every process sharing the data folder.
+        The counts are read and the row written under a lock every process takes (SQLite's write
+        lock, a PostgreSQL advisory lock: :meth:`_lock_admission`), so the limits hold across every
+        process sharing the database.
 
         Parameters
         ----------
@@ -428,14 +395,15 @@ class Store:
         """
         key_id = REQUESTER.get().key_id
         with self.transaction() as conn:
+            self._lock_admission(conn)
             if max_active is not None:
-                active = conn.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running')"
-                                      ).fetchone()[0]
+                active = conn.execute("SELECT COUNT(*) AS n FROM jobs WHERE status IN ('queued', 'running')"
+                                      ).fetchone()["n"]
                 if active >= max_active:
                     return "server", active
             if max_active_per_key is not None and key_id is not None:
-                mine = conn.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running') "
-                                    "AND owner_key = ?", (key_id,)).fetchone()[0]
+                mine = conn.execute("SELECT COUNT(*) AS n FROM jobs WHERE status IN ('queued', 'running') "
+                                    "AND owner_key = ?", (key_id,)).fetchone()["n"]
                 if mine >= max_active_per_key:
                     return "key", mine
             self._insert_job(conn, {**row, "replayable": int(inputs_json is not None)})
@@ -446,12 +414,11 @@ class Store:
 
     def count_active_jobs(self, key_id: str | None = None) -> int:
         """Queued and running jobs in the database, of every process [1]; only ``key_id``'s when given."""
-        if key_id is None:
-            return self.connection().execute(
-                "SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running')").fetchone()[0]
-        return self.connection().execute(
-            "SELECT COUNT(*) FROM jobs WHERE status IN ('queued', 'running') AND owner_key = ?",
-            (key_id,)).fetchone()[0]
+        sql = "SELECT COUNT(*) AS n FROM jobs WHERE status IN ('queued', 'running')"
+        with self._reading() as conn:
+            if key_id is None:
+                return conn.execute(sql).fetchone()["n"]
+            return conn.execute(sql + " AND owner_key = ?", (key_id,)).fetchone()["n"]
 
     def claim_job(self, instance: str, pid: int, kinds: tuple[str, ...], lease_expires: float,
                   token: str) -> dict[str, Any] | None:
@@ -485,10 +452,12 @@ class Store:
             condition += f" OR (replayable = 1 AND kind IN ({', '.join('?' for _ in kinds)}))"
             args.extend(kinds)
         select = f"SELECT id FROM jobs WHERE status = 'queued' AND ({condition}) ORDER BY created_at LIMIT 1"
-        if self.connection().execute(select, args).fetchone() is None:
-            return None  # a read: an idle process polling does not take the write lock
+        with self._reading() as conn:
+            if conn.execute(select, args).fetchone() is None:
+                return None  # a read: an idle process polling does not take the write lock
         with self.transaction() as conn:
-            row = conn.execute(select, args).fetchone()  # again under the lock: another process may have won
+            # Again under the lock (or, with PostgreSQL, skipping rows another claim holds).
+            row = conn.execute(select + self._CLAIM_LOCK, args).fetchone()
             if row is None:
                 return None
             conn.execute("UPDATE jobs SET status = 'running', started_at = ?, owner_pid = ?, "
@@ -525,7 +494,8 @@ class Store:
         if not job_ids:
             return {}
         marks = ", ".join("?" for _ in job_ids)
-        rows = self.connection().execute(f"SELECT id, status FROM jobs WHERE id IN ({marks})", job_ids)
+        with self._reading() as conn:
+            rows = conn.execute(f"SELECT id, status FROM jobs WHERE id IN ({marks})", job_ids).fetchall()
         return {row["id"]: row["status"] for row in rows}
 
     def update_job(self, job_id: str, *, only_if_status: tuple[str, ...] = (),
@@ -561,8 +531,8 @@ class Store:
         with self.transaction() as conn:
             changed = conn.execute(sql, args).rowcount > 0
             if changed and result_json is not None:
-                conn.execute("INSERT OR REPLACE INTO job_results (id, result_json) VALUES (?, ?)",
-                             (job_id, result_json))
+                conn.execute("INSERT INTO job_results (id, result_json) VALUES (?, ?) ON CONFLICT (id) "
+                             "DO UPDATE SET result_json = excluded.result_json", (job_id, result_json))
             return changed
 
     def get_job(self, job_id: str, with_result: bool = False) -> dict[str, Any] | None:
@@ -583,7 +553,8 @@ class Store:
         else:
             visible, args = self._visible()
             sql = f"SELECT {_STATUS_COLUMNS} FROM jobs WHERE id = ?{visible}"
-        row = self.connection().execute(sql, (job_id, *args)).fetchone()
+        with self._reading() as conn:
+            row = conn.execute(sql, (job_id, *args)).fetchone()
         return dict(row) if row else None
 
     def delete_job(self, job_id: str, statuses: tuple[str, ...]) -> bool:
@@ -647,14 +618,15 @@ class Store:
             arguments.extend((before[0], before[0], before[1]))
         sql += " ORDER BY created_at DESC, id DESC LIMIT ?"
         arguments.append(int(limit))
-        return [dict(row) for row in self.connection().execute(sql, arguments).fetchall()]
+        with self._reading() as conn:
+            return [dict(row) for row in conn.execute(sql, arguments).fetchall()]
 
     def jobs_with_status(self, *statuses: str) -> list[dict[str, Any]]:
         """Status columns of every job with one of ``statuses``, oldest first (no request or result)."""
         marks = ", ".join("?" for _ in statuses)
-        rows = self.connection().execute(
-            f"SELECT {_STATUS_COLUMNS} FROM jobs WHERE status IN ({marks}) ORDER BY created_at",
-            statuses).fetchall()
+        with self._reading() as conn:
+            rows = conn.execute(f"SELECT {_STATUS_COLUMNS} FROM jobs WHERE status IN ({marks}) "
+                                "ORDER BY created_at", statuses).fetchall()
         return [dict(row) for row in rows]
 
     # models ---------------------------------------------------------------------------------
@@ -702,14 +674,15 @@ class Store:
     def has_model(self, model_id: str, kind: str) -> bool:
         """Whether a model of ``kind`` with this id exists and the requester sees it."""
         visible, args = self._visible()
-        return self.connection().execute(f"SELECT 1 FROM models WHERE id = ? AND kind = ?{visible}",
-                                         (model_id, kind, *args)).fetchone() is not None
+        with self._reading() as conn:
+            return conn.execute(f"SELECT 1 FROM models WHERE id = ? AND kind = ?{visible}",
+                                (model_id, kind, *args)).fetchone() is not None
 
     def load_model(self, model_id: str) -> StoredModel | None:
         """The stored model, or None when there is no such id (or the requester does not see it)."""
         visible, args = self._visible()
-        row = self.connection().execute(f"SELECT * FROM models WHERE id = ?{visible}",
-                                        (model_id, *args)).fetchone()
+        with self._reading() as conn:
+            row = conn.execute(f"SELECT * FROM models WHERE id = ?{visible}", (model_id, *args)).fetchone()
         if row is None:
             return None
         with np.load(io.BytesIO(row["arrays_npz"]), allow_pickle=False) as npz:
@@ -764,7 +737,8 @@ class Store:
         if kind is not None:
             sql += " AND kind = ?"
             args = (*args, kind)
-        rows = self.connection().execute(sql + " ORDER BY created_at DESC", args).fetchall()
+        with self._reading() as conn:
+            rows = conn.execute(sql + " ORDER BY created_at DESC", args).fetchall()
         return [{"id": r["id"], "kind": r["kind"], "name": r["name"],
                  "metadata": json.loads(r["metadata_json"]), "created_at": r["created_at"]} for r in rows]
 
@@ -777,3 +751,113 @@ class Store:
             with self._lock:
                 self._rebuilt.pop(model_id, None)
         return deleted > 0
+
+
+class SqliteStore(Store):
+    """The SQLite database of one data folder (what ``Store(data_dir)`` opens).
+
+    SQLite serializes every write with a file lock (``BEGIN IMMEDIATE``), which makes the
+    admission counts and claims hold across the processes of one host; it is not for a data folder
+    shared over a network file system (README, "Several processes and hosts").
+
+    Parameters
+    ----------
+    data_dir : pathlib.Path
+        Folder of the database file; created when missing.
+    rebuilt_models : int
+        How many objects rebuilt from stored models :meth:`rebuilt` keeps (the most recently
+        used); 0 keeps none.
+    """
+
+    def __init__(self, data_dir: Path, rebuilt_models: int = 16):
+        self.data_dir = Path(data_dir)
+        self._init_cache(rebuilt_models)
+        self.data_dir.mkdir(parents=True, exist_ok=True)
+        self.path = self.data_dir / DATABASE_NAME
+        self._local = threading.local()
+        self._connections: list[sqlite3.Connection] = []
+        with self.transaction() as conn:
+            for statement in filter(str.strip, _SCHEMA.split(";")):
+                conn.execute(statement)
+            for table, columns in _ADDED_COLUMNS.items():
+                present = {row["name"] for row in conn.execute(f"PRAGMA table_info({table})")}
+                for name, declaration in columns.items():
+                    if name not in present:
+                        conn.execute(f"ALTER TABLE {table} ADD COLUMN {name} {declaration}")
+            conn.execute(_LATE_SCHEMA)
+
+    def connection(self) -> sqlite3.Connection:
+        """This thread's connection (autocommit; use :meth:`transaction` to write)."""
+        conn = getattr(self._local, "conn", None)
+        if conn is None:
+            conn = sqlite3.connect(self.path, isolation_level=None, timeout=30.0, check_same_thread=False)
+            conn.row_factory = sqlite3.Row
+            conn.execute("PRAGMA journal_mode=WAL")
+            conn.execute("PRAGMA synchronous=NORMAL")
+            conn.execute("PRAGMA busy_timeout=30000")
+            self._local.conn = conn
+            with self._lock:
+                self._connections.append(conn)
+        return conn
+
+    @contextmanager
+    def _reading(self) -> Iterator[sqlite3.Connection]:
+        yield self.connection()
+
+    @contextmanager
+    def transaction(self) -> Iterator[sqlite3.Connection]:
+        """A write transaction: committed on success, rolled back on an exception.
+
+        Raises
+        ------
+        StorageError
+            When the disk is full, the database read-only or the file system fails.
+        """
+        try:
+            conn = self.connection()
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield conn
+            except BaseException:
+                if conn.in_transaction:  # SQLite may already have rolled back after a full disk
+                    conn.execute("ROLLBACK")
+                raise
+            conn.execute("COMMIT")
+        except (sqlite3.Error, OSError) as exc:
+            fault = StorageError.classify(exc, self.path)
+            if fault is None:
+                raise
+            raise fault from exc
+
+    def check_writable(self, min_free_bytes: int = 0) -> str | None:
+        """Why the store cannot take writes now, or None when it can.
+
+        Writes one row of a probe table (a real write: a read-only file or a full disk fails
+        it) and compares the free space of the data folder's file system with ``min_free_bytes``.
+
+        Parameters
+        ----------
+        min_free_bytes : int, default 0
+            Least free space [bytes].
+
+        Returns
+        -------
+        str or None
+            The reason, e.g. ``"the disk is full"``, or None.
+        """
+        try:
+            free = shutil.disk_usage(self.data_dir).free
+        except OSError as exc:
+            return f"the data folder {self.data_dir} cannot be read: {exc.strerror or exc}"
+        if free < min_free_bytes:
+            return (f"only {free} bytes are free in {self.data_dir}; at least {min_free_bytes} are needed "
+                    "(MICROBEARING_MIN_FREE_BYTES)")
+        return self._probe_write()
+
+    def close(self) -> None:
+        """Close every connection opened by this store."""
+        with self._lock:
+            for conn in self._connections:
+                conn.close()
+            self._connections.clear()
+        self._local = threading.local()

@@ -58,8 +58,8 @@ def _dead_pid() -> int:
     return process.pid
 
 
-def test_each_stored_job_runs_exactly_once_among_four_processes(tmp_path):
-    stores = [Store(tmp_path) for _ in range(4)]
+def test_each_stored_job_runs_exactly_once_among_four_processes(database):
+    stores = [database.store() for _ in range(4)]
     managers = [JobManager(store, workers=1 if i == 0 else 2, services=f"manager {i}")
                 for i, store in enumerate(stores)]
     try:
@@ -83,8 +83,8 @@ def test_each_stored_job_runs_exactly_once_among_four_processes(tmp_path):
             store.close()
 
 
-def test_a_lapsed_lease_is_taken_over_and_the_old_run_writes_nothing(tmp_path):
-    first_store, second_store = Store(tmp_path), Store(tmp_path)
+def test_a_lapsed_lease_is_taken_over_and_the_old_run_writes_nothing(database):
+    first_store, second_store = database.store(), database.store()
     first = JobManager(first_store, workers=1, services="first", lease_s=60.0)
     release, inside = threading.Event(), threading.Event()
     second = None
@@ -100,7 +100,8 @@ def test_a_lapsed_lease_is_taken_over_and_the_old_run_writes_nothing(tmp_path):
         # which may then claim the re-queued job itself (correct, but not the case tested here).
         assert inside.wait(30)
         # The first process stops renewing (as if stalled): its lease lapses.
-        first_store.connection().execute("UPDATE jobs SET lease_expires = 0 WHERE id = ?", (job["id"],))
+        with first_store.transaction() as conn:
+            conn.execute("UPDATE jobs SET lease_expires = 0 WHERE id = ?", (job["id"],))
         second = JobManager(second_store, workers=1, services="second", lease_s=60.0)  # recovers at start
         row = wait(second, job["id"])
         assert row["status"] == "succeeded" and row["attempts"] == 2
@@ -129,8 +130,8 @@ def _insert_running(store: Store, job_id: str, kind: str, attempts: int, inputs:
                      cancel_requested=cancel_requested)
 
 
-def test_an_interrupted_run_follows_the_rule_of_its_kind(tmp_path):
-    store = Store(tmp_path)
+def test_an_interrupted_run_follows_the_rule_of_its_kind(database):
+    store = database.store()
     _insert_running(store, "first-run", "square", 1, {"n": 4})
     _insert_running(store, "second-run", "square", MAX_ATTEMPTS, {"n": 5})
     _insert_running(store, "not-idempotent", "fragile", 1, {})
@@ -154,8 +155,8 @@ def test_an_interrupted_run_follows_the_rule_of_its_kind(tmp_path):
         store.close()
 
 
-def test_shutdown_re_queues_a_running_stored_job_without_counting_the_run(tmp_path):
-    store = Store(tmp_path)
+def test_shutdown_re_queues_a_running_stored_job_without_counting_the_run(database):
+    store = database.store()
     manager = JobManager(store, workers=1, services="first")
     started = threading.Event()
 
@@ -184,8 +185,8 @@ def test_shutdown_re_queues_a_running_stored_job_without_counting_the_run(tmp_pa
         store.close()
 
 
-def test_a_shutdown_waits_for_a_job_that_ends_within_the_grace_period(tmp_path):
-    store = Store(tmp_path)
+def test_a_shutdown_waits_for_a_job_that_ends_within_the_grace_period(database):
+    store = database.store()
     manager = JobManager(store, workers=1, services="first", shutdown_grace_s=10.0)
     job = manager.submit("square", {"n": 2}, lambda ctx: _record(ctx, "closure", {"n": 2, "sleep_s": 0.5}),
                          inputs={"n": 2})
@@ -216,8 +217,8 @@ def test_a_killed_process_not_yet_reaped_counts_as_gone():
         process.wait()
 
 
-def test_shutdown_re_queues_before_the_work_reaches_its_next_check(tmp_path):
-    store = Store(tmp_path)
+def test_shutdown_re_queues_before_the_work_reaches_its_next_check(database):
+    store = database.store()
     manager = JobManager(store, workers=1, services="first")
     started, release = threading.Event(), threading.Event()
 
@@ -246,10 +247,10 @@ def test_shutdown_re_queues_before_the_work_reaches_its_next_check(tmp_path):
     store.close()
 
 
-def test_a_run_that_lost_its_claim_writes_no_progress_and_stops(tmp_path):
+def test_a_run_that_lost_its_claim_writes_no_progress_and_stops(database):
     from microbearing.service.jobs import Cancelled
 
-    store = Store(tmp_path)
+    store = database.store()
     try:
         store.admit_job({"id": "j", "kind": "square", "status": "queued", "progress": 0.0,
                          "request_json": "{}", "owner_pid": os.getpid(), "owner_instance": "me",

@@ -14,14 +14,13 @@ import numpy as np
 import pytest
 
 from microbearing.service.jobs import INTERRUPTED_DETAIL, NOT_STORED_DETAIL, JobContext, JobManager
-from microbearing.service.store import Store, json_bytes, to_json, utc_now
+from microbearing.service.store import SqliteStore, Store, json_bytes, to_json, utc_now
 
 
 @pytest.fixture
-def store(tmp_path):
-    database = Store(tmp_path)
-    yield database
-    database.close()
+def store(database):
+    """The store of a new database, once per backend (SQLite, PostgreSQL: tests/conftest.py)."""
+    return database.store()
 
 
 @pytest.fixture
@@ -189,7 +188,29 @@ def test_a_reused_pid_does_not_keep_a_dead_servers_jobs_running(store):
         assert store.get_job("reused-pid")["status"] == "failed"
         assert store.get_job("same-process")["status"] == "running"
         own_start = Path("/proc/self/stat").read_text().rpartition(")")[2].split()[19]
-        assert manager.instance.endswith(f".{own_start}")
+        assert manager.instance.split(".")[1] == own_start
+    finally:
+        manager.shutdown()
+
+
+def test_a_job_of_another_host_is_judged_by_its_lease_not_by_a_local_pid(store):
+    # On a shared PostgreSQL database a pid means nothing on another host: a job owned there with a
+    # pid that is dead here stays running while its lease holds, and ends once it lapses (failed
+    # here: its work was not stored).
+    from microbearing.service.jobs import _HOST
+
+    other_host = "0" * 16 if _HOST != "0" * 16 else "1" * 16
+    _insert_active(store, "elsewhere", _dead_pid(), f"{'2' * 32}.12345.{other_host}")
+    store.update_job("elsewhere", lease_token="t", lease_expires=time.time() + 3600)
+    _insert_active(store, "here", _dead_pid(), f"{'3' * 32}.12345.{_HOST}")
+    manager = JobManager(store, workers=1)
+    try:
+        assert store.get_job("elsewhere")["status"] == "running"
+        assert store.get_job("here")["status"] == "failed"  # this host's pid check still works
+        store.update_job("elsewhere", lease_expires=time.time() - 1)
+        assert manager.recover() == ["elsewhere"]
+        row = store.get_job("elsewhere")
+        assert row["status"] == "failed" and json.loads(row["error_json"])["detail"] == INTERRUPTED_DETAIL
     finally:
         manager.shutdown()
 
@@ -211,11 +232,11 @@ def test_shutdown_marks_running_jobs_interrupted(store):
     assert row["status"] == "failed" and json.loads(row["error_json"])["detail"] == INTERRUPTED_DETAIL
 
 
-def test_models_round_trip_without_pickle(store, tmp_path):
+def test_models_round_trip_without_pickle(store, database):
     weights = np.arange(6.0).reshape(2, 3)
     model_id = store.save_model("surrogate", {"inputs": ["load_N"], "r2": 0.99},
                                 {"weights": weights, "names": np.array(["a", "b"])}, name="demo")
-    reopened = Store(tmp_path)  # another connection, as after a restart
+    reopened = database.store()  # another connection, as after a restart or in another process
     try:
         stored = reopened.load_model(model_id)
         assert stored.kind == "surrogate" and stored.name == "demo"
@@ -245,8 +266,12 @@ def test_fast_json_is_exact_and_strict():
         json_bytes({"x": object()})
 
 
-def test_the_database_uses_wal(store):
-    assert store.connection().execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+def test_the_sqlite_database_uses_wal(tmp_path):
+    store = Store(tmp_path)
+    try:
+        assert store.connection().execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    finally:
+        store.close()
 
 
 def test_a_status_read_does_not_load_the_result(store, manager):
@@ -355,8 +380,9 @@ def test_finished_jobs_expire_after_the_retention_and_active_ones_never(store):
     try:
         assert store.get_job("old") is None and store.get_job("old-failed") is None
         assert store.get_job("recent", with_result=True)["result_json"] == '{"columns": {}}'
-        count = store.connection().execute("SELECT COUNT(*) FROM job_results WHERE id LIKE 'old%'")
-        assert count.fetchone()[0] == 0  # results go with their jobs
+        with store.transaction() as conn:
+            count = conn.execute("SELECT COUNT(*) AS n FROM job_results WHERE id LIKE 'old%'").fetchone()["n"]
+        assert count == 0  # results go with their jobs
         assert store.get_job("stuck")["status"] == "failed"  # recovered as interrupted, kept: just finished
     finally:
         jobs.shutdown()
@@ -381,7 +407,7 @@ def test_deleting_a_job_needs_it_finished(manager, store):
     assert manager.delete(job["id"]) and manager.get(job["id"]) is None
 
 
-class LimitedStore(Store):
+class LimitedStore(SqliteStore):
     """A store whose database cannot grow past ``max_pages`` pages: SQLite's own "disk full"."""
 
     max_pages = 0
@@ -473,10 +499,10 @@ def test_an_adaptive_fit_reports_progress_in_proportion_to_its_fitting_work():
     assert fractions == pytest.approx(expected, rel=1e-12)
 
 
-def test_the_store_rebuilds_a_model_once_for_its_owner_and_forgets_it_when_deleted(tmp_path):
+def test_the_store_rebuilds_a_model_once_for_its_owner_and_forgets_it_when_deleted(database):
     from microbearing.service.store import REQUESTER, Requester
 
-    store = Store(tmp_path, rebuilt_models=2)
+    store = database.store(rebuilt_models=2)
     builds = []
 
     def rebuild(stored):
@@ -506,9 +532,8 @@ def test_the_store_rebuilds_a_model_once_for_its_owner_and_forgets_it_when_delet
         store.rebuilt(ids[0], "toy", rebuild)
         assert builds == [ids[0], ids[1], ids[2], ids[0]]
         # Deleted through any store on the folder (another process's, say), it is gone from this one too.
-        other = Store(tmp_path)
+        other = database.store()
         assert other.delete_model(ids[0])
-        other.close()
         assert store.rebuilt(ids[0], "toy", rebuild) is None
     finally:
         store.close()
