@@ -1,6 +1,9 @@
 """Several server processes on one data folder: job throughput, submit latency and take-over times.
 
-Run: ``.venv/bin/python -m bench.job_processes`` (about two minutes; ``--quick`` for less).
+Run: ``.venv/bin/python -m bench.job_processes`` (about two minutes; ``--quick`` for less);
+``--postgres`` runs the same against PostgreSQL: a throwaway server started in a temporary folder
+(tests/postgres_server.py; needs ``initdb``/``pg_ctl`` and the ``postgres`` extra), or the database
+of ``--database-url postgresql://...``.
 
 Each "process" is a Python process running a :class:`service.jobs.JobManager` (2 job threads, the
 default lease of 15 s) on one temporary data folder, as a server process does; this process
@@ -24,7 +27,6 @@ import argparse
 import json
 import os
 import signal
-import sqlite3
 import subprocess
 import sys
 import tempfile
@@ -34,13 +36,22 @@ from pathlib import Path
 
 import numpy as np
 
-from microbearing.service.store import DATABASE_NAME, Store, utc_now
+from microbearing.service.store import Store, utc_now
 
 REPO = Path(__file__).resolve().parent.parent
 
 
-def worker(folder: str, threads: int) -> None:
-    """A job manager on ``folder`` until stdin closes (run in a child process)."""
+def open_store(folder: Path, url: str | None) -> Store:
+    """The store of the folder (SQLite), or of the PostgreSQL database ``url``."""
+    if url is None:
+        return Store(folder)
+    from microbearing.service.store_postgres import PostgresStore
+
+    return PostgresStore(url, folder, pool_size=4)
+
+
+def worker(folder: str, threads: int, url: str | None = None) -> None:
+    """A job manager on ``folder`` (or the database ``url``) until stdin closes (run in a child process)."""
     from microbearing.service.jobs import JobManager, register_kind
 
     def sleep_work(inputs: dict):
@@ -54,7 +65,7 @@ def worker(folder: str, threads: int) -> None:
 
     register_kind("noop", lambda inputs, services: lambda ctx: {"n": inputs["n"]})
     register_kind("sleep", lambda inputs, services: sleep_work(inputs))
-    store = Store(Path(folder))
+    store = open_store(Path(folder), url)
     manager = JobManager(store, threads, services="bench")
     print("ready", flush=True)
     sys.stdin.read()
@@ -62,8 +73,10 @@ def worker(folder: str, threads: int) -> None:
     store.close()
 
 
-def start(folder: Path, count: int) -> list[subprocess.Popen]:
-    processes = [subprocess.Popen([sys.executable, "-m", "bench.job_processes", "--worker", str(folder)],
+def start(folder: Path, count: int, url: str | None) -> list[subprocess.Popen]:
+    command = [sys.executable, "-m", "bench.job_processes", "--worker", str(folder)]
+    command += ["--database-url", url] if url else []
+    processes = [subprocess.Popen(command,
                                   cwd=REPO, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
                  for _ in range(count)]
     for process in processes:
@@ -99,9 +112,15 @@ def seconds(stamp: str) -> float:
     return datetime.fromisoformat(stamp.replace("Z", "+00:00")).timestamp()
 
 
-def throughput(folder: Path, processes: int, jobs: int) -> str:
-    workers = start(folder, processes)
-    store = Store(folder)
+def clear(store: Store) -> None:
+    with store.transaction() as conn:
+        for table in ("job_results", "job_inputs", "jobs"):
+            conn.execute(f"DELETE FROM {table}")
+
+
+def throughput(folder: Path, processes: int, jobs: int, url: str | None) -> str:
+    workers = start(folder, processes, url)
+    store = open_store(folder, url)
     try:
         latencies = []
         began = time.perf_counter()
@@ -113,12 +132,11 @@ def throughput(folder: Path, processes: int, jobs: int) -> str:
         while store.count_active_jobs():
             time.sleep(0.01)
         elapsed = time.perf_counter() - began
-        with sqlite3.connect(folder / DATABASE_NAME) as conn:
-            rows = conn.execute("SELECT status, attempts, owner_pid, created_at, finished_at FROM jobs "
-                                "WHERE kind = 'noop'").fetchall()
-            conn.execute("DELETE FROM jobs")
-            conn.execute("DELETE FROM job_inputs")
-            conn.execute("DELETE FROM job_results")
+        with store.transaction() as conn:
+            rows = [tuple(r[c] for c in ("status", "attempts", "owner_pid", "created_at", "finished_at"))
+                    for r in conn.execute("SELECT status, attempts, owner_pid, created_at, finished_at "
+                                          "FROM jobs WHERE kind = 'noop'").fetchall()]
+        clear(store)
         assert len(rows) == jobs and all(r[0] == "succeeded" and r[1] == 1 for r in rows), "a job ran twice"
         waits = [seconds(r[4]) - seconds(r[3]) for r in rows]
         spread = len({r[2] for r in rows})
@@ -132,22 +150,22 @@ def throughput(folder: Path, processes: int, jobs: int) -> str:
         stop(workers)
 
 
-def owner_of(folder: Path, job_id: str) -> tuple[str, int]:
-    with sqlite3.connect(folder / DATABASE_NAME) as conn:
-        return conn.execute("SELECT status, owner_pid FROM jobs WHERE id = ?", (job_id,)).fetchone()
+def owner_of(store: Store, job_id: str) -> tuple[str, int]:
+    row = store.get_job(job_id)
+    return row["status"], row["owner_pid"]
 
 
-def take_over(folder: Path, how: signal.Signals) -> str:
-    workers = start(folder, 2)
-    store = Store(folder)
+def take_over(folder: Path, how: signal.Signals, url: str | None) -> str:
+    workers = start(folder, 2, url)
+    store = open_store(folder, url)
     try:
         job_id = submit(store, "sleep", {"sleep_s": 120})
-        while (state := owner_of(folder, job_id))[0] != "running":
+        while (state := owner_of(store, job_id))[0] != "running":
             time.sleep(0.01)
         os.kill(state[1], how)
         began = time.monotonic()
         while True:
-            status, pid = owner_of(folder, job_id)
+            status, pid = owner_of(store, job_id)
             if status == "running" and pid != state[1]:
                 break
             if time.monotonic() - began > 120:
@@ -156,33 +174,48 @@ def take_over(folder: Path, how: signal.Signals) -> str:
         took = time.monotonic() - began
         return f"  {how.name} of the process running the job: running again in the other after {took:5.2f} s"
     finally:
-        store.close()
         stop(workers)
-        with sqlite3.connect(folder / DATABASE_NAME) as conn:
-            for table in ("jobs", "job_inputs", "job_results"):
-                conn.execute(f"DELETE FROM {table}")
+        clear(store)
+        store.close()
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="fewer jobs, fewer process counts")
+    parser.add_argument("--postgres", action="store_true",
+                        help="PostgreSQL: a throwaway local server (or --database-url) instead of SQLite")
+    parser.add_argument("--database-url", help="a PostgreSQL database to use (its jobs tables are emptied)")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        worker(args.worker, 2)
+        worker(args.worker, 2, args.database_url)
         return
-    print(f"before: {os.cpu_count()} CPUs, load average {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
-    with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
-        Store(folder).close()
-        jobs = 200 if args.quick else 600
-        print(f"{jobs} jobs that do nothing, submitted one after another into one folder; job managers of "
-              "2 threads each:")
-        for processes in ((1, 4) if args.quick else (1, 2, 4, 8, 16)):
-            print(throughput(folder, processes, jobs), flush=True)
-        print("take-over, 2 processes, default lease 15 s (heartbeat 5 s):")
-        for how in (signal.SIGKILL, signal.SIGSTOP):
-            print(take_over(folder, how), flush=True)
+    server = None
+    url = args.database_url
+    if args.postgres and url is None:
+        sys.path.insert(0, str(REPO / "tests"))
+        from postgres_server import PostgresServer
+
+        server = PostgresServer()
+        url = server.new_database()
+    backend = "SQLite (one data folder)" if url is None else "PostgreSQL (one database, local server)"
+    print(f"before: {os.cpu_count()} CPUs, load average {', '.join(f'{x:.2f}' for x in os.getloadavg())}; "
+          f"{backend}")
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp)
+            open_store(folder, url).close()
+            jobs = 200 if args.quick else 600
+            print(f"{jobs} jobs that do nothing, submitted one after another into one database; job managers "
+                  "of 2 threads each:")
+            for processes in ((1, 4) if args.quick else (1, 2, 4, 8, 16)):
+                print(throughput(folder, processes, jobs, url), flush=True)
+            print("take-over, 2 processes, default lease 15 s (heartbeat 5 s):")
+            for how in (signal.SIGKILL, signal.SIGSTOP):
+                print(take_over(folder, how, url), flush=True)
+    finally:
+        if server is not None:
+            server.stop()
     print(f"after:  {os.cpu_count()} CPUs, load average {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 

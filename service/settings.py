@@ -30,7 +30,9 @@ class Settings(BaseSettings):
 
     data_dir: Path = Field(
         default_factory=default_data_dir,
-        description="Folder holding the SQLite database of jobs and stored models.",
+        description="Folder holding the SQLite database of jobs and stored models (with "
+                    "MICROBEARING_DATABASE_URL they are in PostgreSQL, and the folder holds this host's "
+                    "metrics files only).",
     )
     database_url: SecretStr = Field(
         default=SecretStr(""),
@@ -83,14 +85,14 @@ class Settings(BaseSettings):
     # Admission control, retention and storage (service/jobs.py, service/store.py).
     max_active_jobs: int = Field(
         default=64, ge=1,
-        description="Most queued and running jobs of the data folder, counted over every server process "
-                    "sharing it; a job request past it gets 503 with Retry-After. A queued job holds only "
-                    "its request (designs are built as it starts).",
+        description="Most queued and running jobs of the database (the data folder's, or PostgreSQL's), "
+                    "counted over every server process sharing it; a job request past it gets 503 with "
+                    "Retry-After. A queued job holds only its request (designs are built as it starts).",
     )
     max_active_jobs_per_key: int = Field(
         default=16, ge=1,
         description="Most queued and running jobs of one API key, counted over every server process sharing "
-                    "the data folder; past it 429 with Retry-After. Applies only when MICROBEARING_API_KEYS "
+                    "the database; past it 429 with Retry-After. Applies only when MICROBEARING_API_KEYS "
                     "is set.",
     )
     job_lease_s: float = Field(
