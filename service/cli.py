@@ -133,13 +133,15 @@ def _write_png(path: str, image: bytes) -> None:
         raise CommandError(f"cannot write {path}: {exc.strerror or exc}", EXIT_FILE) from None
 
 
-def _problem_error(problem: Any, data_dir: Path | None = None) -> CommandError:
+def _problem_error(problem: Any, data_dir: Path | str | None = None) -> CommandError:
     """A service :class:`~service.problems.ProblemError` as a command error naming the fields (and, for
-    something not found, the data folder it was looked for in)."""
+    something not found, the data folder or PostgreSQL database it was looked for in)."""
     from .optimizations import INFEASIBLE_TYPE
 
     detail = problem.detail
-    if problem.status == 404 and data_dir is not None:
+    if problem.status == 404 and isinstance(data_dir, str):
+        detail += f" (looked in the PostgreSQL database {data_dir}, MICROBEARING_DATABASE_URL)"
+    elif problem.status == 404 and data_dir is not None:
         detail += (f" (looked in the data folder {data_dir}; --data-dir or MICROBEARING_DATA_DIR names "
                    "another)")
     lines = [detail] + [f"  {item.get('pointer') or item.get('parameter')}: {item['detail']}"
@@ -315,12 +317,21 @@ def _sweep(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _data_dir(args: argparse.Namespace) -> Path:
-    """The data folder of stored models: --data-dir, else the server's setting."""
+def _data_dir(args: argparse.Namespace) -> Path | str:
+    """Where the stored models are: --data-dir, else the server's PostgreSQL database (its URL without the
+    password) when MICROBEARING_DATABASE_URL is set, else the server's data folder."""
     from .settings import Settings
 
     given = getattr(args, "data_dir", None)
-    return Path(given).expanduser().resolve() if given is not None else Path(Settings().data_dir)
+    if given is not None:
+        return Path(given).expanduser().resolve()
+    settings = Settings()
+    url = settings.database_url.get_secret_value()
+    if url:
+        from .store import redacted_url
+
+        return redacted_url(url)
+    return Path(settings.data_dir)
 
 
 def _open_store(args: argparse.Namespace, write: bool = False) -> Any:
@@ -330,16 +341,14 @@ def _open_store(args: argparse.Namespace, write: bool = False) -> Any:
     from .settings import Settings
     from .store import DATABASE_NAME, Store
 
-    if getattr(args, "data_dir", None) is None:
-        settings = Settings()
-        if settings.database_url.get_secret_value():
-            from .deps import DataFolderError, open_database
-
-            try:
-                return open_database(settings)
-            except DataFolderError as exc:
-                raise CommandError(str(exc), EXIT_FAILURE) from None
     folder = _data_dir(args)
+    if isinstance(folder, str):  # PostgreSQL
+        from .deps import DataFolderError, open_database
+
+        try:
+            return open_database(Settings())
+        except DataFolderError as exc:
+            raise CommandError(str(exc), EXIT_FAILURE) from None
     if not write and not (folder / DATABASE_NAME).is_file():
         raise CommandError(f"no stored models: the data folder {folder} has no database {DATABASE_NAME} "
                            "(--data-dir or MICROBEARING_DATA_DIR names the server's folder)", EXIT_INVALID)

@@ -18,27 +18,27 @@ Domain functions take ``progress: Callable[[float], None]``: pass ``ctx.progress
 checks for cancellation, so a domain loop that reports progress is cancellable without knowing
 about the service.
 
-Jobs live in the database (SQLite or PostgreSQL, :mod:`service.store`): status queued, running, succeeded, failed or
-cancelled; progress 0..1; the result as JSON; a failure as a problem object. A function raising
-``ValueError`` fails its job with a 422 problem, :class:`~service.problems.ProblemError` with its
-own problem, any other exception with a 500 problem.
+Jobs live in the database (SQLite or PostgreSQL, :mod:`service.store`): status queued, running,
+succeeded, failed or cancelled; progress 0..1; the result as JSON; a failure as a problem object. A
+function raising ``ValueError`` fails its job with a 422 problem,
+:class:`~service.problems.ProblemError` with its own problem, any other exception with a 500
+problem.
 
-Several processes, one truth. Every server process sharing a data folder runs a
-:class:`JobManager`; the database is all they share. A job submitted with ``inputs`` of a kind
-declared by :func:`register_kind` is stored whole: any process can rebuild its work, so it stays
-queued across any restart and is run by whichever process claims it first (one write
-transaction: never two). A claim is a lease of ``lease_s`` renewed every third of it by the
-claiming process (its heartbeat, which also passes on cancellations requested through other
-processes). A running job whose lease lapsed, or whose process is gone (pid, start time and
-zombie state, where ``/proc`` tells them, for a process of the same host), is re-queued by another process or by the next start,
-once (:data:`MAX_ATTEMPTS` runs), or failed with the reason, by its kind's rule (:class:`JobKind`);
+Several processes, one truth. Every server process sharing a database runs a :class:`JobManager`;
+the database is all they share. A job submitted with ``inputs`` of a kind declared by
+:func:`register_kind` is stored whole: any process can rebuild its work, so it stays queued across
+any restart and is run by whichever process claims it first (one write transaction: never two). A
+claim is a lease of ``lease_s`` renewed every third of it by the claiming process (its heartbeat,
+which also passes on cancellations requested through other processes). A running job whose lease
+lapsed, or whose process is gone (pid, start time and zombie state, where ``/proc`` tells them, for
+a process of the same host), is re-queued by another process or by the next start, once
+(:data:`MAX_ATTEMPTS` runs), or failed with the reason, by its kind's rule (:class:`JobKind`);
 writes of the run that lost its claim are refused (they name its ``lease_token``). Work submitted
 without inputs (library use, tests) runs only in the process that holds it, and is failed as
 interrupted when that process is gone.
 
-Shutdown stops claiming, lets running jobs finish for ``shutdown_grace_s``, then interrupts the
-rest at their next progress check and re-queues them without counting the run (queued jobs stay
-queued).
+Shutdown stops claiming, lets running jobs finish for ``shutdown_grace_s``, then interrupts the rest
+at their next progress check and re-queues them without counting the run (queued jobs stay queued).
 
 Bounds: a data folder holds at most ``max_active`` queued and running jobs, and at most
 ``max_active_per_key`` of one API key, counted in the transaction that inserts a job;
@@ -153,7 +153,7 @@ _HOST = _host_id()
 
 def _owner_alive(pid: int, instance: str) -> bool:
     # Instances are "<uuid>.<start time of the owning process>.<host>" (older ones lack the host).
-    _, started, host = (instance.split(".") + ["", ""])[:3]
+    _, started, host = [*instance.split("."), "", ""][:3]
     if host and host != _HOST:
         return True  # another host's process (a shared PostgreSQL database): only its lease tells
     if pid == os.getpid():

@@ -36,6 +36,7 @@ import errno
 import io
 import json
 import logging
+import re
 import shutil
 import sqlite3
 import threading
@@ -54,7 +55,7 @@ import pydantic_core
 from .problems import ProblemError
 
 __all__ = ["DATABASE_NAME", "REQUESTER", "Requester", "SqliteStore", "StorageError", "Store", "StoredModel",
-           "json_bytes", "to_json", "utc_now"]
+           "json_bytes", "redacted_url", "to_json", "utc_now"]
 
 logger = logging.getLogger("microbearing.service.store")
 
@@ -200,6 +201,12 @@ class StorageError(ProblemError):
             if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO):
                 return cls(f"{exc.strerror or exc}", path, 503)
         return None
+
+
+def redacted_url(url: str) -> str:
+    """A database URL (or libpq ``key=value`` string) without its password, for messages and logs."""
+    url = re.sub(r"(://[^/:@]*):[^/]*@", r"\1:***@", url)
+    return re.sub(r"(password\s*=\s*)('[^']*'|\S+)", r"\1***", url)
 
 
 def utc_now() -> str:

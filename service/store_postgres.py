@@ -37,12 +37,15 @@ import psycopg
 import psycopg_pool
 from psycopg.rows import dict_row
 
-from .store import _ADDED_COLUMNS, _LATE_SCHEMA, _SCHEMA, StorageError, Store
+from .store import _ADDED_COLUMNS, _LATE_SCHEMA, _SCHEMA, StorageError, Store, redacted_url, utc_now
 
 __all__ = ["PostgresStore", "classify", "redacted_url"]
 
 #: Keys of the advisory locks (any two distinct 64-bit numbers; these spell "mbschema" and "mbadmit").
 _SCHEMA_LOCK, _ADMISSION_LOCK = 0x6D62736368656D61, 0x6D6261646D6974
+
+#: Longest wait for a connection of :meth:`PostgresStore.check_writable` (``/readyz``) [s].
+_PROBE_TIMEOUT_S = 2.0
 
 #: SQLite's column types as PostgreSQL's (word by word; see the module's docstring).
 _TYPES = {"REAL": "DOUBLE PRECISION", "BLOB": "BYTEA", "TEXT": 'TEXT COLLATE "C"'}
@@ -58,12 +61,6 @@ def _postgres_ddl(sql: str) -> str:
 def _placeholders(sql: str) -> str:
     """``sql`` with psycopg's placeholders (``%s`` for ``?``; a literal ``%`` doubled)."""
     return sql.replace("%", "%%").replace("?", "%s")
-
-
-def redacted_url(url: str) -> str:
-    """The database URL (or libpq ``key=value`` string) without its password, for messages and logs."""
-    url = re.sub(r"(://[^/:@]*):[^/]*@", r"\1:***@", url)
-    return re.sub(r"(password\s*=\s*)('[^']*'|\S+)", r"\1***", url)
 
 
 #: SQLSTATE classes of a storage fault (https://www.postgresql.org/docs/current/errcodes-appendix.html):
@@ -98,7 +95,8 @@ def classify(exc: BaseException, where: str) -> StorageError | None:
     if state[:2] in _FAULT_CLASSES:
         return StorageError(f"{_FAULT_CLASSES[state[:2]]} ({str(exc).strip()})", where)
     if isinstance(exc, psycopg.OperationalError) and not state:  # refused, lost, closed: no SQLSTATE
-        return StorageError(f"the database server cannot be reached ({str(exc).strip()})", where)
+        return StorageError("the database server cannot be reached or refused the connection "
+                            f"({str(exc).strip()})", where)
     return None
 
 
@@ -149,6 +147,9 @@ class PostgresStore(Store):
                     "application_name": "microbearing"},
             check=psycopg_pool.ConnectionPool.check_connection, name="microbearing")
         try:
+            # One connection first, for the server's own reason (a refused password, an unknown
+            # database), which the pool would only log while it retries until its timeout.
+            psycopg.connect(url, connect_timeout=max(int(timeout_s), 1)).close()
             self._pool.open(wait=True, timeout=self.timeout_s)
             self._create_schema()
         except BaseException as exc:
@@ -170,9 +171,9 @@ class PostgresStore(Store):
             conn.execute(_LATE_SCHEMA)
 
     @contextmanager
-    def _connection(self) -> Iterator[psycopg.Connection]:
+    def _connection(self, timeout_s: float | None = None) -> Iterator[psycopg.Connection]:
         try:
-            with self._pool.connection() as conn:
+            with self._pool.connection(timeout=timeout_s) as conn:
                 yield conn
         except (psycopg.Error, psycopg_pool.PoolTimeout) as exc:
             fault = classify(exc, self.path)
@@ -204,10 +205,17 @@ class PostgresStore(Store):
     def check_writable(self, min_free_bytes: int = 0) -> str | None:
         """Why the database cannot take writes now, or None when it can.
 
-        Writes one row of a probe table. The free space of the server's disk cannot be seen from
-        here: ``min_free_bytes`` is not checked (a write to a full disk fails with the reason).
+        Writes one row of a probe table, waiting at most 2 s for a connection (a readiness probe
+        must answer while the server is down). The free space of the server's disk cannot be seen
+        from here: ``min_free_bytes`` is not checked (a write to a full disk fails with the reason).
         """
-        return self._probe_write()
+        try:
+            with self._connection(min(self.timeout_s, _PROBE_TIMEOUT_S)) as conn, conn.transaction():
+                conn.execute("INSERT INTO write_probe (id, written_at) VALUES (1, %s) ON CONFLICT (id) "
+                             "DO UPDATE SET written_at = excluded.written_at", (utc_now(),))
+        except StorageError as exc:
+            return exc.cause
+        return None
 
     def close(self) -> None:
         """Close the pool's connections."""

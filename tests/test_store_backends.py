@@ -8,6 +8,7 @@ the missing driver, and a server that stops and comes back (503, then served aga
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 import threading
@@ -201,7 +202,7 @@ def test_a_server_outage_is_a_503_storage_problem_and_service_resumes_after(post
     server = PostgresServer()  # its own, since this one is stopped
     store = None
     try:
-        store = PostgresStore(server.new_database(), pool_size=2, timeout_s=2.0)
+        store = PostgresStore(server.new_database(), pool_size=2, timeout_s=5.0)
         store.admit_job(_row("before"), inputs_json="{}")
         server.halt()
         for attempt in (lambda: store.get_job("before"), lambda: store.admit_job(_row("during"))):
@@ -209,10 +210,11 @@ def test_a_server_outage_is_a_503_storage_problem_and_service_resumes_after(post
             with pytest.raises(StorageError) as fault:
                 attempt()
             assert fault.value.status == 503 and fault.value.headers["Retry-After"]
-            assert time.monotonic() - started < 2.0 + 3.0  # the pool's timeout, not forever
+            assert time.monotonic() - started < 5.0 + 3.0  # the pool's timeout, not forever
             assert store.path in fault.value.detail  # names the database (its URL has no password)
-        reason = store.check_writable()
-        assert reason is not None and "database" in reason
+        started = time.monotonic()
+        reason = store.check_writable()  # what /readyz answers: within 2 s, whatever the pool's timeout
+        assert reason is not None and "database" in reason and time.monotonic() - started < 2.0 + 2.0
         server.start()
         # The pool checks a connection before lending it: the first request after the outage is served.
         assert store.get_job("before")["status"] == "queued"
@@ -233,3 +235,32 @@ def test_a_full_disk_on_the_server_maps_to_507():
     read_only = classify(psycopg.errors.ReadOnlySqlTransaction("read-only"), "postgresql://h/d")
     assert read_only.status == 503 and "read-only" in read_only.cause
     assert classify(psycopg.errors.UniqueViolation("duplicate key"), "postgresql://h/d") is None  # a bug: 500
+
+
+def test_the_servers_own_reason_is_named_at_start(postgres_server, tmp_path):
+    from microbearing.service.deps import DataFolderError, open_database
+    from microbearing.service.settings import Settings
+
+    url = f"{postgres_server.base_url}/no_such_database"
+    with pytest.raises(DataFolderError, match='database "no_such_database" does not exist'):
+        open_database(Settings(data_dir=tmp_path, database_url=url, database_timeout_s=2.0))
+
+
+def test_the_model_commands_use_the_servers_postgresql_database(postgres_url, tmp_path, monkeypatch, capsys):
+    from microbearing.service.cli import main
+
+    monkeypatch.setenv("MICROBEARING_DATABASE_URL", postgres_url)
+    monkeypatch.setenv("MICROBEARING_DATA_DIR", str(tmp_path / "unused"))
+    request = tmp_path / "request.json"
+    request.write_text(json.dumps({"space": {"load_N": [0.002, 0.03], "speed_m_s": [0.01, 0.15]},
+                                   "fixed": {"balls": 4}, "budget": 12, "adaptive": False,
+                                   "validation_points": 0}))
+    assert main(["surrogate", "train", str(request)]) == 0
+    out, err = capsys.readouterr()
+    trained = json.loads(out)
+    assert f"stored {trained['model_id']} in {postgres_url}" in err
+    assert main(["surrogate", "list"]) == 0
+    assert capsys.readouterr().out.splitlines()[0] == f"1 surrogate(s) in {postgres_url}"
+    assert main(["surrogate", "predict", "f" * 32, "load_N=0.01", "speed_m_s=0.05"]) == 2
+    assert f"looked in the PostgreSQL database {postgres_url}" in capsys.readouterr().err
+    assert not (tmp_path / "unused").exists()  # no SQLite database made on the side
