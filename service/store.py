@@ -765,7 +765,8 @@ class SqliteStore(Store):
 
     SQLite serializes every write with a file lock (``BEGIN IMMEDIATE``), which makes the
     admission counts and claims hold across the processes of one host; it is not for a data folder
-    shared over a network file system (README, "Several processes and hosts").
+    shared over a network file system (README, "Jobs across restarts and processes"; several hosts
+    share a PostgreSQL database instead).
 
     Parameters
     ----------
