@@ -160,6 +160,19 @@ class PostgresStore(Store):
             raise fault from exc
 
     def _create_schema(self) -> None:
+        """Create the tables, or add the columns a newer version needs; nothing when all are there.
+
+        A schema already complete is left alone, so the service's user needs no right to change it
+        (ALTER TABLE needs the table's owner even when the column exists).
+        """
+        tables = {name for name in re.findall(r"CREATE TABLE IF NOT EXISTS (\w+)", _SCHEMA)}
+        needed = {(table, column) for table, columns in _ADDED_COLUMNS.items() for column in columns}
+        query = ("SELECT table_name, column_name FROM information_schema.columns "
+                 "WHERE table_schema = current_schema()")
+        with self._reading() as conn:
+            present = {(row["table_name"], row["column_name"]) for row in conn.execute(query).fetchall()}
+        if tables <= {table for table, _ in present} and needed <= present:
+            return
         with self.transaction() as conn:
             conn.execute("SELECT pg_advisory_xact_lock(?)", (_SCHEMA_LOCK,))  # processes starting at once
             for statement in filter(str.strip, _SCHEMA.split(";")):

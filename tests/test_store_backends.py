@@ -264,3 +264,35 @@ def test_the_model_commands_use_the_servers_postgresql_database(postgres_url, tm
     assert main(["surrogate", "predict", "f" * 32, "load_N=0.01", "speed_m_s=0.05"]) == 2
     assert f"looked in the PostgreSQL database {postgres_url}" in capsys.readouterr().err
     assert not (tmp_path / "unused").exists()  # no SQLite database made on the side
+
+
+def test_an_older_schema_is_migrated_and_a_complete_one_needs_no_owner(postgres_server, postgres_url):
+    import psycopg
+
+    from microbearing.service.store import _SCHEMA
+    from microbearing.service.store_postgres import PostgresStore, _postgres_ddl
+
+    with psycopg.connect(postgres_url, autocommit=True) as conn:  # the first release's tables
+        for statement in filter(str.strip, _SCHEMA.split(";")):
+            conn.execute(_postgres_ddl(statement))
+        conn.execute("INSERT INTO jobs (id, kind, status, request_json, owner_pid, owner_instance, "
+                     "created_at) VALUES ('old', 'sweep', 'succeeded', '{}', 1, 'gone', '2020-01-01T00:00Z')")
+    store = PostgresStore(postgres_url)  # adds the columns added since
+    try:
+        row = store.get_job("old")
+        assert (row["status"], row["attempts"], row["lease_token"]) == ("succeeded", 0, None)
+        assert row["owner_key"] is None  # visible to every key, as in SQLite
+    finally:
+        store.close()
+    # A role that may read and write the rows but not change the tables can run the service now.
+    role = f"app_{os.getpid()}"
+    with psycopg.connect(postgres_url, autocommit=True) as conn:
+        conn.execute(f"CREATE ROLE {role} LOGIN")
+        conn.execute(f"GRANT SELECT, INSERT, UPDATE, DELETE ON ALL TABLES IN SCHEMA public TO {role}")
+    as_app = postgres_url.replace("postgresql://microbearing@", f"postgresql://{role}@")
+    store = PostgresStore(as_app)
+    try:
+        store.admit_job(_row("new"), inputs_json="{}", max_active=5)
+        assert store.count_active_jobs() == 1 and store.check_writable() is None
+    finally:
+        store.close()
