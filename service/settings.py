@@ -26,7 +26,9 @@ def default_data_dir() -> Path:
 class Settings(BaseSettings):
     """Configuration of one service instance; immutable once the app is built."""
 
-    model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, frozen=True, extra="forbid")
+    # Errors name the setting and the rule, not the value given: it may hold a password or a key.
+    model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, frozen=True, extra="forbid",
+                                      hide_input_in_errors=True)
 
     data_dir: Path = Field(
         default_factory=default_data_dir,

@@ -165,8 +165,9 @@ def test_the_setting_chooses_postgresql_and_sqlite_stays_the_default(postgres_ur
     finally:
         default.close()
         chosen.close()
-    with pytest.raises(ValidationError, match="must be a PostgreSQL URL"):
-        Settings(database_url="mysql://localhost/microbearing")
+    with pytest.raises(ValidationError, match="must be a PostgreSQL URL") as refused:
+        Settings(database_url="mysql://microbearing:hunter2secret@localhost/microbearing")
+    assert "hunter2secret" not in str(refused.value)  # the error does not echo the value
 
 
 def test_a_missing_driver_is_named_with_the_extra(monkeypatch, tmp_path):
