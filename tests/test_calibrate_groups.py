@@ -105,6 +105,15 @@ def test_the_spread_between_groups_is_the_one_way_anova_estimate_on_balanced_dat
     assert effect.spread_upper() == pytest.approx(np.sqrt(upper), rel=1e-6)
     assert effect.new_group_variance() == pytest.approx(max(prediction, tolerance), rel=1e-6)
     assert tolerance > prediction  # seven groups: the spread's uncertainty decides
+    # Stored and read back it answers the same; stored before the group means were kept, the t rule alone.
+    from microbearing.calibrate.groups import GroupEffect
+
+    data = effect.to_json()
+    assert GroupEffect.from_json(data).new_group_variance() == pytest.approx(effect.new_group_variance())
+    assert GroupEffect.from_json({k: v for k, v in data.items() if k != "group_means"}
+                                 ).new_group_variance() == pytest.approx(prediction)
+    with pytest.raises(ValueError, match="group mean"):
+        GroupEffect.from_json({**data, "group_means": [[0.1, -1.0]] * groups})
 
 
 def test_the_q_profile_bound_holds_the_true_spread_with_its_confidence_on_uneven_groups():
