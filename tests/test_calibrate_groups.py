@@ -343,6 +343,16 @@ def test_labels_and_declared_codes_calibrate_through_the_api_and_name_groups_in_
     new = client.post("/v1/friction", json=point).json()
     assert known["mu"] > new["mu"] and known["in_domain"] and new["in_domain"]
     assert known["mu_upper"] / known["mu_lower"] < new["mu_upper"] / new["mu_lower"]
+    # A new build's interval as the stored model computes it (its groups' own means travel with it), and at
+    # least as wide as the spread's upper 95 % bound on the normal quantile of 90 % content gives.
+    from microbearing.calibrate import CalibratedModel
+
+    stored = CalibratedModel.from_json(result["model"])
+    expected = stored.predict({"balls": 4, "load_N": 0.01, "speed_m_s": 0.05})
+    assert new["mu_upper"] == pytest.approx(float(expected.mu_upper), rel=1e-9)
+    upper = np.log1p(group["spread_upper_relative"])
+    assert upper > np.log1p(group["spread_relative"])
+    assert np.log(new["mu_upper"] / new["mu"]) >= stats.norm.isf(0.05) * upper
     # The batch gives the same answers, a label per point (a new label: the new-build answer).
     batch = client.post("/v1/friction/batch", json={
         "points": {"balls": 4, "load_N": [0.01, 0.01], "speed_m_s": 0.05}, "model": model,
@@ -434,13 +444,14 @@ def test_speed_and_temperature_that_move_together_are_named_and_the_empty_corner
     assert widths[0] > 1.5 * widths[1], widths
 
 
-def test_off_the_data_a_term_on_the_column_that_moved_with_speed_holds_the_other_explanation():
+def test_off_the_data_a_term_on_the_column_that_moved_with_speed_holds_the_other_explanation(client):
     """Temperature rose with speed, the film's viscosity (0.01 Pa s at 25 degC, 26 kJ/mol) falls with
     temperature, and no term is strong enough to be chosen. A term on temperature that the data lean to
     but cannot decide is kept as a rival by confounding, and the 95 % interval holds 90 %+ of fresh
     measurements (the generating truth) at two points no row is near and which the bench does not use
     (slow and warm, fast and cool), where the model without it does not; points drawn like the data
-    keep their interval (coverage, and width within 15 %)."""
+    keep their interval (coverage, and width within 15 %). Calibrated through POST /v1/calibrations; the
+    far points answered by /v1/friction/batch as the stored model computes them."""
     from dataclasses import replace
 
     from microbearing.calibrate import CalibratedModel
@@ -457,14 +468,13 @@ def test_off_the_data_a_term_on_the_column_that_moved_with_speed_holds_the_other
         return c, _mu(c, viscosity_Pa_s=viscosity) * np.exp(rng.normal(0.0, 0.03, m))
 
     c, measured = draw(200)
-    result = calibrate(_rows(c, measured, 200), ["mu_pivot", "adhesion_energy_J_m2"], make_plots=False,
-                       seed=9)
-    model = result.model
-    confounded = {r["label"] for r in result.rivals if "moves with speed_m_s" in r["statement"]}
+    result = _finished(client, client.post("/v1/calibrations", json={
+        "data": _rows(c, measured, 200), "fit_parameters": ["mu_pivot", "adhesion_energy_J_m2"]}))
+    model = CalibratedModel.from_json(result["model"])
+    confounded = {r["label"] for r in result["rivals"] if "moves with speed_m_s" in r["statement"]}
     assert confounded and all("temperature_C" in label.split(" instead of ")[0] for label in confounded), \
-        result.rivals
+        result["rivals"]
     alone = replace(model, rivals=[r for r in model.rivals if r.label not in confounded])
-    stored = CalibratedModel.from_json(model.to_json())
     before_all = []
     for speed, temperature in ((0.02, 65.0), (0.13, 30.0)):
         points, truth = draw(400, speed=speed, temperature=temperature)
@@ -473,7 +483,14 @@ def test_off_the_data_a_term_on_the_column_that_moved_with_speed_holds_the_other
         before = alone.predict(points)
         before_all.append(np.mean((before.mu_lower <= truth) & (truth <= before.mu_upper)))
         assert inside >= 0.9, (speed, temperature, inside, before_all)
-        np.testing.assert_allclose(stored.predict(points).mu_upper, p.mu_upper, rtol=1e-9)
+        answer = client.post("/v1/friction/batch", json={
+            "points": {"balls": points["balls"][:20].astype(int).tolist(),
+                       **{k: points[k][:20].tolist() for k in ("load_N", "speed_m_s")}},
+            "conditions": {"temperature_C": points["temperature_C"][:20].tolist()},
+            "model": result["model_id"], "outputs": ["mu"]})
+        assert answer.status_code == 200, answer.text
+        np.testing.assert_allclose(answer.json()["mu_upper"], p.mu_upper[:20], rtol=1e-9)
+        np.testing.assert_allclose(answer.json()["mu_lower"], p.mu_lower[:20], rtol=1e-9)
     assert min(before_all) < 0.9, before_all  # without those rivals a point is missed
     like, truth = draw(2000)
     p, before = model.predict(like), alone.predict(like)
