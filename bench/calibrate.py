@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 # Run as a script, this file's folder comes first on sys.path; the repository root must
@@ -379,6 +380,26 @@ def lab_confounded(seed: int, n: int = 200) -> dict:
     far = result.model.predict(far_c)
     near_c, near_measured = draw(400, speed=0.01, temperature=None)
     near = result.model.predict(near_c)
+    # Points not tuned on: the other empty corner (fast and cool), and one between the data and the far point.
+    others = {name: draw(400, speed=v, temperature=t) for name, v, t in
+              (("140 mm/s, 27 degC", 0.14, 27.0), ("40 mm/s, 60 degC", 0.04, 60.0))}
+    # Side by side: the same model without its rivals by confounding (the interval before them).
+    confounded = {r["label"] for r in result.rivals if "moves with" in r["statement"]}
+    alone = replace(result.model, rivals=[r for r in result.model.rivals if r.label not in confounded])
+
+    def width(p):
+        return float(np.median(np.log(p.mu_upper / p.mu_lower)))
+
+    def figures(model):
+        ordinary_ = model.predict(like)
+        out = {"ordinary": (float(_inside(ordinary_, like_measured).mean()), width(ordinary_)),
+               "10 mm/s, 70 degC": (float(_inside(model.predict(far_c), far_measured).mean()),
+                                    width(model.predict(far_c)))}
+        for name, (c_, m_) in others.items():
+            p = model.predict(c_)
+            out[name] = (float(_inside(p, m_).mean()), width(p))
+        return out
+
     words = " | ".join(result.confounding)
     return {"terms": [e["label"] for e in result.effects], "seconds": seconds, "r": rho,
             "named_both": "speed_m_s" in words and "temperature_C" in words,
@@ -389,6 +410,10 @@ def lab_confounded(seed: int, n: int = 200) -> dict:
             "near_coverage": float(_inside(near, near_measured).mean()),
             "width_ratio": float(np.median(np.log(far.mu_upper / far.mu_lower))
                                  / np.median(np.log(near.mu_upper / near.mu_lower))),
+            "others_flagged": {k: float(1 - result.model.predict(c_).in_domain.mean()) for k, (c_, _) in
+                               others.items()},
+            "rivals": [r.label for r in result.model.rivals],
+            "with": figures(result.model), "without": figures(alone),
             "summary": result.confounding[0] if result.confounding else "(nothing said)"}
 
 
@@ -427,6 +452,12 @@ def lab_suite(seeds: int, cases: slice) -> None:
                       f"coverage {r['far_coverage']:.3f}, width x{r['width_ratio']:.2f} of 10 mm/s on the "
                       f"data (coverage there {r['near_coverage']:.3f}); "
                       f"{r['seconds']:.1f} s", flush=True)
+                print(f"    rivals {r['rivals']}; flagged " + ", ".join(
+                    f"{k} {v:.2f}" for k, v in r["others_flagged"].items()))
+                for name in r["with"]:
+                    (c1, w1), (c0, w0) = r["with"][name], r["without"][name]
+                    print(f"    {name:>18}: coverage {c1:.3f} (without the rivals by confounding {c0:.3f}), "
+                          f"width {w1:.3f} ({w0:.3f}) log")
                 if seed == 2400 + 10 * index:
                     print(f"    said: {r['summary']}")
 

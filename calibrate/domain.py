@@ -9,7 +9,13 @@ rows' own leave-one-out scores, so that a new point drawn like the data is flagg
 ``alpha`` (:data:`CLOUD_ALPHA`, 2 %) whatever the data's shape. A point given only some of the columns is
 scored in those columns alone, against the threshold of the same columns. Beyond the threshold, the
 prediction interval's log half-width is multiplied by the ratio of the score to the threshold (the
-interval widens in proportion to the distance from the data; a documented rule, not a fitted one).
+interval widens in proportion to the distance from the data; a documented rule, not a fitted one: a
+cross-validation that holds out clusters of rows measures how the error grows along the data's shape,
+never across it, and in data whose columns move together the error off the data comes from which of
+them acts, not from the distance). Where two columns move together, the interval also holds the
+rivals by confounding (:mod:`calibrate.rivals`): terms on the column the model does not read that
+the data lean to but cannot decide, whose envelope parts from the model where one column is varied
+without the other.
 
 **Confounding.** :func:`confounded_pairs` names every pair of varying columns whose ranks move
 together (|Spearman rho| >= :data:`CONFOUNDED_RHO`): whatever one of them seems to do, the other

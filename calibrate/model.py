@@ -146,7 +146,8 @@ class RivalModel:
     Attributes
     ----------
     label : str
-        ``"<rival term> instead of <chosen term>"``.
+        ``"<rival term> instead of <chosen term>"``, or ``"<rival term> added"`` (a rival by confounding:
+        a term on a column that moves with one the model reads).
     fitted : dict of str to float
         Its fitted physics parameters, in their units.
     terms : list of tuple of (Term, list of float)

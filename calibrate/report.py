@@ -526,7 +526,10 @@ def calibrate(
         scatter,
         cloud,
     )
-    rivals = fit_rivals(dataset, fit_parameters, selection, final, convention) if terms else []
+    # Rivals: terms that fit about as well as a chosen one, and terms on a column that moves with one the
+    # model reads (calibrate.rivals): the interval holds their envelope.
+    pairs = confounded_pairs(varying)
+    rivals = fit_rivals(dataset, fit_parameters, selection, final, convention, pairs=pairs)
     if rivals:
         model = replace(model, rivals=[RivalModel.from_json(rival_json(r)) for r in rivals])
     rival_words = _rival_words(dataset, model, rivals)
@@ -558,7 +561,7 @@ def calibrate(
         for step in selection.steps
     ]
     warnings = check_plausible(dataset) + parameter_warnings(baseline.full, final)
-    confounding = confounding_words(confounded_pairs(varying), [t.drivers[0] for t in terms])
+    confounding = confounding_words(pairs, [t.drivers[0] for t in terms])
     confounding += _rival_drivers(selection)
     warnings += _code_columns(dataset)
     if gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
@@ -653,7 +656,8 @@ def _rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[
     """Each rival with where it parts from the model (over its driver, and the replaced term's)."""
     out = []
     for rival, alternative in zip(rivals, model.rival_models(), strict=True):
-        drivers = dict.fromkeys([rival.term.drivers[0], rival.replaces.drivers[0]])
+        other = rival.partner if rival.replaces is None else rival.replaces.drivers[0]
+        drivers = dict.fromkeys([rival.term.drivers[0], other])
         where = [where_they_part(model, alternative, dataset, d, model.noise_std_log) for d in drivers]
         part = max(where, key=lambda w: w["largest_difference_log"] or 0.0)
         out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,
@@ -737,4 +741,5 @@ def _domain_words(cloud: DataCloud | None) -> dict[str, Any]:
         f"the point lies within the joint cloud of the rows in {', '.join(cloud.columns)} (scaled distance "
         f"to the 5th nearest row no more than {100 * (1 - cloud.alpha):.0f} % of the rows' own: about "
         f"{100 * cloud.alpha:.0f} % of new points drawn like the data fall outside); beyond it the "
-        f"interval widens in proportion to the distance")}
+        f"interval widens in proportion to the distance, and where columns move together it holds the "
+        f"rivals by confounding (terms on the column the model does not read)")}

@@ -22,6 +22,17 @@ widens; where they part ways, it holds both (a conservative form of model averag
 to estimate from data that cannot tell the rivals apart). :func:`where_they_part` says over which
 values of the rival's driver the two differ by more than the scatter of a measurement: where new
 rows would tell them apart.
+
+**Rivals by confounding.** When a column the model reads (a physics input or a term's driver) moves
+together with one it does not read (:func:`calibrate.domain.confounded_pairs`), the data cannot say
+which of the two acts: temperature that rose with speed may carry what the model puts on speed. Off
+the data's shape, where one is varied without the other, the two explanations part, and nothing in the
+data measures how far (a cross-validation that holds out parts of the data only ever extrapolates along
+its shape). :func:`confounded_rival_scores` takes, from the step where the selection stopped, every term
+on the unread column that the held-out score preferred to the model (a lower score) although its
+paired z stayed below the threshold: the data lean to it and cannot decide. :func:`fit_rivals` adds each
+to the final model (refitted on all rows with its own covariance), so that the interval is the envelope
+of both explanations there; inside the data they agree.
 """
 
 from __future__ import annotations
@@ -39,8 +50,8 @@ from .data import Dataset
 from .fit import FitResult, fit, predict_mu
 from .select import CandidateScore, Selection
 
-__all__ = ["MAX_RIVALS", "RIVAL_SE", "Rival", "describe_rival", "fit_rivals", "rival_json", "rival_scores",
-           "where_they_part"]
+__all__ = ["MAX_RIVALS", "RIVAL_SE", "Rival", "confounded_rival_scores", "describe_rival", "fit_rivals",
+           "rival_json", "rival_scores", "where_they_part"]
 
 #: A rival's mean held-out loss exceeds the chosen term's by at most this many standard errors of the
 #: paired difference (one-sided, about a 2 % test: what the data cannot reject). [1]
@@ -60,28 +71,35 @@ class Rival:
     Attributes
     ----------
     step : int
-        0-based selection step whose chosen term the rival replaces.
+        0-based selection step whose chosen term the rival replaces (a rival by confounding: the step
+        that stopped, where it is added).
     term : Term
         The rival term.
-    replaces : Term
-        The chosen term it replaces.
+    replaces : Term or None
+        The chosen term it replaces (None: a rival by confounding, added to the model's terms).
     gap_se : float
         Mean held-out loss of the rival minus the chosen term's, in standard errors of the paired
         difference (<= :data:`RIVAL_SE`; negative when the rival scored better but was passed over by
-        the preference among equals). [1]
+        the preference among equals); for a rival by confounding, minus its paired z against the model
+        (negative: it scored better). [1]
+    partner : str or None
+        For a rival by confounding, the column the model reads that the rival's driver moves with.
     fit : FitResult
         The refit: declared parameters and every term, with the sandwich covariance.
     """
 
     step: int
     term: Term
-    replaces: Term
+    replaces: Term | None
     gap_se: float
     fit: FitResult
+    partner: str | None = None
 
     @property
     def label(self) -> str:
-        """``"<rival> instead of <chosen>"``."""
+        """``"<rival> instead of <chosen>"``, or ``"<rival> added"`` for a rival by confounding."""
+        if self.replaces is None:
+            return f"{self.term.label} added"
         return f"{self.term.label} instead of {self.replaces.label}"
 
 
@@ -117,6 +135,72 @@ def rival_scores(selection: Selection) -> list[tuple[int, CandidateScore, float]
     return sorted(found, key=lambda item: item[2])
 
 
+def confounded_rival_scores(selection: Selection, pairs: Sequence[Mapping[str, Any]], read: Sequence[str]
+                            ) -> list[tuple[int, CandidateScore, float, str, bool]]:
+    """Rivals by confounding (see the module): ``(step, candidate, gap, partner, replaces)``.
+
+    Parameters
+    ----------
+    selection : Selection
+        The forward selection; its last step is the one that stopped.
+    pairs : sequence of dict
+        :func:`calibrate.domain.confounded_pairs` of the data.
+    read : sequence of str
+        Columns the final model reads (physics inputs of the data and the terms' drivers).
+
+    Returns
+    -------
+    list of tuple
+        Per step, the best-scored candidate driven by a column that moves with one the model reads but
+        is not read itself (its partner): in a step that chose a term on the partner, one within
+        :data:`RIVAL_SE` standard errors of it (``replaces`` True, ``gap`` in those standard errors:
+        the data cannot tell the two columns apart, so it need not count on its own); in the step that
+        stopped, one refitted jointly whose held-out score is lower than the model's (``replaces`` False,
+        ``gap`` minus its paired z). A replacement may also be a screening score (in-sample: two columns
+        that move together give about the same fit whichever carries the term; the rival is refitted on
+        all rows).
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.select import Selection
+    >>> confounded_rival_scores(Selection((), [], None, 1.0, np.arange(3)), [], [])
+    []
+    """
+    partners: dict[str, str] = {}
+    for pair in pairs:
+        a, b = pair["columns"]
+        if a in read and b not in read:
+            partners.setdefault(b, a)
+        elif b in read and a not in read:
+            partners.setdefault(a, b)
+    if not partners:
+        return []
+
+    def partner_of(candidate: CandidateScore) -> str | None:
+        if candidate.term is None or set(candidate.term.drivers) & set(read):
+            return None
+        return next((partners[d] for d in candidate.term.drivers if d in partners), None)
+
+    found = []
+    for k, step in enumerate(selection.steps):
+        if step.chosen is not None:
+            if not set(step.chosen.term.drivers) & set(partners.values()):
+                continue
+            close = [(c, _gap_se(c, step.chosen)) for c in step.ranked if partner_of(c) is not None
+                     and partner_of(c) in step.chosen.term.drivers]
+            close = [(c, gap) for c, gap in close if gap <= RIVAL_SE]
+            if close:
+                c, gap = min(close, key=lambda item: item[0].score)
+                found.append((k, c, float(gap), partner_of(c), True))
+        else:
+            better = [c for c in step.ranked if c.joint and partner_of(c) is not None
+                      and c.score < step.current.score and c.z <= step.z_needed]
+            if better:
+                c = min(better, key=lambda candidate: candidate.score)
+                found.append((k, c, -float(c.z), partner_of(c), False))
+    return found
+
+
 def fit_rivals(
     dataset: Dataset,
     fit_parameters: Sequence[str],
@@ -124,6 +208,7 @@ def fit_rivals(
     final: FitResult,
     convention: str = physics.DEFAULT_CONVENTION,
     max_rivals: int = MAX_RIVALS,
+    pairs: Sequence[Mapping[str, Any]] = (),
 ) -> list[Rival]:
     """The final model refitted with each rival in place of the term it rivals (see the module).
 
@@ -141,6 +226,9 @@ def fit_rivals(
         See :data:`physics.CONVENTIONS`.
     max_rivals : int
         Rivals fitted at most. [1]
+    pairs : sequence of dict
+        Confounded columns of the data (:func:`calibrate.domain.confounded_pairs`): rivals by
+        confounding come after the rivals of the chosen terms, within ``max_rivals``.
 
     Returns
     -------
@@ -150,13 +238,20 @@ def fit_rivals(
     """
     rivals: list[Rival] = []
     terms = list(selection.terms)
-    for k, candidate, gap in rival_scores(selection):
+    read = [*dataset.physics_columns, *(d for t in terms for d in t.drivers)]
+    scored = [(k, c, gap, None, True) for k, c, gap in rival_scores(selection)]
+    # Rivals by confounding first: each is the only one to hold the other column's explanation.
+    scored = confounded_rival_scores(selection, pairs, read) + scored
+    for k, candidate, gap, partner, replaces in scored:
         if len(rivals) >= max_rivals:
             break
-        replaced = [*terms[:k], candidate.term, *terms[k + 1:]]
+        if replaces:
+            replaced = [*terms[:k], candidate.term, *terms[k + 1:]]
+            start_terms = [*final.term_values[:k], candidate.values, *final.term_values[k + 1:]]
+        else:
+            replaced, start_terms = [*terms, candidate.term], [*final.term_values, candidate.values]
         if len({t.label for t in replaced}) < len(replaced):  # the rival is already another step's term
             continue
-        start_terms = [*final.term_values[:k], candidate.values, *final.term_values[k + 1:]]
         with np.errstate(all="ignore"):
             try:
                 result = fit(dataset, fit_parameters, replaced, start=final.declared,
@@ -166,7 +261,7 @@ def fit_rivals(
                 continue
         if not np.all(np.isfinite(mu) & (mu > 0)):
             continue
-        rivals.append(Rival(k, candidate.term, terms[k], float(gap), result))
+        rivals.append(Rival(k, candidate.term, terms[k] if replaces else None, float(gap), result, partner))
     return rivals
 
 
@@ -267,8 +362,16 @@ def describe_rival(rival: Rival, part: Mapping[str, Any]) -> str:
     """The rival and where it parts from the chosen model (:func:`where_they_part`), in words."""
     lo, hi = part["data_range"]
     where = ", ".join(f"{a:.3g} to {b:.3g}" for a, b in part["differ"])
-    text = (f"{rival.term.label} fits the data about as well as {rival.replaces.label} "
-            f"({rival.gap_se:+.1f} standard errors of held-out loss)")
+    if rival.replaces is None:
+        text = (f"{rival.term.label}, added, fits the data about as well as the model (held-out score "
+                f"better, paired z {-rival.gap_se:.2f}, below the threshold): its driver moves with "
+                f"{rival.partner} in the data, so what the model puts on {rival.partner} may be its doing")
+    else:
+        text = (f"{rival.term.label} fits the data about as well as {rival.replaces.label} "
+                f"({rival.gap_se:+.1f} standard errors of held-out loss)")
+        if rival.partner is not None:
+            text += (f": its driver moves with {rival.partner} in the data, so what the model puts on "
+                     f"{rival.partner} may be its doing")
     if part["differ"]:
         text += (f"; they differ by more than the scatter of a measurement at {part['driver']} {where} "
                  f"(data: {lo:.3g} to {hi:.3g}): the 95 % intervals there hold both, and rows there "

@@ -93,10 +93,68 @@ def test_the_spread_between_groups_is_the_one_way_anova_estimate_on_balanced_dat
         assert effect.levels[f"G{g}"][0] == pytest.approx(shrink * (mean - y.mean()), abs=1e-4)
     lo, hi = effect.spread_interval
     assert lo < effect.spread_log < hi
-    # A new group's variance: tau^2 (1 + 1/G), with Student's t of G - 1 degrees of freedom for z.
+    # A new group's variance: the wider of tau^2 (1 + 1/G) with Student's t of G - 1 degrees of freedom for
+    # z, and the tolerance rule: on balanced data the Q-profile bound is S / chi2_{0.05, G-1} - w (S the sum
+    # of squares of the group means about their mean, w = sigma^2 / n), the mean level's variance at it
+    # (tau_U^2 + w) / G, on the normal quantile of 90 % content.
     t, z = stats.t.isf(0.025, groups - 1), stats.norm.isf(0.025)
-    expected = effect.spread_log**2 * (1 + 1 / groups) * (t / z) ** 2
-    assert effect.new_group_variance() == pytest.approx(expected)
+    prediction = effect.spread_log**2 * (1 + 1 / groups) * (t / z) ** 2
+    w = effect.noise_log**2 / rows
+    upper = np.sum((means - means.mean()) ** 2) / stats.chi2.ppf(0.05, groups - 1) - w
+    tolerance = (upper + (upper + w) / groups) * (stats.norm.isf(0.05) / z) ** 2
+    assert effect.spread_upper() == pytest.approx(np.sqrt(upper), rel=1e-6)
+    assert effect.new_group_variance() == pytest.approx(max(prediction, tolerance), rel=1e-6)
+    assert tolerance > prediction  # seven groups: the spread's uncertainty decides
+    # Stored and read back it answers the same; stored before the group means were kept, the t rule alone.
+    from microbearing.calibrate.groups import GroupEffect
+
+    data = effect.to_json()
+    assert GroupEffect.from_json(data).new_group_variance() == pytest.approx(effect.new_group_variance())
+    assert GroupEffect.from_json({k: v for k, v in data.items() if k != "group_means"}
+                                 ).new_group_variance() == pytest.approx(prediction)
+    with pytest.raises(ValueError, match="group mean"):
+        GroupEffect.from_json({**data, "group_means": [[0.1, -1.0]] * groups})
+
+
+def test_the_q_profile_bound_holds_the_true_spread_with_its_confidence_on_uneven_groups():
+    """Brute force over the generating truth: five groups of uneven precision; the 95 % upper bound of tau^2
+    lies above the true tau^2 in 95 % of draws (and the 80 % bound in 80 %)."""
+    from microbearing.calibrate.groups import q_profile_upper
+
+    rng = np.random.default_rng(24)
+    w = np.array([1e-4, 4e-4, 1e-3, 3e-3, 2e-4])
+    tau2 = 0.004
+    held = {0.95: 0, 0.8: 0}
+    draws = 3000
+    for _ in range(draws):
+        m = rng.normal(0.1, np.sqrt(tau2 + w))
+        for confidence in held:
+            held[confidence] += q_profile_upper(m, w, confidence) >= tau2
+    assert abs(held[0.95] / draws - 0.95) < 0.015, held
+    assert abs(held[0.8] / draws - 0.8) < 0.025, held
+
+
+def test_a_new_groups_interval_holds_90_percent_in_almost_every_data_set():
+    """Per data set, the exact coverage of a new group's 95 % interval (a new group's log mu is N(0, tau^2 +
+    sigma^2) about the truth): below 0.90 in at most a few data sets of six groups (the rule's 5 %), while
+    Student's t alone misses it in about one in six; the mean coverage stays at least 95 %."""
+    import dataclasses
+
+    rng = np.random.default_rng(2424)
+    groups, tau, sigma, z = 6, 0.12, 0.03, stats.norm.isf(0.025)
+    now, before = [], []
+    for _ in range(50):
+        rows = rng.integers(10, 41, groups)
+        labels = np.repeat([f"G{g}" for g in range(groups)], rows)
+        y = np.repeat(rng.normal(0.0, tau, groups), rows) + rng.normal(0.0, sigma, int(rows.sum()))
+        effect = fit_group_effect("specimen", labels, y, {})
+        s = np.hypot(tau, sigma)
+        for e, out in ((effect, now), (dataclasses.replace(effect, group_means=[]), before)):
+            half = z * np.sqrt(e.new_group_variance() + e.noise_log**2)
+            out.append(stats.norm.cdf((half - e.offset_log) / s) - stats.norm.cdf((-half - e.offset_log) / s))
+    now, before = np.array(now), np.array(before)
+    assert np.mean(now < 0.9) <= 0.1 and np.mean(now) >= 0.95, (np.sort(now)[:5], np.mean(now))
+    assert np.all(now >= before - 1e-12) and np.mean(before < 0.9) > np.mean(now < 0.9)
 
 
 @pytest.fixture(scope="module")
@@ -285,6 +343,16 @@ def test_labels_and_declared_codes_calibrate_through_the_api_and_name_groups_in_
     new = client.post("/v1/friction", json=point).json()
     assert known["mu"] > new["mu"] and known["in_domain"] and new["in_domain"]
     assert known["mu_upper"] / known["mu_lower"] < new["mu_upper"] / new["mu_lower"]
+    # A new build's interval as the stored model computes it (its groups' own means travel with it), and at
+    # least as wide as the spread's upper 95 % bound on the normal quantile of 90 % content gives.
+    from microbearing.calibrate import CalibratedModel
+
+    stored = CalibratedModel.from_json(result["model"])
+    expected = stored.predict({"balls": 4, "load_N": 0.01, "speed_m_s": 0.05})
+    assert new["mu_upper"] == pytest.approx(float(expected.mu_upper), rel=1e-9)
+    upper = np.log1p(group["spread_upper_relative"])
+    assert upper > np.log1p(group["spread_relative"])
+    assert np.log(new["mu_upper"] / new["mu"]) >= stats.norm.isf(0.05) * upper
     # The batch gives the same answers, a label per point (a new label: the new-build answer).
     batch = client.post("/v1/friction/batch", json={
         "points": {"balls": 4, "load_N": [0.01, 0.01], "speed_m_s": 0.05}, "model": model,
@@ -374,6 +442,62 @@ def test_speed_and_temperature_that_move_together_are_named_and_the_empty_corner
     assert any("far from the calibration data's rows" in w for w in far.warnings)
     widths = [np.median(np.log(p.mu_upper / p.mu_lower)) for p in (far, near)]
     assert widths[0] > 1.5 * widths[1], widths
+
+
+def test_off_the_data_a_term_on_the_column_that_moved_with_speed_holds_the_other_explanation(client):
+    """Temperature rose with speed, the film's viscosity (0.01 Pa s at 25 degC, 26 kJ/mol) falls with
+    temperature, and no term is strong enough to be chosen. A term on temperature that the data lean to
+    but cannot decide is kept as a rival by confounding, and the 95 % interval holds 90 %+ of fresh
+    measurements (the generating truth) at two points no row is near and which the bench does not use
+    (slow and warm, fast and cool), where the model without it does not; points drawn like the data
+    keep their interval (coverage, and width within 15 %). Calibrated through POST /v1/calibrations; the
+    far points answered by /v1/friction/batch as the stored model computes them."""
+    from dataclasses import replace
+
+    from microbearing.calibrate import CalibratedModel
+
+    rng = np.random.default_rng(91)
+
+    def draw(m, speed=None, temperature=None):
+        c = _columns(rng, m)
+        if speed is not None:
+            c["speed_m_s"] = np.full(m, speed)
+        c["temperature_C"] = (25 + 50 * (c["speed_m_s"] - 0.005) / 0.145 + rng.normal(0.0, 1.0, m)
+                              if temperature is None else np.full(m, temperature))
+        viscosity = 0.01 * np.exp(26e3 / 8.314 * (1 / (c["temperature_C"] + 273.15) - 1 / 298.15))
+        return c, _mu(c, viscosity_Pa_s=viscosity) * np.exp(rng.normal(0.0, 0.03, m))
+
+    c, measured = draw(200)
+    result = _finished(client, client.post("/v1/calibrations", json={
+        "data": _rows(c, measured, 200), "fit_parameters": ["mu_pivot", "adhesion_energy_J_m2"]}))
+    model = CalibratedModel.from_json(result["model"])
+    confounded = {r["label"] for r in result["rivals"] if "moves with speed_m_s" in r["statement"]}
+    assert confounded and all("temperature_C" in label.split(" instead of ")[0] for label in confounded), \
+        result["rivals"]
+    alone = replace(model, rivals=[r for r in model.rivals if r.label not in confounded])
+    before_all = []
+    for speed, temperature in ((0.02, 65.0), (0.13, 30.0)):
+        points, truth = draw(400, speed=speed, temperature=temperature)
+        p = model.predict(points)
+        inside = np.mean((p.mu_lower <= truth) & (truth <= p.mu_upper))
+        before = alone.predict(points)
+        before_all.append(np.mean((before.mu_lower <= truth) & (truth <= before.mu_upper)))
+        assert inside >= 0.9, (speed, temperature, inside, before_all)
+        answer = client.post("/v1/friction/batch", json={
+            "points": {"balls": points["balls"][:20].astype(int).tolist(),
+                       **{k: points[k][:20].tolist() for k in ("load_N", "speed_m_s")}},
+            "conditions": {"temperature_C": points["temperature_C"][:20].tolist()},
+            "model": result["model_id"], "outputs": ["mu"]})
+        assert answer.status_code == 200, answer.text
+        np.testing.assert_allclose(answer.json()["mu_upper"], p.mu_upper[:20], rtol=1e-9)
+        np.testing.assert_allclose(answer.json()["mu_lower"], p.mu_lower[:20], rtol=1e-9)
+    assert min(before_all) < 0.9, before_all  # without those rivals a point is missed
+    like, truth = draw(2000)
+    p, before = model.predict(like), alone.predict(like)
+    assert 1 - p.in_domain.mean() <= 0.05
+    assert 0.9 <= np.mean((p.mu_lower <= truth) & (truth <= p.mu_upper)) <= 0.995
+    widths = [np.median(np.log(q.mu_upper / q.mu_lower)) for q in (p, before)]
+    assert widths[0] <= 1.15 * widths[1], widths
 
 
 def test_a_label_per_row_is_reported_and_not_fitted():

@@ -374,7 +374,10 @@ class CalibrationResult(ResponseModel):
     groups: list[dict[str, Any]] | None = Field(default=None, description=(
         "Per factor column: the declared parameter (or mu) that varies between groups, spread_relative [1] "
         "(standard deviation of its log) with its 95 % profile-likelihood interval spread_interval_relative "
-        "[1], within_group_scatter_relative [1], each group's relative_shift [1], the restricted "
+        "[1] and its upper 95 % confidence bound spread_upper_relative [1] (Q-profile; a new group's "
+        "interval carries the spread at that bound when it is wider than Student's t gives, so that it "
+        "holds at least 90 % of a new group's measurements in 95 % of data sets), "
+        "within_group_scatter_relative [1], each group's relative_shift [1], the restricted "
         "log-likelihood [1] of the random effect on each candidate parameter (the highest carries the "
         "spread), and summary in words."))
     scatter: dict[str, Any] | None = Field(default=None, description=(
