@@ -77,6 +77,7 @@ import dataclasses
 import itertools
 import math
 import time
+import types
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -90,6 +91,7 @@ from scipy import stats
 from microbearing import physics
 from microbearing.physics.model import Model
 
+from .design_bound import design_lower_bound
 from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
 from .envelope_bound import (
     INTERVAL_RTOL,
@@ -756,6 +758,7 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     InfeasibleDesignError
         When no design meets the limits over the envelope.
     """
+    start = time.perf_counter()
     check_model(model, envelope, objective)
     if model is not None and model.kind == "physics":
         problem = DesignProblem(problem.bounds, problem.speed_m_s, problem.constraints, problem.fixed,
@@ -765,19 +768,29 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     if model is None:
         return _robust_physics(problem, envelope, progress)
     reason = "the objective is mu_upper, whose interval is not log-log convex"
-    proven = (_robust_calibrated_gp(problem, envelope, model, progress) if objective == "mu" else
-              _robust_calibrated_gp(problem, envelope, model, None, bound_only=True))
+    vertex = None
     if objective == "mu":
+        proven = _robust_calibrated_gp(problem, envelope, model, progress)
         if isinstance(proven, RobustResult):
             return proven
         reason = proven
-    # Where mu is proven worst is where its upper bound is likely worst too: the outer approximation starts
-    # from that vertex alone (the search adds any other point that is worse).
-    vertex = _term_structure(model, envelope)[0] if isinstance(proven, RobustResult) else None
+    else:
+        # Where mu is proven worst (its terms monotone) is where its upper bound is likely worst too: the
+        # outer approximation starts from that vertex alone (the search adds any other point that is worse).
+        vertex = _term_structure(model, envelope)[0]
     result = _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
                            reason, None if vertex is None else [vertex], time_limit_s)
+    if objective == "mu":
+        return result
+    bounded = _with_design_bound(problem, envelope, model, result, start + time_limit_s)
+    if isinstance(bounded, RobustResult):
+        return bounded
+    result = dataclasses.replace(result, proof={
+        **result.proof, "statement": f"{result.proof['statement']} No lower bound over the designs by branch "
+                                     f"and bound: {bounded}."})
     noise = getattr(getattr(model, "calibrated", None), "noise_std_log", None)
-    if objective == "mu_upper" and isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
+    proven = _robust_calibrated_gp(problem, envelope, model, None, bound_only=True) if vertex else None
+    if isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
         result = _with_interval_bound(result, proven, float(noise))
     return result
 
@@ -806,6 +819,153 @@ def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_st
     certificate = result.result.certificate + statement
     return dataclasses.replace(result, proof=proof,
                                result=dataclasses.replace(result.result, certificate=certificate))
+
+
+#: Envelope points whose mu_upper at the returned design is within this of its worst case (relative) join the
+#: worst point in the lower bound over the designs. [1]
+_ACTIVE_RTOL = 1e-3
+#: Relative gap to which the worst mu_upper at the design is bracketed where the lower bound allows a proof.
+#: [1]
+_BRACKET_RTOL = 2.5e-7
+#: Most passes of the lower bound over the designs; each after the first adds the worst point of a design that
+#: was lower than the returned one at the points. [1]
+_DESIGN_PASSES = 3
+
+
+def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model, result: RobustResult,
+                       deadline: float) -> RobustResult | str:
+    """A mu_upper result with the certified lower bound over the designs (:mod:`optimize.design_bound`) and,
+    where the worst case at the design is certified, that bracket closed to the gap target; else why not.
+
+    ``problem`` is in the nominal angle, with the model's values held; ``deadline`` is a
+    :func:`time.perf_counter` instant after which no new batch of boxes starts.
+    """
+    calibrated = getattr(model, "calibrated", None)
+    if calibrated is None or not dataclasses.is_dataclass(calibrated):
+        return f"{model.reference} is not a calibrated model"
+    # The data cloud only widens the interval (sigma times a ratio of at least 1): left out, a lower bound.
+    widened = hasattr(calibrated, "cloud") and calibrated.cloud is not None
+    held = types.SimpleNamespace(reference=model.reference, calibrated=dataclasses.replace(
+        calibrated, cloud=None) if widened else calibrated)
+    structures, why = interval_structures(held)
+    if structures is None:
+        return why
+    design = _design_of(result.result)
+    worst = result.worst_case
+    offset = worst["groove_angle_deg"] - design["groove_angle_deg"]
+    points = [envelope.point({"speed_m_s": worst["speed_m_s"], "groove_angle_offset_deg": offset,
+                              **{f"conditions.{n}": v for n, v in worst["conditions"].items()}})]
+    candidates = _vertices_and_centre(envelope)
+    at = _evaluator(problem, envelope, model, "mu_upper", design, 0.0)(candidates)
+    top = max(float(np.max(at)), float(worst["mu_upper"]))
+    points += [p for p, v in zip(candidates, at, strict=True)
+               if v >= top * (1.0 - _ACTIVE_RTOL) and p != points[0]]
+
+    def monomial_everywhere(point: Mapping[str, Any]) -> str:
+        for s in structures:
+            terms = [piece.term for piece in s.pieces]
+            values = [list(piece.values) for piece in s.pieces]
+            variants = [values] + [[*values[:k], [*v[:i], x + 1.0, *v[i + 1:]], *values[k + 1:]]
+                                   for k, v in enumerate(values) for i, x in enumerate(v)]
+            for each in variants:
+                monomials, reason = _monomials_at(terms, each, point)
+                if monomials is None:
+                    return reason or "a term is not a positive monomial in balls and load_N at a point"
+        return ""
+
+    for point in points:
+        reason = monomial_everywhere(point)
+        if reason:
+            return reason
+    z_quantile = float(stats.norm.isf(0.025))
+
+    def evaluate(designs: Mapping[str, np.ndarray]) -> np.ndarray:
+        return _objective_values(model, "mu_upper", _columns(problem, envelope, designs, points, 0.0),
+                                 problem.convention)
+
+    added = 0
+    try:
+        for _ in range(_DESIGN_PASSES):
+            found = design_lower_bound(problem, structures, calibrated.fixed, points,
+                                       envelope.angle_tolerance_deg, design, evaluate, z_quantile,
+                                       time_limit_s=deadline - time.perf_counter())
+            enough = found.lower_bound >= float(worst["mu_upper"]) * (1.0 - GAP_TARGET + _BRACKET_RTOL)
+            if enough or not (found.improved and found.complete) or time.perf_counter() > deadline:
+                break
+            # A design lower than the returned one at the points: its worst point joins them.
+            _, where, _ = worst_case_search(_evaluator(problem, envelope, model, "mu_upper",
+                                                       found.incumbent_design, 0.0), envelope)
+            if monomial_everywhere(where):
+                break
+            points.append(where)
+            added += 1
+    except BoundFailedError as exc:
+        return f"its bound over a design box failed a check ({exc})"
+    proof = dict(result.proof)
+    upper, value, where = proof["upper_bound"], float(worst["mu_upper"]), None
+    certified = proof["method"] == "outer-approximation-certified"
+    bracket_gap = proof.get("worst_case_relative_gap") or 0.0
+    if (certified and _BRACKET_RTOL < bracket_gap <= INTERVAL_RTOL
+            and found.lower_bound >= value * (1.0 - GAP_TARGET + _BRACKET_RTOL)):
+        # The lower bound allows a proof: the bracket at the design (closed to its usual tolerance, not
+        # stopped at its box limit) closed further.
+        full, _ = interval_structures(model)
+        try:
+            bracket = _certified_upper_search(problem, envelope, model, full, design, 0.0, rtol=_BRACKET_RTOL,
+                                              time_limit_s=max(0.0, deadline - time.perf_counter()))
+        except BoundFailedError:
+            bracket = None
+        if bracket is not None and bracket.upper_bound <= upper:
+            upper = bracket.upper_bound
+            proof.update(upper_bound=upper, worst_case_boxes=bracket.boxes,
+                         worst_case_relative_gap=bracket.relative_gap)
+            if bracket.value > value:
+                value, where = bracket.value, bracket.point
+    lower = min(found.lower_bound, upper)
+    gap = max(0.0, (upper - lower) / upper)
+    proven = bool(certified and found.complete and gap <= GAP_TARGET)
+    counts = len(problem.ball_counts())
+    stopped = "" if found.complete else ", stopped at the time or box limit: the bound found so far"
+    extra = f", and {added} worst point(s) of designs lower there" if added else ""
+    cloud = ", the data cloud's widening left out (it only widens)" if widened else ""
+    statement = (
+        f" Certified lower bound {lower:.10g} on the best achievable worst case, by branch and bound over "
+        f"the designs ({found.boxes} boxes of groove angle and load over {counts} ball count(s){stopped}): "
+        f"at {len(points)} envelope point(s) (the worst one at the design, the vertices within "
+        f"{_ACTIVE_RTOL:g} of it{extra}) no design's mu_upper is below its box's bound - the physics' "
+        "friction force grows with the angle and the load (its posynomial form), each term is a positive "
+        "monomial in balls and load there (read and checked), the composed mu and each fitted value's "
+        "gradient of log mu by interval arithmetic, the least parameter variance g'Cg over the box of "
+        "gradients from convexity (coordinate descent and its Frank-Wolfe gap), for the model and each "
+        f"rival{cloud}; boxes where a limit is certainly broken are dropped. ")
+    if certified:
+        statement += ("Upper end certified by branch and bound over the envelope at the design: "
+                      f"{upper:.10g}. ")
+    else:
+        why_searched = "the data cloud widens the interval" if widened else "see above"
+        statement += (f"Upper end {upper:.10g} searched, not certified (no bound over a box of the envelope: "
+                      f"{why_searched}). ")
+    statement += f"Relative gap {gap:.2e} (target {GAP_TARGET:g})"
+    if proven:
+        statement += ": proven."
+    else:
+        statement += ": not proven ({}).".format(
+            "the gap is above the target" if gap > GAP_TARGET else
+            "the search stopped at its limit" if not found.complete else
+            "the worst case at the design is not certified")
+    if found.incumbent < value:
+        better = found.incumbent_design
+        statement += (f" A design lower at the points by {1.0 - found.incumbent / value:.1e} relative was "
+                      f"found ({better['balls']:g} balls, {better['groove_angle_deg']:.7f} deg, "
+                      f"{better['load_N']:.7g} N: {found.incumbent:.10g}); the gap includes it.")
+    proof.update(proven=proven, lower_bound=lower, relative_gap=gap, statement=proof["statement"] + statement,
+                 lower_bound_boxes=found.boxes, upper_bound_certified=certified)
+    certificate = (f"Proven optimum of the worst mu_upper over the envelope, to a relative gap of {gap:.1e}. "
+                   f"{proof['statement']}" if proven else result.result.certificate + statement)
+    worst_case = result.worst_case if where is None else _worst_case_dict(
+        "mu_upper", value, where, design["groove_angle_deg"])
+    return dataclasses.replace(result, proof=proof, worst_case=worst_case, result=dataclasses.replace(
+        result.result, certificate=certificate, mu=value))
 
 
 def _robust_physics(problem: DesignProblem, envelope: Envelope,
@@ -922,7 +1082,8 @@ def _certifier(envelope: Envelope, model: Model, objective: str
 
 
 def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: Model, structures: list,
-                            design: Mapping[str, Any], shift: float) -> CertifiedMax:
+                            design: Mapping[str, Any], shift: float, rtol: float = INTERVAL_RTOL,
+                            time_limit_s: float = math.inf) -> CertifiedMax:
     """The worst mu_upper over the envelope at a design (angle θ' = θ + ``shift``), bracketed."""
     balls, load = float(design["balls"]), float(design["load_N"])
     theta = float(design["groove_angle_deg"]) - shift
@@ -941,7 +1102,7 @@ def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: M
     bound = mu_upper_box_bound(structures, physics_fn, envelope, {"balls": balls, "load_N": load},
                                float(stats.norm.isf(0.025)))
     return certified_max(bound, _evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
-                         rtol=INTERVAL_RTOL)
+                         rtol=rtol, time_limit_s=time_limit_s)
 
 
 def _certified_search(problem: DesignProblem, envelope: Envelope, model: Model, pieces: list,
@@ -1086,9 +1247,9 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         f"{rounds} round(s) - the local method minimized the largest {objective} over {len(points)} envelope "
         f"point(s) ({start_set}, then the worst points found), and at each design the whole envelope was "
         f"searched (a grid of every axis, then L-BFGS-B ascent from the 3 best grid points); {ending}. "
-        "Best bound found: the worst "
-        "case at the design as searched (upper_bound); the design search is local, so no certified lower "
-        "bound on the best achievable worst case exists.")
+        "Best bound found: the worst case at the design as searched (upper_bound)"
+        + ("; the design search is local, so no certified lower bound on the best achievable worst case "
+           "exists." if objective == "mu" else "."))
     proof = {"proven": False, "method": "outer-approximation-local", "lower_bound": None,
              "upper_bound": value,
              "relative_gap": None, "gap_target": GAP_TARGET, "statement": statement, "rounds": history}

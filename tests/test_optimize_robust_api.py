@@ -207,8 +207,11 @@ def test_the_readme_example_gives_the_figures_it_shows():
     assert robust.result.design["load_N"] == pytest.approx(0.013054, rel=1e-4)
     assert robust.worst_case["mu_upper"] == pytest.approx(0.026271, rel=1e-4)
     assert robust.worst_case["conditions"] == {"relative_humidity": 0.7}
-    assert robust.proof["lower_bound"] == pytest.approx(0.026262, rel=1e-4)
-    assert robust.proof["relative_gap"] == pytest.approx(3.4e-4, rel=0.05) and not robust.proof["proven"]
+    # The lower bound over the designs closes the gap below the target; the worst case at the design is
+    # searched (the data cloud widens the interval, and no box bound holds that here), so it is not proven.
+    assert robust.proof["lower_bound"] == pytest.approx(0.0262707, rel=1e-6)
+    assert robust.proof["relative_gap"] < 1e-6 and not robust.proof["proven"]
+    assert robust.proof["upper_bound_certified"] is False
     assert robust.proof["method"] == "outer-approximation-local" and "cloud" in robust.proof["statement"]
     nominal = robust.price_of_robustness["nominal"]
     assert nominal["worst_case"] == pytest.approx(0.026103, rel=1e-4)
