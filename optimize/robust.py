@@ -826,7 +826,7 @@ def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_st
 _ACTIVE_RTOL = 1e-3
 #: Relative gap to which the worst mu_upper at the design is bracketed where the lower bound allows a proof.
 #: [1]
-_BRACKET_RTOL = 2.5e-7
+_BRACKET_RTOL = 1e-7
 #: Most passes of the lower bound over the designs; each after the first adds the worst point of a design that
 #: was lower than the returned one at the points. [1]
 _DESIGN_PASSES = 3
