@@ -824,8 +824,8 @@ def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_st
 #: Envelope points whose mu_upper at the returned design is within this of its worst case (relative) join the
 #: worst point in the lower bound over the designs. [1]
 _ACTIVE_RTOL = 1e-3
-#: Relative gap to which the worst mu_upper at the design is bracketed where the lower bound allows a proof.
-#: [1]
+#: Relative gap to which the worst mu_upper at a design is bracketed (with the lower bound over the designs,
+#: within the gap target of a proof). [1]
 _BRACKET_RTOL = 1e-7
 #: Most passes of the lower bound over the designs; each after the first adds the worst point of a design that
 #: was lower than the returned one at the points. [1]
@@ -902,25 +902,8 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
     except BoundFailedError as exc:
         return f"its bound over a design box failed a check ({exc})"
     proof = dict(result.proof)
-    upper, value, where = proof["upper_bound"], float(worst["mu_upper"]), None
+    upper, value = proof["upper_bound"], float(worst["mu_upper"])
     certified = proof["method"] == "outer-approximation-certified"
-    bracket_gap = proof.get("worst_case_relative_gap") or 0.0
-    if (certified and _BRACKET_RTOL < bracket_gap <= INTERVAL_RTOL
-            and found.lower_bound >= value * (1.0 - GAP_TARGET + _BRACKET_RTOL)):
-        # The lower bound allows a proof: the bracket at the design (closed to its usual tolerance, not
-        # stopped at its box limit) closed further.
-        full, _ = interval_structures(model)
-        try:
-            bracket = _certified_upper_search(problem, envelope, model, full, design, 0.0, rtol=_BRACKET_RTOL,
-                                              time_limit_s=max(0.0, deadline - time.perf_counter()))
-        except BoundFailedError:
-            bracket = None
-        if bracket is not None and bracket.upper_bound <= upper:
-            upper = bracket.upper_bound
-            proof.update(upper_bound=upper, worst_case_boxes=bracket.boxes,
-                         worst_case_relative_gap=bracket.relative_gap)
-            if bracket.value > value:
-                value, where = bracket.value, bracket.point
     lower = min(found.lower_bound, upper)
     gap = max(0.0, (upper - lower) / upper)
     proven = bool(certified and found.complete and gap <= GAP_TARGET)
@@ -962,10 +945,8 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
                  lower_bound_boxes=found.boxes, upper_bound_certified=certified)
     certificate = (f"Proven optimum of the worst mu_upper over the envelope, to a relative gap of {gap:.1e}. "
                    f"{proof['statement']}" if proven else result.result.certificate + statement)
-    worst_case = result.worst_case if where is None else _worst_case_dict(
-        "mu_upper", value, where, design["groove_angle_deg"])
-    return dataclasses.replace(result, proof=proof, worst_case=worst_case, result=dataclasses.replace(
-        result.result, certificate=certificate, mu=value))
+    return dataclasses.replace(result, proof=proof, result=dataclasses.replace(result.result,
+                                                                               certificate=certificate))
 
 
 def _robust_physics(problem: DesignProblem, envelope: Envelope,
@@ -1078,7 +1059,7 @@ def _certifier(envelope: Envelope, model: Model, objective: str
     if structures is None:
         return None, why
     return (lambda problem, design, shift: _certified_upper_search(problem, envelope, model, structures,
-                                                                   design, shift)), ""
+                                                                   design, shift, rtol=_BRACKET_RTOL)), ""
 
 
 def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: Model, structures: list,
