@@ -145,6 +145,36 @@ def test_no_design_of_a_grid_beats_the_certified_lower_bound_and_the_design_is_p
     assert proof["proven"] == (proof["relative_gap"] <= robust.GAP_TARGET)
     # The grid's best is no better than the design's worst case, to the gap.
     assert worst.min() >= proof["upper_bound"] * (1 - 2 * robust.GAP_TARGET)
+    assert all(c.satisfied for c in result.result.constraints)
+    returned = {k: result.result.design[k] for k in ("balls", "groove_angle_deg", "load_N")}
+    assert result.price_of_robustness["robust"]["design"] == returned
+
+
+def test_the_calibrated_bench_model_is_proven_on_the_4d_envelope_with_its_limits_exact():
+    # The bench's model (menisci, shear strength falling with temperature) under a pressure limit: the
+    # returned design is the lower bound's best at the points where its certified worst case is lower than
+    # the outer approximation's (whose local method keeps 1e-7 inside the limit); brute force agrees.
+    model = CalibratedPhysicsModel("calibrated:bench", CalibratedModel(
+        fitted={"mu_pivot": 0.6},
+        terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
+               (EffectTerm("thermal_shear_strength", ("temperature_C",), {"reference": 40.0}), [0.004])],
+        covariance=np.diag([1e-4, 1e-12, 1e-7]), noise_std_log=0.02,
+        conditions=["relative_humidity", "temperature_C"]))
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                            Constraints(max_contact_pressure_Pa=6e8))
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
+    proof = result.proof
+    assert proof["proven"] and proof["relative_gap"] <= robust.GAP_TARGET, proof["statement"]
+    held = robust._with_model_values(problem, model)
+    design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
+    at_design = float(_brute_worst(model, held, design)[0])
+    assert at_design <= proof["upper_bound"] <= at_design * (1 + 1e-6)
+    assert result.worst_case["mu_upper"] == pytest.approx(at_design, rel=1e-12)
+    made = held.physics_inputs(design["balls"], design["groove_angle_deg"] + 0.5, design["load_N"])
+    pressure = float(robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
+                                             **made).max_contact_pressure_Pa[0])
+    assert pressure <= 6e8
+    assert all(c.satisfied for c in result.result.constraints)
 
 
 def test_a_search_stopped_by_its_time_limit_says_so_and_its_bound_still_holds():
