@@ -71,9 +71,9 @@ MAX_DESIGN_BOXES = 400_000
 #: about 1e-16 / 1e-6 in g, and the composition's). [1]
 _ROUNDING = 1e-9
 #: Boxes split per vectorized step. [1]
-_BATCH = 512
+_BATCH = 2048
 #: Children per step at whose centres the model itself is evaluated. [1]
-_EVALUATED = 8
+_EVALUATED = 16
 #: Most sweeps of coordinate descent towards the least g'Cg over a box (any number gives a valid bound; they
 #: stop where every box's Frank-Wolfe gap is below 1e-10 relative). [1]
 _SWEEPS = 200
