@@ -100,6 +100,8 @@ class DesignLowerBound:
         Design boxes bounded. [1]
     complete : bool
         Whether every box was settled (False: stopped at the box or time limit).
+    design_meets_limits : bool
+        Whether the design given meets every limit at the points (else it was no incumbent).
     """
 
     lower_bound: float
@@ -108,29 +110,30 @@ class DesignLowerBound:
     improved: bool
     boxes: int
     complete: bool
+    design_meets_limits: bool
 
 
 def _least_quadratic(covariance: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """A certified lower bound of min g'Cg over each box [lo, hi] of gradients (rows) (module docstring)."""
     n, k = lo.shape
-    eigen = np.linalg.eigvalsh(0.5 * (covariance + covariance.T)) if k else np.zeros(0)
     if k == 0:
         return np.zeros(n)
+    eigen = np.linalg.eigvalsh(0.5 * (covariance + covariance.T))
     if eigen.min() < -1e-12 * max(abs(eigen.max()), 1e-300):
         # Not positive semi-definite: interval arithmetic on each product g_i g_j.
         total = np.zeros(n)
         for i in range(k):
             for j in range(k):
-                products = np.stack([lo[:, i] * lo[:, j], lo[:, i] * hi[:, j], hi[:, i] * lo[:, j],
-                                     hi[:, i] * hi[:, j]])
                 if i == j:
-                    square = np.where((lo[:, i] <= 0) & (hi[:, i] >= 0), 0.0,
-                                      np.minimum(lo[:, i] ** 2, hi[:, i] ** 2))
-                    total += covariance[i, i] * square if covariance[i, i] >= 0 else (
-                        covariance[i, i] * np.maximum(lo[:, i] ** 2, hi[:, i] ** 2))
+                    low = np.where((lo[:, i] <= 0) & (hi[:, i] >= 0), 0.0,
+                                   np.minimum(lo[:, i] ** 2, hi[:, i] ** 2))
+                    high = np.maximum(lo[:, i] ** 2, hi[:, i] ** 2)
                 else:
-                    c = covariance[i, j]
-                    total += c * (products.min(axis=0) if c >= 0 else products.max(axis=0))
+                    products = np.stack([lo[:, i] * lo[:, j], lo[:, i] * hi[:, j], hi[:, i] * lo[:, j],
+                                         hi[:, i] * hi[:, j]])
+                    low, high = products.min(axis=0), products.max(axis=0)
+                c = covariance[i, j]
+                total += c * (low if c >= 0 else high)
         return total
     g = np.clip(0.0, lo, hi)
     diagonal = np.diag(covariance)
@@ -378,8 +381,8 @@ def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStru
         return values, bounds.meets(designs, values)
 
     given = {k: np.array([float(design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
-    value, meets = values_at(given["balls"], given["groove_angle_deg"], given["load_N"])
-    incumbent = given_value = float(value[0]) if meets[0] else math.inf
+    value, meets_given = values_at(given["balls"], given["groove_angle_deg"], given["load_N"])
+    incumbent = given_value = float(value[0]) if meets_given[0] else math.inf
     incumbent_design = {k: float(v[0]) for k, v in given.items()}
     improved = False
 
@@ -448,4 +451,5 @@ def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStru
         z, tl, th, gl, gh, low = (np.r_[a[rest], b] for a, b in ((z, cz), (tl, ctl), (th, cth), (gl, cgl),
                                                                   (gh, cgh), (low, clow)))
     lower = min(incumbent, settled, float(low.min()) if len(low) else math.inf)
-    return DesignLowerBound(lower, incumbent, incumbent_design, improved, count, complete)
+    return DesignLowerBound(lower, incumbent, incumbent_design, improved, count, complete,
+                            bool(meets_given[0]))

@@ -844,8 +844,8 @@ _DESIGN_PASSES = 3
 
 def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model, result: RobustResult,
                        deadline: float) -> RobustResult | str:
-    """A mu_upper result with the certified lower bound over the designs (:mod:`optimize.design_bound`) and,
-    where the worst case at the design is certified, that bracket closed to the gap target; else why not.
+    """A mu_upper result with the certified lower bound over the designs (:mod:`optimize.design_bound`), and
+    the best design at the points in place of the returned one where only that closes the gap; else why not.
 
     ``problem`` is in the nominal angle, with the model's values held; ``deadline`` is a
     :func:`time.perf_counter` instant after which no new batch of boxes starts.
@@ -911,6 +911,8 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
             added += 1
     except BoundFailedError as exc:
         return f"its bound over a design box failed a check ({exc})"
+    if not found.design_meets_limits:
+        return "the returned design does not meet the limits (exactly) at the worst points"
     certified = result.proof["method"] == "outer-approximation-certified"
     swapped = ""
     # Where the gap is above the target only by the returned design's distance from the best at the points,
