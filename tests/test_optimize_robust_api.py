@@ -191,6 +191,11 @@ def test_the_command_line_answers_the_designers_request(capsys, tmp_path, monkey
                               CalibratedPhysicsModel("calibrated:x", model), objective="mu_upper", starts=1)
     assert document["worst_case"]["mu_upper"] == pytest.approx(library.worst_case["mu_upper"], rel=1e-9)
     assert document["design"] == pytest.approx(library.result.design, rel=1e-9)
+    # The proof, through the command line as from the library: both ends certified, the gap within target.
+    proof = document["proof"]
+    assert proof["proven"] and proof["upper_bound_certified"] and proof["lower_bound_boxes"] > 0
+    assert proof["relative_gap"] <= 1e-6
+    assert proof["lower_bound"] == pytest.approx(library.proof["lower_bound"], rel=1e-9)
 
 
 def test_the_readme_example_gives_the_figures_it_shows():
