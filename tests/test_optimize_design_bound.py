@@ -232,3 +232,18 @@ def test_a_bound_above_the_model_is_caught():
         design_lower_bound(problem, wrong, model.calibrated.fixed, [point], 0.5,
                            {"balls": 3.0, "groove_angle_deg": 45.0, "load_N": 0.02},
                            lambda designs: _upper_at(model, problem, point, designs), 1.959963984540054)
+
+
+def test_a_time_limit_leaves_the_bound_found_so_far_said_and_unproven():
+    model = _model()
+    problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05)
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", starts=1,
+                                    time_limit_s=0.0)
+    proof = result.proof
+    assert not proof["proven"] and "stopped at the time or box limit" in proof["statement"]
+    assert proof["lower_bound_boxes"] == 4 and proof["lower_bound"] <= proof["upper_bound"]
+    held = robust._with_model_values(problem, model)
+    grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 6), np.geomspace(0.002, 0.02, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    assert _brute_worst(model, held, designs, levels=3).min() >= proof["lower_bound"]
