@@ -60,7 +60,8 @@ from .envelope_bound import (
 )
 from .problem import DesignProblem
 
-__all__ = ["DESIGN_RTOL", "MAX_DESIGN_BOXES", "DesignLowerBound", "design_lower_bound"]
+__all__ = ["DESIGN_RTOL", "MAX_DESIGN_BOXES", "DesignLowerBound", "design_lower_bound",
+           "kth_distance_to_boxes"]
 
 #: Relative distance below the incumbent at which a box is dropped (with the bracket at the design, within
 #: the gap target of a proof). [1]
@@ -155,10 +156,12 @@ class _Bounds:
 
     def __init__(self, problem: DesignProblem, structures: Sequence[IntervalStructure],
                  calibrated_fixed: Mapping[str, float], points: Sequence[Mapping[str, Any]],
-                 angle_tolerance_deg: float, z_quantile: float):
+                 angle_tolerance_deg: float, z_quantile: float,
+                 widening: Sequence[Callable | None] | None = None):
         self.problem, self.structures, self.points = problem, list(structures), list(points)
         self.calibrated_fixed = dict(calibrated_fixed)
         self.delta, self.z_quantile = angle_tolerance_deg, z_quantile
+        self.widening = list(widening) if widening is not None else [None] * len(self.points)
 
     def _physics(self, fitted: Mapping[str, float], balls: np.ndarray, theta: np.ndarray, load: np.ndarray,
                  speed: float) -> dict[str, np.ndarray]:
@@ -171,7 +174,7 @@ class _Bounds:
         return {name: np.asarray(getattr(result, name), dtype=float) for name in outputs}
 
     def _one(self, s: IntervalStructure, point: Mapping[str, Any], z: np.ndarray, tl: np.ndarray,
-             th: np.ndarray, gl: np.ndarray, gh: np.ndarray) -> np.ndarray:
+             th: np.ndarray, gl: np.ndarray, gh: np.ndarray, widened: np.ndarray) -> np.ndarray:
         n = len(z)
         offset, speed = float(point["groove_angle_offset_deg"]), float(point["speed_m_s"])
         phys = self._physics(s.fitted, np.r_[z, z], np.r_[tl, th] + offset, np.r_[gl, gh], speed)
@@ -269,14 +272,17 @@ class _Bounds:
             quadratic = np.where(finite, _least_quadratic(s.covariance, low, high), 0.0)
         else:
             quadratic = np.zeros(n)
-        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2)
+        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2) * widened
         with np.errstate(all="ignore"):
             return np.where(usable, mu_lo * np.exp(self.z_quantile * sigma), 0.0) * (1.0 - _ROUNDING)
 
     def lower(self, z: np.ndarray, tl: np.ndarray, th: np.ndarray, gl: np.ndarray,
               gh: np.ndarray) -> np.ndarray:
         """A certified lower bound of max_j U over each box [1] (0 where nothing is known)."""
-        bounds = [self._one(s, p, z, tl, th, gl, gh) for p in self.points for s in self.structures]
+        bounds = []
+        for point, widening in zip(self.points, self.widening, strict=True):
+            widened = np.ones(len(z)) if widening is None else np.maximum(widening(z, tl, th, gl, gh), 1.0)
+            bounds += [self._one(s, point, z, tl, th, gl, gh, widened) for s in self.structures]
         return np.nan_to_num(np.max(bounds, axis=0), nan=0.0, posinf=0.0)
 
     def broken(self, z: np.ndarray, tl: np.ndarray, gl: np.ndarray, gh: np.ndarray,
@@ -320,6 +326,18 @@ class _Bounds:
         return ok
 
 
+def kth_distance_to_boxes(rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, k: int) -> np.ndarray:
+    """The k-th smallest distance from each box [lo, hi] (rows of corners) to the given rows: a lower bound
+    of the distance from any point of the box to its k-th nearest row. [units of the rows]"""
+    out = np.empty(len(lo))
+    for start in range(0, len(lo), 256):
+        a, b = lo[start:start + 256, None, :], hi[start:start + 256, None, :]
+        gap = np.maximum(np.maximum(a - rows[None, :, :], rows[None, :, :] - b), 0.0)
+        squared = np.einsum("nmd,nmd->nm", gap, gap)
+        out[start:start + 256] = np.sqrt(np.partition(squared, k - 1, axis=1)[:, k - 1])
+    return out
+
+
 def _with_values(piece: Any, values: Sequence[float]) -> Any:
     return dataclasses.replace(piece, values=list(values))
 
@@ -329,7 +347,8 @@ def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStru
                        angle_tolerance_deg: float, design: Mapping[str, float],
                        evaluate: Callable[[Mapping[str, np.ndarray]], np.ndarray], z_quantile: float,
                        rtol: float = DESIGN_RTOL, max_boxes: int = MAX_DESIGN_BOXES,
-                       time_limit_s: float = math.inf) -> DesignLowerBound:
+                       time_limit_s: float = math.inf,
+                       widening: Sequence[Callable | None] | None = None) -> DesignLowerBound:
     """Bracket min over the designs of max_j U(d, e_j) by branch and bound (module docstring).
 
     Parameters
@@ -359,6 +378,10 @@ def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStru
         Most boxes bounded. [1]
     time_limit_s : float, default inf
         No new batch of boxes after this long. [s]
+    widening : sequence of callable or None, optional
+        Per point, ``(balls, angle_lo, angle_hi, load_lo, load_hi) -> r`` [1]: a lower bound over each box
+        of the factor the interval's σ is widened by off the data (σ times max(r, 1)); None: left out
+        (it only widens, so the bound stays valid).
 
     Returns
     -------
@@ -370,7 +393,7 @@ def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStru
         When the model's own value at a box's centre is below the box's bound (the premises fail).
     """
     start = time.perf_counter()
-    bounds = _Bounds(problem, structures, calibrated_fixed, points, angle_tolerance_deg, z_quantile)
+    bounds = _Bounds(problem, structures, calibrated_fixed, points, angle_tolerance_deg, z_quantile, widening)
     (t0, t1), (g0, g1) = problem.bounds.groove_angle_deg, problem.bounds.load_N
     span_t, span_g = max(t1 - t0, 1e-300), max(g1 - g0, 1e-300)
 

@@ -101,7 +101,7 @@ from scipy import stats
 from microbearing import physics
 from microbearing.physics.model import Model
 
-from .design_bound import design_lower_bound
+from .design_bound import design_lower_bound, kth_distance_to_boxes
 from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
 from .envelope_bound import (
     INTERVAL_RTOL,
@@ -893,12 +893,15 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
         return _objective_values(model, "mu_upper", _columns(problem, envelope, designs, points, 0.0),
                                  problem.convention)
 
+    fitted_names = {name for s in structures for name in s.fitted}
     added = 0
     try:
         for _ in range(_DESIGN_PASSES):
+            widening = [_cloud_widening(problem, envelope, model, p, design, fitted_names)
+                        if widened else None for p in points]
             found = design_lower_bound(problem, structures, calibrated.fixed, points,
                                        envelope.angle_tolerance_deg, design, evaluate, z_quantile,
-                                       time_limit_s=deadline - time.perf_counter())
+                                       time_limit_s=deadline - time.perf_counter(), widening=widening)
             enough = found.lower_bound >= float(worst["mu_upper"]) * (1.0 - GAP_TARGET + _BRACKET_RTOL)
             if enough or not (found.improved and found.complete) or time.perf_counter() > deadline:
                 break
@@ -935,7 +938,8 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
     counts = len(problem.ball_counts())
     stopped = "" if found.complete else ", stopped at the time or box limit: the bound found so far"
     extra = f", and {added} worst point(s) of designs lower there" if added else ""
-    cloud = ", the data cloud's widening left out (it only widens)" if widened else ""
+    cloud = (", the data cloud's widening of sigma at least the k-th nearest row's distance to the box over "
+             "the cloud's threshold" if widened else "")
     statement = (
         f" Certified lower bound {lower:.10g} on the best achievable worst case, by branch and bound over "
         f"the designs ({found.boxes} boxes of groove angle and load over {counts} ball count(s){stopped}): "
@@ -973,6 +977,47 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
                    f"{proof['statement']}" if proven else result.result.certificate + statement)
     return dataclasses.replace(result, proof=proof, result=dataclasses.replace(result.result,
                                                                                certificate=certificate))
+
+
+def _cloud_widening(problem: DesignProblem, envelope: Envelope, model: Model, point: Mapping[str, Any],
+                    design: Mapping[str, Any], fitted_names: set[str]) -> Callable | None:
+    """A lower bound over boxes of designs of the factor the data cloud widens σ by at ``point``, or None.
+
+    The model widens σ by max(1, d_k / threshold), d_k the distance of the point (its columns scaled as the
+    cloud's) to its k-th nearest row (:class:`calibrate.domain.DataCloud`); over a box of designs d_k is at
+    least the k-th smallest distance from the box to the rows. None where the cloud reads a fitted value
+    (a rival's would differ) or fewer than two of its columns.
+    """
+    cloud = model.calibrated.cloud
+    held = {*model.fixed, *model.fitted}
+    one = {k: np.array([float(design[k])]) for k in DESIGN_VARIABLES}
+    columns = {k: v for k, v in _columns(problem, envelope, one, [point], 0.0).items() if k not in held}
+    columns = {k: v for k, v in model.calibrated._columns_at(columns).items()
+               if k in columns or k in physics.PARAMETERS}
+    given = [c for c in cloud.columns if c in columns]
+    if len(given) < 2 or fitted_names & set(given):
+        return None
+    index, _, threshold = cloud._space(given)
+    k = cloud._cache[tuple(given)][3]
+    rows = cloud.rows[:, index]
+    offset = float(point["groove_angle_offset_deg"])
+
+    def scaled(column: str, values: np.ndarray) -> np.ndarray:
+        i = cloud.columns.index(column)
+        t = np.log(np.clip(values, 1e-300, None)) if cloud.transforms[i] == "log" else values
+        return (t - cloud.centre[i]) / cloud.scale[i]
+
+    def ratio(z: np.ndarray, tl: np.ndarray, th: np.ndarray, gl: np.ndarray, gh: np.ndarray) -> np.ndarray:
+        ends = {"balls": (z, z), "groove_angle_deg": (tl + offset, th + offset), "load_N": (gl, gh)}
+        lo, hi = [], []
+        for column in given:
+            a, b = ends.get(column, (np.full(len(z), float(np.ravel(columns[column])[0])),) * 2)
+            lo.append(scaled(column, a))
+            hi.append(scaled(column, b))
+        distance = kth_distance_to_boxes(rows, np.column_stack(lo), np.column_stack(hi), k)
+        return distance / max(threshold, 1e-12)
+
+    return ratio
 
 
 def _certified_design(problem: DesignProblem, envelope: Envelope, model: Model, result: RobustResult,

@@ -247,3 +247,51 @@ def test_a_time_limit_leaves_the_bound_found_so_far_said_and_unproven():
     designs = {"balls": np.array([g[0] for g in grid], dtype=float),
                "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
     assert _brute_worst(model, held, designs, levels=3).min() >= proof["lower_bound"]
+
+
+def test_the_data_clouds_widening_is_bounded_below_over_design_boxes():
+    # A model calibrated on a narrow cloud of runs (4-6 balls, 45-50 deg, 4-8 mN, RH 0.4-0.5): off the cloud
+    # its interval widens; over any design box the bound with the widening stays below the model and above
+    # the bound without it, and off the cloud it is strictly above.
+    import types
+
+    from microbearing.calibrate.domain import DataCloud
+
+    rng = np.random.default_rng(5)
+    runs = 60
+    cloud = DataCloud.from_columns({
+        "balls": rng.choice([4.0, 6.0], runs), "groove_angle_deg": rng.uniform(45, 50, runs),
+        "load_N": rng.uniform(0.004, 0.008, runs), "speed_m_s": rng.uniform(0.02, 0.05, runs),
+        "relative_humidity": rng.uniform(0.4, 0.5, runs)})
+    model = CalibratedPhysicsModel("calibrated:cloud", dataclasses.replace(_model().calibrated, cloud=cloud))
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05),
+                                        model)
+    bare = types.SimpleNamespace(reference="calibrated:cloud",
+                                 calibrated=dataclasses.replace(model.calibrated, cloud=None))
+    structures, reason = interval_structures(bare)
+    assert structures is not None, reason
+    widened = 0
+    for _ in range(8):
+        point = ENVELOPE.point({"speed_m_s": rng.uniform(0.01, 0.1),
+                                "groove_angle_offset_deg": rng.uniform(-0.5, 0.5),
+                                "conditions.relative_humidity": rng.uniform(0.3, 0.7),
+                                "conditions.temperature_C": rng.uniform(20, 60)})
+        ratio = robust._cloud_widening(problem, ENVELOPE, model, point,
+                                       {"balls": 4.0, "groove_angle_deg": 45.0, "load_N": 0.005}, set())
+        assert ratio is not None
+        with_cloud = _Bounds(problem, structures, model.calibrated.fixed, [point], 0.5, 1.959963984540054,
+                             [ratio])
+        without = _Bounds(problem, structures, model.calibrated.fixed, [point], 0.5, 1.959963984540054)
+        z = float(rng.choice([4, 6]))
+        tl = rng.uniform(40, 55)
+        th = tl + rng.uniform(0.1, 5.0)
+        gl = rng.uniform(0.001, 0.02)
+        gh = gl * rng.uniform(1.01, 2.0)
+        box = [np.array([v]) for v in (z, tl, th, gl, gh)]
+        lower, bare_lower = float(with_cloud.lower(*box)[0]), float(without.lower(*box)[0])
+        theta, load = (a.ravel() for a in np.meshgrid(np.linspace(tl, th, 7), np.linspace(gl, gh, 7)))
+        values = _upper_at(model, problem, point, {"balls": np.full(theta.size, z), "groove_angle_deg": theta,
+                                                   "load_N": load})
+        assert bare_lower <= lower <= values.min()
+        widened += lower > bare_lower * (1 + 1e-6)
+    assert widened >= 4
