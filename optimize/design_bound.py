@@ -26,8 +26,10 @@ and the right side is bounded below by branch and bound over the designs: per ba
   g'Cg >= ĝ'Cĝ + 2 (Cĝ)'(g - ĝ) >= ĝ'Cĝ + Σ_i min over g_i's ends of 2 (Cĝ)_i (g_i - ĝ_i), a bound
   whatever ĝ is (the Frank-Wolfe gap; interval arithmetic on the quadratic form when C is not positive
   semi-definite);
-* so U >= μ_lo exp(z sqrt(least g'Cg + noise²)), for the model and for each rival whose interval enters
-  U (U is the largest of their bounds), less 1e-9 relative for rounding.
+* so U >= μ_lo exp(z sqrt(least g'Cg + noise²) w), for the model and for each rival whose interval
+  enters U (U is the largest of their bounds), less 1e-9 relative for rounding; w >= 1 is a lower bound
+  of the factor a data cloud widens σ by off the data (the caller's, :func:`kth_distance_to_boxes`: the
+  distance to the k-th nearest row is at least the k-th smallest distance from the box to the rows), or 1.
 
 A box is dropped where a limit is certainly broken there (the peak pressure at its lowest load and the
 angle made high; the load per ball; the minimum load; the friction force U G at its lowest), and where its
