@@ -54,6 +54,16 @@ least μ over the designs at that point (there every term is a positive monomial
 so a geometric program per ball count, bounded by its dual). A gap within :data:`GAP_TARGET` is a
 proof; otherwise both bounds are stated and the result says it is not proven.
 
+The 95 % upper bound of a calibrated model: a lower bound over the designs
+--------------------------------------------------------------------------
+For ``mu_upper`` the worst case at a design is bracketed the same way (interval arithmetic on its closed
+form, :func:`optimize.envelope_bound.mu_upper_box_bound`), and the best achievable worst case is bounded
+below by branch and bound over the designs at the worst envelope points (:mod:`optimize.design_bound`):
+min over designs of the largest ``mu_upper`` at fixed points is at most the best achievable worst case,
+and each box of designs gets a certified lower bound of it. Both ends within :data:`GAP_TARGET` are a
+proof; a model whose interval widens off its data cloud has its worst case at a design searched (the
+lower bound leaves the widening out and stays valid), so it gets a tight lower bound and no proof.
+
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
 A surrogate, a term that is not monotone (a quadratic in humidity may peak inside the range; a
@@ -66,9 +76,9 @@ found, the worst case over the whole envelope is searched (a grid of every axis,
 quasi-Newton ascent from the best grid points); a point worse than the set by more than
 :data:`ENVELOPE_RTOL` relative is added and the design re-optimized, at most :data:`MAX_ROUNDS`
 times. The result says ``proven: false`` with the best bound found: the worst case found at the
-returned design, and a certified lower bound only for ``mu_upper`` of a calibrated model whose ``mu``
-problem is a GP (mu_upper >= μ exp(1.96 σ_noise), so that factor times the proven bound of the ``mu``
-problem; the gap is then the share of the parameters' uncertainty in the interval).
+returned design, and a certified lower bound only for ``mu_upper`` of a calibrated model (above; or,
+where that cannot be built and the ``mu`` problem is a GP, mu_upper >= μ exp(1.96 σ_noise), so that
+factor times the proven bound of the ``mu`` problem, a gap of the parameters' share of the interval).
 """
 
 from __future__ import annotations
@@ -77,6 +87,7 @@ import dataclasses
 import itertools
 import math
 import time
+import types
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -90,6 +101,7 @@ from scipy import stats
 from microbearing import physics
 from microbearing.physics.model import Model
 
+from .design_bound import design_lower_bound, kth_distance_to_boxes
 from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
 from .envelope_bound import (
     INTERVAL_RTOL,
@@ -756,6 +768,7 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     InfeasibleDesignError
         When no design meets the limits over the envelope.
     """
+    start = time.perf_counter()
     check_model(model, envelope, objective)
     if model is not None and model.kind == "physics":
         problem = DesignProblem(problem.bounds, problem.speed_m_s, problem.constraints, problem.fixed,
@@ -765,19 +778,29 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     if model is None:
         return _robust_physics(problem, envelope, progress)
     reason = "the objective is mu_upper, whose interval is not log-log convex"
-    proven = (_robust_calibrated_gp(problem, envelope, model, progress) if objective == "mu" else
-              _robust_calibrated_gp(problem, envelope, model, None, bound_only=True))
+    vertex = None
     if objective == "mu":
+        proven = _robust_calibrated_gp(problem, envelope, model, progress)
         if isinstance(proven, RobustResult):
             return proven
         reason = proven
-    # Where mu is proven worst is where its upper bound is likely worst too: the outer approximation starts
-    # from that vertex alone (the search adds any other point that is worse).
-    vertex = _term_structure(model, envelope)[0] if isinstance(proven, RobustResult) else None
+    else:
+        # Where mu is proven worst (its terms monotone) is where its upper bound is likely worst too: the
+        # outer approximation starts from that vertex alone (the search adds any other point that is worse).
+        vertex = _term_structure(model, envelope)[0]
     result = _robust_model(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
                            reason, None if vertex is None else [vertex], time_limit_s)
+    if objective == "mu":
+        return result
+    bounded = _with_design_bound(problem, envelope, model, result, start + time_limit_s)
+    if isinstance(bounded, RobustResult):
+        return bounded
+    result = dataclasses.replace(result, proof={
+        **result.proof, "statement": f"{result.proof['statement']} No lower bound over the designs by branch "
+                                     f"and bound: {bounded}."})
     noise = getattr(getattr(model, "calibrated", None), "noise_std_log", None)
-    if objective == "mu_upper" and isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
+    proven = _robust_calibrated_gp(problem, envelope, model, None, bound_only=True) if vertex else None
+    if isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
         result = _with_interval_bound(result, proven, float(noise))
     return result
 
@@ -806,6 +829,239 @@ def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_st
     certificate = result.result.certificate + statement
     return dataclasses.replace(result, proof=proof,
                                result=dataclasses.replace(result.result, certificate=certificate))
+
+
+#: Envelope points whose mu_upper at the returned design is within this of its worst case (relative) join the
+#: worst point in the lower bound over the designs. [1]
+_ACTIVE_RTOL = 1e-3
+#: Relative gap to which the worst mu_upper at a design is bracketed (with the lower bound over the designs,
+#: within the gap target of a proof). [1]
+_BRACKET_RTOL = 1e-7
+#: Most passes of the lower bound over the designs; each after the first adds the worst point of a design that
+#: was lower than the returned one at the points. [1]
+_DESIGN_PASSES = 3
+
+
+def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model, result: RobustResult,
+                       deadline: float) -> RobustResult | str:
+    """A mu_upper result with the certified lower bound over the designs (:mod:`optimize.design_bound`), and
+    the best design at the points in place of the returned one where only that closes the gap; else why not.
+
+    ``problem`` is in the nominal angle, with the model's values held; ``deadline`` is a
+    :func:`time.perf_counter` instant after which no new batch of boxes starts.
+    """
+    calibrated = getattr(model, "calibrated", None)
+    if calibrated is None or not dataclasses.is_dataclass(calibrated):
+        return f"{model.reference} is not a calibrated model"
+    # The data cloud only widens the interval (sigma times a ratio of at least 1): left out, a lower bound.
+    widened = hasattr(calibrated, "cloud") and calibrated.cloud is not None
+    held = types.SimpleNamespace(reference=model.reference, calibrated=dataclasses.replace(
+        calibrated, cloud=None) if widened else calibrated)
+    structures, why = interval_structures(held)
+    if structures is None:
+        return why
+    design = _design_of(result.result)
+    worst = result.worst_case
+    offset = worst["groove_angle_deg"] - design["groove_angle_deg"]
+    points = [envelope.point({"speed_m_s": worst["speed_m_s"], "groove_angle_offset_deg": offset,
+                              **{f"conditions.{n}": v for n, v in worst["conditions"].items()}})]
+    candidates = _vertices_and_centre(envelope)
+    at = _evaluator(problem, envelope, model, "mu_upper", design, 0.0)(candidates)
+    top = max(float(np.max(at)), float(worst["mu_upper"]))
+    points += [p for p, v in zip(candidates, at, strict=True)
+               if v >= top * (1.0 - _ACTIVE_RTOL) and p != points[0]]
+
+    def monomial_everywhere(point: Mapping[str, Any]) -> str:
+        for s in structures:
+            terms = [piece.term for piece in s.pieces]
+            values = [list(piece.values) for piece in s.pieces]
+            variants = [values] + [[*values[:k], [*v[:i], x + 1.0, *v[i + 1:]], *values[k + 1:]]
+                                   for k, v in enumerate(values) for i, x in enumerate(v)]
+            for each in variants:
+                monomials, reason = _monomials_at(terms, each, point)
+                if monomials is None:
+                    return reason or "a term is not a positive monomial in balls and load_N at a point"
+        return ""
+
+    for point in points:
+        reason = monomial_everywhere(point)
+        if reason:
+            return reason
+    z_quantile = float(stats.norm.isf(0.025))
+
+    def evaluate(designs: Mapping[str, np.ndarray]) -> np.ndarray:
+        return _objective_values(model, "mu_upper", _columns(problem, envelope, designs, points, 0.0),
+                                 problem.convention)
+
+    fitted_names = {name for s in structures for name in s.fitted}
+    added = 0
+    try:
+        for _ in range(_DESIGN_PASSES):
+            widening = [_cloud_widening(problem, envelope, model, p, design, fitted_names)
+                        if widened else None for p in points]
+            found = design_lower_bound(problem, structures, calibrated.fixed, points,
+                                       envelope.angle_tolerance_deg, design, evaluate, z_quantile,
+                                       time_limit_s=deadline - time.perf_counter(), widening=widening)
+            enough = found.lower_bound >= float(worst["mu_upper"]) * (1.0 - GAP_TARGET + _BRACKET_RTOL)
+            if enough or not (found.improved and found.complete) or time.perf_counter() > deadline:
+                break
+            # A design lower than the returned one at the points: its worst point joins them.
+            _, where, _ = worst_case_search(_evaluator(problem, envelope, model, "mu_upper",
+                                                       found.incumbent_design, 0.0), envelope)
+            if monomial_everywhere(where):
+                break
+            points.append(where)
+            added += 1
+    except BoundFailedError as exc:
+        return f"its bound over a design box failed a check ({exc})"
+    if not found.design_meets_limits:
+        return "the returned design does not meet the limits (exactly) at the worst points"
+    certified = result.proof["method"] == "outer-approximation-certified"
+    swapped = ""
+    # Where the gap is above the target only by the returned design's distance from the best at the points,
+    # that best design is tried (a bracket stopped at its box limit at the design would stop beside it too).
+    closed = (result.proof.get("worst_case_relative_gap") or 0.0) <= _BRACKET_RTOL
+    short = found.lower_bound < result.proof["upper_bound"] * (1.0 - GAP_TARGET)
+    if certified and closed and short and found.incumbent < float(worst["mu_upper"]) * (1.0 - 1e-9):
+        better = _certified_design(problem, envelope, model, result, found.incumbent_design, deadline)
+        if better is not None:
+            swapped = (f" The design returned is the lower bound's best at the points (a box's centre), its "
+                       f"worst case certified at most {better.proof['upper_bound']:.10g}, below the outer "
+                       f"approximation's design's {result.proof['upper_bound']:.10g} (whose local method "
+                       "keeps 1e-7 inside every limit; the limits here hold exactly).")
+            result = better
+    proof = dict(result.proof)
+    upper, value = proof["upper_bound"], float(result.worst_case["mu_upper"])
+    lower = min(found.lower_bound, upper)
+    gap = max(0.0, (upper - lower) / upper)
+    proven = bool(certified and found.complete and gap <= GAP_TARGET)
+    counts = len(problem.ball_counts())
+    stopped = "" if found.complete else ", stopped at the time or box limit: the bound found so far"
+    extra = f", and {added} worst point(s) of designs lower there" if added else ""
+    cloud = (", the data cloud's widening of sigma at least the k-th nearest row's distance to the box over "
+             "the cloud's threshold" if widened else "")
+    statement = (
+        f" Certified lower bound {lower:.10g} on the best achievable worst case, by branch and bound over "
+        f"the designs ({found.boxes} boxes of groove angle and load over {counts} ball count(s){stopped}): "
+        f"at {len(points)} envelope point(s) (the worst one at the design, the vertices within "
+        f"{_ACTIVE_RTOL:g} of it{extra}) no design's mu_upper is below its box's bound - the physics' "
+        "friction force grows with the angle and the load (its posynomial form), each term is a positive "
+        "monomial in balls and load there (read and checked), the composed mu and each fitted value's "
+        "gradient of log mu by interval arithmetic, the least parameter variance g'Cg over the box of "
+        "gradients from convexity (coordinate descent and its Frank-Wolfe gap), for the model and each "
+        f"rival{cloud}; boxes where a limit is certainly broken are dropped. ")
+    if certified:
+        statement += ("Upper end certified by branch and bound over the envelope at the design: "
+                      f"{upper:.10g}. ")
+    else:
+        why_searched = "the data cloud widens the interval" if widened else "see above"
+        statement += (f"Upper end {upper:.10g} searched, not certified (no bound over a box of the envelope: "
+                      f"{why_searched}). ")
+    statement += f"Relative gap {gap:.2e} (target {GAP_TARGET:g})"
+    if proven:
+        statement += ": proven."
+    else:
+        statement += ": not proven ({}).".format(
+            "the gap is above the target" if gap > GAP_TARGET else
+            "the search stopped at its limit" if not found.complete else
+            "the worst case at the design is not certified")
+    statement += swapped
+    if found.incumbent < value * (1.0 - 1e-9):
+        better = found.incumbent_design
+        statement += (f" A design lower at the points by {1.0 - found.incumbent / value:.1e} relative was "
+                      f"found ({better['balls']:g} balls, {better['groove_angle_deg']:.7f} deg, "
+                      f"{better['load_N']:.7g} N: {found.incumbent:.10g}); the gap includes it.")
+    proof.update(proven=proven, lower_bound=lower, relative_gap=gap, statement=proof["statement"] + statement,
+                 lower_bound_boxes=found.boxes, upper_bound_certified=certified)
+    certificate = (f"Proven optimum of the worst mu_upper over the envelope, to a relative gap of {gap:.1e}. "
+                   f"{proof['statement']}" if proven else result.result.certificate + statement)
+    return dataclasses.replace(result, proof=proof, result=dataclasses.replace(result.result,
+                                                                               certificate=certificate))
+
+
+def _cloud_widening(problem: DesignProblem, envelope: Envelope, model: Model, point: Mapping[str, Any],
+                    design: Mapping[str, Any], fitted_names: set[str]) -> Callable | None:
+    """A lower bound over boxes of designs of the factor the data cloud widens σ by at ``point``, or None.
+
+    The model widens σ by max(1, d_k / threshold), d_k the distance of the point (its columns scaled as the
+    cloud's) to its k-th nearest row (:class:`calibrate.domain.DataCloud`); over a box of designs d_k is at
+    least the k-th smallest distance from the box to the rows. None where the cloud reads a fitted value
+    (a rival's would differ) or fewer than two of its columns.
+    """
+    cloud = model.calibrated.cloud
+    held = {*model.fixed, *model.fitted}
+    one = {k: np.array([float(design[k])]) for k in DESIGN_VARIABLES}
+    columns = {k: v for k, v in _columns(problem, envelope, one, [point], 0.0).items() if k not in held}
+    columns = {k: v for k, v in model.calibrated._columns_at(columns).items()
+               if k in columns or k in physics.PARAMETERS}
+    given = [c for c in cloud.columns if c in columns]
+    if len(given) < 2 or fitted_names & set(given):
+        return None
+    index, _, threshold = cloud._space(given)
+    k = cloud._cache[tuple(given)][3]
+    rows = cloud.rows[:, index]
+    offset = float(point["groove_angle_offset_deg"])
+
+    def scaled(column: str, values: np.ndarray) -> np.ndarray:
+        i = cloud.columns.index(column)
+        t = np.log(np.clip(values, 1e-300, None)) if cloud.transforms[i] == "log" else values
+        return (t - cloud.centre[i]) / cloud.scale[i]
+
+    def ratio(z: np.ndarray, tl: np.ndarray, th: np.ndarray, gl: np.ndarray, gh: np.ndarray) -> np.ndarray:
+        ends = {"balls": (z, z), "groove_angle_deg": (tl + offset, th + offset), "load_N": (gl, gh)}
+        lo, hi = [], []
+        for column in given:
+            a, b = ends.get(column, (np.full(len(z), float(np.ravel(columns[column])[0])),) * 2)
+            lo.append(scaled(column, a))
+            hi.append(scaled(column, b))
+        distance = kth_distance_to_boxes(rows, np.column_stack(lo), np.column_stack(hi), k)
+        return distance / max(threshold, 1e-12)
+
+    return ratio
+
+
+def _certified_design(problem: DesignProblem, envelope: Envelope, model: Model, result: RobustResult,
+                       candidate: Mapping[str, float], deadline: float) -> RobustResult | None:
+    """The result with ``candidate`` (nominal angle) as its design where its worst mu_upper over the envelope,
+    certified by branch and bound, is below the result's and every limit holds there; else None."""
+    structures, _ = interval_structures(model)
+    if structures is None:
+        return None
+    design = {"balls": round(candidate["balls"]), "groove_angle_deg": float(candidate["groove_angle_deg"]),
+              "load_N": float(candidate["load_N"])}
+    try:
+        bracket = _certified_upper_search(problem, envelope, model, structures, design, 0.0,
+                                          rtol=_BRACKET_RTOL,
+                                          time_limit_s=max(0.0, deadline - time.perf_counter()))
+    except BoundFailedError:
+        return None
+    if not bracket.complete or bracket.upper_bound >= result.proof["upper_bound"]:
+        return None
+    delta = envelope.angle_tolerance_deg
+    # The limits at their worst over the envelope: the angle made high, the friction force at the worst case.
+    report = constraint_report(shifted_problem(problem, delta, envelope.speed_m_s[1]), design["balls"],
+                               design["groove_angle_deg"] + delta, design["load_N"], mu=bracket.upper_bound,
+                               mu_name=model.reference)
+    if not all(c.satisfied for c in report):
+        return None
+    report = [dataclasses.replace(c, value=c.value - delta, limit=c.limit - delta)
+              if c.name.startswith("groove_angle_deg") else c for c in report]
+    centre = envelope.centre()
+    centre_point = envelope.point({"speed_m_s": centre["speed_m_s"],
+                                   **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})
+    at_centre = float(_evaluator(problem, envelope, model, "mu_upper", design, 0.0)([centre_point])[0])
+    price = dict(result.price_of_robustness)
+    price["robust"] = {**price["robust"], "design": dict(design), "at_centre": at_centre,
+                       "worst_case": bracket.value}
+    price["ratio"] = float(price["nominal"]["worst_case"] / bracket.value)
+    proof = {**result.proof, "upper_bound": bracket.upper_bound, "worst_case_boxes": bracket.boxes,
+             "worst_case_relative_gap": bracket.relative_gap}
+    solved = dataclasses.replace(result.result, design={**result.result.design, **design}, mu=bracket.value,
+                                 relative_gap=result.result.mu_solver / bracket.value - 1.0,
+                                 constraints=report, speed_m_s=float(bracket.point["speed_m_s"]))
+    return dataclasses.replace(result, result=solved, proof=proof, price_of_robustness=price,
+                               worst_case=_worst_case_dict("mu_upper", bracket.value, bracket.point,
+                                                           design["groove_angle_deg"]))
 
 
 def _robust_physics(problem: DesignProblem, envelope: Envelope,
@@ -918,11 +1174,12 @@ def _certifier(envelope: Envelope, model: Model, objective: str
     if structures is None:
         return None, why
     return (lambda problem, design, shift: _certified_upper_search(problem, envelope, model, structures,
-                                                                   design, shift)), ""
+                                                                   design, shift, rtol=_BRACKET_RTOL)), ""
 
 
 def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: Model, structures: list,
-                            design: Mapping[str, Any], shift: float) -> CertifiedMax:
+                            design: Mapping[str, Any], shift: float, rtol: float = INTERVAL_RTOL,
+                            time_limit_s: float = math.inf) -> CertifiedMax:
     """The worst mu_upper over the envelope at a design (angle θ' = θ + ``shift``), bracketed."""
     balls, load = float(design["balls"]), float(design["load_N"])
     theta = float(design["groove_angle_deg"]) - shift
@@ -941,7 +1198,7 @@ def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: M
     bound = mu_upper_box_bound(structures, physics_fn, envelope, {"balls": balls, "load_N": load},
                                float(stats.norm.isf(0.025)))
     return certified_max(bound, _evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
-                         rtol=INTERVAL_RTOL)
+                         rtol=rtol, time_limit_s=time_limit_s)
 
 
 def _certified_search(problem: DesignProblem, envelope: Envelope, model: Model, pieces: list,
@@ -1086,9 +1343,9 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         f"{rounds} round(s) - the local method minimized the largest {objective} over {len(points)} envelope "
         f"point(s) ({start_set}, then the worst points found), and at each design the whole envelope was "
         f"searched (a grid of every axis, then L-BFGS-B ascent from the 3 best grid points); {ending}. "
-        "Best bound found: the worst "
-        "case at the design as searched (upper_bound); the design search is local, so no certified lower "
-        "bound on the best achievable worst case exists.")
+        "Best bound found: the worst case at the design as searched (upper_bound)"
+        + ("; the design search is local, so no certified lower bound on the best achievable worst case "
+           "exists." if objective == "mu" else "."))
     proof = {"proven": False, "method": "outer-approximation-local", "lower_bound": None,
              "upper_bound": value,
              "relative_gap": None, "gap_target": GAP_TARGET, "statement": statement, "rounds": history}

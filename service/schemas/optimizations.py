@@ -296,7 +296,9 @@ class Proof(ResponseModel):
         "branch and bound; for mu, a lower bound from geometric programs at the worst points) or "
         "outer-approximation-local (no bound: the worst case searched)."))
     lower_bound: float | None = Field(description=(
-        "Certified lower bound on the best achievable worst case [1]; null when none could be certified."))
+        "Certified lower bound on the best achievable worst case [1]; null when none could be certified. For "
+        "mu_upper of a calibrated model: branch and bound over the designs at the worst envelope points "
+        "(interval bounds of mu_upper over each box of designs)."))
     upper_bound: float = Field(description=(
         "The worst case at the returned design [1]: exact, or certified by branch and bound "
         "(outer-approximation-certified), or as searched (outer-approximation-local)."))
@@ -311,6 +313,12 @@ class Proof(ResponseModel):
     worst_case_relative_gap: float | None = Field(default=None, description=(
         "(upper_bound - the worst case found) / upper_bound at the design [1] "
         "(outer-approximation-certified)."))
+    lower_bound_boxes: int | None = Field(default=None, description=(
+        "For mu_upper: boxes of the designs (groove angle and load per ball count) the branch and bound of "
+        "the certified lower bound bounded [1]."))
+    upper_bound_certified: bool | None = Field(default=None, description=(
+        "For mu_upper: whether upper_bound is certified (branch and bound over the envelope at the design) "
+        "or searched; proven needs it."))
 
 
 class PricedDesign(ResponseModel):

@@ -1,0 +1,480 @@
+r"""A certified lower bound on the best achievable worst ``mu_upper`` over the designs, by branch and bound.
+
+A calibrated model's 95 % upper bound U(d, e) = μ exp(z σ), σ² = g'Cg + noise² (g the finite-difference
+gradient of log μ in the fitted values, C their covariance; :mod:`calibrate.model`), at design
+d = (z balls, nominal angle θ, load G) and envelope point e (speed, conditions, angle offset). For any
+envelope points e_1 .. e_m,
+
+    min over d of max over e of U(d, e)  >=  min over d of max_j U(d, e_j),
+
+and the right side is bounded below by branch and bound over the designs: per ball count the box of
+(θ, G), split in halves, each box given a certified lower bound of U at every point e_j:
+
+* the physics' friction force F = μ G is z times the moments and forces of :mod:`optimize.dgp`, each a
+  positive monomial of the contact load Q, which grows with G sec θ, or of tan θ, sec θ: F never falls as
+  θ or G grows, so over a box F lies between its values at the lowest and the highest corner, and
+  μ = F / G in [F(lo) / G_hi, F(hi) / G_lo]; the pivoting share (the output the fitted ``mu_pivot``
+  scales) likewise, and its ratio to the physics' μ in [F_P(lo) / F(hi), F_P(hi) / F(lo)];
+* at a fixed point every effect term's driver is fixed or is the load, and the term is a positive
+  monomial in balls and load there (read at three designs and checked at a fourth by the caller): its
+  range over [G_lo, G_hi] is at the ends, and so is the range of each fitted value's effect on it (a
+  basis linear in the value, or a factor exp(h φ) with φ of the driver);
+* the composed μ and each fitted value's gradient of log μ by interval arithmetic in closed form, term by
+  term as :func:`optimize.envelope_bound.mu_upper_box_bound` does over the envelope at one design;
+* the least g'Cg over the box of gradients, a convex quadratic program: a few sweeps of coordinate
+  descent give a point ĝ of the box, and convexity gives, for every g of the box,
+  g'Cg >= ĝ'Cĝ + 2 (Cĝ)'(g - ĝ) >= ĝ'Cĝ + Σ_i min over g_i's ends of 2 (Cĝ)_i (g_i - ĝ_i), a bound
+  whatever ĝ is (the Frank-Wolfe gap; interval arithmetic on the quadratic form when C is not positive
+  semi-definite);
+* so U >= μ_lo exp(z sqrt(least g'Cg + noise²) w), for the model and for each rival whose interval
+  enters U (U is the largest of their bounds), less 1e-9 relative for rounding; w >= 1 is a lower bound
+  of the factor a data cloud widens σ by off the data (the caller's, :func:`kth_distance_to_boxes`: the
+  distance to the k-th nearest row is at least the k-th smallest distance from the box to the rows), or 1.
+
+A box is dropped where a limit is certainly broken there (the peak pressure at its lowest load and the
+angle made high; the load per ball; the minimum load; the friction force U G at its lowest), and where its
+bound is within ``rtol`` of the incumbent, the least max_j U found at a design that meets the limits (the
+design given first, then the centres of the boxes of lowest bound, whose values also check every box's
+bound: a value below it raises :class:`~optimize.envelope_bound.BoundFailedError`). The certified lower
+bound is the least bound of the boxes left or dropped by the incumbent, capped by the incumbent; where the
+box or time limit stops the search, the bound found so far, said so (``complete`` False).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from microbearing import physics
+
+from .envelope_bound import (
+    _VALUE_FORMS,
+    LINEAR_DECLARED,
+    BoundFailedError,
+    IntervalStructure,
+    _times_positive,
+)
+from .problem import DesignProblem
+
+__all__ = ["DESIGN_RTOL", "MAX_DESIGN_BOXES", "DesignLowerBound", "design_lower_bound",
+           "kth_distance_to_boxes"]
+
+#: Relative distance below the incumbent at which a box is dropped (with the bracket at the design, within
+#: the gap target of a proof). [1]
+DESIGN_RTOL = 1e-7
+#: Most design boxes bounded before the bound found so far is returned as it stands. [1]
+MAX_DESIGN_BOXES = 400_000
+#: Relative allowance for rounding taken off every box's bound (the finite-difference gradient's rounding,
+#: about 1e-16 / 1e-6 in g, and the composition's). [1]
+_ROUNDING = 1e-9
+#: Boxes split per vectorized step. [1]
+_BATCH = 2048
+#: Children per step at whose centres the model itself is evaluated. [1]
+_EVALUATED = 16
+#: Most sweeps of coordinate descent towards the least g'Cg over a box (any number gives a valid bound; they
+#: stop where every box's Frank-Wolfe gap is below 1e-10 relative). [1]
+_SWEEPS = 200
+#: A box narrower than this, relative to the design box in every variable, is not split further. [1]
+_NARROWEST = 1e-12
+
+
+@dataclass(frozen=True)
+class DesignLowerBound:
+    """The certified lower bound of min over designs of max_j U(d, e_j), with what it rests on.
+
+    Attributes
+    ----------
+    lower_bound : float
+        Certified lower bound over every design meeting the limits (relaxed to the points). [1]
+    incumbent : float
+        The least max_j U(d, e_j) found at a design meeting the limits there. [1]
+    incumbent_design : dict
+        That design: ``balls`` [1], ``groove_angle_deg`` (nominal) [deg], ``load_N`` [N].
+    improved : bool
+        Whether a design other than the one given has a lower value at the points (then the points do
+        not yet hold the given design's worst case for it: more are needed).
+    boxes : int
+        Design boxes bounded. [1]
+    complete : bool
+        Whether every box was settled (False: stopped at the box or time limit).
+    design_meets_limits : bool
+        Whether the design given meets every limit at the points (else it was no incumbent).
+    """
+
+    lower_bound: float
+    incumbent: float
+    incumbent_design: dict[str, float]
+    improved: bool
+    boxes: int
+    complete: bool
+    design_meets_limits: bool
+
+
+def _least_quadratic(covariance: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """A certified lower bound of min g'Cg over each box [lo, hi] of gradients (rows) (module docstring)."""
+    n, k = lo.shape
+    if k == 0:
+        return np.zeros(n)
+    eigen = np.linalg.eigvalsh(0.5 * (covariance + covariance.T))
+    if eigen.min() < -1e-12 * max(abs(eigen.max()), 1e-300):
+        # Not positive semi-definite: interval arithmetic on each product g_i g_j.
+        total = np.zeros(n)
+        for i in range(k):
+            for j in range(k):
+                if i == j:
+                    low = np.where((lo[:, i] <= 0) & (hi[:, i] >= 0), 0.0,
+                                   np.minimum(lo[:, i] ** 2, hi[:, i] ** 2))
+                    high = np.maximum(lo[:, i] ** 2, hi[:, i] ** 2)
+                else:
+                    products = np.stack([lo[:, i] * lo[:, j], lo[:, i] * hi[:, j], hi[:, i] * lo[:, j],
+                                         hi[:, i] * hi[:, j]])
+                    low, high = products.min(axis=0), products.max(axis=0)
+                c = covariance[i, j]
+                total += c * (low if c >= 0 else high)
+        return total
+    g = np.clip(0.0, lo, hi)
+    diagonal = np.diag(covariance)
+    for sweep in range(_SWEEPS):
+        for i in range(k):
+            if diagonal[i] <= 0:
+                continue
+            g[:, i] = np.clip(g[:, i] - (g @ covariance[i]) / diagonal[i], lo[:, i], hi[:, i])
+        slope = 2.0 * g @ covariance
+        value = np.einsum("ni,ij,nj->n", g, covariance, g)
+        gap = np.minimum(slope * (lo - g), slope * (hi - g)).sum(axis=1)
+        if sweep % 8 == 7 and np.all(-gap <= 1e-10 * value + 1e-300):
+            break
+    return value + gap
+
+
+class _Bounds:
+    """The box bound of U at fixed envelope points, and the limits' certain violations."""
+
+    def __init__(self, problem: DesignProblem, structures: Sequence[IntervalStructure],
+                 calibrated_fixed: Mapping[str, float], points: Sequence[Mapping[str, Any]],
+                 angle_tolerance_deg: float, z_quantile: float,
+                 widening: Sequence[Callable | None] | None = None):
+        self.problem, self.structures, self.points = problem, list(structures), list(points)
+        self.calibrated_fixed = dict(calibrated_fixed)
+        self.delta, self.z_quantile = angle_tolerance_deg, z_quantile
+        self.widening = list(widening) if widening is not None else [None] * len(self.points)
+
+    def _physics(self, fitted: Mapping[str, float], balls: np.ndarray, theta: np.ndarray, load: np.ndarray,
+                 speed: float) -> dict[str, np.ndarray]:
+        outputs = ["mu", *LINEAR_DECLARED.values()]
+        columns = self.problem.physics_inputs(balls, theta, load, speed_m_s=speed)
+        inputs = {k: v for k, v in columns.items() if k not in fitted}
+        with np.errstate(all="ignore"):
+            result = physics.evaluate(convention=self.problem.convention, outputs=outputs,
+                                      **{**inputs, **self.calibrated_fixed, **fitted})
+        return {name: np.asarray(getattr(result, name), dtype=float) for name in outputs}
+
+    def _one(self, s: IntervalStructure, point: Mapping[str, Any], z: np.ndarray, tl: np.ndarray,
+             th: np.ndarray, gl: np.ndarray, gh: np.ndarray, widened: np.ndarray) -> np.ndarray:
+        n = len(z)
+        offset, speed = float(point["groove_angle_offset_deg"]), float(point["speed_m_s"])
+        phys = self._physics(s.fitted, np.r_[z, z], np.r_[tl, th] + offset, np.r_[gl, gh], speed)
+        load = np.r_[gl, gh]
+        force = phys["mu"] * load
+        f_lo, f_hi = force[:n], force[n:]
+        # Each term at the two ends of the load (its driver fixed at the point, or the load itself).
+        columns = {"balls": np.column_stack([z, z]), "load_N": np.column_stack([gl, gh]),
+                   "speed_m_s": np.full((n, 2), speed),
+                   **{c: np.full((n, 2), v) for c, v in point["conditions"].items()}}
+
+        def at(piece, values=None) -> np.ndarray:
+            each = piece if values is None else _with_values(piece, values)
+            return each.at(columns[piece.driver], columns)
+
+        ranges = []
+        for piece in s.pieces:
+            v = at(piece)
+            ranges.append((v.min(axis=1), v.max(axis=1)) if np.all(np.isfinite(v))
+                          else (np.full(n, -np.inf), np.full(n, np.inf)))
+        levels_lo, levels_hi = [f_lo / gh], [f_hi / gl]
+        for piece, (low, top) in zip(s.pieces, ranges, strict=True):
+            if piece.kind == "add":
+                levels_lo.append(levels_lo[-1] + low)
+                levels_hi.append(levels_hi[-1] + top)
+            else:
+                ok = (low > 0) & (levels_lo[-1] >= 0)
+                levels_lo.append(np.where(ok, levels_lo[-1] * low, -np.inf))
+                levels_hi.append(np.where(ok, levels_hi[-1] * top, np.inf))
+        mu_lo, mu_hi = levels_lo[-1], levels_hi[-1]
+        usable = (mu_lo > 0) & np.isfinite(mu_hi)
+        safe_lo = np.where(usable, mu_lo, 1.0)
+
+        def after(k: int) -> tuple[np.ndarray, np.ndarray]:
+            p_lo, p_hi = np.ones(n), np.ones(n)
+            for piece, (low, top) in list(zip(s.pieces, ranges, strict=True))[k + 1:]:
+                if piece.kind == "mul":
+                    p_lo, p_hi = p_lo * low, p_hi * top
+            return p_lo, p_hi
+
+        def adds_after(k: int) -> bool:
+            return any(piece.kind == "add" for piece in s.pieces[k + 1:])
+
+        g_lo, g_hi = [], []
+
+        def gradient(ratio_lo: np.ndarray, ratio_hi: np.ndarray, h: float) -> None:
+            ok = ratio_lo > -1
+            g_lo.append(np.where(ok, np.log1p(np.where(ok, ratio_lo, 0.0)) / h, -np.inf))
+            g_hi.append(np.where(ok, np.log1p(np.where(ok, ratio_hi, 0.0)) / h, np.inf))
+
+        for name, value in s.fitted.items():
+            h = s.step * (abs(value) if value != 0 else 1.0)
+            share = phys[LINEAR_DECLARED[name]] * load  # the share's friction force, growing like F
+            s_lo, s_hi = share[:n], share[n:]
+            if value <= 0:
+                gradient(np.full(n, -np.inf), np.full(n, np.inf), h)
+            elif adds_after(-1):
+                p_lo, p_hi = after(-1)
+                r_lo, r_hi = _times_positive(h * s_lo / (value * gh), h * s_hi / (value * gl),
+                                             p_lo / mu_hi, p_hi / safe_lo)
+                gradient(r_lo, r_hi, h)
+            else:  # D / mu = h x share / (p x physics): the factors after cancel, and so does G
+                ok = f_lo > 0
+                gradient(np.where(ok, h * s_lo / (value * f_hi), -np.inf),
+                         np.where(ok, h * s_hi / (value * np.where(ok, f_lo, 1.0)), np.inf), h)
+        for k, piece in enumerate(s.pieces):
+            p_lo, p_hi = after(k)
+            for i, value in enumerate(piece.values):
+                h = s.step * (abs(value) if value != 0 else 1.0)
+                form = _VALUE_FORMS[(piece.term.name, i)]
+                moved = list(piece.values)
+                if form == "scale":
+                    moved[i] = 1.0
+                    basis = at(piece, moved)
+                    r_lo, r_hi = _times_positive(h * basis.min(axis=1), h * basis.max(axis=1),
+                                                 p_lo / mu_hi, p_hi / safe_lo)
+                else:
+                    moved[i] = value + 1.0
+                    with np.errstate(all="ignore"):
+                        phi = np.log(at(piece, moved) / at(piece))
+                    f_low, f_high = np.expm1(h * phi.min(axis=1)), np.expm1(h * phi.max(axis=1))
+                    if adds_after(k):
+                        q_lo, q_hi = levels_lo[k + 1] * p_lo / mu_hi, levels_hi[k + 1] * p_hi / safe_lo
+                    else:
+                        q_lo = q_hi = np.ones(n)
+                    positive = (q_lo > 0) & np.isfinite(q_hi)
+                    r_lo, r_hi = _times_positive(f_low, f_high, np.where(positive, q_lo, 1.0),
+                                                 np.where(positive, q_hi, 1.0))
+                    r_lo, r_hi = np.where(positive, r_lo, -np.inf), np.where(positive, r_hi, np.inf)
+                gradient(r_lo, r_hi, h)
+        if g_lo:
+            low, high = np.column_stack(g_lo), np.column_stack(g_hi)
+            finite = np.all(np.isfinite(low) & np.isfinite(high), axis=1)
+            low, high = np.where(finite[:, None], low, 0.0), np.where(finite[:, None], high, 0.0)
+            quadratic = np.where(finite, _least_quadratic(s.covariance, low, high), 0.0)
+        else:
+            quadratic = np.zeros(n)
+        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2) * widened
+        with np.errstate(all="ignore"):
+            return np.where(usable, mu_lo * np.exp(self.z_quantile * sigma), 0.0) * (1.0 - _ROUNDING)
+
+    def lower(self, z: np.ndarray, tl: np.ndarray, th: np.ndarray, gl: np.ndarray,
+              gh: np.ndarray) -> np.ndarray:
+        """A certified lower bound of max_j U over each box [1] (0 where nothing is known)."""
+        bounds = []
+        for point, widening in zip(self.points, self.widening, strict=True):
+            widened = np.ones(len(z)) if widening is None else np.maximum(widening(z, tl, th, gl, gh), 1.0)
+            bounds += [self._one(s, point, z, tl, th, gl, gh, widened) for s in self.structures]
+        return np.nan_to_num(np.max(bounds, axis=0), nan=0.0, posinf=0.0)
+
+    def broken(self, z: np.ndarray, tl: np.ndarray, gl: np.ndarray, gh: np.ndarray,
+               lower: np.ndarray) -> np.ndarray:
+        """Whether a limit is broken everywhere in each box (the limits exact, at their least there)."""
+        c = self.problem.constraints
+        out = np.zeros(len(z), dtype=bool)
+        allowance = 1.0 + 1e-9
+        if c.max_contact_pressure_Pa is not None:
+            with np.errstate(all="ignore"):
+                pressure = physics.evaluate(convention=self.problem.convention,
+                                            outputs=["max_contact_pressure_Pa"],
+                                            **self.problem.physics_inputs(z, tl + self.delta, gl))
+            peak = np.asarray(pressure.max_contact_pressure_Pa, dtype=float)
+            out |= peak > c.max_contact_pressure_Pa * allowance
+        if c.max_load_per_ball_N is not None:
+            out |= gl / z > c.max_load_per_ball_N * allowance
+        if c.min_load_capacity_N is not None:
+            out |= gh * allowance < c.min_load_capacity_N
+        if c.max_friction_force_N is not None:
+            out |= lower * gl > c.max_friction_force_N * allowance
+        return out
+
+    def meets(self, design: Mapping[str, np.ndarray], values: np.ndarray) -> np.ndarray:
+        """Whether designs meet every limit at the points (values: max_j U there) [bool]."""
+        c = self.problem.constraints
+        z, theta, load = design["balls"], design["groove_angle_deg"], design["load_N"]
+        ok = np.isfinite(values)
+        if c.max_contact_pressure_Pa is not None:
+            with np.errstate(all="ignore"):
+                pressure = physics.evaluate(convention=self.problem.convention,
+                                            outputs=["max_contact_pressure_Pa"],
+                                            **self.problem.physics_inputs(z, theta + self.delta, load))
+            ok &= np.asarray(pressure.max_contact_pressure_Pa, dtype=float) <= c.max_contact_pressure_Pa
+        if c.max_load_per_ball_N is not None:
+            ok &= load / z <= c.max_load_per_ball_N
+        if c.min_load_capacity_N is not None:
+            ok &= load >= c.min_load_capacity_N
+        if c.max_friction_force_N is not None:
+            ok &= values * load <= c.max_friction_force_N
+        return ok
+
+
+def kth_distance_to_boxes(rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, k: int) -> np.ndarray:
+    """The k-th smallest distance from each box [lo, hi] (rows of corners) to the given rows: a lower bound
+    of the distance from any point of the box to its k-th nearest row. [units of the rows]"""
+    out = np.empty(len(lo))
+    for start in range(0, len(lo), 256):
+        a, b = lo[start:start + 256, None, :], hi[start:start + 256, None, :]
+        gap = np.maximum(np.maximum(a - rows[None, :, :], rows[None, :, :] - b), 0.0)
+        squared = np.einsum("nmd,nmd->nm", gap, gap)
+        out[start:start + 256] = np.sqrt(np.partition(squared, k - 1, axis=1)[:, k - 1])
+    return out
+
+
+def _with_values(piece: Any, values: Sequence[float]) -> Any:
+    return dataclasses.replace(piece, values=list(values))
+
+
+def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStructure],
+                       calibrated_fixed: Mapping[str, float], points: Sequence[Mapping[str, Any]],
+                       angle_tolerance_deg: float, design: Mapping[str, float],
+                       evaluate: Callable[[Mapping[str, np.ndarray]], np.ndarray], z_quantile: float,
+                       rtol: float = DESIGN_RTOL, max_boxes: int = MAX_DESIGN_BOXES,
+                       time_limit_s: float = math.inf,
+                       widening: Sequence[Callable | None] | None = None) -> DesignLowerBound:
+    """Bracket min over the designs of max_j U(d, e_j) by branch and bound (module docstring).
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        Bounds (nominal angle), limits, the model's held values and convention.
+    structures : sequence of IntervalStructure
+        The model and each rival whose interval enters U
+        (:func:`optimize.envelope_bound.interval_structures`),
+        each effect term a positive monomial in balls and load at every point (the caller checks it).
+    calibrated_fixed : mapping
+        The calibrated model's fixed physics values. [SI units]
+    points : sequence of dict
+        Envelope points e_j (:meth:`optimize.robust.Envelope.point`).
+    angle_tolerance_deg : float
+        δ: the limits are judged at the angle made high, θ + δ. [deg]
+    design : mapping
+        The design to start from (the incumbent): ``balls`` [1], ``groove_angle_deg`` (nominal) [deg],
+        ``load_N`` [N].
+    evaluate : callable
+        ``designs -> values`` of shape (len(points), n): U [1] of the model itself at each point and design.
+    z_quantile : float
+        The normal quantile of the interval (1.96 for 95 %). [1]
+    rtol : float, default :data:`DESIGN_RTOL`
+        A box whose bound is within this of the incumbent (relative) is settled. [1]
+    max_boxes : int, default :data:`MAX_DESIGN_BOXES`
+        Most boxes bounded. [1]
+    time_limit_s : float, default inf
+        No new batch of boxes after this long. [s]
+    widening : sequence of callable or None, optional
+        Per point, ``(balls, angle_lo, angle_hi, load_lo, load_hi) -> r`` [1]: a lower bound over each box
+        of the factor the interval's σ is widened by off the data (σ times max(r, 1)); None: left out
+        (it only widens, so the bound stays valid).
+
+    Returns
+    -------
+    DesignLowerBound
+
+    Raises
+    ------
+    BoundFailedError
+        When the model's own value at a box's centre is below the box's bound (the premises fail).
+    """
+    start = time.perf_counter()
+    bounds = _Bounds(problem, structures, calibrated_fixed, points, angle_tolerance_deg, z_quantile, widening)
+    (t0, t1), (g0, g1) = problem.bounds.groove_angle_deg, problem.bounds.load_N
+    span_t, span_g = max(t1 - t0, 1e-300), max(g1 - g0, 1e-300)
+
+    def values_at(z: np.ndarray, theta: np.ndarray, load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        designs = {"balls": z, "groove_angle_deg": theta, "load_N": load}
+        with np.errstate(all="ignore"):
+            values = np.max(np.asarray(evaluate(designs), dtype=float).reshape(len(points), len(z)), axis=0)
+        return values, bounds.meets(designs, values)
+
+    given = {k: np.array([float(design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
+    value, meets_given = values_at(given["balls"], given["groove_angle_deg"], given["load_N"])
+    incumbent = given_value = float(value[0]) if meets_given[0] else math.inf
+    incumbent_design = {k: float(v[0]) for k, v in given.items()}
+    improved = False
+
+    counts = np.array(problem.ball_counts(), dtype=float)
+    z, tl, th = counts, np.full(len(counts), float(t0)), np.full(len(counts), float(t1))
+    gl, gh = np.full(len(counts), float(g0)), np.full(len(counts), float(g1))
+    # A box around the given design, a billionth wide: its bound is the design's value to 1e-8 or so, so a
+    # bound that does not hold the model shows here first.
+    theta, load = float(given["groove_angle_deg"][0]), float(given["load_N"][0])
+    tight = float(bounds.lower(given["balls"], np.array([theta]), np.array([theta + 1e-9 * span_t]),
+                               np.array([load]), np.array([load * (1 + 1e-9)]))[0])
+    if float(value[0]) < tight * (1.0 - 1e-9):
+        raise BoundFailedError(f"the model's mu_upper {float(value[0]):.6g} at the design below the bound "
+                               f"{tight:.6g} of a box around it")
+    low = bounds.lower(z, tl, th, gl, gh)
+    keep = ~bounds.broken(z, tl, gl, gh, low)
+    z, tl, th, gl, gh, low = z[keep], tl[keep], th[keep], gl[keep], gh[keep], low[keep]
+    count, settled, complete = len(counts), math.inf, True
+    while True:
+        threshold = incumbent * (1.0 - rtol)
+        done = low >= threshold
+        if np.any(done):
+            settled = min(settled, float(low[done].min()))
+        z, tl, th, gl, gh, low = z[~done], tl[~done], th[~done], gl[~done], gh[~done], low[~done]
+        narrow = np.maximum((th - tl) / span_t, (gh - gl) / span_g) < _NARROWEST
+        if np.any(narrow):  # a point: its bound is its value, to rounding
+            settled = min(settled, float(low[narrow].min()))
+            z, tl, th, gl, gh, low = (a[~narrow] for a in (z, tl, th, gl, gh, low))
+        if not len(z):
+            break
+        if count >= max_boxes or time.perf_counter() - start > time_limit_s:
+            complete = False
+            break
+        take = np.argsort(low)[:_BATCH]
+        rest = np.ones(len(z), dtype=bool)
+        rest[take] = False
+        bz, btl, bth, bgl, bgh = z[take], tl[take], th[take], gl[take], gh[take]
+        on_angle = (bth - btl) / span_t >= (bgh - bgl) / span_g
+        mid_t, mid_g = 0.5 * (btl + bth), 0.5 * (bgl + bgh)
+        cz = np.r_[bz, bz]
+        ctl = np.r_[btl, np.where(on_angle, mid_t, btl)]
+        cth = np.r_[np.where(on_angle, mid_t, bth), bth]
+        cgl = np.r_[bgl, np.where(on_angle, bgl, mid_g)]
+        cgh = np.r_[np.where(on_angle, bgh, mid_g), bgh]
+        clow = bounds.lower(cz, ctl, cth, cgl, cgh)
+        count += len(cz)
+        fine = ~bounds.broken(cz, ctl, cgl, cgh, clow)
+        cz, ctl, cth, cgl, cgh, clow = (a[fine] for a in (cz, ctl, cth, cgl, cgh, clow))
+        # The model itself at the centres of the boxes of lowest bound: a check of every bound, and designs
+        # that may improve the incumbent.
+        probe = np.argsort(clow)[:_EVALUATED]
+        if len(probe):
+            ct, cg = 0.5 * (ctl[probe] + cth[probe]), 0.5 * (cgl[probe] + cgh[probe])
+            values, meets = values_at(cz[probe], ct, cg)
+            if np.any(values < clow[probe] * (1.0 - 1e-9)):
+                worst = int(np.argmin(values / clow[probe]))
+                raise BoundFailedError(f"the model's mu_upper {values[worst]:.6g} below a design box's bound "
+                                       f"{clow[probe][worst]:.6g}")
+            better = np.where(meets, values, math.inf)
+            best = int(np.argmin(better))
+            if better[best] < incumbent:
+                improved = improved or better[best] < given_value * (1.0 - rtol)
+                incumbent = float(better[best])
+                incumbent_design = {"balls": float(cz[probe][best]), "groove_angle_deg": float(ct[best]),
+                                    "load_N": float(cg[best])}
+        z, tl, th, gl, gh, low = (np.r_[a[rest], b] for a, b in ((z, cz), (tl, ctl), (th, cth), (gl, cgl),
+                                                                  (gh, cgh), (low, clow)))
+    lower = min(incumbent, settled, float(low.min()) if len(low) else math.inf)
+    return DesignLowerBound(lower, incumbent, incumbent_design, improved, count, complete,
+                            bool(meets_given[0]))

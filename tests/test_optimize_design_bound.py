@@ -1,0 +1,297 @@
+"""The certified lower bound over designs of the worst mu_upper (optimize.design_bound) by brute force."""
+
+import dataclasses
+import itertools
+
+import numpy as np
+import pytest
+from scipy import optimize as sciopt
+
+from microbearing.calibrate.candidates import EffectTerm
+from microbearing.calibrate.model import CalibratedModel, RivalModel
+from microbearing.calibrate.model_view import CalibratedPhysicsModel
+from microbearing.optimize import robust
+from microbearing.optimize.design_bound import _Bounds, _least_quadratic, design_lower_bound
+from microbearing.optimize.envelope_bound import BoundFailedError, interval_structures
+from microbearing.optimize.problem import Constraints, DesignBounds, DesignProblem
+
+ENVELOPE = robust.Envelope((0.01, 0.1), {"relative_humidity": (0.3, 0.7), "temperature_C": (20.0, 60.0)},
+                           {"groove_angle_deg": 0.5})
+
+
+def _model(rival: bool = False) -> CalibratedPhysicsModel:
+    """Fitted mu_pivot; menisci and a constant drag added (values scaling a basis, one driven by the load);
+    shear strength falling with temperature multiplying (a value in the exponent); all uncertain, the
+    parameters' share of the interval well above the scatter's."""
+    calibrated = CalibratedModel(
+        fitted={"mu_pivot": 0.6},
+        terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
+               (EffectTerm("constant_drag", ("load_N",)), [5e-5]),
+               (EffectTerm("thermal_shear_strength", ("temperature_C",), {"reference": 40.0}), [0.004])],
+        covariance=np.array([[1e-4, 0, 0, 0], [0, 1e-12, 2e-13, 0], [0, 2e-13, 1e-11, 0], [0, 0, 0, 1e-7]]),
+        noise_std_log=0.02, conditions=["relative_humidity", "temperature_C"])
+    if rival:
+        linear = EffectTerm("generic_linear", ("relative_humidity",), {"centre": 0.5, "scale": 0.1})
+        other = RivalModel("generic_linear on relative_humidity instead of humidity_meniscus",
+                           {"mu_pivot": 0.7},
+                           [(linear, [0.15]),
+                            (EffectTerm("constant_drag", ("load_N",)), [5e-5]),
+                            (EffectTerm("thermal_shear_strength", ("temperature_C",), {"reference": 40.0}),
+                             [0.004])],
+                           np.diag([1e-4, 1e-3, 1e-11, 1e-7]))
+        calibrated = dataclasses.replace(calibrated, rivals=[other])
+    return CalibratedPhysicsModel("calibrated:designs", calibrated)
+
+
+def _upper_at(model, problem, point, designs):
+    """mu_upper [1] of the model itself at one envelope point, for columnar designs (nominal angle)."""
+    columns = robust._columns(problem, ENVELOPE, designs, [point], 0.0)
+    return robust._objective_values(model, "mu_upper", columns, problem.convention)
+
+
+def test_least_quadratic_over_a_box_is_below_the_minimum_and_reaches_it():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        factor = rng.normal(size=(3, 3))
+        covariance = factor @ factor.T + 1e-3 * np.eye(3)
+        lo = rng.normal(size=3)
+        hi = lo + rng.uniform(0.01, 2.0, 3)
+        bound = float(_least_quadratic(covariance, lo[None, :], hi[None, :])[0])
+        found = sciopt.minimize(lambda g, c=covariance: g @ c @ g, 0.5 * (lo + hi),
+                                jac=lambda g, c=covariance: 2 * c @ g,
+                                bounds=list(zip(lo, hi, strict=True)), method="L-BFGS-B",
+                                options={"ftol": 1e-15, "gtol": 1e-12})
+        assert bound <= found.fun + 1e-12
+        assert bound >= found.fun - 1e-6 * max(1.0, found.fun)
+    # Not positive semi-definite: interval arithmetic, still below every value of a dense grid.
+    indefinite = np.array([[1.0, 2.0], [2.0, 1.0]])
+    lo, hi = np.array([-0.3, 0.2]), np.array([0.5, 0.9])
+    grid = np.array(list(itertools.product(np.linspace(lo[0], hi[0], 81), np.linspace(lo[1], hi[1], 81))))
+    values = np.einsum("ni,ij,nj->n", grid, indefinite, grid)
+    assert float(_least_quadratic(indefinite, lo[None, :], hi[None, :])[0]) <= values.min()
+
+
+@pytest.mark.parametrize("rival", [False, True])
+def test_the_box_bound_is_below_the_model_over_every_box_and_tight_on_small_ones(rival):
+    model = _model(rival)
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05),
+                                        model)
+    structures, reason = interval_structures(model)
+    assert structures is not None and len(structures) == 1 + rival, reason
+    rng = np.random.default_rng(11)
+    for _ in range(6):
+        point = ENVELOPE.point({"speed_m_s": rng.uniform(0.01, 0.1),
+                                "groove_angle_offset_deg": rng.uniform(-0.5, 0.5),
+                                "conditions.relative_humidity": rng.uniform(0.3, 0.7),
+                                "conditions.temperature_C": rng.uniform(20, 60)})
+        bounds = _Bounds(problem, structures, model.calibrated.fixed, [point], 0.5, 1.959963984540054)
+        z = float(rng.integers(3, 9))
+        tl = rng.uniform(40, 58)
+        th = tl + rng.uniform(0.01, 2.0)
+        gl = rng.uniform(0.001, 0.04)
+        gh = gl * rng.uniform(1.001, 1.5)
+        lower = float(bounds.lower(*(np.array([v]) for v in (z, tl, th, gl, gh)))[0])
+        # Brute force over the box: a 9 x 9 grid of designs, through the model itself.
+        theta, load = (a.ravel() for a in np.meshgrid(np.linspace(tl, th, 9), np.linspace(gl, gh, 9)))
+        values = _upper_at(model, problem, point, {"balls": np.full(theta.size, z), "groove_angle_deg": theta,
+                                                   "load_N": load})
+        assert 0 < lower <= values.min()
+        # A box a millionth wide: the bound is the value to the box's width (linear convergence).
+        small = [np.array([v]) for v in (z, tl, tl + 1e-6 * (th - tl), gl, gl * (1 + 1e-7))]
+        at = _upper_at(model, problem, point,
+                       {"balls": small[0], "groove_angle_deg": small[1], "load_N": small[3]})
+        assert float(bounds.lower(*small)[0]) == pytest.approx(float(at[0]), rel=2e-6)
+
+
+def _brute_worst(model, problem, designs, levels=5):
+    """The worst mu_upper over an envelope grid (every vertex included) of each design, and the grid."""
+    axes = ENVELOPE.axes()
+    names = list(axes)
+    grid = [ENVELOPE.point(dict(zip(names, c, strict=True)))
+            for c in itertools.product(*(np.linspace(*axes[n], levels) for n in names))]
+    values = np.asarray(robust._objective_values(model, "mu_upper", robust._columns(
+        problem, ENVELOPE, designs, grid, 0.0), problem.convention)).reshape(len(grid), -1)
+    return values.max(axis=0)
+
+
+@pytest.mark.parametrize("rival", [False, True])
+def test_no_design_of_a_grid_beats_the_certified_lower_bound_and_the_design_is_proven(rival):
+    model = _model(rival)
+    problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05,
+                            Constraints(max_contact_pressure_Pa=5.5e8))
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", starts=2)
+    proof = result.proof
+    held = robust._with_model_values(problem, model)
+    # Exhaustively: 4 counts x 16 angles x 31 loads, each at 5^4 envelope points, through the same model; the
+    # designs whose peak pressure at the angle made high meets the limit never beat the certified lower bound.
+    grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 16), np.geomspace(0.002, 0.02, 31)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    made = held.physics_inputs(designs["balls"], designs["groove_angle_deg"] + 0.5, designs["load_N"])
+    pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
+                                       **made).max_contact_pressure_Pa
+    feasible = pressure <= 5.5e8
+    assert 0 < feasible.sum() < len(grid)  # the limit cuts the grid
+    worst = _brute_worst(model, held, {k: v[feasible] for k, v in designs.items()})
+    assert worst.min() >= proof["lower_bound"]
+    # The returned design's worst case (at a vertex here: every term monotone) equals the certified one.
+    design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
+    at_design = float(_brute_worst(model, held, design)[0])
+    assert at_design <= proof["upper_bound"] <= at_design * (1 + 1e-6)
+    # Both ends certified; the gap is the two brackets' tolerances and the returned design's own distance from
+    # the best (the optimizer keeps 1e-7 inside the pressure limit, the bound takes the limit exactly).
+    assert proof["upper_bound_certified"] and proof["lower_bound_boxes"] > 4
+    assert proof["relative_gap"] <= 2 * robust.GAP_TARGET, proof["statement"]
+    assert proof["proven"] == (proof["relative_gap"] <= robust.GAP_TARGET)
+    # The grid's best is no better than the design's worst case, to the gap.
+    assert worst.min() >= proof["upper_bound"] * (1 - 2 * robust.GAP_TARGET)
+    assert all(c.satisfied for c in result.result.constraints)
+    returned = {k: result.result.design[k] for k in ("balls", "groove_angle_deg", "load_N")}
+    assert result.price_of_robustness["robust"]["design"] == returned
+
+
+def test_the_calibrated_bench_model_is_proven_and_the_best_design_at_the_points_holds_its_limits_exactly():
+    # The bench's model (menisci, shear strength falling with temperature) under a pressure limit: proven;
+    # the lower bound's best design at the worst point (a box's centre) sits on the exact limit, where the
+    # local method keeps 1e-7 inside it, and its certified worst case is lower: where the gap needs it, that
+    # design is returned (robust._certified_design). Brute force agrees on both.
+    model = CalibratedPhysicsModel("calibrated:bench", CalibratedModel(
+        fitted={"mu_pivot": 0.6},
+        terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
+               (EffectTerm("thermal_shear_strength", ("temperature_C",), {"reference": 40.0}), [0.004])],
+        covariance=np.diag([1e-4, 1e-12, 1e-7]), noise_std_log=0.02,
+        conditions=["relative_humidity", "temperature_C"]))
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                            Constraints(max_contact_pressure_Pa=6e8))
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
+    proof = result.proof
+    assert proof["proven"] and proof["relative_gap"] <= robust.GAP_TARGET, proof["statement"]
+    held = robust._with_model_values(problem, model)
+
+    def brute_and_pressure(design):
+        columns = {k: np.array([float(design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
+        made = held.physics_inputs(columns["balls"], columns["groove_angle_deg"] + 0.5, columns["load_N"])
+        pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
+                                           **made).max_contact_pressure_Pa
+        return float(_brute_worst(model, held, columns)[0]), float(np.asarray(pressure).ravel()[0])
+
+    at_design, pressure = brute_and_pressure(result.result.design)
+    assert at_design <= proof["upper_bound"] <= at_design * (1 + 1e-6) and pressure <= 6e8
+    assert all(c.satisfied for c in result.result.constraints)
+    worst = result.worst_case
+    point = ENVELOPE.point({"speed_m_s": worst["speed_m_s"], "groove_angle_offset_deg": 0.5,
+                            **{f"conditions.{n}": v for n, v in worst["conditions"].items()}})
+    structures, _ = interval_structures(model)
+    found = design_lower_bound(held, structures, model.calibrated.fixed, [point], 0.5, result.result.design,
+                               lambda designs: _upper_at(model, held, point, designs), 1.959963984540054)
+    assert found.lower_bound <= found.incumbent < worst["mu_upper"]
+    swapped = robust._certified_design(held, ENVELOPE, model, result, found.incumbent_design, np.inf)
+    assert swapped is not None and swapped.proof["upper_bound"] < proof["upper_bound"]
+    at_swapped, pressure = brute_and_pressure(swapped.result.design)
+    assert at_swapped <= swapped.proof["upper_bound"] <= at_swapped * (1 + 1e-6)
+    assert pressure <= 6e8 and all(c.satisfied for c in swapped.result.constraints)
+    assert swapped.price_of_robustness["robust"]["worst_case"] == swapped.worst_case["mu_upper"]
+
+
+def test_a_search_stopped_by_its_time_limit_says_so_and_its_bound_still_holds():
+    model = _model()
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05),
+                                        model)
+    structures, _ = interval_structures(model)
+    point = ENVELOPE.point({"speed_m_s": 0.1, "groove_angle_offset_deg": 0.5,
+                            "conditions.relative_humidity": 0.7, "conditions.temperature_C": 20.0})
+    design = {"balls": 3.0, "groove_angle_deg": 45.0, "load_N": 0.02}
+
+    def evaluate(designs):
+        return _upper_at(model, problem, point, designs)
+
+    found = design_lower_bound(problem, structures, model.calibrated.fixed, [point], 0.5, design, evaluate,
+                               1.959963984540054, time_limit_s=0.0)
+    assert not found.complete and found.boxes == 4  # the four ball counts' boxes, bounded once
+    angles = np.tile(np.repeat(np.linspace(45, 60, 16), 31), 4)
+    brute = _brute_worst(model, problem, {"balls": np.repeat([3.0, 4.0, 5.0, 6.0], 16 * 31),
+                                          "groove_angle_deg": angles,
+                                          "load_N": np.tile(np.geomspace(0.002, 0.02, 31), 64)})
+    assert 0 < found.lower_bound <= brute.min()
+    complete = design_lower_bound(problem, structures, model.calibrated.fixed, [point], 0.5, design, evaluate,
+                                  1.959963984540054)
+    assert complete.complete and found.lower_bound <= complete.lower_bound <= complete.incumbent
+
+
+def test_a_bound_above_the_model_is_caught():
+    # A structure claiming ten times the scatter: its bound is above the model's own mu_upper, and the values
+    # the model gives at the boxes' centres expose it.
+    model = _model()
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05),
+                                        model)
+    structures, _ = interval_structures(model)
+    wrong = [dataclasses.replace(structures[0], noise_std_log=0.2)]
+    point = ENVELOPE.point({"speed_m_s": 0.1, "groove_angle_offset_deg": 0.5,
+                            "conditions.relative_humidity": 0.7, "conditions.temperature_C": 20.0})
+    with pytest.raises(BoundFailedError):
+        design_lower_bound(problem, wrong, model.calibrated.fixed, [point], 0.5,
+                           {"balls": 3.0, "groove_angle_deg": 45.0, "load_N": 0.02},
+                           lambda designs: _upper_at(model, problem, point, designs), 1.959963984540054)
+
+
+def test_a_time_limit_leaves_the_bound_found_so_far_said_and_unproven():
+    model = _model()
+    problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05)
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", starts=1,
+                                    time_limit_s=0.0)
+    proof = result.proof
+    assert not proof["proven"] and "stopped at the time or box limit" in proof["statement"]
+    assert proof["lower_bound_boxes"] == 4 and proof["lower_bound"] <= proof["upper_bound"]
+    held = robust._with_model_values(problem, model)
+    grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 6), np.geomspace(0.002, 0.02, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    assert _brute_worst(model, held, designs, levels=3).min() >= proof["lower_bound"]
+
+
+def test_the_data_clouds_widening_is_bounded_below_over_design_boxes():
+    # A model calibrated on a narrow cloud of runs (4-6 balls, 45-50 deg, 4-8 mN, RH 0.4-0.5): off the cloud
+    # its interval widens; over any design box the bound with the widening stays below the model and above
+    # the bound without it, and off the cloud it is strictly above.
+    import types
+
+    from microbearing.calibrate.domain import DataCloud
+
+    rng = np.random.default_rng(5)
+    runs = 60
+    cloud = DataCloud.from_columns({
+        "balls": rng.choice([4.0, 6.0], runs), "groove_angle_deg": rng.uniform(45, 50, runs),
+        "load_N": rng.uniform(0.004, 0.008, runs), "speed_m_s": rng.uniform(0.02, 0.05, runs),
+        "relative_humidity": rng.uniform(0.4, 0.5, runs)})
+    model = CalibratedPhysicsModel("calibrated:cloud", dataclasses.replace(_model().calibrated, cloud=cloud))
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05),
+                                        model)
+    bare = types.SimpleNamespace(reference="calibrated:cloud",
+                                 calibrated=dataclasses.replace(model.calibrated, cloud=None))
+    structures, reason = interval_structures(bare)
+    assert structures is not None, reason
+    widened = 0
+    for _ in range(8):
+        point = ENVELOPE.point({"speed_m_s": rng.uniform(0.01, 0.1),
+                                "groove_angle_offset_deg": rng.uniform(-0.5, 0.5),
+                                "conditions.relative_humidity": rng.uniform(0.3, 0.7),
+                                "conditions.temperature_C": rng.uniform(20, 60)})
+        ratio = robust._cloud_widening(problem, ENVELOPE, model, point,
+                                       {"balls": 4.0, "groove_angle_deg": 45.0, "load_N": 0.005}, set())
+        assert ratio is not None
+        with_cloud = _Bounds(problem, structures, model.calibrated.fixed, [point], 0.5, 1.959963984540054,
+                             [ratio])
+        without = _Bounds(problem, structures, model.calibrated.fixed, [point], 0.5, 1.959963984540054)
+        z = float(rng.choice([4, 6]))
+        tl = rng.uniform(40, 55)
+        th = tl + rng.uniform(0.1, 5.0)
+        gl = rng.uniform(0.001, 0.02)
+        gh = gl * rng.uniform(1.01, 2.0)
+        box = [np.array([v]) for v in (z, tl, th, gl, gh)]
+        lower, bare_lower = float(with_cloud.lower(*box)[0]), float(without.lower(*box)[0])
+        theta, load = (a.ravel() for a in np.meshgrid(np.linspace(tl, th, 7), np.linspace(gl, gh, 7)))
+        values = _upper_at(model, problem, point, {"balls": np.full(theta.size, z), "groove_angle_deg": theta,
+                                                   "load_N": load})
+        assert bare_lower <= lower <= values.min()
+        widened += lower > bare_lower * (1 + 1e-6)
+    assert widened >= 4
