@@ -9,7 +9,8 @@ rows' own leave-one-out scores, so that a new point drawn like the data is flagg
 ``alpha`` (:data:`CLOUD_ALPHA`, 2 %) whatever the data's shape. A point given only some of the columns is
 scored in those columns alone, against the threshold of the same columns. Beyond the threshold, the
 prediction interval's log half-width is multiplied by the ratio of the score to the threshold (the
-interval widens in proportion to the distance from the data; a documented rule, not a fitted one).
+interval widens in proportion to the distance from the data; a documented rule, not a fitted one),
+through :meth:`DataCloud.widening`, the one place the rule lives.
 
 **Confounding.** :func:`confounded_pairs` names every pair of varying columns whose ranks move
 together (|Spearman rho| >= :data:`CONFOUNDED_RHO`): whatever one of them seems to do, the other
@@ -129,6 +130,55 @@ class DataCloud:
         distance = tree.query(x, k=k)[0]
         distance = distance[:, -1] if distance.ndim == 2 else distance
         return (distance / max(threshold, 1e-12)).reshape(shape), given
+
+    def widening(self, ratio: Any) -> np.ndarray:
+        """Factor on the prediction interval's log half-width at a distance ratio (:meth:`score`) [1]:
+        ``max(ratio, 1)``, 1 inside the cloud.
+
+        The one place the rule lives: :meth:`calibrate.CalibratedModel.predict` applies it, and the
+        certified bounds over a box (:mod:`optimize.envelope_bound`) apply it to an upper bound of the
+        ratio, which is valid only because the widening is non-decreasing in the ratio.
+        """
+        return np.maximum(np.asarray(ratio, dtype=float), 1.0)
+
+    def score_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
+                    ) -> np.ndarray:
+        """An upper bound of :meth:`score` over boxes of points [1]: every point whose every column lies
+        between its ``low`` and ``high`` value (columnar, one box per entry, shaped ``shape``).
+
+        Each column's transform is increasing (a standardized value or log), so a box maps to a box of
+        scaled inputs; for any point x of it, the distance to a row p is at most the distance from p to the
+        box's farthest corner, D(p). The k-th smallest distance from x over all rows is at most the k-th
+        smallest of D over any k or more rows (each distance at most its D, and a subset's k-th smallest at
+        least the whole set's): the rows nearest the box's centre are taken, so that the bound tends to
+        the score as the box shrinks. Scored in the columns ``low`` gives, as :meth:`score`.
+        """
+        given = [c for c in self.columns if c in low]
+        size = int(np.prod(shape))
+        if len(given) < 2 or size == 0:
+            return np.zeros(shape)
+        index, tree, threshold = self._space(given)
+        k = self._cache[tuple(given)][3]
+
+        def scaled(points: Mapping[str, Any]) -> np.ndarray:
+            return np.column_stack([
+                ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
+                / self.scale[i]
+                for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float),
+                                                 shape).ravel()) for i in index)])
+
+        a, b = scaled(low), scaled(high)
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        rows = tree.data
+        nearest = min(rows.shape[0], 4 * k)
+        _, near = tree.query(0.5 * (lo + hi), k=nearest)
+        near = np.asarray(near).reshape(size, nearest)
+        p = rows[near]  # (boxes, nearest, columns)
+        far = np.maximum(np.abs(lo[:, None, :] - p), np.abs(hi[:, None, :] - p))
+        farthest = np.sqrt(np.sum(far * far, axis=2))
+        kth = np.partition(farthest, k - 1, axis=1)[:, k - 1]
+        # Rounding: the tree's own distances and these differ by a few ulps.
+        return (kth * (1.0 + 1e-12) / max(threshold, 1e-12)).reshape(shape)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""

@@ -399,7 +399,8 @@ class CalibratedModel:
         group_shift, group_variance = self._group_terms(points, labels, mu.shape, level)
         sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + group_variance
                         + self._noise_variance(points, mu.shape, level))
-        sigma = sigma * np.maximum(self.cloud_ratio(points, mu.shape), 1.0)
+        if self.cloud is not None:
+            sigma = sigma * self.cloud.widening(self.cloud_ratio(points, mu.shape))
         z = float(stats.norm.isf((1.0 - level) / 2.0))
         mu = mu * np.exp(shift + group_shift)
         lower, upper = mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
@@ -490,6 +491,17 @@ class CalibratedModel:
                    if k in points or k in physics.PARAMETERS}
         ratio, _ = self.cloud.score(columns, shape)
         return ratio
+
+    def cloud_ratio_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape) -> np.ndarray:
+        """An upper bound of :meth:`cloud_ratio` over boxes of points [1]: every point whose every column
+        lies between its value in ``low`` and in ``high`` (columnar, one box per entry, both giving the
+        same columns; :meth:`DataCloud.score_bound`). Zeros without a cloud."""
+        if self.cloud is None:
+            return np.zeros(shape)
+        given = [k for k in low if k not in self.factors]
+        columns = [{k: v for k, v in self._columns_at({k: points[k] for k in given}).items()
+                    if k in given or k in physics.PARAMETERS} for points in (low, high)]
+        return self.cloud.score_bound(columns[0], columns[1], shape)
 
     def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
         """Whether each point lies within the data's ranges, and a warning per column outside.

@@ -127,23 +127,21 @@ class Piece:
 #: flag); a model with any other part set (group effects, whose shift follows a parameter's sensitivity)
 #: is not bounded: said, not guessed.
 _BOUNDED_PARTS = frozenset({"fitted", "fixed", "terms", "convention", "covariance", "noise_std_log", "domain",
-                            "conditions", "discrepancy", "rivals", "domain_rows"})
+                            "conditions", "discrepancy", "rivals", "domain_rows", "cloud"})
 
 
 def _unbounded_part(calibrated: Any, interval: bool = False) -> str | None:
     """The first part of a calibrated model that is set and that the bounds do not know, or None.
 
     A scatter model of one spread everywhere is the ``noise_std_log`` the interval bounds use; one that
-    depends on an input is not bounded. The data cloud widens only the interval beyond the data: it
-    does not move μ, and it is not bounded for ``mu_upper`` (``interval``).
+    depends on an input is not bounded. The data cloud widens only the interval beyond the data (it
+    does not move μ): :func:`mu_upper_box_bound` bounds its widening over a box.
     """
     for part in dataclasses.fields(calibrated) if dataclasses.is_dataclass(calibrated) else ():
         if part.name in _BOUNDED_PARTS:
             continue
         value = getattr(calibrated, part.name)
         if part.name == "scatter" and (value is None or getattr(value, "kind", None) == "constant"):
-            continue
-        if part.name == "cloud" and not interval:
             continue
         default = (part.default_factory() if part.default_factory is not dataclasses.MISSING
                    else part.default)
@@ -555,7 +553,9 @@ def _times_positive(low: np.ndarray, high: np.ndarray, pos_low: np.ndarray,
 def mu_upper_box_bound(structures: list[IntervalStructure],
                        physics_fn: Callable[[np.ndarray, np.ndarray, Mapping[str, float]],
                                             dict[str, np.ndarray]],
-                       envelope: Any, design: Mapping[str, float], z: float) -> Callable:
+                       envelope: Any, design: Mapping[str, float], z: float, calibrated: Any = None,
+                       inputs_fn: Callable[[np.ndarray, np.ndarray], Mapping[str, Any]] | None = None
+                       ) -> Callable:
     """The box bound of a calibrated model's ``mu_upper`` at a design, for :func:`certified_max`.
 
     Over a box every quantity of each structure gets an interval: the physics' μ and each linear output
@@ -564,7 +564,11 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
     gradient of log μ, log1p(D / μ) / h, with D = μ(p + h) - μ(p) in closed form (``h`` × the physics
     output / p, ``h`` × the piece's basis, or the composed μ up to that factor × expm1(h φ)) times the
     product of the factors after it; the largest g'Cg over the box of gradients (a convex function: at one
-    of its vertices); so mu_upper <= max over the structures of max(μ) exp(z sqrt(max g'Cg + noise²)).
+    of its vertices); so mu_upper <= max over the structures of max(μ) exp(z sqrt(max g'Cg + noise²) W),
+    W the widening of the interval beyond the data cloud (1 without one) at an upper bound of the distance
+    ratio over the box (:meth:`calibrate.CalibratedModel.cloud_ratio_bound`; the widening,
+    :meth:`calibrate.domain.DataCloud.widening`, is non-decreasing in the ratio, and one cloud serves the
+    model and its rivals).
 
     Parameters
     ----------
@@ -579,15 +583,47 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         ``balls`` [1] and ``load_N`` [N].
     z : float
         The normal quantile of the interval (1.96 for 95 %). [1]
+    calibrated : calibrate.CalibratedModel, optional
+        The model, for its data cloud (needed when it has one).
+    inputs_fn : callable, optional
+        ``(angle_offset_deg, speed_m_s) -> physics inputs`` [their units] the model is given at the design
+        (as its evaluation at envelope points is), for the cloud's columns.
 
     Returns
     -------
     callable
         ``(lo, hi) -> (upper bounds [1], points to evaluate)``.
+
+    Raises
+    ------
+    ValueError
+        For a model with a data cloud and no ``inputs_fn``.
     """
     boxes = _Boxes(envelope, design)
+    cloud = None if calibrated is None else getattr(calibrated, "cloud", None)
+    if cloud is not None and inputs_fn is None:
+        raise ValueError("a model with a data cloud needs inputs_fn for the bound of its widening")
 
-    def one(s: IntervalStructure, lo: np.ndarray, hi: np.ndarray, peak: np.ndarray) -> np.ndarray:
+    def widening(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """An upper bound of the cloud's widening over each box (ones without a cloud). [1]"""
+        n = len(lo)
+        if cloud is None:
+            return np.ones(n)
+        corners = []
+        for corner in (lo, hi):
+            offset, speed = boxes.physics_corner(corner)
+            points = dict(inputs_fn(offset, speed))
+            for name in envelope.conditions:
+                a, b, _ = boxes.driver_interval(name, lo, hi)
+                points[name] = a if corner is lo else b
+            corners.append(points)
+        # Every column of a point is non-decreasing in every axis (the speed, the angle made = nominal +
+        # offset, each condition): the box's lowest and highest corners give each column's range.
+        return np.asarray(cloud.widening(calibrated.cloud_ratio_bound(corners[0], corners[1], (n,))),
+                          dtype=float)
+
+    def one(s: IntervalStructure, lo: np.ndarray, hi: np.ndarray, peak: np.ndarray,
+            wide: np.ndarray) -> np.ndarray:
         n = len(lo)
         offset_lo, speed_lo = boxes.physics_corner(lo)
         offset_hi, speed_hi = boxes.physics_corner(hi)
@@ -677,13 +713,14 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         corners = np.array(list(itertools.product((0, 1), repeat=g_low.shape[1])), dtype=bool)
         vertices = np.where(corners[None, :, :], g_high[:, None, :], g_low[:, None, :])
         quadratic = np.einsum("nvi,ij,nvj->nv", vertices, s.covariance, vertices).max(axis=1)
-        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2)
+        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2) * wide
         return np.where(finite, mu_hi * np.exp(z * sigma), np.inf)
 
     def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         peak = hi.copy()
         with np.errstate(all="ignore"):
-            upper = np.max([one(s, lo, hi, peak) for s in structures], axis=0)
+            wide = widening(lo, hi)
+            upper = np.max([one(s, lo, hi, peak, wide) for s in structures], axis=0)
         return upper * (1.0 + _INTERVAL_ROUNDING), _with_low_speed(boxes, lo, peak)
 
     return bound

@@ -130,6 +130,10 @@ MAX_ROUNDS = 6
 #: Clarabel's stopping tolerances (gap and feasibility, its defaults), taken off the dual bound. [1]
 _SOLVER_TOL = 1e-8
 _ANGLE = physics.PARAMETERS["groove_angle_deg"]
+#: How the certified mu_upper bounds the widening of the interval beyond the data cloud, in words.
+_CLOUD_WORDS = (", the widening beyond the data cloud at an upper bound of the distance ratio (the k-th "
+                "smallest distance from the data rows to the box's farthest corner, in the cloud's scaled "
+                "inputs; the widening is non-decreasing in the ratio)")
 _SPEED = physics.PARAMETERS["speed_m_s"]
 
 
@@ -938,8 +942,14 @@ def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: M
                                       **{**inputs, **calibrated.fixed, **fitted})
         return {name: np.asarray(getattr(result, name), dtype=float) for name in outputs}
 
+    held = {*model.fixed, *model.fitted}
+
+    def inputs_fn(offset: np.ndarray, speed: np.ndarray) -> dict[str, Any]:  # as _objective_values gives them
+        columns = problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed)
+        return {k: v for k, v in columns.items() if k not in held}
+
     bound = mu_upper_box_bound(structures, physics_fn, envelope, {"balls": balls, "load_N": load},
-                               float(stats.norm.isf(0.025)))
+                               float(stats.norm.isf(0.025)), calibrated, inputs_fn)
     return certified_max(bound, _evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
                          rtol=INTERVAL_RTOL)
 
@@ -1103,7 +1113,8 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
             "and highest corner (posynomials), each term between its exact extremes, the composed mu and "
             "each fitted value's finite-difference gradient of log mu by interval arithmetic in closed form, "
             "the parameter variance g'Cg at most its largest value over the box of gradients (a vertex: "
-            f"convex), for the model and each rival ({bracket.boxes} boxes"
+            f"convex){_CLOUD_WORDS if model.calibrated.cloud is not None else ''}, for the model and each "
+            f"rival ({bracket.boxes} boxes"
             f"{'' if bracket.complete else ', stopped at the box limit'}): found {bracket.value:.10g}, "
             "certified "
             f"at most {bracket.upper_bound:.10g} (relative {bracket.relative_gap:.1e}). The design came from "

@@ -222,3 +222,115 @@ def test_a_part_the_bounds_do_not_know_is_refused():
     later = types.SimpleNamespace(reference="calibrated:later",
                                   calibrated=Later(scatter_model={"slope": 1.0}))
     assert term_pieces(later)[0] is None and "scatter_model" in term_pieces(later)[1]
+
+
+# --------------------------------------------------------------------------------------------------
+# The data cloud's widening of the interval, bounded over a box
+
+
+def test_cloud_score_bound_holds_every_point_of_a_box_and_closes_on_a_point():
+    from microbearing.calibrate.domain import DataCloud
+
+    rng = np.random.default_rng(3)
+    speed = rng.uniform(0.005, 0.15, 200)
+    cloud = DataCloud.from_columns({"speed_m_s": speed,
+                                    "temperature_C": 25 + 300 * speed + rng.normal(0, 2, 200),
+                                    "relative_humidity": rng.uniform(0.3, 0.6, 200)})
+    names = ["speed_m_s", "temperature_C", "relative_humidity"]
+    low = {"speed_m_s": np.array([0.01, 0.1, 0.12]), "temperature_C": np.array([20.0, 20.0, 70.0]),
+           "relative_humidity": np.array([0.3, 0.6, 0.2])}
+    width = {"speed_m_s": 0.02, "temperature_C": 15.0, "relative_humidity": 0.2}
+    high = {n: low[n] + width[n] for n in names}
+    bound = cloud.score_bound(low, high, (3,))
+    # Brute force: 2,000 random points and every corner of each box, scored by the cloud itself.
+    for box in range(3):
+        samples = {n: rng.uniform(low[n][box], high[n][box], 2000) for n in names}
+        corners = list(itertools.product(*[(low[n][box], high[n][box]) for n in names]))
+        for i, n in enumerate(names):
+            samples[n] = np.r_[samples[n], [c[i] for c in corners]]
+        scores, _ = cloud.score(samples, (2008,))
+        assert scores.max() <= bound[box]
+        # a loose bound of a wide box, but a bound: within the box's scaled half-diagonal of the best
+        assert bound[box] < scores.max() + 3.0
+    # A box of one point: the bound is the score itself (to rounding); a small box, close to it.
+    point = {n: low[n][:1] for n in names}
+    assert cloud.score_bound(point, point, (1,))[0] == pytest.approx(cloud.score(point, (1,))[0][0], rel=1e-9)
+    small = {n: low[n][:1] + 1e-6 * width[n] for n in names}
+    assert cloud.score_bound(point, small, (1,))[0] == pytest.approx(cloud.score(point, (1,))[0][0], rel=1e-4)
+    # The widening is the one rule of the model's interval: max(ratio, 1), non-decreasing.
+    ratios = np.linspace(0, 4, 41)
+    assert np.all(np.diff(cloud.widening(ratios)) >= 0) and cloud.widening(0.5) == 1.0
+    assert cloud.widening(2.5) == 2.5
+
+
+def _cloud_model() -> CalibratedPhysicsModel:
+    """The interval model with a data cloud: calibration rows at low speed and humidity rising together,
+    temperatures 30-50 C, so the envelope's far corners lie well beyond the data."""
+    from microbearing.calibrate.domain import DataCloud
+
+    rng = np.random.default_rng(11)
+    n = 120
+    speed = rng.uniform(0.01, 0.05, n)
+    columns = {"balls": rng.choice([3.0, 5.0, 8.0], n), "groove_angle_deg": rng.choice([45.0, 50.0, 55.0], n),
+               "load_N": rng.choice([0.005, 0.01, 0.02], n), "speed_m_s": speed,
+               "relative_humidity": 0.3 + 5 * (speed - 0.01) + rng.normal(0, 0.02, n),
+               "temperature_C": rng.uniform(30.0, 50.0, n)}
+    cloud = DataCloud.from_columns(columns)
+    return CalibratedPhysicsModel("calibrated:cloud", dataclasses.replace(_interval_model().calibrated,
+                                                                          cloud=cloud))
+
+
+def test_certified_mu_upper_bounds_the_cloud_widening_against_brute_force():
+    model = _cloud_model()
+    structures, reason = interval_structures(model)
+    assert structures is not None, reason
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    design = {"balls": 5.0, "groove_angle_deg": 50.0, "load_N": 0.01}
+    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    # The bracket closes to about its 1e-5 target (the box limit may stop it a little short: it says so).
+    assert bracket.upper_bound <= bracket.value * (1 + 2e-5)
+    assert bracket.relative_gap <= 1e-5 or not bracket.complete
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    # The worst case lies beyond the data cloud (its interval widened there) and inside the envelope in
+    # temperature (the quadratic's peak and the cloud's distance trade off): no vertex reaches it.
+    where = bracket.point
+    columns = robust._columns(problem, ENVELOPE, {k: np.array([v]) for k, v in design.items()}, [where], 0.0)
+    held = {*model.fixed, *model.fitted}
+    ratio = model.calibrated.cloud_ratio({k: v for k, v in columns.items() if k not in held})
+    assert ratio[0] > 1.5
+    assert 20.0 < where["conditions"]["temperature_C"] < 60.0
+    assert max(evaluate(_grid_points(2))) < bracket.value * (1 - 1e-3)
+    # Brute force through the same model: a grid of 9 levels per axis and a fine one around the point found
+    # (not the point itself); never above the certified bound, and its best within 1e-4 of the value found.
+    axes = ENVELOPE.axes()
+    local = [ENVELOPE.point({n: float(np.clip(where_value + d, *axes[n]))
+                             for (n, where_value), d in zip(_axis_values(where).items(), delta, strict=True)})
+             for delta in itertools.product(*[np.linspace(-0.02, 0.02, 5) * (axes[n][1] - axes[n][0])
+                                              for n in axes])]
+    brute = evaluate(_grid_points(9) + local)
+    assert brute.max() <= bracket.upper_bound
+    assert brute.max() == pytest.approx(bracket.value, rel=1e-4)
+    # Without the widening the bound would fall below the model there: the cloud decides the worst case.
+    plain = CalibratedPhysicsModel("calibrated:plain", dataclasses.replace(model.calibrated, cloud=None))
+    assert robust._evaluator(problem, ENVELOPE, plain, "mu_upper", design, 0.0)([where])[0] < bracket.value
+
+
+def _axis_values(point):
+    values = {"speed_m_s": point["speed_m_s"]}
+    values.update({f"conditions.{n}": v for n, v in point["conditions"].items()})
+    values["groove_angle_offset_deg"] = point["groove_angle_offset_deg"]
+    return {n: values[n] for n in ENVELOPE.axes()}
+
+
+def test_robust_mu_upper_of_a_model_with_a_cloud_is_certified_at_its_design():
+    model = _cloud_model()
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
+    proof = result.proof
+    assert proof["method"] == "outer-approximation-certified", proof["statement"]
+    assert "cloud" in proof["statement"]
+    held = robust._with_model_values(problem, model)
+    evaluate = robust._evaluator(held, ENVELOPE, model, "mu_upper", dict(result.result.design), 0.0)
+    brute = evaluate(_grid_points(7))
+    assert brute.max() <= proof["upper_bound"] <= result.worst_case["mu_upper"] * (1 + 1e-5)
