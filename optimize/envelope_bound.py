@@ -45,9 +45,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
-__all__ = ["BOUND_RTOL", "INTERVAL_RTOL", "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
-           "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max",
+from microbearing import physics
+
+__all__ = ["BOUND_RTOL", "DRIFT_DIRECTIONS", "INTERVAL_RTOL", "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
+           "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max", "drift_ranges",
+           "group_shift", "interval_floor",
            "interval_structures", "mu_box_bound", "mu_upper_box_bound", "term_pieces"]
 
 #: Relative distance between the certified upper bound and the value found at which branching stops. [1]
@@ -80,6 +84,21 @@ _PIECES: dict[str, tuple[str, bool]] = {
 }
 
 
+#: How the physics' μ moves with each parameter a drift term may move (physics.effects.DRIFT_PARAMETERS):
+#: +1 non-decreasing, -1 non-increasing, from the equations (optimize.dgp): the viscosity and the
+#: pressure-viscosity coefficient enter only Houpert's rolling force, as η^0.66 and (α E')^0.022; the
+#: adhesion energy raises the contact load Q (eq 8), which every moment and the rolling force grow with;
+#: the surface tension and μ_b enter the ball-ball moment as factors, μ_s the pivoting moment; a Young's
+#: modulus raises E*, and μ falls with it (the pivoting moment ~ Q a, a ~ E*^-1/3; the rolling force
+#: ~ E'^-0.108; the hysteresis moment does not read it). ``tests/test_optimize_envelope_bound.py``
+#: checks every direction on the exact physics.
+DRIFT_DIRECTIONS: dict[str, int] = {
+    "viscosity_Pa_s": 1, "pressure_viscosity_1_Pa": 1, "adhesion_energy_J_m2": 1,
+    "water_surface_tension_N_m": 1, "mu_pivot": 1, "mu_ball": 1,
+    "ball_youngs_modulus_Pa": -1, "race_youngs_modulus_Pa": -1,
+}
+
+
 @dataclass(frozen=True)
 class Piece:
     """One effect term of a calibrated model as it enters μ at a design.
@@ -90,8 +109,8 @@ class Piece:
         The term.
     values : list of float
         Its fitted values.
-    kind : {"add", "mul"}
-        μ + a(x) or μ m(x).
+    kind : {"add", "mul", "drift"}
+        μ + a(x), μ m(x), or a drift of a physics parameter (applied to the physics' inputs first).
     monotone : bool
         Whether the piece is monotone in its driver (else log-quadratic).
     """
@@ -127,7 +146,7 @@ class Piece:
 #: flag); a model with any other part set (group effects, whose shift follows a parameter's sensitivity)
 #: is not bounded: said, not guessed.
 _BOUNDED_PARTS = frozenset({"fitted", "fixed", "terms", "convention", "covariance", "noise_std_log", "domain",
-                            "conditions", "discrepancy", "rivals", "domain_rows", "cloud"})
+                            "conditions", "discrepancy", "rivals", "domain_rows", "cloud", "groups"})
 
 
 def _unbounded_part(calibrated: Any, interval: bool = False) -> str | None:
@@ -178,12 +197,24 @@ def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None,
     unknown = _unbounded_part(calibrated, interval)
     if unknown is not None:
         return None, f"its {unknown} has no bound over a box here"
+    for group in getattr(calibrated, "groups", None) or []:
+        if group.parameter != "mu" and group.parameter in calibrated.fitted and not interval:
+            return None, (f"its group effect of {group.factor} on {group.parameter} shifts log mu by a share "
+                          "that has no bound over a box here (objective mu)")
     pieces = []
     for term, values in calibrated.terms:
         label = getattr(term, "label", term)
+        if getattr(term, "kind", None) == "drift":
+            if term.parameter not in DRIFT_DIRECTIONS:
+                return None, (f"its term {label!r} drifts a physics parameter in which the physics' "
+                              "monotonicity is not proven")
+            if interval:
+                return None, (f"its term {label!r} drifts a physics parameter: its fitted coefficient's "
+                              "share of the interval has no bound over a box here")
+            pieces.append(Piece(term, list(map(float, values)), "drift", True))
+            continue
         if getattr(term, "kind", None) != "effect":
-            return None, (f"its term {label!r} drifts a physics parameter: the physics' monotonicity is not "
-                          "proven")
+            return None, f"its term {label!r} has no known bound over an interval"
         if term.name not in _PIECES:
             return None, f"its term {label!r} has no known bound over an interval"
         if term.drivers[0] == "groove_angle_deg":
@@ -312,20 +343,106 @@ def _compose_upper(physics_upper: np.ndarray, pieces: list[Piece],
     return upper
 
 
-def mu_box_bound(pieces: list[Piece], physics_mu: Callable[[np.ndarray, np.ndarray], np.ndarray],
-                 envelope: Any, design: Mapping[str, float]) -> Callable:
+def drift_ranges(drifts: list[Piece], base: Mapping[str, Any], driver_interval: Callable[[str], tuple],
+                 n: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each drifting parameter's exact [min, max] over each of ``n`` boxes [its unit].
+
+    As :func:`calibrate.candidates.drifted_inputs` applies them: p = base × factor(x), in order (a later
+    drift of the same parameter multiplies the earlier result, unless it fits its own level), clipped to
+    the parameter's range. Every law's factor is monotone in its driver (linear; Arrhenius, exp(c/R (1/T -
+    1/T_ref)); Kelvin, linear in 1/ln(1/h), increasing in h), so over a driver interval it lies between its
+    values at the ends; the product of two intervals is the least and largest of its corners' products,
+    and the clip is non-decreasing.
+
+    Parameters
+    ----------
+    drifts : list of Piece
+        The drift pieces of :func:`term_pieces`, in order.
+    base : mapping
+        Physics inputs the model holds or is given at the design (its fixed and fitted values, defaults).
+    driver_interval : callable
+        ``driver -> (low [n], high [n], axis)``.
+    n : int
+        Boxes. [1]
+    """
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for piece in drifts:
+        term = piece.term
+        spec = physics.PARAMETERS[term.parameter]
+        if term.level:
+            low = high = np.full(n, piece.values[1])
+        elif term.parameter in out:
+            low, high = out[term.parameter]
+        else:
+            low = high = np.full(n, float(base.get(term.parameter, spec.default)))
+        a, b, _ = driver_interval(term.driver)
+        with np.errstate(all="ignore"):
+            ends = [np.asarray(term.factor({term.driver: x}, piece.values[0]), dtype=float) for x in (a, b)]
+        corners = np.array([c * f for c in (low, high) for f in ends])
+        lo_clip = -np.inf if spec.minimum is None else spec.minimum
+        hi_clip = np.inf if spec.maximum is None else (
+            np.nextafter(spec.maximum, lo_clip) if spec.exclusive_maximum else spec.maximum)
+        out[term.parameter] = (np.clip(np.min(corners, axis=0), lo_clip, hi_clip),
+                               np.clip(np.max(corners, axis=0), lo_clip, hi_clip))
+    return out
+
+
+def group_shift(calibrated: Any) -> float:
+    """The shift of log μ by the model's groups at a point that names none [1], where it is the same at
+    every point (each group's parameter μ itself or one the model does not fit: sensitivity 1)."""
+    return float(sum(g.offset_log for g in getattr(calibrated, "groups", None) or []
+                     if g.parameter == "mu" or g.parameter not in calibrated.fitted))
+
+
+def interval_floor(calibrated: Any, z: float) -> float | None:
+    """A factor F [1] with mu_upper >= F μ_terms at every point that names no group, μ_terms the physics with
+    the model's terms (no group shift), or None when none is known.
+
+    mu_upper >= μ_terms exp(shift + z σ) with σ² = g'Cg + the groups' variance + noise² and the cloud's
+    widening >= 1 (the rivals only raise it): F = exp(sum b0 + z sqrt(noise² + sum v)) over the groups of
+    sensitivity 1. A group on a fitted parameter has sensitivity s >= 0 (μ never falls with the parameter:
+    it enters the physics as a non-negative share and every term is non-decreasing in μ), so its shift
+    s b0 >= 0 when b0 >= 0 and it is left out; with b0 < 0 no floor is known.
+    """
+    noise = getattr(calibrated, "noise_std_log", None)
+    if noise is None:
+        return None
+    level = 1.0 - 2.0 * float(stats.norm.sf(z))
+    shift, variance = 0.0, float(noise) ** 2
+    for group in getattr(calibrated, "groups", None) or []:
+        if group.parameter == "mu" or group.parameter not in calibrated.fitted:
+            shift += group.offset_log
+            variance += group.new_group_variance(level)
+        elif group.offset_log < 0:
+            return None
+    return math.exp(shift + z * math.sqrt(variance))
+
+
+def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
+                 envelope: Any, design: Mapping[str, float], calibrated: Any = None,
+                 base: Mapping[str, Any] | None = None) -> Callable:
     """The box bound of a calibrated model's μ at a design, for :func:`certified_max`.
+
+    Drift pieces move the physics' inputs: each drifting parameter's range over the box
+    (:func:`drift_ranges`) and the physics' direction in it (:data:`DRIFT_DIRECTIONS`) give its worst
+    end, passed to ``physics_mu``. A group effect on μ (or on a parameter the model does not fit) moves
+    log μ by its offset at every point that names no group: a constant factor.
 
     Parameters
     ----------
     pieces : list of Piece
         From :func:`term_pieces`.
     physics_mu : callable
-        ``(angle_offset_deg, speed_m_s) -> μ`` [1] of the physics with the model's values at the design.
+        ``(angle_offset_deg, speed_m_s, **parameters) -> μ`` [1] of the physics with the model's values at
+        the design, the given physics parameters (arrays, their units) replacing them.
     envelope : optimize.robust.Envelope
         The envelope.
     design : mapping
         ``balls`` [1] and ``load_N`` [N].
+    calibrated : calibrate.CalibratedModel, optional
+        The model, for its groups.
+    base : mapping, optional
+        Physics inputs at the design as the model reads them (for the drifts' base values).
 
     Returns
     -------
@@ -333,12 +450,25 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[[np.ndarray, np.ndarr
         ``(lo, hi) -> (upper bounds [1], points to evaluate)`` over boxes given by their corners.
     """
     boxes = _Boxes(envelope, design)
+    drifts = [p for p in pieces if p.kind == "drift"]
+    effects = [p for p in pieces if p.kind != "drift"]
+    factor = math.exp(group_shift(calibrated)) if calibrated is not None else 1.0
 
     def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         offset_hi, speed_hi = boxes.physics_corner(hi)
         peak = hi.copy()
-        ranges = _pieces_range(pieces, boxes, lo, hi, speed_hi, peak)
-        upper = _compose_upper(np.asarray(physics_mu(offset_hi, speed_hi), dtype=float), pieces, ranges)
+        ranges = _pieces_range(effects, boxes, lo, hi, speed_hi, peak)
+        worst = {name: (high if DRIFT_DIRECTIONS[name] > 0 else low) for name, (low, high) in drift_ranges(
+            drifts, base or {}, lambda driver: boxes.driver_interval(driver, lo, hi), len(lo)).items()}
+        for piece in drifts:  # the driver's end where the drifting parameter moves mu up
+            a, b, j = boxes.driver_interval(piece.driver, lo, hi)
+            if j is not None and j not in (boxes.speed, boxes.angle):
+                with np.errstate(all="ignore"):
+                    rise = (np.asarray(piece.term.factor({piece.driver: b}, piece.values[0]), dtype=float)
+                            >= np.asarray(piece.term.factor({piece.driver: a}, piece.values[0]), dtype=float))
+                peak[:, j] = np.where(rise == (DRIFT_DIRECTIONS[piece.term.parameter] > 0), b, a)
+        phys = np.asarray(physics_mu(offset_hi, speed_hi, **worst), dtype=float)
+        upper = _compose_upper(phys, effects, ranges) * factor
         return upper * (1.0 + _ROUNDING), _with_low_speed(boxes, lo, peak)
 
     return bound
@@ -496,6 +626,9 @@ class IntervalStructure:
         Scatter of log μ of a new measurement. [1]
     step : float
         Relative finite-difference step of its gradient. [1]
+    groups : list of calibrate.groups.GroupEffect
+        Its group effects (a point of the envelope names no group: each shifts log μ by s b0 and adds
+        s² times the new-group variance, s the sensitivity to the group's parameter, 1 for μ itself).
     """
 
     fitted: dict[str, float]
@@ -503,6 +636,7 @@ class IntervalStructure:
     covariance: np.ndarray
     noise_std_log: float
     step: float
+    groups: list = dataclasses.field(default_factory=list)
 
 
 def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str]:
@@ -532,8 +666,9 @@ def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str
         size = len(each.fitted) + sum(len(p.values) for p in pieces_of)
         if size > MAX_VALUES:
             return None, f"{label} has {size} fitted values (at most {MAX_VALUES} are bounded)"
+        groups = list(getattr(each, "groups", None) or [])
         out.append(IntervalStructure(dict(each.fitted), pieces_of, np.asarray(each.covariance, dtype=float),
-                                     float(each.noise_std_log), step))
+                                     float(each.noise_std_log), step, groups))
     return out, ""
 
 
@@ -600,6 +735,7 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         For a model with a data cloud and no ``inputs_fn``.
     """
     boxes = _Boxes(envelope, design)
+    level = 1.0 - 2.0 * float(stats.norm.sf(z))
     cloud = None if calibrated is None else getattr(calibrated, "cloud", None)
     if cloud is not None and inputs_fn is None:
         raise ValueError("a model with a data cloud needs inputs_fn for the bound of its widening")
@@ -713,8 +849,21 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         corners = np.array(list(itertools.product((0, 1), repeat=g_low.shape[1])), dtype=bool)
         vertices = np.where(corners[None, :, :], g_high[:, None, :], g_low[:, None, :])
         quadratic = np.einsum("nvi,ij,nvj->nv", vertices, s.covariance, vertices).max(axis=1)
-        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2) * wide
-        return np.where(finite, mu_hi * np.exp(z * sigma), np.inf)
+        # Groups: the sensitivity s to a fitted parameter p is p times its gradient entry (the same finite
+        # difference), so it lies in p [g_lo, g_hi]; the shift s b0 and the variance s² v at their largest.
+        shift, group_variance = np.zeros(n), np.zeros(n)
+        names = list(s.fitted)
+        for group in s.groups:
+            if group.parameter != "mu" and group.parameter in s.fitted:
+                i, p = names.index(group.parameter), s.fitted[group.parameter]
+                ends = (g_low[:, i] * p, g_high[:, i] * p)
+                shift += np.maximum(ends[0] * group.offset_log, ends[1] * group.offset_log)
+                group_variance += np.maximum(ends[0] ** 2, ends[1] ** 2) * group.new_group_variance(level)
+            else:
+                shift += group.offset_log
+                group_variance += group.new_group_variance(level)
+        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * wide
+        return np.where(finite, mu_hi * np.exp(shift + z * sigma), np.inf)
 
     def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         peak = hi.copy()

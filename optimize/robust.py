@@ -97,6 +97,9 @@ from .envelope_bound import (
     BoundFailedError,
     CertifiedMax,
     certified_max,
+    drift_ranges,
+    group_shift,
+    interval_floor,
     interval_structures,
     mu_box_bound,
     mu_upper_box_bound,
@@ -850,7 +853,8 @@ def _robust_physics(problem: DesignProblem, envelope: Envelope,
         statement += " The gap is above the target: the optimum is proven only to that gap."
     proof = {"proven": bool(proven), "method": "robust-gp-vertex", "lower_bound": lower, "upper_bound": value,
              "relative_gap": gap, "gap_target": GAP_TARGET, "statement": statement}
-    if float(np.max(at)) > value * (1 + 1e-12):
+    vertex_holds = float(np.max(at)) <= value * (1 + 1e-12)
+    if not vertex_holds:
         proof["proven"] = False
         proof["statement"] += (f" But a vertex or the centre gave {float(np.max(at)):.10g} > the predicted "
                                "worst case: the monotonicity argument failed here, nothing is proven.")
@@ -869,9 +873,11 @@ def _robust_physics(problem: DesignProblem, envelope: Envelope,
                                        nominal_design["load_N"])
     robust_centre = float(_evaluator(problem, envelope, None, "mu", design, delta)(
         [envelope.point({"speed_m_s": centre_speed})])[0])
+    # Both worst cases at the vertex are exact where the monotonicity held on the checked points.
     price = _price(nominal_design, nominal.mu, nominal_worst,
                    all(c.satisfied for c in nominal_limits if not c.name.startswith("groove_angle_deg")),
-                   {**design, "groove_angle_deg": theta}, robust_centre, value)
+                   {**design, "groove_angle_deg": theta}, robust_centre, value,
+                   nominal_worst if vertex_holds else None, value if vertex_holds else None)
     certificate = (solved.certificate + " Envelope: " + statement)
     result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
                                           speed_m_s=v_hi, solve_time_s=time.perf_counter() - start), delta)
@@ -881,12 +887,20 @@ def _robust_physics(problem: DesignProblem, envelope: Envelope,
 
 
 def _price(nominal_design: dict[str, Any], nominal_centre: float, nominal_worst: float, nominal_holds: bool,
-           robust_design: dict[str, Any], robust_centre: float, robust_worst: float) -> dict[str, Any]:
+           robust_design: dict[str, Any], robust_centre: float, robust_worst: float,
+           nominal_upper: float | None = None, robust_upper: float | None = None) -> dict[str, Any]:
+    """Both designs; ``*_upper``: a certified upper bound of each worst case [1] (None: searched only)."""
+    def certified(upper: float | None) -> dict[str, Any]:
+        return {"worst_case_certified": upper is not None,
+                "worst_case_upper_bound": None if upper is None else float(upper)}
+
     return {
         "nominal": {"design": dict(nominal_design), "at_centre": float(nominal_centre),
-                    "worst_case": float(nominal_worst), "limits_hold_over_envelope": bool(nominal_holds)},
+                    "worst_case": float(nominal_worst), "limits_hold_over_envelope": bool(nominal_holds),
+                    **certified(nominal_upper)},
         "robust": {"design": dict(robust_design), "at_centre": float(robust_centre),
-                   "worst_case": float(robust_worst), "limits_hold_over_envelope": True},
+                   "worst_case": float(robust_worst), "limits_hold_over_envelope": True,
+                   **certified(robust_upper)},
         "ratio": float(nominal_worst / robust_worst),
     }
 
@@ -960,12 +974,15 @@ def _certified_search(problem: DesignProblem, envelope: Envelope, model: Model, 
     balls, load = float(design["balls"]), float(design["load_N"])
     theta = float(design["groove_angle_deg"]) - shift
 
-    def physics_mu(offset: np.ndarray, speed: np.ndarray) -> np.ndarray:
+    def physics_mu(offset: np.ndarray, speed: np.ndarray, **parameters: np.ndarray) -> np.ndarray:
         with np.errstate(all="ignore"):
-            return physics.evaluate(convention=problem.convention, outputs=["mu"],
-                                    **problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed)).mu
+            return physics.evaluate(convention=problem.convention, outputs=["mu"], **{
+                **problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed), **parameters}).mu
 
-    return certified_max(mu_box_bound(pieces, physics_mu, envelope, {"balls": balls, "load_N": load}),
+    # The values the drifts start from: the model's own (in problem.fixed, _with_model_values), else defaults.
+    base = {**physics.defaults(), **problem.fixed}
+    return certified_max(mu_box_bound(pieces, physics_mu, envelope, {"balls": balls, "load_N": load},
+                                      model.calibrated, base),
                          _evaluator(problem, envelope, model, "mu", design, shift), envelope)
 
 
@@ -978,7 +995,7 @@ def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str,
     The limits at one point are a relaxation of the limits over the envelope, and the worst case of any
     design is at least its μ at the point: the bound holds for the best achievable worst case.
     """
-    terms = model.calibrated.terms
+    terms = [(t, v) for t, v in model.calibrated.terms if getattr(t, "kind", None) != "drift"]
     monomials, _ = _monomials_at([t for t, _ in terms], [v for _, v in terms], point)
     if monomials is None:
         return math.nan
@@ -987,6 +1004,15 @@ def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str,
                                    float(point["speed_m_s"]))
     except ValueError:
         return math.nan
+    # A drift fixes its parameter at the point: the drifted value, in the program's fixed values.
+    drifts, _ = term_pieces(model)
+    drifted = drift_ranges([p for p in drifts or [] if p.kind == "drift"],
+                           {**physics.defaults(), **problem.fixed},
+                           lambda driver: (np.atleast_1d(point["conditions"][driver]),) * 2 + (None,), 1)
+    if drifted:
+        at_point = DesignProblem(at_point.bounds, at_point.speed_m_s, at_point.constraints,
+                                 {**at_point.fixed, **{n: float(lo[0]) for n, (lo, _) in drifted.items()}},
+                                 at_point.convention)
     bounds = [answer[4] for answer in _calibrated_counts(at_point, monomials).values()]
     return math.nan if not bounds or any(math.isnan(b) for b in bounds) else float(min(bounds))
 
@@ -999,7 +1025,9 @@ def _certified_proof(problem: DesignProblem, model: Model, bracket: CertifiedMax
     ``problem`` is in the nominal angle (the points carry their offsets). Returns the proof and the worst case
     found at the design [1].
     """
-    bounds = [_point_lower_bound(problem, model, p) for p in points]
+    # Groups move every design's mu by one factor at a point naming none (objective mu: sensitivity 1).
+    groups = math.exp(group_shift(model.calibrated))
+    bounds = [_point_lower_bound(problem, model, p) * groups for p in points]
     known = [b for b in bounds if not math.isnan(b)]
     upper = bracket.upper_bound
     lower = min(max(known), upper) if known else None
@@ -1124,13 +1152,14 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         # Started from mu's proven worst vertex, that bound is already known (optimize_robust adds it).
         at_worst = _point_lower_bound(problem, model, where) if initial_points is None else math.nan
         lower = None
-        if not math.isnan(at_worst):
-            scatter = math.exp(float(stats.norm.isf(0.025)) * model.calibrated.noise_std_log)
+        scatter = interval_floor(model.calibrated, float(stats.norm.isf(0.025)))
+        if not math.isnan(at_worst) and scatter is not None:
             lower = min(at_worst * scatter, bracket.upper_bound)
             statement += (f" Certified lower bound {lower:.10g}: mu at the worst point is at least "
                           f"{at_worst:.10g} for every design (geometric programs per ball count there, as "
-                          "for objective mu) and mu_upper >= mu exp(1.96 x "
-                          f"{model.calibrated.noise_std_log:.4g}).")
+                          f"for objective mu) and mu_upper >= mu x {scatter:.10g} (exp(1.96 x the "
+                          "measurement scatter), with the groups' offset and spread where the model has "
+                          "groups).")
         gap = None if lower is None else (bracket.upper_bound - lower) / bracket.upper_bound
         proof = {"proven": False, "method": "outer-approximation-certified", "lower_bound": lower,
                  "upper_bound": bracket.upper_bound, "relative_gap": gap, "gap_target": GAP_TARGET,
@@ -1152,10 +1181,22 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     nominal_design = _design_of(nominal)
     if nominal is solved:
         nominal_design["groove_angle_deg"] -= delta
-    nominal_worst, _, _ = worst_case_search(
-        _evaluator(problem, envelope, model, objective, nominal_design, 0.0), envelope)
+    # The nominal design's worst case: certified by the same branch and bound as the robust one's where it
+    # applies (its upper bound then judges the friction limit), else searched.
+    nominal_bracket = None
+    if certify is not None:
+        try:
+            nominal_bracket = certify(problem, nominal_design, 0.0)
+        except BoundFailedError:
+            nominal_bracket = None
+    if nominal_bracket is not None:
+        nominal_worst, nominal_upper = nominal_bracket.value, nominal_bracket.upper_bound
+    else:
+        nominal_worst, _, _ = worst_case_search(
+            _evaluator(problem, envelope, model, objective, nominal_design, 0.0), envelope)
+        nominal_upper = None
     limits = constraint_report(shifted, nominal_design["balls"], nominal_design["groove_angle_deg"] + delta,
-                               nominal_design["load_N"], mu=nominal_worst)
+                               nominal_design["load_N"], mu=nominal_upper or nominal_worst)
     centre_point = envelope.point({"speed_m_s": centre["speed_m_s"],
                                    **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})
     robust_centre = float(_evaluator(problem, envelope, model, objective, design, delta)([centre_point])[0])
@@ -1163,7 +1204,8 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         [centre_point])[0])
     price = _price(nominal_design, nominal_centre, nominal_worst,
                    all(c.satisfied for c in limits if not c.name.startswith("groove_angle_deg")),
-                   {**design, "groove_angle_deg": theta}, robust_centre, value)
+                   {**design, "groove_angle_deg": theta}, robust_centre, value, nominal_upper,
+                   None if bracket is None else bracket.upper_bound)
     certificate = (f"{'Proven' if proof['proven'] else 'Local'} optimum of the worst case over the envelope"
                    f"{'' if proof['proven'] else ', not proven'}. {statement}")
     result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
@@ -1454,8 +1496,11 @@ def _robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Mod
     robust_centre = float(_evaluator(problem, envelope, model, "mu", design, delta)(
         [envelope.point({"speed_m_s": centre["speed_m_s"],
                          **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})])[0])
+    # Both worst cases at the vertex are exact by the monotonicity argument (where the search agreed).
+    vertex_holds = searched <= value * (1 + 1e-9)
     price = _price(nominal_design, nominal_centre, nominal_worst, nominal_holds,
-                   {**design, "groove_angle_deg": design["groove_angle_deg"] - delta}, robust_centre, value)
+                   {**design, "groove_angle_deg": design["groove_angle_deg"] - delta}, robust_centre, value,
+                   nominal_worst if vertex_holds else None, value if vertex_holds else None)
     best_mu = value
     ties = [{"balls": r.balls, "groove_angle_deg": r.groove_angle_deg, "load_N": r.load_N,
              "load_per_ball_N": r.load_N / r.balls, "mu": r.mu}

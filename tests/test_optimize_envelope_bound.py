@@ -110,10 +110,19 @@ def test_structures_without_a_bound_say_why():
     gp = types.SimpleNamespace(reference="calibrated:gp",
                                calibrated=types.SimpleNamespace(discrepancy=object(), terms=[]))
     assert term_pieces(gp)[0] is None and "Gaussian-process" in term_pieces(gp)[1]
-    drift = types.SimpleNamespace(kind="drift", label="mu_pivot linear in temperature_C")
-    calibrated = types.SimpleNamespace(discrepancy=None, terms=[(drift, [1.0])])
+    # a drift of a parameter in which the physics' monotonicity is not proven (a Poisson ratio)
+    drift = types.SimpleNamespace(kind="drift", label="ball_poisson_ratio linear in temperature_C",
+                                  parameter="ball_poisson_ratio")
+    calibrated = types.SimpleNamespace(discrepancy=None, terms=[(drift, [1.0])], fitted={})
     drifting = types.SimpleNamespace(reference="calibrated:d", calibrated=calibrated)
-    assert term_pieces(drifting)[0] is None and "drifts" in term_pieces(drifting)[1]
+    assert term_pieces(drifting)[0] is None and "monotonicity is not proven" in term_pieces(drifting)[1]
+    # a proven direction, for mu; its coefficient's share of the interval has no bound (mu_upper)
+    drift = types.SimpleNamespace(kind="drift", label="viscosity_Pa_s drifts with temperature_C",
+                                  parameter="viscosity_Pa_s")
+    calibrated = types.SimpleNamespace(discrepancy=None, terms=[(drift, [1.0])], fitted={})
+    drifting = types.SimpleNamespace(reference="calibrated:d", calibrated=calibrated)
+    assert [p.kind for p in term_pieces(drifting)[0]] == ["drift"]
+    assert term_pieces(drifting, interval=True)[0] is None and "share" in term_pieces(drifting, True)[1]
 
 
 def _interval_model() -> CalibratedPhysicsModel:
@@ -334,3 +343,141 @@ def test_robust_mu_upper_of_a_model_with_a_cloud_is_certified_at_its_design():
     evaluate = robust._evaluator(held, ENVELOPE, model, "mu_upper", dict(result.result.design), 0.0)
     brute = evaluate(_grid_points(7))
     assert brute.max() <= proof["upper_bound"] <= result.worst_case["mu_upper"] * (1 + 1e-5)
+
+
+# --------------------------------------------------------------------------------------------------
+# Drifting physics parameters and group effects
+
+
+def test_the_physics_moves_with_every_drifting_parameter_in_its_stated_direction():
+    from microbearing.optimize.envelope_bound import DRIFT_DIRECTIONS
+
+    # Designs, speeds and both conventions; each parameter from a fifth to five times its default.
+    grid = list(itertools.product([1.0, 2.0, 3.0, 8.0, 30.0], [30.0, 45.0, 60.0, 80.0], [1e-4, 0.01, 1.0],
+                                  [1e-3, 0.1]))
+    columns = {name: np.array([g[i] for g in grid]) for i, name in
+               enumerate(["balls", "groove_angle_deg", "load_N", "speed_m_s"])}
+    factors = np.geomspace(0.2, 5.0, 9)
+    for convention in physics.CONVENTIONS:
+        for name, direction in DRIFT_DIRECTIONS.items():
+            default = physics.defaults()[name]
+            spec = physics.PARAMETERS[name]
+            values = [v for v in default * factors if spec.maximum is None or v < spec.maximum]
+            mu = np.array([physics.evaluate(convention=convention, outputs=["mu"], **columns,
+                                            **{name: v}).mu for v in values])
+            steps = direction * np.diff(mu, axis=0)
+            assert np.all(steps >= -1e-12 * mu[1:]), (convention, name)
+
+
+def _drift_model() -> CalibratedPhysicsModel:
+    """Viscosity falling with temperature (Arrhenius, a strong film) and a log-quadratic in humidity peaking
+    inside the range: mu's worst case at the lowest temperature and inside the humidity range."""
+    from microbearing.calibrate.candidates import DriftTerm
+    from microbearing.physics.effects import DRIFT_LAWS
+
+    constants = DRIFT_LAWS["arrhenius"].constants("temperature_C", [20.0, 40.0, 60.0])
+    drift = DriftTerm("viscosity_Pa_s", "arrhenius", "temperature_C", constants)
+    calibrated = CalibratedModel(
+        fitted={"mu_pivot": 0.6}, fixed={"viscosity_Pa_s": 0.05},
+        terms=[(drift, [3e4]),
+               (EffectTerm("generic_quadratic", ("relative_humidity",), {"centre": 0.5, "scale": 0.1}),
+                [0.1, -0.2])],
+        covariance=np.diag([1e-4, 1e4, 1e-4, 1e-4]), noise_std_log=0.02,
+        conditions=["relative_humidity", "temperature_C"])
+    return CalibratedPhysicsModel("calibrated:drift", calibrated)
+
+
+def test_certified_worst_case_with_a_drifting_viscosity_brackets_brute_force():
+    model = _drift_model()
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    design = {"balls": 5.0, "groove_angle_deg": 45.0, "load_N": 0.002}
+    bracket = robust._certified_search(problem, ENVELOPE, model, term_pieces(model)[0], design, 0.0)
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu", design, 0.0)
+    # By hand: the quadratic peaks at 0.5 - 0.1 x 0.1 / (2 x -0.2) = 0.525; viscosity is highest when cold.
+    peak_h = 0.5 - 0.1 * 0.1 / (2 * -0.2)
+    assert bracket.point["conditions"]["relative_humidity"] == pytest.approx(peak_h, rel=1e-9)
+    assert bracket.point["conditions"]["temperature_C"] == 20.0
+    # the drift matters: the same point warm is lower
+    warm = ENVELOPE.point({"speed_m_s": bracket.point["speed_m_s"], "conditions.relative_humidity": peak_h,
+                           "conditions.temperature_C": 60.0, "groove_angle_offset_deg": 0.5})
+    assert evaluate([warm])[0] < bracket.value * (1 - 1e-3)
+    brute = evaluate(_grid_points(11, extra=[("conditions.relative_humidity", peak_h)]))
+    assert brute.max() <= bracket.upper_bound <= bracket.value * (1 + 1e-6)
+    assert brute.max() == pytest.approx(bracket.value, rel=1e-6)
+
+
+def test_robust_mu_with_a_drift_is_proven_and_no_grid_design_beats_the_bound():
+    model = _drift_model()
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu")
+    proof = result.proof
+    assert proof["method"] == "outer-approximation-certified" and proof["proven"], proof["statement"]
+    held = robust._with_model_values(problem, model)
+    evaluate = robust._evaluator(held, ENVELOPE, model, "mu", dict(result.result.design), 0.0)
+    assert evaluate(_grid_points(7)).max() <= proof["upper_bound"]
+    # Every design of a grid has mu at the worst point at least the certified lower bound.
+    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
+                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
+    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    at_worst = robust._objective_values(model, "mu", robust._columns(held, ENVELOPE, designs, [where], 0.0),
+                                        held.convention)
+    assert at_worst.min() >= proof["lower_bound"] * (1 - 1e-9)
+    # the nominal design's worst case in the price of robustness is certified too
+    nominal = result.price_of_robustness["nominal"]
+    assert nominal["worst_case_certified"] is True
+    nominal_eval = robust._evaluator(held, ENVELOPE, model, "mu", nominal["design"], 0.0)
+    assert nominal_eval(_grid_points(7)).max() <= nominal["worst_case_upper_bound"]
+    assert nominal["worst_case_upper_bound"] <= nominal["worst_case"] * (1 + 1e-6)
+
+
+def _groups(fitted_parameter: bool = True):
+    from microbearing.calibrate.groups import GroupEffect
+
+    # Six specimens and six builds: a new one's variance is the spread^2 (1 + 1/6) (t_5 / z)^2.
+    out = [GroupEffect("specimen", "mu", 0.05, (0.03, 0.1), 0.03,
+                       {str(i): [0.01 * (i - 2.5), 1e-4, 10.0] for i in range(6)})]
+    if fitted_parameter:
+        out.append(GroupEffect("build", "mu_pivot", 0.05, (0.03, 0.1), 0.04,
+                               {f"b{i}": [0.01 * (i - 2.5), 1e-4, 8.0] for i in range(6)}))
+    return out
+
+
+def test_certified_mu_upper_with_groups_bounds_brute_force():
+    base = _interval_model().calibrated
+    model = CalibratedPhysicsModel("calibrated:groups", dataclasses.replace(base, groups=_groups()))
+    structures, reason = interval_structures(model)
+    assert structures is not None, reason
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    design = {"balls": 4.0, "groove_angle_deg": 50.0, "load_N": 0.005}
+    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    brute = evaluate(_grid_points(7, extra=[("conditions.temperature_C", bracket.point["conditions"][
+        "temperature_C"])]))
+    assert brute.max() <= bracket.upper_bound <= bracket.value * (1 + 2e-5)
+    assert brute.max() == pytest.approx(bracket.value, rel=1e-4)
+    # the groups decide the worst case: without them mu_upper is lower there
+    plain = robust._evaluator(problem, ENVELOPE, _interval_model(), "mu_upper", design, 0.0)
+    assert plain([bracket.point])[0] < bracket.value * (1 - 1e-3)
+
+
+def test_robust_mu_with_a_group_on_mu_is_proven_and_one_on_a_fitted_parameter_is_said_to_be_unbounded():
+    base = _model().calibrated
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    model = CalibratedPhysicsModel("calibrated:groups", dataclasses.replace(base, groups=_groups(False)))
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu")
+    assert result.proof["method"] == "outer-approximation-certified" and result.proof["proven"]
+    held = robust._with_model_values(problem, model)
+    evaluate = robust._evaluator(held, ENVELOPE, model, "mu", dict(result.result.design), 0.0)
+    brute = evaluate(_grid_points(9, extra=[("conditions.temperature_C", PEAK_C)]))
+    assert brute.max() <= result.proof["upper_bound"]
+    assert brute.max() == pytest.approx(result.worst_case["mu"], rel=1e-6)
+    # the group's offset moves mu by exp(0.03) at every point that names no group
+    alone = robust.optimize_robust(problem, ENVELOPE, _model(), objective="mu")
+    assert result.worst_case["mu"] == pytest.approx(alone.worst_case["mu"] * np.exp(0.03), rel=1e-6)
+    both = CalibratedPhysicsModel("calibrated:both", dataclasses.replace(base, groups=_groups()))
+    pieces, reason = term_pieces(both)
+    assert pieces is None and "mu_pivot" in reason
