@@ -40,12 +40,13 @@ import heapq
 import itertools
 import math
 import time
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 
 from microbearing import physics
 
@@ -67,6 +68,9 @@ MAX_BOXES = 20000
 _BATCH = 256
 #: Children per step (those of largest bound) at which the function itself is evaluated. [1]
 _EVALUATED = 16
+#: Boxes bounded after which the best point found is polished by a local ascent (and again at the box
+#: or time limit). [1]
+_POLISH_AT = (1000, 5000)
 
 #: How each effect of physics.effects enters μ ("add": μ + a(x), "mul": μ m(x)), and whether it is monotone
 #: in its main driver (True) or log-quadratic (False: an end or the stationary point).
@@ -192,8 +196,6 @@ def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None,
     calibrated = getattr(model, "calibrated", None)
     if calibrated is None:
         return None, f"{model.reference} is not a calibrated model"
-    if getattr(calibrated, "discrepancy", None) is not None:
-        return None, "its Gaussian-process discrepancy has no bound over a box here"
     unknown = _unbounded_part(calibrated, interval)
     if unknown is not None:
         return None, f"its {unknown} has no bound over a box here"
@@ -343,6 +345,24 @@ def _compose_upper(physics_upper: np.ndarray, pieces: list[Piece],
     return upper
 
 
+def _corner_points(boxes: _Boxes, inputs_fn: Callable[[np.ndarray, np.ndarray], Mapping[str, Any]],
+                   lo: np.ndarray, hi: np.ndarray) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The model's points (physics inputs and conditions) at each box's lowest and highest corner.
+
+    Every column of a point is non-decreasing in every axis (the speed, the angle made = nominal + offset,
+    each condition): the two corners give each column's range over the box.
+    """
+    corners = []
+    for corner in (lo, hi):
+        offset, speed = boxes.physics_corner(corner)
+        points = dict(inputs_fn(offset, speed))
+        for name in boxes.envelope.conditions:
+            a, b, _ = boxes.driver_interval(name, lo, hi)
+            points[name] = a if corner is lo else b
+        corners.append(points)
+    return corners[0], corners[1]
+
+
 def drift_ranges(drifts: list[Piece], base: Mapping[str, Any], driver_interval: Callable[[str], tuple],
                  n: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Each drifting parameter's exact [min, max] over each of ``n`` boxes [its unit].
@@ -420,7 +440,8 @@ def interval_floor(calibrated: Any, z: float) -> float | None:
 
 def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
                  envelope: Any, design: Mapping[str, float], calibrated: Any = None,
-                 base: Mapping[str, Any] | None = None) -> Callable:
+                 base: Mapping[str, Any] | None = None,
+                 inputs_fn: Callable[[np.ndarray, np.ndarray], Mapping[str, Any]] | None = None) -> Callable:
     """The box bound of a calibrated model's μ at a design, for :func:`certified_max`.
 
     Drift pieces move the physics' inputs: each drifting parameter's range over the box
@@ -440,9 +461,13 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
     design : mapping
         ``balls`` [1] and ``load_N`` [N].
     calibrated : calibrate.CalibratedModel, optional
-        The model, for its groups.
+        The model, for its groups and its Gaussian-process discrepancy (whose mean multiplies μ by
+        exp(mean), bounded over the box by :meth:`calibrate.CalibratedModel.discrepancy_bound`).
     base : mapping, optional
         Physics inputs at the design as the model reads them (for the drifts' base values).
+    inputs_fn : callable, optional
+        ``(angle_offset_deg, speed_m_s) -> physics inputs`` the model is given at the design (needed for a
+        discrepancy).
 
     Returns
     -------
@@ -453,6 +478,9 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
     drifts = [p for p in pieces if p.kind == "drift"]
     effects = [p for p in pieces if p.kind != "drift"]
     factor = math.exp(group_shift(calibrated)) if calibrated is not None else 1.0
+    gp = calibrated is not None and getattr(calibrated, "discrepancy", None) is not None
+    if gp and inputs_fn is None:
+        raise ValueError("a model with a discrepancy needs inputs_fn for its bound")
 
     def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         offset_hi, speed_hi = boxes.physics_corner(hi)
@@ -469,6 +497,10 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
                 peak[:, j] = np.where(rise == (DRIFT_DIRECTIONS[piece.term.parameter] > 0), b, a)
         phys = np.asarray(physics_mu(offset_hi, speed_hi, **worst), dtype=float)
         upper = _compose_upper(phys, effects, ranges) * factor
+        if gp:
+            low, high = _corner_points(boxes, inputs_fn, lo, hi)
+            mean = calibrated.discrepancy_bound(low, high, (len(lo),))[1]
+            upper = np.where(upper >= 0, upper * np.exp(mean), np.inf)
         return upper * (1.0 + _ROUNDING), _with_low_speed(boxes, lo, peak)
 
     return bound
@@ -542,11 +574,24 @@ def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np
     heap: list[tuple[float, int, np.ndarray, np.ndarray]] = [(-float(upper[0]), 0, root_lo, root_hi)]
     counter, pruned_max, count = 1, -math.inf, 1
     complete = True
+    polish_at = list(_POLISH_AT)
+
+    def polish() -> None:
+        """A bounded quasi-Newton ascent from the best point found (a better value prunes more boxes)."""
+        nonlocal best_value, best_row
+        value, row = _ascent(evaluated, best_row, root_lo, root_hi)
+        if value > best_value:
+            best_value, best_row = value, row
+
     while heap:
+        if polish_at and count >= polish_at[0]:
+            polish_at.pop(0)
+            polish()
         if -heap[0][0] <= best_value * (1.0 + rtol):
             break
         if count >= max_boxes or time.perf_counter() - start > time_limit_s:
-            complete = False
+            polish()
+            complete = -heap[0][0] <= best_value * (1.0 + rtol)
             break
         batch = [heapq.heappop(heap) for _ in range(min(_BATCH, len(heap)))]
         lo = np.array([b[2] for b in batch])
@@ -584,6 +629,28 @@ def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np
     left = -heap[0][0] if heap else -math.inf
     certified = max(best_value, pruned_max, left)
     return CertifiedMax(best_value, certified, points_of(best_row[None, :])[0], count, complete)
+
+
+def _ascent(evaluated: Callable[[np.ndarray], np.ndarray], row: np.ndarray, lo: np.ndarray,
+            hi: np.ndarray) -> tuple[float, np.ndarray]:
+    """The best value found by L-BFGS-B from ``row`` within [lo, hi] (forward differences), and where."""
+    span = hi - lo
+    step = 1e-7
+
+    def negative(u: np.ndarray) -> tuple[float, np.ndarray]:
+        sign = np.where(u + step <= 1.0, 1.0, -1.0)
+        at = np.vstack([u, u + np.diag(sign * step)])
+        f = -evaluated(lo + span * at)
+        f = np.where(np.isfinite(f), f, 1e300)
+        return float(f[0]), (f[1:] - f[0]) / (sign * step)
+
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        found = optimize.minimize(negative, np.clip((row - lo) / span, 0.0, 1.0), jac=True, method="L-BFGS-B",
+                                  bounds=[(0.0, 1.0)] * len(row), options={"maxiter": 30})
+    at = lo + span * np.clip(found.x, 0.0, 1.0)
+    value = float(evaluated(at[None, :])[0])
+    return value, at
 
 
 # --------------------------------------------------------------------------------------------------
@@ -626,6 +693,8 @@ class IntervalStructure:
         Scatter of log μ of a new measurement. [1]
     step : float
         Relative finite-difference step of its gradient. [1]
+    model : calibrate.CalibratedModel
+        The model itself (for its Gaussian-process discrepancy's bounds).
     groups : list of calibrate.groups.GroupEffect
         Its group effects (a point of the envelope names no group: each shifts log μ by s b0 and adds
         s² times the new-group variance, s the sensitivity to the group's parameter, 1 for μ itself).
@@ -637,6 +706,7 @@ class IntervalStructure:
     noise_std_log: float
     step: float
     groups: list = dataclasses.field(default_factory=list)
+    model: Any = None
 
 
 def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str]:
@@ -668,7 +738,7 @@ def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str
             return None, f"{label} has {size} fitted values (at most {MAX_VALUES} are bounded)"
         groups = list(getattr(each, "groups", None) or [])
         out.append(IntervalStructure(dict(each.fitted), pieces_of, np.asarray(each.covariance, dtype=float),
-                                     float(each.noise_std_log), step, groups))
+                                     float(each.noise_std_log), step, groups, each))
     return out, ""
 
 
@@ -737,26 +807,17 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
     boxes = _Boxes(envelope, design)
     level = 1.0 - 2.0 * float(stats.norm.sf(z))
     cloud = None if calibrated is None else getattr(calibrated, "cloud", None)
-    if cloud is not None and inputs_fn is None:
-        raise ValueError("a model with a data cloud needs inputs_fn for the bound of its widening")
+    gp = any(getattr(s.model, "discrepancy", None) is not None for s in structures)
+    if (cloud is not None or gp) and inputs_fn is None:
+        raise ValueError("a model with a data cloud or a discrepancy needs inputs_fn for their bounds")
 
     def widening(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """An upper bound of the cloud's widening over each box (ones without a cloud). [1]"""
         n = len(lo)
         if cloud is None:
             return np.ones(n)
-        corners = []
-        for corner in (lo, hi):
-            offset, speed = boxes.physics_corner(corner)
-            points = dict(inputs_fn(offset, speed))
-            for name in envelope.conditions:
-                a, b, _ = boxes.driver_interval(name, lo, hi)
-                points[name] = a if corner is lo else b
-            corners.append(points)
-        # Every column of a point is non-decreasing in every axis (the speed, the angle made = nominal +
-        # offset, each condition): the box's lowest and highest corners give each column's range.
-        return np.asarray(cloud.widening(calibrated.cloud_ratio_bound(corners[0], corners[1], (n,))),
-                          dtype=float)
+        low, high = _corner_points(boxes, inputs_fn, lo, hi)
+        return np.asarray(cloud.widening(calibrated.cloud_ratio_bound(low, high, (n,))), dtype=float)
 
     def one(s: IntervalStructure, lo: np.ndarray, hi: np.ndarray, peak: np.ndarray,
             wide: np.ndarray) -> np.ndarray:
@@ -862,6 +923,10 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
             else:
                 shift += group.offset_log
                 group_variance += group.new_group_variance(level)
+        if getattr(s.model, "discrepancy", None) is not None:
+            low, high = _corner_points(boxes, inputs_fn, lo, hi)
+            _, gp_mean, gp_variance = s.model.discrepancy_bound(low, high, (n,))
+            shift, group_variance = shift + gp_mean, group_variance + gp_variance
         sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * wide
         return np.where(finite, mu_hi * np.exp(shift + z * sigma), np.inf)
 

@@ -956,16 +956,24 @@ def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: M
                                       **{**inputs, **calibrated.fixed, **fitted})
         return {name: np.asarray(getattr(result, name), dtype=float) for name in outputs}
 
+    bound = mu_upper_box_bound(structures, physics_fn, envelope, {"balls": balls, "load_N": load},
+                               float(stats.norm.isf(0.025)), calibrated,
+                               _inputs_fn(problem, model, balls, theta, load))
+    return certified_max(bound, _evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
+                         rtol=INTERVAL_RTOL)
+
+
+def _inputs_fn(problem: DesignProblem, model: Model, balls: Any, theta: Any,
+               load: Any) -> Callable[[np.ndarray, np.ndarray], dict[str, Any]]:
+    """``(angle offset [deg], speed [m/s]) -> the physics inputs the model is given at a design``, as
+    :func:`_objective_values` gives them (without the values the model holds)."""
     held = {*model.fixed, *model.fitted}
 
-    def inputs_fn(offset: np.ndarray, speed: np.ndarray) -> dict[str, Any]:  # as _objective_values gives them
+    def inputs_fn(offset: np.ndarray, speed: np.ndarray) -> dict[str, Any]:
         columns = problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed)
         return {k: v for k, v in columns.items() if k not in held}
 
-    bound = mu_upper_box_bound(structures, physics_fn, envelope, {"balls": balls, "load_N": load},
-                               float(stats.norm.isf(0.025)), calibrated, inputs_fn)
-    return certified_max(bound, _evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
-                         rtol=INTERVAL_RTOL)
+    return inputs_fn
 
 
 def _certified_search(problem: DesignProblem, envelope: Envelope, model: Model, pieces: list,
@@ -982,12 +990,18 @@ def _certified_search(problem: DesignProblem, envelope: Envelope, model: Model, 
     # The values the drifts start from: the model's own (in problem.fixed, _with_model_values), else defaults.
     base = {**physics.defaults(), **problem.fixed}
     return certified_max(mu_box_bound(pieces, physics_mu, envelope, {"balls": balls, "load_N": load},
-                                      model.calibrated, base),
+                                      model.calibrated, base, _inputs_fn(problem, model, balls, theta, load)),
                          _evaluator(problem, envelope, model, "mu", design, shift), envelope)
 
 
-def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str, Any]) -> float:
-    """A certified lower bound [1] of the least μ over the designs at one envelope point (NaN: none).
+def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str, Any],
+                       factor: float = 1.0) -> float:
+    """A certified lower bound [1] of the least objective over the designs at one envelope point (NaN: none).
+
+    ``factor`` > 0 is a lower bound of the objective over the model's μ without its groups and discrepancy
+    (1 for μ with neither; :func:`optimize.envelope_bound.interval_floor` for ``mu_upper``): the bound is
+    factor × exp(the discrepancy's least mean over the design box at the point) × the programs' bound, and
+    the friction-force limit on the objective enters the programs divided by that product (a relaxation).
 
     At a fixed point every effect term is a positive monomial in balls and load_N (read and checked,
     :func:`_monomials_at`), so the calibrated μ there is a posynomial and its minimum over the designs, with
@@ -1013,8 +1027,20 @@ def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str,
         at_point = DesignProblem(at_point.bounds, at_point.speed_m_s, at_point.constraints,
                                  {**at_point.fixed, **{n: float(lo[0]) for n, (lo, _) in drifted.items()}},
                                  at_point.convention)
+    if model.calibrated.discrepancy is not None:
+        (b_lo, b_hi), (a_lo, a_hi), (l_lo, l_hi) = (problem.bounds.balls, problem.bounds.groove_angle_deg,
+                                                    problem.bounds.load_N)
+        offset, speed = float(point["groove_angle_offset_deg"]), np.array([float(point["speed_m_s"])])
+        conditions = {n: np.array([float(v)]) for n, v in point["conditions"].items()}
+        corners = [{**_inputs_fn(problem, model, np.array([float(b)]), np.array([a]), np.array([g]))(
+            offset, speed), **conditions} for b, a, g in ((b_lo, a_lo, l_lo), (b_hi, a_hi, l_hi))]
+        factor *= math.exp(float(model.calibrated.discrepancy_bound(corners[0], corners[1], (1,))[0][0]))
+    if factor != 1.0 and at_point.constraints.max_friction_force_N is not None:
+        at_point = DesignProblem(at_point.bounds, at_point.speed_m_s, dataclasses.replace(
+            at_point.constraints, max_friction_force_N=at_point.constraints.max_friction_force_N / factor),
+            at_point.fixed, at_point.convention)
     bounds = [answer[4] for answer in _calibrated_counts(at_point, monomials).values()]
-    return math.nan if not bounds or any(math.isnan(b) for b in bounds) else float(min(bounds))
+    return math.nan if not bounds or any(math.isnan(b) for b in bounds) else float(min(bounds)) * factor
 
 
 def _certified_proof(problem: DesignProblem, model: Model, bracket: CertifiedMax,
@@ -1027,7 +1053,7 @@ def _certified_proof(problem: DesignProblem, model: Model, bracket: CertifiedMax
     """
     # Groups move every design's mu by one factor at a point naming none (objective mu: sensitivity 1).
     groups = math.exp(group_shift(model.calibrated))
-    bounds = [_point_lower_bound(problem, model, p) * groups for p in points]
+    bounds = [_point_lower_bound(problem, model, p, groups) for p in points]
     known = [b for b in bounds if not math.isnan(b)]
     upper = bracket.upper_bound
     lower = min(max(known), upper) if known else None
@@ -1150,16 +1176,18 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         # Every design's mu_upper at the worst point is at least exp(z noise) times its mu there (the interval
         # is at least the scatter), and its mu there at least the dual bound of the geometric programs.
         # Started from mu's proven worst vertex, that bound is already known (optimize_robust adds it).
-        at_worst = _point_lower_bound(problem, model, where) if initial_points is None else math.nan
-        lower = None
         scatter = interval_floor(model.calibrated, float(stats.norm.isf(0.025)))
-        if not math.isnan(at_worst) and scatter is not None:
-            lower = min(at_worst * scatter, bracket.upper_bound)
-            statement += (f" Certified lower bound {lower:.10g}: mu at the worst point is at least "
-                          f"{at_worst:.10g} for every design (geometric programs per ball count there, as "
-                          f"for objective mu) and mu_upper >= mu x {scatter:.10g} (exp(1.96 x the "
-                          "measurement scatter), with the groups' offset and spread where the model has "
-                          "groups).")
+        at_worst = (_point_lower_bound(problem, model, where, scatter)
+                    if initial_points is None and scatter is not None else math.nan)
+        lower = None
+        if not math.isnan(at_worst):
+            lower = min(at_worst, bracket.upper_bound)
+            statement += (f" Certified lower bound {lower:.10g}: at the worst point every design's mu_upper "
+                          f"is at least {scatter:.10g} (exp(1.96 x the measurement scatter), with the "
+                          "groups' offset and spread where the model has groups) times its mu there, and "
+                          "that mu at least the dual bound of geometric programs per ball count there (as "
+                          "for objective mu; a discrepancy's least mean over the designs there multiplies "
+                          "it).")
         gap = None if lower is None else (bracket.upper_bound - lower) / bracket.upper_bound
         proof = {"proven": False, "method": "outer-approximation-certified", "lower_bound": lower,
                  "upper_bound": bracket.upper_bound, "relative_gap": gap, "gap_target": GAP_TARGET,

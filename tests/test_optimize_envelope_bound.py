@@ -107,9 +107,10 @@ def test_robust_mu_with_non_monotone_terms_is_proven_and_no_grid_design_beats_th
 
 
 def test_structures_without_a_bound_say_why():
-    gp = types.SimpleNamespace(reference="calibrated:gp",
-                               calibrated=types.SimpleNamespace(discrepancy=object(), terms=[]))
-    assert term_pieces(gp)[0] is None and "Gaussian-process" in term_pieces(gp)[1]
+    unknown = types.SimpleNamespace(kind="other", label="a future kind of term")
+    other = types.SimpleNamespace(reference="calibrated:o",
+                                  calibrated=types.SimpleNamespace(terms=[(unknown, [1.0])], fitted={}))
+    assert term_pieces(other)[0] is None and "no known bound" in term_pieces(other)[1]
     # a drift of a parameter in which the physics' monotonicity is not proven (a Poisson ratio)
     drift = types.SimpleNamespace(kind="drift", label="ball_poisson_ratio linear in temperature_C",
                                   parameter="ball_poisson_ratio")
@@ -481,3 +482,114 @@ def test_robust_mu_with_a_group_on_mu_is_proven_and_one_on_a_fitted_parameter_is
     both = CalibratedPhysicsModel("calibrated:both", dataclasses.replace(base, groups=_groups()))
     pieces, reason = term_pieces(both)
     assert pieces is None and "mu_pivot" in reason
+
+
+# --------------------------------------------------------------------------------------------------
+# A Gaussian-process discrepancy
+
+
+def _gp_state(features=("temperature_C", "relative_humidity"), seed=5):
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(30, len(features)))
+    y = 0.05 * np.sin(1.5 * x[:, 0]) + 0.02 * x[:, -1]
+    centre = {"temperature_C": 40.0, "relative_humidity": 0.5, "load_N": 0.01}
+    scale = {"temperature_C": 10.0, "relative_humidity": 0.1, "load_N": 0.005}
+    return {"features": list(features), "centre": [centre[f] for f in features],
+            "scale": [scale[f] for f in features], "length_scale": [0.7] * len(features),
+            "amplitude": 0.004, "noise": 1e-4, "x": x.tolist(), "y": y.tolist()}
+
+
+def _gp_model(features=("temperature_C", "relative_humidity")) -> CalibratedPhysicsModel:
+    from microbearing.calibrate.model import GPCorrection
+
+    base = _interval_model().calibrated
+    return CalibratedPhysicsModel("calibrated:gp", dataclasses.replace(
+        base, discrepancy=GPCorrection(_gp_state(features))))
+
+
+def test_gp_bounds_hold_every_point_of_a_box_and_close_on_a_point():
+    from microbearing.calibrate.model import GPCorrection
+
+    gp = GPCorrection(_gp_state())
+    rng = np.random.default_rng(2)
+    low = {"temperature_C": np.array([20.0, 35.0, 45.0]), "relative_humidity": np.array([0.3, 0.45, 0.6])}
+    width = {"temperature_C": np.array([40.0, 5.0, 1.0]), "relative_humidity": np.array([0.4, 0.1, 0.01])}
+    high = {n: low[n] + width[n] for n in low}
+    mean_lo, mean_hi, var_hi = gp.bound(low, high, (3,))
+    for box in range(3):
+        samples = {n: rng.uniform(low[n][box], high[n][box], 3000) for n in low}
+        mean, variance = gp(samples, (3000,))
+        assert mean_lo[box] <= mean.min() and mean.max() <= mean_hi[box]
+        assert variance.max() <= var_hi[box]
+    # a box of one point: the GP's own mean and variance (to rounding); a small box, close to them
+    point = {n: low[n][1:2] for n in low}
+    mean, variance = gp(point, (1,))
+    bounds = gp.bound(point, point, (1,))
+    assert bounds[0][0] == pytest.approx(mean[0], abs=1e-10)
+    assert bounds[1][0] == pytest.approx(mean[0], abs=1e-10)
+    assert bounds[2][0] == pytest.approx(variance[0], rel=1e-6, abs=1e-12)
+    small = {n: point[n] + 1e-5 * width[n][1] for n in low}
+    assert gp.bound(point, small, (1,))[1][0] == pytest.approx(mean[0], abs=1e-5)
+
+
+def test_certified_worst_case_with_a_gp_discrepancy_brackets_brute_force_for_mu_and_mu_upper():
+    model = _gp_model()
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    design = {"balls": 5.0, "groove_angle_deg": 45.0, "load_N": 0.01}
+    pieces, reason = term_pieces(model)
+    assert pieces is not None, reason
+    structures, reason = interval_structures(model)
+    assert structures is not None, reason
+    for objective, bracket in [
+            ("mu", robust._certified_search(problem, ENVELOPE, model, pieces, design, 0.0)),
+            ("mu_upper", robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0))]:
+        evaluate = robust._evaluator(problem, ENVELOPE, model, objective, design, 0.0)
+        # Here the GP's mean and the quadratic term slope opposite ways at the worst temperature: bounded
+        # factor by factor, a box's bound exceeds the value by their slopes times its width, and the branch
+        # and bound stops at its box limit with the bracket it has (said: complete False, and its gap).
+        tolerance = bracket.relative_gap
+        assert tolerance <= 5e-3 and (bracket.complete or bracket.boxes >= 20000)
+        # inside the envelope in temperature (the GP's and the quadratic's bumps), at no vertex
+        assert 20.0 < bracket.point["conditions"]["temperature_C"] < 60.0
+        assert max(evaluate(_grid_points(2))) < bracket.value * (1 - 1e-4)
+        t = bracket.point["conditions"]["temperature_C"]
+        brute = evaluate(_grid_points(9, extra=[("conditions.temperature_C", x)
+                                                for x in np.linspace(t - 0.5, t + 0.5, 41)]))
+        assert brute.max() <= bracket.upper_bound
+        assert brute.max() == pytest.approx(bracket.value, rel=1e-5)
+        # the bracket's stated gap: upper = value / (1 - gap)
+        assert bracket.upper_bound <= max(brute.max(), bracket.value) / (1 - tolerance) * (1 + 1e-9)
+        # the discrepancy decides it: without it the worst case is elsewhere or lower
+        plain = robust._evaluator(problem, ENVELOPE, _interval_model(), objective, design, 0.0)
+        assert abs(plain([bracket.point])[0] / bracket.value - 1) > 1e-4
+
+
+def test_robust_mu_with_a_gp_is_certified_at_its_design_and_no_grid_design_beats_the_lower_bound():
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    # The GP reads conditions only: every design's mu at a point has the same factor, so the lower bound over
+    # designs is tight (to 1e-6 of the worst case found); the proof's gap is then the bracket's at the design.
+    result = robust.optimize_robust(problem, ENVELOPE, _gp_model(), objective="mu")
+    proof = result.proof
+    assert proof["method"] == "outer-approximation-certified"
+    assert proof["lower_bound"] >= result.worst_case["mu"] * (1 - 1e-6)
+    assert proof["relative_gap"] == pytest.approx(proof["worst_case_relative_gap"], abs=2e-6)
+    assert proof["proven"] == (proof["relative_gap"] <= robust.GAP_TARGET)
+    held = robust._with_model_values(problem, _gp_model())
+    evaluate = robust._evaluator(held, ENVELOPE, _gp_model(), "mu", dict(result.result.design), 0.0)
+    assert evaluate(_grid_points(7)).max() <= proof["upper_bound"]
+    # A GP reading the load too: the worst case at the design is still certified; the lower bound over
+    # designs takes the GP's least mean over the whole design box, and no grid design beats it.
+    model = _gp_model(("temperature_C", "load_N"))
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu")
+    proof = result.proof
+    assert proof["method"] == "outer-approximation-certified" and proof["worst_case_relative_gap"] < 5e-3
+    held = robust._with_model_values(problem, model)
+    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
+                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
+    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    at_worst = robust._objective_values(model, "mu", robust._columns(held, ENVELOPE, designs, [where], 0.0),
+                                        held.convention)
+    assert proof["lower_bound"] is not None and at_worst.min() >= proof["lower_bound"]
