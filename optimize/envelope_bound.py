@@ -28,9 +28,30 @@ The 95 % upper bound, μ exp(z σ) with σ² = g'Cg + noise² (g the finite-diff
 the fitted values, C their covariance), is bounded the same way by interval arithmetic on that closed
 form (:func:`mu_upper_box_bound`), for the model and each rival whose envelope it takes. Every value
 the model itself gives at a point of a box is checked against the box's bound
-(:class:`BoundFailedError`), so a model the premises do not fit is caught where it shows. A term
-drifting a physics parameter, a Gaussian-process discrepancy or an effect not in :data:`_PIECES` have
-no such bound here: :func:`term_pieces` says why.
+(:class:`BoundFailedError`), so a model the premises do not fit is caught where it shows.
+
+The other parts of a calibrated model are bounded over a box too:
+
+* **a drifting physics parameter** (a viscosity falling with temperature by Arrhenius' law, ...): each
+  law is monotone in its driver, so the parameter's range over the box is the law at the driver's ends
+  (:func:`drift_ranges`), and the physics' μ is monotone in every parameter a drift may move
+  (:data:`DRIFT_DIRECTIONS`): its maximum is at the parameter's worst end (μ; the drift's coefficient's
+  share of the interval has no bound here, so ``mu_upper`` with a drift stays searched);
+* **group effects** at a point naming no group: a group on μ (or on a parameter the model does not fit)
+  shifts log μ by its offset and adds the new-group variance, constants; one on a fitted parameter p
+  shifts it by s b0 with s = p × p's gradient entry, bounded by that entry's interval (``mu_upper``; for
+  μ alone it is refused, said);
+* **the data cloud's widening of the interval**: the k-th smallest distance from the rows to the box's
+  farthest corner bounds the k-th nearest distance of every point of the box
+  (:meth:`calibrate.domain.DataCloud.score_bound`), and the widening is non-decreasing in it;
+* **a Gaussian-process discrepancy**: its mean between the kernel's ends per training point and a
+  second-order Taylor bound at the box's centre, its variance from the tangent plane of the convex
+  k'K⁻¹k (:meth:`calibrate.model.GPCorrection.bound`). Each factor is bounded on its own, so where the GP's
+  mean and a term slope opposite ways at the worst point the bound closes only linearly with the box, and
+  the branch and bound may stop at its box limit with a wider bracket (stated: ``complete`` False).
+
+An effect not in :data:`_PIECES`, a drift of another parameter or a scatter that depends on an input
+have no bound here: :func:`term_pieces` says why.
 """
 
 from __future__ import annotations

@@ -52,14 +52,19 @@ comes from the outer approximation below, with that bracket in place of the sear
 lower bound on the best achievable worst case is the largest, over the worst points found, of the
 least μ over the designs at that point (there every term is a positive monomial in balls and load,
 so a geometric program per ball count, bounded by its dual). A gap within :data:`GAP_TARGET` is a
-proof; otherwise both bounds are stated and the result says it is not proven.
+proof; otherwise both bounds are stated and the result says it is not proven. The same holds with a
+drifting physics parameter (the drifted value fixed at the point), groups (a constant factor at a
+point naming none) and a Gaussian-process discrepancy (its least mean over the design box at the
+point), each bounded over a box as :mod:`optimize.envelope_bound` says; ``mu_upper``'s bracket also
+bounds the data cloud's widening of the interval. The nominal design's worst case in the price of
+robustness is bracketed the same way (``worst_case_certified``, ``worst_case_upper_bound``).
 
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
-A surrogate, a term that is not monotone (a quadratic in humidity may peak inside the range; a
-Stribeck term falls with speed while rolling grows), a GP discrepancy or the width of a 95 %
-interval have no known bound on their derivatives, so no rigorous bound over a box exists for them
-here. The method is a cutting-plane (outer-approximation) loop: the local method of
+A surrogate, or a part of a calibrated model :mod:`optimize.envelope_bound` has no box bound for (a
+drift's coefficient in the interval, a scatter that depends on an input, a fitted value whose effect
+on μ has no closed form), has no known bound on its derivatives, so no rigorous bound over a box
+exists for it here. The method is a cutting-plane (outer-approximation) loop: the local method of
 :func:`optimize.optimize_model` minimizes the largest objective over a finite set of envelope points
 (its vertices and centre, or the vertex where μ is proven worst, to begin with); at the design
 found, the worst case over the whole envelope is searched (a grid of every axis, then a bounded
