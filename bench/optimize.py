@@ -331,9 +331,6 @@ def robust_parts() -> None:
         for objective in ("mu", "mu_upper"):
             if objective == "mu" and any(g.parameter != "mu" for g in calibrated.groups):
                 continue  # a group on a fitted parameter: mu's bound is refused (said in the proof)
-            drifts = any(getattr(t, "kind", "") == "drift" for t, _ in calibrated.terms)
-            if objective == "mu_upper" and drifts:
-                continue  # a drift's coefficient: no bound of its share of the interval
             runs = {}
             for way in ("certified", "searched"):
                 if way == "searched":

@@ -35,8 +35,10 @@ The other parts of a calibrated model are bounded over a box too:
 * **a drifting physics parameter** (a viscosity falling with temperature by Arrhenius' law, ...): each
   law is monotone in its driver, so the parameter's range over the box is the law at the driver's ends
   (:func:`drift_ranges`), and the physics' μ is monotone in every parameter a drift may move
-  (:data:`DRIFT_DIRECTIONS`): its maximum is at the parameter's worst end (μ; the drift's coefficient's
-  share of the interval has no bound here, so ``mu_upper`` with a drift stays searched);
+  (:data:`DRIFT_DIRECTIONS`): its maximum is at the parameter's worst end; for ``mu_upper`` the drift's
+  values' gradient of log μ is bounded in closed form where the parameter enters the physics as one power
+  (:data:`DRIFT_SHARES`: the parameter moves by f(c + h, x) / f(c, x), monotone in x, and its share by that
+  ratio to the power);
 * **group effects** at a point naming no group: a group on μ (or on a parameter the model does not fit)
   shifts log μ by its offset and adds the new-group variance, constants; one on a fitted parameter p
   shifts it by s b0 with s = p × p's gradient entry, bounded by that entry's interval (``mu_upper``; for
@@ -71,7 +73,8 @@ from scipy import optimize, stats
 
 from microbearing import physics
 
-__all__ = ["BOUND_RTOL", "DRIFT_DIRECTIONS", "INTERVAL_RTOL", "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
+__all__ = ["BOUND_RTOL", "DRIFT_DIRECTIONS", "DRIFT_SHARES", "INTERVAL_OUTPUTS", "INTERVAL_RTOL",
+           "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
            "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max", "drift_ranges",
            "group_shift", "interval_floor",
            "interval_structures", "mu_box_bound", "mu_upper_box_bound", "term_pieces"]
@@ -86,7 +89,7 @@ _INTERVAL_ROUNDING = 1e-9
 #: Most boxes branched before the bound found so far is returned as it stands. [1]
 MAX_BOXES = 20000
 #: Boxes split per vectorized step. [1]
-_BATCH = 256
+_BATCH = 512
 #: Children per step (those of largest bound) at which the function itself is evaluated. [1]
 _EVALUATED = 16
 #: Boxes bounded after which the best point found is polished by a local ascent (and again at the box
@@ -122,6 +125,19 @@ DRIFT_DIRECTIONS: dict[str, int] = {
     "water_surface_tension_N_m": 1, "mu_pivot": 1, "mu_ball": 1,
     "ball_youngs_modulus_Pa": -1, "race_youngs_modulus_Pa": -1,
 }
+
+
+#: The physics' μ in a drifting parameter p, for the interval's gradient: μ = rest + share(p), share ∝ p^a,
+#: one output of the physics (``output``) with exponent ``a``: Houpert's rolling force ~ η^0.66 (α E')^0.022
+#: (eq 9), the ball-ball moment ~ γ_w μ_b, the pivoting moment ~ μ_s. The adhesion energy and the moduli move
+#: the contact load or the contact radius, with no such form.
+DRIFT_SHARES: dict[str, tuple[str, float]] = {
+    "viscosity_Pa_s": ("mu_rolling", 0.66), "pressure_viscosity_1_Pa": ("mu_rolling", 0.022),
+    "water_surface_tension_N_m": ("mu_ball_ball", 1.0), "mu_ball": ("mu_ball_ball", 1.0),
+    "mu_pivot": ("mu_pivoting", 1.0),
+}
+#: The physics' outputs the interval's bound reads (``physics_fn`` of :func:`mu_upper_box_bound`).
+INTERVAL_OUTPUTS = ("mu", "mu_pivoting", "mu_rolling", "mu_ball_ball")
 
 
 @dataclass(frozen=True)
@@ -231,9 +247,10 @@ def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None,
             if term.parameter not in DRIFT_DIRECTIONS:
                 return None, (f"its term {label!r} drifts a physics parameter in which the physics' "
                               "monotonicity is not proven")
-            if interval:
+            if interval and term.parameter not in DRIFT_SHARES:
                 return None, (f"its term {label!r} drifts a physics parameter: its fitted coefficient's "
-                              "share of the interval has no bound over a box here")
+                              "share of the interval has no closed form here (it moves the contact load "
+                              "or the modulus)")
             pieces.append(Piece(term, list(map(float, values)), "drift", True))
             continue
         if getattr(term, "kind", None) != "effect":
@@ -341,6 +358,9 @@ def _pieces_range(pieces: list[Piece], boxes: _Boxes, lo: np.ndarray, hi: np.nda
     n = len(lo)
     out = []
     for piece in pieces:
+        if piece.kind == "drift":  # moves the physics' inputs, no factor of its own
+            out.append((np.ones(n), np.ones(n)))
+            continue
         x, j = _candidates(piece, boxes, lo, hi)
         values = piece.at(x, boxes.columns(n, speed, 3))
         if not np.all(np.isfinite(values)):
@@ -751,7 +771,7 @@ def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str
             return None, f"{label} fits {unknown[0]}, whose effect on mu has no bound over a box here"
         for piece in pieces_of:
             for i, name in enumerate(piece.term.parameter_names):
-                if (piece.term.name, i) not in _VALUE_FORMS:
+                if piece.kind != "drift" and (piece.term.name, i) not in _VALUE_FORMS:
                     return None, (f"{label}: the fitted {name} of {piece.term.label} changes mu in a way "
                                   "with no bound over a box here")
         size = len(each.fitted) + sum(len(p.values) for p in pieces_of)
@@ -776,12 +796,20 @@ def _times_positive(low: np.ndarray, high: np.ndarray, pos_low: np.ndarray,
             np.where(high >= 0, high * pos_high, high * pos_low))
 
 
+def _product(a_lo: Any, a_hi: Any, b_lo: Any, b_hi: Any) -> tuple[np.ndarray, np.ndarray]:
+    """[a_lo, a_hi] × [b_lo, b_hi] (interval arithmetic, any signs; NaN where an end is not finite)."""
+    with np.errstate(all="ignore"):
+        corners = np.array(np.broadcast_arrays(a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi),
+                           dtype=float)
+    return np.min(corners, axis=0), np.max(corners, axis=0)
+
+
 def mu_upper_box_bound(structures: list[IntervalStructure],
                        physics_fn: Callable[[np.ndarray, np.ndarray, Mapping[str, float]],
                                             dict[str, np.ndarray]],
                        envelope: Any, design: Mapping[str, float], z: float, calibrated: Any = None,
-                       inputs_fn: Callable[[np.ndarray, np.ndarray], Mapping[str, Any]] | None = None
-                       ) -> Callable:
+                       inputs_fn: Callable[[np.ndarray, np.ndarray], Mapping[str, Any]] | None = None,
+                       base: Mapping[str, Any] | None = None) -> Callable:
     """The box bound of a calibrated model's ``mu_upper`` at a design, for :func:`certified_max`.
 
     Over a box every quantity of each structure gets an interval: the physics' μ and each linear output
@@ -802,7 +830,7 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         From :func:`interval_structures`.
     physics_fn : callable
         ``(angle_offset_deg, speed_m_s, fitted) -> {"mu": ..., <output>: ...}`` [1] of the physics at the
-        design with those fitted values, for the outputs of :data:`LINEAR_DECLARED`.
+        design with those fitted values (and drifted parameters, arrays), for :data:`INTERVAL_OUTPUTS`.
     envelope : optimize.robust.Envelope
         The envelope.
     design : mapping
@@ -814,6 +842,9 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
     inputs_fn : callable, optional
         ``(angle_offset_deg, speed_m_s) -> physics inputs`` [their units] the model is given at the design
         (as its evaluation at envelope points is), for the cloud's columns.
+    base : mapping, optional
+        Physics inputs at the design as the model reads them, for the drifts' base values (each structure's
+        fitted values take precedence).
 
     Returns
     -------
@@ -845,11 +876,21 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         n = len(lo)
         offset_lo, speed_lo = boxes.physics_corner(lo)
         offset_hi, speed_hi = boxes.physics_corner(hi)
-        phys = physics_fn(np.r_[offset_lo, offset_hi], np.r_[speed_lo, speed_hi], s.fitted)
+        # Drifted parameters at the ends where mu is least (the lowest corner) and largest (the highest);
+        # every output read moves with each of them as mu does (DRIFT_SHARES).
+        drifts = [p for p in s.pieces if p.kind == "drift"]
+        drifted = drift_ranges(drifts, {**physics.defaults(), **(base or {}), **s.fitted},
+                               lambda driver: boxes.driver_interval(driver, lo, hi), n)
+        moved = {name: np.r_[(low, high) if DRIFT_DIRECTIONS[name] > 0 else (high, low)]
+                 for name, (low, high) in drifted.items()}
+        phys = physics_fn(np.r_[offset_lo, offset_hi], np.r_[speed_lo, speed_hi], {**s.fitted, **moved})
         levels_lo, levels_hi = [phys["mu"][:n]], [phys["mu"][n:]]
         ranges = _pieces_range(s.pieces, boxes, lo, hi, speed_hi, peak)
         for piece, (low, top) in zip(s.pieces, ranges, strict=True):
-            if piece.kind == "add":
+            if piece.kind == "drift":
+                levels_lo.append(levels_lo[-1])
+                levels_hi.append(levels_hi[-1])
+            elif piece.kind == "add":
                 levels_lo.append(levels_lo[-1] + low)
                 levels_hi.append(levels_hi[-1] + top)
             else:
@@ -878,6 +919,43 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         def adds_after(k: int) -> bool:
             return any(piece.kind == "add" for piece in s.pieces[k + 1:])
 
+        def _drift_ratio(piece: Piece, i: int, h: float) -> tuple[np.ndarray, np.ndarray, float]:
+            """D / mu for a step h in a drift's coefficient (i = 0) or level (i = 1): the parameter moves
+            by the ratio f(c + h, x) / f(c, x) (monotone in x: its ends) or (level + h) / level, its share
+            of the physics by ratio^a - 1 (one inside the ratio's interval where the box may clip the
+            parameter), and mu by that change times the factors after the physics."""
+            term = piece.term
+            output, exponent = DRIFT_SHARES[term.parameter]
+            if i == 0:
+                a, b, _ = boxes.driver_interval(term.driver, lo, hi)
+                c = piece.values[0]
+                with np.errstate(all="ignore"):
+                    ratios = [np.asarray(term.factor({term.driver: x}, c + h), dtype=float)
+                              / np.asarray(term.factor({term.driver: x}, c), dtype=float) for x in (a, b)]
+                ratio_lo, ratio_hi = np.minimum(*ratios), np.maximum(*ratios)
+            else:
+                ratio_lo = ratio_hi = np.full(n, (piece.values[1] + h) / piece.values[1])
+            spec = physics.PARAMETERS[term.parameter]
+            low, high = drifted[term.parameter]
+            clipped = ((spec.minimum is not None) & (low <= spec.minimum)) | (
+                (spec.maximum is not None) & (high >= np.nextafter(spec.maximum, -np.inf)))
+            ratio_lo = np.where(clipped, np.minimum(ratio_lo, 1.0), ratio_lo)
+            ratio_hi = np.where(clipped, np.maximum(ratio_hi, 1.0), ratio_hi)
+            ok = ratio_lo > 0
+            with np.errstate(all="ignore"):
+                d_lo = np.where(ok, np.power(np.where(ok, ratio_lo, 1.0), exponent) - 1.0, -np.inf)
+                d_hi = np.where(ok, np.power(np.where(ok, ratio_hi, 1.0), exponent) - 1.0, np.inf)
+            change = _product(d_lo, d_hi, phys[output][:n], phys[output][n:])  # D of the physics
+            if adds_after(-1):
+                q_lo, q_hi = after(-1)
+                r_lo, r_hi = _product(*change, q_lo / mu_hi, q_hi / safe_lo)
+            else:  # mu = physics x the factors: D / mu = D_phys / physics
+                phys_lo = phys["mu"][:n]
+                good = phys_lo > 0
+                r_lo, r_hi = _product(*change, 1.0 / phys["mu"][n:], 1.0 / np.where(good, phys_lo, np.nan))
+                r_lo, r_hi = np.where(good, r_lo, -np.inf), np.where(good, r_hi, np.inf)
+            return r_lo, r_hi, h
+
         for name, value in s.fitted.items():
             h = s.step * (abs(value) if value != 0 else 1.0)
             output = LINEAR_DECLARED[name]
@@ -893,6 +971,10 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
             gradient(r_lo, r_hi, h)
         for k, piece in enumerate(s.pieces):
             p_lo, p_hi = after(k)
+            if piece.kind == "drift":
+                for i, value in enumerate(piece.values):
+                    gradient(*_drift_ratio(piece, i, s.step * (abs(value) if value != 0 else 1.0)))
+                continue
             for i, value in enumerate(piece.values):
                 h = s.step * (abs(value) if value != 0 else 1.0)
                 form = _VALUE_FORMS[(piece.term.name, i)]
