@@ -64,8 +64,8 @@ Other models: an outer approximation, said to be unproven
 A surrogate, or a part of a calibrated model :mod:`optimize.envelope_bound` has no box bound for (a
 drift of the adhesion energy or a modulus in the interval, a scatter that depends on an input, a
 fitted value whose effect on μ has no closed form), has no known bound on its derivatives, so no
-rigorous bound over a box exists for it here. The method is a cutting-plane (outer-approximation) loop: the local method of
-:func:`optimize.optimize_model` minimizes the largest objective over a finite set of envelope points
+rigorous bound over a box exists for it here. The method is a cutting-plane (outer-approximation)
+loop: the local method of :func:`optimize.optimize_model` minimizes the largest objective over a finite set of envelope points
 (its vertices and centre, or the vertex where μ is proven worst, to begin with); at the design
 found, the worst case over the whole envelope is searched (a grid of every axis, then a bounded
 quasi-Newton ascent from the best grid points); a point worse than the set by more than
