@@ -89,7 +89,7 @@ _INTERVAL_ROUNDING = 1e-9
 #: Most boxes branched before the bound found so far is returned as it stands. [1]
 MAX_BOXES = 20000
 #: Boxes split per vectorized step. [1]
-_BATCH = 512
+_BATCH = 256
 #: Children per step (those of largest bound) at which the function itself is evaluated. [1]
 _EVALUATED = 16
 #: Boxes bounded after which the best point found is polished by a local ascent (and again at the box

@@ -218,6 +218,9 @@ def test_the_readme_example_gives_the_figures_it_shows():
     assert worst <= robust.proof["upper_bound"] <= worst * (1 + 1e-5)
     nominal = robust.price_of_robustness["nominal"]
     assert nominal["worst_case"] == pytest.approx(0.026103, rel=1e-4)
+    # the nominal design's worst case is certified too, to the nominal bracket (1e-4)
+    assert nominal["worst_case_certified"] and robust.price_of_robustness["robust"]["worst_case_certified"]
+    assert nominal["worst_case"] <= nominal["worst_case_upper_bound"] <= nominal["worst_case"] * (1 + 1e-4)
     assert not nominal["limits_hold_over_envelope"]
     assert 1 - robust.result.design["load_N"] / nominal["design"]["load_N"] == pytest.approx(0.009, abs=5e-4)
     proven = namespace["optimize_robust"](namespace["problem"], namespace["envelope"], namespace["model"])
