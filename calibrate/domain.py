@@ -180,6 +180,33 @@ class DataCloud:
         # Rounding: the tree's own distances and these differ by a few ulps.
         return (kth * (1.0 + 1e-12) / max(threshold, 1e-12)).reshape(shape)
 
+    def score_lower_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
+                          ) -> np.ndarray:
+        """A lower bound of :meth:`score` over boxes of points [1] (as :meth:`score_bound`): for any point x
+        of a box, the distance to a row is at least the distance from the row to the box (its nearest
+        point), so the k-th smallest distance from x is at least the k-th smallest of those over all rows."""
+        given = [c for c in self.columns if c in low]
+        size = int(np.prod(shape))
+        if len(given) < 2 or size == 0:
+            return np.zeros(shape)
+        index, tree, threshold = self._space(given)
+        k = self._cache[tuple(given)][3]
+
+        def scaled(points: Mapping[str, Any]) -> np.ndarray:
+            return np.column_stack([
+                ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
+                / self.scale[i]
+                for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float),
+                                                 shape).ravel()) for i in index)])
+
+        a, b = scaled(low), scaled(high)
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        rows = tree.data
+        gap = np.maximum(0.0, np.maximum(lo[:, None, :] - rows[None], rows[None] - hi[:, None, :]))
+        nearest = np.sqrt(np.sum(gap * gap, axis=2))
+        kth = np.partition(nearest, k - 1, axis=1)[:, k - 1]
+        return (kth * (1.0 - 1e-12) / max(threshold, 1e-12)).reshape(shape)
+
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""
         return {"columns": list(self.columns), "transforms": list(self.transforms),

@@ -569,16 +569,19 @@ class CalibratedModel:
         columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
         return self.discrepancy.bound(columns[0], columns[1], shape)
 
-    def cloud_ratio_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape) -> np.ndarray:
-        """An upper bound of :meth:`cloud_ratio` over boxes of points [1]: every point whose every column
-        lies between its value in ``low`` and in ``high`` (columnar, one box per entry, both giving the
-        same columns; :meth:`DataCloud.score_bound`). Zeros without a cloud."""
+    def cloud_ratio_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape,
+                          lower: bool = False) -> np.ndarray:
+        """An upper (``lower``: a lower) bound of :meth:`cloud_ratio` over boxes of points [1]: every point
+        whose every column lies between its value in ``low`` and in ``high`` (columnar, one box per entry,
+        both giving the same columns; :meth:`DataCloud.score_bound`, :meth:`DataCloud.score_lower_bound`).
+        Zeros without a cloud."""
         if self.cloud is None:
             return np.zeros(shape)
         given = [k for k in low if k not in self.factors]
         columns = [{k: v for k, v in self._columns_at({k: points[k] for k in given}).items()
                     if k in given or k in physics.PARAMETERS} for points in (low, high)]
-        return self.cloud.score_bound(columns[0], columns[1], shape)
+        bound = self.cloud.score_lower_bound if lower else self.cloud.score_bound
+        return bound(columns[0], columns[1], shape)
 
     def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
         """Whether each point lies within the data's ranges, and a warning per column outside.

@@ -455,7 +455,7 @@ def group_shift(calibrated: Any) -> float:
                      if g.parameter == "mu" or g.parameter not in calibrated.fitted))
 
 
-def interval_floor(calibrated: Any, z: float) -> float | None:
+def interval_floor(calibrated: Any, z: float, widening: float = 1.0) -> float | None:
     """A factor F [1] with mu_upper >= F μ_terms at every point that names no group, μ_terms the physics with
     the model's terms (no group shift), or None when none is known.
 
@@ -463,7 +463,8 @@ def interval_floor(calibrated: Any, z: float) -> float | None:
     widening >= 1 (the rivals only raise it): F = exp(sum b0 + z sqrt(noise² + sum v)) over the groups of
     sensitivity 1. A group on a fitted parameter has sensitivity s >= 0 (μ never falls with the parameter:
     it enters the physics as a non-negative share and every term is non-decreasing in μ), so its shift
-    s b0 >= 0 when b0 >= 0 and it is left out; with b0 < 0 no floor is known.
+    s b0 >= 0 when b0 >= 0 and it is left out; with b0 < 0 no floor is known. ``widening`` (>= 1): a lower
+    bound of the data cloud's widening at the points the floor is for, which multiplies z σ.
     """
     noise = getattr(calibrated, "noise_std_log", None)
     if noise is None:
@@ -476,7 +477,7 @@ def interval_floor(calibrated: Any, z: float) -> float | None:
             variance += group.new_group_variance(level)
         elif group.offset_log < 0:
             return None
-    return math.exp(shift + z * math.sqrt(variance))
+    return math.exp(shift + z * math.sqrt(variance) * max(widening, 1.0))
 
 
 def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],

@@ -794,25 +794,39 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
                            reason, None if vertex is None else [vertex], time_limit_s)
     noise = getattr(getattr(model, "calibrated", None), "noise_std_log", None)
     if objective == "mu_upper" and isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
-        result = _with_interval_bound(result, proven, float(noise))
+        result = _with_interval_bound(result, proven, float(noise), _least_widening(problem, model, vertex))
     return result
 
 
-def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_std_log: float) -> RobustResult:
+def _least_widening(problem: DesignProblem, model: Model, point: Mapping[str, Any]) -> float:
+    """A lower bound [1] of the data cloud's widening of the interval at an envelope point over the design
+    box (1 without a cloud): the widening at the least distance ratio there (non-decreasing)."""
+    calibrated = getattr(model, "calibrated", None)
+    if getattr(calibrated, "cloud", None) is None:
+        return 1.0
+    ratio = calibrated.cloud_ratio_bound(*_design_box_corners(problem, model, point), (1,), lower=True)
+    return max(float(calibrated.cloud.widening(ratio)[0]), 1.0)
+
+
+def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_std_log: float,
+                         widening: float = 1.0) -> RobustResult:
     """A mu_upper result with the certified lower bound that the proven mu problem gives.
 
-    A calibrated model's upper bound is mu exp(z sigma) with sigma^2 = g'Cg + noise^2 >= noise^2 (C positive
-    semi-definite, no discrepancy), so every design's worst mu_upper is at least exp(z noise) times its worst
-    mu, hence at least exp(z noise) times the certified lower bound of the mu problem (whose friction limit on
-    mu is a relaxation of the one on mu_upper).
+    A calibrated model's upper bound is mu exp(z sigma W) with sigma^2 = g'Cg + noise^2 >= noise^2 (C positive
+    semi-definite, no discrepancy) and W >= ``widening`` the data cloud's widening at mu's worst vertex (over
+    the design box), so every design's worst mu_upper is at least exp(z noise W) times its mu there, its worst
+    mu, hence at least that factor times the certified lower bound of the mu problem (whose friction limit
+    on mu is a relaxation of the one on mu_upper).
     """
     z = float(stats.norm.isf(0.025))
     upper = result.proof["upper_bound"]
-    lower = min(max(mu_result.proof["lower_bound"] * math.exp(z * noise_std_log),
+    lower = min(max(mu_result.proof["lower_bound"] * math.exp(z * noise_std_log * widening),
                     result.proof["lower_bound"] or 0.0), upper)
     gap = (upper - lower) / upper
-    statement = (f" Certified lower bound {lower:.10g}: mu_upper >= mu exp(1.96 x {noise_std_log:.4g}) "
-                 "(the interval is at least the measurement scatter) and the worst mu over the envelope is "
+    cloud = f" x {widening:.4g}, the data cloud's least widening there" if widening > 1.0 else ""
+    statement = (f" Certified lower bound {lower:.10g}: mu_upper >= mu exp(1.96 x {noise_std_log:.4g}"
+                 f"{cloud}) (the interval is at least the measurement scatter) and the worst mu over the "
+                 "envelope is "
                  f"proven at least {mu_result.proof['lower_bound']:.10g} (geometric programming, as for "
                  f"objective mu); relative gap to the worst case's upper bound {gap:.2e}: the parameters' "
                  "share of "
@@ -1007,6 +1021,19 @@ def _certified_search(problem: DesignProblem, envelope: Envelope, model: Model, 
                          rtol=rtol or BOUND_RTOL)
 
 
+def _design_box_corners(problem: DesignProblem, model: Model,
+                        point: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The model's points at the design box's lowest and highest corner at one envelope point (each column
+    non-decreasing in balls, the nominal angle and the load)."""
+    (b_lo, b_hi), (a_lo, a_hi), (l_lo, l_hi) = (problem.bounds.balls, problem.bounds.groove_angle_deg,
+                                                problem.bounds.load_N)
+    offset, speed = float(point["groove_angle_offset_deg"]), np.array([float(point["speed_m_s"])])
+    conditions = {n: np.array([float(v)]) for n, v in point["conditions"].items()}
+    low, high = [{**_inputs_fn(problem, model, np.array([float(b)]), np.array([a]), np.array([g]))(
+        offset, speed), **conditions} for b, a, g in ((b_lo, a_lo, l_lo), (b_hi, a_hi, l_hi))]
+    return low, high
+
+
 def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str, Any],
                        factor: float = 1.0) -> float:
     """A certified lower bound [1] of the least objective over the designs at one envelope point (NaN: none).
@@ -1041,12 +1068,7 @@ def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str,
                                  {**at_point.fixed, **{n: float(lo[0]) for n, (lo, _) in drifted.items()}},
                                  at_point.convention)
     if model.calibrated.discrepancy is not None:
-        (b_lo, b_hi), (a_lo, a_hi), (l_lo, l_hi) = (problem.bounds.balls, problem.bounds.groove_angle_deg,
-                                                    problem.bounds.load_N)
-        offset, speed = float(point["groove_angle_offset_deg"]), np.array([float(point["speed_m_s"])])
-        conditions = {n: np.array([float(v)]) for n, v in point["conditions"].items()}
-        corners = [{**_inputs_fn(problem, model, np.array([float(b)]), np.array([a]), np.array([g]))(
-            offset, speed), **conditions} for b, a, g in ((b_lo, a_lo, l_lo), (b_hi, a_hi, l_hi))]
+        corners = _design_box_corners(problem, model, point)
         factor *= math.exp(float(model.calibrated.discrepancy_bound(corners[0], corners[1], (1,))[0][0]))
     if factor != 1.0 and at_point.constraints.max_friction_force_N is not None:
         at_point = DesignProblem(at_point.bounds, at_point.speed_m_s, dataclasses.replace(
@@ -1189,7 +1211,15 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         # Every design's mu_upper at the worst point is at least exp(z noise) times its mu there (the interval
         # is at least the scatter), and its mu there at least the dual bound of the geometric programs.
         # Started from mu's proven worst vertex, that bound is already known (optimize_robust adds it).
-        scatter = interval_floor(model.calibrated, float(stats.norm.isf(0.025)))
+        # The data cloud widens every design's interval at the worst point at least by its least distance
+        # ratio over the design box there (a lower bound of the k-th nearest distance).
+        calibrated = model.calibrated
+        least = 1.0
+        if calibrated.cloud is not None:
+            corners = _design_box_corners(problem, model, where)
+            ratio = calibrated.cloud_ratio_bound(*corners, (1,), lower=True)
+            least = float(calibrated.cloud.widening(ratio)[0])
+        scatter = interval_floor(calibrated, float(stats.norm.isf(0.025)), least)
         at_worst = (_point_lower_bound(problem, model, where, scatter)
                     if initial_points is None and scatter is not None else math.nan)
         lower = None
@@ -1197,7 +1227,8 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
             lower = min(at_worst, bracket.upper_bound)
             statement += (f" Certified lower bound {lower:.10g}: at the worst point every design's mu_upper "
                           f"is at least {scatter:.10g} (exp(1.96 x the measurement scatter), with the "
-                          "groups' offset and spread where the model has groups) times its mu there, and "
+                          "groups' offset and spread where the model has groups, times the data cloud's "
+                          f"least widening over the designs there, {least:.4g}) times its mu there, and "
                           "that mu at least the dual bound of geometric programs per ball count there (as "
                           "for objective mu; a discrepancy's least mean over the designs there multiplies "
                           "it).")

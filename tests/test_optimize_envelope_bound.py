@@ -252,6 +252,7 @@ def test_cloud_score_bound_holds_every_point_of_a_box_and_closes_on_a_point():
     width = {"speed_m_s": 0.02, "temperature_C": 15.0, "relative_humidity": 0.2}
     high = {n: low[n] + width[n] for n in names}
     bound = cloud.score_bound(low, high, (3,))
+    least = cloud.score_lower_bound(low, high, (3,))
     # Brute force: 2,000 random points and every corner of each box, scored by the cloud itself.
     for box in range(3):
         samples = {n: rng.uniform(low[n][box], high[n][box], 2000) for n in names}
@@ -259,12 +260,14 @@ def test_cloud_score_bound_holds_every_point_of_a_box_and_closes_on_a_point():
         for i, n in enumerate(names):
             samples[n] = np.r_[samples[n], [c[i] for c in corners]]
         scores, _ = cloud.score(samples, (2008,))
-        assert scores.max() <= bound[box]
+        assert least[box] <= scores.min() and scores.max() <= bound[box]
         # a loose bound of a wide box, but a bound: within the box's scaled half-diagonal of the best
         assert bound[box] < scores.max() + 3.0
     # A box of one point: the bound is the score itself (to rounding); a small box, close to it.
     point = {n: low[n][:1] for n in names}
     assert cloud.score_bound(point, point, (1,))[0] == pytest.approx(cloud.score(point, (1,))[0][0], rel=1e-9)
+    assert cloud.score_lower_bound(point, point, (1,))[0] == pytest.approx(cloud.score(point, (1,))[0][0],
+                                                                           rel=1e-9)
     small = {n: low[n][:1] + 1e-6 * width[n] for n in names}
     assert cloud.score_bound(point, small, (1,))[0] == pytest.approx(cloud.score(point, (1,))[0][0], rel=1e-4)
     # The widening is the one rule of the model's interval: max(ratio, 1), non-decreasing.
@@ -344,6 +347,17 @@ def test_robust_mu_upper_of_a_model_with_a_cloud_is_certified_at_its_design():
     evaluate = robust._evaluator(held, ENVELOPE, model, "mu_upper", dict(result.result.design), 0.0)
     brute = evaluate(_grid_points(7))
     assert brute.max() <= proof["upper_bound"] <= result.worst_case["mu_upper"] * (1 + 1e-5)
+    # The lower bound over designs (the cloud's least widening over the design box at the worst point in
+    # it): no design of a grid has a smaller mu_upper there.
+    assert proof["lower_bound"] is not None
+    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
+                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
+    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    columns = robust._columns(held, ENVELOPE, designs, [where], 0.0)
+    at_worst = robust._objective_values(model, "mu_upper", columns, held.convention)
+    assert at_worst.min() >= proof["lower_bound"]
 
 
 # --------------------------------------------------------------------------------------------------
@@ -653,3 +667,33 @@ def test_certified_mu_upper_with_drifting_parameters_bounds_brute_force():
         terms=[(adhesion, [1.0])], fitted={}))
     assert term_pieces(holder)[0] is not None
     assert term_pieces(holder, interval=True)[0] is None and "contact load" in term_pieces(holder, True)[1]
+
+
+def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid_design_beats_it():
+    # Menisci alone: mu's worst case is one vertex (geometric programming), and there the data cloud (rows at
+    # low speed) is far from every design: every design's interval is widened at least by the least ratio.
+    from microbearing.calibrate.domain import DataCloud
+
+    base = _cloud_model().calibrated
+    meniscus = CalibratedModel(fitted={"mu_pivot": 0.6},
+                               terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5])],
+                               covariance=np.diag([1e-4, 1e-12]), noise_std_log=0.02,
+                               conditions=["relative_humidity", "temperature_C"], cloud=base.cloud)
+    assert isinstance(meniscus.cloud, DataCloud)
+    model = CalibratedPhysicsModel("calibrated:meniscus-cloud", meniscus)
+    problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
+    proof = result.proof
+    assert "the data cloud's least widening there" in proof["statement"]
+    held = robust._with_model_values(problem, model)
+    vertex = ENVELOPE.point({"speed_m_s": 0.1, "conditions.relative_humidity": 0.7,
+                             "conditions.temperature_C": 20.0, "groove_angle_offset_deg": 0.5})
+    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.geomspace(0.001, 0.05, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    at_vertex = robust._objective_values(model, "mu_upper", robust._columns(held, ENVELOPE, designs, [vertex],
+                                                                            0.0), held.convention)
+    assert at_vertex.min() >= proof["lower_bound"]
+    # and the bound is above the scatter's alone (exp(1.96 x 0.02) times the proven least worst mu)
+    least_mu = robust.optimize_robust(problem, ENVELOPE, model, objective="mu").proof["lower_bound"]
+    assert proof["lower_bound"] > least_mu * np.exp(1.96 * 0.02) * (1 + 1e-3)
