@@ -62,18 +62,19 @@ robustness is bracketed the same way (``worst_case_certified``, ``worst_case_upp
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
 A surrogate, or a part of a calibrated model :mod:`optimize.envelope_bound` has no box bound for (a
-drift of the adhesion energy or a modulus in the interval, a scatter that depends on an input, a fitted
-value whose effect on μ has no closed form), has no known bound on its derivatives, so no rigorous bound
-over a box exists for it here. The method is a cutting-plane (outer-approximation) loop: the local
-method of :func:`optimize.optimize_model` minimizes the largest objective over a finite set of envelope
-points (its vertices and centre, or the vertex where μ is proven worst, to begin with); at the design
+drift of the adhesion energy or a modulus in the interval, a scatter that depends on an input, a
+fitted value whose effect on μ has no closed form), has no known bound on its derivatives, so no
+rigorous bound over a box exists for it
+here. The method is a cutting-plane (outer-approximation) loop: the local method of
+:func:`optimize.optimize_model` minimizes the largest objective over a finite set of envelope points
+(its vertices and centre, or the vertex where μ is proven worst, to begin with); at the design
 found, the worst case over the whole envelope is searched (a grid of every axis, then a bounded
 quasi-Newton ascent from the best grid points); a point worse than the set by more than
-:data:`ENVELOPE_RTOL` relative is added and the design re-optimized, at most :data:`MAX_ROUNDS` times.
-The result says ``proven: false`` with the best bound found: the worst case found at the returned
-design, and a certified lower bound only for ``mu_upper`` of a calibrated model whose ``mu`` problem is
-a GP (mu_upper >= μ exp(1.96 σ_noise), so that factor times the proven bound of the ``mu`` problem; the
-gap is then the share of the parameters' uncertainty in the interval).
+:data:`ENVELOPE_RTOL` relative is added and the design re-optimized, at most :data:`MAX_ROUNDS`
+times. The result says ``proven: false`` with the best bound found: the worst case found at the
+returned design, and a certified lower bound only for ``mu_upper`` of a calibrated model whose ``mu``
+problem is a GP (mu_upper >= μ exp(1.96 σ_noise), so that factor times the proven bound of the ``mu``
+problem; the gap is then the share of the parameters' uncertainty in the interval).
 """
 
 from __future__ import annotations
