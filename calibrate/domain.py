@@ -12,7 +12,7 @@ prediction interval's log half-width is multiplied by the ratio of the score to 
 interval widens in proportion to the distance from the data; a documented rule, not a fitted one: a
 cross-validation that holds out clusters of rows measures how the error grows along the data's shape,
 never across it, and in data whose columns move together the error off the data comes from which of
-them acts, not from the distance). Where two columns move together, the interval also holds the
+them acts, not from the distance), through :meth:`DataCloud.widening`, the one place the rule lives. Where two columns move together, the interval also holds the
 rivals by confounding (:mod:`calibrate.rivals`): terms on the column the model does not read that
 the data lean to but cannot decide, whose envelope parts from the model where one column is varied
 without the other.
@@ -135,6 +135,82 @@ class DataCloud:
         distance = tree.query(x, k=k)[0]
         distance = distance[:, -1] if distance.ndim == 2 else distance
         return (distance / max(threshold, 1e-12)).reshape(shape), given
+
+    def widening(self, ratio: Any) -> np.ndarray:
+        """Factor on the prediction interval's log half-width at a distance ratio (:meth:`score`) [1]:
+        ``max(ratio, 1)``, 1 inside the cloud.
+
+        The one place the rule lives: :meth:`calibrate.CalibratedModel.predict` applies it, and the
+        certified bounds over a box (:mod:`optimize.envelope_bound`) apply it to an upper bound of the
+        ratio, which is valid only because the widening is non-decreasing in the ratio.
+        """
+        return np.maximum(np.asarray(ratio, dtype=float), 1.0)
+
+    def score_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
+                    ) -> np.ndarray:
+        """An upper bound of :meth:`score` over boxes of points [1]: every point whose every column lies
+        between its ``low`` and ``high`` value (columnar, one box per entry, shaped ``shape``).
+
+        Each column's transform is increasing (a standardized value or log), so a box maps to a box of
+        scaled inputs; for any point x of it, the distance to a row p is at most the distance from p to the
+        box's farthest corner, D(p). The k-th smallest distance from x over all rows is at most the k-th
+        smallest of D over any k or more rows (each distance at most its D, and a subset's k-th smallest at
+        least the whole set's): the rows nearest the box's centre are taken, so that the bound tends to
+        the score as the box shrinks. Scored in the columns ``low`` gives, as :meth:`score`.
+        """
+        given = [c for c in self.columns if c in low]
+        size = int(np.prod(shape))
+        if len(given) < 2 or size == 0:
+            return np.zeros(shape)
+        index, tree, threshold = self._space(given)
+        k = self._cache[tuple(given)][3]
+
+        def scaled(points: Mapping[str, Any]) -> np.ndarray:
+            return np.column_stack([
+                ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
+                / self.scale[i]
+                for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float),
+                                                 shape).ravel()) for i in index)])
+
+        a, b = scaled(low), scaled(high)
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        rows = tree.data
+        nearest = min(rows.shape[0], 4 * k)
+        _, near = tree.query(0.5 * (lo + hi), k=nearest)
+        near = np.asarray(near).reshape(size, nearest)
+        p = rows[near]  # (boxes, nearest, columns)
+        far = np.maximum(np.abs(lo[:, None, :] - p), np.abs(hi[:, None, :] - p))
+        farthest = np.sqrt(np.sum(far * far, axis=2))
+        kth = np.partition(farthest, k - 1, axis=1)[:, k - 1]
+        # Rounding: the tree's own distances and these differ by a few ulps.
+        return (kth * (1.0 + 1e-12) / max(threshold, 1e-12)).reshape(shape)
+
+    def score_lower_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
+                          ) -> np.ndarray:
+        """A lower bound of :meth:`score` over boxes of points [1] (as :meth:`score_bound`): for any point x
+        of a box, the distance to a row is at least the distance from the row to the box (its nearest
+        point), so the k-th smallest distance from x is at least the k-th smallest of those over all rows."""
+        given = [c for c in self.columns if c in low]
+        size = int(np.prod(shape))
+        if len(given) < 2 or size == 0:
+            return np.zeros(shape)
+        index, tree, threshold = self._space(given)
+        k = self._cache[tuple(given)][3]
+
+        def scaled(points: Mapping[str, Any]) -> np.ndarray:
+            return np.column_stack([
+                ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
+                / self.scale[i]
+                for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float),
+                                                 shape).ravel()) for i in index)])
+
+        a, b = scaled(low), scaled(high)
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        rows = tree.data
+        gap = np.maximum(0.0, np.maximum(lo[:, None, :] - rows[None], rows[None] - hi[:, None, :]))
+        nearest = np.sqrt(np.sum(gap * gap, axis=2))
+        kth = np.partition(nearest, k - 1, axis=1)[:, k - 1]
+        return (kth * (1.0 - 1e-12) / max(threshold, 1e-12)).reshape(shape)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""

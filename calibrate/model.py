@@ -31,12 +31,14 @@ Three optional parts make the interval follow the data (models without them answ
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
 from scipy import stats
+from scipy.linalg import cho_solve
 
 from microbearing import physics
 
@@ -136,6 +138,71 @@ class GPCorrection:
         ]) if self.features else np.zeros((int(np.prod(shape)), 1))
         mean, std = self.gp.predict(x, return_std=True)
         return mean.reshape(shape), np.square(std).reshape(shape)
+
+    def bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Certified bounds over boxes of points (each feature between its ``low`` and ``high`` value,
+        columnar, one box per entry): the least and largest mean and the largest latent variance [1].
+
+        The mean is y_mean + y_std sum_i alpha_i k(x, x_i) and the RBF kernel k(x, x_i) = A exp(-½ sum_d
+        ((x_d - x_id) / l_d)²) lies between its values at the per-axis farthest and nearest distance from
+        x_i to the box: each term at its end by the sign of alpha_i. The latent variance is y_std² (A -
+        q(k)), q(k) = k' K⁻¹ k convex (K⁻¹ positive definite), so q at any k is at least its tangent plane
+        at the box's centre's k0, q(k0) + 2 (K⁻¹ k0)'(k - k0), least over the box of kernel values at one
+        of each term's ends. Both bounds tend to the values as the box shrinks.
+        """
+        gp = self.gp
+        size = int(np.prod(shape))
+        train = np.asarray(gp.X_train_, dtype=float)
+        if self.features:
+            a, b = (np.column_stack([((np.broadcast_to(np.asarray(points[f], dtype=float), shape) - c) / s)
+                                     .ravel() for f, c, s in zip(self.features, self.centre, self.scale,
+                                                                 strict=True)])
+                    for points in (low, high))
+            lo, hi = np.minimum(a, b), np.maximum(a, b)
+            length = self.length
+        else:  # one constant column: the amplitude between any two points
+            lo = hi = np.zeros((size, 1))
+            length = np.ones(1)
+        outside = np.maximum(lo[:, None, :] - train[None], train[None] - hi[:, None, :])
+        near = np.maximum(0.0, outside) / length
+        far = np.maximum(np.abs(lo[:, None, :] - train[None]), np.abs(hi[:, None, :] - train[None])) / length
+        middle = (0.5 * (lo + hi)[:, None, :] - train[None]) / length
+        k_max = self.amplitude * np.exp(-0.5 * np.sum(near * near, axis=2))
+        k_min = self.amplitude * np.exp(-0.5 * np.sum(far * far, axis=2))
+        k_0 = self.amplitude * np.exp(-0.5 * np.sum(middle * middle, axis=2))
+        alpha = np.asarray(gp.alpha_, dtype=float).ravel()
+        y_std = float(np.ravel(gp._y_train_std)[0])
+        y_mean = float(np.ravel(gp._y_train_mean)[0])
+        upper = np.sum(np.where(alpha > 0, alpha * k_max, alpha * k_min), axis=1)
+        lower = np.sum(np.where(alpha > 0, alpha * k_min, alpha * k_max), axis=1)
+        # Rounding of the sum (alpha may be large and of both signs): a relative allowance on its terms.
+        slack = 1e-12 * np.sum(np.abs(alpha) * k_max, axis=1)
+        if self.features:
+            # Taylor's theorem at the centre c, tight to the box's width squared where the terms' ends are
+            # loose (alpha large and of both signs): m(x) = m(c) + grad m(c).(x - c) + ½ (x - c)' H (x - c)
+            # with H at a point between. Per training point, along v (u = (x - x_i) / l, v' = v / l),
+            # v' H_i v' = k_i ((u.v')² - |v'|²) lies in [-k_i |v'|², k_i (|u|² - 1) |v'|²], and
+            # k (|u|² - 1) <= A max_r exp(-r²/2) (r² - 1) = 2 A exp(-3/2) at r² = 3.
+            half = 0.5 * (hi - lo) / length
+            rise = np.minimum(2.0 * self.amplitude * math.exp(-1.5),
+                              k_max * np.maximum(np.sum(far * far, axis=2) - 1.0, 0.0))
+            curvature_up = np.sum(np.where(alpha > 0, alpha * rise, -alpha * k_max), axis=1)
+            curvature_down = np.sum(np.where(alpha > 0, alpha * k_max, -alpha * rise), axis=1)
+            centre_mean = k_0 @ alpha
+            gradient_mean = -np.einsum("nm,m,nmd->nd", k_0, alpha, middle)  # d m / d(x / l) at c
+            linear = np.sum(np.abs(gradient_mean) * half, axis=1)
+            square = 0.5 * np.sum(half * half, axis=1)
+            upper = np.minimum(upper, centre_mean + linear + curvature_up * square)
+            lower = np.maximum(lower, centre_mean - linear - curvature_down * square)
+        solved = cho_solve((gp.L_, True), k_0.T).T  # K^-1 k0 per box
+        gradient = 2.0 * solved
+        least = (np.sum(k_0 * solved, axis=1)
+                 + np.sum(np.minimum(gradient * (k_min - k_0), gradient * (k_max - k_0)), axis=1))
+        variance = np.clip(self.amplitude - least, 0.0, self.amplitude) * y_std**2
+        return ((y_mean + y_std * (lower - slack)).reshape(shape),
+                (y_mean + y_std * (upper + slack)).reshape(shape),
+                (variance * (1.0 + 1e-9) + 1e-15 * self.amplitude * y_std**2).reshape(shape))
 
 
 @dataclass(frozen=True)
@@ -400,7 +467,8 @@ class CalibratedModel:
         group_shift, group_variance = self._group_terms(points, labels, mu.shape, level)
         sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + group_variance
                         + self._noise_variance(points, mu.shape, level))
-        sigma = sigma * np.maximum(self.cloud_ratio(points, mu.shape), 1.0)
+        if self.cloud is not None:
+            sigma = sigma * self.cloud.widening(self.cloud_ratio(points, mu.shape))
         z = float(stats.norm.isf((1.0 - level) / 2.0))
         mu = mu * np.exp(shift + group_shift)
         lower, upper = mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
@@ -491,6 +559,30 @@ class CalibratedModel:
                    if k in points or k in physics.PARAMETERS}
         ratio, _ = self.cloud.score(columns, shape)
         return ratio
+
+    def discrepancy_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bounds of the GP discrepancy over boxes of points (every column between its value in ``low`` and
+        in ``high``, columnar, one box per entry): least and largest mean of log μ and largest variance [1]
+        (:meth:`GPCorrection.bound`); zeros without one."""
+        if self.discrepancy is None:
+            return np.zeros(shape), np.zeros(shape), np.zeros(shape)
+        columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
+        return self.discrepancy.bound(columns[0], columns[1], shape)
+
+    def cloud_ratio_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape,
+                          lower: bool = False) -> np.ndarray:
+        """An upper (``lower``: a lower) bound of :meth:`cloud_ratio` over boxes of points [1]: every point
+        whose every column lies between its value in ``low`` and in ``high`` (columnar, one box per entry,
+        both giving the same columns; :meth:`DataCloud.score_bound`, :meth:`DataCloud.score_lower_bound`).
+        Zeros without a cloud."""
+        if self.cloud is None:
+            return np.zeros(shape)
+        given = [k for k in low if k not in self.factors]
+        columns = [{k: v for k, v in self._columns_at({k: points[k] for k in given}).items()
+                    if k in given or k in physics.PARAMETERS} for points in (low, high)]
+        bound = self.cloud.score_lower_bound if lower else self.cloud.score_bound
+        return bound(columns[0], columns[1], shape)
 
     def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
         """Whether each point lies within the data's ranges, and a warning per column outside.

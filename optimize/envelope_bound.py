@@ -28,9 +28,32 @@ The 95 % upper bound, μ exp(z σ) with σ² = g'Cg + noise² (g the finite-diff
 the fitted values, C their covariance), is bounded the same way by interval arithmetic on that closed
 form (:func:`mu_upper_box_bound`), for the model and each rival whose envelope it takes. Every value
 the model itself gives at a point of a box is checked against the box's bound
-(:class:`BoundFailedError`), so a model the premises do not fit is caught where it shows. A term
-drifting a physics parameter, a Gaussian-process discrepancy or an effect not in :data:`_PIECES` have
-no such bound here: :func:`term_pieces` says why.
+(:class:`BoundFailedError`), so a model the premises do not fit is caught where it shows.
+
+The other parts of a calibrated model are bounded over a box too:
+
+* **a drifting physics parameter** (a viscosity falling with temperature by Arrhenius' law, ...): each
+  law is monotone in its driver, so the parameter's range over the box is the law at the driver's ends
+  (:func:`drift_ranges`), and the physics' μ is monotone in every parameter a drift may move
+  (:data:`DRIFT_DIRECTIONS`): its maximum is at the parameter's worst end; for ``mu_upper`` the drift's
+  values' gradient of log μ is bounded in closed form where the parameter enters the physics as one power
+  (:data:`DRIFT_SHARES`: the parameter moves by f(c + h, x) / f(c, x), monotone in x, and its share by that
+  ratio to the power);
+* **group effects** at a point naming no group: a group on μ (or on a parameter the model does not fit)
+  shifts log μ by its offset and adds the new-group variance, constants; one on a fitted parameter p
+  shifts it by s b0 with s = p × p's gradient entry, bounded by that entry's interval (``mu_upper``; for
+  μ alone it is refused, said);
+* **the data cloud's widening of the interval**: the k-th smallest distance from the rows to the box's
+  farthest corner bounds the k-th nearest distance of every point of the box
+  (:meth:`calibrate.domain.DataCloud.score_bound`), and the widening is non-decreasing in it;
+* **a Gaussian-process discrepancy**: its mean between the kernel's ends per training point and a
+  second-order Taylor bound at the box's centre, its variance from the tangent plane of the convex
+  k'K⁻¹k (:meth:`calibrate.model.GPCorrection.bound`). Each factor is bounded on its own, so where the GP's
+  mean and a term slope opposite ways at the worst point the bound closes only linearly with the box, and
+  the branch and bound may stop at its box limit with a wider bracket (stated: ``complete`` False).
+
+An effect not in :data:`_PIECES`, a drift of another parameter or a scatter that depends on an input
+have no bound here: :func:`term_pieces` says why.
 """
 
 from __future__ import annotations
@@ -40,14 +63,20 @@ import heapq
 import itertools
 import math
 import time
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import optimize, stats
 
-__all__ = ["BOUND_RTOL", "INTERVAL_RTOL", "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
-           "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max",
+from microbearing import physics
+
+__all__ = ["BOUND_RTOL", "DRIFT_DIRECTIONS", "DRIFT_SHARES", "INTERVAL_OUTPUTS", "INTERVAL_RTOL",
+           "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
+           "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max", "drift_ranges",
+           "group_shift", "interval_floor",
            "interval_structures", "mu_box_bound", "mu_upper_box_bound", "term_pieces"]
 
 #: Relative distance between the certified upper bound and the value found at which branching stops. [1]
@@ -63,6 +92,9 @@ MAX_BOXES = 20000
 _BATCH = 256
 #: Children per step (those of largest bound) at which the function itself is evaluated. [1]
 _EVALUATED = 16
+#: Boxes bounded after which the best point found is polished by a local ascent (and again at the box
+#: or time limit). [1]
+_POLISH_AT = (1000, 5000)
 
 #: How each effect of physics.effects enters μ ("add": μ + a(x), "mul": μ m(x)), and whether it is monotone
 #: in its main driver (True) or log-quadratic (False: an end or the stationary point).
@@ -80,6 +112,34 @@ _PIECES: dict[str, tuple[str, bool]] = {
 }
 
 
+#: How the physics' μ moves with each parameter a drift term may move (physics.effects.DRIFT_PARAMETERS):
+#: +1 non-decreasing, -1 non-increasing, from the equations (optimize.dgp): the viscosity and the
+#: pressure-viscosity coefficient enter only Houpert's rolling force, as η^0.66 and (α E')^0.022; the
+#: adhesion energy raises the contact load Q (eq 8), which every moment and the rolling force grow with;
+#: the surface tension and μ_b enter the ball-ball moment as factors, μ_s the pivoting moment; a Young's
+#: modulus raises E*, and μ falls with it (the pivoting moment ~ Q a, a ~ E*^-1/3; the rolling force
+#: ~ E'^-0.108; the hysteresis moment does not read it). ``tests/test_optimize_envelope_bound.py``
+#: checks every direction on the exact physics.
+DRIFT_DIRECTIONS: dict[str, int] = {
+    "viscosity_Pa_s": 1, "pressure_viscosity_1_Pa": 1, "adhesion_energy_J_m2": 1,
+    "water_surface_tension_N_m": 1, "mu_pivot": 1, "mu_ball": 1,
+    "ball_youngs_modulus_Pa": -1, "race_youngs_modulus_Pa": -1,
+}
+
+
+#: The physics' μ in a drifting parameter p, for the interval's gradient: μ = rest + share(p), share ∝ p^a,
+#: one output of the physics (``output``) with exponent ``a``: Houpert's rolling force ~ η^0.66 (α E')^0.022
+#: (eq 9), the ball-ball moment ~ γ_w μ_b, the pivoting moment ~ μ_s. The adhesion energy and the moduli move
+#: the contact load or the contact radius, with no such form.
+DRIFT_SHARES: dict[str, tuple[str, float]] = {
+    "viscosity_Pa_s": ("mu_rolling", 0.66), "pressure_viscosity_1_Pa": ("mu_rolling", 0.022),
+    "water_surface_tension_N_m": ("mu_ball_ball", 1.0), "mu_ball": ("mu_ball_ball", 1.0),
+    "mu_pivot": ("mu_pivoting", 1.0),
+}
+#: The physics' outputs the interval's bound reads (``physics_fn`` of :func:`mu_upper_box_bound`).
+INTERVAL_OUTPUTS = ("mu", "mu_pivoting", "mu_rolling", "mu_ball_ball")
+
+
 @dataclass(frozen=True)
 class Piece:
     """One effect term of a calibrated model as it enters μ at a design.
@@ -90,8 +150,8 @@ class Piece:
         The term.
     values : list of float
         Its fitted values.
-    kind : {"add", "mul"}
-        μ + a(x) or μ m(x).
+    kind : {"add", "mul", "drift"}
+        μ + a(x), μ m(x), or a drift of a physics parameter (applied to the physics' inputs first).
     monotone : bool
         Whether the piece is monotone in its driver (else log-quadratic).
     """
@@ -127,23 +187,21 @@ class Piece:
 #: flag); a model with any other part set (group effects, whose shift follows a parameter's sensitivity)
 #: is not bounded: said, not guessed.
 _BOUNDED_PARTS = frozenset({"fitted", "fixed", "terms", "convention", "covariance", "noise_std_log", "domain",
-                            "conditions", "discrepancy", "rivals", "domain_rows"})
+                            "conditions", "discrepancy", "rivals", "domain_rows", "cloud", "groups"})
 
 
 def _unbounded_part(calibrated: Any, interval: bool = False) -> str | None:
     """The first part of a calibrated model that is set and that the bounds do not know, or None.
 
     A scatter model of one spread everywhere is the ``noise_std_log`` the interval bounds use; one that
-    depends on an input is not bounded. The data cloud widens only the interval beyond the data: it
-    does not move μ, and it is not bounded for ``mu_upper`` (``interval``).
+    depends on an input is not bounded. The data cloud widens only the interval beyond the data (it
+    does not move μ): :func:`mu_upper_box_bound` bounds its widening over a box.
     """
     for part in dataclasses.fields(calibrated) if dataclasses.is_dataclass(calibrated) else ():
         if part.name in _BOUNDED_PARTS:
             continue
         value = getattr(calibrated, part.name)
         if part.name == "scatter" and (value is None or getattr(value, "kind", None) == "constant"):
-            continue
-        if part.name == "cloud" and not interval:
             continue
         default = (part.default_factory() if part.default_factory is not dataclasses.MISSING
                    else part.default)
@@ -175,17 +233,28 @@ def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None,
     calibrated = getattr(model, "calibrated", None)
     if calibrated is None:
         return None, f"{model.reference} is not a calibrated model"
-    if getattr(calibrated, "discrepancy", None) is not None:
-        return None, "its Gaussian-process discrepancy has no bound over a box here"
     unknown = _unbounded_part(calibrated, interval)
     if unknown is not None:
         return None, f"its {unknown} has no bound over a box here"
+    for group in getattr(calibrated, "groups", None) or []:
+        if group.parameter != "mu" and group.parameter in calibrated.fitted and not interval:
+            return None, (f"its group effect of {group.factor} on {group.parameter} shifts log mu by a share "
+                          "that has no bound over a box here (objective mu)")
     pieces = []
     for term, values in calibrated.terms:
         label = getattr(term, "label", term)
+        if getattr(term, "kind", None) == "drift":
+            if term.parameter not in DRIFT_DIRECTIONS:
+                return None, (f"its term {label!r} drifts a physics parameter in which the physics' "
+                              "monotonicity is not proven")
+            if interval and term.parameter not in DRIFT_SHARES:
+                return None, (f"its term {label!r} drifts a physics parameter: its fitted coefficient's "
+                              "share of the interval has no closed form here (it moves the contact load "
+                              "or the modulus)")
+            pieces.append(Piece(term, list(map(float, values)), "drift", True))
+            continue
         if getattr(term, "kind", None) != "effect":
-            return None, (f"its term {label!r} drifts a physics parameter: the physics' monotonicity is not "
-                          "proven")
+            return None, f"its term {label!r} has no known bound over an interval"
         if term.name not in _PIECES:
             return None, f"its term {label!r} has no known bound over an interval"
         if term.drivers[0] == "groove_angle_deg":
@@ -289,6 +358,9 @@ def _pieces_range(pieces: list[Piece], boxes: _Boxes, lo: np.ndarray, hi: np.nda
     n = len(lo)
     out = []
     for piece in pieces:
+        if piece.kind == "drift":  # moves the physics' inputs, no factor of its own
+            out.append((np.ones(n), np.ones(n)))
+            continue
         x, j = _candidates(piece, boxes, lo, hi)
         values = piece.at(x, boxes.columns(n, speed, 3))
         if not np.all(np.isfinite(values)):
@@ -314,20 +386,130 @@ def _compose_upper(physics_upper: np.ndarray, pieces: list[Piece],
     return upper
 
 
-def mu_box_bound(pieces: list[Piece], physics_mu: Callable[[np.ndarray, np.ndarray], np.ndarray],
-                 envelope: Any, design: Mapping[str, float]) -> Callable:
+def _corner_points(boxes: _Boxes, inputs_fn: Callable[[np.ndarray, np.ndarray], Mapping[str, Any]],
+                   lo: np.ndarray, hi: np.ndarray) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The model's points (physics inputs and conditions) at each box's lowest and highest corner.
+
+    Every column of a point is non-decreasing in every axis (the speed, the angle made = nominal + offset,
+    each condition): the two corners give each column's range over the box.
+    """
+    corners = []
+    for corner in (lo, hi):
+        offset, speed = boxes.physics_corner(corner)
+        points = dict(inputs_fn(offset, speed))
+        for name in boxes.envelope.conditions:
+            a, b, _ = boxes.driver_interval(name, lo, hi)
+            points[name] = a if corner is lo else b
+        corners.append(points)
+    return corners[0], corners[1]
+
+
+def drift_ranges(drifts: list[Piece], base: Mapping[str, Any], driver_interval: Callable[[str], tuple],
+                 n: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each drifting parameter's exact [min, max] over each of ``n`` boxes [its unit].
+
+    As :func:`calibrate.candidates.drifted_inputs` applies them: p = base × factor(x), in order (a later
+    drift of the same parameter multiplies the earlier result, unless it fits its own level), clipped to
+    the parameter's range. Every law's factor is monotone in its driver (linear; Arrhenius, exp(c/R (1/T -
+    1/T_ref)); Kelvin, linear in 1/ln(1/h), increasing in h), so over a driver interval it lies between its
+    values at the ends; the product of two intervals is the least and largest of its corners' products,
+    and the clip is non-decreasing.
+
+    Parameters
+    ----------
+    drifts : list of Piece
+        The drift pieces of :func:`term_pieces`, in order.
+    base : mapping
+        Physics inputs the model holds or is given at the design (its fixed and fitted values, defaults).
+    driver_interval : callable
+        ``driver -> (low [n], high [n], axis)``.
+    n : int
+        Boxes. [1]
+    """
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for piece in drifts:
+        term = piece.term
+        spec = physics.PARAMETERS[term.parameter]
+        if term.level:
+            low = high = np.full(n, piece.values[1])
+        elif term.parameter in out:
+            low, high = out[term.parameter]
+        else:
+            low = high = np.full(n, float(base.get(term.parameter, spec.default)))
+        a, b, _ = driver_interval(term.driver)
+        with np.errstate(all="ignore"):
+            ends = [np.asarray(term.factor({term.driver: x}, piece.values[0]), dtype=float) for x in (a, b)]
+        corners = np.array([c * f for c in (low, high) for f in ends])
+        lo_clip = -np.inf if spec.minimum is None else spec.minimum
+        hi_clip = np.inf if spec.maximum is None else (
+            np.nextafter(spec.maximum, lo_clip) if spec.exclusive_maximum else spec.maximum)
+        out[term.parameter] = (np.clip(np.min(corners, axis=0), lo_clip, hi_clip),
+                               np.clip(np.max(corners, axis=0), lo_clip, hi_clip))
+    return out
+
+
+def group_shift(calibrated: Any) -> float:
+    """The shift of log μ by the model's groups at a point that names none [1], where it is the same at
+    every point (each group's parameter μ itself or one the model does not fit: sensitivity 1)."""
+    return float(sum(g.offset_log for g in getattr(calibrated, "groups", None) or []
+                     if g.parameter == "mu" or g.parameter not in calibrated.fitted))
+
+
+def interval_floor(calibrated: Any, z: float, widening: float = 1.0) -> float | None:
+    """A factor F [1] with mu_upper >= F μ_terms at every point that names no group, μ_terms the physics with
+    the model's terms (no group shift), or None when none is known.
+
+    mu_upper >= μ_terms exp(shift + z σ) with σ² = g'Cg + the groups' variance + noise² and the cloud's
+    widening >= 1 (the rivals only raise it): F = exp(sum b0 + z sqrt(noise² + sum v)) over the groups of
+    sensitivity 1. A group on a fitted parameter has sensitivity s >= 0 (μ never falls with the parameter:
+    it enters the physics as a non-negative share and every term is non-decreasing in μ), so its shift
+    s b0 >= 0 when b0 >= 0 and it is left out; with b0 < 0 no floor is known. ``widening`` (>= 1): a lower
+    bound of the data cloud's widening at the points the floor is for, which multiplies z σ.
+    """
+    noise = getattr(calibrated, "noise_std_log", None)
+    if noise is None:
+        return None
+    level = 1.0 - 2.0 * float(stats.norm.sf(z))
+    shift, variance = 0.0, float(noise) ** 2
+    for group in getattr(calibrated, "groups", None) or []:
+        if group.parameter == "mu" or group.parameter not in calibrated.fitted:
+            shift += group.offset_log
+            variance += group.new_group_variance(level)
+        elif group.offset_log < 0:
+            return None
+    return math.exp(shift + z * math.sqrt(variance) * max(widening, 1.0))
+
+
+def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
+                 envelope: Any, design: Mapping[str, float], calibrated: Any = None,
+                 base: Mapping[str, Any] | None = None,
+                 inputs_fn: Callable[[np.ndarray, np.ndarray], Mapping[str, Any]] | None = None) -> Callable:
     """The box bound of a calibrated model's μ at a design, for :func:`certified_max`.
+
+    Drift pieces move the physics' inputs: each drifting parameter's range over the box
+    (:func:`drift_ranges`) and the physics' direction in it (:data:`DRIFT_DIRECTIONS`) give its worst
+    end, passed to ``physics_mu``. A group effect on μ (or on a parameter the model does not fit) moves
+    log μ by its offset at every point that names no group: a constant factor.
 
     Parameters
     ----------
     pieces : list of Piece
         From :func:`term_pieces`.
     physics_mu : callable
-        ``(angle_offset_deg, speed_m_s) -> μ`` [1] of the physics with the model's values at the design.
+        ``(angle_offset_deg, speed_m_s, **parameters) -> μ`` [1] of the physics with the model's values at
+        the design, the given physics parameters (arrays, their units) replacing them.
     envelope : optimize.robust.Envelope
         The envelope.
     design : mapping
         ``balls`` [1] and ``load_N`` [N].
+    calibrated : calibrate.CalibratedModel, optional
+        The model, for its groups and its Gaussian-process discrepancy (whose mean multiplies μ by
+        exp(mean), bounded over the box by :meth:`calibrate.CalibratedModel.discrepancy_bound`).
+    base : mapping, optional
+        Physics inputs at the design as the model reads them (for the drifts' base values).
+    inputs_fn : callable, optional
+        ``(angle_offset_deg, speed_m_s) -> physics inputs`` the model is given at the design (needed for a
+        discrepancy).
 
     Returns
     -------
@@ -335,12 +517,32 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[[np.ndarray, np.ndarr
         ``(lo, hi) -> (upper bounds [1], points to evaluate)`` over boxes given by their corners.
     """
     boxes = _Boxes(envelope, design)
+    drifts = [p for p in pieces if p.kind == "drift"]
+    effects = [p for p in pieces if p.kind != "drift"]
+    factor = math.exp(group_shift(calibrated)) if calibrated is not None else 1.0
+    gp = calibrated is not None and getattr(calibrated, "discrepancy", None) is not None
+    if gp and inputs_fn is None:
+        raise ValueError("a model with a discrepancy needs inputs_fn for its bound")
 
     def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         offset_hi, speed_hi = boxes.physics_corner(hi)
         peak = hi.copy()
-        ranges = _pieces_range(pieces, boxes, lo, hi, speed_hi, peak)
-        upper = _compose_upper(np.asarray(physics_mu(offset_hi, speed_hi), dtype=float), pieces, ranges)
+        ranges = _pieces_range(effects, boxes, lo, hi, speed_hi, peak)
+        worst = {name: (high if DRIFT_DIRECTIONS[name] > 0 else low) for name, (low, high) in drift_ranges(
+            drifts, base or {}, lambda driver: boxes.driver_interval(driver, lo, hi), len(lo)).items()}
+        for piece in drifts:  # the driver's end where the drifting parameter moves mu up
+            a, b, j = boxes.driver_interval(piece.driver, lo, hi)
+            if j is not None and j not in (boxes.speed, boxes.angle):
+                with np.errstate(all="ignore"):
+                    rise = (np.asarray(piece.term.factor({piece.driver: b}, piece.values[0]), dtype=float)
+                            >= np.asarray(piece.term.factor({piece.driver: a}, piece.values[0]), dtype=float))
+                peak[:, j] = np.where(rise == (DRIFT_DIRECTIONS[piece.term.parameter] > 0), b, a)
+        phys = np.asarray(physics_mu(offset_hi, speed_hi, **worst), dtype=float)
+        upper = _compose_upper(phys, effects, ranges) * factor
+        if gp:
+            low, high = _corner_points(boxes, inputs_fn, lo, hi)
+            mean = calibrated.discrepancy_bound(low, high, (len(lo),))[1]
+            upper = np.where(upper >= 0, upper * np.exp(mean), np.inf)
         return upper * (1.0 + _ROUNDING), _with_low_speed(boxes, lo, peak)
 
     return bound
@@ -414,11 +616,24 @@ def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np
     heap: list[tuple[float, int, np.ndarray, np.ndarray]] = [(-float(upper[0]), 0, root_lo, root_hi)]
     counter, pruned_max, count = 1, -math.inf, 1
     complete = True
+    polish_at = list(_POLISH_AT)
+
+    def polish() -> None:
+        """A bounded quasi-Newton ascent from the best point found (a better value prunes more boxes)."""
+        nonlocal best_value, best_row
+        value, row = _ascent(evaluated, best_row, root_lo, root_hi)
+        if value > best_value:
+            best_value, best_row = value, row
+
     while heap:
+        if polish_at and count >= polish_at[0]:
+            polish_at.pop(0)
+            polish()
         if -heap[0][0] <= best_value * (1.0 + rtol):
             break
         if count >= max_boxes or time.perf_counter() - start > time_limit_s:
-            complete = False
+            polish()
+            complete = -heap[0][0] <= best_value * (1.0 + rtol)
             break
         batch = [heapq.heappop(heap) for _ in range(min(_BATCH, len(heap)))]
         lo = np.array([b[2] for b in batch])
@@ -456,6 +671,28 @@ def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np
     left = -heap[0][0] if heap else -math.inf
     certified = max(best_value, pruned_max, left)
     return CertifiedMax(best_value, certified, points_of(best_row[None, :])[0], count, complete)
+
+
+def _ascent(evaluated: Callable[[np.ndarray], np.ndarray], row: np.ndarray, lo: np.ndarray,
+            hi: np.ndarray) -> tuple[float, np.ndarray]:
+    """The best value found by L-BFGS-B from ``row`` within [lo, hi] (forward differences), and where."""
+    span = hi - lo
+    step = 1e-7
+
+    def negative(u: np.ndarray) -> tuple[float, np.ndarray]:
+        sign = np.where(u + step <= 1.0, 1.0, -1.0)
+        at = np.vstack([u, u + np.diag(sign * step)])
+        f = -evaluated(lo + span * at)
+        f = np.where(np.isfinite(f), f, 1e300)
+        return float(f[0]), (f[1:] - f[0]) / (sign * step)
+
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        found = optimize.minimize(negative, np.clip((row - lo) / span, 0.0, 1.0), jac=True, method="L-BFGS-B",
+                                  bounds=[(0.0, 1.0)] * len(row), options={"maxiter": 30})
+    at = lo + span * np.clip(found.x, 0.0, 1.0)
+    value = float(evaluated(at[None, :])[0])
+    return value, at
 
 
 # --------------------------------------------------------------------------------------------------
@@ -498,6 +735,11 @@ class IntervalStructure:
         Scatter of log μ of a new measurement. [1]
     step : float
         Relative finite-difference step of its gradient. [1]
+    model : calibrate.CalibratedModel
+        The model itself (for its Gaussian-process discrepancy's bounds).
+    groups : list of calibrate.groups.GroupEffect
+        Its group effects (a point of the envelope names no group: each shifts log μ by s b0 and adds
+        s² times the new-group variance, s the sensitivity to the group's parameter, 1 for μ itself).
     """
 
     fitted: dict[str, float]
@@ -505,6 +747,8 @@ class IntervalStructure:
     covariance: np.ndarray
     noise_std_log: float
     step: float
+    groups: list = dataclasses.field(default_factory=list)
+    model: Any = None
 
 
 def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str]:
@@ -528,14 +772,15 @@ def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str
             return None, f"{label} fits {unknown[0]}, whose effect on mu has no bound over a box here"
         for piece in pieces_of:
             for i, name in enumerate(piece.term.parameter_names):
-                if (piece.term.name, i) not in _VALUE_FORMS:
+                if piece.kind != "drift" and (piece.term.name, i) not in _VALUE_FORMS:
                     return None, (f"{label}: the fitted {name} of {piece.term.label} changes mu in a way "
                                   "with no bound over a box here")
         size = len(each.fitted) + sum(len(p.values) for p in pieces_of)
         if size > MAX_VALUES:
             return None, f"{label} has {size} fitted values (at most {MAX_VALUES} are bounded)"
+        groups = list(getattr(each, "groups", None) or [])
         out.append(IntervalStructure(dict(each.fitted), pieces_of, np.asarray(each.covariance, dtype=float),
-                                     float(each.noise_std_log), step))
+                                     float(each.noise_std_log), step, groups, each))
     return out, ""
 
 
@@ -552,10 +797,20 @@ def _times_positive(low: np.ndarray, high: np.ndarray, pos_low: np.ndarray,
             np.where(high >= 0, high * pos_high, high * pos_low))
 
 
+def _product(a_lo: Any, a_hi: Any, b_lo: Any, b_hi: Any) -> tuple[np.ndarray, np.ndarray]:
+    """[a_lo, a_hi] × [b_lo, b_hi] (interval arithmetic, any signs; NaN where an end is not finite)."""
+    with np.errstate(all="ignore"):
+        corners = np.array(np.broadcast_arrays(a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi),
+                           dtype=float)
+    return np.min(corners, axis=0), np.max(corners, axis=0)
+
+
 def mu_upper_box_bound(structures: list[IntervalStructure],
                        physics_fn: Callable[[np.ndarray, np.ndarray, Mapping[str, float]],
                                             dict[str, np.ndarray]],
-                       envelope: Any, design: Mapping[str, float], z: float) -> Callable:
+                       envelope: Any, design: Mapping[str, float], z: float, calibrated: Any = None,
+                       inputs_fn: Callable[[np.ndarray, np.ndarray], Mapping[str, Any]] | None = None,
+                       base: Mapping[str, Any] | None = None) -> Callable:
     """The box bound of a calibrated model's ``mu_upper`` at a design, for :func:`certified_max`.
 
     Over a box every quantity of each structure gets an interval: the physics' μ and each linear output
@@ -564,7 +819,11 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
     gradient of log μ, log1p(D / μ) / h, with D = μ(p + h) - μ(p) in closed form (``h`` × the physics
     output / p, ``h`` × the piece's basis, or the composed μ up to that factor × expm1(h φ)) times the
     product of the factors after it; the largest g'Cg over the box of gradients (a convex function: at one
-    of its vertices); so mu_upper <= max over the structures of max(μ) exp(z sqrt(max g'Cg + noise²)).
+    of its vertices); so mu_upper <= max over the structures of max(μ) exp(z sqrt(max g'Cg + noise²) W),
+    W the widening of the interval beyond the data cloud (1 without one) at an upper bound of the distance
+    ratio over the box (:meth:`calibrate.CalibratedModel.cloud_ratio_bound`; the widening,
+    :meth:`calibrate.domain.DataCloud.widening`, is non-decreasing in the ratio, and one cloud serves the
+    model and its rivals).
 
     Parameters
     ----------
@@ -572,30 +831,67 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         From :func:`interval_structures`.
     physics_fn : callable
         ``(angle_offset_deg, speed_m_s, fitted) -> {"mu": ..., <output>: ...}`` [1] of the physics at the
-        design with those fitted values, for the outputs of :data:`LINEAR_DECLARED`.
+        design with those fitted values (and drifted parameters, arrays), for :data:`INTERVAL_OUTPUTS`.
     envelope : optimize.robust.Envelope
         The envelope.
     design : mapping
         ``balls`` [1] and ``load_N`` [N].
     z : float
         The normal quantile of the interval (1.96 for 95 %). [1]
+    calibrated : calibrate.CalibratedModel, optional
+        The model, for its data cloud (needed when it has one).
+    inputs_fn : callable, optional
+        ``(angle_offset_deg, speed_m_s) -> physics inputs`` [their units] the model is given at the design
+        (as its evaluation at envelope points is), for the cloud's columns.
+    base : mapping, optional
+        Physics inputs at the design as the model reads them, for the drifts' base values (each structure's
+        fitted values take precedence).
 
     Returns
     -------
     callable
         ``(lo, hi) -> (upper bounds [1], points to evaluate)``.
+
+    Raises
+    ------
+    ValueError
+        For a model with a data cloud and no ``inputs_fn``.
     """
     boxes = _Boxes(envelope, design)
+    level = 1.0 - 2.0 * float(stats.norm.sf(z))
+    cloud = None if calibrated is None else getattr(calibrated, "cloud", None)
+    gp = any(getattr(s.model, "discrepancy", None) is not None for s in structures)
+    if (cloud is not None or gp) and inputs_fn is None:
+        raise ValueError("a model with a data cloud or a discrepancy needs inputs_fn for their bounds")
 
-    def one(s: IntervalStructure, lo: np.ndarray, hi: np.ndarray, peak: np.ndarray) -> np.ndarray:
+    def widening(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """An upper bound of the cloud's widening over each box (ones without a cloud). [1]"""
+        n = len(lo)
+        if cloud is None:
+            return np.ones(n)
+        low, high = _corner_points(boxes, inputs_fn, lo, hi)
+        return np.asarray(cloud.widening(calibrated.cloud_ratio_bound(low, high, (n,))), dtype=float)
+
+    def one(s: IntervalStructure, lo: np.ndarray, hi: np.ndarray, peak: np.ndarray,
+            wide: np.ndarray) -> np.ndarray:
         n = len(lo)
         offset_lo, speed_lo = boxes.physics_corner(lo)
         offset_hi, speed_hi = boxes.physics_corner(hi)
-        phys = physics_fn(np.r_[offset_lo, offset_hi], np.r_[speed_lo, speed_hi], s.fitted)
+        # Drifted parameters at the ends where mu is least (the lowest corner) and largest (the highest);
+        # every output read moves with each of them as mu does (DRIFT_SHARES).
+        drifts = [p for p in s.pieces if p.kind == "drift"]
+        drifted = drift_ranges(drifts, {**physics.defaults(), **(base or {}), **s.fitted},
+                               lambda driver: boxes.driver_interval(driver, lo, hi), n)
+        moved = {name: np.r_[(low, high) if DRIFT_DIRECTIONS[name] > 0 else (high, low)]
+                 for name, (low, high) in drifted.items()}
+        phys = physics_fn(np.r_[offset_lo, offset_hi], np.r_[speed_lo, speed_hi], {**s.fitted, **moved})
         levels_lo, levels_hi = [phys["mu"][:n]], [phys["mu"][n:]]
         ranges = _pieces_range(s.pieces, boxes, lo, hi, speed_hi, peak)
         for piece, (low, top) in zip(s.pieces, ranges, strict=True):
-            if piece.kind == "add":
+            if piece.kind == "drift":
+                levels_lo.append(levels_lo[-1])
+                levels_hi.append(levels_hi[-1])
+            elif piece.kind == "add":
                 levels_lo.append(levels_lo[-1] + low)
                 levels_hi.append(levels_hi[-1] + top)
             else:
@@ -624,6 +920,43 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         def adds_after(k: int) -> bool:
             return any(piece.kind == "add" for piece in s.pieces[k + 1:])
 
+        def _drift_ratio(piece: Piece, i: int, h: float) -> tuple[np.ndarray, np.ndarray, float]:
+            """D / mu for a step h in a drift's coefficient (i = 0) or level (i = 1): the parameter moves
+            by the ratio f(c + h, x) / f(c, x) (monotone in x: its ends) or (level + h) / level, its share
+            of the physics by ratio^a - 1 (one inside the ratio's interval where the box may clip the
+            parameter), and mu by that change times the factors after the physics."""
+            term = piece.term
+            output, exponent = DRIFT_SHARES[term.parameter]
+            if i == 0:
+                a, b, _ = boxes.driver_interval(term.driver, lo, hi)
+                c = piece.values[0]
+                with np.errstate(all="ignore"):
+                    ratios = [np.asarray(term.factor({term.driver: x}, c + h), dtype=float)
+                              / np.asarray(term.factor({term.driver: x}, c), dtype=float) for x in (a, b)]
+                ratio_lo, ratio_hi = np.minimum(*ratios), np.maximum(*ratios)
+            else:
+                ratio_lo = ratio_hi = np.full(n, (piece.values[1] + h) / piece.values[1])
+            spec = physics.PARAMETERS[term.parameter]
+            low, high = drifted[term.parameter]
+            clipped = ((spec.minimum is not None) & (low <= spec.minimum)) | (
+                (spec.maximum is not None) & (high >= np.nextafter(spec.maximum, -np.inf)))
+            ratio_lo = np.where(clipped, np.minimum(ratio_lo, 1.0), ratio_lo)
+            ratio_hi = np.where(clipped, np.maximum(ratio_hi, 1.0), ratio_hi)
+            ok = ratio_lo > 0
+            with np.errstate(all="ignore"):
+                d_lo = np.where(ok, np.power(np.where(ok, ratio_lo, 1.0), exponent) - 1.0, -np.inf)
+                d_hi = np.where(ok, np.power(np.where(ok, ratio_hi, 1.0), exponent) - 1.0, np.inf)
+            change = _product(d_lo, d_hi, phys[output][:n], phys[output][n:])  # D of the physics
+            if adds_after(-1):
+                q_lo, q_hi = after(-1)
+                r_lo, r_hi = _product(*change, q_lo / mu_hi, q_hi / safe_lo)
+            else:  # mu = physics x the factors: D / mu = D_phys / physics
+                phys_lo = phys["mu"][:n]
+                good = phys_lo > 0
+                r_lo, r_hi = _product(*change, 1.0 / phys["mu"][n:], 1.0 / np.where(good, phys_lo, np.nan))
+                r_lo, r_hi = np.where(good, r_lo, -np.inf), np.where(good, r_hi, np.inf)
+            return r_lo, r_hi, h
+
         for name, value in s.fitted.items():
             h = s.step * (abs(value) if value != 0 else 1.0)
             output = LINEAR_DECLARED[name]
@@ -639,6 +972,10 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
             gradient(r_lo, r_hi, h)
         for k, piece in enumerate(s.pieces):
             p_lo, p_hi = after(k)
+            if piece.kind == "drift":
+                for i, value in enumerate(piece.values):
+                    gradient(*_drift_ratio(piece, i, s.step * (abs(value) if value != 0 else 1.0)))
+                continue
             for i, value in enumerate(piece.values):
                 h = s.step * (abs(value) if value != 0 else 1.0)
                 form = _VALUE_FORMS[(piece.term.name, i)]
@@ -677,13 +1014,31 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         corners = np.array(list(itertools.product((0, 1), repeat=g_low.shape[1])), dtype=bool)
         vertices = np.where(corners[None, :, :], g_high[:, None, :], g_low[:, None, :])
         quadratic = np.einsum("nvi,ij,nvj->nv", vertices, s.covariance, vertices).max(axis=1)
-        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2)
-        return np.where(finite, mu_hi * np.exp(z * sigma), np.inf)
+        # Groups: the sensitivity s to a fitted parameter p is p times its gradient entry (the same finite
+        # difference), so it lies in p [g_lo, g_hi]; the shift s b0 and the variance s² v at their largest.
+        shift, group_variance = np.zeros(n), np.zeros(n)
+        names = list(s.fitted)
+        for group in s.groups:
+            if group.parameter != "mu" and group.parameter in s.fitted:
+                i, p = names.index(group.parameter), s.fitted[group.parameter]
+                ends = (g_low[:, i] * p, g_high[:, i] * p)
+                shift += np.maximum(ends[0] * group.offset_log, ends[1] * group.offset_log)
+                group_variance += np.maximum(ends[0] ** 2, ends[1] ** 2) * group.new_group_variance(level)
+            else:
+                shift += group.offset_log
+                group_variance += group.new_group_variance(level)
+        if getattr(s.model, "discrepancy", None) is not None:
+            low, high = _corner_points(boxes, inputs_fn, lo, hi)
+            _, gp_mean, gp_variance = s.model.discrepancy_bound(low, high, (n,))
+            shift, group_variance = shift + gp_mean, group_variance + gp_variance
+        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * wide
+        return np.where(finite, mu_hi * np.exp(shift + z * sigma), np.inf)
 
     def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         peak = hi.copy()
         with np.errstate(all="ignore"):
-            upper = np.max([one(s, lo, hi, peak) for s in structures], axis=0)
+            wide = widening(lo, hi)
+            upper = np.max([one(s, lo, hi, peak, wide) for s in structures], axis=0)
         return upper * (1.0 + _INTERVAL_ROUNDING), _with_low_speed(boxes, lo, peak)
 
     return bound

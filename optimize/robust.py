@@ -52,7 +52,12 @@ comes from the outer approximation below, with that bracket in place of the sear
 lower bound on the best achievable worst case is the largest, over the worst points found, of the
 least μ over the designs at that point (there every term is a positive monomial in balls and load,
 so a geometric program per ball count, bounded by its dual). A gap within :data:`GAP_TARGET` is a
-proof; otherwise both bounds are stated and the result says it is not proven.
+proof; otherwise both bounds are stated and the result says it is not proven. The same holds with a
+drifting physics parameter (the drifted value fixed at the point), groups (a constant factor at a
+point naming none) and a Gaussian-process discrepancy (its least mean over the design box at the
+point), each bounded over a box as :mod:`optimize.envelope_bound` says; ``mu_upper``'s bracket also
+bounds the data cloud's widening of the interval. The nominal design's worst case in the price of
+robustness is bracketed the same way (``worst_case_certified``, ``worst_case_upper_bound``).
 
 The 95 % upper bound of a calibrated model: a lower bound over the designs
 --------------------------------------------------------------------------
@@ -66,9 +71,10 @@ lower bound leaves the widening out and stays valid), so it gets a tight lower b
 
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
-A surrogate, a term that is not monotone (a quadratic in humidity may peak inside the range; a
-Stribeck term falls with speed while rolling grows), a GP discrepancy or the width of a 95 %
-interval have no known bound on their derivatives, so no rigorous bound over a box exists for them
+A surrogate, or a part of a calibrated model :mod:`optimize.envelope_bound` has no box bound for (a
+drift of the adhesion energy or a modulus in the interval, a scatter that depends on an input, a
+fitted value whose effect on μ has no closed form), has no known bound on its derivatives, so no
+rigorous bound over a box exists for it
 here. The method is a cutting-plane (outer-approximation) loop: the local method of
 :func:`optimize.optimize_model` minimizes the largest objective over a finite set of envelope points
 (its vertices and centre, or the vertex where μ is proven worst, to begin with); at the design
@@ -104,11 +110,15 @@ from microbearing.physics.model import Model
 from .design_bound import design_lower_bound, kth_distance_to_boxes
 from .dgp import LIMIT_NAMES, SAFETY_MARGIN, design_gp
 from .envelope_bound import (
+    BOUND_RTOL,
+    INTERVAL_OUTPUTS,
     INTERVAL_RTOL,
-    LINEAR_DECLARED,
     BoundFailedError,
     CertifiedMax,
     certified_max,
+    drift_ranges,
+    group_shift,
+    interval_floor,
     interval_structures,
     mu_box_bound,
     mu_upper_box_bound,
@@ -137,11 +147,18 @@ TOLERANCE_NAMES = ("groove_angle_deg",)
 GAP_TARGET = 1e-6
 #: A searched worst case above the optimized set's by more than this (relative) adds a point. [1]
 ENVELOPE_RTOL = 1e-6
+#: Relative bracket to which the nominal design's worst case in the price of robustness is certified (it
+#: is stated beside the robust one, not optimized). [1]
+NOMINAL_RTOL = 1e-4
 #: Most rounds of the cutting-plane loop for models other than the physics. [1]
 MAX_ROUNDS = 6
 #: Clarabel's stopping tolerances (gap and feasibility, its defaults), taken off the dual bound. [1]
 _SOLVER_TOL = 1e-8
 _ANGLE = physics.PARAMETERS["groove_angle_deg"]
+#: How the certified mu_upper bounds the widening of the interval beyond the data cloud, in words.
+_CLOUD_WORDS = (", the widening beyond the data cloud at an upper bound of the distance ratio (the k-th "
+                "smallest distance from the data rows to the box's farthest corner, in the cloud's scaled "
+                "inputs; the widening is non-decreasing in the ratio)")
 _SPEED = physics.PARAMETERS["speed_m_s"]
 
 
@@ -801,25 +818,39 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     noise = getattr(getattr(model, "calibrated", None), "noise_std_log", None)
     proven = _robust_calibrated_gp(problem, envelope, model, None, bound_only=True) if vertex else None
     if isinstance(proven, RobustResult) and proven.proof["lower_bound"] and noise:
-        result = _with_interval_bound(result, proven, float(noise))
+        result = _with_interval_bound(result, proven, float(noise), _least_widening(problem, model, vertex))
     return result
 
 
-def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_std_log: float) -> RobustResult:
+def _least_widening(problem: DesignProblem, model: Model, point: Mapping[str, Any]) -> float:
+    """A lower bound [1] of the data cloud's widening of the interval at an envelope point over the design
+    box (1 without a cloud): the widening at the least distance ratio there (non-decreasing)."""
+    calibrated = getattr(model, "calibrated", None)
+    if getattr(calibrated, "cloud", None) is None:
+        return 1.0
+    ratio = calibrated.cloud_ratio_bound(*_design_box_corners(problem, model, point), (1,), lower=True)
+    return max(float(calibrated.cloud.widening(ratio)[0]), 1.0)
+
+
+def _with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_std_log: float,
+                         widening: float = 1.0) -> RobustResult:
     """A mu_upper result with the certified lower bound that the proven mu problem gives.
 
-    A calibrated model's upper bound is mu exp(z sigma) with sigma^2 = g'Cg + noise^2 >= noise^2 (C positive
-    semi-definite, no discrepancy), so every design's worst mu_upper is at least exp(z noise) times its worst
-    mu, hence at least exp(z noise) times the certified lower bound of the mu problem (whose friction limit on
-    mu is a relaxation of the one on mu_upper).
+    A calibrated model's upper bound is mu exp(z sigma W) with sigma^2 = g'Cg + noise^2 >= noise^2 (C positive
+    semi-definite, no discrepancy) and W >= ``widening`` the data cloud's widening at mu's worst vertex (over
+    the design box), so every design's worst mu_upper is at least exp(z noise W) times its mu there, its worst
+    mu, hence at least that factor times the certified lower bound of the mu problem (whose friction limit
+    on mu is a relaxation of the one on mu_upper).
     """
     z = float(stats.norm.isf(0.025))
     upper = result.proof["upper_bound"]
-    lower = min(max(mu_result.proof["lower_bound"] * math.exp(z * noise_std_log),
+    lower = min(max(mu_result.proof["lower_bound"] * math.exp(z * noise_std_log * widening),
                     result.proof["lower_bound"] or 0.0), upper)
     gap = (upper - lower) / upper
-    statement = (f" Certified lower bound {lower:.10g}: mu_upper >= mu exp(1.96 x {noise_std_log:.4g}) "
-                 "(the interval is at least the measurement scatter) and the worst mu over the envelope is "
+    cloud = f" x {widening:.4g}, the data cloud's least widening there" if widening > 1.0 else ""
+    statement = (f" Certified lower bound {lower:.10g}: mu_upper >= mu exp(1.96 x {noise_std_log:.4g}"
+                 f"{cloud}) (the interval is at least the measurement scatter) and the worst mu over the "
+                 "envelope is "
                  f"proven at least {mu_result.proof['lower_bound']:.10g} (geometric programming, as for "
                  f"objective mu); relative gap to the worst case's upper bound {gap:.2e}: the parameters' "
                  "share of "
@@ -860,6 +891,15 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
     structures, why = interval_structures(held)
     if structures is None:
         return why
+    # The design boxes' bound composes the physics, additions and factors; a drift moves the physics' inputs,
+    # a group shifts log mu and a Gaussian-process discrepancy adds its own mean: none is in that bound yet.
+    for s in structures:
+        if any(piece.kind == "drift" for piece in s.pieces):
+            return "a term drifts a physics parameter, which the bound over design boxes does not take"
+        if s.groups:
+            return "a group effect shifts log mu, which the bound over design boxes does not take"
+        if getattr(s.model, "discrepancy", None) is not None:
+            return "a Gaussian-process discrepancy, which the bound over design boxes does not take"
     design = _design_of(result.result)
     worst = result.worst_case
     offset = worst["groove_angle_deg"] - design["groove_angle_deg"]
@@ -1102,7 +1142,8 @@ def _robust_physics(problem: DesignProblem, envelope: Envelope,
         statement += " The gap is above the target: the optimum is proven only to that gap."
     proof = {"proven": bool(proven), "method": "robust-gp-vertex", "lower_bound": lower, "upper_bound": value,
              "relative_gap": gap, "gap_target": GAP_TARGET, "statement": statement}
-    if float(np.max(at)) > value * (1 + 1e-12):
+    vertex_holds = float(np.max(at)) <= value * (1 + 1e-12)
+    if not vertex_holds:
         proof["proven"] = False
         proof["statement"] += (f" But a vertex or the centre gave {float(np.max(at)):.10g} > the predicted "
                                "worst case: the monotonicity argument failed here, nothing is proven.")
@@ -1121,9 +1162,11 @@ def _robust_physics(problem: DesignProblem, envelope: Envelope,
                                        nominal_design["load_N"])
     robust_centre = float(_evaluator(problem, envelope, None, "mu", design, delta)(
         [envelope.point({"speed_m_s": centre_speed})])[0])
+    # Both worst cases at the vertex are exact where the monotonicity held on the checked points.
     price = _price(nominal_design, nominal.mu, nominal_worst,
                    all(c.satisfied for c in nominal_limits if not c.name.startswith("groove_angle_deg")),
-                   {**design, "groove_angle_deg": theta}, robust_centre, value)
+                   {**design, "groove_angle_deg": theta}, robust_centre, value,
+                   nominal_worst if vertex_holds else None, value if vertex_holds else None)
     certificate = (solved.certificate + " Envelope: " + statement)
     result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
                                           speed_m_s=v_hi, solve_time_s=time.perf_counter() - start), delta)
@@ -1133,12 +1176,20 @@ def _robust_physics(problem: DesignProblem, envelope: Envelope,
 
 
 def _price(nominal_design: dict[str, Any], nominal_centre: float, nominal_worst: float, nominal_holds: bool,
-           robust_design: dict[str, Any], robust_centre: float, robust_worst: float) -> dict[str, Any]:
+           robust_design: dict[str, Any], robust_centre: float, robust_worst: float,
+           nominal_upper: float | None = None, robust_upper: float | None = None) -> dict[str, Any]:
+    """Both designs; ``*_upper``: a certified upper bound of each worst case [1] (None: searched only)."""
+    def certified(upper: float | None) -> dict[str, Any]:
+        return {"worst_case_certified": upper is not None,
+                "worst_case_upper_bound": None if upper is None else float(upper)}
+
     return {
         "nominal": {"design": dict(nominal_design), "at_centre": float(nominal_centre),
-                    "worst_case": float(nominal_worst), "limits_hold_over_envelope": bool(nominal_holds)},
+                    "worst_case": float(nominal_worst), "limits_hold_over_envelope": bool(nominal_holds),
+                    **certified(nominal_upper)},
         "robust": {"design": dict(robust_design), "at_centre": float(robust_centre),
-                   "worst_case": float(robust_worst), "limits_hold_over_envelope": True},
+                   "worst_case": float(robust_worst), "limits_hold_over_envelope": True,
+                   **certified(robust_upper)},
         "ratio": float(nominal_worst / robust_worst),
     }
 
@@ -1163,28 +1214,29 @@ class _SetModel:
 
 def _certifier(envelope: Envelope, model: Model, objective: str
                ) -> tuple[Callable[[DesignProblem, Mapping[str, Any], float], CertifiedMax] | None, str]:
-    """What brackets the worst objective at a design (problem, design in θ', shift), or None and why not."""
+    """What brackets the worst objective at a design (problem, design in θ', shift; ``rtol`` optional), or
+    None and why not."""
     if objective == "mu":
         pieces, why = term_pieces(model)
         if pieces is None:
             return None, why
-        return (lambda problem, design, shift: _certified_search(problem, envelope, model, pieces, design,
-                                                                 shift)), ""
+        return (lambda problem, design, shift, **rtol: _certified_search(problem, envelope, model, pieces,
+                                                                         design, shift, **rtol)), ""
     structures, why = interval_structures(model)
     if structures is None:
         return None, why
-    return (lambda problem, design, shift: _certified_upper_search(problem, envelope, model, structures,
-                                                                   design, shift, rtol=_BRACKET_RTOL)), ""
+    return (lambda problem, design, shift, **options: _certified_upper_search(
+        problem, envelope, model, structures, design, shift, **{"rtol": _BRACKET_RTOL, **options})), ""
 
 
 def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: Model, structures: list,
-                            design: Mapping[str, Any], shift: float, rtol: float = INTERVAL_RTOL,
+                            design: Mapping[str, Any], shift: float, rtol: float | None = None,
                             time_limit_s: float = math.inf) -> CertifiedMax:
     """The worst mu_upper over the envelope at a design (angle θ' = θ + ``shift``), bracketed."""
     balls, load = float(design["balls"]), float(design["load_N"])
     theta = float(design["groove_angle_deg"]) - shift
     calibrated = model.calibrated
-    outputs = ["mu", *LINEAR_DECLARED.values()]
+    outputs = list(INTERVAL_OUTPUTS)
 
     def physics_fn(offset: np.ndarray, speed: np.ndarray,
                    fitted: Mapping[str, float]) -> dict[str, np.ndarray]:
@@ -1196,28 +1248,65 @@ def _certified_upper_search(problem: DesignProblem, envelope: Envelope, model: M
         return {name: np.asarray(getattr(result, name), dtype=float) for name in outputs}
 
     bound = mu_upper_box_bound(structures, physics_fn, envelope, {"balls": balls, "load_N": load},
-                               float(stats.norm.isf(0.025)))
+                               float(stats.norm.isf(0.025)), calibrated,
+                               _inputs_fn(problem, model, balls, theta, load), {**problem.fixed})
     return certified_max(bound, _evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
-                         rtol=rtol, time_limit_s=time_limit_s)
+                         rtol=rtol or INTERVAL_RTOL, time_limit_s=time_limit_s)
+
+
+def _inputs_fn(problem: DesignProblem, model: Model, balls: Any, theta: Any,
+               load: Any) -> Callable[[np.ndarray, np.ndarray], dict[str, Any]]:
+    """``(angle offset [deg], speed [m/s]) -> the physics inputs the model is given at a design``, as
+    :func:`_objective_values` gives them (without the values the model holds)."""
+    held = {*model.fixed, *model.fitted}
+
+    def inputs_fn(offset: np.ndarray, speed: np.ndarray) -> dict[str, Any]:
+        columns = problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed)
+        return {k: v for k, v in columns.items() if k not in held}
+
+    return inputs_fn
 
 
 def _certified_search(problem: DesignProblem, envelope: Envelope, model: Model, pieces: list,
-                      design: Mapping[str, Any], shift: float) -> CertifiedMax:
+                      design: Mapping[str, Any], shift: float, rtol: float | None = None) -> CertifiedMax:
     """The worst μ over the envelope at a design (angle θ' = θ + ``shift``), bracketed by branch and bound."""
     balls, load = float(design["balls"]), float(design["load_N"])
     theta = float(design["groove_angle_deg"]) - shift
 
-    def physics_mu(offset: np.ndarray, speed: np.ndarray) -> np.ndarray:
+    def physics_mu(offset: np.ndarray, speed: np.ndarray, **parameters: np.ndarray) -> np.ndarray:
         with np.errstate(all="ignore"):
-            return physics.evaluate(convention=problem.convention, outputs=["mu"],
-                                    **problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed)).mu
+            return physics.evaluate(convention=problem.convention, outputs=["mu"], **{
+                **problem.physics_inputs(balls, theta + offset, load, speed_m_s=speed), **parameters}).mu
 
-    return certified_max(mu_box_bound(pieces, physics_mu, envelope, {"balls": balls, "load_N": load}),
-                         _evaluator(problem, envelope, model, "mu", design, shift), envelope)
+    # The values the drifts start from: the model's own (in problem.fixed, _with_model_values), else defaults.
+    base = {**physics.defaults(), **problem.fixed}
+    return certified_max(mu_box_bound(pieces, physics_mu, envelope, {"balls": balls, "load_N": load},
+                                      model.calibrated, base, _inputs_fn(problem, model, balls, theta, load)),
+                         _evaluator(problem, envelope, model, "mu", design, shift), envelope,
+                         rtol=rtol or BOUND_RTOL)
 
 
-def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str, Any]) -> float:
-    """A certified lower bound [1] of the least μ over the designs at one envelope point (NaN: none).
+def _design_box_corners(problem: DesignProblem, model: Model,
+                        point: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The model's points at the design box's lowest and highest corner at one envelope point (each column
+    non-decreasing in balls, the nominal angle and the load)."""
+    (b_lo, b_hi), (a_lo, a_hi), (l_lo, l_hi) = (problem.bounds.balls, problem.bounds.groove_angle_deg,
+                                                problem.bounds.load_N)
+    offset, speed = float(point["groove_angle_offset_deg"]), np.array([float(point["speed_m_s"])])
+    conditions = {n: np.array([float(v)]) for n, v in point["conditions"].items()}
+    low, high = [{**_inputs_fn(problem, model, np.array([float(b)]), np.array([a]), np.array([g]))(
+        offset, speed), **conditions} for b, a, g in ((b_lo, a_lo, l_lo), (b_hi, a_hi, l_hi))]
+    return low, high
+
+
+def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str, Any],
+                       factor: float = 1.0) -> float:
+    """A certified lower bound [1] of the least objective over the designs at one envelope point (NaN: none).
+
+    ``factor`` > 0 is a lower bound of the objective over the model's μ without its groups and discrepancy
+    (1 for μ with neither; :func:`optimize.envelope_bound.interval_floor` for ``mu_upper``): the bound is
+    factor × exp(the discrepancy's least mean over the design box at the point) × the programs' bound, and
+    the friction-force limit on the objective enters the programs divided by that product (a relaxation).
 
     At a fixed point every effect term is a positive monomial in balls and load_N (read and checked,
     :func:`_monomials_at`), so the calibrated μ there is a posynomial and its minimum over the designs, with
@@ -1225,7 +1314,7 @@ def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str,
     The limits at one point are a relaxation of the limits over the envelope, and the worst case of any
     design is at least its μ at the point: the bound holds for the best achievable worst case.
     """
-    terms = model.calibrated.terms
+    terms = [(t, v) for t, v in model.calibrated.terms if getattr(t, "kind", None) != "drift"]
     monomials, _ = _monomials_at([t for t, _ in terms], [v for _, v in terms], point)
     if monomials is None:
         return math.nan
@@ -1234,8 +1323,24 @@ def _point_lower_bound(problem: DesignProblem, model: Model, point: Mapping[str,
                                    float(point["speed_m_s"]))
     except ValueError:
         return math.nan
+    # A drift fixes its parameter at the point: the drifted value, in the program's fixed values.
+    drifts, _ = term_pieces(model)
+    drifted = drift_ranges([p for p in drifts or [] if p.kind == "drift"],
+                           {**physics.defaults(), **problem.fixed},
+                           lambda driver: (np.atleast_1d(point["conditions"][driver]),) * 2 + (None,), 1)
+    if drifted:
+        at_point = DesignProblem(at_point.bounds, at_point.speed_m_s, at_point.constraints,
+                                 {**at_point.fixed, **{n: float(lo[0]) for n, (lo, _) in drifted.items()}},
+                                 at_point.convention)
+    if model.calibrated.discrepancy is not None:
+        corners = _design_box_corners(problem, model, point)
+        factor *= math.exp(float(model.calibrated.discrepancy_bound(corners[0], corners[1], (1,))[0][0]))
+    if factor != 1.0 and at_point.constraints.max_friction_force_N is not None:
+        at_point = DesignProblem(at_point.bounds, at_point.speed_m_s, dataclasses.replace(
+            at_point.constraints, max_friction_force_N=at_point.constraints.max_friction_force_N / factor),
+            at_point.fixed, at_point.convention)
     bounds = [answer[4] for answer in _calibrated_counts(at_point, monomials).values()]
-    return math.nan if not bounds or any(math.isnan(b) for b in bounds) else float(min(bounds))
+    return math.nan if not bounds or any(math.isnan(b) for b in bounds) else float(min(bounds)) * factor
 
 
 def _certified_proof(problem: DesignProblem, model: Model, bracket: CertifiedMax,
@@ -1246,7 +1351,9 @@ def _certified_proof(problem: DesignProblem, model: Model, bracket: CertifiedMax
     ``problem`` is in the nominal angle (the points carry their offsets). Returns the proof and the worst case
     found at the design [1].
     """
-    bounds = [_point_lower_bound(problem, model, p) for p in points]
+    # Groups move every design's mu by one factor at a point naming none (objective mu: sensitivity 1).
+    groups = math.exp(group_shift(model.calibrated))
+    bounds = [_point_lower_bound(problem, model, p, groups) for p in points]
     known = [b for b in bounds if not math.isnan(b)]
     upper = bracket.upper_bound
     lower = min(max(known), upper) if known else None
@@ -1360,7 +1467,8 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
             "and highest corner (posynomials), each term between its exact extremes, the composed mu and "
             "each fitted value's finite-difference gradient of log mu by interval arithmetic in closed form, "
             "the parameter variance g'Cg at most its largest value over the box of gradients (a vertex: "
-            f"convex), for the model and each rival ({bracket.boxes} boxes"
+            f"convex){_CLOUD_WORDS if model.calibrated.cloud is not None else ''}, for the model and each "
+            f"rival ({bracket.boxes} boxes"
             f"{'' if bracket.complete else ', stopped at the box limit'}): found {bracket.value:.10g}, "
             "certified "
             f"at most {bracket.upper_bound:.10g} (relative {bracket.relative_gap:.1e}). The design came from "
@@ -1368,15 +1476,27 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         # Every design's mu_upper at the worst point is at least exp(z noise) times its mu there (the interval
         # is at least the scatter), and its mu there at least the dual bound of the geometric programs.
         # Started from mu's proven worst vertex, that bound is already known (optimize_robust adds it).
-        at_worst = _point_lower_bound(problem, model, where) if initial_points is None else math.nan
+        # The data cloud widens every design's interval at the worst point at least by its least distance
+        # ratio over the design box there (a lower bound of the k-th nearest distance).
+        calibrated = model.calibrated
+        least = 1.0
+        if calibrated.cloud is not None:
+            corners = _design_box_corners(problem, model, where)
+            ratio = calibrated.cloud_ratio_bound(*corners, (1,), lower=True)
+            least = float(calibrated.cloud.widening(ratio)[0])
+        scatter = interval_floor(calibrated, float(stats.norm.isf(0.025)), least)
+        at_worst = (_point_lower_bound(problem, model, where, scatter)
+                    if initial_points is None and scatter is not None else math.nan)
         lower = None
         if not math.isnan(at_worst):
-            scatter = math.exp(float(stats.norm.isf(0.025)) * model.calibrated.noise_std_log)
-            lower = min(at_worst * scatter, bracket.upper_bound)
-            statement += (f" Certified lower bound {lower:.10g}: mu at the worst point is at least "
-                          f"{at_worst:.10g} for every design (geometric programs per ball count there, as "
-                          "for objective mu) and mu_upper >= mu exp(1.96 x "
-                          f"{model.calibrated.noise_std_log:.4g}).")
+            lower = min(at_worst, bracket.upper_bound)
+            statement += (f" Certified lower bound {lower:.10g}: at the worst point every design's mu_upper "
+                          f"is at least {scatter:.10g} (exp(1.96 x the measurement scatter), with the "
+                          "groups' offset and spread where the model has groups, times the data cloud's "
+                          f"least widening over the designs there, {least:.4g}) times its mu there, and "
+                          "that mu at least the dual bound of geometric programs per ball count there (as "
+                          "for objective mu; a discrepancy's least mean over the designs there multiplies "
+                          "it).")
         gap = None if lower is None else (bracket.upper_bound - lower) / bracket.upper_bound
         proof = {"proven": False, "method": "outer-approximation-certified", "lower_bound": lower,
                  "upper_bound": bracket.upper_bound, "relative_gap": gap, "gap_target": GAP_TARGET,
@@ -1398,10 +1518,22 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
     nominal_design = _design_of(nominal)
     if nominal is solved:
         nominal_design["groove_angle_deg"] -= delta
-    nominal_worst, _, _ = worst_case_search(
-        _evaluator(problem, envelope, model, objective, nominal_design, 0.0), envelope)
+    # The nominal design's worst case: certified by the same branch and bound as the robust one's where it
+    # applies, to NOMINAL_RTOL (its upper bound then judges the friction limit), else searched.
+    nominal_bracket = None
+    if certify is not None:
+        try:
+            nominal_bracket = certify(problem, nominal_design, 0.0, rtol=NOMINAL_RTOL)
+        except BoundFailedError:
+            nominal_bracket = None
+    if nominal_bracket is not None:
+        nominal_worst, nominal_upper = nominal_bracket.value, nominal_bracket.upper_bound
+    else:
+        nominal_worst, _, _ = worst_case_search(
+            _evaluator(problem, envelope, model, objective, nominal_design, 0.0), envelope)
+        nominal_upper = None
     limits = constraint_report(shifted, nominal_design["balls"], nominal_design["groove_angle_deg"] + delta,
-                               nominal_design["load_N"], mu=nominal_worst)
+                               nominal_design["load_N"], mu=nominal_upper or nominal_worst)
     centre_point = envelope.point({"speed_m_s": centre["speed_m_s"],
                                    **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})
     robust_centre = float(_evaluator(problem, envelope, model, objective, design, delta)([centre_point])[0])
@@ -1409,7 +1541,8 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
         [centre_point])[0])
     price = _price(nominal_design, nominal_centre, nominal_worst,
                    all(c.satisfied for c in limits if not c.name.startswith("groove_angle_deg")),
-                   {**design, "groove_angle_deg": theta}, robust_centre, value)
+                   {**design, "groove_angle_deg": theta}, robust_centre, value, nominal_upper,
+                   None if bracket is None else bracket.upper_bound)
     certificate = (f"{'Proven' if proof['proven'] else 'Local'} optimum of the worst case over the envelope"
                    f"{'' if proof['proven'] else ', not proven'}. {statement}")
     result = _unshift(dataclasses.replace(solved, mu=value, certificate=certificate,
@@ -1700,8 +1833,11 @@ def _robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Mod
     robust_centre = float(_evaluator(problem, envelope, model, "mu", design, delta)(
         [envelope.point({"speed_m_s": centre["speed_m_s"],
                          **{f"conditions.{n}": v for n, v in centre["conditions"].items()}})])[0])
+    # Both worst cases at the vertex are exact by the monotonicity argument (where the search agreed).
+    vertex_holds = searched <= value * (1 + 1e-9)
     price = _price(nominal_design, nominal_centre, nominal_worst, nominal_holds,
-                   {**design, "groove_angle_deg": design["groove_angle_deg"] - delta}, robust_centre, value)
+                   {**design, "groove_angle_deg": design["groove_angle_deg"] - delta}, robust_centre, value,
+                   nominal_worst if vertex_holds else None, value if vertex_holds else None)
     best_mu = value
     ties = [{"balls": r.balls, "groove_angle_deg": r.groove_angle_deg, "load_N": r.load_N,
              "load_per_ball_N": r.load_N / r.balls, "mu": r.mu}

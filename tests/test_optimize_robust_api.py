@@ -114,11 +114,13 @@ def test_the_designers_request_on_a_calibrated_model(client, calibrated):
     assert grid.mu_upper.max() <= worst["mu_upper"] * (1 + 1e-9)
     # friction grows with humidity (the menisci): the worst case is at 70 % RH
     assert worst["conditions"]["relative_humidity"] == pytest.approx(0.7)
-    # The model's interval widens off its data cloud (issue 24), which the box bounds do not bound: the
-    # worst case at the design is searched, not certified, and the proof says why.
+    # The model's interval widens off its data cloud (issue 24): the worst case at the design is certified
+    # by branch and bound with the widening bounded over each box, and the proof says so. The design's
+    # optimality is not proven (the parameters' share of the interval).
     proof = body["proof"]
-    assert proof["proven"] is False and proof["method"] == "outer-approximation-local"
+    assert proof["proven"] is False and proof["method"] == "outer-approximation-certified"
     assert "cloud" in proof["statement"]
+    assert grid.mu_upper.max() <= proof["upper_bound"] <= worst["mu_upper"] * (1 + 2e-5)
     assert body["mu_lower"] < body["mu_upper"] == pytest.approx(worst["mu_upper"], rel=1e-9)
     assert body["price_of_robustness"]["robust"]["worst_case"] == worst["mu_upper"]
 
@@ -212,14 +214,20 @@ def test_the_readme_example_gives_the_figures_it_shows():
     assert robust.result.design["load_N"] == pytest.approx(0.013054, rel=1e-4)
     assert robust.worst_case["mu_upper"] == pytest.approx(0.026271, rel=1e-4)
     assert robust.worst_case["conditions"] == {"relative_humidity": 0.7}
-    # The lower bound over the designs closes the gap below the target; the worst case at the design is
-    # searched (the data cloud widens the interval, and no box bound holds that here), so it is not proven.
+    # Both ends certified: the lower bound over the designs (branch and bound over design boxes) and the worst
+    # case at the design (branch and bound over the envelope, the data cloud's widening bounded per box).
     assert robust.proof["lower_bound"] == pytest.approx(0.0262707, rel=1e-6)
-    assert robust.proof["relative_gap"] < 1e-6 and not robust.proof["proven"]
-    assert robust.proof["upper_bound_certified"] is False
-    assert robust.proof["method"] == "outer-approximation-local" and "cloud" in robust.proof["statement"]
+    assert robust.proof["relative_gap"] < 1e-6 and robust.proof["proven"]
+    assert robust.proof["upper_bound_certified"] is True
+    assert robust.proof["method"] == "outer-approximation-certified" and "cloud" in robust.proof["statement"]
+    assert robust.proof["worst_case_relative_gap"] <= 1e-5
+    worst = robust.worst_case["mu_upper"]
+    assert worst <= robust.proof["upper_bound"] <= worst * (1 + 1e-5)
     nominal = robust.price_of_robustness["nominal"]
     assert nominal["worst_case"] == pytest.approx(0.026103, rel=1e-4)
+    # the nominal design's worst case is certified too, to the nominal bracket (1e-4)
+    assert nominal["worst_case_certified"] and robust.price_of_robustness["robust"]["worst_case_certified"]
+    assert nominal["worst_case"] <= nominal["worst_case_upper_bound"] <= nominal["worst_case"] * (1 + 1e-4)
     assert not nominal["limits_hold_over_envelope"]
     assert 1 - robust.result.design["load_N"] / nominal["design"]["load_N"] == pytest.approx(0.009, abs=5e-4)
     proven = namespace["optimize_robust"](namespace["problem"], namespace["envelope"], namespace["model"])

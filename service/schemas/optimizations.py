@@ -328,6 +328,11 @@ class PricedDesign(ResponseModel):
     at_centre: float = Field(description="The objective at the envelope's centre [1].")
     worst_case: float = Field(description="The objective's worst case over the envelope [1].")
     limits_hold_over_envelope: bool = Field(description="Whether every limit holds over the whole envelope.")
+    worst_case_certified: bool | None = Field(default=None, description=(
+        "Whether the worst case is certified (exact at the envelope's worst vertex, or bracketed by branch "
+        "and bound) rather than searched."))
+    worst_case_upper_bound: float | None = Field(default=None, description=(
+        "A certified upper bound of the objective over the envelope [1] (null when searched only)."))
 
 
 class PriceOfRobustness(ResponseModel):
