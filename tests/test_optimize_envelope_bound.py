@@ -669,9 +669,13 @@ def test_certified_mu_upper_with_drifting_parameters_bounds_brute_force():
     assert term_pieces(holder, interval=True)[0] is None and "contact load" in term_pieces(holder, True)[1]
 
 
-def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid_design_beats_it():
+@pytest.mark.parametrize("over_design_boxes", [True, False])
+def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid_design_beats_it(
+        over_design_boxes, monkeypatch):
     # Menisci alone: mu's worst case is one vertex (geometric programming), and there the data cloud (rows at
     # low speed) is far from every design: every design's interval is widened at least by the least ratio.
+    # Both lower bounds take it: the branch and bound over design boxes (optimize.design_bound) and, where that
+    # one does not apply, the noise floor times the proven least mu times the least widening.
     from microbearing.calibrate.domain import DataCloud
 
     base = _cloud_model().calibrated
@@ -682,9 +686,14 @@ def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid
     assert isinstance(meniscus.cloud, DataCloud)
     model = CalibratedPhysicsModel("calibrated:meniscus-cloud", meniscus)
     problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
+    if not over_design_boxes:
+        monkeypatch.setattr(robust, "_with_design_bound", lambda *args: "switched off in this test")
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
     proof = result.proof
-    assert "the data cloud's least widening there" in proof["statement"]
+    if over_design_boxes:
+        assert proof["proven"] and "the data cloud's widening of sigma at least" in proof["statement"]
+    else:
+        assert "the data cloud's least widening there" in proof["statement"]
     held = robust._with_model_values(problem, model)
     vertex = ENVELOPE.point({"speed_m_s": 0.1, "conditions.relative_humidity": 0.7,
                              "conditions.temperature_C": 20.0, "groove_angle_offset_deg": 0.5})
