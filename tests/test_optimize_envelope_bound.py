@@ -674,8 +674,8 @@ def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid
         over_design_boxes, monkeypatch):
     # Menisci alone: mu's worst case is one vertex (geometric programming), and there the data cloud (rows at
     # low speed) is far from every design: every design's interval is widened at least by the least ratio.
-    # Both lower bounds take it: the branch and bound over design boxes (optimize.design_bound) and, where that
-    # one does not apply, the noise floor times the proven least mu times the least widening.
+    # Both lower bounds take it: the branch and bound over design boxes (optimize.design_bound) and, where
+    # that one does not apply, the noise floor times the proven least mu times the least widening.
     from microbearing.calibrate.domain import DataCloud
 
     base = _cloud_model().calibrated
