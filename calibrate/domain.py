@@ -13,9 +13,9 @@ interval widens in proportion to the distance from the data; a documented rule, 
 cross-validation that holds out clusters of rows measures how the error grows along the data's shape,
 never across it, and in data whose columns move together the error off the data comes from which of
 them acts, not from the distance), through :meth:`DataCloud.widening`, the one place the rule lives.
-Where two columns move together, the interval also holds the rivals by confounding (:mod:`calibrate.rivals`): terms on the column the model does not read that
-the data lean to but cannot decide, whose envelope parts from the model where one column is varied
-without the other.
+Where two columns move together, the interval also holds the rivals by confounding
+(:mod:`calibrate.rivals`): terms on the column the model does not read that the data lean to but cannot
+decide, whose envelope parts from the model where one column is varied without the other.
 
 **Confounding.** :func:`confounded_pairs` names every pair of varying columns whose ranks move
 together (|Spearman rho| >= :data:`CONFOUNDED_RHO`): whatever one of them seems to do, the other
