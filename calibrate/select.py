@@ -84,6 +84,7 @@ __all__ = [
     "max_t_threshold",
     "nested_cross_validate",
     "noise_test",
+    "preferred",
     "scatter_weighted",
     "varying_columns",
 ]
@@ -636,19 +637,7 @@ def _search_step(
             z_needed,
             f"no candidate beats the current model by more than noise in cross-validation{detail}",
         )
-    best = min(significant, key=lambda c: c.score)
-    close_named = [
-        c
-        for c in significant
-        if not c.term.generic and _within_one_se(c.loss, best.loss)
-    ]
-    # Among named terms that fit equally well, a catalogue effect comes first, then the drift that asks
-    # least of its parameter (the smallest change over the data), then the lowest score.
-    chosen = (
-        min(close_named, key=lambda c: (c.term.kind == "drift", _drift_change(dataset, c), c.score))
-        if close_named
-        else best
-    )
+    chosen = preferred(dataset, significant)
     kind = (
         "generic term (no named mechanism fits)"
         if chosen.term.generic
@@ -669,6 +658,25 @@ def _search_step(
     if rival:
         reason += f"; as good within one standard error: {', '.join(rival[:3])}"
     return Step(current_score, ranked, chosen, z_needed, reason)
+
+
+def preferred(dataset: Dataset, candidates: Sequence[CandidateScore]) -> CandidateScore:
+    """The candidate a step names among ``candidates`` (a non-empty list of jointly refitted scores).
+
+    The rule (parsimony and the physics first): the lowest score wins, unless named terms (a catalogue
+    effect or a drift of a declared parameter by its law) fit as well within one standard error of the
+    paired per-row losses; then a named term is named, never the generic one: a catalogue effect
+    first, then the drift that asks least of its parameter (the smallest change over the data), then
+    the lowest score. So when two drivers move together and a generic term on one fits as well as a
+    declared drift law on the other (a polynomial in the speed against the viscosity's Arrhenius law
+    in the temperature that rises with it), the law is named; the report names the other too
+    (:func:`calibrate.report.calibrate`'s confounding words, :mod:`calibrate.decidability`).
+    """
+    best = min(candidates, key=lambda c: c.score)
+    close_named = [c for c in candidates if not c.term.generic and _within_one_se(c.loss, best.loss)]
+    if not close_named:
+        return best
+    return min(close_named, key=lambda c: (c.term.kind == "drift", _drift_change(dataset, c), c.score))
 
 
 def _within_one_se(loss: np.ndarray, reference: np.ndarray) -> bool:
