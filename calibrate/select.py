@@ -828,8 +828,11 @@ def forward_select(
     scatter_rounds : int
         Searches at most (:data:`SCATTER_ROUNDS`); 1 leaves the search unweighted. [1]
 
-    The rounds stop when the scatter model of the last search's residual is constant or has the form
-    of the one that weighted it (its coefficients are then those read before the search).
+    A weighted search is kept only when the scatter model of its own held-out residual has the form
+    (kind and column) of the one that weighted it (its coefficients are then those read before it).
+    When that residual shows one scatter everywhere instead, or the rounds run out, the unweighted
+    search stands: the scatter that weighted it was likely an effect the unweighted search missed
+    (a run-in on 24 rows makes the first cycles' residuals large), and the words say so.
 
     Returns
     -------
@@ -845,34 +848,49 @@ def forward_select(
     # one spread everywhere) half of what is left.
     edges = [0.0, *(1.0 - 0.3 * 0.5**k for k in range(rounds - 1)), 1.0]
     used: ScatterModel | None = None
-    history: list[str] = []
+    searches = []  # (weights used, (model, scale, steps, reason)) of each round
+    fallback = ""
     for k in range(rounds):
         lo, hi = edges[k], edges[k + 1]
-        weighted = scatter_weighted(data, used)
-        current, scale, steps, reason = _search(
-            weighted, data, fit_parameters, fold_rows, z_threshold, family_alpha, joint_top, max_terms,
-            convention, declared_noise, lambda f, lo=lo, hi=hi: report(lo + (hi - lo) * f),
-        )
-        if k + 1 == rounds:
+        searches.append((used, _search(
+            scatter_weighted(data, used), data, fit_parameters, fold_rows, z_threshold, family_alpha,
+            joint_top, max_terms, convention, declared_noise,
+            lambda f, lo=lo, hi=hi: report(lo + (hi - lo) * f),
+        )))
+        if rounds == 1:
             break
-        # A constant estimate after a weighted search leaves the weights read before it: they came from
-        # a residual that showed the scatter, and an unweighted search would only repeat the first one.
-        estimate = selection_scatter(data, current, folds, seed)
-        if _form(estimate) in {("constant", None), _form(used)}:
+        estimate = selection_scatter(data, searches[-1][1][0], folds, seed)
+        if _form(estimate) == _form(used):
+            break  # consistent: the search's own residual has the scatter it was weighted by
+        if _form(estimate) == ("constant", None) or k + 1 == rounds:
+            # A weighted search whose residual no longer shows the scatter that weighted it (or rounds
+            # that never settle): what looked like scatter was likely an effect the first search
+            # missed, whose residual grows where it acts. The unweighted search stands.
+            left = "is the same everywhere" if _form(estimate) == ("constant", None) else "differs"
+            fallback = (f". A search weighted by the scatter of the unweighted search's residual "
+                        f"({searches[1][0].summary()}) left a residual whose scatter {left} (it chose "
+                        f"{_labels(searches[-1][1][0].terms)}): the scatter was not confirmed, and the "
+                        f"unweighted search stands")
+            used, searches = None, searches[:1]
             break
-        history.append(
-            f"{' + '.join(t.label for t in current.terms) or 'nothing'} "
-            f"{'unweighted' if used is None else 'weighted by ' + used.summary()}"
-        )
         used = estimate
+    current, scale, steps, reason = searches[-1][1]
     report(1.0)
     added = [s.reason for s in steps if s.chosen is not None]
     summary = "; then ".join(added) if added else "nothing added"
-    words = f"{summary}. Stop: {reason}"
+    words = f"{summary}. Stop: {reason}{fallback}"
     if used is not None:
+        before = searches[-2][0]
+        how = "unweighted" if before is None else f"weighted by {before.summary()}"
+        chose = _labels(searches[-2][1][0].terms)
         words += (f". The search weighted every row by its scatter, {used.summary()}, read from the held-out "
-                  f"residual of the search before it (which chose {'; then '.join(history)})")
+                  f"residual of the search before it (which chose {chose}, {how}); "
+                  f"its own residual has a scatter of the same form")
     return Selection(current.terms, steps, current, scale, rows, words, used)
+
+
+def _labels(terms: Sequence[Term]) -> str:
+    return " + ".join(t.label for t in terms) or "nothing"
 
 
 def _search(data, plain, fit_parameters, fold_rows, z_threshold, family_alpha, joint_top, max_terms,
