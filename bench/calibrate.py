@@ -471,6 +471,32 @@ def weighted_suite(seeds: int) -> None:
         print(f"  right: unweighted {tally['unweighted']}/{seeds}, weighted {tally['weighted']}/{seeds}")
 
 
+def confounded_selection(seeds: int) -> None:
+    """Lab case 4's data (temperature rising with speed, viscosity falling with temperature by Arrhenius'
+    law) at the case's viscosity (0.01 Pa s at 25 degC) and five times it: what the selection names, and
+    what a close call names (forward selection and calibrate.decidability.undecided only)."""
+    from microbearing.calibrate.decidability import undecided
+
+    print(f"confounded drivers: lab case 4's generator, forward selection on {', '.join(FIT)}; "
+          f"seeds from 2440")
+    for level in (0.01, 0.05):
+        print(f"\nviscosity {level} Pa s at 25 degC")
+        for seed in range(2440, 2440 + seeds):
+            rng = np.random.default_rng(seed)
+            c = _lab_columns(rng, 200)
+            c["temperature_C"] = 25.0 + 50.0 * (c["speed_m_s"] - 0.005) / 0.145 + rng.normal(0.0, 1.0, 200)
+            mu = _mu(c, viscosity_Pa_s=_viscosity(c["temperature_C"], level=level))
+            measured = mu * np.exp(rng.normal(0.0, 0.03, 200))
+            data = parse_rows([{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(measured[i])}
+                               for i in range(200)])
+            selection = forward_select(data, FIT, seed=seed)
+            close = [u for u in undecided(data, selection, None, (), FIT, 0.03)
+                     if u["kind"] == "near_threshold"]
+            said = (f"close call on {' | '.join(close[0]['terms'])} (z = {close[0]['z']:.2f}, "
+                    f"{close[0]['z_needed']:.2f} needed)" if close else "no close call")
+            print(f"  seed {seed}: chose {[t.label for t in selection.terms]}; {said}", flush=True)
+
+
 def synthetic_csv(n: int, seed: int = 0, groups: int = 0, load_scatter: bool = False) -> str:
     """CSV text of n measurements with a hidden humidity effect and 2 % log-normal noise; with ``groups``, a
     factor column ``specimen`` of that many labels drawn at random (no effect of its own); with
@@ -761,11 +787,13 @@ def main() -> None:
                         help="give each clean noise level its own seeds (independent data sets)")
     parser.add_argument("--honest", choices=["all", "extrapolation", "slips", "level", "undecided"],
                         help="issue 24 items 4-8 instead (--seeds per case, --clean-seeds clean runs)")
-    parser.add_argument("--part", choices=["all", "effects", "clean", "null", "lab", "weighted"],
+    parser.add_argument("--part",
+                        choices=["all", "effects", "clean", "null", "lab", "weighted", "confounded"],
                         default="all",
                         help="run only the cases with effects, or only the clean ones; or (null) the "
                              "family-wise error of one selection step on data with nothing to find; or "
-                             "(weighted) the selection unweighted and weighted on load-dependent scatter")
+                             "(weighted) the selection unweighted and weighted on load-dependent scatter; "
+                             "or (confounded) what the selection names on lab case 4's confounded drivers")
     parser.add_argument("--null-seeds", type=int, default=100, help="data sets per null case (--part null)")
     parser.add_argument("--cases", default=":", help="a Python slice of the part's cases, e.g. 0:5")
     parser.add_argument("--rows", type=int, default=10_000)
@@ -782,6 +810,8 @@ def main() -> None:
         honest(args.seeds, args.clean_seeds, args.honest)
     elif args.suite and args.part == "null":
         family_error(args.null_seeds, args.folds)
+    elif args.suite and args.part == "confounded":
+        confounded_selection(args.seeds)
     elif args.suite and args.part == "weighted":
         weighted_suite(args.seeds)
     elif args.suite and args.part == "lab":
