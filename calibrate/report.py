@@ -448,7 +448,10 @@ def calibrate(
     }
     selection = forward_select(dataset, fit_parameters, folds, seed, progress=stage(1), **options)
     stage(1)(1.0)
-    nested = nested_cross_validate(dataset, fit_parameters, baseline, seed, progress=stage(2), **options)
+    # Each outer fold's search starts weighted by the scatter that weighted the search on all rows, and
+    # keeps it only when its own residual confirms it (calibrate.select.forward_select).
+    nested = nested_cross_validate(dataset, fit_parameters, baseline, seed, progress=stage(2),
+                                   initial_scatter=selection.scatter, **options)
     stage(2)(1.0)
     gp = gp_discrepancy(dataset, baseline, gp_max_train, seed, progress=stage(3))
     stage(3)(1.0)

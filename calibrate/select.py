@@ -779,6 +779,7 @@ def forward_select(
     convention: str = physics.DEFAULT_CONVENTION,
     family_alpha: float | None = FAMILY_ALPHA,
     scatter_rounds: int = SCATTER_ROUNDS,
+    initial_scatter: ScatterModel | None = None,
 ) -> Selection:
     """Add terms to the declared model one at a time while cross-validation shows more than noise.
 
@@ -827,6 +828,11 @@ def forward_select(
         See :data:`physics.CONVENTIONS`.
     scatter_rounds : int
         Searches at most (:data:`SCATTER_ROUNDS`); 1 leaves the search unweighted. [1]
+    initial_scatter : ScatterModel, optional
+        Weights of the first search instead of none (:func:`nested_cross_validate` gives each fold the
+        scatter that weighted the search on all rows, which saves the fold an unweighted search and a
+        scatter model when its own residual confirms it; when not, the fold's unweighted search
+        stands, as on all rows).
 
     A weighted search is kept only when the scatter model of its own held-out residual has the form
     (kind and column) of the one that weighted it (its coefficients are then those read before it).
@@ -838,7 +844,13 @@ def forward_select(
     -------
     Selection
     """
-    report = progress or (lambda fraction: None)
+    reached = [0.0]
+
+    def report(fraction: float) -> None:  # monotone, whatever order the searches run in
+        if fraction > reached[0] and progress is not None:
+            reached[0] = fraction
+            progress(fraction)
+
     rows = search_rows(dataset.n_points, max_rows, seed)
     data = dataset if rows.size == dataset.n_points else dataset.subset(rows)
     fold_rows = kfold_indices(data.n_points, folds, seed)
@@ -847,32 +859,39 @@ def forward_select(
     # Progress: the first search takes most of it, each further one (run only when the scatter is not
     # one spread everywhere) half of what is left.
     edges = [0.0, *(1.0 - 0.3 * 0.5**k for k in range(rounds - 1)), 1.0]
-    used: ScatterModel | None = None
+    def search(weights, k):
+        lo, hi = edges[min(k, rounds - 1)], edges[min(k + 1, rounds)]
+        return _search(scatter_weighted(data, weights), data, fit_parameters, fold_rows, z_threshold,
+                       family_alpha, joint_top, max_terms, convention, declared_noise,
+                       lambda f: report(lo + (hi - lo) * f))
+
+    given = None if rounds == 1 or _form(initial_scatter) == ("constant", None) else initial_scatter
+    used: ScatterModel | None = given
     searches = []  # (weights used, (model, scale, steps, reason)) of each round
     fallback = ""
     for k in range(rounds):
-        lo, hi = edges[k], edges[k + 1]
-        searches.append((used, _search(
-            scatter_weighted(data, used), data, fit_parameters, fold_rows, z_threshold, family_alpha,
-            joint_top, max_terms, convention, declared_noise,
-            lambda f, lo=lo, hi=hi: report(lo + (hi - lo) * f),
-        )))
+        searches.append((used, search(used, k)))
         if rounds == 1:
             break
         estimate = selection_scatter(data, searches[-1][1][0], folds, seed)
         if _form(estimate) == _form(used):
             break  # consistent: the search's own residual has the scatter it was weighted by
-        if _form(estimate) == ("constant", None) or k + 1 == rounds:
+        if used is not None and (_form(estimate) == ("constant", None) or k + 1 == rounds):
             # A weighted search whose residual no longer shows the scatter that weighted it (or rounds
             # that never settle): what looked like scatter was likely an effect the first search
             # missed, whose residual grows where it acts. The unweighted search stands.
             left = "is the same everywhere" if _form(estimate) == ("constant", None) else "differs"
-            fallback = (f". A search weighted by the scatter of the unweighted search's residual "
-                        f"({searches[1][0].summary()}) left a residual whose scatter {left} (it chose "
-                        f"{_labels(searches[-1][1][0].terms)}): the scatter was not confirmed, and the "
-                        f"unweighted search stands")
-            used, searches = None, searches[:1]
+            first = next(w for w, _ in searches if w is not None)
+            origin = "given" if first is given else "of the unweighted search's residual"
+            fallback = (f". A search weighted by the scatter {origin} ({first.summary()}) left a residual "
+                        f"whose scatter {left} (it chose {_labels(searches[-1][1][0].terms)}): the scatter "
+                        f"was not confirmed, and the unweighted search stands")
+            unweighted = [item for item in searches if item[0] is None]
+            searches = unweighted[:1] or [(None, search(None, rounds))]
+            used = None
             break
+        if k + 1 == rounds:
+            break  # unweighted and the rounds are out: it stands
         used = estimate
     current, scale, steps, reason = searches[-1][1]
     report(1.0)
@@ -880,11 +899,14 @@ def forward_select(
     summary = "; then ".join(added) if added else "nothing added"
     words = f"{summary}. Stop: {reason}{fallback}"
     if used is not None:
-        before = searches[-2][0]
-        how = "unweighted" if before is None else f"weighted by {before.summary()}"
-        chose = _labels(searches[-2][1][0].terms)
-        words += (f". The search weighted every row by its scatter, {used.summary()}, read from the held-out "
-                  f"residual of the search before it (which chose {chose}, {how}); "
+        if len(searches) > 1:
+            before = searches[-2][0]
+            how = "unweighted" if before is None else f"weighted by {before.summary()}"
+            source = (f"read from the held-out residual of the search before it (which chose "
+                      f"{_labels(searches[-2][1][0].terms)}, {how})")
+        else:
+            source = "given (the scatter that weighted the search on all rows)"
+        words += (f". The search weighted every row by its scatter, {used.summary()}, {source}; "
                   f"its own residual has a scatter of the same form")
     return Selection(current.terms, steps, current, scale, rows, words, used)
 
@@ -1060,6 +1082,7 @@ def nested_cross_validate(
     convention: str = physics.DEFAULT_CONVENTION,
     family_alpha: float | None = FAMILY_ALPHA,
     scatter_rounds: int = SCATTER_ROUNDS,
+    initial_scatter: ScatterModel | None = None,
 ) -> NestedValidation:
     """Cross-validate the whole procedure: forward selection repeated inside every training fold.
 
@@ -1085,6 +1108,9 @@ def nested_cross_validate(
         Called with the fraction done, 0..1 (monotone).
     convention : str
         See :data:`physics.CONVENTIONS`.
+    initial_scatter : ScatterModel, optional
+        The scatter that weighted the search on all rows: each fold's search starts weighted by it
+        and keeps it only when its own residual confirms it (see :func:`forward_select`).
 
     Returns
     -------
@@ -1114,6 +1140,7 @@ def nested_cross_validate(
             convention,
             family_alpha,
             scatter_rounds,
+            initial_scatter,
         )
         oof[test] = fold_mu[test]
         chosen.append(selection.terms)
