@@ -9,7 +9,10 @@ experiments:
 
 * ``near_threshold``: the best candidate of the step that stopped, when its z lies within
   :data:`CLOSE_MARGIN` below the threshold, or above :data:`CLOSE_Z` while it lowers the selection's
-  score (on few rows the threshold is out of a real effect's reach);
+  score (on few rows the threshold is out of a real effect's reach). "Best" is by the selection's own
+  rule (:func:`calibrate.select.preferred`: a named law before a generic term that fits as well), and
+  every close candidate that fits as well within one standard error is named with it, with the
+  drivers the data cannot tell apart;
 * ``barely_chosen``: a term added with z within :data:`CLOSE_MARGIN` above the threshold, or chosen by
   fewer than half of the outer folds of the nested cross-validation;
 * ``rivals``: terms that fit about as well as a chosen one and part ways somewhere
@@ -35,7 +38,7 @@ from .candidates import Term, mu_of
 from .data import Dataset
 from .fit import fit
 from .rivals import where_they_part
-from .select import CandidateScore, Selection
+from .select import CandidateScore, Selection, _within_one_se, preferred
 
 __all__ = ["CLOSE_MARGIN", "CLOSE_Z", "rows_to_settle", "undecided"]
 
@@ -175,12 +178,15 @@ def undecided(
             close = [c for c in step.ranked if c.joint and c.z <= step.z_needed and (
                 c.z >= low or (c.z >= CLOSE_Z and c.score < step.current.score))]
             if close:
-                best = max(close, key=lambda c: c.z)
+                # Named by the selection's own rule (a named law before a generic term that fits as
+                # well), with every close candidate that fits as well within one standard error.
+                best = preferred(searched, close)
+                equal = [c for c in close if c is not best and _within_one_se(c.loss, best.loss)]
                 model = selection.model.full
                 pair = _models(searched, fit_parameters, selection.terms, model.term_values, best.term,
                                model.declared, convention)
                 where = _where(searched, best.term, best.oof_mu, step.current.oof_mu, *pair, noise_std_log)
-                found.append(_near(best, step.z_needed, n, where))
+                found.append(_near(best, step.z_needed, n, where, equal))
             continue
         chosen = step.chosen
         if chosen.z <= step.z_needed + CLOSE_MARGIN:
@@ -212,13 +218,42 @@ def undecided(
     return found
 
 
-def _near(best: CandidateScore, z_needed: float, n: int, where: Mapping[str, Any]) -> dict[str, Any]:
+def _near(best: CandidateScore, z_needed: float, n: int, where: Mapping[str, Any],
+          equal: Sequence[CandidateScore] = ()) -> dict[str, Any]:
     settle = rows_to_settle(n, best.z, z_needed)
+    statement = (f"the data cannot decide on {best.term.label}: held-out z = {best.z:.2f}, just short "
+                 f"of the {z_needed:.2f} needed (on data with nothing to find the best candidate stays "
+                 f"below about 2.2 in 99 % of cases); about {settle} rows drawn like these (now {n}) "
+                 f"would settle it, fewer if placed at {_span(where)}, where it would act most")
+    if equal:
+        statement += f"; {_equals(best, equal)}"
     return {
-        "kind": "near_threshold", "terms": [best.term.label], "z": float(best.z),
-        "z_needed": float(z_needed), "rows_now": n, "rows_to_settle": settle, "where": where,
-        "statement": (f"the data cannot decide on {best.term.label}: held-out z = {best.z:.2f}, just short "
-                      f"of the {z_needed:.2f} needed (on data with nothing to find the best candidate stays "
-                      f"below about 2.2 in 99 % of cases); about {settle} rows drawn like these (now {n}) "
-                      f"would settle it, fewer if placed at {_span(where)}, where it would act most"),
+        "kind": "near_threshold", "terms": [best.term.label, *(c.term.label for c in equal)],
+        "z": float(best.z), "z_needed": float(z_needed), "rows_now": n, "rows_to_settle": settle,
+        "where": where, "statement": statement,
     }
+
+
+def _equals(best: CandidateScore, equal: Sequence[CandidateScore]) -> str:
+    """Words for candidates that fit as well as ``best``, naming the drivers the data cannot tell apart.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.candidates import DriftTerm, EffectTerm
+    >>> law = CandidateScore(DriftTerm("viscosity_Pa_s", "arrhenius", "temperature_C"), 3, np.ones(2), 0.0,
+    ...                      2.9, True, np.ones(2))
+    >>> poly = CandidateScore(EffectTerm("generic_quadratic", ("speed_m_s",)), 3, np.ones(2), 0.0, 3.0,
+    ...                       True, np.ones(2))
+    >>> print(_equals(law, [poly]))  # doctest: +NORMALIZE_WHITESPACE
+    generic_quadratic on speed_m_s fits as well (within one standard error): the data cannot tell
+    temperature_C from speed_m_s as the driver; the named law is given first, before a generic term
+    """
+    labels = ", ".join(c.term.label for c in equal)
+    words = f"{labels} fit{'s' if len(equal) == 1 else ''} as well (within one standard error)"
+    main = best.term.drivers[0]
+    others = list(dict.fromkeys(c.term.drivers[0] for c in equal if c.term.drivers[0] != main))
+    if others:
+        words += f": the data cannot tell {main} from {', '.join(others)} as the driver"
+    if not best.term.generic and any(c.term.generic for c in equal):
+        words += "; the named law is given first, before a generic term"
+    return words

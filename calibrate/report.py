@@ -49,6 +49,7 @@ from .select import (
     MAX_SEARCH_ROWS,
     MAX_TERMS,
     REPORTED_CANDIDATES,
+    SCATTER_ROUNDS,
     cross_validate,
     forward_select,
     nested_cross_validate,
@@ -371,6 +372,7 @@ def calibrate(
     max_terms: int = MAX_TERMS,
     max_search_rows: int = MAX_SEARCH_ROWS,
     family_alpha: float | None = FAMILY_ALPHA,
+    scatter_rounds: int = SCATTER_ROUNDS,
 ) -> CalibrationReport:
     """Calibrate the declared model on measurements, add the terms it misses, report.
 
@@ -403,6 +405,9 @@ def calibrate(
     family_alpha : float or None
         Chance per selection step that any candidate passes on noise alone; None: ``z_threshold``
         alone decides (see :mod:`calibrate.select`). [1]
+    scatter_rounds : int
+        Selections at most, each weighted by the scatter model of the one before (1: unweighted; see
+        :func:`calibrate.select.forward_select`). [1]
 
     Returns
     -------
@@ -439,10 +444,14 @@ def calibrate(
         "max_rows": max_search_rows,
         "convention": convention,
         "family_alpha": family_alpha,
+        "scatter_rounds": scatter_rounds,
     }
     selection = forward_select(dataset, fit_parameters, folds, seed, progress=stage(1), **options)
     stage(1)(1.0)
-    nested = nested_cross_validate(dataset, fit_parameters, baseline, seed, progress=stage(2), **options)
+    # Each outer fold's search starts weighted by the scatter that weighted the search on all rows, and
+    # keeps it only when its own residual confirms it (calibrate.select.forward_select).
+    nested = nested_cross_validate(dataset, fit_parameters, baseline, seed, progress=stage(2),
+                                   initial_scatter=selection.scatter, **options)
     stage(2)(1.0)
     gp = gp_discrepancy(dataset, baseline, gp_max_train, seed, progress=stage(3))
     stage(3)(1.0)

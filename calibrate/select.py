@@ -66,11 +66,13 @@ from microbearing import physics
 from .candidates import FrozenBase, Term, candidate_terms, mu_of
 from .data import Dataset
 from .fit import FitResult, fit, huber_loss, kfold_indices, predict_mu, weighted_log_residual
+from .scatter import ScatterModel, fit_scatter
 
 __all__ = [
     "FAMILY_ALPHA",
     "MAX_SEARCH_ROWS",
     "MAX_TERMS",
+    "SCATTER_ROUNDS",
     "SIGN_FLIPS",
     "CandidateScore",
     "ModelCV",
@@ -82,6 +84,9 @@ __all__ = [
     "max_t_threshold",
     "nested_cross_validate",
     "noise_test",
+    "preferred",
+    "scatter_weighted",
+    "varying_columns",
 ]
 
 #: Most terms forward selection adds. [1]
@@ -96,6 +101,10 @@ _FLIP_CHUNK = 1000
 #: The search runs on at most this many rows (a random subset); the chosen terms are then fitted
 #: on all rows. A few thousand rows name an effect as surely as ten thousand, at a fraction of the cost. [1]
 MAX_SEARCH_ROWS = 1000
+#: Selections at most when the scatter model that weights the selection is re-estimated from the selected
+#: model (see :func:`forward_select`): the first unweighted, each next one weighted by the scatter of the
+#: one before, until the scatter model keeps its form. [1]
+SCATTER_ROUNDS = 3
 #: Candidates per step whose scores the report keeps. [1]
 REPORTED_CANDIDATES = 15
 # Relative step of the sensitivities d log mu / d log p of the frozen base.
@@ -230,6 +239,10 @@ class Selection:
         Rows (0-based) the search ran on: all, or a random subset of :data:`MAX_SEARCH_ROWS`.
     reason : str
         The decision in words.
+    scatter : ScatterModel or None
+        The scatter model that weighted the search (:func:`scatter_weighted`; its spreads are standard
+        deviations of log μ [1]), None when it ran unweighted (one scatter everywhere, or
+        ``mu_measured_std`` declared). ``model`` and ``scale`` are on the weighted rows.
     """
 
     terms: tuple[Term, ...]
@@ -238,6 +251,7 @@ class Selection:
     scale: float
     rows: np.ndarray = field(repr=False)
     reason: str = ""
+    scatter: ScatterModel | None = None
 
 
 def cross_validate(
@@ -533,7 +547,9 @@ def _search_step(
     joint_top,
     convention,
     progress,
+    plain=None,
 ) -> Step:
+    plain = dataset if plain is None else plain
     n_current = _n_parameters(fit_parameters, current.terms)
     current_loss = huber_loss(weighted_log_residual(dataset, current.oof_mu), scale)
     current_score = _score(dataset, None, n_current, current.oof_mu, current_loss, scale, True)
@@ -621,19 +637,7 @@ def _search_step(
             z_needed,
             f"no candidate beats the current model by more than noise in cross-validation{detail}",
         )
-    best = min(significant, key=lambda c: c.score)
-    close_named = [
-        c
-        for c in significant
-        if not c.term.generic and _within_one_se(c.loss, best.loss)
-    ]
-    # Among named terms that fit equally well, a catalogue effect comes first, then the drift that asks
-    # least of its parameter (the smallest change over the data), then the lowest score.
-    chosen = (
-        min(close_named, key=lambda c: (c.term.kind == "drift", _drift_change(dataset, c), c.score))
-        if close_named
-        else best
-    )
+    chosen = preferred(dataset, significant)
     kind = (
         "generic term (no named mechanism fits)"
         if chosen.term.generic
@@ -648,12 +652,31 @@ def _search_step(
     ]
     reason = (
         f"{kind} {chosen.term.label}: CV RMSE of log mu "
-        f"{_rms(dataset, current.oof_mu):.4g} -> {_rms(dataset, chosen.oof_mu):.4g}, "
+        f"{_rms(plain, current.oof_mu):.4g} -> {_rms(plain, chosen.oof_mu):.4g}, "
         f"score {chosen.score - current_score.score:+.1f}, z = {chosen.z:.1f} (> {z_needed:.2f})"
     )
     if rival:
         reason += f"; as good within one standard error: {', '.join(rival[:3])}"
     return Step(current_score, ranked, chosen, z_needed, reason)
+
+
+def preferred(dataset: Dataset, candidates: Sequence[CandidateScore]) -> CandidateScore:
+    """The candidate a step names among ``candidates`` (a non-empty list of jointly refitted scores).
+
+    The rule (parsimony and the physics first): the lowest score wins, unless named terms (a catalogue
+    effect or a drift of a declared parameter by its law) fit as well within one standard error of the
+    paired per-row losses; then a named term is named, never the generic one: a catalogue effect
+    first, then the drift that asks least of its parameter (the smallest change over the data), then
+    the lowest score. So when two drivers move together and a generic term on one fits as well as a
+    declared drift law on the other (a polynomial in the speed against the viscosity's Arrhenius law
+    in the temperature that rises with it), the law is named; the report names the other too
+    (:func:`calibrate.report.calibrate`'s confounding words, :mod:`calibrate.decidability`).
+    """
+    best = min(candidates, key=lambda c: c.score)
+    close_named = [c for c in candidates if not c.term.generic and _within_one_se(c.loss, best.loss)]
+    if not close_named:
+        return best
+    return min(close_named, key=lambda c: (c.term.kind == "drift", _drift_change(dataset, c), c.score))
 
 
 def _within_one_se(loss: np.ndarray, reference: np.ndarray) -> bool:
@@ -683,6 +706,66 @@ def search_rows(n_points: int, max_rows: int, seed: int) -> np.ndarray:
     return np.sort(np.random.default_rng(seed).choice(n_points, max_rows, replace=False))
 
 
+def varying_columns(dataset: Dataset) -> dict[str, np.ndarray]:
+    """Numeric columns (physics inputs and conditions) that vary in the data: what a scatter model may
+    depend on."""
+    return {k: v for k, v in dataset.columns().items() if v.dtype != bool and np.unique(v).size > 1}
+
+
+def scatter_weighted(dataset: Dataset, scatter: ScatterModel | None) -> Dataset:
+    """The data with every row weighted by the scatter model's local spread.
+
+    Each row's ``mu_measured_std`` becomes ``mu_measured`` times the scatter model's standard deviation
+    of log μ there, so that a weighted log residual (:func:`calibrate.fit.weighted_log_residual`)
+    counts in units of its own row's scatter: Huber's loss, the scores and the paired z's of the
+    selection then judge a row of 8 % scatter by 8 % and a row of 1 % by 1 %. The data themselves
+    when ``scatter`` is None or constant (one weight for all changes nothing), or when the data
+    declare ``mu_measured_std`` (which weighs the rows already).
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Measurements.
+    scatter : ScatterModel or None
+        The scatter model (:mod:`calibrate.scatter`).
+
+    Returns
+    -------
+    Dataset
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.data import parse_rows
+    >>> rows = [{"balls": 4, "load_N": 0.01, "speed_m_s": v, "mu_measured": 0.2} for v in (0.01, 0.1)]
+    >>> step = ScatterModel("step", "speed_m_s", [float(np.log(0.1)), float(np.log(0.01))], 0.05)
+    >>> scatter_weighted(parse_rows(rows), step).mu_measured_std.round(4).tolist()
+    [0.02, 0.002]
+    """
+    if scatter is None or scatter.kind == "constant" or dataset.mu_measured_std is not None:
+        return dataset
+    local = scatter.std_log(dataset.columns(), dataset.mu_measured.shape)
+    return replace(dataset, mu_measured_std=dataset.mu_measured * local)
+
+
+def selection_scatter(dataset: Dataset, model: ModelCV, folds: int, seed: int) -> ScatterModel | None:
+    """The scatter model (:func:`calibrate.scatter.fit_scatter`) of a model's held-out log residual, or
+    None when the data declare ``mu_measured_std``, no column varies, or a row has no held-out
+    prediction."""
+    if dataset.mu_measured_std is not None or not _usable(model.oof_mu):
+        return None
+    columns = varying_columns(dataset)
+    if not columns:
+        return None
+    residual = np.log(dataset.mu_measured / model.oof_mu)
+    return fit_scatter(columns, residual, min(folds, dataset.n_points), seed)
+
+
+def _form(scatter: ScatterModel | None) -> tuple[str, str | None]:
+    if scatter is None or scatter.kind == "constant":
+        return ("constant", None)
+    return (scatter.kind, scatter.column)
+
+
 def forward_select(
     dataset: Dataset,
     fit_parameters: Sequence[str] = (),
@@ -695,8 +778,26 @@ def forward_select(
     progress: Callable[[float], None] | None = None,
     convention: str = physics.DEFAULT_CONVENTION,
     family_alpha: float | None = FAMILY_ALPHA,
+    scatter_rounds: int = SCATTER_ROUNDS,
+    initial_scatter: ScatterModel | None = None,
 ) -> Selection:
     """Add terms to the declared model one at a time while cross-validation shows more than noise.
+
+    **Weighted by the scatter.** Where the scatter of the measurements depends on the inputs (stick-slip
+    at low speed, a spread that grows with the load), an unweighted search lets the rows of large
+    scatter speak as loudly as the quiet ones: their noise then passes for an effect, and a term that
+    follows it can win. So the search is repeated, up to ``scatter_rounds`` times, weighted by the
+    scatter model (:mod:`calibrate.scatter`) of the previous search's model: the first search is
+    unweighted; the scatter model of its held-out log residual is fitted (constant unless the
+    permutation test rejects one spread everywhere, at :data:`calibrate.scatter.SCATTER_ALPHA`); when
+    it is not constant the search runs again with every row weighted by its local scatter
+    (:func:`scatter_weighted`), and so on until the scatter model keeps its form (kind and column). The
+    scatter is read from the selected model's residual, not from the declared model's: an effect the
+    declared model misses leaves residuals that grow where it acts, which a scatter model would take
+    for scatter and weigh down, hiding the very effect. Weighted, every part of the search sees the
+    local scatter: Huber's loss and its robust scale, the screening and the joint refits, the scores,
+    the paired z's and the family-wise threshold, so a row is an outlier against its own scatter. With
+    ``mu_measured_std`` declared the rows are weighted by it and the search runs once.
 
     Parameters
     ----------
@@ -725,21 +826,108 @@ def forward_select(
         Called with the fraction done, 0..1.
     convention : str
         See :data:`physics.CONVENTIONS`.
+    scatter_rounds : int
+        Searches at most (:data:`SCATTER_ROUNDS`); 1 leaves the search unweighted. [1]
+    initial_scatter : ScatterModel, optional
+        Weights of the first search instead of none (:func:`nested_cross_validate` gives each fold the
+        scatter that weighted the search on all rows, which saves the fold an unweighted search and a
+        scatter model when its own residual confirms it; when not, the fold's unweighted search
+        stands, as on all rows).
+
+    A weighted search is kept only when the scatter model of its own held-out residual has the form
+    (kind and column) of the one that weighted it (its coefficients are then those read before it).
+    When that residual shows one scatter everywhere instead, or the rounds run out, the unweighted
+    search stands: the scatter that weighted it was likely an effect the unweighted search missed
+    (a run-in on 24 rows makes the first cycles' residuals large), and the words say so.
 
     Returns
     -------
     Selection
     """
-    report = progress or (lambda fraction: None)
+    reached = [0.0]
+
+    def report(fraction: float) -> None:  # monotone, whatever order the searches run in
+        if fraction > reached[0] and progress is not None:
+            reached[0] = fraction
+            progress(fraction)
+
     rows = search_rows(dataset.n_points, max_rows, seed)
     data = dataset if rows.size == dataset.n_points else dataset.subset(rows)
     fold_rows = kfold_indices(data.n_points, folds, seed)
+    declared_noise = data.mu_measured_std is not None
+    rounds = 1 if declared_noise else max(int(scatter_rounds), 1)
+    # Progress: the first search takes most of it, each further one (run only when the scatter is not
+    # one spread everywhere) half of what is left.
+    edges = [0.0, *(1.0 - 0.3 * 0.5**k for k in range(rounds - 1)), 1.0]
+    def search(weights, k):
+        lo, hi = edges[min(k, rounds - 1)], edges[min(k + 1, rounds)]
+        return _search(scatter_weighted(data, weights), data, fit_parameters, fold_rows, z_threshold,
+                       family_alpha, joint_top, max_terms, convention, declared_noise,
+                       lambda f: report(lo + (hi - lo) * f))
+
+    given = None if rounds == 1 or _form(initial_scatter) == ("constant", None) else initial_scatter
+    used: ScatterModel | None = given
+    searches = []  # (weights used, (model, scale, steps, reason)) of each round
+    fallback = ""
+    for k in range(rounds):
+        searches.append((used, search(used, k)))
+        if rounds == 1:
+            break
+        estimate = selection_scatter(data, searches[-1][1][0], folds, seed)
+        if _form(estimate) == _form(used):
+            break  # consistent: the search's own residual has the scatter it was weighted by
+        if used is not None and (_form(estimate) == ("constant", None) or k + 1 == rounds):
+            # A weighted search whose residual no longer shows the scatter that weighted it (or rounds
+            # that never settle): what looked like scatter was likely an effect the first search
+            # missed, whose residual grows where it acts. The unweighted search stands.
+            left = "is the same everywhere" if _form(estimate) == ("constant", None) else "differs"
+            first = next(w for w, _ in searches if w is not None)
+            origin = "given" if first is given else "of the unweighted search's residual"
+            fallback = (f". A search weighted by the scatter {origin} ({first.summary()}) left a residual "
+                        f"whose scatter {left} (it chose {_labels(searches[-1][1][0].terms)}): the scatter "
+                        f"was not confirmed, and the unweighted search stands")
+            unweighted = [item for item in searches if item[0] is None]
+            searches = unweighted[:1] or [(None, search(None, rounds))]
+            used = None
+            break
+        if k + 1 == rounds:
+            break  # unweighted and the rounds are out: it stands
+        used = estimate
+    current, scale, steps, reason = searches[-1][1]
+    report(1.0)
+    added = [s.reason for s in steps if s.chosen is not None]
+    summary = "; then ".join(added) if added else "nothing added"
+    words = f"{summary}. Stop: {reason}{fallback}"
+    if used is not None:
+        if len(searches) > 1:
+            before = searches[-2][0]
+            how = "unweighted" if before is None else f"weighted by {before.summary()}"
+            source = (f"read from the held-out residual of the search before it (which chose "
+                      f"{_labels(searches[-2][1][0].terms)}, {how})")
+        else:
+            source = "given (the scatter that weighted the search on all rows)"
+        words += (f". The search weighted every row by its scatter, {used.summary()}, {source}; "
+                  f"its own residual has a scatter of the same form")
+    return Selection(current.terms, steps, current, scale, rows, words, used)
+
+
+def _labels(terms: Sequence[Term]) -> str:
+    return " + ".join(t.label for t in terms) or "nothing"
+
+
+def _search(data, plain, fit_parameters, fold_rows, z_threshold, family_alpha, joint_top, max_terms,
+            convention, declared_noise, report):
+    """One forward search on ``data`` (weighted or not; ``plain``: the same rows unweighted, for the
+    words): the final model cross-validated, its scale, the steps and why it stopped."""
     current = cross_validate(data, fit_parameters, (), fold_rows, precise=False, convention=convention)
     scale = current.full.scale
     steps: list[Step] = []
     reason = ""
     for k in range(max_terms):
-        noise_p = noise_test(data, current.full.residual, _n_parameters(fit_parameters, current.terms), scale)
+        # Only declared noise is a level to test against: weights from the scatter model are fitted to
+        # this very residual, and it would always look consistent with them.
+        n_parameters = _n_parameters(fit_parameters, current.terms)
+        noise_p = noise_test(data, current.full.residual, n_parameters, scale) if declared_noise else None
         if noise_p is not None and noise_p > 0.01:
             reason = (
                 f"the residual is consistent with mu_measured_std (chi-square p = {noise_p:.3g} > 0.01)"
@@ -756,6 +944,7 @@ def forward_select(
             joint_top,
             convention,
             lambda f, k=k: report((k + f) / max_terms),
+            plain,
         )
         steps.append(step)
         if step.chosen is None:
@@ -778,10 +967,7 @@ def forward_select(
         scale = current.full.scale
     else:
         reason = f"stopped at {max_terms} terms (the most forward selection adds)"
-    report(1.0)
-    added = [s.reason for s in steps if s.chosen is not None]
-    summary = "; then ".join(added) if added else "nothing added"
-    return Selection(current.terms, steps, current, scale, rows, f"{summary}. Stop: {reason}")
+    return current, scale, steps, reason
 
 
 @dataclass(frozen=True)
@@ -895,6 +1081,8 @@ def nested_cross_validate(
     progress: Callable[[float], None] | None = None,
     convention: str = physics.DEFAULT_CONVENTION,
     family_alpha: float | None = FAMILY_ALPHA,
+    scatter_rounds: int = SCATTER_ROUNDS,
+    initial_scatter: ScatterModel | None = None,
 ) -> NestedValidation:
     """Cross-validate the whole procedure: forward selection repeated inside every training fold.
 
@@ -914,12 +1102,15 @@ def nested_cross_validate(
         The declared model's fits on the outer folds.
     seed : int
         Seed of the inner folds' shuffle and search subsets.
-    z_threshold, joint_top, max_terms, max_rows, family_alpha : float, int, int, int, float
+    z_threshold, joint_top, max_terms, max_rows, family_alpha, scatter_rounds : float or int
         As in :func:`forward_select`.
     progress : callable, optional
         Called with the fraction done, 0..1 (monotone).
     convention : str
         See :data:`physics.CONVENTIONS`.
+    initial_scatter : ScatterModel, optional
+        The scatter that weighted the search on all rows: each fold's search starts weighted by it
+        and keeps it only when its own residual confirms it (see :func:`forward_select`).
 
     Returns
     -------
@@ -948,6 +1139,8 @@ def nested_cross_validate(
             lambda f, k=k: report((k + 0.95 * f) / folds),
             convention,
             family_alpha,
+            scatter_rounds,
+            initial_scatter,
         )
         oof[test] = fold_mu[test]
         chosen.append(selection.terms)
@@ -956,7 +1149,7 @@ def nested_cross_validate(
             with np.errstate(all="ignore"):
                 try:
                     result = fit(
-                        inner,
+                        scatter_weighted(inner, selection.scatter),
                         fit_parameters,
                         selection.terms,
                         start=selection.model.full.declared,

@@ -127,10 +127,11 @@ def test_calibrate_docstring_examples_run():
     import doctest
 
     import microbearing.calibrate.data
+    import microbearing.calibrate.decidability
     import microbearing.calibrate.fit
     import microbearing.calibrate.select  # noqa: F401  (loads the submodule)
     from microbearing import calibrate
 
-    for module in (calibrate.data, calibrate.select, calibrate.fit):
+    for module in (calibrate.data, calibrate.select, calibrate.fit, calibrate.decidability):
         failures, tried = doctest.testmod(module)
         assert tried > 0 and failures == 0, module.__name__
