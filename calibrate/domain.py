@@ -146,6 +146,27 @@ class DataCloud:
         """
         return np.maximum(np.asarray(ratio, dtype=float), 1.0)
 
+    def _scaled_boxes(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
+                      ) -> tuple[np.ndarray, np.ndarray, cKDTree, float, int] | None:
+        """Boxes of points in the cloud's scaled inputs (each column's transform is increasing, so a box
+        maps to a box): their low and high corners, the tree and threshold of the columns ``low`` gives,
+        and k; None when fewer than two columns are given or there are no boxes."""
+        given = [c for c in self.columns if c in low]
+        if len(given) < 2 or int(np.prod(shape)) == 0:
+            return None
+        index, tree, threshold = self._space(given)
+        k = self._cache[tuple(given)][3]
+
+        def scaled(points: Mapping[str, Any]) -> np.ndarray:
+            return np.column_stack([
+                ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
+                / self.scale[i]
+                for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float),
+                                                 shape).ravel()) for i in index)])
+
+        a, b = scaled(low), scaled(high)
+        return np.minimum(a, b), np.maximum(a, b), tree, threshold, k
+
     def score_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
                     ) -> np.ndarray:
         """An upper bound of :meth:`score` over boxes of points [1]: every point whose every column lies
@@ -158,23 +179,11 @@ class DataCloud:
         least the whole set's): the rows nearest the box's centre are taken, so that the bound tends to
         the score as the box shrinks. Scored in the columns ``low`` gives, as :meth:`score`.
         """
-        given = [c for c in self.columns if c in low]
-        size = int(np.prod(shape))
-        if len(given) < 2 or size == 0:
+        boxes = self._scaled_boxes(low, high, shape)
+        if boxes is None:
             return np.zeros(shape)
-        index, tree, threshold = self._space(given)
-        k = self._cache[tuple(given)][3]
-
-        def scaled(points: Mapping[str, Any]) -> np.ndarray:
-            return np.column_stack([
-                ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
-                / self.scale[i]
-                for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float),
-                                                 shape).ravel()) for i in index)])
-
-        a, b = scaled(low), scaled(high)
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        rows = tree.data
+        lo, hi, tree, threshold, k = boxes
+        size, rows = lo.shape[0], tree.data
         nearest = min(rows.shape[0], 4 * k)
         _, near = tree.query(0.5 * (lo + hi), k=nearest)
         near = np.asarray(near).reshape(size, nearest)
@@ -190,22 +199,10 @@ class DataCloud:
         """A lower bound of :meth:`score` over boxes of points [1] (as :meth:`score_bound`): for any point x
         of a box, the distance to a row is at least the distance from the row to the box (its nearest
         point), so the k-th smallest distance from x is at least the k-th smallest of those over all rows."""
-        given = [c for c in self.columns if c in low]
-        size = int(np.prod(shape))
-        if len(given) < 2 or size == 0:
+        boxes = self._scaled_boxes(low, high, shape)
+        if boxes is None:
             return np.zeros(shape)
-        index, tree, threshold = self._space(given)
-        k = self._cache[tuple(given)][3]
-
-        def scaled(points: Mapping[str, Any]) -> np.ndarray:
-            return np.column_stack([
-                ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
-                / self.scale[i]
-                for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float),
-                                                 shape).ravel()) for i in index)])
-
-        a, b = scaled(low), scaled(high)
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        lo, hi, tree, threshold, k = boxes
         rows = tree.data
         gap = np.maximum(0.0, np.maximum(lo[:, None, :] - rows[None], rows[None] - hi[:, None, :]))
         nearest = np.sqrt(np.sum(gap * gap, axis=2))
