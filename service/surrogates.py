@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from microbearing import surrogate
+from microbearing import physics, surrogate
 from microbearing.optimize import physics_model
 from microbearing.surrogate import GaussianProcessSurrogate, Space
 from microbearing.surrogate.persist import version_warning
@@ -260,9 +260,13 @@ def surrogate_view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, 
         The :class:`~service.schemas.surrogates.SurrogateResult` as JSON data.
     """
     result = metadata["result"]
+    # The ends of a whole-number dimension as whole numbers (stored as floats), so that the space can
+    # be sent back as points to predict at: a column of balls takes 4, not 4.0.
+    space = {name: [int(end) if physics.PARAMETERS[name].kind == "int" else end for end in ends]
+             for name, ends in result["space"].items()}
     # Surrogates stored before models other than the physics could be learned lack model and conditions.
     return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, "model": "physics", "conditions": {},
-            **result, "warnings": _warnings(result)}
+            **result, "space": space, "warnings": _warnings(result)}
 
 
 def surrogate_views(store: Store) -> list[dict[str, Any]]:

@@ -55,12 +55,12 @@ def _job_links(pointer: str) -> dict[str, dict[str, Any]]:
 
 
 def calibration_links(pointer: str, which: str) -> dict[str, dict[str, Any]]:
-    """OpenAPI links from an answer holding a calibration's id at ``pointer`` (its model's id at
-    ``pointer`` with ``model_id`` for ``id``) to the calibration's routes and the requests that name
-    its model."""
-    model = pointer.rsplit("/", 1)[0] + "/model_id"
+    """OpenAPI links from an answer holding a calibration at ``pointer`` (its id at ``<pointer>/id``,
+    its model's id at ``<pointer>/model_id``) to the calibration's routes and the requests that
+    name its model."""
+    calibration, model = f"{pointer}/id", f"{pointer}/model_id"
     links = {
-        name: {"operationId": operation, "parameters": {"calibration_id": pointer, **extra},
+        name: {"operationId": operation, "parameters": {"calibration_id": calibration, **extra},
                "description": f"{what} ({which})."}
         for name, operation, extra, what in (
             ("GetCalibration", "get_calibration", {}, "The stored calibration"),
@@ -79,19 +79,29 @@ def calibration_links(pointer: str, which: str) -> dict[str, dict[str, Any]]:
 
 
 def surrogate_links(pointer: str, which: str) -> dict[str, dict[str, Any]]:
-    """OpenAPI links from an answer holding a surrogate's id at ``pointer`` to the surrogate's routes."""
-    return {name: {"operationId": operation, "parameters": {"surrogate_id": pointer},
-                   "description": f"{what} ({which})."}
-            for name, operation, what in (
-                ("GetSurrogate", "get_surrogate", "The stored surrogate"),
-                ("PredictSurrogate", "predict_surrogate", "Predictions of the surrogate"),
-                ("GetSurrogateSensitivity", "get_surrogate_sensitivity", "Its sensitivity"),
-                ("DeleteSurrogate", "delete_surrogate", "Deletion of the surrogate"))}
+    """OpenAPI links from an answer holding a surrogate at ``pointer`` (its id at ``<pointer>/id``, its
+    space at ``<pointer>/space``) to the surrogate's routes.
+
+    Predictions are asked at the ends of the space: the body's ``points`` are the space itself, each
+    dimension the column of its [low, high] (``x-schemathesis.merge_body`` false: this body, not
+    merged into a generated one).
+    """
+    links = {name: {"operationId": operation, "parameters": {"surrogate_id": f"{pointer}/id"},
+                    "description": f"{what} ({which})."}
+             for name, operation, what in (
+                 ("GetSurrogate", "get_surrogate", "The stored surrogate"),
+                 ("GetSurrogateSensitivity", "get_surrogate_sensitivity", "Its sensitivity"),
+                 ("DeleteSurrogate", "delete_surrogate", "Deletion of the surrogate"))}
+    links["PredictSurrogate"] = {
+        "operationId": "predict_surrogate", "parameters": {"surrogate_id": f"{pointer}/id"},
+        "requestBody": {"points": f"{pointer}/space"}, "x-schemathesis": {"merge_body": False},
+        "description": f"Predictions of the surrogate at the two ends of its space ({which})."}
+    return links
 
 
 #: Links from an answer with a stored model's id at ``/id`` (a job's result) to the model's routes.
-MODEL_LINKS = {**surrogate_links("$response.body#/id", "when the result is a surrogate's"),
-               **calibration_links("$response.body#/id", "when the result is a calibration's")}
+MODEL_LINKS = {**surrogate_links("$response.body#", "when the result is a surrogate's"),
+               **calibration_links("$response.body#", "when the result is a calibration's")}
 
 _RETRY_AFTER_HEADER = {"description": "Seconds to wait before trying again.", "schema": {"type": "integer"}}
 

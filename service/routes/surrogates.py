@@ -80,7 +80,7 @@ def create_surrogate(body: Annotated[SurrogateRequest, Body(openapi_examples=exa
 
 @router.get("", operation_id="list_surrogates", response_model=SurrogateList, responses={
     200: {"description": "Every stored surrogate.",
-          "links": surrogate_links("$response.body#/surrogates/0/id", "the first surrogate listed")},
+          "links": surrogate_links("$response.body#/surrogates/0", "the first surrogate listed")},
     **problem_responses()})
 def list_surrogates(store: StoreDep) -> JSONResponse:
     """Every stored surrogate, newest first."""
@@ -88,7 +88,9 @@ def list_surrogates(store: StoreDep) -> JSONResponse:
 
 
 @router.get("/{surrogate_id}", operation_id="get_surrogate", response_model=SurrogateResult,
-            responses=problem_responses(404))
+            responses={200: {"description": "The surrogate.", "links": {
+                name: link for name, link in surrogate_links("$response.body#", "this surrogate").items()
+                if name != "GetSurrogate"}}, **problem_responses(404)})
 def get_surrogate(surrogate_id: str, store: StoreDep) -> JSONResponse:
     """A stored surrogate: its space, training summary and held-out metrics."""
     return JSONResponse(surrogate_view(surrogate_id, load_stored(store, surrogate_id).metadata))

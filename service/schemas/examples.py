@@ -14,13 +14,14 @@ from __future__ import annotations
 
 from typing import Any
 
+__all__ = ["CALIBRATION", "CALIBRATION_UNITS", "FIRST_EXPERIMENTS", "NEXT_EXPERIMENTS", "OPTIMIZATION",
+           "PARETO", "PREDICT", "SURROGATE", "SWEEP", "media_examples"]
+
 
 def media_examples(**examples: tuple[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """``Body(openapi_examples=...)``: named examples of the JSON body, ``name=(summary, value)``."""
     return {name: {"summary": summary, "value": value} for name, (summary, value) in examples.items()}
 
-__all__ = ["CALIBRATION", "FIRST_EXPERIMENTS", "NEXT_EXPERIMENTS", "OPTIMIZATION", "PARETO", "PREDICT",
-           "SURROGATE", "SWEEP", "media_examples"]
 
 #: A 10 x 10 grid of mu over load and speed with four balls (100 points).
 SWEEP: dict[str, Any] = {
@@ -67,3 +68,11 @@ NEXT_EXPERIMENTS: dict[str, Any] = {
     "runs": 6, "goal": "parameters",
     "space": {"balls": {"low": 4, "high": 12}, "load_N": {"low": 0.003, "high": 0.024},
               "speed_m_s": [0.01, 0.1]}}
+
+#: The measurements of CALIBRATION as a spreadsheet might name them: load in mN and speed in mm/s
+#: (converted to SI; the report's intake lists each conversion).
+CALIBRATION_UNITS: dict[str, Any] = {
+    "fit_parameters": ["mu_pivot"], "folds": 3,
+    "data": [{"balls": row["balls"], "load [mN]": round(row["load_N"] * 1e3, 9),
+              "speed [mm/s]": round(row["speed_m_s"] * 1e3, 9), "mu_measured": row["mu_measured"]}
+             for row in CALIBRATION["data"]]}
