@@ -153,33 +153,36 @@ def reached_through_links(reached: collections.Counter) -> dict[tuple[str, str],
 #: Requests per linked sequence: a job's result, then its model, then the model's routes lie four to
 #: six links from a request that starts a job, among the other links each answer offers.
 STEPS = 16
-#: Linked sequences the reach test runs (at least 100 whatever MAX_EXAMPLES says: with fewer, a route
-#: several links deep is reached by chance or not; 100 reached all 13 in about 150 s, 52 s of CPU).
-SEQUENCES = max(MAX_EXAMPLES, 100)
+#: Linked sequences per run of the stateful phase, and the most the reach test runs before it gives up:
+#: a route several links deep (the Pareto plot, a calibration's report) is reached a few times in
+#: 100 sequences, or not, as the random choices fall; runs continue until every route is reached.
+SEQUENCES_PER_RUN = max(MAX_EXAMPLES, 50)
+MAX_SEQUENCES = max(MAX_EXAMPLES, 400)
 
 
-def run_linked_sequences(scenarios: int, restarts: int = 10) -> None:
-    """Run ``scenarios`` sequences of linked requests (Hypothesis' generate phase).
+def run_linked_sequences(scenarios: int, seed: int | None) -> None:
+    """Run ``scenarios`` sequences of linked requests (Hypothesis' generate phase) from ``seed``.
 
     The server keeps what earlier sequences stored, so a sequence Hypothesis replays from its
     record can take another branch (a link finds an id where it found none), which Hypothesis
     calls an inconsistent generation (FlakyStrategyDefinition); schemathesis' own runner then
-    starts a new run, and so does this (a failed check, even one that does not reproduce, fails).
+    starts a new run, and so does this, from the next seed (a failed check, even one that does
+    not reproduce, fails the test).
     """
-    for _ in range(restarts):
-        left = scenarios - LinkedRequests.scenarios
+    target = LinkedRequests.scenarios + scenarios
+    for attempt in range(10):
+        left = target - LinkedRequests.scenarios
         if left <= 0:
             return
         LinkedRequests.TestCase.settings = hypothesis.settings(
-            max_examples=left, stateful_step_count=STEPS, deadline=None, derandomize=DERANDOMIZE,
-            database=None, suppress_health_check=list(hypothesis.HealthCheck),
-            phases=[hypothesis.Phase.generate])
+            max_examples=left, stateful_step_count=STEPS, deadline=None, database=None,
+            suppress_health_check=list(hypothesis.HealthCheck), phases=[hypothesis.Phase.generate])
+        LinkedRequests._hypothesis_internal_use_seed = None if seed is None else seed * 100 + attempt
         try:
             LinkedRequests.TestCase().runTest()
             return
         except hypothesis.errors.FlakyStrategyDefinition:
             continue
-    assert LinkedRequests.scenarios >= scenarios / 2, LinkedRequests.scenarios
 
 
 def test_linked_requests_reach_every_id_route():
@@ -192,15 +195,21 @@ def test_linked_requests_reach_every_id_route():
     links = sum(len(answer.get("links", {})) for item in APP.openapi()["paths"].values()
                 for operation in item.values() for answer in operation.get("responses", {}).values())
     assert links >= 27  # 202 -> job routes, job -> result -> stored models, list -> surrogate routes
-    run_linked_sequences(SEQUENCES)
+    routes = id_routes(APP)
+    assert len(routes) >= 13
+    runs = 0
+    while LinkedRequests.scenarios < MAX_SEQUENCES:
+        # CI: seeds 0, 1, 2, ... (a red build replays); developers: new random choices each time.
+        run_linked_sequences(SEQUENCES_PER_RUN, runs if DERANDOMIZE else None)
+        runs += 1
+        if routes <= set(reached_through_links(LinkedRequests.reached)):
+            break
     reached = reached_through_links(LinkedRequests.reached)
     print("stateful phase, statuses by route:")
     for key in sorted({key[:2] for key in LinkedRequests.reached}):
         statuses = {(status, linked): n for (*route, status, linked), n in LinkedRequests.reached.items()
                     if tuple(route) == key}
         print(f"  {key[0]:6} {key[1]:60} {dict(sorted(statuses.items()))}")
-    routes = id_routes(APP)
-    assert len(routes) >= 13
     print(f"reached through links: {len(set(reached) & routes)} of {len(routes)} id routes; "
           f"{LinkedRequests.scenarios} sequences, {WAITED[0]:.1f} s waiting for jobs")
     missing = sorted(routes - set(reached))
@@ -209,13 +218,15 @@ def test_linked_requests_reach_every_id_route():
 
 def request_examples(spec: dict) -> list[tuple[str, str, object]]:
     """(method, path, body) of every JSON request example of the spec: the named examples of the
-    media type and any ``examples`` list of its schema."""
+    media type, any ``examples`` list of its schema and those of the body's component schema."""
     found = []
     for path, item in spec["paths"].items():
         for verb, operation in item.items():
             media = operation.get("requestBody", {}).get("content", {}).get("application/json", {})
             bodies = [example["value"] for example in media.get("examples", {}).values()]
             bodies += media.get("schema", {}).get("examples", [])
+            reference = media.get("schema", {}).get("$ref", "")  # the body model's own examples
+            bodies += spec["components"]["schemas"].get(reference.rsplit("/", 1)[-1], {}).get("examples", [])
             found += [(verb.upper(), path, body) for body in bodies]
     return found
 

@@ -103,6 +103,15 @@ def surrogate_links(pointer: str, which: str) -> dict[str, dict[str, Any]]:
 MODEL_LINKS = {**surrogate_links("$response.body#", "when the result is a surrogate's"),
                **calibration_links("$response.body#", "when the result is a calibration's")}
 
+#: Links from a job's result to the plot of that result (an optimization's Pareto front, a proposal's runs).
+RESULT_PLOT_LINKS = {
+    name: {"operationId": operation, "parameters": {"job_id": "$request.path.job_id"},
+           "description": f"{what} (when the result is {which})."}
+    for name, operation, what, which in (
+        ("GetParetoPlot", "get_optimization_pareto_plot", "The plot of its Pareto front",
+         "an optimization's with a Pareto front"),
+        ("GetExperimentsPlot", "get_experiments_plot", "The plot of the proposed runs", "a proposal's"))}
+
 _RETRY_AFTER_HEADER = {"description": "Seconds to wait before trying again.", "schema": {"type": "integer"}}
 
 
@@ -230,7 +239,7 @@ def cancel_job(job_id: str, jobs: JobsDep) -> Any:
         200: {"model": JobResult,
               "description": "The result, tagged with the job's kind: JSON, or its columns as CSV with "
                              "Accept: text/csv (sweeps).",
-              "links": MODEL_LINKS,
+              "links": {**MODEL_LINKS, **RESULT_PLOT_LINKS},
               "content": {CSV_MEDIA_TYPE: {"schema": {"type": "string"}}}},
         **problem_responses(404, 406), **NOT_FINISHED_RESPONSE,
     },

@@ -50,7 +50,6 @@ register_kind(_KIND, _stored_work,
 async def create_optimization(
     body: Annotated[OptimizationRequest, Body(description="Bounds, fixed inputs, speed, limits and model.",
                                               openapi_examples=examples.media_examples(
-                                                  small=("Least friction, at once", examples.OPTIMIZATION),
                                                   pareto=("With a Pareto front (a job)", examples.PARETO)))],
     store: StoreDep,
     jobs: JobsDep,

@@ -101,6 +101,7 @@ def _column_bounds(name: str) -> dict:
 
 
 _COLUMN_BOUNDS = {name: _column_bounds(name) for name in _PHYSICS_COLUMNS}
+_FIXED_BOUNDS = {name: physics_value_schema(name) for name in _PHYSICS_COLUMNS}
 
 
 class FirstExperimentsRequest(_ExperimentsRequest):
@@ -111,12 +112,14 @@ class FirstExperimentsRequest(_ExperimentsRequest):
     # and speed_m_s each in the space or fixed; goal predict with an envelope.
     # (A column both in the space and fixed, guesses of parameters not fitted and a range whose low end
     # exceeds its high one are refused by the server only.)
+    # (Each clause on a nullable field sits in a one-branch anyOf: openapi-python-client merges the
+    # properties of allOf into the model's and cannot merge an object with "object or null".)
     model_config = ConfigDict(**StrictModel.model_config, json_schema_extra={"allOf": [
-        {"properties": {field: {"propertyNames": {"enum": _PHYSICS_COLUMNS}}
-                        for field in ("space", "envelope", "fixed")}
-         | {"guess": {"propertyNames": {"enum": FITTABLE_PARAMETERS}}}},
-        {"properties": {field: {"properties": _COLUMN_BOUNDS} for field in ("space", "envelope")}
-         | {"fixed": {"properties": {name: physics_value_schema(name) for name in _PHYSICS_COLUMNS}}}},
+        {"anyOf": [{"properties": {field: {"propertyNames": {"enum": _PHYSICS_COLUMNS}}
+                                   for field in ("space", "envelope", "fixed")}
+                    | {"guess": {"propertyNames": {"enum": FITTABLE_PARAMETERS}}}}]},
+        {"anyOf": [{"properties": {field: {"properties": _COLUMN_BOUNDS} for field in ("space", "envelope")}
+                    | {"fixed": {"properties": _FIXED_BOUNDS}}}]},
         *({"anyOf": [given_at(("space", name)), given_at(("fixed", name))]} for name in REQUIRED_INPUTS),
         {"anyOf": [{"properties": {"goal": {"const": "parameters"}}},
                    given_at(("envelope",), {"type": "object", "minProperties": 1})]}]})
