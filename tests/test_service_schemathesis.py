@@ -71,7 +71,7 @@ CHECKS = [schemathesis.checks.not_a_server_error, status_code_conformance, conte
 #: How long a linked sequence waits for a job it created to finish [s], polling as a client told
 #: Retry-After would; a job still running then is cancelled (the chain meets its 409 and follows
 #: the spec's retry links) so that it does not hold a job worker for the rest of the run.
-JOB_WAIT_S = 10.0
+JOB_WAIT_S = 5.0
 _POLLER = TestClient(APP)
 WAITED = [0.0]
 

@@ -10,7 +10,6 @@ from microbearing import physics
 from microbearing.optimize.general import SPEED_GRID_POINTS
 from microbearing.optimize.problem import DESIGN_VARIABLES
 
-from . import examples
 from .base import (
     Convention,
     ConventionName,
@@ -122,10 +121,7 @@ class OptimizationRequest(StrictModel):
     # one); a Pareto front for model physics only; objective mu_upper for a stored model only;
     # conditions for a calibrated model only. (That a
     # lower bound is not above its upper one is checked by the server only.)
-    # The example of the schema answers at once (200); the route's own example asks for a Pareto
-    # front (a job, 202), whose links lead to the job's routes and plot.
-    model_config = ConfigDict(**StrictModel.model_config, json_schema_extra={
-        "examples": [examples.OPTIMIZATION], "allOf": [
+    model_config = ConfigDict(**StrictModel.model_config, json_schema_extra={"allOf": [
         in_one_place((("bounds", "load_N"), None), (("fixed", "load_N"), None)),
         {"anyOf": [*in_one_place((("speed_m_s",), None), (("fixed", "speed_m_s"), None))["anyOf"],
                    given_at(("model",), {"pattern": "^(calibrated|surrogate):"})]},
