@@ -177,6 +177,7 @@ def run_linked_sequences(scenarios: int, seed: int | None) -> None:
         LinkedRequests.TestCase.settings = hypothesis.settings(
             max_examples=left, stateful_step_count=STEPS, deadline=None, database=None,
             suppress_health_check=list(hypothesis.HealthCheck), phases=[hypothesis.Phase.generate])
+        # What @hypothesis.seed sets, read by Hypothesis' state machine runner (None: a random seed).
         LinkedRequests._hypothesis_internal_use_seed = None if seed is None else seed * 100 + attempt
         try:
             LinkedRequests.TestCase().runTest()
