@@ -12,6 +12,7 @@ optimization and surrogates; :func:`check_conditions` refuses conditions a model
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor
 from typing import Any
@@ -21,6 +22,7 @@ import numpy as np
 from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 from microbearing.calibrate.data import MU_MEASURED, MU_MEASURED_STD
+from microbearing.physics.model import NOT_FINITE
 
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
@@ -370,9 +372,30 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
     except InputError as exc:
         raise _input_problem(exc, "") from None
     values = {name: float(value) for name, value in evaluation.values.items()}
+    # NaN bounds are a model stored before intervals (answered null); anything else not finite (an
+    # interval overflowing far outside the data, an output out of range) is the inputs' fault.
+    bad = next((name for name, value in values.items() if not math.isfinite(value)
+                and not (math.isnan(value) and name in ("mu_lower", "mu_upper"))), None)
+    if bad is not None:
+        raise validation_problem([{"pointer": "/", "detail": f"the model output {bad} is not finite: the "
+                                   f"inputs are {NOT_FINITE}"}])
     fields = _model_fields(mu_model, values, evaluation.outside_domain, evaluation.warnings)
     return {**values, "convention": mu_model.convention, **fields,
             "in_domain": None if fields["in_domain"] is None else bool(fields["in_domain"])}
+
+
+def _refuse_non_finite(columns: Mapping[str, Any]) -> None:
+    """422 at ``/points`` naming the first output and point that is not finite (NaN interval bounds,
+    a model stored before intervals, excepted): the interval overflows far outside the data."""
+    for name, column in columns.items():
+        values = np.asarray(column, dtype=float)
+        bad = ~np.isfinite(values)
+        if name in ("mu_lower", "mu_upper"):
+            bad &= ~np.isnan(values)
+        if bad.any():
+            index = int(np.flatnonzero(bad)[0])
+            raise validation_problem([{"pointer": "/points", "detail": f"the model output {name} is not "
+                                       f"finite at point {index}: the inputs are {NOT_FINITE}"}])
 
 
 def evaluate_batch_with_model(store: Store, executor: Executor | None, model: str, points: Mapping[str, Any],
@@ -442,6 +465,7 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
         values = evaluate_in_chunks(executor, read, count, names, mu_model, pointer="/points")
     except InputError as exc:
         raise _input_problem(exc, "/points") from None
+    _refuse_non_finite(values)
     with np.errstate(all="ignore"):
         inside, warnings = mu_model.calibrated.domain_check(everything)
     outside = None if inside is None else ~np.broadcast_to(inside, (count,))

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from microbearing import surrogate
+from microbearing import physics, surrogate
 from microbearing.optimize import physics_model
 from microbearing.surrogate import GaussianProcessSurrogate, Space
 from microbearing.surrogate.persist import version_warning
@@ -39,8 +39,11 @@ _HELD_OUT_POINTS = 1024
 #: Least held-out coverage of the 95 % interval that a surrogate keeps without a warning. [1]
 MIN_COVERAGE = 0.90
 _HELD_OUT_SEED = 987_654_321
-#: Least and most base sample size of the Sobol' indices (powers of 2). [1]
-SENSITIVITY_N = (256, 65_536)
+#: Least and most base sample size of the Sobol' indices (powers of 2). [1] The 95 % BCa intervals
+#: (scipy's bootstrap) jackknife the n samples at once, so memory grows as n squared: a peak of
+#: 424 MB at n = 4096, 110 MB at 2048 (tracemalloc, 2 dimensions); n = 65,536 asked for 32 GiB and
+#: failed with a 500 (found by schemathesis' stateful phase), so n stops at 4096, the default.
+SENSITIVITY_N = (256, 4096)
 # Points on which a calibrated model is checked before its training job is accepted. [1]
 _PROBE_POINTS = 16
 
@@ -260,9 +263,13 @@ def surrogate_view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, 
         The :class:`~service.schemas.surrogates.SurrogateResult` as JSON data.
     """
     result = metadata["result"]
+    # The ends of a whole-number dimension as whole numbers (stored as floats), so that the space can
+    # be sent back as points to predict at: a column of balls takes 4, not 4.0.
+    space = {name: [int(end) if physics.PARAMETERS[name].kind == "int" else end for end in ends]
+             for name, ends in result["space"].items()}
     # Surrogates stored before models other than the physics could be learned lack model and conditions.
     return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, "model": "physics", "conditions": {},
-            **result, "warnings": _warnings(result)}
+            **result, "space": space, "warnings": _warnings(result)}
 
 
 def surrogate_views(store: Store) -> list[dict[str, Any]]:

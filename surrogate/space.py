@@ -175,7 +175,9 @@ class Space:
     def _auto_scale(name: str, kind: str, lo: float, hi: float) -> str:
         if kind == "bool":
             return "linear"
-        if lo > 0 and hi / lo >= _LOG_RATIO:
+        # hi >= ratio * lo, not hi / lo >= ratio: a lower bound of 1e-308 overflows the division
+        # (a numpy RuntimeWarning), never the product (Python floats).
+        if lo > 0 and float(hi) >= _LOG_RATIO * float(lo):
             return "log"
         if lo == 0 and name in _POWER_EXPONENTS:
             return "power"

@@ -463,12 +463,17 @@ def test_cancelling_a_sweep_job_over_http(tmp_path):
             assert job["status"] in ("queued", "running") and time.monotonic() < deadline, job
             time.sleep(0.005)
         assert job["status"] == "running" and 0 < job["progress"] < 1, job
+        early = test_client.get(f"{location}/result")  # not yet: 409, and when to ask again
+        assert_problem(early, 409)
+        assert int(early.headers["retry-after"]) >= 1
         response = test_client.delete(location)
         assert response.status_code == 200, response.text
         assert response.json()["cancel_requested"] is True and response.json()["status"] == "running"
         job = wait_for_job(test_client, location)
         assert job["status"] == "cancelled" and job["result_url"] is None and job["progress"] < 1
-        assert_problem(test_client.get(f"{location}/result"), 409)
+        never = test_client.get(f"{location}/result")  # never: 409 without Retry-After
+        assert_problem(never, 409)
+        assert "retry-after" not in never.headers
 
 
 def test_unknown_jobs_are_404(client):

@@ -261,3 +261,27 @@ def test_a_calibrated_model_is_rebuilt_once_for_many_single_points(data_dir, cal
                    for load in (0.01, 0.012, 0.014, 0.01)]
     assert len(built) == rebuilds
     assert answers[0] == answers[3] and answers[0]["mu"] != answers[1]["mu"]
+
+
+def test_an_interval_that_overflows_far_from_the_data_is_422_not_500(client):
+    # Found by schemathesis' stateful phase following the spec's link from a calibration to
+    # /v1/friction: 400,000 balls at 149 m/s widen the 95 % interval of the mu_pivot model of the
+    # spec's example past floating point (mu_upper inf), which JSON cannot carry (was: 500).
+    import time
+
+    from microbearing.service.schemas.examples import CALIBRATION
+
+    location = client.post("/v1/calibrations", json=CALIBRATION).headers["location"]
+    deadline = time.monotonic() + 120
+    while client.get(location).json()["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    model = client.get(f"{location}/result").json()["model_id"]
+    far = {"balls": 401564, "ball_poisson_ratio": 0.49117826135052206,
+           "race_youngs_modulus_Pa": 5136756337280.07, "load_N": 0.5, "speed_m_s": 148.83583745516464}
+    problem = assert_problem(client.post("/v1/friction", json={**far, "model": model}), 422, "/")
+    assert "mu_upper is not finite" in problem["errors"][0]["detail"]
+    batch = client.post("/v1/friction/batch", json={"points": {**far, "balls": [401564, 4]}, "model": model})
+    assert batch.status_code == 422, batch.text
+    near = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "model": model})
+    assert near.status_code == 200 and np.isfinite(near.json()["mu_upper"]), near.text

@@ -749,3 +749,13 @@ def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is
     refit = GaussianProcessSurrogate(space, initial_theta=gp.kernel_.theta.tolist(), n_restarts_optimizer=0)
     refit.fit(fit.X, fit.y)
     assert gp.log_marginal_likelihood_value_ >= refit.gaussian_process_.log_marginal_likelihood_value_ - 1e-6
+
+
+def test_a_lower_bound_near_the_smallest_double_gets_a_log_scale_without_overflow():
+    # Found by schemathesis (POST /v1/surrogates with mu_ball in [2.2e-308, 4]): hi / lo overflowed,
+    # a RuntimeWarning that the test suite turns into an error (was: 500 in the tests).
+    from microbearing.surrogate.space import Space
+
+    space = Space({"mu_ball": [2.2250738585072014e-308, 4.0]}, fixed={"balls": 4, "load_N": 0.01,
+                                                                      "speed_m_s": 0.05})
+    assert space.scale_of["mu_ball"] == "log"

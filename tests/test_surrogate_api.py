@@ -196,6 +196,10 @@ def test_sensitivity_ranks_load_per_ball_over_speed(client, trained):
             assert low <= indices[kind][name] <= high
     assert indices["total_order_interval"]["load_N"][0] > indices["total_order_interval"]["speed_m_s"][1]
     assert_problem(client.get(f"/v1/surrogates/{trained['id']}/sensitivity", params={"n": 1000}), 422)
+    # A power of 2 past the bound: refused before work (its BCa jackknife would need n squared memory:
+    # 32 GiB at 65,536, a 500 once).
+    for n in (8192, 65_536):
+        assert_problem(client.get(f"/v1/surrogates/{trained['id']}/sensitivity", params={"n": n}), 422)
 
 
 def test_sensitivity_of_a_one_input_surrogate(client):

@@ -35,7 +35,7 @@ from ..schemas.calibrations import (
     FittableParameterName,
 )
 from ..store import Store
-from .jobs import ACCEPTED_RESPONSE, accepted
+from .jobs import ACCEPTED_RESPONSE, accepted, calibration_links
 
 __all__ = ["router"]
 
@@ -122,7 +122,9 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
 
 @router.post("", operation_id="create_calibration", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
-def create_calibration(body: Annotated[CalibrationRequest, Body(examples=[examples.CALIBRATION])],
+def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples=examples.media_examples(
+                           small=("mu_pivot fitted on 24 measurements", examples.CALIBRATION),
+                           units=("The same, load in mN and speed in mm/s", examples.CALIBRATION_UNITS)))],
                        store: StoreDep, jobs: JobsDep,
                        settings: SettingsDep) -> JSONResponse:
     """Calibrate on JSON rows: fit the named parameters, add the terms the data need, report (a job).
@@ -199,8 +201,10 @@ async def create_calibration_from_csv(
     return _submit(jobs, store, record, dataset, names, folds, str(convention), intake.to_dict())
 
 
-@router.get("", operation_id="list_calibrations", response_model=CalibrationList,
-            responses=problem_responses())
+@router.get("", operation_id="list_calibrations", response_model=CalibrationList, responses={
+    200: {"description": "Every stored calibration the caller sees.",
+          "links": calibration_links("$response.body#/calibrations/0", "the first calibration listed")},
+    **problem_responses()})
 def list_calibrations(store: StoreDep) -> JSONResponse:
     """Every stored calibration the caller sees (with API keys: its key's, or all for the admin key),
     newest first, summarized; ``url`` gives the full report."""
@@ -220,7 +224,9 @@ def delete_calibration_route(calibration_id: str, store: StoreDep) -> Response:
 
 
 @router.get("/{calibration_id}", operation_id="get_calibration", response_model=CalibrationResult,
-            responses=problem_responses(404))
+            responses={200: {"description": "The calibration's report.", "links": {
+                name: link for name, link in calibration_links("$response.body#", "this calibration").items()
+                if name != "GetCalibration"}}, **problem_responses(404)})
 def get_calibration(calibration_id: str, store: StoreDep) -> JSONResponse:
     """The report of a finished calibration."""
     stored = load_calibration(store, calibration_id)

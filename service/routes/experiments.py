@@ -4,17 +4,18 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Body
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep, StoreDep
 from ..experiments import JOB_KIND, first_experiments_job, next_experiments_job, plan_png
 from ..jobs import register_kind
 from ..problems import ProblemError, problem_responses
+from ..schemas import examples
 from ..schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
-from .jobs import ACCEPTED_RESPONSE, accepted
+from .jobs import NOT_FINISHED_RESPONSE, accepted, accepted_response, not_finished
 
 __all__ = ["router"]
 
@@ -36,9 +37,18 @@ register_kind(JOB_KIND, _stored_work,
               rule="the request is stored and the result is written once, at the end")
 
 
+#: A proposal's 202, with a link to its plot.
+_ACCEPTED = accepted_response(GetExperimentsPlot={
+    "operationId": "get_experiments_plot", "parameters": {"job_id": "$response.body#/id"},
+    "description": "The plot of the proposed runs, once the job succeeded."})
+
+
 @router.post("/v1/calibrations/{calibration_id}/next-experiments", operation_id="create_next_experiments",
-             status_code=202, responses={**ACCEPTED_RESPONSE, **problem_responses(404)})
-def create_next_experiments(calibration_id: str, body: NextExperimentsRequest, store: StoreDep,
+             status_code=202, responses={**_ACCEPTED, **problem_responses(404)})
+def create_next_experiments(calibration_id: str, body: Annotated[NextExperimentsRequest, Body(
+        openapi_examples=examples.media_examples(
+            six=("Six runs over 4-12 balls, 3-24 mN and two speeds", examples.NEXT_EXPERIMENTS)))],
+                            store: StoreDep,
                             jobs: JobsDep) -> JSONResponse:
     """Propose the next runs for a calibration, with an optimality bound (a job).
 
@@ -55,8 +65,11 @@ def create_next_experiments(calibration_id: str, body: NextExperimentsRequest, s
 
 
 @router.post("/v1/experiments", operation_id="create_first_experiments", status_code=202,
-             responses={**ACCEPTED_RESPONSE, **problem_responses()})
-def create_first_experiments(body: FirstExperimentsRequest, jobs: JobsDep) -> JSONResponse:
+             responses={**_ACCEPTED, **problem_responses()})
+def create_first_experiments(body: Annotated[FirstExperimentsRequest, Body(
+        openapi_examples=examples.media_examples(
+            six=("Six first runs to fit mu_pivot", examples.FIRST_EXPERIMENTS)))],
+                             jobs: JobsDep) -> JSONResponse:
     """Propose a first set of runs on the declared physics, before any calibration (a job).
 
     The same operation as ``/v1/calibrations/{id}/next-experiments`` with the declared parameters to fit
@@ -71,13 +84,12 @@ def create_first_experiments(body: FirstExperimentsRequest, jobs: JobsDep) -> JS
             responses={200: {"description": "The proposed runs over the data taken (and the rivals' "
                                             "predictions for discriminate) as a PNG image.",
                              "content": {"image/png": {"schema": {"type": "string", "format": "binary"}}}},
-                       **problem_responses(404, 409)})
+                       **problem_responses(404), **NOT_FINISHED_RESPONSE})
 def get_experiments_plot(job_id: str, jobs: JobsDep) -> Response:
     """The plot of a proposal: the runs over the data taken, with the rivals' predictions."""
     row = jobs.get(job_id, with_result=True)
     if row is None or row["kind"] != JOB_KIND:
         raise ProblemError(404, f"There is no experiments job {job_id!r}.")
     if row["status"] != "succeeded":
-        raise ProblemError(409, f"Experiments job {job_id} is {row['status']}; the plot exists once it "
-                                "succeeded.")
+        raise not_finished(job_id, row["status"], "the plot")
     return Response(plan_png(json.loads(row["result_json"])), media_type="image/png")

@@ -21,7 +21,8 @@ from ..problems import Problem, ProblemError, problem_responses, validation_prob
 from ..schemas.jobs import JOB_RESULTS, Job, JobKind, JobList, JobResult, JobStatus
 from ..tables import CSV_MEDIA_TYPE, csv_text, sweep_table, wants_csv
 
-__all__ = ["accepted", "job_view", "router"]
+__all__ = ["ACCEPTED_RESPONSE", "NOT_FINISHED_RESPONSE", "accepted", "accepted_response", "calibration_links",
+           "job_view", "not_finished", "router", "surrogate_links"]
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
 
@@ -44,43 +45,114 @@ def accepted(row: dict[str, Any]) -> JSONResponse:
 
 
 def _job_links(pointer: str) -> dict[str, dict[str, Any]]:
-    """OpenAPI links from an answer holding a job's id at ``pointer`` to the job's routes."""
-    return {name: {"operationId": operation, "parameters": {"job_id": f"$response.body#{pointer}"},
+    """OpenAPI links from an answer holding a job's id at ``pointer`` (a runtime expression such as
+    ``$response.body#/id``) to the job's routes."""
+    return {name: {"operationId": operation, "parameters": {"job_id": pointer},
                    "description": f"{what} of this job."}
             for name, operation, what in (("GetJob", "get_job", "Status"), ("GetJobResult", "get_job_result",
                                                                              "Result"),
                                           ("CancelJob", "cancel_job", "Cancellation or deletion"))}
 
 
+def calibration_links(pointer: str, which: str) -> dict[str, dict[str, Any]]:
+    """OpenAPI links from an answer holding a calibration at ``pointer`` (its id at ``<pointer>/id``,
+    its model's id at ``<pointer>/model_id``) to the calibration's routes and the requests that
+    name its model."""
+    calibration, model = f"{pointer}/id", f"{pointer}/model_id"
+    links = {
+        name: {"operationId": operation, "parameters": {"calibration_id": calibration, **extra},
+               "description": f"{what} ({which})."}
+        for name, operation, extra, what in (
+            ("GetCalibration", "get_calibration", {}, "The stored calibration"),
+            ("GetCalibrationPlot", "get_calibration_plot", {"plot_name": "residuals"},
+             "Its plot of the residuals"),
+            ("CreateNextExperiments", "create_next_experiments", {}, "The next runs it asks for"),
+            ("DeleteCalibration", "delete_calibration", {}, "Deletion of the calibration"))}
+    # A body field taken from the answer, merged into a generated body (the rest of the body as the
+    # target's schema says): the calibrated model evaluated at a point or over a batch.
+    links |= {name: {"operationId": operation, "requestBody": {"model": model},
+                     "description": f"{what} of the calibrated model ({which}), named in the body's model."}
+              for name, operation, what in (("EvaluateCalibratedModel", "evaluate_friction", "Friction"),
+                                            ("EvaluateCalibratedModelBatch", "evaluate_friction_batch",
+                                             "Friction at many points"))}
+    return links
+
+
+def surrogate_links(pointer: str, which: str) -> dict[str, dict[str, Any]]:
+    """OpenAPI links from an answer holding a surrogate at ``pointer`` (its id at ``<pointer>/id``, its
+    space at ``<pointer>/space``) to the surrogate's routes.
+
+    Predictions are asked at the ends of the space: the body's ``points`` are the space itself, each
+    dimension the column of its [low, high] (``x-schemathesis.merge_body`` false: this body, not
+    merged into a generated one).
+    """
+    links = {name: {"operationId": operation, "parameters": {"surrogate_id": f"{pointer}/id"},
+                    "description": f"{what} ({which})."}
+             for name, operation, what in (
+                 ("GetSurrogate", "get_surrogate", "The stored surrogate"),
+                 ("GetSurrogateSensitivity", "get_surrogate_sensitivity", "Its sensitivity"),
+                 ("DeleteSurrogate", "delete_surrogate", "Deletion of the surrogate"))}
+    links["PredictSurrogate"] = {
+        "operationId": "predict_surrogate", "parameters": {"surrogate_id": f"{pointer}/id"},
+        "requestBody": {"points": f"{pointer}/space"}, "x-schemathesis": {"merge_body": False},
+        "description": f"Predictions of the surrogate at the two ends of its space ({which})."}
+    return links
+
+
 #: Links from an answer with a stored model's id at ``/id`` (a job's result) to the model's routes.
-MODEL_LINKS = {
-    name: {"operationId": operation, "parameters": {parameter: "$response.body#/id"},
-           "description": f"{what} (when the result is a surrogate's or a calibration's)."}
-    for name, operation, parameter, what in (
-        ("GetSurrogate", "get_surrogate", "surrogate_id", "The stored surrogate"),
-        ("PredictSurrogate", "predict_surrogate", "surrogate_id", "Predictions of the surrogate"),
-        ("GetSurrogateSensitivity", "get_surrogate_sensitivity", "surrogate_id", "Its sensitivity"),
-        ("DeleteSurrogate", "delete_surrogate", "surrogate_id", "Deletion of the surrogate"),
-        ("GetCalibration", "get_calibration", "calibration_id", "The stored calibration"))}
+MODEL_LINKS = {**surrogate_links("$response.body#", "when the result is a surrogate's"),
+               **calibration_links("$response.body#", "when the result is a calibration's")}
+
+#: Links from a job's result to the plot of that result (an optimization's Pareto front, a proposal's runs).
+RESULT_PLOT_LINKS = {
+    name: {"operationId": operation, "parameters": {"job_id": "$request.path.job_id"},
+           "description": f"{what} (when the result is {which})."}
+    for name, operation, what, which in (
+        ("GetParetoPlot", "get_optimization_pareto_plot", "The plot of its Pareto front",
+         "an optimization's with a Pareto front"),
+        ("GetExperimentsPlot", "get_experiments_plot", "The plot of the proposed runs", "a proposal's"))}
 
 _RETRY_AFTER_HEADER = {"description": "Seconds to wait before trying again.", "schema": {"type": "integer"}}
 
-#: OpenAPI entries of a 202 answer and of the refusals of a full queue, for routes that may run
-#: their work as a job.
-ACCEPTED_RESPONSE: dict[int | str, dict[str, Any]] = {
-    202: {"model": Job, "description": "Accepted: the work runs as a job; poll the Location header.",
-          "links": _job_links("/id"),
-          "headers": {"Location": {"description": "Path of the job, /v1/jobs/{id}.",
-                                   "schema": {"type": "string"}},
-                      "Retry-After": {"description": "Seconds to wait before polling the job.",
-                                      "schema": {"type": "integer"}}}},
-    429: {"model": Problem, "description": f"Too many queued or running jobs of this API key; retry after "
-                                          f"Retry-After (about {RETRY_AFTER_S} s).",
-          "headers": {"Retry-After": _RETRY_AFTER_HEADER}},
-    503: {"model": Problem, "description": "The server holds its limit of queued or running jobs, or cannot "
-                                          "store data; retry after Retry-After.",
-          "headers": {"Retry-After": _RETRY_AFTER_HEADER}},
-}
+
+def accepted_response(**links: dict[str, Any]) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI entries of a 202 answer (its links to the job's routes, and ``links`` to the routes
+    of this kind of job) and of the refusals of a full queue, for a route that may run its work as a job."""
+    return {
+        202: {"model": Job, "description": "Accepted: the work runs as a job; poll the Location header.",
+              "links": {**_job_links("$response.body#/id"), **links},
+              "headers": {"Location": {"description": "Path of the job, /v1/jobs/{id}.",
+                                       "schema": {"type": "string"}},
+                          "Retry-After": {"description": "Seconds to wait before polling the job.",
+                                          "schema": {"type": "integer"}}}},
+        429: {"model": Problem,
+              "description": f"Too many queued or running jobs of this API key; retry after Retry-After "
+                             f"(about {RETRY_AFTER_S} s).",
+              "headers": {"Retry-After": _RETRY_AFTER_HEADER}},
+        503: {"model": Problem,
+              "description": "The server holds its limit of queued or running jobs, or cannot store data; "
+                             "retry after Retry-After.",
+              "headers": {"Retry-After": _RETRY_AFTER_HEADER}},
+    }
+
+
+#: :func:`accepted_response` without links of a kind.
+ACCEPTED_RESPONSE = accepted_response()
+
+#: The 409 of a route that needs a succeeded job, with when to ask again and links back to the job.
+NOT_FINISHED_RESPONSE: dict[int | str, dict[str, Any]] = {409: {
+    "model": Problem,
+    "description": "The job has not succeeded: queued or running (ask again after Retry-After, or poll the "
+                   "job), or failed or cancelled (the problem says which).",
+    "headers": {"Retry-After": {"description": "While the job is queued or running: seconds to wait before "
+                                               "asking again.", "schema": {"type": "integer"}}},
+    "links": _job_links("$request.path.job_id")}}
+
+
+def not_finished(job_id: str, status: str, what: str) -> ProblemError:
+    """409 for a job that has not succeeded: ``what`` exists once it has; Retry-After while it may."""
+    return ProblemError(409, f"Job {job_id} is {status}; {what} exists only once it succeeded.",
+                        headers={"Retry-After": str(POLL_AFTER_S)} if status not in FINISHED else None)
 
 
 def _job_or_404(jobs: JobManager, job_id: str, with_result: bool = False) -> dict[str, Any]:
@@ -128,7 +200,7 @@ def list_jobs(
 
 
 @router.get("/{job_id}", operation_id="get_job", response_model=Job,
-            responses={200: {"description": "The job.", "links": _job_links("/id")},
+            responses={200: {"description": "The job.", "links": _job_links("$response.body#/id")},
                        **problem_responses(404)})
 def get_job(job_id: str, jobs: JobsDep) -> Job:
     """Status, progress and, once finished, the result link or the problem of a job."""
@@ -167,16 +239,16 @@ def cancel_job(job_id: str, jobs: JobsDep) -> Any:
         200: {"model": JobResult,
               "description": "The result, tagged with the job's kind: JSON, or its columns as CSV with "
                              "Accept: text/csv (sweeps).",
-              "links": MODEL_LINKS,
+              "links": {**MODEL_LINKS, **RESULT_PLOT_LINKS},
               "content": {CSV_MEDIA_TYPE: {"schema": {"type": "string"}}}},
-        **problem_responses(404, 406, 409),
+        **problem_responses(404, 406), **NOT_FINISHED_RESPONSE,
     },
 )
 def get_job_result(job_id: str, request: Request, jobs: JobsDep) -> Response:
     """The result of a succeeded job, as stored."""
     row = _job_or_404(jobs, job_id, with_result=True)
     if row["status"] != "succeeded":
-        raise ProblemError(409, f"Job {job_id} is {row['status']}; a result exists only once it succeeded.")
+        raise not_finished(job_id, row["status"], "a result")
     if wants_csv(request):
         result = json.loads(row["result_json"])
         if not isinstance(result.get("columns"), dict):

@@ -15,7 +15,7 @@ from ..optimizations import pareto_png, prepare, run
 from ..problems import ProblemError, problem_responses
 from ..schemas import examples
 from ..schemas.optimizations import OptimizationRequest, OptimizationResult
-from .jobs import ACCEPTED_RESPONSE, accepted
+from .jobs import NOT_FINISHED_RESPONSE, accepted, accepted_response, not_finished
 
 __all__ = ["router"]
 
@@ -40,12 +40,17 @@ register_kind(_KIND, _stored_work,
 
 @router.post(
     "", operation_id="create_optimization", response_model=OptimizationResult, status_code=200,
-    responses={200: {"description": "The optimum, computed at once."}, **ACCEPTED_RESPONSE,
+    responses={200: {"description": "The optimum, computed at once."}, **accepted_response(
+        GetParetoPlot={"operationId": "get_optimization_pareto_plot",
+                       "parameters": {"job_id": "$response.body#/id"},
+                       "description": "The plot of the Pareto front, once the job succeeded (when it "
+                                      "computes one)."}),
                **problem_responses(404)},
 )
 async def create_optimization(
     body: Annotated[OptimizationRequest, Body(description="Bounds, fixed inputs, speed, limits and model.",
-                                              examples=[examples.OPTIMIZATION])],
+                                              openapi_examples=examples.media_examples(
+                                                  pareto=("With a Pareto front (a job)", examples.PARETO)))],
     store: StoreDep,
     jobs: JobsDep,
     executor: ExecutorDep,
@@ -78,7 +83,7 @@ async def create_optimization(
     response_class=Response,
     responses={200: {"description": "The Pareto front as a PNG image.",
                      "content": {"image/png": {"schema": {"type": "string", "format": "binary"}}}},
-               **problem_responses(404, 409)},
+               **problem_responses(404), **NOT_FINISHED_RESPONSE},
 )
 def get_optimization_pareto_plot(job_id: str, jobs: JobsDep) -> Response:
     """The Pareto front of an optimization job as a PNG plot."""
@@ -86,8 +91,7 @@ def get_optimization_pareto_plot(job_id: str, jobs: JobsDep) -> Response:
     if row is None or row["kind"] != _KIND:
         raise ProblemError(404, f"There is no optimization job {job_id!r}.")
     if row["status"] != "succeeded":
-        raise ProblemError(409, f"Optimization job {job_id} is {row['status']}; the plot exists once it "
-                                "succeeded.")
+        raise not_finished(job_id, row["status"], "the plot")
     document = json.loads(row["result_json"])
     if not document.get("pareto"):
         raise ProblemError(404, f"Optimization job {job_id} computed no Pareto front.")

@@ -34,7 +34,7 @@ from ..surrogates import (
     surrogate_views,
     train_surrogate,
 )
-from .jobs import ACCEPTED_RESPONSE, accepted
+from .jobs import ACCEPTED_RESPONSE, accepted, surrogate_links
 
 __all__ = ["router"]
 
@@ -58,7 +58,8 @@ register_kind("surrogate", _stored_work,
 
 @router.post("", operation_id="create_surrogate", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
-def create_surrogate(body: Annotated[SurrogateRequest, Body(examples=[examples.SURROGATE])], store: StoreDep,
+def create_surrogate(body: Annotated[SurrogateRequest, Body(openapi_examples=examples.media_examples(
+        small=("mu over load and speed, 30 evaluations", examples.SURROGATE)))], store: StoreDep,
                      jobs: JobsDep) -> JSONResponse:
     """Train a surrogate of mu over a space of physics inputs (a job).
 
@@ -78,13 +79,8 @@ def create_surrogate(body: Annotated[SurrogateRequest, Body(examples=[examples.S
 
 
 @router.get("", operation_id="list_surrogates", response_model=SurrogateList, responses={
-    200: {"description": "Every stored surrogate.", "links": {
-        name: {"operationId": operation, "parameters": {"surrogate_id": "$response.body#/surrogates/0/id"},
-               "description": f"{what} of the first surrogate listed."}
-        for name, operation, what in (("GetSurrogate", "get_surrogate", "The stored surrogate"),
-                                      ("PredictSurrogate", "predict_surrogate", "Predictions"),
-                                      ("GetSurrogateSensitivity", "get_surrogate_sensitivity", "Sensitivity"),
-                                      ("DeleteSurrogate", "delete_surrogate", "Deletion"))}},
+    200: {"description": "Every stored surrogate.",
+          "links": surrogate_links("$response.body#/surrogates/0", "the first surrogate listed")},
     **problem_responses()})
 def list_surrogates(store: StoreDep) -> JSONResponse:
     """Every stored surrogate, newest first."""
@@ -92,7 +88,9 @@ def list_surrogates(store: StoreDep) -> JSONResponse:
 
 
 @router.get("/{surrogate_id}", operation_id="get_surrogate", response_model=SurrogateResult,
-            responses=problem_responses(404))
+            responses={200: {"description": "The surrogate.", "links": {
+                name: link for name, link in surrogate_links("$response.body#", "this surrogate").items()
+                if name != "GetSurrogate"}}, **problem_responses(404)})
 def get_surrogate(surrogate_id: str, store: StoreDep) -> JSONResponse:
     """A stored surrogate: its space, training summary and held-out metrics."""
     return JSONResponse(surrogate_view(surrogate_id, load_stored(store, surrogate_id).metadata))
@@ -108,9 +106,17 @@ def delete_surrogate(surrogate_id: str, store: StoreDep) -> Response:
 
 @router.post("/{surrogate_id}/predict", operation_id="predict_surrogate", response_model=PredictResponse,
              responses=problem_responses(404))
-def predict_surrogate(surrogate_id: str, body: PredictRequest, store: StoreDep) -> JSONResponse:
+def predict_surrogate(surrogate_id: str, body: Annotated[PredictRequest, Body(
+        openapi_examples=examples.media_examples(
+            loads=("Three loads at 0.05 m/s (a surrogate over load and speed)", examples.PREDICT)))],
+                      store: StoreDep) -> JSONResponse:
     """Predicted mu with its 95 % interval at columnar points, flagging points outside the space."""
     return JSONResponse(predict(store, surrogate_id, body.points.model_dump(exclude_none=True)))
+
+
+#: The base sample sizes allowed: the powers of 2 in SENSITIVITY_N (listed in the spec).
+_POWERS_OF_2 = [2**k for k in range(SENSITIVITY_N[0].bit_length() - 1, SENSITIVITY_N[1].bit_length())]
+assert _POWERS_OF_2[0] == SENSITIVITY_N[0] and _POWERS_OF_2[-1] == SENSITIVITY_N[1]
 
 
 @router.get("/{surrogate_id}/sensitivity", operation_id="get_surrogate_sensitivity",
@@ -118,6 +124,7 @@ def predict_surrogate(surrogate_id: str, body: PredictRequest, store: StoreDep) 
 def get_surrogate_sensitivity(
     surrogate_id: str, store: StoreDep,
     n: Annotated[int, Query(ge=SENSITIVITY_N[0], le=SENSITIVITY_N[1],
+                            json_schema_extra={"enum": _POWERS_OF_2},
                             description="Base sample size, a power of 2 [1].")] = 4096,
 ) -> JSONResponse:
     """First-order and total Sobol' indices of mu over the space, computed on the surrogate.

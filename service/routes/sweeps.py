@@ -55,7 +55,8 @@ register_kind("sweep", lambda inputs, runtime: _work(_REQUEST.validate_json(json
 async def create_sweep(
     request: Request,
     body: Annotated[SweepRequest, Body(description="A grid or a design of experiments, tagged by design.",
-                                       examples=[examples.SWEEP])],
+                                       openapi_examples=examples.media_examples(
+                                           small=("A 10 x 10 grid of mu", examples.SWEEP)))],
     settings: SettingsDep,
     jobs: JobsDep,
     executor: ExecutorDep,

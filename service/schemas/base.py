@@ -30,6 +30,12 @@ from ..problems import VALIDATION_TYPE, ProblemError
 
 __all__ = [
     "RAW_BODY_MODELS",
+    "REQUIRED_INPUTS",
+    "absent_at",
+    "given_at",
+    "in_one_place",
+    "only_with_model",
+    "physics_value_schema",
     "Convention",
     "DateTimeText",
     "ConventionName",
@@ -283,3 +289,53 @@ def add_raw_body_schemas(spec: dict[str, Any]) -> dict[str, Any]:
             schemas.setdefault(def_name, definition)
         schemas[name] = schema
     return spec
+
+
+# Cross-field rules in JSON Schema: what the server checks across fields, said in the spec so that
+# clients and test generators (schemathesis) send what it accepts. A place is a path of keys from the
+# body's root (("fixed", "balls"), ("speed_m_s",)); a null value counts as absent on the server.
+
+def given_at(place: tuple[str, ...], value: dict[str, Any] | None = None) -> dict[str, Any]:
+    """JSON Schema: a non-null value at ``place`` (of the schema ``value`` when given)."""
+    *parents, name = place
+    schema: dict[str, Any] = {"required": [name], "properties": {name: value or {"not": {"type": "null"}}}}
+    for parent in reversed(parents):
+        schema = {"required": [parent], "properties": {parent: schema}}
+    return schema
+
+
+def absent_at(place: tuple[str, ...]) -> dict[str, Any]:
+    """JSON Schema: nothing at ``place`` (its parents may be absent too)."""
+    *parents, name = place
+    schema: dict[str, Any] = {"not": {"required": [name]}}
+    for parent in reversed(parents):
+        schema = {"properties": {parent: schema}}
+    return schema
+
+
+def in_one_place(*places: tuple[tuple[str, ...], dict[str, Any] | None]) -> dict[str, Any]:
+    """JSON Schema: a value at exactly one of ``places`` (each ``(place, value schema or None)``)."""
+    return {"anyOf": [{"allOf": [given_at(place, value), *(absent_at(other) for other, _ in places
+                                                          if other != place)]}
+                      for place, value in places]}
+
+
+def only_with_model(field: str, prefix: str = "calibrated:") -> dict[str, Any]:
+    """JSON Schema: ``field`` absent, null or empty unless ``model`` names a stored model (``prefix<id>``)."""
+    return {"anyOf": [{"properties": {field: {"anyOf": [{"type": "null"}, {"maxProperties": 0}]}}},
+                      {"required": ["model"], "properties": {"model": {"pattern": f"^{prefix}"}}}]}
+
+
+def physics_value_schema(name: str) -> dict[str, Any]:
+    """JSON Schema of a (non-null) value of the physics input ``name``, with its bounds."""
+    spec = physics.PARAMETERS[name]
+    schema: dict[str, Any] = {"type": {"int": "integer", "bool": "boolean"}.get(spec.kind, "number")}
+    if spec.minimum is not None:
+        schema["exclusiveMinimum" if spec.exclusive_minimum else "minimum"] = spec.minimum
+    if spec.maximum is not None:
+        schema["exclusiveMaximum" if spec.exclusive_maximum else "maximum"] = spec.maximum
+    return schema
+
+
+#: The physics inputs without a default: every request must give them somewhere.
+REQUIRED_INPUTS = [name for name, spec in physics.PARAMETERS.items() if spec.required]

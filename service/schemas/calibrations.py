@@ -8,7 +8,9 @@ from typing import Annotated, Any
 from pydantic import ConfigDict, Field, create_model
 
 from microbearing import physics
+from microbearing.calibrate.report import MIN_ROWS
 
+from . import examples
 from .base import (
     Convention,
     ConventionName,
@@ -91,17 +93,13 @@ class CalibrationRequest(StrictModel):
     conversion.
     """
 
-    model_config = ConfigDict(**StrictModel.model_config, json_schema_extra={"examples": [{
-        "data": [
-            {"balls": 4, "load [mN]": 13.2, "speed [mm/s]": 70, "relative humidity [%]": 38,
-             "mu_measured": 0.01448},
-            {"balls": 4, "load [mN]": 4.4, "speed [mm/s]": 92, "relative humidity [%]": 65,
-             "mu_measured": 0.02287},
-            {"balls": 4, "load [mN]": 4.4, "speed [mm/s]": 113, "relative humidity [%]": 63,
-             "mu_measured": 0.02302}],
-        "fit_parameters": ["mu_pivot"], "folds": 5}]})
+    model_config = ConfigDict(**StrictModel.model_config,
+                              json_schema_extra={"examples": [examples.CALIBRATION_UNITS]})
 
-    data: list[dict[str, float | bool | str]] = Field(min_length=1, description=_ROW_DESCRIPTION)
+    # At least MIN_ROWS rows (more for nested cross-validation with many folds or fitted parameters:
+    # the server's 422 says how many), checked by the calibration with its own message.
+    data: list[dict[str, float | bool | str]] = Field(min_length=1, description=_ROW_DESCRIPTION,
+                                                      json_schema_extra={"minItems": MIN_ROWS})
     factors: list[str] = Field(default_factory=list, max_length=20, description=(
         "Condition columns to read as group labels (factors) even when they hold numbers, e.g. integer "
         "codes of specimens; a column with no number in it is a factor anyway."))

@@ -4,12 +4,21 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field
+from pydantic import ConfigDict, Field
 
 from microbearing import physics
 
-from .base import Convention, ConventionName, ResponseModel, StrictModel
-from .calibrations import FittableParameterName
+from .base import (
+    REQUIRED_INPUTS,
+    Convention,
+    ConventionName,
+    ResponseModel,
+    StrictModel,
+    WholeNumber,
+    given_at,
+    physics_value_schema,
+)
+from .calibrations import FITTABLE_PARAMETERS, FittableParameterName
 
 __all__ = ["MAX_PLANNED_RUNS", "MAX_RUNS", "MAX_SPACE_COLUMNS", "MAX_SPACE_VALUES", "ExperimentsResult",
            "FirstExperimentsRequest", "NextExperimentsRequest", "SpaceRange"]
@@ -55,14 +64,14 @@ _PLANNED = ("Runs already planned, one object per run with a value for every col
 
 
 class _ExperimentsRequest(StrictModel):
-    runs: int = Field(ge=1, le=MAX_RUNS, description="How many measurements to propose [1].")
+    runs: WholeNumber = Field(ge=1, le=MAX_RUNS, description="How many measurements to propose [1].")
     space: dict[str, SpaceColumn] = Field(min_length=1, max_length=MAX_SPACE_COLUMNS, description=_SPACE)
     envelope: dict[str, SpaceColumn] | None = Field(default=None, max_length=MAX_SPACE_COLUMNS,
                                                     description=_ENVELOPE)
     fixed: dict[str, float | bool] | None = Field(default=None, max_length=64, description=_FIXED)
     planned: list[dict[str, float]] | None = Field(default=None, max_length=MAX_PLANNED_RUNS,
                                                    description=_PLANNED)
-    seed: int = Field(default=0, ge=0, le=2**31 - 1, description="Seed of the candidate set [1].")
+    seed: WholeNumber = Field(default=0, ge=0, le=2**31 - 1, description="Seed of the candidate set [1].")
 
 
 class NextExperimentsRequest(_ExperimentsRequest):
@@ -77,8 +86,43 @@ class NextExperimentsRequest(_ExperimentsRequest):
                     "the data could not yet tell apart).")
 
 
+#: Columns a first design's space, envelope or fixed may name: the numeric physics inputs (no
+#: calibration, so no condition columns).
+_PHYSICS_COLUMNS = [name for name, spec in physics.PARAMETERS.items() if spec.kind != "bool"]
+
+
+def _column_bounds(name: str) -> dict:
+    """JSON Schema of a space column of the physics input ``name`` within its bounds: a range (any
+    ends for balls, whose whole counts in it are taken) or a list of values (whole counts for balls)."""
+    value = physics_value_schema(name)
+    return {"anyOf": [{"type": "object", "properties": {end: {**value, "type": "number"}
+                                                        for end in ("low", "high")}},
+                      {"type": "array", "items": value}]}
+
+
+_COLUMN_BOUNDS = {name: _column_bounds(name) for name in _PHYSICS_COLUMNS}
+_FIXED_BOUNDS = {name: physics_value_schema(name) for name in _PHYSICS_COLUMNS}
+
+
 class FirstExperimentsRequest(_ExperimentsRequest):
     """A first design on the declared physics, before any calibration."""
+
+    # What the server checks across fields: columns of the space, the envelope and fixed are physics
+    # inputs, their values within the inputs' bounds; guesses name fittable parameters; balls, load_N
+    # and speed_m_s each in the space or fixed; goal predict with an envelope.
+    # (A column both in the space and fixed, guesses of parameters not fitted and a range whose low end
+    # exceeds its high one are refused by the server only.)
+    # (Each clause on a nullable field sits in a one-branch anyOf: openapi-python-client merges the
+    # properties of allOf into the model's and cannot merge an object with "object or null".)
+    model_config = ConfigDict(**StrictModel.model_config, json_schema_extra={"allOf": [
+        {"anyOf": [{"properties": {field: {"propertyNames": {"enum": _PHYSICS_COLUMNS}}
+                                   for field in ("space", "envelope", "fixed")}
+                    | {"guess": {"propertyNames": {"enum": FITTABLE_PARAMETERS}}}}]},
+        {"anyOf": [{"properties": {field: {"properties": _COLUMN_BOUNDS} for field in ("space", "envelope")}
+                    | {"fixed": {"properties": _FIXED_BOUNDS}}}]},
+        *({"anyOf": [given_at(("space", name)), given_at(("fixed", name))]} for name in REQUIRED_INPUTS),
+        {"anyOf": [{"properties": {"goal": {"const": "parameters"}}},
+                   given_at(("envelope",), {"type": "object", "minProperties": 1})]}]})
 
     goal: Literal["parameters", "predict"] = Field(
         default="parameters",

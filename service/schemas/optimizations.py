@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BeforeValidator, Field, create_model
+from pydantic import BeforeValidator, ConfigDict, Field, create_model
 
 from microbearing import physics
 from microbearing.optimize.general import SPEED_GRID_POINTS
@@ -16,6 +16,9 @@ from .base import (
     ResponseModel,
     StrictModel,
     WholeNumber,
+    given_at,
+    in_one_place,
+    only_with_model,
     parameter_fields,
     whole_number,
 )
@@ -112,6 +115,21 @@ class ParetoRequest(StrictModel):
 
 class OptimizationRequest(StrictModel):
     """Minimize mu over integer balls, groove angle and load within bounds and limits."""
+
+    # What the server checks across fields: load_N in bounds (a range) or in fixed (a payload), not
+    # both; speed_m_s at the top level or in fixed, not both (or neither for a stored model that holds
+    # one); a Pareto front for model physics only; objective mu_upper for a stored model only;
+    # conditions for a calibrated model only. (That a
+    # lower bound is not above its upper one is checked by the server only.)
+    model_config = ConfigDict(**StrictModel.model_config, json_schema_extra={"allOf": [
+        in_one_place((("bounds", "load_N"), None), (("fixed", "load_N"), None)),
+        {"anyOf": [*in_one_place((("speed_m_s",), None), (("fixed", "speed_m_s"), None))["anyOf"],
+                   given_at(("model",), {"pattern": "^(calibrated|surrogate):"})]},
+        {"anyOf": [{"properties": {"pareto": {"type": "null"}}},
+                   {"properties": {"model": {"const": "physics"}}}]},
+        {"anyOf": [{"properties": {"objective": {"const": "mu"}}},
+                   given_at(("model",), {"pattern": "^(calibrated|surrogate):"})]},
+        only_with_model("conditions")]})
 
     bounds: DesignBounds = Field(description="Box of the design variables.")
     fixed: OptimizationFixed = Field(  # type: ignore[valid-type]

@@ -5,18 +5,22 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Annotated, Any
 
-from pydantic import Field, create_model
+from pydantic import ConfigDict, Field, create_model
 
 import microbearing.surrogate.sampling  # noqa: F401  (loads the submodule)
 from microbearing import physics, surrogate
 
 from .base import (
+    REQUIRED_INPUTS,
     Convention,
     ConventionName,
     DateTimeText,
     ResponseModel,
     StrictModel,
     WholeNumber,
+    given_at,
+    in_one_place,
+    only_with_model,
     parameter_description,
     parameter_fields,
     parameter_type,
@@ -62,6 +66,16 @@ SurrogateFixed = create_model(
 
 class SurrogateRequest(StrictModel):
     """What to learn and how many physics evaluations it may cost."""
+
+    # What the server checks across fields: at least one dimension; balls, load_N and speed_m_s each
+    # a dimension or fixed, not both (a calibrated model may hold them itself); conditions only for a
+    # calibrated model. (It also refuses an optional input both a dimension and fixed; the schema
+    # leaves that out, to stay simple for generators of test data.)
+    model_config = ConfigDict(**StrictModel.model_config, json_schema_extra={"allOf": [
+        {"anyOf": [given_at(("space", name), {"type": "array"}) for name in physics.PARAMETERS]},
+        *({"anyOf": [*in_one_place((("fixed", name), None), (("space", name), {"type": "array"}))["anyOf"],
+                     given_at(("model",), {"pattern": "^calibrated:"})]} for name in REQUIRED_INPUTS),
+        only_with_model("conditions")]})
 
     space: SurrogateSpace = Field(  # type: ignore[valid-type]
         description="Dimensions and their ranges, e.g. {\"balls\": [3, 40], \"load_N\": [0.001, 0.05]}.")

@@ -2,20 +2,24 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BeforeValidator, Field, create_model
+from pydantic import BeforeValidator, ConfigDict, Field, create_model
 
 from microbearing import physics
 
 from .base import (
+    REQUIRED_INPUTS,
     Convention,
     ConventionName,
     OutputName,
     ResponseModel,
     StrictModel,
     WholeNumber,
+    given_at,
+    in_one_place,
     parameter_fields,
+    physics_value_schema,
     whole_number,
 )
 
@@ -64,6 +68,28 @@ SweepFixed = create_model(
     **parameter_fields(optional=True),
 )
 
+def _cross_field_rules(varied: str, ends: tuple[str, str]) -> dict[str, Any]:
+    """What the server checks across fields of a sweep, in JSON Schema (``allOf`` of a design's schema).
+
+    ``varied`` is the object of the varied inputs (``axes`` or ``ranges``), ``ends`` the names of
+    the two ends of an axis or range: at least one input varied; each required input (balls,
+    load_N, speed_m_s) either fixed or varied, not both; the ends of each varied input within its
+    allowed range (the physics' bounds, in its unit). A null value counts as absent.
+
+    The server also refuses an optional input both fixed and varied, a range whose high end is below
+    its low end, and a design over the size limit (a setting); these the schema does not say (a
+    generator of test data then meets too many alternatives).
+    """
+    rules: list[dict[str, Any]] = [{"anyOf": [given_at((varied, name), {"type": "object"})
+                                              for name in SWEEPABLE]}]
+    rules += [in_one_place((("fixed", name), None), ((varied, name), {"type": "object"}))
+              for name in REQUIRED_INPUTS]
+    bounds = {name: {"anyOf": [{"type": "null"}, {"type": "object", "properties": {
+        end: physics_value_schema(name) for end in ends}}]} for name in SWEEPABLE}
+    rules.append({"properties": {varied: {"properties": bounds}}})
+    return {"allOf": rules}
+
+
 class _SweepBase(StrictModel):
     """What every design shares: the fixed inputs, the outputs and the convention."""
 
@@ -78,6 +104,9 @@ class _SweepBase(StrictModel):
 class _SampledSweep(_SweepBase):
     """A design of experiments drawn from ``scipy.stats.qmc`` over the ranges."""
 
+    model_config = ConfigDict(**StrictModel.model_config,
+                              json_schema_extra=_cross_field_rules("ranges", ("low", "high")))
+
     ranges: SweepRanges = Field(description="Varied inputs and their ranges.")  # type: ignore[valid-type]
     points: WholeNumber = Field(ge=1, le=100_000_000, description="Number of sample points [1].")
     seed: Annotated[int, Field(ge=0, le=2**63 - 1), BeforeValidator(whole_number)] | None = Field(
@@ -86,6 +115,9 @@ class _SampledSweep(_SweepBase):
 
 class GridSweep(_SweepBase):
     """Full-factorial grid: every combination of the axes' values."""
+
+    model_config = ConfigDict(**StrictModel.model_config,
+                              json_schema_extra=_cross_field_rules("axes", ("start", "stop")))
 
     design: Literal["grid"] = Field(description="Design tag: grid.")
     axes: GridAxes = Field(description="Varied inputs and their values.")  # type: ignore[valid-type]
