@@ -26,10 +26,15 @@ and the right side is bounded below by branch and bound over the designs: per ba
   g'Cg >= ĝ'Cĝ + 2 (Cĝ)'(g - ĝ) >= ĝ'Cĝ + Σ_i min over g_i's ends of 2 (Cĝ)_i (g_i - ĝ_i), a bound
   whatever ĝ is (the Frank-Wolfe gap; interval arithmetic on the quadratic form when C is not positive
   semi-definite);
-* so U >= μ_lo exp(z sqrt(least g'Cg + noise²) w), for the model and for each rival whose interval
-  enters U (U is the largest of their bounds), less 1e-9 relative for rounding; w >= 1 is a lower bound
-  of the factor a data cloud widens σ by off the data (the caller's, :func:`kth_distance_to_boxes`: the
-  distance to the k-th nearest row is at least the k-th smallest distance from the box to the rows), or 1.
+* group effects at a point naming no group (:meth:`_Bounds._groups`): one on μ (or on a parameter the
+  model does not fit) shifts log μ by its offset b0 and adds its new-group variance v, constants; one on a
+  fitted parameter p by s b0 and s² v, s = p g_p its sensitivity, g_p in the gradient's box: the least
+  of s b0 at the box's ends and s² v at its least (0 where the box holds s = 0);
+* so U >= μ_lo exp(shift + z sqrt(least g'Cg + groups' variance + noise²) w), for the model and for each
+  rival whose interval enters U (U is the largest of their bounds), less 1e-9 relative for rounding; w >= 1
+  is a lower bound of the factor a data cloud widens σ by off the data (the caller's,
+  :func:`kth_distance_to_boxes`: the distance to the k-th nearest row is at least the k-th smallest distance
+  from the box to the rows), or 1.
 
 A box is dropped where a limit is certainly broken there (the peak pressure at its lowest load and the
 angle made high; the load per ball; the minimum load; the friction force U G at its lowest), and where its
@@ -50,6 +55,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 from microbearing import physics
 
@@ -164,6 +170,8 @@ class _Bounds:
         self.calibrated_fixed = dict(calibrated_fixed)
         self.delta, self.z_quantile = angle_tolerance_deg, z_quantile
         self.widening = list(widening) if widening is not None else [None] * len(self.points)
+        #: The interval's level, for the groups' new-group variance. [1]
+        self.level = 1.0 - 2.0 * float(stats.norm.sf(z_quantile))
 
     def _physics(self, fitted: Mapping[str, float], balls: np.ndarray, theta: np.ndarray, load: np.ndarray,
                  speed: float) -> dict[str, np.ndarray]:
@@ -273,10 +281,38 @@ class _Bounds:
             low, high = np.where(finite[:, None], low, 0.0), np.where(finite[:, None], high, 0.0)
             quadratic = np.where(finite, _least_quadratic(s.covariance, low, high), 0.0)
         else:
+            finite = np.ones(n, dtype=bool)
+            low = high = np.zeros((n, 0))
             quadratic = np.zeros(n)
-        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2) * widened
+        shift, group_variance = self._groups(s, low, high, finite)
+        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * widened
         with np.errstate(all="ignore"):
-            return np.where(usable, mu_lo * np.exp(self.z_quantile * sigma), 0.0) * (1.0 - _ROUNDING)
+            return np.where(usable, mu_lo * np.exp(shift + self.z_quantile * sigma), 0.0) * (1.0 - _ROUNDING)
+
+    def _groups(self, s: IntervalStructure, low: np.ndarray, high: np.ndarray,
+                finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The least shift of log μ [1] and the least variance [1] the groups add over each box, at points
+        naming no group: a group on μ (or on a parameter the model does not fit) shifts by b0 and adds the
+        new-group variance v, constants; one on a fitted parameter p by s b0 and s² v, s = p g_p (the
+        sensitivity, g_p its gradient entry, in [p g_lo, p g_hi]): the least of s b0 at the interval's ends,
+        and s² v at its least (0 where the interval holds 0). Unknown gradients: shift -inf (no bound)."""
+        n = len(finite)
+        shift, variance = np.zeros(n), np.zeros(n)
+        names = list(s.fitted)
+        for group in s.groups:
+            v = group.new_group_variance(self.level)
+            if group.parameter != "mu" and group.parameter in s.fitted:
+                i, p = names.index(group.parameter), s.fitted[group.parameter]
+                a, b = low[:, i] * p, high[:, i] * p
+                s_lo, s_hi = np.minimum(a, b), np.maximum(a, b)
+                b0 = group.offset_log
+                shift += np.where(finite, np.minimum(s_lo * b0, s_hi * b0), -np.inf)
+                least = np.where((s_lo <= 0) & (s_hi >= 0), 0.0, np.minimum(s_lo**2, s_hi**2))
+                variance += np.where(finite, least, 0.0) * v
+            else:
+                shift += group.offset_log
+                variance += v
+        return shift, variance
 
     def lower(self, z: np.ndarray, tl: np.ndarray, th: np.ndarray, gl: np.ndarray,
               gh: np.ndarray) -> np.ndarray:

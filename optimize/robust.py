@@ -891,13 +891,11 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
     structures, why = interval_structures(held)
     if structures is None:
         return why
-    # The design boxes' bound composes the physics, additions and factors; a drift moves the physics' inputs,
-    # a group shifts log mu and a Gaussian-process discrepancy adds its own mean: none is in that bound yet.
+    # The design boxes' bound composes the physics, additions, factors and groups (at a point naming none);
+    # a drift moves the physics' inputs and a Gaussian-process discrepancy adds its own mean: not in it yet.
     for s in structures:
         if any(piece.kind == "drift" for piece in s.pieces):
             return "a term drifts a physics parameter, which the bound over design boxes does not take"
-        if s.groups:
-            return "a group effect shifts log mu, which the bound over design boxes does not take"
         if getattr(s.model, "discrepancy", None) is not None:
             return "a Gaussian-process discrepancy, which the bound over design boxes does not take"
     design = _design_of(result.result)
