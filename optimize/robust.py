@@ -891,11 +891,14 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
     structures, why = interval_structures(held)
     if structures is None:
         return why
-    # The design boxes' bound composes the physics, additions, factors and groups (at a point naming none);
-    # a drift moves the physics' inputs and a Gaussian-process discrepancy adds its own mean: not in it yet.
+    # The design boxes' bound composes the physics (with drifted parameters at the point), additions,
+    # factors and groups (at a point naming none); a Gaussian-process discrepancy adds its own mean: not in
+    # it yet.
     for s in structures:
-        if any(piece.kind == "drift" for piece in s.pieces):
-            return "a term drifts a physics parameter, which the bound over design boxes does not take"
+        for piece in s.pieces:
+            if piece.kind == "drift" and piece.term.driver not in ("speed_m_s", *envelope.conditions):
+                return (f"its term {piece.term.label!r} drifts a physics parameter with "
+                        f"{piece.term.driver}, which the bound over design boxes does not take")
         if getattr(s.model, "discrepancy", None) is not None:
             return "a Gaussian-process discrepancy, which the bound over design boxes does not take"
     design = _design_of(result.result)
@@ -911,8 +914,9 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
 
     def monomial_everywhere(point: Mapping[str, Any]) -> str:
         for s in structures:
-            terms = [piece.term for piece in s.pieces]
-            values = [list(piece.values) for piece in s.pieces]
+            effects = [piece for piece in s.pieces if piece.kind != "drift"]  # drifts: in the physics
+            terms = [piece.term for piece in effects]
+            values = [list(piece.values) for piece in effects]
             variants = [values] + [[*values[:k], [*v[:i], x + 1.0, *v[i + 1:]], *values[k + 1:]]
                                    for k, v in enumerate(values) for i, x in enumerate(v)]
             for each in variants:

@@ -374,3 +374,56 @@ def test_robust_mu_upper_with_groups_is_proven_and_no_grid_design_beats_the_boun
     assert worst.min() >= proof["lower_bound"]
     design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
     assert float(_brute_worst(model, held, design)[0]) <= proof["upper_bound"]
+
+
+# Drifting physics parameters: at a point each drifted value is the law at the point's driver value (a
+# constant over the design box), and its coefficient's share of the interval's gradient is bounded as the
+# envelope's bound does (DRIFT_SHARES).
+def _drift_model() -> CalibratedPhysicsModel:
+    from microbearing.calibrate.candidates import DriftTerm
+    from microbearing.physics.effects import DRIFT_LAWS
+
+    viscosity = DriftTerm("viscosity_Pa_s", "arrhenius", "temperature_C",
+                          DRIFT_LAWS["arrhenius"].constants("temperature_C", [20.0, 40.0, 60.0]))
+    pivot = DriftTerm("mu_pivot", "linear", "relative_humidity",
+                      DRIFT_LAWS["linear"].constants("relative_humidity", [0.3, 0.5, 0.7]))
+    base = _model().calibrated
+    # In the order of the values: mu_pivot, the two drifts' coefficients, then the other terms'.
+    covariance = np.zeros((6, 6))
+    keep = [0, 3, 4, 5]
+    covariance[np.ix_(keep, keep)] = base.covariance
+    covariance[1, 1], covariance[2, 2] = 1e6, 1e-2
+    calibrated = dataclasses.replace(
+        base, fixed={"viscosity_Pa_s": 0.05}, terms=[(viscosity, [3e4]), (pivot, [0.5]), *base.terms],
+        covariance=covariance)
+    return CalibratedPhysicsModel("calibrated:drifts", calibrated)
+
+
+def test_the_box_bound_takes_drifting_parameters_below_the_model_and_tight_on_small_boxes():
+    model = _drift_model()
+    drifting = _box_bound_checks(model, 13)
+    # The drifts count: without them (the viscosity held, mu_pivot not drifting) the bounds differ.
+    plain = _box_bound_checks(_model(), 13)
+    assert any(abs(d[2] / p[2] - 1) > 1e-2 for d, p in zip(drifting, plain, strict=True))
+
+
+def test_robust_mu_upper_with_drifts_is_proven_and_no_grid_design_beats_the_bound():
+    model = _drift_model()
+    problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05,
+                            Constraints(max_contact_pressure_Pa=5.5e8))
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", starts=2)
+    proof = result.proof
+    assert proof["lower_bound_boxes"] > 4, proof["statement"]
+    assert proof["proven"] and proof["relative_gap"] <= robust.GAP_TARGET, proof["statement"]
+    held = robust._with_model_values(problem, model)
+    grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 8), np.geomspace(0.002, 0.02, 12)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    made = held.physics_inputs(designs["balls"], designs["groove_angle_deg"] + 0.5, designs["load_N"])
+    pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
+                                       **made).max_contact_pressure_Pa
+    feasible = pressure <= 5.5e8
+    worst = _brute_worst(model, held, {k: v[feasible] for k, v in designs.items()}, levels=3)
+    assert worst.min() >= proof["lower_bound"]
+    design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
+    assert float(_brute_worst(model, held, design)[0]) <= proof["upper_bound"]
