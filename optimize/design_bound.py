@@ -362,6 +362,18 @@ class _Bounds:
             low = high = np.zeros((n, 0))
             quadratic = np.zeros(n)
         shift, group_variance = self._groups(s, low, high, finite)
+        if getattr(s.model, "discrepancy", None) is not None:
+            # The Gaussian-process discrepancy over the design box at the point: its least mean and least
+            # latent variance, every column of the model's points monotone in the angle and the load.
+            corners = []
+            for theta, load_end in ((tl, gl), (th, gh)):
+                columns = self.problem.physics_inputs(z, theta + offset, load_end,
+                                                      speed_m_s=np.full(n, speed))
+                corners.append({**{k: v for k, v in columns.items()
+                                   if k not in self.calibrated_fixed and k not in s.fitted},
+                                **{c: np.full(n, v) for c, v in point["conditions"].items()}})
+            shift = shift + s.model.discrepancy_bound(corners[0], corners[1], (n,))[0]
+            group_variance = group_variance + s.model.discrepancy_least_variance(corners[0], corners[1], (n,))
         sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * widened
         with np.errstate(all="ignore"):
             return np.where(usable, mu_lo * np.exp(shift + self.z_quantile * sigma), 0.0) * (1.0 - _ROUNDING)

@@ -873,6 +873,19 @@ _BRACKET_RTOL = 1e-7
 _DESIGN_PASSES = 3
 
 
+def _design_bound_parts(structures: Sequence[Any]) -> str:
+    """What the bound over design boxes takes besides the terms, for the statement."""
+    parts = []
+    if any(piece.kind == "drift" for s in structures for piece in s.pieces):
+        parts.append("each drifted physics parameter at its law's value at the point, its coefficient's "
+                     "share of the gradient by interval arithmetic")
+    if any(s.groups for s in structures):
+        parts.append("the groups' least shift s b0 and new-group variance at a point naming no group")
+    if any(getattr(s.model, "discrepancy", None) is not None for s in structures):
+        parts.append("the discrepancy's least mean and latent variance over the box")
+    return "".join(f", {p}" for p in parts)
+
+
 def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model, result: RobustResult,
                        deadline: float) -> RobustResult | str:
     """A mu_upper result with the certified lower bound over the designs (:mod:`optimize.design_bound`), and
@@ -892,15 +905,13 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
     if structures is None:
         return why
     # The design boxes' bound composes the physics (with drifted parameters at the point), additions,
-    # factors and groups (at a point naming none); a Gaussian-process discrepancy adds its own mean: not in
-    # it yet.
+    # factors, groups (at a point naming none) and a Gaussian-process discrepancy (its least mean and
+    # variance over the box); a drift's driver must be fixed at the point.
     for s in structures:
         for piece in s.pieces:
             if piece.kind == "drift" and piece.term.driver not in ("speed_m_s", *envelope.conditions):
                 return (f"its term {piece.term.label!r} drifts a physics parameter with "
                         f"{piece.term.driver}, which the bound over design boxes does not take")
-        if getattr(s.model, "discrepancy", None) is not None:
-            return "a Gaussian-process discrepancy, which the bound over design boxes does not take"
     design = _design_of(result.result)
     worst = result.worst_case
     offset = worst["groove_angle_deg"] - design["groove_angle_deg"]
@@ -991,7 +1002,8 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
         "monomial in balls and load there (read and checked), the composed mu and each fitted value's "
         "gradient of log mu by interval arithmetic, the least parameter variance g'Cg over the box of "
         "gradients from convexity (coordinate descent and its Frank-Wolfe gap), for the model and each "
-        f"rival{cloud}; boxes where a limit is certainly broken are dropped. ")
+        f"rival{cloud}{_design_bound_parts(structures)}; boxes where a limit is certainly broken are "
+        "dropped. ")
     if certified:
         statement += ("Upper end certified by branch and bound over the envelope at the design: "
                       f"{upper:.10g}. ")
