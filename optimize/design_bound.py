@@ -37,8 +37,9 @@ and the right side is bounded below by branch and bound over the designs: per ba
   model does not fit) shifts log μ by its offset b0 and adds its new-group variance v, constants; one on a
   fitted parameter p by s b0 and s² v, s = p g_p its sensitivity, g_p in the gradient's box: the least
   of s b0 at the box's ends and s² v at its least (0 where the box holds s = 0);
-* a Gaussian-process discrepancy adds its least mean over the box to the shift and its least latent
-  variance to σ² (:meth:`calibrate.model.GPCorrection.bound`, :meth:`~calibrate.model.GPCorrection.least_variance`), every column of the model's points at the box's two corners (monotone in θ and G);
+* a Gaussian-process discrepancy adds its least mean over the box to the shift and its least latent variance
+  to σ² (:meth:`calibrate.model.GPCorrection.bound`, :meth:`~calibrate.model.GPCorrection.least_variance`),
+  every column of the model's points at the box's two corners (monotone in θ and G);
 * so U >= μ_lo exp(shift + z sqrt(least g'Cg + groups' variance + noise²) w), for the model and for each
   rival whose interval enters U (U is the largest of their bounds), less 1e-9 relative for rounding; w >= 1
   is a lower bound of the factor a data cloud widens σ by off the data (the caller's,

@@ -65,10 +65,11 @@ For ``mu_upper`` the worst case at a design is bracketed the same way (interval 
 form, :func:`optimize.envelope_bound.mu_upper_box_bound`), and the best achievable worst case is bounded
 below by branch and bound over the designs at the worst envelope points (:mod:`optimize.design_bound`):
 min over designs of the largest ``mu_upper`` at fixed points is at most the best achievable worst case,
-and each box of designs gets a certified lower bound of it (drifted parameters at their law's value at
-the point, groups and a Gaussian-process discrepancy at their least over the box included). Both ends
-within :data:`GAP_TARGET` are a proof; a model whose interval widens off its data cloud has its worst case at a design searched (the
-lower bound leaves the widening out and stays valid), so it gets a tight lower bound and no proof.
+and each box of designs gets a certified lower bound of it (drifted parameters at their law's value at the
+point, groups and a Gaussian-process discrepancy at their least over the box included). Both ends within
+:data:`GAP_TARGET` are a proof; a model whose interval widens off its data cloud has its worst case at a
+design searched (the lower bound leaves the widening out and stays valid), so it gets a tight lower bound
+and no proof.
 
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
