@@ -139,18 +139,9 @@ class GPCorrection:
         mean, std = self.gp.predict(x, return_std=True)
         return mean.reshape(shape), np.square(std).reshape(shape)
 
-    def bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Certified bounds over boxes of points (each feature between its ``low`` and ``high`` value,
-        columnar, one box per entry): the least and largest mean and the largest latent variance [1].
-
-        The mean is y_mean + y_std sum_i alpha_i k(x, x_i) and the RBF kernel k(x, x_i) = A exp(-½ sum_d
-        ((x_d - x_id) / l_d)²) lies between its values at the per-axis farthest and nearest distance from
-        x_i to the box: each term at its end by the sign of alpha_i. The latent variance is y_std² (A -
-        q(k)), q(k) = k' K⁻¹ k convex (K⁻¹ positive definite), so q at any k is at least its tangent plane
-        at the box's centre's k0, q(k0) + 2 (K⁻¹ k0)'(k - k0), least over the box of kernel values at one
-        of each term's ends. Both bounds tend to the values as the box shrinks.
-        """
+    def _kernel_ends(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]) -> tuple:
+        """Per box and training point: the box's scaled corners, the length scales, the farthest and the
+        centre's scaled offsets, and the kernel's least, largest and centre values (:meth:`bound`)."""
         gp = self.gp
         size = int(np.prod(shape))
         train = np.asarray(gp.X_train_, dtype=float)
@@ -171,6 +162,44 @@ class GPCorrection:
         k_max = self.amplitude * np.exp(-0.5 * np.sum(near * near, axis=2))
         k_min = self.amplitude * np.exp(-0.5 * np.sum(far * far, axis=2))
         k_0 = self.amplitude * np.exp(-0.5 * np.sum(middle * middle, axis=2))
+        return lo, hi, length, far, middle, k_min, k_max, k_0
+
+    def least_variance(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
+                       ) -> np.ndarray:
+        """A certified lower bound of the latent variance over boxes of points (as :meth:`bound`) [1].
+
+        The variance is y_std² (A - q(k)), q(k) = k' K⁻¹ k; by Taylor's theorem at the box's centre's k0,
+        q(k) = q(k0) + 2 (K⁻¹ k0)'(k - k0) + (k - k0)' K⁻¹ (k - k0), the last at most |k - k0|² / α (K is
+        the kernel matrix plus α, the white noise, on its diagonal: its least eigenvalue is at least α), each
+        k_i between its least and largest value over the box: q at most the linear part at each term's worse
+        end plus that square, tending to the value as the box shrinks.
+        """
+        gp = self.gp
+        _, _, _, _, _, k_min, k_max, k_0 = self._kernel_ends(low, high, shape)
+        y_std = float(np.ravel(gp._y_train_std)[0])
+        solved = cho_solve((gp.L_, True), k_0.T).T  # K^-1 k0 per box
+        gradient = 2.0 * solved
+        spread = np.maximum(np.abs(k_min - k_0), np.abs(k_max - k_0))
+        most = (np.sum(k_0 * solved, axis=1)
+                + np.sum(np.maximum(gradient * (k_min - k_0), gradient * (k_max - k_0)), axis=1)
+                + np.sum(spread * spread, axis=1) / self.noise)
+        variance = np.clip(self.amplitude - most, 0.0, self.amplitude) * y_std**2
+        return np.clip(variance * (1.0 - 1e-9) - 1e-15 * self.amplitude * y_std**2, 0.0, None).reshape(shape)
+
+    def bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Certified bounds over boxes of points (each feature between its ``low`` and ``high`` value,
+        columnar, one box per entry): the least and largest mean and the largest latent variance [1].
+
+        The mean is y_mean + y_std sum_i alpha_i k(x, x_i) and the RBF kernel k(x, x_i) = A exp(-½ sum_d
+        ((x_d - x_id) / l_d)²) lies between its values at the per-axis farthest and nearest distance from
+        x_i to the box: each term at its end by the sign of alpha_i. The latent variance is y_std² (A -
+        q(k)), q(k) = k' K⁻¹ k convex (K⁻¹ positive definite), so q at any k is at least its tangent plane
+        at the box's centre's k0, q(k0) + 2 (K⁻¹ k0)'(k - k0), least over the box of kernel values at one
+        of each term's ends. Both bounds tend to the values as the box shrinks.
+        """
+        gp = self.gp
+        lo, hi, length, far, middle, k_min, k_max, k_0 = self._kernel_ends(low, high, shape)
         alpha = np.asarray(gp.alpha_, dtype=float).ravel()
         y_std = float(np.ravel(gp._y_train_std)[0])
         y_mean = float(np.ravel(gp._y_train_mean)[0])
@@ -569,6 +598,15 @@ class CalibratedModel:
             return np.zeros(shape), np.zeros(shape), np.zeros(shape)
         columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
         return self.discrepancy.bound(columns[0], columns[1], shape)
+
+    def discrepancy_least_variance(self, low: Mapping[str, Any], high: Mapping[str, Any],
+                                   shape) -> np.ndarray:
+        """A lower bound of the GP discrepancy's latent variance over boxes of points (as
+        :meth:`discrepancy_bound`) [1] (:meth:`GPCorrection.least_variance`); zeros without one."""
+        if self.discrepancy is None:
+            return np.zeros(shape)
+        columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
+        return self.discrepancy.least_variance(columns[0], columns[1], shape)
 
     def cloud_ratio_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape,
                           lower: bool = False) -> np.ndarray:

@@ -26,10 +26,25 @@ and the right side is bounded below by branch and bound over the designs: per ba
   g'Cg >= ĝ'Cĝ + 2 (Cĝ)'(g - ĝ) >= ĝ'Cĝ + Σ_i min over g_i's ends of 2 (Cĝ)_i (g_i - ĝ_i), a bound
   whatever ĝ is (the Frank-Wolfe gap; interval arithmetic on the quadratic form when C is not positive
   semi-definite);
-* so U >= μ_lo exp(z sqrt(least g'Cg + noise²) w), for the model and for each rival whose interval
-  enters U (U is the largest of their bounds), less 1e-9 relative for rounding; w >= 1 is a lower bound
-  of the factor a data cloud widens σ by off the data (the caller's, :func:`kth_distance_to_boxes`: the
-  distance to the k-th nearest row is at least the k-th smallest distance from the box to the rows), or 1.
+* a drifting physics parameter (a drift term) is, at a fixed point, the law at the point's driver value (a
+  condition): a constant over the design box, given to the physics as its input
+  (:func:`optimize.envelope_bound.drift_ranges`); its coefficient's (or level's) finite-difference step
+  moves the parameter by a known ratio, and the parameter's share of the physics
+  (:data:`~optimize.envelope_bound.DRIFT_SHARES`: an output whose friction force grows like F) by that
+  ratio to its power, so its gradient entry by interval arithmetic as the envelope's bound does; a fitted
+  value a drift with its own level replaces has gradient entry 0;
+* group effects at a point naming no group (:meth:`_Bounds._groups`): one on μ (or on a parameter the
+  model does not fit) shifts log μ by its offset b0 and adds its new-group variance v, constants; one on a
+  fitted parameter p by s b0 and s² v, s = p g_p its sensitivity, g_p in the gradient's box: the least
+  of s b0 at the box's ends and s² v at its least (0 where the box holds s = 0);
+* a Gaussian-process discrepancy adds its least mean over the box to the shift and its least latent variance
+  to σ² (:meth:`calibrate.model.GPCorrection.bound`, :meth:`~calibrate.model.GPCorrection.least_variance`),
+  every column of the model's points at the box's two corners (monotone in θ and G);
+* so U >= μ_lo exp(shift + z sqrt(least g'Cg + groups' variance + noise²) w), for the model and for each
+  rival whose interval enters U (U is the largest of their bounds), less 1e-9 relative for rounding; w >= 1
+  is a lower bound of the factor a data cloud widens σ by off the data (the caller's,
+  :func:`kth_distance_to_boxes`: the distance to the k-th nearest row is at least the k-th smallest distance
+  from the box to the rows), or 1.
 
 A box is dropped where a limit is certainly broken there (the peak pressure at its lowest load and the
 angle made high; the load per ball; the minimum load; the friction force U G at its lowest), and where its
@@ -50,15 +65,21 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 from microbearing import physics
 
 from .envelope_bound import (
     _VALUE_FORMS,
+    DRIFT_DIRECTIONS,
+    DRIFT_SHARES,
+    INTERVAL_OUTPUTS,
     LINEAR_DECLARED,
     BoundFailedError,
     IntervalStructure,
+    _product,
     _times_positive,
+    drift_ranges,
 )
 from .problem import DesignProblem
 
@@ -164,10 +185,12 @@ class _Bounds:
         self.calibrated_fixed = dict(calibrated_fixed)
         self.delta, self.z_quantile = angle_tolerance_deg, z_quantile
         self.widening = list(widening) if widening is not None else [None] * len(self.points)
+        #: The interval's level, for the groups' new-group variance. [1]
+        self.level = 1.0 - 2.0 * float(stats.norm.sf(z_quantile))
 
-    def _physics(self, fitted: Mapping[str, float], balls: np.ndarray, theta: np.ndarray, load: np.ndarray,
+    def _physics(self, fitted: Mapping[str, Any], balls: np.ndarray, theta: np.ndarray, load: np.ndarray,
                  speed: float) -> dict[str, np.ndarray]:
-        outputs = ["mu", *LINEAR_DECLARED.values()]
+        outputs = list(dict.fromkeys(["mu", *LINEAR_DECLARED.values(), *INTERVAL_OUTPUTS]))
         columns = self.problem.physics_inputs(balls, theta, load, speed_m_s=speed)
         inputs = {k: v for k, v in columns.items() if k not in fitted}
         with np.errstate(all="ignore"):
@@ -179,7 +202,20 @@ class _Bounds:
              th: np.ndarray, gl: np.ndarray, gh: np.ndarray, widened: np.ndarray) -> np.ndarray:
         n = len(z)
         offset, speed = float(point["groove_angle_offset_deg"]), float(point["speed_m_s"])
-        phys = self._physics(s.fitted, np.r_[z, z], np.r_[tl, th] + offset, np.r_[gl, gh], speed)
+
+        def driver_interval(driver: str) -> tuple[np.ndarray, np.ndarray, None]:
+            """A drift's driver (a condition, or the speed) over the boxes: fixed at the point."""
+            value = speed if driver == "speed_m_s" else float(point["conditions"][driver])
+            return np.full(n, value), np.full(n, value), None
+
+        # A drifting parameter at the point: the law at the driver's value, a constant over the box (at its
+        # end where mu is least for the lowest corner and largest for the highest, were it an interval).
+        drifts = [piece for piece in s.pieces if piece.kind == "drift"]
+        drifted = drift_ranges(drifts, {**physics.defaults(), **self.problem.fixed, **self.calibrated_fixed,
+                                        **s.fitted}, driver_interval, n)
+        moved = {name: np.r_[(low, high) if DRIFT_DIRECTIONS[name] > 0 else (high, low)]
+                 for name, (low, high) in drifted.items()}
+        phys = self._physics({**s.fitted, **moved}, np.r_[z, z], np.r_[tl, th] + offset, np.r_[gl, gh], speed)
         load = np.r_[gl, gh]
         force = phys["mu"] * load
         f_lo, f_hi = force[:n], force[n:]
@@ -194,6 +230,9 @@ class _Bounds:
 
         ranges = []
         for piece in s.pieces:
+            if piece.kind == "drift":  # moves the physics' inputs, no factor of its own
+                ranges.append((np.ones(n), np.ones(n)))
+                continue
             v = at(piece)
             ranges.append((v.min(axis=1), v.max(axis=1)) if np.all(np.isfinite(v))
                           else (np.full(n, -np.inf), np.full(n, np.inf)))
@@ -227,11 +266,56 @@ class _Bounds:
             g_lo.append(np.where(ok, np.log1p(np.where(ok, ratio_lo, 0.0)) / h, -np.inf))
             g_hi.append(np.where(ok, np.log1p(np.where(ok, ratio_hi, 0.0)) / h, np.inf))
 
+        def drift_ratio(piece: Any, i: int, h: float) -> tuple[np.ndarray, np.ndarray, float]:
+            """D / mu for a step h in a drift's coefficient (i = 0) or level (i = 1), as
+            :func:`optimize.envelope_bound.mu_upper_box_bound` takes it: the parameter moves by the ratio
+            f(c + h, x) / f(c, x) (x the driver's value at the point) or
+            (level + h) / level, one inside the ratio's interval where the parameter may be clipped; its
+            share of the physics (``DRIFT_SHARES``: an output whose friction force grows like F) by
+            ratio^a - 1; mu by that change times the factors after the physics."""
+            term = piece.term
+            output, exponent = DRIFT_SHARES[term.parameter]
+            if i == 0:
+                a, b, _ = driver_interval(term.driver)
+                c = piece.values[0]
+                with np.errstate(all="ignore"):
+                    ratios = [np.asarray(term.factor({term.driver: x}, c + h), dtype=float)
+                              / np.asarray(term.factor({term.driver: x}, c), dtype=float) for x in (a, b)]
+                ratio_lo, ratio_hi = np.minimum(*ratios), np.maximum(*ratios)
+            else:
+                ratio_lo = ratio_hi = np.full(n, (piece.values[1] + h) / piece.values[1])
+            spec = physics.PARAMETERS[term.parameter]
+            low, high = drifted[term.parameter]
+            clipped = ((spec.minimum is not None) & (low <= spec.minimum)) | (
+                (spec.maximum is not None) & (high >= np.nextafter(spec.maximum, -np.inf)))
+            ratio_lo = np.where(clipped, np.minimum(ratio_lo, 1.0), ratio_lo)
+            ratio_hi = np.where(clipped, np.maximum(ratio_hi, 1.0), ratio_hi)
+            ok = ratio_lo > 0
+            with np.errstate(all="ignore"):
+                d_lo = np.where(ok, np.power(np.where(ok, ratio_lo, 1.0), exponent) - 1.0, -np.inf)
+                d_hi = np.where(ok, np.power(np.where(ok, ratio_hi, 1.0), exponent) - 1.0, np.inf)
+            share = phys[output] * load  # the share's friction force, growing like F
+            if adds_after(-1):
+                p_lo, p_hi = after(-1)
+                change = _product(d_lo, d_hi, share[:n] / gh, share[n:] / gl)
+                r_lo, r_hi = _product(*change, p_lo / mu_hi, p_hi / safe_lo)
+            else:  # mu = physics x the factors: D / mu = D_phys / physics, and G cancels
+                good = f_lo > 0
+                change = _product(d_lo, d_hi, share[:n], share[n:])
+                r_lo, r_hi = _product(*change, 1.0 / f_hi, 1.0 / np.where(good, f_lo, np.nan))
+                r_lo, r_hi = np.where(good, r_lo, -np.inf), np.where(good, r_hi, np.inf)
+            return np.nan_to_num(r_lo, nan=-np.inf), np.nan_to_num(r_hi, nan=np.inf), h
+
+        # A fitted value a drift with its own level replaces has no effect on mu: its gradient entry is 0.
+        replaced = {piece.term.parameter for piece in drifts if piece.term.level}
         for name, value in s.fitted.items():
             h = s.step * (abs(value) if value != 0 else 1.0)
             share = phys[LINEAR_DECLARED[name]] * load  # the share's friction force, growing like F
             s_lo, s_hi = share[:n], share[n:]
-            if value <= 0:
+            if name in replaced:
+                g_lo.append(np.zeros(n))
+                g_hi.append(np.zeros(n))
+            elif value <= 0:
                 gradient(np.full(n, -np.inf), np.full(n, np.inf), h)
             elif adds_after(-1):
                 p_lo, p_hi = after(-1)
@@ -244,6 +328,10 @@ class _Bounds:
                          np.where(ok, h * s_hi / (value * np.where(ok, f_lo, 1.0)), np.inf), h)
         for k, piece in enumerate(s.pieces):
             p_lo, p_hi = after(k)
+            if piece.kind == "drift":
+                for i, value in enumerate(piece.values):
+                    gradient(*drift_ratio(piece, i, s.step * (abs(value) if value != 0 else 1.0)))
+                continue
             for i, value in enumerate(piece.values):
                 h = s.step * (abs(value) if value != 0 else 1.0)
                 form = _VALUE_FORMS[(piece.term.name, i)]
@@ -273,10 +361,50 @@ class _Bounds:
             low, high = np.where(finite[:, None], low, 0.0), np.where(finite[:, None], high, 0.0)
             quadratic = np.where(finite, _least_quadratic(s.covariance, low, high), 0.0)
         else:
+            finite = np.ones(n, dtype=bool)
+            low = high = np.zeros((n, 0))
             quadratic = np.zeros(n)
-        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + s.noise_std_log**2) * widened
+        shift, group_variance = self._groups(s, low, high, finite)
+        if getattr(s.model, "discrepancy", None) is not None:
+            # The Gaussian-process discrepancy over the design box at the point: its least mean and least
+            # latent variance, every column of the model's points monotone in the angle and the load.
+            corners = []
+            for theta, load_end in ((tl, gl), (th, gh)):
+                columns = self.problem.physics_inputs(z, theta + offset, load_end,
+                                                      speed_m_s=np.full(n, speed))
+                corners.append({**{k: v for k, v in columns.items()
+                                   if k not in self.calibrated_fixed and k not in s.fitted},
+                                **{c: np.full(n, v) for c, v in point["conditions"].items()}})
+            shift = shift + s.model.discrepancy_bound(corners[0], corners[1], (n,))[0]
+            group_variance = group_variance + s.model.discrepancy_least_variance(corners[0], corners[1], (n,))
+        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * widened
         with np.errstate(all="ignore"):
-            return np.where(usable, mu_lo * np.exp(self.z_quantile * sigma), 0.0) * (1.0 - _ROUNDING)
+            return np.where(usable, mu_lo * np.exp(shift + self.z_quantile * sigma), 0.0) * (1.0 - _ROUNDING)
+
+    def _groups(self, s: IntervalStructure, low: np.ndarray, high: np.ndarray,
+                finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The least shift of log μ [1] and the least variance [1] the groups add over each box, at points
+        naming no group: a group on μ (or on a parameter the model does not fit) shifts by b0 and adds the
+        new-group variance v, constants; one on a fitted parameter p by s b0 and s² v, s = p g_p (the
+        sensitivity, g_p its gradient entry, in [p g_lo, p g_hi]): the least of s b0 at the interval's ends,
+        and s² v at its least (0 where the interval holds 0). Unknown gradients: shift -inf (no bound)."""
+        n = len(finite)
+        shift, variance = np.zeros(n), np.zeros(n)
+        names = list(s.fitted)
+        for group in s.groups:
+            v = group.new_group_variance(self.level)
+            if group.parameter != "mu" and group.parameter in s.fitted:
+                i, p = names.index(group.parameter), s.fitted[group.parameter]
+                a, b = low[:, i] * p, high[:, i] * p
+                s_lo, s_hi = np.minimum(a, b), np.maximum(a, b)
+                b0 = group.offset_log
+                shift += np.where(finite, np.minimum(s_lo * b0, s_hi * b0), -np.inf)
+                least = np.where((s_lo <= 0) & (s_hi >= 0), 0.0, np.minimum(s_lo**2, s_hi**2))
+                variance += np.where(finite, least, 0.0) * v
+            else:
+                shift += group.offset_log
+                variance += v
+        return shift, variance
 
     def lower(self, z: np.ndarray, tl: np.ndarray, th: np.ndarray, gl: np.ndarray,
               gh: np.ndarray) -> np.ndarray:

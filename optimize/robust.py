@@ -65,9 +65,11 @@ For ``mu_upper`` the worst case at a design is bracketed the same way (interval 
 form, :func:`optimize.envelope_bound.mu_upper_box_bound`), and the best achievable worst case is bounded
 below by branch and bound over the designs at the worst envelope points (:mod:`optimize.design_bound`):
 min over designs of the largest ``mu_upper`` at fixed points is at most the best achievable worst case,
-and each box of designs gets a certified lower bound of it. Both ends within :data:`GAP_TARGET` are a
-proof; a model whose interval widens off its data cloud has its worst case at a design searched (the
-lower bound leaves the widening out and stays valid), so it gets a tight lower bound and no proof.
+and each box of designs gets a certified lower bound of it (drifted parameters at their law's value at the
+point, groups and a Gaussian-process discrepancy at their least over the box included). Both ends within
+:data:`GAP_TARGET` are a proof; a model whose interval widens off its data cloud has its worst case at a
+design searched (the lower bound leaves the widening out and stays valid), so it gets a tight lower bound
+and no proof.
 
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
@@ -873,6 +875,19 @@ _BRACKET_RTOL = 1e-7
 _DESIGN_PASSES = 3
 
 
+def _design_bound_parts(structures: Sequence[Any]) -> str:
+    """What the bound over design boxes takes besides the terms, for the statement."""
+    parts = []
+    if any(piece.kind == "drift" for s in structures for piece in s.pieces):
+        parts.append("each drifted physics parameter at its law's value at the point, its coefficient's "
+                     "share of the gradient by interval arithmetic")
+    if any(s.groups for s in structures):
+        parts.append("the groups' least shift s b0 and new-group variance at a point naming no group")
+    if any(getattr(s.model, "discrepancy", None) is not None for s in structures):
+        parts.append("the discrepancy's least mean and latent variance over the box")
+    return "".join(f", {p}" for p in parts)
+
+
 def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model, result: RobustResult,
                        deadline: float) -> RobustResult | str:
     """A mu_upper result with the certified lower bound over the designs (:mod:`optimize.design_bound`), and
@@ -891,15 +906,14 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
     structures, why = interval_structures(held)
     if structures is None:
         return why
-    # The design boxes' bound composes the physics, additions and factors; a drift moves the physics' inputs,
-    # a group shifts log mu and a Gaussian-process discrepancy adds its own mean: none is in that bound yet.
+    # The design boxes' bound composes the physics (with drifted parameters at the point), additions,
+    # factors, groups (at a point naming none) and a Gaussian-process discrepancy (its least mean and
+    # variance over the box); a drift's driver must be fixed at the point.
     for s in structures:
-        if any(piece.kind == "drift" for piece in s.pieces):
-            return "a term drifts a physics parameter, which the bound over design boxes does not take"
-        if s.groups:
-            return "a group effect shifts log mu, which the bound over design boxes does not take"
-        if getattr(s.model, "discrepancy", None) is not None:
-            return "a Gaussian-process discrepancy, which the bound over design boxes does not take"
+        for piece in s.pieces:
+            if piece.kind == "drift" and piece.term.driver not in ("speed_m_s", *envelope.conditions):
+                return (f"its term {piece.term.label!r} drifts a physics parameter with "
+                        f"{piece.term.driver}, which the bound over design boxes does not take")
     design = _design_of(result.result)
     worst = result.worst_case
     offset = worst["groove_angle_deg"] - design["groove_angle_deg"]
@@ -913,8 +927,9 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
 
     def monomial_everywhere(point: Mapping[str, Any]) -> str:
         for s in structures:
-            terms = [piece.term for piece in s.pieces]
-            values = [list(piece.values) for piece in s.pieces]
+            effects = [piece for piece in s.pieces if piece.kind != "drift"]  # drifts: in the physics
+            terms = [piece.term for piece in effects]
+            values = [list(piece.values) for piece in effects]
             variants = [values] + [[*values[:k], [*v[:i], x + 1.0, *v[i + 1:]], *values[k + 1:]]
                                    for k, v in enumerate(values) for i, x in enumerate(v)]
             for each in variants:
@@ -989,7 +1004,8 @@ def _with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model,
         "monomial in balls and load there (read and checked), the composed mu and each fitted value's "
         "gradient of log mu by interval arithmetic, the least parameter variance g'Cg over the box of "
         "gradients from convexity (coordinate descent and its Frank-Wolfe gap), for the model and each "
-        f"rival{cloud}; boxes where a limit is certainly broken are dropped. ")
+        f"rival{cloud}{_design_bound_parts(structures)}; boxes where a limit is certainly broken are "
+        "dropped. ")
     if certified:
         statement += ("Upper end certified by branch and bound over the envelope at the design: "
                       f"{upper:.10g}. ")
