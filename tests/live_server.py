@@ -75,10 +75,8 @@ class Server:
                **{f"MICROBEARING_{name.upper()}": str(value) for name, value in settings.items()}}
         env.pop("PROMETHEUS_MULTIPROC_DIR", None)
         self.log = log.open("ab")
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "uvicorn", "microbearing.service.app:app", "--host", "127.0.0.1",
-             "--port", str(self.port), "--no-access-log"],
-            cwd=REPO, env=env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
+        self.process = subprocess.Popen(self.command(data_dir), cwd=REPO, env=env, stdout=self.log,
+                                        stderr=subprocess.STDOUT, start_new_session=True)
         self.url = f"http://127.0.0.1:{self.port}"
         self.client = httpx.Client(base_url=self.url, timeout=60.0)
         try:
@@ -86,6 +84,11 @@ class Server:
         except RuntimeError:
             self.stop()
             raise
+
+    def command(self, data_dir: Path) -> list[str]:
+        """The server's command line (the data folder is also in ``MICROBEARING_DATA_DIR``)."""
+        return [sys.executable, "-m", "uvicorn", "microbearing.service.app:app", "--host", "127.0.0.1",
+                "--port", str(self.port), "--no-access-log"]
 
     def kill(self) -> None:
         """SIGKILL: no shutdown handler runs, exactly as in a power cut of the process."""

@@ -10,14 +10,12 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
 
-import httpx
 import pytest
-from live_server import REPO, free_port, wait_healthy
+from live_server import Server
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="SIGKILL and process groups are POSIX")
 
@@ -33,36 +31,12 @@ def auth(key: str) -> dict[str, str]:
     return {"Authorization": f"Bearer {key}"}
 
 
-class Serve:
+class Serve(Server):
     """``microbearing serve`` on a free loopback port, with its own data folder, in its own process group."""
 
-    def __init__(self, data_dir: Path, log: Path, **settings: str):
-        self.port = free_port()
-        self.data_dir = data_dir
-        env = {**os.environ, **{f"MICROBEARING_{k.upper()}": str(v) for k, v in settings.items()}}
-        env.pop("PROMETHEUS_MULTIPROC_DIR", None)
-        self.log = log.open("ab")
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "microbearing.service.cli", "serve", "--port", str(self.port),
-             "--data-dir", str(data_dir)],
-            cwd=REPO, env=env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
-        self.client = httpx.Client(base_url=f"http://127.0.0.1:{self.port}", timeout=60.0)
-        try:
-            wait_healthy(f"http://127.0.0.1:{self.port}", self.process, log)
-        except RuntimeError:
-            self.stop()
-            raise
-
-    def stop(self) -> None:
-        if self.process.poll() is None:
-            os.killpg(self.process.pid, signal.SIGTERM)
-            try:
-                self.process.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.process.pid, signal.SIGKILL)
-                self.process.wait(timeout=30)
-        self.client.close()
-        self.log.close()
+    def command(self, data_dir: Path) -> list[str]:
+        return [sys.executable, "-m", "microbearing.service.cli", "serve", "--port", str(self.port),
+                "--data-dir", str(data_dir)]
 
 
 def wait_status(server: Serve, location: str, statuses: tuple[str, ...], headers: dict,
