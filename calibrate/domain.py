@@ -17,6 +17,17 @@ Where two columns move together, the interval also holds the rivals by confoundi
 (:mod:`calibrate.rivals`): terms on the column the model does not read that the data lean to but cannot
 decide, whose envelope parts from the model where one column is varied without the other.
 
+**Lines along which columns move together.** Where two columns' ranks move together
+(|Spearman rho| >= :data:`CONFOUNDED_RHO`), the rows lie near a line in those two scaled columns, and a
+point off that line (140 mm/s at 27 degC when the lab heated up as it sped up) is where the data cannot
+say which of the two acts; yet in five or more columns its distance to the k-th nearest row may stay
+below the threshold. So the score is the larger of the k-NN ratio and the departure from the lines (the
+distance from the least-squares line of one scaled column on the other, in units of the rows' own
+scatter about it, over its own split-conformal threshold); alpha is shared between the two tests, so a
+point drawn like the data is still flagged with chance about alpha. The departure is linear in two
+scaled columns: its range over a box of inputs is exact at the box's corners, which the certified
+bounds of :mod:`optimize.envelope_bound` use.
+
 **Confounding.** :func:`confounded_pairs` names every pair of varying columns whose ranks move
 together (|Spearman rho| >= :data:`CONFOUNDED_RHO`): whatever one of them seems to do, the other
 could be doing, and only rows where they part would tell.
@@ -24,6 +35,7 @@ could be doing, and only rows where they part would tell.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -113,10 +125,66 @@ class DataCloud:
             k = min(_K, sub.shape[0] - 1)
             own = tree.query(sub, k=k + 1)[0][:, -1]  # the k-th neighbour other than the row itself
             n = own.size
-            rank = min(math.ceil((1.0 - self.alpha) * (n + 1)), n)
+            rank = min(math.ceil((1.0 - self._alpha_each(given)) * (n + 1)), n)
             self._cache[key] = (index, tree, float(np.sort(own)[rank - 1]), k)
         index, tree, threshold, _ = self._cache[key]
         return index, tree, threshold
+
+    def _lines(self, given: Sequence[str]) -> tuple[list[tuple[int, int, float, float, float]], float]:
+        """The lines along which pairs of the given columns move together, and their threshold.
+
+        For every pair whose ranks move together in the rows (|Spearman rho| >= :data:`CONFOUNDED_RHO`),
+        the least-squares line of the second scaled column on the first, ``x_j = a + b x_i``, and the
+        scatter ``s`` of the rows about it: ``(i, j, a, b, s)`` with positions in ``given``. A row's
+        departure is its largest ``|x_j - a - b x_i| / s`` over the lines; the threshold is the
+        split-conformal ``ceil((1 - alpha / 2)(n + 1))``-th smallest of the rows' own departures (the
+        k-NN threshold takes the other half of alpha, :meth:`_alpha_each`).
+        """
+        key = ("lines", tuple(given))
+        if key not in self._cache:
+            index = [self.columns.index(c) for c in given]
+            sub = self.rows[:, index]
+            lines, departures = [], []
+            for p, q in itertools.combinations(range(len(index)), 2):
+                rho = stats.spearmanr(sub[:, p], sub[:, q]).statistic
+                if not np.isfinite(rho) or abs(rho) < CONFOUNDED_RHO:
+                    continue
+                b, a = np.polyfit(sub[:, p], sub[:, q], 1)
+                residual = sub[:, q] - a - b * sub[:, p]
+                spread = max(float(np.std(residual)), 1e-9)
+                lines.append((p, q, float(a), float(b), spread))
+                departures.append(np.abs(residual) / spread)
+            threshold = 0.0
+            if lines:
+                own = np.max(np.column_stack(departures), axis=1)
+                n = own.size
+                rank = min(math.ceil((1.0 - self.alpha / 2.0) * (n + 1)), n)
+                threshold = max(float(np.sort(own)[rank - 1]), 1e-12)
+            self._cache[key] = (lines, threshold)
+        return self._cache[key]
+
+    def _alpha_each(self, given: Sequence[str]) -> float:
+        """The chance of a flag each test (the k-NN distance, the departure from the lines) is given: alpha
+        shared between the two where the given columns have lines, so that a point drawn like the data is
+        flagged with chance at most alpha in all."""
+        return self.alpha / 2.0 if self._lines(given)[0] else self.alpha
+
+    def _line_ratio(self, given: Sequence[str], lo: np.ndarray, hi: np.ndarray, lower: bool) -> np.ndarray:
+        """The departure from the lines over the threshold, bounded over boxes of scaled inputs (rows of
+        ``lo`` and ``hi``; a point is a box with lo = hi): its largest value (``lower`` false) or least
+        (true). Each departure is linear in two scaled columns, so over a box it lies between its values
+        at the box's corners: exact, not only a bound."""
+        lines, threshold = self._lines(given)
+        ratio = np.zeros(lo.shape[0])
+        for p, q, a, b, spread in lines:
+            low = lo[:, q] - a - np.where(b > 0, b * hi[:, p], b * lo[:, p])
+            high = hi[:, q] - a - np.where(b > 0, b * lo[:, p], b * hi[:, p])
+            if lower:
+                least = np.where((low <= 0) & (high >= 0), 0.0, np.minimum(np.abs(low), np.abs(high)))
+                ratio = np.maximum(ratio, least / spread)
+            else:
+                ratio = np.maximum(ratio, np.maximum(np.abs(low), np.abs(high)) / spread)
+        return ratio / threshold if lines else ratio
 
     def score(self, points: Mapping[str, Any], shape: tuple[int, ...]) -> tuple[np.ndarray, list[str]]:
         """Distance to the k-th nearest row over the threshold at each point (> 1: outside), and the
@@ -134,7 +202,8 @@ class DataCloud:
         ])
         distance = tree.query(x, k=k)[0]
         distance = distance[:, -1] if distance.ndim == 2 else distance
-        return (distance / max(threshold, 1e-12)).reshape(shape), given
+        ratio = np.maximum(distance / max(threshold, 1e-12), self._line_ratio(given, x, x, lower=False))
+        return ratio.reshape(shape), given
 
     def widening(self, ratio: Any) -> np.ndarray:
         """Factor on the prediction interval's log half-width at a distance ratio (:meth:`score`) [1]:
@@ -192,7 +261,9 @@ class DataCloud:
         farthest = np.sqrt(np.sum(far * far, axis=2))
         kth = np.partition(farthest, k - 1, axis=1)[:, k - 1]
         # Rounding: the tree's own distances and these differ by a few ulps.
-        return (kth * (1.0 + 1e-12) / max(threshold, 1e-12)).reshape(shape)
+        given = [c for c in self.columns if c in low]
+        ratio = np.maximum(kth / max(threshold, 1e-12), self._line_ratio(given, lo, hi, lower=False))
+        return (ratio * (1.0 + 1e-12)).reshape(shape)
 
     def score_lower_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
                           ) -> np.ndarray:
@@ -207,7 +278,9 @@ class DataCloud:
         gap = np.maximum(0.0, np.maximum(lo[:, None, :] - rows[None], rows[None] - hi[:, None, :]))
         nearest = np.sqrt(np.sum(gap * gap, axis=2))
         kth = np.partition(nearest, k - 1, axis=1)[:, k - 1]
-        return (kth * (1.0 - 1e-12) / max(threshold, 1e-12)).reshape(shape)
+        given = [c for c in self.columns if c in low]
+        ratio = np.maximum(kth / max(threshold, 1e-12), self._line_ratio(given, lo, hi, lower=True))
+        return (ratio * (1.0 - 1e-12)).reshape(shape)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""

@@ -677,7 +677,8 @@ class CalibratedModel:
                     for c in named)
                 warnings.append(
                     f"{int(np.sum(far))} point(s) lie within every column's range but far from the "
-                    f"calibration data's rows (distance to the data up to {float(np.max(ratio[far])):.2g} "
+                    f"calibration data's rows (distance to the data, or departure from a line along which "
+                    f"two of its columns move together, up to {float(np.max(ratio[far])):.2g} "
                     f"times what {100 * (1 - self.cloud.alpha):.0f} % of points like the data have; "
                     f"farthest: {example}): an extrapolation, and the interval is widened by that ratio")
             inside &= ratio <= 1.0

@@ -1039,10 +1039,12 @@ def _cloud_widening(problem: DesignProblem, envelope: Envelope, model: Model, po
                     design: Mapping[str, Any], fitted_names: set[str]) -> Callable | None:
     """A lower bound over boxes of designs of the factor the data cloud widens σ by at ``point``, or None.
 
-    The model widens σ by max(1, d_k / threshold), d_k the distance of the point (its columns scaled as the
-    cloud's) to its k-th nearest row (:class:`calibrate.domain.DataCloud`); over a box of designs d_k is at
-    least the k-th smallest distance from the box to the rows. None where the cloud reads a fitted value
-    (a rival's would differ) or fewer than two of its columns.
+    The model widens σ by max(1, d_k / threshold, departure), d_k the distance of the point (its columns
+    scaled as the cloud's) to its k-th nearest row and departure its distance from the lines of columns
+    moving together over theirs (:class:`calibrate.domain.DataCloud`); over a box of designs d_k is at
+    least the k-th smallest distance from the box to the rows, and the departure, linear in two columns,
+    at least its least value at the box's corners (0 where the box crosses the line). None where the cloud
+    reads a fitted value (a rival's would differ) or fewer than two of its columns.
     """
     cloud = model.calibrated.cloud
     held = {*model.fixed, *model.fitted}
@@ -1070,8 +1072,10 @@ def _cloud_widening(problem: DesignProblem, envelope: Envelope, model: Model, po
             a, b = ends.get(column, (np.full(len(z), float(np.ravel(columns[column])[0])),) * 2)
             lo.append(scaled(column, a))
             hi.append(scaled(column, b))
-        distance = kth_distance_to_boxes(rows, np.column_stack(lo), np.column_stack(hi), k)
-        return distance / max(threshold, 1e-12)
+        low, high = np.column_stack(lo), np.column_stack(hi)
+        distance = kth_distance_to_boxes(rows, low, high, k)
+        # and the departure from a line of columns moving together: exact over the box (linear in two)
+        return np.maximum(distance / max(threshold, 1e-12), cloud._line_ratio(given, low, high, lower=True))
 
     return ratio
 

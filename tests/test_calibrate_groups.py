@@ -251,19 +251,33 @@ def test_the_cloud_threshold_is_the_conformal_quantile_of_leave_one_out_distance
     temperature = 25 + 50 * (speed - 0.005) / 0.145 + rng.normal(0.0, 1.0, n)
     cloud = DataCloud.from_columns({"speed_m_s": speed, "temperature_C": temperature})
     # Brute force: standardized columns (the speed, positive over more than a decade, by its log), the
-    # 5th-nearest other row of every row, and its ceil(0.98 (n + 1))-th smallest.
+    # 5th-nearest other row of every row, and its ceil(0.99 (n + 1))-th smallest (the two columns move
+    # together, so alpha = 2 % is shared between the k-NN test and the departure from their line).
     log_speed = np.log(speed)
     x = np.column_stack([(log_speed - log_speed.mean()) / log_speed.std(),
                          (temperature - temperature.mean()) / temperature.std()])
     distances = np.sqrt(((x[:, None, :] - x[None, :, :]) ** 2).sum(axis=2))
     own = np.sort(distances, axis=1)[:, 5]
-    threshold = np.sort(own)[int(np.ceil(0.98 * (n + 1))) - 1]
-    point = {"speed_m_s": np.array([0.08]), "temperature_C": np.array([52.0])}
-    ratio, _ = cloud.score(point, (1,))
-    scaled = np.array([(np.log(0.08) - log_speed.mean()) / log_speed.std(),
-                       (52.0 - temperature.mean()) / temperature.std()])
-    fifth = np.sort(np.sqrt(((x - scaled) ** 2).sum(axis=1)))[4]
-    assert ratio[0] == pytest.approx(fifth / threshold, rel=1e-5)
+    rank = int(np.ceil(0.99 * (n + 1))) - 1
+    threshold = np.sort(own)[rank]
+    # The line of the scaled temperature on the scaled speed, the rows' scatter about it, and the same
+    # conformal quantile of the rows' departures.
+    slope, intercept = np.polyfit(x[:, 0], x[:, 1], 1)
+    spread = np.std(x[:, 1] - intercept - slope * x[:, 0])
+    line_threshold = np.sort(np.abs(x[:, 1] - intercept - slope * x[:, 0]) / spread)[rank]
+
+    def by_hand(speed_m_s: float, temperature_c: float) -> float:
+        scaled = np.array([(np.log(speed_m_s) - log_speed.mean()) / log_speed.std(),
+                           (temperature_c - temperature.mean()) / temperature.std()])
+        fifth = np.sort(np.sqrt(((x - scaled) ** 2).sum(axis=1)))[4]
+        departure = abs(scaled[1] - intercept - slope * scaled[0]) / spread
+        return max(fifth / threshold, departure / line_threshold)
+
+    for at in ((0.08, 52.0), (0.1, 45.0), (0.12, 40.0)):  # on the line, then ever farther off it
+        ratio, _ = cloud.score({"speed_m_s": np.array([at[0]]), "temperature_C": np.array([at[1]])}, (1,))
+        assert ratio[0] == pytest.approx(by_hand(*at), rel=1e-4)
+    off_line, _ = cloud.score({"speed_m_s": np.array([0.12]), "temperature_C": np.array([40.0])}, (1,))
+    assert off_line[0] > 1  # 20 degC below the line at 120 mm/s: flagged
     # Points drawn like the data: about 2 % flagged. The corner the data never visited: far outside.
     fresh_speed = rng.uniform(0.005, 0.15, 4000)
     fresh = {"speed_m_s": fresh_speed, "temperature_C": 25 + 50 * (fresh_speed - 0.005) / 0.145

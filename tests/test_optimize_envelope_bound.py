@@ -276,25 +276,26 @@ def test_cloud_score_bound_holds_every_point_of_a_box_and_closes_on_a_point():
     assert cloud.widening(2.5) == 2.5
 
 
-def _cloud_model() -> CalibratedPhysicsModel:
-    """The interval model with a data cloud: calibration rows at low speed and humidity rising together,
-    temperatures 30-50 C, so the envelope's far corners lie well beyond the data."""
+def _cloud_model(together: bool = True) -> CalibratedPhysicsModel:
+    """The interval model with a data cloud: calibration rows at low speed and humidity rising together
+    (or, ``together`` false, humidity 30-50 % whatever the speed), temperatures 30-50 C, so the envelope's
+    far corners lie well beyond the data."""
     from microbearing.calibrate.domain import DataCloud
 
     rng = np.random.default_rng(11)
     n = 120
     speed = rng.uniform(0.01, 0.05, n)
+    humidity = 0.3 + 5 * (speed - 0.01) + rng.normal(0, 0.02, n) if together else rng.uniform(0.3, 0.5, n)
     columns = {"balls": rng.choice([3.0, 5.0, 8.0], n), "groove_angle_deg": rng.choice([45.0, 50.0, 55.0], n),
                "load_N": rng.choice([0.005, 0.01, 0.02], n), "speed_m_s": speed,
-               "relative_humidity": 0.3 + 5 * (speed - 0.01) + rng.normal(0, 0.02, n),
-               "temperature_C": rng.uniform(30.0, 50.0, n)}
+               "relative_humidity": humidity, "temperature_C": rng.uniform(30.0, 50.0, n)}
     cloud = DataCloud.from_columns(columns)
     return CalibratedPhysicsModel("calibrated:cloud", dataclasses.replace(_interval_model().calibrated,
                                                                           cloud=cloud))
 
 
 def test_certified_mu_upper_bounds_the_cloud_widening_against_brute_force():
-    model = _cloud_model()
+    model = _cloud_model(together=False)
     structures, reason = interval_structures(model)
     assert structures is not None, reason
     problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
@@ -669,6 +670,37 @@ def test_certified_mu_upper_with_drifting_parameters_bounds_brute_force():
     assert term_pieces(holder, interval=True)[0] is None and "contact load" in term_pieces(holder, True)[1]
 
 
+def test_the_departure_from_a_line_of_columns_moving_together_is_bounded_over_boxes():
+    # Speed and humidity rise together in the rows: a point off their line is off the data, and the
+    # interval widens by its departure, which is linear in the two scaled columns; so its range over a box
+    # is exact at the corners, and the certified worst case holds above a brute-force grid.
+    model = _cloud_model(together=True)
+    cloud = model.calibrated.cloud
+    low = {"speed_m_s": np.array([0.02, 0.09]), "relative_humidity": np.array([0.3, 0.3]),
+           "temperature_C": np.array([35.0, 35.0])}
+    high = {"speed_m_s": np.array([0.03, 0.1]), "relative_humidity": np.array([0.4, 0.35]),
+            "temperature_C": np.array([40.0, 40.0])}
+    upper, lower = cloud.score_bound(low, high, (2,)), cloud.score_lower_bound(low, high, (2,))
+    grid = [np.linspace(low[c][:, None], high[c][:, None], 7, axis=1) for c in low]
+    mesh = [np.stack(np.meshgrid(*[g[b, :, 0] for g in grid], indexing="ij"), axis=-1).reshape(-1, 3)
+            for b in range(2)]
+    for b in range(2):
+        points = {c: mesh[b][:, i] for i, c in enumerate(low)}
+        ratio, _ = cloud.score(points, (mesh[b].shape[0],))
+        assert lower[b] <= ratio.min() and ratio.max() <= upper[b]
+    assert lower[1] > 1  # fast and dry: off the line, flagged whatever the box's point
+    structures, reason = interval_structures(model)
+    assert structures is not None, reason
+    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    design = {"balls": 5.0, "groove_angle_deg": 50.0, "load_N": 0.01}
+    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    brute = evaluate(_grid_points(9))
+    assert brute.max() <= bracket.upper_bound and brute.max() <= bracket.value * (1 + 1e-9)
+    assert bracket.value <= bracket.upper_bound
+
+
 @pytest.mark.parametrize("over_design_boxes", [True, False])
 def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid_design_beats_it(
         over_design_boxes, monkeypatch):
@@ -691,7 +723,10 @@ def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
     proof = result.proof
     if over_design_boxes:
-        assert proof["proven"] and "the data cloud's widening of sigma at least" in proof["statement"]
+        # tight from below; the worst case at the design (the interval widened off the line along which
+        # speed and humidity move in the rows) is bracketed to the box limit, which sets the gap
+        assert "the data cloud's widening of sigma at least" in proof["statement"]
+        assert proof["upper_bound_certified"] and proof["relative_gap"] <= 1e-3
     else:
         assert "the data cloud's least widening there" in proof["statement"]
     held = robust._with_model_values(problem, model)
@@ -700,9 +735,12 @@ def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid
     grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.geomspace(0.001, 0.05, 8)))
     designs = {"balls": np.array([g[0] for g in grid], dtype=float),
                "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    at_vertex = robust._objective_values(model, "mu_upper", robust._columns(held, ENVELOPE, designs, [vertex],
-                                                                            0.0), held.convention)
-    assert at_vertex.min() >= proof["lower_bound"]
+    # Each grid design's worst case over a grid of the envelope (and the vertex) is at least the bound.
+    points = [vertex, *_grid_points(3)]
+    columns = robust._columns(held, ENVELOPE, designs, points, 0.0)
+    values = robust._objective_values(model, "mu_upper", columns, held.convention)
+    worst = np.asarray(values, dtype=float).reshape(len(points), len(grid)).max(axis=0)
+    assert worst.min() >= proof["lower_bound"]
     # and the bound is above the scatter's alone (exp(1.96 x 0.02) times the proven least worst mu)
     least_mu = robust.optimize_robust(problem, ENVELOPE, model, objective="mu").proof["lower_bound"]
     assert proof["lower_bound"] > least_mu * np.exp(1.96 * 0.02) * (1 + 1e-3)
