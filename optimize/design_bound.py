@@ -77,6 +77,7 @@ from .envelope_bound import (
     LINEAR_DECLARED,
     BoundFailedError,
     IntervalStructure,
+    _composed,
     _product,
     _times_positive,
     drift_ranges,
@@ -236,28 +237,10 @@ class _Bounds:
             v = at(piece)
             ranges.append((v.min(axis=1), v.max(axis=1)) if np.all(np.isfinite(v))
                           else (np.full(n, -np.inf), np.full(n, np.inf)))
-        levels_lo, levels_hi = [f_lo / gh], [f_hi / gl]
-        for piece, (low, top) in zip(s.pieces, ranges, strict=True):
-            if piece.kind == "add":
-                levels_lo.append(levels_lo[-1] + low)
-                levels_hi.append(levels_hi[-1] + top)
-            else:
-                ok = (low > 0) & (levels_lo[-1] >= 0)
-                levels_lo.append(np.where(ok, levels_lo[-1] * low, -np.inf))
-                levels_hi.append(np.where(ok, levels_hi[-1] * top, np.inf))
+        levels_lo, levels_hi, after, adds_after = _composed(s.pieces, ranges, f_lo / gh, f_hi / gl)
         mu_lo, mu_hi = levels_lo[-1], levels_hi[-1]
         usable = (mu_lo > 0) & np.isfinite(mu_hi)
         safe_lo = np.where(usable, mu_lo, 1.0)
-
-        def after(k: int) -> tuple[np.ndarray, np.ndarray]:
-            p_lo, p_hi = np.ones(n), np.ones(n)
-            for piece, (low, top) in list(zip(s.pieces, ranges, strict=True))[k + 1:]:
-                if piece.kind == "mul":
-                    p_lo, p_hi = p_lo * low, p_hi * top
-            return p_lo, p_hi
-
-        def adds_after(k: int) -> bool:
-            return any(piece.kind == "add" for piece in s.pieces[k + 1:])
 
         g_lo, g_hi = [], []
 

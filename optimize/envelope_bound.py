@@ -790,6 +790,39 @@ class _Holder:
     calibrated: Any
 
 
+def _composed(pieces: list[Piece], ranges: list[tuple[np.ndarray, np.ndarray]], start_lo: np.ndarray,
+              start_hi: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray], Callable, Callable]:
+    """μ composed over boxes by interval arithmetic: the physics' range, then each piece's added or
+    multiplying range (a drift moves the physics' inputs and passes the level on); the levels after each
+    step (the first the physics'), ``after(k)``, the product of the factors after piece k (k = -1: after
+    the physics), and ``adds_after(k)``, whether an addition follows piece k."""
+    levels_lo, levels_hi = [start_lo], [start_hi]
+    for piece, (low, top) in zip(pieces, ranges, strict=True):
+        if piece.kind == "drift":
+            levels_lo.append(levels_lo[-1])
+            levels_hi.append(levels_hi[-1])
+        elif piece.kind == "add":
+            levels_lo.append(levels_lo[-1] + low)
+            levels_hi.append(levels_hi[-1] + top)
+        else:
+            ok = (low > 0) & (levels_lo[-1] >= 0)
+            levels_lo.append(np.where(ok, levels_lo[-1] * low, -np.inf))
+            levels_hi.append(np.where(ok, levels_hi[-1] * top, np.inf))
+    n = len(start_lo)
+
+    def after(k: int) -> tuple[np.ndarray, np.ndarray]:
+        p_lo, p_hi = np.ones(n), np.ones(n)
+        for piece, (low, top) in list(zip(pieces, ranges, strict=True))[k + 1:]:
+            if piece.kind == "mul":
+                p_lo, p_hi = p_lo * low, p_hi * top
+        return p_lo, p_hi
+
+    def adds_after(k: int) -> bool:
+        return any(piece.kind == "add" for piece in pieces[k + 1:])
+
+    return levels_lo, levels_hi, after, adds_after
+
+
 def _times_positive(low: np.ndarray, high: np.ndarray, pos_low: np.ndarray,
                     pos_high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """[low, high] × [pos_low, pos_high] with 0 < pos_low <= pos_high (interval arithmetic)."""
@@ -885,40 +918,17 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         moved = {name: np.r_[(low, high) if DRIFT_DIRECTIONS[name] > 0 else (high, low)]
                  for name, (low, high) in drifted.items()}
         phys = physics_fn(np.r_[offset_lo, offset_hi], np.r_[speed_lo, speed_hi], {**s.fitted, **moved})
-        levels_lo, levels_hi = [phys["mu"][:n]], [phys["mu"][n:]]
         ranges = _pieces_range(s.pieces, boxes, lo, hi, speed_hi, peak)
-        for piece, (low, top) in zip(s.pieces, ranges, strict=True):
-            if piece.kind == "drift":
-                levels_lo.append(levels_lo[-1])
-                levels_hi.append(levels_hi[-1])
-            elif piece.kind == "add":
-                levels_lo.append(levels_lo[-1] + low)
-                levels_hi.append(levels_hi[-1] + top)
-            else:
-                ok = (low > 0) & (levels_lo[-1] >= 0)
-                levels_lo.append(np.where(ok, levels_lo[-1] * low, -np.inf))
-                levels_hi.append(np.where(ok, levels_hi[-1] * top, np.inf))
+        levels_lo, levels_hi, after, adds_after = _composed(s.pieces, ranges, phys["mu"][:n], phys["mu"][n:])
         mu_lo, mu_hi = levels_lo[-1], levels_hi[-1]
         usable = (mu_lo > 0) & np.isfinite(mu_hi)
         safe_lo = np.where(usable, mu_lo, 1.0)
-
-        def after(k: int) -> tuple[np.ndarray, np.ndarray]:
-            """The product of the factors after piece k (k = -1: after the physics)."""
-            p_lo, p_hi = np.ones(n), np.ones(n)
-            for piece, (low, top) in list(zip(s.pieces, ranges, strict=True))[k + 1:]:
-                if piece.kind == "mul":
-                    p_lo, p_hi = p_lo * low, p_hi * top
-            return p_lo, p_hi
-
         g_lo, g_hi = [], []
 
         def gradient(ratio_lo: np.ndarray, ratio_hi: np.ndarray, h: float) -> None:
             ok = ratio_lo > -1
             g_lo.append(np.where(ok, np.log1p(np.where(ok, ratio_lo, 0.0)) / h, -np.inf))
             g_hi.append(np.where(ok, np.log1p(np.where(ok, ratio_hi, 0.0)) / h, np.inf))
-
-        def adds_after(k: int) -> bool:
-            return any(piece.kind == "add" for piece in s.pieces[k + 1:])
 
         def _drift_ratio(piece: Piece, i: int, h: float) -> tuple[np.ndarray, np.ndarray, float]:
             """D / mu for a step h in a drift's coefficient (i = 0) or level (i = 1): the parameter moves
