@@ -29,16 +29,20 @@ which of the two acts: temperature that rose with speed may carry what the model
 the data's shape, where one is varied without the other, the two explanations part, and nothing in the
 data measures how far (a cross-validation that holds out parts of the data only ever extrapolates along
 its shape). :func:`confounded_rival_scores` takes, from the step where the selection stopped, every term
-on the unread column that the held-out score preferred to the model (a lower score) although its
-paired z stayed below the threshold: the data lean to it and cannot decide. :func:`fit_rivals` adds each
-to the final model (refitted on all rows with its own covariance), so that the interval is the envelope
-of both explanations there; inside the data they agree.
+on the unread column that the data cannot reject (its held-out loss not worse than the model's by more
+than :data:`RIVAL_SE` standard errors of the paired difference; a term the data lean to but which does not
+count on its own is among them, and so is a physical law whose extra parameter the score's penalty
+held back). :func:`fit_rivals` refits the best-scored of them on all rows (each with its own covariance)
+and keeps the :data:`MAX_CONFOUNDED_RIVALS` that part most from the model where the two columns part
+(:func:`off_line_difference`: the rows with the unread column reflected across its range), so that the
+interval is the envelope of the explanations there; inside the data they agree. Which of them the data
+lean to says nothing about which is right off the line: the data never saw it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -50,14 +54,23 @@ from .data import Dataset
 from .fit import FitResult, fit, predict_mu
 from .select import CandidateScore, Selection
 
-__all__ = ["MAX_RIVALS", "RIVAL_SE", "Rival", "confounded_rival_scores", "describe_rival", "fit_rivals",
-           "rival_json", "rival_scores", "where_they_part"]
+__all__ = ["MAX_CONFOUNDED_REFITS", "MAX_CONFOUNDED_RIVALS", "MAX_RIVALS", "RIVAL_SE", "Rival",
+           "confounded_rival_scores", "describe_rival", "fit_rivals", "off_line_difference", "rival_json",
+           "rival_scores", "where_they_part"]
 
 #: A rival's mean held-out loss exceeds the chosen term's by at most this many standard errors of the
 #: paired difference (one-sided, about a 2 % test: what the data cannot reject). [1]
 RIVAL_SE = 2.0
 #: Rivals kept per calibrated model at most (closest first). [1]
 MAX_RIVALS = 3
+#: Terms on a confounded column (added where the selection stopped) refitted on all rows at most, best
+#: held-out score first. [1]
+MAX_CONFOUNDED_REFITS = 6
+#: Of those, the rivals by confounding kept at most: the ones that part most from the model where the two
+#: columns part (:func:`off_line_difference`). [1]
+MAX_CONFOUNDED_RIVALS = 2
+# The quantile over the reflected rows of |log(mu_rival / mu_model)| that ranks rivals by confounding.
+_OFF_LINE_QUANTILE = 0.9
 # Values of a driver scanned by where_they_part: the data's range and as much again on either side.
 _SCAN_POINTS = 61
 # Rows whose median difference where_they_part takes at most (evenly spread over the data). [1]
@@ -151,14 +164,14 @@ def confounded_rival_scores(selection: Selection, pairs: Sequence[Mapping[str, A
     Returns
     -------
     list of tuple
-        Per step, the best-scored candidate driven by a column that moves with one the model reads but
-        is not read itself (its partner): in a step that chose a term on the partner, one within
+        Candidates driven by a column that moves with one the model reads but is not read itself (its
+        partner): in a step that chose a term on the partner, the best-scored one within
         :data:`RIVAL_SE` standard errors of it (``replaces`` True, ``gap`` in those standard errors:
         the data cannot tell the two columns apart, so it need not count on its own); in the step that
-        stopped, one refitted jointly whose held-out score is lower than the model's (``replaces`` False,
-        ``gap`` minus its paired z). A replacement may also be a screening score (in-sample: two columns
-        that move together give about the same fit whichever carries the term; the rival is refitted on
-        all rows).
+        stopped, every one the data cannot reject (``gap``, minus its paired z against the model, at
+        most :data:`RIVAL_SE`; ``replaces`` False), best-scored first. Either may be a screening score
+        (in-sample: two columns that move together give about the same fit whichever carries the term;
+        the rival is refitted on all rows).
 
     Examples
     --------
@@ -193,10 +206,11 @@ def confounded_rival_scores(selection: Selection, pairs: Sequence[Mapping[str, A
                 c, gap = min(close, key=lambda item: item[0].score)
                 found.append((k, c, float(gap), partner_of(c), True))
         else:
-            better = [c for c in step.ranked if c.joint and partner_of(c) is not None
-                      and c.score < step.current.score and c.z <= step.z_needed]
-            if better:
-                c = min(better, key=lambda candidate: candidate.score)
+            # Every term on the unread column that the data cannot reject (not worse than the model by
+            # more than RIVAL_SE standard errors) and that did not count on its own, best-scored first:
+            # fit_rivals keeps those that part most from the model off the data's line.
+            unrejected = [c for c in step.ranked if partner_of(c) is not None and -float(c.z) <= RIVAL_SE]
+            for c in sorted(unrejected, key=lambda candidate: candidate.score):
                 found.append((k, c, -float(c.z), partner_of(c), False))
     return found
 
@@ -240,29 +254,104 @@ def fit_rivals(
     terms = list(selection.terms)
     read = [*dataset.physics_columns, *(d for t in terms for d in t.drivers)]
     scored = [(k, c, gap, None, True) for k, c, gap in rival_scores(selection)]
-    # Rivals by confounding first: each is the only one to hold the other column's explanation.
-    scored = confounded_rival_scores(selection, pairs, read) + scored
+    confounded = confounded_rival_scores(selection, pairs, read)
+    # Rivals by confounding first: each is the only one to hold the other column's explanation. A
+    # replacement (a step chose a term on the partner) is kept as scored; of the terms added at the step
+    # that stopped, the best-scored MAX_CONFOUNDED_REFITS are refitted and the MAX_CONFOUNDED_RIVALS that
+    # part most from the model off the data's line are kept.
+    added = [item for item in confounded if not item[4]][:MAX_CONFOUNDED_REFITS]
+    scored = [item for item in confounded if item[4]] + scored
+    kept: list[tuple[float, Rival]] = []
+    for k, candidate, gap, partner, _ in added:
+        rival = _refit(dataset, fit_parameters, terms, final, convention, k, candidate, gap, partner, False)
+        if rival is None:
+            continue
+        difference = off_line_difference(dataset, final, terms, rival, partner, convention)
+        if difference > 0:
+            kept.append((difference, rival))
+    kept.sort(key=lambda item: -item[0])
+    rivals = [rival for _, rival in kept[:min(MAX_CONFOUNDED_RIVALS, max_rivals)]]
     for k, candidate, gap, partner, replaces in scored:
         if len(rivals) >= max_rivals:
             break
-        if replaces:
-            replaced = [*terms[:k], candidate.term, *terms[k + 1:]]
-            start_terms = [*final.term_values[:k], candidate.values, *final.term_values[k + 1:]]
-        else:
-            replaced, start_terms = [*terms, candidate.term], [*final.term_values, candidate.values]
-        if len({t.label for t in replaced}) < len(replaced):  # the rival is already another step's term
-            continue
-        with np.errstate(all="ignore"):
-            try:
-                result = fit(dataset, fit_parameters, replaced, start=final.declared,
-                             start_terms=start_terms, convention=convention)
-                mu = predict_mu(dataset, result.declared, replaced, result.term_values, convention=convention)
-            except ValueError:
-                continue
-        if not np.all(np.isfinite(mu) & (mu > 0)):
-            continue
-        rivals.append(Rival(k, candidate.term, terms[k] if replaces else None, float(gap), result, partner))
+        rival = _refit(dataset, fit_parameters, terms, final, convention, k, candidate, gap, partner,
+                       replaces)
+        if rival is not None:
+            rivals.append(rival)
     return rivals
+
+
+def _refit(dataset: Dataset, fit_parameters: Sequence[str], terms: Sequence[Term], final: FitResult,
+           convention: str, k: int, candidate: CandidateScore, gap: float, partner: str | None,
+           replaces: bool) -> Rival | None:
+    """The final model with ``candidate`` in place of step ``k``'s term (or added), fitted on all rows;
+    None when it repeats a term or cannot predict every row."""
+    if replaces:
+        replaced = [*terms[:k], candidate.term, *terms[k + 1:]]
+        start_terms = [*final.term_values[:k], candidate.values, *final.term_values[k + 1:]]
+    else:
+        replaced, start_terms = [*terms, candidate.term], [*final.term_values, candidate.values]
+    if len({t.label for t in replaced}) < len(replaced):  # the rival is already another step's term
+        return None
+    with np.errstate(all="ignore"):
+        try:
+            result = fit(dataset, fit_parameters, replaced, start=final.declared,
+                         start_terms=start_terms, convention=convention)
+            mu = predict_mu(dataset, result.declared, replaced, result.term_values, convention=convention)
+        except ValueError:
+            return None
+    if not np.all(np.isfinite(mu) & (mu > 0)):
+        return None
+    return Rival(k, candidate.term, terms[k] if replaces else None, float(gap), result, partner)
+
+
+def off_line_difference(dataset: Dataset, final: FitResult, terms: Sequence[Term], rival: Rival,
+                        partner: str, convention: str = physics.DEFAULT_CONVENTION) -> float:
+    """How far a rival by confounding parts from the model where the two confounded columns part.
+
+    The data's rows (at most :data:`_SCAN_ROWS`, evenly spread) with the rival's driver reflected about the
+    middle of its range (``lo + hi - x``): where the driver was high with its partner it is now low, and
+    the reverse, so the rows fill the corners of the two columns' box that the data left empty, each other
+    column as measured. The figure is the :data:`_OFF_LINE_QUANTILE` quantile over those rows of
+    ``|log(mu_rival / mu_model)|``, each model at its own fit [1]; 0 when neither can predict there.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The calibration data.
+    final : FitResult
+        The model's fit, of ``terms``.
+    terms : sequence of Term
+        The model's terms.
+    rival : Rival
+        A rival by confounding (a term added on the column that moves with ``partner``).
+    partner : str
+        The column the model reads that the rival's driver moves with (kept as measured).
+    convention : str
+        See :data:`physics.CONVENTIONS`.
+    """
+    rows = np.arange(dataset.n_points)
+    if rows.size > _SCAN_ROWS:
+        rows = np.linspace(0, rows.size - 1, _SCAN_ROWS).astype(int)
+    data = dataset.subset(rows)
+    for driver in rival.term.drivers:  # none of them is read by the model (the rival's own columns)
+        full = np.asarray(dataset.columns()[driver], dtype=float)
+        mirrored = float(full.min()) + float(full.max()) - np.asarray(data.columns()[driver], dtype=float)
+        if driver in data.physics_columns:
+            data = replace(data, physics_columns={**data.physics_columns, driver: mirrored})
+        else:
+            data = replace(data, conditions={**data.conditions, driver: mirrored})
+    rival_terms = [*terms, rival.term]
+    with np.errstate(all="ignore"):
+        try:
+            a = predict_mu(data, final.declared, terms, final.term_values, convention=convention)
+            b = predict_mu(data, rival.fit.declared, rival_terms, rival.fit.term_values,
+                           convention=convention)
+        except ValueError:
+            return 0.0
+    ratio = np.abs(np.log(b / a))
+    ratio = ratio[np.isfinite(ratio)]
+    return float(np.quantile(ratio, _OFF_LINE_QUANTILE)) if ratio.size else 0.0
 
 
 def where_they_part(
