@@ -11,7 +11,7 @@ from starlette.concurrency import run_in_threadpool
 
 from microbearing import physics
 from microbearing.calibrate import DataError, Dataset, check_request, parse_assignments, read_csv, read_rows
-from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names
+from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names, read_column
 
 from ..calibrations import (
     DATA_PREFIX,
@@ -120,6 +120,27 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
     return accepted(jobs.submit("calibration", record, work, inputs=inputs))
 
 
+def _refuse_text_inputs(rows: list[dict[str, Any]]) -> None:
+    """422 naming each physics input of a JSON row written as text (``"balls": "4"``).
+
+    Text is a CSV file's cell, and a factor's label among the conditions; a JSON row gives a physics
+    input as a number (``4`` or ``4.0``), as the schema says.
+    """
+    inputs = set()
+    for key in set().union(*rows):
+        try:
+            if read_column(key).name in physics.PARAMETERS:
+                inputs.add(key)
+        except DataError:  # an unreadable name: read_rows names it
+            pass
+    errors = [{"row": i + 1, "column": key,
+               "message": f"a physics input takes a number, not text ({value!r})"}
+              for i, row in enumerate(rows) for key, value in row.items()
+              if key in inputs and isinstance(value, str)]
+    if errors:
+        raise data_problem(errors)
+
+
 @router.post("", operation_id="create_calibration", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
 def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples=examples.media_examples(
@@ -134,6 +155,7 @@ def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples
     """
     check_rows(len(body.data), settings.max_calibration_rows, "/data")
     check_columns(len(set().union(*body.data)), settings.max_calibration_columns, "/data")
+    _refuse_text_inputs(body.data)
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
         dataset, intake = read_rows(body.data, fixed, body.factors)
