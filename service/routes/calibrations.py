@@ -15,7 +15,8 @@ from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names,
 
 from ..calibrations import (
     DATA_PREFIX,
-    calibration_summaries,
+    KIND,
+    calibration_summary,
     calibration_view,
     data_problem,
     delete_calibration,
@@ -36,6 +37,7 @@ from ..schemas.calibrations import (
 )
 from ..store import Store
 from .jobs import ACCEPTED_RESPONSE, accepted, calibration_links
+from .pages import DEFAULT_PAGE_LIMIT, PageToken, page_limit, page_of, page_start
 
 __all__ = ["router"]
 
@@ -223,14 +225,24 @@ async def create_calibration_from_csv(
     return _submit(jobs, store, record, dataset, names, folds, str(convention), intake.to_dict())
 
 
+_CalibrationsLimit = page_limit("calibrations")
+
+
 @router.get("", operation_id="list_calibrations", response_model=CalibrationList, responses={
-    200: {"description": "Every stored calibration the caller sees.",
+    200: {"description": "A page of the stored calibrations the caller sees.",
           "links": calibration_links("$response.body#/calibrations/0", "the first calibration listed")},
     **problem_responses()})
-def list_calibrations(store: StoreDep) -> JSONResponse:
-    """Every stored calibration the caller sees (with API keys: its key's, or all for the admin key),
-    newest first, summarized; ``url`` gives the full report."""
-    return JSONResponse({"calibrations": calibration_summaries(store)})
+def list_calibrations(request: Request, store: StoreDep, limit: _CalibrationsLimit = DEFAULT_PAGE_LIMIT,
+                      page_token: PageToken = None) -> JSONResponse:
+    """The stored calibrations the caller sees (with API keys: its key's, or all for the admin key),
+    newest first, summarized; ``url`` gives the full report.
+
+    ``limit`` per page; ``next_url`` fetches the next page.
+    """
+    rows = store.list_models(KIND, limit + 1, page_start(page_token))
+    page, next_url = page_of(request, rows, limit)
+    return JSONResponse({"calibrations": [calibration_summary(row) for row in page], "next_url": next_url})
+
 
 
 @router.delete("/{calibration_id}", operation_id="delete_calibration", status_code=204,

@@ -44,6 +44,7 @@ __all__ = [
     "ResponseModel",
     "StrictModel",
     "FOLDING_SAFE_NAMES",
+    "NEXT_URL",
     "add_raw_body_schemas",
     "with_folding_safe_names",
     "output_fields",
@@ -82,6 +83,11 @@ OutputName = Annotated[Output, Field(strict=False)]
 #: An ISO 8601 / RFC 3339 UTC timestamp as the store writes it ("2026-01-31T12:00:00.000Z"); typed
 #: ``format: date-time`` in the spec so generated clients parse it into a datetime.
 DateTimeText = Annotated[str, Field(json_schema_extra={"format": "date-time"})]
+
+
+#: The ``next_url`` field of a page of a list (``GET /v1/jobs``, ``/v1/calibrations``, ``/v1/surrogates``).
+NEXT_URL: Any = Field(default=None, description=(
+    "Path of the next page (same filters, page_token set); null on the last page."))
 
 
 def parameter_description(spec: physics.Parameter) -> str:
