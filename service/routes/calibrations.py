@@ -25,7 +25,7 @@ from ..calibrations import (
 )
 from ..deps import JobsDep, SettingsDep, StoreDep
 from ..jobs import JobContext, JobManager, register_kind
-from ..limits import check_columns, check_rows, csv_data_rows, csv_header_columns
+from ..limits import check_table, csv_data_rows, csv_header_columns
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas import examples
 from ..schemas.base import Convention, ConventionName
@@ -155,8 +155,8 @@ def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples
     The job's result is the calibration report (see ``GET /v1/calibrations/{id}``). More than
     MICROBEARING_MAX_CALIBRATION_ROWS rows or MICROBEARING_MAX_CALIBRATION_COLUMNS columns get 413.
     """
-    check_rows(len(body.data), settings.max_calibration_rows, "/data")
-    check_columns(len(set().union(*body.data)), settings.max_calibration_columns, "/data")
+    check_table(len(body.data), settings.max_calibration_rows, "rows", "/data")
+    check_table(len(set().union(*body.data)), settings.max_calibration_columns, "columns", "/data")
     _refuse_text_inputs(body.data)
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
@@ -203,8 +203,10 @@ async def create_calibration_from_csv(
     to SI. The report's ``intake`` says which dialect was used and how each column was read.
     """
     text = await request.body()
-    check_rows(csv_data_rows(text), settings.max_calibration_rows, "The CSV body")  # before parsing it
-    check_columns(csv_header_columns(text), settings.max_calibration_columns, "The CSV body's header")
+    # counted before parsing
+    check_table(csv_data_rows(text), settings.max_calibration_rows, "rows", "The CSV body")
+    check_table(csv_header_columns(text), settings.max_calibration_columns, "columns",
+                "The CSV body's header")
     try:
         fixed_values = parse_assignments(fixed)
     except DataError as exc:
