@@ -31,7 +31,7 @@ from .problems import ProblemError, validation_problem
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
-__all__ = ["DATA_PREFIX", "KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summaries",
+__all__ = ["DATA_PREFIX", "KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summary",
            "calibration_view", "check_conditions", "data_arrays", "data_problem", "delete_calibration",
            "evaluate_batch_with_model", "evaluate_point_with_model", "interval_at", "load_calibration",
            "load_mu_model", "prediction_fields", "run_calibration", "stored_dataset", "with_conditions"]
@@ -167,24 +167,21 @@ def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], f
     return calibration_view(calibration_id, metadata)
 
 
-def calibration_summaries(store: Store) -> list[dict[str, Any]]:
-    """Every stored calibration the caller sees, newest first, as :class:`CalibrationSummary` data."""
-    out = []
-    for row in store.list_models(KIND):
-        report = row["metadata"]["report"]
-        model = row["metadata"].get("model", {})
-        effects = report.get("effects")
-        if effects is None:  # stored before forward selection: at most one effect
-            effects = [] if report.get("missing_effect") is None else [report["missing_effect"]]
-        domain = model.get("domain") or {}
-        out.append({"id": row["id"], "model_id": MODEL_PREFIX + row["id"], "name": row["name"],
-                    "created_at": row["created_at"], "n_points": report["n_points"],
-                    "fit_parameters": list(report["fit_parameters"]),
-                    "effects": [e["name"] for e in effects], "error_before": report["error_before"],
-                    "error_after": report["error_after"],
-                    "columns": sorted(domain) if isinstance(domain, dict) else [],
-                    "url": f"/v1/calibrations/{row['id']}"})
-    return out
+def calibration_summary(row: Mapping[str, Any]) -> dict[str, Any]:
+    """A stored calibration (a row of :meth:`Store.list_models`) as :class:`CalibrationSummary` data."""
+    report = row["metadata"]["report"]
+    model = row["metadata"].get("model", {})
+    effects = report.get("effects")
+    if effects is None:  # stored before forward selection: at most one effect
+        effects = [] if report.get("missing_effect") is None else [report["missing_effect"]]
+    domain = model.get("domain") or {}
+    return {"id": row["id"], "model_id": MODEL_PREFIX + row["id"], "name": row["name"],
+            "created_at": row["created_at"], "n_points": report["n_points"],
+            "fit_parameters": list(report["fit_parameters"]),
+            "effects": [e["name"] for e in effects], "error_before": report["error_before"],
+            "error_after": report["error_after"],
+            "columns": sorted(domain) if isinstance(domain, dict) else [],
+            "url": f"/v1/calibrations/{row['id']}"}
 
 
 def delete_calibration(store: Store, calibration_id: str) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from microbearing import physics
 from microbearing.calibrate import CalibratedModel
 from microbearing.calibrate.design import DesignError
 from microbearing.calibrate.experiments import (
@@ -46,6 +47,23 @@ def _field_problem(exc: ValueError) -> ProblemError:
     return validation_problem([{"pointer": f"/{field}", "detail": message}])
 
 
+def _check_planned(planned: list[dict[str, float]] | None) -> None:
+    """422 naming each value of a planned run that its physics input does not take (``4.5`` balls).
+
+    The proposal would otherwise meet the value only inside the job, as a failure of the space.
+    """
+    errors = []
+    for i, run in enumerate(planned or []):
+        for name, value in run.items():
+            if name in physics.PARAMETERS:
+                try:
+                    physics.validate(name, value)
+                except ValueError as exc:
+                    errors.append({"pointer": f"/planned/{i}/{name}", "detail": str(exc)})
+    if errors:
+        raise validation_problem(errors)
+
+
 def _space(columns: Mapping[str, Any] | None) -> dict[str, Any] | None:
     if columns is None:
         return None
@@ -73,6 +91,7 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     model = CalibratedModel.from_json(stored.metadata["model"])
     report = stored.metadata["report"]
     space, envelope = _space(body.space), _space(body.envelope)
+    _check_planned(body.planned)
     try:
         check_request(model, space, body.fixed, envelope, body.planned)
         if model.covariance is None or model.noise_std_log is None:
@@ -119,6 +138,7 @@ def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict
         422 naming the field.
     """
     space, envelope = _space(body.space), _space(body.envelope)
+    _check_planned(body.planned)
     fit_parameters = [str(p) for p in body.fit_parameters]
     unknown = [k for k in (body.guess or {}) if k not in fit_parameters]
     if unknown:

@@ -16,8 +16,9 @@ compressed one would otherwise be read as malformed text.
 ``MICROBEARING_MAX_HEAVY_REQUESTS`` of them are in progress at once (from before their body is read
 until their answer is sent, streamed or not); the others wait for a turn, then get 503.
 
-Finally, :func:`check_rows` is the one place that refuses a table with more rows than allowed (413);
-:func:`csv_data_rows` counts the rows of a CSV body before it is parsed.
+Finally, :func:`check_table` is the one place that refuses a table with more rows or columns than
+allowed (413); :func:`csv_data_rows` and :func:`csv_header_columns` count them in a CSV body before
+it is parsed.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import csv
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Literal
 
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -35,7 +36,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from .problems import ProblemError, ProblemResponse
 
 __all__ = ["HEAVY_BODY_BYTES", "BodySizeLimitMiddleware", "BodyTimeout", "BodyTooLarge",
-           "HeavyRequestMiddleware", "check_columns", "check_rows", "csv_data_rows", "csv_header_columns"]
+           "HeavyRequestMiddleware", "check_table", "csv_data_rows", "csv_header_columns"]
 
 #: A request whose body is declared larger than this, or not declared (chunked), is heavy [bytes].
 HEAVY_BODY_BYTES = 2**20
@@ -56,48 +57,35 @@ class BodyTimeout(HTTPException):
                               "(MICROBEARING_BODY_TIMEOUT_S).", headers={"Connection": "close"})
 
 
-def check_rows(rows: int, limit: int, what: str = "The data") -> None:
-    """Refuse a table of more than ``limit`` rows with a 413 problem naming the limit.
+#: The setting bounding each dimension of a table of measurements.
+_TABLE_SETTINGS = {"rows": "MICROBEARING_MAX_CALIBRATION_ROWS",
+                   "columns": "MICROBEARING_MAX_CALIBRATION_COLUMNS"}
+
+
+def check_table(count: int, limit: int, dimension: Literal["rows", "columns"],
+                what: str = "The data") -> None:
+    """Refuse a table of more than ``limit`` rows or columns with a 413 problem naming the limit.
 
     Parameters
     ----------
-    rows : int
-        Rows received [1].
+    count : int
+        Rows or columns received [1].
     limit : int
-        Most rows accepted [1] (``MICROBEARING_MAX_CALIBRATION_ROWS``).
-    what : str
-        What the rows are, for the message.
-
-    Raises
-    ------
-    ProblemError
-        413 when ``rows > limit``.
-    """
-    if rows > limit:
-        raise ProblemError(413, f"{what} has {rows} rows; the limit is {limit} "
-                                "(MICROBEARING_MAX_CALIBRATION_ROWS).", title="Too many rows")
-
-
-def check_columns(columns: int, limit: int, what: str = "The data") -> None:
-    """Refuse a table of more than ``limit`` columns with a 413 problem naming the limit.
-
-    Parameters
-    ----------
-    columns : int
-        Columns received [1].
-    limit : int
-        Most columns accepted [1] (``MICROBEARING_MAX_CALIBRATION_COLUMNS``).
+        Most accepted [1] (``MICROBEARING_MAX_CALIBRATION_ROWS`` or ``..._COLUMNS``, which the
+        message names).
+    dimension : {"rows", "columns"}
+        Which one ``count`` counts.
     what : str
         What the table is, for the message.
 
     Raises
     ------
     ProblemError
-        413 when ``columns > limit``.
+        413 "Too many rows" or "Too many columns" when ``count > limit``.
     """
-    if columns > limit:
-        raise ProblemError(413, f"{what} has {columns} columns; the limit is {limit} "
-                                "(MICROBEARING_MAX_CALIBRATION_COLUMNS).", title="Too many columns")
+    if count > limit:
+        raise ProblemError(413, f"{what} has {count} {dimension}; the limit is {limit} "
+                                f"({_TABLE_SETTINGS[dimension]}).", title=f"Too many {dimension}")
 
 
 def csv_header_columns(text: bytes) -> int:

@@ -737,15 +737,35 @@ class Store:
                 self._rebuilt.popitem(last=False)
         return model
 
-    def list_models(self, kind: str | None = None) -> list[dict[str, Any]]:
-        """Id, kind, name, metadata and creation time of the models the requester sees, newest first."""
+    def list_models(self, kind: str | None = None, limit: int | None = None,
+                    before: tuple[str, str] | None = None) -> list[dict[str, Any]]:
+        """Id, kind, name, metadata and creation time of the models the requester sees, newest first.
+
+        Parameters
+        ----------
+        kind : str, optional
+            Keep models of this kind (default: any).
+        limit : int, optional
+            Most rows returned [1] (default: all).
+        before : (str, str), optional
+            ``(created_at, id)`` of the last row of the previous page: rows after it in the order
+            (``created_at``, then ``id``, both descending, as :meth:`list_jobs`).
+        """
         visible, args = self._visible()
         sql = f"SELECT id, kind, name, metadata_json, created_at FROM models WHERE 1 = 1{visible}"
+        arguments: list[Any] = list(args)
         if kind is not None:
             sql += " AND kind = ?"
-            args = (*args, kind)
+            arguments.append(kind)
+        if before is not None:
+            sql += " AND (created_at < ? OR (created_at = ? AND id < ?))"
+            arguments.extend((before[0], before[0], before[1]))
+        sql += " ORDER BY created_at DESC, id DESC"
+        if limit is not None:
+            sql += " LIMIT ?"
+            arguments.append(int(limit))
         with self._reading() as conn:
-            rows = conn.execute(sql + " ORDER BY created_at DESC", args).fetchall()
+            rows = conn.execute(sql, arguments).fetchall()
         return [{"id": r["id"], "kind": r["kind"], "name": r["name"],
                  "metadata": json.loads(r["metadata_json"]), "created_at": r["created_at"]} for r in rows]
 

@@ -121,3 +121,32 @@ def test_a_sweep_whose_result_would_pass_the_size_limit_gets_413(client):
     assert "MICROBEARING_MAX_RESULT_BYTES" in answer["detail"] and "1000000" in answer["detail"]
     sweep["points"] = 10_000  # about 400 kB: accepted
     assert client.post("/v1/sweeps", json=sweep).status_code == 202
+
+
+def test_tables_past_a_limit_are_answered_word_for_word(tmp_path):
+    # The four refusals of a table's size, as the README and clients read them (one helper makes them).
+    settings = Settings(data_dir=tmp_path, max_calibration_rows=5, max_calibration_columns=6)
+    csv = {"content-type": "text/csv"}
+    wide = {**ROW, "a": 1.0, "b": 2.0, "c": 3.0}
+    with TestClient(create_app(settings)) as test_client:
+        answers = {
+            "json rows": test_client.post("/v1/calibrations", json={"data": [ROW] * 6}),
+            "json columns": test_client.post("/v1/calibrations", json={"data": [wide] * 2}),
+            "csv rows": test_client.post("/v1/calibrations/csv", content=csv_body(6), headers=csv),
+            "csv columns": test_client.post("/v1/calibrations/csv", headers=csv,
+                                            content=b"balls,load_N,speed_m_s,mu_measured,a,b,c\n4,1,1,1,1,1,1\n"),
+        }
+    expected = {
+        "json rows": ("Too many rows",
+                      "/data has 6 rows; the limit is 5 (MICROBEARING_MAX_CALIBRATION_ROWS)."),
+        "json columns": ("Too many columns",
+                         "/data has 7 columns; the limit is 6 (MICROBEARING_MAX_CALIBRATION_COLUMNS)."),
+        "csv rows": ("Too many rows",
+                     "The CSV body has 6 rows; the limit is 5 (MICROBEARING_MAX_CALIBRATION_ROWS)."),
+        "csv columns": ("Too many columns", "The CSV body's header has 7 columns; the limit is 6 "
+                                            "(MICROBEARING_MAX_CALIBRATION_COLUMNS)."),
+    }
+    for name, response in answers.items():
+        body = problem(response, 413)
+        assert (body["title"], body["detail"]) == expected[name], name
+        assert set(body) == {"type", "title", "status", "detail", "instance"}, body

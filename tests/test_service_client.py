@@ -326,8 +326,8 @@ def _(s: Session) -> None:
 @drives("list_surrogates")
 def _(s: Session) -> None:
     made = s.once("surrogate", lambda: _surrogate(s))
-    listed = typed(s.call("list_surrogates"), "SurrogateList")
-    assert made.id in {item.id for item in listed.surrogates}
+    listed = typed(s.call("list_surrogates", limit=100), "SurrogateList")
+    assert made.id in {item.id for item in listed.surrogates} and listed.next_url is None
 
 
 @drives("predict_surrogate")
@@ -381,8 +381,8 @@ def _(s: Session) -> None:
 @drives("list_calibrations")
 def _(s: Session) -> None:
     made = s.once("calibration", lambda: _calibration(s))
-    listed = typed(s.call("list_calibrations"), "CalibrationList")
-    assert made.id in {c.id for c in listed.calibrations}
+    listed = typed(s.call("list_calibrations", limit=100), "CalibrationList")
+    assert made.id in {c.id for c in listed.calibrations} and listed.next_url is None
 
 
 @drives("delete_calibration")

@@ -11,11 +11,12 @@ from starlette.concurrency import run_in_threadpool
 
 from microbearing import physics
 from microbearing.calibrate import DataError, Dataset, check_request, parse_assignments, read_csv, read_rows
-from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names
+from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names, read_column
 
 from ..calibrations import (
     DATA_PREFIX,
-    calibration_summaries,
+    KIND,
+    calibration_summary,
     calibration_view,
     data_problem,
     delete_calibration,
@@ -24,7 +25,7 @@ from ..calibrations import (
 )
 from ..deps import JobsDep, SettingsDep, StoreDep
 from ..jobs import JobContext, JobManager, register_kind
-from ..limits import check_columns, check_rows, csv_data_rows, csv_header_columns
+from ..limits import check_table, csv_data_rows, csv_header_columns
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas import examples
 from ..schemas.base import Convention, ConventionName
@@ -36,6 +37,7 @@ from ..schemas.calibrations import (
 )
 from ..store import Store
 from .jobs import ACCEPTED_RESPONSE, accepted, calibration_links
+from .pages import DEFAULT_PAGE_LIMIT, PageToken, page_limit, page_of, page_start
 
 __all__ = ["router"]
 
@@ -120,6 +122,27 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
     return accepted(jobs.submit("calibration", record, work, inputs=inputs))
 
 
+def _refuse_text_inputs(rows: list[dict[str, Any]]) -> None:
+    """422 naming each physics input of a JSON row written as text (``"balls": "4"``).
+
+    Text is a CSV file's cell, and a factor's label among the conditions; a JSON row gives a physics
+    input as a number (``4`` or ``4.0``), as the schema says.
+    """
+    inputs = set()
+    for key in set().union(*rows):
+        try:
+            if read_column(key).name in physics.PARAMETERS:
+                inputs.add(key)
+        except DataError:  # an unreadable name: read_rows names it
+            pass
+    errors = [{"row": i + 1, "column": key,
+               "message": f"a physics input takes a number, not text ({value!r})"}
+              for i, row in enumerate(rows) for key, value in row.items()
+              if key in inputs and isinstance(value, str)]
+    if errors:
+        raise data_problem(errors)
+
+
 @router.post("", operation_id="create_calibration", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses()})
 def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples=examples.media_examples(
@@ -132,8 +155,9 @@ def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples
     The job's result is the calibration report (see ``GET /v1/calibrations/{id}``). More than
     MICROBEARING_MAX_CALIBRATION_ROWS rows or MICROBEARING_MAX_CALIBRATION_COLUMNS columns get 413.
     """
-    check_rows(len(body.data), settings.max_calibration_rows, "/data")
-    check_columns(len(set().union(*body.data)), settings.max_calibration_columns, "/data")
+    check_table(len(body.data), settings.max_calibration_rows, "rows", "/data")
+    check_table(len(set().union(*body.data)), settings.max_calibration_columns, "columns", "/data")
+    _refuse_text_inputs(body.data)
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
         dataset, intake = read_rows(body.data, fixed, body.factors)
@@ -179,8 +203,10 @@ async def create_calibration_from_csv(
     to SI. The report's ``intake`` says which dialect was used and how each column was read.
     """
     text = await request.body()
-    check_rows(csv_data_rows(text), settings.max_calibration_rows, "The CSV body")  # before parsing it
-    check_columns(csv_header_columns(text), settings.max_calibration_columns, "The CSV body's header")
+    # counted before parsing
+    check_table(csv_data_rows(text), settings.max_calibration_rows, "rows", "The CSV body")
+    check_table(csv_header_columns(text), settings.max_calibration_columns, "columns",
+                "The CSV body's header")
     try:
         fixed_values = parse_assignments(fixed)
     except DataError as exc:
@@ -201,14 +227,24 @@ async def create_calibration_from_csv(
     return _submit(jobs, store, record, dataset, names, folds, str(convention), intake.to_dict())
 
 
+_CalibrationsLimit = page_limit("calibrations")
+
+
 @router.get("", operation_id="list_calibrations", response_model=CalibrationList, responses={
-    200: {"description": "Every stored calibration the caller sees.",
+    200: {"description": "A page of the stored calibrations the caller sees.",
           "links": calibration_links("$response.body#/calibrations/0", "the first calibration listed")},
     **problem_responses()})
-def list_calibrations(store: StoreDep) -> JSONResponse:
-    """Every stored calibration the caller sees (with API keys: its key's, or all for the admin key),
-    newest first, summarized; ``url`` gives the full report."""
-    return JSONResponse({"calibrations": calibration_summaries(store)})
+def list_calibrations(request: Request, store: StoreDep, limit: _CalibrationsLimit = DEFAULT_PAGE_LIMIT,
+                      page_token: PageToken = None) -> JSONResponse:
+    """The stored calibrations the caller sees (with API keys: its key's, or all for the admin key),
+    newest first, summarized; ``url`` gives the full report.
+
+    ``limit`` per page; ``next_url`` fetches the next page.
+    """
+    rows = store.list_models(KIND, limit + 1, page_start(page_token))
+    page, next_url = page_of(request, rows, limit)
+    return JSONResponse({"calibrations": [calibration_summary(row) for row in page], "next_url": next_url})
+
 
 
 @router.delete("/{calibration_id}", operation_id="delete_calibration", status_code=204,

@@ -8,18 +8,17 @@ the key that created it (and the admin key), others get 404.
 from __future__ import annotations
 
 import json
-import re
 from typing import Annotated, Any
-from urllib.parse import urlencode
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep
 from ..jobs import FINISHED, POLL_AFTER_S, RETRY_AFTER_S, JobManager
-from ..problems import Problem, ProblemError, problem_responses, validation_problem
+from ..problems import Problem, ProblemError, problem_responses
 from ..schemas.jobs import JOB_RESULTS, Job, JobKind, JobList, JobResult, JobStatus
 from ..tables import CSV_MEDIA_TYPE, csv_text, sweep_table, wants_csv
+from .pages import DEFAULT_PAGE_LIMIT, PageToken, page_limit, page_of, page_start
 
 __all__ = ["ACCEPTED_RESPONSE", "NOT_FINISHED_RESPONSE", "accepted", "accepted_response", "calibration_links",
            "job_view", "not_finished", "router", "surrogate_links"]
@@ -162,7 +161,7 @@ def _job_or_404(jobs: JobManager, job_id: str, with_result: bool = False) -> dic
     return row
 
 
-_PAGE_TOKEN = re.compile(r"^(?P<created_at>[0-9T:.+\-Z]{10,40})_(?P<id>[0-9a-f]{1,64})$")
+_JobsLimit = page_limit("jobs")
 assert set(JobKind.__args__) == set(JOB_RESULTS)  # a new kind of job is listed too
 
 
@@ -172,30 +171,17 @@ def list_jobs(
     kind: Annotated[list[JobKind], Query(description="Only jobs of these kinds (repeatable).")] = [],  # noqa: B006
     status: Annotated[list[JobStatus], Query(
         description="Only jobs with these statuses (repeatable).")] = [],  # noqa: B006
-    limit: Annotated[int, Query(ge=1, le=100, description="Most jobs on one page [1].")] = 20,
-    page_token: Annotated[str | None, Query(
-        max_length=128, description="Where the page starts: from next_url of the previous page.")] = None,
+    limit: _JobsLimit = DEFAULT_PAGE_LIMIT,
+    page_token: PageToken = None,
 ) -> JobList:
     """The caller's jobs (with API keys: those its key created; the admin key: all), newest first.
 
     Filtered by ``kind`` and ``status``, ``limit`` per page; ``next_url`` fetches the next page.
     Finished jobs are deleted MICROBEARING_JOB_RETENTION_S after they finished.
     """
-    before = None
-    if page_token is not None:
-        match = _PAGE_TOKEN.match(page_token)
-        if match is None:
-            raise validation_problem([{"parameter": "page_token", "detail": "is not a page token of this "
-                                       "list; take next_url of the previous page as it is"}])
-        before = (match["created_at"], match["id"])
-    rows = jobs.list(tuple(kind), tuple(status), limit + 1, before)
-    page, more = rows[:limit], len(rows) > limit
-    next_url = None
-    if more:
-        last = page[-1]
-        query = [("kind", k) for k in kind] + [("status", s) for s in status] + [
-            ("limit", str(limit)), ("page_token", f"{last['created_at']}_{last['id']}")]
-        next_url = f"{request.url.path}?{urlencode(query)}"
+    rows = jobs.list(tuple(kind), tuple(status), limit + 1, page_start(page_token))
+    filters = [("kind", k) for k in kind] + [("status", s) for s in status]
+    page, next_url = page_of(request, rows, limit, filters)
     return JobList(jobs=[job_view(row) for row in page], next_url=next_url)
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Query
+from fastapi import APIRouter, Body, Query, Request
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep, StoreDep
@@ -24,6 +24,7 @@ from ..schemas.surrogates import (
 )
 from ..store import json_bytes
 from ..surrogates import (
+    KIND,
     SENSITIVITY_N,
     delete_stored,
     load_stored,
@@ -31,10 +32,10 @@ from ..surrogates import (
     prepare_training,
     sensitivity,
     surrogate_view,
-    surrogate_views,
     train_surrogate,
 )
 from .jobs import ACCEPTED_RESPONSE, accepted, surrogate_links
+from .pages import DEFAULT_PAGE_LIMIT, PageToken, page_limit, page_of, page_start
 
 __all__ = ["router"]
 
@@ -78,13 +79,25 @@ def create_surrogate(body: Annotated[SurrogateRequest, Body(openapi_examples=exa
     return accepted(jobs.submit("surrogate", request, work, inputs=request))
 
 
+_SurrogatesLimit = page_limit("surrogates")
+
+
 @router.get("", operation_id="list_surrogates", response_model=SurrogateList, responses={
-    200: {"description": "Every stored surrogate.",
+    200: {"description": "A page of the stored surrogates the caller sees.",
           "links": surrogate_links("$response.body#/surrogates/0", "the first surrogate listed")},
     **problem_responses()})
-def list_surrogates(store: StoreDep) -> JSONResponse:
-    """Every stored surrogate, newest first."""
-    return JSONResponse({"surrogates": surrogate_views(store)})
+def list_surrogates(request: Request, store: StoreDep, limit: _SurrogatesLimit = DEFAULT_PAGE_LIMIT,
+                    page_token: PageToken = None) -> JSONResponse:
+    """The stored surrogates the caller sees (with API keys: its key's, or all for the admin key),
+    newest first.
+
+    ``limit`` per page; ``next_url`` fetches the next page.
+    """
+    rows = store.list_models(KIND, limit + 1, page_start(page_token))
+    page, next_url = page_of(request, rows, limit)
+    return JSONResponse({"surrogates": [surrogate_view(row["id"], row["metadata"]) for row in page],
+                         "next_url": next_url})
+
 
 
 @router.get("/{surrogate_id}", operation_id="get_surrogate", response_model=SurrogateResult,

@@ -12,6 +12,7 @@ from microbearing.calibrate.report import MIN_ROWS
 
 from . import examples
 from .base import (
+    NEXT_URL,
     Convention,
     ConventionName,
     DateTimeText,
@@ -417,6 +418,8 @@ class CalibrationSummary(ResponseModel):
 
 
 class CalibrationList(ResponseModel):
-    """Stored calibrations the caller sees, newest first."""
+    """A page of the stored calibrations the caller sees, newest first."""
 
-    calibrations: list[CalibrationSummary] = Field(description="Every stored calibration.")
+    calibrations: list[CalibrationSummary] = Field(
+        description="The calibrations of this page (at most limit).")
+    next_url: str | None = NEXT_URL

@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from ..problems import Problem
-from .base import DateTimeText, ResponseModel
+from .base import NEXT_URL, DateTimeText, ResponseModel
 from .calibrations import CalibrationResult
 from .experiments import ExperimentsResult
 from .optimizations import OptimizationResult
@@ -82,5 +82,4 @@ class JobList(ResponseModel):
     """A page of the caller's jobs, newest first."""
 
     jobs: list[Job] = Field(description="The jobs of this page (at most limit).")
-    next_url: str | None = Field(default=None, description=(
-        "Path of the next page (same filters, page_token set); null on the last page."))
+    next_url: str | None = NEXT_URL

@@ -11,6 +11,7 @@ import microbearing.surrogate.sampling  # noqa: F401  (loads the submodule)
 from microbearing import physics, surrogate
 
 from .base import (
+    NEXT_URL,
     REQUIRED_INPUTS,
     Convention,
     ConventionName,
@@ -188,9 +189,10 @@ class SurrogateResult(ResponseModel):
 
 
 class SurrogateList(ResponseModel):
-    """Stored surrogates, newest first."""
+    """A page of the stored surrogates the caller sees, newest first."""
 
-    surrogates: list[SurrogateResult] = Field(description="Every stored surrogate.")
+    surrogates: list[SurrogateResult] = Field(description="The surrogates of this page (at most limit).")
+    next_url: str | None = NEXT_URL
 
 
 PredictPoints = create_model(

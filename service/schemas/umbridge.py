@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from .base import ConventionName, StrictModel
+from .base import ConventionName, StrictModel, WholeNumber
 
 #: Where the protocol is served: clients are given ``http://host:port/umbridge``.
 PREFIX = "/umbridge"
@@ -32,7 +32,7 @@ class UMBridgeConfig(StrictModel):
         "Outputs of each output vector, in order: mu [1] by default; any output of the model (the "
         "physics outputs, mu_effect [1] of a calibrated model, mu_lower and mu_upper [1] of a surrogate) "
         "and outside_domain (1 where the model's figures do not hold, else 0) [1]."))
-    points: int = Field(default=1, ge=1, description=(
+    points: WholeNumber = Field(default=1, ge=1, description=(
         "Points per request [1]: input holds this many vectors, output answers as many."))
     convention: ConventionName | None = Field(default=None, description=(  # type: ignore[valid-type]
         "Reading of the paper's ambiguous ball-ball terms, for the physics (a stored model has its own)."))
@@ -55,8 +55,8 @@ class UMBridgeEvaluateRequest(UMBridgeRequest):
 class UMBridgeGradientRequest(UMBridgeEvaluateRequest):
     """Gradient: sens times the Jacobian of output vector outWrt with respect to input vector inWrt."""
 
-    outWrt: int = Field(ge=0, description="Index of the output vector (a point) [1].")
-    inWrt: int = Field(ge=0, description="Index of the input vector (a point) [1].")
+    outWrt: WholeNumber = Field(ge=0, description="Index of the output vector (a point) [1].")
+    inWrt: WholeNumber = Field(ge=0, description="Index of the input vector (a point) [1].")
     sens: list[float] = Field(description=(
         "Sensitivity: one value per output of config.outputs [output units]."))
 
@@ -64,6 +64,6 @@ class UMBridgeGradientRequest(UMBridgeEvaluateRequest):
 class UMBridgeApplyJacobianRequest(UMBridgeEvaluateRequest):
     """ApplyJacobian: the Jacobian of output vector outWrt with respect to input vector inWrt, times vec."""
 
-    outWrt: int = Field(ge=0, description="Index of the output vector (a point) [1].")
-    inWrt: int = Field(ge=0, description="Index of the input vector (a point) [1].")
+    outWrt: WholeNumber = Field(ge=0, description="Index of the output vector (a point) [1].")
+    inWrt: WholeNumber = Field(ge=0, description="Index of the input vector (a point) [1].")
     vec: list[float] = Field(description="Direction: one value per input of config.inputs [input units].")
