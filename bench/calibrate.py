@@ -347,11 +347,14 @@ def lab_scatter(seed: int, declared: bool, n: int = 200, noise=_scatter_noise,
     # Median log width of the 95 % intervals per region, and the generating truth's (2 x 1.96 x its scatter).
     width = np.log(prediction.mu_upper / prediction.mu_lower)
     truth = 2.0 * float(stats.norm.isf(0.025)) * noise(fresh)
+    # Coverage in each third of the fresh points ordered by the region's column.
+    thirds = np.array_split(np.argsort(fresh[region[0]]), 3)
     return {"right": named_right(result, ["meniscus"]), "terms": [e["label"] for e in result.effects],
             "seconds": seconds, "outliers": result.outliers["count"],
             "low": float(inside[low].mean()), "high": float(inside[~low].mean()),
             "widths": [float(np.median(width[low])), float(np.median(width[~low]))],
             "truth_widths": [float(np.median(truth[low])), float(np.median(truth[~low]))],
+            "thirds": [float(inside[t].mean()) for t in thirds],
             "summary": result.scatter["summary"]}
 
 
@@ -453,7 +456,8 @@ def lab_suite(seeds: int, cases: slice, first_seed: int | None = None) -> None:
                 print(f"  seed {seed}: named right {r['right']} {r['terms']}; outliers {r['outliers']}; "
                       f"coverage below {where} {r['low']:.3f}, above {r['high']:.3f}; median log width "
                       f"{r['widths'][0]:.4f}, {r['widths'][1]:.4f} (the truth's {r['truth_widths'][0]:.4f}, "
-                      f"{r['truth_widths'][1]:.4f}); {r['seconds']:.1f} s", flush=True)
+                      f"{r['truth_widths'][1]:.4f}); by thirds of {'load_N' if index == 6 else 'speed_m_s'} "
+                      f"{', '.join(f'{v:.3f}' for v in r['thirds'])}; {r['seconds']:.1f} s", flush=True)
                 print(f"    said: {r['summary']}")
             else:
                 r = lab_confounded(seed)
