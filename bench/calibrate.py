@@ -1,8 +1,9 @@
 """Calibration: a synthetic suite of hidden effects (discovery, error, coverage) and a 10,000-row timing.
 
 Run: ``python bench/calibrate.py --suite [--seeds N] [--clean-seeds M] [--distinct-clean-seeds]`` for
-the suite, ``python bench/calibrate.py --suite --part lab [--seeds N] [--cases 0:2]`` for the lab structures
-of issue 24 (several builds, scatter that depends on the speed, conditions that move together),
+the suite, ``python bench/calibrate.py --suite --part lab [--seeds N] [--cases 0:2] [--first-seed S]`` for
+the lab structures of issue 24 (several builds, scatter that depends on the speed, conditions that move
+together),
 ``python bench/calibrate.py --suite --part null [--null-seeds K]`` for the family-wise error
 of one selection step on data with nothing to find, and ``python bench/calibrate.py --rows 10000`` for
 the timing (target of issue 6: within 60 s).
@@ -340,11 +341,20 @@ def lab_scatter(seed: int, declared: bool, n: int = 200, noise=_scatter_noise,
     result = calibrate(rows, FIT, make_plots=False, seed=seed)
     seconds = time.perf_counter() - start
     fresh = {k: v[n:] for k, v in c.items()}
-    inside = _inside(result.model.predict(fresh), measured[n:])
+    prediction = result.model.predict(fresh)
+    inside = _inside(prediction, measured[n:])
     low = fresh[region[0]] < region[1]
+    # Median log width of the 95 % intervals per region, and the generating truth's (2 x 1.96 x its scatter).
+    width = np.log(prediction.mu_upper / prediction.mu_lower)
+    truth = 2.0 * float(stats.norm.isf(0.025)) * noise(fresh)
+    # Coverage in each third of the fresh points ordered by the region's column.
+    thirds = np.array_split(np.argsort(fresh[region[0]]), 3)
     return {"right": named_right(result, ["meniscus"]), "terms": [e["label"] for e in result.effects],
             "seconds": seconds, "outliers": result.outliers["count"],
             "low": float(inside[low].mean()), "high": float(inside[~low].mean()),
+            "widths": [float(np.median(width[low])), float(np.median(width[~low]))],
+            "truth_widths": [float(np.median(truth[low])), float(np.median(truth[~low]))],
+            "thirds": [float(inside[t].mean()) for t in thirds],
             "summary": result.scatter["summary"]}
 
 
@@ -417,12 +427,15 @@ def lab_confounded(seed: int, n: int = 200) -> dict:
             "summary": result.confounding[0] if result.confounding else "(nothing said)"}
 
 
-def lab_suite(seeds: int, cases: slice) -> None:
-    """The lab-structure cases, several seeds each: figures per seed, then the range over seeds."""
-    print(f"lab structures (issue 24, items 1-3): fit {', '.join(FIT)}; seeds from 2400")
+def lab_suite(seeds: int, cases: slice, first_seed: int | None = None) -> None:
+    """The lab-structure cases, several seeds each: figures per seed, then the range over seeds. Case k's
+    seeds start at 2400 + 10 k, or at ``first_seed`` for every case."""
+    print(f"lab structures (issue 24, items 1-3): fit {', '.join(FIT)}; seeds from "
+          f"{2400 if first_seed is None else first_seed}")
     for index, name in list(enumerate(LAB_CASES))[cases]:
         print(f"\n{name}", flush=True)
-        for seed in range(2400 + 10 * index, 2400 + 10 * index + seeds):
+        start = 2400 + 10 * index if first_seed is None else first_seed
+        for seed in range(start, start + seeds):
             if index in (0, 1, 5):
                 r = (lab_groups(seed, coded=index == 1) if index != 5 else
                      lab_groups(seed, False, builds=10, rows=12, spread=0.25,
@@ -434,15 +447,17 @@ def lab_suite(seeds: int, cases: slice) -> None:
                       f"coverage known build "
                       f"{r['known']:.3f}, new build {r['new']:.3f} (per build {min(r['new_per_build']):.2f}-"
                       f"{max(r['new_per_build']):.2f}); {r['seconds']:.1f} s", flush=True)
-                if seed == 2400 + 10 * index:
+                if seed == start:
                     print(f"    said: {r['summary']}")
             elif index in (2, 3, 6):
                 r = (lab_scatter(seed, declared=index == 3) if index != 6 else
                      lab_scatter(seed, False, noise=_load_noise, region=("load_N", 0.01)))
                 where = "10 mN" if index == 6 else "20 mm/s"
                 print(f"  seed {seed}: named right {r['right']} {r['terms']}; outliers {r['outliers']}; "
-                      f"coverage below {where} {r['low']:.3f}, above {r['high']:.3f}; {r['seconds']:.1f} s",
-                      flush=True)
+                      f"coverage below {where} {r['low']:.3f}, above {r['high']:.3f}; median log width "
+                      f"{r['widths'][0]:.4f}, {r['widths'][1]:.4f} (the truth's {r['truth_widths'][0]:.4f}, "
+                      f"{r['truth_widths'][1]:.4f}); by thirds of {'load_N' if index == 6 else 'speed_m_s'} "
+                      f"{', '.join(f'{v:.3f}' for v in r['thirds'])}; {r['seconds']:.1f} s", flush=True)
                 print(f"    said: {r['summary']}")
             else:
                 r = lab_confounded(seed)
@@ -458,7 +473,7 @@ def lab_suite(seeds: int, cases: slice) -> None:
                     (c1, w1), (c0, w0) = r["with"][name], r["without"][name]
                     print(f"    {name:>18}: coverage {c1:.3f} (without the rivals by confounding {c0:.3f}), "
                           f"width {w1:.3f} ({w0:.3f}) log")
-                if seed == 2400 + 10 * index:
+                if seed == start:
                     print(f"    said: {r['summary']}")
 
 
@@ -836,6 +851,8 @@ def main() -> None:
                              "or (confounded) what the selection names on lab case 4's confounded drivers")
     parser.add_argument("--null-seeds", type=int, default=100, help="data sets per null case (--part null)")
     parser.add_argument("--cases", default=":", help="a Python slice of the part's cases, e.g. 0:5")
+    parser.add_argument("--first-seed", type=int,
+                        help="lab part: every case's seeds start here (default: 2400 + 10 x the case)")
     parser.add_argument("--rows", type=int, default=10_000)
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--plots", metavar="DIR", help="also write the timing run's plots (PNG) into DIR")
@@ -856,7 +873,8 @@ def main() -> None:
         weighted_suite(args.seeds)
     elif args.suite and args.part == "lab":
         start, _, stop = args.cases.partition(":")
-        lab_suite(args.seeds, slice(int(start) if start else None, int(stop) if stop else None))
+        lab_suite(args.seeds, slice(int(start) if start else None, int(stop) if stop else None),
+                  args.first_seed)
     elif args.suite:
         start, _, stop = args.cases.partition(":")
         suite(args.seeds, args.clean_seeds, args.folds, args.part,

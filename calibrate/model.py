@@ -524,8 +524,9 @@ class CalibratedModel:
         return {**physics.defaults(), **self.fixed, **self.fitted, **points}
 
     def _noise_variance(self, points: Mapping[str, Any], shape, level: float = 0.95) -> np.ndarray:
-        """Variance of log μ of a new measurement around the model at the points [1]: the scatter model's
-        (a step's side scaled by Student's t of its rows, :meth:`ScatterModel.quantile_factor`), or
+        """Variance of log μ of a new measurement around the model at the points [1]: the scatter model's,
+        with the allowance for the degrees of freedom that inform it there (a step's side: its rows; a
+        log-linear trend: the fit's uncertainty at the point; :meth:`ScatterModel.quantile_factor`), or
         ``noise_std_log``² (also where the scatter model's column is not given)."""
         if self.scatter is not None and self.scatter.kind != "constant":
             columns = self._columns_at(points)

@@ -513,11 +513,14 @@ def calibrate(
         # noise is its white-noise part (Kennedy-O'Hagan), not the held-out scatter, which holds both.
         noise_variance = gp_state["noise"] * float(np.var(gp_state["y"]))
     noise_std_log = float(np.sqrt(noise_variance))
-    if scatter.kind != "constant":
-        # The scatter model's shape at the level of noise_std_log (RMS over the rows that are not outliers).
+    if scatter.kind != "constant" and gp_state is not None:
+        # The scatter model's shape at the level of the GP's white noise (RMS over the rows that are not
+        # outliers). Without a GP it stays as fitted: the maximum-likelihood spread of these held-out
+        # residuals in each region (an RMS of the spreads would be set by the noisiest rows and would
+        # rescale the quiet ones with them).
         rms = float(np.sqrt(np.mean(np.square(scatter.std_log(varying, measured.shape)[inliers]))))
         scatter = scatter.scaled(noise_std_log / rms)
-    else:
+    elif scatter.kind == "constant":
         scatter = scatter.scaled(noise_std_log / float(np.exp(scatter.coefficients[0])))
     cloud = DataCloud.from_columns(varying, seed)
     model = CalibratedModel.from_fit(

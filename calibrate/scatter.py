@@ -8,14 +8,28 @@ chosen by cross-validation among
 * ``step``: one spread below a split of one column and another above (a regression stump; the split
   among the column's 2-98 % quantiles, at least 8 rows either side, maximizes the likelihood on the
   training rows);
-* ``loglinear``: log of the spread linear in the column (or in its log, for a positive column spanning
-  more than a decade), clipped to the column's range in the data.
+* ``loglinear``: log of the spread linear in the column, or in its log (a positive column: both are
+  candidates, and cross-validation chooses, whatever the column's span: a spread that grows as a power
+  of the load is linear in log load even over less than a decade), clipped to the column's range in
+  the data.
 
 Every candidate is fitted by Gaussian maximum likelihood of the held-out log residuals of the nested
 cross-validation (so the spread holds the refit's uncertainty too), with rows beyond
 :func:`calibrate.uncertainty.outlier_threshold` of the local spread left out (twice refitted), and
 scored on k folds by the held-out negative log-likelihood, each row's square capped at that threshold
 (gross outliers count like a few rows); the best of them is the form.
+
+A new measurement's interval allows for the spread being estimated (:meth:`ScatterModel.quantile_factor`)
+from the degrees of freedom ν that inform it locally: a step's k - 1 on each side; for ``loglinear``,
+ν(x) = 1 / (2 Var[log ŝ(x)]), Var[log ŝ(x)] = (1, t) C (1, t)' with C = (X'X)⁻¹ / 2 the inverse
+Fisher information of (a, b) (a Gaussian residual's log variance has information 1/2 per row), the
+degrees of freedom of a variance estimate whose log has that variance (ν = n for one spread
+everywhere). The half-width is ŝ times the larger of Student's t quantile of ν (the prediction rule:
+the level on average over data sets) and the tolerance rule z_c sqrt(ν / χ²_{1-level, ν}) (an upper
+confidence bound of the spread, at the interval's level, on the normal quantile of content
+1 - 2 (1 - level): 90 % of measurements in 95 % of data sets), the two rules of a new group's spread
+(:meth:`calibrate.groups.GroupEffect.new_group_variance`). The tolerance rule decides below about 40
+degrees of freedom: a step's side with a few dozen rows, the ends of a trend fitted on few rows.
 
 Whether the scatter depends on the inputs at all is a **permutation test** (:func:`permutation_p`):
 the statistic is the largest, over every column, of the step's likelihood ratio at its best split
@@ -31,7 +45,7 @@ the many others only noise.)
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -42,7 +56,7 @@ from microbearing import physics
 from .fit import kfold_indices
 from .uncertainty import outlier_threshold
 
-__all__ = ["PERMUTATIONS", "SCATTER_ALPHA", "ScatterModel", "fit_scatter", "permutation_p"]
+__all__ = ["PERMUTATIONS", "SCATTER_ALPHA", "ScatterModel", "allowance", "fit_scatter", "permutation_p"]
 
 #: Chance that a non-constant scatter model is chosen on data with one spread everywhere. [1]
 SCATTER_ALPHA = 0.01
@@ -92,6 +106,11 @@ class ScatterModel:
     cv : dict
         Held-out negative log-likelihood of the constant and the chosen model per row [1], the paired
         z [1] and the z needed [1].
+    rows : list of float
+        A step's rows below and above its split. [1]
+    covariance : list of float
+        ``loglinear``: the inverse Fisher information of [a, b], flattened 2 x 2 (row-major) [1]; empty
+        for the other kinds (and for models stored before it, whose intervals take no allowance).
     """
 
     kind: str = "constant"
@@ -105,19 +124,30 @@ class ScatterModel:
     cv: dict[str, float] = field(default_factory=dict)
     band: list[float] = field(default_factory=list)
     rows: list[float] = field(default_factory=list)
+    covariance: list[float] = field(default_factory=list)
 
     def quantile_factor(self, columns: Mapping[str, Any], shape: tuple[int, ...] = (), level: float = 0.95
                         ) -> np.ndarray:
-        """``t_{k-1} / z`` at points [1]: a step's spread on each side rests on the k rows there, so the
-        interval of a new measurement takes Student's t quantile of k - 1 degrees of freedom (1 without a
-        step or row counts)."""
+        """The factor on the spread's half-width z ŝ at points [1] for the degrees of freedom ν that
+        inform the spread there (see the module's text): :func:`allowance` of ν. A step's spread on each
+        side rests on the k rows there (ν = k - 1); a log-linear one's on ν(x) = 1 / (2 Var[log ŝ(x)]). 1
+        for one spread everywhere, and without row counts or covariance (models stored before them)."""
+        if self.kind == "loglinear" and len(self.covariance) == 4:
+            t = self._standardized(columns, shape)
+            (caa, cab), (_, cbb) = np.reshape(self.covariance, (2, 2))
+            variance = np.maximum(caa + 2.0 * cab * t + cbb * t * t, 1e-12)
+            return allowance(1.0 / (2.0 * variance), level)
         if self.kind != "step" or len(self.rows) != 2:
             return np.ones(shape)
-        z = float(stats.norm.isf((1.0 - level) / 2.0))
-        below, above = (float(stats.t.isf((1.0 - level) / 2.0, max(k - 1.0, 1.0))) / z for k in self.rows)
+        below, above = (float(allowance(k - 1.0, level)) for k in self.rows)
         x = np.broadcast_to(np.asarray(columns[self.column], dtype=float), shape)
         lo, hi = self.band or [self.split, self.split]
         return np.where(x < lo, below, np.where(x >= hi, above, max(below, above)))
+
+    def _standardized(self, columns: Mapping[str, Any], shape: tuple[int, ...]) -> np.ndarray:
+        """A log-linear model's t at points: the (log) column, clipped to its range, standardized. [1]"""
+        x = np.clip(np.broadcast_to(np.asarray(columns[self.column], dtype=float), shape), *self.range)
+        return ((np.log(x) if self.transform == "log" else x) - self.centre) / self.scale
 
     def std_log(self, columns: Mapping[str, Any], shape: tuple[int, ...] = ()) -> np.ndarray:
         """Standard deviation of log μ at points [1], broadcast to ``shape``.
@@ -134,11 +164,8 @@ class ScatterModel:
             below, above = self.coefficients
             lo, hi = self.band or [self.split, self.split]
             return np.exp(np.where(x < lo, below, np.where(x >= hi, above, max(below, above))))
-        lo, hi = self.range
-        x = np.clip(x, lo, hi)
-        t = ((np.log(x) if self.transform == "log" else x) - self.centre) / self.scale
         a, b = self.coefficients
-        return np.exp(a + b * t)
+        return np.exp(a + b * self._standardized(columns, shape))
 
     def summary(self) -> str:
         """The scatter model in words, e.g. ``scatter 10 % below speed_m_s = 0.02 [m/s], 1.5 % above``."""
@@ -170,14 +197,15 @@ class ScatterModel:
         coefficients = ([c + shift for c in self.coefficients] if self.kind != "loglinear"
                         else [self.coefficients[0] + shift, self.coefficients[1]])
         return ScatterModel(self.kind, self.column, coefficients, self.split, self.transform, self.centre,
-                            self.scale, self.range, self.cv, self.band, self.rows)
+                            self.scale, self.range, self.cv, self.band, self.rows, self.covariance)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""
         return {"kind": self.kind, "column": self.column, "coefficients": list(map(float, self.coefficients)),
                 "split": self.split, "transform": self.transform, "centre": self.centre, "scale": self.scale,
                 "range": list(map(float, self.range)), "cv": dict(self.cv),
-                "band": list(map(float, self.band)), "rows": list(map(float, self.rows))}
+                "band": list(map(float, self.band)), "rows": list(map(float, self.rows)),
+                "covariance": list(map(float, self.covariance))}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> ScatterModel:
@@ -199,16 +227,39 @@ class ScatterModel:
                    str(data.get("transform", "linear")), float(data.get("centre", 0.0)),
                    float(data.get("scale", 1.0)), [float(v) for v in data.get("range", [])],
                    {str(k): float(v) for k, v in dict(data.get("cv", {})).items()},
-                   [float(v) for v in data.get("band", [])], [float(v) for v in data.get("rows", [])])
+                   [float(v) for v in data.get("band", [])], [float(v) for v in data.get("rows", [])],
+                   [float(v) for v in data.get("covariance", [])])
+
+
+def allowance(dof: Any, level: float = 0.95) -> np.ndarray:
+    """Factor [1] on z ŝ, z the normal quantile of ``level``, for a spread ŝ estimated with ``dof``
+    degrees of freedom [1] (clipped to at least 1): the larger of the prediction rule t_ν / z and the
+    tolerance rule z_c sqrt(ν / χ²_{1-level, ν}) / z, z_c the normal quantile of content
+    1 - 2 (1 - level) (the prediction rule alone when that content is not positive).
+
+    Examples
+    --------
+    >>> [round(float(allowance(nu)), 4) for nu in (10, 40, 180)]
+    [1.3369, 1.0312, 1.0068]
+    """
+    nu = np.maximum(np.asarray(dof, dtype=float), 1.0)
+    z = float(stats.norm.isf((1.0 - level) / 2.0))
+    prediction = stats.t.isf((1.0 - level) / 2.0, nu) / z
+    content = 1.0 - 2.0 * (1.0 - level)
+    if content <= 0.0:
+        return prediction
+    z_content = float(stats.norm.isf((1.0 - content) / 2.0))
+    return np.maximum(prediction, z_content * np.sqrt(nu / stats.chi2.ppf(1.0 - level, nu)) / z)
 
 
 def _pct(log_sd: float) -> str:
     return f"{100 * float(np.exp(log_sd)):.3g} %"
 
 
-def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray, threshold: float
-             ) -> ScatterModel | None:
-    """Maximum-likelihood fit of one candidate on rows r (and column values x), outliers trimmed."""
+def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray, threshold: float,
+             transform: str = "linear") -> ScatterModel | None:
+    """Maximum-likelihood fit of one candidate on rows r (and column values x, entering ``loglinear`` as
+    they are or by their log, ``transform``), outliers trimmed."""
     keep = np.ones(r.size, dtype=bool)
     model: ScatterModel | None = None
     for _ in range(3):
@@ -234,16 +285,19 @@ def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray,
                                  range=[float(np.min(x)), float(np.max(x))], band=[min(near), max(near)],
                                  rows=best[3])
         else:
-            transform = _transform(x)
             tx = np.log(x) if transform == "log" else x
             centre, scale = float(np.mean(tx)), float(np.std(tx))
             if scale <= 0:
                 return None
             t = ((tx - centre) / scale)[keep]
-
             p = _loglinear(t, rk * rk)
+            # Inverse Fisher information of (a, b) of log sd: a Gaussian residual's log variance carries
+            # information 1/2 per row, its log sd 2, so C = (X'X)^-1 / 2.
+            design = np.column_stack([np.ones_like(t), t])
+            covariance = 0.5 * np.linalg.pinv(design.T @ design)
             model = ScatterModel("loglinear", column, [float(p[0]), float(p[1])], None, transform, centre,
-                                 scale, [float(np.min(x)), float(np.max(x))])
+                                 scale, [float(np.min(x)), float(np.max(x))],
+                                 covariance=[float(v) for v in covariance.ravel()])
         sd = model.std_log({column: x} if column else {}, r.shape)
         new_keep = np.abs(r / sd) <= threshold
         if np.array_equal(new_keep, keep):
@@ -324,23 +378,27 @@ def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: 
     n = r.size
     threshold = outlier_threshold(n)
     varying = {k: v[chosen_rows] for k, v in all_columns.items()}
-    candidates = [("constant", None)] + [(kind, c) for c in varying for kind in ("step", "loglinear")]
+    # A log-linear trend in the column, and in its log when the column is positive.
+    candidates = [("constant", None, "linear")] + [
+        (kind, c, transform) for c in varying for kind, transform in
+        (("step", "linear"), ("loglinear", "linear"), ("loglinear", "log")) if transform == "linear" or
+        np.all(all_columns[c] > 0)]
     test_rows = kfold_indices(n, min(folds, n), seed)
-    losses: dict[tuple[str, str | None], np.ndarray] = {}
-    for kind, column in candidates:
+    losses: dict[tuple[str, str | None, str], np.ndarray] = {}
+    for kind, column, transform in candidates:
         x = varying.get(column) if column else None
         loss = np.empty(n)
         ok = True
         for test in test_rows:
             train = np.setdiff1d(np.arange(n), test)
-            model = _fit_one(kind, column, None if x is None else x[train], r[train], threshold)
+            model = _fit_one(kind, column, None if x is None else x[train], r[train], threshold, transform)
             if model is None:
                 ok = False
                 break
             loss[test] = _held_out_loss(model, column, None if x is None else x[test], r[test], threshold)
         if ok:
-            losses[(kind, column)] = loss
-    constant = losses[("constant", None)]
+            losses[(kind, column, transform)] = loss
+    constant = losses[("constant", None, "linear")]
 
     gains = {key: float(np.mean(constant - loss)) for key, loss in losses.items() if key[0] != "constant"}
     best = max(gains, key=lambda key: gains[key], default=None)
@@ -351,11 +409,9 @@ def fit_scatter(columns: Mapping[str, np.ndarray], residual: np.ndarray, folds: 
         model = _fit_one("constant", None, None, r, threshold)
         return ScatterModel(model.kind, None, model.coefficients,
                             cv={**cv, "loss_chosen": cv["loss_constant"]})
-    kind, column = best
-    model = _fit_one(kind, column, varying[column], r, threshold)
-    return ScatterModel(model.kind, model.column, model.coefficients, model.split, model.transform,
-                        model.centre, model.scale, model.range,
-                        {**cv, "loss_chosen": float(np.mean(losses[best]))}, model.band, model.rows)
+    kind, column, transform = best
+    model = _fit_one(kind, column, varying[column], r, threshold, transform)
+    return replace(model, cv={**cv, "loss_chosen": float(np.mean(losses[best]))})
 
 
 def _statistics(w2: np.ndarray, orders: list[np.ndarray], splits: list[np.ndarray],

@@ -380,9 +380,11 @@ class CalibrationResult(ResponseModel):
         "log-likelihood [1] of the random effect on each candidate parameter (the highest carries the "
         "spread), and summary in words."))
     scatter: dict[str, Any] | None = Field(default=None, description=(
-        "The scatter model of a new measurement (kind constant, step or loglinear in one column, chosen by "
-        "cross-validation), with summary in words, e.g. 'scatter 10 % below speed_m_s = 0.02 [m/s], 1.5 % "
-        "above'."))
+        "The scatter model of a new measurement (kind constant, step or loglinear in one column or its log, "
+        "chosen by cross-validation; coefficients are logs of the standard deviation of log mu [1]; rows: a "
+        "step's rows on each side [1]; covariance: a log-linear trend's inverse Fisher information [1]: "
+        "the interval takes Student's t of the degrees of freedom they give), with summary in words, e.g. "
+        "'scatter 10 % below speed_m_s = 0.02 [m/s], 1.5 % above'."))
     confounding: list[str] | None = Field(default=None, description=(
         "Columns that move together in the data (their effects cannot be told apart) and what would "
         "separate them; chosen terms whose driver may stand for another."))
