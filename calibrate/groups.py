@@ -283,7 +283,9 @@ def _mixed(residual: np.ndarray, labels: np.ndarray, s: np.ndarray):
     from statsmodels.regression.mixed_linear_model import MixedLM  # imported here: slow, rarely needed
 
     model = MixedLM(residual, s[:, None], groups=labels, exog_re=s[:, None])
-    with warnings.catch_warnings():
+    # numpy's error state is per thread; the warnings filter is process-wide (another thread leaving its
+    # own catch_warnings may restore filters without this ignore while the fit runs).
+    with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = model.fit(reml=True)
     return model, result
@@ -293,7 +295,7 @@ def _profile_interval(result, residual: np.ndarray, s: np.ndarray) -> tuple[floa
     """95 % profile restricted-likelihood interval of tau (linear interpolation on the grid). [1]"""
     c = max(float(np.asarray(result.cov_re)[0, 0]), 0.0)
     reach = max(_PROFILE_REACH * c, 10.0 * float(np.var(residual)) / max(float(np.mean(s * s)), 1e-12))
-    with warnings.catch_warnings():
+    with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
             grid = result.profile_re(0, "re", num_low=_PROFILE_LOW, dist_low=0.999 * c,

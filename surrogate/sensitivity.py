@@ -5,8 +5,8 @@ log-scaled dimensions, the distribution of the designs); the indices come from
 :func:`scipy.stats.sobol_indices` (Saltelli et al. 2010 estimator for
 first-order indices, Jansen 1999 for total ones), costing ``n (d + 2)``
 evaluations of the model, cheap on a surrogate. Their 95 % confidence intervals come from
-scipy's bootstrap of those evaluations (``sobol_indices(...).bootstrap()``, percentile
-intervals over resampled rows; no new evaluations).
+scipy's bootstrap of those evaluations (``sobol_indices(...).bootstrap()``: bias-corrected and
+accelerated (BCa) intervals over resampled rows; no new evaluations).
 """
 
 from __future__ import annotations
@@ -104,10 +104,12 @@ def sobol_indices(func: Callable[[np.ndarray], np.ndarray], space: Space, n: int
         return np.asarray(func(space.from_unit(np.clip(U[:d].T, 0.0, 1.0))), dtype=float)
 
     result = stats.sobol_indices(func=on_unit_cube, n=int(n), dists=[stats.uniform()] * sampled, rng=seed)
-    with warnings.catch_warnings():
-        # An index that no resample changes (the inert input, an input the function ignores) has no
-        # BCa interval: scipy warns and answers NaN, replaced below by the index itself.
-        warnings.simplefilter("ignore", RuntimeWarning)
+    # An index that no resample changes (the inert input, an input the function ignores) has no BCa
+    # interval: its jackknife divides 0 by 0, scipy warns and answers NaN, replaced below by the index
+    # itself. numpy's error state is per thread (a context variable), so the division is silenced here
+    # whatever another thread does; the warnings filter is process-wide, and a thread leaving its own
+    # catch_warnings restores the filters it saw, so it only backs up scipy's DegenerateDataWarning.
+    with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", stats.DegenerateDataWarning)
         boot = result.bootstrap(confidence_level=0.95, n_resamples=BOOTSTRAP_RESAMPLES)
 
