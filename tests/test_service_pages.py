@@ -4,10 +4,10 @@
 from __future__ import annotations
 
 import random
-import time
 
 import pytest
 from fastapi.testclient import TestClient
+from test_service_resources import bearer, finished
 
 from microbearing.service.app import create_app
 from microbearing.service.schemas import examples
@@ -19,21 +19,6 @@ LISTS = {"/v1/calibrations": "calibrations", "/v1/surrogates": "surrogates"}
 SURROGATE = {"space": {"balls": [4, 8]}, "fixed": {"load_N": 0.01, "speed_m_s": 0.05}, "budget": 4,
              "validation_points": 0}
 CALIBRATION = examples.CALIBRATION  # 24 rows, 3 folds
-
-
-def bearer(key: str) -> dict[str, str]:
-    return {"Authorization": f"Bearer {key}"}
-
-
-def finished(client: TestClient, response, key: str) -> dict:
-    assert response.status_code == 202, response.text
-    deadline = time.monotonic() + 120
-    while (job := client.get(response.headers["location"], headers=bearer(key)).json())["status"] in (
-            "queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.05)
-    assert job["status"] == "succeeded", job
-    return client.get(job["result_url"], headers=bearer(key)).json()
 
 
 def follow(client: TestClient, url: str, key: str, field: str) -> tuple[list[str], int]:
