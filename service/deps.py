@@ -69,6 +69,12 @@ def open_database(settings: Settings) -> Store:
         Naming the database and the fix: the driver is missing, the server cannot be reached, or
         the data folder cannot hold the SQLite database (:func:`open_store`).
     """
+    store = _open_database(settings)
+    store.max_models = settings.max_stored_models
+    return store
+
+
+def _open_database(settings: Settings) -> Store:
     url = settings.database_url.get_secret_value()
     if not url:
         return open_store(settings.data_dir, settings.model_cache_size)

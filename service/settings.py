@@ -118,6 +118,12 @@ class Settings(BaseSettings):
         description="Finished jobs and their results are deleted this long after they finished [s] "
                     "(7 days). Stored surrogates and calibrations do not expire.",
     )
+    max_stored_models: int = Field(
+        default=10_000, ge=1,
+        description="Most stored models (calibrations and surrogates together) the data folder or database "
+                    "holds [1]: a request that would store one more gets 507 naming this setting, and a job "
+                    "that reaches it meanwhile fails with that problem. Delete models no longer needed.",
+    )
     min_free_bytes: int = Field(
         default=64 * 2**20, ge=0,
         description="GET /readyz answers 503 when the data folder's file system has less free space [bytes].",

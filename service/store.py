@@ -54,8 +54,8 @@ import pydantic_core
 
 from .problems import ProblemError
 
-__all__ = ["DATABASE_NAME", "REQUESTER", "Requester", "SqliteStore", "StorageError", "Store", "StoredModel",
-           "json_bytes", "redacted_url", "to_json", "utc_now"]
+__all__ = ["DATABASE_NAME", "REQUESTER", "ModelLimitError", "Requester", "SqliteStore", "StorageError",
+           "Store", "StoredModel", "json_bytes", "redacted_url", "to_json", "utc_now"]
 
 logger = logging.getLogger("microbearing.service.store")
 
@@ -150,6 +150,26 @@ STORAGE_TYPE = "urn:microbearing:problem:storage"
 
 #: SQLite's primary result codes of a storage fault (https://sqlite.org/rescode.html).
 _SQLITE_READONLY, _SQLITE_IOERR, _SQLITE_CORRUPT, _SQLITE_FULL, _SQLITE_CANTOPEN = 8, 10, 11, 13, 14
+
+
+class ModelLimitError(ProblemError):
+    """The database holds ``MICROBEARING_MAX_STORED_MODELS`` models: 507, naming the setting and the way out.
+
+    Parameters
+    ----------
+    stored : int
+        Models stored now [1].
+    limit : int
+        The setting's value [1].
+    """
+
+    def __init__(self, stored: int, limit: int):
+        detail = (f"The service holds {stored} stored models, its limit (MICROBEARING_MAX_STORED_MODELS = "
+                  f"{limit}). Delete models no longer needed (DELETE /v1/calibrations/{{id}}, "
+                  "DELETE /v1/surrogates/{id}) or raise the setting; the request can be repeated then.")
+        super().__init__(507, detail, title="Stored-model limit reached")
+        self.stored = stored
+        self.limit = limit
 
 
 class StorageError(ProblemError):
@@ -301,6 +321,10 @@ class Store:
 
     def __new__(cls, *args: Any, **kwargs: Any) -> Store:
         return super().__new__(SqliteStore if cls is Store else cls)
+
+    #: Most stored models (calibrations, surrogates) the database holds, or None for no limit [1]; the
+    #: service sets it from ``MICROBEARING_MAX_STORED_MODELS`` (:func:`service.deps.open_database`).
+    max_models: int | None = None
 
     def _init_cache(self, rebuilt_models: int) -> None:
         self._rebuilt: OrderedDict[str, Any] = OrderedDict()
@@ -671,12 +695,28 @@ class Store:
         np.savez_compressed(buffer, **plain)
         model_id = uuid.uuid4().hex
         with self.transaction() as conn:
+            if self.max_models is not None:
+                # Counted and written under the lock admissions take, so the limit holds across processes.
+                self._lock_admission(conn)
+                stored = conn.execute("SELECT COUNT(*) AS n FROM models").fetchone()["n"]
+                if stored >= self.max_models:
+                    raise ModelLimitError(stored, self.max_models)
             conn.execute(
                 "INSERT INTO models (id, kind, name, metadata_json, arrays_npz, owner_key, created_at) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",
                 (model_id, kind, name, to_json(metadata), buffer.getvalue(), REQUESTER.get().key_id,
                  utc_now()))
         return model_id
+
+    def check_model_room(self) -> None:
+        """Raise :class:`ModelLimitError` when the database already holds :attr:`max_models` models (a
+        request that would store one is refused before its work starts; :meth:`save_model` checks again)."""
+        if self.max_models is None:
+            return
+        with self._reading() as conn:
+            stored = conn.execute("SELECT COUNT(*) AS n FROM models").fetchone()["n"]
+        if stored >= self.max_models:
+            raise ModelLimitError(stored, self.max_models)
 
     def has_model(self, model_id: str, kind: str) -> bool:
         """Whether a model of ``kind`` with this id exists and the requester sees it."""

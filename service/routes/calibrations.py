@@ -119,6 +119,7 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
               "factors": _columns(dataset.factors),
               "fit_parameters": fit_parameters, "folds": folds, "convention": convention, "intake": intake}
     work = _work(store, dataset, fit_parameters, folds, convention, intake)
+    store.check_model_room()  # 507 now rather than a failed job later
     return accepted(jobs.submit("calibration", record, work, inputs=inputs))
 
 
@@ -144,7 +145,7 @@ def _refuse_text_inputs(rows: list[dict[str, Any]]) -> None:
 
 
 @router.post("", operation_id="create_calibration", status_code=202,
-             responses={**ACCEPTED_RESPONSE, **problem_responses()})
+             responses={**ACCEPTED_RESPONSE, **problem_responses(507)})
 def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples=examples.media_examples(
                            small=("mu_pivot fitted on 24 measurements", examples.CALIBRATION),
                            units=("The same, load in mN and speed in mm/s", examples.CALIBRATION_UNITS)))],
@@ -174,7 +175,7 @@ def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples
 
 
 @router.post("/csv", operation_id="create_calibration_from_csv", status_code=202,
-             responses={**ACCEPTED_RESPONSE, **problem_responses()}, openapi_extra=_CSV_BODY)
+             responses={**ACCEPTED_RESPONSE, **problem_responses(507)}, openapi_extra=_CSV_BODY)
 async def create_calibration_from_csv(
     request: Request, store: StoreDep, jobs: JobsDep, settings: SettingsDep,
     fit_parameters: Annotated[list[FittableParameterName], Query(  # type: ignore[valid-type]

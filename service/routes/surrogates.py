@@ -58,7 +58,7 @@ register_kind("surrogate", _stored_work,
 
 
 @router.post("", operation_id="create_surrogate", status_code=202,
-             responses={**ACCEPTED_RESPONSE, **problem_responses()})
+             responses={**ACCEPTED_RESPONSE, **problem_responses(507)})
 def create_surrogate(body: Annotated[SurrogateRequest, Body(openapi_examples=examples.media_examples(
         small=("mu over load and speed, 30 evaluations", examples.SURROGATE)))], store: StoreDep,
                      jobs: JobsDep) -> JSONResponse:
@@ -76,6 +76,7 @@ def create_surrogate(body: Annotated[SurrogateRequest, Body(openapi_examples=exa
         return train_surrogate(store, space, body, progress=ctx.progress, mu_model=mu_model)
 
     request = body.model_dump(mode="json")
+    store.check_model_room()  # 507 now rather than a failed job later
     return accepted(jobs.submit("surrogate", request, work, inputs=request))
 
 
