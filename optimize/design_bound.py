@@ -72,12 +72,13 @@ from microbearing import physics
 from .envelope_bound import (
     _VALUE_FORMS,
     DRIFT_DIRECTIONS,
-    DRIFT_SHARES,
     INTERVAL_OUTPUTS,
     LINEAR_DECLARED,
     BoundFailedError,
     IntervalStructure,
     _composed,
+    _drift_share_change,
+    _log_gradient,
     _product,
     _times_positive,
     drift_ranges,
@@ -245,38 +246,14 @@ class _Bounds:
         g_lo, g_hi = [], []
 
         def gradient(ratio_lo: np.ndarray, ratio_hi: np.ndarray, h: float) -> None:
-            ok = ratio_lo > -1
-            g_lo.append(np.where(ok, np.log1p(np.where(ok, ratio_lo, 0.0)) / h, -np.inf))
-            g_hi.append(np.where(ok, np.log1p(np.where(ok, ratio_hi, 0.0)) / h, np.inf))
+            _log_gradient(g_lo, g_hi, ratio_lo, ratio_hi, h)
 
         def drift_ratio(piece: Any, i: int, h: float) -> tuple[np.ndarray, np.ndarray, float]:
             """D / mu for a step h in a drift's coefficient (i = 0) or level (i = 1), as
-            :func:`optimize.envelope_bound.mu_upper_box_bound` takes it: the parameter moves by the ratio
-            f(c + h, x) / f(c, x) (x the driver's value at the point) or
-            (level + h) / level, one inside the ratio's interval where the parameter may be clipped; its
-            share of the physics (``DRIFT_SHARES``: an output whose friction force grows like F) by
-            ratio^a - 1; mu by that change times the factors after the physics."""
-            term = piece.term
-            output, exponent = DRIFT_SHARES[term.parameter]
-            if i == 0:
-                a, b, _ = driver_interval(term.driver)
-                c = piece.values[0]
-                with np.errstate(all="ignore"):
-                    ratios = [np.asarray(term.factor({term.driver: x}, c + h), dtype=float)
-                              / np.asarray(term.factor({term.driver: x}, c), dtype=float) for x in (a, b)]
-                ratio_lo, ratio_hi = np.minimum(*ratios), np.maximum(*ratios)
-            else:
-                ratio_lo = ratio_hi = np.full(n, (piece.values[1] + h) / piece.values[1])
-            spec = physics.PARAMETERS[term.parameter]
-            low, high = drifted[term.parameter]
-            clipped = ((spec.minimum is not None) & (low <= spec.minimum)) | (
-                (spec.maximum is not None) & (high >= np.nextafter(spec.maximum, -np.inf)))
-            ratio_lo = np.where(clipped, np.minimum(ratio_lo, 1.0), ratio_lo)
-            ratio_hi = np.where(clipped, np.maximum(ratio_hi, 1.0), ratio_hi)
-            ok = ratio_lo > 0
-            with np.errstate(all="ignore"):
-                d_lo = np.where(ok, np.power(np.where(ok, ratio_lo, 1.0), exponent) - 1.0, -np.inf)
-                d_hi = np.where(ok, np.power(np.where(ok, ratio_hi, 1.0), exponent) - 1.0, np.inf)
+            :func:`optimize.envelope_bound.mu_upper_box_bound` takes it: its share of the physics changes
+            by :func:`optimize.envelope_bound._drift_share_change` (x the driver's value at the point),
+            and mu by that change times the factors after the physics."""
+            output, d_lo, d_hi = _drift_share_change(piece, i, h, driver_interval, drifted, n)
             share = phys[output] * load  # the share's friction force, growing like F
             if adds_after(-1):
                 p_lo, p_hi = after(-1)

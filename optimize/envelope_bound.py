@@ -823,6 +823,51 @@ def _composed(pieces: list[Piece], ranges: list[tuple[np.ndarray, np.ndarray]], 
     return levels_lo, levels_hi, after, adds_after
 
 
+def _drift_share_change(piece: Piece, i: int, h: float, driver_interval: Callable[[str], tuple],
+                        drifted: Mapping[str, tuple[np.ndarray, np.ndarray]], n: int
+                        ) -> tuple[str, np.ndarray, np.ndarray]:
+    """How a step h in a drift's coefficient (i = 0) or level (i = 1) changes the share of the physics its
+    parameter drives, over n boxes: the output that share is (``DRIFT_SHARES``) and [d_lo, d_hi], the
+    interval of ratio^a - 1 [1].
+
+    The parameter moves by the ratio f(c + h, x) / f(c, x), monotone in x so taken at the ends of the
+    driver's interval (``driver_interval(driver) -> (low, high, ...)``), or by (level + h) / level; where
+    the box may clip the parameter at a bound (``drifted``: its range per box), one is inside the ratio's
+    interval. A ratio that is not positive gives an unbounded change.
+    """
+    term = piece.term
+    output, exponent = DRIFT_SHARES[term.parameter]
+    if i == 0:
+        a, b = driver_interval(term.driver)[:2]
+        c = piece.values[0]
+        with np.errstate(all="ignore"):
+            ratios = [np.asarray(term.factor({term.driver: x}, c + h), dtype=float)
+                      / np.asarray(term.factor({term.driver: x}, c), dtype=float) for x in (a, b)]
+        ratio_lo, ratio_hi = np.minimum(*ratios), np.maximum(*ratios)
+    else:
+        ratio_lo = ratio_hi = np.full(n, (piece.values[1] + h) / piece.values[1])
+    spec = physics.PARAMETERS[term.parameter]
+    low, high = drifted[term.parameter]
+    clipped = ((spec.minimum is not None) & (low <= spec.minimum)) | (
+        (spec.maximum is not None) & (high >= np.nextafter(spec.maximum, -np.inf)))
+    ratio_lo = np.where(clipped, np.minimum(ratio_lo, 1.0), ratio_lo)
+    ratio_hi = np.where(clipped, np.maximum(ratio_hi, 1.0), ratio_hi)
+    ok = ratio_lo > 0
+    with np.errstate(all="ignore"):
+        d_lo = np.where(ok, np.power(np.where(ok, ratio_lo, 1.0), exponent) - 1.0, -np.inf)
+        d_hi = np.where(ok, np.power(np.where(ok, ratio_hi, 1.0), exponent) - 1.0, np.inf)
+    return output, d_lo, d_hi
+
+
+def _log_gradient(g_lo: list, g_hi: list, ratio_lo: np.ndarray, ratio_hi: np.ndarray, h: float) -> None:
+    """Append to ``g_lo``/``g_hi`` the interval of the finite-difference gradient of log mu,
+    log1p(D / mu) / h, from the interval [ratio_lo, ratio_hi] of D / mu (unbounded where D / mu may reach
+    -1)."""
+    ok = ratio_lo > -1
+    g_lo.append(np.where(ok, np.log1p(np.where(ok, ratio_lo, 0.0)) / h, -np.inf))
+    g_hi.append(np.where(ok, np.log1p(np.where(ok, ratio_hi, 0.0)) / h, np.inf))
+
+
 def _times_positive(low: np.ndarray, high: np.ndarray, pos_low: np.ndarray,
                     pos_high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """[low, high] × [pos_low, pos_high] with 0 < pos_low <= pos_high (interval arithmetic)."""
@@ -926,36 +971,14 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         g_lo, g_hi = [], []
 
         def gradient(ratio_lo: np.ndarray, ratio_hi: np.ndarray, h: float) -> None:
-            ok = ratio_lo > -1
-            g_lo.append(np.where(ok, np.log1p(np.where(ok, ratio_lo, 0.0)) / h, -np.inf))
-            g_hi.append(np.where(ok, np.log1p(np.where(ok, ratio_hi, 0.0)) / h, np.inf))
+            _log_gradient(g_lo, g_hi, ratio_lo, ratio_hi, h)
 
         def _drift_ratio(piece: Piece, i: int, h: float) -> tuple[np.ndarray, np.ndarray, float]:
-            """D / mu for a step h in a drift's coefficient (i = 0) or level (i = 1): the parameter moves
-            by the ratio f(c + h, x) / f(c, x) (monotone in x: its ends) or (level + h) / level, its share
-            of the physics by ratio^a - 1 (one inside the ratio's interval where the box may clip the
-            parameter), and mu by that change times the factors after the physics."""
-            term = piece.term
-            output, exponent = DRIFT_SHARES[term.parameter]
-            if i == 0:
-                a, b, _ = boxes.driver_interval(term.driver, lo, hi)
-                c = piece.values[0]
-                with np.errstate(all="ignore"):
-                    ratios = [np.asarray(term.factor({term.driver: x}, c + h), dtype=float)
-                              / np.asarray(term.factor({term.driver: x}, c), dtype=float) for x in (a, b)]
-                ratio_lo, ratio_hi = np.minimum(*ratios), np.maximum(*ratios)
-            else:
-                ratio_lo = ratio_hi = np.full(n, (piece.values[1] + h) / piece.values[1])
-            spec = physics.PARAMETERS[term.parameter]
-            low, high = drifted[term.parameter]
-            clipped = ((spec.minimum is not None) & (low <= spec.minimum)) | (
-                (spec.maximum is not None) & (high >= np.nextafter(spec.maximum, -np.inf)))
-            ratio_lo = np.where(clipped, np.minimum(ratio_lo, 1.0), ratio_lo)
-            ratio_hi = np.where(clipped, np.maximum(ratio_hi, 1.0), ratio_hi)
-            ok = ratio_lo > 0
-            with np.errstate(all="ignore"):
-                d_lo = np.where(ok, np.power(np.where(ok, ratio_lo, 1.0), exponent) - 1.0, -np.inf)
-                d_hi = np.where(ok, np.power(np.where(ok, ratio_hi, 1.0), exponent) - 1.0, np.inf)
+            """D / mu for a step h in a drift's coefficient (i = 0) or level (i = 1): its share of the
+            physics changes by :func:`_drift_share_change`, and mu by that change times the factors after
+            the physics."""
+            output, d_lo, d_hi = _drift_share_change(
+                piece, i, h, lambda driver: boxes.driver_interval(driver, lo, hi), drifted, n)
             change = _product(d_lo, d_hi, phys[output][:n], phys[output][n:])  # D of the physics
             if adds_after(-1):
                 q_lo, q_hi = after(-1)
