@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_calibrate_honest import run_in_rows
 
 from microbearing import physics
 from microbearing.calibrate import parse_rows
@@ -110,16 +111,7 @@ def test_a_missed_effect_is_not_taken_for_scatter():
     # scatter test reads as scatter on the cycle; weighted by that, a search finds the run-in, whose own
     # residual then has one scatter everywhere: the scatter is not confirmed and the unweighted search
     # (nothing added) stands, as on data of one scatter it would.
-    rng = np.random.default_rng(1)
-    n = 24
-    c = {"balls": rng.choice([4, 6, 8, 12], n).astype(float),
-         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-         "speed_m_s": rng.uniform(0.0, 0.15, n), "temperature_C": rng.uniform(20.0, 40.0, n),
-         "cycle": rng.integers(0, 5000, n).astype(float)}
-    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7).mu
-    mu = mu * (1 + np.exp(-c["cycle"] / 800)) * np.exp(rng.normal(0.0, 0.02, n))
-    data = parse_rows([{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])}
-                       for i in range(n)])
+    data = parse_rows(run_in_rows(1, 24))
     selection = forward_select(data, ["mu_pivot"])
     assert selection.scatter is None and selection.terms == ()
     assert "the scatter was not confirmed, and the unweighted search stands" in selection.reason
