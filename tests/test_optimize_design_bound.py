@@ -114,12 +114,38 @@ def _brute_worst(model, problem, designs, levels=5):
     return values.max(axis=0)
 
 
-@pytest.mark.parametrize("rival", [False, True])
-def test_no_design_of_a_grid_beats_the_certified_lower_bound_and_the_design_is_proven(rival):
-    model = _model(rival)
+def _robust_mu_upper_under_a_pressure_limit(model: CalibratedPhysicsModel):
+    """The problem (3-6 balls, 45-60 deg, 2-20 mN, contact pressure at most 5.5e8 Pa) and the robust
+    optimization of ``model``'s ``mu_upper`` over ENVELOPE."""
     problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05,
                             Constraints(max_contact_pressure_Pa=5.5e8))
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", starts=2)
+    return problem, result
+
+
+def _no_grid_design_beats_the_proof(model: CalibratedPhysicsModel, problem: DesignProblem, result) -> None:
+    """Brute force: no design of a 4 x 8 x 12 grid within the pressure limit has a worst case (3 levels per
+    envelope dimension) below the proof's lower bound, and the returned design's is within its upper
+    bound."""
+    proof = result.proof
+    held = robust._with_model_values(problem, model)
+    grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 8), np.geomspace(0.002, 0.02, 12)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    made = held.physics_inputs(designs["balls"], designs["groove_angle_deg"] + 0.5, designs["load_N"])
+    pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
+                                       **made).max_contact_pressure_Pa
+    feasible = pressure <= 5.5e8
+    worst = _brute_worst(model, held, {k: v[feasible] for k, v in designs.items()}, levels=3)
+    assert worst.min() >= proof["lower_bound"]
+    design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
+    assert float(_brute_worst(model, held, design)[0]) <= proof["upper_bound"]
+
+
+@pytest.mark.parametrize("rival", [False, True])
+def test_no_design_of_a_grid_beats_the_certified_lower_bound_and_the_design_is_proven(rival):
+    model = _model(rival)
+    problem, result = _robust_mu_upper_under_a_pressure_limit(model)
     proof = result.proof
     held = robust._with_model_values(problem, model)
     # Exhaustively: 4 counts x 16 angles x 31 loads, each at 5^4 envelope points, through the same model; the
@@ -356,24 +382,11 @@ def test_the_box_bound_takes_group_effects_below_the_model_and_tight_on_small_bo
 
 def test_robust_mu_upper_with_groups_is_proven_and_no_grid_design_beats_the_bound():
     model = _grouped_model()
-    problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05,
-                            Constraints(max_contact_pressure_Pa=5.5e8))
-    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", starts=2)
+    problem, result = _robust_mu_upper_under_a_pressure_limit(model)
     proof = result.proof
     assert proof["lower_bound_boxes"] > 4, proof["statement"]
     assert proof["proven"] and proof["relative_gap"] <= robust.GAP_TARGET, proof["statement"]
-    held = robust._with_model_values(problem, model)
-    grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 8), np.geomspace(0.002, 0.02, 12)))
-    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
-               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    made = held.physics_inputs(designs["balls"], designs["groove_angle_deg"] + 0.5, designs["load_N"])
-    pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
-                                       **made).max_contact_pressure_Pa
-    feasible = pressure <= 5.5e8
-    worst = _brute_worst(model, held, {k: v[feasible] for k, v in designs.items()}, levels=3)
-    assert worst.min() >= proof["lower_bound"]
-    design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
-    assert float(_brute_worst(model, held, design)[0]) <= proof["upper_bound"]
+    _no_grid_design_beats_the_proof(model, problem, result)
 
 
 # Drifting physics parameters: at a point each drifted value is the law at the point's driver value (a
@@ -409,24 +422,11 @@ def test_the_box_bound_takes_drifting_parameters_below_the_model_and_tight_on_sm
 
 def test_robust_mu_upper_with_drifts_is_proven_and_no_grid_design_beats_the_bound():
     model = _drift_model()
-    problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05,
-                            Constraints(max_contact_pressure_Pa=5.5e8))
-    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", starts=2)
+    problem, result = _robust_mu_upper_under_a_pressure_limit(model)
     proof = result.proof
     assert proof["lower_bound_boxes"] > 4, proof["statement"]
     assert proof["proven"] and proof["relative_gap"] <= robust.GAP_TARGET, proof["statement"]
-    held = robust._with_model_values(problem, model)
-    grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 8), np.geomspace(0.002, 0.02, 12)))
-    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
-               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    made = held.physics_inputs(designs["balls"], designs["groove_angle_deg"] + 0.5, designs["load_N"])
-    pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
-                                       **made).max_contact_pressure_Pa
-    feasible = pressure <= 5.5e8
-    worst = _brute_worst(model, held, {k: v[feasible] for k, v in designs.items()}, levels=3)
-    assert worst.min() >= proof["lower_bound"]
-    design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
-    assert float(_brute_worst(model, held, design)[0]) <= proof["upper_bound"]
+    _no_grid_design_beats_the_proof(model, problem, result)
 
 
 # A Gaussian-process discrepancy on the load and the temperature: over a design box at a point its least
@@ -466,9 +466,7 @@ def test_the_box_bound_takes_a_gp_discrepancy_below_the_model_and_tight_on_small
 
 def test_robust_mu_upper_with_a_gp_discrepancy_states_its_bound_and_no_grid_design_beats_it():
     model = _gp_model()
-    problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05,
-                            Constraints(max_contact_pressure_Pa=5.5e8))
-    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", starts=2)
+    problem, result = _robust_mu_upper_under_a_pressure_limit(model)
     proof = result.proof
     assert proof["lower_bound_boxes"] > 4, proof["statement"]
     # The bound over design boxes closes on the best design at the points (the noise-only bound it replaces
@@ -476,15 +474,4 @@ def test_robust_mu_upper_with_a_gp_discrepancy_states_its_bound_and_no_grid_desi
     # box limit, and the returned design's distance from the best (1.4e-6 on this machine).
     assert proof["relative_gap"] <= 1e-5, proof["statement"]
     assert "the discrepancy's least mean and latent variance" in proof["statement"]
-    held = robust._with_model_values(problem, model)
-    grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 8), np.geomspace(0.002, 0.02, 12)))
-    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
-               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    made = held.physics_inputs(designs["balls"], designs["groove_angle_deg"] + 0.5, designs["load_N"])
-    pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
-                                       **made).max_contact_pressure_Pa
-    feasible = pressure <= 5.5e8
-    worst = _brute_worst(model, held, {k: v[feasible] for k, v in designs.items()}, levels=3)
-    assert worst.min() >= proof["lower_bound"]
-    design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
-    assert float(_brute_worst(model, held, design)[0]) <= proof["upper_bound"]
+    _no_grid_design_beats_the_proof(model, problem, result)
