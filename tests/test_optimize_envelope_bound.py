@@ -56,6 +56,18 @@ def _bracket(problem, model, design):
     return certified_max(mu_box_bound(pieces, physics_mu, ENVELOPE, design), evaluate, ENVELOPE), evaluate
 
 
+def _grid_at_the_worst_point(model, held, result, objective: str) -> np.ndarray:
+    """``objective`` of every design of a 6 x 6 x 8 grid (3-8 balls, 40-60 deg, 1-50 mN) at the envelope
+    point where the returned design is worst (groove-angle offset +0.5 deg)."""
+    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
+                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
+    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
+    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
+               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
+    return robust._objective_values(model, objective, robust._columns(held, ENVELOPE, designs, [where], 0.0),
+                                    held.convention)
+
+
 def test_certified_worst_case_brackets_brute_force_inside_the_envelope():
     model = _model()
     problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
@@ -159,13 +171,7 @@ def test_certified_mu_upper_bounds_brute_force_where_the_interval_peaks_inside()
     # The lower bound over the designs (optimize.design_bound) closes the gap; no design of a grid beats it at
     # the worst point.
     assert proof["relative_gap"] <= robust.GAP_TARGET
-    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
-                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
-    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
-    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
-               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    columns = robust._columns(held, ENVELOPE, designs, [where], 0.0)
-    at_worst = robust._objective_values(model, "mu_upper", columns, held.convention)
+    at_worst = _grid_at_the_worst_point(model, held, result, "mu_upper")
     assert at_worst.min() >= proof["lower_bound"]
 
 
@@ -351,13 +357,7 @@ def test_robust_mu_upper_of_a_model_with_a_cloud_is_certified_at_its_design():
     # The lower bound over designs (the cloud's least widening over the design box at the worst point in
     # it): no design of a grid has a smaller mu_upper there.
     assert proof["lower_bound"] is not None
-    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
-                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
-    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
-    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
-               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    columns = robust._columns(held, ENVELOPE, designs, [where], 0.0)
-    at_worst = robust._objective_values(model, "mu_upper", columns, held.convention)
+    at_worst = _grid_at_the_worst_point(model, held, result, "mu_upper")
     assert at_worst.min() >= proof["lower_bound"]
 
 
@@ -433,13 +433,7 @@ def test_robust_mu_with_a_drift_is_proven_and_no_grid_design_beats_the_bound():
     evaluate = robust._evaluator(held, ENVELOPE, model, "mu", dict(result.result.design), 0.0)
     assert evaluate(_grid_points(7)).max() <= proof["upper_bound"]
     # Every design of a grid has mu at the worst point at least the certified lower bound.
-    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
-                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
-    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
-    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
-               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    at_worst = robust._objective_values(model, "mu", robust._columns(held, ENVELOPE, designs, [where], 0.0),
-                                        held.convention)
+    at_worst = _grid_at_the_worst_point(model, held, result, "mu")
     assert at_worst.min() >= proof["lower_bound"] * (1 - 1e-9)
     # the nominal design's worst case in the price of robustness is certified too
     nominal = result.price_of_robustness["nominal"]
@@ -600,13 +594,7 @@ def test_robust_mu_with_a_gp_is_certified_at_its_design_and_no_grid_design_beats
     proof = result.proof
     assert proof["method"] == "outer-approximation-certified" and proof["worst_case_relative_gap"] < 5e-3
     held = robust._with_model_values(problem, model)
-    where = ENVELOPE.point({"speed_m_s": result.worst_case["speed_m_s"], "groove_angle_offset_deg": 0.5,
-                            **{f"conditions.{n}": v for n, v in result.worst_case["conditions"].items()}})
-    grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
-    designs = {"balls": np.array([g[0] for g in grid], dtype=float),
-               "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    at_worst = robust._objective_values(model, "mu", robust._columns(held, ENVELOPE, designs, [where], 0.0),
-                                        held.convention)
+    at_worst = _grid_at_the_worst_point(model, held, result, "mu")
     assert proof["lower_bound"] is not None and at_worst.min() >= proof["lower_bound"]
 
 
