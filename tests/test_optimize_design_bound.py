@@ -380,15 +380,6 @@ def test_the_box_bound_takes_group_effects_below_the_model_and_tight_on_small_bo
     assert all(g[2] > p[2] * 1.01 for g, p in zip(grouped, plain, strict=True))
 
 
-def test_robust_mu_upper_with_groups_is_proven_and_no_grid_design_beats_the_bound():
-    model = _grouped_model()
-    problem, result = _robust_mu_upper_under_a_pressure_limit(model)
-    proof = result.proof
-    assert proof["lower_bound_boxes"] > 4, proof["statement"]
-    assert proof["proven"] and proof["relative_gap"] <= robust.GAP_TARGET, proof["statement"]
-    _no_grid_design_beats_the_proof(model, problem, result)
-
-
 # Drifting physics parameters: at a point each drifted value is the law at the point's driver value (a
 # constant over the design box), and its coefficient's share of the interval's gradient is bounded as the
 # envelope's bound does (DRIFT_SHARES).
@@ -420,8 +411,9 @@ def test_the_box_bound_takes_drifting_parameters_below_the_model_and_tight_on_sm
     assert any(abs(d[2] / p[2] - 1) > 1e-2 for d, p in zip(drifting, plain, strict=True))
 
 
-def test_robust_mu_upper_with_drifts_is_proven_and_no_grid_design_beats_the_bound():
-    model = _drift_model()
+@pytest.mark.parametrize("make_model", [_grouped_model, _drift_model], ids=["groups", "drifts"])
+def test_robust_mu_upper_with_groups_or_drifts_is_proven_and_no_grid_design_beats_the_bound(make_model):
+    model = make_model()
     problem, result = _robust_mu_upper_under_a_pressure_limit(model)
     proof = result.proof
     assert proof["lower_bound_boxes"] > 4, proof["statement"]
