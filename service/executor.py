@@ -35,7 +35,7 @@ import logging
 import os
 import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import CancelledError, Executor, Future, ThreadPoolExecutor
 from typing import Any
 
@@ -151,14 +151,12 @@ class DaskExecutor(Executor):
         try:
             self._connected(connect_timeout_s)
             client = self._client
-            info = client.scheduler_info(n_workers=1)
-            workers = info.get("n_workers", 0)
+            info = client.scheduler_info(n_workers=-1)
+            reason = self._worker_fault(client, info.get("workers", {}))
         except ProblemError as problem:
             reason = problem.detail.removeprefix(f"The dask scheduler {self.scheduler} ")
-        except (OSError, RuntimeError) as exc:  # the scheduler went away during the question
+        except (OSError, RuntimeError, TimeoutError) as exc:  # the scheduler went away during the question
             reason = f"cannot be reached: {exc}"
-        else:
-            reason = None if workers else "has no workers"
         with self._lock:
             if reason is None:
                 self.identity = (id(client), str(info.get("id")))
@@ -166,6 +164,43 @@ class DaskExecutor(Executor):
             elif self._faulty_since is None:
                 self._faulty_since = time.monotonic()
         return reason
+
+    @property
+    def silent_after_s(self) -> float:
+        """How long a worker may go without a heartbeat before it counts as not answering [s].
+
+        Half the fault timeout (5 s at least): a worker stopped without dying (SIGSTOP, a hung
+        host, a lost network) then fails the work waiting on it within 1.5 fault timeouts. Dask's
+        own heartbeats come every 0.5-2 s on clusters of up to 200 workers.
+        """
+        return max(5.0, self.fault_timeout_s / 2)
+
+    def _worker_fault(self, client: Any, workers: Mapping[str, Mapping[str, Any]]) -> str | None:
+        """Why the cluster's workers cannot take the work, or None.
+
+        A scheduler keeps a worker that stopped answering until its ``worker-ttl`` (5 minutes by
+        default): its tasks wait that long. Ages of the last heartbeats are read on the scheduler's
+        clock, so the hosts' clocks need not agree. A silent worker is a fault when no worker
+        answers, or when it holds tasks (they wait on it); an idle one only costs its slots.
+        """
+        if not workers:
+            return "has no workers"
+        now = client.run_on_scheduler(time.time)
+        silent = {address: now - float(worker.get("last_seen", now)) for address, worker in workers.items()}
+        silent = {address: age for address, age in silent.items() if age > self.silent_after_s}
+        if not silent:
+            return None
+        longest = max(silent.values())
+        if len(silent) == len(workers):
+            return (f"has no worker answering ({len(silent)} silent, the last heartbeat {longest:.0f} s ago; "
+                    "stopped or hung workers)")
+        holding = {address: len(keys) for address, keys in client.processing(workers=list(silent)).items()
+                   if keys}
+        if not holding:
+            return None
+        address = max(holding, key=holding.get)
+        return (f"has a worker that stopped answering while it holds work: {address}, silent for "
+                f"{silent[address]:.0f} s with {holding[address]} task(s)")
 
     def check(self) -> None:
         """Raise a 503 problem when the cluster has been at fault for ``fault_timeout_s`` or more.

@@ -66,6 +66,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 __all__ = [
     "REQUEST_ID_HEADER",
     "JsonFormatter",
+    "OtherLibraries",
     "ObservabilityMiddleware",
     "configure_logging",
     "current_request_id",
@@ -136,12 +137,26 @@ def uvicorn_log_config() -> dict[str, Any]:
         "version": 1,
         "disable_existing_loggers": False,
         "formatters": {"json": {"()": "microbearing.service.observability.JsonFormatter"}},
+        "filters": {"others": {"()": "microbearing.service.observability.OtherLibraries"}},
         "handlers": {"json": {"formatter": "json", "class": "logging.StreamHandler",
-                              "stream": "ext://sys.stderr"}},
+                              "stream": "ext://sys.stderr"},
+                     "others": {"formatter": "json", "class": "logging.StreamHandler",
+                                "stream": "ext://sys.stderr", "filters": ["others"]}},
         "loggers": {"uvicorn": {"handlers": ["json"], "level": "INFO", "propagate": False},
                     "uvicorn.error": {"level": "INFO"},
                     "uvicorn.access": {"handlers": ["json"], "level": "INFO", "propagate": False}},
+        # Every other library's records (dask.distributed, tornado, asyncio) reach the root logger:
+        # JSON too. A handler on the root also stops distributed from adding its plain-text one when
+        # it is imported (distributed.config.initialize_logging).
+        "root": {"handlers": ["others"], "level": "WARNING"},
     }
+
+
+class OtherLibraries(logging.Filter):
+    """Passes records of loggers other than ``microbearing``'s (which has its own JSON handler)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.name != "microbearing" and not record.name.startswith("microbearing.")
 
 
 _HANDLER_MARK = "_microbearing_json_handler"

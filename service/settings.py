@@ -196,7 +196,9 @@ class Settings(BaseSettings):
         default=30.0, gt=0, le=3600,
         description="How long a dask scheduler may stay unreachable, or without workers, before the batch "
                     "or job waiting on it fails with 503 naming the scheduler [s]; chunks it dropped are "
-                    "submitted again when it is back within this time.",
+                    "submitted again when it is back within this time. A worker without a heartbeat for "
+                    "half this time (5 s at least) counts as not answering: a fault when no worker "
+                    "answers or when it holds tasks.",
     )
     executor_workers: int = Field(
         default=0, ge=0, le=256,

@@ -48,7 +48,8 @@ def get_readiness(store: StoreDep, jobs: JobsDep, settings: SettingsDep, executo
     """Readiness: 200 when the database takes a write and the disk has MICROBEARING_MIN_FREE_BYTES free.
 
     With MICROBEARING_DASK_SCHEDULER set to a scheduler's address, the scheduler must also be
-    reachable (connecting again if the connection was lost) and have a worker.
+    reachable (connecting again if the connection was lost) and have a worker that answers (a worker
+    whose heartbeat stopped, e.g. a stopped process or a hung host, is named).
 
     503 otherwise, naming the cause (disk full, read-only database, too little free space, the
     dask scheduler unreachable or without workers); take the server out of a load balancer's
