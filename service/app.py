@@ -236,7 +236,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # becomes GET innermost, so logs, metrics and the key check see the method sent.
     app.add_middleware(HeadMiddleware)
     app.add_middleware(AcceptMiddleware)
-    app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points)
+    app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points,
+                       max_field_bytes=settings.max_field_bytes)
     # A large body waits for its turn, and holds a place of the job admission control, before it is read.
     app.add_middleware(HeavyRequestMiddleware, max_requests=settings.max_heavy_requests,
                        wait_s=settings.heavy_request_wait_s,

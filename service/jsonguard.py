@@ -25,8 +25,10 @@ as JSON.
 
 from __future__ import annotations
 
+import codecs
 import json
 import re
+from dataclasses import dataclass
 
 import numpy as np
 from starlette.concurrency import run_in_threadpool
@@ -52,11 +54,14 @@ def _malformed(detail: str) -> ProblemError:
     return ProblemError(400, detail, title="Malformed JSON", type_=VALIDATION_TYPE)
 
 
-_QUOTE, _COLON, _BACKSLASH = ord('"'), ord(":"), ord("\\")
+_QUOTE, _COLON, _COMMA, _BACKSLASH, _NEWLINE = (ord(c) for c in '":,\\\n')
+_OPEN_OBJECT = ord("{")
 _OPENERS = frozenset(b"[{")
-#: Bytes that matter to the structure: quotes and brackets.
-_STRUCTURAL = np.zeros(256, dtype=bool)
-_STRUCTURAL[list(b'"[]{}')] = True
+#: Bytes that matter to the structure: quotes, brackets, commas and colons.
+_MARKED = np.zeros(256, dtype=bool)
+_MARKED[list(b'"[]{},:')] = True
+_BRACKET = np.zeros(256, dtype=bool)
+_BRACKET[list(b"[]{}")] = True
 
 
 #: A JSON string without escapes, and the colon after it when it is an object's key.
@@ -76,44 +81,218 @@ def _unique_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
     return document
 
 
-def _unescaped_quotes(body: bytes, quotes: np.ndarray) -> np.ndarray:
-    if b"\\" not in body:
+def _unescaped(block: bytes, quotes: np.ndarray, carried_backslashes: int) -> np.ndarray:
+    """The quotes of ``block`` no odd run of backslashes escapes (a run may begin in an earlier block)."""
+    if not len(quotes) or (b"\\" not in block and not carried_backslashes):
         return quotes
     keep = []
-    for position in quotes.tolist():  # rare: only bodies with escapes pay for this loop
+    for position in quotes.tolist():  # rare: only blocks with escapes pay for this loop
         backslashes = 0
-        while position - backslashes - 1 >= 0 and body[position - backslashes - 1] == _BACKSLASH:
+        while position - backslashes - 1 >= 0 and block[position - backslashes - 1] == _BACKSLASH:
             backslashes += 1
+        if backslashes == position:  # the run reaches the block's start: it goes on before it
+            backslashes += carried_backslashes
         if backslashes % 2 == 0:
             keep.append(position)
     return np.asarray(keep, dtype=np.int64)
 
 
-def _outside_strings(positions: np.ndarray, quotes: np.ndarray) -> np.ndarray:
-    # A position is outside every string when an even number of quotes precede it.
-    return positions[np.searchsorted(quotes, positions) % 2 == 0]
+def _trailing_backslashes(block: bytes, carried: int) -> int:
+    run = len(block) - len(block.rstrip(b"\\"))
+    return run + carried if run == len(block) else run
 
 
-def _commas_per_container(body: bytes, brackets: list[int], enclosing_after: list[int], quotes: list[int],
-                          containers: int) -> list[int]:
-    """Commas directly inside each container, outside strings, counted gap by gap between brackets."""
-    counts = [0] * containers
-    string = 0  # index of the next string (pair of quotes) not yet passed
-    previous = 0
-    for index, position in enumerate(brackets):
-        owner = enclosing_after[index - 1] if index else -1
-        commas = body.count(b",", previous, position) if owner >= 0 else 0
-        while string < len(quotes) // 2 and quotes[2 * string] < position:
-            if owner >= 0:
-                commas -= body.count(b",", quotes[2 * string], quotes[2 * string + 1])
-            string += 1
-        if owner >= 0:
-            counts[owner] += commas
-        previous = position + 1
-    return counts
+@dataclass
+class _Container:
+    """An array or object open at the scanner's position."""
+
+    kind: int
+    commas: int = 0
+    keys: set[str] | None = None
 
 
-def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH) -> None:
+class JsonScanner:
+    """The structure check of a JSON body fed block by block, as it arrives.
+
+    Each :meth:`feed` looks at one block with NumPy, carrying what it needs across blocks (inside a
+    string or not, a run of backslashes, the open containers and their element counts, the keys of
+    open objects, the last string closed): a body past a limit is refused in the block that passes
+    it, whatever comes after, and nothing of the body is kept. :meth:`close` checks the end.
+
+    Parameters
+    ----------
+    max_items : int
+        Most elements of one array or object, and most strings and containers in the body [1].
+    max_depth : int, default 64
+        Deepest nesting of arrays and objects [1].
+    max_string_bytes : int, optional
+        Longest string, quotes and escapes included [bytes] (``MICROBEARING_MAX_FIELD_BYTES``).
+
+    Raises
+    ------
+    ProblemError
+        From :meth:`feed` or :meth:`close`: 400 (not UTF-8, too deep, duplicate key) or 413 (too
+        many elements, a string too long), naming the place or the setting.
+    """
+
+    #: Longest object key whose duplicates are looked for [bytes]; longer keys are refused.
+    max_key_bytes = 65_536
+
+    def __init__(self, max_items: int, max_depth: int = MAX_DEPTH, max_string_bytes: int | None = None):
+        self.max_items = max_items
+        self.max_depth = max_depth
+        self.max_string_bytes = max_string_bytes
+        self._offset = 0  # bytes fed so far
+        self._decoder = codecs.getincrementaldecoder("utf-8")()
+        self._in_string = False
+        self._string_start = -1  # where the open string's quote is [byte]
+        self._open_prefix: bytes | None = b""  # the open string so far, while short enough to be a key
+        self._last_closed: bytes | None = None  # the last string closed in an earlier block, if short
+        self._backslashes = 0
+        self._stack: list[_Container] = []
+        self._containers = 0
+        self._strings = 0
+
+    @property
+    def bytes_fed(self) -> int:
+        """Bytes looked at so far [bytes]."""
+        return self._offset
+
+    def feed(self, block: bytes) -> None:
+        """Look at the next ``block`` of the body; raises :class:`ProblemError` past a limit."""
+        if not block:
+            return
+        self._check_utf8(block)
+        data = np.frombuffer(block, dtype=np.uint8)
+        special = np.flatnonzero(_MARKED[data])
+        kinds = data[special]
+        quotes = _unescaped(block, special[kinds == _QUOTE], self._backslashes)
+        self._backslashes = _trailing_backslashes(block, self._backslashes)
+        others = special[kinds != _QUOTE]
+        outside = others[(np.searchsorted(quotes, others) + self._in_string) % 2 == 0]
+        closes, literals = self._strings_of(block, quotes)
+        marks = data[outside]
+        brackets = outside[_BRACKET[marks]]
+        self._walk(block, brackets, outside[marks == _COMMA], outside[marks == _COLON], closes, literals)
+        self._offset += len(block)
+
+    def close(self) -> None:
+        """Check the end of the body (its last bytes are UTF-8)."""
+        try:
+            self._decoder.decode(b"", final=True)
+        except UnicodeDecodeError:
+            raise _malformed(f"The request body is not valid UTF-8 (byte {self._offset}).") from None
+
+    def _check_utf8(self, block: bytes) -> None:
+        buffered = len(self._decoder.getstate()[0])
+        try:
+            self._decoder.decode(block)
+        except UnicodeDecodeError as exc:
+            raise _malformed(f"The request body is not valid UTF-8 "
+                             f"(byte {self._offset - buffered + exc.start}).") from None
+
+    def _too_long(self, length: int) -> None:
+        if self.max_string_bytes is not None and length > self.max_string_bytes:
+            raise _too_large(f"A string in the body (at byte {self._string_start}) is longer than "
+                             f"{self.max_string_bytes} bytes (MICROBEARING_MAX_FIELD_BYTES).")
+
+    def _strings_of(self, block: bytes, quotes: np.ndarray) -> tuple[np.ndarray, list[bytes | None]]:
+        """Where strings close in ``block`` and their literals (None when too long to be a key)."""
+        base = self._offset
+        opening = quotes[int(self._in_string)::2]
+        closing = quotes[1 - int(self._in_string)::2]
+        starts = np.concatenate(([self._string_start - base], opening)) if self._in_string else opening
+        lengths = closing - starts[:len(closing)] + 1
+        if len(lengths):
+            longest = int(np.argmax(lengths))
+            self._string_start = base + int(starts[longest])
+            self._too_long(int(lengths[longest]))
+        self._strings += len(opening)
+        if self._strings > self.max_items:
+            raise _too_large(f"The body holds more than {self.max_items} strings or arrays and objects.")
+        literals: list[bytes | None] = [None] * len(closing)
+        # Only the literals a caller may need as keys are cut: those shorter than the key limit.
+        for index in np.flatnonzero(lengths <= self.max_key_bytes).tolist():
+            start, stop = int(starts[index]), int(closing[index]) + 1
+            if start < 0:
+                literals[index] = None if self._open_prefix is None else self._open_prefix + block[:stop]
+            else:
+                literals[index] = block[start:stop]
+        open_at_end = self._in_string != bool(len(quotes) % 2)
+        if open_at_end and len(quotes):  # the block's last quote opens a string it does not close
+            start = int(quotes[-1])
+            self._string_start = base + start
+            self._open_prefix = block[start:] if len(block) - start <= self.max_key_bytes else None
+        elif open_at_end and self._open_prefix is not None:  # a string open across the whole block
+            self._open_prefix = (self._open_prefix + block
+                                 if len(self._open_prefix) + len(block) <= self.max_key_bytes else None)
+        self._in_string = open_at_end
+        if open_at_end:
+            self._too_long(base + len(block) - self._string_start)
+        return closing, literals
+
+    def _walk(self, block: bytes, brackets: np.ndarray, commas: np.ndarray, colons: np.ndarray,
+              closes: np.ndarray, literals: list[bytes | None]) -> None:
+        """Follow the brackets in order, counting the commas and reading the keys between them."""
+        gaps = len(brackets) + 1
+        commas_per_gap = (np.bincount(np.searchsorted(brackets, commas), minlength=gaps) if len(commas)
+                          else None)
+        colon_gaps = np.searchsorted(brackets, colons).tolist() if len(colons) else []
+        colons_list = colons.tolist()
+        next_colon = 0
+        for gap in range(gaps):
+            top = self._stack[-1] if self._stack else None
+            if commas_per_gap is not None and commas_per_gap[gap] and top is not None:
+                top.commas += int(commas_per_gap[gap])
+                if top.commas + 1 > self.max_items:
+                    kind = "An object" if top.kind == _OPEN_OBJECT else "An array"
+                    raise _too_large(f"{kind} in the body has more than {self.max_items} elements; the limit "
+                                     f"is {self.max_items} (MICROBEARING_MAX_BATCH_POINTS).")
+            while next_colon < len(colon_gaps) and colon_gaps[next_colon] == gap:
+                if top is not None and top.kind == _OPEN_OBJECT:
+                    self._key(top, colons_list[next_colon], closes, literals)
+                next_colon += 1
+            if gap < len(brackets):
+                self._bracket(block[int(brackets[gap])])
+        if len(closes):
+            self._last_closed = literals[-1]
+
+    def _bracket(self, byte: int) -> None:
+        if byte in _OPENERS:
+            if len(self._stack) >= self.max_depth:
+                raise _malformed(f"The body nests arrays and objects more than {self.max_depth} deep.")
+            self._containers += 1
+            if self._containers > self.max_items:
+                raise _too_large(f"The body holds more than {self.max_items} strings or arrays and objects.")
+            self._stack.append(_Container(byte, keys=set() if byte == _OPEN_OBJECT else None))
+        elif self._stack:
+            self._stack.pop()
+
+    def _key(self, container: _Container, colon: int, closes: np.ndarray,
+             literals: list[bytes | None]) -> None:
+        before = int(np.searchsorted(closes, colon)) - 1
+        literal = literals[before] if before >= 0 else self._last_closed
+        if literal is None:
+            raise _too_large(f"An object key in the body (before byte {self._offset + colon}) is longer than "
+                             f"{self.max_key_bytes} bytes.")
+        try:
+            key = json.loads(literal)
+        except ValueError:
+            raise _malformed(f"The key before byte {self._offset + colon} is not a JSON string.") from None
+        if not isinstance(key, str):
+            raise _malformed(f"The key before byte {self._offset + colon} is not a JSON string.")
+        assert container.keys is not None
+        if key in container.keys:
+            raise _malformed(f"The key {key[:100]!r} appears twice in one object.")
+        container.keys.add(key)
+
+
+#: Bytes a scan reads into blocks of at least this size before looking at them [bytes].
+BLOCK_BYTES = 256 * 1024
+
+
+def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH,
+                         max_string_bytes: int | None = None) -> None:
     """Refuse a JSON body that is not UTF-8, too deep, too long or has duplicate keys.
 
     Parameters
@@ -124,21 +303,25 @@ def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH
         Most elements of one array or object, and most strings and containers in the body [1].
     max_depth : int, default 64
         Deepest nesting of arrays and objects [1].
+    max_string_bytes : int, optional
+        Longest string [bytes].
 
     Raises
     ------
     ProblemError
-        400 (not UTF-8, too deep, duplicate key) or 413 (too many elements), naming the place.
+        400 (not UTF-8, too deep, duplicate key) or 413 (too many elements, a string too long),
+        naming the place.
     """
-    try:
-        text = body.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise _malformed(f"The request body is not valid UTF-8 (byte {exc.start}).") from None
     containers = body.count(b"[") + body.count(b"{")
     if (len(body) <= _INLINE_BYTES and containers <= max_depth
+            and (max_string_bytes is None or len(body) <= max_string_bytes)
             and max(body.count(b",") + 1, body.count(b'"') // 2, containers) <= max_items):
+        try:
+            text = body.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise _malformed(f"The request body is not valid UTF-8 (byte {exc.start}).") from None
         # Small and shallow, so no limit can be passed: only duplicate keys remain to be found,
-        # and the stdlib parser finds them faster than the scan below. One flat object without
+        # and the stdlib parser finds them faster than the scan. One flat object without
         # escapes (a single point's body) needs no parser: its keys are its strings before a colon,
         # compared as written.
         if containers == 1 and b"\\" not in body:
@@ -151,61 +334,45 @@ def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH
             if isinstance(exc, _DuplicateKeyError):
                 raise _malformed(str(exc)) from None
         return
-    data = np.frombuffer(body, dtype=np.uint8)
-    special = np.flatnonzero(_STRUCTURAL[data])
-    kinds = data[special]
-    quotes = _unescaped_quotes(body, special[kinds == _QUOTE])
-    if len(quotes) % 2:
-        return  # an unterminated string: the parser answers 400
-    brackets = _outside_strings(special[kinds != _QUOTE], quotes)
-    if len(quotes) // 2 > max_items or len(brackets) > 2 * max_items:
-        raise _too_large(f"The body holds more than {max_items} strings or arrays and objects.")
+    scanner = JsonScanner(max_items, max_depth, max_string_bytes)
+    view = memoryview(body)
+    for start in range(0, len(body), BLOCK_BYTES):
+        scanner.feed(bytes(view[start:start + BLOCK_BYTES]))
+    scanner.close()
 
-    # One pass over the brackets: depth, and which container encloses what follows each bracket.
-    enclosing_after = np.empty(len(brackets), dtype=np.int64)
-    open_ids: list[int] = []
-    container_kinds: list[int] = []
-    for index, position in enumerate(brackets.tolist()):
-        if body[position] in _OPENERS:
-            if len(open_ids) >= max_depth:
-                raise _malformed(f"The body nests arrays and objects more than {max_depth} deep.")
-            open_ids.append(len(container_kinds))
-            container_kinds.append(body[position])
-        elif open_ids:
-            open_ids.pop()
-        enclosing_after[index] = open_ids[-1] if open_ids else -1
-    if not container_kinds:
-        return
 
-    def container_of(positions: np.ndarray) -> np.ndarray:
-        before = np.searchsorted(brackets, positions) - 1
-        return np.where(before >= 0, enclosing_after[np.maximum(before, 0)], -1)
+class CsvLineScanner:
+    """The longest line of a CSV body fed block by block: past ``max_line_bytes`` it is refused (413).
 
-    if body.count(b",") + 1 > max_items:  # only then can one container hold too many elements
-        counts = _commas_per_container(body, brackets.tolist(), enclosing_after.tolist(), quotes.tolist(),
-                                       len(container_kinds))
-        if max(counts) + 1 > max_items:
-            kind = "An object" if container_kinds[counts.index(max(counts))] == ord("{") else "An array"
-            raise _too_large(f"{kind} in the body has more than {max_items} elements; the limit is "
-                             f"{max_items} (MICROBEARING_MAX_BATCH_POINTS).")
+    A field, quoted or not, is never longer than its line, so this bounds fields too, while the
+    body streams in, before any of it is parsed.
+    """
 
-    # Keys: the strings that a colon (outside strings) follows.
-    colons = _outside_strings(np.flatnonzero(data == _COLON), quotes)
-    closing = quotes[1::2]
-    key_index = np.searchsorted(closing, colons) - 1
-    key_index = key_index[key_index >= 0]
-    seen: dict[int, set[str]] = {}
-    for string_index, owner in zip(key_index.tolist(), container_of(quotes[0::2][key_index]).tolist(),
-                                   strict=True):
-        literal = body[quotes[2 * string_index]:quotes[2 * string_index + 1] + 1]
-        try:
-            key = json.loads(literal)
-        except ValueError:
-            raise _malformed(f"The key at byte {quotes[2 * string_index]} is not a JSON string.") from None
-        keys = seen.setdefault(owner, set())
-        if key in keys:
-            raise _malformed(f"The key {key[:100]!r} appears twice in one object.")
-        keys.add(key)
+    def __init__(self, max_line_bytes: int):
+        self.max_line_bytes = max_line_bytes
+        self._offset = 0
+        self._line_start = 0  # where the current line starts [byte]
+        self._line_number = 1
+
+    @property
+    def bytes_fed(self) -> int:
+        """Bytes looked at so far [bytes]."""
+        return self._offset
+
+    def feed(self, block: bytes) -> None:
+        """Look at the next ``block``; raises a 413 :class:`ProblemError` on a line too long."""
+        ends = np.flatnonzero(np.frombuffer(block, dtype=np.uint8) == _NEWLINE) + self._offset
+        starts = np.concatenate(([self._line_start], ends[:-1] + 1))
+        lengths = np.append(ends - starts, self._offset + len(block) - (ends[-1] + 1 if len(ends) else
+                                                                          self._line_start))
+        if len(lengths) and lengths.max() > self.max_line_bytes:
+            line = self._line_number + int(np.argmax(lengths > self.max_line_bytes))
+            raise _too_large(f"Line {line} of the CSV body is longer than {self.max_line_bytes} bytes "
+                             f"(MICROBEARING_MAX_FIELD_BYTES): a field that long is not a measurement.")
+        if len(ends):
+            self._line_start = int(ends[-1]) + 1
+            self._line_number += len(ends)
+        self._offset += len(block)
 
 
 def is_json_media_type(content_type: bytes | None) -> bool:
@@ -223,10 +390,15 @@ def is_json_media_type(content_type: bytes | None) -> bool:
 
 
 class JsonGuardMiddleware:
-    """Check JSON request bodies with :func:`check_json_structure` before the app reads them.
+    """Check JSON bodies with :class:`JsonScanner`, and CSV bodies' lines, while they stream in.
 
-    Install it inside the body-size limit (added before it), so that the body it buffers is
-    already bounded.
+    A body is looked at in blocks of :data:`BLOCK_BYTES` as they arrive; one past a limit is answered
+    (400 or 413) from the block that passes it, and nothing of it is kept. uvicorn drops the rest of
+    the body as it comes, for its keep-alive timeout at most (5 s) before it closes the connection:
+    a client that sends its whole body before it reads (httpx, requests) hears the answer when it
+    has sent it within that time; curl reads the answer at once and stops sending. A body that passes
+    reaches the app as it came, in its pieces. Install it inside the body-size limit (added before
+    it), so that what it reads is bounded.
 
     Parameters
     ----------
@@ -234,59 +406,95 @@ class JsonGuardMiddleware:
         The wrapped application.
     max_items : int
         Most elements of one array or object [1].
+    max_field_bytes : int, optional
+        Longest JSON string and longest CSV line [bytes] (``MICROBEARING_MAX_FIELD_BYTES``).
     """
 
-    def __init__(self, app: ASGIApp, max_items: int):
+    def __init__(self, app: ASGIApp, max_items: int, max_field_bytes: int | None = None):
         self.app = app
         self.max_items = max_items
+        self.max_field_bytes = max_field_bytes
+
+    def _scanner(self, content_type: bytes | None) -> JsonScanner | CsvLineScanner | None:
+        if is_json_media_type(content_type):
+            return JsonScanner(self.max_items, max_string_bytes=self.max_field_bytes)
+        media = (content_type or b"").split(b";", 1)[0].strip().lower()
+        if media == b"text/csv" and self.max_field_bytes is not None:
+            return CsvLineScanner(self.max_field_bytes)
+        return None
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
         content_types = [value for name, value in scope["headers"] if name.lower() == b"content-type"]
-        if len(content_types) == 1 and not is_json_media_type(content_types[0]):
+        scanner = self._scanner(content_types[0] if content_types else None)
+        if len(content_types) == 1 and scanner is None:
             await self.app(scope, receive, send)
             return
+        if len(content_types) > 1:
+            scanner = None  # refused whatever the body holds, once it is read
         chunks: list[bytes] = []
+        block: list[bytes] = []  # pieces not yet looked at
+        waiting = 0
+        problem: ProblemError | None = None
         try:
             while True:
                 message = await receive()
                 if message["type"] != "http.request":
                     break  # the client left; the app will see the disconnect
-                chunks.append(message.get("body", b""))
-                if not message.get("more_body", False):
+                piece = message.get("body", b"")
+                more = message.get("more_body", False)
+                chunks.append(piece)
+                block.append(piece)
+                waiting += len(piece)
+                if scanner is not None and (waiting >= BLOCK_BYTES or not more):
+                    problem = await self._look(scanner, b"".join(block), last=not more)
+                    block, waiting = [], 0
+                    if problem is not None:
+                        # Answered now: the server drops what follows (for its keep-alive time at most).
+                        chunks = []
+                        break
+                if not more:
                     break
         except HTTPException as exc:  # the body's size or time limit (service.limits)
             problem = ProblemError(exc.status_code, str(exc.detail), headers=exc.headers)
-            await self._answer(problem, scope, receive, send)
-            return
-        if len(content_types) > 1:  # answered once the body is read: a client may not read before it sent all
+        if problem is None and len(content_types) > 1:
+            # answered once the body is read: a client may not read before it sent all
             problem = ProblemError(400, f"The request has {len(content_types)} Content-Type headers; "
                                         "send one.", title="Ambiguous content type", type_=VALIDATION_TYPE)
+        if problem is not None:
             await self._answer(problem, scope, receive, send)
             return
-        body = b"".join(chunks)
-        del chunks  # the pieces: only the joined body is kept
-        if body:
-            try:
-                if len(body) <= _INLINE_BYTES:
-                    check_json_structure(body, self.max_items)
-                else:
-                    await run_in_threadpool(check_json_structure, body, self.max_items)
-            except ProblemError as problem:
-                await self._answer(problem, scope, receive, send)
-                return
-        # Handed to the app once and not kept here: the app may free a large body once it is parsed.
-        pending = [body]
-        del body
+        # Handed to the app as they came and not kept here: the app may free the body once parsed.
+        pending = chunks[::-1]
+        del chunks
 
         async def replay() -> Message:
             if pending:
-                return {"type": "http.request", "body": pending.pop(), "more_body": False}
+                piece = pending.pop()
+                return {"type": "http.request", "body": piece, "more_body": bool(pending)}
             return await receive()
 
         await self.app(scope, replay, send)
+
+    async def _look(self, scanner: JsonScanner | CsvLineScanner, block: bytes,
+                    last: bool) -> ProblemError | None:
+        """Feed ``block`` to ``scanner``; the problem it finds, or None."""
+        try:
+            if last and scanner.bytes_fed == 0 and isinstance(scanner, JsonScanner) \
+                    and len(block) <= _INLINE_BYTES:  # a small body at once: the fast check
+                check_json_structure(block, self.max_items, max_string_bytes=self.max_field_bytes)
+                return None
+            if len(block) <= _INLINE_BYTES:
+                scanner.feed(block)
+            else:
+                await run_in_threadpool(scanner.feed, block)
+            if last and isinstance(scanner, JsonScanner):
+                scanner.close()
+        except ProblemError as problem:
+            return problem
+        return None
 
     @staticmethod
     async def _answer(problem: ProblemError, scope: Scope, receive: Receive, send: Send) -> None:

@@ -56,6 +56,11 @@ class Settings(BaseSettings):
         default=256 * 2**20, ge=1024,
         description="Largest accepted request body [bytes]; larger bodies get 413.",
     )
+    max_field_bytes: int = Field(
+        default=2**20, ge=1024,
+        description="Longest string of a JSON body and longest line of a CSV body [bytes]; a body with a "
+                    "longer one gets 413 while it streams in, before it is held or parsed.",
+    )
     max_batch_points: int = Field(
         default=2_000_000, ge=1,
         description="Most points in one /v1/friction/batch request; more get 413.",
