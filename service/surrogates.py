@@ -173,8 +173,9 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
         The :class:`~service.schemas.surrogates.SurrogateResult` as JSON data.
     """
     start = time.perf_counter()
+    plan = surrogate.SamplingPlan(design_method=str(body.design), adaptive=body.adaptive)
     fit = surrogate.fit_adaptive(space, budget=body.budget, target_relative_error=body.target_relative_error,
-                                 design_method=str(body.design), adaptive=body.adaptive, seed=body.seed,
+                                 plan=plan, seed=body.seed,
                                  progress=None if progress is None else (lambda f: progress(0.95 * f)),
                                  mu_model=mu_model, validation_points=body.validation_points)
     seconds = time.perf_counter() - start
