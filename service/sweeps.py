@@ -11,15 +11,14 @@ only its request.
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Callable
 from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
-from scipy.stats import qmc
 
 from microbearing import physics
+from microbearing.surrogate import unit_design
 
 from .executor import evaluate_in_chunks
 from .models import physics_in
@@ -118,15 +117,9 @@ def _check_ranges(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[s
 
 def _sampled(request: SobolSweep | LatinHypercubeSweep) -> dict[str, np.ndarray]:
     ranges = request.ranges.model_dump(exclude_none=True)
-    sampler_class = qmc.Sobol if request.design == "sobol" else qmc.LatinHypercube
-    # scipy >= 1.15 names the generator "rng"; older releases call it "seed".
-    key = "rng" if "rng" in inspect.signature(sampler_class).parameters else "seed"
-    sampler = sampler_class(len(ranges), **{key: np.random.default_rng(request.seed)})
-    if request.design == "sobol":
-        # The first n points of the sequence; drawing a power of two avoids scipy's balance warning.
-        unit = sampler.random_base2(int(np.ceil(np.log2(max(request.points, 1)))))[: request.points]
-    else:
-        unit = sampler.random(request.points)
+    # The first points of a scrambled Sobol' sequence, or a plain (unoptimized) Latin hypercube.
+    unit = unit_design(len(ranges), request.points, request.design, np.random.default_rng(request.seed),
+                       lhs_optimization=None)
     columns = {}
     for j, (name, span) in enumerate(ranges.items()):
         low, high = span["low"], span["high"]
