@@ -246,7 +246,8 @@ class JobKind:
     rule: str = ""
 
 
-#: Kinds whose work any process can rebuild from stored inputs; filled by :func:`register_kind`.
+#: Kinds whose work any process can rebuild from stored inputs; filled by :func:`register_kind` (the
+#: service's own: :data:`service.job_kinds.JOB_KIND_TABLE`, registered by the app at start).
 JOB_KINDS: dict[str, JobKind] = {}
 
 #: Runs of a job: a re-queued job that is interrupted again fails (it may be what kills the server).

@@ -4,14 +4,13 @@
 from __future__ import annotations
 
 import json
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Body
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep, StoreDep
 from ..experiments import JOB_KIND, first_experiments_job, next_experiments_job, plan_png
-from ..jobs import register_kind
 from ..problems import ProblemError, problem_responses
 from ..schemas import examples
 from ..schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
@@ -20,21 +19,6 @@ from .jobs import NOT_FINISHED_RESPONSE, accepted, accepted_response, not_finish
 __all__ = ["router"]
 
 router = APIRouter(tags=["experiments"])
-
-
-def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
-    """The work of a proposal from its stored request (and calibration id, for the next runs)."""
-    request = dict(inputs)
-    calibration_id = request.pop("calibration_id", None)
-    if calibration_id is None:
-        return first_experiments_job(FirstExperimentsRequest.model_validate_json(json.dumps(request)))
-    return next_experiments_job(runtime.store, calibration_id,
-                                NextExperimentsRequest.model_validate_json(json.dumps(request)))
-
-
-# Rebuilt from the request; a calibration deleted meanwhile fails the new run with 404.
-register_kind(JOB_KIND, _stored_work,
-              rule="the request is stored and the result is written once, at the end")
 
 
 #: A proposal's 202, with a link to its plot.
