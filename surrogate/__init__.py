@@ -2,7 +2,8 @@
 
 * :class:`Space` (:mod:`surrogate.space`): bounded physics parameters, scales, features;
 * :func:`unit_design`, :func:`design`, :func:`fit_adaptive` (:mod:`surrogate.sampling`): designs
-  of experiments (the service's sweeps draw theirs here too) and variance-driven adaptive sampling;
+  of experiments and variance-driven adaptive sampling; :mod:`surrogate.designs`: grid axes and
+  samples over ranges of inputs (the service's sweeps);
 * :class:`GaussianProcessSurrogate` (:mod:`surrogate.model`): the estimator;
 * :func:`accuracy`, :func:`holdout_metrics` (:mod:`surrogate.metrics`): held-out figures;
 * :func:`dumps`, :func:`loads` (:mod:`surrogate.persist`): storage as JSON, no pickle;

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from jobs_helper import wait_until
 
 from microbearing.service.jobs import INTERRUPTED_DETAIL, NOT_STORED_DETAIL, JobContext, JobManager
 from microbearing.service.store import SqliteStore, Store, json_bytes, to_json, utc_now
@@ -31,10 +32,7 @@ def manager(store):
 
 
 def wait(manager: JobManager, job_id: str, timeout_s: float = 20.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while (row := manager.get(job_id))["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, row
-        time.sleep(0.02)
+    wait_until(lambda: manager.get(job_id), job_id, timeout_s=timeout_s, interval_s=0.02)
     return manager.get(job_id, with_result=True)
 
 
