@@ -74,7 +74,16 @@ from pathlib import Path
 from typing import Any
 
 from .problems import INTERNAL_TYPE, VALIDATION_TYPE, ProblemError
-from .store import REQUESTER, Requester, StorageError, Store, json_bytes, to_json, utc_now
+from .store import (
+    FINISHED_STATUSES,
+    REQUESTER,
+    Requester,
+    StorageError,
+    Store,
+    json_bytes,
+    to_json,
+    utc_now,
+)
 
 __all__ = ["ACTIVE", "FINISHED", "INTERRUPTED_DETAIL", "JOB_KINDS", "MAX_ATTEMPTS", "NOT_STORED_DETAIL",
            "POLL_AFTER_S", "RETRY_AFTER_S", "Cancelled", "JobContext", "JobKind", "JobManager",
@@ -83,7 +92,7 @@ __all__ = ["ACTIVE", "FINISHED", "INTERRUPTED_DETAIL", "JOB_KINDS", "MAX_ATTEMPT
 logger = logging.getLogger("microbearing.service.jobs")
 
 ACTIVE = ("queued", "running")
-FINISHED = ("succeeded", "failed", "cancelled")
+FINISHED = FINISHED_STATUSES
 INTERRUPTED_DETAIL = "interrupted: the server stopped while the job ran"
 NOT_STORED_DETAIL = ("interrupted: the server process holding this queued job stopped, and its work was not "
                      "stored (only jobs submitted with their inputs outlive their process)")

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import io
 import json
+import logging
 import shutil
 import sqlite3
 import threading
@@ -109,14 +110,20 @@ CREATE TABLE IF NOT EXISTS write_probe (
 _ADDED_COLUMNS = {"jobs": {"owner_key": "TEXT", "owner_sees_all": "INTEGER NOT NULL DEFAULT 0",
                            "replayable": "INTEGER NOT NULL DEFAULT 0",
                            "attempts": "INTEGER NOT NULL DEFAULT 0", "lease_token": "TEXT",
-                           "lease_expires": "REAL"},
+                           "lease_expires": "REAL", "erased_at": "TEXT"},
                   "models": {"owner_key": "TEXT"}}
 #: Index on a column that older databases gain by ALTER TABLE, so it is created after the migration.
 _LATE_SCHEMA = "CREATE INDEX IF NOT EXISTS jobs_finished ON jobs (status, finished_at)"
 
+logger = logging.getLogger("microbearing.service.store")
+
+#: A job's statuses once it has ended (:data:`service.jobs.FINISHED`).
+FINISHED_STATUSES = ("succeeded", "failed", "cancelled")
+
 _JOB_COLUMNS = ("id", "kind", "status", "progress", "request_json", "result_json", "error_json",
                 "cancel_requested", "owner_pid", "owner_instance", "owner_key", "created_at", "started_at",
-                "finished_at", "owner_sees_all", "replayable", "attempts", "lease_token", "lease_expires")
+                "finished_at", "owner_sees_all", "replayable", "attempts", "lease_token", "lease_expires",
+                "erased_at")
 #: The columns of a job's status: all but the request and the result, which can be tens of megabytes.
 #: Results are kept in their own table, job_results: SQLite walks a large value's overflow pages to
 #: reach the columns stored after it, so a result in the jobs row slowed every status read (a
@@ -640,14 +647,51 @@ class Store:
                  "metadata": json.loads(r["metadata_json"]), "created_at": r["created_at"]} for r in rows]
 
     def delete_model(self, model_id: str) -> bool:
-        """Delete a stored model the requester sees; returns whether it existed."""
+        """Delete a stored model the requester sees, and erase its data from the jobs that name it.
+
+        Every finished job whose request, inputs or result names the model (the job that made it,
+        and those that used it), whoever submitted it, keeps its status and loses its request, inputs
+        and result; ``erased_at`` says when (its result then answers 410). A job still running keeps
+        what it has: it fails when it next reads the model, or ends with a result that holds no row of
+        the model's data. The database then returns the freed space (:meth:`_reclaim`).
+
+        Returns
+        -------
+        bool
+            Whether the model existed (and was deleted).
+        """
         visible, args = self._visible()
         with self.transaction() as conn:
             deleted = conn.execute(f"DELETE FROM models WHERE id = ?{visible}", (model_id, *args)).rowcount
+            if deleted:
+                self._erase_jobs_naming(conn, model_id)
         if deleted:
             with self._lock:
                 self._rebuilt.pop(model_id, None)
+            self._reclaim()
         return deleted > 0
+
+    @staticmethod
+    def _erase_jobs_naming(conn: Any, model_id: str) -> list[str]:
+        """Erase the request, inputs and result of every finished job naming ``model_id``; their ids."""
+        pattern = f"%{model_id}%"
+        finished = ", ".join("?" for _ in FINISHED_STATUSES)
+        ids = [row["id"] for row in conn.execute(
+            "SELECT jobs.id FROM jobs LEFT JOIN job_results ON job_results.id = jobs.id "
+            "LEFT JOIN job_inputs ON job_inputs.id = jobs.id "
+            f"WHERE jobs.status IN ({finished}) AND (jobs.request_json LIKE ? OR jobs.result_json LIKE ? "
+            "OR job_results.result_json LIKE ? OR job_inputs.inputs_json LIKE ?)",
+            (*FINISHED_STATUSES, *[pattern] * 4)).fetchall()]
+        for job_id in ids:
+            conn.execute("UPDATE jobs SET request_json = ?, result_json = NULL, erased_at = ? WHERE id = ?",
+                         (to_json({"erased_with_model": model_id}), utc_now(), job_id))
+            conn.execute("DELETE FROM job_results WHERE id = ?", (job_id,))
+            conn.execute("DELETE FROM job_inputs WHERE id = ?", (job_id,))
+        return ids
+
+    def _reclaim(self) -> None:
+        """After an erasure: make deleted rows unreadable in the database's files, a backend's own way
+        (PostgreSQL's dead rows, unreachable by any query, are overwritten after its next vacuum)."""
 
 
 class SqliteStore(Store):
@@ -693,6 +737,8 @@ class SqliteStore(Store):
             conn.execute("PRAGMA journal_mode=WAL")
             conn.execute("PRAGMA synchronous=NORMAL")
             conn.execute("PRAGMA busy_timeout=30000")
+            # Deleted content is overwritten with zeros, not left in free pages (erasure, delete_model).
+            conn.execute("PRAGMA secure_delete=ON")
             self._local.conn = conn
             with self._lock:
                 self._connections.append(conn)
@@ -751,6 +797,15 @@ class SqliteStore(Store):
             return (f"only {free} bytes are free in {self.data_dir}; at least {min_free_bytes} are needed "
                     "(MICROBEARING_MIN_FREE_BYTES)")
         return self._probe_write()
+
+    def _reclaim(self) -> None:
+        """Copy the write-ahead log into the database and truncate it: with ``secure_delete`` on, the
+        erased rows are then zeros in the database file and gone from the log (a reader holding an
+        older snapshot delays this to the next erasure)."""
+        try:
+            self.connection().execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchone()
+        except sqlite3.Error as exc:  # a busy or failing database: the next checkpoint does it
+            logger.warning("the write-ahead log was not truncated after an erasure: %s", exc)
 
     def close(self) -> None:
         """Close every connection opened by this store."""

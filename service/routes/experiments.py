@@ -14,7 +14,7 @@ from ..experiments import JOB_KIND, first_experiments_job, next_experiments_job,
 from ..problems import ProblemError, problem_responses
 from ..schemas import examples
 from ..schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
-from .jobs import NOT_FINISHED_RESPONSE, accepted, accepted_response, not_finished
+from .jobs import NOT_FINISHED_RESPONSE, accepted, accepted_response, check_not_erased, not_finished
 
 __all__ = ["router"]
 
@@ -68,7 +68,7 @@ def create_first_experiments(body: Annotated[FirstExperimentsRequest, Body(
             responses={200: {"description": "The proposed runs over the data taken (and the rivals' "
                                             "predictions for discriminate) as a PNG image.",
                              "content": {"image/png": {"schema": {"type": "string", "format": "binary"}}}},
-                       **problem_responses(404), **NOT_FINISHED_RESPONSE})
+                       **problem_responses(404, 410), **NOT_FINISHED_RESPONSE})
 def get_experiments_plot(job_id: str, jobs: JobsDep) -> Response:
     """The plot of a proposal: the runs over the data taken, with the rivals' predictions."""
     row = jobs.get(job_id, with_result=True)
@@ -76,4 +76,5 @@ def get_experiments_plot(job_id: str, jobs: JobsDep) -> Response:
         raise ProblemError(404, f"There is no experiments job {job_id!r}.")
     if row["status"] != "succeeded":
         raise not_finished(job_id, row["status"], "the plot")
+    check_not_erased(row)
     return Response(plan_png(json.loads(row["result_json"])), media_type="image/png")
