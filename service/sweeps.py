@@ -70,6 +70,13 @@ def _grid_axes(request: GridSweep, errors: list[dict[str, str]]) -> dict[str, np
     axes: dict[str, np.ndarray] = {}
     for name, axis in request.axes.model_dump(exclude_none=True).items():
         pointer = f"/axes/{name}"
+        if "values" in axis:
+            for i, value in enumerate(axis["values"]):
+                _check_value(name, value, f"{pointer}/values/{i}", errors)
+            if not errors:
+                whole = physics.PARAMETERS[name].kind == "int"
+                axes[name] = np.asarray(axis["values"], dtype=np.int64 if whole else np.float64)
+            continue
         _check_value(name, axis["start"], f"{pointer}/start", errors)
         _check_value(name, axis["stop"], f"{pointer}/stop", errors)
         if axis["spacing"] == "log" and min(axis["start"], axis["stop"]) <= 0:
@@ -118,7 +125,7 @@ def design_size(request: AnySweep, max_points: int) -> int:
         varied_names = list(request.axes.model_dump(exclude_none=True))
         count = 1
         for axis in request.axes.model_dump(exclude_none=True).values():
-            count *= axis["num"]
+            count *= len(axis["values"]) if "values" in axis else axis["num"]
     else:
         varied_names = list(request.ranges.model_dump(exclude_none=True))
         count = request.points
