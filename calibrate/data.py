@@ -39,6 +39,9 @@ MU_MEASURED = "mu_measured"
 #: Optional column of its standard deviation (measurement noise). [1]
 MU_MEASURED_STD = "mu_measured_std"
 
+#: Prefixes of condition and factor columns in :meth:`Dataset.to_columns`.
+_CONDITION, _FACTOR = "condition.", "factor."
+
 _TRUE = {"true", "1", "yes"}
 _FALSE = {"false", "0", "no"}
 _MAX_LISTED = 20
@@ -127,6 +130,55 @@ class Dataset:
             dict(self.fixed),
             {k: v[rows] for k, v in self.factors.items()},
         )
+
+    def to_columns(self) -> dict[str, np.ndarray]:
+        """The measurements as named columns: the one serialized form of a dataset.
+
+        Physics columns under their names, conditions as ``condition.<name>``, factors as
+        ``factor.<name>``, then :data:`MU_MEASURED` and, when given, :data:`MU_MEASURED_STD`. Stored as
+        ``.npz`` arrays or JSON lists; :meth:`from_columns` reads them back. The fixed values are
+        not columns (stored beside them).
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            One array of ``n_points`` values per column (physics and conditions in their units, μ [1]).
+
+        Examples
+        --------
+        >>> d = parse_rows([{"load_N": 0.01, "rh": 0.4, "mu_measured": 0.02}],
+        ...                fixed={"balls": 4, "speed_m_s": 0.1})
+        >>> sorted(d.to_columns())
+        ['condition.rh', 'load_N', 'mu_measured']
+        >>> again = Dataset.from_columns(d.to_columns(), d.fixed)
+        >>> again.fixed == d.fixed and float(again.conditions["rh"][0])
+        0.4
+        """
+        columns = {name: np.asarray(values) for name, values in self.physics_columns.items()}
+        columns |= {_CONDITION + name: np.asarray(values, dtype=float)
+                    for name, values in self.conditions.items()}
+        columns |= {_FACTOR + name: np.asarray(labels, dtype=str) for name, labels in self.factors.items()}
+        columns[MU_MEASURED] = np.asarray(self.mu_measured, dtype=float)
+        if self.mu_measured_std is not None:
+            columns[MU_MEASURED_STD] = np.asarray(self.mu_measured_std, dtype=float)
+        return columns
+
+    @classmethod
+    def from_columns(cls, columns: Mapping[str, Any], fixed: Mapping[str, Any]) -> Dataset:
+        """The dataset of :meth:`to_columns`' columns (arrays or lists) and its fixed values."""
+        physics_columns, conditions, factors = {}, {}, {}
+        for name, values in columns.items():
+            if name in (MU_MEASURED, MU_MEASURED_STD):
+                continue
+            if name.startswith(_CONDITION):
+                conditions[name[len(_CONDITION):]] = np.asarray(values, dtype=float)
+            elif name.startswith(_FACTOR):
+                factors[name[len(_FACTOR):]] = np.asarray(values, dtype=str)
+            else:
+                physics_columns[name] = np.asarray(values)
+        std = columns.get(MU_MEASURED_STD)
+        return cls(physics_columns, conditions, np.asarray(columns[MU_MEASURED], dtype=float),
+                   None if std is None else np.asarray(std, dtype=float), dict(fixed), factors)
 
 
 def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None,

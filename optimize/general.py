@@ -596,17 +596,13 @@ def verify_design(problem: DesignProblem, result: OptimizationResult, mu_model: 
                                    balls, theta, load)
     mu_source = float(mu_source[0])
     exact = physics.evaluate(convention=problem.convention, **problem.physics_inputs(balls, theta, load))
-    model_force, source_force = result.mu * load, mu_source * load
+    model_force = result.mu * load
     constraints = [
         dataclasses.replace(c, value_model=model_force) if c.name == "max_friction_force_N"
         else dataclasses.replace(c, value_model=c.value)
         for c in constraint_report(problem, balls, theta, load, exact, mu_source, source_name)]
     violated = [c.name for c in constraints if not c.satisfied]
-    return {"source_model": source_name, "model": model_name, "mu_model": float(result.mu),
-            "mu_source": mu_source, "speed_m_s_source": float(speed[0]),
-            "relative_difference": float(result.mu / mu_source - 1.0),
-            "friction_force_N_model": float(model_force), "friction_force_N_source": float(source_force),
-            "friction_force_ratio": float(source_force / model_force),
+    return {**compare_with_source(model_name, source_name, result.mu, mu_source, speed[0], load),
             "constraints": constraints, "violated": violated, "satisfied": not violated}
 
 
@@ -631,3 +627,35 @@ def _with_verification(problem: DesignProblem, result: OptimizationResult, repor
         result, constraints=report["constraints"], certificate=result.certificate + text,
         solve_time_s=seconds, extra={**result.extra, "mu_source": report["mu_source"],
                                      "source_model": source, "verification": public})
+
+
+def compare_with_source(model_name: str, source_name: str, mu_model: float, mu_source: float,
+                        speed_m_s_source: float, load_N: float) -> dict[str, Any]:
+    """How a design found on a model (a surrogate) and the model it stands for compare: the figures every
+    verification reports (:func:`verify_design` at a point, :func:`optimize.plan.verify_over_envelope`
+    over an envelope).
+
+    Parameters
+    ----------
+    model_name, source_name : str
+        The two models' names. [-]
+    mu_model, mu_source : float
+        Each one's (worst) μ at the design. [1]
+    speed_m_s_source : float
+        Where the source's occurs. [m/s]
+    load_N : float
+        The design's load. [N]
+
+    Returns
+    -------
+    dict
+        ``source_model``, ``model``, ``mu_model`` and ``mu_source`` [1], ``speed_m_s_source`` [m/s],
+        ``relative_difference`` (mu_model / mu_source - 1) [1], ``friction_force_N_model`` and
+        ``friction_force_N_source`` [N], ``friction_force_ratio`` (source over model) [1].
+    """
+    model_force, source_force = mu_model * load_N, mu_source * load_N
+    return {"source_model": source_name, "model": model_name, "mu_model": float(mu_model),
+            "mu_source": float(mu_source), "speed_m_s_source": float(speed_m_s_source),
+            "relative_difference": float(mu_model / mu_source - 1.0),
+            "friction_force_N_model": float(model_force), "friction_force_N_source": float(source_force),
+            "friction_force_ratio": float(source_force / model_force)}

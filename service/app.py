@@ -26,6 +26,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from . import connections, observability, problems, security, umbridge
 from .deps import DataFolderError, close_runtime, get_runtime
+from .job_kinds import register_job_kinds
 from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware, HeavyRequestMiddleware
 from .problems import ProblemError
@@ -224,6 +225,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         The ASGI app. Its database opens at startup (or on first request without a lifespan).
     """
     settings = settings or Settings()
+    # The kinds of job this app's processes rebuild from stored inputs (service/job_kinds.py).
+    register_job_kinds()
     # /docs and /redoc load Swagger UI and ReDoc from the assets fastapi-offline ships, not from a CDN,
     # so they work on an isolated network.
     app = FastAPIOffline(title="microbearing", version=package_version(), description=DESCRIPTION,

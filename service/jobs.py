@@ -74,7 +74,16 @@ from pathlib import Path
 from typing import Any
 
 from .problems import INTERNAL_TYPE, VALIDATION_TYPE, ProblemError
-from .store import REQUESTER, Requester, StorageError, Store, json_bytes, to_json, utc_now
+from .store import (
+    FINISHED_STATUSES,
+    REQUESTER,
+    Requester,
+    StorageError,
+    Store,
+    json_bytes,
+    to_json,
+    utc_now,
+)
 
 __all__ = ["ACTIVE", "FINISHED", "INTERRUPTED_DETAIL", "JOB_KINDS", "MAX_ATTEMPTS", "NOT_STORED_DETAIL",
            "POLL_AFTER_S", "RETRY_AFTER_S", "Cancelled", "JobContext", "JobKind", "JobManager",
@@ -83,7 +92,7 @@ __all__ = ["ACTIVE", "FINISHED", "INTERRUPTED_DETAIL", "JOB_KINDS", "MAX_ATTEMPT
 logger = logging.getLogger("microbearing.service.jobs")
 
 ACTIVE = ("queued", "running")
-FINISHED = ("succeeded", "failed", "cancelled")
+FINISHED = FINISHED_STATUSES
 INTERRUPTED_DETAIL = "interrupted: the server stopped while the job ran"
 NOT_STORED_DETAIL = ("interrupted: the server process holding this queued job stopped, and its work was not "
                      "stored (only jobs submitted with their inputs outlive their process)")
@@ -246,7 +255,8 @@ class JobKind:
     rule: str = ""
 
 
-#: Kinds whose work any process can rebuild from stored inputs; filled by :func:`register_kind`.
+#: Kinds whose work any process can rebuild from stored inputs; filled by :func:`register_kind` (the
+#: service's own: :data:`service.job_kinds.JOB_KIND_TABLE`, registered by the app at start).
 JOB_KINDS: dict[str, JobKind] = {}
 
 #: Runs of a job: a re-queued job that is interrupted again fails (it may be what kills the server).

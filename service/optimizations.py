@@ -1,4 +1,8 @@
-"""Optimizations in the service: build the design problem from a request, pick the method, run it.
+"""Optimizations in the service: a request parsed, its model resolved, planned and run.
+
+The design problem and its envelope come from :func:`optimize.plan.plan_design` (the request's plain
+values, :class:`optimize.plan.DesignRequest`); this module resolves the model the request names, binds
+its conditions, picks the method, runs it, and turns errors into problems.
 
 ``model="physics"`` is solved by :func:`optimize.optimize_design` (a certified
 global optimum); ``calibrated:<id>`` and ``surrogate:<id>`` by
@@ -20,10 +24,7 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
-from microbearing import physics
 from microbearing.optimize import (
-    Constraints,
-    DesignBounds,
     DesignProblem,
     InfeasibleDesignError,
     ParetoFront,
@@ -31,16 +32,14 @@ from microbearing.optimize import (
     optimize_model,
     pareto_front,
 )
-from microbearing.optimize.general import check_exact_limits
-from microbearing.optimize.problem import DESIGN_VARIABLES
-from microbearing.optimize.robust import (
-    Envelope,
-    certified_worst_case_of,
-    check_model,
-    optimize_robust,
-    shifted_problem,
-    worst_case_of,
+from microbearing.optimize.plan import (
+    DesignRequest,
+    PlanError,
+    check_request,
+    plan_design,
+    verify_over_envelope,
 )
+from microbearing.optimize.robust import Envelope, optimize_robust
 from microbearing.physics.model import Model
 
 from .calibrations import interval_at, with_conditions
@@ -115,68 +114,35 @@ class OptimizationPlan:
     time_limit_s: float = 60.0
 
 
-def _pointer(message: str, speed_in_fixed: bool) -> str:
-    """JSON pointer of the field a domain ValueError names first (``bounds.load_N: ...``: /bounds/load_N)."""
-    head = message.split(" ", 1)[0].rstrip(":")
-    if head == "speed_m_s" and speed_in_fixed:
-        return "/fixed/speed_m_s"
-    return "/" + head.replace(".", "/") if head.split(".")[0] in (
-        "bounds", "fixed", "constraints", "speed_m_s", "convention") else ""
+def _request(body: OptimizationRequest) -> DesignRequest:
+    """The request's plain values (:class:`optimize.plan.DesignRequest`)."""
+    b = body.bounds
+    return DesignRequest(
+        balls=tuple(b.balls), groove_angle_deg=tuple(b.groove_angle_deg),
+        load_N=None if b.load_N is None else tuple(b.load_N), fixed=body.fixed.model_dump(exclude_none=True),
+        speed_m_s=body.speed_m_s, constraints=body.constraints.model_dump(),
+        conditions=dict(body.conditions or {}),
+        tolerances={} if body.tolerances is None else body.tolerances.model_dump(exclude_none=True),
+        objective=body.objective, model=body.model, convention=str(body.convention),
+        pareto=body.pareto is not None)
 
 
-def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, dict[str, Any], str,
-                                                              Callable | None]:
-    """The μ model, the physics values it was built with, its convention and its interval at a point."""
-    if body.conditions and not body.model.startswith("calibrated:"):
-        # A label (text) is a group of a calibrated model's factor column; named where it stands.
-        raise validation_problem([{"pointer": "/conditions", "detail": "extra input columns are read by "
-                                   "calibrated models only"}]
-                                 + [{"pointer": f"/conditions/{name}", "detail": "must be a number (a label "
-                                     "is read by a calibrated model's factor column only)"}
-                                    for name, value in body.conditions.items() if isinstance(value, str)])
-    if body.model == "physics":
-        return None, {}, str(body.convention), None
-    model = resolve(store, body.model)
-    # The values the model holds (a calibration's fixed and fitted ones, the ones a surrogate was
-    # trained at): the physics checks of limits and of the optimum run there too.
-    values = {**model.fixed, **model.fitted}
+def _plan_problem(error: PlanError) -> ProblemError:
+    """The 422 problem of a request that is no design problem, each field named by its JSON pointer."""
+    return validation_problem([{"pointer": "/" + name.replace(".", "/") if name else "", "detail": detail}
+                               for name, detail in error.errors])
+
+
+def _bound(model: Model, body: OptimizationRequest) -> tuple[Callable, Callable | None]:
+    """A stored model's μ model with the request's conditions bound, and its interval at a point."""
     # A range is checked by name here; its values are taken apart by the envelope.
     points = {name: value[0] if isinstance(value, list) else value
               for name, value in (body.conditions or {}).items()}
-    mu_model = with_conditions(model, points or body.conditions)
-    return mu_model, values, model.convention, interval_at(model, points or body.conditions)
-
-
-def _is_robust(body: OptimizationRequest, speed: Any) -> bool:
-    """Whether a request asks for a design over an envelope (ranges, tolerances, or mu_upper)."""
-    ranges = any(isinstance(v, list) for v in (body.conditions or {}).values())
-    tolerance = body.tolerances is not None and body.tolerances.groove_angle_deg is not None
-    speed_range = isinstance(speed, list | tuple)
-    return ranges or tolerance or body.objective != "mu" or speed_range
-
-
-def _envelope(body: OptimizationRequest, speed: Any) -> Envelope:
-    labels = [name for name, value in (body.conditions or {}).items() if isinstance(value, str)]
-    if labels:
-        raise validation_problem([{"pointer": f"/conditions/{name}", "detail": "a group label is taken by a "
-                                   "design at one point only; over an operating envelope the design holds "
-                                   "for a new group (the spread between groups is in its interval): leave "
-                                   "it out"}
-                                  for name in labels])
-    tolerances = {} if body.tolerances is None else body.tolerances.model_dump(exclude_none=True)
-    try:
-        return Envelope(tuple(speed) if isinstance(speed, list) else speed, body.conditions or {}, tolerances)
-    except ValueError as exc:
-        raise validation_problem([{"pointer": _field_pointer(exc), "detail": str(exc)}]) from None
-
-
-def _field_pointer(error: ValueError) -> str:
-    """JSON pointer of the field an envelope error names first (``conditions.x: ...``: /conditions/x)."""
-    return "/" + str(error).split(" ", 1)[0].rstrip(":").replace(".", "/")
+    return with_conditions(model, points or body.conditions), interval_at(model, points or body.conditions)
 
 
 def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
-    """Validate a request into a plan.
+    """Validate a request into a plan (:func:`optimize.plan.plan_design`), its model resolved.
 
     Parameters
     ----------
@@ -194,71 +160,31 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     ProblemError
         422 naming the field for invalid combinations, 404 for an unknown model.
     """
-    if body.pareto is not None and body.model != "physics":
-        raise validation_problem([{"pointer": "/pareto", "detail": "a Pareto front is computed for model "
-                                   "physics only"}])
-    mu_model, model_values, convention, interval = _model(store, body)
-    fixed = body.fixed.model_dump(exclude_none=True)
-    # A payload is a given, not a range: fixed.load_N is the load's bounds [G, G].
-    load = fixed.pop("load_N", None)
-    if load is not None and body.bounds.load_N is not None:
-        raise validation_problem([{"pointer": "/fixed/load_N", "detail": "give load_N in bounds (a range) or "
-                                   "in fixed (a payload), not both"}])
-    if load is None and body.bounds.load_N is None:
-        raise validation_problem([{"pointer": "/bounds/load_N",
-                                   "detail": "required: [lower, upper] [N], or a payload in fixed.load_N"}])
-    load_bounds = (load, load) if load is not None else tuple(body.bounds.load_N)
-    speed_in_fixed = "speed_m_s" in fixed
-    if speed_in_fixed and body.speed_m_s is not None:
-        raise validation_problem([{"pointer": "/speed_m_s", "detail": "give speed_m_s here or in fixed, "
-                                   "not both"}])
-    speed = fixed.pop("speed_m_s", body.speed_m_s)
-    if speed is None:
-        speed = model_values.get("speed_m_s")
-    if speed is None:
-        raise validation_problem([{"pointer": "/speed_m_s", "detail": "required: a speed [m/s] or "
-                                   "[low, high], here or in fixed"}])
-    inherited = {k: v for k, v in model_values.items()
-                 if k in physics.PARAMETERS and k not in DESIGN_VARIABLES and k != "speed_m_s"}
-    b = body.bounds
+    request = _request(body)
     try:
-        problem = DesignProblem(
-            DesignBounds(tuple(b.balls), tuple(b.groove_angle_deg), load_bounds),
-            speed_m_s=tuple(speed) if isinstance(speed, list) else speed,
-            constraints=Constraints(**body.constraints.model_dump()),
-            fixed={**inherited, **fixed}, convention=convention)
-    except ValueError as exc:
-        pointer = _pointer(str(exc), speed_in_fixed)
-        if load is not None and pointer == "/bounds/load_N":
-            pointer = "/fixed/load_N"
-        raise validation_problem([{"pointer": pointer, "detail": str(exc)}]) from None
+        check_request(request)
+    except PlanError as error:
+        raise _plan_problem(error) from None
+    model, mu_model, interval = None, None, None
+    if body.model != "physics":
+        model = resolve(store, body.model)
+        mu_model, interval = _bound(model, body)
     try:
-        # Conflicts of the limits that do not depend on the model answer 422 at once on every model.
-        check_exact_limits(problem)
+        planned = plan_design(request, model)
+    except PlanError as error:
+        raise _plan_problem(error) from None
     except InfeasibleDesignError as error:
+        # Conflicts of the limits that do not depend on the model answer 422 at once on every model.
         raise infeasible_problem(error) from None
     source_model, source_name = None, None
     if body.model.startswith("surrogate:"):
         source_model, source_name = load_source_model(store, body.model)
-    counts = b.balls[1] - b.balls[0] + 1
+    counts = body.bounds.balls[1] - body.bounds.balls[0] + 1
     synchronous = mu_model is None and body.pareto is None and counts <= SYNC_MAX_BALL_COUNTS
     pareto = body.pareto.model_dump() if body.pareto is not None else None
-    envelope, resolved = None, None
-    # A Pareto front over a speed range alone keeps its proven high end; other envelopes have no front.
-    if body.pareto is not None and _is_robust(body, None):
-        raise validation_problem([{"pointer": "/pareto", "detail": "a Pareto front is computed at one "
-                                   "point or over a speed range, not over condition ranges, tolerances or "
-                                   "mu_upper"}])
-    if body.pareto is None and _is_robust(body, speed):
-        envelope = _envelope(body, speed)
-        resolved = None if body.model == "physics" else resolve(store, body.model)
-        try:
-            check_model(resolved, envelope, body.objective)
-            shifted_problem(problem, envelope.angle_tolerance_deg, envelope.speed_m_s[1])
-        except ValueError as exc:
-            raise validation_problem([{"pointer": _field_pointer(exc), "detail": str(exc)}]) from None
-    return OptimizationPlan(problem, body.model, mu_model, body.starts, pareto, synchronous, source_model,
-                            source_name, interval, envelope, body.objective, resolved, body.time_limit_s)
+    return OptimizationPlan(planned.problem, body.model, mu_model, body.starts, pareto, synchronous,
+                            source_model, source_name, interval, planned.envelope, body.objective,
+                            None if planned.envelope is None else model, body.time_limit_s)
 
 
 def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:
@@ -346,7 +272,11 @@ def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None
         raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
     document = {**robust.to_dict(), "model": plan.model}
     if plan.source_model is not None:
-        document.update(_verified_over_envelope(plan, robust))
+        # A surrogate's design judged by the model it stands for, over the same envelope.
+        verification = verify_over_envelope(plan.problem, plan.envelope, robust.result.design, plan.resolved,
+                                            plan.model, plan.source_model, plan.source_name)
+        document.update({"source_model": plan.source_name, "mu_source": verification["mu_source"],
+                         "verification": verification})
     if plan.interval is not None:
         # How sure the calibrated model is, and whether its data cover it, where the worst case occurs.
         worst = robust.worst_case
@@ -354,26 +284,6 @@ def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None
                  "groove_angle_deg": worst["groove_angle_deg"]}
         document.update(interval_at(plan.resolved, worst["conditions"])(point))
     return document
-
-
-def _verified_over_envelope(plan: OptimizationPlan, robust: Any) -> dict[str, Any]:
-    """A surrogate's robust design judged by the model it stands for: each one's worst mu over the envelope
-    (the surrogate's searched, the physics' exact at the worst vertex), and the friction-force limit by the
-    source's."""
-    design = robust.result.design
-    mu_model, _ = worst_case_of(plan.resolved, plan.problem, plan.envelope, design)
-    mu_source, where, certified = certified_worst_case_of(plan.source_model, plan.problem, plan.envelope,
-                                                          design)
-    load = float(design["load_N"])
-    limit = plan.problem.constraints.max_friction_force_N
-    violated = ["max_friction_force_N"] if limit is not None and mu_source * load > limit else []
-    verification = {
-        "source_model": plan.source_name, "model": plan.model, "mu_model": mu_model, "mu_source": mu_source,
-        "speed_m_s_source": float(where["speed_m_s"]), "relative_difference": mu_model / mu_source - 1.0,
-        "friction_force_N_model": mu_model * load, "friction_force_N_source": mu_source * load,
-        "friction_force_ratio": mu_source / mu_model, "violated": violated, "satisfied": not violated,
-        "resolves": 0, "mu_source_certified": certified}
-    return {"source_model": plan.source_name, "mu_source": mu_source, "verification": verification}
 
 
 def pareto_png(document: Mapping[str, Any]) -> bytes:

@@ -15,6 +15,7 @@ by name (``{"parameter": "job_id", ...}``).
 from __future__ import annotations
 
 import http
+import json
 import logging
 from typing import Any
 
@@ -247,6 +248,32 @@ def _parameter_value(parts: list[str], error: dict[str, Any]) -> Any:
     return spec
 
 
+def _in_words(error: dict[str, Any]) -> str:
+    """pydantic's message of an error, said without its own terms (tags, models, "instance of")."""
+    kind, ctx, message = error.get("type"), error.get("ctx") or {}, error.get("msg", "invalid")
+    tag = str(ctx.get("discriminator", "")).strip("'")
+    if kind == "union_tag_not_found":
+        return f"{tag} is required: it says which kind of object this is"
+    if kind == "union_tag_invalid":
+        return f"{ctx.get('tag')!r} is not a known {tag}; choose one of {ctx.get('expected_tags')}"
+    if kind == "value_error":
+        return message.removeprefix("Value error, ")
+    if kind in {"model_type", "model_attributes_type", "dict_type"}:
+        return "must be an object with named fields ({...}), not " + _what(error.get("input"))
+    return message
+
+
+def _what(value: Any) -> str:
+    """A JSON value's kind in words: ``a list``, ``a number``..."""
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, bool) or value is None:
+        return json.dumps(value)
+    if isinstance(value, int | float):
+        return "a number"
+    return "a string" if isinstance(value, str) else "that"
+
+
 def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
     by_place: dict[tuple[str, str], list[str]] = {}
     # Only the first errors are examined (at most MAX_LISTED_ERRORS are listed anyway): the cost
@@ -257,7 +284,7 @@ def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
         if error.get("type") in {"union_tag_invalid", "union_tag_not_found"}:
             rest = (*rest, str(error.get("ctx", {}).get("discriminator", "")).strip("'"))
         parts = _pointer_parts(rest, exc.body if source == "body" else None)
-        detail = error.get("msg", "invalid")
+        detail = _in_words(error)
         spec = _parameter_value(parts, error)
         if spec is not None:
             detail = f"{detail} ({spec.name} must be {spec.range_text()} [{spec.unit}])"

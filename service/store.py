@@ -7,7 +7,8 @@ connection (sqlite3 connections are not shared across threads); every write is o
 IMMEDIATE`` transaction. Several hosts share one PostgreSQL database instead
 (:class:`service.store_postgres.PostgresStore`, chosen by ``MICROBEARING_DATABASE_URL``). Data is stored as
 JSON text and NumPy ``.npz`` bytes loaded with ``allow_pickle=False``, never as pickles, so a
-stored row cannot run code when it is read.
+stored row cannot run code when it is read. The values a store takes and gives (who asks, stored
+models, rows as JSON, storage faults) are declared in :mod:`service.store_types` and re-exported here.
 
 Stored models (surrogates, calibrations, ...)::
 
@@ -31,12 +32,9 @@ Storage faults: a write the disk cannot take (full, read-only, I/O error) raises
 
 from __future__ import annotations
 
-import contextvars
-import errno
 import io
 import json
 import logging
-import re
 import shutil
 import sqlite3
 import threading
@@ -44,20 +42,25 @@ import uuid
 from collections import OrderedDict
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pydantic_core
 
-from .problems import ProblemError
+from .store_types import (
+    REQUESTER,
+    ModelLimitError,
+    Requester,
+    StorageError,
+    StoredModel,
+    json_bytes,
+    redacted_url,
+    to_json,
+    utc_now,
+)
 
 __all__ = ["DATABASE_NAME", "REQUESTER", "ModelLimitError", "Requester", "SqliteStore", "StorageError",
            "Store", "StoredModel", "json_bytes", "redacted_url", "to_json", "utc_now"]
-
-logger = logging.getLogger("microbearing.service.store")
 
 DATABASE_NAME = "microbearing.sqlite3"
 
@@ -107,14 +110,20 @@ CREATE TABLE IF NOT EXISTS write_probe (
 _ADDED_COLUMNS = {"jobs": {"owner_key": "TEXT", "owner_sees_all": "INTEGER NOT NULL DEFAULT 0",
                            "replayable": "INTEGER NOT NULL DEFAULT 0",
                            "attempts": "INTEGER NOT NULL DEFAULT 0", "lease_token": "TEXT",
-                           "lease_expires": "REAL"},
+                           "lease_expires": "REAL", "erased_at": "TEXT"},
                   "models": {"owner_key": "TEXT"}}
 #: Index on a column that older databases gain by ALTER TABLE, so it is created after the migration.
 _LATE_SCHEMA = "CREATE INDEX IF NOT EXISTS jobs_finished ON jobs (status, finished_at)"
 
+logger = logging.getLogger("microbearing.service.store")
+
+#: A job's statuses once it has ended (:data:`service.jobs.FINISHED`).
+FINISHED_STATUSES = ("succeeded", "failed", "cancelled")
+
 _JOB_COLUMNS = ("id", "kind", "status", "progress", "request_json", "result_json", "error_json",
                 "cancel_requested", "owner_pid", "owner_instance", "owner_key", "created_at", "started_at",
-                "finished_at", "owner_sees_all", "replayable", "attempts", "lease_token", "lease_expires")
+                "finished_at", "owner_sees_all", "replayable", "attempts", "lease_token", "lease_expires",
+                "erased_at")
 #: The columns of a job's status: all but the request and the result, which can be tens of megabytes.
 #: Results are kept in their own table, job_results: SQLite walks a large value's overflow pages to
 #: reach the columns stored after it, so a result in the jobs row slowed every status read (a
@@ -122,178 +131,6 @@ _JOB_COLUMNS = ("id", "kind", "status", "progress", "request_json", "result_json
 _STATUS_COLUMNS = ", ".join(c for c in _JOB_COLUMNS if c not in ("request_json", "result_json"))
 _FULL_COLUMNS = ", ".join(f"jobs.{c}" for c in _JOB_COLUMNS if c != "result_json") + (
     ", COALESCE(job_results.result_json, jobs.result_json) AS result_json")
-
-
-@dataclass(frozen=True)
-class Requester:
-    """Who is asking, for the ownership of rows.
-
-    Attributes
-    ----------
-    key_id : str or None
-        Id of the API key (recorded as the owner of new rows); None without keys.
-    sees_all : bool
-        Whether every row is visible (no keys configured, the admin key, the server itself).
-    """
-
-    key_id: str | None = None
-    sees_all: bool = True
-
-
-#: Who sees every row: requests without keys, and the server's own housekeeping.
-EVERYONE = Requester()
-#: The requester of the current context; set per request by :mod:`service.security`.
-REQUESTER: contextvars.ContextVar[Requester] = contextvars.ContextVar("microbearing_requester",
-                                                                     default=EVERYONE)
-
-STORAGE_TYPE = "urn:microbearing:problem:storage"
-
-#: SQLite's primary result codes of a storage fault (https://sqlite.org/rescode.html).
-_SQLITE_READONLY, _SQLITE_IOERR, _SQLITE_CORRUPT, _SQLITE_FULL, _SQLITE_CANTOPEN = 8, 10, 11, 13, 14
-
-
-class ModelLimitError(ProblemError):
-    """The database holds ``MICROBEARING_MAX_STORED_MODELS`` models: 507, naming the setting and the way out.
-
-    Parameters
-    ----------
-    stored : int
-        Models stored now [1].
-    limit : int
-        The setting's value [1].
-    """
-
-    def __init__(self, stored: int, limit: int):
-        detail = (f"The service holds {stored} stored models, its limit (MICROBEARING_MAX_STORED_MODELS = "
-                  f"{limit}). Delete models no longer needed (DELETE /v1/calibrations/{{id}}, "
-                  "DELETE /v1/surrogates/{id}) or raise the setting; the request can be repeated then.")
-        super().__init__(507, detail, title="Stored-model limit reached")
-        self.stored = stored
-        self.limit = limit
-
-
-class StorageError(ProblemError):
-    """The data folder cannot take a write: 507 for a full disk, 503 otherwise, with ``Retry-After``.
-
-    Parameters
-    ----------
-    cause : str
-        What failed, e.g. ``"the disk is full"``.
-    path : pathlib.Path or str
-        The database file (or the PostgreSQL URL without its password).
-    status : int
-        507 or 503.
-    """
-
-    def __init__(self, cause: str, path: Path | str, status: int = 503):
-        super().__init__(status, f"The service cannot store data: {cause} ({path}). Free space or fix the "
-                                 "data folder; the request can be repeated then.",
-                         title="Storage unavailable", type_=STORAGE_TYPE, headers={"Retry-After": "60"})
-        self.cause = cause
-        self.path = path
-
-    @classmethod
-    def classify(cls, exc: BaseException, path: Path | str) -> StorageError | None:
-        """The storage fault ``exc`` stands for, or None when it is something else.
-
-        Parameters
-        ----------
-        exc : BaseException
-            An exception raised by sqlite3 or the file system.
-        path : pathlib.Path
-            The database file, for the message.
-        """
-        if isinstance(exc, StorageError):
-            return exc
-        if isinstance(exc, sqlite3.Error):
-            code = (getattr(exc, "sqlite_errorcode", None) or 0) & 0xFF
-            causes = {_SQLITE_FULL: ("the disk is full", 507),
-                      _SQLITE_READONLY: ("the database is read-only", 503),
-                      _SQLITE_IOERR: (f"an I/O error ({exc})", 503),
-                      _SQLITE_CANTOPEN: (f"the database cannot be opened ({exc})", 503),
-                      _SQLITE_CORRUPT: (f"the database is corrupt ({exc})", 503)}
-            if code in causes:
-                cause, status = causes[code]
-                return cls(cause, path, status)
-        if isinstance(exc, OSError) and exc.errno is not None:
-            if exc.errno == errno.ENOSPC:
-                return cls("the disk is full", path, 507)
-            if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO):
-                return cls(f"{exc.strerror or exc}", path, 503)
-        return None
-
-
-def redacted_url(url: str) -> str:
-    """A database URL (or libpq ``key=value`` string) without its password, for messages and logs."""
-    url = re.sub(r"(://[^/:@]*):[^/]*@", r"\1:***@", url)
-    return re.sub(r"(password\s*=\s*)('[^']*'|\S+)", r"\1***", url)
-
-
-def utc_now() -> str:
-    """The current time as an ISO 8601 UTC timestamp."""
-    return datetime.now(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
-
-
-def _numpy_to_python(value: Any) -> Any:
-    if isinstance(value, np.ndarray | np.generic):
-        return value.tolist()
-    raise TypeError(f"{type(value).__name__} is not JSON serializable")
-
-
-def json_bytes(value: Any) -> bytes:
-    """Compact strict JSON of ``value``; NumPy arrays become lists, numbers keep every digit.
-
-    pydantic-core's serializer writes a million floats about ten times faster than the
-    standard library; it cannot refuse NaN or infinities, so output that may contain them is
-    redone by :func:`json.dumps`, which raises for a real one and accepts the word inside a string.
-
-    Raises
-    ------
-    ValueError
-        For NaN or infinite numbers, which JSON cannot represent.
-    TypeError
-        For values that are not JSON data or NumPy arrays.
-    """
-    try:
-        text = pydantic_core.to_json(value, fallback=_numpy_to_python)
-    except pydantic_core.PydanticSerializationError as exc:
-        raise TypeError(str(exc)) from None
-    if b"NaN" in text or b"Infinity" in text:
-        return json.dumps(value, allow_nan=False, separators=(",", ":"), default=_numpy_to_python).encode()
-    return text
-
-
-def to_json(value: Any) -> str:
-    """Strict JSON text of ``value`` (see :func:`json_bytes`)."""
-    return json_bytes(value).decode()
-
-
-@dataclass(frozen=True)
-class StoredModel:
-    """A model saved by :meth:`Store.save_model`.
-
-    Attributes
-    ----------
-    id : str
-        Identifier.
-    kind : str
-        What it is, e.g. ``"surrogate"`` or ``"calibration"``.
-    name : str
-        Human label.
-    metadata : dict
-        JSON-ready description (inputs, units, scores, ...).
-    arrays : dict of numpy.ndarray
-        Numeric payload.
-    created_at : str
-        ISO 8601 UTC timestamp.
-    """
-
-    id: str
-    kind: str
-    name: str
-    metadata: dict[str, Any]
-    arrays: dict[str, np.ndarray]
-    created_at: str
 
 
 class Store:
@@ -810,14 +647,51 @@ class Store:
                  "metadata": json.loads(r["metadata_json"]), "created_at": r["created_at"]} for r in rows]
 
     def delete_model(self, model_id: str) -> bool:
-        """Delete a stored model the requester sees; returns whether it existed."""
+        """Delete a stored model the requester sees, and erase its data from the jobs that name it.
+
+        Every finished job whose request, inputs or result names the model (the job that made it,
+        and those that used it), whoever submitted it, keeps its status and loses its request, inputs
+        and result; ``erased_at`` says when (its result then answers 410). A job still running keeps
+        what it has: it fails when it next reads the model, or ends with a result that holds no row of
+        the model's data. The database then returns the freed space (:meth:`_reclaim`).
+
+        Returns
+        -------
+        bool
+            Whether the model existed (and was deleted).
+        """
         visible, args = self._visible()
         with self.transaction() as conn:
             deleted = conn.execute(f"DELETE FROM models WHERE id = ?{visible}", (model_id, *args)).rowcount
+            if deleted:
+                self._erase_jobs_naming(conn, model_id)
         if deleted:
             with self._lock:
                 self._rebuilt.pop(model_id, None)
+            self._reclaim()
         return deleted > 0
+
+    @staticmethod
+    def _erase_jobs_naming(conn: Any, model_id: str) -> list[str]:
+        """Erase the request, inputs and result of every finished job naming ``model_id``; their ids."""
+        pattern = f"%{model_id}%"
+        finished = ", ".join("?" for _ in FINISHED_STATUSES)
+        ids = [row["id"] for row in conn.execute(
+            "SELECT jobs.id FROM jobs LEFT JOIN job_results ON job_results.id = jobs.id "
+            "LEFT JOIN job_inputs ON job_inputs.id = jobs.id "
+            f"WHERE jobs.status IN ({finished}) AND (jobs.request_json LIKE ? OR jobs.result_json LIKE ? "
+            "OR job_results.result_json LIKE ? OR job_inputs.inputs_json LIKE ?)",
+            (*FINISHED_STATUSES, *[pattern] * 4)).fetchall()]
+        for job_id in ids:
+            conn.execute("UPDATE jobs SET request_json = ?, result_json = NULL, erased_at = ? WHERE id = ?",
+                         (to_json({"erased_with_model": model_id}), utc_now(), job_id))
+            conn.execute("DELETE FROM job_results WHERE id = ?", (job_id,))
+            conn.execute("DELETE FROM job_inputs WHERE id = ?", (job_id,))
+        return ids
+
+    def _reclaim(self) -> None:
+        """After an erasure: make deleted rows unreadable in the database's files, a backend's own way
+        (PostgreSQL's dead rows, unreachable by any query, are overwritten after its next vacuum)."""
 
 
 class SqliteStore(Store):
@@ -863,6 +737,8 @@ class SqliteStore(Store):
             conn.execute("PRAGMA journal_mode=WAL")
             conn.execute("PRAGMA synchronous=NORMAL")
             conn.execute("PRAGMA busy_timeout=30000")
+            # Deleted content is overwritten with zeros, not left in free pages (erasure, delete_model).
+            conn.execute("PRAGMA secure_delete=ON")
             self._local.conn = conn
             with self._lock:
                 self._connections.append(conn)
@@ -921,6 +797,15 @@ class SqliteStore(Store):
             return (f"only {free} bytes are free in {self.data_dir}; at least {min_free_bytes} are needed "
                     "(MICROBEARING_MIN_FREE_BYTES)")
         return self._probe_write()
+
+    def _reclaim(self) -> None:
+        """Copy the write-ahead log into the database and truncate it: with ``secure_delete`` on, the
+        erased rows are then zeros in the database file and gone from the log (a reader holding an
+        older snapshot delays this to the next erasure)."""
+        try:
+            self.connection().execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchone()
+        except sqlite3.Error as exc:  # a busy or failing database: the next checkpoint does it
+            logger.warning("the write-ahead log was not truncated after an erasure: %s", exc)
 
     def close(self) -> None:
         """Close every connection opened by this store."""

@@ -21,6 +21,7 @@ import numpy as np
 from microbearing import physics, surrogate
 from microbearing.optimize import physics_model
 from microbearing.surrogate import GaussianProcessSurrogate, Space
+from microbearing.surrogate.metrics import quality_warnings
 from microbearing.surrogate.persist import version_warning
 
 from .calibrations import with_conditions
@@ -29,15 +30,13 @@ from .problems import ProblemError, validation_problem
 from .schemas.surrogates import SurrogateRequest
 from .store import Store, StoredModel, utc_now
 
-__all__ = ["KIND", "MIN_COVERAGE", "MODEL_PREFIX", "SENSITIVITY_N", "delete_stored",
-           "load_source_model", "load_stored", "load_surrogate", "predict", "prepare_training",
-           "quality_warnings", "sensitivity", "surrogate_view", "surrogate_views", "train_surrogate"]
+__all__ = ["KIND", "MODEL_PREFIX", "SENSITIVITY_N", "delete_stored", "load_source_model", "load_stored",
+           "load_surrogate", "predict", "prepare_training", "sensitivity", "surrogate_view",
+           "surrogate_views", "train_surrogate"]
 
 KIND = "surrogate"
 MODEL_PREFIX = "surrogate:"
 _HELD_OUT_POINTS = 1024
-#: Least held-out coverage of the 95 % interval that a surrogate keeps without a warning. [1]
-MIN_COVERAGE = 0.90
 _HELD_OUT_SEED = 987_654_321
 #: Least and most base sample size of the Sobol' indices (powers of 2). [1] The 95 % BCa intervals
 #: (scipy's bootstrap) jackknife the n samples at once, so memory grows as n squared: a peak of
@@ -173,8 +172,9 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
         The :class:`~service.schemas.surrogates.SurrogateResult` as JSON data.
     """
     start = time.perf_counter()
+    plan = surrogate.SamplingPlan(design_method=str(body.design), adaptive=body.adaptive)
     fit = surrogate.fit_adaptive(space, budget=body.budget, target_relative_error=body.target_relative_error,
-                                 design_method=str(body.design), adaptive=body.adaptive, seed=body.seed,
+                                 plan=plan, seed=body.seed,
                                  progress=None if progress is None else (lambda f: progress(0.95 * f)),
                                  mu_model=mu_model, validation_points=body.validation_points)
     seconds = time.perf_counter() - start
@@ -198,47 +198,6 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
     if progress is not None:
         progress(1.0)
     return surrogate_view(surrogate_id, {"result": result})
-
-
-def quality_warnings(result: Mapping[str, Any]) -> list[str]:
-    """Where a surrogate's own held-out figures fall short of what it promises.
-
-    Parameters
-    ----------
-    result : mapping
-        A stored surrogate's public result: ``metrics`` (held-out), ``stop_reason`` and, when
-        stored, ``target_relative_error``.
-
-    Returns
-    -------
-    list of str
-        One sentence per shortfall: a held-out coverage of the 95 % interval below
-        :data:`MIN_COVERAGE`, or a held-out median (95th-percentile) relative error above the
-        target (:data:`surrogate.sampling.TAIL_FACTOR` times it); empty when none.
-
-    Examples
-    --------
-    >>> quality_warnings({"metrics": {"coverage_95": 0.85, "median_relative_error": 1e-4,
-    ...                               "p95_relative_error": 1e-3, "n_test": 1000},
-    ...                   "target_relative_error": 1e-3, "stop_reason": "budget_exhausted"})[0][:57]
-    'the 95 % intervals covered 85.0 % of 1000 held-out points'
-    """
-    metrics, warnings = result["metrics"], []
-    coverage = metrics.get("coverage_95")
-    if coverage is not None and coverage < MIN_COVERAGE:
-        warnings.append(f"the 95 % intervals covered {100 * coverage:.1f} % of {metrics['n_test']} held-out "
-                        f"points (below {100 * MIN_COVERAGE:.0f} %): they are too narrow here; widen them "
-                        f"or retrain with a larger budget")
-    target = result.get("target_relative_error")
-    median, tail = metrics.get("median_relative_error"), metrics.get("p95_relative_error")
-    if target is not None and median is not None and (
-            median > target or tail > surrogate.sampling.TAIL_FACTOR * target):
-        why = ("although the stop rule judged it reached" if result.get("stop_reason") == "target_reached"
-               else "the budget ran out first")
-        warnings.append(f"held-out relative error of mu: median {median:.3g}, 95th percentile {tail:.3g}, "
-                        f"short of the target {target:g} (median) and {surrogate.sampling.TAIL_FACTOR:g} x "
-                        f"it (95th percentile): {why}")
-    return warnings
 
 
 def _warnings(result: Mapping[str, Any]) -> list[str]:

@@ -3,7 +3,8 @@
 :func:`design_size` checks a sweep request and counts its points without building them (422
 problems name the offending field by JSON pointer; :func:`check_result_size` answers 413 for a
 result that could exceed the size limit, bounded before any point is computed);
-:func:`design_columns` builds its input columns;
+:func:`design_columns` builds its input columns (the values of :mod:`surrogate.designs`: grid axes,
+Sobol' and Latin-hypercube samples);
 :func:`run_sweep` evaluates them chunk by chunk, reporting progress so that a sweep run as a job
 can be followed and cancelled. A sweep job builds its columns when it starts: a queued job holds
 only its request.
@@ -11,15 +12,14 @@ only its request.
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Callable
 from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
-from scipy.stats import qmc
 
 from microbearing import physics
+from microbearing.surrogate.designs import grid_values, sampled_values
 
 from .executor import evaluate_in_chunks
 from .models import physics_in
@@ -66,43 +66,25 @@ def _check_value(name: str, value: float, pointer: str, errors: list[dict[str, s
         errors.append({"pointer": pointer, "detail": str(exc)})
 
 
-def _spaced(low: float, high: float, fractions: np.ndarray, spacing: str) -> np.ndarray:
-    """``low`` to ``high`` at ``fractions`` of the way, evenly or in even logarithms."""
-    if spacing == "log":
-        return np.exp(np.log(low) + fractions * (np.log(high) - np.log(low)))
-    return low + fractions * (high - low)
-
-
 def _grid_axes(request: GridSweep, errors: list[dict[str, str]]) -> dict[str, np.ndarray]:
     axes: dict[str, np.ndarray] = {}
     for name, axis in request.axes.model_dump(exclude_none=True).items():
         pointer = f"/axes/{name}"
+        if "values" in axis:
+            for i, value in enumerate(axis["values"]):
+                _check_value(name, value, f"{pointer}/values/{i}", errors)
+            if not errors:
+                whole = physics.PARAMETERS[name].kind == "int"
+                axes[name] = np.asarray(axis["values"], dtype=np.int64 if whole else np.float64)
+            continue
         _check_value(name, axis["start"], f"{pointer}/start", errors)
         _check_value(name, axis["stop"], f"{pointer}/stop", errors)
         if axis["spacing"] == "log" and min(axis["start"], axis["stop"]) <= 0:
             errors.append({"pointer": f"{pointer}/spacing", "detail": "log spacing needs start and stop > 0"})
         if errors:
             continue
-        fractions = np.linspace(0.0, 1.0, axis["num"])
-        values = _spaced(axis["start"], axis["stop"], fractions, axis["spacing"])
-        if physics.PARAMETERS[name].kind == "int":
-            axes[name] = np.unique(np.round(values)).astype(np.int64)
-        else:
-            axes[name] = np.clip(_clean_decimals(values), min(axis["start"], axis["stop"]),
-                                 max(axis["start"], axis["stop"]))
+        axes[name] = grid_values(name, axis["start"], axis["stop"], axis["num"], axis["spacing"])
     return axes
-
-
-def _clean_decimals(values: np.ndarray) -> np.ndarray:
-    """``values`` rounded to 15 significant digits, so grid values read as typed.
-
-    ``0.15 * 1/3`` is 0.049999999999999996 in binary; 15 digits (all that a double
-    carries exactly in decimal) give back 0.05 and change a value by at most 5e-15 of itself.
-
-    >>> _clean_decimals(0.0 + np.linspace(0.0, 1.0, 4) * 0.15).tolist()
-    [0.0, 0.05, 0.1, 0.15]
-    """
-    return np.char.mod("%.15g", values).astype(np.float64)
 
 
 def _check_ranges(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[str, str]]) -> None:
@@ -114,28 +96,6 @@ def _check_ranges(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[s
             errors.append({"pointer": f"{pointer}/high", "detail": "high must be >= low"})
         if span["spacing"] == "log" and span["low"] <= 0:
             errors.append({"pointer": f"{pointer}/spacing", "detail": "log spacing needs low > 0"})
-
-
-def _sampled(request: SobolSweep | LatinHypercubeSweep) -> dict[str, np.ndarray]:
-    ranges = request.ranges.model_dump(exclude_none=True)
-    sampler_class = qmc.Sobol if request.design == "sobol" else qmc.LatinHypercube
-    # scipy >= 1.15 names the generator "rng"; older releases call it "seed".
-    key = "rng" if "rng" in inspect.signature(sampler_class).parameters else "seed"
-    sampler = sampler_class(len(ranges), **{key: np.random.default_rng(request.seed)})
-    if request.design == "sobol":
-        # The first n points of the sequence; drawing a power of two avoids scipy's balance warning.
-        unit = sampler.random_base2(int(np.ceil(np.log2(max(request.points, 1)))))[: request.points]
-    else:
-        unit = sampler.random(request.points)
-    columns = {}
-    for j, (name, span) in enumerate(ranges.items()):
-        low, high = span["low"], span["high"]
-        if physics.PARAMETERS[name].kind == "int":
-            # Each whole number in [low, high] gets an equal share of the unit interval.
-            columns[name] = np.minimum(np.floor(low + unit[:, j] * (high - low + 1)), high).astype(np.int64)
-        else:
-            columns[name] = _spaced(low, high, unit[:, j], span["spacing"])
-    return columns
 
 
 def design_size(request: AnySweep, max_points: int) -> int:
@@ -165,7 +125,7 @@ def design_size(request: AnySweep, max_points: int) -> int:
         varied_names = list(request.axes.model_dump(exclude_none=True))
         count = 1
         for axis in request.axes.model_dump(exclude_none=True).values():
-            count *= axis["num"]
+            count *= len(axis["values"]) if "values" in axis else axis["num"]
     else:
         varied_names = list(request.ranges.model_dump(exclude_none=True))
         count = request.points
@@ -282,7 +242,10 @@ def design_columns(request: AnySweep, max_points: int) -> SweepPlan:
         grids = np.meshgrid(*axes.values(), indexing="ij")
         varied = {name: grid.reshape(-1) for name, grid in zip(axes, grids, strict=True)}
     else:
-        varied = _sampled(request)
+        ranges = {name: (span["low"], span["high"], span["spacing"])
+                  for name, span in request.ranges.model_dump(exclude_none=True).items()}
+        # The first points of a scrambled Sobol' sequence, or a plain (unoptimized) Latin hypercube.
+        varied = sampled_values(ranges, request.points, request.design, request.seed)
     return SweepPlan(varied, request.fixed.model_dump(exclude_none=True), count)
 
 

@@ -8,9 +8,12 @@ from typing import Any
 import numpy as np
 
 from .model import GaussianProcessSurrogate
-from .sampling import design
+from .sampling import TAIL_FACTOR, design
 
-__all__ = ["accuracy", "holdout_metrics"]
+__all__ = ["MIN_COVERAGE", "accuracy", "holdout_metrics", "quality_warnings"]
+
+#: Least held-out coverage of the 95 % interval that a surrogate keeps without a warning. [1]
+MIN_COVERAGE = 0.90
 
 
 def accuracy(mu_true: Any, mu_pred: Any, mu_lower: Any, mu_upper: Any) -> dict[str, float]:
@@ -121,3 +124,44 @@ def holdout_metrics(model: GaussianProcessSurrogate, n_test: int = 1024, seed: i
             "note": f"{len(everything) - len(X)} of the {len(everything)} points of the space are training "
                     f"points: {left}, too few to measure; at the training points the surrogate "
                     f"reproduces the model within a relative error of {at_training:.2g}"}
+
+
+def quality_warnings(result: Mapping[str, Any]) -> list[str]:
+    """Where a surrogate's own held-out figures fall short of what it promises.
+
+    Parameters
+    ----------
+    result : mapping
+        A stored surrogate's public result: ``metrics`` (held-out), ``stop_reason`` and, when
+        stored, ``target_relative_error``.
+
+    Returns
+    -------
+    list of str
+        One sentence per shortfall: a held-out coverage of the 95 % interval below
+        :data:`MIN_COVERAGE`, or a held-out median (95th-percentile) relative error above the
+        target (:data:`TAIL_FACTOR` times it); empty when none.
+
+    Examples
+    --------
+    >>> quality_warnings({"metrics": {"coverage_95": 0.85, "median_relative_error": 1e-4,
+    ...                               "p95_relative_error": 1e-3, "n_test": 1000},
+    ...                   "target_relative_error": 1e-3, "stop_reason": "budget_exhausted"})[0][:57]
+    'the 95 % intervals covered 85.0 % of 1000 held-out points'
+    """
+    metrics, warnings = result["metrics"], []
+    coverage = metrics.get("coverage_95")
+    if coverage is not None and coverage < MIN_COVERAGE:
+        warnings.append(f"the 95 % intervals covered {100 * coverage:.1f} % of {metrics['n_test']} held-out "
+                        f"points (below {100 * MIN_COVERAGE:.0f} %): they are too narrow here; widen them "
+                        f"or retrain with a larger budget")
+    target = result.get("target_relative_error")
+    median, tail = metrics.get("median_relative_error"), metrics.get("p95_relative_error")
+    if target is not None and median is not None and (
+            median > target or tail > TAIL_FACTOR * target):
+        why = ("although the stop rule judged it reached" if result.get("stop_reason") == "target_reached"
+               else "the budget ran out first")
+        warnings.append(f"held-out relative error of mu: median {median:.3g}, 95th percentile {tail:.3g}, "
+                        f"short of the target {target:g} (median) and {TAIL_FACTOR:g} x "
+                        f"it (95th percentile): {why}")
+    return warnings

@@ -35,7 +35,8 @@ from .space import FEATURE_SETS, Space
 
 __all__ = ["KERNELS", "MEANS", "CALIBRATIONS", "VARIANCE_SCALES", "DEFAULT_KERNEL",
            "KFOLD_BELOW_POINTS_PER_FEATURE", "MIN_VALIDATION_POINTS", "RELATIVE_RESOLUTION",
-           "DEFAULT_CALIBRATION", "SurrogatePrediction", "GaussianProcessSurrogate", "build_kernel"]
+           "DEFAULT_CALIBRATION", "Hyperparameters", "SurrogatePrediction", "GaussianProcessSurrogate",
+           "build_kernel"]
 
 #: Allowed stationary kernels.
 KERNELS = ("rbf", "matern52", "matern32")
@@ -99,6 +100,28 @@ def build_kernel(kind: str, n_features: int) -> Kernel:
 
 
 @dataclass(frozen=True)
+class Hyperparameters:
+    """How a :class:`GaussianProcessSurrogate` chooses its kernel's hyperparameters.
+
+    Attributes
+    ----------
+    initial_theta : sequence of float, optional
+        Starting point of the optimizer: the kernel's ``theta`` (log amplitude², log length scales,
+        log noise) from an earlier fit, e.g. on fewer points (adaptive sampling warm-starts each
+        round this way). Default: unit amplitude and length scales. [1]
+    optimize : bool, default True
+        Maximize the marginal likelihood; False keeps ``initial_theta`` as it is (adaptive sampling
+        does so in rounds where the design has grown little).
+    n_restarts_optimizer : int, default 1
+        Extra random starts of the optimizer (each costs a full optimization; keep small). [1]
+    """
+
+    initial_theta: Any = None
+    optimize: bool = True
+    n_restarts_optimizer: int = 1
+
+
+@dataclass(frozen=True)
 class SurrogatePrediction:
     """Prediction of μ with its interval.
 
@@ -157,19 +180,11 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         standardized features, or a constant (the training mean).
     log_target : bool, default True
         Model log μ (μ > 0) instead of μ.
-    n_restarts_optimizer : int, default 1
-        Extra random starts of the hyperparameter optimizer (each costs a
-        full optimization; keep small).
     random_state : int or None, default None
         Seed of the optimizer's restarts.
-    initial_theta : sequence of float, optional
-        Starting point of the hyperparameter optimizer: the kernel's
-        ``theta`` (log amplitude², log length scales, log noise) from an
-        earlier fit, e.g. on fewer points (adaptive sampling warm-starts each
-        round this way). Default: unit amplitude and length scales. [1]
-    optimize_hyperparameters : bool, default True
-        Maximize the marginal likelihood; False keeps ``initial_theta`` as it is
-        (adaptive sampling does so in rounds where the design has grown little).
+    hyperparameters : Hyperparameters, default Hyperparameters()
+        Where the optimizer of the kernel's hyperparameters starts, whether it runs, and its
+        restarts.
     calibrate_variance : {"auto", "loo", "kfold", "none"}, default "auto"
         Rescale the predictive standard deviation by a factor ``s`` measured on
         standardized cross-validation errors ``z_i = e_i / σ_i`` (errors
@@ -245,21 +260,19 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
     """
 
     def __init__(self, space: Space, features: str = "physics", kernel: str = DEFAULT_KERNEL,
-                 mean: str = "linear", log_target: bool = True, n_restarts_optimizer: int = 1,
-                 random_state: int | None = None, initial_theta: Any = None,
+                 mean: str = "linear", log_target: bool = True, random_state: int | None = None,
+                 hyperparameters: Hyperparameters = Hyperparameters(),
                  calibrate_variance: str = DEFAULT_CALIBRATION, variance_scale: str = "rms",
-                 optimize_hyperparameters: bool = True, calibration_rows: int | None = None):
+                 calibration_rows: int | None = None):
         self.space = space
         self.features = features
         self.kernel = kernel
         self.mean = mean
         self.log_target = log_target
-        self.n_restarts_optimizer = n_restarts_optimizer
         self.random_state = random_state
-        self.initial_theta = initial_theta
+        self.hyperparameters = hyperparameters
         self.calibrate_variance = calibrate_variance
         self.variance_scale = variance_scale
-        self.optimize_hyperparameters = optimize_hyperparameters
         self.calibration_rows = calibration_rows
 
     def _validate_params(self) -> None:
@@ -281,25 +294,71 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
                 not isinstance(self.calibration_rows, (int, np.integer)) or self.calibration_rows < 2):
             raise ValueError(f"calibration_rows must be a whole number >= 2 or None; "
                              f"got {self.calibration_rows!r}")
-        if self.initial_theta is None and not self.optimize_hyperparameters:
-            raise ValueError("optimize_hyperparameters=False needs initial_theta "
+        search = self.hyperparameters
+        if not isinstance(search, Hyperparameters):
+            raise ValueError(f"hyperparameters must be a surrogate.Hyperparameters; "
+                             f"got {type(search).__name__}")
+        if search.initial_theta is None and not search.optimize:
+            raise ValueError("hyperparameters.optimize=False needs initial_theta "
                              "(the hyperparameters to keep)")
-        if not isinstance(self.n_restarts_optimizer, (int, np.integer)) or self.n_restarts_optimizer < 0:
-            raise ValueError(f"n_restarts_optimizer must be a whole number >= 0; "
-                             f"got {self.n_restarts_optimizer!r}")
+        restarts = search.n_restarts_optimizer
+        if not isinstance(restarts, (int, np.integer)) or restarts < 0:
+            raise ValueError(f"hyperparameters.n_restarts_optimizer must be a whole number >= 0; "
+                             f"got {restarts!r}")
 
-    # ------------------------------------------------------------------ internals
-    def _design_matrix(self, X: np.ndarray) -> np.ndarray:
+    # ------------------------------------------------------------------ fitted transforms
+    def design_matrix(self, X: np.ndarray) -> np.ndarray:
+        """The process's inputs at physical points: the features standardized as fitted.
+
+        Parameters
+        ----------
+        X : numpy.ndarray of shape (n, d)
+            Points in the units of ``space.names``. [parameter units]
+
+        Returns
+        -------
+        numpy.ndarray of shape (n, n_features)
+            ``(features - feature_mean_) / feature_scale_``. [1]
+        """
         Z = self.space.features(X, self.features)
         return (Z - self.feature_mean_) / self.feature_scale_
 
-    def _prior_mean(self, Zs: np.ndarray) -> np.ndarray:
-        return self.mean_coef_[0] + Zs @ self.mean_coef_[1:]
+    def residual_target(self, Zs: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """What the process models at rows ``Zs`` of :meth:`design_matrix`: the target less the prior mean.
 
-    def _target(self, y: np.ndarray) -> np.ndarray:
-        return np.log(y) if self.log_target else y
+        Parameters
+        ----------
+        Zs : numpy.ndarray of shape (n, n_features)
+            Standardized features. [1]
+        y : numpy.ndarray of shape (n,)
+            μ there. [1]
 
-    def _check_y(self, y: Any, n: int) -> np.ndarray:
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+            ``log μ`` (``μ`` for a linear target) minus the fitted prior mean. [1]
+        """
+        return self._target(y) - self._prior_mean(Zs)
+
+    def check_mu(self, y: Any, n: int) -> np.ndarray:
+        """``y`` as ``n`` values of μ this model can learn (finite; > 0 for a log target).
+
+        Parameters
+        ----------
+        y : array_like of shape (n,)
+            μ, one per row of the points. [1]
+        n : int
+            Number of points. [1]
+
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+
+        Raises
+        ------
+        ValueError
+            For another shape, non-finite values, or values <= 0 with ``log_target``.
+        """
         y = np.asarray(y, dtype=float)
         if y.shape != (n,):
             raise ValueError(f"y must be a 1-D array of {n} values of mu (one per row of X); "
@@ -310,6 +369,13 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
             raise ValueError("y must be > 0 for log_target=True (mu is positive); "
                              "use log_target=False otherwise")
         return y
+
+    # ------------------------------------------------------------------ internals
+    def _prior_mean(self, Zs: np.ndarray) -> np.ndarray:
+        return self.mean_coef_[0] + Zs @ self.mean_coef_[1:]
+
+    def _target(self, y: np.ndarray) -> np.ndarray:
+        return np.log(y) if self.log_target else y
 
     # ------------------------------------------------------------------ estimator API
     def fit(self, X: Any, y: Any) -> GaussianProcessSurrogate:
@@ -335,7 +401,7 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         """
         self._validate_params()
         X = self.space.check_X(X)
-        y = self._check_y(y, X.shape[0])
+        y = self.check_mu(y, X.shape[0])
         if X.shape[0] < 2:
             raise ValueError(f"X must hold at least 2 training points; got {X.shape[0]}")
         Z = self.space.features(X, self.features)
@@ -346,7 +412,7 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         Zs = (Z - self.feature_mean_) / self.feature_scale_
         t = self._target(y)
         self.mean_coef_, self.gaussian_process_ = self._fit_process(
-            Zs, t, self._initial_kernel(Zs.shape[1]), int(self.n_restarts_optimizer))
+            Zs, t, self._initial_kernel(Zs.shape[1]), int(self.hyperparameters.n_restarts_optimizer))
         self.X_train_ = X
         self.y_train_ = y
         self.n_features_in_ = X.shape[1]
@@ -399,13 +465,13 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self, "gaussian_process_")
         X = self.space.check_X(X)
-        y = self._check_y(y, X.shape[0])
+        y = self.check_mu(y, X.shape[0])
         if len(X) < MIN_VALIDATION_POINTS:
             raise ValueError(f"X must hold at least {MIN_VALIDATION_POINTS} validation points; got {len(X)}")
         training = {tuple(row) for row in self.X_train_}
         if any(tuple(row) in training for row in X):
             raise ValueError("validation points must not be training points")
-        Zs = self._design_matrix(X)
+        Zs = self.design_matrix(X)
         mean, std = self.gaussian_process_.predict(Zs, return_std=True)
         z = np.abs(self._target(y) - mean - self._prior_mean(Zs)) / np.maximum(std, np.finfo(float).tiny)
         k = math.ceil(0.95 * (len(z) + 1))
@@ -415,11 +481,12 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
 
     def _initial_kernel(self, n_features: int) -> Kernel:
         kernel = build_kernel(self.kernel, n_features)
-        if self.initial_theta is None:
+        if self.hyperparameters.initial_theta is None:
             return kernel
-        theta = np.asarray(self.initial_theta, dtype=float)
+        theta = np.asarray(self.hyperparameters.initial_theta, dtype=float)
         if theta.shape != kernel.theta.shape or not np.all(np.isfinite(theta)):
-            raise ValueError(f"initial_theta must hold {kernel.theta.size} finite log-hyperparameters "
+            raise ValueError(f"hyperparameters.initial_theta must hold {kernel.theta.size} finite "
+                             f"log-hyperparameters "
                              f"(amplitude, {n_features} length scales, noise); got shape {theta.shape}")
         bounds = kernel.bounds
         return kernel.clone_with_theta(np.clip(theta, bounds[:, 0], bounds[:, 1]))
@@ -433,7 +500,7 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
             coef = np.linalg.lstsq(H, t, rcond=None)[0]
         gp = GaussianProcessRegressor(kernel, alpha=1e-10, normalize_y=True, n_restarts_optimizer=n_restarts,
                                       random_state=self.random_state,
-                                      optimizer="fmin_l_bfgs_b" if self.optimize_hyperparameters else None)
+                                      optimizer="fmin_l_bfgs_b" if self.hyperparameters.optimize else None)
         with warnings.catch_warnings(), one_blas_thread():
             # Length scales of features μ does not depend on (e.g. log balls at fixed load per
             # ball) rightly run to their upper bound; sklearn warns about every such bound.
@@ -481,7 +548,7 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self, "gaussian_process_")
         X = self.space.check_X(X)
-        Zs = self._design_matrix(X)
+        Zs = self.design_matrix(X)
         t, std = self.gaussian_process_.predict(Zs, return_std=True)
         t = t + self._prior_mean(Zs)
         std = std * self.std_scale_

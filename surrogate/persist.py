@@ -22,7 +22,7 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 
 from microbearing import physics
 
-from .model import GaussianProcessSurrogate, build_kernel
+from .model import GaussianProcessSurrogate, Hyperparameters, build_kernel
 from .space import Space
 
 __all__ = ["FORMAT", "package_version", "version_warning", "to_dict", "from_dict", "dumps", "loads"]
@@ -30,9 +30,27 @@ __all__ = ["FORMAT", "package_version", "version_warning", "to_dict", "from_dict
 #: Identifier and version of the stored layout.
 FORMAT = "microbearing.surrogate/1"
 
+#: The stored parameters, in their stored order: the estimator's own, and (stored flat, under these
+#: names) the fields of its :class:`Hyperparameters`.
 _ESTIMATOR_PARAMS = ("features", "kernel", "mean", "log_target", "n_restarts_optimizer", "random_state",
                      "initial_theta", "calibrate_variance", "variance_scale",
                      "optimize_hyperparameters", "calibration_rows")
+_SEARCH_PARAMS = {"n_restarts_optimizer": "n_restarts_optimizer", "initial_theta": "initial_theta",
+                  "optimize_hyperparameters": "optimize"}
+
+
+def _stored_param(model: GaussianProcessSurrogate, name: str) -> Any:
+    if name not in _SEARCH_PARAMS:
+        return getattr(model, name)
+    value = getattr(model.hyperparameters, _SEARCH_PARAMS[name])
+    return np.asarray(value).tolist() if name == "initial_theta" and value is not None else value
+
+
+def _estimator(space: Space, params: dict[str, Any]) -> GaussianProcessSurrogate:
+    """The estimator of stored parameters (a layout of earlier versions lacks some: their defaults)."""
+    search = {field: params[name] for name, field in _SEARCH_PARAMS.items() if name in params}
+    own = {name: value for name, value in params.items() if name not in _SEARCH_PARAMS}
+    return GaussianProcessSurrogate(space, **own, hyperparameters=Hyperparameters(**search))
 
 
 def package_version() -> str:
@@ -96,9 +114,7 @@ def to_dict(model: GaussianProcessSurrogate) -> dict[str, Any]:
         "package_version": package_version(),
         "convention": model.space.convention,
         "space": model.space.to_dict(),
-        "params": {name: (np.asarray(value).tolist() if name == "initial_theta" and value is not None
-                          else value)
-                   for name, value in ((n, getattr(model, n)) for n in _ESTIMATOR_PARAMS)},
+        "params": {name: _stored_param(model, name) for name in _ESTIMATOR_PARAMS},
         "X_train": model.X_train_.tolist(),
         "y_train": model.y_train_.tolist(),
         "feature_mean": model.feature_mean_.tolist(),
@@ -141,13 +157,13 @@ def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
     space = Space.from_dict(data["space"])
     if space.convention != data["convention"]:
         raise ValueError(f"convention {data['convention']!r} differs from its space's {space.convention!r}")
-    model = GaussianProcessSurrogate(space, **data["params"])
+    model = _estimator(space, data["params"])
     X = space.check_X(np.asarray(data["X_train"], dtype=float))
-    y = model._check_y(data["y_train"], X.shape[0])
+    y = model.check_mu(data["y_train"], X.shape[0])
     model.feature_mean_ = np.asarray(data["feature_mean"], dtype=float)
     model.feature_scale_ = np.asarray(data["feature_scale"], dtype=float)
     model.mean_coef_ = np.asarray(data["mean_coef"], dtype=float)
-    Zs = model._design_matrix(X)
+    Zs = model.design_matrix(X)
     if model.mean_coef_.shape != (Zs.shape[1] + 1,):
         raise ValueError(f"mean_coef must hold {Zs.shape[1] + 1} values; got {model.mean_coef_.shape}")
     stored = data["gp"]
@@ -155,7 +171,7 @@ def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
     kernel = build_kernel(model.kernel, Zs.shape[1]).clone_with_theta(theta)
     gp = GaussianProcessRegressor(kernel, alpha=stored["alpha"], normalize_y=stored["normalize_y"],
                                   optimizer=None)
-    gp.fit(Zs, model._target(y) - model._prior_mean(Zs))
+    gp.fit(Zs, model.residual_target(Zs, y))
     model.gaussian_process_ = gp
     model.X_train_ = X
     model.y_train_ = y

@@ -1,8 +1,9 @@
 """Designs of experiments and adaptive sampling of the physics for a surrogate.
 
-* :func:`design` draws a space-filling design (scrambled Sobol' or Latin
-  hypercube, :mod:`scipy.stats.qmc`) in the unit cube of a :class:`Space` and
-  maps it to valid physical points (integers rounded, booleans 0/1).
+* :func:`unit_design` draws a space-filling design (scrambled Sobol' or Latin
+  hypercube, :mod:`scipy.stats.qmc`) in the unit cube; :func:`design` maps it
+  to valid physical points of a :class:`Space` (integers rounded, booleans 0/1).
+  The service's sweeps draw their Sobol' and Latin-hypercube designs here too.
 * :func:`fit_adaptive` starts from such a design and adds physics evaluations,
   a batch at a time, where the fitted Gaussian process is least sure, until
   its estimated median relative error reaches a target or the evaluation
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -21,13 +22,13 @@ from scipy.linalg import solve_triangular
 from scipy.stats import binom, norm, qmc
 from threadpoolctl import threadpool_limits
 
-from .model import DEFAULT_CALIBRATION, MIN_VALIDATION_POINTS, GaussianProcessSurrogate
+from .model import DEFAULT_CALIBRATION, MIN_VALIDATION_POINTS, GaussianProcessSurrogate, Hyperparameters
 from .space import Space
 
 __all__ = ["DESIGNS", "CRITERIA", "TAIL_FACTOR", "REOPTIMIZE_GROWTH", "STOP_CONFIDENCE",
            "CALIBRATION_DESIGN_SIZE", "ADAPTIVE_SHARE", "VALIDATION_POINTS", "default_initial_size",
-           "predicted_error_quantile",
-           "quantile_upper_bound", "design", "select_batch", "AdaptiveFit", "fit_adaptive"]
+           "predicted_error_quantile", "quantile_upper_bound", "unit_design", "design", "select_batch",
+           "SamplingPlan", "AdaptiveFit", "fit_adaptive"]
 
 #: Allowed space-filling designs.
 DESIGNS = ("sobol", "latin_hypercube")
@@ -139,6 +140,53 @@ def quantile_upper_bound(values: Any, q: float, confidence: float = STOP_CONFIDE
     return float(x[int(np.argmax(enough))])
 
 
+def unit_design(dimension: int, n: int, method: str = "sobol",
+                seed: int | np.random.Generator | None = None,
+                lhs_optimization: str | None = "random-cd") -> np.ndarray:
+    """``n`` points of a space-filling design in the unit cube ``[0, 1)^dimension``.
+
+    Parameters
+    ----------
+    dimension : int
+        Number of coordinates, >= 1. [1]
+    n : int
+        Number of points, >= 1. [1]
+    method : {"sobol", "latin_hypercube"}, default "sobol"
+        Scrambled Sobol' sequence (its first ``n`` points; balanced when ``n`` is a power of 2) or
+        Latin hypercube.
+    seed : int, numpy.random.Generator or None, default None
+        Seed (or generator) of the scrambling.
+    lhs_optimization : {"random-cd", None}, default "random-cd"
+        Optimization of a Latin hypercube (:class:`scipy.stats.qmc.LatinHypercube`): random
+        coordinate swaps lowering its centred discrepancy, or none (the sweeps' plain design).
+
+    Returns
+    -------
+    numpy.ndarray of shape (n, dimension)
+        Coordinates in [0, 1). [1]
+
+    Raises
+    ------
+    ValueError
+        For ``n < 1`` or an unknown ``method``.
+
+    Examples
+    --------
+    >>> unit_design(2, 3, seed=0).shape
+    (3, 2)
+    """
+    if not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n must be a whole number >= 1; got {n!r}")
+    if method not in DESIGNS:
+        raise ValueError(f"method must be one of {', '.join(DESIGNS)}; got {method!r}")
+    if method == "sobol":
+        sampler = qmc.Sobol(dimension, scramble=True, rng=seed)
+        # Draw the next power of 2 and keep a prefix: scipy warns otherwise, and a prefix
+        # of a Sobol' sequence keeps its low discrepancy.
+        return sampler.random_base2(max(0, math.ceil(math.log2(n))))[:n]
+    return qmc.LatinHypercube(dimension, optimization=lhs_optimization, rng=seed).random(n)
+
+
 def design(space: Space, n: int, method: str = "sobol",
            seed: int | np.random.Generator | None = None) -> np.ndarray:
     """A space-filling design of ``n`` physical points.
@@ -173,18 +221,7 @@ def design(space: Space, n: int, method: str = "sobol",
     >>> X.shape, bool(np.all(X[:, 0] == np.round(X[:, 0])))
     ((16, 2), True)
     """
-    if not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n must be a whole number >= 1; got {n!r}")
-    if method not in DESIGNS:
-        raise ValueError(f"method must be one of {', '.join(DESIGNS)}; got {method!r}")
-    if method == "sobol":
-        sampler = qmc.Sobol(space.dimension, scramble=True, rng=seed)
-        # Draw the next power of 2 and keep a prefix: scipy warns otherwise, and a prefix
-        # of a Sobol' sequence keeps its low discrepancy.
-        U = sampler.random_base2(max(0, math.ceil(math.log2(n))))[:n]
-    else:
-        U = qmc.LatinHypercube(space.dimension, optimization="random-cd", rng=seed).random(n)
-    return space.from_unit(U)
+    return space.from_unit(unit_design(space.dimension, n, method, seed))
 
 
 def select_batch(model: GaussianProcessSurrogate, candidates: np.ndarray, size: int,
@@ -232,7 +269,7 @@ def select_batch(model: GaussianProcessSurrogate, candidates: np.ndarray, size: 
         raise ValueError(f"criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
     gp = model.gaussian_process_
     latent = gp.kernel_.k1  # amplitude × correlation, without the WhiteKernel
-    Zc = model._design_matrix(candidates)
+    Zc = model.design_matrix(candidates)
     # Posterior covariance (Rasmussen & Williams 2006, Alg. 2.1 lines 5-6): C = K** - VᵀV, V = L \ K*.
     V = solve_triangular(gp.L_, latent(gp.X_train_, Zc), lower=True)
     C = latent(Zc) - V.T @ V
@@ -267,6 +304,36 @@ def _distinct(X: np.ndarray, exclude: np.ndarray | None = None) -> np.ndarray:
             seen.add(key)
             keep.append(i)
     return X[keep]
+
+
+@dataclass(frozen=True)
+class SamplingPlan:
+    """How :func:`fit_adaptive` spends its budget: the starting design, the batches and their candidates.
+
+    Attributes
+    ----------
+    initial_size : int, optional
+        Size of the starting design; default :func:`default_initial_size` (half the budget; 40
+        points at budgets 50-79). Repeated points of the design (rounded integers and booleans)
+        are replaced by candidates not yet evaluated, as long as there are some. [1]
+    batch_size : int, optional
+        Points added per round; default a tenth of the budget (at least 1). [1]
+    design_method : {"sobol", "latin_hypercube"}, default "sobol"
+        Starting design (see :func:`design`).
+    adaptive : bool, default True
+        If False, spend the whole budget on the starting design and fit once.
+    criterion : {"integrated_variance", "variance"}, default "integrated_variance"
+        Batch criterion of :func:`select_batch`.
+    n_candidates : int, default 1024
+        Sobol' candidates scanned for the next batch and for the error estimate. [1]
+    """
+
+    initial_size: int | None = None
+    batch_size: int | None = None
+    design_method: str = "sobol"
+    adaptive: bool = True
+    criterion: str = "integrated_variance"
+    n_candidates: int = 1024
 
 
 @dataclass
@@ -353,11 +420,8 @@ def fit_work_share(n_train: int, initial_size: int, batch_size: int, budget: int
 
 @threadpool_limits.wrap(limits=1, user_api="blas")  # see surrogate.model.one_blas_thread
 def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float = 1e-3,
-                 initial_size: int | None = None, batch_size: int | None = None,
-                 design_method: str = "sobol", adaptive: bool = True,
-                 criterion: str = "integrated_variance", n_candidates: int = 1024,
-                 model_params: Mapping[str, Any] | None = None, seed: int | None = 0,
-                 progress: Callable[[float], None] | None = None,
+                 plan: SamplingPlan | None = None, model_params: Mapping[str, Any] | None = None,
+                 seed: int | None = 0, progress: Callable[[float], None] | None = None,
                  mu_model: Callable[[Mapping[str, Any]], Any] | None = None,
                  validation_points: int = VALIDATION_POINTS) -> AdaptiveFit:
     """Fit a surrogate with a space-filling start and variance-driven batches of physics runs.
@@ -376,27 +440,14 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         bound on the quantile of the absolute leave-one-out errors
         (:func:`quantile_upper_bound`, distribution-free; the 95th percentile
         needs at least 59 points to be bounded) and
-        :func:`predicted_error_quantile` over ``n_candidates`` Sobol' points
+        :func:`predicted_error_quantile` over the plan's ``n_candidates`` Sobol' points
         (σ the calibrated predictive standard deviation of log μ). [1]
-    initial_size : int, optional
-        Size of the starting design; default :func:`default_initial_size`
-        (half the budget; 40 points at budgets 50-79). Repeated points of the design
-        (rounded integers and booleans) are replaced by candidates not yet
-        evaluated, as long as there are some. [1]
-    batch_size : int, optional
-        Points added per round; default a tenth of the budget (at least 1). [1]
-    design_method : {"sobol", "latin_hypercube"}, default "sobol"
-        Starting design (see :func:`design`).
-    adaptive : bool, default True
-        If False, spend the whole budget on the starting design and fit once.
-    criterion : {"integrated_variance", "variance"}, default "integrated_variance"
-        Batch criterion of :func:`select_batch`.
-    n_candidates : int, default 1024
-        Sobol' candidates scanned for the next batch and for the error estimate. [1]
+    plan : SamplingPlan, optional
+        The starting design, the batches and their candidates; default ``SamplingPlan()``.
     model_params : mapping, optional
         Keyword arguments of :class:`GaussianProcessSurrogate` (besides ``space``);
         ``calibration_rows`` defaults to the size of the starting design when
-        ``adaptive`` (the batches crowd the edges of the space, see the
+        the plan is ``adaptive`` (the batches crowd the edges of the space, see the
         estimator), else every row.
     seed : int or None, default 0
         Seed of designs, candidates and the optimizer's restarts.
@@ -425,98 +476,48 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
     ValueError
         For invalid arguments (named with their allowed range).
     """
-    if not isinstance(budget, (int, np.integer)) or budget < 2:
-        raise ValueError(f"budget must be a whole number >= 2; got {budget!r}")
-    if not (isinstance(target_relative_error, (int, float)) and target_relative_error > 0):
-        raise ValueError(f"target_relative_error must be > 0; got {target_relative_error!r}")
-    if initial_size is None:
-        initial_size = default_initial_size(budget, space.dimension)
-    if not adaptive:
-        initial_size = budget
-    if not 2 <= initial_size <= budget:
-        raise ValueError(f"initial_size must be in [2, budget={budget}]; got {initial_size!r}")
-    if batch_size is None:
-        batch_size = max(1, budget // 10)
-    if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
-        raise ValueError(f"batch_size must be a whole number >= 1; got {batch_size!r}")
-    if n_candidates < 1:
-        raise ValueError(f"n_candidates must be >= 1; got {n_candidates!r}")
-    if not isinstance(validation_points, (int, np.integer)) or validation_points < 0:
-        raise ValueError(f"validation_points must be a whole number >= 0; got {validation_points!r}")
+    plan = SamplingPlan() if plan is None else plan
+    initial_size, batch_size = _checked_sizes(space, budget, target_relative_error, plan, validation_points)
     params = dict(model_params or {})
     params.setdefault("random_state", seed)
-    # Intermediate rounds use the cheap closed-form leave-one-out calibration; the final
-    # model gets the requested one (k-fold refits cost five more fits).
+    search = params.pop("hyperparameters", Hyperparameters())
 
     def evaluate(points: np.ndarray) -> np.ndarray:
         return space.evaluate(points, mu_model)
 
-    # Integer and boolean dimensions make repeats possible: never evaluate a point twice. The
-    # design keeps its first occurrences; candidates not yet evaluated replace its repeats.
-    X = _distinct(design(space, int(initial_size), design_method, seed))
-    # Candidates from another scramble than the design, so they are not the training points.
-    candidates = design(space, int(n_candidates), "sobol", None if seed is None else seed + 1)
-    candidates = _distinct(candidates, exclude=X)
-    if len(X) < initial_size and len(candidates):
-        top_up = min(int(initial_size) - len(X), len(candidates))
-        X = np.vstack([X, candidates[:top_up]])
-        candidates = candidates[top_up:]
-    if len(X) < 2:
-        raise ValueError(f"the space has fewer than 2 distinct points ({len(X)}); a surrogate needs 2")
+    X, candidates = _starting_design(space, plan, initial_size, seed)
     y = evaluate(X)
-    if adaptive:
+    if plan.adaptive:
         # The starting design is spread like the points predicted; the batches crowd the edges, where
         # leaving a point out is extrapolation: only the design's errors set the variance scale.
         params.setdefault("calibration_rows", len(X))
+    # Intermediate rounds use the cheap closed-form leave-one-out calibration; the final
+    # model gets the requested one (k-fold refits cost five more fits).
     rounds = {**params, "calibrate_variance": "none" if params.get("calibrate_variance") == "none" else "loo"}
     # Sorted, as before the top-up (select_batch's greedy ties then resolve the same way).
     candidates = np.unique(candidates, axis=0) if len(candidates) else candidates
     history: list[dict[str, float]] = []
+    round_search = search
     optimized_at = 0  # design size at the last optimization of the hyperparameters
     while True:
-        optimized = "initial_theta" not in rounds or len(y) >= REOPTIMIZE_GROWTH * optimized_at
-        model = GaussianProcessSurrogate(space, **rounds, optimize_hyperparameters=optimized).fit(X, y)
+        optimized = round_search.initial_theta is None or len(y) >= REOPTIMIZE_GROWTH * optimized_at
+        model = GaussianProcessSurrogate(space, **rounds,
+                                         hyperparameters=replace(round_search, optimize=optimized)).fit(X, y)
         optimized_at = len(y) if optimized else optimized_at
         # Later rounds start the optimizer from this round's hyperparameters, without restarts
         # (measured on the 4-D and 6-D benchmarks: restarts then changed nothing but the time).
-        rounds = {**rounds, "initial_theta": model.gaussian_process_.kernel_.theta.tolist(),
-                  "n_restarts_optimizer": 0}
-        # Without candidates left (every point of an integer space evaluated) only the
-        # leave-one-out errors estimate the error.
-        std = model.predict(candidates, return_std=True)[1] if len(candidates) else np.zeros(1)
-        loo = np.abs(model.loo_log_errors())
-        # Relative error of μ: log μ errors as they are, μ errors over a typical μ.
-        per_mu = 1.0 if model.log_target else 1.0 / float(np.median(np.abs(y)))
-        median = predicted_error_quantile(std * per_mu, 0.5)
-        tail = predicted_error_quantile(std * per_mu, 0.95)
-        history.append({"n_train": len(y), "estimated_median_relative_error": median,
-                        "estimated_p95_relative_error": tail,
-                        "loo_median_relative_error": float(np.median(loo) * per_mu),
-                        "loo_p95_relative_error": float(np.percentile(loo, 95) * per_mu)})
-        # The process's own spread is overconfident on small designs; leave-one-out errors are
-        # data, but a quantile of n of them is itself uncertain (a point estimate stopped seed 13
-        # of bench/surrogate.py at 50 evaluations with a held-out median of 0.114 % > 0.1 %):
-        # the rule compares upper confidence bounds on the quantiles with the target.
-        bounds = {"loo_median_upper_bound": quantile_upper_bound(loo, 0.5) * per_mu,
-                  "loo_p95_upper_bound": quantile_upper_bound(loo, 0.95) * per_mu}
-        # Only finite bounds are recorded (the history is served as JSON).
-        history[-1].update({key: value for key, value in bounds.items() if math.isfinite(value)})
+        round_search = replace(round_search, initial_theta=model.gaussian_process_.kernel_.theta.tolist(),
+                               n_restarts_optimizer=0)
+        estimates, median, tail = _error_estimates(model, candidates, y)
+        history.append(estimates)
         if progress is not None:
-            progress(fit_work_share(len(y), int(initial_size), int(batch_size), budget))
-        median = max(median, bounds["loo_median_upper_bound"])
-        tail = max(tail, bounds["loo_p95_upper_bound"])
-        if len(y) < budget and not len(candidates):
-            # Fewer distinct points than the budget (a finite space): every candidate was evaluated.
-            stop = "candidates_exhausted"
+            progress(fit_work_share(len(y), initial_size, batch_size, budget))
+        stop = _stop_reason(len(y), len(candidates), median, tail, budget, target_relative_error,
+                            plan.adaptive)
+        if stop:
             break
-        if median <= target_relative_error and tail <= TAIL_FACTOR * target_relative_error:
-            stop = "target_reached"
-            break
-        if len(y) >= budget or not adaptive:
-            stop = "budget_exhausted"
-            break
-        size = min(int(batch_size), budget - len(y), len(candidates))
-        picked = select_batch(model, candidates, size, criterion) if size else np.empty(0, dtype=int)
+        size = min(batch_size, budget - len(y), len(candidates))
+        picked = select_batch(model, candidates, size, plan.criterion) if size else np.empty(0, dtype=int)
         if len(picked) == 0:
             stop = "candidates_exhausted"
             break
@@ -525,12 +526,96 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         candidates = np.delete(candidates, picked, axis=0)
     if not optimized or rounds["calibrate_variance"] != params.get("calibrate_variance", DEFAULT_CALIBRATION):
         # The final model always has its hyperparameters fitted to every evaluation.
-        final = {**params, "initial_theta": model.gaussian_process_.kernel_.theta.tolist(),
-                 "n_restarts_optimizer": 0}
-        model = GaussianProcessSurrogate(space, **final).fit(X, y)
+        final = replace(search, initial_theta=model.gaussian_process_.kernel_.theta.tolist(),
+                        n_restarts_optimizer=0)
+        model = GaussianProcessSurrogate(space, **params, hyperparameters=final).fit(X, y)
     if validation_points and not space.finite:
         rng = np.random.default_rng(None if seed is None else [seed, _VALIDATION_STREAM])
         X_valid = _distinct(design(space, int(validation_points), "sobol", rng), exclude=X)
         if len(X_valid) >= MIN_VALIDATION_POINTS:
             model.calibrate(X_valid, evaluate(X_valid))
     return AdaptiveFit(model, X, y, history, stop)
+
+
+def _checked_sizes(space: Space, budget: int, target_relative_error: float, plan: SamplingPlan,
+                   validation_points: int) -> tuple[int, int]:
+    """The starting design's and the batches' sizes of :func:`fit_adaptive` [1], its arguments checked."""
+    if not isinstance(budget, (int, np.integer)) or budget < 2:
+        raise ValueError(f"budget must be a whole number >= 2; got {budget!r}")
+    if not (isinstance(target_relative_error, (int, float)) and target_relative_error > 0):
+        raise ValueError(f"target_relative_error must be > 0; got {target_relative_error!r}")
+    initial_size = plan.initial_size
+    if initial_size is None:
+        initial_size = default_initial_size(budget, space.dimension)
+    if not plan.adaptive:
+        initial_size = budget
+    if not 2 <= initial_size <= budget:
+        raise ValueError(f"initial_size must be in [2, budget={budget}]; got {initial_size!r}")
+    batch_size = plan.batch_size
+    if batch_size is None:
+        batch_size = max(1, budget // 10)
+    if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
+        raise ValueError(f"batch_size must be a whole number >= 1; got {batch_size!r}")
+    if plan.n_candidates < 1:
+        raise ValueError(f"n_candidates must be >= 1; got {plan.n_candidates!r}")
+    if not isinstance(validation_points, (int, np.integer)) or validation_points < 0:
+        raise ValueError(f"validation_points must be a whole number >= 0; got {validation_points!r}")
+    return int(initial_size), int(batch_size)
+
+
+def _starting_design(space: Space, plan: SamplingPlan, initial_size: int,
+                     seed: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct points of the starting design, and the batches' candidates that are not among them."""
+    # Integer and boolean dimensions make repeats possible: never evaluate a point twice. The
+    # design keeps its first occurrences; candidates not yet evaluated replace its repeats.
+    X = _distinct(design(space, initial_size, plan.design_method, seed))
+    # Candidates from another scramble than the design, so they are not the training points.
+    candidates = design(space, int(plan.n_candidates), "sobol", None if seed is None else seed + 1)
+    candidates = _distinct(candidates, exclude=X)
+    if len(X) < initial_size and len(candidates):
+        top_up = min(initial_size - len(X), len(candidates))
+        X = np.vstack([X, candidates[:top_up]])
+        candidates = candidates[top_up:]
+    if len(X) < 2:
+        raise ValueError(f"the space has fewer than 2 distinct points ({len(X)}); a surrogate needs 2")
+    return X, candidates
+
+
+def _error_estimates(model: GaussianProcessSurrogate, candidates: np.ndarray,
+                     y: np.ndarray) -> tuple[dict[str, float], float, float]:
+    """A round's row of :attr:`AdaptiveFit.history`, and the median and 95th-percentile relative errors
+    of μ the stop rule compares with its target [1]."""
+    # Without candidates left (every point of an integer space evaluated) only the
+    # leave-one-out errors estimate the error.
+    std = model.predict(candidates, return_std=True)[1] if len(candidates) else np.zeros(1)
+    loo = np.abs(model.loo_log_errors())
+    # Relative error of μ: log μ errors as they are, μ errors over a typical μ.
+    per_mu = 1.0 if model.log_target else 1.0 / float(np.median(np.abs(y)))
+    median = predicted_error_quantile(std * per_mu, 0.5)
+    tail = predicted_error_quantile(std * per_mu, 0.95)
+    row = {"n_train": len(y), "estimated_median_relative_error": median,
+           "estimated_p95_relative_error": tail,
+           "loo_median_relative_error": float(np.median(loo) * per_mu),
+           "loo_p95_relative_error": float(np.percentile(loo, 95) * per_mu)}
+    # The process's own spread is overconfident on small designs; leave-one-out errors are
+    # data, but a quantile of n of them is itself uncertain (a point estimate stopped seed 13
+    # of bench/surrogate.py at 50 evaluations with a held-out median of 0.114 % > 0.1 %):
+    # the rule compares upper confidence bounds on the quantiles with the target.
+    bounds = {"loo_median_upper_bound": quantile_upper_bound(loo, 0.5) * per_mu,
+              "loo_p95_upper_bound": quantile_upper_bound(loo, 0.95) * per_mu}
+    # Only finite bounds are recorded (the history is served as JSON).
+    row.update({key: value for key, value in bounds.items() if math.isfinite(value)})
+    return row, max(median, bounds["loo_median_upper_bound"]), max(tail, bounds["loo_p95_upper_bound"])
+
+
+def _stop_reason(n_train: int, n_candidates: int, median: float, tail: float, budget: int,
+                 target_relative_error: float, adaptive: bool) -> str:
+    """Why :func:`fit_adaptive` stops after a round (see :attr:`AdaptiveFit.stop_reason`), or ``""``."""
+    if n_train < budget and not n_candidates:
+        # Fewer distinct points than the budget (a finite space): every candidate was evaluated.
+        return "candidates_exhausted"
+    if median <= target_relative_error and tail <= TAIL_FACTOR * target_relative_error:
+        return "target_reached"
+    if n_train >= budget or not adaptive:
+        return "budget_exhausted"
+    return ""

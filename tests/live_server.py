@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import httpx
+from jobs_helper import wait_job
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -112,11 +113,6 @@ class Server:
 
 def wait_for(server: Server, location: str, statuses: tuple[str, ...], timeout_s: float = 120.0,
              headers: dict[str, str] | None = None) -> dict:
-    """Poll a job until its status is one of ``statuses``; fails after ``timeout_s`` [s]."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        job = server.client.get(location, headers=headers).json()
-        if job["status"] in statuses:
-            return job
-        assert time.monotonic() < deadline, f"{location} stayed {job['status']}"
-        time.sleep(0.05)
+    """Poll a job of the live server until its status is one of ``statuses``; fails after ``timeout_s`` [s]
+    (:func:`jobs_helper.wait_job`)."""
+    return wait_job(server.client, location, headers=headers, until=statuses, timeout_s=timeout_s)

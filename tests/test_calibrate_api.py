@@ -5,11 +5,11 @@ from __future__ import annotations
 import csv
 import io
 import json
-import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.service.app import create_app
@@ -56,11 +56,7 @@ def client(tmp_path_factory):
 def finished_result(client: TestClient, response) -> dict:
     assert response.status_code == 202, response.text
     location = response.headers["location"]
-    deadline = time.monotonic() + 120
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.1)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, location, timeout_s=120, interval_s=0.1)
     result = client.get(job["result_url"]).json()
     assert result.pop("kind") == job["kind"]  # the job's kind tags its result
     return result

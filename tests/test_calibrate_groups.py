@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from jobs_helper import finished_job
 from scipy import stats
 
 from microbearing import physics
@@ -311,15 +312,9 @@ def client(tmp_path_factory):
 
 
 def _finished(client, response) -> dict:
-    import time
-
     assert response.status_code == 202, response.text
     location = response.headers["location"]
-    deadline = time.monotonic() + 180
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.2)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, location, timeout_s=180, interval_s=0.2)
     return client.get(job["result_url"]).json()
 
 

@@ -8,11 +8,11 @@ physics.effects; every figure is compared with the generating truth, a hand calc
 from __future__ import annotations
 
 import dataclasses
-import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel, DataError, calibrate, parse_rows
@@ -163,11 +163,7 @@ def kelvin_result(client):
                                                                                       "adhesion_energy_J_m2"]})
     assert response.status_code == 202, response.text
     location = response.headers["location"]
-    deadline = time.monotonic() + 300
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.2)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, location, timeout_s=300, interval_s=0.2)
     return client.get(job["result_url"]).json()
 
 
@@ -392,11 +388,7 @@ def test_an_optimization_with_a_calibrated_model_answers_the_rivals_envelope(cli
                "starts": 1}
     response = client.post("/v1/optimizations", json=request)
     assert response.status_code == 202, response.text
-    deadline = time.monotonic() + 300
-    while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.2)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, response.headers["location"], timeout_s=300, interval_s=0.2)
     result = client.get(job["result_url"]).json()
     point = {**result["design"], "speed_m_s": 0.05, "relative_humidity": 0.5}
     # the design as the service passes it carries the model's fitted mu_pivot: the rival keeps its own

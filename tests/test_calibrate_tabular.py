@@ -8,11 +8,10 @@ data, converted by hand here, and say how it was read.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.calibrate import DataError, parse_csv, read_csv, read_rows
@@ -210,11 +209,7 @@ def client(tmp_path_factory):
 
 def finished(client: TestClient, response) -> dict:
     assert response.status_code == 202, response.text
-    deadline = time.monotonic() + 120
-    while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.1)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, response.headers["location"], timeout_s=120, interval_s=0.1)
     return client.get(job["result_url"]).json()
 
 

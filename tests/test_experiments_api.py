@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import json
-import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.service.app import create_app
@@ -46,11 +46,7 @@ def finished(client: TestClient, response) -> dict:
     assert response.status_code == 202, response.text
     job = response.json()
     location = response.headers["location"]
-    deadline = time.monotonic() + 120
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.1)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, location, timeout_s=120, interval_s=0.1)
     result = client.get(job["result_url"]).json()
     assert result.pop("kind") == "experiments"
     return result
@@ -72,11 +68,7 @@ def _calibrate(client, body) -> str:
     response = client.post("/v1/calibrations", json=body)
     assert response.status_code == 202, response.text
     location = response.headers["location"]
-    deadline = time.monotonic() + 180
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.2)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, location, timeout_s=180, interval_s=0.2)
     return client.get(job["result_url"]).json()["id"]
 
 

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel
@@ -32,11 +31,7 @@ def client(tmp_path_factory):
 def finished(client: TestClient, response) -> dict:
     assert response.status_code == 202, response.text
     location = response.headers["location"]
-    deadline = time.monotonic() + 120
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.05)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, location, timeout_s=120, interval_s=0.05)
     result = client.get(job["result_url"])
     assert result.status_code == 200
     return {"job": job, **result.json()}

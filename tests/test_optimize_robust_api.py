@@ -4,11 +4,11 @@ physics' proof, payloads given in fixed.load_N, and the refusals."""
 from __future__ import annotations
 
 import json
-import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
@@ -46,11 +46,7 @@ def humidity_rows(seed: int = 7, n: int = 80) -> list[dict[str, float]]:
 def finished(client: TestClient, response) -> dict:
     assert response.status_code == 202, response.text
     location = response.headers["location"]
-    deadline = time.monotonic() + 300
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.05)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, location, timeout_s=300, interval_s=0.05)
     return client.get(job["result_url"]).json()
 
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import wait_job
 from live_server import REPO, Server, free_port, wait_for
 
 from microbearing import physics
@@ -104,13 +105,10 @@ def test_a_real_cluster_answers_as_the_local_pool_and_survives_a_killed_worker(c
     settings = Settings(data_dir=local_dir, sweep_sync_max_points=0, max_sweep_points=2_000_000)
     with TestClient(create_app(settings)) as client:
         local_batch = client.post("/v1/friction/batch", json=BATCH).content
-        job = client.post("/v1/sweeps", json=SWEEP).headers["location"]
-        while (status := client.get(job).json())["status"] in ("queued", "running"):
-            time.sleep(0.05)
+        status = wait_job(client, client.post("/v1/sweeps", json=SWEEP).headers["location"], timeout_s=600)
         local_sweep = client.get(status["result_url"]).content
-        job = client.post("/v1/optimizations", json=optimization(model_id)).headers["location"]
-        while (status := client.get(job).json())["status"] in ("queued", "running"):
-            time.sleep(0.05)
+        location = client.post("/v1/optimizations", json=optimization(model_id)).headers["location"]
+        status = wait_job(client, location, timeout_s=600)
         local_optimization = client.get(status["result_url"]).json()
 
     server = Server(data_dir, folder / "server.log", dask_scheduler=address, sweep_sync_max_points="0",

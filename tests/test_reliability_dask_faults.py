@@ -21,6 +21,7 @@ import time
 
 import numpy as np
 import pytest
+from jobs_helper import wait_job
 from live_server import Server, free_port, wait_for
 from test_reliability_dask import DASK, Process, wait_for_workers
 
@@ -52,14 +53,10 @@ def start_worker(address: str, folder, n: int) -> Process:
 
 def running_with_progress(server: Server, location: str, timeout_s: float = 120.0) -> dict:
     """Wait until the job is running and has finished a chunk (so chunks are out on the cluster)."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        job = server.client.get(location).json()
-        assert job["status"] in ("queued", "running"), f"the sweep ended too early: {job}"
-        if job["status"] == "running" and job["progress"] > 0:
-            return job
-        assert time.monotonic() < deadline, f"{location} never made progress"
-        time.sleep(0.02)
+    job = wait_job(server.client, location, timeout_s=timeout_s, interval_s=0.02,
+                   until=lambda job: job["status"] not in ("queued", "running") or job["progress"] > 0)
+    assert job["status"] == "running", f"the sweep ended too early: {job}"
+    return job
 
 
 def wait_ready(server: Server, timeout_s: float = 90.0) -> None:

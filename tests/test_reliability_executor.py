@@ -5,7 +5,6 @@ from __future__ import annotations
 import importlib.util
 import json
 import pickle
-import time
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 from pathlib import Path
@@ -13,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel
@@ -210,11 +210,7 @@ def test_an_optimization_job_runs_its_groups_on_the_apps_executor(tmp_path, sche
                    "speed_m_s": 0.05, "model": f"calibrated:{model_id}", "starts": 2}
         response = client.post("/v1/optimizations", json=request)
         assert response.status_code == 202, response.text
-        deadline = time.monotonic() + 120
-        while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
-            assert time.monotonic() < deadline, job
-            time.sleep(0.05)
-        assert job["status"] == "succeeded", job
+        job = finished_job(client, response.headers["location"], timeout_s=120, interval_s=0.05)
         result = client.get(job["result_url"]).json()
         if scheduler is None:
             assert runtime.executor.calls == 3  # one task per group of ball counts

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import wait_job
 
 from microbearing.service.app import create_app
 from microbearing.service.deps import get_runtime
@@ -33,11 +32,7 @@ def client(tmp_path_factory):
 
 
 def finished(client: TestClient, location: str, key: str) -> dict:
-    deadline = time.monotonic() + 60
-    while (job := client.get(location, headers=bearer(key)).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
-    return job
+    return wait_job(client, location, headers=bearer(key), timeout_s=60, interval_s=0.02)
 
 
 def assert_404(response) -> None:

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
-from live_server import Server
+from live_server import Server, wait_for
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="SIGKILL and process groups are POSIX")
 
@@ -37,15 +37,6 @@ class Serve(Server):
     def command(self, data_dir: Path) -> list[str]:
         return [sys.executable, "-m", "microbearing.service.cli", "serve", "--port", str(self.port),
                 "--data-dir", str(data_dir)]
-
-
-def wait_status(server: Serve, location: str, statuses: tuple[str, ...], headers: dict,
-                timeout_s: float = 120.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while (job := server.client.get(location, headers=headers).json())["status"] not in statuses:
-        assert time.monotonic() < deadline, f"{location} stayed {job['status']}"
-        time.sleep(0.05)
-    return job
 
 
 def owner(url: str, job_id: str) -> tuple[str, int, int]:
@@ -72,7 +63,7 @@ def test_two_servers_on_one_postgresql_database(postgres_url, tmp_path):
         # A model stored through one server is served, and deleted, through the other.
         made = first.client.post("/v1/surrogates", json=SMALL_SURROGATE, headers=alpha)
         assert made.status_code == 202, made.text
-        surrogate = wait_status(first, made.headers["location"], ("succeeded", "failed"), alpha)
+        surrogate = wait_for(first, made.headers["location"], ("succeeded", "failed"), headers=alpha)
         assert surrogate["status"] == "succeeded", surrogate
         surrogate_id = first.client.get(surrogate["result_url"], headers=alpha).json()["id"]
         seen = second.client.get(f"/v1/surrogates/{surrogate_id}", headers=alpha)
@@ -88,7 +79,7 @@ def test_two_servers_on_one_postgresql_database(postgres_url, tmp_path):
         for server in (first, second):
             refused = server.client.post("/v1/surrogates", json=LONG_SURROGATE, headers=alpha)
             assert refused.status_code == 429 and "MICROBEARING_MAX_ACTIVE_JOBS_PER_KEY=2" in refused.text
-        running = [wait_status(s, r.headers["location"], ("running",), alpha)["id"]
+        running = [wait_for(s, r.headers["location"], ("running",), headers=alpha)["id"]
                    for s, r in ((first, on_first), (second, on_second))]
         queued = second.client.post("/v1/surrogates", json=LONG_SURROGATE, headers=beta)
         assert queued.status_code == 202

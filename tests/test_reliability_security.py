@@ -6,11 +6,11 @@ import hmac
 import json
 import logging
 import re
-import time
 from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 from prometheus_client.parser import text_string_to_metric_families
 
 from microbearing.service import security
@@ -211,10 +211,7 @@ def test_a_jobs_log_lines_name_the_request_that_created_it(tmp_path, caplog):
         response = client.post("/v1/sweeps", json=sweep, headers={"X-Request-ID": "sweep-request-9"})
         assert response.status_code == 202
         job_id = response.json()["id"]
-        deadline = time.monotonic() + 30
-        while client.get(f"/v1/jobs/{job_id}").json()["status"] != "succeeded":
-            assert time.monotonic() < deadline
-            time.sleep(0.02)
+        finished_job(client, f"/v1/jobs/{job_id}", timeout_s=30, interval_s=0.02)
     lines = [r for r in caplog.records if getattr(r, "job_id", None) == job_id]
     assert [r.getMessage().split()[-1] for r in lines] == ["queued", "started", "succeeded"]
     in_job_thread = {r.threadName.startswith("microbearing-job") for r in lines}

@@ -6,7 +6,6 @@ import csv
 import io
 import json
 import math
-import time
 from importlib.metadata import version
 
 import numpy as np
@@ -15,6 +14,7 @@ from fastapi import APIRouter, Depends, Request
 from fastapi.responses import Response
 from fastapi.routing import APIRoute
 from fastapi.testclient import TestClient
+from jobs_helper import wait_job
 
 from microbearing import physics
 from microbearing.service.app import PlainRoute, create_app, plain_routes
@@ -46,15 +46,6 @@ def assert_problem(response, status: int, pointer: str | None = None) -> dict:
     if pointer is not None:
         assert pointer in [e.get("pointer") for e in problem["errors"]], problem
     return problem
-
-
-def wait_for_job(client: TestClient, location: str, timeout_s: float = 60.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while True:
-        job = client.get(location).json()
-        if job["status"] not in ("queued", "running") or time.monotonic() > deadline:
-            return job
-        time.sleep(0.05)
 
 
 # /v1/friction --------------------------------------------------------------------------------
@@ -217,7 +208,7 @@ def test_head_answers_wherever_get_does_with_the_same_headers_and_no_body(client
     request = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load_N": 0.01},
                "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 1_001}}}  # over the sync limit: a job
     job_id = client.post("/v1/sweeps", json=request).json()["id"]
-    wait_for_job(client, f"/v1/jobs/{job_id}")
+    wait_job(client, f"/v1/jobs/{job_id}", timeout_s=60)
     spec = client.app.openapi()
     paths = [path.replace("{job_id}", job_id) for path, item in spec["paths"].items() if "get" in item
              and "{" not in path.replace("{job_id}", "")] + ["/healthz", "/v1/jobs/no-such-job"]
@@ -434,7 +425,7 @@ def test_large_sweep_runs_as_a_job_with_json_and_csv_results(client):
     location = response.headers["location"]
     assert location == f"/v1/jobs/{response.json()['id']}"
     assert int(response.headers["retry-after"]) >= 1
-    job = wait_for_job(client, location)
+    job = wait_job(client, location, timeout_s=60)
     assert job["status"] == "succeeded" and job["progress"] == 1.0 and job["error"] is None
     result = client.get(job["result_url"]).json()
     assert result["count"] == 2_000
@@ -458,10 +449,9 @@ def test_cancelling_a_sweep_job_over_http(tmp_path):
                         "speed_m_s": {"start": 0.0, "stop": 0.15, "num": 1_000}}}
     with make_client(tmp_path, sweep_sync_max_points=0, max_result_bytes=2**31) as test_client:
         location = test_client.post("/v1/sweeps", json=request).headers["location"]
-        deadline = time.monotonic() + 60
-        while (job := test_client.get(location).json())["progress"] == 0:  # cancel a job under way
-            assert job["status"] in ("queued", "running") and time.monotonic() < deadline, job
-            time.sleep(0.005)
+        # cancel a job under way
+        job = wait_job(test_client, location, timeout_s=60, interval_s=0.005,
+                       until=lambda job: job["progress"] != 0 or job["status"] not in ("queued", "running"))
         assert job["status"] == "running" and 0 < job["progress"] < 1, job
         early = test_client.get(f"{location}/result")  # not yet: 409, and when to ask again
         assert_problem(early, 409)
@@ -469,7 +459,7 @@ def test_cancelling_a_sweep_job_over_http(tmp_path):
         response = test_client.delete(location)
         assert response.status_code == 200, response.text
         assert response.json()["cancel_requested"] is True and response.json()["status"] == "running"
-        job = wait_for_job(test_client, location)
+        job = wait_job(test_client, location, timeout_s=60)
         assert job["status"] == "cancelled" and job["result_url"] is None and job["progress"] < 1
         never = test_client.get(f"{location}/result")  # never: 409 without Retry-After
         assert_problem(never, 409)
@@ -488,7 +478,7 @@ def test_a_finished_job_survives_a_restart(tmp_path):
                "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 5}}}
     with make_client(tmp_path, **settings) as first:
         location = first.post("/v1/sweeps", json=request).headers["location"]
-        job = wait_for_job(first, location)
+        job = wait_job(first, location, timeout_s=60)
         result = first.get(job["result_url"]).json()
     with make_client(tmp_path, **settings) as second:  # a new app on the same data folder
         assert second.get(location).json() == job

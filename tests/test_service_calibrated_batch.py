@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import wait_job
 
 from bench.calibrated_batch import calibration as calibrate_through_the_api
 from microbearing import physics
@@ -267,15 +268,10 @@ def test_an_interval_that_overflows_far_from_the_data_is_422_not_500(client):
     # Found by schemathesis' stateful phase following the spec's link from a calibration to
     # /v1/friction: 400,000 balls at 149 m/s widen the 95 % interval of the mu_pivot model of the
     # spec's example past floating point (mu_upper inf), which JSON cannot carry (was: 500).
-    import time
-
     from microbearing.service.schemas.examples import CALIBRATION
 
     location = client.post("/v1/calibrations", json=CALIBRATION).headers["location"]
-    deadline = time.monotonic() + 120
-    while client.get(location).json()["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline
-        time.sleep(0.05)
+    wait_job(client, location, timeout_s=120)
     model = client.get(f"{location}/result").json()["model_id"]
     far = {"balls": 401564, "ball_poisson_ratio": 0.49117826135052206,
            "race_youngs_modulus_Pa": 5136756337280.07, "load_N": 0.5, "speed_m_s": 148.83583745516464}

@@ -16,6 +16,7 @@ import time
 from collections import Counter
 
 import pytest
+from jobs_helper import wait_until
 
 from microbearing.service.jobs import JOB_KINDS, MAX_ATTEMPTS, JobContext, JobManager, register_kind
 from microbearing.service.store import Store, utc_now
@@ -45,11 +46,7 @@ def kinds():
 
 def wait(manager: JobManager, job_id: str, statuses=("succeeded", "failed", "cancelled"),
          timeout_s: float = 30.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while (row := manager.get(job_id, with_result=True))["status"] not in statuses:
-        assert time.monotonic() < deadline, row
-        time.sleep(0.02)
-    return row
+    return wait_until(lambda: manager.get(job_id, with_result=True), job_id, statuses, timeout_s, 0.02)
 
 
 def _dead_pid() -> int:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from jobs_helper import wait_until
 
 from microbearing.service.jobs import INTERRUPTED_DETAIL, NOT_STORED_DETAIL, JobContext, JobManager
 from microbearing.service.store import SqliteStore, Store, json_bytes, to_json, utc_now
@@ -31,10 +32,7 @@ def manager(store):
 
 
 def wait(manager: JobManager, job_id: str, timeout_s: float = 20.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while (row := manager.get(job_id))["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, row
-        time.sleep(0.02)
+    wait_until(lambda: manager.get(job_id), job_id, timeout_s=timeout_s, interval_s=0.02)
     return manager.get(job_id, with_result=True)
 
 
@@ -485,12 +483,13 @@ def test_a_store_refusing_every_write_still_ends_the_job(store, monkeypatch, cap
 
 
 def test_an_adaptive_fit_reports_progress_in_proportion_to_its_fitting_work():
-    from microbearing.surrogate import Space, fit_adaptive
+    from microbearing.surrogate import SamplingPlan, Space, fit_adaptive
 
     space = Space({"load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2)}, fixed={"balls": 6})
     fractions = []
-    fit = fit_adaptive(space, budget=22, target_relative_error=1e-12, initial_size=10, batch_size=5,
-                       n_candidates=256, progress=fractions.append)
+    fit = fit_adaptive(space, budget=22, target_relative_error=1e-12,
+                       plan=SamplingPlan(initial_size=10, batch_size=5, n_candidates=256),
+                       progress=fractions.append)
     sizes = [h["n_train"] for h in fit.history]
     assert sizes == [10, 15, 20, 22]
     # A fit on n points costs about n^3: by hand, 10^3 / (10^3 + 15^3 + 20^3 + 22^3) after the first.

@@ -7,10 +7,9 @@ makes room again.
 
 from __future__ import annotations
 
-import time
-
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import wait_job
 from test_service_resources import bearer, finished, rows
 
 from microbearing.service.app import create_app
@@ -60,11 +59,7 @@ def test_a_job_that_reaches_the_limit_while_running_fails_with_the_problem(clien
     assert response.status_code == 202, response.text
     store = get_runtime(client.app).store
     store.save_model("surrogate", {"note": "stored while the calibration ran"}, {})  # fills the limit
-    deadline = time.monotonic() + 120
-    while (job := client.get(response.headers["location"], headers=bearer(KEY)).json())["status"] in (
-            "queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.05)
+    job = wait_job(client, response.headers["location"], headers=bearer(KEY), timeout_s=120, interval_s=0.05)
     assert job["status"] == "failed", job
     assert job["error"]["status"] == 507 and "MICROBEARING_MAX_STORED_MODELS" in job["error"]["detail"], job
     with pytest.raises(ModelLimitError):

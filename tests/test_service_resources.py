@@ -6,11 +6,10 @@ deleted calibration is gone from every list, from UM-Bridge and from requests th
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.service.app import create_app
@@ -46,12 +45,8 @@ def client(tmp_path_factory):
 
 def finished(client: TestClient, response, key: str) -> dict:
     assert response.status_code == 202, response.text
-    deadline = time.monotonic() + 120
-    while (job := client.get(response.headers["location"], headers=bearer(key)).json())["status"] in (
-            "queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.05)
-    assert job["status"] == "succeeded", job
+    job = finished_job(client, response.headers["location"], headers=bearer(key), timeout_s=120,
+                       interval_s=0.05)
     return client.get(job["result_url"], headers=bearer(key)).json()
 
 

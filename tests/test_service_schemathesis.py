@@ -22,6 +22,7 @@ import hypothesis
 import pytest
 import schemathesis
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job, wait_job
 from schemathesis.specs.openapi.checks import (
     content_type_conformance,
     response_headers_conformance,
@@ -246,12 +247,8 @@ def test_every_request_example_of_the_spec_is_accepted():
             answer = client.request(verb, path, json=example)
             assert answer.status_code in (200, 202), (path, answer.text)
             if answer.status_code == 202:
-                deadline = time.monotonic() + 120
                 location = answer.headers["location"]
-                while (job := client.get(location).json())["status"] in ("queued", "running"):
-                    assert time.monotonic() < deadline, job
-                    time.sleep(0.05)
-                assert job["status"] == "succeeded", (path, job)
+                job = finished_job(client, location)
                 if job["kind"] in ("surrogate", "calibration"):
                     made[f"{job['kind']}_id"] = client.get(f"{location}/result").json()["id"]
 
@@ -263,10 +260,7 @@ def test_a_surrogates_space_sent_back_as_points_is_predicted_at_its_ends():
                "budget": 12, "validation_points": 0, "adaptive": False}
     with TestClient(APP) as client:
         location = client.post("/v1/surrogates", json=request).headers["location"]
-        deadline = time.monotonic() + 120
-        while client.get(location).json()["status"] in ("queued", "running"):
-            assert time.monotonic() < deadline
-            time.sleep(0.05)
+        wait_job(client, location)
         made = client.get(f"{location}/result").json()
         assert made["space"] == request["space"]
         linked = client.post(f"/v1/surrogates/{made['id']}/predict", json={"points": made["space"]})

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import copy
 import json
-import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.service.app import create_app
@@ -59,11 +59,7 @@ def finished(client: TestClient, response, timeout_s: float = 120.0) -> dict:
     """The finished job of a 202 answer, and its result."""
     assert response.status_code == 202, response.text
     location = response.headers["location"]
-    deadline = time.monotonic() + timeout_s
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.05)
-    assert job["status"] == "succeeded", job
+    finished_job(client, location, timeout_s=timeout_s, interval_s=0.05)
     return client.get(f"{location}/result").json()
 
 

@@ -16,6 +16,8 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from microbearing import physics
 from microbearing.surrogate import (
     GaussianProcessSurrogate,
+    Hyperparameters,
+    SamplingPlan,
     Space,
     accuracy,
     design,
@@ -259,7 +261,7 @@ def test_loo_errors_match_brute_force_refits(kernel):
     X = design(space, 24, "sobol", seed=3)
     model = GaussianProcessSurrogate(space, kernel=kernel, random_state=0).fit(X, space.evaluate(X))
     gp = model.gaussian_process_
-    Zs = model._design_matrix(model.X_train_)
+    Zs = model.design_matrix(model.X_train_)
     residual = np.log(model.y_train_) - model._prior_mean(Zs)
     centre, spread = residual.mean(), residual.std()
     normalized = (residual - centre) / spread
@@ -285,7 +287,7 @@ def test_variance_scale_follows_its_rule_on_brute_force_leave_one_out(variance_s
                                      calibrate_variance="loo", calibration_rows=rows)
     model.fit(X, space.evaluate(X))
     gp = model.gaussian_process_
-    Zs = model._design_matrix(model.X_train_)
+    Zs = model.design_matrix(model.X_train_)
     residual = np.log(model.y_train_) - model._prior_mean(Zs)
     centre, spread = residual.mean(), residual.std()
     z = []
@@ -316,11 +318,11 @@ def test_auto_calibration_refits_folds_below_ten_points_per_feature(n, expected)
     ({"kernel": "cubic"}, None, "kernel must be one of"),
     ({"features": "magic"}, None, "features must be one of"),
     ({"mean": "quadratic"}, None, "mean must be one of"),
-    ({"n_restarts_optimizer": -1}, None, "n_restarts_optimizer"),
+    ({"hyperparameters": Hyperparameters(n_restarts_optimizer=-1)}, None, "n_restarts_optimizer"),
     ({"calibrate_variance": True}, None, "calibrate_variance must be one of"),
     ({"variance_scale": "mad"}, None, "variance_scale must be one of"),
-    ({"initial_theta": [0.0, 0.0]}, None, "initial_theta must hold 3"),
-    ({"optimize_hyperparameters": False}, None, "needs initial_theta"),
+    ({"hyperparameters": Hyperparameters(initial_theta=[0.0, 0.0])}, None, "initial_theta must hold 3"),
+    ({"hyperparameters": Hyperparameters(optimize=False)}, None, "needs initial_theta"),
     ({}, -1.0, "y must be > 0"),
     ({}, "short", "y must be a 1-D array"),
 ])
@@ -422,33 +424,34 @@ def test_select_batch_conditions_on_picks():
     # Brute force: refit with the first pick added (same hyperparameters, fantasized value):
     # its largest posterior variance is the second pick.
     gp = model.gaussian_process_
-    Z = model._design_matrix(np.vstack([X, candidates[picked[:1]]]))
+    Z = model.design_matrix(np.vstack([X, candidates[picked[:1]]]))
     refit = GaussianProcessRegressor(gp.kernel_.k1, alpha=gp.kernel_.k2.noise_level + gp.alpha,
                                      optimizer=None).fit(Z, np.zeros(len(Z)))
-    _, std = refit.predict(model._design_matrix(candidates), return_std=True)
+    _, std = refit.predict(model.design_matrix(candidates), return_std=True)
     assert picked[1] == np.argmax(std)
 
 
 def test_fit_adaptive_respects_budget_and_reports_progress():
     space = Space({"load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2)}, fixed={"balls": 6})
     fractions = []
-    fit = fit_adaptive(space, budget=22, target_relative_error=1e-12, initial_size=10, batch_size=5,
-                       n_candidates=256, progress=fractions.append)
+    fit = fit_adaptive(space, budget=22, target_relative_error=1e-12,
+                       plan=SamplingPlan(initial_size=10, batch_size=5, n_candidates=256),
+                       progress=fractions.append)
     assert fit.n_train == 22 and fit.stop_reason == "budget_exhausted"
     assert [h["n_train"] for h in fit.history] == [10, 15, 20, 22]
     assert fractions == sorted(fractions) and fractions[-1] == 1.0
     assert len({tuple(x) for x in fit.X}) == 22
     np.testing.assert_array_equal(fit.y, space.evaluate(fit.X))
     # The final model is warm-started; its starting point is stored with it.
-    assert len(fit.model.initial_theta) == 4
+    assert len(fit.model.hyperparameters.initial_theta) == 4
     X = design(space, 50, seed=4)
     np.testing.assert_allclose(loads(dumps(fit.model)).predict(X), fit.model.predict(X), rtol=1e-12)
 
 
 def test_fit_adaptive_stops_at_the_target():
     space = Space({"load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2)}, fixed={"balls": 6})
-    fit = fit_adaptive(space, budget=100, target_relative_error=0.05, initial_size=8, batch_size=8,
-                       n_candidates=256)
+    fit = fit_adaptive(space, budget=100, target_relative_error=0.05,
+                       plan=SamplingPlan(initial_size=8, batch_size=8, n_candidates=256))
     # A 95th percentile is bounded at 95 % confidence by no order statistic of fewer than 59 values
     # (1 - 0.95**58 < 0.95): the rule cannot stop before, however small the errors.
     assert fit.stop_reason == "target_reached" and fit.n_train == 64
@@ -498,8 +501,8 @@ def test_the_bound_does_not_stop_where_point_estimates_would():
     # (the default then) and a starting design of half the budget (also the default then); Matern 5/2's
     # estimates do not meet the target at 50 points.
     space = Space(TARGET_BOUNDS)
-    fit = fit_adaptive(space, budget=100, target_relative_error=1e-3, seed=13, initial_size=50,
-                       model_params={"kernel": "rbf"})
+    fit = fit_adaptive(space, budget=100, target_relative_error=1e-3, seed=13,
+                       plan=SamplingPlan(initial_size=50), model_params={"kernel": "rbf"})
     first = fit.history[0]
     assert first["n_train"] == 50
     assert first["loo_median_relative_error"] <= 1e-3 and first["loo_p95_relative_error"] <= 5e-3
@@ -511,7 +514,8 @@ def test_the_bound_does_not_stop_where_point_estimates_would():
 
 def test_fit_adaptive_stops_when_no_candidate_is_uncertain():
     space = Space({"balls": (3, 6)}, fixed={"load_N": 0.01, "speed_m_s": 0.01})
-    fit = fit_adaptive(space, budget=30, target_relative_error=1e-12, initial_size=8, n_candidates=64)
+    fit = fit_adaptive(space, budget=30, target_relative_error=1e-12,
+                       plan=SamplingPlan(initial_size=8, n_candidates=64))
     # Four possible ball counts: each evaluated exactly once, although the starting design asked for 8.
     assert sorted(fit.X[:, 0]) == [3, 4, 5, 6] and fit.n_train == 4
     assert fit.stop_reason == "candidates_exhausted"
@@ -527,7 +531,7 @@ def test_fit_adaptive_stops_when_no_candidate_is_uncertain():
 def test_a_finite_space_is_evaluated_once_per_point(adaptive):
     space = Space({"balls": (3, 5), "balls_touching": (False, True)},
                   fixed={"load_N": 0.01, "speed_m_s": 0.01})
-    fit = fit_adaptive(space, budget=10, target_relative_error=1e-12, adaptive=adaptive)
+    fit = fit_adaptive(space, budget=10, target_relative_error=1e-12, plan=SamplingPlan(adaptive=adaptive))
     # 3 ball counts x 2 booleans = 6 distinct points, fewer than the budget of 10.
     assert fit.n_train == 6 and len({tuple(x) for x in fit.X}) == 6
     assert fit.stop_reason == "candidates_exhausted"
@@ -540,9 +544,9 @@ def test_a_finite_space_is_evaluated_once_per_point(adaptive):
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"budget": 1}, "budget must be"),
     ({"target_relative_error": 0}, "target_relative_error must be > 0"),
-    ({"initial_size": 50}, "initial_size must be in"),
-    ({"batch_size": 0}, "batch_size must be"),
-    ({"design_method": "grid"}, "method must be one of"),
+    ({"plan": SamplingPlan(initial_size=50)}, "initial_size must be in"),
+    ({"plan": SamplingPlan(batch_size=0)}, "batch_size must be"),
+    ({"plan": SamplingPlan(design_method="grid")}, "method must be one of"),
 ])
 def test_fit_adaptive_validation(kwargs, message):
     with pytest.raises(ValueError, match=message):
@@ -638,8 +642,9 @@ def test_fit_adaptive_calibrates_on_the_space_filling_design(adaptive, model_par
     # Adaptive batches crowd the edges, where leave-one-out is extrapolation: only the starting design
     # (8 of 16 points here) sets the variance scale; a plain design uses every point; an explicit choice wins.
     space = SPACES["angle+load"]
-    fit = fit_adaptive(space, budget=16, initial_size=8, batch_size=4, target_relative_error=1e-9,
-                       adaptive=adaptive, model_params={"calibrate_variance": "loo", **(model_params or {})},
+    fit = fit_adaptive(space, budget=16, target_relative_error=1e-9,
+                       plan=SamplingPlan(initial_size=8, batch_size=4, adaptive=adaptive),
+                       model_params={"calibrate_variance": "loo", **(model_params or {})},
                        validation_points=0)
     assert fit.model.calibration_rows == expected and fit.n_train == 16 and fit.validation_points == 0
     errors, variances = fit.model._loo()
@@ -731,22 +736,25 @@ def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is
     X = design(space, 12, seed=0)
     optimized = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
     theta = optimized.gaussian_process_.kernel_.theta + np.array([0.0, 0.3, 0.0])  # a longer length scale
-    kept = GaussianProcessSurrogate(space, initial_theta=theta.tolist(), optimize_hyperparameters=False)
+    kept = GaussianProcessSurrogate(space, hyperparameters=Hyperparameters(theta.tolist(), optimize=False))
     np.testing.assert_array_equal(kept.fit(X, space.evaluate(X)).gaussian_process_.kernel_.theta, theta)
     # rounds may keep earlier hyperparameters; the returned model maximizes the likelihood on every point
-    fit = fit_adaptive(space, budget=16, initial_size=8, batch_size=2, seed=0)
-    assert fit.model.optimize_hyperparameters
+    fit = fit_adaptive(space, budget=16, plan=SamplingPlan(initial_size=8, batch_size=2), seed=0)
+    assert fit.model.hyperparameters.optimize
     gp = fit.model.gaussian_process_
-    refit = GaussianProcessSurrogate(space, initial_theta=gp.kernel_.theta.tolist(), n_restarts_optimizer=0)
+    refit = GaussianProcessSurrogate(space, hyperparameters=Hyperparameters(gp.kernel_.theta.tolist(),
+                                                                            n_restarts_optimizer=0))
     refit.fit(fit.X, fit.y)
     assert gp.log_marginal_likelihood_value_ >= refit.gaussian_process_.log_marginal_likelihood_value_ - 1e-6
     # The round that spends the budget optimizes; when the final calibration differs from the rounds'
     # (k-fold below 10 points per feature: 24 points of 3 features), only the calibration is redone.
     space = SPACES["angle+load"]
-    fit = fit_adaptive(space, budget=24, initial_size=12, batch_size=6, seed=0, validation_points=0)
+    fit = fit_adaptive(space, budget=24, plan=SamplingPlan(initial_size=12, batch_size=6), seed=0,
+                       validation_points=0)
     assert (fit.model.calibrate_variance, fit.model.variance_calibration_) == ("auto", "kfold")
     gp = fit.model.gaussian_process_
-    refit = GaussianProcessSurrogate(space, initial_theta=gp.kernel_.theta.tolist(), n_restarts_optimizer=0)
+    refit = GaussianProcessSurrogate(space, hyperparameters=Hyperparameters(gp.kernel_.theta.tolist(),
+                                                                            n_restarts_optimizer=0))
     refit.fit(fit.X, fit.y)
     assert gp.log_marginal_likelihood_value_ >= refit.gaussian_process_.log_marginal_likelihood_value_ - 1e-6
 

@@ -3,11 +3,10 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.service.app import create_app
@@ -15,7 +14,7 @@ from microbearing.service.deps import get_runtime
 from microbearing.service.models import resolve
 from microbearing.service.problems import ProblemError
 from microbearing.service.settings import Settings
-from microbearing.service.surrogates import quality_warnings
+from microbearing.surrogate.metrics import quality_warnings
 
 PROBLEM = "application/problem+json"
 SPACE = {"load_N": [0.001, 0.05], "speed_m_s": [0.001, 0.2], "balls": [3, 12]}
@@ -32,16 +31,13 @@ def finished(client: TestClient, response) -> tuple[dict, list[float]]:
     location = response.headers["location"]
     assert location.startswith("/v1/jobs/")
     seen = []
-    deadline = time.monotonic() + 120
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        seen.append(job.get("progress"))
-        time.sleep(0.05)
-    assert job["status"] == "succeeded", job
+    # every poll's progress, the last one's (the finished job's) included
+    job = finished_job(client, location, timeout_s=120, interval_s=0.05,
+                       on_poll=lambda job: seen.append(job.get("progress")))
     assert job["progress"] == 1.0
     result = client.get(job["result_url"]).json()
     assert result.pop("kind") == "surrogate"  # the job's kind tags its result
-    return result, [*seen, job["progress"]]
+    return result, seen
 
 
 @pytest.fixture(scope="module")

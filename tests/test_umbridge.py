@@ -5,7 +5,6 @@ against exact ones and finite differences; errors in the protocol's form (in pro
 from __future__ import annotations
 
 import re
-import time
 from pathlib import Path
 
 import httpx
@@ -14,6 +13,7 @@ import pytest
 import requests
 import umbridge
 from fastapi.testclient import TestClient
+from jobs_helper import finished_job
 
 from bench.api import start_server
 from microbearing import physics
@@ -52,11 +52,7 @@ def url(server) -> str:
 
 def _job_result(rest: httpx.Client, response: httpx.Response) -> dict:
     assert response.status_code == 202, response.text
-    deadline = time.monotonic() + 120
-    while (job := rest.get(response.headers["location"]).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.1)
-    assert job["status"] == "succeeded", job
+    job = finished_job(rest, response.headers["location"], timeout_s=120, interval_s=0.1)
     return rest.get(job["result_url"]).json()
 
 

@@ -48,18 +48,25 @@ Running work as a job
             return {"design": ..., "mu": ...}                  # JSON-ready; arrays allowed
         return accepted(jobs.submit("optimization", body.model_dump(mode="json"), work))
 
-Pass the job's inputs and declare how any process rebuilds its work from them, so that the job
-survives restarts and can run in any server process sharing the data folder (see
-:mod:`service.jobs`; work submitted without ``inputs`` is failed by a restart)::
+Pass the job's inputs, and declare how any process rebuilds its work from them as one entry of
+:data:`service.job_kinds.JOB_KIND_TABLE` (the app registers that table at start; a route registers
+nothing), so that the job survives restarts and can run in any server process sharing the data folder
+(see :mod:`service.jobs`; work submitted without ``inputs`` is failed by a restart). The route builds
+its work with the same function the table's entry uses::
 
-    def _stored_work(inputs: dict, runtime) -> Callable[[JobContext], dict]:
+    # service/job_kinds.py
+    def optimization_work(plan, executor) -> Work:
+        return lambda ctx: run(plan, progress=ctx.progress, executor=executor)
+
+    def _optimization(inputs: dict, runtime) -> Work:
         body = OptimizationRequest.model_validate_json(json.dumps(inputs))
-        return lambda ctx: optimize.run(..., progress=ctx.progress)
+        return optimization_work(prepare(runtime.store, body), runtime.executor)
 
-    register_kind("optimization", _stored_work, rule="...")       # at import, once
-    ...
+    JOB_KIND_TABLE = (..., JobKind("optimization", _optimization, rule="..."), ...)
+
+    # the route
     request = body.model_dump(mode="json")
-    return accepted(jobs.submit("optimization", request, work, inputs=request))
+    return accepted(jobs.submit("optimization", request, optimization_work(plan, executor), inputs=request))
 
 The client polls ``GET /v1/jobs/{id}`` (status, progress, ``result_url`` or ``error``) and
 fetches ``GET /v1/jobs/{id}/result``; ``DELETE /v1/jobs/{id}`` cancels. A result holding a table

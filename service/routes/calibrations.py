@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-import numpy as np
 from fastapi import APIRouter, Body, Query, Request
 from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
@@ -21,10 +20,10 @@ from ..calibrations import (
     data_problem,
     delete_calibration,
     load_calibration,
-    run_calibration,
 )
 from ..deps import JobsDep, SettingsDep, StoreDep
-from ..jobs import JobContext, JobManager, register_kind
+from ..job_kinds import calibration_inputs, calibration_work
+from ..jobs import JobManager
 from ..limits import check_table, csv_data_rows, csv_header_columns
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas import examples
@@ -77,48 +76,10 @@ def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool)
                                   else {"pointer": f"/{field}", "detail": str(exc)}]) from None
 
 
-def _work(store: Store, dataset: Dataset, fit_parameters: list[str], folds: int, convention: str,
-          intake: dict) -> Any:
-    def work(ctx: JobContext) -> dict:
-        return run_calibration(store, dataset, fit_parameters, folds, convention, progress=ctx.progress,
-                               intake=intake)
-
-    return work
-
-
-def _columns(columns: dict[str, np.ndarray]) -> dict[str, list]:
-    return {name: values.tolist() for name, values in columns.items()}
-
-
-def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
-    """The work of a calibration from its stored inputs: the checked measurements, column by column."""
-    std = inputs["mu_measured_std"]
-    dataset = Dataset({name: np.asarray(values) for name, values in inputs["physics_columns"].items()},
-                      {name: np.asarray(values) for name, values in inputs["conditions"].items()},
-                      np.asarray(inputs["mu_measured"], dtype=float),
-                      None if std is None else np.asarray(std, dtype=float), dict(inputs["fixed"]),
-                      {name: np.asarray(labels, dtype=str)
-                       for name, labels in (inputs.get("factors") or {}).items()})
-    return _work(runtime.store, dataset, inputs["fit_parameters"], inputs["folds"], inputs["convention"],
-                 inputs.get("intake") or {})
-
-
-# The parsed data are stored with the job (bounded by the row and column limits); the calibration is
-# stored in one transaction at the end, so an interrupted run leaves nothing.
-register_kind("calibration", _stored_work,
-              rule="its checked data are stored with it; the calibration is stored in one transaction at the "
-                   "end: an interrupted run leaves nothing")
-
-
 def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_parameters: list[str],
             folds: int, convention: str, intake: dict) -> JSONResponse:
-    std = dataset.mu_measured_std
-    inputs = {"physics_columns": _columns(dataset.physics_columns),
-              "conditions": _columns(dataset.conditions), "mu_measured": dataset.mu_measured.tolist(),
-              "mu_measured_std": None if std is None else std.tolist(), "fixed": dataset.fixed,
-              "factors": _columns(dataset.factors),
-              "fit_parameters": fit_parameters, "folds": folds, "convention": convention, "intake": intake}
-    work = _work(store, dataset, fit_parameters, folds, convention, intake)
+    inputs = calibration_inputs(dataset, fit_parameters, folds, convention, intake)
+    work = calibration_work(store, dataset, fit_parameters, folds, convention, intake)
     store.check_model_room()  # 507 now rather than a failed job later
     return accepted(jobs.submit("calibration", record, work, inputs=inputs))
 

@@ -4,37 +4,21 @@
 from __future__ import annotations
 
 import json
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Body
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep, StoreDep
 from ..experiments import JOB_KIND, first_experiments_job, next_experiments_job, plan_png
-from ..jobs import register_kind
 from ..problems import ProblemError, problem_responses
 from ..schemas import examples
 from ..schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
-from .jobs import NOT_FINISHED_RESPONSE, accepted, accepted_response, not_finished
+from .jobs import NOT_FINISHED_RESPONSE, accepted, accepted_response, check_not_erased, not_finished
 
 __all__ = ["router"]
 
 router = APIRouter(tags=["experiments"])
-
-
-def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
-    """The work of a proposal from its stored request (and calibration id, for the next runs)."""
-    request = dict(inputs)
-    calibration_id = request.pop("calibration_id", None)
-    if calibration_id is None:
-        return first_experiments_job(FirstExperimentsRequest.model_validate_json(json.dumps(request)))
-    return next_experiments_job(runtime.store, calibration_id,
-                                NextExperimentsRequest.model_validate_json(json.dumps(request)))
-
-
-# Rebuilt from the request; a calibration deleted meanwhile fails the new run with 404.
-register_kind(JOB_KIND, _stored_work,
-              rule="the request is stored and the result is written once, at the end")
 
 
 #: A proposal's 202, with a link to its plot.
@@ -84,7 +68,7 @@ def create_first_experiments(body: Annotated[FirstExperimentsRequest, Body(
             responses={200: {"description": "The proposed runs over the data taken (and the rivals' "
                                             "predictions for discriminate) as a PNG image.",
                              "content": {"image/png": {"schema": {"type": "string", "format": "binary"}}}},
-                       **problem_responses(404), **NOT_FINISHED_RESPONSE})
+                       **problem_responses(404, 410), **NOT_FINISHED_RESPONSE})
 def get_experiments_plot(job_id: str, jobs: JobsDep) -> Response:
     """The plot of a proposal: the runs over the data taken, with the rivals' predictions."""
     row = jobs.get(job_id, with_result=True)
@@ -92,4 +76,5 @@ def get_experiments_plot(job_id: str, jobs: JobsDep) -> Response:
         raise ProblemError(404, f"There is no experiments job {job_id!r}.")
     if row["status"] != "succeeded":
         raise not_finished(job_id, row["status"], "the plot")
+    check_not_erased(row)
     return Response(plan_png(json.loads(row["result_json"])), media_type="image/png")

@@ -32,9 +32,19 @@ def job_view(row: dict[str, Any]) -> Job:
         id=row["id"], kind=row["kind"], status=row["status"], progress=row["progress"],
         cancel_requested=bool(row["cancel_requested"]), created_at=row["created_at"],
         started_at=row["started_at"], finished_at=row["finished_at"],
-        result_url=f"/v1/jobs/{row['id']}/result" if row["status"] == "succeeded" else None,
+        result_url=(f"/v1/jobs/{row['id']}/result"
+                    if row["status"] == "succeeded" and not row.get("erased_at") else None),
         error=Problem.model_validate(json.loads(row["error_json"])) if row["error_json"] else None,
+        erased_at=row.get("erased_at"),
     )
+
+
+def check_not_erased(row: dict[str, Any]) -> None:
+    """A 410 problem for a job whose result was erased with the model it made or used."""
+    if row.get("erased_at"):
+        raise ProblemError(410, f"The result of job {row['id']} was erased at {row['erased_at']}: the "
+                                "calibration or surrogate it made or used was deleted, and its data with it.",
+                           title="Gone")
 
 
 def accepted(row: dict[str, Any]) -> JSONResponse:
@@ -227,7 +237,7 @@ def cancel_job(job_id: str, jobs: JobsDep) -> Any:
                              "Accept: text/csv (sweeps).",
               "links": {**MODEL_LINKS, **RESULT_PLOT_LINKS},
               "content": {CSV_MEDIA_TYPE: {"schema": {"type": "string"}}}},
-        **problem_responses(404, 406), **NOT_FINISHED_RESPONSE,
+        **problem_responses(404, 406, 410), **NOT_FINISHED_RESPONSE,
     },
 )
 def get_job_result(job_id: str, request: Request, jobs: JobsDep) -> Response:
@@ -235,6 +245,7 @@ def get_job_result(job_id: str, request: Request, jobs: JobsDep) -> Response:
     row = _job_or_404(jobs, job_id, with_result=True)
     if row["status"] != "succeeded":
         raise not_finished(job_id, row["status"], "a result")
+    check_not_erased(row)
     if wants_csv(request):
         result = json.loads(row["result_json"])
         if not isinstance(result.get("columns"), dict):

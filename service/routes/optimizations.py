@@ -10,7 +10,7 @@ from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
 from ..deps import ExecutorDep, JobsDep, StoreDep
-from ..jobs import JobContext, register_kind
+from ..job_kinds import optimization_work
 from ..optimizations import pareto_png, prepare, run
 from ..problems import ProblemError, problem_responses
 from ..schemas import examples
@@ -22,20 +22,6 @@ __all__ = ["router"]
 router = APIRouter(prefix="/v1/optimizations", tags=["optimizations"])
 
 _KIND = "optimization"
-
-
-def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
-    plan = prepare(runtime.store, OptimizationRequest.model_validate_json(json.dumps(inputs)))
-
-    def work(ctx: JobContext) -> dict:
-        return run(plan, progress=ctx.progress, job_id=ctx.job_id, executor=runtime.executor)
-
-    return work
-
-
-# Rebuilt from the request; a model deleted meanwhile fails the new run with 404.
-register_kind(_KIND, _stored_work,
-              rule="the request is stored and the result is written once, at the end")
 
 
 @router.post(
@@ -70,12 +56,8 @@ async def create_optimization(
     plan = await run_in_threadpool(prepare, store, body)
     if plan.synchronous:
         return await run_in_threadpool(run, plan)
-
-    def work(ctx: JobContext) -> dict:
-        return run(plan, progress=ctx.progress, job_id=ctx.job_id, executor=executor)
-
     request = body.model_dump(mode="json")
-    return accepted(jobs.submit(_KIND, request, work, inputs=request))
+    return accepted(jobs.submit(_KIND, request, optimization_work(plan, executor), inputs=request))
 
 
 @router.get(

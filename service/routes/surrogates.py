@@ -5,13 +5,13 @@ The work is done in :mod:`service.surrogates`; these routes parse, call and shap
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Body, Query, Request
 from fastapi.responses import JSONResponse, Response
 
 from ..deps import JobsDep, StoreDep
-from ..jobs import JobContext, register_kind
+from ..job_kinds import surrogate_work
 from ..problems import problem_responses, validation_problem
 from ..schemas import examples
 from ..schemas.surrogates import (
@@ -22,17 +22,14 @@ from ..schemas.surrogates import (
     SurrogateRequest,
     SurrogateResult,
 )
-from ..store import json_bytes
 from ..surrogates import (
     KIND,
     SENSITIVITY_N,
     delete_stored,
     load_stored,
     predict,
-    prepare_training,
     sensitivity,
     surrogate_view,
-    train_surrogate,
 )
 from .jobs import ACCEPTED_RESPONSE, accepted, surrogate_links
 from .pages import DEFAULT_PAGE_LIMIT, PageToken, page_limit, page_of, page_start
@@ -40,21 +37,6 @@ from .pages import DEFAULT_PAGE_LIMIT, PageToken, page_limit, page_of, page_star
 __all__ = ["router"]
 
 router = APIRouter(prefix="/v1/surrogates", tags=["surrogates"])
-
-
-def _stored_work(inputs: dict[str, Any], runtime: Any) -> Any:
-    body = SurrogateRequest.model_validate_json(json_bytes(inputs))
-    space, mu_model = prepare_training(runtime.store, body)
-
-    def work(ctx: JobContext) -> dict[str, Any]:
-        return train_surrogate(runtime.store, space, body, progress=ctx.progress, mu_model=mu_model)
-
-    return work
-
-
-# The surrogate is stored in one transaction at the end of the run: an interrupted run stores nothing.
-register_kind("surrogate", _stored_work,
-              rule="the model is stored in one transaction at the end: an interrupted run leaves nothing")
 
 
 @router.post("", operation_id="create_surrogate", status_code=202,
@@ -70,11 +52,7 @@ def create_surrogate(body: Annotated[SurrogateRequest, Body(openapi_examples=exa
     ``budget`` is reached; no point is evaluated twice. The job's result is the surrogate (see
     ``GET /v1/surrogates/{id}``).
     """
-    space, mu_model = prepare_training(store, body)
-
-    def work(ctx: JobContext) -> dict[str, Any]:
-        return train_surrogate(store, space, body, progress=ctx.progress, mu_model=mu_model)
-
+    work = surrogate_work(store, body)
     request = body.model_dump(mode="json")
     store.check_model_room()  # 507 now rather than a failed job later
     return accepted(jobs.submit("surrogate", request, work, inputs=request))

@@ -2,21 +2,17 @@
 
 from __future__ import annotations
 
-from concurrent.futures import Executor
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Body, Request
 from fastapi.responses import Response
-from pydantic import TypeAdapter
 from starlette.concurrency import run_in_threadpool
 
 from ..deps import ExecutorDep, JobsDep, SettingsDep
-from ..jobs import JobContext, register_kind
+from ..job_kinds import sweep_work
 from ..problems import problem_responses
 from ..schemas import examples
-from ..schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep, SweepRequest, SweepResult
-from ..settings import Settings
-from ..store import json_bytes
+from ..schemas.sweeps import SweepRequest, SweepResult
 from ..sweeps import check_result_size, design_columns, design_size, run_sweep
 from ..tables import CSV_MEDIA_TYPE, sweep_table, table_response
 from .jobs import ACCEPTED_RESPONSE, accepted
@@ -24,24 +20,6 @@ from .jobs import ACCEPTED_RESPONSE, accepted
 __all__ = ["router"]
 
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
-
-_REQUEST: TypeAdapter[GridSweep | SobolSweep | LatinHypercubeSweep] = TypeAdapter(SweepRequest)
-
-
-def _work(body: GridSweep | SobolSweep | LatinHypercubeSweep, settings: Settings, executor: Executor
-          ) -> Any:
-    def work(ctx: JobContext) -> dict:
-        plan = design_columns(body, settings.max_sweep_points)
-        return run_sweep(body, plan, progress=ctx.progress, executor=executor)
-
-    return work
-
-
-# The request is all a sweep needs: deterministic, it stores nothing but its result.
-register_kind("sweep", lambda inputs, runtime: _work(_REQUEST.validate_json(json_bytes(inputs)),
-                                                      runtime.settings, runtime.executor),
-              rule="deterministic; the request is stored and the result is written once, at the end")
-
 
 @router.post(
     "", operation_id="create_sweep", response_model=SweepResult, status_code=200,
@@ -76,4 +54,4 @@ async def create_sweep(
         return table_response(request, document, sweep_table(document))
 
     request = body.model_dump(mode="json")
-    return accepted(jobs.submit("sweep", request, _work(body, settings, executor), inputs=request))
+    return accepted(jobs.submit("sweep", request, sweep_work(body, settings, executor), inputs=request))

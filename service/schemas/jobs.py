@@ -35,6 +35,10 @@ class Job(ResponseModel):
     result_url: str | None = Field(
         default=None, description="Path of the result once succeeded (JSON, or CSV with Accept: text/csv).")
     error: Problem | None = Field(default=None, description="Why the job failed, as a problem.")
+    erased_at: DateTimeText | None = Field(
+        default=None, description="When its request, inputs and result were erased, because a calibration or "
+                                  "surrogate it made or used was deleted (ISO 8601, UTC); its result then "
+                                  "answers 410.")
 
 
 class SweepJobResult(SweepResult):

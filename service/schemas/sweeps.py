@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BeforeValidator, ConfigDict, Field, create_model
+from pydantic import BeforeValidator, ConfigDict, Discriminator, Field, Tag, create_model
 
 from microbearing import physics
 
@@ -23,8 +23,8 @@ from .base import (
     whole_number,
 )
 
-__all__ = ["GridAxis", "GridSweep", "LatinHypercubeSweep", "SobolSweep", "SweepRange", "SweepRequest",
-           "SweepResult"]
+__all__ = ["Axis", "AxisValues", "GridAxis", "GridSweep", "LatinHypercubeSweep", "SobolSweep", "SweepRange",
+           "SweepRequest", "SweepResult"]
 
 #: Inputs a sweep can vary: every numeric parameter (booleans are set in ``fixed``).
 SWEEPABLE = [name for name, spec in physics.PARAMETERS.items() if spec.kind != "bool"]
@@ -43,6 +43,30 @@ class GridAxis(StrictModel):
     spacing: Spacing = _SPACING
 
 
+class AxisValues(StrictModel):
+    """Given values of one input, in its own unit, in the order given; whole numbers for integer inputs."""
+
+    values: list[float] = Field(min_length=1, max_length=1_000_000, description=(
+        "The values [the unit of the input named by the axis's key, e.g. N for load_N]."))
+
+
+def _not_a_list(value: Any) -> Any:
+    if isinstance(value, list):
+        raise ValueError('an axis is {"start", "stop", "num"} (evenly spaced values) or {"values": [...]} '
+                         '(given values): write a list of values as {"values": [...]}')
+    return value
+
+
+def _axis_form(value: Any) -> str:
+    given = isinstance(value, AxisValues) or (isinstance(value, dict) and "values" in value)
+    return "axis-values" if given else "axis-grid"
+
+
+#: One axis of a grid: evenly spaced values, or given ones.
+Axis = Annotated[Annotated[GridAxis, Tag("axis-grid")] | Annotated[AxisValues, Tag("axis-values")],
+                 Discriminator(_axis_form), BeforeValidator(_not_a_list)]
+
+
 class SweepRange(StrictModel):
     """Interval of one input sampled by a design of experiments, in its own unit."""
 
@@ -59,7 +83,7 @@ def _per_input(kind: type, what: str) -> dict:
 
 
 GridAxes = create_model("GridAxes", __base__=StrictModel, __doc__="The varied inputs and their values.",
-                        **_per_input(GridAxis, "Values of"))
+                        **_per_input(Axis, "Values of"))
 SweepRanges = create_model("SweepRanges", __base__=StrictModel, __doc__="The varied inputs and their ranges.",
                            **_per_input(SweepRange, "Range of"))
 SweepFixed = create_model(
@@ -85,7 +109,9 @@ def _cross_field_rules(varied: str, ends: tuple[str, str]) -> dict[str, Any]:
     rules += [in_one_place((("fixed", name), None), ((varied, name), {"type": "object"}))
               for name in REQUIRED_INPUTS]
     bounds = {name: {"anyOf": [{"type": "null"}, {"type": "object", "properties": {
-        end: physics_value_schema(name) for end in ends}}]} for name in SWEEPABLE}
+        **{end: physics_value_schema(name) for end in ends},
+        **({"values": {"type": "array", "items": physics_value_schema(name)}} if varied == "axes" else {})}}]}
+        for name in SWEEPABLE}
     rules.append({"properties": {varied: {"properties": bounds}}})
     return {"allOf": rules}
 

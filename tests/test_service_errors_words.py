@@ -1,0 +1,60 @@
+"""Errors in the user's words (no pydantic tags, model names or union dumps); given axis values in sweeps."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from microbearing import physics
+from microbearing.service.app import create_app
+from microbearing.service.settings import Settings
+
+POINT = {"balls": 4, "load_N": 0.01}
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("words")))) as test_client:
+        yield test_client
+
+
+def only_error(response) -> dict:
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"] == "application/problem+json"
+    (error,) = response.json()["errors"]
+    for jargon in ("discriminator", "tag", "instance of", "GridAxis", "dictionary", "Value error"):
+        assert jargon not in error["detail"], error
+    return error
+
+
+@pytest.mark.parametrize("body, pointer, words", [
+    ({"axes": {"load_N": {"start": 0.001, "stop": 0.01, "num": 3}}}, "/design", "design is required"),
+    ({"design": "gird", "axes": {}}, "/design", "'gird' is not a known design; choose one of 'grid'"),
+    ({"design": "grid", "axes": {"speed_m_s": [0.01, 0.05]}}, "/axes/speed_m_s", '{"values": [...]}'),
+    ({"design": "grid", "axes": {"speed_m_s": 5}}, "/axes/speed_m_s", "an object with named fields"),
+    ({"design": "grid", "axes": {"speed_m_s": {"values": [0.01, -0.05]}}, "fixed": POINT},
+     "/axes/speed_m_s/values/1", "speed_m_s must be in [0, 1000] [m/s]; got -0.05"),
+    ({"design": "grid", "axes": {"balls": {"values": [3, 4.5]}}, "fixed": {"load_N": 0.01, "speed_m_s": 0.1}},
+     "/axes/balls/values/1", "whole number"),
+])
+def test_sweep_errors_name_the_field_in_plain_words(client, body, pointer, words):
+    error = only_error(client.post("/v1/sweeps", json=body))
+    assert error["pointer"] == pointer and words in error["detail"], error
+
+
+def test_a_grid_axis_takes_given_values_in_their_order(client):
+    body = {"design": "grid", "axes": {"speed_m_s": {"values": [0.1, 0.01, 0.05]},
+                                       "balls": {"start": 3, "stop": 4, "num": 2}},
+            "fixed": {"load_N": 0.01}, "outputs": ["mu"]}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no serializer warning for the second form of an axis
+        answer = client.post("/v1/sweeps", json=body)
+    assert answer.status_code == 200, answer.text
+    columns = answer.json()["columns"]
+    assert columns["speed_m_s"] == [0.1, 0.01, 0.05] * 2 and columns["balls"] == [3, 3, 3, 4, 4, 4]
+    expected = physics.evaluate(balls=np.array(columns["balls"]), load_N=0.01,
+                                speed_m_s=np.array(columns["speed_m_s"])).mu
+    np.testing.assert_array_equal(columns["mu"], expected)
