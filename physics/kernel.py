@@ -23,7 +23,7 @@ import numpy as np
 
 from . import balance, contact, elementary, lubrication, moments, surface
 
-__all__ = ["EQUATIONS", "MATERIAL_INPUTS", "POINT_INPUTS", "material", "point_outputs"]
+__all__ = ["EQUATIONS", "MATERIAL_FACTORS", "MATERIAL_INPUTS", "POINT_INPUTS", "material", "point_outputs"]
 
 #: The per-point inputs of :func:`point_outputs`, in order (names of :data:`physics.PARAMETERS`).
 POINT_INPUTS = ("groove_angle_deg", "load_N", "balls", "adhesion_energy_J_m2", "speed_m_s", "mu_pivot",
@@ -33,6 +33,10 @@ POINT_INPUTS = ("groove_angle_deg", "load_N", "balls", "adhesion_energy_J_m2", "
 MATERIAL_INPUTS = ("ball_diameter_m", "ball_youngs_modulus_Pa", "ball_poisson_ratio",
                    "race_youngs_modulus_Pa", "race_poisson_ratio", "viscosity_Pa_s",
                    "pressure_viscosity_1_Pa", "water_surface_tension_N_m")
+
+#: The factors :func:`material` returns, in order.
+MATERIAL_FACTORS = ("ball_diameter_m", "jkr_modulus_Pa", "log_rolling_force", "log_hysteresis_moment",
+                    "pressure_per_rolling_force", "capillary_force_N", "pair_share")
 
 #: The equation functions :func:`point_outputs` calls (what :mod:`physics.compiled` compiles with it).
 EQUATIONS = (contact.ball_race_load, contact.jkr_contact_load, contact.jkr_contact_radius,
