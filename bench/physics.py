@@ -9,12 +9,14 @@ stored), each on one thread per usable CPU (``ExecutionOptions(threads=..., exec
 what the service passes down by default) and on one thread (the library's default).
 Printed per case: min / median / max of the time over the repeats, of its ratio to the same
 repeat's ``numpy.power`` pass, and of the CPU time the process spent per wall-clock second
-("cores busy": near 2 when both cores work); then the speed-up from the extra threads (one-thread
-time over threaded time, per repeat), beside that of a perfectly parallel reference (the
-``numpy.power`` pass split in two halves on two threads) and of two processes against one
-running pure-Python arithmetic (no shared memory, no GIL: what the machine gives two independent
-workers): when these references are well below 2, the machine did not give the process a second
-core, and no code can use it.
+("cores busy": near 2 when both cores work), and of its process CPU time over that of the same
+repeat's ``numpy.power`` pass ("CPU ratio": the work, which preemption by other processes on a
+shared machine does not inflate; one thread's CPU ratio is its wall ratio on a quiet core); then
+the speed-up from the extra threads (one-thread time over threaded time, per repeat), beside that
+of a perfectly parallel reference (the ``numpy.power`` pass split in two halves on two threads)
+and of two processes against one running pure-Python arithmetic (no shared memory, no GIL: what
+the machine gives two independent workers): when these references are well below 2, the machine
+did not give the process a second core, and no code can use it.
 Targets of issue 35: μ alone <= 3x, all outputs <= 4x (both cores).
 
 One point: each repeat times a batch of ``physics.evaluate`` calls of one scalar point
@@ -115,9 +117,9 @@ def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
     inputs = random_design_points(points)
     base = inputs["load_N"]
     chosen = kernels(blocks)
-    cases = {(label, outputs, threads): {"wall": [], "cores": []} for label, _, _ in chosen
+    cases = {(label, outputs, threads): {"wall": [], "cores": [], "work": []} for label, _, _ in chosen
              for outputs in ("all 21 outputs", "mu only") for threads in ("", "1")}
-    power, power_split = [], []
+    power, power_split, power_cpus = [], [], []
     halves = np.array_split(base, 2)
     pool = ThreadPoolExecutor(2)
     physics_pool = ThreadPoolExecutor(USABLE_CPUS, thread_name_prefix="physics")
@@ -132,7 +134,9 @@ def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
         physics.bearing._BLOCK_POINTS = size
         physics.evaluate(execution=execution(kernel, ""), **inputs)
     for _ in range(repeats):
-        power.append(timed(lambda: np.power(base, 0.47))[0])
+        power_wall, power_cpu = timed(lambda: np.power(base, 0.47))
+        power.append(power_wall)
+        power_cpus.append(power_cpu)
         power_split.append(timed(lambda: list(pool.map(lambda half: np.power(half, 0.47), halves)))[0])
         for label, kernel, size in chosen:
             # the block size is a private constant of the kernel: set here to compare sizes in one run
@@ -145,6 +149,7 @@ def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
                         outputs=wanted, execution=options, **inputs))
                     cases[(label, outputs, threads)]["wall"].append(wall)
                     cases[(label, outputs, threads)]["cores"].append(cpu / wall)
+                    cases[(label, outputs, threads)]["work"].append(cpu / power_cpu)
     physics.bearing._BLOCK_POINTS = default_block
     print(f"large calls: {points:,} points (7 of 16 inputs varied per point), {repeats} repeats; "
           "min / median / max")
@@ -153,7 +158,7 @@ def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
         case = f"{label}, {outputs}, {'one thread' if threads else f'{USABLE_CPUS} threads'}"
         ratios = [t / p for t, p in zip(times["wall"], power, strict=True)]
         print(f"  {case:50s}{spread(times['wall'], 1e3):>22s} ms   ratio {spread(ratios):>18s}"
-              f"   cores busy {spread(times['cores'], digits=2)}")
+              f"   cores busy {spread(times['cores'], digits=2)}   CPU ratio {spread(times['work'])}")
     reference = [one / split for one, split in zip(power, power_split, strict=True)]
     print(f"  speed-up of numpy.power split over two threads (reference)     {spread(reference, digits=2)}")
     print(f"  two processes of pure-Python arithmetic over one (reference)   {spread(processes, digits=2)}")

@@ -9,10 +9,12 @@ Pure, vectorized functions, one per equation, grouped by sub-domain:
 * :mod:`physics.balance` - the ball's balance and μ (eqs 18-23), and the traction of a shear
   stress over the contact (eq 14)
 * :mod:`physics.kernel` - every output at a point, composed of the functions above: the one kernel
+  (its elementary functions: :mod:`physics.elementary`)
 * :mod:`physics.bearing` - :func:`evaluate` (arrays, block by block, threads of an executor the
   caller passes in) and :func:`evaluate_point` (one point as Python floats)
 * :mod:`physics.execution` - :class:`ExecutionOptions`: the kernel (numpy or numba) and the threads
-* :mod:`physics.compiled` - the kernel compiled by numba (optional extra ``fast``)
+* :mod:`physics.fused` and :mod:`physics.compiled` - the kernel traced into stages and compiled by
+  numba (optional extra ``fast``)
 
 :data:`PARAMETERS` declares every input once (name, unit, default, range);
 :data:`OUTPUTS` every output. Everything is SI except the groove angle in degrees.

@@ -1,12 +1,12 @@
-"""The elementary functions of the equations, one spelling for a point, an array and numba.
+"""The elementary functions of the equations, one spelling for a point and an array.
 
 The equation functions (:mod:`physics.contact`, :mod:`physics.kernel`, ...) call these instead of
 numpy's ufuncs, so that the same function text runs on Python floats (one point, without numpy's
-per-call overhead and without turning the point's arithmetic into ``numpy.float64`` arithmetic), on
-arrays (numpy's ufuncs) and compiled by numba (:mod:`physics.compiled` registers numba's own
-implementations of these names). On a Python float each returns a Python float with the bits of
-numpy's ufunc on that value (sqrt by :func:`math.sqrt`: both are correctly rounded, IEEE 754), so a
-point computes exactly what it computes inside an array.
+per-call overhead and without turning the point's arithmetic into ``numpy.float64`` arithmetic) and
+on anything else through numpy's ufuncs: arrays, and the traced values from which
+:mod:`physics.fused` generates the numba kernel. On a Python float each returns a Python float with
+the bits of numpy's ufunc on that value (sqrt by :func:`math.sqrt`: both are correctly rounded,
+IEEE 754), so a point computes exactly what it computes inside an array.
 """
 
 from __future__ import annotations

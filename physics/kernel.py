@@ -4,8 +4,8 @@
 :mod:`physics.surface`, :mod:`physics.moments` and :mod:`physics.balance`, one per equation, and
 :func:`material` takes the factors that depend on the ball, the materials and the film only from
 the same modules. The same function text runs on Python floats (one point), on numpy arrays (a
-block of points, :mod:`physics.bearing`) and compiled by numba (:mod:`physics.compiled`, which
-compiles :data:`EQUATIONS` and this module's functions), so no equation is written twice. The
+block of points, :mod:`physics.bearing`) and on traced values, from which :mod:`physics.fused`
+generates the numba kernel (:mod:`physics.compiled`), so no equation is written twice. The
 elementary functions come from :mod:`physics.elementary`, whose float path has the bits of numpy's
 ufuncs: a point computes exactly what it computes inside an array.
 
@@ -23,7 +23,7 @@ import numpy as np
 
 from . import balance, contact, elementary, lubrication, moments, surface
 
-__all__ = ["EQUATIONS", "MATERIAL_FACTORS", "MATERIAL_INPUTS", "POINT_INPUTS", "material", "point_outputs"]
+__all__ = ["MATERIAL_FACTORS", "MATERIAL_INPUTS", "POINT_INPUTS", "material", "point_outputs"]
 
 #: The per-point inputs of :func:`point_outputs`, in order (names of :data:`physics.PARAMETERS`).
 POINT_INPUTS = ("groove_angle_deg", "load_N", "balls", "adhesion_energy_J_m2", "speed_m_s", "mu_pivot",
@@ -37,13 +37,6 @@ MATERIAL_INPUTS = ("ball_diameter_m", "ball_youngs_modulus_Pa", "ball_poisson_ra
 #: The factors :func:`material` returns, in order.
 MATERIAL_FACTORS = ("ball_diameter_m", "jkr_modulus_Pa", "log_rolling_force", "log_hysteresis_moment",
                     "pressure_per_rolling_force", "capillary_force_N", "pair_share")
-
-#: The equation functions :func:`point_outputs` calls (what :mod:`physics.compiled` compiles with it).
-EQUATIONS = (contact.ball_race_load, contact.jkr_contact_load, contact.jkr_contact_radius,
-             contact.contact_area, contact.max_contact_pressure, surface.adhesion_force_ball_flat,
-             moments.pivoting_moment, moments.ball_ball_moment, balance.sliding_force,
-             balance.sliding_force_terms, balance.ball_race_force, balance.total_friction_force,
-             balance.friction_coefficient)
 
 _RADIANS_PER_DEGREE = math.pi / 180.0
 

@@ -98,3 +98,16 @@ def test_numba_and_numpy_agree_anywhere_in_the_declared_ranges():
             np.testing.assert_allclose(fast[name], reference[name], rtol=1e-10, atol=0, err_msg=name)
 
     agree()
+
+
+def test_the_fused_stages_are_generated_from_the_equation_functions(monkeypatch):
+    # Eq 16 is written once, in physics.moments: a different coefficient there reaches the numpy
+    # kernel, the single point and the stages the numba kernel compiles alike.
+    from microbearing.physics import fused, moments
+
+    assert "0.4375" not in fused.plan(True).source and "0.375" in fused.plan(True).source
+    point = {"balls": 4, "load_N": 8.8e-3, "speed_m_s": 0.05}
+    before = evaluate(**point).pivoting_moment_Nm
+    monkeypatch.setattr(moments, "pivoting_moment", lambda mu, load, radius: 0.4375 * mu * load * radius)
+    assert "0.4375" in fused.plan(True).source and "0.375" not in fused.plan(True).source
+    assert evaluate(**point).pivoting_moment_Nm == pytest.approx(before * 0.4375 / 0.375, rel=1e-15)
