@@ -113,9 +113,10 @@ def sliding_force_terms(ball_ball_moment_Nm, pivoting_moment_Nm, hysteresis_mome
     >>> [float(t) for t in sliding_force_terms(1.0, 1.0, 1.0, 0.5, 2.0, 0.5, 2.0)]
     [1.0, 2.0, 1.0, 0.5]
     """
-    ball_ball = ball_ball_moment_Nm / cos_contact_angle / ball_diameter_m
-    pivoting = 2.0 * pivoting_moment_Nm * tan_contact_angle / ball_diameter_m
-    hysteresis = 2.0 * hysteresis_moment_Nm / ball_diameter_m
+    # 2 / d first: a scalar in most calls, computed once rather than once a point
+    ball_ball = ball_ball_moment_Nm / (cos_contact_angle * ball_diameter_m)
+    pivoting = 2.0 / ball_diameter_m * pivoting_moment_Nm * tan_contact_angle
+    hysteresis = 2.0 / ball_diameter_m * hysteresis_moment_Nm
     return ball_ball, pivoting, hysteresis, rolling_force_N
 
 

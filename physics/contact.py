@@ -165,8 +165,8 @@ def jkr_contact_load(load_N, radius_m, adhesion_energy_J_m2):
     >>> round(float(jkr_contact_load(1e-3, 1e-4, 0.0)), 9)
     0.001
     """
-    c = 6.0 * np.pi * adhesion_energy_J_m2 * radius_m
-    return load_N + c + elementary.sqrt(2.0 * c * load_N + c * c)
+    c = 6.0 * np.pi * radius_m * adhesion_energy_J_m2  # the ball's factors first: one array pass
+    return load_N + c + elementary.sqrt(c * (2.0 * load_N + c))
 
 
 def jkr_contact_radius(contact_load_N, radius_m, effective_modulus_Pa):
@@ -199,7 +199,7 @@ def jkr_contact_radius(contact_load_N, radius_m, effective_modulus_Pa):
     >>> round(float(jkr_contact_radius(1.0, 1.0, 1e9)) * 1e3, 6)
     1.0
     """
-    return elementary.cbrt(radius_m * contact_load_N / effective_modulus_Pa)
+    return elementary.cbrt(radius_m / effective_modulus_Pa * contact_load_N)
 
 
 def contact_area(contact_radius_m):
