@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import elementary
+
 __all__ = [
     "jkr_effective_modulus",
     "reduced_modulus",
@@ -163,8 +165,8 @@ def jkr_contact_load(load_N, radius_m, adhesion_energy_J_m2):
     >>> round(float(jkr_contact_load(1e-3, 1e-4, 0.0)), 9)
     0.001
     """
-    c = 6.0 * np.pi * adhesion_energy_J_m2 * radius_m
-    return load_N + c + np.sqrt(2.0 * c * load_N + c * c)
+    c = 6.0 * np.pi * radius_m * adhesion_energy_J_m2  # the ball's factors first: one array pass
+    return load_N + c + elementary.sqrt(c * (2.0 * load_N + c))
 
 
 def jkr_contact_radius(contact_load_N, radius_m, effective_modulus_Pa):
@@ -197,7 +199,7 @@ def jkr_contact_radius(contact_load_N, radius_m, effective_modulus_Pa):
     >>> round(float(jkr_contact_radius(1.0, 1.0, 1e9)) * 1e3, 6)
     1.0
     """
-    return np.cbrt(radius_m * contact_load_N / effective_modulus_Pa)
+    return elementary.cbrt(radius_m / effective_modulus_Pa * contact_load_N)
 
 
 def contact_area(contact_radius_m):
@@ -226,7 +228,7 @@ def contact_area(contact_radius_m):
     >>> round(float(contact_area(1.0)), 4)
     3.1416
     """
-    return np.pi * np.square(contact_radius_m)
+    return np.pi * (contact_radius_m * contact_radius_m)
 
 
 def max_contact_pressure(contact_load_N, contact_radius_m):
@@ -258,4 +260,4 @@ def max_contact_pressure(contact_load_N, contact_radius_m):
     >>> round(float(max_contact_pressure(2 * np.pi, 1.0)), 6)
     3.0
     """
-    return 1.5 * contact_load_N / (np.pi * np.square(contact_radius_m))
+    return 1.5 * contact_load_N / (np.pi * (contact_radius_m * contact_radius_m))

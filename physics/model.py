@@ -37,6 +37,7 @@ import numpy as np
 from scipy.differentiate import derivative
 
 from . import bearing, parameters
+from .execution import ExecutionOptions
 from .parameters import DEFAULT_CONVENTION, PARAMETERS
 
 __all__ = ["Evaluation", "InputError", "Model", "ModelError", "ModelInput", "PhysicsModel",
@@ -65,7 +66,8 @@ class ModelError(ValueError):
 
 
 def evaluate_finite(inputs: Mapping[str, Any], outputs: Sequence[str] | None, convention: str,
-                    pointer: str = "", first_index: int = 0) -> dict[str, np.ndarray]:
+                    pointer: str = "", first_index: int = 0, *,
+                    execution: ExecutionOptions | None = None) -> dict[str, np.ndarray]:
     """Run :func:`physics.evaluate` and insist on finite outputs.
 
     Parameters
@@ -81,6 +83,8 @@ def evaluate_finite(inputs: Mapping[str, Any], outputs: Sequence[str] | None, co
         JSON pointer of the inputs in a request body, for the errors.
     first_index : int, default 0
         Index of the first point in the whole request [1], for the errors.
+    execution : ExecutionOptions, optional
+        The kernel and threads of :func:`physics.evaluate`; by default numpy's in the caller's thread.
 
     Returns
     -------
@@ -97,7 +101,8 @@ def evaluate_finite(inputs: Mapping[str, Any], outputs: Sequence[str] | None, co
     try:
         # Extreme but allowed inputs (a groove angle next to 90 deg) overflow: refused below.
         with np.errstate(all="ignore"):
-            result = bearing.evaluate(convention=str(convention), outputs=outputs, **inputs).to_dict(outputs)
+            result = bearing.evaluate(convention=str(convention), outputs=outputs, execution=execution,
+                                      **inputs).to_dict(outputs)
     except ModelError:
         raise
     except ValueError as exc:
@@ -348,14 +353,15 @@ class Model:
 
 
 class PhysicsModel(Model):
-    """The declared friction model, :func:`physics.evaluate`, in one convention."""
+    """The declared friction model, :func:`physics.evaluate`, in one convention and execution."""
 
     kind = "physics"
     outputs = tuple(bearing.OUTPUTS)
 
-    def __init__(self, convention: str = DEFAULT_CONVENTION):
+    def __init__(self, convention: str = DEFAULT_CONVENTION, execution: ExecutionOptions | None = None):
         self.reference = "physics"
         self.convention = str(convention)
+        self.execution = execution
         self.fixed, self.fitted, self.required_columns = {}, {}, []
         self.inputs = physics_inputs({})
 
@@ -363,7 +369,8 @@ class PhysicsModel(Model):
                  first_index: int = 0) -> Evaluation:
         # physics.evaluate checks its inputs itself; only a refusal is checked again, to name the point.
         try:
-            values = evaluate_finite(dict(points), list(outputs), self.convention, pointer, first_index)
+            values = evaluate_finite(dict(points), list(outputs), self.convention, pointer, first_index,
+                                     execution=self.execution)
         except ModelError:
             self.check(points)
             raise
@@ -371,11 +378,13 @@ class PhysicsModel(Model):
                                            dtype=bool))
 
     def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
-        return bearing.evaluate(convention=self.convention, outputs=["mu"], **points).mu
+        return bearing.evaluate(convention=self.convention, outputs=["mu"], execution=self.execution,
+                                **points).mu
 
 
 @functools.cache
-def physics_in(convention: str = DEFAULT_CONVENTION) -> PhysicsModel:
+def physics_in(convention: str = DEFAULT_CONVENTION,
+               execution: ExecutionOptions | None = None) -> PhysicsModel:
     """The physics in one convention (one instance each: it holds no state).
 
     What a reference ``"physics"`` resolves to; batches, sweeps and the optimizer, which evaluate
@@ -385,12 +394,15 @@ def physics_in(convention: str = DEFAULT_CONVENTION) -> PhysicsModel:
     ----------
     convention : str
         Key of :data:`physics.CONVENTIONS`.
+    execution : ExecutionOptions, optional
+        The kernel and threads of its evaluations (the service's settings); by default numpy's in
+        the caller's thread.
 
     Returns
     -------
     PhysicsModel
     """
-    return PhysicsModel(str(convention))
+    return PhysicsModel(str(convention), execution)
 
 
 def _steps(spec: ModelInput, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

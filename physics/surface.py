@@ -49,7 +49,7 @@ def adhesion_force_ball_flat(radius_m, adhesion_energy_J_m2):
     >>> round(float(adhesion_force_ball_flat(142.5e-6, 0.18)) * 1e6, 1)
     241.7
     """
-    return 3.0 * np.pi * adhesion_energy_J_m2 * radius_m
+    return 3.0 * np.pi * radius_m * adhesion_energy_J_m2  # the ball's factors first: one array pass
 
 
 def adhesion_force_two_balls(radius1_m, radius2_m, adhesion_energy_J_m2):

@@ -24,7 +24,7 @@ from starlette.responses import Response
 from starlette.routing import Match, Route
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from . import connections, observability, problems, security, umbridge
+from . import connections, models, observability, problems, security, umbridge
 from .deps import DataFolderError, close_runtime, get_runtime
 from .job_kinds import register_job_kinds
 from .jsonguard import JsonGuardMiddleware
@@ -232,6 +232,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app = FastAPIOffline(title="microbearing", version=package_version(), description=DESCRIPTION,
                          lifespan=_lifespan, static_url=security.DOCS_ASSETS_PATH)
     app.state.settings = settings
+    models.configure_physics(settings.physics_kernel, settings.physics_threads)
     app.state.runtime = None
     problems.install(app)
     # Outermost last: request ids, logs and metrics see every answer; API keys are checked

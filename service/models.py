@@ -19,8 +19,11 @@ turns it into the 422 problem the API answers.
 
 from __future__ import annotations
 
+import os
 import re
-from collections.abc import Iterator, Sequence
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from contextlib import contextmanager
 
 from microbearing import physics, surrogate
@@ -34,8 +37,8 @@ from microbearing.physics.model import (
     ModelInput,
     PhysicsModel,
     jacobian,
-    physics_in,
 )
+from microbearing.physics.model import physics_in as physics_with_execution
 from microbearing.surrogate.model_view import SurrogateModel
 
 from .problems import ProblemError, validation_problem
@@ -43,13 +46,60 @@ from .store import Store
 
 __all__ = ["KINDS", "CalibratedPhysicsModel", "Evaluation", "InputError", "Model", "ModelError",
            "ModelInput", "PhysicsModel", "SurrogateModel", "jacobian", "list_references", "physics_in",
-           "problems", "resolve"]
+           "configure_physics", "problems", "resolve"]
 
 #: Kinds of model, as the references name them: ``physics``, ``calibrated:<id>``, ``surrogate:<id>``.
 KINDS = ("physics", "calibrated", "surrogate")
 #: Store kind of each stored model kind (what :meth:`Store.save_model` was given).
 _STORE_KINDS = {"calibrated": "calibration", "surrogate": "surrogate"}
 _REFERENCE = re.compile(r"^(calibrated|surrogate):([0-9a-f]{32})$")
+
+
+class _PhysicsThreads(Executor):
+    """The server's threads for large physics calls: a pool made on first use in each process.
+
+    Made lazily so that a forked child (which has none of its parent's threads) makes its own.
+    """
+
+    def __init__(self, threads: int):
+        self.threads = threads
+        self._lock = threading.Lock()
+        self._pool: ThreadPoolExecutor | None = None
+        self._pid = 0
+
+    def submit(self, fn: Callable, /, *args, **kwargs) -> Future:
+        with self._lock:
+            if self._pid != os.getpid():
+                self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="physics")
+                self._pid = os.getpid()
+        return self._pool.submit(fn, *args, **kwargs)
+
+
+#: The kernel and threads of this process's physics evaluations (batches and sweeps):
+#: :func:`configure_physics` sets them from the server's settings.
+_physics_execution = physics.ExecutionOptions()
+
+
+def configure_physics(kernel: str, threads: int) -> None:
+    """Evaluate the physics of batches and sweeps with ``kernel``, large calls on ``threads`` threads.
+
+    Parameters
+    ----------
+    kernel : {"numpy", "numba"}
+        ``MICROBEARING_PHYSICS_KERNEL``.
+    threads : int
+        ``MICROBEARING_PHYSICS_THREADS``: threads sharing one large call; 0: one per usable CPU. [1]
+    """
+    global _physics_execution
+    if not threads:
+        threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    executor = _PhysicsThreads(threads) if threads > 1 else None
+    _physics_execution = physics.ExecutionOptions(kernel, threads, executor)
+
+
+def physics_in(convention: str = physics.DEFAULT_CONVENTION) -> PhysicsModel:
+    """The physics in one convention, evaluated as :func:`configure_physics` set (the server's settings)."""
+    return physics_with_execution(convention, _physics_execution)
 
 
 @contextmanager

@@ -8,10 +8,13 @@ The README's settings table lists them; :func:`settings_table` builds it from th
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 import platformdirs
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from microbearing import physics
 
 __all__ = ["ENV_PREFIX", "Settings", "default_data_dir", "settings_table"]
 
@@ -210,6 +213,26 @@ class Settings(BaseSettings):
         description="Threads running sweep and batch chunks and optimization groups (local pool or "
                     "embedded cluster); 0: one per CPU.",
     )
+    physics_kernel: Literal["numpy", "numba"] = Field(
+        default="numpy",
+        description="Kernel of the physics evaluations of batches and sweeps: numpy, or numba (pip "
+                    "install 'microbearing[fast]'), the same equation functions compiled (equal to numpy's "
+                    "to 1e-12).",
+    )
+    physics_threads: int = Field(
+        default=0, ge=0, le=256,
+        description="Threads sharing one physics evaluation of 131,072 points or more [1] (batches and "
+                    "sweeps run 65,536-point chunks on the MICROBEARING_EXECUTOR_WORKERS threads); 0: one "
+                    "per usable CPU.",
+    )
+
+    @field_validator("physics_kernel")
+    @classmethod
+    def _kernel_installed(cls, value: str) -> str:
+        if value == "numba" and not physics.compiled.AVAILABLE:
+            raise ValueError("MICROBEARING_PHYSICS_KERNEL=numba needs numba: "
+                             "pip install 'microbearing[fast]'")
+        return value
 
     @field_validator("database_url")
     @classmethod

@@ -274,35 +274,44 @@ def test_results_do_not_depend_on_how_the_points_are_batched():
     assert float(single.mu) == whole["mu"][3]
 
 
-@pytest.mark.parametrize("threads", ["2", "3"])
-def test_threaded_calls_reproduce_a_single_thread_bit_for_bit(monkeypatch, threads):
+@pytest.mark.parametrize("threads", [2, 3])
+def test_threaded_calls_reproduce_a_single_thread_bit_for_bit(threads):
     # Large calls split their blocks into contiguous runs, one per thread; every point still runs the
     # same operations, so the result cannot depend on the thread count. 9 blocks and a short tenth: the
     # runs are uneven for 3 threads, and outputs not asked for use each thread's own scratch rows.
-    from microbearing.physics import bearing
+    from concurrent.futures import ThreadPoolExecutor
+
+    from microbearing.physics import ExecutionOptions, bearing
 
     params = _random_inputs(9 * bearing._BLOCK_POINTS + 77, seed=11)
     wanted = ["mu", "contact_radius_m", "friction_force_N"]
-    monkeypatch.setenv(bearing.THREADS_VARIABLE, "1")
     serial_all, serial_some = evaluate(**params).to_dict(), evaluate(outputs=wanted, **params)
-    monkeypatch.setenv(bearing.THREADS_VARIABLE, threads)
-    threaded_all, threaded_some = evaluate(**params).to_dict(), evaluate(outputs=wanted, **params)
+    with ThreadPoolExecutor(threads) as pool:
+        execution = ExecutionOptions(threads=threads, executor=pool)
+        threaded_all = evaluate(execution=execution, **params).to_dict()
+        threaded_some = evaluate(outputs=wanted, execution=execution, **params)
+        # and a zero speed (log 0 = -inf inside the kernel) stays silent in the worker threads too
+        zero = evaluate(execution=execution, **{**params, "speed_m_s": 0.0})
     for name in OUTPUTS:
         np.testing.assert_array_equal(threaded_all[name], serial_all[name], err_msg=name)
     for name in wanted:
         np.testing.assert_array_equal(getattr(threaded_some, name), getattr(serial_some, name), err_msg=name)
-    # and a zero speed (log 0 = -inf inside the kernel) stays silent in the worker threads too
-    zero = evaluate(**{**params, "speed_m_s": 0.0})
     assert np.all(zero.rolling_force_N == 0) and np.all(np.isfinite(zero.mu))
 
 
-@pytest.mark.parametrize("value", ["two", "1.5"])
-def test_a_bad_thread_count_in_the_environment_is_named(monkeypatch, value):
-    from microbearing.physics import bearing
+@pytest.mark.parametrize("value", ["two", 1.5, 0])
+def test_a_bad_thread_count_is_named(value):
+    from microbearing.physics import ExecutionOptions
 
-    monkeypatch.setenv(bearing.THREADS_VARIABLE, value)
-    with pytest.raises(ValueError, match=bearing.THREADS_VARIABLE):
-        evaluate(**_random_inputs(9 * bearing._BLOCK_POINTS, seed=1))
+    with pytest.raises(ValueError, match="threads must be a whole number >= 1"):
+        ExecutionOptions(threads=value)
+
+
+def test_threads_need_an_executor_as_physics_starts_none():
+    from microbearing.physics import ExecutionOptions
+
+    with pytest.raises(ValueError, match="threads=2 needs an executor"):
+        ExecutionOptions(threads=2)
 
 
 def test_large_inputs_match_a_hand_composition_of_the_equation_functions():
