@@ -365,9 +365,8 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
     fit_parameters = list(report.get("fit_parameters", model.fitted))
     for label, terms in rival_terms(report, dataset, [t for t, _ in model.terms])[:max_rivals]:
         result = fit(dataset, fit_parameters, terms, start=model.fitted, convention=model.convention)
-        rivals.append((label, CalibratedModel.from_fit(
-            result.declared, dataset.fixed, terms, result.term_values, model.convention, result.covariance,
-            float(model.noise_std_log), dataset.columns(), list(dataset.conditions))))
+        rivals.append((label, CalibratedModel.from_fit(result, dataset, model.convention,
+                                                       float(model.noise_std_log))))
     return rivals
 
 

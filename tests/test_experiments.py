@@ -160,7 +160,8 @@ def test_frozen_base_sensitivity_of_a_parameter_fitted_at_its_upper_bound():
     # A recalibration of the bench crashed here: adhesion fitted at its bound 10 J/m^2, bumped up, left
     # its range. The bump now goes down there; the sensitivity matches a one-sided difference made here.
     from microbearing.calibrate.fit import FitResult
-    from microbearing.calibrate.select import ModelCV, _frozen_base
+    from microbearing.calibrate.search import frozen_base
+    from microbearing.calibrate.select import ModelCV
 
     rows = [{"balls": 4.0, "load_N": load, "speed_m_s": 0.05, "mu_measured": 0.02}
             for load in (0.003, 0.01, 0.03)]
@@ -169,7 +170,7 @@ def test_frozen_base_sensitivity_of_a_parameter_fitted_at_its_upper_bound():
     full = FitResult({"adhesion_energy_J_m2": top}, (), [], ["adhesion_energy_J_m2"], np.array([top]),
                      np.eye(1), 0.02, np.zeros(3), ["adhesion_energy_J_m2"], True)
     current = ModelCV((), [], [], [], np.full(3, 0.02), full)
-    base = _frozen_base(dataset, ["adhesion_energy_J_m2"], current, [], physics.DEFAULT_CONVENTION)
+    base = frozen_base(dataset, ["adhesion_energy_J_m2"], current, [], physics.DEFAULT_CONVENTION)
 
     def mu(gamma):
         return physics.evaluate(balls=4, load_N=np.array([0.003, 0.01, 0.03]), speed_m_s=0.05,
