@@ -1,16 +1,12 @@
-"""The words of a calibration report (:mod:`calibrate.report`): its plain text, and the sentences about
-rivals, code-like columns, drivers the data cannot tell apart and the domain rule, each written from the
-stages' results.
+"""Sentences of a calibration report (:func:`calibrate.report.format_report`) about rivals, code-like
+columns, drivers the data cannot tell apart and the domain rule, each written from the stages' results.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
-
-from microbearing import physics
 
 from .data import Dataset
 from .domain import DataCloud
@@ -19,80 +15,7 @@ from .rivals import describe_rival, where_they_part
 from .scores import within_one_se
 from .select import Selection
 
-if TYPE_CHECKING:
-    from .report import CalibrationReport
-
-__all__ = ["code_columns", "domain_words", "report_text", "rival_drivers", "rival_words"]
-
-
-def report_text(report: CalibrationReport) -> str:
-    """The report in a few lines of plain text, for the command line (:meth:`CalibrationReport.text`)."""
-
-    def errors(e: Mapping[str, float]) -> str:
-        return (
-            f"rmse {e['rmse']:.4g}, relative rmse (log mu) {e['relative_rmse']:.4g}, "
-            f"max abs {e['max_abs_error']:.4g}"
-        )
-
-    def estimates(values: Mapping[str, Mapping[str, float]], units: Mapping[str, str]) -> list[str]:
-        return [f"  {n} = {v['value']:.6g} +/- {v['std']:.2g} [{units[n]}]" for n, v in values.items()]
-
-    physics_units = {n: p.unit for n, p in physics.PARAMETERS.items()}
-    lines = [
-        f"{report.n_points} measurements, {report.folds}-fold cross-validation",
-        f"declared model, default parameters (in-sample): {errors(report.error_default)}",
-    ]
-    if report.fitted_declared:
-        lines.append("fitted declared parameters (before):")
-        lines += estimates(report.fitted_declared, physics_units)
-    lines.append(f"before (held out): {errors(report.error_before)}")
-    if not report.effects:
-        lines.append("missing effect: none")
-    for k, effect in enumerate(report.effects):
-        step = report.steps[k]
-        lines.append(
-            f"{'missing effect' if k == 0 else 'then'}: {effect['name']} ({effect['title']}) driven "
-            f"by {', '.join(effect['drivers'])}; after this step (CV, search rows): "
-            f"relative rmse {step['errors']['relative_rmse']:.4g}"
-        )
-        lines.append(f"  {effect['formula']}")
-        lines += estimates(
-            {
-                n: {"value": effect["parameters"][n], "std": effect["parameter_std"][n]}
-                for n in effect["parameters"]
-            },
-            effect["parameter_units"],
-        )
-    if report.effects and report.fitted_parameters:
-        lines.append("declared parameters of the calibrated model (sandwich std):")
-        lines += estimates(report.fitted_parameters, physics_units)
-    lines.append(
-        f"after (held out, nested CV: the selection redone within each fold): {errors(report.error_after)}"
-    )
-    if report.effects:
-        lines.append(
-            f"after on the folds that chose the terms (optimistic): {errors(report.error_after_selection)}"
-        )
-    robust = report.robust_errors
-    lines.append(
-        f"without the {robust['excluded_rows']} outlier row(s): before relative rmse "
-        f"{robust['before']['relative_rmse']:.4g}, after {robust['after']['relative_rmse']:.4g}"
-    )
-    lines.append(f"outliers: {report.outliers['summary']}")
-    if report.noise is not None:
-        lines.append(f"noise: {report.noise['statement']}")
-    lines.append(f"stability: {report.effect_stability['summary']}")
-    lines.append(f"GP discrepancy baseline (held out): {errors(report.discrepancy_gp['errors'])}")
-    lines += [f"undecided: {u['statement']}" for u in report.undecided]
-    lines += [f"groups: {g['summary']}" for g in report.groups]
-    if report.scatter:
-        lines.append(f"scatter: {report.scatter['summary']}")
-    lines += [f"confounding: {c}" for c in report.confounding]
-    if report.domain:
-        lines.append(f"domain: {report.domain['summary']}")
-    lines += [f"warning: {w}" for w in report.warnings]
-    lines.append(f"decision: {report.decision}")
-    return "\n".join(lines)
+__all__ = ["code_columns", "domain_words", "rival_drivers", "rival_words"]
 
 
 def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:

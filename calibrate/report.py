@@ -17,6 +17,10 @@ One data set flows one way, each step a function of the previous step's result:
 
 and, beside them, a Gaussian-process discrepancy baseline (:mod:`calibrate.discrepancy`).
 
+In code these are four stage functions, each returning a frozen dataclass of :mod:`calibrate.stages`
+(:func:`data_stage`, :func:`candidates_stage`, :func:`selection_stage`, :func:`uncertainty_stage`);
+:func:`format_report` writes the report, numbers and words, from their results.
+
 ``error_before`` and ``error_after`` are plain errors of μ on held-out rows of the same k folds,
 defined as before this pipeline; ``robust_errors`` gives them again without the outlier rows. The
 chosen terms' own CV error on the folds that chose them (``error_after_selection``) is optimistic:
@@ -42,7 +46,7 @@ from .groups import describe_groups, fit_group_effect, why_not_fitted
 from .model import CalibratedModel, RivalModel
 from .plausibility import check_plausible
 from .plots import calibration_plots
-from .prose import code_columns, domain_words, report_text, rival_drivers, rival_words
+from .prose import code_columns, domain_words, rival_drivers, rival_words
 from .rivals import fit_rivals, rival_json
 from .scatter import ScatterModel, fit_scatter
 from .select import MAX_TERMS, REPORTED_CANDIDATES, cross_validate, forward_select, nested_cross_validate
@@ -232,9 +236,73 @@ class CalibrationReport:
         }
 
     def text(self) -> str:
-        """The report in a few lines of plain text, for the command line
-        (:func:`calibrate.prose.report_text`)."""
-        return report_text(self)
+        """The report in a few lines of plain text, for the command line."""
+
+        def errors(e: Mapping[str, float]) -> str:
+            return (
+                f"rmse {e['rmse']:.4g}, relative rmse (log mu) {e['relative_rmse']:.4g}, "
+                f"max abs {e['max_abs_error']:.4g}"
+            )
+
+        def estimates(values: Mapping[str, Mapping[str, float]], units: Mapping[str, str]) -> list[str]:
+            return [f"  {n} = {v['value']:.6g} +/- {v['std']:.2g} [{units[n]}]" for n, v in values.items()]
+
+        physics_units = {n: p.unit for n, p in physics.PARAMETERS.items()}
+        lines = [
+            f"{self.n_points} measurements, {self.folds}-fold cross-validation",
+            f"declared model, default parameters (in-sample): {errors(self.error_default)}",
+        ]
+        if self.fitted_declared:
+            lines.append("fitted declared parameters (before):")
+            lines += estimates(self.fitted_declared, physics_units)
+        lines.append(f"before (held out): {errors(self.error_before)}")
+        if not self.effects:
+            lines.append("missing effect: none")
+        for k, effect in enumerate(self.effects):
+            step = self.steps[k]
+            lines.append(
+                f"{'missing effect' if k == 0 else 'then'}: {effect['name']} ({effect['title']}) driven "
+                f"by {', '.join(effect['drivers'])}; after this step (CV, search rows): "
+                f"relative rmse {step['errors']['relative_rmse']:.4g}"
+            )
+            lines.append(f"  {effect['formula']}")
+            lines += estimates(
+                {
+                    n: {"value": effect["parameters"][n], "std": effect["parameter_std"][n]}
+                    for n in effect["parameters"]
+                },
+                effect["parameter_units"],
+            )
+        if self.effects and self.fitted_parameters:
+            lines.append("declared parameters of the calibrated model (sandwich std):")
+            lines += estimates(self.fitted_parameters, physics_units)
+        lines.append(
+            f"after (held out, nested CV: the selection redone within each fold): {errors(self.error_after)}"
+        )
+        if self.effects:
+            lines.append(
+                f"after on the folds that chose the terms (optimistic): {errors(self.error_after_selection)}"
+            )
+        robust = self.robust_errors
+        lines.append(
+            f"without the {robust['excluded_rows']} outlier row(s): before relative rmse "
+            f"{robust['before']['relative_rmse']:.4g}, after {robust['after']['relative_rmse']:.4g}"
+        )
+        lines.append(f"outliers: {self.outliers['summary']}")
+        if self.noise is not None:
+            lines.append(f"noise: {self.noise['statement']}")
+        lines.append(f"stability: {self.effect_stability['summary']}")
+        lines.append(f"GP discrepancy baseline (held out): {errors(self.discrepancy_gp['errors'])}")
+        lines += [f"undecided: {u['statement']}" for u in self.undecided]
+        lines += [f"groups: {g['summary']}" for g in self.groups]
+        if self.scatter:
+            lines.append(f"scatter: {self.scatter['summary']}")
+        lines += [f"confounding: {c}" for c in self.confounding]
+        if self.domain:
+            lines.append(f"domain: {self.domain['summary']}")
+        lines += [f"warning: {w}" for w in self.warnings]
+        lines.append(f"decision: {self.decision}")
+        return "\n".join(lines)
 
 
 def _as_dataset(data, fixed) -> Dataset:
