@@ -44,7 +44,7 @@ from microbearing import physics  # noqa: E402
 from microbearing.calibrate import calibrate, parse_csv, parse_rows  # noqa: E402
 from microbearing.calibrate.fit import fit  # noqa: E402
 from microbearing.calibrate.report import PROGRESS_STAGES  # noqa: E402
-from microbearing.calibrate.select import FAMILY_ALPHA, forward_select  # noqa: E402
+from microbearing.calibrate.select import FAMILY_ALPHA, SearchOptions, forward_select  # noqa: E402
 
 FIT = ["mu_pivot", "adhesion_energy_J_m2"]
 TRUE = {"mu_pivot": 0.7, "adhesion_energy_J_m2": 0.12}
@@ -234,7 +234,8 @@ def family_error(null_seeds: int, folds: int) -> None:
         best, needed, bonferroni = [], [], []
         for seed in range(1000 * (level + 1), 1000 * (level + 1) + null_seeds):
             rows, _, _ = measurements([], noise, outliers, None, seed)
-            step = forward_select(parse_rows(rows), FIT, folds, seed, Z_THRESHOLD, max_terms=1).steps[0]
+            options = SearchOptions(Z_THRESHOLD, max_terms=1)
+            step = forward_select(parse_rows(rows), FIT, folds, seed, options).steps[0]
             best.append(max(c.z for c in step.ranked if c.joint))
             needed.append(step.z_needed)
             bonferroni.append(max(Z_THRESHOLD, float(stats.norm.isf(FAMILY_ALPHA / len(step.ranked)))))
@@ -505,8 +506,8 @@ def weighted_suite(seeds: int) -> None:
             line = []
             for label, rounds in (("unweighted", 1), ("weighted", None)):
                 start = time.perf_counter()
-                selection = (forward_select(data, FIT, seed=seed, scatter_rounds=rounds) if rounds else
-                             forward_select(data, FIT, seed=seed))
+                options = SearchOptions(scatter_rounds=rounds) if rounds else None
+                selection = forward_select(data, FIT, seed=seed, options=options)
                 terms = [t.label for t in selection.terms]
                 right = terms == (["constant_drag on load_N"] if drag else [])
                 tally[label] += right

@@ -40,7 +40,7 @@ from scipy.stats import qmc  # noqa: E402
 
 from microbearing import physics  # noqa: E402
 from microbearing.calibrate import calibrate, parse_rows  # noqa: E402
-from microbearing.calibrate.experiments import next_experiments, rival_models  # noqa: E402
+from microbearing.calibrate.experiments import ExperimentRequest, next_experiments, rival_models  # noqa: E402
 
 FIT = ["mu_pivot", "adhesion_energy_J_m2"]
 NOISE = 0.03
@@ -133,17 +133,17 @@ def run_case(name, seed, runs):
     rivals = rival_models(first.to_dict(), dataset, first.model)
     strategies = {}
     goal = "discriminate" if rivals else "parameters"
-    strategies["discriminate"] = next_experiments(first.model, SPACE, runs, goal, envelope=ENVELOPE,
-                                                  rivals=rivals, seed=seed)
-    strategies["predict"] = next_experiments(first.model, SPACE, runs, "predict", envelope=ENVELOPE,
-                                             seed=seed)
+    strategies["discriminate"] = next_experiments(
+        first.model, ExperimentRequest(SPACE, runs, goal, envelope=ENVELOPE, seed=seed), rivals=rivals)
+    strategies["predict"] = next_experiments(
+        first.model, ExperimentRequest(SPACE, runs, "predict", envelope=ENVELOPE, seed=seed))
     new = {k: {c: np.array([_flat(r)[c] for r in plan.to_dict()["runs"]], dtype=float) for c in SPACE}
            for k, plan in strategies.items()}
     new["random"] = random_runs(np.random.default_rng(20_000 + seed), runs)
     new["space-filling"] = space_filling_runs(seed, runs)
     # Last, so that the noise drawn for the strategies above does not depend on it.
-    robust = next_experiments(first.model, SPACE, runs, "predict", envelope=ENVELOPE, rivals=rivals,
-                              seed=seed)
+    robust = next_experiments(
+        first.model, ExperimentRequest(SPACE, runs, "predict", envelope=ENVELOPE, seed=seed), rivals=rivals)
     new["predict+rivals"] = {c: np.array([_flat(r)[c] for r in robust.to_dict()["runs"]], dtype=float)
                              for c in SPACE}
     measure_rng = np.random.default_rng(30_000 + seed)
@@ -207,7 +207,8 @@ def timing() -> None:
     print(f"rivals refitted: {len(rivals)} in {time.perf_counter() - start:.2f} s")
     for goal in ("discriminate", "parameters", "predict"):
         start = time.perf_counter()
-        plan = next_experiments(report.model, space, 100, goal, envelope=envelope, rivals=rivals)
+        request = ExperimentRequest(space, 100, goal, envelope=envelope)
+        plan = next_experiments(report.model, request, rivals=rivals)
         seconds = time.perf_counter() - start
         d = plan.to_dict()
         print(f"{goal:<13} 100 runs over 5 columns: {seconds:.2f} s, efficiency >= "

@@ -38,7 +38,8 @@ from .candidates import Term, mu_of
 from .data import Dataset
 from .fit import fit
 from .rivals import where_they_part
-from .select import CandidateScore, Selection, _within_one_se, preferred
+from .scores import within_one_se
+from .select import CandidateScore, Selection, preferred
 
 __all__ = ["CLOSE_MARGIN", "CLOSE_Z", "rows_to_settle", "undecided"]
 
@@ -181,7 +182,7 @@ def undecided(
                 # Named by the selection's own rule (a named law before a generic term that fits as
                 # well), with every close candidate that fits as well within one standard error.
                 best = preferred(searched, close)
-                equal = [c for c in close if c is not best and _within_one_se(c.loss, best.loss)]
+                equal = [c for c in close if c is not best and within_one_se(c.loss, best.loss)]
                 model = selection.model.full
                 pair = _models(searched, fit_parameters, selection.terms, model.term_values, best.term,
                                model.declared, convention)

@@ -503,84 +503,25 @@ def plan(
     if goal != "discriminate":
         if p == 0:
             raise DesignError("the model has no parameters to design for")
-        # Judged on the correlation form of the information: parameters in units of very different
-        # size (a drift's coefficient beside a friction coefficient) must not look singular.
-        total = fixed + b.T @ b
-        diagonal = np.sqrt(np.clip(np.diag(total), 1e-300, None))
-        eigen, vectors = np.linalg.eigh((total + total.T) / 2 / np.outer(diagonal, diagonal))
-        if eigen[0] <= _SINGULAR * max(eigen[-1], 1e-300):
-            worst = vectors[:, 0]
-            names = [f"{c:+.2f} {name}" for c, name in zip(worst, model.parameter_names, strict=True)
-                     if abs(c) > 0.1]
-            raise DesignError(
-                "the candidate points cannot identify the parameters: no run over the space moves "
-                f"the combination {' '.join(names)}; widen the space or fix one of them"
-            )
+        _check_identifiable(model, fixed + b.T @ b)
     # Rescale the parameters so that every column of b has unit root mean square (the solver's
     # conditioning); D efficiencies, I and T criteria do not depend on this scaling.
     scale = 1.0 / np.maximum(np.sqrt(np.mean(np.square(b), axis=0)), 1e-300) if p else np.ones(0)
     problem = _Problem(goal, runs, b * scale, fixed * np.outer(scale, scale) / runs, scale=scale)
+    taken = planned if planned_b.shape[0] else None
     if goal == "predict":
         if envelope is None or not _count(envelope):
             raise DesignError("goal predict needs an envelope: the points where the model will be used")
         c = np.asarray(model.sensitivities(envelope), dtype=float).reshape(-1, p) * scale
         problem.envelope = c.T @ c / c.shape[0]
         for rival in rivals:  # model-robust: the rivals' envelope variances count too
-            g_r = np.asarray(rival.sensitivities(candidates), dtype=float).reshape(n, -1) / sigma[:, None]
-            prior_r = rival.prior_information()
-            q = g_r.shape[1]
-            fixed_r = np.zeros((q, q)) if prior_r is None else np.asarray(prior_r, dtype=float).copy()
-            if planned_b.shape[0]:
-                planned_sigma = np.asarray(model.scatter_sd(planned), dtype=float)
-                planned_r = np.asarray(rival.sensitivities(planned), dtype=float).reshape(-1, q)
-                planned_r = planned_r / planned_sigma[:, None]
-                fixed_r = fixed_r + planned_r.T @ planned_r
-            c_r = np.asarray(rival.sensitivities(envelope), dtype=float).reshape(-1, q)
-            # The criterion is invariant to a rescaling of the parameters; each is scaled by what it moves
-            # (the candidates, the envelope, or its prior information) so that the solver sees numbers
-            # near 1, and one that moves nothing and has no information is left out (it cannot matter).
-            reference = np.maximum.reduce([np.sqrt(np.mean(np.square(g_r), axis=0)),
-                                           np.sqrt(np.mean(np.square(c_r), axis=0)),
-                                           np.sqrt(np.clip(np.diag(fixed_r), 0.0, None) / runs)])
-            used = reference > 0
-            g_r, c_r, fixed_r = g_r[:, used], c_r[:, used], fixed_r[np.ix_(used, used)]
-            q = int(used.sum())
-            scale_r = 1.0 / reference[used]
-            total = fixed_r + g_r.T @ g_r
-            diagonal = np.sqrt(np.clip(np.diag(total), 1e-300, None))
-            if q == 0 or np.linalg.eigvalsh(total / np.outer(diagonal, diagonal))[0] <= _SINGULAR:
-                continue  # a rival the space cannot identify has no finite envelope variance to hedge
-            c_r = c_r * scale_r
-            problem.hedges.append((g_r * scale_r, fixed_r * np.outer(scale_r, scale_r) / runs,
-                                   c_r.T @ c_r / c_r.shape[0]))
+            hedge = _hedge(model, rival, candidates, envelope, taken, sigma, runs)
+            if hedge is not None:
+                problem.hedges.append(hedge)
     if goal == "discriminate":
         if not rivals:
             raise DesignError("goal discriminate needs at least one rival model")
-        for rival in rivals:
-            rows = _rival_arrays(model, rival, candidates, sigma)
-            q = rows.shape[1] - 1
-            spread = np.sqrt(np.mean(np.square(rows[:, :q]), axis=0))
-            fixed_k = _rival_prior(rival, q)
-            if planned_b.shape[0]:
-                planned_sigma = np.asarray(model.scatter_sd(planned), dtype=float)
-                planned_rows = _rival_arrays(model, rival, planned, planned_sigma)
-                fixed_k = fixed_k + planned_rows.T @ planned_rows
-            # A rival parameter no candidate point moves cannot bring the rival closer to the model
-            # anywhere the lab can measure: its column is left out (its scale would be unbounded).
-            largest = max(float(np.max(spread, initial=0.0)), 1e-300)
-            keep = np.append(spread > _NEGLIGIBLE_SENSITIVITY * largest, True)
-            rows, fixed_k, spread = rows[:, keep], fixed_k[np.ix_(keep, keep)], spread[keep[:-1]]
-            rival_scale = np.append(1.0 / spread, 1.0)
-            problem.rival_rows.append(rows * rival_scale)
-            problem.rival_fixed.append(fixed_k * np.outer(rival_scale, rival_scale) / runs)
-        # One common scale of the differences keeps t near 1 for the solver.
-        size = max(float(np.mean(np.square(r[:, -1]))) for r in problem.rival_rows)
-        if size <= 0:
-            raise DesignError("the rivals predict the same response as the model at every candidate point")
-        for k in range(len(problem.rival_rows)):
-            problem.rival_rows[k][:, -1] /= np.sqrt(size)
-            problem.rival_fixed[k][:, -1] /= np.sqrt(size)
-            problem.rival_fixed[k][-1, :] /= np.sqrt(size)
+        size = _add_rivals(problem, model, rivals, candidates, taken, sigma)
     weights, solver = _solve(problem)
     _scores, continuous_bound = _sensitivity_and_bound(problem, weights)
     support = np.flatnonzero(weights >= _SUPPORT * weights.max())
@@ -608,3 +549,87 @@ def plan(
         criterion = float(separation.min())
     return Design(goal, counts, weights, criterion, bound, continuous_bound, rounding, separation,
                   information, solver)
+
+
+def _check_identifiable(model: DesignModel, total: np.ndarray) -> None:
+    """Raise :class:`DesignError` when the information ``total`` (data taken, planned runs and every
+    candidate once) cannot identify the model's parameters."""
+    # Judged on the correlation form of the information: parameters in units of very different
+    # size (a drift's coefficient beside a friction coefficient) must not look singular.
+    diagonal = np.sqrt(np.clip(np.diag(total), 1e-300, None))
+    eigen, vectors = np.linalg.eigh((total + total.T) / 2 / np.outer(diagonal, diagonal))
+    if eigen[0] <= _SINGULAR * max(eigen[-1], 1e-300):
+        worst = vectors[:, 0]
+        names = [f"{c:+.2f} {name}" for c, name in zip(worst, model.parameter_names, strict=True)
+                 if abs(c) > 0.1]
+        raise DesignError(
+            "the candidate points cannot identify the parameters: no run over the space moves "
+            f"the combination {' '.join(names)}; widen the space or fix one of them"
+        )
+
+
+def _hedge(model: DesignModel, rival: DesignModel, candidates, envelope, planned, sigma: np.ndarray,
+           runs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """A rival's scaled sensitivities, prior information and envelope moment for the model-robust
+    ``predict`` criterion, or None for a rival the space cannot identify (``planned``: runs already
+    planned, or None)."""
+    n = sigma.size
+    g_r = np.asarray(rival.sensitivities(candidates), dtype=float).reshape(n, -1) / sigma[:, None]
+    prior_r = rival.prior_information()
+    q = g_r.shape[1]
+    fixed_r = np.zeros((q, q)) if prior_r is None else np.asarray(prior_r, dtype=float).copy()
+    if planned is not None:
+        planned_sigma = np.asarray(model.scatter_sd(planned), dtype=float)
+        planned_r = np.asarray(rival.sensitivities(planned), dtype=float).reshape(-1, q)
+        planned_r = planned_r / planned_sigma[:, None]
+        fixed_r = fixed_r + planned_r.T @ planned_r
+    c_r = np.asarray(rival.sensitivities(envelope), dtype=float).reshape(-1, q)
+    # The criterion is invariant to a rescaling of the parameters; each is scaled by what it moves
+    # (the candidates, the envelope, or its prior information) so that the solver sees numbers
+    # near 1, and one that moves nothing and has no information is left out (it cannot matter).
+    reference = np.maximum.reduce([np.sqrt(np.mean(np.square(g_r), axis=0)),
+                                   np.sqrt(np.mean(np.square(c_r), axis=0)),
+                                   np.sqrt(np.clip(np.diag(fixed_r), 0.0, None) / runs)])
+    used = reference > 0
+    g_r, c_r, fixed_r = g_r[:, used], c_r[:, used], fixed_r[np.ix_(used, used)]
+    q = int(used.sum())
+    scale_r = 1.0 / reference[used]
+    total = fixed_r + g_r.T @ g_r
+    diagonal = np.sqrt(np.clip(np.diag(total), 1e-300, None))
+    if q == 0 or np.linalg.eigvalsh(total / np.outer(diagonal, diagonal))[0] <= _SINGULAR:
+        return None  # a rival the space cannot identify has no finite envelope variance to hedge
+    c_r = c_r * scale_r
+    return (g_r * scale_r, fixed_r * np.outer(scale_r, scale_r) / runs, c_r.T @ c_r / c_r.shape[0])
+
+
+def _add_rivals(problem: _Problem, model: DesignModel, rivals: Sequence[DesignModel], candidates, planned,
+                sigma: np.ndarray) -> float:
+    """Add every rival's scaled rows and prior information to a ``discriminate`` problem; the common
+    scale of the differences (their largest mean square) the rows were divided by."""
+    runs = problem.runs
+    for rival in rivals:
+        rows = _rival_arrays(model, rival, candidates, sigma)
+        q = rows.shape[1] - 1
+        spread = np.sqrt(np.mean(np.square(rows[:, :q]), axis=0))
+        fixed_k = _rival_prior(rival, q)
+        if planned is not None:
+            planned_sigma = np.asarray(model.scatter_sd(planned), dtype=float)
+            planned_rows = _rival_arrays(model, rival, planned, planned_sigma)
+            fixed_k = fixed_k + planned_rows.T @ planned_rows
+        # A rival parameter no candidate point moves cannot bring the rival closer to the model
+        # anywhere the lab can measure: its column is left out (its scale would be unbounded).
+        largest = max(float(np.max(spread, initial=0.0)), 1e-300)
+        keep = np.append(spread > _NEGLIGIBLE_SENSITIVITY * largest, True)
+        rows, fixed_k, spread = rows[:, keep], fixed_k[np.ix_(keep, keep)], spread[keep[:-1]]
+        rival_scale = np.append(1.0 / spread, 1.0)
+        problem.rival_rows.append(rows * rival_scale)
+        problem.rival_fixed.append(fixed_k * np.outer(rival_scale, rival_scale) / runs)
+    # One common scale of the differences keeps t near 1 for the solver.
+    size = max(float(np.mean(np.square(r[:, -1]))) for r in problem.rival_rows)
+    if size <= 0:
+        raise DesignError("the rivals predict the same response as the model at every candidate point")
+    for k in range(len(problem.rival_rows)):
+        problem.rival_rows[k][:, -1] /= np.sqrt(size)
+        problem.rival_fixed[k][:, -1] /= np.sqrt(size)
+        problem.rival_fixed[k][-1, :] /= np.sqrt(size)
+    return size

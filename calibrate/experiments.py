@@ -44,6 +44,7 @@ from .model import CalibratedModel
 __all__ = [
     "CalibratedResponse",
     "ExperimentPlan",
+    "ExperimentRequest",
     "MAX_CANDIDATES",
     "MAX_RIVALS",
     "candidate_points",
@@ -365,13 +366,47 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
     fit_parameters = list(report.get("fit_parameters", model.fitted))
     for label, terms in rival_terms(report, dataset, [t for t, _ in model.terms])[:max_rivals]:
         result = fit(dataset, fit_parameters, terms, start=model.fitted, convention=model.convention)
-        rivals.append((label, CalibratedModel.from_fit(
-            result.declared, dataset.fixed, terms, result.term_values, model.convention, result.covariance,
-            float(model.noise_std_log), dataset.columns(), list(dataset.conditions))))
+        rivals.append((label, CalibratedModel.from_fit(result, dataset, model.convention,
+                                                       float(model.noise_std_log))))
     return rivals
 
 
 # ------------------------------------------------------------------------------------------------- plan
+@dataclass(frozen=True)
+class ExperimentRequest:
+    """What a proposal (:func:`next_experiments`, :func:`first_experiments`) is asked for.
+
+    Attributes
+    ----------
+    space : mapping
+        What the lab can set, per column (physics inputs such as ``balls``, ``load_N`` [N],
+        ``speed_m_s`` [m/s], and the calibration's condition columns in its units): a range
+        ``{"low", "high", "spacing"}`` or a list of allowed values (:func:`space_points`).
+    runs : int
+        Runs to propose, 1-500. [1]
+    goal : str
+        ``discriminate`` (tell the rivals apart), ``parameters`` (D-optimal) or ``predict`` (I-optimal
+        over ``envelope``).
+    envelope : mapping, optional
+        Where the model will be used, like ``space`` (``predict``; with another goal, the intervals
+        there are reported too).
+    fixed : mapping, optional
+        Inputs and conditions at one value in every run.
+    planned : sequence of mapping, optional
+        Runs already planned (one value per column of ``space``).
+    seed : int
+        Seed of the candidate set.
+    """
+
+    space: Mapping[str, Any]
+    runs: int
+    goal: str
+    envelope: Mapping[str, Any] | None = None
+    fixed: Mapping[str, Any] | None = None
+    planned: Sequence[Mapping[str, float]] | None = None
+    seed: int = 0
+
+
 @dataclass(frozen=True)
 class ExperimentPlan:
     """Proposed runs and what they are expected to do, JSON-ready through :meth:`to_dict`."""
@@ -561,9 +596,11 @@ def _plot_data(response: CalibratedResponse, runs_columns, data: Mapping[str, np
     return plot
 
 
-def _propose(response: CalibratedResponse, space, runs: int, goal: str, envelope_space, rivals,
-             planned, seed: int, data, progress) -> ExperimentPlan:
+def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, data,
+             progress) -> ExperimentPlan:
     report = progress or (lambda fraction: None)
+    space, runs, goal, seed = request.space, request.runs, request.goal, request.seed
+    envelope_space, planned = request.envelope, request.planned
     candidates = candidate_points(space, seed)
     envelope = None
     if envelope_space is not None:
@@ -604,46 +641,24 @@ def _propose(response: CalibratedResponse, space, runs: int, goal: str, envelope
 
 def next_experiments(
     model: CalibratedModel,
-    space: Mapping[str, Any],
-    runs: int,
-    goal: str = "discriminate",
-    envelope: Mapping[str, Any] | None = None,
-    fixed: Mapping[str, Any] | None = None,
-    planned: Sequence[Mapping[str, float]] | None = None,
+    request: ExperimentRequest,
     rivals: Sequence[tuple[str, CalibratedModel]] = (),
     data: Mapping[str, np.ndarray] | None = None,
-    seed: int = 0,
     progress: Callable[[float], None] | None = None,
 ) -> ExperimentPlan:
-    """The next ``runs`` measurements for a calibrated model, with an optimality bound.
+    """The next ``request.runs`` measurements for a calibrated model, with an optimality bound.
 
     Parameters
     ----------
     model : CalibratedModel
         The calibrated model (a model with covariance and scatter).
-    space : mapping
-        What the lab can set, per column (physics inputs such as ``balls``, ``load_N`` [N],
-        ``speed_m_s`` [m/s], and the calibration's condition columns in its units): a range
-        ``{"low", "high", "spacing"}`` or a list of allowed values (:func:`space_points`).
-    runs : int
-        Runs to propose, 1-500. [1]
-    goal : str
-        ``discriminate`` (tell the rivals apart), ``parameters`` (D-optimal) or ``predict`` (I-optimal
-        over ``envelope``).
-    envelope : mapping, optional
-        Where the model will be used, like ``space`` (``predict``; with another goal, the intervals
-        there are reported too).
-    fixed : mapping, optional
-        Inputs and conditions at one value in every run.
-    planned : sequence of mapping, optional
-        Runs already planned (one value per column of ``space``).
+    request : ExperimentRequest
+        The space, the runs, the goal, and the envelope, fixed values, planned runs and seed.
     rivals : sequence of (str, CalibratedModel)
         ``discriminate``: the rivals (:func:`rival_models`). ``predict``: optional; the runs then shrink
         the envelope variance of the model and of the rivals together (model-robust).
     data : mapping of str to numpy.ndarray, optional
         The data taken (columns), drawn under the proposed runs.
-    seed : int
-        Seed of the candidate set.
     progress : callable, optional
         Fraction done, 0..1.
 
@@ -658,6 +673,7 @@ def next_experiments(
     ValueError
         For an invalid space, fixed value or planned run (naming the field).
     """
+    goal = request.goal
     if goal not in GOALS:
         raise DesignError(f"goal must be one of {', '.join(GOALS)}; got {goal!r}")
     if model.covariance is None or model.noise_std_log is None:
@@ -665,9 +681,8 @@ def next_experiments(
     if goal == "discriminate" and not rivals:
         raise DesignError("goal discriminate: the calibration left no rival model within reach of the one "
                           "it chose; use goal parameters or predict")
-    response = check_request(model, space, fixed, envelope, planned)
-    return _propose(response, space, runs, goal, envelope, list(rivals) if goal != "parameters" else [],
-                    planned, seed, data, progress)
+    response = check_request(model, request.space, request.fixed, request.envelope, request.planned)
+    return _propose(response, request, list(rivals) if goal != "parameters" else [], data, progress)
 
 
 def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mapping[str, Any] | None = None,
@@ -743,16 +758,10 @@ def physics_model(fit_parameters: Sequence[str], noise_std_log: float,
 
 def first_experiments(
     fit_parameters: Sequence[str],
-    space: Mapping[str, Any],
-    runs: int,
-    goal: str = "parameters",
+    request: ExperimentRequest,
     noise_std_log: float = 0.05,
     guess: Mapping[str, float] | None = None,
-    envelope: Mapping[str, Any] | None = None,
-    fixed: Mapping[str, Any] | None = None,
-    planned: Sequence[Mapping[str, float]] | None = None,
     convention: str = physics.DEFAULT_CONVENTION,
-    seed: int = 0,
     progress: Callable[[float], None] | None = None,
 ) -> ExperimentPlan:
     """A first design on the declared physics, before any calibration: its declared parameters only.
@@ -761,10 +770,9 @@ def first_experiments(
     ----------
     fit_parameters : sequence of str
         Declared physics parameters the data will fit (e.g. ``mu_pivot`` [1]).
-    space, runs, envelope, fixed, planned, seed, progress
-        As :func:`next_experiments`.
-    goal : str
-        ``parameters`` or ``predict`` (nothing to discriminate before a calibration).
+    request : ExperimentRequest
+        As :func:`next_experiments`; its goal ``parameters`` or ``predict`` (nothing to discriminate
+        before a calibration).
     noise_std_log : float
         Expected standard deviation of one measurement of log μ (the relative scatter) [1].
     guess : mapping, optional
@@ -772,6 +780,8 @@ def first_experiments(
         defaults), in their units.
     convention : str
         See :data:`physics.CONVENTIONS`.
+    progress : callable, optional
+        Fraction done, 0..1.
 
     Returns
     -------
@@ -779,13 +789,13 @@ def first_experiments(
         Without figures "now" (no data taken): the parameters' standard deviations and the intervals
         after the runs.
     """
-    if goal not in ("parameters", "predict"):
-        raise DesignError(f"goal must be parameters or predict before a calibration; got {goal!r}")
+    if request.goal not in ("parameters", "predict"):
+        raise DesignError(f"goal must be parameters or predict before a calibration; got {request.goal!r}")
     if not fit_parameters:
         raise DesignError("fit_parameters: name at least one declared parameter to design for")
-    model, fixed = physics_model(fit_parameters, noise_std_log, guess, fixed, convention)
-    response = check_request(model, space, fixed, envelope, planned)
-    return _propose(response, space, runs, goal, envelope, [], planned, seed, None, progress)
+    model, fixed = physics_model(fit_parameters, noise_std_log, guess, request.fixed, convention)
+    response = check_request(model, request.space, fixed, request.envelope, request.planned)
+    return _propose(response, request, [], None, progress)
 
 
 def _axis_label(name: str) -> str:

@@ -284,53 +284,14 @@ def fit(
     ValueError
         For parameters that cannot be fitted.
     """
-    if base is None:
-        declared = check_fit_parameters(dataset, fit_parameters)
-        start = dict(start or {})
-        x0 = [float(start.get(n, dataset.fixed.get(n, physics.PARAMETERS[n].default))) for n in declared]
-        bounds = [_bounds(n) for n in declared]
-    else:
-        declared = list(base.declared)
-        x0, bounds = [0.0] * len(declared), [(-_MAX_SHIFT, _MAX_SHIFT)] * len(declared)
-    names = list(declared)
-    sizes = []
-    start_terms = list(start_terms or [])
-    if terms:
-        mu0 = (
-            base.mu
-            if base is not None
-            else predict_mu(
-                dataset,
-                dict(zip(declared, x0, strict=True)),
-                terms[: len(start_terms)],
-                start_terms,
-                convention=convention,
-            )
-        )
-        columns = {**physics.defaults(), **dataset.inputs(), **dataset.conditions}
-        for i, term in enumerate(terms):
-            guess = start_terms[i] if i < len(start_terms) else term.initial(mu0, columns)
-            x0 += [float(g) for g in guess]
-            bounds += term.bounds()
-            names += [f"{term.label}: {n}" for n in term.parameter_names]
-            sizes.append(len(term.parameter_names))
-    lo = np.array([b[0] for b in bounds], dtype=float)
-    hi = np.array([b[1] for b in bounds], dtype=float)
-    x0 = np.clip(np.array(x0, dtype=float), lo, hi)
-    n_declared = len(declared)
-
-    def split(x):
-        values, i = [], n_declared
-        for size in sizes:
-            values.append(list(x[i : i + size]))
-            i += size
-        return dict(zip(declared, x[:n_declared], strict=True)), values
+    unknowns = _unknowns(dataset, fit_parameters, terms, start, start_terms, base, convention)
+    x0, lo, hi = unknowns.x0, unknowns.lo, unknowns.hi
 
     def residual(x):
         # A trial step may overflow an exponential term or drive an additive one negative; a large
         # finite residual makes the optimizer reject the step.
         with np.errstate(all="ignore"):
-            values, term_values = split(x)
+            values, term_values = unknowns.split(x)
             try:
                 if base is None:
                     mu = predict_mu(dataset, values, terms, term_values, rows, convention=convention)
@@ -365,10 +326,11 @@ def fit(
         )
         x, r = result.x, result.fun
     cov = _sandwich(residual, x, r, lo, hi, HUBER_K * s) if precise else np.full((x.size, x.size), np.nan)
-    values, term_values = split(x)
+    values, term_values = unknowns.split(x)
     # On a bound within a millionth of the value's own scale (its start when it ends near zero).
     scale_of = 1e-6 * np.maximum(np.abs(x), np.abs(x0))
     on_bound = (np.abs(x - lo) <= scale_of) | (np.abs(hi - x) <= scale_of)
+    names = unknowns.names
     return FitResult(
         values,
         tuple(terms),
@@ -381,6 +343,75 @@ def fit(
         [n for n, b in zip(names, on_bound, strict=True) if b],
         bool(result.success),
     )
+
+
+@dataclass(frozen=True)
+class _Unknowns:
+    """The values one fit adjusts: the declared parameters' names, then every term's parameters.
+
+    Attributes
+    ----------
+    declared : list of str
+        Declared parameters (with a frozen base: their relative shifts, log scale).
+    x0, lo, hi : numpy.ndarray
+        Start (inside the bounds) and bounds of every value, declared first.
+    names : list of str
+        Label of every value (``"<term label>: <parameter>"`` for a term's).
+    sizes : list of int
+        Parameters of each term. [1]
+    """
+
+    declared: list[str]
+    x0: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    names: list[str]
+    sizes: list[int]
+
+    def split(self, x) -> tuple[dict[str, float], list[list[float]]]:
+        """The declared values by name and each term's values, from one vector of values."""
+        values, i = [], len(self.declared)
+        for size in self.sizes:
+            values.append(list(x[i : i + size]))
+            i += size
+        return dict(zip(self.declared, x[: len(self.declared)], strict=True)), values
+
+
+def _unknowns(dataset, fit_parameters, terms, start, start_terms, base, convention) -> _Unknowns:
+    """The values :func:`fit` adjusts, with their start and bounds (its parameters of the same names)."""
+    if base is None:
+        declared = check_fit_parameters(dataset, fit_parameters)
+        start = dict(start or {})
+        x0 = [float(start.get(n, dataset.fixed.get(n, physics.PARAMETERS[n].default))) for n in declared]
+        bounds = [_bounds(n) for n in declared]
+    else:
+        declared = list(base.declared)
+        x0, bounds = [0.0] * len(declared), [(-_MAX_SHIFT, _MAX_SHIFT)] * len(declared)
+    names = list(declared)
+    sizes = []
+    start_terms = list(start_terms or [])
+    if terms:
+        mu0 = (
+            base.mu
+            if base is not None
+            else predict_mu(
+                dataset,
+                dict(zip(declared, x0, strict=True)),
+                terms[: len(start_terms)],
+                start_terms,
+                convention=convention,
+            )
+        )
+        columns = {**physics.defaults(), **dataset.inputs(), **dataset.conditions}
+        for i, term in enumerate(terms):
+            guess = start_terms[i] if i < len(start_terms) else term.initial(mu0, columns)
+            x0 += [float(g) for g in guess]
+            bounds += term.bounds()
+            names += [f"{term.label}: {n}" for n in term.parameter_names]
+            sizes.append(len(term.parameter_names))
+    lo = np.array([b[0] for b in bounds], dtype=float)
+    hi = np.array([b[1] for b in bounds], dtype=float)
+    return _Unknowns(declared, np.clip(np.array(x0, dtype=float), lo, hi), lo, hi, names, sizes)
 
 
 def _sandwich(residual, x, r, lo, hi, k) -> np.ndarray:

@@ -43,8 +43,9 @@ from scipy.linalg import cho_solve
 from microbearing import physics
 
 from .candidates import Term, mu_of, term_from_json
-from .data import factor_label
+from .data import Dataset, factor_label
 from .domain import DataCloud
+from .fit import FitResult
 from .groups import GroupEffect
 from .scatter import ScatterModel
 
@@ -776,34 +777,54 @@ class CalibratedModel:
     @classmethod
     def from_fit(
         cls,
-        fitted: Mapping[str, float],
-        fixed: Mapping[str, Any],
-        terms: Sequence[Term],
-        term_values: Sequence[Sequence[float]],
+        result: FitResult,
+        dataset: Dataset,
         convention: str,
-        covariance: np.ndarray,
         noise_std_log: float,
-        columns: Mapping[str, np.ndarray],
-        conditions: Sequence[str],
+        *,
         discrepancy: Mapping[str, Any] | None = None,
         groups: Sequence[GroupEffect] = (),
         scatter: ScatterModel | None = None,
         cloud: DataCloud | None = None,
     ) -> CalibratedModel:
-        """A model from a fit, with the domain taken from the data's columns (and a GP discrepancy's
-        data from :func:`calibrate.discrepancy.gp_state`, group effects, a scatter model and the data
-        cloud when given)."""
+        """A model from a fit on a data set.
+
+        Parameters
+        ----------
+        result : FitResult
+            The fit (:func:`calibrate.fit.fit`): declared values, terms, their values and covariance.
+        dataset : Dataset
+            The data it was fitted on: its fixed values and conditions carry over, and its columns'
+            ranges are the domain.
+        convention : str
+            See :data:`physics.CONVENTIONS`.
+        noise_std_log : float
+            Scatter of a new measurement of log μ. [1]
+        discrepancy : mapping, optional
+            A GP discrepancy's data (:func:`calibrate.discrepancy.gp_state`).
+        groups : sequence of GroupEffect
+            Random effects of factor columns.
+        scatter : ScatterModel, optional
+            The scatter model.
+        cloud : DataCloud, optional
+            The data cloud of the domain.
+
+        Returns
+        -------
+        CalibratedModel
+        """
+        columns = dataset.columns()
         domain = {name: [float(np.min(v)), float(np.max(v))] for name, v in columns.items()}
         rows = len(next(iter(columns.values()))) if columns else None
         return cls(
-            dict(fitted),
-            dict(fixed),
-            [(t, list(map(float, v))) for t, v in zip(terms, term_values, strict=True)],
+            dict(result.declared),
+            dict(dataset.fixed),
+            [(t, list(map(float, v))) for t, v in zip(result.terms, result.term_values, strict=True)],
             convention,
-            np.asarray(covariance, dtype=float),
+            np.asarray(result.covariance, dtype=float),
             float(noise_std_log),
             domain,
-            list(conditions),
+            list(dataset.conditions),
             None if discrepancy is None else GPCorrection(discrepancy),
             list(groups),
             scatter,

@@ -17,6 +17,10 @@ One data set flows one way, each step a function of the previous step's result:
 
 and, beside them, a Gaussian-process discrepancy baseline (:mod:`calibrate.discrepancy`).
 
+In code these are four stage functions, each returning a frozen dataclass of :mod:`calibrate.stages`
+(:func:`data_stage`, :func:`candidates_stage`, :func:`selection_stage`, :func:`uncertainty_stage`);
+:func:`format_report` writes the report, numbers and words, from their results.
+
 ``error_before`` and ``error_after`` are plain errors of μ on held-out rows of the same k folds,
 defined as before this pipeline; ``robust_errors`` gives them again without the outlier rows. The
 chosen terms' own CV error on the folds that chose them (``error_after_selection``) is optimistic:
@@ -37,26 +41,31 @@ from .data import Dataset, parse_csv, parse_rows
 from .decidability import undecided
 from .discrepancy import gp_discrepancy, residual_gp
 from .domain import DataCloud, confounded_pairs, confounding_words
-from .fit import check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
+from .fit import FitResult, check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
 from .groups import describe_groups, fit_group_effect, why_not_fitted
 from .model import CalibratedModel, RivalModel
 from .plausibility import check_plausible
 from .plots import calibration_plots
-from .rivals import describe_rival, fit_rivals, rival_json, where_they_part
-from .scatter import fit_scatter
-from .select import (
-    FAMILY_ALPHA,
-    MAX_SEARCH_ROWS,
-    MAX_TERMS,
-    REPORTED_CANDIDATES,
-    SCATTER_ROUNDS,
-    cross_validate,
-    forward_select,
-    nested_cross_validate,
-)
+from .prose import code_columns, domain_words, rival_drivers, rival_words
+from .rivals import fit_rivals, rival_json
+from .scatter import ScatterModel, fit_scatter
+from .select import MAX_TERMS, REPORTED_CANDIDATES, cross_validate, forward_select, nested_cross_validate
+from .stages import CalibrationOptions, CandidatesStage, DataStage, SelectionStage, UncertaintyStage
 from .uncertainty import find_outliers, noise_report, parameter_warnings
 
-__all__ = ["CalibrationReport", "calibrate", "check_request", "MIN_ROWS", "PROGRESS_STAGES"]
+__all__ = [
+    "MIN_ROWS",
+    "PROGRESS_STAGES",
+    "CalibrationOptions",
+    "CalibrationReport",
+    "calibrate",
+    "candidates_stage",
+    "check_request",
+    "data_stage",
+    "format_report",
+    "selection_stage",
+    "uncertainty_stage",
+]
 
 #: Fewest rows a calibration accepts: k-fold CV needs a few rows per fold. [1]
 MIN_ROWS = 10
@@ -362,19 +371,16 @@ def calibrate(
     data,
     fit_parameters: Sequence[str] = (),
     fixed: Mapping[str, Any] | None = None,
-    folds: int = 5,
-    seed: int = 0,
-    gp_max_train: int = 300,
-    make_plots: bool = True,
+    *,
+    options: CalibrationOptions | None = None,
     progress: Callable[[float], None] | None = None,
-    convention: str = physics.DEFAULT_CONVENTION,
-    z_threshold: float = 3.0,
-    max_terms: int = MAX_TERMS,
-    max_search_rows: int = MAX_SEARCH_ROWS,
-    family_alpha: float | None = FAMILY_ALPHA,
-    scatter_rounds: int = SCATTER_ROUNDS,
+    **keywords: Any,
 ) -> CalibrationReport:
     """Calibrate the declared model on measurements, add the terms it misses, report.
+
+    The stages (:mod:`calibrate.stages`) run in order, each a function of the ones before:
+    :func:`data_stage`, :func:`candidates_stage`, :func:`selection_stage`, :func:`uncertainty_stage`;
+    then the plots, and :func:`format_report` writes the report from them.
 
     Parameters
     ----------
@@ -384,30 +390,27 @@ def calibrate(
         Declared physics parameters to fit, e.g. ``["mu_pivot", "adhesion_energy_J_m2"]``.
     fixed : mapping, optional
         Physics parameters fixed for every row (not with a ``Dataset``).
-    folds : int
-        Number of cross-validation folds, in [2, n_points / 2]. [1]
-    seed : int
-        Seed of the folds (outer and nested inner ones), of the search subset and of the GP's subset.
-    gp_max_train : int
-        Training rows per fold of the GP discrepancy at most. [1]
-    make_plots : bool
-        Whether to draw the plots.
+    options : CalibrationOptions, optional
+        Every option at once (then no keywords).
     progress : callable, optional
         Called with the fraction done, 0..1, never decreasing (stages in :data:`PROGRESS_STAGES`).
-    convention : str
-        See :data:`physics.CONVENTIONS`.
-    z_threshold : float
-        Least paired z of a candidate's held-out improvement (see :mod:`calibrate.select`). [1]
-    max_terms : int
-        Most terms forward selection adds. [1]
-    max_search_rows : int
-        Rows the selection searches on at most (a random subset). [1]
-    family_alpha : float or None
-        Chance per selection step that any candidate passes on noise alone; None: ``z_threshold``
-        alone decides (see :mod:`calibrate.select`). [1]
-    scatter_rounds : int
-        Selections at most, each weighted by the scatter model of the one before (1: unweighted; see
-        :func:`calibrate.select.forward_select`). [1]
+    **keywords
+        The options one by one instead (:meth:`CalibrationOptions.from_keywords`):
+
+        - ``folds`` (int): number of cross-validation folds, in [2, n_points / 2], default 5 [1];
+        - ``seed`` (int): seed of the folds (outer and nested inner ones), of the search subset and of
+          the GP's subset, default 0;
+        - ``gp_max_train`` (int): training rows per fold of the GP discrepancy at most, default 300 [1];
+        - ``make_plots`` (bool): whether to draw the plots, default True;
+        - ``convention`` (str): see :data:`physics.CONVENTIONS`;
+        - ``z_threshold`` (float): least paired z of a candidate's held-out improvement (see
+          :mod:`calibrate.select`), default 3 [1];
+        - ``max_terms`` (int): most terms forward selection adds [1];
+        - ``max_search_rows`` (int): rows the selection searches on at most (a random subset) [1];
+        - ``family_alpha`` (float or None): chance per selection step that any candidate passes on
+          noise alone; None: ``z_threshold`` alone decides (see :mod:`calibrate.select`) [1];
+        - ``scatter_rounds`` (int): selections at most, each weighted by the scatter model of the one
+          before (1: unweighted; see :func:`calibrate.select.forward_select`) [1].
 
     Returns
     -------
@@ -419,13 +422,18 @@ def calibrate(
         For bad rows, cells or columns (every one listed).
     ValueError
         For too few rows, bad ``folds`` or ``fit_parameters``.
+    TypeError
+        For an unknown keyword, or keywords beside ``options``.
     """
+    if options is not None and keywords:
+        raise TypeError(f"calibrate: give options or keywords, not both; got {', '.join(keywords)}")
+    options = options or CalibrationOptions.from_keywords(**keywords)
     report = progress or (lambda fraction: None)
-    if convention not in physics.CONVENTIONS:
-        raise ValueError(f"convention must be one of {', '.join(physics.CONVENTIONS)}; got {convention!r}")
+    if options.convention not in physics.CONVENTIONS:
+        raise ValueError(
+            f"convention must be one of {', '.join(physics.CONVENTIONS)}; got {options.convention!r}")
     dataset = _as_dataset(data, fixed)
-    check_request(dataset, fit_parameters, folds)
-    fit_parameters = check_fit_parameters(dataset, fit_parameters)
+    check_request(dataset, fit_parameters, options.folds)
     report(0.0)
     ends = list(PROGRESS_STAGES.values())
 
@@ -433,75 +441,163 @@ def calibrate(
         start = 0.0 if i == 0 else ends[i - 1]
         return lambda f: report(start + (ends[i] - start) * min(max(f, 0.0), 1.0))
 
+    declared = data_stage(dataset, fit_parameters, options)
+    stage(0)(1.0)
+    candidates = candidates_stage(declared, options, stage(1))
+    stage(1)(1.0)
+    selection = selection_stage(declared, candidates, options, stage(2), stage(3))
+    uncertainty = uncertainty_stage(declared, candidates, selection, options)
+    plots: dict[str, bytes] = {}
+    if options.make_plots:
+        plots = calibration_plots(
+            dataset,
+            uncertainty.model,
+            declared.mu_before,
+            uncertainty.mu_after,
+            uncertainty.outliers["mask"],
+            {"before": declared.error_before, "after": uncertainty.error_after,
+             "robust": uncertainty.robust_errors},
+            [t.label for t in candidates.terms],
+        )
+    report(1.0)
+    return format_report(declared, candidates, selection, uncertainty, options, plots)
+
+
+def data_stage(dataset: Dataset, fit_parameters: Sequence[str], options: CalibrationOptions) -> DataStage:
+    """Stage 1: the declared model on the checked data, fitted on all rows and cross-validated.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Measurements, checked (:func:`check_request`).
+    fit_parameters : sequence of str
+        Declared parameters to fit.
+    options : CalibrationOptions
+        ``folds``, ``seed`` and the convention act here.
+
+    Returns
+    -------
+    DataStage
+    """
+    fit_parameters = check_fit_parameters(dataset, fit_parameters)
+    convention = options.convention
     measured = dataset.mu_measured
     error_default = prediction_errors(predict_mu(dataset, {}, convention=convention), measured)
-    outer = kfold_indices(dataset.n_points, folds, seed)
+    outer = kfold_indices(dataset.n_points, options.folds, options.seed)
     baseline = cross_validate(dataset, fit_parameters, (), outer, convention=convention)
-    stage(0)(1.0)
-    options = {
-        "z_threshold": z_threshold,
-        "max_terms": max_terms,
-        "max_rows": max_search_rows,
-        "convention": convention,
-        "family_alpha": family_alpha,
-        "scatter_rounds": scatter_rounds,
-    }
-    selection = forward_select(dataset, fit_parameters, folds, seed, progress=stage(1), **options)
-    stage(1)(1.0)
+    mu_before = predict_mu(dataset, baseline.full.declared, convention=convention)
+    return DataStage(dataset, fit_parameters, error_default, outer, baseline,
+                     prediction_errors(baseline.oof_mu, measured), mu_before)
+
+
+def candidates_stage(declared: DataStage, options: CalibrationOptions,
+                     progress: Callable[[float], None]) -> CandidatesStage:
+    """Stage 2: forward selection over the candidate terms on all rows
+    (:func:`calibrate.select.forward_select`), with ``progress`` called with its fraction done."""
+    return CandidatesStage(forward_select(declared.dataset, declared.fit_parameters, options.folds,
+                                          options.seed, options.search, progress))
+
+
+def selection_stage(declared: DataStage, candidates: CandidatesStage, options: CalibrationOptions,
+                    nested_progress: Callable[[float], None],
+                    gp_progress: Callable[[float], None]) -> SelectionStage:
+    """Stage 3: the selection redone inside every outer fold (the **after** figure), the GP discrepancy
+    baseline, and the chosen terms fitted on all rows; each progress callable is called with the
+    fraction done of its part, then 1."""
+    dataset, fit_parameters, baseline = declared.dataset, declared.fit_parameters, declared.baseline
+    selection = candidates.selection
     # Each outer fold's search starts weighted by the scatter that weighted the search on all rows, and
     # keeps it only when its own residual confirms it (calibrate.select.forward_select).
-    nested = nested_cross_validate(dataset, fit_parameters, baseline, seed, progress=stage(2),
-                                   initial_scatter=selection.scatter, **options)
-    stage(2)(1.0)
-    gp = gp_discrepancy(dataset, baseline, gp_max_train, seed, progress=stage(3))
-    stage(3)(1.0)
-
+    nested = nested_cross_validate(dataset, fit_parameters, baseline, options.seed, options.search,
+                                   nested_progress, selection.scatter)
+    nested_progress(1.0)
+    gp = gp_discrepancy(dataset, baseline, options.gp_max_train, options.seed, progress=gp_progress)
+    gp_progress(1.0)
     terms = selection.terms
-    error_before = prediction_errors(baseline.oof_mu, measured)
     if terms:
         final = fit(dataset, fit_parameters, terms, start=selection.model.full.declared,
-                    start_terms=selection.model.full.term_values, convention=convention)
-        error_after_selection = prediction_errors(selection.model.oof_mu, measured[selection.rows])
+                    start_terms=selection.model.full.term_values, convention=options.convention)
+        error_after_selection = prediction_errors(selection.model.oof_mu, dataset.mu_measured[selection.rows])
     else:
-        final, error_after_selection = baseline.full, error_before
-    mu_before = predict_mu(dataset, baseline.full.declared, convention=convention)
-    mu_after = predict_mu(dataset, final.declared, terms, final.term_values, convention=convention)
+        final, error_after_selection = baseline.full, declared.error_before
+    mu_after = predict_mu(dataset, final.declared, terms, final.term_values, convention=options.convention)
+    return SelectionStage(nested, gp, final, error_after_selection, mu_after)
+
+
+def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selection: SelectionStage,
+                      options: CalibrationOptions) -> UncertaintyStage:
+    """Stage 4: outliers, group effects, the scatter model (and the fit it weights), a GP on what the
+    terms leave, the noise of a new measurement, the calibrated model and its rivals.
+
+    Parameters
+    ----------
+    declared, candidates, selection : DataStage, CandidatesStage, SelectionStage
+        The stages before.
+    options : CalibrationOptions
+        ``folds``, ``seed``, ``gp_max_train`` and the convention act here.
+
+    Returns
+    -------
+    UncertaintyStage
+    """
+    dataset, convention = declared.dataset, options.convention
+    measured, terms, nested = dataset.mu_measured, candidates.terms, selection.nested
+    final, mu_after = selection.final, selection.mu_after
     outliers = find_outliers(dataset, mu_after, final.residual, final.scale)
-    inliers = ~outliers["mask"]
     # Groups: the spread of a declared parameter (or of mu) between the labels of each factor column,
     # on what the fixed model leaves (calibrate.groups); the held-out residual then loses each row's
     # group level before it measures the scatter of a new measurement.
-    group_effects, group_shift = _group_effects(dataset, final, terms, mu_after, inliers, convention)
+    group_effects, group_shift = _group_effects(dataset, final, terms, mu_after, ~outliers["mask"],
+                                                convention)
     held_out = np.log(measured / nested.oof_mu) - group_shift
     # Scatter that depends on the inputs (calibrate.scatter), chosen by cross-validation on the
     # held-out residual; when it is not one spread everywhere, the model is refitted with each row
     # weighted by its local scatter (unless the data declare mu_measured_std, which weighs them
     # already), and outliers are judged against the local scatter.
     varying = {k: v for k, v in dataset.columns().items() if v.dtype != bool and np.unique(v).size > 1}
-    scatter = fit_scatter(varying, held_out, folds, seed)
+    scatter = fit_scatter(varying, held_out, options.folds, options.seed)
     if scatter.kind != "constant":
         local = scatter.std_log(varying, measured.shape)
         if dataset.mu_measured_std is None:
             weighted = replace(dataset, mu_measured_std=measured * local / float(np.median(local)))
-            final = fit(weighted, fit_parameters, terms, start=final.declared, start_terms=final.term_values,
-                        convention=convention)
+            final = fit(weighted, declared.fit_parameters, terms, start=final.declared,
+                        start_terms=final.term_values, convention=convention)
             mu_after = predict_mu(dataset, final.declared, terms, final.term_values, convention=convention)
             outliers = find_outliers(dataset, mu_after, final.residual, final.scale)
         else:
             outliers = find_outliers(dataset, mu_after, np.log(mu_after / measured) / local, 1.0)
-        inliers = ~outliers["mask"]
-    error_after = prediction_errors(nested.oof_mu, measured)
+    inliers = ~outliers["mask"]
     robust_errors = {
-        "before": prediction_errors(baseline.oof_mu[inliers], measured[inliers]),
+        "before": prediction_errors(declared.baseline.oof_mu[inliers], measured[inliers]),
         "after": prediction_errors(nested.oof_mu[inliers], measured[inliers]),
         "excluded_rows": int(outliers["count"]),
     }
     # What the terms leave: a GP on the residual of each outer fold's own model, judged on its held-out
     # rows; part of the model only when it beats the terms alone there.
-    leftover = residual_gp(dataset, outer, nested.fold_mu, mu_after, inliers, gp_max_train, seed)
-    leftover = _confirm_gp(dataset, fit_parameters, terms, final, baseline, outer, leftover, mu_after,
-                           inliers, gp_max_train, seed, convention)
-    gp_state = leftover["gp"]
+    leftover = residual_gp(dataset, declared.outer, nested.fold_mu, mu_after, inliers, options.gp_max_train,
+                           options.seed)
+    leftover = _confirm_gp(declared, final, leftover, mu_after, inliers, options)
+    noise_std_log, scatter = _noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape)
+    cloud = DataCloud.from_columns(varying, options.seed)
+    model = CalibratedModel.from_fit(final, dataset, convention, noise_std_log, discrepancy=leftover["gp"],
+                                     groups=group_effects, scatter=scatter, cloud=cloud)
+    # Rivals: terms that fit about as well as a chosen one, and terms on a column that moves with one the
+    # model reads (calibrate.rivals): the interval holds their envelope.
+    pairs = confounded_pairs(varying)
+    rivals = fit_rivals(dataset, declared.fit_parameters, candidates.selection, final, convention,
+                        pairs=pairs)
+    if rivals:
+        model = replace(model, rivals=[RivalModel.from_json(rival_json(r)) for r in rivals])
+    return UncertaintyStage(final, mu_after, outliers, group_effects, scatter,
+                            prediction_errors(nested.oof_mu, measured), robust_errors, leftover, cloud, pairs,
+                            rivals, model)
+
+
+def _noise_level(scatter: ScatterModel, gp_state: Mapping[str, Any] | None, held_out: np.ndarray,
+                 inliers: np.ndarray, varying: Mapping[str, np.ndarray],
+                 shape: tuple[int, ...]) -> tuple[float, ScatterModel]:
+    """The scatter of a new measurement around the model (std of log μ [1]) and the scatter model at
+    that level."""
     if gp_state is None:
         # A new measurement scatters around the model as the held-out rows of the nested
         # cross-validation did: noise, what the terms leave, and the refit's own uncertainty. RMS over
@@ -518,36 +614,24 @@ def calibrate(
         # outliers). Without a GP it stays as fitted: the maximum-likelihood spread of these held-out
         # residuals in each region (an RMS of the spreads would be set by the noisiest rows and would
         # rescale the quiet ones with them).
-        rms = float(np.sqrt(np.mean(np.square(scatter.std_log(varying, measured.shape)[inliers]))))
+        rms = float(np.sqrt(np.mean(np.square(scatter.std_log(varying, shape)[inliers]))))
         scatter = scatter.scaled(noise_std_log / rms)
     elif scatter.kind == "constant":
         scatter = scatter.scaled(noise_std_log / float(np.exp(scatter.coefficients[0])))
-    cloud = DataCloud.from_columns(varying, seed)
-    model = CalibratedModel.from_fit(
-        final.declared,
-        dataset.fixed,
-        terms,
-        final.term_values,
-        convention,
-        final.covariance,
-        noise_std_log,
-        dataset.columns(),
-        list(dataset.conditions),
-        gp_state,
-        group_effects,
-        scatter,
-        cloud,
-    )
-    # Rivals: terms that fit about as well as a chosen one, and terms on a column that moves with one the
-    # model reads (calibrate.rivals): the interval holds their envelope.
-    pairs = confounded_pairs(varying)
-    rivals = fit_rivals(dataset, fit_parameters, selection, final, convention, pairs=pairs)
-    if rivals:
-        model = replace(model, rivals=[RivalModel.from_json(rival_json(r)) for r in rivals])
-    rival_words = _rival_words(dataset, model, rivals)
-    stability = nested.stability(terms)
+    return noise_std_log, scatter
+
+
+def format_report(declared: DataStage, candidates: CandidatesStage, selection: SelectionStage,
+                  uncertainty: UncertaintyStage, options: CalibrationOptions,
+                  plots: dict[str, bytes]) -> CalibrationReport:
+    """The report, numbers and words, written from the stages' results (and the plots drawn from them)."""
+    dataset, fit_parameters, baseline = declared.dataset, declared.fit_parameters, declared.baseline
+    found, final, model = candidates.selection, uncertainty.final, uncertainty.model
+    terms, leftover, error_after = found.terms, uncertainty.leftover, uncertainty.error_after
+    rival_list = rival_words(dataset, model, uncertainty.rivals)
+    stability = selection.nested.stability(terms)
     gp = {
-        **gp,
+        **selection.gp,
         "calibrated_errors": leftover["errors"],
         "calibrated_errors_without": leftover["errors_without"],
         "calibrated_z": leftover["z"],
@@ -558,7 +642,7 @@ def calibrate(
         term.describe(values, std)
         for term, values, std in zip(terms, final.term_values, final.term_std(), strict=True)
     ]
-    searched = dataset.subset(selection.rows)
+    searched = dataset.subset(found.rows)
     steps = [
         {
             "added": None if step.chosen is None else step.chosen.term.label,
@@ -570,12 +654,50 @@ def calibrate(
             "candidates": [c.summary(searched) for c in [step.current, *step.ranked[:REPORTED_CANDIDATES]]],
             "reason": step.reason,
         }
-        for step in selection.steps
+        for step in found.steps
     ]
-    warnings = check_plausible(dataset) + parameter_warnings(baseline.full, final)
-    confounding = confounding_words(pairs, [t.drivers[0] for t in terms])
-    confounding += _rival_drivers(selection)
-    warnings += _code_columns(dataset)
+    confounding = confounding_words(uncertainty.pairs, [t.drivers[0] for t in terms]) + rival_drivers(found)
+    return CalibrationReport(
+        n_points=dataset.n_points,
+        fit_parameters=list(fit_parameters),
+        error_default=declared.error_default,
+        fitted_declared=_values(baseline.full.declared, baseline.full.declared_std),
+        fitted_parameters=_values(final.declared, final.declared_std),
+        error_before=declared.error_before,
+        error_after=error_after,
+        error_after_selection=selection.error_after_selection,
+        robust_errors=uncertainty.robust_errors,
+        effect_stability=stability,
+        missing_effect=effects[0] if effects else None,
+        effects=effects,
+        steps=steps,
+        outliers=uncertainty.outliers,
+        noise=noise_report(dataset, uncertainty.mu_after, len(final.names), uncertainty.inliers),
+        warnings=_warnings(declared, uncertainty, gp),
+        discrepancy_gp=gp,
+        candidates=steps[0]["candidates"] if steps else [],
+        decision=found.reason,
+        folds=options.folds,
+        model=model,
+        plots=plots,
+        rivals=rival_list,
+        undecided=undecided(dataset, found, stability, rival_list, fit_parameters, model.noise_std_log,
+                            options.convention),
+        groups=describe_groups(uncertainty.group_effects) + [
+            {"factor": name, "summary": f"{name}: {why_not_fitted(labels)}"}
+            for name, labels in dataset.factors.items() if why_not_fitted(labels)],
+        scatter={**uncertainty.scatter.to_json(), "summary": uncertainty.scatter.summary()},
+        confounding=confounding,
+        domain=domain_words(uncertainty.cloud),
+    )
+
+
+def _warnings(declared: DataStage, uncertainty: UncertaintyStage, gp: Mapping[str, Any]) -> list[str]:
+    """Implausible values, parameters that moved or sit on a bound, code-like columns, and GPs that do
+    better than the calibrated model."""
+    dataset, leftover, error_after = declared.dataset, uncertainty.leftover, uncertainty.error_after
+    warnings = check_plausible(dataset) + parameter_warnings(declared.baseline.full, uncertainty.final)
+    warnings += code_columns(dataset)
     if gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
         warnings.append(
             f"a Gaussian-process discrepancy predicts held-out rows better than the calibrated model "
@@ -589,56 +711,11 @@ def calibrate(
             f"{leftover['errors_without']['relative_rmse']:.3g}, z = {leftover['z']:.1f}): it is part of the "
             f"calibrated model, whose mean it corrects and whose intervals it widens where it is unsure"
         )
-    noise = noise_report(dataset, mu_after, len(final.names), inliers)
-    plots: dict[str, bytes] = {}
-    if make_plots:
-        plots = calibration_plots(
-            dataset,
-            model,
-            mu_before,
-            mu_after,
-            outliers["mask"],
-            {"before": error_before, "after": error_after, "robust": robust_errors},
-            [t.label for t in terms],
-        )
-    report(1.0)
-    return CalibrationReport(
-        n_points=dataset.n_points,
-        fit_parameters=list(fit_parameters),
-        error_default=error_default,
-        fitted_declared=_values(baseline.full.declared, baseline.full.declared_std),
-        fitted_parameters=_values(final.declared, final.declared_std),
-        error_before=error_before,
-        error_after=error_after,
-        error_after_selection=error_after_selection,
-        robust_errors=robust_errors,
-        effect_stability=stability,
-        missing_effect=effects[0] if effects else None,
-        effects=effects,
-        steps=steps,
-        outliers=outliers,
-        noise=noise,
-        warnings=warnings,
-        discrepancy_gp=gp,
-        candidates=steps[0]["candidates"] if steps else [],
-        decision=selection.reason,
-        folds=folds,
-        model=model,
-        plots=plots,
-        rivals=rival_words,
-        undecided=undecided(dataset, selection, stability, rival_words, fit_parameters, model.noise_std_log,
-                            convention),
-        groups=describe_groups(group_effects) + [
-            {"factor": name, "summary": f"{name}: {why_not_fitted(labels)}"}
-            for name, labels in dataset.factors.items() if why_not_fitted(labels)],
-        scatter={**scatter.to_json(), "summary": scatter.summary()},
-        confounding=confounding,
-        domain=_domain_words(cloud),
-    )
+    return warnings
 
 
-def _confirm_gp(dataset, fit_parameters, terms, final, baseline, outer, leftover, mu_after, inliers,
-                gp_max_train, seed, convention) -> dict[str, Any]:
+def _confirm_gp(declared: DataStage, final: FitResult, leftover: dict[str, Any], mu_after: np.ndarray,
+                inliers: np.ndarray, options: CalibrationOptions) -> dict[str, Any]:
     """A GP that helped the nested folds' models joins only if it helps the chosen model too.
 
     Nested cross-validation judges the GP on the residual of each outer fold's own selection; a fold
@@ -652,29 +729,17 @@ def _confirm_gp(dataset, fit_parameters, terms, final, baseline, outer, leftover
     """
     if not leftover["helps"]:
         return {**leftover, "chosen_terms_z": None}
-    if terms:
-        chosen = cross_validate(dataset, fit_parameters, terms, outer, scale=final.scale,
-                                start=final.declared, start_terms=final.term_values, precise=False,
-                                convention=convention)
+    if final.terms:
+        chosen = cross_validate(declared.dataset, declared.fit_parameters, final.terms, declared.outer,
+                                scale=final.scale, start=final.declared, start_terms=final.term_values,
+                                precise=False, convention=options.convention)
     else:
-        chosen = baseline
-    again = residual_gp(dataset, outer, chosen.fold_mu, mu_after, inliers, gp_max_train, seed)
+        chosen = declared.baseline
+    again = residual_gp(declared.dataset, declared.outer, chosen.fold_mu, mu_after, inliers,
+                        options.gp_max_train, options.seed)
     if again["helps"]:
         return {**leftover, "chosen_terms_z": again["z"]}
     return {**leftover, "helps": False, "gp": None, "chosen_terms_z": again["z"]}
-
-
-def _rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
-    """Each rival with where it parts from the model (over its driver, and the replaced term's)."""
-    out = []
-    for rival, alternative in zip(rivals, model.rival_models(), strict=True):
-        other = rival.partner if rival.replaces is None else rival.replaces.drivers[0]
-        drivers = dict.fromkeys([rival.term.drivers[0], other])
-        where = [where_they_part(model, alternative, dataset, d, model.noise_std_log) for d in drivers]
-        part = max(where, key=lambda w: w["largest_difference_log"] or 0.0)
-        out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,
-                    "statement": describe_rival(rival, part)})
-    return out
 
 
 def _group_effects(dataset: Dataset, final, terms, mu_after: np.ndarray, inliers: np.ndarray,
@@ -704,54 +769,3 @@ def _group_effects(dataset: Dataset, final, terms, mu_after: np.ndarray, inliers
         shift = shift + effect.shift(labels, s)[0]
         effects.append(effect)
     return effects, shift
-
-
-def _code_columns(dataset: Dataset) -> list[str]:
-    """A sentence per condition column that looks like integer codes of groups (the values 1..k or 0..k-1,
-    3 <= k <= 20) and was not declared a factor: read as a number, it is a smooth driver."""
-    words = []
-    for name, values in dataset.conditions.items():
-        distinct = np.unique(values)
-        if 3 <= distinct.size <= 20 and np.all(distinct == np.round(distinct)) and (
-                distinct[0] in (0.0, 1.0) and distinct[-1] - distinct[0] == distinct.size - 1):
-            words.append(
-                f"{name} holds the whole numbers {distinct[0]:.0f}..{distinct[-1]:.0f}: if they label groups "
-                f"(specimens, builds, batches), declare {name} a factor (factors) so that the spread between "
-                f"groups is fitted instead of a smooth effect of the number")
-    return words
-
-
-def _rival_drivers(selection) -> list[str]:
-    """Steps where a term on another driver fitted as well (within one standard error): the data cannot
-    tell those drivers apart."""
-    from .select import _within_one_se
-
-    words = []
-    for step in selection.steps:
-        if step.chosen is None:
-            continue
-        main = step.chosen.term.drivers[0]
-        rivals = [c for c in step.ranked if c.joint and c is not step.chosen and c.z > step.z_needed
-                  and c.term.drivers[0] != main and _within_one_se(c.loss, step.chosen.loss)]
-        others = list(dict.fromkeys(c.term.drivers[0] for c in rivals))
-        if others:
-            words.append(
-                f"{step.chosen.term.label} was chosen, but terms on {', '.join(others)} fitted as well "
-                f"within one standard error: the data cannot tell {main} from {', '.join(others)} as the "
-                f"driver")
-    return words
-
-
-def _domain_words(cloud: DataCloud | None) -> dict[str, Any]:
-    """The domain rule in words."""
-    if cloud is None:
-        return {"columns": [], "alpha": None, "summary": (
-            "a point is in the domain when every input and condition lies within its range in the data "
-            "(fewer than two columns vary, so the ranges are the data's shape)")}
-    return {"columns": list(cloud.columns), "alpha": cloud.alpha, "summary": (
-        f"a point is in the domain when every input and condition lies within its range in the data and "
-        f"the point lies within the joint cloud of the rows in {', '.join(cloud.columns)} (scaled distance "
-        f"to the 5th nearest row no more than {100 * (1 - cloud.alpha):.0f} % of the rows' own: about "
-        f"{100 * cloud.alpha:.0f} % of new points drawn like the data fall outside); beyond it the "
-        f"interval widens in proportion to the distance, and where columns move together it holds the "
-        f"rivals by confounding (terms on the column the model does not read)")}

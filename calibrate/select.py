@@ -55,18 +55,36 @@ error of the procedure, and how often it chose the same terms.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
 
-from microbearing import physics
-
-from .candidates import FrozenBase, Term, candidate_terms, mu_of
+from .candidates import Term
 from .data import Dataset
-from .fit import FitResult, fit, huber_loss, kfold_indices, predict_mu, weighted_log_residual
+from .fit import fit, kfold_indices, predict_mu
 from .scatter import ScatterModel, fit_scatter
+from .scores import (
+    SIGN_FLIPS,
+    CandidateScore,
+    ModelCV,
+    Step,
+    count_parameters,
+    cross_validate,
+    max_t_threshold,
+    noise_test,
+    preferred,
+    usable,
+)
+from .search import (
+    FAMILY_ALPHA,
+    MAX_SEARCH_ROWS,
+    MAX_TERMS,
+    SCATTER_ROUNDS,
+    SearchOptions,
+    search_step,
+    shifted,
+)
 
 __all__ = [
     "FAMILY_ALPHA",
@@ -77,6 +95,7 @@ __all__ = [
     "CandidateScore",
     "ModelCV",
     "NestedValidation",
+    "SearchOptions",
     "Selection",
     "Step",
     "cross_validate",
@@ -89,136 +108,8 @@ __all__ = [
     "varying_columns",
 ]
 
-#: Most terms forward selection adds. [1]
-MAX_TERMS = 3
-#: Chance, per step, that any candidate passes the paired test on noise alone. [1]
-FAMILY_ALPHA = 0.01
-#: Random sign flips that estimate the family-wise threshold (:func:`max_t_threshold`): at α = 0.01,
-#: 100 of them lie beyond it, and its Monte Carlo standard error is about 0.03 in z. [1]
-SIGN_FLIPS = 10_000
-# Sign flips drawn at a time (bounds the memory: chunk x rows signs).
-_FLIP_CHUNK = 1000
-#: The search runs on at most this many rows (a random subset); the chosen terms are then fitted
-#: on all rows. A few thousand rows name an effect as surely as ten thousand, at a fraction of the cost. [1]
-MAX_SEARCH_ROWS = 1000
-#: Selections at most when the scatter model that weights the selection is re-estimated from the selected
-#: model (see :func:`forward_select`): the first unweighted, each next one weighted by the scatter of the
-#: one before, until the scatter model keeps its form. [1]
-SCATTER_ROUNDS = 3
 #: Candidates per step whose scores the report keeps. [1]
 REPORTED_CANDIDATES = 15
-# Relative step of the sensitivities d log mu / d log p of the frozen base.
-_SENSITIVITY_STEP = 1e-4
-# A parameter whose largest sensitivity d log mu / d log p is below this cannot drift visibly: a 10 %
-# change of it would move mu by less than 0.1 %. [1]
-_INERT = 0.01
-
-
-@dataclass(frozen=True)
-class ModelCV:
-    """A model (declared parameters + terms) fitted on each training fold and on all rows.
-
-    Attributes
-    ----------
-    terms : tuple of Term
-        The model's terms.
-    folds : list of numpy.ndarray
-        Test rows of each fold.
-    fold_fits : list of FitResult
-        Fits without each fold's test rows.
-    fold_mu : list of numpy.ndarray
-        μ of each fold's fit at every row. [1]
-    oof_mu : numpy.ndarray
-        Held-out prediction of every row (from the fold that left it out). [1]
-    full : FitResult
-        Fit on all rows.
-    """
-
-    terms: tuple[Term, ...]
-    folds: list[np.ndarray]
-    fold_fits: list[FitResult]
-    fold_mu: list[np.ndarray] = field(repr=False)
-    oof_mu: np.ndarray = field(repr=False)
-    full: FitResult
-
-
-@dataclass(frozen=True)
-class CandidateScore:
-    """Cross-validated score of one candidate term (or of the current model, ``term`` None).
-
-    Attributes
-    ----------
-    term : Term or None
-        The candidate.
-    n_parameters : int
-        Fitted parameters in all, declared and terms'. [1]
-    loss : numpy.ndarray
-        Huber loss of every row's held-out weighted log residual. [1]
-    score : float
-        ``n log(mean loss) + n_parameters log(n)``, lower is better. [1]
-    z : float
-        Paired z of the decrease in held-out loss against the current model. [1]
-    joint : bool
-        True when refitted jointly with the declared parameters and chosen terms.
-    oof_mu : numpy.ndarray
-        Held-out prediction of every row (in-sample for a screening score). [1]
-    values : list of float
-        The term's parameters fitted by the screening (where a joint refit starts).
-    shifts : dict of str to float
-        Relative shifts (log scale) of the declared parameters the screening fitted with the term;
-        a joint refit starts from them, not from the declared values that were bent to mimic it.
-    """
-
-    term: Term | None
-    n_parameters: int
-    loss: np.ndarray = field(repr=False)
-    score: float
-    z: float
-    joint: bool
-    oof_mu: np.ndarray = field(repr=False)
-    values: list[float] = field(default_factory=list)
-    shifts: dict[str, float] = field(default_factory=dict)
-
-    def summary(self, dataset: Dataset) -> dict:
-        """JSON-ready: term, kind, drivers, parameters, CV RMSE of log μ, score and z."""
-        rms = float(np.sqrt(np.mean(np.square(weighted_log_residual(dataset, self.oof_mu)))))
-        return {
-            "effect": None if self.term is None else self.term.name,
-            "kind": None if self.term is None else self.term.kind,
-            "label": "current model" if self.term is None else self.term.label,
-            "drivers": [] if self.term is None else list(self.term.drivers),
-            "n_parameters": self.n_parameters,
-            "cv_rmse_log": rms,
-            "cv_robust_loss": float(np.mean(self.loss)),
-            "score": float(self.score),
-            "z_vs_declared": float(self.z),
-            "joint_refit": self.joint,
-        }
-
-
-@dataclass(frozen=True)
-class Step:
-    """One step of forward selection.
-
-    Attributes
-    ----------
-    current : CandidateScore
-        The model before the step.
-    ranked : list of CandidateScore
-        Candidates scored, best first (joint refits before screening scores).
-    chosen : CandidateScore or None
-        The term added, or None when the search stopped.
-    z_needed : float
-        Paired z a candidate had to exceed. [1]
-    reason : str
-        Why it was added or why the search stopped.
-    """
-
-    current: CandidateScore
-    ranked: list[CandidateScore]
-    chosen: CandidateScore | None
-    z_needed: float
-    reason: str
 
 
 @dataclass(frozen=True)
@@ -253,450 +144,6 @@ class Selection:
     reason: str = ""
     scatter: ScatterModel | None = None
 
-
-def cross_validate(
-    dataset: Dataset,
-    fit_parameters: Sequence[str],
-    terms: Sequence[Term],
-    folds: list[np.ndarray],
-    scale: float | None = None,
-    start: Mapping[str, float] | None = None,
-    start_terms: Sequence[Sequence[float]] | None = None,
-    precise: bool = True,
-    convention: str = physics.DEFAULT_CONVENTION,
-) -> ModelCV:
-    """Fit a model on all rows and on each training fold.
-
-    Parameters
-    ----------
-    dataset : Dataset
-        Measurements.
-    fit_parameters : sequence of str
-        Declared physics parameters to fit.
-    terms : sequence of Term
-        The model's terms.
-    folds : list of numpy.ndarray
-        Test rows of each fold (:func:`calibrate.fit.kfold_indices`).
-    scale : float, optional
-        Robust scale for the Huber loss (default: estimated by the fit on all rows, then used by
-        every fold).
-    start : mapping of str to float, optional
-        Declared values to start from (default: the physics defaults).
-    start_terms : sequence of sequence of float, optional
-        Values of the first terms to start from (the others start from their data-based guess).
-    precise : bool
-        Whether the fits are precise (see :func:`calibrate.fit.fit`) or only good enough to rank.
-    convention : str
-        See :data:`physics.CONVENTIONS`.
-
-    Returns
-    -------
-    ModelCV
-    """
-    full = fit(
-        dataset,
-        fit_parameters,
-        terms,
-        start=start,
-        start_terms=start_terms,
-        scale=scale,
-        precise=precise,
-        convention=convention,
-    )
-    everything = np.arange(dataset.n_points)
-    fold_fits, fold_mu = [], []
-    oof = np.empty(dataset.n_points)
-    for test in folds:
-        train = np.setdiff1d(everything, test)
-        fold_fit = fit(
-            dataset,
-            fit_parameters,
-            terms,
-            rows=train,
-            start=full.declared,
-            start_terms=full.term_values,
-            scale=full.scale,
-            precise=precise,
-            convention=convention,
-        )
-        with np.errstate(all="ignore"):
-            mu = predict_mu(dataset, fold_fit.declared, terms, fold_fit.term_values, convention=convention)
-        fold_fits.append(fold_fit)
-        fold_mu.append(mu)
-        oof[test] = mu[test]
-    return ModelCV(tuple(terms), folds, fold_fits, fold_mu, oof, full)
-
-
-def noise_test(dataset: Dataset, residual: np.ndarray, n_parameters: int, scale: float) -> float | None:
-    """Chi-square p-value of the weighted log residual against ``mu_measured_std`` (None without it).
-
-    Rows beyond the outlier threshold of :func:`calibrate.uncertainty.outlier_threshold` are left
-    out, so that a few gross outliers do not condemn a model that explains the rest within the noise.
-    """
-    if dataset.mu_measured_std is None:
-        return None
-    from .uncertainty import outlier_threshold
-
-    inliers = np.abs(residual) <= outlier_threshold(residual.size) * scale
-    chi2 = float(np.sum(np.square(residual[inliers])))
-    return float(stats.chi2.sf(chi2, max(int(inliers.sum()) - n_parameters, 1)))
-
-
-def max_t_threshold(differences: np.ndarray, alpha: float, flips: int = SIGN_FLIPS, seed: int = 0) -> float:
-    """Paired z that the largest of several correlated paired z's exceeds with chance ``alpha`` on noise.
-
-    Westfall and Young's single-step max-T [1]_ with random sign flips [2]_: every candidate's per-row
-    differences are centred (no improvement on average: the null), then the same random signs flip
-    row i of every candidate at once, which keeps the candidates' correlation (they are fitted to
-    the same rows); the threshold is the ``1 - alpha`` quantile of the largest paired z over the
-    candidates. With independent candidates it comes to the Šidák value Φ⁻¹((1 - α)^(1/m)), with
-    identical ones to the single test's Φ⁻¹(1 - α). The flips condition on each row's size of
-    difference, so a candidate whose gain sits on a few rows has, as its own z, a lighter tail.
-
-    Parameters
-    ----------
-    differences : numpy.ndarray
-        Per-row decrease of the loss, shape (rows, candidates). [1]
-    alpha : float
-        Chance that any candidate's z exceeds the threshold when none improves on average. [1]
-    flips : int
-        Random sign flips (:data:`SIGN_FLIPS`). [1]
-    seed : int
-        Seed of the flips (fixed: the same data give the same threshold).
-
-    Returns
-    -------
-    float
-        The threshold. [1]
-
-    References
-    ----------
-    .. [1] P. H. Westfall and S. S. Young, *Resampling-Based Multiple Testing*, Wiley, 1993, ch. 2.
-    .. [2] T. E. Nichols and A. P. Holmes, "Nonparametric permutation tests for functional
-       neuroimaging", Human Brain Mapping 15 (2002) 1-25 (sign flips for one-sample tests, max-T).
-
-    Examples
-    --------
-    Thirty copies of one candidate are one test (Φ⁻¹(0.99) = 2.33, within the Monte Carlo error):
-
-    >>> one = np.random.default_rng(1).normal(size=(400, 1))
-    >>> thirty = max_t_threshold(np.repeat(one, 30, axis=1), 0.01)
-    >>> bool(np.isclose(thirty, max_t_threshold(one, 0.01))), round(thirty, 1)
-    (True, 2.4)
-    """
-    d = np.asarray(differences, dtype=float)
-    n = d.shape[0]
-    centred = d - d.mean(axis=0)
-    squares = np.sum(np.square(centred), axis=0)
-    rng = np.random.default_rng(seed)
-    largest = np.empty(flips)
-    for start in range(0, flips, _FLIP_CHUNK):
-        count = min(_FLIP_CHUNK, flips - start)
-        # One random bit a row, 1 for the sign +1 and 0 for -1: as every centred column sums to zero,
-        # sum(sign d) = 2 sum(bit d).
-        bits = np.unpackbits(rng.integers(0, 256, (count, (n + 7) // 8), dtype=np.uint8), axis=1, count=n)
-        mean = 2.0 * (bits.astype(float) @ centred) / n
-        # Flipping signs keeps every row's square: only the mean moves in the paired variance.
-        variance = np.maximum(squares - n * np.square(mean), 0.0) / (n - 1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.where(variance > 0, mean / np.sqrt(variance / n), 0.0)
-        largest[start : start + count] = z.max(axis=1)
-    return float(np.quantile(largest, 1.0 - alpha))
-
-
-def _usable(mu: np.ndarray) -> bool:
-    """Whether every predicted μ is finite and positive (its log residual exists)."""
-    return bool(np.all(np.isfinite(mu) & (mu > 0)))
-
-
-def _n_parameters(fit_parameters: Sequence[str], terms: Sequence[Term]) -> int:
-    return len(fit_parameters) + sum(len(t.parameter_names) for t in terms)
-
-
-def _score(dataset, term, n_parameters, oof_mu, current_loss, scale, joint) -> CandidateScore:
-    loss = huber_loss(weighted_log_residual(dataset, oof_mu), scale)
-    n = dataset.n_points
-    diff = current_loss - loss
-    spread = float(np.std(diff, ddof=1)) if n > 1 else 0.0
-    z = float(np.mean(diff) / (spread / np.sqrt(n))) if spread > 0 else 0.0
-    score = n * np.log(max(float(np.mean(loss)), 1e-300)) + n_parameters * np.log(n)
-    return CandidateScore(term, n_parameters, loss, float(score), z, joint, oof_mu)
-
-
-def _frozen_base(dataset, fit_parameters, current: ModelCV, parameters, convention) -> FrozenBase:
-    """The current model's full fit frozen at every row, with its sensitivity to each parameter."""
-    full = current.full
-    mu = predict_mu(dataset, full.declared, current.terms, full.term_values, convention=convention)
-    inputs = {**physics.defaults(), **dataset.inputs(), **full.declared}
-    sensitivity = {}
-    for name in dict.fromkeys([*fit_parameters, *parameters]):
-        value = np.asarray(inputs[name], dtype=float)
-        factor = _bump_factor(name, value)
-        bumped = {**inputs, name: value * factor}
-        with np.errstate(all="ignore"):
-            mu_bumped = mu_of(
-                bumped, dataset.conditions, current.terms, full.term_values, convention=convention
-            )
-            s = np.log(mu_bumped / mu) / np.log(factor)
-        sensitivity[name] = np.where(np.isfinite(s), s, 0.0)
-    return FrozenBase(mu, sensitivity, tuple(fit_parameters))
-
-
-def _bump_factor(name: str, value: np.ndarray) -> float:
-    """Relative step of a sensitivity d log mu / d log p: up by :data:`_SENSITIVITY_STEP`, or down when a
-    value on (or within a step of) the top of its range would leave it (a fitted parameter on its bound
-    is an answer, not an error). [1]"""
-    spec = physics.PARAMETERS[name]
-    up = 1.0 + _SENSITIVITY_STEP
-    if spec.maximum is None or value.size == 0:
-        return up
-    top = float(np.max(value)) * up
-    inside = top < spec.maximum if spec.exclusive_maximum else top <= spec.maximum
-    return up if inside else 1.0 - _SENSITIVITY_STEP
-
-
-def _screen(dataset, fit_parameters, current: ModelCV, term, base, scale, current_loss):
-    """In-sample score of a candidate fitted on the frozen base (declared parameters shifted to first
-    order), or None when it cannot be evaluated at every row."""
-    with np.errstate(all="ignore"):
-        try:
-            result = fit(dataset, (), (term,), base=base, scale=scale, precise=False)
-            mu = predict_mu(
-                dataset, {}, (term,), result.term_values, base=base.shifted(list(result.declared.values()))
-            )
-        except ValueError:
-            return None
-    if not _usable(mu):
-        return None
-    score = _score(
-        dataset, term, _n_parameters(fit_parameters, (*current.terms, term)), mu, current_loss, scale, False
-    )
-    return replace(score, values=list(result.term_values[0]), shifts=dict(result.declared))
-
-
-def _screen_exactly(
-    dataset, fit_parameters, current: ModelCV, screened: CandidateScore, scale, current_loss, convention
-):
-    """In-sample score of a candidate refitted with everything through the physics, or None."""
-    terms = (*current.terms, screened.term)
-    with np.errstate(all="ignore"):
-        try:
-            result = fit(
-                dataset,
-                fit_parameters,
-                terms,
-                start=_shifted(current.full.declared, screened.shifts),
-                start_terms=[*current.full.term_values, screened.values],
-                scale=scale,
-                precise=False,
-                convention=convention,
-            )
-            mu = predict_mu(dataset, result.declared, terms, result.term_values, convention=convention)
-        except ValueError:
-            return None
-    if not _usable(mu):
-        return None
-    score = _score(dataset, screened.term, screened.n_parameters, mu, current_loss, scale, False)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        shifts = {n: float(np.log(v / current.full.declared[n])) for n, v in result.declared.items()}
-    return replace(score, values=list(result.term_values[-1]),
-                   shifts={n: d if np.isfinite(d) else 0.0 for n, d in shifts.items()})
-
-
-def _shifted(declared: dict[str, float], shifts: dict[str, float]) -> dict[str, float]:
-    """Declared values shifted by relative amounts (log scale)."""
-    return {n: v * float(np.exp(shifts.get(n, 0.0))) for n, v in declared.items()}
-
-
-def _cv_candidate(dataset, fit_parameters, current: ModelCV, screened: CandidateScore, scale, convention):
-    """Held-out μ of every row with the candidate refitted jointly, or None when a fold cannot predict."""
-    everything = np.arange(dataset.n_points)
-    oof = np.empty(dataset.n_points)
-    terms = (*current.terms, screened.term)
-    for test, fold_fit in zip(current.folds, current.fold_fits, strict=True):
-        train = np.setdiff1d(everything, test)
-        with np.errstate(all="ignore"):
-            try:
-                result = fit(
-                    dataset,
-                    fit_parameters,
-                    terms,
-                    rows=train,
-                    start=_shifted(fold_fit.declared, screened.shifts),
-                    start_terms=[*fold_fit.term_values, screened.values],
-                    scale=scale,
-                    precise=False,
-                    convention=convention,
-                )
-                oof[test] = predict_mu(
-                    dataset, result.declared, terms, result.term_values, rows=test, convention=convention
-                )
-            except ValueError:  # a held-out driver value outside the term's domain
-                return None
-    # A term extrapolated to a held-out driver value can overflow: the candidate then fails.
-    return oof if _usable(oof) else None
-
-
-def _search_step(
-    dataset,
-    fit_parameters,
-    current: ModelCV,
-    scale,
-    z_threshold,
-    family_alpha,
-    joint_top,
-    convention,
-    progress,
-    plain=None,
-) -> Step:
-    plain = dataset if plain is None else plain
-    n_current = _n_parameters(fit_parameters, current.terms)
-    current_loss = huber_loss(weighted_log_residual(dataset, current.oof_mu), scale)
-    current_score = _score(dataset, None, n_current, current.oof_mu, current_loss, scale, True)
-    candidates = candidate_terms(dataset, current.terms, fit_parameters)
-    drifting = sorted({t.parameter for t in candidates if t.kind == "drift"})
-    base = _frozen_base(dataset, fit_parameters, current, drifting, convention)
-    # A drift of a parameter the model's μ does not depend on (e.g. mu_ball without touching balls)
-    # cannot be told from no drift: it is not a candidate.
-    inert = {p for p in drifting if np.max(np.abs(base.sensitivity[p])) < _INERT}
-    candidates = [t for t in candidates if t.kind != "drift" or t.parameter not in inert]
-    in_sample_loss = huber_loss(weighted_log_residual(dataset, base.mu), scale)
-    screened = []
-    for i, term in enumerate(candidates):
-        score = _screen(dataset, fit_parameters, current, term, base, scale, in_sample_loss)
-        if score is not None:
-            screened.append(score)
-        progress(0.3 * (i + 1) / max(len(candidates), 1))
-    screened.sort(key=lambda c: c.score)
-    # A drift's first-order screening flatters one that needs a large change of a parameter the physics
-    # responds to non-linearly (an elastic modulus): the best few are screened again through the physics.
-    exact = {}
-    for candidate in [c for c in screened if c.term.kind == "drift"][: 2 * joint_top]:
-        rescored = _screen_exactly(
-            dataset, fit_parameters, current, candidate, scale, in_sample_loss, convention
-        )
-        if rescored is not None:
-            exact[id(candidate)] = rescored
-    screened = sorted((exact.get(id(c), c) for c in screened), key=lambda c: c.score)
-    effects = [c for c in screened if c.term.kind == "effect" and not c.term.generic]
-    drifts = [c for c in screened if c.term.kind == "drift"]
-    # Named terms that screen as well as the best, within one standard error, are refitted jointly too,
-    # so that the preference among equals below can act on all of them: near-duplicates (the ball and
-    # the race modulus, which enter the physics only through the effective modulus) would otherwise
-    # fill the shortlist and leave out an equal that asks less of its parameter.
-    # Only when the best passes the paired test in sample (with nothing that strong on screening, the
-    # extra refits would be spent on a step that is not going to add anything).
-    # The family of a step is every candidate screened; their correlation is read from the screening's
-    # per-row gains (the candidates refitted jointly below are a few of them, chosen by these gains).
-    z_needed = (
-        z_threshold
-        if family_alpha is None or not screened
-        else max(
-            z_threshold,
-            max_t_threshold(np.stack([in_sample_loss - c.loss for c in screened], axis=1), family_alpha),
-        )
-    )
-    equals = [
-        c
-        for c in screened[1:]
-        if screened[0].z > z_needed and not c.term.generic and _within_one_se(c.loss, screened[0].loss)
-    ][: 2 * joint_top]
-    shortlist = list(
-        {id(c): c for c in screened[:joint_top] + effects[:joint_top] + drifts[:joint_top] + equals}.values()
-    )
-    joint = []
-    for i, candidate in enumerate(shortlist):
-        oof = _cv_candidate(dataset, fit_parameters, current, candidate, scale, convention)
-        if oof is not None:
-            joint.append(
-                replace(
-                    _score(dataset, candidate.term, candidate.n_parameters, oof, current_loss, scale, True),
-                    values=candidate.values,
-                    shifts=candidate.shifts,
-                )
-            )
-        progress(0.3 + 0.7 * (i + 1) / len(shortlist))
-    joint.sort(key=lambda c: c.score)
-    finalists = {id(c.term) for c in joint}
-    ranked = joint + [c for c in screened if id(c.term) not in finalists]
-    significant = [c for c in joint if c.score < current_score.score and c.z > z_needed]
-    if not significant:
-        best = joint[0] if joint else None
-        detail = (
-            ""
-            if best is None
-            else (
-                f" (best candidate {best.term.label}: score {best.score - current_score.score:+.1f}, "
-                f"must fall; z = {best.z:.2f}, must exceed {z_needed:.2f})"
-            )
-        )
-        return Step(
-            current_score,
-            ranked,
-            None,
-            z_needed,
-            f"no candidate beats the current model by more than noise in cross-validation{detail}",
-        )
-    chosen = preferred(dataset, significant)
-    kind = (
-        "generic term (no named mechanism fits)"
-        if chosen.term.generic
-        else "parameter drift"
-        if chosen.term.kind == "drift"
-        else "named effect"
-    )
-    rival = [
-        c.term.label
-        for c in significant
-        if c is not chosen and _within_one_se(c.loss, chosen.loss)
-    ]
-    reason = (
-        f"{kind} {chosen.term.label}: CV RMSE of log mu "
-        f"{_rms(plain, current.oof_mu):.4g} -> {_rms(plain, chosen.oof_mu):.4g}, "
-        f"score {chosen.score - current_score.score:+.1f}, z = {chosen.z:.1f} (> {z_needed:.2f})"
-    )
-    if rival:
-        reason += f"; as good within one standard error: {', '.join(rival[:3])}"
-    return Step(current_score, ranked, chosen, z_needed, reason)
-
-
-def preferred(dataset: Dataset, candidates: Sequence[CandidateScore]) -> CandidateScore:
-    """The candidate a step names among ``candidates`` (a non-empty list of jointly refitted scores).
-
-    The rule (parsimony and the physics first): the lowest score wins, unless named terms (a catalogue
-    effect or a drift of a declared parameter by its law) fit as well within one standard error of the
-    paired per-row losses; then a named term is named, never the generic one: a catalogue effect
-    first, then the drift that asks least of its parameter (the smallest change over the data), then
-    the lowest score. So when two drivers move together and a generic term on one fits as well as a
-    declared drift law on the other (a polynomial in the speed against the viscosity's Arrhenius law
-    in the temperature that rises with it), the law is named; the report names the other too
-    (:func:`calibrate.report.calibrate`'s confounding words, :mod:`calibrate.decidability`).
-    """
-    best = min(candidates, key=lambda c: c.score)
-    close_named = [c for c in candidates if not c.term.generic and _within_one_se(c.loss, best.loss)]
-    if not close_named:
-        return best
-    return min(close_named, key=lambda c: (c.term.kind == "drift", _drift_change(dataset, c), c.score))
-
-
-def _within_one_se(loss: np.ndarray, reference: np.ndarray) -> bool:
-    """Whether a mean per-row loss exceeds the reference's by at most one standard error of the paired
-    difference."""
-    difference = loss - reference
-    return bool(np.mean(difference) <= np.std(difference, ddof=1) / np.sqrt(difference.size))
-
-
-def _drift_change(dataset: Dataset, candidate: CandidateScore) -> float:
-    """Largest |log(p(x) / p_ref)| of a drift over the data (its screening fit); 0 for other terms. [1]"""
-    if candidate.term.kind != "drift":
-        return 0.0
-    with np.errstate(all="ignore"):
-        factor = candidate.term.factor(dataset.conditions, candidate.values[0])
-    return float(np.max(np.abs(np.log(np.clip(factor, 1e-300, None)))))
-
-
-def _rms(dataset: Dataset, mu: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(np.square(weighted_log_residual(dataset, mu)))))
 
 
 def search_rows(n_points: int, max_rows: int, seed: int) -> np.ndarray:
@@ -751,7 +198,7 @@ def selection_scatter(dataset: Dataset, model: ModelCV, folds: int, seed: int) -
     """The scatter model (:func:`calibrate.scatter.fit_scatter`) of a model's held-out log residual, or
     None when the data declare ``mu_measured_std``, no column varies, or a row has no held-out
     prediction."""
-    if dataset.mu_measured_std is not None or not _usable(model.oof_mu):
+    if dataset.mu_measured_std is not None or not usable(model.oof_mu):
         return None
     columns = varying_columns(dataset)
     if not columns:
@@ -766,19 +213,14 @@ def _form(scatter: ScatterModel | None) -> tuple[str, str | None]:
     return (scatter.kind, scatter.column)
 
 
+
 def forward_select(
     dataset: Dataset,
     fit_parameters: Sequence[str] = (),
     folds: int = 5,
     seed: int = 0,
-    z_threshold: float = 3.0,
-    joint_top: int = 2,
-    max_terms: int = MAX_TERMS,
-    max_rows: int = MAX_SEARCH_ROWS,
+    options: SearchOptions | None = None,
     progress: Callable[[float], None] | None = None,
-    convention: str = physics.DEFAULT_CONVENTION,
-    family_alpha: float | None = FAMILY_ALPHA,
-    scatter_rounds: int = SCATTER_ROUNDS,
     initial_scatter: ScatterModel | None = None,
 ) -> Selection:
     """Add terms to the declared model one at a time while cross-validation shows more than noise.
@@ -786,7 +228,7 @@ def forward_select(
     **Weighted by the scatter.** Where the scatter of the measurements depends on the inputs (stick-slip
     at low speed, a spread that grows with the load), an unweighted search lets the rows of large
     scatter speak as loudly as the quiet ones: their noise then passes for an effect, and a term that
-    follows it can win. So the search is repeated, up to ``scatter_rounds`` times, weighted by the
+    follows it can win. So the search is repeated, up to ``options.scatter_rounds`` times, weighted by the
     scatter model (:mod:`calibrate.scatter`) of the previous search's model: the first search is
     unweighted; the scatter model of its held-out log residual is fitted (constant unless the
     permutation test rejects one spread everywhere, at :data:`calibrate.scatter.SCATTER_ALPHA`); when
@@ -809,25 +251,11 @@ def forward_select(
         Cross-validation folds. [1]
     seed : int
         Seed of the fold shuffle and of the search subset.
-    z_threshold : float
-        Least paired z of a candidate's held-out improvement (raised by the family-wise
-        correction, see the module's description). [1]
-    family_alpha : float or None
-        Chance per step that any candidate passes on noise alone (:data:`FAMILY_ALPHA`); None
-        leaves ``z_threshold`` alone. [1]
-    joint_top : int
-        How many of the best screened candidates, overall and among named ones, are refitted
-        jointly. [1]
-    max_terms : int
-        Most terms added. [1]
-    max_rows : int
-        Rows the search runs on at most (:data:`MAX_SEARCH_ROWS`). [1]
+    options : SearchOptions, optional
+        The paired z's threshold, family-wise chance, joint refits, most terms and rows, convention and
+        scatter rounds (default: :class:`SearchOptions`'s defaults).
     progress : callable, optional
         Called with the fraction done, 0..1.
-    convention : str
-        See :data:`physics.CONVENTIONS`.
-    scatter_rounds : int
-        Searches at most (:data:`SCATTER_ROUNDS`); 1 leaves the search unweighted. [1]
     initial_scatter : ScatterModel, optional
         Weights of the first search instead of none (:func:`nested_cross_validate` gives each fold the
         scatter that weighted the search on all rows, which saves the fold an unweighted search and a
@@ -844,6 +272,7 @@ def forward_select(
     -------
     Selection
     """
+    options = options or SearchOptions()
     reached = [0.0]
 
     def report(fraction: float) -> None:  # monotone, whatever order the searches run in
@@ -851,29 +280,28 @@ def forward_select(
             reached[0] = fraction
             progress(fraction)
 
-    rows = search_rows(dataset.n_points, max_rows, seed)
+    rows = search_rows(dataset.n_points, options.max_rows, seed)
     data = dataset if rows.size == dataset.n_points else dataset.subset(rows)
     fold_rows = kfold_indices(data.n_points, folds, seed)
     declared_noise = data.mu_measured_std is not None
-    rounds = 1 if declared_noise else max(int(scatter_rounds), 1)
+    rounds = 1 if declared_noise else max(int(options.scatter_rounds), 1)
     # Progress: the first search takes most of it, each further one (run only when the scatter is not
     # one spread everywhere) half of what is left.
     edges = [0.0, *(1.0 - 0.3 * 0.5**k for k in range(rounds - 1)), 1.0]
     def search(weights, k):
         lo, hi = edges[min(k, rounds - 1)], edges[min(k + 1, rounds)]
-        return _search(scatter_weighted(data, weights), data, fit_parameters, fold_rows, z_threshold,
-                       family_alpha, joint_top, max_terms, convention, declared_noise,
-                       lambda f: report(lo + (hi - lo) * f))
+        return _search(scatter_weighted(data, weights), data, fit_parameters, fold_rows, options,
+                       declared_noise, lambda f: report(lo + (hi - lo) * f))
 
     given = None if rounds == 1 or _form(initial_scatter) == ("constant", None) else initial_scatter
     used: ScatterModel | None = given
-    searches = []  # (weights used, (model, scale, steps, reason)) of each round
+    searches: list[tuple[ScatterModel | None, _SearchRun]] = []  # weights used and the search, per round
     fallback = ""
     for k in range(rounds):
         searches.append((used, search(used, k)))
         if rounds == 1:
             break
-        estimate = selection_scatter(data, searches[-1][1][0], folds, seed)
+        estimate = selection_scatter(data, searches[-1][1].model, folds, seed)
         if _form(estimate) == _form(used):
             break  # consistent: the search's own residual has the scatter it was weighted by
         if used is not None and (_form(estimate) == ("constant", None) or k + 1 == rounds):
@@ -884,8 +312,8 @@ def forward_select(
             first = next(w for w, _ in searches if w is not None)
             origin = "given" if first is given else "of the unweighted search's residual"
             fallback = (f". A search weighted by the scatter {origin} ({first.summary()}) left a residual "
-                        f"whose scatter {left} (it chose {_labels(searches[-1][1][0].terms)}): the scatter "
-                        f"was not confirmed, and the unweighted search stands")
+                        f"whose scatter {left} (it chose {_labels(searches[-1][1].model.terms)}): the "
+                        f"scatter was not confirmed, and the unweighted search stands")
             unweighted = [item for item in searches if item[0] is None]
             searches = unweighted[:1] or [(None, search(None, rounds))]
             used = None
@@ -893,40 +321,59 @@ def forward_select(
         if k + 1 == rounds:
             break  # unweighted and the rounds are out: it stands
         used = estimate
-    current, scale, steps, reason = searches[-1][1]
+    last = searches[-1][1]
     report(1.0)
-    added = [s.reason for s in steps if s.chosen is not None]
+    words = _selection_words(last, fallback, used, searches)
+    return Selection(last.model.terms, last.steps, last.model, last.scale, rows, words, used)
+
+
+def _selection_words(last: _SearchRun, fallback: str, used: ScatterModel | None,
+                     searches: list[tuple[ScatterModel | None, _SearchRun]]) -> str:
+    """The decision in words: each term added, why the search stopped, and the scatter that weighted it."""
+    added = [s.reason for s in last.steps if s.chosen is not None]
     summary = "; then ".join(added) if added else "nothing added"
-    words = f"{summary}. Stop: {reason}{fallback}"
+    words = f"{summary}. Stop: {last.reason}{fallback}"
     if used is not None:
         if len(searches) > 1:
             before = searches[-2][0]
             how = "unweighted" if before is None else f"weighted by {before.summary()}"
             source = (f"read from the held-out residual of the search before it (which chose "
-                      f"{_labels(searches[-2][1][0].terms)}, {how})")
+                      f"{_labels(searches[-2][1].model.terms)}, {how})")
         else:
             source = "given (the scatter that weighted the search on all rows)"
         words += (f". The search weighted every row by its scatter, {used.summary()}, {source}; "
                   f"its own residual has a scatter of the same form")
-    return Selection(current.terms, steps, current, scale, rows, words, used)
+    return words
 
 
 def _labels(terms: Sequence[Term]) -> str:
     return " + ".join(t.label for t in terms) or "nothing"
 
 
-def _search(data, plain, fit_parameters, fold_rows, z_threshold, family_alpha, joint_top, max_terms,
-            convention, declared_noise, report):
+@dataclass(frozen=True)
+class _SearchRun:
+    """One forward search: the final model cross-validated, its robust scale [1], the steps and why it
+    stopped."""
+
+    model: ModelCV
+    scale: float
+    steps: list[Step]
+    reason: str
+
+
+def _search(data, plain, fit_parameters, fold_rows, options: SearchOptions, declared_noise,
+            report) -> _SearchRun:
     """One forward search on ``data`` (weighted or not; ``plain``: the same rows unweighted, for the
-    words): the final model cross-validated, its scale, the steps and why it stopped."""
+    words)."""
+    convention = options.convention
     current = cross_validate(data, fit_parameters, (), fold_rows, precise=False, convention=convention)
     scale = current.full.scale
     steps: list[Step] = []
     reason = ""
-    for k in range(max_terms):
+    for k in range(options.max_terms):
         # Only declared noise is a level to test against: weights from the scatter model are fitted to
         # this very residual, and it would always look consistent with them.
-        n_parameters = _n_parameters(fit_parameters, current.terms)
+        n_parameters = count_parameters(fit_parameters, current.terms)
         noise_p = noise_test(data, current.full.residual, n_parameters, scale) if declared_noise else None
         if noise_p is not None and noise_p > 0.01:
             reason = (
@@ -934,18 +381,8 @@ def _search(data, plain, fit_parameters, fold_rows, z_threshold, family_alpha, j
                 f": nothing more added"
             )
             break
-        step = _search_step(
-            data,
-            fit_parameters,
-            current,
-            scale,
-            z_threshold,
-            family_alpha,
-            joint_top,
-            convention,
-            lambda f, k=k: report((k + f) / max_terms),
-            plain,
-        )
+        step = search_step(data, fit_parameters, current, scale, options,
+                           lambda f, k=k: report((k + f) / options.max_terms), plain)
         steps.append(step)
         if step.chosen is None:
             reason = step.reason
@@ -959,15 +396,15 @@ def _search(data, plain, fit_parameters, fold_rows, z_threshold, family_alpha, j
             fit_parameters,
             (*current.terms, step.chosen.term),
             fold_rows,
-            start=_shifted(current.full.declared, step.chosen.shifts),
+            start=shifted(current.full.declared, step.chosen.shifts),
             start_terms=[*current.full.term_values, step.chosen.values],
             precise=False,
             convention=convention,
         )
         scale = current.full.scale
     else:
-        reason = f"stopped at {max_terms} terms (the most forward selection adds)"
-    return current, scale, steps, reason
+        reason = f"stopped at {options.max_terms} terms (the most forward selection adds)"
+    return _SearchRun(current, scale, steps, reason)
 
 
 @dataclass(frozen=True)
@@ -1074,14 +511,8 @@ def nested_cross_validate(
     fit_parameters: Sequence[str],
     baseline: ModelCV,
     seed: int = 0,
-    z_threshold: float = 3.0,
-    joint_top: int = 2,
-    max_terms: int = MAX_TERMS,
-    max_rows: int = MAX_SEARCH_ROWS,
+    options: SearchOptions | None = None,
     progress: Callable[[float], None] | None = None,
-    convention: str = physics.DEFAULT_CONVENTION,
-    family_alpha: float | None = FAMILY_ALPHA,
-    scatter_rounds: int = SCATTER_ROUNDS,
     initial_scatter: ScatterModel | None = None,
 ) -> NestedValidation:
     """Cross-validate the whole procedure: forward selection repeated inside every training fold.
@@ -1102,12 +533,10 @@ def nested_cross_validate(
         The declared model's fits on the outer folds.
     seed : int
         Seed of the inner folds' shuffle and search subsets.
-    z_threshold, joint_top, max_terms, max_rows, family_alpha, scatter_rounds : float or int
+    options : SearchOptions, optional
         As in :func:`forward_select`.
     progress : callable, optional
         Called with the fraction done, 0..1 (monotone).
-    convention : str
-        See :data:`physics.CONVENTIONS`.
     initial_scatter : ScatterModel, optional
         The scatter that weighted the search on all rows: each fold's search starts weighted by it
         and keeps it only when its own residual confirms it (see :func:`forward_select`).
@@ -1116,6 +545,7 @@ def nested_cross_validate(
     -------
     NestedValidation
     """
+    options = options or SearchOptions()
     report = progress or (lambda fraction: None)
     report(0.0)
     folds = len(baseline.folds)
@@ -1127,42 +557,14 @@ def nested_cross_validate(
     for k, (test, fold_mu) in enumerate(zip(baseline.folds, baseline.fold_mu, strict=True)):
         train = np.setdiff1d(everything, test)
         inner = dataset.subset(train)
-        selection = forward_select(
-            inner,
-            fit_parameters,
-            folds,
-            seed,
-            z_threshold,
-            joint_top,
-            max_terms,
-            max_rows,
-            lambda f, k=k: report((k + 0.95 * f) / folds),
-            convention,
-            family_alpha,
-            scatter_rounds,
-            initial_scatter,
-        )
+        selection = forward_select(inner, fit_parameters, folds, seed, options,
+                                   lambda f, k=k: report((k + 0.95 * f) / folds), initial_scatter)
         oof[test] = fold_mu[test]
         chosen.append(selection.terms)
         model_mu = fold_mu
         if selection.terms:
-            with np.errstate(all="ignore"):
-                try:
-                    result = fit(
-                        scatter_weighted(inner, selection.scatter),
-                        fit_parameters,
-                        selection.terms,
-                        start=selection.model.full.declared,
-                        start_terms=selection.model.full.term_values,
-                        scale=selection.scale,
-                        convention=convention,
-                    )
-                    mu = predict_mu(
-                        dataset, result.declared, selection.terms, result.term_values, convention=convention
-                    )
-                except ValueError:  # a held-out driver outside a term's domain
-                    mu = np.full(dataset.n_points, np.nan)
-            if _usable(mu):
+            mu = _refit_chosen(dataset, inner, fit_parameters, selection, options.convention)
+            if usable(mu):
                 oof[test] = mu[test]
                 model_mu = mu
             else:
@@ -1170,3 +572,25 @@ def nested_cross_validate(
         models_mu.append(model_mu)
         report((k + 1) / folds)
     return NestedValidation(oof, chosen, unpredictable, models_mu)
+
+
+def _refit_chosen(dataset: Dataset, inner: Dataset, fit_parameters, selection: Selection,
+                  convention: str) -> np.ndarray:
+    """μ at every row of the chosen terms fitted jointly on a fold's training rows (NaN where a held-out
+    driver lies outside a term's domain). [1]"""
+    with np.errstate(all="ignore"):
+        try:
+            result = fit(
+                scatter_weighted(inner, selection.scatter),
+                fit_parameters,
+                selection.terms,
+                start=selection.model.full.declared,
+                start_terms=selection.model.full.term_values,
+                scale=selection.scale,
+                convention=convention,
+            )
+            return predict_mu(
+                dataset, result.declared, selection.terms, result.term_values, convention=convention
+            )
+        except ValueError:  # a held-out driver outside a term's domain
+            return np.full(dataset.n_points, np.nan)

@@ -17,6 +17,7 @@ from microbearing.calibrate import CalibratedModel
 from microbearing.calibrate.design import DesignError
 from microbearing.calibrate.experiments import (
     ExperimentPlan,
+    ExperimentRequest,
     check_request,
     first_experiments,
     next_experiments,
@@ -117,9 +118,10 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
         rivals = rival_models(report, dataset, model) if body.goal != "parameters" and has_rivals else []
         ctx.progress(0.2)
         try:
-            plan = next_experiments(model, space, body.runs, body.goal, envelope=envelope, fixed=body.fixed,
-                                    planned=body.planned, rivals=rivals,
-                                    data=None if dataset is None else dataset.columns(), seed=body.seed,
+            request = ExperimentRequest(space, body.runs, body.goal, envelope=envelope, fixed=body.fixed,
+                                        planned=body.planned, seed=body.seed)
+            plan = next_experiments(model, request, rivals=rivals,
+                                    data=None if dataset is None else dataset.columns(),
                                     progress=lambda f: ctx.progress(0.2 + 0.8 * f))
         except ValueError as exc:
             raise _field_problem(exc) from None
@@ -156,9 +158,10 @@ def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict
 
     def work(ctx) -> dict[str, Any]:
         try:
-            plan = first_experiments(fit_parameters, space, body.runs, body.goal, body.noise_std_log,
-                                     body.guess, envelope, body.fixed, body.planned, str(body.convention),
-                                     body.seed, ctx.progress)
+            request = ExperimentRequest(space, body.runs, body.goal, envelope, body.fixed, body.planned,
+                                        body.seed)
+            plan = first_experiments(fit_parameters, request, body.noise_std_log, body.guess,
+                                     str(body.convention), ctx.progress)
         except ValueError as exc:
             raise _field_problem(exc) from None
         return {**_document(plan, "physics", ctx.job_id), "calibration_id": None}

@@ -17,7 +17,7 @@ from jobs_helper import finished_job
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel, DataError, calibrate, parse_rows
 from microbearing.calibrate.plausibility import check_plausible, plausibility_findings
-from microbearing.calibrate.select import _bump_factor
+from microbearing.calibrate.search import bump_factor
 from microbearing.service.app import create_app
 from microbearing.service.settings import Settings
 
@@ -87,9 +87,9 @@ def test_plausible_lab_data_pass_silently():
 
 def test_the_sensitivity_step_stays_inside_a_parameters_range():
     # mu_pivot's range is [0, 10]: on its top bound a step up would leave it, so the step goes down
-    assert _bump_factor("mu_pivot", np.array(10.0)) < 1.0
-    assert _bump_factor("mu_pivot", np.array(0.7)) > 1.0
-    assert 10.0 * _bump_factor("mu_pivot", np.array(10.0)) <= physics.PARAMETERS["mu_pivot"].maximum
+    assert bump_factor("mu_pivot", np.array(10.0)) < 1.0
+    assert bump_factor("mu_pivot", np.array(0.7)) > 1.0
+    assert 10.0 * bump_factor("mu_pivot", np.array(10.0)) <= physics.PARAMETERS["mu_pivot"].maximum
 
 
 def test_a_fitted_parameter_on_its_bound_is_reported_there_not_a_crash():

@@ -8,7 +8,7 @@ import pytest
 from scipy import integrate, optimize, stats
 
 from microbearing.calibrate import parse_rows
-from microbearing.calibrate.select import forward_select, max_t_threshold
+from microbearing.calibrate.select import SearchOptions, forward_select, max_t_threshold
 
 ALPHA = 0.01
 ROWS = 500
@@ -73,7 +73,8 @@ def test_the_threshold_is_reproducible_and_the_selection_uses_it_within_the_bonf
         for load, speed, h, t in zip(rng.uniform(3e-3, 3e-2, n), rng.uniform(0, 0.1, n),
                                      rng.uniform(0.2, 0.8, n), rng.uniform(20, 40, n), strict=True)
     ]
-    step = forward_select(parse_rows(rows), ["mu_pivot"], folds=4, max_terms=1).steps[0]
+    step = forward_select(parse_rows(rows), ["mu_pivot"], folds=4, options=SearchOptions(max_terms=1))
+    step = step.steps[0]
     bonferroni = stats.norm.isf(ALPHA / len(step.ranked))
     # A union bound holds whatever the correlation: max-T never asks more than Bonferroni; and never
     # less than the single-test floor z_threshold (3).

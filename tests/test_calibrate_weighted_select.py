@@ -16,7 +16,7 @@ from test_calibrate_honest import run_in_rows
 
 from microbearing import physics
 from microbearing.calibrate import parse_rows
-from microbearing.calibrate.select import forward_select, scatter_weighted, selection_scatter
+from microbearing.calibrate.select import SearchOptions, forward_select, scatter_weighted, selection_scatter
 
 FIT = ["mu_pivot", "adhesion_energy_J_m2"]
 TRUE = {"mu_pivot": 0.7, "adhesion_energy_J_m2": 0.12}
@@ -54,7 +54,7 @@ def drag_runs():
     runs = []
     for seed in range(1, 5):
         data = _data(seed, DRAG_N)
-        runs.append((data, forward_select(data, FIT, seed=seed, scatter_rounds=1),
+        runs.append((data, forward_select(data, FIT, seed=seed, options=SearchOptions(scatter_rounds=1)),
                      forward_select(data, FIT, seed=seed)))
     return runs
 
@@ -99,8 +99,8 @@ def test_declared_noise_weighs_the_rows_and_the_search_runs_once():
     data = _data(21, 0.0)
     declared = type(data)(data.physics_columns, data.conditions, data.mu_measured,
                           data.mu_measured * _scatter(data.physics_columns["load_N"]), data.fixed)
-    assert scatter_weighted(declared, selection_scatter(data, forward_select(data, FIT, max_terms=0).model,
-                                                        5, 0)) is declared
+    nothing = forward_select(data, FIT, options=SearchOptions(max_terms=0))
+    assert scatter_weighted(declared, selection_scatter(data, nothing.model, 5, 0)) is declared
     selection = forward_select(declared, FIT, seed=21)
     assert selection.scatter is None and selection.terms == ()
 

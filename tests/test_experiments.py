@@ -7,6 +7,7 @@ from microbearing import physics
 from microbearing.calibrate import calibrate, parse_rows
 from microbearing.calibrate.design import DesignError
 from microbearing.calibrate.experiments import (
+    ExperimentRequest,
     candidate_points,
     first_experiments,
     next_experiments,
@@ -60,7 +61,7 @@ def test_the_rivals_of_a_kelvin_drift_include_the_linear_law(humid):
 def test_discriminate_goes_where_the_rivals_part(humid):
     dataset, report = humid
     rivals = rival_models(report.to_dict(), dataset, report.model)
-    proposal = next_experiments(report.model, SPACE, 20, "discriminate", rivals=rivals,
+    proposal = next_experiments(report.model, ExperimentRequest(SPACE, 20, "discriminate"), rivals=rivals,
                                 data=dataset.columns())
     result = proposal.to_dict()
     assert len(result["runs"]) == 20
@@ -86,10 +87,11 @@ def test_parameters_and_predict_shrink_what_they_target(humid):
     _dataset, report = humid
     envelope = {"balls": [6], "load_N": {"low": 0.005, "high": 0.02}, "speed_m_s": [0.05],
                 "relative_humidity": {"low": 0.7, "high": 0.85}}
-    d = next_experiments(report.model, SPACE, 20, "parameters", envelope=envelope).to_dict()
+    d = next_experiments(report.model, ExperimentRequest(SPACE, 20, "parameters", envelope=envelope))
+    d = d.to_dict()
     for p in d["parameters"]:
         assert p["std_after"] <= p["std_now"] * (1 + 1e-9)
-    i = next_experiments(report.model, SPACE, 20, "predict", envelope=envelope).to_dict()
+    i = next_experiments(report.model, ExperimentRequest(SPACE, 20, "predict", envelope=envelope)).to_dict()
     assert i["envelope"]["mean_half_width_after"]["mean"] < 0.8 * i["envelope"]["mean_half_width_now"]["mean"]
     # I-optimal runs narrow the envelope's interval at least as much as the D-optimal ones.
     after = i["envelope"]["mean_half_width_after"]["mean"]
@@ -102,7 +104,8 @@ def test_first_design_of_one_parameter_puts_every_run_where_it_moves_mu_most():
     # central difference of the physics at every candidate.
     space = {"balls": {"low": 4, "high": 12}, "load_N": {"low": 1e-3, "high": 3e-2, "spacing": "log"},
              "speed_m_s": {"low": 0.0, "high": 0.15}}
-    result = first_experiments(["mu_pivot"], space, 6, "parameters", noise_std_log=0.03).to_dict()
+    result = first_experiments(["mu_pivot"], ExperimentRequest(space, 6, "parameters"), noise_std_log=0.03)
+    result = result.to_dict()
     points = candidate_points(space)
 
     def log_mu(value):
@@ -122,16 +125,18 @@ def test_first_design_of_one_parameter_puts_every_run_where_it_moves_mu_most():
 def test_bad_requests_name_the_field(humid):
     _dataset, report = humid
     with pytest.raises(ValueError, match=r"space\.temperature_C"):
-        next_experiments(report.model, {**SPACE, "temperature_C": [20, 30]}, 5, "parameters")
+        next_experiments(report.model,
+                         ExperimentRequest({**SPACE, "temperature_C": [20, 30]}, 5, "parameters"))
     with pytest.raises(ValueError, match=r"space\.load_N"):
-        next_experiments(report.model, {**SPACE, "load_N": {"low": -1, "high": 1}}, 5, "parameters")
+        next_experiments(report.model,
+                         ExperimentRequest({**SPACE, "load_N": {"low": -1, "high": 1}}, 5, "parameters"))
     with pytest.raises(DesignError, match="rival"):
-        next_experiments(report.model, SPACE, 5, "discriminate")
+        next_experiments(report.model, ExperimentRequest(SPACE, 5, "discriminate"))
     with pytest.raises(ValueError, match="relative_humidity"):
-        next_experiments(report.model, {k: v for k, v in SPACE.items() if k != "relative_humidity"}, 5,
-                         "parameters")
+        next_experiments(report.model, ExperimentRequest(
+            {k: v for k, v in SPACE.items() if k != "relative_humidity"}, 5, "parameters"))
     with pytest.raises(DesignError, match="goal must be parameters or predict"):
-        first_experiments(["mu_pivot"], SPACE, 5, "discriminate")
+        first_experiments(["mu_pivot"], ExperimentRequest(SPACE, 5, "discriminate"))
 
 
 def test_the_readme_loop_runs_and_prints_what_it_says(tmp_path, monkeypatch, capsys):
@@ -160,7 +165,8 @@ def test_frozen_base_sensitivity_of_a_parameter_fitted_at_its_upper_bound():
     # A recalibration of the bench crashed here: adhesion fitted at its bound 10 J/m^2, bumped up, left
     # its range. The bump now goes down there; the sensitivity matches a one-sided difference made here.
     from microbearing.calibrate.fit import FitResult
-    from microbearing.calibrate.select import ModelCV, _frozen_base
+    from microbearing.calibrate.search import frozen_base
+    from microbearing.calibrate.select import ModelCV
 
     rows = [{"balls": 4.0, "load_N": load, "speed_m_s": 0.05, "mu_measured": 0.02}
             for load in (0.003, 0.01, 0.03)]
@@ -169,7 +175,7 @@ def test_frozen_base_sensitivity_of_a_parameter_fitted_at_its_upper_bound():
     full = FitResult({"adhesion_energy_J_m2": top}, (), [], ["adhesion_energy_J_m2"], np.array([top]),
                      np.eye(1), 0.02, np.zeros(3), ["adhesion_energy_J_m2"], True)
     current = ModelCV((), [], [], [], np.full(3, 0.02), full)
-    base = _frozen_base(dataset, ["adhesion_energy_J_m2"], current, [], physics.DEFAULT_CONVENTION)
+    base = frozen_base(dataset, ["adhesion_energy_J_m2"], current, [], physics.DEFAULT_CONVENTION)
 
     def mu(gamma):
         return physics.evaluate(balls=4, load_N=np.array([0.003, 0.01, 0.03]), speed_m_s=0.05,

@@ -1,0 +1,80 @@
+"""Sentences of a calibration report (:func:`calibrate.report.format_report`) about rivals, code-like
+columns, drivers the data cannot tell apart and the domain rule, each written from the stages' results.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .data import Dataset
+from .domain import DataCloud
+from .model import CalibratedModel
+from .rivals import describe_rival, where_they_part
+from .scores import within_one_se
+from .select import Selection
+
+__all__ = ["code_columns", "domain_words", "rival_drivers", "rival_words"]
+
+
+def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
+    """Each rival with where it parts from the model (over its driver, and the replaced term's)."""
+    out = []
+    for rival, alternative in zip(rivals, model.rival_models(), strict=True):
+        other = rival.partner if rival.replaces is None else rival.replaces.drivers[0]
+        drivers = dict.fromkeys([rival.term.drivers[0], other])
+        where = [where_they_part(model, alternative, dataset, d, model.noise_std_log) for d in drivers]
+        part = max(where, key=lambda w: w["largest_difference_log"] or 0.0)
+        out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,
+                    "statement": describe_rival(rival, part)})
+    return out
+
+
+def code_columns(dataset: Dataset) -> list[str]:
+    """A sentence per condition column that looks like integer codes of groups (the values 1..k or 0..k-1,
+    3 <= k <= 20) and was not declared a factor: read as a number, it is a smooth driver."""
+    words = []
+    for name, values in dataset.conditions.items():
+        distinct = np.unique(values)
+        if 3 <= distinct.size <= 20 and np.all(distinct == np.round(distinct)) and (
+                distinct[0] in (0.0, 1.0) and distinct[-1] - distinct[0] == distinct.size - 1):
+            words.append(
+                f"{name} holds the whole numbers {distinct[0]:.0f}..{distinct[-1]:.0f}: if they label groups "
+                f"(specimens, builds, batches), declare {name} a factor (factors) so that the spread between "
+                f"groups is fitted instead of a smooth effect of the number")
+    return words
+
+
+def rival_drivers(selection: Selection) -> list[str]:
+    """Steps where a term on another driver fitted as well (within one standard error): the data cannot
+    tell those drivers apart."""
+    words = []
+    for step in selection.steps:
+        if step.chosen is None:
+            continue
+        main = step.chosen.term.drivers[0]
+        rivals = [c for c in step.ranked if c.joint and c is not step.chosen and c.z > step.z_needed
+                  and c.term.drivers[0] != main and within_one_se(c.loss, step.chosen.loss)]
+        others = list(dict.fromkeys(c.term.drivers[0] for c in rivals))
+        if others:
+            words.append(
+                f"{step.chosen.term.label} was chosen, but terms on {', '.join(others)} fitted as well "
+                f"within one standard error: the data cannot tell {main} from {', '.join(others)} as the "
+                f"driver")
+    return words
+
+
+def domain_words(cloud: DataCloud | None) -> dict[str, Any]:
+    """The domain rule in words."""
+    if cloud is None:
+        return {"columns": [], "alpha": None, "summary": (
+            "a point is in the domain when every input and condition lies within its range in the data "
+            "(fewer than two columns vary, so the ranges are the data's shape)")}
+    return {"columns": list(cloud.columns), "alpha": cloud.alpha, "summary": (
+        f"a point is in the domain when every input and condition lies within its range in the data and "
+        f"the point lies within the joint cloud of the rows in {', '.join(cloud.columns)} (scaled distance "
+        f"to the 5th nearest row no more than {100 * (1 - cloud.alpha):.0f} % of the rows' own: about "
+        f"{100 * cloud.alpha:.0f} % of new points drawn like the data fall outside); beyond it the "
+        f"interval widens in proportion to the distance, and where columns move together it holds the "
+        f"rivals by confounding (terms on the column the model does not read)")}
