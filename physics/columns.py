@@ -35,7 +35,7 @@ from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition", "Reading",
            "Span", "accepted_spellings", "from_si", "input_bases", "match_column", "read_name", "read_span",
-           "slip", "unit_of"]
+           "slip", "unit_of", "unknown_column"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -434,9 +434,12 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
     source = unit_of(first.name)
     condition = _condition_of(first.name)
     alike = [k for k in known if condition is not None and condition.matches(k) and unit_of(k) is not None]
-    # Another column of the same quantity, when the name sent says its unit (brackets, or a unit other
-    # than the known column's): a bare synonym in the same unit is not guessed.
-    if source is not None and len(alike) == 1 and (first.reading or source != unit_of(alike[0])):
+    # Another column of the same quantity when the name sent states its unit (brackets, a unit word such
+    # as temperature_K, or a unit other than the known column's); a bare synonym (humidity for
+    # relative_humidity, cycles for passes) is not guessed.
+    words = _UNIT_WORDS.get(condition.name, {}) if condition is not None else {}
+    stated = any(w in words for w in _words(first.name))
+    if source is not None and len(alike) == 1 and (stated or first.reading or source != unit_of(alike[0])):
         target = unit_of(alike[0])
         if _dimension(_unit(source)) == _dimension(_unit(target)):
             second = _converter(sent, alike[0], _unit(source), target)
@@ -445,9 +448,18 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
                 return Reading(sent, alike[0], reading=f"{sent} read as {alike[0]}")
             words = (f" x {scale:.10g}" if scale != 1 else "") + (f" + {offset:.10g}" if offset else "")
             return Reading(sent, alike[0], scale, offset, None, f"{sent} read as {alike[0]}{words}")
-    raise ColumnError(sent, f"unknown column {sent!r}; the model's columns are {', '.join(known) or 'none'} "
-                            f"(each also in another unit of its quantity, e.g. relative_humidity [%], "
-                            f"temperature [degC]); accepted names: {accepted_spellings()}")
+    raise ColumnError(sent, unknown_column(sent, known))
+
+
+def unknown_column(sent: str, known: Iterable[str], what: str = "column") -> str:
+    """The one message of every door for a column it does not know: the known columns and the spellings.
+
+    >>> unknown_column("humidity", ["relative_humidity"])[:70]
+    "unknown column 'humidity'; the columns known here are relative_humidity"
+    """
+    return (f"unknown {what} {sent!r}; the columns known here are {', '.join(known) or 'none'} (each also "
+            f"under a name with its unit, e.g. relative humidity [%], temperature [degC]); accepted "
+            f"names: {accepted_spellings()}")
 
 
 def _span_text(values: np.ndarray) -> str:

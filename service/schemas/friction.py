@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import Field, create_model
 
 from microbearing import physics
 
 from .base import (
+    UNIT_KEYS,
+    ColumnKeys,
     Convention,
     ConventionName,
     OutputName,
@@ -58,13 +62,14 @@ class FrictionBatchRequest(StrictModel):
             "Reading of the paper's ambiguous ball-ball terms; a calibrated model uses its own (naming "
             "another is a 422)."))
     model: str = MODEL_FIELDS["model"][1]
-    conditions: dict[str, float | str | list[float] | list[str]] | None = Field(default=None, description=(
+    conditions: Annotated[dict[str, float | str | list[float] | list[str]] | None, ColumnKeys] = Field(
+        default=None, description=(
         "Condition columns of the calibration data for a calibrated model, e.g. relative_humidity [1] "
         "[unit of each column as in the calibration data]: a number for every point or a list of one "
         "value per point (lists share the points' length). Those the model's terms read are required; "
         "a column the calibration never saw is refused (422 naming it). A factor column takes group "
         "labels (one, or one per point): a known group at its own level, a new one with the spread "
-        "between groups in the interval."))
+        "between groups in the interval." + UNIT_KEYS))
 
 
 _LIST_OF_POINTS = " One value per point, in the order of the points."

@@ -1,0 +1,126 @@
+"""Issue 32, item 1: one column registry at every door (units, spellings, slips), through the API."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from bench.calibrated_batch import measurements
+from microbearing.calibrate.tabular import read_csv
+from microbearing.service.app import create_app
+from microbearing.service.settings import Settings
+
+PROBLEM = "application/problem+json"
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("columns")))) as test_client:
+        yield test_client
+
+
+def _upload_rows() -> list[dict]:
+    """The menisci data of bench/calibrated_batch.py with the lab's headers: humidity in %, temperature in
+    degF (converted by hand: F = C * 9/5 + 32)."""
+    rows = []
+    for row in measurements(3):
+        row = dict(row)
+        row["relative humidity [%]"] = row.pop("relative_humidity") * 100.0
+        row["temp_F"] = row.pop("temperature_C") * 9.0 / 5.0 + 32.0
+        rows.append(row)
+    return rows
+
+
+@pytest.fixture(scope="module")
+def calibration(client) -> dict:
+    response = client.post("/v1/calibrations", json={"data": _upload_rows(), "fit_parameters": ["mu_pivot"],
+                                                     "folds": 3})
+    assert response.status_code == 202, response.text
+    deadline = time.monotonic() + 300
+    while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.1)
+    assert job["status"] == "succeeded", job
+    result = client.get(job["result_url"]).json()
+    # the upload read the lab's headers as SI columns: the fraction and kelvin
+    conditions = result["model"]["conditions"]
+    assert {"relative_humidity", "temp_K"} <= set(conditions), conditions
+    return result
+
+
+def _point(model: str, conditions: dict) -> dict:
+    return {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "model": model, "conditions": conditions}
+
+
+def _problem(response, pointer: str) -> str:
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"] == PROBLEM
+    problem = response.json()
+    assert pointer in [e.get("pointer") for e in problem["errors"]], problem
+    return " ".join(e["detail"] for e in problem["errors"])
+
+
+def test_percent_humidity_at_prediction_is_refused_as_the_upload_refuses_it(client, calibration):
+    model = calibration["model_id"]
+    point = _point(model, {"relative_humidity": 50, "temp_K": 300})
+    detail = _problem(client.post("/v1/friction", json=point), "/conditions/relative_humidity")
+    assert "look like percent" in detail and "relative humidity [%]" in detail, detail
+    batch = {"points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
+             "conditions": {"relative_humidity": [0.5, 50.0], "temp_K": 300.0}}
+    detail = _problem(client.post("/v1/friction/batch", json=batch), "/conditions/relative_humidity")
+    assert "look like percent" in detail
+    # the upload's own rule: the same values as a data column are refused with the same words
+    rows = [{("relative_humidity" if key == "relative humidity [%]" else key): value
+             for key, value in row.items()} for row in _upload_rows()]
+    response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"]})
+    assert response.status_code == 422 and "look like percent" in response.text, response.text
+
+
+def test_the_upload_s_headers_and_other_units_are_converted_at_prediction(client, calibration):
+    model = calibration["model_id"]
+    reference = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, "temp_K": 303.15}))
+    assert reference.status_code == 200, reference.text
+    expected = reference.json()
+    assert expected["in_domain"] is True
+    # 50 % is 0.5; 86 degF, 30 degC and 303.15 K are one temperature
+    for conditions in ({"relative humidity [%]": 50, "temp_F": 86.0},
+                       {"relative_humidity_pct": 50, "temperature [degC]": 30.0},
+                       {"relative_humidity [%]": 50, "temp_C": 30.0}):
+        answer = client.post("/v1/friction", json=_point(model, conditions))
+        assert answer.status_code == 200, (conditions, answer.text)
+        for name in ("mu", "mu_lower", "mu_upper", "in_domain"):
+            assert answer.json()[name] == pytest.approx(expected[name], rel=1e-9), (conditions, name)
+    # a temperature outside the data (5 degC = 41 degF) is flagged the same whichever unit says it
+    cold = [client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, **t})).json()
+            for t in ({"temp_K": 278.15}, {"temp_F": 41.0}, {"temperature_C": 5.0})]
+    assert [c["in_domain"] for c in cold] == [False] * 3, cold
+    batch = {"points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
+             "conditions": {"relative humidity [%]": [50.0, 60.0], "temp_F": 86.0}}
+    by_key = client.post("/v1/friction/batch", json=batch)
+    batch["conditions"] = {"relative_humidity": [0.5, 0.6], "temp_K": 303.15}
+    by_name = client.post("/v1/friction/batch", json=batch)
+    assert by_key.status_code == by_name.status_code == 200, by_key.text
+    np.testing.assert_allclose(by_key.json()["mu_upper"], by_name.json()["mu_upper"], rtol=1e-9)
+
+
+def test_an_unknown_condition_lists_the_columns_and_the_spellings(client, calibration):
+    detail = _problem(client.post("/v1/friction", json=_point(calibration["model_id"], {
+        "relative_humidity": 0.5, "temp_K": 300.0, "humidity_typo": 0.5})), "/conditions/humidity_typo")
+    assert "relative_humidity" in detail and "temp_K" in detail and "speed [mm/s]" in detail, detail
+
+
+@pytest.mark.parametrize(("header", "value", "name", "si"), [
+    ("temp_F", 212.0, "temp_K", 373.15),
+    ("temperature_F", 32.0, "temperature_K", 273.15),
+    ("temperature [degF]", 212.0, "temperature_K", 373.15),
+    ("temp_C", 25.0, "temp_C", 25.0),       # read in degC by the terms: stays
+    ("temp_K", 300.0, "temp_K", 300.0),
+])
+def test_a_temperature_name_is_never_read_in_another_unit(header, value, name, si):
+    dataset, intake = read_csv(f"balls,load_N,speed_m_s,{header},mu_measured\n4,0.01,0.05,{value},0.01\n"
+                               .replace(f",{header},", f",\"{header}\","))
+    assert intake.to_dict()["columns"][header] == name
+    assert float(dataset.conditions[name][0]) == pytest.approx(si, rel=1e-12)
