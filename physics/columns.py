@@ -33,9 +33,9 @@ import numpy as np
 from .effects import humidity_fraction, temperature_kelvin
 from .parameters import PARAMETERS
 
-__all__ = ["CONDITIONS", "SLIP_LIMITS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition", "Reading",
-           "Span", "accepted_spellings", "from_si", "input_bases", "match_column", "read_name", "read_span",
-           "slip", "unit_of", "unknown_column"]
+__all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
+           "Reading", "Span", "accepted_spellings", "from_si", "input_bases", "match_column", "read_name",
+           "read_span", "slip", "unit_of", "unknown_column"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -572,7 +572,8 @@ class Span:
         return self.values is None
 
 
-_SPELLINGS = ('a range is [low, high] or {"low": low, "high": high}; a set of allowed values is '
+#: How a range and a set of allowed values are spelled, in words (for messages).
+SPAN_SPELLINGS = ('a range is [low, high] or {"low": low, "high": high}; a set of allowed values is '
               '{"values": [v1, v2, ...]}')
 
 
@@ -593,7 +594,7 @@ def read_span(field: str, value: Any, number: bool = True) -> Span:
         The field's name, for errors (``conditions.relative_humidity``).
     value : number, list, tuple or mapping
         ``[low, high]`` or ``{"low", "high"[, "spacing"]}`` (a range); ``{"values": [...]}`` (a set of
-        allowed values); a number (a range of one point) when ``number``.
+        allowed values); ``[value]`` or, when ``number``, a number (a range of one point: the set of it).
     number : bool
         Whether a single number is taken.
 
@@ -625,18 +626,20 @@ def read_span(field: str, value: Any, number: bool = True) -> Span:
             values = tuple(_number(field, v) for v in value["values"])
             return Span(min(values), max(values), values)
         if not {"low", "high"} <= set(value) or not set(value) <= {"low", "high", "spacing"}:
-            raise ValueError(f"{field}: {_SPELLINGS}; got {value!r}")
+            raise ValueError(f"{field}: {SPAN_SPELLINGS}; got {value!r}")
         low, high = _number(field, value["low"]), _number(field, value["high"])
         spacing = value.get("spacing", "linear")
+    elif isinstance(value, list | tuple) and len(value) == 1:  # a range of one point: the set of it
+        return Span(_number(field, value[0]), _number(field, value[0]), (_number(field, value[0]),))
     elif isinstance(value, list | tuple):
         if len(value) != 2:
-            raise ValueError(f"{field}: a list of {len(value)} values is ambiguous: {_SPELLINGS}")
+            raise ValueError(f"{field}: a list of {len(value)} values is ambiguous: {SPAN_SPELLINGS}")
         low, high, spacing = _number(field, value[0]), _number(field, value[1]), "linear"
     elif number and not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating):
         low = high = _number(field, value)
         spacing = "linear"
     else:
-        raise ValueError(f"{field} must be {'a number or ' if number else ''}{_SPELLINGS}; got {value!r}")
+        raise ValueError(f"{field} must be {'a number or ' if number else ''}{SPAN_SPELLINGS}; got {value!r}")
     if low > high:
         raise ValueError(f"{field} must have low <= high; got [{low:g}, {high:g}]")
     return Span(low, high, None, spacing)

@@ -554,7 +554,7 @@ def build_parser() -> argparse.ArgumentParser:
                   '      "relative_humidity": {"low": 0.2, "high": 0.9}}}\' > next.json',
                   "microbearing experiments next.json --calibration calibrated:<id> -o runs.json "
                   "--plot runs.png",
-                  'echo \'{"runs": 8, "fit_parameters": ["mu_pivot"], "space": {"balls": [4, 8],',
+                  'echo \'{"runs": 8, "fit_parameters": ["mu_pivot"], "space": {"balls": {"values": [4, 8]},',
                   '      "load_N": {"low": 0.001, "high": 0.03}, "speed_m_s": [0.05]}}\' > first.json',
                   "microbearing experiments first.json -o first-runs.json"])
     x.add_argument("--calibration", metavar="ID", help="a stored calibration (its id or calibrated:<id>)")
