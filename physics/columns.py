@@ -34,8 +34,8 @@ from .effects import humidity_fraction, temperature_kelvin
 from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
-           "Reading", "Span", "accepted_spellings", "from_si", "input_bases", "match_column", "read_name",
-           "read_span", "slip", "unit_of", "unknown_column"]
+           "Reading", "Span", "accepted_spellings", "from_si", "input_bases", "input_slips", "match_column",
+           "read_name", "read_span", "slip", "unit_of", "unknown_column"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -545,6 +545,26 @@ def slip(name: str, values: Any) -> str | None:
     if condition is not None and condition.name == "temperature_K":
         return _temperature_slip(name, array)
     return None
+
+
+def input_slips(inputs: Mapping[str, Any]) -> list[str]:
+    """The unit slips that physics inputs given at prediction look like (:func:`slip`), in words.
+
+    The model is valid beyond :data:`SLIP_LIMITS` (it answers there): a door that predicts warns where
+    the upload refuses, with the same words, so that ``speed_m_s=50`` meant as mm/s is never silent.
+
+    >>> input_slips({"speed_m_s": 50.0, "load_N": 0.01})[0][:60]
+    'speed_m_s runs 50 to 50 m/s, beyond the 10 m/s a micro ball '
+    """
+    found = []
+    for name, (limit, _unit_name, _factor) in SLIP_LIMITS.items():
+        value = inputs.get(name)
+        if value is None or (isinstance(value, int | float) and not value > limit):
+            continue  # the scalar fast path of a single point
+        message = slip(name, value)
+        if message is not None:
+            found.append(message)
+    return found
 
 
 def from_si(name: str, values: Any, unit: str) -> np.ndarray:

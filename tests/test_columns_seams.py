@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
@@ -9,8 +10,11 @@ import pytest
 from fastapi.testclient import TestClient
 
 from bench.calibrated_batch import measurements
+from microbearing.calibrate.experiments import candidate_points
 from microbearing.calibrate.tabular import read_csv
+from microbearing.optimize.robust import Envelope
 from microbearing.service.app import create_app
+from microbearing.service.cli import main
 from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
@@ -124,3 +128,66 @@ def test_a_temperature_name_is_never_read_in_another_unit(header, value, name, s
                                .replace(f",{header},", f",\"{header}\","))
     assert intake.to_dict()["columns"][header] == name
     assert float(dataset.conditions[name][0]) == pytest.approx(si, rel=1e-12)
+
+
+# --- unit slips of physics inputs: the upload refuses, the API and the CLI answer and warn alike ---------
+def test_a_speed_that_looks_like_mm_s_is_warned_by_the_api_and_the_cli_in_the_upload_s_words(
+        client, tmp_path, capsys):
+    slow = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 0.05}).json()
+    assert "input_warnings" not in slow
+    fast = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 50.0})
+    assert fast.status_code == 200, fast.text
+    warnings = fast.json()["input_warnings"]
+    assert len(warnings) == 1 and "look like mm/s" in warnings[0] and warnings[0].startswith("speed_m_s")
+    batch = client.post("/v1/friction/batch", json={"points": {"balls": 4, "load_N": 0.01,
+                                                               "speed_m_s": [0.05, 50.0]}, "outputs": ["mu"]})
+    batch_warnings = batch.json()["input_warnings"]
+    assert len(batch_warnings) == 1 and batch_warnings[0].startswith("speed_m_s runs 0.05 to 50 m/s")
+    assert "look like mm/s" in batch_warnings[0]
+    assert batch.json()["mu"] == pytest.approx([slow["mu"], fast.json()["mu"]], rel=1e-12)
+    # the upload refuses the same value with the same words
+    rows = [{"balls": 4, "load_N": 0.01, "speed_m_s": v, "mu_measured": 0.01} for v in (0.05, 50.0)]
+    refused = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"]})
+    assert refused.status_code == 422 and "look like mm/s" in refused.text
+    out = tmp_path / "point.json"
+    assert main(["evaluate", "balls=4", "load_N=0.01", "speed_m_s=50", "-o", str(out)]) == 0
+    answer = json.loads(out.read_text())
+    assert answer["input_warnings"] == warnings and answer["mu"] == fast.json()["mu"]
+    assert "look like mm/s" in capsys.readouterr().err
+
+
+def test_the_cli_takes_names_with_units_as_the_upload_reads_them(client, tmp_path):
+    out = tmp_path / "point.json"
+    assert main(["evaluate", "balls=4", "load [mN]=10", "speed_mm_s=50", "-o", str(out)]) == 0
+    expected = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 0.05}).json()
+    assert json.loads(out.read_text())["mu"] == pytest.approx(expected["mu"], rel=1e-12)
+    table = tmp_path / "points.csv"
+    table.write_text("balls,speed [mm/s]\n4,50\n4,100\n")
+    assert main(["evaluate", "load_N=0.01", "--csv", str(table), "-o", str(tmp_path / "out.csv"),
+                 "--outputs", "mu"]) == 0
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert lines[0].split(",")[:2] == ["balls", "speed_m_s"] and float(lines[1].split(",")[1]) == 0.05
+    assert float(lines[1].split(",")[-1]) == pytest.approx(expected["mu"], rel=1e-12)
+    assert main(["evaluate", "balls=4", "load_N=0.01", "sped=5"]) != 0
+
+
+# --- a range reads the same in every route ---------------------------------------------------------------
+def test_a_pair_is_a_range_and_a_set_is_spelled_as_one_in_experiment_spaces(client):
+    ranged = candidate_points({"balls": [4, 8], "load_N": [0.002, 0.02]})
+    assert sorted(set(ranged["balls"])) == [4, 5, 6, 7, 8]             # every whole count in the range
+    assert len(set(ranged["load_N"])) > 2
+    assert min(ranged["load_N"]) == pytest.approx(0.002) and max(ranged["load_N"]) == pytest.approx(0.02)
+    as_object = candidate_points({"balls": {"low": 4, "high": 8}, "load_N": {"low": 0.002, "high": 0.02}})
+    assert {k: v.tolist() for k, v in as_object.items()} == {k: v.tolist() for k, v in ranged.items()}
+    chosen = candidate_points({"balls": {"values": [4, 8]}, "load_N": {"values": [0.002, 0.02]}})
+    assert sorted(set(chosen["balls"])) == [4, 8] and sorted(set(chosen["load_N"])) == [0.002, 0.02]
+    # the same JSON is a range in an optimization's envelope
+    envelope = Envelope(speed_m_s={"low": 0.01, "high": 0.1}, conditions={"relative_humidity": [0.3, 0.7]})
+    assert envelope.speed_m_s == (0.01, 0.1) and envelope.conditions == {"relative_humidity": (0.3, 0.7)}
+    with pytest.raises(ValueError, match="no worst case over a range"):
+        Envelope(speed_m_s=0.05, conditions={"relative_humidity": {"values": [0.3, 0.7]}})
+    # a plain list of three numbers is refused with both spellings
+    body = {"runs": 4, "fit_parameters": ["mu_pivot"],
+            "space": {"balls": [4, 8], "load_N": [0.001, 0.01, 0.05], "speed_m_s": [0.05]}}
+    detail = _problem(client.post("/v1/experiments", json=body), "/space/load_N")
+    assert "[low, high]" in detail and '{"values": [' in detail, detail

@@ -21,8 +21,8 @@ from .base import (
 )
 from .calibrations import MODEL_FIELDS, MODEL_RESPONSE_FIELDS
 
-__all__ = ["FrictionBatchPoints", "FrictionBatchRequest", "FrictionBatchResponse", "FrictionRequest",
-           "FrictionResponse"]
+__all__ = ["INPUT_WARNINGS", "FrictionBatchPoints", "FrictionBatchRequest", "FrictionBatchResponse",
+           "FrictionRequest", "FrictionResponse"]
 
 _CONVENTION = (ConventionName, Field(
     default=Convention(physics.DEFAULT_CONVENTION),
@@ -35,11 +35,16 @@ FrictionRequest = create_model(
     convention=_CONVENTION, **parameter_fields(), **MODEL_FIELDS,
 )
 
+#: The answer's warnings of inputs that look like a unit slip (physics.columns.input_slips).
+INPUT_WARNINGS = (list[str] | None, Field(default=None, description=(
+    "Physics inputs that look like a unit slip, in the words with which a calibration upload refuses "
+    "them (e.g. speed_m_s above 10 m/s: mm/s?); the model answers as asked. Absent when none.")))
+
 FrictionResponse = create_model(
     "FrictionResponse", __base__=ResponseModel,
     __doc__="Every output of the friction model for one design point.",
     convention=(ConventionName, Field(description="Convention used.")), **output_fields(),
-    **MODEL_RESPONSE_FIELDS,
+    **MODEL_RESPONSE_FIELDS, input_warnings=INPUT_WARNINGS,
 )
 
 FrictionBatchPoints = create_model(
@@ -90,4 +95,5 @@ FrictionBatchResponse = create_model(
         "One sentence per input or condition outside the calibration data over the whole batch, naming "
         "the column, its values there (in the column's unit), the range and the number of points "
         "outside (absent for physics)."))),
+    input_warnings=INPUT_WARNINGS,
 )
