@@ -191,3 +191,20 @@ def test_a_pair_is_a_range_and_a_set_is_spelled_as_one_in_experiment_spaces(clie
             "space": {"balls": [4, 8], "load_N": [0.001, 0.01, 0.05], "speed_m_s": [0.05]}}
     detail = _problem(client.post("/v1/experiments", json=body), "/space/load_N")
     assert "[low, high]" in detail and '{"values": [' in detail, detail
+
+
+def test_um_bridge_reads_fixed_inputs_with_units_as_the_upload_does(client, calibration):
+    def evaluate(name: str, fixed: dict, inputs=("balls", "load_N")) -> dict:
+        return client.post("/umbridge/Evaluate", json={"name": name, "input": [[4, 0.01]], "config": {
+            "inputs": list(inputs), "fixed": fixed}})
+
+    by_unit, by_name = evaluate("physics", {"speed [mm/s]": 50}), evaluate("physics", {"speed_m_s": 0.05})
+    assert by_unit.status_code == by_name.status_code == 200, by_unit.text
+    assert by_unit.json()["output"] == by_name.json()["output"]
+    model = calibration["model_id"]
+    si = evaluate(model, {"speed_m_s": 0.05, "relative_humidity": 0.5})   # UM-Bridge reads the terms' columns
+    lab = evaluate(model, {"speed_mm_s": 50, "relative humidity [%]": 50})
+    assert si.status_code == lab.status_code == 200, lab.text
+    assert lab.json()["output"][0] == pytest.approx(si.json()["output"][0], rel=1e-9)
+    slipped = evaluate(model, {"speed_m_s": 0.05, "relative_humidity": 50})
+    assert slipped.status_code == 400 and "look like percent" in slipped.text, slipped.text
