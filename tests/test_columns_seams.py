@@ -208,3 +208,15 @@ def test_um_bridge_reads_fixed_inputs_with_units_as_the_upload_does(client, cali
     assert lab.json()["output"][0] == pytest.approx(si.json()["output"][0], rel=1e-9)
     slipped = evaluate(model, {"speed_m_s": 0.05, "relative_humidity": 50})
     assert slipped.status_code == 400 and "look like percent" in slipped.text, slipped.text
+
+
+def test_an_experiment_space_may_name_columns_with_units():
+    from microbearing.service.schemas.experiments import FirstExperimentsRequest
+
+    lab = FirstExperimentsRequest.model_validate({
+        "runs": 4, "fit_parameters": ["mu_pivot"], "fixed": {"speed [mm/s]": 50},
+        "space": {"balls": {"values": [4, 8]}, "load [mN]": {"low": 1, "high": 50, "spacing": "log"}}})
+    si = FirstExperimentsRequest.model_validate({
+        "runs": 4, "fit_parameters": ["mu_pivot"], "fixed": {"speed_m_s": 0.05},
+        "space": {"balls": {"values": [4, 8]}, "load_N": {"low": 0.001, "high": 0.05, "spacing": "log"}}})
+    assert lab.model_dump() == si.model_dump()

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BeforeValidator, ConfigDict, Field
+from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field
 
 from microbearing import physics
-from microbearing.physics.columns import SPAN_SPELLINGS
+from microbearing.physics.columns import SPAN_SPELLINGS, ColumnError, read_name
 
 from .base import (
     REQUIRED_INPUTS,
+    ColumnKeys,
     Convention,
     ConventionName,
     ResponseModel,
@@ -68,6 +69,33 @@ SpaceColumn = Annotated[
                       "the column's unit; [value] is that one value. A range reads the same in every route."),
 ]
 
+def _space_keys(space: dict[str, Any] | None) -> dict[str, Any] | None:
+    """A space's columns by the names the calibration upload reads its header as, values converted
+    (``speed [mm/s]`` is speed_m_s, ``relative humidity [%]`` the fraction relative_humidity)."""
+    if space is None:
+        return None
+    read: dict[str, Any] = {}
+    for key, column in space.items():
+        try:
+            reading = read_name(key)
+        except ColumnError as exc:
+            raise ValueError(f"{key}: {exc}") from None
+        if reading.name in read:
+            raise ValueError(f"{key}: another column is read as {reading.name} too; keep one")
+        if reading.reading and isinstance(column, SpaceRange):
+            column = column.model_copy(update={"low": reading.convert(column.low),
+                                               "high": reading.convert(column.high)})
+        elif reading.reading and isinstance(column, SpaceValues):
+            column = SpaceValues(values=[reading.convert(v) for v in column.values])
+        elif reading.reading:
+            column = [reading.convert(v) for v in column]
+        read[reading.name] = column
+    return read
+
+
+_UNIT_NAMES = (" A column's name may carry its unit as the calibration upload's header does ('speed [mm/s]', "
+               "'relative humidity [%]'), its values converted.")
+
 _SPACE = ("What the lab can set, per column: balls (a range of whole counts or a set), load_N [N], "
           "speed_m_s [m/s], any other physics input in its unit, and the calibration's condition columns "
           "(e.g. relative_humidity, in the calibration data's unit). balls, load_N and speed_m_s and the "
@@ -83,10 +111,12 @@ _PLANNED = ("Runs already planned, one object per run with a value for every col
 
 class _ExperimentsRequest(StrictModel):
     runs: WholeNumber = Field(ge=1, le=MAX_RUNS, description="How many measurements to propose [1].")
-    space: dict[str, SpaceColumn] = Field(min_length=1, max_length=MAX_SPACE_COLUMNS, description=_SPACE)
-    envelope: dict[str, SpaceColumn] | None = Field(default=None, max_length=MAX_SPACE_COLUMNS,
-                                                    description=_ENVELOPE)
-    fixed: dict[str, float | bool] | None = Field(default=None, max_length=64, description=_FIXED)
+    space: Annotated[dict[str, SpaceColumn], AfterValidator(_space_keys)] = Field(
+        min_length=1, max_length=MAX_SPACE_COLUMNS, description=_SPACE + _UNIT_NAMES)
+    envelope: Annotated[dict[str, SpaceColumn] | None, AfterValidator(_space_keys)] = Field(
+        default=None, max_length=MAX_SPACE_COLUMNS, description=_ENVELOPE)
+    fixed: Annotated[dict[str, float | bool] | None, ColumnKeys] = Field(default=None, max_length=64,
+                                                                         description=_FIXED + _UNIT_NAMES)
     planned: list[dict[str, float]] | None = Field(default=None, max_length=MAX_PLANNED_RUNS,
                                                    description=_PLANNED)
     seed: WholeNumber = Field(default=0, ge=0, le=2**31 - 1, description="Seed of the candidate set [1].")
