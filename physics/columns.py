@@ -454,7 +454,7 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
 def unknown_column(sent: str, known: Iterable[str], what: str = "column") -> str:
     """The one message of every door for a column it does not know: the known columns and the spellings.
 
-    >>> unknown_column("humidity", ["relative_humidity"])[:70]
+    >>> unknown_column("humidity", ["relative_humidity"])[:71]
     "unknown column 'humidity'; the columns known here are relative_humidity"
     """
     return (f"unknown {what} {sent!r}; the columns known here are {', '.join(known) or 'none'} (each also "
