@@ -194,6 +194,36 @@ class Reading:
         return float(value) * float(self.scale) + float(self.offset)
 
 
+    def sent_value(self, value: Any) -> Any:
+        """A value of the column (SI) in the unit it was sent in, for a report or plot in the lab's units
+        (the inverse of :meth:`convert`).
+
+        >>> r = read_name("speed [mm/s]"); r.sent_value(0.05), r.sent_unit
+        (50.0, 'mm/s')
+        """
+        if self.divisor is not None:
+            return value * self.divisor if isinstance(value, np.ndarray) else float(value) * self.divisor
+        if isinstance(value, np.ndarray):
+            return (value - float(self.offset)) / float(self.scale)
+        return (float(value) - float(self.offset)) / float(self.scale)
+
+    @property
+    def sent_unit(self) -> str | None:
+        """The unit the column was sent in, as written (``mm/s`` of ``speed [mm/s]`` or ``speed_mm_s``);
+        None when it was sent in the column's own unit."""
+        if not self.reading:
+            return None
+        match = _BRACKETS.match(self.sent.strip())
+        if match and match.group("name"):
+            return match.group("square") if match.group("square") is not None else match.group("round")
+        base = next((b for b in sorted(input_bases(), key=len, reverse=True)
+                     if self.sent.lower().startswith(b + "_")), None)
+        if base is not None:
+            parts = self.sent[len(base) + 1:].split("_")
+            return "/".join(parts)
+        return unit_of(self.sent)
+
+
 def _converter(sent: str, name: str, source, target: str, weight: bool = False) -> Reading:
     """The :class:`Reading` converting ``source`` (a pint unit) into ``target`` (a unit text)."""
     registry = _registry()

@@ -220,3 +220,15 @@ def test_an_experiment_space_may_name_columns_with_units():
         "runs": 4, "fit_parameters": ["mu_pivot"], "fixed": {"speed_m_s": 0.05},
         "space": {"balls": {"values": [4, 8]}, "load_N": {"low": 0.001, "high": 0.05, "spacing": "log"}}})
     assert lab.model_dump() == si.model_dump()
+
+
+@pytest.mark.parametrize(("sent", "value", "si", "unit"), [
+    ("speed [mm/s]", 50.0, 0.05, "mm/s"), ("load_mN", 8.8, 0.0088, "mN"), ("temp_F", 86.0, 303.15, "degF"),
+    ("relative humidity [%]", 45.0, 0.45, "%"), ("load [g]", 0.9, 0.9e-3 * 9.80665, "g"),
+])
+def test_a_column_reads_back_in_the_unit_it_was_sent_in(sent, value, si, unit):
+    from microbearing.physics.columns import read_name
+
+    reading = read_name(sent)
+    assert reading.convert(value) == pytest.approx(si, rel=1e-12)
+    assert reading.sent_value(si) == pytest.approx(value, rel=1e-12) and reading.sent_unit == unit
