@@ -4,7 +4,9 @@ A calibration is stored once, as a model of kind ``"calibration"`` in the SQLite
 report and the calibrated model as JSON metadata, its plots as PNG bytes (``uint8`` arrays).
 :func:`load_mu_model` turns ``"physics"`` or ``"calibrated:<id>"`` into a model
 (:func:`service.models.resolve`), callable as ``mu_model(points) -> mu``, for /v1/friction,
-optimization and surrogates; :func:`check_conditions` refuses conditions a model cannot read,
+optimization and surrogates; :func:`read_conditions` reads conditions as the model's columns through
+the column registry (:mod:`physics.columns`: other units converted, unit slips refused) and
+:func:`check_conditions` refuses those a model cannot read,
 :func:`with_conditions` adds the condition columns a calibrated model's effect reads, and
 :func:`evaluate_point_with_model` and :func:`evaluate_batch_with_model` answer /v1/friction and
 /v1/friction/batch through :meth:`~service.models.CalibratedPhysicsModel.evaluate`.
@@ -559,7 +561,7 @@ def with_conditions(model: Model, conditions: Mapping[str, float] | None,
     ------
     ProblemError
         422 when a condition is a physics input or unknown to the calibration, or a column the model
-        needs is missing (:func:`check_conditions`).
+        needs is missing, or a value looks like a unit slip (:func:`read_conditions`).
     """
     conditions = read_conditions(model, conditions, pointer)
     if not conditions:
