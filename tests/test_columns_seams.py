@@ -232,3 +232,17 @@ def test_a_column_reads_back_in_the_unit_it_was_sent_in(sent, value, si, unit):
     reading = read_name(sent)
     assert reading.convert(value) == pytest.approx(si, rel=1e-12)
     assert reading.sent_value(si) == pytest.approx(value, rel=1e-12) and reading.sent_unit == unit
+
+
+def test_an_optimization_envelope_reads_the_upload_s_names_and_both_range_spellings():
+    from microbearing.service.schemas.optimizations import OptimizationRequest
+
+    base = {"bounds": {"balls": [4, 8], "groove_angle_deg": [45, 60], "load_N": [0.004, 0.013]},
+            "speed_m_s": [0.01, 0.1], "model": "calibrated:" + "0" * 32}
+    lab = OptimizationRequest.model_validate({**base, "conditions": {
+        "relative humidity [%]": {"low": 30, "high": 70}, "temperature [degC]": [20, 60]}})
+    si = OptimizationRequest.model_validate({**base, "conditions": {
+        "relative_humidity": [0.3, 0.7], "temperature_K": [293.15, 333.15]}})
+    assert lab.conditions.keys() == si.conditions.keys()
+    for name in si.conditions:
+        assert lab.conditions[name] == pytest.approx(si.conditions[name], rel=1e-12)
