@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -33,6 +33,7 @@ from scipy import stats
 from scipy.stats import qmc
 
 from microbearing import physics
+from microbearing.physics.columns import read_span
 from microbearing.physics.effects import EFFECTS
 
 from .candidates import Term, candidate_terms
@@ -49,6 +50,7 @@ __all__ = [
     "MAX_RIVALS",
     "candidate_points",
     "check_request",
+    "read_space",
     "first_experiments",
     "next_experiments",
     "physics_model",
@@ -77,10 +79,27 @@ _Z95 = float(stats.norm.isf(0.025))
 
 
 # ------------------------------------------------------------------------------------------------ space
+def read_space(space: Mapping[str, Any], field_name: str = "space") -> dict[str, dict[str, Any]]:
+    """A space as ranges ``{"low", "high", "spacing"}`` and sets ``{"values": [...]}``, whichever spelling
+    of :func:`physics.columns.read_span` each column used (``[low, high]`` is a range).
+
+    Raises
+    ------
+    ValueError
+        Starting with ``<field_name>.<column>``: a list of another length than two, a bad range or set.
+    """
+    read = {}
+    for name, spec in space.items():
+        span = read_span(f"{field_name}.{name}", spec, number=False)
+        read[name] = ({"low": span.low, "high": span.high, "spacing": span.spacing} if span.is_range
+                      else {"values": list(span.values)})
+    return read
+
+
 def _levels(name: str, spec: Any, levels: int) -> np.ndarray:
-    """The values of one column of a space: a list as given, a range at ``levels`` levels."""
-    if not isinstance(spec, Mapping):
-        return np.asarray(list(spec), dtype=float)
+    """The values of one column of a space: a set as given, a range at ``levels`` levels."""
+    if "values" in spec:
+        return np.asarray(spec["values"], dtype=float)
     low, high = float(spec["low"]), float(spec["high"])
     if name == "balls":
         values = np.arange(int(np.ceil(low)), int(np.floor(high)) + 1)
@@ -106,12 +125,12 @@ def check_space(space: Mapping[str, Any], conditions: Sequence[str], field_name:
         of a range that is not positive, an empty list, a ball range without a whole number, or a
         value outside the physics input's range.
     """
-    for name, spec in space.items():
+    for name, spec in read_space(space, field_name).items():
         where = f"{field_name}.{name}"
         if name not in physics.PARAMETERS and name not in conditions:
             known = ", ".join(conditions) or "none"
             raise ValueError(f"{where}: not a physics input nor a condition column of the data ({known})")
-        if isinstance(spec, Mapping):
+        if "values" not in spec:
             low, high = float(spec["low"]), float(spec["high"])
             if not low <= high:
                 raise ValueError(f"{where}: low must not exceed high; got {low:g} > {high:g}")
@@ -121,7 +140,7 @@ def check_space(space: Mapping[str, Any], conditions: Sequence[str], field_name:
                 raise ValueError(f"{where}: the range holds no whole number of balls")
             values = [low, high]
         else:
-            values = list(spec)
+            values = list(spec["values"])
             if not values:
                 raise ValueError(f"{where}: give at least one value")
             if any(isinstance(v, bool) or not np.isfinite(float(v)) for v in values):
@@ -144,8 +163,8 @@ def space_points(space: Mapping[str, Any], max_points: int = MAX_CANDIDATES, see
     Parameters
     ----------
     space : mapping
-        Column -> ``{"low", "high", "spacing"}`` (a range; ``balls``: every whole count in it) or a
-        list of allowed values, in the column's unit.
+        Column -> a range, ``[low, high]`` or ``{"low", "high", "spacing"}`` (``balls``: every whole
+        count in it), or a set of allowed values ``{"values": [...]}``, in the column's unit.
     max_points : int
         Points at most. [1]
     seed : int
@@ -158,8 +177,9 @@ def space_points(space: Mapping[str, Any], max_points: int = MAX_CANDIDATES, see
     dict of str to numpy.ndarray
         One column per name of ``space``, one value per point.
     """
+    space = read_space(space)
     names = list(space)
-    continuous = [n for n in names if isinstance(space[n], Mapping) and n != "balls"]
+    continuous = [n for n in names if "values" not in space[n] and n != "balls"]
     levels = _GRID_LEVELS[min(len(continuous), len(_GRID_LEVELS) - 1)] if continuous else 1
     axes = [_levels(n, space[n], levels) for n in names]
     rng = np.random.default_rng(seed)
@@ -381,7 +401,7 @@ class ExperimentRequest:
     space : mapping
         What the lab can set, per column (physics inputs such as ``balls``, ``load_N`` [N],
         ``speed_m_s`` [m/s], and the calibration's condition columns in its units): a range
-        ``{"low", "high", "spacing"}`` or a list of allowed values (:func:`space_points`).
+        ``[low, high]``, ``{"low", "high", "spacing"}`` or ``{"values": [...]}`` (:func:`space_points`).
     runs : int
         Runs to propose, 1-500. [1]
     goal : str
@@ -518,9 +538,8 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
 
 
 def _span(spec: Any) -> tuple[float, float]:
-    if isinstance(spec, Mapping):
-        return float(spec["low"]), float(spec["high"])
-    return float(min(spec)), float(max(spec))
+    span = read_span("space", spec, number=False)
+    return span.low, span.high
 
 
 def _curve_points(response: CalibratedResponse, runs_columns, space, x_name: str):
@@ -639,6 +658,12 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
     return ExperimentPlan(design, rows, expected, plot, warnings)
 
 
+def _read_spaces(request: ExperimentRequest) -> ExperimentRequest:
+    """The request with its space and envelope as ranges and sets (:func:`read_space`)."""
+    envelope = None if request.envelope is None else read_space(request.envelope, "envelope")
+    return replace(request, space=read_space(request.space), envelope=envelope)
+
+
 def next_experiments(
     model: CalibratedModel,
     request: ExperimentRequest,
@@ -682,7 +707,8 @@ def next_experiments(
         raise DesignError("goal discriminate: the calibration left no rival model within reach of the one "
                           "it chose; use goal parameters or predict")
     response = check_request(model, request.space, request.fixed, request.envelope, request.planned)
-    return _propose(response, request, list(rivals) if goal != "parameters" else [], data, progress)
+    return _propose(response, _read_spaces(request), list(rivals) if goal != "parameters" else [], data,
+                    progress)
 
 
 def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mapping[str, Any] | None = None,
@@ -795,7 +821,7 @@ def first_experiments(
         raise DesignError("fit_parameters: name at least one declared parameter to design for")
     model, fixed = physics_model(fit_parameters, noise_std_log, guess, request.fixed, convention)
     response = check_request(model, request.space, fixed, request.envelope, request.planned)
-    return _propose(response, request, [], None, progress)
+    return _propose(response, _read_spaces(request), [], None, progress)
 
 
 def _axis_label(name: str) -> str:

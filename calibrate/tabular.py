@@ -15,7 +15,8 @@ ways, both handled here before that parser sees the table:
   condition and is converted to SI: ``relative_humidity [%]`` to the fraction ``relative_humidity``,
   ``temperature [degC]`` to ``temperature_K``. A column without brackets that is not a physics input
   with a unit suffix stays as sent (``temperature_C``, ``relative_humidity_pct`` are read in those
-  units by the candidate terms).
+  units by the candidate terms), except a temperature in a unit the terms do not read (``temp_F`` is
+  read as ``temp_K``). Every name is read by the column registry, :mod:`physics.columns`.
 
 :func:`read_csv` and :func:`read_rows` return the :class:`~calibrate.data.Dataset` with an
 :class:`Intake` that says which dialect was used and how each column was read.
@@ -24,15 +25,21 @@ ways, both handled here before that parser sees the table:
 from __future__ import annotations
 
 import csv
-import functools
 import io
-import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from microbearing import physics
+from microbearing.physics.columns import (
+    STANDARD_GRAVITY_M_S2,
+    ColumnError,
+    Reading,
+    accepted_spellings,
+    input_bases,
+    read_name,
+)
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_csv, parse_rows
 
@@ -43,73 +50,13 @@ __all__ = ["DECIMALS", "SEPARATORS", "STANDARD_GRAVITY_M_S2", "Column", "Intake"
 SEPARATORS = {"comma": ",", "semicolon": ";", "tab": "\t"}
 #: Decimal marks by name.
 DECIMALS = {"point": ".", "comma": ","}
-#: Standard gravity, the weight of a slider mass given in g. [m/s^2]
-STANDARD_GRAVITY_M_S2 = 9.80665
-
 _SEPARATOR_NAMES = {v: k for k, v in SEPARATORS.items()}
 _SNIFF_LINES = 50
 _DECIMAL_COMMA = re.compile(r"^[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?$")
 _DECIMAL_POINT = re.compile(r"^[+-]?(\d+\.\d*|\.\d+)([eE][+-]?\d+)?$")
-_BRACKETS = re.compile(r"^(?P<name>.*?)\s*(\[(?P<square>[^\]]*)\]|\((?P<round>[^)]*)\))\s*$")
-# Unit symbols of the physics names' suffixes (load_N -> N, speed_m_s -> m/s, ...).
-_SUFFIXES = {"N": "N", "m/s": "m_s", "deg": "deg", "m": "m", "J/m^2": "J_m2", "N/m": "N_m", "Pa*s": "Pa_s",
-             "1/Pa": "1_Pa", "Pa": "Pa"}
-# SI units of conditions by dimension, with the suffix their new name gets (dimensionless: none).
-_CONDITION_UNITS = {"[length]": ("m", "m"), "[time]": ("s", "s"), "[length] / [time]": ("m/s", "m_s"),
-                    "[mass] * [length] / [time] ** 2": ("N", "N"), "[mass]": ("kg", "kg"),
-                    "[mass] / [length] / [time] ** 2": ("Pa", "Pa"), "[temperature]": ("K", "K"),
-                    "1 / [time]": ("1/s", "1_s")}
-# Trailing words of a condition's name that state a unit; dropped when brackets give the unit, so that
-# the candidate terms, which read units from names (pct, C, K), do not convert twice.
-_UNIT_WORDS = {"pct", "percent", "c", "k", "degc", "kelvin", "celsius"}
 
-
-@functools.cache
-def _registry():
-    import pint
-
-    return pint.UnitRegistry()
-
-
-@dataclass(frozen=True)
-class Column:
-    """How one column, as sent, is read.
-
-    Attributes
-    ----------
-    sent : str
-        The header cell (or JSON key) as sent.
-    name : str
-        The column's name in the data: a physics input, ``mu_measured``, ``mu_measured_std`` or a
-        condition.
-    scale : float
-        Values are read as ``value * scale + offset`` (1 and 0 when not converted).
-    offset : float
-        See ``scale`` (273.15 for degC to K).
-    divisor : int or None
-        When set, values are read as ``value / divisor`` (exact for mm -> m: ``scale`` is then
-        ``1 / divisor``).
-    reading : str
-        The conversion in words, e.g. ``"speed [mm/s] read as speed_m_s / 1000"``; empty when the
-        column is read as sent.
-    """
-
-    sent: str
-    name: str
-    scale: float = 1.0
-    offset: float = 0.0
-    divisor: int | None = None
-    reading: str = ""
-
-    def convert(self, value: float) -> float:
-        """The value in the column's unit of the data (SI).
-
-        >>> Column("speed [mm/s]", "speed_m_s", 0.001, 0.0, 1000).convert(50.0)
-        0.05
-        """
-        if self.divisor is not None:
-            return float(value) / self.divisor
-        return float(value) * float(self.scale) + float(self.offset)
+#: How one column, as sent, is read (the registry's :class:`physics.columns.Reading`).
+Column = Reading
 
 
 @dataclass
@@ -170,112 +117,23 @@ class Intake:
         return ", ".join(parts)
 
 
-def _physics_bases() -> dict[str, str]:
-    """Physics input names by their name without the unit suffix (``speed`` -> ``speed_m_s``)."""
-    bases = {}
-    for name, spec in physics.PARAMETERS.items():
-        if spec.unit == "1":
-            continue
-        suffix = _SUFFIXES[spec.unit]
-        if not name.endswith("_" + suffix):
-            raise AssertionError(f"{name} does not end with its unit {spec.unit}")  # a new parameter's unit
-        bases[name[: -len(suffix) - 1].lower()] = name
-    return bases
-
-
 def accepted_names() -> str:
-    """The names a column may have, in words, examples first (for error messages; under 500 characters).
+    """The names a column may have, in words, examples first (:func:`physics.columns.accepted_spellings`).
 
-    >>> text = accepted_names(); "speed [mm/s]" in text, len(text) < 420
+    >>> text = accepted_names(); "speed [mm/s]" in text, len(text) < 600
     (True, True)
     """
-    units = ", ".join(f"{base} [{physics.PARAMETERS[name].unit}]" for base, name in _physics_bases().items())
-    return (f"e.g. speed [mm/s], speed_mm_s, load [mN], load [g] (slider mass), relative_humidity [%], "
-            f"temperature [degC]; inputs with units: {units}; other names as in GET /v1/parameters, "
-            f"or a condition")
-
-
-def _unit(text: str):
-    """A pint unit from a header's unit text (``m2`` as ``m**2``, ``°C`` as ``degC``, empty or 1: none)."""
-    cleaned = text.strip().replace("°C", "degC").replace("°", "deg").replace("µ", "u").replace("μ", "u")
-    cleaned = re.sub(r"(?<=[A-Za-z])(\d)", r"**\1", cleaned)
-    if cleaned in {"", "1", "-"}:
-        return _registry().dimensionless
-    return _registry().Unit(cleaned)
-
-
-# What reading a unit text may raise: pint's errors (undefined units, bad syntax, dimensionality,
-# offset arithmetic) derive from several built-in exceptions, and its tokenizer raises others; any
-# of them means the text is no unit here.
-_UNIT_ERRORS = (Exception,)
-
-
-def _same(unit, target: str) -> bool:
-    """Whether ``unit`` is the unit ``target`` (not merely convertible to it)."""
-    try:
-        return (1.0 * unit).to(_unit(target)).magnitude == 1.0
-    except Exception:  # pint's DimensionalityError: another kind of quantity
-        return False
-
-
-def _describe(value: float) -> str:
-    return f"{value:.10g}"
-
-
-def _converter(sent: str, name: str, source, target: str, weight: bool = False) -> Column:
-    """The :class:`Column` converting ``source`` (a pint unit) into ``target`` (a unit text)."""
-    registry = _registry()
-    if weight:  # a slider mass: its weight
-        scale = registry.Quantity(1.0, source).to("kg").magnitude * STANDARD_GRAVITY_M_S2
-        return Column(sent, name, scale, 0.0, None,
-                      f"{sent} read as {name} = mass x standard gravity {STANDARD_GRAVITY_M_S2} m/s^2 "
-                      f"(x {_describe(scale)})")
-    low = registry.Quantity(0.0, source).to(_unit(target)).magnitude
-    high = registry.Quantity(1.0, source).to(_unit(target)).magnitude
-    scale, offset = high - low, low
-    if scale == 1.0 and offset == 0.0:
-        return Column(sent, name)
-    if offset:
-        return Column(sent, name, scale, offset, None,
-                      f"{sent} read as {name} = value" + (f" x {_describe(scale)}" if scale != 1 else "")
-                      + f" + {_describe(offset)}")
-    inverse = round(1.0 / scale)
-    if inverse >= 2 and math.isclose(1.0 / scale, inverse, rel_tol=1e-12):
-        return Column(sent, name, 1.0 / inverse, 0.0, inverse, f"{sent} read as {name} / {inverse}")
-    return Column(sent, name, scale, 0.0, None, f"{sent} read as {name} x {_describe(scale)}")
-
-
-def _physics_column(sent: str, name: str, unit, unit_text: str | None = None) -> Column:
-    """A physics input's column in ``unit``; DataError when the unit is not of its kind."""
-    spec = physics.PARAMETERS.get(name)
-    target = "1" if spec is None else spec.unit
-    source_dim = (1.0 * unit).dimensionality
-    target_dim = (1.0 * _unit(target)).dimensionality
-    if source_dim == target_dim:
-        return _converter(sent, name, unit, target)
-    if target == "N" and source_dim == (1.0 * _registry().kilogram).dimensionality:
-        return _converter(sent, name, unit, target, weight=True)
-    raise DataError([{"row": None, "column": sent,
-                      "message": f"{name} is in {target}, and {unit_text or format(unit, '~')} is not "
-                                 f"convertible to it (dimension {source_dim} instead of {target_dim}); "
-                                 f"accepted names: {accepted_names()}"}])
-
-
-def _condition_name(text: str) -> str:
-    words = [w for w in re.split(r"[\s_\-]+", text.strip()) if w]
-    while len(words) > 1 and words[-1].lower() in _UNIT_WORDS:
-        words.pop()
-    return "_".join(words)
+    return accepted_spellings()
 
 
 def read_column(sent: str) -> Column:
-    """How a column named ``sent`` (header cell or JSON key) is read.
+    """How a column named ``sent`` (header cell or JSON key) is read (:func:`physics.columns.read_name`).
 
     Parameters
     ----------
     sent : str
-        E.g. ``"speed [mm/s]"``, ``"load (mN)"``, ``"speed_mm_s"``, ``"load_N"`` or
-        ``"relative_humidity [%]"``.
+        E.g. ``"speed [mm/s]"``, ``"load (mN)"``, ``"speed_mm_s"``, ``"load_N"``,
+        ``"relative_humidity [%]"`` or ``"temp_F"``.
 
     Returns
     -------
@@ -298,57 +156,10 @@ def read_column(sent: str) -> Column:
     >>> read_column("relative humidity [%]").reading
     'relative humidity [%] read as relative_humidity / 100'
     """
-    text = sent.strip()
-    bases = _physics_bases()
-    match = _BRACKETS.match(text)
-    if match and match.group("name"):
-        name_text = match.group("name")
-        unit_text = match.group("square") if match.group("square") is not None else match.group("round")
-        try:
-            unit = _unit(unit_text)
-        except _UNIT_ERRORS:
-            raise DataError([{"row": None, "column": sent,
-                              "message": f"the unit {unit_text!r} is not known; accepted names: "
-                                         f"{accepted_names()}"}]) from None
-        key = re.sub(r"[\s\-]+", "_", name_text.strip())
-        if key in physics.PARAMETERS or key in (MU_MEASURED, MU_MEASURED_STD):
-            spec = physics.PARAMETERS.get(key)
-            if spec is not None and spec.unit != "1" and not _same(unit, spec.unit):
-                raise DataError([{"row": None, "column": sent,
-                                  "message": f"the name {key} says {spec.unit} and the brackets say "
-                                             f"{unit_text}; write {key[: -len(_SUFFIXES[spec.unit]) - 1]}"
-                                             f" [{unit_text}]"}])
-            return _physics_column(sent, key, unit, unit_text)
-        if key.lower() in bases:
-            return _physics_column(sent, bases[key.lower()], unit, unit_text)
-        # a condition: SI by its dimension
-        dimension = str((1.0 * unit).dimensionality)
-        base = _condition_name(name_text)
-        if dimension == "dimensionless":
-            return _converter(sent, base, unit, "1")
-        if dimension not in _CONDITION_UNITS:
-            raise DataError([{"row": None, "column": sent,
-                              "message": f"a condition in {unit_text} (dimension {dimension}) "
-                                         f"has no SI unit here; give it without a unit or in one of "
-                                         f"{', '.join(u for u, _ in _CONDITION_UNITS.values())}, or as a "
-                                         f"dimensionless number"}])
-        si, suffix = _CONDITION_UNITS[dimension]
-        return _converter(sent, f"{base}_{suffix}", unit, si)
-    if text in physics.PARAMETERS or text in (MU_MEASURED, MU_MEASURED_STD):
-        return Column(sent, text)
-    # name_unit: a physics input's name without its unit, then a unit (speed_mm_s, load_mN)
-    for base in sorted(bases, key=len, reverse=True):
-        if text.lower().startswith(base + "_") and len(text) > len(base) + 1:
-            rest = text[len(base) + 1:]
-            parts = rest.split("_")
-            quotient = "/".join([parts[0], *[f"({p})" for p in parts[1:]]])
-            for unit_text in (quotient, "*".join(parts)):
-                try:
-                    unit = _unit(unit_text)
-                    return _physics_column(sent, bases[base], unit)
-                except (*_UNIT_ERRORS, DataError):
-                    continue
-    return Column(sent, text)
+    try:
+        return read_name(sent, plain=(MU_MEASURED, MU_MEASURED_STD))
+    except ColumnError as exc:
+        raise DataError([{"row": None, "column": exc.column, "message": str(exc)}]) from None
 
 
 def _columns(names: Sequence[str]) -> list[Column]:
@@ -378,7 +189,7 @@ def _check_required(columns: Sequence[Column], fixed: Mapping[str, Any]) -> None
     errors = []
     conditions = [c.sent for c in columns if c.name not in physics.PARAMETERS
                   and c.name not in (MU_MEASURED, MU_MEASURED_STD)]
-    for base, name in _physics_bases().items():
+    for base, name in input_bases().items():
         spec = physics.PARAMETERS[name]
         if not spec.required or name in names or name in fixed:
             continue

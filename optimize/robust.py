@@ -107,6 +107,7 @@ from scipy import optimize as sciopt
 from scipy import stats
 
 from microbearing import physics
+from microbearing.physics.columns import read_span
 from microbearing.physics.model import Model
 
 from .design_bound import design_lower_bound, kth_distance_to_boxes
@@ -165,24 +166,14 @@ _SPEED = physics.PARAMETERS["speed_m_s"]
 
 
 def _range(field_name: str, value: Any, minimum: float | None = None) -> tuple[float, float]:
-    """A [low, high] pair (a number is a range of one point), finite and ordered, or a ValueError."""
-    if isinstance(value, list | tuple):
-        if len(value) != 2:
-            raise ValueError(f"{field_name} must be a number or a pair [low, high]; got {value!r}")
-        lo, hi = value
-    else:
-        lo = hi = value
-    try:
-        lo, hi = float(lo), float(hi)
-    except (TypeError, ValueError):
-        raise ValueError(f"{field_name} must be a number or a pair [low, high]; got {value!r}") from None
-    if isinstance(value, bool) or not (math.isfinite(lo) and math.isfinite(hi)):
-        raise ValueError(f"{field_name} must hold finite numbers; got {value!r}")
-    if lo > hi:
-        raise ValueError(f"{field_name} must have low <= high; got [{lo:g}, {hi:g}]")
-    if minimum is not None and lo < minimum:
-        raise ValueError(f"{field_name} must be >= {minimum:g}; got {lo:g}")
-    return lo, hi
+    """A range, [low, high] or {low, high} (a number is a range of one point), finite and ordered, as every
+    route reads it (:func:`physics.columns.read_span`), or a ValueError."""
+    span = read_span(field_name, value)
+    if not span.is_range and len(span.values) > 1:
+        raise ValueError(f"{field_name}: a set of values has no worst case over a range; give [low, high]")
+    if minimum is not None and span.low < minimum:
+        raise ValueError(f"{field_name} must be >= {minimum:g}; got {span.low:g}")
+    return span.low, span.high
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,9 @@ A calibration is stored once, as a model of kind ``"calibration"`` in the SQLite
 report and the calibrated model as JSON metadata, its plots as PNG bytes (``uint8`` arrays).
 :func:`load_mu_model` turns ``"physics"`` or ``"calibrated:<id>"`` into a model
 (:func:`service.models.resolve`), callable as ``mu_model(points) -> mu``, for /v1/friction,
-optimization and surrogates; :func:`check_conditions` refuses conditions a model cannot read,
+optimization and surrogates; :func:`read_conditions` reads conditions as the model's columns through
+the column registry (:mod:`physics.columns`: other units converted, unit slips refused) and
+:func:`check_conditions` refuses those a model cannot read,
 :func:`with_conditions` adds the condition columns a calibrated model's effect reads, and
 :func:`evaluate_point_with_model` and :func:`evaluate_batch_with_model` answer /v1/friction and
 /v1/friction/batch through :meth:`~service.models.CalibratedPhysicsModel.evaluate`.
@@ -22,19 +24,22 @@ import numpy as np
 from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 from microbearing.calibrate.data import MU_MEASURED, MU_MEASURED_STD
+from microbearing.physics.columns import ColumnError, match_column, slip, unknown_column
 from microbearing.physics.model import NOT_FINITE
 
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
 from .models import CalibratedPhysicsModel, InputError, Model, problems, resolve
 from .problems import ProblemError, validation_problem
+from .schemas.base import read_value
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
 __all__ = ["DATA_PREFIX", "KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summary",
            "calibration_view", "check_conditions", "data_arrays", "data_problem", "delete_calibration",
            "evaluate_batch_with_model", "evaluate_point_with_model", "interval_at", "load_calibration",
-           "load_mu_model", "prediction_fields", "run_calibration", "stored_dataset", "with_conditions"]
+           "load_mu_model", "prediction_fields", "read_conditions", "run_calibration", "stored_dataset",
+           "with_conditions"]
 
 KIND = "calibration"
 MODEL_PREFIX = "calibrated:"
@@ -230,9 +235,8 @@ def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str =
                    f"factor column ({', '.join(factors) or 'none'}) takes labels"}
                   for name, value in conditions.items() if name not in factors and _has_text(value)]
         if model.domain is not None:
-            items += [{"pointer": f"{pointer}/{name}",
-                       "detail": f"unknown condition column; the calibration data had: "
-                                 f"{', '.join([*model.conditions, *factors]) or 'none'}"}
+            items += [{"pointer": f"{pointer}/{name}", "detail": unknown_column(
+                           name, [*model.conditions, *factors], "condition column")}
                       for name in sorted(set(conditions) - set(physics.PARAMETERS) - set(model.conditions)
                                          - set(factors))]
         if not items:
@@ -242,6 +246,68 @@ def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str =
                 items.append({"pointer": pointer, "detail": str(exc)})
     if items:
         raise validation_problem(items)
+
+
+def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
+                    pointer: str = "/conditions") -> dict[str, Any]:
+    """The conditions as the columns of a calibrated model, converted to their units and checked.
+
+    A key that is not one of the model's columns is read by :func:`physics.columns.match_column`: the
+    upload's header or another unit of a column's quantity (``temperature_C`` for a model of
+    ``temperature_K``, ``relative_humidity_pct`` for ``relative_humidity``) is converted. Values that
+    look like a unit slip (:func:`physics.columns.slip`, the upload's rule: a humidity fraction of 50)
+    are refused.
+
+    Parameters
+    ----------
+    model : Model
+        A resolved model (:func:`service.models.resolve`); only a calibrated one reads conditions.
+    conditions : mapping or None
+        Condition columns by name as sent: a value, a list of values or a [low, high] range each.
+    pointer : str
+        JSON pointer of the conditions in the request.
+
+    Returns
+    -------
+    dict
+        The conditions by the model's column names, in the calibration data's units.
+
+    Raises
+    ------
+    ProblemError
+        422 naming the condition as sent: a unit slip, and every refusal of :func:`check_conditions`.
+    """
+    conditions = dict(conditions or {})
+    if not isinstance(model, CalibratedPhysicsModel):
+        check_conditions(model, conditions, pointer)
+        return conditions
+    factors = model.calibrated.factors
+    known = [*model.conditions, *factors]
+    read: dict[str, Any] = {}
+    sent_as: dict[str, str] = {}
+    for sent, value in conditions.items():
+        name, converted = sent, value
+        if sent not in known and sent not in physics.PARAMETERS:
+            try:
+                reading = match_column(sent, known)
+                name, converted = reading.name, read_value(reading, value)
+            except ColumnError:
+                pass  # check_conditions names it, with the model's columns
+        if name in read:
+            raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": f"{sent_as[name]!r} is "
+                                       f"read as {name} too; keep one"}])
+        read[name], sent_as[name] = converted, sent
+    items = []
+    for name, value in read.items():
+        message = None if name in factors or _has_text(value) else slip(name, value)
+        if message is not None:
+            items.append({"pointer": f"{pointer}/{sent_as[name]}", "detail": f"{message} (a key may carry "
+                          f"its unit, as the upload's header: e.g. 'relative humidity [%]', "
+                          f"'temperature [degC]')"})
+    if items:
+        raise validation_problem(items)
+    check_conditions(model, read, pointer)
+    return read
 
 
 def _has_text(value: Any) -> bool:
@@ -361,8 +427,7 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
         missing or invalid condition, or for non-finite outputs.
     """
     mu_model = _load_in_convention(store, model, convention)
-    conditions = dict(conditions or {})
-    check_conditions(mu_model, conditions)
+    conditions = read_conditions(mu_model, conditions)
     try:
         with problems():
             evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs)
@@ -441,8 +506,7 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
         point where an output is not finite.
     """
     mu_model = _load_in_convention(store, model, convention)
-    conditions = dict(conditions or {})
-    check_conditions(mu_model, conditions)
+    conditions = read_conditions(mu_model, conditions)
     inputs, count = column_arrays(dict(points), max_points)
     columns, condition_count = column_arrays(conditions, max_points, "/conditions")
     listed = [name for name, value in conditions.items() if isinstance(value, list)]
@@ -497,10 +561,9 @@ def with_conditions(model: Model, conditions: Mapping[str, float] | None,
     ------
     ProblemError
         422 when a condition is a physics input or unknown to the calibration, or a column the model
-        needs is missing (:func:`check_conditions`).
+        needs is missing, or a value looks like a unit slip (:func:`read_conditions`).
     """
-    conditions = dict(conditions or {})
-    check_conditions(model, conditions, pointer)
+    conditions = read_conditions(model, conditions, pointer)
     if not conditions:
         return model
 

@@ -185,18 +185,48 @@ def _named_values(items: list[str], lists: bool = False) -> dict[str, list[Any]]
     """``NAME=VALUE`` (``NAME=VALUE[,VALUE...]`` with ``lists``) physics inputs, each value parsed in its
     kind (whole numbers, numbers, true/false)."""
     from microbearing import physics
+    from microbearing.physics.columns import unknown_column
 
     form = "NAME=VALUE[,VALUE...]" if lists else "NAME=VALUE"
     values: dict[str, list[Any]] = {}
     for item in items:
         name, sep, text = item.partition("=")
-        spec = physics.PARAMETERS.get(name.strip())
-        if not sep or spec is None:
-            raise CommandError(f"{item!r}: expected {form} with NAME one of "
-                               f"{', '.join(physics.PARAMETERS)}", EXIT_INVALID)
+        reading = _reading(name.strip()) if sep else None
+        spec = None if reading is None else physics.PARAMETERS.get(reading.name)
+        if spec is None:
+            known = unknown_column(name.strip(), physics.PARAMETERS) if sep else "no '='"
+            raise CommandError(f"{item!r}: expected {form}; {known}", EXIT_INVALID)
+        if spec.name in values:
+            raise CommandError(f"{item!r}: {spec.name} is given twice", EXIT_INVALID)
         parts = text.split(",") if lists else [text]
-        values[spec.name] = [_value(spec, part.strip(), name) for part in parts]
+        values[spec.name] = [_converted(reading, _value(spec, part.strip(), name)) for part in parts]
     return values
+
+
+def _reading(name: str) -> Any:
+    """How a NAME (or a CSV header) is read by the column registry (``speed [mm/s]`` as speed_m_s / 1000),
+    or None when it is not readable."""
+    from microbearing.physics.columns import ColumnError, read_name
+
+    try:
+        return read_name(name)
+    except ColumnError:
+        return None
+
+
+def _converted(reading: Any, value: Any) -> Any:
+    """A value in the unit of the physics input ``reading`` reads (whole counts and booleans as they are)."""
+    return reading.convert(value) if reading.reading and not isinstance(value, bool) else value
+
+
+def _slip_warnings(inputs: dict[str, Any]) -> list[str]:
+    """The API's unit-slip warnings of the inputs (:func:`physics.columns.input_slips`), also on stderr."""
+    from microbearing.physics.columns import input_slips
+
+    warnings = input_slips(inputs)
+    for warning in warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    return warnings
 
 
 def _assignments(items: list[str]) -> dict[str, Any]:
@@ -230,18 +260,24 @@ def _csv_points(path: str) -> tuple[dict[str, Any], int]:
     rows = list(csv.reader(io.StringIO(text)))
     if len(rows) < 2:
         raise CommandError(f"{path}: expected a header row of input names and at least one row", EXIT_INVALID)
-    header = [name.strip() for name in rows[0]]
-    unknown = [name for name in header if name not in physics.PARAMETERS]
-    if unknown or len(set(header)) != len(header):
-        raise CommandError(f"{path}: columns must be distinct physics inputs "
-                           f"({', '.join(physics.PARAMETERS)}); got "
-                           f"{', '.join(unknown) or 'a repeated column'}", EXIT_INVALID)
+    from microbearing.physics.columns import unknown_column
+
+    sent = [name.strip() for name in rows[0]]
+    readings = [_reading(name) for name in sent]
+    header = [None if r is None or r.name not in physics.PARAMETERS else r.name for r in readings]
+    unknown = [name for name, read in zip(sent, header, strict=True) if read is None]
+    if unknown:
+        raise CommandError(f"{path}: {unknown_column(unknown[0], physics.PARAMETERS)}", EXIT_INVALID)
+    if len(set(header)) != len(header):
+        raise CommandError(f"{path}: columns must be distinct physics inputs; got a repeated column",
+                           EXIT_INVALID)
     columns: dict[str, list[Any]] = {name: [] for name in header}
     for line, row in enumerate(rows[1:], start=2):
         if len(row) != len(header):
             raise CommandError(f"{path}:{line}: {len(row)} values for {len(header)} columns", EXIT_INVALID)
-        for name, text in zip(header, row, strict=True):
-            columns[name].append(_value(physics.PARAMETERS[name], text.strip(), f"{path}:{line}:{name}"))
+        for name, reading, text in zip(header, readings, row, strict=True):
+            value = _value(physics.PARAMETERS[name], text.strip(), f"{path}:{line}:{reading.sent}")
+            columns[name].append(_converted(reading, value))
     return {name: np.asarray(values) for name, values in columns.items()}, len(rows) - 1
 
 
@@ -267,9 +303,13 @@ def _evaluate(args: argparse.Namespace) -> int:
             point = evaluate_point({**_defaults(fixed), **fixed}, args.convention)
             chosen = {name: point[name] for name in outputs or point}
             document = with_folding_safe_names({"convention": args.convention, **chosen})
+            warnings = _slip_warnings(fixed)
+            if warnings:
+                document["input_warnings"] = warnings
             _write(args.output, to_json(document) + "\n")
             return EXIT_OK
         columns, count = _csv_points(args.csv)
+        _slip_warnings({**fixed, **columns})
         clash = sorted(set(columns) & set(fixed))
         if clash:
             raise CommandError(f"{', '.join(clash)} given both as a column and NAME=VALUE", EXIT_INVALID)
@@ -554,7 +594,7 @@ def build_parser() -> argparse.ArgumentParser:
                   '      "relative_humidity": {"low": 0.2, "high": 0.9}}}\' > next.json',
                   "microbearing experiments next.json --calibration calibrated:<id> -o runs.json "
                   "--plot runs.png",
-                  'echo \'{"runs": 8, "fit_parameters": ["mu_pivot"], "space": {"balls": [4, 8],',
+                  'echo \'{"runs": 8, "fit_parameters": ["mu_pivot"], "space": {"balls": {"values": [4, 8]},',
                   '      "load_N": {"low": 0.001, "high": 0.03}, "speed_m_s": [0.05]}}\' > first.json',
                   "microbearing experiments first.json -o first-runs.json"])
     x.add_argument("--calibration", metavar="ID", help="a stored calibration (its id or calibrated:<id>)")

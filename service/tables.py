@@ -130,7 +130,7 @@ def table_response(request: Request, document: Mapping[str, Any], columns: Mappi
 
 
 def json_column_pieces(columns: Sequence[tuple[str, str]], bounds: Sequence[tuple[int, int]],
-                       chunks: list[dict[str, Any]]) -> Iterator[bytes]:
+                       chunks: list[dict[str, Any]], tail: dict[str, Any] | None = None) -> Iterator[bytes]:
     """The JSON object of columns given chunk by chunk, in pieces of one chunk of one column.
 
     The pieces joined are the bytes :func:`json_bytes` writes for the joined columns (the same
@@ -147,6 +147,8 @@ def json_column_pieces(columns: Sequence[tuple[str, str]], bounds: Sequence[tupl
         ``(start, stop)`` of each chunk [points].
     chunks : list of dict
         Each chunk's outputs, an array of its points or a scalar shared by them; emptied as written.
+    tail : dict, optional
+        Other keys of the object, written after the columns (e.g. ``input_warnings``).
 
     Yields
     ------
@@ -175,5 +177,7 @@ def json_column_pieces(columns: Sequence[tuple[str, str]], bounds: Sequence[tupl
         if not uses[name]:
             for chunk in chunks:
                 chunk.pop(name, None)
-    yield b"]}" if columns else b"}"
+    extra = b"".join((b"," if columns or i else b"") + json_bytes(key) + b":" + json_bytes(value)
+                     for i, (key, value) in enumerate((tail or {}).items()))
+    yield (b"]" if columns else b"") + extra + b"}"
 

@@ -37,6 +37,7 @@ from pydantic import ValidationError
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from microbearing import physics
+from microbearing.physics.columns import match_column, slip, unknown_column
 
 from .models import InputError, Model, ModelError, jacobian, resolve
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, validation_problem
@@ -115,6 +116,24 @@ def name_of(body: bytes) -> tuple[dict[str, Any], str]:
     return document, document["name"]
 
 
+def _read_fixed(model: Model, fixed: dict[str, Any]) -> dict[str, Any]:
+    """``config.fixed`` by the model's input names: another unit of a condition's quantity converted
+    (:func:`physics.columns.match_column`), a condition that looks like a unit slip refused."""
+    read = {}
+    for name, value in fixed.items():
+        if name not in model.inputs and name not in physics.PARAMETERS:
+            try:
+                reading = match_column(name, model.inputs)
+                name, value = reading.name, (value if isinstance(value, bool) else reading.convert(value))
+            except ValueError:
+                pass  # named below as not an input of the model
+        message = None if name in physics.PARAMETERS or isinstance(value, bool) else slip(name, value)
+        if message is not None:
+            raise ProtocolError("InvalidInput", f"config.fixed.{name}: {message}")
+        read[name] = value
+    return read
+
+
 def find_model(store: Store, name: str, convention: str = physics.DEFAULT_CONVENTION) -> Model:
     """The model of a protocol name (a reference), or ``ModelNotFound``."""
     try:
@@ -164,23 +183,23 @@ class Setup:
         if config.points > max_points:
             raise ProtocolError("InvalidInput", f"config.points: {config.points} points per request; the "
                                 f"limit is {max_points}", status=413)
-        known = ", ".join(model.inputs)
-        inputs = list(config.inputs or [n for n in model.default_inputs if n not in config.fixed])
-        for field, names in (("config.inputs", inputs), ("config.fixed", list(config.fixed))):
+        given = _read_fixed(model, config.fixed)
+        inputs = list(config.inputs or [n for n in model.default_inputs if n not in given])
+        for field, names in (("config.inputs", inputs), ("config.fixed", list(given))):
             for name in names:
                 if name not in model.inputs:
                     raise ProtocolError("InvalidInput", f"{field}: {name!r} is not an input of "
-                                        f"{model.reference}; its inputs are {known}")
-        repeated = sorted({n for n in inputs if inputs.count(n) > 1} | (set(inputs) & set(config.fixed)))
+                                        f"{model.reference}: {unknown_column(name, model.inputs)}")
+        repeated = sorted({n for n in inputs if inputs.count(n) > 1} | (set(inputs) & set(given)))
         if repeated:
             raise ProtocolError("InvalidInput", f"config.inputs: {', '.join(repeated)} given twice (an input "
                                 "varies, in config.inputs, or is fixed, in config.fixed)")
-        missing = [n for n in model.default_inputs if n not in inputs and n not in config.fixed]
+        missing = [n for n in model.default_inputs if n not in inputs and n not in given]
         if missing:
             raise ProtocolError("InvalidInput", f"config.fixed: {model.reference} needs "
                                 f"{', '.join(missing)}: vary it in config.inputs or give it in config.fixed")
         fixed = {}
-        for name, value in config.fixed.items():
+        for name, value in given.items():
             try:
                 fixed[name] = model.inputs[name].check(value)
             except InputError as exc:

@@ -16,7 +16,8 @@ from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
-         "speed_m_s": {"low": 0.0, "high": 0.15}, "relative_humidity": [0.2, 0.35, 0.5, 0.65, 0.8, 0.9]}
+         "speed_m_s": {"low": 0.0, "high": 0.15},
+         "relative_humidity": {"values": [0.2, 0.35, 0.5, 0.65, 0.8, 0.9]}}
 
 
 def kelvin_rows(seed: int = 3, n: int = 150) -> list[dict]:
@@ -80,7 +81,7 @@ def test_discriminate_proposes_runs_where_the_humidity_laws_part(client, calibra
     assert len(result["runs"]) == 12
     for run in result["runs"]:
         assert isinstance(run["balls"], int) and 4 <= run["balls"] <= 8
-        assert run["conditions"]["relative_humidity"] in SPACE["relative_humidity"]
+        assert run["conditions"]["relative_humidity"] in SPACE["relative_humidity"]["values"]
         assert run["mu_lower"] < run["mu"] < run["mu_upper"]
     assert 0.8 < result["efficiency_lower_bound"] <= 1.0
     assert any("(linear)" in rival["label"] for rival in result["rivals"])
@@ -105,7 +106,7 @@ def test_predict_narrows_the_interval_over_the_envelope(client, calibration_id):
 
 
 def test_first_design_on_the_physics(client):
-    space = {"balls": [4, 8, 12], "load_N": {"low": 1e-3, "high": 3e-2, "spacing": "log"},
+    space = {"balls": {"values": [4, 8, 12]}, "load_N": {"low": 1e-3, "high": 3e-2, "spacing": "log"},
              "speed_m_s": {"low": 0.0, "high": 0.15}}
     body = {"runs": 8, "space": space,
             "fit_parameters": ["mu_pivot", "adhesion_energy_J_m2"], "noise_std_log": 0.03,
@@ -147,7 +148,7 @@ def test_cli_first_design_and_next_runs_of_a_stored_calibration(client, calibrat
                                                                  monkeypatch):
     first = tmp_path / "first.json"
     first.write_text(json.dumps({"runs": 6, "fit_parameters": ["mu_pivot"],
-                                 "space": {"balls": [4, 8], "load_N": {"low": 1e-3, "high": 3e-2},
+                                 "space": {"balls": {"values": [4, 8]}, "load_N": {"low": 1e-3, "high": 3e-2},
                                            "speed_m_s": [0.05]}}))
     assert main(["experiments", str(first), "-o", str(tmp_path / "first-runs.json")]) == 0
     document = json.loads((tmp_path / "first-runs.json").read_text())

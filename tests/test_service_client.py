@@ -427,7 +427,8 @@ def _experiments_job(s: Session) -> Any:
     body = s.model("NextExperimentsRequest", {
         "runs": 6, "goal": "parameters",
         "space": {"balls": [4], "load_N": {"low": 0.0044, "high": 0.0132, "spacing": "log"},
-                  "speed_m_s": {"low": 0.01, "high": 0.15}, "relative_humidity": [0.25, 0.5, 0.7]}})
+                  "speed_m_s": {"low": 0.01, "high": 0.15},
+                  "relative_humidity": {"values": [0.25, 0.5, 0.7]}}})
     job = s.finished_job(s.call("create_next_experiments", calibration_id=made.id, body=body))
     result = typed(s.call("get_job_result", job_id=job.id), "ExperimentsJobResult")
     assert len(result.runs) == 6 and all(isinstance(run.balls, int) for run in result.runs)
@@ -444,7 +445,7 @@ def _(s: Session) -> None:
 def _(s: Session) -> None:
     body = s.model("FirstExperimentsRequest", {
         "runs": 4, "fit_parameters": ["mu_pivot"],
-        "space": {"balls": [4, 8], "load_N": {"low": 0.001, "high": 0.03}, "speed_m_s": [0.05]}})
+        "space": {"balls": {"values": [4, 8]}, "load_N": {"low": 0.001, "high": 0.03}, "speed_m_s": [0.05]}})
     result = s.job_result(s.call("create_first_experiments", body=body), "ExperimentsJobResult")
     assert result.model == "physics" and len(result.runs) == 4
 

@@ -196,7 +196,7 @@ def test_calibrations_refuse_counts_that_are_not_counts(client, token):
 
 
 def test_a_first_design_takes_counts_written_with_fractions(client):
-    space = {**examples.FIRST_EXPERIMENTS["space"], "balls": [4, 8, 12]}
+    space = {**examples.FIRST_EXPERIMENTS["space"], "balls": {"values": [4, 8, 12]}}
     body = {**examples.FIRST_EXPERIMENTS, "space": space,
             "planned": [{"balls": 4, "load_N": 0.01, "speed_m_s": 0.01}]}
     plain = finished(client, client.post("/v1/experiments", json=body))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Body, Query, Request
+from fastapi import APIRouter, Body, Depends, Query, Request
 from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
 
@@ -135,6 +135,19 @@ def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples
                    intake.to_dict())
 
 
+class CsvDialect:
+    """The query parameters of a CSV upload's dialect: its separator and decimal mark (None: detected)."""
+
+    def __init__(self, separator: Annotated[Separator, Query(
+                     description="Column separator: auto (detected among comma, semicolon and tab), comma, "
+                                 "semicolon or tab.")] = "auto",
+                 decimal: Annotated[Decimal, Query(
+                     description="Decimal mark: auto (a comma when numbers use one and none a point), point "
+                                 "or comma.")] = "auto") -> None:
+        self.separator = None if separator == "auto" else separator
+        self.decimal = None if decimal == "auto" else decimal
+
+
 @router.post("/csv", operation_id="create_calibration_from_csv", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses(507)}, openapi_extra=_CSV_BODY)
 async def create_calibration_from_csv(
@@ -149,12 +162,7 @@ async def create_calibration_from_csv(
         "with no number in it is a factor anyway."))] = [],  # noqa: B006
     convention: Annotated[ConventionName, Query(  # type: ignore[valid-type]
         description="Reading of the paper's ambiguous ball-ball terms.")] = _DEFAULT_CONVENTION,
-    separator: Annotated[Separator, Query(
-        description="Column separator: auto (detected among comma, semicolon and tab), comma, semicolon "
-                    "or tab.")] = "auto",
-    decimal: Annotated[Decimal, Query(
-        description="Decimal mark: auto (a comma when numbers use one and none a point), point or "
-                    "comma.")] = "auto",
+    dialect: Annotated[CsvDialect, Depends()] = None,  # type: ignore[assignment]  (FastAPI fills it)
 ) -> JSONResponse:
     """Calibrate on an uploaded CSV file (``Content-Type: text/csv`` or ``application/octet-stream``),
     as ``POST /v1/calibrations``.
@@ -176,8 +184,7 @@ async def create_calibration_from_csv(
                                   for e in exc.errors]) from None
     try:
         dataset, intake = await run_in_threadpool(
-            read_csv, text, fixed_values, None if separator == "auto" else separator,
-            None if decimal == "auto" else decimal, factors)
+            read_csv, text, fixed_values, dialect.separator, dialect.decimal, factors)
     except DataError as exc:
         raise data_problem(exc.errors, fixed_pointer=None, data_pointer=None) from None
     names = [str(name) for name in fit_parameters]

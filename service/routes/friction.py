@@ -19,6 +19,7 @@ from fastapi.responses import Response, StreamingResponse
 from starlette.concurrency import iterate_in_threadpool, run_in_threadpool
 
 from microbearing import physics
+from microbearing.physics.columns import input_slips
 
 from ..calibrations import evaluate_batch_with_model, evaluate_point_with_model
 from ..deps import ExecutorDep, SettingsDep, StoreDep, get_store
@@ -51,9 +52,12 @@ async def evaluate_friction(request: Request) -> Response:
         convention = str(body.convention) if "convention" in sent else None
         document = await run_in_threadpool(evaluate_point_with_model, await get_store(request), body.model,
                                            given, body.conditions, convention)
-        return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
-    _refuse_conditions(body.conditions)
-    document = {"convention": str(body.convention), **evaluate_point(given, body.convention)}
+    else:
+        _refuse_conditions(body.conditions)
+        document = {"convention": str(body.convention), **evaluate_point(given, body.convention)}
+    warnings = input_slips(given)  # the upload's unit-slip rule, as a warning: the model answers as asked
+    if warnings:
+        document["input_warnings"] = warnings
     return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
 
 
@@ -65,10 +69,14 @@ def _refuse_conditions(conditions: object) -> None:
 
 
 def _model_batch(request: FrictionBatchRequest, max_points: int, executor: Executor, store: Store) -> bytes:
-    return json_bytes(with_folding_safe_names(evaluate_batch_with_model(
-        store, executor, request.model, request.points.model_dump(exclude_unset=True), request.conditions,
-        request.outputs, str(request.convention) if "convention" in request.model_fields_set else None,
-        max_points)))
+    points = request.points.model_dump(exclude_unset=True)
+    document = evaluate_batch_with_model(
+        store, executor, request.model, points, request.conditions, request.outputs,
+        str(request.convention) if "convention" in request.model_fields_set else None, max_points)
+    warnings = input_slips(points)
+    if warnings:
+        document["input_warnings"] = warnings
+    return json_bytes(with_folding_safe_names(document))
 
 
 def _physics_inputs(request: FrictionBatchRequest, max_points: int) -> tuple[dict[str, Any], int]:
@@ -80,13 +88,14 @@ def _physics_inputs(request: FrictionBatchRequest, max_points: int) -> tuple[dic
 def _physics_batch(inputs: dict[str, Any], count: int, outputs: list[str] | None, convention: str,
                    executor: Executor) -> Iterator[bytes]:
     """Compute every chunk (errors raise here, before the answer starts); return the answer's pieces."""
+    warnings = input_slips(inputs)
     # Chunks of points on the app's executor (thread pool or dask cluster, service/executor.py).
     names, bounds, chunks = evaluate_chunks(executor, inputs, count, outputs, physics_in(convention),
                                             pointer="/points")
     inputs.clear()
     columns = [(name, name) for name in names]
     columns += [(alias, name) for name, alias in FOLDING_SAFE_NAMES.items() if name in names]
-    return json_column_pieces(columns, bounds, chunks)
+    return json_column_pieces(columns, bounds, chunks, {"input_warnings": warnings} if warnings else None)
 
 
 async def _streamed(pieces: Iterator[bytes]) -> AsyncIterator[bytes]:

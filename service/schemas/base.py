@@ -19,11 +19,20 @@ from typing import Annotated, Any, TypeVar
 
 from fastapi import Request
 from fastapi.exceptions import RequestValidationError
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, ValidationError
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    StrictBool,
+    ValidationError,
+)
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect
 
 from microbearing import physics
+from microbearing.physics.columns import ColumnError, Reading, read_name
 
 from ..jsonguard import is_json_media_type
 from ..problems import VALIDATION_TYPE, ProblemError
@@ -53,6 +62,10 @@ __all__ = [
     "parameter_type",
     "parse_json_body",
     "raw_json_body",
+    "read_column_keys",
+    "ColumnKeys",
+    "UNIT_KEYS",
+    "read_value",
 ]
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -340,6 +353,57 @@ def physics_value_schema(name: str) -> dict[str, Any]:
         schema["exclusiveMaximum" if spec.exclusive_maximum else "maximum"] = spec.maximum
     return schema
 
+
+def read_value(reading: Reading, value: Any) -> Any:
+    """``value`` in the unit of the column ``reading`` reads it as: a number, a list of them, or a range
+    (``{low, high}`` or an object with those attributes, answered as ``[low, high]``); text as it is."""
+    if isinstance(value, bool | str):
+        return value
+    if isinstance(value, int | float):
+        return reading.convert(value) if reading.reading else value
+    if isinstance(value, list | tuple):
+        return [read_value(reading, v) for v in value]
+    ends = [value.get(end) if isinstance(value, dict) else getattr(value, end, None)
+            for end in ("low", "high")]
+    if None in ends:
+        return value
+    return [read_value(reading, end) for end in ends]
+
+
+def read_column_keys(columns: dict[str, Any] | None) -> dict[str, Any] | None:
+    """Columns by the names the calibration upload reads its header as, values converted to their units.
+
+    A key may be the upload's header (``relative humidity [%]`` is the fraction ``relative_humidity``,
+    ``temperature [degF]`` and ``temp_F`` are ``temperature_K`` and ``temp_K``, ``speed [mm/s]`` is
+    ``speed_m_s``): :func:`physics.columns.read_name`, the reading of every door. A range ``{low, high}``
+    is answered as ``[low, high]``.
+
+    Raises
+    ------
+    ValueError
+        Naming the key: a unit not known or not of its quantity, or two keys read as one column.
+    """
+    if columns is None:
+        return None
+    read: dict[str, Any] = {}
+    for key, value in columns.items():
+        try:
+            reading = read_name(key)
+        except ColumnError as exc:
+            raise ValueError(f"{key}: {exc}") from None
+        if reading.name in read:
+            raise ValueError(f"{key}: another key is read as {reading.name} too; keep one")
+        read[reading.name] = read_value(reading, value)
+    return read
+
+
+#: A mapping of columns whose keys are read as the upload reads its header (:func:`read_column_keys`).
+ColumnKeys = AfterValidator(read_column_keys)
+#: What a description of such a mapping says about its keys.
+UNIT_KEYS = (" A key may carry its unit as the upload's header does (e.g. 'relative humidity [%]', "
+             "'temperature [degF]', temp_F), converted as the upload converts it; a value in another unit "
+             "of a column's quantity than the calibration data's is converted too, and one that looks like a "
+             "unit slip (a humidity fraction of 50) is refused.")
 
 #: The physics inputs without a default: every request must give them somewhere.
 REQUIRED_INPUTS = [name for name, spec in physics.PARAMETERS.items() if spec.required]

@@ -13,6 +13,8 @@ from microbearing.calibrate.report import MIN_ROWS
 from . import examples
 from .base import (
     NEXT_URL,
+    UNIT_KEYS,
+    ColumnKeys,
     Convention,
     ConventionName,
     DateTimeText,
@@ -46,12 +48,12 @@ MODEL_FIELDS: dict[str, Any] = {
     "model": (str, Field(default="physics", pattern=MODEL_PATTERN, description=(
         "'physics' (the declared model) or 'calibrated:<id>' from /v1/calibrations: its fixed and fitted "
         "parameters replace the defaults, its convention is used and its effect is added to mu."))),
-    "conditions": (dict[str, float | str] | None, Field(default=None, description=(
+    "conditions": (Annotated[dict[str, float | str] | None, ColumnKeys], Field(default=None, description=(
         "Condition columns of the calibration data, e.g. relative_humidity [1] [unit of each column as in "
         "the calibration data]; those the calibrated model's terms read are required, a column the "
         "calibration never saw is refused (422 naming it). A factor column takes a group label (e.g. "
         "\"specimen\": \"S3\"): a known group is predicted at its own level, a new label (or none) "
-        "carries the spread between groups in the interval."))),
+        "carries the spread between groups in the interval." + UNIT_KEYS))),
 }
 
 #: Response fields added when a calibrated model answers.

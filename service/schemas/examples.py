@@ -61,13 +61,13 @@ PREDICT: dict[str, Any] = {"points": {"load_N": [0.002, 0.01, 0.04], "speed_m_s"
 FIRST_EXPERIMENTS: dict[str, Any] = {
     "runs": 6, "fit_parameters": ["mu_pivot"],
     "space": {"balls": {"low": 4, "high": 12}, "load_N": {"low": 0.003, "high": 0.024},
-              "speed_m_s": [0.01, 0.1]}}
+              "speed_m_s": {"values": [0.01, 0.1]}}}
 
 #: Six next runs for a calibration of CALIBRATION (its data's ranges), shrinking its parameters' spread.
 NEXT_EXPERIMENTS: dict[str, Any] = {
     "runs": 6, "goal": "parameters",
     "space": {"balls": {"low": 4, "high": 12}, "load_N": {"low": 0.003, "high": 0.024},
-              "speed_m_s": [0.01, 0.1]}}
+              "speed_m_s": {"values": [0.01, 0.1]}}}
 
 #: The measurements of CALIBRATION as a spreadsheet might name them: load in mN and speed in mm/s
 #: (converted to SI; the report's intake lists each conversion).

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import ConfigDict, Field
+from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field
 
 from microbearing import physics
+from microbearing.physics.columns import SPAN_SPELLINGS, ColumnError, read_name
 
 from .base import (
     REQUIRED_INPUTS,
+    ColumnKeys,
     Convention,
     ConventionName,
     ResponseModel,
@@ -21,7 +23,7 @@ from .base import (
 from .calibrations import FITTABLE_PARAMETERS, FittableParameterName
 
 __all__ = ["MAX_PLANNED_RUNS", "MAX_RUNS", "MAX_SPACE_COLUMNS", "MAX_SPACE_VALUES", "ExperimentsResult",
-           "FirstExperimentsRequest", "NextExperimentsRequest", "SpaceRange"]
+           "FirstExperimentsRequest", "NextExperimentsRequest", "SpaceRange", "SpaceValues"]
 
 #: Runs one proposal may ask for at most. [1]
 MAX_RUNS = 500
@@ -29,7 +31,7 @@ MAX_RUNS = 500
 MAX_PLANNED_RUNS = 500
 #: Columns of a space (or envelope) at most. [1]
 MAX_SPACE_COLUMNS = 12
-#: Allowed values of one column given as a list at most. [1]
+#: Allowed values of one column given as a set at most. [1]
 MAX_SPACE_VALUES = 200
 
 
@@ -44,17 +46,61 @@ class SpaceRange(StrictModel):
                                       "logarithms (low > 0).")
 
 
+class SpaceValues(StrictModel):
+    """A set of allowed values a lab can set (e.g. humidity set-points, a mask set's groove angles)."""
+
+    values: list[float] = Field(min_length=1, max_length=MAX_SPACE_VALUES, description=(
+        "The allowed values [unit of the column]."))
+
+
+def _one_spelling(value: Any) -> Any:
+    """A plain list is a range [low, high] (one value: that value): longer ones are refused, the two spellings
+    explained."""
+    if isinstance(value, list) and len(value) > 2:
+        raise ValueError(f"a list of {len(value)} values is ambiguous: {SPAN_SPELLINGS}")
+    return value
+
+
 SpaceColumn = Annotated[
-    SpaceRange | Annotated[list[float], Field(min_length=1, max_length=MAX_SPACE_VALUES)],
-    Field(description="A range {low, high, spacing} or a list of the allowed values (e.g. humidity "
-                      "set-points, a mask set's groove angles [deg]), in the column's unit."),
+    SpaceRange | SpaceValues | Annotated[list[float], Field(min_length=1, max_length=2)],
+    BeforeValidator(_one_spelling),
+    Field(description="A range, [low, high] or {low, high, spacing}, or a set of allowed values "
+                      "{\"values\": [...]} (e.g. humidity set-points, a mask set's groove angles [deg]), in "
+                      "the column's unit; [value] is that one value. A range reads the same in every route."),
 ]
 
-_SPACE = ("What the lab can set, per column: balls (a range of whole counts or a list), load_N [N], "
+def _space_keys(space: dict[str, Any] | None) -> dict[str, Any] | None:
+    """A space's columns by the names the calibration upload reads its header as, values converted
+    (``speed [mm/s]`` is speed_m_s, ``relative humidity [%]`` the fraction relative_humidity)."""
+    if space is None:
+        return None
+    read: dict[str, Any] = {}
+    for key, column in space.items():
+        try:
+            reading = read_name(key)
+        except ColumnError as exc:
+            raise ValueError(f"{key}: {exc}") from None
+        if reading.name in read:
+            raise ValueError(f"{key}: another column is read as {reading.name} too; keep one")
+        if reading.reading and isinstance(column, SpaceRange):
+            column = column.model_copy(update={"low": reading.convert(column.low),
+                                               "high": reading.convert(column.high)})
+        elif reading.reading and isinstance(column, SpaceValues):
+            column = SpaceValues(values=[reading.convert(v) for v in column.values])
+        elif reading.reading:
+            column = [reading.convert(v) for v in column]
+        read[reading.name] = column
+    return read
+
+
+_UNIT_NAMES = (" A column's name may carry its unit as the calibration upload's header does ('speed [mm/s]', "
+               "'relative humidity [%]'), its values converted.")
+
+_SPACE = ("What the lab can set, per column: balls (a range of whole counts or a set), load_N [N], "
           "speed_m_s [m/s], any other physics input in its unit, and the calibration's condition columns "
           "(e.g. relative_humidity, in the calibration data's unit). balls, load_N and speed_m_s and the "
           "columns the model reads must be in the space or in fixed.")
-_ENVELOPE = ("Where the model will be used, like space (ranges or lists per column, the space's columns "
+_ENVELOPE = ("Where the model will be used, like space (ranges or sets per column, the space's columns "
              "all given): goal predict shrinks the 95 % interval of mu over it; with another goal the "
              "interval there before and after is reported too.")
 _FIXED = ("Inputs held at one value in every run: physics inputs in their units (e.g. groove_angle_deg "
@@ -65,10 +111,12 @@ _PLANNED = ("Runs already planned, one object per run with a value for every col
 
 class _ExperimentsRequest(StrictModel):
     runs: WholeNumber = Field(ge=1, le=MAX_RUNS, description="How many measurements to propose [1].")
-    space: dict[str, SpaceColumn] = Field(min_length=1, max_length=MAX_SPACE_COLUMNS, description=_SPACE)
-    envelope: dict[str, SpaceColumn] | None = Field(default=None, max_length=MAX_SPACE_COLUMNS,
-                                                    description=_ENVELOPE)
-    fixed: dict[str, float | bool] | None = Field(default=None, max_length=64, description=_FIXED)
+    space: Annotated[dict[str, SpaceColumn], AfterValidator(_space_keys)] = Field(
+        min_length=1, max_length=MAX_SPACE_COLUMNS, description=_SPACE + _UNIT_NAMES)
+    envelope: Annotated[dict[str, SpaceColumn] | None, AfterValidator(_space_keys)] = Field(
+        default=None, max_length=MAX_SPACE_COLUMNS, description=_ENVELOPE)
+    fixed: Annotated[dict[str, float | bool] | None, ColumnKeys] = Field(default=None, max_length=64,
+                                                                         description=_FIXED + _UNIT_NAMES)
     planned: list[dict[str, float]] | None = Field(default=None, max_length=MAX_PLANNED_RUNS,
                                                    description=_PLANNED)
     seed: WholeNumber = Field(default=0, ge=0, le=2**31 - 1, description="Seed of the candidate set [1].")
@@ -93,11 +141,13 @@ _PHYSICS_COLUMNS = [name for name, spec in physics.PARAMETERS.items() if spec.ki
 
 def _column_bounds(name: str) -> dict:
     """JSON Schema of a space column of the physics input ``name`` within its bounds: a range (any
-    ends for balls, whose whole counts in it are taken) or a list of values (whole counts for balls)."""
+    ends for balls, whose whole counts in it are taken) or a set of values (whole counts for balls)."""
     value = physics_value_schema(name)
-    return {"anyOf": [{"type": "object", "properties": {end: {**value, "type": "number"}
-                                                        for end in ("low", "high")}},
-                      {"type": "array", "items": value}]}
+    end = {**value, "type": "number"}
+    return {"anyOf": [{"type": "object", "properties": {"low": end, "high": end}},
+                      {"type": "object", "properties": {"values": {"type": "array", "items": value}}},
+                      {"type": "array", "minItems": 2, "maxItems": 2, "items": end},
+                      {"type": "array", "minItems": 1, "maxItems": 1, "items": value}]}
 
 
 _COLUMN_BOUNDS = {name: _column_bounds(name) for name in _PHYSICS_COLUMNS}

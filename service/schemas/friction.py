@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import Field, create_model
 
 from microbearing import physics
 
 from .base import (
+    UNIT_KEYS,
+    ColumnKeys,
     Convention,
     ConventionName,
     OutputName,
@@ -17,8 +21,8 @@ from .base import (
 )
 from .calibrations import MODEL_FIELDS, MODEL_RESPONSE_FIELDS
 
-__all__ = ["FrictionBatchPoints", "FrictionBatchRequest", "FrictionBatchResponse", "FrictionRequest",
-           "FrictionResponse"]
+__all__ = ["INPUT_WARNINGS", "FrictionBatchPoints", "FrictionBatchRequest", "FrictionBatchResponse",
+           "FrictionRequest", "FrictionResponse"]
 
 _CONVENTION = (ConventionName, Field(
     default=Convention(physics.DEFAULT_CONVENTION),
@@ -31,11 +35,16 @@ FrictionRequest = create_model(
     convention=_CONVENTION, **parameter_fields(), **MODEL_FIELDS,
 )
 
+#: The answer's warnings of inputs that look like a unit slip (physics.columns.input_slips).
+INPUT_WARNINGS = (list[str] | None, Field(default=None, description=(
+    "Physics inputs that look like a unit slip, in the words with which a calibration upload refuses "
+    "them (e.g. speed_m_s above 10 m/s: mm/s?); the model answers as asked. Absent when none.")))
+
 FrictionResponse = create_model(
     "FrictionResponse", __base__=ResponseModel,
     __doc__="Every output of the friction model for one design point.",
     convention=(ConventionName, Field(description="Convention used.")), **output_fields(),
-    **MODEL_RESPONSE_FIELDS,
+    **MODEL_RESPONSE_FIELDS, input_warnings=INPUT_WARNINGS,
 )
 
 FrictionBatchPoints = create_model(
@@ -58,13 +67,14 @@ class FrictionBatchRequest(StrictModel):
             "Reading of the paper's ambiguous ball-ball terms; a calibrated model uses its own (naming "
             "another is a 422)."))
     model: str = MODEL_FIELDS["model"][1]
-    conditions: dict[str, float | str | list[float] | list[str]] | None = Field(default=None, description=(
+    conditions: Annotated[dict[str, float | str | list[float] | list[str]] | None, ColumnKeys] = Field(
+        default=None, description=(
         "Condition columns of the calibration data for a calibrated model, e.g. relative_humidity [1] "
         "[unit of each column as in the calibration data]: a number for every point or a list of one "
         "value per point (lists share the points' length). Those the model's terms read are required; "
         "a column the calibration never saw is refused (422 naming it). A factor column takes group "
         "labels (one, or one per point): a known group at its own level, a new one with the spread "
-        "between groups in the interval."))
+        "between groups in the interval." + UNIT_KEYS))
 
 
 _LIST_OF_POINTS = " One value per point, in the order of the points."
@@ -85,4 +95,5 @@ FrictionBatchResponse = create_model(
         "One sentence per input or condition outside the calibration data over the whole batch, naming "
         "the column, its values there (in the column's unit), the range and the number of points "
         "outside (absent for physics)."))),
+    input_warnings=INPUT_WARNINGS,
 )

@@ -11,6 +11,8 @@ from microbearing.optimize.general import SPEED_GRID_POINTS
 from microbearing.optimize.problem import DESIGN_VARIABLES
 
 from .base import (
+    UNIT_KEYS,
+    ColumnKeys,
     Convention,
     ConventionName,
     ResponseModel,
@@ -98,8 +100,16 @@ class DesignTolerances(StrictModel):
                     "this [deg].")
 
 
-#: A condition's value or its [low, high] range (the envelope), in the calibration data's unit.
-ConditionRange = float | Annotated[list[float], Field(min_length=2, max_length=2)]
+class ConditionSpan(StrictModel):
+    """A range of a condition, spelled as an object (read as the pair [low, high])."""
+
+    low: float = Field(description="Lowest value [unit of the column].")
+    high: float = Field(description="Highest value, >= low [unit of the column].")
+
+
+#: A condition's value or its range (the envelope), [low, high] or {low, high}, in the calibration data's
+#: unit.
+ConditionRange = float | Annotated[list[float], Field(min_length=2, max_length=2)] | ConditionSpan
 
 
 
@@ -148,12 +158,12 @@ class OptimizationRequest(StrictModel):
         "physics (a certified global optimum by geometric programming), surrogate:<id> or "
         "calibrated:<id> (a local optimum by sequential convex approximation; over an envelope, proven by "
         "geometric programming when the calibrated model's terms allow, see proof)."))
-    conditions: dict[str, ConditionRange | str] | None = Field(
+    conditions: Annotated[dict[str, ConditionRange | str] | None, ColumnKeys] = Field(
         default=None, description="Condition columns a calibrated model's terms read (e.g. "
-        "relative_humidity, temperature_C), in the calibration data's units: a value, or [low, high] to "
-        "design for the worst case over the range (the operating envelope); a factor column takes a group "
-        "label (e.g. specimen: S3) in a point design; without one the design is judged for a new group, "
-        "the spread between groups in its interval.",
+        "relative_humidity, temperature_C), in the calibration data's units: a value, or a range [low, high] "
+        "(or {low, high}) to design for the worst case over the range (the operating envelope); a factor "
+        "column takes a group label (e.g. specimen: S3) in a point design; without one the design is judged "
+        "for a new group, the spread between groups in its interval." + UNIT_KEYS,
         examples=[{"relative_humidity": [0.3, 0.7], "temperature_C": [20, 60]}])
     tolerances: DesignTolerances | None = Field(
         default=None, description="Tolerances of design variables: the design must hold (objective and "

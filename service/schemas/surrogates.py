@@ -13,6 +13,8 @@ from microbearing import physics, surrogate
 from .base import (
     NEXT_URL,
     REQUIRED_INPUTS,
+    UNIT_KEYS,
+    ColumnKeys,
     Convention,
     ConventionName,
     DateTimeText,
@@ -110,9 +112,9 @@ class SurrogateRequest(StrictModel):
         "The model to learn: 'physics' (the declared model) or 'calibrated:<id>' from /v1/calibrations "
         "(its fixed and fitted parameters replace the defaults, values in fixed override them, and its "
         "effect is added to mu)."))
-    conditions: dict[str, float] | None = Field(default=None, description=(
+    conditions: Annotated[dict[str, float] | None, ColumnKeys] = Field(default=None, description=(
         "Condition columns a calibrated model's effect reads, one value each for the whole space, e.g. "
-        "relative_humidity [1] [unit of each column as in the calibration data]."))
+        "relative_humidity [1] [unit of each column as in the calibration data]." + UNIT_KEYS))
 
 
 class SurrogateMetrics(ResponseModel):

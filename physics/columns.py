@@ -1,0 +1,695 @@
+"""The column registry: every input and condition column, its SI unit, the spellings and units it
+accepts, its range and its unit-slip rule, for every door (tables, API points, envelopes, the CLI).
+
+A column is sent under a name that may carry a unit: in brackets (``speed [mm/s]``,
+``relative humidity [%]``), as a suffix (``speed_mm_s``, ``load_mN``, ``temp_F``) or as its SI
+name (``speed_m_s``). :func:`read_name` says how such a name is read: which column, and how its
+values convert to that column's unit, through pint's one unit registry (a slider mass in g is read
+as its weight in N). :func:`match_column` reads a name sent at prediction against the columns a
+model knows, so that the upload's header (``relative humidity [%]``) or another unit of the same
+quantity (``temperature_C`` for a model of ``temperature_K``) is converted, never read in the wrong
+unit. :func:`slip` is the one rule for values that look like a unit slip (speed above 10 m/s:
+mm/s; a humidity fraction of 50: percent). :func:`read_span` reads a range (``[low, high]`` or
+``{"low", "high"}``) or a set of allowed values (``{"values": [...]}``) the same way in every route.
+
+Physics inputs are those of :data:`physics.parameters.PARAMETERS`, in their units. Conditions are
+columns of measured data that only a calibrated model reads; the named ones (:data:`CONDITIONS`)
+are recognised by the words of their names as the terms of :mod:`physics.effects` recognise their
+drivers, and read in the unit the terms read them in (:func:`physics.effects.humidity_fraction`,
+:func:`physics.effects.temperature_kelvin`); any other condition is read as sent.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .effects import humidity_fraction, temperature_kelvin
+from .parameters import PARAMETERS
+
+__all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
+           "Reading", "Span", "accepted_spellings", "from_si", "input_bases", "input_slips", "match_column",
+           "read_name", "read_span", "slip", "unit_of", "unknown_column"]
+
+#: Standard gravity, the weight of a slider mass given in g. [m/s^2]
+STANDARD_GRAVITY_M_S2 = 9.80665
+
+#: Largest value of a physics input a micro ball bearing plausibly sees, with the likely unit slip and its
+#: factor to SI: measured data beyond it are refused. [unit of the input]
+SLIP_LIMITS: dict[str, tuple[float, str, float]] = {
+    "speed_m_s": (10.0, "mm/s", 1e-3),
+    "load_N": (1.0, "mN", 1e-3),
+    "ball_diameter_m": (1e-2, "mm", 1e-3),
+}
+# A temperature in degC above this looks like kelvin; one in kelvin below the other like degC.
+_CELSIUS_MAX, _KELVIN_MIN = 200.0, 150.0
+
+
+class ColumnError(ValueError):
+    """A column name (or its unit) that no door can read; ``column`` is the name as sent."""
+
+    def __init__(self, column: str, message: str):
+        super().__init__(message)
+        self.column = column
+
+
+@dataclass(frozen=True)
+class Condition:
+    """A named condition column: a quantity that only a calibrated model's terms read.
+
+    Attributes
+    ----------
+    name : str
+        The canonical name, with its SI unit (``relative_humidity`` [1], ``temperature_K``).
+    unit : str
+        Its unit, as pint reads it (``"1"`` for a fraction).
+    description : str
+        What it is, in one sentence.
+    keywords : tuple of str
+        Prefixes of the words of a column's name that make it this condition (as the terms read them).
+    minimum, maximum : float or None
+        Its physical range in ``unit``.
+    integer : bool
+        Whether its values are whole numbers.
+    """
+
+    name: str
+    unit: str
+    description: str
+    keywords: tuple[str, ...]
+    minimum: float | None = None
+    maximum: float | None = None
+    integer: bool = False
+
+    def matches(self, name: str) -> bool:
+        """Whether a column's name is this condition (a word of it starts with a keyword)."""
+        return any(w.startswith(k) for w in _words(name) for k in self.keywords)
+
+
+#: The named conditions, by canonical name.
+CONDITIONS: dict[str, Condition] = {c.name: c for c in [
+    Condition("relative_humidity", "1", "Relative humidity of the air around the bearing, a fraction "
+              "(percent when the name says pct or percent).", ("humid", "rh"), 0.0, 1.0),
+    Condition("temperature_K", "K", "Temperature of the bearing (degC unless the name says K).",
+              ("temp",), 0.0),
+    Condition("cycles", "1", "Strokes, passes or cycles run since the start (running-in).",
+              ("cycle", "pass", "stroke"), 0.0, integer=True),
+    Condition("time_h", "h", "Time run since the start (running-in), in the unit its name says.",
+              ("time",), 0.0),
+]}
+
+# Units the words of a condition's name may say, by the condition; the first word found counts.
+_UNIT_WORDS = {
+    "relative_humidity": {"pct": "percent", "percent": "percent"},
+    "temperature_K": {"k": "K", "kelvin": "K", "c": "degC", "degc": "degC", "celsius": "degC",
+                      "f": "degF", "degf": "degF", "fahrenheit": "degF", "r": "degR", "rankine": "degR"},
+    "time_h": {"s": "s", "sec": "s", "min": "min", "h": "h", "hr": "h", "hours": "h", "d": "day",
+               "days": "day"},
+}
+# Temperature units the terms of physics.effects do not read: a name saying one is converted to kelvin.
+_UNREAD_TEMPERATURES = {"degF", "degR"}
+# Words of a condition's name that state a unit; dropped when brackets give the unit, so that the terms,
+# which read units from names (pct, C, K), do not convert twice.
+_DROPPED_WORDS = {"pct", "percent", "c", "k", "degc", "kelvin", "celsius", "f", "degf", "fahrenheit"}
+# Unit symbols of the physics names' suffixes (load_N -> N, speed_m_s -> m/s, ...).
+_SUFFIXES = {"N": "N", "m/s": "m_s", "deg": "deg", "m": "m", "J/m^2": "J_m2", "N/m": "N_m", "Pa*s": "Pa_s",
+             "1/Pa": "1_Pa", "Pa": "Pa"}
+# SI units of other conditions by dimension, with the suffix their new name gets (dimensionless: none).
+_SI_BY_DIMENSION = {"[length]": ("m", "m"), "[time]": ("s", "s"), "[length] / [time]": ("m/s", "m_s"),
+                    "[mass] * [length] / [time] ** 2": ("N", "N"), "[mass]": ("kg", "kg"),
+                    "[mass] / [length] / [time] ** 2": ("Pa", "Pa"), "[temperature]": ("K", "K"),
+                    "1 / [time]": ("1/s", "1_s")}
+_BRACKETS = re.compile(r"^(?P<name>.*?)\s*(\[(?P<square>[^\]]*)\]|\((?P<round>[^)]*)\))\s*$")
+
+
+def _words(name: str) -> list[str]:
+    return [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
+
+
+@functools.cache
+def _registry():
+    import pint
+
+    return pint.UnitRegistry()
+
+
+def _unit(text: str):
+    """A pint unit from a unit text (``m2`` as ``m**2``, ``°C`` as ``degC``, empty or 1: none)."""
+    cleaned = text.strip().replace("°C", "degC").replace("°F", "degF").replace("°", "deg")
+    cleaned = re.sub(r"(?<=[A-Za-z])(\d)", r"**\1", cleaned.replace("µ", "u").replace("μ", "u"))
+    if cleaned in {"", "1", "-"}:
+        return _registry().dimensionless
+    return _registry().Unit(cleaned)
+
+
+def _dimension(unit) -> str:
+    return str((1.0 * unit).dimensionality)
+
+
+@dataclass(frozen=True)
+class Reading:
+    """How one column, as sent, is read.
+
+    Attributes
+    ----------
+    sent : str
+        The header cell, JSON key or ``NAME=`` as sent.
+    name : str
+        The column it is read as: a physics input, a condition, or a name the caller reads as it is.
+    scale : float
+        Values are read as ``value * scale + offset`` (1 and 0 when not converted).
+    offset : float
+        See ``scale`` (273.15 for degC to K).
+    divisor : int or None
+        When set, values are read as ``value / divisor`` (exact for mm -> m: ``scale`` is then
+        ``1 / divisor``).
+    reading : str
+        The conversion in words, e.g. ``"speed [mm/s] read as speed_m_s / 1000"``; empty when the
+        column is read as sent.
+    """
+
+    sent: str
+    name: str
+    scale: float = 1.0
+    offset: float = 0.0
+    divisor: int | None = None
+    reading: str = ""
+
+    def convert(self, value: Any) -> Any:
+        """The value (a number or an array) in the unit of the column it is read as.
+
+        >>> Reading("speed [mm/s]", "speed_m_s", 0.001, 0.0, 1000).convert(50.0)
+        0.05
+        """
+        if self.divisor is not None:
+            return value / self.divisor if isinstance(value, np.ndarray) else float(value) / self.divisor
+        if isinstance(value, np.ndarray):
+            return value * float(self.scale) + float(self.offset)
+        return float(value) * float(self.scale) + float(self.offset)
+
+
+    def sent_value(self, value: Any) -> Any:
+        """A value of the column (SI) in the unit it was sent in, for a report or plot in the lab's units
+        (the inverse of :meth:`convert`).
+
+        >>> r = read_name("speed [mm/s]"); r.sent_value(0.05), r.sent_unit
+        (50.0, 'mm/s')
+        """
+        if self.divisor is not None:
+            return value * self.divisor if isinstance(value, np.ndarray) else float(value) * self.divisor
+        if isinstance(value, np.ndarray):
+            return (value - float(self.offset)) / float(self.scale)
+        return (float(value) - float(self.offset)) / float(self.scale)
+
+    @property
+    def sent_unit(self) -> str | None:
+        """The unit the column was sent in, as written (``mm/s`` of ``speed [mm/s]`` or ``speed_mm_s``);
+        None when it was sent in the column's own unit."""
+        if not self.reading:
+            return None
+        match = _BRACKETS.match(self.sent.strip())
+        if match and match.group("name"):
+            return match.group("square") if match.group("square") is not None else match.group("round")
+        base = next((b for b in sorted(input_bases(), key=len, reverse=True)
+                     if self.sent.lower().startswith(b + "_")), None)
+        if base is not None:
+            parts = self.sent[len(base) + 1:].split("_")
+            return "/".join(parts)
+        return unit_of(self.sent)
+
+
+def _converter(sent: str, name: str, source, target: str, weight: bool = False) -> Reading:
+    """The :class:`Reading` converting ``source`` (a pint unit) into ``target`` (a unit text)."""
+    registry = _registry()
+    if weight:  # a slider mass: its weight
+        scale = registry.Quantity(1.0, source).to("kg").magnitude * STANDARD_GRAVITY_M_S2
+        return Reading(sent, name, scale, 0.0, None,
+                       f"{sent} read as {name} = mass x standard gravity {STANDARD_GRAVITY_M_S2} m/s^2 "
+                       f"(x {scale:.10g})")
+    low = registry.Quantity(0.0, source).to(_unit(target)).magnitude
+    high = registry.Quantity(1.0, source).to(_unit(target)).magnitude
+    scale, offset = high - low, low
+    if scale == 1.0 and offset == 0.0:
+        return Reading(sent, name)
+    if offset:
+        return Reading(sent, name, scale, offset, None,
+                       f"{sent} read as {name} = value" + (f" x {scale:.10g}" if scale != 1 else "")
+                       + f" + {offset:.10g}")
+    inverse = round(1.0 / scale)
+    if inverse >= 2 and math.isclose(1.0 / scale, inverse, rel_tol=1e-12):
+        return Reading(sent, name, 1.0 / inverse, 0.0, inverse, f"{sent} read as {name} / {inverse}")
+    return Reading(sent, name, scale, 0.0, None, f"{sent} read as {name} x {scale:.10g}")
+
+
+@functools.cache
+def input_bases() -> dict[str, str]:
+    """Physics input names by their name without the unit suffix (``speed`` -> ``speed_m_s``)."""
+    bases = {}
+    for name, spec in PARAMETERS.items():
+        if spec.unit == "1":
+            continue
+        suffix = _SUFFIXES[spec.unit]
+        if not name.endswith("_" + suffix):
+            raise AssertionError(f"{name} does not end with its unit {spec.unit}")  # a new parameter's unit
+        bases[name[: -len(suffix) - 1].lower()] = name
+    return bases
+
+
+def accepted_spellings() -> str:
+    """The names a column may have, in words, examples first (for error messages; under 600 characters).
+
+    >>> text = accepted_spellings(); "speed [mm/s]" in text, "temp_F" in text, len(text) < 600
+    (True, True, True)
+    """
+    units = ", ".join(f"{base} [{PARAMETERS[name].unit}]" for base, name in input_bases().items())
+    return (f"e.g. speed [mm/s], speed_mm_s, load [mN], load [g] (slider mass), relative_humidity [%], "
+            f"temperature [degC], temp_F; inputs with units: {units}; other names as in GET /v1/parameters, "
+            f"or a condition")
+
+
+def _physics_reading(sent: str, name: str, unit, unit_text: str | None = None) -> Reading:
+    """A physics input's reading from ``unit``; ColumnError when the unit is not of its kind."""
+    spec = PARAMETERS.get(name)
+    target = "1" if spec is None else spec.unit
+    source_dim, target_dim = _dimension(unit), _dimension(_unit(target))
+    if source_dim == target_dim:
+        return _converter(sent, name, unit, target)
+    if target == "N" and source_dim == _dimension(_registry().kilogram):
+        return _converter(sent, name, unit, target, weight=True)
+    raise ColumnError(sent, f"{name} is in {target}, and {unit_text or format(unit, '~')} is not convertible "
+                            f"to it (dimension {source_dim} instead of {target_dim}); accepted names: "
+                            f"{accepted_spellings()}")
+
+
+def _same(unit, target: str) -> bool:
+    """Whether ``unit`` is the unit ``target`` (not merely convertible to it)."""
+    try:
+        return (1.0 * unit).to(_unit(target)).magnitude == 1.0
+    except Exception:  # pint's DimensionalityError: another kind of quantity
+        return False
+
+
+def _condition_base(text: str) -> str:
+    words = [w for w in re.split(r"[\s_\-]+", text.strip()) if w]
+    while len(words) > 1 and words[-1].lower() in _DROPPED_WORDS:
+        words.pop()
+    return "_".join(words)
+
+
+def _condition_of(name: str) -> Condition | None:
+    return next((c for c in CONDITIONS.values() if c.matches(name)), None)
+
+
+def unit_of(name: str) -> str | None:
+    """The unit a column's name says its values are in, as pint reads it; None when it says none.
+
+    A physics input is in its unit; a named condition (:data:`CONDITIONS`) in the unit the terms of
+    :mod:`physics.effects` read from its name (a humidity is a fraction unless the name says pct, a
+    temperature degC unless it says K, F or R); a time in the unit its last word says.
+
+    >>> unit_of("speed_m_s"), unit_of("relative_humidity_pct"), unit_of("temperature_C"), unit_of("temp_K")
+    ('m/s', 'percent', 'degC', 'K')
+    >>> unit_of("temp_F"), unit_of("time_h"), unit_of("time"), unit_of("specimen")
+    ('degF', 'h', None, None)
+    """
+    spec = PARAMETERS.get(name)
+    if spec is not None:
+        return None if spec.kind == "bool" else spec.unit
+    condition = _condition_of(name)
+    if condition is None:
+        return None
+    said = [_UNIT_WORDS.get(condition.name, {}).get(w) for w in _words(name)]
+    said = [u for u in said if u is not None]
+    if condition.name == "relative_humidity":
+        return "percent" if float(humidity_fraction(name, [1.0])[0]) != 1.0 else "1"
+    if condition.name == "temperature_K":
+        if any(u in _UNREAD_TEMPERATURES for u in said):
+            return next(u for u in said if u in _UNREAD_TEMPERATURES)
+        return "K" if float(temperature_kelvin(name, [0.0])[0]) == 0.0 else "degC"
+    if condition.name == "time_h":
+        return said[-1] if said else None
+    return condition.unit
+
+
+def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
+    name_text = match.group("name")
+    unit_text = match.group("square") if match.group("square") is not None else match.group("round")
+    try:
+        unit = _unit(unit_text)
+    except Exception:  # pint's errors (undefined units, bad syntax) derive from several built-ins
+        raise ColumnError(sent, f"the unit {unit_text!r} is not known; accepted names: "
+                                f"{accepted_spellings()}") from None
+    key = re.sub(r"[\s\-]+", "_", name_text.strip())
+    bases = input_bases()
+    if key in PARAMETERS or key in plain:
+        spec = PARAMETERS.get(key)
+        if spec is not None and spec.unit != "1" and not _same(unit, spec.unit):
+            raise ColumnError(sent, f"the name {key} says {spec.unit} and the brackets say {unit_text}; "
+                                    f"write {key[: -len(_SUFFIXES[spec.unit]) - 1]} [{unit_text}]")
+        return _physics_reading(sent, key, unit, unit_text)
+    if key.lower() in bases:
+        return _physics_reading(sent, bases[key.lower()], unit, unit_text)
+    dimension = _dimension(unit)
+    base = _condition_base(name_text)
+    if dimension == "dimensionless":
+        return _converter(sent, base, unit, "1")
+    if dimension not in _SI_BY_DIMENSION:
+        raise ColumnError(sent, f"a condition in {unit_text} (dimension {dimension}) has no SI unit here; "
+                                f"give it without a unit or in one of "
+                                f"{', '.join(u for u, _ in _SI_BY_DIMENSION.values())}, or as a "
+                                f"dimensionless number")
+    si, suffix = _SI_BY_DIMENSION[dimension]
+    return _converter(sent, f"{base}_{suffix}", unit, si)
+
+
+def read_name(sent: str, plain: Sequence[str] = ()) -> Reading:
+    """How a column named ``sent`` (header cell, JSON key, ``NAME=`` of the CLI) is read.
+
+    Parameters
+    ----------
+    sent : str
+        E.g. ``"speed [mm/s]"``, ``"load (mN)"``, ``"speed_mm_s"``, ``"load_N"``,
+        ``"relative_humidity [%]"`` or ``"temp_F"``.
+    plain : sequence of str
+        Other names read as they are, dimensionless (the caller's own columns, e.g. ``mu_measured``).
+
+    Returns
+    -------
+    Reading
+        A physics input in its unit; a condition with a unit in brackets in SI (a humidity in % as the
+        fraction ``relative_humidity``, a temperature as ``<name>_K``); a temperature whose name says
+        F or R as ``<name>_K``; any other name as sent.
+
+    Raises
+    ------
+    ColumnError
+        Naming the column as sent: an unknown unit, a unit not convertible to the input's, a condition's
+        unit of a dimension without an SI name here, or a name that states another unit.
+
+    Examples
+    --------
+    >>> read_name("speed [mm/s]").reading
+    'speed [mm/s] read as speed_m_s / 1000'
+    >>> r = read_name("temperature [degC]"); r.name, r.convert(25.0)
+    ('temperature_K', 298.15)
+    >>> r = read_name("temp_F"); r.name, round(r.convert(212.0), 2)
+    ('temp_K', 373.15)
+    """
+    text = sent.strip()
+    match = _BRACKETS.match(text)
+    if match and match.group("name"):
+        return _bracketed(sent, match, plain)
+    if text in PARAMETERS or text in plain:
+        return Reading(sent, text)
+    bases = input_bases()
+    # name_unit: a physics input's name without its unit, then a unit (speed_mm_s, load_mN)
+    for base in sorted(bases, key=len, reverse=True):
+        if text.lower().startswith(base + "_") and len(text) > len(base) + 1:
+            parts = text[len(base) + 1:].split("_")
+            quotient = "/".join([parts[0], *[f"({p})" for p in parts[1:]]])
+            for unit_text in (quotient, "*".join(parts)):
+                try:
+                    return _physics_reading(sent, bases[base], _unit(unit_text))
+                except Exception:  # no unit, or not this input's kind: try the next reading
+                    continue
+    said = unit_of(text)
+    if said in _UNREAD_TEMPERATURES:  # the terms would read it as degC: convert it to kelvin
+        return _converter(sent, f"{_condition_base(text)}_K", _unit(said), "K")
+    return Reading(sent, text)
+
+
+def match_column(sent: str, known: Iterable[str]) -> Reading:
+    """How a name sent at prediction is read as one of the columns a model knows.
+
+    Parameters
+    ----------
+    sent : str
+        The name as sent: a known column, the upload's header (``relative humidity [%]``), or another
+        unit of a known column's quantity (``temperature_C`` for ``temperature_K``).
+    known : iterable of str
+        The model's columns (conditions and factors of its data).
+
+    Returns
+    -------
+    Reading
+        Into the known column, converted when the units differ.
+
+    Raises
+    ------
+    ColumnError
+        When no known column matches: the message lists the known columns and the accepted spellings.
+
+    Examples
+    --------
+    >>> match_column("relative humidity [%]", ["relative_humidity"]).convert(50.0)
+    0.5
+    >>> r = match_column("temperature_C", ["temperature_K"]); r.name, r.convert(25.0)
+    ('temperature_K', 298.15)
+    """
+    known = list(known)
+    if sent in known:
+        return Reading(sent, sent)
+    try:
+        first = read_name(sent)
+    except ColumnError:
+        first = Reading(sent, sent)
+    if first.name in known:
+        return first
+    source = unit_of(first.name)
+    condition = _condition_of(first.name)
+    alike = [k for k in known if condition is not None and condition.matches(k) and unit_of(k) is not None]
+    # Another column of the same quantity when the name sent states its unit (brackets, a unit word such
+    # as temperature_K, or a unit other than the known column's); a bare synonym (humidity for
+    # relative_humidity, cycles for passes) is not guessed.
+    words = _UNIT_WORDS.get(condition.name, {}) if condition is not None else {}
+    stated = any(w in words for w in _words(first.name))
+    if source is not None and len(alike) == 1 and (stated or first.reading or source != unit_of(alike[0])):
+        target = unit_of(alike[0])
+        if _dimension(_unit(source)) == _dimension(_unit(target)):
+            second = _converter(sent, alike[0], _unit(source), target)
+            scale, offset = first.scale * second.scale, first.offset * second.scale + second.offset
+            if (scale, offset) == (1.0, 0.0):
+                return Reading(sent, alike[0], reading=f"{sent} read as {alike[0]}")
+            words = (f" x {scale:.10g}" if scale != 1 else "") + (f" + {offset:.10g}" if offset else "")
+            return Reading(sent, alike[0], scale, offset, None, f"{sent} read as {alike[0]}{words}")
+    raise ColumnError(sent, unknown_column(sent, known))
+
+
+def unknown_column(sent: str, known: Iterable[str], what: str = "column") -> str:
+    """The one message of every door for a column it does not know: the known columns and the spellings.
+
+    >>> unknown_column("humidity", ["relative_humidity"])[:71]
+    "unknown column 'humidity'; the columns known here are relative_humidity"
+    """
+    return (f"unknown {what} {sent!r}; the columns known here are {', '.join(known) or 'none'} (each also "
+            f"under a name with its unit, e.g. relative humidity [%], temperature [degC]); accepted "
+            f"names: {accepted_spellings()}")
+
+
+def _span_text(values: np.ndarray) -> str:
+    return f"{float(np.min(values)):.4g} to {float(np.max(values)):.4g}"
+
+
+def _physics_slip(name: str, values: np.ndarray) -> str | None:
+    limit, slip_unit, factor = SLIP_LIMITS[name]
+    if float(np.max(values)) <= limit:
+        return None
+    unit = PARAMETERS[name].unit
+    scaled = values * factor
+    cause = (f"values look like {slip_unit} (times {factor:g}: {_span_text(scaled)} {unit})"
+             if float(np.max(scaled)) <= limit else "check the unit of the column")
+    return (f"{name} runs {_span_text(values)} {unit}, beyond the {limit:g} {unit} a micro ball bearing "
+            f"sees: {cause}")
+
+
+def _humidity_slip(name: str, values: np.ndarray) -> str | None:
+    percent = unit_of(name) == "percent"
+    top = 100.0 if percent else 1.0
+    if float(np.min(values)) >= 0.0 and float(np.max(values)) <= top:
+        return None
+    if percent:
+        cause = "relative humidity in percent lies in [0, 100]"
+    elif float(np.min(values)) >= 0.0 and float(np.max(values)) <= 100.0:
+        cause = (f"values look like percent: give fractions (divide by 100) or name the column "
+                 f"{name}_pct")
+    else:
+        cause = "relative humidity is a fraction in [0, 1]"
+    return f"{name} runs {_span_text(values)} [{'%' if percent else '1'}]: {cause}"
+
+
+def _temperature_slip(name: str, values: np.ndarray) -> str | None:
+    kelvin = unit_of(name) == "K"
+    lo, hi = float(np.min(values)), float(np.max(values))
+    if kelvin and lo < _KELVIN_MIN:
+        return (f"{name} runs {_span_text(values)} K, below {_KELVIN_MIN:g} K: values look like degC "
+                f"(name the column temperature_C)")
+    if not kelvin and lo < -273.15:
+        return f"{name} runs {_span_text(values)} degC, below absolute zero (-273.15 degC): check the unit"
+    if not kelvin and hi > _CELSIUS_MAX:
+        return (f"{name} runs {_span_text(values)} degC, above {_CELSIUS_MAX:g} degC: values look like "
+                f"kelvin (name the column temperature_K)")
+    return None
+
+
+def slip(name: str, values: Any) -> str | None:
+    """The unit slip that values of a column look like, in words; None when they look right.
+
+    The one rule of every door: measured data with a slip are refused (:mod:`calibrate.plausibility`),
+    and so are conditions sent at prediction. Physics inputs beyond :data:`SLIP_LIMITS`, humidity
+    fractions above 1 (percent), temperatures in degC above 200 (kelvin) or in K below 150 (degC).
+
+    Parameters
+    ----------
+    name : str
+        The column's name (its unit as :func:`unit_of` reads it).
+    values : array_like
+        Its values, in that unit.
+
+    Examples
+    --------
+    >>> print(slip("relative_humidity", [50.0]))  # doctest: +NORMALIZE_WHITESPACE
+    relative_humidity runs 50 to 50 [1]: values look like percent: give fractions (divide by 100) or
+    name the column relative_humidity_pct
+    >>> slip("relative_humidity", [0.5]) is None, slip("speed_m_s", [0.05]) is None
+    (True, True)
+    """
+    array = np.asarray(values)
+    if array.size == 0 or array.dtype.kind not in "iuf":
+        return None
+    array = array.astype(float)
+    if not np.all(np.isfinite(array)):
+        return None  # the range checks name non-finite values
+    if name in SLIP_LIMITS:
+        return _physics_slip(name, array)
+    if name in PARAMETERS:
+        return None
+    condition = _condition_of(name)
+    if condition is not None and condition.name == "relative_humidity":
+        return _humidity_slip(name, array)
+    if condition is not None and condition.name == "temperature_K":
+        return _temperature_slip(name, array)
+    return None
+
+
+def input_slips(inputs: Mapping[str, Any]) -> list[str]:
+    """The unit slips that physics inputs given at prediction look like (:func:`slip`), in words.
+
+    The model is valid beyond :data:`SLIP_LIMITS` (it answers there): a door that predicts warns where
+    the upload refuses, with the same words, so that ``speed_m_s=50`` meant as mm/s is never silent.
+
+    >>> input_slips({"speed_m_s": 50.0, "load_N": 0.01})[0][:60]
+    'speed_m_s runs 50 to 50 m/s, beyond the 10 m/s a micro ball '
+    """
+    found = []
+    for name, (limit, _unit_name, _factor) in SLIP_LIMITS.items():
+        value = inputs.get(name)
+        if value is None or (isinstance(value, int | float) and not value > limit):
+            continue  # the scalar fast path of a single point
+        message = slip(name, value)
+        if message is not None:
+            found.append(message)
+    return found
+
+
+def from_si(name: str, values: Any, unit: str) -> np.ndarray:
+    """Values of a physics input in its SI unit, in another unit of its kind (a report's or plot's unit).
+
+    >>> from_si("speed_m_s", [0.05], "mm/s").tolist(), from_si("load_N", 0.0088, "mN").tolist()
+    ([50.0], 8.8)
+    """
+    source = _unit(PARAMETERS[name].unit if name in PARAMETERS else (unit_of(name) or "1"))
+    return np.asarray(_registry().Quantity(np.asarray(values, dtype=float), source).to(_unit(unit)).magnitude)
+
+
+@dataclass(frozen=True)
+class Span:
+    """A range of a column (``values`` None) or a set of allowed values (``low``, ``high`` their ends)."""
+
+    low: float
+    high: float
+    values: tuple[float, ...] | None = None
+    spacing: str = "linear"
+
+    @property
+    def is_range(self) -> bool:
+        """True for a range, False for a set of allowed values."""
+        return self.values is None
+
+
+#: How a range and a set of allowed values are spelled, in words (for messages).
+SPAN_SPELLINGS = ('a range is [low, high] or {"low": low, "high": high}; a set of allowed values is '
+              '{"values": [v1, v2, ...]}')
+
+
+def _number(field: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise ValueError(f"{field} must hold numbers; got {value!r}")
+    if not math.isfinite(float(value)):
+        raise ValueError(f"{field} must hold finite numbers; got {value!r}")
+    return float(value)
+
+
+def read_span(field: str, value: Any, number: bool = True) -> Span:
+    """A range or a set of allowed values, spelled the same in every route.
+
+    Parameters
+    ----------
+    field : str
+        The field's name, for errors (``conditions.relative_humidity``).
+    value : number, list, tuple or mapping
+        ``[low, high]`` or ``{"low", "high"[, "spacing"]}`` (a range); ``{"values": [...]}`` (a set of
+        allowed values); ``[value]`` or, when ``number``, a number (a range of one point: the set of it).
+    number : bool
+        Whether a single number is taken.
+
+    Returns
+    -------
+    Span
+
+    Raises
+    ------
+    ValueError
+        Starting with ``field``: a list of another length than two (the two spellings explained),
+        non-finite values, low > high, an empty set.
+
+    Examples
+    --------
+    >>> read_span("space.load_N", [0.001, 0.05]).is_range, read_span("x", {"values": [1, 2]}).values
+    (True, (1.0, 2.0))
+    >>> read_span("x", [1, 2, 3])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: x: a list of 3 values is ambiguous: a range is [low, high] or {"low": low, "high": high}; ...
+    """
+    if isinstance(value, Mapping):
+        if "values" in value:
+            given = value["values"]
+            if set(value) != {"values"} or not isinstance(given, list | tuple) or not given:
+                raise ValueError(f"{field}: a set of allowed values is {{\"values\": [v1, v2, ...]}} (at "
+                                 f"least one value, nothing else); got {value!r}")
+            values = tuple(_number(field, v) for v in value["values"])
+            return Span(min(values), max(values), values)
+        if not {"low", "high"} <= set(value) or not set(value) <= {"low", "high", "spacing"}:
+            raise ValueError(f"{field}: {SPAN_SPELLINGS}; got {value!r}")
+        low, high = _number(field, value["low"]), _number(field, value["high"])
+        spacing = value.get("spacing", "linear")
+    elif isinstance(value, list | tuple) and len(value) == 1:  # a range of one point: the set of it
+        return Span(_number(field, value[0]), _number(field, value[0]), (_number(field, value[0]),))
+    elif isinstance(value, list | tuple):
+        if len(value) != 2:
+            raise ValueError(f"{field}: a list of {len(value)} values is ambiguous: {SPAN_SPELLINGS}")
+        low, high, spacing = _number(field, value[0]), _number(field, value[1]), "linear"
+    elif number and not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating):
+        low = high = _number(field, value)
+        spacing = "linear"
+    else:
+        raise ValueError(f"{field} must be {'a number or ' if number else ''}{SPAN_SPELLINGS}; got {value!r}")
+    if low > high:
+        raise ValueError(f"{field} must have low <= high; got [{low:g}, {high:g}]")
+    return Span(low, high, None, spacing)

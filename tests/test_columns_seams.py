@@ -1,0 +1,248 @@
+"""Issue 32, item 1: one column registry at every door (units, spellings, slips), through the API."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from bench.calibrated_batch import measurements
+from microbearing.calibrate.experiments import candidate_points
+from microbearing.calibrate.tabular import read_csv
+from microbearing.optimize.robust import Envelope
+from microbearing.service.app import create_app
+from microbearing.service.cli import main
+from microbearing.service.settings import Settings
+
+PROBLEM = "application/problem+json"
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("columns")))) as test_client:
+        yield test_client
+
+
+def _upload_rows() -> list[dict]:
+    """The menisci data of bench/calibrated_batch.py with the lab's headers: humidity in %, temperature in
+    degF (converted by hand: F = C * 9/5 + 32)."""
+    rows = []
+    for row in measurements(3):
+        row = dict(row)
+        row["relative humidity [%]"] = row.pop("relative_humidity") * 100.0
+        row["temp_F"] = row.pop("temperature_C") * 9.0 / 5.0 + 32.0
+        rows.append(row)
+    return rows
+
+
+@pytest.fixture(scope="module")
+def calibration(client) -> dict:
+    response = client.post("/v1/calibrations", json={"data": _upload_rows(), "fit_parameters": ["mu_pivot"],
+                                                     "folds": 3})
+    assert response.status_code == 202, response.text
+    deadline = time.monotonic() + 300
+    while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.1)
+    assert job["status"] == "succeeded", job
+    result = client.get(job["result_url"]).json()
+    # the upload read the lab's headers as SI columns: the fraction and kelvin
+    conditions = result["model"]["conditions"]
+    assert {"relative_humidity", "temp_K"} <= set(conditions), conditions
+    return result
+
+
+def _point(model: str, conditions: dict) -> dict:
+    return {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "model": model, "conditions": conditions}
+
+
+def _problem(response, pointer: str) -> str:
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"] == PROBLEM
+    problem = response.json()
+    assert pointer in [e.get("pointer") for e in problem["errors"]], problem
+    return " ".join(e["detail"] for e in problem["errors"])
+
+
+def test_percent_humidity_at_prediction_is_refused_as_the_upload_refuses_it(client, calibration):
+    model = calibration["model_id"]
+    point = _point(model, {"relative_humidity": 50, "temp_K": 300})
+    detail = _problem(client.post("/v1/friction", json=point), "/conditions/relative_humidity")
+    assert "look like percent" in detail and "relative humidity [%]" in detail, detail
+    batch = {"points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
+             "conditions": {"relative_humidity": [0.5, 50.0], "temp_K": 300.0}}
+    detail = _problem(client.post("/v1/friction/batch", json=batch), "/conditions/relative_humidity")
+    assert "look like percent" in detail
+    # the upload's own rule: the same values as a data column are refused with the same words
+    rows = [{("relative_humidity" if key == "relative humidity [%]" else key): value
+             for key, value in row.items()} for row in _upload_rows()]
+    response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"]})
+    assert response.status_code == 422 and "look like percent" in response.text, response.text
+
+
+def test_the_upload_s_headers_and_other_units_are_converted_at_prediction(client, calibration):
+    model = calibration["model_id"]
+    reference = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, "temp_K": 303.15}))
+    assert reference.status_code == 200, reference.text
+    expected = reference.json()
+    assert expected["in_domain"] is True
+    # 50 % is 0.5; 86 degF, 30 degC and 303.15 K are one temperature
+    for conditions in ({"relative humidity [%]": 50, "temp_F": 86.0},
+                       {"relative_humidity_pct": 50, "temperature [degC]": 30.0},
+                       {"relative_humidity [%]": 50, "temp_C": 30.0}):
+        answer = client.post("/v1/friction", json=_point(model, conditions))
+        assert answer.status_code == 200, (conditions, answer.text)
+        for name in ("mu", "mu_lower", "mu_upper", "in_domain"):
+            assert answer.json()[name] == pytest.approx(expected[name], rel=1e-9), (conditions, name)
+    # a temperature outside the data (5 degC = 41 degF) is flagged the same whichever unit says it
+    cold = [client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, **t})).json()
+            for t in ({"temp_K": 278.15}, {"temp_F": 41.0}, {"temperature_C": 5.0})]
+    assert [c["in_domain"] for c in cold] == [False] * 3, cold
+    batch = {"points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
+             "conditions": {"relative humidity [%]": [50.0, 60.0], "temp_F": 86.0}}
+    by_key = client.post("/v1/friction/batch", json=batch)
+    batch["conditions"] = {"relative_humidity": [0.5, 0.6], "temp_K": 303.15}
+    by_name = client.post("/v1/friction/batch", json=batch)
+    assert by_key.status_code == by_name.status_code == 200, by_key.text
+    np.testing.assert_allclose(by_key.json()["mu_upper"], by_name.json()["mu_upper"], rtol=1e-9)
+
+
+def test_an_unknown_condition_lists_the_columns_and_the_spellings(client, calibration):
+    detail = _problem(client.post("/v1/friction", json=_point(calibration["model_id"], {
+        "relative_humidity": 0.5, "temp_K": 300.0, "humidity_typo": 0.5})), "/conditions/humidity_typo")
+    assert "relative_humidity" in detail and "temp_K" in detail and "speed [mm/s]" in detail, detail
+
+
+@pytest.mark.parametrize(("header", "value", "name", "si"), [
+    ("temp_F", 212.0, "temp_K", 373.15),
+    ("temperature_F", 32.0, "temperature_K", 273.15),
+    ("temperature [degF]", 212.0, "temperature_K", 373.15),
+    ("temp_C", 25.0, "temp_C", 25.0),       # read in degC by the terms: stays
+    ("temp_K", 300.0, "temp_K", 300.0),
+])
+def test_a_temperature_name_is_never_read_in_another_unit(header, value, name, si):
+    dataset, intake = read_csv(f"balls,load_N,speed_m_s,{header},mu_measured\n4,0.01,0.05,{value},0.01\n"
+                               .replace(f",{header},", f",\"{header}\","))
+    assert intake.to_dict()["columns"][header] == name
+    assert float(dataset.conditions[name][0]) == pytest.approx(si, rel=1e-12)
+
+
+# --- unit slips of physics inputs: the upload refuses, the API and the CLI answer and warn alike ---------
+def test_a_speed_that_looks_like_mm_s_is_warned_by_the_api_and_the_cli_in_the_upload_s_words(
+        client, tmp_path, capsys):
+    slow = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 0.05}).json()
+    assert "input_warnings" not in slow
+    fast = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 50.0})
+    assert fast.status_code == 200, fast.text
+    warnings = fast.json()["input_warnings"]
+    assert len(warnings) == 1 and "look like mm/s" in warnings[0] and warnings[0].startswith("speed_m_s")
+    batch = client.post("/v1/friction/batch", json={"points": {"balls": 4, "load_N": 0.01,
+                                                               "speed_m_s": [0.05, 50.0]}, "outputs": ["mu"]})
+    batch_warnings = batch.json()["input_warnings"]
+    assert len(batch_warnings) == 1 and batch_warnings[0].startswith("speed_m_s runs 0.05 to 50 m/s")
+    assert "look like mm/s" in batch_warnings[0]
+    assert batch.json()["mu"] == pytest.approx([slow["mu"], fast.json()["mu"]], rel=1e-12)
+    # the upload refuses the same value with the same words
+    rows = [{"balls": 4, "load_N": 0.01, "speed_m_s": v, "mu_measured": 0.01} for v in (0.05, 50.0)]
+    refused = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"]})
+    assert refused.status_code == 422 and "look like mm/s" in refused.text
+    out = tmp_path / "point.json"
+    assert main(["evaluate", "balls=4", "load_N=0.01", "speed_m_s=50", "-o", str(out)]) == 0
+    answer = json.loads(out.read_text())
+    assert answer["input_warnings"] == warnings and answer["mu"] == fast.json()["mu"]
+    assert "look like mm/s" in capsys.readouterr().err
+
+
+def test_the_cli_takes_names_with_units_as_the_upload_reads_them(client, tmp_path):
+    out = tmp_path / "point.json"
+    assert main(["evaluate", "balls=4", "load [mN]=10", "speed_mm_s=50", "-o", str(out)]) == 0
+    expected = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 0.05}).json()
+    assert json.loads(out.read_text())["mu"] == pytest.approx(expected["mu"], rel=1e-12)
+    table = tmp_path / "points.csv"
+    table.write_text("balls,speed [mm/s]\n4,50\n4,100\n")
+    assert main(["evaluate", "load_N=0.01", "--csv", str(table), "-o", str(tmp_path / "out.csv"),
+                 "--outputs", "mu"]) == 0
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert lines[0].split(",")[:2] == ["balls", "speed_m_s"] and float(lines[1].split(",")[1]) == 0.05
+    assert float(lines[1].split(",")[-1]) == pytest.approx(expected["mu"], rel=1e-12)
+    assert main(["evaluate", "balls=4", "load_N=0.01", "sped=5"]) != 0
+
+
+# --- a range reads the same in every route ---------------------------------------------------------------
+def test_a_pair_is_a_range_and_a_set_is_spelled_as_one_in_experiment_spaces(client):
+    ranged = candidate_points({"balls": [4, 8], "load_N": [0.002, 0.02]})
+    assert sorted(set(ranged["balls"])) == [4, 5, 6, 7, 8]             # every whole count in the range
+    assert len(set(ranged["load_N"])) > 2
+    assert min(ranged["load_N"]) == pytest.approx(0.002) and max(ranged["load_N"]) == pytest.approx(0.02)
+    as_object = candidate_points({"balls": {"low": 4, "high": 8}, "load_N": {"low": 0.002, "high": 0.02}})
+    assert {k: v.tolist() for k, v in as_object.items()} == {k: v.tolist() for k, v in ranged.items()}
+    chosen = candidate_points({"balls": {"values": [4, 8]}, "load_N": {"values": [0.002, 0.02]}})
+    assert sorted(set(chosen["balls"])) == [4, 8] and sorted(set(chosen["load_N"])) == [0.002, 0.02]
+    # the same JSON is a range in an optimization's envelope
+    envelope = Envelope(speed_m_s={"low": 0.01, "high": 0.1}, conditions={"relative_humidity": [0.3, 0.7]})
+    assert envelope.speed_m_s == (0.01, 0.1) and envelope.conditions == {"relative_humidity": (0.3, 0.7)}
+    with pytest.raises(ValueError, match="no worst case over a range"):
+        Envelope(speed_m_s=0.05, conditions={"relative_humidity": {"values": [0.3, 0.7]}})
+    # a plain list of three numbers is refused with both spellings
+    body = {"runs": 4, "fit_parameters": ["mu_pivot"],
+            "space": {"balls": [4, 8], "load_N": [0.001, 0.01, 0.05], "speed_m_s": [0.05]}}
+    detail = _problem(client.post("/v1/experiments", json=body), "/space/load_N")
+    assert "[low, high]" in detail and '{"values": [' in detail, detail
+
+
+def test_um_bridge_reads_fixed_inputs_with_units_as_the_upload_does(client, calibration):
+    def evaluate(name: str, fixed: dict, inputs=("balls", "load_N")) -> dict:
+        return client.post("/umbridge/Evaluate", json={"name": name, "input": [[4, 0.01]], "config": {
+            "inputs": list(inputs), "fixed": fixed}})
+
+    by_unit, by_name = evaluate("physics", {"speed [mm/s]": 50}), evaluate("physics", {"speed_m_s": 0.05})
+    assert by_unit.status_code == by_name.status_code == 200, by_unit.text
+    assert by_unit.json()["output"] == by_name.json()["output"]
+    model = calibration["model_id"]
+    si = evaluate(model, {"speed_m_s": 0.05, "relative_humidity": 0.5})   # UM-Bridge reads the terms' columns
+    lab = evaluate(model, {"speed_mm_s": 50, "relative humidity [%]": 50})
+    assert si.status_code == lab.status_code == 200, lab.text
+    assert lab.json()["output"][0] == pytest.approx(si.json()["output"][0], rel=1e-9)
+    slipped = evaluate(model, {"speed_m_s": 0.05, "relative_humidity": 50})
+    assert slipped.status_code == 400 and "look like percent" in slipped.text, slipped.text
+
+
+def test_an_experiment_space_may_name_columns_with_units():
+    from microbearing.service.schemas.experiments import FirstExperimentsRequest
+
+    lab = FirstExperimentsRequest.model_validate({
+        "runs": 4, "fit_parameters": ["mu_pivot"], "fixed": {"speed [mm/s]": 50},
+        "space": {"balls": {"values": [4, 8]}, "load [mN]": {"low": 1, "high": 50, "spacing": "log"}}})
+    si = FirstExperimentsRequest.model_validate({
+        "runs": 4, "fit_parameters": ["mu_pivot"], "fixed": {"speed_m_s": 0.05},
+        "space": {"balls": {"values": [4, 8]}, "load_N": {"low": 0.001, "high": 0.05, "spacing": "log"}}})
+    assert lab.model_dump() == si.model_dump()
+
+
+@pytest.mark.parametrize(("sent", "value", "si", "unit"), [
+    ("speed [mm/s]", 50.0, 0.05, "mm/s"), ("load_mN", 8.8, 0.0088, "mN"), ("temp_F", 86.0, 303.15, "degF"),
+    ("relative humidity [%]", 45.0, 0.45, "%"), ("load [g]", 0.9, 0.9e-3 * 9.80665, "g"),
+])
+def test_a_column_reads_back_in_the_unit_it_was_sent_in(sent, value, si, unit):
+    from microbearing.physics.columns import read_name
+
+    reading = read_name(sent)
+    assert reading.convert(value) == pytest.approx(si, rel=1e-12)
+    assert reading.sent_value(si) == pytest.approx(value, rel=1e-12) and reading.sent_unit == unit
+
+
+def test_an_optimization_envelope_reads_the_upload_s_names_and_both_range_spellings():
+    from microbearing.service.schemas.optimizations import OptimizationRequest
+
+    base = {"bounds": {"balls": [4, 8], "groove_angle_deg": [45, 60], "load_N": [0.004, 0.013]},
+            "speed_m_s": [0.01, 0.1], "model": "calibrated:" + "0" * 32}
+    lab = OptimizationRequest.model_validate({**base, "conditions": {
+        "relative humidity [%]": {"low": 30, "high": 70}, "temperature [degC]": [20, 60]}})
+    si = OptimizationRequest.model_validate({**base, "conditions": {
+        "relative_humidity": [0.3, 0.7], "temperature_K": [293.15, 333.15]}})
+    assert lab.conditions.keys() == si.conditions.keys()
+    for name in si.conditions:
+        assert lab.conditions[name] == pytest.approx(si.conditions[name], rel=1e-12)
