@@ -29,9 +29,8 @@ from .deps import DataFolderError, close_runtime, get_runtime
 from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware, HeavyRequestMiddleware
 from .problems import ProblemError
-from .routes import calibrations, experiments, friction, jobs, meta, optimizations, surrogates, sweeps
+from .routes import calibrations, experiments, friction, jobs, meta, optimizations, surrogates, sweeps, web
 from .routes import umbridge as umbridge_routes
-from .routes import web
 from .routes.meta import package_version
 from .schemas.base import add_raw_body_schemas
 from .settings import Settings
