@@ -329,8 +329,11 @@ function showReport(report) {
     parts.push(el("h4", { text: "Rivals: laws that fit about as well (kept in the intervals)" }),
       list(report.rivals.map((r) => r.statement)));
   }
-  if ((report.undecided || []).length) {
-    parts.push(el("h4", { text: "What the data cannot decide" }), list(report.undecided.map((u) => u.statement)));
+  // The rivals' statements come again among what the data cannot decide: listed once, under rivals.
+  const rivalStatements = new Set((report.rivals || []).map((r) => r.statement));
+  const undecided = (report.undecided || []).map((u) => u.statement).filter((s) => !rivalStatements.has(s));
+  if (undecided.length) {
+    parts.push(el("h4", { text: "What the data cannot decide" }), list(undecided));
   }
   if ((report.confounding || []).length) {
     parts.push(el("h4", { text: "Columns that move together" }), list(report.confounding));
