@@ -257,6 +257,25 @@ def _check_accessibility(driver) -> None:
     assert driver.execute_script(_A11Y) == []
 
 
+def _check_keyboard(driver) -> None:
+    """Tab alone reaches every visible, enabled control of the page, in the order of the page."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.keys import Keys
+
+    count = driver.execute_script(
+        "const c = [...document.querySelectorAll('a[href], input, select, textarea, button, summary')]"
+        ".filter(e => !e.disabled && e.offsetParent !== null);"
+        "c.forEach((e, i) => { e.dataset.k = i; }); return c.length")
+    reached = []
+    for _ in range(count + 10):
+        ActionChains(driver).send_keys(Keys.TAB).perform()
+        key = driver.execute_script("return document.activeElement.dataset.k")
+        if key is not None:
+            reached.append(int(key))
+    assert set(range(count)) <= set(reached), sorted(set(range(count)) - set(reached))
+    assert reached[reached.index(0):][:count] == list(range(count))  # from the top, in the page's order
+
+
 def _check_same_origin(driver, origin: str) -> None:
     resources = driver.execute_script(
         "return performance.getEntriesByType('resource').map(e => e.name)"
@@ -292,6 +311,7 @@ def test_the_loop_in_chromium_with_api_keys_on(browser, keyed_server, tmp_path):
     driver = browser
     driver.get(f"{server.url}/ui/")
     _check_accessibility(driver)
+    _check_keyboard(driver)
     _fill(driver, "api-key", KEY)
     driver.find_element("css selector", "#key-form button[type=submit]").click()
     _wait(driver, lambda d: "No stored calibration" in _text(d, "calibration-list"), 30, "the empty list")
@@ -392,8 +412,8 @@ def test_the_loop_in_chromium_with_api_keys_on(browser, keyed_server, tmp_path):
     assert float(_text(driver, "design-worst")) == pytest.approx(result["worst_case"]["mu_upper"], rel=5e-4)
     assert _text(driver, "design-proven") == ("yes" if result["proof"]["proven"] else "no")
     _check_accessibility(driver)
-    _screenshots(driver, shots, "design")
-    _screenshots(driver, shots, "next")
+    _screenshots(driver, shots, "design-result")
+    _screenshots(driver, shots, "next-result")
 
     # 6. my models: delete the calibration from its row; the API then answers 404
     _check_same_origin(driver, server.url)

@@ -85,8 +85,9 @@ async function api(method, path, options = {}) {
   return response;
 }
 
-/** Show an error in ``box``: the problem's title and detail, and each offending field by name. */
-function showProblem(box, error) {
+/** Show an error in ``box``: the problem's title and detail, and each offending field by name; focus moves
+ * there unless ``quiet`` (an error of the page's own start, which must not take the focus from the user). */
+function showProblem(box, error, quiet) {
   const problem = error instanceof ApiError ? error.problem
     : { title: "Error in the page", detail: String(error && error.message ? error.message : error) };
   const status = error instanceof ApiError && error.status ? ` (${error.status})` : "";
@@ -103,7 +104,7 @@ function showProblem(box, error) {
     box.append(el("p", { text: "Paste a valid API key at the top of the page." }));
   }
   box.hidden = false;
-  box.focus();
+  if (!quiet) box.focus();
 }
 
 function clearProblem(box) {
@@ -668,7 +669,7 @@ async function openSurrogate(id) {
   }
 }
 
-async function refreshModels() {
+async function refreshModels(options) {
   const box = $("models-error");
   clearProblem(box);
   try {
@@ -698,7 +699,7 @@ async function refreshModels() {
     $("surrogate-list").querySelectorAll("button.delete").forEach((b) => b.addEventListener("click",
       () => deleteModel("surrogate", b.dataset.id, b.dataset.id)));
   } catch (error) {
-    showProblem(box, error);
+    showProblem(box, error, options && options.quiet);
   }
 }
 
@@ -735,7 +736,7 @@ function start() {
   $("models-refresh").addEventListener("click", refreshModels);
   fillModelSelects();
   loadParameters();
-  refreshModels();
+  refreshModels({ quiet: true });
 }
 
 document.addEventListener("DOMContentLoaded", start);
