@@ -596,10 +596,11 @@ function showDesign(result) {
         ` (${proof.method}; lower bound ${num(proof.lower_bound)}, upper bound ${num(proof.upper_bound)}, relative gap `
         + `${num(proof.relative_gap)}, target ${num(proof.gap_target)}).`),
       el("details", {}, el("summary", { text: "The argument in words" }), el("p", { text: proof.statement })));
+    parts.push(el("details", {}, el("summary", { text: "The certificate in full" }),
+      el("p", { class: "certificate", text: result.certificate })));
   } else {
-    parts.push(el("h3", { text: "Certificate" }));
+    parts.push(el("h3", { text: "Certificate" }), el("p", { class: "certificate", text: result.certificate }));
   }
-  parts.push(el("p", { class: "certificate", text: result.certificate }));
   if (result.price_of_robustness) {
     const p = result.price_of_robustness;
     parts.push(el("p", { text: `Price of robustness: the nominal optimum (${p.nominal.design.balls} balls, `
