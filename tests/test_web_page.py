@@ -146,7 +146,7 @@ def _browser_or_skip() -> tuple[str, str]:
             "does it as root)")
     if missing is None:
         return chromium, driver
-    reason = f"THE BROWSER TEST OF THE LAB'S PAGE DID NOT RUN: {missing} is missing"
+    reason = f"THE BROWSER TEST OF THE LAB'S PAGE DID NOT RUN: missing {missing}"
     if os.environ.get("CI") and os.geteuid() == 0:
         pytest.fail(reason + " (CI as root: the install must not be skipped)")
     pytest.skip(reason)
