@@ -26,7 +26,7 @@ from urllib.parse import urlsplit
 import httpx
 import pytest
 from fastapi.testclient import TestClient
-from live_server import Server
+from live_server import Server, wait_for
 
 from microbearing.service.app import create_app
 from microbearing.service.routes.web import PAGE_FILES, PAGE_PATHS
@@ -316,6 +316,11 @@ def test_the_loop_in_chromium_with_api_keys_on(browser, keyed_server, tmp_path):
     driver.find_element("css selector", "#key-form button[type=submit]").click()
     _wait(driver, lambda d: "No stored calibration" in _text(d, "calibration-list"), 30, "the empty list")
 
+    # a surrogate (the README's, 30 evaluations) trains meanwhile, for "my models" at the end
+    surrogate_job = server.client.post("/v1/surrogates", headers=AUTH, json={
+        "space": {"load_N": [0.001, 0.05], "speed_m_s": [0.001, 0.2]}, "fixed": {"balls": 4}, "budget": 30})
+    assert surrogate_job.status_code == 202, surrogate_job.text
+
     # 1. upload the README's spreadsheet; the page previews it, then follows the job to the report
     sheet = tmp_path / "measured.csv"
     sheet.write_text(readme_spreadsheet(), encoding="utf-8")
@@ -422,6 +427,19 @@ def test_the_loop_in_chromium_with_api_keys_on(browser, keyed_server, tmp_path):
     _wait(driver, lambda d: "No stored calibration" in _text(d, "calibration-list"), 30, "the emptied list")
     assert server.client.get(f"/v1/calibrations/{calibration_id}", headers=AUTH).status_code == 404
     assert _text(driver, "report-body") == ""
+    # the surrogate: listed, opened, deleted
+    surrogate = wait_for(server, surrogate_job.headers["location"], ("succeeded",), headers=AUTH)
+    surrogate_id = server.client.get(surrogate["result_url"], headers=AUTH).json()["id"]
+    driver.find_element("id", "models-refresh").click()
+    row = f"#surrogate-list .open[data-id='{surrogate_id}']"
+    opener = _wait(driver, lambda d: d.find_elements("css selector", row), 30, "the surrogate in the list")
+    opener[0].click()
+    _wait(driver, lambda d: f"surrogate:{surrogate_id}" in _text(d, "surrogate-view"), 30, "the surrogate")
+    driver.find_element("css selector", f"#surrogate-list .delete[data-id='{surrogate_id}']").click()
+    driver.switch_to.alert.accept()
+    _wait(driver, lambda d: "No stored surrogate" in _text(d, "surrogate-list"), 30, "the emptied list")
+    assert server.client.get(f"/v1/surrogates/{surrogate_id}", headers=AUTH).status_code == 404
+    assert _text(driver, "surrogate-view") == ""
     assert httpx.get(f"{server.url}/v1/calibrations/{calibration_id}").status_code == 401
 
     # progress and cancel: a second upload stopped from the page stores nothing

@@ -644,6 +644,10 @@ async function deleteModel(kind, id, name) {
   clearProblem(box);
   try {
     await api("DELETE", `v1/${kind === "calibration" ? "calibrations" : "surrogates"}/${id}`);
+    if ($("surrogate-view").dataset.id === id) {
+      $("surrogate-view").replaceChildren();
+      delete $("surrogate-view").dataset.id;
+    }
     if (state.report && state.report.id === id) {
       state.report = null;
       releasePlots();
@@ -662,6 +666,7 @@ async function openSurrogate(id) {
   try {
     const s = await (await api("GET", `v1/surrogates/${id}`)).json();
     const median = s.metrics ? s.metrics.median_relative_error : null;
+    $("surrogate-view").dataset.id = s.id;
     $("surrogate-view").replaceChildren(el("h3", { text: `Surrogate ${s.id}` }),
       el("p", { text: `${s.model} over ${Object.keys(s.space).join(", ")}; ${s.n_train} training runs; median relative `
         + `error held out ${percent(median)}; use it as ${s.model_id}.` }), rawJson("the surrogate", s));
