@@ -422,6 +422,8 @@ def test_the_loop_in_chromium_with_api_keys_on(browser, keyed_server, tmp_path):
 
     # 6. my models: delete the calibration from its row; the API then answers 404
     _check_same_origin(driver, server.url)
+    refused = [e["message"] for e in driver.get_log("browser") if "Content Security Policy" in e["message"]]
+    assert not refused, refused  # the page needs nothing its policy forbids (no inline script or style)
     driver.find_element("css selector", f"#calibration-list .delete[data-id='{calibration_id}']").click()
     driver.switch_to.alert.accept()
     _wait(driver, lambda d: "No stored calibration" in _text(d, "calibration-list"), 30, "the emptied list")
