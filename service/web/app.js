@@ -706,6 +706,9 @@ async function refreshModels(options) {
       () => deleteModel("surrogate", b.dataset.id, b.dataset.id)));
   } catch (error) {
     showProblem(box, error, options && options.quiet);
+    if (error instanceof ApiError && error.status === 401) {
+      $("key-status").textContent = "The service needs an API key: paste yours above.";
+    }
   }
 }
 
