@@ -210,6 +210,22 @@ def _fill(driver, element_id: str, value: str) -> None:
     field.send_keys(value)
 
 
+def _click(driver, selector: str, what: str) -> None:
+    """Click the element of ``selector`` once it is there (read again if the page re-renders it)."""
+    from selenium.common.exceptions import StaleElementReferenceException
+
+    def clicked(d) -> bool:
+        try:
+            found = d.find_elements("css selector", selector)
+            if found:
+                found[0].click()
+            return bool(found)
+        except StaleElementReferenceException:
+            return False
+
+    _wait(driver, clicked, 30, what)
+
+
 def _choose(driver, element_id: str, value: str) -> None:
     from selenium.webdriver.support.ui import Select
     Select(driver.find_element("id", element_id)).select_by_value(value)
@@ -424,7 +440,7 @@ def test_the_loop_in_chromium_with_api_keys_on(browser, keyed_server, tmp_path):
     _check_same_origin(driver, server.url)
     refused = [e["message"] for e in driver.get_log("browser") if "Content Security Policy" in e["message"]]
     assert not refused, refused  # the page needs nothing its policy forbids (no inline script or style)
-    driver.find_element("css selector", f"#calibration-list .delete[data-id='{calibration_id}']").click()
+    _click(driver, f"#calibration-list .delete[data-id='{calibration_id}']", "its delete button")
     driver.switch_to.alert.accept()
     _wait(driver, lambda d: "No stored calibration" in _text(d, "calibration-list"), 30, "the emptied list")
     assert server.client.get(f"/v1/calibrations/{calibration_id}", headers=AUTH).status_code == 404
@@ -433,11 +449,9 @@ def test_the_loop_in_chromium_with_api_keys_on(browser, keyed_server, tmp_path):
     surrogate = wait_for(server, surrogate_job.headers["location"], ("succeeded",), headers=AUTH)
     surrogate_id = server.client.get(surrogate["result_url"], headers=AUTH).json()["id"]
     driver.find_element("id", "models-refresh").click()
-    row = f"#surrogate-list .open[data-id='{surrogate_id}']"
-    opener = _wait(driver, lambda d: d.find_elements("css selector", row), 30, "the surrogate in the list")
-    opener[0].click()
+    _click(driver, f"#surrogate-list .open[data-id='{surrogate_id}']", "the surrogate in the list")
     _wait(driver, lambda d: f"surrogate:{surrogate_id}" in _text(d, "surrogate-view"), 30, "the surrogate")
-    driver.find_element("css selector", f"#surrogate-list .delete[data-id='{surrogate_id}']").click()
+    _click(driver, f"#surrogate-list .delete[data-id='{surrogate_id}']", "the surrogate's delete button")
     driver.switch_to.alert.accept()
     _wait(driver, lambda d: "No stored surrogate" in _text(d, "surrogate-list"), 30, "the emptied list")
     assert server.client.get(f"/v1/surrogates/{surrogate_id}", headers=AUTH).status_code == 404
