@@ -8,7 +8,9 @@ added later is protected without any change here). The open paths are the livene
 ``/healthz``, the Prometheus scrape endpoint ``/metrics`` (counts and latencies by route
 template only: no request data, no keys; expose it on a trusted network, as usual for
 Prometheus targets) and the API description (``/openapi.json``, ``/docs``, ``/redoc`` and their
-assets under ``/docs/assets``), which holds no data either; the readiness probe ``/readyz`` is open too.
+assets under ``/docs/assets``), which holds no data either; the readiness probe ``/readyz`` is open too,
+and so are the files of the lab's page under ``/ui/`` (:data:`service.routes.web.PAGE_PATHS`: no data; the
+API calls the page makes carry the key the user gives it).
 
 Ownership: a request with a valid key runs with :data:`service.store.REQUESTER` set to that key's
 id (the first 16 hex digits of its SHA-256; the key itself is never stored), so the jobs,
@@ -41,6 +43,7 @@ from fastapi import FastAPI
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
+from .routes.web import PAGE_PATHS
 from .schemas.umbridge import PREFIX as UMBRIDGE_PREFIX
 from .settings import Settings
 from .store import REQUESTER, Requester
@@ -56,7 +59,7 @@ _DOCS_ASSETS = ("swagger-ui-bundle.js", "swagger-ui.css", "redoc.standalone.js",
 
 #: Paths answered without a key (relative to the ASGI root path).
 OPEN_PATHS = frozenset({"/healthz", "/readyz", "/metrics", "/openapi.json", "/docs", "/docs/oauth2-redirect",
-                        "/redoc", *(f"{DOCS_ASSETS_PATH}/{name}" for name in _DOCS_ASSETS)})
+                        "/redoc", *(f"{DOCS_ASSETS_PATH}/{name}" for name in _DOCS_ASSETS), *PAGE_PATHS})
 
 #: UM-Bridge paths a client calls before it evaluates (models, support, sizes). Without a valid key
 #: they answer for the plain physics only (never a stored model), so that the stock clients reach
