@@ -3,9 +3,11 @@
 **The data cloud.** A box per column calls a point "inside" when each of its values lies in its
 column's range, even far from every row (10 mm/s at 70 degC when the lab heated up as it sped up).
 :class:`DataCloud` keeps the rows in scaled inputs (each varying column standardized, a positive
-column spanning more than a decade by its log) and scores a point by its distance to its k-th nearest
-row (k = 5). The threshold is split-conformal: the ``ceil((1 - alpha)(n + 1))``-th smallest of the
-rows' own leave-one-out scores, so that a new point drawn like the data is flagged with chance about
+column spanning more than a decade by its log), one per design point (replicated measurements at one
+point are one row), and scores a point by its distance to its k-th nearest row (k = 5). The threshold is
+split-conformal: the ``ceil((1 - alpha)(n + 1))``-th smallest of the design points' own leave-one-out
+scores (a new design point is what the rule is about, and its score is never 0), so that a new point
+drawn like the data is flagged with chance about
 ``alpha`` (:data:`CLOUD_ALPHA`, 2 %) whatever the data's shape. A point given only some of the columns is
 scored in those columns alone, against the threshold of the same columns. Beyond the threshold, the
 prediction interval's log half-width is multiplied by the ratio of the score to the threshold (the
@@ -59,6 +61,14 @@ MAX_CLOUD_ROWS = 2000
 _K = 5
 
 
+def _distinct(rows: np.ndarray) -> np.ndarray:
+    """The rows with one per design point, in their order: rows that agree to six decimals of every
+    scaled column (a millionth of its standard deviation, the resolution clouds were once stored at) are
+    replicates of one point, which keeps the first."""
+    _, first = np.unique(np.round(rows, 6), axis=0, return_index=True)
+    return rows[np.sort(first)]
+
+
 def _transform(values: np.ndarray) -> str:
     return "log" if np.all(values > 0) and np.max(values) > 10.0 * np.min(values) else "linear"
 
@@ -76,7 +86,7 @@ class DataCloud:
     centre, scale : list of float
         Standardization of each (log) column.
     rows : numpy.ndarray
-        The (subset of) rows in scaled inputs, shape (m, len(columns)).
+        The (subset of) distinct rows (design points) in scaled inputs, shape (m, len(columns)).
     alpha : float
         See :data:`CLOUD_ALPHA`. [1]
     """
@@ -93,7 +103,7 @@ class DataCloud:
     def from_columns(cls, columns: Mapping[str, np.ndarray], seed: int = 0,
                      alpha: float = CLOUD_ALPHA) -> DataCloud | None:
         """The cloud of the data's varying columns (None with fewer than two varying columns or
-        too few rows: the per-column ranges say everything)."""
+        too few distinct design points: the per-column ranges say everything)."""
         names, transforms, centre, scale, scaled = [], [], [], [], []
         for name, values in columns.items():
             v = np.asarray(values, dtype=float)
@@ -106,10 +116,14 @@ class DataCloud:
             centre.append(float(np.mean(t)))
             scale.append(float(np.std(t)))
             scaled.append((t - centre[-1]) / scale[-1])
-        if len(names) < 2 or len(scaled[0]) < 2 * _K + 2:
+        if len(names) < 2:
             return None
-        # Six decimals of a standardized column, as stored: the model answers the same before and after JSON.
-        rows = np.round(np.column_stack(scaled), 6)
+        # One row per design point: replicates at one point say nothing about where the data are, and
+        # with k or more of them every row's k-th neighbour would be its own twin at distance 0. Rows are
+        # kept at full precision (JSON keeps every digit of a float), so a design point finds its own row.
+        rows = _distinct(np.column_stack(scaled))
+        if rows.shape[0] < 2 * _K + 2:
+            return None
         if rows.shape[0] > MAX_CLOUD_ROWS:
             keep = np.sort(np.random.default_rng(seed).choice(rows.shape[0], MAX_CLOUD_ROWS, replace=False))
             rows = rows[keep]
@@ -120,7 +134,7 @@ class DataCloud:
         key = tuple(given)
         if key not in self._cache:
             index = [self.columns.index(c) for c in given]
-            sub = self.rows[:, index]
+            sub = _distinct(self.rows[:, index])
             tree = cKDTree(sub)
             k = min(_K, sub.shape[0] - 1)
             own = tree.query(sub, k=k + 1)[0][:, -1]  # the k-th neighbour other than the row itself
@@ -143,7 +157,7 @@ class DataCloud:
         key = ("lines", tuple(given))
         if key not in self._cache:
             index = [self.columns.index(c) for c in given]
-            sub = self.rows[:, index]
+            sub = _distinct(self.rows[:, index])
             lines, departures = [], []
             for p, q in itertools.combinations(range(len(index)), 2):
                 rho = stats.spearmanr(sub[:, p], sub[:, q]).statistic
@@ -286,7 +300,7 @@ class DataCloud:
         """JSON-ready data."""
         return {"columns": list(self.columns), "transforms": list(self.transforms),
                 "centre": list(self.centre),
-                "scale": list(self.scale), "rows": np.round(self.rows, 6).tolist(), "alpha": self.alpha}
+                "scale": list(self.scale), "rows": self.rows.tolist(), "alpha": self.alpha}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> DataCloud:
