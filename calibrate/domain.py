@@ -30,6 +30,12 @@ point drawn like the data is still flagged with chance about alpha. The departur
 scaled columns: its range over a box of inputs is exact at the box's corners, which the certified
 bounds of :mod:`optimize.envelope_bound` use.
 
+**The laws' domains.** A term's law holds for its driver's values in the domain the law declares
+(:attr:`physics.effects.Effect.domain`, :attr:`physics.effects.DriftLaw.domain`: relative humidity in
+(0, 1), a run-in count n >= 0); :func:`law_domains` gives each in its column's unit, and
+:func:`outside_law_domains` names the columns of a request whose values (numbers, ranges or sets of
+values) leave one, so that a route refuses them when they are submitted rather than a job failing later.
+
 **Confounding.** :func:`confounded_pairs` names every pair of varying columns whose ranks move
 together (|Spearman rho| >= :data:`CONFOUNDED_RHO`): whatever one of them seems to do, the other
 could be doing, and only rows where they part would tell.
@@ -39,6 +45,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -48,8 +55,10 @@ from scipy import stats
 from scipy.spatial import cKDTree
 
 from microbearing import physics
+from microbearing.physics.effects import Domain
 
-__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "DataCloud", "confounded_pairs", "confounding_words"]
+__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "DataCloud", "LawDomain", "confounded_pairs", "confounding_words",
+           "law_domains", "outside_law_domains"]
 
 #: Chance that a new point drawn like the data is flagged outside the cloud. [1]
 CLOUD_ALPHA = 0.02
@@ -318,6 +327,105 @@ class DataCloud:
             raise ValueError("cloud: rows, transforms, centre and scale must have one entry per column")
         return cls(columns, [str(t) for t in data["transforms"]], [float(c) for c in data["centre"]],
                    [float(s) for s in data["scale"]], rows, float(data.get("alpha", CLOUD_ALPHA)))
+
+
+@dataclass(frozen=True)
+class LawDomain:
+    """The domain a term's law declares for its driver column.
+
+    Attributes
+    ----------
+    column : str
+        The driver column.
+    domain : physics.effects.Domain
+        Its values the law holds for, in the column's unit (percent humidity: (0, 100)).
+    term : str
+        The term, in a few words (its label).
+    """
+
+    column: str
+    domain: Domain
+    term: str
+
+
+def law_domains(terms: Sequence[Any]) -> list[LawDomain]:
+    """The domain every term's law declares for its main driver, in the driver column's unit.
+
+    Parameters
+    ----------
+    terms : sequence of (Term, values)
+        A calibrated model's terms with their fitted values (:attr:`calibrate.CalibratedModel.terms`).
+
+    Returns
+    -------
+    list of LawDomain
+        One per term whose law declares a domain.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.candidates import EffectTerm
+    >>> meniscus = EffectTerm("humidity_meniscus", ("rh_pct",))
+    >>> [(d.column, d.domain.text()) for d in law_domains([(meniscus, [1e-5])])]
+    [('rh_pct', '(0, 100)')]
+    """
+    out = []
+    for term, _ in terms:
+        law = term.spec if term.kind == "drift" else term.effect
+        domain = law.column_domain(term.drivers[0])
+        if domain is not None:
+            out.append(LawDomain(term.drivers[0], domain, term.label))
+    return out
+
+
+def _numbers(value: Any) -> np.ndarray:
+    """Every number of a value, a range (``[low, high]`` or ``{"low", "high"}``) or a set of values."""
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiu":  # columns of points: no loop over them
+        return value.astype(float).ravel()
+    if isinstance(value, Mapping):
+        value = [value[k] for k in ("low", "high") if k in value] + list(value.get("values", []))
+    flat = np.ravel(np.asarray(value, dtype=object))
+    return np.asarray([v for v in flat if isinstance(v, numbers.Real) and not isinstance(v, bool)],
+                      dtype=float)
+
+
+def outside_law_domains(terms: Sequence[Any], columns: Mapping[str, Any]) -> dict[str, str]:
+    """The columns whose values leave the domain of a term's law, each with a sentence saying so.
+
+    A range is inside when both its ends are (a domain is an interval); text (a group label) is not
+    looked at.
+
+    Parameters
+    ----------
+    terms : sequence of (Term, values)
+        A calibrated model's terms (as :func:`law_domains`).
+    columns : mapping
+        Column name to a number, a list of numbers (a range's ends or a set of values) or
+        ``{"low": ..., "high": ...}``, in the columns' units.
+
+    Returns
+    -------
+    dict of str to str
+        Column name -> why it is refused (the values, the domain, the term); empty when all lie inside.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.candidates import EffectTerm
+    >>> meniscus = EffectTerm("humidity_meniscus", ("rh",))
+    >>> outside_law_domains([(meniscus, [1e-5])], {"rh": [30, 70]})  # doctest: +ELLIPSIS
+    {'rh': 'values 30, 70 lie outside (0, 1), the domain of the law of humidity_meniscus on rh (in the ...)'}
+    """
+    out: dict[str, str] = {}
+    for law in law_domains(terms):
+        if law.column not in columns or law.column in out:
+            continue
+        values = _numbers(columns[law.column])
+        bad = np.unique(values[~law.domain.contains(values)])
+        if bad.size:
+            shown = ", ".join(f"{v:g}" for v in bad[:3]) + (", ..." if bad.size > 3 else "")
+            out[law.column] = (f"value{'s' if bad.size > 1 else ''} {shown} lie{'' if bad.size > 1 else 's'} "
+                               f"outside {law.domain.text()}, the domain of the law of {law.term} (in the "
+                               f"unit of column {law.column} of the calibration data)")
+    return out
 
 
 def confounded_pairs(columns: Mapping[str, np.ndarray], rho: float = CONFOUNDED_RHO) -> list[dict[str, Any]]:

@@ -21,6 +21,7 @@ from functools import partial
 from typing import Any
 
 from microbearing import physics
+from microbearing.calibrate.domain import outside_law_domains
 from microbearing.optimize import (
     Constraints,
     DesignBounds,
@@ -45,7 +46,7 @@ from microbearing.physics.model import Model
 
 from .calibrations import interval_at, with_conditions
 from .executor import map_chunks
-from .models import resolve
+from .models import CalibratedPhysicsModel, resolve
 from .problems import ProblemError, validation_problem
 from .schemas.optimizations import OptimizationRequest
 from .store import Store
@@ -140,11 +141,27 @@ def _model(store: Store, body: OptimizationRequest) -> tuple[Callable | None, di
     # The values the model holds (a calibration's fixed and fitted ones, the ones a surrogate was
     # trained at): the physics checks of limits and of the optimum run there too.
     values = {**model.fixed, **model.fitted}
+    _refuse_outside_law_domains(model, body)
     # A range is checked by name here; its values are taken apart by the envelope.
     points = {name: value[0] if isinstance(value, list) else value
               for name, value in (body.conditions or {}).items()}
     mu_model = with_conditions(model, points or body.conditions)
     return mu_model, values, model.convention, interval_at(model, points or body.conditions)
+
+
+def _refuse_outside_law_domains(model: Model, body: OptimizationRequest) -> None:
+    """422 at submit, naming the field, for a condition (or speed) whose values leave the domain of a
+    calibrated model's law (:func:`calibrate.domain.outside_law_domains`): the job would fail on it."""
+    if not isinstance(model, CalibratedPhysicsModel):
+        return
+    in_fixed = body.fixed.speed_m_s is not None
+    speed = body.fixed.speed_m_s if in_fixed else body.speed_m_s
+    columns = {**(body.conditions or {}), **({} if speed is None else {"speed_m_s": speed})}
+    outside = outside_law_domains(model.calibrated.terms, columns)
+    if outside:
+        speed_pointer = "/fixed/speed_m_s" if in_fixed else "/speed_m_s"
+        raise validation_problem([{"pointer": speed_pointer if name == "speed_m_s" else f"/conditions/{name}",
+                                   "detail": detail} for name, detail in outside.items()])
 
 
 def _is_robust(body: OptimizationRequest, speed: Any) -> bool:
