@@ -3,9 +3,11 @@
 **The data cloud.** A box per column calls a point "inside" when each of its values lies in its
 column's range, even far from every row (10 mm/s at 70 degC when the lab heated up as it sped up).
 :class:`DataCloud` keeps the rows in scaled inputs (each varying column standardized, a positive
-column spanning more than a decade by its log) and scores a point by its distance to its k-th nearest
-row (k = 5). The threshold is split-conformal: the ``ceil((1 - alpha)(n + 1))``-th smallest of the
-rows' own leave-one-out scores, so that a new point drawn like the data is flagged with chance about
+column spanning more than a decade by its log), one per design point (replicated measurements at one
+point are one row), and scores a point by its distance to its k-th nearest row (k = 5). The threshold is
+split-conformal: the ``ceil((1 - alpha)(n + 1))``-th smallest of the design points' own leave-one-out
+scores (a new design point is what the rule is about, and its score is never 0), so that a new point
+drawn like the data is flagged with chance about
 ``alpha`` (:data:`CLOUD_ALPHA`, 2 %) whatever the data's shape. A point given only some of the columns is
 scored in those columns alone, against the threshold of the same columns. Beyond the threshold, the
 prediction interval's log half-width is multiplied by the ratio of the score to the threshold (the
@@ -28,6 +30,12 @@ point drawn like the data is still flagged with chance about alpha. The departur
 scaled columns: its range over a box of inputs is exact at the box's corners, which the certified
 bounds of :mod:`optimize.envelope_bound` use.
 
+**The laws' domains.** A term's law holds for its driver's values in the domain the law declares
+(:attr:`physics.effects.Effect.domain`, :attr:`physics.effects.DriftLaw.domain`: relative humidity in
+(0, 1), a run-in count n >= 0); :func:`law_domains` gives each in its column's unit, and
+:func:`outside_law_domains` names the columns of a request whose values (numbers, ranges or sets of
+values) leave one, so that a route refuses them when they are submitted rather than a job failing later.
+
 **Confounding.** :func:`confounded_pairs` names every pair of varying columns whose ranks move
 together (|Spearman rho| >= :data:`CONFOUNDED_RHO`): whatever one of them seems to do, the other
 could be doing, and only rows where they part would tell.
@@ -37,6 +45,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -46,8 +55,10 @@ from scipy import stats
 from scipy.spatial import cKDTree
 
 from microbearing import physics
+from microbearing.physics.effects import Domain
 
-__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "DataCloud", "confounded_pairs", "confounding_words"]
+__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "DataCloud", "LawDomain", "confounded_pairs", "confounding_words",
+           "law_domains", "outside_law_domains"]
 
 #: Chance that a new point drawn like the data is flagged outside the cloud. [1]
 CLOUD_ALPHA = 0.02
@@ -57,6 +68,14 @@ CONFOUNDED_RHO = 0.9
 MAX_CLOUD_ROWS = 2000
 # Neighbours of the score. [1]
 _K = 5
+
+
+def _distinct(rows: np.ndarray) -> np.ndarray:
+    """The rows with one per design point, in their order: rows that agree to six decimals of every
+    scaled column (a millionth of its standard deviation, the resolution clouds were once stored at) are
+    replicates of one point, which keeps the first."""
+    _, first = np.unique(np.round(rows, 6), axis=0, return_index=True)
+    return rows[np.sort(first)]
 
 
 def _transform(values: np.ndarray) -> str:
@@ -76,7 +95,7 @@ class DataCloud:
     centre, scale : list of float
         Standardization of each (log) column.
     rows : numpy.ndarray
-        The (subset of) rows in scaled inputs, shape (m, len(columns)).
+        The (subset of) distinct rows (design points) in scaled inputs, shape (m, len(columns)).
     alpha : float
         See :data:`CLOUD_ALPHA`. [1]
     """
@@ -93,7 +112,7 @@ class DataCloud:
     def from_columns(cls, columns: Mapping[str, np.ndarray], seed: int = 0,
                      alpha: float = CLOUD_ALPHA) -> DataCloud | None:
         """The cloud of the data's varying columns (None with fewer than two varying columns or
-        too few rows: the per-column ranges say everything)."""
+        too few distinct design points: the per-column ranges say everything)."""
         names, transforms, centre, scale, scaled = [], [], [], [], []
         for name, values in columns.items():
             v = np.asarray(values, dtype=float)
@@ -106,10 +125,14 @@ class DataCloud:
             centre.append(float(np.mean(t)))
             scale.append(float(np.std(t)))
             scaled.append((t - centre[-1]) / scale[-1])
-        if len(names) < 2 or len(scaled[0]) < 2 * _K + 2:
+        if len(names) < 2:
             return None
-        # Six decimals of a standardized column, as stored: the model answers the same before and after JSON.
-        rows = np.round(np.column_stack(scaled), 6)
+        # One row per design point: replicates at one point say nothing about where the data are, and
+        # with k or more of them every row's k-th neighbour would be its own twin at distance 0. Rows are
+        # kept at full precision (JSON keeps every digit of a float), so a design point finds its own row.
+        rows = _distinct(np.column_stack(scaled))
+        if rows.shape[0] < 2 * _K + 2:
+            return None
         if rows.shape[0] > MAX_CLOUD_ROWS:
             keep = np.sort(np.random.default_rng(seed).choice(rows.shape[0], MAX_CLOUD_ROWS, replace=False))
             rows = rows[keep]
@@ -120,7 +143,7 @@ class DataCloud:
         key = tuple(given)
         if key not in self._cache:
             index = [self.columns.index(c) for c in given]
-            sub = self.rows[:, index]
+            sub = _distinct(self.rows[:, index])
             tree = cKDTree(sub)
             k = min(_K, sub.shape[0] - 1)
             own = tree.query(sub, k=k + 1)[0][:, -1]  # the k-th neighbour other than the row itself
@@ -143,7 +166,7 @@ class DataCloud:
         key = ("lines", tuple(given))
         if key not in self._cache:
             index = [self.columns.index(c) for c in given]
-            sub = self.rows[:, index]
+            sub = _distinct(self.rows[:, index])
             lines, departures = [], []
             for p, q in itertools.combinations(range(len(index)), 2):
                 rho = stats.spearmanr(sub[:, p], sub[:, q]).statistic
@@ -286,7 +309,7 @@ class DataCloud:
         """JSON-ready data."""
         return {"columns": list(self.columns), "transforms": list(self.transforms),
                 "centre": list(self.centre),
-                "scale": list(self.scale), "rows": np.round(self.rows, 6).tolist(), "alpha": self.alpha}
+                "scale": list(self.scale), "rows": self.rows.tolist(), "alpha": self.alpha}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> DataCloud:
@@ -304,6 +327,105 @@ class DataCloud:
             raise ValueError("cloud: rows, transforms, centre and scale must have one entry per column")
         return cls(columns, [str(t) for t in data["transforms"]], [float(c) for c in data["centre"]],
                    [float(s) for s in data["scale"]], rows, float(data.get("alpha", CLOUD_ALPHA)))
+
+
+@dataclass(frozen=True)
+class LawDomain:
+    """The domain a term's law declares for its driver column.
+
+    Attributes
+    ----------
+    column : str
+        The driver column.
+    domain : physics.effects.Domain
+        Its values the law holds for, in the column's unit (percent humidity: (0, 100)).
+    term : str
+        The term, in a few words (its label).
+    """
+
+    column: str
+    domain: Domain
+    term: str
+
+
+def law_domains(terms: Sequence[Any]) -> list[LawDomain]:
+    """The domain every term's law declares for its main driver, in the driver column's unit.
+
+    Parameters
+    ----------
+    terms : sequence of (Term, values)
+        A calibrated model's terms with their fitted values (:attr:`calibrate.CalibratedModel.terms`).
+
+    Returns
+    -------
+    list of LawDomain
+        One per term whose law declares a domain.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.candidates import EffectTerm
+    >>> meniscus = EffectTerm("humidity_meniscus", ("rh_pct",))
+    >>> [(d.column, d.domain.text()) for d in law_domains([(meniscus, [1e-5])])]
+    [('rh_pct', '(0, 100)')]
+    """
+    out = []
+    for term, _ in terms:
+        law = term.spec if term.kind == "drift" else term.effect
+        domain = law.column_domain(term.drivers[0])
+        if domain is not None:
+            out.append(LawDomain(term.drivers[0], domain, term.label))
+    return out
+
+
+def _numbers(value: Any) -> np.ndarray:
+    """Every number of a value, a range (``[low, high]`` or ``{"low", "high"}``) or a set of values."""
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiu":  # columns of points: no loop over them
+        return value.astype(float).ravel()
+    if isinstance(value, Mapping):
+        value = [value[k] for k in ("low", "high") if k in value] + list(value.get("values", []))
+    flat = np.ravel(np.asarray(value, dtype=object))
+    return np.asarray([v for v in flat if isinstance(v, numbers.Real) and not isinstance(v, bool)],
+                      dtype=float)
+
+
+def outside_law_domains(terms: Sequence[Any], columns: Mapping[str, Any]) -> dict[str, str]:
+    """The columns whose values leave the domain of a term's law, each with a sentence saying so.
+
+    A range is inside when both its ends are (a domain is an interval); text (a group label) is not
+    looked at.
+
+    Parameters
+    ----------
+    terms : sequence of (Term, values)
+        A calibrated model's terms (as :func:`law_domains`).
+    columns : mapping
+        Column name to a number, a list of numbers (a range's ends or a set of values) or
+        ``{"low": ..., "high": ...}``, in the columns' units.
+
+    Returns
+    -------
+    dict of str to str
+        Column name -> why it is refused (the values, the domain, the term); empty when all lie inside.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.candidates import EffectTerm
+    >>> meniscus = EffectTerm("humidity_meniscus", ("rh",))
+    >>> outside_law_domains([(meniscus, [1e-5])], {"rh": [30, 70]})  # doctest: +ELLIPSIS
+    {'rh': 'values 30, 70 lie outside (0, 1), the domain of the law of humidity_meniscus on rh (in the ...)'}
+    """
+    out: dict[str, str] = {}
+    for law in law_domains(terms):
+        if law.column not in columns or law.column in out:
+            continue
+        values = _numbers(columns[law.column])
+        bad = np.unique(values[~law.domain.contains(values)])
+        if bad.size:
+            shown = ", ".join(f"{v:g}" for v in bad[:3]) + (", ..." if bad.size > 3 else "")
+            out[law.column] = (f"value{'s' if bad.size > 1 else ''} {shown} lie{'' if bad.size > 1 else 's'} "
+                               f"outside {law.domain.text()}, the domain of the law of {law.term} (in the "
+                               f"unit of column {law.column} of the calibration data)")
+    return out
 
 
 def confounded_pairs(columns: Mapping[str, np.ndarray], rho: float = CONFOUNDED_RHO) -> list[dict[str, Any]]:

@@ -39,6 +39,7 @@ from microbearing.physics.effects import EFFECTS
 from .candidates import Term, candidate_terms
 from .data import Dataset
 from .design import GOALS, Design, DesignError, plan
+from .domain import outside_law_domains
 from .fit import fit
 from .model import CalibratedModel
 
@@ -720,8 +721,8 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
     ------
     ValueError
         Starting with the offending field (``space.<column>``, ``envelope.<column>``,
-        ``fixed.<name>``, ``planned.<i>``): an unknown column, a bad range or value, a column the
-        model reads that is neither in the space nor fixed.
+        ``fixed.<name>``, ``planned.<i>``): an unknown column, a bad range or value, a value outside
+        the domain of a term's law, a column the model reads that is neither in the space nor fixed.
     """
     check_space(space, model.conditions)
     if envelope is not None:
@@ -738,6 +739,9 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
         elif name not in model.conditions:
             raise ValueError(f"fixed.{name}: not a physics input nor a condition column of the data "
                              f"({', '.join(model.conditions) or 'none'})")
+    for field, columns in (("space", space), ("envelope", envelope or {}), ("fixed", fixed)):
+        for name, detail in outside_law_domains(model.terms, columns).items():
+            raise ValueError(f"{field}.{name}: {detail}")
     required = ["balls", "load_N", "speed_m_s", *model.required_columns]
     missing = [n for n in required if n not in space and n not in fixed
                and not (n in physics.PARAMETERS and (n in model.fixed or physics.PARAMETERS[n].default

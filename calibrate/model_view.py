@@ -22,6 +22,7 @@ from microbearing.physics.model import (
     physics_inputs,
 )
 
+from .domain import outside_law_domains
 from .model import CalibratedModel, Prediction
 
 __all__ = ["CalibratedPhysicsModel"]
@@ -84,8 +85,9 @@ class CalibratedPhysicsModel(Model):
         ``points`` may also give the condition columns the terms do not read
         (:attr:`unread_conditions`): they enter the domain check only. The physics outputs other than
         ``mu`` are computed only when asked for; the warnings name every column outside the data.
-        A condition outside the law of a term, or a non-finite μ, is a :class:`ModelError` at ``/conditions``
-        (the latter naming the point's index for columns).
+        A value outside the domain of a term's law is a :class:`ModelError` naming its field
+        (``/conditions/<name>``); a non-finite μ one at ``/conditions``, naming the point's index for
+        columns.
         """
         unread = {name: self.unread_conditions[name].check(value) for name, value in points.items()
                   if name in self.unread_conditions}
@@ -94,6 +96,11 @@ class CalibratedPhysicsModel(Model):
         wanted = list(dict.fromkeys(["mu", *(name for name in outputs if name in physics.OUTPUTS)]))
         base = evaluate_finite({**self.fixed, **self.fitted, **given}, wanted, self.convention, pointer,
                                 first_index)
+        outside = outside_law_domains(self.calibrated.terms, {**checked, **unread})
+        if outside:  # named where it stands: a condition, or an input a term reads (speed for a power law)
+            raise ModelError([{"pointer": f"{pointer}/{name}" if name in physics.PARAMETERS
+                               else f"/conditions/{name}", "detail": detail}
+                              for name, detail in outside.items()])
         try:
             with np.errstate(all="ignore"):
                 prediction = self.calibrated.predict({**checked, **unread})

@@ -53,6 +53,29 @@ def _unit(name: str) -> str:
     return " [1, as in the data]"
 
 
+def _whole(name: str) -> bool:
+    """Whether the column is a whole number by the physics' declaration (a ball count)."""
+    spec = physics.PARAMETERS.get(name)
+    return spec is not None and spec.kind == "int"
+
+
+def _grid(name: str, x: np.ndarray) -> np.ndarray:
+    """Values of a column to draw a curve at over its data's range: whole numbers for a whole-number
+    column (the physics refuses 4.067 balls), :data:`_GRID` even steps otherwise."""
+    if not _whole(name):
+        return np.linspace(x.min(), x.max(), _GRID)
+    return np.unique(np.round(np.linspace(np.ceil(x.min()), np.floor(x.max()), _GRID)))
+
+
+def _whole_ticks(ax, names: Sequence[str]) -> None:
+    """Whole-number ticks on the x axis of each axes whose column is a whole number."""
+    from matplotlib.ticker import MaxNLocator
+
+    for axis, name in zip(ax, names, strict=False):
+        if _whole(name):
+            axis.xaxis.set_major_locator(MaxNLocator(integer=True))
+
+
 def log_ticks(low: float, high: float, least: int = 3) -> list[float]:
     """Tick positions for a log axis over [low, high] with at least ``least`` ticks inside.
 
@@ -153,10 +176,11 @@ def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: n
         model.fitted, model.fixed, model.terms[:k] + model.terms[k + 1 :], model.convention
     )
     x = np.asarray(columns[driver], dtype=float)
-    grid = np.linspace(x.min(), x.max(), _GRID)
+    grid = _grid(driver, x)
     # The other columns at a median row value (a whole ball count stays whole).
     typical = {
-        n: np.full(_GRID, np.quantile(v, 0.5, method="nearest")) for n, v in columns.items() if n != driver
+        n: np.full(grid.size, np.quantile(v, 0.5, method="nearest"))
+        for n, v in columns.items() if n != driver
     }
     typical[driver] = grid
     prediction = model.predict(typical)
@@ -180,6 +204,7 @@ def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: n
     ax.set_xlabel(f"{driver}{_unit(driver)}")
     ax.set_ylabel("log(mu / mu without the term) [-]")
     ax.set_xlim(grid[0] - 0.02 * (grid[-1] - grid[0]), grid[-1] + 0.02 * (grid[-1] - grid[0]))
+    _whole_ticks([ax], [driver])
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     ax.set_title(f"Term {k + 1}: {term.label}\n" + "\n".join(textwrap.wrap(_errors_text(errors), 80)),
@@ -214,6 +239,7 @@ def _residuals_figure(
         ax.axhline(0.0, color="0.3", lw=0.8)
         ax.set_xlabel(f"{name}{_unit(name) if name != 'row' else ' (data row)'}")
         ax.grid(alpha=0.3)
+    _whole_ticks(axes.flat, [name for name, _ in varying])
     for ax in axes.flat[len(varying) :]:
         ax.set_visible(False)
     for ax in axes[:, 0]:

@@ -396,6 +396,8 @@ def where_they_part(
         values = values[rows]
     span = hi - lo if hi > lo else max(abs(hi), 1.0)
     grid = np.linspace(lo - span, hi + span, _SCAN_POINTS)
+    if driver in physics.PARAMETERS and physics.PARAMETERS[driver].kind == "int":
+        grid = np.unique(np.round(grid))  # the physics refuses a fractional ball count
     if driver in physics.PARAMETERS and physics.PARAMETERS[driver].minimum is not None:
         grid = grid[grid >= physics.PARAMETERS[driver].minimum]
     difference = np.full(grid.size, np.nan)

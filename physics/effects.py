@@ -48,13 +48,14 @@ References
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-__all__ = ["EffectParameter", "Effect", "EFFECTS", "DriftLaw", "DRIFT_LAWS", "DRIFT_PARAMETERS",
+__all__ = ["EffectParameter", "Effect", "EFFECTS", "DriftLaw", "DRIFT_LAWS", "DRIFT_PARAMETERS", "Domain",
            "apply_effect",
            "humidity_fraction", "temperature_kelvin"]
 
@@ -83,6 +84,51 @@ class EffectParameter:
 
 
 _Columns = Mapping[str, np.ndarray]
+
+
+@dataclass(frozen=True)
+class Domain:
+    """The values a law's driver may take, in the unit of the law's formula: an interval, each end open
+    (excluded) or closed.
+
+    Attributes
+    ----------
+    low, high : float
+        Its ends (may be infinite).
+    low_open, high_open : bool
+        Whether the end itself is excluded (an infinite end is never reached).
+
+    Examples
+    --------
+    >>> Domain(0.0, 1.0, low_open=True, high_open=True).contains([0.0, 0.5, 1.0]).tolist()
+    [False, True, False]
+    >>> Domain(0.0).text(), Domain(0.0, 1.0, True, True).in_unit(lambda x: x / 100.0).text()
+    ('[0, inf)', '(0, 100)')
+    """
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+
+    def contains(self, values) -> np.ndarray:
+        """Whether each value lies in the domain (NaN does not)."""
+        x = np.asarray(values, dtype=float)
+        above = x > self.low if self.low_open else x >= self.low
+        return above & (x < self.high if self.high_open else x <= self.high)
+
+    def text(self) -> str:
+        """The interval in words, e.g. ``(0, 1)`` or ``[0, inf)``."""
+        left = "(" if self.low_open or math.isinf(self.low) else "["
+        right = ")" if self.high_open or math.isinf(self.high) else "]"
+        return f"{left}{self.low:g}, {self.high:g}{right}"
+
+    def in_unit(self, to_formula: Callable) -> Domain:
+        """The same domain in a column's unit, given the increasing affine map from that unit to the
+        formula's (percent to a fraction, degC to K)."""
+        offset = float(to_formula(np.asarray(0.0)))
+        slope = float(to_formula(np.asarray(1.0))) - offset
+        return replace(self, low=(self.low - offset) / slope, high=(self.high - offset) / slope)
 
 
 @dataclass(frozen=True)
@@ -123,9 +169,13 @@ class Effect:
     make_initial : callable
         ``make_initial(mu, x, columns, constants) -> list`` of initial parameter values.
     accepts_values : callable or None
-        ``accepts_values(x) -> bool``: whether the driver lies in the formula's domain (None: always).
+        ``accepts_values(x) -> bool``: a check of the driver beyond :attr:`domain` (None: none).
     driver_transform : callable or None
-        ``driver_transform(name, values)``: the driver in the formula's unit (None: as given).
+        ``driver_transform(name, values)``: the driver in the formula's unit (None: as given); increasing
+        and affine in the values.
+    domain : Domain or None
+        The main driver's values the formula holds for, in the formula's unit (None: any);
+        :meth:`column_domain` gives it in a column's unit.
     """
 
     name: str
@@ -143,6 +193,7 @@ class Effect:
     make_initial: Callable = field(default=None, repr=False, compare=False)
     accepts_values: Callable = field(default=None, repr=False, compare=False)
     driver_transform: Callable = field(default=None, repr=False, compare=False)
+    domain: Domain | None = None
 
     @property
     def parameter_names(self) -> list[str]:
@@ -174,11 +225,18 @@ class Effect:
         x = np.asarray(columns[drivers[0]], dtype=float)
         return x if self.driver_transform is None else self.driver_transform(drivers[0], x)
 
+    def column_domain(self, name: str) -> Domain | None:
+        """:attr:`domain` in the unit of the driver column ``name`` (percent humidity: (0, 100))."""
+        if self.domain is None or self.driver_transform is None:
+            return self.domain
+        return self.domain.in_unit(lambda x: self.driver_transform(name, x))
+
     def accepts(self, columns: _Columns, drivers: tuple[str, ...]) -> bool:
         """Whether the driver values lie in the effect's domain (e.g. humidity in (0, 1))."""
-        if self.accepts_values is None:
-            return True
-        return bool(self.accepts_values(self.driver_values(columns, drivers)))
+        x = self.driver_values(columns, drivers)
+        if self.domain is not None and not np.all(self.domain.contains(x)):
+            return False
+        return self.accepts_values is None or bool(self.accepts_values(x))
 
     def constants(self, columns: _Columns, drivers: tuple[str, ...]) -> dict[str, float]:
         """Constants fixed from the data at fit time (centre and scale of a generic term).
@@ -344,8 +402,8 @@ _MENISCUS = Effect(
     driver_keywords=("humid", "rh"),
     correct=lambda mu, x, columns, p, c: mu + p[0] * _meniscus_basis(x, columns),
     make_initial=_additive_initial(_meniscus_basis),
-    accepts_values=lambda h: bool(np.all((h > 0) & (h < 1))),
     driver_transform=humidity_fraction,
+    domain=Domain(0.0, 1.0, low_open=True, high_open=True),
 )
 
 _VISCOUS = Effect(
@@ -409,7 +467,7 @@ _RUN_IN = Effect(
     driver_keywords=("run", "cycle", "pass", "stroke", "count", "time", "distance"),
     correct=lambda mu, x, columns, p, c: mu * (1.0 + p[0] * np.exp(-x / p[1])),
     make_initial=lambda mu, x, columns, c: [0.3, 0.2 * float(np.max(x))],
-    accepts_values=lambda x: bool(np.all(x >= 0) and np.max(x) > 0),
+    domain=Domain(0.0),
 )
 
 _C_BOUNDS = (-20.0, 20.0)
@@ -455,7 +513,7 @@ _GENERIC_POWER = Effect(
     correct=lambda mu, x, columns, p, c: mu * np.power(x / c["reference"], p[0]),
     make_constants=_median_reference,
     make_initial=_zeros,
-    accepts_values=lambda x: bool(np.all(x > 0)),
+    domain=Domain(0.0, low_open=True),
 )
 
 def _positive_speed_reference(v):
@@ -503,7 +561,7 @@ _VISCOUS_POWER = Effect(
     / np.asarray(columns["load_N"], dtype=float),
     make_constants=_positive_speed_reference,
     make_initial=lambda mu, x, columns, c: [0.1 * float(np.median(mu * np.asarray(columns["load_N"]))), 1.0],
-    accepts_values=lambda v: bool(np.all(v >= 0) and np.any(v > 0)),
+    domain=Domain(0.0),
 )
 
 #: Every optional effect, keyed by name: named physical effects first, then the generic family.
@@ -615,6 +673,12 @@ class DriftLaw:
         ``"arrhenius"``: factor = exp(c / R (1/v - 1/v_ref)).
     positive_variable : bool
         Whether the law's variable must be > 0 (absolute temperature, 1/ln(1/h) for h in (0, 1)).
+    domain : Domain or None
+        The driver's values the law holds for, in the unit ``driver_transform`` gives (None: any);
+        :meth:`column_domain` gives it in a column's unit.
+    driver_transform : callable or None
+        ``driver_transform(name, values)``: the driver in the unit of :attr:`domain` (humidity percent to a
+        fraction, degC to K; increasing and affine), None: as given.
     """
 
     name: str
@@ -628,13 +692,24 @@ class DriftLaw:
     variable: Callable = field(repr=False, compare=False)
     shape: str = "linear"
     positive_variable: bool = False
+    domain: Domain | None = None
+    driver_transform: Callable | None = field(default=None, repr=False, compare=False)
 
     def matches(self, name: str) -> bool:
         """Whether a condition column of this name may drive the law (:attr:`driver_keywords`)."""
         return not self.driver_keywords or _name_matches(name, self.driver_keywords)
 
+    def column_domain(self, name: str) -> Domain | None:
+        """:attr:`domain` in the unit of the driver column ``name`` (degC: T > -273.15)."""
+        if self.domain is None or self.driver_transform is None:
+            return self.domain
+        return self.domain.in_unit(lambda x: self.driver_transform(name, x))
+
     def accepts(self, name: str, values) -> bool:
         """Whether the column's values lie in the law's domain (humidity in (0, 1), T > 0 K)."""
+        domain = self.column_domain(name)
+        if domain is not None and not np.all(domain.contains(values)):
+            return False
         with np.errstate(divide="ignore", invalid="ignore"):
             v = self.variable(name, values)
         return bool(np.all(np.isfinite(v)) and (not self.positive_variable or np.all(v > 0)))
@@ -714,7 +789,8 @@ DRIFT_LAWS: dict[str, DriftLaw] = {law.name: law for law in [
                                                       "T_ref = median",
         reference="Andrade-Eyring law of liquid viscosity, eta = A exp(E_a / (R T)) (E.N. da C. Andrade, "
                   "Nature 125, 309-310 (1930)); 16-17 kJ/mol for water near 25 degC.",
-        min_levels=3, variable=temperature_kelvin, shape="arrhenius", positive_variable=True),
+        min_levels=3, variable=temperature_kelvin, shape="arrhenius", positive_variable=True,
+        domain=Domain(0.0, low_open=True), driver_transform=temperature_kelvin),
     DriftLaw(
         name="kelvin", title="Kelvin-type in relative humidity: proportional to the Kelvin radius",
         formula="p(h) = p_ref * (1 + kelvin_coefficient * (1/ln(1/h) - 1/ln(1/h_ref)))",
@@ -728,7 +804,8 @@ DRIFT_LAWS: dict[str, DriftLaw] = {law.name: law for law in [
                   "meniscus radius (J.N. Israelachvili, Intermolecular and Surface Forces, 3rd ed., 2011, "
                   "ch. 17).",
         min_levels=3, variable=lambda name, x: _kelvin_radius_term(humidity_fraction(name, x)),
-        positive_variable=True),
+        positive_variable=True, domain=Domain(0.0, 1.0, low_open=True, high_open=True),
+        driver_transform=humidity_fraction),
 ]}
 
 #: Declared physics parameters that may drift with a condition, with why a tribologist would suspect it.

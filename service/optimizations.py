@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
+from microbearing.calibrate.domain import outside_law_domains
 from microbearing.optimize import (
     DesignProblem,
     InfeasibleDesignError,
@@ -44,7 +45,7 @@ from microbearing.physics.model import Model
 
 from .calibrations import interval_at, with_conditions
 from .executor import map_chunks
-from .models import resolve
+from .models import CalibratedPhysicsModel, resolve
 from .problems import ProblemError, validation_problem
 from .schemas.optimizations import OptimizationRequest
 from .store import Store
@@ -141,6 +142,21 @@ def _bound(model: Model, body: OptimizationRequest) -> tuple[Callable, Callable 
     return with_conditions(model, points or body.conditions), interval_at(model, points or body.conditions)
 
 
+def _refuse_outside_law_domains(model: Model, body: OptimizationRequest) -> None:
+    """422 at submit, naming the field, for a condition (or speed) whose values leave the domain of a
+    calibrated model's law (:func:`calibrate.domain.outside_law_domains`): the job would fail on it."""
+    if not isinstance(model, CalibratedPhysicsModel):
+        return
+    in_fixed = body.fixed.speed_m_s is not None
+    speed = body.fixed.speed_m_s if in_fixed else body.speed_m_s
+    columns = {**(body.conditions or {}), **({} if speed is None else {"speed_m_s": speed})}
+    outside = outside_law_domains(model.calibrated.terms, columns)
+    if outside:
+        speed_pointer = "/fixed/speed_m_s" if in_fixed else "/speed_m_s"
+        raise validation_problem([{"pointer": speed_pointer if name == "speed_m_s" else f"/conditions/{name}",
+                                   "detail": detail} for name, detail in outside.items()])
+
+
 def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     """Validate a request into a plan (:func:`optimize.plan.plan_design`), its model resolved.
 
@@ -168,6 +184,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     model, mu_model, interval = None, None, None
     if body.model != "physics":
         model = resolve(store, body.model)
+        _refuse_outside_law_domains(model, body)
         mu_model, interval = _bound(model, body)
     try:
         planned = plan_design(request, model)

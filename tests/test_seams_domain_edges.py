@@ -1,0 +1,140 @@
+"""A law predicts at its domain's closed edge: a run-in at 0 cycles (or 0 h), a viscous power law at rest.
+
+Issue 32: a run-in model could not predict when every point of a request was at ``cycles`` = 0 ("outside
+the domain ... n >= 0") while a batch of [0, 100] worked: the law's domain check asked for a value above
+0 among the request's own values (a condition on the data it is fitted on, which the effect's levels
+already ensure). The viscous power law asked the same of speed.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from microbearing import physics
+from microbearing.physics.effects import DRIFT_LAWS, EFFECTS, Domain
+from microbearing.service.app import create_app
+from microbearing.service.settings import Settings
+
+N_ROWS = 80
+POINT = {"balls": 8, "load_N": 0.01, "speed_m_s": 0.05}
+
+
+# ------------------------------------------------------------------------------ the declared domains
+
+
+def test_every_closed_edge_is_inside_its_domain_and_the_law_evaluates_there():
+    closed = {name: e for name, e in EFFECTS.items() if e.domain is not None and not e.domain.low_open}
+    assert sorted(closed) == ["run_in", "viscous_power_law"]
+    columns = {"balls": np.array([8.0]), "load_N": np.array([0.01]), "speed_m_s": np.array([0.0])}
+    params = {"run_in": {"run_in_amplitude": 0.5, "run_in_length": 100.0},
+              "viscous_power_law": {"drag_force_N": 1e-4, "speed_exponent": 0.5}}
+    constants = {"run_in": {}, "viscous_power_law": {"reference": 0.05}}
+    drivers = {"run_in": ("cycles",), "viscous_power_law": ("speed_m_s", "load_N")}
+    by_hand = {"run_in": 0.02 * 1.5, "viscous_power_law": 0.02}  # 1 + A exp(0); (0 / v_ref)^0.5 = 0
+    for name, effect in closed.items():
+        at_edge = {**columns, drivers[name][0]: np.array([effect.domain.low])}
+        assert effect.accepts(at_edge, drivers[name])
+        mu = effect.apply(np.array([0.02]), at_edge, params[name], drivers[name], constants[name])
+        assert mu[0] == pytest.approx(by_hand[name], rel=1e-12)
+        below = {**columns, drivers[name][0]: np.array([np.nextafter(effect.domain.low, -1.0)])}
+        assert not effect.accepts(below, drivers[name])
+    # Open edges stay out: humidity 0 and 1, absolute zero.
+    assert not EFFECTS["humidity_meniscus"].accepts({"rh": np.array([1.0])}, ("rh",))
+    assert DRIFT_LAWS["kelvin"].column_domain("rh_pct") == Domain(0.0, 100.0, True, True)
+    assert DRIFT_LAWS["arrhenius"].column_domain("temperature_C").low == pytest.approx(-273.15)
+    assert not DRIFT_LAWS["arrhenius"].accepts("temperature_C", [-273.15])
+    assert DRIFT_LAWS["arrhenius"].accepts("temperature_K", [1e-3])
+
+
+# ---------------------------------------------------------------------------------- through the API
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("edges")))) as test_client:
+        yield test_client
+
+
+def finished_result(client: TestClient, body: dict) -> dict:
+    response = client.post("/v1/calibrations", json=body)
+    assert response.status_code == 202, response.text
+    deadline = time.monotonic() + 600
+    while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.1)
+    assert job["status"] == "succeeded", job
+    return client.get(job["result_url"]).json()
+
+
+def base_columns(rng: np.random.Generator) -> dict[str, np.ndarray]:
+    return {"balls": rng.choice([4.0, 8.0, 12.0], N_ROWS),
+            "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), N_ROWS)),
+            "speed_m_s": rng.uniform(0.01, 0.15, N_ROWS)}
+
+
+def rows_of(columns: dict[str, np.ndarray], mu: np.ndarray) -> list[dict]:
+    return [{k: float(v[i]) for k, v in columns.items()} | {"mu_measured": float(mu[i])}
+            for i in range(mu.size)]
+
+
+@pytest.mark.parametrize(("column", "high", "length"), [("cycles", 2000.0, 300.0), ("time_h", 10.0, 1.5)])
+def test_a_run_in_predicts_at_zero(client, column, high, length):
+    rng = np.random.default_rng(5)
+    columns = base_columns(rng)
+    # Every tenth row at the start of the run (the edge is in the data), the others spread over the run.
+    spread = np.round(rng.uniform(0.0, high, N_ROWS), 2)
+    columns[column] = np.where(np.arange(N_ROWS) % 10 == 0, 0.0, spread)
+    mu = physics.evaluate(**{k: columns[k] for k in POINT}, mu_pivot=0.7).mu
+    mu = mu * (1 + 0.8 * np.exp(-columns[column] / length)) * np.exp(rng.normal(0.0, 0.02, N_ROWS))
+    body = {"data": rows_of(columns, mu), "fit_parameters": ["mu_pivot"], "folds": 3}
+    result = finished_result(client, body)
+    assert [e["name"] for e in result["effects"]] == ["run_in"], result["decision"]
+    model = result["model_id"]
+    fitted = {k: v["value"] for k, v in result["fitted_parameters"].items()}
+    amplitude = result["effects"][0]["parameters"]["run_in_amplitude"]
+    # At 0, by hand: mu_model (1 + A exp(0)).
+    at_zero = float(physics.evaluate(**POINT, **fitted).mu) * (1 + amplitude)
+    single = client.post("/v1/friction", json={**POINT, "model": model, "conditions": {column: 0}})
+    assert single.status_code == 200, single.text
+    single = single.json()
+    assert single["mu"] == pytest.approx(at_zero, rel=1e-9)
+    assert single["mu_lower"] < single["mu"] < single["mu_upper"] < 1.5 * single["mu"]
+    assert single["in_domain"] is True
+    points = {k: [v, v] for k, v in POINT.items()}
+    for values in ([0.0, 0.0], [0.0, 100.0]):
+        batch = client.post("/v1/friction/batch", json={"points": points, "model": model,
+                                                        "conditions": {column: values}})
+        assert batch.status_code == 200, batch.text
+        assert batch.json()["mu"][0] == pytest.approx(single["mu"], rel=1e-12)
+        assert batch.json()["mu_upper"][0] == pytest.approx(single["mu_upper"], rel=1e-12)
+    # Below the edge: refused, naming the condition.
+    below = client.post("/v1/friction", json={**POINT, "model": model, "conditions": {column: -1}})
+    assert below.status_code == 422 and below.headers["content-type"] == "application/problem+json"
+    assert column in below.text
+
+
+def test_a_viscous_power_law_predicts_at_rest(client):
+    rng = np.random.default_rng(6)
+    columns = base_columns(rng)
+    columns["speed_m_s"] = np.where(np.arange(N_ROWS) % 8 == 0, 0.0, rng.uniform(0.0, 0.15, N_ROWS))
+    mu = physics.evaluate(**columns, mu_pivot=0.7).mu
+    mu = (mu + 3e-4 * (columns["speed_m_s"] / 0.05) ** 0.5 / columns["load_N"]) * np.exp(
+        rng.normal(0.0, 0.02, N_ROWS))
+    body = {"data": rows_of(columns, mu), "fit_parameters": ["mu_pivot"], "folds": 3}
+    result = finished_result(client, body)
+    assert [e["name"] for e in result["effects"]] == ["viscous_power_law"], result["decision"]
+    model = result["model_id"]
+    fitted = {k: v["value"] for k, v in result["fitted_parameters"].items()}
+    at_rest = {**POINT, "speed_m_s": 0.0}
+    single = client.post("/v1/friction", json={**at_rest, "model": model})
+    assert single.status_code == 200, single.text
+    # At rest the drag (v / v_ref)^n vanishes: the fitted declared model alone.
+    assert single.json()["mu"] == pytest.approx(float(physics.evaluate(**at_rest, **fitted).mu), rel=1e-9)
+    batch = client.post("/v1/friction/batch", json={"points": {k: [v, v] for k, v in at_rest.items()},
+                                                    "model": model})
+    assert batch.status_code == 200, batch.text
+    assert batch.json()["mu"] == pytest.approx([single.json()["mu"]] * 2, rel=1e-12)
