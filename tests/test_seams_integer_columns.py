@@ -64,9 +64,11 @@ def model_with_term(columns: dict[str, np.ndarray], column: str, effect: str, va
     conditions = [c for c in columns if c in CONDITIONS]
     varying = {k: v for k, v in columns.items() if np.unique(v).size > 1}
     size = 1 + len(values)
-    return CalibratedModel.from_fit(fitted_for(column), {}, [term], [values], physics.DEFAULT_CONVENTION,
-                                    np.eye(size) * 1e-4, 0.02, columns, conditions,
-                                    cloud=DataCloud.from_columns(varying))
+    domain = {name: [float(np.min(v)), float(np.max(v))] for name, v in columns.items()}
+    return CalibratedModel(fitted=fitted_for(column), terms=[(term, list(values))],
+                           convention=physics.DEFAULT_CONVENTION, covariance=np.eye(size) * 1e-4,
+                           noise_std_log=0.02, domain=domain, conditions=conditions,
+                           cloud=DataCloud.from_columns(varying), domain_rows=N_ROWS)
 
 
 def whole_ticks(ax) -> np.ndarray:

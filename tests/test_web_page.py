@@ -342,7 +342,14 @@ def test_the_loop_in_chromium_with_api_keys_on(browser, keyed_server, tmp_path):
     sheet.write_text(readme_spreadsheet(), encoding="utf-8")
     driver.find_element("id", "csv-file").send_keys(str(sheet))
     _fill(driver, "folds", "3")  # the fastest honest calibration: 3 outer folds (README: 5)
-    _wait(driver, lambda d: "separated by semicolon" in _text(d, "preview"), 10, "the file's preview")
+    # before any fit, the service's own reading of the file (POST /v1/calibrations/csv/intake)
+    _wait(driver, lambda d: "data rows" in _text(d, "preview"), 60, "the file's reading")
+    reading = server.client.post("/v1/calibrations/csv/intake", headers={**AUTH, "content-type": "text/csv"},
+                                 content=sheet.read_bytes()).json()
+    preview = _text(driver, "preview")
+    assert f"{reading['rows']} data rows; separator {reading['intake']['separator']}" in preview
+    assert all(conversion in preview for conversion in reading["intake"]["conversions"])
+    assert server.client.get("/v1/calibrations", headers=AUTH).json()["calibrations"] == []  # nothing fitted
     driver.find_element("id", "upload-start").click()
     _wait(driver, lambda d: _text(d, "report-effect"), 400, "the report")
 

@@ -32,6 +32,7 @@ from ..schemas.calibrations import (
     CalibrationList,
     CalibrationRequest,
     CalibrationResult,
+    CsvReading,
     FittableParameterName,
 )
 from ..store import Store
@@ -148,21 +149,51 @@ class CsvDialect:
         self.decimal = None if decimal == "auto" else decimal
 
 
+class CsvOptions:
+    """How to read an uploaded CSV file: fixed inputs, factors, the dialect (query parameters)."""
+
+    def __init__(
+        self,
+        fixed: Annotated[list[str], Query(description=(
+            "Physics inputs fixed for every row, as name=value in their units (repeatable)."))] = [],  # noqa: B006
+        factors: Annotated[list[str], Query(max_length=20, description=(
+            "Condition columns to read as group labels even when they hold numbers (repeatable); a column "
+            "with no number in it is a factor anyway."))] = [],  # noqa: B006
+        dialect: Annotated[CsvDialect, Depends()] = None,  # type: ignore[assignment]  (FastAPI fills it)
+    ) -> None:
+        self.fixed, self.factors, self.dialect = fixed, factors, dialect
+
+
+async def _read_upload(request: Request, settings: Any, options: CsvOptions) -> tuple[Dataset, Any, dict]:
+    """The uploaded CSV as a data set, its intake and the fixed values, or a 4xx problem."""
+    text = await request.body()
+    # counted before parsing
+    check_table(csv_data_rows(text), settings.max_calibration_rows, "rows", "The CSV body")
+    check_table(csv_header_columns(text), settings.max_calibration_columns, "columns",
+                "The CSV body's header")
+    try:
+        fixed_values = parse_assignments(options.fixed)
+    except DataError as exc:
+        raise validation_problem([{"parameter": "fixed", "detail": f"{e['column']}: {e['message']}"}
+                                  for e in exc.errors]) from None
+    try:
+        dataset, intake = await run_in_threadpool(read_csv, text, fixed_values, options.dialect.separator,
+                                                  options.dialect.decimal, options.factors)
+    except DataError as exc:
+        raise data_problem(exc.errors, fixed_pointer=None, data_pointer=None) from None
+    return dataset, intake, fixed_values
+
+
 @router.post("/csv", operation_id="create_calibration_from_csv", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses(507)}, openapi_extra=_CSV_BODY)
 async def create_calibration_from_csv(
     request: Request, store: StoreDep, jobs: JobsDep, settings: SettingsDep,
     fit_parameters: Annotated[list[FittableParameterName], Query(  # type: ignore[valid-type]
         description="Declared parameters to fit (repeat the parameter for several).")] = [],  # noqa: B006
-    fixed: Annotated[list[str], Query(
-        description="Physics inputs fixed for every row, as name=value in their units (repeatable).")] = [],  # noqa: B006
     folds: Annotated[int, Query(ge=2, le=20, description="Cross-validation folds [1].")] = 5,
-    factors: Annotated[list[str], Query(max_length=20, description=(
-        "Condition columns to read as group labels even when they hold numbers (repeatable); a column "
-        "with no number in it is a factor anyway."))] = [],  # noqa: B006
     convention: Annotated[ConventionName, Query(  # type: ignore[valid-type]
         description="Reading of the paper's ambiguous ball-ball terms.")] = _DEFAULT_CONVENTION,
-    dialect: Annotated[CsvDialect, Depends()] = None,  # type: ignore[assignment]  (FastAPI fills it)
+    options: Annotated[CsvOptions, Depends()] = None,  # type: ignore[assignment]  (FastAPI fills it)
 ) -> JSONResponse:
     """Calibrate on an uploaded CSV file (``Content-Type: text/csv`` or ``application/octet-stream``),
     as ``POST /v1/calibrations``.
@@ -170,23 +201,10 @@ async def create_calibration_from_csv(
     Spreadsheet exports are read as saved: the separator and decimal mark are detected (or stated),
     a BOM, CRLF line ends, blank lines and empty columns at the end are ignored, and units in the
     header (``speed [mm/s]``, ``load (mN)``, ``speed_mm_s``, ``relative humidity [%]``) are converted
-    to SI. The report's ``intake`` says which dialect was used and how each column was read.
+    to SI. The report's ``intake`` says which dialect was used and how each column was read;
+    ``POST /v1/calibrations/csv/intake`` says it before any fit.
     """
-    text = await request.body()
-    # counted before parsing
-    check_table(csv_data_rows(text), settings.max_calibration_rows, "rows", "The CSV body")
-    check_table(csv_header_columns(text), settings.max_calibration_columns, "columns",
-                "The CSV body's header")
-    try:
-        fixed_values = parse_assignments(fixed)
-    except DataError as exc:
-        raise validation_problem([{"parameter": "fixed", "detail": f"{e['column']}: {e['message']}"}
-                                  for e in exc.errors]) from None
-    try:
-        dataset, intake = await run_in_threadpool(
-            read_csv, text, fixed_values, dialect.separator, dialect.decimal, factors)
-    except DataError as exc:
-        raise data_problem(exc.errors, fixed_pointer=None, data_pointer=None) from None
+    dataset, intake, fixed_values = await _read_upload(request, settings, options)
     names = [str(name) for name in fit_parameters]
     _check(dataset, names, folds, query=True)
     record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()),
@@ -194,6 +212,21 @@ async def create_calibration_from_csv(
               "fit_parameters": names, "folds": folds, "convention": str(convention),
               "intake": intake.to_dict()}
     return _submit(jobs, store, record, dataset, names, folds, str(convention), intake.to_dict())
+
+
+@router.post("/csv/intake", operation_id="read_calibration_csv", response_model=CsvReading,
+             responses=problem_responses(), openapi_extra=_CSV_BODY)
+async def read_calibration_csv(request: Request, settings: SettingsDep,
+                               options: Annotated[CsvOptions, Depends()]) -> CsvReading:
+    """Read an uploaded CSV file as ``POST /v1/calibrations/csv`` would, without fitting or storing it.
+
+    The answer says how it was read (separator, decimal mark, encoding, what was ignored, each unit
+    conversion, each column's name in SI, the factors): check it, then submit the same file with the
+    same query parameters to calibrate. Bad files get the same problems as the calibration route.
+    """
+    dataset, intake, fixed_values = await _read_upload(request, settings, options)
+    return CsvReading(rows=dataset.n_points, columns=sorted(dataset.columns()),
+                      factors=sorted(dataset.factors), fixed=fixed_values, intake=intake.to_dict())
 
 
 _CalibrationsLimit = page_limit("calibrations")

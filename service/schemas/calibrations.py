@@ -287,6 +287,17 @@ class Intake(ResponseModel):
     columns: dict[str, str] = Field(description="Every column as sent -> its name in the data (SI).")
 
 
+class CsvReading(ResponseModel):
+    """How ``POST /v1/calibrations/csv`` reads a file, before any fit: what the calibration would take."""
+
+    rows: int = Field(description="Data rows read [1].")
+    columns: list[str] = Field(description="The data's columns, by their names in SI (physics inputs, "
+                                           "conditions and the measured friction).")
+    factors: list[str] = Field(description="Columns read as group labels (text, or declared in factors).")
+    fixed: dict[str, float] = Field(description="Physics inputs fixed for every row, in SI.")
+    intake: Intake = Field(description="The dialect, what was ignored, each unit conversion and column.")
+
+
 class RivalPart(ResponseModel):
     """Where a rival and the calibrated model differ, over one driver."""
 

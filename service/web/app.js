@@ -198,25 +198,32 @@ function showKeyStatus() {
 
 // ---- 1. upload ----------------------------------------------------------------------------------------
 
-/** What the page itself sees in the file before sending it (the service's own reading is in the report). */
-function previewFile(text, name) {
-  const lines = text.replace(/^\uFEFF/, "").split(/\r\n|\n|\r/);
-  while (lines.length && lines[lines.length - 1].trim() === "") lines.pop();
-  const header = lines[0] || "";
-  const counts = { tab: (header.match(/\t/g) || []).length, semicolon: (header.match(/;/g) || []).length,
-    comma: (header.match(/,/g) || []).length };
-  const separator = Object.keys(counts).reduce((a, b) => (counts[b] > counts[a] ? b : a), "comma");
-  const mark = { tab: "\t", semicolon: ";", comma: "," }[separator];
-  const columns = header.split(mark);
-  const rows = lines.slice(1, 4).map((line) => line.split(mark));
-  const unit = (column) => (column.match(/[[(]([^\])]*)[\])]\s*$/) || [null, "—"])[1];
-  $("preview").replaceChildren(
-    el("h3", { text: `The file as this page reads it: ${name}` }),
-    el("p", { text: `${lines.length - 1} data rows, ${columns.length} columns, separated by ${separator} (a guess `
-      + "from the header; the service detects the separator and decimal mark itself, converts the units and "
-      + "says how it read every column under “How the file was read” in the report)." }),
-    table("Columns of the file and the unit written in each header", ["Column as written", "Unit in the header",
-      "First values"], columns.map((column, i) => [column, unit(column), rows.map((r) => r[i] ?? "").join("; ")])));
+/** The dialect and units the service reads in the file, before any fit (POST v1/calibrations/csv/intake). */
+async function previewFile(file) {
+  const query = new URLSearchParams({ separator: $("separator").value, decimal: $("decimal").value });
+  const box = $("preview");
+  box.replaceChildren(el("p", { text: `Reading ${file.name}…` }));
+  try {
+    const response = await api("POST", `v1/calibrations/csv/intake?${query}`, { body: await file.arrayBuffer() });
+    const reading = await response.json();
+    const intake = reading.intake;
+    box.replaceChildren(
+      el("h3", { text: `How the service reads ${file.name} (nothing is fitted yet)` }),
+      el("p", { id: "preview-dialect", text: `${reading.rows} data rows; separator ${intake.separator} (`
+        + `${intake.detected.includes("separator") ? "detected" : "stated"}), decimal mark ${intake.decimal} (`
+        + `${intake.detected.includes("decimal") ? "detected" : "stated"}), ${intake.encoding}, `
+        + `${intake.line_endings} line ends; ignored: ${intake.ignored.join("; ") || "nothing"}.` }),
+      table("Each column as written and its name in the data (SI)", ["Column as written", "Read as"],
+        Object.entries(intake.columns)),
+      intake.conversions.length ? list(intake.conversions) : el("p", { text: "No unit conversion." }),
+      el("p", { id: "preview-groups", text: reading.factors.length
+        ? `Read as groups (labels): ${reading.factors.join(", ")}.` : "No column is read as groups." }));
+  } catch (error) {
+    box.replaceChildren(el("h3", { text: `The service cannot read ${file.name} as it is` }));
+    const problem = el("div", { class: "problem", role: "alert" });
+    box.append(problem);
+    showProblem(problem, error);
+  }
 }
 
 async function upload(event) {
@@ -254,8 +261,11 @@ function setupDrop() {
   const drop = $("drop");
   const input = $("csv-file");
   input.addEventListener("change", async () => {
-    if (input.files[0]) previewFile(await input.files[0].text(), input.files[0].name);
+    if (input.files[0]) previewFile(input.files[0]);
   });
+  ["separator", "decimal"].forEach((id) => $(id).addEventListener("change", () => {
+    if (input.files[0]) previewFile(input.files[0]);
+  }));
   ["dragenter", "dragover"].forEach((name) => drop.addEventListener(name, (event) => {
     event.preventDefault();
     drop.classList.add("over");
