@@ -162,14 +162,16 @@ class OtherLibraries(logging.Filter):
 _HANDLER_MARK = "_microbearing_json_handler"
 
 
-def _stamp_request_id(factory: Callable[..., logging.LogRecord]) -> Callable[..., logging.LogRecord]:
-    def make_record(*args: Any, **kwargs: Any) -> logging.LogRecord:
-        record = factory(*args, **kwargs)
+class _RequestIdStamp:
+    """A log record factory that stamps each record with the id of the request being handled."""
+
+    def __init__(self, factory: Callable[..., logging.LogRecord]):
+        self.factory = factory
+
+    def __call__(self, *args: Any, **kwargs: Any) -> logging.LogRecord:
+        record = self.factory(*args, **kwargs)
         record.request_id = current_request_id()
         return record
-
-    make_record._microbearing_stamp = True  # type: ignore[attr-defined]
-    return make_record
 
 
 def configure_logging(level: int | str = logging.INFO) -> None:
@@ -181,8 +183,8 @@ def configure_logging(level: int | str = logging.INFO) -> None:
         Lowest level written.
     """
     # Every record made while a request is handled carries its id, whatever handler formats it.
-    if not getattr(logging.getLogRecordFactory(), "_microbearing_stamp", False):
-        logging.setLogRecordFactory(_stamp_request_id(logging.getLogRecordFactory()))
+    if not isinstance(logging.getLogRecordFactory(), _RequestIdStamp):
+        logging.setLogRecordFactory(_RequestIdStamp(logging.getLogRecordFactory()))
     root = logging.getLogger("microbearing")
     root.setLevel(level)
     if not any(getattr(handler, _HANDLER_MARK, False) for handler in root.handlers):
