@@ -30,7 +30,7 @@ and the right side is bounded below by branch and bound over the designs: per ba
   condition): a constant over the design box, given to the physics as its input
   (:func:`optimize.envelope_bound.drift_ranges`); its coefficient's (or level's) finite-difference step
   moves the parameter by a known ratio, and the parameter's share of the physics
-  (:data:`~optimize.envelope_bound.DRIFT_SHARES`: an output whose friction force grows like F) by that
+  (declared in :data:`physics.effects.PARAMETER_SHARES`: an output whose friction force grows like F) by that
   ratio to its power, so its gradient entry by interval arithmetic as the envelope's bound does; a fitted
   value a drift with its own level replaces has gradient entry 0;
 * group effects at a point naming no group (:meth:`_Bounds._groups`): one on μ (or on a parameter the
@@ -68,12 +68,10 @@ import numpy as np
 from scipy import stats
 
 from microbearing import physics
+from microbearing.physics.effects import PARAMETER_SHARES
 
 from .envelope_bound import (
-    _VALUE_FORMS,
-    DRIFT_DIRECTIONS,
     INTERVAL_OUTPUTS,
-    LINEAR_DECLARED,
     BoundFailedError,
     IntervalStructure,
     _composed,
@@ -192,7 +190,8 @@ class _Bounds:
 
     def _physics(self, fitted: Mapping[str, Any], balls: np.ndarray, theta: np.ndarray, load: np.ndarray,
                  speed: float) -> dict[str, np.ndarray]:
-        outputs = list(dict.fromkeys(["mu", *LINEAR_DECLARED.values(), *INTERVAL_OUTPUTS]))
+        linear = [share.output for share in PARAMETER_SHARES.values() if share.linear]
+        outputs = list(dict.fromkeys(["mu", *linear, *INTERVAL_OUTPUTS]))
         columns = self.problem.physics_inputs(balls, theta, load, speed_m_s=speed)
         inputs = {k: v for k, v in columns.items() if k not in fitted}
         with np.errstate(all="ignore"):
@@ -215,7 +214,7 @@ class _Bounds:
         drifts = [piece for piece in s.pieces if piece.kind == "drift"]
         drifted = drift_ranges(drifts, {**physics.defaults(), **self.problem.fixed, **self.calibrated_fixed,
                                         **s.fitted}, driver_interval, n)
-        moved = {name: np.r_[(low, high) if DRIFT_DIRECTIONS[name] > 0 else (high, low)]
+        moved = {name: np.r_[(low, high) if PARAMETER_SHARES[name].direction > 0 else (high, low)]
                  for name, (low, high) in drifted.items()}
         phys = self._physics({**s.fitted, **moved}, np.r_[z, z], np.r_[tl, th] + offset, np.r_[gl, gh], speed)
         load = np.r_[gl, gh]
@@ -270,7 +269,7 @@ class _Bounds:
         replaced = {piece.term.parameter for piece in drifts if piece.term.level}
         for name, value in s.fitted.items():
             h = s.step * (abs(value) if value != 0 else 1.0)
-            share = phys[LINEAR_DECLARED[name]] * load  # the share's friction force, growing like F
+            share = phys[PARAMETER_SHARES[name].output] * load  # the share's friction force, growing like F
             s_lo, s_hi = share[:n], share[n:]
             if name in replaced:
                 g_lo.append(np.zeros(n))
@@ -294,7 +293,7 @@ class _Bounds:
                 continue
             for i, value in enumerate(piece.values):
                 h = s.step * (abs(value) if value != 0 else 1.0)
-                form = _VALUE_FORMS[(piece.term.name, i)]
+                form = piece.value_form(i)
                 moved = list(piece.values)
                 if form == "scale":
                     moved[i] = 1.0

@@ -12,9 +12,10 @@ with each maximum exact:
 
 * the physics' μ is a posynomial with positive coefficients in tan θ and the speed
   (:mod:`optimize.dgp`), so its maximum over a box is at the box's highest angle made and speed;
-* every effect of :data:`_PIECES` is monotone in its driver (its formula in :mod:`physics.effects`)
-  except ``generic_quadratic``, exp(c1 z + c2 z²), whose maximum over an interval is at an end or at the
-  stationary point z = -c1 / (2 c2); so each piece's maximum over the box's driver interval is the
+* every effect that declares how it enters μ (:attr:`physics.effects.Effect.enters`) is monotone in its
+  driver (:attr:`~physics.effects.Effect.monotone`) except a log-quadratic such as ``generic_quadratic``,
+  exp(c1 z + c2 z²), whose maximum over an interval is at an end or at the stationary point it declares
+  (z = -c1 / (2 c2)); so each piece's maximum over the box's driver interval is the
   largest of its values at the interval's ends (and that point when inside).
 
 The bound is exact where every piece peaks at the same point (a vertex, or the stationary point of a
@@ -35,10 +36,10 @@ The other parts of a calibrated model are bounded over a box too:
 * **a drifting physics parameter** (a viscosity falling with temperature by Arrhenius' law, ...): each
   law is monotone in its driver, so the parameter's range over the box is the law at the driver's ends
   (:func:`drift_ranges`), and the physics' μ is monotone in every parameter a drift may move
-  (:data:`DRIFT_DIRECTIONS`): its maximum is at the parameter's worst end; for ``mu_upper`` the drift's
-  values' gradient of log μ is bounded in closed form where the parameter enters the physics as one power
-  (:data:`DRIFT_SHARES`: the parameter moves by f(c + h, x) / f(c, x), monotone in x, and its share by that
-  ratio to the power);
+  (its declared ``direction``, :data:`physics.effects.PARAMETER_SHARES`): its maximum is at the
+  parameter's worst end; for ``mu_upper`` the drift's values' gradient of log μ is bounded in closed form
+  where the parameter enters the physics as one power (its declared ``output`` and ``exponent``: the
+  parameter moves by f(c + h, x) / f(c, x), monotone in x, and its share by that ratio to the power);
 * **group effects** at a point naming no group: a group on μ (or on a parameter the model does not fit)
   shifts log μ by its offset and adds the new-group variance, constants; one on a fitted parameter p
   shifts it by s b0 with s = p × p's gradient entry, bounded by that entry's interval (``mu_upper``; for
@@ -52,7 +53,7 @@ The other parts of a calibrated model are bounded over a box too:
   mean and a term slope opposite ways at the worst point the bound closes only linearly with the box, and
   the branch and bound may stop at its box limit with a wider bracket (stated: ``complete`` False).
 
-An effect not in :data:`_PIECES`, a drift of another parameter or a scatter that depends on an input
+An effect that declares nothing, a drift of another parameter or a scatter that depends on an input
 have no bound here: :func:`term_pieces` says why.
 """
 
@@ -72,9 +73,9 @@ import numpy as np
 from scipy import optimize, stats
 
 from microbearing import physics
+from microbearing.physics.effects import PARAMETER_SHARES
 
-__all__ = ["BOUND_RTOL", "DRIFT_DIRECTIONS", "DRIFT_SHARES", "INTERVAL_OUTPUTS", "INTERVAL_RTOL",
-           "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
+__all__ = ["BOUND_RTOL", "INTERVAL_OUTPUTS", "INTERVAL_RTOL", "MAX_BOXES", "MAX_VALUES",
            "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max", "drift_ranges",
            "group_shift", "interval_floor",
            "interval_structures", "mu_box_bound", "mu_upper_box_bound", "term_pieces"]
@@ -96,46 +97,6 @@ _EVALUATED = 16
 #: or time limit). [1]
 _POLISH_AT = (1000, 5000)
 
-#: How each effect of physics.effects enters μ ("add": μ + a(x), "mul": μ m(x)), and whether it is monotone
-#: in its main driver (True) or log-quadratic (False: an end or the stationary point).
-_PIECES: dict[str, tuple[str, bool]] = {
-    "humidity_meniscus": ("add", True),     # + p z / (G ln(1/h))
-    "viscous_drag": ("add", True),          # + p V / G
-    "constant_drag": ("add", True),         # + p / G (driver: the load, fixed at a design)
-    "stribeck_breakaway": ("add", True),    # + a exp(-V / V0)
-    "viscous_power_law": ("add", True),     # + p (V / V0)^e / G, e >= 0.3
-    "thermal_shear_strength": ("mul", True),  # x exp(-p (T - T0))
-    "run_in": ("mul", True),                # x (1 + a exp(-n / L)), a > -1
-    "generic_linear": ("mul", True),        # x exp(c (x - centre) / scale)
-    "generic_power": ("mul", True),         # x (x / reference)^c
-    "generic_quadratic": ("mul", False),    # x exp(c1 z + c2 z^2), z = (x - centre) / scale
-}
-
-
-#: How the physics' μ moves with each parameter a drift term may move (physics.effects.DRIFT_PARAMETERS):
-#: +1 non-decreasing, -1 non-increasing, from the equations (optimize.dgp): the viscosity and the
-#: pressure-viscosity coefficient enter only Houpert's rolling force, as η^0.66 and (α E')^0.022; the
-#: adhesion energy raises the contact load Q (eq 8), which every moment and the rolling force grow with;
-#: the surface tension and μ_b enter the ball-ball moment as factors, μ_s the pivoting moment; a Young's
-#: modulus raises E*, and μ falls with it (the pivoting moment ~ Q a, a ~ E*^-1/3; the rolling force
-#: ~ E'^-0.108; the hysteresis moment does not read it). ``tests/test_optimize_envelope_bound.py``
-#: checks every direction on the exact physics.
-DRIFT_DIRECTIONS: dict[str, int] = {
-    "viscosity_Pa_s": 1, "pressure_viscosity_1_Pa": 1, "adhesion_energy_J_m2": 1,
-    "water_surface_tension_N_m": 1, "mu_pivot": 1, "mu_ball": 1,
-    "ball_youngs_modulus_Pa": -1, "race_youngs_modulus_Pa": -1,
-}
-
-
-#: The physics' μ in a drifting parameter p, for the interval's gradient: μ = rest + share(p), share ∝ p^a,
-#: one output of the physics (``output``) with exponent ``a``: Houpert's rolling force ~ η^0.66 (α E')^0.022
-#: (eq 9), the ball-ball moment ~ γ_w μ_b, the pivoting moment ~ μ_s. The adhesion energy and the moduli move
-#: the contact load or the contact radius, with no such form.
-DRIFT_SHARES: dict[str, tuple[str, float]] = {
-    "viscosity_Pa_s": ("mu_rolling", 0.66), "pressure_viscosity_1_Pa": ("mu_rolling", 0.022),
-    "water_surface_tension_N_m": ("mu_ball_ball", 1.0), "mu_ball": ("mu_ball_ball", 1.0),
-    "mu_pivot": ("mu_pivoting", 1.0),
-}
 #: The physics' outputs the interval's bound reads (``physics_fn`` of :func:`mu_upper_box_bound`).
 INTERVAL_OUTPUTS = ("mu", "mu_pivoting", "mu_rolling", "mu_ball_ball")
 
@@ -176,11 +137,18 @@ class Piece:
                                            self.term.drivers, self.term.constants), dtype=float)
 
     def stationary(self) -> float | None:
-        """The driver value where a log-quadratic piece is stationary (None: monotone, or linear)."""
-        if self.monotone or self.values[1] == 0:
+        """The driver value where a non-monotone piece is stationary, as its effect declares (None:
+        monotone, or no stationary point)."""
+        declared = self.term.effect.stationary
+        if self.monotone or declared is None:
             return None
-        c1, c2 = self.values
-        return self.term.constants["centre"] - c1 * self.term.constants["scale"] / (2.0 * c2)
+        return declared(self.values, self.term.constants)
+
+    def value_form(self, i: int) -> str | None:
+        """How μ moves with the piece's i-th fitted value (:data:`physics.effects.VALUE_FORMS`; None: no
+        closed form), as its effect declares."""
+        forms = self.term.effect.value_forms
+        return forms[i] if i < len(forms) else None
 
 
 #: The parts of a calibrated model the bounds here account for (``domain_rows`` only moves the domain
@@ -244,10 +212,10 @@ def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None,
     for term, values in calibrated.terms:
         label = getattr(term, "label", term)
         if getattr(term, "kind", None) == "drift":
-            if term.parameter not in DRIFT_DIRECTIONS:
+            if term.parameter not in PARAMETER_SHARES:
                 return None, (f"its term {label!r} drifts a physics parameter in which the physics' "
                               "monotonicity is not proven")
-            if interval and term.parameter not in DRIFT_SHARES:
+            if interval and PARAMETER_SHARES[term.parameter].output is None:
                 return None, (f"its term {label!r} drifts a physics parameter: its fitted coefficient's "
                               "share of the interval has no closed form here (it moves the contact load "
                               "or the modulus)")
@@ -255,12 +223,12 @@ def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None,
             continue
         if getattr(term, "kind", None) != "effect":
             return None, f"its term {label!r} has no known bound over an interval"
-        if term.name not in _PIECES:
+        effect = term.effect
+        if effect.enters is None:
             return None, f"its term {label!r} has no known bound over an interval"
         if term.drivers[0] == "groove_angle_deg":
             return None, f"its term {label!r} is driven by the groove angle"
-        kind, monotone = _PIECES[term.name]
-        pieces.append(Piece(term, list(map(float, values)), kind, monotone))
+        pieces.append(Piece(term, list(map(float, values)), effect.enters, effect.monotone))
     return pieces, ""
 
 
@@ -487,9 +455,10 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
     """The box bound of a calibrated model's μ at a design, for :func:`certified_max`.
 
     Drift pieces move the physics' inputs: each drifting parameter's range over the box
-    (:func:`drift_ranges`) and the physics' direction in it (:data:`DRIFT_DIRECTIONS`) give its worst
-    end, passed to ``physics_mu``. A group effect on μ (or on a parameter the model does not fit) moves
-    log μ by its offset at every point that names no group: a constant factor.
+    (:func:`drift_ranges`) and the physics' direction in it (declared in
+    :data:`physics.effects.PARAMETER_SHARES`) give its worst end, passed to ``physics_mu``. A group
+    effect on μ (or on a parameter the model does not fit) moves log μ by its offset at every point that
+    names no group: a constant factor.
 
     Parameters
     ----------
@@ -528,15 +497,17 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
         offset_hi, speed_hi = boxes.physics_corner(hi)
         peak = hi.copy()
         ranges = _pieces_range(effects, boxes, lo, hi, speed_hi, peak)
-        worst = {name: (high if DRIFT_DIRECTIONS[name] > 0 else low) for name, (low, high) in drift_ranges(
-            drifts, base or {}, lambda driver: boxes.driver_interval(driver, lo, hi), len(lo)).items()}
+        drifted = drift_ranges(drifts, base or {}, lambda driver: boxes.driver_interval(driver, lo, hi),
+                               len(lo))
+        worst = {name: (high if PARAMETER_SHARES[name].direction > 0 else low)
+                 for name, (low, high) in drifted.items()}
         for piece in drifts:  # the driver's end where the drifting parameter moves mu up
             a, b, j = boxes.driver_interval(piece.driver, lo, hi)
             if j is not None and j not in (boxes.speed, boxes.angle):
                 with np.errstate(all="ignore"):
                     rise = (np.asarray(piece.term.factor({piece.driver: b}, piece.values[0]), dtype=float)
                             >= np.asarray(piece.term.factor({piece.driver: a}, piece.values[0]), dtype=float))
-                peak[:, j] = np.where(rise == (DRIFT_DIRECTIONS[piece.term.parameter] > 0), b, a)
+                peak[:, j] = np.where(rise == (PARAMETER_SHARES[piece.term.parameter].direction > 0), b, a)
         phys = np.asarray(physics_mu(offset_hi, speed_hi, **worst), dtype=float)
         upper = _compose_upper(phys, effects, ranges) * factor
         if gp:
@@ -698,20 +669,6 @@ def _ascent(evaluated: Callable[[np.ndarray], np.ndarray], row: np.ndarray, lo: 
 # --------------------------------------------------------------------------------------------------
 # The 95 % upper bound: μ exp(z σ), σ² = g'Cg + noise², g the gradient of log μ in the fitted values
 
-#: Fitted physics parameters whose share of μ is one physics output linear in them:
-#: μ(p + h) - μ(p) = h × output / p (the pivoting moment is μ_s Q a, eq 16), that output a summand of the
-#: physics' posynomial, so non-decreasing in the angle and the speed.
-LINEAR_DECLARED = {"mu_pivot": "mu_pivoting"}
-#: How a term's fitted value (effect, index) changes μ: "scale", an added piece linear in it
-#: (a(p + h) - a(p) = h × basis, basis monotone in the driver); "log", a factor whose logarithm is linear
-#: in it (m(p + h) / m(p) = exp(h φ), φ monotone in the driver); "log_square", the same with φ = z², least at
-#: the centre. Values not listed (a Stribeck speed, an exponent of speed, a run-in) have no bound here.
-_VALUE_FORMS: dict[tuple[str, int], str] = {
-    ("humidity_meniscus", 0): "scale", ("viscous_drag", 0): "scale", ("constant_drag", 0): "scale",
-    ("stribeck_breakaway", 0): "scale", ("viscous_power_law", 0): "scale",
-    ("thermal_shear_strength", 0): "log", ("generic_linear", 0): "log", ("generic_power", 0): "log",
-    ("generic_quadratic", 0): "log", ("generic_quadratic", 1): "log_square",
-}
 #: Relative gap at which branching stops for mu_upper: its bound over a box tightens only linearly with the
 #: box, and its certified lower bound over designs is far looser (the parameters' share). [1]
 INTERVAL_RTOL = 1e-5
@@ -726,7 +683,7 @@ class IntervalStructure:
     Attributes
     ----------
     fitted : dict of str to float
-        Its fitted physics parameters (each in :data:`LINEAR_DECLARED`).
+        Its fitted physics parameters (each declared ``linear`` in :data:`physics.effects.PARAMETER_SHARES`).
     pieces : list of Piece
         Its effect terms.
     covariance : numpy.ndarray
@@ -767,12 +724,12 @@ def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str
         pieces_of, reason = term_pieces(_Holder(model.reference, each), interval=True)
         if pieces_of is None:
             return None, f"{label}: {reason}"
-        unknown = [n for n in each.fitted if n not in LINEAR_DECLARED]
+        unknown = [n for n in each.fitted if n not in PARAMETER_SHARES or not PARAMETER_SHARES[n].linear]
         if unknown:
             return None, f"{label} fits {unknown[0]}, whose effect on mu has no bound over a box here"
         for piece in pieces_of:
             for i, name in enumerate(piece.term.parameter_names):
-                if piece.kind != "drift" and (piece.term.name, i) not in _VALUE_FORMS:
+                if piece.kind != "drift" and piece.value_form(i) is None:
                     return None, (f"{label}: the fitted {name} of {piece.term.label} changes mu in a way "
                                   "with no bound over a box here")
         size = len(each.fitted) + sum(len(p.values) for p in pieces_of)
@@ -827,7 +784,7 @@ def _drift_share_change(piece: Piece, i: int, h: float, driver_interval: Callabl
                         drifted: Mapping[str, tuple[np.ndarray, np.ndarray]], n: int
                         ) -> tuple[str, np.ndarray, np.ndarray]:
     """How a step h in a drift's coefficient (i = 0) or level (i = 1) changes the share of the physics its
-    parameter drives, over n boxes: the output that share is (``DRIFT_SHARES``) and [d_lo, d_hi], the
+    parameter drives, over n boxes: the output that share is (its declared share) and [d_lo, d_hi], the
     interval of ratio^a - 1 [1].
 
     The parameter moves by the ratio f(c + h, x) / f(c, x), monotone in x so taken at the ends of the
@@ -836,7 +793,8 @@ def _drift_share_change(piece: Piece, i: int, h: float, driver_interval: Callabl
     interval. A ratio that is not positive gives an unbounded change.
     """
     term = piece.term
-    output, exponent = DRIFT_SHARES[term.parameter]
+    share = PARAMETER_SHARES[term.parameter]
+    output, exponent = share.output, share.exponent
     if i == 0:
         a, b = driver_interval(term.driver)[:2]
         c = piece.values[0]
@@ -956,11 +914,11 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         offset_lo, speed_lo = boxes.physics_corner(lo)
         offset_hi, speed_hi = boxes.physics_corner(hi)
         # Drifted parameters at the ends where mu is least (the lowest corner) and largest (the highest);
-        # every output read moves with each of them as mu does (DRIFT_SHARES).
+        # every output read moves with each of them as mu does (PARAMETER_SHARES).
         drifts = [p for p in s.pieces if p.kind == "drift"]
         drifted = drift_ranges(drifts, {**physics.defaults(), **(base or {}), **s.fitted},
                                lambda driver: boxes.driver_interval(driver, lo, hi), n)
-        moved = {name: np.r_[(low, high) if DRIFT_DIRECTIONS[name] > 0 else (high, low)]
+        moved = {name: np.r_[(low, high) if PARAMETER_SHARES[name].direction > 0 else (high, low)]
                  for name, (low, high) in drifted.items()}
         phys = physics_fn(np.r_[offset_lo, offset_hi], np.r_[speed_lo, speed_hi], {**s.fitted, **moved})
         ranges = _pieces_range(s.pieces, boxes, lo, hi, speed_hi, peak)
@@ -992,7 +950,7 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
 
         for name, value in s.fitted.items():
             h = s.step * (abs(value) if value != 0 else 1.0)
-            output = LINEAR_DECLARED[name]
+            output = PARAMETER_SHARES[name].output
             basis_lo, basis_hi = phys[output][:n] / value, phys[output][n:] / value
             if adds_after(-1):
                 p_lo, p_hi = after(-1)
@@ -1011,7 +969,7 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
                 continue
             for i, value in enumerate(piece.values):
                 h = s.step * (abs(value) if value != 0 else 1.0)
-                form = _VALUE_FORMS[(piece.term.name, i)]
+                form = piece.value_form(i)
                 unit = list(piece.values)
                 if form == "scale":
                     unit[i] = 1.0

@@ -36,7 +36,7 @@ Calibrated models whose terms keep it a geometric program
 A calibrated model is the physics with fitted values and terms applied in order. When every term is
 a positive monomial in balls and load (read at three designs, checked at a fourth) added to μ or
 multiplying it, driven by the speed or a condition through a formula monotone in it (the directions
-of :data:`_DIRECTIONS`, from each effect's formula and its fitted parameter's sign), and the model
+each effect declares, :attr:`physics.effects.Effect.direction`, at its fitted values), and the model
 has no Gaussian-process discrepancy and no drift of a physics parameter, μ is a posynomial in tan θ
 and G for every ball count, monotone in every envelope axis: its worst case is one vertex, and the
 robust problem one GP per ball count, proven as for the physics (objective ``mu``).
@@ -1050,20 +1050,15 @@ def _cloud_widening(problem: DesignProblem, envelope: Envelope, model: Model, po
     held = {*model.fixed, *model.fitted}
     one = {k: np.array([float(design[k])]) for k in DESIGN_VARIABLES}
     columns = {k: v for k, v in _columns(problem, envelope, one, [point], 0.0).items() if k not in held}
-    columns = {k: v for k, v in model.calibrated._columns_at(columns).items()
+    columns = {k: v for k, v in model.calibrated.columns_at(columns).items()
                if k in columns or k in physics.PARAMETERS}
     given = [c for c in cloud.columns if c in columns]
     if len(given) < 2 or fitted_names & set(given):
         return None
-    index, _, threshold = cloud._space(given)
-    k = cloud._cache[tuple(given)][3]
-    rows = cloud.rows[:, index]
+    space = cloud.space(given)
+    rows = cloud.rows[:, list(space.index)]
     offset = float(point["groove_angle_offset_deg"])
-
-    def scaled(column: str, values: np.ndarray) -> np.ndarray:
-        i = cloud.columns.index(column)
-        t = np.log(np.clip(values, 1e-300, None)) if cloud.transforms[i] == "log" else values
-        return (t - cloud.centre[i]) / cloud.scale[i]
+    scaled = cloud.scaled
 
     def ratio(z: np.ndarray, tl: np.ndarray, th: np.ndarray, gl: np.ndarray, gh: np.ndarray) -> np.ndarray:
         ends = {"balls": (z, z), "groove_angle_deg": (tl + offset, th + offset), "load_N": (gl, gh)}
@@ -1073,9 +1068,10 @@ def _cloud_widening(problem: DesignProblem, envelope: Envelope, model: Model, po
             lo.append(scaled(column, a))
             hi.append(scaled(column, b))
         low, high = np.column_stack(lo), np.column_stack(hi)
-        distance = kth_distance_to_boxes(rows, low, high, k)
+        distance = kth_distance_to_boxes(rows, low, high, space.k)
         # and the departure from a line of columns moving together: exact over the box (linear in two)
-        return np.maximum(distance / max(threshold, 1e-12), cloud._line_ratio(given, low, high, lower=True))
+        departure = cloud.line_ratio(given, low, high, lower=True)
+        return np.maximum(distance / max(space.threshold, 1e-12), departure)
 
     return ratio
 
@@ -1578,24 +1574,6 @@ def _robust_model(problem: DesignProblem, envelope: Envelope, model: Model, obje
 # Calibrated models whose terms keep the problem a geometric program
 
 
-def _sign(x: float) -> int:
-    return (x > 0) - (x < 0)
-
-
-#: Direction of μ in an effect's main driver, from its formula (physics.effects) and its parameters'
-#: signs: +1 non-decreasing, -1 non-increasing, 0 independent. Effects not listed (a quadratic, a law
-#: added later) are not known to be monotone: a model using one is not proven.
-_DIRECTIONS: dict[str, Callable[[Sequence[float]], int]] = {
-    "humidity_meniscus": lambda v: _sign(v[0]),       # + p / ln(1/h), 1/ln(1/h) grows on (0, 1)
-    "viscous_drag": lambda v: _sign(v[0]),            # + p V / G
-    "viscous_power_law": lambda v: _sign(v[0]),       # + p (V / V0)^e / G, e >= 0.3
-    "constant_drag": lambda v: 0,                     # + p / G: its driver is the load, a design variable
-    "thermal_shear_strength": lambda v: -_sign(v[0]),  # x exp(-p (T - T0))
-    "run_in": lambda v: -_sign(v[0]),                 # x (1 + a exp(-n / L)), L > 0
-    "stribeck_breakaway": lambda v: -_sign(v[0]),     # + a exp(-V / V0), a >= 0
-    "generic_linear": lambda v: _sign(v[0]),          # x exp(c (x - centre) / scale), scale > 0
-    "generic_power": lambda v: _sign(v[0]),           # x (x / reference)^c, x > 0
-}
 #: Reference designs (balls [1], load [N]) at which a term's monomial form in the design is read, and
 #: the one at which it is checked.
 _PROBES = ((1.0, 1.0), (2.0, 1.0), (1.0, 2.0), (3.0, 0.37))
@@ -1615,9 +1593,10 @@ def _term_structure(model: Model,
                     envelope: Envelope) -> tuple[dict[str, Any] | None, list[_Monomial], str]:
     """The worst vertex and each term as a monomial in the design there, or None and why not.
 
-    The worst vertex follows from the directions of :data:`_DIRECTIONS` (and the physics' μ, which
-    grows with speed and angle); each term's form in (balls, load) is read at three designs and
-    checked at a fourth, so a term whose form the table does not describe is refused, not guessed.
+    The worst vertex follows from the directions each effect declares
+    (:attr:`physics.effects.Effect.direction`, at the fitted values) and the physics' μ, which grows with
+    speed and angle; each term's form in (balls, load) is read at three designs and checked at a fourth,
+    so a term whose form the declarations do not describe is refused, not guessed.
     """
     calibrated = getattr(model, "calibrated", None)
     if calibrated is None:
@@ -1627,15 +1606,14 @@ def _term_structure(model: Model,
     directions: dict[str, set[int]] = {"speed_m_s": {1}}
     terms = []
     for term, values in calibrated.terms:
-        name = getattr(term, "name", None)
-        if getattr(term, "kind", None) != "effect" or name not in _DIRECTIONS:
+        if getattr(term, "kind", None) != "effect" or term.effect.direction is None:
             return None, [], f"its term {getattr(term, 'label', term)!r} is not one known to be monotone"
         driver = term.drivers[0]
         if driver == "groove_angle_deg" or (driver not in ("speed_m_s", "load_N", "balls")
                                             and driver not in envelope.conditions):
             return None, [], f"its term {term.label} is driven by {driver}"
         if driver not in ("load_N", "balls"):
-            directions.setdefault(driver, set()).add(_DIRECTIONS[name](values))
+            directions.setdefault(driver, set()).add(term.effect.direction(values))
         terms.append((term, values))
     worst: dict[str, float] = {}
     for axis, signs in directions.items():

@@ -382,7 +382,7 @@ def test_the_box_bound_takes_group_effects_below_the_model_and_tight_on_small_bo
 
 # Drifting physics parameters: at a point each drifted value is the law at the point's driver value (a
 # constant over the design box), and its coefficient's share of the interval's gradient is bounded as the
-# envelope's bound does (DRIFT_SHARES).
+# envelope's bound does (physics.effects.PARAMETER_SHARES).
 def _drift_model() -> CalibratedPhysicsModel:
     from microbearing.calibrate.candidates import DriftTerm
     from microbearing.physics.effects import DRIFT_LAWS

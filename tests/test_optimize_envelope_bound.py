@@ -366,7 +366,7 @@ def test_robust_mu_upper_of_a_model_with_a_cloud_is_certified_at_its_design():
 
 
 def test_the_physics_moves_with_every_drifting_parameter_in_its_stated_direction():
-    from microbearing.optimize.envelope_bound import DRIFT_DIRECTIONS
+    from microbearing.physics.effects import PARAMETER_SHARES
 
     # Designs, speeds and both conventions; each parameter from a fifth to five times its default.
     grid = list(itertools.product([1.0, 2.0, 3.0, 8.0, 30.0], [30.0, 45.0, 60.0, 80.0], [1e-4, 0.01, 1.0],
@@ -375,7 +375,7 @@ def test_the_physics_moves_with_every_drifting_parameter_in_its_stated_direction
                enumerate(["balls", "groove_angle_deg", "load_N", "speed_m_s"])}
     factors = np.geomspace(0.2, 5.0, 9)
     for convention in physics.CONVENTIONS:
-        for name, direction in DRIFT_DIRECTIONS.items():
+        for name, direction in ((n, s.direction) for n, s in PARAMETER_SHARES.items()):
             default = physics.defaults()[name]
             spec = physics.PARAMETERS[name]
             values = [v for v in default * factors if spec.maximum is None or v < spec.maximum]
@@ -619,7 +619,7 @@ def _drift_interval_model() -> CalibratedPhysicsModel:
 
 
 def test_certified_mu_upper_with_drifting_parameters_bounds_brute_force():
-    from microbearing.optimize.envelope_bound import DRIFT_SHARES
+    from microbearing.physics.effects import PARAMETER_SHARES
 
     model = _drift_interval_model()
     structures, reason = interval_structures(model)
@@ -645,7 +645,7 @@ def test_certified_mu_upper_with_drifting_parameters_bounds_brute_force():
     assert plain([bracket.point])[0] < bracket.value * (1 - 1e-3)
     # the shares' exponents are the physics' own: the rolling force grows as viscosity^0.66 (eq 9)
     columns = {"balls": 4.0, "groove_angle_deg": 50.0, "load_N": 0.003, "speed_m_s": 0.05}
-    output, exponent = DRIFT_SHARES["viscosity_Pa_s"]
+    output, exponent = PARAMETER_SHARES["viscosity_Pa_s"].output, PARAMETER_SHARES["viscosity_Pa_s"].exponent
     shares = [float(getattr(physics.evaluate(outputs=[output], **columns, viscosity_Pa_s=v), output))
               for v in (0.01, 0.02)]
     assert shares[1] / shares[0] == pytest.approx(2.0**exponent, rel=1e-12)
