@@ -16,7 +16,7 @@ from microbearing import physics
 from microbearing.calibrate import calibrate
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
 from microbearing.optimize import DesignBounds, DesignProblem
-from microbearing.optimize.envelope_bound import interval_structures
+from microbearing.optimize.interval_bound import interval_structures
 from microbearing.optimize.robust import Envelope, optimize_robust
 from microbearing.physics.effects import EFFECTS, Effect, EffectParameter, register_effect
 
