@@ -20,8 +20,14 @@ effect fits.
 
 Driver columns are matched by name: a humidity column contains ``humid`` or
 ``rh`` (a fraction in [0, 1), or percent when the name contains ``pct`` or
-``percent``), a temperature column ``temp``, a running-in column ``run``,
-``cycle``, ``pass``, ``stroke``, ``count``, ``time`` or ``distance``.
+``percent``), a temperature column ``temp`` (:mod:`physics.drivers`), a running-in
+column ``run``, ``cycle``, ``pass``, ``stroke``, ``count``, ``time`` or ``distance``.
+
+Each effect declares what its callers read rather than re-derive: how it enters μ
+(:attr:`Effect.enters`), whether it is monotone in its driver and in which
+direction, its stationary point, how μ moves with each fitted value
+(:attr:`Effect.value_forms`); :data:`PARAMETER_SHARES` declares how the physics'
+μ moves with each parameter a drift may move. :func:`register_effect` adds a law.
 
 Notes
 -----
