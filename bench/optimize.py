@@ -46,7 +46,15 @@ from microbearing import physics
 from microbearing.calibrate import CalibratedModel
 from microbearing.calibrate.candidates import EffectTerm
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
-from microbearing.optimize import Constraints, DesignBounds, DesignProblem, dgp, optimize_design
+from microbearing.optimize import (
+    Constraints,
+    DesignBounds,
+    DesignProblem,
+    certificates,
+    dgp,
+    optimize_design,
+    over_envelope,
+)
 from microbearing.optimize import robust as robust_opt
 from microbearing.optimize.general import optimize_model, physics_model
 from microbearing.optimize.pareto import pareto_front
@@ -230,9 +238,9 @@ def robust() -> None:
     print("robust optimization, balls 3-40, max_contact_pressure_Pa 6e8 (median of 3 calls):")
     # Side by side, the same calls with the worst case at each design searched (grid and L-BFGS-B, the
     # method before the branch and bound), which is what mu_upper used.
-    certifier = robust_opt._certifier
+    certifier = certificates.certifier
     for label, mu_model, objective, envelope in cases[2:5:2]:
-        robust_opt._certifier = lambda *args: (None, "switched off")
+        certificates.certifier = lambda *args: (None, "switched off")
         try:
             times = []
             for _ in range(3):
@@ -240,14 +248,14 @@ def robust() -> None:
                 searched = robust_opt.optimize_robust(problem, envelope, mu_model, objective=objective)
                 times.append(time.perf_counter() - start)
         finally:
-            robust_opt._certifier = certifier
+            certificates.certifier = certifier
         print(f"  {label}, {objective}, worst case searched (the previous method): "
               f"{statistics.median(times):.2f} s per call (min {min(times):.2f}); worst case found "
               f"{searched.worst_case[objective]:.8g}")
     # Side by side, mu_upper without the lower bound over designs (the bound before it: the scatter's share).
-    design_bound = robust_opt._with_design_bound
+    design_bound = certificates.with_design_bound
     for label, mu_model, objective, envelope in [c for c in cases if c[2] == "mu_upper"]:
-        robust_opt._with_design_bound = lambda *args: "switched off"
+        certificates.with_design_bound = lambda *args: "switched off"
         try:
             times = []
             for _ in range(3):
@@ -255,7 +263,7 @@ def robust() -> None:
                 previous = robust_opt.optimize_robust(problem, envelope, mu_model, objective=objective)
                 times.append(time.perf_counter() - start)
         finally:
-            robust_opt._with_design_bound = design_bound
+            certificates.with_design_bound = design_bound
         gap = previous.proof["relative_gap"]
         gap = float("nan") if gap is None else gap
         print(f"  {label}, {objective}, no lower bound over designs (the previous bound): "
@@ -270,8 +278,8 @@ def robust() -> None:
         proof = result.proof
         design = result.result.design
         # The worst case at the design searched afresh, finer (9 levels per axis, L-BFGS-B from the 5 best).
-        held = robust_opt._with_model_values(problem, mu_model)
-        evaluate = robust_opt._evaluator(held, envelope, mu_model, objective, design, 0.0)
+        held = over_envelope.with_model_values(problem, mu_model)
+        evaluate = over_envelope.evaluator(held, envelope, mu_model, objective, design, 0.0)
         fresh, _, count = robust_opt.worst_case_search(evaluate, envelope, levels=9, polish=5)
         worst = result.worst_case[objective]
         if proof["method"] in ("robust-gp-vertex", "outer-approximation-certified"):
@@ -347,7 +355,7 @@ def robust_parts() -> None:
                                  {"groove_angle_deg": 0.5})
     print("robust optimization, certified parts, 4-D envelope, balls 3-40 (median of 3 calls; searched: the "
           "worst case at each design by grid and L-BFGS-B, side by side):")
-    certifier = robust_opt._certifier
+    certifier = certificates.certifier
     for label, calibrated in _parts_models():
         model = CalibratedPhysicsModel(f"calibrated:{label}", calibrated)
         for objective in ("mu", "mu_upper"):
@@ -356,7 +364,7 @@ def robust_parts() -> None:
             runs = {}
             for way in ("certified", "searched"):
                 if way == "searched":
-                    robust_opt._certifier = lambda *args: (None, "switched off")
+                    certificates.certifier = lambda *args: (None, "switched off")
                 try:
                     times, result = [], None
                     for _ in range(3):
@@ -364,7 +372,7 @@ def robust_parts() -> None:
                         result = robust_opt.optimize_robust(problem, four_d, model, objective=objective)
                         times.append(time.perf_counter() - start)
                 finally:
-                    robust_opt._certifier = certifier
+                    certificates.certifier = certifier
                 runs[way] = (statistics.median(times), result)
             (t_c, certified), (t_s, searched) = runs["certified"], runs["searched"]
             proof = certified.proof

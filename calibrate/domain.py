@@ -57,8 +57,8 @@ from scipy.spatial import cKDTree
 from microbearing import physics
 from microbearing.physics.effects import Domain
 
-__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "DataCloud", "LawDomain", "confounded_pairs", "confounding_words",
-           "law_domains", "outside_law_domains"]
+__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "CloudSpace", "DataCloud", "LawDomain", "confounded_pairs",
+           "confounding_words", "law_domains", "outside_law_domains"]
 
 #: Chance that a new point drawn like the data is flagged outside the cloud. [1]
 CLOUD_ALPHA = 0.02
@@ -80,6 +80,28 @@ def _distinct(rows: np.ndarray) -> np.ndarray:
 
 def _transform(values: np.ndarray) -> str:
     return "log" if np.all(values > 0) and np.max(values) > 10.0 * np.min(values) else "linear"
+
+
+@dataclass(frozen=True)
+class CloudSpace:
+    """The subspace of some of a cloud's columns in which points giving only those columns are scored.
+
+    Attributes
+    ----------
+    columns : tuple of str
+        The columns, in the cloud's order.
+    index : tuple of int
+        Their positions among :attr:`DataCloud.columns` (and the columns of :attr:`DataCloud.rows`).
+    k : int
+        The neighbour whose distance is the score. [1]
+    threshold : float
+        The split-conformal threshold of that distance, in scaled inputs. [1]
+    """
+
+    columns: tuple[str, ...]
+    index: tuple[int, ...]
+    k: int
+    threshold: float
 
 
 @dataclass
@@ -208,6 +230,27 @@ class DataCloud:
             else:
                 ratio = np.maximum(ratio, np.maximum(np.abs(low), np.abs(high)) / spread)
         return ratio / threshold if lines else ratio
+
+    def space(self, columns: Sequence[str]) -> CloudSpace:
+        """The subspace of the given columns (in the cloud's order): where they sit, k and the threshold."""
+        index, _, threshold = self._space(columns)
+        return CloudSpace(tuple(columns), tuple(index), self._cache[tuple(columns)][3], threshold)
+
+    def scaled(self, column: str, values: Any) -> np.ndarray:
+        """Values of one of the cloud's columns in its scaled inputs (its log where the cloud takes it,
+        standardized) [1]; increasing in the values."""
+        i = self.columns.index(column)
+        v = np.asarray(values, dtype=float)
+        t = np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v
+        return (t - self.centre[i]) / self.scale[i]
+
+    def line_ratio(self, columns: Sequence[str], lo: np.ndarray, hi: np.ndarray,
+                   lower: bool = False) -> np.ndarray:
+        """The departure from the lines of columns moving together over its threshold [1], at its largest
+        (``lower`` false) or least (true) over boxes of scaled inputs (rows of ``lo`` and ``hi``, one
+        column per entry of ``columns``; a point is a box with lo = hi). Exact: each departure is linear
+        in two scaled columns."""
+        return self._line_ratio(columns, lo, hi, lower)
 
     def score(self, points: Mapping[str, Any], shape: tuple[int, ...]) -> tuple[np.ndarray, list[str]]:
         """Distance to the k-th nearest row over the threshold at each point (> 1: outside), and the

@@ -256,7 +256,7 @@ class CalibratedResponse:
         for _, v in self.model.terms:
             values.append(rest[: len(v)])
             rest = rest[len(v):]
-        return np.log(self.model._mu(points, fitted, values))
+        return np.log(self.model.mu_at(points, fitted, values))
 
     def response(self, points):
         """log μ at the points [1] (with the GP discrepancy's mean when the model has one)."""
@@ -292,7 +292,7 @@ class CalibratedResponse:
         count = max((np.size(v) for v in points.values()), default=1)
         scatter = getattr(self.model, "scatter", None)
         if scatter is not None and scatter.kind != "constant":
-            columns = self.model._columns_at(points)
+            columns = self.model.columns_at(points)
             if scatter.column in columns:
                 return np.broadcast_to(np.asarray(scatter.std_log(columns, (count,)), dtype=float),
                                        (count,)).copy()

@@ -520,9 +520,26 @@ class CalibratedModel:
         return [replace(self, fitted=dict(r.fitted), terms=list(r.terms), covariance=r.covariance,
                         domain=None, rivals=[]) for r in self.rivals]
 
-    def _columns_at(self, points: Mapping[str, Any]) -> dict[str, Any]:
-        """Every column a point has: its own, else the model's fixed, fitted or default value."""
+    def columns_at(self, points: Mapping[str, Any]) -> dict[str, Any]:
+        """Every column a point has: its own, else the model's fixed, fitted or default value (what the
+        model reads there: physics inputs in SI units, conditions in the data's units)."""
         return {**physics.defaults(), **self.fixed, **self.fitted, **points}
+
+    def mu_at(self, points: Mapping[str, Any], fitted: Mapping[str, float],
+              term_values: Sequence[Sequence[float]]) -> np.ndarray:
+        """μ of the physics with the given fitted values and its terms with the given values [1], without
+        the discrepancy and the groups: the model as a function of its parameters, for sensitivities.
+
+        Parameters
+        ----------
+        points : mapping of str to array_like
+            Physics inputs and condition columns (no factor columns).
+        fitted : mapping of str to float
+            A value for each of :attr:`fitted`, in its unit.
+        term_values : sequence of sequence of float
+            The values of each term of :attr:`terms`, in order.
+        """
+        return self._mu(points, fitted, term_values)
 
     def _noise_variance(self, points: Mapping[str, Any], shape, level: float = 0.95) -> np.ndarray:
         """Variance of log μ of a new measurement around the model at the points [1]: the scatter model's,
@@ -530,7 +547,7 @@ class CalibratedModel:
         log-linear trend: the fit's uncertainty at the point; :meth:`ScatterModel.quantile_factor`), or
         ``noise_std_log``² (also where the scatter model's column is not given)."""
         if self.scatter is not None and self.scatter.kind != "constant":
-            columns = self._columns_at(points)
+            columns = self.columns_at(points)
             if self.scatter.column in columns:
                 return np.square(self.scatter.std_log(columns, shape)
                                  * self.scatter.quantile_factor(columns, shape, level))
@@ -586,7 +603,7 @@ class CalibratedModel:
             shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
         if self.cloud is None:
             return np.zeros(shape)
-        columns = {k: v for k, v in self._columns_at(points).items()
+        columns = {k: v for k, v in self.columns_at(points).items()
                    if k in points or k in physics.PARAMETERS}
         ratio, _ = self.cloud.score(columns, shape)
         return ratio
@@ -619,7 +636,7 @@ class CalibratedModel:
         if self.cloud is None:
             return np.zeros(shape)
         given = [k for k in low if k not in self.factors]
-        columns = [{k: v for k, v in self._columns_at({k: points[k] for k in given}).items()
+        columns = [{k: v for k, v in self.columns_at({k: points[k] for k in given}).items()
                     if k in given or k in physics.PARAMETERS} for points in (low, high)]
         bound = self.cloud.score_lower_bound if lower else self.cloud.score_bound
         return bound(columns[0], columns[1], shape)
@@ -673,7 +690,7 @@ class CalibratedModel:
             if np.any(far):
                 at = np.unravel_index(int(np.argmax(np.where(far, ratio, -np.inf))), shape) if shape else ()
                 named = [c for c in self.cloud.columns if c in points or c in physics.PARAMETERS]
-                columns = self._columns_at(points)
+                columns = self.columns_at(points)
                 example = ", ".join(
                     f"{c} = {float(np.broadcast_to(np.asarray(columns[c], dtype=float), shape)[at]):.4g}"
                     for c in named)

@@ -26,10 +26,11 @@ temperature (K)         a value below 150 K                              error  
 The bounds are those of the micro linear ball bearings this library models (Olaru et al. 2005:
 balls of a few tenths of a millimetre, loads of millinewtons, speeds of 0 to 150 mm/s), with a
 margin of about two orders of magnitude: a value beyond them is not a bold design but a different
-machine, or a unit slip. Humidity and temperature columns are recognised by name as in
-:mod:`physics.effects` (``humid``/``rh``, ``pct``/``percent`` for percent; ``temp``, ``k``/``kelvin``
-for kelvin). The physics' own validation still applies to every physics column first (a negative
-load is refused by :func:`calibrate.data.parse_rows`).
+machine, or a unit slip. Humidity and temperature columns, their units and plausible ranges are the
+ones the effects declare (:data:`physics.drivers.HUMIDITY`, :data:`physics.drivers.TEMPERATURE`:
+``humid``/``rh``, ``pct``/``percent`` for percent; ``temp``, ``k``/``kelvin`` for kelvin). The physics'
+own validation still applies to every physics column first (a negative load is refused by
+:func:`calibrate.data.parse_rows`).
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from microbearing import physics
-from microbearing.physics.effects import _name_matches
+from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset
 
@@ -55,8 +56,6 @@ LIMITS: dict[str, tuple[float, str, float]] = {
 }
 #: Largest measured friction coefficient before a warning. [1]
 MU_WARNING = 1.0
-# A temperature column in degC above this looks like kelvin; one in kelvin below the other like degC.
-_CELSIUS_MAX, _KELVIN_MIN = 200.0, 150.0
 
 
 @dataclass(frozen=True)
@@ -95,31 +94,35 @@ def _physics_column(name: str, values: np.ndarray) -> Finding | None:
 
 
 def _humidity(name: str, values: np.ndarray) -> Finding | None:
-    percent = _name_matches(name, ("pct", "percent"))
-    top = 100.0 if percent else 1.0
-    if float(np.min(values)) >= 0.0 and float(np.max(values)) <= top:
+    unit = HUMIDITY.unit_of(name)
+    percent = unit.unit == "%"
+    bottom, top = unit.plausible
+    if float(np.min(values)) >= bottom and float(np.max(values)) <= top:
         return None
+    percent_top = next(u for u in HUMIDITY.units if u.unit == "%").plausible[1]
     if percent:
-        cause = "relative humidity in percent lies in [0, 100]"
-    elif float(np.min(values)) >= 0.0 and float(np.max(values)) <= 100.0:
+        cause = f"relative humidity in percent lies in [{bottom:g}, {top:g}]"
+    elif float(np.min(values)) >= bottom and float(np.max(values)) <= percent_top:
         cause = (f"values look like percent: give fractions (divide by 100) or name the column "
                  f"{name}_pct")
     else:
-        cause = "relative humidity is a fraction in [0, 1]"
+        cause = f"relative humidity is a fraction in [{bottom:g}, {top:g}]"
     return Finding(name, "error", f"{name} runs {_span(values)} [{'%' if percent else '1'}]: {cause}")
 
 
 def _temperature(name: str, values: np.ndarray) -> Finding | None:
-    kelvin = _name_matches(name, ("k", "kelvin")) and not _name_matches(name, ("c", "degc"))
+    unit = TEMPERATURE.unit_of(name)
+    kelvin = unit.unit == "K"
+    bottom, top = unit.plausible
     lo, hi = float(np.min(values)), float(np.max(values))
-    if kelvin and lo < _KELVIN_MIN:
-        return Finding(name, "error", f"{name} runs {_span(values)} K, below {_KELVIN_MIN:g} K: values look "
+    if kelvin and lo < bottom:
+        return Finding(name, "error", f"{name} runs {_span(values)} K, below {bottom:g} K: values look "
                                       f"like degC (name the column temperature_C)")
-    if not kelvin and lo < -273.15:
-        return Finding(name, "error", f"{name} runs {_span(values)} degC, below absolute zero (-273.15 "
+    if not kelvin and lo < bottom:
+        return Finding(name, "error", f"{name} runs {_span(values)} degC, below absolute zero ({bottom:g} "
                                       f"degC): check the unit")
-    if not kelvin and hi > _CELSIUS_MAX:
-        return Finding(name, "error", f"{name} runs {_span(values)} degC, above {_CELSIUS_MAX:g} degC: "
+    if not kelvin and hi > top:
+        return Finding(name, "error", f"{name} runs {_span(values)} degC, above {top:g} degC: "
                                       f"values look like kelvin (name the column temperature_K)")
     return None
 
@@ -153,9 +156,9 @@ def plausibility_findings(dataset: Dataset) -> list[Finding]:
         finding = None
         if name in LIMITS:
             finding = _physics_column(name, values)
-        elif name not in physics.PARAMETERS and _name_matches(name, ("humid", "rh")):
+        elif name not in physics.PARAMETERS and HUMIDITY.matches(name):
             finding = _humidity(name, values)
-        elif name not in physics.PARAMETERS and _name_matches(name, ("temp",)):
+        elif name not in physics.PARAMETERS and TEMPERATURE.matches(name):
             finding = _temperature(name, values)
         if finding is not None:
             found.append(finding)

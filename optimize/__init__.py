@@ -7,7 +7,11 @@
 * :mod:`optimize.general` - :func:`optimize_model`: a local method for any μ model
 * :mod:`optimize.pareto` - :func:`pareto_front`: μ against load or contact pressure
 * :mod:`optimize.robust` - :func:`optimize_robust`: the worst case over an operating :class:`Envelope`
-  (speed and condition ranges, angle tolerance), with its proof and the price of robustness
+  (speed and condition ranges, angle tolerance), with its :class:`~optimize.proof.Proof` and the price of
+  robustness; one module per method (:mod:`optimize.robust_gp`, :mod:`optimize.robust_vertex`,
+  :mod:`optimize.robust_outer`, :mod:`optimize.certificates`) over :mod:`optimize.over_envelope`
+* :mod:`optimize.envelope_bound`, :mod:`optimize.interval_bound`, :mod:`optimize.design_bound` - certified
+  bounds of a calibrated model's μ and ``mu_upper`` over boxes of the envelope and of the designs
 """
 
 from .general import optimize_model, physics_model

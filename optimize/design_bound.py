@@ -30,7 +30,7 @@ and the right side is bounded below by branch and bound over the designs: per ba
   condition): a constant over the design box, given to the physics as its input
   (:func:`optimize.envelope_bound.drift_ranges`); its coefficient's (or level's) finite-difference step
   moves the parameter by a known ratio, and the parameter's share of the physics
-  (:data:`~optimize.envelope_bound.DRIFT_SHARES`: an output whose friction force grows like F) by that
+  (declared in :data:`physics.effects.PARAMETER_SHARES`: an output whose friction force grows like F) by that
   ratio to its power, so its gradient entry by interval arithmetic as the envelope's bound does; a fitted
   value a drift with its own level replaces has gradient entry 0;
 * group effects at a point naming no group (:meth:`_Bounds._groups`): one on μ (or on a parameter the
@@ -68,24 +68,24 @@ import numpy as np
 from scipy import stats
 
 from microbearing import physics
+from microbearing.physics.effects import PARAMETER_SHARES
 
 from .envelope_bound import (
-    _VALUE_FORMS,
-    DRIFT_DIRECTIONS,
-    INTERVAL_OUTPUTS,
-    LINEAR_DECLARED,
     BoundFailedError,
+    drift_ranges,
+)
+from .interval_bound import (
+    INTERVAL_OUTPUTS,
     IntervalStructure,
     _composed,
     _drift_share_change,
     _log_gradient,
     _product,
     _times_positive,
-    drift_ranges,
 )
 from .problem import DesignProblem
 
-__all__ = ["DESIGN_RTOL", "MAX_DESIGN_BOXES", "DesignLowerBound", "design_lower_bound",
+__all__ = ["DESIGN_RTOL", "MAX_DESIGN_BOXES", "DesignLowerBound", "DesignPoints", "design_lower_bound",
            "kth_distance_to_boxes"]
 
 #: Relative distance below the incumbent at which a box is dropped (with the bracket at the design, within
@@ -176,6 +176,28 @@ def _least_quadratic(covariance: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> 
     return value + gap
 
 
+def _range_of(at: Callable, piece: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """A piece's range over each of n boxes from its values at the load's two ends (``at(piece)``); a drift
+    moves the physics' inputs and has no factor of its own."""
+    if piece.kind == "drift":
+        return np.ones(n), np.ones(n)
+    v = at(piece)
+    return ((v.min(axis=1), v.max(axis=1)) if np.all(np.isfinite(v))
+            else (np.full(n, -np.inf), np.full(n, np.inf)))
+
+
+def _gradient_box(covariance: np.ndarray, g_lo: list, g_hi: list,
+                  n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The box of gradients over each of n design boxes (zero where an end is not finite), whether it is
+    finite, and the least g'Cg over it [1]."""
+    if not g_lo:
+        return np.zeros((n, 0)), np.zeros((n, 0)), np.ones(n, dtype=bool), np.zeros(n)
+    low, high = np.column_stack(g_lo), np.column_stack(g_hi)
+    finite = np.all(np.isfinite(low) & np.isfinite(high), axis=1)
+    low, high = np.where(finite[:, None], low, 0.0), np.where(finite[:, None], high, 0.0)
+    return low, high, finite, np.where(finite, _least_quadratic(covariance, low, high), 0.0)
+
+
 class _Bounds:
     """The box bound of U at fixed envelope points, and the limits' certain violations."""
 
@@ -192,7 +214,8 @@ class _Bounds:
 
     def _physics(self, fitted: Mapping[str, Any], balls: np.ndarray, theta: np.ndarray, load: np.ndarray,
                  speed: float) -> dict[str, np.ndarray]:
-        outputs = list(dict.fromkeys(["mu", *LINEAR_DECLARED.values(), *INTERVAL_OUTPUTS]))
+        linear = [share.output for share in PARAMETER_SHARES.values() if share.linear]
+        outputs = list(dict.fromkeys(["mu", *linear, *INTERVAL_OUTPUTS]))
         columns = self.problem.physics_inputs(balls, theta, load, speed_m_s=speed)
         inputs = {k: v for k, v in columns.items() if k not in fitted}
         with np.errstate(all="ignore"):
@@ -215,7 +238,7 @@ class _Bounds:
         drifts = [piece for piece in s.pieces if piece.kind == "drift"]
         drifted = drift_ranges(drifts, {**physics.defaults(), **self.problem.fixed, **self.calibrated_fixed,
                                         **s.fitted}, driver_interval, n)
-        moved = {name: np.r_[(low, high) if DRIFT_DIRECTIONS[name] > 0 else (high, low)]
+        moved = {name: np.r_[(low, high) if PARAMETER_SHARES[name].direction > 0 else (high, low)]
                  for name, (low, high) in drifted.items()}
         phys = self._physics({**s.fitted, **moved}, np.r_[z, z], np.r_[tl, th] + offset, np.r_[gl, gh], speed)
         load = np.r_[gl, gh]
@@ -230,14 +253,7 @@ class _Bounds:
             each = piece if values is None else _with_values(piece, values)
             return each.at(columns[piece.driver], columns)
 
-        ranges = []
-        for piece in s.pieces:
-            if piece.kind == "drift":  # moves the physics' inputs, no factor of its own
-                ranges.append((np.ones(n), np.ones(n)))
-                continue
-            v = at(piece)
-            ranges.append((v.min(axis=1), v.max(axis=1)) if np.all(np.isfinite(v))
-                          else (np.full(n, -np.inf), np.full(n, np.inf)))
+        ranges = [_range_of(at, piece, n) for piece in s.pieces]
         levels_lo, levels_hi, after, adds_after = _composed(s.pieces, ranges, f_lo / gh, f_hi / gl)
         mu_lo, mu_hi = levels_lo[-1], levels_hi[-1]
         usable = (mu_lo > 0) & np.isfinite(mu_hi)
@@ -270,7 +286,7 @@ class _Bounds:
         replaced = {piece.term.parameter for piece in drifts if piece.term.level}
         for name, value in s.fitted.items():
             h = s.step * (abs(value) if value != 0 else 1.0)
-            share = phys[LINEAR_DECLARED[name]] * load  # the share's friction force, growing like F
+            share = phys[PARAMETER_SHARES[name].output] * load  # the share's friction force, growing like F
             s_lo, s_hi = share[:n], share[n:]
             if name in replaced:
                 g_lo.append(np.zeros(n))
@@ -294,7 +310,7 @@ class _Bounds:
                 continue
             for i, value in enumerate(piece.values):
                 h = s.step * (abs(value) if value != 0 else 1.0)
-                form = _VALUE_FORMS[(piece.term.name, i)]
+                form = piece.value_form(i)
                 moved = list(piece.values)
                 if form == "scale":
                     moved[i] = 1.0
@@ -315,31 +331,30 @@ class _Bounds:
                                                  np.where(positive, q_hi, 1.0))
                     r_lo, r_hi = np.where(positive, r_lo, -np.inf), np.where(positive, r_hi, np.inf)
                 gradient(r_lo, r_hi, h)
-        if g_lo:
-            low, high = np.column_stack(g_lo), np.column_stack(g_hi)
-            finite = np.all(np.isfinite(low) & np.isfinite(high), axis=1)
-            low, high = np.where(finite[:, None], low, 0.0), np.where(finite[:, None], high, 0.0)
-            quadratic = np.where(finite, _least_quadratic(s.covariance, low, high), 0.0)
-        else:
-            finite = np.ones(n, dtype=bool)
-            low = high = np.zeros((n, 0))
-            quadratic = np.zeros(n)
+        low, high, finite, quadratic = _gradient_box(s.covariance, g_lo, g_hi, n)
         shift, group_variance = self._groups(s, low, high, finite)
         if getattr(s.model, "discrepancy", None) is not None:
-            # The Gaussian-process discrepancy over the design box at the point: its least mean and least
-            # latent variance, every column of the model's points monotone in the angle and the load.
-            corners = []
-            for theta, load_end in ((tl, gl), (th, gh)):
-                columns = self.problem.physics_inputs(z, theta + offset, load_end,
-                                                      speed_m_s=np.full(n, speed))
-                corners.append({**{k: v for k, v in columns.items()
-                                   if k not in self.calibrated_fixed and k not in s.fitted},
-                                **{c: np.full(n, v) for c, v in point["conditions"].items()}})
-            shift = shift + s.model.discrepancy_bound(corners[0], corners[1], (n,))[0]
-            group_variance = group_variance + s.model.discrepancy_least_variance(corners[0], corners[1], (n,))
+            gp_mean, gp_variance = self._discrepancy(s, point, z, (tl, th), (gl, gh))
+            shift, group_variance = shift + gp_mean, group_variance + gp_variance
         sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * widened
         with np.errstate(all="ignore"):
             return np.where(usable, mu_lo * np.exp(shift + self.z_quantile * sigma), 0.0) * (1.0 - _ROUNDING)
+
+    def _discrepancy(self, s: IntervalStructure, point: Mapping[str, Any], z: np.ndarray,
+                     angles: tuple[np.ndarray, np.ndarray],
+                     loads: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """The Gaussian-process discrepancy over the design boxes at the point: its least mean and least
+        latent variance [1], every column of the model's points monotone in the angle and the load."""
+        n = len(z)
+        offset, speed = float(point["groove_angle_offset_deg"]), float(point["speed_m_s"])
+        corners = []
+        for theta, load_end in zip(angles, loads, strict=True):
+            columns = self.problem.physics_inputs(z, theta + offset, load_end, speed_m_s=np.full(n, speed))
+            corners.append({**{k: v for k, v in columns.items()
+                               if k not in self.calibrated_fixed and k not in s.fitted},
+                            **{c: np.full(n, v) for c, v in point["conditions"].items()}})
+        return (s.model.discrepancy_bound(corners[0], corners[1], (n,))[0],
+                s.model.discrepancy_least_variance(corners[0], corners[1], (n,)))
 
     def _groups(self, s: IntervalStructure, low: np.ndarray, high: np.ndarray,
                 finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -432,46 +447,108 @@ def _with_values(piece: Any, values: Sequence[float]) -> Any:
     return dataclasses.replace(piece, values=list(values))
 
 
-def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStructure],
-                       calibrated_fixed: Mapping[str, float], points: Sequence[Mapping[str, Any]],
-                       angle_tolerance_deg: float, design: Mapping[str, float],
-                       evaluate: Callable[[Mapping[str, np.ndarray]], np.ndarray], z_quantile: float,
-                       rtol: float = DESIGN_RTOL, max_boxes: int = MAX_DESIGN_BOXES,
-                       time_limit_s: float = math.inf,
-                       widening: Sequence[Callable | None] | None = None) -> DesignLowerBound:
-    """Bracket min over the designs of max_j U(d, e_j) by branch and bound (module docstring).
+@dataclass(frozen=True)
+class DesignPoints:
+    """What a lower bound over the designs is taken of: the model's intervals at fixed envelope points.
 
-    Parameters
+    Attributes
     ----------
     problem : DesignProblem
         Bounds (nominal angle), limits, the model's held values and convention.
     structures : sequence of IntervalStructure
         The model and each rival whose interval enters U
-        (:func:`optimize.envelope_bound.interval_structures`),
-        each effect term a positive monomial in balls and load at every point (the caller checks it).
+        (:func:`optimize.interval_bound.interval_structures`), each effect term a positive monomial in
+        balls and load at every point (the caller checks it).
     calibrated_fixed : mapping
         The calibrated model's fixed physics values. [SI units]
     points : sequence of dict
         Envelope points e_j (:meth:`optimize.robust.Envelope.point`).
     angle_tolerance_deg : float
         δ: the limits are judged at the angle made high, θ + δ. [deg]
+    z_quantile : float
+        The normal quantile of the interval (1.96 for 95 %). [1]
+    widening : sequence of callable or None, optional
+        Per point, ``(balls, angle_lo, angle_hi, load_lo, load_hi) -> r`` [1]: a lower bound over each box
+        of the factor the interval's σ is widened by off the data (σ times max(r, 1)); None: left out
+        (it only widens, so the bound stays valid).
+    """
+
+    problem: DesignProblem
+    structures: Sequence[IntervalStructure]
+    calibrated_fixed: Mapping[str, float]
+    points: Sequence[Mapping[str, Any]]
+    angle_tolerance_deg: float
+    z_quantile: float
+    widening: Sequence[Callable | None] | None = None
+
+    def bounds(self) -> _Bounds:
+        """The box bound of U at the points."""
+        return _Bounds(self.problem, self.structures, self.calibrated_fixed, self.points,
+                       self.angle_tolerance_deg, self.z_quantile, self.widening)
+
+
+class _Incumbent:
+    """The best design found so far that meets the limits at the points, and how the model is asked."""
+
+    def __init__(self, bounds: _Bounds, evaluate: Callable, points: int, rtol: float):
+        self.bounds, self.evaluate, self.points, self.rtol = bounds, evaluate, points, rtol
+        self.value, self.given_value, self.design, self.improved = math.inf, math.inf, {}, False
+
+    def values_at(self, z: np.ndarray, theta: np.ndarray, load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """max_j U at each design and whether it meets the limits there."""
+        designs = {"balls": z, "groove_angle_deg": theta, "load_N": load}
+        with np.errstate(all="ignore"):
+            values = np.asarray(self.evaluate(designs), dtype=float).reshape(self.points, len(z))
+        values = np.max(values, axis=0)
+        return values, self.bounds.meets(designs, values)
+
+    def probe(self, cz: np.ndarray, ct: np.ndarray, cg: np.ndarray, clow: np.ndarray) -> None:
+        """The model itself at box centres: a check of every bound, and designs that may improve the best."""
+        values, meets = self.values_at(cz, ct, cg)
+        if np.any(values < clow * (1.0 - 1e-9)):
+            worst = int(np.argmin(values / clow))
+            raise BoundFailedError(f"the model's mu_upper {values[worst]:.6g} below a design box's bound "
+                                   f"{clow[worst]:.6g}")
+        better = np.where(meets, values, math.inf)
+        best = int(np.argmin(better))
+        if better[best] < self.value:
+            self.improved = self.improved or better[best] < self.given_value * (1.0 - self.rtol)
+            self.value = float(better[best])
+            self.design = {"balls": float(cz[best]), "groove_angle_deg": float(ct[best]),
+                           "load_N": float(cg[best])}
+
+
+def _split(boxes: tuple[np.ndarray, ...], take: np.ndarray, span_t: float,
+           span_g: float) -> tuple[np.ndarray, ...]:
+    """The children of the boxes ``take`` (each halved along its wider side, relative to the design box)."""
+    z, tl, th, gl, gh = (a[take] for a in boxes)
+    on_angle = (th - tl) / span_t >= (gh - gl) / span_g
+    mid_t, mid_g = 0.5 * (tl + th), 0.5 * (gl + gh)
+    return (np.r_[z, z], np.r_[tl, np.where(on_angle, mid_t, tl)], np.r_[np.where(on_angle, mid_t, th), th],
+            np.r_[gl, np.where(on_angle, gl, mid_g)], np.r_[np.where(on_angle, gh, mid_g), gh])
+
+
+def design_lower_bound(at: DesignPoints, design: Mapping[str, float],
+                       evaluate: Callable[[Mapping[str, np.ndarray]], np.ndarray],
+                       rtol: float = DESIGN_RTOL, max_boxes: int = MAX_DESIGN_BOXES,
+                       time_limit_s: float = math.inf) -> DesignLowerBound:
+    """Bracket min over the designs of max_j U(d, e_j) by branch and bound (module docstring).
+
+    Parameters
+    ----------
+    at : DesignPoints
+        The model's interval structures at the envelope points, the problem and the tolerance.
     design : mapping
         The design to start from (the incumbent): ``balls`` [1], ``groove_angle_deg`` (nominal) [deg],
         ``load_N`` [N].
     evaluate : callable
         ``designs -> values`` of shape (len(points), n): U [1] of the model itself at each point and design.
-    z_quantile : float
-        The normal quantile of the interval (1.96 for 95 %). [1]
     rtol : float, default :data:`DESIGN_RTOL`
         A box whose bound is within this of the incumbent (relative) is settled. [1]
     max_boxes : int, default :data:`MAX_DESIGN_BOXES`
         Most boxes bounded. [1]
     time_limit_s : float, default inf
         No new batch of boxes after this long. [s]
-    widening : sequence of callable or None, optional
-        Per point, ``(balls, angle_lo, angle_hi, load_lo, load_hi) -> r`` [1]: a lower bound over each box
-        of the factor the interval's σ is widened by off the data (σ times max(r, 1)); None: left out
-        (it only widens, so the bound stays valid).
 
     Returns
     -------
@@ -483,21 +560,14 @@ def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStru
         When the model's own value at a box's centre is below the box's bound (the premises fail).
     """
     start = time.perf_counter()
-    bounds = _Bounds(problem, structures, calibrated_fixed, points, angle_tolerance_deg, z_quantile, widening)
+    problem, bounds = at.problem, at.bounds()
     (t0, t1), (g0, g1) = problem.bounds.groove_angle_deg, problem.bounds.load_N
     span_t, span_g = max(t1 - t0, 1e-300), max(g1 - g0, 1e-300)
-
-    def values_at(z: np.ndarray, theta: np.ndarray, load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        designs = {"balls": z, "groove_angle_deg": theta, "load_N": load}
-        with np.errstate(all="ignore"):
-            values = np.max(np.asarray(evaluate(designs), dtype=float).reshape(len(points), len(z)), axis=0)
-        return values, bounds.meets(designs, values)
-
+    best = _Incumbent(bounds, evaluate, len(at.points), rtol)
     given = {k: np.array([float(design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
-    value, meets_given = values_at(given["balls"], given["groove_angle_deg"], given["load_N"])
-    incumbent = given_value = float(value[0]) if meets_given[0] else math.inf
-    incumbent_design = {k: float(v[0]) for k, v in given.items()}
-    improved = False
+    value, meets_given = best.values_at(given["balls"], given["groove_angle_deg"], given["load_N"])
+    best.value = best.given_value = float(value[0]) if meets_given[0] else math.inf
+    best.design = {k: float(v[0]) for k, v in given.items()}
 
     counts = np.array(problem.ball_counts(), dtype=float)
     z, tl, th = counts, np.full(len(counts), float(t0)), np.full(len(counts), float(t1))
@@ -515,7 +585,7 @@ def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStru
     z, tl, th, gl, gh, low = z[keep], tl[keep], th[keep], gl[keep], gh[keep], low[keep]
     count, settled, complete = len(counts), math.inf, True
     while True:
-        threshold = incumbent * (1.0 - rtol)
+        threshold = best.value * (1.0 - rtol)
         done = low >= threshold
         if np.any(done):
             settled = min(settled, float(low[done].min()))
@@ -532,14 +602,7 @@ def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStru
         take = np.argsort(low)[:_BATCH]
         rest = np.ones(len(z), dtype=bool)
         rest[take] = False
-        bz, btl, bth, bgl, bgh = z[take], tl[take], th[take], gl[take], gh[take]
-        on_angle = (bth - btl) / span_t >= (bgh - bgl) / span_g
-        mid_t, mid_g = 0.5 * (btl + bth), 0.5 * (bgl + bgh)
-        cz = np.r_[bz, bz]
-        ctl = np.r_[btl, np.where(on_angle, mid_t, btl)]
-        cth = np.r_[np.where(on_angle, mid_t, bth), bth]
-        cgl = np.r_[bgl, np.where(on_angle, bgl, mid_g)]
-        cgh = np.r_[np.where(on_angle, bgh, mid_g), bgh]
+        cz, ctl, cth, cgl, cgh = _split((z, tl, th, gl, gh), take, span_t, span_g)
         clow = bounds.lower(cz, ctl, cth, cgl, cgh)
         count += len(cz)
         fine = ~bounds.broken(cz, ctl, cgl, cgh, clow)
@@ -548,21 +611,10 @@ def design_lower_bound(problem: DesignProblem, structures: Sequence[IntervalStru
         # that may improve the incumbent.
         probe = np.argsort(clow)[:_EVALUATED]
         if len(probe):
-            ct, cg = 0.5 * (ctl[probe] + cth[probe]), 0.5 * (cgl[probe] + cgh[probe])
-            values, meets = values_at(cz[probe], ct, cg)
-            if np.any(values < clow[probe] * (1.0 - 1e-9)):
-                worst = int(np.argmin(values / clow[probe]))
-                raise BoundFailedError(f"the model's mu_upper {values[worst]:.6g} below a design box's bound "
-                                       f"{clow[probe][worst]:.6g}")
-            better = np.where(meets, values, math.inf)
-            best = int(np.argmin(better))
-            if better[best] < incumbent:
-                improved = improved or better[best] < given_value * (1.0 - rtol)
-                incumbent = float(better[best])
-                incumbent_design = {"balls": float(cz[probe][best]), "groove_angle_deg": float(ct[best]),
-                                    "load_N": float(cg[best])}
+            best.probe(cz[probe], 0.5 * (ctl[probe] + cth[probe]), 0.5 * (cgl[probe] + cgh[probe]),
+                       clow[probe])
         z, tl, th, gl, gh, low = (np.r_[a[rest], b] for a, b in ((z, cz), (tl, ctl), (th, cth), (gl, cgl),
                                                                   (gh, cgh), (low, clow)))
-    lower = min(incumbent, settled, float(low.min()) if len(low) else math.inf)
-    return DesignLowerBound(lower, incumbent, incumbent_design, improved, count, complete,
+    lower = min(best.value, settled, float(low.min()) if len(low) else math.inf)
+    return DesignLowerBound(lower, best.value, best.design, best.improved, count, complete,
                             bool(meets_given[0]))

@@ -12,9 +12,10 @@ with each maximum exact:
 
 * the physics' μ is a posynomial with positive coefficients in tan θ and the speed
   (:mod:`optimize.dgp`), so its maximum over a box is at the box's highest angle made and speed;
-* every effect of :data:`_PIECES` is monotone in its driver (its formula in :mod:`physics.effects`)
-  except ``generic_quadratic``, exp(c1 z + c2 z²), whose maximum over an interval is at an end or at the
-  stationary point z = -c1 / (2 c2); so each piece's maximum over the box's driver interval is the
+* every effect that declares how it enters μ (:attr:`physics.effects.Effect.enters`) is monotone in its
+  driver (:attr:`~physics.effects.Effect.monotone`) except a log-quadratic such as ``generic_quadratic``,
+  exp(c1 z + c2 z²), whose maximum over an interval is at an end or at the stationary point it declares
+  (z = -c1 / (2 c2)); so each piece's maximum over the box's driver interval is the
   largest of its values at the interval's ends (and that point when inside).
 
 The bound is exact where every piece peaks at the same point (a vertex, or the stationary point of a
@@ -26,8 +27,8 @@ maximum lies between the two, a certificate, not a search.
 
 The 95 % upper bound, μ exp(z σ) with σ² = g'Cg + noise² (g the finite-difference gradient of log μ in
 the fitted values, C their covariance), is bounded the same way by interval arithmetic on that closed
-form (:func:`mu_upper_box_bound`), for the model and each rival whose envelope it takes. Every value
-the model itself gives at a point of a box is checked against the box's bound
+form (:func:`optimize.interval_bound.mu_upper_box_bound`), for the model and each rival whose envelope it
+takes. Every value the model itself gives at a point of a box is checked against the box's bound
 (:class:`BoundFailedError`), so a model the premises do not fit is caught where it shows.
 
 The other parts of a calibrated model are bounded over a box too:
@@ -35,10 +36,10 @@ The other parts of a calibrated model are bounded over a box too:
 * **a drifting physics parameter** (a viscosity falling with temperature by Arrhenius' law, ...): each
   law is monotone in its driver, so the parameter's range over the box is the law at the driver's ends
   (:func:`drift_ranges`), and the physics' μ is monotone in every parameter a drift may move
-  (:data:`DRIFT_DIRECTIONS`): its maximum is at the parameter's worst end; for ``mu_upper`` the drift's
-  values' gradient of log μ is bounded in closed form where the parameter enters the physics as one power
-  (:data:`DRIFT_SHARES`: the parameter moves by f(c + h, x) / f(c, x), monotone in x, and its share by that
-  ratio to the power);
+  (its declared ``direction``, :data:`physics.effects.PARAMETER_SHARES`): its maximum is at the
+  parameter's worst end; for ``mu_upper`` the drift's values' gradient of log μ is bounded in closed form
+  where the parameter enters the physics as one power (its declared ``output`` and ``exponent``: the
+  parameter moves by f(c + h, x) / f(c, x), monotone in x, and its share by that ratio to the power);
 * **group effects** at a point naming no group: a group on μ (or on a parameter the model does not fit)
   shifts log μ by its offset and adds the new-group variance, constants; one on a fitted parameter p
   shifts it by s b0 with s = p × p's gradient entry, bounded by that entry's interval (``mu_upper``; for
@@ -52,7 +53,7 @@ The other parts of a calibrated model are bounded over a box too:
   mean and a term slope opposite ways at the worst point the bound closes only linearly with the box, and
   the branch and bound may stop at its box limit with a wider bracket (stated: ``complete`` False).
 
-An effect not in :data:`_PIECES`, a drift of another parameter or a scatter that depends on an input
+An effect that declares nothing, a drift of another parameter or a scatter that depends on an input
 have no bound here: :func:`term_pieces` says why.
 """
 
@@ -72,20 +73,15 @@ import numpy as np
 from scipy import optimize, stats
 
 from microbearing import physics
+from microbearing.physics.effects import PARAMETER_SHARES
 
-__all__ = ["BOUND_RTOL", "DRIFT_DIRECTIONS", "DRIFT_SHARES", "INTERVAL_OUTPUTS", "INTERVAL_RTOL",
-           "LINEAR_DECLARED", "MAX_BOXES", "MAX_VALUES",
-           "BoundFailedError", "CertifiedMax", "IntervalStructure", "Piece", "certified_max", "drift_ranges",
-           "group_shift", "interval_floor",
-           "interval_structures", "mu_box_bound", "mu_upper_box_bound", "term_pieces"]
+__all__ = ["BOUND_RTOL", "MAX_BOXES", "BoundFailedError", "CertifiedMax", "Piece", "certified_max",
+           "drift_ranges", "group_shift", "interval_floor", "mu_box_bound", "term_pieces"]
 
 #: Relative distance between the certified upper bound and the value found at which branching stops. [1]
 BOUND_RTOL = 1e-7
 #: Relative allowance for rounding added to every box's bound (floating-point composition). [1]
 _ROUNDING = 1e-12
-#: Relative allowance for rounding in the interval's bound: the finite-difference gradient's rounding,
-#: about 1e-16 / 1e-6 in g, is far below it. [1]
-_INTERVAL_ROUNDING = 1e-9
 #: Most boxes branched before the bound found so far is returned as it stands. [1]
 MAX_BOXES = 20000
 #: Boxes split per vectorized step. [1]
@@ -96,48 +92,6 @@ _EVALUATED = 16
 #: or time limit). [1]
 _POLISH_AT = (1000, 5000)
 
-#: How each effect of physics.effects enters μ ("add": μ + a(x), "mul": μ m(x)), and whether it is monotone
-#: in its main driver (True) or log-quadratic (False: an end or the stationary point).
-_PIECES: dict[str, tuple[str, bool]] = {
-    "humidity_meniscus": ("add", True),     # + p z / (G ln(1/h))
-    "viscous_drag": ("add", True),          # + p V / G
-    "constant_drag": ("add", True),         # + p / G (driver: the load, fixed at a design)
-    "stribeck_breakaway": ("add", True),    # + a exp(-V / V0)
-    "viscous_power_law": ("add", True),     # + p (V / V0)^e / G, e >= 0.3
-    "thermal_shear_strength": ("mul", True),  # x exp(-p (T - T0))
-    "run_in": ("mul", True),                # x (1 + a exp(-n / L)), a > -1
-    "generic_linear": ("mul", True),        # x exp(c (x - centre) / scale)
-    "generic_power": ("mul", True),         # x (x / reference)^c
-    "generic_quadratic": ("mul", False),    # x exp(c1 z + c2 z^2), z = (x - centre) / scale
-}
-
-
-#: How the physics' μ moves with each parameter a drift term may move (physics.effects.DRIFT_PARAMETERS):
-#: +1 non-decreasing, -1 non-increasing, from the equations (optimize.dgp): the viscosity and the
-#: pressure-viscosity coefficient enter only Houpert's rolling force, as η^0.66 and (α E')^0.022; the
-#: adhesion energy raises the contact load Q (eq 8), which every moment and the rolling force grow with;
-#: the surface tension and μ_b enter the ball-ball moment as factors, μ_s the pivoting moment; a Young's
-#: modulus raises E*, and μ falls with it (the pivoting moment ~ Q a, a ~ E*^-1/3; the rolling force
-#: ~ E'^-0.108; the hysteresis moment does not read it). ``tests/test_optimize_envelope_bound.py``
-#: checks every direction on the exact physics.
-DRIFT_DIRECTIONS: dict[str, int] = {
-    "viscosity_Pa_s": 1, "pressure_viscosity_1_Pa": 1, "adhesion_energy_J_m2": 1,
-    "water_surface_tension_N_m": 1, "mu_pivot": 1, "mu_ball": 1,
-    "ball_youngs_modulus_Pa": -1, "race_youngs_modulus_Pa": -1,
-}
-
-
-#: The physics' μ in a drifting parameter p, for the interval's gradient: μ = rest + share(p), share ∝ p^a,
-#: one output of the physics (``output``) with exponent ``a``: Houpert's rolling force ~ η^0.66 (α E')^0.022
-#: (eq 9), the ball-ball moment ~ γ_w μ_b, the pivoting moment ~ μ_s. The adhesion energy and the moduli move
-#: the contact load or the contact radius, with no such form.
-DRIFT_SHARES: dict[str, tuple[str, float]] = {
-    "viscosity_Pa_s": ("mu_rolling", 0.66), "pressure_viscosity_1_Pa": ("mu_rolling", 0.022),
-    "water_surface_tension_N_m": ("mu_ball_ball", 1.0), "mu_ball": ("mu_ball_ball", 1.0),
-    "mu_pivot": ("mu_pivoting", 1.0),
-}
-#: The physics' outputs the interval's bound reads (``physics_fn`` of :func:`mu_upper_box_bound`).
-INTERVAL_OUTPUTS = ("mu", "mu_pivoting", "mu_rolling", "mu_ball_ball")
 
 
 @dataclass(frozen=True)
@@ -176,11 +130,18 @@ class Piece:
                                            self.term.drivers, self.term.constants), dtype=float)
 
     def stationary(self) -> float | None:
-        """The driver value where a log-quadratic piece is stationary (None: monotone, or linear)."""
-        if self.monotone or self.values[1] == 0:
+        """The driver value where a non-monotone piece is stationary, as its effect declares (None:
+        monotone, or no stationary point)."""
+        declared = self.term.effect.stationary
+        if self.monotone or declared is None:
             return None
-        c1, c2 = self.values
-        return self.term.constants["centre"] - c1 * self.term.constants["scale"] / (2.0 * c2)
+        return declared(self.values, self.term.constants)
+
+    def value_form(self, i: int) -> str | None:
+        """How μ moves with the piece's i-th fitted value (:data:`physics.effects.VALUE_FORMS`; None: no
+        closed form), as its effect declares."""
+        forms = self.term.effect.value_forms
+        return forms[i] if i < len(forms) else None
 
 
 #: The parts of a calibrated model the bounds here account for (``domain_rows`` only moves the domain
@@ -244,10 +205,10 @@ def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None,
     for term, values in calibrated.terms:
         label = getattr(term, "label", term)
         if getattr(term, "kind", None) == "drift":
-            if term.parameter not in DRIFT_DIRECTIONS:
+            if term.parameter not in PARAMETER_SHARES:
                 return None, (f"its term {label!r} drifts a physics parameter in which the physics' "
                               "monotonicity is not proven")
-            if interval and term.parameter not in DRIFT_SHARES:
+            if interval and PARAMETER_SHARES[term.parameter].output is None:
                 return None, (f"its term {label!r} drifts a physics parameter: its fitted coefficient's "
                               "share of the interval has no closed form here (it moves the contact load "
                               "or the modulus)")
@@ -255,12 +216,12 @@ def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None,
             continue
         if getattr(term, "kind", None) != "effect":
             return None, f"its term {label!r} has no known bound over an interval"
-        if term.name not in _PIECES:
+        effect = term.effect
+        if effect.enters is None:
             return None, f"its term {label!r} has no known bound over an interval"
         if term.drivers[0] == "groove_angle_deg":
             return None, f"its term {label!r} is driven by the groove angle"
-        kind, monotone = _PIECES[term.name]
-        pieces.append(Piece(term, list(map(float, values)), kind, monotone))
+        pieces.append(Piece(term, list(map(float, values)), effect.enters, effect.monotone))
     return pieces, ""
 
 
@@ -487,9 +448,10 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
     """The box bound of a calibrated model's μ at a design, for :func:`certified_max`.
 
     Drift pieces move the physics' inputs: each drifting parameter's range over the box
-    (:func:`drift_ranges`) and the physics' direction in it (:data:`DRIFT_DIRECTIONS`) give its worst
-    end, passed to ``physics_mu``. A group effect on μ (or on a parameter the model does not fit) moves
-    log μ by its offset at every point that names no group: a constant factor.
+    (:func:`drift_ranges`) and the physics' direction in it (declared in
+    :data:`physics.effects.PARAMETER_SHARES`) give its worst end, passed to ``physics_mu``. A group
+    effect on μ (or on a parameter the model does not fit) moves log μ by its offset at every point that
+    names no group: a constant factor.
 
     Parameters
     ----------
@@ -528,15 +490,17 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
         offset_hi, speed_hi = boxes.physics_corner(hi)
         peak = hi.copy()
         ranges = _pieces_range(effects, boxes, lo, hi, speed_hi, peak)
-        worst = {name: (high if DRIFT_DIRECTIONS[name] > 0 else low) for name, (low, high) in drift_ranges(
-            drifts, base or {}, lambda driver: boxes.driver_interval(driver, lo, hi), len(lo)).items()}
+        drifted = drift_ranges(drifts, base or {}, lambda driver: boxes.driver_interval(driver, lo, hi),
+                               len(lo))
+        worst = {name: (high if PARAMETER_SHARES[name].direction > 0 else low)
+                 for name, (low, high) in drifted.items()}
         for piece in drifts:  # the driver's end where the drifting parameter moves mu up
             a, b, j = boxes.driver_interval(piece.driver, lo, hi)
             if j is not None and j not in (boxes.speed, boxes.angle):
                 with np.errstate(all="ignore"):
                     rise = (np.asarray(piece.term.factor({piece.driver: b}, piece.values[0]), dtype=float)
                             >= np.asarray(piece.term.factor({piece.driver: a}, piece.values[0]), dtype=float))
-                peak[:, j] = np.where(rise == (DRIFT_DIRECTIONS[piece.term.parameter] > 0), b, a)
+                peak[:, j] = np.where(rise == (PARAMETER_SHARES[piece.term.parameter].direction > 0), b, a)
         phys = np.asarray(physics_mu(offset_hi, speed_hi, **worst), dtype=float)
         upper = _compose_upper(phys, effects, ranges) * factor
         if gp:
@@ -693,385 +657,3 @@ def _ascent(evaluated: Callable[[np.ndarray], np.ndarray], row: np.ndarray, lo: 
     at = lo + span * np.clip(found.x, 0.0, 1.0)
     value = float(evaluated(at[None, :])[0])
     return value, at
-
-
-# --------------------------------------------------------------------------------------------------
-# The 95 % upper bound: μ exp(z σ), σ² = g'Cg + noise², g the gradient of log μ in the fitted values
-
-#: Fitted physics parameters whose share of μ is one physics output linear in them:
-#: μ(p + h) - μ(p) = h × output / p (the pivoting moment is μ_s Q a, eq 16), that output a summand of the
-#: physics' posynomial, so non-decreasing in the angle and the speed.
-LINEAR_DECLARED = {"mu_pivot": "mu_pivoting"}
-#: How a term's fitted value (effect, index) changes μ: "scale", an added piece linear in it
-#: (a(p + h) - a(p) = h × basis, basis monotone in the driver); "log", a factor whose logarithm is linear
-#: in it (m(p + h) / m(p) = exp(h φ), φ monotone in the driver); "log_square", the same with φ = z², least at
-#: the centre. Values not listed (a Stribeck speed, an exponent of speed, a run-in) have no bound here.
-_VALUE_FORMS: dict[tuple[str, int], str] = {
-    ("humidity_meniscus", 0): "scale", ("viscous_drag", 0): "scale", ("constant_drag", 0): "scale",
-    ("stribeck_breakaway", 0): "scale", ("viscous_power_law", 0): "scale",
-    ("thermal_shear_strength", 0): "log", ("generic_linear", 0): "log", ("generic_power", 0): "log",
-    ("generic_quadratic", 0): "log", ("generic_quadratic", 1): "log_square",
-}
-#: Relative gap at which branching stops for mu_upper: its bound over a box tightens only linearly with the
-#: box, and its certified lower bound over designs is far looser (the parameters' share). [1]
-INTERVAL_RTOL = 1e-5
-#: Most fitted values per model (the box of gradients has 2^n vertices). [1]
-MAX_VALUES = 10
-
-
-@dataclass(frozen=True)
-class IntervalStructure:
-    """One model whose interval enters ``mu_upper``: the calibrated model itself or a rival.
-
-    Attributes
-    ----------
-    fitted : dict of str to float
-        Its fitted physics parameters (each in :data:`LINEAR_DECLARED`).
-    pieces : list of Piece
-        Its effect terms.
-    covariance : numpy.ndarray
-        Covariance of its fitted values (declared, then each term's).
-    noise_std_log : float
-        Scatter of log μ of a new measurement. [1]
-    step : float
-        Relative finite-difference step of its gradient. [1]
-    model : calibrate.CalibratedModel
-        The model itself (for its Gaussian-process discrepancy's bounds).
-    groups : list of calibrate.groups.GroupEffect
-        Its group effects (a point of the envelope names no group: each shifts log μ by s b0 and adds
-        s² times the new-group variance, s the sensitivity to the group's parameter, 1 for μ itself).
-    """
-
-    fitted: dict[str, float]
-    pieces: list[Piece]
-    covariance: np.ndarray
-    noise_std_log: float
-    step: float
-    groups: list = dataclasses.field(default_factory=list)
-    model: Any = None
-
-
-def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str]:
-    """The structures of a calibrated model's ``mu_upper`` (itself and each rival), or None and why not."""
-    pieces, reason = term_pieces(model, interval=True)
-    if pieces is None:
-        return None, reason
-    calibrated = model.calibrated
-    if calibrated.covariance is None or calibrated.noise_std_log is None:
-        return None, "it has no interval"
-    step = float(getattr(calibrated, "gradient_step", math.nan))
-    models = [calibrated, *calibrated.rival_models()]
-    out = []
-    for index, each in enumerate(models):
-        label = "its rival" if index else "it"
-        pieces_of, reason = term_pieces(_Holder(model.reference, each), interval=True)
-        if pieces_of is None:
-            return None, f"{label}: {reason}"
-        unknown = [n for n in each.fitted if n not in LINEAR_DECLARED]
-        if unknown:
-            return None, f"{label} fits {unknown[0]}, whose effect on mu has no bound over a box here"
-        for piece in pieces_of:
-            for i, name in enumerate(piece.term.parameter_names):
-                if piece.kind != "drift" and (piece.term.name, i) not in _VALUE_FORMS:
-                    return None, (f"{label}: the fitted {name} of {piece.term.label} changes mu in a way "
-                                  "with no bound over a box here")
-        size = len(each.fitted) + sum(len(p.values) for p in pieces_of)
-        if size > MAX_VALUES:
-            return None, f"{label} has {size} fitted values (at most {MAX_VALUES} are bounded)"
-        groups = list(getattr(each, "groups", None) or [])
-        out.append(IntervalStructure(dict(each.fitted), pieces_of, np.asarray(each.covariance, dtype=float),
-                                     float(each.noise_std_log), step, groups, each))
-    return out, ""
-
-
-@dataclass(frozen=True)
-class _Holder:
-    reference: str
-    calibrated: Any
-
-
-def _composed(pieces: list[Piece], ranges: list[tuple[np.ndarray, np.ndarray]], start_lo: np.ndarray,
-              start_hi: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray], Callable, Callable]:
-    """μ composed over boxes by interval arithmetic: the physics' range, then each piece's added or
-    multiplying range (a drift moves the physics' inputs and passes the level on); the levels after each
-    step (the first the physics'), ``after(k)``, the product of the factors after piece k (k = -1: after
-    the physics), and ``adds_after(k)``, whether an addition follows piece k."""
-    levels_lo, levels_hi = [start_lo], [start_hi]
-    for piece, (low, top) in zip(pieces, ranges, strict=True):
-        if piece.kind == "drift":
-            levels_lo.append(levels_lo[-1])
-            levels_hi.append(levels_hi[-1])
-        elif piece.kind == "add":
-            levels_lo.append(levels_lo[-1] + low)
-            levels_hi.append(levels_hi[-1] + top)
-        else:
-            ok = (low > 0) & (levels_lo[-1] >= 0)
-            levels_lo.append(np.where(ok, levels_lo[-1] * low, -np.inf))
-            levels_hi.append(np.where(ok, levels_hi[-1] * top, np.inf))
-    n = len(start_lo)
-
-    def after(k: int) -> tuple[np.ndarray, np.ndarray]:
-        p_lo, p_hi = np.ones(n), np.ones(n)
-        for piece, (low, top) in list(zip(pieces, ranges, strict=True))[k + 1:]:
-            if piece.kind == "mul":
-                p_lo, p_hi = p_lo * low, p_hi * top
-        return p_lo, p_hi
-
-    def adds_after(k: int) -> bool:
-        return any(piece.kind == "add" for piece in pieces[k + 1:])
-
-    return levels_lo, levels_hi, after, adds_after
-
-
-def _drift_share_change(piece: Piece, i: int, h: float, driver_interval: Callable[[str], tuple],
-                        drifted: Mapping[str, tuple[np.ndarray, np.ndarray]], n: int
-                        ) -> tuple[str, np.ndarray, np.ndarray]:
-    """How a step h in a drift's coefficient (i = 0) or level (i = 1) changes the share of the physics its
-    parameter drives, over n boxes: the output that share is (``DRIFT_SHARES``) and [d_lo, d_hi], the
-    interval of ratio^a - 1 [1].
-
-    The parameter moves by the ratio f(c + h, x) / f(c, x), monotone in x so taken at the ends of the
-    driver's interval (``driver_interval(driver) -> (low, high, ...)``), or by (level + h) / level; where
-    the box may clip the parameter at a bound (``drifted``: its range per box), one is inside the ratio's
-    interval. A ratio that is not positive gives an unbounded change.
-    """
-    term = piece.term
-    output, exponent = DRIFT_SHARES[term.parameter]
-    if i == 0:
-        a, b = driver_interval(term.driver)[:2]
-        c = piece.values[0]
-        with np.errstate(all="ignore"):
-            ratios = [np.asarray(term.factor({term.driver: x}, c + h), dtype=float)
-                      / np.asarray(term.factor({term.driver: x}, c), dtype=float) for x in (a, b)]
-        ratio_lo, ratio_hi = np.minimum(*ratios), np.maximum(*ratios)
-    else:
-        ratio_lo = ratio_hi = np.full(n, (piece.values[1] + h) / piece.values[1])
-    spec = physics.PARAMETERS[term.parameter]
-    low, high = drifted[term.parameter]
-    clipped = ((spec.minimum is not None) & (low <= spec.minimum)) | (
-        (spec.maximum is not None) & (high >= np.nextafter(spec.maximum, -np.inf)))
-    ratio_lo = np.where(clipped, np.minimum(ratio_lo, 1.0), ratio_lo)
-    ratio_hi = np.where(clipped, np.maximum(ratio_hi, 1.0), ratio_hi)
-    ok = ratio_lo > 0
-    with np.errstate(all="ignore"):
-        d_lo = np.where(ok, np.power(np.where(ok, ratio_lo, 1.0), exponent) - 1.0, -np.inf)
-        d_hi = np.where(ok, np.power(np.where(ok, ratio_hi, 1.0), exponent) - 1.0, np.inf)
-    return output, d_lo, d_hi
-
-
-def _log_gradient(g_lo: list, g_hi: list, ratio_lo: np.ndarray, ratio_hi: np.ndarray, h: float) -> None:
-    """Append to ``g_lo``/``g_hi`` the interval of the finite-difference gradient of log mu,
-    log1p(D / mu) / h, from the interval [ratio_lo, ratio_hi] of D / mu (unbounded where D / mu may reach
-    -1)."""
-    ok = ratio_lo > -1
-    g_lo.append(np.where(ok, np.log1p(np.where(ok, ratio_lo, 0.0)) / h, -np.inf))
-    g_hi.append(np.where(ok, np.log1p(np.where(ok, ratio_hi, 0.0)) / h, np.inf))
-
-
-def _times_positive(low: np.ndarray, high: np.ndarray, pos_low: np.ndarray,
-                    pos_high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """[low, high] × [pos_low, pos_high] with 0 < pos_low <= pos_high (interval arithmetic)."""
-    return (np.where(low >= 0, low * pos_low, low * pos_high),
-            np.where(high >= 0, high * pos_high, high * pos_low))
-
-
-def _product(a_lo: Any, a_hi: Any, b_lo: Any, b_hi: Any) -> tuple[np.ndarray, np.ndarray]:
-    """[a_lo, a_hi] × [b_lo, b_hi] (interval arithmetic, any signs; NaN where an end is not finite)."""
-    with np.errstate(all="ignore"):
-        corners = np.array(np.broadcast_arrays(a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi),
-                           dtype=float)
-    return np.min(corners, axis=0), np.max(corners, axis=0)
-
-
-def mu_upper_box_bound(structures: list[IntervalStructure],
-                       physics_fn: Callable[[np.ndarray, np.ndarray, Mapping[str, float]],
-                                            dict[str, np.ndarray]],
-                       envelope: Any, design: Mapping[str, float], z: float, calibrated: Any = None,
-                       inputs_fn: Callable[[np.ndarray, np.ndarray], Mapping[str, Any]] | None = None,
-                       base: Mapping[str, Any] | None = None) -> Callable:
-    """The box bound of a calibrated model's ``mu_upper`` at a design, for :func:`certified_max`.
-
-    Over a box every quantity of each structure gets an interval: the physics' μ and each linear output
-    between the box's lowest and highest corner (posynomials), each piece's exact range, the composed μ
-    by interval arithmetic (add and multiply of positive intervals); each fitted value's finite-difference
-    gradient of log μ, log1p(D / μ) / h, with D = μ(p + h) - μ(p) in closed form (``h`` × the physics
-    output / p, ``h`` × the piece's basis, or the composed μ up to that factor × expm1(h φ)) times the
-    product of the factors after it; the largest g'Cg over the box of gradients (a convex function: at one
-    of its vertices); so mu_upper <= max over the structures of max(μ) exp(z sqrt(max g'Cg + noise²) W),
-    W the widening of the interval beyond the data cloud (1 without one) at an upper bound of the distance
-    ratio over the box (:meth:`calibrate.CalibratedModel.cloud_ratio_bound`; the widening,
-    :meth:`calibrate.domain.DataCloud.widening`, is non-decreasing in the ratio, and one cloud serves the
-    model and its rivals).
-
-    Parameters
-    ----------
-    structures : list of IntervalStructure
-        From :func:`interval_structures`.
-    physics_fn : callable
-        ``(angle_offset_deg, speed_m_s, fitted) -> {"mu": ..., <output>: ...}`` [1] of the physics at the
-        design with those fitted values (and drifted parameters, arrays), for :data:`INTERVAL_OUTPUTS`.
-    envelope : optimize.robust.Envelope
-        The envelope.
-    design : mapping
-        ``balls`` [1] and ``load_N`` [N].
-    z : float
-        The normal quantile of the interval (1.96 for 95 %). [1]
-    calibrated : calibrate.CalibratedModel, optional
-        The model, for its data cloud (needed when it has one).
-    inputs_fn : callable, optional
-        ``(angle_offset_deg, speed_m_s) -> physics inputs`` [their units] the model is given at the design
-        (as its evaluation at envelope points is), for the cloud's columns.
-    base : mapping, optional
-        Physics inputs at the design as the model reads them, for the drifts' base values (each structure's
-        fitted values take precedence).
-
-    Returns
-    -------
-    callable
-        ``(lo, hi) -> (upper bounds [1], points to evaluate)``.
-
-    Raises
-    ------
-    ValueError
-        For a model with a data cloud and no ``inputs_fn``.
-    """
-    boxes = _Boxes(envelope, design)
-    level = 1.0 - 2.0 * float(stats.norm.sf(z))
-    cloud = None if calibrated is None else getattr(calibrated, "cloud", None)
-    gp = any(getattr(s.model, "discrepancy", None) is not None for s in structures)
-    if (cloud is not None or gp) and inputs_fn is None:
-        raise ValueError("a model with a data cloud or a discrepancy needs inputs_fn for their bounds")
-
-    def widening(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        """An upper bound of the cloud's widening over each box (ones without a cloud). [1]"""
-        n = len(lo)
-        if cloud is None:
-            return np.ones(n)
-        low, high = _corner_points(boxes, inputs_fn, lo, hi)
-        return np.asarray(cloud.widening(calibrated.cloud_ratio_bound(low, high, (n,))), dtype=float)
-
-    def one(s: IntervalStructure, lo: np.ndarray, hi: np.ndarray, peak: np.ndarray,
-            wide: np.ndarray) -> np.ndarray:
-        n = len(lo)
-        offset_lo, speed_lo = boxes.physics_corner(lo)
-        offset_hi, speed_hi = boxes.physics_corner(hi)
-        # Drifted parameters at the ends where mu is least (the lowest corner) and largest (the highest);
-        # every output read moves with each of them as mu does (DRIFT_SHARES).
-        drifts = [p for p in s.pieces if p.kind == "drift"]
-        drifted = drift_ranges(drifts, {**physics.defaults(), **(base or {}), **s.fitted},
-                               lambda driver: boxes.driver_interval(driver, lo, hi), n)
-        moved = {name: np.r_[(low, high) if DRIFT_DIRECTIONS[name] > 0 else (high, low)]
-                 for name, (low, high) in drifted.items()}
-        phys = physics_fn(np.r_[offset_lo, offset_hi], np.r_[speed_lo, speed_hi], {**s.fitted, **moved})
-        ranges = _pieces_range(s.pieces, boxes, lo, hi, speed_hi, peak)
-        levels_lo, levels_hi, after, adds_after = _composed(s.pieces, ranges, phys["mu"][:n], phys["mu"][n:])
-        mu_lo, mu_hi = levels_lo[-1], levels_hi[-1]
-        usable = (mu_lo > 0) & np.isfinite(mu_hi)
-        safe_lo = np.where(usable, mu_lo, 1.0)
-        g_lo, g_hi = [], []
-
-        def gradient(ratio_lo: np.ndarray, ratio_hi: np.ndarray, h: float) -> None:
-            _log_gradient(g_lo, g_hi, ratio_lo, ratio_hi, h)
-
-        def _drift_ratio(piece: Piece, i: int, h: float) -> tuple[np.ndarray, np.ndarray, float]:
-            """D / mu for a step h in a drift's coefficient (i = 0) or level (i = 1): its share of the
-            physics changes by :func:`_drift_share_change`, and mu by that change times the factors after
-            the physics."""
-            output, d_lo, d_hi = _drift_share_change(
-                piece, i, h, lambda driver: boxes.driver_interval(driver, lo, hi), drifted, n)
-            change = _product(d_lo, d_hi, phys[output][:n], phys[output][n:])  # D of the physics
-            if adds_after(-1):
-                q_lo, q_hi = after(-1)
-                r_lo, r_hi = _product(*change, q_lo / mu_hi, q_hi / safe_lo)
-            else:  # mu = physics x the factors: D / mu = D_phys / physics
-                phys_lo = phys["mu"][:n]
-                good = phys_lo > 0
-                r_lo, r_hi = _product(*change, 1.0 / phys["mu"][n:], 1.0 / np.where(good, phys_lo, np.nan))
-                r_lo, r_hi = np.where(good, r_lo, -np.inf), np.where(good, r_hi, np.inf)
-            return r_lo, r_hi, h
-
-        for name, value in s.fitted.items():
-            h = s.step * (abs(value) if value != 0 else 1.0)
-            output = LINEAR_DECLARED[name]
-            basis_lo, basis_hi = phys[output][:n] / value, phys[output][n:] / value
-            if adds_after(-1):
-                p_lo, p_hi = after(-1)
-                r_lo, r_hi = _times_positive(h * basis_lo, h * basis_hi, p_lo / mu_hi, p_hi / safe_lo)
-            else:  # mu = physics x the factors: D / mu = h x output / (p physics), the factors cancel
-                phys_lo = phys["mu"][:n]
-                ok = phys_lo > 0
-                r_lo = np.where(ok, h * basis_lo / phys["mu"][n:], -np.inf)
-                r_hi = np.where(ok, h * basis_hi / np.where(ok, phys_lo, 1.0), np.inf)
-            gradient(r_lo, r_hi, h)
-        for k, piece in enumerate(s.pieces):
-            p_lo, p_hi = after(k)
-            if piece.kind == "drift":
-                for i, value in enumerate(piece.values):
-                    gradient(*_drift_ratio(piece, i, s.step * (abs(value) if value != 0 else 1.0)))
-                continue
-            for i, value in enumerate(piece.values):
-                h = s.step * (abs(value) if value != 0 else 1.0)
-                form = _VALUE_FORMS[(piece.term.name, i)]
-                unit = list(piece.values)
-                if form == "scale":
-                    unit[i] = 1.0
-                    x, _ = _candidates(piece, boxes, lo, hi)
-                    basis = dataclasses.replace(piece, values=unit).at(x[:, :2],
-                                                                       boxes.columns(n, speed_hi, 2))
-                    b_lo, b_hi = np.min(basis, axis=1), np.max(basis, axis=1)
-                    r_lo, r_hi = _times_positive(h * b_lo, h * b_hi, p_lo / mu_hi, p_hi / safe_lo)
-                else:
-                    unit[i] = value + 1.0
-                    centre = piece.term.constants.get("centre") if form == "log_square" else None
-                    x, _ = _candidates(piece, boxes, lo, hi, extra=centre if centre is not None else None)
-                    if form == "log":
-                        x = x[:, :2]
-                    columns = boxes.columns(n, speed_hi, x.shape[1])
-                    with np.errstate(all="ignore"):
-                        stepped = dataclasses.replace(piece, values=unit).at(x, columns)
-                        phi = np.log(stepped / piece.at(x, columns))
-                    f_lo, f_hi = np.expm1(h * np.min(phi, axis=1)), np.expm1(h * np.max(phi, axis=1))
-                    if adds_after(k):
-                        q_lo = levels_lo[k + 1] * p_lo / mu_hi
-                        q_hi = levels_hi[k + 1] * p_hi / safe_lo
-                    else:  # mu = (mu after this piece) x the factors after it: Q = 1 exactly
-                        q_lo = q_hi = np.ones(n)
-                    positive = (q_lo > 0) & np.isfinite(q_hi)
-                    r_lo, r_hi = _times_positive(f_lo, f_hi, np.where(positive, q_lo, 1.0),
-                                                 np.where(positive, q_hi, 1.0))
-                    r_lo, r_hi = np.where(positive, r_lo, -np.inf), np.where(positive, r_hi, np.inf)
-                gradient(r_lo, r_hi, h)
-        g_low, g_high = np.column_stack(g_lo), np.column_stack(g_hi)
-        finite = np.all(np.isfinite(g_low) & np.isfinite(g_high), axis=1) & usable
-        g_low, g_high = np.where(finite[:, None], g_low, 0.0), np.where(finite[:, None], g_high, 0.0)
-        corners = np.array(list(itertools.product((0, 1), repeat=g_low.shape[1])), dtype=bool)
-        vertices = np.where(corners[None, :, :], g_high[:, None, :], g_low[:, None, :])
-        quadratic = np.einsum("nvi,ij,nvj->nv", vertices, s.covariance, vertices).max(axis=1)
-        # Groups: the sensitivity s to a fitted parameter p is p times its gradient entry (the same finite
-        # difference), so it lies in p [g_lo, g_hi]; the shift s b0 and the variance s² v at their largest.
-        shift, group_variance = np.zeros(n), np.zeros(n)
-        names = list(s.fitted)
-        for group in s.groups:
-            if group.parameter != "mu" and group.parameter in s.fitted:
-                i, p = names.index(group.parameter), s.fitted[group.parameter]
-                ends = (g_low[:, i] * p, g_high[:, i] * p)
-                shift += np.maximum(ends[0] * group.offset_log, ends[1] * group.offset_log)
-                group_variance += np.maximum(ends[0] ** 2, ends[1] ** 2) * group.new_group_variance(level)
-            else:
-                shift += group.offset_log
-                group_variance += group.new_group_variance(level)
-        if getattr(s.model, "discrepancy", None) is not None:
-            low, high = _corner_points(boxes, inputs_fn, lo, hi)
-            _, gp_mean, gp_variance = s.model.discrepancy_bound(low, high, (n,))
-            shift, group_variance = shift + gp_mean, group_variance + gp_variance
-        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * wide
-        return np.where(finite, mu_hi * np.exp(shift + z * sigma), np.inf)
-
-    def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        peak = hi.copy()
-        with np.errstate(all="ignore"):
-            wide = widening(lo, hi)
-            upper = np.max([one(s, lo, hi, peak, wide) for s in structures], axis=0)
-        return upper * (1.0 + _INTERVAL_ROUNDING), _with_low_speed(boxes, lo, peak)
-
-    return bound

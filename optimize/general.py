@@ -64,6 +64,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import cvxpy as cp
@@ -370,8 +371,8 @@ def _optimize_once(problem: DesignProblem, mu_model: MuModel, starts: int, max_i
     else:
         runs = map_calls(_solve_group, groups, progress)
     z, x, y, done = (np.concatenate([run[k] for run in runs]) for k in range(4))
-    return _result(problem, mu_model, model_name, z, counts, fractions, x, y, done,
-                   max(run[4] for run in runs), g_floor, start_time)
+    return _result(_Task(problem, mu_model, model_name),
+                   _Runs(z, counts, fractions, x, y, done, max(run[4] for run in runs)), g_floor, start_time)
 
 
 def _solve_group(problem, mu_model, model_name, counts, fractions, q0_cap, g_floor, max_iterations,
@@ -405,18 +406,57 @@ def _solve_group(problem, mu_model, model_name, counts, fractions, q0_cap, g_flo
     if compiled is None:
         compiled = _sub_problem(*key)
     try:
-        sub, step_x, step_y, par = compiled
-        x, y, done, iterations = _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, x, y,
-                                          x_lo, x_hi, y_lo, y_cap, log_pressure_cap, max_iterations, progress)
+        x, y, done, iterations = _iterate(_Task(problem, mu_model, model_name), compiled, z, x, y,
+                                          _LogBox(x_lo, x_hi, y_lo, y_cap, log_pressure_cap), max_iterations,
+                                          progress)
     finally:
         with _SUB_CACHE_LOCK:
             _SUB_CACHE[key].append(compiled)
     return z, x, y, done, iterations
 
 
-def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, x, y, x_lo, x_hi,
-             y_lo, y_cap, log_pressure_cap, max_iterations, progress):
-    """The trust-region loop of :func:`optimize_model` on a sub-problem it owns: (x, y, done, iterations)."""
+@dataclass(frozen=True)
+class _Task:
+    """What every run of :func:`optimize_model` asks: the problem and the model (named for messages)."""
+
+    problem: DesignProblem
+    mu_model: MuModel
+    model_name: str
+
+
+@dataclass(frozen=True)
+class _LogBox:
+    """The runs' box in x = log tan θ and y = log load, and the pressure limit's cap on y + log sec θ (None:
+    no limit); arrays, one entry per run."""
+
+    x_lo: np.ndarray
+    x_hi: np.ndarray
+    y_lo: np.ndarray
+    y_cap: np.ndarray
+    log_pressure_cap: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class _Runs:
+    """Every run of every group: the ball count z, the ends x, y, whether each converged, the starts'
+    fractions and the most iterations any took."""
+
+    z: np.ndarray
+    counts: list[int]
+    fractions: list[tuple[float, float]]
+    x: np.ndarray
+    y: np.ndarray
+    done: np.ndarray
+    iterations: int
+
+
+def _iterate(task: _Task, compiled: tuple, z: np.ndarray, x: np.ndarray, y: np.ndarray, box: _LogBox,
+             max_iterations: int, progress: Callable[[float], None] | None):
+    """The trust-region loop of :func:`optimize_model` on a sub-problem it owns (``compiled``: the problem,
+    its step variables and parameters): (x, y, done, iterations)."""
+    problem, mu_model, model_name = task.problem, task.mu_model, task.model_name
+    sub, step_x, step_y, par = compiled
+    x_lo, x_hi, y_lo, y_cap, log_pressure_cap = box.x_lo, box.x_hi, box.y_lo, box.y_cap, box.log_pressure_cap
     c = problem.constraints
 
     speeds = speed_grid_m_s(problem, mu_model)
@@ -482,8 +522,11 @@ def _iterate(problem, mu_model, model_name, sub, step_x, step_y, par, z, x, y, x
     return x, y, done, iterations
 
 
-def _result(problem, mu_model, model_name, z, counts, fractions, x, y, done, iterations, g_floor, start_time):
+def _result(task: _Task, runs: _Runs, g_floor: float, start_time: float) -> OptimizationResult:
     """The :class:`OptimizationResult` of the runs of every group of :func:`optimize_model`."""
+    problem, mu_model, model_name = task.problem, task.mu_model, task.model_name
+    z, counts, fractions, x, y, done = runs.z, runs.counts, runs.fractions, runs.x, runs.y, runs.done
+    iterations = runs.iterations
     c, b = problem.constraints, problem.bounds
     log_friction_max = np.log(c.max_friction_force_N) if c.max_friction_force_N is not None else None
     speeds = speed_grid_m_s(problem, mu_model)

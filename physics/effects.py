@@ -20,8 +20,14 @@ effect fits.
 
 Driver columns are matched by name: a humidity column contains ``humid`` or
 ``rh`` (a fraction in [0, 1), or percent when the name contains ``pct`` or
-``percent``), a temperature column ``temp``, a running-in column ``run``,
-``cycle``, ``pass``, ``stroke``, ``count``, ``time`` or ``distance``.
+``percent``), a temperature column ``temp`` (:mod:`physics.drivers`), a running-in
+column ``run``, ``cycle``, ``pass``, ``stroke``, ``count``, ``time`` or ``distance``.
+
+Each effect declares what its callers read rather than re-derive: how it enters μ
+(:attr:`Effect.enters`), whether it is monotone in its driver and in which
+direction, its stationary point, how μ moves with each fitted value
+(:attr:`Effect.value_forms`); :data:`PARAMETER_SHARES` declares how the physics'
+μ moves with each parameter a drift may move. :func:`register_effect` adds a law.
 
 Notes
 -----
@@ -49,14 +55,25 @@ References
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .drivers import (
+    DRIVER_KINDS,
+    HUMIDITY,
+    TEMPERATURE,
+    DriverKind,
+    DriverUnit,
+    humidity_fraction,
+    name_matches,
+    temperature_kelvin,
+)
+
 __all__ = ["EffectParameter", "Effect", "EFFECTS", "DriftLaw", "DRIFT_LAWS", "DRIFT_PARAMETERS", "Domain",
-           "apply_effect",
+           "DriverKind", "DriverUnit", "DRIVER_KINDS", "HUMIDITY", "TEMPERATURE", "ParameterShare",
+           "PARAMETER_SHARES", "VALUE_FORMS", "apply_effect", "name_matches", "register_effect",
            "humidity_fraction", "temperature_kelvin"]
 
 
@@ -84,6 +101,12 @@ class EffectParameter:
 
 
 _Columns = Mapping[str, np.ndarray]
+
+#: How μ may move with an effect's fitted value (:attr:`Effect.value_forms`): ``scale``, an added piece
+#: linear in it, a(p + h) - a(p) = h basis(x) with the basis monotone in the driver; ``log``, a factor whose
+#: logarithm is linear in it, m(p + h) / m(p) = exp(h φ(x)) with φ monotone in the driver; ``log_square``,
+#: the same with φ = z², least at the centre of the driver's data.
+VALUE_FORMS = ("scale", "log", "log_square")
 
 
 @dataclass(frozen=True)
@@ -176,6 +199,21 @@ class Effect:
     domain : Domain or None
         The main driver's values the formula holds for, in the formula's unit (None: any);
         :meth:`column_domain` gives it in a column's unit.
+    enters : {"add", "mul"} or None
+        How the effect enters μ: added, μ + a(x), or multiplying, μ m(x) with m > 0 (both non-decreasing
+        in μ); None: undeclared, and no bound over a box of its driver is known for it.
+    monotone : bool
+        Whether a(x) or m(x) is monotone in the main driver for every fitted value; False for a
+        log-quadratic, whose extremes over an interval are at its ends or at :attr:`stationary`.
+    direction : callable or None
+        ``direction(values) -> 1, -1 or 0``: the sign of the change of μ with the main driver (0: none)
+        at the fitted values; None: not known to be monotone.
+    stationary : callable or None
+        ``stationary(values, constants) -> x or None``: where a non-monotone term is stationary.
+    value_forms : tuple of str or None
+        Per fitted parameter, how μ moves with it (one of :data:`VALUE_FORMS`), None where it has no
+        such closed form (a Stribeck speed, an exponent of speed, a run-in): what the bounds of the
+        prediction interval over a box need.
     """
 
     name: str
@@ -194,6 +232,11 @@ class Effect:
     accepts_values: Callable = field(default=None, repr=False, compare=False)
     driver_transform: Callable = field(default=None, repr=False, compare=False)
     domain: Domain | None = None
+    enters: str | None = None
+    monotone: bool = True
+    direction: Callable = field(default=None, repr=False, compare=False)
+    stationary: Callable = field(default=None, repr=False, compare=False)
+    value_forms: tuple[str | None, ...] = ()
 
     @property
     def parameter_names(self) -> list[str]:
@@ -218,7 +261,7 @@ class Effect:
             return [self.fixed_drivers] if set(self.fixed_drivers) <= set(names) else []
         if not self.driver_keywords:
             return [(n,) for n in names]
-        return [(n,) for n in names if _name_matches(n, self.driver_keywords)]
+        return [(n,) for n in names if name_matches(n, self.driver_keywords)]
 
     def driver_values(self, columns: _Columns, drivers: tuple[str, ...]) -> np.ndarray:
         """The main driver's values in the unit of the formula (humidity percent -> fraction)."""
@@ -325,33 +368,8 @@ class Effect:
         return self.correct(np.asarray(mu, dtype=float), x, columns, values, dict(constants or {}))
 
 
-def _name_matches(name: str, prefixes: tuple[str, ...]) -> bool:
-    words = [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
-    return any(w.startswith(p) or w == p for w in words for p in prefixes)
-
-
-def humidity_fraction(name: str, values) -> np.ndarray:
-    """Relative humidity as a fraction: percent when the column name says ``pct`` or ``percent``.
-
-    Parameters
-    ----------
-    name : str
-        Column name.
-    values : array_like
-        Relative humidity [1] or [%].
-
-    Returns
-    -------
-    numpy.ndarray
-        Relative humidity h. [1]
-
-    Examples
-    --------
-    >>> humidity_fraction("relative_humidity_pct", [40.0]).tolist()
-    [0.4]
-    """
-    x = np.asarray(values, dtype=float)
-    return x / 100.0 if _name_matches(name, ("pct", "percent")) else x
+def _sign(x: float) -> int:
+    return (x > 0) - (x < 0)
 
 
 def _additive_initial(basis: Callable) -> Callable:
@@ -399,11 +417,13 @@ _MENISCUS = Effect(
     driver_description="relative humidity h, a fraction in (0, 1) (percent if the name says pct)",
     reference=("L. Bocquet, E. Charlaix, S. Ciliberto, J. Crassous, Nature 396, 735-737 (1998): "
                "capillary condensation makes friction and cohesion grow as 1/ln(1/h) (Kelvin radius)."),
-    driver_keywords=("humid", "rh"),
+    driver_keywords=HUMIDITY.keywords,
     correct=lambda mu, x, columns, p, c: mu + p[0] * _meniscus_basis(x, columns),
     make_initial=_additive_initial(_meniscus_basis),
     driver_transform=humidity_fraction,
     domain=Domain(0.0, 1.0, low_open=True, high_open=True),
+    enters="add", direction=lambda v: _sign(v[0]),  # + p z / (G ln(1/h)): 1/ln(1/h) grows on (0, 1)
+    value_forms=("scale",),
 )
 
 _VISCOUS = Effect(
@@ -420,6 +440,7 @@ _VISCOUS = Effect(
     fixed_drivers=("speed_m_s", "load_N"),
     correct=lambda mu, x, columns, p, c: mu + p[0] * _viscous_basis(x, columns),
     make_initial=_additive_initial(_viscous_basis),
+    enters="add", direction=lambda v: _sign(v[0]), value_forms=("scale",),  # + p V / G
 )
 
 _CONSTANT = Effect(
@@ -434,6 +455,7 @@ _CONSTANT = Effect(
     fixed_drivers=("load_N",),
     correct=lambda mu, x, columns, p, c: mu + p[0] / x,
     make_initial=_additive_initial(_constant_basis),
+    enters="add", direction=lambda v: -_sign(v[0]), value_forms=("scale",),  # + p / G
 )
 
 _THERMAL = Effect(
@@ -446,10 +468,11 @@ _THERMAL = Effect(
     driver_description="temperature T in degC or K (only differences matter); T_reference = median",
     reference="B.J. Briscoe, D.C.B. Evans, Proc. R. Soc. A 380, 389-407 (1982): the interfacial "
               "shear strength of molecular films falls exponentially with temperature.",
-    driver_keywords=("temp",),
+    driver_keywords=TEMPERATURE.keywords,
     correct=lambda mu, x, columns, p, c: mu * np.exp(-p[0] * (x - c["reference"])),
     make_constants=_median_reference,
     make_initial=_zeros,
+    enters="mul", direction=lambda v: -_sign(v[0]), value_forms=("log",),  # x exp(-p (T - T0))
 )
 
 _RUN_IN = Effect(
@@ -468,6 +491,8 @@ _RUN_IN = Effect(
     correct=lambda mu, x, columns, p, c: mu * (1.0 + p[0] * np.exp(-x / p[1])),
     make_initial=lambda mu, x, columns, c: [0.3, 0.2 * float(np.max(x))],
     domain=Domain(0.0),
+    # x (1 + a exp(-n / L)), a > -1, L > 0: falls with n where a > 0
+    enters="mul", direction=lambda v: -_sign(v[0]), value_forms=(None, None),
 )
 
 _C_BOUNDS = (-20.0, 20.0)
@@ -483,6 +508,7 @@ _GENERIC_LINEAR = Effect(
     correct=lambda mu, x, columns, p, c: mu * np.exp(p[0] * (x - c["centre"]) / c["scale"]),
     make_constants=_centre_scale,
     make_initial=_zeros,
+    enters="mul", direction=lambda v: _sign(v[0]), value_forms=("log",),  # x exp(c z), scale > 0
 )
 
 _GENERIC_QUADRATIC = Effect(
@@ -500,6 +526,10 @@ _GENERIC_QUADRATIC = Effect(
         p[0] * (x - c["centre"]) / c["scale"] + p[1] * np.square((x - c["centre"]) / c["scale"])),
     make_constants=_centre_scale,
     make_initial=lambda mu, x, columns, c: [0.0, 0.0],
+    # x exp(c1 z + c2 z^2): extreme over an interval at an end or where z = -c1 / (2 c2)
+    enters="mul", monotone=False, stationary=lambda v, c: (
+        None if v[1] == 0 else c["centre"] - v[0] * c["scale"] / (2.0 * v[1])),
+    value_forms=("log", "log_square"),
 )
 
 _GENERIC_POWER = Effect(
@@ -514,6 +544,7 @@ _GENERIC_POWER = Effect(
     make_constants=_median_reference,
     make_initial=_zeros,
     domain=Domain(0.0, low_open=True),
+    enters="mul", direction=lambda v: _sign(v[0]), value_forms=("log",),  # x (x / reference)^c, x > 0
 )
 
 def _positive_speed_reference(v):
@@ -538,6 +569,7 @@ _BREAKAWAY = Effect(
     fixed_drivers=("speed_m_s",),
     correct=lambda mu, x, columns, p, c: mu + p[0] * np.exp(-x / p[1]),
     make_initial=lambda mu, x, columns, c: [0.3 * float(np.median(mu)), max(0.2 * float(np.max(x)), 1e-6)],
+    enters="add", direction=lambda v: -_sign(v[0]), value_forms=("scale", None),  # + a exp(-V / V0)
 )
 
 _VISCOUS_POWER = Effect(
@@ -562,13 +594,54 @@ _VISCOUS_POWER = Effect(
     make_constants=_positive_speed_reference,
     make_initial=lambda mu, x, columns, c: [0.1 * float(np.median(mu * np.asarray(columns["load_N"]))), 1.0],
     domain=Domain(0.0),
+    # + p (V / V0)^e / G, e >= 0.3
+    enters="add", direction=lambda v: _sign(v[0]), value_forms=("scale", None),
 )
 
 #: Every optional effect, keyed by name: named physical effects first, then the generic family.
-EFFECTS: dict[str, Effect] = {e.name: e for e in [
-    _MENISCUS, _VISCOUS, _CONSTANT, _THERMAL, _RUN_IN, _BREAKAWAY, _VISCOUS_POWER,
-    _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER,
-]}
+EFFECTS: dict[str, Effect] = {}
+
+
+def register_effect(effect: Effect) -> None:
+    """Add an effect to :data:`EFFECTS` (a named one before the generic family), its declarations checked.
+
+    Calibration tries every registered effect on the columns its driver keywords name; the bounds and
+    robust designs of :mod:`optimize` read what it declares (:attr:`Effect.enters`, ``monotone``,
+    ``direction``, ``stationary``, ``value_forms``), so an effect that declares nothing is fitted and
+    predicted but never certified over a box.
+
+    Parameters
+    ----------
+    effect : Effect
+        The effect, with a new name.
+
+    Raises
+    ------
+    ValueError
+        For a name already taken or declarations that do not fit its parameters.
+    """
+    if effect.name in EFFECTS:
+        raise ValueError(f"an effect named {effect.name!r} is registered already")
+    if effect.enters not in (None, "add", "mul"):
+        raise ValueError(f"effect {effect.name}: enters must be 'add', 'mul' or None; got {effect.enters!r}")
+    if effect.value_forms and len(effect.value_forms) != len(effect.parameters):
+        raise ValueError(f"effect {effect.name}: one value form per parameter ({len(effect.parameters)})")
+    unknown = [f for f in effect.value_forms if f is not None and f not in VALUE_FORMS]
+    if unknown:
+        raise ValueError(f"effect {effect.name}: value forms are {', '.join(VALUE_FORMS)} or None; "
+                         f"got {unknown[0]!r}")
+    if not effect.monotone and effect.stationary is None:
+        raise ValueError(f"effect {effect.name}: a term that is not monotone declares its stationary point")
+    named = [e for e in EFFECTS.values() if not e.generic]
+    generic = [e for e in EFFECTS.values() if e.generic]
+    (generic if effect.generic else named).append(effect)
+    EFFECTS.clear()
+    EFFECTS.update((e.name, e) for e in [*named, *generic])
+
+
+for _effect in (_MENISCUS, _VISCOUS, _CONSTANT, _THERMAL, _RUN_IN, _BREAKAWAY, _VISCOUS_POWER,
+                _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER):
+    register_effect(_effect)
 
 
 def apply_effect(mu, name: str, columns: _Columns, params: Mapping[str, float],
@@ -610,31 +683,6 @@ def apply_effect(mu, name: str, columns: _Columns, params: Mapping[str, float],
 GAS_CONSTANT_J_MOL_K = 8.314462618
 # Range of a linear drift's factor p(x) / p_ref over the data. [1]
 _DRIFT_FACTOR_MIN, _DRIFT_FACTOR_MAX = 0.1, 10.0
-
-
-def temperature_kelvin(name: str, values) -> np.ndarray:
-    """Temperature in kelvin: the column is in kelvin when its name says ``k`` or ``kelvin``, else degC.
-
-    Parameters
-    ----------
-    name : str
-        Column name, e.g. ``temperature_C`` or ``temperature_K``.
-    values : array_like
-        Temperature [degC] or [K].
-
-    Returns
-    -------
-    numpy.ndarray
-        Absolute temperature. [K]
-
-    Examples
-    --------
-    >>> temperature_kelvin("temperature_C", [25.0]).tolist(), temperature_kelvin("temp_K", [300.0]).tolist()
-    ([298.15], [300.0])
-    """
-    x = np.asarray(values, dtype=float)
-    kelvin = _name_matches(name, ("k", "kelvin")) and not _name_matches(name, ("c", "degc"))
-    return x if kelvin else x + 273.15
 
 
 def _kelvin_radius_term(h):
@@ -697,7 +745,7 @@ class DriftLaw:
 
     def matches(self, name: str) -> bool:
         """Whether a condition column of this name may drive the law (:attr:`driver_keywords`)."""
-        return not self.driver_keywords or _name_matches(name, self.driver_keywords)
+        return not self.driver_keywords or name_matches(name, self.driver_keywords)
 
     def column_domain(self, name: str) -> Domain | None:
         """:attr:`domain` in the unit of the driver column ``name`` (degC: T > -273.15)."""
@@ -785,8 +833,8 @@ DRIFT_LAWS: dict[str, DriftLaw] = {law.name: law for law in [
         coefficient=EffectParameter(
             "activation_energy_J_mol", "J/mol",
             "Activation energy; > 0 when the parameter falls as temperature rises (viscosity).", -2e5, 2e5),
-        driver_keywords=("temp",), driver_description="temperature, degC (or K if the name says K); "
-                                                      "T_ref = median",
+        driver_keywords=TEMPERATURE.keywords,
+        driver_description="temperature, degC (or K if the name says K); T_ref = median",
         reference="Andrade-Eyring law of liquid viscosity, eta = A exp(E_a / (R T)) (E.N. da C. Andrade, "
                   "Nature 125, 309-310 (1930)); 16-17 kJ/mol for water near 25 degC.",
         min_levels=3, variable=temperature_kelvin, shape="arrhenius", positive_variable=True,
@@ -798,7 +846,7 @@ DRIFT_LAWS: dict[str, DriftLaw] = {law.name: law for law in [
             "kelvin_coefficient", "1",
             "Relative change of the parameter per unit of 1/ln(1/h) (the Kelvin radius over its value "
             "at h = 1/e).", -np.inf, np.inf),
-        driver_keywords=("humid", "rh"),
+        driver_keywords=HUMIDITY.keywords,
         driver_description="relative humidity h in (0, 1) (percent if the name says pct); h_ref = median",
         reference="Kelvin equation, r_K = gamma V_m / (R T ln(1/h)): capillary adhesion grows with the "
                   "meniscus radius (J.N. Israelachvili, Intermolecular and Surface Forces, 3rd ed., 2011, "
@@ -808,14 +856,59 @@ DRIFT_LAWS: dict[str, DriftLaw] = {law.name: law for law in [
         driver_transform=humidity_fraction),
 ]}
 
+@dataclass(frozen=True)
+class ParameterShare:
+    """How the physics' μ moves with a declared parameter that a term may move (a drift, or a fit).
+
+    Attributes
+    ----------
+    name : str
+        The physics parameter (:data:`physics.PARAMETERS`).
+    why : str
+        Why a tribologist would suspect it drifts with a condition.
+    direction : int
+        +1 where μ is non-decreasing in it, -1 non-increasing (from the equations; the tests check each
+        on the exact physics).
+    output : str or None
+        The physics output that is the parameter's share of μ, μ = rest + share with share ∝ p^exponent
+        (None: it moves the contact load or radius, with no such form).
+    exponent : float or None
+        That power. [1]
+    linear : bool
+        Whether a fitted value of it has a share linear in it that is a summand of the physics'
+        posynomial, μ(p + h) - μ(p) = h × output / p, non-decreasing in the angle and the speed.
+    """
+
+    name: str
+    why: str
+    direction: int
+    output: str | None = None
+    exponent: float | None = None
+    linear: bool = False
+
+
+#: The parameters a drift may move, with the physics' direction in each and its share of μ: the viscosity
+#: and the pressure-viscosity coefficient enter only Houpert's rolling force, as η^0.66 and (α E')^0.022
+#: (eq 9); the adhesion energy raises the contact load Q (eq 8), which every moment and the rolling force
+#: grow with; the surface tension and μ_b enter the ball-ball moment as factors, μ_s the pivoting moment
+#: (μ_s Q a, eq 16); a Young's modulus raises E*, and μ falls with it (the pivoting moment ~ Q a,
+#: a ~ E*^-1/3; the rolling force ~ E'^-0.108; the hysteresis moment does not read it).
+PARAMETER_SHARES: dict[str, ParameterShare] = {s.name: s for s in [
+    ParameterShare("viscosity_Pa_s", "the water film's viscosity falls as temperature rises", 1,
+                   "mu_rolling", 0.66),
+    ParameterShare("pressure_viscosity_1_Pa", "the pressure-viscosity coefficient falls as temperature rises",
+                   1, "mu_rolling", 0.022),
+    ParameterShare("adhesion_energy_J_m2", "adhesion (capillary bridges, surface films) grows with humidity",
+                   1),
+    ParameterShare("water_surface_tension_N_m", "surface tension of water falls with temperature", 1,
+                   "mu_ball_ball", 1.0),
+    ParameterShare("mu_pivot", "the ball-race sliding coefficient depends on coating, humidity and "
+                               "temperature", 1, "mu_pivoting", 1.0, linear=True),
+    ParameterShare("mu_ball", "the ball-ball sliding coefficient depends on coating, humidity and "
+                              "temperature", 1, "mu_ball_ball", 1.0),
+    ParameterShare("ball_youngs_modulus_Pa", "the balls' modulus depends on material and temperature", -1),
+    ParameterShare("race_youngs_modulus_Pa",
+                   "the races' modulus depends on material, coating and temperature", -1),
+]}
 #: Declared physics parameters that may drift with a condition, with why a tribologist would suspect it.
-DRIFT_PARAMETERS: dict[str, str] = {
-    "viscosity_Pa_s": "the water film's viscosity falls as temperature rises",
-    "pressure_viscosity_1_Pa": "the pressure-viscosity coefficient falls as temperature rises",
-    "adhesion_energy_J_m2": "adhesion (capillary bridges, surface films) grows with humidity",
-    "water_surface_tension_N_m": "surface tension of water falls with temperature",
-    "mu_pivot": "the ball-race sliding coefficient depends on coating, humidity and temperature",
-    "mu_ball": "the ball-ball sliding coefficient depends on coating, humidity and temperature",
-    "ball_youngs_modulus_Pa": "the balls' modulus depends on material and temperature",
-    "race_youngs_modulus_Pa": "the races' modulus depends on material, coating and temperature",
-}
+DRIFT_PARAMETERS: dict[str, str] = {name: share.why for name, share in PARAMETER_SHARES.items()}

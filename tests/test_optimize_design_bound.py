@@ -7,12 +7,16 @@ import numpy as np
 import pytest
 from scipy import optimize as sciopt
 
+from microbearing import physics
 from microbearing.calibrate.candidates import EffectTerm
 from microbearing.calibrate.model import CalibratedModel, RivalModel
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
 from microbearing.optimize import robust
-from microbearing.optimize.design_bound import _Bounds, _least_quadratic, design_lower_bound
-from microbearing.optimize.envelope_bound import BoundFailedError, interval_structures
+from microbearing.optimize.certificates import certified_design, cloud_widening
+from microbearing.optimize.design_bound import DesignPoints, _Bounds, _least_quadratic, design_lower_bound
+from microbearing.optimize.envelope_bound import BoundFailedError
+from microbearing.optimize.interval_bound import interval_structures
+from microbearing.optimize.over_envelope import envelope_columns, objective_values, with_model_values
 from microbearing.optimize.problem import Constraints, DesignBounds, DesignProblem
 
 ENVELOPE = robust.Envelope((0.01, 0.1), {"relative_humidity": (0.3, 0.7), "temperature_C": (20.0, 60.0)},
@@ -45,8 +49,8 @@ def _model(rival: bool = False) -> CalibratedPhysicsModel:
 
 def _upper_at(model, problem, point, designs):
     """mu_upper [1] of the model itself at one envelope point, for columnar designs (nominal angle)."""
-    columns = robust._columns(problem, ENVELOPE, designs, [point], 0.0)
-    return robust._objective_values(model, "mu_upper", columns, problem.convention)
+    columns = envelope_columns(problem, ENVELOPE, designs, [point], 0.0)
+    return objective_values(model, "mu_upper", columns, problem.convention)
 
 
 def test_least_quadratic_over_a_box_is_below_the_minimum_and_reaches_it():
@@ -74,7 +78,7 @@ def test_least_quadratic_over_a_box_is_below_the_minimum_and_reaches_it():
 @pytest.mark.parametrize("rival", [False, True])
 def test_the_box_bound_is_below_the_model_over_every_box_and_tight_on_small_ones(rival):
     model = _model(rival)
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05),
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05),
                                         model)
     structures, reason = interval_structures(model)
     assert structures is not None and len(structures) == 1 + rival, reason
@@ -109,7 +113,7 @@ def _brute_worst(model, problem, designs, levels=5):
     names = list(axes)
     grid = [ENVELOPE.point(dict(zip(names, c, strict=True)))
             for c in itertools.product(*(np.linspace(*axes[n], levels) for n in names))]
-    values = np.asarray(robust._objective_values(model, "mu_upper", robust._columns(
+    values = np.asarray(objective_values(model, "mu_upper", envelope_columns(
         problem, ENVELOPE, designs, grid, 0.0), problem.convention)).reshape(len(grid), -1)
     return values.max(axis=0)
 
@@ -128,12 +132,12 @@ def _no_grid_design_beats_the_proof(model: CalibratedPhysicsModel, problem: Desi
     envelope dimension) below the proof's lower bound, and the returned design's is within its upper
     bound."""
     proof = result.proof
-    held = robust._with_model_values(problem, model)
+    held = with_model_values(problem, model)
     grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 8), np.geomspace(0.002, 0.02, 12)))
     designs = {"balls": np.array([g[0] for g in grid], dtype=float),
                "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
     made = held.physics_inputs(designs["balls"], designs["groove_angle_deg"] + 0.5, designs["load_N"])
-    pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
+    pressure = physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
                                        **made).max_contact_pressure_Pa
     feasible = pressure <= 5.5e8
     worst = _brute_worst(model, held, {k: v[feasible] for k, v in designs.items()}, levels=3)
@@ -147,14 +151,14 @@ def test_no_design_of_a_grid_beats_the_certified_lower_bound_and_the_design_is_p
     model = _model(rival)
     problem, result = _robust_mu_upper_under_a_pressure_limit(model)
     proof = result.proof
-    held = robust._with_model_values(problem, model)
+    held = with_model_values(problem, model)
     # Exhaustively: 4 counts x 16 angles x 31 loads, each at 5^4 envelope points, through the same model; the
     # designs whose peak pressure at the angle made high meets the limit never beat the certified lower bound.
     grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 16), np.geomspace(0.002, 0.02, 31)))
     designs = {"balls": np.array([g[0] for g in grid], dtype=float),
                "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
     made = held.physics_inputs(designs["balls"], designs["groove_angle_deg"] + 0.5, designs["load_N"])
-    pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
+    pressure = physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
                                        **made).max_contact_pressure_Pa
     feasible = pressure <= 5.5e8
     assert 0 < feasible.sum() < len(grid)  # the limit cuts the grid
@@ -180,7 +184,7 @@ def test_the_calibrated_bench_model_is_proven_and_the_best_design_at_the_points_
     # The bench's model (menisci, shear strength falling with temperature) under a pressure limit: proven;
     # the lower bound's best design at the worst point (a box's centre) sits on the exact limit, where the
     # local method keeps 1e-7 inside it, and its certified worst case is lower: where the gap needs it, that
-    # design is returned (robust._certified_design). Brute force agrees on both.
+    # design is returned (certificates.certified_design). Brute force agrees on both.
     model = CalibratedPhysicsModel("calibrated:bench", CalibratedModel(
         fitted={"mu_pivot": 0.6},
         terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
@@ -192,12 +196,12 @@ def test_the_calibrated_bench_model_is_proven_and_the_best_design_at_the_points_
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
     proof = result.proof
     assert proof["proven"] and proof["relative_gap"] <= robust.GAP_TARGET, proof["statement"]
-    held = robust._with_model_values(problem, model)
+    held = with_model_values(problem, model)
 
     def brute_and_pressure(design):
         columns = {k: np.array([float(design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
         made = held.physics_inputs(columns["balls"], columns["groove_angle_deg"] + 0.5, columns["load_N"])
-        pressure = robust.physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
+        pressure = physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
                                            **made).max_contact_pressure_Pa
         return float(_brute_worst(model, held, columns)[0]), float(np.asarray(pressure).ravel()[0])
 
@@ -208,10 +212,11 @@ def test_the_calibrated_bench_model_is_proven_and_the_best_design_at_the_points_
     point = ENVELOPE.point({"speed_m_s": worst["speed_m_s"], "groove_angle_offset_deg": 0.5,
                             **{f"conditions.{n}": v for n, v in worst["conditions"].items()}})
     structures, _ = interval_structures(model)
-    found = design_lower_bound(held, structures, model.calibrated.fixed, [point], 0.5, result.result.design,
-                               lambda designs: _upper_at(model, held, point, designs), 1.959963984540054)
+    found = design_lower_bound(DesignPoints(held, structures, model.calibrated.fixed, [point], 0.5,
+                                            1.959963984540054), result.result.design,
+                               lambda designs: _upper_at(model, held, point, designs))
     assert found.lower_bound <= found.incumbent < worst["mu_upper"]
-    swapped = robust._certified_design(held, ENVELOPE, model, result, found.incumbent_design, np.inf)
+    swapped = certified_design(held, ENVELOPE, model, result, found.incumbent_design, np.inf)
     assert swapped is not None and swapped.proof["upper_bound"] < proof["upper_bound"]
     at_swapped, pressure = brute_and_pressure(swapped.result.design)
     assert at_swapped <= swapped.proof["upper_bound"] <= at_swapped * (1 + 1e-6)
@@ -221,7 +226,7 @@ def test_the_calibrated_bench_model_is_proven_and_the_best_design_at_the_points_
 
 def test_a_search_stopped_by_its_time_limit_says_so_and_its_bound_still_holds():
     model = _model()
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05),
+    problem = with_model_values(DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05),
                                         model)
     structures, _ = interval_structures(model)
     point = ENVELOPE.point({"speed_m_s": 0.1, "groove_angle_offset_deg": 0.5,
@@ -231,16 +236,15 @@ def test_a_search_stopped_by_its_time_limit_says_so_and_its_bound_still_holds():
     def evaluate(designs):
         return _upper_at(model, problem, point, designs)
 
-    found = design_lower_bound(problem, structures, model.calibrated.fixed, [point], 0.5, design, evaluate,
-                               1.959963984540054, time_limit_s=0.0)
+    at = DesignPoints(problem, structures, model.calibrated.fixed, [point], 0.5, 1.959963984540054)
+    found = design_lower_bound(at, design, evaluate, time_limit_s=0.0)
     assert not found.complete and found.boxes == 4  # the four ball counts' boxes, bounded once
     angles = np.tile(np.repeat(np.linspace(45, 60, 16), 31), 4)
     brute = _brute_worst(model, problem, {"balls": np.repeat([3.0, 4.0, 5.0, 6.0], 16 * 31),
                                           "groove_angle_deg": angles,
                                           "load_N": np.tile(np.geomspace(0.002, 0.02, 31), 64)})
     assert 0 < found.lower_bound <= brute.min()
-    complete = design_lower_bound(problem, structures, model.calibrated.fixed, [point], 0.5, design, evaluate,
-                                  1.959963984540054)
+    complete = design_lower_bound(at, design, evaluate)
     assert complete.complete and found.lower_bound <= complete.lower_bound <= complete.incumbent
 
 
@@ -248,16 +252,17 @@ def test_a_bound_above_the_model_is_caught():
     # A structure claiming ten times the scatter: its bound is above the model's own mu_upper, and the values
     # the model gives at the boxes' centres expose it.
     model = _model()
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05),
+    problem = with_model_values(DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05),
                                         model)
     structures, _ = interval_structures(model)
     wrong = [dataclasses.replace(structures[0], noise_std_log=0.2)]
     point = ENVELOPE.point({"speed_m_s": 0.1, "groove_angle_offset_deg": 0.5,
                             "conditions.relative_humidity": 0.7, "conditions.temperature_C": 20.0})
     with pytest.raises(BoundFailedError):
-        design_lower_bound(problem, wrong, model.calibrated.fixed, [point], 0.5,
+        design_lower_bound(DesignPoints(problem, wrong, model.calibrated.fixed, [point], 0.5,
+                                        1.959963984540054),
                            {"balls": 3.0, "groove_angle_deg": 45.0, "load_N": 0.02},
-                           lambda designs: _upper_at(model, problem, point, designs), 1.959963984540054)
+                           lambda designs: _upper_at(model, problem, point, designs))
 
 
 def test_a_time_limit_leaves_the_bound_found_so_far_said_and_unproven():
@@ -268,7 +273,7 @@ def test_a_time_limit_leaves_the_bound_found_so_far_said_and_unproven():
     proof = result.proof
     assert not proof["proven"] and "stopped at the time or box limit" in proof["statement"]
     assert proof["lower_bound_boxes"] == 4 and proof["lower_bound"] <= proof["upper_bound"]
-    held = robust._with_model_values(problem, model)
+    held = with_model_values(problem, model)
     grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 6), np.geomspace(0.002, 0.02, 8)))
     designs = {"balls": np.array([g[0] for g in grid], dtype=float),
                "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
@@ -290,7 +295,7 @@ def test_the_data_clouds_widening_is_bounded_below_over_design_boxes():
         "load_N": rng.uniform(0.004, 0.008, runs), "speed_m_s": rng.uniform(0.02, 0.05, runs),
         "relative_humidity": rng.uniform(0.4, 0.5, runs)})
     model = CalibratedPhysicsModel("calibrated:cloud", dataclasses.replace(_model().calibrated, cloud=cloud))
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05),
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05),
                                         model)
     bare = types.SimpleNamespace(reference="calibrated:cloud",
                                  calibrated=dataclasses.replace(model.calibrated, cloud=None))
@@ -302,7 +307,7 @@ def test_the_data_clouds_widening_is_bounded_below_over_design_boxes():
                                 "groove_angle_offset_deg": rng.uniform(-0.5, 0.5),
                                 "conditions.relative_humidity": rng.uniform(0.3, 0.7),
                                 "conditions.temperature_C": rng.uniform(20, 60)})
-        ratio = robust._cloud_widening(problem, ENVELOPE, model, point,
+        ratio = cloud_widening(problem, ENVELOPE, model, point,
                                        {"balls": 4.0, "groove_angle_deg": 45.0, "load_N": 0.005}, set())
         assert ratio is not None
         with_cloud = _Bounds(problem, structures, model.calibrated.fixed, [point], 0.5, 1.959963984540054,
@@ -342,7 +347,7 @@ def _grouped_model() -> CalibratedPhysicsModel:
 def _box_bound_checks(model, seed, grid=9):
     """The box bound below the model itself on a grid of every box, and equal to it (to the width) on a box
     a millionth wide; returns the bounds of the boxes."""
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05),
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05),
                                         model)
     structures, reason = interval_structures(model)
     assert structures is not None, reason
@@ -382,7 +387,7 @@ def test_the_box_bound_takes_group_effects_below_the_model_and_tight_on_small_bo
 
 # Drifting physics parameters: at a point each drifted value is the law at the point's driver value (a
 # constant over the design box), and its coefficient's share of the interval's gradient is bounded as the
-# envelope's bound does (DRIFT_SHARES).
+# envelope's bound does (physics.effects.PARAMETER_SHARES).
 def _drift_model() -> CalibratedPhysicsModel:
     from microbearing.calibrate.candidates import DriftTerm
     from microbearing.physics.effects import DRIFT_LAWS

@@ -11,8 +11,16 @@ from microbearing import physics
 from microbearing.calibrate.candidates import EffectTerm
 from microbearing.calibrate.model import CalibratedModel
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
-from microbearing.optimize import robust
-from microbearing.optimize.envelope_bound import certified_max, interval_structures, mu_box_bound, term_pieces
+from microbearing.optimize import certificates, robust
+from microbearing.optimize.certificates import certified_search, certified_upper_search
+from microbearing.optimize.envelope_bound import certified_max, mu_box_bound, term_pieces
+from microbearing.optimize.interval_bound import interval_structures
+from microbearing.optimize.over_envelope import (
+    envelope_columns,
+    evaluator,
+    objective_values,
+    with_model_values,
+)
 from microbearing.optimize.problem import Constraints, DesignBounds, DesignProblem
 
 # A log-quadratic temperature term peaking inside the envelope (at 40 + 0.2 x 10 / (2 x 0.3) C, by hand) and
@@ -52,7 +60,7 @@ def _bracket(problem, model, design):
         return physics.evaluate(convention=problem.convention, outputs=["mu"], **problem.physics_inputs(
             design["balls"], design["groove_angle_deg"] + offset, design["load_N"], speed_m_s=speed)).mu
 
-    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu", design, 0.0)
+    evaluate = evaluator(problem, ENVELOPE, model, "mu", design, 0.0)
     return certified_max(mu_box_bound(pieces, physics_mu, ENVELOPE, design), evaluate, ENVELOPE), evaluate
 
 
@@ -64,13 +72,13 @@ def _grid_at_the_worst_point(model, held, result, objective: str) -> np.ndarray:
     grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
     designs = {"balls": np.array([g[0] for g in grid], dtype=float),
                "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    return robust._objective_values(model, objective, robust._columns(held, ENVELOPE, designs, [where], 0.0),
+    return objective_values(model, objective, envelope_columns(held, ENVELOPE, designs, [where], 0.0),
                                     held.convention)
 
 
 def test_certified_worst_case_brackets_brute_force_inside_the_envelope():
     model = _model()
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                                       Constraints()), model)
     design = {"balls": 5.0, "groove_angle_deg": 45.0, "load_N": 0.01}
     bracket, evaluate = _bracket(problem, model, design)
@@ -97,10 +105,10 @@ def test_robust_mu_with_non_monotone_terms_is_proven_and_no_grid_design_beats_th
     assert proof["proven"], proof["statement"]
     assert proof["relative_gap"] <= robust.GAP_TARGET
     assert proof["lower_bound"] <= result.worst_case["mu"] <= proof["upper_bound"]
-    held = robust._with_model_values(problem, model)
+    held = with_model_values(problem, model)
     # The worst case at the design against brute force through the same model.
     design = dict(result.result.design)
-    evaluate = robust._evaluator(held, ENVELOPE, model, "mu", design, 0.0)
+    evaluate = evaluator(held, ENVELOPE, model, "mu", design, 0.0)
     brute = evaluate(_grid_points(9, extra=[("conditions.temperature_C", PEAK_C)]))
     assert brute.max() <= proof["upper_bound"]
     assert brute.max() == pytest.approx(result.worst_case["mu"], rel=1e-6)
@@ -113,7 +121,7 @@ def test_robust_mu_with_non_monotone_terms_is_proven_and_no_grid_design_beats_th
     grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.linspace(0.001, 0.05, 8)))
     designs = {"balls": np.array([g[0] for g in grid], dtype=float),
                "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    at_worst = robust._objective_values(model, "mu", robust._columns(held, ENVELOPE, designs, [where], 0.0),
+    at_worst = objective_values(model, "mu", envelope_columns(held, ENVELOPE, designs, [where], 0.0),
                                         held.convention)
     assert at_worst.min() >= proof["lower_bound"] * (1 - 1e-9)
 
@@ -157,8 +165,8 @@ def test_certified_mu_upper_bounds_brute_force_where_the_interval_peaks_inside()
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
     proof = result.proof
     assert proof["method"] == "outer-approximation-certified" and proof["proven"], proof["statement"]
-    held = robust._with_model_values(problem, model)
-    evaluate = robust._evaluator(held, ENVELOPE, model, "mu_upper", dict(result.result.design), 0.0)
+    held = with_model_values(problem, model)
+    evaluate = evaluator(held, ENVELOPE, model, "mu_upper", dict(result.result.design), 0.0)
     # The interval widens away from the quadratic's centre: mu_upper peaks inside the temperature range, near
     # (not at) mu's peak; brute force on a grid refined around it never exceeds the certified bound.
     peak_c = result.worst_case["conditions"]["temperature_C"]
@@ -193,19 +201,19 @@ def test_certified_mu_upper_holds_the_rivals_envelope():
                          [1.5])], np.diag([1e-3, 1e-2]))
     base = _interval_model().calibrated
     model = CalibratedPhysicsModel("calibrated:rivals", dataclasses.replace(base, rivals=[rival]))
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                                       Constraints()), model)
     structures, reason = interval_structures(model)
     assert structures is not None and len(structures) == 2, reason
     design = {"balls": 4.0, "groove_angle_deg": 50.0, "load_N": 0.005}
-    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
-    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    bracket = certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    evaluate = evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
     brute = evaluate(_grid_points(7, extra=[("conditions.temperature_C", PEAK_C)]))
     assert brute.max() <= bracket.upper_bound <= bracket.value * (1 + 1e-5)
     assert brute.max() == pytest.approx(bracket.value, rel=1e-4)
     # the rival decides the worst case here: without it mu_upper is lower there
     alone = CalibratedPhysicsModel("calibrated:alone", base)
-    without = robust._evaluator(problem, ENVELOPE, alone, "mu_upper", design, 0.0)([bracket.point])[0]
+    without = evaluator(problem, ENVELOPE, alone, "mu_upper", design, 0.0)([bracket.point])[0]
     assert without < bracket.value
 
 
@@ -218,9 +226,9 @@ def test_a_bound_whose_premise_fails_is_caught_and_the_search_takes_over():
         return np.zeros(len(lo)), hi
 
     model = _model()
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                                       Constraints()), model)
-    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu", {"balls": 4.0, "groove_angle_deg": 50.0,
+    evaluate = evaluator(problem, ENVELOPE, model, "mu", {"balls": 4.0, "groove_angle_deg": 50.0,
                                                                   "load_N": 0.005}, 0.0)
     with pytest.raises(BoundFailedError):
         certified_max(wrong, evaluate, ENVELOPE)
@@ -304,18 +312,18 @@ def test_certified_mu_upper_bounds_the_cloud_widening_against_brute_force():
     model = _cloud_model(together=False)
     structures, reason = interval_structures(model)
     assert structures is not None, reason
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                                       Constraints()), model)
     design = {"balls": 5.0, "groove_angle_deg": 50.0, "load_N": 0.01}
-    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    bracket = certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
     # The bracket closes to about its 1e-5 target (the box limit may stop it a little short: it says so).
     assert bracket.upper_bound <= bracket.value * (1 + 2e-5)
     assert bracket.relative_gap <= 1e-5 or not bracket.complete
-    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    evaluate = evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
     # The worst case lies beyond the data cloud (its interval widened there) and inside the envelope in
     # temperature (the quadratic's peak and the cloud's distance trade off): no vertex reaches it.
     where = bracket.point
-    columns = robust._columns(problem, ENVELOPE, {k: np.array([v]) for k, v in design.items()}, [where], 0.0)
+    columns = envelope_columns(problem, ENVELOPE, {k: np.array([v]) for k, v in design.items()}, [where], 0.0)
     held = {*model.fixed, *model.fitted}
     ratio = model.calibrated.cloud_ratio({k: v for k, v in columns.items() if k not in held})
     assert ratio[0] > 1.5
@@ -333,7 +341,7 @@ def test_certified_mu_upper_bounds_the_cloud_widening_against_brute_force():
     assert brute.max() == pytest.approx(bracket.value, rel=1e-4)
     # Without the widening the bound would fall below the model there: the cloud decides the worst case.
     plain = CalibratedPhysicsModel("calibrated:plain", dataclasses.replace(model.calibrated, cloud=None))
-    assert robust._evaluator(problem, ENVELOPE, plain, "mu_upper", design, 0.0)([where])[0] < bracket.value
+    assert evaluator(problem, ENVELOPE, plain, "mu_upper", design, 0.0)([where])[0] < bracket.value
 
 
 def _axis_values(point):
@@ -350,8 +358,8 @@ def test_robust_mu_upper_of_a_model_with_a_cloud_is_certified_at_its_design():
     proof = result.proof
     assert proof["method"] == "outer-approximation-certified", proof["statement"]
     assert "cloud" in proof["statement"]
-    held = robust._with_model_values(problem, model)
-    evaluate = robust._evaluator(held, ENVELOPE, model, "mu_upper", dict(result.result.design), 0.0)
+    held = with_model_values(problem, model)
+    evaluate = evaluator(held, ENVELOPE, model, "mu_upper", dict(result.result.design), 0.0)
     brute = evaluate(_grid_points(7))
     assert brute.max() <= proof["upper_bound"] <= result.worst_case["mu_upper"] * (1 + 1e-5)
     # The lower bound over designs (the cloud's least widening over the design box at the worst point in
@@ -366,7 +374,7 @@ def test_robust_mu_upper_of_a_model_with_a_cloud_is_certified_at_its_design():
 
 
 def test_the_physics_moves_with_every_drifting_parameter_in_its_stated_direction():
-    from microbearing.optimize.envelope_bound import DRIFT_DIRECTIONS
+    from microbearing.physics.effects import PARAMETER_SHARES
 
     # Designs, speeds and both conventions; each parameter from a fifth to five times its default.
     grid = list(itertools.product([1.0, 2.0, 3.0, 8.0, 30.0], [30.0, 45.0, 60.0, 80.0], [1e-4, 0.01, 1.0],
@@ -375,7 +383,7 @@ def test_the_physics_moves_with_every_drifting_parameter_in_its_stated_direction
                enumerate(["balls", "groove_angle_deg", "load_N", "speed_m_s"])}
     factors = np.geomspace(0.2, 5.0, 9)
     for convention in physics.CONVENTIONS:
-        for name, direction in DRIFT_DIRECTIONS.items():
+        for name, direction in ((n, s.direction) for n, s in PARAMETER_SHARES.items()):
             default = physics.defaults()[name]
             spec = physics.PARAMETERS[name]
             values = [v for v in default * factors if spec.maximum is None or v < spec.maximum]
@@ -405,11 +413,11 @@ def _drift_model() -> CalibratedPhysicsModel:
 
 def test_certified_worst_case_with_a_drifting_viscosity_brackets_brute_force():
     model = _drift_model()
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                                       Constraints()), model)
     design = {"balls": 5.0, "groove_angle_deg": 45.0, "load_N": 0.002}
-    bracket = robust._certified_search(problem, ENVELOPE, model, term_pieces(model)[0], design, 0.0)
-    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu", design, 0.0)
+    bracket = certified_search(problem, ENVELOPE, model, term_pieces(model)[0], design, 0.0)
+    evaluate = evaluator(problem, ENVELOPE, model, "mu", design, 0.0)
     # By hand: the quadratic peaks at 0.5 - 0.1 x 0.1 / (2 x -0.2) = 0.525; viscosity is highest when cold.
     peak_h = 0.5 - 0.1 * 0.1 / (2 * -0.2)
     assert bracket.point["conditions"]["relative_humidity"] == pytest.approx(peak_h, rel=1e-9)
@@ -429,8 +437,8 @@ def test_robust_mu_with_a_drift_is_proven_and_no_grid_design_beats_the_bound():
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu")
     proof = result.proof
     assert proof["method"] == "outer-approximation-certified" and proof["proven"], proof["statement"]
-    held = robust._with_model_values(problem, model)
-    evaluate = robust._evaluator(held, ENVELOPE, model, "mu", dict(result.result.design), 0.0)
+    held = with_model_values(problem, model)
+    evaluate = evaluator(held, ENVELOPE, model, "mu", dict(result.result.design), 0.0)
     assert evaluate(_grid_points(7)).max() <= proof["upper_bound"]
     # Every design of a grid has mu at the worst point at least the certified lower bound.
     at_worst = _grid_at_the_worst_point(model, held, result, "mu")
@@ -438,7 +446,7 @@ def test_robust_mu_with_a_drift_is_proven_and_no_grid_design_beats_the_bound():
     # the nominal design's worst case in the price of robustness is certified too
     nominal = result.price_of_robustness["nominal"]
     assert nominal["worst_case_certified"] is True
-    nominal_eval = robust._evaluator(held, ENVELOPE, model, "mu", nominal["design"], 0.0)
+    nominal_eval = evaluator(held, ENVELOPE, model, "mu", nominal["design"], 0.0)
     assert nominal_eval(_grid_points(7)).max() <= nominal["worst_case_upper_bound"]
     assert nominal["worst_case_upper_bound"] <= nominal["worst_case"] * (1 + 1e-6)
 
@@ -460,17 +468,17 @@ def test_certified_mu_upper_with_groups_bounds_brute_force():
     model = CalibratedPhysicsModel("calibrated:groups", dataclasses.replace(base, groups=_groups()))
     structures, reason = interval_structures(model)
     assert structures is not None, reason
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                                       Constraints()), model)
     design = {"balls": 4.0, "groove_angle_deg": 50.0, "load_N": 0.005}
-    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
-    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    bracket = certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    evaluate = evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
     brute = evaluate(_grid_points(7, extra=[("conditions.temperature_C", bracket.point["conditions"][
         "temperature_C"])]))
     assert brute.max() <= bracket.upper_bound <= bracket.value * (1 + 2e-5)
     assert brute.max() == pytest.approx(bracket.value, rel=1e-4)
     # the groups decide the worst case: without them mu_upper is lower there
-    plain = robust._evaluator(problem, ENVELOPE, _interval_model(), "mu_upper", design, 0.0)
+    plain = evaluator(problem, ENVELOPE, _interval_model(), "mu_upper", design, 0.0)
     assert plain([bracket.point])[0] < bracket.value * (1 - 1e-3)
 
 
@@ -480,8 +488,8 @@ def test_robust_mu_with_a_group_on_mu_is_proven_and_one_on_a_fitted_parameter_is
     model = CalibratedPhysicsModel("calibrated:groups", dataclasses.replace(base, groups=_groups(False)))
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu")
     assert result.proof["method"] == "outer-approximation-certified" and result.proof["proven"]
-    held = robust._with_model_values(problem, model)
-    evaluate = robust._evaluator(held, ENVELOPE, model, "mu", dict(result.result.design), 0.0)
+    held = with_model_values(problem, model)
+    evaluate = evaluator(held, ENVELOPE, model, "mu", dict(result.result.design), 0.0)
     brute = evaluate(_grid_points(9, extra=[("conditions.temperature_C", PEAK_C)]))
     assert brute.max() <= result.proof["upper_bound"]
     assert brute.max() == pytest.approx(result.worst_case["mu"], rel=1e-6)
@@ -543,7 +551,7 @@ def test_gp_bounds_hold_every_point_of_a_box_and_close_on_a_point():
 
 def test_certified_worst_case_with_a_gp_discrepancy_brackets_brute_force_for_mu_and_mu_upper():
     model = _gp_model()
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                                       Constraints()), model)
     design = {"balls": 5.0, "groove_angle_deg": 45.0, "load_N": 0.01}
     pieces, reason = term_pieces(model)
@@ -551,9 +559,9 @@ def test_certified_worst_case_with_a_gp_discrepancy_brackets_brute_force_for_mu_
     structures, reason = interval_structures(model)
     assert structures is not None, reason
     for objective, bracket in [
-            ("mu", robust._certified_search(problem, ENVELOPE, model, pieces, design, 0.0)),
-            ("mu_upper", robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0))]:
-        evaluate = robust._evaluator(problem, ENVELOPE, model, objective, design, 0.0)
+            ("mu", certified_search(problem, ENVELOPE, model, pieces, design, 0.0)),
+            ("mu_upper", certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0))]:
+        evaluate = evaluator(problem, ENVELOPE, model, objective, design, 0.0)
         # Here the GP's mean and the quadratic term slope opposite ways at the worst temperature: bounded
         # factor by factor, a box's bound exceeds the value by their slopes times its width, and the branch
         # and bound stops at its box limit with the bracket it has (said: complete False, and its gap).
@@ -570,7 +578,7 @@ def test_certified_worst_case_with_a_gp_discrepancy_brackets_brute_force_for_mu_
         # the bracket's stated gap: upper = value / (1 - gap)
         assert bracket.upper_bound <= max(brute.max(), bracket.value) / (1 - tolerance) * (1 + 1e-9)
         # the discrepancy decides it: without it the worst case is elsewhere or lower
-        plain = robust._evaluator(problem, ENVELOPE, _interval_model(), objective, design, 0.0)
+        plain = evaluator(problem, ENVELOPE, _interval_model(), objective, design, 0.0)
         assert abs(plain([bracket.point])[0] / bracket.value - 1) > 1e-4
 
 
@@ -584,8 +592,8 @@ def test_robust_mu_with_a_gp_is_certified_at_its_design_and_no_grid_design_beats
     assert proof["lower_bound"] >= result.worst_case["mu"] * (1 - 1e-6)
     assert proof["relative_gap"] == pytest.approx(proof["worst_case_relative_gap"], abs=2e-6)
     assert proof["proven"] == (proof["relative_gap"] <= robust.GAP_TARGET)
-    held = robust._with_model_values(problem, _gp_model())
-    evaluate = robust._evaluator(held, ENVELOPE, _gp_model(), "mu", dict(result.result.design), 0.0)
+    held = with_model_values(problem, _gp_model())
+    evaluate = evaluator(held, ENVELOPE, _gp_model(), "mu", dict(result.result.design), 0.0)
     assert evaluate(_grid_points(7)).max() <= proof["upper_bound"]
     # A GP reading the load too: the worst case at the design is still certified; the lower bound over
     # designs takes the GP's least mean over the whole design box, and no grid design beats it.
@@ -593,7 +601,7 @@ def test_robust_mu_with_a_gp_is_certified_at_its_design_and_no_grid_design_beats
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu")
     proof = result.proof
     assert proof["method"] == "outer-approximation-certified" and proof["worst_case_relative_gap"] < 5e-3
-    held = robust._with_model_values(problem, model)
+    held = with_model_values(problem, model)
     at_worst = _grid_at_the_worst_point(model, held, result, "mu")
     assert proof["lower_bound"] is not None and at_worst.min() >= proof["lower_bound"]
 
@@ -619,16 +627,16 @@ def _drift_interval_model() -> CalibratedPhysicsModel:
 
 
 def test_certified_mu_upper_with_drifting_parameters_bounds_brute_force():
-    from microbearing.optimize.envelope_bound import DRIFT_SHARES
+    from microbearing.physics.effects import PARAMETER_SHARES
 
     model = _drift_interval_model()
     structures, reason = interval_structures(model)
     assert structures is not None, reason
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                                       Constraints()), model)
     design = {"balls": 4.0, "groove_angle_deg": 50.0, "load_N": 0.003}
-    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
-    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    bracket = certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    evaluate = evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
     # The drift and the quadratic slope opposite ways in temperature at the worst point: factor by factor the
     # bracket closes linearly with the box, and stops at the box limit with its gap stated.
     assert bracket.relative_gap <= 1e-3 and (bracket.complete or bracket.boxes >= 20000)
@@ -641,11 +649,11 @@ def test_certified_mu_upper_with_drifting_parameters_bounds_brute_force():
     assert bracket.upper_bound <= max(brute.max(), bracket.value) / (1 - bracket.relative_gap) * (1 + 1e-9)
     # the drifts' coefficients widen the interval: with their variances zero mu_upper is lower there
     narrow = dataclasses.replace(model.calibrated, covariance=np.diag([1e-4, 0.0, 0.0, 1e-4, 1e-4]))
-    plain = robust._evaluator(problem, ENVELOPE, CalibratedPhysicsModel("n", narrow), "mu_upper", design, 0.0)
+    plain = evaluator(problem, ENVELOPE, CalibratedPhysicsModel("n", narrow), "mu_upper", design, 0.0)
     assert plain([bracket.point])[0] < bracket.value * (1 - 1e-3)
     # the shares' exponents are the physics' own: the rolling force grows as viscosity^0.66 (eq 9)
     columns = {"balls": 4.0, "groove_angle_deg": 50.0, "load_N": 0.003, "speed_m_s": 0.05}
-    output, exponent = DRIFT_SHARES["viscosity_Pa_s"]
+    output, exponent = PARAMETER_SHARES["viscosity_Pa_s"].output, PARAMETER_SHARES["viscosity_Pa_s"].exponent
     shares = [float(getattr(physics.evaluate(outputs=[output], **columns, viscosity_Pa_s=v), output))
               for v in (0.01, 0.02)]
     assert shares[1] / shares[0] == pytest.approx(2.0**exponent, rel=1e-12)
@@ -679,11 +687,11 @@ def test_the_departure_from_a_line_of_columns_moving_together_is_bounded_over_bo
     assert lower[1] > 1  # fast and dry: off the line, flagged whatever the box's point
     structures, reason = interval_structures(model)
     assert structures is not None, reason
-    problem = robust._with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                                       Constraints()), model)
     design = {"balls": 5.0, "groove_angle_deg": 50.0, "load_N": 0.01}
-    bracket = robust._certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
-    evaluate = robust._evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
+    bracket = certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    evaluate = evaluator(problem, ENVELOPE, model, "mu_upper", design, 0.0)
     brute = evaluate(_grid_points(9))
     assert brute.max() <= bracket.upper_bound and brute.max() <= bracket.value * (1 + 1e-9)
     assert bracket.value <= bracket.upper_bound
@@ -707,7 +715,7 @@ def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid
     model = CalibratedPhysicsModel("calibrated:meniscus-cloud", meniscus)
     problem = DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05, Constraints())
     if not over_design_boxes:
-        monkeypatch.setattr(robust, "_with_design_bound", lambda *args: "switched off in this test")
+        monkeypatch.setattr(certificates, "with_design_bound", lambda *args: "switched off in this test")
     result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper")
     proof = result.proof
     if over_design_boxes:
@@ -717,7 +725,7 @@ def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid
         assert proof["upper_bound_certified"] and proof["relative_gap"] <= 1e-3
     else:
         assert "the data cloud's least widening there" in proof["statement"]
-    held = robust._with_model_values(problem, model)
+    held = with_model_values(problem, model)
     vertex = ENVELOPE.point({"speed_m_s": 0.1, "conditions.relative_humidity": 0.7,
                              "conditions.temperature_C": 20.0, "groove_angle_offset_deg": 0.5})
     grid = list(itertools.product(range(3, 9), np.linspace(40, 60, 6), np.geomspace(0.001, 0.05, 8)))
@@ -725,8 +733,8 @@ def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid
                "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
     # Each grid design's worst case over a grid of the envelope (and the vertex) is at least the bound.
     points = [vertex, *_grid_points(3)]
-    columns = robust._columns(held, ENVELOPE, designs, points, 0.0)
-    values = robust._objective_values(model, "mu_upper", columns, held.convention)
+    columns = envelope_columns(held, ENVELOPE, designs, points, 0.0)
+    values = objective_values(model, "mu_upper", columns, held.convention)
     worst = np.asarray(values, dtype=float).reshape(len(points), len(grid)).max(axis=0)
     assert worst.min() >= proof["lower_bound"]
     # and the bound is above the scatter's alone (exp(1.96 x 0.02) times the proven least worst mu)

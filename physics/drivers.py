@@ -1,0 +1,141 @@
+"""Kinds of condition column that drive effects and drift laws, recognised by name, with their units.
+
+A humidity column contains ``humid`` or ``rh`` (a fraction in [0, 1), or percent when the name contains
+``pct`` or ``percent``); a temperature column ``temp`` (degC, or kelvin when the name says ``k`` or
+``kelvin``). Each unit declares the values a micro bearing's test rig plausibly records
+(:attr:`DriverUnit.plausible`), which :mod:`calibrate.plausibility` reads. :mod:`physics.effects`
+re-exports every name here.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DRIVER_KINDS", "HUMIDITY", "TEMPERATURE", "DriverKind", "DriverUnit", "humidity_fraction",
+           "name_matches", "temperature_kelvin"]
+
+
+@dataclass(frozen=True)
+class DriverUnit:
+    """One unit a kind of driver column may be recorded in, chosen by the words of the column's name.
+
+    Attributes
+    ----------
+    unit : str
+        ``"1"``, ``"%"``, ``"degC"``, ``"K"``.
+    keywords : tuple of str
+        Prefixes of the name's words that select this unit; empty for the default unit.
+    excluded : tuple of str
+        Prefixes that veto it (a temperature named with a word ``c`` or ``degc`` is not in kelvin).
+    plausible : (float, float)
+        Values a micro bearing's test rig plausibly records, in this unit: beyond them the column is
+        refused as a unit slip (:mod:`calibrate.plausibility`).
+    """
+
+    unit: str
+    keywords: tuple[str, ...]
+    excluded: tuple[str, ...]
+    plausible: tuple[float, float]
+
+    def selected_by(self, column: str) -> bool:
+        """Whether a column of this name is recorded in this unit."""
+        return ((not self.keywords or name_matches(column, self.keywords))
+                and not (self.excluded and name_matches(column, self.excluded)))
+
+
+@dataclass(frozen=True)
+class DriverKind:
+    """A kind of condition column that drives effects and drift laws, recognised by name.
+
+    Attributes
+    ----------
+    name : str
+        The quantity in words.
+    keywords : tuple of str
+        Prefixes of a column name's words that make it this kind (``humid``, ``rh``).
+    units : tuple of DriverUnit
+        The units it may be recorded in, the first selected by the name wins (the last is the default).
+    """
+
+    name: str
+    keywords: tuple[str, ...]
+    units: tuple[DriverUnit, ...]
+
+    def matches(self, column: str) -> bool:
+        """Whether a column of this name is of this kind."""
+        return name_matches(column, self.keywords)
+
+    def unit_of(self, column: str) -> DriverUnit:
+        """The unit a column of this name is recorded in."""
+        return next(u for u in self.units if u.selected_by(column))
+
+
+#: Relative humidity: a fraction in [0, 1], or percent when the name says ``pct`` or ``percent``.
+HUMIDITY = DriverKind("relative humidity", ("humid", "rh"), (
+    DriverUnit("%", ("pct", "percent"), (), (0.0, 100.0)),
+    DriverUnit("1", (), (), (0.0, 1.0))))
+#: Temperature: degC, or kelvin when the name says ``k`` or ``kelvin`` (and not ``c``/``degc``); a degC
+#: column above 200 looks like kelvin, a kelvin one below 150 like degC.
+TEMPERATURE = DriverKind("temperature", ("temp",), (
+    DriverUnit("K", ("k", "kelvin"), ("c", "degc"), (150.0, math.inf)),
+    DriverUnit("degC", (), (), (-273.15, 200.0))))
+#: The kinds of driver column the effects and laws declare, with their units and plausible ranges.
+DRIVER_KINDS: tuple[DriverKind, ...] = (HUMIDITY, TEMPERATURE)
+
+
+def name_matches(name: str, prefixes: tuple[str, ...]) -> bool:
+    """Whether a word of a column's name (split at non-alphanumerics) starts with one of the prefixes."""
+    words = [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
+    return any(w.startswith(p) or w == p for w in words for p in prefixes)
+
+
+def humidity_fraction(name: str, values) -> np.ndarray:
+    """Relative humidity as a fraction: percent when the column name says ``pct`` or ``percent``.
+
+    Parameters
+    ----------
+    name : str
+        Column name.
+    values : array_like
+        Relative humidity [1] or [%].
+
+    Returns
+    -------
+    numpy.ndarray
+        Relative humidity h. [1]
+
+    Examples
+    --------
+    >>> humidity_fraction("relative_humidity_pct", [40.0]).tolist()
+    [0.4]
+    """
+    x = np.asarray(values, dtype=float)
+    return x / 100.0 if HUMIDITY.unit_of(name).unit == "%" else x
+
+
+def temperature_kelvin(name: str, values) -> np.ndarray:
+    """Temperature in kelvin: the column is in kelvin when its name says ``k`` or ``kelvin``, else degC.
+
+    Parameters
+    ----------
+    name : str
+        Column name, e.g. ``temperature_C`` or ``temperature_K``.
+    values : array_like
+        Temperature [degC] or [K].
+
+    Returns
+    -------
+    numpy.ndarray
+        Absolute temperature. [K]
+
+    Examples
+    --------
+    >>> temperature_kelvin("temperature_C", [25.0]).tolist(), temperature_kelvin("temp_K", [300.0]).tolist()
+    ([298.15], [300.0])
+    """
+    x = np.asarray(values, dtype=float)
+    return x if TEMPERATURE.unit_of(name).unit == "K" else x + 273.15
