@@ -3,20 +3,66 @@
 A humidity column contains ``humid`` or ``rh`` (a fraction in [0, 1), or percent when the name contains
 ``pct`` or ``percent``); a temperature column ``temp`` (degC, or kelvin when the name says ``k`` or
 ``kelvin``). Each unit declares the values a micro bearing's test rig plausibly records
-(:attr:`DriverUnit.plausible`), which :mod:`calibrate.plausibility` reads. :mod:`physics.effects`
-re-exports every name here.
+(:attr:`DriverUnit.plausible`), which :mod:`calibrate.plausibility` reads; a law declares the values its
+formula holds for as a :class:`Domain`. :mod:`physics.effects` re-exports every name here.
 """
 
 from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["DRIVER_KINDS", "HUMIDITY", "TEMPERATURE", "DriverKind", "DriverUnit", "humidity_fraction",
-           "name_matches", "temperature_kelvin"]
+__all__ = ["DRIVER_KINDS", "HUMIDITY", "TEMPERATURE", "Domain", "DriverKind", "DriverUnit",
+           "humidity_fraction", "name_matches", "temperature_kelvin"]
+
+
+@dataclass(frozen=True)
+class Domain:
+    """The values a law's driver may take, in the unit of the law's formula: an interval, each end open
+    (excluded) or closed.
+
+    Attributes
+    ----------
+    low, high : float
+        Its ends (may be infinite).
+    low_open, high_open : bool
+        Whether the end itself is excluded (an infinite end is never reached).
+
+    Examples
+    --------
+    >>> Domain(0.0, 1.0, low_open=True, high_open=True).contains([0.0, 0.5, 1.0]).tolist()
+    [False, True, False]
+    >>> Domain(0.0).text(), Domain(0.0, 1.0, True, True).in_unit(lambda x: x / 100.0).text()
+    ('[0, inf)', '(0, 100)')
+    """
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+
+    def contains(self, values) -> np.ndarray:
+        """Whether each value lies in the domain (NaN does not)."""
+        x = np.asarray(values, dtype=float)
+        above = x > self.low if self.low_open else x >= self.low
+        return above & (x < self.high if self.high_open else x <= self.high)
+
+    def text(self) -> str:
+        """The interval in words, e.g. ``(0, 1)`` or ``[0, inf)``."""
+        left = "(" if self.low_open or math.isinf(self.low) else "["
+        right = ")" if self.high_open or math.isinf(self.high) else "]"
+        return f"{left}{self.low:g}, {self.high:g}{right}"
+
+    def in_unit(self, to_formula: Callable) -> Domain:
+        """The same domain in a column's unit, given the increasing affine map from that unit to the
+        formula's (percent to a fraction, degC to K)."""
+        offset = float(to_formula(np.asarray(0.0)))
+        slope = float(to_formula(np.asarray(1.0))) - offset
+        return replace(self, low=(self.low - offset) / slope, high=(self.high - offset) / slope)
 
 
 @dataclass(frozen=True)

@@ -54,9 +54,8 @@ References
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -64,6 +63,7 @@ from .drivers import (
     DRIVER_KINDS,
     HUMIDITY,
     TEMPERATURE,
+    Domain,
     DriverKind,
     DriverUnit,
     humidity_fraction,
@@ -107,51 +107,6 @@ _Columns = Mapping[str, np.ndarray]
 #: logarithm is linear in it, m(p + h) / m(p) = exp(h φ(x)) with φ monotone in the driver; ``log_square``,
 #: the same with φ = z², least at the centre of the driver's data.
 VALUE_FORMS = ("scale", "log", "log_square")
-
-
-@dataclass(frozen=True)
-class Domain:
-    """The values a law's driver may take, in the unit of the law's formula: an interval, each end open
-    (excluded) or closed.
-
-    Attributes
-    ----------
-    low, high : float
-        Its ends (may be infinite).
-    low_open, high_open : bool
-        Whether the end itself is excluded (an infinite end is never reached).
-
-    Examples
-    --------
-    >>> Domain(0.0, 1.0, low_open=True, high_open=True).contains([0.0, 0.5, 1.0]).tolist()
-    [False, True, False]
-    >>> Domain(0.0).text(), Domain(0.0, 1.0, True, True).in_unit(lambda x: x / 100.0).text()
-    ('[0, inf)', '(0, 100)')
-    """
-
-    low: float = -math.inf
-    high: float = math.inf
-    low_open: bool = False
-    high_open: bool = False
-
-    def contains(self, values) -> np.ndarray:
-        """Whether each value lies in the domain (NaN does not)."""
-        x = np.asarray(values, dtype=float)
-        above = x > self.low if self.low_open else x >= self.low
-        return above & (x < self.high if self.high_open else x <= self.high)
-
-    def text(self) -> str:
-        """The interval in words, e.g. ``(0, 1)`` or ``[0, inf)``."""
-        left = "(" if self.low_open or math.isinf(self.low) else "["
-        right = ")" if self.high_open or math.isinf(self.high) else "]"
-        return f"{left}{self.low:g}, {self.high:g}{right}"
-
-    def in_unit(self, to_formula: Callable) -> Domain:
-        """The same domain in a column's unit, given the increasing affine map from that unit to the
-        formula's (percent to a fraction, degC to K)."""
-        offset = float(to_formula(np.asarray(0.0)))
-        slope = float(to_formula(np.asarray(1.0))) - offset
-        return replace(self, low=(self.low - offset) / slope, high=(self.high - offset) / slope)
 
 
 @dataclass(frozen=True)

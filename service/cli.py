@@ -525,17 +525,8 @@ def _json_command(sub: Any, name: str, func: Callable[[argparse.Namespace], int]
     return command
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of every subcommand."""
+def _add_evaluate(sub: Any, conventions: list[str]) -> None:
     from microbearing import physics
-
-    from .routes.meta import package_version
-
-    parser = argparse.ArgumentParser(prog="microbearing", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
-    sub = parser.add_subparsers(dest="command", required=True)
-    conventions = list(physics.CONVENTIONS)
 
     e = sub.add_parser(
         "evaluate", help="friction of one design point, or of every row of a CSV file (to CSV)",
@@ -554,6 +545,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
     e.set_defaults(func=_evaluate)
 
+
+def _add_json_commands(sub: Any) -> None:
+    """``sweep``, ``optimize`` and ``experiments``: a JSON request file in the schema of their route."""
     w = _json_command(
         sub, "sweep", _sweep, help="a grid or design of experiments from a JSON request (as POST /v1/sweeps)",
         description="Run the sweep described by a JSON file in the schema of POST /v1/sweeps; write its "
@@ -599,6 +593,11 @@ def build_parser() -> argparse.ArgumentParser:
                   "microbearing experiments first.json -o first-runs.json"])
     x.add_argument("--calibration", metavar="ID", help="a stored calibration (its id or calibrated:<id>)")
     x.add_argument("--plot", metavar="FILE.png", help="draw the runs over the data taken (and the rivals)")
+    _data_dir_option(o)
+
+
+def _add_paper_and_serve(sub: Any) -> None:
+    from microbearing import physics
 
     p = sub.add_parser("paper", help="reproduce the numerical cases of Olaru et al. (2005)",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -626,6 +625,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--workers", type=int, default=1, help="server processes (default: 1)")
     s.set_defaults(func=_serve)
 
+
+def _add_calibrate(sub: Any) -> None:
     c = sub.add_parser("calibrate", help="calibrate the model on measured CSV data, name the missing effect",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Fit the declared parameters on log mu, search the residual for a missing "
@@ -655,6 +656,15 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--json", metavar="FILE", help="write the full report, with the calibrated model, as JSON")
     c.set_defaults(func=_calibrate)
 
+
+def _data_dir_option(command: argparse.ArgumentParser) -> None:
+    """``--data-dir`` on a command that reads the store."""
+    command.add_argument("--data-dir", type=Path, default=None,
+                         help="data folder of stored models (default: $MICROBEARING_DATA_DIR, else the "
+                              "user data dir)")
+
+
+def _add_surrogate(sub: Any) -> None:
     g = sub.add_parser("surrogate",
                        help="train, query and list Gaussian-process surrogates (as /v1/surrogates)",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -667,11 +677,6 @@ def build_parser() -> argparse.ArgumentParser:
                               "  microbearing surrogate list --data-dir ./data")
     actions = g.add_subparsers(dest="action", required=True)
 
-    def data_dir_option(command: argparse.ArgumentParser) -> None:
-        command.add_argument("--data-dir", type=Path, default=None,
-                             help="data folder of stored models (default: $MICROBEARING_DATA_DIR, else the "
-                                  "user data dir)")
-
     t = _json_command(
         actions, "train", _surrogate_train, help="train a surrogate and store it (prints its JSON)",
         description="Train the surrogate described by a JSON file in the schema of POST /v1/surrogates and "
@@ -679,7 +684,7 @@ def build_parser() -> argparse.ArgumentParser:
         examples=['echo \'{"space": {"load_N": [0.001, 0.05], "speed_m_s": [0.001, 0.2]}, '
                   '"fixed": {"balls": 4}, "budget": 30}\' > request.json',
                   "microbearing surrogate train request.json -o surrogate.json"])
-    data_dir_option(t)
+    _data_dir_option(t)
     r = actions.add_parser("predict", help="predict mu with its 95 %% interval at points",
                            formatter_class=argparse.RawDescriptionHelpFormatter,
                            description="Predict mu, its 95 % interval and whether each point lies inside "
@@ -693,7 +698,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("inputs", nargs="+", metavar="NAME=VALUE[,VALUE...]",
                    help="every dimension of the surrogate, in its unit; one value broadcasts")
     r.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
-    data_dir_option(r)
+    _data_dir_option(r)
     r.set_defaults(func=_surrogate_predict)
     li = actions.add_parser("list", help="list the stored surrogates",
                             formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -703,9 +708,25 @@ def build_parser() -> argparse.ArgumentParser:
                                    "  microbearing surrogate list --json -o surrogates.json")
     li.add_argument("--json", action="store_true", help="the full descriptions as JSON (GET /v1/surrogates)")
     li.add_argument("-o", "--output", metavar="FILE", help="write here instead of stdout")
-    data_dir_option(li)
+    _data_dir_option(li)
     li.set_defaults(func=_surrogate_list)
-    data_dir_option(o)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of every subcommand."""
+    from microbearing import physics
+
+    from .routes.meta import package_version
+
+    parser = argparse.ArgumentParser(prog="microbearing", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_evaluate(sub, list(physics.CONVENTIONS))
+    _add_json_commands(sub)
+    _add_paper_and_serve(sub)
+    _add_calibrate(sub)
+    _add_surrogate(sub)
     return parser
 
 
