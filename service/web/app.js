@@ -467,7 +467,9 @@ function parseRanges(text, what, single) {
         if (single && values.length === 1) out[name] = values[0];  // a factor's group label
         else throw bad(`${name}: write numbers, low .. high or v1, v2`);
       } else {
-        out[name] = single && values.length === 1 ? Number(values[0]) : values.map(Number);
+        if (single && values.length > 1) throw bad(`${name}: give one value, or a range low .. high`);
+        // a set of allowed values is {"values": [...]} in every route; [low, high] is a range
+        out[name] = single ? Number(values[0]) : { values: values.map(Number) };
       }
     }
   });
