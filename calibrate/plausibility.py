@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from microbearing import physics
+from microbearing.physics.columns import SLIP_LIMITS
 from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset
@@ -48,12 +49,8 @@ from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset
 __all__ = ["LIMITS", "Finding", "check_plausible", "plausibility_findings"]
 
 #: Largest value of a physics column a micro ball bearing plausibly sees, with the likely unit slip and
-#: its factor to SI. [unit of the column]
-LIMITS: dict[str, tuple[float, str, float]] = {
-    "speed_m_s": (10.0, "mm/s", 1e-3),
-    "load_N": (1.0, "mN", 1e-3),
-    "ball_diameter_m": (1e-2, "mm", 1e-3),
-}
+#: its factor to SI (:data:`physics.columns.SLIP_LIMITS`, the one rule of every door). [unit of the column]
+LIMITS: dict[str, tuple[float, str, float]] = SLIP_LIMITS
 #: Largest measured friction coefficient before a warning. [1]
 MU_WARNING = 1.0
 
