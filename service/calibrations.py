@@ -23,7 +23,7 @@ import numpy as np
 
 from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
-from microbearing.calibrate.data import MU_MEASURED, MU_MEASURED_STD
+from microbearing.calibrate.data import MU_MEASURED
 from microbearing.physics.columns import ColumnError, match_column, slip, unknown_column
 from microbearing.physics.model import NOT_FINITE
 
@@ -101,36 +101,17 @@ def calibration_view(calibration_id: str, metadata: Mapping[str, Any]) -> dict[s
 
 
 def data_arrays(dataset: Dataset) -> dict[str, np.ndarray]:
-    """A calibration's data as arrays to store beside its plots (``data.<column>``)."""
-    arrays = {DATA_PREFIX + name: np.asarray(v) for name, v in dataset.physics_columns.items()}
-    arrays |= {DATA_PREFIX + "condition." + name: np.asarray(v, dtype=float)
-               for name, v in dataset.conditions.items()}
-    arrays |= {DATA_PREFIX + "factor." + name: np.asarray(v, dtype=str)
-               for name, v in dataset.factors.items()}
-    arrays[DATA_PREFIX + MU_MEASURED] = np.asarray(dataset.mu_measured, dtype=float)
-    if dataset.mu_measured_std is not None:
-        arrays[DATA_PREFIX + MU_MEASURED_STD] = np.asarray(dataset.mu_measured_std, dtype=float)
-    return arrays
+    """A calibration's data as arrays to store beside its plots (``data.<column>`` of
+    :meth:`calibrate.Dataset.to_columns`, the one serialization of measurements)."""
+    return {DATA_PREFIX + name: values for name, values in dataset.to_columns().items()}
 
 
 def stored_dataset(arrays: Mapping[str, np.ndarray], fixed: Mapping[str, Any]) -> Dataset | None:
     """The calibration's data from its stored arrays, or None for a calibration stored before data were."""
     if DATA_PREFIX + MU_MEASURED not in arrays:
         return None
-    physics_columns, conditions, factors = {}, {}, {}
-    for key, value in arrays.items():
-        if not key.startswith(DATA_PREFIX) or key[len(DATA_PREFIX):] in (MU_MEASURED, MU_MEASURED_STD):
-            continue
-        name = key[len(DATA_PREFIX):]
-        if name.startswith("condition."):
-            conditions[name[len("condition."):]] = np.asarray(value, dtype=float)
-        elif name.startswith("factor."):
-            factors[name[len("factor."):]] = np.asarray(value, dtype=str)
-        else:
-            physics_columns[name] = np.asarray(value)
-    std = arrays.get(DATA_PREFIX + MU_MEASURED_STD)
-    return Dataset(physics_columns, conditions, np.asarray(arrays[DATA_PREFIX + MU_MEASURED], dtype=float),
-                   None if std is None else np.asarray(std, dtype=float), dict(fixed), factors)
+    return Dataset.from_columns({key[len(DATA_PREFIX):]: value for key, value in arrays.items()
+                                 if key.startswith(DATA_PREFIX)}, fixed)
 
 
 def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], folds: int, convention: str,
