@@ -29,6 +29,7 @@ import numpy as np
 import pytest
 from live_server import REPO, Server, free_port, wait_for
 from test_reliability_dask import DASK, Process, wait_for_workers
+from test_reliability_dask_faults import start_scheduler, start_worker
 
 from microbearing import physics
 
@@ -50,17 +51,6 @@ class ServedServer(Server):
     def command(self, data_dir: Path) -> list[str]:
         return [sys.executable, "-m", "microbearing.service.cli", "serve", "--host", "127.0.0.1",
                 "--port", str(self.port)]
-
-
-def start_scheduler(port: int, folder: Path, n: int) -> Process:
-    return Process([DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-                   folder / f"scheduler-{n}.log")
-
-
-def start_worker(address: str, folder: Path, n: int) -> Process:
-    return Process([DASK, "worker", address, "--nthreads", "1", "--no-dashboard", "--no-nanny",
-                    "--memory-limit", "0", "--name", f"worker-{n}",
-                    "--local-directory", str(folder / f"w{n}")], folder / f"worker-{n}.log")
 
 
 def signal_group(process: Process, sig: int) -> None:
