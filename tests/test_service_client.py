@@ -36,6 +36,9 @@ GENERATOR_WARNINGS = {
     "POST /v1/calibrations/csv": (
         "the generator has no text/csv request bodies; it generates the operation with the "
         "application/octet-stream body the spec also declares (the server reads either as CSV)"),
+    "POST /v1/calibrations/csv/intake": (
+        "the generator has no text/csv request bodies; it generates the operation with the "
+        "application/octet-stream body the spec also declares (the server reads either as CSV)"),
     "GET /v1/calibrations/{calibration_id}/plots/{plot_name}.png": (
         "an image/png answer has no model; the generated sync_detailed() returns its bytes in .content"),
     "GET /v1/optimizations/{job_id}/pareto.png": (
@@ -369,6 +372,16 @@ def _(s: Session) -> None:
     result = s.job_result(s.call("create_calibration_from_csv", body=body, fit_parameters=[
         s.models.FittableParameter("mu_pivot")], folds=3), "CalibrationJobResult")
     assert result.n_points == 24 and result.fit_parameters == ["mu_pivot"]
+
+
+@drives("read_calibration_csv")
+def _(s: Session) -> None:
+    rows = _calibration_rows()
+    text = ";".join(rows[0]) + "\n" + "".join(";".join(str(v) for v in row.values()) + "\n" for row in rows)
+    body = s.package.types.File(payload=text.encode(), file_name="measured.csv", mime_type="text/csv")
+    reading = typed(s.call("read_calibration_csv", body=body), "CsvReading")
+    assert reading.rows == 24 and reading.intake.separator == "semicolon"
+    assert "mu_measured" in reading.intake.columns.additional_properties
 
 
 @drives("get_calibration")
