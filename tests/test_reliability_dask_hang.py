@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 from live_server import REPO, Server, free_port, wait_for
 from test_reliability_dask import DASK, Process, wait_for_workers
-from test_reliability_dask_faults import start_scheduler, start_worker
+from test_reliability_dask_faults import BATCH, LONG_SWEEP, start_scheduler, start_worker
 
 from microbearing import physics
 
@@ -39,10 +39,6 @@ pytestmark = [pytest.mark.skipif(os.name != "posix", reason="process groups and 
 FAULT_TIMEOUT_S = 10.0
 #: Slack for one look at the cluster a second and a loaded machine [s].
 SLACK_S = 10.0
-LONG_SWEEP = {"design": "sobol", "points": 1_500_000, "seed": 5, "outputs": ["mu"],
-              "ranges": {"load_N": {"low": 1e-3, "high": 0.05}}, "fixed": {"balls": 4, "speed_m_s": 0.05}}
-BATCH = {"points": {"balls": 5, "load_N": np.linspace(1e-3, 0.05, 1000).tolist(), "speed_m_s": 0.02},
-         "outputs": ["mu"]}
 
 
 class ServedServer(Server):
