@@ -6,10 +6,16 @@ functions the numpy path runs (:func:`physics.kernel.point_outputs` and the equa
 calls) by :mod:`physics.fused`: its arithmetic, cut at the expensive elementary functions, is
 compiled by numba into one loop per stage that keeps every intermediate in registers and releases
 the GIL, and numpy's vectorized loops compute tan, cbrt, log and exp over each block between the
-stages. A block's buffers stay in the CPU's cache, so a call reads its inputs and writes its
-outputs once. The operations are the numpy kernel's in its order, with numpy's elementary
-functions, so the two agree bit for bit where numba emits the same IEEE operations (tested to
-1e-12).
+stages. Everything a block's stages share lives in one workspace per thread that stays in the
+CPU's cache, so a call reads its inputs and writes its outputs once; what depends on the
+materials alone is computed once a call. The operations are the numpy kernel's in its order,
+with numpy's elementary functions, so the two agree bit for bit where numba emits the same IEEE
+operations (tested to 1e-12).
+
+Compiling takes seconds, so the generated source is written to a file beside the package (in
+``__pycache__``, named by its hash) and numba caches the machine code next to it: a later process
+loads it (what remains is numba's own start, about a second). A read-only install compiles in
+memory at each process's first compiled call.
 
 References
 ----------
