@@ -224,7 +224,8 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     if not shape:  # one point: the same functions on Python floats, without numpy's per-call overhead
         return _point_result(_point(p, convention, extras), wanted, convention)
     size = math.prod(shape)
-    flat = {k: _flat(v, shape) if isinstance(v, np.ndarray) else v for k, v in p.items()}
+    flat = {k: np.broadcast_to(v, shape).reshape(-1) if isinstance(v, np.ndarray) else v
+            for k, v in p.items()}
     kept = np.empty((len(wanted), size))
     point = tuple(flat[name] for name in kernel.POINT_INPUTS)
     material = _material(flat, convention)
@@ -232,12 +233,6 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
     _run_parts(runner(point, material, kept, [_POSITIONS[name] for name in wanted], extras), size, execution)
     values = dict(zip(wanted, kept.reshape(len(wanted), *shape), strict=True))
     return FrictionResult(**{k: values.get(k) for k in OUTPUTS}, convention=convention)
-
-
-def _flat(value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` broadcast to ``shape``, flattened: the array itself (writable, as the kernels read
-    it in place) when it has that shape already."""
-    return value.reshape(-1) if value.shape == shape else np.broadcast_to(value, shape).reshape(-1)
 
 
 def evaluate_point(convention: str = DEFAULT_CONVENTION, **params: Any) -> dict[str, float]:
