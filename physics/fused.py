@@ -14,6 +14,7 @@ stages are generated from the functions that the numpy and single-point paths ru
 
 from __future__ import annotations
 
+import heapq
 import math
 from dataclasses import dataclass
 
@@ -185,17 +186,47 @@ def plan(extras: bool, stride: int = 4104) -> Plan:
                         and (op in VECTORIZED or level[a] != level[index]))
     kept.update(index for index in outputs if nodes[index][0] != "const")
     slot = {traced.index: k for k, traced in enumerate(inputs)}
-    slot.update((index, len(slot)) for index in sorted(kept - set(slot)))
+    slot.update(_allocate(nodes, level, kept - set(slot), set(outputs), len(slot)))
     levels = max(level) + 1
     vectorized = tuple(tuple((op, slot[args[0]], slot[index]) for index, (op, args) in enumerate(nodes)
                              if op in VECTORIZED and level[index] == stage)
                        for stage in range(1, levels))
     source = "\n\n".join(_stage_source(nodes, level, slot, stride, stage) for stage in range(-1, levels))
-    return Plan(source, levels, stride, len(set(slot.values())),
+    return Plan(source, levels, stride, max(slot.values()) + 1,
                 tuple(slot[index] if nodes[index][0] != "const" else None for index in outputs),
                 tuple((m, float(nodes[index][1][0])) for m, index in enumerate(outputs)
                       if nodes[index][0] == "const"),
                 vectorized)
+
+
+def _allocate(nodes: list, level: list[int], kept: set[int], outputs: set[int], first: int) -> dict[int, int]:
+    """A slot for each node of ``kept``, from ``first`` on, shared by nodes whose lives do not overlap.
+
+    A block runs the prelude (phase 0), then stage 0 (1), level 1's numpy calls (2), stage 1 (3),
+    and so on. A node lives from its phase to the last phase that reads it; an output until the
+    block is stored, and what the prelude computes for the whole call. A slot is given again
+    only in a later phase than its last reader's, so a loop never writes a slot it still reads.
+    Fewer slots keep a larger block's workspace in the cache.
+    """
+    phase = [0 if lev < 0 else 2 * lev + (op not in VECTORIZED)
+             for (op, _), lev in zip(nodes, level, strict=True)]
+    last = {index: math.inf if index in outputs or level[index] < 0 else phase[index] for index in kept}
+    for index, (op, args) in enumerate(nodes):
+        if op not in ("input", "const"):
+            for a in args:
+                if a in last:
+                    last[a] = max(last[a], phase[index])
+    free, live, slot, count = [], [], {}, first
+    for index in sorted(kept, key=lambda i: (phase[i], i)):
+        for ended in [other for other in live if last[other] < phase[index]]:
+            live.remove(ended)
+            heapq.heappush(free, slot[ended])
+        if free:
+            slot[index] = heapq.heappop(free)
+        else:
+            slot[index], count = count, count + 1
+        live.append(index)
+    return slot
 
 
 def _stage_source(nodes: list, level: list[int], slot: dict[int, int], stride: int, stage: int) -> str:
