@@ -56,13 +56,13 @@ _CACHE_DIR = Path(__file__).resolve().parent / "__pycache__" / "fused"
 
 _COMPILE_LOCK = threading.Lock()
 
-#: The loop storing a block's outputs, appended to the generated stages (``STRIDE`` filled in).
+#: The loop storing a block's outputs, appended to the generated stages (``STRIDE`` filled in);
+#: slices, which numba copies as a whole (an element loop would check each index).
 _STORE_SOURCE = """
 def store(n, w, out, rows, slots, start):
     for k in range(rows.size):
-        row, base = rows[k], slots[k] * STRIDE
-        for j in range(n):
-            out[row, start + j] = w[base + j]
+        base = slots[k] * STRIDE
+        out[rows[k], start:start + n] = w[base:base + n]
 """
 
 
