@@ -25,6 +25,10 @@ same point as Python floats, what ``/v1/friction`` calls) and a batch of one-ele
 calls, in wall-clock and in process CPU time (which preemption by other work does not
 inflate). Target: <= 25 us per point.
 
+numba's first call: the wall-clock time of a fresh process importing the package and making one
+compiled call, in two successive processes (the first may compile; later ones load numba's cache
+of the generated stages, written beside the package).
+
 The machine's CPU count and load average are printed before and after: a figure measured
 while other work ran says so.
 """
@@ -34,6 +38,7 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import subprocess
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
@@ -195,6 +200,28 @@ def single_points(repeats: int, calls: int = 2000) -> None:
     print("  target: physics.evaluate <= 25 us")
 
 
+#: A fresh process's first compiled call: import, numba's import, its compilation or cache load.
+_FIRST_CALL = """
+import time
+start = time.perf_counter()
+import numpy as np
+from microbearing import physics
+physics.evaluate(balls=np.full(200_000, 4.0), load_N=1e-2, speed_m_s=0.1, outputs=["mu"],
+                 execution=physics.ExecutionOptions("numba"))
+print(time.perf_counter() - start)
+"""
+
+
+def first_calls(processes: int = 2) -> None:
+    """Wall-clock seconds of a fresh process's import and first numba call, in successive processes."""
+    if not physics.compiled.AVAILABLE:
+        return
+    seconds = [float(subprocess.run([sys.executable, "-c", _FIRST_CALL], capture_output=True, text=True,
+                                    check=True).stdout) for _ in range(processes)]
+    print("numba's first call in a fresh process (import, then compilation or its cache beside the package), "
+          f"successive processes: {', '.join(f'{s:.2f}' for s in seconds)} s")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--points", type=int, default=1_000_000)
@@ -206,6 +233,7 @@ def main() -> None:
     print(f"before: {machine()}")
     large_calls(args.points, args.repeats, [int(size) for size in args.blocks.split(",")])
     single_points(args.repeats)
+    first_calls()
     print(f"after:  {machine()}")
 
 

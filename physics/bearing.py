@@ -363,11 +363,10 @@ def _numpy_runner(point: tuple, material: tuple, kept: np.ndarray, positions: li
 def _compiled_runner(point: tuple, material: tuple, kept: np.ndarray, positions: list[int],
                      extras: bool) -> Callable[[int, int], None]:
     """``run(lo, hi)`` of :func:`physics.compiled.points` over the call's inputs, into ``kept``."""
-    size = kept.shape[1]
-    columns = tuple(np.broadcast_to(np.asarray(v, dtype=np.float64), (size,)) for v in (*point, *material))
-    rows = np.full(len(OUTPUTS), -1, dtype=np.int64)
-    rows[positions] = np.arange(len(positions))
-    return compiled.points(columns, kept, rows, extras)
+    rows = [-1] * len(OUTPUTS)
+    for row, position in enumerate(positions):
+        rows[position] = row
+    return compiled.points((*point, *material), kept, rows, extras)
 
 
 def _run_parts(run: Callable[[int, int], None], size: int, execution: ExecutionOptions) -> None:

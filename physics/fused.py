@@ -14,6 +14,7 @@ stages are generated from the functions that the numpy and single-point paths ru
 
 from __future__ import annotations
 
+import heapq
 import math
 from dataclasses import dataclass
 
@@ -101,43 +102,61 @@ class _Traced:
 
 @dataclass(frozen=True)
 class Plan:
-    """The stages of the fused kernel for one choice of ``extras``.
+    """The stages of the fused kernel for one choice of ``extras``, over one block's workspace.
+
+    Every value a stage reads or writes is in one workspace, a float64 array of ``slots`` rows of
+    ``stride`` points each, flattened: point ``j`` of a block in slot ``s`` is element
+    ``s * stride + j``; input column ``k`` (:data:`physics.kernel.POINT_INPUTS` then
+    :func:`physics.kernel.material`'s factors) is slot ``k``. With one array and offsets fixed
+    in the source, LLVM sees that no two rows overlap and vectorizes every loop without run-time
+    checks.
 
     Attributes
     ----------
     source : str
-        Python source of the functions ``stage_0`` ... ``stage_<levels - 1>``, each
-        ``(inputs, buffers, out, rows, start, n)``: a loop over points ``start:start + n`` (``j``
-        in the block, ``i`` in the call) of compiled arithmetic. [-]
+        Python source of the functions ``prelude`` and ``stage_0`` ... ``stage_<levels - 1>``, each
+        ``(n, w)``: a loop over the ``n`` points of a block of compiled arithmetic on the workspace
+        ``w``. The prelude computes what depends on the material factors alone (run once a call
+        when they are scalars, else before each block's stage 0). [-]
     levels : int
         Number of compiled stages. [1]
+    stride : int
+        Points between two slots of the workspace. [1]
+    slots : int
+        Slots of the workspace. [1]
+    outputs : tuple
+        For each output of :data:`physics.OUTPUTS`, its slot, or None for a constant. [-]
+    constants : tuple
+        (m, value) of each output ``m`` that is a constant (the extras when not computed). [-]
     vectorized : tuple
         For each level 1 ... levels - 1, the numpy calls run before that level's stage:
-        (ufunc name, argument, buffer row), the argument ``("input", k)`` or ``("buffer", row)``. [-]
-    buffers : int
-        Rows of the block buffer. [1]
+        (ufunc name, argument's slot, result's slot). [-]
     """
 
     source: str
     levels: int
+    stride: int
+    slots: int
+    outputs: tuple
+    constants: tuple
     vectorized: tuple
-    buffers: int
 
 
-def plan(extras: bool) -> Plan:
+def plan(extras: bool, stride: int = 4104) -> Plan:
     """Trace :func:`physics.kernel.point_outputs` and cut it into stages.
 
     Parameters
     ----------
     extras : bool
         As in :func:`physics.kernel.point_outputs`.
+    stride : int, default 4104
+        Points between two slots of the workspace: at least the block's points, and best not a
+        multiple of 512 (rows 4 KiB apart share the L1 cache's sets). [1]
 
     Returns
     -------
     Plan
-        The stages; their loops read ``inputs[k][i]`` (``k`` in the order of
-        :data:`physics.kernel.POINT_INPUTS` then :func:`physics.kernel.material`'s factors) and
-        write output ``m`` of :data:`physics.OUTPUTS` to ``out[rows[m], i]`` where ``rows[m] >= 0``.
+        The stages and the workspace's layout.
     """
     graph = _Graph()
     inputs = [graph.input(k) for k in range(INPUTS)]
@@ -145,52 +164,82 @@ def plan(extras: bool) -> Plan:
     results = kernel.point_outputs(tuple(point), tuple(material), extras)
     outputs = [r.index if isinstance(r, _Traced) else graph.const(r).index for r in results]
     nodes = graph.nodes
+    # The prelude (level -1) holds what depends on the material factors alone (uniform over a
+    # call whose materials are scalars, so computed once); each other node's level counts the
+    # numpy calls below it.
+    materials = {traced.index for traced in material}
     level = []
-    for op, args in nodes:
-        below = max((level[a] for a in args), default=0) if op not in ("input", "const") else 0
-        level.append(below + 1 if op in VECTORIZED else below)
-    # What numpy computes, and a node read by numpy or in another stage than its own, goes
-    # through a buffer row; the rest stays in registers.
-    buffered = {index for index, (op, _) in enumerate(nodes) if op in VECTORIZED}
+    for index, (op, args) in enumerate(nodes):
+        if op in ("input", "const"):
+            level.append(-1 if op == "const" or index in materials else 0)
+        elif op not in VECTORIZED and all(level[a] == -1 for a in args):
+            level.append(-1)
+        else:
+            below = max((max(level[a], 0) for a in args), default=0)
+            level.append(below + 1 if op in VECTORIZED else below)
+    # Inputs have a slot each; what numpy computes, a node read by numpy or in another stage than
+    # its own, and an output get one; the rest stays in registers.
+    kept = {index for index, (op, _) in enumerate(nodes) if op in VECTORIZED}
     for index, (op, args) in enumerate(nodes):
         if op not in ("input", "const"):
-            buffered.update(a for a in args if nodes[a][0] not in ("input", "const")
-                            and (op in VECTORIZED or level[a] != level[index]))
-    rows = {index: row for row, index in enumerate(sorted(buffered))}
+            kept.update(a for a in args if nodes[a][0] not in ("input", "const")
+                        and (op in VECTORIZED or level[a] != level[index]))
+    kept.update(index for index in outputs if nodes[index][0] != "const")
+    slot = {traced.index: k for k, traced in enumerate(inputs)}
+    slot.update(_allocate(nodes, level, kept - set(slot), set(outputs), len(slot)))
     levels = max(level) + 1
-    vectorized = tuple(tuple((op, _argument(nodes, rows, args[0]), rows[index])
-                             for index, (op, args) in enumerate(nodes)
+    vectorized = tuple(tuple((op, slot[args[0]], slot[index]) for index, (op, args) in enumerate(nodes)
                              if op in VECTORIZED and level[index] == stage)
                        for stage in range(1, levels))
-    source = "\n\n".join(_stage_source(nodes, level, rows, outputs, stage) for stage in range(levels))
-    return Plan(source, levels, vectorized, len(rows))
+    source = "\n\n".join(_stage_source(nodes, level, slot, stride, stage) for stage in range(-1, levels))
+    return Plan(source, levels, stride, max(slot.values()) + 1,
+                tuple(slot[index] if nodes[index][0] != "const" else None for index in outputs),
+                tuple((m, float(nodes[index][1][0])) for m, index in enumerate(outputs)
+                      if nodes[index][0] == "const"),
+                vectorized)
 
 
-def _argument(nodes: list, rows: dict[int, int], index: int) -> tuple[str, int]:
-    return ("input", nodes[index][1][0]) if nodes[index][0] == "input" else ("buffer", rows[index])
+def _allocate(nodes: list, level: list[int], kept: set[int], outputs: set[int], first: int) -> dict[int, int]:
+    """A slot for each node of ``kept``, from ``first`` on, shared by nodes whose lives do not overlap.
 
-
-def _stage_source(nodes: list, level: list[int], rows: dict[int, int], outputs: list[int], stage: int) -> str:
-    """The loop of one compiled stage: its nodes in trace order, then the outputs of its level.
-
-    Columns, buffer rows and output rows are bound before the loop, so that the loop body is
-    arithmetic on locals, loads and stores.
+    A block runs the prelude (phase 0), then stage 0 (1), level 1's numpy calls (2), stage 1 (3),
+    and so on. A node lives from its phase to the last phase that reads it; an output until the
+    block is stored, and what the prelude computes for the whole call. A slot is given again
+    only in a later phase than its last reader's, so a loop never writes a slot it still reads.
+    Fewer slots keep a larger block's workspace in the cache.
     """
-    lines, known, bound = [], set(), {}
+    phase = [0 if lev < 0 else 2 * lev + (op not in VECTORIZED)
+             for (op, _), lev in zip(nodes, level, strict=True)]
+    last = {index: math.inf if index in outputs or level[index] < 0 else phase[index] for index in kept}
+    for index, (op, args) in enumerate(nodes):
+        if op not in ("input", "const"):
+            for a in args:
+                if a in last:
+                    last[a] = max(last[a], phase[index])
+    free, live, slot, count = [], [], {}, first
+    for index in sorted(kept, key=lambda i: (phase[i], i)):
+        for ended in [other for other in live if last[other] < phase[index]]:
+            live.remove(ended)
+            heapq.heappush(free, slot[ended])
+        if free:
+            slot[index] = heapq.heappop(free)
+        else:
+            slot[index], count = count, count + 1
+        live.append(index)
+    return slot
 
-    def column(name: str, expression: str) -> str:
-        bound.setdefault(name, expression)
-        return name
+
+def _stage_source(nodes: list, level: list[int], slot: dict[int, int], stride: int, stage: int) -> str:
+    """The loop of one compiled stage: its nodes in trace order, each node with a slot stored there."""
+    lines, known = [], set()
 
     def value(index: int) -> str:
         op, args = nodes[index]
         if op == "const":
             return _literal(args[0])
-        if index not in known:  # an input or an earlier stage's buffered node: read once per point
+        if index not in known:  # an input or an earlier stage's node: read once per point
             known.add(index)
-            read = (f"{column(f'c{args[0]}', f'inputs[{args[0]}]')}[i]" if op == "input"
-                    else f"{column(f'b{rows[index]}', f'buffers[{rows[index]}]')}[j]")
-            lines.append(f"v{index} = {read}")
+            lines.append(f"v{index} = w[{slot[index] * stride} + j]")
         return f"v{index}"
 
     for index, (op, args) in enumerate(nodes):
@@ -200,17 +249,11 @@ def _stage_source(nodes: list, level: list[int], rows: dict[int, int], outputs: 
         expression = f"np.sqrt({operands[0]})" if op == "sqrt" else f" {_INFIX[op]} ".join(operands)
         lines.append(f"v{index} = {expression}")
         known.add(index)
-        if index in rows:
-            lines.append(f"{column(f'b{rows[index]}', f'buffers[{rows[index]}]')}[j] = v{index}")
-    for position, index in enumerate(outputs):
-        if level[index] == stage:
-            row = column(f"r{position}", f"rows[{position}]")
-            lines.append(f"if {row} >= 0:")
-            lines.append(f"    out[{row}, i] = {value(index)}")
+        if index in slot:
+            lines.append(f"w[{slot[index] * stride} + j] = v{index}")
     body = "\n".join("        " + line for line in lines) or "        pass"
-    binds = "".join(f"    {name} = {expression}\n" for name, expression in bound.items())
-    return (f"def stage_{stage}(inputs, buffers, out, rows, start, n):\n{binds}"
-            f"    for j in range(n):\n        i = start + j\n{body}\n")
+    name = "prelude" if stage < 0 else f"stage_{stage}"
+    return f"def {name}(n, w):\n    for j in range(n):\n{body}\n"
 
 
 def _literal(value) -> str:

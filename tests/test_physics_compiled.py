@@ -111,3 +111,19 @@ def test_the_fused_stages_are_generated_from_the_equation_functions(monkeypatch)
     monkeypatch.setattr(moments, "pivoting_moment", lambda mu, load, radius: 0.4375 * mu * load * radius)
     assert "0.4375" in fused.plan(True).source and "0.375" not in fused.plan(True).source
     assert evaluate(**point).pivoting_moment_Nm == pytest.approx(before * 0.4375 / 0.375, rel=1e-15)
+
+
+def test_the_generated_stages_are_cached_beside_the_package_or_run_in_memory(monkeypatch, tmp_path):
+    # numba caches functions of a file: the generated source is written once (named by its hash)
+    # and imported from there; where the folder cannot be written (a read-only install) it runs in
+    # memory, uncached, with the same functions
+    source = "def twice(x):\n    return 2.0 * x\n"
+    monkeypatch.setattr(compiled, "_CACHE_DIR", tmp_path / "fused")
+    namespace, cached = compiled._namespace(source)
+    assert cached and namespace["twice"](1.5) == 3.0
+    assert [p.read_text() for p in (tmp_path / "fused").glob("stages_*.py")] == [source]
+    blocked = tmp_path / "a-file"
+    blocked.write_text("")  # a file where the folder would be: it cannot be created
+    monkeypatch.setattr(compiled, "_CACHE_DIR", blocked / "fused")
+    namespace, cached = compiled._namespace(source)
+    assert not cached and namespace["twice"](1.5) == 3.0
