@@ -293,7 +293,7 @@ class Intake(ResponseModel):
                                                "speed_m_s / 1000'.")
     columns: dict[str, str] = Field(description="Every column read, as sent -> its name in the data (SI).")
     header_line: int | None = Field(default=None, description=(
-        "The file's line of the header row: 1, or 2 after Excel's sep= line; problems name file lines "
+        "The file's line of the header row [1]: 1, or 2 after Excel's sep= line; problems name file lines "
         "(null for JSON)."))
     notes: list[str] = Field(default_factory=list, description=(
         "How the file was read where it is not plain, in words: Excel's sep= line, an encoding other "
