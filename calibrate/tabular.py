@@ -327,26 +327,25 @@ def _decode(data: str | bytes) -> tuple[str, str, str | None]:
         return (data[1:], "UTF-8 with BOM", None) if data.startswith("\ufeff") else (data, "UTF-8", None)
     for signature, what in _BINARY_SIGNATURES.items():
         if data.startswith(signature):
-            raise _unreadable(f"CSV is not UTF-8 text: the file is {what}; save it as CSV UTF-8 "
+            raise _unreadable(f"CSV is not UTF-8: the file is {what}; save it as CSV UTF-8 "
                               f"(in Excel: File > Save As > CSV UTF-8)")
     if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
         try:
             return data.decode("utf-16"), "UTF-16 with BOM", "read as UTF-16 (its byte-order mark says so)"
         except UnicodeDecodeError as exc:
-            raise _unreadable(f"CSV is not UTF-8, nor the UTF-16 its byte-order mark announces ({exc}); "
-                              f"save it as CSV UTF-8") from None
+            raise _unreadable(f"CSV is not UTF-8: it starts with UTF-16's byte-order mark but is not UTF-16 "
+                              f"either ({exc}); save it as CSV UTF-8") from None
     nul = data.find(b"\x00")
     if nul >= 0:
-        raise _unreadable(f"CSV is not UTF-8 text: line {_line_of(data, nul)} holds a NUL byte (a binary "
+        raise _unreadable(f"CSV is not UTF-8: line {_line_of(data, nul)} holds a NUL byte (a binary "
                           f"file, or UTF-16 without a byte-order mark); save it as CSV UTF-8")
     if data.startswith(codecs.BOM_UTF8):
         try:
             return data[len(codecs.BOM_UTF8):].decode("utf-8"), "UTF-8 with BOM", None
         except UnicodeDecodeError as exc:
-            raise _unreadable(f"CSV is not UTF-8 after its UTF-8 byte-order mark: byte "
-                              f"0x{data[len(codecs.BOM_UTF8) + exc.start]:02x} on line "
-                              f"{_line_of(data, len(codecs.BOM_UTF8) + exc.start)}; save it as CSV UTF-8"
-                              ) from None
+            at = len(codecs.BOM_UTF8) + exc.start
+            raise _unreadable(f"CSV is not UTF-8: byte 0x{data[at]:02x} on line {_line_of(data, at)} is not, "
+                              f"after its UTF-8 byte-order mark; save it as CSV UTF-8") from None
     try:
         return data.decode("utf-8"), "UTF-8", None
     except UnicodeDecodeError:
@@ -354,7 +353,7 @@ def _decode(data: str | bytes) -> tuple[str, str, str | None]:
     try:
         text = data.decode("cp1252")
     except UnicodeDecodeError as exc:
-        raise _unreadable(f"CSV is not UTF-8, nor Windows-1252: byte 0x{data[exc.start]:02x} on line "
+        raise _unreadable(f"CSV is not UTF-8: nor Windows-1252, as byte 0x{data[exc.start]:02x} on line "
                           f"{_line_of(data, exc.start)} is neither; save it as CSV UTF-8") from None
     seen = "".join(dict.fromkeys(c for c in text if ord(c) > 127))
     shown = ", ".join(repr(c) for c in seen[:8]) + (", ..." if len(seen) > 8 else "")
