@@ -209,7 +209,7 @@ def client(tmp_path_factory):
 
 def finished(client: TestClient, response) -> dict:
     assert response.status_code == 202, response.text
-    job = finished_job(client, response.headers["location"], timeout_s=120, interval_s=0.1)
+    job = finished_job(client, response.headers["location"], timeout_s=300, interval_s=0.1)
     return client.get(job["result_url"]).json()
 
 
