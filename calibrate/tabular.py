@@ -624,6 +624,8 @@ def _text_columns(columns: Sequence[Column], cells: Mapping[str, Sequence[Any]],
                   ) -> dict[str, str]:
     """Each condition column with text among its cells (as sent) -> what the data set made of it."""
     became = {}
+    # ISO 8601 times read as hours since their start (Dataset.clock, where calibrate.data reads them)
+    clock: Mapping[str, str] = getattr(dataset, "clock", {})
     for c in columns:
         if c.name in physics.PARAMETERS or c.name in (MU_MEASURED, MU_MEASURED_STD):
             continue
@@ -632,6 +634,8 @@ def _text_columns(columns: Sequence[Column], cells: Mapping[str, Sequence[Any]],
         if c.name in dataset.factors:
             levels = len(set(dataset.factors[c.name].tolist()))
             became[c.sent] = f"random-effect groups ({levels} level{'s' * (levels != 1)})"
+        elif c.name in clock:
+            became[c.sent] = f"hours since {clock[c.name]}: the condition {c.name} [h]"
         elif c.name in dataset.conditions:
             became[c.sent] = f"numbers: the condition {c.name}"
         else:

@@ -210,11 +210,13 @@ def test_a_date_column_is_said_as_what_it_became():
     text = "\n".join([lines[0] + ",date"] + [f"{line},{d}" for line, d in zip(lines[1:], dates, strict=True)])
     dataset, intake = read_csv(text + "\n")
     became = intake.text_columns["date"]
-    # whatever the data set makes of dates (groups, or numbers), the intake says the same
+    # whatever the data set makes of dates (groups, or hours since the first), the intake says the same
     if "date" in dataset.factors:
         assert became == f"random-effect groups ({len(set(dates))} levels)"
     else:
-        assert became.startswith("numbers") and "date" in became
+        assert became == f"hours since {dataset.clock['date']}: the condition date [h]"
+        hours = [24.0 * (int(d[-2:]) - 1) for d in dates]  # from 2026-11-01, by hand
+        np.testing.assert_allclose(dataset.conditions["date"], hours)
 
 
 def test_json_rows_take_ignore_and_say_their_text_columns():
