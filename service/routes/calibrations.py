@@ -167,8 +167,9 @@ class CsvDialect:
     """The query parameters of a CSV upload's dialect: its separator and decimal mark (None: detected)."""
 
     def __init__(self, separator: Annotated[Separator, Query(
-                     description="Column separator: auto (detected among comma, semicolon and tab), comma, "
-                                 "semicolon or tab.")] = "auto",
+                     description="Column separator: auto (the file's first line sep=; as Excel reads it, or "
+                                 "detected among comma, semicolon and tab), comma, semicolon or tab (a "
+                                 "sep= line that disagrees gets 422).")] = "auto",
                  decimal: Annotated[Decimal, Query(
                      description="Decimal mark: auto (a comma when numbers use one and none a point), point "
                                  "or comma.")] = "auto") -> None:
