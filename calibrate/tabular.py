@@ -8,7 +8,11 @@ ways, both handled here before that parser sees the table:
   clevercsv and pandas on spreadsheet exports: all three found every separator, the Sniffer fastest
   and without a dependency), or stated. The decimal mark is a comma when numeric cells use one and
   none uses a point, or stated. A byte-order mark, CRLF or CR line ends, blank lines at the end and
-  empty columns at the end (Excel's trailing separator) are ignored and said so.
+  empty columns at the end (Excel's trailing separator) are ignored and said so. Excel's
+  ``sep=;`` first line (``sep=,``, ``sep=<tab>``) states the separator; the header is then line 2.
+* **Encoding.** UTF-8 with or without a byte-order mark, UTF-16 with one (Excel's "Unicode text"),
+  and otherwise Windows-1252 (Excel's plain "CSV" in Western Europe, a superset of Latin-1's
+  printable characters: ``temperature [°C]``), which the intake states.
 * **Units in the header.** ``speed [mm/s]``, ``speed (mm/s)`` and ``speed_mm_s`` are read as the
   physics input ``speed_m_s`` with the values converted by pint (``load [g]``, a slider's mass, is
   converted to its weight in N with standard gravity). Any other column with a unit in brackets is a
@@ -19,11 +23,15 @@ ways, both handled here before that parser sees the table:
   read as ``temp_K``). Every name is read by the column registry, :mod:`physics.columns`.
 
 :func:`read_csv` and :func:`read_rows` return the :class:`~calibrate.data.Dataset` with an
-:class:`Intake` that says which dialect was used and how each column was read.
+:class:`Intake` that says which dialect was used, how each column was read, what each text column
+became (random-effect groups, numbers) and what was ignored (``ignore``). Problems in a file are
+placed as the spreadsheet shows them (:class:`TableError`): the file's line and the column's letter,
+``line 9, column C (speed [mm/s]): ...``.
 """
 
 from __future__ import annotations
 
+import codecs
 import csv
 import io
 import re
@@ -43,8 +51,8 @@ from microbearing.physics.columns import (
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_csv, parse_rows
 
-__all__ = ["DECIMALS", "SEPARATORS", "STANDARD_GRAVITY_M_S2", "Column", "Intake", "accepted_names",
-           "read_column", "read_csv", "read_rows"]
+__all__ = ["DECIMALS", "SEPARATORS", "STANDARD_GRAVITY_M_S2", "Column", "Intake", "TableError",
+           "accepted_names", "column_letter", "read_column", "read_csv", "read_rows"]
 
 #: Separators by the name a request states them with.
 SEPARATORS = {"comma": ",", "semicolon": ";", "tab": "\t"}
@@ -54,9 +62,59 @@ _SEPARATOR_NAMES = {v: k for k, v in SEPARATORS.items()}
 _SNIFF_LINES = 50
 _DECIMAL_COMMA = re.compile(r"^[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?$")
 _DECIMAL_POINT = re.compile(r"^[+-]?(\d+\.\d*|\.\d+)([eE][+-]?\d+)?$")
+#: Excel's first line stating the separator: ``sep=;`` (quoted, or followed by empty cells, when a
+#: spreadsheet wrote it back as a cell).
+_SEP_LINE = re.compile(r'^"?sep=(\\t|.)"?[,;\t]*$', re.IGNORECASE)
+#: Starts of files that are not text: a workbook saved instead of exported.
+_BINARY_SIGNATURES = {b"PK\x03\x04": "an Excel workbook (.xlsx) or another zip archive",
+                      b"\xd0\xcf\x11\xe0": "an Excel 97-2003 workbook (.xls)"}
 
 #: How one column, as sent, is read (the registry's :class:`physics.columns.Reading`).
 Column = Reading
+
+
+def column_letter(index: int) -> str:
+    """The spreadsheet's letter of the column at ``index`` (0-based): A, ..., Z, AA, AB, ...
+
+    >>> [column_letter(i) for i in (0, 2, 25, 26, 27, 701, 702)]
+    ['A', 'C', 'Z', 'AA', 'AB', 'ZZ', 'AAA']
+    """
+    letters = ""
+    index += 1
+    while index:
+        index, rest = divmod(index - 1, 26)
+        letters = chr(ord("A") + rest) + letters
+    return letters
+
+
+class TableError(DataError):
+    """A :class:`~calibrate.data.DataError` of a file, whose problems say where the spreadsheet shows them.
+
+    Each problem keeps ``row`` (the data row, 1 after the header) and ``column`` (the name it is read
+    as), and adds, when known, ``line`` (the file's line, the header's counted: line 1, or 2 after a
+    ``sep=`` line), ``letter`` (the column's letter, A for the first) and ``sent`` (its header cell).
+    """
+
+    @staticmethod
+    def describe(error: Mapping[str, Any]) -> str:
+        """One problem in words, placed as in the spreadsheet.
+
+        >>> TableError.describe({"row": 8, "line": 9, "column": "speed_m_s", "letter": "C",
+        ...                      "sent": "speed [mm/s]", "message": "must be > 0"})
+        'line 9, column C (speed [mm/s]): must be > 0'
+        >>> TableError.describe({"row": 2, "column": None, "message": "is blank"})
+        'row 2: is blank'
+        """
+        if error.get("line") is None and error.get("letter") is None:
+            return DataError.describe(error)
+        where = []
+        if error.get("line") is not None:
+            where.append(f"line {error['line']}")
+        if error.get("letter") is not None:
+            where.append(f"column {error['letter']} ({error.get('sent') or error.get('column')})")
+        elif error.get("column") is not None:
+            where.append(f"column {error['column']}")
+        return f"{', '.join(where)}: {error['message']}"
 
 
 @dataclass
@@ -72,15 +130,34 @@ class Intake:
     decimal : str or None
         ``"point"`` or ``"comma"`` (None for JSON).
     detected : list of str
-        Which of separator and decimal were detected (the others were stated).
+        Which of separator and decimal were detected (the others were stated, by the request or by
+        the file's ``sep=`` line).
     encoding : str or None
-        ``"UTF-8"`` or ``"UTF-8 with BOM"``.
+        ``"UTF-8"``, ``"UTF-8 with BOM"``, ``"UTF-16 with BOM"`` or ``"Windows-1252"``.
     line_endings : str or None
         ``"LF"``, ``"CRLF"`` or ``"CR"``.
     ignored : list of str
-        What was ignored, in words (blank lines at the end, empty columns at the end).
+        What was ignored, in words (blank lines at the end, empty columns at the end, the columns
+        the request named in ``ignore``).
     columns : list of Column
-        Every column as sent and how it was read.
+        Every column read, as sent and how it was read.
+    header_line : int or None
+        The file's line of the header row: 1, or 2 after a ``sep=`` line (None for JSON).
+    notes : list of str
+        How the file was read where it is not plain, in words: the ``sep=`` line, an encoding other
+        than UTF-8, how it was uploaded.
+    text_columns : dict of str to str
+        Each column with text in its cells (as sent) -> what it became, e.g. ``"random-effect groups
+        (3 levels)"``.
+    fitting : str or None
+        What the calibration fits, in words (set by the caller that knows the request): the named
+        parameters, or that none is named and what that means.
+    row_lines : list of int
+        The file's line of each data row (1-based; empty for JSON): where :meth:`locate` places a
+        problem of a row.
+    letters : dict of str to tuple of str
+        Each column, as sent and as read, -> its letter and its header cell (empty for JSON): where
+        :meth:`locate` places a problem of a column.
     """
 
     format: str
@@ -91,14 +168,23 @@ class Intake:
     line_endings: str | None = None
     ignored: list[str] = field(default_factory=list)
     columns: list[Column] = field(default_factory=list)
+    header_line: int | None = None
+    notes: list[str] = field(default_factory=list)
+    text_columns: dict[str, str] = field(default_factory=dict)
+    fitting: str | None = None
+    row_lines: list[int] = field(default_factory=list, repr=False)
+    letters: dict[str, tuple[str, str]] = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready: the dialect, what was ignored, ``conversions`` (sentences) and ``columns``."""
+        """JSON-ready: the dialect, what was ignored, ``conversions`` (sentences), ``columns``, the
+        notes, the text columns and what is fitted."""
         return {"format": self.format, "separator": self.separator, "decimal": self.decimal,
                 "detected": list(self.detected), "encoding": self.encoding,
                 "line_endings": self.line_endings, "ignored": list(self.ignored),
                 "conversions": [c.reading for c in self.columns if c.reading],
-                "columns": {c.sent: c.name for c in self.columns}}
+                "columns": {c.sent: c.name for c in self.columns},
+                "header_line": self.header_line, "notes": list(self.notes),
+                "text_columns": dict(self.text_columns), "fitting": self.fitting}
 
     def summary(self) -> str:
         """The intake in one paragraph, for a terminal.
@@ -109,12 +195,29 @@ class Intake:
         if self.format != "csv":
             parts = ["read as JSON rows"]
         else:
-            parts = [f"read as CSV: separator {self.separator} "
-                     f"({'detected' if 'separator' in self.detected else 'stated'})",
+            source = ("detected" if "separator" in self.detected
+                      else "sep= line" if self.header_line == 2 else "stated")
+            parts = [f"read as CSV: separator {self.separator} ({source})",
                      f"decimal {self.decimal} ({'detected' if 'decimal' in self.detected else 'stated'})",
                      str(self.encoding), f"{self.line_endings} line ends"]
         parts += self.ignored + [c.reading for c in self.columns if c.reading]
-        return ", ".join(parts)
+        parts += [f"{name}: {became}" for name, became in self.text_columns.items()]
+        return ", ".join(parts + self.notes + ([self.fitting] if self.fitting else []))
+
+    def locate(self, errors: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+        """The problems of :class:`~calibrate.data.DataError` with the file's ``line`` and the column's
+        ``letter`` and ``sent`` header cell added where known (see :class:`TableError`)."""
+        placed = []
+        for error in errors:
+            error = dict(error)
+            row = error.get("row")
+            if row is not None and 1 <= row <= len(self.row_lines):
+                error["line"] = self.row_lines[row - 1]
+            column = error.get("column")
+            if column is not None and column in self.letters:
+                error["letter"], error["sent"] = self.letters[column]
+            placed.append(error)
+        return placed
 
 
 def accepted_names() -> str:
@@ -209,18 +312,62 @@ def _check_required(columns: Sequence[Column], fixed: Mapping[str, Any]) -> None
         raise DataError(errors)
 
 
-def _decode(data: str | bytes) -> tuple[str, str]:
-    if isinstance(data, bytes):
+def _unreadable(message: str) -> DataError:
+    return DataError([{"row": None, "column": None, "message": message}])
+
+
+def _line_of(data: bytes, position: int) -> int:
+    """The file's line (1-based) of the byte at ``position``."""
+    return data.count(b"\n", 0, position) + 1
+
+
+def _decode(data: str | bytes) -> tuple[str, str, str | None]:
+    """The text, its encoding's name and, for an encoding other than UTF-8, a sentence saying so."""
+    if isinstance(data, str):
+        return (data[1:], "UTF-8 with BOM", None) if data.startswith("\ufeff") else (data, "UTF-8", None)
+    for signature, what in _BINARY_SIGNATURES.items():
+        if data.startswith(signature):
+            raise _unreadable(f"CSV is not UTF-8: the file is {what}; save it as CSV UTF-8 "
+                              f"(in Excel: File > Save As > CSV UTF-8)")
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
         try:
-            text = data.decode("utf-8")
+            return data.decode("utf-16"), "UTF-16 with BOM", "read as UTF-16 (its byte-order mark says so)"
         except UnicodeDecodeError as exc:
-            raise DataError([{"row": None, "column": None,
-                              "message": f"CSV is not UTF-8: {exc}; save it as CSV UTF-8"}]) from None
-    else:
-        text = data
-    if text.startswith("\ufeff"):
-        return text[1:], "UTF-8 with BOM"
-    return text, "UTF-8"
+            raise _unreadable(f"CSV is not UTF-8: it starts with UTF-16's byte-order mark but is not UTF-16 "
+                              f"either ({exc}); save it as CSV UTF-8") from None
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        raise _unreadable(f"CSV is not UTF-8: line {_line_of(data, nul)} holds a NUL byte (a binary "
+                          f"file, or UTF-16 without a byte-order mark); save it as CSV UTF-8")
+    if data.startswith(codecs.BOM_UTF8):
+        try:
+            return data[len(codecs.BOM_UTF8):].decode("utf-8"), "UTF-8 with BOM", None
+        except UnicodeDecodeError as exc:
+            at = len(codecs.BOM_UTF8) + exc.start
+            raise _unreadable(f"CSV is not UTF-8: byte 0x{data[at]:02x} on line {_line_of(data, at)} is not, "
+                              f"after its UTF-8 byte-order mark; save it as CSV UTF-8") from None
+    try:
+        return data.decode("utf-8"), "UTF-8", None
+    except UnicodeDecodeError:
+        pass
+    try:
+        text = data.decode("cp1252")
+    except UnicodeDecodeError as exc:
+        raise _unreadable(f"CSV is not UTF-8: nor Windows-1252, as byte 0x{data[exc.start]:02x} on line "
+                          f"{_line_of(data, exc.start)} is neither; save it as CSV UTF-8") from None
+    seen = "".join(dict.fromkeys(c for c in text if ord(c) > 127))
+    shown = ", ".join(repr(c) for c in seen[:8]) + (", ..." if len(seen) > 8 else "")
+    return text, "Windows-1252", (f"not UTF-8: read as Windows-1252 (Excel's plain CSV in Western Europe, "
+                                  f"Latin-1's characters included), which reads its special characters "
+                                  f"as {shown}; if they look wrong, save the file as CSV UTF-8")
+
+
+def _sep_line(first: str) -> str | None:
+    """The separator an Excel ``sep=`` first line states (the character as written), or None."""
+    match = _SEP_LINE.match(first.strip(" "))
+    if match is None:
+        return None
+    return "\t" if match.group(1) == "\\t" else match.group(1)
 
 
 def _sniff_separator(lines: list[str]) -> str:
@@ -257,37 +404,45 @@ def _strip_trailing_empty(rows: list[list[str]], header: list[str]
 
 
 def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separator: str | None = None,
-             decimal: str | None = None, factors: Sequence[str] = ()) -> tuple[Dataset, Intake]:
+             decimal: str | None = None, factors: Sequence[str] = (),
+             ignore: Sequence[str] = ()) -> tuple[Dataset, Intake]:
     """Read measured data from a CSV file as spreadsheets export it.
 
     Parameters
     ----------
     data : str or bytes
-        The file (UTF-8, with or without a byte-order mark; LF, CRLF or CR line ends).
+        The file: UTF-8 with or without a byte-order mark, UTF-16 with one, or else Windows-1252
+        (Latin-1); LF, CRLF or CR line ends; optionally Excel's ``sep=;`` first line.
     fixed : mapping, optional
         Physics inputs fixed for every row, in their units (as :func:`calibrate.data.parse_csv`).
     separator : str, optional
-        ``"comma"``, ``"semicolon"`` or ``"tab"``; detected when None.
+        ``"comma"``, ``"semicolon"`` or ``"tab"``; when None, the file's ``sep=`` line or detected.
     decimal : str, optional
         ``"point"`` or ``"comma"``; detected when None (a comma when numeric cells have one and none a
         point).
     factors : sequence of str, optional
         Condition columns of whole-number codes to read as group labels (as
         :func:`calibrate.data.parse_csv`).
+    ignore : sequence of str, optional
+        Columns to leave out, by their header cell (as sent) or the name they are read as (e.g. a
+        ``comment`` or an ``operator`` column that should not become groups).
 
     Returns
     -------
     dataset : calibrate.Dataset
         As :func:`calibrate.data.parse_csv`, every column converted to its SI name and unit.
     intake : Intake
-        The dialect used and how every column was read.
+        The dialect and encoding used, how every column was read, what each text column became and
+        what was ignored.
 
     Raises
     ------
-    DataError
-        A file that cannot be read as a table (one error saying why), a bad column name or unit
-        (naming the column as sent and the accepted names), or bad cells (row by row, rows counted
-        from 1 after the header).
+    TableError
+        A :class:`~calibrate.data.DataError`: a file that cannot be read as a table (one error saying
+        why; a stated separator that the ``sep=`` line contradicts, or an ``ignore`` naming no column,
+        carry ``parameter``), a bad column name or unit (naming the column as sent and the accepted
+        names), or bad cells, each placed at its file line and column letter (``line 9, column C
+        (speed [mm/s])``) besides its data ``row`` (1 after the header).
 
     Examples
     --------
@@ -297,18 +452,38 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
     (0.0088, 0.05)
     >>> intake.separator, intake.decimal, intake.line_endings, intake.ignored
     ('semicolon', 'comma', 'CRLF', ['1 blank line at the end', '1 empty column at the end'])
+    >>> d, intake = read_csv("sep=;\\nload [mN];speed [mm/s];mu_measured;operator\\n8,8;50;0,011;Ann\\n",
+    ...                      fixed={"balls": 4}, ignore=["operator"])
+    >>> intake.separator, intake.header_line, intake.ignored
+    ('semicolon', 2, ['column D (operator), as ignore asks'])
     """
     if separator is not None and separator not in SEPARATORS:
         raise ValueError(f"separator must be one of {', '.join(SEPARATORS)}; got {separator!r}")
     if decimal is not None and decimal not in DECIMALS:
         raise ValueError(f"decimal must be one of {', '.join(DECIMALS)}; got {decimal!r}")
-    text, encoding = _decode(data)
-    line_endings = "CRLF" if "\r\n" in text else ("CR" if "\r" in text else "LF")
-    text = text.replace("\r\n", "\n").replace("\r", "\n")
-    lines = text.split("\n")
+    text, encoding, note = _decode(data)
+    intake = Intake("csv", encoding=encoding, header_line=1, notes=[note] if note else [])
+    lines = _lines(text, intake)
+    sep = _separator(lines, separator, intake)
+    header, body = _table(lines, sep, separator, intake)
+    header, body = _leave_out(header, body, ignore, intake)
+    decimal = _decimal(body, sep, decimal, intake)
+    try:
+        dataset = _parse(header, body, fixed or {}, factors, intake, plain="\n".join(lines) + "\n")
+    except DataError as exc:
+        raise TableError(intake.locate(exc.errors)) from None
+    texts = {c.sent: [_cell(r[i], None, decimal) if i < len(r) else "" for r in body]
+             for i, c in enumerate(intake.columns)}
+    intake.text_columns = _text_columns(intake.columns, texts, dataset)
+    return dataset, intake
+
+
+def _lines(text: str, intake: Intake) -> list[str]:
+    """The file's lines without their ends and without blank lines at the end (said in ``intake``)."""
+    intake.line_endings = "CRLF" if "\r\n" in text else ("CR" if "\r" in text else "LF")
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
     if lines and lines[-1] == "":
         lines.pop()  # the newline that ends the last line
-    intake = Intake("csv", encoding=encoding, line_endings=line_endings)
     blank_end = 0
     while lines and not lines[-1].strip(",;\t "):
         lines.pop()  # a blank line (or one of separators only) at the end
@@ -316,20 +491,54 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
     if blank_end:
         intake.ignored.append(f"{blank_end} blank line{'s' * (blank_end > 1)} at the end")
     if not any(line.strip() for line in lines):
-        raise DataError([{"row": None, "column": None,
-                          "message": "CSV is empty; expected a header row (column names) and data rows"}])
-    sep = SEPARATORS[separator] if separator else _sniff_separator(lines)
-    if separator is None:
+        raise _unreadable("CSV is empty; expected a header row (column names) and data rows")
+    return lines
+
+
+def _separator(lines: list[str], stated: str | None, intake: Intake) -> str:
+    """The separator: the ``sep=`` first line's (removed from ``lines``), the stated one, or detected."""
+    written = _sep_line(lines[0])
+    if written is not None:
+        first = lines.pop(0)
+        if written not in _SEPARATOR_NAMES:
+            raise _unreadable(f"line 1 {first!r} states the separator {written!r}; the separators read are "
+                              f"comma, semicolon and tab")
+        name = _SEPARATOR_NAMES[written]
+        if stated is not None and stated != name:
+            raise DataError([{"row": None, "column": None, "parameter": "separator",
+                              "message": f"separator={stated} was stated, but the file's first line "
+                                         f"{first!r} states {name}; drop the parameter or state "
+                                         f"separator={name}"}])
+        intake.header_line = 2
+        intake.notes.append(f"line 1 {first!r} (Excel's separator line) states the separator {name}; the "
+                            f"header is line 2")
+        if not any(line.strip() for line in lines):
+            raise _unreadable("CSV has only its sep= line; expected a header row (column names) and data "
+                              "rows")
+        intake.separator = name
+        return written
+    sep = SEPARATORS[stated] if stated else _sniff_separator(lines)
+    if stated is None:
         intake.detected.append("separator")
     intake.separator = _SEPARATOR_NAMES[sep]
+    return sep
+
+
+def _table(lines: list[str], sep: str, stated: str | None, intake: Intake
+           ) -> tuple[list[str], list[list[str]]]:
+    """The header and the data rows split at ``sep``, each row's file line kept in ``intake``."""
+    reader = csv.reader(io.StringIO("\n".join(lines)), delimiter=sep)
+    rows, starts, read = [], [], 0
     try:
-        rows = list(csv.reader(io.StringIO("\n".join(lines)), delimiter=sep))
+        for row in reader:
+            rows.append(row)
+            starts.append(read + intake.header_line)  # a quoted cell may span lines: its row's first
+            read = reader.line_num
     except csv.Error as exc:
-        raise DataError([{"row": None, "column": None, "message": f"the file cannot be read as CSV: {exc}"}]
-                        ) from None
+        raise _unreadable(f"the file cannot be read as CSV: {exc}") from None
     if not rows or not any(cell.strip() for cell in rows[0]):
-        raise DataError([{"row": None, "column": None,
-                          "message": "the first line is blank; expected the header row (column names)"}])
+        raise _unreadable("the first line is blank; expected the header row (column names)")
+    intake.row_lines = starts[1:]
     header, body, dropped, trimmed = _strip_trailing_empty(rows[1:], rows[0])
     if dropped:
         intake.ignored.append(f"{dropped} empty column{'s' * (dropped > 1)} at the end")
@@ -338,42 +547,110 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
     others = {s for s in SEPARATORS.values() if s != sep}
     if len(header) == 1 and any(s in header[0] for s in others):
         found = next(_SEPARATOR_NAMES[s] for s in (";", "\t", ",") if s in header[0])
-        raise DataError([{"row": None, "column": None,
-                          "message": f"the header {header[0]!r} is one column when split at the "
-                                     f"{intake.separator} ({'detected' if separator is None else 'stated'}); "
-                                     f"it looks separated by {found}: state separator={found}"}])
+        how = "detected" if "separator" in intake.detected else "stated" if stated else "from the sep= line"
+        raise _unreadable(f"the header {header[0]!r} is one column when split at the {intake.separator} "
+                          f"({how}); it looks separated by {found}: state separator={found}")
     filled = [r for r in body if any(c.strip() for c in r)]
     if filled and all(len(r) > len(header) for r in filled):
-        raise DataError([{"row": None, "column": None,
-                          "message": f"every row has more cells than the {len(header)} of the header (row "
-                                     f"1: {len(filled[0])}): numbers with a decimal comma in a file "
-                                     f"separated by {intake.separator}? Separate by semicolon or tab, or "
-                                     f"quote the numbers"}])
-    cells = [c.strip() for r in body for c in r]
-    if decimal is None:
+        raise _unreadable(f"every row has more cells than the {len(header)} of the header (line "
+                          f"{intake.header_line + 1}: {len(filled[0])}): numbers with a decimal comma in a "
+                          f"file separated by {intake.separator}? Separate by semicolon or tab, or quote "
+                          f"the numbers")
+    return header, body
+
+
+def _leave_out(header: list[str], body: list[list[str]], ignore: Sequence[str], intake: Intake
+               ) -> tuple[list[str], list[list[str]]]:
+    """The table without the columns ``ignore`` names (said in ``intake``); every kept column's letter."""
+    sent = [h.strip() for h in header]
+    wanted = list(dict.fromkeys(str(name).strip() for name in ignore))
+    by_name: dict[str, int] = {}
+    for i, name in enumerate(sent):
+        by_name.setdefault(name, i)
+        try:
+            by_name.setdefault(read_column(name).name, i)
+        except DataError:  # an unreadable name may still be ignored as sent
+            pass
+    unknown = [name for name in wanted if name not in by_name]
+    if unknown:
+        raise DataError([{"row": None, "column": None, "parameter": "ignore",
+                          "message": f"ignore names {', '.join(repr(n) for n in unknown)}, not a column of "
+                                     f"the file; its columns are {', '.join(repr(s) for s in sent if s)}"}])
+    dropped = sorted({by_name[name] for name in wanted})
+    for i in dropped:
+        intake.ignored.append(f"column {column_letter(i)} ({sent[i]}), as ignore asks")
+    kept = [i for i in range(len(header)) if i not in set(dropped)]
+    intake.letters = {sent[i]: (column_letter(i), sent[i]) for i in kept if sent[i]}
+    if not dropped:
+        return header, body
+    return [header[i] for i in kept], [[r[i] for i in kept if i < len(r)] + r[len(header):] for r in body]
+
+
+def _decimal(body: list[list[str]], sep: str, stated: str | None, intake: Intake) -> str:
+    """The decimal mark: stated, or a comma when numeric cells use one and none a point."""
+    if stated is None:
         intake.detected.append("decimal")
+        cells = [c.strip() for r in body for c in r]
         commas = any(_DECIMAL_COMMA.match(c) for c in cells)
         points = next((c for c in cells if _DECIMAL_POINT.match(c)), None)
         if commas and points is not None:
             example = next(c for c in cells if _DECIMAL_COMMA.match(c))
-            raise DataError([{"row": None, "column": None,
-                              "message": f"numbers are written with a decimal comma ({example!r}) and "
-                                         f"with a decimal point ({points!r}); state decimal=comma or "
-                                         f"decimal=point"}])
-        decimal = "comma" if commas and sep != "," else "point"
-    intake.decimal = decimal
-    columns = _columns([h.strip() for h in header]) if all(h.strip() for h in header) else None
-    if columns is None:  # an unnamed column: the parser's header error says so
-        return parse_csv(_write(header, body), fixed, factors), intake
+            raise _unreadable(f"numbers are written with a decimal comma ({example!r}) and with a decimal "
+                              f"point ({points!r}); state decimal=comma or decimal=point")
+        stated = "comma" if commas and sep != "," else "point"
+    intake.decimal = stated
+    return stated
+
+
+def _parse(header: list[str], body: list[list[str]], fixed: Mapping[str, Any], factors: Sequence[str],
+           intake: Intake, plain: str) -> Dataset:
+    """The data set of the split table, its columns read through the registry (kept in ``intake``)."""
+    if not all(h.strip() for h in header):  # an unnamed column: the parser's header error says so
+        return parse_csv(_write(header, body), fixed, factors)
+    columns = _columns([h.strip() for h in header])
     intake.columns = columns
-    _check_required(columns, fixed or {})
-    if (sep == "," and decimal == "point" and not dropped and not trimmed
+    for c in columns:
+        intake.letters.setdefault(c.name, intake.letters[c.sent])
+    _check_required(columns, fixed)
+    if (intake.separator == "comma" and intake.decimal == "point" and intake.ignored == []
             and all(c.name == c.sent and not c.reading for c in columns)):
-        # plain CSV: the parser reads it as is
-        return parse_csv("\n".join(lines) + "\n", fixed, factors), intake
-    converted = [[_cell(c, columns[i] if i < len(columns) else None, decimal) for i, c in enumerate(r)]
-                 for r in body]
-    return parse_csv(_write([c.name for c in columns], converted), fixed, factors), intake
+        return parse_csv(plain, fixed, factors)  # plain CSV: the parser reads it as is
+    converted = [[_cell(c, columns[i] if i < len(columns) else None, intake.decimal or "point")
+                  for i, c in enumerate(r)] for r in body]
+    return parse_csv(_write([c.name for c in columns], converted), fixed, factors)
+
+
+def _text_columns(columns: Sequence[Column], cells: Mapping[str, Sequence[Any]], dataset: Dataset
+                  ) -> dict[str, str]:
+    """Each condition column with text among its cells (as sent) -> what the data set made of it."""
+    became = {}
+    # ISO 8601 times read as hours since their start (Dataset.clock, where calibrate.data reads them)
+    clock: Mapping[str, str] = getattr(dataset, "clock", {})
+    for c in columns:
+        if c.name in physics.PARAMETERS or c.name in (MU_MEASURED, MU_MEASURED_STD):
+            continue
+        if not any(_is_text(value) for value in cells.get(c.sent, ())):
+            continue
+        if c.name in dataset.factors:
+            levels = len(set(dataset.factors[c.name].tolist()))
+            became[c.sent] = f"random-effect groups ({levels} level{'s' * (levels != 1)})"
+        elif c.name in clock:
+            became[c.sent] = f"hours since {clock[c.name]}: the condition {c.name} [h]"
+        elif c.name in dataset.conditions:
+            became[c.sent] = f"numbers: the condition {c.name}"
+        else:
+            became[c.sent] = "not in the data"
+    return became
+
+
+def _is_text(value: Any) -> bool:
+    if not isinstance(value, str) or not value.strip():
+        return False
+    try:
+        float(value)
+    except ValueError:
+        return True
+    return False
 
 
 def _cell(text: str, column: Column | None, decimal: str) -> str:
@@ -398,7 +675,7 @@ def _write(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
 
 
 def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None = None,
-              factors: Sequence[str] = ()) -> tuple[Dataset, Intake]:
+              factors: Sequence[str] = (), ignore: Sequence[str] = ()) -> tuple[Dataset, Intake]:
     """Check measured data given as JSON rows whose keys may carry units (as :func:`read_csv`'s header).
 
     Parameters
@@ -410,17 +687,19 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
     factors : sequence of str, optional
         Condition columns of whole-number codes to read as group labels (as
         :func:`calibrate.data.parse_rows`).
+    ignore : sequence of str, optional
+        Keys to leave out, as sent or by the name they are read as.
 
     Returns
     -------
     dataset : calibrate.Dataset
     intake : Intake
-        How every key was read.
+        How every key was read, what each text column became and what was ignored.
 
     Raises
     ------
     DataError
-        As :func:`read_csv`.
+        As :func:`read_csv` (an ``ignore`` naming no key carries ``parameter``).
 
     Examples
     --------
@@ -431,8 +710,21 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
     names: list[str] = []
     for row in rows:
         if isinstance(row, Mapping):
-            names.extend(k for k in row if k not in names)
-    columns = _columns([str(n) for n in names])
+            names.extend(str(k) for k in row if str(k) not in names)
+    wanted = list(dict.fromkeys(str(name).strip() for name in ignore))
+    read_as = {}
+    for name in names:
+        try:
+            read_as[name] = read_column(name).name
+        except DataError:  # an unreadable key may still be ignored; _columns names it otherwise
+            read_as[name] = name
+    unknown = [w for w in wanted if w not in names and w not in read_as.values()]
+    if unknown:
+        raise DataError([{"row": None, "column": None, "parameter": "ignore",
+                          "message": f"ignore names {', '.join(repr(n) for n in unknown)}, not a column of "
+                                     f"the data; its columns are {', '.join(repr(n) for n in names)}"}])
+    left_out = [n for n in names if n in wanted or read_as[n] in wanted]
+    columns = _columns([n for n in names if n not in left_out])
     _check_required(columns, fixed or {})
     by_sent = {c.sent: c for c in columns}
     converted = []
@@ -442,9 +734,15 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
             continue
         out = {}
         for key, value in row.items():
+            if str(key) in left_out:
+                continue
             column = by_sent[str(key)]
             if column.reading and isinstance(value, int | float) and not isinstance(value, bool):
                 value = column.convert(float(value))
             out[column.name] = value
         converted.append(out)
-    return parse_rows(converted, fixed, factors), Intake("json", columns=columns)
+    dataset = parse_rows(converted, fixed, factors)
+    intake = Intake("json", columns=columns, ignored=[f"column {n}, as ignore asks" for n in left_out])
+    cells = {c.sent: [row.get(c.sent) for row in rows if isinstance(row, Mapping)] for c in columns}
+    intake.text_columns = _text_columns(columns, cells, dataset)
+    return dataset, intake

@@ -24,6 +24,7 @@ import numpy as np
 from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 from microbearing.calibrate.data import MU_MEASURED
+from microbearing.calibrate.tabular import TableError
 from microbearing.physics.columns import ColumnError, match_column, slip, unknown_column
 from microbearing.physics.model import NOT_FINITE
 
@@ -37,9 +38,9 @@ from .store import Store
 
 __all__ = ["DATA_PREFIX", "KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summary",
            "calibration_view", "check_conditions", "data_arrays", "data_problem", "delete_calibration",
-           "evaluate_batch_with_model", "evaluate_point_with_model", "interval_at", "load_calibration",
-           "load_mu_model", "prediction_fields", "read_conditions", "run_calibration", "stored_dataset",
-           "with_conditions"]
+           "evaluate_batch_with_model", "evaluate_point_with_model", "fitting_statement", "interval_at",
+           "load_calibration", "load_mu_model", "prediction_fields", "read_conditions", "run_calibration",
+           "stored_dataset", "with_conditions"]
 
 KIND = "calibration"
 MODEL_PREFIX = "calibrated:"
@@ -55,13 +56,16 @@ def data_problem(errors: list[dict[str, Any]], fixed_pointer: str | None = "/fix
     Parameters
     ----------
     errors : list of dict
-        ``{"row", "column", "message"}`` items (rows 1-based).
+        ``{"row", "column", "message"}`` items (rows 1-based); a file's also ``line``, ``letter`` and
+        ``sent`` (:class:`calibrate.tabular.TableError`), and one about a request parameter
+        ``parameter`` (its name).
     fixed_pointer : str or None
         JSON pointer of the fixed values; None when they come as the query parameter ``fixed``
         (the CSV upload), whose errors then name that parameter.
     data_pointer : str or None
         JSON pointer of the rows; None for a CSV body: every error then points at ``/body`` (the
-        uploaded file) and its detail names the row (the data line, 1 after the header) and column.
+        uploaded file) and its detail places it as the spreadsheet shows it: the file's line and the
+        column's letter and header cell (``line 9, column C (speed [mm/s]): ...``).
 
     Returns
     -------
@@ -70,13 +74,18 @@ def data_problem(errors: list[dict[str, Any]], fixed_pointer: str | None = "/fix
     items: list[dict[str, str]] = []
     for e in errors[:_MAX_LISTED_ERRORS]:
         row, column, message = e["row"], e["column"], e["message"]
-        if row is None and column is not None and message.startswith("fixed"):
+        if e.get("parameter"):  # a request parameter the data contradict (separator, ignore)
+            if data_pointer is None:
+                items.append({"parameter": e["parameter"], "detail": message})
+            else:
+                items.append({"pointer": f"/{e['parameter']}", "detail": message})
+        elif row is None and column is not None and message.startswith("fixed"):
             if fixed_pointer is None:
                 items.append({"parameter": "fixed", "detail": f"{column}: {message}"})
             else:
                 items.append({"pointer": f"{fixed_pointer}/{column}", "detail": message})
         elif data_pointer is None:
-            items.append({"pointer": "/body", "detail": DataError.describe(e)})
+            items.append({"pointer": "/body", "detail": TableError.describe(e)})
         elif row is not None:
             tail = "" if column is None else "/" + column.replace("~", "~0").replace("/", "~1")
             items.append({"pointer": f"{data_pointer}/{row - 1}{tail}", "detail": message})
@@ -86,6 +95,37 @@ def data_problem(errors: list[dict[str, Any]], fixed_pointer: str | None = "/fix
         items.append({"pointer": "/body" if data_pointer is None else data_pointer,
                       "detail": f"... and {len(errors) - _MAX_LISTED_ERRORS} more problems in the data"})
     return validation_problem(items, total=len(errors))
+
+
+def fitting_statement(dataset: Dataset, fit_parameters: list[str]) -> str:
+    """What a calibration fits, in words: the parameters named, or that none is and what that means.
+
+    Parameters
+    ----------
+    dataset : calibrate.Dataset
+        The data (their columns and fixed values are not fitted).
+    fit_parameters : list of str
+        Declared parameters the request names to fit.
+
+    Returns
+    -------
+    str
+        E.g. ``"fits mu_pivot [1] and the terms the data need"``, or for none named, that the declared
+        parameters keep their defaults (naming a few) and only added terms are fitted.
+    """
+    if fit_parameters:
+        named = ", ".join(f"{name} [{physics.PARAMETERS[name].unit}]" for name in fit_parameters)
+        return f"fits {named} (fit_parameters) and the terms the data need"
+    free = [name for name, spec in physics.PARAMETERS.items()
+            if spec.kind == "float" and not spec.required and name not in dataset.physics_columns
+            and name not in dataset.fixed]
+    # the friction coefficients first: what a lab most often means to fit
+    free.sort(key=lambda name: not name.startswith("mu_"))
+    defaults = ", ".join(f"{name} {physics.PARAMETERS[name].default:g} [{physics.PARAMETERS[name].unit}]"
+                         for name in free[:3])
+    return (f"fit_parameters is empty, so no declared parameter is fitted: all keep their defaults "
+            f"({defaults}, ...) and only the terms the data need are chosen and fitted; name some in "
+            f"fit_parameters (e.g. mu_pivot) to fit them")
 
 
 def calibration_view(calibration_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:

@@ -18,9 +18,10 @@ answers, as problems:
 The scan finds quotes, brackets, commas and colons with NumPy and runs Python code only per
 bracket and per object key, of which a numeric batch has a handful (a 2-million-point batch is
 checked in a fraction of its parsing time); it does not check the rest of the grammar, which
-the route's parser does. Bodies with another content type (CSV,
-multipart) pass untouched; a body without a content type is checked, because FastAPI reads it
-as JSON.
+the route's parser does. A CSV body, and a multipart/form-data upload (a CSV file sent by a
+browser's form or ``curl -F``), have their lines' length checked (:class:`CsvLineScanner`); bodies
+with another content type pass untouched; a body without a content type is checked, because
+FastAPI reads it as JSON.
 """
 
 from __future__ import annotations
@@ -345,11 +346,20 @@ class CsvLineScanner:
     """The longest line of a CSV body fed block by block: past ``max_line_bytes`` it is refused (413).
 
     A field, quoted or not, is never longer than its line, so this bounds fields too, while the
-    body streams in, before any of it is parsed.
+    body streams in, before any of it is parsed. A multipart/form-data body holding the file is
+    scanned alike: its boundaries and part headers are short lines among the file's.
+
+    Parameters
+    ----------
+    max_line_bytes : int
+        Longest line [bytes] (``MICROBEARING_MAX_FIELD_BYTES``).
+    body : str, default "the CSV body"
+        What the body is, for the message (e.g. "the multipart body").
     """
 
-    def __init__(self, max_line_bytes: int):
+    def __init__(self, max_line_bytes: int, body: str = "the CSV body"):
         self.max_line_bytes = max_line_bytes
+        self.body = body
         self._offset = 0
         self._line_start = 0  # where the current line starts [byte]
         self._line_number = 1
@@ -367,7 +377,7 @@ class CsvLineScanner:
                                                                           self._line_start))
         if len(lengths) and lengths.max() > self.max_line_bytes:
             line = self._line_number + int(np.argmax(lengths > self.max_line_bytes))
-            raise _too_large(f"Line {line} of the CSV body is longer than {self.max_line_bytes} bytes "
+            raise _too_large(f"Line {line} of {self.body} is longer than {self.max_line_bytes} bytes "
                              f"(MICROBEARING_MAX_FIELD_BYTES): a field that long is not a measurement.")
         if len(ends):
             self._line_start = int(ends[-1]) + 1
@@ -390,7 +400,7 @@ def is_json_media_type(content_type: bytes | None) -> bool:
 
 
 class JsonGuardMiddleware:
-    """Check JSON bodies with :class:`JsonScanner`, and CSV bodies' lines, while they stream in.
+    """Check JSON bodies with :class:`JsonScanner`, and CSV and multipart bodies' lines, while they stream in.
 
     A body is looked at in blocks of :data:`BLOCK_BYTES` as they arrive; one past a limit is answered
     (400 or 413) from the block that passes it, and nothing of it is kept. uvicorn drops the rest of
@@ -421,6 +431,8 @@ class JsonGuardMiddleware:
         media = (content_type or b"").split(b";", 1)[0].strip().lower()
         if media == b"text/csv" and self.max_field_bytes is not None:
             return CsvLineScanner(self.max_field_bytes)
+        if media == b"multipart/form-data" and self.max_field_bytes is not None:  # a CSV file uploaded
+            return CsvLineScanner(self.max_field_bytes, "the multipart body")
         return None
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:

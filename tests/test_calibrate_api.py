@@ -152,7 +152,8 @@ def test_bad_rows_are_422_with_a_pointer_per_cell(client):
     text = as_csv(csv_rows)
     csv_problem = assert_problem(client.post("/v1/calibrations/csv", content=text,
                                              headers={"content-type": "text/csv"}), 422)
-    assert [e["detail"][:27] for e in csv_problem["errors"]] == ["row 1, column speed_m_s: sp"]
+    # placed as the spreadsheet shows it: the header is line 1, speed_m_s column C
+    assert [e["detail"][:40] for e in csv_problem["errors"]] == ["line 2, column C (speed_m_s): speed_m_s "]
     assert [e["pointer"] for e in csv_problem["errors"]] == ["/body"]
 
 
@@ -160,9 +161,9 @@ def test_bad_rows_are_422_with_a_pointer_per_cell(client):
     (b"\xff\xfeload_N\n", [], {"pointer": "/body", "detail": "CSV is not UTF-8: "}),
     (b"", [], {"pointer": "/body", "detail": "CSV is empty; expected a header row"}),
     (b"balls,load_N,speed_m_s,mu_measured\n4,0.01,0.1,0.01\n,,,\n4,-1,0.1,0.01\n", [],
-     {"pointer": "/body", "detail": "row 2: is blank"}),
+     {"pointer": "/body", "detail": "line 3: is blank"}),
     (b"balls,load_N,speed_m_s,mu_measured\n4,0.01,0.1,0.01\n,,,\n4,-1,0.1,0.01\n", [],
-     {"pointer": "/body", "detail": "row 3, column load_N: load_N must be"}),
+     {"pointer": "/body", "detail": "line 4, column B (load_N): load_N must be"}),
     (b"load_N,speed_m_s\n0.01,0.1\n", [("fixed", "balls=4")],
      {"pointer": "/body", "detail": "column mu_measured: required column is missing"}),
     (b"balls,load_N,speed_m_s,mu_measured\n4,0.01,0.1,0.01\n", [("fixed", "balls=4")],

@@ -35,10 +35,12 @@ from microbearing.service.openapi import SPEC_PATH
 GENERATOR_WARNINGS = {
     "POST /v1/calibrations/csv": (
         "the generator has no text/csv request bodies; it generates the operation with the "
-        "application/octet-stream body the spec also declares (the server reads either as CSV)"),
+        "application/octet-stream and multipart/form-data bodies the spec also declares (the server "
+        "reads each as CSV)"),
     "POST /v1/calibrations/csv/intake": (
         "the generator has no text/csv request bodies; it generates the operation with the "
-        "application/octet-stream body the spec also declares (the server reads either as CSV)"),
+        "application/octet-stream and multipart/form-data bodies the spec also declares (the server "
+        "reads each as CSV)"),
     "GET /v1/calibrations/{calibration_id}/plots/{plot_name}.png": (
         "an image/png answer has no model; the generated sync_detailed() returns its bytes in .content"),
     "GET /v1/optimizations/{job_id}/pareto.png": (
@@ -382,6 +384,10 @@ def _(s: Session) -> None:
     reading = typed(s.call("read_calibration_csv", body=body), "CsvReading")
     assert reading.rows == 24 and reading.intake.separator == "semicolon"
     assert "mu_measured" in reading.intake.columns.additional_properties
+    # the same file as a form's upload (multipart/form-data, field file)
+    form = s.models.ReadCalibrationCsvFilesBody(file=body)
+    by_form = typed(s.call("read_calibration_csv", body=form), "CsvReading")
+    assert by_form.rows == 24 and by_form.intake.notes[-1].startswith("uploaded as multipart/form-data")
 
 
 @drives("get_calibration")

@@ -7,9 +7,19 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Body, Depends, Query, Request
 from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
+from starlette.datastructures import UploadFile
 
 from microbearing import physics
-from microbearing.calibrate import DataError, Dataset, check_request, parse_assignments, read_csv, read_rows
+from microbearing.calibrate import (
+    DataError,
+    Dataset,
+    Intake,
+    check_request,
+    parse_assignments,
+    read_csv,
+    read_rows,
+)
+from microbearing.calibrate.fit import check_fit_parameters
 from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names, read_column
 
 from ..calibrations import (
@@ -19,6 +29,7 @@ from ..calibrations import (
     calibration_view,
     data_problem,
     delete_calibration,
+    fitting_statement,
     load_calibration,
 )
 from ..deps import JobsDep, SettingsDep, StoreDep
@@ -51,26 +62,36 @@ _DEFAULT_CONVENTION = Convention(physics.DEFAULT_CONVENTION)
 
 _CSV_TEXT = ("CSV with a header row: physics input columns, mu_measured [1], optionally mu_measured_std [1], "
              "and any other condition columns: numbers, or labels (a factor, e.g. specimen S1, S2, ...). "
-             "Separated by comma, semicolon or tab (detected, or "
-             "stated by the query parameter separator); decimal point or, with semicolon or tab, decimal "
-             "comma (detected, or stated by decimal); UTF-8 with or without BOM; blank lines and empty "
-             "columns at the end are ignored. Column names may carry units, converted to SI: "
-             + accepted_names() + ".")
+             "Separated by comma, semicolon or tab (detected, stated by Excel's first line sep=; or stated "
+             "by the query parameter separator); decimal point or, with semicolon or tab, decimal "
+             "comma (detected, or stated by decimal); UTF-8 with or without BOM, UTF-16 with BOM, or "
+             "else Windows-1252 (Latin-1), as the intake says; blank lines and empty columns at the end "
+             "are ignored, and the columns named in ignore. Column names may carry units, converted to "
+             "SI: " + accepted_names() + ".")
 _CSV_EXAMPLE = ("balls;load [mN];speed [mm/s];relative humidity [%];mu_measured\r\n"
                 "4;13,2;70;38;0,01448\r\n4;4,4;92;65;0,02287\r\n4;4,4;113;63;0,02302\r\n")
 # The body is read as CSV whatever its declared type; application/octet-stream is listed too because
-# generated clients (openapi-python-client) send raw bytes that way and have no text bodies.
+# generated clients (openapi-python-client) send raw bytes that way and have no text bodies. A
+# browser's form and `curl -F file=@lab.csv` send the file as multipart/form-data, in the field file.
 _CSV_BODY = {"requestBody": {"required": True, "content": {
     "text/csv": {"schema": {"type": "string", "description": _CSV_TEXT}, "example": _CSV_EXAMPLE},
     "application/octet-stream": {"schema": {"type": "string", "format": "binary",
-                                            "description": _CSV_TEXT}}}}}
+                                            "description": _CSV_TEXT}},
+    "multipart/form-data": {"schema": {
+        "type": "object", "required": ["file"], "additionalProperties": False,
+        "properties": {"file": {"type": "string", "format": "binary", "description": _CSV_TEXT}}},
+        "encoding": {"file": {"contentType": "text/csv, application/octet-stream"}}}}}}
+#: Most form fields a multipart upload may carry (the one read is file; the others are named in a 422).
+_MAX_FORM_FIELDS = 20
 
 
-def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool) -> None:
+def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool,
+           intake: Intake | None = None) -> None:
     try:
         check_request(dataset, fit_parameters, folds)
     except DataError as exc:  # implausible values (calibrate.plausibility), one item per column
-        raise data_problem(exc.errors, data_pointer=None if query else "/data") from None
+        errors = exc.errors if intake is None else intake.locate(exc.errors)
+        raise data_problem(errors, data_pointer=None if query else "/data") from None
     except ValueError as exc:
         field = str(exc).split(" ", 1)[0].rstrip(":")
         raise validation_problem([{"parameter": field, "detail": str(exc)} if query and field != "data"
@@ -83,6 +104,11 @@ def _submit(jobs: JobManager, store: Store, record: dict, dataset: Dataset, fit_
     work = calibration_work(store, dataset, fit_parameters, folds, convention, intake)
     store.check_model_room()  # 507 now rather than a failed job later
     return accepted(jobs.submit("calibration", record, work, inputs=inputs))
+
+
+def _columns_of(dataset: Dataset) -> list[str]:
+    """Every column of the data by its name in SI: physics inputs, conditions and factors (groups)."""
+    return sorted([*dataset.columns(), *dataset.factors])
 
 
 def _refuse_text_inputs(rows: list[dict[str, Any]]) -> None:
@@ -123,12 +149,13 @@ def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples
     _refuse_text_inputs(body.data)
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
-        dataset, intake = read_rows(body.data, fixed, body.factors)
+        dataset, intake = read_rows(body.data, fixed, body.factors, body.ignore)
     except DataError as exc:
         raise data_problem(exc.errors) from None
     fit_parameters = [str(name) for name in body.fit_parameters]
     _check(dataset, fit_parameters, body.folds, query=False)
-    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()),
+    intake.fitting = fitting_statement(dataset, fit_parameters)
+    record = {"rows": dataset.n_points, "columns": _columns_of(dataset),
               "factors": sorted(dataset.factors), "fixed": fixed,
               "fit_parameters": fit_parameters, "folds": body.folds, "convention": str(body.convention),
               "intake": intake.to_dict()}
@@ -140,8 +167,9 @@ class CsvDialect:
     """The query parameters of a CSV upload's dialect: its separator and decimal mark (None: detected)."""
 
     def __init__(self, separator: Annotated[Separator, Query(
-                     description="Column separator: auto (detected among comma, semicolon and tab), comma, "
-                                 "semicolon or tab.")] = "auto",
+                     description="Column separator: auto (the file's first line sep=; as Excel reads it, or "
+                                 "detected among comma, semicolon and tab), comma, semicolon or tab (a "
+                                 "sep= line that disagrees gets 422).")] = "auto",
                  decimal: Annotated[Decimal, Query(
                      description="Decimal mark: auto (a comma when numbers use one and none a point), point "
                                  "or comma.")] = "auto") -> None:
@@ -159,17 +187,55 @@ class CsvOptions:
         factors: Annotated[list[str], Query(max_length=20, description=(
             "Condition columns to read as group labels even when they hold numbers (repeatable); a column "
             "with no number in it is a factor anyway."))] = [],  # noqa: B006
+        ignore: Annotated[list[str], Query(max_length=100, description=(
+            "Columns to leave out, by their header cell as in the file or the name they are read as "
+            "(repeatable), e.g. a comment, or an operator column that should not become groups."))
+        ] = [],  # noqa: B006
         dialect: Annotated[CsvDialect, Depends()] = None,  # type: ignore[assignment]  (FastAPI fills it)
     ) -> None:
-        self.fixed, self.factors, self.dialect = fixed, factors, dialect
+        self.fixed, self.factors, self.ignore, self.dialect = fixed, factors, ignore, dialect
 
 
-async def _read_upload(request: Request, settings: Any, options: CsvOptions) -> tuple[Dataset, Any, dict]:
+async def _uploaded(request: Request) -> tuple[bytes, str | None]:
+    """The uploaded file: the raw body, or a multipart/form-data upload's field ``file``; and, for the
+    latter, a sentence saying how it came."""
+    media = request.headers.get("content-type", "").split(";", 1)[0].strip().lower()
+    if media != "multipart/form-data":
+        return await request.body(), None
+    # Starlette spools a file part to disk past 1 MB; the body-size limit holds while it streams.
+    async with request.form(max_files=1, max_fields=_MAX_FORM_FIELDS) as form:
+        others = sorted({name for name in form if name != "file"})
+        items = form.getlist("file")
+        if others or len(items) != 1:
+            errors = [{"pointer": f"/{name}", "detail": f"the form field {name!r} is not read: send the CSV "
+                                                        "in the field file, and options as query parameters "
+                                                        f"(?{name}=...)"} for name in others]
+            if len(items) != 1:
+                fields = f"{len(items) or 'no'} field{'s' * (len(items) != 1)} file"
+                errors.append({"pointer": "/file", "detail": (
+                    "a multipart/form-data upload carries the CSV file in one field named file (curl -F "
+                    f"file=@lab.csv); this one has {fields}")})
+            raise validation_problem(errors)
+        item = items[0]
+        if isinstance(item, UploadFile):
+            return await item.read(), f"uploaded as multipart/form-data, field file ({item.filename!r})"
+        return item.encode("utf-8"), "uploaded as multipart/form-data, field file (a text field)"
+
+
+def _counted(text: bytes) -> bytes:
+    """The body as its rows and columns are counted: without Excel's ``sep=`` first line."""
+    start = 3 if text.startswith(b"\xef\xbb\xbf") else 0
+    if text[start:start + 4].lower() == b"sep=":
+        return text[text.find(b"\n", start) + 1:] if b"\n" in text else b""
+    return text
+
+
+async def _read_upload(request: Request, settings: Any, options: CsvOptions) -> tuple[Dataset, Intake, dict]:
     """The uploaded CSV as a data set, its intake and the fixed values, or a 4xx problem."""
-    text = await request.body()
-    # counted before parsing
-    check_table(csv_data_rows(text), settings.max_calibration_rows, "rows", "The CSV body")
-    check_table(csv_header_columns(text), settings.max_calibration_columns, "columns",
+    text, how = await _uploaded(request)
+    counted = _counted(text)  # counted before parsing
+    check_table(csv_data_rows(counted), settings.max_calibration_rows, "rows", "The CSV body")
+    check_table(csv_header_columns(counted), settings.max_calibration_columns, "columns",
                 "The CSV body's header")
     try:
         fixed_values = parse_assignments(options.fixed)
@@ -178,9 +244,11 @@ async def _read_upload(request: Request, settings: Any, options: CsvOptions) -> 
                                   for e in exc.errors]) from None
     try:
         dataset, intake = await run_in_threadpool(read_csv, text, fixed_values, options.dialect.separator,
-                                                  options.dialect.decimal, options.factors)
+                                                  options.dialect.decimal, options.factors, options.ignore)
     except DataError as exc:
         raise data_problem(exc.errors, fixed_pointer=None, data_pointer=None) from None
+    if how is not None:
+        intake.notes.append(how)
     return dataset, intake, fixed_values
 
 
@@ -195,19 +263,23 @@ async def create_calibration_from_csv(
         description="Reading of the paper's ambiguous ball-ball terms.")] = _DEFAULT_CONVENTION,
     options: Annotated[CsvOptions, Depends()] = None,  # type: ignore[assignment]  (FastAPI fills it)
 ) -> JSONResponse:
-    """Calibrate on an uploaded CSV file (``Content-Type: text/csv`` or ``application/octet-stream``),
-    as ``POST /v1/calibrations``.
+    """Calibrate on an uploaded CSV file (``Content-Type: text/csv`` or ``application/octet-stream``,
+    or ``multipart/form-data`` with the file in the field ``file``), as ``POST /v1/calibrations``.
 
-    Spreadsheet exports are read as saved: the separator and decimal mark are detected (or stated),
-    a BOM, CRLF line ends, blank lines and empty columns at the end are ignored, and units in the
-    header (``speed [mm/s]``, ``load (mN)``, ``speed_mm_s``, ``relative humidity [%]``) are converted
-    to SI. The report's ``intake`` says which dialect was used and how each column was read;
-    ``POST /v1/calibrations/csv/intake`` says it before any fit.
+    Spreadsheet exports are read as saved: Excel's ``sep=;`` first line states the separator, or it
+    and the decimal mark are detected (or stated); a BOM, CRLF line ends, blank lines and empty
+    columns at the end are ignored; a file that is not UTF-8 is read as Windows-1252 (Latin-1); units
+    in the header (``speed [mm/s]``, ``load (mN)``, ``speed_mm_s``, ``relative humidity [%]``,
+    ``temperature [°C]``) are converted to SI. The report's ``intake`` says which dialect and
+    encoding were used, how each column was read, what each text column became (groups) and what is
+    fitted; ``POST /v1/calibrations/csv/intake`` says it before any fit. Problems name the file's line
+    and the column's letter, as the spreadsheet shows them.
     """
     dataset, intake, fixed_values = await _read_upload(request, settings, options)
     names = [str(name) for name in fit_parameters]
-    _check(dataset, names, folds, query=True)
-    record = {"rows": dataset.n_points, "columns": sorted(dataset.columns()),
+    _check(dataset, names, folds, query=True, intake=intake)
+    intake.fitting = fitting_statement(dataset, names)
+    record = {"rows": dataset.n_points, "columns": _columns_of(dataset),
               "factors": sorted(dataset.factors), "fixed": fixed_values,
               "fit_parameters": names, "folds": folds, "convention": str(convention),
               "intake": intake.to_dict()}
@@ -216,16 +288,27 @@ async def create_calibration_from_csv(
 
 @router.post("/csv/intake", operation_id="read_calibration_csv", response_model=CsvReading,
              responses=problem_responses(), openapi_extra=_CSV_BODY)
-async def read_calibration_csv(request: Request, settings: SettingsDep,
-                               options: Annotated[CsvOptions, Depends()]) -> CsvReading:
+async def read_calibration_csv(
+    request: Request, settings: SettingsDep, options: Annotated[CsvOptions, Depends()],
+    fit_parameters: Annotated[list[FittableParameterName], Query(  # type: ignore[valid-type]
+        description="Declared parameters the calibration would fit (repeatable): the intake's fitting "
+                    "says what that means.")] = [],  # noqa: B006
+) -> CsvReading:
     """Read an uploaded CSV file as ``POST /v1/calibrations/csv`` would, without fitting or storing it.
 
     The answer says how it was read (separator, decimal mark, encoding, what was ignored, each unit
-    conversion, each column's name in SI, the factors): check it, then submit the same file with the
-    same query parameters to calibrate. Bad files get the same problems as the calibration route.
+    conversion, each column's name in SI, what each text column became, the factors, what the
+    calibration would fit): check it, then submit the same file with the same query parameters to
+    calibrate. Bad files get the same problems as the calibration route.
     """
     dataset, intake, fixed_values = await _read_upload(request, settings, options)
-    return CsvReading(rows=dataset.n_points, columns=sorted(dataset.columns()),
+    names = [str(name) for name in fit_parameters]
+    try:
+        check_fit_parameters(dataset, names)
+    except ValueError as exc:
+        raise validation_problem([{"parameter": "fit_parameters", "detail": str(exc)}]) from None
+    intake.fitting = fitting_statement(dataset, names)
+    return CsvReading(rows=dataset.n_points, columns=_columns_of(dataset),
                       factors=sorted(dataset.factors), fixed=fixed_values, intake=intake.to_dict())
 
 

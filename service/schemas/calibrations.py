@@ -106,9 +106,14 @@ class CalibrationRequest(StrictModel):
     factors: list[str] = Field(default_factory=list, max_length=20, description=(
         "Condition columns to read as group labels (factors) even when they hold numbers, e.g. integer "
         "codes of specimens; a column with no number in it is a factor anyway."))
+    ignore: list[str] = Field(default_factory=list, max_length=100, description=(
+        "Columns to leave out, as sent or by the name they are read as, e.g. a comment, or an operator "
+        "column that should not become groups."))
     fit_parameters: list[FittableParameterName] = Field(  # type: ignore[valid-type]
         default_factory=list, max_length=len(FITTABLE_PARAMETERS),
-        description="Declared physics parameters to fit, e.g. mu_pivot, adhesion_energy_J_m2.")
+        description="Declared physics parameters to fit, e.g. mu_pivot, adhesion_energy_J_m2; none by "
+                    "default (the declared parameters keep their defaults; the report's intake.fitting "
+                    "says so).")
     fixed: CalibrationFixed = Field(  # type: ignore[valid-type]
         default_factory=CalibrationFixed, description="Physics inputs fixed for every row.")
     folds: WholeNumber = Field(default=5, ge=2, le=20, description="Cross-validation folds [1].")
@@ -277,22 +282,36 @@ class Intake(ResponseModel):
     separator: str | None = Field(default=None, description="comma, semicolon or tab (null for JSON).")
     decimal: str | None = Field(default=None, description="Decimal mark: point or comma (null for JSON).")
     detected: list[str] = Field(description="Which of separator and decimal were detected; the others were "
-                                            "stated by query parameters.")
-    encoding: str | None = Field(default=None, description="UTF-8, or UTF-8 with BOM (null for JSON).")
+                                            "stated by query parameters or by the file's sep= line.")
+    encoding: str | None = Field(default=None, description=(
+        "UTF-8, UTF-8 with BOM, UTF-16 with BOM, or Windows-1252 for a file that is not UTF-8 (null for "
+        "JSON)."))
     line_endings: str | None = Field(default=None, description="LF, CRLF or CR (null for JSON).")
     ignored: list[str] = Field(description="What was ignored, e.g. '2 blank lines at the end', '1 empty "
-                                           "column at the end'.")
+                                           "column at the end', 'column D (operator), as ignore asks'.")
     conversions: list[str] = Field(description="Each unit conversion in words, e.g. 'speed [mm/s] read as "
                                                "speed_m_s / 1000'.")
-    columns: dict[str, str] = Field(description="Every column as sent -> its name in the data (SI).")
+    columns: dict[str, str] = Field(description="Every column read, as sent -> its name in the data (SI).")
+    header_line: int | None = Field(default=None, description=(
+        "The file's line of the header row [1]: 1, or 2 after Excel's sep= line; problems name file lines "
+        "(null for JSON)."))
+    notes: list[str] = Field(default_factory=list, description=(
+        "How the file was read where it is not plain, in words: Excel's sep= line, an encoding other "
+        "than UTF-8 ('not UTF-8: read as Windows-1252 ...'), a multipart upload."))
+    text_columns: dict[str, str] = Field(default_factory=dict, description=(
+        "Each column with text in its cells (as sent) -> what it became, e.g. 'random-effect groups (3 "
+        "levels)'; leave one out with ignore."))
+    fitting: str | None = Field(default=None, description=(
+        "What the calibration fits, in words: the parameters named in fit_parameters, or, when none is "
+        "named, that the declared parameters keep their defaults and only the added terms are fitted."))
 
 
 class CsvReading(ResponseModel):
     """How ``POST /v1/calibrations/csv`` reads a file, before any fit: what the calibration would take."""
 
     rows: int = Field(description="Data rows read [1].")
-    columns: list[str] = Field(description="The data's columns, by their names in SI (physics inputs, "
-                                           "conditions and the measured friction).")
+    columns: list[str] = Field(description="The data's columns, by their names in SI: physics inputs, "
+                                           "conditions and factors (groups).")
     factors: list[str] = Field(description="Columns read as group labels (text, or declared in factors).")
     fixed: dict[str, float] = Field(description="Physics inputs fixed for every row, in SI.")
     intake: Intake = Field(description="The dialect, what was ignored, each unit conversion and column.")
