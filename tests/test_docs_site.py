@@ -131,3 +131,12 @@ def test_a_changed_source_builds_a_new_site(tmp_path):
     assert manual.source_digest(source, "1.6.2") != manual.source_digest(source, "1.6.1")
     manual.build_site(source, tmp_path / "site", strict=True)
     assert "Two" in (tmp_path / "site" / "index.html").read_text()
+
+
+def test_a_data_folder_that_cannot_hold_the_site_is_a_503_problem(tmp_path):
+    (tmp_path / "manual").write_text("a file where the site's folder goes")
+    with TestClient(create_app(Settings(data_dir=tmp_path))) as client:
+        answer = client.get("/manual/")
+    assert answer.status_code == 503, answer.text
+    assert answer.headers["content-type"] == "application/problem+json"
+    assert str(tmp_path / "manual") in answer.json()["detail"]

@@ -105,19 +105,30 @@ def _site(data_dir: Path) -> Path:
         source = sources()
         site = data_dir / "manual" / source_digest(source, mkdocs.__version__)
         if not site.is_dir():
-            site.parent.mkdir(parents=True, exist_ok=True)
-            building = Path(tempfile.mkdtemp(prefix=".build-", dir=site.parent))
             try:
-                build_site(source, building / "site")
-                os.rename(building / "site", site)
-                logger.info("built the manual into %s", site)
-            except OSError:
-                if not site.is_dir():  # not another process's site renamed into place first
-                    raise
-            finally:
-                shutil.rmtree(building, ignore_errors=True)
+                _build_into(source, site)
+            except OSError as exc:
+                raise ProblemError(503, f"The manual cannot be built into {site.parent}: "
+                                        f"{exc.strerror or exc}.") from exc
         _SITES[data_dir] = site
         return site
+
+
+def _build_into(source: Path, site: Path) -> None:
+    """Build in a folder of this process's own, then rename it to ``site`` (unless another process did)."""
+    site.parent.mkdir(parents=True, exist_ok=True)
+    building = Path(tempfile.mkdtemp(prefix=".build-", dir=site.parent))
+    try:
+        build_site(source, building / "site")
+        try:
+            os.rename(building / "site", site)
+        except OSError:
+            if not site.is_dir():
+                raise
+        else:
+            logger.info("built the manual into %s", site)
+    finally:
+        shutil.rmtree(building, ignore_errors=True)
 
 
 @router.get(PREFIX)
