@@ -140,3 +140,12 @@ def test_a_data_folder_that_cannot_hold_the_site_is_a_503_problem(tmp_path):
     assert answer.status_code == 503, answer.text
     assert answer.headers["content-type"] == "application/problem+json"
     assert str(tmp_path / "manual") in answer.json()["detail"]
+
+
+def test_the_readme_is_a_landing_page_whose_links_resolve():
+    # Issue 34: under 200 lines, the manual one link away (GitHub renders the pages' Markdown too).
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) < 200
+    targets = [t for t in re.findall(r"\]\(([^)#\s]+)\)", text) if not t.startswith(("http://", "https://"))]
+    assert "docs/pages/tutorial.md" in targets
+    assert all((REPO / target).is_file() for target in targets), targets
