@@ -9,12 +9,14 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+import time
 from html.parser import HTMLParser
 from pathlib import Path
 from urllib.parse import urljoin, urlsplit
 
 import pytest
 from fastapi.testclient import TestClient
+from test_web_page import browser, keyed_server  # noqa: F401  (fixtures: Chromium; a live server with a key)
 
 from microbearing.service.app import create_app
 from microbearing.service.routes import manual
@@ -149,3 +151,22 @@ def test_the_readme_is_a_landing_page_whose_links_resolve():
     targets = [t for t in re.findall(r"\]\(([^)#\s]+)\)", text) if not t.startswith(("http://", "https://"))]
     assert "docs/pages/tutorial.md" in targets
     assert all((REPO / target).is_file() for target in targets), targets
+
+
+def test_the_manual_runs_its_scripts_and_searches_in_a_browser(browser, keyed_server):  # noqa: F811
+    # Under its Content-Security-Policy, with a key configured and none given: the theme's settings come
+    # from js/settings.js (base_url), and the search's worker builds its index and answers.
+    browser.get(f"{keyed_server.url}/manual/reference/settings/")
+    deadline = time.monotonic() + 120
+    while browser.execute_script("return typeof base_url") != "string":
+        assert time.monotonic() < deadline, "js/settings.js did not run"
+        time.sleep(0.25)
+    assert browser.execute_script("return base_url") == f"{keyed_server.url}/manual"
+    results = []
+    while not results:
+        assert time.monotonic() < deadline, "the search found nothing for Arrhenius"
+        browser.execute_script("const box = document.getElementById('mkdocs-search-query'); box.value = "
+                               "'Arrhenius'; box.dispatchEvent(new KeyboardEvent('keyup'));")
+        time.sleep(0.5)
+        results = browser.find_elements("css selector", "#mkdocs-search-results article a")
+    assert any("/manual/science/" in r.get_attribute("href") for r in results)
