@@ -31,6 +31,7 @@ from .jsonguard import JsonGuardMiddleware
 from .limits import BodySizeLimitMiddleware, HeavyRequestMiddleware
 from .problems import ProblemError
 from .routes import calibrations, experiments, friction, jobs, meta, optimizations, surrogates, sweeps, web
+from .routes import manual as manual_routes
 from .routes import umbridge as umbridge_routes
 from .routes.meta import package_version
 from .schemas.base import add_raw_body_schemas
@@ -44,7 +45,7 @@ logger = logging.getLogger("microbearing.service")
 
 #: The routers of every resource, in the order of the OpenAPI spec. Add yours here.
 ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, experiments.router,
-           surrogates.router, optimizations.router, umbridge_routes.router, web.router]
+           surrogates.router, optimizations.router, umbridge_routes.router, web.router, manual_routes.router]
 
 DESCRIPTION = """Friction of micro linear ball bearings for MEMS by the model of Olaru, Prisacaru,
 Ianus and Lorenz (COMEC 2005). All quantities are SI (the groove angle in degrees); every field

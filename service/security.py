@@ -10,7 +10,8 @@ template only: no request data, no keys; expose it on a trusted network, as usua
 Prometheus targets) and the API description (``/openapi.json``, ``/docs``, ``/redoc`` and their
 assets under ``/docs/assets``), which holds no data either; the readiness probe ``/readyz`` is open too,
 and so are the files of the lab's page under ``/ui/`` (:data:`service.routes.web.PAGE_PATHS`: no data; the
-API calls the page makes carry the key the user gives it).
+API calls the page makes carry the key the user gives it) and the manual under ``/manual/``
+(:data:`OPEN_PATH_PREFIXES`: the docs site, no data).
 
 Ownership: a request with a valid key runs with :data:`service.store.REQUESTER` set to that key's
 id (the first 16 hex digits of its SHA-256; the key itself is never stored), so the jobs,
@@ -43,13 +44,15 @@ from fastapi import FastAPI
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
+from .routes.manual import PREFIX as MANUAL_PREFIX
 from .routes.web import PAGE_PATHS
 from .schemas.umbridge import PREFIX as UMBRIDGE_PREFIX
 from .settings import Settings
 from .store import REQUESTER, Requester
 
-__all__ = ["ANONYMOUS", "DOCS_ASSETS_PATH", "OPEN_PATHS", "SECURITY_SCHEME_NAME", "UMBRIDGE_METADATA_PATHS",
-           "ApiKeyMiddleware", "app_path", "document_openapi", "install", "key_id", "parse_api_keys"]
+__all__ = ["ANONYMOUS", "DOCS_ASSETS_PATH", "OPEN_PATHS", "OPEN_PATH_PREFIXES", "SECURITY_SCHEME_NAME",
+           "UMBRIDGE_METADATA_PATHS", "ApiKeyMiddleware", "app_path", "document_openapi", "install", "key_id",
+           "parse_api_keys"]
 
 logger = logging.getLogger("microbearing.service.security")
 
@@ -59,7 +62,10 @@ _DOCS_ASSETS = ("swagger-ui-bundle.js", "swagger-ui.css", "redoc.standalone.js",
 
 #: Paths answered without a key (relative to the ASGI root path).
 OPEN_PATHS = frozenset({"/healthz", "/readyz", "/metrics", "/openapi.json", "/docs", "/docs/oauth2-redirect",
-                        "/redoc", *(f"{DOCS_ASSETS_PATH}/{name}" for name in _DOCS_ASSETS), *PAGE_PATHS})
+                        "/redoc", *(f"{DOCS_ASSETS_PATH}/{name}" for name in _DOCS_ASSETS), *PAGE_PATHS,
+                        MANUAL_PREFIX})
+#: Folders whose every path is answered without a key: the manual's pages (built files, no data).
+OPEN_PATH_PREFIXES = (f"{MANUAL_PREFIX}/",)
 
 #: UM-Bridge paths a client calls before it evaluates (models, support, sizes). Without a valid key
 #: they answer for the plain physics only (never a stored model), so that the stock clients reach
@@ -180,7 +186,7 @@ class ApiKeyMiddleware:
             await self.app(scope, receive, send)
             return
         path = app_path(scope)
-        if path in OPEN_PATHS:
+        if path in OPEN_PATHS or path.startswith(OPEN_PATH_PREFIXES):
             await self.app(scope, receive, send)
             return
         # UM-Bridge clients cannot set headers; the requests library under the Python one sends

@@ -108,8 +108,9 @@ class Settings(BaseSettings):
     job_lease_s: float = Field(
         default=15.0, ge=1.0, le=3600.0,
         description="Lease of a running job [s], renewed by its server process every third of it: a job "
-                    "whose process stopped renewing it is re-queued (or failed, see the README) by another "
-                    "process within 4/3 of this; on one host a dead process's jobs within a third of it.",
+                    "whose process stopped renewing it is re-queued (or failed: /manual/how-to/operations/) "
+                    "by another process within 4/3 of this; on one host a dead process's jobs within a third "
+                    "of it.",
     )
     shutdown_grace_s: float = Field(
         default=10.0, ge=0.0, le=3600.0,

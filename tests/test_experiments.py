@@ -139,15 +139,14 @@ def test_bad_requests_name_the_field(humid):
         first_experiments(["mu_pivot"], ExperimentRequest(SPACE, 5, "discriminate"))
 
 
-def test_the_readme_loop_runs_and_prints_what_it_says(tmp_path, monkeypatch, capsys):
-    from pathlib import Path
+def test_the_manual_loop_runs_and_prints_what_it_says(tmp_path, monkeypatch, capsys):
+    from docs_pages import page
 
-    text = (Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8")
-    section = text[text.index("## Which measurements to take next"):text.index("## The command line")]
+    section = page("how-to/next-experiments.md")
     code = section.split("```python\n", 1)[1].split("```", 1)[0]
     printed = section.split("prints\n\n```\n", 1)[1].split("```", 1)[0].strip().splitlines()
     monkeypatch.chdir(tmp_path)
-    exec(compile(code, "README.md", "exec"), {})
+    exec(compile(code, "docs/pages/how-to/next-experiments.md", "exec"), {})
     lines = capsys.readouterr().out.strip().splitlines()
     assert len(lines) == len(printed)
     assert lines[0] == printed[0] and lines[3] == printed[3]  # nothing named first; the Kelvin law after

@@ -198,14 +198,13 @@ def test_the_command_line_answers_the_designers_request(capsys, tmp_path, monkey
     assert proof["lower_bound"] == pytest.approx(library.proof["lower_bound"], rel=1e-9)
 
 
-def test_the_readme_example_gives_the_figures_it_shows():
-    from pathlib import Path
+def test_the_manual_example_gives_the_figures_it_shows():
+    from docs_pages import page
 
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
-    section = text[text.index("## Designs that hold over an operating envelope"):]
+    section = page("how-to/designers.md")
     code = section.split("```python\n", 1)[1].split("```", 1)[0]
     namespace: dict = {}
-    exec(compile(code, "README.md", "exec"), namespace)  # the README's own example
+    exec(compile(code, "docs/pages/how-to/designers.md", "exec"), namespace)  # the manual's own example
     robust = namespace["robust"]
     assert robust.result.design["balls"] == 4
     assert robust.result.design["groove_angle_deg"] == pytest.approx(45.5)

@@ -22,7 +22,7 @@ OLD_IMPORT = re.compile(r"^\s*(?:>>> )?(?:import|from)\s+(?:" + "|".join(microbe
 
 
 def _package_folders() -> list[str]:
-    names = ["microbearing"]
+    names = ["microbearing", "microbearing.docs"]  # docs/: the manual's sources, served at /manual/
     for sub in microbearing.SUBPACKAGES:
         for init in sorted((REPO / sub).rglob("__init__.py")):
             folder = init.parent.relative_to(REPO)
@@ -113,6 +113,8 @@ def test_wheel_in_a_fresh_venv_beside_a_package_named_surrogate(tmp_path):
         assert answer.status_code == 200 and answer.json()["mu"] > 0
         assert httpx.get(f"{url}/v1/surrogates", timeout=30).status_code == 200
         assert httpx.get(f"{url}/docs/assets/swagger-ui-bundle.js", timeout=30).status_code == 200
+        # the manual, built from the pages the wheel ships
+        assert "Tutorial" in httpx.get(f"{url}/manual/", timeout=120).text
     finally:
         terminate(server)
         log.close()

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from live_server import REPO, Server, free_port, wait_for
+from live_server import Server, free_port, wait_for
 from test_reliability_dask import DASK, Process, wait_for_workers
 from test_reliability_dask_faults import BATCH, LONG_SWEEP, start_scheduler, start_worker
 
@@ -146,10 +146,11 @@ def test_a_stopped_worker_fails_its_job_in_time_and_readyz_says_so(tmp_path):
 
 
 def readme_worker_loop() -> str:
-    """The README's command that keeps a worker running across scheduler restarts."""
-    text = (REPO / "README.md").read_text()
-    loop = re.search(r"^(while true; do dask worker .*)$", text, flags=re.M)
-    assert loop, "the README shows no worker loop"
+    """The manual's command that keeps a worker running across scheduler restarts (how-to/operations.md)."""
+    from docs_pages import page
+
+    loop = re.search(r"^(while true; do dask worker .*)$", page("how-to/operations.md"), flags=re.M)
+    assert loop, "the manual shows no worker loop"
     return loop.group(1)
 
 

@@ -1,8 +1,8 @@
-"""No dead links (issue 28, item 4): every path the README and the API's own texts name is served.
+"""No dead links (issue 28, item 4): every path the README, the manual and the API's texts name is served.
 
-The README, every description and example of the OpenAPI spec, and the messages that name paths
-(the CSV schema's text, the /v1/parameters table) are read; every path under ``/v1`` or
-``/umbridge`` they name, and the fixed paths (``/healthz``, ``/docs``, ...), must match a route of
+The README, the manual's pages (docs/pages), every description and example of the OpenAPI spec, and the
+messages that name paths (the CSV schema's text, the /v1/parameters table) are read; every path under
+``/v1`` or ``/umbridge`` they name, and the fixed paths (``/healthz``, ``/docs``, ...), must match a route of
 the app, with ``{id}``-style placeholders matched as any segment.
 """
 
@@ -20,7 +20,7 @@ from microbearing.service.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
 _PATH = re.compile(r"(?<![A-Za-z_.$/])/(?:v1|umbridge)(?:/[A-Za-z0-9_{}<>.:-]+)*"
-                   r"|(?<![A-Za-z_.$/])/(?:healthz|readyz|metrics|docs|redoc|openapi\.json)\b")
+                   r"|(?<![A-Za-z_.$/])/(?:healthz|readyz|metrics|docs|redoc|openapi\.json|manual|ui)\b")
 
 
 def named_paths(text: str) -> set[str]:
@@ -29,6 +29,7 @@ def named_paths(text: str) -> set[str]:
     >>> sorted(named_paths("see /v1/jobs/{id}. or /v1/parameters, http://h:8000/umbridge/Info and $JOB/x"))
     ['/umbridge/Info', '/v1/jobs/{id}', '/v1/parameters']
     """
+    text = text.replace("127.0.0.1:$PORT/", "127.0.0.1:8000/")  # the examples' port variable
     return {match.rstrip(".,:;") for match in _PATH.findall(text)}
 
 
@@ -65,12 +66,20 @@ def test_the_pattern_finds_paths_and_rejects_dead_ones(app):
 BASE_URLS = {"/umbridge": "/umbridge/Info"}
 
 
-def test_every_path_the_readme_names_is_served(app):
-    paths = named_paths((ROOT / "README.md").read_text(encoding="utf-8"))
+#: The documents whose paths are checked, with paths each surely names (the reader works).
+DOCUMENTS = {"README.md": {"/v1/friction", "/manual", "/docs"},
+             **{p.relative_to(ROOT).as_posix(): set() for p in (ROOT / "docs" / "pages").rglob("*.md")}}
+DOCUMENTS["docs/pages/reference/rest-api.md"] = {"/v1/friction", "/v1/calibrations", "/v1/jobs/{id}"}
+DOCUMENTS["docs/pages/reference/umbridge.md"] = {"/umbridge/Info"}
+
+
+@pytest.mark.parametrize("document", sorted(DOCUMENTS))
+def test_every_path_the_readme_and_the_manual_name_is_served(app, document):
+    paths = named_paths((ROOT / document).read_text(encoding="utf-8"))
     paths = {BASE_URLS.get(p, p) for p in paths}
-    assert {"/v1/friction", "/v1/calibrations", "/umbridge/Info"} <= paths  # the reader works
+    assert DOCUMENTS[document] <= paths, DOCUMENTS[document] - paths  # the reader works
     dead = sorted(p for p in paths if not served(app, p))
-    assert not dead, f"the README names paths the app does not serve: {dead}"
+    assert not dead, f"{document} names paths the app does not serve: {dead}"
 
 
 def test_every_path_the_api_texts_name_is_served(app):

@@ -1,5 +1,6 @@
 """The service as users meet it: a live uvicorn server started by ``microbearing serve``,
-driven by the README's curl examples (tests/test_service_client.py drives it through a generated client)."""
+driven by the curl examples of the README and of the manual (tests/test_service_client.py drives it
+through a generated client)."""
 
 from __future__ import annotations
 
@@ -13,14 +14,14 @@ import sys
 from pathlib import Path
 
 import pytest
+from docs_pages import README, code_blocks, page, section
 from live_server import free_port, terminate, wait_healthy
 
 REPO = Path(__file__).resolve().parent.parent
-README = REPO / "README.md"
-README_EXAMPLES_HEADING = "### REST API examples"
-#: The quickstart's blocks run too (issue 28: a designer follows them as written).
-README_QUICKSTART_HEADING = "## Quickstart"
-README_URL = "http://127.0.0.1:8000"
+#: Where the curl examples are: the README's quickstart, and pages of the manual (whole, or a section).
+#: The quickstart and the tutorial run too (issue 28: a designer follows them as written).
+EXAMPLES = (("README.md", "## Quickstart: ten minutes"), ("tutorial.md", None),
+            ("reference/rest-api.md", "## REST API examples"), ("how-to/labs.md", None))
 
 
 @pytest.fixture(scope="module")
@@ -51,18 +52,25 @@ def server(tmp_path_factory):
     assert any("Uvicorn running on" in entry["message"] for entry in entries)
 
 
-def readme_blocks() -> list[str]:
-    """The ```bash blocks of the README's quickstart and of its section of curl examples."""
-    text = README.read_text(encoding="utf-8")
-    blocks = []
-    for heading in (README_QUICKSTART_HEADING, README_EXAMPLES_HEADING):
-        start = text.index(heading)
-        end = text.find("\n## ", start + 1)
-        section = text[start:] if end < 0 else text[start:end]
-        found = re.findall(r"```bash\n(.*?)```", section, flags=re.S)
-        assert found, f"no bash blocks under the README heading {heading!r}"
-        blocks += found
-    return blocks
+def example_blocks() -> list[tuple[str, str]]:
+    """``(where, block)`` for each distinct ```bash block of :data:`EXAMPLES` (the README's quickstart repeats
+    the tutorial's blocks: each runs once)."""
+    blocks: dict[str, str] = {}
+    for name, heading in EXAMPLES:
+        text = README.read_text(encoding="utf-8") if name == "README.md" else page(name)
+        found = code_blocks(section(text, heading) if heading else text, "bash")
+        assert found, f"no bash blocks in {name} {heading or ''}"
+        for block in found:
+            blocks.setdefault(block, name)
+    return [(name, block) for block, name in blocks.items()]
+
+
+def test_the_examples_use_the_port_variable():
+    # Every example reads the port from PORT, which the quickstart sets once (issue 34: the service may
+    # run on another port); none hard-codes one.
+    assert all("127.0.0.1:$PORT" in block and "127.0.0.1:8000" not in block
+               for _, block in example_blocks() if "curl" in block)
+    assert any(re.search(r"^PORT=8000$", block, flags=re.M) for _, block in example_blocks())
 
 
 def _collapse(codes: list[str]) -> list[str]:
@@ -70,18 +78,39 @@ def _collapse(codes: list[str]) -> list[str]:
 
 
 @pytest.mark.skipif(shutil.which("curl") is None, reason="curl is not installed")
-@pytest.mark.parametrize("block", readme_blocks(), ids=lambda b: re.sub(r"\W+", "-", b.split("\n")[1])[:48])
-def test_readme_curl_examples(server, block, tmp_path):
+@pytest.mark.parametrize(("where", "block"), example_blocks(),
+                         ids=[f"{name}:" + re.sub(r"\W+", "-", block.split("\n")[1])[:40]
+                              for name, block in example_blocks()])
+def test_curl_examples(server, where, block, tmp_path):
     expected = re.findall(r"^# (\d{3})\b", block, flags=re.M)
     assert expected, block
     # Each curl call writes its status code to stderr, leaving stdout to the example's pipes.
+    port = server.rsplit(":", 1)[1]
     script = ("set -e\ncurl() { command curl --write-out '%{stderr}%{http_code}\\n' \"$@\"; }\n"
-              + block.replace(README_URL, server))
+              + f"PORT={port}\n" + re.sub(r"^PORT=8000$", f"PORT={port}", block, flags=re.M))
     run = subprocess.run(["bash", "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=120)
-    assert run.returncode == 0, run.stderr
+    assert run.returncode == 0, (where, run.stderr)
     codes = re.findall(r"^(\d{3})$", run.stderr, flags=re.M)
     # A polling loop repeats a status, so compare the sequences without repeats.
     assert _collapse(codes) == _collapse(expected), (codes, run.stdout[-500:])
+
+
+def test_the_polling_loop_stops_when_a_job_fails(tmp_path):
+    # The quickstart's loop polls while the job is queued or running, then says how it ended: a failed
+    # job ends it too (issue 34: the loop that waited for "succeeded" spun forever on a failure).
+    loop = re.search(r"^while STATUS=.*\n.*done; echo \"job \$STATUS\"$", README.read_text(), flags=re.M)
+    assert loop, "the README's quickstart has no polling loop"
+    for statuses, last in ((["queued", "running", "failed"], "job failed"),
+                           (["queued", "running", "running", "succeeded"], "job succeeded")):
+        answers = tmp_path / "answers"
+        answers.write_text("".join(f'{{"id":"j","status":"{s}","error":{{"status":422}}}}\n'
+                                   for s in statuses))
+        # curl answers the next line of the file each time, as the service would answer each poll
+        fake = 'curl() { head -1 answers; sed -i 1d answers; }\nsleep() { :; }\nPORT=1\nJOB=/v1/jobs/j\n'
+        run = subprocess.run(["bash", "-c", fake + loop.group(0)], cwd=tmp_path, capture_output=True,
+                             text=True, timeout=30)
+        assert run.stdout.strip() == last, run
+        assert answers.read_text() == ""  # polled until the last answer, not beyond
 
 
 def test_two_content_types_on_a_raw_socket_get_a_400_problem(server):

@@ -76,10 +76,12 @@ def test_every_output_is_documented_with_its_unit(spec):
         assert schema["properties"][name]["description"].endswith(f"[{unit}]"), name
 
 
-def test_readme_settings_table_is_current():
-    readme = (SPEC_PATH.parent.parent / "README.md").read_text(encoding="utf-8")
-    assert settings_table() in readme, (
-        "the README's settings table is stale: paste service.settings.settings_table() under ### Settings")
+def test_manual_settings_table_is_current():
+    from docs_pages import page
+
+    assert settings_table() in page("reference/settings.md"), (
+        "the manual's settings table is stale: paste service.settings.settings_table() into "
+        "docs/pages/reference/settings.md")
 
 
 def _is_numeric(schema: dict) -> bool:
@@ -134,7 +136,7 @@ def test_schema_names_and_titles_are_unique_after_the_generators_folding(spec):
 
 
 def test_readme_explains_every_folded_unit_suffix(spec):
-    # Generated clients fold load_N to load_n and ball_ball_moment_Nm to ball_ball_moment_nm: the README's
+    # Generated clients fold load_N to load_n and ball_ball_moment_Nm to ball_ball_moment_nm: the manual's
     # table says what each folded unit suffix means, so _nm is not read as nanometres.
     from openapi_python_client.strings import PythonIdentifier
 
@@ -148,9 +150,11 @@ def test_readme_explains_every_folded_unit_suffix(spec):
             unit_start = next(i for i, c in enumerate(stem)
                               if c.isupper() or (c.isdigit() and stem[i - 1] == "_"))
             suffixes.add(PythonIdentifier(name[unit_start:], ""))
-    readme = (SPEC_PATH.parent.parent / "README.md").read_text(encoding="utf-8")
-    missing = sorted(s for s in suffixes if f"| `_{s}` |" not in readme)
-    assert suffixes and not missing, f"README's table of folded unit suffixes lacks {missing}"
+    from docs_pages import page
+
+    reference = page("reference/rest-api.md")
+    missing = sorted(s for s in suffixes if f"| `_{s}` |" not in reference)
+    assert suffixes and not missing, f"the REST API reference's table of folded unit suffixes lacks {missing}"
 
 
 def _unit_suffix(name: str) -> str:
@@ -162,7 +166,8 @@ def _unit_suffix(name: str) -> str:
 def test_no_generated_name_reads_as_another_unit(spec):
     # Folding turns a unit symbol into another when the lower-case letters spell a prefixed unit:
     # _Nm (newton metre) becomes _nm (nanometre). Every such field must stand beside an alias that
-    # survives folding unchanged and carries the same meaning (README, "Field names in generated clients").
+    # survives folding unchanged and carries the same meaning (docs/pages/reference/rest-api.md, "Field
+    # names in generated clients").
     from openapi_python_client.strings import PythonIdentifier
 
     from microbearing.service.schemas.base import FOLDING_SAFE_NAMES

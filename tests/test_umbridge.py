@@ -281,11 +281,10 @@ def test_info_and_model_info_hold_the_protocol_fields_only(local):
 
 
 def test_the_readme_examples_run_and_print_what_they_say(url, capsys):
-    """The ```python blocks of the README's UM-Bridge section, against the live server with its key."""
-    text = (REPO / "README.md").read_text(encoding="utf-8")
-    start = text.index("## UQ tools: the UM-Bridge protocol")
-    section = text[start:text.index("\n## ", start + 1)]
-    blocks = re.findall(r"```python\n(.*?)```", section, flags=re.S)
+    """The ```python blocks of the manual's UM-Bridge page, against the live server with its key."""
+    from docs_pages import code_blocks, page
+
+    blocks = code_blocks(page("reference/umbridge.md"), "python")
     assert len(blocks) == 2
     for block in blocks:
         namespace: dict = {}
