@@ -43,8 +43,8 @@ from microbearing.physics.columns import (
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_csv, parse_rows
 
-__all__ = ["DECIMALS", "SEPARATORS", "STANDARD_GRAVITY_M_S2", "Column", "Intake", "accepted_names",
-           "read_column", "read_csv", "read_rows"]
+__all__ = ["DECIMALS", "SEPARATORS", "STANDARD_GRAVITY_M_S2", "Column", "Intake", "Table", "accepted_names",
+           "read_column", "read_csv", "read_rows", "read_table"]
 
 #: Separators by the name a request states them with.
 SEPARATORS = {"comma": ",", "semicolon": ";", "tab": "\t"}
@@ -115,6 +115,38 @@ class Intake:
                      str(self.encoding), f"{self.line_endings} line ends"]
         parts += self.ignored + [c.reading for c in self.columns if c.reading]
         return ", ".join(parts)
+
+
+@dataclass(frozen=True)
+class Table:
+    """A CSV file read as a table (:func:`read_table`), before its columns are checked as measurements.
+
+    Attributes
+    ----------
+    header : list of str
+        The column names as sent (empty columns at the end dropped).
+    rows : list of list of str
+        The cells of every row after the header, as sent.
+    columns : list of Column or None
+        How each column is read (None when a column has no name).
+    intake : Intake
+        The dialect used, what was ignored, and (with ``columns``) how every column was read.
+    plain_text : str or None
+        The file itself when it is plain CSV (comma, decimal point, nothing dropped), else None.
+    """
+
+    header: list[str]
+    rows: list[list[str]]
+    columns: list[Column] | None
+    intake: Intake
+    plain_text: str | None = None
+
+    def converted_rows(self) -> list[list[str]]:
+        """The cells with a decimal point and in SI (each column converted as :attr:`columns` reads it)."""
+        columns = self.columns or []
+        decimal = self.intake.decimal or "point"
+        return [[_cell(c, columns[i] if i < len(columns) else None, decimal) for i, c in enumerate(r)]
+                for r in self.rows]
 
 
 def accepted_names() -> str:
@@ -256,47 +288,37 @@ def _strip_trailing_empty(rows: list[list[str]], header: list[str]
     return header, out, dropped, trimmed
 
 
-def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separator: str | None = None,
-             decimal: str | None = None, factors: Sequence[str] = ()) -> tuple[Dataset, Intake]:
-    """Read measured data from a CSV file as spreadsheets export it.
+def read_table(data: str | bytes, separator: str | None = None, decimal: str | None = None) -> Table:
+    """Read a CSV file as spreadsheets export it: its dialect, header and cells, before any column is
+    checked as measured data (:func:`read_csv` reads measured data with it; the command line reads
+    points to evaluate with it).
 
     Parameters
     ----------
     data : str or bytes
         The file (UTF-8, with or without a byte-order mark; LF, CRLF or CR line ends).
-    fixed : mapping, optional
-        Physics inputs fixed for every row, in their units (as :func:`calibrate.data.parse_csv`).
     separator : str, optional
         ``"comma"``, ``"semicolon"`` or ``"tab"``; detected when None.
     decimal : str, optional
         ``"point"`` or ``"comma"``; detected when None (a comma when numeric cells have one and none a
         point).
-    factors : sequence of str, optional
-        Condition columns of whole-number codes to read as group labels (as
-        :func:`calibrate.data.parse_csv`).
 
     Returns
     -------
-    dataset : calibrate.Dataset
-        As :func:`calibrate.data.parse_csv`, every column converted to its SI name and unit.
-    intake : Intake
-        The dialect used and how every column was read.
+    Table
+        The header, the cells and the intake (the dialect; ``intake.columns`` every column's reading).
 
     Raises
     ------
     DataError
-        A file that cannot be read as a table (one error saying why), a bad column name or unit
-        (naming the column as sent and the accepted names), or bad cells (row by row, rows counted
-        from 1 after the header).
+        A file that cannot be read as a table (one error saying why), or a bad column name or unit
+        (naming the column as sent and the accepted names).
 
     Examples
     --------
-    >>> text = "\\ufeffload [mN];speed [mm/s];mu_measured;\\r\\n8,8;50;0,011;\\r\\n\\r\\n"
-    >>> d, intake = read_csv(text, fixed={"balls": 4})
-    >>> float(d.physics_columns["load_N"][0]), float(d.physics_columns["speed_m_s"][0])
-    (0.0088, 0.05)
-    >>> intake.separator, intake.decimal, intake.line_endings, intake.ignored
-    ('semicolon', 'comma', 'CRLF', ['1 blank line at the end', '1 empty column at the end'])
+    >>> table = read_table("balls;speed [mm/s]\\r\\n4;50,5\\r\\n")
+    >>> [c.name for c in table.columns], table.converted_rows(), table.intake.decimal
+    (['balls', 'speed_m_s'], [['4', '0.0505']], 'comma')
     """
     if separator is not None and separator not in SEPARATORS:
         raise ValueError(f"separator must be one of {', '.join(SEPARATORS)}; got {separator!r}")
@@ -363,17 +385,63 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
         decimal = "comma" if commas and sep != "," else "point"
     intake.decimal = decimal
     columns = _columns([h.strip() for h in header]) if all(h.strip() for h in header) else None
+    if columns is not None:
+        intake.columns = columns
+    plain = sep == "," and decimal == "point" and not dropped and not trimmed
+    return Table(header, body, columns, intake, "\n".join(lines) + "\n" if plain else None)
+
+
+def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separator: str | None = None,
+             decimal: str | None = None, factors: Sequence[str] = ()) -> tuple[Dataset, Intake]:
+    """Read measured data from a CSV file as spreadsheets export it.
+
+    Parameters
+    ----------
+    data : str or bytes
+        The file (UTF-8, with or without a byte-order mark; LF, CRLF or CR line ends).
+    fixed : mapping, optional
+        Physics inputs fixed for every row, in their units (as :func:`calibrate.data.parse_csv`).
+    separator : str, optional
+        ``"comma"``, ``"semicolon"`` or ``"tab"``; detected when None.
+    decimal : str, optional
+        ``"point"`` or ``"comma"``; detected when None (a comma when numeric cells have one and none a
+        point).
+    factors : sequence of str, optional
+        Condition columns of whole-number codes to read as group labels (as
+        :func:`calibrate.data.parse_csv`).
+
+    Returns
+    -------
+    dataset : calibrate.Dataset
+        As :func:`calibrate.data.parse_csv`, every column converted to its SI name and unit.
+    intake : Intake
+        The dialect used and how every column was read.
+
+    Raises
+    ------
+    DataError
+        A file that cannot be read as a table (one error saying why), a bad column name or unit
+        (naming the column as sent and the accepted names), or bad cells (row by row, rows counted
+        from 1 after the header).
+
+    Examples
+    --------
+    >>> text = "\\ufeffload [mN];speed [mm/s];mu_measured;\\r\\n8,8;50;0,011;\\r\\n\\r\\n"
+    >>> d, intake = read_csv(text, fixed={"balls": 4})
+    >>> float(d.physics_columns["load_N"][0]), float(d.physics_columns["speed_m_s"][0])
+    (0.0088, 0.05)
+    >>> intake.separator, intake.decimal, intake.line_endings, intake.ignored
+    ('semicolon', 'comma', 'CRLF', ['1 blank line at the end', '1 empty column at the end'])
+    """
+    table = read_table(data, separator, decimal)
+    columns = table.columns
     if columns is None:  # an unnamed column: the parser's header error says so
-        return parse_csv(_write(header, body), fixed, factors), intake
-    intake.columns = columns
+        return parse_csv(_write(table.header, table.rows), fixed, factors), table.intake
     _check_required(columns, fixed or {})
-    if (sep == "," and decimal == "point" and not dropped and not trimmed
-            and all(c.name == c.sent and not c.reading for c in columns)):
+    if table.plain_text is not None and all(c.name == c.sent and not c.reading for c in columns):
         # plain CSV: the parser reads it as is
-        return parse_csv("\n".join(lines) + "\n", fixed, factors), intake
-    converted = [[_cell(c, columns[i] if i < len(columns) else None, decimal) for i, c in enumerate(r)]
-                 for r in body]
-    return parse_csv(_write([c.name for c in columns], converted), fixed, factors), intake
+        return parse_csv(table.plain_text, fixed, factors), table.intake
+    return parse_csv(_write([c.name for c in columns], table.converted_rows()), fixed, factors), table.intake
 
 
 def _cell(text: str, column: Column | None, decimal: str) -> str:
