@@ -99,17 +99,27 @@ def _add_paper_and_serve(sub: Any) -> None:
     s.add_argument("--workers", type=int, default=1, help="server processes (default: 1)")
 
 
+def _package_version() -> str:
+    """The installed version, as GET /v1/version says it (read here, not from routes.meta, whose import
+    of the API and the calibration would cost every command seconds)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("microbearing")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand."""
     from microbearing import physics
 
     from .cli_compute import add_evaluate, add_json_commands
     from .cli_models import add_calibrate, add_calibrations, add_surrogate
-    from .routes.meta import package_version
 
     parser = argparse.ArgumentParser(prog="microbearing", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_package_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
     add_evaluate(sub, list(physics.CONVENTIONS))
     add_json_commands(sub)
@@ -132,20 +142,22 @@ def main(argv: list[str] | None = None) -> int:
     A failure is one line on stderr naming the command (no traceback; MICROBEARING_CLI_TRACEBACK=1 shows
     the traceback of an unexpected one).
     """
-    from .problems import ProblemError
-
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
     except CommandError as error:
         code, message = error.code, str(error)
-    except ProblemError as problem:
-        error = problem_error(problem, data_dir(args) if problem.status == 404 else None)
-        code, message = error.code, str(error)
     except Exception as exc:
-        if os.environ.get(f"{ENV_PREFIX}CLI_TRACEBACK"):
+        # The API's problems (imported now: a command that raises none need not load FastAPI)
+        from .problems import ProblemError
+
+        if isinstance(exc, ProblemError):
+            error = problem_error(exc, data_dir(args) if exc.status == 404 else None)
+            code, message = error.code, str(error)
+        elif os.environ.get(f"{ENV_PREFIX}CLI_TRACEBACK"):
             raise
-        code, message = EXIT_FAILURE, f"unexpected failure: {type(exc).__name__}: {exc}"
+        else:
+            code, message = EXIT_FAILURE, f"unexpected failure: {type(exc).__name__}: {exc}"
     print(f"microbearing {_command_name(args)}: {' '.join(message.split())}", file=sys.stderr)
     return code
 
