@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from microbearing import physics
+from microbearing.service.store import Store
 
 MU_PIVOT = 0.6
 MENISCUS_N = 2e-5  # per ball, at ln(1/h) = 1
@@ -33,7 +34,7 @@ def true_mu(balls, load_N, speed_m_s, humidity, groove_angle_deg):
     return np.asarray(mu) + balls * MENISCUS_N / (load_N * np.log(1 / humidity))
 
 
-def spreadsheet(rows: int = 36, seed: int = 11) -> str:
+def spreadsheet(rows: int = 30, seed: int = 11) -> str:
     """Measurements as German Excel saves them: semicolons, decimal commas, units in the header."""
     rng = np.random.default_rng(seed)
     lines = ["balls;groove angle [deg];load [mN];speed [mm/s];relative humidity [%];mu_measured"]
@@ -79,9 +80,18 @@ def test_a_lab_calibrates_predicts_plans_designs_and_deletes_from_the_shell(tmp_
     assert re.fullmatch(r"[0-9a-f]{32}", model_id), done.stdout
     assert "separator semicolon (detected), decimal comma (detected)" in done.stderr
     assert "relative humidity [%] read as relative_humidity / 100" in done.stderr
-    listed = shell("calibrations", "list").stdout
-    assert listed.startswith(f"1 calibration(s) in {(tmp_path / 'data').resolve()}")
-    assert model_id in listed and "humidity_meniscus" in listed
+    # stored as POST /v1/calibrations stores one (service.calibrations.store_calibration): the report,
+    # the model, the plots and the data, in the store the service reads
+    store = Store(tmp_path / "data")
+    try:
+        stored = store.load_model(model_id)
+    finally:
+        store.close()
+    assert stored.kind == "calibration" and stored.metadata["report"]["n_points"] == 30
+    assert [effect["name"] for effect in stored.metadata["report"]["effects"]] == ["humidity_meniscus"]
+    assert stored.metadata["report"]["intake"]["separator"] == "semicolon"
+    assert stored.metadata["model"]["terms"][0]["name"] == "humidity_meniscus"
+    assert len(stored.arrays["data.mu_measured"]) == 30 and "residuals" in stored.arrays
 
     # 2. friction with its interval on that model, the inputs in the lab's units
     done = shell("evaluate", "--model", model_id, "balls=4", "groove_angle_deg=54.7", "load [mN]=8.8",
@@ -129,7 +139,8 @@ def test_a_lab_calibrates_predicts_plans_designs_and_deletes_from_the_shell(tmp_
 
     # 5. delete: gone from the list, and refused afterwards in one line with exit code 2
     assert shell("calibrations", "delete", model_id).stdout.startswith(f"deleted calibration {model_id}")
-    assert shell("calibrations", "list").stdout.startswith("0 calibration(s)")
+    listed = shell("calibrations", "list").stdout
+    assert listed == f"0 calibration(s) in {(tmp_path / 'data').resolve()}\n"
     done = shell("evaluate", "--model", model_id, "balls=4", "load_N=0.0088", "speed_m_s=0.05",
                  "relative_humidity=0.5", expect=2)
     assert done.stdout == "" and len(done.stderr.strip().splitlines()) == 1
