@@ -51,8 +51,8 @@ from microbearing.physics.columns import (
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_csv, parse_rows
 
-__all__ = ["DECIMALS", "SEPARATORS", "STANDARD_GRAVITY_M_S2", "Column", "Intake", "TableError",
-           "accepted_names", "column_letter", "read_column", "read_csv", "read_rows"]
+__all__ = ["DECIMALS", "SEPARATORS", "STANDARD_GRAVITY_M_S2", "Column", "Intake", "Table", "TableError",
+           "accepted_names", "column_letter", "read_column", "read_csv", "read_rows", "read_table"]
 
 #: Separators by the name a request states them with.
 SEPARATORS = {"comma": ",", "semicolon": ";", "tab": "\t"}
@@ -218,6 +218,36 @@ class Intake:
                 error["letter"], error["sent"] = self.letters[column]
             placed.append(error)
         return placed
+
+
+@dataclass(frozen=True)
+class Table:
+    """A CSV file read as a table (:func:`read_table`), before its columns are checked as measurements.
+
+    Attributes
+    ----------
+    header : list of str
+        The column names as sent (empty columns at the end dropped).
+    rows : list of list of str
+        The cells of every row after the header, as sent.
+    columns : list of Column or None
+        How each column is read (None when a column has no name).
+    intake : Intake
+        The dialect and encoding used, what was ignored, each row's file line (``intake.row_lines``)
+        and, with ``columns``, how every column was read.
+    """
+
+    header: list[str]
+    rows: list[list[str]]
+    columns: list[Column] | None
+    intake: Intake
+
+    def converted_rows(self) -> list[list[str]]:
+        """The cells with a decimal point and in SI (each column converted as :attr:`columns` reads it)."""
+        columns = self.columns or []
+        decimal = self.intake.decimal or "point"
+        return [[_cell(c, columns[i] if i < len(columns) else None, decimal) for i, c in enumerate(r)]
+                for r in self.rows]
 
 
 def accepted_names() -> str:
@@ -476,6 +506,54 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
              for i, c in enumerate(intake.columns)}
     intake.text_columns = _text_columns(intake.columns, texts, dataset)
     return dataset, intake
+
+
+def read_table(data: str | bytes, separator: str | None = None, decimal: str | None = None) -> Table:
+    """Read a CSV file as spreadsheets export it: its dialect, header and cells, before any column is
+    checked as measured data (the command line reads points to evaluate with it; :func:`read_csv` reads
+    measured data the same way).
+
+    Parameters
+    ----------
+    data : str or bytes
+        The file, as :func:`read_csv` takes it (UTF-8, UTF-16 with a byte-order mark, or Windows-1252;
+        optionally Excel's ``sep=;`` first line).
+    separator : str, optional
+        ``"comma"``, ``"semicolon"`` or ``"tab"``; when None, the file's ``sep=`` line or detected.
+    decimal : str, optional
+        ``"point"`` or ``"comma"``; detected when None.
+
+    Returns
+    -------
+    Table
+        The header, the cells and the intake (the dialect; ``intake.columns`` every column's reading).
+
+    Raises
+    ------
+    DataError
+        A file that cannot be read as a table (one error saying why), or a bad column name or unit
+        (naming the column as sent and the accepted names).
+
+    Examples
+    --------
+    >>> table = read_table("balls;speed [mm/s]\r\n4;50,5\r\n")
+    >>> [c.name for c in table.columns], table.converted_rows(), table.intake.decimal
+    (['balls', 'speed_m_s'], [['4', '0.0505']], 'comma')
+    """
+    if separator is not None and separator not in SEPARATORS:
+        raise ValueError(f"separator must be one of {', '.join(SEPARATORS)}; got {separator!r}")
+    if decimal is not None and decimal not in DECIMALS:
+        raise ValueError(f"decimal must be one of {', '.join(DECIMALS)}; got {decimal!r}")
+    text, encoding, note = _decode(data)
+    intake = Intake("csv", encoding=encoding, header_line=1, notes=[note] if note else [])
+    lines = _lines(text, intake)
+    sep = _separator(lines, separator, intake)
+    header, body = _table(lines, sep, separator, intake)
+    _decimal(body, sep, decimal, intake)
+    columns = _columns([h.strip() for h in header]) if all(h.strip() for h in header) else None
+    if columns is not None:
+        intake.columns = columns
+    return Table(header, body, columns, intake)
 
 
 def _lines(text: str, intake: Intake) -> list[str]:

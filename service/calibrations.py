@@ -40,6 +40,7 @@ __all__ = ["DATA_PREFIX", "KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_
            "calibration_view", "check_conditions", "data_arrays", "data_problem", "delete_calibration",
            "evaluate_batch_with_model", "evaluate_point_with_model", "fitting_statement", "interval_at",
            "load_calibration", "load_mu_model", "prediction_fields", "read_conditions", "run_calibration",
+           "store_calibration",
            "stored_dataset", "with_conditions"]
 
 KIND = "calibration"
@@ -183,6 +184,30 @@ def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], f
     """
     report: CalibrationReport = calibrate(dataset, fit_parameters, folds=folds, progress=progress,
                                           convention=convention)
+    return store_calibration(store, report, dataset, intake)
+
+
+def store_calibration(store: Store, report: CalibrationReport, dataset: Dataset,
+                      intake: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Store a calibration's report, model, plots and data (as :func:`run_calibration` does; the command
+    line's ``calibrate`` stores its report this way) and return the public result.
+
+    Parameters
+    ----------
+    store : Store
+        Where the calibration is kept.
+    report : calibrate.CalibrationReport
+        The calibration of ``dataset``.
+    dataset : calibrate.Dataset
+        The measurements it was calibrated on (kept beside the plots).
+    intake : mapping, optional
+        How the data were read (:meth:`calibrate.Intake.to_dict`), kept in the report as ``intake``.
+
+    Returns
+    -------
+    dict
+        As :func:`calibration_view`.
+    """
     metadata = {"report": {**report.to_dict(), "intake": None if intake is None else dict(intake)},
                 "model": report.model.to_json()}
     arrays = {name: np.frombuffer(png, dtype=np.uint8) for name, png in report.plots.items()}

@@ -195,7 +195,7 @@ def test_bad_requests_name_the_field(client, body, pointer):
 def test_cli_prints_the_report_and_writes_plots_and_json(tmp_path, capsys):
     data = tmp_path / "data.csv"
     data.write_text(as_csv(measurements(1, True)))
-    code = main(["calibrate", str(data), "--fit", ",".join(FIT), "--folds", "3",
+    code = main(["calibrate", str(data), "--fit", ",".join(FIT), "--folds", "3", "--no-store",
                  "--plots", str(tmp_path / "plots"), "--json", str(tmp_path / "report.json")])
     out = capsys.readouterr().out
     assert code == 0

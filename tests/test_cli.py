@@ -115,3 +115,78 @@ def test_optimize_infeasible_and_pareto_plot(capsys, tmp_path):
                        "--plot", str(tmp_path / "front.png"))
     assert code == 0 and len(json.loads(out)["pareto"]["points"]) >= 2
     assert (tmp_path / "front.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_evaluate_csv_reads_a_spreadsheet_export_as_calibrate_does(capsys, tmp_path):
+    clean = tmp_path / "clean.csv"
+    clean.write_text("balls,load_N,speed_m_s\n4,0.0088,0.05\n6,0.0132,0.1\n")
+    excel = tmp_path / "excel.csv"  # semicolons, decimal commas, units in the header, CRLF, a BOM
+    excel.write_bytes("\ufeffballs;load [mN];speed [mm/s]\r\n4;8,8;50\r\n6;13,2;100\r\n".encode())
+    code, _, _ = run(capsys, "evaluate", "--csv", str(clean), "--outputs", "mu", "-o", str(tmp_path / "a"))
+    assert code == 0
+    code, _, err = run(capsys, "evaluate", "--csv", str(excel), "--outputs", "mu", "-o", str(tmp_path / "b"))
+    assert code == 0 and "separator semicolon (detected), decimal comma (detected)" in err
+    a = list(csv.reader(io.StringIO((tmp_path / "a").read_text())))
+    b = list(csv.reader(io.StringIO((tmp_path / "b").read_text())))
+    assert a[0] == b[0] == ["balls", "load_N", "speed_m_s", "mu"]
+    exact = physics.evaluate(balls=np.array([4, 6]), load_N=np.array([0.0088, 0.0132]),
+                             speed_m_s=np.array([0.05, 0.1])).mu
+    for rows in (a, b):
+        np.testing.assert_allclose([float(r[3]) for r in rows[1:]], exact, rtol=1e-12)
+
+
+def test_evaluate_csv_warns_of_a_unit_slip_in_the_words_calibrate_refuses_it_with(capsys, tmp_path):
+    from microbearing.calibrate import DataError, calibrate, read_csv
+
+    points = tmp_path / "points.csv"
+    points.write_text("balls,load_N,speed_m_s\n4,0.0088,50\n")
+    code, _, err = run(capsys, "evaluate", "--csv", str(points), "--outputs", "mu")
+    assert code == 0 and "speed_m_s runs 50 to 50 m/s" in err and "look like mm/s" in err
+    rows = "".join(f"4,0.0088,{v},0.01\n" for v in [50] * 12)
+    dataset, _ = read_csv("balls,load_N,speed_m_s,mu_measured\n" + rows)
+    with pytest.raises(DataError, match="look like mm/s"):
+        calibrate(dataset, ["mu_pivot"])
+    # a column that is not a physics input is a condition: read by a calibrated model only
+    points.write_text("balls,load_N,speed_m_s,rh\n4,0.0088,0.05,0.3\n")
+    code, _, err = run(capsys, "evaluate", "--csv", str(points))
+    error = err.strip().splitlines()[-1]  # after the line saying how the file was read
+    assert code == EXIT_INVALID and error.startswith("microbearing evaluate: ") and "'rh'" in error
+    assert error.endswith("a condition column is read by a calibrated model only (--model ID)")
+
+
+def test_every_command_that_reads_or_writes_the_store_takes_data_dir():
+    from microbearing.service.cli import build_parser
+
+    parser = build_parser()
+    for argv in (["evaluate"], ["optimize", "r.json"], ["experiments", "r.json"], ["calibrate", "d.csv"],
+                 ["calibrations", "list"], ["calibrations", "delete", "x"], ["surrogate", "list"],
+                 ["surrogate", "train", "r.json"], ["surrogate", "predict", "x", "a=1"],
+                 ["surrogate", "delete", "x"]):
+        assert parser.parse_args([*argv, "--data-dir", "/tmp/d"]).data_dir is not None, argv
+
+
+def test_surrogate_delete_removes_it_and_a_second_delete_is_refused(capsys, tmp_path):
+    request = tmp_path / "request.json"
+    request.write_text(json.dumps({"space": {"load_N": [0.002, 0.03]}, "budget": 12, "adaptive": False,
+                                   "fixed": {"balls": 4, "speed_m_s": 0.05}, "validation_points": 0}))
+    data = tmp_path / "data"
+    code, out, err = run(capsys, "surrogate", "train", str(request), "--data-dir", str(data))
+    assert code == 0, err
+    surrogate_id = json.loads(out)["id"]
+    code, out, err = run(capsys, "surrogate", "delete", surrogate_id, "--data-dir", str(data))
+    assert code == 0 and out.startswith(f"deleted surrogate {surrogate_id}"), err
+    code, out, _ = run(capsys, "surrogate", "list", "--data-dir", str(data))
+    assert out.startswith("0 surrogate(s)")
+    code, _, err = run(capsys, "surrogate", "delete", f"surrogate:{surrogate_id}", "--data-dir", str(data))
+    assert code == EXIT_INVALID and "no surrogate" in err and surrogate_id in err and str(data) in err
+    code, _, err = run(capsys, "calibrations", "delete", "not-an-id", "--data-dir", str(data))
+    assert code == EXIT_INVALID and "32 hexadecimal digits" in err
+
+
+def test_a_calibration_not_stored_leaves_no_data_folder(capsys, tmp_path):
+    data = tmp_path / "data"
+    bad = tmp_path / "bad.csv"
+    bad.write_text("balls,load_N,speed_m_s,mu_measured\n4,-1,0.1,0.01\n4,0.01,0.1,x\n")
+    code, _, err = run(capsys, "calibrate", str(bad), "--data-dir", str(data))
+    assert code == EXIT_INVALID and "row 1, column load_N" in err and len(err.strip().splitlines()) == 1
+    assert not data.exists()  # refused before the store was opened

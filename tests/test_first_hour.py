@@ -143,7 +143,7 @@ def test_calibrate_cli_reads_a_spreadsheet_export_and_says_how(tmp_path, capsys)
         lines.append(";".join(["4", *cells]) + ";")
     export = tmp_path / "export.csv"
     export.write_bytes(("\ufeff" + "\r\n".join(lines) + "\r\n").encode())
-    code, _, err = run(capsys, "calibrate", str(export), "--fit", "mu_pivot", "--folds", "3",
+    code, _, err = run(capsys, "calibrate", str(export), "--fit", "mu_pivot", "--folds", "3", "--no-store",
                          "--json", str(tmp_path / "report.json"))
     assert code == 0, err
     assert "separator semicolon (detected), decimal comma (detected)" in err

@@ -172,7 +172,7 @@ def test_a_ball_count_effect_calibrates_with_its_plots_through_the_cli(tmp_path,
     data = tmp_path / "data.csv"
     rows = ball_rows()
     data.write_text(",".join(rows[0]) + "\n" + "\n".join(",".join(str(v) for v in r.values()) for r in rows))
-    code = main(["calibrate", str(data), "--fit", "mu_pivot", "--folds", "3",
+    code = main(["calibrate", str(data), "--fit", "mu_pivot", "--folds", "3", "--no-store",
                  "--plots", str(tmp_path / "plots"), "--json", str(tmp_path / "report.json")])
     assert code == 0, capsys.readouterr().err
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == [
