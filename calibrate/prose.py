@@ -1,12 +1,19 @@
 """Sentences of a calibration report (:func:`calibrate.report.format_report`) about rivals, code-like
 columns, drivers the data cannot tell apart and the domain rule, each written from the stages' results.
+
+Values of a column are written in the unit the upload used (``speed [mm/s] 50 to 100``:
+:attr:`calibrate.Dataset.headers`, read back through :mod:`physics.columns`); the numbers of the
+report's fields stay in SI.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
+from microbearing.physics.columns import ColumnError, read_name
 
 from .data import Dataset
 from .domain import DataCloud
@@ -15,7 +22,7 @@ from .rivals import describe_rival, where_they_part
 from .scores import within_one_se
 from .select import Selection
 
-__all__ = ["code_columns", "domain_words", "rival_drivers", "rival_words"]
+__all__ = ["code_columns", "domain_words", "in_sent_units", "rival_drivers", "rival_words"]
 
 
 def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
@@ -27,8 +34,28 @@ def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[s
         where = [where_they_part(model, alternative, dataset, d, model.noise_std_log) for d in drivers]
         part = max(where, key=lambda w: w["largest_difference_log"] or 0.0)
         out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,
-                    "statement": describe_rival(rival, part)})
+                    "statement": describe_rival(rival, in_sent_units(dataset, part))})
     return out
+
+
+def in_sent_units(dataset: Dataset, part: Mapping[str, Any]) -> dict[str, Any]:
+    """Where two models part (:func:`calibrate.rivals.where_they_part`) with the driver named by its header
+    as sent and its values in that unit, for words; as it is when the driver was sent in its own unit.
+
+    >>> from microbearing.calibrate.tabular import read_rows
+    >>> d, _ = read_rows([{"speed [mm/s]": 50, "load_N": 0.01, "balls": 4, "mu_measured": 0.01}])
+    >>> in_sent_units(d, {"driver": "speed_m_s", "data_range": [0.01, 0.1], "differ": [[0.05, 0.1]]})
+    {'driver': 'speed [mm/s]', 'data_range': [10.0, 100.0], 'differ': [[50.0, 100.0]]}
+    """
+    header = dataset.headers.get(part["driver"])
+    try:
+        reading = None if header is None else read_name(header)
+    except ColumnError:  # a header stored by another version: its own unit
+        reading = None
+    if reading is None or reading.name != part["driver"] or not reading.reading:
+        return dict(part)
+    return {**part, "driver": header, "data_range": [reading.sent_value(v) for v in part["data_range"]],
+            "differ": [[reading.sent_value(a), reading.sent_value(b)] for a, b in part["differ"]]}
 
 
 def code_columns(dataset: Dataset) -> list[str]:

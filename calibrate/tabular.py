@@ -25,6 +25,7 @@ ways, both handled here before that parser sees the table:
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import re
 from collections.abc import Mapping, Sequence
@@ -373,7 +374,14 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
         return parse_csv("\n".join(lines) + "\n", fixed, factors), intake
     converted = [[_cell(c, columns[i] if i < len(columns) else None, decimal) for i, c in enumerate(r)]
                  for r in body]
-    return parse_csv(_write([c.name for c in columns], converted), fixed, factors), intake
+    dataset = parse_csv(_write([c.name for c in columns], converted), fixed, factors)
+    return _with_headers(dataset, columns), intake
+
+
+def _with_headers(dataset: Dataset, columns: Sequence[Column]) -> Dataset:
+    """The dataset with the header each converted column was sent under (reports speak its unit)."""
+    headers = {c.name: c.sent for c in columns if c.reading}
+    return dataclasses.replace(dataset, headers=headers) if headers else dataset
 
 
 def _cell(text: str, column: Column | None, decimal: str) -> str:
@@ -447,4 +455,4 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
                 value = column.convert(float(value))
             out[column.name] = value
         converted.append(out)
-    return parse_rows(converted, fixed, factors), Intake("json", columns=columns)
+    return _with_headers(parse_rows(converted, fixed, factors), columns), Intake("json", columns=columns)
