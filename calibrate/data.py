@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
+from microbearing.physics.columns import ColumnError, Reading, read_name
 
 __all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "factor_label", "parse_assignments",
            "parse_csv", "parse_rows"]
@@ -120,6 +121,17 @@ class Dataset:
     def columns(self) -> dict[str, np.ndarray]:
         """Every data column that may drive the residual: physics columns and conditions."""
         return {**self.physics_columns, **self.conditions}
+
+    def sent_reading(self, name: str) -> Reading | None:
+        """How the column ``name`` was read from the header it was sent under (:attr:`headers`), to give its
+        values back in that unit (``Reading.sent_value``, ``Reading.sent_unit``); None when it was sent in
+        its own unit."""
+        header = self.headers.get(name)
+        try:
+            reading = None if header is None else read_name(header)
+        except ColumnError:  # a header stored by another version: its own unit
+            return None
+        return reading if reading is not None and reading.name == name and reading.reading else None
 
     def inputs(self) -> dict[str, Any]:
         """Keyword inputs of :func:`physics.evaluate`: fixed values and physics columns."""

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from microbearing.physics.columns import ColumnError, Reading, read_name, unit_of, whole_number
+from microbearing.physics.columns import Reading, unit_of, whole_number
 
 from .data import Dataset
 from .model import CalibratedModel
@@ -56,13 +56,7 @@ class _Column:
     @classmethod
     def of(cls, dataset: Dataset, name: str) -> _Column:
         """The column ``name`` of the dataset, in the unit its header was sent in."""
-        header = dataset.headers.get(name)
-        try:
-            reading = None if header is None else read_name(header)
-        except ColumnError:  # a header stored by another version: draw the column in its own unit
-            reading = None
-        read = reading is not None and reading.name == name and bool(reading.reading)
-        return cls(name, reading if read else None)
+        return cls(name, dataset.sent_reading(name))
 
     def shown(self, values: Any) -> np.ndarray:
         """Values (SI) in the unit drawn."""

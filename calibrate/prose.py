@@ -13,8 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from microbearing.physics.columns import ColumnError, read_name
-
 from .data import Dataset
 from .domain import DataCloud
 from .model import CalibratedModel
@@ -39,23 +37,25 @@ def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[s
 
 
 def in_sent_units(dataset: Dataset, part: Mapping[str, Any]) -> dict[str, Any]:
-    """Where two models part (:func:`calibrate.rivals.where_they_part`) with the driver named by its header
-    as sent and its values in that unit, for words; as it is when the driver was sent in its own unit.
+    """Where two models part (:func:`calibrate.rivals.where_they_part`, or where a term acts) with the
+    driver named by its header as sent and its values (``range``, ``data_range``, ``differ``) in that unit,
+    for words; as it is when the driver was sent in its own unit.
 
     >>> from microbearing.calibrate.tabular import read_rows
     >>> d, _ = read_rows([{"speed [mm/s]": 50, "load_N": 0.01, "balls": 4, "mu_measured": 0.01}])
     >>> in_sent_units(d, {"driver": "speed_m_s", "data_range": [0.01, 0.1], "differ": [[0.05, 0.1]]})
     {'driver': 'speed [mm/s]', 'data_range': [10.0, 100.0], 'differ': [[50.0, 100.0]]}
     """
-    header = dataset.headers.get(part["driver"])
-    try:
-        reading = None if header is None else read_name(header)
-    except ColumnError:  # a header stored by another version: its own unit
-        reading = None
-    if reading is None or reading.name != part["driver"] or not reading.reading:
+    reading = dataset.sent_reading(part["driver"])
+    if reading is None:
         return dict(part)
-    return {**part, "driver": header, "data_range": [reading.sent_value(v) for v in part["data_range"]],
-            "differ": [[reading.sent_value(a), reading.sent_value(b)] for a, b in part["differ"]]}
+    out = {**part, "driver": reading.sent}
+    for key in ("range", "data_range"):
+        if part.get(key) is not None:
+            out[key] = [reading.sent_value(v) for v in part[key]]
+    if part.get("differ") is not None:
+        out["differ"] = [[reading.sent_value(a), reading.sent_value(b)] for a, b in part["differ"]]
+    return out
 
 
 def code_columns(dataset: Dataset) -> list[str]:

@@ -319,3 +319,25 @@ def test_um_bridge_varies_inputs_named_with_their_units(client, calibration):
     gradient_lab = np.array(call("Gradient", lab_inputs, lab, **wrt)["output"])
     np.testing.assert_allclose(gradient_lab, gradient_si * [1e-3, 1e-3, 1e-2], rtol=1e-9)
     assert np.all(gradient_si != 0)
+
+
+def test_the_report_s_sentences_give_a_column_s_values_in_the_upload_s_unit():
+    from microbearing.calibrate import Dataset
+    from microbearing.calibrate.prose import in_sent_units
+    from microbearing.calibrate.tabular import read_rows
+
+    rows = [{"balls": 4, "load_N": 0.01, "speed [mm/s]": v, "relative humidity [%]": h, "temp_F": t,
+             "mu_measured": 0.01} for v, h, t in ((50.0, 30.0, 68.0), (100.0, 60.0, 86.0))]
+    dataset, _ = read_rows(rows)
+    dataset = Dataset.from_columns(dataset.to_columns(), dataset.fixed)  # as the job and the store keep it
+    where = {"driver": "relative_humidity", "range": [0.3, 0.4], "data_range": [0.3, 0.6]}
+    assert in_sent_units(dataset, where) == {"driver": "relative humidity [%]", "range": [30.0, 40.0],
+                                             "data_range": [30.0, 60.0]}
+    hot = in_sent_units(dataset, {"driver": "temp_K", "data_range": [293.15, 303.15],
+                                  "differ": [[293.15, 298.15]]})
+    assert hot["driver"] == "temp_F"
+    np.testing.assert_allclose(hot["data_range"], [68.0, 86.0], rtol=1e-12)
+    np.testing.assert_allclose(hot["differ"], [[68.0, 77.0]], rtol=1e-12)
+    # a column sent in its own unit is named and valued as it is
+    assert in_sent_units(dataset, {"driver": "load_N", "range": [0.01, 0.01]}) == {
+        "driver": "load_N", "range": [0.01, 0.01]}
