@@ -69,8 +69,9 @@ CONFOUNDED_RHO = 0.9
 #: Rows the cloud keeps at most (a random subset of larger data). [1]
 MAX_CLOUD_ROWS = 2000
 #: Relative difference of a column's values within which two rows are replicates of one design point
-#: (measurement jitter: two readings each within 0.1 % of a set point). [1]
-REPLICATE_JITTER = 2e-3
+#: (measurement jitter: two readings each within 0.1 % of a set point differ by up to 0.2 %; design points
+#: 1 % apart stay two). [1]
+REPLICATE_JITTER = 3e-3
 # Neighbours of the score. [1]
 _K = 5
 
@@ -79,28 +80,27 @@ def _distinct(rows: np.ndarray, tolerance: np.ndarray | None = None) -> np.ndarr
     """The rows with one per design point, in their order (the first of each point kept).
 
     Rows are replicates of one point when every scaled column differs by at most its ``tolerance``
-    (measurement jitter: a speed of 0.05003 m/s is a replicate of 0.05 m/s), chained (a replicate of a
-    replicate is one). Without a tolerance (clouds stored before it), rows that agree to six decimals of
-    every scaled column (a millionth of its standard deviation, the resolution clouds were once stored at).
+    (measurement jitter: a speed of 0.05003 m/s is a replicate of 0.05 m/s) from the point's first row.
+    Without a tolerance (clouds stored before it), rows that agree to six decimals of every scaled column
+    (a millionth of its standard deviation, the resolution clouds were once stored at).
     """
     if tolerance is None:
         _, first = np.unique(np.round(rows, 6), axis=0, return_index=True)
         return rows[np.sort(first)]
-    step = np.maximum(np.asarray(tolerance, dtype=float), 1e-6)
-    pairs = cKDTree(rows / step).query_pairs(1.0, p=np.inf, output_type="ndarray")
-    parent = np.arange(rows.shape[0])
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    for i, j in pairs:
-        a, b = root(i), root(j)
-        parent[max(a, b)] = min(a, b)  # the first row of a point stays its representative
-    keep = [i for i in range(rows.shape[0]) if root(i) == i]
-    return rows[keep]
+    # Rows in one cell of a grid of the tolerance's size are one point (cheap, whatever their number); then
+    # each cell's first row takes the other cells' first rows within its tolerance, in order.
+    scaled = rows / np.maximum(np.asarray(tolerance, dtype=float), 1e-6)
+    _, first = np.unique(np.floor(scaled), axis=0, return_index=True)
+    order = np.sort(first)
+    tree = cKDTree(scaled[order])
+    alone = tree.query_ball_point(scaled[order], 1.0, p=np.inf, return_length=True) == 1
+    taken = np.zeros(order.size, dtype=bool)
+    keep = alone.copy()
+    for i in np.flatnonzero(~alone):
+        if not taken[i]:
+            keep[i] = True
+            taken[tree.query_ball_point(scaled[order[i]], 1.0, p=np.inf)] = True
+    return rows[order[keep]]
 
 
 def _transform(name: str, values: np.ndarray) -> tuple[str, float]:
