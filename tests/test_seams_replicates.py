@@ -46,7 +46,8 @@ def replicated_rows(replicates: int, seed: int = 0, jitter: bool = False) -> lis
     """Every design point measured ``replicates`` times with 2 % log-normal noise (with ``jitter``, its
     conditions read within 0.1 % of the set point each time, :func:`jittered`)."""
     points = design(seed)
-    read = jittered(points, replicates) if jitter else {k: np.repeat(v, replicates) for k, v in points.items()}
+    read = (jittered(points, replicates) if jitter
+            else {k: np.repeat(v, replicates) for k, v in points.items()})
     mu = np.repeat(truth(points), replicates)
     rng = np.random.default_rng(100 + replicates)
     return [{k: float(v[i]) for k, v in read.items()}
