@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
+from microbearing.physics.columns import ColumnError, Reading, read_name
 
 __all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "factor_label", "parse_assignments",
            "parse_csv", "parse_rows"]
@@ -40,7 +41,7 @@ MU_MEASURED = "mu_measured"
 MU_MEASURED_STD = "mu_measured_std"
 
 #: Prefixes of condition and factor columns in :meth:`Dataset.to_columns`.
-_CONDITION, _FACTOR = "condition.", "factor."
+_CONDITION, _FACTOR, _HEADER = "condition.", "factor.", "header."
 
 _TRUE = {"true", "1", "yes"}
 _FALSE = {"false", "0", "no"}
@@ -98,6 +99,10 @@ class Dataset:
         Physics parameters fixed for every row by the request (not columns), validated.
     factors : dict of str to numpy.ndarray
         Factor columns (group labels as strings, e.g. specimens), one label per row.
+    headers : dict of str to str
+        The header cell or JSON key each column was sent under when it was sent in another unit than its
+        own (``{"speed_m_s": "speed [mm/s]"}``), so that reports and plots speak the upload's units
+        (:func:`physics.columns.read_name` reads the header back: ``sent_value``, ``sent_unit``).
     """
 
     physics_columns: dict[str, np.ndarray]
@@ -106,6 +111,7 @@ class Dataset:
     mu_measured_std: np.ndarray | None
     fixed: dict[str, float | bool]
     factors: dict[str, np.ndarray] = field(default_factory=dict)
+    headers: dict[str, str] = field(default_factory=dict)
 
     @property
     def n_points(self) -> int:
@@ -115,6 +121,17 @@ class Dataset:
     def columns(self) -> dict[str, np.ndarray]:
         """Every data column that may drive the residual: physics columns and conditions."""
         return {**self.physics_columns, **self.conditions}
+
+    def sent_reading(self, name: str) -> Reading | None:
+        """How the column ``name`` was read from the header it was sent under (:attr:`headers`), to give its
+        values back in that unit (``Reading.sent_value``, ``Reading.sent_unit``); None when it was sent in
+        its own unit."""
+        header = self.headers.get(name)
+        try:
+            reading = None if header is None else read_name(header)
+        except ColumnError:  # a header stored by another version: its own unit
+            return None
+        return reading if reading is not None and reading.name == name and reading.reading else None
 
     def inputs(self) -> dict[str, Any]:
         """Keyword inputs of :func:`physics.evaluate`: fixed values and physics columns."""
@@ -129,20 +146,23 @@ class Dataset:
             None if self.mu_measured_std is None else self.mu_measured_std[rows],
             dict(self.fixed),
             {k: v[rows] for k, v in self.factors.items()},
+            dict(self.headers),
         )
 
     def to_columns(self) -> dict[str, np.ndarray]:
         """The measurements as named columns: the one serialized form of a dataset.
 
         Physics columns under their names, conditions as ``condition.<name>``, factors as
-        ``factor.<name>``, then :data:`MU_MEASURED` and, when given, :data:`MU_MEASURED_STD`. Stored as
-        ``.npz`` arrays or JSON lists; :meth:`from_columns` reads them back. The fixed values are
+        ``factor.<name>``, then :data:`MU_MEASURED` and, when given, :data:`MU_MEASURED_STD`, and each
+        column's header as sent (:attr:`headers`) as ``header.<name>``, an array of that one text. Stored
+        as ``.npz`` arrays or JSON lists; :meth:`from_columns` reads them back. The fixed values are
         not columns (stored beside them).
 
         Returns
         -------
         dict of str to numpy.ndarray
-            One array of ``n_points`` values per column (physics and conditions in their units, μ [1]).
+            One array of ``n_points`` values per column (physics and conditions in their units, μ [1]);
+            one text per header.
 
         Examples
         --------
@@ -161,16 +181,19 @@ class Dataset:
         columns[MU_MEASURED] = np.asarray(self.mu_measured, dtype=float)
         if self.mu_measured_std is not None:
             columns[MU_MEASURED_STD] = np.asarray(self.mu_measured_std, dtype=float)
+        columns |= {_HEADER + name: np.asarray([header], dtype=str) for name, header in self.headers.items()}
         return columns
 
     @classmethod
     def from_columns(cls, columns: Mapping[str, Any], fixed: Mapping[str, Any]) -> Dataset:
         """The dataset of :meth:`to_columns`' columns (arrays or lists) and its fixed values."""
-        physics_columns, conditions, factors = {}, {}, {}
+        physics_columns, conditions, factors, headers = {}, {}, {}, {}
         for name, values in columns.items():
             if name in (MU_MEASURED, MU_MEASURED_STD):
                 continue
-            if name.startswith(_CONDITION):
+            if name.startswith(_HEADER):
+                headers[name[len(_HEADER):]] = str(np.asarray(values).reshape(-1)[0])
+            elif name.startswith(_CONDITION):
                 conditions[name[len(_CONDITION):]] = np.asarray(values, dtype=float)
             elif name.startswith(_FACTOR):
                 factors[name[len(_FACTOR):]] = np.asarray(values, dtype=str)
@@ -178,7 +201,7 @@ class Dataset:
                 physics_columns[name] = np.asarray(values)
         std = columns.get(MU_MEASURED_STD)
         return cls(physics_columns, conditions, np.asarray(columns[MU_MEASURED], dtype=float),
-                   None if std is None else np.asarray(std, dtype=float), dict(fixed), factors)
+                   None if std is None else np.asarray(std, dtype=float), dict(fixed), factors, headers)
 
 
 def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None,

@@ -37,6 +37,7 @@ from microbearing import physics as _physics
 from .candidates import Term, mu_of
 from .data import Dataset
 from .fit import fit
+from .prose import in_sent_units
 from .rivals import where_they_part
 from .scores import within_one_se
 from .select import CandidateScore, Selection, preferred
@@ -100,9 +101,10 @@ def _where(dataset: Dataset, term: Term, mu_with: np.ndarray, mu_without: np.nda
     return {"driver": driver, "range": [float(x[top].min()), float(x[top].max())], "data_range": data_range}
 
 
-def _span(where: Mapping[str, Any]) -> str:
+def _span(where: Mapping[str, Any], dataset: Dataset) -> str:
     if where["range"] is None:
         return ""
+    where = in_sent_units(dataset, where)  # in the upload's unit
     lo, hi = where["range"]
     dlo, dhi = where["data_range"]
     at = f"{lo:.3g}" if lo == hi else f"{lo:.3g} to {hi:.3g}"
@@ -187,7 +189,7 @@ def undecided(
                 pair = _models(searched, fit_parameters, selection.terms, model.term_values, best.term,
                                model.declared, convention)
                 where = _where(searched, best.term, best.oof_mu, step.current.oof_mu, *pair, noise_std_log)
-                found.append(_near(best, step.z_needed, n, where, equal))
+                found.append(_near(best, step.z_needed, n, where, searched, equal))
             continue
         chosen = step.chosen
         if chosen.z <= step.z_needed + CLOSE_MARGIN:
@@ -198,7 +200,8 @@ def undecided(
                 "z_needed": float(step.z_needed), "rows_now": n, "rows_to_settle": settle, "where": where,
                 "statement": (f"{chosen.term.label} was added, but barely (held-out z = {chosen.z:.2f} "
                               f"against {step.z_needed:.2f} needed): about {settle} rows drawn like these "
-                              f"would make it clear, fewer if placed at {_span(where)}, where it acts most"),
+                              f"would make it clear, fewer if placed at {_span(where, searched)}, "
+                              f"where it acts most"),
             })
     if stability and selection.terms:
         folds, agreeing = int(stability.get("folds", 0)), int(stability.get("same_driver", 0))
@@ -219,13 +222,13 @@ def undecided(
     return found
 
 
-def _near(best: CandidateScore, z_needed: float, n: int, where: Mapping[str, Any],
+def _near(best: CandidateScore, z_needed: float, n: int, where: Mapping[str, Any], dataset: Dataset,
           equal: Sequence[CandidateScore] = ()) -> dict[str, Any]:
     settle = rows_to_settle(n, best.z, z_needed)
     statement = (f"the data cannot decide on {best.term.label}: held-out z = {best.z:.2f}, just short "
                  f"of the {z_needed:.2f} needed (on data with nothing to find the best candidate stays "
                  f"below about 2.2 in 99 % of cases); about {settle} rows drawn like these (now {n}) "
-                 f"would settle it, fewer if placed at {_span(where)}, where it would act most")
+                 f"would settle it, fewer if placed at {_span(where, dataset)}, where it would act most")
     if equal:
         statement += f"; {_equals(best, equal)}"
     return {

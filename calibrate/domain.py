@@ -1,21 +1,22 @@
 """Where the data are: the joint cloud of the calibration rows, and columns that move together.
 
-**The data cloud.** A box per column calls a point "inside" when each of its values lies in its
-column's range, even far from every row (10 mm/s at 70 degC when the lab heated up as it sped up).
-:class:`DataCloud` keeps the rows in scaled inputs (each varying column standardized, a positive
-column spanning more than a decade by its log), one per design point (replicated measurements at one
-point are one row), and scores a point by its distance to its k-th nearest row (k = 5). The threshold is
-split-conformal: the ``ceil((1 - alpha)(n + 1))``-th smallest of the design points' own leave-one-out
-scores (a new design point is what the rule is about, and its score is never 0), so that a new point
-drawn like the data is flagged with chance about
-``alpha`` (:data:`CLOUD_ALPHA`, 2 %) whatever the data's shape. A point given only some of the columns is
-scored in those columns alone, against the threshold of the same columns. Beyond the threshold, the
-prediction interval's log half-width is multiplied by the ratio of the score to the threshold (the
-interval widens in proportion to the distance from the data; a documented rule, not a fitted one: a
-cross-validation that holds out clusters of rows measures how the error grows along the data's shape,
-never across it, and in data whose columns move together the error off the data comes from which of
-them acts, not from the distance), through :meth:`DataCloud.widening`, the one place the rule lives.
-Where two columns move together, the interval also holds the rivals by confounding
+**The data cloud.** A box per column calls a point "inside" when each of its values lies in its column's
+range, even far from every row (10 mm/s at 70 degC when the lab heated up as it sped up).
+:class:`DataCloud` keeps the rows in scaled inputs (each varying column standardized, a positive column
+spanning more than a decade by its log; a column counted from zero, such as cycles, by the log of its
+values plus its least positive one, so that 0 lies next to the data), one per design point (replicated
+measurements at one point, to within :data:`REPLICATE_JITTER`, are one row), and scores a point by its
+distance to its k-th nearest row (k = 5). The threshold is split-conformal: the
+``ceil((1 - alpha)(n + 1))``-th smallest of the design points' own leave-one-out scores (a new design
+point is what the rule is about, and its score is never 0), so that a new point drawn like the data is
+flagged with chance about ``alpha`` (:data:`CLOUD_ALPHA`, 2 %) whatever the data's shape. A point given
+only some of the columns is scored in those columns alone, against the threshold of the same columns.
+Beyond the threshold, the prediction interval's log half-width is multiplied by the ratio of the score to
+the threshold (the interval widens in proportion to the distance from the data; a documented rule, not a
+fitted one: a cross-validation that holds out clusters of rows measures how the error grows along the
+data's shape, never across it, and in data whose columns move together the error off the data comes from
+which of them acts, not from the distance), through :meth:`DataCloud.widening`, the one place the rule
+lives. Where two columns move together, the interval also holds the rivals by confounding
 (:mod:`calibrate.rivals`): terms on the column the model does not read that the data lean to but cannot
 decide, whose envelope parts from the model where one column is varied without the other.
 
@@ -55,10 +56,11 @@ from scipy import stats
 from scipy.spatial import cKDTree
 
 from microbearing import physics
+from microbearing.physics.columns import counted_from_zero
 from microbearing.physics.effects import Domain
 
-__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "CloudSpace", "DataCloud", "LawDomain", "confounded_pairs",
-           "confounding_words", "law_domains", "outside_law_domains"]
+__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "REPLICATE_JITTER", "CloudSpace", "DataCloud", "LawDomain",
+           "confounded_pairs", "confounding_words", "law_domains", "outside_law_domains"]
 
 #: Chance that a new point drawn like the data is flagged outside the cloud. [1]
 CLOUD_ALPHA = 0.02
@@ -66,20 +68,56 @@ CLOUD_ALPHA = 0.02
 CONFOUNDED_RHO = 0.9
 #: Rows the cloud keeps at most (a random subset of larger data). [1]
 MAX_CLOUD_ROWS = 2000
+#: Relative difference of a column's values within which two rows are replicates of one design point
+#: (measurement jitter: two readings each within 0.1 % of a set point differ by up to 0.2 %; design points
+#: 1 % apart stay two). [1]
+REPLICATE_JITTER = 3e-3
 # Neighbours of the score. [1]
 _K = 5
 
 
-def _distinct(rows: np.ndarray) -> np.ndarray:
-    """The rows with one per design point, in their order: rows that agree to six decimals of every
-    scaled column (a millionth of its standard deviation, the resolution clouds were once stored at) are
-    replicates of one point, which keeps the first."""
-    _, first = np.unique(np.round(rows, 6), axis=0, return_index=True)
-    return rows[np.sort(first)]
+def _distinct(rows: np.ndarray, tolerance: np.ndarray | None = None) -> np.ndarray:
+    """The rows with one per design point, in their order (the first of each point kept).
+
+    Rows are replicates of one point when every scaled column differs by at most its ``tolerance``
+    (measurement jitter: a speed of 0.05003 m/s is a replicate of 0.05 m/s) from the point's first row.
+    Without a tolerance (clouds stored before it), rows that agree to six decimals of every scaled column
+    (a millionth of its standard deviation, the resolution clouds were once stored at).
+    """
+    if tolerance is None:
+        _, first = np.unique(np.round(rows, 6), axis=0, return_index=True)
+        return rows[np.sort(first)]
+    # Rows in one cell of a grid of the tolerance's size are one point (cheap, whatever their number); then
+    # each cell's first row takes the other cells' first rows within its tolerance, in order.
+    scaled = rows / np.maximum(np.asarray(tolerance, dtype=float), 1e-6)
+    _, first = np.unique(np.floor(scaled), axis=0, return_index=True)
+    order = np.sort(first)
+    tree = cKDTree(scaled[order])
+    alone = tree.query_ball_point(scaled[order], 1.0, p=np.inf, return_length=True) == 1
+    taken = np.zeros(order.size, dtype=bool)
+    keep = alone.copy()
+    for i in np.flatnonzero(~alone):
+        if not taken[i]:
+            keep[i] = True
+            taken[tree.query_ball_point(scaled[order[i]], 1.0, p=np.inf)] = True
+    return rows[order[keep]]
 
 
-def _transform(values: np.ndarray) -> str:
-    return "log" if np.all(values > 0) and np.max(values) > 10.0 * np.min(values) else "linear"
+def _transform(name: str, values: np.ndarray) -> tuple[str, float]:
+    """How a column is scaled: ``("log", shift)`` (by ``log(value + shift)``) when its positive values span
+    more than a decade, else ``("linear", 0)``.
+
+    The shift is 0 except for a column counted from zero (:func:`physics.columns.counted_from_zero`:
+    cycles, time run): there it is the least positive value, so that 0, its first value (a run-in's
+    start), lies next to the data (at ``log(shift)``, one ``log 2`` below the least positive row) rather
+    than at minus infinity.
+    """
+    positive = values[values > 0]
+    if positive.size == 0 or np.max(positive) <= 10.0 * np.min(positive):
+        return "linear", 0.0
+    if counted_from_zero(name) and np.min(values) >= 0.0:
+        return "log", float(np.min(positive))
+    return ("log", 0.0) if np.all(values > 0) else ("linear", 0.0)
 
 
 @dataclass(frozen=True)
@@ -120,6 +158,12 @@ class DataCloud:
         The (subset of) distinct rows (design points) in scaled inputs, shape (m, len(columns)).
     alpha : float
         See :data:`CLOUD_ALPHA`. [1]
+    shift : list of float or None
+        Per column, added before its log (0 but for columns counted from zero); None: all 0.
+        [unit of the column]
+    tolerance : list of float or None
+        Per column, the difference in scaled inputs within which rows are replicates of one design point
+        (:data:`REPLICATE_JITTER` of its values); None for clouds stored before it (six decimals). [1]
     """
 
     columns: list[str]
@@ -128,6 +172,8 @@ class DataCloud:
     scale: list[float]
     rows: np.ndarray = field(repr=False)
     alpha: float = CLOUD_ALPHA
+    shift: list[float] | None = None
+    tolerance: list[float] | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
@@ -135,37 +181,52 @@ class DataCloud:
                      alpha: float = CLOUD_ALPHA) -> DataCloud | None:
         """The cloud of the data's varying columns (None with fewer than two varying columns or
         too few distinct design points: the per-column ranges say everything)."""
-        names, transforms, centre, scale, scaled = [], [], [], [], []
+        names, transforms, shifts, centre, scale, scaled, tolerance = [], [], [], [], [], [], []
         for name, values in columns.items():
             v = np.asarray(values, dtype=float)
             if np.unique(v).size < 2:
                 continue
-            transform = _transform(v)
-            t = np.log(v) if transform == "log" else v
+            transform, shift = _transform(name, v)
+            t = np.log(v + shift) if transform == "log" else v
             names.append(name)
             transforms.append(transform)
+            shifts.append(shift)
             centre.append(float(np.mean(t)))
             scale.append(float(np.std(t)))
             scaled.append((t - centre[-1]) / scale[-1])
+            jitter = (math.log1p(REPLICATE_JITTER) if transform == "log"
+                      else REPLICATE_JITTER * float(np.max(np.abs(v))))
+            tolerance.append(float(jitter / scale[-1]))
         if len(names) < 2:
             return None
-        # One row per design point: replicates at one point say nothing about where the data are, and
-        # with k or more of them every row's k-th neighbour would be its own twin at distance 0. Rows are
-        # kept at full precision (JSON keeps every digit of a float), so a design point finds its own row.
-        rows = _distinct(np.column_stack(scaled))
+        # One row per design point: replicates at one point (to within jitter) say nothing about where the
+        # data are, and with k or more of them every row's k-th neighbour would be its own twin at distance 0
+        # (or at the jitter's). Rows are kept at full precision (JSON keeps every digit of a float), so a
+        # design point finds its own row.
+        rows = _distinct(np.column_stack(scaled), np.asarray(tolerance))
         if rows.shape[0] < 2 * _K + 2:
             return None
         if rows.shape[0] > MAX_CLOUD_ROWS:
             keep = np.sort(np.random.default_rng(seed).choice(rows.shape[0], MAX_CLOUD_ROWS, replace=False))
             rows = rows[keep]
-        return cls(names, transforms, centre, scale, rows, alpha)
+        return cls(names, transforms, centre, scale, rows, alpha, shifts, tolerance)
+
+    def _scaled_column(self, i: int, values: Any) -> np.ndarray:
+        """Values of the cloud's ``i``-th column in its scaled inputs (increasing in the values)."""
+        v = np.asarray(values, dtype=float)
+        if self.transforms[i] == "log":
+            v = np.log(np.clip(v + (self.shift[i] if self.shift else 0.0), 1e-300, None))
+        return (v - self.centre[i]) / self.scale[i]
+
+    def _tolerance(self, index: Sequence[int]) -> np.ndarray | None:
+        return None if self.tolerance is None else np.asarray(self.tolerance, dtype=float)[list(index)]
 
     def _space(self, given: Sequence[str]) -> tuple[list[int], cKDTree, float]:
         """Column indices, tree and threshold of the subspace of the given columns."""
         key = tuple(given)
         if key not in self._cache:
             index = [self.columns.index(c) for c in given]
-            sub = _distinct(self.rows[:, index])
+            sub = _distinct(self.rows[:, index], self._tolerance(index))
             tree = cKDTree(sub)
             k = min(_K, sub.shape[0] - 1)
             own = tree.query(sub, k=k + 1)[0][:, -1]  # the k-th neighbour other than the row itself
@@ -188,7 +249,7 @@ class DataCloud:
         key = ("lines", tuple(given))
         if key not in self._cache:
             index = [self.columns.index(c) for c in given]
-            sub = _distinct(self.rows[:, index])
+            sub = _distinct(self.rows[:, index], self._tolerance(index))
             lines, departures = [], []
             for p, q in itertools.combinations(range(len(index)), 2):
                 rho = stats.spearmanr(sub[:, p], sub[:, q]).statistic
@@ -239,10 +300,7 @@ class DataCloud:
     def scaled(self, column: str, values: Any) -> np.ndarray:
         """Values of one of the cloud's columns in its scaled inputs (its log where the cloud takes it,
         standardized) [1]; increasing in the values."""
-        i = self.columns.index(column)
-        v = np.asarray(values, dtype=float)
-        t = np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v
-        return (t - self.centre[i]) / self.scale[i]
+        return self._scaled_column(self.columns.index(column), values)
 
     def line_ratio(self, columns: Sequence[str], lo: np.ndarray, hi: np.ndarray,
                    lower: bool = False) -> np.ndarray:
@@ -260,12 +318,8 @@ class DataCloud:
             return np.zeros(shape), given
         index, tree, threshold = self._space(given)
         k = self._cache[tuple(given)][3]
-        x = np.column_stack([
-            ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
-            / self.scale[i]
-            for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float), shape).ravel())
-                         for i in index)
-        ])
+        x = np.column_stack([self._scaled_column(i, np.broadcast_to(
+            np.asarray(points[self.columns[i]], dtype=float), shape).ravel()) for i in index])
         distance = tree.query(x, k=k)[0]
         distance = distance[:, -1] if distance.ndim == 2 else distance
         ratio = np.maximum(distance / max(threshold, 1e-12), self._line_ratio(given, x, x, lower=False))
@@ -294,10 +348,8 @@ class DataCloud:
 
         def scaled(points: Mapping[str, Any]) -> np.ndarray:
             return np.column_stack([
-                ((np.log(np.clip(v, 1e-300, None)) if self.transforms[i] == "log" else v) - self.centre[i])
-                / self.scale[i]
-                for i, v in ((i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float),
-                                                 shape).ravel()) for i in index)])
+                self._scaled_column(i, np.broadcast_to(np.asarray(points[self.columns[i]], dtype=float),
+                                                       shape).ravel()) for i in index])
 
         a, b = scaled(low), scaled(high)
         return np.minimum(a, b), np.maximum(a, b), tree, threshold, k
@@ -352,7 +404,9 @@ class DataCloud:
         """JSON-ready data."""
         return {"columns": list(self.columns), "transforms": list(self.transforms),
                 "centre": list(self.centre),
-                "scale": list(self.scale), "rows": self.rows.tolist(), "alpha": self.alpha}
+                "scale": list(self.scale), "rows": self.rows.tolist(), "alpha": self.alpha,
+                **({"shift": list(self.shift)} if self.shift else {}),
+                **({"tolerance": list(self.tolerance)} if self.tolerance is not None else {})}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> DataCloud:
@@ -365,11 +419,16 @@ class DataCloud:
         """
         columns = [str(c) for c in data["columns"]]
         rows = np.asarray(data["rows"], dtype=float)
-        parts = [data["transforms"], data["centre"], data["scale"]]
+        parts = [data["transforms"], data["centre"], data["scale"],
+                 *(data[key] for key in ("shift", "tolerance") if data.get(key) is not None)]
         if rows.ndim != 2 or rows.shape[1] != len(columns) or any(len(p) != len(columns) for p in parts):
-            raise ValueError("cloud: rows, transforms, centre and scale must have one entry per column")
+            raise ValueError("cloud: rows, transforms, centre, scale, shift and tolerance must have one "
+                             "entry per column")
+        shift, tolerance = data.get("shift"), data.get("tolerance")
         return cls(columns, [str(t) for t in data["transforms"]], [float(c) for c in data["centre"]],
-                   [float(s) for s in data["scale"]], rows, float(data.get("alpha", CLOUD_ALPHA)))
+                   [float(s) for s in data["scale"]], rows, float(data.get("alpha", CLOUD_ALPHA)),
+                   None if shift is None else [float(s) for s in shift],
+                   None if tolerance is None else [float(t) for t in tolerance])
 
 
 @dataclass(frozen=True)

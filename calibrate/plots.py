@@ -12,7 +12,10 @@
   narrow one, plain numbers below that), so both axes are labelled at any range.
 
 Every plot writes the held-out errors before and after on itself and marks the
-outliers (red crosses).
+outliers (red crosses). Columns are drawn in the units the upload used (``speed [mm/s]``,
+``relative humidity [%]``: :attr:`calibrate.Dataset.headers`, read back through the column registry
+:mod:`physics.columns`); the model is evaluated in SI. Whole-number columns (ball counts, cycles) get
+whole-number grids and ticks.
 """
 
 from __future__ import annotations
@@ -20,11 +23,12 @@ from __future__ import annotations
 import io
 import textwrap
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from microbearing import physics
+from microbearing.physics.columns import Reading, unit_of, whole_number
 
 from .data import Dataset
 from .model import CalibratedModel
@@ -34,45 +38,61 @@ __all__ = ["calibration_figures", "calibration_plots", "log_ticks", "tick_texts"
 _GRID = 120
 
 
-def _unit(name: str) -> str:
-    spec = physics.PARAMETERS.get(name)
-    if spec is not None:
-        return f" [{spec.unit}]"
-    words = name.lower().split("_")
-    for suffix, unit in (
-        ("c", "degC"),
-        ("k", "K"),
-        ("pct", "%"),
-        ("percent", "%"),
-        ("um", "um"),
-        ("s", "s"),
-        ("m", "m"),
-    ):
-        if len(words) > 1 and words[-1] == suffix:
-            return f" [{unit}]"
-    return " [1, as in the data]"
+@dataclass(frozen=True)
+class _Column:
+    """A data column as the plots draw it: in the unit it was sent in (``reading`` None: its own).
+
+    Attributes
+    ----------
+    name : str
+        The column's name (its values in SI, as the model reads them).
+    reading : physics.columns.Reading or None
+        How its header as sent was read, to draw its values back in that unit.
+    """
+
+    name: str
+    reading: Reading | None = None
+
+    @classmethod
+    def of(cls, dataset: Dataset, name: str) -> _Column:
+        """The column ``name`` of the dataset, in the unit its header was sent in."""
+        return cls(name, dataset.sent_reading(name))
+
+    def shown(self, values: Any) -> np.ndarray:
+        """Values (SI) in the unit drawn."""
+        values = np.asarray(values, dtype=float)
+        return values if self.reading is None else np.asarray(self.reading.sent_value(values), dtype=float)
+
+    @property
+    def label(self) -> str:
+        """The axis label: the header as sent with its unit, or the name with its own unit."""
+        if self.reading is not None:
+            header = self.reading.sent.strip()
+            return header if header.endswith(("]", ")")) else f"{header} [{self.reading.sent_unit}]"
+        unit = unit_of(self.name)
+        unit = {"percent": "%", None: "1, as in the data"}.get(unit, unit)
+        return f"{self.name} [{unit}]"
+
+    @property
+    def whole(self) -> bool:
+        """Whether its values are whole numbers (:func:`physics.columns.whole_number`) as drawn."""
+        return self.reading is None and whole_number(self.name)
 
 
-def _whole(name: str) -> bool:
-    """Whether the column is a whole number by the physics' declaration (a ball count)."""
-    spec = physics.PARAMETERS.get(name)
-    return spec is not None and spec.kind == "int"
-
-
-def _grid(name: str, x: np.ndarray) -> np.ndarray:
-    """Values of a column to draw a curve at over its data's range: whole numbers for a whole-number
+def _grid(column: _Column, x: np.ndarray) -> np.ndarray:
+    """Values of a column (SI) to draw a curve at over its data's range: whole numbers for a whole-number
     column (the physics refuses 4.067 balls), :data:`_GRID` even steps otherwise."""
-    if not _whole(name):
+    if not whole_number(column.name):
         return np.linspace(x.min(), x.max(), _GRID)
     return np.unique(np.round(np.linspace(np.ceil(x.min()), np.floor(x.max()), _GRID)))
 
 
-def _whole_ticks(ax, names: Sequence[str]) -> None:
+def _whole_ticks(ax, columns: Sequence[_Column]) -> None:
     """Whole-number ticks on the x axis of each axes whose column is a whole number."""
     from matplotlib.ticker import MaxNLocator
 
-    for axis, name in zip(ax, names, strict=False):
-        if _whole(name):
+    for axis, column in zip(ax, columns, strict=False):
+        if column.whole:
             axis.xaxis.set_major_locator(MaxNLocator(integer=True))
 
 
@@ -171,12 +191,13 @@ def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: n
     plt = _pyplot()
     term, _ = model.terms[k]
     driver = term.drivers[0]
+    drawn = _Column.of(dataset, driver)
     columns = dataset.columns()
     without = CalibratedModel(
         model.fitted, model.fixed, model.terms[:k] + model.terms[k + 1 :], model.convention
     )
     x = np.asarray(columns[driver], dtype=float)
-    grid = _grid(driver, x)
+    grid = _grid(drawn, x)
     # The other columns at a median row value (a whole ball count stays whole).
     typical = {
         n: np.full(grid.size, np.quantile(v, 0.5, method="nearest"))
@@ -191,6 +212,7 @@ def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: n
     with np.errstate(all="ignore"):
         partial = np.interp(x, grid, curve) + np.log(dataset.mu_measured / model(columns))
     fig, ax = plt.subplots(figsize=(6.4, 4.2), constrained_layout=True)
+    x, grid = drawn.shown(x), drawn.shown(grid)  # in the upload's unit from here on
     ax.scatter(x[~outliers], partial[~outliers], s=8, alpha=0.5, label="data: term + residual")
     if outliers.any():
         ax.scatter(x[outliers], partial[outliers], marker="x", color="red", s=30, label="outliers")
@@ -201,10 +223,11 @@ def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: n
         ax.fill_between(grid, lower, upper, color="0.5", alpha=0.25, label="95 % band of a new measurement")
         for edge in (lower, upper):
             ax.plot(grid, edge, color="black", lw=0.8, ls="--", zorder=3)
-    ax.set_xlabel(f"{driver}{_unit(driver)}")
+    ax.set_xlabel(drawn.label)
     ax.set_ylabel("log(mu / mu without the term) [-]")
-    ax.set_xlim(grid[0] - 0.02 * (grid[-1] - grid[0]), grid[-1] + 0.02 * (grid[-1] - grid[0]))
-    _whole_ticks([ax], [driver])
+    low, high = float(np.min(grid)), float(np.max(grid))
+    ax.set_xlim(low - 0.02 * (high - low), high + 0.02 * (high - low))
+    _whole_ticks([ax], [drawn])
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     ax.set_title(f"Term {k + 1}: {term.label}\n" + "\n".join(textwrap.wrap(_errors_text(errors), 80)),
@@ -217,10 +240,12 @@ def _residuals_figure(
 ):
     plt = _pyplot()
     varying = [
-        (n, np.asarray(v, dtype=float)) for n, v in dataset.columns().items() if np.unique(v).size > 1
+        (_Column.of(dataset, n), np.asarray(v, dtype=float))
+        for n, v in dataset.columns().items() if np.unique(v).size > 1
     ][:9]
+    varying = [(column, column.shown(x)) for column, x in varying]
     if not varying:
-        varying = [("row", np.arange(1, dataset.n_points + 1, dtype=float))]
+        varying = [(_Column("row"), np.arange(1, dataset.n_points + 1, dtype=float))]
     columns = min(3, len(varying))
     rows = -(-len(varying) // columns)
     fig, axes = plt.subplots(
@@ -231,15 +256,15 @@ def _residuals_figure(
         sharey=True,
         constrained_layout=True,
     )
-    for ax, (name, x) in zip(axes.flat, varying, strict=False):
+    for ax, (column, x) in zip(axes.flat, varying, strict=False):
         ax.scatter(x, before, s=6, color="0.7", label="before: fitted declared model")
         ax.scatter(x[~outliers], after[~outliers], s=8, alpha=0.6, label="after: calibrated model")
         if outliers.any():
             ax.scatter(x[outliers], after[outliers], marker="x", color="red", s=30, label="outliers")
         ax.axhline(0.0, color="0.3", lw=0.8)
-        ax.set_xlabel(f"{name}{_unit(name) if name != 'row' else ' (data row)'}")
+        ax.set_xlabel(column.label if column.name != "row" else "row (data row)")
         ax.grid(alpha=0.3)
-    _whole_ticks(axes.flat, [name for name, _ in varying])
+    _whole_ticks(axes.flat, [column for column, _ in varying])
     for ax in axes.flat[len(varying) :]:
         ax.set_visible(False)
     for ax in axes[:, 0]:

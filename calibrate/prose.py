@@ -1,9 +1,14 @@
 """Sentences of a calibration report (:func:`calibrate.report.format_report`) about rivals, code-like
 columns, drivers the data cannot tell apart and the domain rule, each written from the stages' results.
+
+Values of a column are written in the unit the upload used (``speed [mm/s] 50 to 100``:
+:attr:`calibrate.Dataset.headers`, read back through :mod:`physics.columns`); the numbers of the
+report's fields stay in SI.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -15,7 +20,7 @@ from .rivals import describe_rival, where_they_part
 from .scores import within_one_se
 from .select import Selection
 
-__all__ = ["code_columns", "domain_words", "rival_drivers", "rival_words"]
+__all__ = ["code_columns", "domain_words", "in_sent_units", "rival_drivers", "rival_words"]
 
 
 def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
@@ -27,7 +32,29 @@ def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[s
         where = [where_they_part(model, alternative, dataset, d, model.noise_std_log) for d in drivers]
         part = max(where, key=lambda w: w["largest_difference_log"] or 0.0)
         out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,
-                    "statement": describe_rival(rival, part)})
+                    "statement": describe_rival(rival, in_sent_units(dataset, part))})
+    return out
+
+
+def in_sent_units(dataset: Dataset, part: Mapping[str, Any]) -> dict[str, Any]:
+    """Where two models part (:func:`calibrate.rivals.where_they_part`, or where a term acts) with the
+    driver named by its header as sent and its values (``range``, ``data_range``, ``differ``) in that unit,
+    for words; as it is when the driver was sent in its own unit.
+
+    >>> from microbearing.calibrate.tabular import read_rows
+    >>> d, _ = read_rows([{"speed [mm/s]": 50, "load_N": 0.01, "balls": 4, "mu_measured": 0.01}])
+    >>> in_sent_units(d, {"driver": "speed_m_s", "data_range": [0.01, 0.1], "differ": [[0.05, 0.1]]})
+    {'driver': 'speed [mm/s]', 'data_range': [10.0, 100.0], 'differ': [[50.0, 100.0]]}
+    """
+    reading = dataset.sent_reading(part["driver"])
+    if reading is None:
+        return dict(part)
+    out = {**part, "driver": reading.sent}
+    for key in ("range", "data_range"):
+        if part.get(key) is not None:
+            out[key] = [reading.sent_value(v) for v in part[key]]
+    if part.get("differ") is not None:
+        out["differ"] = [[reading.sent_value(a), reading.sent_value(b)] for a, b in part["differ"]]
     return out
 
 

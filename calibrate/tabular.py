@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import codecs
 import csv
+import dataclasses
 import io
 import re
 from collections.abc import Mapping, Sequence
@@ -695,7 +696,13 @@ def _parse(header: list[str], body: list[list[str]], fixed: Mapping[str, Any], f
         return parse_csv(plain, fixed, factors)  # plain CSV: the parser reads it as is
     converted = [[_cell(c, columns[i] if i < len(columns) else None, intake.decimal or "point")
                   for i, c in enumerate(r)] for r in body]
-    return parse_csv(_write([c.name for c in columns], converted), fixed, factors)
+    return _with_headers(parse_csv(_write([c.name for c in columns], converted), fixed, factors), columns)
+
+
+def _with_headers(dataset: Dataset, columns: Sequence[Column]) -> Dataset:
+    """The dataset with the header each converted column was sent under (reports speak its unit)."""
+    headers = {c.name: c.sent for c in columns if c.reading}
+    return dataclasses.replace(dataset, headers=headers) if headers else dataset
 
 
 def _text_columns(columns: Sequence[Column], cells: Mapping[str, Sequence[Any]], dataset: Dataset
@@ -819,7 +826,7 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
                 value = column.convert(float(value))
             out[column.name] = value
         converted.append(out)
-    dataset = parse_rows(converted, fixed, factors)
+    dataset = _with_headers(parse_rows(converted, fixed, factors), columns)
     intake = Intake("json", columns=columns, ignored=[f"column {n}, as ignore asks" for n in left_out])
     cells = {c.sent: [row.get(c.sent) for row in rows if isinstance(row, Mapping)] for c in columns}
     intake.text_columns = _text_columns(columns, cells, dataset)

@@ -34,8 +34,9 @@ from .effects import humidity_fraction, temperature_kelvin
 from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
-           "Reading", "Span", "accepted_spellings", "from_si", "input_bases", "input_slips", "match_column",
-           "read_name", "read_span", "slip", "unit_of", "unknown_column"]
+           "Reading", "Span", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
+           "input_slips", "match_column", "read_name", "read_span", "slip", "unit_of", "unknown_column",
+           "whole_number"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -77,6 +78,9 @@ class Condition:
         Its physical range in ``unit``.
     integer : bool
         Whether its values are whole numbers.
+    from_zero : bool
+        Whether it is counted from zero (a run's cycles or time): 0, its first value, is never an
+        extrapolation, however its measured values spread.
     """
 
     name: str
@@ -86,6 +90,7 @@ class Condition:
     minimum: float | None = None
     maximum: float | None = None
     integer: bool = False
+    from_zero: bool = False
 
     def matches(self, name: str) -> bool:
         """Whether a column's name is this condition (a word of it starts with a keyword)."""
@@ -99,9 +104,9 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in [
     Condition("temperature_K", "K", "Temperature of the bearing (degC unless the name says K).",
               ("temp",), 0.0),
     Condition("cycles", "1", "Strokes, passes or cycles run since the start (running-in).",
-              ("cycle", "pass", "stroke"), 0.0, integer=True),
+              ("cycle", "pass", "stroke"), 0.0, integer=True, from_zero=True),
     Condition("time_h", "h", "Time run since the start (running-in), in the unit its name says.",
-              ("time",), 0.0),
+              ("time",), 0.0, from_zero=True),
 ]}
 
 # Units the words of a condition's name may say, by the condition; the first word found counts.
@@ -304,6 +309,30 @@ def _condition_base(text: str) -> str:
 
 def _condition_of(name: str) -> Condition | None:
     return next((c for c in CONDITIONS.values() if c.matches(name)), None)
+
+
+def counted_from_zero(name: str) -> bool:
+    """Whether a column is counted from zero (:attr:`Condition.from_zero`: cycles, passes, time run).
+
+    >>> counted_from_zero("cycles"), counted_from_zero("time_min"), counted_from_zero("speed_m_s")
+    (True, True, False)
+    """
+    condition = None if name in PARAMETERS else _condition_of(name)
+    return condition is not None and condition.from_zero
+
+
+def whole_number(name: str) -> bool:
+    """Whether a column's values are whole numbers: a physics input of kind int (balls) or a condition
+    declared integer (cycles), so that grids and axis ticks stay whole.
+
+    >>> whole_number("balls"), whole_number("passes"), whole_number("load_N"), whole_number("time_h")
+    (True, True, False, False)
+    """
+    spec = PARAMETERS.get(name)
+    if spec is not None:
+        return spec.kind == "int"
+    condition = _condition_of(name)
+    return condition is not None and condition.integer
 
 
 def unit_of(name: str) -> str | None:

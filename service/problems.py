@@ -216,7 +216,8 @@ def _pointer_parts(loc: tuple[Any, ...], document: Any) -> list[str]:
     node = document
     located = True
     for position, part in enumerate(loc):
-        if _is_union_tag(part):
+        # a key of the document is never a tag, whatever its form (a column sent as "speed [mm]")
+        if _is_union_tag(part) and not (located and isinstance(node, dict) and part in node):
             continue
         last = position == len(loc) - 1
         if located and isinstance(node, dict) and part in node:

@@ -10,7 +10,11 @@ the URL they are given; the service answers under :data:`PREFIX`, so the URL is
 How a model is laid out (:class:`Setup`, from the request's ``config``): each input vector is
 one point holding the varying inputs (``config.inputs``, by default the model's inputs without a
 default value) in order and in their units; the other inputs take ``config.fixed`` or their
-default. Each output vector holds ``config.outputs`` (``["mu"]`` by default) for its point.
+default. An input of ``config.inputs`` or ``config.fixed`` may be named with its unit as a calibration
+upload's header is (``load [mN]``, ``speed_mm_s``, ``relative humidity [%]``, ``temp_F``): its values
+are then in that unit, converted through the column registry (:mod:`physics.columns`), and derivatives
+are taken with respect to it. Each output vector holds ``config.outputs`` (``["mu"]`` by default) for
+its point.
 ``config.points`` (1 by default) points make one request: ``input`` then holds that many vectors.
 Points are independent, so the Jacobian of output vector ``i`` with respect to input vector
 ``j`` is zero for ``i != j``. Derivatives are taken with respect to the continuous inputs; a count
@@ -37,7 +41,7 @@ from pydantic import ValidationError
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from microbearing import physics
-from microbearing.physics.columns import match_column, slip, unknown_column
+from microbearing.physics.columns import Reading, match_column, slip, unknown_column
 
 from .models import InputError, Model, ModelError, jacobian, resolve
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, validation_problem
@@ -134,6 +138,22 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> dict[str, Any]:
     return read
 
 
+def _read_inputs(model: Model, names: Sequence[str]) -> tuple[list[str], tuple[Reading | None, ...]]:
+    """``config.inputs`` by the model's input names, with the reading of each sent in another unit (None:
+    read as sent); a name no column matches is kept, for :meth:`Setup.of` to name."""
+    inputs, readings = [], []
+    for name in names:
+        reading = None
+        if name not in model.inputs:
+            try:
+                reading = match_column(name, model.inputs)
+            except ValueError:
+                reading = None
+        inputs.append(name if reading is None else reading.name)
+        readings.append(reading if reading is not None and reading.reading else None)
+    return inputs, tuple(readings)
+
+
 def find_model(store: Store, name: str, convention: str = physics.DEFAULT_CONVENTION) -> Model:
     """The model of a protocol name (a reference), or ``ModelNotFound``."""
     try:
@@ -159,6 +179,8 @@ class Setup:
         The outputs of each output vector.
     points : int
         Points per request. [1]
+    readings : tuple of physics.columns.Reading or None
+        Per varying input, how its values are converted from the unit it was named in (None: its own).
     """
 
     model: Model
@@ -166,6 +188,7 @@ class Setup:
     fixed: dict[str, Any]
     outputs: list[str]
     points: int
+    readings: tuple[Reading | None, ...] = ()
 
     @classmethod
     def of(cls, model: Model, config: UMBridgeConfig, max_points: int) -> Setup:
@@ -184,7 +207,8 @@ class Setup:
             raise ProtocolError("InvalidInput", f"config.points: {config.points} points per request; the "
                                 f"limit is {max_points}", status=413)
         given = _read_fixed(model, config.fixed)
-        inputs = list(config.inputs or [n for n in model.default_inputs if n not in given])
+        inputs, readings = _read_inputs(model, config.inputs or [n for n in model.default_inputs
+                                                                 if n not in given])
         for field, names in (("config.inputs", inputs), ("config.fixed", list(given))):
             for name in names:
                 if name not in model.inputs:
@@ -209,7 +233,7 @@ class Setup:
         if unknown or len(set(config.outputs)) < len(config.outputs):
             raise ProtocolError("InvalidInput", f"config.outputs: each once, from {', '.join(available)}; "
                                 f"got {config.outputs}")
-        return cls(model, inputs, fixed, list(config.outputs), config.points)
+        return cls(model, inputs, fixed, list(config.outputs), config.points, readings)
 
     @property
     def input_sizes(self) -> list[int]:
@@ -232,6 +256,9 @@ class Setup:
                                     f"{len(self.inputs)}, one per input of config.inputs "
                                     f"({', '.join(self.inputs)})")
         table = np.asarray(vectors, dtype=np.float64).reshape(self.points, len(self.inputs))
+        for j, reading in enumerate(self.readings):
+            if reading is not None:
+                table[:, j] = reading.convert(table[:, j])
         return {**self.fixed, **{name: self.model.inputs[name].coerce(table[:, j])
                                  for j, name in enumerate(self.inputs)}}
 
@@ -301,6 +328,9 @@ def _jacobian_at(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int,
                                              setup.outputs)[0]
         except InputError as exc:  # the derivative at this point: name the vector asked for
             raise InputError(exc.name, in_wrt, str(exc)) from None
+    for j, reading in enumerate(setup.readings):  # with respect to the input in the unit it was named in
+        if reading is not None:
+            matrix[:, j] *= reading.scale
     return matrix
 
 

@@ -246,3 +246,98 @@ def test_an_optimization_envelope_reads_the_upload_s_names_and_both_range_spelli
     assert lab.conditions.keys() == si.conditions.keys()
     for name in si.conditions:
         assert lab.conditions[name] == pytest.approx(si.conditions[name], rel=1e-12)
+
+
+# --- physics inputs under names with units, at every door ------------------------------------------------
+def test_physics_inputs_may_be_named_with_their_units_at_friction_and_batch(client, calibration):
+    si = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 0.05})
+    lab = client.post("/v1/friction", json={"balls": 4, "load [mN]": 10, "speed_mm_s": 50})
+    assert si.status_code == lab.status_code == 200, lab.text
+    assert lab.json() == si.json()
+    # a slider mass in g is read as its weight, as the upload reads it
+    weight = client.post("/v1/friction", json={"balls": 4, "load [g]": 1.0, "speed_m_s": 0.05}).json()
+    by_hand = client.post("/v1/friction", json={"balls": 4, "load_N": 1e-3 * 9.80665, "speed_m_s": 0.05})
+    assert weight["mu"] == pytest.approx(by_hand.json()["mu"], rel=1e-12)
+    batch_si = client.post("/v1/friction/batch", json={
+        "points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "outputs": ["mu"]})
+    batch_lab = client.post("/v1/friction/batch", json={
+        "points": {"balls": 4, "load [mN]": [10, 20], "speed [mm/s]": 50}, "outputs": ["mu"]})
+    assert batch_lab.status_code == 200, batch_lab.text
+    assert batch_lab.json()["mu"] == pytest.approx(batch_si.json()["mu"], rel=1e-12)
+    # a calibrated model: inputs and conditions in the upload's units answer as in SI
+    model = calibration["model_id"]
+    reference = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, "temp_K": 303.15}))
+    asked = client.post("/v1/friction", json={"balls": 4, "load [mN]": 10, "speed_mm_s": 50, "model": model,
+                                              "conditions": {"relative humidity [%]": 50, "temp_F": 86.0}})
+    assert asked.status_code == 200, asked.text
+    for name in ("mu", "mu_lower", "mu_upper"):
+        assert asked.json()[name] == pytest.approx(reference.json()[name], rel=1e-9)
+    # a speed in mm/s named so is no unit slip; the same number as speed_m_s is warned
+    assert "input_warnings" not in client.post("/v1/friction", json={
+        "balls": 4, "load_N": 0.01, "speed [mm/s]": 50}).json()
+
+
+@pytest.mark.parametrize(("body", "pointer", "words"), [
+    ({"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "sped_m_s": 1}, "/sped_m_s", "Extra"),
+    # a condition is not a physics input: under conditions only, never read as something else
+    ({"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "temp_F": 86}, "/temp_F", "Extra"),
+    # a unit of another kind than the input's
+    ({"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "speed [mm]": 50}, "/speed [mm]", "Extra"),
+])
+def test_a_name_no_door_reads_is_refused_naming_it(client, body, pointer, words):
+    response = client.post("/v1/friction", json=body)
+    assert response.status_code == 422 and response.headers["content-type"] == PROBLEM, response.text
+    errors = response.json()["errors"]
+    assert any(e.get("pointer") == pointer and words in e["detail"] for e in errors), errors
+
+
+def test_two_names_of_one_input_are_refused(client):
+    for path, body in (("/v1/friction", {"balls": 4, "load_N": 0.01, "load [mN]": 10, "speed_m_s": 0.05}),
+                       ("/v1/friction/batch", {"points": {"balls": 4, "load_mN": [10], "load_N": [0.01],
+                                                          "speed_m_s": 0.05}})):
+        response = client.post(path, json=body)
+        assert response.status_code == 422 and response.headers["content-type"] == PROBLEM, response.text
+        assert "read as load_N too" in response.text, response.text
+
+
+def test_um_bridge_varies_inputs_named_with_their_units(client, calibration):
+    def call(route: str, inputs: list[str], vector: list[float], **extra) -> dict:
+        body = {"name": calibration["model_id"], "input": [vector],
+                "config": {"inputs": inputs, "fixed": {"balls": 4}}, **extra}
+        response = client.post(f"/umbridge/{route}", json=body)
+        assert response.status_code == 200, response.text
+        return response.json()
+
+    si_inputs, lab_inputs = ["load_N", "speed_m_s", "relative_humidity"], ["load [mN]", "speed_mm_s",
+                                                                           "relative humidity [%]"]
+    si, lab = [0.01, 0.05, 0.5], [10.0, 50.0, 50.0]
+    assert call("Evaluate", lab_inputs, lab)["output"][0][0] == pytest.approx(
+        call("Evaluate", si_inputs, si)["output"][0][0], rel=1e-12)
+    # d mu / d (load in mN) = d mu / d load_N x 1e-3 (chain rule), and so on
+    wrt = {"outWrt": 0, "inWrt": 0, "sens": [1.0]}
+    gradient_si = np.array(call("Gradient", si_inputs, si, **wrt)["output"])
+    gradient_lab = np.array(call("Gradient", lab_inputs, lab, **wrt)["output"])
+    np.testing.assert_allclose(gradient_lab, gradient_si * [1e-3, 1e-3, 1e-2], rtol=1e-9)
+    assert np.all(gradient_si != 0)
+
+
+def test_the_report_s_sentences_give_a_column_s_values_in_the_upload_s_unit():
+    from microbearing.calibrate import Dataset
+    from microbearing.calibrate.prose import in_sent_units
+    from microbearing.calibrate.tabular import read_rows
+
+    rows = [{"balls": 4, "load_N": 0.01, "speed [mm/s]": v, "relative humidity [%]": h, "temp_F": t,
+             "mu_measured": 0.01} for v, h, t in ((50.0, 30.0, 68.0), (100.0, 60.0, 86.0))]
+    dataset, _ = read_rows(rows)
+    dataset = Dataset.from_columns(dataset.to_columns(), dataset.fixed)  # as the job and the store keep it
+    where = {"driver": "relative_humidity", "range": [0.3, 0.4], "data_range": [0.3, 0.6]}
+    assert in_sent_units(dataset, where) == {"driver": "relative humidity [%]", "range": [30.0, 40.0],
+                                             "data_range": [30.0, 60.0]}
+    hot = in_sent_units(dataset, {"driver": "temp_K", "data_range": [293.15, 303.15],
+                                  "differ": [[293.15, 298.15]]})
+    assert hot["driver"] == "temp_F"
+    np.testing.assert_allclose(hot["data_range"], [68.0, 86.0], rtol=1e-12)
+    np.testing.assert_allclose(hot["differ"], [[68.0, 77.0]], rtol=1e-12)
+    # a column sent in its own unit is named and valued as it is
+    assert in_sent_units(dataset, {"driver": "load_N", "range": [0.01, 0.01]}) == {
+        "driver": "load_N", "range": [0.01, 0.01]}

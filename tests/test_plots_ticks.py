@@ -108,3 +108,59 @@ def test_the_pareto_plot_is_numbered_and_draws_each_quantity_in_its_own_panel(ob
     ylabels = [ax.get_ylabel() for ax in fig.axes]
     assert len(set(ylabels)) == len(ylabels) == (2 if objective == "load_N" else 3), ylabels
     assert front(objective, wide).to_png().startswith(b"\x89PNG")
+
+
+def test_the_plots_speak_the_upload_s_units_and_count_balls_in_whole_numbers():
+    from microbearing.calibrate import CalibratedModel, Dataset
+    from microbearing.calibrate.candidates import EffectTerm
+    from microbearing.calibrate.tabular import read_rows
+    from microbearing.physics.effects import EFFECTS
+
+    rng = np.random.default_rng(3)
+    n = 60
+    si = {"balls": rng.integers(3, 13, n).astype(float),
+          "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+          "speed_m_s": rng.uniform(0.01, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.8, n)}
+    term = EffectTerm("generic_linear", ("relative_humidity",),
+                      EFFECTS["generic_linear"].constants(si, ("relative_humidity",)))
+    model = CalibratedModel(fitted={"mu_pivot": 0.7}, terms=[(term, [0.2])],
+                            convention=physics.DEFAULT_CONVENTION, covariance=np.eye(2) * 1e-4,
+                            noise_std_log=0.02, conditions=["relative_humidity"])
+    mu = model(si) * np.exp(rng.normal(0.0, 0.02, n))
+    # the lab's upload: mN, mm/s and percent (converted by hand)
+    rows = [{"balls": si["balls"][i], "load [mN]": 1e3 * si["load_N"][i],
+             "speed_mm_s": 1e3 * si["speed_m_s"][i],
+             "relative humidity [%]": 100 * si["relative_humidity"][i], "mu_measured": mu[i]}
+            for i in range(n)]
+    dataset, _ = read_rows(rows)
+    assert dataset.headers == {"load_N": "load [mN]", "speed_m_s": "speed_mm_s",
+                               "relative_humidity": "relative humidity [%]"}
+    np.testing.assert_allclose(dataset.physics_columns["speed_m_s"], si["speed_m_s"], rtol=1e-12)
+    # the one serialization (the job's and the store's) keeps the headers
+    again = Dataset.from_columns(dataset.to_columns(), dataset.fixed)
+    assert again.headers == dataset.headers
+    before = physics.evaluate(**dataset.inputs(), mu_pivot=0.7).mu
+    errors = {"before": {"relative_rmse": 0.1}, "after": {"relative_rmse": 0.02}}
+    figures = calibration_figures(again, model, before, model(dataset.columns()), np.zeros(n, bool), errors,
+                                  [term.label])
+    effect = figures["effect_1"].axes[0]
+    assert effect.get_xlabel() == "relative humidity [%]"
+    curve = effect.lines[0].get_xydata()
+    percent = 100 * si["relative_humidity"]
+    assert curve[0, 0] == pytest.approx(percent.min()) and curve[-1, 0] == pytest.approx(percent.max())
+    # the drawn term is the model's, read at the fraction: 0.2 (x / 100 - centre) / scale
+    np.testing.assert_allclose(curve[:, 1], 0.2 * (curve[:, 0] / 100 - term.constants["centre"])
+                               / term.constants["scale"], rtol=1e-9, atol=1e-12)
+    drawn = effect.collections[0].get_offsets()[:, 0]
+    np.testing.assert_allclose(np.sort(drawn), np.sort(percent), rtol=1e-12)
+    panels = {ax.get_xlabel(): ax for ax in figures["residuals"].axes if ax.get_visible()}
+    assert set(panels) == {"balls [1]", "load [mN]", "speed_mm_s [mm/s]", "relative humidity [%]"}, panels
+    speeds = panels["speed_mm_s [mm/s]"].collections[0].get_offsets()[:, 0]
+    np.testing.assert_allclose(np.sort(speeds), np.sort(1e3 * si["speed_m_s"]), rtol=1e-12)
+    figures["residuals"].canvas.draw()
+    low, high = panels["balls [1]"].get_xlim()
+    ticks = [t for t in panels["balls [1]"].get_xticks() if low <= t <= high]
+    assert len(ticks) >= 3 and all(t == round(t) for t in ticks), ticks
+    for name, fig in figures.items():
+        assert_every_axis_numbered(fig, name)
+        matplotlib.pyplot.close(fig)

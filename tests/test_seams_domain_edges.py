@@ -138,3 +138,25 @@ def test_a_viscous_power_law_predicts_at_rest(client):
                                                     "model": model})
     assert batch.status_code == 200, batch.text
     assert batch.json()["mu"] == pytest.approx([single.json()["mu"]] * 2, rel=1e-12)
+
+
+def test_a_run_in_measured_from_the_first_cycle_predicts_at_zero(client):
+    # Counts spread over decades from cycle 1: the data cloud scales them by log(cycles + 1), so cycle 0
+    # lies next to the first rows (it was at log 0 = minus infinity: an infinite interval, a 422).
+    rng = np.random.default_rng(7)
+    columns = base_columns(rng)
+    columns["cycles"] = np.round(np.exp(rng.uniform(0.0, np.log(2000.0), N_ROWS)))
+    columns["cycles"][::10] = 1.0
+    mu = physics.evaluate(**{k: columns[k] for k in POINT}, mu_pivot=0.7).mu
+    mu = mu * (1 + 0.8 * np.exp(-columns["cycles"] / 300.0)) * np.exp(rng.normal(0.0, 0.02, N_ROWS))
+    body = {"data": rows_of(columns, mu), "fit_parameters": ["mu_pivot"], "folds": 3}
+    result = finished_result(client, body)
+    assert [e["name"] for e in result["effects"]] == ["run_in"], result["decision"]
+    model = result["model_id"]
+    answers = [client.post("/v1/friction", json={**POINT, "model": model, "conditions": {"cycles": n}})
+               for n in (0, 1)]
+    assert [a.status_code for a in answers] == [200, 200], answers[0].text
+    at_zero, at_one = (a.json() for a in answers)
+    # one cycle before the data: an interval about as wide as at the first measured cycle
+    width = [np.log(a["mu_upper"] / a["mu_lower"]) for a in (at_zero, at_one)]
+    assert np.isfinite(width[0]) and width[0] < 2.0 * width[1], width

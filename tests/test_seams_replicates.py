@@ -3,7 +3,8 @@
 Issue 32: with six measurements at each of 20 design points every row's 5th neighbour was its own twin
 (distance 0), the data cloud's threshold was clamped to 1e-12 and its stored rows were rounded, so a
 design point missed its own row by ~1e-7 and every interval overflowed (422 "mu_upper is not finite").
-The cloud now holds one row per design point at full precision.
+The cloud now holds one row per design point at full precision, replicates whose conditions differ by
+measurement jitter (0.05 and 0.05003 m/s) counted as one.
 """
 
 from __future__ import annotations
@@ -41,14 +42,17 @@ def truth(points: dict[str, np.ndarray]) -> np.ndarray:
     return mu + meniscus / np.log(1 / points["relative_humidity"])
 
 
-def replicated_rows(replicates: int, seed: int = 0) -> list[dict]:
-    """Every design point measured ``replicates`` times with 2 % log-normal noise."""
+def replicated_rows(replicates: int, seed: int = 0, jitter: bool = False) -> list[dict]:
+    """Every design point measured ``replicates`` times with 2 % log-normal noise (with ``jitter``, its
+    conditions read within 0.1 % of the set point each time, :func:`jittered`)."""
     points = design(seed)
-    mu = truth(points)
+    read = (jittered(points, replicates) if jitter
+            else {k: np.repeat(v, replicates) for k, v in points.items()})
+    mu = np.repeat(truth(points), replicates)
     rng = np.random.default_rng(100 + replicates)
-    return [{k: float(v[i]) for k, v in points.items()}
+    return [{k: float(v[i]) for k, v in read.items()}
             | {"mu_measured": float(mu[i] * np.exp(rng.normal(0, 0.02)))}
-            for i in range(N_DESIGN) for _ in range(replicates)]
+            for i in range(N_DESIGN * replicates)]
 
 
 # ------------------------------------------------------------------------------------------ the cloud
@@ -100,6 +104,60 @@ def test_a_cloud_stored_with_rounded_replicated_rows_still_scores_finitely():
     assert np.all(np.isfinite(ratio)) and np.all(ratio <= 1.0 + 1e-5), ratio
 
 
+def jittered(points: dict[str, np.ndarray], replicates: int, seed: int = 1) -> dict[str, np.ndarray]:
+    """Each design point measured ``replicates`` times, every reading of a condition within 0.1 % of its set
+    point (speed 0.05 read as 0.05003); ball counts exact."""
+    rng = np.random.default_rng(seed)
+    return {k: np.repeat(v, replicates) if k == "balls"
+            else np.repeat(v, replicates) * (1.0 + rng.uniform(-1e-3, 1e-3, v.size * replicates))
+            for k, v in points.items()}
+
+
+def test_replicates_differing_by_jitter_are_one_design_point():
+    points = design()
+    exact = DataCloud.from_columns({k: np.repeat(v, 6) for k, v in points.items()})
+    cloud = DataCloud.from_columns(jittered(points, 6))
+    assert cloud.rows.shape == exact.rows.shape == (N_DESIGN, 4)
+    # each kept row is the first reading of its design point: within the jitter of the exact row
+    assert np.max(np.abs(cloud.rows - exact.rows)) < 0.02
+    threshold = cloud.space(list(points)).threshold
+    assert threshold == pytest.approx(exact.space(list(points)).threshold, rel=0.02)
+    ratio, _ = cloud.score(points, (N_DESIGN,))
+    assert np.all(np.isfinite(ratio)) and np.all(ratio <= 1.0 + 0.02), ratio
+    # through JSON the tolerance is kept: a subspace also finds 20 design points
+    again = DataCloud.from_json(cloud.to_json())
+    assert again.space(["load_N", "speed_m_s"]).threshold == cloud.space(["load_N", "speed_m_s"]).threshold
+    assert again.space(["load_N", "speed_m_s"]).threshold > 0.1
+    # design points 1 % apart are not replicates
+    apart = {k: np.concatenate([v, v if k == "balls" else v * 1.01]) for k, v in points.items()}
+    assert DataCloud.from_columns(apart).rows.shape[0] == 2 * N_DESIGN
+
+
+@pytest.mark.parametrize("first", [0.0, 1.0])
+def test_a_column_counted_from_zero_puts_zero_next_to_the_data(first):
+    # a run-in measured at cycles first, 10, 100, ..., 1e5 at four loads each: log-spread counts
+    cycles = np.repeat(np.concatenate([[first], 10.0 ** np.arange(1, 6)]), 4)
+    load = np.tile([0.003, 0.006, 0.012, 0.024], 6)
+    cloud = DataCloud.from_columns({"cycles": cycles, "load_N": load})
+    i = cloud.columns.index("cycles")
+    assert cloud.transforms[i] == "log"
+    shift = 10.0 if first == 0.0 else 1.0  # the least positive count
+    assert cloud.shift[i] == shift
+    # by hand: log(cycles + shift), standardized
+    t = np.log(cycles + shift)
+    np.testing.assert_allclose(cloud.scaled("cycles", cycles), (t - t.mean()) / t.std(), rtol=1e-12)
+    # cycles 0 at a measured load lies next to the data: its score is that of the least count's rows
+    # (0 and 1 are the same point here, 0 is log 2 below 1 when the counts start at 1), not infinite
+    at_zero = cloud.score({"cycles": 0.0, "load_N": 0.006}, ())[0]
+    at_first = cloud.score({"cycles": first, "load_N": 0.006}, ())[0]
+    assert np.isfinite(at_zero) and at_zero <= max(at_first, 1.0) + 0.5, (at_zero, at_first)
+    assert float(cloud.scaled("cycles", 0.0)) >= float(cloud.rows[:, i].min()) - np.log(2) / t.std() - 1e-12
+    # a speed spanning decades is scaled by its plain log, as before
+    other = DataCloud.from_columns({"speed_m_s": np.repeat([0.001, 0.003, 0.01, 0.03, 0.1, 1.0], 4),
+                                    "load_N": load})
+    assert other.transforms == ["log", "linear"] and other.shift == [0.0, 0.0]
+
+
 def test_too_few_distinct_design_points_make_no_cloud():
     # 11 design points measured 10 times: 110 rows, but fewer than 2k + 2 = 12 places.
     points = {k: np.repeat(v[:11], 10) for k, v in design().items()}
@@ -126,9 +184,10 @@ def finished_result(client: TestClient, response) -> dict:
     return client.get(job["result_url"]).json()
 
 
-@pytest.mark.parametrize("replicates", [2, 5, 6, 10])
-def test_a_replicated_design_predicts_with_intervals_that_cover_the_truth(client, replicates):
-    body = {"data": replicated_rows(replicates), "fit_parameters": ["mu_pivot"], "folds": 3}
+@pytest.mark.parametrize(("replicates", "jitter"), [(2, False), (5, False), (6, False), (10, False),
+                                                    (6, True)])
+def test_a_replicated_design_predicts_with_intervals_that_cover_the_truth(client, replicates, jitter):
+    body = {"data": replicated_rows(replicates, jitter=jitter), "fit_parameters": ["mu_pivot"], "folds": 3}
     result = finished_result(client, client.post("/v1/calibrations", json=body))
     assert result["n_points"] == N_DESIGN * replicates
     model = result["model_id"]
@@ -153,6 +212,16 @@ def test_a_replicated_design_predicts_with_intervals_that_cover_the_truth(client
                                                    "relative_humidity"][0]}})
     assert single.status_code == 200, single.text
     assert math.isclose(single.json()["mu_upper"], upper[0], rel_tol=1e-12)
+    # Between design points (halfway from each to the next, ball counts kept) the data are near: with
+    # jittered replicates too, the cloud's threshold is the design points' spacing, not the jitter's.
+    halfway = {k: (v[:-1] + v[1:]) / 2 for k, v in points.items()}
+    halfway["balls"] = points["balls"][:-1]
+    between = client.post("/v1/friction/batch", json={
+        "points": {k: v.tolist() for k, v in halfway.items() if k != "relative_humidity"}, "model": model,
+        "conditions": {"relative_humidity": halfway["relative_humidity"].tolist()}})
+    assert between.status_code == 200, between.text
+    assert all(between.json()["in_domain"])
+    assert np.max(np.log(np.divide(between.json()["mu_upper"], between.json()["mu_lower"]))) < 4 * 0.1
     # Off the data (every column inside its range, but in a corner no design point is near) the interval
     # is flagged and wider than at any design point.
     corner = {"balls": 12, "load_N": float(points["load_N"].max()),

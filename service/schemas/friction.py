@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from collections.abc import Collection
+from typing import Annotated, Any
 
-from pydantic import Field, create_model
+from pydantic import Field, create_model, model_validator
 
 from microbearing import physics
+from microbearing.physics.columns import ColumnError, read_name
 
 from .base import (
     UNIT_KEYS,
@@ -18,11 +20,58 @@ from .base import (
     StrictModel,
     output_fields,
     parameter_fields,
+    read_value,
 )
 from .calibrations import MODEL_FIELDS, MODEL_RESPONSE_FIELDS
 
-__all__ = ["INPUT_WARNINGS", "FrictionBatchPoints", "FrictionBatchRequest", "FrictionBatchResponse",
-           "FrictionRequest", "FrictionResponse"]
+__all__ = ["INPUT_KEYS", "INPUT_WARNINGS", "FrictionBatchPoints", "FrictionBatchRequest",
+           "FrictionBatchResponse", "FrictionRequest", "FrictionResponse", "read_input_keys"]
+
+#: What a description says about the names of physics inputs.
+INPUT_KEYS = (" An input may be sent under a name with its unit, as a calibration upload's header (e.g. "
+              "'speed [mm/s]', speed_mm_s, 'load [mN]', load_mN), converted as the upload converts it; two "
+              "names of one input are refused.")
+
+
+def read_input_keys(body: Any, fields: Collection[str] = ()) -> Any:
+    """A body's physics inputs sent under a name with a unit (``speed [mm/s]``, ``load_mN``), renamed
+    to the input and converted, as :func:`physics.columns.read_name` reads a calibration upload's header.
+
+    The body's own ``fields`` and every other key are left as sent: a name no door reads is refused by
+    the schema (``extra="forbid"``), which names it.
+
+    Raises
+    ------
+    ValueError
+        Naming the key, when another key is read as the same input.
+    """
+    if not isinstance(body, dict):
+        return body
+    read: dict[str, Any] = {}
+    for key, value in body.items():
+        reading = None
+        if isinstance(key, str) and key not in fields:
+            try:
+                reading = read_name(key)
+            except ColumnError:
+                reading = None  # an unknown unit: the schema names the key
+        if reading is None or reading.name not in physics.PARAMETERS or not reading.reading:
+            read[key] = value
+            continue
+        if reading.name in body or reading.name in read:
+            raise ValueError(f"{key}: another key is read as {reading.name} too; keep one")
+        read[reading.name] = read_value(reading, value)
+    return read
+
+
+class _InputKeys(StrictModel):
+    """A body whose physics inputs may be sent under names with units (:func:`read_input_keys`)."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _read_input_keys(cls, body: Any) -> Any:
+        return read_input_keys(body, cls.model_fields)
+
 
 _CONVENTION = (ConventionName, Field(
     default=Convention(physics.DEFAULT_CONVENTION),
@@ -30,8 +79,8 @@ _CONVENTION = (ConventionName, Field(
                 "another is a 422)."))
 
 FrictionRequest = create_model(
-    "FrictionRequest", __base__=StrictModel,
-    __doc__="One design point: the physics inputs by name; optional ones take their defaults.",
+    "FrictionRequest", __base__=_InputKeys,
+    __doc__="One design point: the physics inputs by name; optional ones take their defaults." + INPUT_KEYS,
     convention=_CONVENTION, **parameter_fields(), **MODEL_FIELDS,
 )
 
@@ -48,8 +97,8 @@ FrictionResponse = create_model(
 )
 
 FrictionBatchPoints = create_model(
-    "FrictionBatchPoints", __base__=StrictModel,
-    __doc__="Design points as columns: each input a scalar or a list; lists share one length.",
+    "FrictionBatchPoints", __base__=_InputKeys,
+    __doc__="Design points as columns: each input a scalar or a list; lists share one length." + INPUT_KEYS,
     **parameter_fields(columns=True),
 )
 
