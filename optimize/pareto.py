@@ -110,7 +110,12 @@ class ParetoFront:
         top.legend(title="ball count z (both grooves)", fontsize=8, title_fontsize=8, loc="best")
         top.set_ylabel("friction coefficient μ [-]")
         better = "higher" if larger_better else "lower"
-        top.set_title(f"Pareto front: least friction against {name} ({better} is better)", fontsize=10)
+        title = f"Pareto front: least friction against {name} ({better} is better)"
+        if self.infeasible_levels:
+            # asked for more points than were found: say so where the designer looks
+            title += (f"\n{len(self.points)} of {len(self.points) + self.infeasible_levels} levels: "
+                      f"{self.infeasible_levels} infeasible under the limits")
+        top.set_title(title, fontsize=10)
         top.grid(True, alpha=0.3)
 
         if pressure:

@@ -10,7 +10,7 @@ import pytest
 
 from microbearing import physics
 from microbearing.optimize import Constraints, DesignBounds, DesignProblem, optimize_design
-from microbearing.optimize.pareto import pareto_front
+from microbearing.optimize.pareto import ParetoFront, pareto_front
 
 PROBLEM = DesignProblem(DesignBounds((4, 12), (35, 70), (0.001, 0.05)), speed_m_s=0.05,
                         fixed={"mu_pivot": 1.0}, constraints=Constraints(max_contact_pressure_Pa=1e9))
@@ -87,3 +87,13 @@ def test_counts_far_from_feasible_are_infeasible_without_warnings():
         np.geomspace(0.001, 0.05, 100)[None, None, :]
     scan = physics.evaluate(**wide.physics_inputs(z, th, g))
     assert scan.max_contact_pressure_Pa.min() > tightest["level"]
+
+
+def test_a_front_with_infeasible_levels_says_so_on_its_plot():
+    complete = pareto_front(PROBLEM, "load_N", points=4)
+    assert complete.infeasible_levels == 0 and "infeasible" not in complete.figure().axes[0].get_title()
+    # the same points, had one more level been asked for and found infeasible (a 5-point request answered
+    # with 4): the title says how many of the levels asked for it draws
+    short = ParetoFront(complete.objective, complete.points, infeasible_levels=1)
+    title = short.figure().axes[0].get_title()
+    assert f"{len(complete.points)} of {len(complete.points) + 1} levels: 1 infeasible" in title
