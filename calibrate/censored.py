@@ -20,9 +20,10 @@ zero, one on the wrong side a residual like an ordinary row's.
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 from scipy.special import log_ndtr
 
-__all__ = ["censored_residual", "measured_rows"]
+__all__ = ["censored_residual", "measured_rows", "residual_variance"]
 
 
 def censored_residual(residual: np.ndarray, censored: np.ndarray, scale: float) -> np.ndarray:
@@ -61,3 +62,44 @@ def censored_residual(residual: np.ndarray, censored: np.ndarray, scale: float) 
 def measured_rows(censored: np.ndarray | None, n_points: int) -> np.ndarray:
     """Rows whose reading is a value, not a clip (all rows when nothing is censored)."""
     return np.ones(n_points, dtype=bool) if censored is None else censored == 0
+
+
+def residual_variance(residual: np.ndarray, censored: np.ndarray | None, rows: np.ndarray) -> float:
+    """Variance of log μ about the model from residuals ``log(mu_measured / mu_model)``, clips counted. [1]
+
+    Without clipped rows, the mean square. With them, the maximum-likelihood variance of a zero-mean
+    Gaussian whose clipped rows say only on which side of their residual the true one lies (Tobit): the
+    measured rows alone are a truncated sample, narrower than the scatter, and an interval from them
+    would cover less than it says near the clip.
+
+    Parameters
+    ----------
+    residual : numpy.ndarray
+        ``log(mu_measured / mu_model)`` of every row. [1]
+    censored : numpy.ndarray or None
+        +1 / -1 / 0 per row (:attr:`calibrate.data.Dataset.censored`).
+    rows : numpy.ndarray
+        Rows to count (bool mask), e.g. the ones that are not outliers.
+
+    Examples
+    --------
+    >>> r = np.random.default_rng(0).normal(0.0, 0.03, 4000)
+    >>> clip = np.where(r > 0.01, 1, 0)  # readings above +0.01 clipped there
+    >>> cut = np.where(clip == 1, 0.01, r)
+    >>> round(float(np.sqrt(residual_variance(cut, clip, np.ones(4000, bool)))), 3)
+    0.03
+    """
+    r = np.asarray(residual, dtype=float)[rows]
+    if censored is None or not np.any(censored[rows] != 0):
+        return float(np.mean(np.square(r)))
+    side = np.asarray(censored)[rows]
+    value = side == 0
+
+    def negative_log_likelihood(log_s: float) -> float:
+        s = np.exp(log_s)
+        return float(np.sum(0.5 * np.square(r[value] / s) + log_s)
+                     - np.sum(log_ndtr(-side[~value] * r[~value] / s)))
+
+    start = np.log(max(float(np.sqrt(np.mean(np.square(r)))), 1e-6))
+    best = minimize_scalar(negative_log_likelihood, bounds=(start - 5.0, start + 5.0), method="bounded")
+    return float(np.exp(2.0 * best.x))

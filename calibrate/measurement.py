@@ -289,7 +289,7 @@ def folds(dataset: Dataset, n_folds: int, seed: int = 0) -> list[np.ndarray]:
     >>> from microbearing.calibrate.data import parse_rows
     >>> d = parse_rows([{"load_N": 0.01, "mu_measured": 0.01}] * 4, fixed={"balls": 4, "speed_m_s": 0.1})
     >>> [f.tolist() for f in folds(replace(d, design=np.array([0, 0, 1, 1])), 2)]
-    [[2, 3], [0, 1]]
+    [[0, 1], [2, 3]]
     """
     if dataset.design is None or np.unique(dataset.design).size < n_folds:
         return kfold_indices(dataset.n_points, n_folds, seed)
@@ -337,9 +337,9 @@ def lack_of_fit(dataset: Dataset, log_residual: np.ndarray, n_fitted: int,
     >>> from microbearing.calibrate.data import parse_rows
     >>> d = parse_rows([{"load_N": 0.01, "mu_measured": 0.01}] * 6, fixed={"balls": 4, "speed_m_s": 0.1})
     >>> d = replace(d, design=np.array([0, 0, 1, 1, 2, 2]))
-    >>> lof = lack_of_fit(d, np.array([0.01, -0.01, 0.21, 0.19, -0.2, -0.2]), 1)
+    >>> lof = lack_of_fit(d, np.array([0.01, -0.01, 0.21, 0.19, -0.2, -0.2]), 1)  # sqrt(4e-4 / 3)
     >>> round(lof.pure_error, 4), lof.lack_of_fit_dof, lof.p < 0.01
-    (0.0082, 2, True)
+    (0.0115, 2, True)
     """
     if dataset.design is None:
         return None

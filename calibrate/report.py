@@ -37,7 +37,7 @@ import numpy as np
 
 from microbearing import physics
 
-from .censored import measured_rows
+from .censored import measured_rows, residual_variance
 from .data import Dataset, parse_csv, parse_rows
 from .decidability import undecided
 from .discrepancy import gp_discrepancy, residual_gp
@@ -582,8 +582,7 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
             outliers = find_outliers(dataset, mu_after, final.residual, final.scale)
         else:
             outliers = find_outliers(dataset, mu_after, np.log(mu_after / measured) / local, 1.0)
-    # A clipped reading is not a value: the noise and what the terms leave are read on measured rows.
-    inliers = ~outliers["mask"] & measured_rows(dataset.censored, dataset.n_points)
+    inliers = ~outliers["mask"]
     robust_errors = {
         "before": prediction_errors(declared.baseline.oof_mu[inliers], measured[inliers]),
         "after": prediction_errors(nested.oof_mu[inliers], measured[inliers]),
@@ -591,10 +590,14 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     }
     # What the terms leave: a GP on the residual of each outer fold's own model, judged on its held-out
     # rows; part of the model only when it beats the terms alone there.
-    leftover = residual_gp(dataset, declared.outer, nested.fold_mu, mu_after, inliers, options.gp_max_train,
+    # A clipped reading is not a value: what the terms leave is read on the measured rows, and the noise
+    # counts a clipped row by its side of the clip (calibrate.censored.residual_variance).
+    values = inliers & measured_rows(dataset.censored, dataset.n_points)
+    leftover = residual_gp(dataset, declared.outer, nested.fold_mu, mu_after, values, options.gp_max_train,
                            options.seed)
-    leftover = _confirm_gp(declared, final, leftover, mu_after, inliers, options)
-    noise_std_log, scatter = _noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape)
+    leftover = _confirm_gp(declared, final, leftover, mu_after, values, options)
+    noise_std_log, scatter = _noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape,
+                                          dataset.censored)
     cloud = DataCloud.from_columns(varying, options.seed)
     model = CalibratedModel.from_fit(final, dataset, convention, noise_std_log, discrepancy=leftover["gp"],
                                      groups=group_effects, scatter=scatter, cloud=cloud)
@@ -612,7 +615,7 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
 
 def _noise_level(scatter: ScatterModel, gp_state: Mapping[str, Any] | None, held_out: np.ndarray,
                  inliers: np.ndarray, varying: Mapping[str, np.ndarray],
-                 shape: tuple[int, ...]) -> tuple[float, ScatterModel]:
+                 shape: tuple[int, ...], censored: np.ndarray | None = None) -> tuple[float, ScatterModel]:
     """The scatter of a new measurement around the model (std of log μ [1]) and the scatter model at
     that level."""
     if gp_state is None:
@@ -620,7 +623,7 @@ def _noise_level(scatter: ScatterModel, gp_state: Mapping[str, Any] | None, held
         # cross-validation did: noise, what the terms leave, and the refit's own uncertainty. RMS over
         # the rows that are not outliers (a median-based scale would be robust too, but it scatters
         # twice as much from one data set to the next).
-        noise_variance = float(np.mean(np.square(held_out[inliers])))
+        noise_variance = residual_variance(held_out, censored, inliers)
     else:
         # What the terms leave is the GP's, with its own predictive variance at each point; the
         # noise is its white-noise part (Kennedy-O'Hagan), not the held-out scatter, which holds both.

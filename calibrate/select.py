@@ -61,6 +61,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .candidates import Term
+from .censored import measured_rows
 from .data import Dataset
 from .fit import fit, predict_mu
 from .measurement import folds as design_folds
@@ -205,7 +206,9 @@ def selection_scatter(dataset: Dataset, model: ModelCV, folds: int, seed: int) -
     if not columns:
         return None
     residual = np.log(dataset.mu_measured / model.oof_mu)
-    return fit_scatter(columns, residual, min(folds, dataset.n_points), seed)
+    rows = measured_rows(dataset.censored, dataset.n_points)  # a clipped reading's residual is not scatter
+    return fit_scatter({k: v[rows] for k, v in columns.items()}, residual[rows],
+                       min(folds, int(rows.sum())), seed)
 
 
 def _form(scatter: ScatterModel | None) -> tuple[str, str | None]:
