@@ -435,8 +435,7 @@ _RUN_IN = Effect(
     title="Running-in: friction decays from its initial value as the contacts smooth and transfer films form",
     formula="mu = mu_model * (1 + run_in_amplitude * exp(-n / run_in_length))",
     parameters=(
-        # Never negative: friction that rises with the count is not a run-in (the law's title says it
-        # decays); an instrument's drift (measurement_drift) or a generic term may take it.
+        # Never negative: friction rising with the count is no run-in (measurement_drift may take it)
         EffectParameter("run_in_amplitude", "1", "Initial excess friction relative to the steady state.",
                         0.0, 100.0),
         EffectParameter("run_in_length", "driver",
@@ -451,15 +450,6 @@ _RUN_IN = Effect(
     # x (1 + a exp(-n / L)), a > -1, L > 0: falls with n where a > 0
     enters="mul", direction=lambda v: -_sign(v[0]), value_forms=(None, None),
 )
-
-def _session(x):
-    return {"start": float(np.min(x)), "end": float(np.max(x))}
-
-
-def _session_fraction(x, c):
-    span = c["end"] - c["start"]
-    return (x - c["start"]) / (span if span > 0 else 1.0)
-
 
 #: Name words of an order or clock column: the measurement's place in the session, not the bearing's wear.
 SESSION_KEYWORDS = ("index", "order", "sequence", "seq", "time", "date", "hour", "elapsed", "session",
@@ -478,9 +468,9 @@ _MEASUREMENT_DRIFT = Effect(
                        "x_start and x_end its first and last value in the data",
     reference="Gauge drift (stability) of a measurement system: AIAG, Measurement Systems Analysis, 4th ed., "
               "2010, ch. I; a linear drift of the tribometer's force reading over the session.",
-    driver_keywords=SESSION_KEYWORDS,
-    correct=lambda mu, x, columns, p, c: mu * np.exp(p[0] * _session_fraction(x, c)),
-    make_constants=_session,
+    driver_keywords=SESSION_KEYWORDS, min_levels=3,  # start < end over the data
+    correct=lambda mu, x, columns, p, c: mu * np.exp(p[0] * (x - c["start"]) / (c["end"] - c["start"])),
+    make_constants=lambda x: {"start": float(np.min(x)), "end": float(np.max(x))},
     make_initial=_zeros,
     enters="mul", direction=lambda v: _sign(v[0]), value_forms=("log",),  # x exp(d s), s rises with x
 )
