@@ -28,7 +28,15 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
-from microbearing.physics.effects import DRIFT_LAWS, DRIFT_PARAMETERS, EFFECTS, DriftLaw, Effect
+from microbearing.physics.effects import (
+    DRIFT_LAWS,
+    DRIFT_PARAMETERS,
+    EFFECTS,
+    SESSION_KEYWORDS,
+    DriftLaw,
+    Effect,
+    name_matches,
+)
 
 from .data import Dataset
 
@@ -422,7 +430,8 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
         Measurements; a main driver must take at least the effect's or law's ``min_levels`` distinct
         values and lie in its domain. A drift is proposed for every parameter of
         :data:`physics.effects.DRIFT_PARAMETERS` that is not a data column, on every condition column
-        its law accepts.
+        its law accepts except order and time columns (:data:`physics.effects.SESSION_KEYWORDS`, ISO 8601
+        times), which drive the reading's ``measurement_drift`` instead.
     chosen : sequence of Term
         Terms already in the model: the same effect, or the same parameter on the same driver, is
         not proposed again.
@@ -456,7 +465,10 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
             continue
         level = parameter not in fitted and parameter not in dataset.fixed and parameter not in drifting
         for driver, values in dataset.conditions.items():
-            if (parameter, driver) in taken_drifts:
+            # An order or time column moves the reading (measurement_drift), not a parameter of the bearing:
+            # its wear runs with cycles or distance, which have their own columns.
+            if (parameter, driver) in taken_drifts or driver in dataset.clock \
+                    or name_matches(driver, SESSION_KEYWORDS):
                 continue
             for law in DRIFT_LAWS.values():
                 if law.name == "linear" and DRIFT_LAWS["arrhenius"].matches(driver):

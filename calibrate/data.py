@@ -13,6 +13,11 @@ residual: the calibration fits how much the model varies from one group to the n
 (:mod:`calibrate.groups`). A condition column with numbers in some cells and labels in others is
 an error on each label, which says how to declare the column a factor.
 
+A condition column whose every cell is an ISO 8601 date or date-time (``2026-11-28T09:30:00Z``) is
+**time**, never labels: it is read as the hours elapsed since its earliest row (the session's start),
+a number like any other condition, and :attr:`Dataset.clock` keeps that start. Times without a zone
+are taken as UTC when some cells carry one.
+
 Every bad cell is reported, row by row, in one :class:`DataError`; no row is
 ever dropped silently. Rows are numbered from 1, the first data row (the CSV
 header is not a row).
@@ -23,8 +28,10 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -43,6 +50,9 @@ MU_MEASURED_STD = "mu_measured_std"
 #: Prefixes of condition and factor columns in :meth:`Dataset.to_columns`.
 _CONDITION, _FACTOR, _HEADER = "condition.", "factor.", "header."
 
+# An ISO 8601 date, optionally with a time (seconds and fraction optional) and a zone.
+_ISO_TIME = re.compile(r"\d{4}-\d{2}-\d{2}([T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?(Z|[+-]\d{2}:?\d{2})?)?")
+_SECONDS_PER_HOUR = 3600.0
 _TRUE = {"true", "1", "yes"}
 _FALSE = {"false", "0", "no"}
 _MAX_LISTED = 20
@@ -99,6 +109,17 @@ class Dataset:
         Physics parameters fixed for every row by the request (not columns), validated.
     factors : dict of str to numpy.ndarray
         Factor columns (group labels as strings, e.g. specimens), one label per row.
+    clock : dict of str to str
+        Condition columns read from ISO 8601 times (hours since the start [h]): name -> the start, ISO 8601.
+    design : numpy.ndarray or None
+        Design point of each row (equal inputs and conditions up to jitter, order and time aside), set
+        by :func:`calibrate.measurement.inspect` when some are replicated: folds keep a point's
+        replicates together. None: every row its own point.
+    censored : numpy.ndarray or None
+        Per row, +1 where the reading sits at a sensor's upper clip (the true μ is at least it), -1 at a
+        lower clip (at most it), 0 measured (:mod:`calibrate.censored`); None: no clip.
+    censor_scale : float
+        Standard deviation of log μ of the censored likelihood (0: not yet known). [1]
     headers : dict of str to str
         The header cell or JSON key each column was sent under when it was sent in another unit than its
         own (``{"speed_m_s": "speed [mm/s]"}``), so that reports and plots speak the upload's units
@@ -111,6 +132,10 @@ class Dataset:
     mu_measured_std: np.ndarray | None
     fixed: dict[str, float | bool]
     factors: dict[str, np.ndarray] = field(default_factory=dict)
+    clock: dict[str, str] = field(default_factory=dict)
+    design: np.ndarray | None = field(default=None, repr=False)
+    censored: np.ndarray | None = field(default=None, repr=False)
+    censor_scale: float = 0.0
     headers: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -146,6 +171,10 @@ class Dataset:
             None if self.mu_measured_std is None else self.mu_measured_std[rows],
             dict(self.fixed),
             {k: v[rows] for k, v in self.factors.items()},
+            dict(self.clock),
+            None if self.design is None else self.design[rows],
+            None if self.censored is None else self.censored[rows],
+            self.censor_scale,
             dict(self.headers),
         )
 
@@ -419,6 +448,25 @@ def _range_message(spec: physics.Parameter, value: float) -> str | None:
     return None
 
 
+def _clock_hours(cells: Sequence[Any]) -> tuple[np.ndarray, str] | None:
+    """Hours since the earliest of the cells when every given cell is an ISO 8601 date or date-time, with
+    that start (ISO 8601); None otherwise (a missing cell reads as NaN: the caller reports it)."""
+    given = [c for c in cells if not _missing(c)]
+    if not given or not all(isinstance(c, str) and _ISO_TIME.fullmatch(c.strip()) for c in given):
+        return None
+    try:
+        times = [None if _missing(c) else datetime.fromisoformat(c.strip()) for c in cells]
+    except ValueError:  # a date that does not exist (2026-02-30)
+        return None
+    zoned = any(t is not None and t.tzinfo is not None for t in times)
+    if zoned:
+        times = [t if t is None or t.tzinfo is not None else t.replace(tzinfo=UTC) for t in times]
+    start = min(t for t in times if t is not None)
+    hours = np.array([np.nan if t is None else (t - start).total_seconds() / _SECONDS_PER_HOUR
+                      for t in times])
+    return hours, start.isoformat()
+
+
 def _is_factor(name: str, cells: Sequence[Any], declared: Sequence[str]) -> bool:
     """A condition column read as labels: declared a factor, or without a number in any cell."""
     if name in physics.PARAMETERS or name in (MU_MEASURED, MU_MEASURED_STD):
@@ -464,12 +512,19 @@ def _build(rows, names, fixed, from_text, errors, factors=()) -> Dataset:
                            "message": f"required physics parameter is neither a column nor fixed "
                                       f"({spec.range_text()} [{spec.unit}])"})
 
-    physics_columns, conditions, labels = {}, {}, {}
+    physics_columns, conditions, labels, clock = {}, {}, {}, {}
     mu = std = None
     for name in names:
         cells = [None if row is None else row.get(name) for row in rows]
         if all(_missing(c) for c in cells):
             errors.append({"row": None, "column": name, "message": "column has no values; fill or remove it"})
+            continue
+        reserved = name in physics.PARAMETERS or name in (MU_MEASURED, MU_MEASURED_STD) or name in factors
+        timed = None if reserved else _clock_hours(cells)
+        if timed is not None:
+            errors += [{"row": i + 1, "column": name, "message": "missing time (ISO 8601)"}
+                       for i, cell in enumerate(cells) if rows[i] is not None and _missing(cell)]
+            conditions[name], clock[name] = timed
             continue
         if _is_factor(name, cells, factors):
             column = np.empty(n, dtype=object)
@@ -520,4 +575,4 @@ def _build(rows, names, fixed, from_text, errors, factors=()) -> Dataset:
             conditions[name] = values
     if errors:
         raise DataError(sorted(errors, key=lambda e: (e["row"] is not None, e["row"] or 0)))
-    return Dataset(physics_columns, conditions, mu, std, checked_fixed, labels)
+    return Dataset(physics_columns, conditions, mu, std, checked_fixed, labels, clock)

@@ -27,6 +27,7 @@ from scipy.optimize import least_squares
 from microbearing import physics
 
 from .candidates import FrozenBase, Term, mu_of
+from .censored import censored_residual, measured_rows
 from .data import Dataset
 
 __all__ = [
@@ -199,9 +200,14 @@ def predict_mu(
 
 
 def weighted_log_residual(dataset: Dataset, mu: np.ndarray, rows=None) -> np.ndarray:
-    """``log(mu / mu_measured)``, over the log noise ``mu_measured_std / mu_measured`` when given. [1]"""
+    """``log(mu / mu_measured)``, over the log noise ``mu_measured_std / mu_measured`` when given; a row at
+    a sensor's clip (``dataset.censored``) takes its censored-likelihood residual
+    (:func:`calibrate.censored.censored_residual`). [1]"""
     measured = dataset.mu_measured if rows is None else dataset.mu_measured[rows]
     r = np.log(np.maximum(mu, 1e-300)) - np.log(measured)
+    if dataset.censored is not None:
+        r = censored_residual(r, dataset.censored if rows is None else dataset.censored[rows],
+                              dataset.censor_scale)
     if dataset.mu_measured_std is None:
         return r
     std = dataset.mu_measured_std if rows is None else dataset.mu_measured_std[rows]
@@ -305,13 +311,16 @@ def fit(
         return np.where(np.isfinite(r), r, _REJECTED_RESIDUAL)
 
     r = residual(x0)
+    # The scale is the measured rows' (a clipped row's residual is not a value's).
+    measured = measured_rows(dataset.censored, dataset.n_points)
+    measured = measured if rows is None else measured[rows]
     if x0.size == 0:
-        s = scale if scale is not None else max(robust_scale(r), 1e-12)
+        s = scale if scale is not None else max(robust_scale(r[measured]), 1e-12)
         return FitResult({}, (), [], [], x0, np.zeros((0, 0)), s, r, [], True)
     passes = [scale] if scale is not None else [None, None]
     x = x0
     for given in passes:
-        s = given if given is not None else max(robust_scale(r), 1e-12)
+        s = given if given is not None else max(robust_scale(r[measured]), 1e-12)
         tol = _TOLERANCE[precise]
         result = least_squares(
             residual,

@@ -37,12 +37,15 @@ import numpy as np
 
 from microbearing import physics
 
+from .censored import measured_rows, residual_variance
 from .data import Dataset, parse_csv, parse_rows
 from .decidability import undecided
 from .discrepancy import gp_discrepancy, residual_gp
 from .domain import DataCloud, confounded_pairs, confounding_words
-from .fit import FitResult, check_fit_parameters, fit, kfold_indices, predict_mu, prediction_errors
+from .fit import FitResult, check_fit_parameters, fit, predict_mu, prediction_errors
 from .groups import describe_groups, fit_group_effect, why_not_fitted
+from .measurement import drift_words, inspect, lack_of_fit, with_censor_scale
+from .measurement import folds as design_folds
 from .model import CalibratedModel, RivalModel
 from .plausibility import check_plausible
 from .plots import calibration_plots
@@ -171,6 +174,10 @@ class CalibrationReport:
         (:mod:`calibrate.domain`).
     domain : dict
         ``columns`` of the data cloud, ``alpha`` [1] and ``summary`` of the domain rule in words.
+    measurement_system : dict
+        What the data say about the measurement system (:mod:`calibrate.measurement`): ``replicates``
+        (pure error and lack of fit, or None), ``saturation`` (clips), ``constant``, ``sessions`` (order
+        and time columns), ``drift`` (the instrument's, in words) and ``summary``, a list of sentences.
     """
 
     n_points: int
@@ -201,6 +208,7 @@ class CalibrationReport:
     scatter: dict[str, Any] = field(default_factory=dict)
     confounding: list[str] = field(default_factory=list)
     domain: dict[str, Any] = field(default_factory=dict)
+    measurement_system: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result without the PNG bytes (``plots`` lists their names)."""
@@ -233,6 +241,7 @@ class CalibrationReport:
             "scatter": self.scatter,
             "confounding": list(self.confounding),
             "domain": self.domain,
+            "measurement_system": self.measurement_system,
         }
 
     def text(self) -> str:
@@ -300,6 +309,7 @@ class CalibrationReport:
         lines += [f"confounding: {c}" for c in self.confounding]
         if self.domain:
             lines.append(f"domain: {self.domain['summary']}")
+        lines += [f"measurement: {line}" for line in self.measurement_system.get("summary", [])]
         lines += [f"warning: {w}" for w in self.warnings]
         lines.append(f"decision: {self.decision}")
         return "\n".join(lines)
@@ -481,13 +491,17 @@ def data_stage(dataset: Dataset, fit_parameters: Sequence[str], options: Calibra
     """
     fit_parameters = check_fit_parameters(dataset, fit_parameters)
     convention = options.convention
+    # Replicates, clips and order/time columns (calibrate.measurement): folds keep a design point whole,
+    # clipped rows are censored.
+    system = inspect(dataset, options.folds)
+    dataset = with_censor_scale(system.apply(dataset), fit_parameters, convention)
     measured = dataset.mu_measured
     error_default = prediction_errors(predict_mu(dataset, {}, convention=convention), measured)
-    outer = kfold_indices(dataset.n_points, options.folds, options.seed)
+    outer = design_folds(dataset, options.folds, options.seed)
     baseline = cross_validate(dataset, fit_parameters, (), outer, convention=convention)
     mu_before = predict_mu(dataset, baseline.full.declared, convention=convention)
     return DataStage(dataset, fit_parameters, error_default, outer, baseline,
-                     prediction_errors(baseline.oof_mu, measured), mu_before)
+                     prediction_errors(baseline.oof_mu, measured), mu_before, system)
 
 
 def candidates_stage(declared: DataStage, options: CalibrationOptions,
@@ -555,7 +569,9 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     # weighted by its local scatter (unless the data declare mu_measured_std, which weighs them
     # already), and outliers are judged against the local scatter.
     varying = {k: v for k, v in dataset.columns().items() if v.dtype != bool and np.unique(v).size > 1}
-    scatter = fit_scatter(varying, held_out, options.folds, options.seed)
+    values = measured_rows(dataset.censored, dataset.n_points)  # a clipped reading's residual is not scatter
+    scatter = fit_scatter({k: v[values] for k, v in varying.items()}, held_out[values], options.folds,
+                          options.seed)
     if scatter.kind != "constant":
         local = scatter.std_log(varying, measured.shape)
         if dataset.mu_measured_std is None:
@@ -574,10 +590,14 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     }
     # What the terms leave: a GP on the residual of each outer fold's own model, judged on its held-out
     # rows; part of the model only when it beats the terms alone there.
-    leftover = residual_gp(dataset, declared.outer, nested.fold_mu, mu_after, inliers, options.gp_max_train,
+    # A clipped reading is not a value: what the terms leave is read on the measured rows, and the noise
+    # counts a clipped row by its side of the clip (calibrate.censored.residual_variance).
+    values = inliers & measured_rows(dataset.censored, dataset.n_points)
+    leftover = residual_gp(dataset, declared.outer, nested.fold_mu, mu_after, values, options.gp_max_train,
                            options.seed)
-    leftover = _confirm_gp(declared, final, leftover, mu_after, inliers, options)
-    noise_std_log, scatter = _noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape)
+    leftover = _confirm_gp(declared, final, leftover, mu_after, values, options)
+    noise_std_log, scatter = _noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape,
+                                          dataset.censored)
     cloud = DataCloud.from_columns(varying, options.seed)
     model = CalibratedModel.from_fit(final, dataset, convention, noise_std_log, discrepancy=leftover["gp"],
                                      groups=group_effects, scatter=scatter, cloud=cloud)
@@ -595,7 +615,7 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
 
 def _noise_level(scatter: ScatterModel, gp_state: Mapping[str, Any] | None, held_out: np.ndarray,
                  inliers: np.ndarray, varying: Mapping[str, np.ndarray],
-                 shape: tuple[int, ...]) -> tuple[float, ScatterModel]:
+                 shape: tuple[int, ...], censored: np.ndarray | None = None) -> tuple[float, ScatterModel]:
     """The scatter of a new measurement around the model (std of log μ [1]) and the scatter model at
     that level."""
     if gp_state is None:
@@ -603,7 +623,7 @@ def _noise_level(scatter: ScatterModel, gp_state: Mapping[str, Any] | None, held
         # cross-validation did: noise, what the terms leave, and the refit's own uncertainty. RMS over
         # the rows that are not outliers (a median-based scale would be robust too, but it scatters
         # twice as much from one data set to the next).
-        noise_variance = float(np.mean(np.square(held_out[inliers])))
+        noise_variance = residual_variance(held_out, censored, inliers)
     else:
         # What the terms leave is the GP's, with its own predictive variance at each point; the
         # noise is its white-noise part (Kennedy-O'Hagan), not the held-out scatter, which holds both.
@@ -689,7 +709,27 @@ def format_report(declared: DataStage, candidates: CandidatesStage, selection: S
         scatter={**uncertainty.scatter.to_json(), "summary": uncertainty.scatter.summary()},
         confounding=confounding,
         domain=domain_words(uncertainty.cloud),
+        measurement_system=_measurement_system(declared, uncertainty, effects),
     )
+
+
+def _measurement_system(declared: DataStage, uncertainty: UncertaintyStage,
+                        effects: list[dict[str, Any]]) -> dict[str, Any]:
+    """What the data say about the measurement system (:mod:`calibrate.measurement`), with the lack of
+    fit of the calibrated model over the design points."""
+    system, dataset, final = declared.measurement, declared.dataset, uncertainty.final
+    lof = lack_of_fit(dataset, np.log(dataset.mu_measured / uncertainty.mu_after), len(final.names),
+                      ~uncertainty.outliers["mask"])
+    drift = drift_words(effects)
+    return {
+        "replicates": None if lof is None else lof.to_json(),
+        "saturation": [vars(clip) for clip in system.saturation],
+        "constant": system.constant,
+        "sessions": list(system.sessions),
+        "clock": dict(system.clock),
+        "drift": drift,
+        "summary": system.words() + ([] if lof is None else [lof.words()]) + drift,
+    }
 
 
 def _warnings(declared: DataStage, uncertainty: UncertaintyStage, gp: Mapping[str, Any]) -> list[str]:

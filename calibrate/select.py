@@ -61,8 +61,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .candidates import Term
+from .censored import measured_rows
 from .data import Dataset
-from .fit import fit, kfold_indices, predict_mu
+from .fit import fit, predict_mu
+from .measurement import folds as design_folds
 from .scatter import ScatterModel, fit_scatter
 from .scores import (
     SIGN_FLIPS,
@@ -204,7 +206,9 @@ def selection_scatter(dataset: Dataset, model: ModelCV, folds: int, seed: int) -
     if not columns:
         return None
     residual = np.log(dataset.mu_measured / model.oof_mu)
-    return fit_scatter(columns, residual, min(folds, dataset.n_points), seed)
+    rows = measured_rows(dataset.censored, dataset.n_points)  # a clipped reading's residual is not scatter
+    return fit_scatter({k: v[rows] for k, v in columns.items()}, residual[rows],
+                       min(folds, int(rows.sum())), seed)
 
 
 def _form(scatter: ScatterModel | None) -> tuple[str, str | None]:
@@ -282,7 +286,7 @@ def forward_select(
 
     rows = search_rows(dataset.n_points, options.max_rows, seed)
     data = dataset if rows.size == dataset.n_points else dataset.subset(rows)
-    fold_rows = kfold_indices(data.n_points, folds, seed)
+    fold_rows = design_folds(data, folds, seed)  # a design point's replicates in one fold
     declared_noise = data.mu_measured_std is not None
     rounds = 1 if declared_noise else max(int(options.scatter_rounds), 1)
     # Progress: the first search takes most of it, each further one (run only when the scatter is not
@@ -370,6 +374,9 @@ def _search(data, plain, fit_parameters, fold_rows, options: SearchOptions, decl
     scale = current.full.scale
     steps: list[Step] = []
     reason = ""
+    if np.unique(data.mu_measured).size == 1:
+        return _SearchRun(current, scale, steps, "every row reads the same mu: constant data show no "
+                          "dependence on anything measured, and no term is fitted")
     for k in range(options.max_terms):
         # Only declared noise is a level to test against: weights from the scatter model are fitted to
         # this very residual, and it would always look consistent with them.

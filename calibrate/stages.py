@@ -26,6 +26,7 @@ from .data import Dataset
 from .domain import DataCloud
 from .fit import FitResult
 from .groups import GroupEffect
+from .measurement import MeasurementSystem
 from .model import CalibratedModel
 from .rivals import Rival
 from .scatter import ScatterModel
@@ -114,6 +115,9 @@ class DataStage:
         Held-out errors of ``baseline`` (the **before** figure).
     mu_before : numpy.ndarray
         μ of ``baseline``'s fit on all rows at every row. [1]
+    measurement : MeasurementSystem or None
+        Replicates, clips, constant data and order/time columns (:func:`calibrate.measurement.inspect`);
+        ``dataset`` carries its design points and censored rows.
     """
 
     dataset: Dataset
@@ -123,6 +127,7 @@ class DataStage:
     baseline: ModelCV
     error_before: dict[str, float]
     mu_before: np.ndarray = field(repr=False)
+    measurement: MeasurementSystem | None = None
 
 
 @dataclass(frozen=True)

@@ -73,8 +73,8 @@ from .drivers import (
 
 __all__ = ["EffectParameter", "Effect", "EFFECTS", "DriftLaw", "DRIFT_LAWS", "DRIFT_PARAMETERS", "Domain",
            "DriverKind", "DriverUnit", "DRIVER_KINDS", "HUMIDITY", "TEMPERATURE", "ParameterShare",
-           "PARAMETER_SHARES", "VALUE_FORMS", "apply_effect", "name_matches", "register_effect",
-           "humidity_fraction", "temperature_kelvin"]
+           "PARAMETER_SHARES", "SESSION_KEYWORDS", "VALUE_FORMS", "apply_effect", "name_matches",
+           "register_effect", "humidity_fraction", "temperature_kelvin"]
 
 
 @dataclass(frozen=True)
@@ -435,8 +435,9 @@ _RUN_IN = Effect(
     title="Running-in: friction decays from its initial value as the contacts smooth and transfer films form",
     formula="mu = mu_model * (1 + run_in_amplitude * exp(-n / run_in_length))",
     parameters=(
+        # Never negative: friction rising with the count is no run-in (measurement_drift may take it)
         EffectParameter("run_in_amplitude", "1", "Initial excess friction relative to the steady state.",
-                        -0.95, 100.0),
+                        0.0, 100.0),
         EffectParameter("run_in_length", "driver",
                         "Decay length of the excess, in the unit of the run/cycle column.", 0.0, np.inf),
     ),
@@ -448,6 +449,30 @@ _RUN_IN = Effect(
     domain=Domain(0.0),
     # x (1 + a exp(-n / L)), a > -1, L > 0: falls with n where a > 0
     enters="mul", direction=lambda v: -_sign(v[0]), value_forms=(None, None),
+)
+
+#: Name words of an order or clock column: the measurement's place in the session, not the bearing's wear.
+SESSION_KEYWORDS = ("index", "order", "sequence", "seq", "time", "date", "hour", "elapsed", "session",
+                    "clock")
+
+_MEASUREMENT_DRIFT = Effect(
+    name="measurement_drift",
+    title="Measurement drift: the instrument's reading drifts over the session (gauge drift), not the "
+          "bearing",
+    formula="mu = mu_model * exp(session_drift_log * (x - x_start) / (x_end - x_start))",
+    parameters=(EffectParameter(
+        "session_drift_log", "1",
+        "Log of the reading's factor at the session's end over its start (0.073: +7.6 %); the reading is "
+        "taken as true at the start.", -1.0, 1.0),),
+    driver_description="measurement order (run_index) or time (hours, or ISO 8601 dates) over the session; "
+                       "x_start and x_end its first and last value in the data",
+    reference="Gauge drift (stability) of a measurement system: AIAG, Measurement Systems Analysis, 4th ed., "
+              "2010, ch. I; a linear drift of the tribometer's force reading over the session.",
+    driver_keywords=SESSION_KEYWORDS, min_levels=3,  # start < end over the data
+    correct=lambda mu, x, columns, p, c: mu * np.exp(p[0] * (x - c["start"]) / (c["end"] - c["start"])),
+    make_constants=lambda x: {"start": float(np.min(x)), "end": float(np.max(x))},
+    make_initial=_zeros,
+    enters="mul", direction=lambda v: _sign(v[0]), value_forms=("log",),  # x exp(d s), s rises with x
 )
 
 _C_BOUNDS = (-20.0, 20.0)
@@ -595,7 +620,7 @@ def register_effect(effect: Effect) -> None:
 
 
 for _effect in (_MENISCUS, _VISCOUS, _CONSTANT, _THERMAL, _RUN_IN, _BREAKAWAY, _VISCOUS_POWER,
-                _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER):
+                _MEASUREMENT_DRIFT, _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER):
     register_effect(_effect)
 
 

@@ -423,6 +423,14 @@ class CalibrationResult(ResponseModel):
     domain: dict[str, Any] | None = Field(default=None, description=(
         "The domain rule: columns of the data cloud, alpha [1] (share of points like the data flagged) and "
         "summary in words."))
+    measurement_system: dict[str, Any] | None = Field(default=None, description=(
+        "What the data say about the measurement system: replicates (design points, pure_error_relative [1] "
+        "of log mu between replicates, the lack-of-fit F-test: f [1], p [1]; null without replicates), "
+        "saturation (clips: side, level [1], rows [1], share [1]; their rows censored), constant (the one "
+        "value of mu when every row reads it, else null), sessions (order and time columns, candidate "
+        "drivers of measurement_drift), clock (columns read from ISO 8601 times as hours since their "
+        "start), drift (the instrument's drift over the session in words) and summary (sentences); null "
+        "for calibrations stored before it."))
     plots: dict[str, str] = Field(description=(
         "Plots: name -> URL of the PNG (effect_<k>: the k-th term against its driver with its 95 % band; "
         "residuals: against every input, before and after; measured_vs_predicted)."))

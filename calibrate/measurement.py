@@ -1,0 +1,395 @@
+"""The lab's measurement system: replicates, a clipping sensor, constant data, and the instrument's drift.
+
+What a tribometer does to the readings is not the bearing's physics, and the calibration says so
+before it reads the data as physics:
+
+* **Replicates.** Rows with the same inputs and conditions (up to a jitter of
+  :data:`JITTER` relative, order and time columns aside) are one **design point** measured several
+  times. Their spread about their own mean is the **pure error**: the scatter of the measurement
+  itself, whatever the model. The model's residual sum of squares (of log μ) splits into pure error and
+  **lack of fit**, the spread of the design points' mean residuals, and the F-test of the two says
+  whether the model misses something the replicates can see (NIST/SEMATECH e-Handbook of Statistical
+  Methods, 4.4.4.4; :func:`lack_of_fit`). Cross-validation folds then keep a design point's replicates
+  together (:func:`folds`): a held-out row whose replicate was in training is predicted by its twin,
+  not by the model.
+* **Saturation.** A pile of identical readings at the top or the bottom of μ (a sensor at its clip)
+  is found (:func:`inspect`) and those rows are censored: they say the true μ is beyond the clip, and
+  enter the fit by that probability (:mod:`calibrate.censored`), not as values.
+* **Constant data.** μ identical in every row tells nothing a term could follow: said, and no term.
+* **Drift.** An order (``run_index``) or time column (ISO 8601 times read as hours,
+  :mod:`calibrate.data`) is a candidate driver of the effect ``measurement_drift`` (the reading drifts
+  over the session: gauge drift, AIAG MSA), distinct from a run-in of the bearing with its cycles; when
+  the search chooses it the report says how far the instrument drifted (:func:`drift_words`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from microbearing.physics.effects import SESSION_KEYWORDS, name_matches
+
+from .censored import measured_rows
+from .data import Dataset
+from .fit import fit, kfold_indices, robust_scale
+
+__all__ = ["JITTER", "LackOfFit", "MeasurementSystem", "Saturation", "drift_words", "folds", "inspect",
+           "lack_of_fit", "session_columns", "with_censor_scale"]
+
+#: Relative jitter within which two values of an input are one level of a design (log scale for a
+#: positive column, of the column's range otherwise). [1]
+JITTER = 0.02
+#: A pile of identical readings at an end of μ is a clip when it holds at least this share of the rows
+#: (and :data:`_PILE_MIN` rows, and :data:`_PILE_OVER_TIES` times the most frequent other value). [1]
+PILE_SHARE = 0.05
+_PILE_MIN = 5
+_PILE_OVER_TIES = 3
+# A design needs at least this many points per fold for folds of whole points. [1]
+_POINTS_PER_FOLD = 1
+
+
+@dataclass(frozen=True)
+class Saturation:
+    """A pile of identical readings at one end of μ.
+
+    Attributes
+    ----------
+    side : str
+        ``"upper"`` (the true μ is at least the clip) or ``"lower"`` (at most).
+    level : float
+        The clipped reading. [1]
+    rows : int
+        Rows at it. [1]
+    share : float
+        Their share of the rows. [1]
+    """
+
+    side: str
+    level: float
+    rows: int
+    share: float
+
+    def words(self) -> str:
+        """The clip in words."""
+        beyond = "at least" if self.side == "upper" else "at most"
+        return (f"{self.rows} rows ({100 * self.share:.0f} %) read exactly mu = {self.level:.6g}, the "
+                f"{'largest' if self.side == 'upper' else 'smallest'} value: a sensor at its clip; they are "
+                f"censored (the true mu is {beyond} {self.level:.6g}) and enter the fit by that "
+                f"probability (Tobit likelihood), not as values")
+
+
+@dataclass(frozen=True)
+class LackOfFit:
+    """The residual sum of squares of log μ split into pure error and lack of fit (F-test).
+
+    Attributes
+    ----------
+    points : int
+        Design points with a measured row. [1]
+    replicated : int
+        Of them, points measured more than once. [1]
+    rows : int
+        Measured rows counted. [1]
+    pure_error : float
+        Standard deviation of log μ within design points (the measurement's own scatter). [1]
+    pure_error_dof : int
+        Its degrees of freedom, rows - points. [1]
+    lack_of_fit_dof : int
+        Points - fitted values (0: no test). [1]
+    f : float or None
+        Lack-of-fit mean square over pure-error mean square. [1]
+    p : float or None
+        Chance of an F at least as large when the model lacks nothing. [1]
+    """
+
+    points: int
+    replicated: int
+    rows: int
+    pure_error: float
+    pure_error_dof: int
+    lack_of_fit_dof: int
+    f: float | None
+    p: float | None
+
+    def words(self) -> str:
+        """E.g. ``20 design points x 5 (100 rows); pure error 3.1 %; lack of fit p = 0.42 (F = 1.04 ...)``."""
+        per = self.rows / self.points
+        counts = f"{per:.0f}" if abs(per - round(per)) < 1e-9 else f"{per:.1f} on average"
+        text = (f"{self.points} design points x {counts} ({self.rows} rows, {self.replicated} points "
+                f"replicated); pure error {100 * self.pure_error:.1f} % (scatter of log mu between "
+                f"replicates, {self.pure_error_dof} degrees of freedom)")
+        if self.p is None:
+            return text + "; no lack-of-fit test: as many fitted values as design points"
+        verdict = ("the model misses something the replicates see" if self.p < 0.01 else
+                   "the model fits the design points' means as well as the replicates allow")
+        return (text + f"; lack of fit p = {self.p:.3g} (F = {self.f:.3g} on {self.lack_of_fit_dof} and "
+                f"{self.pure_error_dof} degrees of freedom): {verdict}")
+
+    def to_json(self) -> dict[str, Any]:
+        """The figures as data, with ``summary`` in words."""
+        return {"points": self.points, "replicated_points": self.replicated, "rows": self.rows,
+                "pure_error_relative": self.pure_error, "pure_error_dof": self.pure_error_dof,
+                "lack_of_fit_dof": self.lack_of_fit_dof, "f": self.f, "p": self.p, "summary": self.words()}
+
+
+@dataclass(frozen=True)
+class MeasurementSystem:
+    """What the data say about the measurement system before any fit (:func:`inspect`).
+
+    Attributes
+    ----------
+    design : numpy.ndarray or None
+        Design point of each row when some are replicated, else None.
+    sessions : tuple of str
+        Order and time columns (candidate drivers of ``measurement_drift``, not of the design).
+    clock : dict of str to str
+        Time columns read from ISO 8601 and their start.
+    saturation : tuple of Saturation
+        Clips found (at most one per end).
+    constant : float or None
+        The one value of μ when every row reads it, else None. [1]
+    grouped_folds : bool
+        Whether folds keep design points whole (enough points for the folds).
+    """
+
+    design: np.ndarray | None
+    sessions: tuple[str, ...]
+    clock: dict[str, str]
+    saturation: tuple[Saturation, ...]
+    constant: float | None
+    grouped_folds: bool = False
+
+    def censored(self, mu: np.ndarray) -> np.ndarray | None:
+        """+1 / -1 / 0 per row for the clips (None when there is none)."""
+        if not self.saturation:
+            return None
+        out = np.zeros(mu.size, dtype=np.int8)
+        for clip in self.saturation:
+            out[mu == clip.level] = 1 if clip.side == "upper" else -1
+        return out
+
+    def apply(self, dataset: Dataset) -> Dataset:
+        """The data with their design points and censored rows marked (:class:`calibrate.data.Dataset`)."""
+        return replace(dataset, design=self.design, censored=self.censored(dataset.mu_measured))
+
+    def words(self) -> list[str]:
+        """What was found, one sentence each (empty when nothing)."""
+        out = []
+        if self.constant is not None:
+            out.append(f"every row reads mu = {self.constant:.6g}: constant data show no dependence on "
+                       f"anything measured (a stuck or saturated sensor?); no term is fitted")
+        out += [clip.words() for clip in self.saturation]
+        out += [f"{name} read as time: hours since {start}" for name, start in self.clock.items()]
+        if self.sessions:
+            out.append(f"order/time column(s) {', '.join(self.sessions)}: candidate driver(s) of a "
+                       f"measurement drift (the reading, not the bearing), left out of the design points")
+        if self.design is not None:
+            how = ("cross-validation folds keep each point's replicates together" if self.grouped_folds else
+                   "too few design points to keep each one in a single fold: folds split rows")
+            out.append(f"{np.unique(self.design).size} design points for {self.design.size} rows: {how}")
+        return out
+
+
+def session_columns(dataset: Dataset) -> tuple[str, ...]:
+    """Condition columns of order or time: read from ISO 8601 times, or named so (``run_index``,
+    ``time_h``, ``date``; :data:`physics.effects.SESSION_KEYWORDS`)."""
+    return tuple(n for n in dataset.conditions if n in dataset.clock or name_matches(n, SESSION_KEYWORDS))
+
+
+def _levels(values: np.ndarray) -> np.ndarray:
+    """Level of each value: values within :data:`JITTER` of a neighbour are one level when the levels are
+    tight (no chain of jitters longer than one); otherwise every distinct value its own level."""
+    exact = np.unique(values, return_inverse=True)[1]
+    if values.dtype == bool or np.unique(values).size < 2:
+        return exact
+    x = np.log(values) if np.all(values > 0) else (values - values.min()) / np.ptp(values)
+    order = np.argsort(x, kind="stable")
+    split = np.diff(x[order]) > JITTER
+    level_sorted = np.concatenate([[0], np.cumsum(split)])
+    spans = [np.ptp(x[order][level_sorted == k]) for k in range(level_sorted[-1] + 1)]
+    if max(spans) > JITTER or level_sorted[-1] + 1 > values.size / 2:
+        return exact
+    levels = np.empty(values.size, dtype=int)
+    levels[order] = level_sorted
+    return levels
+
+
+def _design(dataset: Dataset, sessions: Sequence[str]) -> np.ndarray | None:
+    """Design point of each row when at least two points hold replicates and some degrees of freedom
+    remain for pure error; else None."""
+    keys = [_levels(np.asarray(v)) for n, v in dataset.columns().items() if n not in sessions]
+    keys += [np.unique(v, return_inverse=True)[1] for v in dataset.factors.values()]
+    if not keys:
+        return np.zeros(dataset.n_points, dtype=int)
+    point = np.unique(np.stack(keys, axis=1), axis=0, return_inverse=True)[1].ravel()
+    counts = np.bincount(point)
+    if np.sum(counts > 1) < 2:
+        return None
+    return point
+
+
+def _saturation(mu: np.ndarray) -> tuple[Saturation, ...]:
+    values, counts = np.unique(mu, return_counts=True)
+    if values.size < 3:
+        return ()
+    found = []
+    for index, side in ((-1, "upper"), (0, "lower")):
+        pile = counts[index]
+        others = np.delete(counts, index)
+        if pile >= max(_PILE_MIN, PILE_SHARE * mu.size) and pile >= _PILE_OVER_TIES * others.max():
+            found.append(Saturation(side, float(values[index]), int(pile), float(pile / mu.size)))
+    return tuple(found)
+
+
+def inspect(dataset: Dataset, n_folds: int) -> MeasurementSystem:
+    """Replicates, clips, constant data and order/time columns of the measurements.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Measurements.
+    n_folds : int
+        Cross-validation folds: folds keep design points whole only with at least as many points. [1]
+
+    Returns
+    -------
+    MeasurementSystem
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.data import parse_rows
+    >>> rows = [{"load_N": g * (1 + 0.001 * k), "run_index": 3 * i + k, "mu_measured": 0.01 + 0.001 * k}
+    ...         for i, g in enumerate([0.01, 0.02, 0.04]) for k in range(3)]
+    >>> system = inspect(parse_rows(rows, fixed={"balls": 4, "speed_m_s": 0.1}), 3)
+    >>> system.design.tolist(), system.sessions, system.grouped_folds
+    ([0, 0, 0, 1, 1, 1, 2, 2, 2], ('run_index',), True)
+    """
+    sessions = session_columns(dataset)
+    mu = dataset.mu_measured
+    constant = float(mu[0]) if np.unique(mu).size == 1 else None
+    design = _design(dataset, sessions)
+    grouped = design is not None and np.unique(design).size >= _POINTS_PER_FOLD * n_folds
+    return MeasurementSystem(design, sessions, dict(dataset.clock),
+                             () if constant is not None else _saturation(mu), constant, grouped)
+
+
+def folds(dataset: Dataset, n_folds: int, seed: int = 0) -> list[np.ndarray]:
+    """Test rows of each cross-validation fold: whole design points when the data mark them
+    (``dataset.design``), else rows (:func:`calibrate.fit.kfold_indices`, unchanged).
+
+    Points are shuffled by ``seed`` and dealt, largest first, to the fold with the fewest rows so far,
+    so that the folds hold about as many rows each.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.data import parse_rows
+    >>> d = parse_rows([{"load_N": 0.01, "mu_measured": 0.01}] * 4, fixed={"balls": 4, "speed_m_s": 0.1})
+    >>> [f.tolist() for f in folds(replace(d, design=np.array([0, 0, 1, 1])), 2)]
+    [[0, 1], [2, 3]]
+    """
+    if dataset.design is None or np.unique(dataset.design).size < n_folds:
+        return kfold_indices(dataset.n_points, n_folds, seed)
+    points, counts = np.unique(dataset.design, return_counts=True)
+    order = np.random.default_rng(seed).permutation(points.size)
+    order = order[np.argsort(-counts[order], kind="stable")]
+    sizes = np.zeros(n_folds, dtype=int)
+    owner = {}
+    for k in order:
+        fold = int(np.argmin(sizes))
+        owner[points[k]] = fold
+        sizes[fold] += counts[k]
+    fold_of = np.array([owner[p] for p in dataset.design])
+    return [np.flatnonzero(fold_of == f) for f in range(n_folds)]
+
+
+def lack_of_fit(dataset: Dataset, log_residual: np.ndarray, n_fitted: int,
+                keep: np.ndarray | None = None) -> LackOfFit | None:
+    """Pure error and the lack-of-fit F-test of a model's log residual over the design points.
+
+    The residual sum of squares splits into the spread of each point's rows about their mean residual
+    (pure error, ``rows - points`` degrees of freedom) and the points' mean residuals (lack of fit,
+    ``points - n_fitted``); a model that lacks nothing leaves the second no larger than the first allows
+    (F). Within-point means of the residual, not of the reading, so that a term varying within a point
+    (a drift over the session) is the model's. Clipped rows are left out (their reading is not a value).
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Measurements with ``design`` marked (None: no test).
+    log_residual : numpy.ndarray
+        ``log(mu_measured / mu_model)`` of every row. [1]
+    n_fitted : int
+        Values fitted (declared parameters and terms' parameters). [1]
+    keep : numpy.ndarray, optional
+        Rows to count (e.g. not outliers); default all.
+
+    Returns
+    -------
+    LackOfFit or None
+        None without replicates among the rows kept.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.data import parse_rows
+    >>> d = parse_rows([{"load_N": 0.01, "mu_measured": 0.01}] * 6, fixed={"balls": 4, "speed_m_s": 0.1})
+    >>> d = replace(d, design=np.array([0, 0, 1, 1, 2, 2]))
+    >>> lof = lack_of_fit(d, np.array([0.01, -0.01, 0.21, 0.19, -0.2, -0.2]), 1)  # sqrt(4e-4 / 3)
+    >>> round(lof.pure_error, 4), lof.lack_of_fit_dof, lof.p < 0.01
+    (0.0115, 2, True)
+    """
+    if dataset.design is None:
+        return None
+    rows = measured_rows(dataset.censored, dataset.n_points)
+    if keep is not None:
+        rows = rows & keep
+    point = np.unique(dataset.design[rows], return_inverse=True)[1].ravel()
+    r = np.asarray(log_residual, dtype=float)[rows]
+    counts = np.bincount(point)
+    m, n = counts.size, r.size
+    if n - m < 1 or np.sum(counts > 1) < 1:
+        return None
+    means = np.bincount(point, weights=r) / counts
+    ss_pe = float(np.sum(np.square(r - means[point])))
+    ss_lof = float(np.sum(counts * np.square(means)))
+    df_pe, df_lof = n - m, m - n_fitted
+    f = p = None
+    if df_lof > 0 and ss_pe > 0:
+        f = (ss_lof / df_lof) / (ss_pe / df_pe)
+        p = float(stats.f.sf(f, df_lof, df_pe))
+    return LackOfFit(m, int(np.sum(counts > 1)), n, float(np.sqrt(ss_pe / df_pe)), df_pe, max(df_lof, 0),
+                     None if f is None else float(f), p)
+
+
+def drift_words(effects: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The instrument's drift over the session, from the report's effects (a ``measurement_drift``
+    term), e.g. ``the instrument drifted +7.6 % over the session (run_index 0 to 119) ...``."""
+    out = []
+    for effect in effects:
+        if effect.get("name") != "measurement_drift":
+            continue
+        d = effect["parameters"]["session_drift_log"]
+        sd = effect["parameter_std"]["session_drift_log"]
+        c = effect["constants"]
+        low, high = np.expm1(d - 1.96 * sd), np.expm1(d + 1.96 * sd)
+        out.append(f"the instrument drifted {100 * np.expm1(d):+.1f} % over the session "
+                   f"({effect['drivers'][0]} {c['start']:.6g} to {c['end']:.6g}; 95 % interval "
+                   f"{100 * low:+.1f} to {100 * high:+.1f} %): "
+                   f"a drift of the reading (measurement system), not of the bearing; the fitted physics is "
+                   f"the reading at the session's start")
+    return out
+
+
+def with_censor_scale(dataset: Dataset, fit_parameters: Sequence[str], convention: str) -> Dataset:
+    """The data with the scale of their censored likelihood (``censor_scale``, std of log μ [1]): the
+    robust scale of the declared model's log residual fitted on the measured rows alone (the data
+    themselves when nothing is clipped)."""
+    if dataset.censored is None:
+        return dataset
+    rows = np.flatnonzero(measured_rows(dataset.censored, dataset.n_points))
+    plain = replace(dataset, censored=None)
+    result = fit(plain, fit_parameters, rows=rows, precise=False, convention=convention)
+    return replace(dataset, censor_scale=max(robust_scale(result.residual), 1e-6))

@@ -1,0 +1,245 @@
+"""The lab's measurement system (issue 33, items 1-3): replicates and lack of fit, drift over a session
+(order and ISO 8601 time), a clipping sensor (censored rows) and constant data.
+
+The pieces are checked against independent numbers (an ANOVA by hand, a Tobit likelihood maximized
+directly, datetime arithmetic); each item once through ``POST /v1/calibrations`` on data drawn here from
+the physics (mu_pivot 0.65, 3 % scatter, one seed; bench/measurement_system.py runs several).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from datetime import UTC, datetime, timedelta
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from jobs_helper import finished_job
+from scipy import optimize, stats
+
+from microbearing import physics
+from microbearing.calibrate import CalibratedModel, parse_csv, parse_rows
+from microbearing.calibrate.censored import censored_residual, residual_variance
+from microbearing.calibrate.measurement import folds, inspect, lack_of_fit
+from microbearing.service.app import create_app
+from microbearing.service.settings import Settings
+
+PIVOT, NOISE, BALLS = 0.65, 0.03, 4
+
+
+def truth(load_N, speed_m_s):
+    return physics.evaluate(balls=BALLS, load_N=load_N, speed_m_s=speed_m_s, mu_pivot=PIVOT).mu
+
+
+def as_rows(columns: dict, mu: np.ndarray) -> list[dict]:
+    return [{k: (v[i] if isinstance(v[i], str) else float(v[i])) for k, v in columns.items()}
+            | {"mu_measured": float(mu[i])} for i in range(mu.size)]
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("measurement")))) as test_client:
+        yield test_client
+
+
+def calibrated(client, rows, folds_=3) -> dict:
+    response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"],
+                                                     "fixed": {"balls": BALLS}, "folds": folds_})
+    assert response.status_code == 202, response.text
+    job = finished_job(client, response, timeout_s=300, interval_s=0.2)
+    return client.get(job["result_url"]).json()
+
+
+def coverage(report, points, true_mu, rng) -> tuple[float, float]:
+    """Truth error (RMS of log predicted / true) and the 95 % coverage of fresh measurements."""
+    prediction = CalibratedModel.from_json(report["model"]).predict({"balls": BALLS, **points})
+    fresh = true_mu * np.exp(rng.normal(0.0, NOISE, true_mu.size))
+    error = float(np.sqrt(np.mean(np.square(np.log(prediction.mu / true_mu)))))
+    return error, float(np.mean((prediction.mu_lower <= fresh) & (fresh <= prediction.mu_upper)))
+
+
+# --- 1. replicates -------------------------------------------------------------------------------------
+
+
+def test_lack_of_fit_is_the_anova_split_by_hand():
+    rng = np.random.default_rng(3)
+    design = np.repeat(np.arange(6), [2, 3, 4, 2, 5, 3])
+    residual = rng.normal(0.0, 0.03, design.size) + 0.02 * (design % 2)
+    d = parse_rows([{"load_N": 0.01, "mu_measured": 0.01}] * design.size,
+                   fixed={"balls": 4, "speed_m_s": 0.1})
+    lof = lack_of_fit(replace(d, design=design), residual, n_fitted=2)
+    # By hand: within-point sum of squares on n - m dof, the points' means weighted by their counts on
+    # m - p dof, and the F distribution's upper tail.
+    means = np.array([residual[design == k].mean() for k in range(6)])
+    ss_pe = sum(np.sum((residual[design == k] - means[k]) ** 2) for k in range(6))
+    ss_lof = sum(np.sum(design == k) * means[k] ** 2 for k in range(6))
+    assert ss_pe + ss_lof == pytest.approx(np.sum(residual ** 2))
+    f = (ss_lof / 4) / (ss_pe / (design.size - 6))
+    assert (lof.points, lof.pure_error_dof, lof.lack_of_fit_dof) == (6, design.size - 6, 4)
+    assert lof.pure_error == pytest.approx(np.sqrt(ss_pe / (design.size - 6)))
+    assert lof.f == pytest.approx(f) and lof.p == pytest.approx(stats.f.sf(f, 4, design.size - 6))
+
+
+def test_design_points_are_found_through_jitter_and_folds_keep_them_whole():
+    rng = np.random.default_rng(5)
+    loads = np.repeat(np.geomspace(3e-3, 3e-2, 4), 6) * (1 + 0.003 * rng.standard_normal(24))
+    speeds = np.tile(np.repeat([0.02, 0.1], 3), 4)
+    rows = as_rows({"load_N": loads, "speed_m_s": speeds, "run_index": np.arange(24)}, np.full(24, 0.01)
+                   * np.exp(rng.normal(0, 0.03, 24)))
+    dataset = parse_rows(rows, fixed={"balls": 4})
+    system = inspect(dataset, 4)
+    # 4 loads x 2 speeds, 3 replicates each; the run index is order, not design.
+    assert system.sessions == ("run_index",) and system.grouped_folds
+    assert np.unique(system.design).size == 8 and np.all(np.bincount(system.design) == 3)
+    parts = folds(system.apply(dataset), 4, seed=1)
+    assert sorted(np.concatenate(parts).tolist()) == list(range(24))
+    assert all(len({int(system.design[i]) for i in part}) * 3 == part.size for part in parts)
+    # Random loads (no two alike up to the jitter's chain) are no design: row folds as before.
+    scattered = parse_rows(as_rows({"load_N": np.exp(rng.uniform(-6, -3, 60)), "speed_m_s": np.full(60, 0.1)},
+                                   np.full(60, 0.01) * np.exp(rng.normal(0, 0.03, 60))), fixed={"balls": 4})
+    assert inspect(scattered, 5).design is None
+
+
+def test_replicates_through_the_api(client):
+    rng = np.random.default_rng(11)
+    loads, speeds = np.meshgrid(np.geomspace(3e-3, 3e-2, 3), np.linspace(0.02, 0.14, 4))
+    load = np.repeat(loads.ravel(), 4) * (1 + 0.002 * rng.standard_normal(48))
+    speed = np.repeat(speeds.ravel(), 4)
+    mu = truth(load, speed) * np.exp(rng.normal(0.0, NOISE, 48))
+    report = calibrated(client, as_rows({"load_N": load, "speed_m_s": speed}, mu))
+    replicates = report["measurement_system"]["replicates"]
+    assert replicates["points"] == 12 and replicates["rows"] == 48
+    assert 0.02 < replicates["pure_error_relative"] < 0.04  # truth 3 %
+    assert replicates["p"] > 0.01  # the physics lacks nothing
+    assert any("12 design points x 4" in line for line in report["measurement_system"]["summary"])
+    assert report["effects"] == []
+    error, covered = coverage(report, {"load_N": np.repeat(loads.ravel(), 30), "speed_m_s":
+                                       np.repeat(speeds.ravel(), 30)},
+                              truth(np.repeat(loads.ravel(), 30), np.repeat(speeds.ravel(), 30)), rng)
+    assert error < 0.5 * NOISE and 0.9 <= covered <= 0.995
+
+
+# --- 2. time and order -----------------------------------------------------------------------------------
+
+
+def test_iso_times_are_hours_since_the_start_not_labels():
+    start = datetime(2026, 11, 28, 9, 0, tzinfo=UTC)
+    stamps = [start + timedelta(minutes=m) for m in (30, 0, 95)]
+    text = "load_N,speed_m_s,date,mu_measured\n" + "".join(
+        f"0.01,0.1,{t.isoformat().replace('+00:00', 'Z')},0.01\n" for t in stamps)
+    dataset = parse_csv(text, fixed={"balls": 4})
+    assert dataset.factors == {}
+    assert dataset.conditions["date"].tolist() == pytest.approx([0.5, 0.0, 95 / 60])
+    assert dataset.clock == {"date": start.isoformat()}
+    # A zone on some cells only: the others are UTC; a date alone is midnight.
+    mixed = parse_rows([{"load_N": 0.01, "day": d, "mu_measured": 0.01} for d in
+                        ("2026-11-28", "2026-11-28T12:00:00+02:00")], fixed={"balls": 4, "speed_m_s": 0.1})
+    assert mixed.conditions["day"].tolist() == pytest.approx([0.0, 10.0])
+    # Labels stay labels.
+    labels = parse_rows([{"load_N": 0.01, "specimen": s, "mu_measured": 0.01} for s in ("S1", "2026-13")],
+                        fixed={"balls": 4, "speed_m_s": 0.1})
+    assert "specimen" in labels.factors
+
+
+def session_rows(rng, n, drift, clock):
+    load = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n))
+    speed = rng.uniform(0.01, 0.15, n)
+    run = np.arange(n, dtype=float)
+    mu = truth(load, speed) * (1 + drift * run / (n - 1)) * np.exp(rng.normal(0.0, NOISE, n))
+    start = datetime(2026, 11, 28, 9, 0, tzinfo=UTC)
+    column = {"date": [(start + timedelta(minutes=4 * k)).isoformat() for k in range(n)]} if clock \
+        else {"run_index": run}
+    return as_rows({"load_N": load, "speed_m_s": speed, **column}, mu)
+
+
+def test_instrument_drift_through_the_api_with_iso_times(client):
+    rng = np.random.default_rng(4)
+    n = 96
+    report = calibrated(client, session_rows(rng, n, 0.08, clock=True))
+    assert [e["name"] for e in report["effects"]] == ["measurement_drift"]
+    drift = report["effects"][0]["parameters"]["session_drift_log"]
+    assert np.expm1(drift) == pytest.approx(0.08, abs=0.03)
+    said = report["measurement_system"]["drift"][0]
+    assert said.startswith(f"the instrument drifted {100 * np.expm1(drift):+.1f} % over the session")
+    assert report["measurement_system"]["clock"] == {"date": "2026-11-28T09:00:00+00:00"}
+    hours = 4 * (n - 1) / 60
+    for at in (0.0, hours):  # the session's start and end
+        g = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), 300))
+        v = rng.uniform(0.01, 0.15, 300)
+        error, covered = coverage(report, {"load_N": g, "speed_m_s": v, "date": np.full(300, at)},
+                                  truth(g, v) * (1 + 0.08 * at / hours), rng)
+        assert error < 0.5 * NOISE and 0.9 <= covered <= 0.995
+
+
+def test_friction_rising_over_the_runs_is_not_a_run_in(client):
+    rng = np.random.default_rng(8)
+    report = calibrated(client, session_rows(rng, 72, 0.10, clock=False))
+    names = [e["name"] for e in report["effects"]]
+    assert "run_in" not in names and names == ["measurement_drift"]
+    assert report["effects"][0]["drivers"] == ["run_index"]
+    assert report["fitted_parameters"]["mu_pivot"]["value"] == pytest.approx(PIVOT, rel=0.03)
+
+
+# --- 3. saturation and constant data ---------------------------------------------------------------------
+
+
+def test_censored_residual_maximizes_the_tobit_likelihood():
+    rng = np.random.default_rng(2)
+    x = rng.uniform(0, 1, 200)
+    y = 0.3 + 0.5 * x + rng.normal(0, 0.1, 200)
+    clip = 0.7
+    side = (y >= clip).astype(int)
+    y = np.minimum(y, clip)
+    s = 0.1
+
+    def tobit(p):  # the censored likelihood written directly: density below the clip, survival at it
+        model = p[0] + p[1] * x
+        return -(np.sum(stats.norm.logpdf(y[side == 0], model[side == 0], s))
+                 + np.sum(stats.norm.logsf(clip, model[side == 1], s)))
+
+    direct = optimize.minimize(tobit, [0.0, 0.0], method="Nelder-Mead",
+                               options={"xatol": 1e-8, "fatol": 1e-10}).x
+    squares = optimize.least_squares(lambda p: censored_residual(p[0] + p[1] * x - y, side, s), [0.0, 0.0]).x
+    assert squares == pytest.approx(direct, abs=1e-4)
+    assert abs(direct[1] - 0.5) < 0.1  # and the censored fit is not the flattened one
+    assert np.polyfit(x, y, 1)[0] < direct[1] - 0.05
+    # The variance counts the clipped rows by their side: near the truth where the measured rows alone
+    # (a sample truncated at +0.01) are narrower.
+    r = rng.normal(0, 0.03, 3000)
+    clipped = np.where(r > 0.01, 1, 0)
+    cut = np.minimum(r, 0.01)
+    spread = np.sqrt(residual_variance(cut, clipped, np.ones(3000, bool)))
+    assert spread == pytest.approx(0.03, rel=0.06)
+    assert np.sqrt(np.mean(np.square(cut[clipped == 0]))) < 0.95 * spread
+
+
+def test_a_clipping_sensor_through_the_api(client):
+    rng = np.random.default_rng(6)
+    n = 72
+    load = np.exp(rng.uniform(np.log(1e-3), np.log(3e-2), n))
+    speed = rng.uniform(0.01, 0.15, n)
+    true_mu = truth(load, speed)
+    level = float(np.quantile(true_mu, 0.72))
+    mu = np.minimum(true_mu * np.exp(rng.normal(0.0, NOISE, n)), level)
+    assert 0.26 <= np.mean(mu == level) <= 0.31
+    report = calibrated(client, as_rows({"load_N": load, "speed_m_s": speed}, mu))
+    (clip,) = report["measurement_system"]["saturation"]
+    assert clip["side"] == "upper" and clip["level"] == level and clip["rows"] == np.sum(mu == level)
+    assert report["effects"] == []  # no law invented for the plateau
+    assert report["fitted_parameters"]["mu_pivot"]["value"] == pytest.approx(PIVOT, rel=0.03)
+    g = np.exp(rng.uniform(np.log(1e-3), np.log(3e-2), 2000))
+    v = rng.uniform(0.01, 0.15, 2000)
+    t = truth(g, v)
+    beyond = t >= level
+    error, covered = coverage(report, {"load_N": g[beyond], "speed_m_s": v[beyond]}, t[beyond], rng)
+    assert error < 0.5 * NOISE and 0.88 <= covered <= 0.99
+
+
+def test_constant_data_are_said_and_get_no_term(client):
+    rng = np.random.default_rng(9)
+    load = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), 40))
+    report = calibrated(client, as_rows({"load_N": load, "speed_m_s": rng.uniform(0.01, 0.15, 40)},
+                                        np.full(40, 0.012)))
+    assert report["effects"] == [] and report["measurement_system"]["constant"] == 0.012
+    assert report["measurement_system"]["saturation"] == []
+    assert "constant data" in report["decision"]
