@@ -49,13 +49,58 @@ from .fit import FitResult
 from .groups import GroupEffect
 from .scatter import ScatterModel
 
-__all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMAT_VERSION"]
+__all__ = ["CalibratedModel", "EXTRAPOLATION_SHARE", "GPCorrection", "Prediction", "RivalModel",
+           "FORMAT_VERSION", "extrapolation_allowance"]
 
 FORMAT_VERSION = 2
 # Relative step of the finite-difference gradient of log mu in the fitted values.
 _GRADIENT_STEP = 1e-6
 # Relative slack of the domain's bounds (rounding of the data). [1]
 _DOMAIN_SLACK = 1e-9
+#: The extrapolation allowance beyond the data's range in a physics input (:meth:`CalibratedModel.
+#: extrapolation_ratio`): the interval's log half-width is multiplied by 1 + d / (share x span), d the
+#: distance beyond the range and span the range's width, both in the input's log for a positive input
+#: (speed, load: 5 mm/s is as far below data at 50 mm/s as 500 mm/s is above), else in its unit: it
+#: doubles for every quarter of the data's span beyond them. [1]
+EXTRAPOLATION_SHARE = 0.25
+# A positive input's log is taken at no less than this share of the data's least value (a speed of 0
+# below data at 50 mm/s is as far as 50 um/s: a finite allowance). [1]
+_LOG_FLOOR = 1e-3
+
+
+def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = None
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """The extrapolation allowance of values of a physics input whose data spanned [low, high], and the
+    side they lie on (-1 below, 0 inside, +1 above); broadcasting.
+
+    Inside the range widened by the domain check's slack (:meth:`CalibratedModel.domain_check`: twice
+    the mean spacing of ``rows`` values at each end) the allowance is 0; beyond it, 1 + d / (share x
+    span), d the distance beyond the widened end and span = high - low, both in the input's log when
+    ``low`` > 0 (a value at or below 0 is taken at :data:`_LOG_FLOOR` of the end), else in its unit;
+    share :data:`EXTRAPOLATION_SHARE`. It multiplies the interval's log half-width
+    (:meth:`CalibratedModel.cloud_ratio`).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        The allowance [1] and the side [1].
+    """
+    value, low, high = (np.asarray(x, dtype=float) for x in (value, low, high))
+    slack = _DOMAIN_SLACK * np.maximum(np.maximum(np.abs(low), np.abs(high)), 1e-300)
+    if rows is not None and rows > 1:
+        slack = slack + 2.0 * (high - low) / (rows - 1)
+    start, end = low - slack, high + slack
+    log = low > 0
+    with np.errstate(all="ignore"):
+        floor = _LOG_FLOOR * np.where(start > 0, start, high)
+        at = np.log(np.maximum(value, floor))
+        below = np.where(log, np.log(np.maximum(start, floor)) - at, start - value)
+        above = np.where(log, at - np.log(end), value - end)
+        span = np.where(log, np.log(high / np.where(log, low, 1.0)), high - low)
+        d = np.maximum(np.maximum(below, above), 0.0) / (EXTRAPOLATION_SHARE * span)
+    d = np.where(np.isfinite(d) & (span > 0), d, 0.0)
+    side = np.where(d > 0, np.where(below > 0, -1, 1), 0)
+    return np.where(d > 0, 1.0 + d, 0.0), side
 
 
 @dataclass(frozen=True)
@@ -497,8 +542,8 @@ class CalibratedModel:
         group_shift, group_variance = self._group_terms(points, labels, mu.shape, level)
         sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + group_variance
                         + self._noise_variance(points, mu.shape, level))
-        if self.cloud is not None:
-            sigma = sigma * self.cloud.widening(self.cloud_ratio(points, mu.shape))
+        # Beyond the data cloud or a physics input's range the interval widens (:meth:`cloud_ratio`).
+        sigma = sigma * self.widening(self.cloud_ratio(points, mu.shape))
         z = float(stats.norm.isf((1.0 - level) / 2.0))
         mu = mu * np.exp(shift + group_shift)
         lower, upper = mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
@@ -596,50 +641,93 @@ class CalibratedModel:
         return out
 
     def cloud_ratio(self, points: Mapping[str, Any], shape=None) -> np.ndarray:
-        """Distance of each point to the data cloud over the cloud's threshold (> 1: outside) [1]; zeros
-        without a cloud. Physics columns a point does not give take the model's values."""
+        """Distance ratio of each point from the data (> 1: outside, and the interval's log half-width is
+        multiplied by it) [1]: the larger of the distance to the data cloud over the cloud's threshold
+        and :meth:`extrapolation_ratio` (beyond the data's range in a physics input the point gives);
+        zeros inside without a cloud. Physics columns a point does not give take the model's values."""
         points = {k: v for k, v in points.items() if k not in self.factors}
         if shape is None:
             shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
+        ratio = self.extrapolation_ratio(points, shape)
         if self.cloud is None:
-            return np.zeros(shape)
+            return ratio
         columns = {k: v for k, v in self.columns_at(points).items()
                    if k in points or k in physics.PARAMETERS}
-        ratio, _ = self.cloud.score(columns, shape)
+        score, _ = self.cloud.score(columns, shape)
+        return np.maximum(score, ratio)
+
+    def extrapolation_inputs(self) -> dict[str, tuple[float, float]]:
+        """The physics inputs the data varied (numeric columns of the domain whose values differ), each
+        with its range [its unit]: the inputs :meth:`extrapolation_ratio` scores."""
+        out = {}
+        for name, (lo, hi) in (self.domain or {}).items():
+            spec = physics.PARAMETERS.get(name)
+            if spec is not None and spec.kind != "bool" and name not in self.factors and hi > lo:
+                out[name] = (lo, hi)
+        return out
+
+    def extrapolation_ratio(self, points: Mapping[str, Any], shape=None) -> np.ndarray:
+        """The extrapolation allowance at each point [1] (:func:`extrapolation_allowance`), largest over
+        the physics inputs the point gives (:meth:`extrapolation_inputs`); 0 inside every range.
+
+        A documented rule, not a fitted one: data at 50-300 mm/s say nothing of a Stribeck rise below
+        20 mm/s, and no term on speed that they cannot reject bounds it (an exponential rise below the
+        data has any size), so the interval grows with the distance from them, as it does off the data
+        cloud (:meth:`calibrate.domain.DataCloud.widening`). Physics inputs the data did not vary and
+        condition columns are not scored here (conditions beyond the data have rivals,
+        :mod:`calibrate.rivals`)."""
+        points = {k: v for k, v in points.items() if k not in self.factors}
+        if shape is None:
+            shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
+        ratio = np.zeros(shape)
+        for name, (lo, hi) in self.extrapolation_inputs().items():
+            if name in points:
+                value = np.broadcast_to(np.asarray(points[name], dtype=float), shape)
+                ratio = np.maximum(ratio, extrapolation_allowance(value, lo, hi, self.domain_rows)[0])
         return ratio
 
-    def discrepancy_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Bounds of the GP discrepancy over boxes of points (every column between its value in ``low`` and
-        in ``high``, columnar, one box per entry): least and largest mean of log μ and largest variance [1]
-        (:meth:`GPCorrection.bound`); zeros without one."""
-        if self.discrepancy is None:
-            return np.zeros(shape), np.zeros(shape), np.zeros(shape)
-        columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
-        return self.discrepancy.bound(columns[0], columns[1], shape)
-
-    def discrepancy_least_variance(self, low: Mapping[str, Any], high: Mapping[str, Any],
-                                   shape) -> np.ndarray:
-        """A lower bound of the GP discrepancy's latent variance over boxes of points (as
-        :meth:`discrepancy_bound`) [1] (:meth:`GPCorrection.least_variance`); zeros without one."""
-        if self.discrepancy is None:
-            return np.zeros(shape)
-        columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
-        return self.discrepancy.least_variance(columns[0], columns[1], shape)
+    def _extrapolation_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape, lower: bool
+                             ) -> np.ndarray:
+        """The largest (``lower``: least) :meth:`extrapolation_ratio` over boxes of points: the allowance
+        grows with the distance beyond a range, so it is largest at one of a box's ends and least at its
+        end nearest the range (0 when the box meets the range)."""
+        ratio = np.zeros(shape)
+        for name, (lo, hi) in self.extrapolation_inputs().items():
+            if name in low:
+                a, b = (np.broadcast_to(np.asarray(p[name], dtype=float), shape) for p in (low, high))
+                (ra, side_a), (rb, side_b) = (extrapolation_allowance(x, lo, hi, self.domain_rows)
+                                              for x in (a, b))
+                if lower:
+                    meets = (side_a == 0) | (side_b == 0) | (side_a != side_b)
+                    r = np.where(meets, 0.0, np.minimum(ra, rb))
+                else:
+                    r = np.maximum(ra, rb)
+                ratio = np.maximum(ratio, r)
+        return ratio
 
     def cloud_ratio_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape,
                           lower: bool = False) -> np.ndarray:
         """An upper (``lower``: a lower) bound of :meth:`cloud_ratio` over boxes of points [1]: every point
         whose every column lies between its value in ``low`` and in ``high`` (columnar, one box per entry,
-        both giving the same columns; :meth:`DataCloud.score_bound`, :meth:`DataCloud.score_lower_bound`).
-        Zeros without a cloud."""
+        both giving the same columns; :meth:`DataCloud.score_bound`, :meth:`DataCloud.score_lower_bound`,
+        and the extrapolation allowance's exact range over the box)."""
+        low = {k: v for k, v in low.items() if k not in self.factors}
+        high = {k: v for k, v in high.items() if k not in self.factors}
+        ratio = self._extrapolation_bound(low, high, shape, lower)
         if self.cloud is None:
-            return np.zeros(shape)
-        given = [k for k in low if k not in self.factors]
+            return ratio
+        given = list(low)
         columns = [{k: v for k, v in self.columns_at({k: points[k] for k in given}).items()
                     if k in given or k in physics.PARAMETERS} for points in (low, high)]
         bound = self.cloud.score_lower_bound if lower else self.cloud.score_bound
-        return bound(columns[0], columns[1], shape)
+        return np.maximum(bound(columns[0], columns[1], shape), ratio)
+
+    def widening(self, ratio: Any) -> np.ndarray:
+        """Factor on the interval's log half-width at a distance ratio (:meth:`cloud_ratio`) [1]: the data
+        cloud's rule (:meth:`calibrate.domain.DataCloud.widening`), ``max(ratio, 1)`` without a cloud."""
+        if self.cloud is not None:
+            return self.cloud.widening(ratio)
+        return np.maximum(np.asarray(ratio, dtype=float), 1.0)
 
     def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
         """Whether each point lies within the data's ranges, and a warning per column outside.
@@ -682,7 +770,15 @@ class CalibratedModel:
                 shown = ", ".join(f"{x:.6g}" for x in np.unique(bad)[:3]) + (
                     ", ..." if np.unique(bad).size > 3 else ""
                 )
-                warnings.append(f"{name} = {shown}{unit} is {where}: an extrapolation ({bad.size} point(s))")
+                widened = ""
+                if name in self.extrapolation_inputs():
+                    factor = float(np.max(extrapolation_allowance(bad, lo, hi, self.domain_rows)[0]))
+                    share = 100 * EXTRAPOLATION_SHARE
+                    widened = (f", and the interval's log half-width is multiplied by up to {factor:.3g} "
+                               f"(the extrapolation allowance: by one for every {share:.0f} % of the data's "
+                               f"span beyond it)")
+                warnings.append(f"{name} = {shown}{unit} is {where}: an extrapolation ({bad.size} "
+                                f"point(s)){widened}")
             inside &= ok
         if self.cloud is not None:
             ratio = self.cloud_ratio(points, shape)
