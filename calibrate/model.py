@@ -705,6 +705,25 @@ class CalibratedModel:
                 ratio = np.maximum(ratio, r)
         return ratio
 
+    def discrepancy_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bounds of the GP discrepancy over boxes of points (every column between its value in ``low`` and
+        in ``high``, columnar, one box per entry): least and largest mean of log μ and largest variance [1]
+        (:meth:`GPCorrection.bound`); zeros without one."""
+        if self.discrepancy is None:
+            return np.zeros(shape), np.zeros(shape), np.zeros(shape)
+        columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
+        return self.discrepancy.bound(columns[0], columns[1], shape)
+
+    def discrepancy_least_variance(self, low: Mapping[str, Any], high: Mapping[str, Any],
+                                   shape) -> np.ndarray:
+        """A lower bound of the GP discrepancy's latent variance over boxes of points (as
+        :meth:`discrepancy_bound`) [1] (:meth:`GPCorrection.least_variance`); zeros without one."""
+        if self.discrepancy is None:
+            return np.zeros(shape)
+        columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
+        return self.discrepancy.least_variance(columns[0], columns[1], shape)
+
     def cloud_ratio_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape,
                           lower: bool = False) -> np.ndarray:
         """An upper (``lower``: a lower) bound of :meth:`cloud_ratio` over boxes of points [1]: every point
