@@ -443,6 +443,7 @@ def plan(
     rivals: Sequence[DesignModel] = (),
     planned: Mapping[str, np.ndarray] | None = None,
     polish: bool = True,
+    exchange: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> Design:
     """The best ``runs`` runs over candidate points for a goal, with an optimality bound.
 
@@ -468,6 +469,11 @@ def plan(
         Runs already planned (columns like ``candidates``): their information counts as taken.
     polish : bool
         Whether to improve the rounded runs by single-run exchanges.
+    exchange : callable, optional
+        A last move of the whole runs, counts per candidate -> counts (as many runs), by what the
+        information does not hold: the interval as the service reports it, widened off the data
+        (:class:`calibrate.reported.ReportedWidth`). The bounds are then those of the runs it returns
+        (each a valid bound of the goal's criterion at those runs).
 
     Returns
     -------
@@ -529,6 +535,10 @@ def plan(
     counts[support] = efficient_rounding(weights[support], runs)
     if polish:
         counts = _polish(problem, counts)
+    if exchange is not None:
+        counts = np.asarray(exchange(counts), dtype=int)
+        if counts.shape != (n,) or int(counts.sum()) != runs or np.any(counts < 0):
+            raise ValueError("exchange must return non-negative counts per candidate summing to the runs")
     exact = counts / runs
     rounding = min(_efficiency(problem, _value(problem, weights), _value(problem, exact)), 1.0)
     _scores, exact_bound = _sensitivity_and_bound(problem, exact)
