@@ -470,10 +470,8 @@ def plan(
     polish : bool
         Whether to improve the rounded runs by single-run exchanges.
     exchange : callable, optional
-        A last move of the whole runs, counts per candidate -> counts (as many runs), by what the
-        information does not hold: the interval as the service reports it, widened off the data
-        (:class:`calibrate.reported.ReportedWidth`). The bounds are then those of the runs it returns
-        (each a valid bound of the goal's criterion at those runs).
+        Counts per candidate -> counts, a last move of the runs by what the information does not hold
+        (:class:`calibrate.reported.ReportedWidth`); the bounds are those of the runs it returns.
 
     Returns
     -------
@@ -535,10 +533,7 @@ def plan(
     counts[support] = efficient_rounding(weights[support], runs)
     if polish:
         counts = _polish(problem, counts)
-    if exchange is not None:
-        counts = np.asarray(exchange(counts), dtype=int)
-        if counts.shape != (n,) or int(counts.sum()) != runs or np.any(counts < 0):
-            raise ValueError("exchange must return non-negative counts per candidate summing to the runs")
+    counts = counts if exchange is None else _exchanged(exchange, counts)
     exact = counts / runs
     rounding = min(_efficiency(problem, _value(problem, weights), _value(problem, exact)), 1.0)
     _scores, exact_bound = _sensitivity_and_bound(problem, exact)
@@ -559,6 +554,14 @@ def plan(
         criterion = float(separation.min())
     return Design(goal, counts, weights, criterion, bound, continuous_bound, rounding, separation,
                   information, solver)
+
+
+def _exchanged(exchange: Callable[[np.ndarray], np.ndarray], counts: np.ndarray) -> np.ndarray:
+    """The runs a caller's exchange returns (:func:`plan`), checked: as many, per candidate."""
+    moved = np.asarray(exchange(counts), dtype=int)
+    if moved.shape != counts.shape or int(moved.sum()) != int(counts.sum()) or np.any(moved < 0):
+        raise ValueError("exchange must return non-negative counts per candidate summing to the runs")
+    return moved
 
 
 def _check_identifiable(model: DesignModel, total: np.ndarray) -> None:

@@ -44,63 +44,16 @@ from microbearing import physics
 
 from .candidates import Term, mu_of, term_from_json
 from .data import Dataset, factor_label
-from .domain import DataCloud
+from .domain import EXTRAPOLATION_SHARE, DataCloud, extrapolation_allowance, extrapolation_bound, range_slack
 from .fit import FitResult
 from .groups import GroupEffect
 from .scatter import ScatterModel
 
-__all__ = ["CalibratedModel", "EXTRAPOLATION_SHARE", "GPCorrection", "Prediction", "RivalModel",
-           "FORMAT_VERSION", "extrapolation_allowance"]
+__all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 2
 # Relative step of the finite-difference gradient of log mu in the fitted values.
 _GRADIENT_STEP = 1e-6
-# Relative slack of the domain's bounds (rounding of the data). [1]
-_DOMAIN_SLACK = 1e-9
-#: The extrapolation allowance beyond the data's range in a physics input (:meth:`CalibratedModel.
-#: extrapolation_ratio`): the interval's log half-width is multiplied by 1 + d / (share x span), d the
-#: distance beyond the range and span the range's width, both in the input's log for a positive input
-#: (speed, load: 5 mm/s is as far below data at 50 mm/s as 500 mm/s is above), else in its unit: it
-#: doubles for every quarter of the data's span beyond them. [1]
-EXTRAPOLATION_SHARE = 0.25
-# A positive input's log is taken at no less than this share of the data's least value (a speed of 0
-# below data at 50 mm/s is as far as 50 um/s: a finite allowance). [1]
-_LOG_FLOOR = 1e-3
-
-
-def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = None
-                            ) -> tuple[np.ndarray, np.ndarray]:
-    """The extrapolation allowance of values of a physics input whose data spanned [low, high], and the
-    side they lie on (-1 below, 0 inside, +1 above); broadcasting.
-
-    Inside the range widened by the domain check's slack (:meth:`CalibratedModel.domain_check`: twice
-    the mean spacing of ``rows`` values at each end) the allowance is 0; beyond it, 1 + d / (share x
-    span), d the distance beyond the widened end and span = high - low, both in the input's log when
-    ``low`` > 0 (a value at or below 0 is taken at :data:`_LOG_FLOOR` of the end), else in its unit;
-    share :data:`EXTRAPOLATION_SHARE`. It multiplies the interval's log half-width
-    (:meth:`CalibratedModel.cloud_ratio`).
-
-    Returns
-    -------
-    tuple of numpy.ndarray
-        The allowance [1] and the side [1].
-    """
-    value, low, high = (np.asarray(x, dtype=float) for x in (value, low, high))
-    slack = _DOMAIN_SLACK * np.maximum(np.maximum(np.abs(low), np.abs(high)), 1e-300)
-    if rows is not None and rows > 1:
-        slack = slack + 2.0 * (high - low) / (rows - 1)
-    start, end = low - slack, high + slack
-    log = low > 0
-    with np.errstate(all="ignore"):
-        floor = _LOG_FLOOR * np.where(start > 0, start, high)
-        at = np.log(np.maximum(value, floor))
-        below = np.where(log, np.log(np.maximum(start, floor)) - at, start - value)
-        above = np.where(log, at - np.log(end), value - end)
-        span = np.where(log, np.log(high / np.where(log, low, 1.0)), high - low)
-        d = np.maximum(np.maximum(below, above), 0.0) / (EXTRAPOLATION_SHARE * span)
-    d = np.where(np.isfinite(d) & (span > 0), d, 0.0)
-    side = np.where(d > 0, np.where(below > 0, -1, 1), 0)
-    return np.where(d > 0, 1.0 + d, 0.0), side
 
 
 @dataclass(frozen=True)
@@ -667,43 +620,14 @@ class CalibratedModel:
         return out
 
     def extrapolation_ratio(self, points: Mapping[str, Any], shape=None) -> np.ndarray:
-        """The extrapolation allowance at each point [1] (:func:`extrapolation_allowance`), largest over
-        the physics inputs the point gives (:meth:`extrapolation_inputs`); 0 inside every range.
-
-        A documented rule, not a fitted one: data at 50-300 mm/s say nothing of a Stribeck rise below
-        20 mm/s, and no term on speed that they cannot reject bounds it (an exponential rise below the
-        data has any size), so the interval grows with the distance from them, as it does off the data
-        cloud (:meth:`calibrate.domain.DataCloud.widening`). Physics inputs the data did not vary and
-        condition columns are not scored here (conditions beyond the data have rivals,
-        :mod:`calibrate.rivals`)."""
+        """The extrapolation allowance at each point [1] (:func:`calibrate.domain.extrapolation_allowance`),
+        largest over the physics inputs the point gives (:meth:`extrapolation_inputs`); 0 inside every
+        range. Physics inputs the data did not vary and condition columns (which have rivals) are not
+        scored."""
         points = {k: v for k, v in points.items() if k not in self.factors}
         if shape is None:
             shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
-        ratio = np.zeros(shape)
-        for name, (lo, hi) in self.extrapolation_inputs().items():
-            if name in points:
-                value = np.broadcast_to(np.asarray(points[name], dtype=float), shape)
-                ratio = np.maximum(ratio, extrapolation_allowance(value, lo, hi, self.domain_rows)[0])
-        return ratio
-
-    def _extrapolation_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape, lower: bool
-                             ) -> np.ndarray:
-        """The largest (``lower``: least) :meth:`extrapolation_ratio` over boxes of points: the allowance
-        grows with the distance beyond a range, so it is largest at one of a box's ends and least at its
-        end nearest the range (0 when the box meets the range)."""
-        ratio = np.zeros(shape)
-        for name, (lo, hi) in self.extrapolation_inputs().items():
-            if name in low:
-                a, b = (np.broadcast_to(np.asarray(p[name], dtype=float), shape) for p in (low, high))
-                (ra, side_a), (rb, side_b) = (extrapolation_allowance(x, lo, hi, self.domain_rows)
-                                              for x in (a, b))
-                if lower:
-                    meets = (side_a == 0) | (side_b == 0) | (side_a != side_b)
-                    r = np.where(meets, 0.0, np.minimum(ra, rb))
-                else:
-                    r = np.maximum(ra, rb)
-                ratio = np.maximum(ratio, r)
-        return ratio
+        return extrapolation_bound(self.extrapolation_inputs(), self.domain_rows, points, points, shape)
 
     def discrepancy_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -732,7 +656,7 @@ class CalibratedModel:
         and the extrapolation allowance's exact range over the box)."""
         low = {k: v for k, v in low.items() if k not in self.factors}
         high = {k: v for k, v in high.items() if k not in self.factors}
-        ratio = self._extrapolation_bound(low, high, shape, lower)
+        ratio = extrapolation_bound(self.extrapolation_inputs(), self.domain_rows, low, high, shape, lower)
         if self.cloud is None:
             return ratio
         given = list(low)
@@ -770,9 +694,7 @@ class CalibratedModel:
             unit = f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""
             if name in self.domain:
                 lo, hi = self.domain[name]
-                slack = _DOMAIN_SLACK * max(abs(lo), abs(hi), 1e-300)
-                if self.domain_rows is not None and self.domain_rows > 1:
-                    slack += 2.0 * (hi - lo) / (self.domain_rows - 1)
+                slack = float(range_slack(lo, hi, self.domain_rows))
                 ok = (value >= lo - slack) & (value <= hi + slack)
                 where = f"outside the calibration data's range [{lo:.6g}, {hi:.6g}]{unit}"
             elif name in physics.PARAMETERS:

@@ -26,8 +26,8 @@ import numpy as np
 from scipy import stats
 from scipy.spatial import cKDTree
 
-from .domain import DataCloud
-from .model import CalibratedModel, extrapolation_allowance
+from .domain import DataCloud, extrapolation_allowance
+from .model import CalibratedModel
 
 __all__ = ["ReportedWidth", "half_width"]
 

@@ -17,7 +17,7 @@ from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel
-from microbearing.calibrate.model import EXTRAPOLATION_SHARE
+from microbearing.calibrate.domain import EXTRAPOLATION_SHARE
 from microbearing.physics.effects import EFFECTS
 from microbearing.service.app import create_app
 from microbearing.service.settings import Settings
