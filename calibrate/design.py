@@ -443,6 +443,7 @@ def plan(
     rivals: Sequence[DesignModel] = (),
     planned: Mapping[str, np.ndarray] | None = None,
     polish: bool = True,
+    exchange: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> Design:
     """The best ``runs`` runs over candidate points for a goal, with an optimality bound.
 
@@ -468,6 +469,9 @@ def plan(
         Runs already planned (columns like ``candidates``): their information counts as taken.
     polish : bool
         Whether to improve the rounded runs by single-run exchanges.
+    exchange : callable, optional
+        Counts per candidate -> counts, a last move of the runs by what the information does not hold
+        (:class:`calibrate.reported.ReportedWidth`); the bounds are those of the runs it returns.
 
     Returns
     -------
@@ -529,6 +533,7 @@ def plan(
     counts[support] = efficient_rounding(weights[support], runs)
     if polish:
         counts = _polish(problem, counts)
+    counts = counts if exchange is None else _exchanged(exchange, counts)
     exact = counts / runs
     rounding = min(_efficiency(problem, _value(problem, weights), _value(problem, exact)), 1.0)
     _scores, exact_bound = _sensitivity_and_bound(problem, exact)
@@ -549,6 +554,14 @@ def plan(
         criterion = float(separation.min())
     return Design(goal, counts, weights, criterion, bound, continuous_bound, rounding, separation,
                   information, solver)
+
+
+def _exchanged(exchange: Callable[[np.ndarray], np.ndarray], counts: np.ndarray) -> np.ndarray:
+    """The runs a caller's exchange returns (:func:`plan`), checked: as many, per candidate."""
+    moved = np.asarray(exchange(counts), dtype=int)
+    if moved.shape != counts.shape or int(moved.sum()) != int(counts.sum()) or np.any(moved < 0):
+        raise ValueError("exchange must return non-negative counts per candidate summing to the runs")
+    return moved
 
 
 def _check_identifiable(model: DesignModel, total: np.ndarray) -> None:

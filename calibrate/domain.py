@@ -59,8 +59,9 @@ from microbearing import physics
 from microbearing.physics.columns import counted_from_zero
 from microbearing.physics.effects import Domain
 
-__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "REPLICATE_JITTER", "CloudSpace", "DataCloud", "LawDomain",
-           "confounded_pairs", "confounding_words", "law_domains", "outside_law_domains"]
+__all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "EXTRAPOLATION_SHARE", "REPLICATE_JITTER", "CloudSpace",
+           "DataCloud", "LawDomain", "confounded_pairs", "confounding_words", "extrapolation_allowance",
+           "extrapolation_bound", "law_domains", "outside_law_domains", "range_slack"]
 
 #: Chance that a new point drawn like the data is flagged outside the cloud. [1]
 CLOUD_ALPHA = 0.02
@@ -118,6 +119,88 @@ def _transform(name: str, values: np.ndarray) -> tuple[str, float]:
     if counted_from_zero(name) and np.min(values) >= 0.0:
         return "log", float(np.min(positive))
     return ("log", 0.0) if np.all(values > 0) else ("linear", 0.0)
+
+
+#: The extrapolation allowance beyond the data's range in a physics input
+#: (:meth:`calibrate.CalibratedModel.extrapolation_ratio`): the interval's log half-width is multiplied
+#: by 1 + d / (share x span), d the distance beyond the range and span the range's width, both in the
+#: input's log for a positive input (speed, load: 5 mm/s is as far below data at 50 mm/s as 500 mm/s is
+#: above), else in its unit: it grows by its own size for every quarter of the data's span beyond them.
+#: A documented rule, not a fitted one: data at 50-300 mm/s say nothing of a Stribeck rise below
+#: 20 mm/s, and no term on speed that they cannot reject bounds it (an exponential rise below the data
+#: has any size), so the interval grows with the distance from them, as it does off the data cloud. [1]
+EXTRAPOLATION_SHARE = 0.25
+# A positive input's log is taken at no less than this share of the data's least value (a speed of 0
+# below data at 50 mm/s is as far as 50 um/s: a finite allowance). [1]
+_LOG_FLOOR = 1e-3
+
+
+def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = None
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """The extrapolation allowance of values of a physics input whose data spanned [low, high], and the
+    side they lie on (-1 below, 0 inside, +1 above); broadcasting.
+
+    Inside the range widened by the domain check's slack (:func:`range_slack`: twice the mean spacing
+    of ``rows`` values at each end) the allowance is 0; beyond it, 1 + d / (share x
+    span), d the distance beyond the widened end and span = high - low, both in the input's log when
+    ``low`` > 0 (a value at or below 0 is taken at :data:`_LOG_FLOOR` of the end), else in its unit;
+    share :data:`EXTRAPOLATION_SHARE`. It multiplies the interval's log half-width
+    (:meth:`calibrate.CalibratedModel.cloud_ratio`).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        The allowance [1] and the side [1].
+    """
+    value, low, high = (np.asarray(x, dtype=float) for x in (value, low, high))
+    slack = range_slack(low, high, rows)
+    start, end = low - slack, high + slack
+    log = low > 0
+    with np.errstate(all="ignore"):
+        floor = _LOG_FLOOR * np.where(start > 0, start, high)
+        at = np.log(np.maximum(value, floor))
+        below = np.where(log, np.log(np.maximum(start, floor)) - at, start - value)
+        above = np.where(log, at - np.log(end), value - end)
+        span = np.where(log, np.log(high / np.where(log, low, 1.0)), high - low)
+        d = np.maximum(np.maximum(below, above), 0.0) / (EXTRAPOLATION_SHARE * span)
+    d = np.where(np.isfinite(d) & (span > 0), d, 0.0)
+    side = np.where(d > 0, np.where(below > 0, -1, 1), 0)
+    return np.where(d > 0, 1.0 + d, 0.0), side
+
+
+def range_slack(low: Any, high: Any, rows: int | None = None) -> np.ndarray:
+    """How far beyond a column's range [low, high] a value still lies in the domain [its unit]: a relative
+    1e-9 (the data's rounding) plus, with the ``rows`` the range was taken from, twice their mean spacing,
+    2 (high - low) / (rows - 1) (a new point drawn like the data lies beyond a sample's extreme with chance
+    1/(rows + 1) per column and end); broadcasting."""
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    slack = 1e-9 * np.maximum(np.maximum(np.abs(low), np.abs(high)), 1e-300)
+    if rows is not None and rows > 1:
+        slack = slack + 2.0 * (high - low) / (rows - 1)
+    return slack
+
+
+def extrapolation_bound(ranges: Mapping[str, tuple[float, float]], rows: int | None,
+                        low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...],
+                        lower: bool = False) -> np.ndarray:
+    """The largest (``lower``: least) extrapolation allowance over boxes of points [1], largest over the
+    inputs of ``ranges`` (name -> the data's [low, high]) that ``low`` gives (a point is a box with
+    ``low`` = ``high``; columnar, one box per entry). The allowance grows with the distance beyond a
+    range, so it is largest at one of a box's ends and least at its end nearest the range (0 when the box
+    meets the range): exact, not only a bound."""
+    ratio = np.zeros(shape)
+    for name, (lo, hi) in ranges.items():
+        if name not in low:
+            continue
+        a, b = (np.broadcast_to(np.asarray(p[name], dtype=float), shape) for p in (low, high))
+        (ra, side_a), (rb, side_b) = (extrapolation_allowance(x, lo, hi, rows) for x in (a, b))
+        if lower:
+            meets = (side_a == 0) | (side_b == 0) | (side_a != side_b)
+            r = np.where(meets, 0.0, np.minimum(ra, rb))
+        else:
+            r = np.maximum(ra, rb)
+        ratio = np.maximum(ratio, r)
+    return ratio
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,7 @@ from .design import GOALS, Design, DesignError, plan
 from .domain import outside_law_domains
 from .fit import fit
 from .model import CalibratedModel
+from .reported import ReportedWidth
 from .spaces import MAX_CANDIDATES, candidate_points, check_space, read_space, space_points
 
 __all__ = [
@@ -297,11 +298,13 @@ class ExperimentPlan:
     expected: dict[str, Any]
     plot: dict[str, Any]
     warnings: list[str]
+    #: The goal asked for when it differs from the design's (``discriminate`` with no rival: explored).
+    asked: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = self.design
         return {
-            "goal": d.goal,
+            "goal": self.asked or d.goal,
             "runs": self.runs,
             "criterion": d.criterion,
             "efficiency_lower_bound": d.efficiency_lower_bound,
@@ -350,7 +353,8 @@ def _runs(response: CalibratedResponse, candidates, design: Design) -> tuple[lis
 
 
 def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, envelope,
-              rivals: Sequence[tuple[str, CalibratedModel]]) -> dict[str, Any]:
+              rivals: Sequence[tuple[str, CalibratedModel]], reported: ReportedWidth | None = None
+              ) -> dict[str, Any]:
     names = response.parameter_names
     information_after = design.information_after
     covariance_after = np.linalg.pinv(information_after, hermitian=True)
@@ -382,6 +386,10 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             entry["half_width_now"] = {"mean": float(before.mean()), "max": float(before.max())}
             entry["mean_half_width_now"] = {"mean": float(mean_before.mean()),
                                             "max": float(mean_before.max())}
+        if reported is not None:  # the interval as the service reports it, widened off the data
+            for key, values in (("reported_half_width_now", reported.now()),
+                                ("reported_half_width_after", reported.after(design.counts))):
+                entry[key] = {"mean": float(np.mean(values)), "max": float(np.max(values))}
         out["envelope"] = entry
     if rivals:
         full = response.points(chosen)
@@ -504,11 +512,18 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
         planned_columns = {k: np.array([row[k] for row in planned], dtype=float) for k in space}
     report(0.2)
     rival_responses = [CalibratedResponse(m, response.fixed) for _, m in rivals]
+    # A calibrated model's interval widens off the data (the data cloud, the ranges of its inputs): the
+    # runs for predict are chosen by that interval, as the service will report it after them.
+    reported = None
+    if envelope is not None and response.model.covariance is not None and response.model.domain is not None:
+        reported = ReportedWidth(response, candidates, envelope, planned_columns)
+    exchange = reported.search if reported is not None and goal == "predict" else None
     design = plan(response, candidates, runs, goal, envelope=envelope, rivals=rival_responses,
-                  planned=planned_columns)
+                  planned=planned_columns, exchange=exchange)
     report(0.8)
     rows, chosen, warnings = _runs(response, candidates, design)
-    expected = _expected(goal, response, design, chosen, envelope, rivals if goal == "discriminate" else [])
+    expected = _expected(goal, response, design, chosen, envelope, rivals if goal == "discriminate" else [],
+                         reported)
     plot = _plot_data(response, chosen, data, space, rivals if goal == "discriminate" else [])
     if envelope_space is not None:  # where the model will be used, on the plot's axes
         plot["envelope"] = {a: list(_span(envelope_space[a])) for a in plot["axes"] if a in envelope_space}
@@ -564,12 +579,28 @@ def next_experiments(
         raise DesignError(f"goal must be one of {', '.join(GOALS)}; got {goal!r}")
     if model.covariance is None or model.noise_std_log is None:
         raise DesignError("the calibrated model has no covariance or scatter (stored before version 2)")
-    if goal == "discriminate" and not rivals:
-        raise DesignError("goal discriminate: the calibration left no rival model within reach of the one "
-                          "it chose; use goal parameters or predict")
     response = check_request(model, request.space, request.fixed, request.envelope, request.planned)
+    if goal == "discriminate" and not rivals:
+        return _explore(response, request, data, progress)
     return _propose(response, _read_spaces(request), list(rivals) if goal != "parameters" else [], data,
                     progress)
+
+
+def _explore(response: CalibratedResponse, request: ExperimentRequest, data, progress) -> ExperimentPlan:
+    """``discriminate`` with no rival: runs where the data say least, the reason stated.
+
+    Nothing is left to tell apart, so the runs shrink the 95 % interval the service reports over the
+    envelope, or the whole space without one (a ``predict`` design by :class:`ReportedWidth`): it is
+    widest beyond the data's ranges and away from its rows, where an effect the data have not seen would
+    show."""
+    where = "the envelope" if request.envelope is not None else "the whole space"
+    explored = replace(request, goal="predict", envelope=request.envelope or request.space)
+    proposal = _propose(response, _read_spaces(explored), [], data, progress)
+    reason = (f"the calibration left no rival model within reach of the one it chose, so there is nothing "
+              f"to tell apart: the runs explore where the data say least instead, shrinking the 95 % "
+              f"interval the service reports over {where} (widest beyond the data's ranges and away from "
+              f"its rows, where an effect the data have not seen would show)")
+    return replace(proposal, warnings=[reason, *proposal.warnings], asked="discriminate")
 
 
 def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mapping[str, Any] | None = None,

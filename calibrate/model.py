@@ -44,7 +44,7 @@ from microbearing import physics
 
 from .candidates import Term, mu_of, term_from_json
 from .data import Dataset, factor_label
-from .domain import DataCloud
+from .domain import EXTRAPOLATION_SHARE, DataCloud, extrapolation_allowance, extrapolation_bound, range_slack
 from .fit import FitResult
 from .groups import GroupEffect
 from .scatter import ScatterModel
@@ -54,8 +54,6 @@ __all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMA
 FORMAT_VERSION = 2
 # Relative step of the finite-difference gradient of log mu in the fitted values.
 _GRADIENT_STEP = 1e-6
-# Relative slack of the domain's bounds (rounding of the data). [1]
-_DOMAIN_SLACK = 1e-9
 
 
 @dataclass(frozen=True)
@@ -497,8 +495,8 @@ class CalibratedModel:
         group_shift, group_variance = self._group_terms(points, labels, mu.shape, level)
         sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + group_variance
                         + self._noise_variance(points, mu.shape, level))
-        if self.cloud is not None:
-            sigma = sigma * self.cloud.widening(self.cloud_ratio(points, mu.shape))
+        # Beyond the data cloud or a physics input's range the interval widens (:meth:`cloud_ratio`).
+        sigma = sigma * self.widening(self.cloud_ratio(points, mu.shape))
         z = float(stats.norm.isf((1.0 - level) / 2.0))
         mu = mu * np.exp(shift + group_shift)
         lower, upper = mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
@@ -596,17 +594,40 @@ class CalibratedModel:
         return out
 
     def cloud_ratio(self, points: Mapping[str, Any], shape=None) -> np.ndarray:
-        """Distance of each point to the data cloud over the cloud's threshold (> 1: outside) [1]; zeros
-        without a cloud. Physics columns a point does not give take the model's values."""
+        """Distance ratio of each point from the data (> 1: outside, and the interval's log half-width is
+        multiplied by it) [1]: the larger of the distance to the data cloud over the cloud's threshold
+        and :meth:`extrapolation_ratio` (beyond the data's range in a physics input the point gives);
+        zeros inside without a cloud. Physics columns a point does not give take the model's values."""
         points = {k: v for k, v in points.items() if k not in self.factors}
         if shape is None:
             shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
+        ratio = self.extrapolation_ratio(points, shape)
         if self.cloud is None:
-            return np.zeros(shape)
+            return ratio
         columns = {k: v for k, v in self.columns_at(points).items()
                    if k in points or k in physics.PARAMETERS}
-        ratio, _ = self.cloud.score(columns, shape)
-        return ratio
+        score, _ = self.cloud.score(columns, shape)
+        return np.maximum(score, ratio)
+
+    def extrapolation_inputs(self) -> dict[str, tuple[float, float]]:
+        """The physics inputs the data varied (numeric columns of the domain whose values differ), each
+        with its range [its unit]: the inputs :meth:`extrapolation_ratio` scores."""
+        out = {}
+        for name, (lo, hi) in (self.domain or {}).items():
+            spec = physics.PARAMETERS.get(name)
+            if spec is not None and spec.kind != "bool" and name not in self.factors and hi > lo:
+                out[name] = (lo, hi)
+        return out
+
+    def extrapolation_ratio(self, points: Mapping[str, Any], shape=None) -> np.ndarray:
+        """The extrapolation allowance at each point [1] (:func:`calibrate.domain.extrapolation_allowance`),
+        largest over the physics inputs the point gives (:meth:`extrapolation_inputs`); 0 inside every
+        range. Physics inputs the data did not vary and condition columns (which have rivals) are not
+        scored."""
+        points = {k: v for k, v in points.items() if k not in self.factors}
+        if shape is None:
+            shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
+        return extrapolation_bound(self.extrapolation_inputs(), self.domain_rows, points, points, shape)
 
     def discrepancy_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -631,15 +652,25 @@ class CalibratedModel:
                           lower: bool = False) -> np.ndarray:
         """An upper (``lower``: a lower) bound of :meth:`cloud_ratio` over boxes of points [1]: every point
         whose every column lies between its value in ``low`` and in ``high`` (columnar, one box per entry,
-        both giving the same columns; :meth:`DataCloud.score_bound`, :meth:`DataCloud.score_lower_bound`).
-        Zeros without a cloud."""
+        both giving the same columns; :meth:`DataCloud.score_bound`, :meth:`DataCloud.score_lower_bound`,
+        and the extrapolation allowance's exact range over the box)."""
+        low = {k: v for k, v in low.items() if k not in self.factors}
+        high = {k: v for k, v in high.items() if k not in self.factors}
+        ratio = extrapolation_bound(self.extrapolation_inputs(), self.domain_rows, low, high, shape, lower)
         if self.cloud is None:
-            return np.zeros(shape)
-        given = [k for k in low if k not in self.factors]
+            return ratio
+        given = list(low)
         columns = [{k: v for k, v in self.columns_at({k: points[k] for k in given}).items()
                     if k in given or k in physics.PARAMETERS} for points in (low, high)]
         bound = self.cloud.score_lower_bound if lower else self.cloud.score_bound
-        return bound(columns[0], columns[1], shape)
+        return np.maximum(bound(columns[0], columns[1], shape), ratio)
+
+    def widening(self, ratio: Any) -> np.ndarray:
+        """Factor on the interval's log half-width at a distance ratio (:meth:`cloud_ratio`) [1]: the data
+        cloud's rule (:meth:`calibrate.domain.DataCloud.widening`), ``max(ratio, 1)`` without a cloud."""
+        if self.cloud is not None:
+            return self.cloud.widening(ratio)
+        return np.maximum(np.asarray(ratio, dtype=float), 1.0)
 
     def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
         """Whether each point lies within the data's ranges, and a warning per column outside.
@@ -663,9 +694,7 @@ class CalibratedModel:
             unit = f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""
             if name in self.domain:
                 lo, hi = self.domain[name]
-                slack = _DOMAIN_SLACK * max(abs(lo), abs(hi), 1e-300)
-                if self.domain_rows is not None and self.domain_rows > 1:
-                    slack += 2.0 * (hi - lo) / (self.domain_rows - 1)
+                slack = float(range_slack(lo, hi, self.domain_rows))
                 ok = (value >= lo - slack) & (value <= hi + slack)
                 where = f"outside the calibration data's range [{lo:.6g}, {hi:.6g}]{unit}"
             elif name in physics.PARAMETERS:
@@ -682,7 +711,15 @@ class CalibratedModel:
                 shown = ", ".join(f"{x:.6g}" for x in np.unique(bad)[:3]) + (
                     ", ..." if np.unique(bad).size > 3 else ""
                 )
-                warnings.append(f"{name} = {shown}{unit} is {where}: an extrapolation ({bad.size} point(s))")
+                widened = ""
+                if name in self.extrapolation_inputs():
+                    factor = float(np.max(extrapolation_allowance(bad, lo, hi, self.domain_rows)[0]))
+                    share = 100 * EXTRAPOLATION_SHARE
+                    widened = (f", and the interval's log half-width is multiplied by up to {factor:.3g} "
+                               f"(the extrapolation allowance: by one for every {share:.0f} % of the data's "
+                               f"span beyond it)")
+                warnings.append(f"{name} = {shown}{unit} is {where}: an extrapolation ({bad.size} "
+                                f"point(s)){widened}")
             inside &= ok
         if self.cloud is not None:
             ratio = self.cloud_ratio(points, shape)

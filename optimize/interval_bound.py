@@ -230,7 +230,7 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
     output / p, ``h`` × the piece's basis, or the composed μ up to that factor × expm1(h φ)) times the
     product of the factors after it; the largest g'Cg over the box of gradients (a convex function: at one
     of its vertices); so mu_upper <= max over the structures of max(μ) exp(z sqrt(max g'Cg + noise²) W),
-    W the widening of the interval beyond the data cloud (1 without one) at an upper bound of the distance
+    W the widening beyond the data cloud and the data's ranges at an upper bound of the distance
     ratio over the box (:meth:`calibrate.CalibratedModel.cloud_ratio_bound`; the widening,
     :meth:`calibrate.domain.DataCloud.widening`, is non-decreasing in the ratio, and one cloud serves the
     model and its rivals).
@@ -276,12 +276,13 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
     context = _IntervalContext(boxes, physics_fn, dict(base or {}), inputs_fn, z, level)
 
     def widening(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        """An upper bound of the cloud's widening over each box (ones without a cloud). [1]"""
+        """An upper bound of the widening off the data over each box: the cloud's and the extrapolation
+        allowance beyond the data's ranges (ones without a calibrated model or its inputs). [1]"""
         n = len(lo)
-        if cloud is None:
+        if calibrated is None or inputs_fn is None:
             return np.ones(n)
         low, high = _corner_points(boxes, inputs_fn, lo, hi)
-        return np.asarray(cloud.widening(calibrated.cloud_ratio_bound(low, high, (n,))), dtype=float)
+        return np.asarray(calibrated.widening(calibrated.cloud_ratio_bound(low, high, (n,))), dtype=float)
 
     def bound(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         peak = hi.copy()

@@ -93,9 +93,13 @@ def test_parameters_and_predict_shrink_what_they_target(humid):
         assert p["std_after"] <= p["std_now"] * (1 + 1e-9)
     i = next_experiments(report.model, ExperimentRequest(SPACE, 20, "predict", envelope=envelope)).to_dict()
     assert i["envelope"]["mean_half_width_after"]["mean"] < 0.8 * i["envelope"]["mean_half_width_now"]["mean"]
-    # I-optimal runs narrow the envelope's interval at least as much as the D-optimal ones.
-    after = i["envelope"]["mean_half_width_after"]["mean"]
-    assert after <= d["envelope"]["mean_half_width_after"]["mean"] * 1.001
+    # predict's runs narrow the envelope's interval as the service reports it (widened off the data cloud
+    # and the inputs' ranges: issue 33, item 8) at least as much as the D-optimal ones, and the parameters'
+    # share of it about as much (predict trades a little of it for rows near the envelope).
+    after = i["envelope"]["reported_half_width_after"]["mean"]
+    assert after <= d["envelope"]["reported_half_width_after"]["mean"] * 1.001
+    share = i["envelope"]["mean_half_width_after"]["mean"]
+    assert share <= d["envelope"]["mean_half_width_after"]["mean"] * 1.1
     assert not any(r["in_domain"] for r in i["runs"] if r["conditions"]["relative_humidity"] > 0.5 + 1e-9)
 
 
@@ -130,8 +134,9 @@ def test_bad_requests_name_the_field(humid):
     with pytest.raises(ValueError, match=r"space\.load_N"):
         next_experiments(report.model,
                          ExperimentRequest({**SPACE, "load_N": {"low": -1, "high": 1}}, 5, "parameters"))
-    with pytest.raises(DesignError, match="rival"):
-        next_experiments(report.model, ExperimentRequest(SPACE, 5, "discriminate"))
+    # no rival to tell apart (issue 33, item 8): the runs explore where the data say least, the reason said
+    explored = next_experiments(report.model, ExperimentRequest(SPACE, 5, "discriminate")).to_dict()
+    assert explored["goal"] == "discriminate" and "no rival model" in explored["warnings"][0]
     with pytest.raises(ValueError, match="relative_humidity"):
         next_experiments(report.model, ExperimentRequest(
             {k: v for k, v in SPACE.items() if k != "relative_humidity"}, 5, "parameters"))

@@ -238,6 +238,13 @@ class EnvelopeFigures(ResponseModel):
     mean_half_width_now: HalfWidth | None = Field(default=None, description=(
         "Half-width of the 95 % interval of the model's mean (parameters only) now [1]."))
     mean_half_width_after: HalfWidth = Field(description="The same after the runs [1].")
+    reported_half_width_now: HalfWidth | None = Field(default=None, description=(
+        "Half-width of the 95 % interval the service reports now [1]: (mu_upper - mu_lower) / 2 of the "
+        "calibrated model, widened off the data (data cloud, inputs beyond the data's ranges) and holding "
+        "the rivals (a calibrated model only)."))
+    reported_half_width_after: HalfWidth | None = Field(default=None, description=(
+        "The same expected after the runs [1], as a recalibration on the data plus the runs bounds it: the "
+        "data cloud and ranges rebuilt with the runs, fitted values and scatter unchanged, rivals settled."))
 
 
 class RivalFigures(ResponseModel):

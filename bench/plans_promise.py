@@ -1,0 +1,166 @@
+"""Plans keep their promise (issue 33, item 8): do the runs proposed for ``predict`` shrink the interval the
+service reports over the envelope, as much as the proposal says, and more than as many random runs?
+
+Run: ``python bench/plans_promise.py --seeds 4 --runs 16``.
+
+Each simulated lab hides adhesion growing with humidity by a Kelvin law (written here, independently of
+physics.effects) in the physics; it measures 40 first rows at 20-40 % RH (3 % noise) and calibrates through
+the REST API (``POST /v1/calibrations``, ``mu_pivot`` and ``adhesion_energy_J_m2`` fitted). It then asks
+``POST /v1/calibrations/{id}/next-experiments`` for ``predict`` over the envelope (6 balls, 5-20 mN,
+0.05 m/s, 70-85 % RH: beyond the first data), measures the proposed runs from the truth, or as many random
+runs over the same space, and calibrates again on all rows. Over 200 envelope points it asks
+``POST /v1/friction/batch`` of each recalibration for the 95 % interval and reports:
+
+* the mean half-width the service reports, (mu_upper - mu_lower) / 2 [1], after the proposed and after the
+  random runs, and the proposal's ``reported_half_width_after`` (its promise) with the ratio of the two;
+* the truth error over the envelope, RMS of log(mu / mu_true);
+* the coverage of fresh measurements there.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+_REPO = Path(__file__).resolve().parent.parent
+if Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
+    sys.path[0] = str(_REPO)
+sys.path.insert(0, str(_REPO / "tests"))
+
+import numpy as np  # noqa: E402
+from fastapi.testclient import TestClient  # noqa: E402
+from jobs_helper import finished_job  # noqa: E402
+
+from microbearing import physics  # noqa: E402
+from microbearing.service.app import create_app  # noqa: E402
+from microbearing.service.settings import Settings  # noqa: E402
+
+FIT = ["mu_pivot", "adhesion_energy_J_m2"]
+NOISE = 0.03
+FIRST_ROWS = 40
+SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
+         "speed_m_s": {"low": 0.0, "high": 0.15}, "relative_humidity": {"low": 0.2, "high": 0.9}}
+ENVELOPE = {"balls": [6], "load_N": {"low": 5e-3, "high": 2e-2}, "speed_m_s": [0.05],
+            "relative_humidity": {"low": 0.7, "high": 0.85}}
+
+
+def truth(c) -> np.ndarray:
+    """Adhesion growing with the Kelvin radius, 1/ln(1/h), in the physics (mu_pivot 0.7)."""
+    energy = 0.05 * (1 + 1.5 / np.log(1 / np.asarray(c["relative_humidity"], dtype=float)))
+    return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7,
+                            adhesion_energy_J_m2=energy).mu
+
+
+def first_data(rng, n: int) -> dict[str, np.ndarray]:
+    return {"balls": rng.choice([4, 6, 8], n).astype(float),
+            "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+            "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.4, n)}
+
+
+def random_runs(rng, n: int) -> dict[str, np.ndarray]:
+    return {"balls": rng.integers(4, 9, n).astype(float),
+            "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+            "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.9, n)}
+
+
+def envelope_points(rng, n: int = 200) -> dict[str, np.ndarray]:
+    return {"balls": np.full(n, 6.0), "load_N": rng.uniform(5e-3, 2e-2, n), "speed_m_s": np.full(n, 0.05),
+            "relative_humidity": rng.uniform(0.7, 0.85, n)}
+
+
+def measure(columns, rng) -> list[dict]:
+    mu = truth(columns) * np.exp(rng.normal(0.0, NOISE, columns["balls"].size))
+    return [{k: float(v[i]) for k, v in columns.items()} | {"mu_measured": float(mu[i])}
+            for i in range(mu.size)]
+
+
+def calibrate(client, rows) -> str:
+    response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": FIT})
+    assert response.status_code == 202, response.text
+    job = finished_job(client, response.headers["location"], timeout_s=900, interval_s=0.5)
+    return client.get(job["result_url"]).json()["model_id"]
+
+
+def propose(client, model_id: str, body: dict) -> dict:
+    calibration = model_id.split(":", 1)[-1]
+    response = client.post(f"/v1/calibrations/{calibration}/next-experiments", json=body)
+    assert response.status_code == 202, response.text
+    job = finished_job(client, response.headers["location"], timeout_s=900, interval_s=0.5)
+    return client.get(job["result_url"]).json()
+
+
+def judge(client, model_id: str, points, rng) -> dict[str, float]:
+    response = client.post("/v1/friction/batch", json={
+        "points": {k: v.tolist() for k, v in points.items() if k != "relative_humidity"},
+        "conditions": {"relative_humidity": points["relative_humidity"].tolist()},
+        "model": model_id, "outputs": ["mu"]})
+    assert response.status_code == 200, response.text
+    body = response.json()
+    mu, lower, upper = (np.asarray(body[k], dtype=float) for k in ("mu", "mu_lower", "mu_upper"))
+    fresh = truth(points) * np.exp(rng.normal(0.0, NOISE, mu.size))
+    return {"half_width": float(np.mean((upper - lower) / 2)),
+            "error": float(np.sqrt(np.mean(np.log(mu / truth(points)) ** 2))),
+            "coverage": float(np.mean((lower <= fresh) & (fresh <= upper)))}
+
+
+def columns_of(runs: list[dict]) -> dict[str, np.ndarray]:
+    flat = [{"balls": r["balls"], "load_N": r["load_N"], "speed_m_s": r["speed_m_s"], **r["conditions"]}
+            for r in runs]
+    return {k: np.array([f[k] for f in flat], dtype=float) for k in SPACE}
+
+
+def lab(client, seed: int, runs: int) -> dict:
+    rng = np.random.default_rng(seed)
+    rows = measure(first_data(rng, FIRST_ROWS), rng)
+    first = calibrate(client, rows)
+    points = envelope_points(np.random.default_rng(10_000 + seed))
+    started = time.perf_counter()
+    proposal = propose(client, first, {"runs": runs, "goal": "predict", "space": SPACE, "envelope": ENVELOPE,
+                                       "seed": seed})
+    seconds = time.perf_counter() - started
+    measured = np.random.default_rng(30_000 + seed)
+    out = {"first": judge(client, first, points, np.random.default_rng(40_000 + seed)),
+           "promise": proposal["envelope"]["reported_half_width_after"]["mean"],
+           "now": proposal["envelope"]["reported_half_width_now"]["mean"], "seconds": seconds,
+           "support": proposal["support_points"]}
+    for name, columns in (("proposed", columns_of(proposal["runs"])),
+                          ("random", random_runs(np.random.default_rng(20_000 + seed), runs))):
+        again = calibrate(client, rows + measure(columns, measured))
+        out[name] = judge(client, again, points, np.random.default_rng(40_000 + seed))
+    return out
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=4)
+    parser.add_argument("--runs", type=int, default=16)
+    args = parser.parse_args(argv)
+    logging.disable(logging.INFO)  # the service's access log of every poll
+    records = []
+    with (tempfile.TemporaryDirectory() as data_dir,
+          TestClient(create_app(Settings(data_dir=data_dir))) as client):
+        for seed in range(args.seeds):
+            r = lab(client, seed, args.runs)
+            records.append(r)
+            print(f"lab {seed}: first hw {r['first']['half_width']:.5f} | proposed ({r['support']} points, "
+                  f"{r['seconds']:.0f} s) hw {r['proposed']['half_width']:.5f} (promised {r['promise']:.5f}, "
+                  f"ratio {r['proposed']['half_width'] / r['promise']:.2f}) err {r['proposed']['error']:.4f} "
+                  f"cov {r['proposed']['coverage']:.2f} | random hw {r['random']['half_width']:.5f} "
+                  f"err {r['random']['error']:.4f} cov {r['random']['coverage']:.2f}", flush=True)
+    ratio_hw = np.array([r["proposed"]["half_width"] / r["random"]["half_width"] for r in records])
+    ratio_err = np.array([r["proposed"]["error"] / r["random"]["error"] for r in records])
+    promise = np.array([r["proposed"]["half_width"] / r["promise"] for r in records])
+    print(f"\n{args.seeds} labs, {args.runs} runs each: reported half-width proposed / random "
+          f"{', '.join(f'{x:.2f}' for x in ratio_hw)} (geometric mean "
+          f"{np.exp(np.mean(np.log(ratio_hw))):.2f}); "
+          f"truth error proposed / random {', '.join(f'{x:.2f}' for x in ratio_err)} (geometric mean "
+          f"{np.exp(np.mean(np.log(ratio_err))):.2f}); reported after / promised "
+          f"{', '.join(f'{x:.2f}' for x in promise)}")
+
+
+if __name__ == "__main__":
+    main()
