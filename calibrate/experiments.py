@@ -759,10 +759,15 @@ def plan_png(document: Mapping[str, Any]) -> bytes:
         pairs, counts = np.unique(np.column_stack([xs, ys]), axis=0, return_counts=True)
         ax.scatter(pairs[:, 0], pairs[:, 1], s=30 + 25 * counts, facecolors="none", edgecolors="red",
                    linewidths=2, label=f"proposed runs ({xs.size}, {pairs.shape[0]} settings)")
+        ax.margins(x=0.08, y=0.12)  # room for a replicate count at a corner of the space
+        (xa, xb), (ya, yb) = ax.get_xlim(), ax.get_ylim()
         for (px, py), count in zip(pairs, counts, strict=True):
             if count > 1:
-                ax.annotate(f"x{count}", (px, py), textcoords="offset points", xytext=(6, 6), fontsize=8,
-                            color="red")
+                # the count is written towards the middle of the panel, so a run at an edge keeps it inside
+                right, up = px <= (xa + xb) / 2, py <= (ya + yb) / 2
+                ax.annotate(f"x{count}", (px, py), textcoords="offset points",
+                            xytext=(6 if right else -6, 6 if up else -6), fontsize=8, color="red",
+                            ha="left" if right else "right", va="bottom" if up else "top")
         box = plot.get("envelope") or {}
         if x_name in box:
             (x0, x1) = box[x_name]
@@ -794,6 +799,6 @@ def plan_png(document: Mapping[str, Any]) -> bytes:
         right.legend(loc="best", fontsize=7)
     figure.tight_layout()
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=90)
+    figure.savefig(buffer, format="png", dpi=90, bbox_inches="tight", pad_inches=0.1)
     plt.close(figure)
     return buffer.getvalue()

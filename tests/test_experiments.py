@@ -188,3 +188,27 @@ def test_frozen_base_sensitivity_of_a_parameter_fitted_at_its_upper_bound():
     expected = np.log(mu(top * (1 - 1e-4)) / mu(top)) / np.log1p(-1e-4)
     assert np.allclose(base.sensitivity["adhesion_energy_J_m2"], expected, rtol=1e-9)
     assert np.all(expected > 0)
+
+
+def test_a_replicate_count_at_a_corner_of_the_space_stays_inside_the_plot(monkeypatch):
+    # four runs at the space's top-right corner and two at its bottom-left: each count ("x4", "x2") is
+    # drawn towards the panel's middle, inside the figure (it was cut at the right edge)
+    document = {"goal": "parameters", "efficiency_lower_bound": 0.9,
+                "plot": {"axes": ["load_N", "speed_m_s"],
+                         "runs": {"load_N": [0.03] * 4 + [0.003] * 2, "speed_m_s": [0.15] * 4 + [0.0] * 2}}}
+    import matplotlib.figure
+
+    drawn = []
+    save = matplotlib.figure.Figure.savefig
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig",
+                        lambda self, *a, **k: (drawn.append(self), save(self, *a, **k))[1])
+    assert plan_png(document)[:8] == b"\x89PNG\r\n\x1a\n"
+    figure = drawn[0]
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(figure).get_renderer()  # the closed figure, drawn again as it was saved
+    counts = [t for t in figure.axes[0].texts if t.get_text().startswith("x")]
+    assert sorted(t.get_text() for t in counts) == ["x2", "x4"]
+    for text in counts:
+        box, frame = text.get_window_extent(renderer), figure.axes[0].get_window_extent(renderer)
+        assert frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1, text
