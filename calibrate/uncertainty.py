@@ -190,4 +190,10 @@ def parameter_warnings(before: FitResult, after: FitResult) -> list[str]:
                 f"{name} ended on a bound of its range in the {which}: its value is limited by "
                 f"the bound, not by the data, and its interval is not meaningful"
             )
+        for name in fit.unidentified:
+            warnings.append(
+                f"{name} is not identified by the data in the {which}: it trades off with another fitted "
+                f"value (a near-singular direction of the fit), so its standard deviation is reported at "
+                f"least as large as its value, not the pseudo-inverse's"
+            )
     return warnings

@@ -20,7 +20,7 @@ from microbearing.calibrate.fit import fit
 from microbearing.calibrate.groups import within_groups
 from microbearing.calibrate.scatter import allowance
 from microbearing.calibrate.tails import tail_form
-from microbearing.calibrate.uncertainty import outlier_threshold
+from microbearing.calibrate.uncertainty import outlier_threshold, parameter_warnings
 from microbearing.physics.effects import PARAMETER_SHARES
 from microbearing.service.app import create_app
 from microbearing.service.settings import Settings
@@ -176,6 +176,8 @@ def test_a_value_the_data_do_not_identify_gets_a_wide_standard_deviation():
     assert set(result.unidentified) == {"ball_youngs_modulus_Pa", "race_youngs_modulus_Pa"}
     for name, std in result.declared_std.items():
         assert std >= abs(result.declared[name])
+    words = parameter_warnings(result, result)
+    assert sum("not identified by the data" in w for w in words) == 4  # two values, in both fits
     identified = fit(dataset, ["mu_pivot"])
     assert identified.unidentified == []
     assert identified.declared_std["mu_pivot"] < 0.1 * identified.declared["mu_pivot"]
