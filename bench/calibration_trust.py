@@ -78,7 +78,7 @@ def post(client: TestClient, body: dict) -> tuple[int, dict]:
     response = client.post("/v1/calibrations", json=body)
     if response.status_code != 202:
         return response.status_code, response.json()
-    job = finished_job(client, response.headers["location"], timeout_s=600, interval_s=0.2)
+    job = finished_job(client, response.headers["location"], timeout_s=3600, interval_s=0.5)
     return 202, client.get(job["result_url"]).json()
 
 
