@@ -42,7 +42,8 @@ from .rivals import where_they_part
 from .scores import within_one_se
 from .select import CandidateScore, Selection, preferred
 
-__all__ = ["CLOSE_MARGIN", "CLOSE_Z", "rows_to_settle", "undecided"]
+__all__ = ["CLOSE_MARGIN", "CLOSE_Z", "few_rows", "rows_for_terms", "rows_to_settle", "terms_supported",
+           "undecided"]
 
 #: A z within this much of the step's threshold (below for a candidate left out, above for a term
 #: added) is a close call. [1]
@@ -69,6 +70,56 @@ def rows_to_settle(n_rows: int, z: float, z_needed: float) -> int | None:
     if z <= 0:
         return None
     return int(np.ceil(n_rows * (z_needed / z) ** 2))
+
+
+def rows_for_terms(n_fit_parameters: int, folds: int, terms: int) -> int:
+    """Fewest rows for nested cross-validation of a model with ``terms`` two-parameter terms: every inner
+    training set two rows more than its fitted values, every inner test fold at least one row. [1]
+
+    Examples
+    --------
+    >>> rows_for_terms(1, 5, 0), rows_for_terms(1, 5, 1), rows_for_terms(2, 5, 3)
+    (7, 8, 16)
+    """
+    keep = (1.0 - 1.0 / folds) ** 2
+    return max(int(np.ceil((n_fit_parameters + 2 * terms + 2) / keep)),
+               int(np.ceil(folds / (1.0 - 1.0 / folds))))
+
+
+def terms_supported(n_rows: int, n_fit_parameters: int, folds: int, most: int) -> int:
+    """Most two-parameter terms (at most ``most``) whose model nested cross-validation can fit and judge on
+    ``n_rows`` rows (:func:`rows_for_terms`); 0 when only the declared model can. [1]
+
+    Examples
+    --------
+    >>> terms_supported(8, 1, 4, 3), terms_supported(12, 1, 5, 3), terms_supported(200, 2, 5, 3)
+    (0, 2, 3)
+    """
+    return max((k for k in range(most + 1) if rows_for_terms(n_fit_parameters, folds, k) <= n_rows),
+               default=0)
+
+
+def few_rows(n_rows: int, n_fit_parameters: int, folds: int, supported: int, most: int
+             ) -> dict[str, Any] | None:
+    """The report's item when the rows support fewer terms than the search may add (None otherwise).
+
+    With ``supported`` below ``most`` the search adds at most ``supported`` terms: no effect beyond them is
+    claimed either way (the data cannot decide), and :func:`rows_for_terms` says how many rows would let
+    the search weigh one more.
+    """
+    if supported >= most:
+        return None
+    more = rows_for_terms(n_fit_parameters, folds, supported + 1)
+    what = ("no term could be weighed" if supported == 0 else
+            f"at most {supported} term{'s' if supported > 1 else ''} could be weighed")
+    return {
+        "kind": "few_rows", "terms": [], "z": None, "z_needed": None, "rows_now": n_rows,
+        "rows_to_settle": more, "where": None,
+        "statement": (f"with {n_rows} rows {what} ({folds}-fold nested cross-validation, {n_fit_parameters} "
+                      f"fitted parameter(s)): the data cannot decide whether any further effect is "
+                      f"there, and none is claimed; about {more} rows would let the search weigh one more "
+                      f"term. The intervals carry the small-sample allowance of so few rows"),
+    }
 
 
 def _where(dataset: Dataset, term: Term, mu_with: np.ndarray, mu_without: np.ndarray,

@@ -33,6 +33,7 @@ from .data import Dataset
 __all__ = [
     "FitResult",
     "HUBER_K",
+    "UNIDENTIFIED_RCOND",
     "check_fit_parameters",
     "fit",
     "huber_loss",
@@ -51,6 +52,11 @@ _EXCLUSIVE_MARGIN = 1e-9
 _REJECTED_RESIDUAL = 1e3
 # Relative step of the finite-difference Jacobian used by the sandwich covariance.
 _JACOBIAN_STEP = 1e-6
+#: A direction of the relative Jacobian (each column times its value) whose singular value is below this
+#: share of the largest is not identified by the data. [1]
+UNIDENTIFIED_RCOND = 1e-4
+# A value loads on an unidentified direction when its share of that singular vector exceeds this. [1]
+_LOADING = 0.1
 # Largest relative shift (log scale) of a declared parameter in a first-order screening fit.
 _MAX_SHIFT = 2.0
 # Tolerances of a fit: tight for the reported ones, loose for ranking candidates. Not looser than 1e-5:
@@ -86,6 +92,11 @@ class FitResult:
         Names (as in ``names``) of the values that ended on a bound.
     success : bool
         Whether the optimizer reported convergence.
+    unidentified : list of str
+        Names of the values the data do not identify: they load on a direction of the relative Jacobian
+        whose singular value is below :data:`UNIDENTIFIED_RCOND` of the largest (a modulus that trades
+        off exactly against another parameter). The pseudo-inverse gives them a tiny variance along that
+        direction; :attr:`std` reports at least their own magnitude instead.
     """
 
     declared: dict[str, float]
@@ -98,11 +109,15 @@ class FitResult:
     residual: np.ndarray = field(repr=False)
     at_bound: list[str]
     success: bool
+    unidentified: list[str] = field(default_factory=list)
 
     @property
     def std(self) -> np.ndarray:
-        """Standard deviation of every value, in ``names`` order."""
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        """Standard deviation of every value, in ``names`` order: the sandwich's, and at least the value's
+        own magnitude for an :attr:`unidentified` one (the data do not bound it)."""
+        std = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        wide = np.array([n in self.unidentified for n in self.names], dtype=bool)
+        return np.where(wide, np.maximum(std, np.abs(self.values)), std)
 
     @property
     def declared_std(self) -> dict[str, float]:
@@ -334,7 +349,8 @@ def fit(
             xtol=tol,
         )
         x, r = result.x, result.fun
-    cov = _sandwich(residual, x, r, lo, hi, HUBER_K * s) if precise else np.full((x.size, x.size), np.nan)
+    cov, weak = (_sandwich(residual, x, r, lo, hi, HUBER_K * s) if precise
+                 else (np.full((x.size, x.size), np.nan), np.zeros(x.size, dtype=bool)))
     values, term_values = unknowns.split(x)
     # On a bound within a millionth of the value's own scale (its start when it ends near zero).
     scale_of = 1e-6 * np.maximum(np.abs(x), np.abs(x0))
@@ -351,6 +367,7 @@ def fit(
         r,
         [n for n, b in zip(names, on_bound, strict=True) if b],
         bool(result.success),
+        [n for n, w in zip(names, weak, strict=True) if w],
     )
 
 
@@ -423,8 +440,9 @@ def _unknowns(dataset, fit_parameters, terms, start, start_terms, base, conventi
     return _Unknowns(declared, np.clip(np.array(x0, dtype=float), lo, hi), lo, hi, names, sizes)
 
 
-def _sandwich(residual, x, r, lo, hi, k) -> np.ndarray:
-    """Sandwich covariance of the Huber M-estimator from a finite-difference Jacobian at ``x``."""
+def _sandwich(residual, x, r, lo, hi, k) -> tuple[np.ndarray, np.ndarray]:
+    """Sandwich covariance of the Huber M-estimator from a finite-difference Jacobian at ``x``, and which
+    values the data do not identify (see :attr:`FitResult.unidentified`)."""
     jac = np.empty((r.size, x.size))
     for j in range(x.size):
         step = _JACOBIAN_STEP * max(abs(x[j]), 1e-300) if x[j] != 0 else _JACOBIAN_STEP
@@ -438,7 +456,17 @@ def _sandwich(residual, x, r, lo, hi, k) -> np.ndarray:
     bread = np.linalg.pinv(jac[inside].T @ jac[inside])
     meat = (jac * psi[:, None]).T @ (jac * psi[:, None])
     dof = max(r.size - x.size, 1)
-    return bread @ meat @ bread * (r.size / dof)
+    relative = jac[inside] * np.where(x != 0, np.abs(x), 1.0)
+    return bread @ meat @ bread * (r.size / dof), _unidentified(relative)
+
+
+def _unidentified(relative: np.ndarray) -> np.ndarray:
+    """Which columns of a relative Jacobian load on a direction it hardly sees (bool per column)."""
+    if relative.size == 0 or not np.all(np.isfinite(relative)):
+        return np.zeros(relative.shape[1], dtype=bool)
+    _, singular, vt = np.linalg.svd(relative, full_matrices=False)
+    weak = singular < UNIDENTIFIED_RCOND * max(float(singular[0]), 1e-300)
+    return np.any(np.abs(vt[weak]) > _LOADING, axis=0)
 
 
 def kfold_indices(n_points: int, folds: int, seed: int = 0) -> list[np.ndarray]:

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -50,7 +50,8 @@ from scipy import optimize, stats
 
 from .data import factor_label
 
-__all__ = ["MAX_GROUPS", "MIN_GROUPS", "GroupEffect", "describe_groups", "fit_group_effect", "why_not_fitted"]
+__all__ = ["MAX_GROUPS", "MIN_GROUPS", "GroupEffect", "describe_groups", "fit_group_effect", "why_not_fitted",
+           "within_groups"]
 
 #: Fewest groups whose spread a calibration estimates. [1]
 MIN_GROUPS = 2
@@ -423,3 +424,48 @@ def describe_groups(effects: Sequence[GroupEffect]) -> list[dict[str, Any]]:
             "summary": e.summary(),
         })
     return out
+
+
+def within_groups(dataset, mu_model: np.ndarray):
+    """The measurements with each group's level taken out, for the effect search, and the levels.
+
+    The search scores candidate terms by their held-out improvement against the scatter the current
+    model leaves; offsets between specimens (or builds, batches) are part of that scatter unless they
+    are absorbed, and an effect within the specimens then looks like noise (a temperature effect at
+    z 2.90 against 3.29 needed, the within-build scatter 9.2 % for a true 3 %). Here each factor column
+    that can be fitted (:func:`why_not_fitted`) gets a random intercept on log μ of what ``mu_model``
+    (the declared model) leaves, ``fit_group_effect`` with μ itself as the parameter, and each row is
+    divided by ``exp(b_g)``, its group's best linear unbiased prediction: shrunk toward zero where a
+    group has few rows, so that an effect constant within groups is absorbed only as far as the groups'
+    own rows say. The mean level ``b0`` stays (the declared parameters fit it). Factors in turn, each on
+    what the previous ones leave; the calibrated model's group effects are fitted afterwards, on the
+    final model's residual, as before.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Measurements with factor columns (returned unchanged without any).
+    mu_model : numpy.ndarray
+        μ of the declared model at every row. [1]
+
+    Returns
+    -------
+    tuple
+        The dataset with ``mu_measured`` (and ``mu_measured_std`` in proportion) divided by the groups'
+        levels, and the shift of log μ taken out of every row [1].
+    """
+    shift = np.zeros(dataset.n_points)
+    residual = np.log(dataset.mu_measured / mu_model)
+    for factor, labels in dataset.factors.items():
+        if why_not_fitted(labels) or not np.all(np.isfinite(residual)):
+            continue
+        effect = fit_group_effect(factor, labels, residual - shift, {})
+        if effect is None or effect.parameter != "mu":
+            continue
+        level, _, _ = effect.shift(labels, np.ones(dataset.n_points))
+        shift = shift + level - effect.offset_log
+    if not np.any(shift):
+        return dataset, shift
+    factor = np.exp(-shift)
+    std = None if dataset.mu_measured_std is None else dataset.mu_measured_std * factor
+    return replace(dataset, mu_measured=dataset.mu_measured * factor, mu_measured_std=std), shift

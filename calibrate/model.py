@@ -549,7 +549,10 @@ class CalibratedModel:
             if self.scatter.column in columns:
                 return np.square(self.scatter.std_log(columns, shape)
                                  * self.scatter.quantile_factor(columns, shape, level))
-        return np.full(shape, float(self.noise_std_log or 0.0) ** 2)
+        # One spread everywhere: its small-sample allowance and heavy-tail factor (calibrate.tails).
+        constant = self.scatter is not None and self.scatter.kind == "constant"
+        factor = self.scatter.quantile_factor({}, shape, level) if constant else 1.0
+        return np.square(float(self.noise_std_log or 0.0) * factor) * np.ones(shape)
 
     def _group_terms(self, points: Mapping[str, Any], labels: Mapping[str, Any], shape,
                      level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:

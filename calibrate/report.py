@@ -39,11 +39,11 @@ from microbearing import physics
 
 from .censored import measured_rows, residual_variance
 from .data import Dataset, parse_csv, parse_rows
-from .decidability import undecided
+from .decidability import few_rows, rows_for_terms, terms_supported, undecided
 from .discrepancy import gp_discrepancy, residual_gp
 from .domain import DataCloud, confounded_pairs, confounding_words
 from .fit import FitResult, check_fit_parameters, fit, predict_mu, prediction_errors
-from .groups import describe_groups, fit_group_effect, why_not_fitted
+from .groups import describe_groups, fit_group_effect, why_not_fitted, within_groups
 from .measurement import drift_words, inspect, lack_of_fit, with_censor_scale
 from .measurement import folds as design_folds
 from .model import CalibratedModel, RivalModel
@@ -52,8 +52,9 @@ from .plots import calibration_plots
 from .prose import code_columns, domain_words, rival_drivers, rival_words
 from .rivals import fit_rivals, rival_json
 from .scatter import ScatterModel, fit_scatter
-from .select import MAX_TERMS, REPORTED_CANDIDATES, cross_validate, forward_select, nested_cross_validate
+from .select import REPORTED_CANDIDATES, cross_validate, forward_select, nested_cross_validate
 from .stages import CalibrationOptions, CandidatesStage, DataStage, SelectionStage, UncertaintyStage
+from .tails import interval_form
 from .uncertainty import find_outliers, noise_report, parameter_warnings
 
 __all__ = [
@@ -70,8 +71,8 @@ __all__ = [
     "uncertainty_stage",
 ]
 
-#: Fewest rows a calibration accepts: k-fold CV needs a few rows per fold. [1]
-MIN_ROWS = 10
+#: Fewest rows a calibration accepts (with honest, wide intervals and no effect claimed on so few). [1]
+MIN_ROWS = 8
 
 #: Fraction of ``progress`` reached at the end of each stage of :func:`calibrate`, in order. [1]
 PROGRESS_STAGES = {
@@ -358,23 +359,21 @@ def check_request(dataset: Dataset, fit_parameters: Sequence[str], folds: int) -
     if dataset.n_points < needed:
         raise ValueError(
             f"data must have at least {needed} rows for {folds}-fold nested cross-validation with "
-            f"{len(names)} fitted parameter(s) and up to {MAX_TERMS} terms; got {dataset.n_points}"
+            f"{len(names)} fitted parameter(s); got {dataset.n_points}"
         )
 
 
 def rows_needed(n_fit_parameters: int, folds: int) -> int:
-    """Fewest rows for nested cross-validation: every inner training set two rows more than the fitted
-    values of the largest model (declared + :data:`MAX_TERMS` two-parameter terms), every inner test
-    fold at least two rows.
+    """Fewest rows for nested cross-validation of the declared model (fewer than the search needs for
+    :data:`MAX_TERMS` terms: it then adds as many as the rows support,
+    :func:`calibrate.decidability.terms_supported`, and says so).
 
     Examples
     --------
-    >>> rows_needed(2, 5)
-    16
+    >>> rows_needed(2, 5), rows_needed(2, 2)
+    (8, 16)
     """
-    keep = (1.0 - 1.0 / folds) ** 2
-    return max(MIN_ROWS, int(np.ceil((n_fit_parameters + 2 * MAX_TERMS + 2) / keep)),
-               int(np.ceil(2 * folds / (1.0 - 1.0 / folds))))
+    return max(MIN_ROWS, rows_for_terms(n_fit_parameters, folds, 0))
 
 
 def calibrate(
@@ -444,6 +443,12 @@ def calibrate(
             f"convention must be one of {', '.join(physics.CONVENTIONS)}; got {options.convention!r}")
     dataset = _as_dataset(data, fixed)
     check_request(dataset, fit_parameters, options.folds)
+    # Few rows: the search adds only as many terms as nested cross-validation can fit and judge on them.
+    supported = terms_supported(dataset.n_points, len(check_fit_parameters(dataset, fit_parameters)),
+                                options.folds, options.search.max_terms)
+    if supported < options.search.max_terms:
+        options = replace(options, search=replace(options.search, max_terms=supported),
+                          requested_terms=options.search.max_terms)
     report(0.0)
     ends = list(PROGRESS_STAGES.values())
 
@@ -507,8 +512,11 @@ def data_stage(dataset: Dataset, fit_parameters: Sequence[str], options: Calibra
 def candidates_stage(declared: DataStage, options: CalibrationOptions,
                      progress: Callable[[float], None]) -> CandidatesStage:
     """Stage 2: forward selection over the candidate terms on all rows
-    (:func:`calibrate.select.forward_select`), with ``progress`` called with its fraction done."""
-    return CandidatesStage(forward_select(declared.dataset, declared.fit_parameters, options.folds,
+    (:func:`calibrate.select.forward_select`), with ``progress`` called with its fraction done. With
+    factor columns the search runs on the measurements with each group's level taken out
+    (:func:`calibrate.groups.within_groups`): offsets between specimens are not scatter to an effect."""
+    searched, _ = within_groups(declared.dataset, declared.mu_before)
+    return CandidatesStage(forward_select(searched, declared.fit_parameters, options.folds,
                                           options.seed, options.search, progress))
 
 
@@ -598,6 +606,13 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     leftover = _confirm_gp(declared, final, leftover, mu_after, values, options)
     noise_std_log, scatter = _noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape,
                                           dataset.censored)
+    # The interval's form: the scatter's degrees of freedom and the residuals' tails (calibrate.tails),
+    # read on the measured rows. The tails are read on the residual standardized by the scatter model (a
+    # spread that varies is not a tail); with a GP the residual also holds what the GP explains, and the
+    # Gaussian form stands.
+    standardized = held_out * noise_std_log / scatter.std_log(varying, measured.shape)
+    scatter = replace(scatter, form=interval_form(standardized if leftover["gp"] is None else held_out[:0],
+                                                  values, noise_std_log, len(final.names)))
     cloud = DataCloud.from_columns(varying, options.seed)
     model = CalibratedModel.from_fit(final, dataset, convention, noise_std_log, discrepancy=leftover["gp"],
                                      groups=group_effects, scatter=scatter, cloud=cloud)
@@ -702,11 +717,11 @@ def format_report(declared: DataStage, candidates: CandidatesStage, selection: S
         plots=plots,
         rivals=rival_list,
         undecided=undecided(dataset, found, stability, rival_list, fit_parameters, model.noise_std_log,
-                            options.convention),
+                            options.convention) + _few_rows(dataset, fit_parameters, options),
         groups=describe_groups(uncertainty.group_effects) + [
             {"factor": name, "summary": f"{name}: {why_not_fitted(labels)}"}
             for name, labels in dataset.factors.items() if why_not_fitted(labels)],
-        scatter={**uncertainty.scatter.to_json(), "summary": uncertainty.scatter.summary()},
+        scatter={**uncertainty.scatter.to_json(), "summary": _scatter_words(uncertainty.scatter)},
         confounding=confounding,
         domain=domain_words(uncertainty.cloud),
         measurement_system=_measurement_system(declared, uncertainty, effects),
@@ -730,6 +745,18 @@ def _measurement_system(declared: DataStage, uncertainty: UncertaintyStage,
         "drift": drift,
         "summary": system.words() + ([] if lof is None else [lof.words()]) + drift,
     }
+
+
+def _scatter_words(scatter: ScatterModel) -> str:
+    """The scatter model in words, with the form of the interval (calibrate.tails) when it has one."""
+    return scatter.summary() + ("" if scatter.form is None else f"; {scatter.form.words()}")
+
+
+def _few_rows(dataset: Dataset, fit_parameters: Sequence[str], options: CalibrationOptions) -> list[dict]:
+    """The report's item when the rows supported fewer terms than asked for (see :func:`calibrate`)."""
+    most = options.requested_terms or options.search.max_terms
+    item = few_rows(dataset.n_points, len(fit_parameters), options.folds, options.search.max_terms, most)
+    return [] if item is None else [item]
 
 
 def _warnings(declared: DataStage, uncertainty: UncertaintyStage, gp: Mapping[str, Any]) -> list[str]:

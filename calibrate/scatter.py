@@ -54,6 +54,7 @@ from scipy import stats
 from microbearing import physics
 
 from .fit import kfold_indices
+from .tails import IntervalForm
 from .uncertainty import outlier_threshold
 
 __all__ = ["PERMUTATIONS", "SCATTER_ALPHA", "ScatterModel", "allowance", "fit_scatter", "permutation_p"]
@@ -111,6 +112,9 @@ class ScatterModel:
     covariance : list of float
         ``loglinear``: the inverse Fisher information of [a, b], flattened 2 x 2 (row-major) [1]; empty
         for the other kinds (and for models stored before it, whose intervals take no allowance).
+    form : IntervalForm or None
+        The degrees of freedom of one spread everywhere and the heavy-tail factor of the residuals
+        (:mod:`calibrate.tails`); None for models stored before it (no allowance for ``constant``).
     """
 
     kind: str = "constant"
@@ -125,13 +129,22 @@ class ScatterModel:
     band: list[float] = field(default_factory=list)
     rows: list[float] = field(default_factory=list)
     covariance: list[float] = field(default_factory=list)
+    form: IntervalForm | None = None
 
     def quantile_factor(self, columns: Mapping[str, Any], shape: tuple[int, ...] = (), level: float = 0.95
                         ) -> np.ndarray:
         """The factor on the spread's half-width z ŝ at points [1] for the degrees of freedom ν that
         inform the spread there (see the module's text): :func:`allowance` of ν. A step's spread on each
         side rests on the k rows there (ν = k - 1); a log-linear one's on ν(x) = 1 / (2 Var[log ŝ(x)]). 1
-        for one spread everywhere, and without row counts or covariance (models stored before them)."""
+        for one spread everywhere, and without row counts or covariance (models stored before them).
+        With :attr:`form`, one spread everywhere takes the allowance of its degrees of freedom, and every
+        kind the heavy-tail factor (:mod:`calibrate.tails`)."""
+        tail = 1.0 if self.form is None else self.form.tail_factor
+        return tail * self._dof_factor(columns, shape, level)
+
+    def _dof_factor(self, columns: Mapping[str, Any], shape: tuple[int, ...], level: float) -> np.ndarray:
+        if self.kind == "constant" and self.form is not None:
+            return np.full(shape, float(allowance(self.form.dof, level)))
         if self.kind == "loglinear" and len(self.covariance) == 4:
             t = self._standardized(columns, shape)
             (caa, cab), (_, cbb) = np.reshape(self.covariance, (2, 2))
@@ -197,7 +210,7 @@ class ScatterModel:
         coefficients = ([c + shift for c in self.coefficients] if self.kind != "loglinear"
                         else [self.coefficients[0] + shift, self.coefficients[1]])
         return ScatterModel(self.kind, self.column, coefficients, self.split, self.transform, self.centre,
-                            self.scale, self.range, self.cv, self.band, self.rows, self.covariance)
+                            self.scale, self.range, self.cv, self.band, self.rows, self.covariance, self.form)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""
@@ -205,7 +218,8 @@ class ScatterModel:
                 "split": self.split, "transform": self.transform, "centre": self.centre, "scale": self.scale,
                 "range": list(map(float, self.range)), "cv": dict(self.cv),
                 "band": list(map(float, self.band)), "rows": list(map(float, self.rows)),
-                "covariance": list(map(float, self.covariance))}
+                "covariance": list(map(float, self.covariance)),
+                **({"form": self.form.to_json()} if self.form is not None else {})}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> ScatterModel:
@@ -228,7 +242,7 @@ class ScatterModel:
                    float(data.get("scale", 1.0)), [float(v) for v in data.get("range", [])],
                    {str(k): float(v) for k, v in dict(data.get("cv", {})).items()},
                    [float(v) for v in data.get("band", [])], [float(v) for v in data.get("rows", [])],
-                   [float(v) for v in data.get("covariance", [])])
+                   [float(v) for v in data.get("covariance", [])], IntervalForm.from_json(data.get("form")))
 
 
 def allowance(dof: Any, level: float = 0.95) -> np.ndarray:

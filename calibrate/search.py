@@ -14,6 +14,7 @@ import numpy as np
 from microbearing import physics
 
 from .candidates import FrozenBase, candidate_terms, mu_of
+from .credibility import implausible
 from .data import Dataset
 from .fit import fit, huber_loss, predict_mu, weighted_log_residual
 from .scores import (
@@ -259,7 +260,15 @@ def search_step(
     joint.sort(key=lambda c: c.score)
     finalists = {id(c.term) for c in joint}
     ranked = joint + [c for c in screened if id(c.term) not in finalists]
-    significant = [c for c in joint if c.score < current_score.score and c.z > z_needed]
+    # A named law whose values are physically implausible (calibrate.credibility) is not chosen: it loses
+    # to a plausible candidate or a generic term, and the words name it.
+    columns = {**dataset.inputs(), **dataset.conditions}
+    refused = {id(c.term): why for c in joint if (why := implausible(
+        c.term, c.values, columns, shifted(current.full.declared, c.shifts), dataset.fixed))}
+    significant = [c for c in joint if c.score < current_score.score and c.z > z_needed
+                   and id(c.term) not in refused]
+    named = "".join(f"; {why[0]} (implausible, not chosen)" for c in joint[:3]
+                    if (why := refused.get(id(c.term))))
     if not significant:
         best = joint[0] if joint else None
         detail = (
@@ -269,7 +278,7 @@ def search_step(
                 f" (best candidate {best.term.label}: score {best.score - current_score.score:+.1f}, "
                 f"must fall; z = {best.z:.2f}, must exceed {z_needed:.2f})"
             )
-        )
+        ) + named
         return Step(
             current_score,
             ranked,
@@ -279,7 +288,7 @@ def search_step(
         )
     chosen = preferred(dataset, significant)
     return Step(current_score, ranked, chosen, z_needed,
-                _chosen_words(plain, current, current_score, chosen, significant, z_needed))
+                _chosen_words(plain, current, current_score, chosen, significant, z_needed) + named)
 
 
 def _screened(dataset, fit_parameters, current: ModelCV, scale, options: SearchOptions, progress):

@@ -61,6 +61,9 @@ class CalibrationOptions:
     search : SearchOptions
         How forward selection searches (:class:`calibrate.select.SearchOptions`), its convention
         included.
+    requested_terms : int or None
+        The most terms asked for when the rows support fewer (``search.max_terms`` is then lowered to what
+        they support, :func:`calibrate.decidability.terms_supported`); None: as asked.
     """
 
     folds: int = 5
@@ -68,6 +71,7 @@ class CalibrationOptions:
     gp_max_train: int = 300
     make_plots: bool = True
     search: SearchOptions = field(default_factory=SearchOptions)
+    requested_terms: int | None = None
 
     @property
     def convention(self) -> str:

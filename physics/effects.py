@@ -91,6 +91,12 @@ class EffectParameter:
         Meaning in one sentence.
     minimum, maximum : float
         Bounds of the fit (may be infinite).
+    plausible : (float, float) or None
+        The values a micro ball bearing plausibly shows, in ``unit`` (a calibration names a fitted
+        value outside them implausible); None: any value within the bounds.
+    within_data : bool
+        Whether the value is a scale of the driver (a decay length, a Stribeck speed) that must lie
+        within reach of the data's driver values: a decay far beyond them is a trend, not this law.
     """
 
     name: str
@@ -98,6 +104,8 @@ class EffectParameter:
     description: str
     minimum: float
     maximum: float
+    plausible: tuple[float, float] | None = None
+    within_data: bool = False
 
 
 _Columns = Mapping[str, np.ndarray]
@@ -437,9 +445,10 @@ _RUN_IN = Effect(
     parameters=(
         # Never negative: friction rising with the count is no run-in (measurement_drift may take it)
         EffectParameter("run_in_amplitude", "1", "Initial excess friction relative to the steady state.",
-                        0.0, 100.0),
+                        0.0, 100.0, plausible=(0.0, 10.0)),
         EffectParameter("run_in_length", "driver",
-                        "Decay length of the excess, in the unit of the run/cycle column.", 0.0, np.inf),
+                        "Decay length of the excess, in the unit of the run/cycle column.", 0.0, np.inf,
+                        within_data=True),
     ),
     driver_description="run, cycle, stroke or time count n >= 0 since the start",
     reference="P.J. Blau, Tribology International 38, 1007-1012 (2005), 'On the nature of running-in'.",
@@ -539,9 +548,9 @@ _BREAKAWAY = Effect(
     formula="mu = mu_model + breakaway_excess * exp(-speed_m_s / breakaway_speed_m_s)",
     parameters=(
         EffectParameter("breakaway_excess", "1", "Excess friction coefficient at rest (breakaway).", 0.0,
-                        10.0),
+                        10.0, plausible=(0.0, 1.0)),
         EffectParameter("breakaway_speed_m_s", "m/s", "Stribeck speed over which the excess decays by 1/e.",
-                        1e-9, 1e3),
+                        1e-9, 1e3, within_data=True),
     ),
     driver_description="slider speed speed_m_s [m/s], at least three distinct values",
     reference=("R. Stribeck, Z. VDI 46, 1341-1348 (1902); the exponential form of B. Armstrong-Helouvry, "
@@ -857,6 +866,9 @@ class ParameterShare:
     linear : bool
         Whether a fitted value of it has a share linear in it that is a summand of the physics'
         posynomial, μ(p + h) - μ(p) = h × output / p, non-decreasing in the angle and the speed.
+    plausible : (float, float) or None
+        The values the parameter physically takes in a micro ball bearing, in its unit (a fit or a
+        drift that moves it outside is named implausible by the calibration).
     """
 
     name: str
@@ -865,6 +877,7 @@ class ParameterShare:
     output: str | None = None
     exponent: float | None = None
     linear: bool = False
+    plausible: tuple[float, float] | None = None
 
 
 #: The parameters a drift may move, with the physics' direction in each and its share of μ: the viscosity
@@ -875,20 +888,23 @@ class ParameterShare:
 #: a ~ E*^-1/3; the rolling force ~ E'^-0.108; the hysteresis moment does not read it).
 PARAMETER_SHARES: dict[str, ParameterShare] = {s.name: s for s in [
     ParameterShare("viscosity_Pa_s", "the water film's viscosity falls as temperature rises", 1,
-                   "mu_rolling", 0.66),
+                   "mu_rolling", 0.66, plausible=(1e-4, 10.0)),
     ParameterShare("pressure_viscosity_1_Pa", "the pressure-viscosity coefficient falls as temperature rises",
-                   1, "mu_rolling", 0.022),
+                   1, "mu_rolling", 0.022, plausible=(1e-9, 1e-7)),
     ParameterShare("adhesion_energy_J_m2", "adhesion (capillary bridges, surface films) grows with humidity",
-                   1),
+                   1, plausible=(1e-3, 1.0)),
     ParameterShare("water_surface_tension_N_m", "surface tension of water falls with temperature", 1,
-                   "mu_ball_ball", 1.0),
+                   "mu_ball_ball", 1.0, plausible=(0.05, 0.08)),
     ParameterShare("mu_pivot", "the ball-race sliding coefficient depends on coating, humidity and "
-                               "temperature", 1, "mu_pivoting", 1.0, linear=True),
+                               "temperature", 1, "mu_pivoting", 1.0, linear=True, plausible=(0.01, 1.5)),
     ParameterShare("mu_ball", "the ball-ball sliding coefficient depends on coating, humidity and "
-                              "temperature", 1, "mu_ball_ball", 1.0),
-    ParameterShare("ball_youngs_modulus_Pa", "the balls' modulus depends on material and temperature", -1),
+                              "temperature", 1, "mu_ball_ball", 1.0, plausible=(0.01, 1.5)),
+    # Moduli: glass (70 GPa) and silicon (130-170) to silicon nitride (310) and sapphire (about 430).
+    ParameterShare("ball_youngs_modulus_Pa", "the balls' modulus depends on material and temperature", -1,
+                   plausible=(5e10, 4.5e11)),
     ParameterShare("race_youngs_modulus_Pa",
-                   "the races' modulus depends on material, coating and temperature", -1),
+                   "the races' modulus depends on material, coating and temperature", -1,
+                   plausible=(5e10, 4.5e11)),
 ]}
 #: Declared physics parameters that may drift with a condition, with why a tribologist would suspect it.
 DRIFT_PARAMETERS: dict[str, str] = {name: share.why for name, share in PARAMETER_SHARES.items()}

@@ -379,8 +379,8 @@ def test_bad_requests_are_value_errors():
     with pytest.raises(ValueError, match="at least"):
         calibrate(rows[:5], FIT, folds=2)
     # Enough rows for a plain 5-fold CV, not for the nested one: the message says how many.
-    with pytest.raises(ValueError, match=r"at least 16 rows for 5-fold nested cross-validation"):
-        calibrate(rows[:12], FIT, folds=5)
+    with pytest.raises(ValueError, match=r"at least 16 rows for 2-fold nested cross-validation"):
+        calibrate(rows[:12], FIT, folds=2)
 
 
 def test_nested_error_exposes_the_selection_bias_of_a_spurious_effect():

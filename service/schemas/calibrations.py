@@ -346,7 +346,9 @@ class Undecided(ResponseModel):
 
     kind: str = Field(description=(
         "near_threshold (a candidate just short of the selection's threshold), barely_chosen (a term added "
-        "just above it, or by few outer folds) or rivals (terms that fit about as well and part ways)."))
+        "just above it, or by few outer folds), rivals (terms that fit about as well and part ways) or "
+        "few_rows (the rows support fewer terms than the search may add: no further effect is claimed, and "
+        "rows_to_settle says how many rows would let it weigh one more)."))
     terms: list[str] = Field(description="The terms concerned.")
     z: float | None = Field(default=None, description="Held-out paired z of the term [1].")
     z_needed: float | None = Field(default=None, description="The step's threshold [1].")
@@ -415,7 +417,9 @@ class CalibrationResult(ResponseModel):
         "The scatter model of a new measurement (kind constant, step or loglinear in one column or its log, "
         "chosen by cross-validation; coefficients are logs of the standard deviation of log mu [1]; rows: a "
         "step's rows on each side [1]; covariance: a log-linear trend's inverse Fisher information [1]: "
-        "the interval takes Student's t of the degrees of freedom they give), with summary in words, e.g. "
+        "the interval takes Student's t of the degrees of freedom they give; form: the degrees of freedom of "
+        "one spread everywhere [1] and the heavy-tail factor on the half-width [1], with the fitted Student "
+        "t's tail_dof [1] when the residuals are heavy-tailed), with summary in words, e.g. "
         "'scatter 10 % below speed_m_s = 0.02 [m/s], 1.5 % above'."))
     confounding: list[str] | None = Field(default=None, description=(
         "Columns that move together in the data (their effects cannot be told apart) and what would "

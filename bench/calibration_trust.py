@@ -1,0 +1,196 @@
+"""Trust in a calibration's numbers (issue 33 items 4, 5, 6, 9), through the REST API, several seeds each.
+
+Run: ``python bench/calibration_trust.py [--seeds 5] [--part small,heavy,groups,plausible,clean]``.
+
+Every data set is the physics with mu_pivot 0.65 and 3 % log-normal scatter (Student t of 3 degrees of
+freedom for ``heavy``), posted to ``POST /v1/calibrations`` of an in-process app; the returned model
+(``CalibratedModel.from_json`` of the result's ``model``) predicts 400 fresh rows drawn like the data,
+whose share inside the 95 % interval is the coverage (target 0.90-0.98).
+
+* ``small``: 8, 12 and 15 rows, nothing to find: answered or refused, scatter estimated, coverage;
+* ``heavy``: 200 rows, Student-t (3 dof) scatter of scale 3 %, nothing to find: coverage;
+* ``groups``: 6 specimens x 30 rows, each specimen's mu offset (8 % between them), a humidity meniscus and
+  a viscosity falling with temperature (Arrhenius): the terms named with and without the ``specimen``
+  column, the within-specimen scatter;
+* ``plausible``: adhesion drifting with humidity (Kelvin) plus a run-in over cycles: what carries the
+  humidity effect, whether it is plausible, its standard deviation, coverage at RH 0.85;
+* ``clean``: 200 rows, nothing to find: no term named (false discoveries).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+_REPO = Path(__file__).resolve().parent.parent
+if Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
+    sys.path[0] = str(_REPO)
+sys.path.insert(0, str(_REPO / "tests"))
+
+import numpy as np  # noqa: E402
+from fastapi.testclient import TestClient  # noqa: E402
+from jobs_helper import finished_job  # noqa: E402
+
+from microbearing import physics  # noqa: E402
+from microbearing.calibrate import CalibratedModel  # noqa: E402
+from microbearing.service.app import create_app  # noqa: E402
+from microbearing.service.settings import Settings  # noqa: E402
+
+MU_PIVOT = 0.65
+NOISE = 0.03
+GAS_CONSTANT = 8.314462618
+
+
+def columns(rng: np.random.Generator, n: int, rh=(0.2, 0.6)) -> dict[str, np.ndarray]:
+    """Lab-like inputs and conditions of n rows."""
+    return {
+        "balls": rng.choice([4.0, 6.0, 8.0], n),
+        "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+        "speed_m_s": rng.uniform(0.005, 0.15, n),
+        "relative_humidity": rng.uniform(*rh, n),
+        "temperature_C": rng.uniform(20.0, 40.0, n),
+    }
+
+
+def mu_of(c, **values) -> np.ndarray:
+    """μ of the physics (mu_pivot 0.65 unless overridden) at the rows of c."""
+    return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"],
+                            **{"mu_pivot": MU_PIVOT, **values}).mu
+
+
+def viscosity(temperature_C, activation_J_mol=26e3, reference_C=25.0, level=0.01):
+    kelvin = np.asarray(temperature_C) + 273.15
+    return level * np.exp(activation_J_mol / GAS_CONSTANT * (1.0 / kelvin - 1.0 / (reference_C + 273.15)))
+
+
+def as_rows(c, measured, extra=None) -> list[dict]:
+    extra = extra or {}
+    return [{k: float(v[i]) for k, v in c.items()} | {k: v[i] for k, v in extra.items()}
+            | {"mu_measured": float(measured[i])} for i in range(measured.size)]
+
+
+def post(client: TestClient, body: dict) -> tuple[int, dict]:
+    """A calibration through the API: (status of the POST, the result or the problem)."""
+    response = client.post("/v1/calibrations", json=body)
+    if response.status_code != 202:
+        return response.status_code, response.json()
+    job = finished_job(client, response.headers["location"], timeout_s=3600, interval_s=0.5)
+    return 202, client.get(job["result_url"]).json()
+
+
+def coverage(result: dict, points: dict, measured: np.ndarray) -> float:
+    p = CalibratedModel.from_json(result["model"]).predict(points)
+    return float(np.mean((p.mu_lower <= measured) & (measured <= p.mu_upper)))
+
+
+def small(client, seed: int, n: int) -> dict:
+    rng = np.random.default_rng(seed)
+    c = columns(rng, n + 400)
+    mu = mu_of(c) * np.exp(rng.normal(0.0, NOISE, n + 400))
+    status, result = post(client, {"data": as_rows({k: v[:n] for k, v in c.items()}, mu[:n]),
+                                   "fit_parameters": ["mu_pivot"], "folds": min(5, n // 2)})
+    if status != 202:
+        return {"status": status, "detail": str(result.get("detail", result))[:90]}
+    model = result["model"]
+    return {"status": status, "terms": [e["label"] for e in result["effects"]],
+            "scatter": model["noise_std_log"],
+            "cover": coverage(result, {k: v[n:] for k, v in c.items()}, mu[n:]),
+            "undecided": [u["kind"] for u in result["undecided"]]}
+
+
+def heavy(client, seed: int, n: int = 200) -> dict:
+    rng = np.random.default_rng(seed)
+    c = columns(rng, n + 2000)
+    mu = mu_of(c) * np.exp(NOISE * rng.standard_t(3, n + 2000))
+    _, result = post(client, {"data": as_rows({k: v[:n] for k, v in c.items()}, mu[:n]),
+                                   "fit_parameters": ["mu_pivot"]})
+    return {"terms": [e["label"] for e in result["effects"]],
+            "cover": coverage(result, {k: v[n:] for k, v in c.items()}, mu[n:])}
+
+
+def group_data(seed: int, specimens: int = 6, rows: int = 30, spread: float = 0.08):
+    rng = np.random.default_rng(seed)
+    n = specimens * rows
+    c = columns(rng, n, rh=(0.2, 0.8))
+    label = np.repeat([f"S{g + 1}" for g in range(specimens)], rows)
+    offset = np.repeat(rng.normal(0.0, spread, specimens), rows)
+    mu = mu_of(c, viscosity_Pa_s=viscosity(c["temperature_C"]))
+    mu = mu + c["balls"] * 2e-5 / (c["load_N"] * np.log(1 / c["relative_humidity"]))
+    return c, mu * np.exp(offset + rng.normal(0.0, NOISE, n)), label
+
+
+def groups(client, seed: int) -> dict:
+    c, measured, label = group_data(seed)
+    out = {}
+    for name, extra in (("with", {"specimen": list(label)}), ("without", {})):
+        _, result = post(client, {"data": as_rows(c, measured, extra),
+                                       "fit_parameters": ["mu_pivot"]})
+        g = result["groups"][0] if result["groups"] else {}
+        out[name] = {"terms": [e["label"] for e in result["effects"]],
+                     "within": g.get("within_group_scatter_relative")}
+    return out
+
+
+def plausible_data(seed: int, n: int = 200):
+    rng = np.random.default_rng(seed)
+    c = columns(rng, n + 400, rh=(0.2, 0.6))
+    c["relative_humidity"][n:] = 0.85
+    c["cycle"] = np.concatenate([rng.integers(0, 5000, n), rng.integers(2000, 5000, 400)]).astype(float)
+    adhesion = 0.05 * (1 + 1.5 / np.log(1 / c["relative_humidity"]))
+    mu = mu_of(c, adhesion_energy_J_m2=adhesion) * (1 + np.exp(-c["cycle"] / 800))
+    return c, mu * np.exp(rng.normal(0.0, NOISE, mu.size)), n
+
+
+def plausible(client, seed: int) -> dict:
+    c, measured, n = plausible_data(seed)
+    _, result = post(client, {"data": as_rows({k: v[:n] for k, v in c.items()}, measured[:n]),
+                                   "fit_parameters": ["mu_pivot", "adhesion_energy_J_m2"]})
+    effects = [(e["label"], e.get("plausible", {}).get("plausible") if isinstance(e.get("plausible"), dict)
+                else None) for e in result["effects"]]
+    modulus = [e for e in result["effects"] if e.get("parameter") == "youngs_modulus_Pa"]
+    fresh = {k: v[n:] for k, v in c.items()}
+    return {"effects": effects, "cover_rh85": coverage(result, fresh, measured[n:]),
+            "modulus": [(e["parameters"], e["parameter_std"]) for e in modulus],
+            "implausible": result.get("implausible", [])}
+
+
+def clean(client, seed: int) -> dict:
+    rng = np.random.default_rng(seed)
+    c = columns(rng, 600)
+    mu = mu_of(c) * np.exp(rng.normal(0.0, NOISE, 600))
+    _, result = post(client, {"data": as_rows({k: v[:200] for k, v in c.items()}, mu[:200]),
+                                   "fit_parameters": ["mu_pivot"]})
+    return {"terms": [e["label"] for e in result["effects"]],
+            "cover": coverage(result, {k: v[200:] for k, v in c.items()}, mu[200:])}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--part", default="small,heavy,groups,plausible,clean")
+    args = parser.parse_args()
+    logging.disable(logging.INFO)
+    parts = args.part.split(",")
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    with tempfile.TemporaryDirectory() as tmp, TestClient(create_app(Settings(data_dir=tmp))) as client:
+        for part in parts:
+            start = time.perf_counter()
+            if part == "small":
+                for n in (8, 12, 15):
+                    for seed in seeds:
+                        print(f"small n={n} seed={seed}: {small(client, seed, n)}", flush=True)
+            else:
+                fn = {"heavy": heavy, "groups": groups, "plausible": plausible, "clean": clean}[part]
+                for seed in seeds:
+                    print(f"{part} seed={seed}: {fn(client, seed)}", flush=True)
+            print(f"{part}: {time.perf_counter() - start:.0f} s", flush=True)
+
+
+if __name__ == "__main__":
+    main()
