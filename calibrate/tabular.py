@@ -537,7 +537,7 @@ def read_table(data: str | bytes, separator: str | None = None, decimal: str | N
 
     Examples
     --------
-    >>> table = read_table("balls;speed [mm/s]\r\n4;50,5\r\n")
+    >>> table = read_table("balls;speed [mm/s]\\r\\n4;50,5\\r\\n")
     >>> [c.name for c in table.columns], table.converted_rows(), table.intake.decimal
     (['balls', 'speed_m_s'], [['4', '0.0505']], 'comma')
     """
