@@ -230,7 +230,8 @@ class Dataset:
                 physics_columns[name] = np.asarray(values)
         std = columns.get(MU_MEASURED_STD)
         return cls(physics_columns, conditions, np.asarray(columns[MU_MEASURED], dtype=float),
-                   None if std is None else np.asarray(std, dtype=float), dict(fixed), factors, headers)
+                   None if std is None else np.asarray(std, dtype=float), dict(fixed), factors,
+                   headers=headers)
 
 
 def parse_csv(text: str | bytes, fixed: Mapping[str, Any] | None = None,
