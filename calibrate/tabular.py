@@ -488,15 +488,7 @@ def read_csv(data: str | bytes, fixed: Mapping[str, Any] | None = None, separato
     >>> intake.separator, intake.header_line, intake.ignored
     ('semicolon', 2, ['column D (operator), as ignore asks'])
     """
-    if separator is not None and separator not in SEPARATORS:
-        raise ValueError(f"separator must be one of {', '.join(SEPARATORS)}; got {separator!r}")
-    if decimal is not None and decimal not in DECIMALS:
-        raise ValueError(f"decimal must be one of {', '.join(DECIMALS)}; got {decimal!r}")
-    text, encoding, note = _decode(data)
-    intake = Intake("csv", encoding=encoding, header_line=1, notes=[note] if note else [])
-    lines = _lines(text, intake)
-    sep = _separator(lines, separator, intake)
-    header, body = _table(lines, sep, separator, intake)
+    intake, lines, sep, header, body = _split(data, separator, decimal)
     header, body = _leave_out(header, body, ignore, intake)
     decimal = _decimal(body, sep, decimal, intake)
     try:
@@ -541,6 +533,18 @@ def read_table(data: str | bytes, separator: str | None = None, decimal: str | N
     >>> [c.name for c in table.columns], table.converted_rows(), table.intake.decimal
     (['balls', 'speed_m_s'], [['4', '0.0505']], 'comma')
     """
+    intake, _, sep, header, body = _split(data, separator, decimal)
+    _decimal(body, sep, decimal, intake)
+    columns = _columns([h.strip() for h in header]) if all(h.strip() for h in header) else None
+    if columns is not None:
+        intake.columns = columns
+    return Table(header, body, columns, intake)
+
+
+def _split(data: str | bytes, separator: str | None, decimal: str | None
+           ) -> tuple[Intake, list[str], str, list[str], list[list[str]]]:
+    """The file decoded and split into its header and rows at its separator (stated, from its ``sep=``
+    line, or detected), with the intake that says how; the stated options checked first."""
     if separator is not None and separator not in SEPARATORS:
         raise ValueError(f"separator must be one of {', '.join(SEPARATORS)}; got {separator!r}")
     if decimal is not None and decimal not in DECIMALS:
@@ -550,11 +554,7 @@ def read_table(data: str | bytes, separator: str | None = None, decimal: str | N
     lines = _lines(text, intake)
     sep = _separator(lines, separator, intake)
     header, body = _table(lines, sep, separator, intake)
-    _decimal(body, sep, decimal, intake)
-    columns = _columns([h.strip() for h in header]) if all(h.strip() for h in header) else None
-    if columns is not None:
-        intake.columns = columns
-    return Table(header, body, columns, intake)
+    return intake, lines, sep, header, body
 
 
 def _lines(text: str, intake: Intake) -> list[str]:
