@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -137,14 +138,7 @@ def calibrations_delete(args: argparse.Namespace) -> int:
     """``microbearing calibrations delete ID``: the calibration, and its data in every finished job."""
     from .calibrations import delete_calibration
 
-    store = open_store(args)
-    try:
-        reference = model_reference(store, args.id, ("calibrated",), data_dir(args))
-        delete_calibration(store, reference.removeprefix("calibrated:"))
-    finally:
-        store.close()
-    print(f"deleted calibration {reference.removeprefix('calibrated:')} from {data_dir(args)}")
-    return EXIT_OK
+    return _delete(args, "calibrated", "calibration", delete_calibration)
 
 
 def surrogate_train(args: argparse.Namespace) -> int:
@@ -203,13 +197,19 @@ def surrogate_delete(args: argparse.Namespace) -> int:
     """``microbearing surrogate delete ID``: the surrogate, and its data in every finished job."""
     from .surrogates import delete_stored
 
+    return _delete(args, "surrogate", "surrogate", delete_stored)
+
+
+def _delete(args: argparse.Namespace, kind: str, label: str, delete: Callable[[Any, str], Any]) -> int:
+    """Delete the model ``args.id`` of ``kind`` (``calibrated`` or ``surrogate``) from the store with
+    ``delete`` (which also erases its data from finished jobs) and say so."""
     store = open_store(args)
     try:
-        reference = model_reference(store, args.id, ("surrogate",), data_dir(args))
-        delete_stored(store, reference.removeprefix("surrogate:"))
+        model_id = model_reference(store, args.id, (kind,), data_dir(args)).removeprefix(f"{kind}:")
+        delete(store, model_id)
     finally:
         store.close()
-    print(f"deleted surrogate {reference.removeprefix('surrogate:')} from {data_dir(args)}")
+    print(f"deleted {label} {model_id} from {data_dir(args)}")
     return EXIT_OK
 
 
