@@ -11,7 +11,7 @@ from scipy import stats
 
 from microbearing import physics
 from microbearing.calibrate import DataError, calibrate, parse_csv, parse_rows
-from microbearing.calibrate.domain import DataCloud, confounded_pairs
+from microbearing.calibrate.domain import REPLICATE_JITTER, DataCloud, confounded_pairs
 from microbearing.calibrate.groups import fit_group_effect
 from microbearing.calibrate.scatter import fit_scatter
 
@@ -257,9 +257,18 @@ def test_the_cloud_threshold_is_the_conformal_quantile_of_leave_one_out_distance
     log_speed = np.log(speed)
     x = np.column_stack([(log_speed - log_speed.mean()) / log_speed.std(),
                          (temperature - temperature.mean()) / temperature.std()])
+    # Measurement jitter: rows within 0.3 % of each other in every column (of the speed, by its log; of the
+    # temperature, of its largest value) are replicates of one design point, which the cloud counts once.
+    jitter = np.array([np.log1p(REPLICATE_JITTER) / log_speed.std(),
+                       REPLICATE_JITTER * np.abs(temperature).max() / temperature.std()])
+    kept: list[int] = []
+    for i in range(n):
+        if not any(np.all(np.abs(x[i] - x[j]) <= jitter) for j in kept):
+            kept.append(i)
+    x = x[kept]
     distances = np.sqrt(((x[:, None, :] - x[None, :, :]) ** 2).sum(axis=2))
     own = np.sort(distances, axis=1)[:, 5]
-    rank = int(np.ceil(0.99 * (n + 1))) - 1
+    rank = int(np.ceil(0.99 * (len(kept) + 1))) - 1
     threshold = np.sort(own)[rank]
     # The line of the scaled temperature on the scaled speed, the rows' scatter about it, and the same
     # conformal quantile of the rows' departures.
