@@ -668,6 +668,16 @@ class CalibratedModel:
         bound = self.cloud.score_lower_bound if lower else self.cloud.score_bound
         return np.maximum(bound(columns[0], columns[1], shape), ratio)
 
+    def interval_noise_std_log(self, level: float = 0.95) -> float:
+        """The measurement noise's standard deviation of log μ as the interval applies it where the scatter
+        is one spread everywhere: :attr:`noise_std_log` times the scatter's small-sample and heavy-tail
+        factor at ``level`` (:meth:`ScatterModel.quantile_factor`); bounds of the interval over boxes
+        (``optimize.interval_bound``) read it. [1]"""
+        base = float(self.noise_std_log or 0.0)
+        if self.scatter is not None and self.scatter.kind == "constant":
+            return base * float(np.max(self.scatter.quantile_factor({}, (), level)))
+        return base
+
     def widening(self, ratio: Any) -> np.ndarray:
         """Factor on the interval's log half-width at a distance ratio (:meth:`cloud_ratio`) [1]: the data
         cloud's rule (:meth:`calibrate.domain.DataCloud.widening`), ``max(ratio, 1)`` without a cloud."""

@@ -111,8 +111,14 @@ def interval_structures(model: Any) -> tuple[list[IntervalStructure] | None, str
             return None, f"{label} has {size} fitted values (at most {MAX_VALUES} are bounded)"
         groups = list(getattr(each, "groups", None) or [])
         out.append(IntervalStructure(dict(each.fitted), pieces_of, np.asarray(each.covariance, dtype=float),
-                                     float(each.noise_std_log), step, groups, each))
+                                     _noise_std_log(each), step, groups, each))
     return out, ""
+
+
+def _noise_std_log(model: Any) -> float:
+    """The noise of log μ the model's interval applies (its small-sample and tail factor included)."""
+    declared = getattr(model, "interval_noise_std_log", None)
+    return float(declared()) if callable(declared) else float(model.noise_std_log)
 
 
 @dataclass(frozen=True)
