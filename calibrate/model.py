@@ -669,10 +669,8 @@ class CalibratedModel:
         return np.maximum(bound(columns[0], columns[1], shape), ratio)
 
     def interval_noise_std_log(self, level: float = 0.95) -> float:
-        """The measurement noise's standard deviation of log μ as the interval applies it where the scatter
-        is one spread everywhere: :attr:`noise_std_log` times the scatter's small-sample and heavy-tail
-        factor at ``level`` (:meth:`ScatterModel.quantile_factor`); bounds of the interval over boxes
-        (``optimize.interval_bound``) read it. [1]"""
+        """The noise of log μ the interval applies where the scatter is one spread: :attr:`noise_std_log`
+        times the scatter's small-sample and tail factor at ``level`` (read by ``optimize.interval_bound``) [1]."""
         base = float(self.noise_std_log or 0.0)
         if self.scatter is not None and self.scatter.kind == "constant":
             return base * float(np.max(self.scatter.quantile_factor({}, (), level)))
