@@ -670,7 +670,7 @@ class CalibratedModel:
 
     def interval_noise_std_log(self, level: float = 0.95) -> float:
         """The noise of log μ the interval applies where the scatter is one spread: :attr:`noise_std_log`
-        times the scatter's small-sample and tail factor at ``level`` (read by ``optimize.interval_bound``) [1]."""
+        times the scatter's small-sample and tail factor at ``level`` [1]."""
         base = float(self.noise_std_log or 0.0)
         if self.scatter is not None and self.scatter.kind == "constant":
             return base * float(np.max(self.scatter.quantile_factor({}, (), level)))
