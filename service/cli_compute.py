@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import closing
 from dataclasses import dataclass
 from typing import Any
 
@@ -202,8 +203,7 @@ def _evaluate_model(args: argparse.Namespace, outputs: list[str] | None) -> int:
 
     inputs, conditions = _inputs_and_conditions(args.inputs)
     points = read_points(args.csv, args.separator, args.decimal) if args.csv is not None else None
-    store = open_store(args)
-    try:
+    with closing(open_store(args)) as store:
         reference = model_reference(store, args.model, ("calibrated",), data_dir(args))
         if points is None:
             document = evaluate_point_with_model(store, reference, inputs, conditions or None,
@@ -215,8 +215,6 @@ def _evaluate_model(args: argparse.Namespace, outputs: list[str] | None) -> int:
             document = evaluate_batch_with_model(store, None, reference, every,
                                                  {**conditions, **points.conditions}, outputs,
                                                  args.convention, Settings().max_batch_points)
-    finally:
-        store.close()
     warnings = slip_warnings({**inputs, **(points.inputs if points is not None else {})})
     for warning in document.get("domain_warnings") or []:
         print(f"warning: {warning}", file=sys.stderr)

@@ -14,6 +14,7 @@ import argparse
 import json
 import sys
 from collections.abc import Callable
+from contextlib import closing
 from pathlib import Path
 from typing import Any
 
@@ -116,11 +117,8 @@ def calibrations_list(args: argparse.Namespace) -> int:
     from .calibrations import KIND, calibration_summary
     from .store import to_json
 
-    store = open_store(args)
-    try:
+    with closing(open_store(args)) as store:
         summaries = [calibration_summary(row) for row in store.list_models(KIND)]
-    finally:
-        store.close()
     if args.json:
         write_text(args.output, to_json({"calibrations": summaries}) + "\n")
         return EXIT_OK
@@ -147,13 +145,10 @@ def surrogate_train(args: argparse.Namespace) -> int:
     from .surrogates import prepare_training, train_surrogate
 
     request = read_request(args.request, SurrogateRequest)
-    store = open_store(args, write=request.model == "physics")
-    try:
+    with closing(open_store(args, write=request.model == "physics")) as store:
         space, mu_model = prepare_training(store, request)
         with progress_bar(f"train a surrogate on up to {request.budget} evaluations") as progress:
             document = train_surrogate(store, space, request, progress=progress, mu_model=mu_model)
-    finally:
-        store.close()
     write_text(args.output, to_json(document) + "\n")
     print(f"stored {document['model_id']} in {data_dir(args)}", file=sys.stderr)
     return EXIT_OK
@@ -164,11 +159,8 @@ def surrogate_predict(args: argparse.Namespace) -> int:
     from .surrogates import predict
 
     points = columns_of(args.inputs)
-    store = open_store(args)
-    try:
+    with closing(open_store(args)) as store:
         document = predict(store, args.id.removeprefix("surrogate:"), points)
-    finally:
-        store.close()
     write_text(args.output, to_json(document) + "\n")
     return EXIT_OK
 
@@ -177,11 +169,8 @@ def surrogate_list(args: argparse.Namespace) -> int:
     from .store import to_json
     from .surrogates import surrogate_views
 
-    store = open_store(args)
-    try:
+    with closing(open_store(args)) as store:
         views = surrogate_views(store)
-    finally:
-        store.close()
     if args.json:
         write_text(args.output, to_json({"surrogates": views}) + "\n")
         return EXIT_OK
@@ -203,12 +192,9 @@ def surrogate_delete(args: argparse.Namespace) -> int:
 def _delete(args: argparse.Namespace, kind: str, label: str, delete: Callable[[Any, str], Any]) -> int:
     """Delete the model ``args.id`` of ``kind`` (``calibrated`` or ``surrogate``) from the store with
     ``delete`` (which also erases its data from finished jobs) and say so."""
-    store = open_store(args)
-    try:
+    with closing(open_store(args)) as store:
         model_id = model_reference(store, args.id, (kind,), data_dir(args)).removeprefix(f"{kind}:")
         delete(store, model_id)
-    finally:
-        store.close()
     print(f"deleted {label} {model_id} from {data_dir(args)}")
     return EXIT_OK
 
