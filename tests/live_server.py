@@ -26,7 +26,7 @@ def free_port() -> int:
         return sock.getsockname()[1]
 
 
-def wait_healthy(url: str, process: subprocess.Popen, log: Path, timeout_s: float = 90.0) -> None:
+def wait_healthy(url: str, process: subprocess.Popen, log: Path, timeout_s: float = 240.0) -> None:
     """Poll ``url/healthz`` until it answers 200.
 
     Raises

@@ -107,7 +107,7 @@ def test_wheel_in_a_fresh_venv_beside_a_package_named_surrogate(tmp_path):
                               cwd=tmp_path, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     try:
-        wait_healthy(url, server, tmp_path / "server.log", timeout_s=60)
+        wait_healthy(url, server, tmp_path / "server.log")
         point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}
         answer = httpx.post(f"{url}/v1/friction", json=point, timeout=30)
         assert answer.status_code == 200 and answer.json()["mu"] > 0

@@ -38,7 +38,7 @@ def server(tmp_path_factory):
         cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     try:
-        wait_healthy(url, process, log_path, timeout_s=60)
+        wait_healthy(url, process, log_path)
         yield url
     finally:
         terminate(process)
