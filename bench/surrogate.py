@@ -39,6 +39,7 @@ import time
 
 import numpy as np
 
+from microbearing import physics
 from microbearing.surrogate import (
     GaussianProcessSurrogate,
     Space,
@@ -65,9 +66,9 @@ TEST_SEED = 20_251_122
 SEEDS = (0, 1, 2)
 
 
-def held_out(space: Space) -> tuple[np.ndarray, np.ndarray]:
+def held_out(space: Space, mu_model=None) -> tuple[np.ndarray, np.ndarray]:
     X = design(space, N_TEST, "sobol", TEST_SEED)
-    return X, space.evaluate(X)
+    return X, space.evaluate(X, mu_model)
 
 
 def score(model: GaussianProcessSurrogate, X: np.ndarray, y: np.ndarray) -> dict[str, float]:
@@ -288,16 +289,33 @@ UNSEEN_SPACES = {
          "load_N": (0.0005, 0.02)},
         {"balls": 8, "groove_angle_deg": 60.0, "mu_pivot": 0.8}, "derjaguin"),
 }
+
+
+def calibrated_style_model(points):
+    """A learned model that is not the physics, as a calibration makes one: other friction coefficients
+    and viscosity, and a humidity-like factor on mu that is no power law (unseen space N3)."""
+    mu = physics.evaluate(**{**points, "mu_pivot": 0.35, "mu_ball": 0.7,
+                             "viscosity_Pa_s": 2.5 * np.asarray(points.get("viscosity_Pa_s", 1e-3))}).mu
+    return mu * (1.0 + 0.3 * np.tanh(np.asarray(points["speed_m_s"]) / 0.05))
+
+
+#: Unseen spaces whose learned model is not the physics: label -> ``mu_model``.
+UNSEEN_MODELS = {
+    "N3 5-D (balls, angle, load, speed, viscosity; a calibrated-style model)": calibrated_style_model}
+UNSEEN_SPACES["N3 5-D (balls, angle, load, speed, viscosity; a calibrated-style model)"] = (
+    {"balls": (5, 16), "groove_angle_deg": (45, 70), "load_N": (0.001, 0.03), "speed_m_s": (0.005, 0.12),
+     "viscosity_Pa_s": (5e-4, 4e-3)}, {"adhesion_energy_J_m2": 0.05}, "olaru2005")
 #: The space the model choices of issue 35 were tuned on (kept apart from the comparison's spaces).
 TUNING_SPACE = ({"balls": (4, 12), "load_N": (0.0005, 0.01), "speed_m_s": (0.01, 0.3),
                  "mu_pivot": (0.1, 2.0), "viscosity_Pa_s": (5e-4, 5e-3)}, {}, "olaru2005")
 #: The REST defaults before issue 35, for the side-by-side rows.
-PREVIOUS_DEFAULTS: dict = {}
+PREVIOUS_DEFAULTS = {"features": "physics", "mean": "linear"}
 
 
-def comparison_spaces(inputs: tuple[int, ...], unseen_only: bool = False,
-                      tuning: bool = False) -> list[tuple[str, Space]]:
-    """The spaces of ``--smt``: the issue's (with ``inputs`` inputs), then the unseen ones."""
+def comparison_spaces(inputs: tuple[int, ...], unseen_only: bool = False, tuning: bool = False,
+                      prefix: str = "") -> list[tuple[str, Space]]:
+    """The spaces of ``--smt``: the issue's (with ``inputs`` inputs), then the unseen ones (labels
+    starting with ``prefix``)."""
     spaces = [] if unseen_only else [(label, Space(bounds, fixed)) for label, (bounds, fixed)
                                      in ISSUE_SPACES.items() if len(bounds) in inputs]
     spaces += [(label, Space(bounds, fixed, convention)) for label, (bounds, fixed, convention)
@@ -306,15 +324,17 @@ def comparison_spaces(inputs: tuple[int, ...], unseen_only: bool = False,
         bounds, fixed, convention = TUNING_SPACE
         spaces.insert(0, ("T 5-D tuning (balls, load, speed, mu_pivot, viscosity)",
                           Space(bounds, fixed, convention)))
-    return spaces
+    return [(label, space) for label, space in spaces if label.startswith(prefix)]
 
 
-def smt_kriging(space: Space, budget: int, seed: int, X_test: np.ndarray, y_test: np.ndarray,
-                cache: dict | None) -> tuple[float, float, float]:
+def smt_kriging(space: Space, budget: int, seed: int, held: tuple[np.ndarray, np.ndarray],
+                cache: dict | None, mu_model=None) -> tuple[float, float, float]:
     """SMT's KRG (Matérn 5/2, the space's log/power-scaled inputs, log mu) on a Sobol' design of
     ``budget`` points: (median, p95 relative error, fit seconds); kept in ``cache`` (SMT's figures
     do not depend on this project's code, and a fit at budget 300 takes minutes)."""
-    key = f"{space!r} {space.convention} budget={budget} seed={seed} n_test={len(y_test)}"
+    X_test, y_test = held
+    model = "" if mu_model is None else f" model={mu_model.__name__}"
+    key = f"{space!r} {space.convention} budget={budget} seed={seed} n_test={len(y_test)}{model}"
     if cache is not None and key in cache:
         return tuple(cache[key])
     try:
@@ -324,7 +344,7 @@ def smt_kriging(space: Space, budget: int, seed: int, X_test: np.ndarray, y_test
     X = design(space, budget, "sobol", seed)
     start = time.perf_counter()
     krg = KRG(corr="matern52", print_global=False)
-    krg.set_training_values(space.to_unit(X), np.log(space.evaluate(X)))
+    krg.set_training_values(space.to_unit(X), np.log(space.evaluate(X, mu_model)))
     krg.train()
     seconds = time.perf_counter() - start
     relative = np.abs(np.exp(krg.predict_values(space.to_unit(X_test)).ravel()) / y_test - 1)
@@ -335,7 +355,8 @@ def smt_kriging(space: Space, budget: int, seed: int, X_test: np.ndarray, y_test
 
 
 def smt_comparison(seeds: int, budgets: tuple[int, ...] = (100, 300), inputs: tuple[int, ...] = (4, 5, 6),
-                   cache_path: str | None = None, unseen_only: bool = False, tuning: bool = False) -> None:
+                   cache_path: str | None = None,
+                   spaces: tuple[bool, bool, str] = (False, False, "")) -> None:
     """The REST defaults before and after issue 35 against SMT's KRG on a Sobol' design, side by side."""
     cache = {}
     if cache_path and os.path.exists(cache_path):
@@ -348,8 +369,9 @@ def smt_comparison(seeds: int, budgets: tuple[int, ...] = (100, 300), inputs: tu
     print("| space | budget | seed | n_train before/now | before median / p95 [%] | now median / p95 [%] | "
           "SMT median / p95 [%] | ratio before median / p95 | ratio now median / p95 | coverage before / now "
           "[%] | fit before / now / SMT [s] |\n|---|---|---|---|---|---|---|---|---|---|---|")
-    for label, space in comparison_spaces(inputs, unseen_only, tuning):
-        X_test, y_test = held_out(space)
+    for label, space in comparison_spaces(inputs, *spaces):
+        mu_model = UNSEEN_MODELS.get(label)
+        X_test, y_test = held_out(space, mu_model)
         for budget in budgets:
             ratios = []
             for seed in range(seeds):
@@ -357,9 +379,10 @@ def smt_comparison(seeds: int, budgets: tuple[int, ...] = (100, 300), inputs: tu
                 for params in (PREVIOUS_DEFAULTS, None):
                     start = time.perf_counter()
                     fit = fit_adaptive(space, budget=budget, target_relative_error=1e-3, seed=seed,
-                                       model_params=params)
+                                       model_params=params, mu_model=mu_model)
                     runs.append((fit, time.perf_counter() - start, score(fit.model, X_test, y_test)))
-                smt_median, smt_p95, smt_s = smt_kriging(space, budget, seed, X_test, y_test, cache)
+                smt_median, smt_p95, smt_s = smt_kriging(space, budget, seed, (X_test, y_test), cache,
+                                                         mu_model)
                 if cache_path:
                     with open(cache_path, "w") as file:
                         json.dump(cache, file, indent=1)
@@ -402,6 +425,7 @@ def main() -> None:
                         help="JSON file keeping SMT's figures between runs (they do not depend on this code)")
     parser.add_argument("--unseen-only", action="store_true", help="--smt on the unseen spaces only")
     parser.add_argument("--tuning", action="store_true", help="--smt also on the tuning space")
+    parser.add_argument("--space-prefix", default="", help="--smt only on spaces whose label starts so")
     parser.add_argument("--scale-diagnostics", action="store_true",
                         help="per fit, the variance scale of each cross-validation rule against the one the "
                              "held-out points ask for (spaces and budgets as --coverage-only)")
@@ -419,8 +443,8 @@ def main() -> None:
         return
     if args.smt:
         smt_comparison(args.coverage_seeds or 3, tuple(int(b) for b in args.smt_budgets.split(",")),
-                       tuple(int(d) for d in args.smt_inputs.split(",")), args.smt_cache, args.unseen_only,
-                       args.tuning)
+                       tuple(int(d) for d in args.smt_inputs.split(",")), args.smt_cache,
+                       (args.unseen_only, args.tuning, args.space_prefix))
         return
     if args.fit_time:
         fit_times(args.coverage_seeds or 2)

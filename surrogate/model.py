@@ -1,10 +1,15 @@
 """The surrogate estimator: a Gaussian process on physics-aware features of a :class:`~surrogate.Space`.
 
-The target is log μ (μ > 0 spans decades and is a near sum of power laws, so
-log μ is smooth in log inputs). Optionally a linear model of log μ in the
-features is fitted first by least squares (a "physics-informed mean": a power
-law in load per ball, tan θ, speed...) and the Gaussian process models what it
-leaves. The kernel is a constant times an anisotropic Matérn 5/2 (or RBF)
+The target is log μ (μ > 0 spans decades and is a sum of power laws, so
+log μ is smooth in log inputs). A prior mean of log μ in the features is fitted
+first by least squares and the Gaussian process models what it leaves. By
+default (issue 35) the features end with log μ_dry, the physics' dry-contact
+share of μ evaluated in closed form at the point (:meth:`Space.dry_contact_mu`),
+and the mean is a *posynomial*: the log of the sum of two power laws of the
+features' quantities, one that can follow μ_dry and one fitted for what μ_dry
+leaves out (Houpert's rolling force of the physics, ∝ (ηV)^0.66 Q^0.47, or what a
+calibrated model adds). Earlier: a linear mean (one power law) on the physics
+features. The kernel is a constant times an anisotropic Matérn 5/2 (or RBF)
 kernel with one length scale per feature, plus a white-noise term (μ is
 analytic, and RBF measured 2-4x more accurate in ``bench/surrogate.py``, but its
 predictive variance far less reliably calibrated: see the ``kernel``
@@ -232,9 +237,14 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
     ----------
     space : Space
         The input space; ``X`` columns follow ``space.names``.
-    features : {"physics", "scaled", "raw"}, default "physics"
+    features : {"dry_contact", "physics", "scaled", "raw"}, default "dry_contact"
         Feature set of :meth:`Space.features` fed to the Gaussian process
-        (standardized on the training data).
+        (standardized on the training data). ``"dry_contact"`` adds log μ_dry
+        (:meth:`Space.dry_contact_mu`) to the ``"physics"`` features: the surrogate
+        then evaluates the physics' dry-contact moments where it predicts (a few
+        array operations per point) and learns the rest from its budget. Measured
+        with the posynomial mean against ``"physics"`` with a linear mean (the
+        earlier default) by ``bench/surrogate.py --smt``: see bench/RESULTS.md.
     kernel : {"matern52", "rbf", "matern32"}, default "matern52"
         Stationary kernel with one length scale per feature. RBF is about
         twice as accurate on μ of the 4-D benchmark space (median relative
@@ -243,9 +253,11 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         unevenly from one design to the next (coverage of the 95 % interval
         75-100 %, against 87-98.5 % for Matérn 5/2 over 48 seeds), so the
         default is Matérn 5/2.
-    mean : {"linear", "constant"}, default "linear"
-        Prior mean of the target: a least-squares linear model in the
-        standardized features, or a constant (the training mean).
+    mean : {"posynomial", "linear", "constant"}, default "posynomial"
+        Prior mean of the target: ``"posynomial"``, log of the sum of two
+        exponentials of linear models in the standardized features (for log μ:
+        two power laws, :func:`fit_prior_mean`); ``"linear"``, a least-squares
+        linear model; or a constant (the training mean).
     log_target : bool, default True
         Model log μ (μ > 0) instead of μ.
     random_state : int or None, default None
@@ -301,8 +313,9 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
     feature_mean_, feature_scale_ : numpy.ndarray
         Standardization of the features (training mean and standard deviation).
     mean_coef_ : numpy.ndarray
-        Coefficients of the prior mean ``[intercept, feature slopes...]``
-        (all zero for ``mean="constant"``; normalize_y then centres the target).
+        Coefficients of the prior mean ``[intercept, feature slopes...]``, twice
+        over for ``mean="posynomial"`` (:func:`prior_mean`; all zero for
+        ``mean="constant"``; normalize_y then centres the target).
     X_train_, y_train_ : numpy.ndarray
         Training points (physical) and μ.
     n_features_in_ : int
