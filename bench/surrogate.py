@@ -7,9 +7,11 @@ start) on the issue's 4-, 5- and 6-input spaces and on random spaces of 1 to 7 i
 50 to 400, over design seeds, each on 1024 held-out Sobol' points (about 15-30 minutes).
 ``--scale-diagnostics`` prints, per fit of the REST defaults, the variance scale each
 cross-validation rule estimates against the one the held-out points ask for (why coverage misses).
-``--smt`` compares the REST defaults with SMT's Kriging (``pip install -e ".[bench]"``; Matérn 5/2, log
-inputs, log μ, Sobol' design of the same budget) on the 4-, 5- and 6-input spaces at budgets
-100 and 300, side by side.
+``--smt`` compares the REST defaults, before issue 35 (features "physics", linear mean) and now, with
+SMT's Kriging (``pip install -e ".[bench]"``; Matérn 5/2, log inputs, log μ, Sobol' design of the same
+budget) on the issue's 4-, 5- and 6-input spaces and on spaces no choice was tuned on
+(:data:`UNSEEN_SPACES`, one learning a calibrated-style model) at budgets 100 and 300, side by side;
+``--smt-cache FILE`` keeps SMT's figures between runs (minutes per fit at budget 300).
 
 Every figure is on held-out physics evaluations (2048 scrambled Sobol' points of
 each space, a seed never used for training). Rows:
