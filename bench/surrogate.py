@@ -7,9 +7,11 @@ start) on the issue's 4-, 5- and 6-input spaces and on random spaces of 1 to 7 i
 50 to 400, over design seeds, each on 1024 held-out Sobol' points (about 15-30 minutes).
 ``--scale-diagnostics`` prints, per fit of the REST defaults, the variance scale each
 cross-validation rule estimates against the one the held-out points ask for (why coverage misses).
-``--smt`` compares the REST defaults with SMT's Kriging (``pip install -e ".[bench]"``; Matérn 5/2, log
-inputs, log μ, Sobol' design of the same budget) on the 4-, 5- and 6-input spaces at budgets
-100 and 300, side by side.
+``--smt`` compares the REST defaults, before issue 35 (features "physics", linear mean) and now, with
+SMT's Kriging (``pip install -e ".[bench]"``; Matérn 5/2, log inputs, log μ, Sobol' design of the same
+budget) on the issue's 4-, 5- and 6-input spaces and on spaces no choice was tuned on
+(:data:`UNSEEN_SPACES`, one learning a calibrated-style model) at budgets 100 and 300, side by side;
+``--smt-cache FILE`` keeps SMT's figures between runs (minutes per fit at budget 300).
 
 Every figure is on held-out physics evaluations (2048 scrambled Sobol' points of
 each space, a seed never used for training). Rows:
@@ -33,11 +35,13 @@ each space, a seed never used for training). Rows:
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import time
 
 import numpy as np
 
+from microbearing import physics
 from microbearing.surrogate import (
     GaussianProcessSurrogate,
     Space,
@@ -64,9 +68,9 @@ TEST_SEED = 20_251_122
 SEEDS = (0, 1, 2)
 
 
-def held_out(space: Space) -> tuple[np.ndarray, np.ndarray]:
+def held_out(space: Space, mu_model=None) -> tuple[np.ndarray, np.ndarray]:
     X = design(space, N_TEST, "sobol", TEST_SEED)
-    return X, space.evaluate(X)
+    return X, space.evaluate(X, mu_model)
 
 
 def score(model: GaussianProcessSurrogate, X: np.ndarray, y: np.ndarray) -> dict[str, float]:
@@ -274,48 +278,131 @@ def fit_times(seeds: int) -> None:
                   f"{time.process_time() - cpu:.1f} | {os.getloadavg()[0]:.1f} |", flush=True)
 
 
-def smt_comparison(seeds: int, budgets: tuple[int, ...] = (100, 300),
-                   inputs: tuple[int, ...] = (4, 5, 6)) -> None:
-    """REST defaults against SMT's KRG (Matérn 5/2, log inputs, log mu) on a Sobol' design, side by side."""
+#: Spaces of the SMT comparison that no model choice was tuned on (issue 35): other inputs, ranges,
+#: fixed values and convention than the issue's spaces and the tuning space below.
+UNSEEN_SPACES = {
+    "N1 5-D (diameter, angle, load, mu_ball, balls; touching)": (
+        {"ball_diameter_m": (150e-6, 800e-6), "groove_angle_deg": (35, 70), "load_N": (0.002, 0.1),
+         "mu_ball": (0.3, 1.2), "balls": (6, 24)},
+        {"balls_touching": True, "speed_m_s": 0.02, "adhesion_energy_J_m2": 0.1}, "olaru2005"),
+    "N2 6-D (speed from 0, adhesion, viscosity, alpha, diameter, load; derjaguin)": (
+        {"speed_m_s": (0.0, 0.15), "adhesion_energy_J_m2": (0.02, 0.4), "viscosity_Pa_s": (3e-4, 3e-3),
+          "pressure_viscosity_1_Pa": (5e-9, 3e-8), "ball_diameter_m": (100e-6, 1e-3),
+         "load_N": (0.0005, 0.02)},
+        {"balls": 8, "groove_angle_deg": 60.0, "mu_pivot": 0.8}, "derjaguin"),
+}
+
+
+def calibrated_style_model(points):
+    """A learned model that is not the physics, as a calibration makes one: other friction coefficients
+    and viscosity, and a humidity-like factor on mu that is no power law (unseen space N3)."""
+    mu = physics.evaluate(**{**points, "mu_pivot": 0.35, "mu_ball": 0.7,
+                             "viscosity_Pa_s": 2.5 * np.asarray(points.get("viscosity_Pa_s", 1e-3))}).mu
+    return mu * (1.0 + 0.3 * np.tanh(np.asarray(points["speed_m_s"]) / 0.05))
+
+
+#: Unseen spaces whose learned model is not the physics: label -> ``mu_model``.
+UNSEEN_MODELS = {
+    "N3 5-D (balls, angle, load, speed, viscosity; a calibrated-style model)": calibrated_style_model}
+UNSEEN_SPACES["N3 5-D (balls, angle, load, speed, viscosity; a calibrated-style model)"] = (
+    {"balls": (5, 16), "groove_angle_deg": (45, 70), "load_N": (0.001, 0.03), "speed_m_s": (0.005, 0.12),
+     "viscosity_Pa_s": (5e-4, 4e-3)}, {"adhesion_energy_J_m2": 0.05}, "olaru2005")
+#: The space the model choices of issue 35 were tuned on (kept apart from the comparison's spaces).
+TUNING_SPACE = ({"balls": (4, 12), "load_N": (0.0005, 0.01), "speed_m_s": (0.01, 0.3),
+                 "mu_pivot": (0.1, 2.0), "viscosity_Pa_s": (5e-4, 5e-3)}, {}, "olaru2005")
+#: The REST defaults before issue 35, for the side-by-side rows.
+PREVIOUS_DEFAULTS = {"features": "physics", "mean": "linear"}
+
+
+def comparison_spaces(inputs: tuple[int, ...], unseen_only: bool = False, tuning: bool = False,
+                      prefix: str = "") -> list[tuple[str, Space]]:
+    """The spaces of ``--smt``: the issue's (with ``inputs`` inputs), then the unseen ones (labels
+    starting with ``prefix``)."""
+    spaces = [] if unseen_only else [(label, Space(bounds, fixed)) for label, (bounds, fixed)
+                                     in ISSUE_SPACES.items() if len(bounds) in inputs]
+    spaces += [(label, Space(bounds, fixed, convention)) for label, (bounds, fixed, convention)
+               in UNSEEN_SPACES.items()]
+    if tuning:
+        bounds, fixed, convention = TUNING_SPACE
+        spaces.insert(0, ("T 5-D tuning (balls, load, speed, mu_pivot, viscosity)",
+                          Space(bounds, fixed, convention)))
+    return [(label, space) for label, space in spaces if label.startswith(prefix)]
+
+
+def smt_kriging(space: Space, budget: int, seed: int, held: tuple[np.ndarray, np.ndarray],
+                cache: dict | None, mu_model=None) -> tuple[float, float, float]:
+    """SMT's KRG (Matérn 5/2, the space's log/power-scaled inputs, log mu) on a Sobol' design of
+    ``budget`` points: (median, p95 relative error, fit seconds); kept in ``cache`` (SMT's figures
+    do not depend on this project's code, and a fit at budget 300 takes minutes)."""
+    X_test, y_test = held
+    model = "" if mu_model is None else f" model={mu_model.__name__}"
+    key = f"{space!r} {space.convention} budget={budget} seed={seed} n_test={len(y_test)}{model}"
+    if cache is not None and key in cache:
+        return tuple(cache[key])
     try:
         from smt.surrogate_models import KRG
     except ImportError:
         raise SystemExit("--smt needs SMT: pip install -e \".[bench]\" (or pip install smt)") from None
-    print(f"REST defaults against SMT KRG (corr=matern52, inputs in the space's log/power scale, target "
-          f"log mu) on a Sobol' design of the same budget; {N_TEST} held-out Sobol' points; design seeds "
-          f"0-{seeds - 1}; ratio = SMT / ours (> 1: ours more accurate)\n")
-    print("| space | budget | seed | ours n_train | ours median [%] | ours p95 [%] | SMT median [%] | "
-          "SMT p95 [%] | ratio median | ratio p95 | ours fit [s] | SMT fit [s] |\n"
-          "|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for label, (bounds, fixed) in ISSUE_SPACES.items():
-        space = Space(bounds, fixed)
-        if space.dimension not in inputs:
-            continue
-        X_test, y_test = held_out(space)
+    X = design(space, budget, "sobol", seed)
+    start = time.perf_counter()
+    krg = KRG(corr="matern52", print_global=False)
+    krg.set_training_values(space.to_unit(X), np.log(space.evaluate(X, mu_model)))
+    krg.train()
+    seconds = time.perf_counter() - start
+    relative = np.abs(np.exp(krg.predict_values(space.to_unit(X_test)).ravel()) / y_test - 1)
+    result = (float(np.median(relative)), float(np.percentile(relative, 95)), seconds)
+    if cache is not None:
+        cache[key] = list(result)
+    return result
+
+
+def smt_comparison(seeds: int, budgets: tuple[int, ...] = (100, 300), inputs: tuple[int, ...] = (4, 5, 6),
+                   cache_path: str | None = None,
+                   spaces: tuple[bool, bool, str] = (False, False, "")) -> None:
+    """The REST defaults before and after issue 35 against SMT's KRG on a Sobol' design, side by side."""
+    cache = None if cache_path is None else {}
+    print(f"REST defaults (adaptive, target 0.001; before issue 35 and now) against SMT KRG (corr=matern52, "
+          f"inputs in the space's log/power scale, target log mu) on a Sobol' design of the same budget; "
+          f"{N_TEST} held-out Sobol' points; design seeds 0-{seeds - 1}; ratio = SMT / ours (> 1: ours more "
+          f"accurate); coverage of the 95 % interval on the held-out points\n")
+    print("| space | budget | seed | n_train before/now | before median / p95 [%] | now median / p95 [%] | "
+          "SMT median / p95 [%] | ratio before median / p95 | ratio now median / p95 | coverage before / now "
+          "[%] | fit before / now / SMT [s] |\n|---|---|---|---|---|---|---|---|---|---|---|")
+    for label, space in comparison_spaces(inputs, *spaces):
+        mu_model = UNSEEN_MODELS.get(label)
+        X_test, y_test = held_out(space, mu_model)
         for budget in budgets:
             ratios = []
             for seed in range(seeds):
-                start = time.perf_counter()
-                fit = fit_adaptive(space, budget=budget, target_relative_error=1e-3, seed=seed)
-                ours_s = time.perf_counter() - start
-                ours = score(fit.model, X_test, y_test)
-                X = design(space, budget, "sobol", seed)
-                start = time.perf_counter()
-                krg = KRG(corr="matern52", print_global=False)
-                krg.set_training_values(space.to_unit(X), np.log(space.evaluate(X)))
-                krg.train()
-                smt_s = time.perf_counter() - start
-                pred = np.exp(krg.predict_values(space.to_unit(X_test)).ravel())
-                relative = np.abs(pred / y_test - 1)
-                smt_median, smt_p95 = float(np.median(relative)), float(np.percentile(relative, 95))
-                median, p95 = ours["median_relative_error"], ours["p95_relative_error"]
-                ratios.append((smt_median / median, smt_p95 / p95))
-                print(f"| {label} | {budget} | {seed} | {fit.n_train} | {100 * median:.4f} | "
-                      f"{100 * p95:.4f} | {100 * smt_median:.4f} | {100 * smt_p95:.4f} | "
-                      f"{ratios[-1][0]:.2f} | {ratios[-1][1]:.2f} | {ours_s:.1f} | {smt_s:.1f} |", flush=True)
+                runs = []
+                for params in (PREVIOUS_DEFAULTS, None):
+                    start = time.perf_counter()
+                    fit = fit_adaptive(space, budget=budget, target_relative_error=1e-3, seed=seed,
+                                       model_params=params, mu_model=mu_model)
+                    runs.append((fit, time.perf_counter() - start, score(fit.model, X_test, y_test)))
+                if cache_path and os.path.exists(cache_path):
+                    # Read afresh each time: another process may be filling it.
+                    with open(cache_path) as file:
+                        cache.update(json.load(file))
+                smt_median, smt_p95, smt_s = smt_kriging(space, budget, seed, (X_test, y_test), cache,
+                                                         mu_model)
+                if cache_path:
+                    with open(cache_path, "w") as file:
+                        json.dump(cache, file, indent=1)
+                (before, before_s, b), (now, now_s, m) = runs
+                ratio_b = (smt_median / b["median_relative_error"], smt_p95 / b["p95_relative_error"])
+                ratio = (smt_median / m["median_relative_error"], smt_p95 / m["p95_relative_error"])
+                ratios.append(ratio)
+                print(f"| {label} | {budget} | {seed} | {before.n_train}/{now.n_train} | "
+                      f"{100 * b['median_relative_error']:.4f} / {100 * b['p95_relative_error']:.4f} | "
+                      f"{100 * m['median_relative_error']:.4f} / {100 * m['p95_relative_error']:.4f} | "
+                      f"{100 * smt_median:.4f} / {100 * smt_p95:.4f} | {ratio_b[0]:.2f} / {ratio_b[1]:.2f} | "
+                      f"{ratio[0]:.2f} / {ratio[1]:.2f} | {100 * b['coverage_95']:.1f} / "
+                      f"{100 * m['coverage_95']:.1f} | {before_s:.1f} / {now_s:.1f} / {smt_s:.1f} |",
+                      flush=True)
             worst = np.min(ratios, axis=0)
-            print(f"| {label} | {budget} | worst of {seeds} | | | | | | **{worst[0]:.2f}** | "
-                  f"**{worst[1]:.2f}** | | |", flush=True)
+            print(f"| {label} | {budget} | worst of {seeds} | | | | | | **{worst[0]:.2f} / {worst[1]:.2f}** "
+                  f"| | |", flush=True)
 
 
 def main() -> None:
@@ -336,7 +423,12 @@ def main() -> None:
                         help="budgets of --coverage-only, comma-separated")
     parser.add_argument("--smt", action="store_true", help="only the comparison with SMT's Kriging")
     parser.add_argument("--smt-budgets", default="100,300", help="budgets of --smt, comma-separated")
-    parser.add_argument("--smt-inputs", default="4,5,6", help="numbers of inputs of the --smt spaces")
+    parser.add_argument("--smt-inputs", default="4,5,6", help="numbers of inputs of the issue's --smt spaces")
+    parser.add_argument("--smt-cache", default=None,
+                        help="JSON file keeping SMT's figures between runs (they do not depend on this code)")
+    parser.add_argument("--unseen-only", action="store_true", help="--smt on the unseen spaces only")
+    parser.add_argument("--tuning", action="store_true", help="--smt also on the tuning space")
+    parser.add_argument("--space-prefix", default="", help="--smt only on spaces whose label starts so")
     parser.add_argument("--scale-diagnostics", action="store_true",
                         help="per fit, the variance scale of each cross-validation rule against the one the "
                              "held-out points ask for (spaces and budgets as --coverage-only)")
@@ -354,7 +446,8 @@ def main() -> None:
         return
     if args.smt:
         smt_comparison(args.coverage_seeds or 3, tuple(int(b) for b in args.smt_budgets.split(",")),
-                       tuple(int(d) for d in args.smt_inputs.split(",")))
+                       tuple(int(d) for d in args.smt_inputs.split(",")), args.smt_cache,
+                       (args.unseen_only, args.tuning, args.space_prefix))
         return
     if args.fit_time:
         fit_times(args.coverage_seeds or 2)

@@ -164,8 +164,10 @@ def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
     model.feature_scale_ = np.asarray(data["feature_scale"], dtype=float)
     model.mean_coef_ = np.asarray(data["mean_coef"], dtype=float)
     Zs = model.design_matrix(X)
-    if model.mean_coef_.shape != (Zs.shape[1] + 1,):
-        raise ValueError(f"mean_coef must hold {Zs.shape[1] + 1} values; got {model.mean_coef_.shape}")
+    # A posynomial mean holds two terms; the other means one (records before it: "linear" or "constant").
+    size = (Zs.shape[1] + 1) * (2 if model.mean == "posynomial" else 1)
+    if model.mean_coef_.shape != (size,):
+        raise ValueError(f"mean_coef must hold {size} values; got {model.mean_coef_.shape}")
     stored = data["gp"]
     theta = np.asarray(stored["theta"], dtype=float)
     kernel = build_kernel(model.kernel, Zs.shape[1]).clone_with_theta(theta)

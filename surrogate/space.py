@@ -37,7 +37,7 @@ __all__ = ["SCALES", "FEATURE_SETS", "Space"]
 SCALES = ("log", "power", "linear")
 
 #: Allowed feature sets of :meth:`Space.features`.
-FEATURE_SETS = ("physics", "scaled", "raw")
+FEATURE_SETS = ("dry_contact", "physics", "scaled", "raw")
 
 # Exponents of the "power" scale, used when a range starts at 0 so that log is undefined:
 # mu grows with the rolling force F_R ∝ V**0.66 (Houpert, eq 9), and the JKR load
@@ -477,7 +477,7 @@ class Space:
         ----------
         X : array_like of shape (n, d)
             Points in the units of :attr:`names`. [parameter units]
-        kind : {"physics", "scaled", "raw"}, default "physics"
+        kind : {"dry_contact", "physics", "scaled", "raw"}, default "physics"
             ``"raw"``: the physical values themselves; ``"scaled"``: each
             dimension on its scale (log load, log speed, ...); ``"physics"``:
             the scaled coordinates with changes that follow the model, each
@@ -490,6 +490,9 @@ class Space:
             eq 8) is added, in which the pivoting, hysteresis and rolling
             terms are power laws (Q^4/3, Q^1.33, Q^0.47). Integer
             dimensions stay continuous (the relaxation the GP interpolates).
+            ``"dry_contact"``: the ``"physics"`` features and, last, log of
+            :meth:`dry_contact_mu` (the physics' dry-contact share of μ,
+            evaluated in closed form at the point).
 
         Returns
         -------
@@ -509,7 +512,44 @@ class Space:
         T = self._forward(X)
         if kind == "scaled":
             return T
-        return self._physics_features(X, T)
+        Z = self._physics_features(X, T)
+        if kind == "dry_contact":
+            return np.column_stack([Z, np.log(np.maximum(self.dry_contact_mu(X), np.finfo(float).tiny))])
+        return Z
+
+    def dry_contact_mu(self, X: Any) -> np.ndarray:
+        """The physics' dry-contact share of μ at physical points: pivoting, hysteresis and ball-ball terms.
+
+        μ of the physics is a sum of four positive terms (eqs 20-23): the pivoting (eq 16), elastic
+        hysteresis (eq 15) and ball-ball (eq 17) moments of the dry Hertz/JKR contacts, and Houpert's
+        hydrodynamic rolling force (eq 9). The first three are closed-form power laws of the contact
+        load and radius and cost a few array operations; a surrogate that evaluates them where it
+        predicts learns, from its budget, only how the learned model departs from them (the rolling
+        term of the physics, and whatever a calibrated model changes or adds). Evaluated with this
+        space's convention and fixed values (the physics' defaults for the others).
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of :attr:`names`. [parameter units]
+
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+            ``mu_pivoting + mu_hysteresis + mu_ball_ball`` of :func:`physics.evaluate`. [1]
+
+        Examples
+        --------
+        >>> s = Space({"speed_m_s": (0.0, 0.2)}, fixed={"balls": 4, "load_N": 0.01})
+        >>> X = [[0.0], [0.2]]
+        >>> dry, mu = s.dry_contact_mu(X), s.evaluate(X)
+        >>> bool(dry[0] == dry[1] and abs(dry[0] / mu[0] - 1) < 1e-12 and mu[1] > dry[1])
+        True
+        """
+        X = self.check_X(X)
+        r = physics.evaluate(convention=self.convention, **self.points(X))
+        return np.broadcast_to(np.asarray(r.mu_pivoting + r.mu_hysteresis + r.mu_ball_ball, dtype=float),
+                               (X.shape[0],)).copy()
 
     def _adhesive_contact_load(self, X: np.ndarray) -> np.ndarray:
         p = {**physics.defaults(), **self.points(X)}
@@ -544,7 +584,7 @@ class Space:
 
         Parameters
         ----------
-        kind : {"physics", "scaled", "raw"}, default "physics"
+        kind : {"dry_contact", "physics", "scaled", "raw"}, default "physics"
             Feature set.
 
         Returns
@@ -559,14 +599,16 @@ class Space:
         label = {"log": "log({})", "power": "{}^p", "linear": "{}"}
         names = []
         for name in self.names:
-            if kind == "physics" and name == "load_N":
+            if kind != "scaled" and name == "load_N":
                 names.append("log(load_N/balls)")
-            elif kind == "physics" and name == "groove_angle_deg":
+            elif kind != "scaled" and name == "groove_angle_deg":
                 names += ["log(tan(theta))", "log(cos(theta))"]
             else:
                 names.append(label[self.scale_of[name]].format(name))
-        if kind == "physics" and self._adhesive_load_feature:
+        if kind != "scaled" and self._adhesive_load_feature:
             names.append("log(Q)")
+        if kind == "dry_contact":
+            names.append("log(mu_dry)")
         return names
 
     # ------------------------------------------------------------------ data

@@ -29,6 +29,7 @@ from microbearing.surrogate import (
     sobol_indices,
     to_dict,
 )
+from microbearing.surrogate.model import RELATIVE_RESOLUTION, fit_prior_mean, prior_mean
 from microbearing.surrogate.sampling import (
     default_initial_size,
     predicted_error_quantile,
@@ -191,8 +192,10 @@ def test_model_held_out_error_and_interval(fitted, key):
     p = model.predict_interval(X)
     assert np.median(np.abs(p.mu / truth - 1)) < 2e-3
     assert np.all((p.mu_lower < p.mu) & (p.mu < p.mu_upper))
-    # The interval is exp(log mu ± 1.96 σ).
-    np.testing.assert_allclose(np.log(p.mu_upper / p.mu), norm.ppf(0.975) * p.log_std, rtol=1e-8, atol=1e-14)
+    # The interval is exp(log mu ± 1.96 σ), never narrower than the float64 resolution of μ.
+    np.testing.assert_allclose(np.log(p.mu_upper / p.mu),
+                               np.maximum(norm.ppf(0.975) * p.log_std, RELATIVE_RESOLUTION),
+                               rtol=1e-8, atol=1e-14)
 
 
 def test_coverage_of_the_95_interval_is_in_a_band():
@@ -201,7 +204,10 @@ def test_coverage_of_the_95_interval_is_in_a_band():
     coverages, median_z = [], []
     for seed in range(4):
         X = design(space, 40, "sobol", seed=seed)
-        model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+        # The cross-validation calibration of the estimator with the linear mean on the physics features
+        # (the default before issue 35; the default's intervals are tested through fit_adaptive below).
+        model = GaussianProcessSurrogate(space, random_state=0, features="physics", mean="linear")
+        model.fit(X, space.evaluate(X))
         coverages.append(holdout_metrics(model, n_test=512, seed=1000 + seed)["coverage_95"])
         test = design(space, 512, "sobol", seed=1000 + seed)
         p = model.predict_interval(test)
@@ -307,9 +313,9 @@ def test_variance_scale_follows_its_rule_on_brute_force_leave_one_out(variance_s
 def test_auto_calibration_refits_folds_below_ten_points_per_feature(n, expected):
     space = SPACES["angle+load"]  # 3 features: log(load per ball), log tan, log cos of the angle
     X = design(space, n, "sobol", seed=3)
-    model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    model = GaussianProcessSurrogate(space, random_state=0, features="physics").fit(X, space.evaluate(X))
     assert model.variance_calibration_ == expected
-    same = GaussianProcessSurrogate(space, random_state=0, calibrate_variance=expected)
+    same = GaussianProcessSurrogate(space, random_state=0, features="physics", calibrate_variance=expected)
     assert model.std_scale_ == same.fit(X, space.evaluate(X)).std_scale_
 
 
@@ -321,7 +327,8 @@ def test_auto_calibration_refits_folds_below_ten_points_per_feature(n, expected)
     ({"hyperparameters": Hyperparameters(n_restarts_optimizer=-1)}, None, "n_restarts_optimizer"),
     ({"calibrate_variance": True}, None, "calibrate_variance must be one of"),
     ({"variance_scale": "mad"}, None, "variance_scale must be one of"),
-    ({"hyperparameters": Hyperparameters(initial_theta=[0.0, 0.0])}, None, "initial_theta must hold 3"),
+    ({"features": "physics", "hyperparameters": Hyperparameters(initial_theta=[0.0, 0.0])}, None,
+     "initial_theta must hold 3"),
     ({"hyperparameters": Hyperparameters(optimize=False)}, None, "needs initial_theta"),
     ({}, -1.0, "y must be > 0"),
     ({}, "short", "y must be a 1-D array"),
@@ -372,6 +379,25 @@ def test_a_surrogate_stored_before_the_auto_calibration_loads_as_stored(fitted):
     X = design(model.space, 50, "sobol", seed=5)
     np.testing.assert_allclose(again.predict_interval(X).mu_upper, model.predict_interval(X).mu_upper,
                                rtol=1e-12, atol=0)
+
+
+def test_a_surrogate_of_the_earlier_defaults_loads_and_a_posynomial_mean_keeps_its_two_terms(fitted):
+    # Records stored before issue 35 hold features "physics" and a linear mean (k + 1 coefficients).
+    space = SPACES["angle+load"]
+    X = design(space, 24, "sobol", seed=3)
+    earlier = GaussianProcessSurrogate(space, random_state=0, features="physics", mean="linear")
+    earlier.fit(X, space.evaluate(X))
+    data = json.loads(dumps(earlier))
+    stored = (data["params"]["features"], data["params"]["mean"], len(data["mean_coef"]))
+    assert stored == ("physics", "linear", 4)
+    Xt = design(space, 50, "sobol", seed=5)
+    np.testing.assert_allclose(loads(json.dumps(data)).predict(Xt), earlier.predict(Xt), rtol=1e-12, atol=0)
+    # The default: 4 features (3 physics + log mu_dry), two terms of 5 coefficients.
+    now = json.loads(dumps(fitted["angle+load"]))
+    assert (now["params"]["features"], now["params"]["mean"], len(now["mean_coef"])) == (
+        "dry_contact", "posynomial", 10)
+    with pytest.raises(ValueError, match="mean_coef must hold 10"):
+        loads(json.dumps({**now, "mean_coef": now["mean_coef"][:5]}))
 
 
 def test_persistence_rejects_other_data(fitted):
@@ -443,7 +469,7 @@ def test_fit_adaptive_respects_budget_and_reports_progress():
     assert len({tuple(x) for x in fit.X}) == 22
     np.testing.assert_array_equal(fit.y, space.evaluate(fit.X))
     # The final model is warm-started; its starting point is stored with it.
-    assert len(fit.model.hyperparameters.initial_theta) == 4
+    assert len(fit.model.hyperparameters.initial_theta) == 2 + len(space.feature_names(fit.model.features))
     X = design(space, 50, seed=4)
     np.testing.assert_allclose(loads(dumps(fit.model)).predict(X), fit.model.predict(X), rtol=1e-12)
 
@@ -734,9 +760,10 @@ def test_an_input_mu_ignores_gets_intervals_no_narrower_than_float64_resolution(
 def test_kept_hyperparameters_are_the_given_ones_and_the_adaptive_final_model_is_optimized():
     space = SPACES["load"]
     X = design(space, 12, seed=0)
-    optimized = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    optimized = GaussianProcessSurrogate(space, random_state=0, features="physics").fit(X, space.evaluate(X))
     theta = optimized.gaussian_process_.kernel_.theta + np.array([0.0, 0.3, 0.0])  # a longer length scale
-    kept = GaussianProcessSurrogate(space, hyperparameters=Hyperparameters(theta.tolist(), optimize=False))
+    kept = GaussianProcessSurrogate(space, features="physics",
+                                    hyperparameters=Hyperparameters(theta.tolist(), optimize=False))
     np.testing.assert_array_equal(kept.fit(X, space.evaluate(X)).gaussian_process_.kernel_.theta, theta)
     # rounds may keep earlier hyperparameters; the returned model maximizes the likelihood on every point
     fit = fit_adaptive(space, budget=16, plan=SamplingPlan(initial_size=8, batch_size=2), seed=0)
@@ -794,3 +821,48 @@ def test_sobol_intervals_of_an_ignored_input_survive_another_thread_resetting_th
     finally:
         stop.set()
         other.join()
+
+
+# ----------------------------------------------------------------------------- physics-informed mean
+def test_the_dry_contact_share_is_mu_less_its_rolling_term():
+    space = Space({"speed_m_s": (0.0, 0.2), "adhesion_energy_J_m2": (0.0, 0.4),
+                   "balls_touching": (False, True)}, {"balls": 6, "load_N": 0.004}, "derjaguin")
+    X = design(space, 64, "sobol", seed=1)
+    r = physics.evaluate(convention="derjaguin", **space.points(X))
+    np.testing.assert_allclose(space.dry_contact_mu(X), r.mu - r.mu_rolling, rtol=1e-12)
+    at_rest = X.copy()
+    at_rest[:, 0] = 0.0  # no rolling force without speed (eq 9: U^0.66)
+    np.testing.assert_allclose(space.dry_contact_mu(at_rest), space.evaluate(at_rest), rtol=1e-14)
+    np.testing.assert_allclose(space.dry_contact_mu(at_rest), space.dry_contact_mu(X), rtol=1e-14)
+    Z = space.features(X, "dry_contact")
+    np.testing.assert_array_equal(Z[:, :-1], space.features(X, "physics"))
+    np.testing.assert_allclose(np.exp(Z[:, -1]), space.dry_contact_mu(X), rtol=1e-14)
+    assert space.feature_names("dry_contact")[-1] == "log(mu_dry)"
+
+
+def test_a_posynomial_mean_recovers_a_sum_of_two_power_laws_a_linear_one_cannot():
+    Z = design(Space({"load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2)}, fixed={"balls": 4}), 40, seed=2)
+    Zs = (np.log(Z) - np.log(Z).mean(axis=0)) / np.log(Z).std(axis=0)
+    t = np.logaddexp(-1.0 + 0.8 * Zs[:, 0], -2.5 + 0.6 * Zs[:, 1] - 0.3 * Zs[:, 0])
+    coef = fit_prior_mean("posynomial", Zs, t)
+    assert coef.shape == (6,)
+    np.testing.assert_allclose(prior_mean(coef, Zs), t, atol=1e-7)
+    linear = fit_prior_mean("linear", Zs, t)
+    assert np.max(np.abs(prior_mean(linear, Zs) - t)) > 1e-2
+    # Too few points for two terms: the linear fit, the second term off.
+    few = fit_prior_mean("posynomial", Zs[:6], t[:6])
+    linear_few = fit_prior_mean("linear", Zs[:6], t[:6])
+    np.testing.assert_allclose(prior_mean(few, Zs[:6]), prior_mean(linear_few, Zs[:6]))
+
+
+def test_the_default_surrogate_is_more_accurate_than_the_earlier_one_on_a_ball_ball_space():
+    # A space not tuned on, of ball-ball friction (balls touching): mu_dry holds the ball-ball moment.
+    space = Space({"mu_ball": (0.2, 1.0), "ball_diameter_m": (200e-6, 800e-6), "load_N": (0.002, 0.05)},
+                  fixed={"balls": 10, "balls_touching": True, "speed_m_s": 0.1})
+    X, Xt = design(space, 30, "sobol", seed=0), design(space, 256, "sobol", seed=9)
+    truth = space.evaluate(Xt)
+    errors = []
+    for params in ({"features": "physics", "mean": "linear"}, {}):
+        model = GaussianProcessSurrogate(space, random_state=0, **params).fit(X, space.evaluate(X))
+        errors.append(np.median(np.abs(model.predict(Xt) / truth - 1)))
+    assert errors[1] < errors[0] / 3
