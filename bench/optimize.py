@@ -23,8 +23,12 @@ Issue 25's certified parts (:func:`robust_parts`): the 4-D calibrated model with
 viscosity, group effects or a Gaussian-process discrepancy, each robust optimization with the worst case
 at each design certified beside the same call with it searched.
 
+Issue 35's table (:func:`robust_kinds`, ``--kinds``): one robust call per model kind on the 4-D envelope
+(issue 25's parts alone and a specimen group with a Gaussian-process discrepancy together), wall clock and
+CPU seconds, proven or not and the gap.
+
 Run: ``python bench/optimize.py`` from the repository root (``--robust``: the robust sections only;
-``--parts``: issue 25's certified parts only).
+``--parts``: issue 25's certified parts only; ``--kinds``: the table per model kind only).
 """
 
 from __future__ import annotations
