@@ -23,8 +23,12 @@ Issue 25's certified parts (:func:`robust_parts`): the 4-D calibrated model with
 viscosity, group effects or a Gaussian-process discrepancy, each robust optimization with the worst case
 at each design certified beside the same call with it searched.
 
+Issue 35's table (:func:`robust_kinds`, ``--kinds``): one robust call per model kind on the 4-D envelope
+(issue 25's parts alone and a specimen group with a Gaussian-process discrepancy together), wall clock and
+CPU seconds, proven or not and the gap.
+
 Run: ``python bench/optimize.py`` from the repository root (``--robust``: the robust sections only;
-``--parts``: issue 25's certified parts only).
+``--parts``: issue 25's certified parts only; ``--kinds``: the table per model kind only).
 """
 
 from __future__ import annotations
@@ -389,8 +393,62 @@ def robust_parts() -> None:
                   f"{'certified' if nominal['worst_case_certified'] else 'searched'}")
 
 
+def _kinds() -> list[tuple[str, CalibratedPhysicsModel | None, str]]:
+    """One robust call per model kind (issue 35): the physics, the bench's calibrated models, and issue 25's
+    parts alone and together (groups and a Gaussian-process discrepancy in one calibration)."""
+    import dataclasses
+
+    curved, stribeck = _calibrated_curved()
+    parts = dict(_parts_models())
+    both = dataclasses.replace(parts["groups (mu, mu_pivot)"],
+                               discrepancy=parts["GP discrepancy in T, RH"].discrepancy)
+    specimen = dataclasses.replace(both, groups=both.groups[:1])
+    out: list[tuple[str, CalibratedPhysicsModel | None, str]] = [
+        ("physics", None, "mu"), ("calibrated", _calibrated(), "mu"),
+        ("calibrated", _calibrated(), "mu_upper"),
+        ("Stribeck + quadratic in T", stribeck, "mu"), ("viscous + quadratic in T", curved, "mu_upper")]
+    for label, calibrated in [*parts.items(), ("specimen group + GP discrepancy", specimen),
+                              ("groups (mu, mu_pivot) + GP discrepancy", both)]:
+        for objective in ("mu", "mu_upper"):
+            if objective == "mu" and any(g.parameter != "mu" for g in calibrated.groups):
+                continue  # a group on a fitted parameter: mu's bound is refused (said in the proof)
+            out.append((label, CalibratedPhysicsModel(f"calibrated:{label}", calibrated), objective))
+    return out
+
+
+def robust_kinds() -> None:
+    """Time per call of the robust optimization per model kind, on the 4-D envelope (speed, humidity,
+    temperature, angle tolerance), balls 3-40: one table, whether proven and the certified gap."""
+    problem = DesignProblem(DesignBounds((3, 40), (40, 60), (0.001, 0.05)), 0.05,
+                            Constraints(max_contact_pressure_Pa=6e8))
+    four_d = robust_opt.Envelope((0.01, 0.1),
+                                 {"relative_humidity": (0.3, 0.7), "temperature_C": (20.0, 60.0)},
+                                 {"groove_angle_deg": 0.5})
+    envelope_physics = robust_opt.Envelope((0.01, 0.1), {}, {"groove_angle_deg": 0.5})
+    print("robust optimization per model kind, 4-D envelope (physics: speed + angle), balls 3-40, "
+          "one call each:")
+    # CPU seconds beside the wall clock: on a shared machine the wall clock also counts other jobs' turns.
+    print(f"  {'model kind':<40} {'objective':<9} {'s/call':>7} {'CPU s':>7} {'proven':>7} {'gap':>8} "
+          f"{'worst case':>12} {'upper bound':>12}")
+    for label, model, objective in _kinds():
+        start, cpu = time.perf_counter(), time.process_time()
+        result = robust_opt.optimize_robust(problem, envelope_physics if model is None else four_d, model,
+                                            objective=objective)
+        elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
+        proof = result.proof
+        gap = "none" if proof["relative_gap"] is None else f"{proof['relative_gap']:.1e}"
+        upper = proof.get("upper_bound")
+        print(f"  {label:<40} {objective:<9} {elapsed:>7.2f} {cpu:>7.2f} "
+              f"{'yes' if proof['proven'] else 'no':>7} {gap:>8} "
+              f"{result.worst_case[objective]:>12.8g} {'-' if upper is None else f'{upper:.8g}':>12}")
+        if not proof["proven"]:
+            print(f"      {proof['method']}: {proof['statement'][:300]}")
+
+
 if __name__ == "__main__":
-    if "--parts" in sys.argv[1:]:
+    if "--kinds" in sys.argv[1:]:
+        robust_kinds()
+    elif "--parts" in sys.argv[1:]:
         robust_parts()
     elif "--robust" in sys.argv[1:]:
         robust()

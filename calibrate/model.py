@@ -131,12 +131,12 @@ class GPCorrection:
 
     def __call__(self, columns: Mapping[str, Any], shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Mean and latent variance of the discrepancy of log μ at columnar points [1], shaped ``shape``."""
-        x = np.column_stack([
-            ((np.broadcast_to(np.asarray(columns[f], dtype=float), shape) - c) / s).ravel()
-            for f, c, s in zip(self.features, self.centre, self.scale, strict=True)
-        ]) if self.features else np.zeros((int(np.prod(shape)), 1))
-        mean, std = self.gp.predict(x, return_std=True)
-        return mean.reshape(shape), np.square(std).reshape(shape)
+        x = np.column_stack([((np.broadcast_to(np.asarray(columns[f], dtype=float), shape) - c) / s).ravel()
+                             for f, c, s in zip(self.features, self.centre, self.scale, strict=True)]
+                            ) if self.features else np.zeros((int(np.prod(shape)), 1))
+        rows, inverse = np.unique(x, axis=0, return_inverse=True)  # points sharing features: each row once
+        mean, std = self.gp.predict(rows, return_std=True)
+        return mean[np.ravel(inverse)].reshape(shape), np.square(std)[np.ravel(inverse)].reshape(shape)
 
     def _kernel_ends(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]) -> tuple:
         """Per box and training point: the box's scaled corners, the length scales, the farthest and the

@@ -70,6 +70,7 @@ from scipy import stats
 from microbearing import physics
 from microbearing.physics.effects import PARAMETER_SHARES
 
+from . import gp_boxes
 from .envelope_bound import (
     BoundFailedError,
     drift_ranges,
@@ -353,8 +354,8 @@ class _Bounds:
             corners.append({**{k: v for k, v in columns.items()
                                if k not in self.calibrated_fixed and k not in s.fitted},
                             **{c: np.full(n, v) for c, v in point["conditions"].items()}})
-        return (s.model.discrepancy_bound(corners[0], corners[1], (n,))[0],
-                s.model.discrepancy_least_variance(corners[0], corners[1], (n,)))
+        return (gp_boxes.discrepancy_bound(s.model, corners[0], corners[1], n)[0],
+                gp_boxes.discrepancy_least_variance(s.model, corners[0], corners[1], n))
 
     def _groups(self, s: IntervalStructure, low: np.ndarray, high: np.ndarray,
                 finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -75,6 +75,8 @@ from scipy import optimize, stats
 from microbearing import physics
 from microbearing.physics.effects import PARAMETER_SHARES
 
+from . import gp_boxes
+
 __all__ = ["BOUND_RTOL", "MAX_BOXES", "BoundFailedError", "CertifiedMax", "Piece", "certified_max",
            "drift_ranges", "group_shift", "interval_floor", "mu_box_bound", "term_pieces"]
 
@@ -505,7 +507,7 @@ def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],
         upper = _compose_upper(phys, effects, ranges) * factor
         if gp:
             low, high = _corner_points(boxes, inputs_fn, lo, hi)
-            mean = calibrated.discrepancy_bound(low, high, (len(lo),))[1]
+            mean = gp_boxes.discrepancy_bound(calibrated, low, high, len(lo))[1]
             upper = np.where(upper >= 0, upper * np.exp(mean), np.inf)
         return upper * (1.0 + _ROUNDING), _with_low_speed(boxes, lo, peak)
 

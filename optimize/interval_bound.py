@@ -22,6 +22,7 @@ from scipy import stats
 from microbearing import physics
 from microbearing.physics.effects import PARAMETER_SHARES
 
+from . import gp_boxes
 from .envelope_bound import (
     Piece,
     _Boxes,
@@ -476,7 +477,7 @@ def _structure_bound(context: _IntervalContext, s: IntervalStructure, lo: np.nda
     shift, group_variance = _groups_shift(context, s, g_low, g_high, n)
     if getattr(s.model, "discrepancy", None) is not None:
         low, high = _corner_points(context.boxes, context.inputs_fn, lo, hi)
-        _, gp_mean, gp_variance = s.model.discrepancy_bound(low, high, (n,))
+        _, gp_mean, gp_variance = gp_boxes.discrepancy_bound(s.model, low, high, n)
         shift, group_variance = shift + gp_mean, group_variance + gp_variance
     sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * wide
     return np.where(finite, c.mu_hi * np.exp(shift + context.z * sigma), np.inf)
