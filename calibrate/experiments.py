@@ -248,17 +248,12 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
     """
     rivals = []
     fit_parameters = list(report.get("fit_parameters", model.fitted))
-    found = rival_terms(report, dataset, [t for t, _ in model.terms])[:max_rivals]
-    if not found:
-        return rivals
-    own = _residual_scatter(fit(dataset, fit_parameters, [t for t, _ in model.terms], start=model.fitted,
-                                convention=model.convention))
-    for label, terms in found:
+    for label, terms in rival_terms(report, dataset, [t for t, _ in model.terms])[:max_rivals]:
         result = fit(dataset, fit_parameters, terms, start=model.fitted, convention=model.convention)
-        # A rival's scatter is the model's, scaled by how much closer its fit comes to the data: a term
-        # the model lacks inflates the model's scatter, and a recalibration that adds it measures less.
-        noise = float(model.noise_std_log) * _residual_scatter(result) / max(own, 1e-300)
-        rivals.append((label, CalibratedModel.from_fit(result, dataset, model.convention, noise)))
+        # A rival's scatter is its own fit's: a term the model lacks inflates the model's scatter, and a
+        # recalibration that adds it measures less.
+        rivals.append((label, CalibratedModel.from_fit(result, dataset, model.convention,
+                                                       _residual_scatter(result))))
     return rivals
 
 
