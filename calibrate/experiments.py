@@ -248,12 +248,15 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
     """
     rivals = []
     fit_parameters = list(report.get("fit_parameters", model.fitted))
+    # the small-sample and tail factor the model's interval applies to its scatter
+    factor = model.interval_noise_std_log() / float(model.noise_std_log) if model.noise_std_log else 1.0
     for label, terms in rival_terms(report, dataset, [t for t, _ in model.terms])[:max_rivals]:
         result = fit(dataset, fit_parameters, terms, start=model.fitted, convention=model.convention)
-        # A rival's scatter is its own fit's: a term the model lacks inflates the model's scatter, and a
-        # recalibration that adds it measures less.
-        rivals.append((label, CalibratedModel.from_fit(result, dataset, model.convention,
-                                                       _residual_scatter(result))))
+        # A rival's scatter is its own fit's (a term the model lacks inflates the model's scatter, and a
+        # recalibration that adds it measures less), with the model's factor; its data cloud the model's.
+        noise = _residual_scatter(result) * factor
+        rivals.append((label, CalibratedModel.from_fit(result, dataset, model.convention, noise,
+                                                       cloud=model.cloud)))
     return rivals
 
 

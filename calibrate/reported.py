@@ -91,6 +91,8 @@ class ReportedWidth:
         p = self.c.shape[1]
         # What no run changes: the scatter of a measurement and the discrepancy's variance.
         self.other = np.square(np.asarray(response.scatter_sd(envelope), dtype=float))
+        if model.noise_std_log:  # the small-sample and tail factor the interval applies to one spread
+            self.other = self.other * (model.interval_noise_std_log(level) / float(model.noise_std_log)) ** 2
         self.other = self.other + np.ravel(model.discrepancy_bound(self.envelope, self.envelope, (m,))[2])
         sigma = np.asarray(response.scatter_sd(candidates), dtype=float)
         g = np.asarray(response.sensitivities(candidates), dtype=float).reshape(sigma.size, p)
