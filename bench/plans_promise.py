@@ -1,13 +1,16 @@
 """Plans keep their promise (issue 33, item 8): do the runs proposed for ``predict`` shrink the interval the
 service reports over the envelope, as much as the proposal says, and more than as many random runs?
 
-Run: ``python bench/plans_promise.py --seeds 4 --runs 16``.
+Run: ``python bench/plans_promise.py --seeds 4 --runs 16 --labs humidity,temperature``.
 
-Each simulated lab hides adhesion growing with humidity by a Kelvin law (written here, independently of
-physics.effects) in the physics; it measures 40 first rows at 20-40 % RH (3 % noise) and calibrates through
-the REST API (``POST /v1/calibrations``, ``mu_pivot`` and ``adhesion_energy_J_m2`` fitted). It then asks
+Each simulated lab hides an effect of one condition in the physics (written here, independently of
+physics.effects): ``humidity``, adhesion growing with the Kelvin radius, first data at 20-40 % RH, the
+envelope at 70-85 % RH (``mu_pivot`` and ``adhesion_energy_J_m2`` fitted); ``temperature`` (not tuned on),
+the pivot friction rising 1.5 %/degC, first data at 20-35 degC, the envelope at 55-70 degC (``mu_pivot``
+fitted). A lab measures 40 first rows (3 % noise), calibrates through the REST API
+(``POST /v1/calibrations``), then asks
 ``POST /v1/calibrations/{id}/next-experiments`` for ``predict`` over the envelope (6 balls, 5-20 mN,
-0.05 m/s, 70-85 % RH: beyond the first data), measures the proposed runs from the truth, or as many random
+0.05 m/s, the condition beyond the first data), measures the proposed runs from the truth, or as many random
 runs over the same space, and calibrates again on all rows. Over 200 envelope points it asks
 ``POST /v1/friction/batch`` of each recalibration for the 95 % interval and reports:
 
@@ -24,6 +27,8 @@ import logging
 import sys
 import tempfile
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 _REPO = Path(__file__).resolve().parent.parent
@@ -39,47 +44,82 @@ from microbearing import physics  # noqa: E402
 from microbearing.service.app import create_app  # noqa: E402
 from microbearing.service.settings import Settings  # noqa: E402
 
-FIT = ["mu_pivot", "adhesion_energy_J_m2"]
 NOISE = 0.03
 FIRST_ROWS = 40
-SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
-         "speed_m_s": {"low": 0.0, "high": 0.15}, "relative_humidity": {"low": 0.2, "high": 0.9}}
-ENVELOPE = {"balls": [6], "load_N": {"low": 5e-3, "high": 2e-2}, "speed_m_s": [0.05],
-            "relative_humidity": {"low": 0.7, "high": 0.85}}
 
 
-def truth(c) -> np.ndarray:
+@dataclass(frozen=True)
+class Lab:
+    """A simulated lab: the truth hidden in the physics, one condition column, the first data's range of
+    it, what the lab can set (``space``) and where the model will be used (``envelope``), beyond the data."""
+
+    name: str
+    condition: str
+    first: tuple[float, float]
+    space: tuple[float, float]
+    envelope: tuple[float, float]
+    fit: tuple[str, ...]
+    truth_parameters: Callable[[np.ndarray], dict[str, np.ndarray]]
+
+    def truth(self, c) -> np.ndarray:
+        return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"],
+                                **self.truth_parameters(np.asarray(c[self.condition], dtype=float))).mu
+
+    def space_body(self) -> dict:
+        return {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
+                "speed_m_s": {"low": 0.0, "high": 0.15}, self.condition: {"low": self.space[0],
+                                                                         "high": self.space[1]}}
+
+    def envelope_body(self) -> dict:
+        return {"balls": [6], "load_N": {"low": 5e-3, "high": 2e-2}, "speed_m_s": [0.05],
+                self.condition: {"low": self.envelope[0], "high": self.envelope[1]}}
+
+
+def kelvin_adhesion(h: np.ndarray) -> dict[str, np.ndarray]:
     """Adhesion growing with the Kelvin radius, 1/ln(1/h), in the physics (mu_pivot 0.7)."""
-    energy = 0.05 * (1 + 1.5 / np.log(1 / np.asarray(c["relative_humidity"], dtype=float)))
-    return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7,
-                            adhesion_energy_J_m2=energy).mu
+    return {"mu_pivot": 0.7, "adhesion_energy_J_m2": 0.05 * (1 + 1.5 / np.log(1 / h))}
 
 
-def first_data(rng, n: int) -> dict[str, np.ndarray]:
+def warm_pivot(t: np.ndarray) -> dict[str, np.ndarray]:
+    """The pivot friction rising 1.5 % per degree Celsius from 0.7 at 25 degC (a softening lubricant
+    film); the adhesion at its default."""
+    return {"mu_pivot": 0.7 * (1 + 0.015 * (t - 25.0))}
+
+
+LABS = {
+    "humidity": Lab("humidity", "relative_humidity", (0.2, 0.4), (0.2, 0.9), (0.7, 0.85),
+                    ("mu_pivot", "adhesion_energy_J_m2"), kelvin_adhesion),
+    # not tuned on: a temperature effect on the pivot friction, the envelope at 55-70 degC
+    "temperature": Lab("temperature", "temperature_C", (20.0, 35.0), (20.0, 80.0), (55.0, 70.0),
+                       ("mu_pivot",), warm_pivot),
+}
+
+
+def first_data(lab: Lab, rng, n: int) -> dict[str, np.ndarray]:
     return {"balls": rng.choice([4, 6, 8], n).astype(float),
             "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-            "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.4, n)}
+            "speed_m_s": rng.uniform(0.0, 0.15, n), lab.condition: rng.uniform(*lab.first, n)}
 
 
-def random_runs(rng, n: int) -> dict[str, np.ndarray]:
+def random_runs(lab: Lab, rng, n: int) -> dict[str, np.ndarray]:
     return {"balls": rng.integers(4, 9, n).astype(float),
             "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-            "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.9, n)}
+            "speed_m_s": rng.uniform(0.0, 0.15, n), lab.condition: rng.uniform(*lab.space, n)}
 
 
-def envelope_points(rng, n: int = 200) -> dict[str, np.ndarray]:
+def envelope_points(lab: Lab, rng, n: int = 200) -> dict[str, np.ndarray]:
     return {"balls": np.full(n, 6.0), "load_N": rng.uniform(5e-3, 2e-2, n), "speed_m_s": np.full(n, 0.05),
-            "relative_humidity": rng.uniform(0.7, 0.85, n)}
+            lab.condition: rng.uniform(*lab.envelope, n)}
 
 
-def measure(columns, rng) -> list[dict]:
-    mu = truth(columns) * np.exp(rng.normal(0.0, NOISE, columns["balls"].size))
+def measure(lab: Lab, columns, rng) -> list[dict]:
+    mu = lab.truth(columns) * np.exp(rng.normal(0.0, NOISE, columns["balls"].size))
     return [{k: float(v[i]) for k, v in columns.items()} | {"mu_measured": float(mu[i])}
             for i in range(mu.size)]
 
 
-def calibrate(client, rows) -> str:
-    response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": FIT})
+def calibrate(client, lab: Lab, rows) -> str:
+    response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": list(lab.fit)})
     assert response.status_code == 202, response.text
     job = finished_job(client, response.headers["location"], timeout_s=900, interval_s=0.5)
     return client.get(job["result_url"]).json()["model_id"]
@@ -93,44 +133,44 @@ def propose(client, model_id: str, body: dict) -> dict:
     return client.get(job["result_url"]).json()
 
 
-def judge(client, model_id: str, points, rng) -> dict[str, float]:
+def judge(client, lab: Lab, model_id: str, points, rng) -> dict[str, float]:
     response = client.post("/v1/friction/batch", json={
-        "points": {k: v.tolist() for k, v in points.items() if k != "relative_humidity"},
-        "conditions": {"relative_humidity": points["relative_humidity"].tolist()},
+        "points": {k: v.tolist() for k, v in points.items() if k != lab.condition},
+        "conditions": {lab.condition: points[lab.condition].tolist()},
         "model": model_id, "outputs": ["mu"]})
     assert response.status_code == 200, response.text
     body = response.json()
     mu, lower, upper = (np.asarray(body[k], dtype=float) for k in ("mu", "mu_lower", "mu_upper"))
-    fresh = truth(points) * np.exp(rng.normal(0.0, NOISE, mu.size))
+    fresh = lab.truth(points) * np.exp(rng.normal(0.0, NOISE, mu.size))
     return {"half_width": float(np.mean((upper - lower) / 2)),
-            "error": float(np.sqrt(np.mean(np.log(mu / truth(points)) ** 2))),
+            "error": float(np.sqrt(np.mean(np.log(mu / lab.truth(points)) ** 2))),
             "coverage": float(np.mean((lower <= fresh) & (fresh <= upper)))}
 
 
-def columns_of(runs: list[dict]) -> dict[str, np.ndarray]:
+def columns_of(lab: Lab, runs: list[dict]) -> dict[str, np.ndarray]:
     flat = [{"balls": r["balls"], "load_N": r["load_N"], "speed_m_s": r["speed_m_s"], **r["conditions"]}
             for r in runs]
-    return {k: np.array([f[k] for f in flat], dtype=float) for k in SPACE}
+    return {k: np.array([f[k] for f in flat], dtype=float) for k in lab.space_body()}
 
 
-def lab(client, seed: int, runs: int) -> dict:
+def lab_run(client, lab: Lab, seed: int, runs: int) -> dict:
     rng = np.random.default_rng(seed)
-    rows = measure(first_data(rng, FIRST_ROWS), rng)
-    first = calibrate(client, rows)
-    points = envelope_points(np.random.default_rng(10_000 + seed))
+    rows = measure(lab, first_data(lab, rng, FIRST_ROWS), rng)
+    first = calibrate(client, lab, rows)
+    points = envelope_points(lab, np.random.default_rng(10_000 + seed))
     started = time.perf_counter()
-    proposal = propose(client, first, {"runs": runs, "goal": "predict", "space": SPACE, "envelope": ENVELOPE,
-                                       "seed": seed})
+    proposal = propose(client, first, {"runs": runs, "goal": "predict", "space": lab.space_body(),
+                                       "envelope": lab.envelope_body(), "seed": seed})
     seconds = time.perf_counter() - started
     measured = np.random.default_rng(30_000 + seed)
-    out = {"first": judge(client, first, points, np.random.default_rng(40_000 + seed)),
+    out = {"first": judge(client, lab, first, points, np.random.default_rng(40_000 + seed)),
            "promise": proposal["envelope"]["reported_half_width_after"]["mean"],
            "now": proposal["envelope"]["reported_half_width_now"]["mean"], "seconds": seconds,
            "support": proposal["support_points"]}
-    for name, columns in (("proposed", columns_of(proposal["runs"])),
-                          ("random", random_runs(np.random.default_rng(20_000 + seed), runs))):
-        again = calibrate(client, rows + measure(columns, measured))
-        out[name] = judge(client, again, points, np.random.default_rng(40_000 + seed))
+    for name, columns in (("proposed", columns_of(lab, proposal["runs"])),
+                          ("random", random_runs(lab, np.random.default_rng(20_000 + seed), runs))):
+        again = calibrate(client, lab, rows + measure(lab, columns, measured))
+        out[name] = judge(client, lab, again, points, np.random.default_rng(40_000 + seed))
     return out
 
 
@@ -138,23 +178,25 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--runs", type=int, default=16)
+    parser.add_argument("--labs", default="humidity,temperature", help="comma-separated: " + ", ".join(LABS))
     args = parser.parse_args(argv)
     logging.disable(logging.INFO)  # the service's access log of every poll
     records = []
     with (tempfile.TemporaryDirectory() as data_dir,
           TestClient(create_app(Settings(data_dir=data_dir))) as client):
-        for seed in range(args.seeds):
-            r = lab(client, seed, args.runs)
+        for name, seed in ((n, k) for n in args.labs.split(",") for k in range(args.seeds)):
+            r = lab_run(client, LABS[name], seed, args.runs)
             records.append(r)
-            print(f"lab {seed}: first hw {r['first']['half_width']:.5f} | proposed ({r['support']} points, "
-                  f"{r['seconds']:.0f} s) hw {r['proposed']['half_width']:.5f} (promised {r['promise']:.5f}, "
-                  f"ratio {r['proposed']['half_width'] / r['promise']:.2f}) err {r['proposed']['error']:.4f} "
-                  f"cov {r['proposed']['coverage']:.2f} | random hw {r['random']['half_width']:.5f} "
-                  f"err {r['random']['error']:.4f} cov {r['random']['coverage']:.2f}", flush=True)
+            print(f"{name} lab {seed}: first hw {r['first']['half_width']:.5f} | proposed ({r['support']} "
+                  f"points, {r['seconds']:.0f} s) hw {r['proposed']['half_width']:.5f} (promised "
+                  f"{r['promise']:.5f}, ratio {r['proposed']['half_width'] / r['promise']:.2f}) err "
+                  f"{r['proposed']['error']:.4f} cov {r['proposed']['coverage']:.2f} | random hw "
+                  f"{r['random']['half_width']:.5f} err {r['random']['error']:.4f} cov "
+                  f"{r['random']['coverage']:.2f}", flush=True)
     ratio_hw = np.array([r["proposed"]["half_width"] / r["random"]["half_width"] for r in records])
     ratio_err = np.array([r["proposed"]["error"] / r["random"]["error"] for r in records])
     promise = np.array([r["proposed"]["half_width"] / r["promise"] for r in records])
-    print(f"\n{args.seeds} labs, {args.runs} runs each: reported half-width proposed / random "
+    print(f"\n{len(records)} labs, {args.runs} runs each: reported half-width proposed / random "
           f"{', '.join(f'{x:.2f}' for x in ratio_hw)} (geometric mean "
           f"{np.exp(np.mean(np.log(ratio_hw))):.2f}); "
           f"truth error proposed / random {', '.join(f'{x:.2f}' for x in ratio_err)} (geometric mean "

@@ -64,6 +64,8 @@ __all__ = [
 MAX_RIVALS = 3
 # Points of the envelope at most. [1]
 _ENVELOPE_POINTS = 512
+# Points of the envelope added to the candidates of a predict design at most. [1]
+_ENVELOPE_CANDIDATES = 128
 # Relative step of the finite-difference sensitivities of log μ (as CalibratedModel.predict). [1]
 _GRADIENT_STEP = 1e-6
 # The stopping step's best candidate is a rival when its z reaches this share of the threshold. [1]
@@ -246,11 +248,23 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
     """
     rivals = []
     fit_parameters = list(report.get("fit_parameters", model.fitted))
+    # the small-sample and tail factor the model's interval applies to its scatter
+    factor = model.interval_noise_std_log() / float(model.noise_std_log) if model.noise_std_log else 1.0
     for label, terms in rival_terms(report, dataset, [t for t, _ in model.terms])[:max_rivals]:
         result = fit(dataset, fit_parameters, terms, start=model.fitted, convention=model.convention)
-        rivals.append((label, CalibratedModel.from_fit(result, dataset, model.convention,
-                                                       float(model.noise_std_log))))
+        # A rival's scatter is its own fit's (a term the model lacks inflates the model's scatter, and a
+        # recalibration that adds it measures less), with the model's factor; its data cloud the model's.
+        noise = _residual_scatter(result) * factor
+        rivals.append((label, CalibratedModel.from_fit(result, dataset, model.convention, noise,
+                                                       cloud=model.cloud)))
     return rivals
+
+
+def _residual_scatter(result) -> float:
+    """RMS of a fit's log residual with its degrees of freedom (n - p) [1]."""
+    residual = np.asarray(result.residual, dtype=float)
+    dof = max(residual.size - len(result.values), 1)
+    return float(np.sqrt(np.sum(np.square(residual)) / dof))
 
 
 # ------------------------------------------------------------------------------------------------- plan
@@ -353,7 +367,7 @@ def _runs(response: CalibratedResponse, candidates, design: Design) -> tuple[lis
 
 
 def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, envelope,
-              rivals: Sequence[tuple[str, CalibratedModel]], reported: ReportedWidth | None = None
+              rivals: Sequence[tuple[str, CalibratedModel]], reported: Sequence[ReportedWidth] = ()
               ) -> dict[str, Any]:
     names = response.parameter_names
     information_after = design.information_after
@@ -386,9 +400,13 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             entry["half_width_now"] = {"mean": float(before.mean()), "max": float(before.max())}
             entry["mean_half_width_now"] = {"mean": float(mean_before.mean()),
                                             "max": float(mean_before.max())}
-        if reported is not None:  # the interval as the service reports it, widened off the data
-            for key, values in (("reported_half_width_now", reported.now()),
-                                ("reported_half_width_after", reported.after(design.counts))):
+        if reported:  # the interval as the service reports it, widened off the data
+            # after the runs: the interval of the model the data favour (the least scatter) among the
+            # calibrated one and the hedged rivals, whose term a recalibration would add
+            favoured = min(reported, key=lambda r: float(r.model.noise_std_log))
+            after = favoured.after(design.counts)
+            for key, values in (("reported_half_width_now", reported[0].now()),
+                                ("reported_half_width_after", after)):
                 entry[key] = {"mean": float(np.mean(values)), "max": float(np.max(values))}
         out["envelope"] = entry
     if rivals:
@@ -484,6 +502,26 @@ def _plot_data(response: CalibratedResponse, runs_columns, data: Mapping[str, np
     return plot
 
 
+def _with_envelope(candidates: Mapping[str, np.ndarray], envelope: Mapping[str, np.ndarray],
+                   space: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """The candidates with the envelope's points the space allows (at most :data:`_ENVELOPE_CANDIDATES`,
+    evenly taken): for ``predict``, measuring where the model will be used is a run to consider."""
+    inside = np.ones(len(next(iter(envelope.values()))), dtype=bool)
+    for name, spec in space.items():
+        values = np.asarray(envelope[name], dtype=float)
+        if "values" in spec:
+            inside &= np.isin(values, np.asarray(spec["values"], dtype=float))
+        else:
+            inside &= (values >= float(spec["low"])) & (values <= float(spec["high"]))
+            if name == "balls":
+                inside &= values == np.round(values)
+    index = np.flatnonzero(inside)
+    index = index[np.unique(np.linspace(0, index.size - 1, min(index.size, _ENVELOPE_CANDIDATES)).astype(int))
+                  ] if index.size else index
+    return {k: np.concatenate([np.asarray(v, dtype=float), np.asarray(envelope[k], dtype=float)[index]])
+            for k, v in candidates.items()}
+
+
 def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, data,
              progress) -> ExperimentPlan:
     report = progress or (lambda fraction: None)
@@ -514,16 +552,24 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
     rival_responses = [CalibratedResponse(m, response.fixed) for _, m in rivals]
     # A calibrated model's interval widens off the data (the data cloud, the ranges of its inputs): the
     # runs for predict are chosen by that interval, as the service will report it after them.
-    reported = None
+    reported, hedges = None, []
     if envelope is not None and response.model.covariance is not None and response.model.domain is not None:
+        if goal == "predict":
+            candidates = _with_envelope(candidates, envelope, space)
         reported = ReportedWidth(response, candidates, envelope, planned_columns)
-    exchange = reported.search if reported is not None and goal == "predict" else None
+        # A recalibration may add a rival's term: the runs hedge against it (its interval counts too).
+        hedges = [ReportedWidth(r, candidates, envelope, planned_columns) for r in rival_responses
+                  if r.model.covariance is not None] if goal == "predict" else []
+    exchange = None
+    if reported is not None and goal == "predict":
+        def exchange(start: np.ndarray) -> np.ndarray:
+            return reported.search(start, hedges)
     design = plan(response, candidates, runs, goal, envelope=envelope, rivals=rival_responses,
                   planned=planned_columns, exchange=exchange)
     report(0.8)
     rows, chosen, warnings = _runs(response, candidates, design)
     expected = _expected(goal, response, design, chosen, envelope, rivals if goal == "discriminate" else [],
-                         reported)
+                         [reported, *hedges] if reported is not None else [])
     plot = _plot_data(response, chosen, data, space, rivals if goal == "discriminate" else [])
     if envelope_space is not None:  # where the model will be used, on the plot's axes
         plot["envelope"] = {a: list(_span(envelope_space[a])) for a in plot["axes"] if a in envelope_space}

@@ -18,7 +18,7 @@ random runs). :class:`ReportedWidth` predicts the interval after runs at candida
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -33,6 +33,8 @@ __all__ = ["ReportedWidth", "half_width"]
 
 # Exchange passes of the search after its greedy construction at most. [1]
 _PASSES = 2
+# Runs at one candidate at most in the search (more when the candidates are fewer than the runs). [1]
+_MOST_REPLICATES = 2
 
 
 def half_width(mu: np.ndarray, log_half_width: np.ndarray) -> np.ndarray:
@@ -89,6 +91,8 @@ class ReportedWidth:
         p = self.c.shape[1]
         # What no run changes: the scatter of a measurement and the discrepancy's variance.
         self.other = np.square(np.asarray(response.scatter_sd(envelope), dtype=float))
+        if model.noise_std_log:  # the small-sample and tail factor the interval applies to one spread
+            self.other = self.other * (model.interval_noise_std_log(level) / float(model.noise_std_log)) ** 2
         self.other = self.other + np.ravel(model.discrepancy_bound(self.envelope, self.envelope, (m,))[2])
         sigma = np.asarray(response.scatter_sd(candidates), dtype=float)
         g = np.asarray(response.sensitivities(candidates), dtype=float).reshape(sigma.size, p)
@@ -104,6 +108,7 @@ class ReportedWidth:
             self.prior = self.prior + planned_b.T @ planned_b
             self.planned = self._columns(response.points(planned))
         self.fast = self._fast()
+        self.rivals: list[ReportedWidth] = []
 
     # ------------------------------------------------------------------------------------------ columns
     def _columns(self, points: Mapping[str, Any]) -> dict[str, np.ndarray]:
@@ -183,14 +188,14 @@ class ReportedWidth:
             near = near[:, : self.fast.kth]
         return inverse, variance, near
 
-    def _mean_half_width(self, variance, ratio) -> np.ndarray:
-        """Mean half-width over the envelope [1] of each column of variances and distance ratios."""
+    def _half_widths(self, variance, ratio) -> np.ndarray:
+        """Half-width at each envelope point (rows) [1] of each column of variances and distance ratios."""
         sigma = np.sqrt(np.clip(variance, 0.0, None) + self.other[:, None])
         log_half = self.z * sigma * np.maximum(ratio, 1.0)
-        return np.mean(half_width(self.mu[:, None], log_half), axis=0)
+        return half_width(self.mu[:, None], log_half)
 
-    def _added(self, counts: np.ndarray) -> np.ndarray:
-        """Mean half-width over the envelope [1] after one more run at each candidate."""
+    def added_each(self, counts: np.ndarray) -> np.ndarray:
+        """Half-width at each envelope point (rows) after one more run at each candidate (columns) [1]."""
         inverse, variance, near = self._state(counts)
         cm = self.c @ inverse  # (m, p)
         u = self.b @ inverse  # (n, p)
@@ -207,24 +212,41 @@ class ReportedWidth:
             ratio = np.maximum(new / self.fast.threshold, self.fast.lines[:, None])
         beyond = self._extrapolation(np.flatnonzero(counts), int(counts.sum()) + 1, each=True)
         ratio = np.maximum(ratio, beyond)
-        return self._mean_half_width(after, ratio)
+        return self._half_widths(after, ratio)
 
-    def mean_after_fast(self, counts: np.ndarray) -> float:
-        """Mean half-width over the envelope [1] after runs at the candidates (``counts``), fast."""
+    def after_fast_each(self, counts: np.ndarray) -> np.ndarray:
+        """Half-width at each envelope point [1] after runs at the candidates (``counts``), fast."""
         _, variance, near = self._state(counts)
         ratio = self._extrapolation(np.flatnonzero(counts), int(counts.sum()))[:, 0]
         if self.fast is not None:
             ratio = np.maximum(ratio, np.maximum(near[:, -1] / self.fast.threshold, self.fast.lines))
-        return float(self._mean_half_width(variance[:, None], ratio[:, None])[0])
+        return self._half_widths(variance[:, None], ratio[:, None])[:, 0]
 
-    def search(self, start: np.ndarray) -> np.ndarray:
+    def _added(self, counts: np.ndarray) -> np.ndarray:
+        """Mean over the envelope of the widest half-width of the model and its hedged rivals [1] after
+        one more run at each candidate (the service reports the envelope of the rivals' intervals)."""
+        return np.mean(np.maximum.reduce([w.added_each(counts) for w in (self, *self.rivals)]), axis=0)
+
+    def mean_after_fast(self, counts: np.ndarray) -> float:
+        """Mean over the envelope of the widest half-width of the model and its hedged rivals [1] after
+        runs at the candidates (``counts``), fast."""
+        return float(np.mean(np.maximum.reduce([w.after_fast_each(counts) for w in (self, *self.rivals)])))
+
+    def search(self, start: np.ndarray, rivals: Sequence[ReportedWidth] = ()) -> np.ndarray:
         """Runs (counts per candidate, as many as ``start``) that make the reported half-width over the
         envelope small: built greedily run by run (the candidate that shrinks the mean half-width most),
-        then improved by moving single runs; ``start`` (an I-optimal design) when that is no better."""
+        then improved by moving single runs; ``start`` (an I-optimal design) when that is no better.
+        With ``rivals`` (the rivals' widths over the same candidates and envelope) the half-width at
+        each point is the widest of the model's and theirs: the runs hedge against the terms a
+        recalibration may add."""
+        self.rivals = list(rivals)
         runs = int(start.sum())
+        # Replicates at most per candidate: the calibration holds a design point's replicates out
+        # together, so runs piled on a few points leave its held-out scatter to extrapolations.
+        most = max(_MOST_REPLICATES, -(-runs // start.size))
         counts = np.zeros_like(start)
         for _ in range(runs):
-            counts[int(np.argmin(self._added(counts)))] += 1
+            counts[int(np.argmin(np.where(counts >= most, np.inf, self._added(counts))))] += 1
         best = self.mean_after_fast(counts)
         for _ in range(_PASSES):
             moved = False
@@ -232,7 +254,7 @@ class ReportedWidth:
                 if counts[source] == 0:
                     continue
                 counts[source] -= 1
-                values = self._added(counts)
+                values = np.where(counts >= most, np.inf, self._added(counts))
                 target = int(np.argmin(values))
                 if values[target] < best * (1.0 - 1e-9) and target != source:
                     counts[target] += 1
@@ -241,7 +263,7 @@ class ReportedWidth:
                     counts[source] += 1
             if not moved:
                 break
-        return counts if best <= self.mean_after_fast(start) else start.copy()
+        return counts if best <= self.mean_after_fast(start) or start.max() > most else start.copy()
 
     # -------------------------------------------------------------------------------------------- exact
     def now(self) -> np.ndarray:

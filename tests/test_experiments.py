@@ -103,6 +103,40 @@ def test_parameters_and_predict_shrink_what_they_target(humid):
     assert not any(r["in_domain"] for r in i["runs"] if r["conditions"]["relative_humidity"] > 0.5 + 1e-9)
 
 
+def test_a_rival_carries_its_own_scatter_and_the_models_data_cloud(humid):
+    # A term the model lacks inflates its scatter; a rival's interval (hedged by predict) uses the rival's
+    # own: the RMS of its log residual on the data with n - p degrees of freedom, recomputed here from its
+    # predictions, times the small-sample/tail factor the model's interval applies.
+    dataset, report = humid
+    model = report.model
+    factor = model.interval_noise_std_log() / model.noise_std_log
+    n = dataset.mu_measured.size
+    for _, rival in rival_models(report.to_dict(), dataset, model):
+        residual = np.log(rival(dataset.columns()) / dataset.mu_measured)
+        p = len(rival.fitted) + sum(len(v) for _, v in rival.terms)
+        assert rival.noise_std_log == pytest.approx(np.sqrt(np.sum(residual**2) / (n - p)) * factor, rel=1e-3)
+        assert rival.cloud is model.cloud
+
+
+def test_predict_with_rivals_spreads_its_runs_where_they_part(humid):
+    # Issue 33, item 8: the runs hedge against the terms a recalibration may add (the rivals'), at two
+    # runs per setting at most (a setting's replicates are held out together), and beyond the data
+    # (20-50 % RH) towards the envelope, where the rivals' laws part.
+    dataset, report = humid
+    envelope = {"balls": [6], "load_N": {"low": 0.005, "high": 0.02}, "speed_m_s": [0.05],
+                "relative_humidity": {"low": 0.7, "high": 0.85}}
+    rivals = rival_models(report.to_dict(), dataset, report.model)
+    result = next_experiments(report.model, ExperimentRequest(SPACE, 12, "predict", envelope=envelope),
+                              rivals=rivals, data=dataset.columns()).to_dict()
+    settings = [(r["balls"], r["load_N"], r["speed_m_s"], r["conditions"]["relative_humidity"])
+                for r in result["runs"]]
+    assert len(settings) == 12 and max(settings.count(s) for s in settings) <= 2
+    humidity = np.array([s[3] for s in settings])
+    assert np.mean(humidity > 0.5) >= 0.5, humidity
+    figures = result["envelope"]
+    assert figures["reported_half_width_after"]["mean"] < figures["reported_half_width_now"]["mean"]
+
+
 def test_first_design_of_one_parameter_puts_every_run_where_it_moves_mu_most():
     # D-optimal for one parameter: all runs where |d log mu / d mu_pivot| is largest, checked by a
     # central difference of the physics at every candidate.
