@@ -91,8 +91,8 @@ def program(extras: bool, varying: tuple[bool, ...], positions: tuple[int, ...])
     Program
     """
     traced = fused.trace(extras)
-    nodes = traced.nodes
-    wanted = [traced.outputs[position] for position in positions]
+    nodes, same = _shared(traced.nodes)
+    wanted = [same[traced.outputs[position]] for position in positions]
     needed = set(wanted)  # what the outputs asked for read, directly or not: the rest is not run
     for index in range(len(nodes) - 1, -1, -1):
         if index in needed and nodes[index][0] not in ("input", "const"):
@@ -116,6 +116,22 @@ def program(extras: bool, varying: tuple[bool, ...], positions: tuple[int, ...])
     slots, size = _slots(steps, rows)
     constants = tuple(args[0] if op == "const" else None for op, args in nodes[len(varying):])
     return Program(tuple(scalars), tuple(steps), slots, rows, tuple(copies), size, constants)
+
+
+def _shared(nodes: tuple) -> tuple[list, list[int]]:
+    """The nodes with each operand read from the first node of the same operation on the same operands
+    (an expression the equation functions evaluate twice: eq 20's terms in F_S and in the breakdown of
+    μ), and for each node that first one. The same operation on the same values gives the same bits."""
+    first, same, shared = {}, [], []
+    for index, (op, args) in enumerate(nodes):
+        if op in ("input", "const"):
+            key = (op, index) if op == "input" else (op, type(args[0]), repr(args[0]))
+        else:
+            args = tuple(same[a] for a in args)
+            key = (op, args)
+        same.append(first.setdefault(key, index))
+        shared.append((op, args))
+    return shared, same
 
 
 def _slots(steps: list, rows: dict) -> tuple[dict, int]:
