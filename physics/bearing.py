@@ -190,7 +190,8 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
 
     Every output is :func:`physics.kernel.point_outputs`, the composition of the
     equations' functions, run on numpy arrays of 16,384 points at a time (so that the
-    intermediates stay in the CPU's cache), or compiled by numba
+    intermediates stay in the CPU's cache; from 1,024 points on as its trace replayed into one
+    workspace, :mod:`physics.replay`, the same operations), or compiled by numba
     (``execution=ExecutionOptions(kernel="numba")``, ``pip install microbearing[fast]``), which
     agrees with numpy to 1e-12 relative (tested). Calls of 8 blocks or more are split into up to
     ``execution.threads`` contiguous runs of blocks on ``execution.executor`` (numpy and the
