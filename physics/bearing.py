@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from . import compiled, kernel
+from . import compiled, kernel, replay
 from .balance import (
     MIN_BALLS_TOUCHING,
     ball_ball_contact,
@@ -190,7 +190,8 @@ def evaluate(convention: str = DEFAULT_CONVENTION, outputs: Iterable[str] | None
 
     Every output is :func:`physics.kernel.point_outputs`, the composition of the
     equations' functions, run on numpy arrays of 16,384 points at a time (so that the
-    intermediates stay in the CPU's cache), or compiled by numba
+    intermediates stay in the CPU's cache; from 1,024 points on as its trace replayed into one
+    workspace, :mod:`physics.replay`, the same operations), or compiled by numba
     (``execution=ExecutionOptions(kernel="numba")``, ``pip install microbearing[fast]``), which
     agrees with numpy to 1e-12 relative (tested). Calls of 8 blocks or more are split into up to
     ``execution.threads`` contiguous runs of blocks on ``execution.executor`` (numpy and the
@@ -336,28 +337,33 @@ def _scalar_material(values: tuple[float, ...], convention: str) -> tuple[float,
 _BLOCK_POINTS = 16384
 #: Fewest blocks a thread is given: below 2 x 4 blocks a call runs in the caller's thread.
 _MIN_BLOCKS_PER_THREAD = 4
-
-
-def _slices(values: tuple, start: int, stop: int) -> tuple:
-    return tuple(v[start:stop] if isinstance(v, np.ndarray) else v for v in values)
+#: Fewest points of a call that :mod:`physics.replay` runs: below, its Python steps (about 50 ufunc
+#: calls into a workspace) cost more than the temporaries of the equation functions on the arrays
+#: (``bench/physics.py``; both the same under 1 ms at 1,000 points).
+_REPLAY_POINTS = 1024
 
 
 def _numpy_runner(point: tuple, material: tuple, kept: np.ndarray, positions: list[int],
                   extras: bool) -> Callable[[int, int], None]:
-    """``run(lo, hi)``: :func:`physics.kernel.point_outputs` over points ``lo:hi``, by blocks, into ``kept``.
+    """``run(lo, hi)``: :func:`physics.kernel.point_outputs` over points ``lo:hi`` into ``kept``.
 
-    Calls on disjoint ranges may run in parallel threads: numpy releases the GIL in its loops.
+    From :data:`_REPLAY_POINTS` points on, its trace replayed as numpy calls into a block's
+    workspace (:mod:`physics.replay`); below, the function itself on the arrays (the same
+    operations: the same bits). Calls on disjoint ranges may run in parallel threads.
     """
+    if kept.shape[1] >= _REPLAY_POINTS:
+        return replay.runner((*point, *material), kept, positions, extras, _BLOCK_POINTS)
+
     def run(lo: int, hi: int) -> None:
-        block = _BLOCK_POINTS
-        with np.errstate(divide="ignore"):  # per thread: log of a zero speed is -inf, exp(-inf) = 0
-            for start in range(lo, hi, block):
-                stop = min(start + block, hi)
-                values = kernel.point_outputs(_slices(point, start, stop), _slices(material, start, stop),
-                                              extras)
-                for row, position in zip(kept, positions, strict=True):
-                    row[start:stop] = values[position]
+        with np.errstate(divide="ignore"):  # log of a zero speed is -inf, exp(-inf) = 0
+            values = kernel.point_outputs(_slices(point, lo, hi), _slices(material, lo, hi), extras)
+        for row, position in zip(kept, positions, strict=True):
+            row[lo:hi] = values[position]
     return run
+
+
+def _slices(values: tuple, start: int, stop: int) -> tuple:
+    return tuple(v[start:stop] if isinstance(v, np.ndarray) else v for v in values)
 
 
 def _compiled_runner(point: tuple, material: tuple, kept: np.ndarray, positions: list[int],

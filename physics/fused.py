@@ -22,7 +22,7 @@ import numpy as np
 
 from . import kernel
 
-__all__ = ["INPUTS", "VECTORIZED", "Plan", "plan"]
+__all__ = ["INPUTS", "VECTORIZED", "Plan", "Trace", "plan", "trace"]
 
 #: How many input columns the stages read: the point's inputs, then the material factors.
 INPUTS = len(kernel.POINT_INPUTS) + len(kernel.MATERIAL_FACTORS)
@@ -101,6 +101,36 @@ class _Traced:
 
 
 @dataclass(frozen=True)
+class Trace:
+    """The operations :func:`physics.kernel.point_outputs` performs, in its order.
+
+    Attributes
+    ----------
+    nodes : tuple
+        (op, arguments) of each operation. Nodes ``0 ... INPUTS - 1`` are the ``input`` nodes of
+        :data:`physics.kernel.POINT_INPUTS` then :func:`physics.kernel.material`'s factors (their
+        arguments: their position); a ``const`` node's argument is its value; any other op (``add``,
+        ``sub``, ``mul``, ``truediv``, ``ge``, ``sqrt`` and the keys of :data:`VECTORIZED`) takes
+        the indices of its operands' nodes. [-]
+    outputs : tuple
+        For each output of :data:`physics.OUTPUTS`, the index of its node. [-]
+    """
+
+    nodes: tuple
+    outputs: tuple
+
+
+def trace(extras: bool) -> Trace:
+    """Run :func:`physics.kernel.point_outputs` once on traced values (``extras`` as there)."""
+    graph = _Graph()
+    inputs = [graph.input(k) for k in range(INPUTS)]
+    point, material = inputs[:len(kernel.POINT_INPUTS)], inputs[len(kernel.POINT_INPUTS):]
+    results = kernel.point_outputs(tuple(point), tuple(material), extras)
+    outputs = tuple(r.index if isinstance(r, _Traced) else graph.const(r).index for r in results)
+    return Trace(tuple(graph.nodes), outputs)
+
+
+@dataclass(frozen=True)
 class Plan:
     """The stages of the fused kernel for one choice of ``extras``, over one block's workspace.
 
@@ -158,16 +188,12 @@ def plan(extras: bool, stride: int = 4104) -> Plan:
     Plan
         The stages and the workspace's layout.
     """
-    graph = _Graph()
-    inputs = [graph.input(k) for k in range(INPUTS)]
-    point, material = inputs[:len(kernel.POINT_INPUTS)], inputs[len(kernel.POINT_INPUTS):]
-    results = kernel.point_outputs(tuple(point), tuple(material), extras)
-    outputs = [r.index if isinstance(r, _Traced) else graph.const(r).index for r in results]
-    nodes = graph.nodes
+    traced = trace(extras)
+    nodes, outputs = list(traced.nodes), list(traced.outputs)
     # The prelude (level -1) holds what depends on the material factors alone (uniform over a
     # call whose materials are scalars, so computed once); each other node's level counts the
     # numpy calls below it.
-    materials = {traced.index for traced in material}
+    materials = set(range(len(kernel.POINT_INPUTS), INPUTS))  # the inputs are the trace's first nodes
     level = []
     for index, (op, args) in enumerate(nodes):
         if op in ("input", "const"):
@@ -185,7 +211,7 @@ def plan(extras: bool, stride: int = 4104) -> Plan:
             kept.update(a for a in args if nodes[a][0] not in ("input", "const")
                         and (op in VECTORIZED or level[a] != level[index]))
     kept.update(index for index in outputs if nodes[index][0] != "const")
-    slot = {traced.index: k for k, traced in enumerate(inputs)}
+    slot = {k: k for k in range(INPUTS)}
     slot.update(_allocate(nodes, level, kept - set(slot), set(outputs), len(slot)))
     levels = max(level) + 1
     vectorized = tuple(tuple((op, slot[args[0]], slot[index]) for index, (op, args) in enumerate(nodes)

@@ -391,3 +391,27 @@ def test_large_arrays_report_the_first_bad_value(name, bad, match):
     values[7000] = bad
     with pytest.raises(ValueError, match=match):
         evaluate(**{**BASE, name: values})
+
+
+@pytest.mark.parametrize("varied", [("load_N",), ("balls", "balls_touching", "speed_m_s"),
+                                    ("groove_angle_deg", "viscosity_Pa_s", "ball_diameter_m"), None])
+@pytest.mark.parametrize("outputs", [["mu"], ["contact_load_N", "mu", "mu"], None])
+def test_large_calls_compute_what_the_equation_functions_compute_on_the_arrays(monkeypatch, varied, outputs):
+    # A large call replays the trace of kernel.point_outputs as numpy calls into a workspace
+    # (physics.replay), folding what only scalars feed: the bits of point_outputs run on the arrays
+    # themselves, whichever inputs vary (some, the materials, all) and whichever outputs are asked.
+    from microbearing.physics import bearing, kernel
+
+    monkeypatch.setattr(bearing, "_BLOCK_POINTS", 1500)  # several blocks and a short last one
+    n = bearing._REPLAY_POINTS + 3000
+    params = _random_inputs(n, seed=13)
+    if varied is not None:
+        params = {k: (v if k in varied else v[0].item()) for k, v in params.items()}
+    result = evaluate(outputs=outputs, **params).to_dict(outputs)
+    checked, _ = physics.parameters.checked_inputs(params)
+    point = tuple(checked[name] for name in kernel.POINT_INPUTS)
+    material = kernel.material({name: checked[name] for name in kernel.MATERIAL_INPUTS}, "olaru2005")
+    with np.errstate(all="ignore"):
+        reference = dict(zip(OUTPUTS, kernel.point_outputs(point, material, True), strict=True))
+    for name, values in result.items():
+        np.testing.assert_array_equal(values, np.broadcast_to(reference[name], (n,)), err_msg=name)
