@@ -18,12 +18,13 @@ domain check.
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_assignments, parse_csv, parse_rows
 from .model import CalibratedModel, Prediction
-from .report import CalibrationReport, calibrate, check_request
+from .report import CalibrationReport, calibrate, check_request, default_folds
 from .tabular import Intake, read_csv, read_rows
 
 __all__ = [
     "calibrate",
     "check_request",
+    "default_folds",
     "parse_assignments",
     "CalibrationReport",
     "CalibratedModel",

@@ -58,6 +58,7 @@ from .tails import interval_form
 from .uncertainty import find_outliers, noise_report, parameter_warnings
 
 __all__ = [
+    "DEFAULT_FOLDS",
     "MIN_ROWS",
     "PROGRESS_STAGES",
     "CalibrationOptions",
@@ -66,6 +67,7 @@ __all__ = [
     "candidates_stage",
     "check_request",
     "data_stage",
+    "default_folds",
     "format_report",
     "selection_stage",
     "uncertainty_stage",
@@ -361,6 +363,22 @@ def check_request(dataset: Dataset, fit_parameters: Sequence[str], folds: int) -
             f"data must have at least {needed} rows for {folds}-fold nested cross-validation with "
             f"{len(names)} fitted parameter(s); got {dataset.n_points}"
         )
+
+
+#: Cross-validation folds when the caller does not choose (fewer with fewer than twice as many rows).
+DEFAULT_FOLDS = 5
+
+
+def default_folds(n_points: int) -> int:
+    """Folds of a calibration whose caller does not choose: 5, or half the rows when there are fewer
+    than 10 (a fold holds at least two rows), so that every data set of :data:`MIN_ROWS` rows is answered.
+
+    Examples
+    --------
+    >>> default_folds(200), default_folds(9), default_folds(8)
+    (5, 4, 4)
+    """
+    return min(DEFAULT_FOLDS, max(2, n_points // 2))
 
 
 def rows_needed(n_fit_parameters: int, folds: int) -> int:

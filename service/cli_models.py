@@ -52,7 +52,7 @@ def _data_error(path: str, exc: Any) -> CommandError:
 
 def calibrate_command(args: argparse.Namespace) -> int:
     """``microbearing calibrate``: fit, report and store the calibrated model (its id printed)."""
-    from microbearing.calibrate import DataError, calibrate, parse_assignments, read_csv
+    from microbearing.calibrate import DataError, calibrate, default_folds, parse_assignments, read_csv
 
     text = read_bytes(args.data)
     fit = [name.strip() for name in (args.fit or "").split(",") if name.strip()]
@@ -69,7 +69,8 @@ def calibrate_command(args: argparse.Namespace) -> int:
             store.check_model_room()
         try:
             with progress_bar("calibrate") as progress:
-                report = calibrate(dataset, fit, folds=args.folds, convention=args.convention,
+                folds = default_folds(dataset.n_points) if args.folds is None else args.folds
+                report = calibrate(dataset, fit, folds=folds, convention=args.convention,
                                    progress=progress)
         except DataError as exc:
             raise _data_error(args.data, exc) from None
@@ -224,7 +225,8 @@ def add_calibrate(sub: Any) -> None:
     c.add_argument("--fit", metavar="NAME,...", help="declared parameters to fit, e.g. mu_pivot,mu_ball")
     c.add_argument("--fixed", metavar="NAME=VALUE", nargs="+", action="extend", default=[],
                    help="physics inputs fixed for every row, in their units (e.g. balls=4)")
-    c.add_argument("--folds", type=int, default=5, help="cross-validation folds (default: %(default)s)")
+    c.add_argument("--folds", type=int, default=None,
+                   help="cross-validation folds (default: 5, or half the rows when there are fewer than 10)")
     c.add_argument("--factors", metavar="NAME,...",
                    help="condition columns of integer codes to read as group labels (a column of text labels "
                         "is one anyway)")

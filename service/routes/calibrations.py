@@ -15,6 +15,7 @@ from microbearing.calibrate import (
     Dataset,
     Intake,
     check_request,
+    default_folds,
     parse_assignments,
     read_csv,
     read_rows,
@@ -153,13 +154,14 @@ def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples
     except DataError as exc:
         raise data_problem(exc.errors) from None
     fit_parameters = [str(name) for name in body.fit_parameters]
-    _check(dataset, fit_parameters, body.folds, query=False)
+    folds = body.folds if "folds" in body.model_fields_set else default_folds(dataset.n_points)
+    _check(dataset, fit_parameters, folds, query=False)
     intake.fitting = fitting_statement(dataset, fit_parameters)
     record = {"rows": dataset.n_points, "columns": _columns_of(dataset),
               "factors": sorted(dataset.factors), "fixed": fixed,
-              "fit_parameters": fit_parameters, "folds": body.folds, "convention": str(body.convention),
+              "fit_parameters": fit_parameters, "folds": folds, "convention": str(body.convention),
               "intake": intake.to_dict()}
-    return _submit(jobs, store, record, dataset, fit_parameters, body.folds, str(body.convention),
+    return _submit(jobs, store, record, dataset, fit_parameters, folds, str(body.convention),
                    intake.to_dict())
 
 
@@ -258,7 +260,9 @@ async def create_calibration_from_csv(
     request: Request, store: StoreDep, jobs: JobsDep, settings: SettingsDep,
     fit_parameters: Annotated[list[FittableParameterName], Query(  # type: ignore[valid-type]
         description="Declared parameters to fit (repeat the parameter for several).")] = [],  # noqa: B006
-    folds: Annotated[int, Query(ge=2, le=20, description="Cross-validation folds [1].")] = 5,
+    folds: Annotated[int, Query(ge=2, le=20, description=(
+        "Cross-validation folds [1]; when not given, 5, or half the rows when there are fewer "
+        "than 10."))] = 5,
     convention: Annotated[ConventionName, Query(  # type: ignore[valid-type]
         description="Reading of the paper's ambiguous ball-ball terms.")] = _DEFAULT_CONVENTION,
     options: Annotated[CsvOptions, Depends()] = None,  # type: ignore[assignment]  (FastAPI fills it)
@@ -277,6 +281,8 @@ async def create_calibration_from_csv(
     """
     dataset, intake, fixed_values = await _read_upload(request, settings, options)
     names = [str(name) for name in fit_parameters]
+    if "folds" not in request.query_params:
+        folds = default_folds(dataset.n_points)
     _check(dataset, names, folds, query=True, intake=intake)
     intake.fitting = fitting_statement(dataset, names)
     record = {"rows": dataset.n_points, "columns": _columns_of(dataset),

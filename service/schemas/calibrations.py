@@ -116,7 +116,8 @@ class CalibrationRequest(StrictModel):
                     "says so).")
     fixed: CalibrationFixed = Field(  # type: ignore[valid-type]
         default_factory=CalibrationFixed, description="Physics inputs fixed for every row.")
-    folds: WholeNumber = Field(default=5, ge=2, le=20, description="Cross-validation folds [1].")
+    folds: WholeNumber = Field(default=5, ge=2, le=20, description=(
+        "Cross-validation folds [1]; when not given, 5, or half the rows when there are fewer than 10."))
     convention: ConventionName = Field(  # type: ignore[valid-type]
         default=Convention(physics.DEFAULT_CONVENTION),
         description="Reading of the paper's ambiguous ball-ball terms.")
