@@ -241,7 +241,7 @@ async function upload(event) {
     .forEach((name) => query.append("fit_parameters", name));
   query.set("separator", $("separator").value);
   query.set("decimal", $("decimal").value);
-  query.set("folds", $("folds").value);
+  if ($("folds").value.trim()) query.set("folds", $("folds").value);  // empty: the service's default
   $("upload-start").disabled = true;
   try {
     const response = await api("POST", `v1/calibrations/csv?${query}`, { body: await file.arrayBuffer() });
