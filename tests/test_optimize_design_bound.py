@@ -107,11 +107,12 @@ def test_the_box_bound_is_below_the_model_over_every_box_and_tight_on_small_ones
         assert float(bounds.lower(*small)[0]) == pytest.approx(float(at[0]), rel=2e-6)
 
 
-def _brute_worst(model, problem, designs, levels=5):
-    """The worst mu_upper over an envelope grid (every vertex included) of each design, and the grid."""
-    axes = ENVELOPE.axes()
+def brute_worst(model, problem, designs, levels=5, envelope=ENVELOPE):
+    """The worst mu_upper [1] of each design over a grid of ``levels`` per axis of ``envelope`` (every
+    vertex included)."""
+    axes = envelope.axes()
     names = list(axes)
-    grid = [ENVELOPE.point(dict(zip(names, c, strict=True)))
+    grid = [envelope.point(dict(zip(names, c, strict=True)))
             for c in itertools.product(*(np.linspace(*axes[n], levels) for n in names))]
     values = np.asarray(objective_values(model, "mu_upper", envelope_columns(
         problem, ENVELOPE, designs, grid, 0.0), problem.convention)).reshape(len(grid), -1)
@@ -140,10 +141,10 @@ def _no_grid_design_beats_the_proof(model: CalibratedPhysicsModel, problem: Desi
     pressure = physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
                                        **made).max_contact_pressure_Pa
     feasible = pressure <= 5.5e8
-    worst = _brute_worst(model, held, {k: v[feasible] for k, v in designs.items()}, levels=3)
+    worst = brute_worst(model, held, {k: v[feasible] for k, v in designs.items()}, levels=3)
     assert worst.min() >= proof["lower_bound"]
     design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
-    assert float(_brute_worst(model, held, design)[0]) <= proof["upper_bound"]
+    assert float(brute_worst(model, held, design)[0]) <= proof["upper_bound"]
 
 
 @pytest.mark.parametrize("rival", [False, True])
@@ -162,11 +163,11 @@ def test_no_design_of_a_grid_beats_the_certified_lower_bound_and_the_design_is_p
                                        **made).max_contact_pressure_Pa
     feasible = pressure <= 5.5e8
     assert 0 < feasible.sum() < len(grid)  # the limit cuts the grid
-    worst = _brute_worst(model, held, {k: v[feasible] for k, v in designs.items()})
+    worst = brute_worst(model, held, {k: v[feasible] for k, v in designs.items()})
     assert worst.min() >= proof["lower_bound"]
     # The returned design's worst case (at a vertex here: every term monotone) equals the certified one.
     design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
-    at_design = float(_brute_worst(model, held, design)[0])
+    at_design = float(brute_worst(model, held, design)[0])
     assert at_design <= proof["upper_bound"] <= at_design * (1 + 1e-6)
     # Both ends certified; the gap is the two brackets' tolerances and the returned design's own distance from
     # the best (the optimizer keeps 1e-7 inside the pressure limit, the bound takes the limit exactly).
@@ -203,7 +204,7 @@ def test_the_calibrated_bench_model_is_proven_and_the_best_design_at_the_points_
         made = held.physics_inputs(columns["balls"], columns["groove_angle_deg"] + 0.5, columns["load_N"])
         pressure = physics.evaluate(convention=held.convention, outputs=["max_contact_pressure_Pa"],
                                            **made).max_contact_pressure_Pa
-        return float(_brute_worst(model, held, columns)[0]), float(np.asarray(pressure).ravel()[0])
+        return float(brute_worst(model, held, columns)[0]), float(np.asarray(pressure).ravel()[0])
 
     at_design, pressure = brute_and_pressure(result.result.design)
     assert at_design <= proof["upper_bound"] <= at_design * (1 + 1e-6) and pressure <= 6e8
@@ -240,7 +241,7 @@ def test_a_search_stopped_by_its_time_limit_says_so_and_its_bound_still_holds():
     found = design_lower_bound(at, design, evaluate, time_limit_s=0.0)
     assert not found.complete and found.boxes == 4  # the four ball counts' boxes, bounded once
     angles = np.tile(np.repeat(np.linspace(45, 60, 16), 31), 4)
-    brute = _brute_worst(model, problem, {"balls": np.repeat([3.0, 4.0, 5.0, 6.0], 16 * 31),
+    brute = brute_worst(model, problem, {"balls": np.repeat([3.0, 4.0, 5.0, 6.0], 16 * 31),
                                           "groove_angle_deg": angles,
                                           "load_N": np.tile(np.geomspace(0.002, 0.02, 31), 64)})
     assert 0 < found.lower_bound <= brute.min()
@@ -277,7 +278,7 @@ def test_a_time_limit_leaves_the_bound_found_so_far_said_and_unproven():
     grid = list(itertools.product(range(3, 7), np.linspace(45, 60, 6), np.geomspace(0.002, 0.02, 8)))
     designs = {"balls": np.array([g[0] for g in grid], dtype=float),
                "groove_angle_deg": np.array([g[1] for g in grid]), "load_N": np.array([g[2] for g in grid])}
-    assert _brute_worst(model, held, designs, levels=3).min() >= proof["lower_bound"]
+    assert brute_worst(model, held, designs, levels=3).min() >= proof["lower_bound"]
 
 
 def test_the_data_clouds_widening_is_bounded_below_over_design_boxes():

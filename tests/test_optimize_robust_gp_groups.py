@@ -7,6 +7,7 @@ import itertools
 
 import numpy as np
 import pytest
+from test_optimize_design_bound import brute_worst
 
 from microbearing import physics
 from microbearing.calibrate.candidates import EffectTerm
@@ -14,7 +15,7 @@ from microbearing.calibrate.groups import GroupEffect
 from microbearing.calibrate.model import CalibratedModel, GPCorrection
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
 from microbearing.optimize import gp_boxes, robust
-from microbearing.optimize.over_envelope import envelope_columns, objective_values, with_model_values
+from microbearing.optimize.over_envelope import with_model_values
 from microbearing.optimize.problem import Constraints, DesignBounds, DesignProblem
 
 # Not the bench's envelope: humidity wider, temperature narrower, a larger angle tolerance.
@@ -69,17 +70,6 @@ def test_the_discrepancy_over_many_boxes_is_its_bound_box_by_box_and_holds_insid
         assert least[box] <= variance.min() and variance.max() <= many[2][box]
 
 
-def _grid_worst(model, problem, designs, levels):
-    """The largest mu_upper [1] of each design over an envelope grid of ``levels`` per axis (vertices in)."""
-    axes = ENVELOPE.axes()
-    names = list(axes)
-    grid = [ENVELOPE.point(dict(zip(names, c, strict=True)))
-            for c in itertools.product(*(np.linspace(*axes[n], levels) for n in names))]
-    values = np.asarray(objective_values(model, "mu_upper", envelope_columns(
-        problem, ENVELOPE, designs, grid, 0.0), problem.convention)).reshape(len(grid), -1)
-    return values.max(axis=0)
-
-
 def test_robust_mu_upper_with_a_specimen_group_and_a_gp_holds_against_a_dense_grid():
     model = _model()
     problem = DesignProblem(DesignBounds((3, 6), (42, 58), (0.002, 0.03)), 0.05,
@@ -90,7 +80,7 @@ def test_robust_mu_upper_with_a_specimen_group_and_a_gp_holds_against_a_dense_gr
     design = {k: np.array([float(result.result.design[k])]) for k in ("balls", "groove_angle_deg", "load_N")}
     # The worst case at the design: 9 levels per envelope axis (6,561 points), never above the certified
     # upper bound, and the worst case found within it.
-    dense = float(_grid_worst(model, held, design, 9)[0])
+    dense = float(brute_worst(model, held, design, 9, ENVELOPE)[0])
     assert proof["upper_bound"] is not None, proof["statement"]
     assert dense <= proof["upper_bound"]
     assert result.worst_case["mu_upper"] <= proof["upper_bound"]
@@ -105,6 +95,6 @@ def test_robust_mu_upper_with_a_specimen_group_and_a_gp_holds_against_a_dense_gr
                                 **made).max_contact_pressure_Pa
     feasible = pressure <= 5.5e8
     assert feasible.sum() > 10
-    worst = _grid_worst(model, held, {k: v[feasible] for k, v in designs.items()}, 3)
+    worst = brute_worst(model, held, {k: v[feasible] for k, v in designs.items()}, 3, ENVELOPE)
     assert worst.min() >= proof["lower_bound"]
     assert proof["proven"] == (proof["relative_gap"] <= robust.GAP_TARGET), proof["statement"]
