@@ -48,7 +48,7 @@ MU_MEASURED = "mu_measured"
 MU_MEASURED_STD = "mu_measured_std"
 
 #: Prefixes of condition and factor columns in :meth:`Dataset.to_columns`.
-_CONDITION, _FACTOR, _HEADER = "condition.", "factor.", "header."
+_CONDITION, _FACTOR, _HEADER, _CLOCK = "condition.", "factor.", "header.", "clock."
 
 # An ISO 8601 date, optionally with a time (seconds and fraction optional) and a zone.
 _ISO_TIME = re.compile(r"\d{4}-\d{2}-\d{2}([T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?(Z|[+-]\d{2}:?\d{2})?)?")
@@ -183,7 +183,8 @@ class Dataset:
 
         Physics columns under their names, conditions as ``condition.<name>``, factors as
         ``factor.<name>``, then :data:`MU_MEASURED` and, when given, :data:`MU_MEASURED_STD`, and each
-        column's header as sent (:attr:`headers`) as ``header.<name>``, an array of that one text. Stored
+        column's header as sent (:attr:`headers`) as ``header.<name>``, an array of that one text, and the
+        start of each column read from ISO 8601 times (:attr:`clock`) as ``clock.<name>``, likewise. Stored
         as ``.npz`` arrays or JSON lists; :meth:`from_columns` reads them back. The fixed values are
         not columns (stored beside them).
 
@@ -191,7 +192,7 @@ class Dataset:
         -------
         dict of str to numpy.ndarray
             One array of ``n_points`` values per column (physics and conditions in their units, μ [1]);
-            one text per header.
+            one text per header and per clock start.
 
         Examples
         --------
@@ -211,17 +212,20 @@ class Dataset:
         if self.mu_measured_std is not None:
             columns[MU_MEASURED_STD] = np.asarray(self.mu_measured_std, dtype=float)
         columns |= {_HEADER + name: np.asarray([header], dtype=str) for name, header in self.headers.items()}
+        columns |= {_CLOCK + name: np.asarray([start], dtype=str) for name, start in self.clock.items()}
         return columns
 
     @classmethod
     def from_columns(cls, columns: Mapping[str, Any], fixed: Mapping[str, Any]) -> Dataset:
         """The dataset of :meth:`to_columns`' columns (arrays or lists) and its fixed values."""
-        physics_columns, conditions, factors, headers = {}, {}, {}, {}
+        physics_columns, conditions, factors, headers, clock = {}, {}, {}, {}, {}
         for name, values in columns.items():
             if name in (MU_MEASURED, MU_MEASURED_STD):
                 continue
             if name.startswith(_HEADER):
                 headers[name[len(_HEADER):]] = str(np.asarray(values).reshape(-1)[0])
+            elif name.startswith(_CLOCK):
+                clock[name[len(_CLOCK):]] = str(np.asarray(values).reshape(-1)[0])
             elif name.startswith(_CONDITION):
                 conditions[name[len(_CONDITION):]] = np.asarray(values, dtype=float)
             elif name.startswith(_FACTOR):
@@ -230,7 +234,7 @@ class Dataset:
                 physics_columns[name] = np.asarray(values)
         std = columns.get(MU_MEASURED_STD)
         return cls(physics_columns, conditions, np.asarray(columns[MU_MEASURED], dtype=float),
-                   None if std is None else np.asarray(std, dtype=float), dict(fixed), factors,
+                   None if std is None else np.asarray(std, dtype=float), dict(fixed), factors, clock,
                    headers=headers)
 
 

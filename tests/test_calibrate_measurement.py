@@ -141,6 +141,27 @@ def test_iso_times_are_hours_since_the_start_not_labels():
     assert "specimen" in labels.factors
 
 
+def test_the_clock_survives_the_stored_form_a_job_is_rebuilt_from():
+    """A calibration job stores its data (``calibration_inputs``, JSON) and is rebuilt from them after a
+    restart or in another process: the starts of ISO time columns come back with them, so a rebuilt job
+    reads those columns as the instrument's clock (no bearing drift against them), as the first one did."""
+    import json
+
+    from microbearing.calibrate import Dataset
+    from microbearing.service.job_kinds import calibration_inputs
+
+    rows = session_rows(np.random.default_rng(2), 12, 0.0, clock=True)
+    dataset = parse_rows(rows, fixed={"balls": 4})
+    assert dataset.clock == {"date": "2026-11-28T09:00:00+00:00"}
+    again = Dataset.from_columns(dataset.to_columns(), dataset.fixed)
+    assert again.clock == dataset.clock
+    stored = json.loads(json.dumps(calibration_inputs(dataset, ["mu_pivot"], 3, "median", {})))
+    rebuilt = Dataset.from_columns(stored["data"], stored["fixed"])
+    assert rebuilt.clock == dataset.clock
+    np.testing.assert_array_equal(rebuilt.conditions["date"], dataset.conditions["date"])
+    assert inspect(rebuilt, 3).clock == inspect(dataset, 3).clock == dataset.clock
+
+
 def session_rows(rng, n, drift, clock):
     load = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n))
     speed = rng.uniform(0.01, 0.15, n)

@@ -74,7 +74,8 @@ def sweep_on_cluster(server: Server) -> str:
     (the physics' numpy path), less than the polls between two looks at the job.
     """
     location = server.client.post("/v1/sweeps", json=LONG_SWEEP).headers["location"]
-    wait_until(lambda: server.client.get(location).json()["status"] != "queued", 120, "the sweep never started")
+    wait_until(lambda: server.client.get(location).json()["status"] != "queued", 120,
+               "the sweep never started")
     return location
 
 
@@ -99,7 +100,8 @@ def test_a_stopped_worker_fails_its_job_in_time_and_readyz_says_so(tmp_path):
                               max_sweep_points="2000000", job_workers="1")
         wait_until(lambda: ready(server), 90, "the server never became ready")
 
-        # 1. The only (cold) worker stops as the sweep starts: readyz names it, the job fails within 2x the timeout.
+        # 1. The only (cold) worker stops as the sweep starts: readyz names it, the job fails within
+        # twice the timeout.
         location = sweep_on_cluster(server)
         signal_group(processes[1], signal.SIGSTOP)
         stopped = time.monotonic()
