@@ -424,7 +424,8 @@ def calibrate(
     **keywords
         The options one by one instead (:meth:`CalibrationOptions.from_keywords`):
 
-        - ``folds`` (int): number of cross-validation folds, in [2, n_points / 2], default 5 [1];
+        - ``folds`` (int): number of cross-validation folds, in [2, n_points / 2], default
+          :func:`default_folds` (5, or half the rows when there are fewer than 10) [1];
         - ``seed`` (int): seed of the folds (outer and nested inner ones), of the search subset and of
           the GP's subset, default 0;
         - ``gp_max_train`` (int): training rows per fold of the GP discrepancy at most, default 300 [1];
@@ -460,6 +461,8 @@ def calibrate(
         raise ValueError(
             f"convention must be one of {', '.join(physics.CONVENTIONS)}; got {options.convention!r}")
     dataset = _as_dataset(data, fixed)
+    if options.folds is None:
+        options = replace(options, folds=default_folds(dataset.n_points))
     check_request(dataset, fit_parameters, options.folds)
     # Few rows: the search adds only as many terms as nested cross-validation can fit and judge on them.
     supported = terms_supported(dataset.n_points, len(check_fit_parameters(dataset, fit_parameters)),

@@ -50,8 +50,9 @@ class CalibrationOptions:
 
     Attributes
     ----------
-    folds : int
-        Number of cross-validation folds, in [2, n_points / 2]. [1]
+    folds : int or None
+        Number of cross-validation folds, in [2, n_points / 2]; None: chosen by
+        :func:`calibrate.report.default_folds` from the rows (5, or half the rows under 10). [1]
     seed : int
         Seed of the folds (outer and nested inner ones), of the search subset and of the GP's subset.
     gp_max_train : int
@@ -66,7 +67,7 @@ class CalibrationOptions:
         they support, :func:`calibrate.decidability.terms_supported`); None: as asked.
     """
 
-    folds: int = 5
+    folds: int | None = None
     seed: int = 0
     gp_max_train: int = 300
     make_plots: bool = True
@@ -81,7 +82,7 @@ class CalibrationOptions:
     @classmethod
     def from_keywords(
         cls,
-        folds: int = 5,
+        folds: int | None = None,
         seed: int = 0,
         gp_max_train: int = 300,
         make_plots: bool = True,

@@ -62,3 +62,13 @@ def test_eight_rows_calibrate_from_the_command_line(tmp_path, capsys):
     capsys.readouterr()
     code = main(["calibrate", str(data), "--fit", "mu_pivot", "--no-store", "--folds", "5"])
     assert code == EXIT_INVALID and "folds must be in [2, 4]" in capsys.readouterr().err
+
+
+def test_eight_rows_calibrate_in_the_library_with_the_same_default():
+    # The library's own default is the doors' (calibrate(folds=None) -> default_folds(n)).
+    from microbearing.calibrate import calibrate
+
+    report = calibrate(ROWS, ["mu_pivot"], make_plots=False)
+    assert report.folds == 4
+    with pytest.raises(ValueError, match=r"folds must be in \[2, 4\]"):
+        calibrate(ROWS, ["mu_pivot"], folds=5, make_plots=False)
