@@ -65,7 +65,9 @@ class DataError(ValueError):
     ----------
     errors : list of dict
         One ``{"row": int | None, "column": str | None, "message": str}`` per problem; ``row`` is
-        1-based (first data row), None for a problem of a whole column or of the request.
+        1-based (first data row), None for a problem of a whole column or of the request. A value out of
+        a physics parameter's range also has ``value``, the value read (SI), for a reader that knows the
+        unit it was sent in (:func:`calibrate.tabular.in_sent_units`).
     """
 
     def __init__(self, errors: list[dict[str, Any]]):
@@ -567,7 +569,10 @@ def _build(rows, names, fixed, from_text, errors, factors=()) -> Dataset:
                 if condition and "expected a number" in problem:
                     problem += (f" (a condition column of labels is a factor: give every row a label, or "
                                 f"declare {name} in factors)")
-                errors.append({"row": i + 1, "column": name, "message": problem})
+                error = {"row": i + 1, "column": name, "message": problem}
+                if spec is not None and isinstance(value, float):
+                    error["value"] = value  # out of the parameter's range (SI): a reader may restate it
+                errors.append(error)
             else:
                 values[i] = value
         if spec is not None:

@@ -31,6 +31,11 @@ ones the effects declare (:data:`physics.drivers.HUMIDITY`, :data:`physics.drive
 ``humid``/``rh``, ``pct``/``percent`` for percent; ``temp``, ``k``/``kelvin`` for kelvin). The physics'
 own validation still applies to every physics column first (a negative load is refused by
 :func:`calibrate.data.parse_rows`).
+
+A column sent in another unit than its own, its header saying so (``speed [mm/s]``, ``relative
+humidity [%]``, ``temperature [degC]``), is judged by the same rules on its SI values, but its finding
+is said in the unit sent, with the plausible range in that unit, and suggests no other name: the
+header already states the unit, so the values are what to check.
 """
 
 from __future__ import annotations
@@ -124,6 +129,35 @@ def _temperature(name: str, values: np.ndarray) -> Finding | None:
     return None
 
 
+def _plausible(name: str) -> tuple[float | None, float, str]:
+    """The plausible low and high of a column in its own unit, and that unit."""
+    if name in LIMITS:
+        return None, LIMITS[name][0], physics.PARAMETERS[name].unit
+    unit = (HUMIDITY if HUMIDITY.matches(name) else TEMPERATURE).unit_of(name)
+    return unit.plausible[0], unit.plausible[1], unit.unit
+
+
+def _as_sent(finding: Finding, dataset: Dataset, values: np.ndarray) -> Finding:
+    """A finding on a column sent in another unit (``speed [mm/s]``, ``temperature [degC]``), said in that
+    unit: its header states the unit, so no slip of the name is to blame and none is suggested."""
+    reading = dataset.sent_reading(finding.column)
+    if reading is None:
+        return finding
+    low, high, unit = _plausible(finding.column)
+    sent_unit = reading.sent_unit
+    sent_low, sent_high = (None if b is None or not np.isfinite(b) else reading.sent_value(b)
+                           for b in (low, high))
+    if sent_low is not None and sent_high is not None:
+        plausible = f"between {min(sent_low, sent_high):.4g} and {max(sent_low, sent_high):.4g}"
+    else:
+        plausible = f"at most {sent_high:.4g}" if sent_low is None else f"at least {sent_low:.4g}"
+    own = unit if unit != "1" else "[1]"
+    return Finding(finding.column, finding.severity,
+                   f"{reading.sent} runs {_span(reading.sent_value(values))} {sent_unit} ({finding.column} "
+                   f"{_span(values)} {own}), where a micro ball bearing's test lies {plausible} {sent_unit}: "
+                   f"the header states the unit, so check the values")
+
+
 def plausibility_findings(dataset: Dataset) -> list[Finding]:
     """Every implausible column of parsed measurements, by the rules of this module.
 
@@ -158,7 +192,7 @@ def plausibility_findings(dataset: Dataset) -> list[Finding]:
         elif name not in physics.PARAMETERS and TEMPERATURE.matches(name):
             finding = _temperature(name, values)
         if finding is not None:
-            found.append(finding)
+            found.append(_as_sent(finding, dataset, values))
     mu = dataset.mu_measured
     if mu.size and float(np.max(mu)) > MU_WARNING:
         count = int(np.sum(mu > MU_WARNING))

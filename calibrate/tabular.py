@@ -53,7 +53,8 @@ from microbearing.physics.columns import (
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset, parse_csv, parse_rows
 
 __all__ = ["DECIMALS", "SEPARATORS", "STANDARD_GRAVITY_M_S2", "Column", "Intake", "Table", "TableError",
-           "accepted_names", "column_letter", "read_column", "read_csv", "read_rows", "read_table"]
+           "accepted_names", "column_letter", "in_sent_units", "read_column", "read_csv", "read_rows",
+           "read_table"]
 
 #: Separators by the name a request states them with.
 SEPARATORS = {"comma": ",", "semicolon": ";", "tab": "\t"}
@@ -209,8 +210,7 @@ class Intake:
         """The problems of :class:`~calibrate.data.DataError` with the file's ``line`` and the column's
         ``letter`` and ``sent`` header cell added where known (see :class:`TableError`)."""
         placed = []
-        for error in errors:
-            error = dict(error)
+        for error in in_sent_units(errors, self.columns):
             row = error.get("row")
             if row is not None and 1 <= row <= len(self.row_lines):
                 error["line"] = self.row_lines[row - 1]
@@ -219,6 +219,40 @@ class Intake:
                 error["letter"], error["sent"] = self.letters[column]
             placed.append(error)
         return placed
+
+
+def in_sent_units(errors: Sequence[Mapping[str, Any]], columns: Sequence[Column]) -> list[dict[str, Any]]:
+    """The problems with each out-of-range value of a column sent in another unit restated in that unit.
+
+    A value out of a physics parameter's range is checked in SI (the problem carries it as ``value``,
+    see :class:`~calibrate.data.DataError`); a lab that sent ``speed [mm/s]`` reads it back, and the
+    range, in mm/s too.
+
+    >>> in_sent_units([{"row": 4, "column": "speed_m_s", "value": -0.005,
+    ...                 "message": "speed_m_s must be in [0, 1000] [m/s]; got -0.005"}],
+    ...               [read_column("speed [mm/s]")])[0]["message"].split("; ")[1]
+    'got -0.005 (as sent in speed [mm/s]: -5 mm/s, where the range is [0, 1e+06] mm/s)'
+    """
+    readings = {c.name: c for c in columns if c.reading and c.sent_unit}
+    out = []
+    for error in errors:
+        error = dict(error)
+        column, value = readings.get(error.get("column")), error.get("value")
+        spec = physics.PARAMETERS.get(error.get("column"))
+        if column is not None and spec is not None and isinstance(value, float):
+            unit = column.sent_unit
+            low, high = (None if b is None else column.sent_value(b) for b in (spec.minimum, spec.maximum))
+            if low is not None and high is not None:
+                left, right = "(" if spec.exclusive_minimum else "[", ")" if spec.exclusive_maximum else "]"
+                allowed = f"{left}{min(low, high):g}, {max(low, high):g}{right} {unit}"
+            elif low is not None:
+                allowed = f"{'>' if spec.exclusive_minimum else '>='} {low:g} {unit}"
+            else:
+                allowed = f"{'<' if spec.exclusive_maximum else '<='} {high:g} {unit}"
+            error["message"] = (f"{error['message']} (as sent in {column.sent}: {column.sent_value(value):g} "
+                                f"{unit}, where the range is {allowed})")
+        out.append(error)
+    return out
 
 
 @dataclass(frozen=True)
@@ -826,7 +860,10 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
                 value = column.convert(float(value))
             out[column.name] = value
         converted.append(out)
-    dataset = _with_headers(parse_rows(converted, fixed, factors), columns)
+    try:
+        dataset = _with_headers(parse_rows(converted, fixed, factors), columns)
+    except DataError as exc:
+        raise DataError(in_sent_units(exc.errors, columns)) from None
     intake = Intake("json", columns=columns, ignored=[f"column {n}, as ignore asks" for n in left_out])
     cells = {c.sent: [row.get(c.sent) for row in rows if isinstance(row, Mapping)] for c in columns}
     intake.text_columns = _text_columns(columns, cells, dataset)
