@@ -88,22 +88,37 @@ def check_table(count: int, limit: int, dimension: Literal["rows", "columns"],
                                 f"({_TABLE_SETTINGS[dimension]}).", title=f"Too many {dimension}")
 
 
-def csv_header_columns(text: bytes) -> int:
+def csv_header_columns(text: bytes, separator: str | None = None) -> int:
     r"""Columns of a CSV body's header row, read without parsing the rest.
 
-    A header the csv module refuses (a field of more than 128 kB) is counted by its commas; the
+    Parameters
+    ----------
+    text : bytes
+        The body (without a ``sep=`` first line).
+    separator : str, optional
+        The separator character the request states; None (detected later): the most columns any of
+        comma, semicolon and tab would make, so that a header the parser would split on semicolons or
+        tabs is bounded too.
+
+    A header the csv module refuses (a field of more than 128 kB) is counted by its separators; the
     parser answers it with a 422 problem.
 
     >>> csv_header_columns(b"a,b,c\n1,2,3\n"), csv_header_columns(b'"x,y",b\r\n1,2'), csv_header_columns(b"")
     (3, 2, 0)
+    >>> csv_header_columns(b"a;b;c;d\n1;2;3;4\n"), csv_header_columns(b"a;b;c;d\n", separator=",")
+    (4, 1)
     """
     header = text.split(b"\n", 1)[0].rstrip(b"\r")
     if not header:
         return 0
-    try:
-        return len(next(csv.reader([header.decode("utf-8", errors="replace")])))
-    except csv.Error:  # a field past the csv module's limit (128 kB): count the separators instead
-        return header.count(b",") + 1
+    line = header.decode("utf-8", errors="replace")
+    counts = []
+    for sep in (separator,) if separator else (",", ";", "\t"):
+        try:
+            counts.append(len(next(csv.reader([line], delimiter=sep))))
+        except csv.Error:  # a field past the csv module's limit (128 kB): count the separators instead
+            counts.append(line.count(sep) + 1)
+    return max(counts)
 
 
 def csv_data_rows(text: bytes) -> int:

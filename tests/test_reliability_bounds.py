@@ -60,6 +60,19 @@ def test_calibration_columns_past_the_limit_get_413_before_parsing(client, colum
                 response.json()["detail"]
 
 
+@pytest.mark.parametrize("separator, query", [(";", ""), ("\t", ""), (";", "?separator=semicolon")])
+def test_a_semicolon_or_tab_header_past_the_limit_gets_413_before_parsing(client, separator, query):
+    # Excel's European CSV: the header is split on the separator the parser will use (detected or stated).
+    body = csv_body(7).decode().replace(",", separator).encode()
+    response = client.post(f"/v1/calibrations/csv{query}", content=body, headers={"content-type": "text/csv"})
+    assert response.status_code == 413, response.text[:300]
+    assert "has 7 columns; the limit is 6 (MICROBEARING_MAX_CALIBRATION_COLUMNS)" in response.json()["detail"]
+    # Within the limit, the same file is read (and its bad speed named): the count does not over-refuse.
+    body = csv_body(6).decode().replace(",", separator).encode()
+    response = client.post(f"/v1/calibrations/csv{query}", content=body, headers={"content-type": "text/csv"})
+    assert response.status_code == 422 and "speed" in response.text, response.text[:300]
+
+
 def test_the_default_column_limit_refuses_the_20000_column_csv(tmp_path):
     with TestClient(create_app(Settings(data_dir=tmp_path))) as test_client:
         response = test_client.post("/v1/calibrations/csv", content=csv_body(20_000, rows=30),

@@ -237,7 +237,8 @@ async def _read_upload(request: Request, settings: Any, options: CsvOptions) -> 
     text, how = await _uploaded(request)
     counted = _counted(text)  # counted before parsing
     check_table(csv_data_rows(counted), settings.max_calibration_rows, "rows", "The CSV body")
-    check_table(csv_header_columns(counted), settings.max_calibration_columns, "columns",
+    separator = SEPARATORS.get(options.dialect.separator or "")
+    check_table(csv_header_columns(counted, separator), settings.max_calibration_columns, "columns",
                 "The CSV body's header")
     try:
         fixed_values = parse_assignments(options.fixed)
