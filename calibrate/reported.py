@@ -108,7 +108,6 @@ class ReportedWidth:
             self.prior = self.prior + planned_b.T @ planned_b
             self.planned = self._columns(response.points(planned))
         self.fast = self._fast()
-        self.rivals: list[ReportedWidth] = []
 
     # ------------------------------------------------------------------------------------------ columns
     def _columns(self, points: Mapping[str, Any]) -> dict[str, np.ndarray]:
@@ -222,15 +221,15 @@ class ReportedWidth:
             ratio = np.maximum(ratio, np.maximum(near[:, -1] / self.fast.threshold, self.fast.lines))
         return self._half_widths(variance[:, None], ratio[:, None])[:, 0]
 
-    def _added(self, counts: np.ndarray) -> np.ndarray:
+    def _added(self, counts: np.ndarray, rivals: Sequence[ReportedWidth]) -> np.ndarray:
         """Mean over the envelope of the widest half-width of the model and its hedged rivals [1] after
         one more run at each candidate (the service reports the envelope of the rivals' intervals)."""
-        return np.mean(np.maximum.reduce([w.added_each(counts) for w in (self, *self.rivals)]), axis=0)
+        return np.mean(np.maximum.reduce([w.added_each(counts) for w in (self, *rivals)]), axis=0)
 
-    def mean_after_fast(self, counts: np.ndarray) -> float:
-        """Mean over the envelope of the widest half-width of the model and its hedged rivals [1] after
-        runs at the candidates (``counts``), fast."""
-        return float(np.mean(np.maximum.reduce([w.after_fast_each(counts) for w in (self, *self.rivals)])))
+    def mean_after_fast(self, counts: np.ndarray, rivals: Sequence[ReportedWidth] = ()) -> float:
+        """Mean over the envelope of the widest half-width of the model and its hedged ``rivals`` [1]
+        after runs at the candidates (``counts``), fast."""
+        return float(np.mean(np.maximum.reduce([w.after_fast_each(counts) for w in (self, *rivals)])))
 
     def search(self, start: np.ndarray, rivals: Sequence[ReportedWidth] = ()) -> np.ndarray:
         """Runs (counts per candidate, as many as ``start``) that make the reported half-width over the
@@ -239,22 +238,21 @@ class ReportedWidth:
         With ``rivals`` (the rivals' widths over the same candidates and envelope) the half-width at
         each point is the widest of the model's and theirs: the runs hedge against the terms a
         recalibration may add."""
-        self.rivals = list(rivals)
         runs = int(start.sum())
         # Replicates at most per candidate: the calibration holds a design point's replicates out
         # together, so runs piled on a few points leave its held-out scatter to extrapolations.
         most = max(_MOST_REPLICATES, -(-runs // start.size))
         counts = np.zeros_like(start)
         for _ in range(runs):
-            counts[int(np.argmin(np.where(counts >= most, np.inf, self._added(counts))))] += 1
-        best = self.mean_after_fast(counts)
+            counts[int(np.argmin(np.where(counts >= most, np.inf, self._added(counts, rivals))))] += 1
+        best = self.mean_after_fast(counts, rivals)
         for _ in range(_PASSES):
             moved = False
             for source in np.repeat(np.arange(counts.size), counts):
                 if counts[source] == 0:
                     continue
                 counts[source] -= 1
-                values = np.where(counts >= most, np.inf, self._added(counts))
+                values = np.where(counts >= most, np.inf, self._added(counts, rivals))
                 target = int(np.argmin(values))
                 if values[target] < best * (1.0 - 1e-9) and target != source:
                     counts[target] += 1
@@ -263,7 +261,7 @@ class ReportedWidth:
                     counts[source] += 1
             if not moved:
                 break
-        return counts if best <= self.mean_after_fast(start) or start.max() > most else start.copy()
+        return counts if best <= self.mean_after_fast(start, rivals) or start.max() > most else start.copy()
 
     # -------------------------------------------------------------------------------------------- exact
     def now(self) -> np.ndarray:
