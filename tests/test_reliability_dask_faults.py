@@ -6,8 +6,9 @@ One server (``MICROBEARING_DASK_FAULT_TIMEOUT_S=15``) meets, in turn:
    reason naming the scheduler; ``/readyz`` and ``/v1/friction/batch`` answer 503 naming it;
 2. a new scheduler on the same address: ``/readyz`` is ready again and a batch has the physics'
    numbers (the service reconnected on its own);
-3. the scheduler killed mid-sweep and back within the fault timeout: the chunks it dropped are
-   submitted again and the sweep succeeds with the physics' numbers;
+3. the scheduler killed mid-sweep (its worker stopped first, so that the chunks are still out) and
+   back within the fault timeout: the chunks it dropped are submitted again and the sweep succeeds
+   with the physics' numbers;
 4. the only worker killed: ``/readyz`` 503 (no workers), and a sweep waiting on it fails within
    the fault timeout;
 5. SIGTERM while a sweep waits on that worker-less cluster: the server exits within 10 s.
@@ -26,6 +27,7 @@ from live_server import Server, free_port, wait_for
 from test_reliability_dask import DASK, Process, wait_for_workers
 
 from microbearing import physics
+from microbearing.service.sweeps import CHUNK_POINTS
 
 pytestmark = [pytest.mark.skipif(os.name != "posix", reason="process groups are POSIX"),
               pytest.mark.skipif(DASK is None, reason="the dask command (the 'dask' extra) is not installed")]
@@ -57,6 +59,17 @@ def running_with_progress(server: Server, location: str, timeout_s: float = 120.
                    until=lambda job: job["status"] not in ("queued", "running") or job["progress"] > 0)
     assert job["status"] == "running", f"the sweep ended too early: {job}"
     return job
+
+
+def tasks_on_scheduler(address: str, count: int, timeout_s: float = 60.0) -> None:
+    """Wait until the scheduler at ``address`` holds ``count`` tasks (a job's chunks are all out)."""
+    from distributed import Client
+
+    deadline = time.monotonic() + timeout_s
+    with Client(address, timeout=timeout_s) as client:
+        while client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks)) < count:
+            assert time.monotonic() < deadline, f"fewer than {count} tasks reached the scheduler"
+            time.sleep(0.05)
 
 
 def wait_ready(server: Server, timeout_s: float = 90.0) -> None:
@@ -113,8 +126,12 @@ def test_a_lost_scheduler_or_worker_fails_in_time_and_the_service_reconnects(tmp
         np.testing.assert_array_equal(batch.json()["mu"], expected)
 
         # 3. The scheduler dies mid-sweep and is back within the fault timeout: the sweep succeeds.
+        # The warm worker would run the 1.5M points in about a second, so it is stopped (SIGSTOP) first:
+        # the chunks go out to the scheduler and wait there until the kill, which they cannot outrun.
+        os.killpg(processes[1].process.pid, signal.SIGSTOP)
         location = server.client.post("/v1/sweeps", json=LONG_SWEEP).headers["location"]
-        running_with_progress(server, location)
+        wait_for(server, location, ("running",))
+        tasks_on_scheduler(address, -(-LONG_SWEEP["points"] // CHUNK_POINTS))  # every chunk
         for process in processes:
             process.kill()
         processes = [start_scheduler(port, tmp_path, 3), start_worker(address, tmp_path, 3)]
