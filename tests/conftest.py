@@ -9,10 +9,22 @@ without psycopg) the PostgreSQL cases are skipped with the reason; with
 from __future__ import annotations
 
 import os
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """Refuse a collection in which two tests share a node id: pytest-xdist knows tests by their ids and
+    would run one of each such group, silently (pytest 9.2 with schemathesis 4.32 did this to the
+    spec's 30 operations)."""
+    counts = Counter(item.nodeid for item in items)
+    repeated = sorted(nodeid for nodeid, count in counts.items() if count > 1)
+    if repeated:
+        raise pytest.UsageError(f"{len(repeated)} test id(s) collected more than once (pytest-xdist would "
+                                f"run one test of each): {', '.join(repeated[:5])}")
 
 
 def _unavailable(reason: str):
