@@ -230,8 +230,8 @@ def in_sent_units(errors: Sequence[Mapping[str, Any]], columns: Sequence[Column]
 
     >>> in_sent_units([{"row": 4, "column": "speed_m_s", "value": -0.005,
     ...                 "message": "speed_m_s must be in [0, 1000] [m/s]; got -0.005"}],
-    ...               [read_column("speed [mm/s]")])[0]["message"].split("; ")[1]
-    'got -0.005 (as sent in speed [mm/s]: -5 mm/s, where the range is [0, 1e+06] mm/s)'
+    ...               [read_column("speed [mm/s]")])[0]["message"].split("; ")[1:]
+    ['got -0.005 (as sent in speed [mm/s]: -5 mm/s', 'it must be in [0, 1e+06] mm/s)']
     """
     readings = {c.name: c for c in columns if c.reading and c.sent_unit}
     out = []
@@ -241,16 +241,8 @@ def in_sent_units(errors: Sequence[Mapping[str, Any]], columns: Sequence[Column]
         spec = physics.PARAMETERS.get(error.get("column"))
         if column is not None and spec is not None and isinstance(value, float):
             unit = column.sent_unit
-            low, high = (None if b is None else column.sent_value(b) for b in (spec.minimum, spec.maximum))
-            if low is not None and high is not None:
-                left, right = "(" if spec.exclusive_minimum else "[", ")" if spec.exclusive_maximum else "]"
-                allowed = f"{left}{min(low, high):g}, {max(low, high):g}{right} {unit}"
-            elif low is not None:
-                allowed = f"{'>' if spec.exclusive_minimum else '>='} {low:g} {unit}"
-            else:
-                allowed = f"{'<' if spec.exclusive_maximum else '<='} {high:g} {unit}"
             error["message"] = (f"{error['message']} (as sent in {column.sent}: {column.sent_value(value):g} "
-                                f"{unit}, where the range is {allowed})")
+                                f"{unit}; it must be {spec.range_text(column.sent_value)} {unit})")
         out.append(error)
     return out
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import math
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -95,11 +96,18 @@ class Parameter:
         low, high = self.closed_range
         return low <= value <= high and (self.kind != "int" or value == round(value))
 
-    def range_text(self) -> str:
-        """The allowed range in words, e.g. ``"> 0"`` or ``"in (0, 90)"``."""
+    def range_text(self, convert: Callable[[float], float] | None = None) -> str:
+        """The allowed range in words, e.g. ``"> 0"`` or ``"in (0, 90)"``; with ``convert`` (an increasing
+        map, e.g. from SI to the unit a column was sent in) its ends in that other unit.
+
+        >>> PARAMETERS["speed_m_s"].range_text(lambda v: v * 1000)
+        'in [0, 1e+06]'
+        """
         if self.kind == "bool":
             return "true or false"
         lo, hi = self.minimum, self.maximum
+        if convert is not None:
+            lo, hi = (None if v is None else convert(v) for v in (lo, hi))
         whole = "a whole number " if self.kind == "int" else ""
         if lo is not None and hi is not None:
             left = "(" if self.exclusive_minimum else "["

@@ -52,7 +52,7 @@ def _data_error(path: str, exc: Any) -> CommandError:
 
 def calibrate_command(args: argparse.Namespace) -> int:
     """``microbearing calibrate``: fit, report and store the calibrated model (its id printed)."""
-    from microbearing.calibrate import DataError, calibrate, default_folds, parse_assignments, read_csv
+    from microbearing.calibrate import DataError, calibrate, parse_assignments, read_csv
 
     text = read_bytes(args.data)
     fit = [name.strip() for name in (args.fit or "").split(",") if name.strip()]
@@ -69,8 +69,8 @@ def calibrate_command(args: argparse.Namespace) -> int:
             store.check_model_room()
         try:
             with progress_bar("calibrate") as progress:
-                folds = default_folds(dataset.n_points) if args.folds is None else args.folds
-                report = calibrate(dataset, fit, folds=folds, convention=args.convention,
+                # folds None: the library's default (calibrate.default_folds), as at the API's doors
+                report = calibrate(dataset, fit, folds=args.folds, convention=args.convention,
                                    progress=progress)
         except DataError as exc:
             raise _data_error(args.data, exc) from None
