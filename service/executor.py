@@ -325,10 +325,28 @@ def map_chunks(executor: Executor | None, fn: Callable[..., Any], arguments: Ite
             if progress is not None:
                 progress(done / len(calls))
         return results
-    futures = [executor.submit(fn, *args) for args in calls]
     # A remote cluster can hold the wait forever: watched on every tick. A local pool or embedded
     # cluster finishes what it was given, and progress is reported once per call.
     cluster = executor if isinstance(executor, DaskExecutor) and executor.remote else None
+    futures: list[Future] = []
+
+    def submit(args: tuple) -> Future:
+        """The call's future; on a remote cluster that took an earlier call, a submit the lost scheduler
+        refused is a cancelled future, submitted again with the other lost calls when it is back (a
+        cluster unreachable at the first call is the caller's 503 at once)."""
+        try:
+            return executor.submit(fn, *args)
+        except (ProblemError, OSError, RuntimeError) as exc:
+            if cluster is None or not futures:
+                raise
+            logger.warning("a chunk could not be submitted to the dask scheduler %s (%s): it is submitted "
+                           "again when the scheduler is back", cluster.scheduler, exc)
+            refused: Future = Future()
+            refused.cancel()
+            return refused
+
+    for args in calls:
+        futures.append(submit(args))
     born = [cluster.identity if cluster else None] * len(calls)  # the connection each call went out on
 
     def lost(i: int) -> bool:
@@ -356,7 +374,7 @@ def map_chunks(executor: Executor | None, fn: Callable[..., Any], arguments: Ite
                         # The cluster is back: what it dropped is submitted again, on the new connection.
                         again = [i for i in range(done, len(calls)) if lost(i)]
                         for i in again:
-                            futures[i] = executor.submit(fn, *calls[i])
+                            futures[i] = submit(calls[i])
                             born[i] = cluster.identity
                         logger.warning("%d chunk(s) lost with the dask scheduler %s were submitted again",
                                        len(again), cluster.scheduler)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import pickle
+import time
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 from pathlib import Path
@@ -74,6 +75,65 @@ def test_map_chunks_stops_when_progress_raises():
 
     with ThreadPoolExecutor(1) as pool, pytest.raises(StopError):
         map_chunks(pool, pow, [(2, n) for n in range(10)], stop_after_two)
+
+
+class _FlakyScheduler(DaskExecutor):
+    """A remote cluster (no dask needed) on a thread pool whose scheduler is lost after ``up`` submits:
+    the next ``refusals`` submits are refused as DaskExecutor refuses them while its connection is
+    reconnecting, and :meth:`fault` says so until the scheduler is back."""
+
+    def __init__(self, up: int, refusals: int, fault_timeout_s: float = 30.0):
+        super().__init__("tcp://127.0.0.1:1", threads=2, fault_timeout_s=fault_timeout_s)
+        self.pool = ThreadPoolExecutor(2)
+        self.up, self.refusals, self.submits, self.refused = up, refusals, 0, 0
+        self.identity = (1, "scheduler-1")
+
+    def submit(self, fn, /, *args, **kwargs):
+        self.submits += 1
+        if self.submits > self.up and self.refused < self.refusals:
+            self.refused += 1
+            raise ProblemError(503, f"The dask scheduler {self.scheduler} cannot be reached (the connection "
+                                    "is connecting); retry later.")
+        return self.pool.submit(fn, *args, **kwargs)
+
+    def fault(self, connect_timeout_s: float = 2.0):
+        if self.refused < self.refusals:
+            self.refused += 1  # each look at the lost scheduler uses up a refusal: it comes back after them
+            if self._faulty_since is None:
+                self._faulty_since = time.monotonic()
+            return "cannot be reached (the connection is connecting)"
+        self._faulty_since = None
+        return None
+
+
+def test_chunks_the_scheduler_refused_while_they_were_submitted_are_submitted_again():
+    cluster = _FlakyScheduler(up=3, refusals=4)
+    try:
+        results = map_chunks(cluster, pow, [(2, n) for n in range(10)])
+    finally:
+        cluster.pool.shutdown()
+    assert results == [2**n for n in range(10)]
+    assert cluster.submits > 10  # the refused chunks went out again
+
+
+def test_a_scheduler_unreachable_at_the_first_chunk_is_the_callers_503_at_once():
+    cluster = _FlakyScheduler(up=0, refusals=1)
+    try:
+        with pytest.raises(ProblemError) as raised:
+            map_chunks(cluster, pow, [(2, n) for n in range(10)])
+    finally:
+        cluster.pool.shutdown()
+    assert raised.value.status == 503 and cluster.submits == 1
+
+
+def test_a_scheduler_that_stays_lost_mid_submission_fails_the_work_after_the_fault_timeout():
+    cluster = _FlakyScheduler(up=2, refusals=10**9, fault_timeout_s=1.0)
+    try:
+        with pytest.raises(ProblemError) as raised:
+            map_chunks(cluster, pow, [(2, n) for n in range(10)])
+    finally:
+        cluster.pool.shutdown()
+    assert raised.value.status == 503 and "MICROBEARING_DASK_FAULT_TIMEOUT_S=1" in raised.value.detail
 
 
 def test_problems_cross_process_boundaries():
