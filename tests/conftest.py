@@ -16,15 +16,60 @@ from pathlib import Path
 import pytest
 
 
+def _skips_slow(config) -> bool:
+    """Whether the run's ``-m`` expression deselects the slow tier (e.g. ``-m "not slow"``)."""
+    markexpr = config.getoption("markexpr", "")
+    if not markexpr:
+        return False
+    try:
+        from _pytest.mark.expression import Expression
+
+        return not Expression.compile(markexpr).evaluate(lambda name, **kwargs: name == "slow")
+    except Exception:  # another pytest's expression API: collect everything, -m still deselects
+        return False
+
+
+def pytest_ignore_collect(collection_path, config):
+    """A file of the slow tier is not even collected by a run that deselects that tier."""
+    from tiers import SLOW_FILES
+
+    if collection_path.name in SLOW_FILES and _skips_slow(config):
+        return True
+    return None
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m and -k deselect: the slow marks must be on by then
 def pytest_collection_modifyitems(session, config, items):
     """Refuse a collection in which two tests share a node id: pytest-xdist knows tests by their ids and
     would run one of each such group, silently (pytest 9.2 with schemathesis 4.32 did this to the
-    spec's 30 operations)."""
+    spec's 30 operations). Mark the slow tier (tests/tiers.py), and on a whole-suite collection refuse
+    an entry or a stand-in that names no collected test, or a stand-in that is itself slow."""
     counts = Counter(item.nodeid for item in items)
     repeated = sorted(nodeid for nodeid, count in counts.items() if count > 1)
     if repeated:
         raise pytest.UsageError(f"{len(repeated)} test id(s) collected more than once (pytest-xdist would "
                                 f"run one test of each): {', '.join(repeated[:5])}")
+    from tiers import SLOW, SLOW_FILES, slow_key
+
+    here = Path(__file__).parent
+    ids = {}
+    for item in items:
+        file = item.nodeid.split("::")[0]
+        local = Path(str(item.path)).relative_to(here).as_posix() + item.nodeid[len(file):]
+        ids[local] = item
+        if slow_key(local) is not None:
+            item.add_marker(pytest.mark.slow)
+    if [Path(arg).resolve() for arg in config.args] != [here.resolve()]:
+        return  # a part of the suite: entries of files not collected cannot be checked
+    keys = {slow_key(local) for local in ids} - {None}
+    entries = {**SLOW, **{file: quick for file, quick in SLOW_FILES.items() if not _skips_slow(config)}}
+    problems = [f"{key} names no collected test" for key in entries if key not in keys]
+    problems += [f"the stand-in {quick} (for {key}) names no collected test" for key, quick in entries.items()
+                 if quick not in ids]
+    problems += [f"the stand-in {quick} (for {key}) is itself slow" for key, quick in entries.items()
+                 if quick in ids and slow_key(quick) is not None]
+    if problems:
+        raise pytest.UsageError("tests/tiers.py: " + "; ".join(problems))
 
 
 def _unavailable(reason: str):

@@ -1,19 +1,18 @@
 """Property-based tests of the whole API against its own OpenAPI spec (schemathesis).
 
-Every operation gets generated valid and invalid requests; the server must never answer 5xx
-and every response must match the spec (status code, content type, body schema, headers). The
-stateful phase, which chains requests through the spec's links, is
-``tests/test_service_schemathesis_links.py`` (its own file, so that pytest-xdist runs the two
-in parallel).
+The spec's own examples and the fields it documents are checked here; every operation's generated
+valid and invalid requests (the server must never answer 5xx and every response must match the
+spec) are ``tests/test_service_schemathesis_fuzz.py``, and the stateful phase, which chains
+requests through the spec's links, is ``tests/test_service_schemathesis_links.py`` (files of their
+own, so that pytest-xdist runs them in parallel and the quick tier need not collect the fuzz test).
 """
 
 from __future__ import annotations
 
-import hypothesis
 import pytest
 from fastapi.testclient import TestClient
 from jobs_helper import finished_job, wait_job
-from schemathesis_app import CHECKS, DERANDOMIZE, MAX_EXAMPLES, SpecApp
+from schemathesis_app import SpecApp
 
 SPEC_APP = SpecApp("microbearing-schemathesis-")
 APP = SPEC_APP.app
@@ -100,11 +99,3 @@ def test_integers_written_with_a_fraction_are_integers_as_the_spec_says(path, bo
         assert written.content == plain.content
     assert fraction.status_code == 422 and text.status_code == 422
 
-
-# Last in the file: the generated requests leave jobs queued on APP's workers, and the tests above
-# wait for jobs of their own on APP (they would queue behind them).
-@schema.parametrize()
-@hypothesis.settings(max_examples=MAX_EXAMPLES, deadline=None, derandomize=DERANDOMIZE,
-                     suppress_health_check=list(hypothesis.HealthCheck))
-def test_api_conforms_to_its_spec(case):
-    case.call_and_validate(checks=CHECKS)

@@ -148,6 +148,77 @@ def run_linked_sequences(scenarios: int, seed: int | None) -> None:
             continue
 
 
+def _allowed_values(spec: dict, schema: dict) -> list:
+    """The values an enumerated schema allows (empty when it enumerates none; a free string allows any)."""
+    while "$ref" in schema:
+        schema = spec["components"]["schemas"][schema["$ref"].rsplit("/", 1)[1]]
+    branches = schema.get("anyOf", [])
+    return [*schema.get("enum", []), *[value for b in branches for value in _allowed_values(spec, b)]]
+
+
+def _resolves(spec: dict, schema: dict, parts: list[str]) -> bool:
+    """Whether the JSON pointer ``parts`` can name a value in an instance of ``schema``."""
+    while "$ref" in schema:
+        schema = spec["components"]["schemas"][schema["$ref"].rsplit("/", 1)[1]]
+    if not parts:
+        return True
+    branches = [*schema.get("anyOf", []), *schema.get("oneOf", []), *schema.get("allOf", [])]
+    if any(_resolves(spec, branch, parts) for branch in branches):
+        return True
+    head, rest = parts[0], parts[1:]
+    if head in schema.get("properties", {}):
+        return _resolves(spec, schema["properties"][head], rest)
+    if head.isdigit() and isinstance(schema.get("items"), dict):
+        return _resolves(spec, schema["items"], rest)
+    return False
+
+
+def test_every_id_route_is_the_target_of_a_link_that_resolves():
+    """Read from the spec alone (the stateful test below follows the links with requests): every route
+    with an ``{id}`` is the target of a link that fills each of its path parameters, and every value
+    a link takes names a field of its answer's schema or a path parameter of its request."""
+    spec = APP.openapi()
+    operations = {operation["operationId"]: (method.upper(), path, operation)
+                  for path, item in spec["paths"].items() for method, operation in item.items()}
+    filled: dict[str, set[str]] = collections.defaultdict(set)
+    wrong = []
+    for path, item in spec["paths"].items():
+        for method, operation in item.items():
+            for status, answer in operation.get("responses", {}).items():
+                body = answer.get("content", {}).get("application/json", {}).get("schema", {})
+                sources = {parameter["name"] for parameter in operation.get("parameters", [])
+                           if parameter["in"] == "path"}
+                for name, link in answer.get("links", {}).items():
+                    where = f"{method.upper()} {path} {status} {name}"
+                    assert link["operationId"] in operations, where
+                    values = {**link.get("parameters", {}), **link.get("requestBody", {})}
+                    target = operations[link["operationId"]][2]
+                    for key, value in values.items():
+                        if not value.startswith("$"):  # a constant: one the target parameter allows
+                            allowed = [parameter["schema"] for parameter in target.get("parameters", [])
+                                       if parameter["name"] == key]
+                            ok = bool(allowed) and (value in _allowed_values(spec, allowed[0])
+                                                    or allowed[0].get("type") == "string")
+                        elif value.startswith("$response.body#/"):
+                            ok = _resolves(spec, body, value.removeprefix("$response.body#/").split("/"))
+                        elif value.startswith("$request.path."):
+                            ok = value.removeprefix("$request.path.") in sources
+                        else:
+                            ok = False
+                        if not ok:
+                            wrong.append(f"{where}: {value}")
+                    filled[link["operationId"]] |= set(link.get("parameters", {}))
+    assert not wrong, f"link values that name nothing: {wrong}"
+    unreached = []
+    for operation_id, (method, path, operation) in operations.items():
+        needed = {parameter["name"] for parameter in operation.get("parameters", [])
+                  if parameter["in"] == "path"}
+        if needed and not needed <= filled[operation_id]:
+            unreached.append(f"{method} {path}")
+    assert len(operations) >= 25 and not unreached, f"routes no link fills: {unreached}"
+    assert {(method, path) for method, path, _ in operations.values() if "{" in path} == id_routes(APP)
+
+
 def test_linked_requests_reach_every_id_route():
     """The stateful phase, following only the spec's links, reaches every route with an ``{id}``.
 
