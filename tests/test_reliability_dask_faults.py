@@ -140,6 +140,21 @@ def test_a_lost_scheduler_or_worker_fails_in_time_and_the_service_reconnects(tmp
         check_sweep(server, done)
         assert "submitted again" in server.log_path.read_text(errors="replace")
 
+        # 3b. The same, but the scheduler dies as soon as the first chunk reaches it, while the service may
+        # still be submitting the others (a submit then meets the reconnecting connection): the refused
+        # chunks go out again with the lost ones, and the sweep succeeds.
+        os.killpg(processes[1].process.pid, signal.SIGSTOP)
+        location = server.client.post("/v1/sweeps", json=LONG_SWEEP).headers["location"]
+        tasks_on_scheduler(address, 1)
+        for process in processes:
+            process.kill()
+        processes = [start_scheduler(port, tmp_path, 4), start_worker(address, tmp_path, 4)]
+        done = wait_for(server, location, ("succeeded", "failed", "cancelled"), timeout_s=180)
+        assert done["status"] == "succeeded", done
+        check_sweep(server, done)
+        refused = server.log_path.read_text(errors="replace").count("could not be submitted")
+        print(f"scheduler killed at the first chunk: {refused} submit(s) refused meanwhile, sent again")
+
         # 4. The only worker dies: not ready (no workers), and a sweep fails within the fault timeout.
         processes[1].kill()
         deadline = time.monotonic() + 60
