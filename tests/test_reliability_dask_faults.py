@@ -86,6 +86,24 @@ def check_sweep(server: Server, job: dict) -> None:
     np.testing.assert_array_equal(table["mu"], physics.evaluate(balls=4, speed_m_s=0.05, load_N=load).mu)
 
 
+def lose_the_scheduler_mid_sweep(server: Server, processes: list, port: int, folder, n: int,
+                                 tasks: int) -> list:
+    """Stop the worker, start a long sweep, kill scheduler and worker once ``tasks`` of its chunks reached
+    the scheduler, start new ones (``n``: their log names); the sweep must succeed with the physics'
+    numbers. Returns the new processes."""
+    address = f"tcp://127.0.0.1:{port}"
+    os.killpg(processes[1].process.pid, signal.SIGSTOP)
+    location = server.client.post("/v1/sweeps", json=LONG_SWEEP).headers["location"]
+    tasks_on_scheduler(address, tasks)
+    for process in processes:
+        process.kill()
+    processes = [start_scheduler(port, folder, n), start_worker(address, folder, n)]
+    done = wait_for(server, location, ("succeeded", "failed", "cancelled"), timeout_s=180)
+    assert done["status"] == "succeeded", done
+    check_sweep(server, done)
+    return processes
+
+
 def test_a_lost_scheduler_or_worker_fails_in_time_and_the_service_reconnects(tmp_path):
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
@@ -128,30 +146,14 @@ def test_a_lost_scheduler_or_worker_fails_in_time_and_the_service_reconnects(tmp
         # 3. The scheduler dies mid-sweep and is back within the fault timeout: the sweep succeeds.
         # The warm worker would run the 1.5M points in about a second, so it is stopped (SIGSTOP) first:
         # the chunks go out to the scheduler and wait there until the kill, which they cannot outrun.
-        os.killpg(processes[1].process.pid, signal.SIGSTOP)
-        location = server.client.post("/v1/sweeps", json=LONG_SWEEP).headers["location"]
-        wait_for(server, location, ("running",))
-        tasks_on_scheduler(address, -(-LONG_SWEEP["points"] // CHUNK_POINTS))  # every chunk
-        for process in processes:
-            process.kill()
-        processes = [start_scheduler(port, tmp_path, 3), start_worker(address, tmp_path, 3)]
-        done = wait_for(server, location, ("succeeded", "failed", "cancelled"), timeout_s=180)
-        assert done["status"] == "succeeded", done
-        check_sweep(server, done)
+        processes = lose_the_scheduler_mid_sweep(server, processes, port, tmp_path, 3,
+                                                 -(-LONG_SWEEP["points"] // CHUNK_POINTS))  # every chunk out
         assert "submitted again" in server.log_path.read_text(errors="replace")
 
         # 3b. The same, but the scheduler dies as soon as the first chunk reaches it, while the service may
         # still be submitting the others (a submit then meets the reconnecting connection): the refused
         # chunks go out again with the lost ones, and the sweep succeeds.
-        os.killpg(processes[1].process.pid, signal.SIGSTOP)
-        location = server.client.post("/v1/sweeps", json=LONG_SWEEP).headers["location"]
-        tasks_on_scheduler(address, 1)
-        for process in processes:
-            process.kill()
-        processes = [start_scheduler(port, tmp_path, 4), start_worker(address, tmp_path, 4)]
-        done = wait_for(server, location, ("succeeded", "failed", "cancelled"), timeout_s=180)
-        assert done["status"] == "succeeded", done
-        check_sweep(server, done)
+        processes = lose_the_scheduler_mid_sweep(server, processes, port, tmp_path, 4, 1)
         refused = server.log_path.read_text(errors="replace").count("could not be submitted")
         print(f"scheduler killed at the first chunk: {refused} submit(s) refused meanwhile, sent again")
 
