@@ -148,18 +148,23 @@ def run_linked_sequences(scenarios: int, seed: int | None) -> None:
             continue
 
 
-def _allowed_values(spec: dict, schema: dict) -> list:
-    """The values an enumerated schema allows (empty when it enumerates none; a free string allows any)."""
+def _deref(spec: dict, schema: dict) -> dict:
+    """``schema`` with its ``$ref`` to a component schema followed."""
     while "$ref" in schema:
         schema = spec["components"]["schemas"][schema["$ref"].rsplit("/", 1)[1]]
+    return schema
+
+
+def _allowed_values(spec: dict, schema: dict) -> list:
+    """The values an enumerated schema allows (empty when it enumerates none)."""
+    schema = _deref(spec, schema)
     branches = schema.get("anyOf", [])
     return [*schema.get("enum", []), *[value for b in branches for value in _allowed_values(spec, b)]]
 
 
 def _resolves(spec: dict, schema: dict, parts: list[str]) -> bool:
     """Whether the JSON pointer ``parts`` can name a value in an instance of ``schema``."""
-    while "$ref" in schema:
-        schema = spec["components"]["schemas"][schema["$ref"].rsplit("/", 1)[1]]
+    schema = _deref(spec, schema)
     if not parts:
         return True
     branches = [*schema.get("anyOf", []), *schema.get("oneOf", []), *schema.get("allOf", [])]
@@ -176,7 +181,8 @@ def _resolves(spec: dict, schema: dict, parts: list[str]) -> bool:
 def test_every_id_route_is_the_target_of_a_link_that_resolves():
     """Read from the spec alone (the stateful test below follows the links with requests): every route
     with an ``{id}`` is the target of a link that fills each of its path parameters, and every value
-    a link takes names a field of its answer's schema or a path parameter of its request."""
+    a link takes names a field of its answer's schema or a path parameter of its request, or is a constant
+    its target parameter accepts (one it enumerates, or any for a free string)."""
     spec = APP.openapi()
     operations = {operation["operationId"]: (method.upper(), path, operation)
                   for path, item in spec["paths"].items() for method, operation in item.items()}
@@ -184,10 +190,10 @@ def test_every_id_route_is_the_target_of_a_link_that_resolves():
     wrong = []
     for path, item in spec["paths"].items():
         for method, operation in item.items():
+            sources = {parameter["name"] for parameter in operation.get("parameters", [])
+                       if parameter["in"] == "path"}
             for status, answer in operation.get("responses", {}).items():
                 body = answer.get("content", {}).get("application/json", {}).get("schema", {})
-                sources = {parameter["name"] for parameter in operation.get("parameters", [])
-                           if parameter["in"] == "path"}
                 for name, link in answer.get("links", {}).items():
                     where = f"{method.upper()} {path} {status} {name}"
                     assert link["operationId"] in operations, where

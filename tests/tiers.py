@@ -207,7 +207,5 @@ SLOW: dict[str, str] = {
 
 def slow_key(nodeid: str) -> str | None:
     """The entry of SLOW, or file of SLOW_FILES, that covers ``nodeid`` (a node id under ``tests/``)."""
-    if nodeid in SLOW or nodeid.split("::", 1)[0] in SLOW_FILES:
-        return nodeid if nodeid in SLOW else nodeid.split("::", 1)[0]
-    bare = nodeid.split("[", 1)[0]
-    return bare if bare in SLOW else None
+    file, bare = nodeid.split("::", 1)[0], nodeid.split("[", 1)[0]
+    return next((key for key in (nodeid, bare) if key in SLOW), file if file in SLOW_FILES else None)
