@@ -52,7 +52,13 @@ from .plots import calibration_plots
 from .prose import code_columns, domain_words, rival_drivers, rival_words
 from .rivals import fit_rivals, rival_json
 from .scatter import ScatterModel, fit_scatter
-from .select import REPORTED_CANDIDATES, cross_validate, forward_select, nested_cross_validate
+from .select import (
+    REPORTED_CANDIDATES,
+    cross_validate,
+    forward_select,
+    held_out_of_chosen,
+    nested_cross_validate,
+)
 from .stages import CalibrationOptions, CandidatesStage, DataStage, SelectionStage, UncertaintyStage
 from .tails import interval_form
 from .uncertainty import find_outliers, noise_report, parameter_warnings
@@ -592,7 +598,10 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     # group level before it measures the scatter of a new measurement.
     group_effects, group_shift = _group_effects(dataset, final, terms, mu_after, ~outliers["mask"],
                                                 convention)
-    held_out = np.log(measured / nested.oof_mu) - group_shift
+    # The held-out residual of the chosen terms: a fold whose own selection chose others predicts by the
+    # chosen terms refitted on its training rows (select.held_out_of_chosen), as _confirm_gp does.
+    held_out = np.log(measured / held_out_of_chosen(nested, dataset, declared.fit_parameters, final,
+                                                    declared.outer, convention)) - group_shift
     # Scatter that depends on the inputs (calibrate.scatter), chosen by cross-validation on the
     # held-out residual; when it is not one spread everywhere, the model is refitted with each row
     # weighted by its local scatter (unless the data declare mu_measured_std, which weighs them

@@ -63,7 +63,7 @@ import numpy as np
 from .candidates import Term
 from .censored import measured_rows
 from .data import Dataset
-from .fit import fit, predict_mu
+from .fit import FitResult, fit, predict_mu
 from .measurement import folds as design_folds
 from .scatter import ScatterModel, fit_scatter
 from .scores import (
@@ -102,6 +102,7 @@ __all__ = [
     "Step",
     "cross_validate",
     "forward_select",
+    "held_out_of_chosen",
     "max_t_threshold",
     "nested_cross_validate",
     "noise_test",
@@ -579,6 +580,63 @@ def nested_cross_validate(
         models_mu.append(model_mu)
         report((k + 1) / folds)
     return NestedValidation(oof, chosen, unpredictable, models_mu)
+
+
+def held_out_of_chosen(nested: NestedValidation, dataset: Dataset, fit_parameters: Sequence[str],
+                       final: FitResult, folds: list[np.ndarray], convention: str) -> np.ndarray:
+    """Held-out μ of the terms chosen on all rows: ``nested.oof_mu``, except on the test rows of an outer
+    fold whose selection chose other terms, which the chosen terms refitted on that fold's training rows
+    predict instead.
+
+    The scatter of a new measurement around the calibrated model is read on held-out residuals. A fold
+    whose selection missed a term the data need (a term barely chosen on all rows, or whose driver's far
+    end the fold held out whole, as a replicated design point) leaves residuals of *another model* there,
+    often many times the noise; read as scatter, they would widen the chosen model's intervals where its
+    data are best. Which terms to trust is the rivals' and the stability report's business, not the
+    scatter's. Where every fold agreed, this is ``nested.oof_mu`` itself. A refit that cannot predict its
+    test rows (a driver outside a term's domain) keeps the fold's own prediction.
+
+    Parameters
+    ----------
+    nested : NestedValidation
+        The whole procedure cross-validated on ``folds``.
+    dataset : Dataset
+        Measurements.
+    fit_parameters : sequence of str
+        Declared physics parameters fitted.
+    final : FitResult
+        The chosen terms' fit on all rows (its declared values and term values start every refit).
+    folds : list of numpy.ndarray
+        Test rows of each outer fold, in ``nested``'s order.
+    convention : str
+        See :data:`physics.CONVENTIONS`.
+
+    Returns
+    -------
+    numpy.ndarray
+        Held-out μ of every row. [1]
+    """
+    chosen = frozenset(t.label for t in final.terms)
+    differing = [k for k, terms in enumerate(nested.fold_terms)
+                 if frozenset(t.label for t in terms) != chosen]
+    if not differing:
+        return nested.oof_mu
+    oof = nested.oof_mu.copy()
+    everything = np.arange(dataset.n_points)
+    for k in differing:
+        test = folds[k]
+        with np.errstate(all="ignore"):
+            try:
+                refit = fit(dataset, fit_parameters, final.terms, rows=np.setdiff1d(everything, test),
+                            start=final.declared, start_terms=final.term_values, scale=final.scale,
+                            convention=convention)
+                mu = predict_mu(dataset, refit.declared, final.terms, refit.term_values,
+                                convention=convention)[test]
+            except ValueError:  # a held-out driver outside a term's domain
+                continue
+        if usable(mu):
+            oof[test] = mu
+    return oof
 
 
 def _refit_chosen(dataset: Dataset, inner: Dataset, fit_parameters, selection: Selection,
