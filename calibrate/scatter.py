@@ -14,7 +14,8 @@ chosen by cross-validation among
   the data.
 
 Every candidate is fitted by Gaussian maximum likelihood of the held-out log residuals of the nested
-cross-validation (so the spread holds the refit's uncertainty too), with rows beyond
+cross-validation (so the spread holds the refit's uncertainty too; of the chosen terms, see
+:func:`calibrate.select.held_out_of_chosen`), with rows beyond
 :func:`calibrate.uncertainty.outlier_threshold` of the local spread left out (twice refitted), and
 scored on k folds by the held-out negative log-likelihood, each row's square capped at that threshold
 (gross outliers count like a few rows); the best of them is the form.
