@@ -266,14 +266,26 @@ def _not_of_kind_text(given: np.ndarray, kind: str) -> str:
     return f"got {what}" + (f" at index {index}" if given.ndim else "")
 
 
-def _all_whole(values: np.ndarray, chunk: int = 65536) -> bool:
-    """Whether every value is a whole number, chunk by chunk (no array-sized temporaries)."""
+def _accepted(spec: Parameter, values: np.ndarray, whole: bool = False, chunk: int = 65536) -> bool:
+    """Whether ``spec`` accepts every one of the float64 ``values``: the fast path of :func:`validate`.
+
+    Chunk by chunk, so that the second and third passes over a chunk (max after min, and the
+    whole-number test of an integer parameter) read it from the CPU's cache rather than from
+    memory (about a quarter less time on large arrays); no array-sized temporaries. The min and
+    max of a chunk are NaN if any value is. ``whole``: the values are known to be whole numbers
+    (they were given as integers), so an integer parameter skips that test.
+    """
+    test_whole = spec.kind == "int" and not whole
+    if not values.flags.c_contiguous:  # a strided view, whole (reshape would copy it)
+        return spec.accepts(float(values.min())) and spec.accepts(float(values.max())) and (
+            not test_whole or np.array_equal(np.rint(values), values))
     flat = values.reshape(-1)
-    buffer = np.empty(min(chunk, flat.size))
+    buffer = np.empty(min(chunk, flat.size)) if test_whole else None
     for start in range(0, flat.size, chunk):
         part = flat[start:start + chunk]
-        rounded = np.rint(part, out=buffer[:part.size])
-        if not np.array_equal(rounded, part):
+        if not (spec.accepts(float(part.min())) and spec.accepts(float(part.max()))):
+            return False
+        if buffer is not None and not np.array_equal(np.rint(part, out=buffer[:part.size]), part):
             return False
     return True
 
@@ -327,9 +339,7 @@ def validate(name: str, value: Any) -> np.ndarray:
     if given.dtype.kind not in "iuf":  # strings, None among numbers, complex: never read as numbers
         raise ValueError(f"{allowed}; {_not_of_kind_text(given, 'a number')}")
     arr = given.astype(np.float64, copy=False)
-    if arr.size and spec.accepts(float(arr.min())) and spec.accepts(float(arr.max())) and (
-            spec.kind != "int" or _all_whole(arr)):
-        # Fast path for large arrays: two reductions, no temporaries (min and max are NaN if any is).
+    if arr.size and _accepted(spec, arr, whole=given.dtype.kind != "f"):
         return arr
     bad = ~np.isfinite(arr)
     if bad.any():

@@ -144,3 +144,31 @@ def test_outputs_that_skip_the_extras_keep_their_bits(n):
     for name in core:
         np.testing.assert_array_equal(getattr(some, name), getattr(full, name), err_msg=name)
     assert some.mu_contact is None and some.max_contact_pressure_Pa is None
+
+
+@pytest.mark.parametrize(("name", "bad", "match"), [
+    ("speed_m_s", math.nan, "speed_m_s must be in .* and finite; got nan at index 200001$"),
+    ("load_N", -1.0, r"load_N must be in \[1e-09, 1e\+06\] \[N\]; got -1.0 at index 200001$"),
+    ("balls", 4.5, "balls must be a whole number .*; got 4.5 at index 200001$")])
+def test_a_large_array_is_checked_to_its_last_chunk(name, bad, match):
+    # Large arrays are checked chunk by chunk: a refused value past the first chunks is found and
+    # named with its index, in a contiguous array and in a strided view of one.
+    n = 300_000
+    values = np.full(n, 4.0 if name == "balls" else 1e-2)
+    values[200_001] = bad
+    with pytest.raises(ValueError, match=match):
+        physics.validate(name, values)
+    strided = np.full(2 * n, 4.0 if name == "balls" else 1e-2)[::2]
+    strided[200_001] = bad
+    with pytest.raises(ValueError, match=match):
+        physics.validate(name, strided)
+    values[200_001] = values[0]
+    assert physics.validate(name, values) is values  # accepted as it is, not copied
+
+
+def test_whole_numbers_given_as_integers_are_accepted_at_any_size():
+    balls = np.arange(1, 200_001) % 50 + 1
+    checked = physics.validate("balls", balls)
+    assert checked.dtype == np.float64 and np.array_equal(checked, balls)
+    with pytest.raises(ValueError, match=r"balls must be .*; got 0.0 at index 7$"):
+        physics.validate("balls", np.where(np.arange(200_000) == 7, 0, balls))
