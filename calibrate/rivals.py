@@ -14,13 +14,15 @@ A **rival** of a step is a candidate refitted jointly in that step (held out on 
 * is not worse than the chosen term by more than :data:`RIVAL_SE` standard errors of the paired
   per-row difference of their held-out losses: the data cannot reject it.
 
-:func:`fit_rivals` refits the final model with the step's term replaced by each rival (all rows, its
-own covariance), at most :data:`MAX_RIVALS` of them, closest first. The calibrated model stores them
-(JSON) and :meth:`calibrate.model.CalibratedModel.predict` answers the *envelope* of the chosen
-model's 95 % interval and every rival's: inside the data, where they agree, the interval barely
-widens; where they part ways, it holds both (a conservative form of model averaging: no weights
-to estimate from data that cannot tell the rivals apart). :func:`where_they_part` says over which
-values of the rival's driver the two differ by more than the scatter of a measurement: where new
+:func:`fit_rivals` refits the final model with the step's term replaced by each rival (all rows, its own
+covariance), at most :data:`MAX_RIVALS` of them, closest first. A rival whose refitted values are
+physically implausible (:func:`calibrate.credibility.implausible`: a pivot friction of 3 over the data)
+is no explanation the search would choose, and none the interval holds either: it is left out. The
+calibrated model stores them (JSON) and :meth:`calibrate.model.CalibratedModel.predict` answers the
+*envelope* of the chosen model's 95 % interval and every rival's: inside the data, where they agree, the
+interval barely widens; where they part ways, it holds both (a conservative form of model averaging: no
+weights to estimate from data that cannot tell the rivals apart). :func:`where_they_part` says over
+which values of the rival's driver the two differ by more than the scatter of a measurement: where new
 rows would tell them apart.
 
 **Rivals by confounding.** When a column the model reads (a physics input or a term's driver) moves
@@ -50,6 +52,7 @@ import numpy as np
 from microbearing import physics
 
 from .candidates import Term
+from .credibility import implausible
 from .data import Dataset
 from .fit import FitResult, fit, predict_mu
 from .select import CandidateScore, Selection
@@ -301,6 +304,10 @@ def _refit(dataset: Dataset, fit_parameters: Sequence[str], terms: Sequence[Term
         except ValueError:
             return None
     if not np.all(np.isfinite(mu) & (mu > 0)):
+        return None
+    at = k if replaces else len(terms)
+    if implausible(candidate.term, result.term_values[at], {**dataset.inputs(), **dataset.conditions},
+                   result.declared, dataset.fixed):
         return None
     return Rival(k, candidate.term, terms[k] if replaces else None, float(gap), result, partner)
 

@@ -28,8 +28,8 @@ SLOW: dict[str, str] = {
     "test_service_schemathesis_links.py::test_linked_requests_reach_every_id_route":
         "test_service_schemathesis_links.py::test_every_id_route_is_the_target_of_a_link_that_resolves",
     # --- calibration: more drivers, seeds and data sets of the same searches ---
-    "test_calibrate_scatter_folds.py::test_replicated_runs_at_the_far_end_of_a_driver_narrow_the_interval_there_and_it_covers":
-        "test_calibrate_scatter_folds.py::test_only_the_folds_that_chose_other_terms_are_predicted_again_and_by_the_chosen_terms",
+    "test_calibrate_seams_intervals.py::test_replicated_runs_at_the_far_end_of_a_driver_narrow_the_interval_there_and_it_covers":
+        "test_calibrate_seams_intervals.py::test_only_the_folds_that_chose_other_terms_are_predicted_again_and_by_the_chosen_terms",
     "test_calibrate.py::test_hidden_effect_is_found_on_its_driver_and_cuts_the_error_threefold[cycle]":
         "test_calibrate.py::test_hidden_effect_is_found_on_its_driver_and_cuts_the_error_threefold"
         "[relative_humidity]",
