@@ -40,7 +40,7 @@ from scipy import special
 
 from microbearing import physics
 
-from .candidates import Term, mu_of, term_from_json
+from .candidates import FrozenBase, Term, mu_of, term_from_json
 from .data import Dataset, factor_label
 from .domain import EXTRAPOLATION_SHARE, DataCloud, extrapolation_allowance, extrapolation_bound, range_slack
 from .fit import FitResult
@@ -242,10 +242,24 @@ class CalibratedModel:
                 f"{', '.join(users)})"
             )
 
-    def _mu(self, points: Mapping[str, Any], fitted: Mapping[str, float], values) -> np.ndarray:
+    def _mu(self, points: Mapping[str, Any], fitted: Mapping[str, float], values,
+            physics_mu: np.ndarray | None = None) -> np.ndarray:
+        """μ with these fitted and term values; ``physics_mu``: the physics' μ at them, already known (a
+        model without drift terms, whose terms' values do not move the physics)."""
         inputs = {**self.fixed, **fitted, **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
         conditions = {k: np.asarray(v, dtype=float) for k, v in points.items() if k not in physics.PARAMETERS}
-        return mu_of(inputs, conditions, [t for t, _ in self.terms], values, convention=self.convention)
+        base = None if physics_mu is None else FrozenBase(physics_mu, {})
+        return mu_of(inputs, conditions, [t for t, _ in self.terms], values, base=base,
+                     convention=self.convention)
+
+    def _physics_mu(self, points: Mapping[str, Any]) -> np.ndarray | None:
+        """The physics' μ at the fitted values, as :meth:`_mu` computes it, when no drift term moves it
+        (else None). [1]"""
+        if any(t.kind == "drift" for t, _ in self.terms):
+            return None
+        inputs = {**self.fixed, **self.fitted, **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
+        return physics.evaluate(convention=self.convention, outputs=["mu"],
+                                **{k: np.asarray(v) for k, v in inputs.items()}).mu
 
     def _discrepancy(self, points: Mapping[str, Any], shape) -> tuple[np.ndarray, np.ndarray]:
         """Mean and variance of the GP discrepancy of log μ (zeros without one) [1]."""
@@ -320,7 +334,10 @@ class CalibratedModel:
             name in self.fitted and np.ndim(value) == 0 and float(value) == self.fitted[name])}
         points, labels = self.split_factors(points)
         values = [list(v) for _, v in self.terms]
-        mu = np.asarray(self._mu(points, self.fitted, values), dtype=float)
+        # The physics evaluated once serves μ and every step of a term's value in the gradient below (the
+        # same numbers as evaluating it again; only a fitted value's step moves it)
+        physics_mu = self._physics_mu(points)
+        mu = np.asarray(self._mu(points, self.fitted, values, physics_mu), dtype=float)
         shift, discrepancy_variance = self._discrepancy(points, mu.shape)
         in_domain, warnings = self.domain_check(points) if domain else (None, [])
         if self.covariance is None or self.noise_std_log is None:
@@ -338,7 +355,8 @@ class CalibratedModel:
                     term_values.append(rest[: len(v)])
                     rest = rest[len(v) :]
                 try:
-                    gradient[j] = (np.log(self._mu(points, fitted, term_values)) - np.log(mu)) / step
+                    known = physics_mu if j >= len(self.fitted) else None
+                    gradient[j] = (np.log(self._mu(points, fitted, term_values, known)) - np.log(mu)) / step
                 except ValueError:  # the step left a physics input's range: that direction is not varied
                     gradient[j] = 0.0
         gradient = np.where(np.isfinite(gradient), gradient, 0.0)
