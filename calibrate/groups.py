@@ -46,7 +46,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize, special, stats
 
 from .data import factor_label
 
@@ -122,8 +122,10 @@ class GroupEffect:
         ``(tau_U^2 + var(m(tau_U^2))) (z_c / z)^2``, ``tau_U`` the upper bound of confidence ``level``
         (:meth:`spread_upper`), ``z_c`` the normal quantile of content ``1 - 2 (1 - level)``."""
         g = max(self.n_groups, 2)
-        z = float(stats.norm.isf((1.0 - level) / 2.0))
-        t = float(stats.t.isf((1.0 - level) / 2.0, g - 1))
+        # the quantiles as scipy.stats' norm.isf and t.isf compute them (-ndtri, -stdtrit: the same
+        # numbers), without their argument handling: this runs at every prediction of a model with groups
+        z = float(-special.ndtri((1.0 - level) / 2.0))
+        t = float(-special.stdtrit(g - 1, (1.0 - level) / 2.0))
         prediction = self.spread_log**2 * (1.0 + 1.0 / g) * (t / z) ** 2
         content = 1.0 - 2.0 * (1.0 - level)
         if len(self.group_means) < MIN_GROUPS or content <= 0.0:
@@ -131,7 +133,7 @@ class GroupEffect:
         m, w = np.asarray(self.group_means, dtype=float).T
         upper = q_profile_upper(m, w, level)
         mean_variance = 1.0 / float(np.sum(1.0 / np.maximum(upper + w, 1e-300)))
-        z_content = float(stats.norm.isf((1.0 - content) / 2.0))
+        z_content = float(-special.ndtri((1.0 - content) / 2.0))
         return max(prediction, (upper + mean_variance) * (z_content / z) ** 2)
 
     def shift(self, labels: Any, sensitivity: np.ndarray, level: float = 0.95

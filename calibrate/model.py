@@ -31,21 +31,20 @@ Three optional parts make the interval follow the data (models without them answ
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy import stats
-from scipy.linalg import cho_solve
+from scipy import special
 
 from microbearing import physics
 
-from .candidates import Term, mu_of, term_from_json
+from .candidates import FrozenBase, Term, mu_of, term_from_json
 from .data import Dataset, factor_label
 from .domain import EXTRAPOLATION_SHARE, DataCloud, extrapolation_allowance, extrapolation_bound, range_slack
 from .fit import FitResult
+from .gp_correction import GPCorrection
 from .groups import GroupEffect
 from .scatter import ScatterModel
 
@@ -80,157 +79,6 @@ class Prediction:
     mu_upper: np.ndarray | None
     in_domain: np.ndarray | None
     warnings: list[str] = field(default_factory=list)
-
-
-class GPCorrection:
-    """A Gaussian-process discrepancy of log μ, rebuilt from the data of
-    :func:`calibrate.discrepancy.gp_state` as scikit-learn's regressor with those hyperparameters fixed.
-
-    Parameters
-    ----------
-    state : mapping
-        ``features``, ``centre``, ``scale``, ``length_scale``, ``amplitude``, ``noise``, ``x``, ``y``.
-
-    Raises
-    ------
-    ValueError
-        For inconsistent sizes or non-positive hyperparameters.
-    """
-
-    def __init__(self, state: Mapping[str, Any]):
-        keys = ("features", "centre", "scale", "length_scale", "amplitude", "noise", "x", "y")
-        missing = [k for k in keys if k not in state]
-        if missing:
-            raise ValueError(f"discrepancy: missing {', '.join(missing)}")
-        self.state = {k: state[k] for k in keys}
-        self.features = [str(f) for f in state["features"]]
-        self.centre = np.asarray(state["centre"], dtype=float)
-        self.scale = np.asarray(state["scale"], dtype=float)
-        self.length = np.asarray(state["length_scale"], dtype=float)
-        self.amplitude, self.noise = float(state["amplitude"]), float(state["noise"])
-        self.x = np.asarray(state["x"], dtype=float)
-        y = np.asarray(state["y"], dtype=float)
-        sizes = {self.centre.size, self.scale.size, self.length.size, len(self.features)}
-        if len(sizes) != 1 or self.x.ndim != 2 or self.x.shape != (y.size, len(self.features)) or y.size < 2:
-            raise ValueError("discrepancy: features, centre, scale, length_scale and the columns of x must "
-                             "have one size, and y one value per row of x (at least two)")
-        if not (np.all(self.scale > 0) and np.all(self.length > 0) and self.amplitude > 0 and self.noise > 0):
-            raise ValueError("discrepancy: scale, length_scale, amplitude and noise must be positive")
-        # scikit-learn's regressor with the stored, fixed hyperparameters (optimizer=None: fitting only
-        # factors the covariance of the stored data). The white noise enters as ``alpha``, on the training
-        # rows only, so predictions give the latent variance: the discrepancy's own. With no relevant
-        # column, one constant column gives the same covariance (the amplitude between any two points).
-        # Imported here: scikit-learn takes seconds to import, and most models have no GP.
-        from sklearn.gaussian_process import GaussianProcessRegressor
-        from sklearn.gaussian_process.kernels import RBF, ConstantKernel
-
-        length = self.length if self.features else np.ones(1)
-        kernel = ConstantKernel(self.amplitude, "fixed") * RBF(length, "fixed")
-        self.gp = GaussianProcessRegressor(kernel, alpha=self.noise, normalize_y=True, optimizer=None)
-        self.gp.fit(self.x if self.features else np.zeros((y.size, 1)), y)
-
-    def __call__(self, columns: Mapping[str, Any], shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-        """Mean and latent variance of the discrepancy of log μ at columnar points [1], shaped ``shape``."""
-        x = np.column_stack([((np.broadcast_to(np.asarray(columns[f], dtype=float), shape) - c) / s).ravel()
-                             for f, c, s in zip(self.features, self.centre, self.scale, strict=True)]
-                            ) if self.features else np.zeros((int(np.prod(shape)), 1))
-        rows, inverse = np.unique(x, axis=0, return_inverse=True)  # points sharing features: each row once
-        mean, std = self.gp.predict(rows, return_std=True)
-        return mean[np.ravel(inverse)].reshape(shape), np.square(std)[np.ravel(inverse)].reshape(shape)
-
-    def _kernel_ends(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]) -> tuple:
-        """Per box and training point: the box's scaled corners, the length scales, the farthest and the
-        centre's scaled offsets, and the kernel's least, largest and centre values (:meth:`bound`)."""
-        gp = self.gp
-        size = int(np.prod(shape))
-        train = np.asarray(gp.X_train_, dtype=float)
-        if self.features:
-            a, b = (np.column_stack([((np.broadcast_to(np.asarray(points[f], dtype=float), shape) - c) / s)
-                                     .ravel() for f, c, s in zip(self.features, self.centre, self.scale,
-                                                                 strict=True)])
-                    for points in (low, high))
-            lo, hi = np.minimum(a, b), np.maximum(a, b)
-            length = self.length
-        else:  # one constant column: the amplitude between any two points
-            lo = hi = np.zeros((size, 1))
-            length = np.ones(1)
-        outside = np.maximum(lo[:, None, :] - train[None], train[None] - hi[:, None, :])
-        near = np.maximum(0.0, outside) / length
-        far = np.maximum(np.abs(lo[:, None, :] - train[None]), np.abs(hi[:, None, :] - train[None])) / length
-        middle = (0.5 * (lo + hi)[:, None, :] - train[None]) / length
-        k_max = self.amplitude * np.exp(-0.5 * np.sum(near * near, axis=2))
-        k_min = self.amplitude * np.exp(-0.5 * np.sum(far * far, axis=2))
-        k_0 = self.amplitude * np.exp(-0.5 * np.sum(middle * middle, axis=2))
-        return lo, hi, length, far, middle, k_min, k_max, k_0
-
-    def least_variance(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
-                       ) -> np.ndarray:
-        """A certified lower bound of the latent variance over boxes of points (as :meth:`bound`) [1].
-
-        The variance is y_std² (A - q(k)), q(k) = k' K⁻¹ k; by Taylor's theorem at the box's centre's k0,
-        q(k) = q(k0) + 2 (K⁻¹ k0)'(k - k0) + (k - k0)' K⁻¹ (k - k0), the last at most |k - k0|² / α (K is
-        the kernel matrix plus α, the white noise, on its diagonal: its least eigenvalue is at least α), each
-        k_i between its least and largest value over the box: q at most the linear part at each term's worse
-        end plus that square, tending to the value as the box shrinks.
-        """
-        gp = self.gp
-        _, _, _, _, _, k_min, k_max, k_0 = self._kernel_ends(low, high, shape)
-        y_std = float(np.ravel(gp._y_train_std)[0])
-        solved = cho_solve((gp.L_, True), k_0.T).T  # K^-1 k0 per box
-        gradient = 2.0 * solved
-        spread = np.maximum(np.abs(k_min - k_0), np.abs(k_max - k_0))
-        most = (np.sum(k_0 * solved, axis=1)
-                + np.sum(np.maximum(gradient * (k_min - k_0), gradient * (k_max - k_0)), axis=1)
-                + np.sum(spread * spread, axis=1) / self.noise)
-        variance = np.clip(self.amplitude - most, 0.0, self.amplitude) * y_std**2
-        return np.clip(variance * (1.0 - 1e-9) - 1e-15 * self.amplitude * y_std**2, 0.0, None).reshape(shape)
-
-    def bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...]
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Certified bounds over boxes of points (each feature between its ``low`` and ``high`` value,
-        columnar, one box per entry): the least and largest mean and the largest latent variance [1].
-
-        The mean is y_mean + y_std sum_i alpha_i k(x, x_i) and the RBF kernel k(x, x_i) = A exp(-½ sum_d
-        ((x_d - x_id) / l_d)²) lies between its values at the per-axis farthest and nearest distance from
-        x_i to the box: each term at its end by the sign of alpha_i. The latent variance is y_std² (A -
-        q(k)), q(k) = k' K⁻¹ k convex (K⁻¹ positive definite), so q at any k is at least its tangent plane
-        at the box's centre's k0, q(k0) + 2 (K⁻¹ k0)'(k - k0), least over the box of kernel values at one
-        of each term's ends. Both bounds tend to the values as the box shrinks.
-        """
-        gp = self.gp
-        lo, hi, length, far, middle, k_min, k_max, k_0 = self._kernel_ends(low, high, shape)
-        alpha = np.asarray(gp.alpha_, dtype=float).ravel()
-        y_std = float(np.ravel(gp._y_train_std)[0])
-        y_mean = float(np.ravel(gp._y_train_mean)[0])
-        upper = np.sum(np.where(alpha > 0, alpha * k_max, alpha * k_min), axis=1)
-        lower = np.sum(np.where(alpha > 0, alpha * k_min, alpha * k_max), axis=1)
-        # Rounding of the sum (alpha may be large and of both signs): a relative allowance on its terms.
-        slack = 1e-12 * np.sum(np.abs(alpha) * k_max, axis=1)
-        if self.features:
-            # Taylor's theorem at the centre c, tight to the box's width squared where the terms' ends are
-            # loose (alpha large and of both signs): m(x) = m(c) + grad m(c).(x - c) + ½ (x - c)' H (x - c)
-            # with H at a point between. Per training point, along v (u = (x - x_i) / l, v' = v / l),
-            # v' H_i v' = k_i ((u.v')² - |v'|²) lies in [-k_i |v'|², k_i (|u|² - 1) |v'|²], and
-            # k (|u|² - 1) <= A max_r exp(-r²/2) (r² - 1) = 2 A exp(-3/2) at r² = 3.
-            half = 0.5 * (hi - lo) / length
-            rise = np.minimum(2.0 * self.amplitude * math.exp(-1.5),
-                              k_max * np.maximum(np.sum(far * far, axis=2) - 1.0, 0.0))
-            curvature_up = np.sum(np.where(alpha > 0, alpha * rise, -alpha * k_max), axis=1)
-            curvature_down = np.sum(np.where(alpha > 0, alpha * k_max, -alpha * rise), axis=1)
-            centre_mean = k_0 @ alpha
-            gradient_mean = -np.einsum("nm,m,nmd->nd", k_0, alpha, middle)  # d m / d(x / l) at c
-            linear = np.sum(np.abs(gradient_mean) * half, axis=1)
-            square = 0.5 * np.sum(half * half, axis=1)
-            upper = np.minimum(upper, centre_mean + linear + curvature_up * square)
-            lower = np.maximum(lower, centre_mean - linear - curvature_down * square)
-        solved = cho_solve((gp.L_, True), k_0.T).T  # K^-1 k0 per box
-        gradient = 2.0 * solved
-        least = (np.sum(k_0 * solved, axis=1)
-                 + np.sum(np.minimum(gradient * (k_min - k_0), gradient * (k_max - k_0)), axis=1))
-        variance = np.clip(self.amplitude - least, 0.0, self.amplitude) * y_std**2
-        return ((y_mean + y_std * (lower - slack)).reshape(shape),
-                (y_mean + y_std * (upper + slack)).reshape(shape),
-                (variance * (1.0 + 1e-9) + 1e-15 * self.amplitude * y_std**2).reshape(shape))
 
 
 @dataclass(frozen=True)
@@ -394,10 +242,24 @@ class CalibratedModel:
                 f"{', '.join(users)})"
             )
 
-    def _mu(self, points: Mapping[str, Any], fitted: Mapping[str, float], values) -> np.ndarray:
+    def _mu(self, points: Mapping[str, Any], fitted: Mapping[str, float], values,
+            physics_mu: np.ndarray | None = None) -> np.ndarray:
+        """μ with these fitted and term values; ``physics_mu``: the physics' μ at them, already known (a
+        model without drift terms, whose terms' values do not move the physics)."""
         inputs = {**self.fixed, **fitted, **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
         conditions = {k: np.asarray(v, dtype=float) for k, v in points.items() if k not in physics.PARAMETERS}
-        return mu_of(inputs, conditions, [t for t, _ in self.terms], values, convention=self.convention)
+        base = None if physics_mu is None else FrozenBase(physics_mu, {})
+        return mu_of(inputs, conditions, [t for t, _ in self.terms], values, base=base,
+                     convention=self.convention)
+
+    def _physics_mu(self, points: Mapping[str, Any]) -> np.ndarray | None:
+        """The physics' μ at the fitted values, as :meth:`_mu` computes it, when no drift term moves it
+        (else None). [1]"""
+        if any(t.kind == "drift" for t, _ in self.terms):
+            return None
+        inputs = {**self.fixed, **self.fitted, **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
+        return physics.evaluate(convention=self.convention, outputs=["mu"],
+                                **{k: np.asarray(v) for k, v in inputs.items()}).mu
 
     def _discrepancy(self, points: Mapping[str, Any], shape) -> tuple[np.ndarray, np.ndarray]:
         """Mean and variance of the GP discrepancy of log μ (zeros without one) [1]."""
@@ -433,7 +295,7 @@ class CalibratedModel:
             mu = mu * np.exp(self._group_terms(points, labels, mu.shape)[0])
         return mu
 
-    def predict(self, points: Mapping[str, Any], level: float = 0.95) -> Prediction:
+    def predict(self, points: Mapping[str, Any], level: float = 0.95, *, domain: bool = True) -> Prediction:
         """μ with its prediction interval and a domain check, at columnar points.
 
         This is the calibrated model's one prediction interface: arrays of inputs and conditions
@@ -445,6 +307,9 @@ class CalibratedModel:
             As for :meth:`__call__`.
         level : float
             Probability that a new measurement falls inside [mu_lower, mu_upper]; 0.95 by default. [1]
+        domain : bool, default True
+            False: no domain check (``in_domain`` None, no warnings; μ and the bounds are the same), for
+            callers that read the interval only, many times over (a robust design's worst case).
 
         Returns
         -------
@@ -469,9 +334,12 @@ class CalibratedModel:
             name in self.fitted and np.ndim(value) == 0 and float(value) == self.fitted[name])}
         points, labels = self.split_factors(points)
         values = [list(v) for _, v in self.terms]
-        mu = np.asarray(self._mu(points, self.fitted, values), dtype=float)
+        # The physics evaluated once serves μ and every step of a term's value in the gradient below (the
+        # same numbers as evaluating it again; only a fitted value's step moves it)
+        physics_mu = self._physics_mu(points)
+        mu = np.asarray(self._mu(points, self.fitted, values, physics_mu), dtype=float)
         shift, discrepancy_variance = self._discrepancy(points, mu.shape)
-        in_domain, warnings = self.domain_check(points)
+        in_domain, warnings = self.domain_check(points) if domain else (None, [])
         if self.covariance is None or self.noise_std_log is None:
             return Prediction(mu * np.exp(shift), None, None, in_domain, warnings)
         flat = list(self.fitted.values()) + [x for v in values for x in v]
@@ -487,7 +355,8 @@ class CalibratedModel:
                     term_values.append(rest[: len(v)])
                     rest = rest[len(v) :]
                 try:
-                    gradient[j] = (np.log(self._mu(points, fitted, term_values)) - np.log(mu)) / step
+                    known = physics_mu if j >= len(self.fitted) else None
+                    gradient[j] = (np.log(self._mu(points, fitted, term_values, known)) - np.log(mu)) / step
                 except ValueError:  # the step left a physics input's range: that direction is not varied
                     gradient[j] = 0.0
         gradient = np.where(np.isfinite(gradient), gradient, 0.0)
@@ -497,7 +366,7 @@ class CalibratedModel:
                         + self._noise_variance(points, mu.shape, level))
         # Beyond the data cloud or a physics input's range the interval widens (:meth:`cloud_ratio`).
         sigma = sigma * self.widening(self.cloud_ratio(points, mu.shape))
-        z = float(stats.norm.isf((1.0 - level) / 2.0))
+        z = float(-special.ndtri((1.0 - level) / 2.0))  # stats.norm.isf's number, without its overhead
         mu = mu * np.exp(shift + group_shift)
         lower, upper = mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
         for rival in self.rival_models():

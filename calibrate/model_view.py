@@ -74,9 +74,10 @@ class CalibratedPhysicsModel(Model):
         # Every column a point may give, for checks of whole columns (service.executor.evaluate_chunks).
         self.column_checks = {**self.inputs, **self.unread_conditions}
 
-    def predict(self, points: Mapping[str, Any]) -> Prediction:
-        """μ with its 95 % interval and the domain check: :meth:`calibrate.CalibratedModel.predict`."""
-        return self.calibrated.predict(points)
+    def predict(self, points: Mapping[str, Any], *, domain: bool = True) -> Prediction:
+        """μ with its 95 % interval and (unless ``domain`` is False) the domain check:
+        :meth:`calibrate.CalibratedModel.predict`."""
+        return self.calibrated.predict(points, domain=domain)
 
     def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
                  first_index: int = 0) -> Evaluation:

@@ -21,6 +21,7 @@ from microbearing.physics.model import Model
 from .design_bound import DesignPoints, design_lower_bound, kth_distance_to_boxes
 from .envelope_bound import (
     BOUND_RTOL,
+    MAX_BOXES,
     BoundFailedError,
     CertifiedMax,
     certified_max,
@@ -101,6 +102,11 @@ _ACTIVE_RTOL = 1e-3
 #: Relative gap to which the worst mu_upper at a design is bracketed (with the lower bound over the designs,
 #: within the gap target of a proof). [1]
 BRACKET_RTOL = 1e-7
+#: Most boxes of a mu_upper bracket at a design: twice mu's (:data:`optimize.envelope_bound.MAX_BOXES`), as
+#: its bound composes more enclosures, each first order in the box's width (the fitted values' gradient, a
+#: GP's mean and variance); with a GP discrepancy alone the bench's bracket closes to 1e-7 after 26,445
+#: boxes, where 20,000 left it at 7.3e-6 (bench/optimize.py --kinds). [1]
+UPPER_MAX_BOXES = 2 * MAX_BOXES
 #: Most passes of the lower bound over the designs; each after the first adds the worst point of a design that
 #: was lower than the returned one at the points. [1]
 _DESIGN_PASSES = 3
@@ -444,7 +450,7 @@ def certified_upper_search(problem: DesignProblem, envelope: Envelope, model: Mo
                                float(stats.norm.isf(0.025)), calibrated,
                                model_inputs_fn(problem, model, balls, theta, load), {**problem.fixed})
     return certified_max(bound, evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
-                         rtol=rtol or INTERVAL_RTOL, time_limit_s=time_limit_s)
+                         rtol=rtol or INTERVAL_RTOL, max_boxes=UPPER_MAX_BOXES, time_limit_s=time_limit_s)
 
 
 def certified_search(problem: DesignProblem, envelope: Envelope, model: Model, pieces: list,

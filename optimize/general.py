@@ -12,7 +12,8 @@ several starting points:
 1. Fit a local log-log affine (monomial) model of μ at the iterate,
    log μ ≈ f + g_x Δx + g_y Δy, by central differences of the model
    (step 1e-5 in log space).
-2. Solve the convex sub-problem in cvxpy: minimize the model plus an exact
+2. Solve the convex sub-problem (stated in cvxpy by
+   :func:`optimize.trust_step.cvxpy_steps`): minimize the model plus an exact
    penalty M·v on the elastic friction-force limit
    f + g·Δ + y + Δy - log F_max <= v, v >= 0, inside the trust region
    |Δx|, |Δy| <= r and subject to the limits that do not depend on the μ
@@ -25,9 +26,12 @@ several starting points:
    drop, and grow (ratio > 0.75) or shrink (ratio < 0.25, by 4) the radius.
 4. Stop when the radius is below 1e-9 or the model predicts no decrease.
 
-All (count, start) pairs are independent; they are stacked into one separable
-cvxpy problem (DPP, compiled once per stack size) so that one solve advances
-every one of them. The result is a point where no descent step of the local
+All (count, start) pairs are independent: the sub-problem is separable, two
+variables per run, and :func:`optimize.trust_step.exact_steps` solves every
+run's at once in numpy, exactly (a 1-D convex search to 1e-12 of its interval
+beside the closed-form points where the optimum usually is), which tests compare
+with the cvxpy statement solved by Clarabel on random sub-problems with the
+pressure and friction limits active. The result is a point where no descent step of the local
 model exists (a KKT point of the smooth model), verified by evaluating the
 model there; it is a local optimum, not a global proof, and the certificate
 says so.
@@ -60,14 +64,11 @@ worst case holds on that grid, not proven between its points.
 from __future__ import annotations
 
 import dataclasses
-import threading
 import time
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import cvxpy as cp
 import numpy as np
 
 from microbearing import physics
@@ -75,6 +76,7 @@ from microbearing import physics
 from .dgp import SAFETY_MARGIN, coefficients
 from .problem import DesignProblem, constraint_report
 from .solve import TIE_TOLERANCE, BallCountResult, InfeasibleDesignError, OptimizationResult, find_conflicts
+from .trust_step import TrustStep, exact_steps, log_secant
 
 __all__ = ["optimize_model", "check_exact_limits", "verify_design", "physics_model", "speed_grid_m_s",
            "PENALTY", "SPEED_GRID_POINTS", "MAX_RESOLVES", "RESOLVE_MARGIN"]
@@ -177,39 +179,6 @@ def _worst_case(problem: DesignProblem, mu_model: MuModel, model_name: str, spee
         raise ValueError(f"{model_name} returned a non-finite or non-positive mu")
     worst = np.argmax(mu, axis=0)
     return mu[worst, np.arange(n)], speeds[worst]
-
-
-def _sub_problem(size: int, with_friction: bool, with_pressure: bool, with_per_ball: bool):
-    """The stacked trust-region sub-problem, DPP in its parameters."""
-    # the step is the variable (not the new point) so that gradients multiply variables only (DPP)
-    dx, dy = cp.Variable(size), cp.Variable(size)
-    par = {n: cp.Parameter(size) for n in ("x0", "y0", "gx", "gy", "f", "x_lo", "x_hi", "y_lo", "y_hi")}
-    par["radius"] = cp.Parameter(size, nonneg=True)
-    x, y = par["x0"] + dx, par["y0"] + dy
-    model = par["f"] + cp.multiply(par["gx"], dx) + cp.multiply(par["gy"], dy)
-    cons = [cp.abs(dx) <= par["radius"], cp.abs(dy) <= par["radius"],
-            x >= par["x_lo"], x <= par["x_hi"], y >= par["y_lo"], y <= par["y_hi"]]
-    objective = cp.sum(model)
-    if with_friction:
-        par["log_friction_max"] = cp.Parameter(size)
-        slack = cp.Variable(size, nonneg=True)
-        cons.append(model + y - par["log_friction_max"] <= slack)
-        objective = objective + PENALTY * cp.sum(slack)
-    if with_pressure:
-        par["log_pressure_cap"] = cp.Parameter(size)
-        cons.append(y + 0.5 * cp.logistic(2 * x) <= par["log_pressure_cap"])
-    if with_per_ball:
-        par["log_per_ball_cap"] = cp.Parameter(size)
-        cons.append(y <= par["log_per_ball_cap"])
-    problem = cp.Problem(cp.Minimize(objective), cons)
-    if not problem.is_dcp(dpp=True):  # explicit, not an assert (asserts vanish under python -O)
-        raise RuntimeError("the sequential convex sub-problem is not DCP and DPP")
-    return problem, dx, dy, par
-
-
-#: Compiled sub-problems not in use, by (size, limits): a run takes one (or compiles one) and returns it.
-_SUB_CACHE: dict[tuple[int, bool, bool, bool], list[tuple]] = {}
-_SUB_CACHE_LOCK = threading.Lock()
 
 
 def _contact_load_cap_N(problem: DesignProblem) -> float:
@@ -398,20 +367,9 @@ def _solve_group(problem, mu_model, model_name, counts, fractions, q0_cap, g_flo
     y_hi_start = y_cap if log_pressure_cap is None else np.minimum(y_cap, log_pressure_cap - sec_log)
     y = y_lo + f_load * (y_hi_start - y_lo)
 
-    key = (len(z), c.max_friction_force_N is not None, log_pressure_cap is not None,
-           c.max_load_per_ball_N is not None)
-    with _SUB_CACHE_LOCK:  # a sub-problem's parameters belong to one run at a time: take a free one
-        free = _SUB_CACHE.setdefault(key, [])
-        compiled = free.pop() if free else None
-    if compiled is None:
-        compiled = _sub_problem(*key)
-    try:
-        x, y, done, iterations = _iterate(_Task(problem, mu_model, model_name), compiled, z, x, y,
-                                          _LogBox(x_lo, x_hi, y_lo, y_cap, log_pressure_cap), max_iterations,
-                                          progress)
-    finally:
-        with _SUB_CACHE_LOCK:
-            _SUB_CACHE[key].append(compiled)
+    box = _LogBox(x_lo, x_hi, y_lo, y_cap, log_pressure_cap)
+    x, y, done, iterations = _iterate(_Task(problem, mu_model, model_name), z, x, y, box, max_iterations,
+                                      progress)
     return z, x, y, done, iterations
 
 
@@ -450,12 +408,10 @@ class _Runs:
     iterations: int
 
 
-def _iterate(task: _Task, compiled: tuple, z: np.ndarray, x: np.ndarray, y: np.ndarray, box: _LogBox,
-             max_iterations: int, progress: Callable[[float], None] | None):
-    """The trust-region loop of :func:`optimize_model` on a sub-problem it owns (``compiled``: the problem,
-    its step variables and parameters): (x, y, done, iterations)."""
+def _iterate(task: _Task, z: np.ndarray, x: np.ndarray, y: np.ndarray, box: _LogBox, max_iterations: int,
+             progress: Callable[[float], None] | None):
+    """The trust-region loop of :func:`optimize_model`: (x, y, done, iterations)."""
     problem, mu_model, model_name = task.problem, task.mu_model, task.model_name
-    sub, step_x, step_y, par = compiled
     x_lo, x_hi, y_lo, y_cap, log_pressure_cap = box.x_lo, box.x_hi, box.y_lo, box.y_cap, box.log_pressure_cap
     c = problem.constraints
 
@@ -473,14 +429,7 @@ def _iterate(task: _Task, compiled: tuple, z: np.ndarray, x: np.ndarray, y: np.n
             return log_mu
         return log_mu + PENALTY * np.maximum(0.0, log_mu + ys - log_friction_max)
 
-    par["x_lo"].value, par["x_hi"].value, par["y_lo"].value, par["y_hi"].value = x_lo, x_hi, y_lo, y_cap
-    if log_friction_max is not None:
-        par["log_friction_max"].value = np.full_like(z, log_friction_max)
-    if log_pressure_cap is not None:
-        par["log_pressure_cap"].value = log_pressure_cap
-    if c.max_load_per_ball_N is not None:
-        par["log_per_ball_cap"].value = y_cap
-
+    friction_cap = None if log_friction_max is None else np.full_like(z, log_friction_max)
     log_mu = evaluate(x, y)
     current = merit(log_mu, y)
     radius = np.full_like(z, 0.5)
@@ -492,15 +441,10 @@ def _iterate(task: _Task, compiled: tuple, z: np.ndarray, x: np.ndarray, y: np.n
         n = len(z)
         gx = (stencil[:n] - stencil[n:2 * n]) / (2 * h)
         gy = (stencil[2 * n:3 * n] - stencil[3 * n:]) / (2 * h)
-        par["x0"].value, par["y0"].value, par["gx"].value, par["gy"].value = x, y, gx, gy
-        par["f"].value, par["radius"].value = log_mu, np.where(done, 0.0, radius)
-        with warnings.catch_warnings():
-            # an inaccurate sub-problem step is harmless: it is accepted only if the model confirms it
-            warnings.simplefilter("ignore", UserWarning)
-            sub.solve(solver=cp.CLARABEL)
-        if sub.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-            raise RuntimeError(f"sequential convex sub-problem ended with status {sub.status!r}")
-        x_new, y_new = np.clip(x + step_x.value, x_lo, x_hi), np.clip(y + step_y.value, y_lo, y_cap)
+        step_x, step_y = exact_steps(TrustStep(x, y, gx, gy, log_mu, x_lo, x_hi, y_lo, y_cap,
+                                               np.where(done, 0.0, radius), PENALTY, friction_cap,
+                                               log_pressure_cap))
+        x_new, y_new = np.clip(x + step_x, x_lo, x_hi), np.clip(y + step_y, y_lo, y_cap)
         linear = log_mu + gx * (x_new - x) + gy * (y_new - y)
         predicted = current - merit(linear, y_new)
         trial_log_mu = evaluate(x_new, y_new)
@@ -508,7 +452,7 @@ def _iterate(task: _Task, compiled: tuple, z: np.ndarray, x: np.ndarray, y: np.n
         ratio = (current - trial) / np.where(predicted > 0, predicted, np.inf)
         accept = ~done & (predicted > 0) & (ratio > 0.1)
         if log_pressure_cap is not None:  # the clipped step must still meet the exact pressure limit
-            accept &= y_new + 0.5 * np.log1p(np.exp(2 * x_new)) <= log_pressure_cap
+            accept &= y_new + log_secant(x_new) <= log_pressure_cap
         at_edge = np.maximum(np.abs(x_new - x), np.abs(y_new - y)) >= 0.99 * radius
         radius = np.where(ratio > 0.75, np.where(at_edge, np.minimum(2 * radius, _MAX_RADIUS), radius),
                           np.where(ratio < 0.25, radius / 4, radius))
@@ -572,9 +516,10 @@ def _result(task: _Task, runs: _Runs, g_floor: float, start_time: float) -> Opti
     found = "Local optimum" if best.status == LOCAL_OPTIMUM else (
         "Best point found, NOT a converged local optimum (its run stopped at the iteration cap),")
     certificate = (
-        f"{found} of {model_name} (not a global proof): sequential convex approximation in cvxpy "
+        f"{found} of {model_name} (not a global proof): sequential convex approximation "
         f"(local monomial fits of mu by central differences, trust region in log space, exact-penalty "
-        f"friction-force limit) from {len(fractions)} starts for each of the {len(counts)} ball counts "
+        f"friction-force limit; each convex sub-problem solved exactly per run) from {len(fractions)} "
+        f"starts for each of the {len(counts)} ball counts "
         f"that meet the exact limits, {iterations} iterations, {unconverged} of {len(z)} runs stopped by "
         f"the iteration cap. The pressure, load-per-ball, minimum-load and box limits are imposed exactly "
         f"(convex in log space); the friction force uses {model_name}. The design was verified by "

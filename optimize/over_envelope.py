@@ -140,8 +140,8 @@ def objective_values(model: Model | None, objective: str, columns: dict[str, Any
         if objective == "mu":
             return np.asarray(model(columns), dtype=float)
         predict = getattr(model, "predict", None)
-        if predict is not None:  # a calibrated model: its prediction, without the physics' other outputs
-            return np.asarray(predict(columns).mu_upper, dtype=float)
+        if predict is not None:  # a calibrated model: its interval, without the physics' other outputs
+            return np.asarray(predict(columns, domain=False).mu_upper, dtype=float)
         return np.asarray(model.evaluate(columns, [objective]).values[objective], dtype=float)
 
 

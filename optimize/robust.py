@@ -105,6 +105,8 @@ import math
 import time
 from collections.abc import Callable
 
+from threadpoolctl import threadpool_limits
+
 from microbearing.physics.model import Model
 
 from . import certificates
@@ -171,6 +173,18 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     InfeasibleDesignError
         When no design meets the limits over the envelope.
     """
+    # One BLAS thread: the method's matrices are small (a GP's training rows against a few thousand points
+    # or boxes), and threads on them spent ~1.7x the CPU for no gain in wall time (bench/optimize.py
+    # --kinds), as in calibrate's GP fits.
+    with threadpool_limits(1):
+        return _optimize_robust(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
+                                time_limit_s)
+
+
+def _optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | None, objective: str,
+                     starts: int, max_rounds: int, progress: Callable[[float], None] | None,
+                     map_calls: Callable | None, time_limit_s: float) -> RobustResult:
+    """:func:`optimize_robust` in the calling thread's BLAS setting."""
     start = time.perf_counter()
     check_model(model, envelope, objective)
     if model is not None and model.kind == "physics":
