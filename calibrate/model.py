@@ -242,11 +242,16 @@ class CalibratedModel:
                 f"{', '.join(users)})"
             )
 
+    def _physics_inputs(self, points: Mapping[str, Any], fitted: Mapping[str, float]) -> dict[str, Any]:
+        """The physics' inputs at columnar points: the fixed values, ``fitted``, and the points' physics
+        columns over both."""
+        return {**self.fixed, **fitted, **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
+
     def _mu(self, points: Mapping[str, Any], fitted: Mapping[str, float], values,
             physics_mu: np.ndarray | None = None) -> np.ndarray:
         """μ with these fitted and term values; ``physics_mu``: the physics' μ at them, already known (a
         model without drift terms, whose terms' values do not move the physics)."""
-        inputs = {**self.fixed, **fitted, **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
+        inputs = self._physics_inputs(points, fitted)
         conditions = {k: np.asarray(v, dtype=float) for k, v in points.items() if k not in physics.PARAMETERS}
         base = None if physics_mu is None else FrozenBase(physics_mu, {})
         return mu_of(inputs, conditions, [t for t, _ in self.terms], values, base=base,
@@ -257,7 +262,7 @@ class CalibratedModel:
         (else None). [1]"""
         if any(t.kind == "drift" for t, _ in self.terms):
             return None
-        inputs = {**self.fixed, **self.fitted, **{k: v for k, v in points.items() if k in physics.PARAMETERS}}
+        inputs = self._physics_inputs(points, self.fitted)
         return physics.evaluate(convention=self.convention, outputs=["mu"],
                                 **{k: np.asarray(v) for k, v in inputs.items()}).mu
 

@@ -363,8 +363,7 @@ def _solve_group(problem, mu_model, model_name, counts, fractions, q0_cap, g_flo
     if log_pressure_cap is not None:
         x_cap = 0.5 * np.log(np.expm1(np.maximum(2 * (log_pressure_cap - y_lo), 1e-300)))
         x = np.minimum(x, x_cap)
-    sec_log = 0.5 * np.log1p(np.exp(2 * x))
-    y_hi_start = y_cap if log_pressure_cap is None else np.minimum(y_cap, log_pressure_cap - sec_log)
+    y_hi_start = y_cap if log_pressure_cap is None else np.minimum(y_cap, log_pressure_cap - log_secant(x))
     y = y_lo + f_load * (y_hi_start - y_lo)
 
     box = _LogBox(x_lo, x_hi, y_lo, y_cap, log_pressure_cap)
