@@ -35,6 +35,7 @@ from microbearing.physics.columns import read_span
 from microbearing.physics.effects import EFFECTS
 
 from .candidates import Term, candidate_terms
+from .credibility import implausible
 from .data import Dataset
 from .design import GOALS, Design, DesignError, plan
 from .domain import outside_law_domains
@@ -181,7 +182,7 @@ def _named(candidate: Mapping[str, Any]) -> bool:
     return candidate.get("kind") == "drift" or (effect is not None and not effect.generic)
 
 
-def rival_terms(report: Mapping[str, Any], dataset: Dataset, terms: Sequence[Term]
+def rival_terms(report: Mapping[str, Any], dataset: Dataset, terms: Sequence[Term], near: bool = False
                 ) -> list[tuple[str, list[Term]]]:
     """The terms of each rival of a calibration, read from its selection steps (see the module).
 
@@ -193,6 +194,9 @@ def rival_terms(report: Mapping[str, Any], dataset: Dataset, terms: Sequence[Ter
         The calibration's data (the candidate terms are rebuilt on it).
     terms : sequence of Term
         The calibrated model's terms, in order.
+    near : bool
+        Also a named law in place of a chosen term that reached half the step's threshold (not the
+        whole): a law new runs may well choose instead, which a ``predict`` design hedges against.
 
     Returns
     -------
@@ -207,7 +211,8 @@ def rival_terms(report: Mapping[str, Any], dataset: Dataset, terms: Sequence[Ter
                     or candidate["label"] == step["added"]):
                 continue
             z = float(candidate["z_vs_declared"])
-            if step["added"] is not None and z > float(step["z_needed"]) and k < len(terms):
+            needed = float(step["z_needed"]) * (_NEAR_THRESHOLD if near else 1.0)
+            if step["added"] is not None and z > needed and k < len(terms):
                 term = _find_term(dataset, prefix, candidate["label"])
                 if term is not None:
                     found.append((candidate["score"], f"{candidate['label']} in place of {terms[k].label}",
@@ -225,7 +230,7 @@ def rival_terms(report: Mapping[str, Any], dataset: Dataset, terms: Sequence[Ter
 
 
 def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedModel,
-                 max_rivals: int = MAX_RIVALS) -> list[tuple[str, CalibratedModel]]:
+                 max_rivals: int = MAX_RIVALS, near: bool = False) -> list[tuple[str, CalibratedModel]]:
     """The models a calibration could not tell apart from its own, each refitted on its data.
 
     Where the calibration's rivals within one standard error plug in; today from
@@ -241,6 +246,8 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
         The calibrated model (its convention, scatter and conditions carry over).
     max_rivals : int
         Rivals at most, best scored first. [1]
+    near : bool
+        Also the laws that came near to replacing a chosen term (:func:`rival_terms`).
 
     Returns
     -------
@@ -250,8 +257,14 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
     fit_parameters = list(report.get("fit_parameters", model.fitted))
     # the small-sample and tail factor the model's interval applies to its scatter
     factor = model.interval_noise_std_log() / float(model.noise_std_log) if model.noise_std_log else 1.0
-    for label, terms in rival_terms(report, dataset, [t for t, _ in model.terms])[:max_rivals]:
+    own = {t.label for t, _ in model.terms}
+    columns = {**dataset.inputs(), **dataset.conditions}
+    for label, terms in rival_terms(report, dataset, [t for t, _ in model.terms], near)[:max_rivals]:
         result = fit(dataset, fit_parameters, terms, start=model.fitted, convention=model.convention)
+        # a law whose refit leaves its physical range is no rival (the search refuses it likewise)
+        if any(implausible(t, v, columns, result.declared, dataset.fixed)
+               for t, v in zip(terms, result.term_values, strict=True) if t.label not in own):
+            continue
         # A rival's scatter is its own fit's (a term the model lacks inflates the model's scatter, and a
         # recalibration that adds it measures less), with the model's factor; its data cloud the model's.
         noise = _residual_scatter(result) * factor
@@ -402,9 +415,10 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
                                             "max": float(mean_before.max())}
         if reported:  # the interval as the service reports it, widened off the data
             # after the runs: the interval of the model the data favour (the least scatter) among the
-            # calibrated one and the hedged rivals, whose term a recalibration would add
+            # calibrated one and the hedged rivals, whose term a recalibration would add, enveloping the
+            # others refitted to runs that follow it (a recalibration may keep them as its rivals)
             favoured = min(reported, key=lambda r: float(r.model.noise_std_log))
-            after = favoured.after(design.counts)
+            after = favoured.after(design.counts, [r for r in reported if r is not favoured])
             for key, values in (("reported_half_width_now", reported[0].now()),
                                 ("reported_half_width_after", after)):
                 entry[key] = {"mean": float(np.mean(values)), "max": float(np.max(values))}

@@ -102,7 +102,9 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     if body.goal == "predict" and envelope is None:
         raise validation_problem([{"pointer": "/envelope", "detail": "goal predict needs an envelope"}])
     dataset = stored_dataset(stored.arrays, model.fixed)
-    has_rivals = dataset is not None and bool(rival_terms(report, dataset, [t for t, _ in model.terms]))
+    # predict also hedges against the laws that came near to replacing a chosen term
+    near = body.goal == "predict"
+    has_rivals = dataset is not None and bool(rival_terms(report, dataset, [t for t, _ in model.terms], near))
     if body.goal == "discriminate":
         if dataset is None:
             raise validation_problem([{"pointer": "/goal", "detail": (
@@ -113,7 +115,8 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
 
     # predict hedges over the rivals too when there are any (model-robust: bench/RESULTS.md, issue 26).
     def work(ctx) -> dict[str, Any]:
-        rivals = rival_models(report, dataset, model) if body.goal != "parameters" and has_rivals else []
+        rivals = (rival_models(report, dataset, model, near=near) if body.goal != "parameters" and has_rivals
+                  else [])
         ctx.progress(0.2)
         try:
             request = ExperimentRequest(space, body.runs, body.goal, envelope=envelope, fixed=body.fixed,
