@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+from labs_helper import kelvin_rows
 
 from microbearing.calibrate import calibrate, parse_rows
 from microbearing.calibrate.experiments import (
@@ -101,18 +102,7 @@ ENVELOPE = {"balls": [6], "load_N": {"low": 5e-3, "high": 2e-2}, "speed_m_s": [0
 @pytest.fixture(scope="module")
 def kelvin():
     """A Kelvin-law adhesion measured at 20-45 % RH (own seed), calibrated; its near rivals refitted."""
-    from microbearing import physics
-
-    rng = np.random.default_rng(17)
-    n = 80
-    c = {"balls": rng.choice([4, 6, 8], n).astype(float),
-         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-         "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.45, n)}
-    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7,
-                          adhesion_energy_J_m2=0.05 * (1 + 1.5 / np.log(1 / c["relative_humidity"]))).mu
-    mu = mu * np.exp(rng.normal(0.0, 0.03, n))
-    dataset = parse_rows([{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])}
-                          for i in range(n)])
+    dataset = parse_rows(kelvin_rows(17, 80, humidity=(0.2, 0.45), noise=0.03))
     report = calibrate(dataset, ["mu_pivot", "adhesion_energy_J_m2"], make_plots=False)
     rivals = rival_models(report.to_dict(), dataset, report.model, near=True)
     rivals = [(label, model) for label, model in rivals if " in place of " in label]

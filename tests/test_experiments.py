@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from labs_helper import kelvin_rows
 
 from microbearing import physics
 from microbearing.calibrate import calibrate, parse_rows
@@ -19,22 +20,9 @@ SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "
          "speed_m_s": {"low": 0.0, "high": 0.15}, "relative_humidity": {"low": 0.2, "high": 0.9}}
 
 
-def kelvin_truth(c):
-    """Adhesion growing with humidity by a Kelvin law (written here, not taken from physics.effects)."""
-    return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7,
-                            adhesion_energy_J_m2=0.05 * (1 + 1.5 / np.log(1 / c["relative_humidity"]))).mu
-
-
 @pytest.fixture(scope="module")
 def humid():
-    rng = np.random.default_rng(3)
-    n = 150
-    c = {"balls": rng.choice([4, 6, 8], n).astype(float),
-         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-         "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.5, n)}
-    mu = kelvin_truth(c) * np.exp(rng.normal(0, 0.02, n))
-    dataset = parse_rows([{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])}
-                          for i in range(n)])
+    dataset = parse_rows(kelvin_rows(3, 150))  # 20-50 % RH, 2 % scatter
     report = calibrate(dataset, ["mu_pivot", "adhesion_energy_J_m2"], make_plots=False)
     return dataset, report
 

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from jobs_helper import finished_job
+from labs_helper import kelvin_rows
 
-from microbearing import physics
 from microbearing.service.app import create_app
 from microbearing.service.cli import main
 from microbearing.service.settings import Settings
@@ -18,18 +17,6 @@ PROBLEM = "application/problem+json"
 SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
          "speed_m_s": {"low": 0.0, "high": 0.15},
          "relative_humidity": {"values": [0.2, 0.35, 0.5, 0.65, 0.8, 0.9]}}
-
-
-def kelvin_rows(seed: int = 3, n: int = 150) -> list[dict]:
-    """Adhesion growing with humidity by a Kelvin law, measured at 20-50 % RH with 2 % noise."""
-    rng = np.random.default_rng(seed)
-    c = {"balls": rng.choice([4, 6, 8], n).astype(float),
-         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-         "speed_m_s": rng.uniform(0.0, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.5, n)}
-    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.7,
-                          adhesion_energy_J_m2=0.05 * (1 + 1.5 / np.log(1 / c["relative_humidity"]))).mu
-    mu = mu * np.exp(rng.normal(0, 0.02, n))
-    return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(n)]
 
 
 @pytest.fixture(scope="module")
