@@ -39,19 +39,12 @@ from .data import Dataset
 from .fit import fit
 from .prose import in_sent_units
 from .rivals import where_they_part
-from .scores import within_one_se
+from .scores import CLOSE_MARGIN, CLOSE_Z, close_calls, within_one_se
 from .select import CandidateScore, Selection, preferred
 
 __all__ = ["CLOSE_MARGIN", "CLOSE_Z", "few_rows", "rows_for_terms", "rows_to_settle", "terms_supported",
            "undecided"]
 
-#: A z within this much of the step's threshold (below for a candidate left out, above for a term
-#: added) is a close call. [1]
-CLOSE_MARGIN = 1.0
-#: A candidate that lowers the selection's score (its BIC-like criterion) with a paired z at least this is
-#: a close call too, however high the threshold: on few rows the threshold is out of reach of a real
-#: effect's z (about 2.3-2.5 for a run-in on 24 rows, against 3.6 needed). [1]
-CLOSE_Z = 2.0
 # Where a term acts most: its effect there is at least this share of its largest. [1]
 _HALF = 0.5
 # Share of the rows, those where the two models differ most, whose driver range says where they differ.
@@ -228,9 +221,7 @@ def undecided(
     found: list[dict[str, Any]] = []
     for step in selection.steps:
         if step.chosen is None:
-            low = step.z_needed - CLOSE_MARGIN
-            close = [c for c in step.ranked if c.joint and c.z <= step.z_needed and (
-                c.z >= low or (c.z >= CLOSE_Z and c.score < step.current.score))]
+            close = close_calls(step)
             if close:
                 # Named by the selection's own rule (a named law before a generic term that fits as
                 # well), with every close candidate that fits as well within one standard error.

@@ -28,7 +28,7 @@ def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[s
     out = []
     for rival, alternative in zip(rivals, model.rival_models(), strict=True):
         other = rival.partner if rival.replaces is None else rival.replaces.drivers[0]
-        drivers = dict.fromkeys([rival.term.drivers[0], other])
+        drivers = dict.fromkeys(d for d in (rival.term.drivers[0], other) if d is not None)
         where = [where_they_part(model, alternative, dataset, d, model.noise_std_log) for d in drivers]
         part = max(where, key=lambda w: w["largest_difference_log"] or 0.0)
         out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,

@@ -71,6 +71,7 @@ from .scores import (
     CandidateScore,
     ModelCV,
     Step,
+    close_calls,
     count_parameters,
     cross_validate,
     max_t_threshold,
@@ -325,11 +326,36 @@ def forward_select(
             break
         if k + 1 == rounds:
             break  # unweighted and the rounds are out: it stands
+        if used is None and (absorbed := _scatter_of_an_effect(data, searches[-1][1], folds, seed)):
+            # The spread read on the residual of a model that misses an effect grows where the effect
+            # acts: the stopping step's best candidate, close to the threshold, takes it into the mean.
+            fallback = (f". The held-out residual of the unweighted search's model scatters unevenly "
+                        f"({estimate.summary()}), but that of its best candidate, {absorbed}, does not: "
+                        f"the spread was that effect, not scatter, and the unweighted search stands")
+            break
         used = estimate
     last = searches[-1][1]
     report(1.0)
     words = _selection_words(last, fallback, used, searches)
     return Selection(last.model.terms, last.steps, last.model, last.scale, rows, words, used)
+
+
+def _scatter_of_an_effect(data: Dataset, run: _SearchRun, folds: int, seed: int) -> str | None:
+    """The label of the stopping step's best close call (:func:`calibrate.scores.close_calls`) whose
+    held-out residual scatters evenly, or None: the uneven spread of the model's residual was
+    that candidate's effect, which a search weighted by it would hide (issue 33: a Kelvin law measured
+    at 70-85 % RH read as scatter growing with the load, 6 % to 33 %, the weighted search then adding
+    nothing and the model 50 % off where the runs were taken)."""
+    close = close_calls(run.steps[-1]) if run.steps else []
+    best = min(close, key=lambda c: c.score) if close else None
+    if best is None or not usable(best.oof_mu):
+        return None
+    columns = varying_columns(data)
+    rows = measured_rows(data.censored, data.n_points)
+    residual = np.log(data.mu_measured / best.oof_mu)
+    spread = fit_scatter({k: v[rows] for k, v in columns.items()}, residual[rows],
+                         min(folds, int(rows.sum())), seed)
+    return best.term.label if _form(spread) == ("constant", None) else None
 
 
 def _selection_words(last: _SearchRun, fallback: str, used: ScatterModel | None,
