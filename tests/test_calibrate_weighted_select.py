@@ -108,11 +108,12 @@ def test_declared_noise_weighs_the_rows_and_the_search_runs_once():
 def test_a_missed_effect_is_not_taken_for_scatter():
     # A run-in (friction twice as high at the start, 1/e over 800 cycles, 2 % noise) on 24 rows: too few for
     # the unweighted search (z ~ 2.9 against ~3.5). Its residual is large on the first cycles, which the
-    # scatter test reads as scatter on the cycle; weighted by that, a search finds the run-in, whose own
-    # residual then has one scatter everywhere: the scatter is not confirmed and the unweighted search
-    # (nothing added) stands, as on data of one scatter it would.
+    # scatter test reads as scatter on the cycle; but the stopping step's close call, the run-in, takes
+    # that spread into its mean (its own held-out residual has one scatter everywhere): the spread was the
+    # effect, the search is not weighted by it, and the unweighted search (nothing added) stands, as on
+    # data of one scatter it would.
     data = parse_rows(run_in_rows(1, 24))
     selection = forward_select(data, ["mu_pivot"])
     assert selection.scatter is None and selection.terms == ()
-    assert "the scatter was not confirmed, and the unweighted search stands" in selection.reason
-    assert "run_in on cycle" in selection.reason  # what the weighted search chose is said
+    assert "the spread was that effect, not scatter, and the unweighted search stands" in selection.reason
+    assert "its best candidate, run_in on cycle" in selection.reason  # the close call is named
