@@ -243,7 +243,8 @@ class ReportedWidth:
     def _pull(self, reference: ReportedWidth, counts: np.ndarray):
         """What runs measured as ``reference`` predicts do to this model's parameters, linearized (one
         Gauss-Newton step of its refit from its fitted values, whose gradient on the data taken is zero):
-        the information and its inverse, the scaled misfits ``y`` at the candidates and the step [1]."""
+        the inverse of the information, the scaled misfits at the candidates and at the planned runs,
+        and the step [1]."""
         with np.errstate(all="ignore"):
             y = (reference.log_mu_candidates - self.log_mu_candidates) / self.sigma
             y_planned = (reference.planned_log_mu - self.planned_log_mu) / self.planned_sigma
@@ -252,13 +253,13 @@ class ReportedWidth:
         information = self.prior + (self.b * counts[:, None]).T @ self.b
         inverse = np.linalg.pinv(information, hermitian=True)
         pulled = self.b.T @ (counts * y) + self.planned_b.T @ y_planned
-        return inverse, y, inverse @ pulled
+        return inverse, y, y_planned, inverse @ pulled
 
     def centre_each(self, reference: ReportedWidth, counts: np.ndarray) -> np.ndarray:
         """log μ at each envelope point (rows) after runs at ``counts`` and one more at each candidate
         (columns), this model refitted to measurements that follow ``reference`` [1]: a rival that the
         runs pin where they are taken agrees with the reference there, and parts from it between."""
-        inverse, y, step = self._pull(reference, counts)
+        inverse, y, _, step = self._pull(reference, counts)
         u = self.b @ inverse  # (n, p)
         factor = (y - self.b @ step) / (1.0 + np.sum(u * self.b, axis=1))  # rank-one update of the step
         return (np.log(self.mu) + self.c @ step)[:, None] + (self.c @ u.T) * factor[None, :]
@@ -266,7 +267,7 @@ class ReportedWidth:
     def centre_after(self, reference: ReportedWidth, counts: np.ndarray) -> np.ndarray:
         """log μ over the envelope after runs at ``counts``, refitted to measurements that follow
         ``reference`` [1]."""
-        return np.log(self.mu) + self.c @ self._pull(reference, counts)[2]
+        return np.log(self.mu) + self.c @ self._pull(reference, counts)[3]
 
     def gap_z(self, reference: ReportedWidth, counts: np.ndarray) -> float:
         """The paired z by which this model, refitted, would lose to ``reference`` on runs at ``counts``
@@ -275,10 +276,7 @@ class ReportedWidth:
         RIVAL_SE` standard errors of it. A run missed by d (in scatter units) adds d^2 to the loss on
         average, with variance 4 d^2 from the scatter, and the rows' differences spread by d^4 besides:
         a law missed at a few rows stays a rival however far off it is there (z at most sqrt(rows))."""
-        _, y, step = self._pull(reference, counts)
-        with np.errstate(all="ignore"):
-            y_planned = (reference.planned_log_mu - self.planned_log_mu) / self.planned_sigma
-        y_planned = np.where(np.isfinite(y_planned), y_planned, 0.0)
+        _, y, y_planned, step = self._pull(reference, counts)
         d2 = np.concatenate([np.repeat(np.square(y - self.b @ step), counts.astype(int)),
                              np.square(y_planned - self.planned_b @ step)])
         spread = float(np.sqrt(np.sum(4.0 * d2 + np.square(d2))))

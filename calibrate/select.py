@@ -202,12 +202,18 @@ def selection_scatter(dataset: Dataset, model: ModelCV, folds: int, seed: int) -
     """The scatter model (:func:`calibrate.scatter.fit_scatter`) of a model's held-out log residual, or
     None when the data declare ``mu_measured_std``, no column varies, or a row has no held-out
     prediction."""
-    if dataset.mu_measured_std is not None or not usable(model.oof_mu):
+    if dataset.mu_measured_std is not None:
         return None
+    return _held_out_scatter(dataset, model.oof_mu, folds, seed)
+
+
+def _held_out_scatter(dataset: Dataset, oof_mu: np.ndarray, folds: int, seed: int) -> ScatterModel | None:
+    """The scatter model of the held-out log residual against ``oof_mu``, or None when no column varies
+    or a row has no held-out prediction."""
     columns = varying_columns(dataset)
-    if not columns:
+    if not usable(oof_mu) or not columns:
         return None
-    residual = np.log(dataset.mu_measured / model.oof_mu)
+    residual = np.log(dataset.mu_measured / oof_mu)
     rows = measured_rows(dataset.censored, dataset.n_points)  # a clipped reading's residual is not scatter
     return fit_scatter({k: v[rows] for k, v in columns.items()}, residual[rows],
                        min(folds, int(rows.sum())), seed)
@@ -347,15 +353,11 @@ def _scatter_of_an_effect(data: Dataset, run: _SearchRun, folds: int, seed: int)
     at 70-85 % RH read as scatter growing with the load, 6 % to 33 %, the weighted search then adding
     nothing and the model 50 % off where the runs were taken)."""
     close = close_calls(run.steps[-1]) if run.steps else []
-    best = min(close, key=lambda c: c.score) if close else None
-    if best is None or not usable(best.oof_mu):
+    if not close:
         return None
-    columns = varying_columns(data)
-    rows = measured_rows(data.censored, data.n_points)
-    residual = np.log(data.mu_measured / best.oof_mu)
-    spread = fit_scatter({k: v[rows] for k, v in columns.items()}, residual[rows],
-                         min(folds, int(rows.sum())), seed)
-    return best.term.label if _form(spread) == ("constant", None) else None
+    best = min(close, key=lambda c: c.score)
+    spread = _held_out_scatter(data, best.oof_mu, folds, seed)
+    return best.term.label if spread is not None and _form(spread) == ("constant", None) else None
 
 
 def _selection_words(last: _SearchRun, fallback: str, used: ScatterModel | None,
