@@ -68,14 +68,16 @@ def _kernel(n_features: int):
             + WhiteKernel(0.1, (1e-8, 1e1)))
 
 
-def _fit_gp(x: np.ndarray, target: np.ndarray, kernel, seed: int):
-    """A scikit-learn GP regressor fitted to ``target`` (hyperparameters by marginal likelihood)."""
+def _fit_gp(x: np.ndarray, target: np.ndarray, kernel, seed: int, optimize: bool = True):
+    """A scikit-learn GP regressor fitted to ``target``: hyperparameters by marginal likelihood from
+    ``kernel``'s, or ``kernel``'s own when ``optimize`` is false (the GP then only conditions on the rows)."""
     # scikit-learn is imported here, not at module level: it takes seconds to import.
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.gaussian_process import GaussianProcessRegressor
     from threadpoolctl import threadpool_limits
 
-    gp = GaussianProcessRegressor(kernel, normalize_y=True, random_state=seed)
+    gp = GaussianProcessRegressor(kernel, normalize_y=True, random_state=seed,
+                                  **({} if optimize else {"optimizer": None}))
     # One BLAS thread: the small GP matrices gain nothing from threads, and on a shared machine
     # oversubscribed threads made the fit several times slower.
     with warnings.catch_warnings(), threadpool_limits(1):
@@ -83,6 +85,17 @@ def _fit_gp(x: np.ndarray, target: np.ndarray, kernel, seed: int):
         warnings.simplefilter("ignore", ConvergenceWarning)
         gp.fit(x, target)
     return gp
+
+
+def _optimize_fold(k: int, subset: bool) -> bool:
+    """Whether fold ``k``'s GP fits its hyperparameters. Folds whose training rows exceed the subset size
+    (large data: every fold trains on its own random subset of the same size) share the first fold's:
+    hyperparameters fitted on one such subset describe the others as well (their sampling spread is
+    the same), while each fit costs seconds. The shared values were fitted on rows that include later
+    folds' test rows; what reaches a held-out row through a dozen hyperparameters, fitted on a few
+    hundred of thousands of rows, is negligible beside the GP's mean, which never sees them. Smaller
+    data refit every fold (starting from the previous fold's values). [2]"""
+    return k == 0 or not subset
 
 
 def gp_discrepancy(dataset: Dataset, baseline: ModelCV, max_train: int = 300, seed: int = 0,
@@ -123,13 +136,15 @@ def gp_discrepancy(dataset: Dataset, baseline: ModelCV, max_train: int = 300, se
     kernel = _kernel(len(names))
     for k, (test, fold_mu) in enumerate(zip(baseline.folds, baseline.fold_mu, strict=True)):
         train = np.setdiff1d(everything, test)
-        if train.size > max_train:
+        subset = train.size > max_train
+        if subset:
             train = np.sort(rng.choice(train, max_train, replace=False))
         target = log_measured[train] - np.log(fold_mu[train])
-        gp = _fit_gp(x[train], target, kernel, seed)
+        gp = _fit_gp(x[train], target, kernel, seed, optimize=_optimize_fold(k, subset))
         oof[test] = fold_mu[test] * np.exp(gp.predict(x[test]))
         fitted = gp.kernel_
-        # Each fold refits the hyperparameters on its own training rows, starting from the last fold's.
+        # Each fold refits the hyperparameters on its own training rows, starting from the last fold's
+        # (or shares the first fold's: see _optimize_fold).
         kernel = fitted
         scales += np.log(np.atleast_1d(fitted.k1.k2.length_scale))
         noise.append(np.sqrt(fitted.k2.noise_level) * np.std(target))
@@ -193,10 +208,11 @@ def residual_gp(dataset: Dataset, folds: list[np.ndarray], fold_mu: list[np.ndar
             break
         train = np.setdiff1d(everything, test)
         train = train[inliers[train]]
-        if train.size > max_train:
+        subset = train.size > max_train
+        if subset:
             train = np.sort(rng.choice(train, max_train, replace=False))
         target = log_measured[train] - np.log(model_mu[train])
-        gp = _fit_gp(x[train], target, kernel, seed)
+        gp = _fit_gp(x[train], target, kernel, seed, optimize=_optimize_fold(k, subset))
         kernel = gp.kernel_
         oof[test] = model_mu[test] * np.exp(gp.predict(x[test]))
         report((k + 1) / (len(folds) + 1))

@@ -282,23 +282,16 @@ def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray,
         if kind == "constant":
             model = ScatterModel("constant", None, [0.5 * float(np.log(max(np.mean(rk * rk), 1e-24)))])
         elif kind == "step":
-            xk = x[keep]
-            profile = []
-            for split in np.unique(np.quantile(x, _SPLITS)):
-                below = xk < split
-                if below.sum() < _MIN_SIDE or (~below).sum() < _MIN_SIDE:
-                    continue
-                v = np.array([max(np.mean(rk[below] ** 2), 1e-24), max(np.mean(rk[~below] ** 2), 1e-24)])
-                nll = 0.5 * (below.sum() * np.log(v[0]) + (~below).sum() * np.log(v[1]))
-                sides = [float(below.sum()), float((~below).sum())]
-                profile.append((nll, float(split), 0.5 * np.log(v), sides))
-            if not profile:
+            profile = _step_profile(x[keep], rk, np.unique(np.quantile(x, _SPLITS)))
+            if profile is None:
                 return None
-            best = min(profile, key=lambda item: item[0])
-            near = [split for nll, split, _, _ in profile if nll <= best[0] + _PROFILE_DROP]
-            model = ScatterModel("step", column, [float(best[2][0]), float(best[2][1])], best[1],
-                                 range=[float(np.min(x)), float(np.max(x))], band=[min(near), max(near)],
-                                 rows=best[3])
+            nll, splits, log_sd, below = profile
+            best = int(np.argmin(nll))
+            near = splits[nll <= nll[best] + _PROFILE_DROP]
+            model = ScatterModel("step", column, [float(log_sd[best, 0]), float(log_sd[best, 1])],
+                                 float(splits[best]), range=[float(np.min(x)), float(np.max(x))],
+                                 band=[float(near.min()), float(near.max())],
+                                 rows=[float(below[best]), float(rk.size - below[best])])
         else:
             tx = np.log(x) if transform == "log" else x
             centre, scale = float(np.mean(tx)), float(np.std(tx))
@@ -319,6 +312,25 @@ def _fit_one(kind: str, column: str | None, x: np.ndarray | None, r: np.ndarray,
             break
         keep = new_keep
     return model
+
+
+def _step_profile(x: np.ndarray, r: np.ndarray, splits: np.ndarray):
+    """The profile likelihood of a step in the scatter at each split (rows with ``x < split`` below it),
+    for the splits leaving at least :data:`_MIN_SIDE` rows on each side: negative log-likelihood, the
+    splits, the log sd below and above, and the rows below; None when no split qualifies. One sort and
+    cumulative sums of the squares stand for a pass over the rows per split."""
+    order = np.argsort(x, kind="stable")
+    squares = np.concatenate([[0.0], np.cumsum(r[order] ** 2)])
+    below = np.searchsorted(x[order], splits, side="left")
+    above = r.size - below
+    ok = (below >= _MIN_SIDE) & (above >= _MIN_SIDE)
+    if not ok.any():
+        return None
+    below, above, splits = below[ok], above[ok], splits[ok]
+    variance = np.column_stack([np.maximum(squares[below] / below, 1e-24),
+                                np.maximum((squares[-1] - squares[below]) / above, 1e-24)])
+    nll = 0.5 * (below * np.log(variance[:, 0]) + above * np.log(variance[:, 1]))
+    return nll, splits, 0.5 * np.log(variance), below
 
 
 def _loglinear(t: np.ndarray, r2: np.ndarray) -> np.ndarray:

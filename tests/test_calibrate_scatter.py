@@ -119,3 +119,32 @@ def test_a_calibration_on_scatter_that_grows_with_the_load_covers_every_region_o
     assert all(0.9 <= v <= 0.98 for v in coverage), coverage
     width = np.log(p.mu_upper / p.mu_lower)
     assert np.median(width[regions[2]]) > 3 * np.median(width[regions[0]])
+
+
+def test_a_step_in_the_scatter_is_the_minimum_of_its_profile_likelihood_by_brute_force():
+    """Scatter 1 % below a coating thickness of 0.6 and 5 % above it, 900 rows (the choice runs on all of
+    them), Gaussian: no row beyond the outlier threshold. The fitted step is, over the candidate splits
+    (the column's 2-98 % quantiles, 200 of them, each leaving 8 rows or more on either side), the one of
+    least negative log-likelihood, recomputed here split by split with the rows' own means, its levels the
+    root mean squares on each side and its band the splits within half the chi-square 95 % point of it."""
+    rng = np.random.default_rng(73)
+    n = 900
+    x = rng.uniform(0.0, 1.0, n)
+    residual = rng.normal(0.0, 1.0, n) * np.where(x < 0.6, 0.01, 0.05)
+    model = fit_scatter({"coating_um": x}, residual)
+    assert (model.kind, model.column) == ("step", "coating_um")
+    profile = []
+    for split in np.unique(np.quantile(x, np.linspace(0.02, 0.98, 200))):
+        below = x < split
+        if min(below.sum(), (~below).sum()) < 8:
+            continue
+        low, high = np.mean(residual[below] ** 2), np.mean(residual[~below] ** 2)
+        profile.append((0.5 * (below.sum() * np.log(low) + (~below).sum() * np.log(high)), split, low, high,
+                        below.sum()))
+    nll, split, low, high, rows_below = min(profile, key=lambda item: item[0])
+    assert model.split == pytest.approx(split, rel=1e-12)
+    np.testing.assert_allclose(model.coefficients, [0.5 * np.log(low), 0.5 * np.log(high)], rtol=1e-10)
+    assert model.rows == [float(rows_below), float(n - rows_below)]
+    near = [s for value, s, *_ in profile if value <= nll + stats.chi2.ppf(0.95, 1) / 2]
+    assert model.band == pytest.approx([min(near), max(near)], rel=1e-12)
+    assert 0.55 < split < 0.65
