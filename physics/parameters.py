@@ -323,6 +323,10 @@ def validate(name: str, value: Any) -> np.ndarray:
     spec = PARAMETERS[name]
     if type(value) in (float, int) and spec.kind != "bool" and spec.accepts(value):
         return np.asarray(value, dtype=np.float64)
+    if isinstance(value, np.ndarray) and value.dtype.kind in "iuf" and spec.kind != "bool" and value.size:
+        array = value.astype(np.float64, copy=False)
+        if _accepted(spec, array, whole=value.dtype.kind != "f"):
+            return array  # a numeric array inside the range: the message below is written only for an error
     allowed = f"{spec.name} must be {spec.range_text()} [{spec.unit}]"
     if value is None:
         raise ValueError(f"{allowed}; got None (no value)")
