@@ -179,6 +179,9 @@ def _run_rounds(shifted: DesignProblem, envelope: Envelope, model: Model, object
     if certify is None and why:
         reason = f"{reason}; nor is its worst case at a design bounded: {why}" if reason else why
     bracket = None
+    # A round may return to an earlier round's design (the points added since did not move it): its
+    # bracket is the same deterministic computation, kept rather than repeated.
+    brackets: dict[tuple, CertifiedMax] = {}
     rounds, history, converged, timed_out = 0, [], False, False
     solved = None
     value, where = math.nan, None
@@ -193,7 +196,9 @@ def _run_rounds(shifted: DesignProblem, envelope: Envelope, model: Model, object
         on_set = float(set_model({k: np.array([v]) for k, v in design.items()})[0])
         if certify is not None:
             try:
-                bracket = certify(shifted, design, delta)
+                key = tuple(sorted((k, float(v)) for k, v in design.items()))
+                bracket = brackets[key] if key in brackets else brackets.setdefault(
+                    key, certify(shifted, design, delta))
                 value, where = bracket.value, bracket.point
             except BoundFailedError as exc:  # the model breaks the bound's premise: searched, and said so
                 certify, bracket = None, None
