@@ -102,6 +102,8 @@ class GroupEffect:
     noise_log: float = 0.0
     likelihoods: dict[str, float] = field(default_factory=dict)
     group_means: list[list[float]] = field(default_factory=list)
+    # new_group_variance by level: a function of the fields alone, asked at every prediction.
+    _new_variance: dict[float, float] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def n_groups(self) -> int:
@@ -121,6 +123,11 @@ class GroupEffect:
         [1]: the larger of the prediction rule ``tau^2 (1 + 1/G) (t_{G-1} / z)^2`` and the tolerance rule
         ``(tau_U^2 + var(m(tau_U^2))) (z_c / z)^2``, ``tau_U`` the upper bound of confidence ``level``
         (:meth:`spread_upper`), ``z_c`` the normal quantile of content ``1 - 2 (1 - level)``."""
+        if level not in self._new_variance:
+            self._new_variance[level] = self._new_group_variance(level)
+        return self._new_variance[level]
+
+    def _new_group_variance(self, level: float) -> float:
         g = max(self.n_groups, 2)
         # the quantiles as scipy.stats' norm.isf and t.isf compute them (-ndtri, -stdtrit: the same
         # numbers), without their argument handling: this runs at every prediction of a model with groups

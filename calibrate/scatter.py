@@ -45,6 +45,7 @@ the many others only noise.)
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -145,7 +146,7 @@ class ScatterModel:
 
     def _dof_factor(self, columns: Mapping[str, Any], shape: tuple[int, ...], level: float) -> np.ndarray:
         if self.kind == "constant" and self.form is not None:
-            return np.full(shape, float(allowance(self.form.dof, level)))
+            return np.full(shape, _scalar_allowance(float(self.form.dof), level))
         if self.kind == "loglinear" and len(self.covariance) == 4:
             t = self._standardized(columns, shape)
             (caa, cab), (_, cbb) = np.reshape(self.covariance, (2, 2))
@@ -153,7 +154,7 @@ class ScatterModel:
             return allowance(1.0 / (2.0 * variance), level)
         if self.kind != "step" or len(self.rows) != 2:
             return np.ones(shape)
-        below, above = (float(allowance(k - 1.0, level)) for k in self.rows)
+        below, above = (_scalar_allowance(k - 1.0, level) for k in self.rows)
         x = np.broadcast_to(np.asarray(columns[self.column], dtype=float), shape)
         lo, hi = self.band or [self.split, self.split]
         return np.where(x < lo, below, np.where(x >= hi, above, max(below, above)))
@@ -265,6 +266,13 @@ def allowance(dof: Any, level: float = 0.95) -> np.ndarray:
         return prediction
     z_content = float(stats.norm.isf((1.0 - content) / 2.0))
     return np.maximum(prediction, z_content * np.sqrt(nu / stats.chi2.ppf(1.0 - level, nu)) / z)
+
+
+@functools.lru_cache(maxsize=1024)
+def _scalar_allowance(dof: float, level: float) -> float:
+    """:func:`allowance` of one number of degrees of freedom, remembered: a model's constant or step
+    spread asks it at every prediction with the same numbers."""
+    return float(allowance(dof, level))
 
 
 def _pct(log_sd: float) -> str:
