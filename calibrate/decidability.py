@@ -42,8 +42,8 @@ from .rivals import where_they_part
 from .scores import CLOSE_MARGIN, CLOSE_Z, close_calls, within_one_se
 from .select import CandidateScore, Selection, preferred
 
-__all__ = ["CLOSE_MARGIN", "CLOSE_Z", "few_rows", "rows_for_terms", "rows_to_settle", "terms_supported",
-           "undecided"]
+__all__ = ["CLOSE_MARGIN", "CLOSE_Z", "few_rows", "rows_for_gp", "rows_for_terms", "rows_to_settle",
+           "terms_supported", "undecided"]
 
 # Where a term acts most: its effect there is at least this share of its largest. [1]
 _HALF = 0.5
@@ -77,6 +77,20 @@ def rows_for_terms(n_fit_parameters: int, folds: int, terms: int) -> int:
     keep = (1.0 - 1.0 / folds) ** 2
     return max(int(np.ceil((n_fit_parameters + 2 * terms + 2) / keep)),
                int(np.ceil(folds / (1.0 - 1.0 / folds))))
+
+
+def rows_for_gp(n_fit_parameters: int, folds: int, features: int) -> int:
+    """Fewest rows on which a GP discrepancy over ``features`` columns may join the model: its
+    hyperparameters (an amplitude, a length scale per column, the white noise) count as fitted values, in
+    pairs like a term's (:func:`rows_for_terms`). On fewer rows the marginal likelihood can put the white
+    noise at its bound and the GP through every row: an interval with no scatter in it. [1]
+
+    Examples
+    --------
+    >>> rows_for_gp(1, 4, 5), rows_for_gp(1, 5, 5), rows_for_gp(2, 5, 8)
+    (20, 18, 22)
+    """
+    return rows_for_terms(n_fit_parameters, folds, -(-(features + 2) // 2))
 
 
 def terms_supported(n_rows: int, n_fit_parameters: int, folds: int, most: int) -> int:

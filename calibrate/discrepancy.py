@@ -191,7 +191,8 @@ def residual_gp(dataset: Dataset, folds: list[np.ndarray], fold_mu: list[np.ndar
         ``errors_without``: the same without the GP; ``z``: paired z of the decrease of the squared
         held-out log error [1]; ``helps``: whether ``z`` exceeds the one-sided
         :data:`GP_HELPS_ALPHA` point; ``gp``: when it helps, the GP fitted on all inlier rows'
-        residual of the calibrated model (JSON-ready, see :func:`gp_state`), else None.
+        residual of the calibrated model (JSON-ready, see :func:`gp_state`), else None; ``features``:
+        the columns it reads.
     """
     report = progress or (lambda fraction: None)
     names, x, centres, scales = _features(dataset)
@@ -238,6 +239,7 @@ def residual_gp(dataset: Dataset, folds: list[np.ndarray], fold_mu: list[np.ndar
         "z": z,
         "helps": helps,
         "gp": state,
+        "features": names,
     }
 
 

@@ -39,7 +39,7 @@ from microbearing import physics
 
 from .censored import measured_rows, residual_variance
 from .data import Dataset, parse_csv, parse_rows
-from .decidability import few_rows, rows_for_terms, terms_supported, undecided
+from .decidability import few_rows, rows_for_gp, rows_for_terms, terms_supported, undecided
 from .discrepancy import gp_discrepancy, residual_gp
 from .domain import DataCloud, confounded_pairs, confounding_words
 from .fit import FitResult, check_fit_parameters, fit, predict_mu, prediction_errors
@@ -150,8 +150,10 @@ class CalibrationReport:
         ``calibrated_errors`` and ``calibrated_errors_without`` (nested held-out errors over the rows
         that are not outliers, with and without it), ``calibrated_z`` [1] (paired z of the decrease of
         the squared log error), ``chosen_terms_z`` [1] (the same test on the chosen terms refitted on
-        each outer fold, run when the first passes) and ``in_model`` (whether it is part of the
-        calibrated model: both tests passed).
+        each outer fold, run when the first passes), ``in_model`` (whether it is part of the
+        calibrated model: both tests passed, on at least
+        :func:`calibrate.decidability.rows_for_gp` rows) and ``rows_for_gp`` (those rows, when the
+        first test passed on fewer: the GP was held back; else None).
     candidates : list of dict
         The first step's candidates' cross-validated scores, the declared model first.
     decision : str
@@ -702,6 +704,7 @@ def format_report(declared: DataStage, candidates: CandidatesStage, selection: S
         "calibrated_z": leftover["z"],
         "chosen_terms_z": leftover["chosen_terms_z"],
         "in_model": leftover["helps"],
+        "rows_for_gp": leftover.get("rows_for_gp"),
     }
     effects = [
         term.describe(values, std)
@@ -808,6 +811,13 @@ def _warnings(declared: DataStage, uncertainty: UncertaintyStage, gp: Mapping[st
             f"{leftover['errors_without']['relative_rmse']:.3g}, z = {leftover['z']:.1f}): it is part of the "
             f"calibrated model, whose mean it corrects and whose intervals it widens where it is unsure"
         )
+    elif leftover.get("rows_for_gp"):
+        warnings.append(
+            f"a Gaussian-process discrepancy on what the terms leave predicted held-out rows better (z = "
+            f"{leftover['z']:.1f}), but {dataset.n_points} rows cannot weigh its "
+            f"{len(leftover['features']) + 2} hyperparameters (about {leftover['rows_for_gp']} rows would): "
+            f"it is not part of the model, whose intervals keep the held-out scatter"
+        )
     return warnings
 
 
@@ -826,6 +836,10 @@ def _confirm_gp(declared: DataStage, final: FitResult, leftover: dict[str, Any],
     """
     if not leftover["helps"]:
         return {**leftover, "chosen_terms_z": None}
+    needed = rows_for_gp(len(declared.fit_parameters), options.folds, len(leftover["features"]))
+    if int(np.sum(inliers)) < needed:
+        # Too few rows to weigh the GP's hyperparameters: it would pass through the rows (decidability).
+        return {**leftover, "helps": False, "gp": None, "chosen_terms_z": None, "rows_for_gp": needed}
     if final.terms:
         chosen = cross_validate(declared.dataset, declared.fit_parameters, final.terms, declared.outer,
                                 scale=final.scale, start=final.declared, start_terms=final.term_values,
