@@ -17,7 +17,8 @@ NOISE = 0.03
 
 
 def _draw(rng: np.random.Generator, n: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    c = {"balls": rng.choice([4.0, 6.0, 8.0], n), "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+    c = {"balls": rng.choice([4.0, 6.0, 8.0], n),
+         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
          "speed_m_s": rng.uniform(0.005, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.6, n),
          "temperature_C": rng.uniform(20.0, 40.0, n)}
     mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.65).mu
@@ -47,3 +48,22 @@ def test_eight_rows_keep_the_held_out_scatter_when_a_gp_would_pass_through_them(
     prediction = report.model.predict(fresh)
     covered = np.mean((prediction.mu_lower <= measured[8:]) & (measured[8:] <= prediction.mu_upper))
     assert covered >= 0.93, covered
+
+
+def test_the_api_says_the_gp_was_held_back(tmp_path):
+    """The same eight rows through ``POST /v1/calibrations``: the report names the rows the GP needed."""
+    from fastapi.testclient import TestClient
+    from jobs_helper import finished_job
+
+    from microbearing.service.app import create_app
+    from microbearing.service.settings import Settings
+
+    c, measured = _draw(np.random.default_rng(7), 8 + 400)  # the rows of the test above
+    rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(measured[i])} for i in range(8)]
+    with TestClient(create_app(Settings(data_dir=tmp_path))) as client:
+        response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"]})
+        assert response.status_code == 202, response.text
+        job = finished_job(client, response.headers["location"])
+        report = client.get(job["result_url"]).json()
+    assert report["discrepancy_gp"]["rows_for_gp"] == 20 and report["discrepancy_gp"]["in_model"] is False
+    assert report["model"]["discrepancy"] is None

@@ -186,6 +186,10 @@ class GPDiscrepancy(ResponseModel):
     chosen_terms_z: float | None = Field(default=None, description=(
         "Paired z of that GP's gain on the held-out rows of the chosen terms refitted on each outer fold "
         "[1]; null when the nested test did not pass (or for calibrations stored before this test)."))
+    rows_for_gp: int | None = Field(default=None, description=(
+        "Rows that could weigh that GP's hyperparameters (an amplitude, a length scale per column, the white "
+        "noise; counted like a term's fitted values) [1], when its nested test passed on fewer rows: it was "
+        "held back and the intervals keep the held-out scatter; null otherwise."))
 
 
 class FoldChoice(ResponseModel):
