@@ -798,7 +798,10 @@ def _warnings(declared: DataStage, uncertainty: UncertaintyStage, gp: Mapping[st
     dataset, leftover, error_after = declared.dataset, uncertainty.leftover, uncertainty.error_after
     warnings = check_plausible(dataset) + parameter_warnings(declared.baseline.full, uncertainty.final)
     warnings += code_columns(dataset)
-    if gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
+    # On fewer rows than weigh a GP's hyperparameters its held-out errors say nothing of what remains.
+    weighed = dataset.n_points >= rows_for_gp(len(declared.fit_parameters), len(declared.outer),
+                                              len(gp["features"]))
+    if weighed and gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
         warnings.append(
             f"a Gaussian-process discrepancy predicts held-out rows better than the calibrated model "
             f"(relative rmse {gp['errors']['relative_rmse']:.3g} vs {error_after['relative_rmse']:.3g}): "

@@ -67,3 +67,15 @@ def test_the_api_says_the_gp_was_held_back(tmp_path):
         report = client.get(job["result_url"]).json()
     assert report["discrepancy_gp"]["rows_for_gp"] == 20 and report["discrepancy_gp"]["in_model"] is False
     assert report["model"]["discrepancy"] is None
+
+
+def test_eight_rows_of_noise_are_not_said_to_hide_an_effect():
+    """The declared model's GP baseline on the same rows: its held-out error below the calibrated model's
+    used to add "something remains that no candidate term names" on pure noise; on fewer rows than weigh
+    the GP the report claims nothing either way (its few-rows item says the data cannot decide)."""
+    c, measured = _draw(np.random.default_rng(7), 8 + 400)
+    rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(measured[i])} for i in range(8)]
+    report = calibrate(parse_rows(rows), ["mu_pivot"], folds=4, make_plots=False)
+    assert report.discrepancy_gp["errors"]["relative_rmse"] < 0.9 * report.error_after["relative_rmse"]
+    assert not any("no candidate term names" in w for w in report.warnings)
+    assert any(u["kind"] == "few_rows" for u in report.undecided)
