@@ -323,43 +323,42 @@ def validate(name: str, value: Any) -> np.ndarray:
     spec = PARAMETERS[name]
     if type(value) in (float, int) and spec.kind != "bool" and spec.accepts(value):
         return np.asarray(value, dtype=np.float64)
-    if isinstance(value, np.ndarray) and value.dtype.kind in "iuf" and spec.kind != "bool" and value.size:
-        array = value.astype(np.float64, copy=False)
-        if _accepted(spec, array, whole=value.dtype.kind != "f"):
-            return array  # a numeric array inside the range: the message below is written only for an error
-    allowed = f"{spec.name} must be {spec.range_text()} [{spec.unit}]"
+
+    def allowed() -> str:  # written only for an error: every array input passes through here
+        return f"{spec.name} must be {spec.range_text()} [{spec.unit}]"
+
     if value is None:
-        raise ValueError(f"{allowed}; got None (no value)")
+        raise ValueError(f"{allowed()}; got None (no value)")
     try:
         given = np.asarray(value)
     except (TypeError, ValueError):  # ragged nesting
-        raise ValueError(f"{allowed}; got {_short_repr(value)}") from None
+        raise ValueError(f"{allowed()}; got {_short_repr(value)}") from None
     if spec.kind == "bool":
         if given.dtype != np.bool_:
-            raise ValueError(f"{allowed}; {_not_of_kind_text(given, 'a boolean')}")
+            raise ValueError(f"{allowed()}; {_not_of_kind_text(given, 'a boolean')}")
         return given
     if given.dtype == np.bool_:
-        raise ValueError(f"{allowed}; got a boolean {_short_repr(value)}")
+        raise ValueError(f"{allowed()}; got a boolean {_short_repr(value)}")
     if given.dtype.kind not in "iuf":  # strings, None among numbers, complex: never read as numbers
-        raise ValueError(f"{allowed}; {_not_of_kind_text(given, 'a number')}")
+        raise ValueError(f"{allowed()}; {_not_of_kind_text(given, 'a number')}")
     arr = given.astype(np.float64, copy=False)
     if arr.size and _accepted(spec, arr, whole=given.dtype.kind != "f"):
         return arr
     bad = ~np.isfinite(arr)
     if bad.any():
-        raise ValueError(f"{allowed} and finite; {_array_text(arr, bad)}")
+        raise ValueError(f"{allowed()} and finite; {_array_text(arr, bad)}")
     if spec.minimum is not None:
         bad = arr <= spec.minimum if spec.exclusive_minimum else arr < spec.minimum
         if bad.any():
-            raise ValueError(f"{allowed}; {_array_text(arr, bad)}")
+            raise ValueError(f"{allowed()}; {_array_text(arr, bad)}")
     if spec.maximum is not None:
         bad = arr >= spec.maximum if spec.exclusive_maximum else arr > spec.maximum
         if bad.any():
-            raise ValueError(f"{allowed}; {_array_text(arr, bad)}")
+            raise ValueError(f"{allowed()}; {_array_text(arr, bad)}")
     if spec.kind == "int":
         bad = arr != np.round(arr)
         if bad.any():
-            raise ValueError(f"{allowed}; {_array_text(arr, bad)}")
+            raise ValueError(f"{allowed()}; {_array_text(arr, bad)}")
     return arr
 
 
