@@ -40,7 +40,7 @@ from .fit import fit
 from .prose import in_sent_units
 from .rivals import where_they_part
 from .scores import CLOSE_MARGIN, CLOSE_Z, close_calls, within_one_se
-from .select import CandidateScore, Selection, preferred
+from .select import CandidateScore, Selection, preferred, search_data
 
 __all__ = ["CLOSE_MARGIN", "CLOSE_Z", "few_rows", "rows_for_gp", "rows_for_terms", "rows_to_settle",
            "terms_supported", "undecided"]
@@ -230,7 +230,7 @@ def undecided(
         (``driver``, ``range`` and ``data_range`` in the driver's unit, or the rivals' scan) and
         ``statement`` in words.
     """
-    searched = dataset if selection.rows.size == dataset.n_points else dataset.subset(selection.rows)
+    searched = search_data(dataset, selection.rows)
     n = searched.n_points
     found: list[dict[str, Any]] = []
     for step in selection.steps:

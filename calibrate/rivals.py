@@ -56,7 +56,7 @@ from .credibility import implausible
 from .data import Dataset
 from .fit import FitResult, fit, predict_mu
 from .scores import close_calls, preferred
-from .select import CandidateScore, Selection
+from .select import CandidateScore, Selection, search_data
 
 __all__ = ["MAX_CONFOUNDED_REFITS", "MAX_CONFOUNDED_RIVALS", "MAX_RIVALS", "RIVAL_SE", "Rival",
            "confounded_rival_scores", "describe_rival", "fit_rivals", "off_line_difference", "rival_json",
@@ -287,7 +287,7 @@ def fit_rivals(
     # a Kelvin law at z 2.98 against 3.07 needed, left out, and the model 50 % off where the runs were).
     close = close_calls(selection.steps[-1]) if selection.steps else []
     if close and len(rivals) < max_rivals:
-        searched = dataset if selection.rows.size == dataset.n_points else dataset.subset(selection.rows)
+        searched = search_data(dataset, selection.rows)
         best = preferred(searched, close)
         if best.term.label not in {r.term.label for r in rivals}:
             rival = _refit(dataset, fit_parameters, terms, final, convention, len(selection.steps) - 1,

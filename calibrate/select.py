@@ -109,6 +109,7 @@ __all__ = [
     "noise_test",
     "preferred",
     "scatter_weighted",
+    "search_data",
     "varying_columns",
 ]
 
@@ -155,6 +156,12 @@ def search_rows(n_points: int, max_rows: int, seed: int) -> np.ndarray:
     if n_points <= max_rows:
         return np.arange(n_points)
     return np.sort(np.random.default_rng(seed).choice(n_points, max_rows, replace=False))
+
+
+def search_data(dataset: Dataset, rows: np.ndarray) -> Dataset:
+    """The rows the search ran on (:func:`search_rows`, :attr:`Selection.rows`) as a dataset: the data
+    themselves when they are all of them."""
+    return dataset if rows.size == dataset.n_points else dataset.subset(rows)
 
 
 def varying_columns(dataset: Dataset) -> dict[str, np.ndarray]:
@@ -293,7 +300,7 @@ def forward_select(
             progress(fraction)
 
     rows = search_rows(dataset.n_points, options.max_rows, seed)
-    data = dataset if rows.size == dataset.n_points else dataset.subset(rows)
+    data = search_data(dataset, rows)
     fold_rows = design_folds(data, folds, seed)  # a design point's replicates in one fold
     declared_noise = data.mu_measured_std is not None
     rounds = 1 if declared_noise else max(int(options.scatter_rounds), 1)
