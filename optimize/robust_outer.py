@@ -197,8 +197,9 @@ def _run_rounds(shifted: DesignProblem, envelope: Envelope, model: Model, object
         if certify is not None:
             try:
                 key = tuple(sorted((k, float(v)) for k, v in design.items()))
-                bracket = brackets[key] if key in brackets else brackets.setdefault(
-                    key, certify(shifted, design, delta))
+                if key not in brackets:
+                    brackets[key] = certify(shifted, design, delta)
+                bracket = brackets[key]
                 value, where = bracket.value, bracket.point
             except BoundFailedError as exc:  # the model breaks the bound's premise: searched, and said so
                 certify, bracket = None, None
