@@ -82,6 +82,18 @@ class Prediction:
 
 
 @dataclass(frozen=True)
+class _Shared:
+    """What a calibrated model's interval and its rivals' share at the points (they have the same
+    discrepancy, scatter and data cloud): the discrepancy's shift of log μ and its variance, the scatter's
+    variance and the data cloud's distance ratio [1]."""
+
+    shift: np.ndarray
+    discrepancy_variance: np.ndarray
+    noise_variance: np.ndarray
+    cloud_score: np.ndarray
+
+
+@dataclass(frozen=True)
 class RivalModel:
     """A rival of the calibrated model: its terms with one replaced by a term that fits the data about as
     well (:mod:`calibrate.rivals`), refitted, with its own covariance.
@@ -332,12 +344,7 @@ class CalibratedModel:
             As :meth:`__call__`.
         """
         self.check_columns(points)
-        # A point that gives a fitted parameter at its fitted value, one number (an optimization's
-        # design carries the model's values), does not override it: its uncertainty stays in the
-        # interval, and a rival keeps its own value.
-        points = {name: value for name, value in points.items() if not (
-            name in self.fitted and np.ndim(value) == 0 and float(value) == self.fitted[name])}
-        points, labels = self.split_factors(points)
+        points, labels = self.split_factors(self._unmoved(points))
         values = [list(v) for _, v in self.terms]
         # The physics evaluated once serves μ and every step of a term's value in the gradient below (the
         # same numbers as evaluating it again; only a fitted value's step moves it)
@@ -347,8 +354,78 @@ class CalibratedModel:
         in_domain, warnings = self.domain_check(points) if domain else (None, [])
         if self.covariance is None or self.noise_std_log is None:
             return Prediction(mu * np.exp(shift), None, None, in_domain, warnings)
+        # What the model and its rivals share (the same discrepancy, scatter and data cloud), computed once.
+        shared = _Shared(shift, discrepancy_variance, self._noise_variance(points, mu.shape, level),
+                         self._cloud_score(points, mu.shape))
+        mu, lower, upper = self._interval(points, labels, level, mu, physics_mu, shared,
+                                          self.extrapolation_ratio(points, mu.shape))
+        for rival in self.rival_models():
+            # The envelope of the rivals' intervals (calibrate.rivals); a rival that cannot predict a
+            # point (a driver outside its law) leaves it to the others.
+            try:
+                _, other_lower, other_upper = rival._rival_interval(points, labels, level, shared)
+            except ValueError:
+                continue
+            ok = np.isfinite(other_lower) & np.isfinite(other_upper) & (other_lower > 0)
+            lower = np.where(ok, np.minimum(lower, other_lower), lower)
+            upper = np.where(ok, np.maximum(upper, other_upper), upper)
+        return Prediction(mu, lower, upper, in_domain, warnings)
+
+    def _unmoved(self, points: Mapping[str, Any]) -> dict[str, Any]:
+        """The points without a fitted parameter given at its fitted value, one number (an optimization's
+        design carries the model's values): that value's uncertainty stays in the interval, and a rival
+        keeps its own value."""
+        return {name: value for name, value in points.items() if not (
+            name in self.fitted and np.ndim(value) == 0 and float(value) == self.fitted[name])}
+
+    def _rival_interval(self, points: Mapping[str, Any], labels: Mapping[str, Any], level: float,
+                        shared: _Shared) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """μ and the interval of this model as a rival of the model whose ``shared`` pieces it reads
+        (:meth:`rival_models`: the same discrepancy, scatter and cloud, no column box, so no extrapolation
+        allowance of its own); what would change with its own fitted values is computed anew."""
+        self.check_columns({**points, **labels})
+        points = self._unmoved(points)
+        physics_mu = self._physics_mu(points)
+        values = [list(v) for _, v in self.terms]
+        mu = np.asarray(self._mu(points, self.fitted, values, physics_mu), dtype=float)
+        varying_scatter = self.scatter is not None and self.scatter.kind != "constant"
+        reads_fitted = set(self.fitted).intersection(
+            (*(self.discrepancy.features if self.discrepancy is not None else ()),
+             *(self.cloud.columns if self.cloud is not None else ()),
+             *((self.scatter.column,) if varying_scatter else ())))
+        if reads_fitted or mu.shape != shared.shift.shape:
+            shift, discrepancy_variance = self._discrepancy(points, mu.shape)
+            shared = _Shared(shift, discrepancy_variance, self._noise_variance(points, mu.shape, level),
+                             self._cloud_score(points, mu.shape))
+        if self.covariance is None or self.noise_std_log is None:
+            return mu * np.exp(shared.shift), np.full(mu.shape, np.nan), np.full(mu.shape, np.nan)
+        return self._interval(points, labels, level, mu, physics_mu, shared,
+                              self.extrapolation_ratio(points, mu.shape))
+
+    def _interval(self, points: Mapping[str, Any], labels: Mapping[str, Any], level: float, mu: np.ndarray,
+                  physics_mu: np.ndarray | None, shared: _Shared, extrapolation: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """μ with the discrepancy's and groups' shifts, and the interval's bounds [1], from μ of the terms
+        at the points and the pieces this model shares with its rivals."""
+        gradient, stepped = self._gradient(points, mu, physics_mu)
+        variance = np.einsum("i...,ij,j...->...", gradient, self.covariance, gradient)
+        group_shift, group_variance = self._group_terms(points, labels, mu.shape, level, (mu, stepped))
+        sigma = np.sqrt(np.clip(variance, 0.0, None) + shared.discrepancy_variance + group_variance
+                        + shared.noise_variance)
+        # Beyond the data cloud or a physics input's range the interval widens (:meth:`cloud_ratio`).
+        sigma = sigma * self.widening(np.maximum(shared.cloud_score, extrapolation))
+        z = float(-special.ndtri((1.0 - level) / 2.0))  # stats.norm.isf's number, without its overhead
+        mu = mu * np.exp(shared.shift + group_shift)
+        return mu, mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
+
+    def _gradient(self, points: Mapping[str, Any], mu: np.ndarray, physics_mu: np.ndarray | None
+                  ) -> tuple[np.ndarray, dict[str, tuple[float, np.ndarray]]]:
+        """The finite-difference gradient of log μ in the fitted and term values at the points [1], and μ
+        after each fitted value's step (its step and μ there; for the groups' sensitivities)."""
+        values = [list(v) for _, v in self.terms]
         flat = list(self.fitted.values()) + [x for v in values for x in v]
         gradient = np.zeros((len(flat), *mu.shape))
+        stepped: dict[str, tuple[float, np.ndarray]] = {}
         with np.errstate(all="ignore"):
             for j, x in enumerate(flat):
                 step = _GRADIENT_STEP * (abs(x) if x != 0 else 1.0)
@@ -361,30 +438,22 @@ class CalibratedModel:
                     rest = rest[len(v) :]
                 try:
                     known = physics_mu if j >= len(self.fitted) else None
-                    gradient[j] = (np.log(self._mu(points, fitted, term_values, known)) - np.log(mu)) / step
+                    moved = self._mu(points, fitted, term_values, known)
+                    if j < len(self.fitted):
+                        stepped[list(self.fitted)[j]] = (step, moved)
+                    gradient[j] = (np.log(moved) - np.log(mu)) / step
                 except ValueError:  # the step left a physics input's range: that direction is not varied
                     gradient[j] = 0.0
-        gradient = np.where(np.isfinite(gradient), gradient, 0.0)
-        variance = np.einsum("i...,ij,j...->...", gradient, self.covariance, gradient)
-        group_shift, group_variance = self._group_terms(points, labels, mu.shape, level)
-        sigma = np.sqrt(np.clip(variance, 0.0, None) + discrepancy_variance + group_variance
-                        + self._noise_variance(points, mu.shape, level))
-        # Beyond the data cloud or a physics input's range the interval widens (:meth:`cloud_ratio`).
-        sigma = sigma * self.widening(self.cloud_ratio(points, mu.shape))
-        z = float(-special.ndtri((1.0 - level) / 2.0))  # stats.norm.isf's number, without its overhead
-        mu = mu * np.exp(shift + group_shift)
-        lower, upper = mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
-        for rival in self.rival_models():
-            # The envelope of the rivals' intervals (calibrate.rivals); a rival that cannot predict a
-            # point (a driver outside its law) leaves it to the others.
-            try:
-                other = rival.predict({**points, **labels}, level)
-            except ValueError:
-                continue
-            ok = np.isfinite(other.mu_lower) & np.isfinite(other.mu_upper) & (other.mu_lower > 0)
-            lower = np.where(ok, np.minimum(lower, other.mu_lower), lower)
-            upper = np.where(ok, np.maximum(upper, other.mu_upper), upper)
-        return Prediction(mu, lower, upper, in_domain, warnings)
+        return np.where(np.isfinite(gradient), gradient, 0.0), stepped
+
+    def _cloud_score(self, points: Mapping[str, Any], shape) -> np.ndarray:
+        """The data cloud's distance ratio at the points [1] (zeros without a cloud): :meth:`cloud_ratio`
+        without the extrapolation allowance, which a rival (no column box) does not add."""
+        if self.cloud is None:
+            return np.zeros(shape)
+        points = {k: v for k, v in points.items() if k not in self.factors}
+        columns = {k: v for k, v in self.columns_at(points).items() if k in points or k in physics.PARAMETERS}
+        return self.cloud.score(columns, shape)[0]
 
     def rival_models(self) -> list[CalibratedModel]:
         """Each rival as a model of its own (same fixed values, scatter, groups, data cloud and
@@ -429,10 +498,12 @@ class CalibratedModel:
         return np.square(float(self.noise_std_log or 0.0) * factor) * np.ones(shape)
 
     def _group_terms(self, points: Mapping[str, Any], labels: Mapping[str, Any], shape,
-                     level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+                     level: float = 0.95, known: tuple[np.ndarray, Mapping[str, tuple[float, np.ndarray]]]
+                     | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Shift of log μ by the groups' levels and its variance at the points [1] (see :attr:`groups`);
         the sensitivity to a group's parameter is taken where the parameter acts, which may be a value
-        the point gives."""
+        the point gives. ``known``: μ at the points and μ after each fitted value's step (its step and μ,
+        :meth:`_gradient`), which the sensitivity reads instead of evaluating them again."""
         shift, variance = np.zeros(shape), np.zeros(shape)
         for group in self.groups:
             if group.parameter == "mu" or group.parameter not in self.fitted:
@@ -445,9 +516,11 @@ class CalibratedModel:
                 step = _GRADIENT_STEP * np.maximum(np.abs(value), 1e-12)
                 values = [v for _, v in self.terms]
                 with np.errstate(all="ignore"):
-                    base = np.log(self._mu(points, self.fitted, values))
+                    base = np.log(self._mu(points, self.fitted, values) if known is None else known[0])
                     if name in points:
                         moved = np.log(self._mu({**points, name: value + step}, self.fitted, values))
+                    elif known is not None and name in known[1] and known[1][name][0] == float(step):
+                        moved = np.log(known[1][name][1])
                     else:
                         moved = np.log(self._mu(points, {**self.fitted, name: value + step}, values))
                 s = np.where(np.isfinite(moved - base), (moved - base) / step * value, 1.0)
@@ -479,12 +552,7 @@ class CalibratedModel:
         if shape is None:
             shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
         ratio = self.extrapolation_ratio(points, shape)
-        if self.cloud is None:
-            return ratio
-        columns = {k: v for k, v in self.columns_at(points).items()
-                   if k in points or k in physics.PARAMETERS}
-        score, _ = self.cloud.score(columns, shape)
-        return np.maximum(score, ratio)
+        return ratio if self.cloud is None else np.maximum(self._cloud_score(points, shape), ratio)
 
     def extrapolation_inputs(self) -> dict[str, tuple[float, float]]:
         """The physics inputs the data varied (numeric columns of the domain whose values differ), each
