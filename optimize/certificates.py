@@ -23,8 +23,8 @@ from .envelope_bound import (
     BOUND_RTOL,
     MAX_BOXES,
     BoundFailedError,
+    BranchAndBound,
     CertifiedMax,
-    certified_max,
     mu_box_bound,
     term_pieces,
 )
@@ -412,19 +412,19 @@ def certified_design(problem: DesignProblem, envelope: Envelope, model: Model, r
 
 
 def certifier(envelope: Envelope, model: Model, objective: str
-              ) -> tuple[Callable[[DesignProblem, Mapping[str, Any], float], CertifiedMax] | None, str]:
-    """What brackets the worst objective at a design (problem, design in θ', shift; ``rtol`` optional), or
-    None and why not."""
+              ) -> tuple[Callable[[DesignProblem, Mapping[str, Any], float], BranchAndBound] | None, str]:
+    """What opens the bracket of the worst objective at a design (problem, design in θ', shift; ``rtol``
+    optional: its :meth:`BranchAndBound.run` brackets it), or None and why not."""
     if objective == "mu":
         pieces, why = term_pieces(model)
         if pieces is None:
             return None, why
-        return (lambda problem, design, shift, **rtol: certified_search(problem, envelope, model, pieces,
-                                                                         design, shift, **rtol)), ""
+        return (lambda problem, design, shift, **rtol: mu_bracket(problem, envelope, model, pieces,
+                                                                   design, shift, **rtol)), ""
     structures, why = interval_structures(model)
     if structures is None:
         return None, why
-    return (lambda problem, design, shift, **options: certified_upper_search(
+    return (lambda problem, design, shift, **options: upper_bracket(
         problem, envelope, model, structures, design, shift, **{"rtol": BRACKET_RTOL, **options})), ""
 
 
@@ -432,6 +432,13 @@ def certified_upper_search(problem: DesignProblem, envelope: Envelope, model: Mo
                            design: Mapping[str, Any], shift: float, rtol: float | None = None,
                            time_limit_s: float = math.inf) -> CertifiedMax:
     """The worst mu_upper over the envelope at a design (angle θ' = θ + ``shift``), bracketed."""
+    return upper_bracket(problem, envelope, model, structures, design, shift, rtol).run(
+        time_limit_s=time_limit_s)
+
+
+def upper_bracket(problem: DesignProblem, envelope: Envelope, model: Model, structures: list,
+                  design: Mapping[str, Any], shift: float, rtol: float | None = None) -> BranchAndBound:
+    """The branch and bound of :func:`certified_upper_search`, opened (:meth:`BranchAndBound.run` runs it)."""
     balls, load = float(design["balls"]), float(design["load_N"])
     theta = float(design["groove_angle_deg"]) - shift
     calibrated = model.calibrated
@@ -449,13 +456,19 @@ def certified_upper_search(problem: DesignProblem, envelope: Envelope, model: Mo
     bound = mu_upper_box_bound(structures, physics_fn, envelope, {"balls": balls, "load_N": load},
                                float(stats.norm.isf(0.025)), calibrated,
                                model_inputs_fn(problem, model, balls, theta, load), {**problem.fixed})
-    return certified_max(bound, evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
-                         rtol=rtol or INTERVAL_RTOL, max_boxes=UPPER_MAX_BOXES, time_limit_s=time_limit_s)
+    return BranchAndBound(bound, evaluator(problem, envelope, model, "mu_upper", design, shift), envelope,
+                          rtol=rtol or INTERVAL_RTOL, max_boxes=UPPER_MAX_BOXES)
 
 
 def certified_search(problem: DesignProblem, envelope: Envelope, model: Model, pieces: list,
                      design: Mapping[str, Any], shift: float, rtol: float | None = None) -> CertifiedMax:
     """The worst μ over the envelope at a design (angle θ' = θ + ``shift``), bracketed by branch and bound."""
+    return mu_bracket(problem, envelope, model, pieces, design, shift, rtol).run()
+
+
+def mu_bracket(problem: DesignProblem, envelope: Envelope, model: Model, pieces: list,
+               design: Mapping[str, Any], shift: float, rtol: float | None = None) -> BranchAndBound:
+    """The branch and bound of :func:`certified_search`, opened (:meth:`BranchAndBound.run` runs it)."""
     balls, load = float(design["balls"]), float(design["load_N"])
     theta = float(design["groove_angle_deg"]) - shift
 
@@ -466,8 +479,8 @@ def certified_search(problem: DesignProblem, envelope: Envelope, model: Model, p
 
     # The values the drifts start from: the model's own (in problem.fixed, with_model_values), else defaults.
     base = {**physics.defaults(), **problem.fixed}
-    return certified_max(mu_box_bound(pieces, physics_mu, envelope, {"balls": balls, "load_N": load},
-                                      model.calibrated, base,
-                                      model_inputs_fn(problem, model, balls, theta, load)),
-                         evaluator(problem, envelope, model, "mu", design, shift), envelope,
-                         rtol=rtol or BOUND_RTOL)
+    return BranchAndBound(mu_box_bound(pieces, physics_mu, envelope, {"balls": balls, "load_N": load},
+                                       model.calibrated, base,
+                                       model_inputs_fn(problem, model, balls, theta, load)),
+                          evaluator(problem, envelope, model, "mu", design, shift), envelope,
+                          rtol=rtol or BOUND_RTOL)

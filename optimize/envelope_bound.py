@@ -77,8 +77,8 @@ from microbearing.physics.effects import PARAMETER_SHARES
 
 from . import gp_boxes
 
-__all__ = ["BOUND_RTOL", "MAX_BOXES", "BoundFailedError", "CertifiedMax", "Piece", "certified_max",
-           "drift_ranges", "group_shift", "interval_floor", "mu_box_bound", "term_pieces"]
+__all__ = ["BOUND_RTOL", "MAX_BOXES", "BoundFailedError", "BranchAndBound", "CertifiedMax", "Piece",
+           "certified_max", "drift_ranges", "group_shift", "interval_floor", "mu_box_bound", "term_pieces"]
 
 #: Relative distance between the certified upper bound and the value found at which branching stops. [1]
 BOUND_RTOL = 1e-7
@@ -556,87 +556,142 @@ def certified_max(bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np
         When the function exceeds a box's bound at a point of the box (checked at every point evaluated):
         the bound's premise does not hold for this model, and nothing is certified.
     """
-    start = time.perf_counter()
-    boxes = _Boxes(envelope, {"balls": 0.0, "load_N": 0.0})
-    names, root_lo, root_hi, span = boxes.names, boxes.root_lo, boxes.root_hi, boxes.span
+    return BranchAndBound(bound, evaluate, envelope, rtol, max_boxes).run(time_limit_s=time_limit_s)
 
-    def points_of(rows: np.ndarray) -> list[dict[str, Any]]:
-        return [envelope.point(dict(zip(names, row, strict=True))) for row in rows]
 
-    def evaluated(rows: np.ndarray) -> np.ndarray:
+class BranchAndBound:
+    """The branch and bound of :func:`certified_max`, run in stages: :meth:`run` continues where the last
+    run stopped, so a bracket run first to a few boxes (``final`` false) and then to its box limit is the
+    same computation, box for box, as one run to the limit.
+
+    A robust design's rounds bracket every design they visit first to a share of the boxes (enough to find
+    its worst point) and only the design they end on to the limit (:mod:`optimize.robust_outer`).
+
+    Parameters
+    ----------
+    bound, evaluate, envelope, rtol
+        As for :func:`certified_max`.
+    max_boxes : int, default :data:`MAX_BOXES`
+        Most boxes bounded by a final run. [1]
+
+    Raises
+    ------
+    BoundFailedError
+        As :func:`certified_max` (here or in :meth:`run`).
+    """
+
+    def __init__(self, bound: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+                 evaluate: Callable[[list[dict[str, Any]]], np.ndarray], envelope: Any,
+                 rtol: float = BOUND_RTOL, max_boxes: int = MAX_BOXES) -> None:
+        self.max_boxes, self._rtol, self._bound, self._evaluate = max_boxes, rtol, bound, evaluate
+        self._envelope = envelope
+        boxes = _Boxes(envelope, {"balls": 0.0, "load_N": 0.0})
+        self._names, self._span = boxes.names, boxes.span
+        self._root_lo, self._root_hi = root_lo, root_hi = boxes.root_lo, boxes.root_hi
+        upper, peak = bound(root_lo[None, :], root_hi[None, :])
+        corners = np.array(list(itertools.product(*zip(root_lo, root_hi, strict=True))), dtype=float)
+        rows = (np.vstack([corners, 0.5 * (root_lo + root_hi)[None, :], peak]) if self._names
+                else np.zeros((1, 0)))
+        values = self._evaluated(rows)
+        if np.any(values > float(upper[0]) * (1.0 + 1e-9)):
+            raise BoundFailedError("the model's value above the envelope's bound")
+        best_index = int(np.argmax(values))
+        self._best_value, self._best_row = float(values[best_index]), rows[best_index]
+        self._root_upper = float(upper[0])
+        # (-bound, insertion order, lo, hi) of the boxes still open: the largest bound first
+        self._heap: list[tuple[float, int, np.ndarray, np.ndarray]] = [(-self._root_upper, 0, root_lo,
+                                                                        root_hi)]
+        self._counter, self._pruned_max, self.boxes = 1, -math.inf, 1
+        self._polish_at = list(_POLISH_AT)
+        self._final: CertifiedMax | None = None
+
+    def _points_of(self, rows: np.ndarray) -> list[dict[str, Any]]:
+        return [self._envelope.point(dict(zip(self._names, row, strict=True))) for row in rows]
+
+    def _evaluated(self, rows: np.ndarray) -> np.ndarray:
         with np.errstate(all="ignore"):
-            values = np.asarray(evaluate(points_of(rows)), dtype=float)
+            values = np.asarray(self._evaluate(self._points_of(rows)), dtype=float)
         return np.where(np.isfinite(values), values, -np.inf)
 
-    upper, peak = bound(root_lo[None, :], root_hi[None, :])
-    corners = np.array(list(itertools.product(*zip(root_lo, root_hi, strict=True))), dtype=float)
-    rows = np.vstack([corners, 0.5 * (root_lo + root_hi)[None, :], peak]) if names else np.zeros((1, 0))
-    values = evaluated(rows)
-    if np.any(values > float(upper[0]) * (1.0 + 1e-9)):
-        raise BoundFailedError("the model's value above the envelope's bound")
-    best_index = int(np.argmax(values))
-    best_value, best_row = float(values[best_index]), rows[best_index]
-    if not names:
-        return CertifiedMax(best_value, max(best_value, float(upper[0])), points_of(best_row[None, :])[0], 1,
-                            True)
-    heap: list[tuple[float, int, np.ndarray, np.ndarray]] = [(-float(upper[0]), 0, root_lo, root_hi)]
-    counter, pruned_max, count = 1, -math.inf, 1
-    complete = True
-    polish_at = list(_POLISH_AT)
-
-    def polish() -> None:
+    def _polish(self) -> None:
         """A bounded quasi-Newton ascent from the best point found (a better value prunes more boxes)."""
-        nonlocal best_value, best_row
-        value, row = _ascent(evaluated, best_row, root_lo, root_hi)
-        if value > best_value:
-            best_value, best_row = value, row
+        value, row = _ascent(self._evaluated, self._best_row, self._root_lo, self._root_hi)
+        if value > self._best_value:
+            self._best_value, self._best_row = value, row
 
-    while heap:
-        if polish_at and count >= polish_at[0]:
-            polish_at.pop(0)
-            polish()
-        if -heap[0][0] <= best_value * (1.0 + rtol):
-            break
-        if count >= max_boxes or time.perf_counter() - start > time_limit_s:
-            polish()
-            complete = -heap[0][0] <= best_value * (1.0 + rtol)
-            break
+    def _closed(self) -> bool:
+        return not self._heap or -self._heap[0][0] <= self._best_value * (1.0 + self._rtol)
+
+    def run(self, max_boxes: int | None = None, time_limit_s: float = math.inf,
+            final: bool = True) -> CertifiedMax:
+        """Branch until the bracket closes to ``rtol`` or ``max_boxes`` (default :attr:`max_boxes`) are
+        bounded or ``time_limit_s`` [s] has passed in this run, and return the bracket as it stands. A
+        final run polishes the best point at its limit; a run that is not final leaves that to a later
+        run, which continues the same sequence of boxes."""
+        if self._final is not None:
+            return self._final
+        if not self._names:
+            self._final = CertifiedMax(self._best_value, max(self._best_value, self._root_upper),
+                                       self._points_of(self._best_row[None, :])[0], 1, True)
+            return self._final
+        start, limit = time.perf_counter(), self.max_boxes if max_boxes is None else max_boxes
+        complete, ended = True, True
+        while self._heap:
+            if self._polish_at and self.boxes >= self._polish_at[0]:
+                self._polish_at.pop(0)
+                self._polish()
+            if -self._heap[0][0] <= self._best_value * (1.0 + self._rtol):
+                break
+            if self.boxes >= limit or time.perf_counter() - start > time_limit_s:
+                if final:
+                    self._polish()
+                complete, ended = self._closed(), final
+                break
+            self._branch()
+        left = -self._heap[0][0] if self._heap else -math.inf
+        bracket = CertifiedMax(self._best_value, max(self._best_value, self._pruned_max, left),
+                               self._points_of(self._best_row[None, :])[0], self.boxes, complete)
+        if ended:
+            self._final = bracket
+        return bracket
+
+    def _branch(self) -> None:
+        """Split the batch of boxes of largest bound, bound the halves, evaluate the function in the most
+        promising ones and keep the halves that may hold a larger value."""
+        heap, rtol = self._heap, self._rtol
         batch = [heapq.heappop(heap) for _ in range(min(_BATCH, len(heap)))]
         lo = np.array([b[2] for b in batch])
         hi = np.array([b[3] for b in batch])
         index = np.arange(len(lo))
-        axis = np.argmax((hi - lo) / span, axis=1)
+        axis = np.argmax((hi - lo) / self._span, axis=1)
         middle = 0.5 * (lo[index, axis] + hi[index, axis])
         left_hi, right_lo = hi.copy(), lo.copy()
         left_hi[index, axis] = middle
         right_lo[index, axis] = middle
         child_lo, child_hi = np.vstack([lo, right_lo]), np.vstack([left_hi, hi])
-        upper, peak = bound(child_lo, child_hi)
-        count += len(child_lo)
-        # The model itself is asked only in the boxes of largest bound (where a larger value may be).
+        upper, peak = self._bound(child_lo, child_hi)
+        self.boxes += len(child_lo)
+        # The function itself is asked only in the boxes of largest bound (where a larger value may be).
         n = len(child_lo)
         top = np.argsort(-upper)[:_EVALUATED]
         layers = len(peak) // n
         rows = np.vstack([0.5 * (child_lo[top] + child_hi[top]),
                           *(peak[layer * n + top] for layer in range(layers))])
-        values = evaluated(rows)
+        values = self._evaluated(rows)
         # Every evaluated point lies in its box: a value above the box's bound means the bound is wrong.
         owner = np.tile(upper[top], len(rows) // len(top))
         if np.any(values > owner * (1.0 + 1e-9)):
             excess = float(np.max(values - owner))
             raise BoundFailedError(f"the model's value {excess:.3g} above a box's bound")
         found = int(np.argmax(values))
-        if values[found] > best_value:
-            best_value, best_row = float(values[found]), rows[found]
+        if values[found] > self._best_value:
+            self._best_value, self._best_row = float(values[found]), rows[found]
         for u, lo_i, hi_i in zip(upper, child_lo, child_hi, strict=True):
-            if u > best_value * (1.0 + rtol):
-                heapq.heappush(heap, (-float(u), counter, lo_i, hi_i))
-                counter += 1
+            if u > self._best_value * (1.0 + rtol):
+                heapq.heappush(heap, (-float(u), self._counter, lo_i, hi_i))
+                self._counter += 1
             else:
-                pruned_max = max(pruned_max, float(u))
-    left = -heap[0][0] if heap else -math.inf
-    certified = max(best_value, pruned_max, left)
-    return CertifiedMax(best_value, certified, points_of(best_row[None, :])[0], count, complete)
+                self._pruned_max = max(self._pruned_max, float(u))
 
 
 def _ascent(evaluated: Callable[[np.ndarray], np.ndarray], row: np.ndarray, lo: np.ndarray,

@@ -740,3 +740,26 @@ def test_the_lower_bound_of_mu_upper_takes_the_clouds_least_widening_and_no_grid
     # and the bound is above the scatter's alone (exp(1.96 x 0.02) times the proven least worst mu)
     least_mu = robust.optimize_robust(problem, ENVELOPE, model, objective="mu").proof["lower_bound"]
     assert proof["lower_bound"] > least_mu * np.exp(1.96 * 0.02) * (1 + 1e-3)
+
+
+def test_a_bracket_run_in_stages_is_the_one_run_box_for_box():
+    # A robust design's rounds bracket each design first to a share of the boxes and then on to the limit
+    # (optimize.robust_outer): the second run continues the first, so the bracket is the same, to the bit,
+    # as one run to the limit; the first run's bracket is wider and holds the final one.
+    model = _interval_model()
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                                      Constraints()), model)
+    structures, reason = interval_structures(model)
+    assert structures is not None, reason
+    design = {"balls": 4.0, "groove_angle_deg": 50.0, "load_N": 0.005}
+    whole = certified_upper_search(problem, ENVELOPE, model, structures, design, 0.0)
+    staged = certificates.upper_bracket(problem, ENVELOPE, model, structures, design, 0.0)
+    first = staged.run(2000, final=False)
+    assert first.boxes < whole.boxes and not first.complete
+    assert first.upper_bound >= whole.upper_bound and first.value <= whole.value
+    assert staged.run(2000, final=False) == first  # asked again at the same share: nothing more is done
+    last = staged.run()
+    assert (last.value, last.upper_bound, last.boxes, last.complete) == (
+        whole.value, whole.upper_bound, whole.boxes, whole.complete)
+    assert last.point == whole.point
+    assert staged.run(10) is last  # a final bracket stands
