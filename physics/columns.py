@@ -35,8 +35,8 @@ from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
            "Reading", "Span", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
-           "input_slips", "match_column", "read_name", "read_span", "slip", "unit_of", "unknown_column",
-           "whole_number"]
+           "input_slips", "match_column", "read_name", "read_slip", "read_span", "slip", "unit_of",
+           "unknown_column", "whole_number"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -121,7 +121,8 @@ _UNIT_WORDS = {
 _UNREAD_TEMPERATURES = {"degF", "degR"}
 # Words of a condition's name that state a unit; dropped when brackets give the unit, so that the terms,
 # which read units from names (pct, C, K), do not convert twice.
-_DROPPED_WORDS = {"pct", "percent", "c", "k", "degc", "kelvin", "celsius", "f", "degf", "fahrenheit"}
+_DROPPED_WORDS = {"pct", "percent", "c", "k", "degc", "kelvin", "celsius", "f", "degf", "fahrenheit", "r",
+                  "degr", "rankine"}
 # Unit symbols of the physics names' suffixes (load_N -> N, speed_m_s -> m/s, ...).
 _SUFFIXES = {"N": "N", "m/s": "m_s", "deg": "deg", "m": "m", "J/m^2": "J_m2", "N/m": "N_m", "Pa*s": "Pa_s",
              "1/Pa": "1_Pa", "Pa": "Pa"}
@@ -308,7 +309,13 @@ def _condition_base(text: str) -> str:
 
 
 def _condition_of(name: str) -> Condition | None:
-    return next((c for c in CONDITIONS.values() if c.matches(name)), None)
+    found = next((c for c in CONDITIONS.values() if c.matches(name)), None)
+    if found is None:
+        # T with a temperature unit (T [K] read as T_K, T_degC): a temperature, though T alone is no name
+        words = _words(name)
+        if "t" in words and any(w in _UNIT_WORDS["temperature_K"] for w in words if w != "t"):
+            return CONDITIONS["temperature_K"]
+    return found
 
 
 def counted_from_zero(name: str) -> bool:
@@ -394,6 +401,8 @@ def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
                                 f"{', '.join(u for u, _ in _SI_BY_DIMENSION.values())}, or as a "
                                 f"dimensionless number")
     si, suffix = _SI_BY_DIMENSION[dimension]
+    if dimension == "[temperature]" and _words(base) == ["t"]:
+        base = "temperature"  # T [K]: the temperature, as the terms' drivers read it
     return _converter(sent, f"{base}_{suffix}", unit, si)
 
 
@@ -604,6 +613,32 @@ def slip(name: str, values: Any) -> str | None:
     if condition is not None and condition.name == "temperature_K":
         return _temperature_slip(name, array)
     return None
+
+
+def read_slip(reading: Reading, values: Any) -> str | None:
+    """The unit slip that values sent under ``reading.sent`` look like (:func:`slip`), judged in the unit
+    the name sent states and then in the unit of the column they are read as; None when they look right.
+
+    A value is judged as sent before it is converted: 27 sent as ``temperature_K`` to a model whose column
+    is ``temp_degC`` is degC under a kelvin name (the upload's rule for that column), though -246 degC,
+    what it converts to, is no slip of the model's column.
+
+    >>> from microbearing.physics.columns import match_column
+    >>> read_slip(match_column("temperature_K", ["temp_degC"]), [27.0])[:48]
+    'temperature_K runs 27 to 27 K, below 150 K: valu'
+    >>> read_slip(match_column("relative humidity [%]", ["RH"]), [50.0]) is None
+    True
+    """
+    array = np.asarray(values)
+    if array.size == 0 or array.dtype.kind not in "iuf":
+        return None
+    array = array.astype(float)
+    try:
+        first = read_name(reading.sent)
+    except ColumnError:
+        first = None
+    message = None if first is None else slip(first.name, first.convert(array))
+    return message if message is not None else slip(reading.name, reading.convert(array))
 
 
 def input_slips(inputs: Mapping[str, Any]) -> list[str]:
