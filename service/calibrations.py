@@ -25,7 +25,7 @@ from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 from microbearing.calibrate.data import MU_MEASURED
 from microbearing.calibrate.tabular import TableError
-from microbearing.physics.columns import ColumnError, match_column, slip, unknown_column
+from microbearing.physics.columns import ColumnError, Reading, match_column, read_slip, unknown_column
 from microbearing.physics.model import NOT_FINITE
 
 from .evaluation import column_arrays
@@ -330,25 +330,28 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     factors = model.calibrated.factors
     known = [*model.conditions, *factors]
     read: dict[str, Any] = {}
-    sent_as: dict[str, str] = {}
+    readings: dict[str, Reading] = {}
     for sent, value in conditions.items():
-        name, converted = sent, value
+        reading = Reading(sent, sent)
         if sent not in known and sent not in physics.PARAMETERS:
             try:
                 reading = match_column(sent, known)
-                name, converted = reading.name, read_value(reading, value)
             except ColumnError:
                 pass  # check_conditions names it, with the model's columns
+        name = reading.name
         if name in read:
-            raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": f"{sent_as[name]!r} is "
-                                       f"read as {name} too; keep one"}])
-        read[name], sent_as[name] = converted, sent
+            raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": (
+                f"{readings[name].sent!r} is read as {name} too; keep one")}])
+        read[name], readings[name] = read_value(reading, value), reading
     items = []
     for name, value in read.items():
-        message = None if name in factors or _has_text(value) else slip(name, value)
+        # judged as sent (27 under a kelvin name is degC) and as read, every value of a range
+        sent_values = conditions[readings[name].sent]
+        message = (None if name in factors or _has_text(value)
+                   else read_slip(readings[name], read_value(Reading("", ""), sent_values)))
         if message is not None:
-            items.append({"pointer": f"{pointer}/{sent_as[name]}", "detail": f"{message} (a key may carry "
-                          f"its unit, as the upload's header: e.g. 'relative humidity [%]', "
+            items.append({"pointer": f"{pointer}/{readings[name].sent}", "detail": f"{message} (a key may "
+                          f"carry its unit, as the upload's header: e.g. 'relative humidity [%]', "
                           f"'temperature [degC]')"})
     if items:
         raise validation_problem(items)

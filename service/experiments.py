@@ -26,6 +26,7 @@ from microbearing.calibrate.experiments import (
     rival_models,
     rival_terms,
 )
+from microbearing.physics.columns import ColumnError, Reading, match_column, read_slip
 
 from .calibrations import MODEL_PREFIX, load_calibration, stored_dataset
 from .problems import ProblemError, validation_problem
@@ -71,6 +72,56 @@ def _space(columns: Mapping[str, Any] | None) -> dict[str, Any] | None:
     return {k: (v.model_dump() if hasattr(v, "model_dump") else list(v)) for k, v in columns.items()}
 
 
+def _span_values(column: Any) -> list[float]:
+    """The numbers of a space's column (a range's ends, a set's values) or of a fixed value."""
+    if isinstance(column, Mapping):
+        given = column["values"] if "values" in column else [column.get("low"), column.get("high")]
+    else:
+        given = column if isinstance(column, list | tuple) else [column]
+    return [v for v in given if isinstance(v, int | float) and not isinstance(v, bool)]
+
+
+def _converted(reading: Reading, column: Any) -> Any:
+    """A space's column (or a fixed value) in the unit of the column ``reading`` reads it as."""
+    if not reading.reading or isinstance(column, bool):
+        return column
+    if isinstance(column, Mapping):
+        if "values" in column:
+            return {**column, "values": [reading.convert(v) for v in column["values"]]}
+        return {**column, "low": reading.convert(column["low"]), "high": reading.convert(column["high"])}
+    if isinstance(column, list | tuple):
+        return [reading.convert(v) for v in column]
+    return reading.convert(column)
+
+
+def _model_columns(model: CalibratedModel, columns: Mapping[str, Any] | None, pointer: str
+                   ) -> dict[str, Any] | None:
+    """A space's, envelope's or fixed values' columns as the calibrated model's, as /v1/friction reads its
+    conditions: a condition under the upload's header or another unit of a column's quantity is converted
+    (:func:`physics.columns.match_column`), and a column whose values (a range's both ends, a set's every
+    value) look like a unit slip is refused (:func:`physics.columns.read_slip`), naming the key as sent."""
+    if columns is None:
+        return None
+    known = [*model.conditions, *model.factors]
+    out: dict[str, Any] = {}
+    sent_as: dict[str, str] = {}
+    for sent, column in columns.items():
+        reading = Reading(sent, sent)
+        if sent not in physics.PARAMETERS and sent not in known:
+            try:
+                reading = match_column(sent, known)
+            except ColumnError:
+                pass  # check_request names it, with the model's columns
+        message = None if reading.name in model.factors else read_slip(reading, _span_values(column))
+        if message is not None:
+            raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": message}])
+        if reading.name in out:
+            raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": (
+                f"{sent_as[reading.name]!r} is read as {reading.name} too; keep one")}])
+        out[reading.name], sent_as[reading.name] = _converted(reading, column), sent
+    return out
+
+
 def _document(plan: ExperimentPlan, model: str, job_id: str | None) -> dict[str, Any]:
     """The result: the plan, the model, and the plot's URL when it ran as a job (None from the CLI)."""
     url = None if job_id is None else f"/v1/experiments/{job_id}/plot.png"
@@ -91,10 +142,12 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     stored = load_calibration(store, calibration_id)
     model = CalibratedModel.from_json(stored.metadata["model"])
     report = stored.metadata["report"]
-    space, envelope = _space(body.space), _space(body.envelope)
+    space = _model_columns(model, _space(body.space), "/space")
+    envelope = _model_columns(model, _space(body.envelope), "/envelope")
+    fixed = _model_columns(model, body.fixed, "/fixed")
     _check_planned(body.planned)
     try:
-        check_request(model, space, body.fixed, envelope, body.planned)
+        check_request(model, space, fixed, envelope, body.planned)
         if model.covariance is None or model.noise_std_log is None:
             raise DesignError("the calibration was stored before models had a covariance; calibrate again")
     except ValueError as exc:
@@ -119,7 +172,7 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
                   else [])
         ctx.progress(0.2)
         try:
-            request = ExperimentRequest(space, body.runs, body.goal, envelope=envelope, fixed=body.fixed,
+            request = ExperimentRequest(space, body.runs, body.goal, envelope=envelope, fixed=fixed,
                                         planned=body.planned, seed=body.seed)
             plan = next_experiments(model, request, rivals=rivals,
                                     data=None if dataset is None else dataset.columns(),

@@ -43,7 +43,7 @@ from microbearing.optimize.plan import (
 from microbearing.optimize.robust import Envelope, optimize_robust
 from microbearing.physics.model import Model
 
-from .calibrations import interval_at, with_conditions
+from .calibrations import interval_at, read_conditions, with_conditions
 from .executor import map_chunks
 from .models import CalibratedPhysicsModel, resolve
 from .problems import ProblemError, validation_problem
@@ -184,6 +184,12 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     model, mu_model, interval = None, None, None
     if body.model != "physics":
         model = resolve(store, body.model)
+        if body.conditions:
+            # The conditions as the model's columns in their units (a key as the upload's header, or in
+            # another unit of a column's quantity), every value of a range judged for a unit slip: the
+            # job then reads what the submit checked.
+            body = body.model_copy(update={"conditions": read_conditions(model, body.conditions)})
+            request = _request(body)
         _refuse_outside_law_domains(model, body)
         mu_model, interval = _bound(model, body)
     try:

@@ -41,7 +41,7 @@ from pydantic import ValidationError
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from microbearing import physics
-from microbearing.physics.columns import Reading, match_column, slip, unknown_column
+from microbearing.physics.columns import Reading, match_column, read_slip, unknown_column
 
 from .models import InputError, Model, ModelError, jacobian, resolve
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, validation_problem
@@ -124,14 +124,17 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> dict[str, Any]:
     """``config.fixed`` by the model's input names: another unit of a condition's quantity converted
     (:func:`physics.columns.match_column`), a condition that looks like a unit slip refused."""
     read = {}
-    for name, value in fixed.items():
-        if name not in model.inputs and name not in physics.PARAMETERS:
+    for sent, value in fixed.items():
+        reading = Reading(sent, sent)
+        if sent not in model.inputs and sent not in physics.PARAMETERS:
             try:
-                reading = match_column(name, model.inputs)
-                name, value = reading.name, (value if isinstance(value, bool) else reading.convert(value))
+                reading = match_column(sent, model.inputs)
             except ValueError:
                 pass  # named below as not an input of the model
-        message = None if name in physics.PARAMETERS or isinstance(value, bool) else slip(name, value)
+        name = reading.name
+        # judged as sent (27 under a kelvin name is degC) and as read
+        message = None if name in physics.PARAMETERS or isinstance(value, bool) else read_slip(reading, value)
+        value = reading.convert(value) if reading.reading and not isinstance(value, bool) else value
         if message is not None:
             raise ProtocolError("InvalidInput", f"config.fixed.{name}: {message}")
         read[name] = value

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import wait_job
 
 from bench.calibrated_batch import measurements
 from microbearing.calibrate.experiments import candidate_points
@@ -234,18 +235,93 @@ def test_a_column_reads_back_in_the_unit_it_was_sent_in(sent, value, si, unit):
     assert reading.sent_value(si) == pytest.approx(value, rel=1e-12) and reading.sent_unit == unit
 
 
-def test_an_optimization_envelope_reads_the_upload_s_names_and_both_range_spellings():
-    from microbearing.service.schemas.optimizations import OptimizationRequest
+def test_an_optimization_envelope_reads_the_upload_s_names_and_both_range_spellings(client, calibration):
+    # The keys are read against the calibration's own columns (relative_humidity, temp_K): the lab's names
+    # and units give the same job as the SI ones, and the job reads what the submit checked.
+    base = {"bounds": {"balls": [4, 6], "groove_angle_deg": [50, 55], "load_N": [0.008, 0.012]},
+            "speed_m_s": 0.05, "model": calibration["model_id"], "time_limit_s": 20}
+    results = []
+    for conditions in ({"relative humidity [%]": {"low": 30, "high": 70}, "temp_F": [68.0, 104.0]},
+                       {"relative_humidity": [0.3, 0.7], "temp_K": [293.15, 313.15]}):
+        response = client.post("/v1/optimizations", json={**base, "conditions": conditions})
+        assert response.status_code == 202, response.text
+        job = wait_job(client, response)
+        assert job["status"] == "succeeded", job
+        results.append(client.get(job["result_url"]).json())
+    lab, si = results
+    assert lab["envelope"]["conditions"].keys() == {"relative_humidity", "temp_K"}
+    for name, ends in si["envelope"]["conditions"].items():
+        assert lab["envelope"]["conditions"][name] == pytest.approx(ends, rel=1e-12)
+    assert lab["worst_case"]["mu"] == pytest.approx(si["worst_case"]["mu"], rel=1e-9)
+    assert lab["worst_case"]["conditions"] == pytest.approx(si["worst_case"]["conditions"], rel=1e-9)
 
-    base = {"bounds": {"balls": [4, 8], "groove_angle_deg": [45, 60], "load_N": [0.004, 0.013]},
-            "speed_m_s": [0.01, 0.1], "model": "calibrated:" + "0" * 32}
-    lab = OptimizationRequest.model_validate({**base, "conditions": {
-        "relative humidity [%]": {"low": 30, "high": 70}, "temperature [degC]": [20, 60]}})
-    si = OptimizationRequest.model_validate({**base, "conditions": {
-        "relative_humidity": [0.3, 0.7], "temperature_K": [293.15, 333.15]}})
-    assert lab.conditions.keys() == si.conditions.keys()
-    for name in si.conditions:
-        assert lab.conditions[name] == pytest.approx(si.conditions[name], rel=1e-12)
+
+def test_conditions_are_read_against_the_model_s_own_columns_at_every_door(client, calibration):
+    # The calibration's columns are relative_humidity and temp_K (its upload said relative humidity [%]
+    # and temp_F). Other spellings of their quantities, with a unit, read the same at prediction.
+    model = calibration["model_id"]
+
+    def mu(conditions: dict) -> float:
+        response = client.post("/v1/friction", json=_point(model, conditions))
+        assert response.status_code == 200, response.text
+        return response.json()["mu"]
+
+    reference = mu({"relative_humidity": 0.5, "temp_K": 300.15})
+    assert mu({"RH [%]": 50, "temp_K": 300.15}) == pytest.approx(reference, rel=1e-12)
+    assert mu({"humidity_pct": 50, "temp_degC": 27.0}) == pytest.approx(reference, rel=1e-12)
+    # Rankine (degR = K x 9/5) read once, by a suffix as by brackets: 540.27 degR is 300.15 K
+    assert mu({"relative_humidity": 0.5, "temp_R": 540.27}) == pytest.approx(reference, rel=1e-9)
+    assert mu({"relative_humidity": 0.5, "temperature [degR]": 540.27}) == pytest.approx(reference, rel=1e-9)
+
+
+def test_a_value_is_judged_for_a_unit_slip_in_the_unit_its_key_states(client, calibration):
+    # 300 under a degC name is kelvin by the upload's rule, though 300 degC (573 K) is no slip of the
+    # model's kelvin column; the refusal names the key as sent.
+    model = calibration["model_id"]
+    point = _point(model, {"relative_humidity": 0.5, "temperature_C": 300})
+    detail = _problem(client.post("/v1/friction", json=point), "/conditions/temperature_C")
+    assert "look like kelvin" in detail, detail
+    from microbearing.physics.columns import match_column, read_slip
+
+    assert "look like degC" in read_slip(match_column("temperature_K", ["temp_degC"]), [27.0])
+    assert read_slip(match_column("temperature_K", ["temp_degC"]), [300.0]) is None
+
+
+def test_every_value_of_a_range_is_judged_at_submit(client, calibration):
+    # A slip at the high end of a range is refused at submit (it was read at its low end only), in an
+    # optimization's envelope and in an experiment space alike.
+    model = calibration["model_id"]
+    body = {"bounds": {"balls": [4, 6], "groove_angle_deg": [50, 55], "load_N": [0.008, 0.012]},
+            "speed_m_s": 0.05, "model": model,
+            "conditions": {"relative_humidity": [0.3, 50.0], "temp_K": 300}}
+    assert "look like percent" in _problem(client.post("/v1/optimizations", json=body),
+                                           "/conditions/relative_humidity")
+    space = {"balls": [4, 8], "load_N": [0.002, 0.02], "speed_m_s": [0.05], "relative_humidity": [0.3, 50.0],
+             "temp_K": [300.0]}
+    response = client.post(f"/v1/calibrations/{calibration['model_id'].split(':')[1]}/next-experiments",
+                           json={"runs": 4, "goal": "parameters", "space": space})
+    assert "look like percent" in _problem(response, "/space/relative_humidity")
+
+
+def test_an_experiment_space_reads_conditions_against_the_model_s_columns(client, calibration):
+    space = {"balls": [4, 8], "load_N": [0.002, 0.02], "speed_m_s": [0.05], "RH [%]": [25, 75],
+             "temp_degC": {"values": [20.0, 40.0]}}
+    response = client.post(f"/v1/calibrations/{calibration['model_id'].split(':')[1]}/next-experiments",
+                           json={"runs": 6, "goal": "parameters", "space": space})
+    assert response.status_code == 202, response.text
+    job = wait_job(client, response)
+    assert job["status"] == "succeeded", job
+    runs = client.get(job["result_url"]).json()["runs"]
+    humidity = [run["conditions"]["relative_humidity"] for run in runs]
+    assert min(humidity) >= 0.25 - 1e-12 and max(humidity) <= 0.75 + 1e-12, humidity
+    assert {round(run["conditions"]["temp_K"], 9) for run in runs} <= {293.15, 313.15}, runs
+
+
+def test_t_with_a_temperature_unit_is_the_temperature():
+    from microbearing.physics.columns import read_name, slip
+
+    assert read_name("T [K]").name == "temperature_K" and read_name("T [degC]").name == "temperature_K"
+    assert "look like degC" in slip("T_K", [27.0])
 
 
 # --- physics inputs under names with units, at every door ------------------------------------------------

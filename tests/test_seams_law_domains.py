@@ -112,11 +112,15 @@ def assert_refused(response, pointer: str) -> str:
     return errors[0]["detail"]
 
 
-@pytest.mark.parametrize("humidity", [[30, 70], [0.3, 1.0], 50, 1.0, [-0.1, 0.5]])
-def test_an_optimization_outside_the_law_s_domain_is_refused_at_submit(client, model, humidity):
+@pytest.mark.parametrize(("humidity", "words"), [
+    ([0.3, 1.0], ("(0, 1)", "humidity_meniscus")), (1.0, ("(0, 1)", "humidity_meniscus")),
+    # values no humidity fraction has are the upload's unit slips, refused in its words before the law's
+    ([30, 70], ("look like percent",)), (50, ("look like percent",)),
+    ([-0.1, 0.5], ("a fraction in [0, 1]",))])
+def test_an_optimization_outside_the_law_s_domain_is_refused_at_submit(client, model, humidity, words):
     detail = assert_refused(client.post("/v1/optimizations", json=optimization(model, humidity)),
                             "/conditions/relative_humidity")
-    assert "(0, 1)" in detail and "humidity_meniscus" in detail
+    assert all(w in detail for w in words), detail
 
 
 def test_an_optimization_inside_the_law_s_domain_runs(client, model):
@@ -128,10 +132,14 @@ def test_an_optimization_inside_the_law_s_domain_runs(client, model):
 
 def test_the_cli_refuses_the_same_request(client, model, data_dir, tmp_path, capsys):
     request = tmp_path / "request.json"
-    request.write_text(json.dumps(optimization(model, [30, 70])))
+    request.write_text(json.dumps(optimization(model, [0.3, 1.0])))
     assert main(["optimize", str(request), "--data-dir", str(data_dir)]) == 2
     err = capsys.readouterr().err
     assert "/conditions/relative_humidity" in err and "(0, 1)" in err
+    request.write_text(json.dumps(optimization(model, [30, 70])))
+    assert main(["optimize", str(request), "--data-dir", str(data_dir)]) == 2
+    err = capsys.readouterr().err
+    assert "/conditions/relative_humidity" in err and "look like percent" in err
 
 
 def test_friction_outside_the_law_s_domain_is_refused_naming_the_condition(client, model):
@@ -167,7 +175,11 @@ def test_the_cli_refuses_next_experiments_outside_the_law_s_domain(model, data_d
     request = tmp_path / "next.json"
     request.write_text(json.dumps({"runs": 4, "space": {
         "balls": [4, 8], "load_N": {"low": 0.005, "high": 0.02}, "speed_m_s": {"values": [0.05]},
-        "relative_humidity": {"low": 30, "high": 70}}}))
+        "relative_humidity": {"low": 0.3, "high": 1.0}}}))
     assert main(["experiments", str(request), "--calibration", model]) == 2
     err = capsys.readouterr().err
-    assert "space.relative_humidity: values 30, 70 lie outside (0, 1)" in err
+    assert "space.relative_humidity: value 1 lies outside (0, 1)" in err, err
+    # percent where the model reads a fraction: the upload's unit slip, in its words
+    request.write_text(request.read_text().replace('"low": 0.3, "high": 1.0', '"low": 30, "high": 70'))
+    assert main(["experiments", str(request), "--calibration", model]) == 2
+    assert "/space/relative_humidity" in (err := capsys.readouterr().err) and "look like percent" in err

@@ -371,17 +371,20 @@ def read_value(reading: Reading, value: Any) -> Any:
 
 
 def read_column_keys(columns: dict[str, Any] | None) -> dict[str, Any] | None:
-    """Columns by the names the calibration upload reads its header as, values converted to their units.
+    """Columns with the physics inputs by the names the calibration upload reads its header as, values
+    converted to their units; conditions as sent.
 
-    A key may be the upload's header (``relative humidity [%]`` is the fraction ``relative_humidity``,
-    ``temperature [degF]`` and ``temp_F`` are ``temperature_K`` and ``temp_K``, ``speed [mm/s]`` is
-    ``speed_m_s``): :func:`physics.columns.read_name`, the reading of every door. A range ``{low, high}``
-    is answered as ``[low, high]``.
+    A physics input's key may be the upload's header (``speed [mm/s]`` is ``speed_m_s``, ``load [g]`` a
+    slider's weight ``load_N``): :func:`physics.columns.read_name`, the reading of every door. A condition
+    (``relative humidity [%]``, ``temp_F``) keeps its key and value: it is read against the columns of the
+    model the request names (:func:`service.calibrations.read_conditions`), which may spell it otherwise
+    (``RH``, ``temp_degC``), and a refusal names it as sent. A range ``{low, high}`` is answered as
+    ``[low, high]``.
 
     Raises
     ------
     ValueError
-        Naming the key: a unit not known or not of its quantity, or two keys read as one column.
+        Naming the key: a unit not known or not of its quantity, or two keys read as one physics input.
     """
     if columns is None:
         return None
@@ -391,6 +394,8 @@ def read_column_keys(columns: dict[str, Any] | None) -> dict[str, Any] | None:
             reading = read_name(key)
         except ColumnError as exc:
             raise ValueError(f"{key}: {exc}") from None
+        if reading.name not in physics.PARAMETERS:
+            reading = Reading(key, key)
         if reading.name in read:
             raise ValueError(f"{key}: another key is read as {reading.name} too; keep one")
         read[reading.name] = read_value(reading, value)

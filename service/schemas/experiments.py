@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field
 
 from microbearing import physics
-from microbearing.physics.columns import SPAN_SPELLINGS, ColumnError, read_name
+from microbearing.physics.columns import SPAN_SPELLINGS, ColumnError, Reading, read_name
 
 from .base import (
     REQUIRED_INPUTS,
@@ -70,8 +70,9 @@ SpaceColumn = Annotated[
 ]
 
 def _space_keys(space: dict[str, Any] | None) -> dict[str, Any] | None:
-    """A space's columns by the names the calibration upload reads its header as, values converted
-    (``speed [mm/s]`` is speed_m_s, ``relative humidity [%]`` the fraction relative_humidity)."""
+    """A space's physics inputs by the names the calibration upload reads its header as, values converted
+    (``speed [mm/s]`` is speed_m_s); a condition (``relative humidity [%]``) as sent, read against the
+    calibrated model's columns by the route (:func:`service.experiments.next_experiments_job`)."""
     if space is None:
         return None
     read: dict[str, Any] = {}
@@ -80,6 +81,8 @@ def _space_keys(space: dict[str, Any] | None) -> dict[str, Any] | None:
             reading = read_name(key)
         except ColumnError as exc:
             raise ValueError(f"{key}: {exc}") from None
+        if reading.name not in physics.PARAMETERS:
+            reading = Reading(key, key)
         if reading.name in read:
             raise ValueError(f"{key}: another column is read as {reading.name} too; keep one")
         if reading.reading and isinstance(column, SpaceRange):
