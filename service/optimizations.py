@@ -24,6 +24,8 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
+import numpy as np
+
 from microbearing.calibrate.domain import outside_law_domains
 from microbearing.optimize import (
     DesignProblem,
@@ -41,6 +43,7 @@ from microbearing.optimize.plan import (
     verify_over_envelope,
 )
 from microbearing.optimize.robust import Envelope, optimize_robust
+from microbearing.physics.columns import input_slips
 from microbearing.physics.model import Model
 
 from .calibrations import interval_at, read_conditions, with_conditions
@@ -113,6 +116,7 @@ class OptimizationPlan:
     objective: str = "mu"
     resolved: Model | None = None
     time_limit_s: float = 60.0
+    input_warnings: tuple[str, ...] = ()
 
 
 def _request(body: OptimizationRequest) -> DesignRequest:
@@ -207,7 +211,17 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     pareto = body.pareto.model_dump() if body.pareto is not None else None
     return OptimizationPlan(planned.problem, body.model, mu_model, body.starts, pareto, synchronous,
                             source_model, source_name, interval, planned.envelope, body.objective,
-                            None if planned.envelope is None else model, body.time_limit_s)
+                            None if planned.envelope is None else model, body.time_limit_s,
+                            tuple(_input_warnings(body)))
+
+
+def _input_warnings(body: OptimizationRequest) -> list[str]:
+    """The speeds and loads of a request that look like a unit slip, in the upload's words
+    (:func:`physics.columns.input_slips`, as /v1/friction warns): the design is made as asked."""
+    speed = body.fixed.speed_m_s if body.fixed.speed_m_s is not None else body.speed_m_s
+    inputs = {"speed_m_s": None if speed is None else np.atleast_1d(np.asarray(speed, dtype=float)),
+              "load_N": None if body.bounds.load_N is None else np.asarray(body.bounds.load_N, dtype=float)}
+    return input_slips({name: value for name, value in inputs.items() if value is not None})
 
 
 def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:
@@ -257,7 +271,7 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
         return lambda fraction: progress(offset + share * fraction)
 
     if plan.envelope is not None:
-        return _run_robust(plan, progress, executor)
+        return _with_warnings(plan, _run_robust(plan, progress, executor))
     try:
         if plan.mu_model is None:
             result = optimize_design(plan.problem, progress=stage(0.0, 0.2 if with_pareto else 1.0))
@@ -278,7 +292,12 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
                                   else f"/v1/optimizations/{job_id}/pareto.png"}
     except InfeasibleDesignError as error:
         raise infeasible_problem(error) from None
-    return document
+    return _with_warnings(plan, document)
+
+
+def _with_warnings(plan: OptimizationPlan, document: dict[str, Any]) -> dict[str, Any]:
+    """The result with the plan's input warnings (none: the field absent)."""
+    return {**document, "input_warnings": list(plan.input_warnings)} if plan.input_warnings else document
 
 
 def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None,

@@ -155,6 +155,13 @@ def test_a_speed_that_looks_like_mm_s_is_warned_by_the_api_and_the_cli_in_the_up
     answer = json.loads(out.read_text())
     assert answer["input_warnings"] == warnings and answer["mu"] == fast.json()["mu"]
     assert "look like mm/s" in capsys.readouterr().err
+    # an optimization warns alike (a range's every value judged), and not when the speed looks right
+    design = {"bounds": {"balls": [4, 6], "groove_angle_deg": [45, 60], "load_N": [0.005, 0.02]}}
+    ranged = client.post("/v1/optimizations", json={**design, "speed_m_s": [0.05, 50.0]})
+    assert ranged.status_code == 200, ranged.text
+    assert ranged.json()["input_warnings"] == batch_warnings
+    right = client.post("/v1/optimizations", json={**design, "speed_m_s": 0.05}).json()
+    assert right.get("input_warnings") is None
 
 
 def test_the_cli_takes_names_with_units_as_the_upload_reads_them(client, tmp_path):

@@ -24,6 +24,7 @@ from .base import (
     parameter_fields,
     whole_number,
 )
+from .friction import INPUT_WARNINGS
 
 __all__ = ["MODEL_PATTERN", "OptimizationRequest", "OptimizationResult"]
 
@@ -418,6 +419,7 @@ class OptimizationResult(ResponseModel):
     envelope: Envelope | None = Field(default=None, description="The operating envelope designed for.")
     worst_case: WorstCase | None = Field(default=None, description=(
         "With an envelope: the worst case of the objective at the returned design and where it occurs."))
+    input_warnings: INPUT_WARNINGS[0] = INPUT_WARNINGS[1]
     proof: Proof | None = Field(default=None, description=(
         "With an envelope: what is proven, the certified lower bound on the best achievable worst case and "
         "the gap."))
