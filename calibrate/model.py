@@ -82,7 +82,7 @@ class Prediction:
 
 
 @dataclass(frozen=True)
-class _Shared:
+class SharedPieces:
     """What a calibrated model's interval and its rivals' share at the points (they have the same
     discrepancy, scatter and data cloud): the discrepancy's shift of log μ and its variance, the scatter's
     variance and the data cloud's distance ratio [1]."""
@@ -355,7 +355,7 @@ class CalibratedModel:
         if self.covariance is None or self.noise_std_log is None:
             return Prediction(mu * np.exp(shift), None, None, in_domain, warnings)
         # What the model and its rivals share (the same discrepancy, scatter and data cloud), computed once.
-        shared = _Shared(shift, discrepancy_variance, self._noise_variance(points, mu.shape, level),
+        shared = SharedPieces(shift, discrepancy_variance, self._noise_variance(points, mu.shape, level),
                          self._cloud_score(points, mu.shape))
         mu, lower, upper = self._interval(points, labels, level, mu, physics_mu, shared,
                                           self.extrapolation_ratio(points, mu.shape))
@@ -363,7 +363,7 @@ class CalibratedModel:
             # The envelope of the rivals' intervals (calibrate.rivals); a rival that cannot predict a
             # point (a driver outside its law) leaves it to the others.
             try:
-                _, other_lower, other_upper = rival._rival_interval(points, labels, level, shared)
+                _, other_lower, other_upper = rival.rival_interval(points, labels, level, shared)
             except ValueError:
                 continue
             ok = np.isfinite(other_lower) & np.isfinite(other_upper) & (other_lower > 0)
@@ -378,11 +378,12 @@ class CalibratedModel:
         return {name: value for name, value in points.items() if not (
             name in self.fitted and np.ndim(value) == 0 and float(value) == self.fitted[name])}
 
-    def _rival_interval(self, points: Mapping[str, Any], labels: Mapping[str, Any], level: float,
-                        shared: _Shared) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """μ and the interval of this model as a rival of the model whose ``shared`` pieces it reads
-        (:meth:`rival_models`: the same discrepancy, scatter and cloud, no column box, so no extrapolation
-        allowance of its own); what would change with its own fitted values is computed anew."""
+    def rival_interval(self, points: Mapping[str, Any], labels: Mapping[str, Any], level: float,
+                       shared: SharedPieces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """μ and the interval of this model as a rival of the model whose ``shared`` pieces it reads, at
+        points that model has read (:meth:`predict` calls it on each of :meth:`rival_models`: the same
+        discrepancy, scatter and cloud, no column box, so no extrapolation allowance of its own); what
+        would change with its own fitted values is computed anew."""
         self.check_columns({**points, **labels})
         points = self._unmoved(points)
         physics_mu = self._physics_mu(points)
@@ -395,7 +396,7 @@ class CalibratedModel:
              *((self.scatter.column,) if varying_scatter else ())))
         if reads_fitted or mu.shape != shared.shift.shape:
             shift, discrepancy_variance = self._discrepancy(points, mu.shape)
-            shared = _Shared(shift, discrepancy_variance, self._noise_variance(points, mu.shape, level),
+            shared = SharedPieces(shift, discrepancy_variance, self._noise_variance(points, mu.shape, level),
                              self._cloud_score(points, mu.shape))
         if self.covariance is None or self.noise_std_log is None:
             return mu * np.exp(shared.shift), np.full(mu.shape, np.nan), np.full(mu.shape, np.nan)
@@ -403,7 +404,7 @@ class CalibratedModel:
                               self.extrapolation_ratio(points, mu.shape))
 
     def _interval(self, points: Mapping[str, Any], labels: Mapping[str, Any], level: float, mu: np.ndarray,
-                  physics_mu: np.ndarray | None, shared: _Shared, extrapolation: np.ndarray
+                  physics_mu: np.ndarray | None, shared: SharedPieces, extrapolation: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """μ with the discrepancy's and groups' shifts, and the interval's bounds [1], from μ of the terms
         at the points and the pieces this model shares with its rivals."""
