@@ -193,7 +193,9 @@ def extrapolation_bound(ranges: Mapping[str, tuple[float, float]], rows: int | N
         if name not in low:
             continue
         a, b = (np.broadcast_to(np.asarray(p[name], dtype=float), shape) for p in (low, high))
-        (ra, side_a), (rb, side_b) = (extrapolation_allowance(x, lo, hi, rows) for x in (a, b))
+        ra, side_a = extrapolation_allowance(a, lo, hi, rows)
+        # points (low is high): one end
+        rb, side_b = (ra, side_a) if low is high else extrapolation_allowance(b, lo, hi, rows)
         if lower:
             meets = (side_a == 0) | (side_b == 0) | (side_a != side_b)
             r = np.where(meets, 0.0, np.minimum(ra, rb))

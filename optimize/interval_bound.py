@@ -295,7 +295,9 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
         peak = hi.copy()
         with np.errstate(all="ignore"):
             wide = widening(lo, hi)
-            upper = np.max([_structure_bound(context, s, lo, hi, peak, wide) for s in structures], axis=0)
+            shared: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # a discrepancy's bound, once per batch
+            upper = np.max([_structure_bound(context, s, lo, hi, peak, wide, shared) for s in structures],
+                           axis=0)
         return upper * (1.0 + _INTERVAL_ROUNDING), _with_low_speed(boxes, lo, peak)
 
     return bound
@@ -455,8 +457,11 @@ def _groups_shift(context: _IntervalContext, s: IntervalStructure, g_low: np.nda
 
 
 def _structure_bound(context: _IntervalContext, s: IntervalStructure, lo: np.ndarray, hi: np.ndarray,
-                     peak: np.ndarray, wide: np.ndarray) -> np.ndarray:
-    """One structure's upper bound of mu_upper over each box [1] (:func:`mu_upper_box_bound`)."""
+                     peak: np.ndarray, wide: np.ndarray,
+                     shared: dict[int, tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """One structure's upper bound of mu_upper over each box [1] (:func:`mu_upper_box_bound`); ``shared``:
+    the discrepancies' bounds over these boxes by discrepancy, which the model and its rivals share
+    (computed by the first structure that reads one, unless its features read a fitted value)."""
     c = _compose_structure(context, s, lo, hi, peak)
     n = c.n
     g_lo, g_hi = [], []
@@ -475,9 +480,16 @@ def _structure_bound(context: _IntervalContext, s: IntervalStructure, lo: np.nda
     vertices = np.where(corners[None, :, :], g_high[:, None, :], g_low[:, None, :])
     quadratic = np.einsum("nvi,ij,nvj->nv", vertices, s.covariance, vertices).max(axis=1)
     shift, group_variance = _groups_shift(context, s, g_low, g_high, n)
-    if getattr(s.model, "discrepancy", None) is not None:
-        low, high = _corner_points(context.boxes, context.inputs_fn, lo, hi)
-        _, gp_mean, gp_variance = gp_boxes.discrepancy_bound(s.model, low, high, n)
+    discrepancy = getattr(s.model, "discrepancy", None)
+    if discrepancy is not None:
+        key = id(discrepancy) if set(discrepancy.features).isdisjoint(s.fitted) else None
+        if key is None or key not in shared:
+            low, high = _corner_points(context.boxes, context.inputs_fn, lo, hi)
+            _, gp_mean, gp_variance = gp_boxes.discrepancy_bound(s.model, low, high, n)
+            if key is not None:
+                shared[key] = gp_mean, gp_variance
+        else:
+            gp_mean, gp_variance = shared[key]
         shift, group_variance = shift + gp_mean, group_variance + gp_variance
     sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * wide
     return np.where(finite, c.mu_hi * np.exp(shift + context.z * sigma), np.inf)
