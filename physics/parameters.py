@@ -421,6 +421,9 @@ def checked_inputs(params: dict[str, Any]) -> tuple[dict[str, float | bool | np.
             checked[name] = value
         elif (kind is float or kind is int) and spec.accepts(value):  # a boolean parameter accepts no number
             checked[name] = float(value)
+        elif (kind is np.ndarray and value.ndim == 0 and value.dtype == np.float64
+              and spec.accepts(number := float(value))):  # a float held as a 0-d array: the same number
+            checked[name] = number
         else:
             array = validate(name, value)
             checked[name] = array.item() if array.ndim == 0 else array
