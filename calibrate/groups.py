@@ -40,6 +40,7 @@ first, which covers ``level`` and not only 90 %, is.
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -209,7 +210,8 @@ class GroupEffect:
             "factor": self.factor,
             "parameter": self.parameter,
             "spread_log": self.spread_log,
-            "spread_interval": list(self.spread_interval),
+            # an end the data leave open (two groups: no upper end) as null, which JSON can hold
+            "spread_interval": [_finite_or_none(x) for x in self.spread_interval],
             "offset_log": self.offset_log,
             "levels": {k: list(map(float, v)) for k, v in self.levels.items()},
             "noise_log": self.noise_log,
@@ -232,7 +234,7 @@ class GroupEffect:
         means = [[float(x) for x in v] for v in data.get("group_means") or []]
         if any(len(v) != 2 or not v[1] > 0 for v in means):
             raise ValueError("groups: each group mean needs [estimate, variance > 0]")
-        lo, hi = (float(x) for x in data["spread_interval"])
+        lo, hi = (math.inf if x is None else float(x) for x in data["spread_interval"])
         return cls(str(data["factor"]), str(data["parameter"]), float(data["spread_log"]), (lo, hi),
                    float(data["offset_log"]), levels, float(data.get("noise_log", 0.0)),
                    {str(k): float(v) for k, v in dict(data.get("likelihoods", {})).items()}, means)
@@ -414,6 +416,11 @@ def fit_group_effect(factor: str, labels: np.ndarray, residual: np.ndarray,
     )
 
 
+def _finite_or_none(value: float) -> float | None:
+    """A number for JSON: None where it is not finite (an interval's open end)."""
+    return float(value) if math.isfinite(value) else None
+
+
 def describe_groups(effects: Sequence[GroupEffect]) -> list[dict[str, Any]]:
     """JSON-ready report entries: the fitted numbers and the sentence of each group effect."""
     out = []
@@ -424,9 +431,10 @@ def describe_groups(effects: Sequence[GroupEffect]) -> list[dict[str, Any]]:
             "parameter": e.parameter,
             "groups": e.n_groups,
             "spread_relative": float(np.expm1(e.spread_log)),
-            "spread_interval_relative": [float(np.expm1(lo)), float(np.expm1(hi))],
+            "spread_interval_relative": [_finite_or_none(float(np.expm1(x))) for x in (lo, hi)],
             "within_group_scatter_relative": float(np.expm1(e.noise_log)),
-            "spread_upper_relative": (float(np.expm1(e.spread_upper(0.95))) if e.group_means else None),
+            "spread_upper_relative": (_finite_or_none(float(np.expm1(e.spread_upper(0.95)))) if e.group_means
+                                      else None),
             "levels": {k: {"relative_shift": float(np.expm1(v[0])), "std_log": float(np.sqrt(v[1])),
                            "rows": int(v[2])} for k, v in e.levels.items()},
             "restricted_log_likelihoods": dict(e.likelihoods),
