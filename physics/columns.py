@@ -501,12 +501,14 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
         return first
     source = unit_of(first.name)
     condition = _condition_of(first.name)
-    alike = [k for k in known if condition is not None and condition.matches(k) and unit_of(k) is not None]
+    alike = [k for k in known
+             if condition is not None and _condition_of(k) is condition and unit_of(k) is not None]
     # Another column of the same quantity when the name sent states its unit (brackets, a unit word such
     # as temperature_K, or a unit other than the known column's); a bare synonym (humidity for
     # relative_humidity, cycles for passes) is not guessed.
     words = _UNIT_WORDS.get(condition.name, {}) if condition is not None else {}
-    stated = any(w in words for w in _words(first.name))
+    bracketed = _BRACKETS.match(sent.strip())
+    stated = any(w in words for w in _words(first.name)) or bool(bracketed and bracketed.group("name"))
     if source is not None and len(alike) == 1 and (stated or first.reading or source != unit_of(alike[0])):
         target = unit_of(alike[0])
         if _dimension(_unit(source)) == _dimension(_unit(target)):
@@ -561,8 +563,9 @@ def _humidity_slip(name: str, values: np.ndarray) -> str | None:
     return f"{name} runs {_span_text(values)} [{'%' if percent else '1'}]: {cause}"
 
 
-def _temperature_slip(name: str, values: np.ndarray) -> str | None:
-    kelvin = unit_of(name) == "K"
+def _temperature_slip(name: str, values: np.ndarray, kelvin: bool | None = None) -> str | None:
+    """``kelvin``: whether the values are in K (else degC); by default as the name says."""
+    kelvin = unit_of(name) == "K" if kelvin is None else kelvin
     lo, hi = float(np.min(values)), float(np.max(values))
     if kelvin and lo < _KELVIN_MIN:
         return (f"{name} runs {_span_text(values)} K, below {_KELVIN_MIN:g} K: values look like degC "
@@ -637,8 +640,28 @@ def read_slip(reading: Reading, values: Any) -> str | None:
         first = read_name(reading.sent)
     except ColumnError:
         first = None
-    message = None if first is None else slip(first.name, first.convert(array))
+    message = None if first is None else _stated_temperature_slip(first, array)
+    if message is None and first is not None:
+        message = slip(first.name, first.convert(array))
     return message if message is not None else slip(reading.name, reading.convert(array))
+
+
+def _stated_temperature_slip(first: Reading, array: np.ndarray) -> str | None:
+    """A temperature's slip judged in the unit its brackets state (``temperature [degC]`` at 250 is
+    kelvin, though its reading in K has no upper limit); None for other columns."""
+    condition = None if first.name in PARAMETERS else _condition_of(first.name)
+    stated = first.sent_unit if first.reading else None
+    if condition is None or condition.name != "temperature_K" or stated is None:
+        return None
+    try:
+        unit = _unit(stated)
+        if _dimension(unit) != "[temperature]":
+            return None
+        kelvin = _same(unit, "K")
+        values = array if kelvin else _registry().Quantity(array, unit).to("degC").magnitude
+    except Exception:  # pint's errors: not a unit it reads as a temperature
+        return None
+    return _temperature_slip(first.sent, np.asarray(values, dtype=float), kelvin)
 
 
 def input_slips(inputs: Mapping[str, Any]) -> list[str]:

@@ -74,9 +74,11 @@ class DriverUnit:
     unit : str
         ``"1"``, ``"%"``, ``"degC"``, ``"K"``.
     keywords : tuple of str
-        Prefixes of the name's words that select this unit; empty for the default unit.
+        Words of the name that select this unit, whole (``k`` of ``temp_k``, never the k of ``kiln``);
+        empty for the default unit.
     excluded : tuple of str
-        Prefixes that veto it (a temperature named with a word ``c`` or ``degc`` is not in kelvin).
+        Words that veto it, whole (a temperature named with a word ``c`` or ``degc`` is not in kelvin;
+        ``chamber temperature [K]`` is).
     plausible : (float, float)
         Values a micro bearing's test rig plausibly records, in this unit: beyond them the column is
         refused as a unit slip (:mod:`calibrate.plausibility`).
@@ -89,8 +91,9 @@ class DriverUnit:
 
     def selected_by(self, column: str) -> bool:
         """Whether a column of this name is recorded in this unit."""
-        return ((not self.keywords or name_matches(column, self.keywords))
-                and not (self.excluded and name_matches(column, self.excluded)))
+        words = set(_words(column))
+        return ((not self.keywords or not words.isdisjoint(self.keywords))
+                and words.isdisjoint(self.excluded))
 
 
 @dataclass(frozen=True)
@@ -133,10 +136,14 @@ TEMPERATURE = DriverKind("temperature", ("temp",), (
 DRIVER_KINDS: tuple[DriverKind, ...] = (HUMIDITY, TEMPERATURE)
 
 
+def _words(name: str) -> list[str]:
+    """The words of a column's name, lower case, split at non-alphanumerics."""
+    return [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
+
+
 def name_matches(name: str, prefixes: tuple[str, ...]) -> bool:
     """Whether a word of a column's name (split at non-alphanumerics) starts with one of the prefixes."""
-    words = [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
-    return any(w.startswith(p) or w == p for w in words for p in prefixes)
+    return any(w.startswith(p) for w in _words(name) for p in prefixes)
 
 
 def humidity_fraction(name: str, values) -> np.ndarray:

@@ -331,14 +331,17 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     known = [*model.conditions, *factors]
     read: dict[str, Any] = {}
     readings: dict[str, Reading] = {}
+    unmatched: set[str] = set()
     for sent, value in conditions.items():
-        reading = Reading(sent, sent)
-        if sent not in known and sent not in physics.PARAMETERS:
-            try:
-                reading = match_column(sent, known)
+        reading, matched = Reading(sent, sent), sent in known or sent in physics.PARAMETERS
+        if not matched:
+            try:  # a factor is a set of labels: only its own name reads it
+                reading, matched = match_column(sent, model.conditions), True
             except ColumnError:
                 pass  # check_conditions names it, with the model's columns
         name = reading.name
+        if not matched:
+            unmatched.add(name)
         if name in read:
             raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": (
                 f"{readings[name].sent!r} is read as {name} too; keep one")}])
@@ -347,7 +350,7 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     for name, value in read.items():
         # judged as sent (27 under a kelvin name is degC) and as read, every value of a range
         sent_values = conditions[readings[name].sent]
-        message = (None if name in factors or _has_text(value)
+        message = (None if name in factors or name in unmatched or _has_text(value)
                    else read_slip(readings[name], read_value(Reading("", ""), sent_values)))
         if message is not None:
             items.append({"pointer": f"{pointer}/{readings[name].sent}", "detail": f"{message} (a key may "

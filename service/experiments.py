@@ -102,17 +102,16 @@ def _model_columns(model: CalibratedModel, columns: Mapping[str, Any] | None, po
     value) look like a unit slip is refused (:func:`physics.columns.read_slip`), naming the key as sent."""
     if columns is None:
         return None
-    known = [*model.conditions, *model.factors]
     out: dict[str, Any] = {}
     sent_as: dict[str, str] = {}
     for sent, column in columns.items():
-        reading = Reading(sent, sent)
-        if sent not in physics.PARAMETERS and sent not in known:
-            try:
-                reading = match_column(sent, known)
+        reading, matched = Reading(sent, sent), sent in physics.PARAMETERS or sent in model.conditions
+        if not matched and sent not in model.factors:
+            try:  # a factor is a set of labels: only its own name reads it
+                reading, matched = match_column(sent, model.conditions), True
             except ColumnError:
                 pass  # check_request names it, with the model's columns
-        message = None if reading.name in model.factors else read_slip(reading, _span_values(column))
+        message = read_slip(reading, _span_values(column)) if matched else None
         if message is not None:
             raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": message}])
         if reading.name in out:

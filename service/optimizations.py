@@ -219,8 +219,9 @@ def _input_warnings(body: OptimizationRequest) -> list[str]:
     """The speeds and loads of a request that look like a unit slip, in the upload's words
     (:func:`physics.columns.input_slips`, as /v1/friction warns): the design is made as asked."""
     speed = body.fixed.speed_m_s if body.fixed.speed_m_s is not None else body.speed_m_s
+    load = body.fixed.load_N if body.fixed.load_N is not None else body.bounds.load_N
     inputs = {"speed_m_s": None if speed is None else np.atleast_1d(np.asarray(speed, dtype=float)),
-              "load_N": None if body.bounds.load_N is None else np.asarray(body.bounds.load_N, dtype=float)}
+              "load_N": None if load is None else np.atleast_1d(np.asarray(load, dtype=float))}
     return input_slips({name: value for name, value in inputs.items() if value is not None})
 
 

@@ -132,6 +132,9 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> dict[str, Any]:
             except ValueError:
                 pass  # named below as not an input of the model
         name = reading.name
+        if name in read:
+            raise ProtocolError("InvalidInput", f"config.fixed.{sent}: another key is read as {name} too; "
+                                                "keep one")
         # judged as sent (27 under a kelvin name is degC) and as read
         message = None if name in physics.PARAMETERS or isinstance(value, bool) else read_slip(reading, value)
         value = reading.convert(value) if reading.reading and not isinstance(value, bool) else value

@@ -1,0 +1,81 @@
+"""Names of condition columns read as a lab writes them (issue 32's seams, second sweep): the unit words of a
+name are whole words, a temperature's slip is judged in the unit its brackets state, a column is matched by
+its quantity whatever its own spelling, and a factor is never a quantity."""
+
+from __future__ import annotations
+
+import pytest
+
+from microbearing.physics.columns import ColumnError, match_column, read_name, read_slip
+from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
+
+
+@pytest.mark.parametrize(("name", "unit"), [
+    ("chamber_temperature_K", "K"), ("case temperature [degC]", "degC"), ("kiln_temp", "degC"),
+    ("coil_temp_K", "K"), ("temp_kelvin", "K"), ("temperature_C", "degC"), ("T_K", "K")])
+def test_a_temperature_s_unit_is_read_from_whole_words(name, unit):
+    # "chamber" and "case" start with c, "kiln" with k: none of them is a unit
+    assert TEMPERATURE.unit_of(name).unit == unit
+
+
+@pytest.mark.parametrize(("name", "unit"), [("rh_pctile", "1"), ("rh_PCT", "%"), ("humidity_percent", "%")])
+def test_a_humidity_s_unit_is_read_from_whole_words(name, unit):
+    assert HUMIDITY.unit_of(name).unit == unit
+
+
+def test_a_header_with_a_word_before_temperature_converts_by_its_brackets():
+    reading = read_name("chamber temperature [K]")
+    assert reading.convert(300.0) == pytest.approx(300.0)
+    assert TEMPERATURE.unit_of(reading.name).unit == "K"
+    reading = read_name("case temperature [degC]")
+    assert reading.convert(30.0) == pytest.approx(303.15) and TEMPERATURE.unit_of(reading.name).unit == "K"
+
+
+@pytest.mark.parametrize("sent", ["temperature [degC]", "Temp (°C)", "T [degC]"])
+def test_degc_above_200_under_a_celsius_name_is_kelvin_on_a_kelvin_model(sent):
+    # read in K the value has no upper limit; judged in the unit the name states it is 250 degC
+    reading = match_column(sent, ["temperature_K"])
+    assert "look like kelvin" in read_slip(reading, [25.0, 250.0])
+    assert read_slip(reading, [25.0, 45.0]) is None
+
+
+@pytest.mark.parametrize(("sent", "known", "value", "expected"), [
+    ("temperature [degC]", ["T_K"], 27.0, 300.15),        # a T_K column is a temperature
+    ("temp_C", ["T_K"], 27.0, 300.15),
+    ("humidity [1]", ["RH"], 0.5, 0.5),                   # brackets state the unit: a fraction
+    ("RH [%]", ["rh_PCT"], 50.0, 50.0),
+    ("temp_R", ["temp_degC"], 540.27, 27.0),              # Rankine: K x 9/5
+])
+def test_a_column_is_matched_by_its_quantity_whatever_its_spelling(sent, known, value, expected):
+    reading = match_column(sent, known)
+    assert reading.name == known[0] and reading.convert(value) == pytest.approx(expected, rel=1e-9)
+
+
+def test_a_bare_synonym_is_not_guessed():
+    with pytest.raises(ColumnError, match="unknown column 'humidity'"):
+        match_column("humidity", ["relative_humidity"])
+
+
+def test_a_factor_named_with_a_condition_word_is_no_quantity_at_prediction():
+    # A chamber label column RH_chamber beside the humidity rh_PCT: every spelling of humidity reads rh_PCT
+    import numpy as np
+
+    from microbearing.calibrate.groups import GroupEffect
+    from microbearing.calibrate.model import CalibratedModel
+    from microbearing.calibrate.model_view import CalibratedPhysicsModel
+    from microbearing.service.calibrations import read_conditions
+    from microbearing.service.problems import ProblemError
+
+    chamber = GroupEffect("RH_chamber", "mu", 0.05, (0.0, 0.3), 0.0,
+                          {"A": [0.01, 1e-4, 30.0], "B": [-0.01, 1e-4, 30.0], "C": [0.0, 1e-4, 30.0]}, 0.03)
+    calibrated = CalibratedModel(fitted={"mu_pivot": 0.6}, covariance=np.diag([1e-4]), noise_std_log=0.03,
+                                 conditions=["rh_PCT"], groups=[chamber], domain={"rh_PCT": (20.0, 80.0)})
+    model = CalibratedPhysicsModel("calibrated:chamber", calibrated)
+    spellings = (("RH [%]", 50.0), ("humidity_pct", 50.0), ("relative_humidity", 0.5), ("rh_PCT", 50.0))
+    for sent, value in spellings:
+        read = read_conditions(model, {sent: value, "RH_chamber": "B"})
+        assert read == {"rh_PCT": pytest.approx(50.0), "RH_chamber": "B"}, (sent, read)
+    # an unknown key is said to be unknown, not judged for a slip in a unit nobody stated
+    with pytest.raises(ProblemError) as refused:
+        read_conditions(model, {"rh_PCT": 50.0, "pressure [kPa]": 50.0})
+    assert "unknown condition column 'pressure [kPa]'" in str(refused.value.errors)
