@@ -36,7 +36,7 @@ from .schemas.base import read_value
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
 
-__all__ = ["DATA_PREFIX", "KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summary",
+__all__ = ["ReadConditions", "DATA_PREFIX", "KIND", "MODEL_PATTERN", "MODEL_PREFIX", "calibration_summary",
            "calibration_view", "check_conditions", "data_arrays", "data_problem", "delete_calibration",
            "evaluate_batch_with_model", "evaluate_point_with_model", "fitting_statement", "interval_at",
            "load_calibration", "load_mu_model", "prediction_fields", "read_conditions", "run_calibration",
@@ -294,6 +294,15 @@ def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str =
         raise validation_problem(items)
 
 
+class ReadConditions(dict):
+    """Conditions by the model's column names (a dict), with :attr:`sent_as`: each column's key as sent,
+    for a refusal's pointer."""
+
+    def __init__(self, read: Mapping[str, Any], sent_as: Mapping[str, str]):
+        super().__init__(read)
+        self.sent_as = dict(sent_as)
+
+
 def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
                     pointer: str = "/conditions") -> dict[str, Any]:
     """The conditions as the columns of a calibrated model, converted to their units and checked.
@@ -359,7 +368,7 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     if items:
         raise validation_problem(items)
     check_conditions(model, read, pointer)
-    return read
+    return ReadConditions(read, {name: reading.sent for name, reading in readings.items()})
 
 
 def _has_text(value: Any) -> bool:
@@ -415,10 +424,24 @@ def interval_at(model: Any,
     return fields
 
 
-def _input_problem(error: InputError, pointer: str) -> ProblemError:
+def _as_sent(problem: ProblemError, conditions: Mapping[str, Any]) -> ProblemError:
+    """The problem with each condition's pointer naming its key as sent (:class:`ReadConditions`)."""
+    sent = conditions.sent_as if isinstance(conditions, ReadConditions) else {}
+    head = "/conditions/"
+    for item in problem.errors or []:
+        pointer = str(item.get("pointer", ""))
+        if pointer.startswith(head) and pointer[len(head):] in sent:
+            item["pointer"] = head + sent[pointer[len(head):]]
+    return problem
+
+
+def _input_problem(error: InputError, pointer: str, conditions: Mapping[str, Any] | None = None
+                   ) -> ProblemError:
     """The 422 problem of an input a calibrated model refuses: a physics input under ``pointer``, a
-    condition under ``/conditions``."""
-    where = f"{pointer}/{error.name}" if error.name in physics.PARAMETERS else f"/conditions/{error.name}"
+    condition under ``/conditions`` by its key as sent (``conditions``: :func:`read_conditions`'s)."""
+    sent = conditions.sent_as if isinstance(conditions, ReadConditions) else {}
+    where = (f"{pointer}/{error.name}" if error.name in physics.PARAMETERS
+             else f"/conditions/{sent.get(error.name, error.name)}")
     return validation_problem([{"pointer": where, "detail": str(error)}])
 
 
@@ -484,7 +507,9 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
         with problems():
             evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs)
     except InputError as exc:
-        raise _input_problem(exc, "") from None
+        raise _input_problem(exc, "", conditions) from None
+    except ProblemError as exc:  # a condition outside its law's domain, by its key as sent
+        raise _as_sent(exc, conditions) from None
     values = {name: float(value) for name, value in evaluation.values.items()}
     # NaN bounds are a model stored before intervals (answered null); anything else not finite (an
     # interval overflowing far outside the data, an output out of range) is the inputs' fault.
@@ -577,7 +602,9 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
     try:
         values = evaluate_in_chunks(executor, read, count, names, mu_model, pointer="/points")
     except InputError as exc:
-        raise _input_problem(exc, "/points") from None
+        raise _input_problem(exc, "/points", conditions) from None
+    except ProblemError as exc:
+        raise _as_sent(exc, conditions) from None
     _refuse_non_finite(values)
     with np.errstate(all="ignore"):
         inside, warnings = mu_model.calibrated.domain_check(everything)

@@ -46,7 +46,7 @@ from microbearing.optimize.robust import Envelope, optimize_robust
 from microbearing.physics.columns import input_slips
 from microbearing.physics.model import Model
 
-from .calibrations import interval_at, read_conditions, with_conditions
+from .calibrations import ReadConditions, interval_at, read_conditions, with_conditions
 from .executor import map_chunks
 from .models import CalibratedPhysicsModel, resolve
 from .problems import ProblemError, validation_problem
@@ -157,8 +157,10 @@ def _refuse_outside_law_domains(model: Model, body: OptimizationRequest) -> None
     outside = outside_law_domains(model.calibrated.terms, columns)
     if outside:
         speed_pointer = "/fixed/speed_m_s" if in_fixed else "/speed_m_s"
-        raise validation_problem([{"pointer": speed_pointer if name == "speed_m_s" else f"/conditions/{name}",
-                                   "detail": detail} for name, detail in outside.items()])
+        sent = body.conditions.sent_as if isinstance(body.conditions, ReadConditions) else {}
+        raise validation_problem([{"pointer": speed_pointer if name == "speed_m_s"
+                                   else f"/conditions/{sent.get(name, name)}", "detail": detail}
+                                  for name, detail in outside.items()])
 
 
 def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:

@@ -262,6 +262,13 @@ class Setup:
                                     f"{len(self.inputs)}, one per input of config.inputs "
                                     f"({', '.join(self.inputs)})")
         table = np.asarray(vectors, dtype=np.float64).reshape(self.points, len(self.inputs))
+        for j, name in enumerate(self.inputs):
+            # a condition's values judged for a unit slip as sent, as config.fixed and every other door
+            given = self.readings[j] if j < len(self.readings) else None
+            reading = given if given is not None else Reading(name, name)
+            message = None if name in physics.PARAMETERS else read_slip(reading, table[:, j])
+            if message is not None:
+                raise ProtocolError("InvalidInput", f"input[*][{j}] ({reading.sent}): {message}")
         for j, reading in enumerate(self.readings):
             if reading is not None:
                 table[:, j] = reading.convert(table[:, j])

@@ -281,6 +281,17 @@ def test_conditions_are_read_against_the_model_s_own_columns_at_every_door(clien
     assert mu({"relative_humidity": 0.5, "temperature [degR]": 540.27}) == pytest.approx(reference, rel=1e-9)
 
 
+def test_a_condition_outside_its_law_s_domain_is_named_as_sent(client, calibration):
+    # 100 % is the fraction 1, outside the open domain (0, 1) of the Kelvin menisci: refused at the key sent
+    model = calibration["model_id"]
+    detail = _problem(client.post("/v1/friction", json=_point(model, {"RH [%]": 100, "temp_K": 300})),
+                      "/conditions/RH [%]")
+    assert "(0, 1)" in detail, detail
+    batch = {"points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
+             "conditions": {"RH [%]": [50.0, 100.0], "temp_K": 300.0}}
+    assert "(0, 1)" in _problem(client.post("/v1/friction/batch", json=batch), "/conditions/RH [%]")
+
+
 def test_a_value_is_judged_for_a_unit_slip_in_the_unit_its_key_states(client, calibration):
     # 300 under a degC name is kelvin by the upload's rule, though 300 degC (573 K) is no slip of the
     # model's kelvin column; the refusal names the key as sent.
@@ -402,6 +413,11 @@ def test_um_bridge_varies_inputs_named_with_their_units(client, calibration):
     gradient_lab = np.array(call("Gradient", lab_inputs, lab, **wrt)["output"])
     np.testing.assert_allclose(gradient_lab, gradient_si * [1e-3, 1e-3, 1e-2], rtol=1e-9)
     assert np.all(gradient_si != 0)
+    # a varied condition is judged for a unit slip as config.fixed is: percent under a fraction's name
+    slipped = client.post("/umbridge/Evaluate", json={
+        "name": calibration["model_id"], "input": [[*si[:2], 50.0]],
+        "config": {"inputs": si_inputs, "fixed": {"balls": 4}}})
+    assert slipped.status_code == 400 and "look like percent" in slipped.text, slipped.text
 
 
 def test_the_report_s_sentences_give_a_column_s_values_in_the_upload_s_unit():
