@@ -28,7 +28,7 @@ from microbearing.calibrate.experiments import (
 )
 from microbearing.physics.columns import ColumnError, Reading, match_column, read_slip
 
-from .calibrations import MODEL_PREFIX, load_calibration, stored_dataset
+from .calibrations import MODEL_PREFIX, ReadConditions, load_calibration, stored_dataset
 from .problems import ProblemError, validation_problem
 from .schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
 from .store import Store
@@ -39,10 +39,18 @@ __all__ = ["JOB_KIND", "first_experiments_job", "next_experiments_job", "plan_pn
 JOB_KIND = "experiments"
 
 
-def _field_problem(exc: ValueError) -> ProblemError:
-    """A 422 naming the field a ValueError of calibrate.experiments starts with (``space.load_N: ...``)."""
+_FIELDS = ("space", "envelope", "fixed", "planned", "goal", "runs")
+
+
+def _field_problem(exc: ValueError, sent: Mapping[str, Mapping[str, str]] | None = None) -> ProblemError:
+    """A 422 naming the field a ValueError of calibrate.experiments starts with (``space.load_N: ...``);
+    ``sent``: per field, each model column's key as sent (:func:`_model_columns`), which the pointer names."""
     message = str(exc)
-    head = message.split(":", 1)[0] if ":" in message else ""
+    head = message.split(": ", 1)[0] if ": " in message else ""
+    field, _, key = head.partition(".")
+    if field in _FIELDS:
+        key = (sent or {}).get(field, {}).get(key, key)
+        return validation_problem([{"pointer": f"/{field}" + (f"/{key}" if key else ""), "detail": message}])
     if head and " " not in head:
         return validation_problem([{"pointer": "/" + head.replace(".", "/"), "detail": message}])
     field = "goal" if "goal" in message else "space"
@@ -118,7 +126,7 @@ def _model_columns(model: CalibratedModel, columns: Mapping[str, Any] | None, po
             raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": (
                 f"{sent_as[reading.name]!r} is read as {reading.name} too; keep one")}])
         out[reading.name], sent_as[reading.name] = _converted(reading, column), sent
-    return out
+    return ReadConditions(out, sent_as)
 
 
 def _document(plan: ExperimentPlan, model: str, job_id: str | None) -> dict[str, Any]:
@@ -144,13 +152,15 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     space = _model_columns(model, _space(body.space), "/space")
     envelope = _model_columns(model, _space(body.envelope), "/envelope")
     fixed = _model_columns(model, body.fixed, "/fixed")
+    sent = {field: columns.sent_as for field, columns in (("space", space), ("envelope", envelope),
+                                                          ("fixed", fixed)) if columns is not None}
     _check_planned(body.planned)
     try:
         check_request(model, space, fixed, envelope, body.planned)
         if model.covariance is None or model.noise_std_log is None:
             raise DesignError("the calibration was stored before models had a covariance; calibrate again")
     except ValueError as exc:
-        raise _field_problem(exc) from None
+        raise _field_problem(exc, sent) from None
     if body.goal == "predict" and envelope is None:
         raise validation_problem([{"pointer": "/envelope", "detail": "goal predict needs an envelope"}])
     dataset = stored_dataset(stored.arrays, model.fixed)
@@ -177,7 +187,7 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
                                     data=None if dataset is None else dataset.columns(),
                                     progress=lambda f: ctx.progress(0.2 + 0.8 * f))
         except ValueError as exc:
-            raise _field_problem(exc) from None
+            raise _field_problem(exc, sent) from None
         document = _document(plan, MODEL_PREFIX + calibration_id, ctx.job_id)
         return {**document, "calibration_id": calibration_id}
 

@@ -321,6 +321,18 @@ def test_every_value_of_a_range_is_judged_at_submit(client, calibration):
     assert "look like percent" in _problem(response, "/space/relative_humidity")
 
 
+def test_an_experiment_request_s_refusals_name_the_keys_as_sent(client, calibration):
+    route = f"/v1/calibrations/{calibration['model_id'].split(':')[1]}/next-experiments"
+    space = {"balls": [4, 8], "load_N": [0.002, 0.02], "speed_m_s": [0.05], "relative_humidity": [0.3, 0.7],
+             "temp_K": [300.0]}
+    unknown = client.post(route, json={"runs": 4, "goal": "parameters",
+                                       "space": {**space, "pressure [kPa]": [90, 110]}})
+    assert "not a physics input nor a condition" in _problem(unknown, "/space/pressure [kPa]")
+    clash = client.post(route, json={"runs": 4, "goal": "parameters", "space": space,
+                                     "fixed": {"RH [%]": 50}})
+    assert "also a column of the space" in _problem(clash, "/fixed/RH [%]")
+
+
 def test_an_experiment_space_reads_conditions_against_the_model_s_columns(client, calibration):
     space = {"balls": [4, 8], "load_N": [0.002, 0.02], "speed_m_s": [0.05], "RH [%]": [25, 75],
              "temp_degC": {"values": [20.0, 40.0]}}
