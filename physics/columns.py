@@ -35,8 +35,8 @@ from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
            "Reading", "Span", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
-           "input_slips", "match_column", "read_name", "read_slip", "read_span", "slip", "unit_of",
-           "unknown_column", "whole_number"]
+           "input_slips", "match_column", "read_key", "read_name", "read_slip", "read_span", "slip",
+           "unit_of", "unknown_column", "whole_number"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -519,6 +519,24 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
             words = (f" x {scale:.10g}" if scale != 1 else "") + (f" + {offset:.10g}" if offset else "")
             return Reading(sent, alike[0], scale, offset, None, f"{sent} read as {alike[0]}{words}")
     raise ColumnError(sent, unknown_column(sent, known))
+
+
+def read_key(sent: str, columns: Iterable[str], labels: Iterable[str] = ()) -> Reading | None:
+    """How a key sent to a model is read against the model's own columns: a physics input, one of
+    ``columns`` or of ``labels`` (factor columns, whose values are labels: read by their own name only)
+    as it is; another spelling or unit of one of ``columns`` converted (:func:`match_column`); None when
+    none reads it (the caller names it unknown, with the model's columns).
+
+    >>> read_key("RH [%]", ["relative_humidity"]).convert(50.0), read_key("humidity", ["RH_chamber"])
+    (0.5, None)
+    """
+    columns = list(columns)
+    if sent in PARAMETERS or sent in columns or sent in labels:
+        return Reading(sent, sent)
+    try:
+        return match_column(sent, columns)
+    except ColumnError:
+        return None
 
 
 def unknown_column(sent: str, known: Iterable[str], what: str = "column") -> str:

@@ -25,7 +25,7 @@ from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 from microbearing.calibrate.data import MU_MEASURED
 from microbearing.calibrate.tabular import TableError
-from microbearing.physics.columns import ColumnError, Reading, match_column, read_slip, unknown_column
+from microbearing.physics.columns import Reading, read_key, read_slip, unknown_column
 from microbearing.physics.model import NOT_FINITE
 
 from .evaluation import column_arrays
@@ -298,13 +298,17 @@ class ReadConditions(dict):
     """Conditions by the model's column names (a dict), with :attr:`sent_as`: each column's key as sent,
     for a refusal's pointer."""
 
-    def __init__(self, read: Mapping[str, Any], sent_as: Mapping[str, str]):
+    def __init__(self, read: Mapping[str, Any], sent_as: Mapping[str, str] | None = None):
         super().__init__(read)
-        self.sent_as = dict(sent_as)
+        self.sent_as = dict(sent_as or {})
+
+    def key(self, name: str) -> str:
+        """A column's key as sent (its own name when it was sent so)."""
+        return self.sent_as.get(name, name)
 
 
 def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
-                    pointer: str = "/conditions") -> dict[str, Any]:
+                    pointer: str = "/conditions") -> ReadConditions:
     """The conditions as the columns of a calibrated model, converted to their units and checked.
 
     A key that is not one of the model's columns is read by :func:`physics.columns.match_column`: the
@@ -324,8 +328,9 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
 
     Returns
     -------
-    dict
-        The conditions by the model's column names, in the calibration data's units.
+    ReadConditions
+        The conditions by the model's column names, in the calibration data's units, with each one's key
+        as sent.
 
     Raises
     ------
@@ -335,22 +340,17 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     conditions = dict(conditions or {})
     if not isinstance(model, CalibratedPhysicsModel):
         check_conditions(model, conditions, pointer)
-        return conditions
+        return ReadConditions(conditions)
     factors = model.calibrated.factors
-    known = [*model.conditions, *factors]
     read: dict[str, Any] = {}
     readings: dict[str, Reading] = {}
     unmatched: set[str] = set()
     for sent, value in conditions.items():
-        reading, matched = Reading(sent, sent), sent in known or sent in physics.PARAMETERS
-        if not matched:
-            try:  # a factor is a set of labels: only its own name reads it
-                reading, matched = match_column(sent, model.conditions), True
-            except ColumnError:
-                pass  # check_conditions names it, with the model's columns
+        reading = read_key(sent, model.conditions, factors)
+        if reading is None:  # check_conditions names it, with the model's columns
+            reading = Reading(sent, sent)
+            unmatched.add(sent)
         name = reading.name
-        if not matched:
-            unmatched.add(name)
         if name in read:
             raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": (
                 f"{readings[name].sent!r} is read as {name} too; keep one")}])
@@ -424,24 +424,21 @@ def interval_at(model: Any,
     return fields
 
 
-def _as_sent(problem: ProblemError, conditions: Mapping[str, Any]) -> ProblemError:
-    """The problem with each condition's pointer naming its key as sent (:class:`ReadConditions`)."""
-    sent = conditions.sent_as if isinstance(conditions, ReadConditions) else {}
+def _as_sent(problem: ProblemError, conditions: ReadConditions) -> ProblemError:
+    """The problem with each condition's pointer naming its key as sent."""
     head = "/conditions/"
     for item in problem.errors or []:
         pointer = str(item.get("pointer", ""))
-        if pointer.startswith(head) and pointer[len(head):] in sent:
-            item["pointer"] = head + sent[pointer[len(head):]]
+        if pointer.startswith(head):
+            item["pointer"] = head + conditions.key(pointer[len(head):])
     return problem
 
 
-def _input_problem(error: InputError, pointer: str, conditions: Mapping[str, Any] | None = None
-                   ) -> ProblemError:
+def _input_problem(error: InputError, pointer: str, conditions: ReadConditions) -> ProblemError:
     """The 422 problem of an input a calibrated model refuses: a physics input under ``pointer``, a
     condition under ``/conditions`` by its key as sent (``conditions``: :func:`read_conditions`'s)."""
-    sent = conditions.sent_as if isinstance(conditions, ReadConditions) else {}
     where = (f"{pointer}/{error.name}" if error.name in physics.PARAMETERS
-             else f"/conditions/{sent.get(error.name, error.name)}")
+             else f"/conditions/{conditions.key(error.name)}")
     return validation_problem([{"pointer": where, "detail": str(error)}])
 
 

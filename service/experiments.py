@@ -26,7 +26,7 @@ from microbearing.calibrate.experiments import (
     rival_models,
     rival_terms,
 )
-from microbearing.physics.columns import ColumnError, Reading, match_column, read_slip
+from microbearing.physics.columns import Reading, read_key, read_slip
 
 from .calibrations import MODEL_PREFIX, ReadConditions, load_calibration, stored_dataset
 from .problems import ProblemError, validation_problem
@@ -113,13 +113,11 @@ def _model_columns(model: CalibratedModel, columns: Mapping[str, Any] | None, po
     out: dict[str, Any] = {}
     sent_as: dict[str, str] = {}
     for sent, column in columns.items():
-        reading, matched = Reading(sent, sent), sent in physics.PARAMETERS or sent in model.conditions
-        if not matched and sent not in model.factors:
-            try:  # a factor is a set of labels: only its own name reads it
-                reading, matched = match_column(sent, model.conditions), True
-            except ColumnError:
-                pass  # check_request names it, with the model's columns
-        message = read_slip(reading, _span_values(column)) if matched else None
+        reading = read_key(sent, model.conditions, model.factors)
+        # a key nothing reads: check_request names it, with the model's columns; a factor holds labels
+        judged = reading is not None and sent not in model.factors
+        message = read_slip(reading, _span_values(column)) if judged else None
+        reading = reading or Reading(sent, sent)
         if message is not None:
             raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": message}])
         if reading.name in out:

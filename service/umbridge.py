@@ -41,7 +41,7 @@ from pydantic import ValidationError
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from microbearing import physics
-from microbearing.physics.columns import Reading, match_column, read_slip, unknown_column
+from microbearing.physics.columns import Reading, match_column, read_key, read_slip, unknown_column
 
 from .models import InputError, Model, ModelError, jacobian, resolve
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, validation_problem
@@ -125,12 +125,7 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> dict[str, Any]:
     (:func:`physics.columns.match_column`), a condition that looks like a unit slip refused."""
     read = {}
     for sent, value in fixed.items():
-        reading = Reading(sent, sent)
-        if sent not in model.inputs and sent not in physics.PARAMETERS:
-            try:
-                reading = match_column(sent, model.inputs)
-            except ValueError:
-                pass  # named below as not an input of the model
+        reading = read_key(sent, model.inputs) or Reading(sent, sent)  # none: named below as not an input
         name = reading.name
         if name in read:
             raise ProtocolError("InvalidInput", f"config.fixed.{sent}: another key is read as {name} too; "
