@@ -356,7 +356,7 @@ class CalibratedModel:
             return Prediction(mu * np.exp(shift), None, None, in_domain, warnings)
         # What the model and its rivals share (the same discrepancy, scatter and data cloud), computed once.
         shared = SharedPieces(shift, discrepancy_variance, self._noise_variance(points, mu.shape, level),
-                         self._cloud_score(points, mu.shape))
+                              self._cloud_score(points, mu.shape))
         mu, lower, upper = self._interval(points, labels, level, mu, physics_mu, shared,
                                           self.extrapolation_ratio(points, mu.shape))
         for rival in self.rival_models():
@@ -397,7 +397,7 @@ class CalibratedModel:
         if reads_fitted or mu.shape != shared.shift.shape:
             shift, discrepancy_variance = self._discrepancy(points, mu.shape)
             shared = SharedPieces(shift, discrepancy_variance, self._noise_variance(points, mu.shape, level),
-                             self._cloud_score(points, mu.shape))
+                                  self._cloud_score(points, mu.shape))
         if self.covariance is None or self.noise_std_log is None:
             return mu * np.exp(shared.shift), np.full(mu.shape, np.nan), np.full(mu.shape, np.nan)
         return self._interval(points, labels, level, mu, physics_mu, shared,
@@ -424,6 +424,7 @@ class CalibratedModel:
         """The finite-difference gradient of log μ in the fitted and term values at the points [1], and μ
         after each fitted value's step (its step and μ there; for the groups' sensitivities)."""
         values = [list(v) for _, v in self.terms]
+        names = list(self.fitted)
         flat = list(self.fitted.values()) + [x for v in values for x in v]
         gradient = np.zeros((len(flat), *mu.shape))
         stepped: dict[str, tuple[float, np.ndarray]] = {}
@@ -440,8 +441,8 @@ class CalibratedModel:
                 try:
                     known = physics_mu if j >= len(self.fitted) else None
                     moved = self._mu(points, fitted, term_values, known)
-                    if j < len(self.fitted):
-                        stepped[list(self.fitted)[j]] = (step, moved)
+                    if j < len(names):
+                        stepped[names[j]] = (step, moved)
                     gradient[j] = (np.log(moved) - np.log(mu)) / step
                 except ValueError:  # the step left a physics input's range: that direction is not varied
                     gradient[j] = 0.0

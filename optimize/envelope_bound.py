@@ -640,7 +640,7 @@ class BranchAndBound:
             if self._polish_at and self.boxes >= self._polish_at[0]:
                 self._polish_at.pop(0)
                 self._polish()
-            if -self._heap[0][0] <= self._best_value * (1.0 + self._rtol):
+            if self._closed():
                 break
             if self.boxes >= limit or time.perf_counter() - start > time_limit_s:
                 if final:
