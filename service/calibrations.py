@@ -296,15 +296,44 @@ def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str =
 
 class ReadConditions(dict):
     """Conditions by the model's column names (a dict), with :attr:`sent_as`: each column's key as sent,
-    for a refusal's pointer."""
+    for a refusal's pointer, and :attr:`sent_values`: its value as sent, for a refusal's words."""
 
-    def __init__(self, read: Mapping[str, Any], sent_as: Mapping[str, str] | None = None):
+    def __init__(self, read: Mapping[str, Any], sent_as: Mapping[str, str] | None = None,
+                 sent_values: Mapping[str, Any] | None = None):
         super().__init__(read)
         self.sent_as = dict(sent_as or {})
+        self.sent_values = dict(sent_values or {})
 
     def key(self, name: str) -> str:
         """A column's key as sent (its own name when it was sent so)."""
         return self.sent_as.get(name, name)
+
+    def as_sent(self, name: str, detail: str) -> str:
+        """A refusal's words about column ``name`` (which give its values in the model's unit), with
+        the key and value as sent when they were read as another column or unit.
+
+        >>> ReadConditions({"time_min": -60.0}, {"time_min": "time [h]"}, {"time_min": -1}).as_sent(
+        ...     "time_min", "value -60 lies outside [0, inf)")
+        'value -60 lies outside [0, inf) (sent as time [h]: -1, read as time_min: -60)'
+        """
+        key = self.key(name)
+        if key == name or name not in self.sent_values or name not in self:
+            return detail
+        return (f"{detail} (sent as {key}: {_shown(self.sent_values[name])}, read as {name}: "
+                f"{_shown(self[name])})")
+
+
+def _shown(value: Any) -> str:
+    """A sent value in a few characters: numbers as %g, a list as [a, b], a range as {low, high}."""
+    if isinstance(value, bool | str):
+        return str(value)
+    if isinstance(value, int | float):
+        return f"{value:g}"
+    if isinstance(value, Mapping):  # a range or a set: its numbers (a spacing is no value)
+        return "{" + ", ".join(f"{k}: {_shown(v)}" for k, v in value.items() if not isinstance(v, str)) + "}"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_shown(v) for v in value) + "]"
+    return str(value)
 
 
 def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
@@ -368,7 +397,8 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     if items:
         raise validation_problem(items)
     check_conditions(model, read, pointer)
-    return ReadConditions(read, {name: reading.sent for name, reading in readings.items()})
+    return ReadConditions(read, {name: reading.sent for name, reading in readings.items()},
+                          {name: conditions[reading.sent] for name, reading in readings.items()})
 
 
 def _has_text(value: Any) -> bool:
@@ -430,7 +460,9 @@ def _as_sent(problem: ProblemError, conditions: ReadConditions) -> ProblemError:
     for item in problem.errors or []:
         pointer = str(item.get("pointer", ""))
         if pointer.startswith(head):
-            item["pointer"] = head + conditions.key(pointer[len(head):])
+            name = pointer[len(head):]
+            item["pointer"] = head + conditions.key(name)
+            item["detail"] = conditions.as_sent(name, str(item.get("detail", "")))
     return problem
 
 

@@ -42,15 +42,17 @@ JOB_KIND = "experiments"
 _FIELDS = ("space", "envelope", "fixed", "planned", "goal", "runs")
 
 
-def _field_problem(exc: ValueError, sent: Mapping[str, Mapping[str, str]] | None = None) -> ProblemError:
+def _field_problem(exc: ValueError, sent: Mapping[str, ReadConditions] | None = None) -> ProblemError:
     """A 422 naming the field a ValueError of calibrate.experiments starts with (``space.load_N: ...``);
-    ``sent``: per field, each model column's key as sent (:func:`_model_columns`), which the pointer names."""
+    ``sent``: per field, its columns as read (:func:`_model_columns`), whose keys as sent the pointer names
+    and whose values as sent the words add."""
     message = str(exc)
     head = message.split(": ", 1)[0] if ": " in message else ""
     field, _, key = head.partition(".")
     if field in _FIELDS:
-        key = (sent or {}).get(field, {}).get(key, key)
-        return validation_problem([{"pointer": f"/{field}" + (f"/{key}" if key else ""), "detail": message}])
+        columns = (sent or {}).get(field, ReadConditions({}))
+        pointer = f"/{field}" + (f"/{columns.key(key)}" if key else "")
+        return validation_problem([{"pointer": pointer, "detail": columns.as_sent(key, message)}])
     if head and " " not in head:
         return validation_problem([{"pointer": "/" + head.replace(".", "/"), "detail": message}])
     field = "goal" if "goal" in message else "space"
@@ -124,7 +126,7 @@ def _model_columns(model: CalibratedModel, columns: Mapping[str, Any] | None, po
             raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": (
                 f"{sent_as[reading.name]!r} is read as {reading.name} too; keep one")}])
         out[reading.name], sent_as[reading.name] = _converted(reading, column), sent
-    return ReadConditions(out, sent_as)
+    return ReadConditions(out, sent_as, {name: columns[key] for name, key in sent_as.items()})
 
 
 def _document(plan: ExperimentPlan, model: str, job_id: str | None) -> dict[str, Any]:
@@ -150,8 +152,8 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     space = _model_columns(model, _space(body.space), "/space")
     envelope = _model_columns(model, _space(body.envelope), "/envelope")
     fixed = _model_columns(model, body.fixed, "/fixed")
-    sent = {field: columns.sent_as for field, columns in (("space", space), ("envelope", envelope),
-                                                          ("fixed", fixed)) if columns is not None}
+    sent = {field: columns for field, columns in (("space", space), ("envelope", envelope), ("fixed", fixed))
+            if columns is not None}
     _check_planned(body.planned)
     try:
         check_request(model, space, fixed, envelope, body.planned)

@@ -157,10 +157,11 @@ def _refuse_outside_law_domains(model: Model, body: OptimizationRequest) -> None
     outside = outside_law_domains(model.calibrated.terms, columns)
     if outside:
         speed_pointer = "/fixed/speed_m_s" if in_fixed else "/speed_m_s"
-        sent = body.conditions.sent_as if isinstance(body.conditions, ReadConditions) else {}
-        raise validation_problem([{"pointer": speed_pointer if name == "speed_m_s"
-                                   else f"/conditions/{sent.get(name, name)}", "detail": detail}
-                                  for name, detail in outside.items()])
+        sent = body.conditions if isinstance(body.conditions, ReadConditions) else ReadConditions({})
+        raise validation_problem([
+            {"pointer": "/conditions/" + sent.key(name), "detail": sent.as_sent(name, detail)}
+            if name != "speed_m_s" else {"pointer": speed_pointer, "detail": detail}
+            for name, detail in outside.items()])
 
 
 def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:

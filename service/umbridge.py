@@ -32,7 +32,7 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -120,10 +120,11 @@ def name_of(body: bytes) -> tuple[dict[str, Any], str]:
     return document, document["name"]
 
 
-def _read_fixed(model: Model, fixed: dict[str, Any]) -> dict[str, Any]:
+def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], dict[str, str]]:
     """``config.fixed`` by the model's input names: another unit of a condition's quantity converted
-    (:func:`physics.columns.match_column`), a condition that looks like a unit slip refused."""
-    read = {}
+    (:func:`physics.columns.match_column`), a condition that looks like a unit slip refused; with the key
+    each was sent under (for messages)."""
+    read, sent_as = {}, {}
     for sent, value in fixed.items():
         reading = read_key(sent, model.inputs) or Reading(sent, sent)  # none: named below as not an input
         name = reading.name
@@ -134,9 +135,9 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> dict[str, Any]:
         message = None if name in physics.PARAMETERS or isinstance(value, bool) else read_slip(reading, value)
         value = reading.convert(value) if reading.reading and not isinstance(value, bool) else value
         if message is not None:
-            raise ProtocolError("InvalidInput", f"config.fixed.{name}: {message}")
-        read[name] = value
-    return read
+            raise ProtocolError("InvalidInput", f"config.fixed.{sent}: {message}")
+        read[name], sent_as[name] = value, sent
+    return read, sent_as
 
 
 def _read_inputs(model: Model, names: Sequence[str]) -> tuple[list[str], tuple[Reading | None, ...]]:
@@ -182,6 +183,8 @@ class Setup:
         Points per request. [1]
     readings : tuple of physics.columns.Reading or None
         Per varying input, how its values are converted from the unit it was named in (None: its own).
+    fixed_as_sent : dict of str to str
+        The key of ``config.fixed`` each fixed input was sent under (messages name it).
     """
 
     model: Model
@@ -190,6 +193,7 @@ class Setup:
     outputs: list[str]
     points: int
     readings: tuple[Reading | None, ...] = ()
+    fixed_as_sent: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def of(cls, model: Model, config: UMBridgeConfig, max_points: int) -> Setup:
@@ -207,13 +211,13 @@ class Setup:
         if config.points > max_points:
             raise ProtocolError("InvalidInput", f"config.points: {config.points} points per request; the "
                                 f"limit is {max_points}", status=413)
-        given = _read_fixed(model, config.fixed)
+        given, fixed_as_sent = _read_fixed(model, config.fixed)
         inputs, readings = _read_inputs(model, config.inputs or [n for n in model.default_inputs
                                                                  if n not in given])
-        for field, names in (("config.inputs", inputs), ("config.fixed", list(given))):
+        for part, names in (("config.inputs", inputs), ("config.fixed", list(given))):
             for name in names:
                 if name not in model.inputs:
-                    raise ProtocolError("InvalidInput", f"{field}: {name!r} is not an input of "
+                    raise ProtocolError("InvalidInput", f"{part}: {name!r} is not an input of "
                                         f"{model.reference}: {unknown_column(name, model.inputs)}")
         repeated = sorted({n for n in inputs if inputs.count(n) > 1} | (set(inputs) & set(given)))
         if repeated:
@@ -228,13 +232,13 @@ class Setup:
             try:
                 fixed[name] = model.inputs[name].check(value)
             except InputError as exc:
-                raise ProtocolError("InvalidInput", f"config.fixed.{name}: {exc}") from None
+                raise ProtocolError("InvalidInput", f"config.fixed.{fixed_as_sent[name]}: {exc}") from None
         available = [*model.outputs, FLAG_OUTPUT]
         unknown = [n for n in config.outputs if n not in available]
         if unknown or len(set(config.outputs)) < len(config.outputs):
             raise ProtocolError("InvalidInput", f"config.outputs: each once, from {', '.join(available)}; "
                                 f"got {config.outputs}")
-        return cls(model, inputs, fixed, list(config.outputs), config.points, readings)
+        return cls(model, inputs, fixed, list(config.outputs), config.points, readings, fixed_as_sent)
 
     @property
     def input_sizes(self) -> list[int]:
@@ -286,10 +290,11 @@ class Setup:
     def where(self, error: InputError) -> str:
         """The request field of an input error: ``input[point][position] (name)`` or ``config.fixed.name``."""
         if error.name in self.inputs:
-            point = 0 if error.index is None else error.index
-            return f"input[{point}][{self.inputs.index(error.name)}] ({error.name})"
+            point, j = 0 if error.index is None else error.index, self.inputs.index(error.name)
+            reading = self.readings[j] if j < len(self.readings) else None
+            return f"input[{point}][{j}] ({error.name if reading is None else reading.sent})"
         if error.name in self.fixed:
-            return f"config.fixed.{error.name}"
+            return f"config.fixed.{self.fixed_as_sent.get(error.name, error.name)}"
         return "config"
 
     def real_outputs(self) -> list[str]:
@@ -313,9 +318,9 @@ def evaluate(setup: Setup, vectors: Sequence[Sequence[float]]) -> bytes:
 
 def _jacobian_at(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int, in_wrt: int) -> np.ndarray:
     """d output vector ``out_wrt`` / d input vector ``in_wrt``, shape (outputs, inputs)."""
-    for field, index in (("outWrt", out_wrt), ("inWrt", in_wrt)):
+    for part, index in (("outWrt", out_wrt), ("inWrt", in_wrt)):
         if index >= setup.points:
-            raise ProtocolError("InvalidInput", f"{field}: {index} is not the index of a vector; there are "
+            raise ProtocolError("InvalidInput", f"{part}: {index} is not the index of a vector; there are "
                                 f"{setup.points} (config.points)")
     if FLAG_OUTPUT in setup.outputs:
         raise ProtocolError("InvalidInput", f"config.outputs: {FLAG_OUTPUT} is a flag without a derivative; "

@@ -216,6 +216,11 @@ def test_um_bridge_reads_fixed_inputs_with_units_as_the_upload_does(client, cali
     assert lab.json()["output"][0] == pytest.approx(si.json()["output"][0], rel=1e-9)
     slipped = evaluate(model, {"speed_m_s": 0.05, "relative_humidity": 50})
     assert slipped.status_code == 400 and "look like percent" in slipped.text, slipped.text
+    # a refusal names the key as it was sent, not the column it was read as
+    for fixed, key in (({"speed_m_s": 0.05, "RH [%]": 5000}, "config.fixed.RH [%]"),
+                       ({"speed [mm/s]": -50, "relative_humidity": 0.5}, "config.fixed.speed [mm/s]")):
+        refused = evaluate(model, fixed)
+        assert refused.status_code == 400 and refused.json()["error"]["message"].startswith(key), refused.text
 
 
 def test_an_experiment_space_may_name_columns_with_units():

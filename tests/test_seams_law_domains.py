@@ -183,3 +183,26 @@ def test_the_cli_refuses_next_experiments_outside_the_law_s_domain(model, data_d
     request.write_text(request.read_text().replace('"low": 0.3, "high": 1.0', '"low": 30, "high": 70'))
     assert main(["experiments", str(request), "--calibration", model]) == 2
     assert "/space/relative_humidity" in (err := capsys.readouterr().err) and "look like percent" in err
+
+
+def test_a_law_domain_refusal_gives_the_value_as_sent_when_read_in_another_unit(client, model):
+    # 100 % is the fraction 1, outside (0, 1): the words give the value in the model's unit and as sent,
+    # at every door that reads the key
+    as_sent = "(sent as relative humidity [%]: 100, read as relative_humidity: 1)"
+    point = {"balls": 8, "load_N": 0.01, "speed_m_s": 0.05, "model": model}
+    detail = assert_refused(client.post("/v1/friction", json={
+        **point, "conditions": {"relative humidity [%]": 100}}), "/conditions/relative humidity [%]")
+    assert "(0, 1)" in detail and as_sent in detail, detail
+    body = {**optimization(model, 0.5), "conditions": {"relative humidity [%]": [30, 100]}}
+    detail = assert_refused(client.post("/v1/optimizations", json=body), "/conditions/relative humidity [%]")
+    assert "(0, 1)" in detail and "(sent as relative humidity [%]: [30, 100]" in detail, detail
+    space = {"balls": {"values": [4, 8, 12]}, "load_N": {"low": 0.005, "high": 0.02},
+             "speed_m_s": {"low": 0.02, "high": 0.1}, "relative humidity [%]": {"low": 30, "high": 100}}
+    response = client.post(f"/v1/calibrations/{model.split(':', 1)[1]}/next-experiments",
+                           json={"runs": 4, "space": space})
+    detail = assert_refused(response, "/space/relative humidity [%]")
+    assert "(0, 1)" in detail and "(sent as relative humidity [%]: {low: 30, high: 100}" in detail, detail
+    # a key sent as the model's own column is not restated
+    detail = assert_refused(client.post("/v1/friction", json={
+        **point, "conditions": {"relative_humidity": 1.0}}), "/conditions/relative_humidity")
+    assert "sent as" not in detail, detail

@@ -404,6 +404,18 @@ def read_column_keys(columns: dict[str, Any] | None) -> dict[str, Any] | None:
 
 #: A mapping of columns whose keys are read as the upload reads its header (:func:`read_column_keys`).
 ColumnKeys = AfterValidator(read_column_keys)
+
+
+def check_column_keys(columns: dict[str, Any] | None) -> dict[str, Any] | None:
+    """Columns kept as sent, keys checked as :func:`read_column_keys` reads them (a unit not known or
+    not of its quantity, two keys read as one physics input): for a door that reads the keys against its
+    model itself and names them as sent (UM-Bridge's ``config.fixed``)."""
+    read_column_keys(columns)
+    return columns
+
+
+#: A mapping of columns kept as sent, its keys checked (:func:`check_column_keys`).
+CheckedColumnKeys = AfterValidator(check_column_keys)
 #: What a description of such a mapping says about its keys.
 UNIT_KEYS = (" A key may carry its unit as the upload's header does (e.g. 'relative humidity [%]', "
              "'temperature [degF]', temp_F), converted as the upload converts it; a value in another unit "

@@ -11,7 +11,7 @@ from typing import Annotated
 
 from pydantic import Field
 
-from .base import ColumnKeys, ConventionName, StrictModel, WholeNumber
+from .base import CheckedColumnKeys, ConventionName, StrictModel, WholeNumber
 
 #: Where the protocol is served: clients are given ``http://host:port/umbridge``.
 PREFIX = "/umbridge"
@@ -27,7 +27,7 @@ class UMBridgeConfig(StrictModel):
         "Inputs that vary, in the order of each input vector, by name in their units (see "
         "physics.PARAMETERS, e.g. load_N [N], groove_angle_deg [deg]; a calibrated model's condition "
         "columns). Default: the model's inputs that have no default value."))
-    fixed: Annotated[dict[str, float | bool], ColumnKeys] = Field(default_factory=dict, description=(
+    fixed: Annotated[dict[str, float | bool], CheckedColumnKeys] = Field(default_factory=dict, description=(
         "Values of inputs that do not vary, by name, in their units; the others take the physics "
         "default or the value the model fixed or fitted. A name may carry its unit as a calibration "
         "upload's header does ('speed [mm/s]', 'relative humidity [%]'), converted; a condition that looks "
