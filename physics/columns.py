@@ -111,9 +111,10 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in [
 
 # Units the words of a condition's name may say, by the condition; the first word found counts.
 _UNIT_WORDS = {
-    "relative_humidity": {"pct": "percent", "percent": "percent"},
-    "temperature_K": {"k": "K", "kelvin": "K", "c": "degC", "degc": "degC", "celsius": "degC",
-                      "f": "degF", "degf": "degF", "fahrenheit": "degF", "r": "degR", "rankine": "degR"},
+    "relative_humidity": {"pct": "percent", "percent": "percent", "percentage": "percent"},
+    "temperature_K": {"k": "K", "kelvin": "K", "kelvins": "K", "c": "degC", "degc": "degC",
+                      "celsius": "degC", "f": "degF", "degf": "degF", "fahrenheit": "degF", "r": "degR",
+                      "rankine": "degR"},
     "time_h": {"s": "s", "sec": "s", "min": "min", "h": "h", "hr": "h", "hours": "h", "d": "day",
                "days": "day"},
 }
@@ -121,8 +122,8 @@ _UNIT_WORDS = {
 _UNREAD_TEMPERATURES = {"degF", "degR"}
 # Words of a condition's name that state a unit; dropped when brackets give the unit, so that the terms,
 # which read units from names (pct, C, K), do not convert twice.
-_DROPPED_WORDS = {"pct", "percent", "c", "k", "degc", "kelvin", "celsius", "f", "degf", "fahrenheit", "r",
-                  "degr", "rankine"}
+_DROPPED_WORDS = {"pct", "percent", "percentage", "c", "k", "degc", "kelvin", "kelvins", "celsius", "f",
+                  "degf", "fahrenheit", "r", "degr", "rankine"}
 # Unit symbols of the physics names' suffixes (load_N -> N, speed_m_s -> m/s, ...).
 _SUFFIXES = {"N": "N", "m/s": "m_s", "deg": "deg", "m": "m", "J/m^2": "J_m2", "N/m": "N_m", "Pa*s": "Pa_s",
              "1/Pa": "1_Pa", "Pa": "Pa"}

@@ -1,8 +1,8 @@
 """Kinds of condition column that drive effects and drift laws, recognised by name, with their units.
 
 A humidity column contains ``humid`` or ``rh`` (a fraction in [0, 1), or percent when the name contains
-``pct`` or ``percent``); a temperature column ``temp`` (degC, or kelvin when the name says ``k`` or
-``kelvin``). Each unit declares the values a micro bearing's test rig plausibly records
+``pct``, ``percent`` or ``percentage``); a temperature column ``temp`` (degC, or kelvin when the name says
+``k``, ``kelvin`` or ``kelvins``). Each unit declares the values a micro bearing's test rig plausibly records
 (:attr:`DriverUnit.plausible`), which :mod:`calibrate.plausibility` reads; a law declares the values its
 formula holds for as a :class:`Domain`. :mod:`physics.effects` re-exports every name here.
 """
@@ -125,12 +125,12 @@ class DriverKind:
 
 #: Relative humidity: a fraction in [0, 1], or percent when the name says ``pct`` or ``percent``.
 HUMIDITY = DriverKind("relative humidity", ("humid", "rh"), (
-    DriverUnit("%", ("pct", "percent"), (), (0.0, 100.0)),
+    DriverUnit("%", ("pct", "percent", "percentage"), (), (0.0, 100.0)),
     DriverUnit("1", (), (), (0.0, 1.0))))
 #: Temperature: degC, or kelvin when the name says ``k`` or ``kelvin`` (and not ``c``/``degc``); a degC
 #: column above 200 looks like kelvin, a kelvin one below 150 like degC.
 TEMPERATURE = DriverKind("temperature", ("temp",), (
-    DriverUnit("K", ("k", "kelvin"), ("c", "degc"), (150.0, math.inf)),
+    DriverUnit("K", ("k", "kelvin", "kelvins"), ("c", "degc"), (150.0, math.inf)),
     DriverUnit("degC", (), (), (-273.15, 200.0))))
 #: The kinds of driver column the effects and laws declare, with their units and plausible ranges.
 DRIVER_KINDS: tuple[DriverKind, ...] = (HUMIDITY, TEMPERATURE)

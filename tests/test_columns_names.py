@@ -12,15 +12,26 @@ from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
 
 @pytest.mark.parametrize(("name", "unit"), [
     ("chamber_temperature_K", "K"), ("case temperature [degC]", "degC"), ("kiln_temp", "degC"),
-    ("coil_temp_K", "K"), ("temp_kelvin", "K"), ("temperature_C", "degC"), ("T_K", "K")])
+    ("coil_temp_K", "K"), ("temp_kelvin", "K"), ("temp_kelvins", "K"), ("temperature_C", "degC"),
+    ("T_K", "K")])
 def test_a_temperature_s_unit_is_read_from_whole_words(name, unit):
     # "chamber" and "case" start with c, "kiln" with k: none of them is a unit
     assert TEMPERATURE.unit_of(name).unit == unit
 
 
-@pytest.mark.parametrize(("name", "unit"), [("rh_pctile", "1"), ("rh_PCT", "%"), ("humidity_percent", "%")])
+@pytest.mark.parametrize(("name", "unit"), [("rh_pctile", "1"), ("rh_PCT", "%"), ("humidity_percent", "%"),
+                                            ("humidity_percentage", "%")])
 def test_a_humidity_s_unit_is_read_from_whole_words(name, unit):
     assert HUMIDITY.unit_of(name).unit == unit
+
+
+@pytest.mark.parametrize(("sent", "known", "value", "expected"), [
+    ("humidity_percentage", "relative_humidity", 50.0, 0.5), ("temp_kelvins", "temp_degC", 300.0, 26.85),
+    ("temp_kelvins", "temperature_K", 300.0, 300.0)])
+def test_plural_unit_words_are_read_as_their_unit(sent, known, value, expected):
+    # a plural (kelvins, percentage) is the unit's word too: read, never refused nor taken for the default
+    assert match_column(sent, [known]).convert(value) == pytest.approx(expected)
+    assert read_slip(match_column(sent, [known]), [value]) is None
 
 
 def test_a_header_with_a_word_before_temperature_converts_by_its_brackets():
