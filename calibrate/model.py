@@ -351,7 +351,8 @@ class CalibratedModel:
         physics_mu = self._physics_mu(points)
         mu = np.asarray(self._mu(points, self.fitted, values, physics_mu), dtype=float)
         shift, discrepancy_variance = self._discrepancy(points, mu.shape)
-        in_domain, warnings = self.domain_check(points) if domain else (None, [])
+        # the labels too: a label no group of the data has is predicted as a new group, and said so
+        in_domain, warnings = self.domain_check({**points, **labels}) if domain else (None, [])
         if self.covariance is None or self.noise_std_log is None:
             return Prediction(mu * np.exp(shift), None, None, in_domain, warnings)
         # What the model and its rivals share (the same discrepancy, scatter and data cloud), computed once.

@@ -1,6 +1,7 @@
 """A factor column of two labels (two chambers, two specimens): the spread between groups has no upper 95 %
 end, which JSON cannot hold as a number; the calibration is stored, reported and predicts (it failed at its
-last step with "Out of range float values are not JSON compliant")."""
+last step with "Out of range float values are not JSON compliant"); a label no group of the data has is
+predicted as a new group and said so."""
 
 from __future__ import annotations
 
@@ -46,6 +47,14 @@ def test_a_factor_of_two_labels_is_calibrated_stored_and_predicts(tmp_path):
         # a new chamber carries the spread between the two: a wider interval than a known one's
         width = [a.json()["mu_upper"] / a.json()["mu_lower"] for a in (new, known)]
         assert width[0] > width[1], width
+        # a new group is said (its interval is the spread's), and a number where the data hold text labels
+        # is a label too: no group of the data, said so
+        assert any("chamber = C is not a group" in w for w in new.json()["domain_warnings"]), new.text
+        assert known.json()["domain_warnings"] == [], known.text
+        numeric = client.post("/v1/friction", json={**point, "conditions": {"chamber": 2}})
+        assert numeric.status_code == 200, numeric.text
+        assert any("chamber = 2 is not a group" in w for w in numeric.json()["domain_warnings"]), numeric.text
+        assert numeric.json()["mu_upper"] == pytest.approx(new.json()["mu_upper"], rel=1e-12)
         stored = client.get(f"/v1/calibrations/{model.split(':')[1]}")
         assert stored.status_code == 200, stored.text
 
