@@ -152,11 +152,14 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     space = _model_columns(model, _space(body.space), "/space")
     envelope = _model_columns(model, _space(body.envelope), "/envelope")
     fixed = _model_columns(model, body.fixed, "/fixed")
+    # a planned run's conditions read as the space's (the upload's headers and units)
+    planned = None if body.planned is None else [dict(_model_columns(model, run, f"/planned/{i}"))
+                                                 for i, run in enumerate(body.planned)]
     sent = {field: columns for field, columns in (("space", space), ("envelope", envelope), ("fixed", fixed))
             if columns is not None}
-    _check_planned(body.planned)
+    _check_planned(planned)
     try:
-        check_request(model, space, fixed, envelope, body.planned)
+        check_request(model, space, fixed, envelope, planned)
         if model.covariance is None or model.noise_std_log is None:
             raise DesignError("the calibration was stored before models had a covariance; calibrate again")
     except ValueError as exc:
@@ -182,7 +185,7 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
         ctx.progress(0.2)
         try:
             request = ExperimentRequest(space, body.runs, body.goal, envelope=envelope, fixed=fixed,
-                                        planned=body.planned, seed=body.seed)
+                                        planned=planned, seed=body.seed)
             plan = next_experiments(model, request, rivals=rivals,
                                     data=None if dataset is None else dataset.columns(),
                                     progress=lambda f: ctx.progress(0.2 + 0.8 * f))

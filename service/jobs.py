@@ -80,6 +80,7 @@ from .store import (
     Requester,
     StorageError,
     Store,
+    UnstorableError,
     json_bytes,
     to_json,
     utc_now,
@@ -813,6 +814,11 @@ class JobManager:
             logger.error("job %s failed: %s", job_id, fault.detail, extra={"job_id": job_id})
             self._finish(job_id, token, "failed", error_json=to_json(fault.to_dict()))
         except ProblemError as problem:
+            self._finish(job_id, token, "failed", error_json=to_json(problem.to_dict()))
+        except UnstorableError as fault:  # the code's fault, not the request's: 500, logged
+            logger.error("job %s failed: %s", job_id, fault, extra={"job_id": job_id})
+            problem = ProblemError(500, f"The job's result could not be stored: {fault}", title="Job failed",
+                                   type_=INTERNAL_TYPE)
             self._finish(job_id, token, "failed", error_json=to_json(problem.to_dict()))
         except ValueError as exc:
             problem = ProblemError(422, str(exc), title="Invalid job input", type_=VALIDATION_TYPE)

@@ -53,6 +53,7 @@ from .store_types import (
     Requester,
     StorageError,
     StoredModel,
+    UnstorableError,
     json_bytes,
     redacted_url,
     to_json,
@@ -60,7 +61,7 @@ from .store_types import (
 )
 
 __all__ = ["DATABASE_NAME", "REQUESTER", "ModelLimitError", "Requester", "SqliteStore", "StorageError",
-           "Store", "StoredModel", "json_bytes", "redacted_url", "to_json", "utc_now"]
+           "Store", "StoredModel", "UnstorableError", "json_bytes", "redacted_url", "to_json", "utc_now"]
 
 DATABASE_NAME = "microbearing.sqlite3"
 
@@ -521,13 +522,19 @@ class Store:
 
         Raises
         ------
-        ValueError
-            For object arrays, which only pickle could store.
+        UnstorableError
+            A ValueError: for object arrays, which only pickle could store, or metadata that are not strict
+            JSON (NaN, infinities).
         """
         plain = {key: np.asarray(value) for key, value in arrays.items()}
         pickled = sorted(key for key, value in plain.items() if value.dtype.hasobject)
         if pickled:
-            raise ValueError(f"arrays must have numeric or string dtypes, not object: {', '.join(pickled)}")
+            raise UnstorableError(f"arrays must have numeric or string dtypes, not object: "
+                                  f"{', '.join(pickled)}")
+        try:
+            metadata_json = to_json(metadata)
+        except ValueError as exc:
+            raise UnstorableError(f"the model's metadata are not strict JSON: {exc}") from None
         buffer = io.BytesIO()
         np.savez_compressed(buffer, **plain)
         model_id = uuid.uuid4().hex
@@ -541,7 +548,7 @@ class Store:
             conn.execute(
                 "INSERT INTO models (id, kind, name, metadata_json, arrays_npz, owner_key, created_at) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",
-                (model_id, kind, name, to_json(metadata), buffer.getvalue(), REQUESTER.get().key_id,
+                (model_id, kind, name, metadata_json, buffer.getvalue(), REQUESTER.get().key_id,
                  utc_now()))
         return model_id
 

@@ -22,7 +22,7 @@ import pydantic_core
 from .problems import ProblemError
 
 __all__ = ["EVERYONE", "REQUESTER", "STORAGE_TYPE", "ModelLimitError", "Requester", "StorageError",
-           "StoredModel", "json_bytes", "redacted_url", "to_json", "utc_now"]
+           "StoredModel", "UnstorableError", "json_bytes", "redacted_url", "to_json", "utc_now"]
 
 @dataclass(frozen=True)
 class Requester:
@@ -70,6 +70,12 @@ class ModelLimitError(ProblemError):
         super().__init__(507, detail, title="Stored-model limit reached")
         self.stored = stored
         self.limit = limit
+
+
+class UnstorableError(ValueError):
+    """What the server's own code handed the store cannot be kept: a number JSON cannot hold, an array
+    only pickle could. A fault of the code, not of a request: a job reports it as 500, where another
+    ValueError of its work is the request's 422."""
 
 
 class StorageError(ProblemError):

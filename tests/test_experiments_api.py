@@ -92,6 +92,24 @@ def test_predict_narrows_the_interval_over_the_envelope(client, calibration_id):
     assert any(not run["in_domain"] for run in result["runs"])  # 70-85 % RH lies beyond the data
 
 
+def test_planned_runs_may_name_columns_with_their_units(client, calibration_id):
+    # the planned runs read as the space reads its columns: the same plan from the upload's spellings
+    si = [{"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "relative_humidity": 0.8},
+          {"balls": 8, "load_N": 0.02, "speed_m_s": 0.1, "relative_humidity": 0.9}]
+    lab = [{"balls": 4, "load [mN]": 10, "speed [mm/s]": 50, "relative humidity [%]": 80},
+           {"balls": 8, "load_mN": 20, "speed_mm_s": 100, "RH_pct": 90}]
+    url = f"/v1/calibrations/{calibration_id}/next-experiments"
+    plans = [finished(client, client.post(url, json={"runs": 4, "goal": "parameters", "space": SPACE,
+                                                       "planned": planned}))["runs"] for planned in (si, lab)]
+    assert plans[0] == plans[1]
+    # a slip in a planned run is refused at its key as sent, as in the space
+    slipped = [{**si[0], "relative_humidity": 80}]
+    answer = problem(client.post(url, json={"runs": 4, "goal": "parameters", "space": SPACE,
+                                            "planned": slipped}), 422)
+    assert [e["pointer"] for e in answer["errors"]] == ["/planned/0/relative_humidity"], answer
+    assert "look like percent" in answer["errors"][0]["detail"], answer
+
+
 def test_first_design_on_the_physics(client):
     space = {"balls": {"values": [4, 8, 12]}, "load_N": {"low": 1e-3, "high": 3e-2, "spacing": "log"},
              "speed_m_s": {"low": 0.0, "high": 0.15}}

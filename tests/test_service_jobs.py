@@ -76,6 +76,19 @@ def test_a_result_json_cannot_hold_fails_the_job(manager):
     assert row["status"] == "failed" and "not finite JSON" in json.loads(row["error_json"])["detail"]
 
 
+def test_a_model_the_store_cannot_keep_fails_the_job_as_the_server_s_fault(manager, store):
+    # a work storing metadata JSON cannot hold (the two-label factor's open spread did) is a 500 of the
+    # server, logged, never the request's 422
+    def work(ctx: JobContext) -> dict:
+        return {"id": store.save_model("calibration", {"spread_high": float("inf")}, {})}
+
+    row = wait(manager, manager.submit("unstorable", {}, work)["id"])
+    problem = json.loads(row["error_json"])
+    assert row["status"] == "failed" and problem["status"] == 500, problem
+    assert "could not be stored" in problem["detail"] and "not strict JSON" in problem["detail"], problem
+    assert store.list_models("calibration") == []
+
+
 def test_cancelling_a_running_job(manager):
     started = threading.Event()
 

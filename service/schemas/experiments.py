@@ -120,8 +120,8 @@ class _ExperimentsRequest(StrictModel):
         default=None, max_length=MAX_SPACE_COLUMNS, description=_ENVELOPE)
     fixed: Annotated[dict[str, float | bool] | None, ColumnKeys] = Field(default=None, max_length=64,
                                                                          description=_FIXED + _UNIT_NAMES)
-    planned: list[dict[str, float]] | None = Field(default=None, max_length=MAX_PLANNED_RUNS,
-                                                   description=_PLANNED)
+    planned: list[Annotated[dict[str, float], ColumnKeys]] | None = Field(
+        default=None, max_length=MAX_PLANNED_RUNS, description=_PLANNED + _UNIT_NAMES)
     seed: WholeNumber = Field(default=0, ge=0, le=2**31 - 1, description="Seed of the candidate set [1].")
 
 
