@@ -374,16 +374,61 @@ def unit_of(name: str) -> str | None:
     return condition.unit
 
 
+# Words of a count's unit (cycles [kcycles]): counts, not pint's cycle or turn, which are angles of 2 pi.
+_COUNT_WORDS = re.compile(r"(cycles?|pass(?:es)?|strokes?|revs?|revolutions?|turns?)", re.IGNORECASE)
+
+
+def _angle(unit) -> bool:
+    """Whether a unit is an angle (degree, turn, pint's cycle): dimensionless in pint, never a condition's."""
+    return "radian" in str((1.0 * unit).to_root_units().units)
+
+
+def _condition_unit(sent: str, name_text: str, unit_text: str, unit):
+    """The unit of a bracketed condition checked against its quantity's (a humidity is a number, a
+    temperature a temperature, a run's time a time, its cycles a count): None for a name that is no
+    condition; else the unit, a count's words read as counts (``cycles [kcycles]`` is 1000 cycles).
+
+    Raises
+    ------
+    ColumnError
+        A unit of another kind (``RH [mm]``, ``cycles [m]``, ``RH [deg]``): never read silently.
+    """
+    condition = _condition_of(_condition_base(name_text))
+    if condition is None:
+        return None
+    if condition.integer:
+        unit = _unit(_COUNT_WORDS.sub("count", unit_text))
+    expected = _dimension(_unit(condition.unit))
+    if _dimension(unit) != expected or _angle(unit):
+        kind = {"dimensionless": "a number"}.get(expected, f"of dimension {expected}")
+        raise ColumnError(sent, f"{name_text.strip()} is read as {condition.name}, whose unit is {kind} "
+                                f"(e.g. {_EXAMPLE_UNITS[condition.name]}), not {unit_text!r}")
+    return unit
+
+
+_EXAMPLE_UNITS = {"relative_humidity": "[%] or [1]", "temperature_K": "[degC], [K] or [degF]",
+                  "cycles": "[1] or [kcycles]", "time_h": "[s], [min] or [h]"}
+
+
 def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
     name_text = match.group("name")
     unit_text = match.group("square") if match.group("square") is not None else match.group("round")
     try:
         unit = _unit(unit_text)
     except Exception:  # pint's errors (undefined units, bad syntax) derive from several built-ins
-        raise ColumnError(sent, f"the unit {unit_text!r} is not known; accepted names: "
-                                f"{accepted_spellings()}") from None
+        unit = None
     key = re.sub(r"[\s\-]+", "_", name_text.strip())
     bases = input_bases()
+    if key not in PARAMETERS and key not in plain and key.lower() not in bases:
+        try:
+            unit = _condition_unit(sent, name_text, unit_text, unit) or unit
+        except ColumnError:
+            raise
+        except Exception:  # pint's errors: an unknown unit, said below
+            pass
+    if unit is None:
+        raise ColumnError(sent, f"the unit {unit_text!r} is not known; accepted names: "
+                                f"{accepted_spellings()}")
     if key in PARAMETERS or key in plain:
         spec = PARAMETERS.get(key)
         if spec is not None and spec.unit != "1" and not _same(unit, spec.unit):
@@ -494,9 +539,12 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
     known = list(known)
     if sent in known:
         return Reading(sent, sent)
+    bracketed = _BRACKETS.match(sent.strip())
     try:
         first = read_name(sent)
     except ColumnError:
+        if bracketed and bracketed.group("name"):  # brackets stating a unit it cannot be read in
+            raise
         first = Reading(sent, sent)
     if first.name in known:
         return first
@@ -508,7 +556,6 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
     # as temperature_K, or a unit other than the known column's); a bare synonym (humidity for
     # relative_humidity, cycles for passes) is not guessed.
     words = _UNIT_WORDS.get(condition.name, {}) if condition is not None else {}
-    bracketed = _BRACKETS.match(sent.strip())
     stated = any(w in words for w in _words(first.name)) or bool(bracketed and bracketed.group("name"))
     if source is not None and len(alike) == 1 and (stated or first.reading or source != unit_of(alike[0])):
         target = unit_of(alike[0])

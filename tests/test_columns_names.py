@@ -90,3 +90,21 @@ def test_a_factor_named_with_a_condition_word_is_no_quantity_at_prediction():
     with pytest.raises(ProblemError) as refused:
         read_conditions(model, {"rh_PCT": 50.0, "pressure [kPa]": 50.0})
     assert "unknown condition column 'pressure [kPa]'" in str(refused.value.errors)
+
+
+@pytest.mark.parametrize("sent", ["RH [mm]", "RH [K]", "relative_humidity [s]", "RH [deg]", "cycles [mm]",
+                                  "cycles [m]", "cycles [1/s]", "time [mN]", "temperature [m]"])
+def test_a_condition_s_unit_of_another_kind_is_refused_never_read(sent):
+    # RH [mm] at 600 had been read as the fraction 0.6 (600 mm = 0.6 m), cycles [mm] at 5 as 0.005 cycles
+    with pytest.raises(ColumnError, match="is read as"):
+        read_name(sent)
+    with pytest.raises(ColumnError):
+        match_column(sent, ["relative_humidity", "cycles", "time_h", "temperature_K"])
+
+
+@pytest.mark.parametrize(("sent", "value", "expected"), [
+    ("cycles [kcycles]", 1.0, 1000.0), ("cycles [cycle]", 1.0, 1.0), ("passes [kpasses]", 2.0, 2000.0),
+    ("strokes [1]", 7.0, 7.0)])
+def test_a_count_s_unit_words_are_counts_not_angles(sent, value, expected):
+    # pint's cycle is a turn, 2 pi radians: 1 kcycle had been read as 6283 cycles
+    assert match_column(sent, ["cycles"]).convert(value) == pytest.approx(expected, rel=1e-12)
