@@ -690,7 +690,8 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
         elif name not in model.conditions:
             raise ValueError(f"fixed.{name}: not a physics input nor a condition column of the data "
                              f"({', '.join(model.conditions) or 'none'})")
-    for field, columns in (("space", space), ("envelope", envelope or {}), ("fixed", fixed)):
+    planned_runs = [(f"planned.{i}", run) for i, run in enumerate(planned or [])]
+    for field, columns in (("space", space), ("envelope", envelope or {}), ("fixed", fixed), *planned_runs):
         for name, detail in outside_law_domains(model.terms, columns).items():
             raise ValueError(f"{field}.{name}: {detail}")
     required = ["balls", "load_N", "speed_m_s", *model.required_columns]

@@ -43,12 +43,17 @@ _FIELDS = ("space", "envelope", "fixed", "planned", "goal", "runs")
 
 
 def _field_problem(exc: ValueError, sent: Mapping[str, ReadConditions] | None = None) -> ProblemError:
-    """A 422 naming the field a ValueError of calibrate.experiments starts with (``space.load_N: ...``);
-    ``sent``: per field, its columns as read (:func:`_model_columns`), whose keys as sent the pointer names
-    and whose values as sent the words add."""
+    """A 422 naming the field a ValueError of calibrate.experiments starts with (``space.load_N: ...``,
+    ``planned.0.RH: ...``); ``sent``: per field (``planned.<i>`` per planned run), its columns as read
+    (:func:`_model_columns`), whose keys as sent the pointer names and whose values as sent the words add."""
     message = str(exc)
     head = message.split(": ", 1)[0] if ": " in message else ""
     field, _, key = head.partition(".")
+    run, _, name = key.partition(".")
+    if field == "planned" and run.isdigit() and name:  # planned.<i>.<column>: a planned run's column
+        columns = (sent or {}).get(f"planned.{run}", ReadConditions({}))
+        return validation_problem([{"pointer": f"/planned/{run}/{columns.key(name)}",
+                                    "detail": columns.as_sent(name, message)}])
     if field in _FIELDS:
         columns = (sent or {}).get(field, ReadConditions({}))
         pointer = f"/{field}" + (f"/{columns.key(key)}" if key else "")
@@ -153,10 +158,10 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     envelope = _model_columns(model, _space(body.envelope), "/envelope")
     fixed = _model_columns(model, body.fixed, "/fixed")
     # a planned run's conditions read as the space's (the upload's headers and units)
-    planned = None if body.planned is None else [dict(_model_columns(model, run, f"/planned/{i}"))
-                                                 for i, run in enumerate(body.planned)]
+    runs = [_model_columns(model, run, f"/planned/{i}") for i, run in enumerate(body.planned or [])]
+    planned = None if body.planned is None else [dict(run) for run in runs]
     sent = {field: columns for field, columns in (("space", space), ("envelope", envelope), ("fixed", fixed))
-            if columns is not None}
+            if columns is not None} | {f"planned.{i}": run for i, run in enumerate(runs)}
     _check_planned(planned)
     try:
         check_request(model, space, fixed, envelope, planned)

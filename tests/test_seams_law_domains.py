@@ -202,6 +202,13 @@ def test_a_law_domain_refusal_gives_the_value_as_sent_when_read_in_another_unit(
                            json={"runs": 4, "space": space})
     detail = assert_refused(response, "/space/relative humidity [%]")
     assert "(0, 1)" in detail and "(sent as relative humidity [%]: {low: 30, high: 100}" in detail, detail
+    # a planned run outside the law's domain is refused at submit too, at its key as sent
+    planned = [{"balls": 8, "load_N": 0.01, "speed_m_s": 0.05, "relative humidity [%]": 100}]
+    space["relative humidity [%]"] = {"low": 30, "high": 70}
+    response = client.post(f"/v1/calibrations/{model.split(':', 1)[1]}/next-experiments",
+                           json={"runs": 4, "space": space, "planned": planned})
+    detail = assert_refused(response, "/planned/0/relative humidity [%]")
+    assert "(0, 1)" in detail and "(sent as relative humidity [%]: 100" in detail, detail
     # a key sent as the model's own column is not restated
     detail = assert_refused(client.post("/v1/friction", json={
         **point, "conditions": {"relative_humidity": 1.0}}), "/conditions/relative_humidity")
