@@ -457,3 +457,25 @@ def test_the_report_s_sentences_give_a_column_s_values_in_the_upload_s_unit():
     # a column sent in its own unit is named and valued as it is
     assert in_sent_units(dataset, {"driver": "load_N", "range": [0.01, 0.01]}) == {
         "driver": "load_N", "range": [0.01, 0.01]}
+
+
+def test_a_physics_input_named_with_its_own_si_unit_or_another_is_read_at_every_field(client):
+    # load [N] is load_N (no conversion, still a rename): it had been refused as an extra input at
+    # /v1/friction, though the upload reads it; optimization bounds and fixed values read units too
+    si = client.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 0.08})
+    lab = client.post("/v1/friction", json={"balls": 4, "load [N]": 0.01, "speed [m/s]": 0.08})
+    assert si.status_code == lab.status_code == 200, lab.text
+    assert lab.json()["mu"] == si.json()["mu"]
+    body = {"bounds": {"balls": [4, 12], "groove_angle_deg": [40, 60], "load_N": [0.005, 0.02]},
+            "fixed": {"speed_m_s": 0.05}}
+    spelled = {"bounds": {"balls": [4, 12], "groove_angle_deg": [40, 60], "load [mN]": [5, 20]},
+               "fixed": {"speed_mm_s": 50}}
+    results = []
+    for request in (body, spelled):
+        response = client.post("/v1/optimizations", json=request)  # the physics answers at once
+        assert response.status_code == 200, response.text
+        results.append(response.json())
+    assert results[0]["design"] == results[1]["design"] and results[0]["mu"] == results[1]["mu"]
+    # two names of one input are refused, naming the key
+    both = client.post("/v1/optimizations", json={**body, "fixed": {"speed_m_s": 0.05, "speed_mm_s": 50}})
+    assert both.status_code == 422 and "read as speed_m_s too" in both.text, both.text

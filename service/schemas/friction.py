@@ -25,7 +25,7 @@ from .base import (
 from .calibrations import MODEL_FIELDS, MODEL_RESPONSE_FIELDS
 
 __all__ = ["INPUT_KEYS", "INPUT_WARNINGS", "FrictionBatchPoints", "FrictionBatchRequest",
-           "FrictionBatchResponse", "FrictionRequest", "FrictionResponse", "read_input_keys"]
+           "FrictionBatchResponse", "FrictionRequest", "FrictionResponse", "InputKeys", "read_input_keys"]
 
 #: What a description says about the names of physics inputs.
 INPUT_KEYS = (" An input may be sent under a name with its unit, as a calibration upload's header (e.g. "
@@ -55,7 +55,8 @@ def read_input_keys(body: Any, fields: Collection[str] = ()) -> Any:
                 reading = read_name(key)
             except ColumnError:
                 reading = None  # an unknown unit: the schema names the key
-        if reading is None or reading.name not in physics.PARAMETERS or not reading.reading:
+        # renamed also without a conversion: load [N] is load_N
+        if reading is None or reading.name not in physics.PARAMETERS or reading.name == key:
             read[key] = value
             continue
         if reading.name in body or reading.name in read:
@@ -64,7 +65,7 @@ def read_input_keys(body: Any, fields: Collection[str] = ()) -> Any:
     return read
 
 
-class _InputKeys(StrictModel):
+class InputKeys(StrictModel):
     """A body whose physics inputs may be sent under names with units (:func:`read_input_keys`)."""
 
     @model_validator(mode="before")
@@ -79,7 +80,7 @@ _CONVENTION = (ConventionName, Field(
                 "another is a 422)."))
 
 FrictionRequest = create_model(
-    "FrictionRequest", __base__=_InputKeys,
+    "FrictionRequest", __base__=InputKeys,
     __doc__="One design point: the physics inputs by name; optional ones take their defaults." + INPUT_KEYS,
     convention=_CONVENTION, **parameter_fields(), **MODEL_FIELDS,
 )
@@ -97,7 +98,7 @@ FrictionResponse = create_model(
 )
 
 FrictionBatchPoints = create_model(
-    "FrictionBatchPoints", __base__=_InputKeys,
+    "FrictionBatchPoints", __base__=InputKeys,
     __doc__="Design points as columns: each input a scalar or a list; lists share one length." + INPUT_KEYS,
     **parameter_fields(columns=True),
 )

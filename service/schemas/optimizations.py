@@ -24,7 +24,7 @@ from .base import (
     parameter_fields,
     whole_number,
 )
-from .friction import INPUT_WARNINGS
+from .friction import INPUT_KEYS, INPUT_WARNINGS, InputKeys
 
 __all__ = ["MODEL_PATTERN", "OptimizationRequest", "OptimizationResult"]
 
@@ -40,8 +40,8 @@ def _pair(what: str) -> Field:
     return Field(min_length=2, max_length=2, description=f"[lower, upper] {what}, both included.")
 
 
-class DesignBounds(StrictModel):
-    """Box of the three design variables."""
+class DesignBounds(InputKeys):
+    """Box of the three design variables (a name may carry its unit: ``load [mN]``, converted)."""
 
     balls: Annotated[list[Annotated[int, Field(ge=1, le=100_000), BeforeValidator(whole_number)]],
                      _pair("total number of balls (both grooves) [1]")]
@@ -84,7 +84,7 @@ class DesignLimits(StrictModel):
 
 
 OptimizationFixed = create_model(
-    "OptimizationFixed", __base__=StrictModel,
+    "OptimizationFixed", __base__=InputKeys,
     __doc__="Physics inputs held fixed (omitted ones take their defaults, or a calibrated model's values). "
             "speed_m_s may be given here or at the top level, not both.",
     **parameter_fields(optional=True, names=[n for n in physics.PARAMETERS
@@ -124,7 +124,7 @@ class ParetoRequest(StrictModel):
                                 description="Number of epsilon-constraint levels [1].")
 
 
-class OptimizationRequest(StrictModel):
+class OptimizationRequest(InputKeys):
     """Minimize mu over integer balls, groove angle and load within bounds and limits."""
 
     # What the server checks across fields: load_N in bounds (a range) or in fixed (a payload), not
@@ -132,7 +132,7 @@ class OptimizationRequest(StrictModel):
     # one); a Pareto front for model physics only; objective mu_upper for a stored model only;
     # conditions for a calibrated model only. (That a
     # lower bound is not above its upper one is checked by the server only.)
-    model_config = ConfigDict(**StrictModel.model_config, json_schema_extra={"allOf": [
+    model_config = ConfigDict(**InputKeys.model_config, json_schema_extra={"allOf": [
         in_one_place((("bounds", "load_N"), None), (("fixed", "load_N"), None)),
         {"anyOf": [*in_one_place((("speed_m_s",), None), (("fixed", "speed_m_s"), None))["anyOf"],
                    given_at(("model",), {"pattern": "^(calibrated|surrogate):"})]},
@@ -142,9 +142,9 @@ class OptimizationRequest(StrictModel):
                    given_at(("model",), {"pattern": "^(calibrated|surrogate):"})]},
         only_with_model("conditions")]})
 
-    bounds: DesignBounds = Field(description="Box of the design variables.")
+    bounds: DesignBounds = Field(description="Box of the design variables." + INPUT_KEYS)
     fixed: OptimizationFixed = Field(  # type: ignore[valid-type]
-        default_factory=OptimizationFixed, description="Physics inputs held fixed.")
+        default_factory=OptimizationFixed, description="Physics inputs held fixed." + INPUT_KEYS)
     speed_m_s: float | Annotated[list[Annotated[float, Field(ge=0, le=1e3)]], Field(
         min_length=2, max_length=2)] | None = Field(
         default=None, description="Slider speed [m/s], or [low, high] to design for the worst case over "
