@@ -71,8 +71,11 @@ class CalibratedPhysicsModel(Model):
         self.unread_conditions = {name: ModelInput(name, "as in the calibration data", "A condition column "
                                                    "of the calibration data the terms do not read.")
                                   for name in self.conditions if name not in self.inputs}
-        # Every column a point may give, for checks of whole columns (service.executor.evaluate_chunks).
-        self.column_checks = {**self.inputs, **self.unread_conditions}
+
+    @property
+    def column_checks(self) -> dict[str, ModelInput]:
+        """Every column a point may give: the inputs and the conditions the terms do not read."""
+        return {**self.inputs, **self.unread_conditions}
 
     def predict(self, points: Mapping[str, Any], *, domain: bool = True) -> Prediction:
         """μ with its 95 % interval and (unless ``domain`` is False) the domain check:

@@ -301,6 +301,12 @@ class Model:
         """The inputs a point must give: those with no default."""
         return [name for name, spec in self.inputs.items() if spec.default is None]
 
+    @property
+    def column_checks(self) -> dict[str, ModelInput]:
+        """Every column a point may give, with its check: :attr:`inputs` (a calibrated model adds the
+        condition columns of its data that its terms do not read, checked against the data's range)."""
+        return self.inputs
+
     def check(self, points: Mapping[str, Any]) -> dict[str, Any]:
         """Checked columns: every given input through :meth:`ModelInput.check`, the rest filled in.
 

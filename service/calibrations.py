@@ -455,15 +455,19 @@ def interval_at(model: Any,
 
 
 def _as_sent(problem: ProblemError, conditions: ReadConditions) -> ProblemError:
-    """The problem with each condition's pointer naming its key as sent."""
+    """The problem with each condition's pointer naming its key as sent, and its words the value as sent
+    (the summary in ``detail`` too)."""
     head = "/conditions/"
+    items, changed = [], False
     for item in problem.errors or []:
         pointer = str(item.get("pointer", ""))
         if pointer.startswith(head):
             name = pointer[len(head):]
-            item["pointer"] = head + conditions.key(name)
-            item["detail"] = conditions.as_sent(name, str(item.get("detail", "")))
-    return problem
+            new = {**item, "pointer": head + conditions.key(name),
+                   "detail": conditions.as_sent(name, str(item.get("detail", "")))}
+            changed, item = changed or new != item, new
+        items.append(item)
+    return validation_problem(items, problem.status) if changed else problem
 
 
 def _input_problem(error: InputError, pointer: str, conditions: ReadConditions) -> ProblemError:

@@ -415,7 +415,7 @@ def evaluate_chunks(executor: Executor | None, inputs: dict[str, Any], count: in
         # Whole columns first, so that an error names the point's index in the request, not in a chunk.
         try:
             # A calibrated model also takes the condition columns its terms do not read (its domain does).
-            getattr(model, "column_checks", model.inputs)[name].check(values)
+            model.column_checks[name].check(values)
         except InputError as exc:
             raise validation_problem([{"pointer": f"{pointer}/{name}", "detail": str(exc)}]) from None
     bounds = chunk_bounds(count, chunk_points)

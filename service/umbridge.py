@@ -44,7 +44,7 @@ from microbearing import physics
 from microbearing.physics.columns import Reading, match_column, read_key, read_slip, unknown_column
 
 from .models import InputError, Model, ModelError, jacobian, resolve
-from .problems import PROBLEM_MEDIA_TYPE, ProblemError, validation_problem
+from .problems import PROBLEM_MEDIA_TYPE, ProblemError
 from .schemas.umbridge import PREFIX, UMBridgeConfig
 from .security import app_path
 from .store import Store, json_bytes
@@ -126,14 +126,16 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], di
     each was sent under (for messages)."""
     read, sent_as = {}, {}
     for sent, value in fixed.items():
-        reading = read_key(sent, model.inputs) or Reading(sent, sent)  # none: named below as not an input
+        # the model's inputs and the other condition columns of its data (as /v1/friction takes them)
+        reading = read_key(sent, model.column_checks) or Reading(sent, sent)  # none: named below
         name = reading.name
         if name in read:
             raise ProtocolError("InvalidInput", f"config.fixed.{sent}: another key is read as {name} too; "
                                                 "keep one")
         # judged as sent (27 under a kelvin name is degC) and as read
-        message = None if name in physics.PARAMETERS or isinstance(value, bool) else read_slip(reading, value)
-        value = reading.convert(value) if reading.reading and not isinstance(value, bool) else value
+        text = isinstance(value, bool | str)  # a flag, or a factor column's group label
+        message = None if name in physics.PARAMETERS or text else read_slip(reading, value)
+        value = reading.convert(value) if reading.reading and not text else value
         if message is not None:
             raise ProtocolError("InvalidInput", f"config.fixed.{sent}: {message}")
         read[name], sent_as[name] = value, sent
@@ -214,11 +216,12 @@ class Setup:
         given, fixed_as_sent = _read_fixed(model, config.fixed)
         inputs, readings = _read_inputs(model, config.inputs or [n for n in model.default_inputs
                                                                  if n not in given])
-        for part, names in (("config.inputs", inputs), ("config.fixed", list(given))):
+        for part, names, known in (("config.inputs", inputs, model.inputs),
+                                   ("config.fixed", list(given), model.column_checks)):
             for name in names:
-                if name not in model.inputs:
+                if name not in known:
                     raise ProtocolError("InvalidInput", f"{part}: {name!r} is not an input of "
-                                        f"{model.reference}: {unknown_column(name, model.inputs)}")
+                                        f"{model.reference}: {unknown_column(name, known)}")
         repeated = sorted({n for n in inputs if inputs.count(n) > 1} | (set(inputs) & set(given)))
         if repeated:
             raise ProtocolError("InvalidInput", f"config.inputs: {', '.join(repeated)} given twice (an input "
@@ -230,7 +233,7 @@ class Setup:
         fixed = {}
         for name, value in given.items():
             try:
-                fixed[name] = model.inputs[name].check(value)
+                fixed[name] = model.column_checks[name].check(value)
             except InputError as exc:
                 raise ProtocolError("InvalidInput", f"config.fixed.{fixed_as_sent[name]}: {exc}") from None
         available = [*model.outputs, FLAG_OUTPUT]
@@ -283,9 +286,25 @@ class Setup:
             raise ProtocolError("InvalidInput", f"{self.where(exc)}: {exc}") from None
         except ProblemError as exc:
             raise protocol_error(exc.status, exc.detail) from None
-        except ModelError as exc:
-            problem = validation_problem(exc.errors)
-            raise protocol_error(problem.status, problem.detail) from None
+        except ModelError as exc:  # a law's domain: named by the input or fixed key as sent
+            raise ProtocolError("InvalidInput", "; ".join(self.field_error(e) for e in exc.errors)) from None
+
+    def field_error(self, error: dict[str, str]) -> str:
+        """A model's refusal of a column (``{"pointer": "/conditions/RH", "detail": ...}``) as this request's
+        field: ``input[*][j] (key as sent)`` or ``config.fixed.<key as sent>``; other pointers as they are."""
+        pointer, detail = str(error.get("pointer", "")), str(error.get("detail", ""))
+        name = pointer.rsplit("/", 1)[-1]
+        if name in self.inputs:
+            j = self.inputs.index(name)
+            reading = self.readings[j] if j < len(self.readings) else None
+            sent = name if reading is None else reading.sent
+            words = "" if sent == name else f" (sent as {sent}, read as {name})"
+            return f"input[*][{j}] ({sent}): {detail}{words}"
+        if name in self.fixed:
+            sent = self.fixed_as_sent.get(name, name)
+            words = "" if sent == name else f" (sent as {sent}, read as {name})"
+            return f"config.fixed.{sent}: {detail}{words}"
+        return f"{pointer}: {detail}"
 
     def where(self, error: InputError) -> str:
         """The request field of an input error: ``input[point][position] (name)`` or ``config.fixed.name``."""

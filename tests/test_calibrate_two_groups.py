@@ -55,6 +55,15 @@ def test_a_factor_of_two_labels_is_calibrated_stored_and_predicts(tmp_path):
         assert numeric.status_code == 200, numeric.text
         assert any("chamber = 2 is not a group" in w for w in numeric.json()["domain_warnings"]), numeric.text
         assert numeric.json()["mu_upper"] == pytest.approx(new.json()["mu_upper"], rel=1e-12)
+        # UM-Bridge takes a group label in config.fixed, known or new, and answers as /v1/friction
+        for label, answer in (("B", known), ("C", new)):
+            bridged = client.post("/umbridge/Evaluate", json={
+                "name": model, "input": [[6, 0.01]], "config": {
+                    "inputs": ["balls", "load_N"], "fixed": {"speed_m_s": 0.05, "chamber": label},
+                    "outputs": ["mu", "mu_upper"]}})
+            assert bridged.status_code == 200, bridged.text
+            assert bridged.json()["output"][0] == pytest.approx(
+                [answer.json()["mu"], answer.json()["mu_upper"]], rel=1e-12)
         stored = client.get(f"/v1/calibrations/{model.split(':')[1]}")
         assert stored.status_code == 200, stored.text
 

@@ -295,6 +295,19 @@ def test_a_condition_outside_its_law_s_domain_is_named_as_sent(client, calibrati
     batch = {"points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
              "conditions": {"RH [%]": [50.0, 100.0], "temp_K": 300.0}}
     assert "(0, 1)" in _problem(client.post("/v1/friction/batch", json=batch), "/conditions/RH [%]")
+    # the problem's summary says the same; UM-Bridge names the input or fixed key as sent
+    summary = client.post("/v1/friction", json=_point(model, {"RH [%]": 100, "temp_K": 300})).json()["detail"]
+    assert "/conditions/RH [%]" in summary and "sent as RH [%]: 100" in summary, summary
+    # temp_K, a column of the data no term reads, is taken at UM-Bridge as at /v1/friction
+    fixed = {"speed_m_s": 0.05, "temp_K": 300}
+    for config, field in (({"inputs": ["balls", "load_N", "RH [%]"], "fixed": fixed}, "input[*][2] (RH [%])"),
+                          ({"inputs": ["balls", "load_N"], "fixed": {**fixed, "RH [%]": 100}},
+                           "config.fixed.RH [%]")):
+        vector = [4, 0.01, 100] if len(config["inputs"]) == 3 else [4, 0.01]
+        answer = client.post("/umbridge/Evaluate", json={"name": model, "input": [vector], "config": config})
+        assert answer.status_code == 400, answer.text
+        message = answer.json()["error"]["message"]
+        assert message.startswith(field) and "(0, 1)" in message and "sent as RH [%]" in message, message
 
 
 def test_a_value_is_judged_for_a_unit_slip_in_the_unit_its_key_states(client, calibration):

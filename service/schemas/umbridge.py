@@ -27,11 +27,15 @@ class UMBridgeConfig(StrictModel):
         "Inputs that vary, in the order of each input vector, by name in their units (see "
         "physics.PARAMETERS, e.g. load_N [N], groove_angle_deg [deg]; a calibrated model's condition "
         "columns). Default: the model's inputs that have no default value."))
-    fixed: Annotated[dict[str, float | bool], CheckedColumnKeys] = Field(default_factory=dict, description=(
-        "Values of inputs that do not vary, by name, in their units; the others take the physics "
-        "default or the value the model fixed or fitted. A name may carry its unit as a calibration "
-        "upload's header does ('speed [mm/s]', 'relative humidity [%]'), converted; a condition that looks "
-        "like a unit slip (a humidity fraction of 50) is refused."))
+    fixed: Annotated[dict[str, float | bool | str], CheckedColumnKeys] = Field(
+        default_factory=dict, description=(
+            "Values of inputs that do not vary, by name, in their units; the others take the physics "
+            "default or the value the model fixed or fitted. A calibrated model also takes a factor "
+            "column's group label (e.g. specimen: 'S3'; a label its data never had is a new group) and "
+            "the condition columns of its data its terms do not read (checked against the data's range). "
+            "A name may carry its unit as a calibration upload's header does ('speed [mm/s]', 'relative "
+            "humidity [%]'), converted; a condition that looks like a unit slip (a humidity fraction of "
+            "50) is refused."))
     outputs: list[str] = Field(default_factory=lambda: ["mu"], min_length=1, description=(
         "Outputs of each output vector, in order: mu [1] by default; any output of the model (the "
         "physics outputs, mu_effect [1] of a calibrated model, mu_lower and mu_upper [1] of a surrogate) "
