@@ -199,6 +199,13 @@ def test_a_pair_is_a_range_and_a_set_is_spelled_as_one_in_experiment_spaces(clie
             "space": {"balls": [4, 8], "load_N": [0.001, 0.01, 0.05], "speed_m_s": [0.05]}}
     detail = _problem(client.post("/v1/experiments", json=body), "/space/load_N")
     assert "[low, high]" in detail and '{"values": [' in detail, detail
+    # an optimization's conditions refuse a set and a longer list in words, at the condition's key
+    design = {"bounds": {"balls": [4, 6], "groove_angle_deg": [50, 55], "load_N": [0.008, 0.012]},
+              "speed_m_s": 0.05, "model": "calibrated:0123456789abcdef0123456789abcdef"}
+    for value, words in (({"values": [0.3, 0.7]}, "a set of values is no envelope"),
+                         ([0.3, 0.5, 0.7], "a list of 3 values is ambiguous")):
+        answer = client.post("/v1/optimizations", json={**design, "conditions": {"RH": value}})
+        assert words in _problem(answer, "/conditions/RH"), answer.text
 
 
 def test_um_bridge_reads_fixed_inputs_with_units_as_the_upload_does(client, calibration):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BeforeValidator, ConfigDict, Field, create_model
 
@@ -108,9 +108,23 @@ class ConditionSpan(StrictModel):
     high: float = Field(description="Highest value, >= low [unit of the column].")
 
 
+def _condition_spelling(value: Any) -> Any:
+    """A condition's value or range as the other routes spell it: a longer list, or a set of values
+    (``{"values": [...]}``, which the design has no worst case over), refused in words."""
+    if isinstance(value, list) and len(value) != 2:
+        raise ValueError(f"a list of {len(value)} values is ambiguous: a range is [low, high] or "
+                         f"{{\"low\": low, \"high\": high}}, one value a number")
+    if isinstance(value, dict) and "values" in value:
+        raise ValueError("a set of values is no envelope: a design holds over a range, [low, high] or "
+                         "{\"low\": low, \"high\": high} (e.g. the set's lowest and highest), or at one "
+                         "value")
+    return value
+
+
 #: A condition's value or its range (the envelope), [low, high] or {low, high}, in the calibration data's
-#: unit.
-ConditionRange = float | Annotated[list[float], Field(min_length=2, max_length=2)] | ConditionSpan
+#: unit; a group label for a factor column.
+ConditionRange = Annotated[float | Annotated[list[float], Field(min_length=2, max_length=2)] | ConditionSpan
+                           | str, BeforeValidator(_condition_spelling)]
 
 
 
@@ -159,7 +173,7 @@ class OptimizationRequest(InputKeys):
         "physics (a certified global optimum by geometric programming), surrogate:<id> or "
         "calibrated:<id> (a local optimum by sequential convex approximation; over an envelope, proven by "
         "geometric programming when the calibrated model's terms allow, see proof)."))
-    conditions: Annotated[dict[str, ConditionRange | str] | None, ColumnKeys] = Field(
+    conditions: Annotated[dict[str, ConditionRange] | None, ColumnKeys] = Field(
         default=None, description="Condition columns a calibrated model's terms read (e.g. "
         "relative_humidity, temperature_C), in the calibration data's units: a value, or a range [low, high] "
         "(or {low, high}) to design for the worst case over the range (the operating envelope); a factor "
