@@ -106,14 +106,18 @@ def _condition(text: str) -> float | str:
         return text
 
 
-def _outputs(text: str | None) -> list[str] | None:
+#: What a calibrated model answers besides the physics outputs (``evaluate --model``).
+_MODEL_OUTPUTS = ("mu_effect", "mu_lower", "mu_upper")
+
+
+def _outputs(text: str | None, model: bool = False) -> list[str] | None:
     from microbearing import physics
 
     outputs = [name.strip() for name in (text or "").split(",") if name.strip()] or None
-    wrong = [name for name in outputs or [] if name not in physics.OUTPUTS]
+    known = [*physics.OUTPUTS, *(_MODEL_OUTPUTS if model else ())]
+    wrong = [name for name in outputs or [] if name not in known]
     if wrong:
-        raise CommandError(f"--outputs: unknown {', '.join(wrong)}; one of {', '.join(physics.OUTPUTS)}",
-                           EXIT_INVALID)
+        raise CommandError(f"--outputs: unknown {', '.join(wrong)}; one of {', '.join(known)}", EXIT_INVALID)
     return outputs
 
 
@@ -129,7 +133,7 @@ def evaluate(args: argparse.Namespace) -> int:
     from .store import to_json
     from .tables import csv_text
 
-    outputs = _outputs(args.outputs)
+    outputs = _outputs(args.outputs, args.model is not None)
     if args.model is not None:
         return _evaluate_model(args, outputs)
     convention = args.convention or physics.DEFAULT_CONVENTION

@@ -95,7 +95,7 @@ def test_a_lab_calibrates_predicts_plans_designs_and_deletes_from_the_shell(tmp_
 
     # 2. friction with its interval on that model, the inputs in the lab's units
     done = shell("evaluate", "--model", model_id, "balls=4", "groove_angle_deg=54.7", "load [mN]=8.8",
-                 "speed [mm/s]=50", "relative humidity [%]=50", "--outputs", "mu")
+                 "speed [mm/s]=50", "relative humidity [%]=50", "--outputs", "mu,mu_lower,mu_upper")
     point = json.loads(done.stdout)
     truth = float(true_mu(4, 0.0088, 0.05, 0.5, 54.7))
     assert point["model"] == f"calibrated:{model_id}" and point["in_domain"] is True
