@@ -396,9 +396,13 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
                           f"'temperature [degC]')"})
     if items:
         raise validation_problem(items)
-    check_conditions(model, read, pointer)
-    return ReadConditions(read, {name: reading.sent for name, reading in readings.items()},
-                          {name: conditions[reading.sent] for name, reading in readings.items()})
+    answer = ReadConditions(read, {name: reading.sent for name, reading in readings.items()},
+                            {name: conditions[reading.sent] for name, reading in readings.items()})
+    try:
+        check_conditions(model, read, pointer)
+    except ProblemError as exc:  # named by the keys as sent
+        raise _as_sent(exc, answer, pointer) from None
+    return answer
 
 
 def _has_text(value: Any) -> bool:
@@ -454,10 +458,10 @@ def interval_at(model: Any,
     return fields
 
 
-def _as_sent(problem: ProblemError, conditions: ReadConditions) -> ProblemError:
-    """The problem with each condition's pointer naming its key as sent, and its words the value as sent
-    (the summary in ``detail`` too)."""
-    head = "/conditions/"
+def _as_sent(problem: ProblemError, conditions: ReadConditions, pointer: str = "/conditions") -> ProblemError:
+    """The problem with each condition's pointer (under ``pointer``) naming its key as sent, and its words
+    the value as sent (the summary in ``detail`` too)."""
+    head = pointer + "/"
     items, changed = [], False
     for item in problem.errors or []:
         pointer = str(item.get("pointer", ""))

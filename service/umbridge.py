@@ -134,6 +134,12 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], di
                                                 "keep one")
         # judged as sent (27 under a kelvin name is degC) and as read
         text = isinstance(value, bool | str)  # a flag, or a factor column's group label
+        check = model.column_checks.get(name)
+        kind = None if check is None else check.kind
+        if check is not None and ((isinstance(value, str) and kind != "label")
+                                  or (isinstance(value, bool) and kind not in ("bool", "label"))):
+            raise ProtocolError("InvalidInput", f"config.fixed.{sent}: must be a number, not {value!r}: "
+                                                f"only a factor column takes a label, a flag true or false")
         message = None if name in physics.PARAMETERS or text else read_slip(reading, value)
         value = reading.convert(value) if reading.reading and not text else value
         if message is not None:
@@ -347,7 +353,9 @@ def _jacobian_at(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int,
     columns = setup.columns(vectors)
     if out_wrt != in_wrt:  # points are independent
         return np.zeros((len(setup.outputs), len(setup.inputs)))
-    point = {name: value[in_wrt] if np.ndim(value) else value for name, value in columns.items()}
+    # the data's conditions no term reads enter the domain check only: no derivative depends on them
+    point = {name: value[in_wrt] if np.ndim(value) else value for name, value in columns.items()
+             if name in setup.model.inputs}
     # Counts and flags are held: their columns stay zero.
     continuous = [j for j, name in enumerate(setup.inputs) if setup.model.inputs[name].continuous]
     matrix = np.zeros((len(setup.outputs), len(setup.inputs)))

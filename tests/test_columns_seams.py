@@ -223,6 +223,13 @@ def test_um_bridge_reads_fixed_inputs_with_units_as_the_upload_does(client, cali
     assert lab.json()["output"][0] == pytest.approx(si.json()["output"][0], rel=1e-9)
     slipped = evaluate(model, {"speed_m_s": 0.05, "relative_humidity": 50})
     assert slipped.status_code == 400 and "look like percent" in slipped.text, slipped.text
+    # text or a flag for a number is refused in words (it was a 500), naming the key as sent
+    for value in ("x", "60", True):
+        refused = evaluate(model, {"speed_m_s": 0.05, "RH [%]": value})
+        message = refused.json()["error"]["message"]
+        assert refused.status_code == 400 and message.startswith("config.fixed.RH [%]: must be a number"), message
+    flag = evaluate("physics", {"speed_m_s": 0.05, "balls_touching": True})
+    assert flag.status_code == 200, flag.text
     # a refusal names the key as it was sent, not the column it was read as
     for fixed, key in (({"speed_m_s": 0.05, "RH [%]": 5000}, "config.fixed.RH [%]"),
                        ({"speed [mm/s]": -50, "relative_humidity": 0.5}, "config.fixed.speed [mm/s]")):
