@@ -375,7 +375,8 @@ def unit_of(name: str) -> str | None:
 
 
 # Words of a count's unit (cycles [kcycles]): counts, not pint's cycle or turn, which are angles of 2 pi.
-_COUNT_WORDS = re.compile(r"(cycles?|pass(?:es)?|strokes?|revs?|revolutions?|turns?)", re.IGNORECASE)
+_COUNT_WORDS = re.compile(r"(revolutions?|cycles?|pass(?:es)?|strokes?|revs?|turns?)(?![A-Za-z])",
+                          re.IGNORECASE)
 
 
 def _angle(unit) -> bool:
@@ -397,7 +398,11 @@ def _condition_unit(sent: str, name_text: str, unit_text: str, unit):
     if condition is None:
         return None
     if condition.integer:
-        unit = _unit(_COUNT_WORDS.sub("count", unit_text))
+        try:
+            unit = _unit(_COUNT_WORDS.sub("count", unit_text))
+        except Exception:  # pint's errors: never fall back to its reading (a revolution is an angle)
+            raise ColumnError(sent, f"the unit {unit_text!r} of {name_text.strip()} is not known as a count; "
+                                    f"e.g. {_EXAMPLE_UNITS[condition.name]}") from None
     expected = _dimension(_unit(condition.unit))
     if _dimension(unit) != expected or _angle(unit):
         kind = {"dimensionless": "a number"}.get(expected, f"of dimension {expected}")

@@ -125,6 +125,8 @@ def _model_columns(model: CalibratedModel, columns: Mapping[str, Any] | None, po
         judged = reading is not None and sent not in model.factors
         message = read_slip(reading, _span_values(column)) if judged else None
         reading = reading or Reading(sent, sent)
+        if isinstance(column, bool) and reading.name not in physics.PARAMETERS:  # a flag is no condition
+            message = f"must be a number, not {str(column).lower()}: only a physics flag takes true or false"
         if message is not None:
             raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": message}])
         if reading.name in out:

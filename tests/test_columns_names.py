@@ -104,7 +104,7 @@ def test_a_condition_s_unit_of_another_kind_is_refused_never_read(sent):
 
 @pytest.mark.parametrize(("sent", "value", "expected"), [
     ("cycles [kcycles]", 1.0, 1000.0), ("cycles [cycle]", 1.0, 1.0), ("passes [kpasses]", 2.0, 2000.0),
-    ("strokes [1]", 7.0, 7.0)])
+    ("strokes [1]", 7.0, 7.0), ("cycles [revolutions]", 100.0, 100.0), ("cycles [krev]", 1.0, 1000.0)])
 def test_a_count_s_unit_words_are_counts_not_angles(sent, value, expected):
     # pint's cycle is a turn, 2 pi radians: 1 kcycle had been read as 6283 cycles
     assert match_column(sent, ["cycles"]).convert(value) == pytest.approx(expected, rel=1e-12)

@@ -134,6 +134,9 @@ def test_first_design_on_the_physics(client):
     ({"runs": 5, "space": {k: v for k, v in SPACE.items() if k != "relative_humidity"}}, "/space"),
     ({"runs": 5, "space": SPACE, "fixed": {"mu_pivot": -1.0}}, "/fixed/mu_pivot"),
     ({"runs": 5, "space": SPACE, "planned": [{"balls": 4}]}, "/planned/0"),
+    # a flag for a condition: refused, never read as 1 past its unit (cycles [kcycles]: true was 1 cycle)
+    ({"runs": 5, "space": {k: v for k, v in SPACE.items() if k != "relative_humidity"},
+      "fixed": {"relative humidity [%]": True}}, "/fixed/relative humidity [%]"),
 ])
 def test_bad_requests_are_problems_naming_the_field(client, calibration_id, body, pointer):
     answer = problem(client.post(f"/v1/calibrations/{calibration_id}/next-experiments", json=body), 422)
