@@ -27,6 +27,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
 from microbearing import physics
+from microbearing.physics.columns import ColumnError, read_name
 
 __all__ = [
     "PROBLEM_MEDIA_TYPE",
@@ -210,12 +211,31 @@ def _is_union_tag(part: Any) -> bool:
     return isinstance(part, str) and ("[" in part or "-" in part or part in {"float", "int", "bool", "str"})
 
 
-def _pointer_parts(loc: tuple[Any, ...], document: Any) -> list[str]:
-    """The location parts that exist in the request document (plus a final missing key)."""
+def _sent_key(node: dict, name: Any) -> str | None:
+    """The key of ``node`` that a physics input ``name`` was sent under (``load [mN]`` for load_N, which
+    the schema renamed before validating), or None."""
+    if not isinstance(name, str) or name not in physics.PARAMETERS or name in node:
+        return None
+    for key in node:
+        try:
+            if isinstance(key, str) and read_name(key).name == name:
+                return key
+        except ColumnError:
+            continue
+    return None
+
+
+def _pointer_parts(loc: tuple[Any, ...], document: Any, renamed: dict[str, str] | None = None) -> list[str]:
+    """The location parts that exist in the request document (plus a final missing key); a physics
+    input renamed by the schema is named by its key as sent (recorded in ``renamed``, sent -> read)."""
     parts: list[str] = []
     node = document
     located = True
     for position, part in enumerate(loc):
+        sent = _sent_key(node, part) if located and isinstance(node, dict) else None
+        if sent is not None:
+            (renamed if renamed is not None else {})[sent] = str(part)
+            part = sent
         # a key of the document is never a tag, whatever its form (a column sent as "speed [mm]")
         if _is_union_tag(part) and not (located and isinstance(node, dict) and part in node):
             continue
@@ -284,11 +304,14 @@ def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
         source, rest = (loc[0], loc[1:]) if loc else ("body", ())
         if error.get("type") in {"union_tag_invalid", "union_tag_not_found"}:
             rest = (*rest, str(error.get("ctx", {}).get("discriminator", "")).strip("'"))
-        parts = _pointer_parts(rest, exc.body if source == "body" else None)
+        renamed: dict[str, str] = {}
+        parts = _pointer_parts(rest, exc.body if source == "body" else None, renamed)
         detail = _in_words(error)
-        spec = _parameter_value(parts, error)
+        spec = _parameter_value([renamed.get(p, p) for p in parts], error)
         if spec is not None:
             detail = f"{detail} ({spec.name} must be {spec.range_text()} [{spec.unit}])"
+        for sent, read in renamed.items():  # the value given is in the unit of the name read
+            detail = f"{detail} (sent as {sent}, read as {read})"
         if source == "body":
             place = ("pointer", "".join("/" + p.replace("~", "~0").replace("/", "~1") for p in parts))
         else:
