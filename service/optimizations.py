@@ -132,10 +132,19 @@ def _request(body: OptimizationRequest) -> DesignRequest:
         pareto=body.pareto is not None)
 
 
-def _plan_problem(error: PlanError) -> ProblemError:
-    """The 422 problem of a request that is no design problem, each field named by its JSON pointer."""
-    return validation_problem([{"pointer": "/" + name.replace(".", "/") if name else "", "detail": detail}
-                               for name, detail in error.errors])
+def _plan_problem(error: PlanError, conditions: Any = None) -> ProblemError:
+    """The 422 problem of a request that is no design problem, each field named by its JSON pointer; a
+    condition by its key and value as sent when ``conditions`` (:func:`read_conditions`'s) read them."""
+    sent = conditions if isinstance(conditions, ReadConditions) else ReadConditions({})
+    items = []
+    for name, detail in error.errors:
+        field, _, column = name.partition(".")
+        if field == "conditions" and column:
+            items.append({"pointer": "/conditions/" + sent.key(column),
+                          "detail": sent.as_sent(column, detail)})
+        else:
+            items.append({"pointer": "/" + name.replace(".", "/") if name else "", "detail": detail})
+    return validation_problem(items)
 
 
 def _bound(model: Model, body: OptimizationRequest) -> tuple[Callable, Callable | None]:
@@ -202,7 +211,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     try:
         planned = plan_design(request, model)
     except PlanError as error:
-        raise _plan_problem(error) from None
+        raise _plan_problem(error, body.conditions) from None
     except InfeasibleDesignError as error:
         # Conflicts of the limits that do not depend on the model answer 422 at once on every model.
         raise infeasible_problem(error) from None

@@ -225,6 +225,24 @@ def _sent_key(node: dict, name: Any) -> str | None:
     return None
 
 
+def _key_named(parts: list[str], document: Any, detail: str, error: dict[str, Any]) -> str | None:
+    """The key of the object at ``parts`` that a validator's message starts with (``RH [mm]: the unit
+    ...``), for the pointer to name it; None otherwise."""
+    if error.get("type") != "value_error" or not isinstance(document, dict):
+        return None
+    node: Any = document
+    for part in parts:
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        else:
+            return None
+    if not isinstance(node, dict):
+        return None
+    return next((key for key in node if isinstance(key, str) and detail.startswith(f"{key}: ")), None)
+
+
 def _pointer_parts(loc: tuple[Any, ...], document: Any, renamed: dict[str, str] | None = None) -> list[str]:
     """The location parts that exist in the request document (plus a final missing key); a physics
     input renamed by the schema is named by its key as sent (recorded in ``renamed``, sent -> read)."""
@@ -312,6 +330,9 @@ def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
             detail = f"{detail} ({spec.name} must be {spec.range_text()} [{spec.unit}])"
         for sent, read in renamed.items():  # the value given is in the unit of the name read
             detail = f"{detail} (sent as {sent}, read as {read})"
+        key = _key_named(parts, exc.body if source == "body" else None, detail, error)
+        if key is not None:  # a mapping's validator refusing one of its keys ("RH [mm]: ...")
+            parts = [*parts, key]
         if source == "body":
             place = ("pointer", "".join("/" + p.replace("~", "~0").replace("/", "~1") for p in parts))
         else:

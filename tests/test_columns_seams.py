@@ -347,6 +347,13 @@ def test_every_value_of_a_range_is_judged_at_submit(client, calibration):
             "conditions": {"relative_humidity": [0.3, 50.0], "temp_K": 300}}
     assert "look like percent" in _problem(client.post("/v1/optimizations", json=body),
                                            "/conditions/relative_humidity")
+    # a range's ends in the wrong order, and a unit of another kind, at the key as sent
+    upside_down = {**body, "conditions": {"RH [%]": [80, 40], "temp_K": 300}}
+    detail = _problem(client.post("/v1/optimizations", json=upside_down), "/conditions/RH [%]")
+    assert "low <= high" in detail and "(sent as RH [%]: [80, 40]" in detail, detail
+    wrong_kind = _point(model, {"RH [mm]": 600, "temp_K": 300})
+    assert "whose unit is a number" in _problem(client.post("/v1/friction", json=wrong_kind),
+                                                "/conditions/RH [mm]")
     space = {"balls": [4, 8], "load_N": [0.002, 0.02], "speed_m_s": [0.05], "relative_humidity": [0.3, 50.0],
              "temp_K": [300.0]}
     response = client.post(f"/v1/calibrations/{calibration['model_id'].split(':')[1]}/next-experiments",
