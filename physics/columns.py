@@ -562,6 +562,9 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
     # relative_humidity, cycles for passes) is not guessed.
     words = _UNIT_WORDS.get(condition.name, {}) if condition is not None else {}
     stated = any(w in words for w in _words(first.name)) or bool(bracketed and bracketed.group("name"))
+    # a condition's canonical name declares its unit (relative_humidity: a fraction); a count's does not
+    # say what it counts (a cycle may be two passes), so cycles is not read as passes
+    stated = stated or (condition is not None and first.name == condition.name and not condition.integer)
     if source is not None and len(alike) == 1 and (stated or first.reading or source != unit_of(alike[0])):
         target = unit_of(alike[0])
         if _dimension(_unit(source)) == _dimension(_unit(target)):

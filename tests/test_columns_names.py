@@ -65,6 +65,16 @@ def test_a_column_is_matched_by_its_quantity_whatever_its_spelling(sent, known, 
 def test_a_bare_synonym_is_not_guessed():
     with pytest.raises(ColumnError, match="unknown column 'humidity'"):
         match_column("humidity", ["relative_humidity"])
+    # nor a count for another count: a cycle of a reciprocating rig may be two passes
+    with pytest.raises(ColumnError, match="unknown column 'cycles'"):
+        match_column("cycles", ["passes"])
+
+
+@pytest.mark.parametrize(("known", "expected"), [("rel._humidity", 0.5), ("humidity_pct", 50.0), ("RH", 0.5)])
+def test_a_condition_s_canonical_name_reaches_its_quantity_in_any_column(known, expected):
+    # relative_humidity declares its unit (a fraction): an upload's 'rel. humidity (%)' column (read as the
+    # fraction rel._humidity) or a percent column takes it, converted
+    assert match_column("relative_humidity", [known]).convert(0.5) == pytest.approx(expected, rel=1e-12)
 
 
 def test_a_factor_named_with_a_condition_word_is_no_quantity_at_prediction():
