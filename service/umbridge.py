@@ -276,7 +276,7 @@ class Setup:
             reading = given if given is not None else Reading(name, name)
             message = None if name in physics.PARAMETERS else read_slip(reading, table[:, j])
             if message is not None:
-                raise ProtocolError("InvalidInput", f"input[*][{j}] ({reading.sent}): {message}")
+                raise ProtocolError("InvalidInput", f"{self.field(name, '*')}: {message}")
         for j, reading in enumerate(self.readings):
             if reading is not None:
                 table[:, j] = reading.convert(table[:, j])
@@ -300,27 +300,32 @@ class Setup:
         field: ``input[*][j] (key as sent)`` or ``config.fixed.<key as sent>``; other pointers as they are."""
         pointer, detail = str(error.get("pointer", "")), str(error.get("detail", ""))
         name = pointer.rsplit("/", 1)[-1]
+        if name not in self.inputs and name not in self.fixed:
+            return f"{pointer}: {detail}"
+        sent = self.sent_key(name)
+        words = "" if sent == name else f" (sent as {sent}, read as {name})"
+        return f"{self.field(name, '*')}: {detail}{words}"
+
+    def sent_key(self, name: str) -> str:
+        """The key an input of the model was sent under: in ``config.inputs`` or ``config.fixed``."""
         if name in self.inputs:
             j = self.inputs.index(name)
             reading = self.readings[j] if j < len(self.readings) else None
-            sent = name if reading is None else reading.sent
-            words = "" if sent == name else f" (sent as {sent}, read as {name})"
-            return f"input[*][{j}] ({sent}): {detail}{words}"
+            return name if reading is None else reading.sent
+        return self.fixed_as_sent.get(name, name)
+
+    def field(self, name: str, point: int | str = 0) -> str:
+        """The request field of an input: ``input[point][position] (key as sent)`` or
+        ``config.fixed.<key as sent>``; ``config`` for another name."""
+        if name in self.inputs:
+            return f"input[{point}][{self.inputs.index(name)}] ({self.sent_key(name)})"
         if name in self.fixed:
-            sent = self.fixed_as_sent.get(name, name)
-            words = "" if sent == name else f" (sent as {sent}, read as {name})"
-            return f"config.fixed.{sent}: {detail}{words}"
-        return f"{pointer}: {detail}"
+            return f"config.fixed.{self.sent_key(name)}"
+        return "config"
 
     def where(self, error: InputError) -> str:
-        """The request field of an input error: ``input[point][position] (name)`` or ``config.fixed.name``."""
-        if error.name in self.inputs:
-            point, j = 0 if error.index is None else error.index, self.inputs.index(error.name)
-            reading = self.readings[j] if j < len(self.readings) else None
-            return f"input[{point}][{j}] ({error.name if reading is None else reading.sent})"
-        if error.name in self.fixed:
-            return f"config.fixed.{self.fixed_as_sent.get(error.name, error.name)}"
-        return "config"
+        """The request field of an input error (:meth:`field`, at the point it names)."""
+        return self.field(error.name, 0 if error.index is None else error.index)
 
     def real_outputs(self) -> list[str]:
         """:attr:`outputs` without the domain flag (what the model computes); mu when only the flag."""
