@@ -56,12 +56,13 @@ from scipy import stats
 from scipy.spatial import cKDTree
 
 from microbearing import physics
-from microbearing.physics.columns import counted_from_zero
+from microbearing.physics.columns import counted_from_zero, physical_range, unit_of
 from microbearing.physics.effects import Domain
 
 __all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "EXTRAPOLATION_SHARE", "REPLICATE_JITTER", "CloudSpace",
            "DataCloud", "LawDomain", "confounded_pairs", "confounding_words", "extrapolation_allowance",
-           "extrapolation_bound", "law_domains", "outside_law_domains", "range_slack"]
+           "extrapolation_bound", "law_domains", "outside_law_domains", "outside_physical_ranges",
+           "range_slack"]
 
 #: Chance that a new point drawn like the data is flagged outside the cloud. [1]
 CLOUD_ALPHA = 0.02
@@ -612,6 +613,31 @@ def outside_law_domains(terms: Sequence[Any], columns: Mapping[str, Any]) -> dic
             out[law.column] = (f"value{'s' if bad.size > 1 else ''} {shown} lie{'' if bad.size > 1 else 's'} "
                                f"outside {law.domain.text()}, the domain of the law of {law.term} (in the "
                                f"unit of column {law.column} of the calibration data)")
+    return out
+
+
+def outside_physical_ranges(conditions: Sequence[str], columns: Mapping[str, Any]) -> dict[str, str]:
+    """The condition columns whose values leave their quantity's physical range
+    (:func:`physics.columns.physical_range`: a time or count run below zero, a fraction above 1), each
+    with a sentence saying so; ``columns`` as :func:`outside_law_domains` takes them.
+
+    >>> outside_physical_ranges(["time_min"], {"time_min": [-5, 60], "load_N": 0.01})
+    {'time_min': 'value -5 lies outside [0, inf] [min], the physical range of time_min'}
+    """
+    out: dict[str, str] = {}
+    for name in conditions:
+        low, high = physical_range(name)
+        if name not in columns or (low is None and high is None):
+            continue
+        values = _numbers(columns[name])
+        bad = np.unique(values[(values < (-np.inf if low is None else low))
+                               | (values > (np.inf if high is None else high))])
+        if bad.size:
+            shown = ", ".join(f"{v:g}" for v in bad[:3]) + (", ..." if bad.size > 3 else "")
+            bounds = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
+            plural = bad.size > 1
+            out[name] = (f"value{'s' if plural else ''} {shown} lie{'' if plural else 's'} outside {bounds} "
+                         f"[{unit_of(name) or '1'}], the physical range of {name}")
     return out
 
 

@@ -38,7 +38,7 @@ from .candidates import Term, candidate_terms
 from .credibility import implausible
 from .data import Dataset
 from .design import GOALS, Design, DesignError, plan
-from .domain import outside_law_domains
+from .domain import outside_law_domains, outside_physical_ranges
 from .fit import fit
 from .model import CalibratedModel
 from .reported import ReportedWidth
@@ -692,7 +692,9 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
                              f"({', '.join(model.conditions) or 'none'})")
     planned_runs = [(f"planned.{i}", run) for i, run in enumerate(planned or [])]
     for field, columns in (("space", space), ("envelope", envelope or {}), ("fixed", fixed), *planned_runs):
-        for name, detail in outside_law_domains(model.terms, columns).items():
+        outside = {**outside_physical_ranges(model.conditions, columns),
+                   **outside_law_domains(model.terms, columns)}
+        for name, detail in outside.items():
             raise ValueError(f"{field}.{name}: {detail}")
     required = ["balls", "load_N", "speed_m_s", *model.required_columns]
     missing = [n for n in required if n not in space and n not in fixed

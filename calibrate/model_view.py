@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
+from microbearing.physics.columns import physical_range, unit_of
 from microbearing.physics.model import (
     Evaluation,
     Model,
@@ -58,8 +59,10 @@ class CalibratedPhysicsModel(Model):
         # on (None for a model stored before domains were kept).
         self.conditions, self.domain = calibrated.conditions, calibrated.domain
         self.inputs = physics_inputs({**self.fixed, **self.fitted})
-        self.inputs.update({name: ModelInput(name, "as in the calibration data", "A condition column "
-                                             "the calibrated model's terms read.")
+        # each with its quantity's physical range (a time counted from zero, a humidity fraction)
+        self.inputs.update({name: ModelInput(name, _unit(name), "A condition column "
+                                             "the calibrated model's terms read.", "float",
+                                             *physical_range(name))
                             for name in self.required_columns})
         # The factor columns (group labels): a known label moves mu to its group's level; a new one, or
         # none, carries the spread between groups in the interval.
@@ -68,8 +71,9 @@ class CalibratedPhysicsModel(Model):
                             for name in calibrated.factors})
         # The other condition columns of the data: a point may give them, and they are checked against
         # the data's range only (they are no input: nothing the model computes depends on them).
-        self.unread_conditions = {name: ModelInput(name, "as in the calibration data", "A condition column "
-                                                   "of the calibration data the terms do not read.")
+        self.unread_conditions = {name: ModelInput(name, _unit(name), "A condition column "
+                                                   "of the calibration data the terms do not read.", "float",
+                                                   *physical_range(name))
                                   for name in self.conditions if name not in self.inputs}
 
     @property
@@ -127,3 +131,8 @@ class CalibratedPhysicsModel(Model):
 
     def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
         return self.calibrated(points)
+
+
+def _unit(name: str) -> str:
+    """A condition column's unit as its name says it (:func:`physics.columns.unit_of`), or the data's."""
+    return unit_of(name) or "as in the calibration data"

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from microbearing import physics
-from microbearing.physics.columns import SLIP_LIMITS
+from microbearing.physics.columns import SLIP_LIMITS, counted_from_zero, physical_range, unit_of
 from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset
@@ -129,6 +129,17 @@ def _temperature(name: str, values: np.ndarray) -> Finding | None:
     return None
 
 
+def _outside_physical_range(name: str, values: np.ndarray) -> Finding | None:
+    """A condition column outside its quantity's physical range (a time or count run below zero)."""
+    low, high = physical_range(name)
+    if (low is None or float(np.min(values)) >= low) and (high is None or float(np.max(values)) <= high):
+        return None
+    bounds = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
+    counted = " (it is counted from zero, at the start of the run)" if counted_from_zero(name) else ""
+    return Finding(name, "error", f"{name} runs {_span(values)} [{unit_of(name) or '1'}], outside its "
+                                  f"physical range {bounds}{counted}")
+
+
 def _plausible(name: str) -> tuple[float | None, float, str]:
     """The plausible low and high of a column in its own unit, and that unit."""
     if name in LIMITS:
@@ -191,6 +202,8 @@ def plausibility_findings(dataset: Dataset) -> list[Finding]:
             finding = _humidity(name, values)
         elif name not in physics.PARAMETERS and TEMPERATURE.matches(name):
             finding = _temperature(name, values)
+        elif name not in physics.PARAMETERS:
+            finding = _outside_physical_range(name, values)
         if finding is not None:
             found.append(_as_sent(finding, dataset, values))
     mu = dataset.mu_measured

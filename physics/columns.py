@@ -35,8 +35,8 @@ from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
            "Reading", "Span", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
-           "input_slips", "match_column", "read_key", "read_name", "read_slip", "read_span", "slip",
-           "unit_of", "unknown_column", "whole_number"]
+           "input_slips", "match_column", "physical_range", "read_key", "read_name", "read_slip", "read_span",
+           "slip", "unit_of", "unknown_column", "whole_number"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -329,6 +329,23 @@ def counted_from_zero(name: str) -> bool:
     return condition is not None and condition.from_zero
 
 
+def physical_range(name: str) -> tuple[float | None, float | None]:
+    """A condition column's physical range in the unit its name says (:func:`unit_of`), from the declared
+    range of its quantity (:attr:`Condition.minimum`, :attr:`Condition.maximum`); (None, None) for a
+    physics input (its own bounds) or a column of no named condition.
+
+    >>> physical_range("time_min"), physical_range("RH_pct"), physical_range("temp_C")
+    ((0.0, None), (0.0, 100.0), (-273.15, None))
+    """
+    condition = None if name in PARAMETERS else _condition_of(name)
+    unit = unit_of(name) or (None if condition is None else condition.unit)
+    if condition is None or unit is None:
+        return None, None
+    quantity = _registry().Quantity
+    return tuple(None if b is None else round(float(quantity(b, condition.unit).to(unit).magnitude), 10)
+                 for b in (condition.minimum, condition.maximum))
+
+
 def whole_number(name: str) -> bool:
     """Whether a column's values are whole numbers: a physics input of kind int (balls) or a condition
     declared integer (cycles), so that grids and axis ticks stay whole.
@@ -578,13 +595,16 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
 
 
 def read_key(sent: str, columns: Iterable[str], labels: Iterable[str] = ()) -> Reading | None:
-    """How a key sent to a model is read against the model's own columns: a physics input, one of
-    ``columns`` or of ``labels`` (factor columns, whose values are labels: read by their own name only)
-    as it is; another spelling or unit of one of ``columns`` converted (:func:`match_column`); None when
-    none reads it (the caller names it unknown, with the model's columns).
+    """How a key sent to a model is read against the model's own columns: a physics input (under any of
+    its spellings: ``load [mN]`` is ``load_N``, converted), one of ``columns`` or of ``labels`` (factor
+    columns, whose values are labels: read by their own name only) as it is; another spelling or unit of
+    one of ``columns`` converted (:func:`match_column`); None when none reads it (the caller names it
+    unknown, with the model's columns).
 
     >>> read_key("RH [%]", ["relative_humidity"]).convert(50.0), read_key("humidity", ["RH_chamber"])
     (0.5, None)
+    >>> read_key("load [mN]", []).name, read_key("load [mN]", []).convert(10.0)
+    ('load_N', 0.01)
     """
     columns = list(columns)
     if sent in PARAMETERS or sent in columns or sent in labels:
@@ -592,7 +612,12 @@ def read_key(sent: str, columns: Iterable[str], labels: Iterable[str] = ()) -> R
     try:
         return match_column(sent, columns)
     except ColumnError:
+        pass
+    try:  # a physics input under the upload's spelling (load [mN] is load_N), as every door reads it
+        first = read_name(sent)
+    except ColumnError:
         return None
+    return first if first.name in PARAMETERS else None
 
 
 def unknown_column(sent: str, known: Iterable[str], what: str = "column") -> str:

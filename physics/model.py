@@ -210,6 +210,15 @@ class ModelInput:
         if not finite.all():
             index = int(np.flatnonzero(~finite.reshape(-1))[0]) if arr.ndim else None
             raise InputError(self.name, index, f"{self.name} must be a finite number [{self.unit}]")
+        outside = ((arr < self.minimum) if self.minimum is not None else np.zeros(arr.shape, bool)) | (
+            (arr > self.maximum) if self.maximum is not None else False)
+        if outside.any():  # a condition's physical range (a time counted from zero, a fraction)
+            index = int(np.flatnonzero(outside.reshape(-1))[0]) if arr.ndim else None
+            value = float(arr.reshape(-1)[index or 0])
+            low = "-inf" if self.minimum is None else f"{self.minimum:g}"
+            high = "inf" if self.maximum is None else f"{self.maximum:g}"
+            raise InputError(self.name, index, f"value {value:g} lies outside [{low}, {high}] [{self.unit}], "
+                                               f"the physical range of {self.name}")
         return arr
 
 

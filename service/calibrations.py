@@ -15,7 +15,7 @@ the column registry (:mod:`physics.columns`: other units converted, unit slips r
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
 from typing import Any
 
@@ -31,7 +31,7 @@ from microbearing.physics.model import NOT_FINITE
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
 from .models import CalibratedPhysicsModel, InputError, Model, problems, resolve
-from .problems import ProblemError, validation_problem
+from .problems import ProblemError, pointer_at, validation_problem
 from .schemas.base import read_value
 from .schemas.calibrations import MODEL_PATTERN
 from .store import Store
@@ -84,12 +84,12 @@ def data_problem(errors: list[dict[str, Any]], fixed_pointer: str | None = "/fix
             if fixed_pointer is None:
                 items.append({"parameter": "fixed", "detail": f"{column}: {message}"})
             else:
-                items.append({"pointer": f"{fixed_pointer}/{column}", "detail": message})
+                items.append({"pointer": pointer_at(fixed_pointer, column), "detail": message})
         elif data_pointer is None:
             items.append({"pointer": "/body", "detail": TableError.describe(e)})
         elif row is not None:
-            tail = "" if column is None else "/" + column.replace("~", "~0").replace("/", "~1")
-            items.append({"pointer": f"{data_pointer}/{row - 1}{tail}", "detail": message})
+            cell = [str(row - 1)] + ([] if column is None else [column])
+            items.append({"pointer": pointer_at(data_pointer, *cell), "detail": message})
         else:
             items.append({"pointer": data_pointer, "detail": DataError.describe(e)})
     if len(errors) > _MAX_LISTED_ERRORS:
@@ -273,15 +273,17 @@ def check_conditions(model: Model, conditions: Mapping[str, Any], pointer: str =
         calibration data did not have (its names listed); else 422 at ``pointer`` naming the columns
         the model's terms read and were not given.
     """
-    items = [{"pointer": f"{pointer}/{name}", "detail": "is a physics input; give it as a field of its own"}
+    items = [{"pointer": pointer_at(pointer, name),
+              "detail": "is a physics input; give it as a field of its own"}
              for name in sorted(set(conditions) & set(physics.PARAMETERS))]
     if isinstance(model, CalibratedPhysicsModel):
         factors = model.calibrated.factors
-        items += [{"pointer": f"{pointer}/{name}", "detail": "must be a number or a list of numbers: only a "
+        items += [{"pointer": pointer_at(pointer, name),
+                   "detail": "must be a number or a list of numbers: only a "
                    f"factor column ({', '.join(factors) or 'none'}) takes labels"}
                   for name, value in conditions.items() if name not in factors and _has_text(value)]
         if model.domain is not None:
-            items += [{"pointer": f"{pointer}/{name}", "detail": unknown_column(
+            items += [{"pointer": pointer_at(pointer, name), "detail": unknown_column(
                            name, [*model.conditions, *factors], "condition column")}
                       for name in sorted(set(conditions) - set(physics.PARAMETERS) - set(model.conditions)
                                          - set(factors))]
@@ -381,7 +383,7 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
             unmatched.add(sent)
         name = reading.name
         if name in read:
-            raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": (
+            raise validation_problem([{"pointer": pointer_at(pointer, sent), "detail": (
                 f"{readings[name].sent!r} is read as {name} too; keep one")}])
         read[name], readings[name] = read_value(reading, value), reading
     items = []
@@ -391,18 +393,41 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
         message = (None if name in factors or name in unmatched or _has_text(value)
                    else read_slip(readings[name], read_value(Reading("", ""), sent_values)))
         if message is not None:
-            items.append({"pointer": f"{pointer}/{readings[name].sent}", "detail": f"{message} (a key may "
+            items.append({"pointer": pointer_at(pointer, readings[name].sent),
+                          "detail": f"{message} (a key may "
                           f"carry its unit, as the upload's header: e.g. 'relative humidity [%]', "
                           f"'temperature [degC]')"})
-    if items:
-        raise validation_problem(items)
     answer = ReadConditions(read, {name: reading.sent for name, reading in readings.items()},
                             {name: conditions[reading.sent] for name, reading in readings.items()})
+    if not items:  # each value within its column's physical range (a time counted from zero), as sent
+        items = [{"pointer": pointer_at(pointer, answer.key(name)), "detail": answer.as_sent(name, detail)}
+                 for name, detail in _outside_ranges(model, read, factors).items()]
+    if items:
+        raise validation_problem(items)
     try:
         check_conditions(model, read, pointer)
     except ProblemError as exc:  # named by the keys as sent
         raise _as_sent(exc, answer, pointer) from None
     return answer
+
+
+def _outside_ranges(model: CalibratedPhysicsModel, read: Mapping[str, Any], factors: Sequence[str]
+                    ) -> dict[str, str]:
+    """The refusal of each numeric condition a column check of the model refuses, by column."""
+    refused = {}
+    for name, value in read.items():
+        check = model.column_checks.get(name)
+        if check is None or name in factors or _has_text(value):
+            continue
+        try:
+            values = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):  # not numbers: the model's own checks name it
+            continue
+        try:
+            check.check(values)
+        except InputError as exc:
+            refused[name] = str(exc)
+    return refused
 
 
 def _has_text(value: Any) -> bool:
@@ -625,7 +650,8 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
     columns, condition_count = column_arrays(conditions, max_points, "/conditions")
     listed = [name for name, value in conditions.items() if isinstance(value, list)]
     if listed and count != condition_count and any(isinstance(value, list) for value in points.values()):
-        raise validation_problem([{"pointer": f"/conditions/{name}", "detail": f"has {condition_count} "
+        raise validation_problem([{"pointer": pointer_at("/conditions", name),
+                                   "detail": f"has {condition_count} "
                                    f"values but the points have {count}; lists must share one length"}
                                   for name in listed])
     count = max(count, condition_count)

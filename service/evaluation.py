@@ -11,7 +11,7 @@ import numpy as np
 from microbearing import physics
 from microbearing.physics.model import NOT_FINITE, ModelError, evaluate_finite
 
-from .problems import ProblemError, validation_problem
+from .problems import ProblemError, pointer_at, validation_problem
 
 __all__ = ["column_arrays", "evaluate_checked", "evaluate_point"]
 
@@ -29,7 +29,7 @@ def _evaluate(function: Callable[..., Any], inputs: dict[str, Any], convention: 
             return function(convention=str(convention), **options, **inputs)
     except ValueError as exc:
         name = str(exc).split(" ", 1)[0]
-        where = f"{pointer}/{name}" if name in physics.PARAMETERS else pointer
+        where = pointer_at(pointer, name) if name in physics.PARAMETERS else pointer
         raise validation_problem([{"pointer": where, "detail": str(exc)}]) from None
 
 
@@ -122,13 +122,13 @@ def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/poin
     lengths = {name: len(value) for name, value in points.items() if isinstance(value, list)}
     empty = [name for name, length in lengths.items() if length == 0]
     if empty:
-        raise validation_problem([{"pointer": f"{pointer}/{name}", "detail": "a list must not be empty"}
+        raise validation_problem([{"pointer": pointer_at(pointer, name), "detail": "a list must not be empty"}
                                   for name in empty])
     distinct = sorted(set(lengths.values()))
     if len(distinct) > 1:
         first = next(iter(lengths))
         raise validation_problem([
-            {"pointer": f"{pointer}/{name}",
+            {"pointer": pointer_at(pointer, name),
              "detail": f"has {length} values but {first} has {lengths[first]}; lists must share one length"}
             for name, length in lengths.items() if length != lengths[first]
         ])

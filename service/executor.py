@@ -43,7 +43,7 @@ import numpy as np
 
 from microbearing.physics.model import InputError, Model, ModelError
 
-from .problems import ProblemError, validation_problem
+from .problems import ProblemError, pointer_at, validation_problem
 from .settings import Settings
 
 __all__ = ["DEFAULT_CHUNK_POINTS", "WAIT_TICK_S", "DaskExecutor", "chunk_bounds", "create_executor",
@@ -417,7 +417,7 @@ def evaluate_chunks(executor: Executor | None, inputs: dict[str, Any], count: in
             # A calibrated model also takes the condition columns its terms do not read (its domain does).
             model.column_checks[name].check(values)
         except InputError as exc:
-            raise validation_problem([{"pointer": f"{pointer}/{name}", "detail": str(exc)}]) from None
+            raise validation_problem([{"pointer": pointer_at(pointer, name), "detail": str(exc)}]) from None
     bounds = chunk_bounds(count, chunk_points)
     names = [str(name) for name in outputs] if outputs else list(model.outputs)
     arguments = [(model, {**shared, **{name: values[start:stop] for name, values in columns.items()}},

@@ -29,7 +29,7 @@ from microbearing.calibrate.experiments import (
 from microbearing.physics.columns import Reading, read_key, read_slip
 
 from .calibrations import MODEL_PREFIX, ReadConditions, load_calibration, stored_dataset
-from .problems import ProblemError, validation_problem
+from .problems import ProblemError, pointer_at, validation_problem
 from .schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
 from .store import Store
 
@@ -52,11 +52,11 @@ def _field_problem(exc: ValueError, sent: Mapping[str, ReadConditions] | None = 
     run, _, name = key.partition(".")
     if field == "planned" and run.isdigit() and name:  # planned.<i>.<column>: a planned run's column
         columns = (sent or {}).get(f"planned.{run}", ReadConditions({}))
-        return validation_problem([{"pointer": f"/planned/{run}/{columns.key(name)}",
+        return validation_problem([{"pointer": pointer_at(f"/planned/{run}", columns.key(name)),
                                     "detail": columns.as_sent(name, message)}])
     if field in _FIELDS:
         columns = (sent or {}).get(field, ReadConditions({}))
-        pointer = f"/{field}" + (f"/{columns.key(key)}" if key else "")
+        pointer = pointer_at(f"/{field}", *([columns.key(key)] if key else []))
         return validation_problem([{"pointer": pointer, "detail": columns.as_sent(key, message)}])
     if head and " " not in head:
         return validation_problem([{"pointer": "/" + head.replace(".", "/"), "detail": message}])
@@ -64,19 +64,21 @@ def _field_problem(exc: ValueError, sent: Mapping[str, ReadConditions] | None = 
     return validation_problem([{"pointer": f"/{field}", "detail": message}])
 
 
-def _check_planned(planned: list[dict[str, float]] | None) -> None:
-    """422 naming each value of a planned run that its physics input does not take (``4.5`` balls).
+def _check_planned(runs: list[ReadConditions]) -> None:
+    """422 naming each value of a planned run that its physics input does not take (``4.5`` balls), by
+    its key and value as sent.
 
     The proposal would otherwise meet the value only inside the job, as a failure of the space.
     """
     errors = []
-    for i, run in enumerate(planned or []):
+    for i, run in enumerate(runs):
         for name, value in run.items():
             if name in physics.PARAMETERS:
                 try:
                     physics.validate(name, value)
                 except ValueError as exc:
-                    errors.append({"pointer": f"/planned/{i}/{name}", "detail": str(exc)})
+                    errors.append({"pointer": pointer_at(f"/planned/{i}", run.key(name)),
+                                   "detail": run.as_sent(name, str(exc))})
     if errors:
         raise validation_problem(errors)
 
@@ -109,31 +111,42 @@ def _converted(reading: Reading, column: Any) -> Any:
     return reading.convert(column)
 
 
-def _model_columns(model: CalibratedModel, columns: Mapping[str, Any] | None, pointer: str
-                   ) -> dict[str, Any] | None:
-    """A space's, envelope's or fixed values' columns as the calibrated model's, as /v1/friction reads its
-    conditions: a condition under the upload's header or another unit of a column's quantity is converted
-    (:func:`physics.columns.match_column`), and a column whose values (a range's both ends, a set's every
-    value) look like a unit slip is refused (:func:`physics.columns.read_slip`), naming the key as sent."""
+def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | None, pointer: str
+                   ) -> ReadConditions | None:
+    """A space's, envelope's, fixed values' or planned run's columns as the calibrated model's (None: the
+    declared physics'), as /v1/friction reads its conditions: a physics input under the upload's spelling
+    (``load [mN]``) and a condition under the upload's header or another unit of a column's quantity are
+    converted (:func:`physics.columns.read_key`), and a column whose values (a range's both ends, a set's
+    every value) look like a unit slip is refused (:func:`physics.columns.read_slip`), naming the key as
+    sent; each column keeps its key and value as sent (:class:`ReadConditions`) for later refusals."""
     if columns is None:
         return None
+    conditions, factors = ((), ()) if model is None else (model.conditions, model.factors)
     out: dict[str, Any] = {}
     sent_as: dict[str, str] = {}
     for sent, column in columns.items():
-        reading = read_key(sent, model.conditions, model.factors)
+        reading = read_key(sent, conditions, factors)
         # a key nothing reads: check_request names it, with the model's columns; a factor holds labels
-        judged = reading is not None and sent not in model.factors
+        judged = reading is not None and sent not in factors
         message = read_slip(reading, _span_values(column)) if judged else None
         reading = reading or Reading(sent, sent)
         if isinstance(column, bool) and reading.name not in physics.PARAMETERS:  # a flag is no condition
             message = f"must be a number, not {str(column).lower()}: only a physics flag takes true or false"
         if message is not None:
-            raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": message}])
+            raise validation_problem([{"pointer": pointer_at(pointer, sent), "detail": message}])
         if reading.name in out:
-            raise validation_problem([{"pointer": f"{pointer}/{sent}", "detail": (
+            raise validation_problem([{"pointer": pointer_at(pointer, sent), "detail": (
                 f"{sent_as[reading.name]!r} is read as {reading.name} too; keep one")}])
         out[reading.name], sent_as[reading.name] = _converted(reading, column), sent
     return ReadConditions(out, sent_as, {name: columns[key] for name, key in sent_as.items()})
+
+
+def _sent(space: ReadConditions | None, envelope: ReadConditions | None, fixed: ReadConditions | None,
+          runs: list[ReadConditions]) -> dict[str, ReadConditions]:
+    """Each field's columns as read (``planned.<i>`` per planned run), for :func:`_field_problem`."""
+    fields = {"space": space, "envelope": envelope, "fixed": fixed}
+    return ({field: columns for field, columns in fields.items() if columns is not None}
+            | {f"planned.{i}": run for i, run in enumerate(runs)})
 
 
 def _document(plan: ExperimentPlan, model: str, job_id: str | None) -> dict[str, Any]:
@@ -162,9 +175,8 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     # a planned run's conditions read as the space's (the upload's headers and units)
     runs = [_model_columns(model, run, f"/planned/{i}") for i, run in enumerate(body.planned or [])]
     planned = None if body.planned is None else [dict(run) for run in runs]
-    sent = {field: columns for field, columns in (("space", space), ("envelope", envelope), ("fixed", fixed))
-            if columns is not None} | {f"planned.{i}": run for i, run in enumerate(runs)}
-    _check_planned(planned)
+    sent = _sent(space, envelope, fixed, runs)
+    _check_planned(runs)
     try:
         check_request(model, space, fixed, envelope, planned)
         if model.covariance is None or model.noise_std_log is None:
@@ -212,31 +224,35 @@ def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict
     ProblemError
         422 naming the field.
     """
-    space, envelope = _space(body.space), _space(body.envelope)
-    _check_planned(body.planned)
+    space = _model_columns(None, _space(body.space), "/space")
+    envelope = _model_columns(None, _space(body.envelope), "/envelope")
+    fixed = _model_columns(None, body.fixed, "/fixed")
+    runs = [_model_columns(None, run, f"/planned/{i}") for i, run in enumerate(body.planned or [])]
+    planned = None if body.planned is None else [dict(run) for run in runs]
+    sent = _sent(space, envelope, fixed, runs)
+    _check_planned(runs)
     fit_parameters = [str(p) for p in body.fit_parameters]
     unknown = [k for k in (body.guess or {}) if k not in fit_parameters]
     if unknown:
-        raise validation_problem([{"pointer": f"/guess/{k}", "detail": "not one of fit_parameters"}
+        raise validation_problem([{"pointer": pointer_at("/guess", k), "detail": "not one of fit_parameters"}
                                   for k in unknown])
     if body.goal == "predict" and envelope is None:
         raise validation_problem([{"pointer": "/envelope", "detail": "goal predict needs an envelope"}])
 
     try:  # the request's checks, at once (the solve comes in the job)
-        model, fixed = physics_model(fit_parameters, body.noise_std_log, body.guess, body.fixed,
-                                     str(body.convention))
-        check_request(model, space, fixed, envelope, body.planned)
+        model, fixed_all = physics_model(fit_parameters, body.noise_std_log, body.guess, fixed,
+                                         str(body.convention))
+        check_request(model, space, fixed_all, envelope, planned)
     except ValueError as exc:
-        raise _field_problem(exc) from None
+        raise _field_problem(exc, sent) from None
 
     def work(ctx) -> dict[str, Any]:
         try:
-            request = ExperimentRequest(space, body.runs, body.goal, envelope, body.fixed, body.planned,
-                                        body.seed)
+            request = ExperimentRequest(space, body.runs, body.goal, envelope, fixed, planned, body.seed)
             plan = first_experiments(fit_parameters, request, body.noise_std_log, body.guess,
                                      str(body.convention), ctx.progress)
         except ValueError as exc:
-            raise _field_problem(exc) from None
+            raise _field_problem(exc, sent) from None
         return {**_document(plan, "physics", ctx.job_id), "calibration_id": None}
 
     return work

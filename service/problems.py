@@ -31,6 +31,7 @@ from microbearing.physics.columns import ColumnError, read_name
 
 __all__ = [
     "PROBLEM_MEDIA_TYPE",
+    "pointer_at",
     "FieldError",
     "Problem",
     "ProblemError",
@@ -145,6 +146,16 @@ def truncated(text: str, limit: int) -> str:
 MAX_LISTED_ERRORS = 100
 _SUMMARIZED_ERRORS = 10
 _EXAMINED_ERRORS = 10 * MAX_LISTED_ERRORS
+
+
+def pointer_at(base: str, *keys: str) -> str:
+    """A JSON pointer to ``keys`` below ``base``, each key one token (RFC 6901: ``~`` is ``~0``, ``/`` is
+    ``~1``), so that a key as sent (``speed [mm/s]``) is one step.
+
+    >>> pointer_at("/space", "speed [mm/s]")
+    '/space/speed [mm~1s]'
+    """
+    return base + "".join("/" + str(k).replace("~", "~0").replace("/", "~1") for k in keys)
 
 
 def validation_problem(errors: list[dict[str, str]], status: int = 422, total: int | None = None

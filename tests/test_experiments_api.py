@@ -108,6 +108,51 @@ def test_planned_runs_may_name_columns_with_their_units(client, calibration_id):
                                             "planned": slipped}), 422)
     assert [e["pointer"] for e in answer["errors"]] == ["/planned/0/relative_humidity"], answer
     assert "look like percent" in answer["errors"][0]["detail"], answer
+    # a physics input out of its range is named by its key and value as sent, not as the model reads it
+    negative = [{**lab[0], "load [mN]": -10}]
+    answer = problem(client.post(url, json={"runs": 4, "goal": "parameters", "space": SPACE,
+                                            "planned": negative}), 422)
+    assert [e["pointer"] for e in answer["errors"]] == ["/planned/0/load [mN]"], answer
+    assert "sent as load [mN]: -10, read as load_N: -0.01" in answer["errors"][0]["detail"], answer
+
+
+@pytest.mark.parametrize(("field", "replaced", "body", "pointer", "sent"), [
+    # a JSON pointer spells / as ~1 (RFC 6901)
+    ("space", "speed_m_s", {"speed [mm/s]": {"low": -5, "high": 150}}, "/space/speed [mm~1s]",
+     "sent as speed [mm/s]: {low: -5, high: 150}"),
+    ("fixed", None, {"groove angle [rad]": -1}, "/fixed/groove angle [rad]",
+     "sent as groove angle [rad]: -1"),
+    ("envelope", "load_N", {"load [mN]": [-1, 20]}, "/envelope/load [mN]", "sent as load [mN]: [-1, 20]"),
+])
+def test_a_physics_input_is_refused_by_its_key_as_sent_at_every_field(client, calibration_id, field, replaced,
+                                                                        body, pointer, sent):
+    # hand: -5 mm/s is -0.005 m/s, below speed_m_s's 0; -1 rad below 0 deg; -1 mN below load_N's 0
+    request = {"runs": 4, "goal": "predict", "space": dict(SPACE), "envelope": dict(SPACE), "fixed": {}}
+    request[field] = {**{k: v for k, v in request[field].items() if k != replaced}, **body}
+    answer = problem(client.post(f"/v1/calibrations/{calibration_id}/next-experiments", json=request), 422)
+    errors = {e["pointer"]: e["detail"] for e in answer["errors"]}
+    assert pointer in errors, answer
+    assert sent in errors[pointer], answer
+
+
+def test_a_first_design_reads_the_upload_s_spellings_as_the_next_runs_do(client):
+    # the same design from SI keys and from the lab's units: 150 mm/s is 0.15 m/s, 54.7 deg as sent
+    si = {"balls": {"values": [4, 8]}, "load_N": {"low": 1e-3, "high": 3e-2, "spacing": "log"},
+          "speed_m_s": {"low": 0.0, "high": 0.15}}
+    lab = {"balls": {"values": [4, 8]}, "load [mN]": {"low": 1, "high": 30, "spacing": "log"},
+           "speed [mm/s]": {"low": 0, "high": 150}}
+    runs = []
+    for space in (si, lab):
+        body = {"runs": 6, "space": space, "fit_parameters": ["mu_pivot"], "noise_std_log": 0.03}
+        result = finished(client, client.post("/v1/experiments", json=body))
+        runs.append([(run["balls"], run["load_N"], run["speed_m_s"]) for run in result["runs"]])
+    assert runs[0] == runs[1]
+    assert max(speed for _, _, speed in runs[1]) <= 0.15 + 1e-12
+    assert min(load for _, load, _ in runs[1]) >= 1e-3 - 1e-15
+    body = {"runs": 6, "space": lab, "fit_parameters": ["mu_pivot"],
+            "planned": [{"balls": 4, "load [mN]": 5, "speed [mm/s]": -1}]}
+    answer = problem(client.post("/v1/experiments", json=body), 422)
+    assert [e["pointer"] for e in answer["errors"]] == ["/planned/0/speed [mm~1s]"], answer
 
 
 def test_first_design_on_the_physics(client):

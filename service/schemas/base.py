@@ -63,7 +63,9 @@ __all__ = [
     "parse_json_body",
     "raw_json_body",
     "read_column_keys",
+    "check_column_keys",
     "ColumnKeys",
+    "CheckedColumnKeys",
     "UNIT_KEYS",
     "read_value",
 ]

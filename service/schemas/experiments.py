@@ -7,16 +7,17 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field
 
 from microbearing import physics
-from microbearing.physics.columns import SPAN_SPELLINGS, ColumnError, Reading, read_name
+from microbearing.physics.columns import SPAN_SPELLINGS
 
 from .base import (
     REQUIRED_INPUTS,
-    ColumnKeys,
+    CheckedColumnKeys,
     Convention,
     ConventionName,
     ResponseModel,
     StrictModel,
     WholeNumber,
+    check_column_keys,
     given_at,
     physics_value_schema,
 )
@@ -70,30 +71,12 @@ SpaceColumn = Annotated[
 ]
 
 def _space_keys(space: dict[str, Any] | None) -> dict[str, Any] | None:
-    """A space's physics inputs by the names the calibration upload reads its header as, values converted
-    (``speed [mm/s]`` is speed_m_s); a condition (``relative humidity [%]``) as sent, read against the
-    calibrated model's columns by the route (:func:`service.experiments.next_experiments_job`)."""
-    if space is None:
-        return None
-    read: dict[str, Any] = {}
-    for key, column in space.items():
-        try:
-            reading = read_name(key)
-        except ColumnError as exc:
-            raise ValueError(f"{key}: {exc}") from None
-        if reading.name not in physics.PARAMETERS:
-            reading = Reading(key, key)
-        if reading.name in read:
-            raise ValueError(f"{key}: another column is read as {reading.name} too; keep one")
-        if reading.reading and isinstance(column, SpaceRange):
-            column = column.model_copy(update={"low": reading.convert(column.low),
-                                               "high": reading.convert(column.high)})
-        elif reading.reading and isinstance(column, SpaceValues):
-            column = SpaceValues(values=[reading.convert(v) for v in column.values])
-        elif reading.reading:
-            column = [reading.convert(v) for v in column]
-        read[reading.name] = column
-    return read
+    """A space's columns kept as sent, keys checked as the calibration upload reads its header (a unit not
+    known or not of its quantity, two keys read as one physics input): the route reads them against the
+    model (:func:`service.experiments.next_experiments_job`: ``speed [mm/s]`` is speed_m_s, converted),
+    so that a refusal names the key and value as sent."""
+    check_column_keys(space)
+    return space
 
 
 _UNIT_NAMES = (" A column's name may carry its unit as the calibration upload's header does ('speed [mm/s]', "
@@ -118,9 +101,9 @@ class _ExperimentsRequest(StrictModel):
         min_length=1, max_length=MAX_SPACE_COLUMNS, description=_SPACE + _UNIT_NAMES)
     envelope: Annotated[dict[str, SpaceColumn] | None, AfterValidator(_space_keys)] = Field(
         default=None, max_length=MAX_SPACE_COLUMNS, description=_ENVELOPE)
-    fixed: Annotated[dict[str, float | bool] | None, ColumnKeys] = Field(default=None, max_length=64,
+    fixed: Annotated[dict[str, float | bool] | None, CheckedColumnKeys] = Field(default=None, max_length=64,
                                                                          description=_FIXED + _UNIT_NAMES)
-    planned: list[Annotated[dict[str, float], ColumnKeys]] | None = Field(
+    planned: list[Annotated[dict[str, float], CheckedColumnKeys]] | None = Field(
         default=None, max_length=MAX_PLANNED_RUNS, description=_PLANNED + _UNIT_NAMES)
     seed: WholeNumber = Field(default=0, ge=0, le=2**31 - 1, description="Seed of the candidate set [1].")
 
