@@ -10,6 +10,7 @@ The result's plot is drawn from the stored result when asked (:func:`plan_png`).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from microbearing import physics
@@ -141,12 +142,35 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
     return ReadConditions(out, sent_as, {name: columns[key] for name, key in sent_as.items()})
 
 
-def _sent(space: ReadConditions | None, envelope: ReadConditions | None, fixed: ReadConditions | None,
-          runs: list[ReadConditions]) -> dict[str, ReadConditions]:
-    """Each field's columns as read (``planned.<i>`` per planned run), for :func:`_field_problem`."""
-    fields = {"space": space, "envelope": envelope, "fixed": fixed}
-    return ({field: columns for field, columns in fields.items() if columns is not None}
-            | {f"planned.{i}": run for i, run in enumerate(runs)})
+@dataclass(frozen=True)
+class _Read:
+    """A request's columns as the model reads them (:func:`_model_columns`), each field keeping its keys and
+    values as sent for a refusal's words."""
+
+    space: ReadConditions | None
+    envelope: ReadConditions | None
+    fixed: ReadConditions | None
+    runs: list[ReadConditions]
+    planned: list[dict[str, Any]] | None  # the planned runs as plain columns (None: none given)
+
+    @property
+    def sent(self) -> dict[str, ReadConditions]:
+        """Each field's columns (``planned.<i>`` per planned run), for :func:`_field_problem`."""
+        fields = {"space": self.space, "envelope": self.envelope, "fixed": self.fixed}
+        return ({field: columns for field, columns in fields.items() if columns is not None}
+                | {f"planned.{i}": run for i, run in enumerate(self.runs)})
+
+
+def _read_request(model: CalibratedModel | None, body: Any) -> _Read:
+    """A request's space, envelope, fixed values and planned runs read against ``model`` (None: the
+    declared physics), each planned run's physics inputs checked (422 naming the key as sent)."""
+    runs = [_model_columns(model, run, f"/planned/{i}") for i, run in enumerate(body.planned or [])]
+    read = _Read(_model_columns(model, _space(body.space), "/space"),
+                 _model_columns(model, _space(body.envelope), "/envelope"),
+                 _model_columns(model, body.fixed, "/fixed"), runs,
+                 None if body.planned is None else [dict(run) for run in runs])
+    _check_planned(runs)
+    return read
 
 
 def _document(plan: ExperimentPlan, model: str, job_id: str | None) -> dict[str, Any]:
@@ -169,14 +193,9 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     stored = load_calibration(store, calibration_id)
     model = CalibratedModel.from_json(stored.metadata["model"])
     report = stored.metadata["report"]
-    space = _model_columns(model, _space(body.space), "/space")
-    envelope = _model_columns(model, _space(body.envelope), "/envelope")
-    fixed = _model_columns(model, body.fixed, "/fixed")
     # a planned run's conditions read as the space's (the upload's headers and units)
-    runs = [_model_columns(model, run, f"/planned/{i}") for i, run in enumerate(body.planned or [])]
-    planned = None if body.planned is None else [dict(run) for run in runs]
-    sent = _sent(space, envelope, fixed, runs)
-    _check_planned(runs)
+    read = _read_request(model, body)
+    space, envelope, fixed, planned, sent = read.space, read.envelope, read.fixed, read.planned, read.sent
     try:
         check_request(model, space, fixed, envelope, planned)
         if model.covariance is None or model.noise_std_log is None:
@@ -224,13 +243,8 @@ def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict
     ProblemError
         422 naming the field.
     """
-    space = _model_columns(None, _space(body.space), "/space")
-    envelope = _model_columns(None, _space(body.envelope), "/envelope")
-    fixed = _model_columns(None, body.fixed, "/fixed")
-    runs = [_model_columns(None, run, f"/planned/{i}") for i, run in enumerate(body.planned or [])]
-    planned = None if body.planned is None else [dict(run) for run in runs]
-    sent = _sent(space, envelope, fixed, runs)
-    _check_planned(runs)
+    read = _read_request(None, body)
+    space, envelope, fixed, planned, sent = read.space, read.envelope, read.fixed, read.planned, read.sent
     fit_parameters = [str(p) for p in body.fit_parameters]
     unknown = [k for k in (body.guess or {}) if k not in fit_parameters]
     if unknown:
