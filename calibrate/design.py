@@ -74,6 +74,8 @@ _SINGULAR = 1e-10
 #: A rival parameter whose sensitivity over the candidates is below this share of its largest one moves
 #: none of them (left out of the T-criterion) [1].
 _NEGLIGIBLE_SENSITIVITY = 1e-9
+#: Time the fallback solver (SCS) may take on one design problem before it is said unsolved. [s]
+_SCS_SECONDS = 60.0
 
 
 class DesignError(ValueError):
@@ -342,13 +344,18 @@ def _solve(problem: _Problem) -> tuple[np.ndarray, str]:
         objective = cp.Maximize(t)
     program = cp.Problem(objective, constraints)
     status = "not solved"
+    if not all(np.all(np.isfinite(a)) for a in (problem.b, problem.fixed, *problem.rival_rows,
+                                                 *problem.rival_fixed)):
+        raise DesignError("the design problem's numbers are not finite (a sensitivity overflows over the "
+                          "space): narrow the space or fix the column that drives it")
     for solver in ("CLARABEL", "SCS"):
         try:
             # An inaccurate solution is said in the status (and the efficiency bound is computed from
             # the rounded design itself), not warned about on stderr.
             with warnings.catch_warnings():
                 warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-                program.solve(solver=solver)
+                # SCS, the fallback, stops after a time limit rather than iterate on a hopeless problem
+                program.solve(solver=solver, **({"time_limit_secs": _SCS_SECONDS} if solver == "SCS" else {}))
         except cp.error.SolverError:
             continue
         status = f"{solver}: {program.status}"
@@ -510,7 +517,12 @@ def plan(
         _check_identifiable(model, fixed + b.T @ b)
     # Rescale the parameters so that every column of b has unit root mean square (the solver's
     # conditioning); D efficiencies, I and T criteria do not depend on this scaling.
-    scale = 1.0 / np.maximum(np.sqrt(np.mean(np.square(b), axis=0)), 1e-300) if p else np.ones(0)
+    # A parameter no candidate moves (a run-in's scale with its cycles held at 0) is scaled by what the
+    # data taken hold of it instead: 1 / (its tiny spread) would overflow the prior information to inf.
+    spread = np.sqrt(np.mean(np.square(b), axis=0))
+    held = np.sqrt(np.clip(np.diag(fixed), 0.0, None) / runs)
+    reference = np.where(spread > _NEGLIGIBLE_SENSITIVITY * held, spread, held)
+    scale = 1.0 / np.maximum(reference, 1e-300) if p else np.ones(0)
     problem = _Problem(goal, runs, b * scale, fixed * np.outer(scale, scale) / runs, scale=scale)
     taken = planned if planned_b.shape[0] else None
     if goal == "predict":

@@ -130,6 +130,24 @@ def test_prior_information_moves_the_design_to_what_the_data_lack():
     assert design.continuous_efficiency_lower_bound > 0.99
 
 
+@pytest.mark.parametrize("goal", ["parameters", "predict"])
+def test_a_parameter_no_candidate_moves_is_held_by_the_data_taken(goal):
+    # A run-in's scale with its cycles held at 0: no candidate moves the third parameter, the data taken
+    # hold it (prior). Scaled by its zero spread it overflowed to inf and the solver never returned; now
+    # the runs serve the two others as if the third were known: the D-optimal line on [-1, 1] puts half
+    # the runs at each end (hand: det of [[n, s], [s, q]] is largest with s = 0, q = n).
+    x = np.linspace(-1, 1, 21)
+    model = FunctionModel(["1", "x", "held"], lambda p: np.column_stack([np.ones_like(p["x"]), p["x"],
+                                                                          np.zeros_like(p["x"])]),
+                          prior=np.diag([1.0, 1.0, 4.0]))
+    envelope = {"x": np.linspace(-0.5, 0.5, 5)} if goal == "predict" else None
+    design = plan(model, {"x": x}, 10, goal, envelope=envelope)
+    assert design.counts.sum() == 10 and np.all(np.isfinite(design.information_after))
+    assert np.isfinite(design.criterion) and design.efficiency_lower_bound > 0.9
+    if goal == "parameters":
+        assert design.counts[0] == design.counts[-1] == 5
+
+
 def test_efficient_rounding_sums_and_follows_pukelsheim_rieder():
     assert efficient_rounding(np.array([0.5, 0.3, 0.2]), 10).tolist() == [5, 3, 2]
     weights = np.array([0.1458] * 4 + [0.0802] * 4 + [0.0962])
