@@ -129,7 +129,7 @@ _SUFFIXES = {"N": "N", "m/s": "m_s", "deg": "deg", "m": "m", "J/m^2": "J_m2", "N
              "1/Pa": "1_Pa", "Pa": "Pa"}
 # SI units of other conditions by dimension, with the suffix their new name gets (dimensionless: none).
 _SI_BY_DIMENSION = {"[length]": ("m", "m"), "[time]": ("s", "s"), "[length] / [time]": ("m/s", "m_s"),
-                    "[mass] * [length] / [time] ** 2": ("N", "N"), "[mass]": ("kg", "kg"),
+                    "[length] * [mass] / [time] ** 2": ("N", "N"), "[mass]": ("kg", "kg"),
                     "[mass] / [length] / [time] ** 2": ("Pa", "Pa"), "[temperature]": ("K", "K"),
                     "1 / [time]": ("1/s", "1_s")}
 _BRACKETS = re.compile(r"^(?P<name>.*?)\s*(\[(?P<square>[^\]]*)\]|\((?P<round>[^)]*)\))\s*$")
@@ -156,7 +156,9 @@ def _unit(text: str):
 
 
 def _dimension(unit) -> str:
-    return str((1.0 * unit).dimensionality)
+    """A unit's dimension as text in one order whatever the unit's (gf is [length] * [mass] as N is)."""
+    dims = (1.0 * unit).dimensionality
+    return str(type(dims)(dict(sorted(dims.items()))))
 
 
 @dataclass(frozen=True)

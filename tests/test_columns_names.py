@@ -118,3 +118,14 @@ def test_a_condition_s_unit_of_another_kind_is_refused_never_read(sent):
 def test_a_count_s_unit_words_are_counts_not_angles(sent, value, expected):
     # pint's cycle is a turn, 2 pi radians: 1 kcycle had been read as 6283 cycles
     assert match_column(sent, ["cycles"]).convert(value) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize(("sent", "value", "expected"), [
+    # hand: 1 gf = 9.80665 mN (standard gravity); 1 lbf = 0.45359237 kg x 9.80665 m/s2; 1 ozf = 1/16 lbf
+    ("load (gf)", 1.0, 9.80665e-3), ("load [kgf]", 0.001, 9.80665e-3), ("load [lbf]", 1.0, 4.4482216152605),
+    ("load_ozf", 16.0, 4.4482216152605), ("load [dyn]", 1e5, 1.0)])
+def test_a_force_unit_is_read_whatever_order_pint_writes_its_dimension_in(sent, value, expected):
+    # gf's dimension reads [length] * [mass] / [time] ** 2, N's [mass] * [length] / ...: the text had been
+    # compared, and every force unit but N's own multiples refused as "not convertible"
+    reading = read_name(sent)
+    assert reading.name == "load_N" and reading.convert(value) == pytest.approx(expected, rel=1e-12)
