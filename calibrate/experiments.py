@@ -691,6 +691,11 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
             raise ValueError(f"fixed.{name}: not a physics input nor a condition column of the data "
                              f"({', '.join(model.conditions) or 'none'})")
     planned_runs = [(f"planned.{i}", run) for i, run in enumerate(planned or [])]
+    for field, run in planned_runs:
+        for name in run:
+            if name not in physics.PARAMETERS and name not in model.conditions:
+                raise ValueError(f"{field}.{name}: not a physics input nor a condition column of the data "
+                                 f"({', '.join(model.conditions) or 'none'})")
     for field, columns in (("space", space), ("envelope", envelope or {}), ("fixed", fixed), *planned_runs):
         outside = {**outside_physical_ranges(model.conditions, columns),
                    **outside_law_domains(model.terms, columns)}

@@ -269,12 +269,13 @@ class Table:
     columns: list[Column] | None
     intake: Intake
 
-    def converted_rows(self) -> list[list[str]]:
-        """The cells with a decimal point and in SI (each column converted as :attr:`columns` reads it)."""
+    def converted_rows(self, units: bool = True) -> list[list[str]]:
+        """The cells with a decimal point and in SI (each column converted as :attr:`columns` reads it);
+        with ``units`` False in the units of the header (a door that reads the keys itself)."""
         columns = self.columns or []
         decimal = self.intake.decimal or "point"
-        return [[_cell(c, columns[i] if i < len(columns) else None, decimal) for i, c in enumerate(r)]
-                for r in self.rows]
+        return [[_cell(c, columns[i] if units and i < len(columns) else None, decimal)
+                 for i, c in enumerate(r)] for r in self.rows]
 
 
 def accepted_names() -> str:

@@ -563,6 +563,9 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
     known = list(known)
     if sent in known:
         return Reading(sent, sent)
+    same = [k for k in known if k.casefold() == sent.strip().casefold()]  # HUMIDITY for Humidity
+    if len(same) == 1:
+        return Reading(sent, same[0])
     bracketed = _BRACKETS.match(sent.strip())
     try:
         first = read_name(sent)
@@ -664,17 +667,22 @@ def _humidity_slip(name: str, values: np.ndarray) -> str | None:
     return f"{name} runs {_span_text(values)} [{'%' if percent else '1'}]: {cause}"
 
 
-def _temperature_slip(name: str, values: np.ndarray, kelvin: bool | None = None) -> str | None:
-    """``kelvin``: whether the values are in K (else degC); by default as the name says."""
+def _temperature_slip(name: str, values: np.ndarray, kelvin: bool | None = None,
+                      sent: tuple[np.ndarray, str] | None = None) -> str | None:
+    """``kelvin``: whether the values are in K (else degC); by default as the name says. ``sent``: the
+    values as sent and their unit (degF), shown first when the rule judged them converted."""
     kelvin = unit_of(name) == "K" if kelvin is None else kelvin
     lo, hi = float(np.min(values)), float(np.max(values))
+    shown = f"{_span_text(values)} {'K' if kelvin else 'degC'}"
+    if sent is not None:
+        shown = f"{_span_text(sent[0])} {sent[1]} ({shown})"
     if kelvin and lo < _KELVIN_MIN:
-        return (f"{name} runs {_span_text(values)} K, below {_KELVIN_MIN:g} K: values look like degC "
+        return (f"{name} runs {shown}, below {_KELVIN_MIN:g} K: values look like degC "
                 f"(name the column temperature_C)")
     if not kelvin and lo < -273.15:
-        return f"{name} runs {_span_text(values)} degC, below absolute zero (-273.15 degC): check the unit"
+        return f"{name} runs {shown}, below absolute zero (-273.15 degC): check the unit"
     if not kelvin and hi > _CELSIUS_MAX:
-        return (f"{name} runs {_span_text(values)} degC, above {_CELSIUS_MAX:g} degC: values look like "
+        return (f"{name} runs {shown}, above {_CELSIUS_MAX:g} degC: values look like "
                 f"kelvin (name the column temperature_K)")
     return None
 
@@ -762,7 +770,8 @@ def _stated_temperature_slip(first: Reading, array: np.ndarray) -> str | None:
         values = array if kelvin else _registry().Quantity(array, unit).to("degC").magnitude
     except Exception:  # pint's errors: not a unit it reads as a temperature
         return None
-    return _temperature_slip(first.sent, np.asarray(values, dtype=float), kelvin)
+    return _temperature_slip(first.sent, np.asarray(values, dtype=float), kelvin,
+                             None if kelvin or _same(unit, "degC") else (array, stated))
 
 
 def input_slips(inputs: Mapping[str, Any]) -> list[str]:
@@ -817,9 +826,9 @@ SPAN_SPELLINGS = ('a range is [low, high] or {"low": low, "high": high}; a set o
 
 def _number(field: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise ValueError(f"{field} must hold numbers; got {value!r}")
+        raise ValueError(f"{field}: must hold numbers; got {value!r}")
     if not math.isfinite(float(value)):
-        raise ValueError(f"{field} must hold finite numbers; got {value!r}")
+        raise ValueError(f"{field}: must hold finite numbers; got {value!r}")
     return float(value)
 
 
@@ -877,7 +886,8 @@ def read_span(field: str, value: Any, number: bool = True) -> Span:
         low = high = _number(field, value)
         spacing = "linear"
     else:
-        raise ValueError(f"{field} must be {'a number or ' if number else ''}{SPAN_SPELLINGS}; got {value!r}")
+        kind = "a number or " if number else ""
+        raise ValueError(f"{field}: must be {kind}{SPAN_SPELLINGS}; got {value!r}")
     if low > high:
-        raise ValueError(f"{field} must have low <= high; got [{low:g}, {high:g}]")
+        raise ValueError(f"{field}: low must not exceed high; got [{low:g}, {high:g}]")
     return Span(low, high, None, spacing)

@@ -321,20 +321,20 @@ class ReadConditions(dict):
         key = self.key(name)
         if key == name or name not in self.sent_values or name not in self:
             return detail
-        return (f"{detail} (sent as {key}: {_shown(self.sent_values[name])}, read as {name}: "
-                f"{_shown(self[name])})")
+        return (f"{detail} (sent as {key}: {shown(self.sent_values[name])}, read as {name}: "
+                f"{shown(self[name])})")
 
 
-def _shown(value: Any) -> str:
+def shown(value: Any) -> str:
     """A sent value in a few characters: numbers as %g, a list as [a, b], a range as {low, high}."""
     if isinstance(value, bool | str):
         return str(value)
     if isinstance(value, int | float):
         return f"{value:g}"
     if isinstance(value, Mapping):  # a range or a set: its numbers (a spacing is no value)
-        return "{" + ", ".join(f"{k}: {_shown(v)}" for k, v in value.items() if not isinstance(v, str)) + "}"
+        return "{" + ", ".join(f"{k}: {shown(v)}" for k, v in value.items() if not isinstance(v, str)) + "}"
     if isinstance(value, list | tuple):
-        return "[" + ", ".join(_shown(v) for v in value) + "]"
+        return "[" + ", ".join(shown(v) for v in value) + "]"
     return str(value)
 
 
@@ -647,10 +647,10 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
     mu_model = _load_in_convention(store, model, convention)
     conditions = read_conditions(mu_model, conditions)
     inputs, count = column_arrays(dict(points), max_points)
-    columns, condition_count = column_arrays(conditions, max_points, "/conditions")
+    columns, condition_count = column_arrays(conditions, max_points, "/conditions", conditions.key)
     listed = [name for name, value in conditions.items() if isinstance(value, list)]
     if listed and count != condition_count and any(isinstance(value, list) for value in points.values()):
-        raise validation_problem([{"pointer": pointer_at("/conditions", name),
+        raise validation_problem([{"pointer": pointer_at("/conditions", conditions.key(name)),
                                    "detail": f"has {condition_count} "
                                    f"values but the points have {count}; lists must share one length"}
                                   for name in listed])

@@ -148,6 +148,14 @@ def named_values(items: list[str], lists: bool = False) -> dict[str, list[Any]]:
             raise CommandError(f"{item!r}: {spec.name} is given twice", EXIT_INVALID)
         parts = text.split(",") if lists else [text]
         values[spec.name] = [converted(read, value_of(spec, part.strip(), name)) for part in parts]
+        for part, value in zip(parts, values[spec.name], strict=True):
+            try:  # refused here, by the name and value as typed (the API's /load [mN] alike)
+                physics.validate(spec.name, value)
+            except ValueError as exc:
+                key = name.strip()
+                said = ("" if key == spec.name
+                        else f" (sent as {key}: {part.strip()}, read as {spec.name}: {value:g})")
+                raise CommandError(f"{key}: {exc}{said}", EXIT_INVALID) from None
     return values
 
 

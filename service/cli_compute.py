@@ -46,8 +46,8 @@ class Points:
     inputs : dict of str to numpy.ndarray
         Physics inputs by name, in SI (converted from the unit of the header).
     conditions : dict of str to list
-        Other columns by the name they are read as (converted to SI when the header states a unit):
-        numbers, or labels of a factor.
+        Other columns by their header and in its unit, as sent (the calibrated model reads them as
+        ``/v1/friction`` reads its conditions): numbers, or labels of a factor.
     count : int
         Rows [1].
     """
@@ -78,21 +78,24 @@ def read_points(path: str, separator: str | None, decimal: str | None) -> Points
     if table.columns is None:
         raise CommandError(f"{path}: every column needs a name in the header row (physics inputs such as "
                            "load [mN], speed [mm/s])", EXIT_INVALID)
-    rows = table.converted_rows()
+    rows, sent_rows = table.converted_rows(), table.converted_rows(units=False)
     if not rows:
         raise CommandError(f"{path}: expected a header row of input names and at least one row", EXIT_INVALID)
     print(f"{path}: {table.intake.summary()}", file=sys.stderr)
-    values: dict[str, list[Any]] = {column.name: [] for column in table.columns}
+    # a physics input by its SI name, converted; a condition by its header and in its unit, as sent: the
+    # model reads it as /v1/friction does, and a refusal names it so
+    keys = [c.name if c.name in physics.PARAMETERS else c.sent.strip() for c in table.columns]
+    values: dict[str, list[Any]] = {key: [] for key in keys}
     lines = table.intake.row_lines  # each row's line in the file (after a sep= line, one further)
-    for number, row in enumerate(rows):
+    for number, (row, sent_row) in enumerate(zip(rows, sent_rows, strict=True)):
         line = lines[number] if number < len(lines) else number + table.intake.header_line + 1
         if len(row) != len(table.columns):
             raise CommandError(f"{path}: line {line}: {len(row)} values for {len(table.columns)} "
                                "columns", EXIT_INVALID)
-        for column, text in zip(table.columns, row, strict=True):
+        for column, key, text, sent in zip(table.columns, keys, row, sent_row, strict=True):
             spec = physics.PARAMETERS.get(column.name)
             where = f"{path}: line {line}, column {column.sent}"
-            values[column.name].append(value_of(spec, text, where) if spec is not None else _condition(text))
+            values[key].append(value_of(spec, text, where) if spec is not None else _condition(sent))
     inputs = {name: np.asarray(column) for name, column in values.items() if name in physics.PARAMETERS}
     conditions = {name: column for name, column in values.items() if name not in physics.PARAMETERS}
     return Points(inputs, conditions, len(rows))

@@ -94,8 +94,8 @@ def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, conventi
         raise validation_problem(exc.errors) from None
 
 
-def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/points"
-                  ) -> tuple[dict[str, Any], int]:
+def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/points",
+                  key: Callable[[str], str] = str) -> tuple[dict[str, Any], int]:
     """Turn columnar inputs into arrays and check that the lists share one length.
 
     Parameters
@@ -106,6 +106,8 @@ def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/poin
         Most points allowed [1].
     pointer : str, default "/points"
         JSON pointer of ``points`` in the request body.
+    key : callable, default str
+        A column's key as sent, for a refusal (:meth:`service.calibrations.ReadConditions.key`).
 
     Returns
     -------
@@ -122,14 +124,15 @@ def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/poin
     lengths = {name: len(value) for name, value in points.items() if isinstance(value, list)}
     empty = [name for name, length in lengths.items() if length == 0]
     if empty:
-        raise validation_problem([{"pointer": pointer_at(pointer, name), "detail": "a list must not be empty"}
-                                  for name in empty])
+        raise validation_problem([{"pointer": pointer_at(pointer, key(name)),
+                                   "detail": "a list must not be empty"} for name in empty])
     distinct = sorted(set(lengths.values()))
     if len(distinct) > 1:
         first = next(iter(lengths))
         raise validation_problem([
-            {"pointer": pointer_at(pointer, name),
-             "detail": f"has {length} values but {first} has {lengths[first]}; lists must share one length"}
+            {"pointer": pointer_at(pointer, key(name)),
+             "detail": f"has {length} values but {key(first)} has {lengths[first]}; lists must share one "
+                       "length"}
             for name, length in lengths.items() if length != lengths[first]
         ])
     count = distinct[0] if distinct else 1

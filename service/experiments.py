@@ -133,6 +133,10 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
         reading = reading or Reading(sent, sent)
         if isinstance(column, bool) and reading.name not in physics.PARAMETERS:  # a flag is no condition
             message = f"must be a number, not {str(column).lower()}: only a physics flag takes true or false"
+        if isinstance(column, str):  # a group label: the runs serve every group alike
+            message = (f"{sent} is a factor column (group labels): the runs are planned for the model over "
+                       f"its groups, a new one's spread in the interval; leave it out" if sent in factors
+                       else f"must be a number, not {column!r}: only a factor column holds labels")
         if message is not None:
             raise validation_problem([{"pointer": pointer_at(pointer, sent), "detail": message}])
         if reading.name in out:

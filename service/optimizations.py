@@ -46,10 +46,11 @@ from microbearing.optimize.robust import Envelope, optimize_robust
 from microbearing.physics.columns import input_slips
 from microbearing.physics.model import Model
 
-from .calibrations import ReadConditions, interval_at, read_conditions, with_conditions
+from .calibrations import ReadConditions, interval_at, read_conditions, shown, with_conditions
 from .executor import map_chunks
 from .models import CalibratedPhysicsModel, resolve
-from .problems import ProblemError, validation_problem
+from .problems import ProblemError, pointer_at, validation_problem
+from .schemas.friction import InputKeys
 from .schemas.optimizations import OptimizationRequest
 from .store import Store
 from .surrogates import load_source_model
@@ -132,18 +133,29 @@ def _request(body: OptimizationRequest) -> DesignRequest:
         pareto=body.pareto is not None)
 
 
-def _plan_problem(error: PlanError, conditions: Any = None) -> ProblemError:
-    """The 422 problem of a request that is no design problem, each field named by its JSON pointer; a
-    condition by its key and value as sent when ``conditions`` (:func:`read_conditions`'s) read them."""
-    sent = conditions if isinstance(conditions, ReadConditions) else ReadConditions({})
+def _plan_problem(error: PlanError, body: OptimizationRequest) -> ProblemError:
+    """The 422 problem of a request that is no design problem, each field named by its JSON pointer: a
+    condition by its key and value as sent when :func:`read_conditions` read them, a physics input the
+    schema renamed (``bounds.load_N`` sent as ``load [mN]``) likewise."""
+    sent = body.conditions if isinstance(body.conditions, ReadConditions) else ReadConditions({})
     items = []
     for name, detail in error.errors:
         field, _, column = name.partition(".")
         if field == "conditions" and column:
-            items.append({"pointer": "/conditions/" + sent.key(column),
+            items.append({"pointer": pointer_at("/conditions", sent.key(column)),
                           "detail": sent.as_sent(column, detail)})
-        else:
+            continue
+        *path, last = name.split(".") if name else [""]
+        owner = body
+        for part in path:
+            owner = getattr(owner, part, None)
+        renamed = owner.sent_as(last) if isinstance(owner, InputKeys) else None
+        if renamed is None:
             items.append({"pointer": "/" + name.replace(".", "/") if name else "", "detail": detail})
+        else:
+            key, value = renamed
+            items.append({"pointer": pointer_at("/" + "/".join(path) if path else "", key),
+                          "detail": f"{detail} (sent as {key}: {shown(value)}, read as {last})"})
     return validation_problem(items)
 
 
@@ -196,7 +208,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     try:
         check_request(request)
     except PlanError as error:
-        raise _plan_problem(error) from None
+        raise _plan_problem(error, body) from None
     model, mu_model, interval = None, None, None
     if body.model != "physics":
         model = resolve(store, body.model)
@@ -211,7 +223,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     try:
         planned = plan_design(request, model)
     except PlanError as error:
-        raise _plan_problem(error, body.conditions) from None
+        raise _plan_problem(error, body) from None
     except InfeasibleDesignError as error:
         # Conflicts of the limits that do not depend on the model answer 422 at once on every model.
         raise infeasible_problem(error) from None

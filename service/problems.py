@@ -17,6 +17,7 @@ from __future__ import annotations
 import http
 import json
 import logging
+import re
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -218,8 +219,10 @@ def _allowed_methods(request: Request) -> list[str]:
 
 def _is_union_tag(part: Any) -> bool:
     # pydantic names the member of a plain union in the location ("list[constrained-float]",
-    # "int"); field names are snake_case identifiers, so such tags are recognised by their form.
-    return isinstance(part, str) and ("[" in part or "-" in part or part in {"float", "int", "bool", "str"})
+    # "int", a model's class name "SpaceRange"); field names are snake_case identifiers, so such tags
+    # are recognised by their form (a key of the document is never taken for one: see the caller).
+    return isinstance(part, str) and ("[" in part or "-" in part or part in {"float", "int", "bool", "str"}
+                                      or re.fullmatch(r"[A-Z][a-z]+(?:[A-Z][a-z]+)+", part) is not None)
 
 
 def _sent_key(node: dict, name: Any) -> str | None:

@@ -148,6 +148,14 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], di
     return read, sent_as
 
 
+def _keys_of(name: str, sent_inputs: list[str], inputs: list[str], fixed_as_sent: dict[str, str]) -> str:
+    """The keys an input was given under, in config.inputs and config.fixed, quoted, and what they read as."""
+    keys = [sent for sent, read in zip(sent_inputs, inputs, strict=True) if read == name]
+    keys += [fixed_as_sent[name]] if name in fixed_as_sent else []
+    keys = list(dict.fromkeys(keys))
+    return " and ".join(map(repr, keys)) + ("" if keys == [name] else f" (read as {name})")
+
+
 def _read_inputs(model: Model, names: Sequence[str]) -> tuple[list[str], tuple[Reading | None, ...]]:
     """``config.inputs`` by the model's input names, with the reading of each sent in another unit (None:
     read as sent); a name no column matches is kept, for :meth:`Setup.of` to name."""
@@ -230,7 +238,9 @@ class Setup:
                                         f"{model.reference}: {unknown_column(name, known)}")
         repeated = sorted({n for n in inputs if inputs.count(n) > 1} | (set(inputs) & set(given)))
         if repeated:
-            raise ProtocolError("InvalidInput", f"config.inputs: {', '.join(repeated)} given twice (an input "
+            # each named by its keys as sent ("load [mN]" in config.inputs, load_N in config.fixed)
+            said = [_keys_of(name, list(config.inputs or inputs), inputs, fixed_as_sent) for name in repeated]
+            raise ProtocolError("InvalidInput", f"config.inputs: {'; '.join(said)} given twice (an input "
                                 "varies, in config.inputs, or is fixed, in config.fixed)")
         missing = [n for n in model.default_inputs if n not in inputs and n not in given]
         if missing:

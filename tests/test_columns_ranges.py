@@ -119,3 +119,22 @@ def test_every_other_door_refuses_a_time_below_zero(client, model, data_dir, tmp
     assert main([*arguments, "Time_s=-5"]) != 0 and not out.exists()
     assert main([*arguments, "Time_s=5"]) == 0
     assert json.loads(out.read_text())["mu"] > 0
+
+
+def test_the_cli_reads_a_file_s_conditions_by_their_headers_as_sent(client, model, data_dir, tmp_path,
+                                                                    capsys):
+    # the rows' conditions reach the model as /v1/friction's do: a refusal names the header and the value
+    # as typed (hand: -1 min is -60 s), and good rows answer as the API does
+    table = tmp_path / "points.csv"
+    out = tmp_path / "out.csv"
+    arguments = ["evaluate", "--data-dir", str(data_dir), "--model", model, "--csv", str(table),
+                 "-o", str(out)]
+    table.write_text("balls,load [mN],speed_m_s,time [min],RH_pct\n6,10,0.05,1,40\n6,10,0.05,-1,40\n")
+    assert main(arguments) != 0
+    assert "sent as time [min]: [1, -1], read as Time_s: [60, -60]" in capsys.readouterr().err
+    table.write_text("balls,load [mN],speed_m_s,time [min],RH_pct\n6,10,0.05,1,40\n")
+    assert main(arguments) == 0
+    api = client.post("/v1/friction", json={"balls": 6, "load_N": 0.01, "speed_m_s": 0.05, "model": model,
+                                            "conditions": {"Time_s": 60, "RH_pct": 40}}).json()
+    header, row = out.read_text().splitlines()[:2]
+    assert float(dict(zip(header.split(","), row.split(","), strict=True))["mu"]) == pytest.approx(api["mu"])

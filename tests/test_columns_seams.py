@@ -356,7 +356,7 @@ def test_every_value_of_a_range_is_judged_at_submit(client, calibration):
     # a range's ends in the wrong order, and a unit of another kind, at the key as sent
     upside_down = {**body, "conditions": {"RH [%]": [80, 40], "temp_K": 300}}
     detail = _problem(client.post("/v1/optimizations", json=upside_down), "/conditions/RH [%]")
-    assert "low <= high" in detail and "(sent as RH [%]: [80, 40]" in detail, detail
+    assert "low must not exceed high" in detail and "(sent as RH [%]: [80, 40]" in detail, detail
     wrong_kind = _point(model, {"RH [mm]": 600, "temp_K": 300})
     assert "whose unit is a number" in _problem(client.post("/v1/friction", json=wrong_kind),
                                                 "/conditions/RH [mm]")
@@ -527,3 +527,54 @@ def test_a_physics_input_named_with_its_own_si_unit_or_another_is_read_at_every_
     # two names of one input are refused, naming the key
     both = client.post("/v1/optimizations", json={**body, "fixed": {"speed_m_s": 0.05, "speed_mm_s": 50}})
     assert both.status_code == 422 and "read as speed_m_s too" in both.text, both.text
+
+
+# --- refusals in the user's words: the sweep of 2026-11-30 (issue 32) -------------------------------------
+def test_refusals_name_keys_and_values_as_sent_at_prediction(client, calibration):
+    model = calibration["model_id"]
+    # lists of unequal length: named by the keys sent, not the model's columns
+    batch = {"points": {"balls": [4, 4, 4], "load_N": 0.01, "speed_m_s": 0.05}, "model": model,
+             "conditions": {"relative humidity [%]": [50, 50, 50], "temp_F": [86, 86]}}
+    detail = _problem(client.post("/v1/friction/batch", json=batch), "/conditions/temp_F")
+    assert "has 2 values but relative humidity [%] has 3" in detail, detail
+    # a temperature judged in degC says the value as sent first (hand: -500 degF = -295.6 degC)
+    detail = _problem(client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5,
+                                                                        "temperature [degF]": -500})),
+                      "/conditions/temperature [degF]")
+    assert "-500 to -500 degF (-295.6 to -295.6 degC), below absolute zero" in detail, detail
+    # a key's case is not a different column
+    upper = client.post("/v1/friction", json=_point(model, {"RELATIVE_HUMIDITY": 0.5, "TEMP_K": 303.15}))
+    lower = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, "temp_K": 303.15}))
+    assert upper.status_code == 200 and upper.json()["mu"] == lower.json()["mu"], upper.text
+
+
+def test_an_optimization_names_a_renamed_input_and_never_a_schema_tag(client):
+    design = {"balls": [4, 8], "groove_angle_deg": [40, 70]}
+    detail = _problem(client.post("/v1/optimizations", json={"bounds": {**design, "load [mN]": [20, 5]},
+                                                             "speed_m_s": 0.05}), "/bounds/load [mN]")
+    assert "(sent as load [mN]: [20, 5], read as load_N)" in detail, detail
+    detail = _problem(client.post("/v1/optimizations", json={"bounds": {**design, "load_N": [0.005, 0.02]},
+                                                             "speed [mm/s]": [80, 30]}), "/speed [mm~1s]")
+    assert "sent as speed [mm/s]: [80, 30]" in detail, detail
+    # a flag for a condition's range: the pointer names the key, not pydantic's ConditionSpan
+    response = client.post("/v1/optimizations", json={"bounds": {**design, "load_N": [0.005, 0.02]},
+                                                      "speed_m_s": 0.05, "model": "calibrated:" + "0" * 32,
+                                                      "conditions": {"RH": True}})
+    assert [e["pointer"] for e in response.json()["errors"]] == ["/conditions/RH"], response.text
+    # UM-Bridge names both keys of an input given twice
+    answer = client.post("/umbridge/Evaluate", json={"name": "physics", "input": [[6, 10, 0.05]], "config": {
+        "inputs": ["balls", "load [mN]", "speed_m_s"], "fixed": {"load_N": 0.01}}}).json()
+    assert "'load [mN]' and 'load_N' (read as load_N) given twice" in answer["error"]["message"], answer
+
+
+def test_the_csv_intake_refuses_what_the_calibration_would(client):
+    # a humidity fraction column holding percent: the upload refuses it, so does the intake (it said
+    # nothing before), in the same words
+    text = "balls,load_N,speed_m_s,humidity,mu_measured\n" + "".join(
+        f"{4 + 2 * (i % 3)},{0.005 + 0.001 * i},{0.02 + 0.005 * i},{30 + 2 * i},0.0{3 + i % 5}\n"
+        for i in range(16))
+    headers = {"content-type": "text/csv"}
+    intake = client.post("/v1/calibrations/csv/intake", content=text, headers=headers)
+    upload = client.post("/v1/calibrations/csv?fit_parameters=mu_pivot", content=text, headers=headers)
+    assert intake.status_code == upload.status_code == 422, intake.text
+    assert "values look like percent" in intake.text and "values look like percent" in upload.text

@@ -135,6 +135,28 @@ def test_a_physics_input_is_refused_by_its_key_as_sent_at_every_field(client, ca
     assert sent in errors[pointer], answer
 
 
+def test_refusals_of_next_runs_name_the_field_and_key_as_sent(client, calibration_id):
+    url = f"/v1/calibrations/{calibration_id}/next-experiments"
+    run = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "relative_humidity": 0.5}
+    # a planned run's key no column is (a typo) is refused as the same key in fixed is; it was ignored
+    errors = problem(client.post(url, json={"runs": 4, "goal": "parameters", "space": SPACE,
+                                            "planned": [{**run, "cycle_count": 5}]}), 422)["errors"]
+    assert [e["pointer"] for e in errors] == ["/planned/0/cycle_count"], errors
+    assert "not a physics input nor a condition column" in errors[0]["detail"]
+    # low above high in the envelope is the envelope's, named by its key and values as sent
+    envelope = {"balls": [6], "load [mN]": [20, 5], "speed_m_s": [0.05], "relative_humidity": [0.7, 0.8]}
+    errors = problem(client.post(url, json={"runs": 4, "goal": "predict", "space": SPACE,
+                                            "envelope": envelope}), 422)["errors"]
+    assert [e["pointer"] for e in errors] == ["/envelope/load [mN]"], errors
+    assert "low must not exceed high" in errors[0]["detail"], errors
+    assert "sent as load [mN]: [20, 5]" in errors[0]["detail"], errors
+    # text in fixed: a number is asked for in words, not pydantic's two type errors
+    errors = problem(client.post(url, json={"runs": 4, "goal": "parameters", "space": SPACE,
+                                            "fixed": {"groove_angle_deg": "sixty"}}), 422)["errors"]
+    assert [e["pointer"] for e in errors] == ["/fixed/groove_angle_deg"], errors
+    assert "must be a number, not 'sixty'" in errors[0]["detail"], errors
+
+
 def test_a_first_design_reads_the_upload_s_spellings_as_the_next_runs_do(client):
     # the same design from SI keys and from the lab's units: 150 mm/s is 0.15 m/s, 54.7 deg as sent
     si = {"balls": {"values": [4, 8]}, "load_N": {"low": 1e-3, "high": 3e-2, "spacing": "log"},

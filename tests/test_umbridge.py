@@ -234,7 +234,7 @@ ERRORS = [
     ("Evaluate", {**POINT, "config": {"fixed": {"mu_pivot": 11.0}}}, 400, "InvalidInput",
      r"^config.fixed.mu_pivot: mu_pivot must be in \[0, 10\]"),
     ("Evaluate", {**POINT, "config": {"inputs": ["balls", "load_N", "speed_m_s"], "fixed": {"balls": 4}}},
-     400, "InvalidInput", r"^config.inputs: balls given twice"),
+     400, "InvalidInput", r"^config.inputs: 'balls' given twice"),
     ("Evaluate", {**POINT, "config": {"inputs": ["load_N", "speed"]}}, 400, "InvalidInput",
      r"^config.inputs: 'speed' is not an input of physics"),
     ("Evaluate", {**POINT, "config": {"inputs": ["load_N", "speed_m_s"]}}, 400, "InvalidInput",

@@ -21,6 +21,7 @@ from microbearing.calibrate import (
     read_rows,
 )
 from microbearing.calibrate.fit import check_fit_parameters
+from microbearing.calibrate.plausibility import check_plausible
 from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names, read_column
 
 from ..calibrations import (
@@ -310,6 +311,10 @@ async def read_calibration_csv(
     """
     dataset, intake, fixed_values = await _read_upload(request, settings, options)
     names = [str(name) for name in fit_parameters]
+    try:  # the values the calibration would refuse, refused here with its words
+        check_plausible(dataset)
+    except DataError as exc:
+        raise data_problem(intake.locate(exc.errors), data_pointer=None) from None
     try:
         check_fit_parameters(dataset, names)
     except ValueError as exc:

@@ -101,8 +101,9 @@ class _ExperimentsRequest(StrictModel):
         min_length=1, max_length=MAX_SPACE_COLUMNS, description=_SPACE + _UNIT_NAMES)
     envelope: Annotated[dict[str, SpaceColumn] | None, AfterValidator(_space_keys)] = Field(
         default=None, max_length=MAX_SPACE_COLUMNS, description=_ENVELOPE)
-    fixed: Annotated[dict[str, float | bool] | None, CheckedColumnKeys] = Field(default=None, max_length=64,
-                                                                         description=_FIXED + _UNIT_NAMES)
+    # text is taken to be refused in words (a factor's label: the runs serve every group)
+    fixed: Annotated[dict[str, float | bool | str] | None, CheckedColumnKeys] = Field(
+        default=None, max_length=64, description=_FIXED + _UNIT_NAMES)
     planned: list[Annotated[dict[str, float], CheckedColumnKeys]] | None = Field(
         default=None, max_length=MAX_PLANNED_RUNS, description=_PLANNED + _UNIT_NAMES)
     seed: WholeNumber = Field(default=0, ge=0, le=2**31 - 1, description="Seed of the candidate set [1].")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import Annotated, Any
 
-from pydantic import Field, create_model, model_validator
+from pydantic import Field, PrivateAttr, create_model, model_validator
 
 from microbearing import physics
 from microbearing.physics.columns import ColumnError, read_name
@@ -31,6 +31,22 @@ __all__ = ["INPUT_KEYS", "INPUT_WARNINGS", "FrictionBatchPoints", "FrictionBatch
 INPUT_KEYS = (" An input may be sent under a name with its unit, as a calibration upload's header (e.g. "
               "'speed [mm/s]', speed_mm_s, 'load [mN]', load_mN), converted as the upload converts it; two "
               "names of one input are refused.")
+
+
+def _sent_inputs(body: Any, read: Any) -> dict[str, tuple[str, Any]]:
+    """The physics inputs :func:`read_input_keys` renamed: input -> (key as sent, value as sent)."""
+    if not isinstance(body, dict) or not isinstance(read, dict):
+        return {}
+    renamed = [key for key in body if key not in read]
+    return {name: (key, body[key]) for key in renamed for name in read if name not in body
+            and _read_as(key) == name}
+
+
+def _read_as(key: Any) -> str | None:
+    try:
+        return read_name(key).name if isinstance(key, str) else None
+    except ColumnError:
+        return None
 
 
 def read_input_keys(body: Any, fields: Collection[str] = ()) -> Any:
@@ -66,12 +82,23 @@ def read_input_keys(body: Any, fields: Collection[str] = ()) -> Any:
 
 
 class InputKeys(StrictModel):
-    """A body whose physics inputs may be sent under names with units (:func:`read_input_keys`)."""
+    """A body whose physics inputs may be sent under names with units (:func:`read_input_keys`); each
+    renamed one keeps its key and value as sent (:meth:`sent_as`), for a later refusal's words."""
 
-    @model_validator(mode="before")
+    _sent: dict[str, tuple[str, Any]] = PrivateAttr(default_factory=dict)
+
+    @model_validator(mode="wrap")
     @classmethod
-    def _read_input_keys(cls, body: Any) -> Any:
-        return read_input_keys(body, cls.model_fields)
+    def _read_input_keys(cls, body: Any, handler: Any) -> Any:
+        read = read_input_keys(body, cls.model_fields)
+        model = handler(read)
+        model._sent = _sent_inputs(body, read)
+        return model
+
+    def sent_as(self, name: str) -> tuple[str, Any] | None:
+        """The key and value a physics input ``name`` of this body was sent as, when it was renamed
+        (``("load [mN]", [20, 5])`` for load_N); None when it was sent under its own name."""
+        return self._sent.get(name)
 
 
 _CONVENTION = (ConventionName, Field(
