@@ -515,14 +515,7 @@ def plan(
         if p == 0:
             raise DesignError("the model has no parameters to design for")
         _check_identifiable(model, fixed + b.T @ b)
-    # Rescale the parameters so that every column of b has unit root mean square (the solver's
-    # conditioning); D efficiencies, I and T criteria do not depend on this scaling.
-    # A parameter no candidate moves (a run-in's scale with its cycles held at 0) is scaled by what the
-    # data taken hold of it instead: 1 / (its tiny spread) would overflow the prior information to inf.
-    spread = np.sqrt(np.mean(np.square(b), axis=0))
-    held = np.sqrt(np.clip(np.diag(fixed), 0.0, None) / runs)
-    reference = np.where(spread > _NEGLIGIBLE_SENSITIVITY * held, spread, held)
-    scale = 1.0 / np.maximum(reference, 1e-300) if p else np.ones(0)
+    scale = _parameter_scale(b, fixed, runs)
     problem = _Problem(goal, runs, b * scale, fixed * np.outer(scale, scale) / runs, scale=scale)
     taken = planned if planned_b.shape[0] else None
     if goal == "predict":
@@ -566,6 +559,22 @@ def plan(
         criterion = float(separation.min())
     return Design(goal, counts, weights, criterion, bound, continuous_bound, rounding, separation,
                   information, solver)
+
+
+def _parameter_scale(b: np.ndarray, fixed: np.ndarray, runs: int) -> np.ndarray:
+    """Each parameter's scale for the solver: 1 / the root mean square of its column of ``b`` (every
+    column then near 1: the solver's conditioning; D efficiencies, I and T criteria do not depend on it).
+
+    A parameter no candidate moves (a run-in's scale with its cycles held at 0) is scaled by what the data
+    taken (``fixed``, the information) hold of it per run instead: 1 / its tiny spread would overflow the
+    prior information to inf.
+    """
+    if not b.shape[1]:
+        return np.ones(0)
+    spread = np.sqrt(np.mean(np.square(b), axis=0))
+    held = np.sqrt(np.clip(np.diag(fixed), 0.0, None) / runs)
+    reference = np.where(spread > _NEGLIGIBLE_SENSITIVITY * held, spread, held)
+    return 1.0 / np.maximum(reference, 1e-300)
 
 
 def _exchanged(exchange: Callable[[np.ndarray], np.ndarray], counts: np.ndarray) -> np.ndarray:

@@ -91,9 +91,12 @@ class InputKeys(StrictModel):
     @classmethod
     def _read_input_keys(cls, body: Any, handler: Any) -> Any:
         read = read_input_keys(body, cls.model_fields)
-        model = handler(read)
-        model._sent = _sent_inputs(body, read)
-        return model
+        return handler(read).with_sent(_sent_inputs(body, read))
+
+    def with_sent(self, sent: dict[str, tuple[str, Any]]) -> InputKeys:
+        """This body, remembering the keys and values its renamed inputs were sent as (:meth:`sent_as`)."""
+        self._sent = dict(sent)
+        return self
 
     def sent_as(self, name: str) -> tuple[str, Any] | None:
         """The key and value a physics input ``name`` of this body was sent as, when it was renamed
