@@ -561,6 +561,7 @@ def test_an_optimization_names_a_renamed_input_and_never_a_schema_tag(client):
                                                       "speed_m_s": 0.05, "model": "calibrated:" + "0" * 32,
                                                       "conditions": {"RH": True}})
     assert [e["pointer"] for e in response.json()["errors"]] == ["/conditions/RH"], response.text
+    assert response.json()["errors"][0]["detail"].startswith("must be a number, a range"), response.text
     # UM-Bridge names both keys of an input given twice
     answer = client.post("/umbridge/Evaluate", json={"name": "physics", "input": [[6, 10, 0.05]], "config": {
         "inputs": ["balls", "load [mN]", "speed_m_s"], "fixed": {"load_N": 0.01}}}).json()

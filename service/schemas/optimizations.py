@@ -118,6 +118,9 @@ def _condition_spelling(value: Any) -> Any:
         raise ValueError("a set of values is no envelope: a design holds over a range, [low, high] or "
                          "{\"low\": low, \"high\": high} (e.g. the set's lowest and highest), or at one "
                          "value")
+    if isinstance(value, bool) or value is None:  # one sentence, not each member's of the union
+        raise ValueError(f"must be a number, a range [low, high] or {{\"low\": low, \"high\": high}}, or a "
+                         f"factor column's label; not {str(value).lower() if value is not None else 'null'}")
     return value
 
 
