@@ -306,6 +306,11 @@ class ReadConditions(dict):
         self.sent_as = dict(sent_as or {})
         self.sent_values = dict(sent_values or {})
 
+    @classmethod
+    def of(cls, conditions: Any) -> ReadConditions:
+        """``conditions`` when :func:`read_conditions` read them, else none read (keys as they are)."""
+        return conditions if isinstance(conditions, ReadConditions) else cls({})
+
     def key(self, name: str) -> str:
         """A column's key as sent (its own name when it was sent so)."""
         return self.sent_as.get(name, name)
@@ -503,7 +508,7 @@ def _input_problem(error: InputError, pointer: str, conditions: ReadConditions) 
     """The 422 problem of an input a calibrated model refuses: a physics input under ``pointer``, a
     condition under ``/conditions`` by its key as sent (``conditions``: :func:`read_conditions`'s)."""
     where = (f"{pointer}/{error.name}" if error.name in physics.PARAMETERS
-             else f"/conditions/{conditions.key(error.name)}")
+             else pointer_at("/conditions", conditions.key(error.name)))
     return validation_problem([{"pointer": where, "detail": str(error)}])
 
 

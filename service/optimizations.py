@@ -137,7 +137,7 @@ def _plan_problem(error: PlanError, body: OptimizationRequest) -> ProblemError:
     """The 422 problem of a request that is no design problem, each field named by its JSON pointer: a
     condition by its key and value as sent when :func:`read_conditions` read them, a physics input the
     schema renamed (``bounds.load_N`` sent as ``load [mN]``) likewise."""
-    sent = body.conditions if isinstance(body.conditions, ReadConditions) else ReadConditions({})
+    sent = ReadConditions.of(body.conditions)
     items = []
     for name, detail in error.errors:
         field, _, column = name.partition(".")
@@ -178,9 +178,9 @@ def _refuse_outside_law_domains(model: Model, body: OptimizationRequest) -> None
     outside = outside_law_domains(model.calibrated.terms, columns)
     if outside:
         speed_pointer = "/fixed/speed_m_s" if in_fixed else "/speed_m_s"
-        sent = body.conditions if isinstance(body.conditions, ReadConditions) else ReadConditions({})
+        sent = ReadConditions.of(body.conditions)
         raise validation_problem([
-            {"pointer": "/conditions/" + sent.key(name), "detail": sent.as_sent(name, detail)}
+            {"pointer": pointer_at("/conditions", sent.key(name)), "detail": sent.as_sent(name, detail)}
             if name != "speed_m_s" else {"pointer": speed_pointer, "detail": detail}
             for name, detail in outside.items()])
 
