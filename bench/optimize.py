@@ -34,6 +34,7 @@ Run: ``python bench/optimize.py`` from the repository root (``--robust``: the ro
 
 from __future__ import annotations
 
+import argparse
 import statistics
 import sys
 import time
@@ -472,14 +473,21 @@ def robust_kinds() -> None:
 
 
 if __name__ == "__main__":
-    if "--kinds" in sys.argv[1:]:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument("--kinds", action="store_true",
+                       help="issue 35's table: one robust call per model kind")
+    which.add_argument("--parts", action="store_true", help="issue 25's certified parts only")
+    which.add_argument("--robust", action="store_true", help="the robust designs and the certified parts")
+    args = parser.parse_args()
+    if args.kinds:
         robust_kinds()
-    elif "--parts" in sys.argv[1:]:
+    elif args.parts:
         robust_parts()
-    elif "--robust" in sys.argv[1:]:
+    elif args.robust:
         robust()
         robust_parts()
-    else:
+    else:  # everything: the DGP optimizer against brute force, then the robust designs and parts
         main()
         robust()
         robust_parts()
