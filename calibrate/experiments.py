@@ -560,8 +560,10 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
             raise ValueError(f"{field_name}: the model has no finite mu at {int(bad.sum())} of its points "
                              f"(e.g. {example}); narrow the ranges")
     planned_columns = None
-    if planned:
-        planned_columns = {k: np.array([row[k] for row in planned], dtype=float) for k in space}
+    if planned:  # every column the runs give, a fixed one too (a run planned at another groove angle)
+        given = dict.fromkeys([*space, *(k for row in planned for k in row)])
+        planned_columns = {k: np.array([row.get(k, response.fixed.get(k)) for row in planned], dtype=float)
+                           for k in given}
     report(0.2)
     rival_responses = [CalibratedResponse(m, response.fixed) for _, m in rivals]
     # A calibrated model's interval widens off the data (the data cloud, the ranges of its inputs): the
@@ -711,6 +713,10 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
         absent = [n for n in space if n not in row]
         if absent:
             raise ValueError(f"planned.{i}: give {', '.join(absent)} (the columns of the space)")
+        # a column some runs give and this one does not: its value is the fixed one, or none is known
+        unknown = [n for other in planned or [] for n in other if n not in row and n not in fixed]
+        if unknown:
+            raise ValueError(f"planned.{i}: give {unknown[0]} (other planned runs do, and it is not fixed)")
     return CalibratedResponse(model, fixed)
 
 

@@ -332,18 +332,16 @@ def counted_from_zero(name: str) -> bool:
 
 
 def physical_range(name: str) -> tuple[float | None, float | None]:
-    """A condition column's physical range in the unit its name says (:func:`unit_of`), from the declared
-    range of its quantity (:attr:`Condition.minimum`, :attr:`Condition.maximum`); (None, None) for a
-    physics input (its own bounds) or a column of no named condition.
+    """A condition column's physical range (:attr:`Condition.minimum`, ``maximum``) in the unit its name
+    says (:func:`unit_of`); (None, None) for a physics input (its own bounds) or no named condition.
 
     >>> physical_range("time_min"), physical_range("RH_pct"), physical_range("temp_C")
     ((0.0, None), (0.0, 100.0), (-273.15, None))
     """
     condition = None if name in PARAMETERS else _condition_of(name)
-    unit = unit_of(name) or (None if condition is None else condition.unit)
-    if condition is None or unit is None:
+    if condition is None:
         return None, None
-    quantity = _registry().Quantity
+    unit, quantity = unit_of(name) or condition.unit, _registry().Quantity
     return tuple(None if b is None else round(float(quantity(b, condition.unit).to(unit).magnitude), 10)
                  for b in (condition.minimum, condition.maximum))
 
@@ -416,6 +414,11 @@ def _condition_unit(sent: str, name_text: str, unit_text: str, unit):
     condition = _condition_of(_condition_base(name_text))
     if condition is None:
         return None
+    # a number's own units only: g/kg (an absolute humidity), dB or ppm would be read silently
+    own = {"relative_humidity": _HUMIDITY_UNITS, "cycles": _COUNT_UNITS}.get(condition.name)
+    if own is not None and not own.fullmatch(_COUNT_WORDS.sub("count", unit_text).strip()):
+        raise ColumnError(sent, f"{name_text.strip()} is read as {condition.name}, whose unit is "
+                                f"{_EXAMPLE_UNITS[condition.name]}, not {unit_text!r}")
     if condition.integer:
         try:
             unit = _unit(_COUNT_WORDS.sub("count", unit_text))
@@ -430,6 +433,8 @@ def _condition_unit(sent: str, name_text: str, unit_text: str, unit):
     return unit
 
 
+_HUMIDITY_UNITS = re.compile(r"%|percent|pct|1|fraction", re.IGNORECASE)
+_COUNT_UNITS = re.compile(r"[kM]?count|1")
 _EXAMPLE_UNITS = {"relative_humidity": "[%] or [1]", "temperature_K": "[degC], [K] or [degF]",
                   "cycles": "[1] or [kcycles]", "time_h": "[s], [min] or [h]"}
 

@@ -103,9 +103,11 @@ def test_a_factor_named_with_a_condition_word_is_no_quantity_at_prediction():
 
 
 @pytest.mark.parametrize("sent", ["RH [mm]", "RH [K]", "relative_humidity [s]", "RH [deg]", "cycles [mm]",
-                                  "cycles [m]", "cycles [1/s]", "time [mN]", "temperature [m]"])
+                                  "cycles [m]", "cycles [1/s]", "time [mN]", "temperature [m]",
+                                  "humidity [g/kg]", "humidity [dB]", "cycles [%]", "cycles [ppm]"])
 def test_a_condition_s_unit_of_another_kind_is_refused_never_read(sent):
-    # RH [mm] at 600 had been read as the fraction 0.6 (600 mm = 0.6 m), cycles [mm] at 5 as 0.005 cycles
+    # RH [mm] at 600 had been read as the fraction 0.6 (600 mm = 0.6 m), cycles [mm] at 5 as 0.005 cycles;
+    # humidity [g/kg] at 500 (an absolute humidity) as the fraction 0.5, cycles [%] at 50 as 0.5 cycles
     with pytest.raises(ColumnError, match="is read as"):
         read_name(sent)
     with pytest.raises(ColumnError):

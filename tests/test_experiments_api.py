@@ -239,3 +239,22 @@ def test_cli_first_design_and_next_runs_of_a_stored_calibration(client, calibrat
     assert (tmp_path / "runs.png").read_bytes()[:4] == b"\x89PNG"
     request.write_text(json.dumps({"runs": 6, "space": {**SPACE, "temperature_C": [20.0]}}))
     assert main(["experiments", str(request), "--calibration", calibration_id]) == 2
+
+
+def test_a_planned_run_s_own_value_of_a_fixed_input_counts(client):
+    # a run planned at another groove angle than the fixed one is taken as planned: its information
+    # differs, so the design's criterion does (it had been the same for every angle: the column was dropped)
+    space = {"balls": [4, 8], "load_N": [0.003, 0.03], "speed_m_s": [0.02, 0.15]}
+    run = {"balls": 6, "speed_m_s": 0.05, "load_N": 0.01}
+    criteria = []
+    for planned in ([run], [{**run, "groove_angle_deg": 20}], [{**run, "groove_angle_deg": 85}]):
+        body = {"runs": 2, "fit_parameters": ["mu_pivot"], "space": space, "fixed": {"groove_angle_deg": 20},
+                "planned": planned}
+        criteria.append(finished(client, client.post("/v1/experiments", json=body))["criterion"])
+    assert criteria[0] == pytest.approx(criteria[1], rel=1e-9)  # the fixed angle, given or not
+    assert criteria[2] != pytest.approx(criteria[0], rel=1e-6), criteria
+    # a column some runs give and another does not, with no fixed value: refused at submit
+    body = {"runs": 2, "fit_parameters": ["mu_pivot"], "space": space,
+            "planned": [{**run, "groove_angle_deg": 85}, run]}
+    errors = problem(client.post("/v1/experiments", json=body), 422)["errors"]
+    assert errors[0]["pointer"].startswith("/planned/1"), errors
