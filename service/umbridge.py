@@ -162,9 +162,9 @@ def _read_inputs(model: Model, names: Sequence[str]) -> tuple[list[str], tuple[R
     inputs, readings = [], []
     for name in names:
         reading = None
-        if name not in model.inputs:
+        if name not in model.column_checks:  # an input, or a condition of the data no term reads
             try:
-                reading = match_column(name, model.inputs)
+                reading = match_column(name, model.column_checks)
             except ValueError:
                 reading = None
         inputs.append(name if reading is None else reading.name)
@@ -230,7 +230,7 @@ class Setup:
         given, fixed_as_sent = _read_fixed(model, config.fixed)
         inputs, readings = _read_inputs(model, config.inputs or [n for n in model.default_inputs
                                                                  if n not in given])
-        for part, names, known in (("config.inputs", inputs, model.inputs),
+        for part, names, known in (("config.inputs", inputs, model.column_checks),
                                    ("config.fixed", list(given), model.column_checks)):
             for name in names:
                 if name not in known:
@@ -290,7 +290,7 @@ class Setup:
         for j, reading in enumerate(self.readings):
             if reading is not None:
                 table[:, j] = reading.convert(table[:, j])
-        return {**self.fixed, **{name: self.model.inputs[name].coerce(table[:, j])
+        return {**self.fixed, **{name: self.model.column_checks[name].coerce(table[:, j])
                                  for j, name in enumerate(self.inputs)}}
 
     @contextmanager
@@ -372,7 +372,8 @@ def _jacobian_at(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int,
     point = {name: value[in_wrt] if np.ndim(value) else value for name, value in columns.items()
              if name in setup.model.inputs}
     # Counts and flags are held: their columns stay zero.
-    continuous = [j for j, name in enumerate(setup.inputs) if setup.model.inputs[name].continuous]
+    continuous = [j for j, name in enumerate(setup.inputs)
+                  if name in setup.model.inputs and setup.model.inputs[name].continuous]
     matrix = np.zeros((len(setup.outputs), len(setup.inputs)))
     with setup.pointing():
         if not continuous:

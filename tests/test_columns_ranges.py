@@ -138,3 +138,20 @@ def test_the_cli_reads_a_file_s_conditions_by_their_headers_as_sent(client, mode
                                             "conditions": {"Time_s": 60, "RH_pct": 40}}).json()
     header, row = out.read_text().splitlines()[:2]
     assert float(dict(zip(header.split(","), row.split(","), strict=True))["mu"]) == pytest.approx(api["mu"])
+
+
+def test_um_bridge_varies_a_condition_no_term_reads_as_config_fixed_takes_it(client, model):
+    # config.fixed took time [min]; config.inputs refused it as no input of the model
+    config = {"inputs": ["balls", "load_N", "speed_m_s", "time [min]"], "fixed": {"RH_pct": 40}}
+    good = client.post("/umbridge/Evaluate", json={"name": model, "input": [[6, 0.01, 0.05, 10]],
+                                                   "config": config})
+    assert good.status_code == 200, good.text
+    fixed = client.post("/umbridge/Evaluate", json={"name": model, "input": [[6, 0.01, 0.05]], "config": {
+        "inputs": ["balls", "load_N", "speed_m_s"], "fixed": {"RH_pct": 40, "time [min]": 10}}})
+    assert good.json()["output"] == fixed.json()["output"], (good.text, fixed.text)
+    gradient = client.post("/umbridge/Gradient", json={"name": model, "inWrt": 0, "outWrt": 0, "sens": [1.0],
+                                                       "input": [[6, 0.01, 0.05, 10]], "config": config})
+    assert gradient.status_code == 200 and gradient.json()["output"][3] == 0.0, gradient.text
+    bad = client.post("/umbridge/Evaluate", json={"name": model, "input": [[6, 0.01, 0.05, -1]],
+                                                  "config": config})
+    assert bad.status_code == 400 and "physical range of Time_s" in bad.json()["error"]["message"], bad.text
