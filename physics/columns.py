@@ -414,8 +414,7 @@ def _condition_unit(sent: str, name_text: str, unit_text: str, unit):
     condition = _condition_of(_condition_base(name_text))
     if condition is None:
         return None
-    # a number's own units only: g/kg (an absolute humidity), dB or ppm would be read silently
-    own = {"relative_humidity": _HUMIDITY_UNITS, "cycles": _COUNT_UNITS}.get(condition.name)
+    own = {"relative_humidity": _HUMIDITY_UNITS, "cycles": _COUNT_UNITS}.get(condition.name)  # not g/kg, dB
     if own is not None and not own.fullmatch(_COUNT_WORDS.sub("count", unit_text).strip()):
         raise ColumnError(sent, f"{name_text.strip()} is read as {condition.name}, whose unit is "
                                 f"{_EXAMPLE_UNITS[condition.name]}, not {unit_text!r}")
@@ -733,12 +732,9 @@ def slip(name: str, values: Any) -> str | None:
 
 
 def read_slip(reading: Reading, values: Any) -> str | None:
-    """The unit slip that values sent under ``reading.sent`` look like (:func:`slip`), judged in the unit
-    the name sent states and then in the unit of the column they are read as; None when they look right.
-
-    A value is judged as sent before it is converted: 27 sent as ``temperature_K`` to a model whose column
-    is ``temp_degC`` is degC under a kelvin name (the upload's rule for that column), though -246 degC,
-    what it converts to, is no slip of the model's column.
+    """The unit slip that values sent under ``reading.sent`` look like (:func:`slip`), judged as sent (27
+    as ``temperature_K`` is degC under a kelvin name, though its -246 degC is no slip of a degC column),
+    then in the column read; a humidity whose key states its unit is judged in that unit only.
 
     >>> from microbearing.physics.columns import match_column
     >>> read_slip(match_column("temperature_K", ["temp_degC"]), [27.0])[:48]
@@ -754,19 +750,25 @@ def read_slip(reading: Reading, values: Any) -> str | None:
         first = read_name(reading.sent)
     except ColumnError:
         first = None
-    message = None if first is None else _stated_temperature_slip(first, array)
+    message = None if first is None else _stated_slip(first, array)
+    if first is not None and first.reading and _condition_of(first.name) is CONDITIONS["relative_humidity"]:
+        return message  # the key states its unit: no name's rule applies (120 under [%] is no fraction)
     if message is None and first is not None:
         message = slip(first.name, first.convert(array))
     return message if message is not None else slip(reading.name, reading.convert(array))
 
 
-def _stated_temperature_slip(first: Reading, array: np.ndarray) -> str | None:
-    """A temperature's slip judged in the unit its brackets state (``temperature [degC]`` at 250 is
-    kelvin, though its reading in K has no upper limit); None for other columns."""
+def _stated_slip(first: Reading, array: np.ndarray) -> str | None:
+    """A condition's slip judged in the unit its key states (``temperature [degC]`` at 250 is kelvin, though
+    its reading in K has no upper limit; ``RH [%]`` at 120 is no humidity); None for other columns."""
     condition = None if first.name in PARAMETERS else _condition_of(first.name)
     stated = first.sent_unit if first.reading else None
-    if condition is None or condition.name != "temperature_K" or stated is None:
+    if condition is None or stated is None or condition.name not in ("temperature_K", "relative_humidity"):
         return None
+    if condition.name == "relative_humidity":
+        top = 1.0 if stated.strip() in ("1", "fraction") else 100.0
+        inside = float(np.min(array)) >= 0.0 and float(np.max(array)) <= top
+        return None if inside else f"{first.sent} runs {_span_text(array)} {stated}: it lies in [0, {top:g}]"
     try:
         unit = _unit(stated)
         if _dimension(unit) != "[temperature]":

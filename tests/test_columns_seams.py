@@ -358,7 +358,7 @@ def test_every_value_of_a_range_is_judged_at_submit(client, calibration):
     detail = _problem(client.post("/v1/optimizations", json=upside_down), "/conditions/RH [%]")
     assert "low must not exceed high" in detail and "(sent as RH [%]: [80, 40]" in detail, detail
     wrong_kind = _point(model, {"RH [mm]": 600, "temp_K": 300})
-    assert "whose unit is a number" in _problem(client.post("/v1/friction", json=wrong_kind),
+    assert "whose unit is [%] or [1], not 'mm'" in _problem(client.post("/v1/friction", json=wrong_kind),
                                                 "/conditions/RH [mm]")
     space = {"balls": [4, 8], "load_N": [0.002, 0.02], "speed_m_s": [0.05], "relative_humidity": [0.3, 50.0],
              "temp_K": [300.0]}
@@ -542,6 +542,11 @@ def test_refusals_name_keys_and_values_as_sent_at_prediction(client, calibration
                                                                         "temperature [degF]": -500})),
                       "/conditions/temperature [degF]")
     assert "-500 to -500 degF (-295.6 to -295.6 degC), below absolute zero" in detail, detail
+    # a humidity whose key states percent is judged in percent, not as a fraction that "looks like percent"
+    detail = _problem(client.post("/v1/friction", json=_point(model, {"relative humidity [%]": 120,
+                                                                        "temp_K": 303.15})),
+                      "/conditions/relative humidity [%]")
+    assert "relative humidity [%] runs 120 to 120 %" in detail and "look like percent" not in detail, detail
     # a key's case is not a different column
     upper = client.post("/v1/friction", json=_point(model, {"RELATIVE_HUMIDITY": 0.5, "TEMP_K": 303.15}))
     lower = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, "temp_K": 303.15}))
