@@ -432,8 +432,7 @@ def _condition_unit(sent: str, name_text: str, unit_text: str, unit):
     return unit
 
 
-_HUMIDITY_UNITS = re.compile(r"%|percent|pct|1|fraction", re.IGNORECASE)
-_COUNT_UNITS = re.compile(r"[kM]?count|1")
+_HUMIDITY_UNITS, _COUNT_UNITS = re.compile(r"(?i)%|percent|pct|1|fraction"), re.compile(r"[kM]?count|1")
 _EXAMPLE_UNITS = {"relative_humidity": "[%] or [1]", "temperature_K": "[degC], [K] or [degF]",
                   "cycles": "[1] or [kcycles]", "time_h": "[s], [min] or [h]"}
 
@@ -612,7 +611,7 @@ def read_key(sent: str, columns: Iterable[str], labels: Iterable[str] = ()) -> R
 
     >>> read_key("RH [%]", ["relative_humidity"]).convert(50.0), read_key("humidity", ["RH_chamber"])
     (0.5, None)
-    >>> read_key("load [mN]", []).name, read_key("load [mN]", []).convert(10.0)
+    >>> read_key("load [mN]", []).name, read_key("load [mN]", []).convert(10.0)  # a physics input's
     ('load_N', 0.01)
     """
     columns = list(columns)
