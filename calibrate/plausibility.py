@@ -42,6 +42,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -129,15 +130,18 @@ def _temperature(name: str, values: np.ndarray) -> Finding | None:
     return None
 
 
-def _outside_physical_range(name: str, values: np.ndarray) -> Finding | None:
-    """A condition column outside its quantity's physical range (a time or count run below zero)."""
+def _outside_physical_range(name: str, values: np.ndarray, reading: Any = None) -> Finding | None:
+    """A condition column outside its quantity's physical range (a time or count run below zero), said in
+    the unit of the header (``reading``: how it was read, or None when as sent)."""
     low, high = physical_range(name)
     if (low is None or float(np.min(values)) >= low) and (high is None or float(np.max(values)) <= high):
         return None
     bounds = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
     counted = " (it is counted from zero, at the start of the run)" if counted_from_zero(name) else ""
-    return Finding(name, "error", f"{name} runs {_span(values)} [{unit_of(name) or '1'}], outside its "
-                                  f"physical range {bounds}{counted}")
+    said = f"{name} runs {_span(values)} [{unit_of(name) or '1'}]"
+    if reading is not None:
+        said = f"{reading.sent} runs {_span(reading.sent_value(values))} {reading.sent_unit} ({said})"
+    return Finding(name, "error", f"{said}, outside its physical range {bounds}{counted}")
 
 
 def _plausible(name: str) -> tuple[float | None, float, str]:
@@ -202,8 +206,10 @@ def plausibility_findings(dataset: Dataset) -> list[Finding]:
             finding = _humidity(name, values)
         elif name not in physics.PARAMETERS and TEMPERATURE.matches(name):
             finding = _temperature(name, values)
-        elif name not in physics.PARAMETERS:
-            finding = _outside_physical_range(name, values)
+        elif name not in physics.PARAMETERS:  # said in the header's unit itself: no plausible range
+            finding = _outside_physical_range(name, values, dataset.sent_reading(name))
+            found += [] if finding is None else [finding]
+            continue
         if finding is not None:
             found.append(_as_sent(finding, dataset, values))
     mu = dataset.mu_measured

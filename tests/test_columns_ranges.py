@@ -155,3 +155,15 @@ def test_um_bridge_varies_a_condition_no_term_reads_as_config_fixed_takes_it(cli
     bad = client.post("/umbridge/Evaluate", json={"name": model, "input": [[6, 0.01, 0.05, -1]],
                                                   "config": config})
     assert bad.status_code == 400 and "physical range of Time_s" in bad.json()["error"]["message"], bad.text
+
+
+def test_the_upload_says_a_range_refusal_in_the_header_s_unit(client):
+    # a time in minutes below zero had been described in a temperature's terms ("... degC, where a micro
+    # ball bearing's test lies between -4.552 and 3.333 min"); hand: -1 min is -60 s
+    text = "balls,load_N,speed_m_s,time [min],mu_measured\n" + "".join(
+        f"{4 + 2 * (i % 3)},{0.005 + 0.001 * i},{0.02 + 0.005 * i},{i - 1},0.01{i % 7}\n" for i in range(16))
+    for url in ("/v1/calibrations/csv/intake", "/v1/calibrations/csv?fit_parameters=mu_pivot"):
+        response = client.post(url, content=text, headers={"content-type": "text/csv"})
+        assert response.status_code == 422, response.text
+        assert "time [min] runs -1 to 14 min (time_s runs -60 to 840 [s]), outside its physical range" \
+            in response.text and "degC" not in response.text, response.text
