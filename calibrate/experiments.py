@@ -709,12 +709,13 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
                                                      is not None))]
     if missing:
         raise ValueError(f"space: give {', '.join(missing)} in the space or in fixed (the model reads them)")
+    given = dict.fromkeys(k for row in planned or [] for k in row)  # every column of any planned run
     for i, row in enumerate(planned or []):
         absent = [n for n in space if n not in row]
         if absent:
             raise ValueError(f"planned.{i}: give {', '.join(absent)} (the columns of the space)")
         # a column some runs give and this one does not: its value is the fixed one, or none is known
-        unknown = [n for other in planned or [] for n in other if n not in row and n not in fixed]
+        unknown = [n for n in given if n not in row and n not in fixed]
         if unknown:
             raise ValueError(f"planned.{i}: give {unknown[0]} (other planned runs do, and it is not fixed)")
     return CalibratedResponse(model, fixed)

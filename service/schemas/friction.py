@@ -33,22 +33,6 @@ INPUT_KEYS = (" An input may be sent under a name with its unit, as a calibratio
               "names of one input are refused.")
 
 
-def _sent_inputs(body: Any, read: Any) -> dict[str, tuple[str, Any]]:
-    """The physics inputs :func:`read_input_keys` renamed: input -> (key as sent, value as sent)."""
-    if not isinstance(body, dict) or not isinstance(read, dict):
-        return {}
-    renamed = [key for key in body if key not in read]
-    return {name: (key, body[key]) for key in renamed for name in read if name not in body
-            and _read_as(key) == name}
-
-
-def _read_as(key: Any) -> str | None:
-    try:
-        return read_name(key).name if isinstance(key, str) else None
-    except ColumnError:
-        return None
-
-
 def read_input_keys(body: Any, fields: Collection[str] = ()) -> Any:
     """A body's physics inputs sent under a name with a unit (``speed [mm/s]``, ``load_mN``), renamed
     to the input and converted, as :func:`physics.columns.read_name` reads a calibration upload's header.
@@ -61,9 +45,15 @@ def read_input_keys(body: Any, fields: Collection[str] = ()) -> Any:
     ValueError
         Naming the key, when another key is read as the same input.
     """
+    return _read_keys(body, fields)[0]
+
+
+def _read_keys(body: Any, fields: Collection[str]) -> tuple[Any, dict[str, tuple[str, Any]]]:
+    """:func:`read_input_keys`'s body, and each input it renamed: input -> (key as sent, value as sent)."""
     if not isinstance(body, dict):
-        return body
+        return body, {}
     read: dict[str, Any] = {}
+    sent: dict[str, tuple[str, Any]] = {}
     for key, value in body.items():
         reading = None
         if isinstance(key, str) and key not in fields:
@@ -77,8 +67,8 @@ def read_input_keys(body: Any, fields: Collection[str] = ()) -> Any:
             continue
         if reading.name in body or reading.name in read:
             raise ValueError(f"{key}: another key is read as {reading.name} too; keep one")
-        read[reading.name] = read_value(reading, value)
-    return read
+        read[reading.name], sent[reading.name] = read_value(reading, value), (key, value)
+    return read, sent
 
 
 class InputKeys(StrictModel):
@@ -90,8 +80,8 @@ class InputKeys(StrictModel):
     @model_validator(mode="wrap")
     @classmethod
     def _read_input_keys(cls, body: Any, handler: Any) -> Any:
-        read = read_input_keys(body, cls.model_fields)
-        return handler(read).with_sent(_sent_inputs(body, read))
+        read, sent = _read_keys(body, cls.model_fields)
+        return handler(read).with_sent(sent)
 
     def with_sent(self, sent: dict[str, tuple[str, Any]]) -> InputKeys:
         """This body, remembering the keys and values its renamed inputs were sent as (:meth:`sent_as`)."""
