@@ -49,6 +49,7 @@ import numpy as np
 from microbearing import physics
 from microbearing.physics.columns import SLIP_LIMITS, counted_from_zero, physical_range, unit_of
 from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
+from microbearing.physics.slips import humidity_slip, physics_slip, temperature_slip
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset
 
@@ -82,52 +83,6 @@ class Finding:
 
 def _span(values: np.ndarray) -> str:
     return f"{float(np.min(values)):.4g} to {float(np.max(values)):.4g}"
-
-
-def _physics_column(name: str, values: np.ndarray) -> Finding | None:
-    limit, slip, factor = LIMITS[name]
-    if float(np.max(values)) <= limit:
-        return None
-    unit = physics.PARAMETERS[name].unit
-    scaled = values * factor
-    cause = (f"values look like {slip} (times {factor:g}: {_span(scaled)} {unit})"
-             if float(np.max(scaled)) <= limit else "check the unit of the column")
-    return Finding(name, "error", f"{name} runs {_span(values)} {unit}, beyond the {limit:g} {unit} a micro "
-                                  f"ball bearing sees: {cause}")
-
-
-def _humidity(name: str, values: np.ndarray) -> Finding | None:
-    unit = HUMIDITY.unit_of(name)
-    percent = unit.unit == "%"
-    bottom, top = unit.plausible
-    if float(np.min(values)) >= bottom and float(np.max(values)) <= top:
-        return None
-    percent_top = next(u for u in HUMIDITY.units if u.unit == "%").plausible[1]
-    if percent:
-        cause = f"relative humidity in percent lies in [{bottom:g}, {top:g}]"
-    elif float(np.min(values)) >= bottom and float(np.max(values)) <= percent_top:
-        cause = (f"values look like percent: give fractions (divide by 100) or name the column "
-                 f"{name}_pct")
-    else:
-        cause = f"relative humidity is a fraction in [{bottom:g}, {top:g}]"
-    return Finding(name, "error", f"{name} runs {_span(values)} [{'%' if percent else '1'}]: {cause}")
-
-
-def _temperature(name: str, values: np.ndarray) -> Finding | None:
-    unit = TEMPERATURE.unit_of(name)
-    kelvin = unit.unit == "K"
-    bottom, top = unit.plausible
-    lo, hi = float(np.min(values)), float(np.max(values))
-    if kelvin and lo < bottom:
-        return Finding(name, "error", f"{name} runs {_span(values)} K, below {bottom:g} K: values look "
-                                      f"like degC (name the column temperature_C)")
-    if not kelvin and lo < bottom:
-        return Finding(name, "error", f"{name} runs {_span(values)} degC, below absolute zero ({bottom:g} "
-                                      f"degC): check the unit")
-    if not kelvin and hi > top:
-        return Finding(name, "error", f"{name} runs {_span(values)} degC, above {top:g} degC: "
-                                      f"values look like kelvin (name the column temperature_K)")
-    return None
 
 
 def _outside_physical_range(name: str, values: np.ndarray, reading: Any = None) -> Finding | None:
@@ -199,19 +154,19 @@ def plausibility_findings(dataset: Dataset) -> list[Finding]:
     for name, values in columns.items():
         if values.dtype == bool or values.size == 0:
             continue
-        finding = None
+        message = None
         if name in LIMITS:
-            finding = _physics_column(name, values)
+            message = physics_slip(name, values)
         elif name not in physics.PARAMETERS and HUMIDITY.matches(name):
-            finding = _humidity(name, values)
+            message = humidity_slip(name, values)
         elif name not in physics.PARAMETERS and TEMPERATURE.matches(name):
-            finding = _temperature(name, values)
+            message = temperature_slip(name, values)
         elif name not in physics.PARAMETERS:  # said in the header's unit itself: no plausible range
             finding = _outside_physical_range(name, values, dataset.sent_reading(name))
             found += [] if finding is None else [finding]
             continue
-        if finding is not None:
-            found.append(_as_sent(finding, dataset, values))
+        if message is not None:  # the one unit-slip rule of every door (physics.slips)
+            found.append(_as_sent(Finding(name, "error", message), dataset, values))
     mu = dataset.mu_measured
     if mu.size and float(np.max(mu)) > MU_WARNING:
         count = int(np.sum(mu > MU_WARNING))

@@ -8,8 +8,8 @@ values convert to that column's unit, through pint's one unit registry (a slider
 as its weight in N). :func:`match_column` reads a name sent at prediction against the columns a
 model knows, so that the upload's header (``relative humidity [%]``) or another unit of the same
 quantity (``temperature_C`` for a model of ``temperature_K``) is converted, never read in the wrong
-unit. :func:`slip` is the one rule for values that look like a unit slip (speed above 10 m/s:
-mm/s; a humidity fraction of 50: percent). :func:`read_span` reads a range (``[low, high]`` or
+unit. :mod:`physics.slips` holds the one rule for values that look like a unit slip (speed above
+10 m/s: mm/s; a humidity fraction of 50: percent). :func:`read_span` reads a range (``[low, high]`` or
 ``{"low", "high"}``) or a set of allowed values (``{"values": [...]}``) the same way in every route.
 
 Physics inputs are those of :data:`physics.parameters.PARAMETERS`, in their units. Conditions are
@@ -35,8 +35,8 @@ from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
            "Reading", "Span", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
-           "input_slips", "match_column", "physical_range", "read_key", "read_name", "read_slip", "read_span",
-           "slip", "unit_of", "unknown_column", "whole_number"]
+           "match_column", "physical_range", "read_key", "read_name", "read_span", "unit_of",
+           "unknown_column", "whole_number"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -48,8 +48,6 @@ SLIP_LIMITS: dict[str, tuple[float, str, float]] = {
     "load_N": (1.0, "mN", 1e-3),
     "ball_diameter_m": (1e-2, "mm", 1e-3),
 }
-# A temperature in degC above this looks like kelvin; one in kelvin below the other like degC.
-_CELSIUS_MAX, _KELVIN_MIN = 200.0, 150.0
 
 
 class ColumnError(ValueError):
@@ -637,167 +635,6 @@ def unknown_column(sent: str, known: Iterable[str], what: str = "column") -> str
     return (f"unknown {what} {sent!r}; the columns known here are {', '.join(known) or 'none'} (each also "
             f"under a name with its unit, e.g. relative humidity [%], temperature [degC]); accepted "
             f"names: {accepted_spellings()}")
-
-
-def _span_text(values: np.ndarray) -> str:
-    return f"{float(np.min(values)):.4g} to {float(np.max(values)):.4g}"
-
-
-def _physics_slip(name: str, values: np.ndarray) -> str | None:
-    limit, slip_unit, factor = SLIP_LIMITS[name]
-    if float(np.max(values)) <= limit:
-        return None
-    unit = PARAMETERS[name].unit
-    scaled = values * factor
-    cause = (f"values look like {slip_unit} (times {factor:g}: {_span_text(scaled)} {unit})"
-             if float(np.max(scaled)) <= limit else "check the unit of the column")
-    return (f"{name} runs {_span_text(values)} {unit}, beyond the {limit:g} {unit} a micro ball bearing "
-            f"sees: {cause}")
-
-
-def _humidity_slip(name: str, values: np.ndarray) -> str | None:
-    percent = unit_of(name) == "percent"
-    top = 100.0 if percent else 1.0
-    if float(np.min(values)) >= 0.0 and float(np.max(values)) <= top:
-        return None
-    if percent:
-        cause = "relative humidity in percent lies in [0, 100]"
-    elif float(np.min(values)) >= 0.0 and float(np.max(values)) <= 100.0:
-        cause = (f"values look like percent: give fractions (divide by 100) or name the column "
-                 f"{name}_pct")
-    else:
-        cause = "relative humidity is a fraction in [0, 1]"
-    return f"{name} runs {_span_text(values)} [{'%' if percent else '1'}]: {cause}"
-
-
-def _temperature_slip(name: str, values: np.ndarray, kelvin: bool | None = None,
-                      sent: tuple[np.ndarray, str] | None = None) -> str | None:
-    """``kelvin``: whether the values are in K (else degC); by default as the name says. ``sent``: the
-    values as sent and their unit (degF), shown first when the rule judged them converted."""
-    kelvin = unit_of(name) == "K" if kelvin is None else kelvin
-    lo, hi = float(np.min(values)), float(np.max(values))
-    shown = f"{_span_text(values)} {'K' if kelvin else 'degC'}"
-    if sent is not None:
-        shown = f"{_span_text(sent[0])} {sent[1]} ({shown})"
-    if kelvin and lo < _KELVIN_MIN:
-        return (f"{name} runs {shown}, below {_KELVIN_MIN:g} K: values look like degC "
-                f"(name the column temperature_C)")
-    if not kelvin and lo < -273.15:
-        return f"{name} runs {shown}, below absolute zero (-273.15 degC): check the unit"
-    if not kelvin and hi > _CELSIUS_MAX:
-        return (f"{name} runs {shown}, above {_CELSIUS_MAX:g} degC: values look like "
-                f"kelvin (name the column temperature_K)")
-    return None
-
-
-def slip(name: str, values: Any) -> str | None:
-    """The unit slip that values of a column look like, in words; None when they look right.
-
-    The one rule of every door: measured data with a slip are refused (:mod:`calibrate.plausibility`),
-    and so are conditions sent at prediction. Physics inputs beyond :data:`SLIP_LIMITS`, humidity
-    fractions above 1 (percent), temperatures in degC above 200 (kelvin) or in K below 150 (degC).
-
-    Parameters
-    ----------
-    name : str
-        The column's name (its unit as :func:`unit_of` reads it).
-    values : array_like
-        Its values, in that unit.
-
-    Examples
-    --------
-    >>> print(slip("relative_humidity", [50.0]))  # doctest: +NORMALIZE_WHITESPACE
-    relative_humidity runs 50 to 50 [1]: values look like percent: give fractions (divide by 100) or
-    name the column relative_humidity_pct
-    >>> slip("relative_humidity", [0.5]) is None, slip("speed_m_s", [0.05]) is None
-    (True, True)
-    """
-    array = np.asarray(values)
-    if array.size == 0 or array.dtype.kind not in "iuf":
-        return None
-    array = array.astype(float)
-    if not np.all(np.isfinite(array)):
-        return None  # the range checks name non-finite values
-    if name in SLIP_LIMITS:
-        return _physics_slip(name, array)
-    if name in PARAMETERS:
-        return None
-    condition = _condition_of(name)
-    if condition is not None and condition.name == "relative_humidity":
-        return _humidity_slip(name, array)
-    if condition is not None and condition.name == "temperature_K":
-        return _temperature_slip(name, array)
-    return None
-
-
-def read_slip(reading: Reading, values: Any) -> str | None:
-    """The unit slip that values sent under ``reading.sent`` look like (:func:`slip`), judged as sent (27
-    as ``temperature_K`` is degC under a kelvin name, though its -246 degC is no slip of a degC column),
-    then in the column read; a humidity whose key states its unit is judged in that unit only.
-
-    >>> from microbearing.physics.columns import match_column
-    >>> read_slip(match_column("temperature_K", ["temp_degC"]), [27.0])[:48]
-    'temperature_K runs 27 to 27 K, below 150 K: valu'
-    >>> read_slip(match_column("relative humidity [%]", ["RH"]), [50.0]) is None
-    True
-    """
-    array = np.asarray(values)
-    if array.size == 0 or array.dtype.kind not in "iuf":
-        return None
-    array = array.astype(float)
-    try:
-        first = read_name(reading.sent)
-    except ColumnError:
-        first = None
-    message = None if first is None else _stated_slip(first, array)
-    if first is not None and first.reading and _condition_of(first.name) is CONDITIONS["relative_humidity"]:
-        return message  # the key states its unit: no name's rule applies (120 under [%] is no fraction)
-    if message is None and first is not None:
-        message = slip(first.name, first.convert(array))
-    return message if message is not None else slip(reading.name, reading.convert(array))
-
-
-def _stated_slip(first: Reading, array: np.ndarray) -> str | None:
-    """A condition's slip judged in the unit its key states (``temperature [degC]`` at 250 is kelvin, though
-    its reading in K has no upper limit; ``RH [%]`` at 120 is no humidity); None for other columns."""
-    condition = None if first.name in PARAMETERS else _condition_of(first.name)
-    stated = first.sent_unit if first.reading else None
-    if condition is None or stated is None or condition.name not in ("temperature_K", "relative_humidity"):
-        return None
-    if condition.name == "relative_humidity":
-        top = 1.0 if stated.strip() in ("1", "fraction") else 100.0
-        inside = float(np.min(array)) >= 0.0 and float(np.max(array)) <= top
-        return None if inside else f"{first.sent} runs {_span_text(array)} {stated}: it lies in [0, {top:g}]"
-    try:
-        unit = _unit(stated)
-        if _dimension(unit) != "[temperature]":
-            return None
-        kelvin = _same(unit, "K")
-        values = array if kelvin else _registry().Quantity(array, unit).to("degC").magnitude
-    except Exception:  # pint's errors: not a unit it reads as a temperature
-        return None
-    return _temperature_slip(first.sent, np.asarray(values, dtype=float), kelvin,
-                             None if kelvin or _same(unit, "degC") else (array, stated))
-
-
-def input_slips(inputs: Mapping[str, Any]) -> list[str]:
-    """The unit slips that physics inputs given at prediction look like (:func:`slip`), in words.
-
-    The model is valid beyond :data:`SLIP_LIMITS` (it answers there): a door that predicts warns where
-    the upload refuses, with the same words, so that ``speed_m_s=50`` meant as mm/s is never silent.
-
-    >>> input_slips({"speed_m_s": 50.0, "load_N": 0.01})[0][:60]
-    'speed_m_s runs 50 to 50 m/s, beyond the 10 m/s a micro ball '
-    """
-    found = []
-    for name, (limit, _unit_name, _factor) in SLIP_LIMITS.items():
-        value = inputs.get(name)
-        if value is None or (isinstance(value, int | float) and not value > limit):
-            continue  # the scalar fast path of a single point
-        message = slip(name, value)
-        if message is not None:
-            found.append(message)
-    return found
 
 
 def from_si(name: str, values: Any, unit: str) -> np.ndarray:

@@ -25,8 +25,9 @@ from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 from microbearing.calibrate.data import MU_MEASURED
 from microbearing.calibrate.tabular import TableError
-from microbearing.physics.columns import Reading, read_key, read_slip, unknown_column
+from microbearing.physics.columns import Reading, read_key, unknown_column
 from microbearing.physics.model import NOT_FINITE
+from microbearing.physics.slips import read_slip
 
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
@@ -322,10 +323,15 @@ class ReadConditions(dict):
         >>> ReadConditions({"time_min": -60.0}, {"time_min": "time [h]"}, {"time_min": -1}).as_sent(
         ...     "time_min", "value -60 lies outside [0, inf)")
         'value -60 lies outside [0, inf) (sent as time [h]: -1, read as time_min: -60)'
+        >>> ReadConditions({"time_min": "-1"}, {"time_min": "time [h]"}, {"time_min": "-1"}).as_sent(
+        ...     "time_min", "must be a number")
+        "must be a number (sent as time [h]: '-1', read as the column time_min)"
         """
         key = self.key(name)
         if key == name or name not in self.sent_values or name not in self:
             return detail
+        if _has_text(self[name]):  # text is read unconverted: its column, not a value, is what was read
+            return f"{detail} (sent as {key}: {self.sent_values[name]!r}, read as the column {name})"
         return (f"{detail} (sent as {key}: {shown(self.sent_values[name])}, read as {name}: "
                 f"{shown(self[name])})")
 
@@ -350,7 +356,7 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     A key that is not one of the model's columns is read by :func:`physics.columns.match_column`: the
     upload's header or another unit of a column's quantity (``temperature_C`` for a model of
     ``temperature_K``, ``relative_humidity_pct`` for ``relative_humidity``) is converted. Values that
-    look like a unit slip (:func:`physics.columns.slip`, the upload's rule: a humidity fraction of 50)
+    look like a unit slip (:func:`physics.slips.slip`, the upload's rule: a humidity fraction of 50)
     are refused.
 
     Parameters

@@ -176,8 +176,8 @@ def converted(read: Any, value: Any) -> Any:
 
 
 def slip_warnings(inputs: dict[str, Any]) -> list[str]:
-    """The API's unit-slip warnings of the inputs (:func:`physics.columns.input_slips`), also on stderr."""
-    from microbearing.physics.columns import input_slips
+    """The API's unit-slip warnings of the inputs (:func:`physics.slips.input_slips`), also on stderr."""
+    from microbearing.physics.slips import input_slips
 
     warnings = input_slips(inputs)
     for warning in warnings:

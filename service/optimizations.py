@@ -43,8 +43,8 @@ from microbearing.optimize.plan import (
     verify_over_envelope,
 )
 from microbearing.optimize.robust import Envelope, optimize_robust
-from microbearing.physics.columns import input_slips
 from microbearing.physics.model import Model
+from microbearing.physics.slips import input_slips
 
 from .calibrations import ReadConditions, interval_at, read_conditions, shown, with_conditions
 from .executor import map_chunks
@@ -241,7 +241,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
 
 def _input_warnings(body: OptimizationRequest) -> list[str]:
     """The speeds and loads of a request that look like a unit slip, in the upload's words
-    (:func:`physics.columns.input_slips`, as /v1/friction warns): the design is made as asked."""
+    (:func:`physics.slips.input_slips`, as /v1/friction warns): the design is made as asked."""
     speed = body.fixed.speed_m_s if body.fixed.speed_m_s is not None else body.speed_m_s
     load = body.fixed.load_N if body.fixed.load_N is not None else body.bounds.load_N
     inputs = {"speed_m_s": None if speed is None else np.atleast_1d(np.asarray(speed, dtype=float)),

@@ -41,7 +41,8 @@ from pydantic import ValidationError
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from microbearing import physics
-from microbearing.physics.columns import Reading, match_column, read_key, read_slip, unknown_column
+from microbearing.physics.columns import Reading, match_column, read_key, unknown_column
+from microbearing.physics.slips import read_slip
 
 from .models import InputError, Model, ModelError, jacobian, resolve
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError

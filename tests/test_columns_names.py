@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from microbearing.physics.columns import ColumnError, match_column, read_name, read_slip
+from microbearing.physics.columns import ColumnError, match_column, read_name
 from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
+from microbearing.physics.slips import read_slip
 
 
 @pytest.mark.parametrize(("name", "unit"), [
@@ -131,3 +132,33 @@ def test_a_force_unit_is_read_whatever_order_pint_writes_its_dimension_in(sent, 
     # compared, and every force unit but N's own multiples refused as "not convertible"
     reading = read_name(sent)
     assert reading.name == "load_N" and reading.convert(value) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize(("sent", "value", "words", "not_words"), [
+    # -200 degC is 73.15 K: a cold test, no slip, though 73 K under a kelvin name would look like degC
+    ("temp [degC]", -200.0, None, None),
+    ("temp [degC]", 250.0, ["temp [degC] runs 250 to 250 degC", "send them as 'temp [K]'"], ["temp_K"]),
+    ("temp [K]", 27.0, ["temp [K] runs 27 to 27 K", "send them as 'temp [degC]'"], ["temperature_C"]),
+    ("RH [1]", 50.0, ["RH [1] runs 50 to 50 [1]", "send them as 'RH [%]'"], None),
+])
+def test_a_condition_is_judged_for_a_slip_in_the_unit_its_key_states_only(sent, value, words, not_words):
+    message = read_slip(match_column(sent, ["temperature_K", "RH"]), [value])
+    if words is None:
+        assert message is None, message
+        return
+    assert all(w in message for w in words) and not any(w in message for w in not_words or ()), message
+
+
+@pytest.mark.parametrize(("sent", "values", "words", "not_words"), [
+    # hand: 1e6 gf = 1e6 x 9.80665e-3 N = 9807 N
+    ("load (gf)", [1e6], ["load (gf) runs 1e+06 to 1e+06 gf (load_N 9807 to 9807 N)",
+                          "the key states the unit"], ["look like mN"]),
+    # a negative load is no mN slip, whatever the unit (1 lbf = 4.448 N)
+    ("load [lbf]", [-1.0, 1.0], ["load [lbf] runs -1 to 1 lbf", "load_N is not negative"], ["look like mN"]),
+    ("load_N", [-2.0, 3.0], ["load_N is not negative"], ["look like mN"]),
+    # its own unit stated: the slip's advice stands (5 N looks like 5 mN)
+    ("load [N]", [5.0], ["load [N] runs 5 to 5 N", "look like mN (times 0.001: 0.005 to 0.005 N)"], []),
+])
+def test_a_physics_input_s_slip_is_said_as_sent(sent, values, words, not_words):
+    message = read_slip(read_name(sent), values)
+    assert all(w in message for w in words) and not any(w in message for w in not_words), message

@@ -19,7 +19,7 @@ from fastapi.responses import Response, StreamingResponse
 from starlette.concurrency import iterate_in_threadpool, run_in_threadpool
 
 from microbearing import physics
-from microbearing.physics.columns import input_slips
+from microbearing.physics.slips import input_slips
 
 from ..calibrations import evaluate_batch_with_model, evaluate_point_with_model
 from ..deps import ExecutorDep, SettingsDep, StoreDep, get_store

@@ -105,7 +105,7 @@ FrictionRequest = create_model(
     convention=_CONVENTION, **parameter_fields(), **MODEL_FIELDS,
 )
 
-#: The answer's warnings of inputs that look like a unit slip (physics.columns.input_slips).
+#: The answer's warnings of inputs that look like a unit slip (physics.slips.input_slips).
 INPUT_WARNINGS = (list[str] | None, Field(default=None, description=(
     "Physics inputs that look like a unit slip, in the words with which a calibration upload refuses "
     "them (e.g. speed_m_s above 10 m/s: mm/s?); the model answers as asked. Absent when none.")))
