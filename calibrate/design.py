@@ -57,6 +57,7 @@ __all__ = [
     "DesignError",
     "DesignModel",
     "FunctionModel",
+    "check_identifiable",
     "efficient_rounding",
     "plan",
 ]
@@ -497,23 +498,9 @@ def plan(
     n = _count(candidates)
     if n < 1:
         raise DesignError("there are no candidate points")
-    sigma = np.broadcast_to(np.asarray(model.scatter_sd(candidates), dtype=float), (n,))
-    if not np.all(np.isfinite(sigma) & (sigma > 0)):
-        raise DesignError("the scatter's standard deviation must be positive and finite at every candidate")
-    g = np.asarray(model.sensitivities(candidates), dtype=float).reshape(n, -1)
-    p = g.shape[1]
-    prior = model.prior_information()
-    fixed = np.zeros((p, p)) if prior is None else np.asarray(prior, dtype=float).copy()
-    planned_b = np.zeros((0, p))
-    if planned is not None and _count(planned):
-        planned_sigma = np.asarray(model.scatter_sd(planned), dtype=float)
-        planned_g = np.asarray(model.sensitivities(planned), dtype=float).reshape(-1, p)
-        planned_b = planned_g / planned_sigma[:, None]
-        fixed = fixed + planned_b.T @ planned_b
-    b = g / sigma[:, None]
+    sigma, b, fixed, planned_b = _information(model, candidates, planned)
+    p = b.shape[1]
     if goal != "discriminate":
-        if p == 0:
-            raise DesignError("the model has no parameters to design for")
         _check_identifiable(model, fixed + b.T @ b)
     scale = _parameter_scale(b, fixed, runs)
     problem = _Problem(goal, runs, b * scale, fixed * np.outer(scale, scale) / runs, scale=scale)
@@ -585,9 +572,52 @@ def _exchanged(exchange: Callable[[np.ndarray], np.ndarray], counts: np.ndarray)
     return moved
 
 
+def _information(model: DesignModel, candidates: Mapping[str, np.ndarray],
+                 planned: Mapping[str, np.ndarray] | None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A measurement's scatter at the candidates, their sensitivities in its units (rows), the information
+    held before any run (the prior's and the planned runs') and the planned runs' scaled sensitivities."""
+    n = _count(candidates)
+    sigma = np.broadcast_to(np.asarray(model.scatter_sd(candidates), dtype=float), (n,))
+    if not np.all(np.isfinite(sigma) & (sigma > 0)):
+        raise DesignError("the scatter's standard deviation must be positive and finite at every candidate")
+    g = np.asarray(model.sensitivities(candidates), dtype=float).reshape(n, -1)
+    p = g.shape[1]
+    prior = model.prior_information()
+    fixed = np.zeros((p, p)) if prior is None else np.asarray(prior, dtype=float).copy()
+    planned_b = np.zeros((0, p))
+    if planned is not None and _count(planned):
+        planned_sigma = np.asarray(model.scatter_sd(planned), dtype=float)
+        planned_g = np.asarray(model.sensitivities(planned), dtype=float).reshape(-1, p)
+        planned_b = planned_g / planned_sigma[:, None]
+        fixed = fixed + planned_b.T @ planned_b
+    return sigma, g / sigma[:, None], fixed, planned_b
+
+
+def check_identifiable(model: DesignModel, candidates: Mapping[str, np.ndarray],
+                       planned: Mapping[str, np.ndarray] | None = None) -> None:
+    """Refuse, before any design work, parameters that every candidate measured once, the data taken (the
+    model's prior information) and the planned runs together cannot identify: :func:`plan`'s refusal for
+    the goals ``parameters`` and ``predict``, for a request's submit.
+
+    Raises
+    ------
+    DesignError
+        Naming the combination of parameters no run moves.
+    """
+    if _count(candidates) < 1:
+        raise DesignError("there are no candidate points")
+    _, b, fixed, _ = _information(model, candidates, planned)
+    total = fixed + b.T @ b
+    if np.all(np.isfinite(total)):  # else the design says where the model has no finite mu
+        _check_identifiable(model, total)
+
+
 def _check_identifiable(model: DesignModel, total: np.ndarray) -> None:
     """Raise :class:`DesignError` when the information ``total`` (data taken, planned runs and every
     candidate once) cannot identify the model's parameters."""
+    if total.shape[0] == 0:
+        raise DesignError("the model has no parameters to design for")
     # Judged on the correlation form of the information: parameters in units of very different
     # size (a drift's coefficient beside a friction coefficient) must not look singular.
     diagonal = np.sqrt(np.clip(np.diag(total), 1e-300, None))

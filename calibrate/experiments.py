@@ -38,9 +38,11 @@ from .candidates import Term, candidate_terms
 from .credibility import implausible
 from .data import Dataset
 from .design import GOALS, Design, DesignError, plan
+from .design import check_identifiable as design_check
 from .domain import outside_law_domains, outside_physical_ranges
 from .fit import fit
 from .model import CalibratedModel
+from .plan_plot import plan_png
 from .reported import ReportedWidth
 from .spaces import MAX_CANDIDATES, candidate_points, check_space, read_space, space_points
 
@@ -51,6 +53,7 @@ __all__ = [
     "MAX_CANDIDATES",
     "MAX_RIVALS",
     "candidate_points",
+    "check_identifiable",
     "check_request",
     "read_space",
     "first_experiments",
@@ -559,11 +562,7 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
             example = ", ".join(f"{n} = {float(np.asarray(v)[k]):.6g}" for n, v in points.items())
             raise ValueError(f"{field_name}: the model has no finite mu at {int(bad.sum())} of its points "
                              f"(e.g. {example}); narrow the ranges")
-    planned_columns = None
-    if planned:  # every column the runs give, a fixed one too (a run planned at another groove angle)
-        given = dict.fromkeys([*space, *(k for row in planned for k in row)])
-        planned_columns = {k: np.array([row.get(k, response.fixed.get(k)) for row in planned], dtype=float)
-                           for k in given}
+    planned_columns = _planned_columns(space, planned, response.fixed)
     report(0.2)
     rival_responses = [CalibratedResponse(m, response.fixed) for _, m in rivals]
     # A calibrated model's interval widens off the data (the data cloud, the ranges of its inputs): the
@@ -594,6 +593,41 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
                         f"cannot carry the continuous design; more runs round better")
     report(1.0)
     return ExperimentPlan(design, rows, expected, plot, warnings)
+
+
+def _planned_columns(space: Mapping[str, Any], planned: Sequence[Mapping[str, float]] | None,
+                     fixed: Mapping[str, Any]) -> dict[str, np.ndarray] | None:
+    """The planned runs as columns: every column any run gives, a fixed one too (a run planned at another
+    groove angle), the fixed value where a run leaves it out."""
+    if not planned:
+        return None
+    given = dict.fromkeys([*space, *(k for row in planned for k in row)])
+    return {k: np.array([row.get(k, fixed.get(k)) for row in planned], dtype=float) for k in given}
+
+
+def check_identifiable(response: CalibratedResponse, request: ExperimentRequest) -> None:
+    """Refuse a request whose space cannot identify the parameters before its job runs: the proposal's
+    refusal (:func:`calibrate.design.check_identifiable`) over the candidates it draws, the envelope's
+    points among them for ``predict``, with the data taken and the planned runs. ``discriminate`` tells
+    models apart and needs no identification.
+
+    Raises
+    ------
+    DesignError
+        Starting with ``space``: the combination of parameters no run over the space moves.
+    """
+    if request.goal == "discriminate":
+        return
+    request = _read_spaces(request)
+    candidates = candidate_points(request.space, request.seed)
+    envelope_space = request.envelope if request.goal == "predict" else None
+    if envelope_space is not None and set(request.space) <= set(envelope_space):
+        envelope = space_points(envelope_space, _ENVELOPE_POINTS, request.seed, sobol_points=64)
+        candidates = _with_envelope(candidates, envelope, request.space)
+    try:
+        design_check(response, candidates, _planned_columns(request.space, request.planned, response.fixed))
+    except DesignError as exc:
+        raise DesignError(f"space: {exc}") from None
 
 
 def _read_spaces(request: ExperimentRequest) -> ExperimentRequest:
@@ -792,88 +826,3 @@ def first_experiments(
     model, fixed = physics_model(fit_parameters, noise_std_log, guess, request.fixed, convention)
     response = check_request(model, request.space, fixed, request.envelope, request.planned)
     return _propose(response, _read_spaces(request), [], None, progress)
-
-
-def _axis_label(name: str) -> str:
-    spec = physics.PARAMETERS.get(name)
-    return f"{name} [{spec.unit}]" if spec is not None else f"{name} [as in the data]"
-
-
-def plan_png(document: Mapping[str, Any]) -> bytes:
-    """The plot of a proposal (:meth:`ExperimentPlan.to_dict`) as PNG bytes.
-
-    Left: the proposed runs (red, the area grows with the replicates) over the data taken (grey) on
-    the two columns of the space that vary most in the runs. Right, for ``discriminate``: μ of the
-    calibrated model and of each rival along the first column, the others at the runs' medians, with
-    the runs' values of that column marked.
-    """
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
-
-    plot = document["plot"]
-    axes_names = list(plot["axes"])
-    curves = plot.get("curves") or []
-    figure, panels = plt.subplots(1, 2 if curves else 1, figsize=(11 if curves else 6, 4.5), squeeze=False)
-    ax = panels[0][0]
-    x_name = axes_names[0] if axes_names else None
-    y_name = axes_names[1] if len(axes_names) > 1 else None
-    runs = plot["runs"]
-    data = plot.get("data") or {}
-    if x_name is not None:
-        xs = np.asarray(runs[x_name], dtype=float)
-        ys = np.asarray(runs[y_name], dtype=float) if y_name else np.zeros_like(xs)
-        if x_name in data and (y_name is None or y_name in data):
-            dx = np.asarray(data[x_name], dtype=float)
-            dy = np.asarray(data[y_name], dtype=float) if y_name else np.zeros_like(dx)
-            ax.scatter(dx, dy, s=10, c="0.6", label=f"data taken ({dx.size})")
-        pairs, counts = np.unique(np.column_stack([xs, ys]), axis=0, return_counts=True)
-        ax.scatter(pairs[:, 0], pairs[:, 1], s=30 + 25 * counts, facecolors="none", edgecolors="red",
-                   linewidths=2, label=f"proposed runs ({xs.size}, {pairs.shape[0]} settings)")
-        ax.margins(x=0.08, y=0.12)  # room for a replicate count at a corner of the space
-        (xa, xb), (ya, yb) = ax.get_xlim(), ax.get_ylim()
-        for (px, py), count in zip(pairs, counts, strict=True):
-            if count > 1:
-                # the count is written towards the middle of the panel, so a run at an edge keeps it inside
-                right, up = px <= (xa + xb) / 2, py <= (ya + yb) / 2
-                ax.annotate(f"x{count}", (px, py), textcoords="offset points",
-                            xytext=(6 if right else -6, 6 if up else -6), fontsize=8, color="red",
-                            ha="left" if right else "right", va="bottom" if up else "top")
-        box = plot.get("envelope") or {}
-        if x_name in box:
-            (x0, x1) = box[x_name]
-            (y0, y1) = box[y_name] if y_name in box else ax.get_ylim()
-            # A single value is drawn as a thin band, 2 % of the axis.
-            (xa, xb), (ya, yb) = ax.get_xlim(), ax.get_ylim()
-            if x1 - x0 < 0.02 * (xb - xa):
-                x0, x1 = (x0 + x1) / 2 - 0.01 * (xb - xa), (x0 + x1) / 2 + 0.01 * (xb - xa)
-            if y1 - y0 < 0.02 * (yb - ya):
-                y0, y1 = (y0 + y1) / 2 - 0.01 * (yb - ya), (y0 + y1) / 2 + 0.01 * (yb - ya)
-            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=(0.12, 0.47, 0.71, 0.2),
-                                   edgecolor="tab:blue", linewidth=1.5,
-                                   label="envelope (where the model is used)"))
-        ax.set_xlabel(_axis_label(x_name))
-        ax.set_ylabel(_axis_label(y_name) if y_name else "")
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=8)
-    ax.set_title(f"goal {document['goal']}: efficiency >= {document['efficiency_lower_bound']:.3f}")
-    if curves:
-        right = panels[0][1]
-        for k, curve in enumerate(curves):
-            right.plot(curve["x"], curve["mu"], lw=2.5 if k == 0 else 1.5, ls="-" if k == 0 else "--",
-                       label=curve["label"][:60])
-        for value in np.unique(np.asarray(runs[x_name], dtype=float)):
-            right.axvline(value, color="red", alpha=0.3, lw=1)
-        right.set_xlabel(_axis_label(x_name))
-        right.set_ylabel("mu [1]")
-        others = ", ".join(f"{k} = {v:.3g}" for k, v in (plot.get("others") or {}).items())
-        right.set_title(f"rivals' predictions ({others})", fontsize=8)
-        right.legend(loc="best", fontsize=7)
-    figure.tight_layout()
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=90, bbox_inches="tight", pad_inches=0.1)
-    plt.close(figure)
-    return buffer.getvalue()

@@ -19,6 +19,7 @@ from microbearing.calibrate.design import DesignError
 from microbearing.calibrate.experiments import (
     ExperimentPlan,
     ExperimentRequest,
+    check_identifiable,
     check_request,
     first_experiments,
     next_experiments,
@@ -27,7 +28,8 @@ from microbearing.calibrate.experiments import (
     rival_models,
     rival_terms,
 )
-from microbearing.physics.columns import Reading, read_key, read_slip
+from microbearing.physics.columns import Reading, read_key
+from microbearing.physics.slips import read_slip
 
 from .calibrations import MODEL_PREFIX, ReadConditions, load_calibration, stored_dataset
 from .problems import ProblemError, pointer_at, validation_problem
@@ -118,7 +120,7 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
     declared physics'), as /v1/friction reads its conditions: a physics input under the upload's spelling
     (``load [mN]``) and a condition under the upload's header or another unit of a column's quantity are
     converted (:func:`physics.columns.read_key`), and a column whose values (a range's both ends, a set's
-    every value) look like a unit slip is refused (:func:`physics.columns.read_slip`), naming the key as
+    every value) look like a unit slip is refused (:func:`physics.slips.read_slip`), naming the key as
     sent; each column keeps its key and value as sent (:class:`ReadConditions`) for later refusals."""
     if columns is None:
         return None
@@ -260,13 +262,14 @@ def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict
     try:  # the request's checks, at once (the solve comes in the job)
         model, fixed_all = physics_model(fit_parameters, body.noise_std_log, body.guess, fixed,
                                          str(body.convention))
-        check_request(model, space, fixed_all, envelope, planned)
+        response = check_request(model, space, fixed_all, envelope, planned)
+        request = ExperimentRequest(space, body.runs, body.goal, envelope, fixed, planned, body.seed)
+        check_identifiable(response, request)  # no job for parameters no run can tell
     except ValueError as exc:
         raise _field_problem(exc, sent) from None
 
     def work(ctx) -> dict[str, Any]:
         try:
-            request = ExperimentRequest(space, body.runs, body.goal, envelope, fixed, planned, body.seed)
             plan = first_experiments(fit_parameters, request, body.noise_std_log, body.guess,
                                      str(body.convention), ctx.progress)
         except ValueError as exc:

@@ -338,7 +338,8 @@ def test_a_value_is_judged_for_a_unit_slip_in_the_unit_its_key_states(client, ca
     point = _point(model, {"relative_humidity": 0.5, "temperature_C": 300})
     detail = _problem(client.post("/v1/friction", json=point), "/conditions/temperature_C")
     assert "look like kelvin" in detail, detail
-    from microbearing.physics.columns import match_column, read_slip
+    from microbearing.physics.columns import match_column
+    from microbearing.physics.slips import read_slip
 
     assert "look like degC" in read_slip(match_column("temperature_K", ["temp_degC"]), [27.0])
     assert read_slip(match_column("temperature_K", ["temp_degC"]), [300.0]) is None
@@ -394,7 +395,8 @@ def test_an_experiment_space_reads_conditions_against_the_model_s_columns(client
 
 
 def test_t_with_a_temperature_unit_is_the_temperature():
-    from microbearing.physics.columns import read_name, slip
+    from microbearing.physics.columns import read_name
+    from microbearing.physics.slips import slip
 
     assert read_name("T [K]").name == "temperature_K" and read_name("T [degC]").name == "temperature_K"
     assert "look like degC" in slip("T_K", [27.0])
@@ -584,3 +586,45 @@ def test_the_csv_intake_refuses_what_the_calibration_would(client):
     upload = client.post("/v1/calibrations/csv?fit_parameters=mu_pivot", content=text, headers=headers)
     assert intake.status_code == upload.status_code == 422, intake.text
     assert "values look like percent" in intake.text and "values look like percent" in upload.text
+
+
+def test_a_slip_is_judged_in_the_unit_a_key_states_and_said_as_sent(client, calibration):
+    model = calibration["model_id"]
+    # -200 degC is 73.15 K: not a kelvin value that "looks like degC" (the K column's rule)
+    cold = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, "temp [degC]": -200}))
+    assert "look like degC" not in cold.text and "temp_K runs" not in cold.text, cold.text
+    # below absolute zero in the unit sent, said in it (not as 0 K "looks like degC")
+    detail = _problem(client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5,
+                                                                        "temp [degC]": -300})),
+                      "/conditions/temp [degC]")
+    assert "temp [degC] runs -300 to -300 degC, below absolute zero" in detail, detail
+    # text is read unconverted: the refusal says which column, never a converted value it does not have
+    detail = _problem(client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5,
+                                                                        "temp [degF]": "86"})),
+                      "/conditions/temp [degF]")
+    assert "(sent as temp [degF]: '86', read as the column temp_K)" in detail, detail
+    # a physics input of a planned run beyond its slip limit, in the unit its key states (1e6 gf = 9807 N)
+    route = f"/v1/calibrations/{model.split(':')[1]}/next-experiments"
+    space = {"balls": [4, 8], "load_N": [0.002, 0.02], "speed_m_s": [0.05], "relative_humidity": [0.3, 0.7],
+             "temp_K": [300.0]}
+    run = {"balls": 6, "load (gf)": 1e6, "speed_m_s": 0.05, "relative_humidity": 0.5, "temp_K": 300.0}
+    detail = _problem(client.post(route, json={"runs": 2, "goal": "parameters", "space": space,
+                                               "planned": [run]}), "/planned/0/load (gf)")
+    assert "load (gf) runs 1e+06 to 1e+06 gf (load_N 9807 to 9807 N)" in detail, detail
+    envelope = {"balls": [6], "load [lbf]": [-1, 1], "speed_m_s": [0.05], "relative_humidity": [0.4, 0.6],
+                "temp_K": [300.0]}
+    detail = _problem(client.post(route, json={"runs": 2, "goal": "predict", "space": space,
+                                               "envelope": envelope}), "/envelope/load [lbf]")
+    assert "not negative" in detail and "look like mN" not in detail, detail
+
+
+def test_a_first_design_for_parameters_no_run_moves_is_refused_at_submit(client):
+    # mu_ball (ball-ball friction) moves no run of this space: the job had been accepted, then failed
+    space = {"balls": [4, 8], "load_N": [0.003, 0.03], "speed_m_s": [0.02, 0.15]}
+    response = client.post("/v1/experiments", json={"runs": 2, "fit_parameters": ["mu_pivot", "mu_ball"],
+                                                    "space": space})
+    assert "cannot identify the parameters" in _problem(response, "/space")
+    assert "mu_ball" in response.text, response.text
+    alone = client.post("/v1/experiments", json={"runs": 2, "fit_parameters": ["mu_pivot"], "space": space})
+    assert alone.status_code == 202, alone.text
+    assert wait_job(client, alone)["status"] == "succeeded"
