@@ -56,7 +56,7 @@ from scipy import stats
 from scipy.spatial import cKDTree
 
 from microbearing import physics
-from microbearing.physics.columns import counted_from_zero, physical_range, unit_of
+from microbearing.physics.columns import counted_from_zero, outside_range, physical_range, unit_of
 from microbearing.physics.effects import Domain
 
 __all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "EXTRAPOLATION_SHARE", "REPLICATE_JITTER", "CloudSpace",
@@ -629,15 +629,9 @@ def outside_physical_ranges(conditions: Sequence[str], columns: Mapping[str, Any
         low, high = physical_range(name)
         if name not in columns or (low is None and high is None):
             continue
-        values = _numbers(columns[name])
-        bad = np.unique(values[(values < (-np.inf if low is None else low))
-                               | (values > (np.inf if high is None else high))])
-        if bad.size:
-            shown = ", ".join(f"{v:g}" for v in bad[:3]) + (", ..." if bad.size > 3 else "")
-            bounds = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
-            plural = bad.size > 1
-            out[name] = (f"value{'s' if plural else ''} {shown} lie{'' if plural else 's'} outside {bounds} "
-                         f"[{unit_of(name) or '1'}], the physical range of {name}")
+        detail = outside_range(name, _numbers(columns[name]), low, high, unit_of(name) or "1")
+        if detail is not None:
+            out[name] = detail
     return out
 
 

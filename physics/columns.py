@@ -35,7 +35,7 @@ from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
            "Reading", "Span", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
-           "match_column", "physical_range", "read_key", "read_name", "read_span", "unit_of",
+           "match_column", "outside_range", "physical_range", "read_key", "read_name", "read_span", "unit_of",
            "unknown_column", "whole_number"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
@@ -342,6 +342,25 @@ def physical_range(name: str) -> tuple[float | None, float | None]:
     unit, quantity = unit_of(name) or condition.unit, _registry().Quantity
     return tuple(None if b is None else round(float(quantity(b, condition.unit).to(unit).magnitude), 10)
                  for b in (condition.minimum, condition.maximum))
+
+
+def outside_range(name: str, values: Any, low: float | None, high: float | None, unit: str) -> str | None:
+    """The sentence that values outside a physical range ``[low, high]`` (None: open) get, naming the first
+    few of them; None when every value lies inside. The one wording of every door's range check.
+
+    >>> outside_range("time_min", [-5.0, 60.0], 0.0, None, "min")
+    'value -5 lies outside [0, inf] [min], the physical range of time_min'
+    """
+    values = np.asarray(values, dtype=float).reshape(-1)
+    bad = np.unique(values[(values < (-np.inf if low is None else low))
+                           | (values > (np.inf if high is None else high))])
+    if not bad.size:
+        return None
+    shown = ", ".join(f"{v:g}" for v in bad[:3]) + (", ..." if bad.size > 3 else "")
+    bounds = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
+    plural = bad.size > 1
+    return (f"value{'s' if plural else ''} {shown} lie{'' if plural else 's'} outside {bounds} [{unit}], the "
+            f"physical range of {name}")
 
 
 def whole_number(name: str) -> bool:

@@ -37,6 +37,7 @@ import numpy as np
 from scipy.differentiate import derivative
 
 from . import bearing, parameters
+from .columns import outside_range
 from .execution import ExecutionOptions
 from .parameters import DEFAULT_CONVENTION, PARAMETERS
 
@@ -214,11 +215,9 @@ class ModelInput:
             (arr > self.maximum) if self.maximum is not None else False)
         if outside.any():  # a condition's physical range (a time counted from zero, a fraction)
             index = int(np.flatnonzero(outside.reshape(-1))[0]) if arr.ndim else None
-            value = float(arr.reshape(-1)[index or 0])
-            low = "-inf" if self.minimum is None else f"{self.minimum:g}"
-            high = "inf" if self.maximum is None else f"{self.maximum:g}"
-            raise InputError(self.name, index, f"value {value:g} lies outside [{low}, {high}] [{self.unit}], "
-                                               f"the physical range of {self.name}")
+            value = arr.reshape(-1)[index or 0]
+            raise InputError(self.name, index, outside_range(self.name, value, self.minimum, self.maximum,
+                                                             self.unit))
         return arr
 
 
