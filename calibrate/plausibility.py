@@ -47,9 +47,16 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
-from microbearing.physics.columns import SLIP_LIMITS, counted_from_zero, physical_range, unit_of
+from microbearing.physics.columns import (
+    SLIP_LIMITS,
+    ColumnError,
+    counted_from_zero,
+    physical_range,
+    read_name,
+    unit_of,
+)
 from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
-from microbearing.physics.slips import humidity_slip, physics_slip, temperature_slip
+from microbearing.physics.slips import humidity_slip, physics_slip, read_slip, temperature_slip
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset
 
@@ -99,33 +106,18 @@ def _outside_physical_range(name: str, values: np.ndarray, reading: Any = None) 
     return Finding(name, "error", f"{said}, outside its physical range {bounds}{counted}")
 
 
-def _plausible(name: str) -> tuple[float | None, float, str]:
-    """The plausible low and high of a column in its own unit, and that unit."""
-    if name in LIMITS:
-        return None, LIMITS[name][0], physics.PARAMETERS[name].unit
-    unit = (HUMIDITY if HUMIDITY.matches(name) else TEMPERATURE).unit_of(name)
-    return unit.plausible[0], unit.plausible[1], unit.unit
-
-
-def _as_sent(finding: Finding, dataset: Dataset, values: np.ndarray) -> Finding:
-    """A finding on a column sent in another unit (``speed [mm/s]``, ``temperature [degC]``), said in that
-    unit: its header states the unit, so no slip of the name is to blame and none is suggested."""
-    reading = dataset.sent_reading(finding.column)
-    if reading is None:
-        return finding
-    low, high, unit = _plausible(finding.column)
-    sent_unit = reading.sent_unit
-    sent_low, sent_high = (None if b is None or not np.isfinite(b) else reading.sent_value(b)
-                           for b in (low, high))
-    if sent_low is not None and sent_high is not None:
-        plausible = f"between {min(sent_low, sent_high):.4g} and {max(sent_low, sent_high):.4g}"
-    else:
-        plausible = f"at most {sent_high:.4g}" if sent_low is None else f"at least {sent_low:.4g}"
-    own = unit if unit != "1" else "[1]"
-    return Finding(finding.column, finding.severity,
-                   f"{reading.sent} runs {_span(reading.sent_value(values))} {sent_unit} ({finding.column} "
-                   f"{_span(values)} {own}), where a micro ball bearing's test lies {plausible} {sent_unit}: "
-                   f"the header states the unit, so check the values")
+def _sent_slip(dataset: Dataset, name: str, values: np.ndarray) -> tuple[bool, str | None]:
+    """A column sent under another name (``temp [degC]``, ``speed [mm/s]``, ``RH [1]``) judged as sent, in the
+    unit its header states (:func:`physics.slips.read_slip`, as every door judges a key): whether it was,
+    and the slip in words (None: none)."""
+    header = dataset.headers.get(name)
+    try:
+        reading = None if header is None else read_name(header)
+    except ColumnError:  # a header stored by another version: judged by its name
+        reading = None
+    if reading is None or reading.name != name:
+        return False, None
+    return True, read_slip(reading, reading.sent_value(values))
 
 
 def plausibility_findings(dataset: Dataset) -> list[Finding]:
@@ -154,19 +146,18 @@ def plausibility_findings(dataset: Dataset) -> list[Finding]:
     for name, values in columns.items():
         if values.dtype == bool or values.size == 0:
             continue
-        message = None
-        if name in LIMITS:
-            message = physics_slip(name, values)
-        elif name not in physics.PARAMETERS and HUMIDITY.matches(name):
-            message = humidity_slip(name, values)
-        elif name not in physics.PARAMETERS and TEMPERATURE.matches(name):
-            message = temperature_slip(name, values)
-        elif name not in physics.PARAMETERS:  # said in the header's unit itself: no plausible range
+        condition = name not in physics.PARAMETERS
+        if name in LIMITS or (condition and (HUMIDITY.matches(name) or TEMPERATURE.matches(name))):
+            # the one unit-slip rule of every door (physics.slips), in the unit a header states
+            judged, message = _sent_slip(dataset, name, values)
+            if not judged and name in LIMITS:
+                message = physics_slip(name, values)
+            elif not judged:
+                message = (humidity_slip if HUMIDITY.matches(name) else temperature_slip)(name, values)
+            found += [] if message is None else [Finding(name, "error", message)]
+        elif condition:  # said in the header's unit itself: no plausible range
             finding = _outside_physical_range(name, values, dataset.sent_reading(name))
             found += [] if finding is None else [finding]
-            continue
-        if message is not None:  # the one unit-slip rule of every door (physics.slips)
-            found.append(_as_sent(Finding(name, "error", message), dataset, values))
     mu = dataset.mu_measured
     if mu.size and float(np.max(mu)) > MU_WARNING:
         count = int(np.sum(mu > MU_WARNING))

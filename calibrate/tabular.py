@@ -727,8 +727,9 @@ def _parse(header: list[str], body: list[list[str]], fixed: Mapping[str, Any], f
 
 
 def _with_headers(dataset: Dataset, columns: Sequence[Column]) -> Dataset:
-    """The dataset with the header each converted column was sent under (reports speak its unit)."""
-    headers = {c.name: c.sent for c in columns if c.reading}
+    """The dataset with the header each column sent under another name was sent under (reports speak its
+    unit; a slip is judged in the unit it states)."""
+    headers = {c.name: c.sent for c in columns if c.reading or c.sent != c.name}
     return dataclasses.replace(dataset, headers=headers) if headers else dataset
 
 
@@ -786,6 +787,22 @@ def _write(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     return out.getvalue()
 
 
+def _refuse_text_quantities(rows: Sequence[Any], by_sent: Mapping[str, Column]) -> None:
+    """Refuse text in a JSON row's physics input or converted column (``"balls": "4"``,
+    ``"cycles [kcycles]": "5"``): a JSON row gives a quantity as a number, and text would pass its unit
+    by. Text is a CSV file's cell, and a factor's label among the conditions."""
+    errors = [{"row": i + 1, "column": key,
+               "message": (f"a physics input takes a number, not text ({value!r})"
+                           if by_sent[key].name in physics.PARAMETERS else
+                           f"a column with a unit ({by_sent[key].reading}) takes a number, not text "
+                           f"({value!r})")}
+              for i, row in enumerate(rows) if isinstance(row, Mapping) for key, value in row.items()
+              if isinstance(value, str) and str(key) in by_sent
+              and (by_sent[str(key)].name in physics.PARAMETERS or by_sent[str(key)].reading)]
+    if errors:
+        raise DataError(errors)
+
+
 def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None = None,
               factors: Sequence[str] = (), ignore: Sequence[str] = ()) -> tuple[Dataset, Intake]:
     """Check measured data given as JSON rows whose keys may carry units (as :func:`read_csv`'s header).
@@ -823,6 +840,10 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
     for row in rows:
         if isinstance(row, Mapping):
             names.extend(str(k) for k in row if str(k) not in names)
+    if any(not name.strip() for name in names):  # an unnamed index column: as a CSV header refuses it
+        unnamed = [n for n in names if not n.strip()]
+        raise DataError([{"row": None, "column": None,
+                          "message": f"every key must name its column; got {unnamed}"}])
     wanted = list(dict.fromkeys(str(name).strip() for name in ignore))
     read_as = {}
     for name in names:
@@ -839,6 +860,7 @@ def read_rows(rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, Any] | None
     columns = _columns([n for n in names if n not in left_out])
     _check_required(columns, fixed or {})
     by_sent = {c.sent: c for c in columns}
+    _refuse_text_quantities(rows, by_sent)
     converted = []
     for row in rows:
         if not isinstance(row, Mapping):

@@ -22,7 +22,7 @@ from microbearing.calibrate import (
 )
 from microbearing.calibrate.fit import check_fit_parameters
 from microbearing.calibrate.plausibility import check_plausible
-from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names, read_column
+from microbearing.calibrate.tabular import DECIMALS, SEPARATORS, accepted_names
 
 from ..calibrations import (
     DATA_PREFIX,
@@ -113,27 +113,6 @@ def _columns_of(dataset: Dataset) -> list[str]:
     return sorted([*dataset.columns(), *dataset.factors])
 
 
-def _refuse_text_inputs(rows: list[dict[str, Any]]) -> None:
-    """422 naming each physics input of a JSON row written as text (``"balls": "4"``).
-
-    Text is a CSV file's cell, and a factor's label among the conditions; a JSON row gives a physics
-    input as a number (``4`` or ``4.0``), as the schema says.
-    """
-    inputs = set()
-    for key in set().union(*rows):
-        try:
-            if read_column(key).name in physics.PARAMETERS:
-                inputs.add(key)
-        except DataError:  # an unreadable name: read_rows names it
-            pass
-    errors = [{"row": i + 1, "column": key,
-               "message": f"a physics input takes a number, not text ({value!r})"}
-              for i, row in enumerate(rows) for key, value in row.items()
-              if key in inputs and isinstance(value, str)]
-    if errors:
-        raise data_problem(errors)
-
-
 @router.post("", operation_id="create_calibration", status_code=202,
              responses={**ACCEPTED_RESPONSE, **problem_responses(507)})
 def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples=examples.media_examples(
@@ -148,7 +127,6 @@ def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples
     """
     check_table(len(body.data), settings.max_calibration_rows, "rows", "/data")
     check_table(len(set().union(*body.data)), settings.max_calibration_columns, "columns", "/data")
-    _refuse_text_inputs(body.data)
     fixed = body.fixed.model_dump(exclude_none=True)
     try:
         dataset, intake = read_rows(body.data, fixed, body.factors, body.ignore)
