@@ -35,8 +35,8 @@ from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
            "Reading", "Span", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
-           "match_column", "outside_range", "physical_range", "read_key", "read_name", "read_span", "unit_of",
-           "unknown_column", "whole_number"]
+           "match_column", "outside_mask", "outside_range", "physical_range", "read_key", "read_name",
+           "read_span", "unit_of", "unknown_column", "whole_number"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -74,6 +74,8 @@ class Condition:
         Prefixes of the words of a column's name that make it this condition (as the terms read them).
     minimum, maximum : float or None
         Its physical range in ``unit``.
+    exclusive_minimum : bool
+        Whether ``minimum`` itself lies outside (a temperature above 0 K).
     integer : bool
         Whether its values are whole numbers.
     from_zero : bool
@@ -87,6 +89,7 @@ class Condition:
     keywords: tuple[str, ...]
     minimum: float | None = None
     maximum: float | None = None
+    exclusive_minimum: bool = False
     integer: bool = False
     from_zero: bool = False
 
@@ -100,7 +103,7 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in [
     Condition("relative_humidity", "1", "Relative humidity of the air around the bearing, a fraction "
               "(percent when the name says pct or percent).", ("humid", "rh"), 0.0, 1.0),
     Condition("temperature_K", "K", "Temperature of the bearing (degC unless the name says K).",
-              ("temp",), 0.0),
+              ("temp",), 0.0, exclusive_minimum=True),
     Condition("cycles", "1", "Strokes, passes or cycles run since the start (running-in).",
               ("cycle", "pass", "stroke"), 0.0, integer=True, from_zero=True),
     Condition("time_h", "h", "Time run since the start (running-in), in the unit its name says.",
@@ -344,20 +347,38 @@ def physical_range(name: str) -> tuple[float | None, float | None]:
                  for b in (condition.minimum, condition.maximum))
 
 
+def outside_mask(name: str, values: Any, low: float | None, high: float | None) -> np.ndarray:
+    """Which values leave a column's physical range ``[low, high]`` (None: unbounded), its low end excluded
+    where the condition declares so (:attr:`Condition.exclusive_minimum`: no temperature is 0 K).
+
+    >>> outside_mask("temp_K", [0.0, 1.0], 0.0, None).tolist(), outside_mask("cycles", [0.0], 0.0, None)
+    ([True, False], array([False]))
+    """
+    values = np.asarray(values, dtype=float)
+    condition = None if name in PARAMETERS else _condition_of(name)
+    below = values <= low if low is not None and condition is not None and condition.exclusive_minimum else (
+        values < (-np.inf if low is None else low))
+    return below | (values > (np.inf if high is None else high))
+
+
 def outside_range(name: str, values: Any, low: float | None, high: float | None, unit: str) -> str | None:
     """The sentence that values outside a physical range ``[low, high]`` (None: open) get, naming the first
-    few of them; None when every value lies inside. The one wording of every door's range check.
+    few of them; None when every value lies inside (:func:`outside_mask`). The one wording of every door's
+    range check.
 
     >>> outside_range("time_min", [-5.0, 60.0], 0.0, None, "min")
     'value -5 lies outside [0, inf] [min], the physical range of time_min'
+    >>> outside_range("temp_K", [0.0], 0.0, None, "K")
+    'value 0 lies outside (0, inf] [K], the physical range of temp_K'
     """
     values = np.asarray(values, dtype=float).reshape(-1)
-    bad = np.unique(values[(values < (-np.inf if low is None else low))
-                           | (values > (np.inf if high is None else high))])
+    bad = np.unique(values[outside_mask(name, values, low, high)])
     if not bad.size:
         return None
     shown = ", ".join(f"{v:g}" for v in bad[:3]) + (", ..." if bad.size > 3 else "")
-    bounds = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
+    condition = None if name in PARAMETERS else _condition_of(name)
+    left = "(" if condition is not None and condition.exclusive_minimum else "["
+    bounds = f"{left}{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
     plural = bad.size > 1
     return (f"value{'s' if plural else ''} {shown} lie{'' if plural else 's'} outside {bounds} [{unit}], the "
             f"physical range of {name}")
@@ -454,9 +475,24 @@ _EXAMPLE_UNITS = {"relative_humidity": "[%] or [1]", "temperature_K": "[degC], [
                   "cycles": "[1] or [kcycles]", "time_h": "[s], [min] or [h]"}
 
 
+def _is_unit(text: str) -> bool:
+    """Whether pint reads ``text`` as a unit (``degF``), not a word (``normal`` of ``load (normal) [mN]``)."""
+    try:
+        _unit(text)
+    except Exception:  # pint's errors: an undefined unit or bad syntax
+        return False
+    return True
+
+
 def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
     name_text = match.group("name")
     unit_text = match.group("square") if match.group("square") is not None else match.group("round")
+    inner = _BRACKETS.match(name_text.strip())
+    first = None if not (inner and inner.group("name")) else (
+        inner.group("square") if inner.group("square") is not None else inner.group("round"))
+    if first is not None and _is_unit(first):  # temp (degF) [degC]: which? never converted twice
+        raise ColumnError(sent, f"{sent!r} states two units ({first} and {unit_text}); keep one, e.g. "
+                                f"'{inner.group('name').strip()} [{unit_text}]'")
     try:
         unit = _unit(unit_text)
     except Exception:  # pint's errors (undefined units, bad syntax) derive from several built-ins

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.differentiate import derivative
 
 from . import bearing, parameters
-from .columns import outside_range
+from .columns import outside_mask, outside_range
 from .execution import ExecutionOptions
 from .parameters import DEFAULT_CONVENTION, PARAMETERS
 
@@ -211,8 +211,7 @@ class ModelInput:
         if not finite.all():
             index = int(np.flatnonzero(~finite.reshape(-1))[0]) if arr.ndim else None
             raise InputError(self.name, index, f"{self.name} must be a finite number [{self.unit}]")
-        outside = ((arr < self.minimum) if self.minimum is not None else np.zeros(arr.shape, bool)) | (
-            (arr > self.maximum) if self.maximum is not None else False)
+        outside = outside_mask(self.name, arr, self.minimum, self.maximum)
         if outside.any():  # a condition's physical range (a time counted from zero, a fraction)
             index = int(np.flatnonzero(outside.reshape(-1))[0]) if arr.ndim else None
             value = arr.reshape(-1)[index or 0]

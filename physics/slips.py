@@ -60,7 +60,7 @@ def physics_slip(name: str, values: np.ndarray, stated: tuple[str, np.ndarray, s
     if float(np.min(values)) < 0.0:
         cause = f"check the values: {name} is not negative"
     elif stated is not None and not stated[3]:
-        cause = "the key states the unit, so check the values"
+        cause = "its name states the unit, so check the values"
     elif float(np.max(scaled)) <= limit:
         cause = f"values look like {slip_unit} (times {factor:g}: {_span_text(scaled)} {unit})"
     else:
@@ -113,8 +113,8 @@ def temperature_slip(name: str, values: np.ndarray, kelvin: bool | None = None,
     if kelvin and lo < bottom:
         return (f"{name} runs {shown}, below {bottom:g} K: values look like degC "
                 f"({_named_in(name, 'degC', 'temperature_C')})")
-    if not kelvin and lo < bottom:
-        return f"{name} runs {shown}, below absolute zero ({bottom:g} degC): check the unit"
+    if not kelvin and lo <= bottom:  # absolute zero itself is no temperature
+        return f"{name} runs {shown}, at or below absolute zero ({bottom:g} degC): check the unit"
     if not kelvin and hi > top:
         return (f"{name} runs {shown}, above {top:g} degC: values look like kelvin "
                 f"({_named_in(name, 'K', 'temperature_K')})")
@@ -233,22 +233,34 @@ def _stated_slip(first: Reading, array: np.ndarray) -> tuple[bool, str | None]:
                                    None if kelvin or _same(unit, "degC") else (array, stated))
 
 
-def input_slips(inputs: Mapping[str, Any]) -> list[str]:
+def input_slips(inputs: Mapping[str, Any], sent: Mapping[str, tuple[str, Any] | None] | None = None
+                ) -> list[str]:
     """The unit slips that physics inputs given at prediction look like (:func:`slip`), in words.
 
     The model is valid beyond :data:`physics.columns.SLIP_LIMITS` (it answers there): a door that predicts
     warns where the upload refuses, with the same words, so that ``speed_m_s=50`` meant as mm/s is never
-    silent.
+    silent. ``sent``: for an input sent under another key, that key and its value as sent
+    (``("load [mN]", 2000)``): judged as sent (:func:`read_slip`), as every door judges a key.
 
     >>> input_slips({"speed_m_s": 50.0, "load_N": 0.01})[0][:60]
     'speed_m_s runs 50 to 50 m/s, beyond the 10 m/s a micro ball '
+    >>> input_slips({"load_N": 2.0}, {"load_N": ("load [mN]", 2000)})[0][:44]
+    'load [mN] runs 2000 to 2000 mN (load_N 2 to '
     """
     found = []
     for name, (limit, _unit_name, _factor) in SLIP_LIMITS.items():
         value = inputs.get(name)
         if value is None or (isinstance(value, int | float) and not value > limit):
             continue  # the scalar fast path of a single point
+        given = (sent or {}).get(name)
         message = slip(name, value)
+        if message is not None and given is not None:
+            key, as_sent = given
+            numbers = list(as_sent.values()) if isinstance(as_sent, Mapping) else as_sent
+            try:
+                message = read_slip(read_name(key), np.asarray(numbers, dtype=float)) or message
+            except (ColumnError, TypeError, ValueError):  # not numbers as sent: said in the input's unit
+                pass
         if message is not None:
             found.append(message)
     return found

@@ -175,11 +175,18 @@ def converted(read: Any, value: Any) -> Any:
     return read.convert(value) if read.reading and not isinstance(value, bool) else value
 
 
-def slip_warnings(inputs: dict[str, Any]) -> list[str]:
-    """The API's unit-slip warnings of the inputs (:func:`physics.slips.input_slips`), also on stderr."""
+def slip_warnings(inputs: dict[str, Any], items: list[str] | None = None) -> list[str]:
+    """The API's unit-slip warnings of the inputs (:func:`physics.slips.input_slips`), also on stderr;
+    ``items``: the ``NAME=VALUE`` arguments, each judged as typed (``load [mN]=2000`` in mN)."""
     from microbearing.physics.slips import input_slips
 
-    warnings = input_slips(inputs)
+    sent: dict[str, tuple[str, Any]] = {}
+    for item in items or []:
+        name, _, text = item.partition("=")
+        read = reading(name.strip())
+        if read is not None and read.name != name.strip():
+            sent[read.name] = (name.strip(), [part.strip() for part in text.split(",")])
+    warnings = input_slips(inputs, sent)
     for warning in warnings:
         print(f"warning: {warning}", file=sys.stderr)
     return warnings

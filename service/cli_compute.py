@@ -145,7 +145,7 @@ def evaluate(args: argparse.Namespace) -> int:
         point = evaluate_point({**defaults(fixed), **fixed}, convention)
         chosen = {name: point[name] for name in outputs or point}
         document = with_folding_safe_names({"convention": convention, **chosen})
-        warnings = slip_warnings(fixed)
+        warnings = slip_warnings(fixed, args.inputs)
         if warnings:
             document["input_warnings"] = warnings
         write_text(args.output, to_json(document) + "\n")
@@ -158,7 +158,7 @@ def evaluate(args: argparse.Namespace) -> int:
         raise CommandError(f"{args.csv}: {unknown_column(name, physics.PARAMETERS)}; a condition column is "
                            "read by a calibrated model only (--model ID)", EXIT_INVALID)
     _refuse_clash(points.inputs, fixed)
-    slip_warnings({**fixed, **points.inputs})
+    slip_warnings({**fixed, **points.inputs}, args.inputs)
     with progress_bar(f"evaluate {points.count} points") as progress:
         results = evaluate_in_chunks(None, {**fixed, **points.inputs}, points.count, outputs,
                                      physics_in(convention), progress=progress)
@@ -222,7 +222,7 @@ def _evaluate_model(args: argparse.Namespace, outputs: list[str] | None) -> int:
             document = evaluate_batch_with_model(store, None, reference, every,
                                                  {**conditions, **points.conditions}, outputs,
                                                  args.convention, Settings().max_batch_points)
-    warnings = slip_warnings({**inputs, **(points.inputs if points is not None else {})})
+    warnings = slip_warnings({**inputs, **(points.inputs if points is not None else {})}, args.inputs)
     for warning in document.get("domain_warnings") or []:
         print(f"warning: {warning}", file=sys.stderr)
     if points is None:

@@ -55,7 +55,8 @@ async def evaluate_friction(request: Request) -> Response:
     else:
         _refuse_conditions(body.conditions)
         document = {"convention": str(body.convention), **evaluate_point(given, body.convention)}
-    warnings = input_slips(given)  # the upload's unit-slip rule, as a warning: the model answers as asked
+    # the upload's unit-slip rule, as a warning (the model answers as asked), judged as each key was sent
+    warnings = input_slips(given, {name: body.sent_as(name) for name in given})
     if warnings:
         document["input_warnings"] = warnings
     return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
@@ -73,22 +74,23 @@ def _model_batch(request: FrictionBatchRequest, max_points: int, executor: Execu
     document = evaluate_batch_with_model(
         store, executor, request.model, points, request.conditions, request.outputs,
         str(request.convention) if "convention" in request.model_fields_set else None, max_points)
-    warnings = input_slips(points)
+    warnings = input_slips(points, {name: request.points.sent_as(name) for name in points})
     if warnings:
         document["input_warnings"] = warnings
     return json_bytes(with_folding_safe_names(document))
 
 
-def _physics_inputs(request: FrictionBatchRequest, max_points: int) -> tuple[dict[str, Any], int]:
-    """The input columns as arrays, and the point count (the parsed request can be freed then)."""
+def _physics_inputs(request: FrictionBatchRequest, max_points: int) -> tuple[dict[str, Any], int, list[str]]:
+    """The input columns as arrays, the point count and the unit-slip warnings, judged as each key was
+    sent (the parsed request can be freed then)."""
     _refuse_conditions(request.conditions)
-    return column_arrays(request.points.model_dump(), max_points)
+    inputs, count = column_arrays(request.points.model_dump(), max_points)
+    return inputs, count, input_slips(inputs, {name: request.points.sent_as(name) for name in inputs})
 
 
 def _physics_batch(inputs: dict[str, Any], count: int, outputs: list[str] | None, convention: str,
-                   executor: Executor) -> Iterator[bytes]:
+                   executor: Executor, warnings: list[str]) -> Iterator[bytes]:
     """Compute every chunk (errors raise here, before the answer starts); return the answer's pieces."""
-    warnings = input_slips(inputs)
     # Chunks of points on the app's executor (thread pool or dask cluster, service/executor.py).
     names, bounds, chunks = evaluate_chunks(executor, inputs, count, outputs, physics_in(convention),
                                             pointer="/points")
@@ -125,10 +127,10 @@ async def evaluate_friction_batch(request: Request, settings: SettingsDep, execu
     if body.model != "physics":
         content = await run_in_threadpool(_model_batch, body, settings.max_batch_points, executor, store)
         return Response(content, media_type="application/json")
-    inputs, count = await run_in_threadpool(_physics_inputs, body, settings.max_batch_points)
+    inputs, count, warnings = await run_in_threadpool(_physics_inputs, body, settings.max_batch_points)
     outputs, convention = body.outputs, str(body.convention)
     del body  # the parsed lists of numbers: the arrays of the inputs are all that is needed now
-    pieces = await run_in_threadpool(_physics_batch, inputs, count, outputs, convention, executor)
+    pieces = await run_in_threadpool(_physics_batch, inputs, count, outputs, convention, executor, warnings)
     del inputs
     if count <= DEFAULT_CHUNK_POINTS:  # one chunk: one piece, with its length
         return Response(b"".join(pieces), media_type="application/json")
