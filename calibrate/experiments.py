@@ -714,6 +714,12 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
     check_space(space, model.conditions)
     if envelope is not None:
         check_space(envelope, model.conditions, "envelope")
+        missing = [n for n in space if n not in envelope]
+        if missing:  # the proposal's refusal, at submit
+            raise ValueError(f"envelope: give the columns of the space too ({', '.join(missing)})")
+    for name in (n for n in model.fitted if n in space):  # a setting cannot be what the runs measure
+        raise ValueError(f"space.{name}: {name} is a fitted parameter, which the runs measure; a space sets "
+                         f"what the runs vary: leave it out of the space or of fit_parameters")
     fixed = dict(fixed or {})
     for name, value in fixed.items():
         if name in space:
@@ -733,8 +739,9 @@ def check_request(model: CalibratedModel, space: Mapping[str, Any], fixed: Mappi
                 raise ValueError(f"{field}.{name}: not a physics input nor a condition column of the data "
                                  f"({', '.join(model.conditions) or 'none'})")
     for field, columns in (("space", space), ("envelope", envelope or {}), ("fixed", fixed), *planned_runs):
-        outside = {**outside_physical_ranges(model.conditions, columns),
-                   **outside_law_domains(model.terms, columns)}
+        # a value outside its quantity's physical range is said so first, as at every door
+        outside = {**outside_law_domains(model.terms, columns),
+                   **outside_physical_ranges(model.conditions, columns)}
         for name, detail in outside.items():
             raise ValueError(f"{field}.{name}: {detail}")
     required = ["balls", "load_N", "speed_m_s", *model.required_columns]

@@ -379,6 +379,8 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     ProblemError
         422 naming the condition as sent: a unit slip, and every refusal of :func:`check_conditions`.
     """
+    if isinstance(conditions, ReadConditions):  # read once (keys now the model's columns): never again
+        return conditions
     conditions = dict(conditions or {})
     if not isinstance(model, CalibratedPhysicsModel):
         check_conditions(model, conditions, pointer)

@@ -138,7 +138,9 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
         if isinstance(column, str):  # a group label: the runs serve every group alike
             message = (f"{sent} is a factor column (group labels): the runs are planned for the model over "
                        f"its groups, a new one's spread in the interval; leave it out" if sent in factors
-                       else f"must be a number, not {column!r}: only a factor column holds labels")
+                       else f"must be a number, not {column!r}: only a factor column holds labels"
+                       + ("" if reading.name == sent else f" (sent as {sent}: {column!r}, read as the column "
+                                                          f"{reading.name})"))
         if message is not None:
             raise validation_problem([{"pointer": pointer_at(pointer, sent), "detail": message}])
         if reading.name in out:

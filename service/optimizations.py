@@ -162,8 +162,11 @@ def _plan_problem(error: PlanError, body: OptimizationRequest) -> ProblemError:
 def _bound(model: Model, body: OptimizationRequest) -> tuple[Callable, Callable | None]:
     """A stored model's μ model with the request's conditions bound, and its interval at a point."""
     # A range is checked by name here; its values are taken apart by the envelope.
+    read = ReadConditions.of(body.conditions)
     points = {name: value[0] if isinstance(value, list) else value
               for name, value in (body.conditions or {}).items()}
+    if points and read:  # keys and values as sent kept: read_conditions read them once
+        points = ReadConditions(points, read.sent_as, read.sent_values)
     return with_conditions(model, points or body.conditions), interval_at(model, points or body.conditions)
 
 
@@ -242,11 +245,14 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
 def _input_warnings(body: OptimizationRequest) -> list[str]:
     """The speeds and loads of a request that look like a unit slip, in the upload's words
     (:func:`physics.slips.input_slips`, as /v1/friction warns): the design is made as asked."""
-    speed = body.fixed.speed_m_s if body.fixed.speed_m_s is not None else body.speed_m_s
-    load = body.fixed.load_N if body.fixed.load_N is not None else body.bounds.load_N
-    inputs = {"speed_m_s": None if speed is None else np.atleast_1d(np.asarray(speed, dtype=float)),
-              "load_N": None if load is None else np.atleast_1d(np.asarray(load, dtype=float))}
-    return input_slips({name: value for name, value in inputs.items() if value is not None})
+    owners = {"speed_m_s": body.fixed if body.fixed.speed_m_s is not None else body,
+              "load_N": body.fixed if body.fixed.load_N is not None else body.bounds}
+    values = {name: getattr(owner, name) for name, owner in owners.items()}
+    inputs = {name: np.atleast_1d(np.asarray(value, dtype=float)) for name, value in values.items()
+              if value is not None}
+    sent = {name: owner.sent_as(name) if isinstance(owner, InputKeys) else None
+            for name, owner in owners.items()}
+    return input_slips(inputs, sent)  # judged as each key was sent
 
 
 def infeasible_problem(error: InfeasibleDesignError) -> ProblemError:

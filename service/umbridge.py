@@ -169,7 +169,8 @@ def _read_inputs(model: Model, names: Sequence[str]) -> tuple[list[str], tuple[R
             except ValueError:
                 reading = None
         inputs.append(name if reading is None else reading.name)
-        readings.append(reading if reading is not None and reading.reading else None)
+        readings.append(reading if reading is not None and (reading.reading or reading.sent != reading.name)
+                        else None)  # converted, or renamed (relative_humidity [1]): named as sent
     return inputs, tuple(readings)
 
 
@@ -300,7 +301,9 @@ class Setup:
         try:
             yield
         except InputError as exc:
-            raise ProtocolError("InvalidInput", f"{self.where(exc)}: {exc}") from None
+            sent = self.sent_key(exc.name)
+            words = "" if sent == exc.name else f" (sent as {sent}, read as {exc.name})"
+            raise ProtocolError("InvalidInput", f"{self.where(exc)}: {exc}{words}") from None
         except ProblemError as exc:
             raise protocol_error(exc.status, exc.detail) from None
         except ModelError as exc:  # a law's domain: named by the input or fixed key as sent

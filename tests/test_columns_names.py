@@ -152,7 +152,7 @@ def test_a_condition_is_judged_for_a_slip_in_the_unit_its_key_states_only(sent, 
 @pytest.mark.parametrize(("sent", "values", "words", "not_words"), [
     # hand: 1e6 gf = 1e6 x 9.80665e-3 N = 9807 N
     ("load (gf)", [1e6], ["load (gf) runs 1e+06 to 1e+06 gf (load_N 9807 to 9807 N)",
-                          "the key states the unit"], ["look like mN"]),
+                          "its name states the unit"], ["look like mN"]),
     # a negative load is no mN slip, whatever the unit (1 lbf = 4.448 N)
     ("load [lbf]", [-1.0, 1.0], ["load [lbf] runs -1 to 1 lbf", "load_N is not negative"], ["look like mN"]),
     ("load_N", [-2.0, 3.0], ["load_N is not negative"], ["look like mN"]),

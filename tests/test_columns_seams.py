@@ -543,7 +543,7 @@ def test_refusals_name_keys_and_values_as_sent_at_prediction(client, calibration
     detail = _problem(client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5,
                                                                         "temperature [degF]": -500})),
                       "/conditions/temperature [degF]")
-    assert "-500 to -500 degF (-295.6 to -295.6 degC), below absolute zero" in detail, detail
+    assert "-500 to -500 degF (-295.6 to -295.6 degC), at or below absolute zero" in detail, detail
     # a humidity whose key states percent is judged in percent, not as a fraction that "looks like percent"
     detail = _problem(client.post("/v1/friction", json=_point(model, {"relative humidity [%]": 120,
                                                                         "temp_K": 303.15})),
@@ -597,7 +597,7 @@ def test_a_slip_is_judged_in_the_unit_a_key_states_and_said_as_sent(client, cali
     detail = _problem(client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5,
                                                                         "temp [degC]": -300})),
                       "/conditions/temp [degC]")
-    assert "temp [degC] runs -300 to -300 degC, below absolute zero" in detail, detail
+    assert "temp [degC] runs -300 to -300 degC, at or below absolute zero" in detail, detail
     # text is read unconverted: the refusal says which column, never a converted value it does not have
     detail = _problem(client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5,
                                                                         "temp [degF]": "86"})),
@@ -628,3 +628,86 @@ def test_a_first_design_for_parameters_no_run_moves_is_refused_at_submit(client)
     alone = client.post("/v1/experiments", json={"runs": 2, "fit_parameters": ["mu_pivot"], "space": space})
     assert alone.status_code == 202, alone.text
     assert wait_job(client, alone)["status"] == "succeeded"
+
+
+def _intake(client, header: str, values: list[float]):
+    text = f"balls,load_N,speed_m_s,{header},mu_measured\n" + "".join(
+        f"{4 + 2 * (i % 3)},{0.005 + 0.001 * i},{0.02 + 0.005 * i},{v},0.0{3 + i % 5}\n"
+        for i, v in enumerate(values))
+    return client.post("/v1/calibrations/csv/intake", content=text, headers={"content-type": "text/csv"})
+
+
+def test_the_upload_judges_a_stated_unit_as_every_other_door(client, calibration):
+    # 250 under [degC] looks like kelvin at prediction, so the upload refuses it too (it had stored it,
+    # and then its own model could not be asked at its data with the same key); -200 degC (73 K) is a
+    # cold test at both (the upload had refused it in kelvin's words)
+    hot = [250.0 + i for i in range(16)]
+    assert "look like kelvin" in _intake(client, "temp [degC]", hot).text
+    point = _point(calibration["model_id"], {"relative_humidity": 0.5, "temp [degC]": 255})
+    assert "look like kelvin" in _problem(client.post("/v1/friction", json=point), "/conditions/temp [degC]")
+    assert _intake(client, "temp [degC]", [-200.0 + i for i in range(16)]).status_code == 200
+    # said as sent, advised in the header's own spelling
+    detail = _intake(client, "temp [K]", [100.0 + i for i in range(16)]).text
+    assert "temp [K] runs 100 to 115 K" in detail and "send them as 'temp [degC]'" in detail, detail
+
+
+def test_json_rows_give_quantities_as_numbers_and_every_key_a_name(client):
+    rows = [{"balls": 4 + 2 * (i % 3), "load_N": 0.005 + 0.001 * i, "speed_m_s": 0.02 + 0.005 * i,
+             "cycles [kcycles]": str(1 + i), "mu_measured": 0.03 + 0.001 * i} for i in range(16)]
+    # text under a unit had been stored unconverted (cycles 1..16 for 1000..16000)
+    response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"]})
+    assert response.status_code == 422 and "takes a number, not text ('1')" in response.text, response.text
+    assert "/data/0/cycles [kcycles]" in response.text
+    # an unnamed index column: refused at submit (its job had failed with a 500)
+    unnamed = [{"": i, **{k: v for k, v in row.items() if k != "cycles [kcycles]"}}
+               for i, row in enumerate(rows)]
+    response = client.post("/v1/calibrations", json={"data": unnamed, "fit_parameters": ["mu_pivot"]})
+    assert response.status_code == 422 and "every key must name its column" in response.text, response.text
+
+
+def test_prediction_doors_agree_on_stated_units_lists_and_absolute_zero(client, calibration):
+    model = calibration["model_id"]
+    # a slip warning says the key and value as typed (2000 mN, not "load_N runs 2 N ... look like mN")
+    warned = client.post("/v1/friction", json={"balls": 4, "load [mN]": 2000, "speed_m_s": 0.05}).json()
+    assert warned["input_warnings"][0].startswith("load [mN] runs 2000 to 2000 mN (load_N 2 to 2 N)"), warned
+    # two units in one key are refused, never converted twice (30 degC had been read again as degF)
+    two = _point(model, {"relative_humidity": 0.5, "temp (degF) [degC]": 30})
+    detail = _problem(client.post("/v1/friction", json=two), "/conditions/temp (degF) [degC]")
+    assert "states two units" in detail, detail
+    # absolute zero is no temperature, whatever the unit it is sent in
+    for key, value in (("temp [degC]", -273.15), ("temp_K", 0.0)):
+        zero = _point(model, {"relative_humidity": 0.5, key: value})
+        assert client.post("/v1/friction", json=zero).status_code == 422, (key, value)
+    # a list mixing numbers and text gets one sentence at its key, not pydantic's per member
+    batch = {"points": {"balls": [4, 4], "load_N": 0.01, "speed_m_s": 0.05}, "model": model,
+             "conditions": {"relative_humidity": ["0.5", 0.6], "temp_K": 300.0}}
+    detail = _problem(client.post("/v1/friction/batch", json=batch), "/conditions/relative_humidity")
+    assert "not both" in detail and "valid string" not in detail, detail
+    # [v] is one value at optimizations as in experiment spaces; -200 degC is not re-judged in kelvin
+    body = {"bounds": {"balls": [4, 6], "groove_angle_deg": [50, 55], "load_N": [0.008, 0.012]},
+            "speed_m_s": 0.05, "model": model, "time_limit_s": 5, "starts": 1}
+    for conditions in ({"relative_humidity": [0.5], "temp_K": 300.0},
+                       {"relative_humidity": 0.5, "temp [degC]": -200}):
+        response = client.post("/v1/optimizations", json={**body, "conditions": conditions})
+        assert response.status_code in (200, 202), response.text
+        if response.status_code == 202:
+            client.delete(response.headers["location"])
+    # UM-Bridge names a varied input by its key as sent, unconverted or not
+    slipped = client.post("/umbridge/Evaluate", json={
+        "name": model, "input": [[0.01, 0.05, 1.5]],
+        "config": {"inputs": ["load_N", "speed_m_s", "relative_humidity [1]"], "fixed": {"balls": 4}}})
+    assert slipped.status_code == 400 and "(relative_humidity [1])" in slipped.text, slipped.text
+
+
+def test_experiment_requests_a_job_would_refuse_are_refused_at_submit(client):
+    space = {"balls": [4, 8], "load_N": [0.003, 0.03], "speed_m_s": [0.02, 0.15]}
+    # an envelope without a column of the space
+    envelope = {"balls": [6], "load_N": [0.01]}
+    partial = client.post("/v1/experiments", json={"runs": 2, "fit_parameters": ["mu_pivot"], "space": space,
+                                                   "goal": "predict", "envelope": envelope})
+    assert "give the columns of the space too (speed_m_s)" in _problem(partial, "/envelope")
+    # a fitted parameter the space also sets ("widen the space" could not help)
+    fitted = ["mu_pivot", "groove_angle_deg"]
+    both = client.post("/v1/experiments", json={"runs": 2, "fit_parameters": fitted,
+                                                "space": {**space, "groove_angle_deg": [30, 60]}})
+    assert "is a fitted parameter" in _problem(both, "/space/groove_angle_deg")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import Annotated, Any
 
-from pydantic import Field, PrivateAttr, create_model, model_validator
+from pydantic import BeforeValidator, Field, PrivateAttr, create_model, model_validator
 
 from microbearing import physics
 from microbearing.physics.columns import ColumnError, read_name
@@ -124,6 +124,21 @@ FrictionBatchPoints = create_model(
 )
 
 
+def _one_kind(value: Any) -> Any:
+    """A condition's list holds numbers or labels, never both: one sentence, not each member's of the
+    union (``["0.5", 0.6]`` had its valid 0.6 called "not a valid string")."""
+    if isinstance(value, list):
+        kinds = {"text" if isinstance(v, str) else "number" for v in value if v is not None}
+        if len(kinds) > 1:
+            raise ValueError(f"a list holds numbers or a factor column's labels, not both; got {value[:5]!r}"
+                             f"{' ...' if len(value) > 5 else ''}: send numbers as numbers")
+    return value
+
+
+#: A condition column of a batch: one value or label for every point, or a list of one per point.
+_ConditionColumn = Annotated[float | str | list[float] | list[str], BeforeValidator(_one_kind)]
+
+
 class FrictionBatchRequest(StrictModel):
     """Many design points as columns, and the outputs wanted."""
 
@@ -137,7 +152,7 @@ class FrictionBatchRequest(StrictModel):
             "Reading of the paper's ambiguous ball-ball terms; a calibrated model uses its own (naming "
             "another is a 422)."))
     model: str = MODEL_FIELDS["model"][1]
-    conditions: Annotated[dict[str, float | str | list[float] | list[str]] | None, ColumnKeys] = Field(
+    conditions: Annotated[dict[str, _ConditionColumn] | None, ColumnKeys] = Field(
         default=None, description=(
         "Condition columns of the calibration data for a calibrated model, e.g. relative_humidity [1] "
         "[unit of each column as in the calibration data]: a number for every point or a list of one "

@@ -109,8 +109,11 @@ class ConditionSpan(StrictModel):
 
 
 def _condition_spelling(value: Any) -> Any:
-    """A condition's value or range as the other routes spell it: a longer list, or a set of values
-    (``{"values": [...]}``, which the design has no worst case over), refused in words."""
+    """A condition's value or range as the other routes spell it (:func:`physics.columns.read_span`): ``[v]``
+    is the one value v; a longer list, or a set of values (``{"values": [...]}``, which the design has no
+    worst case over), refused in words."""
+    if isinstance(value, list) and len(value) == 1:
+        return value[0]
     if isinstance(value, list) and len(value) != 2:
         raise ValueError(f"a list of {len(value)} values is ambiguous: a range is [low, high] or "
                          f"{{\"low\": low, \"high\": high}}, one value a number")
