@@ -87,6 +87,7 @@ def read_points(path: str, separator: str | None, decimal: str | None) -> Points
     keys = [c.name if c.name in physics.PARAMETERS else c.sent.strip() for c in table.columns]
     values: dict[str, list[Any]] = {key: [] for key in keys}
     lines = table.intake.row_lines  # each row's line in the file (after a sep= line, one further)
+    text_at: dict[str, str] = {}  # a condition column's first text cell, where
     for number, (row, sent_row) in enumerate(zip(rows, sent_rows, strict=True)):
         line = lines[number] if number < len(lines) else number + table.intake.header_line + 1
         if len(row) != len(table.columns):
@@ -95,10 +96,44 @@ def read_points(path: str, separator: str | None, decimal: str | None) -> Points
         for column, key, text, sent in zip(table.columns, keys, row, sent_row, strict=True):
             spec = physics.PARAMETERS.get(column.name)
             where = f"{path}: line {line}, column {column.sent}"
-            values[key].append(value_of(spec, text, where) if spec is not None else _condition(sent))
+            value = value_of(spec, text, where) if spec is not None else _condition(sent)
+            if spec is None and isinstance(value, str):
+                text_at.setdefault(key, f"{where}: {sent.strip()!r}")
+            values[key].append(value)
+    for key, where in text_at.items():  # numbers and labels in one column: the first label is the slip
+        if any(not isinstance(v, str) for v in values[key]):
+            raise CommandError(f"{where} is not a number, though the column's other cells are; only a "
+                               f"factor column holds labels", EXIT_INVALID)
     inputs = {name: np.asarray(column) for name, column in values.items() if name in physics.PARAMETERS}
+    for j, column in enumerate(table.columns):  # a value out of range refused at its line, as typed
+        if column.name in inputs:
+            _check_column(path, column, inputs[column.name], [r[j] for r in sent_rows], lines,
+                          table.intake.header_line)
     conditions = {name: column for name, column in values.items() if name not in physics.PARAMETERS}
     return Points(inputs, conditions, len(rows))
+
+
+def _check_column(path: str, column: Any, values: Any, sent: list[str], lines: list[int],
+                  header_line: int) -> None:
+    """A physics input's column within its range (:func:`physics.validate`), else refused at the line of
+    its first bad cell, by the value as typed."""
+    from microbearing import physics
+
+    try:
+        physics.validate(column.name, values)
+        return
+    except ValueError:
+        pass
+    for number, value in enumerate(values.tolist()):  # only on the error path: find the cell
+        try:
+            physics.validate(column.name, value)
+        except ValueError as exc:
+            line = lines[number] if number < len(lines) else number + header_line + 1
+            typed = f"{column.sent}: {sent[number].strip()}"
+            read = f"{column.name}: {value:g}"
+            said = "" if column.sent.strip() == column.name else f" (sent as {typed}, read as {read})"
+            raise CommandError(f"{path}: line {line}, column {column.sent}: {exc}{said}",
+                               EXIT_INVALID) from None
 
 
 def _condition(text: str) -> float | str:

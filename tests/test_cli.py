@@ -154,6 +154,20 @@ def test_evaluate_csv_warns_of_a_unit_slip_in_the_words_calibrate_refuses_it_wit
     assert error.endswith("a condition column is read by a calibrated model only (--model ID)")
 
 
+def test_evaluate_csv_names_a_bad_cell_by_its_file_line_and_value_as_typed(capsys, tmp_path):
+    points = tmp_path / "points.csv"
+    points.write_text("balls,load [mN],speed_m_s\n4,10,0.05\n4,-5,0.05\n")
+    code, _, err = run(capsys, "evaluate", "--csv", str(points))
+    error = err.strip().splitlines()[-1]
+    assert code == EXIT_INVALID and "line 3, column load [mN]" in error, error
+    assert "(sent as load [mN]: -5, read as load_N: -0.005)" in error, error
+    # text among a condition's numbers is named at its line (hand: line 3 is the second data row)
+    points.write_text("balls,load_N,speed_m_s,cycles [kcycles]\n4,0.01,0.05,5\n4,0.01,0.05,abc\n")
+    code, _, err = run(capsys, "evaluate", "--csv", str(points))
+    error = err.strip().splitlines()[-1]
+    assert code == EXIT_INVALID and "line 3, column cycles [kcycles]: 'abc' is not a number" in error, error
+
+
 def test_every_command_that_reads_or_writes_the_store_takes_data_dir():
     from microbearing.service.cli import build_parser
 
