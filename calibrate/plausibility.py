@@ -6,7 +6,7 @@ and whether it is an ``error`` (the calibration is refused: a 422 in the service
 or a ``warning`` (the calibration runs and the report says it). :func:`check_plausible` raises the
 errors as one :class:`calibrate.data.DataError` and returns the warnings.
 
-The rules (documented here, and nowhere else decided):
+The rules (decided once, in :mod:`physics.slips`, for every door; listed here for the upload):
 
 ======================  ===============================================  ==========  ==================
 column                  rule                                             severity    likely cause
@@ -16,7 +16,7 @@ column                  rule                                             severit
 ``ball_diameter_m``     largest value above 1 cm                         error       mm (or um)
 humidity (fraction)     a value above 1 or below 0                       error       percent
 humidity (percent)      a value above 100 or below 0                     error       not percent
-temperature (degC)      a value below -273.15 degC                       error       impossible
+temperature (degC)      a value at or below -273.15 degC                 error       impossible
 temperature (degC)      a value above 200 degC                           error       kelvin
 temperature (K)         a value below 150 K                              error       degC
 ``mu_measured``         a value above 1                                  warning     percent, or a force
@@ -32,10 +32,12 @@ ones the effects declare (:data:`physics.drivers.HUMIDITY`, :data:`physics.drive
 own validation still applies to every physics column first (a negative load is refused by
 :func:`calibrate.data.parse_rows`).
 
-A column sent in another unit than its own, its header saying so (``speed [mm/s]``, ``relative
-humidity [%]``, ``temperature [degC]``), is judged by the same rules on its SI values, but its finding
-is said in the unit sent, with the plausible range in that unit, and suggests no other name: the
-header already states the unit, so the values are what to check.
+A column sent under a header that states its unit (``speed [mm/s]``, ``relative humidity [%]``,
+``temperature [degC]``, ``temp [K]``) is judged in that unit, as a key stating it is at every other door
+(:func:`physics.slips.read_slip`): ``temp [degC]`` at -200 is a cold test (no kelvin slip), at 250 it
+looks like kelvin; the finding says the header and values as sent and advises in the header's own
+spelling (``send them as 'temp [K]'``); a physics input beyond its limit says its name states the unit,
+so the values are what to check.
 """
 
 from __future__ import annotations
