@@ -92,7 +92,9 @@ def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool,
     try:
         check_request(dataset, fit_parameters, folds)
     except DataError as exc:  # implausible values (calibrate.plausibility), one item per column
-        errors = exc.errors if intake is None else intake.locate(exc.errors)
+        # a column named by its key as sent (temp [K], not temp_K); a file's by its letter and header cell
+        errors = ([{**e, "column": dataset.headers.get(e.get("column"), e.get("column"))} for e in exc.errors]
+                  if intake is None else intake.locate(exc.errors))
         raise data_problem(errors, data_pointer=None if query else "/data") from None
     except ValueError as exc:
         field = str(exc).split(" ", 1)[0].rstrip(":")
