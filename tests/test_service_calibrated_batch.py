@@ -148,7 +148,8 @@ def test_a_calibrated_batch_evaluates_the_physics_a_fixed_number_of_times(client
     ({"conditions": None}, "/conditions", "relative_humidity"),
     ({"conditions": {"relative_humidity": 0.5, "load_N": 0.01}}, "/conditions/load_N", "physics input"),
     ({"conditions": {"relative_humidity": [0.5, 0.6, 0.7]}}, "/conditions/relative_humidity", "length"),
-    ({"conditions": {"relative_humidity": [0.5, "wet"]}}, "/conditions/relative_humidity/1", None),
+    ({"conditions": {"relative_humidity": [0.5, "wet"]}}, "/conditions/relative_humidity",
+     "element 1 is 'wet' among numbers"),
     ({"conditions": {"relative_humidity": []}}, "/conditions/relative_humidity", "empty"),
     ({"conditions": {"relative_humidity": [0.5, 1.0]}}, "/conditions/relative_humidity",  # log(1/RH) = 0
      "outside (0, 1)"),

@@ -39,12 +39,12 @@ def test_an_out_of_range_speed_in_mm_s_is_said_in_mm_s():
 def test_implausible_percent_and_degc_columns_are_said_in_their_units_without_renaming_advice():
     rows = [f"0.01,0.02,{150 if i == 4 else 25},0.01" for i in range(10)]
     [message] = problems(csv("load_N,speed_m_s,relative humidity [%],mu_measured", rows))
-    assert "runs 25 to 150 %" in message and "between 0 and 100 %" in message
+    # judged in the unit the header states, in the words every door uses (physics.slips.read_slip)
+    assert "relative humidity [%] runs 25 to 150 %: it lies in [0, 100]" in message, message
     assert "name the column" not in message and "divide by 100" not in message
     rows = [f"0.01,0.02,{-300 if i == 4 else 25},0.01" for i in range(10)]
     [message] = problems(csv("load_N,speed_m_s,temperature [degC],mu_measured", rows))
-    # By hand: -300 degC is -26.85 K; the plausible floor 150 K is -123.15 degC.
-    assert "runs -300 to 25 degC" in message and "-26.85" in message and "at least -123" in message
+    assert "temperature [degC] runs -300 to 25 degC, at or below absolute zero" in message, message
     assert "name the column" not in message
     # A column named without a unit keeps the slip's advice (its name is what to fix).
     rows = [f"0.01,0.02,{40 if i == 4 else 0.3},0.01" for i in range(10)]

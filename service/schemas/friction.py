@@ -128,10 +128,13 @@ def _one_kind(value: Any) -> Any:
     """A condition's list holds numbers or labels, never both: one sentence, not each member's of the
     union (``["0.5", 0.6]`` had its valid 0.6 called "not a valid string")."""
     if isinstance(value, list):
-        kinds = {"text" if isinstance(v, str) else "number" for v in value if v is not None}
-        if len(kinds) > 1:
-            raise ValueError(f"a list holds numbers or a factor column's labels, not both; got {value[:5]!r}"
-                             f"{' ...' if len(value) > 5 else ''}: send numbers as numbers")
+        texts = [i for i, v in enumerate(value) if isinstance(v, str)]
+        if texts and len(texts) < len(value):  # the odd one out: text among numbers, or the reverse
+            odd = texts[0] if len(texts) <= len(value) - len(texts) else next(
+                i for i, v in enumerate(value) if not isinstance(v, str))
+            raise ValueError(f"a list holds numbers or a factor column's labels, not both: element {odd} is "
+                             f"{value[odd]!r} among {'numbers' if odd in texts else 'labels'}; send numbers "
+                             f"as numbers")
     return value
 
 
