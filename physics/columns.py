@@ -136,6 +136,11 @@ _SI_BY_DIMENSION = {"[length]": ("m", "m"), "[time]": ("s", "s"), "[length] / [t
 _BRACKETS = re.compile(r"^(?P<name>.*?)\s*(\[(?P<square>[^\]]*)\]|\((?P<round>[^)]*)\))\s*$")
 
 
+def _bracket_unit(match: re.Match) -> str:
+    """The unit text in the brackets of a name :data:`_BRACKETS` matched (``mm/s`` of ``speed [mm/s]``)."""
+    return match.group("square") if match.group("square") is not None else match.group("round")
+
+
 def _words(name: str) -> list[str]:
     return [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
 
@@ -225,7 +230,7 @@ class Reading:
             return None
         match = _BRACKETS.match(self.sent.strip())
         if match and match.group("name"):
-            return match.group("square") if match.group("square") is not None else match.group("round")
+            return _bracket_unit(match)
         base = next((b for b in sorted(input_bases(), key=len, reverse=True)
                      if self.sent.lower().startswith(b + "_")), None)
         if base is not None:
@@ -313,6 +318,9 @@ def _condition_base(text: str) -> str:
 
 
 def _condition_of(name: str) -> Condition | None:
+    """The named condition a column is (None: a physics input, or no named condition)."""
+    if name in PARAMETERS:
+        return None
     found = next((c for c in CONDITIONS.values() if c.matches(name)), None)
     if found is None:
         # T with a temperature unit (T [K] read as T_K, T_degC): a temperature, though T alone is no name
@@ -328,7 +336,7 @@ def counted_from_zero(name: str) -> bool:
     >>> counted_from_zero("cycles"), counted_from_zero("time_min"), counted_from_zero("speed_m_s")
     (True, True, False)
     """
-    condition = None if name in PARAMETERS else _condition_of(name)
+    condition = _condition_of(name)
     return condition is not None and condition.from_zero
 
 
@@ -339,7 +347,7 @@ def physical_range(name: str) -> tuple[float | None, float | None]:
     >>> physical_range("time_min"), physical_range("RH_pct"), physical_range("temp_C")
     ((0.0, None), (0.0, 100.0), (-273.15, None))
     """
-    condition = None if name in PARAMETERS else _condition_of(name)
+    condition = _condition_of(name)
     if condition is None:
         return None, None
     unit, quantity = unit_of(name) or condition.unit, _registry().Quantity
@@ -355,10 +363,14 @@ def outside_mask(name: str, values: Any, low: float | None, high: float | None) 
     ([True, False], array([False]))
     """
     values = np.asarray(values, dtype=float)
-    condition = None if name in PARAMETERS else _condition_of(name)
-    below = values <= low if low is not None and condition is not None and condition.exclusive_minimum else (
+    below = values <= low if low is not None and _excludes_minimum(name) else (
         values < (-np.inf if low is None else low))
     return below | (values > (np.inf if high is None else high))
+
+
+def _excludes_minimum(name: str) -> bool:
+    condition = _condition_of(name)
+    return condition is not None and condition.exclusive_minimum
 
 
 def outside_range(name: str, values: Any, low: float | None, high: float | None, unit: str) -> str | None:
@@ -376,8 +388,7 @@ def outside_range(name: str, values: Any, low: float | None, high: float | None,
     if not bad.size:
         return None
     shown = ", ".join(f"{v:g}" for v in bad[:3]) + (", ..." if bad.size > 3 else "")
-    condition = None if name in PARAMETERS else _condition_of(name)
-    left = "(" if condition is not None and condition.exclusive_minimum else "["
+    left = "(" if _excludes_minimum(name) else "["
     bounds = f"{left}{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
     plural = bad.size > 1
     return (f"value{'s' if plural else ''} {shown} lie{'' if plural else 's'} outside {bounds} [{unit}], the "
@@ -486,10 +497,9 @@ def _is_unit(text: str) -> bool:
 
 def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
     name_text = match.group("name")
-    unit_text = match.group("square") if match.group("square") is not None else match.group("round")
+    unit_text = _bracket_unit(match)
     inner = _BRACKETS.match(name_text.strip())
-    first = None if not (inner and inner.group("name")) else (
-        inner.group("square") if inner.group("square") is not None else inner.group("round"))
+    first = _bracket_unit(inner) if inner and inner.group("name") else None
     if first is not None and _is_unit(first):  # temp (degF) [degC]: which? never converted twice
         raise ColumnError(sent, f"{sent!r} states two units ({first} and {unit_text}); keep one, e.g. "
                                 f"'{inner.group('name').strip()} [{unit_text}]'")

@@ -26,6 +26,7 @@ from .columns import (
     SLIP_LIMITS,
     ColumnError,
     Reading,
+    _bracket_unit,
     _condition_of,
     _dimension,
     _registry,
@@ -196,7 +197,7 @@ def _stated_slip(first: Reading, array: np.ndarray) -> tuple[bool, str | None]:
     ``load (gf)`` at 1e6 is said in gf. Any other key is judged by the names it is read as."""
     match = _BRACKETS.match(first.sent.strip())
     if match and match.group("name"):  # temp [K]: stated, though read as temp_K unconverted
-        stated = match.group("square") if match.group("square") is not None else match.group("round")
+        stated = _bracket_unit(match)
     else:
         stated = first.sent_unit if first.reading else None
     if stated is None:
@@ -208,7 +209,7 @@ def _stated_slip(first: Reading, array: np.ndarray) -> tuple[bool, str | None]:
             own = False
         return True, physics_slip(first.name, np.asarray(first.convert(array), dtype=float),
                                    (first.sent, array, stated, own))
-    condition = None if first.name in PARAMETERS else _condition_of(first.name)
+    condition = _condition_of(first.name)
     if condition is CONDITIONS["relative_humidity"]:
         fraction = stated.strip() in ("1", "fraction")
         top, lo, hi = 1.0 if fraction else 100.0, float(np.min(array)), float(np.max(array))
