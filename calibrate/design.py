@@ -495,11 +495,8 @@ def plan(
         raise DesignError(f"goal must be one of {', '.join(GOALS)}; got {goal!r}")
     if runs < 1:
         raise DesignError(f"runs must be at least 1; got {runs}")
-    n = _count(candidates)
-    if n < 1:
-        raise DesignError("there are no candidate points")
     sigma, b, fixed, planned_b = _information(model, candidates, planned)
-    p = b.shape[1]
+    n, p = b.shape
     if goal != "discriminate":
         _check_identifiable(model, fixed + b.T @ b)
     scale = _parameter_scale(b, fixed, runs)
@@ -578,6 +575,8 @@ def _information(model: DesignModel, candidates: Mapping[str, np.ndarray],
     """A measurement's scatter at the candidates, their sensitivities in its units (rows), the information
     held before any run (the prior's and the planned runs') and the planned runs' scaled sensitivities."""
     n = _count(candidates)
+    if n < 1:
+        raise DesignError("there are no candidate points")
     sigma = np.broadcast_to(np.asarray(model.scatter_sd(candidates), dtype=float), (n,))
     if not np.all(np.isfinite(sigma) & (sigma > 0)):
         raise DesignError("the scatter's standard deviation must be positive and finite at every candidate")
@@ -605,8 +604,6 @@ def check_identifiable(model: DesignModel, candidates: Mapping[str, np.ndarray],
     DesignError
         Naming the combination of parameters no run moves.
     """
-    if _count(candidates) < 1:
-        raise DesignError("there are no candidate points")
     _, b, fixed, _ = _information(model, candidates, planned)
     total = fixed + b.T @ b
     if np.all(np.isfinite(total)):  # else the design says where the model has no finite mu

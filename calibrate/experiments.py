@@ -539,6 +539,11 @@ def _with_envelope(candidates: Mapping[str, np.ndarray], envelope: Mapping[str, 
             for k, v in candidates.items()}
 
 
+def _envelope_points(envelope: Mapping[str, Any], seed: int) -> dict[str, np.ndarray]:
+    """The points of an envelope (ranges and sets, :func:`read_space`) a proposal is judged over."""
+    return space_points(envelope, _ENVELOPE_POINTS, seed, sobol_points=64)
+
+
 def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, data,
              progress) -> ExperimentPlan:
     report = progress or (lambda fraction: None)
@@ -546,11 +551,8 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
     envelope_space, planned = request.envelope, request.planned
     candidates = candidate_points(space, seed)
     envelope = None
-    if envelope_space is not None:
-        envelope = space_points(envelope_space, _ENVELOPE_POINTS, seed, sobol_points=64)
-        missing = [n for n in space if n not in envelope]
-        if missing:
-            raise DesignError(f"envelope: give the columns of the space too ({', '.join(missing)})")
+    if envelope_space is not None:  # its columns the space's (check_request)
+        envelope = _envelope_points(envelope_space, seed)
     for field_name, points in (("space", candidates), ("envelope", envelope)):
         if points is None:
             continue
@@ -622,8 +624,7 @@ def check_identifiable(response: CalibratedResponse, request: ExperimentRequest)
     candidates = candidate_points(request.space, request.seed)
     envelope_space = request.envelope if request.goal == "predict" else None
     if envelope_space is not None and set(request.space) <= set(envelope_space):
-        envelope = space_points(envelope_space, _ENVELOPE_POINTS, request.seed, sobol_points=64)
-        candidates = _with_envelope(candidates, envelope, request.space)
+        candidates = _with_envelope(candidates, _envelope_points(envelope_space, request.seed), request.space)
     try:
         design_check(response, candidates, _planned_columns(request.space, request.planned, response.fixed))
     except DesignError as exc:
