@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["EXIT_FAILURE", "EXIT_FILE", "EXIT_INFEASIBLE", "EXIT_INVALID", "EXIT_OK", "CommandError",
-           "add_command", "assignments", "columns_of", "converted", "data_dir", "data_dir_option",
+           "add_command", "as_typed", "assignments", "columns_of", "converted", "data_dir", "data_dir_option",
            "defaults", "model_reference", "named_values", "open_store", "problem_error", "progress_bar",
            "read_bytes", "read_request", "reading", "slip_warnings", "value_of", "write_png", "write_text"]
 
@@ -153,10 +153,16 @@ def named_values(items: list[str], lists: bool = False) -> dict[str, list[Any]]:
                 physics.validate(spec.name, value)
             except ValueError as exc:
                 key = name.strip()
-                said = ("" if key == spec.name
-                        else f" (sent as {key}: {part.strip()}, read as {spec.name}: {value:g})")
+                said = as_typed(key, part, spec.name, value)
                 raise CommandError(f"{key}: {exc}{said}", EXIT_INVALID) from None
     return values
+
+
+def as_typed(key: str, typed: str, name: str, value: float) -> str:
+    """What a refusal adds about an input typed under another key: `` (sent as load [mN]: -5, read as
+    load_N: -0.005)``; nothing when it was typed under its own name."""
+    key = key.strip()
+    return "" if key == name else f" (sent as {key}: {typed.strip()}, read as {name}: {value:g})"
 
 
 def reading(name: str) -> Any:

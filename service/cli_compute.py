@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from contextlib import closing
 from dataclasses import dataclass
 from typing import Any
@@ -18,6 +19,7 @@ from .cli_common import (
     EXIT_OK,
     CommandError,
     add_command,
+    as_typed,
     assignments,
     data_dir,
     data_dir_option,
@@ -87,9 +89,13 @@ def read_points(path: str, separator: str | None, decimal: str | None) -> Points
     keys = [c.name if c.name in physics.PARAMETERS else c.sent.strip() for c in table.columns]
     values: dict[str, list[Any]] = {key: [] for key in keys}
     lines = table.intake.row_lines  # each row's line in the file (after a sep= line, one further)
+
+    def line_of(number: int) -> int:
+        return lines[number] if number < len(lines) else number + table.intake.header_line + 1
+
     text_at: dict[str, str] = {}  # a condition column's first text cell, where
     for number, (row, sent_row) in enumerate(zip(rows, sent_rows, strict=True)):
-        line = lines[number] if number < len(lines) else number + table.intake.header_line + 1
+        line = line_of(number)
         if len(row) != len(table.columns):
             raise CommandError(f"{path}: line {line}: {len(row)} values for {len(table.columns)} "
                                "columns", EXIT_INVALID)
@@ -107,16 +113,15 @@ def read_points(path: str, separator: str | None, decimal: str | None) -> Points
     inputs = {name: np.asarray(column) for name, column in values.items() if name in physics.PARAMETERS}
     for j, column in enumerate(table.columns):  # a value out of range refused at its line, as typed
         if column.name in inputs:
-            _check_column(path, column, inputs[column.name], [r[j] for r in sent_rows], lines,
-                          table.intake.header_line)
+            _check_column(path, column, inputs[column.name], [r[j] for r in sent_rows], line_of)
     conditions = {name: column for name, column in values.items() if name not in physics.PARAMETERS}
     return Points(inputs, conditions, len(rows))
 
 
-def _check_column(path: str, column: Any, values: Any, sent: list[str], lines: list[int],
-                  header_line: int) -> None:
-    """A physics input's column within its range (:func:`physics.validate`), else refused at the line of
-    its first bad cell, by the value as typed."""
+def _check_column(path: str, column: Any, values: Any, sent: list[str],
+                  line_of: Callable[[int], int]) -> None:
+    """A physics input's column within its range (:func:`physics.validate`), else refused at the file line
+    (``line_of`` a row's number) of its first bad cell, by the value as typed."""
     from microbearing import physics
 
     try:
@@ -128,11 +133,8 @@ def _check_column(path: str, column: Any, values: Any, sent: list[str], lines: l
         try:
             physics.validate(column.name, value)
         except ValueError as exc:
-            line = lines[number] if number < len(lines) else number + header_line + 1
-            typed = f"{column.sent}: {sent[number].strip()}"
-            read = f"{column.name}: {value:g}"
-            said = "" if column.sent.strip() == column.name else f" (sent as {typed}, read as {read})"
-            raise CommandError(f"{path}: line {line}, column {column.sent}: {exc}{said}",
+            said = as_typed(column.sent, sent[number], column.name, value)
+            raise CommandError(f"{path}: line {line_of(number)}, column {column.sent}: {exc}{said}",
                                EXIT_INVALID) from None
 
 

@@ -56,7 +56,7 @@ async def evaluate_friction(request: Request) -> Response:
         _refuse_conditions(body.conditions)
         document = {"convention": str(body.convention), **evaluate_point(given, body.convention)}
     # the upload's unit-slip rule, as a warning (the model answers as asked), judged as each key was sent
-    warnings = input_slips(given, {name: body.sent_as(name) for name in given})
+    warnings = input_slips(given, body.renamed)
     if warnings:
         document["input_warnings"] = warnings
     return Response(json_bytes(with_folding_safe_names(document)), media_type="application/json")
@@ -74,7 +74,7 @@ def _model_batch(request: FrictionBatchRequest, max_points: int, executor: Execu
     document = evaluate_batch_with_model(
         store, executor, request.model, points, request.conditions, request.outputs,
         str(request.convention) if "convention" in request.model_fields_set else None, max_points)
-    warnings = input_slips(points, {name: request.points.sent_as(name) for name in points})
+    warnings = input_slips(points, request.points.renamed)
     if warnings:
         document["input_warnings"] = warnings
     return json_bytes(with_folding_safe_names(document))
@@ -85,7 +85,7 @@ def _physics_inputs(request: FrictionBatchRequest, max_points: int) -> tuple[dic
     sent (the parsed request can be freed then)."""
     _refuse_conditions(request.conditions)
     inputs, count = column_arrays(request.points.model_dump(), max_points)
-    return inputs, count, input_slips(inputs, {name: request.points.sent_as(name) for name in inputs})
+    return inputs, count, input_slips(inputs, request.points.renamed)
 
 
 def _physics_batch(inputs: dict[str, Any], count: int, outputs: list[str] | None, convention: str,

@@ -88,6 +88,11 @@ class InputKeys(StrictModel):
         self._sent = dict(sent)
         return self
 
+    @property
+    def renamed(self) -> dict[str, tuple[str, Any]]:
+        """Every input of this body that was renamed: input -> (key as sent, value as sent)."""
+        return dict(self._sent)
+
     def sent_as(self, name: str) -> tuple[str, Any] | None:
         """The key and value a physics input ``name`` of this body was sent as, when it was renamed
         (``("load [mN]", [20, 5])`` for load_N); None when it was sent under its own name."""
