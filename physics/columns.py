@@ -529,6 +529,7 @@ def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
         return _physics_reading(sent, bases[key.lower()], unit, unit_text)
     dimension = _dimension(unit)
     base = _condition_base(name_text)
+    _refuse_qualified_input(sent, base, dimension, unit_text)
     if dimension == "dimensionless":
         return _converter(sent, base, unit, "1")
     if dimension not in _SI_BY_DIMENSION:
@@ -540,6 +541,24 @@ def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
     if dimension == "[temperature]" and _words(base) == ["t"]:
         base = "temperature"  # T [K]: the temperature, as the terms' drivers read it
     return _converter(sent, f"{base}_{suffix}", unit, si)
+
+
+def _refuse_qualified_input(sent: str, base: str, dimension: str, unit_text: str) -> None:
+    """Refuse a name that holds a physics input's name among other words, in that input's kind of unit.
+
+    ``load (normal) [mN]`` or ``drive speed [mm/s]`` would otherwise become a condition beside the
+    physics input (``load_(normal)_N``), which the physics never reads: which quantity it is, the user
+    says, by the input's own name or by a name without it.
+    """
+    words = _words(base)
+    for input_base, name in input_bases().items():
+        parts = input_base.split("_")
+        inside = any(words[i:i + len(parts)] == parts for i in range(len(words) - len(parts) + 1))
+        if inside and words != parts and _dimension(_unit(PARAMETERS[name].unit)) == dimension:
+            spoken = input_base.replace("_", " ")
+            raise ColumnError(sent, f"{sent!r} reads like the physics input {name} ({spoken}) with other "
+                                    f"words: send it as '{spoken} [{unit_text}]' if it is the bearing's "
+                                    f"{spoken}, or give another quantity a name without '{spoken}'")
 
 
 def read_name(sent: str, plain: Sequence[str] = ()) -> Reading:

@@ -52,7 +52,7 @@ _MAX_LISTED_ERRORS = 200
 
 
 def data_problem(errors: list[dict[str, Any]], fixed_pointer: str | None = "/fixed",
-                 data_pointer: str | None = "/data") -> ProblemError:
+                 data_pointer: str | None = "/data", rows: Sequence[Mapping[str, Any]] = ()) -> ProblemError:
     """A 422 problem listing the row-by-row errors of :class:`calibrate.DataError`.
 
     Parameters
@@ -92,7 +92,9 @@ def data_problem(errors: list[dict[str, Any]], fixed_pointer: str | None = "/fix
             cell = [str(row - 1)] + ([] if column is None else [column])
             items.append({"pointer": pointer_at(data_pointer, *cell), "detail": message})
         else:
-            items.append({"pointer": data_pointer, "detail": DataError.describe(e)})
+            first = next((i for i, row in enumerate(rows) if column in row), None)
+            at = data_pointer if first is None else pointer_at(data_pointer, str(first), column)
+            items.append({"pointer": at, "detail": DataError.describe(e)})
     if len(errors) > _MAX_LISTED_ERRORS:
         items.append({"pointer": "/body" if data_pointer is None else data_pointer,
                       "detail": f"... and {len(errors) - _MAX_LISTED_ERRORS} more problems in the data"})

@@ -118,7 +118,9 @@ def test_a_unit_slip_is_a_422_naming_the_column_through_json_and_csv(client):
     response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"]})
     assert response.status_code == 422 and response.headers["content-type"] == PROBLEM
     (error,) = response.json()["errors"]
-    assert error["pointer"] == "/data" and error["detail"].startswith("column speed_m_s: speed_m_s runs")
+    # the field: the column's key in the first row (a JSON pointer names a key, not a column)
+    assert error["pointer"] == "/data/0/speed_m_s"
+    assert error["detail"].startswith("column speed_m_s: speed_m_s runs")
     assert "values look like mm/s" in error["detail"]
     text = "\n".join([",".join(rows[0]), *(",".join(f"{v:.9g}" for v in r.values()) for r in rows)]) + "\n"
     response = client.post("/v1/calibrations/csv", content=text, headers={"content-type": "text/csv"})

@@ -162,3 +162,23 @@ def test_a_condition_is_judged_for_a_slip_in_the_unit_its_key_states_only(sent, 
 def test_a_physics_input_s_slip_is_said_as_sent(sent, values, words, not_words):
     message = read_slip(read_name(sent), values)
     assert all(w in message for w in words) and not any(w in message for w in not_words), message
+
+
+@pytest.mark.parametrize(("sent", "advice"), [
+    ("load (normal) [mN]", "'load [mN]'"), ("normal load [mN]", "'load [mN]'"),
+    ("speed (sliding) [mm/s]", "'speed [mm/s]'"), ("ball diameter (nominal) [um]", "'ball diameter [um]'"),
+    ("groove angle (measured) [deg]", "'groove angle [deg]'")])
+def test_a_physics_input_s_name_among_other_words_is_refused_never_a_new_condition(sent, advice):
+    # before: load (normal) [mN] became a force condition load_(normal)_N that the physics never reads
+    with pytest.raises(ColumnError) as refused:
+        read_name(sent)
+    assert advice in str(refused.value) and sent in str(refused.value)
+
+
+@pytest.mark.parametrize(("sent", "name"), [
+    ("load [mN]", "load_N"), ("preload [mN]", "preload_N"), ("motor speed [rpm]", "motor_speed_1_s"),
+    ("contact pressure [MPa]", "contact_pressure_Pa"), ("load ratio [1]", "load_ratio"),
+    ("pressure_viscosity [1/GPa]", "pressure_viscosity_1_Pa")])
+def test_other_quantities_whose_words_touch_an_input_s_stay_conditions(sent, name):
+    # another word (preload), another kind of unit (rpm, a ratio) or another input (pressure viscosity)
+    assert read_name(sent).name == name

@@ -711,3 +711,19 @@ def test_experiment_requests_a_job_would_refuse_are_refused_at_submit(client):
     both = client.post("/v1/experiments", json={"runs": 2, "fit_parameters": fitted,
                                                 "space": {**space, "groove_angle_deg": [30, 60]}})
     assert "is a fitted parameter" in _problem(both, "/space/groove_angle_deg")
+
+
+@pytest.mark.parametrize(("key", "replaces", "value", "pointer", "words"), [
+    ("load (normal) [mN]", "load_N", 5.0, "/data/0/load (normal) [mN]", "send it as 'load [mN]'"),
+    ("temp [degC]", None, 300.0, "/data/0/temp [degC]", "look like kelvin"),
+    ("speed [mm/s]", "speed_m_s", 5e4, "/data/0/speed [mm~1s]", "check the values")])
+def test_a_json_upload_s_column_problem_points_at_its_key(client, key, replaces, value, pointer, words):
+    # a JSON pointer names a key, not a column: the column's key in the first row (before: /data)
+    rows = [{"balls": 4, "load_N": 0.005, "speed_m_s": 0.05, "mu_measured": 0.03, key: value + i}
+            for i in range(20)]
+    for row in rows:
+        row.pop(replaces, None)
+    response = client.post("/v1/calibrations", json={"data": rows})
+    assert response.status_code == 422 and response.headers["content-type"] == PROBLEM, response.text
+    (error,) = response.json()["errors"]
+    assert error["pointer"] == pointer and words in error["detail"], error

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Depends, Query, Request
@@ -88,14 +89,14 @@ _MAX_FORM_FIELDS = 20
 
 
 def _check(dataset: Dataset, fit_parameters: list[str], folds: int, query: bool,
-           intake: Intake | None = None) -> None:
+           intake: Intake | None = None, rows: Sequence[Mapping[str, Any]] = ()) -> None:
     try:
         check_request(dataset, fit_parameters, folds)
     except DataError as exc:  # implausible values (calibrate.plausibility), one item per column
         # a column named by its key as sent (temp [K], not temp_K); a file's by its letter and header cell
         errors = ([{**e, "column": dataset.headers.get(e.get("column"), e.get("column"))} for e in exc.errors]
                   if intake is None else intake.locate(exc.errors))
-        raise data_problem(errors, data_pointer=None if query else "/data") from None
+        raise data_problem(errors, data_pointer=None if query else "/data", rows=rows) from None
     except ValueError as exc:
         field = str(exc).split(" ", 1)[0].rstrip(":")
         raise validation_problem([{"parameter": field, "detail": str(exc)} if query and field != "data"
@@ -133,10 +134,10 @@ def create_calibration(body: Annotated[CalibrationRequest, Body(openapi_examples
     try:
         dataset, intake = read_rows(body.data, fixed, body.factors, body.ignore)
     except DataError as exc:
-        raise data_problem(exc.errors) from None
+        raise data_problem(exc.errors, rows=body.data) from None
     fit_parameters = [str(name) for name in body.fit_parameters]
     folds = body.folds if "folds" in body.model_fields_set else default_folds(dataset.n_points)
-    _check(dataset, fit_parameters, folds, query=False)
+    _check(dataset, fit_parameters, folds, query=False, rows=body.data)
     intake.fitting = fitting_statement(dataset, fit_parameters)
     record = {"rows": dataset.n_points, "columns": _columns_of(dataset),
               "factors": sorted(dataset.factors), "fixed": fixed,
