@@ -121,11 +121,12 @@ def name_of(body: bytes) -> tuple[dict[str, Any], str]:
     return document, document["name"]
 
 
-def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], dict[str, str]]:
+def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], dict[str, str], dict[str, str]]:
     """``config.fixed`` by the model's input names: another unit of a condition's quantity converted
-    (:func:`physics.columns.match_column`), a condition that looks like a unit slip refused; with the key
-    each was sent under (for messages)."""
-    read, sent_as = {}, {}
+    (:func:`physics.columns.match_column`), a condition that looks like a unit slip refused, each value
+    checked; with the key each was sent under and, for a value converted, the key and value as typed
+    (``cycles [kcycles]: -1``), for messages."""
+    read, sent_as, typed_as = {}, {}, {}
     for sent, value in fixed.items():
         # the model's inputs and the other condition columns of its data (as /v1/friction takes them)
         reading = read_key(sent, model.column_checks) or Reading(sent, sent)  # none: named below
@@ -142,11 +143,20 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], di
             raise ProtocolError("InvalidInput", f"config.fixed.{sent}: must be a number, not {value!r}: "
                                                 f"only a factor column takes a label, a flag true or false")
         message = None if name in physics.PARAMETERS or text else read_slip(reading, value)
-        value = reading.convert(value) if reading.reading and not text else value
+        converted = bool(reading.reading) and not text
+        typed, value = value, reading.convert(value) if converted else value
         if message is not None:
             raise ProtocolError("InvalidInput", f"config.fixed.{sent}: {message}")
+        if check is not None:
+            try:
+                value = check.check(value)
+            except InputError as exc:  # the value as typed beside the one judged (-50 in mm/s: -0.05 m/s)
+                said = f" (sent as {sent}: {typed:g})" if converted else ""
+                raise ProtocolError("InvalidInput", f"config.fixed.{sent}: {exc}{said}") from None
         read[name], sent_as[name] = value, sent
-    return read, sent_as
+        if converted:
+            typed_as[name] = f"{sent}: {typed:g}"
+    return read, sent_as, typed_as
 
 
 def _keys_of(name: str, sent_inputs: list[str], inputs: list[str], fixed_as_sent: dict[str, str]) -> str:
@@ -203,6 +213,8 @@ class Setup:
         Per varying input, how its values are converted from the unit it was named in (None: its own).
     fixed_as_sent : dict of str to str
         The key of ``config.fixed`` each fixed input was sent under (messages name it).
+    fixed_as_typed : dict of str to str
+        Of each fixed input sent in another unit, its key and value as typed (``cycles [kcycles]: -1``).
     """
 
     model: Model
@@ -212,6 +224,7 @@ class Setup:
     points: int
     readings: tuple[Reading | None, ...] = ()
     fixed_as_sent: dict[str, str] = field(default_factory=dict)
+    fixed_as_typed: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def of(cls, model: Model, config: UMBridgeConfig, max_points: int) -> Setup:
@@ -229,7 +242,7 @@ class Setup:
         if config.points > max_points:
             raise ProtocolError("InvalidInput", f"config.points: {config.points} points per request; the "
                                 f"limit is {max_points}", status=413)
-        given, fixed_as_sent = _read_fixed(model, config.fixed)
+        given, fixed_as_sent, fixed_as_typed = _read_fixed(model, config.fixed)
         inputs, readings = _read_inputs(model, config.inputs or [n for n in model.default_inputs
                                                                  if n not in given])
         for part, names, known in (("config.inputs", inputs, model.column_checks),
@@ -248,18 +261,14 @@ class Setup:
         if missing:
             raise ProtocolError("InvalidInput", f"config.fixed: {model.reference} needs "
                                 f"{', '.join(missing)}: vary it in config.inputs or give it in config.fixed")
-        fixed = {}
-        for name, value in given.items():
-            try:
-                fixed[name] = model.column_checks[name].check(value)
-            except InputError as exc:
-                raise ProtocolError("InvalidInput", f"config.fixed.{fixed_as_sent[name]}: {exc}") from None
+        fixed = given  # checked by _read_fixed
         available = [*model.outputs, FLAG_OUTPUT]
         unknown = [n for n in config.outputs if n not in available]
         if unknown or len(set(config.outputs)) < len(config.outputs):
             raise ProtocolError("InvalidInput", f"config.outputs: each once, from {', '.join(available)}; "
                                 f"got {config.outputs}")
-        return cls(model, inputs, fixed, list(config.outputs), config.points, readings, fixed_as_sent)
+        return cls(model, inputs, fixed, list(config.outputs), config.points, readings, fixed_as_sent,
+                   fixed_as_typed)
 
     @property
     def input_sizes(self) -> list[int]:
@@ -301,9 +310,7 @@ class Setup:
         try:
             yield
         except InputError as exc:
-            sent = self.sent_key(exc.name)
-            words = "" if sent == exc.name else f" (sent as {sent}, read as {exc.name})"
-            raise ProtocolError("InvalidInput", f"{self.where(exc)}: {exc}{words}") from None
+            raise ProtocolError("InvalidInput", f"{self.where(exc)}: {exc}{self.as_sent(exc.name)}") from None
         except ProblemError as exc:
             raise protocol_error(exc.status, exc.detail) from None
         except ModelError as exc:  # a law's domain: named by the input or fixed key as sent
@@ -316,9 +323,12 @@ class Setup:
         name = pointer.rsplit("/", 1)[-1]
         if name not in self.inputs and name not in self.fixed:
             return f"{pointer}: {detail}"
-        sent = self.sent_key(name)
-        words = "" if sent == name else f" (sent as {sent}, read as {name})"
-        return f"{self.field(name, '*')}: {detail}{words}"
+        return f"{self.field(name, '*')}: {detail}{self.as_sent(name)}"
+
+    def as_sent(self, name: str) -> str:
+        """`` (sent as <key>[: <value as typed>], read as <name>)`` for another key, or ""."""
+        sent = self.fixed_as_typed.get(name) or self.sent_key(name)
+        return "" if sent == name else f" (sent as {sent}, read as {name})"
 
     def sent_key(self, name: str) -> str:
         """The key an input of the model was sent under: in ``config.inputs`` or ``config.fixed``."""

@@ -236,6 +236,9 @@ def test_um_bridge_reads_fixed_inputs_with_units_as_the_upload_does(client, cali
                        ({"speed [mm/s]": -50, "relative_humidity": 0.5}, "config.fixed.speed [mm/s]")):
         refused = evaluate(model, fixed)
         assert refused.status_code == 400 and refused.json()["error"]["message"].startswith(key), refused.text
+    # and gives the value as typed beside the one judged (it gave -0.05 alone for -50 mm/s)
+    refused = evaluate("physics", {"speed [mm/s]": -50})
+    assert refused.json()["error"]["message"].endswith("got -0.05 (sent as speed [mm/s]: -50)"), refused.text
 
 
 def test_an_experiment_space_may_name_columns_with_units():
