@@ -143,6 +143,8 @@ class RivalModel:
         terms = [term_from_json(t) for t in data.get("terms", [])]
         covariance = np.asarray(data.get("covariance", []), dtype=float)
         size = len(fitted) + sum(len(v) for _, v in terms)
+        if covariance.size == size == 0:  # nothing fitted: JSON's [] is the 0 x 0 matrix
+            covariance = covariance.reshape(0, 0)
         if covariance.shape != (size, size):
             raise ValueError(f"rivals: covariance must be {size} x {size}; got {covariance.shape}")
         return cls(str(data.get("label", "")), fitted, terms, covariance, float(data.get("gap_se", 0.0)))
@@ -760,6 +762,8 @@ class CalibratedModel:
         if covariance is not None:
             covariance = np.asarray(covariance, dtype=float)
             size = len(fitted) + sum(len(v) for _, v in terms)
+            if covariance.size == size == 0:  # nothing fitted: JSON's [] is the 0 x 0 matrix
+                covariance = covariance.reshape(0, 0)
             if covariance.shape != (size, size):
                 raise ValueError(f"covariance must be {size} x {size}; got {covariance.shape}")
         noise = data.get("noise_std_log")

@@ -79,3 +79,25 @@ def test_eight_rows_of_noise_are_not_said_to_hide_an_effect():
     assert report.discrepancy_gp["errors"]["relative_rmse"] < 0.9 * report.error_after["relative_rmse"]
     assert not any("no candidate term names" in w for w in report.warnings)
     assert any(u["kind"] == "few_rows" for u in report.undecided)
+
+
+def test_a_model_that_fits_nothing_reloads_and_predicts():
+    # no parameter named and no term needed: the covariance is 0 x 0, stored as JSON's []; reading it back
+    # refused it ("covariance must be 0 x 0; got (0,)"), so every door answered 500 for such a model
+    from microbearing.calibrate.model import CalibratedModel
+
+    rng = np.random.default_rng(0)
+    c, _ = _draw(rng, 12)
+    design = {k: c[k] for k in ("balls", "load_N", "speed_m_s")}
+    measured = physics.evaluate(**design).mu * np.exp(rng.normal(0.0, NOISE, 12))  # the declared model
+    rows = [{k: float(v[i]) for k, v in design.items()} | {"mu_measured": float(measured[i])}
+            for i in range(12)]
+    report = calibrate(parse_rows(rows), [], folds=4, make_plots=False)
+    model = report.model
+    assert not model.fitted and not model.terms and model.covariance.shape == (0, 0)
+    again = CalibratedModel.from_json(model.to_json())
+    assert again.covariance.shape == (0, 0)
+    point = {"balls": np.array([6.0]), "load_N": np.array([0.01]), "speed_m_s": np.array([0.05])}
+    before, after = model.predict(point), again.predict(point)
+    assert float(after.mu[0]) == float(before.mu[0]) == float(physics.evaluate(**point).mu[0])
+    assert 0 < float(after.mu_lower[0]) < float(after.mu[0]) < float(after.mu_upper[0])
