@@ -730,3 +730,20 @@ def test_a_json_upload_s_column_problem_points_at_its_key(client, key, replaces,
     assert response.status_code == 422 and response.headers["content-type"] == PROBLEM, response.text
     (error,) = response.json()["errors"]
     assert error["pointer"] == pointer and words in error["detail"], error
+
+
+def test_a_range_may_be_spelled_low_high_for_every_range_of_an_optimization(client):
+    # before: {low, high} was a range under 'speed [mm/s]' and in conditions, a 422 under speed_m_s and in
+    # bounds; a range now reads the same under every name of the route
+    listed = {"bounds": {"balls": [4, 8], "groove_angle_deg": [40, 70], "load_N": [0.005, 0.02]},
+              "speed_m_s": [0.02, 0.1]}
+    spelled = {"bounds": {"balls": {"low": 4, "high": 8}, "groove_angle_deg": {"low": 40, "high": 70},
+                          "load_N": {"low": 0.005, "high": 0.02}}, "speed_m_s": {"low": 0.02, "high": 0.1}}
+    answers = [client.post("/v1/optimizations", json=body) for body in (listed, spelled)]
+    assert [a.status_code for a in answers] == [200, 200], answers[1].text
+    assert answers[0].json()["design"] == answers[1].json()["design"]
+    assert answers[0].json()["worst_case"] == answers[1].json()["worst_case"]
+    for value, words in (({"values": [0.02, 0.1]}, "a set of values is no range"),
+                         ({"low": 0.02}, "the keys low and high")):
+        detail = _problem(client.post("/v1/optimizations", json={**listed, "speed_m_s": value}), "/speed_m_s")
+        assert words in detail, detail

@@ -37,21 +37,40 @@ _ANGLE = physics.PARAMETERS["groove_angle_deg"]
 
 
 def _pair(what: str) -> Field:
-    return Field(min_length=2, max_length=2, description=f"[lower, upper] {what}, both included.")
+    return Field(min_length=2, max_length=2,
+                 description=f"[lower, upper] {what}, both included (or {{low, high}}).")
+
+
+def _range_spelling(value: Any) -> Any:
+    """A range spelled as an object, ``{"low": a, "high": b}``, read as the pair ``[a, b]``, as every route
+    reads a range (a condition's here, an experiment space's); a set of values refused in words."""
+    if isinstance(value, dict) and "values" in value:
+        raise ValueError("a set of values is no range here: a range is [low, high] or {\"low\": low, "
+                         "\"high\": high}")
+    if isinstance(value, dict) and set(value) == {"low", "high"}:
+        return [value["low"], value["high"]]
+    if isinstance(value, dict):
+        raise ValueError(f"a range spelled as an object has the keys low and high, and only those; got "
+                         f"{', '.join(map(str, value)) or 'none'}")
+    return value
+
+
+#: The pair [low, high] of a range, also spelled {low, high}.
+RangeSpelling = BeforeValidator(_range_spelling)
 
 
 class DesignBounds(InputKeys):
     """Box of the three design variables (a name may carry its unit: ``load [mN]``, converted)."""
 
     balls: Annotated[list[Annotated[int, Field(ge=1, le=100_000), BeforeValidator(whole_number)]],
-                     _pair("total number of balls (both grooves) [1]")]
+                     _pair("total number of balls (both grooves) [1]"), RangeSpelling]
     groove_angle_deg: Annotated[list[Annotated[float, Field(ge=_ANGLE.minimum, le=_ANGLE.maximum)]],
-                                _pair(f"groove angle, {_ANGLE.range_text()} [deg]")]
+                                _pair(f"groove angle, {_ANGLE.range_text()} [deg]"), RangeSpelling]
     load_N: Annotated[list[Annotated[float, Field(ge=_LOAD.minimum, le=_LOAD.maximum)]] | None,
                       Field(default=None, min_length=2, max_length=2, description=(
-                          f"[lower, upper] normal load on the slider, {_LOAD.range_text()}, both "
-                          "included [N]; or give a payload in fixed.load_N instead (a given load, not a "
-                          "range)."))] = None
+                          f"[lower, upper] (or {{low, high}}) normal load on the slider, "
+                          f"{_LOAD.range_text()}, both included [N]; or give a payload in fixed.load_N "
+                          "instead (a given load, not a range).")), RangeSpelling] = None
 
 
 class DesignLimits(StrictModel):
@@ -165,9 +184,10 @@ class OptimizationRequest(InputKeys):
     bounds: DesignBounds = Field(description="Box of the design variables." + INPUT_KEYS)
     fixed: OptimizationFixed = Field(  # type: ignore[valid-type]
         default_factory=OptimizationFixed, description="Physics inputs held fixed." + INPUT_KEYS)
-    speed_m_s: float | Annotated[list[Annotated[float, Field(ge=0, le=1e3)]], Field(
-        min_length=2, max_length=2)] | None = Field(
-        default=None, description="Slider speed [m/s], or [low, high] to design for the worst case over "
+    speed_m_s: Annotated[float | Annotated[list[Annotated[float, Field(ge=0, le=1e3)]], Field(
+        min_length=2, max_length=2)] | None, RangeSpelling] = Field(
+        default=None, description="Slider speed [m/s], or [low, high] (or {low, high}) to design for the "
+        "worst case over "
         "the range (the operating envelope, with the condition ranges and tolerances; the result's "
         "worst_case says where it occurs and proof what is proven): for model physics the high end, proven "
         "(mu grows with speed); for a calibrated model its worst end when its terms are monotone, else the "
