@@ -304,10 +304,19 @@ class ReadConditions(dict):
     for a refusal's pointer, and :attr:`sent_values`: its value as sent, for a refusal's words."""
 
     def __init__(self, read: Mapping[str, Any], sent_as: Mapping[str, str] | None = None,
-                 sent_values: Mapping[str, Any] | None = None):
+                 sent_values: Mapping[str, Any] | None = None, readings: Mapping[str, Reading] | None = None):
         super().__init__(read)
         self.sent_as = dict(sent_as or {})
         self.sent_values = dict(sent_values or {})
+        self.readings = dict(readings or {})
+
+    def in_sent_units(self, name: str, value: Any) -> Any:
+        """A value of column ``name`` (in the model's unit) in the unit its key was sent in (``RH (%)``:
+        0.85 -> 85), to 12 significant digits; as it is when it was sent in the model's unit."""
+        reading = self.readings.get(name)
+        if reading is None or not reading.reading or isinstance(value, bool | str):
+            return value
+        return float(f"{reading.sent_value(value):.12g}")
 
     @classmethod
     def of(cls, conditions: Any) -> ReadConditions:

@@ -127,6 +127,7 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
     conditions, factors = ((), ()) if model is None else (model.conditions, model.factors)
     out: dict[str, Any] = {}
     sent_as: dict[str, str] = {}
+    readings: dict[str, Reading] = {}
     for sent, column in columns.items():
         reading = read_key(sent, conditions, factors)
         # a key nothing reads: check_request names it, with the model's columns; a factor holds labels
@@ -147,7 +148,8 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
             raise validation_problem([{"pointer": pointer_at(pointer, sent), "detail": (
                 f"{sent_as[reading.name]!r} is read as {reading.name} too; keep one")}])
         out[reading.name], sent_as[reading.name] = _converted(reading, column), sent
-    return ReadConditions(out, sent_as, {name: columns[key] for name, key in sent_as.items()})
+        readings[reading.name] = reading
+    return ReadConditions(out, sent_as, {name: columns[key] for name, key in sent_as.items()}, readings)
 
 
 @dataclass(frozen=True)
@@ -181,10 +183,27 @@ def _read_request(model: CalibratedModel | None, body: Any) -> _Read:
     return read
 
 
-def _document(plan: ExperimentPlan, model: str, job_id: str | None) -> dict[str, Any]:
-    """The result: the plan, the model, and the plot's URL when it ran as a job (None from the CLI)."""
+def _document(plan: ExperimentPlan, model: str, job_id: str | None,
+              read: _Read | None = None) -> dict[str, Any]:
+    """The result: the plan, the model, and the plot's URL when it ran as a job (None from the CLI); each
+    run also under the request's keys as sent, in their units (:func:`_as_sent`)."""
     url = None if job_id is None else f"/v1/experiments/{job_id}/plot.png"
-    return {**plan.to_dict(), "model": model, "plot_url": url}
+    document = {**plan.to_dict(), "model": model, "plot_url": url}
+    if read is not None:
+        document["runs"] = [{**run, "as_sent": _as_sent(run, read)} for run in document["runs"]]
+    return document
+
+
+def _as_sent(run: Mapping[str, Any], read: _Read) -> dict[str, Any]:
+    """A run's settings under the space's and fixed values' keys as sent, each in its unit (what a technician
+    sets: ``{"load [mN]": 3, "RH (%)": 85}``, where the run's own columns say load_N 0.003 and RH 0.85)."""
+    settings: dict[str, Any] = {}
+    for columns in (read.space, read.fixed):
+        for name in columns or {}:
+            value = run.get(name, run["inputs"].get(name, run["conditions"].get(name)))
+            if value is not None:
+                settings[columns.key(name)] = columns.in_sent_units(name, value)
+    return settings
 
 
 def next_experiments_job(store: Store, calibration_id: str, body: NextExperimentsRequest
@@ -237,7 +256,7 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
                                     progress=lambda f: ctx.progress(0.2 + 0.8 * f))
         except ValueError as exc:
             raise _field_problem(exc, sent) from None
-        document = _document(plan, MODEL_PREFIX + calibration_id, ctx.job_id)
+        document = _document(plan, MODEL_PREFIX + calibration_id, ctx.job_id, read)
         return {**document, "calibration_id": calibration_id}
 
     return work
@@ -276,7 +295,7 @@ def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict
                                      str(body.convention), ctx.progress)
         except ValueError as exc:
             raise _field_problem(exc, sent) from None
-        return {**_document(plan, "physics", ctx.job_id), "calibration_id": None}
+        return {**_document(plan, "physics", ctx.job_id, read), "calibration_id": None}
 
     return work
 

@@ -395,6 +395,33 @@ def test_an_experiment_space_reads_conditions_against_the_model_s_columns(client
     humidity = [run["conditions"]["relative_humidity"] for run in runs]
     assert min(humidity) >= 0.25 - 1e-12 and max(humidity) <= 0.75 + 1e-12, humidity
     assert {round(run["conditions"]["temp_K"], 9) for run in runs} <= {293.15, 313.15}, runs
+    # and each run says its settings under the keys as sent, in their units: what a technician sets
+    for run in runs:
+        assert set(run["as_sent"]) == set(space), run
+        assert run["as_sent"]["RH [%]"] == pytest.approx(100 * run["conditions"]["relative_humidity"])
+        assert run["as_sent"]["temp_degC"] == pytest.approx(run["conditions"]["temp_K"] - 273.15)
+        assert run["as_sent"]["load_N"] == run["load_N"] and run["as_sent"]["balls"] == run["balls"]
+
+
+def test_an_experiment_s_runs_speak_the_units_of_the_space_s_keys(client, calibration):
+    # before: a space in the upload's names ('load [mN]', 'relative humidity [%]') got runs only as load_N in
+    # N and the humidity as a fraction, which a technician could set as 0.85 %RH
+    space = {"balls": [4, 8], "load [mN]": [2, 20], "speed [mm/s]": [50], "relative humidity [%]": [25, 75],
+             "temp_F": [68, 104]}
+    response = client.post(f"/v1/calibrations/{calibration['model_id'].split(':')[1]}/next-experiments",
+                           json={"runs": 4, "goal": "parameters", "space": space,
+                                 "fixed": {"groove angle [rad]": 0.95}})
+    job = wait_job(client, response)
+    assert job["status"] == "succeeded", job
+    for run in client.get(job["result_url"]).json()["runs"]:
+        sent = run["as_sent"]
+        assert sent["load [mN]"] == pytest.approx(1000 * run["load_N"]) and 2 <= sent["load [mN]"] <= 20
+        assert sent["speed [mm/s]"] == pytest.approx(1000 * run["speed_m_s"]) == pytest.approx(50)
+        assert 25 <= sent["relative humidity [%]"] <= 75
+        assert sent["relative humidity [%]"] == pytest.approx(100 * run["conditions"]["relative_humidity"])
+        assert 68 <= sent["temp_F"] <= 104
+        assert sent["groove angle [rad]"] == pytest.approx(0.95)
+        assert run["inputs"]["groove_angle_deg"] == pytest.approx(0.95 * 180 / np.pi)
 
 
 def test_t_with_a_temperature_unit_is_the_temperature():

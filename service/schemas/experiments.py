@@ -189,6 +189,10 @@ class ProposedRun(ResponseModel):
     inputs: dict[str, float | bool] = Field(
         description="Other physics inputs of the space and of fixed, in their units (see /v1/parameters).")
     conditions: dict[str, float] = Field(description="Condition columns, in the calibration data's units.")
+    as_sent: dict[str, float | bool] = Field(default_factory=dict, description=(
+        "The run's settings under the keys of the request's space and fixed values as sent, each in the unit "
+        "its key states (what a technician sets: {'load [mN]': 3, 'RH (%)': 85} where load_N is 0.003 and "
+        "the column RH holds the fraction 0.85)."))
     mu: float = Field(description="mu the model predicts for the run [1].")
     mu_lower: float | None = Field(default=None, description="Lower end of its 95 % prediction interval "
                                                              "[1] (absent before a calibration).")
