@@ -237,10 +237,12 @@ def _saturation(mu: np.ndarray) -> tuple[Saturation, ...]:
     if values.size < 3:
         return ()
     found = []
+    # each end's pile against the ties between the ends: a sensor clipped at both ends has two piles, and
+    # neither may hide the other
+    between = counts[1:-1].max()
     for index, side in ((-1, "upper"), (0, "lower")):
         pile = counts[index]
-        others = np.delete(counts, index)
-        if pile >= max(_PILE_MIN, PILE_SHARE * mu.size) and pile >= _PILE_OVER_TIES * others.max():
+        if pile >= max(_PILE_MIN, PILE_SHARE * mu.size) and pile >= _PILE_OVER_TIES * between:
             found.append(Saturation(side, float(values[index]), int(pile), float(pile / mu.size)))
     return tuple(found)
 

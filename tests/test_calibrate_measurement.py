@@ -264,3 +264,22 @@ def test_constant_data_are_said_and_get_no_term(client):
     assert report["effects"] == [] and report["measurement_system"]["constant"] == 0.012
     assert report["measurement_system"]["saturation"] == []
     assert "constant data" in report["decision"]
+
+
+def test_a_sensor_clipping_at_both_ends_through_the_api(client):
+    # before: each end's pile was weighed against every other value's count, the other pile's included, so
+    # two piles hid each other: both were fitted as values and a law was invented for them
+    rng = np.random.default_rng(16)
+    n = 72
+    load = np.exp(rng.uniform(np.log(1e-3), np.log(3e-2), n))
+    speed = rng.uniform(0.01, 0.15, n)
+    true_mu = truth(load, speed) * np.exp(rng.normal(0.0, NOISE, n))
+    low, high = (float(q) for q in np.quantile(true_mu, [0.12, 0.85]))
+    mu = np.clip(true_mu, low, high)
+    report = calibrated(client, as_rows({"load_N": load, "speed_m_s": speed}, mu))
+    clips = {c["side"]: c for c in report["measurement_system"]["saturation"]}
+    assert set(clips) == {"upper", "lower"}, report["measurement_system"]
+    assert clips["upper"]["level"] == high and clips["upper"]["rows"] == np.sum(mu == high)
+    assert clips["lower"]["level"] == low and clips["lower"]["rows"] == np.sum(mu == low)
+    assert report["effects"] == []  # no law invented for the plateaus
+    assert report["fitted_parameters"]["mu_pivot"]["value"] == pytest.approx(PIVOT, rel=0.05)
