@@ -104,6 +104,10 @@ class LackOfFit:
         Lack-of-fit mean square over pure-error mean square. [1]
     p : float or None
         Chance of an F at least as large when the model lacks nothing. [1]
+    outliers : int
+        Rows left out as outliers (not counted in ``rows``). [1]
+    clipped : int
+        Rows left out as clipped by the sensor (their reading is no value). [1]
     """
 
     points: int
@@ -114,17 +118,24 @@ class LackOfFit:
     lack_of_fit_dof: int
     f: float | None
     p: float | None
+    outliers: int = 0
+    clipped: int = 0
 
     def words(self) -> str:
         """E.g. ``20 design points x 5 (100 rows); pure error 3.1 %; lack of fit p = 0.42 (F = 1.04 ...)``."""
         per = self.rows / self.points
         counts = f"{per:.0f}" if abs(per - round(per)) < 1e-9 else f"{per:.1f} on average"
+        left = [f"{k} {what}{'s' * (k > 1)} left out"
+                for k, what in ((self.outliers, "outlier"), (self.clipped, "clipped row")) if k]
         text = (f"{self.points} design points x {counts} ({self.rows} rows, {self.replicated} points "
-                f"replicated); pure error {100 * self.pure_error:.1f} % (scatter of log mu between "
-                f"replicates, {self.pure_error_dof} degrees of freedom)")
+                f"replicated{''.join('; ' + w for w in left)}); pure error {100 * self.pure_error:.1f} % "
+                f"(scatter of log mu between replicates, {self.pure_error_dof} degrees of freedom)")
         if self.p is None:
             return text + "; no lack-of-fit test: as many fitted values as design points"
+        # the words follow the p-value: strong below 1 %, a sign below 5 %, none above
         verdict = ("the model misses something the replicates see" if self.p < 0.01 else
+                   "a sign that the model misses something the replicates see (p below 0.05, not below "
+                   "0.01)" if self.p < 0.05 else
                    "the model fits the design points' means as well as the replicates allow")
         return (text + f"; lack of fit p = {self.p:.3g} (F = {self.f:.3g} on {self.lack_of_fit_dof} and "
                 f"{self.pure_error_dof} degrees of freedom): {verdict}")
@@ -133,7 +144,8 @@ class LackOfFit:
         """The figures as data, with ``summary`` in words."""
         return {"points": self.points, "replicated_points": self.replicated, "rows": self.rows,
                 "pure_error_relative": self.pure_error, "pure_error_dof": self.pure_error_dof,
-                "lack_of_fit_dof": self.lack_of_fit_dof, "f": self.f, "p": self.p, "summary": self.words()}
+                "lack_of_fit_dof": self.lack_of_fit_dof, "f": self.f, "p": self.p,
+                "outliers_left_out": self.outliers, "clipped_left_out": self.clipped, "summary": self.words()}
 
 
 @dataclass(frozen=True)
@@ -345,9 +357,8 @@ def lack_of_fit(dataset: Dataset, log_residual: np.ndarray, n_fitted: int,
     """
     if dataset.design is None:
         return None
-    rows = measured_rows(dataset.censored, dataset.n_points)
-    if keep is not None:
-        rows = rows & keep
+    measured = measured_rows(dataset.censored, dataset.n_points)
+    rows = measured if keep is None else measured & keep
     point = np.unique(dataset.design[rows], return_inverse=True)[1].ravel()
     r = np.asarray(log_residual, dtype=float)[rows]
     counts = np.bincount(point)
@@ -363,7 +374,8 @@ def lack_of_fit(dataset: Dataset, log_residual: np.ndarray, n_fitted: int,
         f = (ss_lof / df_lof) / (ss_pe / df_pe)
         p = float(stats.f.sf(f, df_lof, df_pe))
     return LackOfFit(m, int(np.sum(counts > 1)), n, float(np.sqrt(ss_pe / df_pe)), df_pe, max(df_lof, 0),
-                     None if f is None else float(f), p)
+                     None if f is None else float(f), p, int(np.sum(measured & ~rows)),
+                     int(dataset.n_points - np.sum(measured)))
 
 
 def drift_words(effects: Sequence[Mapping[str, Any]]) -> list[str]:

@@ -20,7 +20,7 @@ from scipy import optimize, stats
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel, parse_csv, parse_rows
 from microbearing.calibrate.censored import censored_residual, residual_variance
-from microbearing.calibrate.measurement import folds, inspect, lack_of_fit
+from microbearing.calibrate.measurement import LackOfFit, folds, inspect, lack_of_fit
 from microbearing.service.app import create_app
 from microbearing.service.settings import Settings
 
@@ -283,3 +283,17 @@ def test_a_sensor_clipping_at_both_ends_through_the_api(client):
     assert clips["lower"]["level"] == low and clips["lower"]["rows"] == np.sum(mu == low)
     assert report["effects"] == []  # no law invented for the plateaus
     assert report["fitted_parameters"]["mu_pivot"]["value"] == pytest.approx(PIVOT, rel=0.05)
+
+
+@pytest.mark.parametrize(("p", "words"), [
+    (0.004, "the model misses something the replicates see"),
+    (0.0187, "a sign that the model misses something the replicates see (p below 0.05, not below 0.01)"),
+    (0.3, "as well as the replicates allow")])
+def test_the_lack_of_fit_words_follow_its_p_value_and_name_the_rows_left_out(p, words):
+    # before: p = 0.0187 was worded "fits ... as well as the replicates allow", and an outlier left out of
+    # the test made its row count one less than the design's without a word
+    lof = LackOfFit(18, 18, 71, 0.025, 53, 17, 2.13, p, outliers=1, clipped=0)
+    text = lof.words()
+    assert text.endswith(words) and "(71 rows, 18 points replicated; 1 outlier left out)" in text, text
+    assert "clipped" not in text
+    assert "2 clipped rows left out" in LackOfFit(18, 18, 70, 0.025, 52, 17, 2.1, p, clipped=2).words()

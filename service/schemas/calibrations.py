@@ -434,7 +434,8 @@ class CalibrationResult(ResponseModel):
         "summary in words."))
     measurement_system: dict[str, Any] | None = Field(default=None, description=(
         "What the data say about the measurement system: replicates (design points, pure_error_relative [1] "
-        "of log mu between replicates, the lack-of-fit F-test: f [1], p [1]; null without replicates), "
+        "of log mu between replicates, the lack-of-fit F-test: f [1], p [1], rows left out of it as outliers "
+        "or clipped: outliers_left_out [1], clipped_left_out [1]; null without replicates), "
         "saturation (clips: side, level [1], rows [1], share [1]; their rows censored), constant (the one "
         "value of mu when every row reads it, else null), sessions (order and time columns, candidate "
         "drivers of measurement_drift), clock (columns read from ISO 8601 times as hours since their "
