@@ -454,7 +454,10 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
     for effect in EFFECTS.values():
         if effect.name in taken_effects:
             continue
-        for drivers in effect.candidate_drivers(names):
+        candidates = effect.candidate_drivers(names)
+        if effect.driver_keywords == SESSION_KEYWORDS:  # a clock column is the session's time, any name
+            candidates += [(n,) for n in names if n in dataset.clock and (n,) not in candidates]
+        for drivers in candidates:
             if levels.get(drivers[0], 0) >= effect.min_levels and effect.accepts(columns, drivers):
                 term = EffectTerm(effect.name, drivers, effect.constants(columns, drivers))
                 (generic if effect.generic else named).append(term)

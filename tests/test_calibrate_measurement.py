@@ -192,6 +192,23 @@ def test_instrument_drift_through_the_api_with_iso_times(client):
         assert error < 0.5 * NOISE and 0.9 <= covered <= 0.995
 
 
+@pytest.mark.parametrize("header", ["Datum", "when"])
+def test_a_clock_column_drives_the_instrument_s_drift_whatever_its_name(client, header):
+    # before: ISO times under a header with no session word ('Datum') were read as a clock, yet the drift
+    # was never a candidate on them (the effect's name words only): a generic term took it, no drift was
+    # said, and every prediction then needed the clock column
+    rows = [{(header if k == "date" else k): v for k, v in row.items()}
+            for row in session_rows(np.random.default_rng(4), 96, 0.08, clock=True)]
+    report = calibrated(client, rows)
+    assert [e["name"] for e in report["effects"]] == ["measurement_drift"], report["effects"]
+    assert report["effects"][0]["drivers"] == [header]
+    assert report["measurement_system"]["drift"][0].startswith("the instrument drifted +")
+    answer = client.post("/v1/friction", json={"balls": BALLS, "load_N": 0.01, "speed_m_s": 0.05,
+                                                "model": report["model_id"], "conditions": {header: 0.0}})
+    assert answer.status_code == 200, answer.text  # the reading at the session's start
+    assert answer.json()["mu"] == pytest.approx(float(truth(0.01, 0.05)), rel=0.05)
+
+
 def test_friction_rising_over_the_runs_is_not_a_run_in(client):
     rng = np.random.default_rng(8)
     report = calibrated(client, session_rows(rng, 72, 0.10, clock=False))
