@@ -52,6 +52,8 @@ _CONDITION, _FACTOR, _HEADER, _CLOCK = "condition.", "factor.", "header.", "cloc
 
 # An ISO 8601 date, optionally with a time (seconds and fraction optional) and a zone.
 _ISO_TIME = re.compile(r"\d{4}-\d{2}-\d{2}([T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?(Z|[+-]\d{2}:?\d{2})?)?")
+# A date or time of day written otherwise (28.11.2026, 11/28/2026, 08:07): not read as a time, never a label
+_OTHER_TIME = re.compile(r"(\d{1,2}[./]\d{1,2}[./]\d{2,4}|\d{1,2}:\d{2})")
 _SECONDS_PER_HOUR = 3600.0
 _TRUE = {"true", "1", "yes"}
 _FALSE = {"false", "0", "no"}
@@ -474,6 +476,16 @@ def _clock_hours(cells: Sequence[Any]) -> tuple[np.ndarray, str] | None:
     return hours, start.isoformat()
 
 
+def _written_time(cells: Sequence[Any]) -> str | None:
+    """The first cell when every given cell is a date or time of day written otherwise than ISO 8601
+    (``28.11.2026 08:07``, ``11/28/2026 8:07 AM``, ``08:07:00``), which as text would make a group of each
+    row; None otherwise."""
+    given = [c for c in cells if not _missing(c)]
+    if given and all(isinstance(c, str) and _OTHER_TIME.search(c) for c in given):
+        return str(given[0]).strip()
+    return None
+
+
 def _is_factor(name: str, cells: Sequence[Any], declared: Sequence[str]) -> bool:
     """A condition column read as labels: declared a factor, or without a number in any cell."""
     if name in physics.PARAMETERS or name in (MU_MEASURED, MU_MEASURED_STD):
@@ -532,6 +544,13 @@ def _build(rows, names, fixed, from_text, errors, factors=()) -> Dataset:
             errors += [{"row": i + 1, "column": name, "message": "missing time (ISO 8601)"}
                        for i, cell in enumerate(cells) if rows[i] is not None and _missing(cell)]
             conditions[name], clock[name] = timed
+            continue
+        written = None if reserved else _written_time(cells)
+        if written is not None:
+            errors.append({"row": None, "column": name, "message": (
+                f"holds dates or times written as text ({written!r}), which are read only as ISO 8601: write "
+                f"them so (e.g. 2026-11-28T08:07) to read hours since the first, or declare {name} a factor "
+                f"to read them as group labels")})
             continue
         if _is_factor(name, cells, factors):
             column = np.empty(n, dtype=object)

@@ -18,7 +18,7 @@ from jobs_helper import finished_job
 from scipy import optimize, stats
 
 from microbearing import physics
-from microbearing.calibrate import CalibratedModel, parse_csv, parse_rows
+from microbearing.calibrate import CalibratedModel, DataError, parse_csv, parse_rows
 from microbearing.calibrate.censored import censored_residual, residual_variance
 from microbearing.calibrate.measurement import LackOfFit, folds, inspect, lack_of_fit
 from microbearing.service.app import create_app
@@ -314,3 +314,21 @@ def test_the_lack_of_fit_words_follow_its_p_value_and_name_the_rows_left_out(p, 
     assert text.endswith(words) and "(71 rows, 18 points replicated; 1 outlier left out)" in text, text
     assert "clipped" not in text
     assert "2 clipped rows left out" in LackOfFit(18, 18, 70, 0.025, 52, 17, 2.1, p, clipped=2).words()
+
+
+@pytest.mark.parametrize("written", ["%d.%m.%Y %H:%M", "%m/%d/%Y %I:%M %p", "%H:%M:%S"])
+def test_dates_written_otherwise_than_iso_are_refused_not_read_as_a_group_per_row(written):
+    # before: '28.11.2026 08:07' (German Excel), '11/28/2026 08:07 AM' (US) or a time of day became a factor
+    # of as many groups as rows: replicates, pure error and drift vanished without a word
+    start = datetime(2026, 11, 28, 8, 7)
+    rows = [{"load_N": 0.01 * (1 + k % 3), "speed_m_s": 0.05, "mu_measured": 0.01,
+             "Datum": (start + timedelta(minutes=7 * k)).strftime(written)} for k in range(12)]
+    with pytest.raises(DataError) as refused:
+        parse_rows(rows, fixed={"balls": 4})
+    (error,) = refused.value.errors
+    assert error["column"] == "Datum" and "ISO 8601" in error["message"] and "factor" in error["message"]
+    assert rows[0]["Datum"] in error["message"]
+    # declared a factor, they are group labels as asked; in ISO 8601, hours since the first
+    assert list(parse_rows(rows, fixed={"balls": 4}, factors=["Datum"]).factors) == ["Datum"]
+    iso = [{**row, "Datum": (start + timedelta(minutes=7 * k)).isoformat()} for k, row in enumerate(rows)]
+    assert parse_rows(iso, fixed={"balls": 4}).conditions["Datum"][-1] == pytest.approx(77 / 60)
