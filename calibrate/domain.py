@@ -33,7 +33,8 @@ bounds of :mod:`optimize.envelope_bound` use.
 
 **The laws' domains.** A term's law holds for its driver's values in the domain the law declares
 (:attr:`physics.effects.Effect.domain`, :attr:`physics.effects.DriftLaw.domain`: relative humidity in
-(0, 1), a run-in count n >= 0); :func:`law_domains` gives each in its column's unit, and
+(0, 1) for the Kelvin radius, [0, 1) for menisci, a run-in count n >= 0); :func:`law_domains` gives each
+in its column's unit, and
 :func:`outside_law_domains` names the columns of a request whose values (numbers, ranges or sets of
 values) leave one, so that a route refuses them when they are submitted rather than a job failing later.
 
@@ -526,7 +527,7 @@ class LawDomain:
     column : str
         The driver column.
     domain : physics.effects.Domain
-        Its values the law holds for, in the column's unit (percent humidity: (0, 100)).
+        Its values the law holds for, in the column's unit (percent humidity: [0, 100)).
     term : str
         The term, in a few words (its label).
     """
@@ -554,7 +555,7 @@ def law_domains(terms: Sequence[Any]) -> list[LawDomain]:
     >>> from microbearing.calibrate.candidates import EffectTerm
     >>> meniscus = EffectTerm("humidity_meniscus", ("rh_pct",))
     >>> [(d.column, d.domain.text()) for d in law_domains([(meniscus, [1e-5])])]
-    [('rh_pct', '(0, 100)')]
+    [('rh_pct', '[0, 100)')]
     """
     out = []
     for term, _ in terms:
@@ -600,7 +601,7 @@ def outside_law_domains(terms: Sequence[Any], columns: Mapping[str, Any]) -> dic
     >>> from microbearing.calibrate.candidates import EffectTerm
     >>> meniscus = EffectTerm("humidity_meniscus", ("rh",))
     >>> outside_law_domains([(meniscus, [1e-5])], {"rh": [30, 70]})  # doctest: +ELLIPSIS
-    {'rh': 'values 30, 70 lie outside (0, 1), the domain of the law of humidity_meniscus on rh (in the ...)'}
+    {'rh': 'values 30, 70 lie outside [0, 1), the domain of the law of humidity_meniscus on rh (in the ...)'}
     """
     out: dict[str, str] = {}
     for law in law_domains(terms):

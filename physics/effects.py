@@ -348,8 +348,10 @@ def _additive_initial(basis: Callable) -> Callable:
 
 
 def _meniscus_basis(h, columns):
-    return np.asarray(columns["balls"], dtype=float) / (np.asarray(columns["load_N"], dtype=float)
-                                                         * np.log(1.0 / h))
+    # a dry run (h = 0) condenses no meniscus: 1 / ln(1/h) -> 0, the limit taken exactly
+    with np.errstate(divide="ignore"):
+        return np.asarray(columns["balls"], dtype=float) / (np.asarray(columns["load_N"], dtype=float)
+                                                             * np.log(1.0 / np.asarray(h, dtype=float)))
 
 
 def _viscous_basis(v, columns):
@@ -380,14 +382,15 @@ _MENISCUS = Effect(
     parameters=(EffectParameter(
         "meniscus_force_N", "N",
         "Friction force per ball due to the menisci when ln(1/h) = 1 (h = 37 %).", 0.0, 1.0),),
-    driver_description="relative humidity h, a fraction in (0, 1) (percent if the name says pct)",
+    driver_description="relative humidity h, a fraction in [0, 1) (percent if the name says pct; a dry run, "
+                       "h = 0, adds nothing: 1/ln(1/h) -> 0)",
     reference=("L. Bocquet, E. Charlaix, S. Ciliberto, J. Crassous, Nature 396, 735-737 (1998): "
                "capillary condensation makes friction and cohesion grow as 1/ln(1/h) (Kelvin radius)."),
     driver_keywords=HUMIDITY.keywords,
     correct=lambda mu, x, columns, p, c: mu + p[0] * _meniscus_basis(x, columns),
     make_initial=_additive_initial(_meniscus_basis),
     driver_transform=humidity_fraction,
-    domain=Domain(0.0, 1.0, low_open=True, high_open=True),
+    domain=Domain(0.0, 1.0, high_open=True),
     enters="add", direction=lambda v: _sign(v[0]),  # + p z / (G ln(1/h)): 1/ln(1/h) grows on (0, 1)
     value_forms=("scale",),
 )

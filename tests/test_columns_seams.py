@@ -311,14 +311,14 @@ def test_conditions_are_read_against_the_model_s_own_columns_at_every_door(clien
 
 
 def test_a_condition_outside_its_law_s_domain_is_named_as_sent(client, calibration):
-    # 100 % is the fraction 1, outside the open domain (0, 1) of the Kelvin menisci: refused at the key sent
+    # 100 % is the fraction 1, outside the domain [0, 1) of the Kelvin menisci: refused at the key sent
     model = calibration["model_id"]
     detail = _problem(client.post("/v1/friction", json=_point(model, {"RH [%]": 100, "temp_K": 300})),
                       "/conditions/RH [%]")
-    assert "(0, 1)" in detail, detail
+    assert "[0, 1)" in detail, detail
     batch = {"points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
              "conditions": {"RH [%]": [50.0, 100.0], "temp_K": 300.0}}
-    assert "(0, 1)" in _problem(client.post("/v1/friction/batch", json=batch), "/conditions/RH [%]")
+    assert "[0, 1)" in _problem(client.post("/v1/friction/batch", json=batch), "/conditions/RH [%]")
     # the problem's summary says the same; UM-Bridge names the input or fixed key as sent
     summary = client.post("/v1/friction", json=_point(model, {"RH [%]": 100, "temp_K": 300})).json()["detail"]
     assert "/conditions/RH [%]" in summary and "sent as RH [%]: 100" in summary, summary
@@ -331,7 +331,27 @@ def test_a_condition_outside_its_law_s_domain_is_named_as_sent(client, calibrati
         answer = client.post("/umbridge/Evaluate", json={"name": model, "input": [vector], "config": config})
         assert answer.status_code == 400, answer.text
         message = answer.json()["error"]["message"]
-        assert message.startswith(field) and "(0, 1)" in message and "sent as RH [%]" in message, message
+        assert message.startswith(field) and "[0, 1)" in message and "sent as RH [%]" in message, message
+
+
+def test_a_dry_run_is_the_menisci_law_s_edge(client, calibration):
+    # before: RH 0 % was refused as outside (0, 1) though 1/ln(1/h) -> 0 there (a dry run condenses no
+    # meniscus) and 1e-6 % was answered: the law now holds at its edge, where it adds nothing
+    model = calibration["model_id"]
+    menisci = next(e for e in calibration["effects"] if e["name"] == "humidity_meniscus")
+    assert menisci, calibration["effects"]
+    answers = [client.post("/v1/friction", json=_point(model, {"RH [%]": h, "temp_K": 300})) for h in
+               (0.0, 1e-9, 1e-20)]
+    assert [a.status_code for a in answers] == [200, 200, 200], answers[0].text
+    dry, a, b = (answer.json()["mu"] for answer in answers)
+    # the term is p / ln(1/h) (h the fraction): its increments over the dry run at h = 1e-11 and 1e-22 are in
+    # the ratio ln(1e22) / ln(1e11) = 2 exactly when the dry run is the law's limit, nothing added
+    assert (a - dry) / (b - dry) == pytest.approx(2.0, rel=1e-6)
+    batch = client.post("/v1/friction/batch", json={
+        "points": {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05}, "model": model,
+        "conditions": {"RH [%]": [0.0, 1e-9], "temp_K": 300.0}})
+    assert batch.status_code == 200, batch.text
+    assert batch.json()["mu"] == pytest.approx([dry, a], rel=1e-12)
 
 
 def test_a_value_is_judged_for_a_unit_slip_in_the_unit_its_key_states(client, calibration):

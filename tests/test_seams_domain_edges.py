@@ -28,13 +28,16 @@ POINT = {"balls": 8, "load_N": 0.01, "speed_m_s": 0.05}
 
 def test_every_closed_edge_is_inside_its_domain_and_the_law_evaluates_there():
     closed = {name: e for name, e in EFFECTS.items() if e.domain is not None and not e.domain.low_open}
-    assert sorted(closed) == ["run_in", "viscous_power_law"]
+    assert sorted(closed) == ["humidity_meniscus", "run_in", "viscous_power_law"]
     columns = {"balls": np.array([8.0]), "load_N": np.array([0.01]), "speed_m_s": np.array([0.0])}
     params = {"run_in": {"run_in_amplitude": 0.5, "run_in_length": 100.0},
-              "viscous_power_law": {"drag_force_N": 1e-4, "speed_exponent": 0.5}}
-    constants = {"run_in": {}, "viscous_power_law": {"reference": 0.05}}
-    drivers = {"run_in": ("cycles",), "viscous_power_law": ("speed_m_s", "load_N")}
-    by_hand = {"run_in": 0.02 * 1.5, "viscous_power_law": 0.02}  # 1 + A exp(0); (0 / v_ref)^0.5 = 0
+              "viscous_power_law": {"drag_force_N": 1e-4, "speed_exponent": 0.5},
+              "humidity_meniscus": {"meniscus_force_N": 1e-4}}
+    constants = {"run_in": {}, "viscous_power_law": {"reference": 0.05}, "humidity_meniscus": {}}
+    drivers = {"run_in": ("cycles",), "viscous_power_law": ("speed_m_s", "load_N"),
+               "humidity_meniscus": ("relative_humidity",)}
+    # 1 + A exp(0); (0 / v_ref)^0.5 = 0; a dry run condenses no meniscus, 1 / ln(1/h) -> 0
+    by_hand = {"run_in": 0.02 * 1.5, "viscous_power_law": 0.02, "humidity_meniscus": 0.02}
     for name, effect in closed.items():
         at_edge = {**columns, drivers[name][0]: np.array([effect.domain.low])}
         assert effect.accepts(at_edge, drivers[name])
@@ -42,7 +45,7 @@ def test_every_closed_edge_is_inside_its_domain_and_the_law_evaluates_there():
         assert mu[0] == pytest.approx(by_hand[name], rel=1e-12)
         below = {**columns, drivers[name][0]: np.array([np.nextafter(effect.domain.low, -1.0)])}
         assert not effect.accepts(below, drivers[name])
-    # Open edges stay out: humidity 0 and 1, absolute zero.
+    # Open edges stay out: humidity 1 (0 for the Kelvin radius), absolute zero.
     assert not EFFECTS["humidity_meniscus"].accepts({"rh": np.array([1.0])}, ("rh",))
     assert DRIFT_LAWS["kelvin"].column_domain("rh_pct") == Domain(0.0, 100.0, True, True)
     assert DRIFT_LAWS["arrhenius"].column_domain("temperature_C").low == pytest.approx(-273.15)

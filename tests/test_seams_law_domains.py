@@ -36,7 +36,7 @@ def test_the_domains_of_a_model_s_laws_in_its_columns_units():
              (EffectTerm("run_in", ("cycles",)), [0.5, 100.0]),
              (EffectTerm("generic_linear", ("load_N",), {"centre": 0.01, "scale": 0.005}), [0.1])]
     domains = {d.column: d.domain for d in law_domains(terms)}
-    assert domains == {"rh_pct": Domain(0.0, 100.0, True, True),
+    assert domains == {"rh_pct": Domain(0.0, 100.0, False, True),  # a dry run adds no meniscus
                        "temperature_C": Domain(-273.15, np.inf, True, False),
                        "cycles": Domain(0.0)}  # a generic term declares none
     # A number, a range's ends, {low, high} and a set of values, each checked against the domain.
@@ -45,7 +45,7 @@ def test_the_domains_of_a_model_s_laws_in_its_columns_units():
     outside = outside_law_domains(terms, {"rh_pct": [30, 100], "temperature_C": -300.0,
                                           "cycles": {"values": [-1, 0, 5]}, "load_N": -1})
     assert sorted(outside) == ["cycles", "rh_pct", "temperature_C"]
-    assert outside["rh_pct"].startswith("value 100 lies outside (0, 100)")
+    assert outside["rh_pct"].startswith("value 100 lies outside [0, 100)")
     assert "humidity_meniscus on rh_pct" in outside["rh_pct"]
     assert outside["cycles"].startswith("value -1 lies outside [0, inf)")
     assert outside["temperature_C"].startswith("value -300 lies outside (-273.15, inf)")
@@ -113,7 +113,7 @@ def assert_refused(response, pointer: str) -> str:
 
 
 @pytest.mark.parametrize(("humidity", "words"), [
-    ([0.3, 1.0], ("(0, 1)", "humidity_meniscus")), (1.0, ("(0, 1)", "humidity_meniscus")),
+    ([0.3, 1.0], ("[0, 1)", "humidity_meniscus")), (1.0, ("[0, 1)", "humidity_meniscus")),
     # values no humidity fraction has are the upload's unit slips, refused in its words before the law's
     ([30, 70], ("look like percent",)), (50, ("look like percent",)),
     ([-0.1, 0.5], ("a fraction in [0, 1]",))])
@@ -135,7 +135,7 @@ def test_the_cli_refuses_the_same_request(client, model, data_dir, tmp_path, cap
     request.write_text(json.dumps(optimization(model, [0.3, 1.0])))
     assert main(["optimize", str(request), "--data-dir", str(data_dir)]) == 2
     err = capsys.readouterr().err
-    assert "/conditions/relative_humidity" in err and "(0, 1)" in err
+    assert "/conditions/relative_humidity" in err and "[0, 1)" in err
     request.write_text(json.dumps(optimization(model, [30, 70])))
     assert main(["optimize", str(request), "--data-dir", str(data_dir)]) == 2
     err = capsys.readouterr().err
@@ -145,7 +145,7 @@ def test_the_cli_refuses_the_same_request(client, model, data_dir, tmp_path, cap
 def test_friction_outside_the_law_s_domain_is_refused_naming_the_condition(client, model):
     point = {"balls": 8, "load_N": 0.01, "speed_m_s": 0.05, "model": model}
     # 50 is a unit slip (percent), refused as the upload refuses it; 1.0 is a fraction outside the domain
-    for humidity, words in ((50, "look like percent"), (1.0, "(0, 1)")):
+    for humidity, words in ((50, "look like percent"), (1.0, "[0, 1)")):
         detail = assert_refused(client.post("/v1/friction", json={
             **point, "conditions": {"relative_humidity": humidity}}), "/conditions/relative_humidity")
         assert words in detail
@@ -178,7 +178,7 @@ def test_the_cli_refuses_next_experiments_outside_the_law_s_domain(model, data_d
         "relative_humidity": {"low": 0.3, "high": 1.0}}}))
     assert main(["experiments", str(request), "--calibration", model]) == 2
     err = capsys.readouterr().err
-    assert "space.relative_humidity: value 1 lies outside (0, 1)" in err, err
+    assert "space.relative_humidity: value 1 lies outside [0, 1)" in err, err
     # percent where the model reads a fraction: the upload's unit slip, in its words
     request.write_text(request.read_text().replace('"low": 0.3, "high": 1.0', '"low": 30, "high": 70'))
     assert main(["experiments", str(request), "--calibration", model]) == 2
@@ -186,29 +186,29 @@ def test_the_cli_refuses_next_experiments_outside_the_law_s_domain(model, data_d
 
 
 def test_a_law_domain_refusal_gives_the_value_as_sent_when_read_in_another_unit(client, model):
-    # 100 % is the fraction 1, outside (0, 1): the words give the value in the model's unit and as sent,
+    # 100 % is the fraction 1, outside [0, 1): the words give the value in the model's unit and as sent,
     # at every door that reads the key
     as_sent = "(sent as relative humidity [%]: 100, read as relative_humidity: 1)"
     point = {"balls": 8, "load_N": 0.01, "speed_m_s": 0.05, "model": model}
     detail = assert_refused(client.post("/v1/friction", json={
         **point, "conditions": {"relative humidity [%]": 100}}), "/conditions/relative humidity [%]")
-    assert "(0, 1)" in detail and as_sent in detail, detail
+    assert "[0, 1)" in detail and as_sent in detail, detail
     body = {**optimization(model, 0.5), "conditions": {"relative humidity [%]": [30, 100]}}
     detail = assert_refused(client.post("/v1/optimizations", json=body), "/conditions/relative humidity [%]")
-    assert "(0, 1)" in detail and "(sent as relative humidity [%]: [30, 100]" in detail, detail
+    assert "[0, 1)" in detail and "(sent as relative humidity [%]: [30, 100]" in detail, detail
     space = {"balls": {"values": [4, 8, 12]}, "load_N": {"low": 0.005, "high": 0.02},
              "speed_m_s": {"low": 0.02, "high": 0.1}, "relative humidity [%]": {"low": 30, "high": 100}}
     response = client.post(f"/v1/calibrations/{model.split(':', 1)[1]}/next-experiments",
                            json={"runs": 4, "space": space})
     detail = assert_refused(response, "/space/relative humidity [%]")
-    assert "(0, 1)" in detail and "(sent as relative humidity [%]: {low: 30, high: 100}" in detail, detail
+    assert "[0, 1)" in detail and "(sent as relative humidity [%]: {low: 30, high: 100}" in detail, detail
     # a planned run outside the law's domain is refused at submit too, at its key as sent
     planned = [{"balls": 8, "load_N": 0.01, "speed_m_s": 0.05, "relative humidity [%]": 100}]
     space["relative humidity [%]"] = {"low": 30, "high": 70}
     response = client.post(f"/v1/calibrations/{model.split(':', 1)[1]}/next-experiments",
                            json={"runs": 4, "space": space, "planned": planned})
     detail = assert_refused(response, "/planned/0/relative humidity [%]")
-    assert "(0, 1)" in detail and "(sent as relative humidity [%]: 100" in detail, detail
+    assert "[0, 1)" in detail and "(sent as relative humidity [%]: 100" in detail, detail
     # a key sent as the model's own column is not restated
     detail = assert_refused(client.post("/v1/friction", json={
         **point, "conditions": {"relative_humidity": 1.0}}), "/conditions/relative_humidity")

@@ -152,7 +152,7 @@ def test_a_calibrated_batch_evaluates_the_physics_a_fixed_number_of_times(client
      "element 1 is 'wet' among numbers"),
     ({"conditions": {"relative_humidity": []}}, "/conditions/relative_humidity", "empty"),
     ({"conditions": {"relative_humidity": [0.5, 1.0]}}, "/conditions/relative_humidity",  # log(1/RH) = 0
-     "outside (0, 1)"),
+     "outside [0, 1)"),
     ({"convention": "another"}, "/convention", "omit convention"),
     ({"model": "calibrated:xyz"}, "/model", None),
 ])
