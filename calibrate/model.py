@@ -362,14 +362,20 @@ class CalibratedModel:
                               self._cloud_score(points, mu.shape))
         mu, lower, upper = self._interval(points, labels, level, mu, physics_mu, shared,
                                           self.extrapolation_ratio(points, mu.shape))
-        for rival in self.rival_models():
+        for record, rival in zip(self.rivals, self.rival_models(), strict=True):
             # The envelope of the rivals' intervals (calibrate.rivals); a rival that cannot predict a
-            # point (a driver outside its law) leaves it to the others.
+            # point (a driver outside its law) leaves it to the others, said.
             try:
                 _, other_lower, other_upper = rival.rival_interval(points, labels, level, shared)
-            except ValueError:
+            except ValueError as exc:
+                warnings = [*warnings, f"the rival {record.label} cannot predict here ({exc}): the interval "
+                                       f"holds the model and its other rivals only"]
                 continue
             ok = np.isfinite(other_lower) & np.isfinite(other_upper) & (other_lower > 0)
+            if not np.all(ok):
+                warnings = [*warnings, f"the rival {record.label} cannot predict at {int(np.sum(~ok))} of "
+                                       f"{ok.size} point(s) (outside its law's domain there): the interval "
+                                       f"there holds the model and its other rivals only"]
             lower = np.where(ok, np.minimum(lower, other_lower), lower)
             upper = np.where(ok, np.maximum(upper, other_upper), upper)
         return Prediction(mu, lower, upper, in_domain, warnings)

@@ -405,3 +405,27 @@ def test_an_optimization_with_a_calibrated_model_answers_the_rivals_envelope(cli
                 max(float(alone.mu_upper), float(rival_alone.mu_upper)))
     assert (result["mu_lower"], result["mu_upper"]) == pytest.approx(envelope, rel=1e-9)
     assert float(rival_alone.mu_upper) > float(alone.mu_upper)  # the rival's larger meniscus widens it
+
+
+def test_a_rival_that_cannot_predict_a_point_is_said_not_dropped_silently():
+    # before: at time 0 a power-law rival (x > 0 only) left the envelope without a word, so the interval
+    # at 0 was as narrow as inside the data while 1e-12 later the rival made it 35 times wider
+    from microbearing.calibrate.candidates import EffectTerm
+    from microbearing.calibrate.model import RivalModel
+
+    run_in = EffectTerm("run_in", ("time_s",))
+    power = EffectTerm("generic_power", ("time_s",), {"reference": 1800.0})
+    rival = RivalModel("generic_power on time_s instead of run_in on time_s", {"mu_pivot": 0.6},
+                       [(power, [-0.2])], np.diag([1e-4, 1e-4]), 1.5)
+    model = CalibratedModel(fitted={"mu_pivot": 0.6}, terms=[(run_in, [0.3, 600.0])],
+                            covariance=np.diag([1e-4, 1e-4, 1e2]), noise_std_log=0.02,
+                            domain={"time_s": [900.0, 7200.0]}, conditions=["time_s"], rivals=[rival])
+    point = {"balls": 6, "load_N": 0.01, "speed_m_s": 0.05}
+    both = model.predict({**point, "time_s": np.array([0.0, 1800.0])})
+    said = [w for w in both.warnings if "the rival generic_power" in w]
+    assert said and "cannot predict" in said[0] and "other rivals only" in said[0], both.warnings
+    alone = dataclasses.replace(model, rivals=[]).predict({**point, "time_s": np.array([0.0, 1800.0])})
+    assert both.mu_upper[0] == alone.mu_upper[0]  # at 0 the model's own interval, said
+    assert both.mu_upper[1] >= alone.mu_upper[1]
+    inside = model.predict({**point, "time_s": np.array([1800.0])})
+    assert not [w for w in inside.warnings if "cannot predict" in w]  # where the rival holds, no word
