@@ -794,3 +794,33 @@ def test_a_range_may_be_spelled_low_high_for_every_range_of_an_optimization(clie
                          ({"low": 0.02}, "the keys low and high")):
         detail = _problem(client.post("/v1/optimizations", json={**listed, "speed_m_s": value}), "/speed_m_s")
         assert words in detail, detail
+
+
+@pytest.mark.parametrize(("value", "words"), [
+    ([40, 60], "not a list of 2: several points go to /v1/friction/batch"),
+    ({"low": 40, "high": 60}, "not a range"), (True, "not true"), (None, "not null")])
+def test_a_condition_of_one_point_is_one_value_said_in_one_sentence(client, calibration, value, words):
+    # before: pydantic's union noise, "Input should be a valid number; Input should be a valid string"
+    detail = _problem(client.post("/v1/friction", json=_point(calibration["model_id"], {
+        "RH [%]": value, "temp_K": 300})), "/conditions/RH [%]")
+    assert words in detail and "valid string" not in detail, detail
+
+
+def test_a_condition_of_one_point_may_be_a_one_element_list(client, calibration):
+    one = [client.post("/v1/friction", json=_point(calibration["model_id"], {"RH [%]": v, "temp_K": 300}))
+           for v in (50, [50])]
+    assert [a.status_code for a in one] == [200, 200], one[1].text
+    assert one[0].json()["mu_upper"] == one[1].json()["mu_upper"]
+
+
+@pytest.mark.parametrize(("value", "words"), [
+    ({"values": []}, "a list of at least one"), ({"values": [0.05], "low": 0.01}, "the key values only"),
+    ({"low": 0.01}, "the keys low and high")])
+def test_a_space_s_set_or_range_object_is_refused_in_one_sentence(client, value, words):
+    # before: {"values": []} answered four errors that contradicted each other (low and high required,
+    # values not permitted, at least one item)
+    response = client.post("/v1/experiments", json={"runs": 4, "fit_parameters": ["mu_pivot"], "space": {
+        "balls": [4, 8], "load_N": [0.005, 0.02], "speed_m_s": value}})
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["errors"]
+    assert error["pointer"] == "/space/speed_m_s" and words in error["detail"], error

@@ -5,7 +5,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Annotated, Any
 
-from pydantic import ConfigDict, Field, create_model
+from pydantic import BeforeValidator, ConfigDict, Field, create_model
 
 from microbearing import physics
 from microbearing.calibrate.report import MIN_ROWS
@@ -44,11 +44,31 @@ CalibrationFixed = create_model(
 MODEL_PATTERN = r"^(physics|calibrated:[0-9a-f]{32})$"
 
 #: Request fields choosing the model of /v1/friction, for ``create_model``.
+def _one_value(value: Any) -> Any:
+    """A condition of one point is one value: ``[v]`` is v; a longer list, a range or a flag refused in one
+    sentence (not each member's of the union: "a valid number; a valid string")."""
+    if isinstance(value, list) and len(value) == 1:
+        return value[0]
+    if isinstance(value, list):
+        raise ValueError(f"one value for one point, not a list of {len(value)}: several points go to "
+                         f"/v1/friction/batch")
+    if isinstance(value, dict):
+        raise ValueError("one value for one point, not a range: a design over a range of conditions is "
+                         "/v1/optimizations' envelope")
+    if isinstance(value, bool) or value is None:
+        raise ValueError(f"must be a number, or a factor column's group label; not "
+                         f"{'null' if value is None else str(value).lower()}")
+    return value
+
+
+#: A condition's value at one point (a number, or a factor column's group label).
+_OneCondition = Annotated[float | str, BeforeValidator(_one_value)]
+
 MODEL_FIELDS: dict[str, Any] = {
     "model": (str, Field(default="physics", pattern=MODEL_PATTERN, description=(
         "'physics' (the declared model) or 'calibrated:<id>' from /v1/calibrations: its fixed and fitted "
         "parameters replace the defaults, its convention is used and its effect is added to mu."))),
-    "conditions": (Annotated[dict[str, float | str] | None, ColumnKeys], Field(default=None, description=(
+    "conditions": (Annotated[dict[str, _OneCondition] | None, ColumnKeys], Field(default=None, description=(
         "Condition columns of the calibration data, e.g. relative_humidity [1] [unit of each column as in "
         "the calibration data]; those the calibrated model's terms read are required, a column the "
         "calibration never saw is refused (422 naming it). A factor column takes a group label (e.g. "

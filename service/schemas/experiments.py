@@ -59,6 +59,16 @@ def _one_spelling(value: Any) -> Any:
     explained."""
     if isinstance(value, list) and len(value) > 2:
         raise ValueError(f"a list of {len(value)} values is ambiguous: {SPAN_SPELLINGS}")
+    if isinstance(value, dict) and "values" in value:  # a set: one sentence, not the range's errors too
+        values = value["values"]
+        if set(value) != {"values"}:
+            raise ValueError(f"a set of allowed values has the key values only; got "
+                             f"{', '.join(map(str, value))}")
+        if not isinstance(values, list) or not values:
+            raise ValueError("a set of allowed values is a list of at least one: {\"values\": [v1, v2, ...]}")
+    elif isinstance(value, dict) and not {"low", "high"} <= set(value):
+        raise ValueError(f"a range spelled as an object has the keys low and high (and spacing); got "
+                         f"{', '.join(map(str, value)) or 'none'}")
     return value
 
 
