@@ -129,9 +129,13 @@ def test_the_cli_reads_a_file_s_conditions_by_their_headers_as_sent(client, mode
     out = tmp_path / "out.csv"
     arguments = ["evaluate", "--data-dir", str(data_dir), "--model", model, "--csv", str(table),
                  "-o", str(out)]
-    table.write_text("balls,load [mN],speed_m_s,time [min],RH_pct\n6,10,0.05,1,40\n6,10,0.05,-1,40\n")
+    table.write_text("balls,load [mN],speed_m_s,time [min],RH_pct\n6,10,0.05,1,40\n6,10,0.05,-1,40\n"
+                     "6,10,0.05,2,40\n")
     assert main(arguments) != 0
-    assert "sent as time [min]: [1, -1], read as Time_s: [60, -60]" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "sent as time [min]: [1, -1, 2], read as Time_s: [60, -60, 120]" in err, err
+    # at the line of the first row that brings the refusal, as a physics cell's (before: no line)
+    assert f"{table}: line 3, column time [min]: -1" in err, err
     table.write_text("balls,load [mN],speed_m_s,time [min],RH_pct\n6,10,0.05,1,40\n")
     assert main(arguments) == 0
     api = client.post("/v1/friction", json={"balls": 6, "load_N": 0.01, "speed_m_s": 0.05, "model": model,
