@@ -21,6 +21,7 @@ whole-number grids and ticks.
 from __future__ import annotations
 
 import io
+import re
 import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -230,7 +231,10 @@ def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: n
     _whole_ticks([ax], [drawn])
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    ax.set_title(f"Term {k + 1}: {term.label}\n" + "\n".join(textwrap.wrap(_errors_text(errors), 80)),
+    # the term named by the column's header as sent, as its axis is ("temp [degF]", not temp_K)
+    named = (term.label if drawn.reading is None
+             else re.sub(rf"(?<![\w]){re.escape(driver)}(?![\w])", drawn.reading.sent.strip(), term.label))
+    ax.set_title(f"Term {k + 1}: {named}\n" + "\n".join(textwrap.wrap(_errors_text(errors), 80)),
                  fontsize=9)
     return fig
 

@@ -145,6 +145,9 @@ def test_the_plots_speak_the_upload_s_units_and_count_balls_in_whole_numbers():
                                   [term.label])
     effect = figures["effect_1"].axes[0]
     assert effect.get_xlabel() == "relative humidity [%]"
+    # the title names the term by the header as sent too (it said relative_humidity over a % axis)
+    title = effect.get_title()
+    assert title.startswith("Term 1: generic_linear on relative humidity [%]"), title
     curve = effect.lines[0].get_xydata()
     percent = 100 * si["relative_humidity"]
     assert curve[0, 0] == pytest.approx(percent.min()) and curve[-1, 0] == pytest.approx(percent.max())
