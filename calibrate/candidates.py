@@ -35,7 +35,6 @@ from microbearing.physics.effects import (
     SESSION_KEYWORDS,
     DriftLaw,
     Effect,
-    name_matches,
 )
 
 from .data import Dataset
@@ -450,13 +449,14 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
     names = varying + [n for n in columns if n not in varying]
     taken_effects = {t.name for t in chosen if t.kind == "effect"}
     taken_drifts = {(t.parameter, t.driver) for t in chosen if t.kind == "drift"}
+    sessions = dataset.session_columns()  # order and time columns: named so, or read from ISO times
     named, generic = [], []
     for effect in EFFECTS.values():
         if effect.name in taken_effects:
             continue
         candidates = effect.candidate_drivers(names)
         if effect.driver_keywords == SESSION_KEYWORDS:  # a clock column is the session's time, any name
-            candidates += [(n,) for n in names if n in dataset.clock and (n,) not in candidates]
+            candidates += [(n,) for n in names if n in sessions and (n,) not in candidates]
         for drivers in candidates:
             if levels.get(drivers[0], 0) >= effect.min_levels and effect.accepts(columns, drivers):
                 term = EffectTerm(effect.name, drivers, effect.constants(columns, drivers))
@@ -470,8 +470,7 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
         for driver, values in dataset.conditions.items():
             # An order or time column moves the reading (measurement_drift), not a parameter of the bearing:
             # its wear runs with cycles or distance, which have their own columns.
-            if (parameter, driver) in taken_drifts or driver in dataset.clock \
-                    or name_matches(driver, SESSION_KEYWORDS):
+            if (parameter, driver) in taken_drifts or driver in sessions:
                 continue
             for law in DRIFT_LAWS.values():
                 if law.name == "linear" and DRIFT_LAWS["arrhenius"].matches(driver):

@@ -38,6 +38,7 @@ import numpy as np
 
 from microbearing import physics
 from microbearing.physics.columns import ColumnError, Reading, read_name
+from microbearing.physics.effects import SESSION_KEYWORDS, name_matches
 
 __all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "factor_label", "parse_assignments",
            "parse_csv", "parse_rows"]
@@ -150,6 +151,11 @@ class Dataset:
     def columns(self) -> dict[str, np.ndarray]:
         """Every data column that may drive the residual: physics columns and conditions."""
         return {**self.physics_columns, **self.conditions}
+
+    def session_columns(self) -> tuple[str, ...]:
+        """Condition columns of order or time: read from ISO 8601 times (:attr:`clock`), or named so
+        (``run_index``, ``time_h``, ``date``; :data:`physics.effects.SESSION_KEYWORDS`)."""
+        return tuple(n for n in self.conditions if n in self.clock or name_matches(n, SESSION_KEYWORDS))
 
     def sent_reading(self, name: str) -> Reading | None:
         """How the column ``name`` was read from the header it was sent under (:attr:`headers`), to give its

@@ -31,8 +31,6 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from microbearing.physics.effects import SESSION_KEYWORDS, name_matches
-
 from .censored import measured_rows
 from .data import Dataset
 from .fit import fit, kfold_indices, robust_scale
@@ -207,9 +205,8 @@ class MeasurementSystem:
 
 
 def session_columns(dataset: Dataset) -> tuple[str, ...]:
-    """Condition columns of order or time: read from ISO 8601 times, or named so (``run_index``,
-    ``time_h``, ``date``; :data:`physics.effects.SESSION_KEYWORDS`)."""
-    return tuple(n for n in dataset.conditions if n in dataset.clock or name_matches(n, SESSION_KEYWORDS))
+    """Condition columns of order or time (:meth:`Dataset.session_columns`)."""
+    return dataset.session_columns()
 
 
 def _levels(values: np.ndarray) -> np.ndarray:
