@@ -93,6 +93,19 @@ class SharedPieces:
     cloud_score: np.ndarray
 
 
+def _covariance_from_json(value: Any, fitted: Mapping[str, float], terms: Sequence[tuple[Any, Sequence]],
+                          where: str = "") -> np.ndarray:
+    """A stored covariance of the fitted values and the terms' values, checked square of their count (JSON's
+    ``[]`` is the 0 x 0 matrix of a model that fits nothing); ValueError, prefixed ``where``, otherwise."""
+    covariance = np.asarray(value, dtype=float)
+    size = len(fitted) + sum(len(v) for _, v in terms)
+    if covariance.size == size == 0:
+        covariance = covariance.reshape(0, 0)
+    if covariance.shape != (size, size):
+        raise ValueError(f"{where}covariance must be {size} x {size}; got {covariance.shape}")
+    return covariance
+
+
 @dataclass(frozen=True)
 class RivalModel:
     """A rival of the calibrated model: its terms with one replaced by a term that fits the data about as
@@ -141,12 +154,7 @@ class RivalModel:
                 raise ValueError(f"rivals: unknown physics parameter {name!r}")
             fitted[name] = physics.validate(name, value).item()
         terms = [term_from_json(t) for t in data.get("terms", [])]
-        covariance = np.asarray(data.get("covariance", []), dtype=float)
-        size = len(fitted) + sum(len(v) for _, v in terms)
-        if covariance.size == size == 0:  # nothing fitted: JSON's [] is the 0 x 0 matrix
-            covariance = covariance.reshape(0, 0)
-        if covariance.shape != (size, size):
-            raise ValueError(f"rivals: covariance must be {size} x {size}; got {covariance.shape}")
+        covariance = _covariance_from_json(data.get("covariance", []), fitted, terms, "rivals: ")
         return cls(str(data.get("label", "")), fitted, terms, covariance, float(data.get("gap_se", 0.0)))
 
 
@@ -766,12 +774,7 @@ class CalibratedModel:
         terms = [term_from_json(t) for t in data.get("terms", [])]
         covariance = data.get("covariance")
         if covariance is not None:
-            covariance = np.asarray(covariance, dtype=float)
-            size = len(fitted) + sum(len(v) for _, v in terms)
-            if covariance.size == size == 0:  # nothing fitted: JSON's [] is the 0 x 0 matrix
-                covariance = covariance.reshape(0, 0)
-            if covariance.shape != (size, size):
-                raise ValueError(f"covariance must be {size} x {size}; got {covariance.shape}")
+            covariance = _covariance_from_json(covariance, fitted, terms)
         noise = data.get("noise_std_log")
         domain = data.get("domain")
         if domain is not None:
