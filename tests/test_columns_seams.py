@@ -794,6 +794,17 @@ def test_a_range_may_be_spelled_low_high_for_every_range_of_an_optimization(clie
                          ({"low": 0.02}, "the keys low and high")):
         detail = _problem(client.post("/v1/optimizations", json={**listed, "speed_m_s": value}), "/speed_m_s")
         assert words in detail, detail
+    # under a name with a unit as under its own: a range in the envelope and bounds, and no batch column (a
+    # batch had read 'speed [mm/s]': {low: 20, high: 50} as two points)
+    in_units = {"bounds": {**spelled["bounds"], "load [mN]": {"low": 5, "high": 20}},
+                "speed [mm/s]": {"low": 20, "high": 100}}
+    in_units["bounds"].pop("load_N")
+    answer = client.post("/v1/optimizations", json=in_units)
+    assert answer.status_code == 200 and answer.json()["design"] == answers[0].json()["design"], answer.text
+    batch = client.post("/v1/friction/batch", json={"points": {"balls": 4, "load_N": 0.01,
+                                                               "speed [mm/s]": {"low": 20, "high": 50}}})
+    assert batch.status_code == 422, batch.text
+    assert any(e["pointer"] == "/points/speed [mm~1s]" for e in batch.json()["errors"]), batch.text
 
 
 @pytest.mark.parametrize(("value", "words"), [

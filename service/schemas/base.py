@@ -356,9 +356,11 @@ def physics_value_schema(name: str) -> dict[str, Any]:
     return schema
 
 
-def read_value(reading: Reading, value: Any) -> Any:
+def read_value(reading: Reading, value: Any, range_object: bool = False) -> Any:
     """``value`` in the unit of the column ``reading`` reads it as: a number, a list of them, or a range
-    (``{low, high}`` or an object with those attributes, answered as ``[low, high]``); text as it is."""
+    (``{low, high}`` or an object with those attributes, answered as ``[low, high]``, or with
+    ``range_object`` as the JSON object it was, its ends converted: a body's field then says whether it
+    takes a range); text as it is."""
     if isinstance(value, bool | str):
         return value
     if isinstance(value, int | float):
@@ -369,7 +371,8 @@ def read_value(reading: Reading, value: Any) -> Any:
             for end in ("low", "high")]
     if None in ends:
         return value
-    return [read_value(reading, end) for end in ends]
+    low, high = (read_value(reading, end) for end in ends)
+    return {**value, "low": low, "high": high} if range_object and isinstance(value, dict) else [low, high]
 
 
 def read_column_keys(columns: dict[str, Any] | None) -> dict[str, Any] | None:

@@ -67,7 +67,8 @@ def _read_keys(body: Any, fields: Collection[str]) -> tuple[Any, dict[str, tuple
             continue
         if reading.name in body or reading.name in read:
             raise ValueError(f"{key}: another key is read as {reading.name} too; keep one")
-        read[reading.name], sent[reading.name] = read_value(reading, value), (key, value)
+        # a range object stays one (its ends converted): a batch's column is no range, an envelope's is
+        read[reading.name], sent[reading.name] = read_value(reading, value, range_object=True), (key, value)
     return read, sent
 
 
