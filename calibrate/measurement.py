@@ -36,7 +36,7 @@ from .data import Dataset
 from .fit import fit, kfold_indices, robust_scale
 
 __all__ = ["JITTER", "LackOfFit", "MeasurementSystem", "Saturation", "drift_words", "folds", "inspect",
-           "lack_of_fit", "session_columns", "with_censor_scale"]
+           "lack_of_fit", "with_censor_scale"]
 
 #: Relative jitter within which two values of an input are one level of a design (log scale for a
 #: positive column, of the column's range otherwise). [1]
@@ -204,11 +204,6 @@ class MeasurementSystem:
         return out
 
 
-def session_columns(dataset: Dataset) -> tuple[str, ...]:
-    """Condition columns of order or time (:meth:`Dataset.session_columns`)."""
-    return dataset.session_columns()
-
-
 def _levels(values: np.ndarray) -> np.ndarray:
     """Level of each value: values within :data:`JITTER` of a neighbour are one level when the levels are
     tight (no chain of jitters longer than one); otherwise every distinct value its own level."""
@@ -279,7 +274,7 @@ def inspect(dataset: Dataset, n_folds: int) -> MeasurementSystem:
     >>> system.design.tolist(), system.sessions, system.grouped_folds
     ([0, 0, 0, 1, 1, 1, 2, 2, 2], ('run_index',), True)
     """
-    sessions = session_columns(dataset)
+    sessions = dataset.session_columns()
     mu = dataset.mu_measured
     constant = float(mu[0]) if np.unique(mu).size == 1 else None
     design = _design(dataset, sessions)
