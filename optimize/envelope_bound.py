@@ -78,8 +78,8 @@ from microbearing.physics.effects import PARAMETER_SHARES
 from . import gp_boxes
 
 __all__ = ["BOUND_RTOL", "MAX_BOXES", "AxisCosts", "BoundFailedError", "BranchAndBound", "CertifiedMax",
-           "Piece", "certified_max", "drift_ranges", "group_shift", "interval_floor", "mu_box_bound",
-           "term_pieces"]
+           "Narrowing", "Piece", "certified_max", "drift_ranges", "group_shift", "interval_floor",
+           "mu_box_bound", "term_pieces"]
 
 #: Relative distance between the certified upper bound and the value found at which branching stops. [1]
 BOUND_RTOL = 1e-7
@@ -91,6 +91,10 @@ MAX_BOXES = 20000
 _BATCH = 256
 #: Children per step (those of largest bound) at which the function itself is evaluated. [1]
 _EVALUATED = 16
+#: Most steps skipped between two evaluations once they have stopped raising the value found (the gap
+#: between evaluations doubles from one step at each evaluation that raises nothing, and closes at one that
+#: does): the boxes' bounds, not the values, then narrow the bracket. [1]
+_MOST_SKIPPED = 8
 #: Boxes bounded after which the best point found is polished by a local ascent (and again at the box
 #: or time limit). [1]
 _POLISH_AT = (1000, 5000)
@@ -244,6 +248,8 @@ class CertifiedMax:
         Boxes bounded. [1]
     complete : bool
         Whether the bracket closed to ``rtol`` (False: stopped at the box or time limit).
+    narrowing : Narrowing or None
+        How the bracket was narrowing when it stopped unclosed (None when complete).
     """
 
     value: float
@@ -251,11 +257,86 @@ class CertifiedMax:
     point: dict[str, Any]
     boxes: int
     complete: bool
+    narrowing: Narrowing | None = None
+
+    def stopped_words(self) -> str:
+        """Why the bracket is open, for a proof's statement: '' when it closed, else which limit stopped it
+        and how it was narrowing then (:meth:`Narrowing.words`)."""
+        if self.complete:
+            return ""
+        return ", stopped at the box limit" if self.narrowing is None else f", {self.narrowing.words()}"
 
     @property
     def relative_gap(self) -> float:
         """(upper_bound - value) / upper_bound. [1]"""
         return max(0.0, (self.upper_bound - self.value) / self.upper_bound)
+
+
+@dataclass(frozen=True)
+class Narrowing:
+    """How a bracket stopped before closing was narrowing: its relative gap at about half its boxes and at
+    the end, and the order p of gap ∝ boxes^-p between the two.
+
+    A box bound exact only to first order in the box's widths at the worst point (each term bounded at its
+    own extreme where the terms peak at different points) narrows the gap as a power of the boxes: the boxes
+    left open are those within the bound's excess of the worst value, about w^(-k/2) of width w around a
+    peak curved in k axes, so the gap ~ w narrows at order p = 2/k (2 with one such axis). A bound exact to
+    second order there keeps a bounded number of boxes open and closes geometrically.
+    ``boxes_to_close`` extrapolates at the order measured: a reading of the trend, not a promise.
+
+    Attributes
+    ----------
+    limit : {"box limit", "time limit"}
+        What stopped the branching.
+    half_boxes, boxes : int
+        Boxes bounded at the earlier reading and at the end. [1]
+    half_gap, gap : float
+        Relative gap (certified upper bound over the value found at the end, less one) at the two
+        readings. [1]
+    rtol : float
+        The relative gap the bracket was to close to. [1]
+
+    Examples
+    --------
+    >>> n = Narrowing("box limit", 20000, 4e-4, 40000, 2e-4, 1e-7)
+    >>> round(n.order, 6), f"{n.boxes_to_close:.0e}"
+    (1.0, '8e+07')
+    """
+
+    limit: str
+    half_boxes: int
+    half_gap: float
+    boxes: int
+    gap: float
+    rtol: float
+
+    @property
+    def order(self) -> float:
+        """p in gap ∝ boxes^-p between the two readings (0 when the gap did not narrow). [1]"""
+        if not (self.gap > 0.0 and self.half_gap > self.gap and self.boxes > self.half_boxes):
+            return 0.0
+        return math.log(self.half_gap / self.gap) / math.log(self.boxes / self.half_boxes)
+
+    @property
+    def boxes_to_close(self) -> float:
+        """Boxes at which the gap would reach ``rtol`` at :attr:`order` (inf when it did not narrow). [1]"""
+        if self.gap <= self.rtol:
+            return float(self.boxes)
+        order = self.order
+        return math.inf if order <= 0.0 else self.boxes * (self.gap / self.rtol) ** (1.0 / order)
+
+    def words(self) -> str:
+        """One clause for a proof's statement: the limit, the readings, the order and what it means."""
+        head = (f"stopped at the {self.limit}: the relative gap went from {self.half_gap:.1e} at "
+                f"{self.half_boxes:,} boxes to {self.gap:.1e} at {self.boxes:,}")
+        order = self.order
+        if order <= 0.0:
+            return head + " (not narrowing: more boxes would not close it)"
+        meaning = (" (a power of the boxes, not geometric, as a box bound exact only to first order at the "
+                   "worst point narrows: terms bounded each at its own extreme where they peak at different "
+                   "points, such as a rise and a fall balancing inside the envelope)" if order < 3.0 else "")
+        return (head + f", order {order:.1f} in the boxes{meaning}; at that order it would close to "
+                f"{self.rtol:g} in about {self.boxes_to_close:.0e} boxes")
 
 
 class _Boxes:
@@ -606,6 +687,9 @@ class BranchAndBound:
         self._axes = AxisCosts(len(root_lo))
         self._polish_at = list(_POLISH_AT)
         self._final: CertifiedMax | None = None
+        self._skip, self._skip_left = 0, 0
+        # (boxes, certified upper bound) after each step: how the bracket narrows (:class:`Narrowing`)
+        self._uppers: list[tuple[int, float]] = []
 
     def _points_of(self, rows: np.ndarray) -> list[dict[str, Any]]:
         return [self._envelope.point(dict(zip(self._names, row, strict=True))) for row in rows]
@@ -637,7 +721,7 @@ class BranchAndBound:
                                        self._points_of(self._best_row[None, :])[0], 1, True)
             return self._final
         start, limit = time.perf_counter(), self.max_boxes if max_boxes is None else max_boxes
-        complete, ended = True, True
+        complete, ended, stopped = True, True, ""
         while self._heap:
             if self._polish_at and self.boxes >= self._polish_at[0]:
                 self._polish_at.pop(0)
@@ -648,18 +732,34 @@ class BranchAndBound:
                 if final:
                     self._polish()
                 complete, ended = self._closed(), final
+                stopped = "box limit" if self.boxes >= limit else "time limit"
                 break
             self._branch()
-        left = -self._heap[0][0] if self._heap else -math.inf
-        bracket = CertifiedMax(self._best_value, max(self._best_value, self._pruned_max, left),
-                               self._points_of(self._best_row[None, :])[0], self.boxes, complete)
+            self._uppers.append((self.boxes, self._upper()))
+        upper = self._upper()
+        bracket = CertifiedMax(self._best_value, upper, self._points_of(self._best_row[None, :])[0],
+                               self.boxes, complete, None if complete else self._narrowing(stopped, upper))
         if ended:
             self._final = bracket
         return bracket
 
+    def _upper(self) -> float:
+        """The certified upper bound as it stands: the largest bound of a box open or pruned, or the value."""
+        left = -self._heap[0][0] if self._heap else -math.inf
+        return max(self._best_value, self._pruned_max, left)
+
+    def _narrowing(self, stopped: str, upper: float) -> Narrowing:
+        """The bracket's narrowing from about half its boxes to now, gaps relative to the value found now."""
+        half_boxes, half_upper = next(((b, u) for b, u in reversed(self._uppers) if b <= self.boxes // 2),
+                                      (1, self._root_upper))
+        best = self._best_value
+        return Narrowing(stopped or "box limit", half_boxes, half_upper / best - 1.0, self.boxes,
+                         upper / best - 1.0, self._rtol)
+
     def _branch(self) -> None:
         """Split the batch of boxes of largest bound, bound the halves, evaluate the function in the most
-        promising ones and keep the halves that may hold a larger value."""
+        promising ones (every step while that raises the value found, then at doubling gaps of steps, at
+        most :data:`_MOST_SKIPPED`) and keep the halves that may hold a larger value."""
         heap, rtol = self._heap, self._rtol
         batch = [heapq.heappop(heap) for _ in range(min(_BATCH, len(heap)))]
         lo = np.array([b[2] for b in batch])
@@ -676,7 +776,21 @@ class BranchAndBound:
         self._axes.learn(axis, widths[index, axis], np.array([-b[0] for b in batch]),
                          np.maximum(upper[:len(lo)], upper[len(lo):]))
         self.boxes += len(child_lo)
-        # The function itself is asked only in the boxes of largest bound (where a larger value may be).
+        if self._skip_left > 0:
+            self._skip_left -= 1
+        else:
+            self._evaluate_top(upper, peak, child_lo, child_hi)
+        for u, lo_i, hi_i in zip(upper, child_lo, child_hi, strict=True):
+            if u > self._best_value * (1.0 + rtol):
+                heapq.heappush(heap, (-float(u), self._counter, lo_i, hi_i))
+                self._counter += 1
+            else:
+                self._pruned_max = max(self._pruned_max, float(u))
+
+    def _evaluate_top(self, upper: np.ndarray, peak: np.ndarray, child_lo: np.ndarray,
+                      child_hi: np.ndarray) -> None:
+        """Ask the function at the centre and peak points of the children of largest bound, check each value
+        against its box's bound, keep the largest and set how many steps pass before the next asking."""
         n = len(child_lo)
         top = np.argsort(-upper)[:_EVALUATED]
         layers = len(peak) // n
@@ -689,14 +803,11 @@ class BranchAndBound:
             excess = float(np.max(values - owner))
             raise BoundFailedError(f"the model's value {excess:.3g} above a box's bound")
         found = int(np.argmax(values))
+        raised = values[found] > self._best_value * (1.0 + 0.1 * self._rtol)
         if values[found] > self._best_value:
             self._best_value, self._best_row = float(values[found]), rows[found]
-        for u, lo_i, hi_i in zip(upper, child_lo, child_hi, strict=True):
-            if u > self._best_value * (1.0 + rtol):
-                heapq.heappush(heap, (-float(u), self._counter, lo_i, hi_i))
-                self._counter += 1
-            else:
-                self._pruned_max = max(self._pruned_max, float(u))
+        self._skip = 0 if raised else min(max(1, 2 * self._skip), _MOST_SKIPPED)
+        self._skip_left = self._skip
 
 
 class AxisCosts:

@@ -113,7 +113,7 @@ def _certified_proof(problem: DesignProblem, model: Model, bracket: CertifiedMax
         "made and the speed (a posynomial), each term monotone in its driver or log-quadratic (its maximum "
         "over an interval at an end or at its stationary point), so over any box of the envelope mu is at "
         "most the composition of those maxima. Branch and bound over the envelope at the design "
-        f"({bracket.boxes} boxes{'' if bracket.complete else ', stopped at the box limit'}) brackets the "
+        f"({bracket.boxes} boxes{bracket.stopped_words()}) brackets the "
         "worst "
         f"case: found {bracket.value:.10g}, certified at most {upper:.10g} (relative "
         f"{bracket.relative_gap:.1e}). The design came from the outer approximation in {rounds} round(s) "
@@ -272,7 +272,7 @@ def _certified_upper_proof(problem: DesignProblem, model: Model, run: _Rounds, e
         "the parameter variance g'Cg at most its largest value over the box of gradients (a vertex: "
         f"convex){_CLOUD_WORDS if model.calibrated.cloud is not None else ''}, for the model and each "
         f"rival ({bracket.boxes} boxes"
-        f"{'' if bracket.complete else ', stopped at the box limit'}): found {bracket.value:.10g}, "
+        f"{bracket.stopped_words()}): found {bracket.value:.10g}, "
         "certified "
         f"at most {bracket.upper_bound:.10g} (relative {bracket.relative_gap:.1e}). The design came from "
         f"the outer approximation in {run.rounds} round(s) ({ending}).")

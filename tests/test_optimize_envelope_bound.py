@@ -13,7 +13,13 @@ from microbearing.calibrate.model import CalibratedModel
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
 from microbearing.optimize import certificates, robust
 from microbearing.optimize.certificates import certified_search, certified_upper_search
-from microbearing.optimize.envelope_bound import AxisCosts, certified_max, mu_box_bound, term_pieces
+from microbearing.optimize.envelope_bound import (
+    AxisCosts,
+    BranchAndBound,
+    certified_max,
+    mu_box_bound,
+    term_pieces,
+)
 from microbearing.optimize.interval_bound import interval_structures
 from microbearing.optimize.over_envelope import (
     envelope_columns,
@@ -790,6 +796,55 @@ def test_a_bound_loose_in_one_axis_closes_by_halving_that_axis():
     assert bracket.complete and bracket.boxes < 6000, bracket.boxes
     assert bracket.value <= brute * (1 + 1e-12) and bracket.upper_bound >= brute * (1 - 1e-12)
     assert bracket.upper_bound <= bracket.value * (1 + 1e-3)
+
+
+def _balanced_toy(order):
+    """A peak inside the temperature range where a rise and a fall balance, with a box bound of the given
+    order in the box's temperature width: 1, each factor at its own maximum; 2, the value at the box's
+    centre plus the largest slope there times the half-width plus half the largest curvature times its
+    square (a Taylor bound, exact to second order at the peak)."""
+    a, b, t0 = 0.05, 0.001, 20.0
+    j = list(ENVELOPE.axes()).index("conditions.temperature_C")
+
+    def log_f(t):
+        return a * (t - t0) - b * (t - t0) ** 2
+
+    def bound(lo, hi):
+        if order == 1:
+            upper = np.exp(a * (hi[:, j] - t0) - b * (lo[:, j] - t0) ** 2)
+        else:
+            c, h = 0.5 * (lo[:, j] + hi[:, j]), 0.5 * (hi[:, j] - lo[:, j])
+            upper = np.exp(log_f(c) + np.abs(a - 2 * b * (c - t0)) * h)  # log f is concave: tangent bound
+        return upper * (1 + 1e-12), 0.5 * (lo + hi)
+
+    def evaluate(points):
+        return np.exp(log_f(np.array([p["conditions"]["temperature_C"] for p in points])))
+
+    return bound, evaluate
+
+
+def test_a_bracket_stopped_open_says_how_it_was_narrowing():
+    # A bound exact only to first order narrows the gap as a power of the boxes: with the peak curved in one
+    # axis the boxes left open are those within ~w of the peak's value, ~w^(-1/2) of them at width w, so the
+    # gap ~ w narrows at order 2 (Narrowing's docstring). The order read at the stop predicts the gap
+    # further on; the words say which limit stopped it and what a power law means. A bound exact to second
+    # order at the peak (the tangent of the concave log) closes geometrically, in a thousand boxes to 1e-12.
+    bound, evaluate = _balanced_toy(1)
+    staged = BranchAndBound(bound, evaluate, ENVELOPE, rtol=1e-12)
+    early = staged.run(3000, final=False)
+    assert not early.complete and early.narrowing.limit == "box limit"
+    assert 1.5 < early.narrowing.order < 2.6, early.narrowing
+    late = staged.run(12000, final=False)
+    predicted = early.narrowing.gap * (early.boxes / late.boxes) ** early.narrowing.order
+    assert predicted / 3 < late.narrowing.gap < predicted * 3, (predicted, late.narrowing)
+    words = early.stopped_words()
+    assert words.startswith(", stopped at the box limit: the relative gap went from")
+    assert "first order" in words
+    assert early.narrowing.boxes_to_close > 12000
+    tangent = BranchAndBound(*_balanced_toy(2), ENVELOPE, rtol=1e-12).run(3000, final=False)
+    assert tangent.complete and tangent.stopped_words() == "" and tangent.boxes < early.boxes
+    timed = BranchAndBound(bound, evaluate, ENVELOPE, rtol=1e-12).run(time_limit_s=0.0)
+    assert timed.stopped_words().startswith(", stopped at the time limit")
 
 
 def test_axis_costs_halve_a_flat_axis_never_and_an_untried_one_first():
