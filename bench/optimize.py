@@ -468,8 +468,11 @@ def robust_kinds() -> None:
         print(f"  {label:<40} {objective:<9} {elapsed:>7.2f} {cpu:>7.2f} "
               f"{'yes' if proof['proven'] else 'no':>7} {gap:>8} "
               f"{result.worst_case[objective]:>12.8g} {'-' if upper is None else f'{upper:.8g}':>12}")
-        if not proof["proven"]:
-            print(f"      {proof['method']}: {proof['statement'][:300]}")
+        if not proof["proven"]:  # the reason: where the bracket stopped and how it was narrowing
+            statement = proof["statement"]
+            at = statement.find("stopped at the ")
+            reason = statement[at:statement.find("): found", at)] if at >= 0 else statement[:300]
+            print(f"      {proof['method']}: {reason}")
 
 
 if __name__ == "__main__":
