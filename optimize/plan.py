@@ -26,6 +26,7 @@ Examples
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -179,6 +180,7 @@ def plan_design(request: DesignRequest, model: Model | None = None) -> DesignPla
     values = {} if model is None else {**model.fixed, **model.fitted}
     convention = str(request.convention) if model is None else model.convention
     fixed = dict(request.fixed)
+    _refuse_values_the_model_holds(request, model, fixed)
     # A payload is a given, not a range: fixed.load_N is the load's bounds [G, G].
     load = fixed.pop("load_N", None)
     if load is not None and request.load_N is not None:
@@ -223,6 +225,42 @@ def plan_design(request: DesignRequest, model: Model | None = None) -> DesignPla
     except ValueError as exc:
         raise PlanError([(_field(exc), str(exc))]) from None
     return DesignPlan(problem, envelope)
+
+
+def _refuse_values_the_model_holds(request: DesignRequest, model: Model | None,
+                                   fixed: Mapping[str, Any]) -> None:
+    """A fixed physics input the model would not use, refused where it would be dropped without a word.
+
+    A surrogate answers only at the values it was trained at (:attr:`Model.inputs`' defaults, its space's
+    fixed values) for an input that is not one of its dimensions; a calibrated model over an envelope
+    holds its own fixed and fitted values (a robust design's interval carries a fitted value's
+    uncertainty). At one point a calibrated model takes a value given as an override, as
+    ``/v1/friction`` does.
+    """
+    if model is None:
+        return
+    if model.kind == "surrogate":
+        trained = {name: spec.default for name, spec in model.inputs.items() if spec.default is not None}
+        errors = [(f"fixed.{name}", f"{model.reference} was trained at {name} = {trained[name]:g}, not a "
+                   f"dimension of its space: it cannot answer at {value:g} (leave it out, or train a "
+                   f"surrogate with {name} among its bounds or fixed at {value:g})")
+                  for name, value in fixed.items()
+                  if name in trained and name not in DESIGN_VARIABLES and not isinstance(value, bool)
+                  and not math.isclose(float(value), float(trained[name]), rel_tol=1e-12)]
+    elif request.is_robust(fixed.get("speed_m_s", request.speed_m_s)):
+        held = {**model.fixed, **model.fitted}
+        errors = [(f"fixed.{name}", f"{model.reference} holds {name} = {held[name]:g} "
+                   f"({'fitted' if name in model.fitted else 'fixed at calibration'}); a robust design over "
+                   f"an envelope keeps the model's value (its uncertainty is in the interval), so {value:g} "
+                   "would not be used: leave it out, or calibrate with it fixed")
+                  for name, value in fixed.items()
+                  if name in held and name not in DESIGN_VARIABLES and name != "speed_m_s"
+                  and not isinstance(value, bool) and not isinstance(held[name], bool)
+                  and not math.isclose(float(value), float(held[name]), rel_tol=1e-12)]
+    else:
+        errors = []
+    if errors:
+        raise PlanError(errors)
 
 
 def _problem_field(message: str, speed_in_fixed: bool) -> str:

@@ -475,9 +475,27 @@ def prediction_fields(prediction: Prediction) -> dict[str, Any]:
             "domain_warnings": list(prediction.warnings)}
 
 
+def _surrogate_fields(model: Any) -> Callable[[Mapping[str, Any]], dict]:
+    """A surrogate's :func:`interval_at`: its interval at a point, each input outside its trained space."""
+    space = model.estimator.space
+
+    def fields(point: Mapping[str, Any]) -> dict[str, Any]:
+        point = {name: value for name, value in point.items() if name in physics.PARAMETERS}
+        prediction = model.estimator.predict_points(point)
+        words = space.outside_words(point)
+        return {"mu_lower": float(prediction.mu_lower[0]), "mu_upper": float(prediction.mu_upper[0]),
+                "in_domain": not words,
+                "domain_warnings": [f"{word}: the surrogate extrapolates there and its interval does not "
+                                    "apply" for word in words]}
+
+    return fields
+
+
 def interval_at(model: Any,
                 conditions: Mapping[str, float] | None) -> Callable[[Mapping[str, Any]], dict] | None:
-    """For a calibrated model, a function of one design point giving :func:`prediction_fields` there.
+    """For a calibrated model or a surrogate, a function of one design point giving
+    :func:`prediction_fields` there (a surrogate's: its interval, and whether the point lies in its trained
+    space, each input that leaves it said).
 
     Parameters
     ----------
@@ -490,8 +508,10 @@ def interval_at(model: Any,
     -------
     callable or None
         ``fields(point) -> dict`` (``mu_lower``, ``mu_upper``, ``in_domain``, ``domain_warnings``) for a
-        point of physics inputs; None for other models.
+        point of physics inputs; None for the physics.
     """
+    if getattr(model, "kind", None) == "surrogate":
+        return _surrogate_fields(model)
     if not isinstance(model, CalibratedPhysicsModel):
         return None
 

@@ -323,6 +323,33 @@ class Space:
                 inside &= X[:, i] == np.round(X[:, i])
         return inside
 
+    def outside_words(self, point: Mapping[str, Any]) -> list[str]:
+        """One sentence per input of one point that leaves the trained space: a dimension beyond its
+        bounds, another parameter at a value other than the one the space was built with (its fixed value
+        or the physics' default); empty inside.
+
+        Examples
+        --------
+        >>> s = Space({"groove_angle_deg": (40, 65)}, fixed={"balls": 4, "load_N": 0.01, "speed_m_s": 0.01})
+        >>> s.outside_words({"groove_angle_deg": 30.0, "balls": 6, "load_N": 0.01})
+        ['groove_angle_deg = 30 deg lies outside the trained range [40, 65] deg', 'balls = 6 differs from \
+the value the surrogate was trained at, 4']
+        """
+        reference = {**physics.defaults(), **self.fixed}
+        words = []
+        for name, value in point.items():
+            unit = physics.PARAMETERS[name].unit if name in physics.PARAMETERS else ""
+            unit = "" if unit in ("", "1", "-") else f" {unit}"
+            if name in self.names:
+                i = self.names.index(name)
+                if not self.lower[i] <= float(value) <= self.upper[i]:
+                    words.append(f"{name} = {float(value):g}{unit} lies outside the trained range "
+                                 f"[{self.lower[i]:g}, {self.upper[i]:g}]{unit}")
+            elif name in reference and float(value) != float(reference[name]):
+                words.append(f"{name} = {float(value):g}{unit} differs from the value the surrogate was "
+                             f"trained at, {float(reference[name]):g}{unit}")
+        return words
+
     def all_points(self, max_points: int) -> np.ndarray | None:
         """Every point of a finite space (only integer and boolean dimensions), if there are few.
 

@@ -171,6 +171,20 @@ def test_surrogate_model_is_optimized_locally_and_verified(client):
     assert report["relative_difference"] == pytest.approx(result["mu"] / result["mu_source"] - 1, rel=1e-12)
     assert report["satisfied"] and all(c["satisfied"] and c["decided_by"] == "physics"
                                        for c in result["constraints"])
+    # inside its trained space: its interval at the design, no warning
+    assert result["in_domain"] is True and result["domain_warnings"] == []
+    assert result["mu_lower"] < result["mu"] < result["mu_upper"]
+    # bounds beyond the space: mu rises with the angle, so the design lies below the trained 40 deg and
+    # is said to be an extrapolation, input by input
+    wider = finished(client, client.post("/v1/optimizations", json={
+        **request, "bounds": {**request["bounds"], "groove_angle_deg": [30, 60]}}))
+    assert wider["design"]["groove_angle_deg"] < 40 and wider["in_domain"] is False
+    assert [w.split(" = ")[0] for w in wider["domain_warnings"]] == ["groove_angle_deg"]
+    # a value it was trained at, asked otherwise, is one it cannot answer at: refused, not dropped
+    refused = client.post("/v1/optimizations", json={**request, "fixed": {"mu_pivot": 5.0}})
+    assert refused.status_code == 422
+    assert [e["pointer"] for e in refused.json()["errors"]] == ["/fixed/mu_pivot"]
+    assert "trained at mu_pivot = 0.5" in refused.json()["errors"][0]["detail"]
     # an infeasible problem answers as on the physics: 422 at once, naming the same limit
     infeasible = {**request, "constraints": {"max_contact_pressure_Pa": 1e6}}
     on_physics = client.post("/v1/optimizations", json={**infeasible, "model": "physics"})

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microbearing.calibrate import Dataset
+from microbearing.calibrate import CalibratedModel, Dataset
+from microbearing.calibrate.model_view import CalibratedPhysicsModel
 from microbearing.optimize.plan import DesignRequest, PlanError, check_request, plan_design
 from microbearing.optimize.solve import InfeasibleDesignError
 
@@ -58,6 +59,22 @@ def test_ranges_and_tolerances_make_an_envelope_and_the_physics_takes_no_conditi
                                 tolerances={"groove_angle_deg": 1.0}))[0][0] == "pareto"
     assert errors(DesignRequest(**BOX, load_N=(0.001, 0.05), speed_m_s=0.05, objective="mu_upper"))[0][0] \
         == "objective"
+
+
+def test_a_value_the_model_holds_is_refused_where_it_would_be_dropped_and_taken_at_one_point():
+    # A calibrated model over an envelope keeps its fitted mu_pivot (its uncertainty is in mu_upper): a
+    # different value in fixed would be dropped without a word, so it is refused, naming the field; the
+    # same value, or a value the model does not hold, passes. At one point the value is an override.
+    model = CalibratedPhysicsModel("calibrated:x", CalibratedModel(fitted={"mu_pivot": 0.8}))
+    robust = dict(**BOX, load_N=(0.001, 0.05), speed_m_s=[0.01, 0.1])
+    [(field, detail)] = errors(DesignRequest(**robust, fixed={"mu_pivot": 0.3}), model)
+    assert field == "fixed.mu_pivot" and "holds mu_pivot = 0.8 (fitted)" in detail and "0.3" in detail
+    assert plan_design(DesignRequest(**robust, fixed={"mu_pivot": 0.8}), model).envelope is not None
+    kept = plan_design(DesignRequest(**robust, fixed={"ball_diameter_m": 2e-3}), model)
+    assert kept.problem.fixed["ball_diameter_m"] == 2e-3
+    at_point = plan_design(DesignRequest(**BOX, load_N=(0.001, 0.05), speed_m_s=0.05,
+                                         fixed={"mu_pivot": 0.3}), model)
+    assert at_point.envelope is None and at_point.problem.fixed["mu_pivot"] == 0.3
 
 
 def test_limits_that_conflict_on_every_model_raise_the_infeasible_error():

@@ -444,15 +444,17 @@ class OptimizationResult(ResponseModel):
     solve_time_s: float = Field(description="Time of the optimization [s].")
     pareto: ParetoFront | None = Field(default=None, description="The Pareto front, when asked for.")
     mu_lower: float | None = Field(default=None, description=(
-        "For a calibrated model: lower bound of the 95 % prediction interval of mu at the design [1]."))
+        "For a calibrated model or a surrogate: lower bound of the 95 % prediction interval of mu at the "
+        "design [1]."))
     mu_upper: float | None = Field(default=None, description=(
-        "For a calibrated model: upper bound of the 95 % prediction interval of mu at the design [1]."))
+        "For a calibrated model or a surrogate: upper bound of the 95 % prediction interval of mu at the "
+        "design [1]."))
     in_domain: bool | None = Field(default=None, description=(
-        "For a calibrated model: whether the optimum lies within the ranges of the calibration data (false: "
-        "it is an extrapolation, see domain_warnings)."))
+        "For a calibrated model: whether the optimum lies within the ranges of the calibration data; for a "
+        "surrogate: within its trained space (false: it is an extrapolation, see domain_warnings)."))
     domain_warnings: list[str] | None = Field(default=None, description=(
-        "For a calibrated model: one sentence per input outside the calibration data at the optimum, naming "
-        "the column, the value and the range."))
+        "For a calibrated model (a surrogate): one sentence per input outside the calibration data (the "
+        "trained space) at the optimum, naming the column, the value and the range."))
     objective: Literal["mu", "mu_upper"] | None = Field(default=None, description=(
         "With an operating envelope: the objective whose worst case the design minimizes (mu is then that "
         "worst case) [1]."))
