@@ -301,6 +301,24 @@ def _parameter_value(parts: list[str], error: dict[str, Any]) -> Any:
     return spec
 
 
+def _as_sent(sent: str, read: str, spec: Any, value: Any) -> str:
+    """The words a refusal of a key the schema renamed ends with: the key and value as sent, as read, and
+    the range in the unit sent when the key carries one (``speed [mm/s]``: "in mm/s it must be in
+    [0, 1e+06]")."""
+    try:
+        reading = read_name(sent)
+    except ColumnError:
+        reading = None
+    if reading is None or reading.name != read or not reading.sent_unit:
+        return f" (sent as {sent}, read as {read})"
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    given = f": {reading.sent_value(value):g}" if number else ""
+    as_read = f": {float(value):g}" if number else ""
+    limit = ("" if spec is None else
+             f"; in {reading.sent_unit} it must be {spec.range_text(reading.sent_value)}")
+    return f" (sent as {sent}{given}, read as {read}{as_read}{limit})"
+
+
 def _in_words(error: dict[str, Any]) -> str:
     """pydantic's message of an error, said without its own terms (tags, models, "instance of")."""
     kind, ctx, message = error.get("type"), error.get("ctx") or {}, error.get("msg", "invalid")
@@ -343,7 +361,7 @@ def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
         if spec is not None:
             detail = f"{detail} ({spec.name} must be {spec.range_text()} [{spec.unit}])"
         for sent, read in renamed.items():  # the value given is in the unit of the name read
-            detail = f"{detail} (sent as {sent}, read as {read})"
+            detail = f"{detail}{_as_sent(sent, read, spec, error.get('input'))}"
         key = _key_named(parts, exc.body if source == "body" else None, detail, error)
         if key is not None:  # a mapping's validator refusing one of its keys ("RH [mm]: ...")
             parts = [*parts, key]

@@ -570,12 +570,18 @@ def test_a_physics_input_named_with_its_own_si_unit_or_another_is_read_at_every_
         results.append(response.json())
     assert results[0]["design"] == results[1]["design"] and results[0]["mu"] == results[1]["mu"]
     # a value out of range is refused at the key as sent (the schema reads it as load_N first)
+    # with the value as sent and as read, and the range in the unit sent (1e-9 N is 1e-6 mN)
     detail = _problem(client.post("/v1/friction", json={"balls": 4, "load [mN]": -10, "speed_m_s": 0.08}),
                       "/load [mN]")
-    assert "(sent as load [mN], read as load_N)" in detail, detail
+    assert "(sent as load [mN]: -10, read as load_N: -0.01; in mN it must be in [1e-06, " in detail, detail
     batch = {"points": {"balls": 4, "load [mN]": [10, -10], "speed_m_s": 0.08}}
     detail = _problem(client.post("/v1/friction/batch", json=batch), "/points/load [mN]/1")
-    assert "(sent as load [mN], read as load_N)" in detail, detail
+    assert "(sent as load [mN]: -10, read as load_N: -0.01; in mN it must be in [1e-06, " in detail, detail
+    # a range's end in the optimizations likewise: 5e7 mm/s is 5e4 m/s, the limit 1e6 mm/s
+    ranged = {**spelled, "fixed": {}, "speed [mm/s]": [10, 5e7]}
+    detail = _problem(client.post("/v1/optimizations", json=ranged), "/speed [mm~1s]/1")
+    assert "(sent as speed [mm/s]: 5e+07, read as speed_m_s: 50000; in mm/s it must be in [0, 1e+06])" \
+        in detail, detail
     # two names of one input are refused, naming the key
     both = client.post("/v1/optimizations", json={**body, "fixed": {"speed_m_s": 0.05, "speed_mm_s": 50}})
     assert both.status_code == 422 and "read as speed_m_s too" in both.text, both.text
