@@ -172,7 +172,7 @@ def _design_bound_points(problem: DesignProblem, envelope: Envelope, model: Mode
 
 def _design_passes(problem: DesignProblem, envelope: Envelope, model: Model, result: RobustResult,
                    structures: Sequence[Any], points: list[dict[str, Any]], widened: bool,
-                   deadline: float) -> tuple[Any, int]:
+                   deadline: float, progress: Callable[[float], None] | None = None) -> tuple[Any, int]:
     """The lower bound over the designs at the points, with up to :data:`_DESIGN_PASSES` passes (each adding
     the worst point of a design lower than the returned one there); ``points`` grows. Returns it and the
     points added."""
@@ -191,7 +191,8 @@ def _design_passes(problem: DesignProblem, envelope: Envelope, model: Model, res
                     if widened else None for p in points]
         at = DesignPoints(problem, structures, model.calibrated.fixed, points, envelope.angle_tolerance_deg,
                           z_quantile, widening)
-        found = design_lower_bound(at, design, evaluate, time_limit_s=deadline - time.perf_counter())
+        found = design_lower_bound(at, design, evaluate, time_limit_s=deadline - time.perf_counter(),
+                                   progress=progress)
         enough = found.lower_bound >= float(worst["mu_upper"]) * (1.0 - GAP_TARGET + BRACKET_RTOL)
         if enough or not (found.improved and found.complete) or time.perf_counter() > deadline:
             break
@@ -267,12 +268,13 @@ def _design_bound_statement(e: _DesignBoundEvidence) -> str:
 
 
 def with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model, result: RobustResult,
-                      deadline: float) -> RobustResult | str:
+                      deadline: float, progress: Callable[[float], None] | None = None) -> RobustResult | str:
     """A mu_upper result with the certified lower bound over the designs (:mod:`optimize.design_bound`), and
     the best design at the points in place of the returned one where only that closes the gap; else why not.
 
     ``problem`` is in the nominal angle, with the model's values held; ``deadline`` is a
-    :func:`time.perf_counter` instant after which no new batch of boxes starts.
+    :func:`time.perf_counter` instant after which no new batch of boxes starts; ``progress`` is told each
+    pass's share of its box or time limit (:func:`optimize.design_bound.design_lower_bound`).
     """
     calibrated = getattr(model, "calibrated", None)
     if calibrated is None or not dataclasses.is_dataclass(calibrated):
@@ -288,7 +290,8 @@ def with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model, 
     if isinstance(points, str):
         return points
     try:
-        found, added = _design_passes(problem, envelope, model, result, structures, points, widened, deadline)
+        found, added = _design_passes(problem, envelope, model, result, structures, points, widened, deadline,
+                                      progress)
     except BoundFailedError as exc:
         return f"its bound over a design box failed a check ({exc})"
     if not found.design_meets_limits:

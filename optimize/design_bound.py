@@ -532,7 +532,8 @@ def _split(boxes: tuple[np.ndarray, ...], take: np.ndarray, span_t: float,
 def design_lower_bound(at: DesignPoints, design: Mapping[str, float],
                        evaluate: Callable[[Mapping[str, np.ndarray]], np.ndarray],
                        rtol: float = DESIGN_RTOL, max_boxes: int = MAX_DESIGN_BOXES,
-                       time_limit_s: float = math.inf) -> DesignLowerBound:
+                       time_limit_s: float = math.inf,
+                       progress: Callable[[float], None] | None = None) -> DesignLowerBound:
     """Bracket min over the designs of max_j U(d, e_j) by branch and bound (module docstring).
 
     Parameters
@@ -550,6 +551,9 @@ def design_lower_bound(at: DesignPoints, design: Mapping[str, float],
         Most boxes bounded. [1]
     time_limit_s : float, default inf
         No new batch of boxes after this long. [s]
+    progress : callable, optional
+        Called after each batch with the larger of the boxes' and the time's share of their limits [1]
+        (a job's progress; it may raise to stop the search, e.g. a cancellation).
 
     Returns
     -------
@@ -597,9 +601,12 @@ def design_lower_bound(at: DesignPoints, design: Mapping[str, float],
             z, tl, th, gl, gh, low = (a[~narrow] for a in (z, tl, th, gl, gh, low))
         if not len(z):
             break
-        if count >= max_boxes or time.perf_counter() - start > time_limit_s:
+        elapsed = time.perf_counter() - start
+        if count >= max_boxes or elapsed > time_limit_s:
             complete = False
             break
+        if progress is not None:
+            progress(min(1.0, max(count / max_boxes, elapsed / time_limit_s if time_limit_s > 0 else 1.0)))
         take = np.argsort(low)[:_BATCH]
         rest = np.ones(len(z), dtype=bool)
         rest[take] = False

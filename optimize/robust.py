@@ -131,6 +131,10 @@ __all__ = ["ENVELOPE_RTOL", "GAP_TARGET", "MAX_ROUNDS", "OBJECTIVES", "TOLERANCE
            "RobustGPResult", "RobustResult", "certified_worst_case_of", "check_model", "dual_bound",
            "optimize_robust", "robust_gp", "shifted_problem", "worst_case_of", "worst_case_search"]
 
+#: Share of a mu_upper design's progress that its rounds report; the lower bound over the designs that
+#: follows them reports the rest (its boxes' or time's share of their limits). [1]
+_PROGRESS_OF_ROUNDS = 0.9
+
 
 def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | None = None,
                     objective: str = "mu", starts: int = 3, max_rounds: int = MAX_ROUNDS,
@@ -177,8 +181,11 @@ def optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | N
     # or boxes), and threads on them spent ~1.7x the CPU for no gain in wall time (bench/optimize.py
     # --kinds), as in calibrate's GP fits.
     with threadpool_limits(1):
-        return _optimize_robust(problem, envelope, model, objective, starts, max_rounds, progress, map_calls,
-                                time_limit_s)
+        result = _optimize_robust(problem, envelope, model, objective, starts, max_rounds, progress,
+                                  map_calls, time_limit_s)
+    if progress is not None:
+        progress(1.0)
+    return result
 
 
 def _optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | None, objective: str,
@@ -205,12 +212,18 @@ def _optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | 
         # Where mu is proven worst (its terms monotone) is where its upper bound is likely worst too: the
         # outer approximation starts from that vertex alone (the search adds any other point that is worse).
         vertex = term_structure(model, envelope)[0]
-    options = OuterOptions(starts, max_rounds, progress, map_calls, time_limit_s)
+    # mu_upper's lower bound over the designs follows the rounds: its share of the progress, the last tenth
+    rounds_share = 1.0 if objective == "mu" or progress is None else _PROGRESS_OF_ROUNDS
+    options = OuterOptions(starts, max_rounds, None if progress is None else (
+        lambda fraction: progress(rounds_share * fraction)), map_calls, time_limit_s)
     result = robust_model(problem, envelope, model, objective, options, reason,
                           None if vertex is None else [vertex])
     if objective == "mu":
         return result
-    bounded = certificates.with_design_bound(problem, envelope, model, result, start + time_limit_s)
+    bounded = certificates.with_design_bound(problem, envelope, model, result, start + time_limit_s,
+                                             None if progress is None else (
+                                                 lambda fraction: progress(rounds_share + (1.0 - rounds_share)
+                                                                           * fraction)))
     if isinstance(bounded, RobustResult):
         return bounded
     result = dataclasses.replace(result, proof=result.proof.with_statement(

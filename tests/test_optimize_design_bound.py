@@ -249,6 +249,35 @@ def test_a_search_stopped_by_its_time_limit_says_so_and_its_bound_still_holds():
     assert complete.complete and found.lower_bound <= complete.lower_bound <= complete.incumbent
 
 
+def test_the_lower_bound_search_reports_its_progress_and_a_job_can_stop_it():
+    # A job's progress callback is told the search's share of its box limit after each batch, and stops
+    # the search by raising (a cancellation) there; a robust mu_upper design reports its rounds first, the
+    # lower bound over the designs in the last tenth, and 1.0 only when it is done.
+    model = _model()
+    problem = DesignProblem(DesignBounds((3, 6), (45, 60), (0.002, 0.02)), 0.05)
+    seen = []
+    result = robust.optimize_robust(problem, ENVELOPE, model, objective="mu_upper", starts=1,
+                                    progress=seen.append)
+    assert seen == sorted(seen) and seen[-1] == 1.0 and all(0.0 <= f <= 1.0 for f in seen)
+    assert result.proof["lower_bound_boxes"] > 4  # the search ran its batches
+    assert any(0.9 < f < 1.0 for f in seen), seen  # its reports, between the rounds' 0.9 and the end
+
+    class StopError(Exception):
+        pass
+
+    def stop(fraction):
+        raise StopError(fraction)
+
+    held = with_model_values(problem, model)
+    structures, _ = interval_structures(model)
+    point = ENVELOPE.point({"speed_m_s": 0.1, "groove_angle_offset_deg": 0.5,
+                            "conditions.relative_humidity": 0.7, "conditions.temperature_C": 20.0})
+    at = DesignPoints(held, structures, model.calibrated.fixed, [point], 0.5, 1.959963984540054)
+    with pytest.raises(StopError):
+        design_lower_bound(at, {"balls": 3.0, "groove_angle_deg": 45.0, "load_N": 0.02},
+                           lambda designs: _upper_at(model, held, point, designs), progress=stop)
+
+
 def test_a_bound_above_the_model_is_caught():
     # A structure claiming ten times the scatter: its bound is above the model's own mu_upper, and the values
     # the model gives at the boxes' centres expose it.
