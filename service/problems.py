@@ -178,8 +178,9 @@ def validation_problem(errors: list[dict[str, str]], status: int = 422, total: i
         Ready to raise; at most :data:`MAX_LISTED_ERRORS` fields are listed.
     """
     total = max(total or 0, len(errors))
-    summary = "; ".join(f"{e.get('pointer', e.get('parameter', ''))}: {e['detail']}"
-                        for e in errors[:_SUMMARIZED_ERRORS])
+    # the whole body (pointer "") is named by no place: its detail alone
+    summary = "; ".join(f"{place}: {e['detail']}" if (place := e.get('pointer', e.get('parameter', '')))
+                        else e["detail"] for e in errors[:_SUMMARIZED_ERRORS])
     if total > _SUMMARIZED_ERRORS:
         summary += f"; and more ({total} errors in all, the first {min(len(errors), MAX_LISTED_ERRORS)} "
         summary += "listed in errors)"
@@ -422,7 +423,32 @@ async def _on_validation_error(request: Request, exc: RequestValidationError) ->
         problem = ProblemError(400, "The request body is not valid JSON.", title="Malformed JSON",
                                type_=VALIDATION_TYPE)
         return _respond(request, problem)
+    whole = _whole_body_problem(request, exc)
+    if whole is not None:
+        return _respond(request, whole)
     return _respond(request, validation_problem(_field_errors(exc), total=len(exc.errors())))
+
+
+def _whole_body_problem(request: Request, exc: RequestValidationError) -> ProblemError | None:
+    """The problem of a JSON body that is missing or was not sent as JSON (the schema then read no field):
+    422 saying the body is missing; 415 naming the media type sent; None for other errors."""
+    errors = exc.errors()
+    if len(errors) != 1 or tuple(errors[0].get("loc", ())) != ("body",):
+        return None
+    media = request.headers.get("content-type", "").split(";")[0].strip()
+    if errors[0].get("type") == "missing":
+        return validation_problem([{"pointer": "", "detail": "the request has no body: send a JSON object "
+                                                             "with Content-Type: application/json"}])
+    if isinstance(errors[0].get("input"), bytes) and media != "application/json":
+        return not_json_problem(media)
+    return None
+
+
+def not_json_problem(media_type: str) -> ProblemError:
+    """The 415 problem of a body sent as another media type than JSON (``""``: none declared)."""
+    sent = repr(media_type[:100].lower()) if media_type else "a body without a Content-Type"
+    return ProblemError(415, f"The body must be application/json, not {sent}.",
+                        title="Unsupported Media Type", headers={"Accept": "application/json"})
 
 
 async def _on_unexpected(request: Request, exc: Exception) -> ProblemResponse:

@@ -124,6 +124,22 @@ def test_malformed_json_is_400(client):
     assert_problem(response, 400)
 
 
+def test_a_missing_body_is_said_and_a_body_not_sent_as_json_is_415(client):
+    problem = assert_problem(client.post("/v1/optimizations", content=b"", headers=JSON_HEADERS), 422)
+    assert problem["detail"] == ("The request is invalid: the request has no body: send a JSON object with "
+                                 "Content-Type: application/json")
+    # the routes FastAPI reads and those that read their own bodies answer alike
+    design = {"bounds": {"balls": [4, 8], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]},
+              "speed_m_s": 0.05}
+    for path, body in (("/v1/optimizations", json.dumps(design).encode()),
+                       ("/v1/friction", b'{"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}')):
+        response = client.post(path, content=body, headers={"content-type": "Text/Plain"})
+        problem = assert_problem(response, 415)
+        assert problem["detail"] == "The body must be application/json, not 'text/plain'.", problem
+        assert response.headers["accept"] == "application/json"
+        assert client.post(path, content=body, headers=JSON_HEADERS).status_code == 200
+
+
 def test_unknown_path_is_404_and_wrong_method_405_with_allow(client):
     assert_problem(client.get("/v1/nothing"), 404)
     response = client.get("/v1/friction")

@@ -35,7 +35,7 @@ from microbearing import physics
 from microbearing.physics.columns import ColumnError, Reading, read_name
 
 from ..jsonguard import is_json_media_type
-from ..problems import VALIDATION_TYPE, ProblemError
+from ..problems import VALIDATION_TYPE, ProblemError, not_json_problem
 
 __all__ = [
     "RAW_BODY_MODELS",
@@ -263,8 +263,7 @@ async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
     headers = request.scope["headers"]
     content_type = next((value for name, value in headers if name.lower() == b"content-type"), None)
     if not is_json_media_type(content_type):
-        media_type = content_type.split(b";", 1)[0].strip().lower().decode("latin-1")
-        raise ProblemError(415, f"The body must be application/json, not {media_type[:100]!r}.")
+        raise not_json_problem(content_type.split(b";", 1)[0].strip().decode("latin-1"))
     body = await _read_body(request)
     try:
         if len(body) <= _INLINE_BODY_BYTES:
