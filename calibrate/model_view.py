@@ -33,7 +33,9 @@ class CalibratedPhysicsModel(Model):
     """A stored calibration: the physics with fitted parameters and the terms calibration added.
 
     Its outputs are the physics outputs with the fitted parameters, except ``mu``, which includes
-    the added terms; ``mu_effect`` [1], the terms' share of ``mu``; and ``mu_lower``, ``mu_upper`` [1],
+    the added terms, and ``friction_force_N``, the force at that ``mu`` (``mu`` x ``load_N``, what a
+    tribometer reads and what a friction-force limit judges); ``mu_effect`` [1], the terms' share of
+    ``mu``; and ``mu_lower``, ``mu_upper`` [1],
     the 95 % prediction interval of a measurement (:meth:`calibrate.CalibratedModel.predict`; NaN for
     a model stored before intervals). ``outside_domain`` flags points outside the calibration data.
 
@@ -121,6 +123,8 @@ class CalibratedPhysicsModel(Model):
             raise ModelError([{"pointer": "/conditions", "detail": "the calibrated model's mu is not "
                                f"finite at these conditions{at}"}])
         no_interval = np.full(mu.shape, np.nan)
+        if "friction_force_N" in base:  # the force at the model's mu, as the physics' is at its own
+            base = {**base, "friction_force_N": base["friction_force_N"] * (mu / base["mu"])}
         values = {**base, "mu": mu, "mu_effect": mu - base["mu"],
                   "mu_lower": no_interval if prediction.mu_lower is None else prediction.mu_lower,
                   "mu_upper": no_interval if prediction.mu_upper is None else prediction.mu_upper}

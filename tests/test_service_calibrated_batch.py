@@ -87,6 +87,9 @@ def test_batch_gives_the_single_point_answers_and_the_calibrated_model_s_own(cli
     # The declared physics with the fitted parameters underneath, the terms on top.
     declared = physics.evaluate(**columns, **stored.fitted)
     np.testing.assert_allclose(mu - batch["mu_effect"], declared.mu, rtol=1e-12)
+    # but the friction force is the one at the model's mu, as a tribometer reads it and a limit judges it
+    np.testing.assert_allclose(batch["friction_force_N"], mu * columns["load_N"], rtol=1e-12)
+    assert np.all(np.abs(np.array(batch["friction_force_N"]) / declared.friction_force_N - 1) > 1e-6)
     # One warning per column outside, naming it with the data's range and counting the batch's points.
     warnings = batch["domain_warnings"]
     low, high = calibration["model"]["domain"]["relative_humidity"]

@@ -80,8 +80,9 @@ MODEL_FIELDS: dict[str, Any] = {
 MODEL_RESPONSE_FIELDS: dict[str, Any] = {
     "model": (str | None, Field(default=None, description="The calibrated model used (absent for physics).")),
     "mu_effect": (float | None, Field(default=None, description=(
-        "Share of mu due to the calibrated model's added terms [1]; the other outputs are the declared "
-        "model's with the fitted parameters (absent for physics)."))),
+        "Share of mu due to the calibrated model's added terms [1]; friction_force_N is the force at the "
+        "model's mu (mu x load_N), the other outputs are the declared model's with the fitted parameters "
+        "(absent for physics)."))),
     "mu_lower": (float | None, Field(default=None, description=(
         "Lower bound of the 95 % prediction interval of a measurement of mu at this point [1]: parameter "
         "uncertainty, what the calibrated terms leave unexplained and the noise (absent for physics and for "
