@@ -127,6 +127,12 @@ def test_wide_ball_count_range_runs_as_a_job(client):
     assert len(result["per_ball_count"]) == 58 and all(c["satisfied"] for c in result["constraints"])
     png = client.get(f"/v1/optimizations/{result['job']['id']}/pareto.png")
     assert png.status_code == 404  # no front was asked for
+    # the result is no table: JSON wherever the Accept header admits it, even below CSV; 406 where it does not
+    path = f"/v1/jobs/{result['job']['id']}/result"
+    preferring_csv = client.get(path, headers={"accept": "application/json;q=0.1, text/csv"})
+    assert preferring_csv.status_code == 200 and preferring_csv.headers["content-type"] == "application/json"
+    assert preferring_csv.json()["per_ball_count"] == result["per_ball_count"]
+    assert client.get(path, headers={"accept": "text/csv"}).status_code == 406
 
 
 def test_calibrated_model_is_optimized_locally_with_its_fitted_values(client):

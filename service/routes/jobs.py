@@ -17,7 +17,7 @@ from ..deps import JobsDep
 from ..jobs import FINISHED, POLL_AFTER_S, RETRY_AFTER_S, JobManager
 from ..problems import Problem, ProblemError, problem_responses
 from ..schemas.jobs import JOB_RESULTS, Job, JobKind, JobList, JobResult, JobStatus
-from ..tables import CSV_MEDIA_TYPE, csv_text, sweep_table, wants_csv
+from ..tables import CSV_MEDIA_TYPE, accepts_any, csv_text, sweep_table, wants_csv
 from .pages import DEFAULT_PAGE_LIMIT, PageToken, page_limit, page_of, page_start
 
 __all__ = ["ACCEPTED_RESPONSE", "NOT_FINISHED_RESPONSE", "accepted", "accepted_response", "calibration_links",
@@ -248,9 +248,11 @@ def get_job_result(job_id: str, request: Request, jobs: JobsDep) -> Response:
     check_not_erased(row)
     if wants_csv(request):
         result = json.loads(row["result_json"])
-        if not isinstance(result.get("columns"), dict):
+        if isinstance(result.get("columns"), dict):
+            return Response(csv_text(sweep_table(result)), media_type=CSV_MEDIA_TYPE)
+        # not a table: JSON, where the header admits it at all (a lower quality is still acceptable)
+        if not accepts_any(request.headers.get("accept", ""), ["application/json"]):
             raise ProblemError(406, f"The result of job {job_id} is not a table; ask for application/json.")
-        return Response(csv_text(sweep_table(result)), media_type=CSV_MEDIA_TYPE)
     return Response(_tagged(row["kind"], row["result_json"]), media_type="application/json")
 
 

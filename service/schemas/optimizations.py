@@ -419,12 +419,17 @@ class OptimizationResult(ResponseModel):
 
     model: str = Field(description="The model optimized.")
     method: str = Field(description="dgp-enumeration (certified global), sequential-convex-approximation "
-                                    "(local), or for an envelope robust-gp-vertex (proven) or "
-                                    "outer-approximation-local (not proven).")
+                                    "(local), or for an envelope robust-gp-vertex (proven), "
+                                    "outer-approximation-certified (the worst case at the design certified; "
+                                    "proof.proven says whether the design is) or outer-approximation-local "
+                                    "(not proven).")
     design: BearingDesign = Field(description="The best design (the fewest balls among ties).")
     mu: float = Field(description="mu of the model at the design (the exact physics for model physics) [1].")
     mu_solver: float = Field(description="The solver's value of mu [1].")
-    relative_gap: float = Field(description="mu_solver / mu - 1 [1].")
+    relative_gap: float = Field(description=(
+        "mu_solver / mu - 1 [1]: the solver's value of mu against the model's own at the design (rounding of "
+        "the solve, may be negative); not the optimality gap, which is proof.relative_gap with an envelope "
+        "and the certificate otherwise."))
     mu_physics: float | None = Field(default=None, description="The exact physics at the design (equal to mu "
                                      "for model physics) [1].")
     source_model: str | None = Field(default=None, description=(
