@@ -91,7 +91,8 @@ class AcceptMiddleware:
     ``text/csv`` for tables, ``image/png`` for plots), read once; the request's path is matched
     against the spec's path templates. Paths outside the spec (the API docs, metrics) and answers
     without content (204) are not checked; an absent, ``*/*`` or ``application/json`` Accept passes
-    without any lookup. The 406 is a problem listing what the route offers.
+    without any lookup (``application/json`` is looked up only among the few routes that do not offer it,
+    the plots). The 406 is a problem listing what the route offers.
 
     Parameters
     ----------
@@ -99,11 +100,12 @@ class AcceptMiddleware:
         The wrapped application.
     """
 
-    _PASS = frozenset({b"", b"*/*", b"application/json"})
+    _PASS = frozenset({b"", b"*/*"})
 
     def __init__(self, app: ASGIApp):
         self.app = app
         self._offered: list[tuple[re.Pattern[str], str, list[str]]] | None = None
+        self._no_json: list[tuple[re.Pattern[str], str, list[str]]] | None = None
 
     def offered(self, app: FastAPI, path: str, method: str) -> list[str]:
         """Media types of the 2xx answers of the spec's operation at ``path`` (empty when none)."""
@@ -120,6 +122,14 @@ class AcceptMiddleware:
         matching = (types for pattern, verb, types in self._offered if verb == method and pattern.match(path))
         return next(matching, [])
 
+    def without_json(self, app: FastAPI, path: str, method: str) -> list[str]:
+        """:meth:`offered` at ``path`` when the route does not offer ``application/json`` (empty when it
+        does, or is outside the spec)."""
+        self.offered(app, path, method)  # the table, read once
+        if self._no_json is None:
+            self._no_json = [(p, v, t) for p, v, t in self._offered or [] if "application/json" not in t]
+        return next((t for p, v, t in self._no_json if v == method and p.match(path)), [])
+
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         accept = next((value for name, value in scope["headers"] if name == b"accept"), b"") \
             if scope["type"] == "http" else b""
@@ -127,7 +137,10 @@ class AcceptMiddleware:
             await self.app(scope, receive, send)
             return
         method = "GET" if scope["method"] == "HEAD" else scope["method"]
-        types = self.offered(scope["app"], security.app_path(scope), method)
+        if accept.strip() == b"application/json":  # the JSON routes pass without a lookup among them
+            types = self.without_json(scope["app"], security.app_path(scope), method)
+        else:
+            types = self.offered(scope["app"], security.app_path(scope), method)
         text = accept.decode("latin-1")
         if not types or accepts_any(text, types):
             await self.app(scope, receive, send)

@@ -120,6 +120,10 @@ def test_routes_with_several_media_types_accept_each(client):
     problem(client.post("/v1/sweeps", json=sweep, headers={"accept": "image/png"}), 406)
     plot = client.get("/v1/calibrations/0123/plots/residual.png", headers={"accept": "image/png"})
     assert plot.status_code == 404
+    # a plot is no JSON: asked for JSON alone, 406 naming what it offers (it passed as a PNG)
+    answer = problem(client.get("/v1/calibrations/0123/plots/residual.png",
+                                headers={"accept": "application/json"}), 406)
+    assert "image/png" in answer["detail"]
     assert client.get("/metrics", headers={"accept": "text/plain"}).status_code == 200  # outside the spec
 
 
