@@ -26,7 +26,7 @@ from microbearing.surrogate.persist import version_warning
 
 from .calibrations import with_conditions
 from .models import resolve
-from .problems import ProblemError, validation_problem
+from .problems import ProblemError, pointer_at, validation_problem
 from .schemas.surrogates import SurrogateRequest
 from .store import Store, StoredModel, utc_now
 
@@ -261,7 +261,30 @@ def load_surrogate(store: Store, surrogate_id: str) -> GaussianProcessSurrogate:
     return model
 
 
-def predict(store: Store, surrogate_id: str, points: Mapping[str, Any]) -> dict[str, Any]:
+def _refuse_unread_points(space: Any, points: Mapping[str, Any],
+                          sent_as: Callable[[str], tuple[str, Any] | None]) -> None:
+    """422 naming each input a prediction cannot answer for: an empty list, or a value other than the one
+    the surrogate was trained at for an input that is not one of its dimensions (it does not read it:
+    its answer would be the trained value's)."""
+    trained = space.held_values()
+    errors = []
+    for name, value in points.items():
+        key = (sent_as(name) or (name,))[0]
+        column = np.atleast_1d(np.asarray(value, dtype=float))
+        if column.size == 0:
+            errors.append({"pointer": pointer_at("/points", key), "detail": "a list must not be empty"})
+        elif name in trained and np.any(column != float(trained[name])):
+            other = float(column[column != float(trained[name])][0])
+            errors.append({"pointer": pointer_at("/points", key), "detail": (
+                f"the surrogate was trained at {name} = {float(trained[name]):g}, not a dimension of its "
+                f"space: it cannot answer at {other:g} (leave it out, or train a surrogate with {name} "
+                "among its dimensions)")})
+    if errors:
+        raise validation_problem(errors)
+
+
+def predict(store: Store, surrogate_id: str, points: Mapping[str, Any],
+            sent_as: Callable[[str], tuple[str, Any] | None] = lambda name: None) -> dict[str, Any]:
     """Predicted μ with its 95 % interval at columnar points, flagging points outside the space.
 
     Parameters
@@ -272,6 +295,8 @@ def predict(store: Store, surrogate_id: str, points: Mapping[str, Any]) -> dict[
         The surrogate.
     points : mapping of str to float or list of float
         Every dimension of the surrogate, in its unit; scalars broadcast.
+    sent_as : callable, optional
+        An input's key and value as sent when it was renamed (``load [mN]``), for a refusal's pointer.
 
     Returns
     -------
@@ -286,6 +311,7 @@ def predict(store: Store, surrogate_id: str, points: Mapping[str, Any]) -> dict[
     """
     result = load_stored(store, surrogate_id).metadata["result"]
     model = load_surrogate(store, surrogate_id)
+    _refuse_unread_points(model.space, points, sent_as)
     try:
         prediction = model.predict_points(points)
     except ValueError as exc:

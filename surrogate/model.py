@@ -44,6 +44,9 @@ __all__ = ["KERNELS", "MEANS", "CALIBRATIONS", "VARIANCE_SCALES", "DEFAULT_KERNE
            "DEFAULT_CALIBRATION", "Hyperparameters", "SurrogatePrediction", "GaussianProcessSurrogate",
            "build_kernel", "prior_mean", "fit_prior_mean"]
 
+#: Points predicted per block (memory of one call bounded by one block's covariances). [1]
+_PREDICT_BLOCK = 8192
+
 #: Allowed stationary kernels.
 KERNELS = ("rbf", "matern52", "matern32")
 #: Allowed prior means of the target.
@@ -626,12 +629,19 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self, "gaussian_process_")
         X = self.space.check_X(X)
-        Zs = self.design_matrix(X)
-        t, std = self.gaussian_process_.predict(Zs, return_std=True)
-        t = t + self._prior_mean(Zs)
-        std = std * self.std_scale_
+        # In blocks: the process's cross-covariances are (points x training rows), so a large call's
+        # memory stays that of one block (a few MB) whatever its size.
+        blocks = [self._predict_block(X[i:i + _PREDICT_BLOCK]) for i in range(0, len(X), _PREDICT_BLOCK)]
+        t = np.concatenate([b[0] for b in blocks]) if blocks else np.empty(0)
+        std = np.concatenate([b[1] for b in blocks]) if blocks else np.empty(0)
         mu = np.exp(t) if self.log_target else t
         return (mu, std) if return_std else mu
+
+    def _predict_block(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The target's mean and standard deviation at a block of checked points."""
+        Zs = self.design_matrix(X)
+        t, std = self.gaussian_process_.predict(Zs, return_std=True)
+        return t + self._prior_mean(Zs), std * self.std_scale_
 
     def predict_interval(self, X: Any, level: float = 0.95) -> SurrogatePrediction:
         """Predicted μ with a central interval and the outside-space flag.

@@ -323,6 +323,12 @@ class Space:
                 inside &= X[:, i] == np.round(X[:, i])
         return inside
 
+    def held_values(self) -> dict[str, Any]:
+        """The value of every physics parameter that is not a dimension: its fixed value or the physics'
+        default (those without one, required inputs, are dimensions or fixed)."""
+        return {name: value for name, value in {**physics.defaults(), **self.fixed}.items()
+                if name not in self.names}
+
     def outside_words(self, point: Mapping[str, Any]) -> list[str]:
         """One sentence per input of one point that leaves the trained space: a dimension beyond its
         bounds, another parameter at a value other than the one the space was built with (its fixed value
@@ -335,7 +341,7 @@ class Space:
         ['groove_angle_deg = 30 deg lies outside the trained range [40, 65] deg', 'balls = 6 differs from \
 the value the surrogate was trained at, 4']
         """
-        reference = {**physics.defaults(), **self.fixed}
+        reference = self.held_values()
         words = []
         for name, value in point.items():
             unit = physics.PARAMETERS[name].unit if name in physics.PARAMETERS else ""

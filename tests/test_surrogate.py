@@ -866,3 +866,18 @@ def test_the_default_surrogate_is_more_accurate_than_the_earlier_one_on_a_ball_b
         model = GaussianProcessSurrogate(space, random_state=0, **params).fit(X, space.evaluate(X))
         errors.append(np.median(np.abs(model.predict(Xt) / truth - 1)))
     assert errors[1] < errors[0] / 3
+
+
+def test_a_large_prediction_runs_in_blocks_with_the_same_answer(fitted, monkeypatch):
+    # A call's memory is one block's covariances, whatever its size; the blocks give the whole call's
+    # numbers (the process's prediction is row by row), an empty call an empty answer.
+    from microbearing.surrogate import model as surrogate_model
+
+    model = next(iter(fitted.values()))
+    X = design(model.space, 50, "sobol", seed=5)
+    whole_mu, whole_std = model.predict(X, return_std=True)
+    monkeypatch.setattr(surrogate_model, "_PREDICT_BLOCK", 7)
+    mu, std = model.predict(X, return_std=True)
+    np.testing.assert_allclose(mu, whole_mu, rtol=1e-12)
+    np.testing.assert_allclose(std, whole_std, rtol=1e-9, atol=1e-15)
+    assert model.predict(X[:0]).shape == (0,)

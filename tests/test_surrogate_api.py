@@ -118,11 +118,23 @@ def test_list_get_and_predict(client, trained):
     assert p["outside_space"] == [False, False, False, True]
     np.testing.assert_allclose(p["mu"][:3], truth[:3], rtol=0.01)
     assert all(lo < mu < hi for lo, mu, hi in zip(p["mu_lower"], p["mu"], p["mu_upper"], strict=True))
-    # Another groove angle than trained: outside the space.
+    # Another groove angle than trained, not a dimension: the surrogate does not read it, so its answer
+    # would be the trained angle's; refused, naming the input as sent (an empty list likewise)
     other = client.post(f"/v1/surrogates/{trained['id']}/predict",
                         json={"points": {"load_N": 0.01, "speed_m_s": 0.1, "balls": 6,
-                                         "groove_angle_deg": 50.0}})
-    assert other.json()["outside_space"] == [True]
+                                         "groove_angle_deg": [60.0, 50.0]}})
+    assert other.status_code == 422
+    [error] = other.json()["errors"]
+    assert error["pointer"] == "/points/groove_angle_deg" and "cannot answer at 50" in error["detail"]
+    empty = client.post(f"/v1/surrogates/{trained['id']}/predict",
+                        json={"points": {"load_N": [], "speed_m_s": 0.1, "balls": 6}})
+    assert [e["pointer"] for e in empty.json()["errors"]] == ["/points/load_N"]
+    # inputs under names with units, as the batch and the CLI read them
+    lab = client.post(f"/v1/surrogates/{trained['id']}/predict",
+                      json={"points": {"load [mN]": 10, "speed [mm/s]": 100, "balls": 6}})
+    same = client.post(f"/v1/surrogates/{trained['id']}/predict",
+                       json={"points": {"load_N": 0.01, "speed_m_s": 0.1, "balls": 6}})
+    assert lab.status_code == 200 and lab.json()["mu"] == same.json()["mu"]
 
 
 def test_a_surrogate_short_of_its_target_warns_in_its_view_and_every_prediction(client, trained):

@@ -103,7 +103,8 @@ def predict_surrogate(surrogate_id: str, body: Annotated[PredictRequest, Body(
             loads=("Three loads at 0.05 m/s (a surrogate over load and speed)", examples.PREDICT)))],
                       store: StoreDep) -> JSONResponse:
     """Predicted mu with its 95 % interval at columnar points, flagging points outside the space."""
-    return JSONResponse(predict(store, surrogate_id, body.points.model_dump(exclude_none=True)))
+    return JSONResponse(predict(store, surrogate_id, body.points.model_dump(exclude_none=True),
+                                body.points.sent_as))
 
 
 #: The base sample sizes allowed: the powers of 2 in SENSITIVITY_N (listed in the spec).

@@ -29,6 +29,7 @@ from .base import (
     parameter_type,
 )
 from .calibrations import MODEL_PATTERN
+from .friction import INPUT_KEYS, InputKeys
 
 __all__ = ["MAX_BUDGET", "MAX_VALIDATION_POINTS", "SamplingDesignName", "PredictRequest", "PredictResponse",
            "SensitivityResponse", "SurrogateList", "SurrogateMetrics", "SurrogateRequest", "SurrogateResult",
@@ -198,9 +199,9 @@ class SurrogateList(ResponseModel):
 
 
 PredictPoints = create_model(
-    "PredictPoints", __base__=StrictModel,
-    __doc__="Columnar points: every dimension of the surrogate; other inputs optional (a value "
-            "differing from the trained one flags the point as outside the space).",
+    "PredictPoints", __base__=InputKeys,
+    __doc__="Columnar points: every dimension of the surrogate; other inputs optional (a value other than "
+            "the one it was trained at is refused: the surrogate does not read it)." + INPUT_KEYS,
     **parameter_fields(columns=True, optional=True),
 )
 
