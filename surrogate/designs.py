@@ -94,7 +94,8 @@ def sampled_values(ranges: Mapping[str, tuple[float, float, str]], n: int, metho
     -------
     dict of str to numpy.ndarray
         One column of ``n`` values per input: whole-number inputs as int64, each whole number of
-        ``[low, high]`` with an equal share of the unit interval. [unit of the input]
+        ``[low, high]`` with an equal share of the unit interval (log spacing: k with a share in
+        proportion to log((k + 1) / k)). [unit of the input]
 
     Examples
     --------
@@ -105,7 +106,11 @@ def sampled_values(ranges: Mapping[str, tuple[float, float, str]], n: int, metho
     unit = unit_design(len(ranges), n, method, np.random.default_rng(seed), lhs_optimization=None)
     columns = {}
     for j, (name, (low, high, spacing)) in enumerate(ranges.items()):
-        if physics.PARAMETERS[name].kind == "int":
+        if physics.PARAMETERS[name].kind == "int" and spacing == "log":
+            # Each whole number k in [low, high] gets the share log((k + 1) / k) of [low, high + 1).
+            spread = np.exp(np.log(low) + unit[:, j] * np.log((high + 1.0) / low))
+            columns[name] = np.minimum(np.floor(spread), high).astype(np.int64)
+        elif physics.PARAMETERS[name].kind == "int":
             # Each whole number in [low, high] gets an equal share of the unit interval.
             columns[name] = np.minimum(np.floor(low + unit[:, j] * (high - low + 1)), high).astype(np.int64)
         else:

@@ -881,3 +881,18 @@ def test_a_large_prediction_runs_in_blocks_with_the_same_answer(fitted, monkeypa
     np.testing.assert_allclose(mu, whole_mu, rtol=1e-12)
     np.testing.assert_allclose(std, whole_std, rtol=1e-9, atol=1e-15)
     assert model.predict(X[:0]).shape == (0,)
+
+
+def test_a_log_spaced_whole_number_range_gives_each_count_its_log_share():
+    # Sweeps' Sobol' and Latin-hypercube designs: balls 3-30 on a log scale give k the share
+    # log((k + 1) / k) / log(31 / 3) (the grid's log axis spaces them so too); linear, 1/28 each.
+    from microbearing.surrogate.designs import sampled_values
+
+    for method in ("sobol", "latin_hypercube"):
+        logged = sampled_values({"balls": (3, 30, "log")}, 4096, method, seed=2)["balls"]
+        linear = sampled_values({"balls": (3, 30, "linear")}, 4096, method, seed=2)["balls"]
+        counts = np.arange(3, 31)
+        share = np.array([np.mean(logged == k) for k in counts])
+        np.testing.assert_allclose(share, np.log((counts + 1) / counts) / np.log(31 / 3), atol=0.006)
+        assert logged.min() == 3 and logged.max() == 30 and np.median(logged) in (9, 10)
+        np.testing.assert_allclose([np.mean(linear == k) for k in counts], 1 / 28, atol=0.006)
