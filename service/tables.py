@@ -37,12 +37,18 @@ def prefers_csv(accept: str) -> bool:
     (True, False, False)
     >>> prefers_csv("application/json;q=0.5, text/csv;q=0.8"), prefers_csv("text/*;q=0.9, application/json")
     (True, False)
+    >>> prefers_csv("text/*")  # JSON not admitted: the table it does admit
+    True
     """
     ranges = media_ranges(accept)
     csv_q, json_q = best_match(ranges, CSV_MEDIA_TYPE), best_match(ranges, "application/json")
-    if csv_q is None or csv_q[0] < 2 or csv_q[1] <= 0.0:
-        return False  # CSV only when named: */* and text/* leave the default, JSON
-    return json_q is None or csv_q[1] >= json_q[1]
+    if csv_q is None or csv_q[1] <= 0.0:
+        return False
+    if json_q is None or json_q[1] <= 0.0:
+        return True  # JSON not admitted at all (text/*): CSV, which is
+    if csv_q[0] < 2:
+        return False  # CSV only when named: */* leaves the default, JSON
+    return csv_q[1] >= json_q[1]
 
 
 def media_ranges(accept: str) -> list[tuple[str, str, float]]:

@@ -366,7 +366,8 @@ def test_sweep_csv_prints_ball_counts_as_integers(client):
 
 @pytest.mark.parametrize(("accept", "csv_expected"), [
     ("text/csv;q=0", None), ("text/csv;q=0.3, application/json", False), ("*/*", False),
-    ("application/json;q=0.1, text/csv", True), ("TEXT/CSV; q=0.5", True)])
+    ("application/json;q=0.1, text/csv", True), ("TEXT/CSV; q=0.5", True), ("text/*", True),
+    ("text/*, application/json;q=0", True)])
 def test_sweep_format_follows_accept_qualities(client, accept, csv_expected):
     request = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load_N": 0.01},
                "axes": {"speed_m_s": {"start": 0.0, "stop": 0.1, "num": 2}}}
