@@ -272,6 +272,9 @@ def test_batch_returns_only_the_chosen_outputs(client):
     body = client.post("/v1/friction/batch", json=request).json()
     assert set(body) == {"mu", "contact_radius_m"}
     assert len(body["mu"]) == 2 and body["mu"][1] > body["mu"][0]  # mu grows with speed
+    # a name given twice is one column (the JSON had the key twice)
+    twice = client.post("/v1/friction/batch", json={**request, "outputs": ["mu", "contact_radius_m", "mu"]})
+    assert twice.text.count('"mu"') == 1 and twice.json() == body
 
 
 def test_batch_of_scalars_is_one_point(client):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import Annotated, Any
 
-from pydantic import BeforeValidator, Field, PrivateAttr, create_model, model_validator
+from pydantic import AfterValidator, BeforeValidator, Field, PrivateAttr, create_model, model_validator
 
 from microbearing import physics
 from microbearing.physics.columns import ColumnError, read_name
@@ -148,14 +148,19 @@ def _one_kind(value: Any) -> Any:
 _ConditionColumn = Annotated[float | str | list[float] | list[str], BeforeValidator(_one_kind)]
 
 
+def _once_each(names: list[str] | None) -> list[str] | None:
+    """The names in their first order, each once."""
+    return None if names is None else list(dict.fromkeys(names))
+
+
 class FrictionBatchRequest(StrictModel):
     """Many design points as columns, and the outputs wanted."""
 
     points: FrictionBatchPoints = Field(description="The inputs, column by column.")  # type: ignore[valid-type]
-    outputs: list[OutputName] | None = Field(  # type: ignore[valid-type]
+    outputs: Annotated[list[OutputName] | None, AfterValidator(_once_each)] = Field(  # type: ignore[valid-type]
         default=None, min_length=1, description=(
-            "Outputs to return (default: all of them); with a calibrated model, mu brings mu_effect, "
-            "mu_lower and mu_upper [1]."))
+            "Outputs to return (default: all of them; a name given twice is returned once); with a "
+            "calibrated model, mu brings mu_effect, mu_lower and mu_upper [1]."))
     convention: ConventionName = Field(  # type: ignore[valid-type]
         default=Convention(physics.DEFAULT_CONVENTION), description=(
             "Reading of the paper's ambiguous ball-ball terms; a calibrated model uses its own (naming "
