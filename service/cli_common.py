@@ -278,7 +278,8 @@ def open_store(args: argparse.Namespace, write: bool = False) -> Any:
     return Store(folder)
 
 
-def model_reference(store: Any, given: str, kinds: tuple[str, ...], folder: Path | str) -> str:
+def model_reference(store: Any, given: str, kinds: tuple[str, ...], folder: Path | str,
+                    argument: str = "--model") -> str:
     """The reference (``calibrated:<id>``, ``surrogate:<id>``) of a stored model given by its id, as
     ``calibrate`` and ``surrogate train`` print it, or by its reference; ``physics`` stays itself.
 
@@ -292,6 +293,8 @@ def model_reference(store: Any, given: str, kinds: tuple[str, ...], folder: Path
         The references the command takes: ``"physics"``, ``"calibrated"``, ``"surrogate"``.
     folder : Path or str
         The data folder (or database) looked in, named when the model is not there.
+    argument : str, default "--model"
+        The command's argument that gave it, named in a refusal (``id`` for ``delete``).
 
     Raises
     ------
@@ -303,7 +306,7 @@ def model_reference(store: Any, given: str, kinds: tuple[str, ...], folder: Path
         return given
     match = _MODEL_ID.match(given.strip().lower())
     if match is None or (match.group(1) is not None and match.group(1) not in kinds):
-        raise CommandError(f"--model: expected an id (32 hexadecimal digits) or {shapes}; got {given!r}",
+        raise CommandError(f"{argument}: expected an id (32 hexadecimal digits) or {shapes}; got {given!r}",
                            EXIT_INVALID)
     if match.group(1) is not None:
         return f"{match.group(1)}:{match.group(2)}"

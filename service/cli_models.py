@@ -194,7 +194,7 @@ def _delete(args: argparse.Namespace, kind: str, label: str, delete: Callable[[A
     """Delete the model ``args.id`` of ``kind`` (``calibrated`` or ``surrogate``) from the store with
     ``delete`` (which also erases its data from finished jobs) and say so."""
     with closing(open_store(args)) as store:
-        model_id = model_reference(store, args.id, (kind,), data_dir(args)).removeprefix(f"{kind}:")
+        model_id = model_reference(store, args.id, (kind,), data_dir(args), "id").removeprefix(f"{kind}:")
         delete(store, model_id)
     print(f"deleted {label} {model_id} from {data_dir(args)}")
     return EXIT_OK

@@ -194,7 +194,8 @@ def test_surrogate_delete_removes_it_and_a_second_delete_is_refused(capsys, tmp_
     code, _, err = run(capsys, "surrogate", "delete", f"surrogate:{surrogate_id}", "--data-dir", str(data))
     assert code == EXIT_INVALID and "no surrogate" in err and surrogate_id in err and str(data) in err
     code, _, err = run(capsys, "calibrations", "delete", "not-an-id", "--data-dir", str(data))
-    assert code == EXIT_INVALID and "32 hexadecimal digits" in err
+    assert code == EXIT_INVALID and "id: expected an id (32 hexadecimal digits)" in err
+    assert "--model" not in err  # the command has no such option: its argument is named
 
 
 def test_a_calibration_not_stored_leaves_no_data_folder(capsys, tmp_path):
