@@ -24,7 +24,7 @@ from microbearing.surrogate import GaussianProcessSurrogate, Space
 from microbearing.surrogate.metrics import quality_warnings
 from microbearing.surrogate.persist import version_warning
 
-from .calibrations import with_conditions
+from .calibrations import read_conditions, with_conditions
 from .models import resolve
 from .problems import ProblemError, pointer_at, validation_problem
 from .schemas.surrogates import SurrogateRequest
@@ -148,6 +148,34 @@ def prepare_training(store: Store, body: SurrogateRequest) -> tuple[Space, MuMod
     return space, mu_model
 
 
+def source_domain_warnings(store: Store, body: SurrogateRequest, space: Space) -> list[str]:
+    """Where the space (its dimensions' ranges, fixed values and the request's conditions) leaves the data
+    of the calibrated model it learns (its declared ``domain``, each column's [min, max]): one sentence per
+    column (empty for the physics, or inside the data). There the model extrapolates, and the surrogate's
+    interval, its own approximation error, says nothing of the model's uncertainty."""
+    if body.model == "physics":
+        return []
+    model = resolve(store, body.model, kinds=("physics", "calibrated"))
+    domain = model.calibrated.domain or {}
+    spans = {name: (float(low), float(high)) for name, low, high in zip(space.names, space.lower, space.upper,
+                                                                        strict=True)}
+    spans.update({name: (float(v), float(v)) for name, v in space.fixed.items()
+                  if not isinstance(v, bool) and name not in spans})
+    spans.update({name: (float(v), float(v)) for name, v in read_conditions(model, body.conditions).items()
+                  if not isinstance(v, str)})
+    words = []
+    for name, (low, high) in spans.items():
+        if name not in domain or (domain[name][0] <= low and high <= domain[name][1]):
+            continue
+        unit = physics.PARAMETERS[name].unit if name in physics.PARAMETERS else ""
+        unit = "" if unit in ("", "1", "-") else f" {unit}"
+        asked = f"{low:g}{unit}" if low == high else f"[{low:g}, {high:g}]{unit}"
+        words.append(f"{name} {asked} reaches outside the data of {body.model}, [{domain[name][0]:g}, "
+                     f"{domain[name][1]:g}]{unit}: there the calibrated model extrapolates and the "
+                     "surrogate's interval is its own approximation error, not the model's uncertainty")
+    return words
+
+
 def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
                     progress: Callable[[float], None] | None = None,
                     mu_model: MuModel | None = None) -> dict[str, Any]:
@@ -178,6 +206,7 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
                                  progress=None if progress is None else (lambda f: progress(0.95 * f)),
                                  mu_model=mu_model, validation_points=body.validation_points)
     seconds = time.perf_counter() - start
+    outside = source_domain_warnings(store, body, space)
     metrics = surrogate.holdout_metrics(fit.model, n_test=_HELD_OUT_POINTS, seed=_HELD_OUT_SEED,
                                         mu_model=mu_model)
     data = surrogate.to_dict(fit.model)
@@ -192,6 +221,7 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
         "target_relative_error": body.target_relative_error,
         "variance_calibration": fit.model.variance_calibration_, "std_scale": fit.model.std_scale_,
         "calibration_points": fit.model.calibration_points_, "validation_points": fit.validation_points,
+        "source_warnings": outside,
     }
     surrogate_id = store.save_model(KIND, {"result": result, "model": data}, {},
                                     name=f"{len(space.names)}-D, {fit.n_train} evaluations")
@@ -203,7 +233,8 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
 def _warnings(result: Mapping[str, Any]) -> list[str]:
     # Compared with the running version on every view: the service may have been upgraded since.
     version = version_warning(result.get("package_version"))
-    return quality_warnings(result) + ([] if version is None else [version])
+    return (quality_warnings(result) + list(result.get("source_warnings") or [])
+            + ([] if version is None else [version]))
 
 
 def surrogate_view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, Any]:
@@ -227,8 +258,10 @@ def surrogate_view(surrogate_id: str, metadata: Mapping[str, Any]) -> dict[str, 
     space = {name: [int(end) if physics.PARAMETERS[name].kind == "int" else end for end in ends]
              for name, ends in result["space"].items()}
     # Surrogates stored before models other than the physics could be learned lack model and conditions.
+    # The calibrated model's domain warnings are among its warnings (stored apart: said on every prediction).
+    shown = {key: value for key, value in result.items() if key != "source_warnings"}
     return {"id": surrogate_id, "model_id": MODEL_PREFIX + surrogate_id, "model": "physics", "conditions": {},
-            **result, "space": space, "warnings": _warnings(result)}
+            **shown, "space": space, "warnings": _warnings(result)}
 
 
 def surrogate_views(store: Store) -> list[dict[str, Any]]:

@@ -255,6 +255,12 @@ def test_a_surrogate_learns_the_calibrated_model(client, humidity_result):
     trained = finished_result(client, client.post("/v1/surrogates", json=body))
     assert trained["model"] == model_id and trained["conditions"] == {"relative_humidity": 0.6}
     assert client.get(f"/v1/surrogates/{trained['id']}").json() == trained
+    # each input whose range in the space leaves the calibration data is said, with the data's range
+    domain = humidity_result["model"]["domain"]
+    wider = {name for name, (low, high) in {**space, "relative_humidity": (0.6, 0.6)}.items()
+             if name in domain and (low < domain[name][0] or high > domain[name][1])}
+    said = {w.split(" ")[0] for w in trained["warnings"] if f"reaches outside the data of {model_id}" in w}
+    assert wider and said == wider, (trained["warnings"], domain)
     stated = trained["metrics"]
     assert stated["n_test"] > 1000 and stated["median_relative_error"] < 0.01
     # 32 points of the space (not the test design), drawn as the held-out design is (log-uniform load
@@ -265,6 +271,7 @@ def test_a_surrogate_learns_the_calibrated_model(client, humidity_result):
               "speed_m_s": np.exp(rng.uniform(np.log(0.01), np.log(0.15), 32)).tolist()}
     predicted = client.post(f"/v1/surrogates/{trained['id']}/predict", json={"points": points})
     assert predicted.status_code == 200, predicted.text
+    assert set(trained["warnings"]) <= set(predicted.json()["warnings"])  # said with every prediction
     mu = np.array(predicted.json()["mu"])
     truth = np.array([client.post("/v1/friction", json={
         "balls": points["balls"][i], "load_N": points["load_N"][i], "speed_m_s": points["speed_m_s"][i],

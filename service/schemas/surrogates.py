@@ -186,8 +186,10 @@ class SurrogateResult(ResponseModel):
     warnings: list[str] = Field(default_factory=list, description=(
         "Where the surrogate falls short of what it promises, measured on its held-out points: coverage "
         "of the 95 % interval below 90 %, median (95th-percentile) relative error above the target (5 "
-        "times it); and other reasons to distrust the stored figures, e.g. a package_version other than "
-        "the running one (the physics may have changed since: retrain). Empty when none."))
+        "times it); where the space leaves the data of the calibrated model it learns (there the model "
+        "extrapolates and the surrogate's interval is its approximation error only); and other reasons to "
+        "distrust the stored figures, e.g. a package_version other than the running one (the physics may "
+        "have changed since: retrain). Empty when none."))
     created_at: DateTimeText = Field(description="Creation time, ISO 8601 UTC.")
 
 
