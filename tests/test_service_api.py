@@ -539,3 +539,13 @@ def test_a_parameter_range_is_appended_only_to_errors_about_that_parameter(clien
         assert " must be " not in detail and "[" not in detail, detail
     else:
         assert with_range in detail, detail
+
+
+def test_the_manuals_error_example_is_the_servers_answer(client):
+    # docs/pages/reference/rest-api.md's "Errors" shows the problem of a negative load, word for word
+    from docs_pages import code_blocks, page, section
+
+    [shown] = code_blocks(section(page("reference/rest-api.md"), "## Errors"), "json")
+    response = client.post("/v1/friction", json={"balls": 4, "load_N": -0.01, "speed_m_s": 0.1})
+    assert response.status_code == 422 and response.json() == json.loads(shown)
+
