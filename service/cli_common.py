@@ -219,7 +219,9 @@ def value_of(spec: Any, text: str, where: str) -> Any:
         return int(text) if spec.kind == "int" else float(text)
     except ValueError:
         kind = {"bool": "true or false", "int": "a whole number"}.get(spec.kind, "a number")
-        raise CommandError(f"{where}: {text!r} is not {kind} [{spec.unit}]", EXIT_INVALID) from None
+        # the unit of the input's own name; a key sent under another (load [mN]) states its own
+        unit = f" [{spec.unit}]" if where.endswith(spec.name) else ""
+        raise CommandError(f"{where}: {text!r} is not {kind}{unit}", EXIT_INVALID) from None
 
 
 def defaults(given: dict[str, Any]) -> dict[str, Any]:

@@ -93,8 +93,14 @@ def read_points(path: str, separator: str | None, decimal: str | None) -> Points
         raise CommandError(f"{path}: expected a header row of input names and at least one row", EXIT_INVALID)
     print(f"{path}: {table.intake.summary()}", file=sys.stderr)
     # a physics input by its SI name, converted; a condition by its header and in its unit, as sent: the
-    # model reads it as /v1/friction does, and a refusal names it so
+    # model reads it as /v1/friction does, and a refusal names it so. An output's column (a file a sweep
+    # or this command wrote) is left out, said: the answer computes it again.
     keys = [c.name if c.name in physics.PARAMETERS else c.sent.strip() for c in table.columns]
+    # the physics' outputs and a calibrated model's interval and domain flag
+    answer_columns = {*physics.OUTPUTS, "mu_effect", "mu_lower", "mu_upper", "in_domain"}
+    answers = [key for key in keys if key in answer_columns]
+    if answers:
+        print(f"{path}: column(s) {', '.join(answers)} are outputs, not inputs: left out", file=sys.stderr)
     values: dict[str, list[Any]] = {key: [] for key in keys}
     lines = table.intake.row_lines  # each row's line in the file (after a sep= line, one further)
 
@@ -108,6 +114,8 @@ def read_points(path: str, separator: str | None, decimal: str | None) -> Points
             raise CommandError(f"{path}: line {line}: {len(row)} values for {len(table.columns)} "
                                "columns", EXIT_INVALID)
         for column, key, text, sent in zip(table.columns, keys, row, sent_row, strict=True):
+            if key in answers:
+                continue
             spec = physics.PARAMETERS.get(column.name)
             where = f"{path}: line {line}, column {column.sent}"
             value = value_of(spec, text, where) if spec is not None else _condition(sent)
@@ -118,6 +126,8 @@ def read_points(path: str, separator: str | None, decimal: str | None) -> Points
         if any(not isinstance(v, str) for v in values[key]):
             raise CommandError(f"{where} is not a number, though the column's other cells are; only a "
                                f"factor column holds labels", EXIT_INVALID)
+    for key in answers:
+        del values[key]
     inputs = {name: np.asarray(column) for name, column in values.items() if name in physics.PARAMETERS}
     for j, column in enumerate(table.columns):  # a value out of range refused at its line, as typed
         if column.name in inputs:

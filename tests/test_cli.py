@@ -59,6 +59,17 @@ def test_evaluate_a_csv_of_points(capsys, tmp_path):
     assert code == 0 and rows[0] == ["load_N", "speed_m_s", "balls", "mu_pivot", "mu"]
     assert [r[2] for r in rows[1:]] == ["4", "6", "18"] and {r[3] for r in rows[1:]} == {"0.8"}
     assert [float(r[4]) for r in rows[1:]] == exact.tolist()
+    # its answer read back as points: the output column is left out, said, and computed again
+    again = tmp_path / "again.csv"
+    code, _, err = run(capsys, "evaluate", "--csv", str(tmp_path / "out.csv"), "--outputs", "mu",
+                       "-o", str(again))
+    assert code == 0 and "column(s) mu are outputs, not inputs: left out" in err, err
+    assert again.read_text() == (tmp_path / "out.csv").read_text()
+    # a cell that is no number, named under its key as sent and in that key's unit (not the SI name's)
+    typed = tmp_path / "typed.csv"
+    typed.write_text("balls,load [mN],speed [mm/s]\n4,,50\n")
+    code, _, err = run(capsys, "evaluate", "--csv", str(typed))
+    assert code == EXIT_INVALID and err.rstrip().endswith("column load [mN]: '' is not a number"), err
 
 
 @pytest.mark.parametrize(("argv", "code", "message"), [
