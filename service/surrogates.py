@@ -12,6 +12,7 @@ in n_train; the store keeps the last few, :meth:`service.store.Store.rebuilt`), 
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -50,8 +51,19 @@ MuModel = Callable[[Mapping[str, Any]], Any]
 
 
 def _space_problem(exc: ValueError) -> ProblemError:
+    """A :class:`surrogate.Space` refusal in the request's words (its ``space`` is the Space's bounds),
+    pointing at the input it names."""
     text = str(exc)
-    pointer = "/fixed" if text.startswith("fixed") else "/space"
+    named = re.match(r"(bounds|fixed)\['(\w+)'\] (.*)", text)
+    both = re.match(r"(\w+) cannot be both a dimension", text)
+    if named is not None:
+        pointer = pointer_at("/space" if named.group(1) == "bounds" else "/fixed", named.group(2))
+        text = named.group(3)
+    elif both is not None:
+        pointer = pointer_at("/fixed", both.group(1))
+    else:
+        pointer = "/fixed" if text.startswith("fixed") else "/space"
+    text = text.replace("parameter of physics.PARAMETERS", "physics input").replace("bounds", "space")
     return validation_problem([{"pointer": pointer, "detail": text}])
 
 

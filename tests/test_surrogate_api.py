@@ -262,8 +262,10 @@ def test_a_finite_space_is_learned_point_by_point(client, space, points):
 
 
 @pytest.mark.parametrize(("body", "pointer"), [
-    ({"space": {"load_N": [0.05, 0.001]}, "fixed": {"balls": 4, "speed_m_s": 0.1}}, "/space"),
+    ({"space": {"load_N": [0.05, 0.001]}, "fixed": {"balls": 4, "speed_m_s": 0.1}}, "/space/load_N"),
     ({"space": {"load_N": [0.001, 0.05]}, "fixed": {"balls": 4}}, "/space"),
+    ({"space": {"load_N": [0.001, 0.05], "balls": [3, 9]}, "fixed": {"balls": 4, "speed_m_s": 0.1}},
+     "/fixed/balls"),
     ({"space": {"load_N": [0.001, 0.05]}, "fixed": {"balls": 4, "speed_m_s": 0.1}, "budget": 1}, "/budget"),
     ({"space": {"load_N": [0.001, 0.05, 0.1]}, "fixed": {"balls": 4, "speed_m_s": 0.1}}, "/space/load_N"),
     ({"space": {"bogus": [0, 1]}, "fixed": {"balls": 4, "speed_m_s": 0.1}}, "/space/bogus"),
@@ -273,6 +275,8 @@ def test_a_finite_space_is_learned_point_by_point(client, space, points):
 def test_bad_requests_name_the_field(client, body, pointer):
     problem = assert_problem(client.post("/v1/surrogates", json=body), 422)
     assert any(error["pointer"].startswith(pointer) for error in problem["errors"]), problem
+    # in the request's words: its field is space (the library's Space calls it bounds)
+    assert "bounds" not in problem["detail"] and "physics.PARAMETERS" not in problem["detail"], problem
 
 
 def test_predict_without_a_dimension_is_422(client, trained):
