@@ -39,7 +39,9 @@ class GridAxis(StrictModel):
     start: float = Field(description="First value [the unit of the input named by the axis's key, e.g. N "
                                      "for load_N].")
     stop: float = Field(description="Last value [the unit of the input named by the axis's key].")
-    num: WholeNumber = Field(ge=1, le=1_000_000, description="Number of values [1].")
+    num: WholeNumber = Field(ge=1, le=1_000_000, description=(
+        "Number of values [1]; a whole-number input (balls) takes the distinct whole numbers they round "
+        "to, so balls from 4 to 6 gives at most 3 (count says how many)."))
     spacing: Spacing = _SPACING
 
 
