@@ -330,6 +330,9 @@ def _in_words(error: dict[str, Any]) -> str:
         return f"{ctx.get('tag')!r} is not a known {tag}; choose one of {ctx.get('expected_tags')}"
     if kind == "value_error":
         return message.removeprefix("Value error, ")
+    name = str((error.get("loc") or ("",))[-1])
+    if kind == "extra_forbidden" and name in physics.PARAMETERS:  # a known input this field does not vary
+        return f"{name} is a physics input, but not one this field takes; give it in fixed instead"
     if kind in {"model_type", "model_attributes_type", "dict_type"}:
         return "must be an object with named fields ({...}), not " + _what(error.get("input"))
     return message
@@ -358,7 +361,8 @@ def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
         renamed: dict[str, str] = {}
         parts = _pointer_parts(rest, exc.body if source == "body" else None, renamed)
         detail = _in_words(error)
-        spec = _parameter_value([renamed.get(p, p) for p in parts], error)
+        spec = (None if error.get("type") == "extra_forbidden" else
+                _parameter_value([renamed.get(p, p) for p in parts], error))
         if spec is not None:
             detail = f"{detail} ({spec.name} must be {spec.range_text()} [{spec.unit}])"
         for sent, read in renamed.items():  # the value given is in the unit of the name read

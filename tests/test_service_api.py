@@ -434,6 +434,14 @@ def test_bad_sweeps_name_the_field(client, request_body, pointer):
     assert_problem(client.post("/v1/sweeps", json=request_body), 422, pointer)
 
 
+def test_an_input_a_field_does_not_vary_is_said_so_not_called_extra(client):
+    request = {"design": "grid", "fixed": {"load_N": 0.01, "balls": 4},
+               "axes": {"balls_touching": {"values": [1, 0]}, "speed_m_s": {"values": [0.05]}}}
+    problem = assert_problem(client.post("/v1/sweeps", json=request), 422, "/axes/balls_touching")
+    assert problem["errors"][0]["detail"] == ("balls_touching is a physics input, but not one this field "
+                                              "takes; give it in fixed instead")
+
+
 # jobs ----------------------------------------------------------------------------------------
 
 def test_large_sweep_runs_as_a_job_with_json_and_csv_results(client):
