@@ -63,7 +63,8 @@ class DesignBounds(InputKeys):
     """Box of the three design variables (a name may carry its unit: ``load [mN]``, converted)."""
 
     balls: Annotated[list[Annotated[int, Field(ge=1, le=100_000), BeforeValidator(whole_number)]],
-                     _pair("total number of balls (both grooves) [1]"), RangeSpelling]
+                     _pair("total number of balls (both grooves), whole numbers in [1, 100000] [1]"),
+                     RangeSpelling]
     groove_angle_deg: Annotated[list[Annotated[float, Field(ge=_ANGLE.minimum, le=_ANGLE.maximum)]],
                                 _pair(f"groove angle, {_ANGLE.range_text()} [deg]"), RangeSpelling]
     load_N: Annotated[list[Annotated[float, Field(ge=_LOAD.minimum, le=_LOAD.maximum)]] | None,
