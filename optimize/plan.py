@@ -247,6 +247,13 @@ def _refuse_values_the_model_holds(request: DesignRequest, model: Model | None,
                   for name, value in fixed.items()
                   if name in trained and name not in DESIGN_VARIABLES and not isinstance(value, bool)
                   and not math.isclose(float(value), float(trained[name]), rel_tol=1e-12)]
+        speeds = request.speed_m_s if isinstance(request.speed_m_s, list | tuple) else [request.speed_m_s]
+        other = next((v for v in speeds if v is not None and "speed_m_s" in trained
+                      and not math.isclose(float(v), float(trained["speed_m_s"]), rel_tol=1e-12)), None)
+        if other is not None:  # the speed at the top level, as in fixed
+            errors.append(("speed_m_s", f"{model.reference} was trained at speed_m_s = "
+                           f"{trained['speed_m_s']:g}, not a dimension of its space: it cannot answer at "
+                           f"{other:g} (leave it out, or train a surrogate with speed_m_s among its bounds)"))
     elif request.is_robust(fixed.get("speed_m_s", request.speed_m_s)):
         held = {**model.fixed, **model.fitted}
         errors = [(f"fixed.{name}", f"{model.reference} holds {name} = {held[name]:g} "

@@ -191,6 +191,8 @@ def test_surrogate_model_is_optimized_locally_and_verified(client):
     assert refused.status_code == 422
     assert [e["pointer"] for e in refused.json()["errors"]] == ["/fixed/mu_pivot"]
     assert "trained at mu_pivot = 0.5" in refused.json()["errors"][0]["detail"]
+    faster = client.post("/v1/optimizations", json={**request, "speed_m_s": [0.05, 0.1]})  # trained at 0.05
+    assert faster.status_code == 422 and [e["pointer"] for e in faster.json()["errors"]] == ["/speed_m_s"]
     # an infeasible problem answers as on the physics: 422 at once, naming the same limit
     infeasible = {**request, "constraints": {"max_contact_pressure_Pa": 1e6}}
     on_physics = client.post("/v1/optimizations", json={**infeasible, "model": "physics"})
