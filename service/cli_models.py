@@ -177,10 +177,25 @@ def surrogate_list(args: argparse.Namespace) -> int:
         return EXIT_OK
     lines = [f"{len(views)} surrogate(s) in {data_dir(args)}"]
     for view in views:
-        space = ", ".join(f"{name} [{low:g}, {high:g}]" for name, (low, high) in view["space"].items())
-        lines.append(f"{view['model_id']}  {view['created_at']}  {view['n_train']} evaluations  {space}")
+        space = ", ".join(f"{name} [{_shown(name, low)}, {_shown(name, high)}]"
+                          for name, (low, high) in view["space"].items())
+        learned = "" if view["model"] == "physics" else f"  of {view['model']}" + "".join(
+            f", {key} {value}" for key, value in (view.get("conditions") or {}).items())
+        lines.append(f"{view['model_id']}  {view['created_at']}  {view['n_train']} evaluations  {space}"
+                     f"{learned}")
     write_text(args.output, "\n".join(lines) + "\n")
     return EXIT_OK
+
+
+def _shown(name: str, value: Any) -> str:
+    """A space's end as the API shows it (true/false for a boolean input).
+
+    >>> _shown("balls_touching", 1.0), _shown("load_N", 0.002)
+    ('true', '0.002')
+    """
+    from microbearing import physics
+
+    return str(bool(value)).lower() if physics.PARAMETERS[name].kind == "bool" else f"{value:g}"
 
 
 def surrogate_delete(args: argparse.Namespace) -> int:

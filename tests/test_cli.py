@@ -198,6 +198,8 @@ def test_surrogate_delete_removes_it_and_a_second_delete_is_refused(capsys, tmp_
     code, out, err = run(capsys, "surrogate", "train", str(request), "--data-dir", str(data))
     assert code == 0, err
     surrogate_id = json.loads(out)["id"]
+    code, out, _ = run(capsys, "surrogate", "list", "--data-dir", str(data))
+    assert out.splitlines()[1].endswith("12 evaluations  load_N [0.002, 0.03]"), out  # of the physics
     code, out, err = run(capsys, "surrogate", "delete", surrogate_id, "--data-dir", str(data))
     assert code == 0 and out.startswith(f"deleted surrogate {surrogate_id}"), err
     code, out, _ = run(capsys, "surrogate", "list", "--data-dir", str(data))
