@@ -137,7 +137,8 @@ def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/poin
         ])
     count = distinct[0] if distinct else 1
     if count > max_points:
-        raise ProblemError(413, f"The request has {count} points; the limit is {max_points} per request.")
+        raise ProblemError(413, f"The request has {count} points; the limit is {max_points} per request "
+                                "(MICROBEARING_MAX_BATCH_POINTS).")
     inputs = {
         name: (np.asarray([str(v) for v in value]) if any(isinstance(v, str) for v in value)
                else np.asarray(value, dtype=bool if name in _BOOLEAN_INPUTS else np.float64))

@@ -46,7 +46,8 @@ class BodyTooLarge(HTTPException):
     """The streamed body passed the limit (an HTTPException, so FastAPI re-raises it as is)."""
 
     def __init__(self, max_bytes: int):
-        super().__init__(413, f"The request body exceeds the limit of {max_bytes} bytes.")
+        super().__init__(413, f"The request body exceeds the limit of {max_bytes} bytes "
+                              "(MICROBEARING_MAX_BODY_BYTES).")
 
 
 class BodyTimeout(HTTPException):
@@ -192,7 +193,8 @@ class BodySizeLimitMiddleware:
         if declared is not None and (not declared.isdigit() or int(declared) > self.max_bytes):
             if declared.isdigit():
                 problem = ProblemError(413, f"The body has {int(declared)} bytes; the limit is "
-                                            f"{self.max_bytes}.", headers={"Connection": "close"})
+                                            f"{self.max_bytes} (MICROBEARING_MAX_BODY_BYTES).",
+                                       headers={"Connection": "close"})
             else:
                 problem = ProblemError(400, "Content-Length must be a whole number of bytes.",
                                        headers={"Connection": "close"})
@@ -290,8 +292,9 @@ class HeavyRequestMiddleware:
         while not self.turns.acquire(blocking=False):
             if time.monotonic() >= deadline:
                 problem = ProblemError(
-                    503, f"{self.max_requests} requests with bodies over {HEAVY_BODY_BYTES} bytes are in "
-                         "progress (MICROBEARING_MAX_HEAVY_REQUESTS) and none finished within "
+                    503, f"{self.max_requests} requests with bodies over {HEAVY_BODY_BYTES} bytes or of "
+                         "undeclared size (chunked: send a Content-Length) are in progress "
+                         "(MICROBEARING_MAX_HEAVY_REQUESTS) and none finished within "
                          f"{self.wait_s:g} s (MICROBEARING_HEAVY_REQUEST_WAIT_S); retry later.",
                     title="Server busy", headers={"Retry-After": "5", "Connection": "close"})
                 await self._answer(problem, scope, receive, send)

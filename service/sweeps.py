@@ -139,7 +139,8 @@ def design_size(request: AnySweep, max_points: int) -> int:
             detail = f"{name} is required: vary it or fix it ({spec.range_text()} [{spec.unit}])"
             errors.append({"pointer": f"/fixed/{name}", "detail": detail})
     if count > max_points:
-        errors.append({"pointer": where, "detail": f"the design has {count} points; at most {max_points}"})
+        errors.append({"pointer": where, "detail": f"the design has {count} points; at most {max_points} "
+                       "(MICROBEARING_MAX_SWEEP_POINTS)"})
     if errors:
         raise validation_problem(errors)
     if request.design == "grid":

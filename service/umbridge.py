@@ -241,7 +241,7 @@ class Setup:
                                 f"{model.convention!r}; omit convention")
         if config.points > max_points:
             raise ProtocolError("InvalidInput", f"config.points: {config.points} points per request; the "
-                                f"limit is {max_points}", status=413)
+                                f"limit is {max_points} (MICROBEARING_MAX_BATCH_POINTS)", status=413)
         given, fixed_as_sent, fixed_as_typed = _read_fixed(model, config.fixed)
         inputs, readings = _read_inputs(model, config.inputs or [n for n in model.default_inputs
                                                                  if n not in given])

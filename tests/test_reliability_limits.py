@@ -163,3 +163,22 @@ def test_tables_past_a_limit_are_answered_word_for_word(tmp_path):
         body = problem(response, 413)
         assert (body["title"], body["detail"]) == expected[name], name
         assert set(body) == {"type", "title", "status", "detail", "instance"}, body
+
+
+def test_each_limit_past_which_a_request_is_refused_names_its_setting(tmp_path):
+    settings = Settings(data_dir=tmp_path, max_body_bytes=20_000, max_batch_points=50, max_sweep_points=200)
+    with TestClient(create_app(settings)) as small:
+        padded = b'{"points": {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}' + b" " * 25_000 + b"}"
+        json_type = {"content-type": "application/json"}
+        declared = problem(small.post("/v1/friction/batch", content=padded, headers=json_type), 413)
+        assert "(MICROBEARING_MAX_BODY_BYTES)" in declared["detail"], declared
+        streamed = small.post("/v1/friction/batch", content=iter([padded[:10_000], padded[10_000:]]),
+                              headers=json_type)  # no Content-Length: counted as it streams
+        assert "(MICROBEARING_MAX_BODY_BYTES)" in problem(streamed, 413)["detail"]
+        many = {"points": {"balls": 4, "load_N": [0.01] * 51, "speed_m_s": 0.1}}
+        assert "(MICROBEARING_MAX_BATCH_POINTS)" in problem(small.post("/v1/friction/batch", json=many),
+                                                             413)["detail"]
+        sweep = {"design": "sobol", "points": 201, "fixed": {"balls": 4, "load_N": 0.01},
+                 "ranges": {"speed_m_s": {"low": 0.0, "high": 0.1}}}
+        refused = problem(small.post("/v1/sweeps", json=sweep), 422)
+        assert "(MICROBEARING_MAX_SWEEP_POINTS)" in refused["detail"]

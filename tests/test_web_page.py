@@ -61,6 +61,9 @@ def test_the_page_is_open_with_keys_on_and_the_api_is_not(tmp_path):
         page = client.get("/ui/")
         assert page.status_code == 200 and page.text == (WEB / "index.html").read_text(encoding="utf-8")
         assert client.get("/ui", follow_redirects=False).headers["location"] == "/ui/"
+        # the bare address, opened in a browser, leads to the page (it answered a 404 problem)
+        bare = client.get("/", follow_redirects=False)
+        assert bare.status_code == 307 and bare.headers["location"] == "/ui/"
         assert client.get("/v1/calibrations").status_code == 401
         assert client.get("/v1/calibrations", headers=AUTH).status_code == 200
         # Only the page's own files are open: any other name is refused before it reaches the route.

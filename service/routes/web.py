@@ -31,8 +31,8 @@ _FOLDER = Path(__file__).resolve().parent.parent / "web"
 #: Each file of the page and its media type; ``index.html`` is also the folder's address ``/ui/``.
 PAGE_FILES = {"index.html": "text/html; charset=utf-8", "app.js": "text/javascript; charset=utf-8",
               "app.css": "text/css; charset=utf-8", "icon.svg": "image/svg+xml"}
-#: Paths of the page (relative to the ASGI root path), readable without an API key.
-PAGE_PATHS = frozenset({PAGE_PATH, f"{PAGE_PATH}/", *(f"{PAGE_PATH}/{name}" for name in PAGE_FILES)})
+#: Paths of the page (relative to the ASGI root path; ``/`` redirects to it), readable without an API key.
+PAGE_PATHS = frozenset({"/", PAGE_PATH, f"{PAGE_PATH}/", *(f"{PAGE_PATH}/{name}" for name in PAGE_FILES)})
 
 #: Scripts, styles and connections from this origin only; plots are shown from blob: URLs (fetched
 #: with the key); no frames, no plugins, no forms posted anywhere.
@@ -42,6 +42,12 @@ _HEADERS = {"Content-Security-Policy": CONTENT_SECURITY_POLICY, "X-Content-Type-
             "Referrer-Policy": "no-referrer", "Cache-Control": "no-cache"}
 
 router = APIRouter(include_in_schema=False)
+
+
+@router.get("/")
+def root() -> RedirectResponse:
+    """The bare address -> the page (a lab opening the server in a browser finds it)."""
+    return RedirectResponse(f"{PAGE_PATH}/", status_code=307)
 
 
 @router.get(PAGE_PATH)
