@@ -159,6 +159,26 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], di
     return read, sent_as, typed_as
 
 
+def _refuse_unread(model: Model, inputs: list[str], given: dict[str, Any], sent_as: dict[str, str]) -> None:
+    """A surrogate reads its dimensions only: an input that is none varied, or fixed at another value than
+    the one it was trained at (its answer would be the trained value's), is refused, as its REST predict
+    refuses it."""
+    if model.kind != "surrogate":
+        return
+    trained = {name: spec.default for name, spec in model.inputs.items() if spec.default is not None}
+    varied = [name for name in inputs if name in trained]
+    if varied:
+        raise ProtocolError("InvalidInput", f"config.inputs: {varied[0]} is not a dimension of "
+                            f"{model.reference} (trained at {trained[varied[0]]!r}): it cannot vary; "
+                            "leave it out")
+    for name, value in given.items():
+        if name in trained and not isinstance(value, str) and float(value) != float(trained[name]):
+            raise ProtocolError("InvalidInput", f"config.fixed.{sent_as.get(name, name)}: {model.reference} "
+                                f"was trained at {name} = {trained[name]!r}, not a dimension of its space: "
+                                f"it cannot answer at {value!r} (leave it out, or train a surrogate with "
+                                f"{name} among its dimensions)")
+
+
 def _keys_of(name: str, sent_inputs: list[str], inputs: list[str], fixed_as_sent: dict[str, str]) -> str:
     """The keys an input was given under, in config.inputs and config.fixed, quoted, and what they read as."""
     keys = [sent for sent, read in zip(sent_inputs, inputs, strict=True) if read == name]
@@ -261,6 +281,7 @@ class Setup:
         if missing:
             raise ProtocolError("InvalidInput", f"config.fixed: {model.reference} needs "
                                 f"{', '.join(missing)}: vary it in config.inputs or give it in config.fixed")
+        _refuse_unread(model, inputs, given, fixed_as_sent)
         fixed = given  # checked by _read_fixed
         available = [*model.outputs, FLAG_OUTPUT]
         unknown = [n for n in config.outputs if n not in available]

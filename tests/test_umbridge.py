@@ -157,6 +157,16 @@ def test_a_surrogate_through_the_client_answers_its_interval_and_domain(url, res
         assert output[:, column] == pytest.approx(predicted[name], rel=1e-13)
     assert output[:, 3].tolist() == [float(flag) for flag in predicted["outside_space"]] == [0.0, 0.0, 1.0]
     assert np.all(output[:, 1] < output[:, 0]) and np.all(output[:, 0] < output[:, 2])
+    # an input that is no dimension, fixed at another value than trained (balls 4) or varied: refused, as
+    # REST's predict refuses it (the answer would be the trained value's); the trained value itself passes
+    for config, x, said in (({"fixed": {"balls": 8}}, [0.01, 0.05], "config.fixed.balls: " + reference),
+                            ({"inputs": ["load_N", "speed_m_s", "balls"]}, [0.01, 0.05, 8],
+                             "config.inputs: balls is not a dimension")):
+        answer = rest.post("/umbridge/Evaluate", json={"name": reference, "input": [x], "config": config})
+        assert answer.status_code == 400 and answer.json()["error"]["type"] == "InvalidInput"
+        assert answer.json()["error"]["message"].startswith(said), answer.json()
+    same = model([[0.01, 0.05]], {"fixed": {"balls": 4}})
+    assert same[0][0] == pytest.approx(output[0, 0], rel=1e-13)
 
 
 def _central_difference(model, x: list[float], j: int, config: dict, relative_step: float = 1e-5) -> float:
