@@ -263,10 +263,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(BodySizeLimitMiddleware, max_bytes=settings.max_body_bytes,
                        timeout_s=settings.body_timeout_s)
     security.install(app, settings)
-    # Problems answered on the UM-Bridge paths (a refused key, a body too large) in its error form.
-    app.add_middleware(umbridge.ProtocolErrorMiddleware)
     # Requests in progress past the limit get 503 before any work (inside the logs and metrics).
     app.add_middleware(connections.ConcurrencyLimitMiddleware, max_requests=settings.max_concurrent_requests)
+    # Problems answered on the UM-Bridge paths (a refused key, a body too large, the server busy) in its
+    # error form: outside every middleware that may refuse.
+    app.add_middleware(umbridge.ProtocolErrorMiddleware)
     observability.install(app)
     for router in ROUTERS:
         app.include_router(router)

@@ -225,3 +225,39 @@ def test_requests_past_the_concurrency_limit_get_503_and_probes_pass():
     assert "MICROBEARING_MAX_CONCURRENT_REQUESTS=2" in refused.json()["detail"]
     assert probe.status_code == 200
     assert [r.status_code for r in done] == [200, 200] and after.status_code == 200
+
+
+def test_the_server_busy_on_umbridge_paths_is_in_umbridge_s_error_form(tmp_path):
+    # The stock UM-Bridge client reads {"error": {...}}: the 503 past the concurrency limit is rewritten
+    # there as the protocol's other refusals are (the rewriting wraps the limit in the app).
+    from microbearing.service.app import create_app
+    from microbearing.service.settings import Settings
+    from microbearing.service.umbridge import ProtocolErrorMiddleware
+
+    order = [m.cls.__name__ for m in create_app(Settings(data_dir=tmp_path)).user_middleware]
+    assert order.index("ProtocolErrorMiddleware") < order.index("ConcurrencyLimitMiddleware")  # outside
+    release = asyncio.Event()
+
+    async def slow(scope, receive, send):
+        await release.wait()
+        await send({"type": "http.response.start", "status": 200, "headers": []})
+        await send({"type": "http.response.body", "body": b"{}"})
+
+    async def scenario():
+        limit = ConcurrencyLimitMiddleware(slow, max_requests=1)
+        app = ProtocolErrorMiddleware(limit)
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://t") as client:
+            first = asyncio.create_task(client.post("/umbridge/Evaluate", json={}))
+            while limit.active < 1:
+                await asyncio.sleep(0.01)
+            refused = await client.post("/umbridge/Evaluate", json={})
+            rest = await client.get("/v1/work")
+            release.set()
+            await first
+        return refused, rest
+
+    refused, rest = asyncio.run(scenario())
+    assert refused.status_code == 503 and refused.headers["retry-after"] == "1"
+    error = refused.json()["error"]
+    assert set(error) == {"type", "message"} and "MICROBEARING_MAX_CONCURRENT_REQUESTS=1" in error["message"]
+    assert rest.headers["content-type"] == "application/problem+json"  # elsewhere a problem, as before
