@@ -836,20 +836,33 @@ class JobManager:
                                        type_=INTERNAL_TYPE)
                 self._finish(job_id, token, "failed", error_json=to_json(problem.to_dict()))
                 return
+            # the model the work stored (a calibration's, a surrogate's), if any: a discarded result takes it
+            stored = result.get("id") if isinstance(result, dict) and result.get("model_id") else None
             del result
             if self.max_result_bytes is not None and len(encoded) > self.max_result_bytes:
                 problem = ProblemError(413, f"The result has {len(encoded)} bytes of JSON, more than the "
                                             f"limit of {self.max_result_bytes} "
                                             "(MICROBEARING_MAX_RESULT_BYTES); ask for fewer points or "
-                                            "outputs.",
+                                            "outputs, or raise the limit. Nothing of the job is kept (a "
+                                            "model it made is deleted).",
                                        title="Result too large")
+                self._discard_model(stored)
                 self._finish(job_id, token, "failed", error_json=to_json(problem.to_dict()))
                 return
-            self._succeed(job_id, token, encoded.decode())
+            self._succeed(job_id, token, encoded.decode(), stored)
 
-    def _succeed(self, job_id: str, token: str, result_json: str) -> None:
+    def _discard_model(self, model_id: str | None) -> None:
+        """Delete the model a job stored whose result is not kept (too large, or the job cancelled)."""
+        if model_id is not None:
+            try:
+                self.store.delete_model(model_id)
+            except Exception:  # the job's end is written whatever this does; the model stays listed
+                logger.exception("the model %s of a discarded result could not be deleted", model_id)
+
+    def _succeed(self, job_id: str, token: str, result_json: str, stored: str | None = None) -> None:
         # A cancellation requested while the work was finishing wins: DELETE answered
-        # cancel_requested true, so the job ends cancelled and its result is discarded.
+        # cancel_requested true, so the job ends cancelled and its result (and model) is discarded.
         if not self._finish(job_id, token, "succeeded", unless_cancel_requested=True, progress=1.0,
                             result_json=result_json):
+            self._discard_model(stored)
             self._finish(job_id, token, "cancelled")

@@ -182,3 +182,19 @@ def test_each_limit_past_which_a_request_is_refused_names_its_setting(tmp_path):
                  "ranges": {"speed_m_s": {"low": 0.0, "high": 0.1}}}
         refused = problem(small.post("/v1/sweeps", json=sweep), 422)
         assert "(MICROBEARING_MAX_SWEEP_POINTS)" in refused["detail"]
+
+
+def test_a_job_whose_result_is_too_large_keeps_nothing_not_even_its_model(tmp_path):
+    # A calibration stores its model as it ends; its result (the report) then passes the limit: the job
+    # fails naming the setting and the model goes too (it had stayed listed, counting toward the limit
+    # of stored models, with no job result to find it by).
+    from jobs_helper import wait_job
+
+    with TestClient(create_app(Settings(data_dir=tmp_path, max_result_bytes=5000))) as small:
+        loads = [0.002, 0.004, 0.006, 0.01, 0.014, 0.02, 0.03, 0.04] * 3
+        rows = [{"balls": 4, "load_N": g, "speed_m_s": 0.05, "mu_measured": 0.012 * (g / 0.01) ** -0.2}
+                for g in loads]
+        job = wait_job(small, small.post("/v1/calibrations", json={"data": rows, "folds": 3}))
+        assert job["status"] == "failed" and job["error"]["status"] == 413, job
+        assert "(MICROBEARING_MAX_RESULT_BYTES)" in job["error"]["detail"]
+        assert small.get("/v1/calibrations").json()["calibrations"] == []
