@@ -254,8 +254,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # becomes GET innermost, so logs, metrics and the key check see the method sent.
     app.add_middleware(HeadMiddleware)
     app.add_middleware(AcceptMiddleware)
+    # A body's strings and containers: a batch's points (a UM-Bridge input is an array per point) or a
+    # calibration's rows as objects of keys, and the envelope around them (about max_batch_points by default).
+    values = max(settings.max_batch_points,
+                 settings.max_calibration_rows * (settings.max_calibration_columns + 1)) + 1024
     app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points,
-                       max_field_bytes=settings.max_field_bytes)
+                       max_field_bytes=settings.max_field_bytes, max_values=values)
     # A large body waits for its turn, and holds a place of the job admission control, before it is read.
     app.add_middleware(HeavyRequestMiddleware, max_requests=settings.max_heavy_requests,
                        wait_s=settings.heavy_request_wait_s,

@@ -10,7 +10,8 @@ answers, as problems:
   repeats a key within one object (RFC 8259 leaves duplicates to the parser: Python keeps the
   last, others the first; refusing them removes the ambiguity);
 * 413 when one array or object holds more than ``max_items`` elements, or the body holds more
-  than ``max_items`` strings or containers;
+  than ``max_values`` strings or containers (by default ``max_items``; the app sets it from the batch
+  and calibration limits, so that no body those allow is refused here);
 * 400 for any request with more than one ``Content-Type`` header: this check and the app could
   otherwise read different ones (Starlette reads the first), and a JSON body declared as
   something else too would skip the check.
@@ -123,11 +124,13 @@ class JsonScanner:
     Parameters
     ----------
     max_items : int
-        Most elements of one array or object, and most strings and containers in the body [1].
+        Most elements of one array or object [1].
     max_depth : int, default 64
         Deepest nesting of arrays and objects [1].
     max_string_bytes : int, optional
         Longest string, quotes and escapes included [bytes] (``MICROBEARING_MAX_FIELD_BYTES``).
+    max_values : int, optional
+        Most strings and containers in the body [1] (default ``max_items``).
 
     Raises
     ------
@@ -139,8 +142,10 @@ class JsonScanner:
     #: Longest object key whose duplicates are looked for [bytes]; longer keys are refused.
     max_key_bytes = 65_536
 
-    def __init__(self, max_items: int, max_depth: int = MAX_DEPTH, max_string_bytes: int | None = None):
+    def __init__(self, max_items: int, max_depth: int = MAX_DEPTH, max_string_bytes: int | None = None,
+                 max_values: int | None = None):
         self.max_items = max_items
+        self.max_values = max_items if max_values is None else max_values
         self.max_depth = max_depth
         self.max_string_bytes = max_string_bytes
         self._offset = 0  # bytes fed so far
@@ -209,8 +214,8 @@ class JsonScanner:
             self._string_start = base + int(starts[longest])
             self._too_long(int(lengths[longest]))
         self._strings += len(opening)
-        if self._strings > self.max_items:
-            raise _too_large(f"The body holds more than {self.max_items} strings or arrays and objects.")
+        if self._strings > self.max_values:
+            raise _too_large(_too_many_values(self.max_values))
         literals: list[bytes | None] = [None] * len(closing)
         # Only the literals a caller may need as keys are cut: those shorter than the key limit.
         for index in np.flatnonzero(lengths <= self.max_key_bytes).tolist():
@@ -263,8 +268,8 @@ class JsonScanner:
             if len(self._stack) >= self.max_depth:
                 raise _malformed(f"The body nests arrays and objects more than {self.max_depth} deep.")
             self._containers += 1
-            if self._containers > self.max_items:
-                raise _too_large(f"The body holds more than {self.max_items} strings or arrays and objects.")
+            if self._containers > self.max_values:
+                raise _too_large(_too_many_values(self.max_values))
             self._stack.append(_Container(byte, keys=set() if byte == _OPEN_OBJECT else None))
         elif self._stack:
             self._stack.pop()
@@ -292,8 +297,13 @@ class JsonScanner:
 BLOCK_BYTES = 256 * 1024
 
 
+def _too_many_values(limit: int) -> str:
+    return (f"The body holds more than {limit} strings or arrays and objects (a limit that follows "
+            "MICROBEARING_MAX_BATCH_POINTS and MICROBEARING_MAX_CALIBRATION_ROWS x _COLUMNS).")
+
+
 def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH,
-                         max_string_bytes: int | None = None) -> None:
+                         max_string_bytes: int | None = None, max_values: int | None = None) -> None:
     """Refuse a JSON body that is not UTF-8, too deep, too long or has duplicate keys.
 
     Parameters
@@ -301,11 +311,13 @@ def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH
     body : bytes
         The raw request body.
     max_items : int
-        Most elements of one array or object, and most strings and containers in the body [1].
+        Most elements of one array or object [1].
     max_depth : int, default 64
         Deepest nesting of arrays and objects [1].
     max_string_bytes : int, optional
         Longest string [bytes].
+    max_values : int, optional
+        Most strings and containers in the body [1] (default ``max_items``).
 
     Raises
     ------
@@ -314,9 +326,10 @@ def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH
         naming the place.
     """
     containers = body.count(b"[") + body.count(b"{")
+    values = max_items if max_values is None else max_values
     if (len(body) <= _INLINE_BYTES and containers <= max_depth
             and (max_string_bytes is None or len(body) <= max_string_bytes)
-            and max(body.count(b",") + 1, body.count(b'"') // 2, containers) <= max_items):
+            and body.count(b",") + 1 <= max_items and max(body.count(b'"') // 2, containers) <= values):
         try:
             text = body.decode("utf-8")
         except UnicodeDecodeError as exc:
@@ -335,7 +348,7 @@ def check_json_structure(body: bytes, max_items: int, max_depth: int = MAX_DEPTH
             if isinstance(exc, _DuplicateKeyError):
                 raise _malformed(str(exc)) from None
         return
-    scanner = JsonScanner(max_items, max_depth, max_string_bytes)
+    scanner = JsonScanner(max_items, max_depth, max_string_bytes, max_values)
     view = memoryview(body)
     for start in range(0, len(body), BLOCK_BYTES):
         scanner.feed(bytes(view[start:start + BLOCK_BYTES]))
@@ -418,16 +431,21 @@ class JsonGuardMiddleware:
         Most elements of one array or object [1].
     max_field_bytes : int, optional
         Longest JSON string and longest CSV line [bytes] (``MICROBEARING_MAX_FIELD_BYTES``).
+    max_values : int, optional
+        Most strings and containers in a JSON body [1] (default ``max_items``).
     """
 
-    def __init__(self, app: ASGIApp, max_items: int, max_field_bytes: int | None = None):
+    def __init__(self, app: ASGIApp, max_items: int, max_field_bytes: int | None = None,
+                 max_values: int | None = None):
         self.app = app
         self.max_items = max_items
         self.max_field_bytes = max_field_bytes
+        self.max_values = max_values
 
     def _scanner(self, content_type: bytes | None) -> JsonScanner | CsvLineScanner | None:
         if is_json_media_type(content_type):
-            return JsonScanner(self.max_items, max_string_bytes=self.max_field_bytes)
+            return JsonScanner(self.max_items, max_string_bytes=self.max_field_bytes,
+                               max_values=self.max_values)
         media = (content_type or b"").split(b";", 1)[0].strip().lower()
         if media == b"text/csv" and self.max_field_bytes is not None:
             return CsvLineScanner(self.max_field_bytes)
@@ -496,7 +514,8 @@ class JsonGuardMiddleware:
         try:
             if last and scanner.bytes_fed == 0 and isinstance(scanner, JsonScanner) \
                     and len(block) <= _INLINE_BYTES:  # a small body at once: the fast check
-                check_json_structure(block, self.max_items, max_string_bytes=self.max_field_bytes)
+                check_json_structure(block, self.max_items, max_string_bytes=self.max_field_bytes,
+                                     max_values=self.max_values)
                 return None
             if len(block) <= _INLINE_BYTES:
                 scanner.feed(block)

@@ -198,3 +198,23 @@ def test_a_job_whose_result_is_too_large_keeps_nothing_not_even_its_model(tmp_pa
         assert job["status"] == "failed" and job["error"]["status"] == 413, job
         assert "(MICROBEARING_MAX_RESULT_BYTES)" in job["error"]["detail"]
         assert small.get("/v1/calibrations").json()["calibrations"] == []
+
+
+def test_the_guard_on_a_bodys_strings_and_containers_passes_what_the_limits_allow(tmp_path):
+    # Counted against the batch-points limit alone it refused 48-50 UM-Bridge points (an array each) and
+    # a 12-row calibration (its rows' keys are strings) with limits of 50 points and 30 rows.
+    settings = Settings(data_dir=tmp_path, max_batch_points=50, max_calibration_rows=30,
+                        max_calibration_columns=6)
+    with TestClient(create_app(settings)) as small:
+        points = {"name": "physics", "input": [[4, 0.01, 0.05]] * 50,
+                  "config": {"inputs": ["balls", "load_N", "speed_m_s"], "points": 50}}
+        answer = small.post("/umbridge/Evaluate", json=points)
+        assert answer.status_code == 200 and len(answer.json()["output"]) == 50, answer.text[:300]
+        rows = [{"balls": 4, "load_N": 0.01, "speed_m_s": 0.05, "mu_measured": 0.01}] * 12
+        assert small.post("/v1/calibrations", json={"data": rows}).status_code != 413
+        # past what any limit allows: refused while it streams, naming the settings it follows
+        labels = {"points": {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05},  # 1,620 strings, 50 a container
+                  "extra": {f"k{i}": [{"a": "b"}] * 40 for i in range(20)}}
+        answer = problem(small.post("/v1/friction/batch", json=labels), 413)
+        assert "(a limit that follows MICROBEARING_MAX_BATCH_POINTS and MICROBEARING_MAX_CALIBRATION_ROWS" \
+            in answer["detail"], answer
