@@ -241,19 +241,16 @@ def _refuse_values_the_model_holds(request: DesignRequest, model: Model | None,
         return
     if model.kind == "surrogate":
         trained = {name: spec.default for name, spec in model.inputs.items() if spec.default is not None}
-        errors = [(f"fixed.{name}", f"{model.reference} was trained at {name} = {trained[name]:g}, not a "
-                   f"dimension of its space: it cannot answer at {value:g} (leave it out, or train a "
-                   f"surrogate with {name} among its bounds or fixed at {value:g})")
-                  for name, value in fixed.items()
-                  if name in trained and name not in DESIGN_VARIABLES and not isinstance(value, bool)
-                  and not math.isclose(float(value), float(trained[name]), rel_tol=1e-12)]
         speeds = request.speed_m_s if isinstance(request.speed_m_s, list | tuple) else [request.speed_m_s]
-        other = next((v for v in speeds if v is not None and "speed_m_s" in trained
-                      and not math.isclose(float(v), float(trained["speed_m_s"]), rel_tol=1e-12)), None)
-        if other is not None:  # the speed at the top level, as in fixed
-            errors.append(("speed_m_s", f"{model.reference} was trained at speed_m_s = "
-                           f"{trained['speed_m_s']:g}, not a dimension of its space: it cannot answer at "
-                           f"{other:g} (leave it out, or train a surrogate with speed_m_s among its bounds)"))
+        asked = [(f"fixed.{name}", name, value) for name, value in fixed.items()
+                 if name not in DESIGN_VARIABLES]
+        asked += [("speed_m_s", "speed_m_s", v) for v in speeds if v is not None]  # as in fixed
+        found: dict[str, str] = {}  # the first value refused per field
+        for field_name, name, value in asked:
+            if (name in trained and not isinstance(value, bool)
+                    and not math.isclose(float(value), float(trained[name]), rel_tol=1e-12)):
+                found.setdefault(field_name, f"{model.reference} {model.unread_words(name, value)}")
+        errors = list(found.items())
     elif request.is_robust(fixed.get("speed_m_s", request.speed_m_s)):
         held = {**model.fixed, **model.fitted}
         errors = [(f"fixed.{name}", f"{model.reference} holds {name} = {held[name]:g} "

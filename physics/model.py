@@ -331,6 +331,12 @@ class Model:
             raise InputError(missing[0], None, f"{self.reference} needs {', '.join(missing)}")
         return {name: self.inputs[name].check(value) for name, value in points.items()}
 
+    def unread_words(self, name: str, value: float) -> str | None:
+        """Why this model cannot be asked at ``value`` of an input it holds at another value (its default in
+        :attr:`inputs`), without its reference; None when it reads the input whatever it holds (the physics,
+        a calibrated model: a given value overrides). The caller compares the values."""
+        return None
+
     def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
                  first_index: int = 0) -> Evaluation:
         """The outputs at columnar points (checked with :meth:`check` first).

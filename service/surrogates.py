@@ -320,10 +320,8 @@ def _refuse_unread_points(space: Any, points: Mapping[str, Any],
             errors.append({"pointer": pointer_at("/points", key), "detail": "a list must not be empty"})
         elif name in trained and np.any(column != float(trained[name])):
             other = float(column[column != float(trained[name])][0])
-            errors.append({"pointer": pointer_at("/points", key), "detail": (
-                f"the surrogate was trained at {name} = {float(trained[name]):g}, not a dimension of its "
-                f"space: it cannot answer at {other:g} (leave it out, or train a surrogate with {name} "
-                "among its dimensions)")})
+            errors.append({"pointer": pointer_at("/points", key),
+                           "detail": f"the surrogate {space.unread_words(name, other)}"})
     if errors:
         raise validation_problem(errors)
 

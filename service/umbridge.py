@@ -174,9 +174,7 @@ def _refuse_unread(model: Model, inputs: list[str], given: dict[str, Any], sent_
     for name, value in given.items():
         if name in trained and not isinstance(value, str) and float(value) != float(trained[name]):
             raise ProtocolError("InvalidInput", f"config.fixed.{sent_as.get(name, name)}: {model.reference} "
-                                f"was trained at {name} = {trained[name]!r}, not a dimension of its space: "
-                                f"it cannot answer at {value!r} (leave it out, or train a surrogate with "
-                                f"{name} among its dimensions)")
+                                f"{model.unread_words(name, value)}")
 
 
 def _keys_of(name: str, sent_inputs: list[str], inputs: list[str], fixed_as_sent: dict[str, str]) -> str:

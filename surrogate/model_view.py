@@ -47,6 +47,10 @@ class SurrogateModel(Model):
                                                                           strict=True)}
         self.inputs = physics_inputs(self.fixed, domains, required=space.names)
 
+    def unread_words(self, name: str, value: float) -> str | None:
+        # an input that is no dimension is not read: its answer would be the trained value's
+        return None if name in self.estimator.space.names else self.estimator.space.unread_words(name, value)
+
     def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
                  first_index: int = 0) -> Evaluation:
         # A prediction is finite wherever its inputs are valid: no problem to point at.

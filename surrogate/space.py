@@ -329,6 +329,18 @@ class Space:
         return {name: value for name, value in {**physics.defaults(), **self.fixed}.items()
                 if name not in self.names}
 
+    def unread_words(self, name: str, value: float) -> str:
+        """Why a value of ``name``, a parameter that is no dimension, cannot be asked: the surrogate does not
+        read it, so its answer would be the trained value's (a caller says whose words these are).
+
+        >>> Space({"load_N": (0.001, 0.05)}, fixed={"balls": 4, "speed_m_s": 0.05}).unread_words("balls", 8)
+        'was trained at balls = 4, not a dimension of its space: it cannot answer at 8 (leave it out, or \
+train a surrogate with balls among its dimensions)'
+        """
+        return (f"was trained at {name} = {float(self.held_values()[name]):g}, not a dimension of its space: "
+                f"it cannot answer at {float(value):g} (leave it out, or train a surrogate with {name} among "
+                "its dimensions)")
+
     def outside_words(self, point: Mapping[str, Any]) -> list[str]:
         """One sentence per input of one point that leaves the trained space: a dimension beyond its
         bounds, another parameter at a value other than the one the space was built with (its fixed value
@@ -496,7 +508,7 @@ the value the surrogate was trained at, 4']
         X = np.column_stack([flat[name].astype(float) for name in self.names]) if n else \
             np.empty((0, self.dimension))
         outside = ~self.contains(X)
-        reference = {**physics.defaults(), **self.fixed}
+        reference = self.held_values()
         for name, column in flat.items():
             if name not in self.names:
                 outside |= column.astype(float) != float(reference[name])
