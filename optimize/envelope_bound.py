@@ -753,7 +753,7 @@ class BranchAndBound:
         half_boxes, half_upper = next(((b, u) for b, u in reversed(self._uppers) if b <= self.boxes // 2),
                                       (1, self._root_upper))
         best = self._best_value
-        return Narrowing(stopped or "box limit", half_boxes, half_upper / best - 1.0, self.boxes,
+        return Narrowing(stopped, half_boxes, half_upper / best - 1.0, self.boxes,
                          upper / best - 1.0, self._rtol)
 
     def _branch(self) -> None:

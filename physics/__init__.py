@@ -14,7 +14,8 @@ Pure, vectorized functions, one per equation, grouped by sub-domain:
   caller passes in) and :func:`evaluate_point` (one point as Python floats)
 * :mod:`physics.execution` - :class:`ExecutionOptions`: the kernel (numpy or numba) and the threads
 * :mod:`physics.fused` and :mod:`physics.compiled` - the kernel traced into stages and compiled by
-  numba (optional extra ``fast``)
+  numba (optional extra ``fast``); :mod:`physics.vectormath` - glibc's 4-wide tan, cbrt, log and
+  exp for it
 
 :data:`PARAMETERS` declares every input once (name, unit, default, range);
 :data:`OUTPUTS` every output. Everything is SI except the groove angle in degrees.
@@ -29,6 +30,7 @@ from .parameters import (
     PARAMETERS,
     Parameter,
     defaults,
+    unit_suffix,
     validate,
     validate_all,
 )
@@ -47,6 +49,7 @@ __all__ = [
     "Material",
     "material_parameters",
     "defaults",
+    "unit_suffix",
     "validate",
     "validate_all",
 ]

@@ -35,6 +35,7 @@ __all__ = [
     "validate",
     "validate_all",
     "defaults",
+    "unit_suffix",
 ]
 
 
@@ -118,6 +119,17 @@ class Parameter:
         if hi is not None:
             return f"{whole}{'<' if self.exclusive_maximum else '<='} {hi:g}"
         return f"{whole}finite"
+
+
+def unit_suffix(name: str) -> str:
+    """The unit written after a value of ``name`` in words: ``" N"`` for load_N, ``""`` for a
+    dimensionless input (unit ``1``) and for a name that is not in :data:`PARAMETERS`.
+
+    >>> unit_suffix("load_N"), unit_suffix("mu_pivot"), unit_suffix("relative_humidity")
+    (' N', '', '')
+    """
+    unit = PARAMETERS[name].unit if name in PARAMETERS else ""
+    return "" if unit in ("", "1", "-") else f" {unit}"
 
 
 _STEEL_E_PA = 2.1e11

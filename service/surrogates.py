@@ -179,8 +179,7 @@ def source_domain_warnings(store: Store, body: SurrogateRequest, space: Space) -
     for name, (low, high) in spans.items():
         if name not in domain or (domain[name][0] <= low and high <= domain[name][1]):
             continue
-        unit = physics.PARAMETERS[name].unit if name in physics.PARAMETERS else ""
-        unit = "" if unit in ("", "1", "-") else f" {unit}"
+        unit = physics.unit_suffix(name)
         asked = f"{low:g}{unit}" if low == high else f"[{low:g}, {high:g}]{unit}"
         words.append(f"{name} {asked} reaches outside the data of {body.model}, [{domain[name][0]:g}, "
                      f"{domain[name][1]:g}]{unit}: there the calibrated model extrapolates and the "

@@ -356,8 +356,7 @@ the value the surrogate was trained at, 4']
         reference = self.held_values()
         words = []
         for name, value in point.items():
-            unit = physics.PARAMETERS[name].unit if name in physics.PARAMETERS else ""
-            unit = "" if unit in ("", "1", "-") else f" {unit}"
+            unit = physics.unit_suffix(name)
             if name in self.names:
                 i = self.names.index(name)
                 if not self.lower[i] <= float(value) <= self.upper[i]:
