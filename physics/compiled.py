@@ -93,9 +93,10 @@ def _compiled(extras: bool, block: int, vector: bool) -> tuple[fused.Plan, tuple
 
     plan = fused.plan(extras, block + _PAD)
     header = "import numpy as np\n"
-    if vector:
+    if vector:  # the intrinsics' own code is named too: a change of it is a new file, so a new cache
         names = ", ".join(f"{name}4" for name in vectormath.FUNCTIONS)
-        header += f"from {__package__} import vectormath\n\n{names} = vectormath.intrinsics()\n"
+        header += (f"from {__package__} import vectormath\n\n# vectormath {vectormath.SOURCE_HASH}\n"
+                   f"{names} = vectormath.intrinsics()\n")
     namespace, cached = _namespace(header + "\n\n" + plan.source
                                    + _STORE_SOURCE.replace("STRIDE", str(plan.stride))
                                    + (_vector_source(plan) if vector else ""))

@@ -24,11 +24,12 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import hashlib
 import importlib.util
 import platform
 from pathlib import Path
 
-__all__ = ["AVAILABLE", "FUNCTIONS", "LIBRARY", "WIDTH", "intrinsics"]
+__all__ = ["AVAILABLE", "FUNCTIONS", "LIBRARY", "SOURCE_HASH", "WIDTH", "intrinsics"]
 
 #: The elementary functions of the kernel that run four points at a time here.
 FUNCTIONS = ("tan", "cbrt", "log", "exp")
@@ -38,6 +39,10 @@ LIBRARY = "libmvec.so.1"
 
 #: Points per call of a libmvec function (its AVX2 variant: four float64).
 WIDTH = 4
+
+#: A hash of this module's text: the generated stages name it, so that numba's cache of machine code
+#: compiled with an earlier version of these intrinsics is not reused.
+SOURCE_HASH = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
 
 
 def _available() -> bool:
