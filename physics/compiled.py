@@ -7,7 +7,7 @@ calls) by :mod:`physics.fused`: its arithmetic, cut at the expensive elementary 
 compiled by numba into one loop per stage that keeps every intermediate in registers and releases
 the GIL. Between the stages, tan, cbrt, log and exp run over each block four points at a time
 through glibc's vector math library where the machine has it (:mod:`physics.vectormath`: x86-64
-with AVX2, glibc 2.35 or later; about 6x numpy's one-point-at-a-time functions there), else as
+with AVX2 but not AVX-512, glibc 2.35 or later; about 6x numpy's one-point-at-a-time functions there), else as
 numpy's vectorized loops. Everything a block's stages share lives in one workspace per thread
 that stays in the CPU's cache, so a call reads its inputs and writes its outputs once; what
 depends on the materials alone is computed once a call. The operations are the numpy kernel's in

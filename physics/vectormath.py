@@ -6,9 +6,11 @@ numpy computes tan, cbrt, log and exp of float64 one point at a time on CPUs wit
 (``libmvec``, since glibc 2.35 for tan and cbrt; accurate to 4 ulp, numpy's to 1 ulp). Each
 function here is a numba intrinsic that loads four float64 of a workspace, calls libmvec's AVX2
 version on them and stores the four results: the kernel's stages call them in a loop over a
-block, with no Python between. :data:`AVAILABLE` says whether this machine has them (numba, an
-x86-64 CPU with AVX2, glibc's libmvec with the four functions); where it does not, the kernel
-keeps numpy's functions.
+block, with no Python between. :data:`AVAILABLE` says whether this machine wants them (numba, an
+x86-64 CPU with AVX2 but without AVX-512, glibc's libmvec with the four functions); where it does
+not, the kernel keeps numpy's functions. On a CPU with AVX-512 numpy's own loops for these
+functions are already 8-wide (Intel's SVML, bench/RESULTS.md: a numba loop vectorized with SVML
+gained nothing over them there), so they stay.
 
 Importing this module reads no more than the CPU's flags and the library's symbols;
 :func:`intrinsics` builds the intrinsics (importing numba) when the generated stages of
@@ -46,7 +48,8 @@ SOURCE_HASH = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
 
 
 def _available() -> bool:
-    """Whether numba, an x86-64 CPU with AVX2 and libmvec's four AVX2 functions are all here."""
+    """Whether numba, an x86-64 CPU with AVX2 and without AVX-512 (where numpy's loops are 8-wide)
+    and libmvec's four AVX2 functions are all here."""
     if platform.machine().lower() not in ("x86_64", "amd64") or importlib.util.find_spec("numba") is None:
         return False
     try:
@@ -55,7 +58,9 @@ def _available() -> bool:
         library = ctypes.CDLL(LIBRARY)
     except OSError:  # not Linux, or no glibc vector library
         return False
-    return "avx2" in flags.split() and all(hasattr(library, f"_ZGVdN4v_{name}") for name in FUNCTIONS)
+    features = set(flags.split())
+    return ("avx2" in features and "avx512f" not in features
+            and all(hasattr(library, f"_ZGVdN4v_{name}") for name in FUNCTIONS))
 
 
 #: Whether the numba kernel may call libmvec (see the module's text).

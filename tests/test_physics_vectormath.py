@@ -9,7 +9,7 @@ from test_physics_evaluate import _random_inputs
 from microbearing.physics import OUTPUTS, vectormath
 
 needs_libmvec = pytest.mark.skipif(not vectormath.AVAILABLE,
-                                   reason="no numba, AVX2 or glibc libmvec with tan and cbrt here")
+                                   reason="no numba, AVX2 without AVX-512, or libmvec with tan and cbrt")
 
 #: What libmvec documents for its AVX2 variants (numpy's scalar functions are within 1 ulp).
 ULPS = 4
