@@ -7,8 +7,8 @@ calls) by :mod:`physics.fused`: its arithmetic, cut at the expensive elementary 
 compiled by numba into one loop per stage that keeps every intermediate in registers and releases
 the GIL. Between the stages, tan, cbrt, log and exp run over each block four points at a time
 through glibc's vector math library where the machine has it (:mod:`physics.vectormath`: x86-64
-with AVX2 but not AVX-512, glibc 2.35 or later; about 6x numpy's one-point-at-a-time functions there), else as
-numpy's vectorized loops. Everything a block's stages share lives in one workspace per thread
+with AVX2 but not AVX-512, glibc 2.35 or later; about 6x numpy's one-point-at-a-time functions
+there), else as numpy's vectorized loops. Everything a block's stages share lives in one workspace per thread
 that stays in the CPU's cache, so a call reads its inputs and writes its outputs once; what
 depends on the materials alone is computed once a call. The operations are the numpy kernel's in
 its order; with numpy's elementary functions the two agree bit for bit where numba emits the same
@@ -95,16 +95,16 @@ def _compiled(extras: bool, block: int, vector: bool) -> tuple[fused.Plan, tuple
     header = "import numpy as np\n"
     if vector:  # the intrinsics' own code is named too: a change of it is a new file, so a new cache
         names = ", ".join(f"{name}4" for name in vectormath.FUNCTIONS)
-        header += (f"from {__package__} import vectormath\n\n# vectormath {vectormath.SOURCE_HASH}\n"
+        header += (f"from {__package__} import vectormath\n\n# vectormath {vectormath.source_hash()}\n"
                    f"{names} = vectormath.intrinsics()\n")
     namespace, cached = _namespace(header + "\n\n" + plan.source
                                    + _STORE_SOURCE.replace("STRIDE", str(plan.stride))
                                    + (_vector_source(plan) if vector else ""))
     types = numba.types
     workspace, indices = types.Array(types.float64, 1, "C"), types.Array(types.int64, 1, "C")
+    vectors = [f"vector_{level}" for level in range(1, plan.levels)] if vector else []
     signatures = {name: types.void(types.int64, workspace)
-                  for name in ("prelude", *(f"stage_{level}" for level in range(plan.levels)),
-                               *((f"vector_{level}" for level in range(1, plan.levels)) if vector else ()))}
+                  for name in ("prelude", *(f"stage_{level}" for level in range(plan.levels)), *vectors)}
     signatures["store"] = types.void(types.int64, workspace, types.Array(types.float64, 2, "C"), indices,
                                      indices, types.int64)
     functions = {}
@@ -115,8 +115,8 @@ def _compiled(extras: bool, block: int, vector: bool) -> tuple[fused.Plan, tuple
         except RuntimeError:  # numba found no folder to write its cache in: compiled in memory
             functions[name] = numba.njit(signature, **options)(namespace[name])
     store = functions.pop("store")
-    vectors = tuple(functions.pop(f"vector_{level}") for level in range(1, plan.levels)) if vector else ()
-    return plan, tuple(functions.values()), store, vectors
+    vectored = tuple(functions.pop(name) for name in vectors)
+    return plan, tuple(functions.values()), store, vectored
 
 
 def _namespace(source: str) -> tuple[dict, bool]:
@@ -168,7 +168,7 @@ def points(inputs: tuple, out: np.ndarray, rows: list[int], extras: bool) -> Cal
     """
     size = BLOCK_POINTS
     with _COMPILE_LOCK:  # the first calls of several threads compile once
-        plan, (prelude, *stages), store, vectors = _compiled(extras, size, vectormath.AVAILABLE)
+        plan, (prelude, *stages), store, vectors = _compiled(extras, size, vectormath.available())
     for position, value in plan.constants:
         if rows[position] >= 0:
             out[rows[position]] = value

@@ -28,8 +28,8 @@ class ExecutionOptions:
         ``"numpy"``: numpy's ufuncs over cache-sized blocks of points. ``"numba"``: the same
         functions compiled by numba (:mod:`physics.compiled`, ``pip install microbearing[fast]``),
         fused loops between tan, cbrt, log and exp four points at a time (glibc's libmvec on
-        x86-64 with AVX2 but not AVX-512, :mod:`physics.vectormath`; else numpy's), about 2.5x faster for μ
-        there (``bench/physics.py``); agrees with numpy to ~1e-15 relative. Its first call in a
+        x86-64 with AVX2 but not AVX-512, :mod:`physics.vectormath`; else numpy's), about 2.5x
+        faster for μ there (``bench/physics.py``); agrees with numpy to ~1e-15 relative. Its first call in a
         process costs numba's start (about a second; seconds more where its cache beside the
         package cannot be written). One point (scalar inputs) always runs on Python floats.
     threads : int, default 1

@@ -6,15 +6,15 @@ numpy computes tan, cbrt, log and exp of float64 one point at a time on CPUs wit
 (``libmvec``, since glibc 2.35 for tan and cbrt; accurate to 4 ulp, numpy's to 1 ulp). Each
 function here is a numba intrinsic that loads four float64 of a workspace, calls libmvec's AVX2
 version on them and stores the four results: the kernel's stages call them in a loop over a
-block, with no Python between. :data:`AVAILABLE` says whether this machine wants them (numba, an
+block, with no Python between. :func:`available` says whether this machine wants them (numba, an
 x86-64 CPU with AVX2 but without AVX-512, glibc's libmvec with the four functions); where it does
 not, the kernel keeps numpy's functions. On a CPU with AVX-512 numpy's own loops for these
 functions are already 8-wide (Intel's SVML, bench/RESULTS.md: a numba loop vectorized with SVML
 gained nothing over them there), so they stay.
 
-Importing this module reads no more than the CPU's flags and the library's symbols;
-:func:`intrinsics` builds the intrinsics (importing numba) when the generated stages of
-:mod:`physics.compiled` first ask for them.
+Importing this module does nothing: :func:`available` reads the CPU's flags and the library's
+symbols, and :func:`intrinsics` builds the intrinsics (importing numba), when the numba kernel
+first asks (a process that never calls it loads no library).
 
 References
 ----------
@@ -31,7 +31,7 @@ import importlib.util
 import platform
 from pathlib import Path
 
-__all__ = ["AVAILABLE", "FUNCTIONS", "LIBRARY", "SOURCE_HASH", "WIDTH", "intrinsics"]
+__all__ = ["FUNCTIONS", "LIBRARY", "WIDTH", "available", "intrinsics", "source_hash"]
 
 #: The elementary functions of the kernel that run four points at a time here.
 FUNCTIONS = ("tan", "cbrt", "log", "exp")
@@ -42,14 +42,18 @@ LIBRARY = "libmvec.so.1"
 #: Points per call of a libmvec function (its AVX2 variant: four float64).
 WIDTH = 4
 
-#: A hash of this module's text: the generated stages name it, so that numba's cache of machine code
-#: compiled with an earlier version of these intrinsics is not reused.
-SOURCE_HASH = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
+
+@functools.cache
+def source_hash() -> str:
+    """A hash of this module's text: the generated stages name it, so that numba's cache of machine
+    code compiled with an earlier version of these intrinsics is not reused."""
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
 
 
-def _available() -> bool:
-    """Whether numba, an x86-64 CPU with AVX2 and without AVX-512 (where numpy's loops are 8-wide)
-    and libmvec's four AVX2 functions are all here."""
+@functools.cache
+def available() -> bool:
+    """Whether the numba kernel may call libmvec: numba, an x86-64 CPU with AVX2 and without AVX-512
+    (where numpy's loops are 8-wide) and libmvec's four AVX2 functions are all here."""
     if platform.machine().lower() not in ("x86_64", "amd64") or importlib.util.find_spec("numba") is None:
         return False
     try:
@@ -62,9 +66,6 @@ def _available() -> bool:
     return ("avx2" in features and "avx512f" not in features
             and all(hasattr(library, f"_ZGVdN4v_{name}") for name in FUNCTIONS))
 
-
-#: Whether the numba kernel may call libmvec (see the module's text).
-AVAILABLE = _available()
 
 
 def _intrinsic(name: str):
@@ -98,9 +99,9 @@ def _intrinsic(name: str):
 def intrinsics() -> tuple:
     """numba intrinsics ``f(w, source, result)`` of :data:`FUNCTIONS`, in order: each sets
     ``w[result:result + 4]`` to the function of ``w[source:source + 4]`` (``w`` a 1-D float64
-    array, both ranges inside it). Loads libmvec into numba's linker; only where :data:`AVAILABLE`.
+    array, both ranges inside it). Loads libmvec into numba's linker; only where :func:`available`.
     """
-    if not AVAILABLE:
+    if not available():
         raise RuntimeError("glibc's libmvec with AVX2 (and numba) is not available on this machine")
     import llvmlite.binding as llvm
 
