@@ -16,7 +16,10 @@ the speed-up from the extra threads (one-thread time over threaded time, per rep
 of a perfectly parallel reference (the ``numpy.power`` pass split in two halves on two threads)
 and of two processes against one running pure-Python arithmetic (no shared memory, no GIL: what
 the machine gives two independent workers): when these references are well below 2, the machine
-did not give the process a second core, and no code can use it.
+did not give the process a second core, and no code can use it. A last reference writes the
+(21, N) float64 result of an all-outputs call into new memory with no arithmetic (``numpy.empty``
+then ``fill``): the part of that call no kernel avoids, since the operating system hands a process
+new pages zeroed at their first write.
 Targets of issue 35: μ alone <= 3x, all outputs <= 4x (both cores).
 
 One point: each repeat times a batch of ``physics.evaluate`` calls of one scalar point
@@ -124,7 +127,7 @@ def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
     chosen = kernels(blocks)
     cases = {(label, outputs, threads): {"wall": [], "cores": [], "work": []} for label, _, _ in chosen
              for outputs in ("all 21 outputs", "mu only") for threads in ("", "1")}
-    power, power_split, power_cpus = [], [], []
+    power, power_split, power_cpus, fresh = [], [], [], []
     halves = np.array_split(base, 2)
     pool = ThreadPoolExecutor(2)
     physics_pool = ThreadPoolExecutor(USABLE_CPUS, thread_name_prefix="physics")
@@ -144,6 +147,8 @@ def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
         power.append(power_wall)
         power_cpus.append(power_cpu)
         power_split.append(timed(lambda: list(pool.map(lambda half: np.power(half, 0.47), halves)))[0])
+        # the floor of an all-outputs call: writing its 21 rows of new memory, nothing computed
+        fresh.append(timed(lambda: np.empty((len(physics.OUTPUTS), points)).fill(1.0))[0])
         for label, kernel, size in chosen:
             # the block size is a private constant of the kernel: set here to compare sizes in one run
             physics.bearing._BLOCK_POINTS = size
@@ -165,6 +170,9 @@ def large_calls(points: int, repeats: int, blocks: list[int]) -> None:
         ratios = [t / p for t, p in zip(times["wall"], power, strict=True)]
         print(f"  {case:50s}{spread(times['wall'], 1e3):>22s} ms   ratio {spread(ratios):>18s}"
               f"   cores busy {spread(times['cores'], digits=2)}   CPU ratio {spread(times['work'])}")
+    floor = [f / p for f, p in zip(fresh, power, strict=True)]
+    case = f"writing {len(physics.OUTPUTS)} rows of new memory (reference)"
+    print(f"  {case:50s}{spread(fresh, 1e3):>22s} ms   ratio {spread(floor):>18s}")
     reference = [one / split for one, split in zip(power, power_split, strict=True)]
     print(f"  speed-up of numpy.power split over two threads (reference)     {spread(reference, digits=2)}")
     print(f"  two processes of pure-Python arithmetic over one (reference)   {spread(processes, digits=2)}")
