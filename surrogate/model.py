@@ -732,6 +732,20 @@ class GaussianProcessSurrogate(RegressorMixin, BaseEstimator):
         check_is_fitted(self, "gaussian_process_")
         return self._loo()[0]
 
+    def loo_log_variances(self) -> np.ndarray:
+        """Leave-one-out predictive variances of the target at the training points (closed form).
+
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+            The variance of ``mean_{-i}`` about ``t_i`` with the hyperparameters held fixed
+            (Rasmussen & Williams 2006, eq. 5.12: ``1 / [K^-1]_ii``), before the variance scale
+            :attr:`std_scale_`, in units of (log μ)²: :meth:`loo_log_errors` over their square root
+            are the standardized errors the variance scale is set from. [1]
+        """
+        check_is_fitted(self, "gaussian_process_")
+        return self._loo()[1]
+
     def _loo(self) -> tuple[np.ndarray, np.ndarray]:
         # Kept with the process it belongs to: the calibration and adaptive sampling both need it,
         # and each computation inverts the n x n covariance.
