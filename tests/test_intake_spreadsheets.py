@@ -17,7 +17,7 @@ import string
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from jobs_helper import finished_job
+from jobs_helper import job_result
 
 from microbearing import physics
 from microbearing.calibrate import DataError, parse_csv, read_csv, read_rows
@@ -240,9 +240,7 @@ def client(tmp_path_factory):
 
 
 def finished(client: TestClient, response) -> dict:
-    assert response.status_code == 202, response.text
-    job = finished_job(client, response.headers["location"], timeout_s=300, interval_s=0.1)
-    return client.get(job["result_url"]).json()
+    return job_result(client, response, timeout_s=300, interval_s=0.1)
 
 
 def test_an_excel_export_uploaded_as_a_form_calibrates_like_the_clean_file(client):
