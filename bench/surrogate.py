@@ -5,6 +5,9 @@ shared 2-core machine; ``--quick`` skips the ablations and the larger spaces).
 ``--coverage-only`` runs the coverage study: the REST defaults (adaptive, target 0.001, Sobol'
 start) on the issue's 4-, 5- and 6-input spaces and on random spaces of 1 to 7 inputs, at budgets
 50 to 400, over design seeds, each on 1024 held-out Sobol' points (about 15-30 minutes).
+``--regions 4,5,6`` measures the coverage region by region (:data:`REGIONS`: the middle, near one bound,
+near half of them, the corners) on random spaces of those numbers of inputs (about 10 minutes for two
+spaces each at budgets 50 and 100, two seeds).
 ``--scale-diagnostics`` prints, per fit of the REST defaults, the variance scale each
 cross-validation rule estimates against the one the held-out points ask for (why coverage misses).
 ``--smt`` compares the REST defaults, before issue 35 (features "physics", linear mean) and now, with
@@ -225,6 +228,70 @@ def coverage_distribution(per_dimension: int, seeds: int, budgets: tuple[int, ..
         print(f"fit time at budget {budget}: median {np.median(times):.1f} s, max {max(times):.1f} s")
 
 
+#: Regions of the unit cube of :func:`region_coverage`: (label, low, high) of each input's distance
+#: from its nearer end (as a share of its range), for every input or, where said, for some.
+REGIONS = (("whole space (Sobol')", None, None), ("middle: every input 10-90 %", None, None),
+           ("one input within 2-10 % of an end", 0.02, 0.10), ("half the inputs within 10 %", 0.0, 0.10),
+           ("corner: every input within 2-10 %", 0.02, 0.10), ("corner: every input within 2 %", 0.0, 0.02),
+           ("every input 10-20 % from an end", 0.10, 0.20))
+
+
+def region_points(space: Space, label: str, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` uniform points of one region of :data:`REGIONS` (each input on a random side)."""
+    d = space.dimension
+    _, low, high = next(r for r in REGIONS if r[0] == label)
+    if label.startswith("whole"):
+        return design(space, n, "sobol", rng)
+    U = rng.uniform(0.1, 0.9, (n, d))
+    if low is None:
+        return space.from_unit(U)
+    if label.startswith("one"):
+        chosen = [rng.choice(d, 1, replace=False) for _ in range(n)]
+    elif label.startswith("half"):
+        chosen = [rng.choice(d, (d + 1) // 2, replace=False) for _ in range(n)]
+    else:
+        chosen = [np.arange(d)] * n
+    for i, inputs in enumerate(chosen):
+        offset = rng.uniform(low, high, len(inputs))
+        U[i, inputs] = np.where(rng.random(len(inputs)) < 0.5, offset, 1.0 - offset)
+    return space.from_unit(U)
+
+
+def region_coverage(inputs: tuple[int, ...], per_dimension: int, budgets: tuple[int, ...], seeds: int,
+                    space_seed: int) -> None:
+    """Coverage of the 95 % interval of the REST defaults region by region (:data:`REGIONS`): near the
+    bounds and corners of the space, where optima often lie, as in its middle; 512 fresh physics points
+    a region and fit, on random spaces of the given numbers of inputs (continuous ones, drawn with
+    ``space_seed``)."""
+    pool = {name: ranges for name, ranges in RANGE_POOL.items() if name != "balls_touching"}
+    rng = np.random.default_rng(space_seed)
+    spaces = []
+    for d in inputs:
+        for _ in range(per_dimension):
+            names = list(rng.choice(list(pool), size=d, replace=False))
+            bounds = {n: pool[n][rng.integers(len(pool[n]))] for n in names}
+            spaces.append(Space(bounds, {k: v for k, v in REQUIRED_VALUES.items() if k not in bounds}))
+    print(f"REST defaults on {len(spaces)} random spaces of {', '.join(map(str, inputs))} inputs (space seed "
+          f"{space_seed}) x budgets {', '.join(map(str, budgets))} x design seeds 0-{seeds - 1}; coverage of "
+          "the 95 % interval on 512 fresh points a region and fit\n")
+    rows = {label: [] for label, _, _ in REGIONS}
+    for space in spaces:
+        for budget in budgets:
+            for seed in range(seeds):
+                model = fit_adaptive(space, budget=budget, target_relative_error=1e-3, seed=seed).model
+                points = np.random.default_rng([seed, 99])
+                for label, _, _ in REGIONS:
+                    X = region_points(space, label, 512, points)
+                    y, p = space.evaluate(X), model.predict_interval(X)
+                    rows[label].append(float(np.mean((p.mu_lower <= y) & (y <= p.mu_upper))))
+    print("| region | fits | in [90, 98] % | below 90 % | above 98 % | min | median | max |\n"
+          "|---|---|---|---|---|---|---|---|")
+    for label, values in rows.items():
+        c = 100 * np.array(values)
+        print(f"| {label} | {len(c)} | {in_band(list(c))} | {np.sum(c < 90)} | {np.sum(c > 98)} | "
+              f"{c.min():.1f} | {np.median(c):.1f} | {c.max():.1f} |")
+
+
 def scale_diagnostics(per_dimension: int, seeds: int, budgets: tuple[int, ...]) -> None:
     """Per fit of the REST defaults: the variance scale each cross-validation rule estimates against
     the scale the held-out points ask for, and the shape of their standardized errors."""
@@ -247,8 +314,8 @@ def scale_diagnostics(per_dimension: int, seeds: int, budgets: tuple[int, ...]) 
                 if len(X) < 2 or len(model.y_train_) < 10:
                     continue
                 mu, std = model.predict(X, return_std=True)
-                z = np.abs(np.log(space.evaluate(X) / mu)) / (std / model.std_scale_)
-                errors, variances = model._loo()
+                z = np.abs(np.log(space.evaluate(X) / mu)) / (std / model.scale_at(X))
+                errors, variances = model.loo_log_errors(), model.loo_log_variances()
                 loo = errors / np.sqrt(variances)
                 Zs = model.design_matrix(model.X_train_)
                 kfold = model._kfold_errors(Zs, model._target(model.y_train_))
@@ -256,7 +323,7 @@ def scale_diagnostics(per_dimension: int, seeds: int, budgets: tuple[int, ...]) 
                 rules = (loo[:start], loo, kfold)
                 scales = [model.std_scale_, *(float(np.sqrt(np.mean(e**2))) for e in rules)]
                 ideal, rms = float(np.quantile(z, 0.95) / 1.96), float(np.sqrt(np.mean(z**2)))
-                sigma_ratio = np.median(std / model.std_scale_) / np.median(np.sqrt(variances))
+                sigma_ratio = np.median(std / model.scale_at(X)) / np.median(np.sqrt(variances))
                 print(f"| {label}: {', '.join(space.names)} | {budget} | "
                       f"{seed} | {len(model.y_train_)} | {model.variance_calibration_} | {ideal:.3f} | "
                       f"{rms:.3f} | "
@@ -432,6 +499,10 @@ def main() -> None:
     parser.add_argument("--scale-diagnostics", action="store_true",
                         help="per fit, the variance scale of each cross-validation rule against the one the "
                              "held-out points ask for (spaces and budgets as --coverage-only)")
+    parser.add_argument("--regions", default=None,
+                        help="only the coverage by region near the bounds and corners, on random spaces of "
+                             "these numbers of inputs, comma-separated (e.g. 4,5,6; budgets from --budgets, "
+                             "design seeds --coverage-seeds, spaces --spaces-per-dimension, --space-seed)")
     parser.add_argument("--fit-time", action="store_true",
                         help="only the wall and CPU time of the REST defaults at budget 300")
     args = parser.parse_args()
@@ -439,6 +510,11 @@ def main() -> None:
         budgets = tuple(int(b) for b in args.budgets.split(","))
         coverage_distribution(args.spaces_per_dimension, args.coverage_seeds or 2, budgets, args.space_seed,
                               args.first_seed)
+        return
+    if args.regions:
+        budgets = tuple(int(b) for b in args.budgets.split(","))
+        region_coverage(tuple(int(d) for d in args.regions.split(",")), args.spaces_per_dimension, budgets,
+                        args.coverage_seeds or 2, args.space_seed)
         return
     if args.scale_diagnostics:
         scale_diagnostics(args.spaces_per_dimension, args.coverage_seeds or 1,

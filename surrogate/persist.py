@@ -22,7 +22,7 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 
 from microbearing import physics
 
-from .model import GaussianProcessSurrogate, Hyperparameters, build_kernel
+from .model import GaussianProcessSurrogate, Hyperparameters, RadiusScales, build_kernel
 from .space import Space
 
 __all__ = ["FORMAT", "package_version", "version_warning", "to_dict", "from_dict", "dumps", "loads"]
@@ -123,6 +123,7 @@ def to_dict(model: GaussianProcessSurrogate) -> dict[str, Any]:
         "std_scale": model.std_scale_,
         "variance_calibration": model.variance_calibration_,
         "calibration_points": model.calibration_points_,
+        "radius_scales": _stored_radius_scales(getattr(model, "radius_scales_", None)),
         "gp": {"kernel": str(gp.kernel_), "theta": gp.kernel_.theta.tolist(), "alpha": gp.alpha,
                "normalize_y": gp.normalize_y},
     }
@@ -182,9 +183,28 @@ def from_dict(data: dict[str, Any]) -> GaussianProcessSurrogate:
     # Stored before "auto" existed: the calibration was the one requested.
     model.variance_calibration_ = data.get("variance_calibration", model.calibrate_variance)
     model.calibration_points_ = data.get("calibration_points")  # absent before it was recorded
+    model.radius_scales_ = _radius_scales(data)
     model.package_version_ = data.get("package_version")
     model.version_warning_ = version_warning(model.package_version_)
     return model
+
+
+def _stored_radius_scales(fit: RadiusScales | None) -> dict[str, list[float]] | None:
+    return None if fit is None else {"edges": list(fit.edges), "scales": list(fit.scales)}
+
+
+def _radius_scales(data: dict[str, Any]) -> RadiusScales | None:
+    """The stored factors by distance from the centre; None when absent (stored before they were kept:
+    the single ``std_scale`` serves)."""
+    stored = data.get("radius_scales")
+    if stored is None:
+        return None
+    edges, scales = (np.asarray(stored.get(key, []), dtype=float) for key in ("edges", "scales"))
+    if (scales.shape != (edges.size + 1,) or not np.all(np.isfinite(scales)) or np.any(scales <= 0)
+            or np.any(np.diff(edges) <= 0) or not np.all(np.isfinite(edges))):
+        raise ValueError("radius_scales must hold increasing edges and one positive factor more; "
+                         f"got {stored!r}")
+    return RadiusScales(edges.tolist(), scales.tolist())
 
 
 def dumps(model: GaussianProcessSurrogate) -> str:

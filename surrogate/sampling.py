@@ -27,8 +27,8 @@ from .space import Space
 
 __all__ = ["DESIGNS", "CRITERIA", "TAIL_FACTOR", "REOPTIMIZE_GROWTH", "STOP_CONFIDENCE",
            "CALIBRATION_DESIGN_SIZE", "ADAPTIVE_SHARE", "VALIDATION_POINTS", "default_initial_size",
-           "predicted_error_quantile", "quantile_upper_bound", "unit_design", "design", "select_batch",
-           "SamplingPlan", "AdaptiveFit", "fit_adaptive"]
+           "predicted_error_quantile", "quantile_upper_bound", "unit_design", "design", "radial_design",
+           "select_batch", "SamplingPlan", "AdaptiveFit", "fit_adaptive"]
 
 #: Allowed space-filling designs.
 DESIGNS = ("sobol", "latin_hypercube")
@@ -294,6 +294,58 @@ def select_batch(model: GaussianProcessSurrogate, candidates: np.ndarray, size: 
     return np.array(picked, dtype=int)
 
 
+#: Range of the tilt of :func:`radial_design`: each point's inputs are drawn as ``V^(1/a)`` of the
+#: distance from the middle of their range, ``a`` log-uniform between these. [1]
+_TILT = (1.0 / 16.0, 64.0)
+
+
+def radial_design(space: Space, n: int, seed: int | np.random.Generator | None = None) -> np.ndarray:
+    """``n`` points spread over the distance from the centre of the space (:meth:`Space.radius`): the
+    validation points of :func:`fit_adaptive`.
+
+    A uniform design puts nearly every point of a space of several inputs near the same distance from
+    its centre (0.58 of a corner's), and almost none near the corners or the centre, so a conformal
+    factor per bin of that distance (:func:`surrogate.model.radius_scales`) would have nothing to learn
+    them from. Here each point has its own tilt ``a``, log-uniform over :data:`_TILT` (stratified):
+    each input's distance from the middle of its range, as a share of the half-range, is ``V^(1/a)``
+    with ``V`` a coordinate of a scrambled Sobol' design (uniform for a = 1, toward the bounds for
+    a > 1, toward the middle for a < 1), on a random side. Boolean inputs are drawn as by :func:`design`.
+
+    Parameters
+    ----------
+    space : Space
+        Where to sample.
+    n : int
+        Number of points, >= 1. [1]
+    seed : int, numpy.random.Generator or None, default None
+        Seed (or generator) of the scrambling, the tilts and the sides.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n, d)
+        Points in the units of ``space.names``. [parameter units]
+
+    Examples
+    --------
+    >>> s = Space({"load_N": (0.001, 0.05), "groove_angle_deg": (40, 60), "speed_m_s": (0.01, 0.1)},
+    ...           fixed={"balls": 4})
+    >>> radius = s.radius(radial_design(s, 512, seed=0))
+    >>> bool(np.all(np.histogram(radius, bins=5, range=(0, 1))[0] >= 19))
+    True
+    """
+    rng = np.random.default_rng(seed)
+    U = unit_design(space.dimension, n, "sobol", rng)
+    ranged = [j for j, kind in enumerate(space.kinds) if kind != "bool"]
+    if not ranged:
+        return space.from_unit(U)
+    low, high = np.log(_TILT[0]), np.log(_TILT[1])
+    tilt = np.exp(low + (high - low) * (rng.permutation(n) + rng.random(n)) / n)
+    W = U[:, ranged] ** (1.0 / tilt[:, None])
+    side = rng.random(W.shape) < 0.5
+    U[:, ranged] = 0.5 + 0.5 * np.where(side, W, -W)
+    return space.from_unit(U)
+
+
 def _distinct(X: np.ndarray, exclude: np.ndarray | None = None) -> np.ndarray:
     """Rows of ``X`` without repeats and without rows of ``exclude``, in first-occurrence order."""
     seen = set() if exclude is None else {tuple(row) for row in exclude}
@@ -457,9 +509,10 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         ``mu_model(points) -> mu`` [1] to learn instead of the physics (see
         :meth:`Space.evaluate`), e.g. a calibrated model.
     validation_points : int, default :data:`VALIDATION_POINTS`
-        Evaluations beyond the budget, at a scrambled Sobol' design of the space (its own
-        scramble, no training point), that set the final surrogate's variance scale by
-        :meth:`GaussianProcessSurrogate.calibrate`; never trained on. 0, or a space of integer
+        Evaluations beyond the budget, spread over the distance from the space's centre
+        (:func:`radial_design`, its own scramble, no training point), that set the final surrogate's
+        variance scale per bin of that distance by :meth:`GaussianProcessSurrogate.calibrate`; never
+        trained on. 0, or a space of integer
         and boolean dimensions only (whose finitely many points a held-out test would share),
         leaves the scale to ``calibrate_variance``'s cross-validation, which is cheaper in
         evaluations but was measured far less reliable below 100 of them: 95 % intervals in
@@ -531,7 +584,7 @@ def fit_adaptive(space: Space, budget: int = 100, target_relative_error: float =
         model = GaussianProcessSurrogate(space, **params, hyperparameters=final).fit(X, y)
     if validation_points and not space.finite:
         rng = np.random.default_rng(None if seed is None else [seed, _VALIDATION_STREAM])
-        X_valid = _distinct(design(space, int(validation_points), "sobol", rng), exclude=X)
+        X_valid = _distinct(radial_design(space, int(validation_points), rng), exclude=X)
         if len(X_valid) >= MIN_VALIDATION_POINTS:
             model.calibrate(X_valid, evaluate(X_valid))
     return AdaptiveFit(model, X, y, history, stop)

@@ -264,6 +264,36 @@ class Space:
         hi = self._forward(self.upper[None, :])
         return (self._forward(X) - lo) / (hi - lo)
 
+    def radius(self, X: Any) -> np.ndarray:
+        """Distance of each point from the centre of the space, on the design's scale, as a share of a
+        corner's: the root mean square over the inputs of ``2 u - 1`` (``u`` the unit coordinate;
+        beyond the bounds counts as the bound). 0 at the centre, 1 at a corner; a uniform point of many
+        inputs lies near 0.58 (1 / sqrt(3)). A boolean input, always at an end, is left out. [1]
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Points in the units of :attr:`names`. [parameter units]
+
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+            In [0, 1]; 0 for a space of booleans only. [1]
+
+        Examples
+        --------
+        >>> s = Space({"load_N": (0.001, 0.1), "groove_angle_deg": (40, 60)},
+        ...           fixed={"balls": 4, "speed_m_s": 0.01})
+        >>> s.radius([[0.01, 50.0], [0.1, 50.0], [0.1, 60.0], [0.1, 70.0]]).round(4).tolist()
+        [0.0, 0.7071, 1.0, 1.0]
+        """
+        U = self.to_unit(X)
+        ranged = [j for j, kind in enumerate(self.kinds) if kind != "bool"]
+        if not ranged:
+            return np.zeros(U.shape[0])
+        W = np.minimum(np.abs(2.0 * U[:, ranged] - 1.0), 1.0)
+        return np.sqrt(np.mean(W * W, axis=1))
+
     def from_unit(self, U: Any) -> np.ndarray:
         """Map unit-cube coordinates to valid physical points.
 

@@ -5,6 +5,7 @@ persistence and Sobol' indices. Reference numbers are computed independently in 
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -23,6 +24,7 @@ from microbearing.surrogate import (
     design,
     dumps,
     fit_adaptive,
+    from_dict,
     holdout_metrics,
     loads,
     select_batch,
@@ -699,11 +701,32 @@ def test_calibrate_sets_the_split_conformal_quantile_of_the_validation_errors():
     y_valid = space.evaluate(X_valid)
     model.calibrate(X_valid, y_valid)
     assert (model.variance_calibration_, model.calibration_points_) == ("validation", 99)
-    # The 95 % interval holds exactly k = ceil(0.95 x 100) = 95 of the 99 validation points: the
-    # k-th smallest standardized error sits on its edge (ties have probability 0).
+    # std_scale_, the factor of all 99 together: k = ceil(0.95 x 100) = 95 of them within 1.96 of it.
+    Zs = model.design_matrix(X_valid)
+    mean, std = model.gaussian_process_.predict(Zs, return_std=True)
+    z = np.abs(np.log(y_valid) - mean - prior_mean(model.mean_coef_, Zs)) / std
+    assert np.sum(z <= 1.96 * model.std_scale_ * (1 + 1e-9)) == 95
+    # Each bin of distance from the centre with 19 points or more holds k = ceil(0.95 (n + 1)) of them in
+    # its own interval: exactly k where its factor is its own conformal quantile, at least k where a bin
+    # nearer the centre asked for more (never less than those: the running maximum outward).
     prediction = model.predict_interval(X_valid)
     inside = (prediction.mu_lower <= y_valid * (1 + 1e-12)) & (y_valid <= prediction.mu_upper * (1 + 1e-12))
-    assert inside.sum() == 95
+    edges, scales = model.radius_scales_.edges, model.radius_scales_.scales
+    bins = np.searchsorted(edges, space.radius(X_valid), side="right")
+    # 99 points: 5 bins (99 // 19) of 19-20 points, the factors never decreasing outward
+    assert len(scales) == 5 and scales == sorted(scales) and np.bincount(bins).min() >= 19
+    checked = 0
+    for b in range(5):
+        n = int(np.sum(bins == b))
+        if n < 19:
+            continue
+        k = math.ceil(0.95 * (n + 1))
+        own = np.sort(z[bins == b])[k - 1] / 1.959963984540054
+        assert scales[b] >= own * (1 - 1e-9)
+        held = int(inside[bins == b].sum())
+        assert held == k if scales[b] == pytest.approx(own, rel=1e-9) else held >= k
+        checked += 1
+    assert checked >= 2
     # Whatever the process's own scale, the same conformal quantile: refitting with another calibration
     # and calibrating again gives the same factor.
     other = GaussianProcessSurrogate(space, random_state=0, calibrate_variance="none")
@@ -713,6 +736,8 @@ def test_calibrate_sets_the_split_conformal_quantile_of_the_validation_errors():
     restored = loads(dumps(model))
     assert (restored.std_scale_, restored.variance_calibration_, restored.calibration_points_) == \
         (model.std_scale_, "validation", 99)
+    assert restored.radius_scales_ == model.radius_scales_
+    np.testing.assert_array_equal(restored.predict_interval(X_valid).mu_upper, prediction.mu_upper)
 
 
 def test_calibrate_refuses_training_points_and_too_few_points():
@@ -896,3 +921,84 @@ def test_a_log_spaced_whole_number_range_gives_each_count_its_log_share():
         np.testing.assert_allclose(share, np.log((counts + 1) / counts) / np.log(31 / 3), atol=0.006)
         assert logged.min() == 3 and logged.max() == 30 and np.median(logged) in (9, 10)
         np.testing.assert_allclose([np.mean(linear == k) for k in counts], 1 / 28, atol=0.006)
+
+
+def test_radius_is_the_rms_distance_from_the_centre_on_the_design_scale():
+    # load on a log scale (centre: the geometric mean), the angle linear, a boolean left out.
+    space = Space({"load_N": (0.001, 0.1), "groove_angle_deg": (40, 60), "balls_touching": (False, True)},
+                  fixed={"balls": 4, "speed_m_s": 0.01})
+    X = np.array([[0.01, 50.0, 0.0],     # the centre
+                  [0.1, 50.0, 1.0],      # one input at its end: sqrt(1 / 2)
+                  [10 ** -1.5, 45.0, 1.0],  # each halfway to an end: 0.5
+                  [0.001, 60.0, 0.0],    # a corner
+                  [0.5, 80.0, 1.0]])     # beyond the bounds: the corner
+    np.testing.assert_allclose(space.radius(X), [0.0, np.sqrt(0.5), 0.5, 1.0, 1.0], atol=1e-12)
+    only_booleans = Space({"balls_touching": (False, True)}, fixed={"balls": 4, "load_N": 0.01,
+                                                                     "speed_m_s": 0.01})
+    np.testing.assert_array_equal(only_booleans.radius([[0.0], [1.0]]), [0.0, 0.0])
+
+
+def test_radial_design_spreads_its_points_over_the_distance_from_the_centre():
+    from microbearing.surrogate.sampling import radial_design
+
+    space = Space({"groove_angle_deg": (30, 75), "load_N": (0.001, 0.05), "speed_m_s": (0.0, 0.2),
+                   "mu_pivot": (0.2, 1.0)}, fixed={"balls": 6})
+    X = radial_design(space, 512, seed=3)
+    assert X.shape == (512, 4) and np.all(space.contains(X))
+    radius = space.radius(X)
+    uniform = space.radius(design(space, 512, seed=3))
+    # A uniform design leaves the outer fifth of the distance (r >= 0.8) and the inner fifth nearly
+    # empty (in 4-D, 3 % and 0.4 % of a uniform space); the radial one puts a tenth of its points or
+    # more in each fifth.
+    assert np.mean(uniform >= 0.8) < 0.05 and np.mean(uniform < 0.2) < 0.02
+    assert np.histogram(radius, bins=5, range=(0, 1))[0].min() >= 51
+    # Each input is on either side of its middle alike (a two-sided binomial bound at 99.9 %).
+    above = np.mean(space.to_unit(X) > 0.5, axis=0)
+    assert np.all(np.abs(above - 0.5) < 3.3 * np.sqrt(0.25 / 512))
+
+
+def test_intervals_cover_the_corners_of_the_space_as_they_cover_its_middle():
+    # One conformal factor for the whole space left the corners under-covered (a Gaussian process has
+    # neighbours on one side only there); one per bin of distance from the centre covers both.
+    space = Space({"groove_angle_deg": (30, 75), "load_N": (0.001, 0.05), "speed_m_s": (0.001, 0.2),
+                   "mu_pivot": (0.2, 1.0)}, fixed={"balls": 6})
+    fit = fit_adaptive(space, budget=40, target_relative_error=1e-3, seed=1)
+    model = fit.model
+    assert model.variance_calibration_ == "validation" and len(model.radius_scales_.scales) == 8
+    rng = np.random.default_rng(11)
+    offset = rng.uniform(0.0, 0.1, (1000, 4))  # every input within 10 % of one of its ends
+    corners = space.from_unit(np.where(rng.random((1000, 4)) < 0.5, offset, 1.0 - offset))
+    middle = space.from_unit(rng.uniform(0.3, 0.7, (1000, 4)))
+
+    def coverage(X):
+        y, p = space.evaluate(X), model.predict_interval(X)
+        return float(np.mean((p.mu_lower <= y) & (y <= p.mu_upper)))
+
+    by_radius = coverage(corners), coverage(middle)
+    # 64 validation points a bin: a bin's coverage is Beta(62, 3), 99 % of it in [0.86, 0.995]
+    assert 0.86 <= by_radius[0] and 0.86 <= by_radius[1], by_radius
+    # the factor grows outward: the corners' intervals wider than the middle's, relative to the process's
+    assert np.median(model.scale_at(corners)) > np.median(model.scale_at(middle))
+    single = loads(dumps(model))
+    single.radius_scales_ = None  # as stored before the factors by distance: std_scale_ alone
+    y, p = space.evaluate(corners), single.predict_interval(corners)
+    assert np.mean((p.mu_lower <= y) & (y <= p.mu_upper)) < by_radius[0]
+
+
+def test_a_surrogate_stored_before_the_factors_by_distance_loads_with_its_one_scale():
+    space = SPACES["angle+load"]
+    X = design(space, 20, seed=0)
+    model = GaussianProcessSurrogate(space, random_state=0).fit(X, space.evaluate(X))
+    X_valid = design(space, 60, seed=5)
+    model.calibrate(X_valid, space.evaluate(X_valid))
+    data = to_dict(model)
+    del data["radius_scales"]
+    old = from_dict(data)
+    assert old.radius_scales_ is None
+    np.testing.assert_allclose(old.predict_interval(X_valid).log_std,
+                               model.predict(X_valid, return_std=True)[1] / model.scale_at(X_valid)
+                               * model.std_scale_, rtol=1e-9)
+    for broken in ({"edges": [0.5, 0.4], "scales": [1.0, 1.0, 1.0]}, {"edges": [0.5], "scales": [1.0]},
+                   {"edges": [0.5], "scales": [1.0, -2.0]}):
+        with pytest.raises(ValueError, match="radius_scales"):
+            from_dict({**data, "radius_scales": broken})

@@ -172,11 +172,20 @@ class SurrogateResult(ResponseModel):
         "it was recorded."))
     std_scale: float | None = Field(default=None, description=(
         "Factor applied to the Gaussian process's own standard deviation of log mu: for validation, the "
-        "split-conformal 95 % quantile of the standardized validation errors over 1.96; else the root mean "
+        "split-conformal 95 % quantile of all the standardized validation errors over 1.96 (the intervals "
+        "then use radius_scales, one such factor per bin of distance from the centre); else the root mean "
         "square of the standardized cross-validation errors [1]."))
     calibration_points: int | None = Field(default=None, description=(
         "Evaluations whose standardized errors set std_scale: the validation points, or the training "
         "evaluations cross-validated [1]."))
+    radius_scales: dict[str, list[float]] | None = Field(default=None, description=(
+        "With validation: the factors used instead of std_scale by a point's distance from the centre of "
+        "the space (the root mean square over the inputs of 2 u - 1, u the input's place in its range on "
+        "the design's scale, 0 to 1; booleans left out): 'scales', one per bin between the increasing "
+        "distances 'edges', each the split-conformal quantile of the validation points in that bin (spread "
+        "over the distance, about equally many a bin), never less than a bin nearer the centre's, so that "
+        "the 95 % interval holds near the bounds and corners as near the centre [1]. Null otherwise, and "
+        "for surrogates stored before it was kept."))
     validation_points: int = Field(default=0, description=(
         "Evaluations of the model beyond the budget, never trained on, that calibrated the intervals (0: "
         "none; cross-validation did) [1]."))
