@@ -2,7 +2,8 @@
 
 A stored surrogate holds what defines it: its space, estimator parameters,
 training points and μ, feature standardization, prior-mean coefficients,
-variance scale and the kernel's hyperparameters (``theta``, the log of its
+variance scale (and its factors by distance from the space's centre, with their bins) and the
+kernel's hyperparameters (``theta``, the log of its
 positive parameters, with the kernel kind that fixes its structure), plus the
 package version and physics convention it was trained with. Loading rebuilds
 the kernel with those hyperparameters and refits a
