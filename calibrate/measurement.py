@@ -29,7 +29,9 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from scipy import stats
+from scipy import sparse, stats
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from .censored import measured_rows
 from .data import Dataset
@@ -204,34 +206,47 @@ class MeasurementSystem:
         return out
 
 
-def _levels(values: np.ndarray) -> np.ndarray:
-    """Level of each value: values within :data:`JITTER` of a neighbour are one level when the levels are
-    tight (no chain of jitters longer than one); otherwise every distinct value its own level."""
-    exact = np.unique(values, return_inverse=True)[1]
-    if values.dtype == bool or np.unique(values).size < 2:
-        return exact
-    x = np.log(values) if np.all(values > 0) else (values - values.min()) / np.ptp(values)
-    order = np.argsort(x, kind="stable")
-    split = np.diff(x[order]) > JITTER
-    level_sorted = np.concatenate([[0], np.cumsum(split)])
-    spans = [np.ptp(x[order][level_sorted == k]) for k in range(level_sorted[-1] + 1)]
-    if max(spans) > JITTER or level_sorted[-1] + 1 > values.size / 2:
-        return exact
-    levels = np.empty(values.size, dtype=int)
-    levels[order] = level_sorted
-    return levels
+def _scaled(values: np.ndarray) -> np.ndarray:
+    """A column on the scale of :data:`JITTER`: log of a positive column, else its fraction of the range."""
+    x = np.asarray(values, dtype=float)
+    if np.all(x > 0):
+        return np.log(x)
+    span = np.ptp(x)
+    return (x - x.min()) / span if span > 0 else np.zeros_like(x)
 
 
 def _design(dataset: Dataset, sessions: Sequence[str]) -> np.ndarray | None:
-    """Design point of each row when at least two points hold replicates and some degrees of freedom
-    remain for pure error; else None."""
-    keys = [_levels(np.asarray(v)) for n, v in dataset.columns().items() if n not in sessions]
-    keys += [np.unique(v, return_inverse=True)[1] for v in dataset.factors.values()]
-    if not keys:
-        return np.zeros(dataset.n_points, dtype=int)
-    point = np.unique(np.stack(keys, axis=1), axis=0, return_inverse=True)[1].ravel()
+    """Design point of each row when at least two points hold replicates, at most half as many points as
+    rows, and some degrees of freedom remain for pure error; else None.
+
+    Two rows are one point when they lie within :data:`JITTER` of each other in every column at once (and
+    share every factor label), linked in chains; a chain longer than a point's jitter allows (a column
+    spanning more than 2 JITTER: the rows of a continuous design, not the replicates of one point) is no
+    point, its rows each their own. Judged jointly, a design whose points are drawn at random (two points
+    close in one column, never in all) keeps its replicates, and one point measured with a larger jitter
+    loses only its own.
+    """
+    n = dataset.n_points
+    x = [_scaled(v) for name, v in dataset.columns().items() if name not in sessions]
+    # a factor's labels apart by more than the jitter: one point never spans two
+    x += [np.unique(v, return_inverse=True)[1].astype(float) for v in dataset.factors.values()]
+    if not x:
+        return np.zeros(n, dtype=int)
+    x = np.stack(x, axis=1)
+    pairs = cKDTree(x).query_pairs(JITTER * (1 + 1e-9), p=np.inf, output_type="ndarray")
+    graph = sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    point = connected_components(graph, directed=False)[1]
+    low = np.full((point.max() + 1, x.shape[1]), np.inf)
+    high = np.full_like(low, -np.inf)
+    np.minimum.at(low, point, x)
+    np.maximum.at(high, point, x)
+    chained = np.any(high - low > 2 * JITTER * (1 + 1e-9), axis=1)[point]
+    # a chain's rows: each its own point (rows of identical values stay one)
+    exact = np.unique(x[chained], axis=0, return_inverse=True)[1].ravel()
+    point[chained] = point.max() + 1 + exact
+    point = np.unique(point, return_inverse=True)[1].ravel()
     counts = np.bincount(point)
-    if np.sum(counts > 1) < 2:
+    if np.sum(counts > 1) < 2 or counts.size > n / 2:
         return None
     return point
 

@@ -100,6 +100,31 @@ def test_design_points_are_found_through_jitter_and_folds_keep_them_whole():
     assert inspect(scattered, 5).design is None
 
 
+def test_design_points_drawn_at_random_are_found_jointly_and_one_wide_point_loses_only_itself():
+    rng = np.random.default_rng(7)
+    # 25 points at random loads and speeds, 3 replicates each (load read with 0.3 % jitter): some loads of
+    # different points lie within 2 % of each other, so a column alone cannot tell its levels.
+    loads = np.exp(rng.uniform(np.log(2e-3), np.log(4e-2), 25))
+    speeds = rng.uniform(0.02, 0.2, 25)
+    truth_point = np.repeat(np.arange(25), 3)
+    load = loads[truth_point] * (1 + 0.003 * rng.standard_normal(75))
+    log_gaps = np.diff(np.sort(np.log(loads)))
+    assert log_gaps.min() < 0.02  # the case the joint rule is for
+    order = rng.permutation(75)
+    rows = as_rows({"load_N": load[order], "speed_m_s": speeds[truth_point][order]}, np.full(75, 0.01))
+    design = inspect(parse_rows(rows, fixed={"balls": 4}), 5).design
+    assert design is not None
+    # the same partition as the truth's (labels aside): a bijection between found and true points
+    pairs = set(zip(design.tolist(), truth_point[order].tolist(), strict=True))
+    assert len(pairs) == 25 == np.unique(design).size
+    # One point read 10 % apart in load: not a point within the jitter, its rows counted singly; the others
+    # stay points.
+    load[truth_point == 4] *= np.array([1.0, 1.05, 1.10])
+    rows = as_rows({"load_N": load, "speed_m_s": speeds[truth_point]}, np.full(75, 0.01))
+    counts = np.bincount(inspect(parse_rows(rows, fixed={"balls": 4}), 5).design)
+    assert sorted(counts.tolist()) == [1, 1, 1] + [3] * 24
+
+
 def test_replicates_through_the_api(client):
     rng = np.random.default_rng(11)
     loads, speeds = np.meshgrid(np.geomspace(3e-3, 3e-2, 3), np.linspace(0.02, 0.14, 4))
