@@ -22,8 +22,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.special import log_ndtr
+from scipy.stats import norm
 
-__all__ = ["censored_residual", "measured_rows", "residual_variance"]
+__all__ = ["beyond_clip", "censored_residual", "measured_rows", "residual_variance"]
 
 
 def censored_residual(residual: np.ndarray, censored: np.ndarray, scale: float) -> np.ndarray:
@@ -103,3 +104,43 @@ def residual_variance(residual: np.ndarray, censored: np.ndarray | None, rows: n
     start = np.log(max(float(np.sqrt(np.mean(np.square(r)))), 1e-6))
     best = minimize_scalar(negative_log_likelihood, bounds=(start - 5.0, start + 5.0), method="bounded")
     return float(np.exp(2.0 * best.x))
+
+
+def beyond_clip(mu_model: np.ndarray, mu_measured: np.ndarray, censored: np.ndarray | None,
+                scale: float) -> np.ndarray:
+    """The readings with each clipped row's replaced by the mean true reading beyond its clip. [1]
+
+    A clipped row says only on which side of the clip the true reading lies; a method that reads values
+    (a GP on the residual) cannot take it as it is, and without it the measured rows near the clip are a
+    truncated sample (those whose scatter fell on the near side), which bends any smooth fit toward the
+    clip just where the rows end. Given the model's μ and the reading's scatter ``scale`` (standard
+    deviation of log μ), log μ* ~ N(log mu_model, scale²) truncated to the clip's side has the mean
+    ``log mu_model + scale * phi(a) / (1 - Phi(a))`` beyond an upper clip (``a`` the clip's standard
+    score) and ``log mu_model - scale * phi(a) / Phi(a)`` below a lower one (one E-step of the censored
+    likelihood's EM).
+
+    Parameters
+    ----------
+    mu_model : numpy.ndarray
+        The model's μ at every row. [1]
+    mu_measured : numpy.ndarray
+        The readings, clipped rows at their clip. [1]
+    censored : numpy.ndarray or None
+        +1 / -1 / 0 per row (:attr:`calibrate.data.Dataset.censored`); None: nothing clipped.
+    scale : float
+        Standard deviation of log μ of the reading [1]; 0 or less leaves the readings as they are.
+
+    Examples
+    --------
+    >>> beyond_clip(np.array([1.0, 1.0]), np.array([1.0, 1.0]), np.array([0, 1]), 0.1).round(4).tolist()
+    [1.0, 1.0831]
+    """
+    mu_measured = np.asarray(mu_measured, dtype=float)
+    if censored is None or scale <= 0 or not np.any(censored != 0):
+        return mu_measured
+    side = np.sign(censored).astype(float)
+    a = np.log(mu_measured / mu_model) / scale  # the clip's standard score under the model
+    # phi(a) / P(beyond the clip), in logs for clips far in a tail
+    ratio = np.exp(norm.logpdf(a) - log_ndtr(np.where(side > 0, -a, a)))
+    imputed = mu_model * np.exp(side * scale * ratio)
+    return np.where(side != 0, imputed, mu_measured)

@@ -37,7 +37,7 @@ import numpy as np
 
 from microbearing import physics
 
-from .censored import measured_rows, residual_variance
+from .censored import beyond_clip, measured_rows, residual_variance
 from .data import Dataset, parse_csv, parse_rows
 from .decidability import few_rows, rows_for_gp, rows_for_terms, terms_supported, undecided
 from .discrepancy import gp_discrepancy, residual_gp
@@ -632,10 +632,14 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     # rows; part of the model only when it beats the terms alone there.
     # A clipped reading is not a value: what the terms leave is read on the measured rows, and the noise
     # counts a clipped row by its side of the clip (calibrate.censored.residual_variance).
+    # The GP reads values: a clipped row enters at the mean true reading beyond its clip under the model
+    # (calibrate.censored.beyond_clip); on the measured rows alone it learned the truncation near the clip.
     values = inliers & measured_rows(dataset.censored, dataset.n_points)
-    leftover = residual_gp(dataset, declared.outer, nested.fold_mu, mu_after, values, options.gp_max_train,
+    read = replace(dataset, censored=None,
+                   mu_measured=beyond_clip(mu_after, measured, dataset.censored, dataset.censor_scale))
+    leftover = residual_gp(read, declared.outer, nested.fold_mu, mu_after, inliers, options.gp_max_train,
                            options.seed)
-    leftover = _confirm_gp(declared, final, leftover, mu_after, values, options)
+    leftover = _confirm_gp(declared, final, leftover, mu_after, inliers, options, read)
     noise_std_log, scatter = _noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape,
                                           dataset.censored)
     # The interval's form: the scatter's degrees of freedom and the residuals' tails (calibrate.tails),
@@ -825,7 +829,7 @@ def _warnings(declared: DataStage, uncertainty: UncertaintyStage, gp: Mapping[st
 
 
 def _confirm_gp(declared: DataStage, final: FitResult, leftover: dict[str, Any], mu_after: np.ndarray,
-                inliers: np.ndarray, options: CalibrationOptions) -> dict[str, Any]:
+                inliers: np.ndarray, options: CalibrationOptions, read: Dataset) -> dict[str, Any]:
     """A GP that helped the nested folds' models joins only if it helps the chosen model too.
 
     Nested cross-validation judges the GP on the residual of each outer fold's own selection; a fold
@@ -835,7 +839,7 @@ def _confirm_gp(declared: DataStage, final: FitResult, leftover: dict[str, Any],
     same GP test is run again on the held-out residual of the chosen terms refitted on each outer
     fold's training rows (the declared model's folds when nothing was chosen), and the GP joins only
     when it passes both. ``chosen_terms_z`` [1] is that second test's paired z (None when the first
-    did not pass).
+    did not pass). ``read`` is the data as the GP reads them (clipped rows beyond their clip).
     """
     if not leftover["helps"]:
         return {**leftover, "chosen_terms_z": None}
@@ -849,7 +853,7 @@ def _confirm_gp(declared: DataStage, final: FitResult, leftover: dict[str, Any],
                                 precise=False, convention=options.convention)
     else:
         chosen = declared.baseline
-    again = residual_gp(declared.dataset, declared.outer, chosen.fold_mu, mu_after, inliers,
+    again = residual_gp(read, declared.outer, chosen.fold_mu, mu_after, inliers,
                         options.gp_max_train, options.seed)
     if again["helps"]:
         return {**leftover, "chosen_terms_z": again["z"]}
