@@ -40,8 +40,8 @@ from microbearing import physics
 from microbearing.physics.columns import ColumnError, Reading, read_name
 from microbearing.physics.effects import SESSION_KEYWORDS, name_matches
 
-__all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "factor_label", "parse_assignments",
-           "parse_csv", "parse_rows"]
+__all__ = ["MU_MEASURED", "MU_MEASURED_STD", "DataError", "Dataset", "factor_label", "hours_since",
+           "parse_assignments", "parse_csv", "parse_rows"]
 
 #: Column of the measured friction coefficient. [1]
 MU_MEASURED = "mu_measured"
@@ -461,6 +461,30 @@ def _range_message(spec: physics.Parameter, value: float) -> str | None:
     except ValueError as exc:
         return str(exc)
     return None
+
+
+def hours_since(cells: Sequence[Any], start: str) -> np.ndarray | None:
+    """Hours since ``start`` (ISO 8601, as :attr:`Dataset.clock` keeps it) of ISO 8601 dates or date-times,
+    read as the calibration read its column (a cell without a zone is UTC when the start has one); None
+    when a cell is no ISO 8601 time.
+
+    Examples
+    --------
+    >>> hours_since(["2026-11-28T11:30:00+02:00", "2026-11-29"], "2026-11-28T09:00:00+00:00").tolist()
+    [0.5, 15.0]
+    """
+    if not all(isinstance(c, str) and _ISO_TIME.fullmatch(c.strip()) for c in cells):
+        return None
+    origin = datetime.fromisoformat(start)
+    try:
+        times = [datetime.fromisoformat(c.strip()) for c in cells]
+    except ValueError:
+        return None
+    if origin.tzinfo is not None:
+        times = [t if t.tzinfo is not None else t.replace(tzinfo=UTC) for t in times]
+    elif any(t.tzinfo is not None for t in times):
+        return None  # a zone against a start without one: no common clock
+    return np.array([(t - origin).total_seconds() / _SECONDS_PER_HOUR for t in times])
 
 
 def _clock_hours(cells: Sequence[Any]) -> tuple[np.ndarray, str] | None:

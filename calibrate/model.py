@@ -188,6 +188,9 @@ class CalibratedModel:
     rivals : list of RivalModel
         Models whose terms fit the data about as well (:mod:`calibrate.rivals`): the 95 % interval is
         the envelope of this model's and theirs, so that it holds their disagreement off the data.
+    clock : dict of str to str
+        Condition columns read from ISO 8601 times (hours since the start) and that start, ISO 8601: a
+        point may give such a column as an ISO 8601 time too (:func:`calibrate.data.hours_since`).
     groups : list of GroupEffect
         Random effects of the data's factor columns (group labels); a point may name its group.
     scatter : ScatterModel or None
@@ -216,6 +219,7 @@ class CalibratedModel:
     cloud: DataCloud | None = field(default=None, repr=False)
     domain_rows: int | None = None
     rivals: list[RivalModel] = field(default_factory=list, repr=False)
+    clock: dict[str, str] = field(default_factory=dict)
     #: Relative step of the finite-difference gradient of log μ in each fitted value (the interval's
     #: parameter share; absolute for a value of 0), for callers that bound the interval. [1]
     gradient_step: ClassVar[float] = _GRADIENT_STEP
@@ -730,6 +734,7 @@ class CalibratedModel:
             "cloud": None if self.cloud is None else self.cloud.to_json(),
             "domain_rows": self.domain_rows,
             "rivals": [r.to_json() for r in self.rivals],
+            "clock": dict(self.clock),
         }
 
     @classmethod
@@ -795,6 +800,7 @@ class CalibratedModel:
             None if data.get("cloud") is None else DataCloud.from_json(data["cloud"]),
             None if data.get("domain_rows") is None else int(data["domain_rows"]),
             [RivalModel.from_json(r) for r in data.get("rivals") or []],
+            {str(k): str(v) for k, v in dict(data.get("clock") or {}).items()},
         )
 
     @classmethod
@@ -853,4 +859,5 @@ class CalibratedModel:
             scatter,
             cloud,
             rows if cloud is not None else None,
+            clock=dict(getattr(dataset, "clock", {})),
         )

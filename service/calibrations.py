@@ -23,7 +23,7 @@ import numpy as np
 
 from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
-from microbearing.calibrate.data import MU_MEASURED
+from microbearing.calibrate.data import MU_MEASURED, hours_since
 from microbearing.calibrate.tabular import TableError
 from microbearing.physics.columns import Reading, read_key, unknown_column
 from microbearing.physics.model import NOT_FINITE
@@ -397,6 +397,11 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
         check_conditions(model, conditions, pointer)
         return ReadConditions(conditions)
     factors = model.calibrated.factors
+    # a time column given as ISO 8601 times: hours since its start, as the calibration read it
+    for sent, value in list(conditions.items()):
+        reading = read_key(sent, model.conditions, factors)
+        if reading is not None and reading.name in model.calibrated.clock and _has_text(value):
+            conditions[sent] = _clock_hours(value, model.calibrated.clock[reading.name])
     read: dict[str, Any] = {}
     readings: dict[str, Reading] = {}
     unmatched: set[str] = set()
@@ -452,6 +457,16 @@ def _outside_ranges(model: CalibratedPhysicsModel, read: Mapping[str, Any], fact
         except InputError as exc:
             refused[name] = str(exc)
     return refused
+
+
+def _clock_hours(value: Any, start: str) -> Any:
+    """ISO 8601 times as hours since ``start`` (a value or a list), as the calibration read its column;
+    the value as sent when a cell is no ISO 8601 time (refused as it was)."""
+    cells = value if isinstance(value, list) else [value]
+    hours = hours_since(cells, start)
+    if hours is None:
+        return value
+    return hours.tolist() if isinstance(value, list) else float(hours[0])
 
 
 def _has_text(value: Any) -> bool:

@@ -9,7 +9,7 @@ the physics (mu_pivot 0.65, 3 % scatter, one seed; bench/measurement_system.py r
 from __future__ import annotations
 
 from dataclasses import replace
-from datetime import UTC, datetime, timedelta
+from datetime import UTC, datetime, timedelta, timezone
 
 import numpy as np
 import pytest
@@ -215,6 +215,25 @@ def test_instrument_drift_through_the_api_with_iso_times(client):
         error, covered = coverage(report, {"load_N": g, "speed_m_s": v, "date": np.full(300, at)},
                                   truth(g, v) * (1 + 0.08 * at / hours), rng)
         assert error < 0.5 * NOISE and 0.9 <= covered <= 0.995
+    # /v1/friction/batch reads the time column as ISO 8601 times too (any zone; a date alone is midnight
+    # UTC), the same answer as its hours since the session's start
+    start = datetime(2026, 11, 28, 9, 0, tzinfo=UTC)
+    zone = timezone(timedelta(hours=-5))
+    stamps = [(start + timedelta(hours=h)).astimezone(zone).isoformat() for h in (0.0, hours)]
+    stamps.append("2026-11-29")
+    point = {"model": report["model_id"], "outputs": ["mu"], "points": {"balls": BALLS, "load_N": 0.01,
+                                                                        "speed_m_s": 0.08}}
+    by_time = client.post("/v1/friction/batch", json={**point, "conditions": {"date": stamps}})
+    by_hours = client.post("/v1/friction/batch", json={**point, "conditions": {"date": [0.0, hours, 15.0]}})
+    assert by_time.status_code == by_hours.status_code == 200, by_time.text
+    for key in ("mu", "mu_lower", "mu_upper"):
+        assert by_time.json()[key] == pytest.approx(by_hours.json()[key], rel=1e-12)
+    one = client.post("/v1/friction", json={**point["points"], "model": report["model_id"],
+                                            "conditions": {"date": stamps[1]}})
+    assert one.status_code == 200 and one.json()["mu"] == pytest.approx(by_hours.json()["mu"][1], rel=1e-12)
+    # a time written otherwise is refused as before, naming the column
+    refused = client.post("/v1/friction/batch", json={**point, "conditions": {"date": ["28.11.2026"]}})
+    assert refused.status_code == 422 and "/conditions/date" in refused.text
 
 
 @pytest.mark.parametrize("header", ["Datum", "when"])
