@@ -155,6 +155,7 @@ class JsonScanner:
         self._open_prefix: bytes | None = b""  # the open string so far, while short enough to be a key
         self._last_closed: bytes | None = None  # the last string closed in an earlier block, if short
         self._backslashes = 0
+        self._last_mark = -1  # where the last quote or structural byte outside a string is [byte]
         self._stack: list[_Container] = []
         self._containers = 0
         self._strings = 0
@@ -177,6 +178,7 @@ class JsonScanner:
         others = special[kinds != _QUOTE]
         outside = others[(np.searchsorted(quotes, others) + self._in_string) % 2 == 0]
         closes, literals = self._strings_of(block, quotes)
+        self._check_runs(len(block), outside, quotes)
         marks = data[outside]
         brackets = outside[_BRACKET[marks]]
         self._walk(block, brackets, outside[marks == _COMMA], outside[marks == _COLON], closes, literals)
@@ -201,6 +203,30 @@ class JsonScanner:
         if self.max_string_bytes is not None and length > self.max_string_bytes:
             raise _too_large(f"A string in the body (at byte {self._string_start}) is longer than "
                              f"{self.max_string_bytes} bytes (MICROBEARING_MAX_FIELD_BYTES).")
+
+    def _check_runs(self, size: int, outside: np.ndarray, quotes: np.ndarray) -> None:
+        """Refuse a run of bytes between quotes and structural bytes longer than the field limit.
+
+        Outside strings such a run is a number, a literal or whitespace, which the parser would hold
+        whole; inside one it is the string's text, which :meth:`_too_long` bounds alike first.
+        """
+        if self.max_string_bytes is None:
+            return
+        base, previous = self._offset, self._last_mark
+        marks = np.sort(np.concatenate((outside, quotes))) + base
+        runs = np.diff(marks, prepend=previous) - 1
+        if len(marks):
+            self._last_mark = int(marks[-1])
+        trailing = base + size - self._last_mark - 1
+        longest = int(np.argmax(runs)) if len(runs) else -1
+        if longest >= 0 and runs[longest] > self.max_string_bytes:
+            start = (previous if longest == 0 else int(marks[longest - 1])) + 1
+        elif trailing > self.max_string_bytes and not self._in_string:
+            start = self._last_mark + 1
+        else:
+            return
+        raise _too_large(f"A value or a run of whitespace in the body (at byte {start}) is longer than "
+                         f"{self.max_string_bytes} bytes (MICROBEARING_MAX_FIELD_BYTES).")
 
     def _strings_of(self, block: bytes, quotes: np.ndarray) -> tuple[np.ndarray, list[bytes | None]]:
         """Where strings close in ``block`` and their literals (None when too long to be a key)."""
