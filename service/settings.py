@@ -62,7 +62,8 @@ class Settings(BaseSettings):
     max_field_bytes: int = Field(
         default=2**20, ge=1024,
         description="Longest string, number or run of spaces of a JSON body and longest line of a CSV body "
-                    "[bytes]; a body with a longer one gets 413 while it streams in, before it is held or parsed.",
+                    "[bytes]; a body with a longer one gets 413 while it streams in, before it is held or "
+                    "parsed.",
     )
     max_batch_points: int = Field(
         default=2_000_000, ge=1,
