@@ -259,7 +259,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     values = max(settings.max_batch_points,
                  settings.max_calibration_rows * (settings.max_calibration_columns + 1)) + 1024
     app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points,
-                       max_field_bytes=settings.max_field_bytes, max_values=values)
+                       max_field_bytes=settings.max_field_bytes, max_values=values,
+                       json_prefixes=(umbridge.PREFIX + "/",))
     # A large body waits for its turn, and holds a place of the job admission control, before it is read.
     app.add_middleware(HeavyRequestMiddleware, max_requests=settings.max_heavy_requests,
                        wait_s=settings.heavy_request_wait_s,

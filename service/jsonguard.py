@@ -20,9 +20,10 @@ The scan finds quotes, brackets, commas and colons with NumPy and runs Python co
 bracket and per object key, of which a numeric batch has a handful (a 2-million-point batch is
 checked in a fraction of its parsing time); it does not check the rest of the grammar, which
 the route's parser does. A CSV body, and a multipart/form-data upload (a CSV file sent by a
-browser's form or ``curl -F``), have their lines' length checked (:class:`CsvLineScanner`); bodies
-with another content type pass untouched; a body without a content type is checked, because
-FastAPI reads it as JSON.
+browser's form or ``curl -F``), have their lines' length checked (:class:`CsvLineScanner`), and so do
+bodies of any other type, which the CSV routes read as CSV (``application/octet-stream``); a body without
+a content type, or on the paths the middleware is told read JSON whatever the type (UM-Bridge's), is
+checked as JSON.
 """
 
 from __future__ import annotations
@@ -459,32 +460,41 @@ class JsonGuardMiddleware:
         Longest JSON string and longest CSV line [bytes] (``MICROBEARING_MAX_FIELD_BYTES``).
     max_values : int, optional
         Most strings and containers in a JSON body [1] (default ``max_items``).
+    json_prefixes : tuple of str, default ()
+        Paths whose routes read the body as JSON whatever its declared type (UM-Bridge's).
     """
 
     def __init__(self, app: ASGIApp, max_items: int, max_field_bytes: int | None = None,
-                 max_values: int | None = None):
+                 max_values: int | None = None, json_prefixes: tuple[str, ...] = ()):
         self.app = app
+        self.json_prefixes = json_prefixes
         self.max_items = max_items
         self.max_field_bytes = max_field_bytes
         self.max_values = max_values
 
-    def _scanner(self, content_type: bytes | None) -> JsonScanner | CsvLineScanner | None:
-        if is_json_media_type(content_type):
+    def _scanner(self, content_type: bytes | None, path: str) -> JsonScanner | CsvLineScanner | None:
+        if is_json_media_type(content_type) or path.startswith(self.json_prefixes):
             return JsonScanner(self.max_items, max_string_bytes=self.max_field_bytes,
                                max_values=self.max_values)
+        if self.max_field_bytes is None:
+            return None
         media = (content_type or b"").split(b";", 1)[0].strip().lower()
-        if media == b"text/csv" and self.max_field_bytes is not None:
-            return CsvLineScanner(self.max_field_bytes)
-        if media == b"multipart/form-data" and self.max_field_bytes is not None:  # a CSV file uploaded
+        if media == b"multipart/form-data":  # a CSV file uploaded
             return CsvLineScanner(self.max_field_bytes, "the multipart body")
-        return None
+        # The CSV routes read a body of any other type as CSV (application/octet-stream from generated
+        # clients, text/plain); the other routes refuse it (415), so bounding its lines costs them nothing.
+        named = media.decode("latin-1")[:60] or "untyped"
+        what = "the CSV body" if media == b"text/csv" else f"the {named} body"
+        return CsvLineScanner(self.max_field_bytes, what)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
         content_types = [value for name, value in scope["headers"] if name.lower() == b"content-type"]
-        scanner = self._scanner(content_types[0] if content_types else None)
+        path, root = scope["path"], scope.get("root_path", "")
+        scanner = self._scanner(content_types[0] if content_types else None,
+                                path[len(root):] if root and path.startswith(root) else path)
         if len(content_types) == 1 and scanner is None:
             await self.app(scope, receive, send)
             return

@@ -218,3 +218,26 @@ def test_the_guard_on_a_bodys_strings_and_containers_passes_what_the_limits_allo
         answer = problem(small.post("/v1/friction/batch", json=labels), 413)
         assert "(a limit that follows MICROBEARING_MAX_BATCH_POINTS and MICROBEARING_MAX_CALIBRATION_ROWS" \
             in answer["detail"], answer
+
+
+@pytest.mark.parametrize("path, content_type, body, where", [
+    # the CSV routes read a body of any type as CSV: generated clients send application/octet-stream
+    ("/v1/calibrations/csv", "application/octet-stream", b"balls,load_N,note\n4,0.01," + b"x" * 5000 + b"\n",
+     "Line 2 of the application/octet-stream body"),
+    ("/v1/calibrations/csv/intake", "text/plain", b"balls,load_N,note\n4,0.01," + b"x" * 5000 + b"\n",
+     "Line 2 of the text/plain body"),
+    # UM-Bridge reads its body as JSON whatever the type
+    ("/umbridge/Evaluate", "text/plain", b'{"name": "physics", "input": [[4]], "x": "' + b"a" * 5000 + b'"}',
+     "A string in the body"),
+    ("/umbridge/Evaluate", "application/octet-stream",
+     b'{"name": "physics", "input": [[1' + b"0" * 5000 + b"]]}", "A value or a run of whitespace"),
+], ids=["octet-stream csv", "text/plain csv intake", "umbridge text/plain", "umbridge octet-stream number"])
+def test_a_field_past_the_limit_is_refused_as_it_streams_whatever_the_declared_type(
+        tmp_path, path, content_type, body, where):
+    settings = Settings(data_dir=tmp_path, max_field_bytes=1024)
+    with TestClient(create_app(settings)) as small:
+        response = small.post(path, content=body, headers={"content-type": content_type})
+    assert response.status_code == 413, response.text[:300]
+    answer = response.json()
+    detail = answer["detail"] if path.startswith("/v1") else answer["error"]["message"]  # UM-Bridge's form
+    assert where in detail and "MICROBEARING_MAX_FIELD_BYTES" in detail, detail
