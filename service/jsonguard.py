@@ -186,11 +186,18 @@ class JsonScanner:
         self._offset += len(block)
 
     def close(self) -> None:
-        """Check the end of the body (its last bytes are UTF-8)."""
+        """Check the end of the body: its last bytes are UTF-8, and it closes every string, array and
+        object it opened (a body cut short, e.g. by a Content-Length smaller than what was sent, is
+        refused here instead of being parsed whole to find it out)."""
         try:
             self._decoder.decode(b"", final=True)
         except UnicodeDecodeError:
             raise _malformed(f"The request body is not valid UTF-8 (byte {self._offset}).") from None
+        if self._in_string:
+            raise _malformed(f"The request body ends inside a string (opened at byte {self._string_start}).")
+        if self._stack:
+            raise _malformed(f"The request body ends inside {len(self._stack)} unclosed arrays or objects "
+                             f"(at byte {self._offset}).")
 
     def _check_utf8(self, block: bytes) -> None:
         buffered = len(self._decoder.getstate()[0])
