@@ -245,6 +245,23 @@ class BoundedHttpProtocol(HttpToolsProtocol):
                              b"connection: close\r\n\r\n" + body)
         self.transport.close()
 
+    def send_400_response(self, msg: str) -> None:
+        """uvicorn's answer to bytes that are not an HTTP request, as a problem (its own is plain text).
+
+        Among them the bytes a client sends past its body's ``Content-Length``, read as the next
+        request: a Content-Length smaller than the body gets this answer, and the connection closes.
+        """
+        self._head_done()
+        problem = ProblemError(400, f"{msg.rstrip('.')}: the request line or headers are malformed, or bytes "
+                                    "followed a body past its Content-Length. The connection is closed.",
+                               title="Bad Request")
+        body = json.dumps(problem.to_dict()).encode()
+        self.transport.write(b"HTTP/1.1 400 Bad Request\r\n"
+                             b"content-type: application/problem+json\r\n"
+                             b"content-length: " + str(len(body)).encode() + b"\r\n"
+                             b"connection: close\r\n\r\n" + body)
+        self.transport.close()
+
     def on_headers_complete(self) -> None:
         self._head_done()
         super().on_headers_complete()

@@ -161,6 +161,23 @@ def test_a_head_not_finished_in_time_closes_the_connection(tmp_path):
         server.stop()
 
 
+def test_bytes_past_a_bodys_content_length_get_a_problem(tmp_path):
+    # a Content-Length smaller than the body: what follows is read as the next request, which is not one
+    server = Serve(tmp_path)
+    try:
+        body = json.dumps({"balls": 4, "load_N": 0.008826, "speed_m_s": 0.05}).encode()
+        lying = (b"POST /v1/friction HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                 b"Content-Length: 10\r\n\r\n" + body + b"\r\n")
+        answer = raw_request(server.port, lying)
+        head, _, problem = answer.partition(b"\r\n\r\n")
+        assert head.startswith(b"HTTP/1.1 400"), answer[:300]
+        assert b"content-type: application/problem+json" in head.lower(), answer[:300]
+        assert json.loads(problem)["status"] == 400 and "Content-Length" in json.loads(problem)["detail"]
+        assert raw_request(server.port, b"NOT HTTP AT ALL\r\n\r\n").startswith(b"HTTP/1.1 400")
+    finally:
+        server.stop()
+
+
 def test_the_open_file_limit_is_raised_to_the_hard_limit():
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
     code = ("import resource; from microbearing.service.connections import raise_fd_limit; "
