@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from .drivers import glued_unit, name_words
 from .effects import humidity_fraction, temperature_kelvin
 from .parameters import PARAMETERS
 
@@ -141,8 +142,7 @@ def _bracket_unit(match: re.Match) -> str:
     return match.group("square") if match.group("square") is not None else match.group("round")
 
 
-def _words(name: str) -> list[str]:
-    return [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
+_words = name_words
 
 
 @functools.cache
@@ -312,6 +312,8 @@ def _same(unit, target: str) -> bool:
 
 def _condition_base(text: str) -> str:
     words = [w for w in re.split(r"[\s_\-]+", text.strip()) if w]
+    if words and (glued := glued_unit(words[-1])) is not None:  # tempF: temp, F
+        words[-1:] = list(glued)
     while len(words) > 1 and words[-1].lower() in _DROPPED_WORDS:
         words.pop()
     return "_".join(words)

@@ -16,8 +16,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["DRIVER_KINDS", "HUMIDITY", "TEMPERATURE", "Domain", "DriverKind", "DriverUnit",
-           "humidity_fraction", "name_matches", "temperature_kelvin"]
+__all__ = ["DRIVER_KINDS", "HUMIDITY", "TEMPERATURE", "Domain", "DriverKind", "DriverUnit", "glued_unit",
+           "humidity_fraction", "name_matches", "name_words", "temperature_kelvin"]
 
 
 @dataclass(frozen=True)
@@ -136,9 +136,46 @@ TEMPERATURE = DriverKind("temperature", ("temp",), (
 DRIVER_KINDS: tuple[DriverKind, ...] = (HUMIDITY, TEMPERATURE)
 
 
-def _words(name: str) -> list[str]:
-    """The words of a column's name, lower case, split at non-alphanumerics."""
-    return [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
+# Units a lab glues to a quantity's word (tempF, temperatureK, rhpct), by the quantity's words: such a word
+# is read as the two words it joins, so that tempF is in degF as temp_F is (never degC by default). A bare
+# r (tempr, a temperature's abbreviation) is no unit here.
+_GLUED_UNITS = {
+    ("temperature", "temp"): ("f", "degf", "fahrenheit", "c", "degc", "celsius", "k", "kelvin", "kelvins",
+                              "degr", "rankine"),
+    ("humidity", "humid", "rh"): ("pct", "percent", "percentage"),
+}
+
+
+def glued_unit(word: str) -> tuple[str, str] | None:
+    """The quantity's word and the unit's of a word that glues a unit to a quantity (``tempF``: ``temp``,
+    ``F``), in the case written; None for any other word.
+
+    >>> glued_unit("tempF"), glued_unit("RHpct"), glued_unit("temperature"), glued_unit("tempr")
+    (('temp', 'F'), ('RH', 'pct'), None, None)
+    """
+    lower = word.lower()
+    for prefixes, units in _GLUED_UNITS.items():
+        for prefix in prefixes:
+            if lower.startswith(prefix) and lower[len(prefix):] in units:
+                return word[:len(prefix)], word[len(prefix):]
+    return None
+
+
+def name_words(name: str) -> list[str]:
+    """The words of a column's name, lower case, split at non-alphanumerics and where a unit is glued to a
+    quantity's word (:func:`glued_unit`).
+
+    >>> name_words("T_degF"), name_words("tempF"), name_words("relative humidity [%]")
+    (['t', 'degf'], ['temp', 'f'], ['relative', 'humidity'])
+    """
+    words = []
+    for w in re.split(r"[^a-z0-9]+", name.lower()):
+        glued = glued_unit(w) if w else None
+        words.extend(glued if glued else [w] if w else [])
+    return words
+
+
+_words = name_words
 
 
 def name_matches(name: str, prefixes: tuple[str, ...]) -> bool:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from microbearing.physics.columns import ColumnError, match_column, read_name
-from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
+from microbearing.physics.drivers import HUMIDITY, TEMPERATURE, temperature_kelvin
 from microbearing.physics.slips import read_slip
 
 
@@ -182,3 +182,25 @@ def test_a_physics_input_s_name_among_other_words_is_refused_never_a_new_conditi
 def test_other_quantities_whose_words_touch_an_input_s_stay_conditions(sent, name):
     # another word (preload), another kind of unit (rpm, a ratio) or another input (pressure viscosity)
     assert read_name(sent).name == name
+
+
+@pytest.mark.parametrize(("sent", "value", "kelvin"), [
+    ("tempF", 212.0, 373.15), ("TempF", 32.0, 273.15), ("temperatureF", 80.33, 300.0),
+    ("tempDegF", 212.0, 373.15), ("temp_fahrenheit", 212.0, 373.15), ("tempK", 300.0, 300.0),
+    ("TempC", 26.85, 300.0), ("temperatureKelvin", 300.0, 300.0)])
+def test_a_unit_glued_to_a_temperature_s_word_is_that_unit(sent, value, kelvin):
+    # tempF is temp_F: 80.33 degF = (80.33 - 32) x 5/9 + 273.15 = 300.0 K, never 80.33 degC (353.5 K)
+    reading = match_column(sent, ["T_K"])
+    assert reading.name == "T_K" and reading.convert(value) == pytest.approx(kelvin, abs=1e-9)
+    assert read_slip(reading, [value]) is None
+    # the upload's reading gives the terms the same kelvin
+    first = read_name(sent)
+    assert temperature_kelvin(first.name, [first.convert(value)])[0] == pytest.approx(kelvin, abs=1e-9)
+
+
+@pytest.mark.parametrize(("sent", "unit"), [("tempr", "degC"), ("temps", "degC"), ("temperature", "degC"),
+                                            ("RHpct", "%"), ("humidityPercent", "%"), ("rh", "1")])
+def test_only_a_unit_s_word_glued_to_a_quantity_is_read_as_a_unit(sent, unit):
+    # tempr abbreviates temperature: a bare r is no Rankine
+    kind = TEMPERATURE if TEMPERATURE.matches(sent) else HUMIDITY
+    assert kind.unit_of(sent).unit == unit

@@ -841,3 +841,22 @@ def test_a_space_s_set_or_range_object_is_refused_in_one_sentence(client, value,
     assert response.status_code == 422, response.text
     (error,) = response.json()["errors"]
     assert error["pointer"] == "/space/speed_m_s" and words in error["detail"], error
+
+
+def test_a_unit_glued_to_a_temperature_s_name_is_read_in_that_unit_at_every_door(client, calibration):
+    # tempF said 86 degF = 303.15 K, as temp_F: it was read as 86 degC (359.15 K) without a word
+    model = calibration["model_id"]
+    reference = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, "temp_K": 303.15}))
+    glued = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, "tempF": 86.0}))
+    assert reference.status_code == glued.status_code == 200, glued.text
+    assert glued.json()["mu"] == pytest.approx(reference.json()["mu"], rel=1e-9)
+    # the upload: a tempF column is converted to kelvin, (F - 32) x 5/9 + 273.15
+    dataset, intake = read_csv("balls,load_N,speed_m_s,tempF,mu_measured\n4,0.01,0.05,86,0.01\n")
+    assert intake.to_dict()["columns"]["tempF"] == "temp_K"
+    assert float(dataset.conditions["temp_K"][0]) == pytest.approx(303.15, rel=1e-12)
+    # an optimization's envelope: the range is checked (and read) in degF
+    base = {"bounds": {"balls": [4, 6], "groove_angle_deg": [50, 55], "load_N": [0.008, 0.012]},
+            "speed_m_s": 0.05, "model": model}
+    detail = _problem(client.post("/v1/optimizations", json={
+        **base, "conditions": {"relative_humidity": 0.5, "tempF": [-500.0, 90.0]}}), "/conditions/tempF")
+    assert "absolute zero" in detail, detail
