@@ -68,6 +68,7 @@ __all__ = [
     "CheckedColumnKeys",
     "UNIT_KEYS",
     "read_value",
+    "RangeSpelling",
 ]
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -430,3 +431,22 @@ UNIT_KEYS = (" A key may carry its unit as the upload's header does (e.g. 'relat
 
 #: The physics inputs without a default: every request must give them somewhere.
 REQUIRED_INPUTS = [name for name, spec in physics.PARAMETERS.items() if spec.required]
+
+
+def _range_spelling(value: Any) -> Any:
+    """A range spelled as an object, ``{"low": a, "high": b}``, read as the pair ``[a, b]``, as every route
+    reads a range (an optimization's bounds and conditions, an experiment space's, a surrogate's space, a
+    sweep's ranges); a set of values refused in words."""
+    if isinstance(value, dict) and "values" in value:
+        raise ValueError("a set of values is no range here: a range is [low, high] or {\"low\": low, "
+                         "\"high\": high}")
+    if isinstance(value, dict) and set(value) == {"low", "high"}:
+        return [value["low"], value["high"]]
+    if isinstance(value, dict):
+        raise ValueError(f"a range spelled as an object has the keys low and high, and only those; got "
+                         f"{', '.join(map(str, value)) or 'none'}")
+    return value
+
+
+#: The pair [low, high] of a range, also spelled {low, high}.
+RangeSpelling = BeforeValidator(_range_spelling)

@@ -15,6 +15,7 @@ from .base import (
     ColumnKeys,
     Convention,
     ConventionName,
+    RangeSpelling,
     ResponseModel,
     StrictModel,
     WholeNumber,
@@ -39,24 +40,6 @@ _ANGLE = physics.PARAMETERS["groove_angle_deg"]
 def _pair(what: str) -> Field:
     return Field(min_length=2, max_length=2,
                  description=f"[lower, upper] {what}, both included (or {{low, high}}).")
-
-
-def _range_spelling(value: Any) -> Any:
-    """A range spelled as an object, ``{"low": a, "high": b}``, read as the pair ``[a, b]``, as every route
-    reads a range (a condition's here, an experiment space's); a set of values refused in words."""
-    if isinstance(value, dict) and "values" in value:
-        raise ValueError("a set of values is no range here: a range is [low, high] or {\"low\": low, "
-                         "\"high\": high}")
-    if isinstance(value, dict) and set(value) == {"low", "high"}:
-        return [value["low"], value["high"]]
-    if isinstance(value, dict):
-        raise ValueError(f"a range spelled as an object has the keys low and high, and only those; got "
-                         f"{', '.join(map(str, value)) or 'none'}")
-    return value
-
-
-#: The pair [low, high] of a range, also spelled {low, high}.
-RangeSpelling = BeforeValidator(_range_spelling)
 
 
 class DesignBounds(InputKeys):

@@ -18,6 +18,7 @@ from .base import (
     Convention,
     ConventionName,
     DateTimeText,
+    RangeSpelling,
     ResponseModel,
     StrictModel,
     WholeNumber,
@@ -51,8 +52,9 @@ def _bounds_field(name: str) -> tuple[Any, Any]:
     spec = physics.PARAMETERS[name]
     pair = "[false, true]" if spec.kind == "bool" else "[lower, upper] with lower < upper"
     scalar = parameter_type(spec)
-    return (list[scalar] | None, Field(default=None, min_length=2, max_length=2,
-                                       description=f"Range as {pair}. {parameter_description(spec)}"))
+    return (Annotated[list[scalar] | None, RangeSpelling],
+            Field(default=None, min_length=2, max_length=2,
+                  description=f"Range as {pair} (or {{low, high}}). {parameter_description(spec)}"))
 
 
 SurrogateSpace = create_model(

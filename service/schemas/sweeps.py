@@ -56,6 +56,11 @@ def _not_a_list(value: Any) -> Any:
     if isinstance(value, list):
         raise ValueError('an axis is {"start", "stop", "num"} (evenly spaced values) or {"values": [...]} '
                          '(given values): write a list of values as {"values": [...]}')
+    keys = set(value) if isinstance(value, dict) else set()
+    if keys & {"low", "high"} and not keys & {"start", "stop", "values"}:
+        raise ValueError('an axis is {"start", "stop", "num"} (evenly spaced values) or {"values": [...]} '
+                         '(given values); a range {"low", "high"} has no number of values: give start, stop '
+                         'and num, or sample the range with design sobol or latin_hypercube (ranges)')
     return value
 
 
@@ -78,6 +83,26 @@ class SweepRange(StrictModel):
     spacing: Spacing = _SPACING
 
 
+def _pair_as_range(value: Any) -> Any:
+    """A range spelled as the pair ``[low, high]``, read as ``{"low", "high"}``, as every route reads a range
+    (an optimization's bounds, an experiment space's); a set of values or another list refused in words."""
+    if isinstance(value, list):
+        if len(value) != 2:
+            raise ValueError(f"a list of {len(value)} values is no range: a range is [low, high] or "
+                             f"{{\"low\": low, \"high\": high}} (with \"spacing\": \"log\" for evenly spaced "
+                             f"logarithms)")
+        return {"low": value[0], "high": value[1]}
+    if isinstance(value, dict) and "values" in value:
+        raise ValueError("a set of values is no range here: a range is [low, high] or {\"low\": low, "
+                         "\"high\": high}; given values are a grid's axis (design grid, axes "
+                         "{\"values\": [...]})")
+    return value
+
+
+#: A design's range of one input: {low, high[, spacing]}, or the pair [low, high].
+Range = Annotated[SweepRange, BeforeValidator(_pair_as_range)]
+
+
 def _per_input(kind: type, what: str) -> dict:
     return {name: (kind | None, Field(default=None, description=f"{what} {name} "
                                       f"[{physics.PARAMETERS[name].unit}]."))
@@ -87,7 +112,7 @@ def _per_input(kind: type, what: str) -> dict:
 GridAxes = create_model("GridAxes", __base__=StrictModel, __doc__="The varied inputs and their values.",
                         **_per_input(Axis, "Values of"))
 SweepRanges = create_model("SweepRanges", __base__=StrictModel, __doc__="The varied inputs and their ranges.",
-                           **_per_input(SweepRange, "Range of"))
+                           **_per_input(Range, "Range ([low, high] or {low, high[, spacing]}) of"))
 SweepFixed = create_model(
     "SweepFixed", __base__=StrictModel,
     __doc__="Values of the inputs that are not varied; omitted optional ones take their defaults.",

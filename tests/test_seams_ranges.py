@@ -1,0 +1,94 @@
+"""A range reads the same in every route (issue 32): ``[low, high]`` and ``{"low", "high"}`` are one range
+in a sweep's ``ranges`` and a surrogate's ``space`` as in an optimization's bounds and an experiment's
+space; a set of values (``{"values": [...]}``) is refused there in words, naming the field, never read as
+a range."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from fastapi.testclient import TestClient
+
+from microbearing.service.app import create_app
+from microbearing.service.cli import main
+from microbearing.service.schemas.surrogates import SurrogateRequest
+from microbearing.service.settings import Settings
+
+PROBLEM = "application/problem+json"
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("ranges")))) as test_client:
+        yield test_client
+
+
+def _problem(response, pointer: str) -> str:
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"] == PROBLEM
+    errors = response.json()["errors"]
+    assert pointer in [e["pointer"] for e in errors], errors
+    return " ".join(e["detail"] for e in errors)
+
+
+def _sweep(design: str, load) -> dict:
+    return {"design": design, "points": 8, "seed": 3, "outputs": ["mu"],
+            "ranges": {"load_N": load, "speed_m_s": {"low": 0.01, "high": 0.1}}, "fixed": {"balls": 4}}
+
+
+@pytest.mark.parametrize("design", ["sobol", "latin_hypercube"])
+def test_a_sweep_s_range_may_be_a_pair(client, design):
+    pair = client.post("/v1/sweeps", json=_sweep(design, [0.002, 0.02]))
+    named = client.post("/v1/sweeps", json=_sweep(design, {"low": 0.002, "high": 0.02}))
+    assert pair.status_code == named.status_code == 200, pair.text
+    assert pair.json()["columns"] == named.json()["columns"]
+    loads = pair.json()["columns"]["load_N"]
+    assert len(loads) == 8 and all(0.002 <= v <= 0.02 for v in loads)
+    assert max(loads) - min(loads) > 0.009  # a range sampled, not the two values 0.002 and 0.02
+    assert not set(loads) <= {0.002, 0.02}
+
+
+@pytest.mark.parametrize(("load", "words"), [
+    ({"values": [0.002, 0.02]}, "a set of values is no range here"),
+    ([0.002, 0.01, 0.02], "a list of 3 values is no range"),
+])
+def test_a_sweep_s_range_refuses_a_set_in_words(client, load, words):
+    detail = _problem(client.post("/v1/sweeps", json=_sweep("sobol", load)), "/ranges/load_N")
+    assert words in detail and "[low, high]" in detail, detail
+
+
+def test_a_grid_axis_spelled_as_a_range_says_what_it_lacks(client):
+    body = {"design": "grid", "axes": {"load_N": {"low": 0.002, "high": 0.02}}, "fixed": {"balls": 4,
+                                                                                          "speed_m_s": 0.05}}
+    detail = _problem(client.post("/v1/sweeps", json=body), "/axes/load_N")
+    assert "num" in detail and "sobol" in detail, detail
+
+
+def test_the_cli_s_sweep_reads_a_pair_as_the_api_does(client, tmp_path, capsys):
+    request = tmp_path / "sweep.json"
+    request.write_text(json.dumps(_sweep("sobol", [0.002, 0.02])))
+    assert main(["sweep", str(request), "--format", "json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    api = client.post("/v1/sweeps", json=_sweep("sobol", {"low": 0.002, "high": 0.02})).json()
+    assert printed["columns"] == api["columns"]
+
+
+def test_a_surrogate_s_space_may_be_spelled_low_high():
+    fixed = {"balls": 4, "speed_m_s": 0.05}
+    pair = SurrogateRequest.model_validate({"space": {"load_N": [0.002, 0.02], "groove_angle_deg": [40, 60]},
+                                            "fixed": fixed})
+    named = SurrogateRequest.model_validate({"space": {"load_N": {"low": 0.002, "high": 0.02},
+                                                       "groove_angle_deg": {"low": 40, "high": 60}},
+                                             "fixed": fixed})
+    assert named.space.model_dump(exclude_none=True) == pair.space.model_dump(exclude_none=True) == {
+        "load_N": [0.002, 0.02], "groove_angle_deg": [40.0, 60.0]}
+
+
+def test_a_surrogate_s_space_refuses_a_set_in_words(client):
+    body = {"space": {"load_N": {"values": [0.002, 0.02]}}, "fixed": {"balls": 4, "speed_m_s": 0.05}}
+    detail = _problem(client.post("/v1/surrogates", json=body), "/space/load_N")
+    assert "a set of values is no range here" in detail, detail
+    accepted = client.post("/v1/surrogates", json={**body, "space": {"load_N": {"low": 0.002, "high": 0.02}},
+                                                   "budget": 4, "validation_points": 0})
+    assert accepted.status_code == 202, accepted.text
