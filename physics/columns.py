@@ -497,9 +497,26 @@ def _is_unit(text: str) -> bool:
     return True
 
 
+# A condition's unit as labs write it in brackets, where pint reads another quantity (C, coulomb; F, farad;
+# %RH): by the condition, the spelling (lower case, no spaces) and the unit it means.
+_CONDITION_UNIT_SPELLINGS = {"temperature_K": {"c": "degC", "f": "degF"},
+                             "relative_humidity": {"%rh": "%", "rh%": "%", "%r.h.": "%", "pctrh": "%"}}
+
+
+def _condition_unit_text(name_text: str, unit_text: str) -> str:
+    """The unit a condition's brackets mean (``Temperature (C)``: degC; ``Humidity [%RH]``: %), else the
+    brackets' text as written."""
+    base = _condition_base(name_text)
+    condition = _condition_of(base)
+    if condition is None and _words(base) == ["t"]:
+        condition = CONDITIONS["temperature_K"]  # T (C): the temperature, as T [degC] is
+    spellings = _CONDITION_UNIT_SPELLINGS.get(condition.name, {}) if condition is not None else {}
+    return spellings.get(re.sub(r"\s+", "", unit_text).lower(), unit_text)
+
+
 def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
     name_text = match.group("name")
-    unit_text = _bracket_unit(match)
+    unit_text = _condition_unit_text(name_text, _bracket_unit(match))
     inner = _BRACKETS.match(name_text.strip())
     first = _bracket_unit(inner) if inner and inner.group("name") else None
     if first is not None and _is_unit(first):  # temp (degF) [degC]: which? never converted twice

@@ -204,3 +204,23 @@ def test_only_a_unit_s_word_glued_to_a_quantity_is_read_as_a_unit(sent, unit):
     # tempr abbreviates temperature: a bare r is no Rankine
     kind = TEMPERATURE if TEMPERATURE.matches(sent) else HUMIDITY
     assert kind.unit_of(sent).unit == unit
+
+
+@pytest.mark.parametrize(("sent", "known", "value", "expected"), [
+    ("Temperature (C)", "T_K", 26.85, 300.0),           # pint's C is the coulomb
+    ("Temp (F)", "T_K", 80.33, 300.0),                  # pint's F is the farad: (80.33 - 32) x 5/9 + 273.15
+    ("T [F]", "temperature_K", 212.0, 373.15),
+    ("T (C)", "temp_degC", 25.0, 25.0),
+    ("Humidity (%RH)", "relative_humidity", 45.0, 0.45),
+    ("RH [% RH]", "relative_humidity", 45.0, 0.45),
+    ("humidity [%rh]", "RH_pct", 45.0, 45.0)])
+def test_a_condition_s_unit_is_read_as_labs_write_it_in_brackets(sent, known, value, expected):
+    # a lab's export writes Temperature (C) and Humidity (%RH): they were refused as coulomb, farad, %RH
+    assert match_column(sent, [known]).convert(value) == pytest.approx(expected, abs=1e-9)
+    assert read_slip(match_column(sent, [known]), [value]) is None
+
+
+@pytest.mark.parametrize("sent", ["load (F)", "current (C)", "speed [F]"])
+def test_a_bare_c_or_f_is_no_temperature_unit_beside_another_quantity(sent):
+    with pytest.raises(ColumnError):
+        read_name(sent)

@@ -860,3 +860,17 @@ def test_a_unit_glued_to_a_temperature_s_name_is_read_in_that_unit_at_every_door
     detail = _problem(client.post("/v1/optimizations", json={
         **base, "conditions": {"relative_humidity": 0.5, "tempF": [-500.0, 90.0]}}), "/conditions/tempF")
     assert "absolute zero" in detail, detail
+
+
+def test_an_export_s_temperature_c_and_humidity_rh_headers_are_read_at_upload_and_prediction(client,
+                                                                                             calibration):
+    dataset, intake = read_csv("balls,load_N,speed_m_s,Humidity (%RH),Temperature (F),mu_measured\n"
+                               "4,0.01,0.05,45,86,0.01\n")
+    columns = intake.to_dict()["columns"]
+    assert float(dataset.conditions[columns["Humidity (%RH)"]][0]) == pytest.approx(0.45, rel=1e-12)
+    assert float(dataset.conditions[columns["Temperature (F)"]][0]) == pytest.approx(303.15, rel=1e-12)
+    model = calibration["model_id"]
+    reference = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.45, "temp_K": 303.15}))
+    lab = client.post("/v1/friction", json=_point(model, {"Humidity (%RH)": 45, "Temp (C)": 30.0}))
+    assert reference.status_code == lab.status_code == 200, lab.text
+    assert lab.json()["mu"] == pytest.approx(reference.json()["mu"], rel=1e-9)
