@@ -23,7 +23,8 @@ from microbearing.surrogate.designs import grid_values, sampled_values
 
 from .executor import evaluate_in_chunks
 from .models import physics_in
-from .problems import ProblemError, validation_problem
+from .problems import ProblemError, pointer_at, validation_problem
+from .schemas.friction import InputKeys
 from .schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep
 from .store import json_bytes
 
@@ -59,26 +60,37 @@ class SweepPlan:
         self.count = count
 
 
-def _check_value(name: str, value: float, pointer: str, errors: list[dict[str, str]]) -> None:
+def _sent(owner: InputKeys, base: str, name: str) -> tuple[str, str]:
+    """The pointer to input ``name`` of ``owner`` (at ``base``) by its key as sent (``load [mN]`` of
+    load_N), and the words a refusal of its value ends with (empty when it was sent under its own name)."""
+    renamed = owner.sent_as(name)
+    if renamed is None:
+        return f"{base}/{name}", ""
+    unit = physics.PARAMETERS[name].unit
+    return pointer_at(base, renamed[0]), f" (sent as {renamed[0]}, read as {name} [{unit}])"
+
+
+def _check_value(name: str, value: float, pointer: str, errors: list[dict[str, str]],
+                 words: str = "") -> None:
     try:
         physics.validate(name, value)
     except ValueError as exc:
-        errors.append({"pointer": pointer, "detail": str(exc)})
+        errors.append({"pointer": pointer, "detail": str(exc) + words})
 
 
 def _grid_axes(request: GridSweep, errors: list[dict[str, str]]) -> dict[str, np.ndarray]:
     axes: dict[str, np.ndarray] = {}
     for name, axis in request.axes.model_dump(exclude_none=True).items():
-        pointer = f"/axes/{name}"
+        pointer, words = _sent(request.axes, "/axes", name)
         if "values" in axis:
             for i, value in enumerate(axis["values"]):
-                _check_value(name, value, f"{pointer}/values/{i}", errors)
+                _check_value(name, value, f"{pointer}/values/{i}", errors, words)
             if not errors:
                 whole = physics.PARAMETERS[name].kind == "int"
                 axes[name] = np.asarray(axis["values"], dtype=np.int64 if whole else np.float64)
             continue
-        _check_value(name, axis["start"], f"{pointer}/start", errors)
-        _check_value(name, axis["stop"], f"{pointer}/stop", errors)
+        _check_value(name, axis["start"], f"{pointer}/start", errors, words)
+        _check_value(name, axis["stop"], f"{pointer}/stop", errors, words)
         if axis["spacing"] == "log" and min(axis["start"], axis["stop"]) <= 0:
             errors.append({"pointer": f"{pointer}/spacing", "detail": "log spacing needs start and stop > 0"})
         if errors:
@@ -89,9 +101,9 @@ def _grid_axes(request: GridSweep, errors: list[dict[str, str]]) -> dict[str, np
 
 def _check_ranges(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[str, str]]) -> None:
     for name, span in request.ranges.model_dump(exclude_none=True).items():
-        pointer = f"/ranges/{name}"
-        _check_value(name, span["low"], f"{pointer}/low", errors)
-        _check_value(name, span["high"], f"{pointer}/high", errors)
+        pointer, words = _sent(request.ranges, "/ranges", name)
+        _check_value(name, span["low"], f"{pointer}/low", errors, words)
+        _check_value(name, span["high"], f"{pointer}/high", errors, words)
         if span["low"] > span["high"]:
             errors.append({"pointer": f"{pointer}/high", "detail": "high must be >= low"})
         if span["spacing"] == "log" and span["low"] <= 0:
@@ -133,7 +145,8 @@ def design_size(request: AnySweep, max_points: int) -> int:
         errors.append({"pointer": where, "detail": "vary at least one input"})
     for name in varied_names:
         if name in fixed:
-            errors.append({"pointer": f"/fixed/{name}", "detail": f"{name} is varied; do not fix it too"})
+            errors.append({"pointer": _sent(request.fixed, "/fixed", name)[0],
+                           "detail": f"{name} is varied; do not fix it too"})
     for name, spec in physics.PARAMETERS.items():
         if spec.required and name not in fixed and name not in varied_names:
             detail = f"{name} is required: vary it or fix it ({spec.range_text()} [{spec.unit}])"

@@ -92,3 +92,50 @@ def test_a_surrogate_s_space_refuses_a_set_in_words(client):
     accepted = client.post("/v1/surrogates", json={**body, "space": {"load_N": {"low": 0.002, "high": 0.02}},
                                                    "budget": 4, "validation_points": 0})
     assert accepted.status_code == 202, accepted.text
+
+
+# ------------------------------------------------------------------- names with units at these doors
+
+
+def test_a_sweep_reads_inputs_named_with_their_units_as_the_upload_does(client):
+    lab = {"design": "sobol", "points": 6, "seed": 2, "outputs": ["mu"],
+           "ranges": {"load [mN]": [1, 10]}, "fixed": {"balls": 4, "speed_mm_s": 50}}
+    si = {**lab, "ranges": {"load_N": [0.001, 0.01]}, "fixed": {"balls": 4, "speed_m_s": 0.05}}
+    by_unit, by_name = client.post("/v1/sweeps", json=lab), client.post("/v1/sweeps", json=si)
+    assert by_unit.status_code == by_name.status_code == 200, by_unit.text
+    assert by_unit.json()["columns"] == by_name.json()["columns"]
+    assert by_unit.json()["fixed"]["speed_m_s"] == pytest.approx(0.05, rel=1e-15)
+    # a grid's given values and evenly spaced ends: 1 and 10 mN, 10 to 100 mm/s
+    axes = {"load_mN": {"values": [1, 10]}, "speed [mm/s]": {"start": 10, "stop": 100, "num": 3}}
+    grid = client.post("/v1/sweeps", json={"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4},
+                                           "axes": axes})
+    assert grid.status_code == 200, grid.text
+    columns = grid.json()["columns"]
+    assert sorted(set(columns["load_N"])) == pytest.approx([0.001, 0.01], rel=1e-15)
+    assert sorted(set(columns["speed_m_s"])) == pytest.approx([0.01, 0.055, 0.1], rel=1e-12)
+    # a refusal points at the key as sent and says how it was read
+    below = {**lab, "ranges": {"load [mN]": {"low": -1, "high": 10}}}
+    detail = _problem(client.post("/v1/sweeps", json=below), "/ranges/load [mN]/low")
+    assert "sent as load [mN]" in detail, detail
+
+
+def test_a_surrogate_s_space_and_fixed_read_names_with_units():
+    lab = SurrogateRequest.model_validate({"space": {"load [mN]": [1, 10]}, "fixed": {"balls": 4,
+                                                                                      "speed [mm/s]": 50}})
+    assert lab.space.model_dump(exclude_none=True) == {"load_N": pytest.approx([0.001, 0.01], rel=1e-15)}
+    assert lab.fixed.model_dump(exclude_none=True)["speed_m_s"] == pytest.approx(0.05, rel=1e-15)
+
+
+def test_an_optimization_s_tolerance_may_carry_its_unit(client):
+    body = {"bounds": {"balls": [4, 6], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.01]},
+            "speed_m_s": [0.01, 0.1]}
+    degrees = client.post("/v1/optimizations", json={**body, "tolerances": {"groove_angle_deg": 1.0}})
+    radians = client.post("/v1/optimizations", json={**body,
+                                                      "tolerances": {"groove angle [rad]": 0.0174532925199}})
+    assert degrees.status_code == radians.status_code == 200, radians.text
+    assert radians.json()["envelope"]["tolerances"]["groove_angle_deg"] == pytest.approx(1.0, rel=1e-9)
+    worst, same = radians.json()["worst_case"], degrees.json()["worst_case"]
+    assert worst["mu"] == pytest.approx(same["mu"], rel=1e-9)
+    # the worst angle is one degree from the nominal one (0.0174532925199 rad = 1 deg)
+    nominal = radians.json()["design"]["groove_angle_deg"]
+    assert abs(worst["groove_angle_deg"] - nominal) == pytest.approx(1.0, rel=1e-9)

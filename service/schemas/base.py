@@ -359,8 +359,9 @@ def physics_value_schema(name: str) -> dict[str, Any]:
 
 
 def read_value(reading: Reading, value: Any, range_object: bool = False) -> Any:
-    """``value`` in the unit of the column ``reading`` reads it as: a number, a list of them, or a range
-    (``{low, high}`` or an object with those attributes, answered as ``[low, high]``, or with
+    """``value`` in the unit of the column ``reading`` reads it as: a number, a list of them, a set
+    (``{"values": [...]}``) or a grid's axis (``{start, stop, num}``, its values and ends converted), or a
+    range (``{low, high}`` or an object with those attributes, answered as ``[low, high]``, or with
     ``range_object`` as the JSON object it was, its ends converted: a body's field then says whether it
     takes a range); text as it is."""
     if isinstance(value, bool | str):
@@ -369,6 +370,9 @@ def read_value(reading: Reading, value: Any, range_object: bool = False) -> Any:
         return reading.convert(value) if reading.reading else value
     if isinstance(value, list | tuple):
         return [read_value(reading, v) for v in value]
+    if isinstance(value, dict) and {"values", "start", "stop"} & set(value):  # a grid's axis, a set
+        return {key: read_value(reading, v) if key in ("values", "start", "stop") else v
+                for key, v in value.items()}
     ends = [value.get(end) if isinstance(value, dict) else getattr(value, end, None)
             for end in ("low", "high")]
     if None in ends:

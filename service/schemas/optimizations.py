@@ -95,8 +95,9 @@ OptimizationFixed = create_model(
 )
 
 
-class DesignTolerances(StrictModel):
-    """Manufacturing tolerances: the design must hold anywhere within nominal +- the tolerance."""
+class DesignTolerances(InputKeys):
+    """Manufacturing tolerances: the design must hold anywhere within nominal +- the tolerance (a name may
+    carry its unit: ``groove angle [rad]``, converted)."""
 
     groove_angle_deg: float | None = Field(
         default=None, ge=0.0, le=10.0,

@@ -58,13 +58,13 @@ def _bounds_field(name: str) -> tuple[Any, Any]:
 
 
 SurrogateSpace = create_model(
-    "SurrogateSpace", __base__=StrictModel,
+    "SurrogateSpace", __base__=InputKeys,
     __doc__="The dimensions of the surrogate: physics inputs with their ranges (at least one).",
     **{name: _bounds_field(name) for name in physics.PARAMETERS},
 )
 
 SurrogateFixed = create_model(
-    "SurrogateFixed", __base__=StrictModel,
+    "SurrogateFixed", __base__=InputKeys,
     __doc__="Values of physics inputs that are not dimensions (others take their defaults).",
     **parameter_fields(optional=True),
 )

@@ -22,6 +22,7 @@ from .base import (
     physics_value_schema,
     whole_number,
 )
+from .friction import InputKeys
 
 __all__ = ["Axis", "AxisValues", "GridAxis", "GridSweep", "LatinHypercubeSweep", "SobolSweep", "SweepRange",
            "SweepRequest", "SweepResult"]
@@ -109,12 +110,12 @@ def _per_input(kind: type, what: str) -> dict:
             for name in SWEEPABLE}
 
 
-GridAxes = create_model("GridAxes", __base__=StrictModel, __doc__="The varied inputs and their values.",
+GridAxes = create_model("GridAxes", __base__=InputKeys, __doc__="The varied inputs and their values.",
                         **_per_input(Axis, "Values of"))
-SweepRanges = create_model("SweepRanges", __base__=StrictModel, __doc__="The varied inputs and their ranges.",
+SweepRanges = create_model("SweepRanges", __base__=InputKeys, __doc__="The varied inputs and their ranges.",
                            **_per_input(Range, "Range ([low, high] or {low, high[, spacing]}) of"))
 SweepFixed = create_model(
-    "SweepFixed", __base__=StrictModel,
+    "SweepFixed", __base__=InputKeys,
     __doc__="Values of the inputs that are not varied; omitted optional ones take their defaults.",
     **parameter_fields(optional=True),
 )
