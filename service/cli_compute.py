@@ -344,6 +344,8 @@ def sweep(args: argparse.Namespace) -> int:
     plan = design_columns(request, Settings().max_sweep_points)
     with progress_bar(f"sweep of {plan.count} points") as progress:
         document = run_sweep(request, plan, progress=progress)
+    for warning in document.get("input_warnings", []):  # the CSV table has no place for them
+        print(f"warning: {warning}", file=sys.stderr)
     as_csv = args.format == "csv" or (args.format is None and str(args.output or "").endswith(".csv"))
     write_text(args.output, csv_text(sweep_table(document)) if as_csv else to_json(document) + "\n")
     return EXIT_OK

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
+from microbearing.physics.slips import input_slips
 from microbearing.surrogate.designs import grid_values, sampled_values
 
 from .executor import evaluate_in_chunks
@@ -29,7 +30,7 @@ from .schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep
 from .store import json_bytes
 
 __all__ = ["CHUNK_POINTS", "MAX_NUMBER_BYTES", "SweepPlan", "check_result_size", "design_columns",
-           "design_size", "result_bytes_bound", "run_sweep"]
+           "design_size", "input_warnings", "result_bytes_bound", "run_sweep"]
 
 #: Points evaluated per chunk: bounds memory and sets how often progress is reported.
 CHUNK_POINTS = 65_536
@@ -166,6 +167,29 @@ def design_size(request: AnySweep, max_points: int) -> int:
     return count
 
 
+def _numbers(value: Any) -> list[Any]:
+    """The numbers of a varied input as sent: a pair, a set's values, a range's or an axis's ends."""
+    if isinstance(value, dict):
+        return list(value["values"]) if "values" in value else [value[k] for k in ("start", "stop", "low",
+                                                                                  "high") if k in value]
+    return list(value) if isinstance(value, list | tuple) else [value]
+
+
+def input_warnings(request: AnySweep) -> list[str]:
+    """The unit slips the sweep's inputs look like (:func:`physics.slips.input_slips`: a speed above 10 m/s
+    as mm/s), in the words /v1/friction warns with, each judged as its key was sent; the sweep runs as
+    asked. A varied input is judged by its values or the ends of its range."""
+    varied = request.axes if request.design == "grid" else request.ranges
+    inputs: dict[str, Any] = dict(request.fixed.model_dump(exclude_none=True))
+    sent = dict(request.fixed.renamed)
+    for name, value in varied.model_dump(exclude_none=True).items():
+        inputs[name] = np.asarray(_numbers(value), dtype=float)
+        renamed = varied.sent_as(name)
+        if renamed is not None:
+            sent[name] = (renamed[0], _numbers(renamed[1]))
+    return input_slips(inputs, sent)
+
+
 def result_bytes_bound(request: AnySweep, count: int) -> int:
     """The most bytes the JSON of a sweep's result can take, computed before any point is.
 
@@ -199,6 +223,8 @@ def result_bytes_bound(request: AnySweep, count: int) -> int:
     skeleton = {"design": request.design, "count": count, "varied": varied,
                 "fixed": request.fixed.model_dump(exclude_none=True),
                 "columns": {name: [] for name in columns}}
+    if warnings := input_warnings(request):
+        skeleton["input_warnings"] = warnings
     size = len(json_bytes(skeleton)) + len(columns) * max(count - 1, 0)  # the commas between values
     for name in varied:
         if name in axes:
@@ -290,5 +316,8 @@ def run_sweep(request: AnySweep, plan: SweepPlan,
     columns.update(evaluate_in_chunks(executor, {**plan.fixed, **plan.varied}, plan.count, request.outputs,
                                       physics_in(request.convention), progress=progress,
                                       chunk_points=CHUNK_POINTS))
-    return {"design": request.design, "count": plan.count, "varied": list(plan.varied),
-            "fixed": dict(plan.fixed), "columns": columns}
+    document = {"design": request.design, "count": plan.count, "varied": list(plan.varied),
+                "fixed": dict(plan.fixed), "columns": columns}
+    if warnings := input_warnings(request):
+        document["input_warnings"] = warnings
+    return document

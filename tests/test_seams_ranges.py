@@ -139,3 +139,48 @@ def test_an_optimization_s_tolerance_may_carry_its_unit(client):
     # the worst angle is one degree from the nominal one (0.0174532925199 rad = 1 deg)
     nominal = radians.json()["design"]["groove_angle_deg"]
     assert abs(worst["groove_angle_deg"] - nominal) == pytest.approx(1.0, rel=1e-9)
+
+
+# ------------------------------------------------------------------------------ unit slips in sweeps
+
+
+def test_a_sweep_warns_of_a_unit_slip_as_friction_does_in_the_api_and_the_cli(client, tmp_path, capsys):
+    # 50 "m/s" is 50 mm/s mistyped: /v1/friction warns; a sweep answered without a word
+    body = {"design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load_N": 0.01},
+            "axes": {"speed_m_s": {"values": [0.05, 50]}}}
+    friction = client.post("/v1/friction/batch", json={
+        "points": {"balls": 4, "load_N": 0.01, "speed_m_s": [0.05, 50]}})
+    answer = client.post("/v1/sweeps", json=body)
+    assert answer.status_code == friction.status_code == 200, answer.text
+    assert answer.json()["input_warnings"] == friction.json()["input_warnings"]
+    assert "look like mm/s" in answer.json()["input_warnings"][0]
+    # the speeds are computed as asked: mu at 50 m/s is the physics' own
+    assert answer.json()["columns"]["mu"] == pytest.approx(friction.json()["mu"], rel=1e-12)
+    # a range's ends and a fixed input sent with its unit are judged as sent: 2000 mN is 2 N
+    sampled = client.post("/v1/sweeps", json={"design": "sobol", "points": 4, "outputs": ["mu"],
+                                              "ranges": {"speed_m_s": [0.01, 0.1]},
+                                              "fixed": {"balls": 4, "load [mN]": 2000}})
+    warnings = sampled.json()["input_warnings"]
+    assert len(warnings) == 1 and warnings[0].startswith("load [mN] runs 2000 to 2000 mN"), warnings
+    assert "input_warnings" not in client.post("/v1/sweeps", json={
+        **body, "axes": {"speed_m_s": {"values": [0.05, 0.1]}}}).json()
+    request = tmp_path / "sweep.json"
+    request.write_text(json.dumps(body))
+    assert main(["sweep", str(request), "--format", "csv"]) == 0
+    assert f"warning: {answer.json()['input_warnings'][0]}" in capsys.readouterr().err
+
+
+def test_a_sweep_s_size_bound_counts_its_warnings():
+    from pydantic import TypeAdapter
+
+    from microbearing.service.schemas.sweeps import SweepRequest
+    from microbearing.service.store import json_bytes
+    from microbearing.service.sweeps import design_columns, design_size, result_bytes_bound, run_sweep
+
+    request = TypeAdapter(SweepRequest).validate_python({
+        "design": "grid", "outputs": ["mu"], "fixed": {"balls": 4, "load [mN]": 5000},
+        "axes": {"speed_m_s": {"values": [0.05, 50]}}})
+    count = design_size(request, 1000)
+    document = run_sweep(request, design_columns(request, 1000))
+    assert len(document["input_warnings"]) == 2  # the load (5 N) and the speed (50 m/s)
+    assert len(json_bytes(document)) <= result_bytes_bound(request, count)

@@ -22,7 +22,7 @@ from .base import (
     physics_value_schema,
     whole_number,
 )
-from .friction import InputKeys
+from .friction import INPUT_WARNINGS, InputKeys
 
 __all__ = ["Axis", "AxisValues", "GridAxis", "GridSweep", "LatinHypercubeSweep", "SobolSweep", "SweepRange",
            "SweepRequest", "SweepResult"]
@@ -204,3 +204,4 @@ class SweepResult(ResponseModel):
         "columns after the varied inputs; null for results stored before it)."))
     columns: dict[str, list[float]] = Field(
         description="Column name to values: varied inputs in their units, then outputs in theirs.")
+    input_warnings: INPUT_WARNINGS[0] = INPUT_WARNINGS[1]
