@@ -21,6 +21,7 @@ import numpy as np
 
 from microbearing import physics, surrogate
 from microbearing.optimize import physics_model
+from microbearing.physics.slips import input_slips
 from microbearing.surrogate import GaussianProcessSurrogate, Space
 from microbearing.surrogate.metrics import quality_warnings
 from microbearing.surrogate.persist import version_warning
@@ -187,6 +188,16 @@ def source_domain_warnings(store: Store, body: SurrogateRequest, space: Space) -
     return words
 
 
+def input_warnings(body: SurrogateRequest, space: Space) -> list[str]:
+    """The unit slips the space's ends and fixed values look like (:func:`physics.slips.input_slips`: a
+    speed above 10 m/s as mm/s), in /v1/friction's words, each judged as its key was sent; the surrogate
+    learns the space as asked."""
+    ends = zip(space.names, space.lower, space.upper, strict=True)
+    inputs = {**space.fixed, **{name: np.array([low, high], dtype=float) for name, low, high in ends}}
+    sent = {**body.fixed.renamed, **body.space.renamed}
+    return input_slips(inputs, sent)
+
+
 def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
                     progress: Callable[[float], None] | None = None,
                     mu_model: MuModel | None = None) -> dict[str, Any]:
@@ -217,7 +228,8 @@ def train_surrogate(store: Store, space: Space, body: SurrogateRequest,
                                  progress=None if progress is None else (lambda f: progress(0.95 * f)),
                                  mu_model=mu_model, validation_points=body.validation_points)
     seconds = time.perf_counter() - start
-    outside = source_domain_warnings(store, body, space)
+    # said with the result and on every prediction, as the calibrated data's domain is
+    outside = input_warnings(body, space) + source_domain_warnings(store, body, space)
     metrics = surrogate.holdout_metrics(fit.model, n_test=_HELD_OUT_POINTS, seed=_HELD_OUT_SEED,
                                         mu_model=mu_model)
     data = surrogate.to_dict(fit.model)

@@ -184,3 +184,16 @@ def test_a_sweep_s_size_bound_counts_its_warnings():
     document = run_sweep(request, design_columns(request, 1000))
     assert len(document["input_warnings"]) == 2  # the load (5 N) and the speed (50 m/s)
     assert len(json_bytes(document)) <= result_bytes_bound(request, count)
+
+
+def test_a_surrogate_warns_of_a_unit_slip_as_friction_does(client):
+    from jobs_helper import job_result
+
+    body = {"space": {"speed_m_s": [0.05, 50]}, "fixed": {"balls": 4, "load [mN]": 10}, "budget": 4,
+            "validation_points": 0, "adaptive": False}
+    result = job_result(client, client.post("/v1/surrogates", json=body))
+    friction = client.post("/v1/friction/batch", json={"points": {"balls": 4, "load_N": 0.01,
+                                                                  "speed_m_s": [0.05, 50]}}).json()
+    assert friction["input_warnings"][0] in result["warnings"], result["warnings"]
+    assert result["fixed"]["load_N"] == pytest.approx(0.01, rel=1e-15)  # 10 mN, and no slip of it said
+    assert not [w for w in result["warnings"] if w.startswith("load")], result["warnings"]
