@@ -235,12 +235,15 @@ class BoundedHttpProtocol(HttpToolsProtocol):
 
     def _refuse_head(self, limit: int) -> None:
         self._head_done()
-        problem = ProblemError(431, f"The request line and headers exceed {limit} bytes "
-                                    "(MICROBEARING_MAX_HEADER_BYTES).",
-                               title="Request Header Fields Too Large")
+        self._close_with(ProblemError(431, f"The request line and headers exceed {limit} bytes "
+                                           "(MICROBEARING_MAX_HEADER_BYTES).",
+                                      title="Request Header Fields Too Large"))
+
+    def _close_with(self, problem: ProblemError) -> None:
+        """Write ``problem`` as the connection's last answer (application/problem+json) and close it."""
         body = json.dumps(problem.to_dict()).encode()
-        self.transport.write(b"HTTP/1.1 431 Request Header Fields Too Large\r\n"
-                             b"content-type: application/problem+json\r\n"
+        status = f"HTTP/1.1 {problem.status} {problem.title}\r\n".encode()
+        self.transport.write(status + b"content-type: application/problem+json\r\n"
                              b"content-length: " + str(len(body)).encode() + b"\r\n"
                              b"connection: close\r\n\r\n" + body)
         self.transport.close()
@@ -252,15 +255,9 @@ class BoundedHttpProtocol(HttpToolsProtocol):
         request: a Content-Length smaller than the body gets this answer, and the connection closes.
         """
         self._head_done()
-        problem = ProblemError(400, f"{msg.rstrip('.')}: the request line or headers are malformed, or bytes "
-                                    "followed a body past its Content-Length. The connection is closed.",
-                               title="Bad Request")
-        body = json.dumps(problem.to_dict()).encode()
-        self.transport.write(b"HTTP/1.1 400 Bad Request\r\n"
-                             b"content-type: application/problem+json\r\n"
-                             b"content-length: " + str(len(body)).encode() + b"\r\n"
-                             b"connection: close\r\n\r\n" + body)
-        self.transport.close()
+        detail = (f"{msg.rstrip('.')}: the request line or headers are malformed, or bytes followed a body "
+                  "past its Content-Length. The connection is closed.")
+        self._close_with(ProblemError(400, detail, title="Bad Request"))
 
     def on_headers_complete(self) -> None:
         self._head_done()
