@@ -232,6 +232,10 @@ def output_fields(*, columns: bool = False, optional: bool = False) -> dict[str,
 
 #: Bodies up to this size [bytes] are validated on the event loop; a thread hop costs more.
 _INLINE_BODY_BYTES = 64 * 1024
+#: Largest body a refusal parses again to name its keys as sent (a union's tag is no key; a key sent with
+#: its unit, "load [mN]", is named so): a 228 MiB batch's document cost as much again as its validation,
+#: beyond the bound of large requests. Larger refusals name each key as the schema read it. [bytes]
+_DOCUMENT_BODY_BYTES = 16 * 2**20
 
 #: Models of request bodies that routes parse themselves (see :func:`raw_json_body`).
 RAW_BODY_MODELS: dict[str, type[BaseModel]] = {}
@@ -271,10 +275,15 @@ async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
             return model.model_validate_json(body)
         return await run_in_threadpool(model.model_validate_json, body)
     except ValidationError as exc:
-        errors = [{**error, "loc": ("body", *error["loc"])} for error in exc.errors(include_url=False)]
+        # Each error's input only tells its kind (a list, a number): a stand-in of that kind, so that the
+        # lists a large body was read into (hundreds of MB) are freed before its document is parsed.
+        errors = [{**error, "loc": ("body", *error["loc"]), "input": _stand_in(error.get("input"))}
+                  for error in exc.errors(include_url=False)]
     # The parsed document lets the error handler tell field names from union tags. pydantic's parser
     # reads the same documents as json.loads (NaN, big integers, the last of duplicate keys) three times
     # as fast: a 238 MiB batch refused by its schema took 16-24 s more with json.loads, holding the GIL.
+    if len(body) > _DOCUMENT_BODY_BYTES:  # the refusal names keys as the schema read them (see above)
+        raise RequestValidationError(errors, body=None)
     try:
         document = from_json(body)
     except ValueError as exc:
@@ -283,6 +292,18 @@ async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
                                title="Malformed JSON", type_=VALIDATION_TYPE) from None
         document = None
     raise RequestValidationError(errors, body=document)
+
+
+def _stand_in(value: Any) -> Any:
+    """A value of the same JSON kind as ``value`` that holds nothing large: an empty list or object for a
+    container, a string cut to 64 characters; numbers, literals and short bytes as they are."""
+    if isinstance(value, list | tuple):
+        return []
+    if isinstance(value, dict):
+        return {}
+    if isinstance(value, str | bytes) and len(value) > 64:
+        return value[:64]
+    return value
 
 
 async def _read_body(request: Request) -> bytes:
