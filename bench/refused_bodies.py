@@ -6,7 +6,9 @@ from a generator (the client holds 64 KiB at a time), and read the answer. Kinds
 
 * ``string``: a JSON batch with one string field of ``--mib`` MiB (refused: the field limit);
 * ``batch``: a JSON batch of 5e6 points, ~200 MiB (refused: the point limit);
-* ``csv``: a calibration CSV with one field of ``--mib`` MiB (refused: the field limit).
+* ``csv``: a calibration CSV with one field of ``--mib`` MiB (refused: the field limit);
+* ``columns``: a JSON batch of six columns of nearly 2e6 numbers each, ~228 MiB, one of them not an input
+  (refused by the schema, 422, after the body is parsed: the check while it streams passes it).
 
 Reports each kind's statuses, the slowest answer, the time from the first byte sent to the answer
 of one request alone, and the server's resident memory: at start, and its peak (``VmHWM``) after
@@ -51,7 +53,27 @@ def kinds(mib: int) -> dict[str, tuple[str, str, callable]]:
                                  b"0.012345678901, ", 5_000_000 * 16, b"0.01]}}")),
         "csv": ("/v1/calibrations/csv", "text/csv",
                 lambda: pieces(b"balls,load_N,speed_m_s,mu,note\n4,0.01,0.1,0.1,", b"x", size, b"\n")),
+        "columns": ("/v1/friction/batch", "application/json", columns),
     }
+
+
+#: The columns of the ``columns`` kind: five inputs and one name that is none (ball_radius_m).
+COLUMNS = ("load_N", "speed_m_s", "groove_angle_deg", "ball_radius_m", "mu_pivot", "mu_ball")
+
+
+def columns(count: int = 1_990_000) -> Iterator[bytes]:
+    number = b"0.0123456789012345, "
+    yield b'{"points": {"balls": 4'
+    for name in COLUMNS:
+        yield f', "{name}": ['.encode()
+        for _ in range((count - 1) // 4096):
+            yield number * 4096
+        yield number * ((count - 1) % 4096) + b"0.01]"
+    yield b"}}"
+
+
+#: The status each kind is refused with.
+EXPECTED = {"string": 413, "batch": 413, "csv": 413, "columns": 422}
 
 
 def send(url: str, path: str, content_type: str, body, report: dict) -> None:
@@ -92,7 +114,7 @@ def main() -> int:
                       f"{max(r['seconds'] for r in reports):.1f} s; server peak RSS so far "
                       f"{rss_mib(process.pid, 'VmHWM'):.0f} MiB (VmHWM), now {rss_mib(process.pid):.0f} MiB")
                 print(f"        {alone.get('detail')}")
-                failed |= any(r.get("status") != 413 for r in [alone, *reports])
+                failed |= any(r.get("status") != EXPECTED[name] for r in [alone, *reports])
         finally:
             stop_server(process)
     return 1 if failed else 0
