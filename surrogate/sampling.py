@@ -335,7 +335,7 @@ def radial_design(space: Space, n: int, seed: int | np.random.Generator | None =
     """
     rng = np.random.default_rng(seed)
     U = unit_design(space.dimension, n, "sobol", rng)
-    ranged = [j for j, kind in enumerate(space.kinds) if kind != "bool"]
+    ranged = space.ranged
     if not ranged:
         return space.from_unit(U)
     low, high = np.log(_TILT[0]), np.log(_TILT[1])

@@ -171,6 +171,12 @@ class Space:
             self.scale_of[name] = scale
         self._scales = dict(scales)
 
+    @property
+    def ranged(self) -> list[int]:
+        """Positions of the dimensions that take a range of values: every one but the booleans, which sit
+        at an end of their unit interval whatever their value. [1]"""
+        return [j for j, kind in enumerate(self.kinds) if kind != "bool"]
+
     @staticmethod
     def _auto_scale(name: str, kind: str, lo: float, hi: float) -> str:
         if kind == "bool":
@@ -288,7 +294,7 @@ class Space:
         [0.0, 0.7071, 1.0, 1.0]
         """
         U = self.to_unit(X)
-        ranged = [j for j, kind in enumerate(self.kinds) if kind != "bool"]
+        ranged = self.ranged
         if not ranged:
             return np.zeros(U.shape[0])
         W = np.minimum(np.abs(2.0 * U[:, ranged] - 1.0), 1.0)
