@@ -96,7 +96,7 @@ class Condition:
 
     def matches(self, name: str) -> bool:
         """Whether a column's name is this condition (a word of it starts with a keyword)."""
-        return any(w.startswith(k) for w in _words(name) for k in self.keywords)
+        return any(w.startswith(k) for w in name_words(name) for k in self.keywords)
 
 
 #: The named conditions, by canonical name.
@@ -140,9 +140,6 @@ _BRACKETS = re.compile(r"^(?P<name>.*?)\s*(\[(?P<square>[^\]]*)\]|\((?P<round>[^
 def _bracket_unit(match: re.Match) -> str:
     """The unit text in the brackets of a name :data:`_BRACKETS` matched (``mm/s`` of ``speed [mm/s]``)."""
     return match.group("square") if match.group("square") is not None else match.group("round")
-
-
-_words = name_words
 
 
 @functools.cache
@@ -326,7 +323,7 @@ def _condition_of(name: str) -> Condition | None:
     found = next((c for c in CONDITIONS.values() if c.matches(name)), None)
     if found is None:
         # T with a temperature unit (T [K] read as T_K, T_degC): a temperature, though T alone is no name
-        words = _words(name)
+        words = name_words(name)
         if "t" in words and any(w in _UNIT_WORDS["temperature_K"] for w in words if w != "t"):
             return CONDITIONS["temperature_K"]
     return found
@@ -429,7 +426,7 @@ def unit_of(name: str) -> str | None:
     condition = _condition_of(name)
     if condition is None:
         return None
-    said = [_UNIT_WORDS.get(condition.name, {}).get(w) for w in _words(name)]
+    said = [_UNIT_WORDS.get(condition.name, {}).get(w) for w in name_words(name)]
     said = [u for u in said if u is not None]
     if condition.name == "relative_humidity":
         return "percent" if float(humidity_fraction(name, [1.0])[0]) != 1.0 else "1"
@@ -508,7 +505,7 @@ def _condition_unit_text(name_text: str, unit_text: str) -> str:
     brackets' text as written."""
     base = _condition_base(name_text)
     condition = _condition_of(base)
-    if condition is None and _words(base) == ["t"]:
+    if condition is None and name_words(base) == ["t"]:
         condition = CONDITIONS["temperature_K"]  # T (C): the temperature, as T [degC] is
     spellings = _CONDITION_UNIT_SPELLINGS.get(condition.name, {}) if condition is not None else {}
     return spellings.get(re.sub(r"\s+", "", unit_text).lower(), unit_text)
@@ -557,7 +554,7 @@ def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
                                 f"{', '.join(u for u, _ in _SI_BY_DIMENSION.values())}, or as a "
                                 f"dimensionless number")
     si, suffix = _SI_BY_DIMENSION[dimension]
-    if dimension == "[temperature]" and _words(base) == ["t"]:
+    if dimension == "[temperature]" and name_words(base) == ["t"]:
         base = "temperature"  # T [K]: the temperature, as the terms' drivers read it
     return _converter(sent, f"{base}_{suffix}", unit, si)
 
@@ -569,7 +566,7 @@ def _refuse_qualified_input(sent: str, base: str, dimension: str, unit_text: str
     physics input (``load_(normal)_N``), which the physics never reads: which quantity it is, the user
     says, by the input's own name or by a name without it.
     """
-    words = _words(base)
+    words = name_words(base)
     for input_base, name in input_bases().items():
         parts = input_base.split("_")
         inside = any(words[i:i + len(parts)] == parts for i in range(len(words) - len(parts) + 1))
@@ -687,7 +684,7 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
     # as temperature_K, or a unit other than the known column's); a bare synonym (humidity for
     # relative_humidity, cycles for passes) is not guessed.
     words = _UNIT_WORDS.get(condition.name, {}) if condition is not None else {}
-    stated = any(w in words for w in _words(first.name)) or bool(bracketed and bracketed.group("name"))
+    stated = any(w in words for w in name_words(first.name)) or bool(bracketed and bracketed.group("name"))
     # a condition's canonical name declares its unit (relative_humidity: a fraction); a count's does not
     # say what it counts (a cycle may be two passes), so cycles is not read as passes
     stated = stated or (condition is not None and first.name == condition.name and not condition.integer)

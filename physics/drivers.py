@@ -91,7 +91,7 @@ class DriverUnit:
 
     def selected_by(self, column: str) -> bool:
         """Whether a column of this name is recorded in this unit."""
-        words = set(_words(column))
+        words = set(name_words(column))
         return ((not self.keywords or not words.isdisjoint(self.keywords))
                 and words.isdisjoint(self.excluded))
 
@@ -175,12 +175,9 @@ def name_words(name: str) -> list[str]:
     return words
 
 
-_words = name_words
-
-
 def name_matches(name: str, prefixes: tuple[str, ...]) -> bool:
     """Whether a word of a column's name (split at non-alphanumerics) starts with one of the prefixes."""
-    return any(w.startswith(p) for w in _words(name) for p in prefixes)
+    return any(w.startswith(p) for w in name_words(name) for p in prefixes)
 
 
 def humidity_fraction(name: str, values) -> np.ndarray:
