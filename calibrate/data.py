@@ -473,37 +473,45 @@ def hours_since(cells: Sequence[Any], start: str) -> np.ndarray | None:
     >>> hours_since(["2026-11-28T11:30:00+02:00", "2026-11-29"], "2026-11-28T09:00:00+00:00").tolist()
     [0.5, 15.0]
     """
-    if not all(isinstance(c, str) and _ISO_TIME.fullmatch(c.strip()) for c in cells):
+    times = _iso_times(cells)
+    if times is None or None in times:
         return None
     origin = datetime.fromisoformat(start)
-    try:
-        times = [datetime.fromisoformat(c.strip()) for c in cells]
-    except ValueError:
-        return None
     if origin.tzinfo is not None:
         times = [t if t.tzinfo is not None else t.replace(tzinfo=UTC) for t in times]
     elif any(t.tzinfo is not None for t in times):
         return None  # a zone against a start without one: no common clock
-    return np.array([(t - origin).total_seconds() / _SECONDS_PER_HOUR for t in times])
+    return _hours_from(times, origin)
+
+
+def _iso_times(cells: Sequence[Any]) -> list[datetime | None] | None:
+    """Each cell as a date-time (a missing cell None) when every given cell is an ISO 8601 date or
+    date-time; None otherwise, and for a date that does not exist (2026-02-30)."""
+    given = [c for c in cells if not _missing(c)]
+    if not given or not all(isinstance(c, str) and _ISO_TIME.fullmatch(c.strip()) for c in given):
+        return None
+    try:
+        return [None if _missing(c) else datetime.fromisoformat(c.strip()) for c in cells]
+    except ValueError:
+        return None
+
+
+def _hours_from(times: Sequence[datetime | None], start: datetime) -> np.ndarray:
+    """Hours from ``start`` to each time (NaN for None)."""
+    return np.array([np.nan if t is None else (t - start).total_seconds() / _SECONDS_PER_HOUR for t in times])
 
 
 def _clock_hours(cells: Sequence[Any]) -> tuple[np.ndarray, str] | None:
     """Hours since the earliest of the cells when every given cell is an ISO 8601 date or date-time, with
     that start (ISO 8601); None otherwise (a missing cell reads as NaN: the caller reports it)."""
-    given = [c for c in cells if not _missing(c)]
-    if not given or not all(isinstance(c, str) and _ISO_TIME.fullmatch(c.strip()) for c in given):
-        return None
-    try:
-        times = [None if _missing(c) else datetime.fromisoformat(c.strip()) for c in cells]
-    except ValueError:  # a date that does not exist (2026-02-30)
+    times = _iso_times(cells)
+    if times is None:
         return None
     zoned = any(t is not None and t.tzinfo is not None for t in times)
     if zoned:
         times = [t if t is None or t.tzinfo is not None else t.replace(tzinfo=UTC) for t in times]
     start = min(t for t in times if t is not None)
-    hours = np.array([np.nan if t is None else (t - start).total_seconds() / _SECONDS_PER_HOUR
-                      for t in times])
-    return hours, start.isoformat()
+    return _hours_from(times, start), start.isoformat()
 
 
 def _written_time(cells: Sequence[Any]) -> str | None:
