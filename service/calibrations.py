@@ -396,21 +396,18 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     if not isinstance(model, CalibratedPhysicsModel):
         check_conditions(model, conditions, pointer)
         return ReadConditions(conditions)
-    factors = model.calibrated.factors
-    # a time column given as ISO 8601 times: hours since its start, as the calibration read it
-    for sent, value in list(conditions.items()):
-        reading = read_key(sent, model.conditions, factors)
-        if reading is not None and reading.name in model.calibrated.clock and _has_text(value):
-            conditions[sent] = _clock_hours(value, model.calibrated.clock[reading.name])
+    factors, clock = model.calibrated.factors, model.calibrated.clock
     read: dict[str, Any] = {}
     readings: dict[str, Reading] = {}
     unmatched: set[str] = set()
-    for sent, value in conditions.items():
+    for sent, value in list(conditions.items()):
         reading = read_key(sent, model.conditions, factors)
         if reading is None:  # check_conditions names it, with the model's columns
             reading = Reading(sent, sent)
             unmatched.add(sent)
         name = reading.name
+        if name in clock and _has_text(value):  # ISO 8601 times: hours since the start, as calibrated
+            conditions[sent] = value = _clock_hours(value, clock[name])
         if name in read:
             raise validation_problem([{"pointer": pointer_at(pointer, sent), "detail": (
                 f"{readings[name].sent!r} is read as {name} too; keep one")}])
