@@ -705,7 +705,8 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
     inputs, count = column_arrays(dict(points), max_points)
     columns, condition_count = column_arrays(conditions, max_points, "/conditions", conditions.key)
     listed = [name for name, value in conditions.items() if isinstance(value, list)]
-    if listed and count != condition_count and any(isinstance(value, list) for value in points.values()):
+    if listed and count != condition_count and any(isinstance(value, list | np.ndarray)
+                                                                 for value in points.values()):
         raise validation_problem([{"pointer": pointer_at("/conditions", conditions.key(name)),
                                    "detail": f"has {condition_count} "
                                    f"values but the points have {count}; lists must share one length"}

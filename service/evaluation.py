@@ -94,6 +94,14 @@ def evaluate_checked(inputs: dict[str, Any], outputs: list[str] | None, conventi
         raise validation_problem(exc.errors) from None
 
 
+def _column_array(name: str, value: list | np.ndarray) -> np.ndarray:
+    """One column as an array: labels as text, a yes/no input as booleans, numbers as float64 (a large
+    body's column is one already, :mod:`service.schemas.number_lists`)."""
+    if isinstance(value, list) and any(isinstance(v, str) for v in value):
+        return np.asarray([str(v) for v in value])
+    return np.asarray(value, dtype=bool if name in _BOOLEAN_INPUTS else np.float64)
+
+
 def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/points",
                   key: Callable[[str], str] = str) -> tuple[dict[str, Any], int]:
     """Turn columnar inputs into arrays and check that the lists share one length.
@@ -121,7 +129,7 @@ def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/poin
     ProblemError
         422 naming the fields whose lengths differ or that are empty; 413 above ``max_points``.
     """
-    lengths = {name: len(value) for name, value in points.items() if isinstance(value, list)}
+    lengths = {name: len(value) for name, value in points.items() if isinstance(value, list | np.ndarray)}
     empty = [name for name, length in lengths.items() if length == 0]
     if empty:
         raise validation_problem([{"pointer": pointer_at(pointer, key(name)),
@@ -139,10 +147,6 @@ def column_arrays(points: dict[str, Any], max_points: int, pointer: str = "/poin
     if count > max_points:
         raise ProblemError(413, f"The request has {count} points; the limit is {max_points} per request "
                                 "(MICROBEARING_MAX_BATCH_POINTS).")
-    inputs = {
-        name: (np.asarray([str(v) for v in value]) if any(isinstance(v, str) for v in value)
-               else np.asarray(value, dtype=bool if name in _BOOLEAN_INPUTS else np.float64))
-        if isinstance(value, list) else value
-        for name, value in points.items()
-    }
+    inputs = {name: _column_array(name, value) if isinstance(value, list | np.ndarray) else value
+              for name, value in points.items()}
     return inputs, count

@@ -70,7 +70,7 @@ def _refuse_conditions(conditions: object) -> None:
 
 
 def _model_batch(request: FrictionBatchRequest, max_points: int, executor: Executor, store: Store) -> bytes:
-    points = request.points.model_dump(exclude_unset=True)
+    points = request.points.columns(sent_only=True)
     document = evaluate_batch_with_model(
         store, executor, request.model, points, request.conditions, request.outputs,
         str(request.convention) if "convention" in request.model_fields_set else None, max_points)
@@ -84,7 +84,7 @@ def _physics_inputs(request: FrictionBatchRequest, max_points: int) -> tuple[dic
     """The input columns as arrays, the point count and the unit-slip warnings, judged as each key was
     sent (the parsed request can be freed then)."""
     _refuse_conditions(request.conditions)
-    inputs, count = column_arrays(request.points.model_dump(), max_points)
+    inputs, count = column_arrays(request.points.columns(), max_points)
     return inputs, count, input_slips(inputs, request.points.renamed)
 
 

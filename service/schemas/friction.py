@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Collection
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 from pydantic import AfterValidator, BeforeValidator, Field, PrivateAttr, create_model, model_validator
 
@@ -94,6 +94,13 @@ class InputKeys(StrictModel):
         """Every input of this body that was renamed: input -> (key as sent, value as sent)."""
         return dict(self._sent)
 
+    def columns(self, *, sent_only: bool = False) -> dict[str, Any]:
+        """Each input's value as validated (a scalar, a list, or a large body's array), without the
+        serialization of ``model_dump``; only those sent with ``sent_only``."""
+        sent = self.model_fields_set
+        return {name: getattr(self, name) for name in type(self).model_fields
+                if not sent_only or name in sent}
+
     def sent_as(self, name: str) -> tuple[str, Any] | None:
         """The key and value a physics input ``name`` of this body was sent as, when it was renamed
         (``("load [mN]", [20, 5])`` for load_N); None when it was sent under its own name."""
@@ -155,6 +162,9 @@ def _once_each(names: list[str] | None) -> list[str] | None:
 
 class FrictionBatchRequest(StrictModel):
     """Many design points as columns, and the outputs wanted."""
+
+    #: The long lists of numbers of ``points`` in a large body are read as arrays (parse_json_body).
+    array_objects: ClassVar[frozenset[str]] = frozenset({"points"})
 
     points: FrictionBatchPoints = Field(description="The inputs, column by column.")  # type: ignore[valid-type]
     outputs: Annotated[list[OutputName] | None, AfterValidator(_once_each)] = Field(  # type: ignore[valid-type]
