@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
@@ -135,6 +137,28 @@ def test_list_get_and_predict(client, trained):
     same = client.post(f"/v1/surrogates/{trained['id']}/predict",
                        json={"points": {"load_N": 0.01, "speed_m_s": 0.1, "balls": 6}})
     assert lab.status_code == 200 and lab.json()["mu"] == same.json()["mu"]
+
+
+def test_a_large_prediction_body_answers_as_its_small_parts(client, trained):
+    # Over 4 MiB a body's long columns are read straight into arrays (service.schemas.number_lists): the
+    # same points answer as when sent in a small body, and a bad element is named at its index.
+    rng = np.random.default_rng(11)
+    loads = rng.uniform(0.001, 0.05, 240_000)
+    body = json.dumps({"points": {"load_N": loads.tolist(), "speed_m_s": 0.1, "balls": 6}})
+    assert len(body) > 4 * 2**20
+    large = client.post(f"/v1/surrogates/{trained['id']}/predict", content=body,
+                        headers={"content-type": "application/json"})
+    small = client.post(f"/v1/surrogates/{trained['id']}/predict",
+                        json={"points": {"load_N": loads[-50:].tolist(), "speed_m_s": 0.1, "balls": 6}})
+    assert large.status_code == small.status_code == 200, large.text[:300]
+    for name in ("mu", "mu_lower", "mu_upper", "outside_space"):
+        assert large.json()[name][-50:] == small.json()[name]
+    loads[123_456] = -1.0
+    body = json.dumps({"points": {"load_N": loads.tolist(), "speed_m_s": 0.1, "balls": 6}})
+    bad = client.post(f"/v1/surrogates/{trained['id']}/predict", content=body,
+                      headers={"content-type": "application/json"})
+    assert_problem(bad, 422)
+    assert [e["pointer"] for e in bad.json()["errors"]] == ["/points/load_N/123456"]
 
 
 def test_a_surrogate_short_of_its_target_warns_in_its_view_and_every_prediction(client, trained):

@@ -9,11 +9,13 @@ from typing import Annotated
 
 from fastapi import APIRouter, Body, Query, Request
 from fastapi.responses import JSONResponse, Response
+from starlette.concurrency import run_in_threadpool
 
 from ..deps import JobsDep, StoreDep
 from ..job_kinds import surrogate_work
 from ..problems import problem_responses, validation_problem
 from ..schemas import examples
+from ..schemas.base import parse_json_body, raw_json_body
 from ..schemas.surrogates import (
     PredictRequest,
     PredictResponse,
@@ -97,14 +99,15 @@ def delete_surrogate(surrogate_id: str, store: StoreDep) -> Response:
 
 
 @router.post("/{surrogate_id}/predict", operation_id="predict_surrogate", response_model=PredictResponse,
-             responses=problem_responses(404))
-def predict_surrogate(surrogate_id: str, body: Annotated[PredictRequest, Body(
-        openapi_examples=examples.media_examples(
-            loads=("Three loads at 0.05 m/s (a surrogate over load and speed)", examples.PREDICT)))],
-                      store: StoreDep) -> JSONResponse:
+             responses=problem_responses(404), openapi_extra=raw_json_body(
+                 PredictRequest, examples.media_examples(
+                     loads=("Three loads at 0.05 m/s (a surrogate over load and speed)", examples.PREDICT))))
+async def predict_surrogate(surrogate_id: str, request: Request, store: StoreDep) -> JSONResponse:
     """Predicted mu with its 95 % interval at columnar points, flagging points outside the space."""
-    return JSONResponse(predict(store, surrogate_id, body.points.model_dump(exclude_none=True),
-                                body.points.sent_as))
+    # Parsed from the raw bytes: a large body's columns are read straight into arrays (parse_json_body).
+    body = await parse_json_body(request, PredictRequest)
+    points = {name: value for name, value in body.points.columns().items() if value is not None}
+    return JSONResponse(await run_in_threadpool(predict, store, surrogate_id, points, body.points.sent_as))
 
 
 #: The base sample sizes allowed: the powers of 2 in SENSITIVITY_N (listed in the spec).

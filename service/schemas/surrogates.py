@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 from pydantic import ConfigDict, Field, create_model
 
@@ -221,6 +221,9 @@ PredictPoints = create_model(
 
 class PredictRequest(StrictModel):
     """Where to predict."""
+
+    #: The long lists of numbers of ``points`` in a large body are read as arrays (parse_json_body).
+    array_objects: ClassVar[frozenset[str]] = frozenset({"points"})
 
     points: PredictPoints = Field(description="Columnar inputs by name.")  # type: ignore[valid-type]
 
