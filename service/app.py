@@ -43,6 +43,12 @@ __all__ = ["ROUTERS", "AcceptMiddleware", "HeadMiddleware", "PlainRoute", "app",
 
 logger = logging.getLogger("microbearing.service")
 
+#: The routes that take columns of data, up to MICROBEARING_MAX_BODY_BYTES: a batch, a surrogate's
+#: predict, the CSV uploads and UM-Bridge. Any other body is a document, up to
+#: MICROBEARING_MAX_DOCUMENT_BYTES.
+DATA_PATHS = re.compile(r"/v1/friction/batch$|/v1/surrogates/[^/]+/predict$|/v1/calibrations/csv(/intake)?$|"
+                        + re.escape(umbridge.PREFIX) + "/")
+
 #: The routers of every resource, in the order of the OpenAPI spec. Add yours here.
 ROUTERS = [meta.router, friction.router, sweeps.router, jobs.router, calibrations.router, experiments.router,
            surrogates.router, optimizations.router, umbridge_routes.router, web.router, manual_routes.router]
@@ -266,7 +272,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                        wait_s=settings.heavy_request_wait_s,
                        admit=lambda scope: get_runtime(scope["app"]).jobs.admit_request("request"))
     app.add_middleware(BodySizeLimitMiddleware, max_bytes=settings.max_body_bytes,
-                       timeout_s=settings.body_timeout_s)
+                       timeout_s=settings.body_timeout_s, max_document_bytes=settings.max_document_bytes,
+                       data_paths=DATA_PATHS)
     security.install(app, settings)
     # Requests in progress past the limit get 503 before any work (inside the logs and metrics).
     app.add_middleware(connections.ConcurrencyLimitMiddleware, max_requests=settings.max_concurrent_requests)

@@ -28,6 +28,7 @@ import csv
 import ctypes
 import functools
 import gc
+import re
 import threading
 import time
 from collections.abc import Callable
@@ -49,9 +50,8 @@ HEAVY_BODY_BYTES = 2**20
 class BodyTooLarge(HTTPException):
     """The streamed body passed the limit (an HTTPException, so FastAPI re-raises it as is)."""
 
-    def __init__(self, max_bytes: int):
-        super().__init__(413, f"The request body exceeds the limit of {max_bytes} bytes "
-                              "(MICROBEARING_MAX_BODY_BYTES).")
+    def __init__(self, max_bytes: int, setting: str = "MICROBEARING_MAX_BODY_BYTES"):
+        super().__init__(413, f"The request body exceeds the limit of {max_bytes} bytes ({setting}).")
 
 
 class BodyTimeout(HTTPException):
@@ -93,6 +93,10 @@ def check_table(count: int, limit: int, dimension: Literal["rows", "columns"],
                                 f"({_TABLE_SETTINGS[dimension]}).", title=f"Too many {dimension}")
 
 
+#: Longest header row parsed as CSV to count its columns [bytes]; a longer one is counted by its separators.
+_PARSED_HEADER_BYTES = 2**20
+
+
 def csv_header_columns(text: bytes, separator: str | None = None) -> int:
     r"""Columns of a CSV body's header row, read without parsing the rest.
 
@@ -105,20 +109,25 @@ def csv_header_columns(text: bytes, separator: str | None = None) -> int:
         comma, semicolon and tab would make, so that a header the parser would split on semicolons or
         tabs is bounded too.
 
-    A header the csv module refuses (a field of more than 128 kB) is counted by its separators; the
-    parser answers it with a 422 problem.
+    A header the csv module refuses (a field of more than 128 kB), or longer than
+    :data:`_PARSED_HEADER_BYTES` (a body sent whole on one line), is counted by its separators (quoted ones
+    too); the parser answers the former with a 422 problem.
 
     >>> csv_header_columns(b"a,b,c\n1,2,3\n"), csv_header_columns(b'"x,y",b\r\n1,2'), csv_header_columns(b"")
     (3, 2, 0)
     >>> csv_header_columns(b"a;b;c;d\n1;2;3;4\n"), csv_header_columns(b"a;b;c;d\n", separator=",")
     (4, 1)
     """
-    header = text.split(b"\n", 1)[0].rstrip(b"\r")
+    end = text.find(b"\n")
+    header = (text if end < 0 else text[:end]).rstrip(b"\r")
     if not header:
         return 0
+    separators = (separator,) if separator else (",", ";", "\t")
+    if len(header) > _PARSED_HEADER_BYTES:  # parsed, 228 MB on one line made 12 million strings (1.5 GB)
+        return max(header.count(sep.encode()) + 1 for sep in separators)
     line = header.decode("utf-8", errors="replace")
     counts = []
-    for sep in (separator,) if separator else (",", ";", "\t"):
+    for sep in separators:
         try:
             counts.append(len(next(csv.reader([line], delimiter=sep))))
         except csv.Error:  # a field past the csv module's limit (128 kB): count the separators instead
@@ -179,12 +188,32 @@ class BodySizeLimitMiddleware:
         Largest accepted body [bytes].
     timeout_s : float, optional
         Time allowed for the whole body to arrive, from the first read [s]; unlimited when None.
+    max_document_bytes : int, optional
+        Largest body of a request whose path is no data route [bytes] (``MICROBEARING_MAX_DOCUMENT_BYTES``):
+        a document (a sweep, a design) has no use for the hundreds of MB a batch may send, and the
+        parsed form of a refused one cost several times its size.
+    data_paths : re.Pattern, optional
+        The paths (after the root path) that take up to ``max_bytes``; all paths when None.
     """
 
-    def __init__(self, app: ASGIApp, max_bytes: int, timeout_s: float | None = None):
+    def __init__(self, app: ASGIApp, max_bytes: int, timeout_s: float | None = None,
+                 max_document_bytes: int | None = None, data_paths: re.Pattern[str] | None = None):
         self.app = app
         self.max_bytes = max_bytes
         self.timeout_s = timeout_s
+        self.max_document_bytes = min(max_bytes, max_document_bytes or max_bytes)
+        self.data_paths = data_paths
+
+    def _limit(self, scope: Scope) -> tuple[int, str]:
+        """The largest body of this request [bytes] and the setting that says so."""
+        if self.data_paths is None or self.max_document_bytes == self.max_bytes:
+            return self.max_bytes, "MICROBEARING_MAX_BODY_BYTES"
+        path, root = scope["path"], scope.get("root_path", "")
+        if root and path.startswith(root):
+            path = path[len(root):]
+        if self.data_paths.match(path):
+            return self.max_bytes, "MICROBEARING_MAX_BODY_BYTES"
+        return self.max_document_bytes, "MICROBEARING_MAX_DOCUMENT_BYTES"
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -194,11 +223,11 @@ class BodySizeLimitMiddleware:
         declared = headers.get(b"content-length")
         encoding = headers.get(b"content-encoding", b"identity").strip().lower()
         problem = None
-        if declared is not None and (not declared.isdigit() or int(declared) > self.max_bytes):
+        max_bytes, setting = self._limit(scope)
+        if declared is not None and (not declared.isdigit() or int(declared) > max_bytes):
             if declared.isdigit():
                 problem = ProblemError(413, f"The body has {int(declared)} bytes; the limit is "
-                                            f"{self.max_bytes} (MICROBEARING_MAX_BODY_BYTES).",
-                                       headers={"Connection": "close"})
+                                            f"{max_bytes} ({setting}).", headers={"Connection": "close"})
             else:
                 problem = ProblemError(400, "Content-Length must be a whole number of bytes.",
                                        headers={"Connection": "close"})
@@ -233,8 +262,8 @@ class BodySizeLimitMiddleware:
                     raise BodyTimeout(self.timeout_s) from None
             if message["type"] == "http.request":
                 received += len(message.get("body", b""))
-                if received > self.max_bytes:
-                    raise BodyTooLarge(self.max_bytes)
+                if received > max_bytes:
+                    raise BodyTooLarge(max_bytes, setting)
                 complete = not message.get("more_body", False)
             return message
 

@@ -59,6 +59,14 @@ class Settings(BaseSettings):
         default=256 * 2**20, ge=1024,
         description="Largest accepted request body [bytes]; larger bodies get 413.",
     )
+    max_document_bytes: int = Field(
+        default=64 * 2**20, ge=1024,
+        description="Largest body of a request that sends a document, not columns of data (a sweep, "
+                    "optimization, surrogate, experiment design, next experiments, one friction point, a "
+                    "calibration's JSON) [bytes]; a larger one gets 413 while it streams in. The routes of "
+                    "data columns (/v1/friction/batch, a surrogate's predict, the CSV uploads, UM-Bridge) "
+                    "take up to MICROBEARING_MAX_BODY_BYTES.",
+    )
     max_field_bytes: int = Field(
         default=2**20, ge=1024,
         description="Longest string, number or run of spaces of a JSON body and longest line of a CSV body "

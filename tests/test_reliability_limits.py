@@ -184,6 +184,33 @@ def test_each_limit_past_which_a_request_is_refused_names_its_setting(tmp_path):
         assert "(MICROBEARING_MAX_SWEEP_POINTS)" in refused["detail"]
 
 
+def test_a_document_larger_than_its_limit_is_refused_while_a_batch_of_that_size_passes(tmp_path):
+    # A sweep, an optimization or one point is a document: past MICROBEARING_MAX_DOCUMENT_BYTES it is refused
+    # as it streams, before it is parsed; the routes of data columns take up to MICROBEARING_MAX_BODY_BYTES.
+    settings = Settings(data_dir=tmp_path, max_body_bytes=200_000, max_document_bytes=20_000)
+    json_type = {"content-type": "application/json"}
+    point = b'{"balls": 4, "load_N": 0.01, "speed_m_s": 0.1' + b" " * 30_000 + b"}"
+    batch = b'{"points": {"balls": 4, "load_N": 0.01, "speed_m_s": 0.1}' + b" " * 30_000 + b"}"
+    with TestClient(create_app(settings), root_path="/bearing") as small:
+        for path in ("/v1/friction", "/v1/sweeps", "/v1/optimizations", "/v1/surrogates", "/v1/calibrations",
+                     "/v1/experiments", "/v1/calibrations/some-id/next-experiments"):
+            declared = problem(small.post(path, content=point, headers=json_type), 413)
+            assert "20000 (MICROBEARING_MAX_DOCUMENT_BYTES)" in declared["detail"], (path, declared)
+            streamed = small.post(path, content=iter([point[:10_000], point[10_000:]]), headers=json_type)
+            assert "(MICROBEARING_MAX_DOCUMENT_BYTES)" in problem(streamed, 413)["detail"], path
+        small_point = point[:100].rstrip() + b"}"
+        assert small.post("/v1/friction", content=small_point, headers=json_type).status_code == 200
+        answer = small.post("/v1/friction/batch", content=batch, headers=json_type)
+        assert answer.status_code == 200 and len(answer.json()["mu"]) == 1
+        larger = batch + b" " * 200_000
+        too_large = problem(small.post("/v1/friction/batch", content=larger, headers=json_type), 413)
+        assert "(MICROBEARING_MAX_BODY_BYTES)" in too_large["detail"]
+        # a predict of an unknown surrogate is read (not refused for its size) and answered 404
+        predict = b'{"points": {"load_N": 0.01}' + b" " * 30_000 + b"}"
+        unknown = small.post("/v1/surrogates/nope/predict", content=predict, headers=json_type)
+        assert unknown.status_code == 404
+
+
 def test_a_job_whose_result_is_too_large_keeps_nothing_not_even_its_model(tmp_path):
     # A calibration stores its model as it ends; its result (the report) then passes the limit: the job
     # fails naming the setting and the model goes too (it had stayed listed, counting toward the limit
