@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 from fastapi.responses import Response
-from pydantic import ValidationError
+from pydantic import BaseModel, ConfigDict, StrictStr, ValidationError
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from microbearing import physics
@@ -110,15 +110,24 @@ def validation_error(exc: ValidationError) -> ProtocolError:
     return ProtocolError("InvalidInput", "; ".join(items) + (f"; and {more} more" if more > 0 else ""))
 
 
-def name_of(body: bytes) -> tuple[dict[str, Any], str]:
-    """The parsed request and its model name, read before the rest so that an unknown model is named first."""
+class _Named(BaseModel):
+    """A request's model name alone: the rest is parsed but never made into Python objects."""
+
+    model_config = ConfigDict(extra="ignore")
+    name: StrictStr
+
+
+def name_of(body: bytes | bytearray | Any) -> str:
+    """The model name of a request (its raw body or, for a large one, its parsed document), read before
+    the rest so that an unknown model is named first."""
     try:
-        document = json.loads(body)
-    except (ValueError, RecursionError):
-        raise ProtocolError("InvalidInput", "the body must be a JSON object") from None
-    if not isinstance(document, dict) or not isinstance(document.get("name"), str):
-        raise ProtocolError("InvalidInput", "name: required, a model name from /Info")
-    return document, document["name"]
+        named = (_Named.model_validate_json(body) if isinstance(body, bytes | bytearray)
+                 else _Named.model_validate(body))
+    except ValidationError as exc:
+        if any(error["type"] == "json_invalid" for error in exc.errors()):
+            raise ProtocolError("InvalidInput", "the body must be a JSON object") from None
+        raise ProtocolError("InvalidInput", "name: required, a model name from /Info") from None
+    return named.name
 
 
 def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], dict[str, str], dict[str, str]]:

@@ -329,3 +329,27 @@ def test_errors_keep_the_protocol_form_behind_a_proxy_prefix(tmp_path):
         response = client.post("/api/umbridge/Nope", json=POINT)
     assert response.status_code == 404
     assert response.json()["error"]["type"] == "UnsupportedFeature"
+
+
+def test_a_large_body_with_a_long_list_is_refused_in_the_protocol_form_naming_model_then_field(tmp_path):
+    # A long list of numbers has no place in a UM-Bridge request: over 4 MiB it is read as an array, never
+    # as Python floats, and refused; the model is still named first, and a missing name said as before.
+    long = b"[" + b", ".join([b"0.012345678901234567"] * 300_000) + b"]"
+    assert len(long) > 4 * 2**20
+    with TestClient(create_app(Settings(data_dir=tmp_path))) as client:
+        for head, kind, pattern in [
+            (b'{"name": "physics", "input": [[4, 0.01, 0.05]], ', "InvalidInput",
+             r"^extra: Extra inputs are not permitted"),
+            (b'{"name": "wrong_model_name", "input": [[4, 0.01, 0.05]], ', "ModelNotFound",
+             "'wrong_model_name'"),
+            (b'{"input": [[4, 0.01, 0.05]], ', "InvalidInput", r"^name: required"),
+        ]:
+            response = client.post("/umbridge/Evaluate", content=head + b'"extra": ' + long + b"}")
+            assert response.status_code == 400, response.text[:300]
+            error = response.json()["error"]
+            assert error["type"] == kind and re.search(pattern, error["message"]), error
+        # a long vector where a point's inputs belong: refused by the input sizes, as a short one is
+        response = client.post("/umbridge/Evaluate", content=b'{"name": "physics", "input": [' + long + b"]}")
+        assert response.status_code == 400 and response.json()["error"]["type"] == "InvalidInput"
+        message = response.json()["error"]["message"]
+        assert re.search(r"^input\[0\]: 300000 values; expected one per input", message), message

@@ -41,7 +41,7 @@ from ..jobs import JobManager
 from ..limits import check_table, csv_data_rows, csv_header_columns
 from ..problems import ProblemError, problem_responses, validation_problem
 from ..schemas import examples
-from ..schemas.base import Convention, ConventionName
+from ..schemas.base import Convention, ConventionName, read_body
 from ..schemas.calibrations import (
     CalibrationList,
     CalibrationRequest,
@@ -180,12 +180,12 @@ class CsvOptions:
         self.fixed, self.factors, self.ignore, self.dialect = fixed, factors, ignore, dialect
 
 
-async def _uploaded(request: Request) -> tuple[bytes, str | None]:
+async def _uploaded(request: Request) -> tuple[bytes | bytearray, str | None]:
     """The uploaded file: the raw body, or a multipart/form-data upload's field ``file``; and, for the
     latter, a sentence saying how it came."""
     media = request.headers.get("content-type", "").split(";", 1)[0].strip().lower()
     if media != "multipart/form-data":
-        return await request.body(), None
+        return await read_body(request), None
     # Starlette spools a file part to disk past 1 MB; the body-size limit holds while it streams.
     async with request.form(max_files=1, max_fields=_MAX_FORM_FIELDS) as form:
         others = sorted({name for name in form if name != "file"})

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable, Coroutine
 from typing import Any, TypeVar
 
+import numpy as np
 from fastapi import APIRouter, Request
 from fastapi.responses import Response
 from fastapi.routing import APIRoute
@@ -20,6 +21,7 @@ from microbearing import physics
 from ..deps import SettingsDep, StoreDep
 from ..models import Model, list_references
 from ..problems import ProblemError
+from ..schemas.base import LIFT_BODY_BYTES, lifted_document, read_body
 from ..schemas.umbridge import (
     UMBridgeApplyJacobianRequest,
     UMBridgeEvaluateRequest,
@@ -90,19 +92,45 @@ async def _model(store: Store, name: str, convention: str = physics.DEFAULT_CONV
 async def _parse(request: Request, schema: type[RequestT], store: Store,
                  settings: Settings) -> tuple[RequestT, Setup]:
     """The request and its :class:`Setup`; an unknown model is named before any other invalid field."""
-    raw = await request.body()
+    raw: Any = await read_body(request)
+    if len(raw) > LIFT_BODY_BYTES:
+        # A long list of numbers has no place in a request (an input vector is one point's few inputs): read
+        # as an array, it is refused without becoming Python floats (238 MiB of them held 2.5 GB).
+        document = await run_in_threadpool(lifted_document, raw, frozenset(), True)
+        if document is not None:
+            raw = document
+            await _refuse_long_vectors(document, store)
     try:
-        if len(raw) <= _INLINE_BYTES:
+        if not isinstance(raw, bytes | bytearray):
+            body = await run_in_threadpool(schema.model_validate, raw)
+        elif len(raw) <= _INLINE_BYTES:
             body = schema.model_validate_json(raw)
         else:
             body = await run_in_threadpool(schema.model_validate_json, raw)
     except ValidationError as exc:
-        _, name = name_of(raw)
-        await _model(store, name)
-        raise validation_error(exc) from None
+        error = validation_error(exc)  # raised below, once the inputs the exception holds are freed
+    else:
+        error = None
+    if error is not None:
+        small = not isinstance(raw, bytes | bytearray) or len(raw) <= _INLINE_BYTES
+        await _model(store, name_of(raw) if small else await run_in_threadpool(name_of, raw))
+        raise error
     convention = physics.DEFAULT_CONVENTION if body.config.convention is None else str(body.config.convention)
     model = await _model(store, body.name, convention)
     return body, Setup.of(model, body.config, settings.max_batch_points)
+
+
+async def _refuse_long_vectors(document: Any, store: Store) -> None:
+    """``InvalidInput`` for an input vector read as an array (a lifted long list): a vector holds one point's
+    few inputs. The model is named first, as for every refusal."""
+    vectors = document.get("input") if isinstance(document, dict) else None
+    if not isinstance(vectors, list):
+        return
+    long = next((index for index, vector in enumerate(vectors) if isinstance(vector, np.ndarray)), None)
+    if long is not None:
+        await _model(store, name_of(document))
+        raise ProtocolError("InvalidInput", f"input[{long}]: {len(vectors[long])} values; expected one per "
+                                            "input of the model (config.inputs)")
 
 
 @router.get("/Info")
@@ -165,6 +193,6 @@ async def apply_jacobian_of_model(request: Request, store: StoreDep, settings: S
 @router.post("/ApplyHessian")
 async def apply_hessian_of_model(request: Request, store: StoreDep) -> Response:
     """Not supported (see :data:`service.umbridge.SUPPORT`): ``UnsupportedFeature`` for a known model."""
-    _, name = name_of(await request.body())
+    name = name_of(await read_body(request))
     await _model(store, name)
     raise ProtocolError("UnsupportedFeature", f"ApplyHessian is not supported by {name}")

@@ -64,7 +64,10 @@ __all__ = [
     "parameter_description",
     "parameter_fields",
     "parameter_type",
+    "LIFT_BODY_BYTES",
+    "lifted_document",
     "parse_json_body",
+    "read_body",
     "raw_json_body",
     "read_column_keys",
     "check_column_keys",
@@ -263,14 +266,15 @@ _DOCUMENT_BODY_BYTES = 16 * 2**20
 #: Bodies over this size of a model with ``array_objects`` have their long lists of numbers read straight
 #: into arrays (:mod:`.number_lists`): a 228 MiB batch of six columns held 1.0 GB more while validated
 #: from its text, 0.1 GB so. [bytes]
-_LIFT_BODY_BYTES = 4 * 2**20
+LIFT_BODY_BYTES = 4 * 2**20
 
 #: Models of request bodies that routes parse themselves (see :func:`raw_json_body`).
 RAW_BODY_MODELS: dict[str, type[BaseModel]] = {}
 
 
-def raw_json_body(model: type[BaseModel]) -> dict[str, Any]:
-    """``openapi_extra`` documenting ``model`` as the JSON body of a route that parses it itself.
+def raw_json_body(model: type[BaseModel], examples: dict[str, Any] | None = None) -> dict[str, Any]:
+    """``openapi_extra`` documenting ``model`` as the JSON body of a route that parses it itself, with its
+    named ``examples`` (:func:`.examples.media_examples`).
 
     Large bodies (a million points) are faster to validate straight from bytes with
     ``model.model_validate_json`` in a worker thread than through FastAPI's ``json.loads`` on
@@ -278,9 +282,11 @@ def raw_json_body(model: type[BaseModel]) -> dict[str, Any]:
     passes ``openapi_extra=raw_json_body(Model)`` so the spec still shows the body.
     """
     RAW_BODY_MODELS[model.__name__] = model
-    return {"requestBody": {"required": True, "content": {"application/json": {
-        "schema": {"$ref": f"#/components/schemas/{model.__name__}"}}}},
-        "responses": {"415": {"description": "Unsupported Media Type"}}}
+    media: dict[str, Any] = {"schema": {"$ref": f"#/components/schemas/{model.__name__}"}}
+    if examples:
+        media["examples"] = examples
+    return {"requestBody": {"required": True, "content": {"application/json": media}},
+            "responses": {"415": {"description": "Unsupported Media Type"}}}
 
 
 async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
@@ -301,9 +307,9 @@ async def parse_json_body(request: Request, model: type[ModelT]) -> ModelT:
     content_type = next((value for name, value in headers if name.lower() == b"content-type"), None)
     if not is_json_media_type(content_type):
         raise not_json_problem(content_type.split(b";", 1)[0].strip().decode("latin-1"))
-    body = await _read_body(request)
-    if len(body) > _LIFT_BODY_BYTES and getattr(model, "array_objects", None):
-        lifted = await run_in_threadpool(_lifted_document, body, model.array_objects)
+    body = await read_body(request)
+    if len(body) > LIFT_BODY_BYTES and getattr(model, "array_objects", None):
+        lifted = await run_in_threadpool(lifted_document, body, model.array_objects)
         if lifted is not None:
             del body  # the arrays and a few keys are all that is left of it
             return await run_in_threadpool(_validate_lifted, model, lifted)
@@ -336,11 +342,13 @@ def _body_errors(exc: ValidationError) -> list[dict[str, Any]]:
             for error in exc.errors(include_url=False)]
 
 
-def _lifted_document(body: bytes | bytearray, array_objects: frozenset[str]) -> Any | None:
+def lifted_document(body: bytes | bytearray, array_objects: frozenset[str] = frozenset(),
+                    everywhere: bool = False) -> Any | None:
     """The document of a large body with its long lists of numbers read as arrays
-    (:mod:`.number_lists`), or None (no such list, or anything unusual: the plain parse answers)."""
+    (:mod:`.number_lists`: in the members of ``array_objects``, or ``everywhere``), or None (no such list,
+    or anything unusual: the plain parse answers)."""
     lifted = lift_number_lists(body)
-    return None if lifted is None else place_arrays(lifted, array_objects)
+    return None if lifted is None else place_arrays(lifted, array_objects, everywhere)
 
 
 def _validate_lifted(model: type[ModelT], document: Any) -> ModelT:
@@ -364,7 +372,7 @@ def _stand_in(value: Any) -> Any:
     return value
 
 
-async def _read_body(request: Request) -> bytes | bytearray:
+async def read_body(request: Request) -> bytes | bytearray:
     """The whole body, read as ``await request.body()`` reads it but without its async generator.
 
     The generator costs more than validating a single point's body, which

@@ -102,10 +102,12 @@ def lift_number_lists(body: bytes | bytearray) -> LiftedBody | None:
     return LiftedBody(b"".join(pieces), arrays)
 
 
-def place_arrays(lifted: LiftedBody, array_objects: Collection[str]) -> Any | None:
+def place_arrays(lifted: LiftedBody, array_objects: Collection[str], everywhere: bool = False) -> Any | None:
     """The document of a lifted body, each array in its place: as the array in a member of one of the
     top-level objects ``array_objects`` (whose fields accept arrays, :func:`array_column`), as a list
-    anywhere else. None when the skeleton is not JSON or a placeholder is not a value once."""
+    anywhere else; as the array everywhere with ``everywhere`` (for a schema that takes no long list of
+    numbers at all, which then refuses it without reading it into Python floats). None when the skeleton
+    is not JSON or a placeholder is not a value once."""
     try:
         document = from_json(lifted.skeleton)
     except ValueError:
@@ -115,7 +117,7 @@ def place_arrays(lifted: LiftedBody, array_objects: Collection[str]) -> Any | No
     def place(value: Any, arrays_here: bool) -> Any:
         if isinstance(value, str) and value in lifted.arrays:
             placed.append(value)
-            return lifted.arrays[value] if arrays_here else lifted.arrays[value].tolist()
+            return lifted.arrays[value] if arrays_here or everywhere else lifted.arrays[value].tolist()
         if isinstance(value, list):
             return [place(item, False) for item in value]
         if isinstance(value, dict):
