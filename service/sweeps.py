@@ -101,13 +101,15 @@ def _grid_axes(request: GridSweep, errors: list[dict[str, str]]) -> dict[str, np
 
 
 def _check_ranges(request: SobolSweep | LatinHypercubeSweep, errors: list[dict[str, str]]) -> None:
-    for name, span in request.ranges.model_dump(exclude_none=True).items():
+    for name in request.ranges.model_dump(exclude_none=True):
+        span = getattr(request.ranges, name)
         pointer, words = _sent(request.ranges, "/ranges", name)
-        _check_value(name, span["low"], f"{pointer}/low", errors, words)
-        _check_value(name, span["high"], f"{pointer}/high", errors, words)
-        if span["low"] > span["high"]:
-            errors.append({"pointer": f"{pointer}/high", "detail": "high must be >= low"})
-        if span["spacing"] == "log" and span["low"] <= 0:
+        low, high = (f"{pointer}/{span.pointer(end)}" for end in ("low", "high"))
+        _check_value(name, span.low, low, errors, words)
+        _check_value(name, span.high, high, errors, words)
+        if span.low > span.high:
+            errors.append({"pointer": high, "detail": "high must be >= low"})
+        if span.spacing == "log" and span.low <= 0:
             errors.append({"pointer": f"{pointer}/spacing", "detail": "log spacing needs low > 0"})
 
 

@@ -425,6 +425,13 @@ def test_latin_hypercube_puts_one_point_in_each_stratum(client):
       "fixed": {"balls": 4, "load_N": 1}}, "/axes/speed_m_s/spacing"),
     ({"design": "sobol", "points": 8, "ranges": {"load_N": {"low": 2, "high": 1}},
       "fixed": {"balls": 4, "speed_m_s": 1}}, "/ranges/load_N/high"),
+    # a range sent as the pair [low, high] is pointed at by index: the pair has no /high
+    ({"design": "sobol", "points": 8, "ranges": {"load_N": [2, 1]},
+      "fixed": {"balls": 4, "speed_m_s": 1}}, "/ranges/load_N/1"),
+    ({"design": "sobol", "points": 8, "ranges": {"load_N": [-1, 1]},
+      "fixed": {"balls": 4, "speed_m_s": 1}}, "/ranges/load_N/0"),
+    ({"design": "latin_hypercube", "points": 8, "ranges": {"load [mN]": [20, 10]},
+      "fixed": {"balls": 4, "speed_m_s": 1}}, "/ranges/load [mN]/1"),
     ({"design": "sobol", "points": 8, "ranges": {"balls_touching": {"low": 0, "high": 1}},
       "fixed": {"balls": 4, "load_N": 1, "speed_m_s": 1}}, "/ranges/balls_touching"),
     ({"design": "annealing", "points": 8}, "/design"),

@@ -4,7 +4,16 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BeforeValidator, ConfigDict, Discriminator, Field, Tag, create_model
+from pydantic import (
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    Field,
+    PrivateAttr,
+    Tag,
+    WrapValidator,
+    create_model,
+)
 
 from microbearing import physics
 
@@ -82,9 +91,15 @@ class SweepRange(StrictModel):
                                    "for load_N].")
     high: float = Field(description="Upper end [the unit of the input named by the range's key].")
     spacing: Spacing = _SPACING
+    _pair: bool = PrivateAttr(default=False)
+
+    def pointer(self, end: str) -> str:
+        """The JSON pointer step of an end (``low`` or ``high``) as the range was sent: ``0``/``1`` for the
+        pair ``[low, high]``, the key otherwise."""
+        return str(("low", "high").index(end)) if self._pair else end
 
 
-def _pair_as_range(value: Any) -> Any:
+def _pair_as_range(value: Any, handler: Any) -> Any:
     """A range spelled as the pair ``[low, high]``, read as ``{"low", "high"}``, as every route reads a range
     (an optimization's bounds, an experiment space's); a set of values or another list refused in words."""
     if isinstance(value, list):
@@ -92,16 +107,18 @@ def _pair_as_range(value: Any) -> Any:
             raise ValueError(f"a list of {len(value)} values is no range: a range is [low, high] or "
                              f"{{\"low\": low, \"high\": high}} (with \"spacing\": \"log\" for evenly spaced "
                              f"logarithms)")
-        return {"low": value[0], "high": value[1]}
+        span = handler({"low": value[0], "high": value[1]})
+        span._pair = True
+        return span
     if isinstance(value, dict) and "values" in value:
         raise ValueError("a set of values is no range here: a range is [low, high] or {\"low\": low, "
                          "\"high\": high}; given values are a grid's axis (design grid, axes "
                          "{\"values\": [...]})")
-    return value
+    return handler(value)
 
 
 #: A design's range of one input: {low, high[, spacing]}, or the pair [low, high].
-Range = Annotated[SweepRange, BeforeValidator(_pair_as_range)]
+Range = Annotated[SweepRange, WrapValidator(_pair_as_range)]
 
 
 def _per_input(kind: type, what: str) -> dict:
