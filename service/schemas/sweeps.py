@@ -93,6 +93,11 @@ class SweepRange(StrictModel):
     spacing: Spacing = _SPACING
     _pair: bool = PrivateAttr(default=False)
 
+    def sent_as_pair(self) -> SweepRange:
+        """This range, remembering that it was sent as the pair ``[low, high]`` (:meth:`pointer`)."""
+        self._pair = True
+        return self
+
     def pointer(self, end: str) -> str:
         """The JSON pointer step of an end (``low`` or ``high``) as the range was sent: ``0``/``1`` for the
         pair ``[low, high]``, the key otherwise."""
@@ -107,9 +112,7 @@ def _pair_as_range(value: Any, handler: Any) -> Any:
             raise ValueError(f"a list of {len(value)} values is no range: a range is [low, high] or "
                              f"{{\"low\": low, \"high\": high}} (with \"spacing\": \"log\" for evenly spaced "
                              f"logarithms)")
-        span = handler({"low": value[0], "high": value[1]})
-        span._pair = True
-        return span
+        return handler({"low": value[0], "high": value[1]}).sent_as_pair()
     if isinstance(value, dict) and "values" in value:
         raise ValueError("a set of values is no range here: a range is [low, high] or {\"low\": low, "
                          "\"high\": high}; given values are a grid's axis (design grid, axes "
