@@ -8,7 +8,13 @@ from a generator (the client holds 64 KiB at a time), and read the answer. Kinds
 * ``batch``: a JSON batch of 5e6 points, ~200 MiB (refused: the point limit);
 * ``csv``: a calibration CSV with one field of ``--mib`` MiB (refused: the field limit);
 * ``columns``: a JSON batch of six columns of nearly 2e6 numbers each, ~228 MiB, one of them not an input
-  (refused by the schema, 422, after the body is parsed: the check while it streams passes it).
+  (refused by the schema, 422, after the body is parsed: the check while it streams passes it);
+* ``predict``: the same body sent to a surrogate's ``predict`` (of a surrogate that does not exist: the
+  body is refused first);
+* ``umbridge``: the same body sent to UM-Bridge's ``Evaluate`` (400, ``InvalidInput``: no model name);
+* ``sweep``: the same body sent to ``/v1/sweeps``, a document route (413 as it streams, past
+  MICROBEARING_MAX_DOCUMENT_BYTES);
+* ``csvjson``: the same body sent to the CSV upload as JSON (413: its header row has millions of columns).
 
 Reports each kind's statuses, the slowest answer, the time from the first byte sent to the answer
 of one request alone, and the server's resident memory: at start, and its peak (``VmHWM``) after
@@ -54,6 +60,10 @@ def kinds(mib: int) -> dict[str, tuple[str, str, callable]]:
         "csv": ("/v1/calibrations/csv", "text/csv",
                 lambda: pieces(b"balls,load_N,speed_m_s,mu,note\n4,0.01,0.1,0.1,", b"x", size, b"\n")),
         "columns": ("/v1/friction/batch", "application/json", columns),
+        "predict": ("/v1/surrogates/no-such-surrogate/predict", "application/json", columns),
+        "umbridge": ("/umbridge/Evaluate", "application/json", columns),
+        "sweep": ("/v1/sweeps", "application/json", columns),
+        "csvjson": ("/v1/calibrations/csv", "application/json", columns),
     }
 
 
@@ -73,7 +83,8 @@ def columns(count: int = 1_990_000) -> Iterator[bytes]:
 
 
 #: The status each kind is refused with.
-EXPECTED = {"string": 413, "batch": 413, "csv": 413, "columns": 422}
+EXPECTED = {"string": 413, "batch": 413, "csv": 413, "columns": 422, "predict": 422, "umbridge": 400,
+            "sweep": 413, "csvjson": 413}
 
 
 def send(url: str, path: str, content_type: str, body, report: dict) -> None:
@@ -92,13 +103,17 @@ def main() -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--clients", type=int, default=6)
     parser.add_argument("--mib", type=int, default=238, help="size of the long field [MiB]")
+    parser.add_argument("--kinds", default=None, help="comma-separated kinds to send (default: all)")
     args = parser.parse_args()
     failed = False
     with tempfile.TemporaryDirectory() as data_dir:
         process, url = start_server(1, data_dir)
         try:
             print(f"server RSS at start: {rss_mib(process.pid):.0f} MiB")
-            for name, (path, content_type, body) in kinds(args.mib).items():
+            chosen = kinds(args.mib)
+            for name, (path, content_type, body) in chosen.items():
+                if args.kinds and name not in args.kinds.split(","):
+                    continue
                 alone: dict = {}
                 send(url, path, content_type, body, alone)
                 reports = [{} for _ in range(args.clients)]

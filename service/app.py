@@ -266,6 +266,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                  settings.max_calibration_rows * (settings.max_calibration_columns + 1)) + 1024
     app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points,
                        max_field_bytes=settings.max_field_bytes, max_values=values,
+                       # no object but a calibration's row has more than a schema's few fields
+                       max_members=settings.max_calibration_columns + 256,
+                       max_objects=settings.max_calibration_rows + 1024,
                        json_prefixes=(umbridge.PREFIX + "/",))
     # A large body waits for its turn, and holds a place of the job admission control, before it is read.
     app.add_middleware(HeavyRequestMiddleware, max_requests=settings.max_heavy_requests,

@@ -132,6 +132,11 @@ class JsonScanner:
         Longest string, quotes and escapes included [bytes] (``MICROBEARING_MAX_FIELD_BYTES``).
     max_values : int, optional
         Most strings and containers in the body [1] (default ``max_items``).
+    max_members : int, optional
+        Most members of one object [1] (default ``max_items``): the app's objects are its schemas' and a
+        calibration row's, so millions of keys are refused at once, not after each is read.
+    max_objects : int, optional
+        Most objects in the body [1] (default ``max_values``): only a calibration's rows come in thousands.
 
     Raises
     ------
@@ -144,9 +149,13 @@ class JsonScanner:
     max_key_bytes = 65_536
 
     def __init__(self, max_items: int, max_depth: int = MAX_DEPTH, max_string_bytes: int | None = None,
-                 max_values: int | None = None):
+                 max_values: int | None = None, max_members: int | None = None,
+                 max_objects: int | None = None):
         self.max_items = max_items
         self.max_values = max_items if max_values is None else max_values
+        self.max_members = max_items if max_members is None else max_members
+        self.max_objects = self.max_values if max_objects is None else max_objects
+        self._objects = 0
         self.max_depth = max_depth
         self.max_string_bytes = max_string_bytes
         self._offset = 0  # bytes fed so far
@@ -286,6 +295,10 @@ class JsonScanner:
             top = self._stack[-1] if self._stack else None
             if commas_per_gap is not None and commas_per_gap[gap] and top is not None:
                 top.commas += int(commas_per_gap[gap])
+                if top.kind == _OPEN_OBJECT and top.commas + 1 > self.max_members:
+                    raise _too_large(f"An object in the body has more than {self.max_members} members; the "
+                                     f"limit is {self.max_members} (it follows "
+                                     "MICROBEARING_MAX_CALIBRATION_COLUMNS: a row's columns).")
                 if top.commas + 1 > self.max_items:
                     kind = "An object" if top.kind == _OPEN_OBJECT else "An array"
                     raise _too_large(f"{kind} in the body has more than {self.max_items} elements; the limit "
@@ -308,6 +321,12 @@ class JsonScanner:
             self._containers += 1
             if self._containers > self.max_values:
                 raise _too_large(_too_many_values(self.max_values))
+            if byte == _OPEN_OBJECT:
+                self._objects += 1
+                if self._objects > self.max_objects:
+                    raise _too_large(f"The body holds more than {self.max_objects} objects; the limit is "
+                                     f"{self.max_objects} (it follows MICROBEARING_MAX_CALIBRATION_ROWS: a "
+                                     "calibration's rows).")
             self._stack.append(_Container(byte, keys=set() if byte == _OPEN_OBJECT else None))
         elif self._stack:
             self._stack.pop()
@@ -472,20 +491,27 @@ class JsonGuardMiddleware:
         Most strings and containers in a JSON body [1] (default ``max_items``).
     json_prefixes : tuple of str, default ()
         Paths whose routes read the body as JSON whatever its declared type (UM-Bridge's).
+    max_members, max_objects : int, optional
+        Most members of one object, and objects in a body [1] (:class:`JsonScanner`); a body up to 64 KiB,
+        checked at once, is left to the schema for these.
     """
 
     def __init__(self, app: ASGIApp, max_items: int, max_field_bytes: int | None = None,
-                 max_values: int | None = None, json_prefixes: tuple[str, ...] = ()):
+                 max_values: int | None = None, json_prefixes: tuple[str, ...] = (),
+                 max_members: int | None = None, max_objects: int | None = None):
         self.app = app
         self.json_prefixes = json_prefixes
         self.max_items = max_items
         self.max_field_bytes = max_field_bytes
         self.max_values = max_values
+        self.max_members = max_members
+        self.max_objects = max_objects
 
     def _scanner(self, content_type: bytes | None, path: str) -> JsonScanner | CsvLineScanner | None:
         if is_json_media_type(content_type) or path.startswith(self.json_prefixes):
             return JsonScanner(self.max_items, max_string_bytes=self.max_field_bytes,
-                               max_values=self.max_values)
+                               max_values=self.max_values, max_members=self.max_members,
+                               max_objects=self.max_objects)
         if self.max_field_bytes is None:
             return None
         media = (content_type or b"").split(b";", 1)[0].strip().lower()

@@ -56,8 +56,13 @@ def test_calibration_columns_past_the_limit_get_413_before_parsing(client, colum
         assert response.status_code == status, response.text[:300]
         assert response.headers["content-type"] == PROBLEM
         if status == 413:
-            assert f"has {columns} columns; the limit is 6 (MICROBEARING_MAX_CALIBRATION_COLUMNS)" in \
-                response.json()["detail"]
+            detail = response.json()["detail"]
+            if response is rows and columns > 6 + 256:  # refused as it streams, at the object's 263rd key
+                assert "more than 262 members; the limit is 262 (it follows " \
+                       "MICROBEARING_MAX_CALIBRATION_COLUMNS" in detail, detail
+            else:
+                assert f"has {columns} columns; the limit is 6 (MICROBEARING_MAX_CALIBRATION_COLUMNS)" \
+                    in detail
 
 
 @pytest.mark.parametrize("separator, query", [(";", ""), ("\t", ""), (";", "?separator=semicolon")])

@@ -153,6 +153,27 @@ def test_a_long_string_is_refused_in_the_block_that_passes_the_limit():
     assert "at byte 9" in caught.value.detail
 
 
+def test_an_object_of_too_many_keys_or_a_body_of_too_many_objects_is_refused_in_the_block_that_passes():
+    # Each key costs Python code (its duplicate check): millions of them had taken seconds before the
+    # element limit; no object of the app has more than a calibration row's columns, and only rows come
+    # in thousands.
+    keys = b'{"points": {' + b", ".join(b'"k%d": 1' % i for i in range(100)) + b"}}"
+    scanner = JsonScanner(max_items=1000, max_members=50)
+    with pytest.raises(ProblemError) as caught:
+        scanner.feed(keys)
+    assert caught.value.status == 413 and "more than 50 members" in caught.value.detail
+    JsonScanner(max_items=1000, max_members=100).feed(keys)  # 100 keys: at the limit, not past it
+    rows = b'{"data": [' + b", ".join([b'{"a": 1}'] * 30) + b"]}"
+    scanner = JsonScanner(max_items=1000, max_objects=30)
+    with pytest.raises(ProblemError) as caught:
+        for start in range(0, len(rows), 7):  # passed in any block, counted across blocks
+            scanner.feed(rows[start:start + 7])
+    assert caught.value.status == 413 and "more than 30 objects" in caught.value.detail
+    whole = JsonScanner(max_items=1000, max_objects=31)
+    whole.feed(rows)
+    whole.close()  # the 30 rows and the envelope
+
+
 def test_a_long_number_or_run_of_spaces_is_refused_like_a_long_string():
     # the parser would hold a number of hundreds of MiB whole (a 238 MiB one cost the server 2.4 GB)
     for head, filler in ((b'{"load_N": 0.', b"1"), (b'{"load_N": ', b" "), (b"[1, tru", b"e")):

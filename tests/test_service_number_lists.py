@@ -141,7 +141,8 @@ def test_bad_elements_of_a_large_column_are_named_as_a_small_one_names_them(clie
     loads = np.full(COUNT, 0.012345678901234567)
     loads[[17, 200_001]] = [-0.5, 0.0]
     large = post(client, {"balls": 4, "load_N": loads.tolist(), "speed_m_s": 0.05})
-    small = post(client, {"balls": 4, "load_N": [0.01] * 17 + [-0.5, 0.0], "speed_m_s": 0.05}, count_check=False)
+    small = post(client, {"balls": 4, "load_N": [0.01] * 17 + [-0.5, 0.0], "speed_m_s": 0.05},
+                 count_check=False)
     assert large.status_code == small.status_code == 422
     assert large.headers["content-type"] == "application/problem+json"
     pointers = [error["pointer"] for error in large.json()["errors"]]
