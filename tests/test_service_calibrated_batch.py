@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
@@ -216,6 +218,27 @@ def test_a_batch_of_several_chunks_answers_each_point_as_alone(client, calibrati
     assert outside == np.count_nonzero(beyond) > 0
     assert np.count_nonzero((load_N < low) | (load_N > high)) > outside
     assert len(batch["domain_warnings"]) == 1 and f"({outside} point(s))" in batch["domain_warnings"][0]
+
+
+def test_a_large_calibrated_batch_read_into_arrays_answers_each_point_as_alone(client, calibration):
+    """Over 4 MiB a batch's long columns are read straight into arrays (service.schemas.number_lists); the
+    calibrated model answers them, conditions included, as it answers the same points sent small."""
+    count = 240_000
+    load_N = np.random.default_rng(2).uniform(0.005, 0.03, count)
+    humidity = np.random.default_rng(3).uniform(0.3, 0.7, count)
+    request = {"points": {"balls": 4, "load_N": load_N.tolist(), "speed_m_s": 0.05},
+               "model": calibration["model_id"], "conditions": {"relative_humidity": humidity.tolist()},
+               "outputs": ["mu"]}
+    body = json.dumps(request)
+    assert len(body) > 4 * 2**20
+    batch = client.post("/v1/friction/batch", content=body, headers={"content-type": "application/json"})
+    assert batch.status_code == 200, batch.text[:300]
+    picked = [0, 77_777, count - 1]
+    alone = client.post("/v1/friction/batch", json={
+        **request, "points": {"balls": 4, "load_N": load_N[picked].tolist(), "speed_m_s": 0.05},
+        "conditions": {"relative_humidity": humidity[picked].tolist()}}).json()
+    for name in ("mu", "mu_lower", "mu_upper"):
+        np.testing.assert_allclose([batch.json()[name][i] for i in picked], alone[name], rtol=1e-12)
 
 
 def test_a_model_stored_without_interval_or_domain_answers_mu_alone(client):
