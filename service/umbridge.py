@@ -42,7 +42,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from microbearing import physics
 from microbearing.physics.columns import Reading, match_column, read_key, unknown_column
-from microbearing.physics.slips import read_slip
+from microbearing.physics.slips import input_slips, read_slip
 
 from .models import InputError, Model, ModelError, jacobian, resolve
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError
@@ -385,8 +385,12 @@ class Setup:
 
 
 def evaluate(setup: Setup, vectors: Sequence[Sequence[float]]) -> bytes:
-    """The JSON answer of Evaluate: ``{"output": [...]}``, one vector of ``config.outputs`` per point."""
+    """The JSON answer of Evaluate: ``{"output": [...]}``, one vector of ``config.outputs`` per point, and
+    ``"warnings"`` when physics inputs look like a unit slip (:func:`physics.slips.input_slips`, the words
+    of ``/v1/friction``'s ``input_warnings``; the model answers as asked). The protocol's clients read
+    ``output`` and pass over the rest."""
     columns = setup.columns(vectors)
+    warnings = input_slips({name: value for name, value in columns.items() if name in physics.PARAMETERS})
     with setup.pointing():
         result = setup.model.evaluate(columns, setup.real_outputs())
     values = {**result.values, FLAG_OUTPUT: result.outside_domain.astype(float)}
@@ -395,7 +399,8 @@ def evaluate(setup: Setup, vectors: Sequence[Sequence[float]]) -> bytes:
     numbers = json_bytes(table.ravel().tolist())[1:-1].split(b",")
     width = table.shape[1]
     rows = numbers if width == 1 else [b",".join(numbers[i:i + width]) for i in range(0, len(numbers), width)]
-    return b'{"output":[[' + b"],[".join(rows) + b"]]}"
+    tail = b',"warnings":' + json_bytes(warnings) + b"}" if warnings else b"}"
+    return b'{"output":[[' + b"],[".join(rows) + b"]]" + tail
 
 
 def _jacobian_at(setup: Setup, vectors: Sequence[Sequence[float]], out_wrt: int, in_wrt: int) -> np.ndarray:

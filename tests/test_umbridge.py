@@ -353,3 +353,14 @@ def test_a_large_body_with_a_long_list_is_refused_in_the_protocol_form_naming_mo
         assert response.status_code == 400 and response.json()["error"]["type"] == "InvalidInput"
         message = response.json()["error"]["message"]
         assert re.search(r"^input\[0\]: 300000 values; expected one per input", message), message
+
+
+def test_evaluate_warns_of_a_unit_slip_in_the_words_of_the_friction_route(local):
+    # 50 m/s is no micro bearing's speed (50 mm/s sent as m/s?): answered as asked, with /v1/friction's
+    # warning beside the output, which the protocol's clients pass over.
+    slipped = local.post("/umbridge/Evaluate", json={**POINT, "input": [[4, 0.01, 50.0]]}).json()
+    friction = local.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 50.0}).json()
+    assert slipped["warnings"] == friction["input_warnings"] and "speed_m_s runs 50 to 50 m/s" in \
+        slipped["warnings"][0]
+    assert slipped["output"] == [[friction["mu"]]]
+    assert local.post("/umbridge/Evaluate", json=POINT).json().keys() == {"output"}  # no slip: no warnings
