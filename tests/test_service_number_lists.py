@@ -7,10 +7,13 @@ refused (as malformed, or by the schema naming the element), and a batch must an
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from pydantic_core import from_json
 
 from microbearing import physics
@@ -175,3 +178,40 @@ def test_large_refusals_of_shape_and_grammar_stay_as_they_were(client):
     malformed = client.post("/v1/friction/batch", content=body.replace("]", ", ]"),
                             headers={"content-type": "application/json"})
     assert malformed.status_code == 400 and malformed.json()["title"] == "Malformed JSON"
+
+
+# Any JSON document, with every list of numbers short enough to be lifted: the lifted document is the parsed
+# one (arrays as lists), or None when the plain parse must answer; never another document.
+_NUMBERS = st.one_of(st.integers(-10**6, 10**6), st.floats(allow_nan=False, allow_infinity=False, width=64))
+_LEAVES = st.one_of(_NUMBERS, st.booleans(), st.none(),
+                    st.text(alphabet=st.sampled_from('ab[]{}",:\\ 0123456789.-eE'), max_size=12))
+_DOCUMENTS = st.recursive(
+    _LEAVES,
+    lambda inner: st.one_of(st.lists(inner, max_size=5), st.lists(_NUMBERS, min_size=1, max_size=12),
+                            st.dictionaries(st.text(alphabet="abc[] 0,", max_size=4), inner, max_size=4)),
+    max_leaves=30)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(document=_DOCUMENTS, indent=st.sampled_from([None, 1]))
+def test_a_lifted_document_is_the_parsed_document_or_none(monkeypatch, document, indent):
+    monkeypatch.setattr(number_lists, "_NUMBER_LIST", re.compile(rb"\[([-+0-9.eE,\s NaIfinity]{1,})\]"))
+    monkeypatch.setattr(number_lists, "_PIECE_BYTES", 5)
+    body = json.dumps({"points": document, "other": document}, indent=indent).encode()
+    lifted = number_lists.lift_number_lists(body)
+    if lifted is None:
+        return
+    placed = number_lists.place_arrays(lifted, {"points"})
+    if placed is None:
+        return
+
+    def plain(value):
+        if isinstance(value, np.ndarray):
+            return [float(v) for v in value]
+        if isinstance(value, list):
+            return [plain(v) for v in value]
+        if isinstance(value, dict):
+            return {k: plain(v) for k, v in value.items()}
+        return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else value
+
+    assert plain(placed) == plain(json.loads(body))
