@@ -17,7 +17,6 @@ import argparse
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -25,17 +24,12 @@ import time
 from pathlib import Path
 
 import httpx
+from load import free_port
 
 REPO = Path(__file__).resolve().parents[1]
 SWEEP = {"design": "sobol", "points": 1_500_000, "seed": 5, "outputs": ["mu"],
          "ranges": {"load_N": {"low": 1e-3, "high": 0.05}}, "fixed": {"balls": 4, "speed_m_s": 0.05}}
 BATCH = {"points": {"balls": 5, "load_N": [0.001, 0.01, 0.05], "speed_m_s": 0.02}, "outputs": ["mu"]}
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def start(args: list[str], log: Path, env: dict[str, str] | None = None) -> subprocess.Popen:

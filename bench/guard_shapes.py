@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 
+from microbearing.service.app import json_scan_limits
 from microbearing.service.jsonguard import BLOCK_BYTES, JsonScanner
 from microbearing.service.problems import ProblemError
 from microbearing.service.settings import Settings
@@ -45,13 +46,8 @@ def scan(body: bytes, **limits: int) -> tuple[float, str]:
 
 
 def main() -> None:
-    settings = Settings()
-    values = max(settings.max_batch_points,
-                 settings.max_calibration_rows * (settings.max_calibration_columns + 1)) + 1024
-    before = {"max_items": settings.max_batch_points, "max_string_bytes": settings.max_field_bytes,
-              "max_values": values}
-    now = {**before, "max_members": settings.max_calibration_columns + 256,
-           "max_objects": settings.max_calibration_rows + 1024}
+    now = json_scan_limits(Settings())
+    before = {name: now[name] for name in ("max_items", "max_string_bytes", "max_values")}
     print(f"{'shape':36s} {'MiB':>6s} {'element limit alone':>22s} {'with member/object limits':>28s}")
     for name, body in shapes().items():
         (t_before, v_before), (t_now, v_now) = scan(body, **before), scan(body, **now)

@@ -39,7 +39,7 @@ from .settings import Settings
 from .tables import accepts_any
 
 __all__ = ["ROUTERS", "AcceptMiddleware", "HeadMiddleware", "PlainRoute", "app", "create_app",
-           "plain_routes"]
+           "json_scan_limits", "plain_routes"]
 
 logger = logging.getLogger("microbearing.service")
 
@@ -231,6 +231,18 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
         close_runtime(app)
 
 
+def json_scan_limits(settings: Settings) -> dict[str, int]:
+    """The limits of the streaming JSON check (:class:`service.jsonguard.JsonScanner`'s keywords), as they
+    follow the settings: a body's strings and containers are a batch's points (a UM-Bridge input is an array
+    per point) or a calibration's rows as objects of keys, and the envelope around them; no object but a
+    calibration's row has more than a schema's few fields, and only rows come in thousands."""
+    return {"max_items": settings.max_batch_points, "max_string_bytes": settings.max_field_bytes,
+            "max_values": max(settings.max_batch_points,
+                              settings.max_calibration_rows * (settings.max_calibration_columns + 1)) + 1024,
+            "max_members": settings.max_calibration_columns + 256,
+            "max_objects": settings.max_calibration_rows + 1024}
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the service.
 
@@ -260,16 +272,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # becomes GET innermost, so logs, metrics and the key check see the method sent.
     app.add_middleware(HeadMiddleware)
     app.add_middleware(AcceptMiddleware)
-    # A body's strings and containers: a batch's points (a UM-Bridge input is an array per point) or a
-    # calibration's rows as objects of keys, and the envelope around them (about max_batch_points by default).
-    values = max(settings.max_batch_points,
-                 settings.max_calibration_rows * (settings.max_calibration_columns + 1)) + 1024
-    app.add_middleware(JsonGuardMiddleware, max_items=settings.max_batch_points,
-                       max_field_bytes=settings.max_field_bytes, max_values=values,
-                       # no object but a calibration's row has more than a schema's few fields
-                       max_members=settings.max_calibration_columns + 256,
-                       max_objects=settings.max_calibration_rows + 1024,
-                       json_prefixes=(umbridge.PREFIX + "/",))
+    scan = json_scan_limits(settings)
+    app.add_middleware(JsonGuardMiddleware, max_items=scan["max_items"],
+                       max_field_bytes=scan["max_string_bytes"], max_values=scan["max_values"],
+                       max_members=scan["max_members"],
+                       max_objects=scan["max_objects"], json_prefixes=(umbridge.PREFIX + "/",))
     # A large body waits for its turn, and holds a place of the job admission control, before it is read.
     app.add_middleware(HeavyRequestMiddleware, max_requests=settings.max_heavy_requests,
                        wait_s=settings.heavy_request_wait_s,

@@ -38,6 +38,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from .limits import app_path
 from .problems import VALIDATION_TYPE, ProblemError, ProblemResponse
 
 __all__ = ["MAX_DEPTH", "JsonGuardMiddleware", "check_json_structure", "is_json_media_type"]
@@ -528,9 +529,7 @@ class JsonGuardMiddleware:
             await self.app(scope, receive, send)
             return
         content_types = [value for name, value in scope["headers"] if name.lower() == b"content-type"]
-        path, root = scope["path"], scope.get("root_path", "")
-        scanner = self._scanner(content_types[0] if content_types else None,
-                                path[len(root):] if root and path.startswith(root) else path)
+        scanner = self._scanner(content_types[0] if content_types else None, app_path(scope))
         if len(content_types) == 1 and scanner is None:
             await self.app(scope, receive, send)
             return

@@ -39,9 +39,18 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from .problems import ProblemError, ProblemResponse
 
-__all__ = ["HEAVY_BODY_BYTES", "BodySizeLimitMiddleware", "BodyTimeout",
-           "BodyTooLarge", "HeavyRequestMiddleware", "check_table", "csv_data_rows", "csv_header_columns",
+__all__ = ["HEAVY_BODY_BYTES", "BodySizeLimitMiddleware", "BodyTimeout", "BodyTooLarge",
+           "HeavyRequestMiddleware", "app_path", "check_table", "csv_data_rows", "csv_header_columns",
            "return_freed_memory"]
+
+def app_path(scope: Scope) -> str:
+    """The request's path relative to the ASGI root path (the app's own routes start there)."""
+    path = scope["path"]
+    root_path = scope.get("root_path", "")
+    if root_path and path.startswith(root_path):
+        path = path[len(root_path):] or "/"
+    return path
+
 
 #: A request whose body is declared larger than this, or not declared (chunked), is heavy [bytes].
 HEAVY_BODY_BYTES = 2**20
@@ -208,10 +217,7 @@ class BodySizeLimitMiddleware:
         """The largest body of this request [bytes] and the setting that says so."""
         if self.data_paths is None or self.max_document_bytes == self.max_bytes:
             return self.max_bytes, "MICROBEARING_MAX_BODY_BYTES"
-        path, root = scope["path"], scope.get("root_path", "")
-        if root and path.startswith(root):
-            path = path[len(root):]
-        if self.data_paths.match(path):
+        if self.data_paths.match(app_path(scope)):
             return self.max_bytes, "MICROBEARING_MAX_BODY_BYTES"
         return self.max_document_bytes, "MICROBEARING_MAX_DOCUMENT_BYTES"
 

@@ -43,6 +43,7 @@ from typing import Any
 from fastapi import FastAPI
 from starlette.types import ASGIApp, Receive, Scope, Send
 
+from .limits import app_path
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError, ProblemResponse
 from .routes.manual import PREFIX as MANUAL_PREFIX
 from .routes.web import PAGE_PATHS
@@ -106,15 +107,6 @@ def parse_api_keys(text: str) -> tuple[str, ...]:
             raise ValueError(f"MICROBEARING_API_KEYS: key number {position + 1} must consist of printable "
                              "ASCII characters without spaces or commas")
     return keys
-
-
-def app_path(scope: Scope) -> str:
-    """The request's path relative to the ASGI root path (the app's own routes start there)."""
-    path = scope["path"]
-    root_path = scope.get("root_path", "")
-    if root_path and path.startswith(root_path):
-        path = path[len(root_path):] or "/"
-    return path
 
 
 def _digest(token: bytes) -> bytes:

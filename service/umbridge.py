@@ -390,7 +390,7 @@ def evaluate(setup: Setup, vectors: Sequence[Sequence[float]]) -> bytes:
     of ``/v1/friction``'s ``input_warnings``; the model answers as asked). The protocol's clients read
     ``output`` and pass over the rest."""
     columns = setup.columns(vectors)
-    warnings = input_slips({name: value for name, value in columns.items() if name in physics.PARAMETERS})
+    warnings = input_slips(columns)
     with setup.pointing():
         result = setup.model.evaluate(columns, setup.real_outputs())
     values = {**result.values, FLAG_OUTPUT: result.outside_domain.astype(float)}

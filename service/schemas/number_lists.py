@@ -15,6 +15,7 @@ numbers (text, ``true``, nested lists) is left in the text; a body whose skeleto
 
 from __future__ import annotations
 
+import json
 import re
 import secrets
 from collections.abc import Callable, Collection
@@ -93,7 +94,7 @@ def lift_number_lists(body: bytes | bytearray) -> LiftedBody | None:
         if values is None:
             continue
         placeholder = f"\u0000numbers {token} {len(arrays)}"
-        pieces += [bytes(view[done:match.start()]), b'"\\u0000numbers ' + f'{token} {len(arrays)}"'.encode()]
+        pieces += [bytes(view[done:match.start()]), json.dumps(placeholder).encode()]
         arrays[placeholder] = values
         done = match.end()
     if not arrays:
