@@ -28,7 +28,8 @@ References
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -37,7 +38,7 @@ from .data import Dataset
 from .fit import prediction_errors
 from .select import ModelCV
 
-__all__ = ["GP_HELPS_ALPHA", "gp_discrepancy", "residual_gp"]
+__all__ = ["GP_HELPS_ALPHA", "gp_discrepancy", "residual_gp", "residual_gp_words"]
 
 #: One-sided level of the paired test by which a GP on the calibrated model's residual must beat the
 #: terms alone, held out, to become part of the model. [1]
@@ -241,6 +242,29 @@ def residual_gp(dataset: Dataset, folds: list[np.ndarray], fold_mu: list[np.ndar
         "gp": state,
         "features": names,
     }
+
+
+def residual_gp_words(leftover: Mapping[str, Any], n_points: int) -> list[str]:
+    """What the report says of a GP on what the terms leave (:func:`residual_gp`, after the calibration's
+    checks: ``helps``, and ``clipped_rows`` or ``rows_for_gp`` when it was held back), in words: none
+    when its held-out test did not pass."""
+    z = leftover.get("z")
+    if leftover["helps"]:
+        return [f"a Gaussian-process discrepancy on what the terms leave predicts held-out rows better "
+                f"(nested CV, outliers left out: relative rmse {leftover['errors']['relative_rmse']:.3g} vs "
+                f"{leftover['errors_without']['relative_rmse']:.3g}, z = {z:.1f}): it is part of the "
+                f"calibrated model, whose mean it corrects and whose intervals it widens where it is unsure"]
+    passed = (f"a Gaussian-process discrepancy on what the terms leave predicted held-out rows better "
+              f"(z = {z:.1f})")
+    if leftover.get("clipped_rows"):
+        return [f"{passed}, but {leftover['clipped_rows']} rows are clipped at the sensor's limit: beside a "
+                f"clip the measured rows are a truncated sample, which a GP would learn as an effect, so it "
+                f"is not part of the model, whose intervals keep the censored scatter"]
+    if leftover.get("rows_for_gp"):
+        return [f"{passed}, but {n_points} rows cannot weigh its {len(leftover['features']) + 2} "
+                f"hyperparameters (about {leftover['rows_for_gp']} rows would): it is not part of the model, "
+                f"whose intervals keep the held-out scatter"]
+    return []
 
 
 def gp_state(kernel, names: list[str], centres: np.ndarray, scales: np.ndarray, x_train: np.ndarray,

@@ -211,6 +211,10 @@ class GPDiscrepancy(ResponseModel):
         "Rows that could weigh that GP's hyperparameters (an amplitude, a length scale per column, the white "
         "noise; counted like a term's fitted values) [1], when its nested test passed on fewer rows: it was "
         "held back and the intervals keep the held-out scatter; null otherwise."))
+    clipped_rows: int | None = Field(default=None, description=(
+        "Rows clipped at a sensor's limit, when that GP's nested test passed on data with any [1]: it was "
+        "held back (beside a clip the measured rows are a truncated sample, which a GP would learn as an "
+        "effect; the terms take the censored likelihood); null otherwise."))
 
 
 class FoldChoice(ResponseModel):
