@@ -25,12 +25,13 @@ from the degrees of freedom ν that inform it locally: a step's k - 1 on each si
 ν(x) = 1 / (2 Var[log ŝ(x)]), Var[log ŝ(x)] = (1, t) C (1, t)' with C = (X'X)⁻¹ / 2 the inverse
 Fisher information of (a, b) (a Gaussian residual's log variance has information 1/2 per row), the
 degrees of freedom of a variance estimate whose log has that variance (ν = n for one spread
-everywhere). The half-width is ŝ times the larger of Student's t quantile of ν (the prediction rule:
-the level on average over data sets) and the tolerance rule z_c sqrt(ν / χ²_{1-level, ν}) (an upper
-confidence bound of the spread, at the interval's level, on the normal quantile of content
-1 - 2 (1 - level): 90 % of measurements in 95 % of data sets), the two rules of a new group's spread
-(:meth:`calibrate.groups.GroupEffect.new_group_variance`). The tolerance rule decides below about 40
-degrees of freedom: a step's side with a few dozen rows, the ends of a trend fitted on few rows.
+everywhere). The half-width is ŝ times Student's t quantile of ν over the normal's (the prediction
+rule: the level on average over data sets). The interval already holds two more margins at few rows:
+the held-out residuals that set ŝ carry the refit's uncertainty, and the parameters' variance is added
+at the point. A tolerance rule on top (an upper confidence bound of the spread on the normal quantile of
+90 % content, which a new group's spread keeps, :meth:`calibrate.groups.GroupEffect.new_group_variance`)
+covered 0.986 and 0.990 of fresh measurements on 8 and 12 rows (12 data sets each, above the 0.90-0.98
+a 95 % interval should hold); the prediction rule alone 0.966, 0.975 and, on 15 rows, 0.944.
 
 Whether the scatter depends on the inputs at all is a **permutation test** (:func:`permutation_p`):
 the statistic is the largest, over every column, of the step's likelihood ratio at its best split
@@ -249,23 +250,18 @@ class ScatterModel:
 
 def allowance(dof: Any, level: float = 0.95) -> np.ndarray:
     """Factor [1] on z ŝ, z the normal quantile of ``level``, for a spread ŝ estimated with ``dof``
-    degrees of freedom [1] (clipped to at least 1): the larger of the prediction rule t_ν / z and the
-    tolerance rule z_c sqrt(ν / χ²_{1-level, ν}) / z, z_c the normal quantile of content
-    1 - 2 (1 - level) (the prediction rule alone when that content is not positive).
+    degrees of freedom [1] (clipped to at least 1): the prediction rule t_ν / z, Student's t quantile of
+    ν over the normal's, so that the interval holds ``level`` of new measurements on average over data
+    sets.
 
     Examples
     --------
-    >>> [round(float(allowance(nu)), 4) for nu in (10, 40, 180)]
-    [1.3369, 1.0312, 1.0068]
+    >>> [round(float(allowance(nu)), 4) for nu in (7, 10, 40, 180)]
+    [1.2065, 1.1368, 1.0312, 1.0068]
     """
     nu = np.maximum(np.asarray(dof, dtype=float), 1.0)
     z = float(stats.norm.isf((1.0 - level) / 2.0))
-    prediction = stats.t.isf((1.0 - level) / 2.0, nu) / z
-    content = 1.0 - 2.0 * (1.0 - level)
-    if content <= 0.0:
-        return prediction
-    z_content = float(stats.norm.isf((1.0 - content) / 2.0))
-    return np.maximum(prediction, z_content * np.sqrt(nu / stats.chi2.ppf(1.0 - level, nu)) / z)
+    return stats.t.isf((1.0 - level) / 2.0, nu) / z
 
 
 @functools.lru_cache(maxsize=1024)

@@ -7,8 +7,8 @@ two parts, kept with the scatter model (:attr:`calibrate.scatter.ScatterModel.fo
 * **Degrees of freedom.** ``s`` is estimated from ``n`` held-out residuals of a model of ``p`` fitted
   values: on 15 rows it is off by a fifth in either direction about one time in three (the scatter of 3 %
   came out 2.2 %). The interval takes the allowance of :func:`calibrate.scatter.allowance` at
-  ``nu = n - p`` degrees of freedom: Student's t quantile of ``nu``, or the tolerance rule where that is
-  wider (the spread at its upper confidence bound). Negligible on 200 rows (+0.7 %), +25 % on 15.
+  ``nu = n - p`` degrees of freedom: Student's t quantile of ``nu`` over the normal's. Negligible on 200
+  rows (+0.6 %), +9 % on 15.
 * **Heavy tails.** Gaussian scatter is an assumption. :func:`tail_form` fits Student's t (location,
   scale and degrees of freedom, maximum likelihood) to every held-out residual, outliers included, and
   keeps it when the likelihood ratio against the Gaussian rejects the Gaussian (p < :data:`TAIL_ALPHA`)
@@ -85,7 +85,7 @@ class IntervalForm:
     def words(self) -> str:
         """The form in words, for the report."""
         text = (f"the interval allows for the scatter being estimated from {self.dof:.0f} degrees of freedom "
-                f"(Student's t or the tolerance rule, the wider)")
+                f"(Student's t)")
         if self.tail_dof is not None:
             text += (f"; the residuals are heavy-tailed (Student's t of {self.tail_dof:.2g} degrees of "
                      f"freedom fits them better than a Gaussian), so the half-width follows that t: "
