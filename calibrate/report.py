@@ -789,7 +789,8 @@ def _measurement_system(declared: DataStage, uncertainty: UncertaintyStage,
 
 def _scatter_words(scatter: ScatterModel) -> str:
     """The scatter model in words, with the form of the interval (calibrate.tails) when it has one."""
-    return scatter.summary() + ("" if scatter.form is None else f"; {scatter.form.words()}")
+    return scatter.summary() + ("" if scatter.form is None else
+                                f"; {scatter.form.words(varies=scatter.kind != 'constant')}")
 
 
 def _few_rows(dataset: Dataset, fit_parameters: Sequence[str], options: CalibrationOptions) -> list[dict]:

@@ -25,13 +25,18 @@ from the degrees of freedom ν that inform it locally: a step's k - 1 on each si
 ν(x) = 1 / (2 Var[log ŝ(x)]), Var[log ŝ(x)] = (1, t) C (1, t)' with C = (X'X)⁻¹ / 2 the inverse
 Fisher information of (a, b) (a Gaussian residual's log variance has information 1/2 per row), the
 degrees of freedom of a variance estimate whose log has that variance (ν = n for one spread
-everywhere). The half-width is ŝ times Student's t quantile of ν over the normal's (the prediction
-rule: the level on average over data sets). The interval already holds two more margins at few rows:
-the held-out residuals that set ŝ carry the refit's uncertainty, and the parameters' variance is added
-at the point. A tolerance rule on top (an upper confidence bound of the spread on the normal quantile of
-90 % content, which a new group's spread keeps, :meth:`calibrate.groups.GroupEffect.new_group_variance`)
-covered 0.986 and 0.990 of fresh measurements on 8 and 12 rows (12 data sets each, above the 0.90-0.98
-a 95 % interval should hold); the prediction rule alone 0.966, 0.975 and, on 15 rows, 0.944.
+everywhere). One spread everywhere, estimated from every row's held-out residual, takes Student's t
+quantile of ν over the normal's (the prediction rule: the level on average over data sets). A spread
+that varies takes the larger of that and the tolerance rule z_c sqrt(ν / χ²_{1-level, ν}) (an upper
+confidence bound of the spread, at the interval's level, on the normal quantile of content 1 - 2 (1 -
+level): 90 % of measurements in 95 % of data sets), the two rules of a new group's spread
+(:meth:`calibrate.groups.GroupEffect.new_group_variance`): a step's side or a trend's end rests on the
+rows of one region and on the trend's form there, and the interval must hold in that region, not only
+over the data. The tolerance rule decides below about 40 degrees of freedom. For one spread everywhere
+it had 8 and 12 rows cover 0.986 and 0.990 of fresh measurements (12 data sets each, above the
+0.90-0.98 a 95 % interval should hold: on so few rows the interval holds two more margins, the refit's
+uncertainty in the held-out residuals and the parameters' variance added at the point); the prediction
+rule alone covers 0.966, 0.975 and, on 15 rows, 0.944.
 
 Whether the scatter depends on the inputs at all is a **permutation test** (:func:`permutation_p`):
 the statistic is the largest, over every column, of the step's likelihood ratio at its best split
@@ -147,7 +152,8 @@ class ScatterModel:
 
     def _dof_factor(self, columns: Mapping[str, Any], shape: tuple[int, ...], level: float) -> np.ndarray:
         if self.kind == "constant" and self.form is not None:
-            return np.full(shape, _scalar_allowance(float(self.form.dof), level))
+            # one spread everywhere, from every row: the prediction rule (see the module's text)
+            return np.full(shape, _scalar_allowance(float(self.form.dof), level, False))
         if self.kind == "loglinear" and len(self.covariance) == 4:
             t = self._standardized(columns, shape)
             (caa, cab), (_, cbb) = np.reshape(self.covariance, (2, 2))
@@ -248,27 +254,35 @@ class ScatterModel:
                    [float(v) for v in data.get("covariance", [])], IntervalForm.from_json(data.get("form")))
 
 
-def allowance(dof: Any, level: float = 0.95) -> np.ndarray:
+def allowance(dof: Any, level: float = 0.95, tolerance: bool = True) -> np.ndarray:
     """Factor [1] on z ŝ, z the normal quantile of ``level``, for a spread ŝ estimated with ``dof``
     degrees of freedom [1] (clipped to at least 1): the prediction rule t_ν / z, Student's t quantile of
-    ν over the normal's, so that the interval holds ``level`` of new measurements on average over data
-    sets.
+    ν over the normal's (the level on average over data sets), and with ``tolerance`` the larger of it
+    and the tolerance rule z_c sqrt(ν / χ²_{1-level, ν}) / z, z_c the normal quantile of content
+    1 - 2 (1 - level) (the prediction rule alone when that content is not positive).
 
     Examples
     --------
-    >>> [round(float(allowance(nu)), 4) for nu in (7, 10, 40, 180)]
+    >>> [round(float(allowance(nu)), 4) for nu in (10, 40, 180)]
+    [1.3369, 1.0312, 1.0068]
+    >>> [round(float(allowance(nu, tolerance=False)), 4) for nu in (7, 10, 40, 180)]
     [1.2065, 1.1368, 1.0312, 1.0068]
     """
     nu = np.maximum(np.asarray(dof, dtype=float), 1.0)
     z = float(stats.norm.isf((1.0 - level) / 2.0))
-    return stats.t.isf((1.0 - level) / 2.0, nu) / z
+    prediction = stats.t.isf((1.0 - level) / 2.0, nu) / z
+    content = 1.0 - 2.0 * (1.0 - level)
+    if not tolerance or content <= 0.0:
+        return prediction
+    z_content = float(stats.norm.isf((1.0 - content) / 2.0))
+    return np.maximum(prediction, z_content * np.sqrt(nu / stats.chi2.ppf(1.0 - level, nu)) / z)
 
 
 @functools.lru_cache(maxsize=1024)
-def _scalar_allowance(dof: float, level: float) -> float:
+def _scalar_allowance(dof: float, level: float, tolerance: bool = True) -> float:
     """:func:`allowance` of one number of degrees of freedom, remembered: a model's constant or step
     spread asks it at every prediction with the same numbers."""
-    return float(allowance(dof, level))
+    return float(allowance(dof, level, tolerance))
 
 
 def _pct(log_sd: float) -> str:

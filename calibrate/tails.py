@@ -6,9 +6,10 @@ two parts, kept with the scatter model (:attr:`calibrate.scatter.ScatterModel.fo
 
 * **Degrees of freedom.** ``s`` is estimated from ``n`` held-out residuals of a model of ``p`` fitted
   values: on 15 rows it is off by a fifth in either direction about one time in three (the scatter of 3 %
-  came out 2.2 %). The interval takes the allowance of :func:`calibrate.scatter.allowance` at
+  came out 2.2 %). One spread everywhere takes the allowance of :func:`calibrate.scatter.allowance` at
   ``nu = n - p`` degrees of freedom: Student's t quantile of ``nu`` over the normal's. Negligible on 200
-  rows (+0.6 %), +9 % on 15.
+  rows (+0.6 %), +9 % on 15. (A spread that varies takes its local degrees of freedom and the tolerance
+  rule too: :meth:`calibrate.scatter.ScatterModel.quantile_factor`.)
 * **Heavy tails.** Gaussian scatter is an assumption. :func:`tail_form` fits Student's t (location,
   scale and degrees of freedom, maximum likelihood) to every held-out residual, outliers included, and
   keeps it when the likelihood ratio against the Gaussian rejects the Gaussian (p < :data:`TAIL_ALPHA`)
@@ -82,9 +83,12 @@ class IntervalForm:
         tail = data.get("tail_dof")
         return cls(dof, factor, None if tail is None else float(tail))
 
-    def words(self) -> str:
-        """The form in words, for the report."""
-        text = (f"the interval allows for the scatter being estimated from {self.dof:.0f} degrees of freedom "
+    def words(self, varies: bool = False) -> str:
+        """The form in words, for the report; ``varies``: of a spread that varies with an input, whose
+        interval takes the degrees of freedom that inform it at each point."""
+        text = ("the interval allows for the spread being estimated from the degrees of freedom that inform "
+                "it at each point (Student's t or the tolerance rule, the wider)" if varies else
+                f"the interval allows for the scatter being estimated from {self.dof:.0f} degrees of freedom "
                 f"(Student's t)")
         if self.tail_dof is not None:
             text += (f"; the residuals are heavy-tailed (Student's t of {self.tail_dof:.2g} degrees of "
