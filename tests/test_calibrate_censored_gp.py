@@ -13,6 +13,21 @@ from microbearing.calibrate import calibrate
 from microbearing.calibrate.censored import beyond_clip
 
 
+def clipped_calibration(rng, n: int, balls: int, loads: tuple[float, float], top_speed: float,
+                        quantile: float, side: int):
+    """n rows of the physics with 3 % scatter clipped at the ``quantile`` of the true μ (side +1: a ceiling,
+    -1: a floor), calibrated (mu_pivot); the report, the clip level and the readings."""
+    load = np.exp(rng.uniform(np.log(loads[0]), np.log(loads[1]), n))
+    speed = rng.uniform(0.01, top_speed, n)
+    truth = physics.evaluate(balls=balls, load_N=load, speed_m_s=speed, mu_pivot=0.65).mu
+    level = float(np.quantile(truth, quantile))
+    noisy = truth * np.exp(rng.normal(0.0, 0.03, n))
+    mu = np.minimum(noisy, level) if side > 0 else np.maximum(noisy, level)
+    rows = [{"load_N": float(g), "speed_m_s": float(v), "mu_measured": float(m)}
+            for g, v, m in zip(load, speed, mu, strict=True)]
+    return calibrate(rows, ["mu_pivot"], fixed={"balls": balls}, make_plots=False), level, mu
+
+
 @pytest.mark.parametrize("side", [1, -1])
 def test_a_clipped_reading_is_the_mean_beyond_its_clip_by_monte_carlo(side):
     rng = np.random.default_rng(1)
@@ -32,15 +47,7 @@ def test_a_clipped_reading_is_the_mean_beyond_its_clip_by_monte_carlo(side):
 
 def test_a_floor_clipped_data_set_gets_no_gp_from_the_truncation():
     rng = np.random.default_rng(100)
-    n = 130
-    load = np.exp(rng.uniform(np.log(1.5e-3), np.log(5e-2), n))
-    speed = rng.uniform(0.01, 0.2, n)
-    truth = physics.evaluate(balls=8, load_N=load, speed_m_s=speed, mu_pivot=0.65).mu
-    floor = float(np.quantile(truth, 0.25))
-    mu = np.maximum(truth * np.exp(rng.normal(0.0, 0.03, n)), floor)
-    rows = [{"load_N": float(g), "speed_m_s": float(v), "mu_measured": float(m)}
-            for g, v, m in zip(load, speed, mu, strict=True)]
-    report = calibrate(rows, ["mu_pivot"], fixed={"balls": 8}, make_plots=False)
+    report, floor, _ = clipped_calibration(rng, 130, 8, (1.5e-3, 5e-2), 0.2, 0.25, -1)
     assert report.model.to_json()["discrepancy"] is None
     # over the clipped range the prediction is the physics' (within half the noise), and 95 % of fresh
     # measurements lie in the interval within sampling error
@@ -61,15 +68,7 @@ def test_a_gp_is_held_back_on_clipped_data_and_the_scatter_is_the_censored_one()
     the model's scatter at 2.1 % and 95 % intervals covered 0.83 of fresh measurements. Held back, the
     scatter is the censored likelihood's and the report says why."""
     rng = np.random.default_rng(1)
-    n = 120
-    load = np.exp(rng.uniform(np.log(1e-3), np.log(3e-2), n))
-    speed = rng.uniform(0.01, 0.15, n)
-    truth = physics.evaluate(balls=4, load_N=load, speed_m_s=speed, mu_pivot=0.65).mu
-    ceiling = float(np.quantile(truth, 0.72))
-    mu = np.minimum(truth * np.exp(rng.normal(0.0, 0.03, n)), ceiling)
-    rows = [{"load_N": float(g), "speed_m_s": float(v), "mu_measured": float(m)}
-            for g, v, m in zip(load, speed, mu, strict=True)]
-    report = calibrate(rows, ["mu_pivot"], fixed={"balls": 4}, make_plots=False)
+    report, ceiling, mu = clipped_calibration(rng, 120, 4, (1e-3, 3e-2), 0.15, 0.72, +1)
     gp = report.discrepancy_gp
     assert report.model.to_json()["discrepancy"] is None and gp["in_model"] is False
     assert gp["clipped_rows"] == int(np.sum(mu == ceiling)) == 32
