@@ -153,7 +153,7 @@ class ScatterModel:
     def _dof_factor(self, columns: Mapping[str, Any], shape: tuple[int, ...], level: float) -> np.ndarray:
         if self.kind == "constant" and self.form is not None:
             # one spread everywhere, from every row: the prediction rule (see the module's text)
-            return np.full(shape, _scalar_allowance(float(self.form.dof), level, False))
+            return np.full(shape, _scalar_allowance(float(self.form.dof), level, tolerance=False))
         if self.kind == "loglinear" and len(self.covariance) == 4:
             t = self._standardized(columns, shape)
             (caa, cab), (_, cbb) = np.reshape(self.covariance, (2, 2))
