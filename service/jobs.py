@@ -331,6 +331,8 @@ class JobManager:
         self._running: dict[str, tuple[str, threading.Event]] = {}
         #: Final states that the store could not take: written by the housekeeping thread.
         self._unwritten: dict[str, dict[str, Any]] = {}
+        #: Running jobs writing their final state: a lease no longer held is their own doing, not a takeover.
+        self._ending: set[str] = set()
         self._lock = threading.Lock()
         self._requests: dict[str, str | None] = {}  # heavy requests' places (admit_request): token -> key
         self._stopping = threading.Event()
@@ -716,7 +718,11 @@ class JobManager:
             running = dict(self._running)
             local = list(self._local)
         held = self.store.renew_leases([token for token, _ in running.values()], time.time() + self.lease_s)
+        with self._lock:  # read after the renewal: a job that ended since the snapshot has its id here
+            ending = set(self._ending)
         for job_id, (token, event) in running.items():
+            if token not in held and job_id in ending:
+                continue  # its final state is written (the row is no longer running), not taken over
             if token not in held:  # another process took the job after our lease lapsed: stop the work
                 logger.warning("job %s: this process lost its lease; stopping its run", job_id,
                                extra={"job_id": job_id})
@@ -762,6 +768,8 @@ class JobManager:
 
     def _finish(self, job_id: str, token: str, status: str, unless_cancel_requested: bool = False,
                 **changes: Any) -> bool:
+        with self._lock:
+            self._ending.add(job_id)
         finished_at = utc_now()
         try:
             finished = self.store.update_job(job_id, only_if_status=("running",), status=status,
@@ -790,6 +798,7 @@ class JobManager:
         finally:
             with self._lock:
                 self._running.pop(job_id, None)
+                self._ending.discard(job_id)
             self._wake.set()  # a worker is free
 
     def _run_job(self, job_id: str, token: str, make: Callable[[], Callable[[JobContext], dict[str, Any]]],

@@ -495,6 +495,45 @@ def test_a_store_refusing_every_write_still_ends_the_job(store, monkeypatch, cap
         jobs.shutdown()
 
 
+
+def test_a_job_ending_between_heartbeats_is_not_said_to_have_lost_its_lease(store, monkeypatch, caplog):
+    """Between a job's final write and the end of its run the row is no longer running under its token:
+    a heartbeat in that window renews nothing for it, which is the job's own end, not a takeover (a
+    loaded bench logged "this process lost its lease" for jobs that had just succeeded)."""
+    renewed_after_end: list[list[str]] = []
+    ended = threading.Event()
+    real_update, real_renew = store.update_job, store.renew_leases
+
+    def update_then_linger(job_id, **changes):
+        done = real_update(job_id, **changes)
+        if changes.get("status") == "succeeded":
+            ended.set()
+            time.sleep(2.5)  # the run ends 2.5 s after its final write: heartbeats (each 1 s) fall between
+        return done
+
+    def renew(tokens, lease_expires):
+        if ended.is_set():
+            renewed_after_end.append(list(tokens))
+        return real_renew(tokens, lease_expires)
+
+    monkeypatch.setattr(store, "update_job", update_then_linger)
+    monkeypatch.setattr(store, "renew_leases", renew)
+    jobs = JobManager(store, workers=1, lease_s=3.0)
+    try:
+        with caplog.at_level("WARNING", logger="microbearing.service.jobs"):
+            job = jobs.submit("quick", {}, lambda ctx: {"ok": 1})
+            assert ended.wait(20)
+            deadline = time.monotonic() + 20
+            while jobs.get(job["id"])["status"] == "running" or not renewed_after_end:
+                assert time.monotonic() < deadline
+                time.sleep(0.05)
+            time.sleep(2.6)  # the run's end
+        assert any(len(tokens) == 1 for tokens in renewed_after_end)  # a heartbeat asked for the ended job
+        assert jobs.get(job["id"])["status"] == "succeeded"
+        assert not [r for r in caplog.records if "lost its lease" in r.getMessage()]
+    finally:
+        jobs.shutdown()
+
 def test_an_adaptive_fit_reports_progress_in_proportion_to_its_fitting_work():
     from microbearing.surrogate import SamplingPlan, Space, fit_adaptive
 
