@@ -43,6 +43,17 @@ def _span_text(values: np.ndarray) -> str:
     return f"{float(np.min(values)):.4g} to {float(np.max(values)):.4g}"
 
 
+def _some_rows_slipped(values: np.ndarray, limit: float, factor: float) -> bool:
+    """Whether only some rows slipped: those beyond the limit, converted, fall within the range of the
+    others (a whole column in mN has no rows in N beside it: its rows below the limit, 0.5 mN read as
+    0.5 N, lie far above its converted ones)."""
+    beyond = values > limit
+    if beyond.all() or not beyond.any():
+        return False
+    converted = float(np.median(values[beyond] * factor))
+    return float(np.min(values[~beyond])) <= converted <= float(np.max(values[~beyond]))
+
+
 def physics_slip(name: str, values: np.ndarray, stated: tuple[str, np.ndarray, str, bool] | None = None
                   ) -> str | None:
     """A physics input's values beyond :data:`physics.columns.SLIP_LIMITS`, in words: a speed of 50 m/s
@@ -62,6 +73,11 @@ def physics_slip(name: str, values: np.ndarray, stated: tuple[str, np.ndarray, s
         cause = f"check the values: {name} is not negative"
     elif stated is not None and not stated[3]:
         cause = "its name states the unit, so check the values"
+    elif _some_rows_slipped(values, limit, factor):
+        beyond = values > limit
+        cause = (f"{int(beyond.sum())} of {values.size} values lie beyond it: those look like {slip_unit} "
+                 f"(times {factor:g}: {_span_text(scaled[beyond])} {unit}, within the other values' "
+                 f"{_span_text(values[~beyond])} {unit}); convert those rows only")
     elif float(np.max(scaled)) <= limit:
         cause = f"values look like {slip_unit} (times {factor:g}: {_span_text(scaled)} {unit})"
     else:

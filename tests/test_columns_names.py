@@ -224,3 +224,18 @@ def test_a_condition_s_unit_is_read_as_labs_write_it_in_brackets(sent, known, va
 def test_a_bare_c_or_f_is_no_temperature_unit_beside_another_quantity(sent):
     with pytest.raises(ColumnError):
         read_name(sent)
+
+
+@pytest.mark.parametrize(("values", "words", "not_words"), [
+    # 2 of 6 loads sent in mN beside 4 in N: times 0.001 they fall inside the others' 0.003-0.03 N
+    ([0.003, 0.01, 12.0, 0.02, 0.03, 5.0], ["2 of 6 values lie beyond it", "those look like mN",
+                                            "(times 0.001: 0.005 to 0.012 N, within the other values' "
+                                            "0.003 to 0.03 N)", "convert those rows only"],
+     ["3e-06"]),
+    # the whole column in mN (0.5 mN read as 0.5 N is below the limit): the column's advice stands
+    ([0.5, 3.0, 30.0], ["values look like mN (times 0.001: 0.0005 to 0.03 N)"], ["of 3 values"]),
+])
+def test_a_slip_of_some_rows_names_those_rows_not_the_column(values, words, not_words):
+    # before: "values look like mN (times 0.001: 3e-06 to 0.012 N)", converting the rows in N as well
+    message = read_slip(read_name("load_N"), values)
+    assert all(w in message for w in words) and not any(w in message for w in not_words), message
