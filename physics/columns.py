@@ -114,9 +114,9 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in [
 # Units the words of a condition's name may say, by the condition; the first word found counts.
 _UNIT_WORDS = {
     "relative_humidity": {"pct": "percent", "percent": "percent", "percentage": "percent"},
-    "temperature_K": {"k": "K", "kelvin": "K", "kelvins": "K", "c": "degC", "degc": "degC",
+    "temperature_K": {"k": "K", "degk": "K", "kelvin": "K", "kelvins": "K", "c": "degC", "degc": "degC",
                       "celsius": "degC", "f": "degF", "degf": "degF", "fahrenheit": "degF", "r": "degR",
-                      "rankine": "degR"},
+                      "degr": "degR", "rankine": "degR"},
     "time_h": {"s": "s", "sec": "s", "min": "min", "h": "h", "hr": "h", "hours": "h", "d": "day",
                "days": "day"},
 }
@@ -124,8 +124,8 @@ _UNIT_WORDS = {
 _UNREAD_TEMPERATURES = {"degF", "degR"}
 # Words of a condition's name that state a unit; dropped when brackets give the unit, so that the terms,
 # which read units from names (pct, C, K), do not convert twice.
-_DROPPED_WORDS = {"pct", "percent", "percentage", "c", "k", "degc", "kelvin", "kelvins", "celsius", "f",
-                  "degf", "fahrenheit", "r", "degr", "rankine"}
+_DROPPED_WORDS = {"pct", "percent", "percentage", "c", "k", "degk", "degc", "kelvin", "kelvins", "celsius",
+                  "f", "degf", "fahrenheit", "r", "degr", "rankine"}
 # Unit symbols of the physics names' suffixes (load_N -> N, speed_m_s -> m/s, ...).
 _SUFFIXES = {"N": "N", "m/s": "m_s", "deg": "deg", "m": "m", "J/m^2": "J_m2", "N/m": "N_m", "Pa*s": "Pa_s",
              "1/Pa": "1_Pa", "Pa": "Pa"}
@@ -308,7 +308,7 @@ def _same(unit, target: str) -> bool:
 
 
 def _condition_base(text: str) -> str:
-    words = [w for w in re.split(r"[\s_\-]+", text.strip()) if w]
+    words = [w for w in re.split(r"[^A-Za-z0-9]+", text.strip()) if w]  # temp °F, temperature.F: temp, F
     if words and (glued := glued_unit(words[-1])) is not None:  # tempF: temp, F
         words[-1:] = list(glued)
     while len(words) > 1 and words[-1].lower() in _DROPPED_WORDS:

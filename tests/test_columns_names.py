@@ -224,3 +224,19 @@ def test_a_condition_s_unit_is_read_as_labs_write_it_in_brackets(sent, known, va
 def test_a_bare_c_or_f_is_no_temperature_unit_beside_another_quantity(sent):
     with pytest.raises(ColumnError):
         read_name(sent)
+
+
+@pytest.mark.parametrize(("sent", "value", "kelvin"), [
+    ("temp_degR", 671.67, 373.15), ("temperature_degR", 491.67, 273.15),  # degR = K x 9/5
+    ("temp_degK", 300.0, 300.0), ("T_degK", 300.0, 300.0), ("temperatureDegK", 300.0, 300.0),
+    ("temp_°F", 212.0, 373.15), ("Temp °F", 32.0, 273.15), ("temperature.F", 212.0, 373.15)])
+def test_a_temperature_unit_written_with_deg_or_a_degree_sign_is_read_in_that_unit(sent, value, kelvin):
+    # temp_degR was read as degC (671.67 -> 944.82 K), temp_degK as degC (300 -> 573.15 K); temp_°F was
+    # converted at the upload and then converted again at prediction (212 degF -> 462.68 K)
+    first = read_name(sent)
+    assert temperature_kelvin(first.name, [first.convert(value)])[0] == pytest.approx(kelvin, abs=1e-9)
+    for known in ("T_K", "temperature_K", first.name):
+        reading = match_column(sent, [known])
+        assert reading.convert(value) == pytest.approx(kelvin, abs=1e-9)
+        assert read_slip(reading, [value]) is None
+    assert match_column(sent, ["temp_C"]).convert(value) == pytest.approx(kelvin - 273.15, abs=1e-9)
