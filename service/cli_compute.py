@@ -377,6 +377,8 @@ def optimize(args: argparse.Namespace) -> int:
     finally:
         if store is not None:
             store.close()
+    for warning in document.get("input_warnings", []):  # as evaluate and sweep say them, beside the JSON
+        print(f"warning: {warning}", file=sys.stderr)
     write_text(args.output, to_json(document) + "\n")
     if args.plot:
         write_png(args.plot, pareto_png(document))
