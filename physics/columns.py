@@ -137,6 +137,10 @@ _SI_BY_DIMENSION = {"[length]": ("m", "m"), "[time]": ("s", "s"), "[length] / [t
 _BRACKETS = re.compile(r"^(?P<name>.*?)\s*(\[(?P<square>[^\]]*)\]|\((?P<round>[^)]*)\))\s*$")
 
 
+# A humidity's % written beside its name rather than in brackets (RH%, humidity_%, %RH): RH [%].
+_PERCENT = re.compile(r"^\s*(?:%[\s_]*(?P<after>[^\s_%].*?)|(?P<before>.*?[^\s_%])[\s_]*%)\s*$")
+
+
 def _bracket_unit(match: re.Match) -> str:
     """The unit text in the brackets of a name :data:`_BRACKETS` matched (``mm/s`` of ``speed [mm/s]``)."""
     return match.group("square") if match.group("square") is not None else match.group("round")
@@ -233,6 +237,8 @@ class Reading:
         if base is not None:
             parts = self.sent[len(base) + 1:].split("_")
             return "/".join(parts)
+        if _percent_bracketed(self.sent.strip()) is not None:  # RH%
+            return "%"
         return unit_of(self.sent)
 
 
@@ -297,6 +303,18 @@ def _physics_reading(sent: str, name: str, unit, unit_text: str | None = None) -
     raise ColumnError(sent, f"{name} is in {target}, and {unit_text or format(unit, '~')} is not convertible "
                             f"to it (dimension {source_dim} instead of {target_dim}); accepted names: "
                             f"{accepted_spellings()}")
+
+
+def _percent_bracketed(text: str) -> str | None:
+    """A humidity's name with a bare % (``RH%``, ``humidity_%``, ``%RH``) as the bracketed name it means
+    (``RH [%]``); None for any other name (a % beside another quantity is not read as its unit here)."""
+    match = _PERCENT.match(text)
+    if match is None:
+        return None
+    base = match.group("after") or match.group("before")
+    if _condition_of(_condition_base(base)) is not CONDITIONS["relative_humidity"]:
+        return None
+    return f"{base} [%]"
 
 
 def _same(unit, target: str) -> bool:
@@ -616,6 +634,9 @@ def read_name(sent: str, plain: Sequence[str] = ()) -> Reading:
         return _bracketed(sent, match, plain)
     if text in PARAMETERS or text in plain:
         return Reading(sent, text)
+    percent = _percent_bracketed(text)
+    if percent is not None:  # RH%: the unit of RH [%], never a fraction named RH%
+        return _bracketed(sent, _BRACKETS.match(percent), plain)
     bases = input_bases()
     # name_unit: a physics input's name without its unit, then a unit (speed_mm_s, load_mN)
     for base in sorted(bases, key=len, reverse=True):
