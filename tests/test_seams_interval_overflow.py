@@ -54,3 +54,32 @@ def test_an_interval_overflowing_far_outside_the_data_is_not_finite(kelvin):
 def test_a_model_stored_without_an_interval_still_answers_nan_bounds():
     far = temperature_model(covariance=False).evaluate({**POINT, "temp_K": 1e308}, ["mu", "mu_upper"]).values
     assert math.isnan(float(far["mu_upper"]))
+
+
+def test_the_api_refuses_an_overflowing_interval_naming_the_column_outside_the_data(tmp_path):
+    from fastapi.testclient import TestClient
+
+    from microbearing.service.app import create_app
+    from microbearing.service.settings import Settings
+    from microbearing.service.store import Store
+
+    store = Store(tmp_path)
+    stored = {"report": {}, "model": temperature_model().calibrated.to_json()}
+    model_id = store.save_model("calibration", stored, {}, name="overflow")
+    store.close()
+    model = f"calibrated:{model_id}"
+    with TestClient(create_app(Settings(data_dir=tmp_path))) as client:
+        inside = client.post("/v1/friction", json={**POINT, "model": model, "conditions": {"temp_K": 300.0}})
+        assert inside.status_code == 200, inside.text
+        for key, value in (("temp_K", 1e308), ("temp_K", 1e6), ("temperature [K]", 1e6)):
+            far = client.post("/v1/friction", json={**POINT, "model": model, "conditions": {key: value}})
+            # 422, never 200 with mu 0 and null bounds; at the condition as sent, not at "/"
+            assert far.status_code == 422 and far.headers["content-type"] == "application/problem+json"
+            assert [e["pointer"] for e in far.json()["errors"]] == [f"/conditions/{key}"], far.text
+            assert "mu_upper is not finite" in far.text
+        batch = client.post("/v1/friction/batch", json={
+            "points": {k: [v, v] for k, v in POINT.items()}, "model": model,
+            "conditions": {"temp_K": [300.0, 1e308]}})
+        assert batch.status_code == 422, batch.text
+        assert [e["pointer"] for e in batch.json()["errors"]] == ["/conditions/temp_K"], batch.text
+        assert "at point 1" in batch.text
