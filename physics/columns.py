@@ -529,43 +529,43 @@ def _condition_unit_text(name_text: str, unit_text: str) -> str:
     return spellings.get(re.sub(r"\s+", "", unit_text).lower(), unit_text)
 
 
-def _temperature_words(sent: str, name_text: str, unit_text: str | None = None) -> list[str]:
-    """The temperature units the words of a temperature's name state (``temp_F_avg``: degF); a name stating
-    two (``temp_K_C``), or one its brackets contradict (``temp_F [degC]``), is refused, never read in one."""
-    if _condition_of(name_text) is not CONDITIONS["temperature_K"]:
-        return []
-    said = list(dict.fromkeys(_UNIT_WORDS["temperature_K"][w] for w in name_words(name_text)
-                              if w in _UNIT_WORDS["temperature_K"]))
+def _stated_units(sent: str, name_text: str, unit_text: str | None = None) -> list[str]:
+    """The units the words of a named condition's name state (``temp_F_avg``: degF, ``time_min``: min); a
+    name stating two (``temp_K_C``, ``time_h_min``), or one its brackets contradict (``temp_F [degC]``,
+    ``RH_pct [1]``, ``time_h [min]``), is refused, never read in one of them."""
+    condition = _condition_of(name_text)
+    words = _UNIT_WORDS.get(condition.name, {}) if condition is not None else {}
+    said = list(dict.fromkeys(words[w] for w in name_words(name_text) if w in words))
     if unit_text is not None and said:
         try:
             stated = _unit(unit_text)
             other = [u for u in said if [_registry().Quantity(v, stated).to(u).magnitude for v in (0.0, 1.0)]
                      != [0.0, 1.0]]
-        except Exception:  # pint's errors: not a temperature's unit, said by the caller
+        except Exception:  # pint's errors: not this quantity's unit, said by the caller
             return said
         if other:
             raise ColumnError(sent, f"{sent!r} states two units ({other[0]} in its name, {unit_text} in "
-                                    f"its brackets); keep one, e.g. '{_without_unit_words(name_text)} "
+                                    f"its brackets); keep one, e.g. '{_without_unit_words(name_text, words)} "
                                     f"[{unit_text}]'")
     elif len(said) > 1:
         raise ColumnError(sent, f"{sent!r} states two units ({' and '.join(said)}); keep one, e.g. "
-                                f"'{_without_unit_words(name_text)}_{said[0]}'")
+                                f"'{_without_unit_words(name_text, words)} [{said[0]}]'")
     return said
 
 
-def _without_unit_words(text: str) -> str:
-    """A temperature's name without the words that state its unit, wherever they stand (``temp_F_avg``:
-    ``temp_avg``), so that the name it is read under states kelvin alone."""
+def _without_unit_words(text: str, units: Mapping[str, str] = _UNIT_WORDS["temperature_K"]) -> str:
+    """A condition's name without the words that state its unit (a temperature's by default), wherever they
+    stand (``temp_F_avg``: ``temp_avg``), so that the name it is read under states kelvin alone."""
     words = [w for w in re.split(r"[^A-Za-z0-9]+", text.strip()) if w]
     words = [glued[0] if (glued := glued_unit(w)) else w for w in words]  # tempF_avg: temp, avg
-    kept = [w for w in words if w.lower() not in _UNIT_WORDS["temperature_K"]]
+    kept = [w for w in words if w.lower() not in units]
     return "_".join(kept or words[:1])
 
 
 def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
     name_text = match.group("name")
     unit_text = _condition_unit_text(name_text, _bracket_unit(match))
-    _temperature_words(sent, name_text, unit_text)
+    _stated_units(sent, name_text, unit_text)
     inner = _BRACKETS.match(name_text.strip())
     first = _bracket_unit(inner) if inner and inner.group("name") else None
     if first is not None and _is_unit(first):  # temp (degF) [degC]: which? never converted twice
@@ -682,7 +682,7 @@ def read_name(sent: str, plain: Sequence[str] = ()) -> Reading:
                     return _physics_reading(sent, bases[base], _unit(unit_text))
                 except Exception:  # no unit, or not this input's kind: try the next reading
                     continue
-    said = unit_of(text) if _temperature_words(sent, text) else None
+    said = unit_of(text) if _stated_units(sent, text) else None
     if said in _UNREAD_TEMPERATURES:  # the terms would read it as degC: convert it to kelvin
         return _converter(sent, f"{_without_unit_words(text)}_K", _unit(said), "K")
     return Reading(sent, text)
@@ -728,7 +728,7 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
     except ColumnError:
         if bracketed and bracketed.group("name"):  # brackets stating a unit it cannot be read in
             raise
-        _temperature_words(sent, sent.strip())  # temp_K_C: two units, refused here as at the upload
+        _stated_units(sent, sent.strip())  # temp_K_C: two units, refused here as at the upload
         first = Reading(sent, sent)
     if first.name in known:
         return first

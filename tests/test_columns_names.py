@@ -260,9 +260,10 @@ def test_a_fahrenheit_word_anywhere_in_a_temperature_s_name_is_converted_once(se
 
 
 @pytest.mark.parametrize("sent", ["temp_K_C", "temp_F_C", "temp_F [K]", "temp_C [degF]", "temp_K [degC]",
-                                  "T_F [degC]"])
-def test_a_temperature_s_name_stating_two_units_is_refused_at_every_door(sent):
-    # temp_K_C was read as degC (300 -> 573.15 K), temp_F [K] as kelvin though its name says F
+                                  "T_F [degC]", "RH_pct [1]", "time_h [min]", "time_min_h", "time_h_min"])
+def test_a_condition_s_name_stating_two_units_is_refused_at_every_door(sent):
+    # temp_K_C was read as degC (300 -> 573.15 K), temp_F [K] as kelvin though its name says F, RH_pct [1]
+    # as a fraction, time_h [min] in minutes and time_min_h in hours (its last word)
     with pytest.raises(ColumnError, match="states two units"):
         read_name(sent)
     with pytest.raises(ColumnError, match="states two units"):
@@ -275,6 +276,8 @@ def test_a_temperature_s_name_stating_two_units_is_refused_at_every_door(sent):
     assert dataset_error is not None and "states two units" in dataset_error
 
 
-@pytest.mark.parametrize("sent", ["temp_C [degC]", "temp_K [K]", "temperature_F [degF]", "T_K [kelvin]"])
-def test_a_temperature_s_name_and_brackets_agreeing_are_one_unit(sent):
-    assert read_name(sent).name.endswith("_K")
+@pytest.mark.parametrize(("sent", "value", "si"), [
+    ("temp_C [degC]", 25.0, 298.15), ("temp_K [K]", 300.0, 300.0), ("temperature_F [degF]", 32.0, 273.15),
+    ("T_K [kelvin]", 300.0, 300.0), ("rh_pct [%]", 45.0, 0.45), ("time_h [h]", 1.5, 5400.0)])
+def test_a_condition_s_name_and_brackets_agreeing_are_one_unit(sent, value, si):
+    assert read_name(sent).convert(value) == pytest.approx(si, rel=1e-12)
