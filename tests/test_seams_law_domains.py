@@ -213,3 +213,17 @@ def test_a_law_domain_refusal_gives_the_value_as_sent_when_read_in_another_unit(
     detail = assert_refused(client.post("/v1/friction", json={
         **point, "conditions": {"relative_humidity": 1.0}}), "/conditions/relative_humidity")
     assert "sent as" not in detail, detail
+
+
+@pytest.mark.parametrize(("key", "value"), [("relative_humidity", 1.0), ("relative humidity [%]", 100)])
+def test_a_surrogate_outside_the_law_s_domain_is_refused_at_its_condition(client, model, key, value):
+    # it was refused at /conditions alone, in the law's words about relative_humidity, whatever the key
+    body = {"model": model, "space": {"load_N": [0.005, 0.02], "speed_m_s": [0.01, 0.1]},
+            "fixed": {"balls": 4}, "budget": 12, "conditions": {key: value}}
+    detail = assert_refused(client.post("/v1/surrogates", json=body), f"/conditions/{key}")
+    assert "[0, 1)" in detail and "humidity_meniscus" in detail, detail
+    if key != "relative_humidity":
+        assert f"sent as {key}: 100" in detail, detail
+    inside = client.post("/v1/surrogates", json={**body, "conditions": {key: value / 2}})
+    assert inside.status_code == 202, inside.text
+    client.delete(inside.headers["location"])
