@@ -227,3 +227,16 @@ def test_a_surrogate_outside_the_law_s_domain_is_refused_at_its_condition(client
     inside = client.post("/v1/surrogates", json={**body, "conditions": {key: value / 2}})
     assert inside.status_code == 202, inside.text
     client.delete(inside.headers["location"])
+
+
+@pytest.mark.parametrize("key", ["temp_K_C", "RH_pct [1]"])
+def test_the_cli_refuses_a_condition_stating_two_units_as_the_api_does(client, model, data_dir, capsys, key):
+    # the API's schema refuses the key in words; the CLI called it an unknown condition column
+    point = {"balls": 8, "load_N": 0.01, "speed_m_s": 0.05}
+    answer = client.post("/v1/friction", json={**point, "model": model, "conditions": {key: 0.5}})
+    detail = assert_refused(answer, f"/conditions/{key}")
+    assert "states two units" in detail, detail
+    items = [f"{k}={v}" for k, v in point.items()] + [f"{key}=0.5"]
+    assert main(["evaluate", "--model", model, *items, "--data-dir", str(data_dir)]) == 2
+    err = capsys.readouterr().err
+    assert f"/conditions/{key}: {detail}" in err, err
