@@ -125,9 +125,13 @@ class CalibratedPhysicsModel(Model):
         no_interval = np.full(mu.shape, np.nan)
         if "friction_force_N" in base:  # the force at the model's mu, as the physics' is at its own
             base = {**base, "friction_force_N": base["friction_force_N"] * (mu / base["mu"])}
+        upper = prediction.mu_upper
+        if upper is not None:  # an interval computed: a NaN in it is its overflow far outside the data
+            # (mu 0 x inf), not a model stored without one (NaN, answered null): inf, refused as not finite
+            upper = np.where(np.isnan(upper), np.inf, upper)
         values = {**base, "mu": mu, "mu_effect": mu - base["mu"],
                   "mu_lower": no_interval if prediction.mu_lower is None else prediction.mu_lower,
-                  "mu_upper": no_interval if prediction.mu_upper is None else prediction.mu_upper}
+                  "mu_upper": no_interval if upper is None else upper}
         shape = np.broadcast_shapes(*(np.shape(v) for v in values.values()))
         inside = np.ones(shape, dtype=bool) if prediction.in_domain is None else prediction.in_domain
         return Evaluation({name: values[name] for name in outputs},

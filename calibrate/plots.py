@@ -188,6 +188,16 @@ def _errors_text(errors: Mapping[str, Any]) -> str:
     return text
 
 
+def _named(dataset: Dataset, term) -> str:
+    """A term's label with its driver named by the column's header as sent, as its axis is
+    ("temp [degF]", not temp_K)."""
+    driver = term.drivers[0]
+    reading = _Column.of(dataset, driver).reading
+    if reading is None:
+        return term.label
+    return re.sub(rf"(?<![\w]){re.escape(driver)}(?![\w])", reading.sent.strip(), term.label)
+
+
 def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: np.ndarray, errors):
     plt = _pyplot()
     term, _ = model.terms[k]
@@ -231,11 +241,9 @@ def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: n
     _whole_ticks([ax], [drawn])
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    # the term named by the column's header as sent, as its axis is ("temp [degF]", not temp_K)
-    named = (term.label if drawn.reading is None
-             else re.sub(rf"(?<![\w]){re.escape(driver)}(?![\w])", drawn.reading.sent.strip(), term.label))
-    ax.set_title(f"Term {k + 1}: {named}\n" + "\n".join(textwrap.wrap(_errors_text(errors), 80)),
-                 fontsize=9)
+    # the term named by the column's header as sent, as its axis is
+    wrapped = "\n".join(textwrap.wrap(_errors_text(errors), 80))
+    ax.set_title(f"Term {k + 1}: {_named(dataset, term)}\n{wrapped}", fontsize=9)
     return fig
 
 
@@ -346,8 +354,9 @@ def calibration_figures(
         f"effect_{k + 1}": _effect_figure(dataset, model, k, outliers, errors)
         for k in range(len(model.terms))
     }
+    named = {term.label: _named(dataset, term) for term, _ in model.terms}  # as the effects' titles
     title = (
-        ("Residuals after " + " + ".join(labels))
+        ("Residuals after " + " + ".join(named.get(label, label) for label in labels))
         if labels
         else "Residuals: nothing added to the declared model"
     )

@@ -114,9 +114,9 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in [
 # Units the words of a condition's name may say, by the condition; the first word found counts.
 _UNIT_WORDS = {
     "relative_humidity": {"pct": "percent", "percent": "percent", "percentage": "percent"},
-    "temperature_K": {"k": "K", "kelvin": "K", "kelvins": "K", "c": "degC", "degc": "degC",
+    "temperature_K": {"k": "K", "degk": "K", "kelvin": "K", "kelvins": "K", "c": "degC", "degc": "degC",
                       "celsius": "degC", "f": "degF", "degf": "degF", "fahrenheit": "degF", "r": "degR",
-                      "rankine": "degR"},
+                      "degr": "degR", "rankine": "degR"},
     "time_h": {"s": "s", "sec": "s", "min": "min", "h": "h", "hr": "h", "hours": "h", "d": "day",
                "days": "day"},
 }
@@ -124,8 +124,8 @@ _UNIT_WORDS = {
 _UNREAD_TEMPERATURES = {"degF", "degR"}
 # Words of a condition's name that state a unit; dropped when brackets give the unit, so that the terms,
 # which read units from names (pct, C, K), do not convert twice.
-_DROPPED_WORDS = {"pct", "percent", "percentage", "c", "k", "degc", "kelvin", "kelvins", "celsius", "f",
-                  "degf", "fahrenheit", "r", "degr", "rankine"}
+_DROPPED_WORDS = {"pct", "percent", "percentage", "c", "k", "degk", "degc", "kelvin", "kelvins", "celsius",
+                  "f", "degf", "fahrenheit", "r", "degr", "rankine"}
 # Unit symbols of the physics names' suffixes (load_N -> N, speed_m_s -> m/s, ...).
 _SUFFIXES = {"N": "N", "m/s": "m_s", "deg": "deg", "m": "m", "J/m^2": "J_m2", "N/m": "N_m", "Pa*s": "Pa_s",
              "1/Pa": "1_Pa", "Pa": "Pa"}
@@ -135,6 +135,10 @@ _SI_BY_DIMENSION = {"[length]": ("m", "m"), "[time]": ("s", "s"), "[length] / [t
                     "[mass] / [length] / [time] ** 2": ("Pa", "Pa"), "[temperature]": ("K", "K"),
                     "1 / [time]": ("1/s", "1_s")}
 _BRACKETS = re.compile(r"^(?P<name>.*?)\s*(\[(?P<square>[^\]]*)\]|\((?P<round>[^)]*)\))\s*$")
+
+
+# A humidity's % written beside its name rather than in brackets (RH%, humidity_%, %RH): RH [%].
+_PERCENT = re.compile(r"^\s*(?:%[\s_]*(?P<after>[^\s_%].*?)|(?P<before>.*?[^\s_%])[\s_]*%)\s*$")
 
 
 def _bracket_unit(match: re.Match) -> str:
@@ -233,6 +237,8 @@ class Reading:
         if base is not None:
             parts = self.sent[len(base) + 1:].split("_")
             return "/".join(parts)
+        if _percent_bracketed(self.sent.strip()) is not None:  # RH%
+            return "%"
         return unit_of(self.sent)
 
 
@@ -299,6 +305,18 @@ def _physics_reading(sent: str, name: str, unit, unit_text: str | None = None) -
                             f"{accepted_spellings()}")
 
 
+def _percent_bracketed(text: str) -> str | None:
+    """A humidity's name with a bare % (``RH%``, ``humidity_%``, ``%RH``) as the bracketed name it means
+    (``RH [%]``); None for any other name (a % beside another quantity is not read as its unit here)."""
+    match = _PERCENT.match(text)
+    if match is None:
+        return None
+    base = match.group("after") or match.group("before")
+    if _condition_of(_condition_base(base)) is not CONDITIONS["relative_humidity"]:
+        return None
+    return f"{base} [%]"
+
+
 def _same(unit, target: str) -> bool:
     """Whether ``unit`` is the unit ``target`` (not merely convertible to it)."""
     try:
@@ -308,7 +326,7 @@ def _same(unit, target: str) -> bool:
 
 
 def _condition_base(text: str) -> str:
-    words = [w for w in re.split(r"[\s_\-]+", text.strip()) if w]
+    words = [w for w in re.split(r"[^A-Za-z0-9]+", text.strip()) if w]  # temp °F, temperature.F: temp, F
     if words and (glued := glued_unit(words[-1])) is not None:  # tempF: temp, F
         words[-1:] = list(glued)
     while len(words) > 1 and words[-1].lower() in _DROPPED_WORDS:
@@ -511,9 +529,43 @@ def _condition_unit_text(name_text: str, unit_text: str) -> str:
     return spellings.get(re.sub(r"\s+", "", unit_text).lower(), unit_text)
 
 
+def _stated_units(sent: str, name_text: str, unit_text: str | None = None) -> list[str]:
+    """The units the words of a named condition's name state (``temp_F_avg``: degF, ``time_min``: min); a
+    name stating two (``temp_K_C``, ``time_h_min``), or one its brackets contradict (``temp_F [degC]``,
+    ``RH_pct [1]``, ``time_h [min]``), is refused, never read in one of them."""
+    condition = _condition_of(name_text)
+    words = _UNIT_WORDS.get(condition.name, {}) if condition is not None else {}
+    said = list(dict.fromkeys(words[w] for w in name_words(name_text) if w in words))
+    if unit_text is not None and said:
+        try:
+            stated = _unit(unit_text)
+            other = [u for u in said if [_registry().Quantity(v, stated).to(u).magnitude for v in (0.0, 1.0)]
+                     != [0.0, 1.0]]
+        except Exception:  # pint's errors: not this quantity's unit, said by the caller
+            return said
+        if other:
+            raise ColumnError(sent, f"{sent!r} states two units ({other[0]} in its name, {unit_text} in "
+                                    f"its brackets); keep one, e.g. '{_without_unit_words(name_text, words)} "
+                                    f"[{unit_text}]'")
+    elif len(said) > 1:
+        raise ColumnError(sent, f"{sent!r} states two units ({' and '.join(said)}); keep one, e.g. "
+                                f"'{_without_unit_words(name_text, words)} [{said[0]}]'")
+    return said
+
+
+def _without_unit_words(text: str, units: Mapping[str, str] = _UNIT_WORDS["temperature_K"]) -> str:
+    """A condition's name without the words that state its unit (a temperature's by default), wherever they
+    stand (``temp_F_avg``: ``temp_avg``), so that the name it is read under states kelvin alone."""
+    words = [w for w in re.split(r"[^A-Za-z0-9]+", text.strip()) if w]
+    words = [glued[0] if (glued := glued_unit(w)) else w for w in words]  # tempF_avg: temp, avg
+    kept = [w for w in words if w.lower() not in units]
+    return "_".join(kept or words[:1])
+
+
 def _bracketed(sent: str, match: re.Match, plain: Sequence[str]) -> Reading:
     name_text = match.group("name")
     unit_text = _condition_unit_text(name_text, _bracket_unit(match))
+    _stated_units(sent, name_text, unit_text)
     inner = _BRACKETS.match(name_text.strip())
     first = _bracket_unit(inner) if inner and inner.group("name") else None
     if first is not None and _is_unit(first):  # temp (degF) [degC]: which? never converted twice
@@ -616,6 +668,9 @@ def read_name(sent: str, plain: Sequence[str] = ()) -> Reading:
         return _bracketed(sent, match, plain)
     if text in PARAMETERS or text in plain:
         return Reading(sent, text)
+    percent = _percent_bracketed(text)
+    if percent is not None:  # RH%: the unit of RH [%], never a fraction named RH%
+        return _bracketed(sent, _BRACKETS.match(percent), plain)
     bases = input_bases()
     # name_unit: a physics input's name without its unit, then a unit (speed_mm_s, load_mN)
     for base in sorted(bases, key=len, reverse=True):
@@ -627,9 +682,9 @@ def read_name(sent: str, plain: Sequence[str] = ()) -> Reading:
                     return _physics_reading(sent, bases[base], _unit(unit_text))
                 except Exception:  # no unit, or not this input's kind: try the next reading
                     continue
-    said = unit_of(text)
+    said = unit_of(text) if _stated_units(sent, text) else None
     if said in _UNREAD_TEMPERATURES:  # the terms would read it as degC: convert it to kelvin
-        return _converter(sent, f"{_condition_base(text)}_K", _unit(said), "K")
+        return _converter(sent, f"{_without_unit_words(text)}_K", _unit(said), "K")
     return Reading(sent, text)
 
 
@@ -673,6 +728,7 @@ def match_column(sent: str, known: Iterable[str]) -> Reading:
     except ColumnError:
         if bracketed and bracketed.group("name"):  # brackets stating a unit it cannot be read in
             raise
+        _stated_units(sent, sent.strip())  # temp_K_C: two units, refused here as at the upload
         first = Reading(sent, sent)
     if first.name in known:
         return first

@@ -130,7 +130,7 @@ HUMIDITY = DriverKind("relative humidity", ("humid", "rh"), (
 #: Temperature: degC, or kelvin when the name says ``k`` or ``kelvin`` (and not ``c``/``degc``); a degC
 #: column above 200 looks like kelvin, a kelvin one below 150 like degC.
 TEMPERATURE = DriverKind("temperature", ("temp",), (
-    DriverUnit("K", ("k", "kelvin", "kelvins"), ("c", "degc"), (150.0, math.inf)),
+    DriverUnit("K", ("k", "degk", "kelvin", "kelvins"), ("c", "degc"), (150.0, math.inf)),
     DriverUnit("degC", (), (), (-273.15, 200.0))))
 #: The kinds of driver column the effects and laws declare, with their units and plausible ranges.
 DRIVER_KINDS: tuple[DriverKind, ...] = (HUMIDITY, TEMPERATURE)
@@ -140,8 +140,8 @@ DRIVER_KINDS: tuple[DriverKind, ...] = (HUMIDITY, TEMPERATURE)
 # is read as the two words it joins, so that tempF is in degF as temp_F is (never degC by default). A bare
 # r (tempr, a temperature's abbreviation) is no unit here.
 _GLUED_UNITS = {
-    ("temperature", "temp"): ("f", "degf", "fahrenheit", "c", "degc", "celsius", "k", "kelvin", "kelvins",
-                              "degr", "rankine"),
+    ("temperature", "temp"): ("f", "degf", "fahrenheit", "c", "degc", "celsius", "k", "degk", "kelvin",
+                              "kelvins", "degr", "rankine"),
     ("humidity", "humid", "rh"): ("pct", "percent", "percentage"),
 }
 

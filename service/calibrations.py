@@ -634,16 +634,38 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
     bad = next((name for name, value in values.items() if not math.isfinite(value)
                 and not (math.isnan(value) and name in ("mu_lower", "mu_upper"))), None)
     if bad is not None:
-        raise validation_problem([{"pointer": "/", "detail": f"the model output {bad} is not finite: the "
-                                   f"inputs are {NOT_FINITE}"}])
+        raise _not_finite(mu_model, {**given, **conditions}, conditions,
+                          f"the model output {bad} is not finite: the inputs are {NOT_FINITE}")
     fields = _model_fields(mu_model, values, evaluation.outside_domain, evaluation.warnings)
     return {**values, "convention": mu_model.convention, **fields,
             "in_domain": None if fields["in_domain"] is None else bool(fields["in_domain"])}
 
 
-def _refuse_non_finite(columns: Mapping[str, Any]) -> None:
-    """422 at ``/points`` naming the first output and point that is not finite (NaN interval bounds,
-    a model stored before intervals, excepted): the interval overflows far outside the data."""
+def _not_finite(mu_model: Model, columns: Mapping[str, Any], conditions: ReadConditions, detail: str,
+                inputs_at: str = "", index: int | None = None) -> ProblemError:
+    """422 for an output that is not finite, at the columns whose values (at point ``index`` of columns)
+    lie outside the calibration data, where the interval overflows (a condition by its key as sent); at
+    ``inputs_at`` (or ``/``) when none does."""
+    pointers = []
+    for name, ends in (getattr(mu_model, "domain", None) or {}).items():
+        try:
+            values = np.asarray(columns[name], dtype=float)
+            low, high = float(ends[0]), float(ends[1])
+        except (KeyError, TypeError, ValueError, IndexError):  # not given, a factor's labels, no range
+            continue
+        if index is not None and values.ndim:
+            values = values[index]
+        if np.any((values < low) | (values > high)):
+            pointers.append(pointer_at("/conditions", conditions.key(name)) if name in conditions
+                            else pointer_at(inputs_at, name))
+    return validation_problem([{"pointer": pointer, "detail": detail}
+                               for pointer in pointers or [inputs_at or "/"]])
+
+
+def _refuse_non_finite(mu_model: Model, points: Mapping[str, Any], conditions: ReadConditions,
+                       columns: Mapping[str, Any]) -> None:
+    """422 naming the first output and point that is not finite (NaN interval bounds, a model stored
+    before intervals, excepted): the interval overflows far outside the data, at the columns outside it."""
     for name, column in columns.items():
         values = np.asarray(column, dtype=float)
         bad = ~np.isfinite(values)
@@ -651,8 +673,8 @@ def _refuse_non_finite(columns: Mapping[str, Any]) -> None:
             bad &= ~np.isnan(values)
         if bad.any():
             index = int(np.flatnonzero(bad)[0])
-            raise validation_problem([{"pointer": "/points", "detail": f"the model output {name} is not "
-                                       f"finite at point {index}: the inputs are {NOT_FINITE}"}])
+            raise _not_finite(mu_model, points, conditions, f"the model output {name} is not finite at point "
+                              f"{index}: the inputs are {NOT_FINITE}", "/points", index)
 
 
 def evaluate_batch_with_model(store: Store, executor: Executor | None, model: str, points: Mapping[str, Any],
@@ -725,7 +747,7 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
         raise _input_problem(exc, "/points", conditions) from None
     except ProblemError as exc:
         raise _as_sent(exc, conditions) from None
-    _refuse_non_finite(values)
+    _refuse_non_finite(mu_model, everything, conditions, values)
     with np.errstate(all="ignore"):
         inside, warnings = mu_model.calibrated.domain_check(everything)
     outside = None if inside is None else ~np.broadcast_to(inside, (count,))

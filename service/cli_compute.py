@@ -266,6 +266,20 @@ def _refuse_clash(columns: dict[str, Any], given: dict[str, Any]) -> None:
         raise CommandError(f"{', '.join(clash)} given both as a column and NAME=VALUE", EXIT_INVALID)
 
 
+def _refuse_unreadable(name: str) -> None:
+    """A condition's NAME no door reads (``temp_K_C`` states two units, ``RH [furlong]``), refused in the
+    words and at the field the API's schema refuses it in."""
+    from microbearing.physics.columns import ColumnError, read_name
+
+    from .problems import pointer_at, validation_problem
+
+    try:
+        read_name(name)
+    except ColumnError as exc:
+        raise validation_problem([{"pointer": pointer_at("/conditions", name), "detail": f"{name}: {exc}"}]
+                                 ) from None
+
+
 def _inputs_and_conditions(items: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
     """``NAME=VALUE`` items split into physics inputs (parsed, converted) and conditions (a number or a
     label each, under the name as sent: the calibrated model reads its unit)."""
@@ -278,6 +292,7 @@ def _inputs_and_conditions(items: list[str]) -> tuple[dict[str, Any], dict[str, 
         if read is not None and read.name in physics.PARAMETERS:
             inputs.append(item)
         elif sep and name.strip():
+            _refuse_unreadable(name.strip())
             conditions[name.strip()] = _condition(text.strip())
         else:
             raise CommandError(f"{item!r}: expected NAME=VALUE", EXIT_INVALID)
@@ -377,6 +392,8 @@ def optimize(args: argparse.Namespace) -> int:
     finally:
         if store is not None:
             store.close()
+    for warning in document.get("input_warnings", []):  # as evaluate and sweep say them, beside the JSON
+        print(f"warning: {warning}", file=sys.stderr)
     write_text(args.output, to_json(document) + "\n")
     if args.plot:
         write_png(args.plot, pareto_png(document))

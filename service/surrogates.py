@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics, surrogate
+from microbearing.calibrate.domain import outside_law_domains
 from microbearing.optimize import physics_model
 from microbearing.physics.slips import input_slips
 from microbearing.surrogate import GaussianProcessSurrogate, Space
@@ -27,7 +28,7 @@ from microbearing.surrogate.metrics import quality_warnings
 from microbearing.surrogate.persist import version_warning
 
 from .calibrations import read_conditions, with_conditions
-from .models import resolve
+from .models import CalibratedPhysicsModel, resolve
 from .problems import ProblemError, pointer_at, validation_problem
 from .schemas.surrogates import SurrogateRequest
 from .store import Store, StoredModel, utc_now
@@ -99,6 +100,13 @@ def _learned_model(store: Store, body: SurrogateRequest) -> tuple[MuModel | None
         raise validation_problem([{"pointer": "/convention", "detail": f"the model {body.model} was "
                                    f"calibrated with convention {calibrated.convention!r}; omit convention"}])
     mu_model = with_conditions(calibrated, body.conditions)
+    if isinstance(calibrated, CalibratedPhysicsModel):  # a law's domain, at the condition as sent
+        sent = read_conditions(calibrated, body.conditions)
+        outside = outside_law_domains(calibrated.calibrated.terms, dict(sent))
+        if outside:
+            raise validation_problem([{"pointer": pointer_at("/conditions", sent.key(name)),
+                                       "detail": sent.as_sent(name, detail)}
+                                      for name, detail in outside.items()])
     return mu_model, calibrated.convention, dict(calibrated.fixed)
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pytest
 
+from microbearing.calibrate.tabular import read_csv
 from microbearing.physics.columns import ColumnError, match_column, read_name
 from microbearing.physics.drivers import HUMIDITY, TEMPERATURE, temperature_kelvin
 from microbearing.physics.slips import read_slip
@@ -239,3 +240,59 @@ def test_a_slip_of_some_rows_names_those_rows_not_the_column(values, words, not_
     # before: "values look like mN (times 0.001: 3e-06 to 0.012 N)", converting the rows in N as well
     message = read_slip(read_name("load_N"), values)
     assert all(w in message for w in words) and not any(w in message for w in not_words), message
+
+
+@pytest.mark.parametrize(("sent", "value", "kelvin"), [
+    ("temp_degR", 671.67, 373.15), ("temperature_degR", 491.67, 273.15),  # degR = K x 9/5
+    ("temp_degK", 300.0, 300.0), ("T_degK", 300.0, 300.0), ("temperatureDegK", 300.0, 300.0),
+    ("temp_°F", 212.0, 373.15), ("Temp °F", 32.0, 273.15), ("temperature.F", 212.0, 373.15)])
+def test_a_temperature_unit_written_with_deg_or_a_degree_sign_is_read_in_that_unit(sent, value, kelvin):
+    # temp_degR was read as degC (671.67 -> 944.82 K), temp_degK as degC (300 -> 573.15 K); temp_°F was
+    # converted at the upload and then converted again at prediction (212 degF -> 462.68 K)
+    first = read_name(sent)
+    assert temperature_kelvin(first.name, [first.convert(value)])[0] == pytest.approx(kelvin, abs=1e-9)
+    for known in ("T_K", "temperature_K", first.name):
+        reading = match_column(sent, [known])
+        assert reading.convert(value) == pytest.approx(kelvin, abs=1e-9)
+        assert read_slip(reading, [value]) is None
+    assert match_column(sent, ["temp_C"]).convert(value) == pytest.approx(kelvin - 273.15, abs=1e-9)
+
+
+@pytest.mark.parametrize(("sent", "value", "kelvin", "name"), [
+    ("temp_F_avg", 212.0, 373.15, "temp_avg_K"),
+    ("temperature_F_setpoint", 32.0, 273.15, "temperature_setpoint_K"),
+    ("chamber_temp_F_2", 212.0, 373.15, "chamber_temp_2_K"), ("F_temp", 212.0, 373.15, "temp_K"),
+    ("tempF_avg", 212.0, 373.15, "temp_avg_K"), ("Temp F avg", 212.0, 373.15, "Temp_avg_K")])
+def test_a_fahrenheit_word_anywhere_in_a_temperature_s_name_is_converted_once(sent, value, kelvin, name):
+    # the upload named temp_F_avg temp_F_avg_K, whose words say F and K: another model's temperature_K was
+    # then given 212 degF as 462.68 K (converted to kelvin, then read as degF again)
+    first = read_name(sent)
+    assert first.name == name and first.convert(value) == pytest.approx(kelvin, abs=1e-9)
+    assert temperature_kelvin(first.name, [first.convert(value)])[0] == pytest.approx(kelvin, abs=1e-9)
+    for known in (["temperature_K"], ["T_K"], [name]):
+        assert match_column(sent, known).convert(value) == pytest.approx(kelvin, abs=1e-9), known
+    assert match_column(sent, ["temp_C"]).convert(value) == pytest.approx(kelvin - 273.15, abs=1e-9)
+
+
+@pytest.mark.parametrize("sent", ["temp_K_C", "temp_F_C", "temp_F [K]", "temp_C [degF]", "temp_K [degC]",
+                                  "T_F [degC]", "RH_pct [1]", "time_h [min]", "time_min_h", "time_h_min"])
+def test_a_condition_s_name_stating_two_units_is_refused_at_every_door(sent):
+    # temp_K_C was read as degC (300 -> 573.15 K), temp_F [K] as kelvin though its name says F, RH_pct [1]
+    # as a fraction, time_h [min] in minutes and time_min_h in hours (its last word)
+    with pytest.raises(ColumnError, match="states two units"):
+        read_name(sent)
+    with pytest.raises(ColumnError, match="states two units"):
+        match_column(sent, ["temperature_K"])
+    dataset_error = None
+    try:
+        read_csv(f"balls,load_N,speed_m_s,{sent},mu_measured\n4,0.01,0.05,300,0.01\n")
+    except Exception as exc:  # the upload's own error type
+        dataset_error = str(exc)
+    assert dataset_error is not None and "states two units" in dataset_error
+
+
+@pytest.mark.parametrize(("sent", "value", "si"), [
+    ("temp_C [degC]", 25.0, 298.15), ("temp_K [K]", 300.0, 300.0), ("temperature_F [degF]", 32.0, 273.15),
+    ("T_K [kelvin]", 300.0, 300.0), ("rh_pct [%]", 45.0, 0.45), ("time_h [h]", 1.5, 5400.0)])
+def test_a_condition_s_name_and_brackets_agreeing_are_one_unit(sent, value, si):
+    assert read_name(sent).convert(value) == pytest.approx(si, rel=1e-12)

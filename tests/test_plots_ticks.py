@@ -156,6 +156,9 @@ def test_the_plots_speak_the_upload_s_units_and_count_balls_in_whole_numbers():
                                / term.constants["scale"], rtol=1e-9, atol=1e-12)
     drawn = effect.collections[0].get_offsets()[:, 0]
     np.testing.assert_allclose(np.sort(drawn), np.sort(percent), rtol=1e-12)
+    # and the residuals' title as the effect's (it said relative_humidity, the column's SI name)
+    assert figures["residuals"].get_suptitle().startswith(
+        "Residuals after generic_linear on relative humidity [%]\n"), figures["residuals"].get_suptitle()
     panels = {ax.get_xlabel(): ax for ax in figures["residuals"].axes if ax.get_visible()}
     assert set(panels) == {"balls [1]", "load [mN]", "speed_mm_s [mm/s]", "relative humidity [%]"}, panels
     speeds = panels["speed_mm_s [mm/s]"].collections[0].get_offsets()[:, 0]

@@ -213,3 +213,30 @@ def test_a_law_domain_refusal_gives_the_value_as_sent_when_read_in_another_unit(
     detail = assert_refused(client.post("/v1/friction", json={
         **point, "conditions": {"relative_humidity": 1.0}}), "/conditions/relative_humidity")
     assert "sent as" not in detail, detail
+
+
+@pytest.mark.parametrize(("key", "value"), [("relative_humidity", 1.0), ("relative humidity [%]", 100)])
+def test_a_surrogate_outside_the_law_s_domain_is_refused_at_its_condition(client, model, key, value):
+    # it was refused at /conditions alone, in the law's words about relative_humidity, whatever the key
+    body = {"model": model, "space": {"load_N": [0.005, 0.02], "speed_m_s": [0.01, 0.1]},
+            "fixed": {"balls": 4}, "budget": 12, "conditions": {key: value}}
+    detail = assert_refused(client.post("/v1/surrogates", json=body), f"/conditions/{key}")
+    assert "[0, 1)" in detail and "humidity_meniscus" in detail, detail
+    if key != "relative_humidity":
+        assert f"sent as {key}: 100" in detail, detail
+    inside = client.post("/v1/surrogates", json={**body, "conditions": {key: value / 2}})
+    assert inside.status_code == 202, inside.text
+    client.delete(inside.headers["location"])
+
+
+@pytest.mark.parametrize("key", ["temp_K_C", "RH_pct [1]"])
+def test_the_cli_refuses_a_condition_stating_two_units_as_the_api_does(client, model, data_dir, capsys, key):
+    # the API's schema refuses the key in words; the CLI called it an unknown condition column
+    point = {"balls": 8, "load_N": 0.01, "speed_m_s": 0.05}
+    answer = client.post("/v1/friction", json={**point, "model": model, "conditions": {key: 0.5}})
+    detail = assert_refused(answer, f"/conditions/{key}")
+    assert "states two units" in detail, detail
+    items = [f"{k}={v}" for k, v in point.items()] + [f"{key}=0.5"]
+    assert main(["evaluate", "--model", model, *items, "--data-dir", str(data_dir)]) == 2
+    err = capsys.readouterr().err
+    assert f"/conditions/{key}: {detail}" in err, err

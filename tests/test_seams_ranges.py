@@ -197,3 +197,22 @@ def test_a_surrogate_warns_of_a_unit_slip_as_friction_does(client):
     assert friction["input_warnings"][0] in result["warnings"], result["warnings"]
     assert result["fixed"]["load_N"] == pytest.approx(0.01, rel=1e-15)  # 10 mN, and no slip of it said
     assert not [w for w in result["warnings"] if w.startswith("load")], result["warnings"]
+
+
+def test_an_optimization_warns_of_a_unit_slip_in_the_api_and_on_the_cli_s_stderr(client, tmp_path, capsys):
+    # 50 "m/s" and a load range up to 2 N: the API's result warns of both; the CLI wrote them only inside
+    # its JSON (to a file with -o: never seen), while evaluate and sweep say them on stderr
+    body = {"bounds": {"balls": [4, 6], "groove_angle_deg": [40, 60], "load_N": [0.5, 2.0]}, "speed_m_s": 50}
+    friction = client.post("/v1/friction/batch", json={
+        "points": {"balls": 4, "load_N": [0.5, 2.0], "speed_m_s": 50}})
+    answer = client.post("/v1/optimizations", json=body)
+    assert answer.status_code == friction.status_code == 200, answer.text
+    warnings = answer.json()["input_warnings"]
+    assert sorted(warnings) == sorted(friction.json()["input_warnings"]) and len(warnings) == 2, warnings
+    request, output = tmp_path / "optimize.json", tmp_path / "design.json"
+    request.write_text(json.dumps(body))
+    assert main(["optimize", str(request), "-o", str(output)]) == 0
+    err = capsys.readouterr().err
+    assert [line for line in err.splitlines() if line.startswith("warning: ")] == [
+        f"warning: {w}" for w in warnings]
+    assert json.loads(output.read_text())["input_warnings"] == warnings
