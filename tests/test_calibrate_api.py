@@ -295,7 +295,9 @@ def test_a_surrogate_learns_the_calibrated_model(client, humidity_result):
     assert convention["errors"][0]["pointer"] == "/convention"
     saturated = {**body, "conditions": {"relative_humidity": 1.0}}  # log(1/RH) = 0: mu infinite
     dry = assert_problem(client.post("/v1/surrogates", json=saturated), 422)
-    assert dry["errors"][0]["pointer"] == "/conditions"
+    # at the condition as sent, the law's domain in words
+    assert dry["errors"][0]["pointer"] == "/conditions/relative_humidity", dry
+    assert "value 1 lies outside" in dry["errors"][0]["detail"], dry
 
 
 def test_a_surrogate_of_a_calibration_with_fixed_values_inherits_them(client):
