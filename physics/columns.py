@@ -135,15 +135,22 @@ _SI_BY_DIMENSION = {"[length]": ("m", "m"), "[time]": ("s", "s"), "[length] / [t
                     "[mass] / [length] / [time] ** 2": ("Pa", "Pa"), "[temperature]": ("K", "K"),
                     "1 / [time]": ("1/s", "1_s")}
 _BRACKETS = re.compile(r"^(?P<name>.*?)\s*(\[(?P<square>[^\]]*)\]|\((?P<round>[^)]*)\))\s*$")
+_DEGREE = "(?:deg(?:ree)?s?|[\u00b0\u00ba\u02da])\\s*"  # deg, degrees, the degree sign or look-alikes (º, ˚)
+_UNIT_SPELLINGS = [(re.compile(f"(?i){_DEGREE}C|\u2103|(?:{_DEGREE})?celsius"), "degC"),
+                   (re.compile(f"(?i){_DEGREE}F|\u2109|(?:{_DEGREE})?fahrenheit"), "degF"),
+                   (re.compile(f"(?i){_DEGREE}K|\u212a|(?:{_DEGREE})?kelvins?"), "K"),
+                   (re.compile("(?i)\uff05|percent"), "%")]  # and the full-width percent sign
 
 
 # A humidity's % written beside its name rather than in brackets (RH%, humidity_%, %RH): RH [%].
 _PERCENT = re.compile(r"^\s*(?:%[\s_]*(?P<after>[^\s_%].*?)|(?P<before>.*?[^\s_%])[\s_]*%)\s*$")
 
 
-def _bracket_unit(match: re.Match) -> str:
-    """The unit text in the brackets of a name :data:`_BRACKETS` matched (``mm/s`` of ``speed [mm/s]``)."""
-    return match.group("square") if match.group("square") is not None else match.group("round")
+def _bracket_unit(match: re.Match, as_written: bool = False) -> str:
+    """The unit text in the brackets of a name :data:`_BRACKETS` matched (``mm/s`` of ``speed [mm/s]``), as
+    pint spells it (unambiguous spellings it does not read, ``℃``, ``deg C``: :data:`_UNIT_SPELLINGS`)."""
+    text = match.group("square") if match.group("square") is not None else match.group("round")
+    return text if as_written else next((u for p, u in _UNIT_SPELLINGS if p.fullmatch(text.strip())), text)
 
 
 @functools.cache
@@ -231,7 +238,7 @@ class Reading:
             return None
         match = _BRACKETS.match(self.sent.strip())
         if match and match.group("name"):
-            return _bracket_unit(match)
+            return _bracket_unit(match, as_written=True)
         base = next((b for b in sorted(input_bases(), key=len, reverse=True)
                      if self.sent.lower().startswith(b + "_")), None)
         if base is not None:

@@ -150,6 +150,8 @@ def surrogate_train(args: argparse.Namespace) -> int:
         space, mu_model = prepare_training(store, request)
         with progress_bar(f"train a surrogate on up to {request.budget} evaluations") as progress:
             document = train_surrogate(store, space, request, progress=progress, mu_model=mu_model)
+    for warning in document.get("warnings", []):  # as evaluate, sweep and optimize say them, beside the JSON
+        print(f"warning: {warning}", file=sys.stderr)
     write_text(args.output, to_json(document) + "\n")
     print(f"stored {document['model_id']} in {data_dir(args)}", file=sys.stderr)
     return EXIT_OK

@@ -105,7 +105,10 @@ def validation_error(exc: ValidationError) -> ProtocolError:
     for error in exc.errors(include_url=False)[:_LISTED_ERRORS]:
         where = "".join(f"[{part}]" if isinstance(part, int) else f".{part}"
                         for part in error["loc"]).lstrip(".")
-        items.append(f"{where or 'body'}: {error['msg']}")
+        # a validator's refusal in its own words, as /v1 says it (pydantic prefixes them "Value error, ")
+        message = error["msg"]
+        message = message.removeprefix("Value error, ") if error["type"] == "value_error" else message
+        items.append(f"{where or 'body'}: {message}")
     more = exc.error_count() - len(items)
     return ProtocolError("InvalidInput", "; ".join(items) + (f"; and {more} more" if more > 0 else ""))
 

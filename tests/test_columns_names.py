@@ -296,3 +296,44 @@ def test_a_condition_s_name_stating_two_units_is_refused_at_every_door(sent):
     ("T_K [kelvin]", 300.0, 300.0), ("rh_pct [%]", 45.0, 0.45), ("time_h [h]", 1.5, 5400.0)])
 def test_a_condition_s_name_and_brackets_agreeing_are_one_unit(sent, value, si):
     assert read_name(sent).convert(value) == pytest.approx(si, rel=1e-12)
+
+
+# Unit spellings labs write in brackets that pint does not read though they are unambiguous: read in the
+# unit they spell, as its usual spelling is (hand: K = degC + 273.15 = (degF - 32) * 5/9 + 273.15; a
+# humidity in percent is the fraction x 100).
+@pytest.mark.parametrize(("sent", "usual", "value", "expected"), [
+    ("temperature [\u2103]", "temperature [degC]", 25.0, 298.15),        # the degree Celsius sign
+    ("temperature [\u2109]", "temperature [degF]", 212.0, 373.15),       # the degree Fahrenheit sign
+    ("temperature [\u00baC]", "temperature [degC]", 25.0, 298.15),       # the ordinal sign for the degree's
+    ("temperature [\u00baF]", "temperature [degF]", 32.0, 273.15),
+    ("temperature [deg F]", "temperature [degF]", 98.6, 310.15),
+    ("temperature [deg C]", "temperature [degC]", -40.0, 233.15),
+    ("temperature [\u00b0 C]", "temperature [degC]", 100.0, 373.15),
+    ("temperature (\u2103)", "temperature [degC]", 25.0, 298.15),
+    ("temperature [Kelvin]", "temperature [K]", 300.0, 300.0),
+    ("temperature [Celsius]", "temperature [degC]", 20.0, 293.15),
+    ("temp [\u00b0K]", "temp [K]", 300.0, 300.0),
+    ("T [\u2103]", "T [degC]", 0.0, 273.15),
+    ("rel. humidity [\uff05]", "rel. humidity [%]", 50.0, 0.5),          # the full-width percent
+    ("rel. humidity [percent]", "rel. humidity [%]", 50.0, 0.5),
+])
+def test_an_unambiguous_unit_spelling_in_brackets_is_read_in_its_unit(sent, usual, value, expected):
+    reading = read_name(sent)
+    assert reading.name == read_name(usual).name
+    assert reading.convert(value) == pytest.approx(expected, rel=1e-12)
+    # and a model's column of the quantity takes it, converted (a kelvin column, a fraction column)
+    known = "relative_humidity" if "humidity" in usual else "temperature_K"
+    assert match_column(sent, [known]).convert(value) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize(("sent", "values", "words"), [
+    ("temperature [\u2103]", [25.0, 250.0], "look like kelvin"),   # judged in degC, as [degC] is
+    ("temp_F [\u2103]", None, "states two units"),                  # the name says F, the brackets degC
+    ("temperature [deg]", None, "not 'deg'"),                       # an angle: no temperature's unit
+])
+def test_a_respelled_unit_is_judged_and_refused_as_its_usual_spelling(sent, values, words):
+    if values is None:
+        with pytest.raises(ColumnError, match=words):
+            read_name(sent)
+    else:
+        assert words in read_slip(match_column(sent, ["temperature_K"]), values)

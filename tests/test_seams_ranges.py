@@ -216,3 +216,23 @@ def test_an_optimization_warns_of_a_unit_slip_in_the_api_and_on_the_cli_s_stderr
     assert [line for line in err.splitlines() if line.startswith("warning: ")] == [
         f"warning: {w}" for w in warnings]
     assert json.loads(output.read_text())["input_warnings"] == warnings
+
+
+def test_a_surrogate_s_training_warns_of_a_unit_slip_on_the_cli_s_stderr(client, tmp_path, capsys):
+    # 50 "m/s": the API's surrogate warns of it as /v1/friction does; the CLI wrote the warnings only
+    # inside its JSON (to a file with -o: never seen), while evaluate, sweep and optimize say them on stderr
+    from jobs_helper import job_result
+
+    body = {"space": {"speed_m_s": [0.05, 50]}, "fixed": {"balls": 4, "load_N": 0.01}, "budget": 4,
+            "validation_points": 0, "adaptive": False}
+    friction = client.post("/v1/friction/batch", json={"points": {"balls": 4, "load_N": 0.01,
+                                                                  "speed_m_s": [0.05, 50]}}).json()
+    assert friction["input_warnings"][0] in job_result(client, client.post("/v1/surrogates", json=body))[
+        "warnings"]
+    request, output = tmp_path / "surrogate.json", tmp_path / "trained.json"
+    request.write_text(json.dumps(body))
+    assert main(["surrogate", "train", str(request), "-o", str(output), "--data-dir", str(tmp_path)]) == 0
+    said = [line.removeprefix("warning: ") for line in capsys.readouterr().err.splitlines()
+            if line.startswith("warning: ")]
+    warnings = json.loads(output.read_text())["warnings"]
+    assert friction["input_warnings"][0] in said and said == warnings, (said, warnings)

@@ -364,3 +364,17 @@ def test_evaluate_warns_of_a_unit_slip_in_the_words_of_the_friction_route(local)
         slipped["warnings"][0]
     assert slipped["output"] == [[friction["mu"]]]
     assert local.post("/umbridge/Evaluate", json=POINT).json().keys() == {"output"}  # no slip: no warnings
+
+
+@pytest.mark.parametrize("name", ["temp_K_C", "RH_pct [1]", "time_h_min", "temp_F [degC]"])
+def test_a_condition_name_stating_two_units_is_refused_in_the_friction_route_s_words(local, name):
+    # the same words at both doors: UM-Bridge said pydantic's "Value error, " before them
+    friction = local.post("/v1/friction", json={"balls": 4, "load_N": 0.01, "speed_m_s": 0.05,
+                                                "conditions": {name: 1}})
+    assert friction.status_code == 422, friction.text
+    (error,) = friction.json()["errors"]
+    assert error["pointer"] == f"/conditions/{name}" and "states two units" in error["detail"], error
+    bridged = local.post("/umbridge/Evaluate", json={**POINT, "config": {
+        "inputs": ["balls", "load_N", "speed_m_s"], "fixed": {name: 1}}})
+    assert bridged.status_code == 400, bridged.text
+    assert bridged.json()["error"] == {"type": "InvalidInput", "message": f"config.fixed: {error['detail']}"}
