@@ -31,8 +31,8 @@ import numpy as np
 from scipy import stats
 
 from microbearing import physics
-from microbearing.physics.columns import read_span
 from microbearing.physics.effects import EFFECTS
+from microbearing.physics.spans import read_span
 
 from .candidates import Term, candidate_terms
 from .credibility import implausible

@@ -1,7 +1,7 @@
 """What a lab can set, and the candidate runs of a design drawn from it (:mod:`calibrate.experiments`).
 
 A space gives each column a range, ``[low, high]`` or ``{"low", "high", "spacing"}``, or a set of allowed
-values ``{"values": [...]}``, as every route reads them (:func:`physics.columns.read_span`); the
+values ``{"values": [...]}``, as every route reads them (:func:`physics.spans.read_span`); the
 candidates are a grid over the ranges (every whole ball count of a ``balls`` range, evenly thinned past
 a dozen) with scrambled Sobol' points added.
 """
@@ -16,7 +16,7 @@ import numpy as np
 from scipy.stats import qmc
 
 from microbearing import physics
-from microbearing.physics.columns import read_span
+from microbearing.physics.spans import read_span
 
 __all__ = ["MAX_CANDIDATES", "candidate_points", "check_space", "read_space", "space_points"]
 
@@ -32,7 +32,7 @@ _SOBOL_POINTS = 256
 
 def read_space(space: Mapping[str, Any], field_name: str = "space") -> dict[str, dict[str, Any]]:
     """A space as ranges ``{"low", "high", "spacing"}`` and sets ``{"values": [...]}``, whichever spelling
-    of :func:`physics.columns.read_span` each column used (``[low, high]`` is a range).
+    of :func:`physics.spans.read_span` each column used (``[low, high]`` is a range).
 
     Raises
     ------

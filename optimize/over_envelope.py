@@ -19,8 +19,8 @@ import numpy as np
 from scipy import optimize as sciopt
 
 from microbearing import physics
-from microbearing.physics.columns import read_span
 from microbearing.physics.model import Model
+from microbearing.physics.spans import read_span
 
 from .problem import DESIGN_VARIABLES, DesignBounds, DesignProblem
 
@@ -35,7 +35,7 @@ _ANGLE = physics.PARAMETERS["groove_angle_deg"]
 
 def _range(field_name: str, value: Any, minimum: float | None = None) -> tuple[float, float]:
     """A range, [low, high] or {low, high} (a number is a range of one point), finite and ordered, as every
-    route reads it (:func:`physics.columns.read_span`), or a ValueError."""
+    route reads it (:func:`physics.spans.read_span`), or a ValueError."""
     span = read_span(field_name, value)
     if not span.is_range and len(span.values) > 1:
         raise ValueError(f"{field_name}: a set of values has no worst case over a range; give [low, high]")

@@ -9,8 +9,8 @@ as its weight in N). :func:`match_column` reads a name sent at prediction agains
 model knows, so that the upload's header (``relative humidity [%]``) or another unit of the same
 quantity (``temperature_C`` for a model of ``temperature_K``) is converted, never read in the wrong
 unit. :mod:`physics.slips` holds the one rule for values that look like a unit slip (speed above
-10 m/s: mm/s; a humidity fraction of 50: percent). :func:`read_span` reads a range (``[low, high]`` or
-``{"low", "high"}``) or a set of allowed values (``{"values": [...]}``) the same way in every route.
+10 m/s: mm/s; a humidity fraction of 50: percent). :mod:`physics.spans` reads a range (``[low, high]``
+or ``{"low", "high"}``) or a set of allowed values (``{"values": [...]}``) the same way in every route.
 
 Physics inputs are those of :data:`physics.parameters.PARAMETERS`, in their units. Conditions are
 columns of measured data that only a calibrated model reads; the named ones (:data:`CONDITIONS`)
@@ -34,10 +34,10 @@ from .drivers import glued_unit, name_words
 from .effects import humidity_fraction, temperature_kelvin
 from .parameters import PARAMETERS
 
-__all__ = ["CONDITIONS", "SLIP_LIMITS", "SPAN_SPELLINGS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
-           "Reading", "Span", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
+__all__ = ["CONDITIONS", "SLIP_LIMITS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
+           "Reading", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
            "match_column", "outside_mask", "outside_range", "physical_range", "read_key", "read_name",
-           "read_span", "unit_of", "unknown_column", "whole_number"]
+           "unit_of", "unknown_column", "whole_number"]
 
 #: Standard gravity, the weight of a slider mass given in g. [m/s^2]
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -808,92 +808,3 @@ def from_si(name: str, values: Any, unit: str) -> np.ndarray:
     """
     source = _unit(PARAMETERS[name].unit if name in PARAMETERS else (unit_of(name) or "1"))
     return np.asarray(_registry().Quantity(np.asarray(values, dtype=float), source).to(_unit(unit)).magnitude)
-
-
-@dataclass(frozen=True)
-class Span:
-    """A range of a column (``values`` None) or a set of allowed values (``low``, ``high`` their ends)."""
-
-    low: float
-    high: float
-    values: tuple[float, ...] | None = None
-    spacing: str = "linear"
-
-    @property
-    def is_range(self) -> bool:
-        """True for a range, False for a set of allowed values."""
-        return self.values is None
-
-
-#: How a range and a set of allowed values are spelled, in words (for messages).
-SPAN_SPELLINGS = ('a range is [low, high] or {"low": low, "high": high}; a set of allowed values is '
-              '{"values": [v1, v2, ...]}')
-
-
-def _number(field: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise ValueError(f"{field}: must hold numbers; got {value!r}")
-    if not math.isfinite(float(value)):
-        raise ValueError(f"{field}: must hold finite numbers; got {value!r}")
-    return float(value)
-
-
-def read_span(field: str, value: Any, number: bool = True) -> Span:
-    """A range or a set of allowed values, spelled the same in every route.
-
-    Parameters
-    ----------
-    field : str
-        The field's name, for errors (``conditions.relative_humidity``).
-    value : number, list, tuple or mapping
-        ``[low, high]`` or ``{"low", "high"[, "spacing"]}`` (a range); ``{"values": [...]}`` (a set of
-        allowed values); ``[value]`` or, when ``number``, a number (a range of one point: the set of it).
-    number : bool
-        Whether a single number is taken.
-
-    Returns
-    -------
-    Span
-
-    Raises
-    ------
-    ValueError
-        Starting with ``field``: a list of another length than two (the two spellings explained),
-        non-finite values, low > high, an empty set.
-
-    Examples
-    --------
-    >>> read_span("space.load_N", [0.001, 0.05]).is_range, read_span("x", {"values": [1, 2]}).values
-    (True, (1.0, 2.0))
-    >>> read_span("x", [1, 2, 3])  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    ValueError: x: a list of 3 values is ambiguous: a range is [low, high] or {"low": low, "high": high}; ...
-    """
-    if isinstance(value, Mapping):
-        if "values" in value:
-            given = value["values"]
-            if set(value) != {"values"} or not isinstance(given, list | tuple) or not given:
-                raise ValueError(f"{field}: a set of allowed values is {{\"values\": [v1, v2, ...]}} (at "
-                                 f"least one value, nothing else); got {value!r}")
-            values = tuple(_number(field, v) for v in value["values"])
-            return Span(min(values), max(values), values)
-        if not {"low", "high"} <= set(value) or not set(value) <= {"low", "high", "spacing"}:
-            raise ValueError(f"{field}: {SPAN_SPELLINGS}; got {value!r}")
-        low, high = _number(field, value["low"]), _number(field, value["high"])
-        spacing = value.get("spacing", "linear")
-    elif isinstance(value, list | tuple) and len(value) == 1:  # a range of one point: the set of it
-        return Span(_number(field, value[0]), _number(field, value[0]), (_number(field, value[0]),))
-    elif isinstance(value, list | tuple):
-        if len(value) != 2:
-            raise ValueError(f"{field}: a list of {len(value)} values is ambiguous: {SPAN_SPELLINGS}")
-        low, high, spacing = _number(field, value[0]), _number(field, value[1]), "linear"
-    elif number and not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating):
-        low = high = _number(field, value)
-        spacing = "linear"
-    else:
-        kind = "a number or " if number else ""
-        raise ValueError(f"{field}: must be {kind}{SPAN_SPELLINGS}; got {value!r}")
-    if low > high:
-        raise ValueError(f"{field}: low must not exceed high; got [{low:g}, {high:g}]")
-    return Span(low, high, None, spacing)

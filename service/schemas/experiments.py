@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field
 
 from microbearing import physics
-from microbearing.physics.columns import SPAN_SPELLINGS
+from microbearing.physics.spans import SPAN_SPELLINGS
 
 from .base import (
     REQUIRED_INPUTS,

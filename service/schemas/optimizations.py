@@ -113,7 +113,7 @@ class ConditionSpan(StrictModel):
 
 
 def _condition_spelling(value: Any) -> Any:
-    """A condition's value or range as the other routes spell it (:func:`physics.columns.read_span`): ``[v]``
+    """A condition's value or range as the other routes spell it (:func:`physics.spans.read_span`): ``[v]``
     is the one value v; a longer list, or a set of values (``{"values": [...]}``, which the design has no
     worst case over), refused in words."""
     if isinstance(value, list) and len(value) == 1:

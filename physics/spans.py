@@ -1,0 +1,107 @@
+"""A range of a column or a set of its allowed values, spelled the same in every route.
+
+A range is ``[low, high]`` or ``{"low": low, "high": high}`` (with ``"spacing"`` where a route samples it); a
+set of allowed values is ``{"values": [v1, v2, ...]}``. Optimization bounds and envelopes, experiment spaces
+and envelopes, sweeps and robust designs read their ranges here, so that no JSON means a range in one route
+and a set of two values in another (issue 32).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["SPAN_SPELLINGS", "Span", "read_span"]
+
+
+@dataclass(frozen=True)
+class Span:
+    """A range of a column (``values`` None) or a set of allowed values (``low``, ``high`` their ends)."""
+
+    low: float
+    high: float
+    values: tuple[float, ...] | None = None
+    spacing: str = "linear"
+
+    @property
+    def is_range(self) -> bool:
+        """True for a range, False for a set of allowed values."""
+        return self.values is None
+
+
+#: How a range and a set of allowed values are spelled, in words (for messages).
+SPAN_SPELLINGS = ('a range is [low, high] or {"low": low, "high": high}; a set of allowed values is '
+              '{"values": [v1, v2, ...]}')
+
+
+def _number(field: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise ValueError(f"{field}: must hold numbers; got {value!r}")
+    if not math.isfinite(float(value)):
+        raise ValueError(f"{field}: must hold finite numbers; got {value!r}")
+    return float(value)
+
+
+def read_span(field: str, value: Any, number: bool = True) -> Span:
+    """A range or a set of allowed values, spelled the same in every route.
+
+    Parameters
+    ----------
+    field : str
+        The field's name, for errors (``conditions.relative_humidity``).
+    value : number, list, tuple or mapping
+        ``[low, high]`` or ``{"low", "high"[, "spacing"]}`` (a range); ``{"values": [...]}`` (a set of
+        allowed values); ``[value]`` or, when ``number``, a number (a range of one point: the set of it).
+    number : bool
+        Whether a single number is taken.
+
+    Returns
+    -------
+    Span
+
+    Raises
+    ------
+    ValueError
+        Starting with ``field``: a list of another length than two (the two spellings explained),
+        non-finite values, low > high, an empty set.
+
+    Examples
+    --------
+    >>> read_span("space.load_N", [0.001, 0.05]).is_range, read_span("x", {"values": [1, 2]}).values
+    (True, (1.0, 2.0))
+    >>> read_span("x", [1, 2, 3])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: x: a list of 3 values is ambiguous: a range is [low, high] or {"low": low, "high": high}; ...
+    """
+    if isinstance(value, Mapping):
+        if "values" in value:
+            given = value["values"]
+            if set(value) != {"values"} or not isinstance(given, list | tuple) or not given:
+                raise ValueError(f"{field}: a set of allowed values is {{\"values\": [v1, v2, ...]}} (at "
+                                 f"least one value, nothing else); got {value!r}")
+            values = tuple(_number(field, v) for v in value["values"])
+            return Span(min(values), max(values), values)
+        if not {"low", "high"} <= set(value) or not set(value) <= {"low", "high", "spacing"}:
+            raise ValueError(f"{field}: {SPAN_SPELLINGS}; got {value!r}")
+        low, high = _number(field, value["low"]), _number(field, value["high"])
+        spacing = value.get("spacing", "linear")
+    elif isinstance(value, list | tuple) and len(value) == 1:  # a range of one point: the set of it
+        return Span(_number(field, value[0]), _number(field, value[0]), (_number(field, value[0]),))
+    elif isinstance(value, list | tuple):
+        if len(value) != 2:
+            raise ValueError(f"{field}: a list of {len(value)} values is ambiguous: {SPAN_SPELLINGS}")
+        low, high, spacing = _number(field, value[0]), _number(field, value[1]), "linear"
+    elif number and not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating):
+        low = high = _number(field, value)
+        spacing = "linear"
+    else:
+        kind = "a number or " if number else ""
+        raise ValueError(f"{field}: must be {kind}{SPAN_SPELLINGS}; got {value!r}")
+    if low > high:
+        raise ValueError(f"{field}: low must not exceed high; got [{low:g}, {high:g}]")
+    return Span(low, high, None, spacing)
