@@ -139,6 +139,7 @@ _DEGREE = "(?:deg(?:ree)?s?|[\u00b0\u00ba\u02da])\\s*"  # deg, degrees, the degr
 _UNIT_SPELLINGS = [(re.compile(f"(?i){_DEGREE}C|\u2103|(?:{_DEGREE})?celsius"), "degC"),
                    (re.compile(f"(?i){_DEGREE}F|\u2109|(?:{_DEGREE})?fahrenheit"), "degF"),
                    (re.compile(f"(?i){_DEGREE}K|\u212a|(?:{_DEGREE})?kelvins?"), "K"),
+                   (re.compile(f"(?i){_DEGREE}R|(?:{_DEGREE})?rankine"), "degR"),
                    (re.compile("(?i)\uff05|percent"), "%")]  # and the full-width percent sign
 
 

@@ -313,6 +313,8 @@ def test_a_condition_s_name_and_brackets_agreeing_are_one_unit(sent, value, si):
     ("temperature [Kelvin]", "temperature [K]", 300.0, 300.0),
     ("temperature [Celsius]", "temperature [degC]", 20.0, 293.15),
     ("temp [\u00b0K]", "temp [K]", 300.0, 300.0),
+    ("temperature [deg R]", "temperature [degR]", 491.67, 273.15),     # Rankine: K = degR x 5/9
+    ("temperature [Rankine]", "temperature [degR]", 671.67, 373.15),
     ("T [\u2103]", "T [degC]", 0.0, 273.15),
     ("rel. humidity [\uff05]", "rel. humidity [%]", 50.0, 0.5),          # the full-width percent
     ("rel. humidity [percent]", "rel. humidity [%]", 50.0, 0.5),
