@@ -12,7 +12,7 @@ import argparse
 import json
 import re
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -20,7 +20,8 @@ from typing import Any
 __all__ = ["EXIT_FAILURE", "EXIT_FILE", "EXIT_INFEASIBLE", "EXIT_INVALID", "EXIT_OK", "CommandError",
            "add_command", "as_typed", "assignments", "columns_of", "converted", "data_dir", "data_dir_option",
            "defaults", "model_reference", "named_values", "open_store", "problem_error", "progress_bar",
-           "read_bytes", "read_request", "reading", "slip_warnings", "value_of", "write_png", "write_text"]
+           "read_bytes", "read_request", "reading", "say_warnings", "slip_warnings", "value_of", "write_png",
+           "write_text"]
 
 #: Exit codes of the command line (see :mod:`service.cli`).
 EXIT_OK, EXIT_FAILURE, EXIT_INVALID, EXIT_INFEASIBLE, EXIT_FILE = 0, 1, 2, 3, 4
@@ -193,9 +194,15 @@ def slip_warnings(inputs: dict[str, Any], items: list[str] | None = None) -> lis
         if read is not None and read.name != name.strip():
             sent[read.name] = (name.strip(), [part.strip() for part in text.split(",")])
     warnings = input_slips(inputs, sent)
-    for warning in warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+    say_warnings(warnings)
     return warnings
+
+
+def say_warnings(warnings: Iterable[str] | None) -> None:
+    """A result's warnings on stderr, one ``warning: ...`` line each: every command says them beside its
+    output, which ``-o`` may send to a file (the JSON keeps them too)."""
+    for warning in warnings or []:
+        print(f"warning: {warning}", file=sys.stderr)
 
 
 def assignments(items: list[str]) -> dict[str, Any]:

@@ -30,6 +30,7 @@ from .cli_common import (
     read_bytes,
     read_request,
     reading,
+    say_warnings,
     slip_warnings,
     value_of,
     write_png,
@@ -329,8 +330,7 @@ def _evaluate_model(args: argparse.Namespace, outputs: list[str] | None) -> int:
 
             document = _by_line(batch, points, args.csv)
     warnings = slip_warnings({**inputs, **(points.inputs if points is not None else {})}, args.inputs)
-    for warning in document.get("domain_warnings") or []:
-        print(f"warning: {warning}", file=sys.stderr)
+    say_warnings(document.get("domain_warnings") or [])
     if points is None:
         if outputs:
             document = {k: v for k, v in document.items() if k not in physics.OUTPUTS or k in outputs}
@@ -359,8 +359,7 @@ def sweep(args: argparse.Namespace) -> int:
     plan = design_columns(request, Settings().max_sweep_points)
     with progress_bar(f"sweep of {plan.count} points") as progress:
         document = run_sweep(request, plan, progress=progress)
-    for warning in document.get("input_warnings", []):  # the CSV table has no place for them
-        print(f"warning: {warning}", file=sys.stderr)
+    say_warnings(document.get("input_warnings", []))
     as_csv = args.format == "csv" or (args.format is None and str(args.output or "").endswith(".csv"))
     write_text(args.output, csv_text(sweep_table(document)) if as_csv else to_json(document) + "\n")
     return EXIT_OK
@@ -392,8 +391,7 @@ def optimize(args: argparse.Namespace) -> int:
     finally:
         if store is not None:
             store.close()
-    for warning in document.get("input_warnings", []):  # as evaluate and sweep say them, beside the JSON
-        print(f"warning: {warning}", file=sys.stderr)
+    say_warnings(document.get("input_warnings", []))
     write_text(args.output, to_json(document) + "\n")
     if args.plot:
         write_png(args.plot, pareto_png(document))

@@ -31,6 +31,7 @@ from .cli_common import (
     progress_bar,
     read_bytes,
     read_request,
+    say_warnings,
     write_text,
 )
 
@@ -150,8 +151,7 @@ def surrogate_train(args: argparse.Namespace) -> int:
         space, mu_model = prepare_training(store, request)
         with progress_bar(f"train a surrogate on up to {request.budget} evaluations") as progress:
             document = train_surrogate(store, space, request, progress=progress, mu_model=mu_model)
-    for warning in document.get("warnings", []):  # as evaluate, sweep and optimize say them, beside the JSON
-        print(f"warning: {warning}", file=sys.stderr)
+    say_warnings(document.get("warnings", []))
     write_text(args.output, to_json(document) + "\n")
     print(f"stored {document['model_id']} in {data_dir(args)}", file=sys.stderr)
     return EXIT_OK
@@ -164,6 +164,7 @@ def surrogate_predict(args: argparse.Namespace) -> int:
     points = columns_of(args.inputs)
     with closing(open_store(args)) as store:
         document = predict(store, args.id.removeprefix("surrogate:"), points)
+    say_warnings(document.get("warnings"))
     write_text(args.output, to_json(document) + "\n")
     return EXIT_OK
 

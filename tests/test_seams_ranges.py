@@ -236,3 +236,12 @@ def test_a_surrogate_s_training_warns_of_a_unit_slip_on_the_cli_s_stderr(client,
             if line.startswith("warning: ")]
     warnings = json.loads(output.read_text())["warnings"]
     assert friction["input_warnings"][0] in said and said == warnings, (said, warnings)
+    # a prediction of that surrogate carries its warnings, said on stderr too
+    predicted = tmp_path / "predicted.json"
+    model_id = json.loads(output.read_text())["model_id"]
+    assert main(["surrogate", "predict", model_id, "speed_m_s=0.05", "-o", str(predicted),
+                 "--data-dir", str(tmp_path)]) == 0
+    said = [line.removeprefix("warning: ") for line in capsys.readouterr().err.splitlines()
+            if line.startswith("warning: ")]
+    warnings = json.loads(predicted.read_text())["warnings"]
+    assert friction["input_warnings"][0] in said and said == warnings, (said, warnings)
