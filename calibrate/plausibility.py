@@ -58,7 +58,7 @@ from microbearing.physics.columns import (
     unit_of,
 )
 from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
-from microbearing.physics.slips import humidity_slip, physics_slip, read_slip, temperature_slip
+from microbearing.physics.slips import humidity_slip, physics_slip, read_slip, slipped_rows, temperature_slip
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset
 
@@ -83,11 +83,15 @@ class Finding:
         Whether the calibration is refused.
     message : str
         The values' range, the rule and the likely cause, in words.
+    row : int or None
+        The first row (1-based) of a physics input's slip of some rows (:func:`physics.slips.slipped_rows`),
+        where the error points (one of those rows, not the column's first); None for the column as a whole.
     """
 
     column: str
     severity: str
     message: str
+    row: int | None = None
 
 
 def _span(values: np.ndarray) -> str:
@@ -152,11 +156,14 @@ def plausibility_findings(dataset: Dataset) -> list[Finding]:
         if name in LIMITS or (condition and (HUMIDITY.matches(name) or TEMPERATURE.matches(name))):
             # the one unit-slip rule of every door (physics.slips), in the unit a header states
             judged, message = _sent_slip(dataset, name, values)
+            row = None
             if not judged and name in LIMITS:
                 message = physics_slip(name, values)
+                some = slipped_rows(name, values)  # a slip of some rows: the error points at the first
+                row = None if some is None else int(some[0]) + 1
             elif not judged:
                 message = (humidity_slip if HUMIDITY.matches(name) else temperature_slip)(name, values)
-            found += [] if message is None else [Finding(name, "error", message)]
+            found += [] if message is None else [Finding(name, "error", message, row)]
         elif condition:  # said in the header's unit itself: no plausible range
             finding = _outside_physical_range(name, values, dataset.sent_reading(name))
             found += [] if finding is None else [finding]
@@ -192,10 +199,12 @@ def check_plausible(dataset: Dataset) -> list[str]:
     Raises
     ------
     calibrate.data.DataError
-        One ``{"row": None, "column", "message"}`` item per column in error.
+        One ``{"row", "column", "message"}`` item per column in error (``row`` 1-based, or None: the
+        column as a whole).
     """
     found = plausibility_findings(dataset)
-    errors = [{"row": None, "column": f.column, "message": f.message} for f in found if f.severity == "error"]
+    errors = [{"row": f.row, "column": f.column, "message": f.message}
+              for f in found if f.severity == "error"]
     if errors:
         raise DataError(errors)
     return [f.message for f in found if f.severity == "warning"]

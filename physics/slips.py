@@ -37,21 +37,32 @@ from .columns import (
 from .drivers import HUMIDITY, TEMPERATURE
 from .parameters import PARAMETERS
 
-__all__ = ["humidity_slip", "input_slips", "physics_slip", "read_slip", "slip", "temperature_slip"]
+__all__ = ["humidity_slip", "input_slips", "physics_slip", "read_slip", "slip", "slipped_rows",
+           "temperature_slip"]
 
 def _span_text(values: np.ndarray) -> str:
     return f"{float(np.min(values)):.4g} to {float(np.max(values)):.4g}"
 
 
-def _some_rows_slipped(values: np.ndarray, limit: float, factor: float) -> bool:
-    """Whether only some rows slipped: those beyond the limit, converted, fall within the range of the
-    others (a whole column in mN has no rows in N beside it: its rows below the limit, 0.5 mN read as
-    0.5 N, lie far above its converted ones)."""
+def slipped_rows(name: str, values: np.ndarray) -> np.ndarray | None:
+    """The rows of a physics input that slipped when only some did, else None: those beyond
+    :data:`physics.columns.SLIP_LIMITS` whose values, converted, fall within the range of the others (a
+    whole column in mN has no rows in N beside it: its rows below the limit, 0.5 mN read as 0.5 N, lie far
+    above its converted ones).
+
+    >>> slipped_rows("load_N", np.array([0.003, 12.0, 0.02])).tolist()
+    [1]
+    >>> print(slipped_rows("load_N", np.array([3.0, 30.0])))  # the whole column in mN
+    None
+    """
+    limit, _, factor = SLIP_LIMITS[name]
+    values = np.asarray(values, dtype=float)
     beyond = values > limit
-    if beyond.all() or not beyond.any():
-        return False
+    if beyond.all() or not beyond.any() or float(np.min(values)) < 0.0:
+        return None
     converted = float(np.median(values[beyond] * factor))
-    return float(np.min(values[~beyond])) <= converted <= float(np.max(values[~beyond]))
+    inside = float(np.min(values[~beyond])) <= converted <= float(np.max(values[~beyond]))
+    return np.flatnonzero(beyond) if inside else None
 
 
 def physics_slip(name: str, values: np.ndarray, stated: tuple[str, np.ndarray, str, bool] | None = None
@@ -73,7 +84,7 @@ def physics_slip(name: str, values: np.ndarray, stated: tuple[str, np.ndarray, s
         cause = f"check the values: {name} is not negative"
     elif stated is not None and not stated[3]:
         cause = "its name states the unit, so check the values"
-    elif _some_rows_slipped(values, limit, factor):
+    elif slipped_rows(name, values) is not None:
         beyond = values > limit
         cause = (f"{int(beyond.sum())} of {values.size} values lie beyond it: those look like {slip_unit} "
                  f"(times {factor:g}: {_span_text(scaled[beyond])} {unit}, within the other values' "

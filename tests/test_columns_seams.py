@@ -874,3 +874,23 @@ def test_an_export_s_temperature_c_and_humidity_rh_headers_are_read_at_upload_an
     lab = client.post("/v1/friction", json=_point(model, {"Humidity (%RH)": 45, "Temp (C)": 30.0}))
     assert reference.status_code == lab.status_code == 200, lab.text
     assert lab.json()["mu"] == pytest.approx(reference.json()["mu"], rel=1e-9)
+
+
+def test_a_slip_of_some_rows_is_pointed_at_the_first_of_them(client):
+    # 3 of 30 loads sent in mN beside rows in N (rows 7, 12 and 25): the refusal points at row 7's cell (it
+    # pointed at row 0, which is in N); a whole column slipped is pointed at its first row, as before
+    rows = [{"balls": 4 + 2 * (i % 3), "load_N": 0.004 + 0.0008 * i, "speed_m_s": 0.02 + 0.004 * i,
+             "mu_measured": 0.03 + 0.001 * i} for i in range(30)]
+    for i in (7, 12, 25):
+        rows[i]["load_N"] *= 1000.0
+    response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"]})
+    assert response.status_code == 422, response.text
+    errors = response.json()["errors"]
+    assert [e["pointer"] for e in errors] == ["/data/7/load_N"], errors
+    assert "3 of 30 values lie beyond it" in errors[0]["detail"], errors
+    whole = [{**row, "load_N": row["load_N"] * (1.0 if i in (7, 12, 25) else 1000.0)}  # every row in mN
+             for i, row in enumerate(rows)]
+    whole = client.post("/v1/calibrations", json={"data": whole, "fit_parameters": ["mu_pivot"]})
+    errors = whole.json()["errors"]
+    assert [e["pointer"] for e in errors] == ["/data/0/load_N"], errors
+    assert errors[0]["detail"].startswith("column load_N: ") and "values look like mN" in errors[0]["detail"]
