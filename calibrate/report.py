@@ -812,7 +812,7 @@ def _warnings(declared: DataStage, uncertainty: UncertaintyStage, gp: Mapping[st
     # Both errors read a clipped row's reading as a value: the model predicts the true mu beyond the clip,
     # a GP on the readings learns the clip, and its lower error is the clip (said by the measurement
     # system), not something a term could name (a ceiling clip of 30 points x 4: 0.045 against 0.112).
-    clipped = dataset.censored is not None and bool(np.any(dataset.censored != 0))
+    clipped = not bool(np.all(measured_rows(dataset.censored, dataset.n_points)))
     if weighed and not clipped and gp["errors"]["relative_rmse"] < _GP_BETTER * error_after["relative_rmse"]:
         warnings.append(
             f"a Gaussian-process discrepancy predicts held-out rows better than the calibrated model "

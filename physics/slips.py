@@ -84,11 +84,11 @@ def physics_slip(name: str, values: np.ndarray, stated: tuple[str, np.ndarray, s
         cause = f"check the values: {name} is not negative"
     elif stated is not None and not stated[3]:
         cause = "its name states the unit, so check the values"
-    elif slipped_rows(name, values) is not None:
-        beyond = values > limit
-        cause = (f"{int(beyond.sum())} of {values.size} values lie beyond it: those look like {slip_unit} "
-                 f"(times {factor:g}: {_span_text(scaled[beyond])} {unit}, within the other values' "
-                 f"{_span_text(values[~beyond])} {unit}); convert those rows only")
+    elif (rows := slipped_rows(name, values)) is not None:
+        others = np.delete(values, rows)
+        cause = (f"{rows.size} of {values.size} values lie beyond it: those look like {slip_unit} "
+                 f"(times {factor:g}: {_span_text(scaled[rows])} {unit}, within the other values' "
+                 f"{_span_text(others)} {unit}); convert those rows only")
     elif float(np.max(scaled)) <= limit:
         cause = f"values look like {slip_unit} (times {factor:g}: {_span_text(scaled)} {unit})"
     else:
