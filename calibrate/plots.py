@@ -29,18 +29,18 @@ from typing import Any
 
 import numpy as np
 
-from microbearing.physics.columns import Reading, unit_of, whole_number
+from microbearing.physics.columns import ColumnError, Reading, match_column, unit_of, whole_number
 
 from .data import Dataset
 from .model import CalibratedModel
 
-__all__ = ["calibration_figures", "calibration_plots", "log_ticks", "tick_texts"]
+__all__ = ["DrawnColumn", "calibration_figures", "calibration_plots", "log_ticks", "tick_texts"]
 
 _GRID = 120
 
 
 @dataclass(frozen=True)
-class _Column:
+class DrawnColumn:
     """A data column as the plots draw it: in the unit it was sent in (``reading`` None: its own).
 
     Attributes
@@ -55,9 +55,20 @@ class _Column:
     reading: Reading | None = None
 
     @classmethod
-    def of(cls, dataset: Dataset, name: str) -> _Column:
+    def of(cls, dataset: Dataset, name: str) -> DrawnColumn:
         """The column ``name`` of the dataset, in the unit its header was sent in."""
         return cls(name, dataset.sent_reading(name))
+
+    @classmethod
+    def sent_as(cls, name: str, header: str | None) -> DrawnColumn:
+        """The column ``name`` drawn in the unit of the key a request sent it under (``RH [%]``, read as
+        the service read it: :func:`physics.columns.match_column`), in its own unit when ``header`` is None,
+        names it so or no longer reads as it."""
+        try:
+            reading = None if header is None else match_column(header, [name])
+        except ColumnError:
+            return cls(name)
+        return cls(name, reading if reading is not None and reading.reading else None)
 
     def shown(self, values: Any) -> np.ndarray:
         """Values (SI) in the unit drawn."""
@@ -80,7 +91,7 @@ class _Column:
         return self.reading is None and whole_number(self.name)
 
 
-def _grid(column: _Column, x: np.ndarray) -> np.ndarray:
+def _grid(column: DrawnColumn, x: np.ndarray) -> np.ndarray:
     """Values of a column (SI) to draw a curve at over its data's range: whole numbers for a whole-number
     column (the physics refuses 4.067 balls), :data:`_GRID` even steps otherwise."""
     if not whole_number(column.name):
@@ -88,7 +99,7 @@ def _grid(column: _Column, x: np.ndarray) -> np.ndarray:
     return np.unique(np.round(np.linspace(np.ceil(x.min()), np.floor(x.max()), _GRID)))
 
 
-def _whole_ticks(ax, columns: Sequence[_Column]) -> None:
+def _whole_ticks(ax, columns: Sequence[DrawnColumn]) -> None:
     """Whole-number ticks on the x axis of each axes whose column is a whole number."""
     from matplotlib.ticker import MaxNLocator
 
@@ -192,7 +203,7 @@ def _named(dataset: Dataset, term) -> str:
     """A term's label with its driver named by the column's header as sent, as its axis is
     ("temp [degF]", not temp_K)."""
     driver = term.drivers[0]
-    reading = _Column.of(dataset, driver).reading
+    reading = DrawnColumn.of(dataset, driver).reading
     if reading is None:
         return term.label
     return re.sub(rf"(?<![\w]){re.escape(driver)}(?![\w])", reading.sent.strip(), term.label)
@@ -202,7 +213,7 @@ def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: n
     plt = _pyplot()
     term, _ = model.terms[k]
     driver = term.drivers[0]
-    drawn = _Column.of(dataset, driver)
+    drawn = DrawnColumn.of(dataset, driver)
     columns = dataset.columns()
     without = CalibratedModel(
         model.fitted, model.fixed, model.terms[:k] + model.terms[k + 1 :], model.convention
@@ -252,12 +263,12 @@ def _residuals_figure(
 ):
     plt = _pyplot()
     varying = [
-        (_Column.of(dataset, n), np.asarray(v, dtype=float))
+        (DrawnColumn.of(dataset, n), np.asarray(v, dtype=float))
         for n, v in dataset.columns().items() if np.unique(v).size > 1
     ][:9]
     varying = [(column, column.shown(x)) for column, x in varying]
     if not varying:
-        varying = [(_Column("row"), np.arange(1, dataset.n_points + 1, dtype=float))]
+        varying = [(DrawnColumn("row"), np.arange(1, dataset.n_points + 1, dtype=float))]
     columns = min(3, len(varying))
     rows = -(-len(varying) // columns)
     fig, axes = plt.subplots(

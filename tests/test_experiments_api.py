@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from jobs_helper import finished_job
@@ -258,3 +259,61 @@ def test_a_planned_run_s_own_value_of_a_fixed_input_counts(client):
             "planned": [{**run, "groove_angle_deg": 85}, run]}
     errors = problem(client.post("/v1/experiments", json=body), 422)["errors"]
     assert errors[0]["pointer"].startswith("/planned/1"), errors
+
+
+def test_the_plan_plot_draws_each_column_under_its_key_and_unit_as_sent(client):
+    # a lab's space in mN and mm/s: the plot's axes read "load [mN]" and "speed [mm/s]" with the runs'
+    # values in those units (1-30 mN, 0-150 mm/s), not load_N 0.001-0.03 "[as in the data]"
+    import matplotlib.pyplot as plt
+
+    from microbearing.calibrate.plan_plot import plan_figure
+
+    lab = {"balls": {"values": [4, 8]}, "load [mN]": {"low": 1, "high": 30, "spacing": "log"},
+           "speed [mm/s]": {"low": 0, "high": 150}}
+    body = {"runs": 6, "space": lab, "fit_parameters": ["mu_pivot"], "noise_std_log": 0.03}
+    result = finished(client, client.post("/v1/experiments", json=body))
+    plot = result["plot"]
+    assert plot["sent_as"]["load_N"] == "load [mN]" and plot["sent_as"]["speed_m_s"] == "speed [mm/s]"
+    figure = plan_figure(result)
+    try:
+        ax = figure.axes[0]
+        labels = {ax.get_xlabel(): 0, ax.get_ylabel(): 1}
+        drawn = ax.collections[-1].get_offsets()  # the proposed runs, (x, y) per setting
+        for name, key in plot["sent_as"].items():
+            if key not in labels:
+                continue
+            sent = np.asarray(drawn)[:, labels[key]]
+            si = np.asarray(plot["runs"][name], dtype=float)
+            factor = 1e3 if name in ("load_N", "speed_m_s") else 1.0
+            assert np.allclose(np.sort(np.unique(sent)), np.sort(np.unique(si * factor))), (key, sent, si)
+        if "balls" in labels:  # ball counts get whole ticks
+            axis = ax.xaxis if labels["balls"] == 0 else ax.yaxis
+            ticks = [t for t in axis.get_majorticklocs() if 3.5 <= t <= 8.5]
+            assert ticks and all(float(t).is_integer() for t in ticks), ticks
+    finally:
+        plt.close(figure)
+
+
+def test_the_plan_plot_speaks_percent_and_degrees_fahrenheit_as_sent():
+    # drawn from a document alone: RH 0.2-0.8 sent as "RH [%]" is drawn 20-80, 300 K sent as
+    # "temperature [degF]" is drawn 80.33 degF (hand: 300 K = 26.85 degC = 80.33 degF)
+    import matplotlib.pyplot as plt
+
+    from microbearing.calibrate.plan_plot import plan_figure
+
+    document = {"goal": "parameters", "efficiency_lower_bound": 0.9,
+                "plot": {"axes": ["relative_humidity", "temperature_K"],
+                         "runs": {"relative_humidity": [0.2, 0.8], "temperature_K": [300.0, 310.0]},
+                         "envelope": {"relative_humidity": [0.5, 0.6], "temperature_K": [300.0, 300.0]},
+                         "sent_as": {"relative_humidity": "RH [%]", "temperature_K": "temperature [degF]"}}}
+    figure = plan_figure(document)
+    try:
+        ax = figure.axes[0]
+        assert (ax.get_xlabel(), ax.get_ylabel()) == ("RH [%]", "temperature [degF]")
+        offsets = np.asarray(ax.collections[-1].get_offsets())
+        assert np.allclose(sorted(offsets[:, 0]), [20.0, 80.0])
+        assert np.allclose(sorted(offsets[:, 1]), [80.33, 98.33], atol=1e-6)
+        patch = ax.patches[0]  # the envelope, 50-60 % wide
+        assert np.isclose(patch.get_x(), 50.0) and np.isclose(patch.get_width(), 10.0)
+    finally:
+        plt.close(figure)

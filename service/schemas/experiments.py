@@ -283,6 +283,9 @@ class PlanPlot(ResponseModel):
         "column]."))
     others: dict[str, float] | None = Field(default=None, description=(
         "Values of the other columns along the curves (the runs' medians), in their units."))
+    sent_as: dict[str, str] | None = Field(default=None, description=(
+        "Each column's key as the request sent it (``{\"load_N\": \"load [mN]\"}``): the PNG draws the "
+        "column under that key, in that unit; the numbers here stay in the column's own unit."))
 
 
 class ExperimentsResult(ResponseModel):
