@@ -37,7 +37,7 @@ from microbearing import physics as _physics
 from .candidates import Term, mu_of
 from .data import Dataset
 from .fit import fit
-from .prose import in_sent_units
+from .prose import in_sent_units, located
 from .rivals import where_they_part
 from .scores import CLOSE_MARGIN, CLOSE_Z, close_calls, within_one_se
 from .select import CandidateScore, Selection, preferred, search_data
@@ -143,20 +143,22 @@ def _where(dataset: Dataset, term: Term, mu_with: np.ndarray, mu_without: np.nda
     driver = term.drivers[0]
     columns = dataset.columns()
     if driver not in columns:
-        return {"driver": driver, "range": None, "data_range": None}
+        return located(dataset, {"driver": driver, "range": None, "data_range": None})
     x = np.asarray(columns[driver], dtype=float)
     data_range = [float(x.min()), float(x.max())]
+    span = None
     if with_term is not None and without_term is not None and noise_std_log:
         part = where_they_part(without_term, with_term, dataset, driver, noise_std_log, _HALF)
         if part["differ"]:
-            return {"driver": driver, "range": [min(r[0] for r in part["differ"]),
-                                                max(r[1] for r in part["differ"])], "data_range": data_range}
-        if part["at"] is not None:
-            return {"driver": driver, "range": [part["at"], part["at"]], "data_range": data_range}
-    difference = np.abs(np.log(mu_with / mu_without))
-    count = max(int(np.ceil(_TOP_SHARE * x.size)), 1)
-    top = np.argsort(-difference)[:count]
-    return {"driver": driver, "range": [float(x[top].min()), float(x[top].max())], "data_range": data_range}
+            span = [min(r[0] for r in part["differ"]), max(r[1] for r in part["differ"])]
+        elif part["at"] is not None:
+            span = [part["at"], part["at"]]
+    if span is None:
+        difference = np.abs(np.log(mu_with / mu_without))
+        count = max(int(np.ceil(_TOP_SHARE * x.size)), 1)
+        top = np.argsort(-difference)[:count]
+        span = [float(x[top].min()), float(x[top].max())]
+    return located(dataset, {"driver": driver, "range": span, "data_range": data_range})
 
 
 def _span(where: Mapping[str, Any], dataset: Dataset) -> str:

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from microbearing.physics.columns import unit_of
+
 from .data import Dataset
 from .domain import DataCloud
 from .model import CalibratedModel
@@ -20,7 +22,7 @@ from .rivals import describe_rival, where_they_part
 from .scores import within_one_se
 from .select import Selection
 
-__all__ = ["code_columns", "domain_words", "in_sent_units", "rival_drivers", "rival_words"]
+__all__ = ["code_columns", "domain_words", "in_sent_units", "located", "rival_drivers", "rival_words"]
 
 
 def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
@@ -29,7 +31,8 @@ def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[s
     for rival, alternative in zip(rivals, model.rival_models(), strict=True):
         other = rival.partner if rival.replaces is None else rival.replaces.drivers[0]
         drivers = dict.fromkeys(d for d in (rival.term.drivers[0], other) if d is not None)
-        where = [where_they_part(model, alternative, dataset, d, model.noise_std_log) for d in drivers]
+        where = [located(dataset, where_they_part(model, alternative, dataset, d, model.noise_std_log))
+                 for d in drivers]
         part = max(where, key=lambda w: w["largest_difference_log"] or 0.0)
         out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,
                     "statement": describe_rival(rival, in_sent_units(dataset, part))})
@@ -50,12 +53,32 @@ def in_sent_units(dataset: Dataset, part: Mapping[str, Any]) -> dict[str, Any]:
     if reading is None:
         return dict(part)
     out = {**part, "driver": reading.sent}
+    if part.get("at") is not None:
+        out["at"] = reading.sent_value(part["at"])
     for key in ("range", "data_range"):
         if part.get(key) is not None:
             out[key] = [reading.sent_value(v) for v in part[key]]
     if part.get("differ") is not None:
         out["differ"] = [[reading.sent_value(a), reading.sent_value(b)] for a, b in part["differ"]]
     return out
+
+
+def located(dataset: Dataset, part: Mapping[str, Any]) -> dict[str, Any]:
+    """Where two models part, or where a term acts (:func:`in_sent_units`' ``part``, values in the column's
+    own unit), with that ``unit`` (:func:`physics.columns.unit_of`; None for a column without one, such as
+    a run index) and ``as_sent``: the same in the unit and under the header the upload used, ``unit`` the
+    one written there (None when the column was sent in its own unit).
+
+    >>> from microbearing.calibrate.tabular import read_rows
+    >>> d, _ = read_rows([{"speed [mm/s]": 50, "load_N": 0.01, "balls": 4, "mu_measured": 0.01}])
+    >>> w = located(d, {"driver": "speed_m_s", "data_range": [0.01, 0.1], "at": 0.05})
+    >>> w["unit"], w["as_sent"]["driver"], w["as_sent"]["unit"], w["as_sent"]["at"]
+    ('m/s', 'speed [mm/s]', 'mm/s', 50.0)
+    """
+    reading = dataset.sent_reading(part["driver"])
+    shown = {k: v for k, v in part.items() if k not in ("unit", "as_sent")}
+    as_sent = None if reading is None else {**in_sent_units(dataset, shown), "unit": reading.sent_unit}
+    return {**shown, "unit": unit_of(part["driver"]), "as_sent": as_sent}
 
 
 def code_columns(dataset: Dataset) -> list[str]:

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
+from microbearing.physics.columns import outside_mask, physical_range
 
 from .candidates import Term
 from .credibility import implausible
@@ -75,7 +76,8 @@ MAX_CONFOUNDED_REFITS = 6
 MAX_CONFOUNDED_RIVALS = 2
 # The quantile over the reflected rows of |log(mu_rival / mu_model)| that ranks rivals by confounding.
 _OFF_LINE_QUANTILE = 0.9
-# Values of a driver scanned by where_they_part: the data's range and as much again on either side.
+# Values of a driver scanned by where_they_part: the data's range and as much again on either side, within
+# the column's physical range.
 _SCAN_POINTS = 61
 # Rows whose median difference where_they_part takes at most (evenly spread over the data). [1]
 _SCAN_ROWS = 500
@@ -414,12 +416,7 @@ def where_they_part(
         rows = np.linspace(0, values.size - 1, _SCAN_ROWS).astype(int)
         columns = {k: np.asarray(v)[rows] for k, v in columns.items()}
         values = values[rows]
-    span = hi - lo if hi > lo else max(abs(hi), 1.0)
-    grid = np.linspace(lo - span, hi + span, _SCAN_POINTS)
-    if driver in physics.PARAMETERS and physics.PARAMETERS[driver].kind == "int":
-        grid = np.unique(np.round(grid))  # the physics refuses a fractional ball count
-    if driver in physics.PARAMETERS and physics.PARAMETERS[driver].minimum is not None:
-        grid = grid[grid >= physics.PARAMETERS[driver].minimum]
+    grid = _scan_grid(driver, lo, hi)
     difference = np.full(grid.size, np.nan)
     for i, x in enumerate(grid):
         points = {**columns, driver: np.full(values.size, x)}
@@ -443,6 +440,26 @@ def where_they_part(
         "largest_difference_log": float(np.max(difference[known])) if known.any() else None,
         "at": at,
     }
+
+
+def _scan_grid(driver: str, lo: float, hi: float) -> np.ndarray:
+    """:data:`_SCAN_POINTS` values of ``driver`` over the data's range [lo, hi] and as much again on
+    either side, kept within the column's physical range (a physics input's bounds, a condition's
+    :func:`physics.columns.physical_range`: no humidity of -38 % or 138 %), whole for a ball count.
+
+    >>> g = _scan_grid("relative_humidity", 0.3, 0.8); float(g.min()), float(g.max())
+    (0.0, 1.0)
+    """
+    span = hi - lo if hi > lo else max(abs(hi), 1.0)
+    spec = physics.PARAMETERS.get(driver)
+    low, high = (spec.minimum, spec.maximum) if spec is not None else physical_range(driver)
+    start = lo - span if low is None else max(lo - span, min(low, lo))
+    stop = hi + span if high is None else min(hi + span, max(high, hi))
+    grid = np.linspace(start, stop, _SCAN_POINTS)
+    if spec is not None and spec.kind == "int":
+        grid = np.unique(np.round(grid))  # the physics refuses a fractional ball count
+    # a condition's excluded minimum (no temperature is 0 K) is left out of the scan
+    return grid[~outside_mask(driver, grid, low, high)] if spec is None else grid[grid >= start]
 
 
 def _runs(grid: np.ndarray, flag: np.ndarray) -> list[list[float]]:

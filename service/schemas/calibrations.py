@@ -359,6 +359,12 @@ class RivalPart(ResponseModel):
     largest_difference_log: float | None = Field(description=(
         "Largest median |log(mu_rival / mu_model)| scanned [1]."))
     at: float | None = Field(description="Where it is largest [unit of the column].")
+    unit: str | None = Field(default=None, description=(
+        "The unit of the numbers above: the column's own (m/s, K, 1 for a humidity fraction); null for a "
+        "column without one (a run index)."))
+    as_sent: RivalPart | None = Field(default=None, description=(
+        "The same under the header the upload used and in its unit (speed [mm/s], RH [%], degF), its "
+        "unit as written there; null when the column was sent in its own unit."))
 
 
 class Rival(ResponseModel):
@@ -387,8 +393,9 @@ class Undecided(ResponseModel):
         "Rows drawn like these that would carry z over the threshold, n (z_needed / z)^2 [1]; fewer if "
         "placed where the term acts."))
     where: Any = Field(default=None, description=(
-        "Where new rows would tell the answers apart: {driver, range, data_range} [unit of the driver], "
-        "or for rivals the list of their RivalPart scans."))
+        "Where new rows would tell the answers apart: {driver, range, data_range, unit, as_sent} [unit "
+        "of the driver, named by unit; as_sent the same under the upload's header and in its unit], or for "
+        "rivals the list of their RivalPart scans."))
     statement: str = Field(description="The same in words.")
 
 
