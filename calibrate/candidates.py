@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
+from microbearing.physics.columns import driver_unit
 from microbearing.physics.effects import (
     DRIFT_LAWS,
     DRIFT_PARAMETERS,
@@ -98,8 +99,9 @@ class EffectTerm:
 
     @property
     def units(self) -> dict[str, str]:
-        """Unit of each fitted parameter."""
-        return {p.name: p.unit for p in self.effect.parameters}
+        """Unit of each fitted parameter, one declared per unit of the driver in the driver's
+        (:func:`physics.columns.driver_unit`: ``run_in_length`` on cycles in cycles)."""
+        return {p.name: driver_unit(p.unit, self.drivers[0]) for p in self.effect.parameters}
 
     def bounds(self) -> list[tuple[float, float]]:
         """Bounds of each fitted parameter."""
@@ -200,8 +202,9 @@ class DriftTerm:
 
     @property
     def units(self) -> dict[str, str]:
-        """Unit of the coefficient (``1/driver``: per unit of the driver column) and of the level."""
-        units = {self.spec.coefficient.name: self.spec.coefficient.unit}
+        """Unit of the coefficient (declared ``1/driver``: per unit of the driver column, written in the
+        driver's unit, ``1/K`` on a temperature: :func:`physics.columns.driver_unit`) and of the level."""
+        units = {self.spec.coefficient.name: driver_unit(self.spec.coefficient.unit, self.driver)}
         if self.level:
             units[self.level_name] = physics.PARAMETERS[self.parameter].unit
         return units

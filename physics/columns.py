@@ -35,7 +35,7 @@ from .effects import humidity_fraction, temperature_kelvin
 from .parameters import PARAMETERS
 
 __all__ = ["CONDITIONS", "SLIP_LIMITS", "STANDARD_GRAVITY_M_S2", "ColumnError", "Condition",
-           "Reading", "accepted_spellings", "counted_from_zero", "from_si", "input_bases",
+           "Reading", "accepted_spellings", "counted_from_zero", "driver_unit", "from_si", "input_bases",
            "match_column", "outside_mask", "outside_range", "physical_range", "read_key", "read_name",
            "unit_of", "unknown_column", "whole_number"]
 
@@ -463,6 +463,30 @@ def unit_of(name: str) -> str | None:
     if condition.name == "time_h":
         return said[-1] if said else None
     return condition.unit
+
+
+def driver_unit(unit: str, driver: str) -> str:
+    """A declared unit that names its driver's (``"driver"``, ``"1/driver"``: an effect parameter's unit,
+    :class:`physics.effects.EffectParameter`) written in the unit of the driving column (:func:`unit_of`):
+    a count or a column without a unit (a run index) by its name, a fraction as 1.
+
+    >>> driver_unit("1/driver", "temperature_K"), driver_unit("driver", "time_h")
+    ('1/K', 'h')
+    >>> driver_unit("driver", "cycles"), driver_unit("1/driver", "run_index")
+    ('cycles', '1/run_index')
+    >>> driver_unit("1/driver", "relative_humidity"), driver_unit("1/driver", "RH_pct")
+    ('1', '1/%')
+    >>> driver_unit("m/s", "x")
+    'm/s'
+    """
+    if "driver" not in unit:
+        return unit
+    said, condition = unit_of(driver), _condition_of(driver)
+    if said is None or (condition is not None and condition.integer):
+        said = driver
+    if said == "1":
+        return "1"
+    return unit.replace("driver", {"percent": "%"}.get(said, said))
 
 
 # Words of a count's unit (cycles [kcycles]): counts, not pint's cycle or turn, which are angles of 2 pi.
