@@ -21,7 +21,6 @@ whole-number grids and ticks.
 from __future__ import annotations
 
 import io
-import re
 import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -33,6 +32,7 @@ from microbearing.physics.columns import ColumnError, Reading, match_column, uni
 
 from .data import Dataset
 from .model import CalibratedModel
+from .prose import in_sent_words
 
 __all__ = ["DrawnColumn", "calibration_figures", "calibration_plots", "log_ticks", "tick_texts"]
 
@@ -200,13 +200,9 @@ def _errors_text(errors: Mapping[str, Any]) -> str:
 
 
 def _named(dataset: Dataset, term) -> str:
-    """A term's label with its driver named by the column's header as sent, as its axis is
-    ("temp [degF]", not temp_K)."""
-    driver = term.drivers[0]
-    reading = DrawnColumn.of(dataset, driver).reading
-    if reading is None:
-        return term.label
-    return re.sub(rf"(?<![\w]){re.escape(driver)}(?![\w])", reading.sent.strip(), term.label)
+    """A term's label with its drivers named by their headers as sent, as their axes are
+    ("temp [degF]", not temp_K: :func:`calibrate.prose.in_sent_words`)."""
+    return in_sent_words(dataset, term.label)
 
 
 def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: np.ndarray, errors):

@@ -8,6 +8,7 @@ report's fields stay in SI.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from typing import Any
 
@@ -22,7 +23,8 @@ from .rivals import describe_rival, where_they_part
 from .scores import within_one_se
 from .select import Selection
 
-__all__ = ["code_columns", "domain_words", "in_sent_units", "located", "rival_drivers", "rival_words"]
+__all__ = ["code_columns", "domain_words", "in_sent_units", "in_sent_words", "located", "rival_drivers",
+           "rival_words"]
 
 
 def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
@@ -34,9 +36,31 @@ def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[s
         where = [located(dataset, where_they_part(model, alternative, dataset, d, model.noise_std_log))
                  for d in drivers]
         part = max(where, key=lambda w: w["largest_difference_log"] or 0.0)
-        out.append({"label": rival.label, "gap_se": rival.gap_se, "where": where,
-                    "statement": describe_rival(rival, in_sent_units(dataset, part))})
+        out.append({"label": rival.label, "label_as_sent": in_sent_words(dataset, rival.label),
+                    "gap_se": rival.gap_se, "where": where,
+                    "statement": in_sent_words(dataset, describe_rival(rival, in_sent_units(dataset, part)))})
     return out
+
+
+def in_sent_words(dataset: Dataset, text: str) -> str:
+    """Words (a term's label, a statement) with each column the upload sent under another header or unit
+    named by that header, as the plots name it: ``thermal_shear_strength on temperature [degF]`` for
+    ``... on temperature_K``; a header already in the words stays as it is. Numbers in the words are the
+    writer's to give in the unit sent (:func:`in_sent_units`).
+
+    >>> from microbearing.calibrate.tabular import read_rows
+    >>> d, _ = read_rows([{"speed [mm/s]": 50, "load_N": 0.01, "balls": 4, "mu_measured": 0.01}])
+    >>> in_sent_words(d, "stribeck on speed_m_s; over speed [mm/s] 10 to 100")
+    'stribeck on speed [mm/s]; over speed [mm/s] 10 to 100'
+    """
+    for name in dataset.headers:
+        reading = dataset.sent_reading(name)
+        if reading is None:
+            continue
+        header = reading.sent.strip()
+        pattern = re.compile(rf"{re.escape(header)}|(?<![\w]){re.escape(name)}(?![\w])")
+        text = pattern.sub(lambda _match, header=header: header, text)
+    return text
 
 
 def in_sent_units(dataset: Dataset, part: Mapping[str, Any]) -> dict[str, Any]:

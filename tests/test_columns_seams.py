@@ -894,3 +894,40 @@ def test_a_slip_of_some_rows_is_pointed_at_the_first_of_them(client):
     errors = whole.json()["errors"]
     assert [e["pointer"] for e in errors] == ["/data/0/load_N"], errors
     assert errors[0]["detail"].startswith("column load_N: ") and "values look like mN" in errors[0]["detail"]
+
+
+def test_the_report_names_terms_by_the_upload_s_headers(calibration):
+    # the upload sent "relative humidity [%]" and "temp_F", stored as relative_humidity and temp_K: the
+    # report's words name them as sent (the plots do), its identifiers (label, drivers) stay the columns
+    import re
+
+    sent = {"relative_humidity": "relative humidity [%]", "temp_K": "temp_F"}
+    effects = calibration["effects"]
+    assert effects, calibration["decision"]
+    for effect in effects:
+        expected = effect["label"]
+        for name, header in sent.items():
+            expected = re.sub(rf"(?<!\w){name}(?!\w)", header, expected)
+        assert effect["label_as_sent"] == expected, effect
+    words = [calibration["decision"], calibration["domain"]["summary"],
+             *(r["statement"] for r in calibration["rivals"]),
+             *(r["label_as_sent"] for r in calibration["rivals"]),
+             *(u["statement"] for u in calibration["undecided"])]
+    for text in words:
+        for name in sent:
+            assert not re.search(rf"(?<!\w){name}(?!\w)", text), (name, text)
+    assert any(header in text for text in words for header in sent.values()), words
+
+
+def test_the_report_gives_each_column_s_range_under_its_header_in_its_unit(calibration):
+    # what a form pre-fills: 30-80 % under "relative humidity [%]", degF under "temp_F" (by hand:
+    # F = (K - 273.15) * 9/5 + 32), a column sent in SI under its own name
+    domain, as_sent = calibration["model"]["domain"], calibration["domain"]["as_sent"]
+    humidity = as_sent["relative humidity [%]"]
+    assert humidity["column"] == "relative_humidity" and humidity["unit"] == "%"
+    assert np.allclose(humidity["range"], 100 * np.asarray(domain["relative_humidity"]))
+    temperature = as_sent["temp_F"]
+    assert temperature["column"] == "temp_K"
+    assert np.allclose(temperature["range"], (np.asarray(domain["temp_K"]) - 273.15) * 9 / 5 + 32)
+    assert as_sent["load_N"] == {"column": "load_N", "range": domain["load_N"], "unit": "N"}
+    assert {entry["column"] for entry in as_sent.values()} == set(domain)

@@ -165,6 +165,9 @@ class MissingEffect(ResponseModel):
     kind: str | None = Field(default=None, description="'effect' or 'drift' (null for calibrations stored "
                                                        "before drifts existed: an effect).")
     label: str | None = Field(default=None, description="The term in a few words.")
+    label_as_sent: str | None = Field(default=None, description=(
+        "The same with each column named by the header the upload sent it under (thermal_shear_strength "
+        "on temperature [degF]); null for calibrations stored before."))
     parameter: str | None = Field(default=None, description="The drifting physics parameter (drift only).")
     law: str | None = Field(default=None, description="The drift law: linear, arrhenius or kelvin (drift "
                                                       "only).")
@@ -371,6 +374,9 @@ class Rival(ResponseModel):
     """A term that fits the data about as well as a chosen one, kept in the model's intervals."""
 
     label: str = Field(description="'<rival term> instead of <chosen term>'.")
+    label_as_sent: str | None = Field(default=None, description=(
+        "The same with each column named by the header the upload sent it under; null for calibrations "
+        "stored before."))
     gap_se: float = Field(description=(
         "Its mean held-out loss minus the chosen term's, in standard errors of the paired difference [1]."))
     where: list[RivalPart] = Field(description="Where it parts from the calibrated model, per driver.")
@@ -462,8 +468,10 @@ class CalibrationResult(ResponseModel):
         "Columns that move together in the data (their effects cannot be told apart) and what would "
         "separate them; chosen terms whose driver may stand for another."))
     domain: dict[str, Any] | None = Field(default=None, description=(
-        "The domain rule: columns of the data cloud, alpha [1] (share of points like the data flagged) and "
-        "summary in words."))
+        "The domain rule: columns of the data cloud, alpha [1] (share of points like the data flagged), "
+        "summary in words, and as_sent: each column's range in the data under the header the upload sent "
+        "it under, in that unit ({\"load [mN]\": {\"column\": \"load_N\", \"range\": [3, 30], \"unit\": "
+        "\"mN\"}}; a column sent in its own unit under its name, in that unit)."))
     measurement_system: dict[str, Any] | None = Field(default=None, description=(
         "What the data say about the measurement system: replicates (design points, pure_error_relative [1] "
         "of log mu between replicates, the lack-of-fit F-test: f [1], p [1], rows left out of it as outliers "
