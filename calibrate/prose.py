@@ -9,7 +9,7 @@ report's fields stay in SI.
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -23,8 +23,8 @@ from .rivals import describe_rival, where_they_part
 from .scores import within_one_se
 from .select import Selection
 
-__all__ = ["code_columns", "domain_words", "in_sent_units", "in_sent_words", "located", "rival_drivers",
-           "rival_words"]
+__all__ = ["code_columns", "domain_report", "domain_words", "in_sent_units", "in_sent_words", "located",
+           "rival_drivers", "rival_words"]
 
 
 def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
@@ -137,6 +137,23 @@ def rival_drivers(selection: Selection) -> list[str]:
                 f"within one standard error: the data cannot tell {main} from {', '.join(others)} as the "
                 f"driver")
     return words
+
+
+def domain_report(dataset: Dataset, cloud: DataCloud | None,
+                  ranges: Mapping[str, Sequence[float]] | None) -> dict[str, Any]:
+    """The domain rule (:func:`domain_words`), its words naming columns as the upload did, and ``as_sent``:
+    each column's range in the data (``ranges``, SI) under the header and in the unit the upload used
+    (``{"load [mN]": {"column": "load_N", "range": [3, 30], "unit": "mN"}}``), for a form to fill."""
+    domain = domain_words(cloud)
+    as_sent = {}
+    for name, (low, high) in (ranges or {}).items():
+        reading = dataset.sent_reading(name)
+        if reading is None:
+            as_sent[name] = {"column": name, "range": [float(low), float(high)], "unit": unit_of(name)}
+        else:
+            ends = sorted(float(reading.sent_value(v)) for v in (low, high))
+            as_sent[reading.sent] = {"column": name, "range": ends, "unit": reading.sent_unit}
+    return {**domain, "summary": in_sent_words(dataset, domain["summary"]), "as_sent": as_sent}
 
 
 def domain_words(cloud: DataCloud | None) -> dict[str, Any]:

@@ -36,7 +36,6 @@ from typing import Any
 import numpy as np
 
 from microbearing import physics
-from microbearing.physics.columns import unit_of
 
 from .censored import beyond_clip, measured_rows, residual_variance
 from .data import Dataset, parse_csv, parse_rows
@@ -50,7 +49,7 @@ from .measurement import folds as design_folds
 from .model import CalibratedModel, RivalModel
 from .plausibility import check_plausible
 from .plots import calibration_plots
-from .prose import code_columns, domain_words, in_sent_words, rival_drivers, rival_words
+from .prose import code_columns, domain_report, in_sent_words, rival_drivers, rival_words
 from .rivals import fit_rivals, rival_json
 from .scatter import ScatterModel, fit_scatter
 from .select import (
@@ -765,25 +764,9 @@ def format_report(declared: DataStage, candidates: CandidatesStage, selection: S
             for name, labels in dataset.factors.items() if why_not_fitted(labels)],
         scatter={**uncertainty.scatter.to_json(), "summary": _scatter_words(uncertainty.scatter)},
         confounding=confounding,
-        domain=_domain(dataset, uncertainty),
+        domain=domain_report(dataset, uncertainty.cloud, uncertainty.model.domain),
         measurement_system=_measurement_system(declared, uncertainty, effects),
     )
-
-
-def _domain(dataset: Dataset, uncertainty: UncertaintyStage) -> dict[str, Any]:
-    """The domain rule (:func:`calibrate.prose.domain_words`), its words naming columns as the upload did,
-    and ``as_sent``: each column's range in the data under the header and in the unit the upload used
-    (``{"load [mN]": {"column": "load_N", "range": [3, 30], "unit": "mN"}}``), for a form to fill."""
-    domain = domain_words(uncertainty.cloud)
-    as_sent = {}
-    for name, (low, high) in (uncertainty.model.domain or {}).items():
-        reading = dataset.sent_reading(name)
-        if reading is None:
-            as_sent[name] = {"column": name, "range": [float(low), float(high)], "unit": unit_of(name)}
-        else:
-            ends = sorted(float(reading.sent_value(v)) for v in (low, high))
-            as_sent[reading.sent] = {"column": name, "range": ends, "unit": reading.sent_unit}
-    return {**domain, "summary": in_sent_words(dataset, domain["summary"]), "as_sent": as_sent}
 
 
 def _measurement_system(declared: DataStage, uncertainty: UncertaintyStage,
