@@ -378,10 +378,18 @@ def test_the_loop_in_chromium_with_api_keys_on(browser, keyed_server, tmp_path):
     driver.find_element("css selector", "#ask-form button[type=submit]").click()
     _wait(driver, lambda d: d.find_elements("css selector", "#ask-result table"), 30, "the answer")
     header, values = driver.find_element("id", "ask-table").get_attribute("value").strip().split("\n")
+    # the page asks in the upload's headers and units (the spreadsheet's mN, mm/s and %), the middle of
+    # the data's range in each: by hand, in SI, the same point
+    assert header == "balls,load [mN],speed [mm/s],relative humidity [%]", header
     point = dict(zip(header.split(","), map(float, values.split(",")), strict=True))
+    domain = report["model"]["domain"]
+    for key, column, factor in (("load [mN]", "load_N", 1e3), ("speed [mm/s]", "speed_m_s", 1e3),
+                                ("relative humidity [%]", "relative_humidity", 100.0)):
+        assert point[key] == pytest.approx(factor * sum(domain[column]) / 2, rel=5e-3), key
     answer = server.client.post("/v1/friction", headers=AUTH, json={
-        "model": report["model_id"], "conditions": {"relative_humidity": point.pop("relative_humidity")},
-        **{k: int(v) if k == "balls" else v for k, v in point.items()}}).json()
+        "model": report["model_id"], "balls": int(point["balls"]), "load_N": point["load [mN]"] / 1e3,
+        "speed_m_s": point["speed [mm/s]"] / 1e3,
+        "conditions": {"relative_humidity": point["relative humidity [%]"] / 100}}).json()
     cells = [c.text for c in driver.find_elements("css selector", "#ask-result tbody td")]
     assert float(cells[4]) == pytest.approx(answer["mu"], rel=5e-4)
     low, high = map(float, cells[5].split(" to "))

@@ -9,6 +9,7 @@ const POLL_MS = 600;
 
 const state = {
   physicsInputs: new Set(["balls", "load_N", "speed_m_s"]),  // replaced by GET /v1/parameters
+  sentColumns: {},  // the open calibration's headers as uploaded -> its columns ("load [mN]" -> "load_N")
   calibrations: [],
   report: null,   // the calibration report on show
   plan: null,     // the last proposal of next runs
@@ -379,16 +380,31 @@ function domainOf(report) {
   return (report && report.model && report.model.domain) || {};
 }
 
+/** Each column's range in the data under the header and in the unit the upload used (the report's
+ * domain.as_sent: "load [mN]: 3 .. 30"), else under its name in SI (a report stored before, or a header
+ * a line or a CSV row of the forms cannot hold). */
+function rangesAsSent(report) {
+  const domain = domainOf(report);
+  const sent = report.domain && report.domain.as_sent;
+  if (!sent) return Object.entries(domain).map(([name, range]) => ({ key: name, column: name, range }));
+  return Object.entries(sent).map(([key, c]) => (/[,:"\n]/.test(key) || !(c.column in domain)
+    ? { key: c.column, column: c.column, range: domain[c.column] } : { key, column: c.column, range: c.range }))
+    .filter((r) => r.range);
+}
+
 function prefillFromReport(report) {
   const domain = domainOf(report);
   const conditions = new Set((report.model && report.model.conditions) || []);
+  const round = (x) => Number(x.toPrecision(6));
   const mid = (range) => Number(((range[0] + range[1]) / 2).toPrecision(3));
-  const names = Object.keys(domain);
-  if (names.length) {
-    $("ask-table").value = `${names.join(",")}\n${names.map((n) => (n === "balls" ? Math.round(mid(domain[n])) : mid(domain[n]))).join(",")}`;
-    $("next-space").value = names.map((n) => `${n}: ${domain[n][0]} .. ${domain[n][1]}`).join("\n");
-    $("design-conditions").value = names.filter((n) => conditions.has(n))
-      .map((n) => `${n}: ${domain[n][0]} .. ${domain[n][1]}`).join("\n");
+  const ranges = rangesAsSent(report);
+  state.sentColumns = Object.fromEntries(ranges.map((r) => [r.key, r.column]));
+  if (ranges.length) {
+    $("ask-table").value = `${ranges.map((r) => r.key).join(",")}\n`
+      + ranges.map((r) => (r.column === "balls" ? Math.round(mid(r.range)) : mid(r.range))).join(",");
+    const line = (r) => `${r.key}: ${round(r.range[0])} .. ${round(r.range[1])}`;
+    $("next-space").value = ranges.map(line).join("\n");
+    $("design-conditions").value = ranges.filter((r) => conditions.has(r.column)).map(line).join("\n");
   }
   if (domain.balls) [$("design-balls-low").value, $("design-balls-high").value] = domain.balls;
   if (domain.load_N) [$("design-load-low").value, $("design-load-high").value] = domain.load_N;
@@ -426,7 +442,9 @@ async function ask(event) {
     const model = $("ask-model").value;
     const points = {};
     const conditions = {};
-    header.forEach((name) => ((state.physicsInputs.has(name) ? points : conditions)[name] = columns[name]));
+    // a physics input by its name or by the upload's header for it ("load [mN]"): the service reads both
+    const isInput = (name) => state.physicsInputs.has(name) || state.physicsInputs.has(state.sentColumns[name]);
+    header.forEach((name) => ((isInput(name) ? points : conditions)[name] = columns[name]));
     const body = { points, model, outputs: ["mu"] };
     if (Object.keys(conditions).length) body.conditions = conditions;
     const answer = await (await api("POST", "v1/friction/batch", { json: body })).json();
