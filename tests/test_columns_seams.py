@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import json
-import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from jobs_helper import wait_job
+from jobs_helper import job_result, wait_job
 
 from bench.calibrated_batch import measurements
 from microbearing.calibrate.experiments import candidate_points
@@ -43,13 +42,7 @@ def _upload_rows() -> list[dict]:
 def calibration(client) -> dict:
     response = client.post("/v1/calibrations", json={"data": _upload_rows(), "fit_parameters": ["mu_pivot"],
                                                      "folds": 3})
-    assert response.status_code == 202, response.text
-    deadline = time.monotonic() + 300
-    while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.1)
-    assert job["status"] == "succeeded", job
-    result = client.get(job["result_url"]).json()
+    result = job_result(client, response, timeout_s=300, interval_s=0.1)
     # the upload read the lab's headers as SI columns: the fraction and kelvin
     conditions = result["model"]["conditions"]
     assert {"relative_humidity", "temp_K"} <= set(conditions), conditions

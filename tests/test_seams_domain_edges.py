@@ -8,11 +8,10 @@ already ensure). The viscous power law asked the same of speed.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import job_result
 
 from microbearing import physics
 from microbearing.physics.effects import DRIFT_LAWS, EFFECTS, Domain
@@ -63,14 +62,7 @@ def client(tmp_path_factory):
 
 
 def finished_result(client: TestClient, body: dict) -> dict:
-    response = client.post("/v1/calibrations", json=body)
-    assert response.status_code == 202, response.text
-    deadline = time.monotonic() + 600
-    while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.1)
-    assert job["status"] == "succeeded", job
-    return client.get(job["result_url"]).json()
+    return job_result(client, client.post("/v1/calibrations", json=body), timeout_s=600, interval_s=0.1)
 
 
 def base_columns(rng: np.random.Generator) -> dict[str, np.ndarray]:

@@ -8,11 +8,11 @@ skipped every fractional ball count, so it looked at the two ends of its range a
 from __future__ import annotations
 
 import json
-import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import job_result
 
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel, parse_rows
@@ -154,13 +154,7 @@ def test_a_ball_count_effect_calibrates_with_its_plots_through_the_api(tmp_path)
     with TestClient(create_app(Settings(data_dir=tmp_path))) as client:
         response = client.post("/v1/calibrations", json={"data": ball_rows(), "fit_parameters": ["mu_pivot"],
                                                          "folds": 3})
-        assert response.status_code == 202, response.text
-        deadline = time.monotonic() + 600
-        while (job := client.get(response.headers["location"]).json())["status"] in ("queued", "running"):
-            assert time.monotonic() < deadline, job
-            time.sleep(0.1)
-        assert job["status"] == "succeeded", job
-        result = client.get(job["result_url"]).json()
+        result = job_result(client, response, timeout_s=600, interval_s=0.1)
         assert result["effects"][0]["drivers"] == ["balls"], result["decision"]
         assert sorted(result["plots"]) == ["effect_1", "measured_vs_predicted", "residuals"]
         for url in result["plots"].values():

@@ -9,11 +9,11 @@ then failed with the law's 422. The routes now read the domain each term's law d
 from __future__ import annotations
 
 import json
-import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import wait_job
 
 from microbearing import physics
 from microbearing.calibrate.candidates import DriftTerm, EffectTerm
@@ -79,11 +79,7 @@ def client(data_dir):
 
 
 def wait(client: TestClient, location: str) -> dict:
-    deadline = time.monotonic() + 600
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.1)
-    return job
+    return wait_job(client, location, timeout_s=600, interval_s=0.1)
 
 
 @pytest.fixture(scope="module")

@@ -10,11 +10,11 @@ measurement jitter (0.05 and 0.05003 m/s) counted as one.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from jobs_helper import job_result
 
 from microbearing import physics
 from microbearing.calibrate.domain import DataCloud
@@ -174,14 +174,7 @@ def client(tmp_path_factory):
 
 
 def finished_result(client: TestClient, response) -> dict:
-    assert response.status_code == 202, response.text
-    location = response.headers["location"]
-    deadline = time.monotonic() + 600
-    while (job := client.get(location).json())["status"] in ("queued", "running"):
-        assert time.monotonic() < deadline, job
-        time.sleep(0.1)
-    assert job["status"] == "succeeded", job
-    return client.get(job["result_url"]).json()
+    return job_result(client, response, timeout_s=600, interval_s=0.1)
 
 
 @pytest.mark.parametrize(("replicates", "jitter"), [(2, False), (5, False), (6, False), (10, False),
