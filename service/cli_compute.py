@@ -55,17 +55,32 @@ class Points:
         Rows [1].
     lines : list of int
         Each row's line in the file (for a refusal's words).
+    sent : dict of str to Reading
+        How each physics input sent under another header or unit was read (``load [mN]``), to write it
+        back so (:meth:`inputs_as_sent`).
     """
 
     inputs: dict[str, Any]
     conditions: dict[str, list[Any]]
     count: int
     lines: list[int] = field(default_factory=list)
+    sent: dict[str, Any] = field(default_factory=dict)
 
     def rows(self, stop: int) -> Points:
         """The first ``stop`` rows."""
         return Points({n: v[:stop] for n, v in self.inputs.items()},
-                      {n: v[:stop] for n, v in self.conditions.items()}, stop, self.lines[:stop])
+                      {n: v[:stop] for n, v in self.conditions.items()}, stop, self.lines[:stop], self.sent)
+
+    def inputs_as_sent(self) -> dict[str, Any]:
+        """The physics inputs under the file's headers, in its units (``load [mN]`` 10, not ``load_N``
+        0.01): an answer's columns read as the file's own, so it can be read back in as it is."""
+        import numpy as np
+
+        def back(reading, values):  # to 12 significant digits: a cell typed 13.2 is written 13.2 again
+            return [float(f"{v:.12g}") for v in reading.sent_value(np.asarray(values, dtype=float))]
+
+        return {(r.sent.strip() if (r := self.sent.get(name)) else name): (back(r, values) if r else values)
+                for name, values in self.inputs.items()}
 
 
 def read_points(path: str, separator: str | None, decimal: str | None) -> Points:
@@ -134,7 +149,8 @@ def read_points(path: str, separator: str | None, decimal: str | None) -> Points
         if column.name in inputs:
             _check_column(path, column, inputs[column.name], [r[j] for r in sent_rows], line_of)
     conditions = {name: column for name, column in values.items() if name not in physics.PARAMETERS}
-    return Points(inputs, conditions, len(rows), [line_of(number) for number in range(len(rows))])
+    sent = {column.name: column for column in table.columns if column.name in inputs and column.reading}
+    return Points(inputs, conditions, len(rows), [line_of(number) for number in range(len(rows))], sent)
 
 
 def _by_line(batch: Callable[[Points], dict[str, Any]], points: Points, path: str) -> dict[str, Any]:
@@ -250,7 +266,8 @@ def evaluate(args: argparse.Namespace) -> int:
     with progress_bar(f"evaluate {points.count} points") as progress:
         results = evaluate_in_chunks(None, {**fixed, **points.inputs}, points.count, outputs,
                                      physics_in(convention), progress=progress)
-    write_text(args.output, csv_text({**points.inputs, **_broadcast(fixed, points.count), **results}))
+    write_text(args.output, csv_text({**points.inputs_as_sent(), **_broadcast(fixed, points.count),
+                                      **results}))
     return EXIT_OK
 
 
@@ -342,7 +359,7 @@ def _evaluate_model(args: argparse.Namespace, outputs: list[str] | None) -> int:
 
     answers = {name: value for name, value in document.items()
                if isinstance(value, np.ndarray) and value.shape == (points.count,)}
-    write_text(args.output, csv_text({**points.inputs, **points.conditions,
+    write_text(args.output, csv_text({**points.inputs_as_sent(), **points.conditions,
                                       **_broadcast({**inputs, **conditions}, points.count), **answers}))
     return EXIT_OK
 

@@ -139,7 +139,10 @@ def test_evaluate_csv_reads_a_spreadsheet_export_as_calibrate_does(capsys, tmp_p
     assert code == 0 and "separator semicolon (detected), decimal comma (detected)" in err
     a = list(csv.reader(io.StringIO((tmp_path / "a").read_text())))
     b = list(csv.reader(io.StringIO((tmp_path / "b").read_text())))
-    assert a[0] == b[0] == ["balls", "load_N", "speed_m_s", "mu"]
+    # each answer speaks its file's headers and units: the export's mN and mm/s as typed (8,8 is 8.8)
+    assert a[0] == ["balls", "load_N", "speed_m_s", "mu"]
+    assert b[0] == ["balls", "load [mN]", "speed [mm/s]", "mu"]
+    assert [[float(c) for c in r[1:3]] for r in b[1:]] == [[8.8, 50.0], [13.2, 100.0]]
     exact = physics.evaluate(balls=np.array([4, 6]), load_N=np.array([0.0088, 0.0132]),
                              speed_m_s=np.array([0.05, 0.1])).mu
     for rows in (a, b):

@@ -167,7 +167,8 @@ def test_the_cli_takes_names_with_units_as_the_upload_reads_them(client, tmp_pat
     assert main(["evaluate", "load_N=0.01", "--csv", str(table), "-o", str(tmp_path / "out.csv"),
                  "--outputs", "mu"]) == 0
     lines = (tmp_path / "out.csv").read_text().splitlines()
-    assert lines[0].split(",")[:2] == ["balls", "speed_m_s"] and float(lines[1].split(",")[1]) == 0.05
+    # the answer speaks the file's header and unit: 50 mm/s as typed
+    assert lines[0].split(",")[:2] == ["balls", "speed [mm/s]"] and float(lines[1].split(",")[1]) == 50.0
     assert float(lines[1].split(",")[-1]) == pytest.approx(expected["mu"], rel=1e-12)
     assert main(["evaluate", "balls=4", "load_N=0.01", "sped=5"]) != 0
 
