@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from .plots import DrawnColumn
+from .prose import with_headers
 
 __all__ = ["plan_figure", "plan_png"]
 
@@ -119,15 +120,15 @@ def _runs_panel(ax, plot: Mapping[str, Any], x: DrawnColumn, y: DrawnColumn | No
 
 def _rivals_panel(ax, plot: Mapping[str, Any], x: DrawnColumn) -> None:
     """μ of the calibrated model and of each rival along the column ``x``, the runs' values marked."""
+    sent_as = plot.get("sent_as") or {}
     for k, curve in enumerate(plot["curves"]):
         ax.plot(x.shown(curve["x"]), curve["mu"], lw=2.5 if k == 0 else 1.5, ls="-" if k == 0 else "--",
-                label=curve["label"][:60])
+                label=with_headers(curve["label"], sent_as)[:60])
     for value in np.unique(x.shown(plot["runs"][x.name])):
         ax.axvline(value, color="red", alpha=0.3, lw=1)
     ax.set_xlabel(x.label)
     _whole_ticks(ax.xaxis, x)
     ax.set_ylabel("mu [1]")
-    sent_as = plot.get("sent_as") or {}
     others = ", ".join(_other_words(name, value, sent_as.get(name))
                        for name, value in (plot.get("others") or {}).items())
     ax.set_title(f"rivals' predictions ({others})", fontsize=8)

@@ -24,7 +24,7 @@ from .scores import within_one_se
 from .select import Selection
 
 __all__ = ["code_columns", "domain_report", "domain_words", "in_sent_units", "in_sent_words", "located",
-           "rival_drivers", "rival_words"]
+           "rival_drivers", "rival_words", "with_headers"]
 
 
 def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
@@ -53,11 +53,21 @@ def in_sent_words(dataset: Dataset, text: str) -> str:
     >>> in_sent_words(d, "stribeck on speed_m_s; over speed [mm/s] 10 to 100")
     'stribeck on speed [mm/s]; over speed [mm/s] 10 to 100'
     """
-    for name in dataset.headers:
-        reading = dataset.sent_reading(name)
-        if reading is None:
+    headers = {name: reading.sent.strip() for name in dataset.headers
+               if (reading := dataset.sent_reading(name)) is not None}
+    return with_headers(text, headers)
+
+
+def with_headers(text: str, headers: Mapping[str, str]) -> str:
+    """Words with each column of ``headers`` (column -> its header as sent) named by its header; a header
+    already in the words stays as it is.
+
+    >>> with_headers("mu_pivot drifts with RH (linear); RH [%] 20 to 80", {"RH": "RH [%]"})
+    'mu_pivot drifts with RH [%] (linear); RH [%] 20 to 80'
+    """
+    for name, header in headers.items():
+        if header == name:
             continue
-        header = reading.sent.strip()
         pattern = re.compile(rf"{re.escape(header)}|(?<![\w]){re.escape(name)}(?![\w])")
         text = pattern.sub(lambda _match, header=header: header, text)
     return text

@@ -317,3 +317,28 @@ def test_the_plan_plot_speaks_percent_and_degrees_fahrenheit_as_sent():
         assert np.isclose(patch.get_x(), 50.0) and np.isclose(patch.get_width(), 10.0)
     finally:
         plt.close(figure)
+
+
+def test_the_rivals_panel_names_columns_by_their_keys_as_sent():
+    # discriminate's curves: a rival's label names the model's column (RH); drawn, it names the key sent
+    import matplotlib.pyplot as plt
+
+    from microbearing.calibrate.plan_plot import plan_figure
+
+    curves = [{"label": "calibrated model", "x": [0.2, 0.8], "mu": [0.010, 0.020]},
+              {"label": "mu_pivot drifts with RH (linear) in place of humidity_meniscus on RH",
+               "x": [0.2, 0.8], "mu": [0.011, 0.016]}]
+    document = {"goal": "discriminate", "efficiency_lower_bound": 0.9,
+                "plot": {"axes": ["RH", "balls"], "runs": {"RH": [0.2, 0.8], "balls": [4.0, 8.0]},
+                         "curves": curves, "others": {"load_N": 0.01}, "sent_as": {"RH": "RH [%]",
+                                                                                  "load_N": "load [mN]"}}}
+    figure = plan_figure(document)
+    try:
+        right = figure.axes[1]
+        legend = [t.get_text() for t in right.get_legend().get_texts()]
+        assert legend[1].startswith("mu_pivot drifts with RH [%] (linear)"), legend
+        assert right.get_xlabel() == "RH [%]"
+        assert np.allclose(right.get_lines()[0].get_xdata(), [20.0, 80.0])
+        assert "load [mN] = 10" in right.get_title()
+    finally:
+        plt.close(figure)
