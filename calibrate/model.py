@@ -326,7 +326,8 @@ class CalibratedModel:
             mu = mu * np.exp(self._group_terms(points, labels, mu.shape)[0])
         return mu
 
-    def predict(self, points: Mapping[str, Any], level: float = 0.95, *, domain: bool = True) -> Prediction:
+    def predict(self, points: Mapping[str, Any], level: float = 0.95, *, domain: bool = True,
+                shown: Mapping[str, Any] | None = None) -> Prediction:
         """μ with its prediction interval and a domain check, at columnar points.
 
         This is the calibrated model's one prediction interface: arrays of inputs and conditions
@@ -341,6 +342,10 @@ class CalibratedModel:
         domain : bool, default True
             False: no domain check (``in_domain`` None, no warnings; μ and the bounds are the same), for
             callers that read the interval only, many times over (a robust design's worst case).
+        shown : mapping, optional
+            Column -> the :class:`physics.columns.Reading` of the key a request sent it under: the
+            domain warnings word that column's values and range under that key, in its unit
+            (:meth:`domain_check`).
 
         Returns
         -------
@@ -366,7 +371,7 @@ class CalibratedModel:
         mu = np.asarray(self._mu(points, self.fitted, values, physics_mu), dtype=float)
         shift, discrepancy_variance = self._discrepancy(points, mu.shape)
         # the labels too: a label no group of the data has is predicted as a new group, and said so
-        in_domain, warnings = self.domain_check({**points, **labels}) if domain else (None, [])
+        in_domain, warnings = self.domain_check({**points, **labels}, shown) if domain else (None, [])
         if self.covariance is None or self.noise_std_log is None:
             return Prediction(mu * np.exp(shift), None, None, in_domain, warnings)
         # What the model and its rivals share (the same discrepancy, scatter and data cloud), computed once.
@@ -648,11 +653,14 @@ class CalibratedModel:
             return self.cloud.widening(ratio)
         return np.maximum(np.asarray(ratio, dtype=float), 1.0)
 
-    def domain_check(self, points: Mapping[str, Any]) -> tuple[np.ndarray | None, list[str]]:
+    def domain_check(self, points: Mapping[str, Any], shown: Mapping[str, Any] | None = None
+                     ) -> tuple[np.ndarray | None, list[str]]:
         """Whether each point lies within the data's ranges, and a warning per column outside.
 
         A physics input that was not a data column is inside only at the value the calibration used
-        (fixed, fitted or default).
+        (fixed, fitted or default). ``shown`` (column -> :class:`physics.columns.Reading` of the key a
+        request sent it under) words a column's values and range under that key, in its unit (``RH [%]
+        = 65 is outside the calibration data's range [20, 49.4]``); the others in the column's own.
 
         Returns
         -------
@@ -667,24 +675,25 @@ class CalibratedModel:
         inside = np.ones(shape, dtype=bool)
         for name, given in points.items():
             value = np.broadcast_to(np.asarray(given, dtype=float), shape)
-            unit = f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""
+            label, to_shown, unit = _as_shown(name, (shown or {}).get(name))
             if name in self.domain:
                 lo, hi = self.domain[name]
                 slack = float(range_slack(lo, hi, self.domain_rows))
                 ok = (value >= lo - slack) & (value <= hi + slack)
-                where = f"outside the calibration data's range [{lo:.6g}, {hi:.6g}]{unit}"
+                ends = sorted(to_shown(v) for v in (lo, hi))
+                where = f"outside the calibration data's range [{ends[0]:.6g}, {ends[1]:.6g}]{unit}"
             elif name in physics.PARAMETERS:
                 used = self.fitted.get(name, self.fixed.get(name, physics.PARAMETERS[name].default))
                 if used is None:  # a required input the model never had a value for: nothing to compare
                     continue
                 used = float(used)
                 ok = np.isclose(value, used, rtol=1e-9, atol=0.0)
-                where = f"not the value the calibration used, {used:.6g}{unit}"
+                where = f"not the value the calibration used, {to_shown(used):.6g}{unit}"
             else:
                 continue
             if not np.all(ok):
                 bad = value[~ok]
-                shown = ", ".join(f"{x:.6g}" for x in np.unique(bad)[:3]) + (
+                values = ", ".join(f"{to_shown(x):.6g}" for x in np.unique(bad)[:3]) + (
                     ", ..." if np.unique(bad).size > 3 else ""
                 )
                 widened = ""
@@ -694,7 +703,7 @@ class CalibratedModel:
                     widened = (f", and the interval's log half-width is multiplied by up to {factor:.3g} "
                                f"(the extrapolation allowance: by one for every {share:.0f} % of the data's "
                                f"span beyond it)")
-                warnings.append(f"{name} = {shown}{unit} is {where}: an extrapolation ({bad.size} "
+                warnings.append(f"{label} = {values}{unit} is {where}: an extrapolation ({bad.size} "
                                 f"point(s)){widened}")
             inside &= ok
         if self.cloud is not None:
@@ -861,3 +870,16 @@ class CalibratedModel:
             rows if cloud is not None else None,
             clock=dict(getattr(dataset, "clock", {})),
         )
+
+
+def _as_shown(name: str, reading: Any) -> tuple[str, Any, str]:
+    """How a domain warning words column ``name``: its label, a function of a value (SI) to the value
+    shown, and the unit after it (`` [N]``; none where the label states it): under the key a request sent
+    it under and in that unit when ``reading`` (a :class:`physics.columns.Reading`) converted it, else its
+    own name and unit."""
+    if reading is not None and getattr(reading, "reading", ""):
+        label = reading.sent.strip()
+        unit = "" if label.endswith(("]", ")")) or not reading.sent_unit else f" [{reading.sent_unit}]"
+        return label, lambda v: float(reading.sent_value(float(v))), unit
+    unit = f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""
+    return name, float, unit

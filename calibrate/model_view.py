@@ -89,7 +89,7 @@ class CalibratedPhysicsModel(Model):
         return self.calibrated.predict(points, domain=domain)
 
     def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
-                 first_index: int = 0) -> Evaluation:
+                 first_index: int = 0, shown: Mapping[str, Any] | None = None) -> Evaluation:
         """As :meth:`Model.evaluate`; the answer of a calibrated model wherever it is asked.
 
         ``points`` may also give the condition columns the terms do not read
@@ -97,7 +97,8 @@ class CalibratedPhysicsModel(Model):
         ``mu`` are computed only when asked for; the warnings name every column outside the data.
         A value outside the domain of a term's law is a :class:`ModelError` naming its field
         (``/conditions/<name>``); a non-finite μ one at ``/conditions``, naming the point's index for
-        columns.
+        columns. ``shown`` words the warnings' columns as a request sent them
+        (:meth:`calibrate.CalibratedModel.domain_check`).
         """
         unread = {name: self.unread_conditions[name].check(value) for name, value in points.items()
                   if name in self.unread_conditions}
@@ -113,7 +114,7 @@ class CalibratedPhysicsModel(Model):
                               for name, detail in outside.items()])
         try:
             with np.errstate(all="ignore"):
-                prediction = self.calibrated.predict({**checked, **unread})
+                prediction = self.calibrated.predict({**checked, **unread}, shown=shown)
         except ValueError as exc:  # a condition outside the law of a term (relative humidity 1)
             raise ModelError([{"pointer": "/conditions", "detail": str(exc)}]) from None
         mu = np.asarray(prediction.mu, dtype=float)

@@ -424,7 +424,7 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
                           f"carry its unit, as the upload's header: e.g. 'relative humidity [%]', "
                           f"'temperature [degC]')"})
     answer = ReadConditions(read, {name: reading.sent for name, reading in readings.items()},
-                            {name: conditions[reading.sent] for name, reading in readings.items()})
+                            {name: conditions[reading.sent] for name, reading in readings.items()}, readings)
     if not items:  # each value within its column's physical range (a time counted from zero), as sent
         items = [{"pointer": pointer_at(pointer, answer.key(name)), "detail": answer.as_sent(name, detail)}
                  for name, detail in _outside_ranges(model, read, factors).items()]
@@ -623,7 +623,8 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
     conditions = read_conditions(mu_model, conditions)
     try:
         with problems():
-            evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs)
+            evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs,
+                                           shown=conditions.readings)
     except InputError as exc:
         raise _input_problem(exc, "", conditions) from None
     except ProblemError as exc:  # a condition outside its law's domain, by its key as sent
@@ -749,7 +750,7 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
         raise _as_sent(exc, conditions) from None
     _refuse_non_finite(mu_model, everything, conditions, values)
     with np.errstate(all="ignore"):
-        inside, warnings = mu_model.calibrated.domain_check(everything)
+        inside, warnings = mu_model.calibrated.domain_check(everything, conditions.readings)
     outside = None if inside is None else ~np.broadcast_to(inside, (count,))
     answer = {**values, **_model_fields(mu_model, values, outside, warnings)}
     return {name: value for name, value in answer.items() if value is not None}

@@ -925,3 +925,25 @@ def test_the_report_gives_each_column_s_range_under_its_header_in_its_unit(calib
     assert np.allclose(temperature["range"], (np.asarray(domain["temp_K"]) - 273.15) * 9 / 5 + 32)
     assert as_sent["load_N"] == {"column": "load_N", "range": domain["load_N"], "unit": "N"}
     assert {entry["column"] for entry in as_sent.values()} == set(domain)
+
+
+def test_a_domain_warning_speaks_the_key_and_unit_a_condition_was_sent_in(client, calibration):
+    # 95 % sent as "relative humidity [%]" beyond the data: the warning names that key and gives the value
+    # and the data's range in percent (by hand: 100 x the stored fraction's range); sent as the fraction,
+    # it speaks the fraction
+    model, domain = calibration["model_id"], calibration["model"]["domain"]
+    low, high = (100 * v for v in domain["relative_humidity"])
+    temp_F = (domain["temp_K"][0] - 273.15) * 9 / 5 + 32 + 1.0  # inside the data
+    single = client.post("/v1/friction", json=_point(model, {"relative humidity [%]": 95, "temp_F": temp_F}))
+    batch = client.post("/v1/friction/batch", json={
+        "points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
+        "conditions": {"relative humidity [%]": 95, "temp_F": temp_F}})
+    for answer in (single, batch):
+        assert answer.status_code == 200, answer.text
+        words = [w for w in answer.json()["domain_warnings"] if "range" in w]
+        said = f"relative humidity [%] = 95 is outside the calibration data's range [{low:.6g}, {high:.6g}]:"
+        assert words and words[0].startswith(said), words
+    fraction = client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.95, "temp_K": 300.0}))
+    words = fraction.json()["domain_warnings"]
+    assert any(w.startswith("relative_humidity = 0.95 is outside the calibration data's range "
+                            f"[{low / 100:.6g}, {high / 100:.6g}]") for w in words), words
