@@ -308,6 +308,9 @@ class ExperimentRequest:
         Runs already planned (one value per column of ``space``).
     seed : int
         Seed of the candidate set.
+    shown : mapping, optional
+        Column -> the :class:`physics.columns.Reading` of the key the request sent it under: the runs'
+        domain warnings word those columns under that key, in its unit (``RH [%] = 80``).
     """
 
     space: Mapping[str, Any]
@@ -317,6 +320,7 @@ class ExperimentRequest:
     fixed: Mapping[str, Any] | None = None
     planned: Sequence[Mapping[str, float]] | None = None
     seed: int = 0
+    shown: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -358,11 +362,12 @@ def _tidy(value) -> float:
     return float(f"{float(value):.12g}")
 
 
-def _runs(response: CalibratedResponse, candidates, design: Design) -> tuple[list[dict], dict, list[str]]:
+def _runs(response: CalibratedResponse, candidates, design: Design,
+          shown: Mapping[str, Any] | None = None) -> tuple[list[dict], dict, list[str]]:
     rows = design.runs
     chosen = {k: np.asarray(v)[rows] for k, v in candidates.items()}
     full = response.points(chosen)
-    prediction = response.model.predict(full)
+    prediction = response.model.predict(full, shown=shown)
     inside = (None if prediction.in_domain is None
               else np.broadcast_to(prediction.in_domain, (rows.size,)))
     runs = []
@@ -584,7 +589,7 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
     design = plan(response, candidates, runs, goal, envelope=envelope, rivals=rival_responses,
                   planned=planned_columns, exchange=exchange)
     report(0.8)
-    rows, chosen, warnings = _runs(response, candidates, design)
+    rows, chosen, warnings = _runs(response, candidates, design, request.shown)
     expected = _expected(goal, response, design, chosen, envelope, rivals if goal == "discriminate" else [],
                          [reported, *hedges] if reported is not None else [])
     plot = _plot_data(response, chosen, data, space, rivals if goal == "discriminate" else [])

@@ -713,9 +713,8 @@ class CalibratedModel:
                 at = np.unravel_index(int(np.argmax(np.where(far, ratio, -np.inf))), shape) if shape else ()
                 named = [c for c in self.cloud.columns if c in points or c in physics.PARAMETERS]
                 columns = self.columns_at(points)
-                example = ", ".join(
-                    f"{c} = {float(np.broadcast_to(np.asarray(columns[c], dtype=float), shape)[at]):.4g}"
-                    for c in named)
+                example = ", ".join(_shown_value(c, (shown or {}).get(c), float(
+                    np.broadcast_to(np.asarray(columns[c], dtype=float), shape)[at])) for c in named)
                 warnings.append(
                     f"{int(np.sum(far))} point(s) lie within every column's range but far from the "
                     f"calibration data's rows (distance to the data, or departure from a line along which "
@@ -883,3 +882,9 @@ def _as_shown(name: str, reading: Any) -> tuple[str, Any, str]:
         return label, lambda v: float(reading.sent_value(float(v))), unit
     unit = f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""
     return name, float, unit
+
+
+def _shown_value(name: str, reading: Any, value: float) -> str:
+    """``name = value`` as a domain warning gives a point (:func:`_as_shown`): ``RH [%] = 20``."""
+    label, to_shown, _unit = _as_shown(name, reading)
+    return f"{label} = {to_shown(value):.4g}"

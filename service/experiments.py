@@ -163,6 +163,12 @@ class _Read:
     runs: list[ReadConditions]
     planned: list[dict[str, Any]] | None  # the planned runs as plain columns (None: none given)
 
+    def readings(self) -> dict[str, Reading]:
+        """How each column was read from its key as sent (the envelope's and fixed values' first, the
+        space's winning), for words in the request's units."""
+        return {name: reading for columns in (self.fixed, self.envelope, self.space) if columns is not None
+                for name, reading in columns.readings.items()}
+
     @property
     def sent(self) -> dict[str, ReadConditions]:
         """Each field's columns (``planned.<i>`` per planned run), for :func:`_field_problem`."""
@@ -254,7 +260,7 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
         ctx.progress(0.2)
         try:
             request = ExperimentRequest(space, body.runs, body.goal, envelope=envelope, fixed=fixed,
-                                        planned=planned, seed=body.seed)
+                                        planned=planned, seed=body.seed, shown=read.readings())
             plan = next_experiments(model, request, rivals=rivals,
                                     data=None if dataset is None else dataset.columns(),
                                     progress=lambda f: ctx.progress(0.2 + 0.8 * f))
@@ -288,7 +294,8 @@ def first_experiments_job(body: FirstExperimentsRequest) -> Callable[[Any], dict
         model, fixed_all = physics_model(fit_parameters, body.noise_std_log, body.guess, fixed,
                                          str(body.convention))
         response = check_request(model, space, fixed_all, envelope, planned)
-        request = ExperimentRequest(space, body.runs, body.goal, envelope, fixed, planned, body.seed)
+        request = ExperimentRequest(space, body.runs, body.goal, envelope, fixed, planned, body.seed,
+                                    read.readings())
         check_identifiable(response, request)  # no job for parameters no run can tell
     except ValueError as exc:
         raise _field_problem(exc, sent) from None

@@ -342,3 +342,21 @@ def test_the_rivals_panel_names_columns_by_their_keys_as_sent():
         assert "load [mN] = 10" in right.get_title()
     finally:
         plt.close(figure)
+
+
+def test_runs_beyond_the_data_are_worded_in_the_keys_and_units_of_the_space(client, calibration_id):
+    # the calibration's humidity ran 0.2-0.5 (kelvin_rows); a space sent in percent reaching 80 % is
+    # warned of in percent, under its key (by hand: the data's range x 100)
+    body = {"runs": 6, "goal": "parameters",
+            "space": {"balls": {"values": [4, 8]}, "load [mN]": {"low": 3, "high": 30, "spacing": "log"},
+                      "speed_m_s": {"low": 0.0, "high": 0.15}, "relative humidity [%]": {"values": [30, 80]}}}
+    result = finished(client, client.post(f"/v1/calibrations/{calibration_id}/next-experiments", json=body))
+    domain = client.get(f"/v1/calibrations/{calibration_id}").json()["model"]["domain"]["relative_humidity"]
+    beyond = [w for w in result["warnings"] if "outside the calibration data's range" in w]
+    # the Kelvin law's parameters are learnt where humidity reaches furthest: runs at 80 %
+    assert any(run["conditions"]["relative_humidity"] == 0.8 for run in result["runs"]), result["runs"]
+    assert beyond and beyond[0].startswith(
+        f"relative humidity [%] = 80 is outside the calibration data's range "
+        f"[{100 * domain[0]:.6g}, {100 * domain[1]:.6g}]"), beyond
+    assert not any(w.startswith("relative_humidity =") for w in result["warnings"]), result["warnings"]
+    assert not any("load_N =" in w for w in result["warnings"]), result["warnings"]
