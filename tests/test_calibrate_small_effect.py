@@ -3,12 +3,13 @@ physics at high humidity and low load (truth: the physics x (1 + 0.1 RH^4 / load
 scatter). Ten rows support one term (:func:`calibrate.decidability.terms_supported`), whose threshold (a
 held-out z of 3.8-4.3 here) the effect does not reach: the report says the data cannot decide (right), and
 the model is the physics without a humidity term. Its interval at RH 0.7-0.8 covered fresh measurements
-0.80, 0.79 and 0.13 on the data sets drawn here (3 of 18 seeds in /work/exp73/h38/probe.py; the other 15
-covered 1.0): the candidates the data could not tell from the model did not widen it. Seed 8: the close
-call the report names (a Kelvin law of the adhesion) refitted to 1.5 J/m², implausible, and no other close
-call was tried. Seeds 9 and 15: the humidity candidates' z (1.87; 1.18) fell below every close-call rule,
-though they lowered the held-out loss and the score. Now every close call is tried in turn, and on few rows
-every candidate the data lean to is held as a rival (:func:`calibrate.rivals.undecided_candidates`)."""
+0.80, 0.79 and 0.13 on the data sets drawn here (seeds 8, 9 and 15 of ``bench/calibration_trust.py --part
+small-effect``, where 4 of 18 fell below 0.90, the fourth at 0.71, and the other 14 covered 0.98-1.0): the
+candidates the data could not tell from the model did not widen it. Seed 8: the close call the report names
+(a Kelvin law of the adhesion) refitted to 1.5 J/m², implausible, and no other close call was tried. Seeds
+9 and 15: the humidity candidates' z (1.87; 1.18) fell below every close-call rule, though they lowered the
+held-out loss and the score. Now every close call is tried in turn, and on few rows every candidate the
+data lean to is held as a rival (:func:`calibrate.rivals.undecided_candidates`)."""
 
 from __future__ import annotations
 
