@@ -658,7 +658,7 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     # model reads (calibrate.rivals): the interval holds their envelope.
     pairs = confounded_pairs(varying)
     rivals = fit_rivals(dataset, declared.fit_parameters, candidates.selection, final, convention,
-                        pairs=pairs)
+                        pairs=pairs, few_rows=options.requested_terms is not None)
     if rivals:
         model = replace(model, rivals=[RivalModel.from_json(rival_json(r)) for r in rivals])
     return UncertaintyStage(final, mu_after, outliers, group_effects, scatter,
