@@ -306,6 +306,8 @@ def fit_rivals(
                        candidate, -candidate.z, None, False)
         if rival is not None:
             rivals.append(rival)
+            if not few_rows:  # on rows enough for the search, the close call it names (or, its refit
+                break         # implausible or failed, the next) holds the step's doubt, as before
     return rivals
 
 
