@@ -21,7 +21,7 @@ from microbearing import physics
 from microbearing.calibrate import CalibratedModel, DataError, parse_csv, parse_rows
 from microbearing.calibrate.candidates import EffectTerm
 from microbearing.calibrate.censored import censored_residual, residual_variance
-from microbearing.calibrate.measurement import LackOfFit, folds, inspect, lack_of_fit
+from microbearing.calibrate.measurement import LackOfFit, drift_words, folds, inspect, lack_of_fit
 from microbearing.calibrate.rivals import PLACE_LR
 from microbearing.calibrate.scores import count_parameters
 from microbearing.physics.changepoints import step_places
@@ -321,6 +321,9 @@ def test_a_step_in_the_reading_is_found_at_its_place_and_predicted_after_it(clie
     assert abs(step - np.log(1.06)) < 3 * 0.03 * np.sqrt(2 / 60) and 0.003 < sd < 0.01
     after = effect["constants"]["after"]
     assert abs(after - 60) <= 3 and effect["constants"]["before"] == after - 1
+    said = report["measurement_system"]["drift"]
+    assert len(said) == 1 and said[0].startswith(
+        f"the instrument's reading stepped {100 * np.expm1(step):+.1f} % at run_index {after:.0f} (after")
     model = CalibratedModel.from_json(report["model"])
     # later runs are predicted at the level after the step, earlier ones before it
     level = model.predict({"balls": BALLS, "load_N": np.full(2, 0.01), "speed_m_s": np.full(2, 0.05),
@@ -341,6 +344,20 @@ def test_a_linear_drift_is_no_step_and_clean_data_get_neither(client, kind):
     rows = session_rows(rng, 120, 0.10 if kind == "drift" else 0.0, clock=False)
     names = [e["name"] for e in calibrated(client, rows, folds_=5)["effects"]]
     assert names == (["measurement_drift"] if kind == "drift" else []), names
+
+
+def test_a_step_on_iso_times_is_said_at_the_time_the_user_wrote():
+    # by hand: the step's first row after it is 4.0 hours after a 09:00 start, 13:00 that day
+    effect = {"name": "measurement_step", "drivers": ["date"],
+              "parameters": {"step_log": float(np.log(1.06))}, "parameter_std": {"step_log": 0.005},
+              "constants": {"step": 3.9667, "before": 3.9333, "after": 4.0}}
+    said = drift_words([effect], {"date": "2026-11-28T09:00:00+00:00"})
+    assert said[0].startswith("the instrument's reading stepped +6.0 % at date 2026-11-28T13:00:00+00:00 "
+                              "(after 2026-11-28T12:56:00+00:00;")
+    low, high = np.expm1(np.log(1.06) - 1.96 * 0.005), np.expm1(np.log(1.06) + 1.96 * 0.005)
+    assert f"{100 * low:+.1f} to {100 * high:+.1f} %" in said[0]
+    # without the clock the place is in the column's own numbers
+    assert " at run 4 (after 3.9333;" in drift_words([{**effect, "drivers": ["run"]}])[0]
 
 
 # --- 3. saturation and constant data ---------------------------------------------------------------------
