@@ -1,4 +1,4 @@
-"""The lab's measurement system through the REST API: replicates, drift over a session, a clipping sensor.
+"""The lab's measurement system through the REST API: replicates, drift or a step, a clipping sensor.
 
 Run: ``python bench/measurement_system.py [--seeds N] [--first-seed S] [--part PART]``, PART one of
 ``all`` (default), ``replicates``, ``drift``, ``saturation``.
@@ -21,6 +21,9 @@ Cases:
 * ``drift run_index`` / ``drift ISO date``: 120 runs at random loads and speeds, the reading drifting
   +8 % linearly over the session, the order given as a run_index or as ISO 8601 times 4 min apart; the
   report should name a measurement drift near +8 %; coverage at the session's first and last 12 runs;
+* ``step run_index``: the same 120 runs, the reading stepping x1.06 from run 60 on (a recalibrated load
+  cell); the report should name a step near +6 % at run_index 60 (not a drift); coverage at the first 12
+  runs, the middle (runs 50-70, about the step) and the last 12;
 * ``run-in cycles``: a physical run-in (friction 1 + 0.4 exp(-cycle / 300) times the physics) with a
   cycle column: it should stay a run-in;
 * ``clip``: 120 rows whose reading clips at the 72nd percentile of the true μ (26-31 % of rows
@@ -123,14 +126,23 @@ def replicates(client, seed: int, offsets: bool) -> list[str]:
             f"coverage {covered:.3f}"]
 
 
-def session(client, seed: int, clock: bool) -> list[str]:
+def drifted(run, n: int) -> np.ndarray:
+    """The reading's factor of the drift cases: +8 % linearly over the session."""
+    return 1.0 + 0.08 * np.asarray(run, dtype=float) / (n - 1)
+
+
+def stepped(run, n: int) -> np.ndarray:
+    """The reading's factor of the step case: x1.06 from the session's middle run on."""
+    return np.where(np.asarray(run, dtype=float) >= n // 2, 1.06, 1.0)
+
+
+def session(client, seed: int, clock: bool, reading=drifted) -> list[str]:
     rng = np.random.default_rng(seed)
     n = 120
     load = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n))
     speed = rng.uniform(0.01, 0.15, n)
     run = np.arange(n, dtype=float)
-    drift = 1.0 + 0.08 * run / (n - 1)
-    mu = truth(load, speed) * drift * np.exp(rng.normal(0.0, NOISE, n))
+    mu = truth(load, speed) * reading(run, n) * np.exp(rng.normal(0.0, NOISE, n))
     start = datetime(2026, 11, 28, 9, 0, tzinfo=UTC)
     minutes = 4.0 * run + rng.uniform(0.0, 0.5, n)
     column, values = ("date", [(start + timedelta(minutes=float(m))).isoformat() for m in minutes]) if clock \
@@ -138,13 +150,15 @@ def session(client, seed: int, clock: bool) -> list[str]:
     report = calibrated(client, as_rows({"load_N": load, "speed_m_s": speed, column: values}, mu))
     out = ["; ".join(report["measurement_system"]["drift"]) or "no drift said", f"terms {terms(report)}",
            pivot(report)]
-    for name, runs in (("start", np.arange(12)), ("end", np.arange(n - 12, n))):
+    regions = [("start", np.arange(12))] + ([("middle", np.arange(50, 71))] if reading is stepped else []) \
+        + [("end", np.arange(n - 12, n))]
+    for name, runs in regions:
         k = FRESH // runs.size
         at = np.repeat(runs, k).astype(float)
         g = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), at.size))
         v = rng.uniform(0.01, 0.15, at.size)
         where = (minutes[runs].repeat(k) / 60.0) if clock else at  # the model reads hours since the start
-        true_mu = truth(g, v) * (1.0 + 0.08 * at / (n - 1))
+        true_mu = truth(g, v) * reading(at, n)
         error, covered = judged(report, {"load_N": g, "speed_m_s": v, column: where}, true_mu, rng)
         out.append(f"{name}: truth error {error:.2f} x noise, coverage {covered:.3f}")
     return out
@@ -205,6 +219,7 @@ CASES = {
                    ("replicates + point offsets", lambda c, s: replicates(c, s, True))],
     "drift": [("drift run_index", lambda c, s: session(c, s, False)),
               ("drift ISO date", lambda c, s: session(c, s, True)),
+              ("step run_index", lambda c, s: session(c, s, False, stepped)),
               ("run-in cycles", run_in)],
     "saturation": [("clip", clip), ("constant", constant)],
 }

@@ -49,6 +49,8 @@ __all__ = [
     "candidate_terms",
     "drifted_inputs",
     "mu_of",
+    "place_profile",
+    "placed_on",
     "term_from_json",
 ]
 
@@ -84,8 +86,15 @@ class EffectTerm:
 
     @property
     def label(self) -> str:
-        """The term in a few words, e.g. ``humidity_meniscus on relative_humidity``."""
-        return f"{self.name} on {', '.join(self.drivers)}"
+        """The term in a few words, e.g. ``humidity_meniscus on relative_humidity``, with its searched
+        constants (``measurement_step on run_index at step 59.5``)."""
+        at = "".join(f" at {n} {self.constants[n]:.6g}" for n in self.searched if n in self.constants)
+        return f"{self.name} on {', '.join(self.drivers)}{at}"
+
+    @property
+    def searched(self) -> tuple[str, ...]:
+        """Constants the selection chose by search (a step's place): each counts as a fitted value."""
+        return self.effect.searched
 
     @property
     def generic(self) -> bool:
@@ -169,6 +178,7 @@ class DriftTerm:
 
     kind = "drift"
     generic = False
+    searched: tuple[str, ...] = ()
 
     @property
     def spec(self) -> DriftLaw:
@@ -433,7 +443,8 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
         values and lie in its domain. A drift is proposed for every parameter of
         :data:`physics.effects.DRIFT_PARAMETERS` that is not a data column, on every condition column
         its law accepts except order and time columns (:data:`physics.effects.SESSION_KEYWORDS`, ISO 8601
-        times), which drive the reading's ``measurement_drift`` instead.
+        times), which drive the reading's ``measurement_drift`` and ``measurement_step`` instead. An
+        effect with searched constants (the step's place) is proposed once per value of them.
     chosen : sequence of Term
         Terms already in the model: the same effect, or the same parameter on the same driver, is
         not proposed again.
@@ -462,8 +473,12 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
             candidates += [(n,) for n in names if n in sessions and (n,) not in candidates]
         for drivers in candidates:
             if levels.get(drivers[0], 0) >= effect.min_levels and effect.accepts(columns, drivers):
-                term = EffectTerm(effect.name, drivers, effect.constants(columns, drivers))
-                (generic if effect.generic else named).append(term)
+                constants = effect.constants(columns, drivers)
+                # A searched constant (a step's place): one candidate per value, the search the family's
+                searched = ([{}] if effect.search_constants is None
+                            else effect.search_constants(effect.driver_values(columns, drivers)))
+                (generic if effect.generic else named).extend(
+                    EffectTerm(effect.name, drivers, {**constants, **more}) for more in searched)
     drifts = []
     drifting = {t.parameter for t in chosen if t.kind == "drift"}
     for parameter in DRIFT_PARAMETERS:
@@ -487,3 +502,50 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
                         DriftTerm(parameter, law.name, driver, law.constants(driver, values), level)
                     )
     return named + drifts + generic
+
+
+def place_profile(term: EffectTerm, columns: Mapping[str, Any], log_residual: np.ndarray,
+                  rows: np.ndarray) -> tuple[list[dict[str, float]], np.ndarray]:
+    """Each place of a term with a searched place (a step) and the residual sum of squares there.
+
+    Parameters
+    ----------
+    term : EffectTerm
+        A term whose effect declares ``searched`` constants and one ``log``-form value.
+    columns : mapping
+        Every row's columns (the driver's values give the places, :attr:`Effect.search_constants`).
+    log_residual : numpy.ndarray
+        ``log(mu_measured / mu)`` of every row, ``mu`` the model without the term. [1]
+    rows : numpy.ndarray
+        Rows (indices) the profile is taken on (a fold's training rows).
+
+    Returns
+    -------
+    places : list of dict
+        The searched constants of each place.
+    rss : numpy.ndarray
+        Least-squares residual sum of squares on ``rows`` of a level plus the term's value at each place
+        (the term's log factor at value 1 is its shape there). [1]
+    """
+    effect = term.effect
+    places = effect.search_constants(effect.driver_values(columns, term.drivers))
+    r = np.asarray(log_residual, dtype=float)[rows]
+    name, ones = term.parameter_names[0], np.ones(np.size(log_residual))
+    rss = np.empty(len(places))
+    for i, place in enumerate(places):
+        shape = np.log(effect.apply(ones, columns, {name: 1.0}, term.drivers, {**term.constants, **place}))
+        design = np.column_stack([np.ones(r.size), shape[rows]])
+        fitted = design @ np.linalg.lstsq(design, r, rcond=None)[0]
+        rss[i] = float(np.sum(np.square(r - fitted)))
+    return places, rss
+
+
+def placed_on(term: Term, columns: Mapping[str, Any], log_residual: np.ndarray, rows: np.ndarray) -> Term:
+    """The term at its best place on ``rows`` (:func:`place_profile`); any other term as it is. A fold's
+    refit searches the place on its own training rows, so that the held-out rows never chose it."""
+    if term.kind != "effect" or not term.searched:
+        return term
+    places, rss = place_profile(term, columns, log_residual, rows)
+    if not places:
+        return term
+    return EffectTerm(term.name, term.drivers, {**term.constants, **places[int(np.argmin(rss))]})

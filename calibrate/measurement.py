@@ -18,14 +18,17 @@ before it reads the data as physics:
 * **Constant data.** μ identical in every row tells nothing a term could follow: said, and no term.
 * **Drift.** An order (``run_index``) or time column (ISO 8601 times read as hours,
   :mod:`calibrate.data`) is a candidate driver of the effect ``measurement_drift`` (the reading drifts
-  over the session: gauge drift, AIAG MSA), distinct from a run-in of the bearing with its cycles; when
-  the search chooses it the report says how far the instrument drifted (:func:`drift_words`).
+  over the session: gauge drift, AIAG MSA), distinct from a run-in of the bearing with its cycles, and of
+  ``measurement_step`` (the reading steps once, at a place searched between the column's values: a
+  recalibrated load cell); when the search chooses one the report says how far the instrument drifted
+  or where and how far it stepped (:func:`drift_words`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from datetime import datetime, timedelta
 from typing import Any
 
 import numpy as np
@@ -385,11 +388,18 @@ def lack_of_fit(dataset: Dataset, log_residual: np.ndarray, n_fitted: int,
                      int(dataset.n_points - np.sum(measured)))
 
 
-def drift_words(effects: Sequence[Mapping[str, Any]]) -> list[str]:
-    """The instrument's drift over the session, from the report's effects (a ``measurement_drift``
-    term), e.g. ``the instrument drifted +7.6 % over the session (run_index 0 to 119) ...``."""
+def drift_words(effects: Sequence[Mapping[str, Any]], clock: Mapping[str, str] | None = None) -> list[str]:
+    """The instrument's drift or step over the session, from the report's effects (a
+    ``measurement_drift`` or ``measurement_step`` term), e.g. ``the instrument drifted +7.6 % over the
+    session (run_index 0 to 119) ...`` or ``the instrument's reading stepped +6.1 % at run_index 60 ...``.
+
+    ``clock`` (:attr:`MeasurementSystem.clock`) names the columns read from ISO 8601 times and their start:
+    a step on one is placed at the time of day the user wrote, not in hours.
+    """
     out = []
     for effect in effects:
+        if effect.get("name") == "measurement_step":
+            out.append(_step_words(effect, dict(clock or {})))
         if effect.get("name") != "measurement_drift":
             continue
         d = effect["parameters"]["session_drift_log"]
@@ -402,6 +412,25 @@ def drift_words(effects: Sequence[Mapping[str, Any]]) -> list[str]:
                    f"a drift of the reading (measurement system), not of the bearing; the fitted physics is "
                    f"the reading at the session's start")
     return out
+
+
+def _step_words(effect: Mapping[str, Any], clock: Mapping[str, str]) -> str:
+    """One ``measurement_step`` in words, its place in the column's own terms."""
+    s = effect["parameters"]["step_log"]
+    sd = effect["parameter_std"]["step_log"]
+    c, driver = effect["constants"], effect["drivers"][0]
+
+    def at(value: float) -> str:
+        if driver not in clock:
+            return f"{value:.6g}"
+        start = datetime.fromisoformat(clock[driver])
+        return (start + timedelta(seconds=round(3600.0 * float(value)))).isoformat()  # to the second
+
+    return (f"the instrument's reading stepped {100 * np.expm1(s):+.1f} % at {driver} {at(c['after'])} "
+            f"(after {at(c['before'])}; the place searched over the session; 95 % interval of the step "
+            f"{100 * np.expm1(s - 1.96 * sd):+.1f} to {100 * np.expm1(s + 1.96 * sd):+.1f} %): a step of the "
+            f"reading (measurement system), not of the bearing; the fitted physics is the reading before "
+            f"the step, and later runs are predicted at the level after it")
 
 
 def with_censor_scale(dataset: Dataset, fit_parameters: Sequence[str], convention: str) -> Dataset:

@@ -776,7 +776,7 @@ def _measurement_system(declared: DataStage, uncertainty: UncertaintyStage,
     system, dataset, final = declared.measurement, declared.dataset, uncertainty.final
     lof = lack_of_fit(dataset, np.log(dataset.mu_measured / uncertainty.mu_after), len(final.names),
                       ~uncertainty.outliers["mask"])
-    drift = drift_words(effects)
+    drift = drift_words(effects, system.clock)
     return {
         "replicates": None if lof is None else lof.to_json(),
         "saturation": [vars(clip) for clip in system.saturation],

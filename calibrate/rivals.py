@@ -25,6 +25,10 @@ weights to estimate from data that cannot tell the rivals apart). :func:`where_t
 which values of the rival's driver the two differ by more than the scatter of a measurement: where new
 rows would tell them apart.
 
+**Rivals of a searched place.** A step's place (:mod:`physics.changepoints`) is chosen among the gaps of
+its column; the places the data cannot reject about it (:func:`place_rival_scores`) are rivals too, so that
+the interval over the runs near the step holds the levels before and after it.
+
 **Rivals by confounding.** When a column the model reads (a physics input or a term's driver) moves
 together with one it does not read (:func:`calibrate.domain.confounded_pairs`), the data cannot say
 which of the two acts: temperature that rose with speed may carry what the model puts on speed. Off
@@ -52,16 +56,18 @@ import numpy as np
 from microbearing import physics
 from microbearing.physics.columns import outside_mask, physical_range
 
-from .candidates import Term
+from .candidates import EffectTerm, Term, place_profile
+from .censored import measured_rows
 from .credibility import implausible
 from .data import Dataset
 from .fit import FitResult, fit, predict_mu
 from .scores import close_calls, preferred
 from .select import CandidateScore, Selection, search_data
 
-__all__ = ["MAX_CONFOUNDED_REFITS", "MAX_CONFOUNDED_RIVALS", "MAX_RIVALS", "RIVAL_SE", "Rival",
-           "confounded_rival_scores", "describe_rival", "fit_rivals", "off_line_difference", "rival_json",
-           "rival_scores", "undecided_candidates", "undecided_order", "where_they_part"]
+__all__ = ["MAX_CONFOUNDED_REFITS", "MAX_CONFOUNDED_RIVALS", "MAX_RIVALS", "PLACE_LR", "RIVAL_SE", "Rival",
+           "confounded_rival_scores", "describe_rival", "fit_rivals", "off_line_difference",
+           "place_rival_scores", "rival_json", "rival_scores", "undecided_candidates", "undecided_order",
+           "where_they_part"]
 
 #: A rival's mean held-out loss exceeds the chosen term's by at most this many standard errors of the
 #: paired difference (one-sided, about a 2 % test: what the data cannot reject). [1]
@@ -74,6 +80,12 @@ MAX_CONFOUNDED_REFITS = 6
 #: Of those, the rivals by confounding kept at most: the ones that part most from the model where the two
 #: columns part (:func:`off_line_difference`). [1]
 MAX_CONFOUNDED_RIVALS = 2
+#: Likelihood ratio of a step's place against the best one that the data cannot reject at 95 %: the LR at
+#: the true place tends to twice the larger of two independent maxima of a Brownian motion with drift
+#: -|t|/2, each beyond x with chance exp(-x), so LR_95 = -2 ln(1 - √0.95) = 7.35 (D.V. Hinkley, Biometrika
+#: 57, 1-17 (1970); D. Siegmund, Ann. Statist. 14, 361-404 (1986)); not χ²₁'s 3.84, which a searched place
+#: does not follow. [1]
+PLACE_LR = float(-2.0 * np.log(1.0 - np.sqrt(0.95)))
 # The quantile over the reflected rows of |log(mu_rival / mu_model)| that ranks rivals by confounding.
 _OFF_LINE_QUANTILE = 0.9
 # Values of a driver scanned by where_they_part: the data's range and as much again on either side, within
@@ -221,6 +233,41 @@ def confounded_rival_scores(selection: Selection, pairs: Sequence[Mapping[str, A
     return found
 
 
+def place_rival_scores(dataset: Dataset, selection: Selection, final: FitResult,
+                       convention: str = physics.DEFAULT_CONVENTION
+                       ) -> list[tuple[int, CandidateScore, float]]:
+    """Rivals of a chosen term's searched place (a step's): ``(step, candidate, gap)``, the ends first.
+
+    With every other value as fitted, the log residual with the term taken out is profiled over the term's
+    places (:attr:`physics.effects.Effect.search_constants`; least squares of a level and the term's one
+    log-form value at each): a place whose likelihood ratio against the best, ``LR = (RSS - RSS_min) /
+    s²`` with ``s² = RSS_min / (n - 3)``, is at most :data:`PLACE_LR` is one the data cannot reject. The
+    lowest and highest such place are the rivals (``gap`` = √LR): the interval then holds both levels over
+    the runs whose side of the step is in doubt.
+    """
+    measured = np.flatnonzero(measured_rows(dataset.censored, dataset.n_points))
+    columns = {**physics.defaults(), **dataset.inputs(), **dataset.conditions}
+    mu = predict_mu(dataset, final.declared, final.terms, final.term_values, convention=convention)
+    found = []
+    for k, (term, values) in enumerate(zip(final.terms, final.term_values, strict=True)):
+        if (term.kind != "effect" or not term.searched or term.effect.value_forms != ("log",)
+                or k >= len(selection.steps) or selection.steps[k].chosen is None):
+            continue
+        factor = term.effect.apply(np.ones(dataset.n_points), columns, {term.parameter_names[0]: values[0]},
+                                   term.drivers, term.constants)
+        places, rss = place_profile(term, columns, np.log(dataset.mu_measured / mu * factor), measured)
+        if not places or measured.size <= 3:
+            continue
+        ratio = (rss - rss.min()) / max(rss.min() / (measured.size - 3), 1e-300)
+        kept = np.flatnonzero(ratio <= PLACE_LR)
+        for i in dict.fromkeys([kept[0], kept[-1]]):
+            rival = EffectTerm(term.name, term.drivers, {**term.constants, **places[i]})
+            if rival.label != term.label:
+                found.append((k, replace(selection.steps[k].chosen, term=rival, values=list(values)),
+                              float(np.sqrt(ratio[i]))))
+    return found
+
+
 def fit_rivals(
     dataset: Dataset,
     fit_parameters: Sequence[str],
@@ -271,7 +318,10 @@ def fit_rivals(
     # that stopped, the best-scored MAX_CONFOUNDED_REFITS are refitted and the MAX_CONFOUNDED_RIVALS that
     # part most from the model off the data's line are kept.
     added = [item for item in confounded if not item[4]][:MAX_CONFOUNDED_REFITS]
-    scored = [item for item in confounded if item[4]] + scored
+    # The place of a step in doubt first: no other rival holds the runs on the wrong side of it.
+    places = [(k, c, gap, None, True)
+              for k, c, gap in place_rival_scores(dataset, selection, final, convention)]
+    scored = [item for item in confounded if item[4]] + places + scored
     kept: list[tuple[float, Rival]] = []
     for k, candidate, gap, partner, _ in added:
         rival = _refit(dataset, fit_parameters, terms, final, convention, k, candidate, gap, partner, False)
@@ -285,6 +335,8 @@ def fit_rivals(
     for k, candidate, gap, partner, replaces in scored:
         if len(rivals) >= max_rivals:
             break
+        if candidate.term.label in {r.term.label for r in rivals}:
+            continue
         rival = _refit(dataset, fit_parameters, terms, final, convention, k, candidate, gap, partner,
                        replaces)
         if rival is not None:

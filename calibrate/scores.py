@@ -310,7 +310,9 @@ def usable(mu: np.ndarray) -> bool:
 
 
 def count_parameters(fit_parameters: Sequence[str], terms: Sequence[Term]) -> int:
-    return len(fit_parameters) + sum(len(t.parameter_names) for t in terms)
+    """Values a model fits: declared parameters, terms' parameters, and constants chosen by search (a
+    step's place costs like a fitted value, so that noise buys no step)."""
+    return len(fit_parameters) + sum(len(t.parameter_names) + len(t.searched) for t in terms)
 
 
 def score_of(dataset, term, n_parameters, oof_mu, current_loss, scale, joint) -> CandidateScore:
@@ -330,10 +332,11 @@ def preferred(dataset: Dataset, candidates: Sequence[CandidateScore]) -> Candida
     effect or a drift of a declared parameter by its law) fit as well within one standard error of the
     paired per-row losses; then a named term is named, never the generic one: a catalogue effect
     first, then the drift that asks least of its parameter (the smallest change over the data), then
-    the lowest score. So when two drivers move together and a generic term on one fits as well as a
-    declared drift law on the other (a polynomial in the speed against the viscosity's Arrhenius law
-    in the temperature that rises with it), the law is named; the report names the other too
-    (:func:`calibrate.report.calibrate`'s confounding words, :mod:`calibrate.decidability`).
+    the lowest score (which charges a searched place, a step's, as a fitted value). So when two drivers
+    move together and a generic term on one fits as well as a declared drift law on the other (a
+    polynomial in the speed against the viscosity's Arrhenius law in the temperature that rises with it),
+    the law is named; the report names the other too (:func:`calibrate.report.calibrate`'s confounding
+    words, :mod:`calibrate.decidability`).
     """
     best = min(candidates, key=lambda c: c.score)
     close_named = [c for c in candidates if not c.term.generic and within_one_se(c.loss, best.loss)]

@@ -13,7 +13,7 @@ import numpy as np
 
 from microbearing import physics
 
-from .candidates import FrozenBase, candidate_terms, mu_of
+from .candidates import FrozenBase, candidate_terms, mu_of, placed_on
 from .credibility import implausible
 from .data import Dataset
 from .fit import fit, huber_loss, predict_mu, weighted_log_residual
@@ -178,14 +178,21 @@ def shifted(declared: dict[str, float], shifts: dict[str, float]) -> dict[str, f
 
 
 def _cv_candidate(dataset, fit_parameters, current: ModelCV, screened: CandidateScore, scale, convention):
-    """Held-out μ of every row with the candidate refitted jointly, or None when a fold cannot predict."""
+    """Held-out μ of every row with the candidate refitted jointly, or None when a fold cannot predict (a
+    searched place is searched again on each fold's training rows)."""
     everything = np.arange(dataset.n_points)
     oof = np.empty(dataset.n_points)
     terms = (*current.terms, screened.term)
+    columns = {**physics.defaults(), **dataset.inputs(), **dataset.conditions}
     for test, fold_fit in zip(current.folds, current.fold_fits, strict=True):
         train = np.setdiff1d(everything, test)
         with np.errstate(all="ignore"):
             try:
+                if screened.term.searched:  # a step's place searched again on the fold's training rows
+                    mu = predict_mu(dataset, fold_fit.declared, current.terms, fold_fit.term_values,
+                                    convention=convention)
+                    terms = (*current.terms, placed_on(screened.term, columns,
+                                                       np.log(dataset.mu_measured / mu), train))
                 result = fit(
                     dataset,
                     fit_parameters,
@@ -318,7 +325,26 @@ def _screened(dataset, fit_parameters, current: ModelCV, scale, options: SearchO
         )
         if rescored is not None:
             exact[id(candidate)] = rescored
-    return sorted((exact.get(id(c), c) for c in screened), key=lambda c: c.score), in_sample_loss
+    ranked = sorted((exact.get(id(c), c) for c in screened), key=lambda c: c.score)
+    return _best_places(ranked), in_sample_loss
+
+
+def _best_places(screened: list[CandidateScore]) -> list[CandidateScore]:
+    """The screened candidates with one place per term with a searched place (a step's): its best.
+
+    The place is part of that candidate's fit, not a family of candidates: its joint refit searches it
+    again on every fold's training rows (:func:`_cv_candidate`), so the held-out rows never chose it,
+    and the score charges it as a fitted value. Left as one candidate per place, the family-wise
+    threshold of every step on data with an order column rose by about 0.3 (3.1 -> 3.4 on 120 runs), and
+    a linear drift of +8 % over 120 runs went unnamed in one of three data sets.
+    """
+    seen, out = set(), []
+    for c in screened:
+        key = (c.term.name, c.term.drivers) if c.term.searched else id(c)
+        if key not in seen:
+            seen.add(key)
+            out.append(c)
+    return out
 
 
 def _z_needed(screened: list[CandidateScore], in_sample_loss: np.ndarray, options: SearchOptions) -> float:

@@ -40,6 +40,8 @@ With μ_m the model's μ, z the balls, G the load [N], V the speed [m/s]:
 * ``thermal_shear_strength``: μ = μ_m exp(-β (T - T_ref)), β [1/K], T_ref the
   data's median; thermally activated interfacial shear strength [4]_.
 * ``run_in``: μ = μ_m (1 + A exp(-n / n_0)), A [1], n_0 [unit of n]; running-in [5]_.
+* ``measurement_drift``, ``measurement_step``: the reading drifts linearly or steps once (at a place
+  searched, :mod:`physics.changepoints`) over an order or time column.
 * ``generic_linear``, ``generic_quadratic``: μ = μ_m exp(c_1 z + c_2 z²),
   z = (x - mean) / std; ``generic_power``: μ = μ_m (x / median)^c_1.
 
@@ -59,6 +61,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .changepoints import step_places
 from .drivers import (
     DRIVER_KINDS,
     HUMIDITY,
@@ -180,6 +183,11 @@ class Effect:
         Per fitted parameter, how μ moves with it (one of :data:`VALUE_FORMS`), None where it has no
         such closed form (a Stribeck speed, an exponent of speed, a run-in): what the bounds of the
         prediction interval over a box need.
+    searched : tuple of str
+        Constants the selection searches (a step's place): not fitted smoothly but chosen among the
+        values ``search_constants`` gives, one candidate each; each counts as a fitted parameter.
+    search_constants : callable or None
+        ``search_constants(x) -> list of dict``: the values of the searched constants to try.
     """
 
     name: str
@@ -203,6 +211,8 @@ class Effect:
     direction: Callable = field(default=None, repr=False, compare=False)
     stationary: Callable = field(default=None, repr=False, compare=False)
     value_forms: tuple[str | None, ...] = ()
+    searched: tuple[str, ...] = ()
+    search_constants: Callable = field(default=None, repr=False, compare=False)
 
     @property
     def parameter_names(self) -> list[str]:
@@ -490,6 +500,28 @@ _MEASUREMENT_DRIFT = Effect(
     enters="mul", direction=lambda v: _sign(v[0]), value_forms=("log",),  # x exp(d s), s rises with x
 )
 
+_MEASUREMENT_STEP = Effect(
+    name="measurement_step",
+    title="Measurement step: the instrument's reading steps once during the session (a recalibrated load "
+          "cell, a changed sensor), not the bearing",
+    formula="mu = mu_model * exp(step_log * [x >= x_step])",
+    parameters=(EffectParameter(
+        "step_log", "1",
+        "Log of the reading's factor after the step over before (0.058: +6 %); the reading is taken as "
+        "true before the step.", -1.0, 1.0),),
+    driver_description="measurement order (run_index) or time (hours, or ISO 8601 dates) over the session; "
+                       "x_step, the step's place, searched over the gaps between its values (midpoints; "
+                       "before and after: the values either side)",
+    reference="A shift of a measurement system's bias (AIAG, Measurement Systems Analysis, 4th ed., 2010, "
+              "ch. I); its place by the least-squares change-point search of D.V. Hinkley, Biometrika 57, "
+              "1-17 (1970), charged as a fitted value.",
+    driver_keywords=SESSION_KEYWORDS, min_levels=3,
+    correct=lambda mu, x, columns, p, c: mu * np.exp(p[0] * (x >= c["step"])),
+    make_initial=_zeros,
+    enters="mul", direction=lambda v: _sign(v[0]), value_forms=("log",),  # x exp(s [x >= x_step])
+    searched=("step",), search_constants=step_places,
+)
+
 _C_BOUNDS = (-20.0, 20.0)
 _GENERIC_LINEAR = Effect(
     name="generic_linear",
@@ -625,6 +657,8 @@ def register_effect(effect: Effect) -> None:
     if unknown:
         raise ValueError(f"effect {effect.name}: value forms are {', '.join(VALUE_FORMS)} or None; "
                          f"got {unknown[0]!r}")
+    if bool(effect.searched) != (effect.search_constants is not None):
+        raise ValueError(f"effect {effect.name}: searched constants need search_constants, and only they")
     if not effect.monotone and effect.stationary is None:
         raise ValueError(f"effect {effect.name}: a term that is not monotone declares its stationary point")
     named = [e for e in EFFECTS.values() if not e.generic]
@@ -635,7 +669,7 @@ def register_effect(effect: Effect) -> None:
 
 
 for _effect in (_MENISCUS, _VISCOUS, _CONSTANT, _THERMAL, _RUN_IN, _BREAKAWAY, _VISCOUS_POWER,
-                _MEASUREMENT_DRIFT, _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER):
+                _MEASUREMENT_DRIFT, _MEASUREMENT_STEP, _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER):
     register_effect(_effect)
 
 

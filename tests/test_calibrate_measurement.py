@@ -19,8 +19,12 @@ from scipy import optimize, stats
 
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel, DataError, parse_csv, parse_rows
+from microbearing.calibrate.candidates import EffectTerm
 from microbearing.calibrate.censored import censored_residual, residual_variance
-from microbearing.calibrate.measurement import LackOfFit, folds, inspect, lack_of_fit
+from microbearing.calibrate.measurement import LackOfFit, drift_words, folds, inspect, lack_of_fit
+from microbearing.calibrate.rivals import PLACE_LR
+from microbearing.calibrate.scores import count_parameters
+from microbearing.physics.changepoints import step_places
 from microbearing.service.app import create_app
 from microbearing.service.settings import Settings
 
@@ -260,6 +264,100 @@ def test_friction_rising_over_the_runs_is_not_a_run_in(client):
     assert "run_in" not in names and names == ["measurement_drift"]
     assert report["effects"][0]["drivers"] == ["run_index"]
     assert report["fitted_parameters"]["mu_pivot"]["value"] == pytest.approx(PIVOT, rel=0.03)
+
+
+def stepped_rows(rng, n, factor, at):
+    """Session rows whose reading is multiplied by ``factor`` from run ``at`` on (a recalibrated cell)."""
+    load = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n))
+    speed = rng.uniform(0.01, 0.15, n)
+    run = np.arange(n, dtype=float)
+    mu = truth(load, speed) * np.where(run >= at, factor, 1.0) * np.exp(rng.normal(0.0, NOISE, n))
+    return as_rows({"load_N": load, "speed_m_s": speed, "run_index": run}, mu)
+
+
+def test_step_places_are_the_gaps_with_enough_rows_on_each_side():
+    # 3 rows at each of 0..9 (30 rows): at least 5 rows a side, so the gaps after 1 (6 below) to after 7
+    # (6 above); midpoints by hand
+    x = np.repeat(np.arange(10.0), 3)
+    places = step_places(x)
+    assert [p["step"] for p in places] == [1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5]
+    for p in places:  # brute force: the rows either side and the values either side
+        assert np.sum(x < p["step"]) >= 5 and np.sum(x >= p["step"]) >= 5
+        assert p["before"] == x[x < p["step"]].max() and p["after"] == x[x >= p["step"]].min()
+    # the step law's searched place counts as a fitted value, like its size
+    term = EffectTerm("measurement_step", ("run_index",), {"step": 4.5})
+    assert count_parameters(["mu_pivot"], [term]) == 3
+    assert term.label == "measurement_step on run_index at step 4.5"
+
+
+def test_the_place_s_likelihood_ratio_covers_the_true_place_at_95_percent():
+    # brute force: Gaussian rows with a step at the middle, the profile RSS over every place by cumulative
+    # sums; the LR at the true place stays below PLACE_LR in about 95 % of data sets (chi-square's 3.84,
+    # the naive bound, covers far less: the place is searched, not a smooth parameter)
+    rng = np.random.default_rng(0)
+    n, sims = 400, 2000
+    for delta in (0.5, 1.0):
+        y = rng.normal(size=(sims, n))
+        y[:, n // 2:] += delta
+        c1, c2 = np.cumsum(y, axis=1), np.cumsum(y**2, axis=1)
+        k = np.arange(1, n)
+        rss = (c2[:, :-1] - c1[:, :-1] ** 2 / k) + (c2[:, -1:] - c2[:, :-1] - (c1[:, -1:] - c1[:, :-1]) ** 2
+                                                    / (n - k))
+        lr = (rss[:, n // 2 - 1] - rss.min(axis=1)) / (rss.min(axis=1) / (n - 3))
+        assert 0.93 <= np.mean(lr <= PLACE_LR) <= 0.99
+        assert np.mean(lr <= stats.chi2.ppf(0.95, 1)) < 0.9
+
+
+def test_a_step_in_the_reading_is_found_at_its_place_and_predicted_after_it(client):
+    # before: no step law; the linear drift took a x1.06 step at run 60 of 120 as "drifted +8-10 %", and
+    # fresh measurements about the step were covered below 0.90
+    rng = np.random.default_rng(11)
+    n = 120
+    report = calibrated(client, stepped_rows(rng, n, 1.06, 60), folds_=5)
+    assert [e["name"] for e in report["effects"]] == ["measurement_step"], report["effects"]
+    effect = report["effects"][0]
+    step, sd = effect["parameters"]["step_log"], effect["parameter_std"]["step_log"]
+    # the size within noise: 3 % on 60 rows a side is 0.0055 in log
+    assert abs(step - np.log(1.06)) < 3 * 0.03 * np.sqrt(2 / 60) and 0.003 < sd < 0.01
+    after = effect["constants"]["after"]
+    assert abs(after - 60) <= 3 and effect["constants"]["before"] == after - 1
+    said = report["measurement_system"]["drift"]
+    assert len(said) == 1 and said[0].startswith(
+        f"the instrument's reading stepped {100 * np.expm1(step):+.1f} % at run_index {after:.0f} (after")
+    model = CalibratedModel.from_json(report["model"])
+    # later runs are predicted at the level after the step, earlier ones before it
+    level = model.predict({"balls": BALLS, "load_N": np.full(2, 0.01), "speed_m_s": np.full(2, 0.05),
+                           "run_index": np.array([0.0, n - 1.0])}).mu
+    assert level[1] / level[0] == pytest.approx(np.exp(step), rel=1e-9)
+    # about the step the interval holds the place's doubt (its rivals): fresh runs 50-70 covered
+    runs = np.repeat(np.arange(50.0, 71.0), 20)
+    g = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), runs.size))
+    v = rng.uniform(0.01, 0.15, runs.size)
+    error, covered = coverage(report, {"load_N": g, "speed_m_s": v, "run_index": runs},
+                              truth(g, v) * np.where(runs >= 60, 1.06, 1.0), rng)
+    assert 0.9 <= covered <= 0.995 and error < NOISE
+
+
+@pytest.mark.parametrize("kind", ["drift", "clean"])
+def test_a_linear_drift_is_no_step_and_clean_data_get_neither(client, kind):
+    rng = np.random.default_rng(12)
+    rows = session_rows(rng, 120, 0.10 if kind == "drift" else 0.0, clock=False)
+    names = [e["name"] for e in calibrated(client, rows, folds_=5)["effects"]]
+    assert names == (["measurement_drift"] if kind == "drift" else []), names
+
+
+def test_a_step_on_iso_times_is_said_at_the_time_the_user_wrote():
+    # by hand: the step's first row after it is 4.0 hours after a 09:00 start, 13:00 that day
+    effect = {"name": "measurement_step", "drivers": ["date"],
+              "parameters": {"step_log": float(np.log(1.06))}, "parameter_std": {"step_log": 0.005},
+              "constants": {"step": 3.9667, "before": 3.9333, "after": 4.0}}
+    said = drift_words([effect], {"date": "2026-11-28T09:00:00+00:00"})
+    assert said[0].startswith("the instrument's reading stepped +6.0 % at date 2026-11-28T13:00:00+00:00 "
+                              "(after 2026-11-28T12:56:00+00:00;")
+    low, high = np.expm1(np.log(1.06) - 1.96 * 0.005), np.expm1(np.log(1.06) + 1.96 * 0.005)
+    assert f"{100 * low:+.1f} to {100 * high:+.1f} %" in said[0]
+    # without the clock the place is in the column's own numbers
+    assert " at run 4 (after 3.9333;" in drift_words([{**effect, "drivers": ["run"]}])[0]
 
 
 # --- 3. saturation and constant data ---------------------------------------------------------------------

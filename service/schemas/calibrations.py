@@ -478,9 +478,9 @@ class CalibrationResult(ResponseModel):
         "or clipped: outliers_left_out [1], clipped_left_out [1]; null without replicates), "
         "saturation (clips: side, level [1], rows [1], share [1]; their rows censored), constant (the one "
         "value of mu when every row reads it, else null), sessions (order and time columns, candidate "
-        "drivers of measurement_drift), clock (columns read from ISO 8601 times as hours since their "
-        "start), drift (the instrument's drift over the session in words) and summary (sentences); null "
-        "for calibrations stored before it."))
+        "drivers of measurement_drift and measurement_step), clock (columns read from ISO 8601 times as "
+        "hours since their start), drift (the instrument's drift over the session, or its step and where, "
+        "in words) and summary (sentences); null for calibrations stored before it."))
     plots: dict[str, str] = Field(description=(
         "Plots: name -> URL of the PNG (effect_<k>: the k-th term against its driver with its 95 % band; "
         "residuals: against every input, before and after; measured_vs_predicted)."))
