@@ -83,10 +83,11 @@ class CalibratedPhysicsModel(Model):
         """Every column a point may give: the inputs and the conditions the terms do not read."""
         return {**self.inputs, **self.unread_conditions}
 
-    def predict(self, points: Mapping[str, Any], *, domain: bool = True) -> Prediction:
+    def predict(self, points: Mapping[str, Any], *, domain: bool = True,
+                shown: Mapping[str, Any] | None = None) -> Prediction:
         """μ with its 95 % interval and (unless ``domain`` is False) the domain check:
-        :meth:`calibrate.CalibratedModel.predict`."""
-        return self.calibrated.predict(points, domain=domain)
+        :meth:`calibrate.CalibratedModel.predict` (``shown``: its warnings' words)."""
+        return self.calibrated.predict(points, domain=domain, shown=shown)
 
     def evaluate(self, points: Mapping[str, Any], outputs: Sequence[str], *, pointer: str = "",
                  first_index: int = 0, shown: Mapping[str, Any] | None = None) -> Evaluation:

@@ -528,13 +528,14 @@ def interval_at(model: Any,
         return None
 
     held = {*model.fixed, *model.fitted}
+    shown = ReadConditions.of(conditions).readings  # the warnings speak the keys and units as sent
 
     def fields(point: Mapping[str, Any]) -> dict[str, Any]:
         # The model's own values are left to it: given as columns, a fitted value would be read as known
         # and its uncertainty left out of the interval.
         point = {name: value for name, value in point.items() if name not in held}
         with np.errstate(all="ignore"):
-            return prediction_fields(model.predict({**point, **dict(conditions or {})}))
+            return prediction_fields(model.predict({**point, **dict(conditions or {})}, shown=shown))
 
     return fields
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from typing import Any
 
@@ -102,6 +102,9 @@ class OptimizationPlan:
         The model a robust design runs on (None for the physics).
     time_limit_s : float
         No new round of a robust design's outer approximation after this time. [s]
+    readings : mapping
+        How each condition was read from its key as sent (:class:`physics.columns.Reading`), for the
+        worst case's domain warnings in the request's units.
     """
 
     problem: DesignProblem
@@ -118,6 +121,7 @@ class OptimizationPlan:
     resolved: Model | None = None
     time_limit_s: float = 60.0
     input_warnings: tuple[str, ...] = ()
+    readings: Mapping[str, Any] = field(default_factory=dict)
 
 
 def _request(body: OptimizationRequest) -> DesignRequest:
@@ -166,7 +170,7 @@ def _bound(model: Model, body: OptimizationRequest) -> tuple[Callable, Callable 
     points = {name: value[0] if isinstance(value, list) else value
               for name, value in (body.conditions or {}).items()}
     if points and read:  # keys and values as sent kept: read_conditions read them once
-        points = ReadConditions(points, read.sent_as, read.sent_values)
+        points = ReadConditions(points, read.sent_as, read.sent_values, read.readings)
     return with_conditions(model, points or body.conditions), interval_at(model, points or body.conditions)
 
 
@@ -239,7 +243,7 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     return OptimizationPlan(planned.problem, body.model, mu_model, body.starts, pareto, synchronous,
                             source_model, source_name, interval, planned.envelope, body.objective,
                             None if planned.envelope is None else model, body.time_limit_s,
-                            tuple(_input_warnings(body)))
+                            tuple(_input_warnings(body)), ReadConditions.of(body.conditions).readings)
 
 
 def _input_warnings(body: OptimizationRequest) -> list[str]:
@@ -355,7 +359,8 @@ def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None
         worst = robust.worst_case
         point = {**plan.problem.fixed, **document["design"], "speed_m_s": worst["speed_m_s"],
                  "groove_angle_deg": worst["groove_angle_deg"]}
-        document.update(interval_at(plan.resolved, worst["conditions"])(point))
+        conditions = ReadConditions(worst["conditions"], readings=plan.readings)  # words in the keys sent
+        document.update(interval_at(plan.resolved, conditions)(point))
     return document
 
 

@@ -947,3 +947,20 @@ def test_a_domain_warning_speaks_the_key_and_unit_a_condition_was_sent_in(client
     words = fraction.json()["domain_warnings"]
     assert any(w.startswith("relative_humidity = 0.95 is outside the calibration data's range "
                             f"[{low / 100:.6g}, {high / 100:.6g}]") for w in words), words
+
+
+def test_an_optimization_s_domain_warning_speaks_the_keys_as_sent(client, calibration):
+    # the worst case of a robust design at 95 % RH sent in percent, and a design at one point: the domain
+    # warning names the key and gives percent (by hand: 100 x the stored fraction's range)
+    low, high = (100 * v for v in calibration["model"]["domain"]["relative_humidity"])
+    temp_F = (calibration["model"]["domain"]["temp_K"][0] - 273.15) * 9 / 5 + 32 + 1.0
+    said = f"relative humidity [%] = 95 is outside the calibration data's range [{low:.6g}, {high:.6g}]"
+    base = {"bounds": {"balls": [4, 6], "groove_angle_deg": [50, 55], "load_N": [0.008, 0.012]},
+            "speed_m_s": 0.05, "model": calibration["model_id"], "time_limit_s": 20}
+    for conditions in ({"relative humidity [%]": [90, 95], "temp_F": temp_F},
+                       {"relative humidity [%]": 95, "temp_F": temp_F}):
+        job = wait_job(client, client.post("/v1/optimizations", json={**base, "conditions": conditions}))
+        assert job["status"] == "succeeded", job
+        result = client.get(job["result_url"]).json()
+        warnings = result.get("domain_warnings") or []
+        assert any(w.startswith(said) for w in warnings), (conditions, warnings)
