@@ -964,3 +964,26 @@ def test_an_optimization_s_domain_warning_speaks_the_keys_as_sent(client, calibr
         result = client.get(job["result_url"]).json()
         warnings = result.get("domain_warnings") or []
         assert any(w.startswith(said) for w in warnings), (conditions, warnings)
+
+
+def test_a_physics_input_s_domain_warning_speaks_its_key_as_sent(client, calibration):
+    # a load of 80 mN sent as "load [mN]", beyond the data's loads: the warning gives mN (by hand: the
+    # data's range in N x 1000), as the batch does; sent as load_N it stays in N
+    model, domain = calibration["model_id"], calibration["model"]["domain"]
+    low, high = (1e3 * v for v in domain["load_N"])
+    conditions = {name: sum(domain[name]) / 2 for name in ("relative_humidity", "temp_K")}
+    said = f"load [mN] = 80 is outside the calibration data's range [{low:.6g}, {high:.6g}]"
+    single = client.post("/v1/friction", json={"balls": 4, "load [mN]": 80, "speed_m_s": 0.05,
+                                               "model": model, "conditions": conditions})
+    batch = client.post("/v1/friction/batch", json={"points": {"balls": 4, "load [mN]": [80.0, 10.0],
+                                                               "speed_m_s": 0.05},
+                                                    "model": model, "conditions": conditions})
+    for answer in (single, batch):
+        assert answer.status_code == 200, answer.text
+        words = answer.json()["domain_warnings"]
+        assert any(w.startswith(said) for w in words), words
+    in_newtons = client.post("/v1/friction", json={"balls": 4, "load_N": 0.08, "speed_m_s": 0.05,
+                                                   "model": model, "conditions": conditions}).json()
+    assert any(w.startswith("load_N = 0.08 [N] is outside the calibration data's range "
+                            f"[{low / 1e3:.6g}, {high / 1e3:.6g}] [N]") for w in in_newtons["domain_warnings"]
+               ), in_newtons["domain_warnings"]
