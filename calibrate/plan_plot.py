@@ -67,14 +67,6 @@ def plan_figure(document: Mapping[str, Any]):
     return figure
 
 
-def _whole_ticks(axis, column: DrawnColumn | None) -> None:
-    """Whole-number ticks on an axis whose column is a whole number (ball counts)."""
-    from matplotlib.ticker import MaxNLocator
-
-    if column is not None and column.whole:
-        axis.set_major_locator(MaxNLocator(integer=True))
-
-
 def _runs_panel(ax, plot: Mapping[str, Any], x: DrawnColumn, y: DrawnColumn | None) -> None:
     """The proposed runs over the data taken and the envelope, on the columns ``x`` and ``y``."""
     from matplotlib.patches import Rectangle
@@ -113,8 +105,9 @@ def _runs_panel(ax, plot: Mapping[str, Any], x: DrawnColumn, y: DrawnColumn | No
                                label="envelope (where the model is used)"))
     ax.set_xlabel(x.label)
     ax.set_ylabel(y.label if y else "")
-    _whole_ticks(ax.xaxis, x)
-    _whole_ticks(ax.yaxis, y)
+    x.tick(ax.xaxis)
+    if y is not None:
+        y.tick(ax.yaxis)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=8)
 
 
@@ -127,7 +120,7 @@ def _rivals_panel(ax, plot: Mapping[str, Any], x: DrawnColumn) -> None:
     for value in np.unique(x.shown(plot["runs"][x.name])):
         ax.axvline(value, color="red", alpha=0.3, lw=1)
     ax.set_xlabel(x.label)
-    _whole_ticks(ax.xaxis, x)
+    x.tick(ax.xaxis)
     ax.set_ylabel("mu [1]")
     others = ", ".join(_other_words(name, value, sent_as.get(name))
                        for name, value in (plot.get("others") or {}).items())

@@ -90,6 +90,13 @@ class DrawnColumn:
         """Whether its values are whole numbers (:func:`physics.columns.whole_number`) as drawn."""
         return self.reading is None and whole_number(self.name)
 
+    def tick(self, axis) -> None:
+        """Whole-number ticks on a matplotlib axis (``ax.xaxis``) drawing this column, if it is whole."""
+        from matplotlib.ticker import MaxNLocator
+
+        if self.whole:
+            axis.set_major_locator(MaxNLocator(integer=True))
+
 
 def _grid(column: DrawnColumn, x: np.ndarray) -> np.ndarray:
     """Values of a column (SI) to draw a curve at over its data's range: whole numbers for a whole-number
@@ -97,15 +104,6 @@ def _grid(column: DrawnColumn, x: np.ndarray) -> np.ndarray:
     if not whole_number(column.name):
         return np.linspace(x.min(), x.max(), _GRID)
     return np.unique(np.round(np.linspace(np.ceil(x.min()), np.floor(x.max()), _GRID)))
-
-
-def _whole_ticks(ax, columns: Sequence[DrawnColumn]) -> None:
-    """Whole-number ticks on the x axis of each axes whose column is a whole number."""
-    from matplotlib.ticker import MaxNLocator
-
-    for axis, column in zip(ax, columns, strict=False):
-        if column.whole:
-            axis.xaxis.set_major_locator(MaxNLocator(integer=True))
 
 
 def log_ticks(low: float, high: float, least: int = 3) -> list[float]:
@@ -199,12 +197,6 @@ def _errors_text(errors: Mapping[str, Any]) -> str:
     return text
 
 
-def _named(dataset: Dataset, term) -> str:
-    """A term's label with its drivers named by their headers as sent, as their axes are
-    ("temp [degF]", not temp_K: :func:`calibrate.prose.in_sent_words`)."""
-    return in_sent_words(dataset, term.label)
-
-
 def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: np.ndarray, errors):
     plt = _pyplot()
     term, _ = model.terms[k]
@@ -245,12 +237,12 @@ def _effect_figure(dataset: Dataset, model: CalibratedModel, k: int, outliers: n
     ax.set_ylabel("log(mu / mu without the term) [-]")
     low, high = float(np.min(grid)), float(np.max(grid))
     ax.set_xlim(low - 0.02 * (high - low), high + 0.02 * (high - low))
-    _whole_ticks([ax], [drawn])
+    drawn.tick(ax.xaxis)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     # the term named by the column's header as sent, as its axis is
     wrapped = "\n".join(textwrap.wrap(_errors_text(errors), 80))
-    ax.set_title(f"Term {k + 1}: {_named(dataset, term)}\n{wrapped}", fontsize=9)
+    ax.set_title(f"Term {k + 1}: {in_sent_words(dataset, term.label)}\n{wrapped}", fontsize=9)
     return fig
 
 
@@ -283,7 +275,8 @@ def _residuals_figure(
         ax.axhline(0.0, color="0.3", lw=0.8)
         ax.set_xlabel(column.label if column.name != "row" else "row (data row)")
         ax.grid(alpha=0.3)
-    _whole_ticks(axes.flat, [column for column, _ in varying])
+    for axis, (column, _) in zip(axes.flat, varying, strict=False):  # ball counts: whole ticks
+        column.tick(axis.xaxis)
     for ax in axes.flat[len(varying) :]:
         ax.set_visible(False)
     for ax in axes[:, 0]:
@@ -361,7 +354,8 @@ def calibration_figures(
         f"effect_{k + 1}": _effect_figure(dataset, model, k, outliers, errors)
         for k in range(len(model.terms))
     }
-    named = {term.label: _named(dataset, term) for term, _ in model.terms}  # as the effects' titles
+    # as the effects' titles name them
+    named = {term.label: in_sent_words(dataset, term.label) for term, _ in model.terms}
     title = (
         ("Residuals after " + " + ".join(named.get(label, label) for label in labels))
         if labels

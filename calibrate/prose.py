@@ -156,13 +156,10 @@ def domain_report(dataset: Dataset, cloud: DataCloud | None,
     (``{"load [mN]": {"column": "load_N", "range": [3, 30], "unit": "mN"}}``), for a form to fill."""
     domain = domain_words(cloud)
     as_sent = {}
-    for name, (low, high) in (ranges or {}).items():
-        reading = dataset.sent_reading(name)
-        if reading is None:
-            as_sent[name] = {"column": name, "range": [float(low), float(high)], "unit": unit_of(name)}
-        else:
-            ends = sorted(float(reading.sent_value(v)) for v in (low, high))
-            as_sent[reading.sent] = {"column": name, "range": ends, "unit": reading.sent_unit}
+    for name, ends in (ranges or {}).items():
+        where = located(dataset, {"driver": name, "range": [float(v) for v in ends]})
+        shown = where["as_sent"] or where
+        as_sent[shown["driver"]] = {"column": name, "range": shown["range"], "unit": shown["unit"]}
     return {**domain, "summary": in_sent_words(dataset, domain["summary"]), "as_sent": as_sent}
 
 
