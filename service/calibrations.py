@@ -25,7 +25,7 @@ from microbearing import physics
 from microbearing.calibrate import CalibrationReport, DataError, Dataset, Prediction, calibrate
 from microbearing.calibrate.data import MU_MEASURED, hours_since
 from microbearing.calibrate.tabular import TableError
-from microbearing.physics.columns import ColumnError, Reading, read_key, read_name, unknown_column
+from microbearing.physics.columns import Reading, read_key, unknown_column
 from microbearing.physics.model import NOT_FINITE
 from microbearing.physics.slips import read_slip
 
@@ -590,7 +590,7 @@ def _load_in_convention(store: Store, model: str, convention: str | None) -> Mod
 
 def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any],
                               conditions: Mapping[str, float] | None,
-                              convention: str | None, input_keys: Mapping[str, str] | None = None
+                              convention: str | None, input_readings: Mapping[str, Reading] | None = None
                               ) -> dict[str, Any]:
     """The /v1/friction answer of a calibrated model at one point (:meth:`CalibratedPhysicsModel.evaluate`).
 
@@ -606,6 +606,9 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
         Condition columns the model's terms read (e.g. ``relative_humidity`` [1]).
     convention : str or None
         The convention the request named, None when it named none.
+    input_readings : mapping, optional
+        How each physics input sent under another key was read (``load [mN]``:
+        :attr:`service.schemas.friction.InputKeys.readings`): the domain warnings word it so.
 
     Returns
     -------
@@ -626,7 +629,7 @@ def evaluate_point_with_model(store: Store, model: str, given: Mapping[str, Any]
     try:
         with problems():
             evaluation = mu_model.evaluate({**given, **conditions}, mu_model.outputs,
-                                           shown=_shown(conditions, input_keys))
+                                           shown={**conditions.readings, **(input_readings or {})})
     except InputError as exc:
         raise _input_problem(exc, "", conditions) from None
     except ProblemError as exc:  # a condition outside its law's domain, by its key as sent
@@ -683,7 +686,7 @@ def _refuse_non_finite(mu_model: Model, points: Mapping[str, Any], conditions: R
 def evaluate_batch_with_model(store: Store, executor: Executor | None, model: str, points: Mapping[str, Any],
                               conditions: Mapping[str, Any] | None, outputs: list[str] | None,
                               convention: str | None, max_points: int,
-                              input_keys: Mapping[str, str] | None = None) -> dict[str, Any]:
+                              input_readings: Mapping[str, Reading] | None = None) -> dict[str, Any]:
     """The /v1/friction/batch answer of a calibrated model: columns in, columns out, chunk by chunk.
 
     The points run through :meth:`CalibratedPhysicsModel.evaluate` (the answer of /v1/friction too)
@@ -711,6 +714,9 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
         The convention the request named, None when it named none.
     max_points : int
         Most points allowed [1].
+    input_readings : mapping, optional
+        How each physics input sent under another key was read (``load [mN]``:
+        :attr:`service.schemas.friction.InputKeys.readings`): the domain warnings word it so.
 
     Returns
     -------
@@ -753,7 +759,8 @@ def evaluate_batch_with_model(store: Store, executor: Executor | None, model: st
         raise _as_sent(exc, conditions) from None
     _refuse_non_finite(mu_model, everything, conditions, values)
     with np.errstate(all="ignore"):
-        inside, warnings = mu_model.calibrated.domain_check(everything, _shown(conditions, input_keys))
+        inside, warnings = mu_model.calibrated.domain_check(everything,
+                                                            {**conditions.readings, **(input_readings or {})})
     outside = None if inside is None else ~np.broadcast_to(inside, (count,))
     answer = {**values, **_model_fields(mu_model, values, outside, warnings)}
     return {name: value for name, value in answer.items() if value is not None}
@@ -797,18 +804,6 @@ def with_conditions(model: Model, conditions: Mapping[str, float] | None,
         return model({**points, **{k: np.full(shape, v) for k, v in conditions.items()}})
 
     return mu_model
-
-
-def _shown(conditions: ReadConditions, input_keys: Mapping[str, str] | None) -> dict[str, Reading]:
-    """How each condition and each physics input sent under another key (``load [mN]``: ``input_keys``,
-    input -> key as sent) was read, for the domain warnings' words in the request's units."""
-    shown = dict(conditions.readings)
-    for name, key in (input_keys or {}).items():
-        try:
-            shown[name] = read_name(key)
-        except ColumnError:  # read by the schema already; a key no longer read keeps the input's name
-            continue
-    return shown
 
 
 def load_mu_model(store: Store, model: str, pointer: str = "/model") -> Model:

@@ -198,8 +198,7 @@ def _document(plan: ExperimentPlan, model: str, job_id: str | None,
     if read is not None:
         document["runs"] = [{**run, "as_sent": _as_sent(run, read)} for run in document["runs"]]
         # the plot draws each column under its key as sent, in its unit (calibrate.plan_plot)
-        sent_as = {name: key for columns in (read.fixed, read.envelope, read.space) if columns is not None
-                   for name, key in columns.sent_as.items()}
+        sent_as = {name: reading.sent for name, reading in read.readings().items()}
         document["plot"] = {**document["plot"], "sent_as": sent_as}
     return document
 

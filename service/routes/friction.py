@@ -50,9 +50,8 @@ async def evaluate_friction(request: Request) -> Response:
     given = {name: getattr(body, name) for name in physics.PARAMETERS if name in sent}
     if body.model != "physics":
         convention = str(body.convention) if "convention" in sent else None
-        keys = {name: key for name, (key, _value) in body.renamed.items()}  # warnings speak them
         document = await run_in_threadpool(evaluate_point_with_model, await get_store(request), body.model,
-                                           given, body.conditions, convention, keys)
+                                           given, body.conditions, convention, body.readings)
     else:
         _refuse_conditions(body.conditions)
         document = {"convention": str(body.convention), **evaluate_point(given, body.convention)}
@@ -75,7 +74,7 @@ def _model_batch(request: FrictionBatchRequest, max_points: int, executor: Execu
     document = evaluate_batch_with_model(
         store, executor, request.model, points, request.conditions, request.outputs,
         str(request.convention) if "convention" in request.model_fields_set else None, max_points,
-        {name: key for name, (key, _value) in request.points.renamed.items()})
+        request.points.readings)
     warnings = input_slips(points, request.points.renamed)
     if warnings:
         document["input_warnings"] = warnings

@@ -8,7 +8,7 @@ from typing import Annotated, Any, ClassVar
 from pydantic import AfterValidator, BeforeValidator, Field, PrivateAttr, create_model, model_validator
 
 from microbearing import physics
-from microbearing.physics.columns import ColumnError, read_name
+from microbearing.physics.columns import ColumnError, Reading, read_name
 
 from .base import (
     UNIT_KEYS,
@@ -48,12 +48,15 @@ def read_input_keys(body: Any, fields: Collection[str] = ()) -> Any:
     return _read_keys(body, fields)[0]
 
 
-def _read_keys(body: Any, fields: Collection[str]) -> tuple[Any, dict[str, tuple[str, Any]]]:
-    """:func:`read_input_keys`'s body, and each input it renamed: input -> (key as sent, value as sent)."""
+def _read_keys(body: Any, fields: Collection[str]
+               ) -> tuple[Any, dict[str, tuple[str, Any]], dict[str, Reading]]:
+    """:func:`read_input_keys`'s body, each input it renamed (input -> (key as sent, value as sent)) and
+    how (input -> its :class:`physics.columns.Reading`)."""
     if not isinstance(body, dict):
-        return body, {}
+        return body, {}, {}
     read: dict[str, Any] = {}
     sent: dict[str, tuple[str, Any]] = {}
+    readings: dict[str, Reading] = {}
     for key, value in body.items():
         reading = None
         if isinstance(key, str) and key not in fields:
@@ -69,7 +72,8 @@ def _read_keys(body: Any, fields: Collection[str]) -> tuple[Any, dict[str, tuple
             raise ValueError(f"{key}: another key is read as {reading.name} too; keep one")
         # a range object stays one (its ends converted): a batch's column is no range, an envelope's is
         read[reading.name], sent[reading.name] = read_value(reading, value, range_object=True), (key, value)
-    return read, sent
+        readings[reading.name] = reading
+    return read, sent, readings
 
 
 class InputKeys(StrictModel):
@@ -77,17 +81,27 @@ class InputKeys(StrictModel):
     renamed one keeps its key and value as sent (:meth:`sent_as`), for a later refusal's words."""
 
     _sent: dict[str, tuple[str, Any]] = PrivateAttr(default_factory=dict)
+    _readings: dict[str, Reading] = PrivateAttr(default_factory=dict)
 
     @model_validator(mode="wrap")
     @classmethod
     def _read_input_keys(cls, body: Any, handler: Any) -> Any:
-        read, sent = _read_keys(body, cls.model_fields)
-        return handler(read).with_sent(sent)
+        read, sent, readings = _read_keys(body, cls.model_fields)
+        return handler(read).with_sent(sent, readings)
 
-    def with_sent(self, sent: dict[str, tuple[str, Any]]) -> InputKeys:
-        """This body, remembering the keys and values its renamed inputs were sent as (:meth:`sent_as`)."""
+    def with_sent(self, sent: dict[str, tuple[str, Any]],
+                  readings: dict[str, Reading] | None = None) -> InputKeys:
+        """This body, remembering the keys and values its renamed inputs were sent as (:meth:`sent_as`) and
+        how they were read (:attr:`readings`)."""
         self._sent = dict(sent)
+        self._readings = dict(readings or {})
         return self
+
+    @property
+    def readings(self) -> dict[str, Reading]:
+        """How each renamed input was read from its key as sent (``load [mN]``: x 0.001), for words in the
+        request's units."""
+        return dict(self._readings)
 
     @property
     def renamed(self) -> dict[str, tuple[str, Any]]:
