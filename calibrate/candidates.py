@@ -474,7 +474,8 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
         for drivers in candidates:
             if levels.get(drivers[0], 0) >= effect.min_levels and effect.accepts(columns, drivers):
                 constants = effect.constants(columns, drivers)
-                # A searched constant (a step's place): one candidate per value, the search the family's
+                # A searched constant (a step's place): one candidate per value, screened; the search keeps
+                # the best of them (calibrate.search._best_places) and searches the place again per fold
                 searched = ([{}] if effect.search_constants is None
                             else effect.search_constants(effect.driver_values(columns, drivers)))
                 (generic if effect.generic else named).extend(
