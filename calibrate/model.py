@@ -874,12 +874,10 @@ class CalibratedModel:
 def _as_shown(name: str, reading: Any) -> tuple[str, Any, str]:
     """How a domain warning words column ``name``: its label, a function of a value (SI) to the value
     shown, and the unit after it (`` [N]``; none where the label states it): under the key a request sent
-    it under and in that unit when ``reading`` (a :class:`physics.columns.Reading`) converted it, else its
-    own name and unit."""
+    it under and in that unit (:attr:`physics.columns.Reading.label`) when ``reading`` converted it, else
+    its own name and unit."""
     if reading is not None and getattr(reading, "reading", ""):
-        label = reading.sent.strip()
-        unit = "" if label.endswith(("]", ")")) or not reading.sent_unit else f" [{reading.sent_unit}]"
-        return label, lambda v: float(reading.sent_value(float(v))), unit
+        return reading.label, lambda v: float(reading.sent_value(float(v))), ""
     unit = f" [{physics.PARAMETERS[name].unit}]" if name in physics.PARAMETERS else ""
     return name, float, unit
 

@@ -79,8 +79,7 @@ class DrawnColumn:
     def label(self) -> str:
         """The axis label: the header as sent with its unit, or the name with its own unit."""
         if self.reading is not None:
-            header = self.reading.sent.strip()
-            return header if header.endswith(("]", ")")) else f"{header} [{self.reading.sent_unit}]"
+            return self.reading.label
         unit = unit_of(self.name)
         unit = {"percent": "%", None: "1, as in the data"}.get(unit, unit)
         return f"{self.name} [{unit}]"

@@ -232,6 +232,18 @@ class Reading:
         return (float(value) - float(self.offset)) / float(self.scale)
 
     @property
+    def label(self) -> str:
+        """The column as a report, warning or plot names it: the header as sent, with the unit it was sent
+        in where the header does not state it in brackets or parentheses.
+
+        >>> read_name("load [mN]").label, read_name("load_mN").label, read_name("balls").label
+        ('load [mN]', 'load_mN [mN]', 'balls')
+        """
+        header = self.sent.strip()
+        unit = self.sent_unit
+        return header if header.endswith(("]", ")")) or not unit else f"{header} [{unit}]"
+
+    @property
     def sent_unit(self) -> str | None:
         """The unit the column was sent in, as written (``mm/s`` of ``speed [mm/s]`` or ``speed_mm_s``);
         None when it was sent in the column's own unit."""
