@@ -512,7 +512,8 @@ def where_they_part(
         rows = np.linspace(0, values.size - 1, _SCAN_ROWS).astype(int)
         columns = {k: np.asarray(v)[rows] for k, v in columns.items()}
         values = values[rows]
-    grid = _scan_grid(driver, lo, hi)
+    # a session's order or time counts from its start: the scan never goes before the session
+    grid = _scan_grid(driver, lo, hi, session=driver in dataset.session_columns())
     difference = np.full(grid.size, np.nan)
     for i, x in enumerate(grid):
         points = {**columns, driver: np.full(values.size, x)}
@@ -538,17 +539,22 @@ def where_they_part(
     }
 
 
-def _scan_grid(driver: str, lo: float, hi: float) -> np.ndarray:
+def _scan_grid(driver: str, lo: float, hi: float, session: bool = False) -> np.ndarray:
     """:data:`_SCAN_POINTS` values of ``driver`` over the data's range [lo, hi] and as much again on
     either side, kept within the column's physical range (a physics input's bounds, a condition's
-    :func:`physics.columns.physical_range`: no humidity of -38 % or 138 %), whole for a ball count.
+    :func:`physics.columns.physical_range`: no humidity of -38 % or 138 %; a ``session`` column's order or
+    time from 0: no run number -119), whole for a ball count.
 
     >>> g = _scan_grid("relative_humidity", 0.3, 0.8); float(g.min()), float(g.max())
     (0.0, 1.0)
+    >>> float(_scan_grid("run_index", 0.0, 119.0, session=True).min())
+    0.0
     """
     span = hi - lo if hi > lo else max(abs(hi), 1.0)
     spec = physics.PARAMETERS.get(driver)
     low, high = (spec.minimum, spec.maximum) if spec is not None else physical_range(driver)
+    if session and low is None:
+        low = 0.0
     start = lo - span if low is None else max(lo - span, min(low, lo))
     stop = hi + span if high is None else min(hi + span, max(high, hi))
     grid = np.linspace(start, stop, _SCAN_POINTS)

@@ -8,6 +8,8 @@ unit and, when the upload used another, the same under the upload's header in th
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from test_seams_integer_columns import N_ROWS, as_rows, columns_with, model_with_term
 
@@ -52,6 +54,20 @@ def test_a_temperature_scan_keeps_above_absolute_zero_and_a_count_above_zero():
         floor = -273.15 if column == "temperature_C" else 0.0
         assert ends and min(ends) >= floor, (column, scan)
         assert column != "temperature_C" or min(ends) > floor, scan  # 0 K itself is no temperature
+
+
+def test_a_session_s_order_is_scanned_from_the_session_s_start():
+    # a step of the reading and a drift parted "at run_index -119 to -77.3" (issue 33's step bench, seed
+    # 3): a run number counts from the session's start, so the scan keeps at or above 0 while reaching
+    # beyond the session's end, where later runs would tell the two apart
+    columns = {**columns_with("balls"), "run_index": np.arange(N_ROWS, dtype=float)}
+    model, rival = (replace(model_with_term(columns, "run_index", "generic_linear", [value]),
+                            conditions=["run_index"]) for value in (0.0, 0.5))
+    scan = where_they_part(model, rival, parse_rows(as_rows(columns, np.full(N_ROWS, 0.01))), "run_index",
+                           0.02)
+    ends = [v for run in scan["differ"] for v in run]
+    assert ends and min(ends) >= 0.0, scan
+    assert max(ends) > N_ROWS - 1, scan  # still scanned beyond the session's last run
 
 
 def test_where_they_part_names_its_unit_and_the_upload_s_header():
