@@ -132,6 +132,8 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
         reading = read_key(sent, conditions, factors)
         # a key nothing reads: check_request names it, with the model's columns; a factor holds labels
         judged = reading is not None and sent not in factors
+        # a slip is refused here, though a door that predicts only warns of a physics input's: the runs
+        # proposed become rows of the next upload, which refuses them
         message = read_slip(reading, _span_values(column)) if judged else None
         reading = reading or Reading(sent, sent)
         if isinstance(column, bool) and reading.name not in physics.PARAMETERS:  # a flag is no condition
