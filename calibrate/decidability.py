@@ -106,26 +106,44 @@ def terms_supported(n_rows: int, n_fit_parameters: int, folds: int, most: int) -
                default=0)
 
 
-def few_rows(n_rows: int, n_fit_parameters: int, folds: int, supported: int, most: int
+def few_rows(n_rows: int, n_fit_parameters: int, folds: int, supported: int, most: int,
+             leaning: Sequence[tuple[str, float]] = (), z_needed: float | None = None
              ) -> dict[str, Any] | None:
     """The report's item when the rows support fewer terms than the search may add (None otherwise).
 
     With ``supported`` below ``most`` the search adds at most ``supported`` terms: no effect beyond them is
     claimed either way (the data cannot decide), and :func:`rows_for_terms` says how many rows would let
-    the search weigh one more.
+    the search weigh one more. ``leaning`` (label, held-out paired z) names the candidates the rows lean to
+    that the intervals hold as rivals (:func:`calibrate.rivals.undecided_candidates`); with the step's
+    ``z_needed``, the rows that would carry the first one's z over it (:func:`rows_to_settle`) are said too
+    (``rows_to_settle`` stays the rows that would let the search weigh one more term).
+
+    Examples
+    --------
+    >>> item = few_rows(8, 1, 4, 0, 3, [("humidity_meniscus on relative_humidity", 1.5)], 4.5)
+    >>> item["rows_to_settle"], item["terms"], "about 72 rows drawn like these" in item["statement"]
+    (9, ['humidity_meniscus on relative_humidity'], True)
     """
     if supported >= most:
         return None
     more = rows_for_terms(n_fit_parameters, folds, supported + 1)
     what = ("no term could be weighed" if supported == 0 else
             f"at most {supported} term{'s' if supported > 1 else ''} could be weighed")
+    statement = (f"with {n_rows} rows {what} ({folds}-fold nested cross-validation, {n_fit_parameters} "
+                 f"fitted parameter(s)): the data cannot decide whether any further effect is there, and "
+                 f"none is claimed; about {more} rows would let the search weigh one more term")
+    if leaning:
+        label, z = leaning[0]
+        statement += (f". The rows lean to {', '.join(name for name, _ in leaning)} (held-out loss lower "
+                      f"than the model's without it, paired z {', '.join(f'{z:.2f}' for _, z in leaning)}"
+                      f"), held as rivals in the intervals")
+        if z_needed is not None and (rows := rows_to_settle(n_rows, z, z_needed)) is not None:
+            statement += (f"; about {rows} rows drawn like these would carry {label} to the z of "
+                          f"{z_needed:.2f} a term needs")
     return {
-        "kind": "few_rows", "terms": [], "z": None, "z_needed": None, "rows_now": n_rows,
-        "rows_to_settle": more, "where": None,
-        "statement": (f"with {n_rows} rows {what} ({folds}-fold nested cross-validation, {n_fit_parameters} "
-                      f"fitted parameter(s)): the data cannot decide whether any further effect is "
-                      f"there, and none is claimed; about {more} rows would let the search weigh one more "
-                      f"term. The intervals carry the small-sample allowance of so few rows"),
+        "kind": "few_rows", "terms": [name for name, _ in leaning], "z": None, "z_needed": None,
+        "rows_now": n_rows, "rows_to_settle": more, "where": None,
+        "statement": f"{statement}. The intervals carry the small-sample allowance of so few rows",
     }
 
 

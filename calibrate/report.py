@@ -50,10 +50,11 @@ from .model import CalibratedModel, RivalModel
 from .plausibility import check_plausible
 from .plots import calibration_plots
 from .prose import code_columns, domain_report, in_sent_words, rival_drivers, rival_words
-from .rivals import fit_rivals, rival_json
+from .rivals import Rival, fit_rivals, rival_json
 from .scatter import ScatterModel, fit_scatter
 from .select import (
     REPORTED_CANDIDATES,
+    Selection,
     cross_validate,
     forward_select,
     held_out_of_chosen,
@@ -548,7 +549,7 @@ def candidates_stage(declared: DataStage, options: CalibrationOptions,
     (:func:`calibrate.groups.within_groups`): offsets between specimens are not scatter to an effect."""
     searched, _ = within_groups(declared.dataset, declared.mu_before)
     return CandidatesStage(forward_select(searched, declared.fit_parameters, options.folds,
-                                          options.seed, options.search, progress))
+                                          options.seed, options.candidate_search, progress))
 
 
 def selection_stage(declared: DataStage, candidates: CandidatesStage, options: CalibrationOptions,
@@ -758,7 +759,7 @@ def format_report(declared: DataStage, candidates: CandidatesStage, selection: S
         rivals=rival_list,
         undecided=[{**u, "statement": in_sent_words(dataset, u["statement"])} for u in undecided(
             dataset, found, stability, rival_list, fit_parameters, model.noise_std_log, options.convention)
-                   + _few_rows(dataset, fit_parameters, options)],
+                   + _few_rows(dataset, fit_parameters, options, found, uncertainty.rivals)],
         groups=describe_groups(uncertainty.group_effects) + [
             {"factor": name, "summary": f"{name}: {why_not_fitted(labels)}"}
             for name, labels in dataset.factors.items() if why_not_fitted(labels)],
@@ -794,10 +795,15 @@ def _scatter_words(scatter: ScatterModel) -> str:
                                 f"; {scatter.form.words(varies=scatter.kind != 'constant')}")
 
 
-def _few_rows(dataset: Dataset, fit_parameters: Sequence[str], options: CalibrationOptions) -> list[dict]:
-    """The report's item when the rows supported fewer terms than asked for (see :func:`calibrate`)."""
+def _few_rows(dataset: Dataset, fit_parameters: Sequence[str], options: CalibrationOptions,
+              selection: Selection, rivals: Sequence[Rival]) -> list[dict]:
+    """The report's item when the rows supported fewer terms than asked for (see :func:`calibrate`),
+    naming the candidates of the step that stopped held as rivals (added, on no confounded column)."""
     most = options.requested_terms or options.search.max_terms
-    item = few_rows(dataset.n_points, len(fit_parameters), options.folds, options.search.max_terms, most)
+    leaning = [(r.term.label, -r.gap_se) for r in rivals if r.replaces is None and r.partner is None]
+    z_needed = selection.steps[-1].z_needed if selection.steps else None
+    item = few_rows(dataset.n_points, len(fit_parameters), options.folds, options.search.max_terms, most,
+                    leaning, z_needed)
     return [] if item is None else [item]
 
 

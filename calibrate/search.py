@@ -82,6 +82,11 @@ class SearchOptions:
         ``z_threshold`` alone. [1]
     scatter_rounds : int
         Searches at most (:data:`SCATTER_ROUNDS`); 1 leaves the search unweighted. [1]
+    claim : bool
+        Whether a step may add a term. False: a look on rows too few for nested cross-validation to weigh
+        one (:func:`calibrate.decidability.terms_supported` is 0): every candidate is scored as in any
+        step, on the single level of folds the rows allow, and none is added; the candidates the rows
+        lean to are held as rivals (:func:`calibrate.rivals.undecided_candidates`).
     """
 
     z_threshold: float = 3.0
@@ -91,6 +96,7 @@ class SearchOptions:
     convention: str = physics.DEFAULT_CONVENTION
     family_alpha: float | None = FAMILY_ALPHA
     scatter_rounds: int = SCATTER_ROUNDS
+    claim: bool = True
 
 
 def frozen_base(dataset, fit_parameters, current: ModelCV, parameters, convention) -> FrozenBase:
@@ -273,7 +279,7 @@ def search_step(
     refused = {id(c.term): why for c in joint if (why := implausible(
         c.term, c.values, columns, shifted(current.full.declared, c.shifts), dataset.fixed))}
     significant = [c for c in joint if c.score < current_score.score and c.z > z_needed
-                   and id(c.term) not in refused]
+                   and id(c.term) not in refused] if options.claim else []
     named = "".join(f"; {why[0]} (implausible, not chosen)" for c in joint[:3]
                     if (why := refused.get(id(c.term))))
     if not significant:
@@ -286,13 +292,11 @@ def search_step(
                 f"must fall; z = {best.z:.2f}, must exceed {z_needed:.2f})"
             )
         ) + named
-        return Step(
-            current_score,
-            ranked,
-            None,
-            z_needed,
-            f"no candidate beats the current model by more than noise in cross-validation{detail}",
-        )
+        reason = ("no candidate beats the current model by more than noise in cross-validation"
+                  if options.claim else
+                  "the rows are too few for nested cross-validation to weigh a term: the candidates were "
+                  "scored on one level of folds and none is claimed")
+        return Step(current_score, ranked, None, z_needed, reason + detail)
     chosen = preferred(dataset, significant)
     return Step(current_score, ranked, chosen, z_needed,
                 _chosen_words(plain, current, current_score, chosen, significant, z_needed) + named)
