@@ -8,29 +8,14 @@ held as rivals, whose envelope the interval is."""
 
 from __future__ import annotations
 
-import numpy as np
+from test_calibrate_small_effect import draw
 
-from microbearing import physics
 from microbearing.calibrate import calibrate, parse_rows
 from microbearing.calibrate.decidability import terms_supported
 from microbearing.calibrate.select import SearchOptions, forward_select
 
 ROWS = 8
 FRESH = 2000
-NOISE = 0.03
-
-
-def _draw(seed: int, n: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """Lab-like rows over RH 0.2-0.8 of the physics x (1 + 0.1 RH^4 / load_N): up to 14x the physics at
-    80 % RH and 3 mN, 3 % log-normal scatter (as ``bench/calibration_trust.py --part small-effect``)."""
-    rng = np.random.default_rng(seed)
-    c = {"balls": rng.choice([4.0, 6.0, 8.0], n),
-         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-         "speed_m_s": rng.uniform(0.005, 0.15, n), "relative_humidity": rng.uniform(0.2, 0.8, n),
-         "temperature_C": rng.uniform(20.0, 40.0, n)}
-    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.65).mu
-    truth = mu * (1.0 + 0.1 * c["relative_humidity"] ** 4 / c["load_N"])
-    return c, truth * np.exp(rng.normal(0.0, NOISE, n))
 
 
 def _rows(c, measured, n):
@@ -44,7 +29,7 @@ def test_eight_rows_of_a_strong_humidity_effect_are_held_by_a_rival_and_covered_
     and covers; nothing is claimed (no effect, the few_rows item names the candidates leaned to)."""
     assert terms_supported(ROWS, 1, 4, 3) == 0
     for seed in range(400, 408):
-        c, measured = _draw(seed, ROWS + FRESH)
+        c, measured = draw(seed, ROWS + FRESH)
         report = calibrate(parse_rows(_rows(c, measured, ROWS)), ["mu_pivot"], folds=4, make_plots=False)
         assert report.effects == []
         few = [u for u in report.undecided if u["kind"] == "few_rows"]
@@ -65,7 +50,7 @@ def test_a_look_scores_every_candidate_and_claims_none():
     """``SearchOptions(claim=False)``: the same step as a search's (the same candidates, scores, z's and
     threshold), with nothing added, even where the search adds a term (120 rows of a 14x humidity effect,
     far over its threshold)."""
-    c, measured = _draw(1, 120)
+    c, measured = draw(1, 120)
     data = parse_rows(_rows(c, measured, 120))
     # one round each (unweighted): the rounds that follow read the scatter of what each step left
     search = forward_select(data, ["mu_pivot"], folds=4, options=SearchOptions(max_terms=1, scatter_rounds=1))
