@@ -593,8 +593,10 @@ def describe_rival(rival: Rival, part: Mapping[str, Any]) -> str:
     lo, hi = part["data_range"]
     where = ", ".join(f"{a:.3g} to {b:.3g}" for a, b in part["differ"])
     if rival.replaces is None and rival.partner is None:
-        text = (f"{rival.term.label}, added, is a close call the data cannot decide (held-out z "
-                f"{-rival.gap_se:.2f}, short of the threshold): the model's intervals hold its answer too")
+        # a close call or, on few rows, a candidate the rows merely lean to (z 1.2): what both are
+        text = (f"{rival.term.label}, added, predicts the held-out rows better than the model (paired z "
+                f"{-rival.gap_se:.2f}) but short of the threshold a term needs: the data cannot decide on "
+                f"it, and the model's intervals hold its answer too")
     elif rival.replaces is None:
         text = (f"{rival.term.label}, added, fits the data about as well as the model (held-out score "
                 f"better, paired z {-rival.gap_se:.2f}, below the threshold): its driver moves with "

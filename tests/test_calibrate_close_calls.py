@@ -60,4 +60,4 @@ def test_the_law_the_data_cannot_decide_on_is_a_rival_whose_answer_the_intervals
     fresh = truth(points) * np.exp(np.random.default_rng(3).normal(0.0, 0.03, 200))
     assert np.mean((prediction.mu_lower <= fresh) & (fresh <= prediction.mu_upper)) >= 0.95
     statement = next(r for r in report.to_dict()["rivals"] if r["label"] == f"{law} added")["statement"]
-    assert "close call the data cannot decide" in statement
+    assert "short of the threshold a term needs: the data cannot decide on it" in statement
