@@ -389,8 +389,9 @@ class Undecided(ResponseModel):
     kind: str = Field(description=(
         "near_threshold (a candidate just short of the selection's threshold), barely_chosen (a term added "
         "just above it, or by few outer folds), rivals (terms that fit about as well and part ways) or "
-        "few_rows (the rows support fewer terms than the search may add: no further effect is claimed, and "
-        "rows_to_settle says how many rows would let it weigh one more)."))
+        "few_rows (the rows support fewer terms than the search may add: no further effect is claimed, "
+        "rows_to_settle says how many rows would let it weigh one more, and terms names the candidates the "
+        "rows lean to, held as rivals in the intervals)."))
     terms: list[str] = Field(description="The terms concerned.")
     z: float | None = Field(default=None, description="Held-out paired z of the term [1].")
     z_needed: float | None = Field(default=None, description="The step's threshold [1].")
