@@ -57,6 +57,7 @@ __all__ = [
     "check_request",
     "read_space",
     "first_experiments",
+    "held_out_scale",
     "next_experiments",
     "physics_model",
     "plan_png",
@@ -276,6 +277,27 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
     return rivals
 
 
+def held_out_scale(report: Mapping[str, Any], dataset: Dataset, model: CalibratedModel) -> float:
+    """How much the scatter a calibration measures held out exceeds an in-sample residual scatter on these
+    data [1]: the calibrated model's held-out scatter over its own terms' in-sample residual (with its
+    degrees of freedom), at least 1. A rival's scatter (:func:`rival_models`) is in-sample, and a
+    recalibration that adds its term measures it held out: compared as they are, a rival that fits as
+    well looks better by the refit's share of a held-out residual (temperature lab 5 of
+    ``bench/plans_promise.py``: a rival's 0.0317 in-sample against 0.0342-0.0351 held out after the
+    runs)."""
+    if not model.noise_std_log:
+        return 1.0
+    fit_parameters = list(report.get("fit_parameters", model.fitted))
+    terms = [t for t, _ in model.terms]
+    try:
+        own = _residual_scatter(fit(dataset, fit_parameters, terms, start=model.fitted,
+                                    start_terms=[list(v) for _, v in model.terms],
+                                    convention=model.convention))
+    except (ValueError, np.linalg.LinAlgError):
+        return 1.0
+    return max(1.0, float(model.noise_std_log) / own) if own > 0 else 1.0
+
+
 def _residual_scatter(result) -> float:
     """RMS of a fit's log residual with its degrees of freedom (n - p) [1]."""
     residual = np.asarray(result.residual, dtype=float)
@@ -388,8 +410,8 @@ def _runs(response: CalibratedResponse, candidates, design: Design,
 
 
 def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, envelope,
-              rivals: Sequence[tuple[str, CalibratedModel]], reported: Sequence[ReportedWidth] = ()
-              ) -> dict[str, Any]:
+              rivals: Sequence[tuple[str, CalibratedModel]], reported: Sequence[ReportedWidth] = (),
+              held_out: float = 1.0) -> dict[str, Any]:
     names = response.parameter_names
     information_after = design.information_after
     covariance_after = np.linalg.pinv(information_after, hermitian=True)
@@ -422,11 +444,13 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             entry["mean_half_width_now"] = {"mean": float(mean_before.mean()),
                                             "max": float(mean_before.max())}
         if reported:  # the interval as the service reports it, widened off the data
-            # after the runs: the interval of the model the data favour (the least scatter) among the
-            # calibrated one and the hedged rivals, whose term a recalibration would add, enveloping the
-            # others refitted to runs that follow it (a recalibration may keep them as its rivals)
-            favoured = min(reported, key=lambda r: float(r.model.noise_std_log))
-            after = favoured.after(design.counts, [r for r in reported if r is not favoured])
+            # after the runs: the interval of the model the data favour (the least scatter, each as a
+            # recalibration would measure it held out) among the calibrated one and the hedged rivals,
+            # whose term a recalibration would add, enveloping the others refitted to runs that follow
+            # it (a recalibration may keep them as its rivals)
+            pool = [reported[0], *(r.held_out_scaled(held_out) for r in reported[1:])]
+            favoured = min(pool, key=lambda r: r.scatter_level)
+            after = favoured.after(design.counts, [r for r in pool if r is not favoured])
             for key, values in (("reported_half_width_now", reported[0].now()),
                                 ("reported_half_width_after", after)):
                 entry[key] = {"mean": float(np.mean(values)), "max": float(np.max(values))}
@@ -550,7 +574,7 @@ def _envelope_points(envelope: Mapping[str, Any], seed: int) -> dict[str, np.nda
 
 
 def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, data,
-             progress) -> ExperimentPlan:
+             progress, held_out_scale: float = 1.0) -> ExperimentPlan:
     report = progress or (lambda fraction: None)
     space, runs, goal, seed = request.space, request.runs, request.goal, request.seed
     envelope_space, planned = request.envelope, request.planned
@@ -591,7 +615,7 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
     report(0.8)
     rows, chosen, warnings = _runs(response, candidates, design, request.shown)
     expected = _expected(goal, response, design, chosen, envelope, rivals if goal == "discriminate" else [],
-                         [reported, *hedges] if reported is not None else [])
+                         [reported, *hedges] if reported is not None else [], held_out_scale)
     plot = _plot_data(response, chosen, data, space, rivals if goal == "discriminate" else [])
     if envelope_space is not None:  # where the model will be used, on the plot's axes
         plot["envelope"] = {a: list(_span(envelope_space[a])) for a in plot["axes"] if a in envelope_space}
@@ -648,6 +672,7 @@ def next_experiments(
     rivals: Sequence[tuple[str, CalibratedModel]] = (),
     data: Mapping[str, np.ndarray] | None = None,
     progress: Callable[[float], None] | None = None,
+    held_out_scale: float = 1.0,
 ) -> ExperimentPlan:
     """The next ``request.runs`` measurements for a calibrated model, with an optimality bound.
 
@@ -664,6 +689,9 @@ def next_experiments(
         The data taken (columns), drawn under the proposed runs.
     progress : callable, optional
         Fraction done, 0..1.
+    held_out_scale : float
+        The rivals' scatter as a recalibration would measure it, over their own in-sample scatter
+        (:func:`held_out_scale`); read by the promise, ``reported_half_width_after``. [1]
 
     Returns
     -------
@@ -685,7 +713,7 @@ def next_experiments(
     if goal == "discriminate" and not rivals:
         return _explore(response, request, data, progress)
     return _propose(response, _read_spaces(request), list(rivals) if goal != "parameters" else [], data,
-                    progress)
+                    progress, held_out_scale)
 
 
 def _explore(response: CalibratedResponse, request: ExperimentRequest, data, progress) -> ExperimentPlan:

@@ -25,6 +25,7 @@ the reported interval 2.7x its promise). The search and the promise both read th
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -103,7 +104,10 @@ class ReportedWidth:
         self.other = np.square(np.asarray(response.scatter_sd(envelope), dtype=float))
         if model.noise_std_log:  # the small-sample and tail factor the interval applies to one spread
             self.other = self.other * (model.interval_noise_std_log(level) / float(model.noise_std_log)) ** 2
-        self.other = self.other + np.ravel(model.discrepancy_bound(self.envelope, self.envelope, (m,))[2])
+        self.discrepancy = np.ravel(model.discrepancy_bound(self.envelope, self.envelope, (m,))[2])
+        self.other = self.other + self.discrepancy
+        # the model's scatter as a recalibration would measure it, over its own (held_out_scaled)
+        self.scatter_scale = 1.0
         sigma = np.asarray(response.scatter_sd(candidates), dtype=float)
         g = np.asarray(response.sensitivities(candidates), dtype=float).reshape(sigma.size, p)
         self.b = g / sigma[:, None]
@@ -191,6 +195,22 @@ class ReportedWidth:
                 lo, hi = np.minimum(lo, column)[None, :], np.maximum(hi, column)[None, :]
             ratio = np.maximum(ratio, extrapolation_allowance(value, lo, hi, after.domain_rows)[0])
         return ratio
+
+    def held_out_scaled(self, scale: float) -> ReportedWidth:
+        """The same widths with the model's scatter ``scale`` times its own [1]: a rival's scatter is its
+        in-sample residual's (:func:`calibrate.experiments.rival_models`), while a recalibration that adds
+        its term reports a held-out scatter, larger by about the ratio the calibrated model's own two
+        show (:func:`calibrate.experiments.held_out_scale`). For the promise (:meth:`after`); the
+        search's hedges keep the in-sample scatter."""
+        out = copy.copy(self)
+        out.other = (self.other - self.discrepancy) * scale**2 + self.discrepancy
+        out.scatter_scale = self.scatter_scale * scale
+        return out
+
+    @property
+    def scatter_level(self) -> float:
+        """The model's scatter of log μ [1] as the promise compares models by it (:meth:`held_out_scaled`)."""
+        return float(self.model.noise_std_log or 0.0) * self.scatter_scale
 
     # --------------------------------------------------------------------------------------------- fast
     def _state(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:

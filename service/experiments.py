@@ -22,6 +22,7 @@ from microbearing.calibrate.experiments import (
     check_identifiable,
     check_request,
     first_experiments,
+    held_out_scale,
     next_experiments,
     physics_model,
     plan_png,
@@ -264,7 +265,8 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
                                         planned=planned, seed=body.seed, shown=read.readings())
             plan = next_experiments(model, request, rivals=rivals,
                                     data=None if dataset is None else dataset.columns(),
-                                    progress=lambda f: ctx.progress(0.2 + 0.8 * f))
+                                    progress=lambda f: ctx.progress(0.2 + 0.8 * f),
+                                    held_out_scale=held_out_scale(report, dataset, model) if rivals else 1.0)
         except ValueError as exc:
             raise _field_problem(exc, sent) from None
         document = _document(plan, MODEL_PREFIX + calibration_id, ctx.job_id, read)
