@@ -411,7 +411,7 @@ def _runs(response: CalibratedResponse, candidates, design: Design,
 
 def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, envelope,
               rivals: Sequence[tuple[str, CalibratedModel]], reported: Sequence[ReportedWidth] = (),
-              held_out: float = 1.0) -> dict[str, Any]:
+              held_out_scale: float = 1.0) -> dict[str, Any]:
     names = response.parameter_names
     information_after = design.information_after
     covariance_after = np.linalg.pinv(information_after, hermitian=True)
@@ -448,7 +448,7 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             # recalibration would measure it held out) among the calibrated one and the hedged rivals,
             # whose term a recalibration would add, enveloping the others refitted to runs that follow
             # it (a recalibration may keep them as its rivals)
-            pool = [reported[0], *(r.held_out_scaled(held_out) for r in reported[1:])]
+            pool = [reported[0], *(r.held_out_scaled(held_out_scale) for r in reported[1:])]
             favoured = min(pool, key=lambda r: r.scatter_level)
             after = favoured.after(design.counts, [r for r in pool if r is not favoured])
             for key, values in (("reported_half_width_now", reported[0].now()),

@@ -800,7 +800,7 @@ def _few_rows(dataset: Dataset, fit_parameters: Sequence[str], options: Calibrat
     """The report's item when the rows supported fewer terms than asked for (see :func:`calibrate`),
     naming the candidates of the step that stopped held as rivals (added, on no confounded column)."""
     most = options.requested_terms or options.search.max_terms
-    leaning = [(r.term.label, -r.gap_se) for r in rivals if r.replaces is None and r.partner is None]
+    leaning = [(r.term.label, -r.gap_se) for r in rivals if r.undecided]
     z_needed = selection.steps[-1].z_needed if selection.steps else None
     item = few_rows(dataset.n_points, len(fit_parameters), options.folds, options.search.max_terms, most,
                     leaning, z_needed)

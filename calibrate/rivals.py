@@ -127,6 +127,12 @@ class Rival:
     partner: str | None = None
 
     @property
+    def undecided(self) -> bool:
+        """Whether it is a term added that the data cannot decide on (a close call, or on few rows a
+        candidate the rows lean to): it replaces no chosen term and moves with no column the model reads."""
+        return self.replaces is None and self.partner is None
+
+    @property
     def label(self) -> str:
         """``"<rival> instead of <chosen>"``, or ``"<rival> added"`` for a rival by confounding."""
         if self.replaces is None:
@@ -592,8 +598,7 @@ def describe_rival(rival: Rival, part: Mapping[str, Any]) -> str:
     """The rival and where it parts from the chosen model (:func:`where_they_part`), in words."""
     lo, hi = part["data_range"]
     where = ", ".join(f"{a:.3g} to {b:.3g}" for a, b in part["differ"])
-    if rival.replaces is None and rival.partner is None:
-        # a close call or, on few rows, a candidate the rows merely lean to (z 1.2): what both are
+    if rival.undecided:  # a close call or, on few rows, a candidate the rows merely lean to (z 1.2)
         text = (f"{rival.term.label}, added, predicts the held-out rows better than the model (paired z "
                 f"{-rival.gap_se:.2f}) but short of the threshold a term needs: the data cannot decide on "
                 f"it, and the model's intervals hold its answer too")

@@ -259,6 +259,8 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
     def work(ctx) -> dict[str, Any]:
         rivals = (rival_models(report, dataset, model, near=near) if body.goal != "parameters" and has_rivals
                   else [])
+        # a refit of the model's terms, for the promise of predict alone (its rivals read held out)
+        scale = held_out_scale(report, dataset, model) if rivals and body.goal == "predict" else 1.0
         ctx.progress(0.2)
         try:
             request = ExperimentRequest(space, body.runs, body.goal, envelope=envelope, fixed=fixed,
@@ -266,7 +268,7 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
             plan = next_experiments(model, request, rivals=rivals,
                                     data=None if dataset is None else dataset.columns(),
                                     progress=lambda f: ctx.progress(0.2 + 0.8 * f),
-                                    held_out_scale=held_out_scale(report, dataset, model) if rivals else 1.0)
+                                    held_out_scale=scale)
         except ValueError as exc:
             raise _field_problem(exc, sent) from None
         document = _document(plan, MODEL_PREFIX + calibration_id, ctx.job_id, read)
