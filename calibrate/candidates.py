@@ -444,7 +444,8 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
         :data:`physics.effects.DRIFT_PARAMETERS` that is not a data column, on every condition column
         its law accepts except order and time columns (:data:`physics.effects.SESSION_KEYWORDS`, ISO 8601
         times), which drive the reading's ``measurement_drift`` and ``measurement_step`` instead. An
-        effect with searched constants (the step's place) is proposed once per value of them.
+        effect with searched constants (the step's place) is proposed once per value of them. A generic
+        effect is not proposed on drivers where a named form of it is (:attr:`Effect.named_form_of`).
     chosen : sequence of Term
         Terms already in the model: the same effect, or the same parameter on the same driver, is
         not proposed again.
@@ -502,6 +503,10 @@ def candidate_terms(dataset: Dataset, chosen: Sequence[Term] = (), fitted: Seque
                     drifts.append(
                         DriftTerm(parameter, law.name, driver, law.constants(driver, values), level)
                     )
+    # A named form of a generic effect on the same drivers (a measurement drift on an order column is the
+    # log-linear term there with the session's start as its reference) stands for it: not both.
+    forms = {(t.effect.named_form_of, t.drivers) for t in named if t.effect.named_form_of}
+    generic = [t for t in generic if (t.name, t.drivers) not in forms]
     return named + drifts + generic
 
 

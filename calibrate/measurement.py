@@ -394,24 +394,35 @@ def drift_words(effects: Sequence[Mapping[str, Any]], clock: Mapping[str, str] |
     session (run_index 0 to 119) ...`` or ``the instrument's reading stepped +6.1 % at run_index 60 ...``.
 
     ``clock`` (:attr:`MeasurementSystem.clock`) names the columns read from ISO 8601 times and their start:
-    a step on one is placed at the time of day the user wrote, not in hours.
+    a drift's start and end and a step's place on one are said as the times the user wrote, not in hours.
     """
-    out = []
+    out, clock = [], dict(clock or {})
     for effect in effects:
         if effect.get("name") == "measurement_step":
-            out.append(_step_words(effect, dict(clock or {})))
+            out.append(_step_words(effect, clock))
         if effect.get("name") != "measurement_drift":
             continue
         d = effect["parameters"]["session_drift_log"]
         sd = effect["parameter_std"]["session_drift_log"]
         c = effect["constants"]
         low, high = np.expm1(d - 1.96 * sd), np.expm1(d + 1.96 * sd)
+        driver = effect["drivers"][0]
+        start, end = _at(c["start"], driver, clock), _at(c["end"], driver, clock)
         out.append(f"the instrument drifted {100 * np.expm1(d):+.1f} % over the session "
-                   f"({effect['drivers'][0]} {c['start']:.6g} to {c['end']:.6g}; 95 % interval "
+                   f"({driver} {start} to {end}; 95 % interval "
                    f"{100 * low:+.1f} to {100 * high:+.1f} %): "
                    f"a drift of the reading (measurement system), not of the bearing; the fitted physics is "
                    f"the reading at the session's start")
     return out
+
+
+def _at(value: float, driver: str, clock: Mapping[str, str]) -> str:
+    """A value of an order or time column in the column's own terms: the time the user wrote for a column
+    read from ISO 8601 times (``clock``: its start), to the second; the number otherwise."""
+    if driver not in clock:
+        return f"{value:.6g}"
+    start = datetime.fromisoformat(clock[driver])
+    return (start + timedelta(seconds=round(3600.0 * float(value)))).isoformat(timespec="seconds")
 
 
 def _step_words(effect: Mapping[str, Any], clock: Mapping[str, str]) -> str:
@@ -419,15 +430,9 @@ def _step_words(effect: Mapping[str, Any], clock: Mapping[str, str]) -> str:
     s = effect["parameters"]["step_log"]
     sd = effect["parameter_std"]["step_log"]
     c, driver = effect["constants"], effect["drivers"][0]
-
-    def at(value: float) -> str:
-        if driver not in clock:
-            return f"{value:.6g}"
-        start = datetime.fromisoformat(clock[driver])
-        return (start + timedelta(seconds=round(3600.0 * float(value)))).isoformat()  # to the second
-
-    return (f"the instrument's reading stepped {100 * np.expm1(s):+.1f} % at {driver} {at(c['after'])} "
-            f"(after {at(c['before'])}; the place searched over the session; 95 % interval of the step "
+    after, before = _at(c["after"], driver, clock), _at(c["before"], driver, clock)
+    return (f"the instrument's reading stepped {100 * np.expm1(s):+.1f} % at {driver} {after} "
+            f"(after {before}; the place searched over the session; 95 % interval of the step "
             f"{100 * np.expm1(s - 1.96 * sd):+.1f} to {100 * np.expm1(s + 1.96 * sd):+.1f} %): a step of the "
             f"reading (measurement system), not of the bearing; the fitted physics is the reading before "
             f"the step, and later runs are predicted at the level after it")

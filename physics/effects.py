@@ -188,6 +188,11 @@ class Effect:
         values ``search_constants`` gives, one candidate each; each counts as a fitted parameter.
     search_constants : callable or None
         ``search_constants(x) -> list of dict``: the values of the searched constants to try.
+    named_form_of : str or None
+        The generic effect this one names on its drivers: the same shape with another reference point
+        (where the factor is 1). A search that proposes this effect on a driver does not propose that
+        generic one there too: their fits differ only by where the physics' level sits, and a
+        hair's difference would otherwise name the generic form for a mechanism the catalogue knows.
     """
 
     name: str
@@ -213,6 +218,7 @@ class Effect:
     value_forms: tuple[str | None, ...] = ()
     searched: tuple[str, ...] = ()
     search_constants: Callable = field(default=None, repr=False, compare=False)
+    named_form_of: str | None = None
 
     @property
     def parameter_names(self) -> list[str]:
@@ -498,6 +504,7 @@ _MEASUREMENT_DRIFT = Effect(
     make_constants=lambda x: {"start": float(np.min(x)), "end": float(np.max(x))},
     make_initial=_zeros,
     enters="mul", direction=lambda v: _sign(v[0]), value_forms=("log",),  # x exp(d s), s rises with x
+    named_form_of="generic_linear",  # exp(c (x - centre) / scale), the reading true at the centre
 )
 
 _MEASUREMENT_STEP = Effect(

@@ -19,7 +19,7 @@ from scipy import optimize, stats
 
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel, DataError, parse_csv, parse_rows
-from microbearing.calibrate.candidates import EffectTerm
+from microbearing.calibrate.candidates import EffectTerm, candidate_terms
 from microbearing.calibrate.censored import censored_residual, residual_variance
 from microbearing.calibrate.measurement import LackOfFit, drift_words, folds, inspect, lack_of_fit
 from microbearing.calibrate.rivals import PLACE_LR
@@ -211,6 +211,8 @@ def test_instrument_drift_through_the_api_with_iso_times(client):
     assert np.expm1(drift) == pytest.approx(0.08, abs=0.03)
     said = report["measurement_system"]["drift"][0]
     assert said.startswith(f"the instrument drifted {100 * np.expm1(drift):+.1f} % over the session")
+    # the session's ends as the user wrote them: 95 runs 4 min apart after 09:00 end at 15:20
+    assert "(date 2026-11-28T09:00:00+00:00 to 2026-11-28T15:20:00+00:00;" in said
     assert report["measurement_system"]["clock"] == {"date": "2026-11-28T09:00:00+00:00"}
     hours = 4 * (n - 1) / 60
     for at in (0.0, hours):  # the session's start and end
@@ -336,6 +338,29 @@ def test_a_step_in_the_reading_is_found_at_its_place_and_predicted_after_it(clie
     error, covered = coverage(report, {"load_N": g, "speed_m_s": v, "run_index": runs},
                               truth(g, v) * np.where(runs >= 60, 1.06, 1.0), rng)
     assert 0.9 <= covered <= 0.995 and error < NOISE
+
+
+def test_an_order_column_is_offered_the_drift_not_its_generic_twin():
+    # measurement_drift on an order column is the log-linear term with the session's start as reference:
+    # the generic log-linear term is not proposed beside it there, and stays on the other columns
+    rows = session_rows(np.random.default_rng(3), 30, 0.0, clock=False)
+    labels = {t.label for t in candidate_terms(parse_rows(rows, fixed={"balls": BALLS}))}
+    assert "measurement_drift on run_index" in labels and "generic_linear on run_index" not in labels
+    assert {"generic_quadratic on run_index", "generic_linear on load_N"} <= labels
+
+
+def test_a_falling_reading_is_named_a_drift_of_the_instrument(client):
+    # a reading drifting -6 % over 120 runs: the generic log-linear slope on run_index fitted a hair
+    # better (its reference is the session's middle, where mu_pivot's level sits otherwise) and was named,
+    # the measurement system saying nothing of a drift
+    rows = session_rows(np.random.default_rng(50), 120, -0.06, clock=False)
+    report = calibrated(client, rows, folds_=5)
+    assert [e["name"] for e in report["effects"]] == ["measurement_drift"]
+    d = report["effects"][0]["parameters"]["session_drift_log"]
+    sd = report["effects"][0]["parameter_std"]["session_drift_log"]
+    assert d - 1.96 * sd <= np.log1p(-0.06) <= d + 1.96 * sd
+    assert report["measurement_system"]["drift"][0].startswith(
+        f"the instrument drifted {100 * np.expm1(d):+.1f} % over the session (run_index 0 to 119;")
 
 
 @pytest.mark.parametrize("kind", ["drift", "clean"])
