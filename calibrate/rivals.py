@@ -355,6 +355,7 @@ def fit_rivals(
     # humidity effect on 10 rows whose Kelvin law took the adhesion past 1 J/m² was left out, and with it
     # the interval at high humidity, coverage 0.80).
     close = undecided_candidates(selection.steps[-1], few_rows) if selection.steps else []
+    held = len(rivals)
     for candidate in undecided_order(search_data(dataset, selection.rows), close) if close else []:
         if len(rivals) >= max_rivals:
             break
@@ -366,7 +367,28 @@ def fit_rivals(
             rivals.append(rival)
             if not few_rows:  # on rows enough for the search, the close call it names (or, its refit
                 break         # implausible or failed, the next) holds the step's doubt, as before
+    # On few rows the joint refits are a short list: when each one the data lean to refits implausibly or
+    # fails, the first the screening leans to that refits plausibly holds the doubt instead (8 rows of a
+    # humidity effect 14x the physics: the one joint candidate leaned to took mu_pivot to 2 and was left
+    # out, and with it every rival, while the screening leaned to a power law in the humidity).
+    lean = screened_lean(selection.steps[-1]) if few_rows and selection.steps and len(rivals) == held else []
+    for candidate in undecided_order(search_data(dataset, selection.rows), lean) if lean else []:
+        if len(rivals) >= max_rivals:
+            break
+        rival = _refit(dataset, fit_parameters, terms, final, convention, len(selection.steps) - 1,
+                       candidate, -candidate.z, None, False)
+        if rival is not None:
+            rivals.append(rival)
+            break
     return rivals
+
+
+def screened_lean(step: Any) -> list[CandidateScore]:
+    """The candidates of a step that stopped that were screened but not refitted jointly and that the data
+    lean to (a held-out loss below the model's, paired z above 0, and a score below its), for
+    :func:`fit_rivals` on few rows when no jointly refitted one holds the doubt."""
+    return [c for c in step.ranked if not c.joint and c.term is not None and c.z > 0
+            and c.score < step.current.score]
 
 
 def undecided_candidates(step: Any, few_rows: bool = False) -> list[CandidateScore]:
