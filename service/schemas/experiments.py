@@ -59,6 +59,10 @@ def _one_spelling(value: Any) -> Any:
     explained."""
     if isinstance(value, list) and len(value) > 2:
         raise ValueError(f"a list of {len(value)} values is ambiguous: {SPAN_SPELLINGS}")
+    if not isinstance(value, list | dict):  # one sentence, not each member's of the union
+        what = "null" if value is None else str(value).lower() if isinstance(value, bool) else "a number"
+        raise ValueError(f"{what} is no range or set here: {SPAN_SPELLINGS} (a value held in every run "
+                         f"goes in fixed)")
     if isinstance(value, dict) and "values" in value:  # a set: one sentence, not the range's errors too
         values = value["values"]
         if set(value) != {"values"}:

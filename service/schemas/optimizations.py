@@ -15,6 +15,7 @@ from .base import (
     ColumnKeys,
     Convention,
     ConventionName,
+    PairSpelling,
     RangeSpelling,
     ResponseModel,
     StrictModel,
@@ -47,14 +48,14 @@ class DesignBounds(InputKeys):
 
     balls: Annotated[list[Annotated[int, Field(ge=1, le=100_000), BeforeValidator(whole_number)]],
                      _pair("total number of balls (both grooves), whole numbers in [1, 100000] [1]"),
-                     RangeSpelling]
+                     PairSpelling]
     groove_angle_deg: Annotated[list[Annotated[float, Field(ge=_ANGLE.minimum, le=_ANGLE.maximum)]],
-                                _pair(f"groove angle, {_ANGLE.range_text()} [deg]"), RangeSpelling]
+                                _pair(f"groove angle, {_ANGLE.range_text()} [deg]"), PairSpelling]
     load_N: Annotated[list[Annotated[float, Field(ge=_LOAD.minimum, le=_LOAD.maximum)]] | None,
                       Field(default=None, min_length=2, max_length=2, description=(
                           f"[lower, upper] (or {{low, high}}) normal load on the slider, "
                           f"{_LOAD.range_text()}, both included [N]; or give a payload in fixed.load_N "
-                          "instead (a given load, not a range).")), RangeSpelling] = None
+                          "instead (a given load, not a range).")), PairSpelling] = None
 
 
 class DesignLimits(StrictModel):

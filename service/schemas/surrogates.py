@@ -18,7 +18,7 @@ from .base import (
     Convention,
     ConventionName,
     DateTimeText,
-    RangeSpelling,
+    PairSpelling,
     ResponseModel,
     StrictModel,
     WholeNumber,
@@ -52,7 +52,7 @@ def _bounds_field(name: str) -> tuple[Any, Any]:
     spec = physics.PARAMETERS[name]
     pair = "[false, true]" if spec.kind == "bool" else "[lower, upper] with lower < upper"
     scalar = parameter_type(spec)
-    return (Annotated[list[scalar] | None, RangeSpelling],
+    return (Annotated[list[scalar] | None, PairSpelling],
             Field(default=None, min_length=2, max_length=2,
                   description=f"Range as {pair} (or {{low, high}}). {parameter_description(spec)}"))
 
