@@ -109,6 +109,16 @@ _PLANNED = ("Runs already planned, one object per run with a value for every col
             "information counts as taken.")
 
 
+def _one_value(value: Any) -> Any:
+    """A fixed value is one number, flag or label: a range, a set or null said in one sentence, not each
+    member's of the union."""
+    if value is None or isinstance(value, list | dict):
+        got = "null" if value is None else "a range or set"
+        raise ValueError(f"fixed holds one value per column; got {got} (a column the runs vary goes in "
+                         f"space)")
+    return value
+
+
 class _ExperimentsRequest(StrictModel):
     runs: WholeNumber = Field(ge=1, le=MAX_RUNS, description="How many measurements to propose [1].")
     space: Annotated[dict[str, SpaceColumn], AfterValidator(_space_keys)] = Field(
@@ -116,7 +126,8 @@ class _ExperimentsRequest(StrictModel):
     envelope: Annotated[dict[str, SpaceColumn] | None, AfterValidator(_space_keys)] = Field(
         default=None, max_length=MAX_SPACE_COLUMNS, description=_ENVELOPE)
     # text is taken to be refused in words (a factor's label: the runs serve every group)
-    fixed: Annotated[dict[str, float | bool | str] | None, CheckedColumnKeys] = Field(
+    fixed: Annotated[dict[str, Annotated[float | bool | str, BeforeValidator(_one_value)]] | None,
+                     CheckedColumnKeys] = Field(
         default=None, max_length=64, description=_FIXED + _UNIT_NAMES)
     planned: list[Annotated[dict[str, float], CheckedColumnKeys]] | None = Field(
         default=None, max_length=MAX_PLANNED_RUNS, description=_PLANNED + _UNIT_NAMES)
