@@ -115,3 +115,26 @@ def test_an_experiment_s_fixed_value_is_one_value_said_in_one_sentence(client, v
     assert error["pointer"] == "/fixed/RH [%]"
     assert "fixed holds one value per column" in error["detail"] and "space" in error["detail"], error
     assert "Input should be" not in error["detail"], error
+
+
+@pytest.mark.parametrize(("value", "words"), [
+    ([30, 60], "one value each"), ({"low": 30, "high": 60}, "one value each"),
+    ("S2", "a group label is no condition of a surrogate")])
+def test_a_surrogate_s_condition_is_one_number_said_in_one_sentence(client, value, words):
+    # A range or a label in a surrogate's conditions was answered "Input should be a valid number".
+    body = {"model": "calibrated:" + "0" * 32, "space": {"load_N": [0.005, 0.03]},
+            "fixed": {"balls": 4, "speed_m_s": 0.05}, "conditions": {"RH [%]": value}, "budget": 12}
+    error = only_error(client.post("/v1/surrogates", json=body))
+    assert error["pointer"] == "/conditions/RH [%]"
+    assert words in error["detail"] and "Input should be" not in error["detail"], error
+
+
+@pytest.mark.parametrize("value", [["S1", "S2"], {"values": ["S1", "S2"]}])
+def test_an_experiment_space_of_labels_is_said_in_one_sentence(client, value):
+    # Labels in a space were answered with four of pydantic's errors ("/space/specimen/low: Field required;
+    # ... /values/0: Input should be a valid number").
+    body = {"runs": 3, "goal": "parameters", "space": {"balls": [4, 10], "load_N": [0.005, 0.03],
+                                                       "speed_m_s": [0.03, 0.1], "specimen": value}}
+    error = only_error(client.post("/v1/calibrations/" + "0" * 32 + "/next-experiments", json=body))
+    assert error["pointer"] == "/space/specimen"
+    assert "factor column" in error["detail"] and "Input should be" not in error["detail"], error

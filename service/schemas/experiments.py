@@ -57,6 +57,11 @@ class SpaceValues(StrictModel):
 def _one_spelling(value: Any) -> Any:
     """A plain list is a range [low, high] (one value: that value): longer ones are refused, the two spellings
     explained."""
+    given = value.get("values") if isinstance(value, dict) else value
+    if isinstance(given, list) and any(isinstance(v, str) for v in given):  # one sentence, not four
+        raise ValueError("group labels are no range or set here: this is a factor column, and the runs are "
+                         "planned for the model over its groups (a new one's spread in the interval); leave "
+                         "it out")
     if isinstance(value, list) and len(value) > 2:
         raise ValueError(f"a list of {len(value)} values is ambiguous: {SPAN_SPELLINGS}")
     if not isinstance(value, list | dict):  # one sentence, not each member's of the union
