@@ -33,7 +33,7 @@ bounds of :mod:`optimize.envelope_bound` use.
 
 **The laws' domains.** A term's law holds for its driver's values in the domain the law declares
 (:attr:`physics.effects.Effect.domain`, :attr:`physics.effects.DriftLaw.domain`: relative humidity in
-(0, 1) for the Kelvin radius, [0, 1) for menisci, a run-in count n >= 0); :func:`law_domains` gives each
+[0, 1) for the Kelvin radius and the menisci, a run-in count n >= 0); :func:`law_domains` gives each
 in its column's unit, and
 :func:`outside_law_domains` names the columns of a request whose values (numbers, ranges or sets of
 values) leave one, so that a route refuses them when they are submitted rather than a job failing later.

@@ -334,6 +334,12 @@ def shifted_problem(problem: DesignProblem, delta: float, speed: float) -> Desig
     return DesignProblem(bounds, speed, problem.constraints, problem.fixed, problem.convention)
 
 
+#: Why a factor column (group labels) has no place in an operating envelope, whatever its value.
+GROUP_LABEL_OVER_ENVELOPE = ("a group label is taken by a design at one point only; over an operating "
+                             "envelope the design holds for a new group (the spread between groups is in its "
+                             "interval): leave it out")
+
+
 def check_model(model: Model | None, envelope: Envelope, objective: str) -> None:
     """Refuse what a model cannot be asked over an envelope (the checks :func:`optimize_robust` makes first).
 
@@ -360,6 +366,9 @@ def check_model(model: Model | None, envelope: Envelope, objective: str) -> None
     if missing:
         raise ValueError(f"conditions.{missing[0]}: {model.reference} reads {', '.join(required)}; give each "
                          "a value or a range [low, high]")
+    factors = [n for n, spec in model.inputs.items() if spec.kind == "label" and n in envelope.conditions]
+    if factors:
+        raise ValueError(f"conditions.{factors[0]}: {GROUP_LABEL_OVER_ENVELOPE}")
     known = set(required) | set(getattr(model, "unread_conditions", {}))
     unknown = [n for n in envelope.conditions if n not in known]
     if unknown:

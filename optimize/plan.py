@@ -35,6 +35,7 @@ from microbearing import physics
 from microbearing.physics.model import Model
 
 from .general import check_exact_limits, compare_with_source
+from .over_envelope import GROUP_LABEL_OVER_ENVELOPE
 from .problem import DESIGN_VARIABLES, Constraints, DesignBounds, DesignProblem
 from .robust import Envelope, certified_worst_case_of, check_model, shifted_problem, worst_case_of
 
@@ -283,10 +284,7 @@ def _field(error: ValueError) -> str:
 def _envelope(request: DesignRequest, speed: Any) -> Envelope:
     labels = [name for name, value in request.conditions.items() if isinstance(value, str)]
     if labels:
-        raise PlanError([(f"conditions.{name}", "a group label is taken by a design at one point only; over "
-                          "an operating envelope the design holds for a new group (the spread between groups "
-                          "is in its interval): leave it out")
-                         for name in labels])
+        raise PlanError([(f"conditions.{name}", GROUP_LABEL_OVER_ENVELOPE) for name in labels])
     try:
         return Envelope(tuple(speed) if isinstance(speed, list) else speed, request.conditions,
                         request.tolerances)

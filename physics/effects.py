@@ -722,7 +722,9 @@ _DRIFT_FACTOR_MIN, _DRIFT_FACTOR_MAX = 0.1, 10.0
 
 
 def _kelvin_radius_term(h):
-    return 1.0 / np.log(1.0 / h)
+    # a dry run (h = 0) has no Kelvin radius: 1 / ln(1/h) -> 0, the limit taken exactly (as the menisci's)
+    with np.errstate(divide="ignore"):
+        return 1.0 / np.log(1.0 / np.asarray(h, dtype=float))
 
 
 @dataclass(frozen=True)
@@ -756,7 +758,7 @@ class DriftLaw:
         ``"linear"``: factor = 1 + c (v - v_ref), kept within [0.1, 10] over the data by :meth:`bounds`;
         ``"arrhenius"``: factor = exp(c / R (1/v - 1/v_ref)).
     positive_variable : bool
-        Whether the law's variable must be > 0 (absolute temperature, 1/ln(1/h) for h in (0, 1)).
+        Whether the law's variable must be > 0 (absolute temperature).
     domain : Domain or None
         The driver's values the law holds for, in the unit ``driver_transform`` gives (None: any);
         :meth:`column_domain` gives it in a column's unit.
@@ -790,7 +792,7 @@ class DriftLaw:
         return self.domain.in_unit(lambda x: self.driver_transform(name, x))
 
     def accepts(self, name: str, values) -> bool:
-        """Whether the column's values lie in the law's domain (humidity in (0, 1), T > 0 K)."""
+        """Whether the column's values lie in the law's domain (humidity in [0, 1), T > 0 K)."""
         domain = self.column_domain(name)
         if domain is not None and not np.all(domain.contains(values)):
             return False
@@ -883,12 +885,12 @@ DRIFT_LAWS: dict[str, DriftLaw] = {law.name: law for law in [
             "Relative change of the parameter per unit of 1/ln(1/h) (the Kelvin radius over its value "
             "at h = 1/e).", -np.inf, np.inf),
         driver_keywords=HUMIDITY.keywords,
-        driver_description="relative humidity h in (0, 1) (percent if the name says pct); h_ref = median",
+        driver_description="relative humidity h in [0, 1) (percent if the name says pct; a dry run, h = 0, "
+                           "is the limit 1/ln(1/h) -> 0); h_ref = median",
         reference="Kelvin equation, r_K = gamma V_m / (R T ln(1/h)): capillary adhesion grows with the "
                   "meniscus radius (J.N. Israelachvili, Intermolecular and Surface Forces, 3rd ed., 2011, "
                   "ch. 17).",
         min_levels=3, variable=lambda name, x: _kelvin_radius_term(humidity_fraction(name, x)),
-        positive_variable=True, domain=Domain(0.0, 1.0, low_open=True, high_open=True),
-        driver_transform=humidity_fraction),
+        domain=Domain(0.0, 1.0, high_open=True), driver_transform=humidity_fraction),
 ]}
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SPAN_SPELLINGS", "Span", "read_span"]
+__all__ = ["RANGE_SPELLINGS", "SPAN_SPELLINGS", "Span", "no_range", "read_span"]
 
 
 @dataclass(frozen=True)
@@ -33,9 +33,31 @@ class Span:
         return self.values is None
 
 
+#: How a range is spelled, in words (for messages).
+RANGE_SPELLINGS = 'a range is [low, high] or {"low": low, "high": high}'
 #: How a range and a set of allowed values are spelled, in words (for messages).
-SPAN_SPELLINGS = ('a range is [low, high] or {"low": low, "high": high}; a set of allowed values is '
-              '{"values": [v1, v2, ...]}')
+SPAN_SPELLINGS = f'{RANGE_SPELLINGS}; a set of allowed values is {{"values": [v1, v2, ...]}}'
+
+
+def no_range(value: Any, number: bool = False) -> str | None:
+    """Why a value sent where a range is asked for is none, in one sentence; None when it may be one.
+
+    A list of another length than two, a flag, null, and (unless ``number``: a route that takes one value
+    too) a number are no range; every route that asks for a range (an optimization's bounds, a surrogate's
+    space, a sweep's ranges) says so in these words.
+
+    >>> no_range([0.1]), no_range([0.1, 0.2]), no_range(0.1, number=True)
+    ('a list of 1 value is no range here: a range is [low, high] or {"low": low, "high": high}', None, None)
+    """
+    if isinstance(value, list | tuple) and len(value) != 2:
+        what = f"a list of {len(value)} value{'' if len(value) == 1 else 's'}"
+    elif isinstance(value, bool) or value is None:
+        what = "null" if value is None else str(value).lower()
+    elif not number and isinstance(value, int | float | np.integer | np.floating):
+        what = "a number"
+    else:
+        return None
+    return f"{what} is no range here: {RANGE_SPELLINGS}"
 
 
 def _number(field: str, value: Any) -> float:

@@ -320,6 +320,11 @@ def _as_sent(sent: str, read: str, spec: Any, value: Any) -> str:
     return f" (sent as {sent}{given}, read as {read}{as_read}{limit})"
 
 
+#: The fields that hold physics inputs by name (an optimization's bounds, fixed values and tolerances, a
+#: surrogate's space, a sweep's ranges and axes): a key none reads there is no physics input.
+_INPUT_FIELDS = {("bounds",), ("fixed",), ("tolerances",), ("space",), ("ranges",), ("axes",)}
+
+
 def _in_words(error: dict[str, Any]) -> str:
     """pydantic's message of an error, said without its own terms (tags, models, "instance of")."""
     kind, ctx, message = error.get("type"), error.get("ctx") or {}, error.get("msg", "invalid")
@@ -333,6 +338,10 @@ def _in_words(error: dict[str, Any]) -> str:
     name = str((error.get("loc") or ("",))[-1])
     if kind == "extra_forbidden" and name in physics.PARAMETERS:  # a known input this field does not vary
         return f"{name} is a physics input, but not one this field takes; give it in fixed instead"
+    if kind == "extra_forbidden" and tuple(error.get("loc") or ())[-2:-1] in _INPUT_FIELDS:
+        return (f"{name} is no physics input (GET /v1/parameters lists them): a condition column of a "
+                f"calibrated model (humidity, temperature, a specimen) goes in conditions, a calibration's "
+                f"in its data")
     if kind in {"model_type", "model_attributes_type", "dict_type"}:
         return "must be an object with named fields ({...}), not " + _what(error.get("input"))
     return message

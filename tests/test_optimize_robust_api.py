@@ -272,3 +272,28 @@ def test_a_surrogates_speed_range_alone_is_an_envelope_with_the_physics_worst_ca
     scan = physics.evaluate(balls=design["balls"], groove_angle_deg=design["groove_angle_deg"],
                             load_N=design["load_N"], speed_m_s=np.linspace(0.01, 0.1, 91))
     assert scan.mu.max() <= verification["mu_source"] * (1 + 1e-12)
+
+
+@pytest.fixture(scope="module")
+def with_specimens(client) -> str:
+    rows = [row | {"specimen": f"S{i % 3 + 1}"} for i, row in enumerate(humidity_rows(seed=8))]
+    body = {"data": rows, "fit_parameters": ["mu_pivot"], "folds": 3}
+    result = finished(client, client.post("/v1/calibrations", json=body))
+    assert [g["factor"] for g in result["groups"]] == ["specimen"]
+    return result["model_id"]
+
+
+@pytest.mark.parametrize("specimen", ["S2", 2, ["S1", "S2"]])
+def test_a_factor_over_an_envelope_is_refused_in_one_sentence_whatever_its_value(client, with_specimens,
+                                                                                  specimen):
+    # Issue 32: over an envelope a label was refused as a design at one point only, but the number 2 as
+    # "specimen is not a condition of calibrated:...; its conditions are relative_humidity" and a list of
+    # labels with pydantic's "Input should be a valid number" at each.
+    request = {**PHYSICS, "model": with_specimens,
+               "conditions": {"relative_humidity": [0.3, 0.6], "specimen": specimen}}
+    response = client.post("/v1/optimizations", json=request)
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["errors"]
+    assert error["pointer"] == "/conditions/specimen"
+    assert "group label" in error["detail"] and "not a condition" not in error["detail"], error
+    assert "Input should be" not in error["detail"], error

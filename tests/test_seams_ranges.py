@@ -245,3 +245,44 @@ def test_a_surrogate_s_training_warns_of_a_unit_slip_on_the_cli_s_stderr(client,
             if line.startswith("warning: ")]
     warnings = json.loads(predicted.read_text())["warnings"]
     assert friction["input_warnings"][0] in said and said == warnings, (said, warnings)
+
+
+#: Where a range of load is asked for, and nothing else: an optimization's bounds, a surrogate's space, a
+#: sweep's ranges (with the pointer of the field).
+_RANGE_FIELDS = {
+    "bounds": ("/v1/optimizations", lambda load: {
+        "bounds": {"balls": [4, 10], "groove_angle_deg": [40, 60], "load [mN]": load},
+        "fixed": {"speed_m_s": 0.05}}, "/bounds/load [mN]"),
+    "space": ("/v1/surrogates", lambda load: {"space": {"load [mN]": load, "speed_m_s": [0.01, 0.1]},
+                                              "fixed": {"balls": 4}, "budget": 12}, "/space/load [mN]"),
+    "ranges": ("/v1/sweeps", lambda load: {
+        "design": "sobol", "points": 8, "fixed": {"balls": 4, "speed_m_s": 0.05},
+        "ranges": {"load [mN]": load}}, "/ranges/load [mN]"),
+}
+
+
+@pytest.mark.parametrize("field", list(_RANGE_FIELDS))
+@pytest.mark.parametrize(("load", "words"), [
+    (10, "a number is no range here"), ([10], "a list of 1 value is no range here"),
+    ([5, 10, 30], "a list of 3 values is no range here"), (True, "is no range here")])
+def test_what_is_no_range_is_said_in_one_sentence_in_every_route(client, field, load, words):
+    # Issue 32: the same JSON was refused in three routes' words, two of them pydantic's ("Input should be
+    # a valid list", "List should have at least 2 items after validation, not 1", "must be an object with
+    # named fields ({...}), not a number").
+    route, body, pointer = _RANGE_FIELDS[field]
+    detail = _problem(client.post(route, json=body(load)), pointer)
+    assert words in detail and '[low, high] or {"low": low, "high": high}' in detail, detail
+    for noise in ("Input should be", "List should have", "named fields", "valid list"):
+        assert noise not in detail, detail
+
+
+@pytest.mark.parametrize("value", [50, True])
+def test_an_experiment_space_says_a_number_is_no_range_or_set(client, value):
+    # A number in a space had two sentences, one pydantic's ("must be an object with named fields ({...}),
+    # not a number; Input should be a valid list"); one value held in every run goes in fixed.
+    body = {"runs": 4, "fit_parameters": ["mu_pivot"],
+            "space": {"balls": [4, 12], "load_N": [0.003, 0.024], "speed [mm/s]": value}}
+    detail = _problem(client.post("/v1/experiments", json=body), "/space/speed [mm~1s]")
+    assert "is no range or set here" in detail and "fixed" in detail, detail
+    for noise in ("Input should be", "named fields", "valid list"):
+        assert noise not in detail, detail

@@ -79,3 +79,62 @@ def test_a_large_body_refused_by_its_schema_names_the_field_without_parsing_it_a
     # what a large request freed goes back to the system where the C library can (glibc's malloc_trim)
     if platform.system() == "Linux" and platform.libc_ver()[0] == "glibc":
         assert limits.return_freed_memory() is True
+
+
+_BOUNDS = {"balls": [4, 10], "load_N": [0.005, 0.03], "groove_angle_deg": [40, 60]}
+
+
+@pytest.mark.parametrize(("body", "route", "pointer"), [
+    ({"bounds": {**_BOUNDS, "RH [%]": [30, 60]}, "fixed": {"speed_m_s": 0.05}}, "/v1/optimizations",
+     "/bounds/RH [%]"),
+    ({"bounds": _BOUNDS, "fixed": {"speed_m_s": 0.05, "RH [%]": 40}}, "/v1/optimizations", "/fixed/RH [%]"),
+    ({"bounds": _BOUNDS, "fixed": {"speed_m_s": 0.05}, "tolerances": {"humidity_pct": 5}},
+     "/v1/optimizations", "/tolerances/humidity_pct"),
+    ({"space": {"load_N": [0.005, 0.03], "temp [degF]": [60, 90]}, "fixed": {"balls": 4, "speed_m_s": 0.05},
+      "budget": 12}, "/v1/surrogates", "/space/temp [degF]"),
+    ({"space": {"load_N": [0.005, 0.03]}, "fixed": {"balls": 4, "speed_m_s": 0.05, "specimen": 3},
+      "budget": 12}, "/v1/surrogates", "/fixed/specimen"),
+])
+def test_a_condition_where_physics_inputs_go_is_pointed_to_conditions(client, body, route, pointer):
+    # Issue 32: a lab's condition column (humidity, temperature, a specimen) in an optimization's or a
+    # surrogate's bounds, fixed, tolerances or space was answered "Extra inputs are not permitted".
+    error = only_error(client.post(route, json=body))
+    assert error["pointer"] == pointer
+    key = pointer.split("/")[-1]
+    assert error["detail"].startswith(f"{key} is no physics input"), error
+    assert "conditions" in error["detail"] and "Extra inputs" not in error["detail"], error
+
+
+@pytest.mark.parametrize("value", [[30, 60], {"low": 30, "high": 60}, {"values": [30, 60]}, None])
+def test_an_experiment_s_fixed_value_is_one_value_said_in_one_sentence(client, value):
+    # A range in an experiment's fixed values was answered with each member of the union: "Input should be
+    # a valid number; Input should be a valid boolean; Input should be a valid string".
+    body = {"runs": 4, "fit_parameters": ["mu_pivot"], "fixed": {"RH [%]": value},
+            "space": {"balls": [4, 12], "load_N": [0.003, 0.024], "speed_m_s": [0.01, 0.1]}}
+    error = only_error(client.post("/v1/experiments", json=body))
+    assert error["pointer"] == "/fixed/RH [%]"
+    assert "fixed holds one value per column" in error["detail"] and "space" in error["detail"], error
+    assert "Input should be" not in error["detail"], error
+
+
+@pytest.mark.parametrize(("value", "words"), [
+    ([30, 60], "one value each"), ({"low": 30, "high": 60}, "one value each"),
+    ("S2", "a group label is no condition of a surrogate")])
+def test_a_surrogate_s_condition_is_one_number_said_in_one_sentence(client, value, words):
+    # A range or a label in a surrogate's conditions was answered "Input should be a valid number".
+    body = {"model": "calibrated:" + "0" * 32, "space": {"load_N": [0.005, 0.03]},
+            "fixed": {"balls": 4, "speed_m_s": 0.05}, "conditions": {"RH [%]": value}, "budget": 12}
+    error = only_error(client.post("/v1/surrogates", json=body))
+    assert error["pointer"] == "/conditions/RH [%]"
+    assert words in error["detail"] and "Input should be" not in error["detail"], error
+
+
+@pytest.mark.parametrize("value", [["S1", "S2"], {"values": ["S1", "S2"]}])
+def test_an_experiment_space_of_labels_is_said_in_one_sentence(client, value):
+    # Labels in a space were answered with four of pydantic's errors ("/space/specimen/low: Field required;
+    # ... /values/0: Input should be a valid number").
+    body = {"runs": 3, "goal": "parameters", "space": {"balls": [4, 10], "load_N": [0.005, 0.03],
+                                                       "speed_m_s": [0.03, 0.1], "specimen": value}}
+    error = only_error(client.post("/v1/calibrations/" + "0" * 32 + "/next-experiments", json=body))
+    assert error["pointer"] == "/space/specimen"
+    assert "factor column" in error["detail"] and "Input should be" not in error["detail"], error

@@ -36,6 +36,7 @@ from starlette.requests import ClientDisconnect
 
 from microbearing import physics
 from microbearing.physics.columns import ColumnError, Reading, read_name
+from microbearing.physics.spans import no_range
 
 from ..jsonguard import is_json_media_type
 from ..problems import VALIDATION_TYPE, ProblemError, not_json_problem
@@ -75,6 +76,7 @@ __all__ = [
     "CheckedColumnKeys",
     "UNIT_KEYS",
     "read_value",
+    "PairSpelling",
     "RangeSpelling",
 ]
 
@@ -533,10 +535,14 @@ UNIT_KEYS = (" A key may carry its unit as the upload's header does (e.g. 'relat
 REQUIRED_INPUTS = [name for name, spec in physics.PARAMETERS.items() if spec.required]
 
 
-def _range_spelling(value: Any) -> Any:
+def _range_spelling(value: Any, number: bool = True) -> Any:
     """A range spelled as an object, ``{"low": a, "high": b}``, read as the pair ``[a, b]``, as every route
     reads a range (an optimization's bounds and conditions, an experiment space's, a surrogate's space, a
-    sweep's ranges); a set of values refused in words."""
+    sweep's ranges); a set of values, and what is no range (:func:`physics.spans.no_range`; a number only
+    where ``number`` is False), refused in words."""
+    refused = no_range(value, number)
+    if refused is not None:
+        raise ValueError(refused)
     if isinstance(value, dict) and "values" in value:
         raise ValueError("a set of values is no range here: a range is [low, high] or {\"low\": low, "
                          "\"high\": high}")
@@ -548,5 +554,7 @@ def _range_spelling(value: Any) -> Any:
     return value
 
 
-#: The pair [low, high] of a range, also spelled {low, high}.
+#: The pair [low, high] of a range, also spelled {low, high}, or one number.
 RangeSpelling = BeforeValidator(_range_spelling)
+#: The pair [low, high] of a range, also spelled {low, high}: a number refused in words.
+PairSpelling = BeforeValidator(lambda value: _range_spelling(value, number=False))

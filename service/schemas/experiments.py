@@ -57,8 +57,17 @@ class SpaceValues(StrictModel):
 def _one_spelling(value: Any) -> Any:
     """A plain list is a range [low, high] (one value: that value): longer ones are refused, the two spellings
     explained."""
+    given = value.get("values") if isinstance(value, dict) else value
+    if isinstance(given, list) and any(isinstance(v, str) for v in given):  # one sentence, not four
+        raise ValueError("group labels are no range or set here: this is a factor column, and the runs are "
+                         "planned for the model over its groups (a new one's spread in the interval); leave "
+                         "it out")
     if isinstance(value, list) and len(value) > 2:
         raise ValueError(f"a list of {len(value)} values is ambiguous: {SPAN_SPELLINGS}")
+    if not isinstance(value, list | dict):  # one sentence, not each member's of the union
+        what = "null" if value is None else str(value).lower() if isinstance(value, bool) else "a number"
+        raise ValueError(f"{what} is no range or set here: {SPAN_SPELLINGS} (a value held in every run "
+                         f"goes in fixed)")
     if isinstance(value, dict) and "values" in value:  # a set: one sentence, not the range's errors too
         values = value["values"]
         if set(value) != {"values"}:
@@ -105,6 +114,16 @@ _PLANNED = ("Runs already planned, one object per run with a value for every col
             "information counts as taken.")
 
 
+def _one_value(value: Any) -> Any:
+    """A fixed value is one number, flag or label: a range, a set or null said in one sentence, not each
+    member's of the union."""
+    if value is None or isinstance(value, list | dict):
+        got = "null" if value is None else "a range or set"
+        raise ValueError(f"fixed holds one value per column; got {got} (a column the runs vary goes in "
+                         f"space)")
+    return value
+
+
 class _ExperimentsRequest(StrictModel):
     runs: WholeNumber = Field(ge=1, le=MAX_RUNS, description="How many measurements to propose [1].")
     space: Annotated[dict[str, SpaceColumn], AfterValidator(_space_keys)] = Field(
@@ -112,7 +131,8 @@ class _ExperimentsRequest(StrictModel):
     envelope: Annotated[dict[str, SpaceColumn] | None, AfterValidator(_space_keys)] = Field(
         default=None, max_length=MAX_SPACE_COLUMNS, description=_ENVELOPE)
     # text is taken to be refused in words (a factor's label: the runs serve every group)
-    fixed: Annotated[dict[str, float | bool | str] | None, CheckedColumnKeys] = Field(
+    fixed: Annotated[dict[str, Annotated[float | bool | str, BeforeValidator(_one_value)]] | None,
+                     CheckedColumnKeys] = Field(
         default=None, max_length=64, description=_FIXED + _UNIT_NAMES)
     planned: list[Annotated[dict[str, float], CheckedColumnKeys]] | None = Field(
         default=None, max_length=MAX_PLANNED_RUNS, description=_PLANNED + _UNIT_NAMES)

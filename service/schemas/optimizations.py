@@ -8,6 +8,7 @@ from pydantic import BeforeValidator, ConfigDict, Field, create_model
 
 from microbearing import physics
 from microbearing.optimize.general import SPEED_GRID_POINTS
+from microbearing.optimize.over_envelope import GROUP_LABEL_OVER_ENVELOPE
 from microbearing.optimize.problem import DESIGN_VARIABLES
 
 from .base import (
@@ -15,6 +16,7 @@ from .base import (
     ColumnKeys,
     Convention,
     ConventionName,
+    PairSpelling,
     RangeSpelling,
     ResponseModel,
     StrictModel,
@@ -47,14 +49,14 @@ class DesignBounds(InputKeys):
 
     balls: Annotated[list[Annotated[int, Field(ge=1, le=100_000), BeforeValidator(whole_number)]],
                      _pair("total number of balls (both grooves), whole numbers in [1, 100000] [1]"),
-                     RangeSpelling]
+                     PairSpelling]
     groove_angle_deg: Annotated[list[Annotated[float, Field(ge=_ANGLE.minimum, le=_ANGLE.maximum)]],
-                                _pair(f"groove angle, {_ANGLE.range_text()} [deg]"), RangeSpelling]
+                                _pair(f"groove angle, {_ANGLE.range_text()} [deg]"), PairSpelling]
     load_N: Annotated[list[Annotated[float, Field(ge=_LOAD.minimum, le=_LOAD.maximum)]] | None,
                       Field(default=None, min_length=2, max_length=2, description=(
                           f"[lower, upper] (or {{low, high}}) normal load on the slider, "
                           f"{_LOAD.range_text()}, both included [N]; or give a payload in fixed.load_N "
-                          "instead (a given load, not a range).")), RangeSpelling] = None
+                          "instead (a given load, not a range).")), PairSpelling] = None
 
 
 class DesignLimits(StrictModel):
@@ -116,6 +118,8 @@ def _condition_spelling(value: Any) -> Any:
     """A condition's value or range as the other routes spell it (:func:`physics.spans.read_span`): ``[v]``
     is the one value v; a longer list, or a set of values (``{"values": [...]}``, which the design has no
     worst case over), refused in words."""
+    if isinstance(value, list) and any(isinstance(v, str) for v in value):  # one sentence, not one per label
+        raise ValueError(f"a list of labels is no condition: {GROUP_LABEL_OVER_ENVELOPE}")
     if isinstance(value, list) and len(value) == 1:
         return value[0]
     if isinstance(value, list) and len(value) != 2:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Annotated, Any, ClassVar
 
-from pydantic import ConfigDict, Field, create_model
+from pydantic import BeforeValidator, ConfigDict, Field, create_model
 
 import microbearing.surrogate.sampling  # noqa: F401  (loads the submodule)
 from microbearing import physics, surrogate
@@ -18,7 +18,7 @@ from .base import (
     Convention,
     ConventionName,
     DateTimeText,
-    RangeSpelling,
+    PairSpelling,
     ResponseModel,
     StrictModel,
     WholeNumber,
@@ -52,9 +52,20 @@ def _bounds_field(name: str) -> tuple[Any, Any]:
     spec = physics.PARAMETERS[name]
     pair = "[false, true]" if spec.kind == "bool" else "[lower, upper] with lower < upper"
     scalar = parameter_type(spec)
-    return (Annotated[list[scalar] | None, RangeSpelling],
+    return (Annotated[list[scalar] | None, PairSpelling],
             Field(default=None, min_length=2, max_length=2,
                   description=f"Range as {pair} (or {{low, high}}). {parameter_description(spec)}"))
+
+
+def _one_condition(value: Any) -> Any:
+    """A condition of a surrogate is one number: a range or a group label said in one sentence."""
+    if isinstance(value, list | dict):
+        raise ValueError("a surrogate is trained at one value each of its conditions, not over a range (its "
+                         "space holds physics inputs)")
+    if isinstance(value, str):
+        raise ValueError("a group label is no condition of a surrogate: it is trained for a new group (the "
+                         "spread between groups in its interval); leave it out")
+    return value
 
 
 SurrogateSpace = create_model(
@@ -115,7 +126,8 @@ class SurrogateRequest(StrictModel):
         "The model to learn: 'physics' (the declared model) or 'calibrated:<id>' from /v1/calibrations "
         "(its fixed and fitted parameters replace the defaults, values in fixed override them, and its "
         "effect is added to mu)."))
-    conditions: Annotated[dict[str, float] | None, ColumnKeys] = Field(default=None, description=(
+    conditions: Annotated[dict[str, Annotated[float, BeforeValidator(_one_condition)]] | None,
+                          ColumnKeys] = Field(default=None, description=(
         "Condition columns a calibrated model's effect reads, one value each for the whole space, e.g. "
         "relative_humidity [1] [unit of each column as in the calibration data]." + UNIT_KEYS))
 

@@ -16,6 +16,7 @@ from pydantic import (
 )
 
 from microbearing import physics
+from microbearing.physics.spans import no_range
 
 from .base import (
     REQUIRED_INPUTS,
@@ -107,11 +108,10 @@ class SweepRange(StrictModel):
 def _pair_as_range(value: Any, handler: Any) -> Any:
     """A range spelled as the pair ``[low, high]``, read as ``{"low", "high"}``, as every route reads a range
     (an optimization's bounds, an experiment space's); a set of values or another list refused in words."""
+    refused = no_range(value)
+    if refused is not None:
+        raise ValueError(f"{refused} (with \"spacing\": \"log\" for evenly spaced logarithms)")
     if isinstance(value, list):
-        if len(value) != 2:
-            raise ValueError(f"a list of {len(value)} values is no range: a range is [low, high] or "
-                             f"{{\"low\": low, \"high\": high}} (with \"spacing\": \"log\" for evenly spaced "
-                             f"logarithms)")
         return handler({"low": value[0], "high": value[1]}).sent_as_pair()
     if isinstance(value, dict) and "values" in value:
         raise ValueError("a set of values is no range here: a range is [low, high] or {\"low\": low, "
