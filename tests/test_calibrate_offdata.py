@@ -122,3 +122,33 @@ def test_the_warning_states_the_widening_the_interval_gets_beyond_the_range_wher
     stated = [float(x) for x in re.findall(r"multiplied by up to ([0-9.]+)", warning)]
     assert stated and stated[0] == pytest.approx(applied, rel=5e-3), warning
     assert f"{allowance:.3g}" in warning  # the allowance's own figure is still given
+
+
+def test_a_quadratic_rival_on_load_is_not_extrapolated_by_its_curvature_far_beyond_the_data():
+    # Loads of 2-10 mN with an adhesion-dominated rise, truth = physics x (1 + (1 mN / load)^0.5): the model
+    # takes a power law of load and the data cannot reject a log-quadratic in load, a rival. At 30 mN (z about
+    # 11 of the data's standard deviations) exp(c2 z^2) put that rival at 5.3x the truth and the interval's
+    # upper end at 450x it; continued along its tangent beyond the data (a natural spline's rule) it stays
+    # within 1.7x of the truth, the upper end within 4.5x, and the interval holds the fresh measurements.
+    rng = np.random.default_rng(0)
+
+    def draw_load(n: int, load=None):
+        c = {"balls": rng.choice([4, 6, 8], n).astype(float),
+             "load_N": (np.exp(rng.uniform(math.log(2e-3), math.log(10e-3), n)) if load is None
+                        else np.full(n, load)),
+             "speed_m_s": rng.uniform(0.05, 0.3, n)}
+        t = physics.evaluate(**c, mu_pivot=0.65).mu * (1.0 + np.sqrt(1e-3 / c["load_N"]))
+        return c, t, t * np.exp(rng.normal(0.0, 0.03, n))
+
+    c, _, mu = draw_load(100)
+    rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(100)]
+    model = calibrate(rows, ["mu_pivot"], make_plots=False).model
+    labels = [r.label for r in model.rivals]
+    assert "generic_quadratic on load_N instead of generic_power on load_N" in labels, labels
+    far, truth, measured = draw_load(200, 30e-3)
+    rival = model.rival_models()[labels.index("generic_quadratic on load_N instead of generic_power on load_N")]
+    assert np.all(np.abs(np.log(rival.predict(far, domain=False).mu / truth)) < 0.5)
+    answer = model.predict(far)
+    assert not answer.in_domain.any()
+    assert np.mean((answer.mu_lower <= measured) & (measured <= answer.mu_upper)) >= 0.9
+    assert np.all(answer.mu_upper < 20.0 * truth)  # wide off the data, not a thousandfold
