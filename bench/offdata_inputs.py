@@ -1,4 +1,4 @@
-"""Off the data in any physics input (issue 33, item 7, beyond speed): coverage beyond load, balls, speed, angle.
+"""Off the data in any physics input (issue 33, item 7, beyond speed): load, balls, speed, groove angle.
 
 Run: ``python bench/offdata_inputs.py --input load 0 1 2`` (seeds); ``--control``: the physics alone (no
 departure); ``--amplitude A``: the departure's size where the input's truth has one (load_edge, groove).
@@ -77,7 +77,8 @@ def main(argv=None) -> None:
     for seed in args.seeds:
         rng = np.random.default_rng(seed)
         c, mu = draw(rng, 110, args.input, args.control, args.amplitude)
-        rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(mu.size)]
+        rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])}
+                for i in range(mu.size)]
         started = time.perf_counter()
         model = calibrate(rows, ["mu_pivot"], make_plots=False).model
         figures = []
@@ -89,7 +90,8 @@ def main(argv=None) -> None:
             figures.append(f"{where}: coverage {covered:.3f}, log half-width "
                            f"{float(np.median(np.log(p.mu_upper / p.mu))):.3f}, flagged "
                            f"{float(np.mean(~p.in_domain)):.2f}")
-        terms = ", ".join(f"{t.name}({','.join(getattr(t, 'drivers', ()))})" for t, _ in model.terms) or "none"
+        terms = ", ".join(f"{t.name}({','.join(getattr(t, 'drivers', ()))})"
+                          for t, _ in model.terms) or "none"
         print(f"{args.input}{' control' if args.control else ''} seed {seed} "
               f"({time.perf_counter() - started:.0f} s; terms {terms}; rivals {len(model.rivals)}): "
               + "; ".join(figures), flush=True)

@@ -710,7 +710,8 @@ class CalibratedModel:
                     why = (f"the extrapolation allowance: {rule}" if applied <= factor * (1 + 1e-9) else
                            f"the distance from the calibration data's rows or another input's allowance, "
                            f"larger there than this one's, up to {factor:.3g} ({rule})")
-                    widened = f", and the interval's log half-width is multiplied by up to {applied:.3g} ({why})"
+                    widened = (f", and the interval's log half-width is multiplied by up to {applied:.3g} "
+                               f"({why})")
                 warnings.append(f"{label} = {values}{unit} is {where}: an extrapolation ({bad.size} "
                                 f"point(s)){widened}")
             inside &= ok

@@ -377,19 +377,13 @@ def _centre_scale(x):
     return {"centre": float(np.mean(x)), "scale": scale if scale > 0 else 1.0}
 
 
-def _centre_scale_range(x):
-    return {**_centre_scale(x), "low": float(np.min(x)), "high": float(np.max(x))}
-
-
 def _quadratic_log(x, p, c):
-    """c1 z + c2 z^2, z = (x - centre) / scale, its square continued along its tangent beyond the data's range
-    [low, high] (constants of a term fitted since; none: not continued), as a natural spline is linear beyond
-    its end knots: the curvature seen inside the data is not extrapolated (exp(c2 z^2) at z = 11, 30 mN beyond
-    loads of 2-10 mN, put mu 13x above the physics' trend)."""
+    """c1 z + c2 z^2, z = (x - centre) / scale, z^2 going on along its tangent beyond the data's [low, high]
+    (a stored term without them: not), as a natural spline beyond its end knots: exp(c2 z^2) at z = 11 (30 mN
+    beyond loads of 2-10 mN) put mu 13x off the truth."""
     z = (x - c["centre"]) / c["scale"]
-    if "low" not in c:
-        return p[0] * z + p[1] * np.square(z)
-    at = np.clip(z, (c["low"] - c["centre"]) / c["scale"], (c["high"] - c["centre"]) / c["scale"])
+    at = np.clip(z, (c.get("low", -np.inf) - c["centre"]) / c["scale"], (c.get("high", np.inf) - c["centre"])
+                 / c["scale"])
     return p[0] * z + p[1] * at * (2.0 * z - at)
 
 
@@ -566,14 +560,12 @@ _GENERIC_QUADRATIC = Effect(
     driver_description="any numeric column x; centre and scale are its mean and standard deviation, low and "
                        "high its least and largest value",
     reference="Low-order polynomial in log mu: the generic fallback when no named effect fits; linear beyond "
-              "the data as a natural cubic spline is beyond its end knots (T. Hastie, R. Tibshirani, "
-              "J. Friedman, The Elements of Statistical Learning, 2nd ed., 2009, sec. 5.2.1).",
+              "the data as a natural spline (Hastie et al., Elements of Statistical Learning, sec. 5.2.1).",
     generic=True,
     correct=lambda mu, x, columns, p, c: mu * np.exp(_quadratic_log(x, p, c)),
-    make_constants=_centre_scale_range,
+    make_constants=lambda x: {**_centre_scale(x), "low": float(np.min(x)), "high": float(np.max(x))},
     make_initial=lambda mu, x, columns, c: [0.0, 0.0],
-    # x exp(c1 z + c2 z^2): extreme over an interval at an end or where z = -c1 / (2 c2) (beyond the data's
-    # range, where the continuation is linear, that value is still one the term takes, so the bound holds)
+    # x exp(c1 z + c2 z^2): extreme over an interval at an end or where z = -c1 / (2 c2) (a value it takes)
     enters="mul", monotone=False, stationary=lambda v, c: (
         None if v[1] == 0 else c["centre"] - v[0] * c["scale"] / (2.0 * v[1])),
     value_forms=("log", "log_square"),

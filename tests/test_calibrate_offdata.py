@@ -144,9 +144,10 @@ def test_a_quadratic_rival_on_load_is_not_extrapolated_by_its_curvature_far_beyo
     rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(100)]
     model = calibrate(rows, ["mu_pivot"], make_plots=False).model
     labels = [r.label for r in model.rivals]
-    assert "generic_quadratic on load_N instead of generic_power on load_N" in labels, labels
+    quadratic = "generic_quadratic on load_N instead of generic_power on load_N"
+    assert quadratic in labels, labels
     far, truth, measured = draw_load(200, 30e-3)
-    rival = model.rival_models()[labels.index("generic_quadratic on load_N instead of generic_power on load_N")]
+    rival = model.rival_models()[labels.index(quadratic)]
     assert np.all(np.abs(np.log(rival.predict(far, domain=False).mu / truth)) < 0.5)
     answer = model.predict(far)
     assert not answer.in_domain.any()

@@ -82,8 +82,9 @@ def test_generic_quadratic_is_continued_along_its_tangent_beyond_the_data_range(
     out = apply_effect(np.ones(5), "generic_quadratic", {"load_N": load}, {"c1": c1, "c2": c2}, ("load_N",),
                        constants)
     z = (load - 5e-3) / 2e-3
-    # inside: the quadratic; beyond: its value at the end plus its slope there (c1 + 2 c2 z_end) times the rest
-    expected = [c1 * -2.25 + c2 * (2.25 + 2 * -1.5 * (-2.25 + 1.5)),  # below: z_end = -1.5, c2 z_end^2 = 0.045
+    # inside: the quadratic; beyond: its value at the end plus its slope there (c1 + 2 c2 z_end) times the
+    # rest; below, z_end = -1.5: z_end^2 + 2 z_end (z - z_end) = 2.25 + 2.25
+    expected = [c1 * -2.25 + c2 * (2.25 + 2 * -1.5 * (-2.25 + 1.5)),
                 c1 * z[1] + c2 * z[1] ** 2, c1 * z[2] + c2 * z[2] ** 2, c1 * z[3] + c2 * z[3] ** 2,
                 c1 * 12.5 + c2 * (6.25 + 2 * 2.5 * (12.5 - 2.5))]
     assert np.log(out).tolist() == pytest.approx(expected, rel=1e-12)

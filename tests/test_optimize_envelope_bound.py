@@ -105,9 +105,10 @@ def test_certified_worst_case_brackets_brute_force_inside_the_envelope():
 
 
 def test_certified_worst_case_holds_where_the_quadratic_goes_on_along_its_tangent_beyond_its_data():
-    # Temperature data at 20-42 C: the quadratic's peak (43.3 C) lies beyond them, where the term goes on along
-    # its tangent (slope 0.2 - 0.6 x 0.2 = 0.08 per 10 C in log mu, rising): the worst temperature is then the
-    # envelope's end, 60 C, and the declared stationary point is one value among the candidates, not the peak.
+    # Temperature data at 20-42 C: the quadratic's peak (43.3 C) lies beyond them, where the term goes on
+    # along its tangent (slope 0.2 - 0.6 x 0.2 = 0.08 per 10 C in log mu, rising): the worst temperature is
+    # then the envelope's end, 60 C, and the declared stationary point is one value among the candidates, not
+    # the peak.
     model = _model({"low": 20.0, "high": 42.0})
     problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
                                               Constraints()), model)
