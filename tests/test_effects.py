@@ -70,6 +70,32 @@ def test_generic_terms_are_neutral_at_their_reference():
     assert power.tolist() == pytest.approx([1.0, 4.0])
 
 
+def test_generic_quadratic_is_continued_along_its_tangent_beyond_the_data_range():
+    # Loads of 2-10 mN: centre 5 mN, scale 2 mN, so the data's z spans [-1.5, 2.5]. At 30 mN (z = 12.5)
+    # exp(c1 z + c2 z^2) with c2 = 0.02 is exp(3.1 + ...): the curvature seen inside the data extrapolated.
+    data = {"load_N": np.array([2e-3, 4e-3, 6e-3, 10e-3])}
+    constants = EFFECTS["generic_quadratic"].constants(data, ("load_N",))
+    assert constants["low"] == 2e-3 and constants["high"] == 10e-3
+    constants.update(centre=5e-3, scale=2e-3)
+    c1, c2 = -0.1, 0.02
+    load = np.array([0.5e-3, 2e-3, 6e-3, 10e-3, 30e-3])
+    out = apply_effect(np.ones(5), "generic_quadratic", {"load_N": load}, {"c1": c1, "c2": c2}, ("load_N",),
+                       constants)
+    z = (load - 5e-3) / 2e-3
+    # inside: the quadratic; beyond: its value at the end plus its slope there (c1 + 2 c2 z_end) times the
+    # rest; below, z_end = -1.5: z_end^2 + 2 z_end (z - z_end) = 2.25 + 2.25
+    expected = [c1 * -2.25 + c2 * (2.25 + 2 * -1.5 * (-2.25 + 1.5)),
+                c1 * z[1] + c2 * z[1] ** 2, c1 * z[2] + c2 * z[2] ** 2, c1 * z[3] + c2 * z[3] ** 2,
+                c1 * 12.5 + c2 * (6.25 + 2 * 2.5 * (12.5 - 2.5))]
+    assert np.log(out).tolist() == pytest.approx(expected, rel=1e-12)
+    # -1.25 + 0.02 (6.25 + 50) = -0.125 there, where the quadratic says -1.25 + 0.02 x 156.25 = 1.875 (6.6x)
+    assert math.log(out[-1]) == pytest.approx(-0.125)
+    # a term stored before the data's range was kept (no low, high) is the quadratic everywhere
+    old = apply_effect(np.ones(1), "generic_quadratic", {"load_N": np.array([30e-3])}, {"c1": c1, "c2": c2},
+                       ("load_N",), {"centre": 5e-3, "scale": 2e-3})
+    assert math.log(old[0]) == pytest.approx(-1.25 + 0.02 * 156.25)
+
+
 def test_drivers_are_matched_by_column_name():
     names = ["balls", "load_N", "speed_m_s", "relative_humidity_pct", "temperature_C", "cycle", "vibration"]
     assert EFFECTS["humidity_meniscus"].candidate_drivers(names) == [("relative_humidity_pct",)]

@@ -35,12 +35,14 @@ C1, C2, CENTRE, SCALE = 0.2, -0.3, 40.0, 10.0
 PEAK_C = CENTRE - C1 * SCALE / (2 * C2)
 
 
-def _model() -> CalibratedPhysicsModel:
+def _model(data_range: dict | None = None) -> CalibratedPhysicsModel:
+    """``data_range``: the temperature data's low and high, beyond which the quadratic goes on along its
+    tangent (physics.effects: a term fitted since keeps them)."""
     calibrated = CalibratedModel(
         fitted={"mu_pivot": 0.6},
         terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5]),
-               (EffectTerm("generic_quadratic", ("temperature_C",), {"centre": CENTRE, "scale": SCALE}),
-                [C1, C2]),
+               (EffectTerm("generic_quadratic", ("temperature_C",),
+                           {"centre": CENTRE, "scale": SCALE, **(data_range or {})}), [C1, C2]),
                (EffectTerm("stribeck_breakaway", ("speed_m_s",)), [0.01, 0.02])],
         covariance=np.diag([1e-4, 1e-12, 1e-4, 1e-4, 1e-6, 1e-8]), noise_std_log=0.02,
         conditions=["relative_humidity", "temperature_C"])
@@ -100,6 +102,22 @@ def test_certified_worst_case_brackets_brute_force_inside_the_envelope():
     assert bracket.upper_bound <= bracket.value * (1 + 1e-6)
     # The value found is the model's own.
     assert float(evaluate([bracket.point])[0]) == pytest.approx(bracket.value, rel=1e-12)
+
+
+def test_certified_worst_case_holds_where_the_quadratic_goes_on_along_its_tangent_beyond_its_data():
+    # Temperature data at 20-42 C: the quadratic's peak (43.3 C) lies beyond them, where the term goes on
+    # along its tangent (slope 0.2 - 0.6 x 0.2 = 0.08 per 10 C in log mu, rising): the worst temperature is
+    # then the envelope's end, 60 C, and the declared stationary point is one value among the candidates, not
+    # the peak.
+    model = _model({"low": 20.0, "high": 42.0})
+    problem = with_model_values(DesignProblem(DesignBounds((3, 8), (40, 60), (0.001, 0.05)), 0.05,
+                                              Constraints()), model)
+    design = {"balls": 5.0, "groove_angle_deg": 45.0, "load_N": 0.01}
+    bracket, evaluate = _bracket(problem, model, design)
+    assert bracket.point["conditions"]["temperature_C"] == pytest.approx(60.0)
+    brute = evaluate(_grid_points(11, extra=[("conditions.temperature_C", PEAK_C)]))
+    assert brute.max() <= bracket.upper_bound
+    assert brute.max() == pytest.approx(bracket.value, rel=1e-6)
 
 
 def test_robust_mu_with_non_monotone_terms_is_proven_and_no_grid_design_beats_the_bound():
