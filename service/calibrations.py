@@ -311,12 +311,20 @@ class ReadConditions(dict):
         self.readings = dict(readings or {})
 
     def in_sent_units(self, name: str, value: Any) -> Any:
-        """A value of column ``name`` (in the model's unit) in the unit its key was sent in (``RH (%)``:
-        0.85 -> 85), to 12 significant digits; as it is when it was sent in the model's unit."""
+        """A value of column ``name`` (in the model's unit), or a list of them, in the unit its key was sent
+        in (``RH (%)``: 0.85 -> 85), to the digits the value holds (:meth:`physics.columns.Reading.set_point`:
+        70 degF, not 69.9999999998); as it is when it was sent in the model's unit."""
         reading = self.readings.get(name)
+        if isinstance(value, list | tuple):
+            return [self.in_sent_units(name, v) for v in value]
         if reading is None or not reading.reading or isinstance(value, bool | str):
             return value
-        return float(f"{reading.sent_value(value):.12g}")
+        return reading.set_point(value)
+
+    def shown_as_sent(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Columns' values (in the model's units) under their keys as sent, each in its key's unit
+        (:meth:`in_sent_units`): what every ``as_sent`` of a result shows."""
+        return {self.key(name): self.in_sent_units(name, value) for name, value in values.items()}
 
     @classmethod
     def of(cls, conditions: Any) -> ReadConditions:

@@ -211,10 +211,10 @@ def _as_sent(run: Mapping[str, Any], read: _Read) -> dict[str, Any]:
     sets: ``{"load [mN]": 3, "RH (%)": 85}``, where the run's own columns say load_N 0.003 and RH 0.85)."""
     settings: dict[str, Any] = {}
     for columns in (read.space, read.fixed):
-        for name in columns or {}:
-            value = run.get(name, run["inputs"].get(name, run["conditions"].get(name)))
-            if value is not None:
-                settings[columns.key(name)] = columns.in_sent_units(name, value)
+        values = {name: run.get(name, run["inputs"].get(name, run["conditions"].get(name)))
+                  for name in columns or {}}
+        if columns is not None:
+            settings.update(columns.shown_as_sent({k: v for k, v in values.items() if v is not None}))
     return settings
 
 

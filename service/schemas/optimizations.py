@@ -317,6 +317,9 @@ class Envelope(ResponseModel):
     speed_m_s: list[float] = Field(description="[low, high] slider speed [m/s].")
     conditions: dict[str, list[float]] = Field(
         description="[low, high] of each condition column, in the calibration data's unit.")
+    as_sent: dict[str, list[float]] = Field(default_factory=dict, description=(
+        "The same under the request's keys as sent, each in the unit its key states ({'RH [%]': [30, 60], "
+        "'temp_F': [70, 100]} where relative_humidity is [0.3, 0.6] and temp_K [294.26, 310.93])."))
     tolerances: dict[str, float] = Field(
         description="Half-width of each tolerance (groove_angle_deg [deg]).")
 
@@ -332,6 +335,9 @@ class WorstCase(ResponseModel):
         description="The angle made (nominal + offset within the tolerance) where it occurs [deg].")
     conditions: dict[str, float] = Field(
         description="Condition values where it occurs, in the calibration data's units.")
+    as_sent: dict[str, float] = Field(default_factory=dict, description=(
+        "The same under the request's keys as sent, each in the unit its key states ({'RH [%]': 60} where "
+        "relative_humidity is 0.6)."))
 
 
 class OuterRound(ResponseModel):
