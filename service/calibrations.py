@@ -27,7 +27,7 @@ from microbearing.calibrate.data import MU_MEASURED, hours_since
 from microbearing.calibrate.tabular import TableError
 from microbearing.physics.columns import Reading, read_key, unknown_column
 from microbearing.physics.model import NOT_FINITE
-from microbearing.physics.slips import read_slip
+from microbearing.physics.slips import read_slip, unstated_unit
 
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
@@ -424,8 +424,11 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     for name, value in read.items():
         # judged as sent (27 under a kelvin name is degC) and as read, every value of a range
         sent_values = conditions[readings[name].sent]
-        message = (None if name in factors or name in unmatched or _has_text(value)
+        unstated = None if name in unmatched else unstated_unit(readings[name], model.headers)
+        message = (None if name in factors or name in unmatched or _has_text(value) or unstated
                    else read_slip(readings[name], read_value(Reading("", ""), sent_values)))
+        if unstated is not None:
+            items.append({"pointer": pointer_at(pointer, readings[name].sent), "detail": unstated})
         if message is not None:
             items.append({"pointer": pointer_at(pointer, readings[name].sent),
                           "detail": f"{message} (a key may "

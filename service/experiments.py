@@ -30,7 +30,7 @@ from microbearing.calibrate.experiments import (
     rival_terms,
 )
 from microbearing.physics.columns import Reading, read_key
-from microbearing.physics.slips import read_slip
+from microbearing.physics.slips import read_slip, unstated_unit
 
 from .calibrations import MODEL_PREFIX, ReadConditions, load_calibration, stored_dataset
 from .problems import ProblemError, pointer_at, validation_problem
@@ -126,6 +126,7 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
     if columns is None:
         return None
     conditions, factors = ((), ()) if model is None else (model.conditions, model.factors)
+    headers = {} if model is None else model.headers
     out: dict[str, Any] = {}
     sent_as: dict[str, str] = {}
     readings: dict[str, Reading] = {}
@@ -135,7 +136,8 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
         judged = reading is not None and sent not in factors
         # a slip is refused here, though a door that predicts only warns of a physics input's: the runs
         # proposed become rows of the next upload, which refuses them
-        message = read_slip(reading, _span_values(column)) if judged else None
+        message = (unstated_unit(reading, headers) or read_slip(reading, _span_values(column))
+                   if judged else None)
         reading = reading or Reading(sent, sent)
         if isinstance(column, bool) and reading.name not in physics.PARAMETERS:  # a flag is no condition
             message = f"must be a number, not {str(column).lower()}: only a physics flag takes true or false"

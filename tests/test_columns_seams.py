@@ -21,8 +21,13 @@ PROBLEM = "application/problem+json"
 
 
 @pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("columns")))) as test_client:
+def data_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("columns")
+
+
+@pytest.fixture(scope="module")
+def client(data_dir):
+    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
         yield test_client
 
 
@@ -1037,3 +1042,37 @@ def test_an_experiment_s_runs_give_a_sent_end_as_typed(client, calibration):
         assert run["as_sent"]["load [mN]"] == round(run["as_sent"]["load [mN]"], 6), run
     assert set(shown) & {70, 100}, shown  # a design for the parameters uses the ends
 
+
+def test_a_bare_temperature_is_refused_where_the_upload_gave_another_unit(client, calibration, data_dir,
+                                                                          tmp_path, capsys):
+    # The upload said temp_F. Before, a bare "temperature": 80 was read in degC (353.15 K) with only a
+    # domain warning; every door now refuses it, naming the key, the upload's unit and header.
+    model = calibration["model_id"]
+    words = ("states no unit", "degF", "temp_F")
+    detail = _problem(client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5,
+                                                                      "temperature": 80})),
+                      "/conditions/temperature")
+    assert all(w in detail for w in words), detail
+    batch = {"points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
+             "conditions": {"relative_humidity": 0.5, "temperature": [80.0, 90.0]}}
+    detail = _problem(client.post("/v1/friction/batch", json=batch), "/conditions/temperature")
+    assert all(w in detail for w in words), detail
+    for config, vector in (({"inputs": ["balls", "load_N", "temperature"],
+                             "fixed": {"speed_m_s": 0.05, "relative_humidity": 0.5}}, [4, 0.01, 80]),
+                           ({"inputs": ["balls", "load_N"],
+                             "fixed": {"speed_m_s": 0.05, "relative_humidity": 0.5, "temperature": 80}},
+                            [4, 0.01])):
+        answer = client.post("/umbridge/Evaluate", json={"name": model, "input": [vector], "config": config})
+        assert answer.status_code == 400, answer.text
+        message = answer.json()["error"]["message"]
+        assert "temperature" in message and all(w in message for w in words), message
+    assert main(["evaluate", "--data-dir", str(data_dir), "--model", model, "balls=4", "load_N=0.01",
+                 "speed_m_s=0.05", "relative_humidity=0.5", "temperature=80", "-o",
+                 str(tmp_path / "out.json")]) != 0
+    err = capsys.readouterr().err
+    assert "temperature" in err and all(w in err for w in words), err
+    # a name stating its unit is read in it, the upload's header too: 80 degF = 26.67 degC
+    kelvin = {key: client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, key: value}))
+              for key, value in (("temp_F", 80.0), ("temperature_C", (80.0 - 32) * 5 / 9))}
+    assert {key: r.status_code for key, r in kelvin.items()} == {"temp_F": 200, "temperature_C": 200}
+    assert kelvin["temp_F"].json()["mu"] == pytest.approx(kelvin["temperature_C"].json()["mu"], rel=1e-12)
