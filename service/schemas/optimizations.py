@@ -10,6 +10,7 @@ from microbearing import physics
 from microbearing.optimize.general import SPEED_GRID_POINTS
 from microbearing.optimize.over_envelope import GROUP_LABEL_OVER_ENVELOPE
 from microbearing.optimize.problem import DESIGN_VARIABLES
+from microbearing.physics.spans import NO_SPACING
 
 from .base import (
     UNIT_KEYS,
@@ -118,6 +119,8 @@ def _condition_spelling(value: Any) -> Any:
     """A condition's value or range as the other routes spell it (:func:`physics.spans.read_span`): ``[v]``
     is the one value v; a longer list, or a set of values (``{"values": [...]}``, which the design has no
     worst case over), refused in words."""
+    if isinstance(value, dict) and "spacing" in value:  # one sentence, not pydantic's extra field
+        raise ValueError(NO_SPACING)
     if isinstance(value, list) and any(isinstance(v, str) for v in value):  # one sentence, not one per label
         raise ValueError(f"a list of labels is no condition: {GROUP_LABEL_OVER_ENVELOPE}")
     if isinstance(value, list) and len(value) == 1:
