@@ -203,6 +203,9 @@ class CalibratedModel:
         the mean spacing of its values, 2 (max - min) / (rows - 1), at each end (a new point drawn like
         the data lies beyond a sample's extreme with chance 1/(rows + 1) per column and end: a box of the
         exact extremes flags several per cent of ordinary points when there are several columns).
+    headers : dict of str to str
+        The upload's header of each column it sent in another unit than the column's name says
+        (:attr:`Dataset.headers`): a key at prediction that states no unit is judged against it.
     """
 
     fitted: dict[str, float] = field(default_factory=dict)
@@ -220,6 +223,7 @@ class CalibratedModel:
     domain_rows: int | None = None
     rivals: list[RivalModel] = field(default_factory=list, repr=False)
     clock: dict[str, str] = field(default_factory=dict)
+    headers: dict[str, str] = field(default_factory=dict)
     #: Relative step of the finite-difference gradient of log μ in each fitted value (the interval's
     #: parameter share; absolute for a value of 0), for callers that bound the interval. [1]
     gradient_step: ClassVar[float] = _GRADIENT_STEP
@@ -752,6 +756,7 @@ class CalibratedModel:
             "domain_rows": self.domain_rows,
             "rivals": [r.to_json() for r in self.rivals],
             "clock": dict(self.clock),
+            "headers": dict(self.headers),
         }
 
     @classmethod
@@ -818,6 +823,7 @@ class CalibratedModel:
             None if data.get("domain_rows") is None else int(data["domain_rows"]),
             [RivalModel.from_json(r) for r in data.get("rivals") or []],
             {str(k): str(v) for k, v in dict(data.get("clock") or {}).items()},
+            {str(k): str(v) for k, v in dict(data.get("headers") or {}).items()},
         )
 
     @classmethod
@@ -877,6 +883,7 @@ class CalibratedModel:
             cloud,
             rows if cloud is not None else None,
             clock=dict(getattr(dataset, "clock", {})),
+            headers=dict(getattr(dataset, "headers", {})),
         )
 
 

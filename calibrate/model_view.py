@@ -79,6 +79,11 @@ class CalibratedPhysicsModel(Model):
                                   for name in self.conditions if name not in self.inputs}
 
     @property
+    def headers(self) -> dict[str, str]:
+        """The upload's header of each column sent in another unit (:attr:`CalibratedModel.headers`)."""
+        return dict(self.calibrated.headers)
+
+    @property
     def column_checks(self) -> dict[str, ModelInput]:
         """Every column a point may give: the inputs and the conditions the terms do not read."""
         return {**self.inputs, **self.unread_conditions}

@@ -231,6 +231,21 @@ class Reading:
             return (value - float(self.offset)) / float(self.scale)
         return (float(value) - float(self.offset)) / float(self.scale)
 
+    def set_point(self, value: Any) -> float:
+        """A value of the column (SI, as runs and results keep it: at most 12 significant digits) in the unit
+        it was sent in, to the digits that value holds there: the round trip's last digits are not shown
+        (70 degF kept as 294.261111111 K is 70, not 69.9999999998).
+
+        >>> read_name("T [degF]").set_point(294.261111111), read_name("RH [%]").set_point(0.85)
+        (70.0, 85.0)
+        """
+        shown = float(self.sent_value(float(value)))
+        scale = self.scale if self.divisor is None else 1.0 / self.divisor
+        step = abs(float(value)) * 1e-11 / abs(scale)  # the SI value's 12th digit, in the unit sent
+        if self.reading and step > 0 and math.isfinite(shown):
+            shown = round(shown, math.floor(-math.log10(step)))
+        return float(f"{shown:.12g}")
+
     @property
     def label(self) -> str:
         """The column as a report, warning or plot names it: the header as sent, with the unit it was sent

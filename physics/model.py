@@ -309,6 +309,12 @@ class Model:
         return [name for name, spec in self.inputs.items() if spec.default is None]
 
     @property
+    def headers(self) -> dict[str, str]:
+        """Each column's header as the model's data sent it in another unit than its name says (a
+        calibration's upload), for :func:`physics.slips.unstated_unit`; none here."""
+        return {}
+
+    @property
     def column_checks(self) -> dict[str, ModelInput]:
         """Every column a point may give, with its check: :attr:`inputs` (a calibrated model adds the
         condition columns of its data that its terms do not read, checked against the data's range)."""

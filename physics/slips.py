@@ -29,16 +29,19 @@ from .columns import (
     _bracket_unit,
     _condition_of,
     _dimension,
+    _percent_bracketed,
     _registry,
     _same,
+    _stated_units,
     _unit,
     read_name,
+    unit_of,
 )
 from .drivers import HUMIDITY, TEMPERATURE
 from .parameters import PARAMETERS
 
 __all__ = ["humidity_slip", "input_slips", "physics_slip", "read_slip", "slip", "slipped_rows",
-           "temperature_slip"]
+           "temperature_slip", "unstated_unit"]
 
 def _span_text(values: np.ndarray) -> str:
     return f"{float(np.min(values)):.4g} to {float(np.max(values)):.4g}"
@@ -214,6 +217,42 @@ def read_slip(reading: Reading, values: Any) -> str | None:
         if message is not None:
             return message
     return slip(reading.name, reading.convert(array))
+
+
+def unstated_unit(reading: Reading, headers: Mapping[str, str] | None = None) -> str | None:
+    """Why a key that states no unit is not read in the unit its name implies, in one sentence; None when it
+    may be.
+
+    A bare ``temperature`` is read in degC (the terms' default). Where the calibration's data gave its
+    column in another unit (``temp_F``, or ``temperature_K`` itself), reading it so would be a silent slip:
+    the key is refused, naming the upload's unit and header and a name that states its unit. ``headers``:
+    each column's header as the upload sent it in another unit than its name's
+    (:attr:`calibrate.CalibratedModel.headers`); any other column was sent in its name's unit.
+
+    >>> from microbearing.physics.columns import match_column
+    >>> unstated_unit(match_column("temperature", ["temp_K"]), {"temp_K": "temp_F"})[:60]
+    "'temperature' states no unit: it would be read in degC, but "
+    >>> print(unstated_unit(match_column("temp_C", ["temp_K"]), {"temp_K": "temp_F"}))
+    None
+    """
+    sent, name = reading.sent.strip(), reading.name
+    if not reading.reading or sent == name or _condition_of(name) is None or sent in CONDITIONS:
+        return None  # a condition's canonical name states its unit (relative_humidity: a fraction)
+    match = _BRACKETS.match(sent)
+    if (match and match.group("name")) or _percent_bracketed(sent) is not None or _stated_units(sent, sent):
+        return None
+    header = (headers or {}).get(name, name)
+    assumed = unit_of(sent)
+    try:
+        given = read_name(header).sent_unit or unit_of(name)
+    except ColumnError:  # a header stored by another version: nothing to compare
+        return None
+    if assumed is None or given is None or _same(_unit(given), assumed):
+        return None
+    said = (f"the calibration's column {name} is in {given}" if header == name else
+            f"the calibration's data gave {name} in {given} (as {header!r})")
+    return (f"{reading.sent!r} states no unit: it would be read in {assumed}, but {said}; send {header!r}, "
+            f"or a name that states its unit, e.g. '{sent} [{assumed}]'")
 
 
 def _stated_slip(first: Reading, array: np.ndarray) -> tuple[bool, str | None]:

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RANGE_SPELLINGS", "SPAN_SPELLINGS", "Span", "no_range", "read_span"]
+__all__ = ["NO_SPACING", "RANGE_SPELLINGS", "SPAN_SPELLINGS", "Span", "no_range", "read_span"]
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,10 @@ class Span:
 RANGE_SPELLINGS = 'a range is [low, high] or {"low": low, "high": high}'
 #: How a range and a set of allowed values are spelled, in words (for messages).
 SPAN_SPELLINGS = f'{RANGE_SPELLINGS}; a set of allowed values is {{"values": [v1, v2, ...]}}'
+#: Why a range with a spacing is refused where the whole range counts (an optimization's bounds and
+#: envelope, a surrogate's space), in words.
+NO_SPACING = ("spacing applies where a range is spread into levels or points (an experiment space, a "
+              f"sweep's ranges); here the whole range counts: {RANGE_SPELLINGS}")
 
 
 def no_range(value: Any, number: bool = False) -> str | None:

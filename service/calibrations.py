@@ -27,7 +27,7 @@ from microbearing.calibrate.data import MU_MEASURED, hours_since
 from microbearing.calibrate.tabular import TableError
 from microbearing.physics.columns import Reading, read_key, unknown_column
 from microbearing.physics.model import NOT_FINITE
-from microbearing.physics.slips import read_slip
+from microbearing.physics.slips import read_slip, unstated_unit
 
 from .evaluation import column_arrays
 from .executor import evaluate_in_chunks
@@ -311,12 +311,20 @@ class ReadConditions(dict):
         self.readings = dict(readings or {})
 
     def in_sent_units(self, name: str, value: Any) -> Any:
-        """A value of column ``name`` (in the model's unit) in the unit its key was sent in (``RH (%)``:
-        0.85 -> 85), to 12 significant digits; as it is when it was sent in the model's unit."""
+        """A value of column ``name`` (in the model's unit), or a list of them, in the unit its key was sent
+        in (``RH (%)``: 0.85 -> 85), to the digits the value holds (:meth:`physics.columns.Reading.set_point`:
+        70 degF, not 69.9999999998); as it is when it was sent in the model's unit."""
         reading = self.readings.get(name)
+        if isinstance(value, list | tuple):
+            return [self.in_sent_units(name, v) for v in value]
         if reading is None or not reading.reading or isinstance(value, bool | str):
             return value
-        return float(f"{reading.sent_value(value):.12g}")
+        return reading.set_point(value)
+
+    def shown_as_sent(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Columns' values (in the model's units) under their keys as sent, each in its key's unit
+        (:meth:`in_sent_units`): what every ``as_sent`` of a result shows."""
+        return {self.key(name): self.in_sent_units(name, value) for name, value in values.items()}
 
     @classmethod
     def of(cls, conditions: Any) -> ReadConditions:
@@ -416,8 +424,11 @@ def read_conditions(model: Model, conditions: Mapping[str, Any] | None,
     for name, value in read.items():
         # judged as sent (27 under a kelvin name is degC) and as read, every value of a range
         sent_values = conditions[readings[name].sent]
-        message = (None if name in factors or name in unmatched or _has_text(value)
+        unstated = None if name in unmatched else unstated_unit(readings[name], model.headers)
+        message = (None if name in factors or name in unmatched or _has_text(value) or unstated
                    else read_slip(readings[name], read_value(Reading("", ""), sent_values)))
+        if unstated is not None:
+            items.append({"pointer": pointer_at(pointer, readings[name].sent), "detail": unstated})
         if message is not None:
             items.append({"pointer": pointer_at(pointer, readings[name].sent),
                           "detail": f"{message} (a key may "

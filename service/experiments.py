@@ -30,7 +30,7 @@ from microbearing.calibrate.experiments import (
     rival_terms,
 )
 from microbearing.physics.columns import Reading, read_key
-from microbearing.physics.slips import read_slip
+from microbearing.physics.slips import read_slip, unstated_unit
 
 from .calibrations import MODEL_PREFIX, ReadConditions, load_calibration, stored_dataset
 from .problems import ProblemError, pointer_at, validation_problem
@@ -126,6 +126,7 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
     if columns is None:
         return None
     conditions, factors = ((), ()) if model is None else (model.conditions, model.factors)
+    headers = {} if model is None else model.headers
     out: dict[str, Any] = {}
     sent_as: dict[str, str] = {}
     readings: dict[str, Reading] = {}
@@ -135,7 +136,8 @@ def _model_columns(model: CalibratedModel | None, columns: Mapping[str, Any] | N
         judged = reading is not None and sent not in factors
         # a slip is refused here, though a door that predicts only warns of a physics input's: the runs
         # proposed become rows of the next upload, which refuses them
-        message = read_slip(reading, _span_values(column)) if judged else None
+        message = (unstated_unit(reading, headers) or read_slip(reading, _span_values(column))
+                   if judged else None)
         reading = reading or Reading(sent, sent)
         if isinstance(column, bool) and reading.name not in physics.PARAMETERS:  # a flag is no condition
             message = f"must be a number, not {str(column).lower()}: only a physics flag takes true or false"
@@ -211,10 +213,10 @@ def _as_sent(run: Mapping[str, Any], read: _Read) -> dict[str, Any]:
     sets: ``{"load [mN]": 3, "RH (%)": 85}``, where the run's own columns say load_N 0.003 and RH 0.85)."""
     settings: dict[str, Any] = {}
     for columns in (read.space, read.fixed):
-        for name in columns or {}:
-            value = run.get(name, run["inputs"].get(name, run["conditions"].get(name)))
-            if value is not None:
-                settings[columns.key(name)] = columns.in_sent_units(name, value)
+        values = {name: run.get(name, run["inputs"].get(name, run["conditions"].get(name)))
+                  for name in columns or {}}
+        if columns is not None:
+            settings.update(columns.shown_as_sent({k: v for k, v in values.items() if v is not None}))
     return settings
 
 

@@ -348,6 +348,10 @@ def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None
     except ValueError as exc:  # a condition outside a term's law
         raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
     document = {**robust.to_dict(), "model": plan.model}
+    # the envelope and its worst case also under the keys and in the units the request sent them in
+    sent = ReadConditions({}, {name: r.sent for name, r in plan.readings.items()}, readings=plan.readings)
+    for part in ("envelope", "worst_case"):
+        document[part] = {**document[part], "as_sent": sent.shown_as_sent(document[part]["conditions"])}
     if plan.source_model is not None:
         # A surrogate's design judged by the model it stands for, over the same envelope.
         verification = verify_over_envelope(plan.problem, plan.envelope, robust.result.design, plan.resolved,

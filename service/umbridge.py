@@ -42,7 +42,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from microbearing import physics
 from microbearing.physics.columns import Reading, match_column, read_key, unknown_column
-from microbearing.physics.slips import input_slips, read_slip
+from microbearing.physics.slips import input_slips, read_slip, unstated_unit
 
 from .models import InputError, Model, ModelError, jacobian, resolve
 from .problems import PROBLEM_MEDIA_TYPE, ProblemError
@@ -154,7 +154,8 @@ def _read_fixed(model: Model, fixed: dict[str, Any]) -> tuple[dict[str, Any], di
                                   or (isinstance(value, bool) and kind not in ("bool", "label"))):
             raise ProtocolError("InvalidInput", f"config.fixed.{sent}: must be a number, not {value!r}: "
                                                 f"only a factor column takes a label, a flag true or false")
-        message = None if name in physics.PARAMETERS or text else read_slip(reading, value)
+        message = (None if name in physics.PARAMETERS or text
+                   else unstated_unit(reading, model.headers) or read_slip(reading, value))
         converted = bool(reading.reading) and not text
         typed, value = value, reading.convert(value) if converted else value
         if message is not None:
@@ -208,6 +209,9 @@ def _read_inputs(model: Model, names: Sequence[str]) -> tuple[list[str], tuple[R
                 reading = match_column(name, model.column_checks)
             except ValueError:
                 reading = None
+        refused = None if reading is None else unstated_unit(reading, model.headers)
+        if refused is not None:  # read in another unit than the calibration's data gave: as every door
+            raise ProtocolError("InvalidInput", f"config.inputs: {refused}")
         inputs.append(name if reading is None else reading.name)
         readings.append(reading if reading is not None and (reading.reading or reading.sent != reading.name)
                         else None)  # converted, or renamed (relative_humidity [1]): named as sent

@@ -21,8 +21,13 @@ PROBLEM = "application/problem+json"
 
 
 @pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("columns")))) as test_client:
+def data_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("columns")
+
+
+@pytest.fixture(scope="module")
+def client(data_dir):
+    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
         yield test_client
 
 
@@ -987,3 +992,87 @@ def test_a_physics_input_s_domain_warning_speaks_its_key_as_sent(client, calibra
     assert any(w.startswith("load_N = 0.08 [N] is outside the calibration data's range "
                             f"[{low / 1e3:.6g}, {high / 1e3:.6g}] [N]") for w in in_newtons["domain_warnings"]
                ), in_newtons["domain_warnings"]
+
+
+# --- issue 32's leftovers: the user's names and units shown back, a bare name never read in another unit -
+def _fahrenheit(kelvin: float) -> float:
+    return (kelvin - 273.15) * 9 / 5 + 32
+
+
+def test_an_optimization_s_envelope_and_worst_case_speak_the_keys_as_sent(client, calibration):
+    # before: the result gave the envelope and its worst case only as the model's columns in SI
+    # (relative_humidity [0.3, 0.6], temp_K [294.26111111111027, 310.9277777777766]), not as sent
+    base = {"bounds": {"balls": [4, 6], "groove_angle_deg": [50, 55], "load_N": [0.008, 0.012]},
+            "speed_m_s": 0.05, "model": calibration["model_id"], "time_limit_s": 20}
+    conditions = {"relative humidity [%]": [30, 60], "temp_F": {"low": 70, "high": 100}}
+    job = wait_job(client, client.post("/v1/optimizations", json={**base, "conditions": conditions}))
+    assert job["status"] == "succeeded", job
+    result = client.get(job["result_url"]).json()
+    envelope, worst = result["envelope"], result["worst_case"]
+    # the ends as typed, not their round trip through kelvin (69.9999999998)
+    assert envelope["as_sent"] == {"relative humidity [%]": [30, 60], "temp_F": [70, 100]}, envelope
+    sent = worst["as_sent"]
+    assert set(sent) == set(conditions), worst
+    # by hand: % = 100 x the fraction, degF = (K - 273.15) x 9/5 + 32
+    assert sent["relative humidity [%]"] == pytest.approx(100 * worst["conditions"]["relative_humidity"])
+    assert sent["temp_F"] == pytest.approx(_fahrenheit(worst["conditions"]["temp_K"]))
+    assert 30 <= sent["relative humidity [%]"] <= 60 and 70 <= sent["temp_F"] <= 100, sent
+    # a condition held at one value is its envelope's both ends; one sent in the model's unit stays
+    job = wait_job(client, client.post("/v1/optimizations", json={
+        **base, "conditions": {"relative_humidity": [0.3, 0.6], "temp_F": 80}}))
+    result = client.get(job["result_url"]).json()
+    assert result["envelope"]["as_sent"] == {"relative_humidity": [0.3, 0.6], "temp_F": [80, 80]}, result
+    assert result["worst_case"]["as_sent"]["temp_F"] == 80, result["worst_case"]
+
+
+def test_an_experiment_s_runs_give_a_sent_end_as_typed(client, calibration):
+    # before: a run at the low end of temp_F {low: 70, high: 100} said temp_F 69.9999999998 (70 degF through
+    # kelvin at 12 digits and back), and one between the ends 84.9999999992
+    space = {"balls": [4, 8], "load [mN]": [2, 20], "speed_m_s": [0.05], "relative humidity [%]": [25, 75],
+             "temp_F": {"low": 70, "high": 100}}
+    response = client.post(f"/v1/calibrations/{calibration['model_id'].split(':')[1]}/next-experiments",
+                           json={"runs": 4, "goal": "parameters", "space": space})
+    job = wait_job(client, response)
+    assert job["status"] == "succeeded", job
+    runs = client.get(job["result_url"]).json()["runs"]
+    shown = [run["as_sent"]["temp_F"] for run in runs]
+    for run, value in zip(runs, shown, strict=True):
+        assert value == pytest.approx(_fahrenheit(run["conditions"]["temp_K"]), abs=1e-6), run
+        assert value == round(value, 6), shown  # no round-trip digits
+        assert run["as_sent"]["load [mN]"] == round(run["as_sent"]["load [mN]"], 6), run
+    assert set(shown) & {70, 100}, shown  # a design for the parameters uses the ends
+
+
+def test_a_bare_temperature_is_refused_where_the_upload_gave_another_unit(client, calibration, data_dir,
+                                                                          tmp_path, capsys):
+    # The upload said temp_F. Before, a bare "temperature": 80 was read in degC (353.15 K) with only a
+    # domain warning; every door now refuses it, naming the key, the upload's unit and header.
+    model = calibration["model_id"]
+    words = ("states no unit", "degF", "temp_F")
+    detail = _problem(client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5,
+                                                                      "temperature": 80})),
+                      "/conditions/temperature")
+    assert all(w in detail for w in words), detail
+    batch = {"points": {"balls": 4, "load_N": [0.01, 0.02], "speed_m_s": 0.05}, "model": model,
+             "conditions": {"relative_humidity": 0.5, "temperature": [80.0, 90.0]}}
+    detail = _problem(client.post("/v1/friction/batch", json=batch), "/conditions/temperature")
+    assert all(w in detail for w in words), detail
+    for config, vector in (({"inputs": ["balls", "load_N", "temperature"],
+                             "fixed": {"speed_m_s": 0.05, "relative_humidity": 0.5}}, [4, 0.01, 80]),
+                           ({"inputs": ["balls", "load_N"],
+                             "fixed": {"speed_m_s": 0.05, "relative_humidity": 0.5, "temperature": 80}},
+                            [4, 0.01])):
+        answer = client.post("/umbridge/Evaluate", json={"name": model, "input": [vector], "config": config})
+        assert answer.status_code == 400, answer.text
+        message = answer.json()["error"]["message"]
+        assert "temperature" in message and all(w in message for w in words), message
+    assert main(["evaluate", "--data-dir", str(data_dir), "--model", model, "balls=4", "load_N=0.01",
+                 "speed_m_s=0.05", "relative_humidity=0.5", "temperature=80", "-o",
+                 str(tmp_path / "out.json")]) != 0
+    err = capsys.readouterr().err
+    assert "temperature" in err and all(w in err for w in words), err
+    # a name stating its unit is read in it, the upload's header too: 80 degF = 26.67 degC
+    kelvin = {key: client.post("/v1/friction", json=_point(model, {"relative_humidity": 0.5, key: value}))
+              for key, value in (("temp_F", 80.0), ("temperature_C", (80.0 - 32) * 5 / 9))}
+    assert {key: r.status_code for key, r in kelvin.items()} == {"temp_F": 200, "temperature_C": 200}
+    assert kelvin["temp_F"].json()["mu"] == pytest.approx(kelvin["temperature_C"].json()["mu"], rel=1e-12)

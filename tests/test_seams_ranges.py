@@ -286,3 +286,27 @@ def test_an_experiment_space_says_a_number_is_no_range_or_set(client, value):
     assert "is no range or set here" in detail and "fixed" in detail, detail
     for noise in ("Input should be", "named fields", "valid list"):
         assert noise not in detail, detail
+
+
+@pytest.mark.parametrize(("path", "body", "pointer"), [
+    ("/v1/optimizations", {"model": "calibrated:0123456789abcdef0123456789abcdef",
+                           "bounds": {"balls": [4, 10], "groove_angle_deg": [40, 60],
+                                      "load_N": [0.005, 0.03]},
+                           "fixed": {"speed_m_s": 0.05},
+                           "conditions": {"RH [%]": {"low": 30, "high": 60, "spacing": "log"}}},
+     "/conditions/RH [%]"),
+    ("/v1/optimizations", {"bounds": {"balls": [4, 10], "groove_angle_deg": [40, 60],
+                                      "load [mN]": {"low": 5, "high": 30, "spacing": "log"}},
+                           "fixed": {"speed_m_s": 0.05}}, "/bounds/load [mN]"),
+    ("/v1/surrogates", {"space": {"load [mN]": {"low": 5, "high": 30, "spacing": "log"},
+                                  "speed_m_s": [0.01, 0.1]}, "fixed": {"balls": 4}, "budget": 12},
+     "/space/load [mN]"),
+])
+def test_a_spacing_where_a_range_is_held_whole_is_refused_saying_where_it_applies(client, path, body,
+                                                                                 pointer):
+    # before: an optimization's conditions answered ".../spacing: Extra inputs are not permitted", its
+    # bounds "has the keys low and high, and only those; got low, high, spacing": neither said where
+    # spacing is taken (an experiment space's levels)
+    detail = _problem(client.post(path, json=body), pointer)
+    assert "spacing" in detail and "experiment space" in detail, detail
+    assert "Extra inputs" not in detail and "only those" not in detail, detail

@@ -36,7 +36,7 @@ from starlette.requests import ClientDisconnect
 
 from microbearing import physics
 from microbearing.physics.columns import ColumnError, Reading, read_name
-from microbearing.physics.spans import no_range
+from microbearing.physics.spans import NO_SPACING, no_range
 
 from ..jsonguard import is_json_media_type
 from ..problems import VALIDATION_TYPE, ProblemError, not_json_problem
@@ -543,6 +543,8 @@ def _range_spelling(value: Any, number: bool = True) -> Any:
     refused = no_range(value, number)
     if refused is not None:
         raise ValueError(refused)
+    if isinstance(value, dict) and "spacing" in value:  # where the whole range counts
+        raise ValueError(NO_SPACING)
     if isinstance(value, dict) and "values" in value:
         raise ValueError("a set of values is no range here: a range is [low, high] or {\"low\": low, "
                          "\"high\": high}")

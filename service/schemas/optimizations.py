@@ -10,6 +10,7 @@ from microbearing import physics
 from microbearing.optimize.general import SPEED_GRID_POINTS
 from microbearing.optimize.over_envelope import GROUP_LABEL_OVER_ENVELOPE
 from microbearing.optimize.problem import DESIGN_VARIABLES
+from microbearing.physics.spans import NO_SPACING
 
 from .base import (
     UNIT_KEYS,
@@ -118,6 +119,8 @@ def _condition_spelling(value: Any) -> Any:
     """A condition's value or range as the other routes spell it (:func:`physics.spans.read_span`): ``[v]``
     is the one value v; a longer list, or a set of values (``{"values": [...]}``, which the design has no
     worst case over), refused in words."""
+    if isinstance(value, dict) and "spacing" in value:  # one sentence, not pydantic's extra field
+        raise ValueError(NO_SPACING)
     if isinstance(value, list) and any(isinstance(v, str) for v in value):  # one sentence, not one per label
         raise ValueError(f"a list of labels is no condition: {GROUP_LABEL_OVER_ENVELOPE}")
     if isinstance(value, list) and len(value) == 1:
@@ -317,6 +320,9 @@ class Envelope(ResponseModel):
     speed_m_s: list[float] = Field(description="[low, high] slider speed [m/s].")
     conditions: dict[str, list[float]] = Field(
         description="[low, high] of each condition column, in the calibration data's unit.")
+    as_sent: dict[str, list[float]] = Field(default_factory=dict, description=(
+        "The same under the request's keys as sent, each in the unit its key states ({'RH [%]': [30, 60], "
+        "'temp_F': [70, 100]} where relative_humidity is [0.3, 0.6] and temp_K [294.26, 310.93])."))
     tolerances: dict[str, float] = Field(
         description="Half-width of each tolerance (groove_angle_deg [deg]).")
 
@@ -332,6 +338,9 @@ class WorstCase(ResponseModel):
         description="The angle made (nominal + offset within the tolerance) where it occurs [deg].")
     conditions: dict[str, float] = Field(
         description="Condition values where it occurs, in the calibration data's units.")
+    as_sent: dict[str, float] = Field(default_factory=dict, description=(
+        "The same under the request's keys as sent, each in the unit its key states ({'RH [%]': 60} where "
+        "relative_humidity is 0.6)."))
 
 
 class OuterRound(ResponseModel):
