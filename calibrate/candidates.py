@@ -102,6 +102,13 @@ class EffectTerm:
         return self.effect.generic
 
     @property
+    def identity_value(self) -> float | None:
+        """Where a term of the measurement system is the identity in its driver
+        (:attr:`physics.effects.Effect.identity_at`); None for a term of the bearing."""
+        at = self.effect.identity_at
+        return None if at is None else float(at(self.constants))
+
+    @property
     def parameter_names(self) -> list[str]:
         """Names of the fitted parameters, with their units."""
         return self.effect.parameter_names
@@ -178,6 +185,7 @@ class DriftTerm:
 
     kind = "drift"
     generic = False
+    identity_value = None  # a drift moves the bearing: its driver is always read
     searched: tuple[str, ...] = ()
 
     @property

@@ -177,12 +177,35 @@ class CalibratedModel:
     @property
     def required_columns(self) -> list[str]:
         """Columns a point must give besides the physics inputs: the terms' drivers, the rivals' and
-        the GP discrepancy's columns that are not physics inputs."""
+        the GP discrepancy's columns that are not physics inputs, but those of :attr:`column_defaults`."""
         terms = [term for term, _ in self.terms] + [term for rival in self.rivals for term, _ in rival.terms]
         needed = [d for term in terms for d in term.drivers if d not in physics.PARAMETERS]
         if self.discrepancy is not None:
             needed += [f for f in self.discrepancy.features if f not in physics.PARAMETERS]
-        return list(dict.fromkeys(needed))
+        defaults = self.column_defaults
+        return [name for name in dict.fromkeys(needed) if name not in defaults]
+
+    @property
+    def column_defaults(self) -> dict[str, float]:
+        """Condition columns the model's terms read only through terms of the measurement system (an
+        instrument's drift or step over an order or time column; :attr:`physics.effects.Effect.identity_at`),
+        each with the value a point that does not give it takes: where every such term is the identity (the
+        least of their values: a step is the identity anywhere before its place), so the answer is the
+        bearing's μ, the reading as it is taken to be true; its rivals are asked there too (their reading
+        at the same place of the session). A column the discrepancy reads is required."""
+        features = set(self.discrepancy.features) if self.discrepancy is not None else set()
+        values: dict[str, list[float | None]] = {}
+        for term, _ in self.terms:
+            for name in term.drivers:
+                if name not in physics.PARAMETERS:
+                    main = name == term.drivers[0]
+                    values.setdefault(name, []).append(term.identity_value if main else None)
+        return {name: min(v) for name, v in values.items()
+                if name not in features and all(x is not None for x in v)}
+
+    def _given_or_default(self, points: Mapping[str, Any]) -> dict[str, Any]:
+        """The points with each of :attr:`column_defaults` they do not give."""
+        return {**{k: v for k, v in self.column_defaults.items() if k not in points}, **points}
 
     def check_columns(self, names) -> None:
         """Raise ValueError naming a column that is neither a physics input nor a known condition,
@@ -218,7 +241,8 @@ class CalibratedModel:
         """μ with these fitted and term values; ``physics_mu``: the physics' μ at them, already known (a
         model without drift terms, whose terms' values do not move the physics)."""
         inputs = self._physics_inputs(points, fitted)
-        conditions = {k: np.asarray(v, dtype=float) for k, v in points.items() if k not in physics.PARAMETERS}
+        conditions = {k: np.asarray(v, dtype=float) for k, v in self._given_or_default(points).items()
+                      if k not in physics.PARAMETERS}
         base = None if physics_mu is None else FrozenBase(physics_mu, {})
         return mu_of(inputs, conditions, [t for t, _ in self.terms], values, base=base,
                      convention=self.convention)
@@ -259,7 +283,7 @@ class CalibratedModel:
             For invalid physics inputs, an unknown condition column or a missing one the terms need.
         """
         self.check_columns(points)
-        points, labels = self.split_factors(points)
+        points, labels = self.split_factors(self._given_or_default(points))
         mu = np.asarray(self._mu(points, self.fitted, [v for _, v in self.terms]), dtype=float)
         mu = mu * np.exp(self._discrepancy(points, mu.shape)[0])
         if self.groups:
@@ -303,7 +327,8 @@ class CalibratedModel:
             As :meth:`__call__`.
         """
         self.check_columns(points)
-        points, labels = self.split_factors(self._unmoved(points))
+        said = self._default_words(points)
+        points, labels = self.split_factors(self._unmoved(self._given_or_default(points)))
         values = [list(v) for _, v in self.terms]
         # The physics evaluated once serves μ and every step of a term's value in the gradient below (the
         # same numbers as evaluating it again; only a fitted value's step moves it)
@@ -312,6 +337,8 @@ class CalibratedModel:
         shift, discrepancy_variance = self._discrepancy(points, mu.shape)
         # the labels too: a label no group of the data has is predicted as a new group, and said so
         in_domain, warnings = self.domain_check({**points, **labels}, shown) if domain else (None, [])
+        if domain:
+            warnings = [*warnings, *said]
         if self.covariance is None or self.noise_std_log is None:
             return Prediction(mu * np.exp(shift), None, None, in_domain, warnings)
         # What the model and its rivals share (the same discrepancy, scatter and data cloud), computed once.
@@ -336,6 +363,13 @@ class CalibratedModel:
             lower = np.where(ok, np.minimum(lower, other_lower), lower)
             upper = np.where(ok, np.maximum(upper, other_upper), upper)
         return Prediction(mu, lower, upper, in_domain, warnings)
+
+    def _default_words(self, points: Mapping[str, Any]) -> list[str]:
+        """What a prediction that leaves out a column of :attr:`column_defaults` answers."""
+        users = {name: [t.label for t, _ in self.terms if name in t.drivers] for name in self.column_defaults}
+        return [f"{name} not given: the bearing's mu without the measurement system's "
+                f"{', '.join(users[name]) or 'terms'} (the reading as at {name} {value:.6g}, taken as true)"
+                for name, value in self.column_defaults.items() if name not in points]
 
     def _unmoved(self, points: Mapping[str, Any]) -> dict[str, Any]:
         """The points without a fitted parameter given at its fitted value, one number (an optimization's
@@ -432,7 +466,7 @@ class CalibratedModel:
     def columns_at(self, points: Mapping[str, Any]) -> dict[str, Any]:
         """Every column a point has: its own, else the model's fixed, fitted or default value (what the
         model reads there: physics inputs in SI units, conditions in the data's units)."""
-        return {**physics.defaults(), **self.fixed, **self.fitted, **points}
+        return {**physics.defaults(), **self.fixed, **self.fitted, **self._given_or_default(points)}
 
     def mu_at(self, points: Mapping[str, Any], fitted: Mapping[str, float],
               term_values: Sequence[Sequence[float]]) -> np.ndarray:

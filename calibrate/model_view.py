@@ -57,6 +57,9 @@ class CalibratedPhysicsModel(Model):
         self.convention = calibrated.convention
         self.fixed, self.fitted = dict(calibrated.fixed), dict(calibrated.fitted)
         self.required_columns = calibrated.required_columns
+        # the columns of the measurement system's terms (an instrument's drift over a session): a point that
+        # does not give one is answered for the bearing, the reading as it is taken to be true
+        self.column_defaults = calibrated.column_defaults
         # The condition columns of the calibration data and the range of every column it was fitted
         # on (None for a model stored before domains were kept).
         self.conditions, self.domain = calibrated.conditions, calibrated.domain

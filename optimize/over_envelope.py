@@ -12,7 +12,7 @@ import itertools
 import math
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -374,6 +374,17 @@ def check_model(model: Model | None, envelope: Envelope, objective: str) -> None
     if unknown:
         raise ValueError(f"conditions.{unknown[0]} is not a condition of {model.reference}; its "
                          f"conditions are {', '.join(sorted(known)) or 'none'}")
+
+
+def with_column_defaults(envelope: Envelope, model: Model | None) -> Envelope:
+    """The envelope with each condition column the model fills when a point does not give it (a calibrated
+    model's ``column_defaults``: the session column of an instrument's drift, where the reading is taken
+    as true) held at that value: the design is for the bearing, not for a reading."""
+    defaults = {k: v for k, v in dict(getattr(model, "column_defaults", None) or {}).items()
+                if k not in envelope.conditions}
+    if not defaults:
+        return envelope
+    return replace(envelope, conditions={**envelope.conditions, **defaults})
 
 
 def with_model_values(problem: DesignProblem, model: Model | None) -> DesignProblem:

@@ -117,6 +117,7 @@ from .over_envelope import (
     certified_worst_case_of,
     check_model,
     shifted_problem,
+    with_column_defaults,
     with_model_values,
     worst_case_of,
     worst_case_search,
@@ -194,6 +195,7 @@ def _optimize_robust(problem: DesignProblem, envelope: Envelope, model: Model | 
     """:func:`optimize_robust` in the calling thread's BLAS setting."""
     start = time.perf_counter()
     check_model(model, envelope, objective)
+    envelope = with_column_defaults(envelope, model)
     if model is not None and model.kind == "physics":
         problem = DesignProblem(problem.bounds, problem.speed_m_s, problem.constraints, problem.fixed,
                                 model.convention)

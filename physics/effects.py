@@ -164,6 +164,11 @@ class Effect:
         (where the factor is 1). A search that proposes this effect on a driver does not propose that
         generic one there too: their fits differ only by where the physics' level sits, and a
         hair's difference would otherwise name the generic form for a mechanism the catalogue knows.
+    identity_at : callable or None
+        ``identity_at(constants) -> x``: for a term of the measurement system (the instrument's reading, not
+        the bearing), a value of its driver where it is the identity (μ unchanged, and so is its derivative
+        in every fitted value): a prediction that does not give the driver is made there, the bearing's μ
+        as the reading was true (at the session's start). None: the driver is required.
     """
 
     name: str
@@ -190,6 +195,7 @@ class Effect:
     searched: tuple[str, ...] = ()
     search_constants: Callable = field(default=None, repr=False, compare=False)
     named_form_of: str | None = None
+    identity_at: Callable = field(default=None, repr=False, compare=False)
 
     @property
     def parameter_names(self) -> list[str]:
@@ -486,6 +492,7 @@ _MEASUREMENT_DRIFT = Effect(
     make_initial=_zeros,
     enters="mul", direction=lambda v: _sign(v[0]), value_forms=("log",),  # x exp(d s), s rises with x
     named_form_of="generic_linear",  # exp(c (x - centre) / scale), the reading true at the centre
+    identity_at=lambda c: c["start"],  # the reading is taken as true at the session's start
 )
 
 _MEASUREMENT_STEP = Effect(
@@ -508,6 +515,7 @@ _MEASUREMENT_STEP = Effect(
     make_initial=_zeros,
     enters="mul", direction=lambda v: _sign(v[0]), value_forms=("log",),  # x exp(s [x >= x_step])
     searched=("step",), search_constants=step_places,
+    identity_at=lambda c: c["before"],  # the reading before the step is taken as true
 )
 
 _C_BOUNDS = (-20.0, 20.0)

@@ -363,6 +363,36 @@ def test_a_falling_reading_is_named_a_drift_of_the_instrument(client):
         f"the instrument drifted {100 * np.expm1(d):+.1f} % over the session (run_index 0 to 119;")
 
 
+def test_the_bearing_is_answered_without_the_session_column_and_designed_for(client):
+    """A model with the instrument's drift on run_index: a prediction that does not give run_index is the
+    bearing's (the reading at the session's start, where the drift is 1), said so; a robust design is for
+    the bearing, not a reading. Both answered 422 'needs condition column(s) run_index' before, and a
+    design over run_index's range would have been made robust to the instrument."""
+    rows = session_rows(np.random.default_rng(12), 120, 0.10, clock=False)
+    report = calibrated(client, rows, folds_=5)
+    assert [e["name"] for e in report["effects"]] == ["measurement_drift"]
+    d = report["effects"][0]["parameters"]["session_drift_log"]
+    model = CalibratedModel.from_json(report["model"])
+    assert model.required_columns == [] and model.column_defaults == {"run_index": 0.0}
+    point = {"balls": BALLS, "load_N": 0.01, "speed_m_s": 0.08}
+    bearing = model.predict(point)
+    start, end = (model.predict({**point, "run_index": r}) for r in (0.0, 119.0))
+    assert bearing.mu == pytest.approx(start.mu, rel=1e-12)
+    assert bearing.mu_upper == pytest.approx(start.mu_upper, rel=1e-12)
+    assert end.mu / start.mu == pytest.approx(np.exp(d), rel=1e-9)  # the drift, by its formula
+    answer = client.post("/v1/friction", json={"model": report["model_id"], **point})
+    assert answer.status_code == 200, answer.text
+    assert answer.json()["mu"] == pytest.approx(float(start.mu), rel=1e-12)
+    said = answer.json()["domain_warnings"]
+    assert any(w.startswith("run_index not given: the bearing's mu") for w in said), said
+    job = client.post("/v1/optimizations", json={
+        "model": report["model_id"], "objective": "mu_upper", "speed_m_s": [0.01, 0.1],
+        "bounds": {"balls": [4, 8], "groove_angle_deg": [45.5, 59.5], "load_N": [0.0044, 0.0132]}})
+    assert job.status_code == 202, job.text
+    result = client.get(finished_job(client, job, timeout_s=300, interval_s=0.2)["result_url"]).json()
+    assert result["proof"]["proven"] and result["worst_case"]["conditions"] == {"run_index": 0.0}
+
+
 @pytest.mark.parametrize("kind", ["drift", "clean"])
 def test_a_linear_drift_is_no_step_and_clean_data_get_neither(client, kind):
     rng = np.random.default_rng(12)
