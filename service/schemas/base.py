@@ -539,7 +539,10 @@ def _range_spelling(value: Any, number: bool = True) -> Any:
     """A range spelled as an object, ``{"low": a, "high": b}``, read as the pair ``[a, b]``, as every route
     reads a range (an optimization's bounds and conditions, an experiment space's, a surrogate's space, a
     sweep's ranges); a set of values, and what is no range (:func:`physics.spans.no_range`; a number only
-    where ``number`` is False), refused in words."""
+    where ``number`` is False), refused in words. Null is left to the field (an optional one's default, as a
+    stored request dumps it)."""
+    if value is None:
+        return value
     refused = no_range(value, number)
     if refused is not None:
         raise ValueError(refused)
