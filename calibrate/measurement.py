@@ -36,6 +36,7 @@ from scipy import sparse, stats
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from .candidates import Term
 from .censored import measured_rows
 from .data import Dataset
 from .fit import fit, kfold_indices, robust_scale
@@ -438,13 +439,19 @@ def _step_words(effect: Mapping[str, Any], clock: Mapping[str, str]) -> str:
             f"the step, and later runs are predicted at the level after it")
 
 
-def with_censor_scale(dataset: Dataset, fit_parameters: Sequence[str], convention: str) -> Dataset:
+def with_censor_scale(dataset: Dataset, fit_parameters: Sequence[str], convention: str,
+                      terms: Sequence[Term] = ()) -> Dataset:
     """The data with the scale of their censored likelihood (``censor_scale``, std of log μ [1]): the
-    robust scale of the declared model's log residual fitted on the measured rows alone (the data
-    themselves when nothing is clipped)."""
+    robust scale of the log residual of the declared model and ``terms`` fitted on the measured rows
+    alone (the data themselves when nothing is clipped).
+
+    Called first with the declared model, then again with the terms the search chose: the declared
+    model's residual also holds every effect it lacks (a humidity meniscus, a run-in), and at that wider
+    scale a clipped row's censored residual pulls the model up beyond the clip harder than the likelihood
+    of the reading's scatter does (``-2 s² log Phi(r / s)`` grows with ``s`` at every ``r``)."""
     if dataset.censored is None:
         return dataset
     rows = np.flatnonzero(measured_rows(dataset.censored, dataset.n_points))
     plain = replace(dataset, censored=None)
-    result = fit(plain, fit_parameters, rows=rows, precise=False, convention=convention)
+    result = fit(plain, fit_parameters, terms, rows=rows, precise=False, convention=convention)
     return replace(dataset, censor_scale=max(robust_scale(result.residual), 1e-6))

@@ -492,19 +492,16 @@ def calibrate(
     stage(0)(1.0)
     candidates = candidates_stage(declared, options, stage(1))
     stage(1)(1.0)
+    declared = declared.censored_with(candidates.terms, options.convention)  # clips: the chosen law's scale
     selection = selection_stage(declared, candidates, options, stage(2), stage(3))
     uncertainty = uncertainty_stage(declared, candidates, selection, options)
     plots: dict[str, bytes] = {}
     if options.make_plots:
         plots = calibration_plots(
-            dataset,
-            uncertainty.model,
-            declared.mu_before,
-            uncertainty.mu_after,
+            dataset, uncertainty.model, declared.mu_before, uncertainty.mu_after,
             uncertainty.outliers["mask"],
             {"before": declared.error_before, "after": uncertainty.error_after,
-             "robust": uncertainty.robust_errors},
-            [t.label for t in candidates.terms],
+             "robust": uncertainty.robust_errors}, [t.label for t in candidates.terms],
         )
     report(1.0)
     return format_report(declared, candidates, selection, uncertainty, options, plots)
@@ -646,10 +643,11 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     noise_std_log, scatter = _noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape,
                                           dataset.censored)
     # The interval's form: the scatter's degrees of freedom and the residuals' tails (calibrate.tails),
-    # read on the measured rows. The tails are read on the residual standardized by the scatter model (a
-    # spread that varies is not a tail); with a GP the residual also holds what the GP explains, and the
-    # Gaussian form stands.
-    standardized = held_out * noise_std_log / scatter.std_log(varying, measured.shape)
+    # read on the measured rows (a clipped row's residual is its distance to the clip, not a tail). The
+    # tails are read on the residual standardized by the scatter model (a spread that varies is not a
+    # tail); with a GP the residual also holds what the GP explains, and the Gaussian form stands.
+    standardized = (held_out * noise_std_log / scatter.std_log(varying, measured.shape))[
+        measured_rows(dataset.censored, dataset.n_points)]
     scatter = replace(scatter, form=interval_form(standardized if leftover["gp"] is None else held_out[:0],
                                                   values, noise_std_log, len(final.names)))
     cloud = DataCloud.from_columns(varying, options.seed)

@@ -26,7 +26,7 @@ from .data import Dataset
 from .domain import DataCloud
 from .fit import FitResult
 from .groups import GroupEffect
-from .measurement import MeasurementSystem
+from .measurement import MeasurementSystem, with_censor_scale
 from .model import CalibratedModel
 from .rivals import Rival
 from .scatter import ScatterModel
@@ -149,6 +149,14 @@ class DataStage:
     error_before: dict[str, float]
     mu_before: np.ndarray = field(repr=False)
     measurement: MeasurementSystem | None = None
+
+    def censored_with(self, terms: tuple, convention: str) -> DataStage:
+        """The stage with its censored likelihood's scale that of the declared model and ``terms`` (the
+        chosen ones), not of the declared model alone, whose residual holds what it lacks
+        (:func:`calibrate.measurement.with_censor_scale`); itself without terms or clipped rows."""
+        if not terms or self.dataset.censored is None:
+            return self
+        return replace(self, dataset=with_censor_scale(self.dataset, self.fit_parameters, convention, terms))
 
 
 @dataclass(frozen=True)

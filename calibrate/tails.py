@@ -11,8 +11,9 @@ two parts, kept with the scatter model (:attr:`calibrate.scatter.ScatterModel.fo
   rows (+0.6 %), +9 % on 15. (A spread that varies takes its local degrees of freedom and the tolerance
   rule too: :meth:`calibrate.scatter.ScatterModel.quantile_factor`.)
 * **Heavy tails.** Gaussian scatter is an assumption. :func:`tail_form` fits Student's t (location,
-  scale and degrees of freedom, maximum likelihood) to every held-out residual, outliers included, and
-  keeps it when the likelihood ratio against the Gaussian rejects the Gaussian (p < :data:`TAIL_ALPHA`)
+  scale and degrees of freedom, maximum likelihood) to every held-out residual of a measured row,
+  outliers included (a clipped reading's residual is its distance to the clip, not scatter), and keeps
+  it when the likelihood ratio against the Gaussian rejects the Gaussian (p < :data:`TAIL_ALPHA`)
   with tails of a continuous heavy-tailed law (:data:`MIN_TAIL_DOF` <= nu_t < :data:`MAX_TAIL_DOF`): the
   half-width is then that t's quantile of the level, but never wider than the residuals' own
   (conformal) quantile, the ``ceil((n + 1) level)``-th smallest absolute residual. A few gross outliers

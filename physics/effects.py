@@ -436,7 +436,9 @@ _THERMAL = Effect(
     formula="mu = mu_model * exp(-thermal_coefficient_1_K * (T - T_reference))",
     parameters=(EffectParameter(
         "thermal_coefficient_1_K", "1/K",
-        "Relative decrease of the shear strength per kelvin (Eyring activation).", -1.0, 1.0),),
+        "Relative decrease of the shear strength per kelvin (Eyring activation).", -1.0, 1.0,
+        # Never negative where named: a shear strength rising with temperature is no Eyring activation
+        plausible=(0.0, 1.0)),),
     driver_description="temperature T in degC or K (only differences matter); T_reference = median",
     reference="B.J. Briscoe, D.C.B. Evans, Proc. R. Soc. A 380, 389-407 (1982): the interfacial "
               "shear strength of molecular films falls exponentially with temperature.",

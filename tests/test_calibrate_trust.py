@@ -190,6 +190,31 @@ def test_a_modulus_far_below_its_default_and_a_stribeck_speed_beyond_the_data_ar
     assert implausible(run_in, [-0.1, 500.0], {"cycle": np.arange(0.0, 3000.0, 100.0)})
 
 
+
+def test_friction_rising_with_temperature_is_not_named_a_thermally_falling_shear_strength():
+    """The physics x (1 + 0.25 (T - 20 degC) / 40 K): friction rising 25 % over 20-60 degC, 150 rows.
+    thermal_shear_strength's law is Briscoe and Evans' shear strength falling with temperature (its title:
+    "friction falls as temperature rises"); it was named with a coefficient of -0.0061 /K here (seed 61;
+    -0.0055 to -0.0059 on seeds 62-64), a rise. A negative coefficient is now implausible: the rise goes
+    to a law that can rise (here mu_pivot's Arrhenius drift), predicted as well."""
+    thermal = EffectTerm("thermal_shear_strength", ("temperature_C",), {"reference": 40.0})
+    columns = {"temperature_C": np.linspace(20.0, 60.0, 9)}
+    assert implausible(thermal, [0.01], columns) == []
+    (why,) = implausible(thermal, [-0.0056], columns)
+    assert "thermal_coefficient_1_K" in why
+    rng = np.random.default_rng(61)
+    c = lab(rng, 150 + 400) | {"temperature_C": rng.uniform(20.0, 60.0, 150 + 400)}
+    truth = mu_of(c) * (1.0 + 0.25 * (c["temperature_C"] - 20.0) / 40.0)
+    measured = truth * np.exp(rng.normal(0.0, NOISE, truth.size))
+    report = calibrate(rows_of({k: v[:150] for k, v in c.items()}, measured[:150]),
+                       ["mu_pivot", "adhesion_energy_J_m2"], make_plots=False)
+    assert [e["drivers"] for e in report.effects] == [["temperature_C"]]
+    for effect in report.effects:
+        if effect["name"] == "thermal_shear_strength":
+            assert effect["parameters"]["thermal_coefficient_1_K"] >= 0
+    p = report.model.predict({k: v[150:] for k, v in c.items()})
+    assert np.sqrt(np.mean(np.log(p.mu / truth[150:]) ** 2)) < 0.5 * NOISE
+
 def test_a_value_the_data_do_not_identify_gets_a_wide_standard_deviation():
     # Both moduli enter only through the contact's E*: the data fix a combination, not each. The
     # pseudo-inverse gave each a standard deviation of parts per million; the fit says it does not know.
