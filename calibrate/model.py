@@ -241,8 +241,7 @@ class CalibratedModel:
         """μ with these fitted and term values; ``physics_mu``: the physics' μ at them, already known (a
         model without drift terms, whose terms' values do not move the physics)."""
         inputs = self._physics_inputs(points, fitted)
-        conditions = {k: np.asarray(v, dtype=float) for k, v in self._given_or_default(points).items()
-                      if k not in physics.PARAMETERS}
+        conditions = {k: np.asarray(v, dtype=float) for k, v in points.items() if k not in physics.PARAMETERS}
         base = None if physics_mu is None else FrozenBase(physics_mu, {})
         return mu_of(inputs, conditions, [t for t, _ in self.terms], values, base=base,
                      convention=self.convention)
@@ -482,7 +481,7 @@ class CalibratedModel:
         term_values : sequence of sequence of float
             The values of each term of :attr:`terms`, in order.
         """
-        return self._mu(points, fitted, term_values)
+        return self._mu(self._given_or_default(points), fitted, term_values)
 
     def _noise_variance(self, points: Mapping[str, Any], shape, level: float = 0.95) -> np.ndarray:
         """Variance of log μ of a new measurement around the model at the points [1]: the scatter model's,

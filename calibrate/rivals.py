@@ -383,12 +383,17 @@ def fit_rivals(
     return rivals
 
 
+def _leaned_to(step: Any) -> list[CandidateScore]:
+    """The candidates of a step the data lean to: a held-out loss below the model's (paired z above 0) and a
+    score below its."""
+    return [c for c in step.ranked if c.term is not None and c.z > 0 and c.score < step.current.score]
+
+
 def screened_lean(step: Any) -> list[CandidateScore]:
     """The candidates of a step that stopped that were screened but not refitted jointly and that the data
-    lean to (a held-out loss below the model's, paired z above 0, and a score below its), for
-    :func:`fit_rivals` on few rows when no jointly refitted one holds the doubt."""
-    return [c for c in step.ranked if not c.joint and c.term is not None and c.z > 0
-            and c.score < step.current.score]
+    lean to (:func:`_leaned_to`), for :func:`fit_rivals` on few rows when no jointly refitted one holds the
+    doubt."""
+    return [c for c in _leaned_to(step) if not c.joint]
 
 
 def undecided_candidates(step: Any, few_rows: bool = False) -> list[CandidateScore]:
@@ -403,8 +408,7 @@ def undecided_candidates(step: Any, few_rows: bool = False) -> list[CandidateSco
     close = close_calls(step)
     if not few_rows or step.chosen is not None:
         return close
-    lean = [c for c in step.ranked if c.joint and c.term is not None and c.z > 0
-            and c.score < step.current.score and all(c is not k for k in close)]
+    lean = [c for c in _leaned_to(step) if c.joint and all(c is not k for k in close)]
     return [*close, *lean]
 
 
