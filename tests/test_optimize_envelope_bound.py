@@ -876,3 +876,18 @@ def test_axis_costs_halve_a_flat_axis_never_and_an_untried_one_first():
     # a bound that rose on halving (rounding) or was infinite teaches nothing wrong
     costs.learn(np.array([1, 1]), np.array([0.5, 0.5]), np.array([1.0, np.inf]), np.array([1.1, 1.0]))
     assert costs.choose(widths).tolist() == [1, 1]
+
+
+def test_how_a_point_s_keys_are_read_is_no_part_that_stops_a_bound():
+    # before: a calibration uploaded with a column in another unit (its header kept, `headers`) or with ISO
+    # 8601 times (`clock`) had "its headers has no bound over a box here": no certified worst case, no lower
+    # bound over the designs; both say how a point is read, not what mu is there
+    model = _interval_model()
+    read = dataclasses.replace(model.calibrated, headers={"temperature_C": "T [degF]"},
+                               clock={"date": "2026-12-02T09:00:00+00:00"})
+    held = CalibratedPhysicsModel("calibrated:read", read)
+    for interval in (False, True):
+        pieces, reason = term_pieces(held, interval=interval)
+        assert reason == "" and [p.kind for p in pieces] == [p.kind for p in term_pieces(model, interval)[0]]
+    structures, reason = interval_structures(held)
+    assert reason == "" and len(structures) == len(interval_structures(model)[0])
