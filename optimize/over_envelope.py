@@ -58,6 +58,9 @@ class Envelope:
     tolerances : mapping of str to float, optional
         Half-widths δ of design variables made to a tolerance: the design must hold anywhere within
         nominal ± δ. Only ``groove_angle_deg`` [deg].
+    readings : mapping of str to physics.columns.Reading, optional
+        How ``speed_m_s`` and each condition were sent (the key and unit of a request), for the words of a
+        proof (:meth:`said`); the figures stay in the model's units. Not compared.
 
     Raises
     ------
@@ -68,6 +71,7 @@ class Envelope:
     speed_m_s: float | tuple[float, float]
     conditions: Mapping[str, Any] = field(default_factory=dict)
     tolerances: Mapping[str, float] = field(default_factory=dict)
+    readings: Mapping[str, Any] = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
         lo, hi = _range("speed_m_s", self.speed_m_s)
@@ -116,6 +120,16 @@ class Envelope:
         conditions = {n: float(values.get(f"conditions.{n}", lo)) for n, (lo, _) in self.conditions.items()}
         return {"speed_m_s": float(values.get("speed_m_s", self.speed_m_s[0])), "conditions": conditions,
                 "groove_angle_offset_deg": float(values.get("groove_angle_offset_deg", 0.0))}
+
+    def said(self, name: str, value: float) -> str:
+        """A value of ``speed_m_s`` or a condition (in the model's unit) as a proof's words give it: under
+        the key it was sent as, in that unit, the column's value in brackets (:meth:`physics.columns.Reading.
+        said`: ``T [degF] at 70 (temperature_K 294.261)``); ``speed 0.05 m/s`` or ``relative_humidity at
+        0.6`` when it was sent so."""
+        reading = self.readings.get(name)
+        if reading is not None:
+            return reading.said(value)
+        return f"speed {value:g} m/s" if name == "speed_m_s" else f"{name} at {value:g}"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready fields: ranges as [low, high]."""

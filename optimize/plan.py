@@ -92,6 +92,9 @@ class DesignRequest:
         Physics convention (:data:`physics.CONVENTIONS`) of the physics; a stored model has its own.
     pareto : bool
         Whether a Pareto front is asked for as well.
+    readings : mapping
+        How ``speed_m_s`` and each condition were sent (:class:`physics.columns.Reading`, the request's key
+        and unit), for the words of a robust design's proof (:attr:`Envelope.readings`).
     """
 
     balls: tuple[int, int]
@@ -106,6 +109,7 @@ class DesignRequest:
     model: str = "physics"
     convention: str = physics.DEFAULT_CONVENTION
     pareto: bool = False
+    readings: Mapping[str, Any] = field(default_factory=dict)
 
     def is_robust(self, speed_m_s: Any) -> bool:
         """Whether the design must hold over an envelope (condition ranges, tolerances, ``mu_upper``, or a
@@ -287,7 +291,7 @@ def _envelope(request: DesignRequest, speed: Any) -> Envelope:
         raise PlanError([(f"conditions.{name}", GROUP_LABEL_OVER_ENVELOPE) for name in labels])
     try:
         return Envelope(tuple(speed) if isinstance(speed, list) else speed, request.conditions,
-                        request.tolerances)
+                        request.tolerances, request.readings)
     except ValueError as exc:
         raise PlanError([(_field(exc), str(exc))]) from None
 

@@ -267,13 +267,14 @@ def calibrated_counts(problem: DesignProblem, monomials: list[Monomial]) -> dict
     return answers
 
 
-def _vertex_statement(model: Model, terms: int, delta: float, vertex: Mapping[str, Any],
+def _vertex_statement(model: Model, envelope: Envelope, terms: int, delta: float, vertex: Mapping[str, Any],
                       bracket: tuple[float | None, float, float | None], mismatch: float,
                       searched: float) -> str:
-    """The proof of a calibrated model's robust design at one vertex, in words; ``bracket`` is the certified
-    lower bound, the worst case at the design and their relative gap [1]."""
+    """The proof of a calibrated model's robust design at one vertex, in words (the vertex as the request sent
+    the envelope: :meth:`Envelope.said`); ``bracket`` is the certified lower bound, the worst case at the
+    design and their relative gap [1]."""
     lower, value, gap = bracket
-    directions = ", ".join(f"{n} at {v:g}" for n, v in vertex["conditions"].items()) or "no condition"
+    directions = ", ".join(envelope.said(n, v) for n, v in vertex["conditions"].items()) or "no condition"
     statement = (
         f"{model.reference}: the physics with its fitted values and {terms} term(s), each a "
         "positive "
@@ -281,8 +282,8 @@ def _vertex_statement(model: Model, terms: int, delta: float, vertex: Mapping[st
         "fourth), driven by the speed or a condition through a formula monotone in it (physics.effects; "
         "the directions from the fitted parameters' signs), so mu is a posynomial in tan(theta) and load_N "
         "for every ball count and its worst case over the envelope is one vertex: the angle made high "
-        f"(+{delta:g} deg), speed {vertex['speed_m_s']:g} m/s, {directions}. The robust problem is then the "
-        "geometric program of every ball count at that vertex; certified lower bound "
+        f"(+{delta:g} deg), {envelope.said('speed_m_s', vertex['speed_m_s'])}, {directions}. The robust "
+        "problem is then the geometric program of every ball count at that vertex; certified lower bound "
         f"{lower if lower is not None else float('nan'):.10g} (least dual objective over the counts, limits "
         f"exact, less Clarabel's tolerance), worst case at the design {value:.10g} (the model itself), "
         f"relative gap {gap if gap is not None else float('nan'):.2e} (target {GAP_TARGET:g}); solver and "
@@ -359,8 +360,8 @@ def robust_calibrated_gp(problem: DesignProblem, envelope: Envelope, model: Mode
                              solved[z][1] / float(exact[counts.index(z)]) - 1.0)
              for z in answers]
     rows.sort(key=lambda r: r.balls)
-    statement = _vertex_statement(model, len(monomials), delta, vertex, (lower, value, gap), mismatch,
-                                  searched)
+    statement = _vertex_statement(model, envelope, len(monomials), delta, vertex, (lower, value, gap),
+                                  mismatch, searched)
     proof = Proof(bool(proven), "robust-gp-vertex", lower, value, gap, statement)
     worst_point = vertex if searched <= value * (1 + 1e-9) else where
     worst_case = worst_case_dict("mu", max(value, searched), worst_point, design["groove_angle_deg"] - delta)

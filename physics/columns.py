@@ -246,6 +246,17 @@ class Reading:
             shown = round(shown, math.floor(-math.log10(step)))
         return float(f"{shown:.12g}")
 
+    def said(self, value: float) -> str:
+        """A value of the column (in the column's unit) as a report's words give it: under the key as sent,
+        in the unit sent (:meth:`set_point`), the column and its value in brackets where they differ.
+
+        >>> read_name("T [degF]").said(294.261111111), read_name("relative_humidity").said(0.6)
+        ('T [degF] at 70 (temperature_K 294.261)', 'relative_humidity at 0.6')
+        """
+        if not self.reading:
+            return f"{self.sent} at {float(value):g}"
+        return f"{self.sent} at {self.set_point(value):g} ({self.name} {float(value):g})"
+
     @property
     def label(self) -> str:
         """The column as a report, warning or plot names it: the header as sent, with the unit it was sent

@@ -134,7 +134,14 @@ def _request(body: OptimizationRequest) -> DesignRequest:
         conditions=dict(body.conditions or {}),
         tolerances={} if body.tolerances is None else body.tolerances.model_dump(exclude_none=True),
         objective=body.objective, model=body.model, convention=str(body.convention),
-        pareto=body.pareto is not None)
+        pareto=body.pareto is not None, readings=_readings(body))
+
+
+def _readings(body: OptimizationRequest) -> dict[str, Any]:
+    """How the request's speed and conditions were sent (:class:`physics.columns.Reading` by column), for the
+    words of a proof in the request's keys and units."""
+    speed = {**body.fixed.readings, **body.readings}.get("speed_m_s")
+    return {**ReadConditions.of(body.conditions).readings, **({} if speed is None else {"speed_m_s": speed})}
 
 
 def _plan_problem(error: PlanError, body: OptimizationRequest) -> ProblemError:

@@ -372,7 +372,11 @@ class Proof(ResponseModel):
     relative_gap: float | None = Field(description=(
         "(upper_bound - lower_bound) / upper_bound [1]; null without a lower bound."))
     gap_target: float = Field(description="The relative gap aimed at [1].")
-    statement: str = Field(description="The argument, in words.")
+    statement: str = Field(description=(
+        "The argument, in words. A speed or condition value is named under the request's key and in its "
+        "unit, the model's column and its value in brackets where they differ ('temp_F at 70 (temp_K "
+        "294.261)', 'speed [mm/s] at 50 (speed_m_s 0.05)'); the figures in the model's units are in "
+        "worst_case and envelope, the request's in their as_sent."))
     rounds: list[OuterRound] | None = Field(default=None, description="The outer approximation's rounds.")
     worst_case_boxes: int | None = Field(default=None, description=(
         "Boxes of the envelope the branch and bound bounded at the design [1] "

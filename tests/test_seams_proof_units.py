@@ -1,0 +1,116 @@
+"""Issue 32's leftovers: a robust design's proof speaks the request's keys and units at the API and the CLI,
+and a calibration uploaded with headers in other units keeps its certificates."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from fastapi.testclient import TestClient
+from jobs_helper import job_result, wait_job
+
+from bench.calibrated_batch import measurements
+from microbearing.optimize.robust import Envelope
+from microbearing.physics.columns import read_name
+from microbearing.service.app import create_app
+from microbearing.service.cli import main
+from microbearing.service.settings import Settings
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("proof_units")
+
+
+@pytest.fixture(scope="module")
+def client(data_dir):
+    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
+        yield test_client
+
+
+def _upload_rows() -> list[dict]:
+    """bench/calibrated_batch.py's menisci data with a lab's headers: humidity in %, temperature in degF."""
+    rows = []
+    for row in measurements(3):
+        row = dict(row)
+        row["relative humidity [%]"] = row.pop("relative_humidity") * 100.0
+        row["temp_F"] = row.pop("temperature_C") * 9.0 / 5.0 + 32.0
+        rows.append(row)
+    return rows
+
+
+@pytest.fixture(scope="module")
+def model(client) -> str:
+    response = client.post("/v1/calibrations", json={"data": _upload_rows(), "fit_parameters": ["mu_pivot"],
+                                                     "folds": 3})
+    return job_result(client, response, timeout_s=300, interval_s=0.1)["model_id"]
+
+
+def _fahrenheit(kelvin: float) -> float:
+    return (kelvin - 273.15) * 9 / 5 + 32
+
+
+BASE = {"bounds": {"balls": [4, 6], "groove_angle_deg": [50, 55], "load_N": [0.008, 0.012]},
+        "time_limit_s": 20}
+CONDITIONS = {"relative humidity [%]": [30, 60], "temp_F": {"low": 70, "high": 100}}
+
+
+def _optimized(client, request: dict) -> dict:
+    job = wait_job(client, client.post("/v1/optimizations", json=request), timeout_s=300)
+    assert job["status"] == "succeeded", job
+    return client.get(job["result_url"]).json()
+
+
+def test_a_proof_names_the_worst_vertex_in_the_keys_and_units_sent(client, model):
+    # before: "... one vertex: the angle made high (+0 deg), speed 0.05 m/s, relative_humidity at 0.6, temp_K
+    # at 294.261" where the request said RH [%] [30, 60], temp_F [70, 100] and speed [mm/s] [20, 50]
+    result = _optimized(client, {**BASE, "model": model, "speed [mm/s]": [20, 50], "conditions": CONDITIONS})
+    proof, worst = result["proof"], result["worst_case"]
+    assert proof["method"] == "robust-gp-vertex" and proof["proven"], proof
+    rh, kelvin, speed = (worst["conditions"]["relative_humidity"], worst["conditions"]["temp_K"],
+                         worst["speed_m_s"])
+    # by hand: % = 100 x the fraction, degF = (K - 273.15) x 9/5 + 32, mm/s = 1000 x m/s
+    assert (round(100 * rh, 9), round(_fahrenheit(kelvin), 9), round(1000 * speed, 9)) == (60, 70, 50), worst
+    words = (f"speed [mm/s] at 50 (speed_m_s {speed:g}), relative humidity [%] at 60 (relative_humidity "
+             f"{rh:g}), temp_F at 70 (temp_K {kelvin:g})")
+    assert words in proof["statement"], proof["statement"]
+    assert words in result["certificate"]
+    assert "temp_K at" not in proof["statement"] and "relative_humidity at" not in proof["statement"]
+    # sent in the model's own keys and units, the words stay the column's
+    plain = _optimized(client, {**BASE, "model": model, "speed_m_s": 0.05,
+                                "conditions": {"relative_humidity": [0.3, 0.6], "temp_K": [295, 310]}})
+    assert "speed 0.05 m/s, relative_humidity at 0.6, temp_K at 295." in plain["proof"]["statement"]
+
+
+def test_a_proof_of_mu_upper_is_certified_on_an_upload_with_headers_in_other_units(client, model):
+    # before: "its headers has no bound over a box here": outer-approximation-local, gap 1.13e-3, not proven
+    result = _optimized(client, {**BASE, "model": model, "speed_m_s": 0.05, "objective": "mu_upper",
+                                 "conditions": CONDITIONS})
+    proof = result["proof"]
+    assert "headers" not in proof["statement"], proof["statement"]
+    assert proof["method"] == "outer-approximation-certified" and proof["upper_bound_certified"], proof
+    assert proof["relative_gap"] <= proof["gap_target"] and proof["proven"], proof
+
+
+def test_the_physics_proof_names_the_speed_as_sent_and_the_cli_says_the_same(client, tmp_path):
+    request = {**BASE, "speed [mm/s]": [10, 50], "tolerances": {"groove_angle_deg": 0.5}}
+    answer = client.post("/v1/optimizations", json=request)
+    assert answer.status_code in (200, 202), answer.text
+    result = answer.json() if answer.status_code == 200 else _optimized(client, request)
+    assert "the highest speed, speed [mm/s] at 50 (speed_m_s 0.05);" in result["proof"]["statement"], result
+    path = tmp_path / "robust.json"
+    path.write_text(json.dumps(request))
+    out = tmp_path / "design.json"
+    assert main(["optimize", str(path), "-o", str(out)]) == 0
+    assert json.loads(out.read_text())["proof"]["statement"] == result["proof"]["statement"]
+
+
+def test_an_envelope_says_a_value_as_its_reading_does():
+    readings = {"temperature_K": read_name("T [degF]"), "speed_m_s": read_name("speed [cm/s]")}
+    ranges = {"temperature_K": (294.261111111, 310.0), "relative_humidity": (0.3, 0.6)}
+    envelope = Envelope((0.01, 0.05), ranges, readings=readings)
+    assert envelope.said("temperature_K", 294.261111111) == "T [degF] at 70 (temperature_K 294.261)"
+    assert envelope.said("speed_m_s", 0.05) == "speed [cm/s] at 5 (speed_m_s 0.05)"
+    assert envelope.said("relative_humidity", 0.6) == "relative_humidity at 0.6"
+    # the words are no part of what the envelope is
+    assert envelope == Envelope((0.01, 0.05), ranges)
