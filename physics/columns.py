@@ -568,7 +568,8 @@ def _condition_unit(sent: str, name_text: str, unit_text: str, unit):
     return unit
 
 
-_HUMIDITY_UNITS, _COUNT_UNITS = re.compile(r"(?i)%|percent|pct|1|fraction"), re.compile(r"[kM]?count|1")
+# "-" is a number's unit as a table writes it ([-], as :func:`_unit` reads it for every other column)
+_HUMIDITY_UNITS, _COUNT_UNITS = re.compile(r"(?i)%|percent|pct|1|-|fraction"), re.compile(r"[kM]?count|1|-")
 _EXAMPLE_UNITS = {"relative_humidity": "[%] or [1]", "temperature_K": "[degC], [K] or [degF]",
                   "cycles": "[1] or [kcycles]", "time_h": "[s], [min] or [h]"}
 

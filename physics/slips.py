@@ -277,7 +277,7 @@ def _stated_slip(first: Reading, array: np.ndarray) -> tuple[bool, str | None]:
                                    (first.sent, array, stated, own))
     condition = _condition_of(first.name)
     if condition is CONDITIONS["relative_humidity"]:
-        fraction = stated.strip() in ("1", "fraction")
+        fraction = stated.strip() in ("1", "-", "fraction")  # [-]: a number, as physics.columns reads it
         top, lo, hi = 1.0 if fraction else 100.0, float(np.min(array)), float(np.max(array))
         if lo >= 0.0 and hi <= top:
             return True, None

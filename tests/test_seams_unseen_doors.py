@@ -1,0 +1,63 @@
+"""Issue 32's seams on variants no other test sends (h45's probe): each door reads a column as the others."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from microbearing.calibrate.plausibility import check_plausible
+from microbearing.calibrate.tabular import read_csv
+from microbearing.physics.columns import read_name
+from microbearing.physics.slips import read_slip
+
+
+@pytest.mark.parametrize("dash, one", [("RH [-]", "RH [1]"), ("cycles [-]", "cycles [1]"),
+                                       ("relative humidity (-)", "relative humidity [1]")])
+def test_a_number_s_unit_written_as_a_dash_reads_as_1_for_every_column(dash, one):
+    # before: 'RH [-]' and 'cycles [-]' were refused ("whose unit is [%] or [1], not '-'") while 'balls [-]',
+    # 'run_index [-]' and 'mu_measured [-]' were read as numbers: one registry, two rules
+    read, expected = read_name(dash), read_name(one)
+    assert (read.name, read.scale, read.offset, read.reading) == (expected.name, 1.0, 0.0, ""), read
+    assert read_name("balls [-]").name == "balls"
+
+
+def test_an_upload_s_humidity_in_dashes_is_read_as_a_fraction_and_its_slip_refused():
+    rows = "balls,load [mN],speed [mm/s],RH [-],mu_measured\n" + "".join(
+        f"{4 + i % 3},{5 + i},{20 + 3 * i},{0.2 + 0.05 * i},{0.03 + 0.001 * i}\n" for i in range(8))
+    data, _ = read_csv(rows)
+    assert list(data.conditions) == ["RH"]
+    assert data.conditions["RH"].tolist() == pytest.approx([0.2 + 0.05 * i for i in range(8)])
+    # the upload's slip rule judges it as a fraction: 20 to 55 [-] looks like percent
+    percent, _ = read_csv("balls,load [mN],speed [mm/s],RH [-],mu_measured\n" + "".join(
+        f"{4 + i % 3},{5 + i},{20 + 3 * i},{20 + 5 * i},{0.03 + 0.001 * i}\n" for i in range(8)))
+    with pytest.raises(ValueError, match="look like percent"):
+        check_plausible(percent)
+    # and so does every other door (a key at /v1/friction, batch, UM-Bridge, the CLI): 50 [-] is no fraction
+    assert "look like percent" in read_slip(read_name("RH [-]"), [50.0])
+    assert read_slip(read_name("RH [-]"), [0.5]) is None
+
+
+def test_the_cli_reads_a_whole_count_written_with_a_point_as_the_api_does(tmp_path, capsys):
+    # before: `microbearing evaluate balls=6.0` was refused ("'6.0' is not a whole number [1]") where
+    # /v1/friction and a CSV upload read 6.0 as 6; and 6.5 was refused in other words than the API's
+    from fastapi.testclient import TestClient
+
+    from microbearing.service.app import create_app
+    from microbearing.service.cli import main
+    from microbearing.service.settings import Settings
+
+    out = tmp_path / "point.json"
+    assert main(["evaluate", "balls=6.0", "load [gf]=1", "speed [mm/min]=3000", "-o", str(out)]) == 0
+    with TestClient(create_app(Settings(data_dir=tmp_path / "data"))) as client:
+        point = {"balls": 6.0, "load [gf]": 1, "speed [mm/min]": 3000}
+        api = client.post("/v1/friction", json=point)
+        assert api.status_code == 200, api.text
+        assert json.loads(out.read_text())["mu"] == pytest.approx(api.json()["mu"], rel=1e-12)
+        refused = client.post("/v1/friction", json={**point, "balls": 6.5})
+    assert refused.status_code == 422
+    assert main(["evaluate", "balls=6.5", "load [gf]=1", "speed [mm/min]=3000"]) != 0
+    words = "balls must be a whole number in [1, 1e+06] [1]"
+    assert words in refused.json()["errors"][0]["detail"] and words in capsys.readouterr().err
+    assert main(["evaluate", "balls=six", "load [gf]=1", "speed [mm/min]=3000"]) != 0
+    assert "'six' is not a whole number" in capsys.readouterr().err
