@@ -159,14 +159,16 @@ class Dataset:
 
     def sent_reading(self, name: str) -> Reading | None:
         """How the column ``name`` was read from the header it was sent under (:attr:`headers`), to give its
-        values back in that unit (``Reading.sent_value``, ``Reading.sent_unit``); None when it was sent in
-        its own unit."""
+        values back in that unit and under that header (``Reading.sent_value``, ``Reading.sent_unit``,
+        ``Reading.label``: ``temperature [K]`` for ``temperature_K``, though unconverted); None when it was
+        sent under its own name."""
         header = self.headers.get(name)
         try:
             reading = None if header is None else read_name(header)
         except ColumnError:  # a header stored by another version: its own unit
             return None
-        return reading if reading is not None and reading.name == name and reading.reading else None
+        return reading if reading is not None and reading.name == name and (
+            reading.reading or reading.sent.strip() != name) else None
 
     def inputs(self) -> dict[str, Any]:
         """Keyword inputs of :func:`physics.evaluate`: fixed values and physics columns."""

@@ -61,3 +61,24 @@ def test_the_cli_reads_a_whole_count_written_with_a_point_as_the_api_does(tmp_pa
     assert words in refused.json()["errors"][0]["detail"] and words in capsys.readouterr().err
     assert main(["evaluate", "balls=six", "load [gf]=1", "speed [mm/min]=3000"]) != 0
     assert "'six' is not a whole number" in capsys.readouterr().err
+
+
+def test_a_column_sent_under_another_header_in_its_own_unit_is_drawn_and_named_by_that_header():
+    # before: 'temperature [K]' (read as temperature_K, unconverted) was drawn as 'temperature_K [K]' and an
+    # effect on 'RH [-]' (read as RH) was 'humidity_meniscus on RH': the header dropped where no unit changed
+    from microbearing.calibrate.plots import DrawnColumn
+    from microbearing.calibrate.prose import in_sent_words
+    from microbearing.calibrate.tabular import read_rows
+
+    rows = [{"balls": 4 + i % 3, "load [gf]": 1.0 + 0.1 * i, "speed_m_s": 0.05, "RH [-]": 0.2 + 0.05 * i,
+             "temperature [K]": 295.0 + i, "mu_measured": 0.03} for i in range(8)]
+    data, _ = read_rows(rows)
+    assert sorted(data.conditions) == ["RH", "temperature_K"]
+    assert DrawnColumn.of(data, "temperature_K").label == "temperature [K]"
+    assert DrawnColumn.of(data, "RH").label == "RH [-]"
+    assert DrawnColumn.of(data, "load_N").label == "load [gf]"
+    assert DrawnColumn.of(data, "speed_m_s").label == "speed_m_s [m/s]"  # sent under its own name
+    drawn = DrawnColumn.of(data, "temperature_K")
+    assert drawn.shown([300.0]).tolist() == [300.0]  # its own unit: the values as they are
+    assert in_sent_words(data, "humidity_meniscus on RH; thermal on temperature_K") == (
+        "humidity_meniscus on RH [-]; thermal on temperature [K]")
