@@ -111,7 +111,9 @@ def located(dataset: Dataset, part: Mapping[str, Any]) -> dict[str, Any]:
     """
     reading = dataset.sent_reading(part["driver"])
     shown = {k: v for k, v in part.items() if k not in ("unit", "as_sent")}
-    as_sent = None if reading is None else {**in_sent_units(dataset, shown), "unit": reading.sent_unit}
+    # the unit written in the header, or the column's own where the header renamed it only (temperature [K])
+    as_sent = None if reading is None else {**in_sent_units(dataset, shown),
+                                            "unit": reading.sent_unit or unit_of(part["driver"])}
     return {**shown, "unit": unit_of(part["driver"]), "as_sent": as_sent}
 
 

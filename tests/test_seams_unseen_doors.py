@@ -67,7 +67,7 @@ def test_a_column_sent_under_another_header_in_its_own_unit_is_drawn_and_named_b
     # before: 'temperature [K]' (read as temperature_K, unconverted) was drawn as 'temperature_K [K]' and an
     # effect on 'RH [-]' (read as RH) was 'humidity_meniscus on RH': the header dropped where no unit changed
     from microbearing.calibrate.plots import DrawnColumn
-    from microbearing.calibrate.prose import in_sent_words
+    from microbearing.calibrate.prose import in_sent_words, located
     from microbearing.calibrate.tabular import read_rows
 
     rows = [{"balls": 4 + i % 3, "load [gf]": 1.0 + 0.1 * i, "speed_m_s": 0.05, "RH [-]": 0.2 + 0.05 * i,
@@ -80,5 +80,10 @@ def test_a_column_sent_under_another_header_in_its_own_unit_is_drawn_and_named_b
     assert DrawnColumn.of(data, "speed_m_s").label == "speed_m_s [m/s]"  # sent under its own name
     drawn = DrawnColumn.of(data, "temperature_K")
     assert drawn.shown([300.0]).tolist() == [300.0]  # its own unit: the values as they are
+    # a report's ranges under the header, in the unit it says (the column's own: K, 1)
+    assert located(data, {"driver": "temperature_K", "range": [295.0, 302.0]})["as_sent"] == {
+        "driver": "temperature [K]", "range": [295.0, 302.0], "unit": "K"}
+    assert located(data, {"driver": "RH", "range": [0.2, 0.55]})["as_sent"]["unit"] == "1"
+    assert located(data, {"driver": "load_N", "range": [0.0098, 0.0098]})["as_sent"]["unit"] == "gf"
     assert in_sent_words(data, "humidity_meniscus on RH; thermal on temperature_K") == (
         "humidity_meniscus on RH [-]; thermal on temperature [K]")
