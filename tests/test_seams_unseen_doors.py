@@ -87,3 +87,26 @@ def test_a_column_sent_under_another_header_in_its_own_unit_is_drawn_and_named_b
     assert located(data, {"driver": "load_N", "range": [0.0098, 0.0098]})["as_sent"]["unit"] == "gf"
     assert in_sent_words(data, "humidity_meniscus on RH; thermal on temperature_K") == (
         "humidity_meniscus on RH [-]; thermal on temperature [K]")
+
+
+def test_an_experiment_space_refuses_a_fraction_of_a_ball_in_the_words_of_every_other_door(tmp_path):
+    # before: "space.balls: ball counts must be whole numbers", where /v1/friction, batch, optimizations,
+    # UM-Bridge and the CLI say physics.validate's "balls must be a whole number in [1, 1e+06] [1]"
+    from fastapi.testclient import TestClient
+
+    from microbearing.service.app import create_app
+    from microbearing.service.settings import Settings
+
+    space = {"balls": {"values": [4, 6.5]}, "load_N": [0.005, 0.02], "speed_m_s": [0.01, 0.05]}
+    with TestClient(create_app(Settings(data_dir=tmp_path))) as client:
+        refused = client.post("/v1/experiments", json={"runs": 2, "fit_parameters": ["mu_pivot"],
+                                                        "space": space})
+        friction = client.post("/v1/friction", json={"balls": 6.5, "load_N": 0.01, "speed_m_s": 0.05})
+        chosen = client.post("/v1/experiments", json={"runs": 2, "fit_parameters": ["mu_pivot"],
+                                                       "space": {**space, "balls": {"values": [4.0, 6.0]}}})
+    assert refused.status_code == 422 and friction.status_code == 422
+    words = "balls must be a whole number in [1, 1e+06] [1]"
+    assert words in friction.json()["errors"][0]["detail"]
+    errors = refused.json()["errors"]
+    assert errors[0]["pointer"] == "/space/balls" and words in errors[0]["detail"], errors
+    assert chosen.status_code in (200, 202), chosen.text  # 6.0 is a whole count
