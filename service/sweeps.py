@@ -227,7 +227,14 @@ def result_bytes_bound(request: AnySweep, count: int) -> int:
                 "columns": {name: [] for name in columns}}
     if warnings := input_warnings(request):
         skeleton["input_warnings"] = warnings
+    # each input sent under another key, again in its unit (sent_columns): a fixed one as it will be written,
+    # a varied one's values as doubles
+    sent = sent_columns(request, SweepPlan({name: np.empty(0) for name in varied}, skeleton["fixed"], 0))
+    if sent:
+        skeleton["as_sent"] = sent
     size = len(json_bytes(skeleton)) + len(columns) * max(count - 1, 0)  # the commas between values
+    size += sum(count * MAX_NUMBER_BYTES + max(count - 1, 0) for part in sent.values()
+                if isinstance(part["values"], list))
     for name in varied:
         if name in axes:
             values = axes[name]
@@ -291,6 +298,29 @@ def design_columns(request: AnySweep, max_points: int) -> SweepPlan:
     return SweepPlan(varied, request.fixed.model_dump(exclude_none=True), count)
 
 
+def _sent_readings(request: AnySweep) -> dict[str, Any]:
+    """How each input the request sent under another key was read (:class:`physics.columns.Reading`)."""
+    varied = getattr(request, "axes", None) or getattr(request, "ranges", None)
+    return {**request.fixed.readings, **(varied.readings if isinstance(varied, InputKeys) else {})}
+
+
+def sent_columns(request: AnySweep, plan: SweepPlan) -> dict[str, dict[str, Any]]:
+    """Each input the request sent under another key (``speed [mm/min]``), under that key: ``column``, the
+    input it was read as, and ``values`` in the key's unit (:meth:`physics.columns.Reading.set_point`: 1000,
+    not 999.9999999999), one per point when varied, one when fixed."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, reading in _sent_readings(request).items():
+        if name in plan.varied:
+            values = np.asarray(plan.varied[name]).tolist()
+            shown = [reading.set_point(v) for v in values] if reading.reading else values
+        elif name in plan.fixed and not isinstance(plan.fixed[name], bool):
+            shown = reading.set_point(plan.fixed[name]) if reading.reading else plan.fixed[name]
+        else:
+            continue
+        out[reading.sent] = {"column": name, "values": shown}
+    return out
+
+
 def run_sweep(request: AnySweep, plan: SweepPlan,
               progress: Callable[[float], None] | None = None,
               executor: Executor | None = None) -> dict[str, Any]:
@@ -320,6 +350,8 @@ def run_sweep(request: AnySweep, plan: SweepPlan,
                                       chunk_points=CHUNK_POINTS))
     document = {"design": request.design, "count": plan.count, "varied": list(plan.varied),
                 "fixed": dict(plan.fixed), "columns": columns}
+    if sent := sent_columns(request, plan):
+        document["as_sent"] = sent
     if warnings := input_warnings(request):
         document["input_warnings"] = warnings
     return document

@@ -109,22 +109,35 @@ def csv_text(columns: Mapping[str, Any]) -> str:
 def sweep_table(document: Mapping[str, Any]) -> dict[str, Any]:
     """The columns of a table result with its fixed inputs as columns: varied inputs, fixed ones, outputs.
 
-    A result without ``fixed`` (or ``varied``) gives its ``columns`` as they are.
+    A result without ``fixed`` (or ``varied``) gives its ``columns`` as they are. An input the request sent
+    under another key (``as_sent``) is that column, under that key and in its unit, as the request said it.
 
     >>> sweep_table({"count": 2, "varied": ["speed_m_s"], "fixed": {"load_N": 0.01},
     ...              "columns": {"speed_m_s": [0.0, 0.1], "mu": [0.01, 0.02]}})
     {'speed_m_s': [0.0, 0.1], 'load_N': [0.01, 0.01], 'mu': [0.01, 0.02]}
+    >>> sweep_table({"count": 2, "varied": ["speed_m_s"], "fixed": {"load_N": 0.01},
+    ...              "columns": {"speed_m_s": [0.0, 0.1], "mu": [0.01, 0.02]},
+    ...              "as_sent": {"speed [mm/s]": {"column": "speed_m_s", "values": [0.0, 100.0]}}})
+    {'speed [mm/s]': [0.0, 100.0], 'load_N': [0.01, 0.01], 'mu': [0.01, 0.02]}
     """
     columns = document["columns"]
     fixed = document.get("fixed") or {}
     varied = document.get("varied") or []
     if not fixed:
-        return dict(columns)
-    count = int(document.get("count", len(next(iter(columns.values()), []))))
-    table = {name: columns[name] for name in varied if name in columns}
-    table.update({name: [value] * count for name, value in fixed.items() if name not in columns})
-    table.update({name: values for name, values in columns.items() if name not in table})
-    return table
+        table = dict(columns)
+    else:
+        count = int(document.get("count", len(next(iter(columns.values()), []))))
+        table = {name: columns[name] for name in varied if name in columns}
+        table.update({name: [value] * count for name, value in fixed.items() if name not in columns})
+        table.update({name: values for name, values in columns.items() if name not in table})
+    sent = {part["column"]: (key, part["values"]) for key, part in (document.get("as_sent") or {}).items()}
+    if not sent:
+        return table
+    count = len(next(iter(table.values()), []))
+    return {sent[name][0] if name in sent else name:
+            (values if name not in sent else sent[name][1] if isinstance(sent[name][1], list)
+             else [sent[name][1]] * count)
+            for name, values in table.items()}
 
 
 def table_response(request: Request, document: Mapping[str, Any], columns: Mapping[str, Any],

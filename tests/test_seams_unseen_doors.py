@@ -110,3 +110,53 @@ def test_an_experiment_space_refuses_a_fraction_of_a_ball_in_the_words_of_every_
     errors = refused.json()["errors"]
     assert errors[0]["pointer"] == "/space/balls" and words in errors[0]["detail"], errors
     assert chosen.status_code in (200, 202), chosen.text  # 6.0 is a whole count
+
+
+@pytest.mark.parametrize("sweep", [
+    {"design": "grid", "fixed": {"load [gf]": 1.0, "balls": 6.0}, "outputs": ["mu"],
+     "axes": {"speed [mm/min]": {"start": 1000, "stop": 6000, "num": 3}}},
+    {"design": "sobol", "points": 16, "seed": 3, "outputs": ["mu"], "fixed": {"speed [cm/s]": 5},
+     "ranges": {"load [gf]": {"low": 0.5, "high": 2}, "balls": [4, 8]}},
+], ids=["grid", "sobol"])
+def test_a_sweep_answers_in_the_keys_and_units_it_was_sent(tmp_path, sweep):
+    # before: the table said speed_m_s 0.0166666666666667 and load_N 0.00980665 for speed [mm/min] 1000 and
+    # load [gf] 1, in JSON and CSV alike, where the CLI's evaluate --csv answers a file in its headers
+    import csv
+    import io
+
+    import numpy as np
+    from fastapi.testclient import TestClient
+    from pydantic import TypeAdapter
+
+    from microbearing.service.app import create_app
+    from microbearing.service.schemas.sweeps import SweepRequest
+    from microbearing.service.settings import Settings
+    from microbearing.service.store import json_bytes
+    from microbearing.service.sweeps import MAX_NUMBER_BYTES, design_columns, result_bytes_bound, run_sweep
+
+    with TestClient(create_app(Settings(data_dir=tmp_path))) as client:
+        document = client.post("/v1/sweeps", json=sweep).json()
+        table = client.post("/v1/sweeps", json=sweep, headers={"Accept": "text/csv"}).text
+    sent = document["as_sent"]
+    # by hand: mm/min = 60000 x m/s, gf = N / 0.00980665, cm/s = 100 x m/s
+    factor = {"speed [mm/min]": 60000.0, "load [gf]": 1 / 0.00980665, "speed [cm/s]": 100.0}
+    for key, part in sent.items():
+        si = document["columns"].get(part["column"], document["fixed"].get(part["column"]))
+        assert np.allclose(np.asarray(part["values"]), np.asarray(si) * factor[key], rtol=1e-12), (key, part)
+    if sweep["design"] == "grid":
+        assert sent["speed [mm/min]"]["values"] == [1000, 3500, 6000] and sent["load [gf]"]["values"] == 1
+    rows = list(csv.DictReader(io.StringIO(table)))
+    assert set(sent) <= set(rows[0]) and not {part["column"] for part in sent.values()} & set(rows[0])
+    for key, part in sent.items():
+        values = part["values"] if isinstance(part["values"], list) else [part["values"]] * len(rows)
+        assert [float(r[key]) for r in rows] == pytest.approx(values, rel=1e-12)
+    # the result's size is bounded before a point is computed, exactly but for the digits of the values
+    # not known then (an output's, a sampled input's, and their values as sent)
+    body = TypeAdapter(SweepRequest).validate_json(json.dumps(sweep))
+    result = run_sweep(body, design_columns(body, 10**6))
+    unknown = [*(result["columns"][n] for n in result["columns"]
+                 if sweep["design"] != "grid" or n not in result["varied"]),
+               *(p["values"] for p in result["as_sent"].values() if isinstance(p["values"], list))]
+    shortfall = sum(MAX_NUMBER_BYTES - len(json_bytes(v)) for values in unknown
+                    for v in np.asarray(values).tolist())
+    assert result_bytes_bound(body, result["count"]) - len(json_bytes(result)) == shortfall

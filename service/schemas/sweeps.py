@@ -212,6 +212,14 @@ class LatinHypercubeSweep(_SampledSweep):
 SweepRequest = Annotated[GridSweep | SobolSweep | LatinHypercubeSweep, Field(discriminator="design")]
 
 
+class SentColumn(ResponseModel):
+    """An input the request sent under another key, as it sent it."""
+
+    column: str = Field(description="The input it was read as (a column of columns, or of fixed).")
+    values: list[float] | float = Field(description=(
+        "Its values [the key's unit, e.g. mm/min]: one per point for a varied input, one for a fixed one."))
+
+
 class SweepResult(ResponseModel):
     """The sweep as a table: the varied inputs, then the chosen outputs, one row per point."""
 
@@ -224,4 +232,8 @@ class SweepResult(ResponseModel):
         "columns after the varied inputs; null for results stored before it)."))
     columns: dict[str, list[float]] = Field(
         description="Column name to values: varied inputs in their units, then outputs in theirs.")
+    as_sent: dict[str, SentColumn] | None = Field(default=None, description=(
+        "Each input the request sent under another key ('speed [mm/min]', 'load [gf]'), under that key and "
+        "in its unit, to the digits the value holds; the CSV form of the table gives these columns so, in "
+        "place of the input's. Absent when every input was sent under its own name."))
     input_warnings: INPUT_WARNINGS[0] = INPUT_WARNINGS[1]
