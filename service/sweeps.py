@@ -30,7 +30,8 @@ from .schemas.sweeps import GridSweep, LatinHypercubeSweep, SobolSweep
 from .store import json_bytes
 
 __all__ = ["CHUNK_POINTS", "MAX_NUMBER_BYTES", "SweepPlan", "check_result_size", "design_columns",
-           "design_size", "input_warnings", "result_bytes_bound", "run_sweep"]
+           "design_size", "input_warnings", "result_bytes_bound", "run_sweep", "sent_columns",
+           "stored_request"]
 
 #: Points evaluated per chunk: bounds memory and sets how often progress is reported.
 CHUNK_POINTS = 65_536
@@ -296,6 +297,20 @@ def design_columns(request: AnySweep, max_points: int) -> SweepPlan:
         # The first points of a scrambled Sobol' sequence, or a plain (unoptimized) Latin hypercube.
         varied = sampled_values(ranges, request.points, request.design, request.seed)
     return SweepPlan(varied, request.fixed.model_dump(exclude_none=True), count)
+
+
+def stored_request(request: AnySweep) -> dict[str, Any]:
+    """The request as a job keeps it (JSON, rebuilt by its kind in any process, after a restart too): its
+    dump with each input sent under another key back under that key and as sent, so that the job answers
+    in them as a sweep answered at once does (:func:`sent_columns`)."""
+    stored = request.model_dump(mode="json")
+    for part in ("fixed", "axes", "ranges"):
+        owner = getattr(request, part, None)
+        if isinstance(owner, InputKeys) and isinstance(stored.get(part), dict):
+            for name, (key, value) in owner.renamed.items():
+                stored[part].pop(name, None)
+                stored[part][key] = value
+    return stored
 
 
 def _sent_readings(request: AnySweep) -> dict[str, Any]:

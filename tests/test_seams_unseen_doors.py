@@ -160,3 +160,34 @@ def test_a_sweep_answers_in_the_keys_and_units_it_was_sent(tmp_path, sweep):
     shortfall = sum(MAX_NUMBER_BYTES - len(json_bytes(v)) for values in unknown
                     for v in np.asarray(values).tolist())
     assert result_bytes_bound(body, result["count"]) - len(json_bytes(result)) == shortfall
+
+
+def test_a_sweep_job_answers_in_the_keys_sent_as_one_answered_at_once(tmp_path):
+    # a sweep past the synchronous limit is a job, rebuilt from its stored request by any process (after a
+    # restart too): before, that request was the SI dump, and the rebuilt sweep answered only speed_m_s
+    from fastapi.testclient import TestClient
+    from jobs_helper import wait_job
+    from pydantic import TypeAdapter
+
+    from microbearing.service.app import create_app
+    from microbearing.service.schemas.sweeps import SweepRequest
+    from microbearing.service.settings import Settings
+    from microbearing.service.store import json_bytes
+    from microbearing.service.sweeps import design_columns, sent_columns, stored_request
+
+    sweep = {"design": "grid", "fixed": {"load [gf]": 1.0, "balls": 6}, "outputs": ["mu"],
+             "axes": {"speed [mm/min]": {"start": 1000, "stop": 6000, "num": 3}}}
+    with TestClient(create_app(Settings(data_dir=tmp_path, sweep_sync_max_points=2))) as client:
+        job = wait_job(client, client.post("/v1/sweeps", json=sweep), timeout_s=120)
+        assert job["status"] == "succeeded", job
+        result = client.get(job["result_url"]).json()
+        table = client.get(job["result_url"], headers={"Accept": "text/csv"}).text
+    assert result["as_sent"]["speed [mm/min]"] == {"column": "speed_m_s", "values": [1000, 3500, 6000]}
+    assert result["columns"]["speed_m_s"] == pytest.approx([1 / 60, 3.5 / 60, 0.1], rel=1e-12)
+    assert table.splitlines()[0] == "speed [mm/min],balls,load [gf],mu"
+    adapter = TypeAdapter(SweepRequest)
+    body = adapter.validate_json(json.dumps(sweep))
+    rebuilt = adapter.validate_json(json_bytes(stored_request(body)))  # as a job kind rebuilds it
+    sent = sent_columns(body, design_columns(body, 100))
+    assert sent and sent_columns(rebuilt, design_columns(rebuilt, 100)) == sent
+    assert rebuilt.model_dump() == body.model_dump()  # the same sweep

@@ -13,7 +13,7 @@ from ..job_kinds import sweep_work
 from ..problems import problem_responses
 from ..schemas import examples
 from ..schemas.sweeps import SweepRequest, SweepResult
-from ..sweeps import check_result_size, design_columns, design_size, run_sweep
+from ..sweeps import check_result_size, design_columns, design_size, run_sweep, stored_request
 from ..tables import CSV_MEDIA_TYPE, sweep_table, table_response
 from .jobs import ACCEPTED_RESPONSE, accepted
 
@@ -53,5 +53,5 @@ async def create_sweep(
         document = await run_in_threadpool(run_sweep, body, plan, None, executor)
         return table_response(request, document, sweep_table(document))
 
-    request = body.model_dump(mode="json")
+    request = stored_request(body)  # the inputs sent under other keys as sent: the job answers in them
     return accepted(jobs.submit("sweep", request, sweep_work(body, settings, executor), inputs=request))
