@@ -61,9 +61,9 @@ from microbearing.physics.columns import counted_from_zero, outside_range, physi
 from microbearing.physics.effects import Domain
 
 __all__ = ["CLOUD_ALPHA", "CONFOUNDED_RHO", "EXTRAPOLATION_SHARE", "REPLICATE_JITTER", "CloudSpace",
-           "DataCloud", "LawDomain", "confounded_pairs", "confounding_words", "extrapolation_allowance",
-           "extrapolation_bound", "law_domains", "outside_law_domains", "outside_physical_ranges",
-           "range_slack"]
+           "DataCloud", "LawDomain", "confounded_pairs", "confounding_words", "edge_trends",
+           "extrapolation_allowance", "extrapolation_bound", "law_domains", "outside_law_domains",
+           "outside_physical_ranges", "range_slack"]
 
 #: Chance that a new point drawn like the data is flagged outside the cloud. [1]
 CLOUD_ALPHA = 0.02
@@ -137,8 +137,18 @@ EXTRAPOLATION_SHARE = 0.25
 _LOG_FLOOR = 1e-3
 
 
-def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = None
-                            ) -> tuple[np.ndarray, np.ndarray]:
+def _coordinate(value: np.ndarray, low: np.ndarray, high: np.ndarray, start: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """A physics input's values in the allowance's coordinate (its log when ``low`` > 0, at no less than
+    :data:`_LOG_FLOOR` of ``start``, else its unit), and whether it is the log."""
+    log = low > 0
+    with np.errstate(all="ignore"):
+        floor = _LOG_FLOOR * np.where(start > 0, start, high)
+        return np.where(log, np.log(np.maximum(value, floor)), value), log
+
+
+def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = None,
+                            trend: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The extrapolation allowance of values of a physics input whose data spanned [low, high], and the
     side they lie on (-1 below, 0 inside, +1 above); broadcasting.
 
@@ -146,8 +156,12 @@ def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = 
     of ``rows`` values at each end) the allowance is 0; beyond it, 1 + d / (share x
     span), d the distance beyond the widened end and span = high - low, both in the input's log when
     ``low`` > 0 (a value at or below 0 is taken at :data:`_LOG_FLOOR` of the end), else in its unit;
-    share :data:`EXTRAPOLATION_SHARE`. It multiplies the interval's log half-width
-    (:meth:`calibrate.CalibratedModel.cloud_ratio`).
+    share :data:`EXTRAPOLATION_SHARE`. With the ``trend`` the data hint at beyond each end
+    (:func:`edge_trends`, in units of the interval's half-width: level and growth per unit of the same
+    coordinate at the low end, then at the high end), it grows by ``level + growth x D`` more, D the
+    distance beyond the data's end: the departure the residuals trend to there, on top of the rule. It
+    multiplies the interval's log half-width (:meth:`calibrate.CalibratedModel.cloud_ratio`); it never
+    falls with the distance (a box's largest and least allowance are at its ends).
 
     Returns
     -------
@@ -157,17 +171,74 @@ def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = 
     value, low, high = (np.asarray(x, dtype=float) for x in (value, low, high))
     slack = range_slack(low, high, rows)
     start, end = low - slack, high + slack
-    log = low > 0
+    at, log = _coordinate(value, low, high, start)
+    (lo_at, _), (hi_at, _), (start_at, _), (end_at, _) = (_coordinate(x, low, high, start)
+                                                          for x in (low, high, start, end))
     with np.errstate(all="ignore"):
-        floor = _LOG_FLOOR * np.where(start > 0, start, high)
-        at = np.log(np.maximum(value, floor))
-        below = np.where(log, np.log(np.maximum(start, floor)) - at, start - value)
-        above = np.where(log, at - np.log(end), value - end)
-        span = np.where(log, np.log(high / np.where(log, low, 1.0)), high - low)
+        below, above = start_at - at, at - end_at
+        span = np.where(log, hi_at - lo_at, high - low)
         d = np.maximum(np.maximum(below, above), 0.0) / (EXTRAPOLATION_SHARE * span)
     d = np.where(np.isfinite(d) & (span > 0), d, 0.0)
     side = np.where(d > 0, np.where(below > 0, -1, 1), 0)
-    return np.where(d > 0, 1.0 + d, 0.0), side
+    extra = 0.0
+    if trend is not None:
+        level_low, growth_low, level_high, growth_high = (float(x) for x in trend)
+        extra = np.where(side < 0, level_low + growth_low * np.maximum(lo_at - at, 0.0),
+                         level_high + growth_high * np.maximum(at - hi_at, 0.0))
+    return np.where(d > 0, 1.0 + d + extra, 0.0), side
+
+
+def edge_trends(columns: Mapping[str, Any], residual: Any, rows: Any,
+                ranges: Mapping[str, tuple[float, float]]) -> dict[str, list[float]]:
+    """The departure from the model that the data hint at beyond each end of each physics input's range.
+
+    For each input of ``ranges`` (name -> the data's [low, high]) whose ``rows`` (a boolean mask: the
+    measured rows that are not outliers) hold at least 8 rows and 4 distinct values, a quadratic in the
+    allowance's coordinate (the input's log when low > 0, else its unit) is fitted by least squares to
+    the ``residual`` (held-out log of measured over predicted μ), as a generic quadratic term on that
+    input would be, and read at each end of the range: its value r and outward slope b there, each with
+    its standard error se from the fit. Beyond the end the quadratic goes on along its tangent (as the
+    generic term does), and the departure's size at a distance D beyond the end is taken as
+    ``|r|' + |b|' D`` with ``|x|' = sqrt(max(x^2 - se^2, 0))``, the part of each coefficient's size its
+    noise does not explain (``x^2 - se^2`` estimates the squared true coefficient without bias): on data
+    the model fits to the edge this is mostly 0, and it grows where the residuals bend or tilt near the
+    end, what the data say of the departure there. Not a bound on any departure: data that are flat to
+    their end say nothing of a rise beyond it, which the rule's allowance
+    (:func:`extrapolation_allowance`) alone holds.
+
+    Returns
+    -------
+    dict of str to list of float
+        name -> [level, growth at the low end, level, growth at the high end]: log μ [1] and log μ per
+        unit of the coordinate (per e-fold of a positive input).
+    """
+    residual, rows = np.asarray(residual, dtype=float), np.asarray(rows, dtype=bool)
+    out: dict[str, list[float]] = {}
+    for name, (low, high) in ranges.items():
+        if name not in columns:
+            continue
+        x = np.asarray(columns[name], dtype=float)
+        keep = rows & np.isfinite(x) & np.isfinite(residual)
+        if keep.sum() < 8 or np.unique(x[keep]).size < 4 or not high > low:
+            continue
+        u, _ = _coordinate(x[keep], np.float64(low), np.float64(high), np.float64(low))
+        ends, _ = _coordinate(np.array([low, high], dtype=float), np.float64(low), np.float64(high),
+                              np.float64(low))
+        middle, half = 0.5 * (ends[0] + ends[1]), 0.5 * (ends[1] - ends[0])
+        t = (u - middle) / half
+        design = np.stack([np.ones_like(t), t, t * t], axis=1)
+        coefficients, *_ = np.linalg.lstsq(design, residual[keep], rcond=None)
+        left = residual[keep] - design @ coefficients
+        covariance = float(left @ left) / (t.size - 3) * np.linalg.pinv(design.T @ design)
+        trend = []
+        for edge, outward in ((-1.0, -1.0), (1.0, 1.0)):
+            level_row = np.array([1.0, edge, edge * edge])
+            slope_row = outward * np.array([0.0, 1.0, 2.0 * edge]) / half
+            for row in (level_row, slope_row):
+                estimate, variance = float(row @ coefficients), float(row @ covariance @ row)
+                trend.append(float(np.sqrt(max(estimate * estimate - variance, 0.0))))
+        out[name] = trend
+    return out
 
 
 def range_slack(low: Any, high: Any, rows: int | None = None) -> np.ndarray:
@@ -184,10 +255,12 @@ def range_slack(low: Any, high: Any, rows: int | None = None) -> np.ndarray:
 
 def extrapolation_bound(ranges: Mapping[str, tuple[float, float]], rows: int | None,
                         low: Mapping[str, Any], high: Mapping[str, Any], shape: tuple[int, ...],
-                        lower: bool = False) -> np.ndarray:
+                        lower: bool = False, trends: Mapping[str, Sequence[float]] | None = None
+                        ) -> np.ndarray:
     """The largest (``lower``: least) extrapolation allowance over boxes of points [1], largest over the
     inputs of ``ranges`` (name -> the data's [low, high]) that ``low`` gives (a point is a box with
-    ``low`` = ``high``; columnar, one box per entry). The allowance grows with the distance beyond a
+    ``low`` = ``high``; columnar, one box per entry), with each input's ``trends`` (as
+    :func:`extrapolation_allowance`'s, by name). The allowance grows with the distance beyond a
     range, so it is largest at one of a box's ends and least at its end nearest the range (0 when the box
     meets the range): exact, not only a bound."""
     ratio = np.zeros(shape)
@@ -195,9 +268,10 @@ def extrapolation_bound(ranges: Mapping[str, tuple[float, float]], rows: int | N
         if name not in low:
             continue
         a, b = (np.broadcast_to(np.asarray(p[name], dtype=float), shape) for p in (low, high))
-        ra, side_a = extrapolation_allowance(a, lo, hi, rows)
+        trend = (trends or {}).get(name)
+        ra, side_a = extrapolation_allowance(a, lo, hi, rows, trend)
         # points (low is high): one end
-        rb, side_b = (ra, side_a) if low is high else extrapolation_allowance(b, lo, hi, rows)
+        rb, side_b = (ra, side_a) if low is high else extrapolation_allowance(b, lo, hi, rows, trend)
         if lower:
             meets = (side_a == 0) | (side_b == 0) | (side_a != side_b)
             r = np.where(meets, 0.0, np.minimum(ra, rb))

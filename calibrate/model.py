@@ -54,6 +54,8 @@ __all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMA
 FORMAT_VERSION = 2
 # Relative step of the finite-difference gradient of log mu in the fitted values.
 _GRADIENT_STEP = 1e-6
+# The standard normal quantile of a 95 % interval: the unit of an edge trend in the allowance. [1]
+_Z95 = 1.959963984540054
 
 
 @dataclass(frozen=True)
@@ -142,6 +144,9 @@ class CalibratedModel:
     headers : dict of str to str
         The upload's header of each column it sent in another unit than the column's name says
         (:attr:`Dataset.headers`): a key at prediction that states no unit is judged against it.
+    edge_trends : dict of str to list of float
+        Per physics input, the departure the held-out residuals trend to beyond each end of its range
+        (:func:`calibrate.domain.edge_trends`, log μ): the extrapolation allowance grows by it there.
     """
 
     fitted: dict[str, float] = field(default_factory=dict)
@@ -160,6 +165,7 @@ class CalibratedModel:
     rivals: list[RivalModel] = field(default_factory=list, repr=False)
     clock: dict[str, str] = field(default_factory=dict)
     headers: dict[str, str] = field(default_factory=dict)
+    edge_trends: dict[str, list[float]] = field(default_factory=dict)
     #: Relative step of the finite-difference gradient of log μ in each fitted value (the interval's
     #: parameter share; absolute for a value of 0), for callers that bound the interval. [1]
     gradient_step: ClassVar[float] = _GRADIENT_STEP
@@ -573,7 +579,14 @@ class CalibratedModel:
         points = {k: v for k, v in points.items() if k not in self.factors}
         if shape is None:
             shape = np.broadcast_shapes(*(np.shape(v) for v in points.values())) if points else ()
-        return extrapolation_bound(self.extrapolation_inputs(), self.domain_rows, points, points, shape)
+        return extrapolation_bound(self.extrapolation_inputs(), self.domain_rows, points, points, shape,
+                                   trends=self._trend_ratios())
+
+    def _trend_ratios(self) -> dict[str, list[float]]:
+        """:attr:`edge_trends` in units of the 95 % half-width of the scatter (z x noise), the allowance's
+        unit: beyond an end the interval's half-width grows by at least the departure there."""
+        scale = _Z95 * float(self.noise_std_log or 0.0)
+        return {k: [x / scale for x in v] for k, v in self.edge_trends.items()} if scale > 0 else {}
 
     def discrepancy_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -602,7 +615,8 @@ class CalibratedModel:
         and the extrapolation allowance's exact range over the box)."""
         low = {k: v for k, v in low.items() if k not in self.factors}
         high = {k: v for k, v in high.items() if k not in self.factors}
-        ratio = extrapolation_bound(self.extrapolation_inputs(), self.domain_rows, low, high, shape, lower)
+        ratio = extrapolation_bound(self.extrapolation_inputs(), self.domain_rows, low, high, shape, lower,
+                                    self._trend_ratios())
         if self.cloud is None:
             return ratio
         given = list(low)
@@ -677,9 +691,12 @@ class CalibratedModel:
                     # reads the input in its unit, 300 mm/s beyond data at 5-50 mm/s: 14.6 against 4.09).
                     ratio = self.cloud_ratio(points, shape) if ratio is None else ratio
                     applied = float(np.max(self.widening(np.broadcast_to(ratio, shape)[~ok])))
-                    factor = float(np.max(extrapolation_allowance(bad, lo, hi, self.domain_rows)[0]))
+                    trend = self._trend_ratios().get(name)
+                    factor = float(np.max(extrapolation_allowance(bad, lo, hi, self.domain_rows, trend)[0]))
                     share = 100 * EXTRAPOLATION_SHARE
-                    rule = f"by one for every {share:.0f} % of the data's span beyond it"
+                    rule = f"by one for every {share:.0f} % of the data's span beyond it" + (
+                        ", and by the departure the data's residuals trend to at that end"
+                        if trend and any(trend) else "")
                     why = (f"the extrapolation allowance: {rule}" if applied <= factor * (1 + 1e-9) else
                            f"the distance from the calibration data's rows or another input's allowance, "
                            f"larger there than this one's, up to {factor:.3g} ({rule})")
@@ -726,6 +743,7 @@ class CalibratedModel:
             "rivals": [r.to_json() for r in self.rivals],
             "clock": dict(self.clock),
             "headers": dict(self.headers),
+            "edge_trends": {k: list(map(float, v)) for k, v in self.edge_trends.items()},
         }
 
     @classmethod
@@ -793,6 +811,7 @@ class CalibratedModel:
             [RivalModel.from_json(r) for r in data.get("rivals") or []],
             {str(k): str(v) for k, v in dict(data.get("clock") or {}).items()},
             {str(k): str(v) for k, v in dict(data.get("headers") or {}).items()},
+            {str(k): [float(x) for x in v] for k, v in dict(data.get("edge_trends") or {}).items()},
         )
 
     @classmethod

@@ -41,7 +41,7 @@ from .censored import beyond_clip, measured_rows, residual_variance
 from .data import Dataset, parse_csv, parse_rows
 from .decidability import few_rows, rows_for_gp, rows_for_terms, terms_supported, undecided
 from .discrepancy import gp_discrepancy, residual_gp, residual_gp_words
-from .domain import DataCloud, confounded_pairs, confounding_words
+from .domain import DataCloud, confounded_pairs, confounding_words, edge_trends
 from .fit import FitResult, check_fit_parameters, fit, predict_mu, prediction_errors
 from .groups import describe_groups, fit_group_effect, why_not_fitted, within_groups
 from .measurement import drift_words, inspect, lack_of_fit, with_censor_scale
@@ -653,6 +653,7 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     cloud = DataCloud.from_columns(varying, options.seed)
     model = CalibratedModel.from_fit(final, dataset, convention, noise_std_log, discrepancy=leftover["gp"],
                                      groups=group_effects, scatter=scatter, cloud=cloud)
+    model = replace(model, edge_trends=edge_trends(varying, held_out, values, model.extrapolation_inputs()))
     # Rivals: terms that fit about as well as a chosen one, and terms on a column that moves with one the
     # model reads (calibrate.rivals): the interval holds their envelope.
     pairs = confounded_pairs(varying)

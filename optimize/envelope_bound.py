@@ -152,12 +152,13 @@ class Piece:
 
 
 #: The parts of a calibrated model the bounds here account for (``domain_rows`` only moves the domain
-#: flag; ``clock`` and ``headers`` say how a point's keys and times are read, before μ is asked); a model
-#: with any other part set (group effects, whose shift follows a parameter's sensitivity) is not bounded:
-#: said, not guessed.
+#: flag; ``clock`` and ``headers`` say how a point's keys and times are read, before μ is asked;
+#: ``edge_trends`` only widens the interval beyond a range, in ``cloud_ratio_bound``); a model with any
+#: other part set (group effects, whose shift follows a parameter's sensitivity) is not bounded: said,
+#: not guessed.
 _BOUNDED_PARTS = frozenset({"fitted", "fixed", "terms", "convention", "covariance", "noise_std_log", "domain",
                             "conditions", "discrepancy", "rivals", "domain_rows", "cloud", "groups", "clock",
-                            "headers"})
+                            "headers", "edge_trends"})
 
 
 def _unbounded_part(calibrated: Any, interval: bool = False) -> str | None:
