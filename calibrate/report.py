@@ -636,8 +636,8 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     # The GP reads values: a clipped row enters at the mean true reading beyond its clip under the model
     # (calibrate.censored.beyond_clip); on the measured rows alone it learned the truncation near the clip.
     values = inliers & measured_rows(dataset.censored, dataset.n_points)
-    read = replace(dataset, censored=None,
-                   mu_measured=beyond_clip(mu_after, measured, dataset.censored, dataset.censor_scale))
+    read = replace(dataset, censored=None, mu_measured=np.exp(-group_shift)  # each row's group level out
+                   * beyond_clip(mu_after, measured, dataset.censored, dataset.censor_scale))
     leftover = residual_gp(read, declared.outer, nested.fold_mu, mu_after, inliers, options.gp_max_train,
                            options.seed)
     leftover = _confirm_gp(declared, final, leftover, mu_after, inliers, options, read)
