@@ -576,3 +576,23 @@ def test_unit_slips_need_a_unit_s_factor_an_empty_gap_and_a_minority():
         slips = unit_slips(parse_rows(rows, fixed={"balls": BALLS}))
         assert [(s.factor, s.below) for s in slips] == ([] if expected is None else [expected]), column
     assert slips[0].rows == (3, 50, 60, 70, 99)
+
+
+def test_humidity_in_percent_on_some_rows_is_refused_at_the_first_of_them_converting_those_only(client):
+    # before: 15 of 150 humidities in percent among fractions were refused at row 1 with the advice for a
+    # whole column ("give fractions (divide by 100)"), which would have made the other 135 rows 0.002-0.008
+    rng = np.random.default_rng(465)
+    n = 150
+    rh = rng.uniform(0.2, 0.8, n)
+    slipped = np.sort(rng.choice(n, 15, replace=False))
+    rh[slipped] *= 100
+    load = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n))
+    rows = as_rows({"load_N": load, "speed_m_s": np.full(n, 0.05), "relative_humidity": rh},
+                   truth(load, 0.05) * np.exp(rng.normal(0.0, NOISE, n)))
+    response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"],
+                                                     "fixed": {"balls": BALLS}})
+    assert response.status_code == 422
+    (error,) = [e for e in response.json()["errors"] if "relative_humidity" in e["pointer"]]
+    assert error["pointer"] == f"/data/{slipped[0]}/relative_humidity"
+    assert "15 of 150 values lie above 1: those look like percent" in error["detail"]
+    assert "convert those rows only" in error["detail"] and "divide by 100" not in error["detail"]
