@@ -16,6 +16,12 @@ before it reads the data as physics:
   is found (:func:`inspect`) and those rows are censored: they say the true μ is beyond the clip, and
   enter the fit by that probability (:mod:`calibrate.censored`), not as values.
 * **Constant data.** μ identical in every row tells nothing a term could follow: said, and no term.
+* **Unit slips in part of the rows.** A few rows of an input or condition (at least
+  :data:`_SLIP_MIN_ROWS`, at most :data:`_SLIP_MAX_SHARE` of them) sitting a unit's factor
+  (:data:`SLIP_FACTORS`: percent, a prefix step, a millionth) away from the others, with no row within a
+  factor 10 between, and back among the others once scaled by it (a load in N in a mN column) are said
+  and left out (:func:`unit_slips`): read as physics they were a law (a load law, a GP) or a scatter of
+  15-20 % for a true 3 %.
 * **Drift.** An order (``run_index``) or time column (ISO 8601 times read as hours,
   :mod:`calibrate.data`) is a candidate driver of the effect ``measurement_drift`` (the reading drifts
   over the session: gauge drift, AIAG MSA), distinct from a run-in of the bearing with its cycles, and of
@@ -27,7 +33,7 @@ before it reads the data as physics:
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
 from typing import Any
 
@@ -41,8 +47,8 @@ from .censored import measured_rows
 from .data import Dataset
 from .fit import fit, kfold_indices, robust_scale
 
-__all__ = ["JITTER", "LackOfFit", "MeasurementSystem", "Saturation", "drift_words", "folds", "inspect",
-           "lack_of_fit", "with_censor_scale"]
+__all__ = ["JITTER", "SLIP_FACTORS", "LackOfFit", "MeasurementSystem", "Saturation", "UnitSlip",
+           "drift_words", "folds", "inspect", "lack_of_fit", "unit_slips", "with_censor_scale"]
 
 #: Relative jitter within which two values of an input are one level of a design (log scale for a
 #: positive column, of the column's range otherwise). [1]
@@ -54,6 +60,16 @@ _PILE_MIN = 5
 _PILE_OVER_TIES = 3
 # A design needs at least this many points per fold for folds of whole points. [1]
 _POINTS_PER_FOLD = 1
+#: Factors of a unit slip: percent written in a fraction's column (100), a prefix step (1000: N in a mN
+#: column, m/s in a mm/s one), a millionth (1e6: µN in an N column). [1]
+SLIP_FACTORS = (1e2, 1e3, 1e6)
+# Rows on the slip's side of the gap at least, and their share of the rows at most. [1]
+_SLIP_MIN_ROWS = 3
+_SLIP_MAX_SHARE = 0.25
+# The gap's width in decades at least (no row within a factor 10), and how far in decades the two sides'
+# medians may be from a factor of SLIP_FACTORS and the slipped rows, scaled, beyond the others' range. [1]
+_SLIP_GAP = 1.0
+_SLIP_TOLERANCE = 0.3
 
 
 @dataclass(frozen=True)
@@ -84,6 +100,50 @@ class Saturation:
                 f"{'largest' if self.side == 'upper' else 'smallest'} value: a sensor at its clip; they are "
                 f"censored (the true mu is {beyond} {self.level:.6g}) and enter the fit by that "
                 f"probability (Tobit likelihood), not as values")
+
+
+@dataclass(frozen=True)
+class UnitSlip:
+    """Rows of one column a unit's factor away from the others (:func:`unit_slips`).
+
+    Attributes
+    ----------
+    column : str
+        The column as sent (its header or JSON key).
+    factor : float
+        The unit's factor, one of :data:`SLIP_FACTORS`. [1]
+    below : bool
+        Whether the slipped rows read ``factor`` times below the others (else above).
+    rows : tuple of int
+        The slipped rows, 0-based, of the rows as sent.
+    share : float
+        Their share of the rows. [1]
+    gap : float
+        The empty gap between them and the others, a factor. [1]
+    """
+
+    column: str
+    factor: float
+    below: bool
+    rows: tuple[int, ...]
+    share: float
+    gap: float
+
+    def words(self) -> str:
+        """The slip in words, its rows numbered from 1."""
+        listed = ", ".join(str(r + 1) for r in self.rows[:10]) + (", ..." if len(self.rows) > 10 else "")
+        factor, side = f"{self.factor:g}", "below" if self.below else "above"
+        return (f"{self.column}: {len(self.rows)} rows ({100 * self.share:.0f} %) read about {factor}x "
+                f"{side} the others, none within a factor {self.gap:.3g} between them, and x {factor} fall "
+                f"among them (rows {listed}): a unit slip (written in a unit {factor}x "
+                f"{'larger' if self.below else 'smaller'} than the column's); those rows are left out of "
+                f"the fit, not read as physics")
+
+    def to_json(self) -> dict[str, Any]:
+        """The slip as data (rows 1-based), with ``summary`` in words."""
+        return {"column": self.column, "factor": self.factor, "below": self.below,
+                "rows": [r + 1 for r in self.rows], "share": self.share, "gap": self.gap,
+                "summary": self.words()}
 
 
 @dataclass(frozen=True)
@@ -170,6 +230,10 @@ class MeasurementSystem:
         The one value of μ when every row reads it, else None. [1]
     grouped_folds : bool
         Whether folds keep design points whole (enough points for the folds).
+    slips : tuple of UnitSlip
+        Unit slips found (:func:`unit_slips`); their rows are left out (:meth:`apply`).
+    kept : numpy.ndarray or None
+        Rows as sent that the calibration reads (0-based), when slips left some out; else None.
     """
 
     design: np.ndarray | None
@@ -178,6 +242,8 @@ class MeasurementSystem:
     saturation: tuple[Saturation, ...]
     constant: float | None
     grouped_folds: bool = False
+    slips: tuple[UnitSlip, ...] = ()
+    kept: np.ndarray | None = field(default=None, repr=False)
 
     def censored(self, mu: np.ndarray) -> np.ndarray | None:
         """+1 / -1 / 0 per row for the clips (None when there is none)."""
@@ -189,12 +255,14 @@ class MeasurementSystem:
         return out
 
     def apply(self, dataset: Dataset) -> Dataset:
-        """The data with their design points and censored rows marked (:class:`calibrate.data.Dataset`)."""
+        """The data as sent without the rows of unit slips, their design points and censored rows marked
+        (:class:`calibrate.data.Dataset`)."""
+        dataset = dataset if self.kept is None else dataset.subset(self.kept)
         return replace(dataset, design=self.design, censored=self.censored(dataset.mu_measured))
 
     def words(self) -> list[str]:
         """What was found, one sentence each (empty when nothing)."""
-        out = []
+        out = [slip.words() for slip in self.slips]
         if self.constant is not None:
             out.append(f"every row reads mu = {self.constant:.6g}: constant data show no dependence on "
                        f"anything measured (a stuck or saturated sensor?); no term is fitted")
@@ -294,12 +362,63 @@ def inspect(dataset: Dataset, n_folds: int) -> MeasurementSystem:
     ([0, 0, 0, 1, 1, 1, 2, 2, 2], ('run_index',), True)
     """
     sessions = dataset.session_columns()
+    slips = unit_slips(dataset, sessions)
+    kept = None
+    if slips:  # left out only when the folds keep two rows each and at least half the rows remain
+        kept = np.setdiff1d(np.arange(dataset.n_points), np.concatenate([s.rows for s in slips]))
+        slips, kept = ((), None) if kept.size < max(2 * n_folds, dataset.n_points / 2) else (slips, kept)
+    dataset = dataset if kept is None else dataset.subset(kept)
     mu = dataset.mu_measured
     constant = float(mu[0]) if np.unique(mu).size == 1 else None
     design = _design(dataset, sessions)
     grouped = design is not None and np.unique(design).size >= _POINTS_PER_FOLD * n_folds
     return MeasurementSystem(design, sessions, dict(dataset.clock),
-                             () if constant is not None else _saturation(mu), constant, grouped)
+                             () if constant is not None else _saturation(mu), constant, grouped, slips, kept)
+
+
+def unit_slips(dataset: Dataset, sessions: Sequence[str] = ()) -> tuple[UnitSlip, ...]:
+    """Unit slips in part of the rows: in a positive column (order and time columns aside), the rows on
+    the far side of its widest empty gap in log scale (at least :data:`_SLIP_GAP` decades), when they are
+    :data:`_SLIP_MIN_ROWS` or more and at most :data:`_SLIP_MAX_SHARE` of the rows, their median a factor
+    of :data:`SLIP_FACTORS` from the others' (within :data:`_SLIP_TOLERANCE` decades), and, scaled by it,
+    every one of them within the others' range (as widened by the tolerance). A design that spans decades
+    without a gap, or a column with a few values near zero (a uniform draw from 0), has no such rows.
+
+    Examples
+    --------
+    >>> from microbearing.calibrate.data import parse_rows
+    >>> loads = [0.003 * 1.1 ** k for k in range(24)]
+    >>> loads[2], loads[9], loads[17] = loads[2] / 1000, loads[9] / 1000, loads[17] / 1000
+    >>> rows = [{"load_N": g, "mu_measured": 0.01} for g in loads]
+    >>> d = parse_rows(rows, fixed={"balls": 4, "speed_m_s": 0.1})
+    >>> [(s.column, s.factor, s.below, s.rows) for s in unit_slips(d)]
+    [('load_N', 1000.0, True, (2, 9, 17))]
+    """
+    found = []
+    for name, values in dataset.columns().items():
+        x = np.asarray(values, dtype=float)
+        if name in sessions or x.size < 4 * _SLIP_MIN_ROWS or not np.all(np.isfinite(x) & (x > 0)):
+            continue
+        order = np.argsort(x, kind="stable")
+        logs = np.log10(x[order])
+        k = int(np.argmax(np.diff(logs)))
+        gap = float(logs[k + 1] - logs[k])
+        below = k + 1 <= x.size - k - 1  # the slipped side is the smaller one
+        slipped, others = (order[:k + 1], order[k + 1:]) if below else (order[k + 1:], order[:k + 1])
+        if gap < _SLIP_GAP or not _SLIP_MIN_ROWS <= slipped.size <= _SLIP_MAX_SHARE * x.size:
+            continue
+        apart = abs(float(np.median(np.log10(x[others])) - np.median(np.log10(x[slipped]))))
+        rest = np.log10(x[others])
+        for factor in SLIP_FACTORS:
+            moved = np.log10(x[slipped]) + (np.log10(factor) if below else -np.log10(factor))
+            tol = _SLIP_TOLERANCE
+            if (abs(apart - np.log10(factor)) <= tol and moved.min() >= rest.min() - tol
+                    and moved.max() <= rest.max() + tol):
+                found.append(UnitSlip(dataset.headers.get(name, name), factor, below,
+                                      tuple(int(i) for i in np.sort(slipped)), slipped.size / x.size,
+                                      10.0 ** gap))
+                break
+    return tuple(found)
 
 
 def folds(dataset: Dataset, n_folds: int, seed: int = 0) -> list[np.ndarray]:

@@ -58,7 +58,14 @@ from microbearing.physics.columns import (
     unit_of,
 )
 from microbearing.physics.drivers import HUMIDITY, TEMPERATURE
-from microbearing.physics.slips import humidity_slip, physics_slip, read_slip, slipped_rows, temperature_slip
+from microbearing.physics.slips import (
+    humidity_rows,
+    humidity_slip,
+    physics_slip,
+    read_slip,
+    slipped_rows,
+    temperature_slip,
+)
 
 from .data import MU_MEASURED, MU_MEASURED_STD, DataError, Dataset
 
@@ -163,6 +170,8 @@ def plausibility_findings(dataset: Dataset) -> list[Finding]:
                 row = None if some is None else int(some[0]) + 1
             elif not judged:
                 message = (humidity_slip if HUMIDITY.matches(name) else temperature_slip)(name, values)
+                some = humidity_rows(name, values) if HUMIDITY.matches(name) else None
+                row = None if some is None or message is None else int(some[0]) + 1
             found += [] if message is None else [Finding(name, "error", message, row)]
         elif condition:  # said in the header's unit itself: no plausible range
             finding = _outside_physical_range(name, values, dataset.sent_reading(name))

@@ -498,7 +498,7 @@ def calibrate(
     plots: dict[str, bytes] = {}
     if options.make_plots:
         plots = calibration_plots(
-            dataset, uncertainty.model, declared.mu_before, uncertainty.mu_after,
+            declared.dataset, uncertainty.model, declared.mu_before, uncertainty.mu_after,
             uncertainty.outliers["mask"],
             {"before": declared.error_before, "after": uncertainty.error_after,
              "robust": uncertainty.robust_errors}, [t.label for t in candidates.terms],
@@ -594,7 +594,8 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     dataset, convention = declared.dataset, options.convention
     measured, terms, nested = dataset.mu_measured, candidates.terms, selection.nested
     final, mu_after = selection.final, selection.mu_after
-    outliers = find_outliers(dataset, mu_after, final.residual, final.scale)
+    sent = declared.measurement.kept if declared.measurement else None  # rows numbered as sent
+    outliers = find_outliers(dataset, mu_after, final.residual, final.scale, sent)
     # Groups: the spread of a declared parameter (or of mu) between the labels of each factor column,
     # on what the fixed model leaves (calibrate.groups); the held-out residual then loses each row's
     # group level before it measures the scatter of a new measurement.
@@ -619,9 +620,9 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
             final = fit(weighted, declared.fit_parameters, terms, start=final.declared,
                         start_terms=final.term_values, convention=convention)
             mu_after = predict_mu(dataset, final.declared, terms, final.term_values, convention=convention)
-            outliers = find_outliers(dataset, mu_after, final.residual, final.scale)
+            outliers = find_outliers(dataset, mu_after, final.residual, final.scale, sent)
         else:
-            outliers = find_outliers(dataset, mu_after, np.log(mu_after / measured) / local, 1.0)
+            outliers = find_outliers(dataset, mu_after, np.log(mu_after / measured) / local, 1.0, sent)
     inliers = ~outliers["mask"]
     robust_errors = {
         "before": prediction_errors(declared.baseline.oof_mu[inliers], measured[inliers]),
@@ -635,8 +636,8 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     # The GP reads values: a clipped row enters at the mean true reading beyond its clip under the model
     # (calibrate.censored.beyond_clip); on the measured rows alone it learned the truncation near the clip.
     values = inliers & measured_rows(dataset.censored, dataset.n_points)
-    read = replace(dataset, censored=None,
-                   mu_measured=beyond_clip(mu_after, measured, dataset.censored, dataset.censor_scale))
+    read = replace(dataset, censored=None, mu_measured=np.exp(-group_shift)  # each row's group level out
+                   * beyond_clip(mu_after, measured, dataset.censored, dataset.censor_scale))
     leftover = residual_gp(read, declared.outer, nested.fold_mu, mu_after, inliers, options.gp_max_train,
                            options.seed)
     leftover = _confirm_gp(declared, final, leftover, mu_after, inliers, options, read)
@@ -780,6 +781,7 @@ def _measurement_system(declared: DataStage, uncertainty: UncertaintyStage,
     return {
         "replicates": None if lof is None else lof.to_json(),
         "saturation": [vars(clip) for clip in system.saturation],
+        "unit_slips": [slip.to_json() for slip in system.slips],
         "constant": system.constant,
         "sessions": list(system.sessions),
         "clock": dict(system.clock),

@@ -49,7 +49,8 @@ def outlier_threshold(n_points: int) -> float:
 
 
 def find_outliers(
-    dataset: Dataset, mu_predicted: np.ndarray, residual: np.ndarray, scale: float
+    dataset: Dataset, mu_predicted: np.ndarray, residual: np.ndarray, scale: float,
+    sent: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The rows the robust fit treats as gross outliers.
 
@@ -63,6 +64,9 @@ def find_outliers(
         Its weighted log residual at every row. [1]
     scale : float
         Robust standard deviation of that residual. [1]
+    sent : numpy.ndarray, optional
+        Each row's index among the rows as sent (0-based), when some were left out before the fit (unit
+        slips, :func:`calibrate.measurement.unit_slips`): rows are numbered as sent. None: the same rows.
 
     Returns
     -------
@@ -80,7 +84,7 @@ def find_outliers(
     order = np.flatnonzero(mask)[np.argsort(-np.abs(z[mask]))]
     rows = [
         {
-            "row": int(i) + 1,
+            "row": int(i if sent is None else sent[i]) + 1,
             "mu_measured": float(dataset.mu_measured[i]),
             "mu_predicted": float(mu_predicted[i]),
             "standardized_residual": float(z[i]),

@@ -40,8 +40,8 @@ from .columns import (
 from .drivers import HUMIDITY, TEMPERATURE
 from .parameters import PARAMETERS
 
-__all__ = ["humidity_slip", "input_slips", "physics_slip", "read_slip", "slip", "slipped_rows",
-           "temperature_slip", "unstated_unit"]
+__all__ = ["humidity_rows", "humidity_slip", "input_slips", "physics_slip", "read_slip", "slip",
+           "slipped_rows", "temperature_slip", "unstated_unit"]
 
 def _span_text(values: np.ndarray) -> str:
     return f"{float(np.min(values)):.4g} to {float(np.max(values)):.4g}"
@@ -99,6 +99,26 @@ def physics_slip(name: str, values: np.ndarray, stated: tuple[str, np.ndarray, s
     return f"{shown}, beyond the {limit:g} {unit} a micro ball bearing sees: {cause}"
 
 
+def humidity_rows(name: str, values: np.ndarray) -> np.ndarray | None:
+    """The rows of a humidity fraction written in percent when only some are, else None: those above the
+    fraction's plausible top whose values, divided by 100, fall within the others' range (as
+    :func:`slipped_rows` for a physics input).
+
+    >>> humidity_rows("relative_humidity", np.array([0.3, 55.0, 0.6])).tolist()
+    [1]
+    >>> print(humidity_rows("relative_humidity", np.array([30.0, 55.0])))  # the whole column in percent
+    None
+    """
+    unit = HUMIDITY.unit_of(name)
+    values = np.asarray(values, dtype=float)
+    above = values > unit.plausible[1]
+    if unit.unit == "%" or above.all() or not above.any() or float(np.min(values)) < unit.plausible[0]:
+        return None
+    converted = float(np.median(values[above] / 100))
+    inside = float(np.min(values[~above])) <= converted <= float(np.max(values[~above]))
+    return np.flatnonzero(above) if inside else None
+
+
 def humidity_slip(name: str, values: np.ndarray) -> str | None:
     """A humidity column's values beyond the plausible range its unit declares
     (:data:`physics.drivers.HUMIDITY`), in words: a fraction of 50 looks like percent."""
@@ -108,8 +128,14 @@ def humidity_slip(name: str, values: np.ndarray) -> str | None:
     if float(np.min(values)) >= bottom and float(np.max(values)) <= top:
         return None
     percent_top = next(u for u in HUMIDITY.units if u.unit == "%").plausible[1]
+    rows = None if percent else humidity_rows(name, values)
     if percent:
         cause = f"relative humidity in percent lies in [{bottom:g}, {top:g}]"
+    elif rows is not None:
+        others = np.delete(values, rows)
+        cause = (f"{rows.size} of {values.size} values lie above {top:g}: those look like percent (divided "
+                 f"by 100: {_span_text(values[rows] / 100)}, within the other values' {_span_text(others)}); "
+                 f"convert those rows only")
     elif float(np.min(values)) >= bottom and float(np.max(values)) <= percent_top:
         cause = (f"values look like percent: give fractions (divide by 100) or name the column "
                  f"{name}_pct")
