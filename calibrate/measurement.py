@@ -42,13 +42,16 @@ from scipy import sparse, stats
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from microbearing.physics.columns import physical_range
+
 from .candidates import Term
 from .censored import measured_rows
 from .data import Dataset
 from .fit import fit, kfold_indices, robust_scale
 
 __all__ = ["JITTER", "SLIP_FACTORS", "LackOfFit", "MeasurementSystem", "Saturation", "UnitSlip",
-           "drift_words", "folds", "inspect", "lack_of_fit", "unit_slips", "with_censor_scale"]
+           "drift_words", "folds", "inspect", "lack_of_fit", "slip_factors", "unit_slips",
+           "with_censor_scale"]
 
 #: Relative jitter within which two values of an input are one level of a design (log scale for a
 #: positive column, of the column's range otherwise). [1]
@@ -61,7 +64,9 @@ _PILE_OVER_TIES = 3
 # A design needs at least this many points per fold for folds of whole points. [1]
 _POINTS_PER_FOLD = 1
 #: Factors of a unit slip: percent written in a fraction's column (100), a prefix step (1000: N in a mN
-#: column, m/s in a mm/s one), a millionth (1e6: µN in an N column). [1]
+#: column, m/s in a mm/s one), a millionth (1e6: µN in an N column). [1] Percent only in a column whose
+#: physical range ends at 1 (:func:`slip_factors`): a load or speed design of two levels a factor 100
+#: apart is a design, no unit's slip.
 SLIP_FACTORS = (1e2, 1e3, 1e6)
 # Rows on the slip's side of the gap at least, and their share of the rows at most. [1]
 _SLIP_MIN_ROWS = 3
@@ -376,6 +381,18 @@ def inspect(dataset: Dataset, n_folds: int) -> MeasurementSystem:
                              () if constant is not None else _saturation(mu), constant, grouped, slips, kept)
 
 
+def slip_factors(name: str) -> tuple[float, ...]:
+    """The factors of :data:`SLIP_FACTORS` a unit slip of the column ``name`` can take: percent (100)
+    only in a fraction's column (physical range ending at 1, :func:`physics.columns.physical_range`), the
+    prefix steps in every other.
+
+    >>> slip_factors("relative_humidity"), slip_factors("load_N")
+    ((100.0, 1000.0, 1000000.0), (1000.0, 1000000.0))
+    """
+    fraction = physical_range(name)[1] == 1.0
+    return tuple(f for f in SLIP_FACTORS if fraction or f != 1e2)
+
+
 def unit_slips(dataset: Dataset, sessions: Sequence[str] = ()) -> tuple[UnitSlip, ...]:
     """Unit slips in part of the rows: in a positive column (order and time columns aside), the rows on
     the far side of its widest empty gap in log scale (at least :data:`_SLIP_GAP` decades), when they are
@@ -409,7 +426,7 @@ def unit_slips(dataset: Dataset, sessions: Sequence[str] = ()) -> tuple[UnitSlip
             continue
         apart = abs(float(np.median(np.log10(x[others])) - np.median(np.log10(x[slipped]))))
         rest = np.log10(x[others])
-        for factor in SLIP_FACTORS:
+        for factor in slip_factors(name):
             moved = np.log10(x[slipped]) + (np.log10(factor) if below else -np.log10(factor))
             tol = _SLIP_TOLERANCE
             if (abs(apart - np.log10(factor)) <= tol and moved.min() >= rest.min() - tol

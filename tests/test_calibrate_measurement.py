@@ -578,6 +578,23 @@ def test_unit_slips_need_a_unit_s_factor_an_empty_gap_and_a_minority():
     assert slips[0].rows == (3, 50, 60, 70, 99)
 
 
+def test_a_load_design_of_two_levels_a_hundredfold_apart_is_no_unit_slip():
+    # before: 12 of 60 loads at 0.1-0.3 N beside 1-3 mN (a design of two load levels; 100x is no factor
+    # between load units) were called a percent slip and left out of the fit; a 1000x minority still is
+    rng = np.random.default_rng(466)
+    n = 60
+    load = np.exp(rng.uniform(np.log(1e-3), np.log(3e-3), n))
+    heavy = load.copy()
+    heavy[:12] *= 100
+    slipped = load.copy()
+    slipped[:12] *= 1000
+    for values, expected in ((heavy, []), (slipped, [(1000.0, False)])):
+        rows = as_rows({"load_N": values, "speed_m_s": np.full(n, 0.05)},
+                       np.full(n, 0.01) * (1 + 0.01 * rng.random(n)))
+        slips = unit_slips(parse_rows(rows, fixed={"balls": BALLS}))
+        assert [(s.factor, s.below) for s in slips] == expected
+
+
 def test_humidity_in_percent_on_some_rows_is_refused_at_the_first_of_them_converting_those_only(client):
     # before: 15 of 150 humidities in percent among fractions were refused at row 1 with the advice for a
     # whole column ("give fractions (divide by 100)"), which would have made the other 135 rows 0.002-0.008
