@@ -35,7 +35,7 @@ from microbearing.physics.effects import EFFECTS
 from microbearing.physics.spans import read_span
 
 from .candidates import Term, candidate_terms
-from .credibility import implausible
+from .credibility import implausible, impossible
 from .data import Dataset
 from .design import GOALS, Design, DesignError, plan
 from .design import check_identifiable as design_check
@@ -449,11 +449,11 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             # whose term a recalibration would add, enveloping the others refitted to runs that follow
             # it (a recalibration may keep them as its rivals)
             pool = [reported[0], *(r.held_out_scaled(held_out_scale) for r in reported[1:])]
-            # a model whose law the runs would take out of its physical range is not one a recalibration
-            # on the data and the runs chooses or keeps (the search refuses it): a linear drift run on
-            # to ten times its cycles takes mu_pivot below zero
+            # a model whose law the runs would take where the physics does not go is not one a
+            # recalibration on the data and the runs chooses or keeps (the search refuses a law out of
+            # its physical range): a linear drift run on to ten times its cycles takes mu_pivot below zero
             taken = _columns_after(data, response.points(chosen))
-            pool = [r for r in pool if not _implausible_over(r.model, taken)] or pool
+            pool = [r for r in pool if not _impossible_over(r.model, taken)] or pool
             favoured = min(pool, key=lambda r: r.scatter_level)
             after = favoured.after(design.counts, [r for r in pool if r is not favoured])
             for key, values in (("reported_half_width_now", reported[0].now()),
@@ -486,10 +486,10 @@ def _columns_after(data: Mapping[str, np.ndarray] | None, runs: Mapping[str, Any
                        for k, v in data.items()}}
 
 
-def _implausible_over(model: CalibratedModel, columns: Mapping[str, np.ndarray]) -> bool:
-    """Whether a term of the model, with its fitted values, leaves its physical range over the columns
-    (:func:`calibrate.credibility.implausible`)."""
-    return any(implausible(term, values, columns, model.fitted, model.fixed) for term, values in model.terms)
+def _impossible_over(model: CalibratedModel, columns: Mapping[str, np.ndarray]) -> bool:
+    """Whether a drift of the model, with its fitted values, takes its parameter where the physics does not
+    go over the columns (:func:`calibrate.credibility.impossible`)."""
+    return any(impossible(term, values, columns, model.fitted, model.fixed) for term, values in model.terms)
 
 
 def _span(spec: Any) -> tuple[float, float]:
