@@ -7,7 +7,12 @@ Each simulated lab hides an effect of one condition in the physics (written here
 physics.effects): ``humidity``, adhesion growing with the Kelvin radius, first data at 20-40 % RH, the
 envelope at 70-85 % RH (``mu_pivot`` and ``adhesion_energy_J_m2`` fitted); ``temperature`` (not tuned on),
 the pivot friction rising 1.5 %/degC, first data at 20-35 degC, the envelope at 55-70 degC (``mu_pivot``
-fitted). A lab measures 40 first rows (3 % noise), calibrates through the REST API
+fitted). Four more, none tuned on (h48; ``mu_pivot`` fitted, each truth in its function's docstring):
+``load`` (no condition column: the pivot friction ploughing with load, first data at 3-8 mN, the envelope at
+20-30 mN), ``speed`` (a Stribeck-like rise, first data at 50-150 mm/s, the envelope at 2-20 mm/s), ``cycles``
+(a run-in seen in part at 0-3000 cycles, the envelope at 20000-50000) and ``inside`` (the temperature lab's
+truth, the envelope at 40-60 degC inside first data over 20-80 degC). A lab measures 40 first rows (3 %
+noise), calibrates through the REST API
 (``POST /v1/calibrations``), then asks
 ``POST /v1/calibrations/{id}/next-experiments`` for ``predict`` over the envelope (6 balls, 5-20 mN,
 0.05 m/s, the condition beyond the first data), measures the proposed runs from the truth, or as many random
