@@ -7,7 +7,12 @@ Each simulated lab hides an effect of one condition in the physics (written here
 physics.effects): ``humidity``, adhesion growing with the Kelvin radius, first data at 20-40 % RH, the
 envelope at 70-85 % RH (``mu_pivot`` and ``adhesion_energy_J_m2`` fitted); ``temperature`` (not tuned on),
 the pivot friction rising 1.5 %/degC, first data at 20-35 degC, the envelope at 55-70 degC (``mu_pivot``
-fitted). A lab measures 40 first rows (3 % noise), calibrates through the REST API
+fitted). Four more, none tuned on (h48; ``mu_pivot`` fitted, each truth in its function's docstring):
+``load`` (no condition column: the pivot friction ploughing with load, first data at 3-8 mN, the envelope at
+20-30 mN), ``speed`` (a Stribeck-like rise, first data at 50-150 mm/s, the envelope at 2-20 mm/s), ``cycles``
+(a run-in seen in part at 0-3000 cycles, the envelope at 20000-50000) and ``inside`` (the temperature lab's
+truth, the envelope at 40-60 degC inside first data over 20-80 degC). A lab measures 40 first rows (3 %
+noise), calibrates through the REST API
 (``POST /v1/calibrations``), then asks
 ``POST /v1/calibrations/{id}/next-experiments`` for ``predict`` over the envelope (6 balls, 5-20 mN,
 0.05 m/s, the condition beyond the first data), measures the proposed runs from the truth, or as many random
@@ -54,31 +59,60 @@ NOISE = 0.03
 FIRST_ROWS = 40
 
 
+#: A physics input's ranges: the first data's, the space's (what the lab can set) and the envelope's (None:
+#: the envelope holds it at one value), and whether it spreads evenly in logarithms.
 @dataclass(frozen=True)
-class Lab:
-    """A simulated lab: the truth hidden in the physics, one condition column, the first data's range of
-    it, what the lab can set (``space``) and where the model will be used (``envelope``), beyond the data."""
-
-    name: str
-    condition: str
+class Ranges:
     first: tuple[float, float]
     space: tuple[float, float]
-    envelope: tuple[float, float]
+    envelope: tuple[float, float] | None
+    log: bool = False
+
+
+#: The physics inputs' ranges of the first two labs (humidity, temperature); the labs added for unseen
+#: cases move one of them.
+LOAD = Ranges((3e-3, 3e-2), (3e-3, 3e-2), (5e-3, 2e-2), log=True)
+SPEED = Ranges((0.0, 0.15), (0.0, 0.15), None)
+ENVELOPE_SPEED_M_S = 0.05
+
+
+@dataclass(frozen=True)
+class Lab:
+    """A simulated lab: the truth hidden in the physics, one condition column (or none), the first data's
+    range of it, what the lab can set (``space``) and where the model will be used (``envelope``), beyond the
+    data or inside it; ``load`` and ``speed`` the physics inputs' ranges. ``truth_parameters`` maps the
+    columns (physics inputs and the condition) to the physics' parameters."""
+
+    name: str
+    condition: str | None
+    first: tuple[float, float] | None
+    space: tuple[float, float] | None
+    envelope: tuple[float, float] | None
     fit: tuple[str, ...]
-    truth_parameters: Callable[[np.ndarray], dict[str, np.ndarray]]
+    truth_parameters: Callable[[dict], dict[str, np.ndarray]]
+    load: Ranges = LOAD
+    speed: Ranges = SPEED
 
     def truth(self, c) -> np.ndarray:
         return physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"],
-                                **self.truth_parameters(np.asarray(c[self.condition], dtype=float))).mu
+                                **self.truth_parameters({k: np.asarray(v, dtype=float) for k, v in c.items()})
+                                ).mu
 
     def space_body(self) -> dict:
-        return {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
-                "speed_m_s": {"low": 0.0, "high": 0.15}, self.condition: {"low": self.space[0],
-                                                                         "high": self.space[1]}}
+        body = {"balls": {"low": 4, "high": 8},
+                "load_N": {"low": self.load.space[0], "high": self.load.space[1], "spacing": "log"},
+                "speed_m_s": {"low": self.speed.space[0], "high": self.speed.space[1]}}
+        if self.condition is not None:
+            body[self.condition] = {"low": self.space[0], "high": self.space[1]}
+        return body
 
     def envelope_body(self) -> dict:
-        return {"balls": [6], "load_N": {"low": 5e-3, "high": 2e-2}, "speed_m_s": [0.05],
-                self.condition: {"low": self.envelope[0], "high": self.envelope[1]}}
+        speed = self.speed.envelope
+        body = {"balls": [6], "load_N": {"low": self.load.envelope[0], "high": self.load.envelope[1]},
+                "speed_m_s": [ENVELOPE_SPEED_M_S] if speed is None else {"low": speed[0], "high": speed[1]}}
+        if self.condition is not None:
+            body[self.condition] = {"low": self.envelope[0], "high": self.envelope[1]}
+        return body
 
 
 def kelvin_adhesion(h: np.ndarray) -> dict[str, np.ndarray]:
@@ -92,30 +126,77 @@ def warm_pivot(t: np.ndarray) -> dict[str, np.ndarray]:
     return {"mu_pivot": 0.7 * (1 + 0.015 * (t - 25.0))}
 
 
+def ploughing_pivot(c: dict) -> dict[str, np.ndarray]:
+    """The pivot friction rising with load as (W / 5 mN)^0.2 from 0.7 at 5 mN (the pivot contact ploughing
+    deeper under load); the adhesion at its default."""
+    return {"mu_pivot": 0.7 * (c["load_N"] / 5e-3) ** 0.2}
+
+
+def stribeck_pivot(c: dict) -> dict[str, np.ndarray]:
+    """The pivot friction rising at low speed as 1 + 0.8 exp(-v / 15 mm/s) from 0.7 (a boundary film's
+    breakaway, Stribeck-like); the adhesion at its default."""
+    return {"mu_pivot": 0.7 * (1 + 0.8 * np.exp(-c["speed_m_s"] / 0.015))}
+
+
+def running_in_pivot(c: dict) -> dict[str, np.ndarray]:
+    """The pivot friction running in as 1 + 0.6 exp(-n / 4000 cycles) to 0.7 (asperities worn flat over the
+    first few thousand cycles), then steady; the adhesion at its default."""
+    return {"mu_pivot": 0.7 * (1 + 0.6 * np.exp(-c["cycles"] / 4000.0))}
+
+
 LABS = {
     "humidity": Lab("humidity", "relative_humidity", (0.2, 0.4), (0.2, 0.9), (0.7, 0.85),
-                    ("mu_pivot", "adhesion_energy_J_m2"), kelvin_adhesion),
+                    ("mu_pivot", "adhesion_energy_J_m2"), lambda c: kelvin_adhesion(c["relative_humidity"])),
     # not tuned on: a temperature effect on the pivot friction, the envelope at 55-70 degC
     "temperature": Lab("temperature", "temperature_C", (20.0, 35.0), (20.0, 80.0), (55.0, 70.0),
-                       ("mu_pivot",), warm_pivot),
+                       ("mu_pivot",), lambda c: warm_pivot(c["temperature_C"])),
+    # not tuned on (h48): other spaces and effects; no condition column, the effect in a physics input
+    # beyond the first data: load (first 3-8 mN, envelope 20-30 mN), speed (first 50-150 mm/s, envelope
+    # 2-20 mm/s)
+    "load": Lab("load", None, None, None, None, ("mu_pivot",), ploughing_pivot,
+                load=Ranges((3e-3, 8e-3), (3e-3, 3e-2), (2e-2, 3e-2), log=True)),
+    "speed": Lab("speed", None, None, None, None, ("mu_pivot",), stribeck_pivot,
+                 speed=Ranges((0.05, 0.15), (0.002, 0.15), (0.002, 0.02))),
+    # a run-in seen in part (first data at 0-3000 cycles), used after it (20000-50000 cycles)
+    "cycles": Lab("cycles", "cycles", (0.0, 3000.0), (0.0, 50000.0), (20000.0, 50000.0), ("mu_pivot",),
+                  running_in_pivot),
+    # nothing to extrapolate: the temperature lab's truth, the first data over 20-80 degC, the envelope
+    # inside them at 40-60 degC
+    "inside": Lab("inside", "temperature_C", (20.0, 80.0), (20.0, 80.0), (40.0, 60.0), ("mu_pivot",),
+                  lambda c: warm_pivot(c["temperature_C"])),
 }
 
 
+def _draw(rng, ranges: Ranges, which: str, n: int) -> np.ndarray:
+    low, high = getattr(ranges, which)
+    return np.exp(rng.uniform(np.log(low), np.log(high), n)) if ranges.log else rng.uniform(low, high, n)
+
+
+def _with_condition(lab: Lab, columns: dict, values) -> dict[str, np.ndarray]:
+    return columns if lab.condition is None else columns | {lab.condition: values()}
+
+
 def first_data(lab: Lab, rng, n: int) -> dict[str, np.ndarray]:
-    return {"balls": rng.choice([4, 6, 8], n).astype(float),
-            "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-            "speed_m_s": rng.uniform(0.0, 0.15, n), lab.condition: rng.uniform(*lab.first, n)}
+    return _with_condition(lab, {"balls": rng.choice([4, 6, 8], n).astype(float),
+                                 "load_N": _draw(rng, lab.load, "first", n),
+                                 "speed_m_s": _draw(rng, lab.speed, "first", n)},
+                           lambda: rng.uniform(*lab.first, n))
 
 
 def random_runs(lab: Lab, rng, n: int) -> dict[str, np.ndarray]:
-    return {"balls": rng.integers(4, 9, n).astype(float),
-            "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-            "speed_m_s": rng.uniform(0.0, 0.15, n), lab.condition: rng.uniform(*lab.space, n)}
+    return _with_condition(lab, {"balls": rng.integers(4, 9, n).astype(float),
+                                 "load_N": _draw(rng, lab.load, "space", n),
+                                 "speed_m_s": _draw(rng, lab.speed, "space", n)},
+                           lambda: rng.uniform(*lab.space, n))
 
 
 def envelope_points(lab: Lab, rng, n: int = 200) -> dict[str, np.ndarray]:
-    return {"balls": np.full(n, 6.0), "load_N": rng.uniform(5e-3, 2e-2, n), "speed_m_s": np.full(n, 0.05),
-            lab.condition: rng.uniform(*lab.envelope, n)}
+    low, high = lab.load.envelope
+    load = rng.uniform(low, high, n)
+    speed = (np.full(n, ENVELOPE_SPEED_M_S) if lab.speed.envelope is None
+             else rng.uniform(*lab.speed.envelope, n))
+    return _with_condition(lab, {"balls": np.full(n, 6.0), "load_N": load, "speed_m_s": speed},
+                           lambda: rng.uniform(*lab.envelope, n))
 
 
 def measure(lab: Lab, columns, rng) -> list[dict]:
@@ -140,10 +221,11 @@ def propose(client, model_id: str, body: dict) -> dict:
 
 
 def judge(client, lab: Lab, model_id: str, points, rng) -> dict[str, float]:
-    response = client.post("/v1/friction/batch", json={
-        "points": {k: v.tolist() for k, v in points.items() if k != lab.condition},
-        "conditions": {lab.condition: points[lab.condition].tolist()},
-        "model": model_id, "outputs": ["mu"]})
+    body = {"points": {k: v.tolist() for k, v in points.items() if k != lab.condition},
+            "model": model_id, "outputs": ["mu"]}
+    if lab.condition is not None:
+        body["conditions"] = {lab.condition: points[lab.condition].tolist()}
+    response = client.post("/v1/friction/batch", json=body)
     assert response.status_code == 200, response.text
     body = response.json()
     mu, lower, upper = (np.asarray(body[k], dtype=float) for k in ("mu", "mu_lower", "mu_upper"))

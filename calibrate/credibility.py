@@ -30,7 +30,7 @@ from microbearing.physics.effects import EFFECTS, PARAMETER_SHARES
 
 from .candidates import DriftTerm, EffectTerm, Term
 
-__all__ = ["REACH", "implausible"]
+__all__ = ["REACH", "impossible", "implausible"]
 
 #: A driver scale (decay length, Stribeck speed) beyond this many times the data's largest driver value is
 #: not seen by the data: the law then acts as a trend. [1]
@@ -46,15 +46,24 @@ def _reference(term: DriftTerm, values: Sequence[float], declared: Mapping[str, 
     return float(declared.get(name, fixed.get(name, physics.PARAMETERS[name].default)))
 
 
-def _drift(term: DriftTerm, values: Sequence[float], columns: Mapping[str, Any], declared,
-           fixed) -> list[str]:
-    share = PARAMETER_SHARES.get(term.parameter)
-    if share is None or share.plausible is None or term.driver not in columns:
-        return []
+def _drifted(term: DriftTerm, values: Sequence[float], columns: Mapping[str, Any], declared,
+             fixed) -> np.ndarray:
+    """The drifting parameter's values over the columns' driver (its level times the law's factor), finite
+    ones only [its unit]."""
+    if term.driver not in columns:
+        return np.zeros(0)
     with np.errstate(all="ignore"):
         value = _reference(term, values, declared, fixed) * np.asarray(
             term.factor(columns, float(values[0])), dtype=float)
-    value = value[np.isfinite(value)]
+    return value[np.isfinite(value)]
+
+
+def _drift(term: DriftTerm, values: Sequence[float], columns: Mapping[str, Any], declared,
+           fixed) -> list[str]:
+    share = PARAMETER_SHARES.get(term.parameter)
+    if share is None or share.plausible is None:
+        return []
+    value = _drifted(term, values, columns, declared, fixed)
     if value.size == 0:
         return []
     lo, hi = share.plausible
@@ -129,3 +138,31 @@ def implausible(term: Term, values: Sequence[float], columns: Mapping[str, Any],
     if term.kind == "drift":
         return _drift(term, values, columns, declared, fixed)
     return _effect(term, values, columns)
+
+
+def impossible(term: Term, values: Sequence[float], columns: Mapping[str, Any],
+               declared: Mapping[str, float] | None = None, fixed: Mapping[str, Any] | None = None
+               ) -> list[str]:
+    """Why a drift with these values takes its parameter where the physics does not go over the columns
+    (:data:`physics.PARAMETERS`' minimum and maximum: a friction coefficient below zero), in words (empty:
+    possible). Stricter than :func:`implausible`, which also refuses values a bearing does not plausibly
+    take; for columns beyond the data (runs to come), where a refit may still move the values within
+    reason but not a law that runs on through zero.
+
+    >>> from microbearing.calibrate.candidates import DriftTerm
+    >>> term = DriftTerm("mu_pivot", "linear", "cycles", {"reference": 1500.0, "minimum": 0.0,
+    ...                                                  "maximum": 3000.0})
+    >>> impossible(term, [-7e-5], {"cycles": np.array([0.0, 3000.0])}, {"mu_pivot": 1.0})
+    []
+    >>> len(impossible(term, [-7e-5], {"cycles": np.array([0.0, 45000.0])}, {"mu_pivot": 1.0}))
+    1
+    """
+    if term.kind != "drift" or getattr(term, "generic", False):
+        return []
+    value = _drifted(term, values, columns, declared or {}, fixed or {})
+    spec = physics.PARAMETERS[term.parameter]
+    if value.size == 0 or (float(np.min(value)) >= spec.minimum and float(np.max(value)) <= spec.maximum):
+        return []
+    worst = float(np.min(value)) if float(np.min(value)) < spec.minimum else float(np.max(value))
+    return [f"{term.label} takes {term.parameter} to {worst:.3g} {spec.unit}, where the physics does not go "
+            f"({spec.minimum:g}-{spec.maximum:g} {spec.unit})"]

@@ -35,7 +35,7 @@ from microbearing.physics.effects import EFFECTS
 from microbearing.physics.spans import read_span
 
 from .candidates import Term, candidate_terms
-from .credibility import implausible
+from .credibility import implausible, impossible
 from .data import Dataset
 from .design import GOALS, Design, DesignError, plan
 from .design import check_identifiable as design_check
@@ -411,7 +411,7 @@ def _runs(response: CalibratedResponse, candidates, design: Design,
 
 def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, envelope,
               rivals: Sequence[tuple[str, CalibratedModel]], reported: Sequence[ReportedWidth] = (),
-              held_out_scale: float = 1.0) -> dict[str, Any]:
+              held_out_scale: float = 1.0, data: Mapping[str, np.ndarray] | None = None) -> dict[str, Any]:
     names = response.parameter_names
     information_after = design.information_after
     covariance_after = np.linalg.pinv(information_after, hermitian=True)
@@ -449,6 +449,11 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             # whose term a recalibration would add, enveloping the others refitted to runs that follow
             # it (a recalibration may keep them as its rivals)
             pool = [reported[0], *(r.held_out_scaled(held_out_scale) for r in reported[1:])]
+            # a model whose law the runs would take where the physics does not go is not one a
+            # recalibration on the data and the runs chooses or keeps (the search refuses a law out of
+            # its physical range): a linear drift run on to ten times its cycles takes mu_pivot below zero
+            taken = _columns_after(data, response.points(chosen))
+            pool = [r for r in pool if not _impossible_over(r.model, taken)] or pool
             favoured = min(pool, key=lambda r: r.scatter_level)
             after = favoured.after(design.counts, [r for r in pool if r is not favoured])
             for key, values in (("reported_half_width_now", reported[0].now()),
@@ -468,6 +473,23 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
         out["rivals"] = listed
         out["mu_reference_at_runs"] = mu_reference.tolist()
     return out
+
+
+def _columns_after(data: Mapping[str, np.ndarray] | None, runs: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """The columns a recalibration on the data and the runs reads (the runs alone without data)."""
+    count = max((np.size(v) for v in runs.values()), default=0)
+    runs = {k: np.broadcast_to(np.asarray(v, dtype=float), (count,)) for k, v in runs.items()
+            if np.asarray(v).dtype.kind in "fiub"}
+    if data is None:
+        return runs
+    return {**runs, **{k: (np.concatenate([np.asarray(v, dtype=float), runs[k]]) if k in runs else v)
+                       for k, v in data.items()}}
+
+
+def _impossible_over(model: CalibratedModel, columns: Mapping[str, np.ndarray]) -> bool:
+    """Whether a drift of the model, with its fitted values, takes its parameter where the physics does not
+    go over the columns (:func:`calibrate.credibility.impossible`)."""
+    return any(impossible(term, values, columns, model.fitted, model.fixed) for term, values in model.terms)
 
 
 def _span(spec: Any) -> tuple[float, float]:
@@ -615,7 +637,7 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
     report(0.8)
     rows, chosen, warnings = _runs(response, candidates, design, request.shown)
     expected = _expected(goal, response, design, chosen, envelope, rivals if goal == "discriminate" else [],
-                         [reported, *hedges] if reported is not None else [], held_out_scale)
+                         [reported, *hedges] if reported is not None else [], held_out_scale, data)
     plot = _plot_data(response, chosen, data, space, rivals if goal == "discriminate" else [])
     if envelope_space is not None:  # where the model will be used, on the plot's axes
         plot["envelope"] = {a: list(_span(envelope_space[a])) for a in plot["axes"] if a in envelope_space}
