@@ -64,6 +64,7 @@ from .candidates import Term
 from .censored import measured_rows
 from .data import Dataset
 from .fit import FitResult, fit, predict_mu
+from .groups import why_not_fitted
 from .measurement import folds as design_folds
 from .scatter import ScatterModel, fit_scatter
 from .scores import (
@@ -110,6 +111,7 @@ __all__ = [
     "preferred",
     "scatter_weighted",
     "search_data",
+    "with_search_groups",
     "varying_columns",
 ]
 
@@ -162,6 +164,26 @@ def search_data(dataset: Dataset, rows: np.ndarray) -> Dataset:
     """The rows the search ran on (:func:`search_rows`, :attr:`Selection.rows`) as a dataset: the data
     themselves when they are all of them."""
     return dataset if rows.size == dataset.n_points else dataset.subset(rows)
+
+
+def with_search_groups(dataset: Dataset) -> Dataset:
+    """The data with each row's group code (:attr:`Dataset.search_groups`) when factor columns label groups
+    whose spread :mod:`calibrate.groups` fits: the fits the search scores then give every group its own
+    level of log μ (profiled out, the population's level kept by the declared parameters), so that the
+    groups' offsets are not left in the residual the candidates are judged on, and a held-out row is
+    predicted with its group's level from the training rows. Several such factors: their combinations,
+    when those still hold two rows a group, else the first. The data themselves without any, or with a
+    clipped reading (whose censored residual a level cannot shift)."""
+    if dataset.censored is not None or dataset.search_groups is not None:
+        return dataset
+    eligible = [np.asarray(dataset.factors[name]).astype(str) for name in sorted(dataset.factors)
+                if why_not_fitted(dataset.factors[name]) is None]
+    if not eligible:
+        return dataset
+    labels = np.array(["\x1f".join(cell) for cell in zip(*eligible, strict=True)])
+    if why_not_fitted(labels) is not None:
+        labels = eligible[0]
+    return replace(dataset, search_groups=np.unique(labels, return_inverse=True)[1].astype(int))
 
 
 def varying_columns(dataset: Dataset) -> dict[str, np.ndarray]:
@@ -300,7 +322,7 @@ def forward_select(
             progress(fraction)
 
     rows = search_rows(dataset.n_points, options.max_rows, seed)
-    data = search_data(dataset, rows)
+    data = with_search_groups(search_data(dataset, rows))
     fold_rows = design_folds(data, folds, seed)  # a design point's replicates in one fold
     declared_noise = data.mu_measured_std is not None
     rounds = 1 if declared_noise else max(int(options.scatter_rounds), 1)
