@@ -55,8 +55,9 @@ error of the procedure, and how often it chose the same terms.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -102,6 +103,7 @@ __all__ = [
     "SearchOptions",
     "Selection",
     "Step",
+    "between_groups",
     "cross_validate",
     "forward_select",
     "held_out_of_chosen",
@@ -173,7 +175,9 @@ def with_search_groups(dataset: Dataset) -> Dataset:
     groups' offsets are not left in the residual the candidates are judged on, and a held-out row is
     predicted with its group's level from the training rows. Several such factors: their combinations,
     when those still hold two rows a group, else the first. The data themselves without any, or with a
-    clipped reading (whose censored residual a level cannot shift)."""
+    clipped reading (whose censored residual a level cannot shift), or with a condition column set per
+    group (:func:`between_groups`: a coating or a build parameter per specimen, whose effect a level per
+    group would absorb, so the search judges it on the groups' differences as without levels)."""
     if dataset.censored is not None or dataset.search_groups is not None:
         return dataset
     eligible = [np.asarray(dataset.factors[name]).astype(str) for name in sorted(dataset.factors)
@@ -183,7 +187,30 @@ def with_search_groups(dataset: Dataset) -> Dataset:
     labels = np.array(["\x1f".join(cell) for cell in zip(*eligible, strict=True)])
     if why_not_fitted(labels) is not None:
         labels = eligible[0]
-    return replace(dataset, search_groups=np.unique(labels, return_inverse=True)[1].astype(int))
+    codes = np.unique(labels, return_inverse=True)[1].astype(int)
+    if between_groups(dataset.conditions, codes):
+        return dataset
+    return replace(dataset, search_groups=codes)
+
+
+def between_groups(columns: Mapping[str, Any], codes: np.ndarray) -> tuple[str, ...]:
+    """The columns that vary between the groups of ``codes`` and not within any: what only the groups'
+    differences can tell of.
+
+    >>> between_groups({"coated": np.array([0, 0, 1, 1]), "RH": np.array([0.2, 0.4, 0.2, 0.4])},
+    ...                np.array([0, 0, 1, 1]))
+    ('coated',)
+    """
+    found = []
+    for name, values in columns.items():
+        x = np.asarray(values)
+        if x.dtype.kind not in "biuf" or np.unique(x).size < 2:
+            continue
+        order = np.argsort(codes, kind="stable")
+        cuts = np.flatnonzero(np.diff(codes[order])) + 1
+        if all(np.unique(part).size == 1 for part in np.split(x[order], cuts)):
+            found.append(name)
+    return tuple(found)
 
 
 def varying_columns(dataset: Dataset) -> dict[str, np.ndarray]:

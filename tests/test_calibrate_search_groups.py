@@ -71,3 +71,29 @@ def test_without_a_factor_or_with_one_row_a_group_the_search_reads_one_populatio
     assert fit(plain, ()).group_levels is None and level_factor(plain, fit(plain, ())) == 1.0
     each = parse_rows([{**r, "specimen": f"R{i}"} for i, r in enumerate(rows)])
     assert with_search_groups(each).search_groups is None  # one row a group: no level can be told
+
+
+def test_a_condition_set_per_specimen_keeps_the_search_without_levels_so_its_effect_can_be_found():
+    # A coating per specimen (4 of 8 coated, mu_pivot x 0.6 when coated): a level per specimen would absorb
+    # its whole effect, and the search with levels named nothing (error 24 % where a mu_pivot drift with
+    # the coating leaves 3 %). The search judges such data on the groups' differences, as without levels.
+    rng = np.random.default_rng(7)
+    specimens, per = 8, 12
+    n = specimens * per
+    spec = np.repeat(np.arange(specimens), per)
+    coated = (spec % 2).astype(float)
+    c = {"balls": rng.choice([4.0, 6.0, 8.0], n),
+         "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
+         "speed_m_s": rng.uniform(0.005, 0.15, n)}
+    mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"],
+                          mu_pivot=0.65 * np.where(coated == 1, 0.6, 1.0)).mu
+    measured = mu * np.exp(rng.normal(0.0, 0.03, specimens)[spec] + rng.normal(0.0, 0.02, n))
+    rows = [{**{k: float(v[i]) for k, v in c.items()}, "coated": float(coated[i]), "specimen": f"S{spec[i]}",
+             "mu_measured": float(measured[i])} for i in range(n)]
+    data = parse_rows(rows)
+    assert with_search_groups(data).search_groups is None
+    # the same specimens with the coating varied within each (half their runs): levels given
+    within = [{**row, "coated": float(i % 2)} for i, row in enumerate(rows)]
+    assert with_search_groups(parse_rows(within)).search_groups is not None
+    selection = forward_select(data, ["mu_pivot"], 5, 0)
+    assert [t.label for t in selection.terms] == ["mu_pivot drifts with coated (linear)"]
