@@ -129,6 +129,10 @@ class Dataset:
         The header cell or JSON key each column was sent under when it was sent in another unit than its
         own (``{"speed_m_s": "speed [mm/s]"}``), so that reports and plots speak the upload's units
         (:func:`physics.columns.read_name` reads the header back: ``sent_value``, ``sent_unit``).
+    search_groups : numpy.ndarray or None
+        Group code (0, 1, ...) of each row, set on the rows forward selection searches when a factor
+        labels groups (:func:`calibrate.select.with_search_groups`): the fits the search scores then give
+        each group its own level of log μ (:func:`calibrate.fit.fit`). None: one population; never stored.
     """
 
     physics_columns: dict[str, np.ndarray]
@@ -142,6 +146,7 @@ class Dataset:
     censored: np.ndarray | None = field(default=None, repr=False)
     censor_scale: float = 0.0
     headers: dict[str, str] = field(default_factory=dict)
+    search_groups: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def n_points(self) -> int:
@@ -188,6 +193,7 @@ class Dataset:
             None if self.censored is None else self.censored[rows],
             self.censor_scale,
             dict(self.headers),
+            None if self.search_groups is None else self.search_groups[rows],
         )
 
     def to_columns(self) -> dict[str, np.ndarray]:

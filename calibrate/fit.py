@@ -38,6 +38,7 @@ __all__ = [
     "fit",
     "huber_loss",
     "kfold_indices",
+    "level_factor",
     "predict_mu",
     "prediction_errors",
     "robust_scale",
@@ -97,6 +98,10 @@ class FitResult:
         whose singular value is below :data:`UNIDENTIFIED_RCOND` of the largest (a modulus that trades
         off exactly against another parameter). The pseudo-inverse gives them a tiny variance along that
         direction; :attr:`std` reports at least their own magnitude instead.
+    group_levels : numpy.ndarray or None
+        With :attr:`Dataset.search_groups`: each group code's level of log μ the fit profiled out [1]
+        (0 for a code without fitted rows), the row-weighted levels summing to zero
+        (:func:`level_factor`); None without.
     """
 
     declared: dict[str, float]
@@ -110,6 +115,7 @@ class FitResult:
     at_bound: list[str]
     success: bool
     unidentified: list[str] = field(default_factory=list)
+    group_levels: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def std(self) -> np.ndarray:
@@ -308,7 +314,7 @@ def fit(
     unknowns = _unknowns(dataset, fit_parameters, terms, start, start_terms, base, convention)
     x0, lo, hi = unknowns.x0, unknowns.lo, unknowns.hi
 
-    def residual(x):
+    def residual(x, profiled=True):
         # A trial step may overflow an exponential term or drive an additive one negative; a large
         # finite residual makes the optimizer reject the step.
         with np.errstate(all="ignore"):
@@ -323,15 +329,19 @@ def fit(
             except ValueError:  # a trial drift outside a physics input's range
                 return np.full(np.size(dataset.mu_measured if rows is None else rows), _REJECTED_RESIDUAL)
             r = weighted_log_residual(dataset, mu, rows)
+        if profiled and groups is not None and np.all(np.isfinite(r)):
+            return r + weights * groups.levels(r, weights)[groups.codes]
         return np.where(np.isfinite(r), r, _REJECTED_RESIDUAL)
 
+    groups, weights = _Groups.of(dataset, rows), _weights(dataset, rows)  # levels profiled out with groups
     r = residual(x0)
     # The scale is the measured rows' (a clipped row's residual is not a value's).
     measured = measured_rows(dataset.censored, dataset.n_points)
     measured = measured if rows is None else measured[rows]
     if x0.size == 0:
         s = scale if scale is not None else max(robust_scale(r[measured]), 1e-12)
-        return FitResult({}, (), [], [], x0, np.zeros((0, 0)), s, r, [], True)
+        return FitResult({}, (), [], [], x0, np.zeros((0, 0)), s, r, [], True,
+                         group_levels=_levels_at(groups, residual, x0, weights))
     passes = [scale] if scale is not None else [None, None]
     x = x0
     for given in passes:
@@ -368,7 +378,60 @@ def fit(
         [n for n, b in zip(names, on_bound, strict=True) if b],
         bool(result.success),
         [n for n, w in zip(names, weak, strict=True) if w],
+        _levels_at(groups, residual, x, weights),
     )
+
+
+@dataclass(frozen=True)
+class _Groups:
+    """The group codes of a fit's rows, for the levels the fit profiles out (see :func:`level_factor`)."""
+
+    codes: np.ndarray
+    n_codes: int
+
+    @staticmethod
+    def of(dataset: Dataset, rows) -> _Groups | None:
+        if dataset.search_groups is None:
+            return None
+        codes = np.asarray(dataset.search_groups if rows is None else dataset.search_groups[rows], dtype=int)
+        return _Groups(codes, int(np.max(dataset.search_groups, initial=-1)) + 1)
+
+    def levels(self, r: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """Each code's level of log μ on the weighted residual ``r = w log(mu / mu_measured)``: the weighted
+        least-squares level of its rows, less the rows' overall one (so the declared parameters keep the
+        population's level); 0 for a code without rows. [1]"""
+        num = np.bincount(self.codes, weights * r, self.n_codes)
+        den = np.bincount(self.codes, weights * weights, self.n_codes)
+        total = float(den.sum())
+        overall = float(num.sum()) / total if total > 0 else 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(den > 0, overall - num / den, 0.0)
+
+
+def _weights(dataset: Dataset, rows) -> np.ndarray:
+    """Each row's weight ``mu_measured / mu_measured_std`` in the weighted log residual (1 without). [1]"""
+    measured = dataset.mu_measured if rows is None else dataset.mu_measured[rows]
+    if dataset.mu_measured_std is None:
+        return np.ones_like(measured, dtype=float)
+    return measured / (dataset.mu_measured_std if rows is None else dataset.mu_measured_std[rows])
+
+
+def _levels_at(groups: _Groups | None, residual, x, weights) -> np.ndarray | None:
+    """The group levels the fit's residual profiled out at ``x``, or None without groups."""
+    if groups is None:
+        return None
+    r = residual(x, False)
+    return groups.levels(r, weights) if np.all(np.isfinite(r)) else np.zeros(groups.n_codes)
+
+
+def level_factor(dataset: Dataset, result: FitResult, rows=None) -> np.ndarray | float:
+    """The factor ``exp(level)`` of each row's group on μ (:attr:`FitResult.group_levels`), 1 without groups:
+    a fit on :attr:`Dataset.search_groups` predicts ``mu * level_factor``. A held-out row takes the level
+    of its group estimated on the training rows (1 for a group that has none there). [1]"""
+    if dataset.search_groups is None or result.group_levels is None:
+        return 1.0
+    codes = dataset.search_groups if rows is None else dataset.search_groups[rows]
+    return np.exp(result.group_levels[np.asarray(codes, dtype=int)])
 
 
 @dataclass(frozen=True)

@@ -525,8 +525,7 @@ def data_stage(dataset: Dataset, fit_parameters: Sequence[str], options: Calibra
     """
     fit_parameters = check_fit_parameters(dataset, fit_parameters)
     convention = options.convention
-    # Replicates, clips and order/time columns (calibrate.measurement): folds keep a design point whole,
-    # clipped rows are censored.
+    # Replicates, clips, order/time columns (calibrate.measurement): folds keep a point whole; clips censored.
     system = inspect(dataset, options.folds)
     dataset = with_censor_scale(system.apply(dataset), fit_parameters, convention)
     measured = dataset.mu_measured

@@ -18,7 +18,7 @@ from microbearing import physics
 
 from .candidates import Term
 from .data import Dataset
-from .fit import FitResult, fit, huber_loss, predict_mu, weighted_log_residual
+from .fit import FitResult, fit, huber_loss, level_factor, predict_mu, weighted_log_residual
 
 __all__ = [
     "CLOSE_MARGIN",
@@ -221,6 +221,7 @@ def cross_validate(
         )
         with np.errstate(all="ignore"):
             mu = predict_mu(dataset, fold_fit.declared, terms, fold_fit.term_values, convention=convention)
+            mu = mu * level_factor(dataset, fold_fit)  # a held-out row: its group level from training
         fold_fits.append(fold_fit)
         fold_mu.append(mu)
         oof[test] = mu[test]

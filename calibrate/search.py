@@ -16,7 +16,7 @@ from microbearing import physics
 from .candidates import FrozenBase, candidate_terms, mu_of, placed_on
 from .credibility import implausible
 from .data import Dataset
-from .fit import fit, huber_loss, predict_mu, weighted_log_residual
+from .fit import fit, huber_loss, level_factor, predict_mu, weighted_log_residual
 from .scores import (
     CandidateScore,
     ModelCV,
@@ -115,7 +115,8 @@ def frozen_base(dataset, fit_parameters, current: ModelCV, parameters, conventio
             )
             s = np.log(mu_bumped / mu) / np.log(factor)
         sensitivity[name] = np.where(np.isfinite(s), s, 0.0)
-    return FrozenBase(mu, sensitivity, tuple(fit_parameters))
+    # with groups (Dataset.search_groups) the frozen model carries each row's group level
+    return FrozenBase(mu * level_factor(dataset, full), sensitivity, tuple(fit_parameters))
 
 
 def bump_factor(name: str, value: np.ndarray) -> float:
@@ -139,7 +140,7 @@ def _screen(dataset, fit_parameters, current: ModelCV, term, base, scale, curren
             result = fit(dataset, (), (term,), base=base, scale=scale, precise=False)
             mu = predict_mu(
                 dataset, {}, (term,), result.term_values, base=base.shifted(list(result.declared.values()))
-            )
+            ) * level_factor(dataset, result)
         except ValueError:
             return None
     if not usable(mu):
@@ -166,7 +167,8 @@ def _screen_exactly(
                 precise=False,
                 convention=convention,
             )
-            mu = predict_mu(dataset, result.declared, terms, result.term_values, convention=convention)
+            mu = predict_mu(dataset, result.declared, terms, result.term_values,
+                            convention=convention) * level_factor(dataset, result)
         except ValueError:
             return None
     if not usable(mu):
@@ -196,7 +198,7 @@ def _cv_candidate(dataset, fit_parameters, current: ModelCV, screened: Candidate
             try:
                 if screened.term.searched:  # a step's place searched again on the fold's training rows
                     mu = predict_mu(dataset, fold_fit.declared, current.terms, fold_fit.term_values,
-                                    convention=convention)
+                                    convention=convention) * level_factor(dataset, fold_fit)
                     terms = (*current.terms, placed_on(screened.term, columns,
                                                        np.log(dataset.mu_measured / mu), train))
                 result = fit(
@@ -212,7 +214,7 @@ def _cv_candidate(dataset, fit_parameters, current: ModelCV, screened: Candidate
                 )
                 oof[test] = predict_mu(
                     dataset, result.declared, terms, result.term_values, rows=test, convention=convention
-                )
+                ) * level_factor(dataset, result, test)
             except ValueError:  # a held-out driver value outside the term's domain
                 return None
     # A term extrapolated to a held-out driver value can overflow: the candidate then fails.

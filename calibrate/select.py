@@ -55,8 +55,9 @@ error of the procedure, and how often it chose the same terms.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -64,6 +65,7 @@ from .candidates import Term
 from .censored import measured_rows
 from .data import Dataset
 from .fit import FitResult, fit, predict_mu
+from .groups import why_not_fitted
 from .measurement import folds as design_folds
 from .scatter import ScatterModel, fit_scatter
 from .scores import (
@@ -101,6 +103,7 @@ __all__ = [
     "SearchOptions",
     "Selection",
     "Step",
+    "between_groups",
     "cross_validate",
     "forward_select",
     "held_out_of_chosen",
@@ -110,6 +113,7 @@ __all__ = [
     "preferred",
     "scatter_weighted",
     "search_data",
+    "with_search_groups",
     "varying_columns",
 ]
 
@@ -162,6 +166,51 @@ def search_data(dataset: Dataset, rows: np.ndarray) -> Dataset:
     """The rows the search ran on (:func:`search_rows`, :attr:`Selection.rows`) as a dataset: the data
     themselves when they are all of them."""
     return dataset if rows.size == dataset.n_points else dataset.subset(rows)
+
+
+def with_search_groups(dataset: Dataset) -> Dataset:
+    """The data with each row's group code (:attr:`Dataset.search_groups`) when factor columns label groups
+    whose spread :mod:`calibrate.groups` fits: the fits the search scores then give every group its own
+    level of log μ (profiled out, the population's level kept by the declared parameters), so that the
+    groups' offsets are not left in the residual the candidates are judged on, and a held-out row is
+    predicted with its group's level from the training rows. Several such factors: their combinations,
+    when those still hold two rows a group, else the first. The data themselves without any, or with a
+    clipped reading (whose censored residual a level cannot shift), or with a condition column set per
+    group (:func:`between_groups`: a coating or a build parameter per specimen, whose effect a level per
+    group would absorb, so the search judges it on the groups' differences as without levels)."""
+    if dataset.censored is not None or dataset.search_groups is not None:
+        return dataset
+    eligible = [np.asarray(dataset.factors[name]).astype(str) for name in sorted(dataset.factors)
+                if why_not_fitted(dataset.factors[name]) is None]
+    if not eligible:
+        return dataset
+    labels = np.array(["\x1f".join(cell) for cell in zip(*eligible, strict=True)])
+    if why_not_fitted(labels) is not None:
+        labels = eligible[0]
+    codes = np.unique(labels, return_inverse=True)[1].astype(int)
+    if between_groups(dataset.conditions, codes):
+        return dataset
+    return replace(dataset, search_groups=codes)
+
+
+def between_groups(columns: Mapping[str, Any], codes: np.ndarray) -> tuple[str, ...]:
+    """The columns that vary between the groups of ``codes`` and not within any: what only the groups'
+    differences can tell of.
+
+    >>> between_groups({"coated": np.array([0, 0, 1, 1]), "RH": np.array([0.2, 0.4, 0.2, 0.4])},
+    ...                np.array([0, 0, 1, 1]))
+    ('coated',)
+    """
+    found = []
+    for name, values in columns.items():
+        x = np.asarray(values)
+        if x.dtype.kind not in "biuf" or np.unique(x).size < 2:
+            continue
+        order = np.argsort(codes, kind="stable")
+        cuts = np.flatnonzero(np.diff(codes[order])) + 1
+        if all(np.unique(part).size == 1 for part in np.split(x[order], cuts)):
+            found.append(name)
+    return tuple(found)
 
 
 def varying_columns(dataset: Dataset) -> dict[str, np.ndarray]:
@@ -300,7 +349,7 @@ def forward_select(
             progress(fraction)
 
     rows = search_rows(dataset.n_points, options.max_rows, seed)
-    data = search_data(dataset, rows)
+    data = with_search_groups(search_data(dataset, rows))
     fold_rows = design_folds(data, folds, seed)  # a design point's replicates in one fold
     declared_noise = data.mu_measured_std is not None
     rounds = 1 if declared_noise else max(int(options.scatter_rounds), 1)
