@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.calibrated_batch import measurements
 from microbearing import physics
 
 
@@ -20,3 +21,15 @@ def kelvin_rows(seed: int = 3, n: int = 150, humidity: tuple[float, float] = (0.
                           adhesion_energy_J_m2=0.05 * (1 + 1.5 / np.log(1 / c["relative_humidity"]))).mu
     mu = mu * np.exp(rng.normal(0, noise, n))
     return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(n)]
+
+
+def lab_header_rows(seed: int = 3) -> list[dict]:
+    """bench/calibrated_batch.py's menisci data under a lab's headers: humidity in percent as
+    ``relative humidity [%]``, temperature in degF as ``temp_F`` (converted by hand: F = C * 9/5 + 32)."""
+    rows = []
+    for row in measurements(seed):
+        row = dict(row)
+        row["relative humidity [%]"] = row.pop("relative_humidity") * 100.0
+        row["temp_F"] = row.pop("temperature_C") * 9.0 / 5.0 + 32.0
+        rows.append(row)
+    return rows

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from jobs_helper import job_result, wait_job
+from labs_helper import lab_header_rows
 
-from bench.calibrated_batch import measurements
 from microbearing.calibrate.experiments import candidate_points
 from microbearing.calibrate.tabular import read_csv
 from microbearing.optimize.robust import Envelope
@@ -31,22 +31,12 @@ def client(data_dir):
         yield test_client
 
 
-def _upload_rows() -> list[dict]:
-    """The menisci data of bench/calibrated_batch.py with the lab's headers: humidity in %, temperature in
-    degF (converted by hand: F = C * 9/5 + 32)."""
-    rows = []
-    for row in measurements(3):
-        row = dict(row)
-        row["relative humidity [%]"] = row.pop("relative_humidity") * 100.0
-        row["temp_F"] = row.pop("temperature_C") * 9.0 / 5.0 + 32.0
-        rows.append(row)
-    return rows
 
 
 @pytest.fixture(scope="module")
 def calibration(client) -> dict:
-    response = client.post("/v1/calibrations", json={"data": _upload_rows(), "fit_parameters": ["mu_pivot"],
-                                                     "folds": 3})
+    response = client.post("/v1/calibrations", json={"data": lab_header_rows(),
+                                                     "fit_parameters": ["mu_pivot"], "folds": 3})
     result = job_result(client, response, timeout_s=300, interval_s=0.1)
     # the upload read the lab's headers as SI columns: the fraction and kelvin
     conditions = result["model"]["conditions"]
@@ -77,7 +67,7 @@ def test_percent_humidity_at_prediction_is_refused_as_the_upload_refuses_it(clie
     assert "look like percent" in detail
     # the upload's own rule: the same values as a data column are refused with the same words
     rows = [{("relative_humidity" if key == "relative humidity [%]" else key): value
-             for key, value in row.items()} for row in _upload_rows()]
+             for key, value in row.items()} for row in lab_header_rows()]
     response = client.post("/v1/calibrations", json={"data": rows, "fit_parameters": ["mu_pivot"]})
     assert response.status_code == 422 and "look like percent" in response.text, response.text
 

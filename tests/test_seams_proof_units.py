@@ -8,8 +8,8 @@ import json
 import pytest
 from fastapi.testclient import TestClient
 from jobs_helper import job_result, wait_job
+from labs_helper import lab_header_rows
 
-from bench.calibrated_batch import measurements
 from microbearing.optimize.robust import Envelope
 from microbearing.physics.columns import read_name
 from microbearing.service.app import create_app
@@ -28,21 +28,12 @@ def client(data_dir):
         yield test_client
 
 
-def _upload_rows() -> list[dict]:
-    """bench/calibrated_batch.py's menisci data with a lab's headers: humidity in %, temperature in degF."""
-    rows = []
-    for row in measurements(3):
-        row = dict(row)
-        row["relative humidity [%]"] = row.pop("relative_humidity") * 100.0
-        row["temp_F"] = row.pop("temperature_C") * 9.0 / 5.0 + 32.0
-        rows.append(row)
-    return rows
 
 
 @pytest.fixture(scope="module")
 def model(client) -> str:
-    response = client.post("/v1/calibrations", json={"data": _upload_rows(), "fit_parameters": ["mu_pivot"],
-                                                     "folds": 3})
+    response = client.post("/v1/calibrations", json={"data": lab_header_rows(),
+                                                     "fit_parameters": ["mu_pivot"], "folds": 3})
     return job_result(client, response, timeout_s=300, interval_s=0.1)["model_id"]
 
 
