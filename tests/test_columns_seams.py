@@ -31,8 +31,6 @@ def client(data_dir):
         yield test_client
 
 
-
-
 @pytest.fixture(scope="module")
 def calibration(client) -> dict:
     response = client.post("/v1/calibrations", json={"data": lab_header_rows(),

@@ -28,8 +28,6 @@ def client(data_dir):
         yield test_client
 
 
-
-
 @pytest.fixture(scope="module")
 def model(client) -> str:
     response = client.post("/v1/calibrations", json={"data": lab_header_rows(),
