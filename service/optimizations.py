@@ -105,6 +105,9 @@ class OptimizationPlan:
     readings : mapping
         How each condition was read from its key as sent (:class:`physics.columns.Reading`), for the
         worst case's domain warnings in the request's units.
+    tolerance_readings : mapping
+        How each tolerance was read from its key as sent (``groove angle [rad]``), for the result's
+        ``tolerances_as_sent``.
     """
 
     problem: DesignProblem
@@ -122,6 +125,7 @@ class OptimizationPlan:
     time_limit_s: float = 60.0
     input_warnings: tuple[str, ...] = ()
     readings: Mapping[str, Any] = field(default_factory=dict)
+    tolerance_readings: Mapping[str, Any] = field(default_factory=dict)
 
 
 def _request(body: OptimizationRequest) -> DesignRequest:
@@ -250,7 +254,8 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
     return OptimizationPlan(planned.problem, body.model, mu_model, body.starts, pareto, synchronous,
                             source_model, source_name, interval, planned.envelope, body.objective,
                             None if planned.envelope is None else model, body.time_limit_s,
-                            tuple(_input_warnings(body)), ReadConditions.of(body.conditions).readings)
+                            tuple(_input_warnings(body)), ReadConditions.of(body.conditions).readings,
+                            {} if body.tolerances is None else body.tolerances.readings)
 
 
 def _input_warnings(body: OptimizationRequest) -> list[str]:
@@ -342,6 +347,20 @@ def _with_warnings(plan: OptimizationPlan, document: dict[str, Any]) -> dict[str
     return {**document, "input_warnings": list(plan.input_warnings)} if plan.input_warnings else document
 
 
+def _show_as_sent(plan: OptimizationPlan, document: dict[str, Any]) -> None:
+    """The envelope and its worst case (speed and conditions) also under the keys and in the units the
+    request sent them in (``as_sent``), and the tolerances likewise (the envelope's ``tolerances_as_sent``:
+    ``groove angle [rad]`` 0.01, not only 0.5729577951 deg)."""
+    readings = {**plan.readings, **({} if plan.envelope is None else plan.envelope.readings)}
+    sent = ReadConditions({}, {name: r.sent for name, r in readings.items()}, readings=readings)
+    for part in ("envelope", "worst_case"):
+        shown = {"speed_m_s": document[part]["speed_m_s"], **document[part]["conditions"]}
+        document[part] = {**document[part], "as_sent": sent.shown_as_sent(shown)}
+    widths = ReadConditions({}, {name: r.sent for name, r in plan.tolerance_readings.items()},
+                            readings=plan.tolerance_readings)  # a half-width: scaled, never offset (angles)
+    document["envelope"]["tolerances_as_sent"] = widths.shown_as_sent(document["envelope"]["tolerances"])
+
+
 def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None,
                 executor: Executor | None) -> dict[str, Any]:
     """A design over the plan's envelope (:func:`optimize.robust.optimize_robust`), JSON-ready."""
@@ -355,10 +374,7 @@ def _run_robust(plan: OptimizationPlan, progress: Callable[[float], None] | None
     except ValueError as exc:  # a condition outside a term's law
         raise validation_problem([{"pointer": "/conditions", "detail": str(exc)}]) from None
     document = {**robust.to_dict(), "model": plan.model}
-    # the envelope and its worst case also under the keys and in the units the request sent them in
-    sent = ReadConditions({}, {name: r.sent for name, r in plan.readings.items()}, readings=plan.readings)
-    for part in ("envelope", "worst_case"):
-        document[part] = {**document[part], "as_sent": sent.shown_as_sent(document[part]["conditions"])}
+    _show_as_sent(plan, document)
     if plan.source_model is not None:
         # A surrogate's design judged by the model it stands for, over the same envelope.
         verification = verify_over_envelope(plan.problem, plan.envelope, robust.result.design, plan.resolved,

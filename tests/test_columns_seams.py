@@ -998,9 +998,10 @@ def test_an_optimization_s_envelope_and_worst_case_speak_the_keys_as_sent(client
     result = client.get(job["result_url"]).json()
     envelope, worst = result["envelope"], result["worst_case"]
     # the ends as typed, not their round trip through kelvin (69.9999999998)
-    assert envelope["as_sent"] == {"relative humidity [%]": [30, 60], "temp_F": [70, 100]}, envelope
+    assert envelope["as_sent"] == {"speed_m_s": [0.05, 0.05], "relative humidity [%]": [30, 60],
+                                   "temp_F": [70, 100]}, envelope
     sent = worst["as_sent"]
-    assert set(sent) == set(conditions), worst
+    assert set(sent) == {"speed_m_s", *conditions}, worst
     # by hand: % = 100 x the fraction, degF = (K - 273.15) x 9/5 + 32
     assert sent["relative humidity [%]"] == pytest.approx(100 * worst["conditions"]["relative_humidity"])
     assert sent["temp_F"] == pytest.approx(_fahrenheit(worst["conditions"]["temp_K"]))
@@ -1009,7 +1010,8 @@ def test_an_optimization_s_envelope_and_worst_case_speak_the_keys_as_sent(client
     job = wait_job(client, client.post("/v1/optimizations", json={
         **base, "conditions": {"relative_humidity": [0.3, 0.6], "temp_F": 80}}))
     result = client.get(job["result_url"]).json()
-    assert result["envelope"]["as_sent"] == {"relative_humidity": [0.3, 0.6], "temp_F": [80, 80]}, result
+    assert result["envelope"]["as_sent"] == {"speed_m_s": [0.05, 0.05], "relative_humidity": [0.3, 0.6],
+                                             "temp_F": [80, 80]}, result
     assert result["worst_case"]["as_sent"]["temp_F"] == 80, result["worst_case"]
 
 

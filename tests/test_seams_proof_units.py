@@ -103,3 +103,32 @@ def test_an_envelope_says_a_value_as_its_reading_does():
     assert envelope.said("relative_humidity", 0.6) == "relative_humidity at 0.6"
     # the words are no part of what the envelope is
     assert envelope == Envelope((0.01, 0.05), ranges)
+
+
+def test_an_envelope_s_speed_and_tolerance_are_shown_in_the_keys_and_units_sent(client, tmp_path):
+    # before: as_sent covered the conditions only: a speed sent as speed [mm/s] [10, 50] and a tolerance
+    # sent as groove angle [rad] 0.01 were shown back only as speed_m_s [0.01, 0.05] and 0.5729577951 deg
+    request = {**BASE, "speed [mm/s]": [10, 50], "tolerances": {"groove angle [rad]": 0.01}}
+    answer = client.post("/v1/optimizations", json=request)
+    assert answer.status_code in (200, 202), answer.text
+    result = answer.json() if answer.status_code == 200 else _optimized(client, request)
+    envelope, worst = result["envelope"], result["worst_case"]
+    assert envelope["speed_m_s"] == pytest.approx([0.01, 0.05])
+    assert envelope["as_sent"] == {"speed [mm/s]": [10, 50]}, envelope
+    # by hand: mm/s = 1000 x m/s; rad = deg x pi / 180
+    assert worst["as_sent"] == {"speed [mm/s]": pytest.approx(1000 * worst["speed_m_s"])}, worst
+    assert envelope["tolerances"]["groove_angle_deg"] == pytest.approx(0.01 * 180 / 3.141592653589793)
+    assert envelope["tolerances_as_sent"] == {"groove angle [rad]": 0.01}, envelope
+    path = tmp_path / "robust.json"
+    path.write_text(json.dumps(request))
+    out = tmp_path / "design.json"
+    assert main(["optimize", str(path), "-o", str(out)]) == 0
+    cli = json.loads(out.read_text())
+    assert cli["envelope"]["as_sent"] == envelope["as_sent"] and cli["worst_case"]["as_sent"] == worst["as_sent"]
+    assert cli["envelope"]["tolerances_as_sent"] == envelope["tolerances_as_sent"]
+    # sent in the model's own keys, the same keys come back
+    plain = {**BASE, "speed_m_s": [0.01, 0.05], "tolerances": {"groove_angle_deg": 0.5}}
+    answer = client.post("/v1/optimizations", json=plain)
+    result = answer.json() if answer.status_code == 200 else _optimized(client, plain)
+    assert result["envelope"]["as_sent"] == {"speed_m_s": [0.01, 0.05]}, result["envelope"]
+    assert result["envelope"]["tolerances_as_sent"] == {"groove_angle_deg": 0.5}, result["envelope"]

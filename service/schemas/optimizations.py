@@ -321,10 +321,14 @@ class Envelope(ResponseModel):
     conditions: dict[str, list[float]] = Field(
         description="[low, high] of each condition column, in the calibration data's unit.")
     as_sent: dict[str, list[float]] = Field(default_factory=dict, description=(
-        "The same under the request's keys as sent, each in the unit its key states ({'RH [%]': [30, 60], "
-        "'temp_F': [70, 100]} where relative_humidity is [0.3, 0.6] and temp_K [294.26, 310.93])."))
+        "speed_m_s and conditions under the request's keys as sent, each in the unit its key states "
+        "({'speed [mm/s]': [20, 50], 'RH [%]': [30, 60], 'temp_F': [70, 100]} where speed_m_s is "
+        "[0.02, 0.05], relative_humidity [0.3, 0.6] and temp_K [294.26, 310.93])."))
     tolerances: dict[str, float] = Field(
         description="Half-width of each tolerance (groove_angle_deg [deg]).")
+    tolerances_as_sent: dict[str, float] = Field(default_factory=dict, description=(
+        "The same under the request's keys as sent, each in the unit its key states "
+        "({'groove angle [rad]': 0.01} where groove_angle_deg is 0.5729577951)."))
 
 
 class WorstCase(ResponseModel):
@@ -339,8 +343,8 @@ class WorstCase(ResponseModel):
     conditions: dict[str, float] = Field(
         description="Condition values where it occurs, in the calibration data's units.")
     as_sent: dict[str, float] = Field(default_factory=dict, description=(
-        "The same under the request's keys as sent, each in the unit its key states ({'RH [%]': 60} where "
-        "relative_humidity is 0.6)."))
+        "speed_m_s and the conditions under the request's keys as sent, each in the unit its key states "
+        "({'speed [mm/s]': 50, 'RH [%]': 60} where speed_m_s is 0.05 and relative_humidity 0.6)."))
 
 
 class OuterRound(ResponseModel):
