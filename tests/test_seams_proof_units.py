@@ -124,7 +124,8 @@ def test_an_envelope_s_speed_and_tolerance_are_shown_in_the_keys_and_units_sent(
     out = tmp_path / "design.json"
     assert main(["optimize", str(path), "-o", str(out)]) == 0
     cli = json.loads(out.read_text())
-    assert cli["envelope"]["as_sent"] == envelope["as_sent"] and cli["worst_case"]["as_sent"] == worst["as_sent"]
+    assert cli["envelope"]["as_sent"] == envelope["as_sent"]
+    assert cli["worst_case"]["as_sent"] == worst["as_sent"]
     assert cli["envelope"]["tolerances_as_sent"] == envelope["tolerances_as_sent"]
     # sent in the model's own keys, the same keys come back
     plain = {**BASE, "speed_m_s": [0.01, 0.05], "tolerances": {"groove_angle_deg": 0.5}}
