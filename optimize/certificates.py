@@ -225,8 +225,9 @@ class _DesignBoundEvidence:
     swapped: str
 
 
-def _design_bound_statement(e: _DesignBoundEvidence) -> str:
-    """The lower bound over the designs and the gap, in words."""
+def _design_bound_statement(e: _DesignBoundEvidence, envelope: Envelope) -> str:
+    """The lower bound over the designs and the gap, in words (a design in the request's keys and units,
+    :meth:`Envelope.said_design`)."""
     found = e.found
     stopped = "" if found.complete else ", stopped at the time or box limit: the bound found so far"
     extra = f", and {e.added} worst point(s) of designs lower there" if e.added else ""
@@ -262,8 +263,7 @@ def _design_bound_statement(e: _DesignBoundEvidence) -> str:
     if found.incumbent < e.value * (1.0 - 1e-9):
         better = found.incumbent_design
         statement += (f" A design lower at the points by {1.0 - found.incumbent / e.value:.1e} relative was "
-                      f"found ({better['balls']:g} balls, {better['groove_angle_deg']:.7f} deg, "
-                      f"{better['load_N']:.7g} N: {found.incumbent:.10g}); the gap includes it.")
+                      f"found ({envelope.said_design(better)}: {found.incumbent:.10g}); the gap includes it.")
     return statement
 
 
@@ -318,7 +318,7 @@ def with_design_bound(problem: DesignProblem, envelope: Envelope, model: Model, 
     proven = bool(certified and found.complete and gap <= GAP_TARGET)
     statement = _design_bound_statement(_DesignBoundEvidence(
         found, lower, upper, value, gap, proven, certified, widened, len(problem.ball_counts()), len(points),
-        added, _design_bound_parts(structures), swapped))
+        added, _design_bound_parts(structures), swapped), envelope)
     proof = dataclasses.replace(proof.with_statement(statement), proven=proven, lower_bound=lower,
                                 relative_gap=gap, lower_bound_boxes=found.boxes,
                                 upper_bound_certified=certified)

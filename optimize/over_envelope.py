@@ -59,8 +59,9 @@ class Envelope:
         Half-widths δ of design variables made to a tolerance: the design must hold anywhere within
         nominal ± δ. Only ``groove_angle_deg`` [deg].
     readings : mapping of str to physics.columns.Reading, optional
-        How ``speed_m_s`` and each condition were sent (the key and unit of a request), for the words of a
-        proof (:meth:`said`); the figures stay in the model's units. Not compared.
+        How ``speed_m_s``, each condition and each design variable's bounds (``groove_angle_deg``,
+        ``load_N``) were sent (the key and unit of a request), for the words of a proof (:meth:`said`,
+        :meth:`said_design`); the figures stay in the model's units. Not compared.
 
     Raises
     ------
@@ -130,6 +131,23 @@ class Envelope:
         if reading is not None:
             return reading.said(value)
         return f"speed {value:g} m/s" if name == "speed_m_s" else f"{name} at {value:g}"
+
+    def said_design(self, design: Mapping[str, Any]) -> str:
+        """A design (``balls``, ``groove_angle_deg`` [deg], ``load_N`` [N]) as a proof's words give it: the
+        angle and load under the bounds' keys as sent, in their units, the column's value in brackets
+        (``groove angle [rad] at 0.8901179 (groove_angle_deg 51.0000000)``); ``51.0000000 deg`` and
+        ``0.01 N`` when they were sent so."""
+        words = [f"{float(design['balls']):g} balls"]
+        for name, unit, digits in (("groove_angle_deg", "deg", ".7f"), ("load_N", "N", ".7g")):
+            value = float(design[name])
+            reading = self.readings.get(name)
+            if reading is None:
+                words.append(f"{value:{digits}} {unit}")
+            elif not reading.reading:
+                words.append(f"{reading.sent} at {value:{digits}}")
+            else:
+                words.append(f"{reading.sent} at {reading.set_point(value):.7g} ({name} {value:{digits}})")
+        return ", ".join(words)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready fields: ranges as [low, high]."""

@@ -93,8 +93,9 @@ class DesignRequest:
     pareto : bool
         Whether a Pareto front is asked for as well.
     readings : mapping
-        How ``speed_m_s`` and each condition were sent (:class:`physics.columns.Reading`, the request's key
-        and unit), for the words of a robust design's proof (:attr:`Envelope.readings`).
+        How ``speed_m_s``, each condition and the design bounds (``groove_angle_deg``, ``load_N``) were sent
+        (:class:`physics.columns.Reading`, the request's key and unit), for the words of a robust design's
+        proof (:attr:`Envelope.readings`).
     """
 
     balls: tuple[int, int]

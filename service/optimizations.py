@@ -142,10 +142,12 @@ def _request(body: OptimizationRequest) -> DesignRequest:
 
 
 def _readings(body: OptimizationRequest) -> dict[str, Any]:
-    """How the request's speed and conditions were sent (:class:`physics.columns.Reading` by column), for the
-    words of a proof in the request's keys and units."""
+    """How the request's speed, conditions and design bounds were sent (:class:`physics.columns.Reading` by
+    column), for the words of a proof in the request's keys and units."""
     speed = {**body.fixed.readings, **body.readings}.get("speed_m_s")
-    return {**ReadConditions.of(body.conditions).readings, **({} if speed is None else {"speed_m_s": speed})}
+    design = {name: r for name, r in body.bounds.readings.items() if name in ("groove_angle_deg", "load_N")}
+    return {**design, **ReadConditions.of(body.conditions).readings,
+            **({} if speed is None else {"speed_m_s": speed})}
 
 
 def _plan_problem(error: PlanError, body: OptimizationRequest) -> ProblemError:

@@ -14,6 +14,8 @@ from microbearing.optimize.robust import Envelope
 from microbearing.physics.columns import read_name
 from microbearing.service.app import create_app
 from microbearing.service.cli import main
+from microbearing.service.optimizations import prepare
+from microbearing.service.schemas.optimizations import OptimizationRequest
 from microbearing.service.settings import Settings
 
 
@@ -133,3 +135,20 @@ def test_an_envelope_s_speed_and_tolerance_are_shown_in_the_keys_and_units_sent(
     result = answer.json() if answer.status_code == 200 else _optimized(client, plain)
     assert result["envelope"]["as_sent"] == {"speed_m_s": [0.01, 0.05]}, result["envelope"]
     assert result["envelope"]["tolerances_as_sent"] == {"groove_angle_deg": 0.5}, result["envelope"]
+
+
+def test_a_design_in_a_proof_is_said_in_the_bounds_keys_and_units():
+    # before: "A design lower at the points ... was found (5 balls, 51.0000000 deg, 0.01 N: ...)" whatever
+    # the keys of the bounds: now under them, in their units, the column's value in brackets
+    body = OptimizationRequest.model_validate(
+        {"bounds": {"balls": [4, 6], "groove angle [rad]": [0.87, 0.96], "load [gf]": [0.8, 1.2]},
+         "speed [mm/s]": [10, 50], "tolerances": {"groove_angle_deg": 0.5}})
+    envelope = prepare(None, body).envelope
+    design = {"balls": 5, "groove_angle_deg": 51.0, "load_N": 0.00980665}
+    # by hand: 51 deg = 51 x pi / 180 rad = 0.8901179185; 0.00980665 N = 1 gf
+    assert envelope.said_design(design) == ("5 balls, groove angle [rad] at 0.8901179 (groove_angle_deg "
+                                            "51.0000000), load [gf] at 1 (load_N 0.00980665)")
+    assert envelope.said("speed_m_s", 0.05) == "speed [mm/s] at 50 (speed_m_s 0.05)"
+    # sent in the model's own keys, the words stay the column's
+    plain = OptimizationRequest.model_validate({**BASE, "speed_m_s": [0.01, 0.05]})
+    assert prepare(None, plain).envelope.said_design(design) == "5 balls, 51.0000000 deg, 0.00980665 N"
