@@ -33,6 +33,7 @@ from microbearing.physics.columns import Reading, read_key
 from microbearing.physics.slips import read_slip, unstated_unit
 
 from .calibrations import MODEL_PREFIX, ReadConditions, load_calibration, stored_dataset
+from .models import stored_calibrated
 from .problems import ProblemError, pointer_at, validation_problem
 from .schemas.experiments import FirstExperimentsRequest, NextExperimentsRequest
 from .store import Store
@@ -232,7 +233,7 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
         cannot be refitted; one with no rival explores where the data say least).
     """
     stored = load_calibration(store, calibration_id)
-    model = CalibratedModel.from_json(stored.metadata["model"])
+    model = stored_calibrated(stored.metadata)
     report = stored.metadata["report"]
     # a planned run's conditions read as the space's (the upload's headers and units)
     read = _read_request(model, body)

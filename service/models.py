@@ -19,12 +19,14 @@ turns it into the 422 problem the API answers.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import threading
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from contextlib import contextmanager
+from typing import Any
 
 from microbearing import physics, surrogate
 from microbearing.calibrate import CalibratedModel
@@ -102,6 +104,29 @@ def physics_in(convention: str = physics.DEFAULT_CONVENTION) -> PhysicsModel:
     return physics_with_execution(convention, _physics_execution)
 
 
+def stored_calibrated(metadata: Mapping[str, Any]) -> CalibratedModel:
+    """The calibrated model of a stored calibration's metadata. One stored before the upload's headers were
+    kept with the model (:attr:`calibrate.CalibratedModel.headers` empty) has them back from its report's
+    intake (each column's header as sent -> the column it was read as), so that a key at prediction that
+    states no unit is judged against the upload's unit, not the column's own."""
+    model = CalibratedModel.from_json(metadata["model"])
+    if model.headers:
+        return model
+    headers = _intake_headers(metadata)
+    return dataclasses.replace(model, headers=headers) if headers else model
+
+
+def _intake_headers(metadata: Mapping[str, Any]) -> dict[str, str]:
+    """Each column sent under another name, by its report's intake: column -> its header as sent.
+
+    >>> _intake_headers({"report": {"intake": {"columns": {"temp_F": "temp_K", "balls": "balls"}}}})
+    {'temp_K': 'temp_F'}
+    """
+    intake = (metadata.get("report") or {}).get("intake") or {}
+    columns = intake.get("columns") or {}
+    return {str(name): str(sent) for sent, name in columns.items() if str(sent) != str(name)}
+
+
 @contextmanager
 def problems() -> Iterator[None]:
     """A context turning a model's :class:`ModelError` into the 422 problem naming its fields."""
@@ -155,7 +180,7 @@ def resolve(store: Store, reference: str, pointer: str = "/model", *, kinds: Seq
             raise ProblemError(404, f"There is no surrogate {model_id!r}.")
         return SurrogateModel(reference, estimator)
     model = store.rebuilt(model_id, _STORE_KINDS[kind], lambda stored: CalibratedPhysicsModel(
-        reference, CalibratedModel.from_json(stored.metadata["model"])))
+        reference, stored_calibrated(stored.metadata)))
     if model is None:
         raise ProblemError(404, f"There is no calibrated model {reference!r}.")
     return model

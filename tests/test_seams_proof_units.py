@@ -17,6 +17,7 @@ from microbearing.service.cli import main
 from microbearing.service.optimizations import prepare
 from microbearing.service.schemas.optimizations import OptimizationRequest
 from microbearing.service.settings import Settings
+from microbearing.service.store import Store
 
 
 @pytest.fixture(scope="module")
@@ -152,3 +153,30 @@ def test_a_design_in_a_proof_is_said_in_the_bounds_keys_and_units():
     # sent in the model's own keys, the words stay the column's
     plain = OptimizationRequest.model_validate({**BASE, "speed_m_s": [0.01, 0.05]})
     assert prepare(None, plain).envelope.said_design(design) == "5 balls, 51.0000000 deg, 0.00980665 N"
+
+
+def test_a_calibration_stored_before_its_headers_were_kept_has_them_back_from_its_intake(client, model,
+                                                                                        data_dir):
+    # A calibration stored before the model kept the upload's headers (metadata "headers" absent): before,
+    # a bare "temperature": 80 was judged against the column's own unit ("the calibration's column temp_K is
+    # in K"), not the upload's temp_F; its report's intake ({"temp_F": "temp_K", ...}) still says how the
+    # upload was read, and the model has its headers back.
+    store = Store(data_dir)
+    stored = store.load_model(model.split(":")[1])
+    metadata = json.loads(json.dumps(stored.metadata))
+    assert metadata["model"].pop("headers")["temp_K"] == "temp_F"
+    assert metadata["report"]["intake"]["columns"]["temp_F"] == "temp_K"
+    old = "calibrated:" + store.save_model(stored.kind, metadata, dict(stored.arrays), name="old")
+    point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05}
+    answer = client.post("/v1/friction", json={**point, "model": old,
+                                               "conditions": {"relative humidity [%]": 50, "temperature": 80}})
+    assert answer.status_code == 422, answer.text
+    detail = " ".join(e["detail"] for e in answer.json()["errors"])
+    assert all(w in detail for w in ("states no unit", "degF", "temp_F")), detail
+    # the key the upload sent still reads, to the digit of the model stored with its headers
+    mu = [client.post("/v1/friction", json={**point, "model": m, "conditions": {
+        "relative humidity [%]": 50, "temp_F": 80}}).json()["mu"] for m in (old, model)]
+    assert mu[0] == mu[1], mu
+    assert main(["evaluate", "--data-dir", str(data_dir), "--model", old, "balls=4", "load_N=0.01",
+                 "speed_m_s=0.05", "relative humidity [%]=50", "temperature=80", "-o",
+                 str(data_dir / "old.json")]) != 0
