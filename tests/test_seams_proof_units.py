@@ -168,8 +168,8 @@ def test_a_calibration_stored_before_its_headers_were_kept_has_them_back_from_it
     assert metadata["report"]["intake"]["columns"]["temp_F"] == "temp_K"
     old = "calibrated:" + store.save_model(stored.kind, metadata, dict(stored.arrays), name="old")
     point = {"balls": 4, "load_N": 0.01, "speed_m_s": 0.05}
-    answer = client.post("/v1/friction", json={**point, "model": old,
-                                               "conditions": {"relative humidity [%]": 50, "temperature": 80}})
+    bare = {"relative humidity [%]": 50, "temperature": 80}
+    answer = client.post("/v1/friction", json={**point, "model": old, "conditions": bare})
     assert answer.status_code == 422, answer.text
     detail = " ".join(e["detail"] for e in answer.json()["errors"])
     assert all(w in detail for w in ("states no unit", "degF", "temp_F")), detail
