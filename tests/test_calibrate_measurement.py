@@ -613,3 +613,27 @@ def test_humidity_in_percent_on_some_rows_is_refused_at_the_first_of_them_conver
     assert error["pointer"] == f"/data/{slipped[0]}/relative_humidity"
     assert "15 of 150 values lie above 1: those look like percent" in error["detail"]
     assert "convert those rows only" in error["detail"] and "divide by 100" not in error["detail"]
+
+
+def test_a_unit_slip_and_an_iso_clock_keep_the_certified_robust_design(client):
+    # This release's parts together (/work/exp76/h51/probe.py): 12 of 120 loads written in N in a load_mN
+    # column (left out, the header kept with the model) and an instrument's drift on ISO times (the clock
+    # kept). A part optimize's bounds do not know refuses the certificate ("its headers has no bound over a
+    # box here" an hour before this test); here the design is certified, the worst case at the bearing.
+    rng = np.random.default_rng(462)
+    rows = session_rows(rng, 120, 0.08, clock=True)
+    for k in rng.choice(120, 12, replace=False):
+        rows[k]["load_N"] /= 1e3
+    rows = [{"load_mN": row.pop("load_N") * 1e3, **row} for row in rows]
+    report = calibrated(client, rows, folds_=5)
+    assert [s["column"] for s in report["measurement_system"]["unit_slips"]] == ["load_mN"]
+    assert report["model"]["headers"] == {"load_N": "load_mN"} and report["model"]["clock"]
+    job = client.post("/v1/optimizations", json={
+        "model": report["model_id"], "objective": "mu_upper", "speed [mm/s]": [10, 100],
+        "bounds": {"balls": [4, 8], "groove_angle_deg": [45.5, 59.5], "load_N": [0.0044, 0.0132]}})
+    assert job.status_code == 202, job.text
+    result = client.get(finished_job(client, job, timeout_s=300, interval_s=0.2)["result_url"]).json()
+    proof = result["proof"]
+    assert proof["method"] == "outer-approximation-certified" and proof["proven"], proof["statement"]
+    assert proof["relative_gap"] <= proof["gap_target"]
+    assert result["worst_case"]["conditions"] == {"date": 0.0}
