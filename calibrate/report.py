@@ -58,6 +58,7 @@ from .select import (
     cross_validate,
     forward_select,
     held_out_of_chosen,
+    held_out_within_groups,
     nested_cross_validate,
 )
 from .stages import CalibrationOptions, CandidatesStage, DataStage, SelectionStage, UncertaintyStage
@@ -595,15 +596,15 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     final, mu_after = selection.final, selection.mu_after
     sent = declared.measurement.kept if declared.measurement else None  # rows numbered as sent
     outliers = find_outliers(dataset, mu_after, final.residual, final.scale, sent)
-    # Groups: the spread of a declared parameter (or of mu) between the labels of each factor column,
-    # on what the fixed model leaves (calibrate.groups); the held-out residual then loses each row's
-    # group level before it measures the scatter of a new measurement.
+    # Groups: the spread of a parameter (or mu) between the labels of each factor column (calibrate.groups);
+    # the held-out residual loses each row's level (from its fold's training rows: held_out_within_groups).
     group_effects, group_shift = _group_effects(dataset, final, terms, mu_after, ~outliers["mask"],
                                                 convention)
-    # The held-out residual of the chosen terms: a fold whose own selection chose others predicts by the
-    # chosen terms refitted on its training rows (select.held_out_of_chosen), as _confirm_gp does.
     held_out = np.log(measured / held_out_of_chosen(nested, dataset, declared.fit_parameters, final,
                                                     declared.outer, convention)) - group_shift
+    if (within := held_out_within_groups(dataset, declared.fit_parameters, final, declared.outer,
+                                         convention)) is not None:
+        held_out = np.where(np.isfinite(within.held_out), within.held_out, held_out)
     # Scatter that depends on the inputs (calibrate.scatter), chosen by cross-validation on the
     # held-out residual; when it is not one spread everywhere, the model is refitted with each row
     # weighted by its local scatter (unless the data declare mu_measured_std, which weighs them
@@ -831,17 +832,12 @@ def _warnings(declared: DataStage, uncertainty: UncertaintyStage, gp: Mapping[st
 
 def _confirm_gp(declared: DataStage, final: FitResult, leftover: dict[str, Any], mu_after: np.ndarray,
                 inliers: np.ndarray, options: CalibrationOptions, read: Dataset) -> dict[str, Any]:
-    """A GP that helped the nested folds' models joins only if it helps the chosen model too.
-
-    Nested cross-validation judges the GP on the residual of each outer fold's own selection; a fold
-    whose selection missed a term the data need leaves a residual the GP takes up, and the GP would
-    then join a model (fitted on all rows, with that term) it does not help: its mean bends a correct
-    model toward noise and its white noise replaces the held-out scatter in the intervals. So the
-    same GP test is run again on the held-out residual of the chosen terms refitted on each outer
-    fold's training rows (the declared model's folds when nothing was chosen), and the GP joins only
-    when it passes both. ``chosen_terms_z`` [1] is that second test's paired z (None when the first
-    did not pass). ``read`` is the data as the GP reads them (clipped rows beyond their clip).
-    """
+    """A GP that helped the nested folds' models joins only if it helps the chosen model too: a fold whose
+    selection missed a term the data need leaves a residual the GP takes up, and the GP would join a model
+    (with that term) it does not help, bending it toward noise. So the same GP test is run on the held-out
+    residual of the chosen terms refitted on each outer fold's training rows (with each group's level from
+    them when the search fits levels; the declared model's folds when nothing was chosen). ``chosen_terms_z``
+    [1] is that test's paired z (None if the first did not pass); ``read``: the data as the GP reads them."""
     if not leftover["helps"]:
         return {**leftover, "chosen_terms_z": None}
     clipped = declared.dataset.censored
@@ -857,7 +853,11 @@ def _confirm_gp(declared: DataStage, final: FitResult, leftover: dict[str, Any],
     if int(np.sum(inliers)) < needed:
         # Too few rows to weigh the GP's hyperparameters: it would pass through the rows (decidability).
         return {**leftover, "helps": False, "gp": None, "chosen_terms_z": None, "rows_for_gp": needed}
-    if final.terms:
+    within = held_out_within_groups(declared.dataset, declared.fit_parameters, final, declared.outer,
+                                    options.convention)
+    if within is not None:  # each fold's models carry each group's level from its training rows
+        chosen, read = within.cv, replace(read, mu_measured=declared.dataset.mu_measured)
+    elif final.terms:
         chosen = cross_validate(declared.dataset, declared.fit_parameters, final.terms, declared.outer,
                                 scale=final.scale, start=final.declared, start_terms=final.term_values,
                                 precise=False, convention=options.convention)

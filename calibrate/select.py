@@ -114,6 +114,7 @@ __all__ = [
     "scatter_weighted",
     "search_data",
     "with_search_groups",
+    "held_out_within_groups",
     "varying_columns",
 ]
 
@@ -743,3 +744,27 @@ def _refit_chosen(dataset: Dataset, inner: Dataset, fit_parameters, selection: S
             )
         except ValueError:  # a held-out driver outside a term's domain
             return np.full(dataset.n_points, np.nan)
+
+
+@dataclass(frozen=True)
+class WithinGroups:
+    """The chosen terms cross-validated with a level per group (:func:`held_out_within_groups`)."""
+
+    cv: ModelCV
+    held_out: np.ndarray
+
+
+def held_out_within_groups(dataset: Dataset, fit_parameters: Sequence[str], final: FitResult,
+                           folds: list[np.ndarray], convention: str) -> WithinGroups | None:
+    """With groups the search fits levels for (:func:`with_search_groups`), the chosen terms refitted on each
+    outer fold's training rows with a level per group, and the held-out log residual they leave: a held-out
+    row loses its group's level estimated on that fold's training rows, where a fold's population fit
+    keeps that fold's mix of groups in its residual (a GP and a scatter that varies would be judged on it).
+    None without such groups or chosen terms."""
+    grouped = with_search_groups(dataset)
+    if grouped.search_groups is None or not final.terms:
+        return None
+    cv = cross_validate(grouped, fit_parameters, final.terms, folds, scale=final.scale, start=final.declared,
+                        start_terms=final.term_values, precise=False, convention=convention)
+    with np.errstate(all="ignore"):
+        return WithinGroups(cv, np.log(dataset.mu_measured / cv.oof_mu))

@@ -9,19 +9,20 @@ import numpy as np
 import pytest
 
 from microbearing import physics
-from microbearing.calibrate import parse_rows
+from microbearing.calibrate import calibrate, parse_rows
 from microbearing.calibrate.fit import fit, level_factor, predict_mu
 from microbearing.calibrate.scores import cross_validate
 from microbearing.calibrate.select import forward_select, with_search_groups
 
 
-def _rows(seed, specimens=6, per=15, spread=0.25, noise=0.03, meniscus=4e-6, rh=(0.2, 0.5)):
+def _rows(seed, specimens=6, per=15, spread=0.25, noise=0.03, meniscus=4e-6, rh=(0.2, 0.5),
+          speed=(0.005, 0.15)):
     """Specimens with log-normal offsets of mu (``spread``) and a weak humidity meniscus within each."""
     rng = np.random.default_rng(seed)
     n = specimens * per
     c = {"balls": rng.choice([4.0, 6.0, 8.0], n),
          "load_N": np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n)),
-         "speed_m_s": rng.uniform(0.005, 0.15, n), "relative_humidity": rng.uniform(*rh, n)}
+         "speed_m_s": rng.uniform(*speed, n), "relative_humidity": rng.uniform(*rh, n)}
     label = np.repeat([f"S{g + 1}" for g in range(specimens)], per)
     offset = np.repeat(rng.normal(0.0, spread, specimens), per)
     mu = physics.evaluate(balls=c["balls"], load_N=c["load_N"], speed_m_s=c["speed_m_s"], mu_pivot=0.65).mu
@@ -97,3 +98,14 @@ def test_a_condition_set_per_specimen_keeps_the_search_without_levels_so_its_eff
     assert with_search_groups(parse_rows(within)).search_groups is not None
     selection = forward_select(data, ["mu_pivot"], 5, 0)
     assert [t.label for t in selection.terms] == ["mu_pivot drifts with coated (linear)"]
+
+
+@pytest.mark.parametrize("seed", [1, 5])
+def test_specimens_without_replicates_bring_in_no_gp_and_no_scatter_that_varies(seed):
+    # 6 specimens x 15 rows, 25 % offsets, constant 3 % scatter and a meniscus, no replicates: with the
+    # held-out residual of fold fits without group levels (only the all-rows shift taken out), each fold's
+    # specimen mix stayed in it, and a GP joined (5 of 11 seeds) and a loglinear scatter in load (3 of 11).
+    model = calibrate(_rows(seed, speed=(0.01, 0.15)), ["mu_pivot"], folds=5, make_plots=False).model
+    assert [t[0].label for t in model.terms] == ["humidity_meniscus on relative_humidity"]
+    assert model.discrepancy is None
+    assert model.scatter.kind == "constant"
