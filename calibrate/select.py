@@ -112,10 +112,10 @@ __all__ = [
     "noise_test",
     "preferred",
     "scatter_weighted",
-    "search_data",
-    "with_search_groups",
     "held_out_within_groups",
+    "search_data",
     "varying_columns",
+    "with_search_groups",
 ]
 
 #: Candidates per step whose scores the report keeps. [1]
@@ -202,13 +202,13 @@ def between_groups(columns: Mapping[str, Any], codes: np.ndarray) -> tuple[str, 
     ...                np.array([0, 0, 1, 1]))
     ('coated',)
     """
+    order = np.argsort(codes, kind="stable")
+    cuts = np.flatnonzero(np.diff(codes[order])) + 1  # where one group's sorted rows end
     found = []
     for name, values in columns.items():
         x = np.asarray(values)
         if x.dtype.kind not in "biuf" or np.unique(x).size < 2:
             continue
-        order = np.argsort(codes, kind="stable")
-        cuts = np.flatnonzero(np.diff(codes[order])) + 1
         if all(np.unique(part).size == 1 for part in np.split(x[order], cuts)):
             found.append(name)
     return tuple(found)
