@@ -125,11 +125,25 @@ def _design_bound_parts(structures: Sequence[Any]) -> str:
     return "".join(f", {p}" for p in parts)
 
 
+def _load_term(piece: Any) -> bool:
+    """Whether a term is one of the load alone that declares where its extremes over an interval lie (monotone
+    in it, or at its declared stationary point; :class:`physics.effects.Effect`) and how mu moves with each
+    fitted value (its value forms, whose extremes lie at the interval's ends or the data's centre): its
+    range and its gradient's over a box of loads are then exact at those loads (:mod:`optimize.design_bound`),
+    monomial or not (a ``generic_quadratic`` on the load)."""
+    effect = piece.term.effect
+    return (tuple(piece.term.drivers) == ("load_N",) and effect.enters in ("add", "mul")
+            and (effect.monotone or effect.stationary is not None)
+            and all(piece.value_form(i) is not None for i in range(len(piece.values))))
+
+
 def _monomial_everywhere(structures: Sequence[Any], point: Mapping[str, Any]) -> str:
-    """Why some term of the model or a rival is not a positive monomial in balls and load at the point (also
-    with each fitted value stepped, as the gradient takes it), or "" when every one is."""
+    """Why some term of the model or a rival is neither a positive monomial in balls and load at the point
+    (also with each fitted value stepped, as the gradient takes it) nor a term of the load declaring its
+    extremes (:func:`_load_term`), or "" when every one is."""
     for s in structures:
-        effects = [piece for piece in s.pieces if piece.kind != "drift"]  # drifts: in the physics
+        # drifts: in the physics; terms of the load alone: bounded from their declarations
+        effects = [piece for piece in s.pieces if piece.kind != "drift" and not _load_term(piece)]
         terms = [piece.term for piece in effects]
         values = [list(piece.values) for piece in effects]
         variants = [values] + [[*values[:k], [*v[:i], x + 1.0, *v[i + 1:]], *values[k + 1:]]
@@ -239,7 +253,9 @@ def _design_bound_statement(e: _DesignBoundEvidence, envelope: Envelope) -> str:
         f"at {e.points} envelope point(s) (the worst one at the design, the vertices within "
         f"{_ACTIVE_RTOL:g} of it{extra}) no design's mu_upper is below its box's bound - the physics' "
         "friction force grows with the angle and the load (its posynomial form), each term is a positive "
-        "monomial in balls and load there (read and checked), the composed mu and each fitted value's "
+        "monomial in balls and load there (read and checked) or a term of the load at its ends and where "
+        "it declares an extreme (its stationary point, its data's centre), the composed mu and each fitted "
+        "value's "
         "gradient of log mu by interval arithmetic, the least parameter variance g'Cg over the box of "
         "gradients from convexity (coordinate descent and its Frank-Wolfe gap), for the model and each "
         f"rival{cloud}{e.parts}; boxes where a limit is certainly broken are "

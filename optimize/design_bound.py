@@ -18,7 +18,11 @@ and the right side is bounded below by branch and bound over the designs: per ba
 * at a fixed point every effect term's driver is fixed or is the load, and the term is a positive
   monomial in balls and load there (read at three designs and checked at a fourth by the caller): its
   range over [G_lo, G_hi] is at the ends, and so is the range of each fitted value's effect on it (a
-  basis linear in the value, or a factor exp(h φ) with φ of the driver);
+  basis linear in the value, or a factor exp(h φ) with φ of the driver); or it is a term of the load
+  alone that declares where its extremes lie (:class:`physics.effects.Effect`: monotone, or at its
+  ``stationary`` point, as a ``generic_quadratic`` on the load): its range is at the ends and that point
+  where inside, and each value's φ at the ends (``log``) and its data's centre (``log_square``,
+  :data:`physics.effects.VALUE_FORMS`);
 * the composed μ and each fitted value's gradient of log μ by interval arithmetic in closed form, term by
   term as :func:`optimize.envelope_bound.mu_upper_box_bound` does over the envelope at one design;
 * the least g'Cg over the box of gradients, a convex quadratic program: a few sweeps of coordinate
@@ -178,11 +182,12 @@ def _least_quadratic(covariance: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> 
 
 
 def _range_of(at: Callable, piece: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """A piece's range over each of n boxes from its values at the load's two ends (``at(piece)``); a drift
-    moves the physics' inputs and has no factor of its own."""
+    """A piece's range over each of n boxes from its values at the load's two ends and, for a term of the load
+    that is not monotone, at its stationary point where inside (``at(piece, extra=...)``); a drift moves the
+    physics' inputs and has no factor of its own."""
     if piece.kind == "drift":
         return np.ones(n), np.ones(n)
-    v = at(piece)
+    v = at(piece, extra=piece.stationary())
     return ((v.min(axis=1), v.max(axis=1)) if np.all(np.isfinite(v))
             else (np.full(n, -np.inf), np.full(n, np.inf)))
 
@@ -245,14 +250,14 @@ class _Bounds:
         load = np.r_[gl, gh]
         force = phys["mu"] * load
         f_lo, f_hi = force[:n], force[n:]
-        # Each term at the two ends of the load (its driver fixed at the point, or the load itself).
-        columns = {"balls": np.column_stack([z, z]), "load_N": np.column_stack([gl, gh]),
-                   "speed_m_s": np.full((n, 2), speed),
-                   **{c: np.full((n, 2), v) for c, v in point["conditions"].items()}}
+        # Each term at the two ends of the load (its driver fixed at the point, or the load itself) and, for a
+        # term of the load, at a third load in the box where it declares an extreme (else the low end again).
+        columns = {"balls": np.column_stack([z, z, z]), "load_N": np.column_stack([gl, gh, gl]),
+                   "speed_m_s": np.full((n, 3), speed),
+                   **{c: np.full((n, 3), v) for c, v in point["conditions"].items()}}
 
-        def at(piece, values=None) -> np.ndarray:
-            each = piece if values is None else _with_values(piece, values)
-            return each.at(columns[piece.driver], columns)
+        def at(piece, values=None, extra=None) -> np.ndarray:
+            return _at_loads(columns, piece, values, extra)
 
         ranges = [_range_of(at, piece, n) for piece in s.pieces]
         levels_lo, levels_hi, after, adds_after = _composed(s.pieces, ranges, f_lo / gh, f_hi / gl)
@@ -320,8 +325,10 @@ class _Bounds:
                                                  p_lo / mu_hi, p_hi / safe_lo)
                 else:
                     moved[i] = value + 1.0
+                    # phi of a log_square value is least at its data's centre (physics.effects.VALUE_FORMS)
+                    centre = piece.term.constants.get("centre") if form == "log_square" else None
                     with np.errstate(all="ignore"):
-                        phi = np.log(at(piece, moved) / at(piece))
+                        phi = np.log(at(piece, moved, centre) / at(piece, None, centre))
                     f_low, f_high = np.expm1(h * phi.min(axis=1)), np.expm1(h * phi.max(axis=1))
                     if adds_after(k):
                         q_lo, q_hi = levels_lo[k + 1] * p_lo / mu_hi, levels_hi[k + 1] * p_hi / safe_lo
@@ -448,6 +455,18 @@ def _with_values(piece: Any, values: Sequence[float]) -> Any:
     return dataclasses.replace(piece, values=list(values))
 
 
+def _at_loads(columns: Mapping[str, np.ndarray], piece: Any, values: Sequence[float] | None = None,
+              extra: float | None = None) -> np.ndarray:
+    """A piece (its values replaced by ``values``) at each box's columns, three per box: the load's two ends
+    and, for a term of the load, ``extra`` clipped into the box (where it declares an extreme), else the low
+    end again."""
+    each = piece if values is None else _with_values(piece, values)
+    if extra is not None and piece.driver == "load_N":
+        low, high = columns["load_N"][:, 0], columns["load_N"][:, 1]
+        columns = {**columns, "load_N": np.column_stack([low, high, np.clip(extra, low, high)])}
+    return each.at(columns[piece.driver], columns)
+
+
 @dataclass(frozen=True)
 class DesignPoints:
     """What a lower bound over the designs is taken of: the model's intervals at fixed envelope points.
@@ -459,7 +478,7 @@ class DesignPoints:
     structures : sequence of IntervalStructure
         The model and each rival whose interval enters U
         (:func:`optimize.interval_bound.interval_structures`), each effect term a positive monomial in
-        balls and load at every point (the caller checks it).
+        balls and load at every point or a term of the load declaring its extremes (the caller checks it).
     calibrated_fixed : mapping
         The calibrated model's fixed physics values. [SI units]
     points : sequence of dict
