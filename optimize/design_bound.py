@@ -35,8 +35,10 @@ and the right side is bounded below by branch and bound over the designs: per ba
   (:func:`optimize.envelope_bound.drift_ranges`); its coefficient's (or level's) finite-difference step
   moves the parameter by a known ratio, and the parameter's share of the physics
   (declared in :data:`physics.effects.PARAMETER_SHARES`: an output whose friction force grows like F) by that
-  ratio to its power, so its gradient entry by interval arithmetic as the envelope's bound does; a fitted
-  value a drift with its own level replaces has gradient entry 0;
+  ratio to its power (the adhesion energy: the contact load Q by that ratio to a power between Q's least
+  and largest elasticity in it, and each share of μ by Q's ratio to its declared power,
+  :data:`physics.effects.CONTACT_LOAD_EXPONENTS`), so its gradient entry by interval arithmetic as the
+  envelope's bound does; a fitted value a drift with its own level replaces has gradient entry 0;
 * group effects at a point naming no group (:meth:`_Bounds._groups`): one on μ (or on a parameter the
   model does not fit) shifts log μ by its offset b0 and adds its new-group variance v, constants; one on a
   fitted parameter p by s b0 and s² v, s = p g_p its sensitivity, g_p in the gradient's box: the least
@@ -85,6 +87,7 @@ from .interval_bound import (
     _composed,
     _drift_share_change,
     _log_gradient,
+    _physics_change,
     _product,
     _times_positive,
 )
@@ -275,15 +278,14 @@ class _Bounds:
             :func:`optimize.envelope_bound.mu_upper_box_bound` takes it: its share of the physics changes
             by :func:`optimize.envelope_bound._drift_share_change` (x the driver's value at the point),
             and mu by that change times the factors after the physics."""
-            output, d_lo, d_hi = _drift_share_change(piece, i, h, driver_interval, drifted, n)
-            share = phys[output] * load  # the share's friction force, growing like F
+            changes = _drift_share_change(piece, i, h, driver_interval, drifted, n, phys)
+            # each share's friction force grows like F: over G (its ends crossed), or not, where G cancels
+            change = _physics_change(changes, phys, n, *((gl / gh, gh / gl) if adds_after(-1) else (gl, gh)))
             if adds_after(-1):
                 p_lo, p_hi = after(-1)
-                change = _product(d_lo, d_hi, share[:n] / gh, share[n:] / gl)
                 r_lo, r_hi = _product(*change, p_lo / mu_hi, p_hi / safe_lo)
             else:  # mu = physics x the factors: D / mu = D_phys / physics, and G cancels
                 good = f_lo > 0
-                change = _product(d_lo, d_hi, share[:n], share[n:])
                 r_lo, r_hi = _product(*change, 1.0 / f_hi, 1.0 / np.where(good, f_lo, np.nan))
                 r_lo, r_hi = np.where(good, r_lo, -np.inf), np.where(good, r_hi, np.inf)
             return np.nan_to_num(r_lo, nan=-np.inf), np.nan_to_num(r_hi, nan=np.inf), h

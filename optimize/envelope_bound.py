@@ -39,7 +39,10 @@ The other parts of a calibrated model are bounded over a box too:
   (its declared ``direction``, :data:`physics.effects.PARAMETER_SHARES`): its maximum is at the
   parameter's worst end; for ``mu_upper`` the drift's values' gradient of log μ is bounded in closed form
   where the parameter enters the physics as one power (its declared ``output`` and ``exponent``: the
-  parameter moves by f(c + h, x) / f(c, x), monotone in x, and its share by that ratio to the power);
+  parameter moves by f(c + h, x) / f(c, x), monotone in x, and its share by that ratio to the power), or
+  through the contact load (the adhesion energy, declared ``contact_load``: Q moves by that ratio to a
+  power between Q's least and largest elasticity in it over the box, and each share of μ by Q's ratio
+  to its declared power);
 * **group effects** at a point naming no group: a group on μ (or on a parameter the model does not fit)
   shifts log μ by its offset and adds the new-group variance, constants; one on a fitted parameter p
   shifts it by s b0 with s = p × p's gradient entry, bounded by that entry's interval (``mu_upper``; for
@@ -218,10 +221,10 @@ def term_pieces(model: Any, interval: bool = False) -> tuple[list[Piece] | None,
             if term.parameter not in PARAMETER_SHARES:
                 return None, (f"its term {label!r} drifts a physics parameter in which the physics' "
                               "monotonicity is not proven")
-            if interval and PARAMETER_SHARES[term.parameter].output is None:
+            share = PARAMETER_SHARES[term.parameter]
+            if interval and share.output is None and not share.contact_load:
                 return None, (f"its term {label!r} drifts a physics parameter: its fitted coefficient's "
-                              "share of the interval has no closed form here (it moves the contact load "
-                              "or the modulus)")
+                              "share of the interval has no closed form here (it moves the modulus)")
             pieces.append(Piece(term, list(map(float, values)), "drift", True))
             continue
         if getattr(term, "kind", None) != "effect":

@@ -20,7 +20,8 @@ import numpy as np
 from scipy import stats
 
 from microbearing import physics
-from microbearing.physics.effects import PARAMETER_SHARES
+from microbearing.physics.contact import jkr_load_elasticity
+from microbearing.physics.effects import CONTACT_LOAD_EXPONENTS, PARAMETER_SHARES
 
 from . import gp_boxes
 from .envelope_bound import (
@@ -38,7 +39,8 @@ __all__ = ["INTERVAL_OUTPUTS", "INTERVAL_RTOL", "MAX_VALUES", "IntervalStructure
            "mu_upper_box_bound"]
 
 #: The physics' outputs the interval's bound reads (``physics_fn`` of :func:`mu_upper_box_bound`).
-INTERVAL_OUTPUTS = ("mu", "mu_pivoting", "mu_rolling", "mu_ball_ball")
+INTERVAL_OUTPUTS = ("mu", "mu_pivoting", "mu_rolling", "mu_ball_ball", "mu_hysteresis", "contact_load_N",
+                    "adhesion_force_N")
 #: Relative allowance for rounding in the interval's bound: the finite-difference gradient's rounding,
 #: about 1e-16 / 1e-6 in g, is far below it. [1]
 _INTERVAL_ROUNDING = 1e-9
@@ -162,20 +164,26 @@ def _composed(pieces: list[Piece], ranges: list[tuple[np.ndarray, np.ndarray]], 
 
 
 def _drift_share_change(piece: Piece, i: int, h: float, driver_interval: Callable[[str], tuple],
-                        drifted: Mapping[str, tuple[np.ndarray, np.ndarray]], n: int
-                        ) -> tuple[str, np.ndarray, np.ndarray]:
-    """How a step h in a drift's coefficient (i = 0) or level (i = 1) changes the share of the physics its
-    parameter drives, over n boxes: the output that share is (its declared share) and [d_lo, d_hi], the
-    interval of ratio^a - 1 [1].
+                        drifted: Mapping[str, tuple[np.ndarray, np.ndarray]], n: int,
+                        phys: Mapping[str, np.ndarray]) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """How a step h in a drift's coefficient (i = 0) or level (i = 1) changes the shares of the physics its
+    parameter drives, over n boxes: per share, the output it is and [d_lo, d_hi], the interval of its
+    relative change [1] (the physics changes by the sum of share x change).
 
-    The parameter moves by the ratio f(c + h, x) / f(c, x), monotone in x so taken at the ends of the
+    The parameter moves by the ratio r = f(c + h, x) / f(c, x), monotone in x so taken at the ends of the
     driver's interval (``driver_interval(driver) -> (low, high, ...)``), or by (level + h) / level; where
     the box may clip the parameter at a bound (``drifted``: its range per box), one is inside the ratio's
-    interval. A ratio that is not positive gives an unbounded change.
+    interval. A share that is a power a of the parameter (:data:`physics.effects.PARAMETER_SHARES`) changes
+    by r^a - 1; a parameter that moves the contact load Q (``contact_load``, the adhesion energy) moves ln Q
+    by ln r times Q's elasticity in it (:func:`physics.contact.jkr_load_elasticity`, non-decreasing in it
+    over the load Q0: between its values at the box's least parameter over its largest Q0 and the largest
+    over the least, both stepped), and each share of :data:`physics.effects.CONTACT_LOAD_EXPONENTS` by
+    Q's ratio to its power. ``phys``: the physics' outputs at the boxes' lowest corners, then the highest
+    (the parameter at its low, then high end, as it moves μ). A ratio that is not positive gives an
+    unbounded change.
     """
     term = piece.term
     share = PARAMETER_SHARES[term.parameter]
-    output, exponent = share.output, share.exponent
     if i == 0:
         a, b = driver_interval(term.driver)[:2]
         c = piece.values[0]
@@ -193,9 +201,27 @@ def _drift_share_change(piece: Piece, i: int, h: float, driver_interval: Callabl
     ratio_hi = np.where(clipped, np.maximum(ratio_hi, 1.0), ratio_hi)
     ok = ratio_lo > 0
     with np.errstate(all="ignore"):
-        d_lo = np.where(ok, np.power(np.where(ok, ratio_lo, 1.0), exponent) - 1.0, -np.inf)
-        d_hi = np.where(ok, np.power(np.where(ok, ratio_hi, 1.0), exponent) - 1.0, np.inf)
-    return output, d_lo, d_hi
+        log_lo, log_hi = np.log(np.where(ok, ratio_lo, 1.0)), np.log(np.where(ok, ratio_hi, 1.0))
+        if share.contact_load:
+            load, force = phys["contact_load_N"], phys["adhesion_force_N"]
+            e_lo = jkr_load_elasticity(load[n:], force[:n] * np.minimum(ratio_lo, 1.0))
+            e_hi = jkr_load_elasticity(load[:n], force[n:] * np.maximum(ratio_hi, 1.0))
+            log_lo, log_hi = _product(log_lo, log_hi, e_lo, e_hi)
+            powers = CONTACT_LOAD_EXPONENTS.items()
+        else:
+            powers = [(share.output, share.exponent)]
+        return [(output, np.where(ok, np.expm1(exponent * log_lo), -np.inf),
+                 np.where(ok, np.expm1(exponent * log_hi), np.inf)) for output, exponent in powers]
+
+
+def _physics_change(changes: list[tuple[str, np.ndarray, np.ndarray]], phys: Mapping[str, np.ndarray], n: int,
+                    low: Any = 1.0, high: Any = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """The interval of the physics' change over n boxes, the sum over :func:`_drift_share_change`'s shares of
+    each share (its output at the lowest corners times ``low``, at the highest times ``high``) times its
+    relative change (interval arithmetic)."""
+    parts = [_product(d_lo, d_hi, phys[output][:n] * low, phys[output][n:] * high)
+             for output, d_lo, d_hi in changes]
+    return sum(p[0] for p in parts), sum(p[1] for p in parts)
 
 
 def _log_gradient(g_lo: list, g_hi: list, ratio_lo: np.ndarray, ratio_hi: np.ndarray, h: float) -> None:
@@ -370,9 +396,10 @@ def _drift_ratio(context: _IntervalContext, c: _Composed, piece: Piece, i: int,
     """D / mu for a step h in a drift's coefficient (i = 0) or level (i = 1): its share of the physics
     changes by :func:`_drift_share_change`, and mu by that change times the factors after the physics."""
     n, phys = c.n, c.phys
-    output, d_lo, d_hi = _drift_share_change(
-        piece, i, h, lambda driver: context.boxes.driver_interval(driver, c.lo, c.hi), c.drifted, n)
-    change = _product(d_lo, d_hi, phys[output][:n], phys[output][n:])  # D of the physics
+    changes = _drift_share_change(piece, i, h,
+                                  lambda driver: context.boxes.driver_interval(driver, c.lo, c.hi),
+                                  c.drifted, n, phys)
+    change = _physics_change(changes, phys, n)  # D of the physics
     if c.adds_after(-1):
         q_lo, q_hi = c.after(-1)
         r_lo, r_hi = _product(*change, q_lo / c.mu_hi, q_hi / c.safe_lo)

@@ -74,7 +74,7 @@ and no proof.
 Other models: an outer approximation, said to be unproven
 ---------------------------------------------------------
 A surrogate, or a part of a calibrated model :mod:`optimize.envelope_bound` has no box bound for (a
-drift of the adhesion energy or a modulus in the interval, a scatter that depends on an input, a
+drift of a modulus in the interval, a scatter that depends on an input, a
 fitted value whose effect on μ has no closed form), has no known bound on its derivatives, so no
 rigorous bound over a box exists for it
 here. The method is a cutting-plane (outer-approximation) loop: the local method of

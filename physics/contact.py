@@ -21,6 +21,7 @@ __all__ = [
     "reduced_modulus",
     "ball_race_load",
     "jkr_contact_load",
+    "jkr_load_elasticity",
     "jkr_contact_radius",
     "contact_area",
     "max_contact_pressure",
@@ -167,6 +168,43 @@ def jkr_contact_load(load_N, radius_m, adhesion_energy_J_m2):
     """
     c = 6.0 * np.pi * radius_m * adhesion_energy_J_m2  # the ball's factors first: one array pass
     return load_N + c + elementary.sqrt(c * (2.0 * load_N + c))
+
+
+def jkr_load_elasticity(load_N, adhesion_force_N):
+    r"""Elasticity of the JKR apparent load Q in the adhesion energy γ, d ln Q / d ln γ at a fixed Q0.
+
+    Parameters
+    ----------
+    load_N : numeric
+        Applied normal load Q0 (> 0). [N]
+    adhesion_force_N : numeric
+        Pull-off force A = 3 π γ R (:func:`physics.surface.adhesion_force_ball_flat`, >= 0). [N]
+
+    Returns
+    -------
+    numeric
+        e in [0, 1). [1]
+
+    Notes
+    -----
+    Eq 8 with c = 6 π γ R = 2 A is Q = Q0 f(u), f(u) = 1 + u + sqrt(u (2 + u)), u = 2 A / Q0 ∝ γ, so
+    e = u f'(u) / f(u), f'(u) = 1 + (1 + u) / sqrt(u (2 + u)): a function of u alone, 0 at u = 0 (Hertz),
+    sqrt(u / 2) for small u, tending to 1 for large u, and non-decreasing in u (checked by the tests). So
+    over a range of γ and Q0 it lies between its values at the least γ / Q0 and the largest, and
+    ln Q(γ r) - ln Q(γ) = ln r x (a value of e between γ and γ r).
+
+    Examples
+    --------
+    >>> float(jkr_load_elasticity(1.0, 0.0))
+    0.0
+    >>> round(float(jkr_load_elasticity(1.0, 1e6)), 4)
+    1.0
+    """
+    u = 2.0 * np.asarray(adhesion_force_N, dtype=float) / np.asarray(load_N, dtype=float)
+    root = elementary.sqrt(u * (2.0 + u))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(u > 0, u + u * (1.0 + u) / np.where(u > 0, root, 1.0), 0.0)
+    return slope / (1.0 + u + root)
 
 
 def jkr_contact_radius(contact_load_N, radius_m, effective_modulus_Pa):

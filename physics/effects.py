@@ -77,9 +77,10 @@ from .drivers import (
 from .effect_parameter import EffectParameter
 
 # re-exported: the parameters a drift or a fit may move, their share of mu and plausible values
-from .shares import DRIFT_PARAMETERS, PARAMETER_SHARES, ParameterShare
+from .shares import CONTACT_LOAD_EXPONENTS, DRIFT_PARAMETERS, PARAMETER_SHARES, ParameterShare
 
 __all__ = ["EffectParameter", "Effect", "EFFECTS", "DriftLaw", "DRIFT_LAWS", "DRIFT_PARAMETERS", "Domain",
+           "CONTACT_LOAD_EXPONENTS",
            "DriverKind", "DriverUnit", "DRIVER_KINDS", "HUMIDITY", "TEMPERATURE", "ParameterShare",
            "PARAMETER_SHARES", "SESSION_KEYWORDS", "VALUE_FORMS", "apply_effect", "name_matches",
            "register_effect", "humidity_fraction", "temperature_kelvin", "GAS_CONSTANT_J_MOL_K"]

@@ -9,7 +9,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["DRIFT_PARAMETERS", "PARAMETER_SHARES", "ParameterShare"]
+from .lubrication import LOAD_EXPONENT
+from .moments import HYSTERESIS_LOAD_EXPONENT
+
+__all__ = ["CONTACT_LOAD_EXPONENTS", "DRIFT_PARAMETERS", "PARAMETER_SHARES", "ParameterShare"]
 
 
 @dataclass(frozen=True)
@@ -36,6 +39,10 @@ class ParameterShare:
     plausible : (float, float) or None
         The values the parameter physically takes in a micro ball bearing, in its unit (a fit or a
         drift that moves it outside is named implausible by the calibration).
+    contact_load : bool
+        Whether it moves μ only through the JKR contact load Q (eq 8), which every share of μ in
+        :data:`CONTACT_LOAD_EXPONENTS` follows as a power at a fixed angle and speed (the adhesion
+        energy; Q's elasticity in it is :func:`physics.contact.jkr_load_elasticity`).
     """
 
     name: str
@@ -45,6 +52,7 @@ class ParameterShare:
     exponent: float | None = None
     linear: bool = False
     plausible: tuple[float, float] | None = None
+    contact_load: bool = False
 
 
 #: The parameters a drift may move, with the physics' direction in each and its share of μ: the viscosity
@@ -59,7 +67,7 @@ PARAMETER_SHARES: dict[str, ParameterShare] = {s.name: s for s in [
     ParameterShare("pressure_viscosity_1_Pa", "the pressure-viscosity coefficient falls as temperature rises",
                    1, "mu_rolling", 0.022, plausible=(1e-9, 1e-7)),
     ParameterShare("adhesion_energy_J_m2", "adhesion (capillary bridges, surface films) grows with humidity",
-                   1, plausible=(1e-3, 1.0)),
+                   1, plausible=(1e-3, 1.0), contact_load=True),
     ParameterShare("water_surface_tension_N_m", "surface tension of water falls with temperature", 1,
                    "mu_ball_ball", 1.0, plausible=(0.05, 0.08)),
     ParameterShare("mu_pivot", "the ball-race sliding coefficient depends on coating, humidity and "
@@ -73,5 +81,12 @@ PARAMETER_SHARES: dict[str, ParameterShare] = {s.name: s for s in [
                    "the races' modulus depends on material, coating and temperature", -1,
                    plausible=(5e10, 4.5e11)),
 ]}
+#: The shares of μ (outputs of :func:`physics.evaluate`) that the JKR contact load Q moves, each a power of Q
+#: at a fixed angle, speed, load and balls: the pivoting moment μ_s Q a with a ∝ Q^(1/3) (eqs 3, 16), the
+#: hysteresis moment ∝ Q^1.33 (eq 15), the rolling force ∝ Q^0.47 (eq 9); the ball-ball share does not read
+#: Q, and μ is the sum of the four shares (eqs 20-23).
+CONTACT_LOAD_EXPONENTS: dict[str, float] = {"mu_pivoting": 4.0 / 3.0,
+                                            "mu_hysteresis": HYSTERESIS_LOAD_EXPONENT,
+                                            "mu_rolling": LOAD_EXPONENT}
 #: Declared physics parameters that may drift with a condition, with why a tribologist would suspect it.
 DRIFT_PARAMETERS: dict[str, str] = {name: share.why for name, share in PARAMETER_SHARES.items()}

@@ -681,13 +681,14 @@ def test_certified_mu_upper_with_drifting_parameters_bounds_brute_force():
     shares = [float(getattr(physics.evaluate(outputs=[output], **columns, viscosity_Pa_s=v), output))
               for v in (0.01, 0.02)]
     assert shares[1] / shares[0] == pytest.approx(2.0**exponent, rel=1e-12)
-    # a drift of the adhesion energy moves the contact load: its share has no closed form, said
-    adhesion = types.SimpleNamespace(kind="drift", label="adhesion_energy_J_m2 drifts with relative_humidity",
-                                     parameter="adhesion_energy_J_m2")
+    # a drift of a Young's modulus: its share has no closed form, said (the adhesion energy's, through the
+    # contact load, has: tests/test_optimize_contact_load.py)
+    modulus = types.SimpleNamespace(kind="drift", label="ball_youngs_modulus_Pa drifts with temperature_C",
+                                    parameter="ball_youngs_modulus_Pa")
     holder = types.SimpleNamespace(reference="calibrated:a", calibrated=types.SimpleNamespace(
-        terms=[(adhesion, [1.0])], fitted={}))
+        terms=[(modulus, [1.0])], fitted={}))
     assert term_pieces(holder)[0] is not None
-    assert term_pieces(holder, interval=True)[0] is None and "contact load" in term_pieces(holder, True)[1]
+    assert term_pieces(holder, interval=True)[0] is None and "modulus" in term_pieces(holder, True)[1]
 
 
 def test_the_departure_from_a_line_of_columns_moving_together_is_bounded_over_boxes():
