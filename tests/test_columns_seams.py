@@ -1001,7 +1001,8 @@ def test_an_optimization_s_envelope_and_worst_case_speak_the_keys_as_sent(client
     assert envelope["as_sent"] == {"speed_m_s": [0.05, 0.05], "relative humidity [%]": [30, 60],
                                    "temp_F": [70, 100]}, envelope
     sent = worst["as_sent"]
-    assert set(sent) == {"speed_m_s", *conditions}, worst
+    assert set(sent) == {"speed_m_s", "groove_angle_deg", *conditions}, worst  # the angle made: sent in deg
+    assert sent["groove_angle_deg"] == worst["groove_angle_deg"]
     # by hand: % = 100 x the fraction, degF = (K - 273.15) x 9/5 + 32
     assert sent["relative humidity [%]"] == pytest.approx(100 * worst["conditions"]["relative_humidity"])
     assert sent["temp_F"] == pytest.approx(_fahrenheit(worst["conditions"]["temp_K"]))

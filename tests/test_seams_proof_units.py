@@ -119,7 +119,8 @@ def test_an_envelope_s_speed_and_tolerance_are_shown_in_the_keys_and_units_sent(
     assert envelope["speed_m_s"] == pytest.approx([0.01, 0.05])
     assert envelope["as_sent"] == {"speed [mm/s]": [10, 50]}, envelope
     # by hand: mm/s = 1000 x m/s; rad = deg x pi / 180
-    assert worst["as_sent"] == {"speed [mm/s]": pytest.approx(1000 * worst["speed_m_s"])}, worst
+    assert worst["as_sent"] == {"speed [mm/s]": pytest.approx(1000 * worst["speed_m_s"]),
+                                "groove_angle_deg": worst["groove_angle_deg"]}, worst
     assert envelope["tolerances"]["groove_angle_deg"] == pytest.approx(0.01 * 180 / 3.141592653589793)
     assert envelope["tolerances_as_sent"] == {"groove angle [rad]": 0.01}, envelope
     path = tmp_path / "robust.json"
@@ -180,3 +181,53 @@ def test_a_calibration_stored_before_its_headers_were_kept_has_them_back_from_it
     assert main(["evaluate", "--data-dir", str(data_dir), "--model", old, "balls=4", "load_N=0.01",
                  "speed_m_s=0.05", "relative humidity [%]=50", "temperature=80", "-o",
                  str(data_dir / "old.json")]) != 0
+
+
+def _answer(client, request: dict) -> dict:
+    answer = client.post("/v1/optimizations", json=request)
+    assert answer.status_code in (200, 202), answer.text
+    return answer.json() if answer.status_code == 200 else _optimized(client, request)
+
+
+def test_a_found_design_and_its_worst_angle_are_shown_in_the_bounds_keys_and_units(client, tmp_path):
+    # before: the design was only in N and deg ({"balls": 4, "groove_angle_deg": 49.847, "load_N": 0.01177})
+    # and the worst case's angle only in deg, whatever the keys of the bounds (rad, gf)
+    bounds = {"balls": [4, 6], "groove angle [rad]": [0.87, 0.96], "load [gf]": [0.8, 1.2]}
+    request = {"bounds": bounds, "speed [mm/s]": [10, 50], "tolerances": {"groove angle [rad]": 0.01},
+               "time_limit_s": 20}
+    result = _answer(client, request)
+    gram_force, radian = 0.00980665, 3.141592653589793 / 180  # by hand: 1 gf in N, 1 deg in rad
+    design, sent, worst = result["design"], result["design_as_sent"], result["worst_case"]
+    # beside the design, which stays a point /v1/friction takes as it is (SI fields kept)
+    assert set(design) == {"balls", "groove_angle_deg", "load_N"}, design
+    assert client.post("/v1/friction", json={**design, "speed_m_s": 0.05}).status_code == 200
+    assert sent == {"balls": design["balls"],
+                    "groove angle [rad]": pytest.approx(design["groove_angle_deg"] * radian),
+                    "load [gf]": pytest.approx(design["load_N"] / gram_force)}, sent
+    # the design sits on the bounds' ends: shown as typed, not their round trip (0.8699999999)
+    assert sent["groove angle [rad]"] == 0.87 and sent["load [gf]"] == 1.2, sent
+    assert isinstance(sent["balls"], int)
+    # the angle made at the worst case: nominal + the tolerance, 0.87 + 0.01 rad
+    assert worst["as_sent"]["groove angle [rad]"] == pytest.approx(worst["groove_angle_deg"] * radian)
+    assert worst["as_sent"]["groove angle [rad]"] == 0.88, worst
+    for part in ("nominal", "robust"):
+        assert result["price_of_robustness"][part]["design_as_sent"] == sent
+    path, out = tmp_path / "robust.json", tmp_path / "design.json"
+    path.write_text(json.dumps(request))
+    assert main(["optimize", str(path), "-o", str(out)]) == 0
+    cli = json.loads(out.read_text())
+    assert cli["design_as_sent"] == sent and cli["worst_case"]["as_sent"] == worst["as_sent"]
+    # a design at one point, its load fixed in mN: under those keys too, at the API and the CLI
+    one = {"bounds": {"balls": [4, 6], "groove angle [rad]": [0.87, 0.96]}, "fixed": {"load [mN]": 10},
+           "speed_m_s": 0.05}
+    result = _answer(client, one)
+    assert result["design_as_sent"] == {"balls": result["design"]["balls"],
+                                        "groove angle [rad]": pytest.approx(
+                                            result["design"]["groove_angle_deg"] * radian),
+                                        "load [mN]": 10}, result
+    path.write_text(json.dumps(one))
+    assert main(["optimize", str(path), "-o", str(out)]) == 0
+    assert json.loads(out.read_text())["design_as_sent"] == result["design_as_sent"]
+    # sent in the model's own keys, the same keys come back
+    plain = _answer(client, {**BASE, "speed_m_s": 0.05})
+    assert plain["design_as_sent"] == plain["design"], plain
