@@ -146,12 +146,14 @@ def _request(body: OptimizationRequest) -> DesignRequest:
 
 
 def _readings(body: OptimizationRequest) -> dict[str, Any]:
-    """How the request's speed, conditions and design bounds were sent (:class:`physics.columns.Reading` by
-    column), for the words of a proof in the request's keys and units."""
+    """How the request's speed, conditions, design bounds and tolerances (``tolerances.<name>``) were sent
+    (:class:`physics.columns.Reading` by column), for the words of a proof in the request's keys and units."""
     speed = {**body.fixed.readings, **body.readings}.get("speed_m_s")
     design = {name: r for name, r in _design_readings(body).items() if name in ("groove_angle_deg", "load_N")}
+    tolerances = {} if body.tolerances is None else body.tolerances.readings
     return {**design, **ReadConditions.of(body.conditions).readings,
-            **({} if speed is None else {"speed_m_s": speed})}
+            **({} if speed is None else {"speed_m_s": speed}),
+            **{f"tolerances.{name}": r for name, r in tolerances.items()}}
 
 
 def _design_readings(body: OptimizationRequest) -> dict[str, Any]:

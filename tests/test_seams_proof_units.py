@@ -231,3 +231,28 @@ def test_a_found_design_and_its_worst_angle_are_shown_in_the_bounds_keys_and_uni
     # sent in the model's own keys, the same keys come back
     plain = _answer(client, {**BASE, "speed_m_s": 0.05})
     assert plain["design_as_sent"] == plain["design"], plain
+
+
+def test_a_proof_states_a_tolerance_in_the_unit_it_was_sent_in(client, model, tmp_path):
+    # before: "the angle made high (nominal + 0.572958 deg)" and "the angle box moved by 0.572958 deg" where
+    # the request sent groove angle [rad] 0.01; the calibrated vertex's "(+0.286479 deg)" likewise
+    request = {**BASE, "speed [mm/s]": [10, 50], "tolerances": {"groove angle [rad]": 0.01}}
+    result = _answer(client, request)
+    # by hand: 0.01 rad x 180 / pi = 0.5729577951 deg
+    assert result["proof"]["method"] == "robust-gp-vertex", result["proof"]
+    statement = result["proof"]["statement"]
+    assert "the angle made high (nominal + 0.01 rad (0.572958 deg))" in statement, statement
+    assert "the angle box moved by 0.01 rad (0.572958 deg) at that speed" in statement, statement
+    assert "+ 0.572958 deg" not in statement and "by 0.572958 deg" not in statement
+    path, out = tmp_path / "robust.json", tmp_path / "design.json"
+    path.write_text(json.dumps(request))
+    assert main(["optimize", str(path), "-o", str(out)]) == 0
+    assert json.loads(out.read_text())["proof"]["statement"] == statement
+    # a calibrated model's vertex, 0.005 rad = 0.2864788976 deg
+    calibrated = _optimized(client, {**BASE, "model": model, "speed_m_s": 0.05, "conditions": CONDITIONS,
+                                     "tolerances": {"groove angle [rad]": 0.005}})
+    assert calibrated["proof"]["method"] == "robust-gp-vertex", calibrated["proof"]
+    assert "the angle made high (+0.005 rad (0.286479 deg))," in calibrated["proof"]["statement"], calibrated
+    # sent in deg, the words stay in deg
+    plain = _answer(client, {**BASE, "speed_m_s": [0.01, 0.05], "tolerances": {"groove_angle_deg": 0.5}})
+    assert "the angle made high (nominal + 0.5 deg)" in plain["proof"]["statement"], plain["proof"]
