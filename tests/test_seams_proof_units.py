@@ -256,3 +256,37 @@ def test_a_proof_states_a_tolerance_in_the_unit_it_was_sent_in(client, model, tm
     # sent in deg, the words stay in deg
     plain = _answer(client, {**BASE, "speed_m_s": [0.01, 0.05], "tolerances": {"groove_angle_deg": 0.5}})
     assert "the angle made high (nominal + 0.5 deg)" in plain["proof"]["statement"], plain["proof"]
+
+
+def test_an_old_calibration_s_stored_data_have_the_upload_s_headers_back_for_its_plots(client, model, data_dir):
+    # A calibration stored before the upload's headers were kept lacks them in its model and in its data's
+    # arrays (header.<column>); the model had them back from the report's intake, its data did not: the
+    # plots and refits of next-experiments drew temp_K [K] and relative_humidity as a fraction, not the
+    # upload's temp_F [degF] and relative humidity [%].
+    from microbearing.calibrate.plots import DrawnColumn
+    from microbearing.service.calibrations import stored_dataset
+    from microbearing.service.models import stored_calibrated
+
+    store = Store(data_dir)
+    stored = store.load_model(model.split(":")[1])
+    metadata = json.loads(json.dumps(stored.metadata))
+    metadata["model"].pop("headers")
+    arrays = {key: value for key, value in stored.arrays.items() if not key.startswith("data.header.")}
+    assert set(stored.arrays) - set(arrays) == {"data.header.relative_humidity", "data.header.temp_K"}
+    old = store.load_model(store.save_model(stored.kind, metadata, arrays, name="old data"))
+    datasets = []
+    for kept in (stored, old):
+        calibrated = stored_calibrated(kept.metadata)
+        datasets.append(stored_dataset(kept.arrays, calibrated.fixed, calibrated.headers))
+    assert datasets[1].headers == datasets[0].headers == {"relative_humidity": "relative humidity [%]",
+                                                          "temp_K": "temp_F"}, datasets[1].headers
+    drawn = [DrawnColumn.of(datasets[1], name) for name in ("temp_K", "relative_humidity")]
+    assert [column.label for column in drawn] == ["temp_F [degF]", "relative humidity [%]"]
+    # by hand: degF = (K - 273.15) x 9/5 + 32, % = 100 x the fraction; the upload's values come back
+    kelvin, fraction = datasets[1].conditions["temp_K"], datasets[1].conditions["relative_humidity"]
+    assert drawn[0].shown(kelvin) == pytest.approx((kelvin - 273.15) * 9 / 5 + 32, rel=1e-12)
+    assert drawn[1].shown(fraction) == pytest.approx(100 * fraction, rel=1e-12)
+    fahrenheit = [row["temp_F"] for row in lab_header_rows()]
+    assert sorted(drawn[0].shown(kelvin)) == pytest.approx(sorted(fahrenheit), rel=1e-9)
+    # the data stored with their headers read as before
+    assert stored_dataset(stored.arrays, stored_calibrated(stored.metadata).fixed).headers == datasets[0].headers
