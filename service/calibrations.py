@@ -15,7 +15,6 @@ the column registry (:mod:`physics.columns`: other units converted, unit slips r
 from __future__ import annotations
 
 import dataclasses
-
 import math
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
