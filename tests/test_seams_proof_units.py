@@ -258,7 +258,8 @@ def test_a_proof_states_a_tolerance_in_the_unit_it_was_sent_in(client, model, tm
     assert "the angle made high (nominal + 0.5 deg)" in plain["proof"]["statement"], plain["proof"]
 
 
-def test_an_old_calibration_s_stored_data_have_the_upload_s_headers_back_for_its_plots(client, model, data_dir):
+def test_an_old_calibration_s_stored_data_have_the_upload_s_headers_back_for_its_plots(client, model,
+                                                                                       data_dir):
     # A calibration stored before the upload's headers were kept lacks them in its model and in its data's
     # arrays (header.<column>); the model had them back from the report's intake, its data did not: the
     # plots and refits of next-experiments drew temp_K [K] and relative_humidity as a fraction, not the
@@ -289,4 +290,5 @@ def test_an_old_calibration_s_stored_data_have_the_upload_s_headers_back_for_its
     fahrenheit = [row["temp_F"] for row in lab_header_rows()]
     assert sorted(drawn[0].shown(kelvin)) == pytest.approx(sorted(fahrenheit), rel=1e-9)
     # the data stored with their headers read as before
-    assert stored_dataset(stored.arrays, stored_calibrated(stored.metadata).fixed).headers == datasets[0].headers
+    fixed = stored_calibrated(stored.metadata).fixed
+    assert stored_dataset(stored.arrays, fixed).headers == datasets[0].headers
