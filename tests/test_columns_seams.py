@@ -6,29 +6,15 @@ import json
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import job_result, wait_job
 from labs_helper import lab_header_rows
 
 from microbearing.calibrate.experiments import candidate_points
 from microbearing.calibrate.tabular import read_csv
 from microbearing.optimize.robust import Envelope
-from microbearing.service.app import create_app
 from microbearing.service.cli import main
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
-
-
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("columns")
-
-
-@pytest.fixture(scope="module")
-def client(data_dir):
-    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
-        yield test_client
 
 
 @pytest.fixture(scope="module")

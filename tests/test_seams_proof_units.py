@@ -6,29 +6,15 @@ from __future__ import annotations
 import json
 
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import job_result, wait_job
 from labs_helper import lab_header_rows
 
 from microbearing.optimize.robust import Envelope
 from microbearing.physics.columns import read_name
-from microbearing.service.app import create_app
 from microbearing.service.cli import main
 from microbearing.service.optimizations import prepare
 from microbearing.service.schemas.optimizations import OptimizationRequest
-from microbearing.service.settings import Settings
 from microbearing.service.store import Store
-
-
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("proof_units")
-
-
-@pytest.fixture(scope="module")
-def client(data_dir):
-    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
-        yield test_client
 
 
 @pytest.fixture(scope="module")
