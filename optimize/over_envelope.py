@@ -60,8 +60,9 @@ class Envelope:
         nominal ± δ. Only ``groove_angle_deg`` [deg].
     readings : mapping of str to physics.columns.Reading, optional
         How ``speed_m_s``, each condition and each design variable's bounds (``groove_angle_deg``,
-        ``load_N``) were sent (the key and unit of a request), for the words of a proof (:meth:`said`,
-        :meth:`said_design`); the figures stay in the model's units. Not compared.
+        ``load_N``) were sent (the key and unit of a request), and each tolerance under
+        ``tolerances.<name>`` (``groove angle [rad]``), for the words of a proof (:meth:`said`,
+        :meth:`said_design`, :meth:`said_tolerance`); the figures stay in the model's units. Not compared.
 
     Raises
     ------
@@ -131,6 +132,22 @@ class Envelope:
         if reading is not None:
             return reading.said(value)
         return f"speed {value:g} m/s" if name == "speed_m_s" else f"{name} at {value:g}"
+
+    def said_tolerance(self, delta: float) -> str:
+        """The groove angle's tolerance ``delta`` [deg] (or the angle moved by it) as a proof's words give
+        it: in the unit its key was sent in, the value in deg in brackets (``0.01 rad (0.572958 deg)`` for
+        ``groove angle [rad]``: 0.01); ``0.5 deg`` when it was sent in deg.
+
+        >>> from microbearing.physics.columns import read_name
+        >>> Envelope(0.05, tolerances={"groove_angle_deg": 0.5729577951308232},
+        ...          readings={"tolerances.groove_angle_deg": read_name("groove angle [rad]")}
+        ...          ).said_tolerance(0.5729577951308232)
+        '0.01 rad (0.572958 deg)'
+        """
+        reading = self.readings.get("tolerances.groove_angle_deg")
+        if reading is None or not reading.reading or reading.offset:  # a half-width is scaled, never offset
+            return f"{delta:g} deg"
+        return f"{reading.set_point(delta):g} {reading.sent_unit} ({delta:g} deg)"
 
     def said_design(self, design: Mapping[str, Any]) -> str:
         """A design (``balls``, ``groove_angle_deg`` [deg], ``load_N`` [N]) as a proof's words give it: the

@@ -14,6 +14,7 @@ the column registry (:mod:`physics.columns`: other units converted, unit slips r
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
@@ -150,12 +151,22 @@ def data_arrays(dataset: Dataset) -> dict[str, np.ndarray]:
     return {DATA_PREFIX + name: values for name, values in dataset.to_columns().items()}
 
 
-def stored_dataset(arrays: Mapping[str, np.ndarray], fixed: Mapping[str, Any]) -> Dataset | None:
-    """The calibration's data from its stored arrays, or None for a calibration stored before data were."""
+def stored_dataset(arrays: Mapping[str, np.ndarray], fixed: Mapping[str, Any],
+                   headers: Mapping[str, str] | None = None) -> Dataset | None:
+    """The calibration's data from its stored arrays, or None for a calibration stored before data were.
+
+    ``headers`` (column -> its header as sent: the stored model's, which
+    :func:`service.models.stored_calibrated` restores from the report's intake) are the data's when the
+    arrays have none (``header.<column>``: a calibration stored before the upload's headers were kept), so
+    that the plots and refits of its data speak the upload's units (``temp_F [degF]``, not ``temp_K [K]``).
+    """
     if DATA_PREFIX + MU_MEASURED not in arrays:
         return None
-    return Dataset.from_columns({key[len(DATA_PREFIX):]: value for key, value in arrays.items()
-                                 if key.startswith(DATA_PREFIX)}, fixed)
+    dataset = Dataset.from_columns({key[len(DATA_PREFIX):]: value for key, value in arrays.items()
+                                    if key.startswith(DATA_PREFIX)}, fixed)
+    if dataset.headers or not headers:
+        return dataset
+    return dataclasses.replace(dataset, headers={str(name): str(sent) for name, sent in headers.items()})
 
 
 def run_calibration(store: Store, dataset: Dataset, fit_parameters: list[str], folds: int, convention: str,

@@ -246,7 +246,7 @@ def next_experiments_job(store: Store, calibration_id: str, body: NextExperiment
         raise _field_problem(exc, sent) from None
     if body.goal == "predict" and envelope is None:
         raise validation_problem([{"pointer": "/envelope", "detail": "goal predict needs an envelope"}])
-    dataset = stored_dataset(stored.arrays, model.fixed)
+    dataset = stored_dataset(stored.arrays, model.fixed, model.headers)  # an old one's headers: its intake's
     # predict also hedges against the laws that came near to replacing a chosen term
     near = body.goal == "predict"
     has_rivals = dataset is not None and bool(rival_terms(report, dataset, [t for t, _ in model.terms], near))

@@ -108,6 +108,9 @@ class OptimizationPlan:
     tolerance_readings : mapping
         How each tolerance was read from its key as sent (``groove angle [rad]``), for the result's
         ``tolerances_as_sent``.
+    design_readings : mapping
+        How each design variable was read from its key as sent (bounds, or a fixed load: ``load [gf]``),
+        for every design's ``design_as_sent`` and the worst case's groove angle as sent.
     """
 
     problem: DesignProblem
@@ -126,6 +129,7 @@ class OptimizationPlan:
     input_warnings: tuple[str, ...] = ()
     readings: Mapping[str, Any] = field(default_factory=dict)
     tolerance_readings: Mapping[str, Any] = field(default_factory=dict)
+    design_readings: Mapping[str, Any] = field(default_factory=dict)
 
 
 def _request(body: OptimizationRequest) -> DesignRequest:
@@ -142,12 +146,20 @@ def _request(body: OptimizationRequest) -> DesignRequest:
 
 
 def _readings(body: OptimizationRequest) -> dict[str, Any]:
-    """How the request's speed, conditions and design bounds were sent (:class:`physics.columns.Reading` by
-    column), for the words of a proof in the request's keys and units."""
+    """How the request's speed, conditions, design bounds and tolerances (``tolerances.<name>``) were sent
+    (:class:`physics.columns.Reading` by column), for the words of a proof in the request's keys and units."""
     speed = {**body.fixed.readings, **body.readings}.get("speed_m_s")
-    design = {name: r for name, r in body.bounds.readings.items() if name in ("groove_angle_deg", "load_N")}
+    design = {name: r for name, r in _design_readings(body).items() if name in ("groove_angle_deg", "load_N")}
+    tolerances = {} if body.tolerances is None else body.tolerances.readings
     return {**design, **ReadConditions.of(body.conditions).readings,
-            **({} if speed is None else {"speed_m_s": speed})}
+            **({} if speed is None else {"speed_m_s": speed}),
+            **{f"tolerances.{name}": r for name, r in tolerances.items()}}
+
+
+def _design_readings(body: OptimizationRequest) -> dict[str, Any]:
+    """How the design variables were sent: the bounds' keys, and a load given in ``fixed`` (``load [gf]``)."""
+    load = body.fixed.readings.get("load_N")
+    return {**body.bounds.readings, **({} if load is None else {"load_N": load})}
 
 
 def _plan_problem(error: PlanError, body: OptimizationRequest) -> ProblemError:
@@ -257,7 +269,8 @@ def prepare(store: Store, body: OptimizationRequest) -> OptimizationPlan:
                             source_model, source_name, interval, planned.envelope, body.objective,
                             None if planned.envelope is None else model, body.time_limit_s,
                             tuple(_input_warnings(body)), ReadConditions.of(body.conditions).readings,
-                            {} if body.tolerances is None else body.tolerances.readings)
+                            {} if body.tolerances is None else body.tolerances.readings,
+                            _design_readings(body))
 
 
 def _input_warnings(body: OptimizationRequest) -> list[str]:
@@ -345,8 +358,40 @@ def run(plan: OptimizationPlan, progress: Callable[[float], None] | None = None,
 
 
 def _with_warnings(plan: OptimizationPlan, document: dict[str, Any]) -> dict[str, Any]:
-    """The result with the plan's input warnings (none: the field absent)."""
+    """The result with the plan's input warnings (none: the field absent), and every design in it also
+    under the bounds' keys as sent (:func:`_designs_as_sent`)."""
+    document = _designs_as_sent(plan, document)
     return {**document, "input_warnings": list(plan.input_warnings)} if plan.input_warnings else document
+
+
+def _designs_as_sent(plan: OptimizationPlan, document: dict[str, Any]) -> dict[str, Any]:
+    """Every design of the result (the design, the Pareto front's, the price of robustness's nominal and
+    robust ones) also as sent: ``design_as_sent`` beside it holds balls, groove angle and load under the
+    keys the bounds (or a fixed load) were sent with, each in its key's unit (``load [gf]`` 1.2 where
+    load_N is 0.01176798). Beside the design, not in it: a design stays a point that /v1/friction and
+    ``physics.evaluate`` take as it is; its SI fields are unchanged."""
+    sent = _sent_design(plan)
+
+    def shown(owner: Mapping[str, Any]) -> dict[str, Any]:
+        design = owner["design"]
+        return {**owner, "design_as_sent": sent.shown_as_sent(
+            {name: design[name] for name in ("balls", "groove_angle_deg", "load_N") if name in design})}
+
+    document = shown(document)
+    if document.get("pareto"):
+        document["pareto"] = {**document["pareto"],
+                              "points": [shown(point) for point in document["pareto"]["points"]]}
+    if document.get("price_of_robustness"):
+        price = document["price_of_robustness"]
+        parts = [part for part in ("nominal", "robust") if isinstance(price.get(part), Mapping)]
+        document["price_of_robustness"] = {**price, **{part: shown(price[part]) for part in parts}}
+    return document
+
+
+def _sent_design(plan: OptimizationPlan) -> ReadConditions:
+    """The design variables' keys as sent and how they were read, as :class:`ReadConditions` shows them."""
+    return ReadConditions({}, {name: r.sent for name, r in plan.design_readings.items()},
+                          readings=plan.design_readings)
 
 
 def _show_as_sent(plan: OptimizationPlan, document: dict[str, Any]) -> None:
@@ -358,6 +403,9 @@ def _show_as_sent(plan: OptimizationPlan, document: dict[str, Any]) -> None:
     for part in ("envelope", "worst_case"):
         shown = {"speed_m_s": document[part]["speed_m_s"], **document[part]["conditions"]}
         document[part] = {**document[part], "as_sent": sent.shown_as_sent(shown)}
+    # the angle made at the worst case, under the bounds' key and in its unit (groove angle [rad])
+    document["worst_case"]["as_sent"].update(
+        _sent_design(plan).shown_as_sent({"groove_angle_deg": document["worst_case"]["groove_angle_deg"]}))
     widths = ReadConditions({}, {name: r.sent for name, r in plan.tolerance_readings.items()},
                             readings=plan.tolerance_readings)  # a half-width: scaled, never offset (angles)
     document["envelope"]["tolerances_as_sent"] = widths.shown_as_sent(document["envelope"]["tolerances"])

@@ -31,7 +31,7 @@ from .store import json_bytes
 
 __all__ = ["CHUNK_POINTS", "MAX_NUMBER_BYTES", "SweepPlan", "check_result_size", "design_columns",
            "design_size", "input_warnings", "result_bytes_bound", "run_sweep", "sent_columns",
-           "stored_request"]
+           "sent_factors", "stored_request"]
 
 #: Points evaluated per chunk: bounds memory and sets how often progress is reported.
 CHUNK_POINTS = 65_536
@@ -228,14 +228,12 @@ def result_bytes_bound(request: AnySweep, count: int) -> int:
                 "columns": {name: [] for name in columns}}
     if warnings := input_warnings(request):
         skeleton["input_warnings"] = warnings
-    # each input sent under another key, again in its unit (sent_columns): a fixed one as it will be written,
-    # a varied one's values as doubles
+    # each input sent under another key, its key, unit and factors (sent_columns), a fixed one's value as it
+    # will be written: none of it grows with the count
     sent = sent_columns(request, SweepPlan({name: np.empty(0) for name in varied}, skeleton["fixed"], 0))
     if sent:
         skeleton["as_sent"] = sent
     size = len(json_bytes(skeleton)) + len(columns) * max(count - 1, 0)  # the commas between values
-    size += sum(count * MAX_NUMBER_BYTES + max(count - 1, 0) for part in sent.values()
-                if isinstance(part["values"], list))
     for name in varied:
         if name in axes:
             values = axes[name]
@@ -321,19 +319,38 @@ def _sent_readings(request: AnySweep) -> dict[str, Any]:
 
 def sent_columns(request: AnySweep, plan: SweepPlan) -> dict[str, dict[str, Any]]:
     """Each input the request sent under another key (``speed [mm/min]``), under that key: ``column``, the
-    input it was read as, and ``values`` in the key's unit (:meth:`physics.columns.Reading.set_point`: 1000,
-    not 999.9999999999), one per point when varied, one when fixed."""
+    input it was read as, how its values convert into the key's unit (:func:`sent_factors`: ``unit``,
+    ``factor``, ``offset``) and, for a fixed input, its value (``values``) in that unit
+    (:meth:`physics.columns.Reading.set_point`: 1000, not 999.9999999999). A varied input's values are not
+    repeated here (they would double the JSON of a large sweep): ``columns`` holds them in SI, the factors
+    give them in the key's unit, and the CSV form of the table gives them so (:func:`service.tables.
+    sweep_table`)."""
     out: dict[str, dict[str, Any]] = {}
     for name, reading in _sent_readings(request).items():
         if name in plan.varied:
-            values = np.asarray(plan.varied[name]).tolist()
-            shown = [reading.set_point(v) for v in values] if reading.reading else values
+            part: dict[str, Any] = {"column": name, **sent_factors(reading)}
         elif name in plan.fixed and not isinstance(plan.fixed[name], bool):
-            shown = reading.set_point(plan.fixed[name]) if reading.reading else plan.fixed[name]
+            value = reading.set_point(plan.fixed[name]) if reading.reading else plan.fixed[name]
+            part = {"column": name, **sent_factors(reading), "values": value}
         else:
             continue
-        out[reading.sent] = {"column": name, "values": shown}
+        out[reading.sent] = part
     return out
+
+
+def sent_factors(reading: Any) -> dict[str, Any]:
+    """How a column's values (SI) convert into the unit its key was sent in: ``value as sent = column value x
+    factor + offset`` (the inverse of :meth:`physics.columns.Reading.convert`); ``unit`` is that unit (the
+    column's own when the key only renamed it).
+
+    >>> from microbearing.physics.columns import read_name
+    >>> sent_factors(read_name("speed [mm/min]")), sent_factors(read_name("load [N]"))
+    ({'unit': 'mm/min', 'factor': 60000.0, 'offset': 0.0}, {'unit': 'N', 'factor': 1.0, 'offset': 0.0})
+    """
+    if not reading.reading:
+        return {"unit": physics.PARAMETERS[reading.name].unit, "factor": 1.0, "offset": 0.0}
+    factor = float(reading.divisor) if reading.divisor is not None else 1.0 / float(reading.scale)
+    return {"unit": reading.sent_unit, "factor": factor, "offset": 0.0 - float(reading.offset) * factor}
 
 
 def run_sweep(request: AnySweep, plan: SweepPlan,

@@ -16,10 +16,12 @@ import numpy as np
 from fastapi import Request
 from fastapi.responses import Response
 
+from microbearing.physics.columns import ColumnError, read_name
+
 from .store import json_bytes
 
 __all__ = ["CSV_MEDIA_TYPE", "accepts_any", "best_match", "csv_text", "json_bytes", "json_column_pieces",
-           "media_ranges", "prefers_csv", "sweep_table", "table_response", "wants_csv"]
+           "media_ranges", "prefers_csv", "sent_values", "sweep_table", "table_response", "wants_csv"]
 
 CSV_MEDIA_TYPE = "text/csv"
 
@@ -110,14 +112,15 @@ def sweep_table(document: Mapping[str, Any]) -> dict[str, Any]:
     """The columns of a table result with its fixed inputs as columns: varied inputs, fixed ones, outputs.
 
     A result without ``fixed`` (or ``varied``) gives its ``columns`` as they are. An input the request sent
-    under another key (``as_sent``) is that column, under that key and in its unit, as the request said it.
+    under another key (``as_sent``) is that column, under that key and in its unit, as the request said it:
+    a fixed one's ``values``, a varied one's column converted (:func:`sent_values`).
 
     >>> sweep_table({"count": 2, "varied": ["speed_m_s"], "fixed": {"load_N": 0.01},
     ...              "columns": {"speed_m_s": [0.0, 0.1], "mu": [0.01, 0.02]}})
     {'speed_m_s': [0.0, 0.1], 'load_N': [0.01, 0.01], 'mu': [0.01, 0.02]}
     >>> sweep_table({"count": 2, "varied": ["speed_m_s"], "fixed": {"load_N": 0.01},
     ...              "columns": {"speed_m_s": [0.0, 0.1], "mu": [0.01, 0.02]},
-    ...              "as_sent": {"speed [mm/s]": {"column": "speed_m_s", "values": [0.0, 100.0]}}})
+    ...              "as_sent": {"speed [mm/s]": {"column": "speed_m_s", "factor": 1000.0, "offset": 0.0}}})
     {'speed [mm/s]': [0.0, 100.0], 'load_N': [0.01, 0.01], 'mu': [0.01, 0.02]}
     """
     columns = document["columns"]
@@ -130,14 +133,35 @@ def sweep_table(document: Mapping[str, Any]) -> dict[str, Any]:
         table = {name: columns[name] for name in varied if name in columns}
         table.update({name: [value] * count for name, value in fixed.items() if name not in columns})
         table.update({name: values for name, values in columns.items() if name not in table})
-    sent = {part["column"]: (key, part["values"]) for key, part in (document.get("as_sent") or {}).items()}
+    sent = {part["column"]: (key, part) for key, part in (document.get("as_sent") or {}).items()}
     if not sent:
         return table
     count = len(next(iter(table.values()), []))
-    return {sent[name][0] if name in sent else name:
-            (values if name not in sent else sent[name][1] if isinstance(sent[name][1], list)
-             else [sent[name][1]] * count)
-            for name, values in table.items()}
+    out = {}
+    for name, values in table.items():
+        if name not in sent:
+            out[name] = values
+            continue
+        key, part = sent[name]
+        given = part.get("values")
+        out[key] = (given if isinstance(given, list) else [given] * count if given is not None
+                    else sent_values(key, part, values))
+    return out
+
+
+def sent_values(key: str, part: Mapping[str, Any], values: Any) -> list[float]:
+    """A column's values (SI) in the unit of the key it was sent under, to the digits each holds
+    (:meth:`physics.columns.Reading.set_point`: 1000, not 999.9999999999), from the key as the request read
+    it; from ``part``'s ``factor`` and ``offset`` should the key not read (value x factor + offset)."""
+    try:
+        reading = read_name(key)
+    except ColumnError:
+        reading = None
+    numbers = np.asarray(values, dtype=float).tolist()
+    if reading is not None and reading.reading and reading.name == part["column"]:
+        return [reading.set_point(v) for v in numbers]
+    factor, offset = float(part.get("factor", 1.0)), float(part.get("offset", 0.0))
+    return [v * factor + offset for v in numbers]
 
 
 def table_response(request: Request, document: Mapping[str, Any], columns: Mapping[str, Any],

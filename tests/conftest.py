@@ -1,4 +1,5 @@
-"""Fixtures shared by several test files: the database backends of the store.
+"""Fixtures shared by several test files: a service app on its own data folder per test file (``data_dir``,
+``client``), and the database backends of the store.
 
 ``database`` runs a test against both backends: SQLite in the test's folder, and PostgreSQL on a
 real server started once per session (tests/postgres_server.py). Without PostgreSQL installed (or
@@ -152,3 +153,24 @@ def database(request, tmp_path) -> Callable:
         yield db
     finally:
         db.close()
+
+
+@pytest.fixture(scope="module")
+def data_dir(request, tmp_path_factory) -> Path:
+    """The data folder of one test file's app (:func:`client`), named after the file; a file that needs
+    another defines its own ``data_dir``."""
+    return tmp_path_factory.mktemp(request.module.__name__.rpartition(".")[2].removeprefix("test_"))
+
+
+@pytest.fixture(scope="module")
+def client(data_dir):
+    """The service with its default settings on ``data_dir``, one for the whole test file (a
+    ``fastapi.testclient.TestClient``, started and shut down once); a file that needs other settings
+    defines its own ``client``."""
+    from fastapi.testclient import TestClient
+
+    from microbearing.service.app import create_app
+    from microbearing.service.settings import Settings
+
+    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
+        yield test_client

@@ -12,12 +12,10 @@ from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 
 from microbearing import physics
-from microbearing.service.app import create_app
 from microbearing.service.calibrations import load_mu_model
 from microbearing.service.cli import main
 from microbearing.service.deps import get_runtime
 from microbearing.service.problems import ProblemError
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 N_ROWS = 120
@@ -45,12 +43,6 @@ def as_csv(rows: list[dict]) -> str:
     writer.writeheader()
     writer.writerows(rows)
     return buffer.getvalue()
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("calibrations")))) as test_client:
-        yield test_client
 
 
 def finished_result(client: TestClient, response) -> dict:

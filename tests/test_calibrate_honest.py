@@ -11,15 +11,12 @@ import dataclasses
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel, DataError, calibrate, parse_rows
 from microbearing.calibrate.plausibility import check_plausible, plausibility_findings
 from microbearing.calibrate.search import bump_factor
-from microbearing.service.app import create_app
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 
@@ -103,12 +100,6 @@ def test_a_fitted_parameter_on_its_bound_is_reported_there_not_a_crash():
     result = calibrate(rows, ["mu_pivot"], make_plots=False, max_terms=1)
     assert result.fitted_declared["mu_pivot"]["value"] == pytest.approx(10.0, rel=1e-6)
     assert any(w.startswith("mu_pivot ended on a bound") for w in result.warnings), result.warnings
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("honest")))) as test_client:
-        yield test_client
 
 
 def test_a_unit_slip_is_a_422_naming_the_column_through_json_and_csv(client):

@@ -13,7 +13,6 @@ from datetime import UTC, datetime, timedelta, timezone
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 from scipy import optimize, stats
 
@@ -25,8 +24,6 @@ from microbearing.calibrate.measurement import LackOfFit, drift_words, folds, in
 from microbearing.calibrate.rivals import PLACE_LR
 from microbearing.calibrate.scores import count_parameters
 from microbearing.physics.changepoints import step_places
-from microbearing.service.app import create_app
-from microbearing.service.settings import Settings
 
 PIVOT, NOISE, BALLS = 0.65, 0.03, 4
 
@@ -38,12 +35,6 @@ def truth(load_N, speed_m_s):
 def as_rows(columns: dict, mu: np.ndarray) -> list[dict]:
     return [{k: (v[i] if isinstance(v[i], str) else float(v[i])) for k, v in columns.items()}
             | {"mu_measured": float(mu[i])} for i in range(mu.size)]
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("measurement")))) as test_client:
-        yield test_client
 
 
 def calibrated(client, rows, folds_=3) -> dict:

@@ -14,15 +14,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 
 from microbearing import physics
 from microbearing.calibrate import CalibratedModel, calibrate
 from microbearing.calibrate.domain import EXTRAPOLATION_SHARE
 from microbearing.physics.effects import EFFECTS
-from microbearing.service.app import create_app
-from microbearing.service.settings import Settings
 
 BREAKAWAY = [0.009, 0.005]  # excess [1], breakaway speed [m/s]
 
@@ -37,12 +34,6 @@ def draw(rng, n: int, speed) -> tuple[dict, np.ndarray]:
          "load_N": np.exp(rng.uniform(math.log(3e-3), math.log(3e-2), n)),
          "speed_m_s": rng.uniform(*speed, n) if isinstance(speed, tuple) else np.full(n, float(speed))}
     return c, truth(c) * np.exp(rng.normal(0.0, 0.03, n))
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("offdata")))) as test_client:
-        yield test_client
 
 
 @pytest.fixture(scope="module")

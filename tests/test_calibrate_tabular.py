@@ -16,8 +16,6 @@ from jobs_helper import job_result
 from microbearing import physics
 from microbearing.calibrate import DataError, parse_csv, read_csv, read_rows
 from microbearing.calibrate.tabular import read_column
-from microbearing.service.app import create_app
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 N = 40
@@ -199,12 +197,6 @@ def test_json_rows_take_units_in_their_keys():
 
 
 # --- through the API ---------------------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("tabular")))) as test_client:
-        yield test_client
 
 
 def finished(client: TestClient, response) -> dict:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 from scipy import stats
 
@@ -22,8 +21,6 @@ from microbearing.calibrate.scatter import allowance
 from microbearing.calibrate.tails import tail_form
 from microbearing.calibrate.uncertainty import outlier_threshold, parameter_warnings
 from microbearing.physics.effects import PARAMETER_SHARES
-from microbearing.service.app import create_app
-from microbearing.service.settings import Settings
 
 MU_PIVOT = 0.65
 NOISE = 0.03
@@ -44,12 +41,6 @@ def mu_of(c, **values) -> np.ndarray:
 def rows_of(c, measured) -> list[dict]:
     return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(measured[i])}
             for i in range(measured.size)]
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("trust")))) as test_client:
-        yield test_client
 
 
 def calibrated(client, body: dict) -> dict:
@@ -90,7 +81,6 @@ def test_ten_rows_are_answered_with_an_allowance_and_no_effect_claimed(client):
     assert float(allowance(9)) > factor
     cover = coverage(result, {k: v[n:] for k, v in c.items()}, measured[n:])
     assert 0.9 <= cover <= 1.0
-
 
 
 @pytest.mark.parametrize("n", [8, 12])
@@ -188,7 +178,6 @@ def test_a_modulus_far_below_its_default_and_a_stribeck_speed_beyond_the_data_ar
     assert f"{10:.2g}x" in far and 10 > REACH
     run_in = EffectTerm("run_in", ("cycle",))
     assert implausible(run_in, [-0.1, 500.0], {"cycle": np.arange(0.0, 3000.0, 100.0)})
-
 
 
 def test_friction_rising_with_temperature_is_not_named_a_thermally_falling_shear_strength():

@@ -8,13 +8,10 @@ import json
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 
 from microbearing.physics.columns import physical_range
-from microbearing.service.app import create_app
 from microbearing.service.cli import main
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 
@@ -28,17 +25,6 @@ def _rows(time_s: np.ndarray) -> list[dict]:
              "RH_pct": float(h), "mu_measured": 0.01 * float(np.exp(rng.normal(0.0, 0.03)))}
             for b, w, v, t, h in zip(rng.choice([4, 6, 8], n), rng.uniform(0.005, 0.02, n),
                                      rng.uniform(0.01, 0.1, n), time_s, rng.uniform(20, 60, n), strict=True)]
-
-
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("ranges")
-
-
-@pytest.fixture(scope="module")
-def client(data_dir):
-    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
-        yield test_client
 
 
 @pytest.fixture(scope="module")

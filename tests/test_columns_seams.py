@@ -6,29 +6,15 @@ import json
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import job_result, wait_job
 from labs_helper import lab_header_rows
 
 from microbearing.calibrate.experiments import candidate_points
 from microbearing.calibrate.tabular import read_csv
 from microbearing.optimize.robust import Envelope
-from microbearing.service.app import create_app
 from microbearing.service.cli import main
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
-
-
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("columns")
-
-
-@pytest.fixture(scope="module")
-def client(data_dir):
-    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
-        yield test_client
 
 
 @pytest.fixture(scope="module")
@@ -1001,7 +987,8 @@ def test_an_optimization_s_envelope_and_worst_case_speak_the_keys_as_sent(client
     assert envelope["as_sent"] == {"speed_m_s": [0.05, 0.05], "relative humidity [%]": [30, 60],
                                    "temp_F": [70, 100]}, envelope
     sent = worst["as_sent"]
-    assert set(sent) == {"speed_m_s", *conditions}, worst
+    assert set(sent) == {"speed_m_s", "groove_angle_deg", *conditions}, worst  # the angle made: sent in deg
+    assert sent["groove_angle_deg"] == worst["groove_angle_deg"]
     # by hand: % = 100 x the fraction, degF = (K - 273.15) x 9/5 + 32
     assert sent["relative humidity [%]"] == pytest.approx(100 * worst["conditions"]["relative_humidity"])
     assert sent["temp_F"] == pytest.approx(_fahrenheit(worst["conditions"]["temp_K"]))

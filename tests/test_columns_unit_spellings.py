@@ -7,24 +7,10 @@ import json
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 
 from microbearing import physics
-from microbearing.service.app import create_app
 from microbearing.service.cli import main
-from microbearing.service.settings import Settings
-
-
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("spellings")
-
-
-@pytest.fixture(scope="module")
-def client(data_dir):
-    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
-        yield test_client
 
 
 @pytest.fixture(scope="module")

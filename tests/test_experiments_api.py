@@ -10,25 +10,12 @@ from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 from labs_helper import kelvin_rows
 
-from microbearing.service.app import create_app
 from microbearing.service.cli import main
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
          "speed_m_s": {"low": 0.0, "high": 0.15},
          "relative_humidity": {"values": [0.2, 0.35, 0.5, 0.65, 0.8, 0.9]}}
-
-
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("experiments")
-
-
-@pytest.fixture(scope="module")
-def client(data_dir):
-    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
-        yield test_client
 
 
 def finished(client: TestClient, response) -> dict:

@@ -13,12 +13,9 @@ import math
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 
 from microbearing import physics
-from microbearing.service.app import create_app
-from microbearing.service.settings import Settings
 
 SPACE = {"balls": {"values": [4, 6, 8]}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
          "speed_m_s": {"low": 0.005, "high": 0.15}}
@@ -38,12 +35,6 @@ def first_rows(rng, n: int = 40) -> list[dict]:
     return measure({"balls": rng.choice([4, 6, 8], n).astype(float),
                     "load_N": np.exp(rng.uniform(math.log(3e-3), math.log(3e-2), n)),
                     "speed_m_s": rng.uniform(0.05, 0.15, n)}, rng)
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("promise")))) as test_client:
-        yield test_client
 
 
 def job(client, response) -> dict:

@@ -11,21 +11,13 @@ from microbearing import physics
 from microbearing.calibrate import CalibratedModel
 from microbearing.calibrate.candidates import EffectTerm
 from microbearing.optimize import Constraints, DesignBounds, DesignProblem, optimize_design
-from microbearing.service.app import create_app
 from microbearing.service.deps import get_runtime
 from microbearing.service.optimizations import INFEASIBLE_TYPE
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 ISSUE_EXAMPLE = {"bounds": {"balls": [4, 24], "groove_angle_deg": [35, 70], "load_N": [0.001, 0.05]},
                  "fixed": {"speed_m_s": 0.05, "mu_pivot": 1.0},
                  "constraints": {"max_contact_pressure_Pa": 1e9}}
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("optimizations")))) as test_client:
-        yield test_client
 
 
 def finished(client: TestClient, response) -> dict:

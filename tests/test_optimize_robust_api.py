@@ -14,10 +14,8 @@ from microbearing import physics
 from microbearing.calibrate.model_view import CalibratedPhysicsModel
 from microbearing.optimize import Constraints, DesignBounds, DesignProblem
 from microbearing.optimize.robust import Envelope, optimize_robust
-from microbearing.service.app import create_app
 from microbearing.service.deps import get_runtime
 from microbearing.service.models import resolve
-from microbearing.service.settings import Settings
 
 PHYSICS = {"bounds": {"balls": [3, 12], "groove_angle_deg": [40, 60], "load_N": [0.001, 0.05]},
            "speed_m_s": [0.01, 0.1], "tolerances": {"groove_angle_deg": 0.5},
@@ -48,12 +46,6 @@ def finished(client: TestClient, response) -> dict:
     location = response.headers["location"]
     job = finished_job(client, location, timeout_s=300, interval_s=0.05)
     return client.get(job["result_url"]).json()
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("robust")))) as test_client:
-        yield test_client
 
 
 @pytest.fixture(scope="module")

@@ -16,8 +16,6 @@ from labs_helper import kelvin_rows
 
 from microbearing import physics
 from microbearing.physics.effects import DRIFT_LAWS, EFFECTS, Domain
-from microbearing.service.app import create_app
-from microbearing.service.settings import Settings
 
 N_ROWS = 80
 POINT = {"balls": 8, "load_N": 0.01, "speed_m_s": 0.05}
@@ -62,12 +60,6 @@ def test_every_closed_edge_is_inside_its_domain_and_the_law_evaluates_there():
 
 
 # ---------------------------------------------------------------------------------- through the API
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("edges")))) as test_client:
-        yield test_client
 
 
 def finished_result(client: TestClient, body: dict) -> dict:

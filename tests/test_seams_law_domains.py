@@ -19,9 +19,7 @@ from microbearing import physics
 from microbearing.calibrate.candidates import DriftTerm, EffectTerm
 from microbearing.calibrate.domain import law_domains, outside_law_domains
 from microbearing.physics.effects import Domain
-from microbearing.service.app import create_app
 from microbearing.service.cli import main
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 N_ROWS = 120
@@ -65,17 +63,6 @@ def measurements() -> list[dict]:
     mu = (mu + c["balls"] * 2e-5 / (c["load_N"] * np.log(1 / c["relative_humidity"]))) * np.exp(
         rng.normal(0.0, 0.02, N_ROWS))
     return [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(N_ROWS)]
-
-
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("law-domains")
-
-
-@pytest.fixture(scope="module")
-def client(data_dir):
-    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
-        yield test_client
 
 
 def wait(client: TestClient, location: str) -> dict:

@@ -6,29 +6,15 @@ from __future__ import annotations
 import json
 
 import pytest
-from fastapi.testclient import TestClient
 from jobs_helper import job_result, wait_job
 from labs_helper import lab_header_rows
 
 from microbearing.optimize.robust import Envelope
 from microbearing.physics.columns import read_name
-from microbearing.service.app import create_app
 from microbearing.service.cli import main
 from microbearing.service.optimizations import prepare
 from microbearing.service.schemas.optimizations import OptimizationRequest
-from microbearing.service.settings import Settings
 from microbearing.service.store import Store
-
-
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("proof_units")
-
-
-@pytest.fixture(scope="module")
-def client(data_dir):
-    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
-        yield test_client
 
 
 @pytest.fixture(scope="module")
@@ -119,7 +105,8 @@ def test_an_envelope_s_speed_and_tolerance_are_shown_in_the_keys_and_units_sent(
     assert envelope["speed_m_s"] == pytest.approx([0.01, 0.05])
     assert envelope["as_sent"] == {"speed [mm/s]": [10, 50]}, envelope
     # by hand: mm/s = 1000 x m/s; rad = deg x pi / 180
-    assert worst["as_sent"] == {"speed [mm/s]": pytest.approx(1000 * worst["speed_m_s"])}, worst
+    assert worst["as_sent"] == {"speed [mm/s]": pytest.approx(1000 * worst["speed_m_s"]),
+                                "groove_angle_deg": worst["groove_angle_deg"]}, worst
     assert envelope["tolerances"]["groove_angle_deg"] == pytest.approx(0.01 * 180 / 3.141592653589793)
     assert envelope["tolerances_as_sent"] == {"groove angle [rad]": 0.01}, envelope
     path = tmp_path / "robust.json"
@@ -180,3 +167,114 @@ def test_a_calibration_stored_before_its_headers_were_kept_has_them_back_from_it
     assert main(["evaluate", "--data-dir", str(data_dir), "--model", old, "balls=4", "load_N=0.01",
                  "speed_m_s=0.05", "relative humidity [%]=50", "temperature=80", "-o",
                  str(data_dir / "old.json")]) != 0
+
+
+def _answer(client, request: dict) -> dict:
+    answer = client.post("/v1/optimizations", json=request)
+    assert answer.status_code in (200, 202), answer.text
+    return answer.json() if answer.status_code == 200 else _optimized(client, request)
+
+
+def test_a_found_design_and_its_worst_angle_are_shown_in_the_bounds_keys_and_units(client, tmp_path):
+    # before: the design was only in N and deg ({"balls": 4, "groove_angle_deg": 49.847, "load_N": 0.01177})
+    # and the worst case's angle only in deg, whatever the keys of the bounds (rad, gf)
+    bounds = {"balls": [4, 6], "groove angle [rad]": [0.87, 0.96], "load [gf]": [0.8, 1.2]}
+    request = {"bounds": bounds, "speed [mm/s]": [10, 50], "tolerances": {"groove angle [rad]": 0.01},
+               "time_limit_s": 20}
+    result = _answer(client, request)
+    gram_force, radian = 0.00980665, 3.141592653589793 / 180  # by hand: 1 gf in N, 1 deg in rad
+    design, sent, worst = result["design"], result["design_as_sent"], result["worst_case"]
+    # beside the design, which stays a point /v1/friction takes as it is (SI fields kept)
+    assert set(design) == {"balls", "groove_angle_deg", "load_N"}, design
+    assert client.post("/v1/friction", json={**design, "speed_m_s": 0.05}).status_code == 200
+    assert sent == {"balls": design["balls"],
+                    "groove angle [rad]": pytest.approx(design["groove_angle_deg"] * radian),
+                    "load [gf]": pytest.approx(design["load_N"] / gram_force)}, sent
+    # the design sits on the bounds' ends: shown as typed, not their round trip (0.8699999999)
+    assert sent["groove angle [rad]"] == 0.87 and sent["load [gf]"] == 1.2, sent
+    assert isinstance(sent["balls"], int)
+    # the angle made at the worst case: nominal + the tolerance, 0.87 + 0.01 rad
+    assert worst["as_sent"]["groove angle [rad]"] == pytest.approx(worst["groove_angle_deg"] * radian)
+    assert worst["as_sent"]["groove angle [rad]"] == 0.88, worst
+    for part in ("nominal", "robust"):
+        assert result["price_of_robustness"][part]["design_as_sent"] == sent
+    path, out = tmp_path / "robust.json", tmp_path / "design.json"
+    path.write_text(json.dumps(request))
+    assert main(["optimize", str(path), "-o", str(out)]) == 0
+    cli = json.loads(out.read_text())
+    assert cli["design_as_sent"] == sent and cli["worst_case"]["as_sent"] == worst["as_sent"]
+    # a design at one point, its load fixed in mN: under those keys too, at the API and the CLI
+    one = {"bounds": {"balls": [4, 6], "groove angle [rad]": [0.87, 0.96]}, "fixed": {"load [mN]": 10},
+           "speed_m_s": 0.05}
+    result = _answer(client, one)
+    assert result["design_as_sent"] == {"balls": result["design"]["balls"],
+                                        "groove angle [rad]": pytest.approx(
+                                            result["design"]["groove_angle_deg"] * radian),
+                                        "load [mN]": 10}, result
+    path.write_text(json.dumps(one))
+    assert main(["optimize", str(path), "-o", str(out)]) == 0
+    assert json.loads(out.read_text())["design_as_sent"] == result["design_as_sent"]
+    # sent in the model's own keys, the same keys come back
+    plain = _answer(client, {**BASE, "speed_m_s": 0.05})
+    assert plain["design_as_sent"] == plain["design"], plain
+
+
+def test_a_proof_states_a_tolerance_in_the_unit_it_was_sent_in(client, model, tmp_path):
+    # before: "the angle made high (nominal + 0.572958 deg)" and "the angle box moved by 0.572958 deg" where
+    # the request sent groove angle [rad] 0.01; the calibrated vertex's "(+0.286479 deg)" likewise
+    request = {**BASE, "speed [mm/s]": [10, 50], "tolerances": {"groove angle [rad]": 0.01}}
+    result = _answer(client, request)
+    # by hand: 0.01 rad x 180 / pi = 0.5729577951 deg
+    assert result["proof"]["method"] == "robust-gp-vertex", result["proof"]
+    statement = result["proof"]["statement"]
+    assert "the angle made high (nominal + 0.01 rad (0.572958 deg))" in statement, statement
+    assert "the angle box moved by 0.01 rad (0.572958 deg) at that speed" in statement, statement
+    assert "+ 0.572958 deg" not in statement and "by 0.572958 deg" not in statement
+    path, out = tmp_path / "robust.json", tmp_path / "design.json"
+    path.write_text(json.dumps(request))
+    assert main(["optimize", str(path), "-o", str(out)]) == 0
+    assert json.loads(out.read_text())["proof"]["statement"] == statement
+    # a calibrated model's vertex, 0.005 rad = 0.2864788976 deg
+    calibrated = _optimized(client, {**BASE, "model": model, "speed_m_s": 0.05, "conditions": CONDITIONS,
+                                     "tolerances": {"groove angle [rad]": 0.005}})
+    assert calibrated["proof"]["method"] == "robust-gp-vertex", calibrated["proof"]
+    assert "the angle made high (+0.005 rad (0.286479 deg))," in calibrated["proof"]["statement"], calibrated
+    # sent in deg, the words stay in deg
+    plain = _answer(client, {**BASE, "speed_m_s": [0.01, 0.05], "tolerances": {"groove_angle_deg": 0.5}})
+    assert "the angle made high (nominal + 0.5 deg)" in plain["proof"]["statement"], plain["proof"]
+
+
+def test_an_old_calibration_s_stored_data_have_the_upload_s_headers_back_for_its_plots(client, model,
+                                                                                       data_dir):
+    # A calibration stored before the upload's headers were kept lacks them in its model and in its data's
+    # arrays (header.<column>); the model had them back from the report's intake, its data did not: the
+    # plots and refits of next-experiments drew temp_K [K] and relative_humidity as a fraction, not the
+    # upload's temp_F [degF] and relative humidity [%].
+    from microbearing.calibrate.plots import DrawnColumn
+    from microbearing.service.calibrations import stored_dataset
+    from microbearing.service.models import stored_calibrated
+
+    store = Store(data_dir)
+    stored = store.load_model(model.split(":")[1])
+    metadata = json.loads(json.dumps(stored.metadata))
+    metadata["model"].pop("headers")
+    arrays = {key: value for key, value in stored.arrays.items() if not key.startswith("data.header.")}
+    assert set(stored.arrays) - set(arrays) == {"data.header.relative_humidity", "data.header.temp_K"}
+    old = store.load_model(store.save_model(stored.kind, metadata, arrays, name="old data"))
+    datasets = []
+    for kept in (stored, old):
+        calibrated = stored_calibrated(kept.metadata)
+        datasets.append(stored_dataset(kept.arrays, calibrated.fixed, calibrated.headers))
+    assert datasets[1].headers == datasets[0].headers == {"relative_humidity": "relative humidity [%]",
+                                                          "temp_K": "temp_F"}, datasets[1].headers
+    drawn = [DrawnColumn.of(datasets[1], name) for name in ("temp_K", "relative_humidity")]
+    assert [column.label for column in drawn] == ["temp_F [degF]", "relative humidity [%]"]
+    # by hand: degF = (K - 273.15) x 9/5 + 32, % = 100 x the fraction; the upload's values come back
+    kelvin, fraction = datasets[1].conditions["temp_K"], datasets[1].conditions["relative_humidity"]
+    assert drawn[0].shown(kelvin) == pytest.approx((kelvin - 273.15) * 9 / 5 + 32, rel=1e-12)
+    assert drawn[1].shown(fraction) == pytest.approx(100 * fraction, rel=1e-12)
+    fahrenheit = [row["temp_F"] for row in lab_header_rows()]
+    assert sorted(drawn[0].shown(kelvin)) == pytest.approx(sorted(fahrenheit), rel=1e-9)
+    # the data stored with their headers read as before
+    fixed = stored_calibrated(stored.metadata).fixed
+    assert stored_dataset(stored.arrays, fixed).headers == datasets[0].headers

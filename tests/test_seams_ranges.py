@@ -8,20 +8,11 @@ from __future__ import annotations
 import json
 
 import pytest
-from fastapi.testclient import TestClient
 
-from microbearing.service.app import create_app
 from microbearing.service.cli import main
 from microbearing.service.schemas.surrogates import SurrogateRequest
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("ranges")))) as test_client:
-        yield test_client
 
 
 def _problem(response, pointer: str) -> str:

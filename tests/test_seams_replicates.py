@@ -18,8 +18,6 @@ from jobs_helper import job_result
 
 from microbearing import physics
 from microbearing.calibrate.domain import DataCloud
-from microbearing.service.app import create_app
-from microbearing.service.settings import Settings
 
 N_DESIGN = 20
 MENISCUS_FORCE_N = 2e-5
@@ -165,12 +163,6 @@ def test_too_few_distinct_design_points_make_no_cloud():
 
 
 # ---------------------------------------------------------------------------------- through the API
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("replicates")))) as test_client:
-        yield test_client
 
 
 def finished_result(client: TestClient, response) -> dict:

@@ -141,22 +141,28 @@ def test_a_sweep_answers_in_the_keys_and_units_it_was_sent(tmp_path, sweep):
     # by hand: mm/min = 60000 x m/s, gf = N / 0.00980665, cm/s = 100 x m/s
     factor = {"speed [mm/min]": 60000.0, "load [gf]": 1 / 0.00980665, "speed [cm/s]": 100.0}
     for key, part in sent.items():
-        si = document["columns"].get(part["column"], document["fixed"].get(part["column"]))
-        assert np.allclose(np.asarray(part["values"]), np.asarray(si) * factor[key], rtol=1e-12), (key, part)
+        assert part["factor"] == pytest.approx(factor[key], rel=1e-12) and part["offset"] == 0, (key, part)
+        if part["column"] in document["fixed"]:
+            assert part["values"] == pytest.approx(document["fixed"][part["column"]] * factor[key], rel=1e-12)
+        else:  # a key map, not a second copy of the column
+            assert part.get("values") is None and part["column"] in document["columns"], (key, part)
     if sweep["design"] == "grid":
-        assert sent["speed [mm/min]"]["values"] == [1000, 3500, 6000] and sent["load [gf]"]["values"] == 1
+        assert sent["load [gf]"]["values"] == 1 and sent["speed [mm/min]"]["unit"] == "mm/min", sent
     rows = list(csv.DictReader(io.StringIO(table)))
     assert set(sent) <= set(rows[0]) and not {part["column"] for part in sent.values()} & set(rows[0])
     for key, part in sent.items():
-        values = part["values"] if isinstance(part["values"], list) else [part["values"]] * len(rows)
-        assert [float(r[key]) for r in rows] == pytest.approx(values, rel=1e-12)
+        si = document["columns"].get(part["column"], document["fixed"].get(part["column"]))
+        values = np.broadcast_to(np.asarray(si, dtype=float) * factor[key], (len(rows),))
+        # the CSV's to the digits each value holds (the SI value's 12), the factor's to a double's
+        assert [float(r[key]) for r in rows] == pytest.approx(values.tolist(), rel=1e-10)
+    if sweep["design"] == "grid":  # as typed, not their round trip through m/s (999.9999999999)
+        assert sorted({r["speed [mm/min]"] for r in rows}) == ["1000.0", "3500.0", "6000.0"], rows
     # the result's size is bounded before a point is computed, exactly but for the digits of the values
     # not known then (an output's, a sampled input's, and their values as sent)
     body = TypeAdapter(SweepRequest).validate_json(json.dumps(sweep))
     result = run_sweep(body, design_columns(body, 10**6))
-    unknown = [*(result["columns"][n] for n in result["columns"]
-                 if sweep["design"] != "grid" or n not in result["varied"]),
-               *(p["values"] for p in result["as_sent"].values() if isinstance(p["values"], list))]
+    unknown = [result["columns"][n] for n in result["columns"]
+               if sweep["design"] != "grid" or n not in result["varied"]]
     shortfall = sum(MAX_NUMBER_BYTES - len(json_bytes(v)) for values in unknown
                     for v in np.asarray(values).tolist())
     assert result_bytes_bound(body, result["count"]) - len(json_bytes(result)) == shortfall
@@ -182,7 +188,8 @@ def test_a_sweep_job_answers_in_the_keys_sent_as_one_answered_at_once(tmp_path):
         assert job["status"] == "succeeded", job
         result = client.get(job["result_url"]).json()
         table = client.get(job["result_url"], headers={"Accept": "text/csv"}).text
-    assert result["as_sent"]["speed [mm/min]"] == {"column": "speed_m_s", "values": [1000, 3500, 6000]}
+    assert result["as_sent"]["speed [mm/min]"] == {"column": "speed_m_s", "unit": "mm/min", "factor": 60000.0,
+                                                   "offset": 0.0}
     assert result["columns"]["speed_m_s"] == pytest.approx([1 / 60, 3.5 / 60, 0.1], rel=1e-12)
     assert table.splitlines()[0] == "speed [mm/min],balls,load [gf],mu"
     adapter = TypeAdapter(SweepRequest)
@@ -191,3 +198,49 @@ def test_a_sweep_job_answers_in_the_keys_sent_as_one_answered_at_once(tmp_path):
     sent = sent_columns(body, design_columns(body, 100))
     assert sent and sent_columns(rebuilt, design_columns(rebuilt, 100)) == sent
     assert rebuilt.model_dump() == body.model_dump()  # the same sweep
+
+
+def test_a_large_sweep_in_other_units_is_no_larger_than_in_si_and_its_csv_keeps_the_keys(tmp_path):
+    # before: as_sent repeated every varied column under its key: 10^4 Sobol points over speed [mm/s] and
+    # load [gf] answered 879012 bytes of JSON against 617936 sent as speed_m_s and load_N (+42 %), and the
+    # size bound that answers 413 grew from 750128 to 1250232 bytes (+67 %): a key map now, the CSV the same
+    from fastapi.testclient import TestClient
+    from pydantic import TypeAdapter
+
+    from microbearing.service.app import create_app
+    from microbearing.service.schemas.sweeps import SweepRequest
+    from microbearing.service.settings import Settings
+    from microbearing.service.sweeps import result_bytes_bound
+    from microbearing.service.tables import sweep_table
+
+    def sweep(speed: str, load: str, scale: tuple[float, float]) -> dict:
+        return {"design": "sobol", "points": 10_000, "seed": 1, "outputs": ["mu"], "fixed": {"balls": 6},
+                "ranges": {speed: {"low": 10 * scale[0], "high": 100 * scale[0]},
+                           load: {"low": 0.5 * scale[1], "high": 2 * scale[1]}}}
+
+    sent = sweep("speed [mm/s]", "load [gf]", (1.0, 1.0))
+    own = sweep("speed_m_s", "load_N", (1e-3, 0.00980665))  # by hand: 1 mm/s = 1e-3 m/s, 1 gf = 0.00980665 N
+    with TestClient(create_app(Settings(data_dir=tmp_path))) as client:
+        answers = [client.post("/v1/sweeps", json=body) for body in (sent, own)]
+        table = client.post("/v1/sweeps", json=sent, headers={"Accept": "text/csv"}).text
+    assert [a.status_code for a in answers] == [200, 200]
+    sizes = [len(a.content) for a in answers]
+    assert sizes[0] <= sizes[1] + 1000, sizes  # the key map's few hundred bytes, not a second copy
+    bounds = [result_bytes_bound(TypeAdapter(SweepRequest).validate_json(json.dumps(body)), 10_000)
+              for body in (sent, own)]
+    assert bounds[0] <= bounds[1] + 1000, bounds
+    document = answers[0].json()
+    assert document["as_sent"]["speed [mm/s]"] == {"column": "speed_m_s", "unit": "mm/s", "factor": 1000.0,
+                                                   "offset": 0.0}, document["as_sent"]
+    lines = table.splitlines()
+    assert lines[0] == "load [gf],speed [mm/s],balls,mu" and len(lines) == 10_001, lines[:2]
+    speeds = [float(line.split(",")[1]) for line in lines[1:]]
+    assert speeds == pytest.approx([1000 * v for v in document["columns"]["speed_m_s"]], rel=1e-10)
+    assert 10 <= min(speeds) and max(speeds) <= 100
+    # a result stored before, its varied columns repeated under their keys, gives the same CSV columns
+    header = lines[0].split(",")
+    column = {key: [float(line.split(",")[header.index(key)]) for line in lines[1:]] for key in header}
+    old = {**document, "as_sent": {key: {"column": part["column"], "values": column[key]}
+                                   for key, part in document["as_sent"].items()}}
+    assert list(sweep_table(old)) == list(sweep_table(document)) == header
+    assert sweep_table(old)["speed [mm/s]"] == sweep_table(document)["speed [mm/s]"]

@@ -21,17 +21,6 @@ PROBLEM = "application/problem+json"
 
 
 @pytest.fixture(scope="module")
-def data_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("calibrated-batch")
-
-
-@pytest.fixture(scope="module")
-def client(data_dir):
-    with TestClient(create_app(Settings(data_dir=data_dir))) as test_client:
-        yield test_client
-
-
-@pytest.fixture(scope="module")
 def calibration(client) -> dict:
     """A model of menisci growing with relative humidity; its data also has a temperature no term reads."""
     result = calibrate_through_the_api(client)

@@ -7,19 +7,10 @@ import warnings
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
 from microbearing import physics
-from microbearing.service.app import create_app
-from microbearing.service.settings import Settings
 
 POINT = {"balls": 4, "load_N": 0.01}
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("words")))) as test_client:
-        yield test_client
 
 
 def only_error(response) -> dict:

@@ -11,15 +11,12 @@ import re
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pydantic_core import from_json
 
 from microbearing import physics
-from microbearing.service.app import create_app
 from microbearing.service.schemas import number_lists
-from microbearing.service.settings import Settings
 
 #: Points of a batch long enough (with 17 significant digits a number) to pass the 4 MiB of lifting.
 COUNT = 240_000
@@ -102,12 +99,6 @@ def test_arrays_go_where_the_fields_take_them_and_lists_elsewhere(long_values):
     assert isinstance(document["points"]["load_N"], np.ndarray)
     assert isinstance(document["other"]["deep"][0], list) and isinstance(document["list"], list)
     assert document["list"] == json.loads(f"[{text}]")
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("lists")))) as test_client:
-        yield test_client
 
 
 def post(client, points: dict, count_check: bool = True, **fields):

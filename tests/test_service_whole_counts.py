@@ -13,9 +13,7 @@ from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 
 from microbearing import physics
-from microbearing.service.app import create_app
 from microbearing.service.schemas import examples
-from microbearing.service.settings import Settings
 
 PROBLEM = "application/problem+json"
 JSON_HEADERS = {"content-type": "application/json"}
@@ -23,12 +21,6 @@ JSON_HEADERS = {"content-type": "application/json"}
 NOT_COUNTS = ["4.5", "NaN", "Infinity", "-Infinity", '"4"', "true", "-4", "-4.0", "0"]
 #: Where the bad count goes in a body (a string no field holds).
 HOLE = "__count__"
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("counts")))) as test_client:
-        yield test_client
 
 
 def with_count(body: dict, token: str) -> bytes:

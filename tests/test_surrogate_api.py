@@ -11,21 +11,13 @@ from fastapi.testclient import TestClient
 from jobs_helper import finished_job
 
 from microbearing import physics
-from microbearing.service.app import create_app
 from microbearing.service.deps import get_runtime
 from microbearing.service.models import resolve
 from microbearing.service.problems import ProblemError
-from microbearing.service.settings import Settings
 from microbearing.surrogate.metrics import quality_warnings
 
 PROBLEM = "application/problem+json"
 SPACE = {"load_N": [0.001, 0.05], "speed_m_s": [0.001, 0.2], "balls": [3, 12]}
-
-
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    with TestClient(create_app(Settings(data_dir=tmp_path_factory.mktemp("surrogates")))) as test_client:
-        yield test_client
 
 
 def finished(client: TestClient, response) -> tuple[dict, list[float]]:

@@ -224,6 +224,16 @@ class BearingDesign(ResponseModel):
     load_N: float = Field(description="Normal load on the slider [N].")
 
 
+
+def _design_as_sent() -> Any:
+    """A design's variables as the request sent them (beside the design, which stays a physics input)."""
+    return Field(default_factory=dict, description=(
+        "The design's balls, groove_angle_deg and load_N under the keys the request's bounds (or a fixed "
+        "load) were sent with, each in the unit its key states ({'balls': 4, 'groove angle [rad]': 0.87, "
+        "'load [gf]': 1.2} where groove_angle_deg is 49.847 and load_N 0.01176798); under their own names "
+        "when sent so. Beside the design, not in it: the design stays a point /v1/friction takes as it is."))
+
+
 class ConstraintStatus(ResponseModel):
     """A bound or limit at the returned design, from the exact physics."""
 
@@ -280,6 +290,7 @@ class ParetoPoint(ResponseModel):
     value: float = Field(description="The second objective at the design [N for load_N, Pa for "
                                      "max_contact_pressure_Pa].")
     design: BearingDesign = Field(description="The design.")
+    design_as_sent: dict[str, int | float] = _design_as_sent()
 
 
 class ParetoFront(ResponseModel):
@@ -343,8 +354,10 @@ class WorstCase(ResponseModel):
     conditions: dict[str, float] = Field(
         description="Condition values where it occurs, in the calibration data's units.")
     as_sent: dict[str, float] = Field(default_factory=dict, description=(
-        "speed_m_s and the conditions under the request's keys as sent, each in the unit its key states "
-        "({'speed [mm/s]': 50, 'RH [%]': 60} where speed_m_s is 0.05 and relative_humidity 0.6)."))
+        "speed_m_s, the conditions and groove_angle_deg under the request's keys as sent (the groove angle "
+        "under the bounds'), each in the unit its key states ({'speed [mm/s]': 50, 'RH [%]': 60, "
+        "'groove angle [rad]': 0.88} where speed_m_s is 0.05, relative_humidity 0.6 and groove_angle_deg "
+        "50.42)."))
 
 
 class OuterRound(ResponseModel):
@@ -400,6 +413,7 @@ class PricedDesign(ResponseModel):
     """A design with its objective at the envelope's centre and over the envelope."""
 
     design: BearingDesign = Field(description="The design (nominal groove angle).")
+    design_as_sent: dict[str, int | float] = _design_as_sent()
     at_centre: float = Field(description="The objective at the envelope's centre [1].")
     worst_case: float = Field(description="The objective's worst case over the envelope [1].")
     limits_hold_over_envelope: bool = Field(description="Whether every limit holds over the whole envelope.")
@@ -430,6 +444,7 @@ class OptimizationResult(ResponseModel):
                                     "proof.proven says whether the design is) or outer-approximation-local "
                                     "(not proven).")
     design: BearingDesign = Field(description="The best design (the fewest balls among ties).")
+    design_as_sent: dict[str, int | float] = _design_as_sent()
     mu: float = Field(description="mu of the model at the design (the exact physics for model physics) [1].")
     mu_solver: float = Field(description="The solver's value of mu [1].")
     relative_gap: float = Field(description=(

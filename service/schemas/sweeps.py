@@ -213,11 +213,23 @@ SweepRequest = Annotated[GridSweep | SobolSweep | LatinHypercubeSweep, Field(dis
 
 
 class SentColumn(ResponseModel):
-    """An input the request sent under another key, as it sent it."""
+    """An input the request sent under another key: the column it was read as and how its values convert
+    into the key's unit."""
 
     column: str = Field(description="The input it was read as (a column of columns, or of fixed).")
-    values: list[float] | float = Field(description=(
-        "Its values [the key's unit, e.g. mm/min]: one per point for a varied input, one for a fixed one."))
+    unit: str | None = Field(default=None, description=(
+        "The unit the key was sent in (mm/min of 'speed [mm/min]'; the column's own when the key only "
+        "renamed it)."))
+    factor: float | None = Field(default=None, description=(
+        "A value in the key's unit is the column's value x factor + offset (60000 for speed [mm/min] from "
+        "speed_m_s) [key's unit per column's unit]."))
+    offset: float | None = Field(default=None, description=(
+        "See factor (0 but for an offset scale) [key's unit]."))
+    values: float | list[float] | None = Field(default=None, description=(
+        "A fixed input's value in the key's unit, to the digits it holds [the key's unit]. Absent for a "
+        "varied input: its values are the column's in columns (SI) converted by factor and offset, not "
+        "repeated here (they would double a large sweep's JSON and its size limit); the CSV form gives them "
+        "under the key, in its unit. A list in results stored before."))
 
 
 class SweepResult(ResponseModel):
@@ -233,7 +245,10 @@ class SweepResult(ResponseModel):
     columns: dict[str, list[float]] = Field(
         description="Column name to values: varied inputs in their units, then outputs in theirs.")
     as_sent: dict[str, SentColumn] | None = Field(default=None, description=(
-        "Each input the request sent under another key ('speed [mm/min]', 'load [gf]'), under that key and "
-        "in its unit, to the digits the value holds; the CSV form of the table gives these columns so, in "
-        "place of the input's. Absent when every input was sent under its own name."))
+        "Each input the request sent under another key ('speed [mm/min]', 'load [gf]'), under that key: the "
+        "column it was read as, the unit and factors that convert the column's values into the key's unit, "
+        "and a fixed input's value so; a varied input's values are not repeated (a key map, not a second "
+        "copy of the columns: a 10^4-point sweep's JSON would grow by 30-40 %). The CSV form of the table "
+        "gives these columns under the keys sent, in their units, to the digits each value holds, in place "
+        "of the input's. Absent when every input was sent under its own name."))
     input_warnings: INPUT_WARNINGS[0] = INPUT_WARNINGS[1]
