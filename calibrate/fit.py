@@ -516,11 +516,16 @@ def _sandwich(residual, x, r, lo, hi, k) -> tuple[np.ndarray, np.ndarray]:
         jac[:, j] = (residual(shifted) - r) / (shifted[j] - x[j])
     inside = np.abs(r) <= k
     psi = np.clip(r, -k, k)
-    bread = np.linalg.pinv(jac[inside].T @ jac[inside])
-    meat = (jac * psi[:, None]).T @ (jac * psi[:, None])
+    # In relative units (each column times its value): the same covariance in exact arithmetic, but values
+    # tens of orders of magnitude apart (an activation energy of 4e4 J/mol beside a meniscus force of 2e-5 N)
+    # make J^T J singular to the pseudo-inverse's precision (condition ~1e21), which then gives the large
+    # value a variance of ~0 (an activation energy of 44 kJ/mol +/- 6e-9 J/mol); relative, ~1e3.
+    unit = np.where(x != 0, np.abs(x), 1.0)
+    relative = jac * unit
+    bread = np.linalg.pinv(relative[inside].T @ relative[inside])
+    meat = (relative * psi[:, None]).T @ (relative * psi[:, None])
     dof = max(r.size - x.size, 1)
-    relative = jac[inside] * np.where(x != 0, np.abs(x), 1.0)
-    return bread @ meat @ bread * (r.size / dof), _unidentified(relative)
+    return bread @ meat @ bread * np.outer(unit, unit) * (r.size / dof), _unidentified(relative[inside])
 
 
 def _unidentified(relative: np.ndarray) -> np.ndarray:

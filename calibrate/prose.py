@@ -14,8 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from microbearing import physics
 from microbearing.physics.columns import unit_of
 
+from .candidates import Term
 from .data import Dataset
 from .domain import DataCloud
 from .model import CalibratedModel
@@ -23,8 +25,11 @@ from .rivals import describe_rival, where_they_part
 from .scores import within_one_se
 from .select import Selection
 
-__all__ = ["code_columns", "domain_report", "domain_words", "in_sent_units", "in_sent_words", "located",
-           "rival_drivers", "rival_words", "with_headers"]
+__all__ = ["code_columns", "domain_report", "domain_words", "in_sent_units", "in_sent_words",
+           "level_not_drift", "located", "rival_drivers", "rival_words", "with_headers"]
+
+#: Two-sided 95 % quantile of the normal distribution. [1]
+_Z95 = 1.959963984540054
 
 
 def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
@@ -148,6 +153,44 @@ def rival_drivers(selection: Selection) -> list[str]:
                 f"{step.chosen.term.label} was chosen, but terms on {', '.join(others)} fitted as well "
                 f"within one standard error: the data cannot tell {main} from {', '.join(others)} as the "
                 f"driver")
+    return words
+
+
+def level_not_drift(terms: Sequence[Term], values: Sequence[Sequence[float]],
+                    std: Sequence[Sequence[float]]) -> list[str]:
+    """A sentence per chosen drift that fits its parameter's level (:attr:`DriftTerm.level`: the parameter
+    is neither fitted nor fixed) while its coefficient's 95 % interval holds 0.
+
+    Such a drift passes the search on its level: the parameter's default is wrong, and every drift of it on
+    any column carries the same level and fits alike, so which column it names is a preference among equals
+    (:func:`calibrate.scores.preferred`), not something the data show. The sentence says so, and how to fit
+    the level alone (declare the parameter fitted).
+
+    >>> from microbearing.calibrate.candidates import DriftTerm
+    >>> t = DriftTerm("viscosity_Pa_s", "kelvin", "relative_humidity", {"reference": 1.0}, level=True)
+    >>> print(level_not_drift([t], [[0.061, 0.0115]], [[0.19, 0.0033]])[0])  # doctest: +NORMALIZE_WHITESPACE
+    viscosity_Pa_s drifts with relative_humidity (kelvin) is chosen for the level of viscosity_Pa_s, 0.0115
+    Pa*s (12x its default 0.001), not for a change with relative_humidity: its kelvin_coefficient 0.061 [1]
+    has a 95 % interval -0.311 to 0.433 that holds 0 (no change), so the data do not show that
+    relative_humidity drives it; to fit the level alone, declare viscosity_Pa_s fitted
+    >>> level_not_drift([t], [[0.9, 0.0115]], [[0.19, 0.0033]])
+    []
+    """
+    words = []
+    for term, value, sd in zip(terms, values, std, strict=True):
+        if term.kind != "drift" or not term.level or not np.isfinite(sd[0]) or sd[0] <= 0:
+            continue
+        low, high = value[0] - _Z95 * sd[0], value[0] + _Z95 * sd[0]
+        if low > 0 or high < 0:
+            continue
+        spec = physics.PARAMETERS[term.parameter]
+        coefficient, default = term.parameter_names[0], float(spec.default)
+        words.append(
+            f"{term.label} is chosen for the level of {term.parameter}, {value[1]:.3g} {spec.unit} "
+            f"({value[1] / default:.2g}x its default {default:.3g}), not for a change "
+            f"with {term.driver}: its {coefficient} {value[0]:.3g} [{term.units[coefficient]}] has a 95 % "
+            f"interval {low:.3g} to {high:.3g} that holds 0 (no change), so the data do not show that "
+            f"{term.driver} drives it; to fit the level alone, declare {term.parameter} fitted")
     return words
 
 

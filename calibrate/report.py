@@ -49,7 +49,7 @@ from .measurement import folds as design_folds
 from .model import CalibratedModel, RivalModel
 from .plausibility import check_plausible
 from .plots import calibration_plots
-from .prose import code_columns, domain_report, in_sent_words, rival_drivers, rival_words
+from .prose import code_columns, domain_report, in_sent_words, level_not_drift, rival_drivers, rival_words
 from .rivals import Rival, fit_rivals, rival_json
 from .scatter import ScatterModel, fit_scatter
 from .select import (
@@ -185,8 +185,8 @@ class CalibrationReport:
     scatter : dict
         The scatter model (:mod:`calibrate.scatter`) as data, with ``summary`` in words.
     confounding : list of str
-        Columns that move together and chosen terms whose driver may stand for another
-        (:mod:`calibrate.domain`).
+        Columns that move together, chosen terms whose driver may stand for another (:mod:`calibrate.domain`),
+        and drifts chosen for their parameter's level, not a change (:func:`calibrate.prose.level_not_drift`).
     domain : dict
         ``columns`` of the data cloud, ``alpha`` [1] and ``summary`` of the domain rule in words.
     measurement_system : dict
@@ -764,7 +764,7 @@ def format_report(declared: DataStage, candidates: CandidatesStage, selection: S
             {"factor": name, "summary": f"{name}: {why_not_fitted(labels)}"}
             for name, labels in dataset.factors.items() if why_not_fitted(labels)],
         scatter={**uncertainty.scatter.to_json(), "summary": _scatter_words(uncertainty.scatter)},
-        confounding=confounding,
+        confounding=confounding + level_not_drift(terms, final.term_values, final.term_std()),
         domain=domain_report(dataset, uncertainty.cloud, uncertainty.model.domain),
         measurement_system=_measurement_system(declared, uncertainty, effects),
     )

@@ -36,6 +36,8 @@ SLOW: dict[str, str] = {
     "test_calibrate.py::test_hidden_effect_is_found_on_its_driver_and_cuts_the_error_threefold[vibration_um]":
         "test_calibrate.py::test_hidden_effect_is_found_on_its_driver_and_cuts_the_error_threefold"
         "[relative_humidity]",
+    "test_calibrate_level_drift.py::test_a_viscosity_wrong_by_eight_is_said_to_be_a_level_not_a_drift_with_humidity":
+        "test_calibrate_level_drift.py::test_a_drift_whose_coefficient_shows_no_change_is_named_for_its_level",
     "test_calibrate.py::test_a_drifting_parameter_is_named_with_its_driver":
         "test_calibrate.py::test_hidden_effect_is_found_on_its_driver_and_cuts_the_error_threefold"
         "[relative_humidity]",
