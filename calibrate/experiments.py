@@ -11,14 +11,11 @@ do in friction units.
 
 Two functions are the points where the calibration's scatter model and its rival laws plug in:
 
-* :meth:`CalibratedResponse.scatter_sd`: the standard deviation of one measurement of log μ at each
-  run; today the calibration's one held-out scatter, ``noise_std_log``, the same everywhere.
-* :func:`rival_models`: the models the data could not tell apart from the calibrated one (told apart
-  by ``discriminate``, hedged over by ``predict`` when given); today
-  rebuilt from the report's selection steps: every named candidate that passed the step's
-  family-wise test as well as the term chosen (in its place), and the best named candidate of the
-  step that stopped when its z reached half the threshold (added to the model), each refitted on
-  the calibration's data.
+* :meth:`CalibratedResponse.scatter_sd`: the standard deviation of one measurement of log μ at each run.
+* :func:`rival_models`: the models the data could not tell apart from the calibrated one (told apart by
+  ``discriminate``, hedged by ``predict``), rebuilt from the report's selection steps: named candidates
+  that passed a step's test (in the chosen term's place; for ``predict`` half of it, and one generic form
+  in place of a generic term), and the stopping step's best named one at half its threshold (added).
 """
 
 from __future__ import annotations
@@ -75,6 +72,7 @@ _ENVELOPE_CANDIDATES = 128
 _GRADIENT_STEP = 1e-6
 # The stopping step's best candidate is a rival when its z reaches this share of the threshold. [1]
 _NEAR_THRESHOLD = 0.5
+_GENERIC_RIVALS = 1  # generic rivals a predict design hedges at most, beside the named ones [1]
 _Z95 = float(stats.norm.isf(0.025))
 
 
@@ -199,8 +197,8 @@ def rival_terms(report: Mapping[str, Any], dataset: Dataset, terms: Sequence[Ter
     terms : sequence of Term
         The calibrated model's terms, in order.
     near : bool
-        Also a named law in place of a chosen term that reached half the step's threshold (not the
-        whole): a law new runs may well choose instead, which a ``predict`` design hedges against.
+        Also a law, generic too, in place of a chosen term that reached half the step's threshold (not
+        the whole): a law new runs may well choose instead, which a ``predict`` design hedges against.
 
     Returns
     -------
@@ -211,7 +209,7 @@ def rival_terms(report: Mapping[str, Any], dataset: Dataset, terms: Sequence[Ter
     for k, step in enumerate(report.get("steps", [])):
         prefix = list(terms[:k])
         for candidate in step.get("candidates", [])[1:]:
-            if (not candidate.get("joint_refit") or not _named(candidate)
+            if (not candidate.get("joint_refit") or not (near or _named(candidate))
                     or candidate["label"] == step["added"]):
                 continue
             z = float(candidate["z_vs_declared"])
@@ -233,6 +231,11 @@ def rival_terms(report: Mapping[str, Any], dataset: Dataset, terms: Sequence[Ter
     return list(unique.values())
 
 
+def _generic_rival(terms: Sequence[Term], own: set[str]) -> bool:
+    """Whether a term the model lacks is a generic fallback, not a mechanism."""
+    return any(t.generic for t in terms if t.label not in own)
+
+
 def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedModel,
                  max_rivals: int = MAX_RIVALS, near: bool = False) -> list[tuple[str, CalibratedModel]]:
     """The models a calibration could not tell apart from its own, each refitted on its data.
@@ -249,9 +252,10 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
     model : CalibratedModel
         The calibrated model (its convention, scatter and conditions carry over).
     max_rivals : int
-        Rivals at most, best scored first. [1]
+        Named rivals at most, best scored first; with ``near`` :data:`_GENERIC_RIVALS` more in place of a
+        generic term of the model. [1]
     near : bool
-        Also the laws that came near to replacing a chosen term (:func:`rival_terms`).
+        Also the laws that came near to replacing a chosen term, generic ones too (:func:`rival_terms`).
 
     Returns
     -------
@@ -263,7 +267,12 @@ def rival_models(report: Mapping[str, Any], dataset: Dataset, model: CalibratedM
     factor = model.interval_noise_std_log() / float(model.noise_std_log) if model.noise_std_log else 1.0
     own = {t.label for t, _ in model.terms}
     columns = {**dataset.inputs(), **dataset.conditions}
-    for label, terms in rival_terms(report, dataset, [t for t, _ in model.terms], near)[:max_rivals]:
+    found = rival_terms(report, dataset, [t for t, _ in model.terms], near)
+    named = [(label, terms) for label, terms in found if not _generic_rival(terms, own)]
+    # a generic law in place of a generic term (a fallback's form: the runs decide it, the others kept)
+    generic = [(label, terms) for label, terms in found if _generic_rival(terms, own)
+               and any(t.generic for t, _ in model.terms if t.label not in {u.label for u in terms})]
+    for label, terms in [*named[:max_rivals], *generic[:_GENERIC_RIVALS]]:
         result = fit(dataset, fit_parameters, terms, start=model.fitted, convention=model.convention)
         # a law whose refit leaves its physical range is no rival (the search refuses it likewise)
         if any(implausible(t, v, columns, result.declared, dataset.fixed)
@@ -444,17 +453,16 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             entry["mean_half_width_now"] = {"mean": float(mean_before.mean()),
                                             "max": float(mean_before.max())}
         if reported:  # the interval as the service reports it, widened off the data
-            # after the runs: the interval of the model the data favour (the least scatter, each as a
-            # recalibration would measure it held out) among the calibrated one and the hedged rivals,
-            # whose term a recalibration would add, enveloping the others refitted to runs that follow
-            # it (a recalibration may keep them as its rivals)
+            # after the runs: the interval of the model the data favour (the least scatter, held out) among
+            # the calibrated one and the hedged rivals, enveloping the others refitted to runs that follow it
             pool = [reported[0], *(r.held_out_scaled(held_out_scale) for r in reported[1:])]
-            # a model whose law the runs would take where the physics does not go is not one a
-            # recalibration on the data and the runs chooses or keeps (the search refuses a law out of
-            # its physical range): a linear drift run on to ten times its cycles takes mu_pivot below zero
+            # a law the runs would take where the physics does not go is not chosen nor kept (a linear drift
+            # run on to ten times its cycles takes mu_pivot below zero)
             taken = _columns_after(data, response.points(chosen))
             pool = [r for r in pool if not _impossible_over(r.model, taken)] or pool
-            favoured = min(pool, key=lambda r: r.scatter_level)
+            own = {t.label for t, _ in response.model.terms}  # a generic rival is never favoured (preferred)
+            named = [r for r in pool if not _generic_rival([t for t, _ in r.model.terms], own)]
+            favoured = min(named or pool, key=lambda r: r.scatter_level)
             after = favoured.after(design.counts, [r for r in pool if r is not favoured])
             for key, values in (("reported_half_width_now", reported[0].now()),
                                 ("reported_half_width_after", after)):
