@@ -338,6 +338,12 @@ class ReadConditions(dict):
         return {self.key(name): self.in_sent_units(name, value) for name, value in values.items()}
 
     @classmethod
+    def from_readings(cls, readings: Mapping[str, Reading]) -> ReadConditions:
+        """None read, only how each column was sent (its key, :attr:`physics.columns.Reading.sent`, and unit):
+        for showing a result's figures as sent (:meth:`shown_as_sent`)."""
+        return cls({}, {name: r.sent for name, r in readings.items()}, readings=readings)
+
+    @classmethod
     def of(cls, conditions: Any) -> ReadConditions:
         """``conditions`` when :func:`read_conditions` read them, else none read (keys as they are)."""
         return conditions if isinstance(conditions, ReadConditions) else cls({})

@@ -370,7 +370,7 @@ def _designs_as_sent(plan: OptimizationPlan, document: dict[str, Any]) -> dict[s
     keys the bounds (or a fixed load) were sent with, each in its key's unit (``load [gf]`` 1.2 where
     load_N is 0.01176798). Beside the design, not in it: a design stays a point that /v1/friction and
     ``physics.evaluate`` take as it is; its SI fields are unchanged."""
-    sent = _sent_design(plan)
+    sent = ReadConditions.from_readings(plan.design_readings)
 
     def shown(owner: Mapping[str, Any]) -> dict[str, Any]:
         design = owner["design"]
@@ -388,26 +388,21 @@ def _designs_as_sent(plan: OptimizationPlan, document: dict[str, Any]) -> dict[s
     return document
 
 
-def _sent_design(plan: OptimizationPlan) -> ReadConditions:
-    """The design variables' keys as sent and how they were read, as :class:`ReadConditions` shows them."""
-    return ReadConditions({}, {name: r.sent for name, r in plan.design_readings.items()},
-                          readings=plan.design_readings)
-
-
 def _show_as_sent(plan: OptimizationPlan, document: dict[str, Any]) -> None:
     """The envelope and its worst case (speed and conditions) also under the keys and in the units the
     request sent them in (``as_sent``), and the tolerances likewise (the envelope's ``tolerances_as_sent``:
     ``groove angle [rad]`` 0.01, not only 0.5729577951 deg)."""
     readings = {**plan.readings, **({} if plan.envelope is None else plan.envelope.readings)}
-    sent = ReadConditions({}, {name: r.sent for name, r in readings.items()}, readings=readings)
+    sent = ReadConditions.from_readings(readings)
     for part in ("envelope", "worst_case"):
         shown = {"speed_m_s": document[part]["speed_m_s"], **document[part]["conditions"]}
         document[part] = {**document[part], "as_sent": sent.shown_as_sent(shown)}
     # the angle made at the worst case, under the bounds' key and in its unit (groove angle [rad])
+    design = ReadConditions.from_readings(plan.design_readings)
     document["worst_case"]["as_sent"].update(
-        _sent_design(plan).shown_as_sent({"groove_angle_deg": document["worst_case"]["groove_angle_deg"]}))
-    widths = ReadConditions({}, {name: r.sent for name, r in plan.tolerance_readings.items()},
-                            readings=plan.tolerance_readings)  # a half-width: scaled, never offset (angles)
+        design.shown_as_sent({"groove_angle_deg": document["worst_case"]["groove_angle_deg"]}))
+    # a half-width: scaled, never offset (angles)
+    widths = ReadConditions.from_readings(plan.tolerance_readings)
     document["envelope"]["tolerances_as_sent"] = widths.shown_as_sent(document["envelope"]["tolerances"])
 
 

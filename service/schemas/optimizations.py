@@ -224,7 +224,6 @@ class BearingDesign(ResponseModel):
     load_N: float = Field(description="Normal load on the slider [N].")
 
 
-
 def _design_as_sent() -> Any:
     """A design's variables as the request sent them (beside the design, which stays a physics input)."""
     return Field(default_factory=dict, description=(
