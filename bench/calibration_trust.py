@@ -16,6 +16,13 @@ whose share inside the 95 % interval is the coverage (target 0.90-0.98).
 * ``plausible``: adhesion drifting with humidity (Kelvin) plus a run-in over cycles: what carries the
   humidity effect, whether it is plausible, its standard deviation, coverage at RH 0.85;
 * ``clean``: 200 rows, nothing to find: no term named (false discoveries);
+* ``speedscatter`` (not in the default parts; issue 33 case d): a humidity meniscus and a run-in over
+  ``cycle`` on 4 specimens (``specimen``, log-normal levels of 6 %), 8 design points per specimen x 5 runs
+  each, every run at its own cycle (no replicates), log-normal scatter growing linearly with speed from 2 %
+  at 5 mm/s to 6 % at 150 mm/s: per seed the named terms, the scatter model, err at specimen S1 (RMS
+  log(predicted / true mu) over 400 fresh S1 points inside, in units of 3 %) and the coverage of 400
+  fresh S1 measurements per region (inside; the lowest and highest tenth of load, speed, RH, cycle),
+  predicted by ``POST /v1/friction/batch`` with the calibrated model;
 * ``small-effect`` (not in the default parts): 8 and 10 rows over RH 0.2-0.8 of the physics x
   (1 + 0.1 RH^4 / load_N), friction up to 14x the physics at high humidity and low load, which so few rows
   cannot decide: coverage of 2000 fresh rows drawn like the data, over the whole range and at RH 0.7-0.8,
@@ -193,12 +200,91 @@ def clean(client, seed: int) -> dict:
             "cover": coverage(result, {k: v[200:] for k, v in c.items()}, mu[200:])}
 
 
+SPEED_RANGE = (0.005, 0.15)
+CYCLES = 5000.0
+
+
+def scatter_at(speed_m_s) -> np.ndarray:
+    """Case d's log-normal scatter: 2 % at 5 mm/s to 6 % at 150 mm/s, linear in speed. [1]"""
+    lo, hi = SPEED_RANGE
+    return 0.02 + 0.04 * (np.asarray(speed_m_s) - lo) / (hi - lo)
+
+
+def meniscus_run_in(c) -> np.ndarray:
+    """The true μ of case d: the physics, a humidity meniscus (``bench/calibrate.py``'s) and a run-in over
+    ``cycle`` (x2 at the start, 1/e over 800 cycles)."""
+    meniscus = c["balls"] * 2e-5 / (c["load_N"] * np.log(1 / c["relative_humidity"]))
+    return (mu_of(c) + meniscus) * (1 + np.exp(-c["cycle"] / 800.0))
+
+
+def speedscatter_data(seed: int, specimens: int = 4, points: int = 8, runs: int = 5, spread: float = 0.06):
+    """Case d's rows: (columns, measured μ, specimen labels, each specimen's log level)."""
+    rng = np.random.default_rng(seed)
+    design = columns(rng, specimens * points)
+    c = {k: np.repeat(v, runs) for k, v in design.items()}
+    n = specimens * points * runs
+    c["cycle"] = rng.uniform(0.0, CYCLES, n)
+    levels = rng.normal(0.0, spread, specimens)
+    group = np.repeat(np.arange(specimens), points * runs)
+    measured = meniscus_run_in(c) * np.exp(levels[group] + rng.normal(0.0, scatter_at(c["speed_m_s"])))
+    return c, measured, np.array([f"S{g + 1}" for g in group]), levels
+
+
+def _region(rng, c, name: str, size: int) -> dict[str, np.ndarray]:
+    """Fresh points drawn as the data, the named column (``column:low|high``) in its lowest or highest
+    tenth of the data's range."""
+    fresh = columns(rng, size)
+    fresh["cycle"] = rng.uniform(0.0, CYCLES, size)
+    if name != "inside":
+        column, end = name.split(":")
+        lo, hi = float(np.min(c[column])), float(np.max(c[column]))
+        tenth = (np.log(lo), np.log(hi)) if column == "load_N" else (lo, hi)
+        a, b = tenth
+        edge = (a, a + 0.1 * (b - a)) if end == "low" else (b - 0.1 * (b - a), b)
+        values = rng.uniform(*edge, size)
+        fresh[column] = np.exp(values) if column == "load_N" else values
+    return fresh
+
+
+SPEEDSCATTER_REGIONS = ["inside"] + [f"{c}:{end}" for c in ("load_N", "speed_m_s", "relative_humidity",
+                                                             "cycle") for end in ("low", "high")]
+
+
+def speedscatter(client, seed: int, fresh: int = 400) -> dict:
+    c, measured, label, levels = speedscatter_data(seed)
+    _, result = post(client, {"data": as_rows(c, measured, {"specimen": list(label)}),
+                              "fit_parameters": ["mu_pivot"]})
+    rng = np.random.default_rng(10_000 + seed)
+    cover, err = {}, None
+    for name in SPEEDSCATTER_REGIONS:
+        points = _region(rng, c, name, fresh)
+        true = meniscus_run_in(points) * np.exp(levels[0])
+        seen = true * np.exp(rng.normal(0.0, scatter_at(points["speed_m_s"])))
+        physics_columns = ("balls", "load_N", "speed_m_s")
+        answer = client.post("/v1/friction/batch", json={
+            "model": result["model_id"], "outputs": ["mu"],
+            "points": {k: points[k].tolist() for k in physics_columns},
+            "conditions": {**{k: v.tolist() for k, v in points.items() if k not in physics_columns},
+                           "specimen": "S1"}}).json()
+        mu, lower, upper = (np.asarray(answer[k]) for k in ("mu", "mu_lower", "mu_upper"))
+        cover[name] = round(float(np.mean((lower <= seen) & (seen <= upper))), 3)
+        if name == "inside":
+            err = round(float(np.sqrt(np.mean(np.log(mu / true) ** 2)) / NOISE), 2)
+    scatter = result["model"].get("scatter") or {}
+    return {"terms": [e["label"] for e in result["effects"]], "err_S1": err,
+            "least": min(cover.values()), "cover": cover,
+            "scatter": scatter.get("kind"), "scatter_column": scatter.get("column"),
+            "p": round(float(scatter.get("cv", {}).get("p_value", float("nan"))), 4),
+            "noise": round(float(result["model"]["noise_std_log"]), 4)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--first-seed", type=int, default=0)
-    parser.add_argument("--part", default="small,heavy,groups,plausible,clean")
+    parser.add_argument("--part", default="small,heavy,groups,plausible,clean",
+                        help="comma-separated parts; also speedscatter and small-effect (not by default)")
     args = parser.parse_args()
     logging.disable(logging.INFO)
     parts = args.part.split(",")
@@ -220,7 +306,8 @@ def main() -> None:
                         f"least {np.min([g[key] for g in got if key in g]):.3f}"
                         for key in ("cover", "cover_rh70", "half_log", "half_log_rh70")), flush=True)
             else:
-                fn = {"heavy": heavy, "groups": groups, "plausible": plausible, "clean": clean}[part]
+                fn = {"heavy": heavy, "groups": groups, "plausible": plausible, "clean": clean,
+                      "speedscatter": speedscatter}[part]
                 for seed in seeds:
                     print(f"{part} seed={seed}: {fn(client, seed)}", flush=True)
             print(f"{part}: {time.perf_counter() - start:.0f} s", flush=True)
