@@ -1,7 +1,7 @@
 """The lab's measurement system through the REST API: replicates, drift or a step, a clipping sensor.
 
 Run: ``python bench/measurement_system.py [--seeds N] [--first-seed S] [--part PART]``, PART one of
-``all`` (default), ``replicates``, ``drift``, ``saturation``.
+``all`` (default), ``replicates``, ``drift``, ``saturation``, ``clip_runin``.
 
 Every data set is drawn from the physics (4 balls, mu_pivot 0.65 instead of the default 0.5) with 3 %
 log-normal scatter, written here independently of :mod:`calibrate.measurement`, and calibrated through
@@ -29,6 +29,16 @@ Cases:
 * ``clip``: 120 rows whose reading clips at the 72nd percentile of the true μ (26-31 % of rows
   identical); the report should say so, name no law, and cover fresh (unclipped) measurements in the
   clipped range; ``constant``: 150 identical readings, no term.
+* ``clip + run-in`` (part ``clip_runin``): 140 rows with the run-in above (friction
+  1 + 0.4 exp(-cycle / 300) times the physics, cycles 0-2000) whose reading clips at the 80th
+  percentile of the true μ (17-21 % of rows, most of them the first cycles'); the report should say
+  the clip and name the run-in (its amplitude printed against the true 0.4), and cover fresh
+  (unclipped) measurements in the clipped range (true μ at or above the clip), the measured range and
+  at cycles beyond 1000. The oracle beside it fits the true law (``mu_pivot`` and the run-in) to the
+  same rows by the same censored fit (:func:`calibrate.fit.fit` after
+  :func:`calibrate.measurement.with_censor_scale`) and prints its truth error in the clipped range and
+  the standard deviation of its log μ there from the fit's covariance (what the rows can tell, in
+  units of the noise).
 """
 
 from __future__ import annotations
@@ -50,7 +60,10 @@ import numpy as np  # noqa: E402
 from fastapi.testclient import TestClient  # noqa: E402
 
 from microbearing import physics  # noqa: E402
-from microbearing.calibrate import CalibratedModel  # noqa: E402
+from microbearing.calibrate import CalibratedModel, parse_rows  # noqa: E402
+from microbearing.calibrate.candidates import EffectTerm  # noqa: E402
+from microbearing.calibrate.fit import fit  # noqa: E402
+from microbearing.calibrate.measurement import inspect, with_censor_scale  # noqa: E402
 from microbearing.service.app import create_app  # noqa: E402
 from microbearing.service.settings import Settings  # noqa: E402
 
@@ -204,6 +217,65 @@ def clip(client, seed: int) -> list[str]:
     return out
 
 
+def clip_run_in(client, seed: int) -> list[str]:
+    rng = np.random.default_rng(seed)
+    n = 140
+    load = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), n))
+    speed = rng.uniform(0.01, 0.15, n)
+    cycle = np.sort(rng.uniform(0.0, 2000.0, n))
+    true_mu = truth(load, speed) * (1 + 0.4 * np.exp(-cycle / 300.0))
+    level = float(np.quantile(true_mu, 0.8))
+    mu = np.minimum(true_mu * np.exp(rng.normal(0.0, NOISE, n)), level)
+    report = calibrated(client, as_rows({"load_N": load, "speed_m_s": speed, "cycle": cycle}, mu))
+    saturation = report["measurement_system"]["saturation"]
+    said = "no clip said" if not saturation else (
+        f"clip said at {saturation[0]['level']:.4g} ({100 * saturation[0]['share']:.0f} % of rows; true "
+        f"{level:.4g}, {100 * np.mean(mu == level):.0f} %)")
+    run = [e for e in report["effects"] or [] if e["name"] == "run_in"]
+    amplitude = "no run_in" if not run else (
+        f"run_in amplitude {run[0]['parameters']['run_in_amplitude']:.3f} +/- "
+        f"{run[0]['parameter_std']['run_in_amplitude']:.3f} (true 0.4), length "
+        f"{run[0]['parameters']['run_in_length']:.0f} cycles (true 300)")
+    out = [said, f"terms {terms(report)}", amplitude, pivot(report)]
+    g = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), 4 * FRESH))
+    v = rng.uniform(0.01, 0.15, 4 * FRESH)
+    c = rng.uniform(0.0, 2000.0, 4 * FRESH)
+    t = truth(g, v) * (1 + 0.4 * np.exp(-c / 300.0))
+    beyond = t >= level
+    out.append(oracle(as_rows({"load_N": load, "speed_m_s": speed, "cycle": cycle}, mu),
+                      (g[beyond], v[beyond], c[beyond]), t[beyond]))
+    for name, inside in (("clipped range", t >= level), ("measured range", t < level),
+                         ("cycles > 1000", c > 1000.0)):
+        error, covered = judged(report, {"load_N": g[inside], "speed_m_s": v[inside], "cycle": c[inside]},
+                                t[inside], rng)
+        out.append(f"{name}: truth error {error:.2f} x noise, coverage {covered:.3f}")
+    return out
+
+
+def oracle(rows: list[dict], points: tuple, true_mu: np.ndarray) -> str:
+    """The true law (mu_pivot x (1 + a exp(-cycle / L))) fitted to ``rows`` by the calibration's censored
+    fit: its amplitude, its truth error at ``points`` (load, speed, cycle) and the standard deviation of
+    its log μ there from the fit's covariance (central differences), both in units of the noise."""
+    run_in = EffectTerm("run_in", ("cycle",))
+    dataset = parse_rows(rows, {"balls": BALLS})
+    dataset = with_censor_scale(inspect(dataset, 5).apply(dataset), ["mu_pivot"], physics.DEFAULT_CONVENTION,
+                                [run_in])
+    result = fit(dataset, ["mu_pivot"], [run_in])
+    x = np.array([result.declared["mu_pivot"], *result.term_values[0]])  # the covariance's order
+    g, v, c = points
+
+    def log_mu(p: np.ndarray) -> np.ndarray:
+        return np.log(physics.evaluate(balls=BALLS, load_N=g, speed_m_s=v, mu_pivot=p[0]).mu
+                      * (1 + p[1] * np.exp(-c / p[2])))
+
+    steps = 1e-6 * np.abs(x) * np.eye(x.size)
+    gradient = np.array([(log_mu(x + h) - log_mu(x - h)) / (2 * h[k]) for k, h in enumerate(steps)])
+    sd = float(np.sqrt(np.mean(np.einsum("ip,ij,jp->p", gradient, result.covariance, gradient)))) / NOISE
+    error = float(np.sqrt(np.mean(np.square(log_mu(x) - np.log(true_mu))))) / NOISE
+    return (f"oracle: amplitude {x[1]:.3f} +/- {result.std[1]:.3f}, clipped range truth error {error:.2f} x "
+            f"noise, its sd there {sd:.2f} x noise")
+
+
 def constant(client, seed: int) -> list[str]:
     rng = np.random.default_rng(seed)
     n = 150
@@ -222,6 +294,7 @@ CASES = {
               ("step run_index", lambda c, s: session(c, s, False, stepped)),
               ("run-in cycles", run_in)],
     "saturation": [("clip", clip), ("constant", constant)],
+    "clip_runin": [("clip + run-in", clip_run_in)],
 }
 
 

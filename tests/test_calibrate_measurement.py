@@ -20,7 +20,16 @@ from microbearing import physics
 from microbearing.calibrate import CalibratedModel, DataError, parse_csv, parse_rows
 from microbearing.calibrate.candidates import EffectTerm, candidate_terms
 from microbearing.calibrate.censored import censored_residual, residual_variance
-from microbearing.calibrate.measurement import LackOfFit, drift_words, folds, inspect, lack_of_fit, unit_slips
+from microbearing.calibrate.fit import fit
+from microbearing.calibrate.measurement import (
+    LackOfFit,
+    drift_words,
+    folds,
+    inspect,
+    lack_of_fit,
+    unit_slips,
+    with_censor_scale,
+)
 from microbearing.calibrate.rivals import PLACE_LR
 from microbearing.calibrate.scores import count_parameters
 from microbearing.physics.changepoints import step_places
@@ -459,6 +468,35 @@ def test_a_clipping_sensor_through_the_api(client):
     beyond = t >= level
     error, covered = coverage(report, {"load_N": g[beyond], "speed_m_s": v[beyond]}, t[beyond], rng)
     assert error < 0.5 * NOISE and 0.88 <= covered <= 0.99
+
+
+def test_a_run_in_whose_first_cycles_are_clipped_is_fitted_without_bias():
+    # The run-in's first cycles beyond the clip (friction 1 + 0.4 exp(-cycle / 300) times the physics,
+    # the sensor clipping at the true mu's 80th percentile; bench/measurement_system.py --part
+    # clip_runin): the censored fit of the true law at the calibration's scale finds the amplitude as its
+    # own standard deviation says, over 20 draws; the clipped readings taken as values, or the censored
+    # likelihood at three times that scale (each clipped row pulled beyond the clip), miss it.
+    run_in = EffectTerm("run_in", ("cycle",))
+    fitted = {"censored": [], "as values": [], "scale x3": []}
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        load = np.exp(rng.uniform(np.log(3e-3), np.log(3e-2), 140))
+        speed = rng.uniform(0.01, 0.15, 140)
+        cycle = np.sort(rng.uniform(0.0, 2000.0, 140))
+        true_mu = truth(load, speed) * (1 + 0.4 * np.exp(-cycle / 300.0))
+        mu = np.minimum(true_mu * np.exp(rng.normal(0.0, NOISE, 140)), np.quantile(true_mu, 0.8))
+        data = parse_rows(as_rows({"load_N": load, "speed_m_s": speed, "cycle": cycle}, mu), {"balls": BALLS})
+        censored = with_censor_scale(inspect(data, 5).apply(data), ["mu_pivot"], physics.DEFAULT_CONVENTION,
+                                     [run_in])
+        for name, d in (("censored", censored), ("as values", data),
+                        ("scale x3", replace(censored, censor_scale=3 * censored.censor_scale))):
+            result = fit(d, ["mu_pivot"], [run_in])
+            fitted[name].append((result.term_values[0][0], result.std[1]))
+    amplitude, std = np.array(fitted["censored"]).T
+    assert abs(amplitude.mean() - 0.4) < 0.03  # about 3 standard errors of the mean (0.04 / sqrt(20))
+    assert 0.5 < np.sqrt(np.mean(np.square((amplitude - 0.4) / std))) < 1.5  # its std neither far off
+    assert np.array(fitted["as values"])[:, 0].mean() < 0.34
+    assert np.array(fitted["scale x3"])[:, 0].mean() > 0.46
 
 
 def test_constant_data_are_said_and_get_no_term(client):
