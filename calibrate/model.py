@@ -145,8 +145,8 @@ class CalibratedModel:
         The upload's header of each column it sent in another unit than the column's name says
         (:attr:`Dataset.headers`): a key at prediction that states no unit is judged against it.
     edge_trends : dict of str to list of float
-        Per physics input, the departure the held-out residuals trend to beyond each end of its range
-        (:func:`calibrate.domain.edge_trends`, log μ): the extrapolation allowance grows by it there.
+        Per physics input, the departure the held-out residuals and generic terms trend to beyond each end
+        of its range (:func:`calibrate.domain.edge_trends`, log μ): the extrapolation allowance grows by it.
     """
 
     fitted: dict[str, float] = field(default_factory=dict)

@@ -654,7 +654,7 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     cloud = DataCloud.from_columns(varying, options.seed)
     model = CalibratedModel.from_fit(final, dataset, convention, noise_std_log, discrepancy=leftover["gp"],
                                      groups=group_effects, scatter=scatter, cloud=cloud)
-    model = replace(model, edge_trends=edge_trends(varying, held_out, values, model.extrapolation_inputs()))
+    model = replace(model, edge_trends=edge_trends(varying, held_out, values, model=model))
     # Rivals: terms that fit about as well as a chosen one, and terms on a column that moves with one the
     # model reads (calibrate.rivals): the interval holds their envelope.
     pairs = confounded_pairs(varying)
