@@ -222,7 +222,7 @@ def simulation(seeds: int, runs: int, draws: int = 1, chosen: list[str] | None =
               f"'se' the standard error of the figure from their spread (relative, geometric)")
     print(f"{'strategy':<16}{'right mechanism':>17}{'truth error (RMS log)':>23}{'ratio to random':>17}"
           f"{'95 % half-width':>17}{'ratio to random':>17}"
-          + (f"  {'truth error per draw, se':<{9 * draws + 8}}  half-width per draw, se" * (draws > 1)))
+          + (f"  {'truth error per draw, se':<{7 * draws + 5}}  half-width per draw, se" * (draws > 1)))
     for s in strategies:
         errors = np.array([r["error"] for r in table[s]])
         widths = np.array([r["width"] for r in table[s]])
