@@ -21,11 +21,19 @@ Per strategy: how often the recalibration names the hidden mechanism exactly (ef
 drifting parameter, driver and law), the truth error over the envelope (RMS of log(mu / mu_true) on
 200 envelope points) and the mean half-width of the 95 % prediction interval there relative to mu.
 Ratios to ``random`` are geometric means over the cases and seeds.
+
+The figures are of one noise draw of the new runs' measurements, and a data set's truth error can move several
+times over between draws. ``--draws K`` measures the same proposed runs under K independent draws (draw 0 the
+default's; the others seeded from the data set's seed and the draw) and gives the figures over data sets x
+draws, each draw's figure and the standard error of their mean; ``--strategies`` recalibrates only some
+strategies (``predict+rivals,random``: a third of the time) and ``--json`` keeps every figure, e.g. to compare
+two versions of the library draw by draw (the same data sets, runs and noise where the plans agree).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 import warnings
@@ -122,7 +130,16 @@ def judge(report, truth_label, truth, points):
     return {"right": named == [truth_label], "error": error, "width": width, "named": named}
 
 
-def run_case(name, seed, runs):
+def measure_rng(seed, draw):
+    """The noise of the new runs' measurements: draw 0 is the bench's single draw, the others fresh."""
+    return np.random.default_rng(30_000 + seed if draw == 0 else [30_000 + seed, draw])
+
+
+def run_case(name, seed, runs, draws=1, recalibrated=None):
+    """The first calibration's and each strategy's records; ``records["draws"][d]`` holds each strategy's
+    records under noise draw d (the same proposed runs, fresh noise), draw 0 also at ``records[strategy]``.
+    Strategies outside ``recalibrated`` (None: all) are measured (their noise stays drawn in order, so the
+    others' noise does not depend on the choice) but not recalibrated, and have no records."""
     truth_label, truth = TRUTHS[name]
     rng = np.random.default_rng(seed)
     rows = measure(truth, first_data(rng, FIRST_ROWS), rng)
@@ -146,12 +163,17 @@ def run_case(name, seed, runs):
         first.model, ExperimentRequest(SPACE, runs, "predict", envelope=ENVELOPE, seed=seed), rivals=rivals)
     new["predict+rivals"] = {c: np.array([_flat(r)[c] for r in robust.to_dict()["runs"]], dtype=float)
                              for c in SPACE}
-    measure_rng = np.random.default_rng(30_000 + seed)
-    for strategy, columns in new.items():
-        more = parse_rows(rows + measure(truth, columns, measure_rng))
-        again = calibrate(more, FIT, make_plots=False, seed=seed)
-        records[strategy] = judge(again, truth_label, truth, points)
-    records["discriminate"]["goal"] = goal
+    records["draws"] = []
+    for draw in range(draws):
+        rng_draw, judged = measure_rng(seed, draw), {}
+        for strategy, columns in new.items():
+            measured = measure(truth, columns, rng_draw)
+            if recalibrated is None or strategy in recalibrated:
+                again = calibrate(parse_rows(rows + measured), FIT, make_plots=False, seed=seed)
+                judged[strategy] = judge(again, truth_label, truth, points)
+        records["draws"].append(judged)
+    records |= records["draws"][0]
+    records["goal"] = goal
     records["first"]["rivals"] = [label for label, _ in rivals]
     return records
 
@@ -161,37 +183,75 @@ def _flat(run):
             **run["conditions"]}
 
 
-def simulation(seeds: int, runs: int) -> None:
-    strategies = ["first", "discriminate", "predict", "predict+rivals", "random", "space-filling"]
-    table = {s: [] for s in strategies}
+STRATEGIES = ["discriminate", "predict", "predict+rivals", "random", "space-filling"]
+
+
+def simulation(seeds: int, runs: int, draws: int = 1, chosen: list[str] | None = None,
+               json_path: str | None = None) -> None:
+    strategies = ["first"] + (chosen or STRATEGIES)
+    table = {s: [] for s in strategies}  # per strategy: records over data sets x draws (first: data sets)
+    per_draw = {s: [[] for _ in range(draws)] for s in strategies}
+    rows = []
     no_rival = 0
     start = time.perf_counter()
     for name in TRUTHS:
         for seed in range(seeds):
-            records = run_case(name, seed, runs)
-            no_rival += records["discriminate"]["goal"] != "discriminate"
-            for s in strategies:
-                table[s].append(records[s])
-            print(f"{name}, seed {seed}: " + "; ".join(
-                f"{s} {'right' if records[s]['right'] else 'wrong'} err {records[s]['error']:.4f} "
-                f"hw {records[s]['width']:.4f}" for s in strategies), flush=True)
+            records = run_case(name, seed, runs, draws, None if chosen is None else set(chosen))
+            no_rival += records["goal"] != "discriminate"
+            for draw, judged in enumerate(records["draws"]):
+                judged = {"first": records["first"]} | judged
+                for s in strategies:
+                    if s != "first" or draw == 0:
+                        table[s].append(judged[s])
+                    per_draw[s][draw].append(judged[s])
+                    rows.append({"truth": name, "seed": seed, "draw": draw, "strategy": s} | judged[s])
+                where = f"{name}, seed {seed}" + (f", draw {draw}" if draws > 1 else "")
+                print(f"{where}: " + "; ".join(
+                    f"{s} {'right' if judged[s]['right'] else 'wrong'} err {judged[s]['error']:.4f} "
+                    f"hw {judged[s]['width']:.4f}" for s in strategies), flush=True)
+    if json_path:
+        Path(json_path).write_text(json.dumps(rows, indent=1))
     low, high = FIRST_HUMIDITY
     print(f"\n{len(table['first'])} data sets ({len(TRUTHS)} truths x {seeds} seeds), {runs} new runs each, "
           f"{FIRST_ROWS} first rows at {low:.0%}-{high:.0%} RH, noise {NOISE:.0%}; {no_rival} first "
           f"calibration(s) left no rival (discriminate fell back to parameters); "
           f"{time.perf_counter() - start:.0f} s")
+    if draws > 1:
+        print(f"{draws} noise draws of the new runs' measurements per data set (the same runs, fresh noise): "
+              f"figures over data sets x draws; 'per draw' the figure of each draw over the data sets, "
+              f"'se' the standard error of the figure from their spread (relative, geometric)")
     print(f"{'strategy':<16}{'right mechanism':>17}{'truth error (RMS log)':>23}{'ratio to random':>17}"
-          f"{'95 % half-width':>17}{'ratio to random':>17}")
-    errors_random = np.array([r["error"] for r in table["random"]])
-    widths_random = np.array([r["width"] for r in table["random"]])
+          f"{'95 % half-width':>17}{'ratio to random':>17}"
+          + (f"  {'truth error per draw, se':<{7 * draws + 5}}  half-width per draw, se" * (draws > 1)))
     for s in strategies:
         errors = np.array([r["error"] for r in table[s]])
         widths = np.array([r["width"] for r in table[s]])
         right = sum(r["right"] for r in table[s])
-        ratio = float(np.exp(np.mean(np.log(errors / errors_random))))
-        width_ratio = float(np.exp(np.mean(np.log(widths / widths_random))))
-        print(f"{s:<16}{right:>11}/{len(errors):<5}{np.exp(np.mean(np.log(errors))):>23.4f}{ratio:>17.2f}"
-              f"{np.exp(np.mean(np.log(widths))):>17.4f}{width_ratio:>17.2f}")
+        ratios = "".join(f"{_ratio(per_draw[s], per_draw['random'], key):>17.2f}" if "random" in table
+                         else f"{'-':>17}" for key in ("error", "width"))
+        line = (f"{s:<16}{right:>11}/{len(errors):<5}{_geomean(errors):>23.4f}{ratios[:17]}"
+                f"{_geomean(widths):>17.4f}{ratios[17:]}")
+        if draws > 1:
+            line += "  " + "  ".join(_spread([[r[key] for r in d] for d in per_draw[s]], draws)
+                                     for key in ("error", "width"))
+        print(line)
+
+
+def _geomean(values) -> float:
+    return float(np.exp(np.mean(np.log(values))))
+
+
+def _ratio(per_draw, random_per_draw, key) -> float:
+    """Geometric mean of the ratios to random's figure on the same data set and draw."""
+    return _geomean([r[key] / q[key] for rs, qs in zip(per_draw, random_per_draw, strict=True)
+                     for r, q in zip(rs, qs, strict=True)])
+
+
+def _spread(values_per_draw, draws) -> str:
+    """Each draw's geometric mean over the data sets, and the relative standard error of their mean."""
+    figures = np.array([_geomean(v) for v in values_per_draw])
+    se = float(np.std(np.log(figures), ddof=1) / np.sqrt(draws))
+    return f"{' '.join(f'{f:.4f}' for f in figures)}, {np.expm1(se):>4.0%}"
 
 
 def timing() -> None:
@@ -220,12 +280,22 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--draws", type=int, default=1,
+                        help="noise draws of the new runs' measurements per data set (the same runs, fresh "
+                             "noise; draw 0 is the single draw of the default)")
+    parser.add_argument("--strategies", default=",".join(STRATEGIES),
+                        help="comma-separated strategies to recalibrate (the others' runs are still proposed "
+                             "and measured, so the noise of those kept does not change)")
+    parser.add_argument("--json", help="write every data set's, draw's and strategy's figures to this file")
     parser.add_argument("--timing", action="store_true")
     args = parser.parse_args()
+    chosen = [s for s in args.strategies.split(",") if s]
+    if unknown := set(chosen) - set(STRATEGIES):
+        parser.error(f"unknown strategies {sorted(unknown)}; choose among {STRATEGIES}")
     if args.timing:
         timing()
     else:
-        simulation(args.seeds, args.runs)
+        simulation(args.seeds, args.runs, args.draws, None if chosen == STRATEGIES else chosen, args.json)
 
 
 if __name__ == "__main__":

@@ -25,7 +25,6 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from microbearing import physics
 from microbearing.physics.effects import EFFECTS
@@ -38,7 +37,7 @@ from .design import GOALS, Design, DesignError, plan
 from .design import check_identifiable as design_check
 from .domain import outside_law_domains, outside_physical_ranges
 from .fit import fit
-from .model import CalibratedModel
+from .model import Z95, CalibratedModel
 from .plan_plot import plan_png
 from .reported import ReportedWidth
 from .spaces import MAX_CANDIDATES, candidate_points, check_space, read_space, space_points
@@ -73,7 +72,6 @@ _GRADIENT_STEP = 1e-6
 # The stopping step's best candidate is a rival when its z reaches this share of the threshold. [1]
 _NEAR_THRESHOLD = 0.5
 _GENERIC_RIVALS = 1  # generic rivals a predict design hedges at most, beside the named ones [1]
-_Z95 = float(stats.norm.isf(0.025))
 
 
 # ------------------------------------------------------------------------------------------------ model
@@ -385,7 +383,7 @@ class ExperimentPlan:
 
 def _half_width(mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """Half the width of the 95 % log-normal interval μ exp(±1.96 σ) [1]."""
-    return mu * np.sinh(_Z95 * sigma)
+    return mu * np.sinh(Z95 * sigma)
 
 
 def _tidy(value) -> float:

@@ -49,13 +49,15 @@ from .groups import GroupEffect
 from .rival_model import RivalModel, covariance_from_json
 from .scatter import ScatterModel
 
-__all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMAT_VERSION"]
+__all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMAT_VERSION", "Z95"]
 
 FORMAT_VERSION = 2
 # Relative step of the finite-difference gradient of log mu in the fitted values.
 _GRADIENT_STEP = 1e-6
-# The standard normal quantile of a 95 % interval: the unit of an edge trend in the allowance. [1]
-_Z95 = 1.959963984540054
+#: The standard normal quantile of a two-sided 95 % interval (scipy.stats.norm.ppf(0.975)), declared once in
+#: the package: the unit of an edge trend in the allowance, the plans' fast half-width
+#: (calibrate.experiments) and a parameter's interval in the words (calibrate.prose) read it here. [1]
+Z95 = 1.959963984540054
 
 
 @dataclass(frozen=True)
@@ -585,7 +587,7 @@ class CalibratedModel:
     def _trend_ratios(self) -> dict[str, list[float]]:
         """:attr:`edge_trends` in units of the 95 % half-width of the scatter (z x noise), the allowance's
         unit: beyond an end the interval's half-width grows by at least the departure there."""
-        scale = _Z95 * float(self.noise_std_log or 0.0)
+        scale = Z95 * float(self.noise_std_log or 0.0)
         return {k: [x / scale for x in v] for k, v in self.edge_trends.items()} if scale > 0 else {}
 
     def discrepancy_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape

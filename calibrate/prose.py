@@ -20,16 +20,13 @@ from microbearing.physics.columns import unit_of
 from .candidates import Term
 from .data import Dataset
 from .domain import DataCloud
-from .model import CalibratedModel
+from .model import Z95, CalibratedModel
 from .rivals import describe_rival, where_they_part
 from .scores import within_one_se
 from .select import Selection
 
 __all__ = ["code_columns", "domain_report", "domain_words", "in_sent_units", "in_sent_words",
            "level_not_drift", "located", "rival_drivers", "rival_words", "with_headers"]
-
-#: Two-sided 95 % quantile of the normal distribution. [1]
-_Z95 = 1.959963984540054
 
 
 def rival_words(dataset: Dataset, model: CalibratedModel, rivals) -> list[dict[str, Any]]:
@@ -180,7 +177,7 @@ def level_not_drift(terms: Sequence[Term], values: Sequence[Sequence[float]],
     for term, value, sd in zip(terms, values, std, strict=True):
         if term.kind != "drift" or not term.level or not np.isfinite(sd[0]) or sd[0] <= 0:
             continue
-        low, high = value[0] - _Z95 * sd[0], value[0] + _Z95 * sd[0]
+        low, high = value[0] - Z95 * sd[0], value[0] + Z95 * sd[0]
         if low > 0 or high < 0:
             continue
         spec = physics.PARAMETERS[term.parameter]

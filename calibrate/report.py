@@ -37,7 +37,7 @@ import numpy as np
 
 from microbearing import physics
 
-from .censored import beyond_clip, measured_rows, residual_variance
+from .censored import beyond_clip, measured_rows
 from .data import Dataset, parse_csv, parse_rows
 from .decidability import few_rows, rows_for_gp, rows_for_terms, terms_supported, undecided
 from .discrepancy import gp_discrepancy, residual_gp, residual_gp_words
@@ -51,10 +51,11 @@ from .plausibility import check_plausible
 from .plots import calibration_plots
 from .prose import code_columns, domain_report, in_sent_words, level_not_drift, rival_drivers, rival_words
 from .rivals import Rival, fit_rivals, rival_json
-from .scatter import ScatterModel, fit_scatter
+from .scatter import ScatterModel, fit_scatter, noise_level
 from .select import (
     REPORTED_CANDIDATES,
     Selection,
+    WithinGroups,
     cross_validate,
     forward_select,
     held_out_of_chosen,
@@ -613,12 +614,14 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     values = measured_rows(dataset.censored, dataset.n_points)  # a clipped reading's residual is not scatter
     scatter = fit_scatter({k: v[values] for k, v in varying.items()}, held_out[values], options.folds,
                           options.seed)
+    reweighted = False  # whether final below is the weighted refit (within was read from the unweighted fit)
     if scatter.kind != "constant":
         local = scatter.std_log(varying, measured.shape)
         if dataset.mu_measured_std is None:
             weighted = replace(dataset, mu_measured_std=measured * local / float(np.median(local)))
             final = fit(weighted, declared.fit_parameters, terms, start=final.declared,
                         start_terms=final.term_values, convention=convention)
+            reweighted = True
             mu_after = predict_mu(dataset, final.declared, terms, final.term_values, convention=convention)
             outliers = find_outliers(dataset, mu_after, final.residual, final.scale, sent)
         else:
@@ -640,8 +643,9 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
                    * beyond_clip(mu_after, measured, dataset.censored, dataset.censor_scale))
     leftover = residual_gp(read, declared.outer, nested.fold_mu, mu_after, inliers, options.gp_max_train,
                            options.seed)
-    leftover = _confirm_gp(declared, final, leftover, mu_after, inliers, options, read)
-    noise_std_log, scatter = _noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape,
+    leftover = _confirm_gp(declared, final, leftover, mu_after, inliers, options, read, within,
+                           reweighted)
+    noise_std_log, scatter = noise_level(scatter, leftover["gp"], held_out, inliers, varying, measured.shape,
                                           dataset.censored)
     # The interval's form: the scatter's degrees of freedom and the residuals' tails (calibrate.tails),
     # read on the measured rows (a clipped row's residual is its distance to the clip, not a tail). The
@@ -665,34 +669,6 @@ def uncertainty_stage(declared: DataStage, candidates: CandidatesStage, selectio
     return UncertaintyStage(final, mu_after, outliers, group_effects, scatter,
                             prediction_errors(nested.oof_mu, measured), robust_errors, leftover, cloud, pairs,
                             rivals, model)
-
-
-def _noise_level(scatter: ScatterModel, gp_state: Mapping[str, Any] | None, held_out: np.ndarray,
-                 inliers: np.ndarray, varying: Mapping[str, np.ndarray],
-                 shape: tuple[int, ...], censored: np.ndarray | None = None) -> tuple[float, ScatterModel]:
-    """The scatter of a new measurement around the model (std of log μ [1]) and the scatter model at
-    that level."""
-    if gp_state is None:
-        # A new measurement scatters around the model as the held-out rows of the nested
-        # cross-validation did: noise, what the terms leave, and the refit's own uncertainty. RMS over
-        # the rows that are not outliers (a median-based scale would be robust too, but it scatters
-        # twice as much from one data set to the next).
-        noise_variance = residual_variance(held_out, censored, inliers)
-    else:
-        # What the terms leave is the GP's, with its own predictive variance at each point; the
-        # noise is its white-noise part (Kennedy-O'Hagan), not the held-out scatter, which holds both.
-        noise_variance = gp_state["noise"] * float(np.var(gp_state["y"]))
-    noise_std_log = float(np.sqrt(noise_variance))
-    if scatter.kind != "constant" and gp_state is not None:
-        # The scatter model's shape at the level of the GP's white noise (RMS over the rows that are not
-        # outliers). Without a GP it stays as fitted: the maximum-likelihood spread of these held-out
-        # residuals in each region (an RMS of the spreads would be set by the noisiest rows and would
-        # rescale the quiet ones with them).
-        rms = float(np.sqrt(np.mean(np.square(scatter.std_log(varying, shape)[inliers]))))
-        scatter = scatter.scaled(noise_std_log / rms)
-    elif scatter.kind == "constant":
-        scatter = scatter.scaled(noise_std_log / float(np.exp(scatter.coefficients[0])))
-    return noise_std_log, scatter
 
 
 def format_report(declared: DataStage, candidates: CandidatesStage, selection: SelectionStage,
@@ -831,13 +807,19 @@ def _warnings(declared: DataStage, uncertainty: UncertaintyStage, gp: Mapping[st
 
 
 def _confirm_gp(declared: DataStage, final: FitResult, leftover: dict[str, Any], mu_after: np.ndarray,
-                inliers: np.ndarray, options: CalibrationOptions, read: Dataset) -> dict[str, Any]:
+                inliers: np.ndarray, options: CalibrationOptions, read: Dataset,
+                within: WithinGroups | None, reweighted: bool) -> dict[str, Any]:
     """A GP that helped the nested folds' models joins only if it helps the chosen model too: a fold whose
     selection missed a term the data need leaves a residual the GP takes up, and the GP would join a model
     (with that term) it does not help, bending it toward noise. So the same GP test is run on the held-out
     residual of the chosen terms refitted on each outer fold's training rows (with each group's level from
     them when the search fits levels; the declared model's folds when nothing was chosen). ``chosen_terms_z``
-    [1] is that test's paired z (None if the first did not pass); ``read``: the data as the GP reads them."""
+    [1] is that test's paired z (None if the first did not pass); ``read``: the data as the GP reads them.
+
+    ``within``: :func:`held_out_within_groups` as stage 4 read it for the scatter (None without groups), from
+    the unweighted fit; ``reweighted``: stage 4 then refitted ``final`` with the scatter's weights, and the
+    folds are refitted here from that fit (its values as the start, its Huber scale), as the branch without
+    groups refits them from it. The two readings differ only there (the same terms and data)."""
     if not leftover["helps"]:
         return {**leftover, "chosen_terms_z": None}
     clipped = declared.dataset.censored
@@ -853,8 +835,9 @@ def _confirm_gp(declared: DataStage, final: FitResult, leftover: dict[str, Any],
     if int(np.sum(inliers)) < needed:
         # Too few rows to weigh the GP's hyperparameters: it would pass through the rows (decidability).
         return {**leftover, "helps": False, "gp": None, "chosen_terms_z": None, "rows_for_gp": needed}
-    within = held_out_within_groups(declared.dataset, declared.fit_parameters, final, declared.outer,
-                                    options.convention)
+    if within is not None and reweighted:
+        within = held_out_within_groups(declared.dataset, declared.fit_parameters, final, declared.outer,
+                                        options.convention)
     if within is not None:  # each fold's models carry each group's level from its training rows
         chosen, read = within.cv, replace(read, mu_measured=declared.dataset.mu_measured)
     elif final.terms:

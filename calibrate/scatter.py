@@ -61,11 +61,13 @@ from scipy import stats
 
 from microbearing import physics
 
+from .censored import residual_variance
 from .fit import kfold_indices
 from .tails import IntervalForm
 from .uncertainty import outlier_threshold
 
-__all__ = ["PERMUTATIONS", "SCATTER_ALPHA", "ScatterModel", "allowance", "fit_scatter", "permutation_p"]
+__all__ = ["PERMUTATIONS", "SCATTER_ALPHA", "ScatterModel", "allowance", "fit_scatter", "noise_level",
+           "permutation_p"]
 
 #: Chance that a non-constant scatter model is chosen on data with one spread everywhere. [1]
 SCATTER_ALPHA = 0.01
@@ -529,3 +531,34 @@ def permutation_p(columns: Mapping[str, np.ndarray], residual: np.ndarray, seed:
         shuffled = w2[np.argsort(rng.random((draws, n)), axis=1)]
         exceed += int(np.sum(_statistics(shuffled, orders, splits, trends) >= observed - 1e-12))
     return (1 + exceed) / (1 + permutations)
+
+
+def noise_level(scatter: ScatterModel, gp_state: Mapping[str, Any] | None, held_out: np.ndarray,
+                 inliers: np.ndarray, varying: Mapping[str, np.ndarray],
+                 shape: tuple[int, ...], censored: np.ndarray | None = None) -> tuple[float, ScatterModel]:
+    """The scatter of a new measurement around the model (std of log μ [1]) and the scatter model at
+    that level: from ``held_out``, the held-out log residual of the chosen terms (RMS over ``inliers``, a
+    clipped row by its side of the clip), or the white noise of the GP on what the terms leave
+    (``gp_state``, :func:`calibrate.discrepancy.residual_gp`'s ``gp``). Stage 4 of
+    :func:`calibrate.calibrate`."""
+    if gp_state is None:
+        # A new measurement scatters around the model as the held-out rows of the nested
+        # cross-validation did: noise, what the terms leave, and the refit's own uncertainty. RMS over
+        # the rows that are not outliers (a median-based scale would be robust too, but it scatters
+        # twice as much from one data set to the next).
+        noise_variance = residual_variance(held_out, censored, inliers)
+    else:
+        # What the terms leave is the GP's, with its own predictive variance at each point; the
+        # noise is its white-noise part (Kennedy-O'Hagan), not the held-out scatter, which holds both.
+        noise_variance = gp_state["noise"] * float(np.var(gp_state["y"]))
+    noise_std_log = float(np.sqrt(noise_variance))
+    if scatter.kind != "constant" and gp_state is not None:
+        # The scatter model's shape at the level of the GP's white noise (RMS over the rows that are not
+        # outliers). Without a GP it stays as fitted: the maximum-likelihood spread of these held-out
+        # residuals in each region (an RMS of the spreads would be set by the noisiest rows and would
+        # rescale the quiet ones with them).
+        rms = float(np.sqrt(np.mean(np.square(scatter.std_log(varying, shape)[inliers]))))
+        scatter = scatter.scaled(noise_std_log / rms)
+    elif scatter.kind == "constant":
+        scatter = scatter.scaled(noise_std_log / float(np.exp(scatter.coefficients[0])))
+    return noise_std_log, scatter

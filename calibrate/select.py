@@ -103,6 +103,7 @@ __all__ = [
     "SearchOptions",
     "Selection",
     "Step",
+    "WithinGroups",
     "between_groups",
     "cross_validate",
     "forward_select",
