@@ -36,8 +36,8 @@ from .data import Dataset
 from .design import GOALS, Design, DesignError, plan
 from .design import check_identifiable as design_check
 from .domain import outside_law_domains, outside_physical_ranges
-from .fit import fit
-from .model import Z95, CalibratedModel
+from .fit import Z95, fit
+from .model import CalibratedModel
 from .plan_plot import plan_png
 from .reported import ReportedWidth
 from .spaces import MAX_CANDIDATES, candidate_points, check_space, read_space, space_points

@@ -33,6 +33,7 @@ from .data import Dataset
 __all__ = [
     "FitResult",
     "HUBER_K",
+    "Z95",
     "UNIDENTIFIED_RCOND",
     "check_fit_parameters",
     "fit",
@@ -47,6 +48,11 @@ __all__ = [
 
 #: Huber threshold in robust standard deviations: 95 % efficiency on Gaussian residuals. [1]
 HUBER_K = 1.345
+#: The standard normal quantile of a two-sided 95 % interval (scipy.stats.norm.ppf(0.975)), declared once in
+#: the package: the unit of an edge trend in the allowance, the plans' fast half-width
+#: (calibrate.experiments), a parameter's interval in the words (calibrate.prose), the measurement system's
+#: steps and drifts, the groups' and the parameter-shift margins read it here. [1]
+Z95 = 1.959963984540054
 # A bound that the physics excludes is approached to within this relative margin.
 _EXCLUSIVE_MARGIN = 1e-9
 # Weighted log residual standing in for a non-finite model output during the fit.

@@ -50,6 +50,7 @@ import numpy as np
 from scipy import optimize, special, stats
 
 from .data import factor_label
+from .fit import Z95
 
 __all__ = ["MAX_GROUPS", "MIN_GROUPS", "GroupEffect", "describe_groups", "fit_group_effect", "why_not_fitted",
            "within_groups"]
@@ -196,7 +197,7 @@ class GroupEffect:
     def _new_group_words(self) -> str:
         upper = self.spread_upper(0.95)
         g = max(self.n_groups, 2)
-        t = stats.t.isf(0.025, g - 1) / stats.norm.isf(0.025)
+        t = stats.t.isf(0.025, g - 1) / Z95
         t_rule = self.spread_log**2 * (1.0 + 1.0 / g) * t**2
         if not np.isfinite(upper) or self.new_group_variance(0.95) <= t_rule:
             return f" (with Student's t of {g - 1} degrees of freedom)"

@@ -47,7 +47,7 @@ from microbearing.physics.columns import physical_range
 from .candidates import Term
 from .censored import measured_rows
 from .data import Dataset
-from .fit import fit, kfold_indices, robust_scale
+from .fit import Z95, fit, kfold_indices, robust_scale
 
 __all__ = ["JITTER", "SLIP_FACTORS", "LackOfFit", "MeasurementSystem", "Saturation", "UnitSlip",
            "drift_words", "folds", "inspect", "lack_of_fit", "slip_factors", "unit_slips",
@@ -542,7 +542,7 @@ def drift_words(effects: Sequence[Mapping[str, Any]], clock: Mapping[str, str] |
         d = effect["parameters"]["session_drift_log"]
         sd = effect["parameter_std"]["session_drift_log"]
         c = effect["constants"]
-        low, high = np.expm1(d - 1.96 * sd), np.expm1(d + 1.96 * sd)
+        low, high = np.expm1(d - Z95 * sd), np.expm1(d + Z95 * sd)
         driver = effect["drivers"][0]
         start, end = _at(c["start"], driver, clock), _at(c["end"], driver, clock)
         out.append(f"the instrument drifted {100 * np.expm1(d):+.1f} % over the session "
@@ -570,7 +570,7 @@ def _step_words(effect: Mapping[str, Any], clock: Mapping[str, str]) -> str:
     after, before = _at(c["after"], driver, clock), _at(c["before"], driver, clock)
     return (f"the instrument's reading stepped {100 * np.expm1(s):+.1f} % at {driver} {after} "
             f"(after {before}; the place searched over the session; 95 % interval of the step "
-            f"{100 * np.expm1(s - 1.96 * sd):+.1f} to {100 * np.expm1(s + 1.96 * sd):+.1f} %): a step of the "
+            f"{100 * np.expm1(s - Z95 * sd):+.1f} to {100 * np.expm1(s + Z95 * sd):+.1f} %): a step of the "
             f"reading (measurement system), not of the bearing; the fitted physics is the reading before "
             f"the step, and later runs are predicted at the level after it")
 

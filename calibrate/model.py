@@ -43,21 +43,17 @@ from microbearing import physics
 from .candidates import FrozenBase, Term, mu_of, term_from_json
 from .data import Dataset, factor_label
 from .domain import EXTRAPOLATION_SHARE, DataCloud, extrapolation_allowance, extrapolation_bound, range_slack
-from .fit import FitResult
+from .fit import Z95, FitResult
 from .gp_correction import GPCorrection
 from .groups import GroupEffect
 from .rival_model import RivalModel, covariance_from_json
 from .scatter import ScatterModel
 
-__all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMAT_VERSION", "Z95"]
+__all__ = ["CalibratedModel", "GPCorrection", "Prediction", "RivalModel", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 2
 # Relative step of the finite-difference gradient of log mu in the fitted values.
 _GRADIENT_STEP = 1e-6
-#: The standard normal quantile of a two-sided 95 % interval (scipy.stats.norm.ppf(0.975)), declared once in
-#: the package: the unit of an edge trend in the allowance, the plans' fast half-width
-#: (calibrate.experiments) and a parameter's interval in the words (calibrate.prose) read it here. [1]
-Z95 = 1.959963984540054
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,8 @@ from microbearing.physics.columns import unit_of
 from .candidates import Term
 from .data import Dataset
 from .domain import DataCloud
-from .model import Z95, CalibratedModel
+from .fit import Z95
+from .model import CalibratedModel
 from .rivals import describe_rival, where_they_part
 from .scores import within_one_se
 from .select import Selection

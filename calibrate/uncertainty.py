@@ -20,7 +20,7 @@ import numpy as np
 from scipy import stats
 
 from .data import Dataset
-from .fit import FitResult
+from .fit import Z95, FitResult
 
 __all__ = ["MAX_LISTED_OUTLIERS", "find_outliers", "noise_report", "outlier_threshold", "parameter_warnings"]
 
@@ -179,7 +179,7 @@ def parameter_warnings(before: FitResult, after: FitResult) -> list[str]:
     before_std, after_std = before.declared_std, after.declared_std
     for name, value in after.declared.items():
         old = before.declared[name]
-        margin = 1.96 * float(np.hypot(before_std[name], after_std[name]))
+        margin = Z95 * float(np.hypot(before_std[name], after_std[name]))
         if after.terms and abs(value - old) > margin:
             sigmas = abs(value - old) / max(float(np.hypot(before_std[name], after_std[name])), 1e-300)
             warnings.append(
