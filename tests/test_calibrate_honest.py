@@ -11,6 +11,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from folds_helper import two_folds_miss_the_term
 from jobs_helper import finished_job
 
 from microbearing import physics
@@ -229,20 +230,10 @@ def meniscus_rows(seed: int, n: int):
 def test_a_gp_that_only_fills_what_some_folds_missed_does_not_join_a_correct_model(monkeypatch):
     from microbearing.calibrate import report
 
-    real = report.nested_cross_validate
-
-    def two_folds_miss_the_term(dataset, fit_parameters, baseline, *args, **kwargs):
-        # As when the selection in two outer folds adds nothing: those folds' rows are predicted by the
-        # declared model, whose residual (the menisci) a GP takes up.
-        nested = real(dataset, fit_parameters, baseline, *args, **kwargs)
-        fold_mu, oof = list(nested.fold_mu), nested.oof_mu.copy()
-        for k in (0, 1):
-            fold_mu[k] = baseline.fold_mu[k]
-            oof[baseline.folds[k]] = baseline.fold_mu[k][baseline.folds[k]]
-        return dataclasses.replace(nested, fold_mu=fold_mu, oof_mu=oof,
-                                   fold_terms=[(), (), *nested.fold_terms[2:]])
-
-    monkeypatch.setattr(report, "nested_cross_validate", two_folds_miss_the_term)
+    # As when the selection in two outer folds adds nothing: those folds' rows are predicted by the
+    # declared model, whose residual (the menisci) a GP takes up.
+    missing = two_folds_miss_the_term(report.nested_cross_validate)
+    monkeypatch.setattr(report, "nested_cross_validate", missing)
     rows, _, _ = meniscus_rows(3, 150)
     result = calibrate(rows, ["mu_pivot"], folds=3, max_terms=1, make_plots=False)
     assert [e["name"] for e in result.effects] == ["humidity_meniscus"]

@@ -5,10 +5,9 @@ hand-computed group means and the generating truth."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
+from folds_helper import two_folds_miss_the_term
 
 from microbearing import physics
 from microbearing.calibrate import calibrate, parse_rows
@@ -121,22 +120,14 @@ def test_the_gp_test_on_the_chosen_terms_reads_the_folds_with_levels_stage_4_rea
     # folds of the nested search keep the declared model, whose residual a GP takes up in its first test.
     from microbearing.calibrate import report
 
-    real_nested, real_within, calls = report.nested_cross_validate, report.held_out_within_groups, []
-
-    def two_folds_miss_the_term(dataset, fit_parameters, baseline, *args, **kwargs):
-        nested = real_nested(dataset, fit_parameters, baseline, *args, **kwargs)
-        fold_mu, oof = list(nested.fold_mu), nested.oof_mu.copy()
-        for k in (0, 1):
-            fold_mu[k] = baseline.fold_mu[k]
-            oof[baseline.folds[k]] = baseline.fold_mu[k][baseline.folds[k]]
-        return dataclasses.replace(nested, fold_mu=fold_mu, oof_mu=oof,
-                                   fold_terms=[(), (), *nested.fold_terms[2:]])
+    real_within, calls = report.held_out_within_groups, []
 
     def counted(*args, **kwargs):
         calls.append(real_within(*args, **kwargs))
         return calls[-1]
 
-    monkeypatch.setattr(report, "nested_cross_validate", two_folds_miss_the_term)
+    missing = two_folds_miss_the_term(report.nested_cross_validate)
+    monkeypatch.setattr(report, "nested_cross_validate", missing)
     monkeypatch.setattr(report, "held_out_within_groups", counted)
     result = calibrate(_rows(2, per=25, meniscus=2e-5), ["mu_pivot"], folds=3, max_terms=1, make_plots=False)
     gp = result.discrepancy_gp
