@@ -20,7 +20,8 @@ runs over the same space, and calibrates again on all rows. Over 200 envelope po
 ``POST /v1/friction/batch`` of each recalibration for the 95 % interval and reports:
 
 * the mean half-width the service reports, (mu_upper - mu_lower) / 2 [1], after the proposed and after the
-  random runs, and the proposal's ``reported_half_width_after`` (its promise) with the ratio of the two;
+  random runs, and the proposal's ``reported_half_width_after`` (its promise) with the ratio of the two,
+  and the same ratio relative to mu (``reported_relative_half_width_after``, a fraction of mu);
 * the truth error over the envelope, RMS of log(mu / mu_true);
 * the coverage of fresh measurements there.
 
@@ -231,6 +232,7 @@ def judge(client, lab: Lab, model_id: str, points, rng) -> dict[str, float]:
     mu, lower, upper = (np.asarray(body[k], dtype=float) for k in ("mu", "mu_lower", "mu_upper"))
     fresh = lab.truth(points) * np.exp(rng.normal(0.0, NOISE, mu.size))
     return {"half_width": float(np.mean((upper - lower) / 2)),
+            "relative_half_width": float(np.mean((upper - lower) / 2 / mu)),
             "error": float(np.sqrt(np.mean(np.log(mu / lab.truth(points)) ** 2))),
             "coverage": float(np.mean((lower <= fresh) & (fresh <= upper)))}
 
@@ -255,6 +257,7 @@ def lab_run(client, lab: Lab, seed: int, runs: int, replicates: int = 1) -> dict
     measured = np.random.default_rng(30_000 + seed)
     out = {"first": judge(client, lab, first, points, np.random.default_rng(40_000 + seed)),
            "promise": proposal["envelope"]["reported_half_width_after"]["mean"],
+           "promise_relative": proposal["envelope"]["reported_relative_half_width_after"]["mean"],
            "now": proposal["envelope"]["reported_half_width_now"]["mean"], "seconds": seconds,
            "support": proposal["support_points"]}
     for name, columns in (("proposed", columns_of(lab, proposal["runs"])),
@@ -291,7 +294,8 @@ def main(argv=None) -> None:
             records.append(r)
             print(f"{name} lab {seed}: first hw {r['first']['half_width']:.5f} | proposed ({r['support']} "
                   f"points, {r['seconds']:.0f} s) hw {r['proposed']['half_width']:.5f} (promised "
-                  f"{r['promise']:.5f}, ratio {r['proposed']['half_width'] / r['promise']:.2f}) err "
+                  f"{r['promise']:.5f}, ratio {r['proposed']['half_width'] / r['promise']:.2f}, relative "
+                  f"{r['proposed']['relative_half_width'] / r['promise_relative']:.2f}) err "
                   f"{r['proposed']['error']:.4f} cov {r['proposed']['coverage']:.2f} | random hw "
                   f"{r['random']['half_width']:.5f} err {r['random']['error']:.4f} cov "
                   f"{r['random']['coverage']:.2f}" + ("" if args.noise_replicates == 1 else (
@@ -302,12 +306,14 @@ def main(argv=None) -> None:
     ratio_hw = np.array([r["proposed"]["half_width"] / r["random"]["half_width"] for r in records])
     ratio_err = np.array([r["proposed"]["error"] / r["random"]["error"] for r in records])
     promise = np.array([r["proposed"]["half_width"] / r["promise"] for r in records])
+    relative = np.array([r["proposed"]["relative_half_width"] / r["promise_relative"] for r in records])
     print(f"\n{len(records)} labs, {args.runs} runs each: reported half-width proposed / random "
           f"{', '.join(f'{x:.2f}' for x in ratio_hw)} (geometric mean "
           f"{np.exp(np.mean(np.log(ratio_hw))):.2f}); "
           f"truth error proposed / random {', '.join(f'{x:.2f}' for x in ratio_err)} (geometric mean "
           f"{np.exp(np.mean(np.log(ratio_err))):.2f}); reported after / promised "
-          f"{', '.join(f'{x:.2f}' for x in promise)}")
+          f"{', '.join(f'{x:.2f}' for x in promise)}; relative (half-width / mu) "
+          f"{', '.join(f'{x:.2f}' for x in relative)}")
 
 
 if __name__ == "__main__":

@@ -31,7 +31,7 @@ from microbearing.physics.effects import EFFECTS
 from microbearing.physics.spans import read_span
 
 from .candidates import Term, candidate_terms
-from .credibility import implausible, impossible
+from .credibility import implausible
 from .data import Dataset
 from .design import GOALS, Design, DesignError, plan
 from .design import check_identifiable as design_check
@@ -39,7 +39,8 @@ from .domain import outside_law_domains, outside_physical_ranges
 from .fit import Z95, fit
 from .model import CalibratedModel
 from .plan_plot import plan_png
-from .reported import ReportedWidth
+from .reported import ReportedWidth, ShapeHedge, columns_after, impossible_over
+from .shape_hedges import shape_widths
 from .spaces import MAX_CANDIDATES, candidate_points, check_space, read_space, space_points
 
 __all__ = [
@@ -453,17 +454,21 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
         if reported:  # the interval as the service reports it, widened off the data
             # after the runs: the interval of the model the data favour (the least scatter, held out) among
             # the calibrated one and the hedged rivals, enveloping the others refitted to runs that follow it
-            pool = [reported[0], *(r.held_out_scaled(held_out_scale) for r in reported[1:])]
+            shapes = [r for r in reported[1:] if isinstance(r, ShapeHedge)]  # hedged whatever the runs show
+            pool = [reported[0], *(r.held_out_scaled(held_out_scale) for r in reported[1:]
+                                   if r not in shapes)]
             # a law the runs would take where the physics does not go is not chosen nor kept (a linear drift
             # run on to ten times its cycles takes mu_pivot below zero)
-            taken = _columns_after(data, response.points(chosen))
-            pool = [r for r in pool if not _impossible_over(r.model, taken)] or pool
+            taken = columns_after(data, response.points(chosen))
+            pool = [r for r in pool if not impossible_over(r.model, taken)] or pool
             own = {t.label for t, _ in response.model.terms}  # a generic rival is never favoured (preferred)
             named = [r for r in pool if not _generic_rival([t for t, _ in r.model.terms], own)]
             favoured = min(named or pool, key=lambda r: r.scatter_level)
-            after = favoured.after(design.counts, [r for r in pool if r is not favoured])
-            for key, values in (("reported_half_width_now", reported[0].now()),
-                                ("reported_half_width_after", after)):
+            after = favoured.after(design.counts, [*(r for r in pool if r is not favoured), *shapes])
+            now = reported[0].now()  # relative: a fraction of μ (a rise the runs find is no width)
+            for key, values in (("reported_half_width_now", now), ("reported_half_width_after", after),
+                                ("reported_relative_half_width_now", now / reported[0].mu),
+                                ("reported_relative_half_width_after", after / favoured.mu)):
                 entry[key] = {"mean": float(np.mean(values)), "max": float(np.max(values))}
         out["envelope"] = entry
     if rivals:
@@ -479,23 +484,6 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
         out["rivals"] = listed
         out["mu_reference_at_runs"] = mu_reference.tolist()
     return out
-
-
-def _columns_after(data: Mapping[str, np.ndarray] | None, runs: Mapping[str, Any]) -> dict[str, np.ndarray]:
-    """The columns a recalibration on the data and the runs reads (the runs alone without data)."""
-    count = max((np.size(v) for v in runs.values()), default=0)
-    runs = {k: np.broadcast_to(np.asarray(v, dtype=float), (count,)) for k, v in runs.items()
-            if np.asarray(v).dtype.kind in "fiub"}
-    if data is None:
-        return runs
-    return {**runs, **{k: (np.concatenate([np.asarray(v, dtype=float), runs[k]]) if k in runs else v)
-                       for k, v in data.items()}}
-
-
-def _impossible_over(model: CalibratedModel, columns: Mapping[str, np.ndarray]) -> bool:
-    """Whether a drift of the model, with its fitted values, takes its parameter where the physics does not
-    go over the columns (:func:`calibrate.credibility.impossible`)."""
-    return any(impossible(term, values, columns, model.fitted, model.fixed) for term, values in model.terms)
 
 
 def _span(spec: Any) -> tuple[float, float]:
@@ -634,6 +622,8 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
         # A recalibration may add a rival's term: the runs hedge against it (its interval counts too).
         hedges = [ReportedWidth(r, candidates, envelope, planned_columns) for r in rival_responses
                   if r.model.covariance is not None] if goal == "predict" else []
+        if goal == "predict":  # and the laws of an input the envelope extrapolates (calibrate.shape_hedges)
+            hedges += shape_widths(response, data, envelope, candidates, planned_columns)
     exchange = None
     if reported is not None and goal == "predict":
         def exchange(start: np.ndarray) -> np.ndarray:

@@ -34,11 +34,12 @@ import numpy as np
 from scipy import stats
 from scipy.spatial import cKDTree
 
+from .credibility import impossible
 from .domain import DataCloud, extrapolation_allowance
 from .model import CalibratedModel
 from .rivals import RIVAL_SE
 
-__all__ = ["ReportedWidth", "envelope_half_width"]
+__all__ = ["ReportedWidth", "ShapeHedge", "columns_after", "envelope_half_width", "impossible_over"]
 
 # Exchange passes of the search after its greedy construction at most. [1]
 _PASSES = 2
@@ -51,6 +52,23 @@ def envelope_half_width(pieces: Sequence[tuple[np.ndarray, np.ndarray]]) -> np.n
     upper = np.maximum.reduce([np.exp(centre + half) for centre, half in pieces])
     lower = np.minimum.reduce([np.exp(centre - half) for centre, half in pieces])
     return 0.5 * (upper - lower)
+
+
+def columns_after(data: Mapping[str, np.ndarray] | None, runs: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """The columns a recalibration on the data and the runs reads (the runs alone without data)."""
+    count = max((np.size(v) for v in runs.values()), default=0)
+    runs = {k: np.broadcast_to(np.asarray(v, dtype=float), (count,)) for k, v in runs.items()
+            if np.asarray(v).dtype.kind in "fiub"}
+    if data is None:
+        return runs
+    return {**runs, **{k: (np.concatenate([np.asarray(v, dtype=float), runs[k]]) if k in runs else v)
+                       for k, v in data.items()}}
+
+
+def impossible_over(model: CalibratedModel, columns: Mapping[str, np.ndarray]) -> bool:
+    """Whether a drift of the model, with its fitted values, takes its parameter where the physics does not
+    go over the columns (:func:`calibrate.credibility.impossible`)."""
+    return any(impossible(term, values, columns, model.fitted, model.fixed) for term, values in model.terms)
 
 
 def _cloud_values(cloud: DataCloud) -> dict[str, np.ndarray]:
@@ -388,3 +406,20 @@ class ReportedWidth:
                    if r.gap_z(self, counts) <= RIVAL_SE]
         return envelope_half_width(pieces)
 
+
+
+class ShapeHedge(ReportedWidth):
+    """The width of a model with a law the data have not seen added at one value of its shape
+    (:func:`calibrate.shape_hedges.shape_hedges`), centred on the reference model: its values are
+    unknown, so its μ says nothing, while its interval after the runs is what a recalibration that adds the
+    law reports (the law's parameters pinned, or not, by where the runs are). Never refuted by runs that
+    follow the reference: the law is hedged whatever they show."""
+
+    def centre_each(self, reference: ReportedWidth, counts: np.ndarray) -> np.ndarray:
+        return np.repeat(np.log(reference.mu)[:, None], self.b.shape[0], axis=1)
+
+    def centre_after(self, reference: ReportedWidth, counts: np.ndarray) -> np.ndarray:
+        return np.log(reference.mu)
+
+    def gap_z(self, reference: ReportedWidth, counts: np.ndarray) -> float:
+        return 0.0

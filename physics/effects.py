@@ -40,6 +40,8 @@ With μ_m the model's μ, z the balls, G the load [N], V the speed [m/s]:
 * ``thermal_shear_strength``: μ = μ_m exp(-β (T - T_ref)), β [1/K], T_ref the
   data's median; thermally activated interfacial shear strength [4]_.
 * ``run_in``: μ = μ_m (1 + A exp(-n / n_0)), A [1], n_0 [unit of n]; running-in [5]_.
+* ``stribeck_breakaway``: μ = μ_m + a exp(-V / V_0), a fixed excess at rest; ``stribeck_rise``:
+  μ = μ_m (1 + r exp(-V / V_0)), the rise a fraction r of the friction it raises.
 * ``measurement_drift``, ``measurement_step``: the reading drifts linearly or steps once (at a place
   searched, :mod:`physics.changepoints`) over an order or time column.
 * ``generic_linear``, ``generic_quadratic``: μ = μ_m exp(c_1 z + c_2 z²),
@@ -600,6 +602,30 @@ _BREAKAWAY = Effect(
     enters="add", direction=lambda v: -_sign(v[0]), value_forms=("scale", None),  # + a exp(-V / V0)
 )
 
+_STRIBECK_RISE = Effect(
+    name="stribeck_rise",
+    title="Low-speed (Stribeck) rise of the friction coefficient itself: the model's friction multiplied by "
+          "a factor decaying with speed (a boundary film's friction rising towards rest)",
+    formula="mu = mu_model * (1 + rise_ratio * exp(-speed_m_s / rise_speed_m_s))",
+    parameters=(
+        EffectParameter("rise_ratio", "1", "Static over kinetic friction minus 1: the relative rise at rest.",
+                        0.0, 100.0, plausible=(0.0, 10.0)),
+        EffectParameter("rise_speed_m_s", "m/s", "Stribeck speed over which the rise decays by 1/e.",
+                        1e-9, 1e3, within_data=True),
+    ),
+    driver_description="slider speed speed_m_s [m/s], at least three distinct values",
+    reference=("B. Armstrong-Helouvry, P. Dupont, C. Canudas de Wit, Automatica 30(7), 1083-1138 (1994): "
+               "F = F_C + (F_S - F_C) exp(-(v / v_S)^2) with a static force F_S a multiple of the Coulomb "
+               "force F_C; exponent 1 here, as stribeck_breakaway. The multiplicative form of that law: the "
+               "rise scales with the friction it raises (with load and ball count), where "
+               "stribeck_breakaway adds a fixed excess."),
+    fixed_drivers=("speed_m_s",),
+    correct=lambda mu, x, columns, p, c: mu * (1.0 + p[0] * np.exp(-x / p[1])),
+    make_initial=lambda mu, x, columns, c: [0.3, max(0.2 * float(np.max(x)), 1e-6)],
+    # x (1 + a exp(-V / V0)), a >= 0: falls with speed; no closed form in a (the run-in's form)
+    enters="mul", direction=lambda v: -_sign(v[0]), value_forms=(None, None),
+)
+
 _VISCOUS_POWER = Effect(
     name="viscous_power_law",
     title="Viscous drag growing as a power of speed (film thickness and shear of an elastohydrodynamic "
@@ -669,7 +695,8 @@ def register_effect(effect: Effect) -> None:
     EFFECTS.update((e.name, e) for e in [*named, *generic])
 
 
-for _effect in (_MENISCUS, _VISCOUS, _CONSTANT, _THERMAL, _RUN_IN, _BREAKAWAY, _VISCOUS_POWER,
+for _effect in (_MENISCUS, _VISCOUS, _CONSTANT, _THERMAL, _RUN_IN, _BREAKAWAY, _STRIBECK_RISE,
+                _VISCOUS_POWER,
                 _MEASUREMENT_DRIFT, _MEASUREMENT_STEP, _GENERIC_LINEAR, _GENERIC_QUADRATIC, _GENERIC_POWER):
     register_effect(_effect)
 
