@@ -456,7 +456,7 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             # the calibrated one and the hedged rivals, enveloping the others refitted to runs that follow it
             shapes = [r for r in reported[1:] if isinstance(r, ShapeHedge)]  # hedged whatever the runs show
             pool = [reported[0], *(r.held_out_scaled(held_out_scale) for r in reported[1:]
-                                   if r not in shapes)]
+                                   if not isinstance(r, ShapeHedge))]
             # a law the runs would take where the physics does not go is not chosen nor kept (a linear drift
             # run on to ten times its cycles takes mu_pivot below zero)
             taken = columns_after(data, response.points(chosen))

@@ -407,7 +407,6 @@ class ReportedWidth:
         return envelope_half_width(pieces)
 
 
-
 class ShapeHedge(ReportedWidth):
     """The width of a model with a law the data have not seen added at one value of its shape
     (:func:`calibrate.shape_hedges.shape_hedges`), centred on the reference model: its values are

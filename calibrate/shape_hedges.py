@@ -105,18 +105,19 @@ def shape_hedges(response: Any, data: Mapping[str, np.ndarray] | None,
         A description and the model with the law added, its covariance the data's information inverted.
     """
     model = response.model
-    if data is None or model.noise_std_log is None:
+    inputs = off_data_inputs(model, envelope)
+    if data is None or model.noise_std_log is None or not inputs:
         return []
     columns = response.points({k: np.asarray(v) for k, v in data.items()})
+    with np.errstate(all="ignore"):
+        mu = np.ravel(model(columns))  # the laws' initial guesses read the model's μ on the data
     out = []
-    for name, span in off_data_inputs(model, envelope).items():
+    for name, span in inputs.items():
         for effect, index in _laws_on(name, model):
             drivers = effect.fixed_drivers
             if not all(d in columns for d in drivers) or not effect.accepts(columns, drivers):
                 continue
             term = EffectTerm(effect.name, drivers, effect.constants(columns, drivers))
-            with np.errstate(all="ignore"):
-                mu = np.ravel(model(columns))
             x = effect.driver_values(columns, drivers)
             initial = [float(v) for v in effect.make_initial(mu, x, columns, term.constants)]
             shapes = _shape_range(effect, index, span)
