@@ -11,14 +11,15 @@ distance to its k-th nearest row (k = 5). The threshold is split-conformal: the
 point is what the rule is about, and its score is never 0), so that a new point drawn like the data is
 flagged with chance about ``alpha`` (:data:`CLOUD_ALPHA`, 2 %) whatever the data's shape. A point given
 only some of the columns is scored in those columns alone, against the threshold of the same columns.
-Beyond the threshold, the prediction interval's log half-width is multiplied by the ratio of the score to
-the threshold (the interval widens in proportion to the distance from the data; a documented rule, not a
-fitted one: a cross-validation that holds out clusters of rows measures how the error grows along the
-data's shape, never across it, and in data whose columns move together the error off the data comes from
-which of them acts, not from the distance), through :meth:`DataCloud.widening`, the one place the rule
-lives. Where two columns move together, the interval also holds the rivals by confounding
-(:mod:`calibrate.rivals`): terms on the column the model does not read that the data lean to but cannot
-decide, whose envelope parts from the model where one column is varied without the other.
+Beyond the threshold, the share of the prediction interval no fitted value explains (the scatter and the
+discrepancy; the fitted values' share is propagated to the point by the model's form, once) is multiplied
+by the ratio of the score to the threshold (the interval widens in proportion to the distance from the data;
+a documented rule, not a fitted one: a cross-validation that holds out clusters of rows measures how the
+error grows along the data's shape, never across it, and in data whose columns move together the error
+off the data comes from which of them acts, not from the distance), through :meth:`DataCloud.widening`,
+the one place the rule lives. Where two columns move together, the interval also holds the rivals by
+confounding (:mod:`calibrate.rivals`): terms on the column the model does not read that the data lean to
+but cannot decide, whose envelope parts from the model where one column is varied without the other.
 
 **Lines along which columns move together.** Where two columns' ranks move together
 (|Spearman rho| >= :data:`CONFOUNDED_RHO`), the rows lie near a line in those two scaled columns, and a
@@ -124,7 +125,7 @@ def _transform(name: str, values: np.ndarray) -> tuple[str, float]:
 
 
 #: The extrapolation allowance beyond the data's range in a physics input
-#: (:meth:`calibrate.CalibratedModel.extrapolation_ratio`): the interval's log half-width is multiplied
+#: (:meth:`calibrate.CalibratedModel.extrapolation_ratio`): the interval's scatter share is multiplied
 #: by 1 + d / (share x span), d the distance beyond the range and span the range's width, both in the
 #: input's log for a positive input (speed, load: 5 mm/s is as far below data at 50 mm/s as 500 mm/s is
 #: above), else in its unit: it grows by its own size for every quarter of the data's span beyond them.
@@ -160,7 +161,7 @@ def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = 
     (:func:`edge_trends`, in units of the interval's half-width: level and growth per unit of the same
     coordinate at the low end, then at the high end), it grows by ``level + growth x D`` more, D the
     distance beyond the data's end: the departure the residuals trend to there, on top of the rule. It
-    multiplies the interval's log half-width (:meth:`calibrate.CalibratedModel.cloud_ratio`); it never
+    multiplies the interval's scatter share (:meth:`calibrate.CalibratedModel.cloud_ratio`); it never
     falls with the distance (a box's largest and least allowance are at its ends).
 
     Returns
@@ -547,7 +548,8 @@ class DataCloud:
         return ratio.reshape(shape), given
 
     def widening(self, ratio: Any) -> np.ndarray:
-        """Factor on the prediction interval's log half-width at a distance ratio (:meth:`score`) [1]:
+        """Factor on the prediction interval's scatter share (the noise's and discrepancy's standard
+        deviation, :meth:`calibrate.CalibratedModel.predict`) at a distance ratio (:meth:`score`) [1]:
         ``max(ratio, 1)``, 1 inside the cloud.
 
         The one place the rule lives: :meth:`calibrate.CalibratedModel.predict` applies it, and the

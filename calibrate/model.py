@@ -414,10 +414,12 @@ class CalibratedModel:
         gradient, stepped = self._gradient(points, mu, physics_mu)
         variance = np.einsum("i...,ij,j...->...", gradient, self.covariance, gradient)
         group_shift, group_variance = self._group_terms(points, labels, mu.shape, level, (mu, stepped))
-        sigma = np.sqrt(np.clip(variance, 0.0, None) + shared.discrepancy_variance + group_variance
-                        + shared.noise_variance)
-        # Beyond the data cloud or a physics input's range the interval widens (:meth:`cloud_ratio`).
-        sigma = sigma * self.widening(np.maximum(shared.cloud_score, extrapolation))
+        # Beyond the data cloud or a physics input's range the share no fitted value explains (the scatter
+        # and the discrepancy) widens (:meth:`cloud_ratio`): the departure no term holds, in its unit; the
+        # fitted values' and groups' share is propagated by the model's form at the point, counted once.
+        wide = self.widening(np.maximum(shared.cloud_score, extrapolation))
+        sigma = np.sqrt(np.clip(variance, 0.0, None) + group_variance
+                        + (shared.discrepancy_variance + shared.noise_variance) * wide * wide)
         z = float(-special.ndtri((1.0 - level) / 2.0))  # stats.norm.isf's number, without its overhead
         mu = mu * np.exp(shared.shift + group_shift)
         return mu, mu * np.exp(-z * sigma), mu * np.exp(z * sigma)
@@ -549,7 +551,7 @@ class CalibratedModel:
         return out
 
     def cloud_ratio(self, points: Mapping[str, Any], shape=None) -> np.ndarray:
-        """Distance ratio of each point from the data (> 1: outside, and the interval's log half-width is
+        """Distance ratio of each point from the data (> 1: outside, and the interval's scatter share is
         multiplied by it) [1]: the larger of the distance to the data cloud over the cloud's threshold
         and :meth:`extrapolation_ratio` (beyond the data's range in a physics input the point gives);
         zeros inside without a cloud. Physics columns a point does not give take the model's values."""
@@ -632,8 +634,9 @@ class CalibratedModel:
         return base
 
     def widening(self, ratio: Any) -> np.ndarray:
-        """Factor on the interval's log half-width at a distance ratio (:meth:`cloud_ratio`) [1]: the data
-        cloud's rule (:meth:`calibrate.domain.DataCloud.widening`), ``max(ratio, 1)`` without a cloud."""
+        """Factor on the interval's scatter share (its noise's and discrepancy's standard deviation; the
+        fitted values' and groups' share is not widened) at a distance ratio (:meth:`cloud_ratio`) [1]: the
+        data cloud's rule (:meth:`calibrate.domain.DataCloud.widening`), ``max(ratio, 1)`` without a cloud."""
         if self.cloud is not None:
             return self.cloud.widening(ratio)
         return np.maximum(np.asarray(ratio, dtype=float), 1.0)
@@ -698,7 +701,7 @@ class CalibratedModel:
                     why = (f"the extrapolation allowance: {rule}" if applied <= factor * (1 + 1e-9) else
                            f"the distance from the calibration data's rows or another input's allowance, "
                            f"larger there than this one's, up to {factor:.3g} ({rule})")
-                    widened = (f", and the interval's log half-width is multiplied by up to {applied:.3g} "
+                    widened = (f", and the interval's scatter share is multiplied by up to {applied:.3g} "
                                f"({why})")
                 warnings.append(f"{label} = {values}{unit} is {where}: an extrapolation ({bad.size} "
                                 f"point(s)){widened}")
@@ -717,7 +720,8 @@ class CalibratedModel:
                     f"calibration data's rows (distance to the data, or departure from a line along which "
                     f"two of its columns move together, up to {float(np.max(ratio[far])):.2g} "
                     f"times what {100 * (1 - self.cloud.alpha):.0f} % of points like the data have; "
-                    f"farthest: {example}): an extrapolation, and the interval is widened by that ratio")
+                    f"farthest: {example}): an extrapolation, and the interval's scatter share is widened by "
+                    f"that ratio")
             inside &= ratio <= 1.0
         return inside, warnings
 

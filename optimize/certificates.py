@@ -71,11 +71,11 @@ def with_interval_bound(result: RobustResult, mu_result: RobustResult, noise_std
                         widening: float = 1.0) -> RobustResult:
     """A mu_upper result with the certified lower bound that the proven mu problem gives.
 
-    A calibrated model's upper bound is mu exp(z sigma W) with sigma^2 = g'Cg + noise^2 >= noise^2 (C positive
-    semi-definite, no discrepancy) and W >= ``widening`` the data cloud's widening at mu's worst vertex (over
-    the design box), so every design's worst mu_upper is at least exp(z noise W) times its mu there, its worst
-    mu, hence at least that factor times the certified lower bound of the mu problem (whose friction limit
-    on mu is a relaxation of the one on mu_upper).
+    A calibrated model's upper bound is mu exp(z sigma) with sigma^2 = g'Cg + (noise W)^2 >= (noise W)^2 (C
+    positive semi-definite, no discrepancy) and W >= ``widening`` the data cloud's widening at mu's worst
+    vertex (over the design box), so every design's worst mu_upper is at least exp(z noise W) times its mu
+    there, its worst mu, hence at least that factor times the certified lower bound of the mu problem (whose
+    friction limit on mu is a relaxation of the one on mu_upper).
     """
     z = float(stats.norm.isf(0.025))
     upper = result.proof.upper_bound

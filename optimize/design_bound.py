@@ -345,8 +345,9 @@ class _Bounds:
         shift, group_variance = self._groups(s, low, high, finite)
         if getattr(s.model, "discrepancy", None) is not None:
             gp_mean, gp_variance = self._discrepancy(s, point, z, (tl, th), (gl, gh))
-            shift, group_variance = shift + gp_mean, group_variance + gp_variance
-        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * widened
+            # the discrepancy's variance widened as the scatter's (CalibratedModel.predict)
+            shift, group_variance = shift + gp_mean, group_variance + gp_variance * widened**2
+        sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + (s.noise_std_log * widened)**2)
         with np.errstate(all="ignore"):
             return np.where(usable, mu_lo * np.exp(shift + self.z_quantile * sigma), 0.0) * (1.0 - _ROUNDING)
 

@@ -510,25 +510,25 @@ def interval_floor(calibrated: Any, z: float, widening: float = 1.0) -> float | 
     """A factor F [1] with mu_upper >= F μ_terms at every point that names no group, μ_terms the physics with
     the model's terms (no group shift), or None when none is known.
 
-    mu_upper >= μ_terms exp(shift + z σ) with σ² = g'Cg + the groups' variance + noise² and the cloud's
-    widening >= 1 (the rivals only raise it): F = exp(sum b0 + z sqrt(noise² + sum v)) over the groups of
+    mu_upper >= μ_terms exp(shift + z σ) with σ² = g'Cg + the groups' variance + (noise W)², W the cloud's
+    widening >= 1 (the rivals only raise it): F = exp(sum b0 + z sqrt((noise W)² + sum v)) over the groups of
     sensitivity 1. A group on a fitted parameter has sensitivity s >= 0 (μ never falls with the parameter:
     it enters the physics as a non-negative share and every term is non-decreasing in μ), so its shift
     s b0 >= 0 when b0 >= 0 and it is left out; with b0 < 0 no floor is known. ``widening`` (>= 1): a lower
-    bound of the data cloud's widening at the points the floor is for, which multiplies z σ.
+    bound of the data cloud's widening at the points the floor is for, which multiplies the noise.
     """
     noise = getattr(calibrated, "noise_std_log", None)
     if noise is None:
         return None
     level = 1.0 - 2.0 * float(stats.norm.sf(z))
-    shift, variance = 0.0, float(noise) ** 2
+    shift, variance = 0.0, (float(noise) * max(widening, 1.0)) ** 2
     for group in getattr(calibrated, "groups", None) or []:
         if group.parameter == "mu" or group.parameter not in calibrated.fitted:
             shift += group.offset_log
             variance += group.new_group_variance(level)
         elif group.offset_log < 0:
             return None
-    return math.exp(shift + z * math.sqrt(variance) * max(widening, 1.0))
+    return math.exp(shift + z * math.sqrt(variance))
 
 
 def mu_box_bound(pieces: list[Piece], physics_mu: Callable[..., np.ndarray],

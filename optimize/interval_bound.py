@@ -262,7 +262,8 @@ def mu_upper_box_bound(structures: list[IntervalStructure],
     gradient of log μ, log1p(D / μ) / h, with D = μ(p + h) - μ(p) in closed form (``h`` × the physics
     output / p, ``h`` × the piece's basis, or the composed μ up to that factor × expm1(h φ)) times the
     product of the factors after it; the largest g'Cg over the box of gradients (a convex function: at one
-    of its vertices); so mu_upper <= max over the structures of max(μ) exp(z sqrt(max g'Cg + noise²) W),
+    of its vertices); so mu_upper <= max over the structures of max(μ) exp(z sqrt(max g'Cg + (noise W)²)),
+    (the discrepancy's variance, where there is one, widened as the noise's),
     W the widening beyond the data cloud and the data's ranges at an upper bound of the distance
     ratio over the box (:meth:`calibrate.CalibratedModel.cloud_ratio_bound`; the widening,
     :meth:`calibrate.domain.DataCloud.widening`, is non-decreasing in the ratio, and one cloud serves the
@@ -517,6 +518,7 @@ def _structure_bound(context: _IntervalContext, s: IntervalStructure, lo: np.nda
                 shared[key] = gp_mean, gp_variance
         else:
             gp_mean, gp_variance = shared[key]
-        shift, group_variance = shift + gp_mean, group_variance + gp_variance
-    sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + s.noise_std_log**2) * wide
+        # the discrepancy's variance widened as the scatter's (CalibratedModel.predict)
+        shift, group_variance = shift + gp_mean, group_variance + gp_variance * wide**2
+    sigma = np.sqrt(np.clip(quadratic, 0.0, None) + group_variance + (s.noise_std_log * wide)**2)
     return np.where(finite, c.mu_hi * np.exp(shift + context.z * sigma), np.inf)
