@@ -160,9 +160,14 @@ def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = 
     share :data:`EXTRAPOLATION_SHARE`. With the ``trend`` the data hint at beyond each end
     (:func:`edge_trends`, in units of the interval's half-width: level and growth per unit of the same
     coordinate at the low end, then at the high end), it grows by ``level + growth x D`` more, D the
-    distance beyond the data's end: the departure the residuals trend to there, on top of the rule. It
-    multiplies the interval's scatter share (:meth:`calibrate.CalibratedModel.cloud_ratio`); it never
-    falls with the distance (a box's largest and least allowance are at its ends).
+    distance beyond the data's end: the departure the residuals trend to there, on top of the rule. A
+    trend of eight values also holds the generic terms' slope s and their form's rate k at each end
+    (:func:`term_trends`: s, k at the low end, then at the high end, after the four), and the allowance
+    grows by ``s (|D - E| + D)`` more, E = expm1(k D) / k (D when k = 0) the term's own change beyond the
+    end per unit of s: the distance from where the model's form goes to the far side of the band from
+    flat to twice the slope at the end (:func:`band_allowance`). It multiplies the interval's scatter
+    share (:meth:`calibrate.CalibratedModel.cloud_ratio`); it never falls with the distance (a box's
+    largest and least allowance are at its ends).
 
     Returns
     -------
@@ -183,10 +188,35 @@ def extrapolation_allowance(value: Any, low: Any, high: Any, rows: int | None = 
     side = np.where(d > 0, np.where(below > 0, -1, 1), 0)
     extra = 0.0
     if trend is not None:
-        level_low, growth_low, level_high, growth_high = (float(x) for x in trend)
-        extra = np.where(side < 0, level_low + growth_low * np.maximum(lo_at - at, 0.0),
-                         level_high + growth_high * np.maximum(at - hi_at, 0.0))
+        trend = [float(x) for x in trend] + [0.0] * (8 - len(trend))
+        level_low, growth_low, level_high, growth_high, slope_low, rate_low, slope_high, rate_high = trend
+        beyond_low, beyond_high = np.maximum(lo_at - at, 0.0), np.maximum(at - hi_at, 0.0)
+        extra = np.where(side < 0, level_low + growth_low * beyond_low
+                         + slope_low * band_allowance(beyond_low, rate_low),
+                         level_high + growth_high * beyond_high
+                         + slope_high * band_allowance(beyond_high, rate_high))
     return np.where(d > 0, 1.0 + d + extra, 0.0), side
+
+
+def band_allowance(distance: Any, rate: float) -> np.ndarray:
+    """The departure a generic term's slope leaves open at a distance D beyond the data's end, per unit of
+    its slope s there [its coordinate]: ``|D - E| + D``, E = expm1(k D) / k (D when k = 0) the term's own
+    change beyond the end per unit of s, its form read as an exponential of rate k in the allowance's
+    coordinate (:func:`term_trends`; exact for the generic family: a power law's k is 0 in log, the
+    tangent of a quadratic in a positive input's unit has k = -1 below the data and +1 above, in its log).
+
+    The data say the departure's pace at their end, not whether it stops or steepens beyond: the truth may
+    go on anywhere from flat to twice that pace, a band from 0 to 2 s D; the model goes on by its form,
+    s E. The allowance is the distance from the model to the band's far side, ``max(E, 2 D - E)``: D
+    when the form goes on at its end's pace (a power law in log), more where it flattens (2 D - E below
+    the data for a tangent in load's unit: 2.0 s at 0.5 mN below data at 2 mN, against 1.4 s for D) or
+    steepens (E). Non-decreasing in D (its slope is at least 1 where E < D and e^{k D} > 0 where not).
+    """
+    distance = np.asarray(distance, dtype=float)
+    if abs(rate) < 1e-9:
+        return distance
+    own = np.expm1(rate * distance) / rate
+    return np.abs(distance - own) + distance
 
 
 def edge_trends(columns: Mapping[str, Any], residual: Any, rows: Any,
@@ -209,13 +239,15 @@ def edge_trends(columns: Mapping[str, Any], residual: Any, rows: Any,
     (:func:`extrapolation_allowance`) alone holds.
 
     With the calibrated ``model`` the residuals are of, ``ranges`` are its ``extrapolation_inputs()`` by
-    default, and the departure its generic terms took up (:func:`term_trends`) is added to each input's.
+    default, and the departure its generic terms took up (:func:`term_trends`: their slope and form's rate
+    at each end) follows each input's four values.
 
     Returns
     -------
     dict of str to list of float
         name -> [level, growth at the low end, level, growth at the high end]: log μ [1] and log μ per
-        unit of the coordinate (per e-fold of a positive input).
+        unit of the coordinate (per e-fold of a positive input); with a ``model`` whose generic terms are
+        on the input, then their slope and rate at each end (:func:`term_trends`).
     """
     residual, rows = np.asarray(residual, dtype=float), np.asarray(rows, dtype=bool)
     out: dict[str, list[float]] = {} if model is None else term_trends(model)
@@ -243,62 +275,76 @@ def edge_trends(columns: Mapping[str, Any], residual: Any, rows: Any,
             for row in (level_row, slope_row):
                 estimate, variance = float(row @ coefficients), float(row @ covariance @ row)
                 trend.append(float(np.sqrt(max(estimate * estimate - variance, 0.0))))
-        out[name] = [a + b for a, b in zip(trend, out.get(name, [0.0] * 4), strict=True)]
+        terms = out.get(name, [0.0] * 4)
+        out[name] = [a + b for a, b in zip(trend, terms[:4], strict=True)] + terms[4:]
     return out
 
 
 def term_trends(model: Any) -> dict[str, list[float]]:
     """The departure from the physics that the model's generic terms take up at each end of each physics
-    input's range, as :func:`edge_trends` reads the residuals': a growth per unit of the allowance's
-    coordinate (the input's log when low > 0, else its unit), the terms' outward slope there, less its
-    noise (``sqrt(max(b^2 - se^2, 0))``, se from the covariance of the ``model``'s fitted values then its
-    terms' values, :class:`calibrate.CalibratedModel`; the inputs of its ``extrapolation_inputs()``).
+    input's range: their outward slope there in the allowance's coordinate (the input's log when low > 0,
+    else its unit), less its noise (``sqrt(max(b^2 - se^2, 0))``, se from the covariance of the ``model``'s
+    fitted values then its terms' values, :class:`calibrate.CalibratedModel`; the inputs of its
+    ``extrapolation_inputs()``), and the rate k at which their form's change goes on beyond the end, read
+    as an exponential in the same coordinate (the ratio of its change over two equal steps out is e^{k h}).
 
     A generic term (:attr:`physics.effects.Effect.generic`: a polynomial or power law in one column) is a
     fallback, not a law: it takes up a departure the data show, and beyond them goes on by a convention
-    (along its tangent in its own coordinate, the column's unit for a quadratic). The data say how fast
-    the departure grows at their end, not whether it stops or steepens beyond: the allowance grows by the
-    slope it had there for each unit beyond, which holds it from flat to twice the term's pace. Without
-    this a term that took up the bend inside the data left the residuals flat to their end
-    (:func:`edge_trends` 0) while the truth steepened beyond it (a rise exp(-load / 1 mN) over data at
-    2-10 mN, asked at 0.5 mN: coverage 0.04). A named law (a catalogue effect, a drift) goes on by its
-    physics, and its parameters' uncertainty is the interval's own.
+    (along its tangent in its own coordinate, the column's unit for a quadratic: in load's log it flattens
+    below the data, k = -1, and steepens above, k = +1; a power law goes on at its pace, k = 0). The data
+    say how fast the departure grows at their end, not whether it stops or steepens beyond: the allowance
+    holds it from flat to twice the slope at the end, measured from where the term's form takes the model
+    (:func:`band_allowance`). Without this a term that took up the bend inside the data left the residuals
+    flat to their end (:func:`edge_trends` 0) while the truth steepened beyond it (a rise exp(-load / 1 mN)
+    over data at 2-10 mN, asked at 0.5 mN: coverage 0.04). A named law (a catalogue effect, a drift) goes
+    on by its physics, and its parameters' uncertainty is the interval's own.
 
     Returns
     -------
     dict of str to list of float
-        name -> [0, growth at the low end, 0, growth at the high end]: log μ per unit of the coordinate
-        (per e-fold of a positive input), as :func:`edge_trends`.
+        name -> [0, 0, 0, 0, slope at the low end, its rate, slope at the high end, its rate]: the
+        residuals' four places of :func:`edge_trends` left 0; slopes in log μ per unit of the coordinate
+        (per e-fold of a positive input), rates per unit of the coordinate.
     """
-    out: dict[str, list[float]] = {}
-    start, ranges, covariance = len(model.fitted), model.extrapolation_inputs(), model.covariance
+    ranges, covariance = model.extrapolation_inputs(), model.covariance
+    parts: dict[str, list[tuple[Any, list[float], slice]]] = {}
+    start = len(model.fitted)
     for term, values in model.terms:
-        count, start = len(values), start + len(values)
-        if term.kind != "effect" or not term.generic or term.drivers[0] not in ranges:
-            continue
-        name = term.drivers[0]
+        where, start = slice(start, start + len(values)), start + len(values)
+        if term.kind == "effect" and term.generic and term.drivers[0] in ranges:
+            parts.setdefault(term.drivers[0], []).append((term, list(values), where))
+    out: dict[str, list[float]] = {}
+    for name, terms in parts.items():
         low, high = (float(x) for x in ranges[name])
         ends, _ = _coordinate(np.array([low, high]), np.float64(low), np.float64(high), np.float64(low))
-        step = 1e-4 * (ends[1] - ends[0])
-        inner = np.array([ends[0] + step, ends[1] - step])
-        at = np.concatenate([[low, high], np.exp(inner) if low > 0 else inner])
+        step, out_step = 1e-4 * (ends[1] - ends[0]), 1e-2 * (ends[1] - ends[0])
+        # the ends, just inside each, then one and two steps beyond each
+        inward = np.array([1.0, -1.0])
+        coordinate = np.concatenate([ends, ends + step * inward, ends - out_step * inward,
+                                     ends - 2.0 * out_step * inward])
+        at = np.exp(coordinate) if low > 0 else coordinate
 
-        def log_factor(p: np.ndarray, at: np.ndarray = at, term: Any = term) -> np.ndarray:
-            return np.log(term.effect.apply(np.ones(4), {term.drivers[0]: at},
+        def log_factor(term: Any, p: Any, at: np.ndarray = at) -> np.ndarray:
+            return np.log(term.effect.apply(np.ones(at.size), {term.drivers[0]: at},
                                             dict(zip(term.parameter_names, p, strict=True)),
                                             term.drivers, term.constants))
 
-        # outward slope at each end: the value at the end less the one just inside, per unit; the generic
-        # family is linear in its parameters, so the slope's gradient in them is its slope at each unit one
-        gradient = np.array([(lambda q: np.array([q[0] - q[2], q[1] - q[3]]) / step)(log_factor(e))
-                             for e in np.eye(count)])
-        slope = gradient.T @ np.asarray(values, dtype=float)
-        block = (np.zeros((count, count)) if covariance is None
-                 else np.asarray(covariance, dtype=float)[start - count:start, start - count:start])
-        variance = np.einsum("ie,ij,je->e", gradient, block, gradient)
+        slope, variance, total = np.zeros(2), np.zeros(2), np.zeros(at.size)
+        for term, values, where in terms:
+            # outward slope at each end: the value at the end less the one just inside, per unit; the
+            # generic family is linear in its parameters: the slope's gradient is its slope at each unit one
+            gradient = np.array([(lambda q: np.array([q[0] - q[2], q[1] - q[3]]) / step)(log_factor(term, e))
+                                 for e in np.eye(len(values))])
+            slope += gradient.T @ np.asarray(values, dtype=float)
+            block = (np.zeros((len(values),) * 2) if covariance is None
+                     else np.asarray(covariance, dtype=float)[where, where])
+            variance += np.einsum("ie,ij,je->e", gradient, block, gradient)
+            total += log_factor(term, values)
         growth = np.sqrt(np.maximum(slope * slope - variance, 0.0))
-        trend = out.setdefault(name, [0.0, 0.0, 0.0, 0.0])
-        trend[1], trend[3] = trend[1] + float(growth[0]), trend[3] + float(growth[1])
+        with np.errstate(all="ignore"):
+            ratio = (total[6:8] - total[4:6]) / (total[4:6] - total[0:2])
+            rate = np.where((growth > 0) & (ratio > 0) & np.isfinite(ratio), np.log(ratio) / out_step, 0.0)
+        out[name] = [0.0, 0.0, 0.0, 0.0, float(growth[0]), float(rate[0]), float(growth[1]), float(rate[1])]
     return out
 
 

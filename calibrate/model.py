@@ -586,7 +586,11 @@ class CalibratedModel:
         """:attr:`edge_trends` in units of the 95 % half-width of the scatter (z x noise), the allowance's
         unit: beyond an end the interval's half-width grows by at least the departure there."""
         scale = Z95 * float(self.noise_std_log or 0.0)
-        return {k: [x / scale for x in v] for k, v in self.edge_trends.items()} if scale > 0 else {}
+        if not scale > 0:
+            return {}
+        # log mu values in the scatter's unit; the generic terms' rates (places 5 and 7) are per coordinate
+        return {k: [x if i in (5, 7) else x / scale for i, x in enumerate(v)]
+                for k, v in self.edge_trends.items()}
 
     def discrepancy_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
