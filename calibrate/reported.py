@@ -245,7 +245,13 @@ class ReportedWidth:
         return inverse, variance, near
 
     def _log_halves(self, variance, ratio) -> np.ndarray:
-        """Log half-width at each envelope point (rows) [1] of each column of variances and distances."""
+        """Log half-width at each envelope point (rows) [1] of each column of variances and distances.
+
+        Off the data every share is widened by the ratio, the fitted values' too, while the model's own
+        interval widens the scatter's and the discrepancy's alone (:meth:`calibrate.CalibratedModel.
+        predict`): the promise keeps the wider form, its margin where the runs leave the envelope off
+        the data (with the model's form humidity labs 4 and 7 of ``bench/plans_promise.py`` reported 1.42
+        and 1.26 times their promise; bench/RESULTS.md, h70)."""
         sigma = np.sqrt(np.clip(variance, 0.0, None) + self.other[:, None])
         return self.z * sigma * np.maximum(ratio, 1.0)
 
