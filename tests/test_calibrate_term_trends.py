@@ -100,28 +100,36 @@ def draw(rng, n: int, load=None) -> tuple[dict, np.ndarray]:
     return c, physics.evaluate(**c, mu_pivot=0.65).mu * factor * np.exp(rng.normal(0.0, 0.03, n))
 
 
-def test_a_bend_a_generic_term_took_up_inside_the_data_is_covered_beyond_them():
-    # Seed 10, not one of the bench's: the search takes up the bend at 2-3 mN with a quadratic in load, the
-    # residuals are flat to the end, and the rule with the residuals' trend alone covered 0.55 at 0.5 mN
-    # (log half-width 0.295; with the term's slope 0.439, coverage 1).
-    rng = np.random.default_rng(10)
+def calibrated_with_far(seed: int) -> tuple[CalibratedModel, dict, np.ndarray]:
+    """The bench's load_edge draw for ``seed``, calibrated (mu_pivot fitted), and its 200 points at 0.5 mN
+    with their measurements (the bench's inside points drawn between, as it does)."""
+    rng = np.random.default_rng(seed)
     c, mu = draw(rng, 110)
     rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(mu.size)]
     model = calibrate(rows, ["mu_pivot"], make_plots=False).model
     draw(rng, 200)  # the bench's inside points
     far, measured = draw(rng, 200, 0.5e-3)
+    return model, far, measured
+
+
+def coverage(model: CalibratedModel, points: dict, measured: np.ndarray) -> float:
+    """The share of the measurements inside the model's 95 % interval at the points."""
+    p = model.predict(points)
+    return float(np.mean((p.mu_lower <= measured) & (measured <= p.mu_upper)))
+
+
+def test_a_bend_a_generic_term_took_up_inside_the_data_is_covered_beyond_them():
+    # Seed 10, not one of the bench's: the search takes up the bend at 2-3 mN with a quadratic in load, the
+    # residuals are flat to the end, and the rule with the residuals' trend alone covered 0.55 at 0.5 mN
+    # (log half-width 0.295; with the term's slope 0.439, coverage 1).
+    model, far, measured = calibrated_with_far(10)
     assert [t.generic for t, _ in model.terms if "load_N" in t.drivers] == [True]
     slopes = term_trends(model)["load_N"]
     assert slopes[4] > 0.05  # log mu per e-fold of load below 2 mN
     residuals_only = replace(model, edge_trends={k: [a - b for a, b in zip(v, term_trends(model).get(
         k, [0.0] * 4), strict=True)] for k, v in model.edge_trends.items()})
-
-    def coverage(m: CalibratedModel) -> float:
-        p = m.predict(far)
-        return float(np.mean((p.mu_lower <= measured) & (measured <= p.mu_upper)))
-
-    assert coverage(model) >= 0.9
-    assert coverage(residuals_only) < 0.8
+    assert coverage(model, far, measured) >= 0.9
+    assert coverage(residuals_only, far, measured) < 0.8
 
 
 def test_the_band_is_measured_from_where_the_term_s_form_goes_and_its_box_bound_stays_exact():
@@ -160,20 +168,10 @@ def test_a_quadratic_s_tangent_flattening_below_the_data_is_covered_at_half_a_mi
     # linear in load, flattens in load's log while the truth exp(-load / 1 mN) steepens. With the fitted
     # values' share no longer multiplied by the allowance, the slope read as a line (rates 0) covered 0.60 at
     # 0.5 mN; the band measured from where the form goes covers 0.96.
-    rng = np.random.default_rng(102)
-    c, mu = draw(rng, 110)
-    rows = [{k: float(v[i]) for k, v in c.items()} | {"mu_measured": float(mu[i])} for i in range(mu.size)]
-    model = calibrate(rows, ["mu_pivot"], make_plots=False).model
-    draw(rng, 200)  # the bench's inside points
-    far, measured = draw(rng, 200, 0.5e-3)
+    model, far, measured = calibrated_with_far(102)
     assert [t.generic for t, _ in model.terms if "load_N" in t.drivers] == [True]
     trends = model.edge_trends["load_N"]
     assert trends[5] == pytest.approx(-1.0, abs=1e-3)  # the tangent's rate below the data, in load's log
     line = replace(model, edge_trends={**model.edge_trends, "load_N": [*trends[:5], 0.0, trends[6], 0.0]})
-
-    def coverage(m: CalibratedModel) -> float:
-        p = m.predict(far)
-        return float(np.mean((p.mu_lower <= measured) & (measured <= p.mu_upper)))
-
-    assert coverage(model) >= 0.9
-    assert coverage(line) < 0.8
+    assert coverage(model, far, measured) >= 0.9
+    assert coverage(line, far, measured) < 0.8
