@@ -40,7 +40,7 @@ from .fit import Z95, fit
 from .model import CalibratedModel
 from .plan_plot import plan_png
 from .reported import ReportedWidth, ShapeHedge, columns_after, impossible_over
-from .shape_hedges import shape_widths
+from .shape_hedges import curvature_widths, shape_widths
 from .spaces import MAX_CANDIDATES, candidate_points, check_space, read_space, space_points
 
 __all__ = [
@@ -452,8 +452,8 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             entry["mean_half_width_now"] = {"mean": float(mean_before.mean()),
                                             "max": float(mean_before.max())}
         if reported:  # the interval as the service reports it, widened off the data
-            # after the runs: the interval of the model the data favour (the least scatter, held out) among
-            # the calibrated one and the hedged rivals, enveloping the others refitted to runs that follow it
+            # after the runs: the interval of the model that is true among the calibrated one and the hedged
+            # rivals, enveloping the others refitted to runs that follow it while they stay rivals
             shapes = [r for r in reported[1:] if isinstance(r, ShapeHedge)]  # hedged whatever the runs show
             pool = [reported[0], *(r.held_out_scaled(held_out_scale) for r in reported[1:]
                                    if not isinstance(r, ShapeHedge))]
@@ -461,14 +461,20 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             # run on to ten times its cycles takes mu_pivot below zero)
             taken = columns_after(data, response.points(chosen))
             pool = [r for r in pool if not impossible_over(r.model, taken)] or pool
-            own = {t.label for t, _ in response.model.terms}  # a generic rival is never favoured (preferred)
-            named = [r for r in pool if not _generic_rival([t for t, _ in r.model.terms], own)]
-            favoured = min(named or pool, key=lambda r: r.scatter_level)
-            after = favoured.after(design.counts, [*(r for r in pool if r is not favoured), *shapes])
+            # the data taken cannot tell the pool's models apart: each in turn is true (equal weights, as
+            # the search's), its interval reported with the others' its runs leave rivals
+            afters = [truth.after(design.counts, [*(r for r in pool if r is not truth), *shapes])
+                      for truth in pool]
+            after = np.max(afters, axis=0)
             now = reported[0].now()  # relative: a fraction of μ (a rise the runs find is no width)
+            # relative: the widest case's own (its half-width over its μ), not the widest half-width over
+            # the lowest μ of another case
+            widest = np.argmax(afters, axis=0)
+            own = np.array(afters) / np.array([t.mu for t in pool])
+            relative = np.take_along_axis(own, widest[None], axis=0)[0]
             for key, values in (("reported_half_width_now", now), ("reported_half_width_after", after),
                                 ("reported_relative_half_width_now", now / reported[0].mu),
-                                ("reported_relative_half_width_after", after / favoured.mu)):
+                                ("reported_relative_half_width_after", relative)):
                 entry[key] = {"mean": float(np.mean(values)), "max": float(np.max(values))}
         out["envelope"] = entry
     if rivals:
@@ -626,8 +632,10 @@ def _propose(response: CalibratedResponse, request: ExperimentRequest, rivals, d
             hedges += shape_widths(response, data, envelope, candidates, planned_columns)
     exchange = None
     if reported is not None and goal == "predict":
+        bends = curvature_widths(response, data, envelope, candidates, planned_columns)  # search only
+
         def exchange(start: np.ndarray) -> np.ndarray:
-            return reported.search(start, hedges)
+            return reported.search(start, [*hedges, *bends])
     design = plan(response, candidates, runs, goal, envelope=envelope, rivals=rival_responses,
                   planned=planned_columns, exchange=exchange)
     report(0.8)

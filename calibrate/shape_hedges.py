@@ -33,7 +33,8 @@ from .candidates import EffectTerm
 from .model import CalibratedModel
 from .reported import ShapeHedge
 
-__all__ = ["SHAPE_VALUES", "off_data_inputs", "shape_hedges", "shape_widths"]
+__all__ = ["SHAPE_VALUES", "curvature_hedges", "curvature_widths", "off_data_drivers", "off_data_inputs",
+           "shape_hedges", "shape_widths"]
 
 #: Values of a law's shape parameter hedged, evenly (geometrically for a positive range) over its range. [1]
 SHAPE_VALUES = 5
@@ -42,9 +43,15 @@ SHAPE_VALUES = 5
 def off_data_inputs(model: CalibratedModel, envelope: Mapping[str, np.ndarray]) -> dict[str, tuple]:
     """The physics inputs the envelope takes beyond the data's range (the model's domain), each with the
     span of the data and the envelope together, in the input's unit."""
+    return {k: v for k, v in off_data_drivers(model, envelope).items() if k in physics.PARAMETERS}
+
+
+def off_data_drivers(model: CalibratedModel, envelope: Mapping[str, np.ndarray]) -> dict[str, tuple]:
+    """The columns (physics inputs and conditions) the envelope takes beyond the data's range (the model's
+    domain), each with the span of the data and the envelope together, in the column's unit."""
     out = {}
     for name, (lo, hi) in (model.domain or {}).items():
-        if name not in physics.PARAMETERS or name not in envelope:
+        if name not in envelope:
             continue
         values = np.asarray(envelope[name], dtype=float)
         if values.size and (values.min() < lo or values.max() > hi):
@@ -158,3 +165,56 @@ def shape_widths(response: Any, data: Mapping[str, np.ndarray] | None, envelope:
     the candidates and the envelope, for the run search and the promise of ``predict``."""
     return [ShapeHedge(type(response)(m, response.fixed), candidates, envelope, planned)
             for _, m in shape_hedges(response, data, envelope)]
+
+
+#: The generic law a ``predict`` search hedges on a column its envelope extrapolates. [1]
+CURVATURE_LAW = "generic_quadratic"
+#: The prior standard deviation of its coefficients, in log μ per unit of the span's standardized column:
+#: weak (a bend of up to a factor e over the span), so that the data and the runs pin it, not the prior. [1]
+CURVATURE_PRIOR_SD = 1.0
+
+
+def curvature_hedges(response: Any, data: Mapping[str, np.ndarray] | None,
+                     envelope: Mapping[str, np.ndarray]) -> list[tuple[str, CalibratedModel]]:
+    """The calibrated model with a potential curvature added in each column (a physics input or a
+    condition) the envelope extrapolates (DuMouchel and Jones 1994, *A simple Bayesian modification of
+    D-optimal designs to reduce dependence on an assumed model*): a :data:`CURVATURE_LAW` over the
+    envelope's span of the column, continued along its tangent towards the data, its coefficients zero with
+    a weak prior (:data:`CURVATURE_PRIOR_SD`), its covariance the data's information with that prior [1]:
+    the width a recalibration reports if it keeps a generic bend where the model is used.
+
+    Runs that pin the model's own parameters, or refute its rivals, may all sit at one value of the column
+    (a run-in's steady level at the envelope's far end; a power law in load at the largest load); a law
+    the catalogue lacks, or a generic one a recalibration adds, then bends freely between those runs and
+    the data (bench/plans_promise.py: cycles lab 0, 16 runs at 50000 cycles, the recalibration kept a
+    generic quadratic and reported 3.3x the promised half-width; load lab 1, 16 runs at 30 mN, 1.6x main's
+    half-width). The search reads these widths beside the model's so that its runs pin a bend too; the
+    promise does not (a recalibration adds no term the runs do not show)."""
+    model = response.model
+    drivers = off_data_drivers(model, envelope)
+    if data is None or not drivers:
+        return []
+    columns = response.points({k: np.asarray(v) for k, v in data.items()})
+    effect = EFFECTS[CURVATURE_LAW]
+    out = []
+    for name in drivers:
+        if name not in columns:
+            continue
+        span = np.array([np.min(envelope[name]), np.max(envelope[name])], dtype=float)
+        term = EffectTerm(effect.name, (name,), effect.constants({name: span}, (name,)))
+        values = [0.0] * len(effect.parameters)
+        spread = np.full(len(values), CURVATURE_PRIOR_SD)
+        hedged = _with_information(response, replace(model, terms=[*model.terms, (term, values)], rivals=[]),
+                                   columns, spread)
+        if hedged is not None:
+            out.append((f"{term.label} over {span[0]:.3g}-{span[1]:.3g}", hedged))
+    return out
+
+
+def curvature_widths(response: Any, data: Mapping[str, np.ndarray] | None, envelope: Mapping[str, np.ndarray],
+                     candidates: Mapping[str, np.ndarray], planned: Mapping[str, np.ndarray] | None
+                     ) -> list[ShapeHedge]:
+    """The reported widths of :func:`curvature_hedges`' models over the candidates and the envelope, for
+    the run search of ``predict`` (not its promise)."""
+    return [ShapeHedge(type(response)(m, response.fixed), candidates, envelope, planned)
+            for _, m in curvature_hedges(response, data, envelope)]

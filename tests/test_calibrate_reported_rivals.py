@@ -27,7 +27,12 @@ from microbearing.calibrate.experiments import (
     space_points,
 )
 from microbearing.calibrate.fit import fit
-from microbearing.calibrate.reported import ReportedWidth, envelope_half_width
+from microbearing.calibrate.reported import (
+    ReportedWidth,
+    envelope_half_width,
+    expected_envelope_half_width,
+    survival,
+)
 from microbearing.calibrate.rivals import RIVAL_SE
 
 
@@ -42,6 +47,7 @@ def stand_in(b, prior, log_mu_candidates, sigma, c, log_mu_envelope) -> Reported
     w.mu = np.exp(np.asarray(log_mu_envelope, dtype=float))
     p = w.b.shape[1]
     w.planned_b, w.planned_sigma, w.planned_log_mu = np.zeros((0, p)), np.zeros(0), np.zeros(0)
+    w.taken_information = w.prior  # no planned runs: the prior is the data taken's
     return w
 
 
@@ -73,16 +79,72 @@ def test_a_rival_refitted_to_runs_follows_the_gauss_newton_step_by_hand():
     counts = np.array([k, 0])
     step = k * b * y / (P + k * b * b)
     assert rival.centre_after(reference, counts)[0] == pytest.approx(np.log(0.02) + c * step, rel=1e-12)
-    # the misfit left at the runs and the prior's share of the move
+    # the misfit left at the runs, and what the move costs on the rows taken: P step^2 (variance 4 P step^2)
     left = y - b * step
+    paid = P * step**2
     assert rival.gap_z(reference, counts) == pytest.approx(
-        k * left**2 / math.sqrt(k * (4 * left**2 + left**4)), rel=1e-12)
+        (k * left**2 + paid) / math.sqrt(k * (4 * left**2 + left**4) + 4 * paid), rel=1e-12)
+    # here the refit closes 2.38 of the 2.5 units at the runs (b step), and the rows taken pay for it
+    assert paid > k * left**2
     # one more run at each candidate, by the rank-one update, equals the step done again with that run
     each = rival.centre_each(reference, counts)
     for j in range(2):
         more = counts.copy()
         more[j] += 1
         assert each[0, j] == pytest.approx(rival.centre_after(reference, more)[0], rel=1e-12)
+
+
+def test_a_rival_is_kept_with_the_probability_its_z_stays_within_the_threshold():
+    # z moves by about one with the runs' scatter: at z = RIVAL_SE it is a coin toss, at z = 0 it is kept
+    # but for the 2.3 % of draws beyond two standard errors, at z = 4 it is kept 2.3 % of the time.
+    assert survival(RIVAL_SE) == pytest.approx(0.5)
+    assert survival(0.0) == pytest.approx(0.97725, abs=1e-5)
+    assert survival(4.0) == pytest.approx(0.02275, abs=1e-5)
+
+
+def test_the_expected_hull_weighs_every_subset_of_the_rivals_by_its_probability():
+    # The model's interval and two rivals', kept with 0.7 and 0.2: four outcomes, by hand.
+    model = (np.array([np.log(0.020)]), np.array([0.05]))
+    a = (np.array([np.log(0.024)]), np.array([0.06]))
+    b = (np.array([np.log(0.017)]), np.array([0.04]))
+
+    def hull(*pieces):
+        upper = max(math.exp(c[0] + h[0]) for c, h in pieces)
+        return (upper - min(math.exp(c[0] - h[0]) for c, h in pieces)) / 2
+
+    by_hand = (0.3 * 0.8 * hull(model) + 0.7 * 0.8 * hull(model, a) + 0.3 * 0.2 * hull(model, b)
+               + 0.7 * 0.2 * hull(model, a, b))
+    got = expected_envelope_half_width([model], [a, b], [0.7, 0.2])
+    assert got[0] == pytest.approx(by_hand, rel=1e-12)
+    # kept surely it is the hull; never, the model's own
+    assert expected_envelope_half_width([model], [a, b], [1.0, 1.0])[0] == pytest.approx(hull(model, a, b))
+    assert expected_envelope_half_width([model], [a, b], [0.0, 0.0])[0] == pytest.approx(hull(model))
+
+
+def test_the_search_averages_over_which_model_is_true_and_never_refutes_an_impossible_one():
+    # Two models, one envelope point, widths after the runs given (0.05 and 0.08 in log mu). A model
+    # impossible over the envelope (a parameter where the physics does not go) is never taken as true and
+    # counts in the hull whatever the runs show; a possible one is true half the time, and kept, when it
+    # is not, with the probability its z allows.
+    s = 0.05
+    ref = stand_in([[0.0], [0.0]], [[1.0]], [0.0, 0.0], [s, s], [[0.0]], [np.log(0.020)])
+    rival = stand_in([[8.0], [0.1]], [[40.0]], [0.1, 0.0], [s, s], [[0.5]], [np.log(0.024)])
+    for w, h in ((ref, 0.05), (rival, 0.08)):
+        w.after_fast_each = lambda counts, h=h: np.array([h])
+        w.possible = True
+    counts = np.array([3, 0])
+    centre = rival.centre_after(ref, counts)
+    hull = envelope_half_width([(np.log(ref.mu), np.array([0.05])), (centre, np.array([0.08]))])
+    rival.possible = False
+    assert ref.mean_after_fast(counts, [rival]) == pytest.approx(float(hull[0]), rel=1e-12)
+    rival.possible = True
+    kept, back = survival(rival.gap_z(ref, counts)), survival(ref.gap_z(rival, counts))
+    assert 0.0 < kept < 1.0
+    as_ref = (1 - kept) * 0.020 * math.sinh(0.05) + kept * hull[0]
+    other = envelope_half_width([(np.log(rival.mu), np.array([0.08])),
+                                 (ref.centre_after(rival, counts), np.array([0.05]))])
+    as_rival = (1 - back) * 0.024 * math.sinh(0.08) + back * other[0]
+    assert ref.mean_after_fast(counts, [rival]) == pytest.approx((as_ref + as_rival) / 2, rel=1e-12)
 
 
 def test_the_hull_is_the_envelope_of_the_intervals():
@@ -130,6 +192,22 @@ def test_one_run_more_at_each_candidate_is_the_long_way_round(kelvin):
         np.testing.assert_allclose(each[:, j], rival.centre_after(model, more), rtol=1e-9, atol=1e-12)
 
 
+def test_one_run_more_at_each_candidate_leaves_the_z_the_long_way_round(kelvin):
+    _, report, rivals = kelvin
+    candidates = candidate_points(SPACE, 0)
+    envelope = space_points(ENVELOPE, 32, 0, sobol_points=16)
+    model = ReportedWidth(CalibratedResponse(report.model, {}), candidates, envelope)
+    rival = ReportedWidth(CalibratedResponse(rivals[0][1], {}), candidates, envelope)
+    counts = np.zeros(model.b.shape[0])
+    counts[[3, 10, 10, 40]] += 1
+    each = rival.gap_z_each(model, counts)
+    assert each.shape == counts.shape
+    for j in (0, 3, 25, counts.size - 1):
+        more = counts.copy()
+        more[j] += 1
+        assert each[j] == pytest.approx(rival.gap_z(model, more), rel=1e-7)
+
+
 def test_the_linearized_refit_moves_the_rival_as_a_real_refit_does(kelvin):
     # Runs at 80 % RH measured where the model predicts (no noise): the rival, refitted by least squares on
     # the data plus those runs, moves its envelope prediction towards the model's; the one-step
@@ -158,6 +236,14 @@ def test_the_linearized_refit_moves_the_rival_as_a_real_refit_does(kelvin):
     assert np.abs(real).max() > 1e-3, label  # the runs do move the rival
     assert np.all(np.sign(predicted) == np.sign(real))
     np.testing.assert_allclose(predicted, real, rtol=0.15)
+    # and what the move costs the rival on the 80 rows it was fitted to, in its scatter squared: the
+    # linearized s' F s against the real refit's sum of squared log residuals there (96 against 88 here)
+    columns = CalibratedResponse(moved, {}).points(dataset.columns())
+    before = np.log(np.ravel(rival_model(columns)) / dataset.mu_measured)
+    after = np.log(np.ravel(moved(columns)) / dataset.mu_measured)
+    paid = float(np.sum(after**2 - before**2)) / rival_model.noise_std_log**2
+    assert paid > 20.0  # many times the few units a run adds: the rows taken refute a bending rival
+    assert rival.cost_on_taken(model, np.ones(6)) == pytest.approx(paid, rel=0.25)
 
 
 def test_held_out_scale_is_the_model_s_held_out_over_its_in_sample_scatter(kelvin):
