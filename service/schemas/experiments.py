@@ -265,16 +265,17 @@ class EnvelopeFigures(ResponseModel):
         "the rivals (a calibrated model only)."))
     reported_half_width_after: HalfWidth | None = Field(default=None, description=(
         "The same expected after the runs [1], as a recalibration on the data plus the runs bounds it: the "
-        "data cloud and ranges rebuilt with the runs, fitted values and scatter unchanged, rivals settled; "
+        "data cloud and ranges rebuilt with the runs, fitted values and scatter unchanged, rivals settled "
+        "(the widest over which of the model and its rivals is true, each with the others its runs leave); "
         "with an envelope beyond the data in a physics input, the widest with each law the catalogue "
         "declares on that input added at a few values of its shape (a recalibration on the runs may add "
         "it)."))
     reported_relative_half_width_now: HalfWidth | None = Field(default=None, description=(
         "reported_half_width_now over the model's mu at each point, a fraction of mu [1]."))
     reported_relative_half_width_after: HalfWidth | None = Field(default=None, description=(
-        "reported_half_width_after over the favoured model's mu at each point, a fraction of mu [1]: what a "
-        "promise can keep when the runs find mu itself moved (a rise the data had not seen, 1.3-1.4x on a "
-        "Stribeck lab, widens the absolute half-width by as much)."))
+        "reported_half_width_after over the mu of the case that gives it at each point, a fraction of mu "
+        "[1]: what a promise can keep when the runs find mu itself moved (a rise the data had not seen, "
+        "1.3-1.4x on a Stribeck lab, widens the absolute half-width by as much)."))
 
 
 class RivalFigures(ResponseModel):
