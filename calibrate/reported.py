@@ -50,7 +50,7 @@ from .model import CalibratedModel
 from .rivals import RIVAL_SE
 
 __all__ = ["ReportedWidth", "ShapeHedge", "columns_after", "envelope_half_width",
-           "expected_envelope_half_width", "impossible_over", "survival"]
+           "expected_envelope_half_width", "impossible_over", "promised_cases", "survival"]
 
 # Exchange passes of the search after its greedy construction at most. [1]
 _PASSES = 2
@@ -88,6 +88,16 @@ def expected_envelope_half_width(always: Sequence[tuple[np.ndarray, np.ndarray]]
                 up, low = np.maximum(up, np.exp(c + h)), np.minimum(low, np.exp(c - h))
         total = total + weight * 0.5 * (up - low)
     return total
+
+
+def promised_cases(pool: Sequence[ReportedWidth], own: set[str]) -> list[ReportedWidth]:
+    """The pool's models the promise of ``predict`` takes in turn as true [1]: all but a generic rival (one
+    with a generic term the calibrated model, whose term labels are ``own``, lacks), which a recalibration
+    never prefers; it stays a rival in the others' cases (bench/plans_promise.py, load labs 1 and 8: a
+    generic linear rival of a power law in load taken as true promised 1.7x what the recalibration
+    reported). The whole pool when nothing else is left."""
+    cases = [r for r in pool if not any(t.generic for t, _ in r.model.terms if t.label not in own)]
+    return cases or list(pool)
 
 
 def columns_after(data: Mapping[str, np.ndarray] | None, runs: Mapping[str, Any]) -> dict[str, np.ndarray]:

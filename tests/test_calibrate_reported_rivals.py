@@ -31,6 +31,7 @@ from microbearing.calibrate.reported import (
     ReportedWidth,
     envelope_half_width,
     expected_envelope_half_width,
+    promised_cases,
     survival,
 )
 from microbearing.calibrate.rivals import RIVAL_SE
@@ -145,6 +146,26 @@ def test_the_search_averages_over_which_model_is_true_and_never_refutes_an_impos
                                  (ref.centre_after(rival, counts), np.array([0.05]))])
     as_rival = (1 - back) * 0.024 * math.sinh(0.08) + back * other[0]
     assert ref.mean_after_fast(counts, [rival]) == pytest.approx((as_ref + as_rival) / 2, rel=1e-12)
+
+
+def test_the_promise_never_takes_a_generic_rival_as_true_but_a_generic_model_stays():
+    from types import SimpleNamespace
+
+    def term(label, generic):
+        return SimpleNamespace(label=label, generic=generic)
+
+    def width(*terms):
+        return SimpleNamespace(model=SimpleNamespace(terms=[(t, [0.0]) for t in terms]))
+
+    power = term("generic_power on load_N", True)
+    model = width(power)  # the calibrated model's own generic term: a case
+    linear = width(term("generic_linear on load_N", True))  # a generic rival in its place: not a case
+    drag = width(term("viscous_drag on speed_m_s, load_N", False))  # a named rival: a case
+    both = width(power, term("generic_quadratic on relative_humidity", True))  # adds a generic term
+    own = {power.label}
+    assert promised_cases([model, linear, drag, both], own) == [model, drag]
+    # nothing but generic rivals left (a model impossible over the runs dropped before): the whole pool
+    assert promised_cases([linear, both], own) == [linear, both]
 
 
 def test_the_hull_is_the_envelope_of_the_intervals():
