@@ -400,7 +400,7 @@ class ReportedWidth:
         taken = self.taken_information
         if not more:
             d2 = np.concatenate([np.repeat(np.square(e), counts.astype(int)), np.square(e_planned)])
-            paid = self.cost_on_taken(reference, counts)
+            paid = float(step @ taken @ step)  # cost_on_taken, from the step already pulled
             spread = float(np.sqrt(np.sum(4.0 * d2 + np.square(d2)) + 4.0 * paid))
             return np.array([(float(np.sum(d2)) + paid) / spread if spread > 0 else 0.0])
         u = self.b @ inverse  # (n, p): the step's change per unit misfit of one more run there
@@ -423,10 +423,10 @@ class ReportedWidth:
         """The mean over the envelope of the expected half-width the service reports after the runs [1]
         (``each``: one value per candidate, after one more run there), averaged over which of this model
         and its refutable ``rivals`` is true (the data taken cannot tell them apart: equal weights; one that
-        takes a parameter where the physics does not go over the envelope is neither true nor kept). Under
-        each, that model's interval is reported, beside it those the runs cannot refute (the shape hedges
-        and the models impossible over the envelope, refitted to runs that follow the true one: a refit to
-        runs there may bring them back into range), and each other model's, refitted likewise, with the
+        takes a parameter where the physics does not go over the envelope is never true). Under each, that
+        model's interval is reported, beside it those the runs cannot refute (the shape hedges and the
+        models impossible over the envelope, refitted to runs that follow the true one: a refit to runs
+        there may bring them back into range), and each other model's, refitted likewise, with the
         probability that the runs leave it a rival (:func:`survival` of its :meth:`gap_z`)."""
         refutable = [self, *(r for r in rivals if r.refutable)]
         models = [m for m in refutable if m.possible] or refutable
@@ -531,13 +531,13 @@ class ShapeHedge(ReportedWidth):
     law reports (the law's parameters pinned, or not, by where the runs are). Never refuted by runs that
     follow the reference: the law is hedged whatever they show."""
 
+    refutable = False
+
     def centre_each(self, reference: ReportedWidth, counts: np.ndarray) -> np.ndarray:
         return np.repeat(np.log(reference.mu)[:, None], self.b.shape[0], axis=1)
 
     def centre_after(self, reference: ReportedWidth, counts: np.ndarray) -> np.ndarray:
         return np.log(reference.mu)
-
-    refutable = False
 
     def gap_z(self, reference: ReportedWidth, counts: np.ndarray) -> float:
         return 0.0

@@ -163,8 +163,13 @@ def shape_widths(response: Any, data: Mapping[str, np.ndarray] | None, envelope:
                  ) -> list[ShapeHedge]:
     """The reported widths (:class:`calibrate.reported.ShapeHedge`) of :func:`shape_hedges`' models over
     the candidates and the envelope, for the run search and the promise of ``predict``."""
-    return [ShapeHedge(type(response)(m, response.fixed), candidates, envelope, planned)
-            for _, m in shape_hedges(response, data, envelope)]
+    return _widths(response, shape_hedges(response, data, envelope), candidates, envelope, planned)
+
+
+def _widths(response: Any, hedges: list[tuple[str, CalibratedModel]], candidates: Mapping[str, np.ndarray],
+            envelope: Mapping[str, np.ndarray], planned: Mapping[str, np.ndarray] | None) -> list[ShapeHedge]:
+    """The hedged models' reported widths over the candidates and the envelope, centred on the model."""
+    return [ShapeHedge(type(response)(m, response.fixed), candidates, envelope, planned) for _, m in hedges]
 
 
 #: The generic law a ``predict`` search hedges on a column its envelope extrapolates. [1]
@@ -216,5 +221,4 @@ def curvature_widths(response: Any, data: Mapping[str, np.ndarray] | None, envel
                      ) -> list[ShapeHedge]:
     """The reported widths of :func:`curvature_hedges`' models over the candidates and the envelope, for
     the run search of ``predict`` (not its promise)."""
-    return [ShapeHedge(type(response)(m, response.fixed), candidates, envelope, planned)
-            for _, m in curvature_hedges(response, data, envelope)]
+    return _widths(response, curvature_hedges(response, data, envelope), candidates, envelope, planned)

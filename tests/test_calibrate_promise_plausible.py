@@ -20,11 +20,13 @@ import pytest
 from microbearing import physics
 from microbearing.calibrate import calibrate, parse_rows
 from microbearing.calibrate.experiments import (
+    CalibratedResponse,
     ExperimentRequest,
     held_out_scale,
     next_experiments,
     rival_models,
 )
+from microbearing.calibrate.shape_hedges import curvature_hedges
 
 NOISE = 0.03
 SPACE = {"balls": {"low": 4, "high": 8}, "load_N": {"low": 3e-3, "high": 3e-2, "spacing": "log"},
@@ -53,6 +55,15 @@ def _first_data(seed: int):
     return dataset, report
 
 
+def _predict_plan(dataset, report):
+    """The 16 runs proposed for ``predict`` over the envelope, with the calibration's rivals."""
+    model = report.model
+    rivals = rival_models(report.to_dict(), dataset, model, near=True)
+    request = ExperimentRequest(SPACE, 16, "predict", envelope=ENVELOPE, seed=0)
+    return next_experiments(model, request, rivals=rivals, data=dataset.columns(),
+                            held_out_scale=held_out_scale(report.to_dict(), dataset, model))
+
+
 @pytest.fixture(scope="module")
 def running_in():
     return _first_data(103)  # a data set on which the linear drift is chosen
@@ -67,10 +78,7 @@ def test_the_promise_is_not_read_off_a_law_the_runs_take_out_of_its_physical_ran
           "cycles": np.full(64, 35000.0)}
     true_mu = float(np.mean(truth(at)))
     assert float(np.mean(model.predict(at).mu)) < 0.2 * true_mu  # the drift run on below zero
-    rivals = rival_models(report.to_dict(), dataset, model, near=True)
-    request = ExperimentRequest(SPACE, 16, "predict", envelope=ENVELOPE, seed=0)
-    plan = next_experiments(model, request, rivals=rivals, data=dataset.columns(),
-                            held_out_scale=held_out_scale(report.to_dict(), dataset, model))
+    plan = _predict_plan(dataset, report)
     # the runs at the envelope (a run between it and the data pins a bend there: the search hedges one),
     # not where the drift run on below zero would call them (8000-11000 cycles, with it taken as true)
     cycles = np.array([run["conditions"]["cycles"] for run in plan.runs])
@@ -88,12 +96,7 @@ def test_the_runs_for_predict_pin_a_bend_between_the_data_and_the_envelope():
     16 runs at 50000 cycles, a quadratic kept at z 1.9, 3.3x the promised half-width). The search hedges a
     potential bend (DuMouchel and Jones): its runs take more than one number of cycles. On this data set
     the search without the hedge put all 16 runs at 50000 cycles."""
-    dataset, report = _first_data(5)
-    model = report.model
-    rivals = rival_models(report.to_dict(), dataset, model, near=True)
-    request = ExperimentRequest(SPACE, 16, "predict", envelope=ENVELOPE, seed=0)
-    plan = next_experiments(model, request, rivals=rivals, data=dataset.columns(),
-                            held_out_scale=held_out_scale(report.to_dict(), dataset, model))
+    plan = _predict_plan(*_first_data(5))
     cycles = sorted({round(run["conditions"]["cycles"]) for run in plan.runs})
     assert len(cycles) >= 2, cycles
     assert cycles[0] < 45000.0, cycles  # not only the envelope's far end
@@ -103,9 +106,6 @@ def test_a_potential_bend_is_pinned_by_runs_spread_over_the_column_not_by_runs_a
     """The curvature hedge's interval over the envelope: runs at one number of cycles leave the bend
     free (its two coefficients and the model's level meet one level and the data's, 20000 cycles and
     more away); the same number of runs over three values pins it."""
-    from microbearing.calibrate.experiments import CalibratedResponse
-    from microbearing.calibrate.shape_hedges import curvature_hedges
-
     dataset, report = running_in
     response = CalibratedResponse(report.model, {})
     envelope = {"balls": np.full(31, 6.0), "load_N": np.full(31, 1e-2), "speed_m_s": np.full(31, 0.05),
