@@ -82,12 +82,33 @@ class GPCorrection:
         self._y_mean = float(np.ravel(self.gp._y_train_mean)[0])
         self._y_std = float(np.ravel(self.gp._y_train_std)[0])
 
+    def _scaled(self, columns: Mapping[str, Any], shape: tuple[int, ...]) -> np.ndarray:
+        """The scaled feature rows the regressor reads at columnar points (one per entry of ``shape``)."""
+        if not self.features:
+            return np.zeros((int(np.prod(shape)), 1))
+        features = zip(self.features, self.centre, self.scale, strict=True)
+        return np.column_stack([((np.broadcast_to(np.asarray(columns[f], float), shape) - c) / s).ravel()
+                                for f, c, s in features])
+
+    @property
+    def noise_variance(self) -> float:
+        """The variance of one measurement's white noise about the discrepancy, of log μ [1]."""
+        return self.noise * self._y_std**2
+
+    def covariance(self, a: Mapping[str, Any], shape_a: tuple[int, ...], b: Mapping[str, Any],
+                   shape_b: tuple[int, ...]) -> np.ndarray:
+        """The latent posterior covariance of the discrepancy of log μ between the points of ``a`` (rows)
+        and of ``b`` (columns) given the stored data [1] (Rasmussen & Williams eq. 2.24: k(a, b) -
+        k(a, X) K⁻¹ k(X, b)): what runs at ``b`` tell of it at ``a``."""
+        gp = self.gp
+        xa, xb = self._scaled(a, shape_a), self._scaled(b, shape_b)
+        va = solve_triangular(gp.L_, gp.kernel_(xa, gp.X_train_).T, lower=True, check_finite=False)
+        vb = solve_triangular(gp.L_, gp.kernel_(xb, gp.X_train_).T, lower=True, check_finite=False)
+        return (gp.kernel_(xa, xb) - va.T @ vb) * self._y_std**2
+
     def __call__(self, columns: Mapping[str, Any], shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Mean and latent variance of the discrepancy of log μ at columnar points [1], shaped ``shape``."""
-        x = np.column_stack([((np.broadcast_to(np.asarray(columns[f], dtype=float), shape) - c) / s).ravel()
-                             for f, c, s in zip(self.features, self.centre, self.scale, strict=True)]
-                            ) if self.features else np.zeros((int(np.prod(shape)), 1))
-        rows, inverse = _unique_rows(x)  # points sharing features: each row once
+        rows, inverse = _unique_rows(self._scaled(columns, shape))  # points sharing features: each row once
         mean, variance = self._predict(rows)
         return mean[inverse].reshape(shape), variance[inverse].reshape(shape)
 

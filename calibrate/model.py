@@ -263,8 +263,11 @@ class CalibratedModel:
         """Mean and variance of the GP discrepancy of log μ (zeros without one) [1]."""
         if self.discrepancy is None:
             return np.zeros(shape), np.zeros(shape)
-        columns = {**physics.defaults(), **self.fixed, **self.fitted, **points}
-        return self.discrepancy(columns, shape)
+        return self.discrepancy(self.discrepancy_columns(points), shape)
+
+    def discrepancy_columns(self, points: Mapping[str, Any]) -> dict[str, Any]:
+        """The columns the GP discrepancy reads at points: theirs over the fitted, fixed and default ones."""
+        return {**physics.defaults(), **self.fixed, **self.fitted, **points}
 
     def __call__(self, points: Mapping[str, Any]) -> np.ndarray:
         """μ at columnar points.
@@ -599,16 +602,14 @@ class CalibratedModel:
         (:meth:`GPCorrection.bound`); zeros without one."""
         if self.discrepancy is None:
             return np.zeros(shape), np.zeros(shape), np.zeros(shape)
-        columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
-        return self.discrepancy.bound(columns[0], columns[1], shape)
+        return self.discrepancy.bound(self.discrepancy_columns(low), self.discrepancy_columns(high), shape)
 
-    def discrepancy_least_variance(self, low: Mapping[str, Any], high: Mapping[str, Any],
-                                   shape) -> np.ndarray:
+    def discrepancy_least_variance(self, low: Mapping[str, Any], high: Mapping, shape) -> np.ndarray:
         """A lower bound of the GP discrepancy's latent variance over boxes of points (as
         :meth:`discrepancy_bound`) [1] (:meth:`GPCorrection.least_variance`); zeros without one."""
         if self.discrepancy is None:
             return np.zeros(shape)
-        columns = [{**physics.defaults(), **self.fixed, **self.fitted, **points} for points in (low, high)]
+        columns = [self.discrepancy_columns(points) for points in (low, high)]
         return self.discrepancy.least_variance(columns[0], columns[1], shape)
 
     def cloud_ratio_bound(self, low: Mapping[str, Any], high: Mapping[str, Any], shape,

@@ -11,6 +11,7 @@ one-run-more updates done the long way and against a real refit.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -148,6 +149,41 @@ def test_the_search_averages_over_which_model_is_true_and_never_refutes_an_impos
     assert ref.mean_after_fast(counts, [rival]) == pytest.approx((as_ref + as_rival) / 2, rel=1e-12)
 
 
+def scattered(*terms, scatter: float = 0.03, rows: int = 40, parameters: int = 2) -> ReportedWidth:
+    """A ReportedWidth holding only what the promise's choice of cases reads: the model's terms, its
+    scatter of log μ and the rows and parameters it was fitted with."""
+    from types import SimpleNamespace
+
+    w = object.__new__(ReportedWidth)
+    w.model = SimpleNamespace(terms=[(t, [0.0]) for t in terms], noise_std_log=scatter, domain_rows=rows)
+    w.c = np.zeros((1, parameters))
+    w.scatter_scale = 1.0
+    return w
+
+
+def test_the_promise_never_takes_as_true_a_model_whose_scatter_the_data_refute():
+    # 40 rows each; the model without a term (2 parameters) scatters 0.030, one with a humidity term (3)
+    # 0.020, another (3) 0.025. log s has variance about 1 / (2 (n - p)): the first lies
+    # ln(1.5) / sqrt(0.5/38 + 0.5/37) = 0.405465 / 0.163314 = 2.483 standard errors above the best, beyond
+    # RIVAL_SE (2): refuted; the third ln(1.25) / sqrt(0.5/37 + 0.5/37) = 0.223144 / 0.164399 = 1.357: kept.
+    from types import SimpleNamespace
+
+    none = scattered(scatter=0.030)
+    humid = scattered(SimpleNamespace(label="humidity", generic=False), scatter=0.020, parameters=3)
+    other = scattered(SimpleNamespace(label="run_in", generic=False), scatter=0.025, parameters=3)
+    assert none.scatter_z(humid) == pytest.approx(2.483, abs=1e-3)
+    assert other.scatter_z(humid) == pytest.approx(1.357, abs=1e-3)
+    assert humid.scatter_z(none) == pytest.approx(-2.483, abs=1e-3)
+    assert promised_cases([none, humid, other], set()) == [humid, other]
+    # on 12 rows the same ratio is within the noise: ln(1.5) / sqrt(0.5/10 + 0.5/9) = 1.248, kept
+    few = [scattered(scatter=0.030, rows=12), scattered(scatter=0.020, rows=12, parameters=3)]
+    assert few[0].scatter_z(few[1]) == pytest.approx(1.248, abs=1e-3)
+    assert promised_cases(few, set()) == few
+    # a model that does not say on how many rows it was fitted is never refuted by its scatter
+    unknown = scattered(scatter=0.030, rows=None)
+    assert promised_cases([unknown, humid], set()) == [unknown, humid]
+
+
 def test_the_promise_never_takes_a_generic_rival_as_true_but_a_generic_model_stays():
     from types import SimpleNamespace
 
@@ -155,7 +191,7 @@ def test_the_promise_never_takes_a_generic_rival_as_true_but_a_generic_model_sta
         return SimpleNamespace(label=label, generic=generic)
 
     def width(*terms):
-        return SimpleNamespace(model=SimpleNamespace(terms=[(t, [0.0]) for t in terms]))
+        return scattered(*terms)
 
     power = term("generic_power on load_N", True)
     model = width(power)  # the calibrated model's own generic term: a case
@@ -307,3 +343,67 @@ def test_the_promise_reads_the_rivals_scatter_held_out_and_the_runs_stay(kelvin)
     np.testing.assert_allclose(wider.other - wider.discrepancy,
                                1.69 * (hedges[0].other - hedges[0].discrepancy))
     assert hedges[0].scatter_scale == 1.0  # the search's own is left as it was
+
+
+def test_runs_shrink_the_discrepancy_as_its_gp_conditioned_on_them_the_long_way():
+    # A model with a GP discrepancy over humidity and temperature. After runs at some candidates the
+    # promise's interval at each envelope point is the GP's latent variance given the stored rows *and*
+    # the runs (hyperparameters kept), on top of what a model without the GP has: checked against the
+    # kernel matrix of all rows inverted the long way, and one run more at each candidate likewise.
+    from microbearing.calibrate.candidates import EffectTerm
+    from microbearing.calibrate.model import CalibratedModel, GPCorrection
+
+    rng = np.random.default_rng(11)
+    x = rng.normal(size=(25, 2))
+    y = 0.05 * np.sin(1.5 * x[:, 0]) + 0.02 * x[:, 1]
+    centre, scale, length, amplitude, noise = np.array([40.0, 0.5]), np.array([10.0, 0.1]), 0.8, 0.004, 0.05
+    gp = GPCorrection({"features": ["temperature_C", "relative_humidity"], "centre": centre.tolist(),
+                       "scale": scale.tolist(), "length_scale": [length, length], "amplitude": amplitude,
+                       "noise": noise, "x": x.tolist(), "y": y.tolist()})
+    base = CalibratedModel(
+        fitted={"mu_pivot": 0.6}, terms=[(EffectTerm("humidity_meniscus", ("relative_humidity",)), [2e-5])],
+        covariance=np.diag([1e-4, 1e-12]), noise_std_log=0.02,
+        domain={"load_N": [0.001, 0.05], "relative_humidity": [0.2, 0.8], "temperature_C": [15, 65],
+                "speed_m_s": [0.01, 0.1], "balls": [4, 8]},
+        conditions=["relative_humidity", "temperature_C"])
+    with_gp = replace(base, discrepancy=gp)
+    point = {"balls": 6.0, "load_N": 0.01, "speed_m_s": 0.05}
+    candidates = {**{k: np.full(6, v) for k, v in point.items()},
+                  "temperature_C": np.array([25.0, 35.0, 45.0, 55.0, 40.0, 30.0]),
+                  "relative_humidity": np.array([0.3, 0.45, 0.5, 0.6, 0.7, 0.55])}
+    envelope = {**{k: np.full(4, v) for k, v in point.items()},
+                "temperature_C": np.array([38.0, 42.0, 50.0, 28.0]),
+                "relative_humidity": np.array([0.5, 0.55, 0.65, 0.4])}
+    plain = ReportedWidth(CalibratedResponse(base, {}), candidates, envelope)
+    told = ReportedWidth(CalibratedResponse(with_gp, {}), candidates, envelope)
+
+    def kernel(a, b):
+        d = (a[:, None, :] - b[None, :, :]) / length
+        return amplitude * np.exp(-0.5 * np.sum(d * d, axis=2))
+
+    def scaled(points):
+        return np.column_stack([(points["temperature_C"] - centre[0]) / scale[0],
+                                (points["relative_humidity"] - centre[1]) / scale[1]])
+
+    def latent_after(counts):
+        taken = np.flatnonzero(counts)
+        rows = np.vstack([x, scaled(candidates)[taken]])
+        alpha = np.concatenate([np.full(len(x), noise), noise / counts[taken]])
+        k = kernel(scaled(envelope), rows)
+        solved = np.linalg.solve(kernel(rows, rows) + np.diag(alpha), k.T)
+        return np.std(y) ** 2 * (amplitude - np.sum(k * solved.T, axis=1))
+
+    z = plain.z
+    counts = np.array([0, 2, 1, 1, 0, 1])
+    shown = (told.after_fast_each(counts) / z) ** 2 - (plain.after_fast_each(counts) / z) ** 2
+    np.testing.assert_allclose(shown, latent_after(counts), rtol=1e-6)
+    # the runs told the GP something: less than its variance given the stored rows alone
+    assert np.all(latent_after(counts) < latent_after(np.zeros(6)) * 0.999)
+    np.testing.assert_allclose((told.after_fast_each(np.zeros(6)) / z) ** 2
+                               - (plain.after_fast_each(np.zeros(6)) / z) ** 2, latent_after(np.zeros(6)),
+                               rtol=1e-6)
+    each = (told.added_each(counts) / z) ** 2 - (plain.added_each(counts) / z) ** 2
+    for j in range(6):
+        more = counts.copy()
+        more[j] += 1
+        np.testing.assert_allclose(each[:, j], latent_after(more), rtol=1e-6)
