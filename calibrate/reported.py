@@ -350,13 +350,17 @@ class ReportedWidth:
         return float(np.log(levels[0] / levels[1]) / np.sqrt(sum(0.5 / d for d in dof)))
 
     # --------------------------------------------------------------------------------------------- fast
-    def _state(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    def _state(self, counts: np.ndarray, gp_drop: Any = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """The inverse information, the envelope's parameter variance and its sorted k nearest distances
-        to the rows taken and the chosen candidates."""
+        to the rows taken and the chosen candidates (``gp_drop``: :meth:`_gp_after`'s first item at
+        ``counts``, when the caller has it)."""
         information = self.prior + (self.b * counts[:, None]).T @ self.b
         inverse = np.linalg.pinv(information, hermitian=True)
+        if gp_drop is None:
+            gp_drop = self._gp_after(counts)[0]
         # the parameters' variance, less what the runs tell the GP discrepancy (its share of ``other``)
-        variance = np.einsum("ij,jk,ik->i", self.c, inverse, self.c) - self._gp_after(counts)[0]
+        variance = np.einsum("ij,jk,ik->i", self.c, inverse, self.c) - gp_drop
         near = None
         if self.fast is not None:
             chosen = np.flatnonzero(counts)
@@ -377,11 +381,11 @@ class ReportedWidth:
 
     def added_each(self, counts: np.ndarray) -> np.ndarray:
         """Log half-width at each envelope point (rows) after one more run at each candidate (columns) [1]."""
-        inverse, variance, near = self._state(counts)
+        gp_drop, between, among = self._gp_after(counts)  # once: the state's drop and the gain's terms
+        inverse, variance, near = self._state(counts, gp_drop)
         cm = self.c @ inverse  # (m, p)
         u = self.b @ inverse  # (n, p)
         gain = np.square(cm @ self.b.T) / (1.0 + np.sum(u * self.b, axis=1))[None, :]
-        _, between, among = self._gp_after(counts)
         if between is not None:  # and what one more run at a candidate tells the GP discrepancy
             gain = gain + np.square(between) / (among + self.gp_noise)[None, :]
         after = variance[:, None] - gain
