@@ -21,7 +21,9 @@ runs over the same space, and calibrates again on all rows. Over 200 envelope po
 
 * the mean half-width the service reports, (mu_upper - mu_lower) / 2 [1], after the proposed and after the
   random runs, and the proposal's ``reported_half_width_after`` (its promise) with the ratio of the two,
-  and the same ratio relative to mu (``reported_relative_half_width_after``, a fraction of mu);
+  and the same ratio relative to mu (``reported_relative_half_width_after``, a fraction of mu), and
+  whether the half-width after lies in the promise's span (``reported_half_width_after_span``: the
+  relative promise times today's interval of mu);
 * the truth error over the envelope, RMS of log(mu / mu_true);
 * the coverage of fresh measurements there.
 
@@ -258,6 +260,7 @@ def lab_run(client, lab: Lab, seed: int, runs: int, replicates: int = 1) -> dict
     out = {"first": judge(client, lab, first, points, np.random.default_rng(40_000 + seed)),
            "promise": proposal["envelope"]["reported_half_width_after"]["mean"],
            "promise_relative": proposal["envelope"]["reported_relative_half_width_after"]["mean"],
+           "span": proposal["envelope"]["reported_half_width_after_span"],
            "now": proposal["envelope"]["reported_half_width_now"]["mean"], "seconds": seconds,
            "support": proposal["support_points"]}
     for name, columns in (("proposed", columns_of(lab, proposal["runs"])),
@@ -294,7 +297,8 @@ def main(argv=None) -> None:
             records.append(r)
             print(f"{name} lab {seed}: first hw {r['first']['half_width']:.5f} | proposed ({r['support']} "
                   f"points, {r['seconds']:.0f} s) hw {r['proposed']['half_width']:.5f} (promised "
-                  f"{r['promise']:.5f}, ratio {r['proposed']['half_width'] / r['promise']:.2f}, relative "
+                  f"{r['promise']:.5f} in [{r['span']['low']:.5f}, {r['span']['high']:.5f}], ratio "
+                  f"{r['proposed']['half_width'] / r['promise']:.2f}, relative "
                   f"{r['proposed']['relative_half_width'] / r['promise_relative']:.2f}) err "
                   f"{r['proposed']['error']:.4f} cov {r['proposed']['coverage']:.2f} | random hw "
                   f"{r['random']['half_width']:.5f} err {r['random']['error']:.4f} cov "
@@ -307,13 +311,15 @@ def main(argv=None) -> None:
     ratio_err = np.array([r["proposed"]["error"] / r["random"]["error"] for r in records])
     promise = np.array([r["proposed"]["half_width"] / r["promise"] for r in records])
     relative = np.array([r["proposed"]["relative_half_width"] / r["promise_relative"] for r in records])
+    spanned = sum(r["span"]["low"] <= r["proposed"]["half_width"] <= r["span"]["high"] for r in records)
     print(f"\n{len(records)} labs, {args.runs} runs each: reported half-width proposed / random "
           f"{', '.join(f'{x:.2f}' for x in ratio_hw)} (geometric mean "
           f"{np.exp(np.mean(np.log(ratio_hw))):.2f}); "
           f"truth error proposed / random {', '.join(f'{x:.2f}' for x in ratio_err)} (geometric mean "
           f"{np.exp(np.mean(np.log(ratio_err))):.2f}); reported after / promised "
           f"{', '.join(f'{x:.2f}' for x in promise)}; relative (half-width / mu) "
-          f"{', '.join(f'{x:.2f}' for x in relative)}")
+          f"{', '.join(f'{x:.2f}' for x in relative)}; reported after inside the promise's span (mu's "
+          f"level now) on {spanned} of {len(records)}")
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ from .domain import outside_law_domains, outside_physical_ranges
 from .fit import Z95, fit
 from .model import CalibratedModel
 from .plan_plot import plan_png
-from .reported import ReportedWidth, ShapeHedge, columns_after, impossible_over, promised_cases
+from .reported import ReportedWidth, columns_after, promise
 from .shape_hedges import curvature_widths, shape_widths
 from .spaces import MAX_CANDIDATES, candidate_points, check_space, read_space, space_points
 
@@ -452,31 +452,9 @@ def _expected(goal: str, response: CalibratedResponse, design: Design, chosen, e
             entry["mean_half_width_now"] = {"mean": float(mean_before.mean()),
                                             "max": float(mean_before.max())}
         if reported:  # the interval as the service reports it, widened off the data
-            # after the runs: the interval of the model that is true among the calibrated one and the hedged
-            # rivals, enveloping the others refitted to runs that follow it while they stay rivals
-            shapes = [r for r in reported[1:] if isinstance(r, ShapeHedge)]  # hedged whatever the runs show
-            pool = [reported[0], *(r.held_out_scaled(held_out_scale) for r in reported[1:]
-                                   if not isinstance(r, ShapeHedge))]
-            # a law the runs would take where the physics does not go is not chosen nor kept (a linear drift
-            # run on to ten times its cycles takes mu_pivot below zero)
-            taken = columns_after(data, response.points(chosen))
-            pool = [r for r in pool if not impossible_over(r.model, taken)] or pool
-            # the data taken cannot tell the pool's models apart: each in turn is true (a generic rival
-            # aside), its interval reported with the others' its runs leave rivals
-            cases = promised_cases(pool, {t.label for t, _ in response.model.terms})
-            afters = [truth.after(design.counts, [*(r for r in pool if r is not truth), *shapes])
-                      for truth in cases]
-            after = np.max(afters, axis=0)
-            now = reported[0].now()  # relative: a fraction of μ (a rise the runs find is no width)
-            # relative: the widest case's own (its half-width over its μ), not the widest half-width over
-            # the lowest μ of another case
-            widest = np.argmax(afters, axis=0)
-            own = np.array(afters) / np.array([t.mu for t in cases])
-            relative = np.take_along_axis(own, widest[None], axis=0)[0]
-            for key, values in (("reported_half_width_now", now), ("reported_half_width_after", after),
-                                ("reported_relative_half_width_now", now / reported[0].mu),
-                                ("reported_relative_half_width_after", relative)):
-                entry[key] = {"mean": float(np.mean(values)), "max": float(np.max(values))}
+            entry.update(promise(reported, design.counts, held_out_scale,
+                                 columns_after(data, response.points(chosen)),
+                                 {t.label for t, _ in response.model.terms}))
         out["envelope"] = entry
     if rivals:
         full = response.points(chosen)

@@ -125,6 +125,29 @@ def test_predict_with_rivals_spreads_its_runs_where_they_part(humid):
     assert figures["reported_half_width_after"]["mean"] < figures["reported_half_width_now"]["mean"]
 
 
+def test_the_promise_in_mu_spans_where_mu_may_lie_now(humid):
+    # Off the data (80 % RH against 20-50 %) the runs may find mu moved, so the half-width after in mu's
+    # units is the relative promise times wherever mu turns out to lie: each end of its span is that
+    # fraction times the end of today's 95 % interval at the point, or a rival's mu beyond it (a law the
+    # data lean to), recomputed here from the models' own predictions.
+    dataset, report = humid
+    at = {"balls": 6.0, "load_N": 0.01, "speed_m_s": 0.05, "relative_humidity": 0.8}
+    rivals = rival_models(report.to_dict(), dataset, report.model)
+    figures = next_experiments(report.model, ExperimentRequest(SPACE, 8, "predict",
+                                                               envelope={k: [v] for k, v in at.items()}),
+                               rivals=rivals, data=dataset.columns()).to_dict()["envelope"]
+    now = report.model.predict(at)
+    relative = figures["reported_relative_half_width_after"]["mean"]
+    span = figures["reported_half_width_after_span"]
+    mus = [float(report.model(at)), *(float(rival(at)) for _, rival in rivals)]
+    low, high = min(float(now.mu_lower), *mus), max(float(now.mu_upper), *mus)
+    assert span["low"] / relative in [pytest.approx(m, rel=1e-9) for m in [low, *mus]]
+    assert span["low"] <= relative * low * (1 + 1e-9)
+    assert span["high"] / relative in [pytest.approx(m, rel=1e-9) for m in [high, *mus]]
+    assert span["high"] >= relative * float(now.mu_upper) * (1 - 1e-9)
+    assert span["low"] <= figures["reported_half_width_after"]["mean"] <= span["high"]
+
+
 def test_first_design_of_one_parameter_puts_every_run_where_it_moves_mu_most():
     # D-optimal for one parameter: all runs where |d log mu / d mu_pivot| is largest, checked by a
     # central difference of the physics at every candidate.

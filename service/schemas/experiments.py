@@ -249,6 +249,13 @@ class HalfWidth(ResponseModel):
     max: float = Field(description="Largest over the envelope's points [1].")
 
 
+class HalfWidthSpan(ResponseModel):
+    """Where a mean half-width over the envelope may fall, as far as μ's level is known now."""
+
+    low: float = Field(description="With μ at the lower end of today's 95 % interval at every point [1].")
+    high: float = Field(description="With μ at the upper end of today's 95 % interval at every point [1].")
+
+
 class EnvelopeFigures(ResponseModel):
     """The 95 % interval of mu over the envelope, now and expected after the runs."""
 
@@ -276,6 +283,11 @@ class EnvelopeFigures(ResponseModel):
         "reported_half_width_after over the mu of the case that gives it at each point, a fraction of mu "
         "[1]: what a promise can keep when the runs find mu itself moved (a rise the data had not seen, "
         "1.3-1.4x on a Stribeck lab, widens the absolute half-width by as much)."))
+    reported_half_width_after_span: HalfWidthSpan | None = Field(default=None, description=(
+        "Where the mean of reported_half_width_after may fall once the runs show where μ lies [1]: "
+        "reported_relative_half_width_after times the ends of the 95 % interval the service reports now "
+        "at each point, or of the μ of a law the data lean to beyond it (the cases the promise weighs). "
+        "Wide where the envelope lies off the data: the runs may find μ moved."))
 
 
 class RivalFigures(ResponseModel):
