@@ -650,8 +650,8 @@ def promise(reported: Sequence[ReportedWidth], counts: np.ndarray, held_out_scal
     now = 0.5 * (upper_now - lower_now)
     # relative, a fraction of μ (a rise the runs find is no width): the widest case's own (its half-width
     # over its μ), not the widest half-width over the lowest μ of another case
-    widest = np.argmax(afters, axis=0)
-    own_relative = np.array(afters) / np.array([t.mu for t in cases])
+    widest, mus = np.argmax(afters, axis=0), np.array([t.mu for t in cases])
+    own_relative = np.array(afters) / mus
     relative = np.take_along_axis(own_relative, widest[None], axis=0)[0]
     out = {key: {"mean": float(np.mean(values)), "max": float(np.max(values))}
            for key, values in (("reported_half_width_now", now),
@@ -661,7 +661,6 @@ def promise(reported: Sequence[ReportedWidth], counts: np.ndarray, held_out_scal
     # the half-width after in μ's units is the relative one times μ where the recalibration finds it:
     # anywhere in today's interval (off the data in a load or speed the runs reach, μ moved 1.4-1.6x) or at
     # a case's μ (a law the data lean to that the interval does not hold: Kelvin menisci at 70-85 % RH)
-    mus = np.array([t.mu for t in cases])
     out["reported_half_width_after_span"] = {
         "low": float(np.mean(relative * np.minimum(lower_now, mus.min(axis=0)))),
         "high": float(np.mean(relative * np.maximum(upper_now, mus.max(axis=0))))}
